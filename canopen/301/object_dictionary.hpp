@@ -1,0 +1,209 @@
+// The object dictionary (CiA 301 §7.4): every object a node exposes, with its data type,
+// access, PDO-mappability, limits, default and current value.
+//
+// Values are kept as their little-endian wire bytes (CiA 301 §7.1), so SDO and PDO copy them
+// without conversion. Objects and sub-objects live in std::map nodes: their addresses are stable,
+// so a PDO may keep a pointer to the bytes it maps.
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <cstring>
+#include <functional>
+#include <map>
+#include <optional>
+#include <span>
+#include <string>
+#include <type_traits>
+#include <variant>
+#include <vector>
+
+#include "canopen/types.hpp"
+
+namespace oegw::canopen {
+
+// CiA 301 §7.4.7.1, Table 44: static data types (the index of their DEFTYPE entry).
+enum class DataType : std::uint16_t {
+  Boolean = 0x0001,
+  Integer8 = 0x0002,
+  Integer16 = 0x0003,
+  Integer32 = 0x0004,
+  Unsigned8 = 0x0005,
+  Unsigned16 = 0x0006,
+  Unsigned32 = 0x0007,
+  Real32 = 0x0008,
+  VisibleString = 0x0009,
+  OctetString = 0x000A,
+  UnicodeString = 0x000B,
+  TimeOfDay = 0x000C,
+  TimeDifference = 0x000D,
+  Domain = 0x000F,
+  Integer24 = 0x0010,
+  Real64 = 0x0011,
+  Integer40 = 0x0012,
+  Integer48 = 0x0013,
+  Integer56 = 0x0014,
+  Integer64 = 0x0015,
+  Unsigned24 = 0x0016,
+  Unsigned40 = 0x0018,
+  Unsigned48 = 0x0019,
+  Unsigned56 = 0x001A,
+  Unsigned64 = 0x001B,
+};
+
+// Size in bytes of a fixed-size type; 0 for the variable-size ones (strings, DOMAIN).
+[[nodiscard]] std::size_t fixed_size(DataType t);
+[[nodiscard]] bool is_signed_integer(DataType t);
+[[nodiscard]] bool is_unsigned_integer(DataType t);  // includes BOOLEAN
+[[nodiscard]] bool is_real(DataType t);
+[[nodiscard]] std::string_view to_string(DataType t);  // "UNSIGNED32", as in EDS files (CiA 306)
+
+// CiA 301 §7.4.3 / CiA 306 AccessType. rwr/rww say in which PDO direction an rw object maps.
+enum class Access : std::uint8_t { ReadOnly, WriteOnly, ReadWrite, ReadWriteRead, ReadWriteWrite, Const };
+[[nodiscard]] std::string_view to_string(Access a);  // "ro", "wo", "rw", "rwr", "rww", "const"
+[[nodiscard]] bool readable(Access a);
+[[nodiscard]] bool writable(Access a);
+
+// CiA 301 §7.4.3, Table 42: object codes.
+enum class ObjectCode : std::uint8_t { Var = 7, Array = 8, Record = 9 };
+
+// Who is writing: an SDO client honours the access type; an RPDO needs a mappable, writable
+// entry; the application itself (Local) may update read-only objects such as its inputs.
+enum class Origin : std::uint8_t { Sdo, Pdo, Local };
+
+// A numeric limit, in the signedness of the object's type.
+using Scalar = std::variant<std::int64_t, std::uint64_t, double>;
+
+struct SubObject {
+  std::uint8_t sub_index = 0;
+  std::string name;
+  DataType type = DataType::Unsigned8;
+  Access access = Access::ReadOnly;
+  bool pdo_mappable = false;
+  std::vector<std::uint8_t> value;
+  std::vector<std::uint8_t> default_value;
+  std::optional<Scalar> low;   // inclusive
+  std::optional<Scalar> high;  // inclusive
+  std::size_t max_size = 256;  // accepted length of VISIBLE_STRING/OCTET_STRING/DOMAIN values
+
+  [[nodiscard]] std::size_t bit_length() const { return value.size() * 8; }
+};
+
+class Object;
+
+// Called before a write (from SDO, PDO or Local) commits. Return SdoAbortCode::None to accept,
+// or the abort code that refuses it; a refused write changes nothing.
+using WriteHook =
+    std::function<SdoAbortCode(Object& obj, std::uint8_t sub, std::span<const std::uint8_t> bytes, Origin origin)>;
+// Called after a write has committed.
+using ChangeObserver = std::function<void(std::uint16_t index, std::uint8_t sub, Origin origin)>;
+
+class Object {
+ public:
+  Object(std::uint16_t index, std::string name, ObjectCode code) : index_(index), name_(std::move(name)), code_(code) {}
+
+  [[nodiscard]] std::uint16_t index() const { return index_; }
+  [[nodiscard]] const std::string& name() const { return name_; }
+  [[nodiscard]] ObjectCode code() const { return code_; }
+
+  SubObject& add_sub(SubObject sub);
+  [[nodiscard]] SubObject* find(std::uint8_t sub);
+  [[nodiscard]] const SubObject* find(std::uint8_t sub) const;
+  [[nodiscard]] const std::map<std::uint8_t, SubObject>& subs() const { return subs_; }
+  [[nodiscard]] std::map<std::uint8_t, SubObject>& subs() { return subs_; }
+
+  // Several hooks may be installed; the first that refuses wins.
+  void add_write_hook(WriteHook hook) { hooks_.push_back(std::move(hook)); }
+  [[nodiscard]] SdoAbortCode run_hooks(std::uint8_t sub, std::span<const std::uint8_t> bytes, Origin origin);
+
+ private:
+  std::uint16_t index_;
+  std::string name_;
+  ObjectCode code_;
+  std::map<std::uint8_t, SubObject> subs_;
+  std::vector<WriteHook> hooks_;
+};
+
+// Encode/decode a C++ value to/from its CANopen little-endian bytes.
+template <class T>
+std::vector<std::uint8_t> encode(T v) {
+  static_assert(std::is_arithmetic_v<T>);
+  std::vector<std::uint8_t> out(sizeof(T));
+  std::memcpy(out.data(), &v, sizeof(T));  // x86/ARM Linux targets are little endian
+  return out;
+}
+// Bytes of `width` (1..8) taken from a value, e.g. an INTEGER24 from an int32.
+std::vector<std::uint8_t> encode_width(std::uint64_t v, std::size_t width);
+
+[[nodiscard]] std::uint64_t decode_unsigned(std::span<const std::uint8_t> bytes);
+[[nodiscard]] std::int64_t decode_signed(std::span<const std::uint8_t> bytes);  // sign-extends
+
+class ObjectDictionary {
+ public:
+  ObjectDictionary() = default;
+  ObjectDictionary(const ObjectDictionary&) = delete;
+  ObjectDictionary& operator=(const ObjectDictionary&) = delete;
+
+  // Builders. A VAR gets one sub-object (sub-index 0). An ARRAY gets sub-index 0 ("highest
+  // sub-index supported", UNSIGNED8, ro by default) and `count` elements 1..count.
+  Object& add_var(std::uint16_t index, std::string name, DataType type, Access access,
+                  std::vector<std::uint8_t> default_value, bool pdo_mappable = false);
+  Object& add_array(std::uint16_t index, std::string name, DataType type, Access access, std::uint8_t count,
+                    std::vector<std::uint8_t> default_value, bool pdo_mappable = false);
+  // A RECORD with only sub-index 0; add the members with Object::add_sub (sub-index 0 is kept
+  // equal to the highest sub-index by add_record_member).
+  Object& add_record(std::uint16_t index, std::string name);
+  SubObject& add_record_member(std::uint16_t index, std::uint8_t sub, std::string name, DataType type,
+                               Access access, std::vector<std::uint8_t> default_value, bool pdo_mappable = false);
+  // Removes an object (used when a profile object is conditional). Returns false if absent.
+  bool remove(std::uint16_t index);
+
+  [[nodiscard]] Object* find(std::uint16_t index);
+  [[nodiscard]] const Object* find(std::uint16_t index) const;
+  [[nodiscard]] SubObject* find(std::uint16_t index, std::uint8_t sub);
+  [[nodiscard]] const SubObject* find(std::uint16_t index, std::uint8_t sub) const;
+  [[nodiscard]] const std::map<std::uint16_t, Object>& objects() const { return objects_; }
+
+  // What an SDO upload/download, an RPDO or the application does. Checks existence, access for
+  // the origin, length for fixed-size types, limits, then the object's hooks; commits only when
+  // all accept, then notifies observers.
+  [[nodiscard]] SdoAbortCode read(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t>& out,
+                                  Origin origin = Origin::Sdo) const;
+  [[nodiscard]] SdoAbortCode write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> bytes,
+                                   Origin origin = Origin::Sdo);
+  // Checks an SDO/PDO access without transferring data (SDO initiate; PDO mapping).
+  [[nodiscard]] SdoAbortCode check_read(std::uint16_t index, std::uint8_t sub, Origin origin = Origin::Sdo) const;
+  [[nodiscard]] SdoAbortCode check_write(std::uint16_t index, std::uint8_t sub, Origin origin = Origin::Sdo) const;
+
+  // Typed convenience for fixed-size values. get() returns 0 for a missing entry.
+  template <class T>
+  [[nodiscard]] T get(std::uint16_t index, std::uint8_t sub) const {
+    const SubObject* s = find(index, sub);
+    T v{};
+    if (s != nullptr) std::memcpy(&v, s->value.data(), std::min(sizeof(T), s->value.size()));
+    return v;
+  }
+  template <class T>
+  SdoAbortCode set(std::uint16_t index, std::uint8_t sub, T v, Origin origin = Origin::Local) {
+    const SubObject* s = find(index, sub);
+    if (s == nullptr) return write(index, sub, {}, origin);  // reports the right "does not exist" code
+    if constexpr (std::is_floating_point_v<T>) {
+      return write(index, sub, encode(v), origin);
+    } else {
+      return write(index, sub, encode_width(static_cast<std::uint64_t>(v), s->value.size()), origin);
+    }
+  }
+
+  // Observers are told of every committed write, whatever its origin.
+  void add_observer(ChangeObserver obs) { observers_.push_back(std::move(obs)); }
+
+  // Sets every sub-object whose index is in [first, last] back to its default (1011h restore,
+  // NMT reset communication / reset application). Does not run hooks.
+  void reset_to_defaults(std::uint16_t first, std::uint16_t last);
+
+ private:
+  std::map<std::uint16_t, Object> objects_;
+  std::vector<ChangeObserver> observers_;
+};
+
+}  // namespace oegw::canopen

@@ -1,0 +1,96 @@
+#include "canopen/301/object_dictionary.hpp"
+
+#include <gtest/gtest.h>
+
+using namespace oegw::canopen;
+
+namespace {
+
+TEST(ObjectDictionary, ReportsMissingObjectAndSubIndexSeparately) {
+  ObjectDictionary od;
+  od.add_var(0x1017, "Producer heartbeat time", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(0));
+  std::vector<std::uint8_t> out;
+  EXPECT_EQ(od.read(0x1018, 0, out), SdoAbortCode::ObjectDoesNotExist);
+  EXPECT_EQ(od.read(0x1017, 1, out), SdoAbortCode::SubIndexDoesNotExist);
+  EXPECT_EQ(od.read(0x1017, 0, out), SdoAbortCode::None);
+  EXPECT_EQ(out, (std::vector<std::uint8_t>{0, 0}));
+}
+
+TEST(ObjectDictionary, EnforcesAccessPerOrigin) {
+  ObjectDictionary od;
+  od.add_var(0x1000, "Device type", DataType::Unsigned32, Access::Const, encode<std::uint32_t>(0x000F0191));
+  od.add_var(0x2000, "Secret", DataType::Unsigned8, Access::WriteOnly, {0});
+  const std::uint8_t four[4] = {1, 2, 3, 4};
+  EXPECT_EQ(od.write(0x1000, 0, four), SdoAbortCode::WriteOfReadOnly);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1000, 0), 0x000F0191u);
+  std::vector<std::uint8_t> out;
+  EXPECT_EQ(od.read(0x2000, 0, out), SdoAbortCode::ReadOfWriteOnly);
+  EXPECT_EQ(od.write(0x1000, 0, four, Origin::Local), SdoAbortCode::None);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1000, 0), 0x04030201u);
+}
+
+TEST(ObjectDictionary, RefusesWrongLengthAndOutOfRangeWithoutChangingValue) {
+  ObjectDictionary od;
+  od.add_var(0x2001, "Limited", DataType::Integer16, Access::ReadWrite, encode<std::int16_t>(5));
+  SubObject& s = *od.find(0x2001, 0);
+  s.low = std::int64_t{-100};
+  s.high = std::int64_t{100};
+  const std::uint8_t three[3] = {1, 0, 0};
+  const std::uint8_t one[1] = {1};
+  EXPECT_EQ(od.write(0x2001, 0, three), SdoAbortCode::LengthTooHigh);
+  EXPECT_EQ(od.write(0x2001, 0, one), SdoAbortCode::LengthTooLow);
+  EXPECT_EQ(od.set<std::int16_t>(0x2001, 0, 101, Origin::Sdo), SdoAbortCode::ValueTooHigh);
+  EXPECT_EQ(od.set<std::int16_t>(0x2001, 0, -101, Origin::Sdo), SdoAbortCode::ValueTooLow);
+  EXPECT_EQ(od.get<std::int16_t>(0x2001, 0), 5);
+  EXPECT_EQ(od.set<std::int16_t>(0x2001, 0, -100, Origin::Sdo), SdoAbortCode::None);
+  EXPECT_EQ(od.get<std::int16_t>(0x2001, 0), -100);
+}
+
+TEST(ObjectDictionary, HookRefusalLeavesValueAndObserversUntouched) {
+  ObjectDictionary od;
+  Object& o = od.add_var(0x2002, "Even only", DataType::Unsigned8, Access::ReadWrite, {2});
+  o.add_write_hook([](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
+    return (b[0] % 2) ? SdoAbortCode::InvalidValue : SdoAbortCode::None;
+  });
+  int notified = 0;
+  od.add_observer([&](std::uint16_t, std::uint8_t, Origin) { ++notified; });
+  EXPECT_EQ(od.set<std::uint8_t>(0x2002, 0, 3, Origin::Sdo), SdoAbortCode::InvalidValue);
+  EXPECT_EQ(od.get<std::uint8_t>(0x2002, 0), 2);
+  EXPECT_EQ(notified, 0);
+  EXPECT_EQ(od.set<std::uint8_t>(0x2002, 0, 4, Origin::Sdo), SdoAbortCode::None);
+  EXPECT_EQ(notified, 1);
+}
+
+TEST(ObjectDictionary, ArrayHasHighestSubIndexAndPdoRules) {
+  ObjectDictionary od;
+  od.add_array(0x6401, "Read analogue input 16-bit", DataType::Integer16, Access::ReadOnly, 3,
+               encode<std::int16_t>(0), true);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6401, 0), 3);
+  EXPECT_EQ(od.find(0x6401, 3)->value.size(), 2u);
+  EXPECT_EQ(od.check_read(0x6401, 2, Origin::Pdo), SdoAbortCode::None);
+  EXPECT_EQ(od.check_write(0x6401, 2, Origin::Pdo), SdoAbortCode::WriteOfReadOnly);
+  EXPECT_EQ(od.check_read(0x6401, 0, Origin::Pdo), SdoAbortCode::CannotBeMapped);
+}
+
+TEST(ObjectDictionary, StringsAndDomainsHaveVariableLength) {
+  ObjectDictionary od;
+  od.add_var(0x1008, "Manufacturer device name", DataType::VisibleString, Access::Const,
+             {'o', 'e', 'g', 'w'});
+  od.add_var(0x2010, "Blob", DataType::Domain, Access::ReadWrite, {});
+  od.find(0x2010, 0)->max_size = 1000;
+  std::vector<std::uint8_t> big(1000, 0xAA);
+  EXPECT_EQ(od.write(0x2010, 0, big), SdoAbortCode::None);
+  big.push_back(0);
+  EXPECT_EQ(od.write(0x2010, 0, big), SdoAbortCode::LengthTooHigh);
+  EXPECT_EQ(od.find(0x2010, 0)->value.size(), 1000u);
+  EXPECT_EQ(od.find(0x1008, 0)->value.size(), 4u);
+}
+
+TEST(ObjectDictionary, SignedDecodeSignExtendsOddWidths) {
+  const std::uint8_t i24[3] = {0xFF, 0xFF, 0xFF};
+  EXPECT_EQ(decode_signed(i24), -1);
+  const std::uint8_t u24[3] = {0xFF, 0xFF, 0x7F};
+  EXPECT_EQ(decode_signed(u24), 0x7FFFFF);
+}
+
+}  // namespace
