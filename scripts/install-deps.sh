@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Installs, from Debian's packages, whatever the build, the demo and the test tiers need and this
+# machine lacks. Idempotent: with everything present it only checks (dpkg -s) and exits.
+# Why each package is there: see README.md, "Dependencies".
+set -euo pipefail
+
+PACKAGES=(
+  # build
+  g++ cmake ninja-build pkg-config
+  # libraries
+  libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev
+  # test tiers
+  libgtest-dev libgmock-dev libbenchmark-dev clang
+  # independent CAN peers and the SocketCAN-in-a-VM tier
+  can-utils python3-can qemu-system-x86 busybox-static kmod cpio iproute2
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#PACKAGES[@]} Debian packages present"
+  exit 0
+fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then
+  command -v sudo >/dev/null || { echo "install-deps: need root (or sudo) to install: ${missing[*]}" >&2; exit 1; }
+  SUDO=sudo
+fi
+echo "install-deps: installing ${missing[*]}"
+$SUDO apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
