@@ -108,6 +108,10 @@ void HeartbeatConsumer::load_entry(std::uint8_t sub) {
   Entry& e = entries_[sub - 1u];
   const Decoded d = decode_entry(od_.get<std::uint32_t>(kConsumerIndex, sub));
   e = Entry{};
+  // A duplicate can only come from values set without hooks (a stored-parameter load): the
+  // first entry for a node wins, so a node is never reported twice.
+  for (const Entry& other : entries_)
+    if (&other != &e && other.status != Status::Unused && other.node == d.node) return;
   if (d.used) {
     e.node = d.node;
     e.time = d.time;
@@ -116,6 +120,7 @@ void HeartbeatConsumer::load_entry(std::uint8_t sub) {
 }
 
 void HeartbeatConsumer::reload() {
+  for (Entry& e : entries_) e = Entry{};  // so that stale entries do not count as duplicates
   for (std::size_t i = 0; i < entries_.size(); ++i) load_entry(static_cast<std::uint8_t>(i + 1));
 }
 

@@ -198,4 +198,16 @@ TEST_F(ConsumerFixture, ReloadAfterResetToDefaults) {
   EXPECT_FALSE(hc->next_deadline());
 }
 
+TEST_F(ConsumerFixture, DuplicateFromUncheckedLoadMonitoredOnce) {
+  // Values put in place without hooks (as a stored-parameter load does).
+  ASSERT_EQ(set_entry(2, 7, 30), SdoAbortCode::None);  // stale entry for node 7 before the load
+  od.find(0x1016, 1)->value = encode<std::uint32_t>(heartbeat_consumer_entry(NodeId{7}, 100));
+  od.find(0x1016, 2)->value = encode<std::uint32_t>(heartbeat_consumer_entry(NodeId{7}, 50));
+  hc->reload();
+  hb(7, 0x05, 0);
+  EXPECT_EQ(hc->next_deadline(), at_ms(100));
+  hc->advance(at_ms(1000));
+  EXPECT_EQ(timeouts, (std::vector<NodeId>{NodeId{7}}));
+}
+
 }  // namespace

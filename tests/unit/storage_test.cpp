@@ -6,6 +6,9 @@
 // restart).
 #include "canopen/301/storage.hpp"
 
+#include "canopen/301/heartbeat.hpp"
+#include "canopen/301/nmt_slave.hpp"
+
 #include <gtest/gtest.h>
 #include <stdlib.h>
 
@@ -298,6 +301,39 @@ TEST_F(StorageFixture, UnwritableDirectoryReportsHardwareError) {
   EXPECT_EQ(other.set<std::uint32_t>(0x1010, 1, ParameterStore::kSaveSignature, Origin::Sdo),
             SdoAbortCode::HardwareError);
   EXPECT_NE(s.last_error().find("open temp file"), std::string::npos);
+}
+
+// The owner's reset path: NMT tells it which reset; it restores the defaults of the range, then
+// the stored values over them, then lets the services re-read their configuration, all before
+// the boot-up. elobau §8/§9: after "save"/"load" the device is restarted to apply them.
+TEST_F(StorageFixture, NmtResetsApplyDefaultsThenStoredValues) {
+  std::vector<CanFrame> sent;
+  NmtSlave nmt(NodeId{0x11}, [&](const CanFrame& f) { sent.push_back(f); });
+  HeartbeatProducer hb(od, NodeId{0x11}, [&](const CanFrame& f) { sent.push_back(f); });
+  nmt.on_reset([&](bool communication_only) {
+    const std::uint16_t last = communication_only ? 0x1FFF : 0xFFFF;
+    const std::uint16_t first = communication_only ? 0x1000 : 0x0000;
+    od.reset_to_defaults(first, last);
+    EXPECT_TRUE(store->load(first, last).ok);
+    hb.reload();
+  });
+  nmt.start(TimePoint{});
+  ASSERT_EQ(od.set<std::uint16_t>(0x1017, 0, 100, Origin::Sdo), SdoAbortCode::None);
+  ASSERT_EQ(od.set<std::uint32_t>(0x1010, 1, ParameterStore::kSaveSignature, Origin::Sdo), SdoAbortCode::None);
+  ASSERT_EQ(od.set<std::uint16_t>(0x1017, 0, 250, Origin::Sdo), SdoAbortCode::None);  // not saved
+  ASSERT_EQ(od.set<std::uint32_t>(0x6003, 0, 77, Origin::Sdo), SdoAbortCode::None);   // not saved
+  nmt.on_frame(CanFrame(0, {0x82, 0x11}), TimePoint{});  // reset communication
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100);      // stored value, not the unsaved 250
+  EXPECT_EQ(hb.period(), std::chrono::milliseconds(100));
+  EXPECT_EQ(od.get<std::uint32_t>(0x6003, 0), 77u);      // application area untouched
+  nmt.on_frame(CanFrame(0, {0x81, 0x00}), TimePoint{});  // reset node
+  EXPECT_EQ(od.get<std::uint32_t>(0x6003, 0), 0u);       // saved value was the default
+  ASSERT_EQ(od.set<std::uint32_t>(0x1011, 1, ParameterStore::kLoadSignature, Origin::Sdo), SdoAbortCode::None);
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100);  // until the reset
+  nmt.on_frame(CanFrame(0, {0x81, 0x11}), TimePoint{});
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 0);
+  EXPECT_EQ(hb.period(), Duration{0});
+  EXPECT_EQ(sent.size(), 4u);  // four boot-ups
 }
 
 }  // namespace
