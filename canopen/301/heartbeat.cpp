@@ -1,0 +1,187 @@
+#include "canopen/301/heartbeat.hpp"
+
+namespace oegw::canopen {
+
+namespace {
+constexpr std::uint16_t kConsumerIndex = 0x1016;
+constexpr std::uint16_t kProducerIndex = 0x1017;
+
+bool valid_state_byte(std::uint8_t b) {
+  switch (static_cast<NmtState>(b)) {
+    case NmtState::Initialisation:
+    case NmtState::Stopped:
+    case NmtState::Operational:
+    case NmtState::PreOperational: return true;
+  }
+  return false;
+}
+
+struct Decoded {
+  NodeId node;
+  Duration time;
+  bool used;
+};
+Decoded decode_entry(std::uint32_t v) {
+  const NodeId node{static_cast<std::uint8_t>((v >> 16) & 0xFF)};
+  const Duration time = std::chrono::milliseconds(v & 0xFFFF);
+  return {node, time, node.valid() && time.count() != 0};
+}
+}  // namespace
+
+Object& install_heartbeat_producer_objects(ObjectDictionary& od, std::uint16_t default_ms) {
+  if (Object* o = od.find(kProducerIndex)) return *o;
+  return od.add_var(kProducerIndex, "Producer heartbeat time", DataType::Unsigned16, Access::ReadWrite,
+                    encode<std::uint16_t>(default_ms));
+}
+
+Object& install_heartbeat_consumer_objects(ObjectDictionary& od, std::uint8_t entries) {
+  if (Object* o = od.find(kConsumerIndex)) return *o;
+  return od.add_array(kConsumerIndex, "Consumer heartbeat time", DataType::Unsigned32, Access::ReadWrite, entries,
+                      encode<std::uint32_t>(0));
+}
+
+// ---------------------------------------------------------------- producer
+
+HeartbeatProducer::HeartbeatProducer(ObjectDictionary& od, NodeId node_id, FrameSink sink)
+    : od_(od), node_id_(node_id), sink_(std::move(sink)) {
+  reload();
+  od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
+    if (index == kProducerIndex && sub == 0) reload();
+  });
+}
+
+void HeartbeatProducer::set_period_ms(std::uint16_t ms) { period_ = std::chrono::milliseconds(ms); }
+
+void HeartbeatProducer::reload() { set_period_ms(od_.get<std::uint16_t>(kProducerIndex, 0)); }
+
+void HeartbeatProducer::start(NmtState state, NodeId node_id, TimePoint now) {
+  state_ = state;
+  node_id_ = node_id;
+  running_ = node_id.valid();
+  reference_ = now;
+}
+
+void HeartbeatProducer::stop() { running_ = false; }
+
+std::optional<TimePoint> HeartbeatProducer::next_deadline() const {
+  if (!running_ || period_.count() == 0) return std::nullopt;
+  return reference_ + period_;
+}
+
+void HeartbeatProducer::advance(TimePoint now) {
+  const auto due = next_deadline();
+  if (!due || now < *due) return;
+  if (sink_) sink_(CanFrame(cob::kHeartbeat + node_id_.value(), {static_cast<std::uint8_t>(state_)}));
+  // Keep the cadence when called on time; after a late call (or a shortened period whose
+  // moment had passed) count from now rather than sending a burst.
+  reference_ = (now - *due < period_) ? *due : now;
+}
+
+// ---------------------------------------------------------------- consumer
+
+HeartbeatConsumer::HeartbeatConsumer(ObjectDictionary& od) : od_(od) {
+  Object* obj = od_.find(kConsumerIndex);
+  std::uint8_t count = 0;
+  if (obj != nullptr) {
+    for (const auto& [sub, s] : obj->subs()) count = std::max(count, sub);
+    obj->add_write_hook([this](Object& o, std::uint8_t sub, std::span<const std::uint8_t> bytes, Origin) {
+      if (sub == 0 || bytes.size() != 4) return SdoAbortCode::None;
+      const Decoded d = decode_entry(get_u32(bytes.data()));
+      if (!d.used) return SdoAbortCode::None;
+      for (const auto& [other, s] : o.subs()) {
+        if (other == 0 || other == sub || s.value.size() != 4) continue;
+        const Decoded e = decode_entry(get_u32(s.value.data()));
+        if (e.used && e.node == d.node) return SdoAbortCode::ParameterIncompatibility;
+      }
+      return SdoAbortCode::None;
+    });
+    od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
+      if (index == kConsumerIndex && sub != 0) load_entry(sub);
+    });
+  }
+  entries_.resize(count);
+  reload();
+}
+
+void HeartbeatConsumer::load_entry(std::uint8_t sub) {
+  if (sub == 0 || sub > entries_.size()) return;
+  Entry& e = entries_[sub - 1u];
+  const Decoded d = decode_entry(od_.get<std::uint32_t>(kConsumerIndex, sub));
+  e = Entry{};
+  // A duplicate can only come from values set without hooks (a stored-parameter load): the
+  // first entry for a node wins, so a node is never reported twice.
+  for (const Entry& other : entries_)
+    if (&other != &e && other.status != Status::Unused && other.node == d.node) return;
+  if (d.used) {
+    e.node = d.node;
+    e.time = d.time;
+    e.status = Status::Waiting;
+  }
+}
+
+void HeartbeatConsumer::reload() {
+  for (Entry& e : entries_) e = Entry{};  // so that stale entries do not count as duplicates
+  for (std::size_t i = 0; i < entries_.size(); ++i) load_entry(static_cast<std::uint8_t>(i + 1));
+}
+
+bool HeartbeatConsumer::on_frame(const CanFrame& frame, TimePoint now) {
+  if (frame.extended || frame.rtr || frame.id <= cob::kHeartbeat || frame.id > cob::kHeartbeat + 127) return false;
+  const NodeId node{static_cast<std::uint8_t>(frame.id - cob::kHeartbeat)};
+  bool mine = false;
+  for (Entry& e : entries_) {
+    if (e.status == Status::Unused || e.node != node) continue;
+    mine = true;
+    if (frame.dlc != 1 || !valid_state_byte(frame.data[0])) {
+      ++invalid_frames_;
+      continue;
+    }
+    const auto state = static_cast<NmtState>(frame.data[0]);
+    const bool changed = e.state != state;
+    e.state = state;
+    if (state == NmtState::Initialisation) {
+      e.status = Status::Waiting;
+      if (on_boot_) on_boot_(node);
+      continue;
+    }
+    e.status = Status::Active;
+    e.last = now;
+    if (changed && on_state_) on_state_(node, state);
+  }
+  return mine;
+}
+
+void HeartbeatConsumer::advance(TimePoint now) {
+  for (Entry& e : entries_) {
+    if (e.status != Status::Active || now < e.last + e.time) continue;
+    e.status = Status::TimedOut;
+    if (on_timeout_) on_timeout_(e.node);
+  }
+}
+
+std::optional<TimePoint> HeartbeatConsumer::next_deadline() const {
+  std::optional<TimePoint> next;
+  for (const Entry& e : entries_) {
+    if (e.status != Status::Active) continue;
+    const TimePoint t = e.last + e.time;
+    if (!next || t < *next) next = t;
+  }
+  return next;
+}
+
+const HeartbeatConsumer::Entry* HeartbeatConsumer::find(NodeId node) const {
+  for (const Entry& e : entries_)
+    if (e.status != Status::Unused && e.node == node) return &e;
+  return nullptr;
+}
+
+HeartbeatConsumer::Status HeartbeatConsumer::status(NodeId node) const {
+  const Entry* e = find(node);
+  return e == nullptr ? Status::Unused : e->status;
+}
+
+std::optional<NmtState> HeartbeatConsumer::last_state(NodeId node) const {
+  const Entry* e = find(node);
+  return e == nullptr ? std::nullopt : e->state;
+}
+
+}  // namespace oegw::canopen

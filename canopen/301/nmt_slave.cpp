@@ -1,0 +1,79 @@
+#include "canopen/301/nmt_slave.hpp"
+
+namespace oegw::canopen {
+
+NmtSlave::NmtSlave(NodeId node_id, FrameSink sink)
+    : node_id_(node_id), pending_node_id_(node_id), sink_(std::move(sink)) {}
+
+void NmtSlave::set_state(NmtState s, TimePoint now) {
+  if (s == state_) return;
+  state_ = s;
+  last_transition_ = now;
+  if (on_state_change_) on_state_change_(s);
+}
+
+void NmtSlave::initialise(TimePoint now) {
+  // CiA 301 §7.3.2.2.2: Initialisation ends with the boot-up message and the autonomous
+  // transition to Pre-operational. Without a valid node-ID (LSS unconfigured) it does not end.
+  node_id_ = pending_node_id_;
+  if (!node_id_.valid()) return;
+  if (sink_) sink_(CanFrame(cob::kHeartbeat + node_id_.value(), {0x00}));
+  set_state(NmtState::PreOperational, now);
+}
+
+void NmtSlave::start(TimePoint now) {
+  state_ = NmtState::Initialisation;
+  last_transition_ = now;
+  if (on_state_change_) on_state_change_(state_);
+  initialise(now);
+}
+
+void NmtSlave::reset(bool communication_only, TimePoint now) {
+  // Through Initialisation: the owner restores its parameters before the boot-up.
+  set_state(NmtState::Initialisation, now);
+  if (on_reset_) on_reset_(communication_only);
+  initialise(now);
+}
+
+void NmtSlave::enter(NmtState target, TimePoint now) {
+  if (state_ == NmtState::Initialisation) return;  // not booted (yet): nothing to leave
+  if (target == NmtState::Initialisation) {
+    reset(true, now);
+    return;
+  }
+  set_state(target, now);
+}
+
+bool NmtSlave::on_frame(const CanFrame& frame, TimePoint now) {
+  if (frame.id != cob::kNmt || frame.extended) return false;
+  if (frame.rtr || frame.dlc != 2) {
+    ++stats_.malformed;
+    return true;
+  }
+  const std::uint8_t target = frame.data[1];
+  if (target != 0 && target != node_id_.value()) {
+    ++stats_.other_node;
+    return true;
+  }
+  const auto cs = static_cast<NmtCommand>(frame.data[0]);
+  switch (cs) {
+    case NmtCommand::Start:
+    case NmtCommand::Stop:
+    case NmtCommand::EnterPreOperational:
+    case NmtCommand::ResetNode:
+    case NmtCommand::ResetCommunication: break;
+    default: ++stats_.unknown_command; return true;
+  }
+  ++stats_.commands;
+  if (state_ == NmtState::Initialisation) return true;  // unconfigured: NMT not yet running
+  switch (cs) {
+    case NmtCommand::Start: set_state(NmtState::Operational, now); break;
+    case NmtCommand::Stop: set_state(NmtState::Stopped, now); break;
+    case NmtCommand::EnterPreOperational: set_state(NmtState::PreOperational, now); break;
+    case NmtCommand::ResetNode: reset(false, now); break;
+    case NmtCommand::ResetCommunication: reset(true, now); break;
+  }
+  return true;
+}
+
+}  // namespace oegw::canopen

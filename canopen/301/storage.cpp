@@ -1,0 +1,318 @@
+#include "canopen/301/storage.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <array>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+namespace oegw::canopen {
+
+namespace {
+
+constexpr std::uint16_t kStoreIndex = 0x1010;
+constexpr std::uint16_t kRestoreIndex = 0x1011;
+constexpr const char* kMagic = "OEGW-OD-STORE 1\n";
+
+bool excluded(std::uint16_t index) { return index == kStoreIndex || index == kRestoreIndex; }
+
+int hex_digit(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  return -1;
+}
+
+// Parses exactly `s` as hex into `out` (whole bytes).
+bool parse_hex(std::string_view s, std::vector<std::uint8_t>& out) {
+  if (s.size() % 2 != 0) return false;
+  out.clear();
+  for (std::size_t i = 0; i < s.size(); i += 2) {
+    const int hi = hex_digit(s[i]);
+    const int lo = hex_digit(s[i + 1]);
+    if (hi < 0 || lo < 0) return false;
+    out.push_back(static_cast<std::uint8_t>(hi * 16 + lo));
+  }
+  return true;
+}
+
+bool parse_hex_number(std::string_view s, std::size_t digits, std::uint32_t& v) {
+  if (s.size() != digits) return false;
+  v = 0;
+  for (char c : s) {
+    const int d = hex_digit(c);
+    if (d < 0) return false;
+    v = v * 16 + static_cast<std::uint32_t>(d);
+  }
+  return true;
+}
+
+std::vector<std::string_view> split(std::string_view line) {
+  std::vector<std::string_view> parts;
+  std::size_t pos = 0;
+  while (pos <= line.size()) {
+    const std::size_t sp = line.find(' ', pos);
+    const std::size_t end = sp == std::string_view::npos ? line.size() : sp;
+    parts.push_back(line.substr(pos, end - pos));
+    if (sp == std::string_view::npos) break;
+    pos = sp + 1;
+  }
+  return parts;
+}
+
+std::string errno_text(const char* what) { return std::string(what) + ": " + std::strerror(errno); }
+
+bool fsync_dir(const std::filesystem::path& dir, std::string& error) {
+  const int fd = ::open(dir.empty() ? "." : dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) {
+    error = errno_text("open directory");
+    return false;
+  }
+  const bool ok = ::fsync(fd) == 0;
+  if (!ok) error = errno_text("fsync directory");
+  ::close(fd);
+  return ok;
+}
+
+}  // namespace
+
+std::uint32_t ParameterStore::crc32(const std::string& bytes) {
+  static const std::array<std::uint32_t, 256> table = [] {
+    std::array<std::uint32_t, 256> t{};
+    for (std::uint32_t i = 0; i < 256; ++i) {
+      std::uint32_t c = i;
+      for (int k = 0; k < 8; ++k) c = (c & 1u) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+      t[i] = c;
+    }
+    return t;
+  }();
+  std::uint32_t c = 0xFFFFFFFFu;
+  for (unsigned char b : bytes) c = table[(c ^ b) & 0xFFu] ^ (c >> 8);
+  return c ^ 0xFFFFFFFFu;
+}
+
+std::string ParameterStore::serialize(const Entries& entries) {
+  std::string out = kMagic;
+  char buf[16];
+  for (const auto& [key, value] : entries) {
+    std::snprintf(buf, sizeof buf, "%04X %02X ", key.first, key.second);
+    out += buf;
+    if (value.empty()) out += '-';
+    for (std::uint8_t b : value) {
+      std::snprintf(buf, sizeof buf, "%02X", b);
+      out += buf;
+    }
+    out += '\n';
+  }
+  const std::uint32_t crc = crc32(out);
+  std::snprintf(buf, sizeof buf, "%08X", crc);
+  out += "END " + std::to_string(entries.size()) + " " + buf + "\n";
+  return out;
+}
+
+std::optional<ParameterStore::Entries> ParameterStore::parse(const std::string& text, std::string& error) {
+  const std::string magic = kMagic;
+  if (text.compare(0, magic.size(), magic) != 0) {
+    error = "not a store file (bad header)";
+    return std::nullopt;
+  }
+  Entries entries;
+  std::size_t pos = magic.size();
+  while (true) {
+    const std::size_t nl = text.find('\n', pos);
+    if (nl == std::string::npos) {
+      error = "truncated store file (no END line)";
+      return std::nullopt;
+    }
+    const std::string_view line(text.data() + pos, nl - pos);
+    const auto parts = split(line);
+    if (!parts.empty() && parts[0] == "END") {
+      std::uint32_t crc = 0;
+      if (parts.size() != 3 || !parse_hex_number(parts[2], 8, crc)) {
+        error = "malformed END line";
+        return std::nullopt;
+      }
+      if (parts[1] != std::to_string(entries.size())) {
+        error = "entry count mismatch";
+        return std::nullopt;
+      }
+      if (crc != crc32(text.substr(0, pos))) {
+        error = "CRC mismatch";
+        return std::nullopt;
+      }
+      if (nl + 1 != text.size()) {
+        error = "trailing data after END line";
+        return std::nullopt;
+      }
+      return entries;
+    }
+    std::uint32_t index = 0;
+    std::uint32_t sub = 0;
+    std::vector<std::uint8_t> value;
+    if (parts.size() != 3 || !parse_hex_number(parts[0], 4, index) || !parse_hex_number(parts[1], 2, sub) ||
+        !(parts[2] == "-" || (!parts[2].empty() && parse_hex(parts[2], value)))) {
+      error = "malformed entry line: " + std::string(line.substr(0, 40));
+      return std::nullopt;
+    }
+    if (!entries.emplace(Key{static_cast<std::uint16_t>(index), static_cast<std::uint8_t>(sub)}, std::move(value))
+             .second) {
+      error = "duplicate entry";
+      return std::nullopt;
+    }
+    pos = nl + 1;
+  }
+}
+
+ParameterStore::ParameterStore(ObjectDictionary& od, std::filesystem::path file) : od_(od), file_(std::move(file)) {
+  for (const std::uint16_t index : {kStoreIndex, kRestoreIndex}) {
+    Object* obj = od_.find(index);
+    if (obj == nullptr) {
+      obj = &od_.add_array(index, index == kStoreIndex ? "Store parameters" : "Restore default parameters",
+                           DataType::Unsigned32, Access::ReadWrite, 3, encode<std::uint32_t>(1));
+    }
+    obj->add_write_hook([this, index](Object&, std::uint8_t sub, std::span<const std::uint8_t> bytes, Origin) {
+      if (sub == 0) return SdoAbortCode::None;
+      const std::uint32_t expected = index == kStoreIndex ? kSaveSignature : kLoadSignature;
+      if (bytes.size() != 4 || get_u32(bytes.data()) != expected) return SdoAbortCode::CannotTransfer;
+      if (sub > 3) return SdoAbortCode::CannotTransfer;  // manufacturer-specific groups: none
+      const auto g = static_cast<Group>(sub);
+      return index == kStoreIndex ? save(g) : restore_defaults(g);
+    });
+  }
+  // After an accepted signature the entry reads 1 again ("on command").
+  od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
+    if (sub == 0 || !excluded(index)) return;
+    if (SubObject* s = od_.find(index, sub)) s->value = encode<std::uint32_t>(1);
+  });
+}
+
+std::filesystem::path ParameterStore::temp_path() const {
+  std::filesystem::path p = file_;
+  p += ".tmp";
+  return p;
+}
+
+std::pair<std::uint16_t, std::uint16_t> ParameterStore::range(Group g) {
+  switch (g) {
+    case Group::Communication: return {0x1000, 0x1FFF};
+    case Group::Application: return {0x6000, 0x9FFF};
+    case Group::All: break;
+  }
+  return {0x0000, 0xFFFF};
+}
+
+std::optional<ParameterStore::Entries> ParameterStore::read_file(bool& corrupt, std::string& error) const {
+  corrupt = false;
+  std::ifstream in(file_, std::ios::binary);
+  if (!in) return std::nullopt;
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  auto entries = parse(ss.str(), error);
+  if (!entries) corrupt = true;
+  return entries;
+}
+
+ParameterStore::LoadResult ParameterStore::load(std::uint16_t first, std::uint16_t last) {
+  LoadResult r;
+  bool corrupt = false;
+  auto entries = read_file(corrupt, r.error);
+  if (corrupt) {
+    r.file_present = true;
+    r.error = file_.string() + ": " + r.error + "; stored parameters ignored";
+    last_error_ = r.error;
+    return r;
+  }
+  r.ok = true;
+  if (!entries) return r;
+  r.file_present = true;
+  for (const auto& [key, value] : *entries) {
+    if (key.first < first || key.first > last) continue;
+    SubObject* s = od_.find(key.first, key.second);
+    const std::size_t n = s == nullptr ? 0 : fixed_size(s->type);
+    if (s == nullptr || excluded(key.first) || !writable(s->access) || (n != 0 && value.size() != n) ||
+        (n == 0 && value.size() > s->max_size)) {
+      ++r.skipped;
+      continue;
+    }
+    s->value = value;
+    ++r.applied;
+  }
+  return r;
+}
+
+SdoAbortCode ParameterStore::save(Group group) {
+  bool corrupt = false;
+  std::string error;
+  Entries entries = read_file(corrupt, error).value_or(Entries{});  // a corrupt file is replaced
+  const auto [first, last] = range(group);
+  std::erase_if(entries, [&](const auto& e) { return e.first.first >= first && e.first.first <= last; });
+  for (const auto& [index, obj] : od_.objects()) {
+    if (index < first || index > last || excluded(index)) continue;
+    for (const auto& [sub, s] : obj.subs())
+      if (writable(s.access)) entries[{index, sub}] = s.value;
+  }
+  return write_atomically(serialize(entries)) ? SdoAbortCode::None : SdoAbortCode::HardwareError;
+}
+
+SdoAbortCode ParameterStore::restore_defaults(Group group) {
+  bool corrupt = false;
+  std::string error;
+  auto entries = read_file(corrupt, error);
+  if (!entries && !corrupt) return SdoAbortCode::None;  // nothing stored: defaults already
+  if (group == Group::All || corrupt) return remove_atomically() ? SdoAbortCode::None : SdoAbortCode::HardwareError;
+  const auto [first, last] = range(group);
+  std::erase_if(*entries, [&](const auto& e) { return e.first.first >= first && e.first.first <= last; });
+  return write_atomically(serialize(*entries)) ? SdoAbortCode::None : SdoAbortCode::HardwareError;
+}
+
+bool ParameterStore::write_atomically(const std::string& text) {
+  const std::filesystem::path tmp = temp_path();
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    last_error_ = errno_text("open temp file");
+    return false;
+  }
+  std::size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      last_error_ = errno_text("write temp file");
+      ::close(fd);
+      ::unlink(tmp.c_str());
+      return false;
+    }
+    done += static_cast<std::size_t>(n);
+  }
+  if (::fsync(fd) != 0) {
+    last_error_ = errno_text("fsync temp file");
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    return false;
+  }
+  if (::close(fd) != 0) {
+    last_error_ = errno_text("close temp file");
+    ::unlink(tmp.c_str());
+    return false;
+  }
+  if (::rename(tmp.c_str(), file_.c_str()) != 0) {
+    last_error_ = errno_text("rename temp file");
+    ::unlink(tmp.c_str());
+    return false;
+  }
+  return fsync_dir(file_.parent_path(), last_error_);
+}
+
+bool ParameterStore::remove_atomically() {
+  if (::unlink(file_.c_str()) != 0 && errno != ENOENT) {
+    last_error_ = errno_text("remove store file");
+    return false;
+  }
+  return fsync_dir(file_.parent_path(), last_error_);
+}
+
+}  // namespace oegw::canopen

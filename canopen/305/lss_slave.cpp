@@ -1,0 +1,170 @@
+#include "canopen/305/lss_slave.hpp"
+
+namespace oegw::canopen {
+
+using namespace lss::cs;
+
+LssSlave::LssSlave(lss::Address address, NodeId active_node_id, std::uint8_t bit_timing_index, FrameSink sink,
+                   Callbacks callbacks, std::uint16_t supported_bit_timings)
+    : address_(address), active_node_id_(active_node_id), pending_node_id_(active_node_id),
+      pending_bit_timing_(bit_timing_index), sink_(std::move(sink)), cb_(std::move(callbacks)),
+      supported_bit_timings_(supported_bit_timings) {}
+
+void LssSlave::reply(std::uint8_t cs, std::uint8_t b1, std::uint8_t b2) {
+  if (sink_) sink_(CanFrame(cob::kLssSlave, {cs, b1, b2, 0, 0, 0, 0, 0}));
+}
+
+void LssSlave::reply_u32(std::uint8_t cs, std::uint32_t v) {
+  CanFrame f(cob::kLssSlave, {cs, 0, 0, 0, 0, 0, 0, 0});
+  put_u32(&f.data[1], v);
+  if (sink_) sink_(f);
+}
+
+void LssSlave::switch_mode(lss::Mode m) {
+  const lss::Mode before = mode_;
+  mode_ = m;
+  selective_next_ = 0;
+  if (before == lss::Mode::Configuration && m == lss::Mode::Waiting && active_node_id_.unconfigured() &&
+      pending_node_id_.valid() && cb_.on_start_nmt) {
+    cb_.on_start_nmt();
+  }
+}
+
+bool LssSlave::on_frame(const CanFrame& frame, TimePoint /*now*/) {
+  if (frame.id != cob::kLssMaster || frame.extended) return false;
+  if (frame.rtr || frame.dlc != 8) {
+    ++stats_.malformed;
+    return true;
+  }
+  const std::uint8_t cmd = frame.data[0];
+  const std::uint32_t u32 = get_u32(&frame.data[1]);
+  const bool config = mode_ == lss::Mode::Configuration;
+
+  switch (cmd) {
+    case kSwitchStateGlobal:
+      if (frame.data[1] == 0) switch_mode(lss::Mode::Waiting);
+      else if (frame.data[1] == 1) switch_mode(lss::Mode::Configuration);
+      else ++stats_.unknown;
+      return true;
+
+    case kSwitchSelectiveVendor:
+    case kSwitchSelectiveProduct:
+    case kSwitchSelectiveRevision:
+    case kSwitchSelectiveSerial: {
+      if (config) return true;  // only a waiting slave takes part
+      const std::uint32_t expect[4] = {address_.vendor, address_.product, address_.revision, address_.serial};
+      const int step = cmd - kSwitchSelectiveVendor;
+      // A vendor frame always (re)starts the sequence; the others must come in order.
+      const bool in_order = cmd == kSwitchSelectiveVendor || selective_next_ == cmd;
+      if (!in_order || u32 != expect[step]) {
+        selective_next_ = 0;
+        return true;
+      }
+      if (cmd == kSwitchSelectiveSerial) {
+        switch_mode(lss::Mode::Configuration);
+        reply(kSwitchSelectiveResponse);
+      } else {
+        selective_next_ = static_cast<std::uint8_t>(cmd + 1);
+      }
+      return true;
+    }
+
+    case kConfigureNodeId: {
+      if (!config) break;
+      const NodeId id{frame.data[1]};
+      if (!id.valid() && !id.unconfigured()) {
+        reply(kConfigureNodeId, 1);
+        return true;
+      }
+      pending_node_id_ = id;
+      reply(kConfigureNodeId, 0);
+      if (cb_.on_pending_node_id) cb_.on_pending_node_id(id);
+      return true;
+    }
+
+    case kConfigureBitTiming: {
+      if (!config) break;
+      const std::uint8_t table = frame.data[1];
+      const std::uint8_t index = frame.data[2];
+      const bool ok = table == 0 && lss::standard_bit_rate_kbit(index).has_value() && index < 16 &&
+                      ((supported_bit_timings_ >> index) & 1u) != 0;
+      if (!ok) {
+        reply(kConfigureBitTiming, 1);
+        return true;
+      }
+      pending_bit_timing_ = index;
+      reply(kConfigureBitTiming, 0);
+      if (cb_.on_pending_bit_timing) cb_.on_pending_bit_timing(index);
+      return true;
+    }
+
+    case kActivateBitTiming:
+      if (!config) break;
+      if (cb_.on_activate_bit_timing)
+        cb_.on_activate_bit_timing(pending_bit_timing_, std::chrono::milliseconds(get_u16(&frame.data[1])));
+      return true;
+
+    case kStoreConfiguration: {
+      if (!config) break;
+      const std::uint8_t err = cb_.on_store ? cb_.on_store(pending_node_id_, pending_bit_timing_) : 1;
+      reply(kStoreConfiguration, err);
+      return true;
+    }
+
+    case kInquireVendor:
+    case kInquireProduct:
+    case kInquireRevision:
+    case kInquireSerial: {
+      if (!config) break;
+      const std::uint32_t v[4] = {address_.vendor, address_.product, address_.revision, address_.serial};
+      reply_u32(cmd, v[cmd - kInquireVendor]);
+      return true;
+    }
+    case kInquireNodeId:
+      if (!config) break;
+      reply(kInquireNodeId, active_node_id_.value());
+      return true;
+
+    case kIdentifyVendor:
+    case kIdentifyProduct:
+    case kIdentifyRevisionLow:
+    case kIdentifyRevisionHigh:
+    case kIdentifySerialLow:
+    case kIdentifySerialHigh: {
+      if (cmd != kIdentifyVendor && identify_next_ != cmd) {
+        identify_next_ = 0;
+        return true;
+      }
+      switch (cmd) {
+        case kIdentifyVendor: identify_.vendor = u32; break;
+        case kIdentifyProduct: identify_.product = u32; break;
+        case kIdentifyRevisionLow: identify_.revision_low = u32; break;
+        case kIdentifyRevisionHigh: identify_.revision_high = u32; break;
+        case kIdentifySerialLow: identify_.serial_low = u32; break;
+        default: identify_.serial_high = u32; break;
+      }
+      if (cmd != kIdentifySerialHigh) {
+        identify_next_ = static_cast<std::uint8_t>(cmd + 1);
+        return true;
+      }
+      identify_next_ = 0;
+      const lss::AddressRange& r = identify_;
+      if (address_.vendor == r.vendor && address_.product == r.product && address_.revision >= r.revision_low &&
+          address_.revision <= r.revision_high && address_.serial >= r.serial_low &&
+          address_.serial <= r.serial_high) {
+        reply(kIdentifySlaveResponse);
+      }
+      return true;
+    }
+
+    case kIdentifyNonConfigured:
+      if (active_node_id_.unconfigured() && pending_node_id_.unconfigured()) reply(kIdentifyNonConfiguredResponse);
+      return true;
+
+    default: break;
+  }
+  ++stats_.unknown;
+  return true;
+}
+
+}  // namespace oegw::canopen
