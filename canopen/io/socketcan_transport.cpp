@@ -1,5 +1,6 @@
 #include "canopen/io/socketcan_transport.hpp"
 
+#include <fcntl.h>
 #include <linux/can/raw.h>
 #include <net/if.h>
 #include <net/if_arp.h>
@@ -228,6 +229,17 @@ std::unique_ptr<SocketCanTransport> SocketCanTransport::open(const std::string& 
   }
   return std::unique_ptr<SocketCanTransport>(
       new SocketCanTransport(s.release(), interface, index, std::max<std::size_t>(options.max_batch, 1)));
+}
+
+std::unique_ptr<SocketCanTransport> SocketCanTransport::adopt(int fd, std::string interface, std::size_t max_batch) {
+  if (fd < 0) throw std::invalid_argument("SocketCanTransport::adopt: invalid file descriptor");
+  const int flags = ::fcntl(fd, F_GETFL);
+  if (flags >= 0) ::fcntl(fd, F_SETFL, flags | O_NONBLOCK);
+  const int on = 1;
+  (void)::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
+  (void)::setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on);
+  return std::unique_ptr<SocketCanTransport>(
+      new SocketCanTransport(fd, std::move(interface), 0, std::max<std::size_t>(max_batch, 1)));
 }
 
 SocketCanTransport::~SocketCanTransport() {

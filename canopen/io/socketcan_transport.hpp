@@ -119,6 +119,12 @@ class SocketCanTransport final : public CanTransport {
   //   "interface 'can0' is down"
   [[nodiscard]] static std::unique_ptr<SocketCanTransport> open(const std::string& interface,
                                                                 SocketCanOptions options = {});
+  // Takes ownership of an already bound CAN_RAW socket (e.g. one handed over by a privileged
+  // helper or by systemd socket activation); `interface` is only used in messages. The fd is made
+  // non-blocking and SO_TIMESTAMPNS/SO_RXQ_OVFL are enabled where the socket supports them; the
+  // CAN_RAW options are left as the socket has them. Throws std::invalid_argument for fd < 0.
+  [[nodiscard]] static std::unique_ptr<SocketCanTransport> adopt(int fd, std::string interface,
+                                                                 std::size_t max_batch = 256);
   ~SocketCanTransport() override;
 
   SendResult send(const CanFrame& frame) override;
@@ -126,7 +132,7 @@ class SocketCanTransport final : public CanTransport {
   void poll_readable() override;
 
   [[nodiscard]] const std::string& interface() const { return interface_; }
-  [[nodiscard]] int interface_index() const { return index_; }
+  [[nodiscard]] int interface_index() const { return index_; }  // 0 when adopted
 
  private:
   SocketCanTransport(int fd, std::string interface, int index, std::size_t max_batch)

@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
 
 using namespace oegw::canopen;
@@ -305,6 +306,141 @@ TEST(SocketCanLive, RoundTripFiltersTimestampsAndNoOwnEcho) {
   EXPECT_THAT(a_seen, IsEmpty()) << "CAN_RAW_RECV_OWN_MSGS must be off";
   EXPECT_EQ(a->counters().tx_frames, 3u);
   EXPECT_EQ(b->counters().rx_frames, 2u);
+}
+
+// ---- the read/write path, over a datagram socketpair standing in for CAN_RAW ----------------
+// A CAN_RAW socket exchanges one struct can_frame per datagram; an AF_UNIX datagram socketpair
+// does the same, so everything past open() is exercised here without AF_CAN.
+
+struct FakeCanSocket {
+  int peer = -1;
+  std::unique_ptr<SocketCanTransport> transport;
+  explicit FakeCanSocket(std::size_t max_batch = 256) {
+    int fds[2];
+    if (::socketpair(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0, fds) != 0) throw std::runtime_error("socketpair");
+    transport = SocketCanTransport::adopt(fds[0], "fake0", max_batch);
+    peer = fds[1];
+  }
+  ~FakeCanSocket() { ::close(peer); }
+  void inject(const ::can_frame& k) const { ASSERT_EQ(::send(peer, &k, sizeof k, 0), static_cast<ssize_t>(sizeof k)); }
+};
+
+TEST(SocketCanTransportIo, ReceivesFramesWithKernelTimestampsAndEventsSeparately) {
+  FakeCanSocket s;
+  std::vector<std::pair<std::string, TimePoint>> frames;
+  std::vector<BusEvent> events;
+  s.transport->set_receiver([&](const CanFrame& f, TimePoint t) { frames.emplace_back(f.to_string(), t); });
+  s.transport->set_event_handler([&](BusEvent e) { events.push_back(e); });
+  SteadyClock clock;
+  const TimePoint before = clock.now();
+  s.inject(kframe(0x181, {0x01, 0x02}));
+  s.inject(kframe(CAN_ERR_FLAG | CAN_ERR_CRTL, {0, CAN_ERR_CRTL_TX_PASSIVE, 0, 0, 0, 0, 0, 0}));
+  s.inject(kframe(0x18FF0001 | CAN_EFF_FLAG, {0xFF}));
+  s.inject(kframe(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0}));
+  s.transport->poll_readable();
+  const TimePoint after = clock.now();
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0].first, "181#0102");
+  EXPECT_EQ(frames[1].first, "18FF0001#FF");
+  for (const auto& [text, t] : frames) {
+    EXPECT_GE(t, before - 1ms) << text;  // arrival time, mapped to the monotonic clock
+    EXPECT_LE(t, after) << text;
+  }
+  EXPECT_THAT(events, ElementsAre(BusEvent::ErrorPassive, BusEvent::BusOff));
+  EXPECT_EQ(s.transport->counters().rx_frames, 2u);
+  EXPECT_EQ(s.transport->counters().error_frames, 2u);
+  s.transport->poll_readable();  // nothing left: returns at once, no double delivery
+  EXPECT_EQ(frames.size(), 2u);
+}
+
+TEST(SocketCanTransportIo, ABacklogKeepsItsArrivalTimesNotTheReadTime) {
+  FakeCanSocket s;
+  std::vector<TimePoint> stamps;
+  s.transport->set_receiver([&](const CanFrame&, TimePoint t) { stamps.push_back(t); });
+  EventLoop idle;  // nothing watched: run_once(timeout) just waits the timeout out
+  SteadyClock clock;
+  const TimePoint sent = clock.now();
+  s.inject(kframe(0x181, {}));
+  idle.run_once(30ms);
+  const TimePoint read_start = clock.now();
+  ASSERT_GE(read_start - sent, 30ms);
+  s.transport->poll_readable();
+  ASSERT_EQ(stamps.size(), 1u);
+  EXPECT_GE(stamps[0], sent - 1ms);
+  EXPECT_LT(stamps[0], read_start - 20ms) << "stamped when read, not when it arrived";
+}
+
+TEST(SocketCanTransportIo, SkipsDatagramsOfTheWrongSizeAndCountsThem) {
+  FakeCanSocket s;
+  int frames = 0;
+  s.transport->set_receiver([&](const CanFrame&, TimePoint) { ++frames; });
+  const char junk[5] = {1, 2, 3, 4, 5};
+  ASSERT_EQ(::send(s.peer, junk, sizeof junk, 0), 5);
+  s.inject(kframe(0x100, {}));
+  s.transport->poll_readable();
+  EXPECT_EQ(frames, 1);
+  EXPECT_EQ(s.transport->counters().errors, 1u);
+}
+
+TEST(SocketCanTransportIo, ReadsAtMostMaxBatchFramesPerPoll) {
+  FakeCanSocket s(2);
+  int frames = 0;
+  s.transport->set_receiver([&](const CanFrame&, TimePoint) { ++frames; });
+  for (int i = 0; i < 3; ++i) s.inject(kframe(0x100, {}));
+  s.transport->poll_readable();
+  EXPECT_EQ(frames, 2);
+  s.transport->poll_readable();
+  EXPECT_EQ(frames, 3);
+}
+
+TEST(SocketCanTransportIo, SendWritesOneKernelFramePerCall) {
+  FakeCanSocket s;
+  ASSERT_TRUE(s.transport->send(CanFrame{0x18FF1234, {0xDE, 0xAD}}).ok());
+  ::can_frame k;
+  ASSERT_EQ(::recv(s.peer, &k, sizeof k, MSG_DONTWAIT), static_cast<ssize_t>(sizeof k));
+  EXPECT_EQ(k.can_id, 0x18FF1234u | CAN_EFF_FLAG);
+  EXPECT_EQ(k.len, 2);
+  EXPECT_EQ(k.data[0], 0xDE);
+  EXPECT_EQ(k.data[1], 0xAD);
+  EXPECT_EQ(s.transport->counters().tx_frames, 1u);
+}
+
+TEST(SocketCanTransportIo, InvalidFrameIsRefusedWithoutWriting) {
+  FakeCanSocket s;
+  CanFrame bad{0x100, {}};
+  bad.dlc = 9;
+  EXPECT_EQ(s.transport->send(bad).status, SendStatus::InvalidFrame);
+  ::can_frame k;
+  EXPECT_LT(::recv(s.peer, &k, sizeof k, MSG_DONTWAIT), 0);
+  EXPECT_EQ(s.transport->counters().tx_frames, 0u);
+}
+
+TEST(SocketCanTransportIo, FullTxQueueDropsAndCountsInsteadOfBlocking) {
+  FakeCanSocket s;
+  SendResult r;
+  int sent = 0;
+  while ((r = s.transport->send(CanFrame{0x181, {1}})).ok() && sent < 1'000'000) ++sent;
+  EXPECT_EQ(r.status, SendStatus::QueueFull) << "after " << sent << " frames";
+  EXPECT_EQ(r.error, EAGAIN);
+  EXPECT_EQ(s.transport->counters().tx_dropped, 1u);
+  EXPECT_EQ(s.transport->counters().tx_frames, static_cast<std::uint64_t>(sent));
+  EXPECT_EQ(s.transport->counters().errors, 0u) << "a full queue is not an error";
+}
+
+TEST(SocketCanTransportIo, EventLoopPollsTheTransportWhenReadable) {
+  FakeCanSocket s;
+  EventLoop loop;
+  std::vector<std::string> got;
+  s.transport->set_receiver([&](const CanFrame& f, TimePoint) { got.push_back(f.to_string()); });
+  EXPECT_NE(watch_transport(loop, *s.transport), 0u);
+  EXPECT_EQ(loop.run_once(0us), 0u);
+  s.inject(kframe(0x701, {0x7F}));
+  loop.run_once(1s);
+  EXPECT_THAT(got, ElementsAre("701#7F"));
+}
+
+TEST(SocketCanTransportIo, AdoptRejectsABadDescriptor) {
+  EXPECT_THROW((void)SocketCanTransport::adopt(-1, "x"), std::invalid_argument);
 }
 
 // ---- send validation (no socket needed) ---------------------------------------------------

@@ -312,4 +312,32 @@ TEST(VirtualBus, RunOnLoopDeliversWithTheLoopTimeAndSeesRepliesToo) {
   EXPECT_EQ(a_seen.size(), 2u);
 }
 
+TEST(VirtualBus, RunOnLoopDrainsAFloodInBatchesLettingTimersInterleave) {
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  VirtualBus bus;
+  bus.run_on(loop);
+  auto a = bus.attach("a");
+  auto b = bus.attach("b");
+  for (int i = 0; i < 3000; ++i) a->send(CanFrame{0x181, {}});
+  EXPECT_EQ(bus.pending(), 3000u);
+  // One run_once delivers one batch (1024), then the rest follow on later iterations.
+  loop.run_once(0us);
+  EXPECT_EQ(b->counters().rx_frames, 1024u);
+  for (int i = 0; i < 5 && bus.pending() > 0; ++i) loop.run_once(0us);
+  EXPECT_EQ(b->counters().rx_frames, 3000u);
+  EXPECT_EQ(bus.pending(), 0u);
+}
+
+TEST(VirtualBus, RunOnLoopIgnoresPostsAfterTheBusIsGone) {
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  auto bus = std::make_unique<VirtualBus>();
+  bus->run_on(loop);
+  auto a = bus->attach("a");
+  a->send(CanFrame{0x1, {}});  // posts a delivery
+  bus.reset();
+  EXPECT_NO_FATAL_FAILURE(loop.advance_to(TimePoint{1ms}));
+}
+
 }  // namespace
