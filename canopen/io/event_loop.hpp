@@ -95,8 +95,9 @@ class EventLoop {
 
   // Blocks `signals` for the calling thread (call before starting other threads so they inherit
   // the mask) and receives them through a signalfd: `on_signal(signo)`, or stop() if none is
-  // given. May be called again to add signals. The destructor restores the previous mask, after
-  // discarding any of these signals still pending.
+  // given. May be called again to add signals (the latest callback then serves all of them).
+  // The destructor restores the previous mask, after discarding any of these signals still
+  // pending.
   void handle_signals(std::initializer_list<int> signals, SignalCallback on_signal = {});
 
   // Runs until stop(). If stop() was called before run(), returns at once. Resets the stop flag
@@ -188,6 +189,8 @@ class ServiceDriver {
   [[nodiscard]] std::optional<TimePoint> armed_deadline() const { return armed_at_; }
 
   // Makes `transport` feed received frames to service.on_frame(frame, timestamp), then rearm().
+  // The transport keeps a pointer to this driver: destroy the transport (or replace its
+  // receiver) before the driver.
   template <class Service>
     requires requires(Service& s, const CanFrame& f, TimePoint t) { s.on_frame(f, t); }
   void bind_receiver(CanTransport& transport, Service& service) {
