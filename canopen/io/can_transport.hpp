@@ -1,0 +1,106 @@
+// The abstract CAN transport that feeds the "sans I/O" services: frames out through send(),
+// frames in through a receiver callback, bus-state changes through an event callback.
+//
+// Implementations: SocketCanTransport (Linux CAN_RAW) and VirtualBus ports (in-process).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string_view>
+
+#include "canopen/can_frame.hpp"
+#include "canopen/types.hpp"
+
+namespace oegw::canopen {
+
+// Controller / bus conditions reported by a transport. SocketCAN reports them as error frames
+// (linux/can/error.h); the virtual bus only reports what a test injects.
+enum class BusEvent : std::uint8_t {
+  ErrorActive,         // controller (back) in error-active state (CAN_ERR_CRTL_ACTIVE)
+  Restarted,           // controller restarted after bus-off (CAN_ERR_RESTARTED)
+  ErrorWarning,        // RX or TX error counter reached the warning level (96)
+  ErrorPassive,        // RX or TX error counter reached error-passive (128)
+  BusOff,              // TX error counter > 255: the controller left the bus
+  TxTimeout,           // the driver gave up transmitting a frame
+  ControllerOverflow,  // RX or TX buffer overflow in the controller: frames were lost
+  LostArbitration,
+  ProtocolError,       // form/stuff/bit/CRC error
+  TransceiverError,
+  NoAck,               // transmitted frame was not acknowledged: nobody else on the bus?
+  BusError,
+  InterfaceDown,       // the network interface went down (ENETDOWN)
+};
+
+[[nodiscard]] std::string_view to_string(BusEvent event);
+
+// What send() did with a frame. Only InvalidFrame is a caller bug; the others are conditions of
+// the bus/driver that a CANopen stack must survive (they are counted, never thrown).
+enum class SendStatus : std::uint8_t {
+  Ok,            // handed to the driver / put on the bus
+  QueueFull,     // ENOBUFS/EAGAIN: the TX queue is full, the frame was dropped
+  InterfaceDown, // ENETDOWN
+  InvalidFrame,  // dlc > 8, or an 11-bit frame with an id above 0x7FF, or id above 29 bits
+  Error,         // any other failure; see SendResult::error
+};
+
+[[nodiscard]] std::string_view to_string(SendStatus status);
+
+struct SendResult {
+  SendStatus status = SendStatus::Ok;
+  int error = 0;  // errno, where one applies
+  [[nodiscard]] bool ok() const { return status == SendStatus::Ok; }
+};
+
+struct TransportCounters {
+  std::uint64_t rx_frames = 0;     // data/remote frames delivered to the receiver
+  std::uint64_t tx_frames = 0;     // frames accepted by send()
+  std::uint64_t tx_dropped = 0;    // frames send() could not queue (QueueFull, detached port)
+  std::uint64_t rx_dropped = 0;    // frames the kernel dropped before we read them (SO_RXQ_OVFL)
+  std::uint64_t error_frames = 0;  // error frames / bus events received
+  std::uint64_t errors = 0;        // other send/receive failures
+};
+
+// True if `frame` can be put on a classical CAN bus as it is.
+[[nodiscard]] bool is_valid_frame(const CanFrame& frame);
+
+class CanTransport {
+ public:
+  using Receiver = std::function<void(const CanFrame& frame, TimePoint timestamp)>;
+  using EventHandler = std::function<void(BusEvent event)>;
+
+  CanTransport() = default;
+  CanTransport(const CanTransport&) = delete;
+  CanTransport& operator=(const CanTransport&) = delete;
+  virtual ~CanTransport() = default;
+
+  // Never blocks. Failures are counted and returned, never thrown.
+  virtual SendResult send(const CanFrame& frame) = 0;
+
+  void set_receiver(Receiver receiver) { receiver_ = std::move(receiver); }
+  void set_event_handler(EventHandler handler) { event_handler_ = std::move(handler); }
+
+  // A file descriptor that becomes readable when poll_readable() has work, or -1 if the
+  // transport is driven some other way (the virtual bus is drained by VirtualBus::deliver_all).
+  [[nodiscard]] virtual int fd() const { return -1; }
+  // Reads everything available without blocking and hands it to the receiver/event handler.
+  virtual void poll_readable() {}
+
+  [[nodiscard]] const TransportCounters& counters() const { return counters_; }
+
+  // A FrameSink for the services, sending through this transport (the result is counted).
+  [[nodiscard]] FrameSink sink() {
+    return [this](const CanFrame& f) { (void)send(f); };
+  }
+
+ protected:
+  // For implementations: count and hand over a received frame / a bus event.
+  void deliver_frame(const CanFrame& frame, TimePoint timestamp);
+  void deliver_event(BusEvent event);
+  TransportCounters counters_;
+
+ private:
+  Receiver receiver_;
+  EventHandler event_handler_;
+};
+
+}  // namespace oegw::canopen

@@ -1,0 +1,305 @@
+#include "canopen/io/event_loop.hpp"
+
+#include <sys/epoll.h>
+#include <sys/signalfd.h>
+#include <sys/timerfd.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <climits>
+#include <stdexcept>
+#include <system_error>
+
+namespace oegw::canopen {
+
+static_assert(io_events::kReadable == EPOLLIN && io_events::kWritable == EPOLLOUT &&
+              io_events::kError == EPOLLERR && io_events::kHangup == EPOLLHUP);
+
+namespace {
+
+constexpr std::uint64_t kTimerFdWatch = 1;
+
+[[noreturn]] void throw_errno(const char* what) {
+  throw std::system_error(errno, std::generic_category(), what);
+}
+
+}  // namespace
+
+EventLoop::EventLoop() { init(); }
+
+EventLoop::EventLoop(SimulatedClock& clock) : clock_(&clock), simulated_(&clock) { init(); }
+
+void EventLoop::init() {
+  sigemptyset(&old_mask_);
+  sigemptyset(&handled_set_);
+  epoll_fd_ = ::epoll_create1(EPOLL_CLOEXEC);
+  if (epoll_fd_ < 0) throw_errno("epoll_create1");
+  if (simulated_ != nullptr) return;  // simulated time needs no timerfd
+  timer_fd_ = ::timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC);
+  if (timer_fd_ < 0) {
+    const int e = errno;
+    ::close(epoll_fd_);
+    throw std::system_error(e, std::generic_category(), "timerfd_create(CLOCK_MONOTONIC)");
+  }
+  epoll_event ev{};
+  ev.events = EPOLLIN;
+  ev.data.u64 = kTimerFdWatch;
+  if (::epoll_ctl(epoll_fd_, EPOLL_CTL_ADD, timer_fd_, &ev) != 0) {
+    const int e = errno;
+    ::close(timer_fd_);
+    ::close(epoll_fd_);
+    throw std::system_error(e, std::generic_category(), "epoll_ctl(timerfd)");
+  }
+}
+
+EventLoop::~EventLoop() {
+  if (signal_fd_ >= 0) {
+    // Discard what is still pending, so that unblocking cannot kill the process.
+    signalfd_siginfo info{};
+    while (::read(signal_fd_, &info, sizeof info) == static_cast<ssize_t>(sizeof info)) {
+    }
+    ::close(signal_fd_);
+  }
+  if (signals_blocked_) ::pthread_sigmask(SIG_SETMASK, &old_mask_, nullptr);
+  if (timer_fd_ >= 0) ::close(timer_fd_);
+  if (epoll_fd_ >= 0) ::close(epoll_fd_);
+}
+
+// ---- timers -------------------------------------------------------------------------------
+
+void EventLoop::arm_timer(TimerId id, TimePoint at, Timer timer) {
+  const TimerKey key{at, arm_seq_++};
+  timers_.emplace(key, std::make_pair(id, std::move(timer)));
+  timer_keys_[id] = key;
+}
+
+EventLoop::TimerId EventLoop::call_at(TimePoint at, Callback fn) {
+  const TimerId id = next_timer_id_++;
+  arm_timer(id, at, Timer{std::make_shared<Callback>(std::move(fn)), Duration{0}});
+  return id;
+}
+
+EventLoop::TimerId EventLoop::call_every(TimePoint first, Duration period, Callback fn) {
+  if (period <= Duration::zero()) throw std::invalid_argument("EventLoop::call_every: period must be positive");
+  const TimerId id = next_timer_id_++;
+  arm_timer(id, first, Timer{std::make_shared<Callback>(std::move(fn)), period});
+  return id;
+}
+
+bool EventLoop::cancel(TimerId id) {
+  auto it = timer_keys_.find(id);
+  if (it == timer_keys_.end()) return false;
+  timers_.erase(it->second);
+  timer_keys_.erase(it);
+  return true;
+}
+
+std::optional<TimePoint> EventLoop::next_timer() const {
+  if (timers_.empty()) return std::nullopt;
+  return timers_.begin()->first.first;
+}
+
+bool EventLoop::fire_first_timer_due(TimePoint limit) {
+  if (timers_.empty()) return false;
+  auto it = timers_.begin();
+  const TimePoint due = it->first.first;
+  if (due > limit) return false;
+  const TimerId id = it->second.first;
+  Timer timer = std::move(it->second.second);
+  timers_.erase(it);
+  timer_keys_.erase(id);
+  if (timer.period > Duration::zero()) {
+    // Fixed rate; skip whole periods missed (only possible in real time).
+    TimePoint next = due + timer.period;
+    const TimePoint current = now();
+    if (next <= current) next += ((current - next) / timer.period + 1) * timer.period;
+    arm_timer(id, next, timer);  // before the call, so the callback may cancel it
+  }
+  std::shared_ptr<Callback> fn = timer.fn;  // keeps it alive if the callback cancels its timer
+  (*fn)();
+  return true;
+}
+
+std::size_t EventLoop::run_due_timers() {
+  std::size_t n = 0;
+  // Bounded by the timers due now: a periodic timer is re-armed in the future, so this ends
+  // unless callbacks keep arming timers in the past.
+  while (fire_first_timer_due(now())) ++n;
+  return n;
+}
+
+void EventLoop::arm_timerfd() {
+  if (timer_fd_ < 0) return;
+  const std::optional<TimePoint> next = next_timer();
+  if (next == timerfd_armed_) return;
+  itimerspec spec{};
+  if (next) {
+    auto us = next->time_since_epoch().count();
+    if (us <= 0) us = 1;  // an all-zero it_value would disarm
+    spec.it_value.tv_sec = static_cast<time_t>(us / 1'000'000);
+    spec.it_value.tv_nsec = static_cast<long>((us % 1'000'000) * 1'000);
+  }
+  if (::timerfd_settime(timer_fd_, TFD_TIMER_ABSTIME, &spec, nullptr) != 0) throw_errno("timerfd_settime");
+  timerfd_armed_ = next;
+}
+
+// ---- fds, posts, signals -----------------------------------------------------------------
+
+EventLoop::WatchId EventLoop::watch(int fd, std::uint32_t events, FdCallback fn) {
+  const WatchId id = next_watch_id_++;
+  epoll_event ev{};
+  ev.events = events;
+  ev.data.u64 = id;
+  if (::epoll_ctl(epoll_fd_, EPOLL_CTL_ADD, fd, &ev) != 0) throw_errno("epoll_ctl(EPOLL_CTL_ADD)");
+  watchers_.emplace(id, Watcher{fd, std::make_shared<FdCallback>(std::move(fn))});
+  return id;
+}
+
+bool EventLoop::unwatch(WatchId id) {
+  auto it = watchers_.find(id);
+  if (it == watchers_.end()) return false;
+  ::epoll_ctl(epoll_fd_, EPOLL_CTL_DEL, it->second.fd, nullptr);  // fails only if already closed
+  watchers_.erase(it);
+  return true;
+}
+
+void EventLoop::post(Callback fn) { posted_.push_back(std::move(fn)); }
+
+std::size_t EventLoop::run_posted() {
+  // Only what was posted before this call: callbacks posting again do not starve descriptors.
+  std::deque<Callback> batch;
+  batch.swap(posted_);
+  for (auto& fn : batch) fn();
+  return batch.size();
+}
+
+void EventLoop::handle_signals(std::initializer_list<int> signals, SignalCallback on_signal) {
+  sigset_t add;
+  sigemptyset(&add);
+  for (int s : signals) {
+    if (sigaddset(&add, s) != 0) throw std::invalid_argument("EventLoop::handle_signals: bad signal number");
+    sigaddset(&handled_set_, s);
+  }
+  sigset_t previous;
+  if (const int e = ::pthread_sigmask(SIG_BLOCK, &add, &previous); e != 0) {
+    throw std::system_error(e, std::generic_category(), "pthread_sigmask");
+  }
+  if (!signals_blocked_) {
+    old_mask_ = previous;
+    signals_blocked_ = true;
+  }
+  const int fd = ::signalfd(signal_fd_, &handled_set_, SFD_NONBLOCK | SFD_CLOEXEC);
+  if (fd < 0) throw_errno("signalfd");
+  on_signal_ = std::move(on_signal);
+  if (signal_fd_ < 0) {
+    signal_fd_ = fd;
+    signal_watch_ = watch(signal_fd_, io_events::kReadable, [this](std::uint32_t) { on_signalfd(); });
+  }
+}
+
+void EventLoop::on_signalfd() {
+  signalfd_siginfo info{};
+  while (::read(signal_fd_, &info, sizeof info) == static_cast<ssize_t>(sizeof info)) {
+    if (on_signal_) {
+      on_signal_(static_cast<int>(info.ssi_signo));
+    } else {
+      stop();
+    }
+  }
+}
+
+// ---- running ------------------------------------------------------------------------------
+
+std::size_t EventLoop::run_once(std::optional<Duration> timeout) {
+  arm_timerfd();
+  int timeout_ms = -1;
+  if (!posted_.empty()) {
+    timeout_ms = 0;
+  } else if (timeout) {
+    const auto ms = (*timeout + std::chrono::microseconds(999)) / std::chrono::milliseconds(1);  // round up
+    timeout_ms = ms <= 0 ? 0 : static_cast<int>(std::min<long long>(ms, INT_MAX));
+  }
+  if (simulated() && !timers_.empty() && timers_.begin()->first.first <= now()) timeout_ms = 0;
+
+  constexpr int kMaxEvents = 32;
+  epoll_event events[kMaxEvents];
+  int n = ::epoll_wait(epoll_fd_, events, kMaxEvents, timeout_ms);
+  if (n < 0) {
+    if (errno != EINTR) throw_errno("epoll_wait");
+    n = 0;
+  }
+  std::size_t ran = 0;
+  for (int i = 0; i < n; ++i) {
+    const std::uint64_t id = events[i].data.u64;
+    if (id == kTimerFdWatch) {
+      std::uint64_t expirations = 0;
+      (void)!::read(timer_fd_, &expirations, sizeof expirations);
+      timerfd_armed_.reset();  // fired: must be re-armed even for the same time
+      continue;
+    }
+    auto it = watchers_.find(id);
+    if (it == watchers_.end()) continue;  // removed by an earlier callback in this batch
+    std::shared_ptr<FdCallback> fn = it->second.fn;
+    (*fn)(events[i].events);
+    ++ran;
+  }
+  ran += run_due_timers();
+  ran += run_posted();
+  return ran;
+}
+
+void EventLoop::run() {
+  while (!stop_) run_once(std::nullopt);
+  stop_ = false;
+}
+
+std::size_t EventLoop::advance_to(TimePoint t) {
+  if (simulated_ == nullptr) throw std::logic_error("EventLoop::advance_to needs a SimulatedClock");
+  if (t < now()) throw std::logic_error("EventLoop::advance_to: time would go backwards");
+  std::size_t ran = 0;
+  for (;;) {
+    while (!posted_.empty()) ran += run_posted();
+    if (timers_.empty() || timers_.begin()->first.first > t) break;
+    const TimePoint due = timers_.begin()->first.first;
+    if (due > now()) simulated_->set(due);
+    if (fire_first_timer_due(t)) ++ran;
+  }
+  simulated_->set(t);
+  while (!posted_.empty()) ran += run_posted();
+  return ran;
+}
+
+// ---- ServiceDriver ------------------------------------------------------------------------
+
+ServiceDriver::ServiceDriver(EventLoop& loop, DeadlineFn next_deadline, AdvanceFn advance)
+    : loop_(loop), next_deadline_(std::move(next_deadline)), advance_(std::move(advance)) {
+  rearm();
+}
+
+ServiceDriver::~ServiceDriver() {
+  if (timer_ != 0) loop_.cancel(timer_);
+}
+
+void ServiceDriver::rearm() {
+  const std::optional<TimePoint> deadline = next_deadline_();
+  if (timer_ != 0 && deadline == armed_at_) return;
+  if (timer_ != 0) loop_.cancel(timer_);
+  timer_ = 0;
+  armed_at_ = deadline;
+  if (deadline) timer_ = loop_.call_at(*deadline, [this] { on_timer(); });
+}
+
+void ServiceDriver::on_timer() {
+  timer_ = 0;
+  armed_at_.reset();
+  advance_(loop_.now());
+  rearm();
+}
+
+EventLoop::WatchId watch_transport(EventLoop& loop, CanTransport& transport) {
+  const int fd = transport.fd();
+  if (fd < 0) return 0;
+  return loop.watch(fd, io_events::kReadable, [&transport](std::uint32_t) { transport.poll_readable(); });
+}
+
+}  // namespace oegw::canopen

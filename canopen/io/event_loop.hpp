@@ -1,0 +1,217 @@
+// A single-threaded event loop: epoll for descriptors, a timerfd (CLOCK_MONOTONIC) for timers,
+// signalfd for signals, and a queue of posted callbacks.
+//
+// Two modes:
+//  * real time, `EventLoop loop;` - time is SteadyClock, run()/run_once() block in epoll_wait.
+//  * deterministic, `EventLoop loop(simulated_clock);` - time only moves through advance_to(),
+//    which fires the timers due in (time, creation) order, setting the clock to each timer's
+//    time first, without sleeping. Descriptors are still served by run_once(), and timers due at
+//    the clock's current time fire there too, but run_once() never moves the clock.
+//
+// Callbacks may add/cancel timers, add/remove watchers and post from inside callbacks. Timers
+// due at the same time fire in the order they were armed.
+//
+// Driving a "sans I/O" CANopen service:
+//
+//   EventLoop loop;
+//   auto port = SocketCanTransport::open("can0");
+//   Node node(od, port->sink());                 // has on_frame/advance/next_deadline
+//   ServiceDriver driver(loop, node);            // runs node.advance() at node.next_deadline()
+//   driver.bind_receiver(*port, node);           // frames -> node.on_frame(), then re-arm
+//   watch_transport(loop, *port);                // port fd readable -> port->poll_readable()
+//   loop.handle_signals({SIGTERM, SIGINT});      // -> loop.stop()
+//   loop.run();
+//
+// After calling into the service from outside (an API call that may change its deadline), call
+// driver.rearm().
+#pragma once
+
+#include <signal.h>
+
+#include <concepts>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <initializer_list>
+#include <map>
+#include <memory>
+#include <optional>
+#include <unordered_map>
+#include <utility>
+
+#include "canopen/io/can_transport.hpp"
+#include "canopen/io/clock.hpp"
+#include "canopen/types.hpp"
+
+namespace oegw::canopen {
+
+// Event bits for fd watchers (the same values as EPOLLIN, EPOLLOUT, EPOLLERR, EPOLLHUP).
+namespace io_events {
+inline constexpr std::uint32_t kReadable = 0x001;
+inline constexpr std::uint32_t kWritable = 0x004;
+inline constexpr std::uint32_t kError = 0x008;
+inline constexpr std::uint32_t kHangup = 0x010;
+}  // namespace io_events
+
+class EventLoop {
+ public:
+  using Callback = std::function<void()>;
+  using FdCallback = std::function<void(std::uint32_t events)>;
+  using SignalCallback = std::function<void(int signo)>;
+  using TimerId = std::uint64_t;  // never 0
+  using WatchId = std::uint64_t;  // never 0
+
+  // Real time (SteadyClock, timerfd). Throws std::system_error if epoll/timerfd fail.
+  EventLoop();
+  // Deterministic: time is `clock`, which must outlive the loop; use advance_to() to move it.
+  explicit EventLoop(SimulatedClock& clock);
+  EventLoop(const EventLoop&) = delete;
+  EventLoop& operator=(const EventLoop&) = delete;
+  ~EventLoop();
+
+  [[nodiscard]] bool simulated() const { return simulated_ != nullptr; }
+  [[nodiscard]] TimePoint now() const { return clock_->now(); }
+  [[nodiscard]] const Clock& clock() const { return *clock_; }
+
+  // One-shot timer at `at` (a time in the past fires at the next opportunity).
+  TimerId call_at(TimePoint at, Callback fn);
+  TimerId call_after(Duration delay, Callback fn) { return call_at(now() + delay, std::move(fn)); }
+  // Periodic timer: first at `first`, then every `period` at fixed rate (first + k*period, no
+  // drift). If the loop fell behind by whole periods, the missed ones are skipped, not bunched.
+  // Throws std::invalid_argument if period <= 0.
+  TimerId call_every(TimePoint first, Duration period, Callback fn);
+  // True if the timer existed (a one-shot timer that already fired no longer exists).
+  bool cancel(TimerId id);
+  [[nodiscard]] bool pending(TimerId id) const { return timer_keys_.contains(id); }
+  [[nodiscard]] std::optional<TimePoint> next_timer() const;
+
+  // Watches `fd` for `events` (io_events bits). Throws std::system_error (e.g. fd already
+  // watched, or not pollable). The loop does not own the fd; unwatch() before closing it.
+  WatchId watch(int fd, std::uint32_t events, FdCallback fn);
+  bool unwatch(WatchId id);
+
+  // Runs `fn` on the loop soon: in the current/next run_once(), or in advance_to().
+  void post(Callback fn);
+
+  // Blocks `signals` for the calling thread (call before starting other threads so they inherit
+  // the mask) and receives them through a signalfd: `on_signal(signo)`, or stop() if none is
+  // given. May be called again to add signals (the latest callback then serves all of them).
+  // The destructor restores the previous mask, after discarding any of these signals still
+  // pending.
+  void handle_signals(std::initializer_list<int> signals, SignalCallback on_signal = {});
+
+  // Runs until stop(). If stop() was called before run(), returns at once. Resets the stop flag
+  // on return, so run() can be called again.
+  void run();
+  void stop() { stop_ = true; }
+  [[nodiscard]] bool stop_requested() const { return stop_; }
+
+  // One iteration: waits up to `timeout` (nullopt = until something happens; 0 = poll) for
+  // descriptors and, in real time, for the next timer; then dispatches ready descriptors, due
+  // timers and posted callbacks. Returns the number of callbacks run.
+  std::size_t run_once(std::optional<Duration> timeout);
+
+  // Deterministic mode only (throws std::logic_error in real time, or if `t` is in the past):
+  // runs posted callbacks and fires every timer due up to `t`, in order, moving the clock to each
+  // timer's time; then sets the clock to `t` and runs posted callbacks again. Returns the number
+  // of callbacks run. Does not poll descriptors.
+  std::size_t advance_to(TimePoint t);
+  std::size_t advance_by(Duration d) { return advance_to(now() + d); }
+
+ private:
+  struct Timer {
+    std::shared_ptr<Callback> fn;
+    Duration period{0};  // 0 = one-shot
+  };
+  using TimerKey = std::pair<TimePoint, std::uint64_t>;  // (due, arm sequence)
+  struct Watcher {
+    int fd;
+    std::shared_ptr<FdCallback> fn;
+  };
+
+  void init();
+  void arm_timer(TimerId id, TimePoint at, Timer timer);
+  bool fire_first_timer_due(TimePoint limit);  // fires at most one timer due at or before limit
+  std::size_t run_due_timers();
+  std::size_t run_posted();
+  void arm_timerfd();
+  void on_signalfd();
+
+  SteadyClock steady_;
+  const Clock* clock_ = &steady_;
+  SimulatedClock* simulated_ = nullptr;
+  int epoll_fd_ = -1;
+  int timer_fd_ = -1;
+  std::optional<TimePoint> timerfd_armed_;
+  int signal_fd_ = -1;
+  WatchId signal_watch_ = 0;
+  SignalCallback on_signal_;
+  bool signals_blocked_ = false;
+  sigset_t old_mask_{};
+  sigset_t handled_set_{};
+  std::map<TimerKey, std::pair<TimerId, Timer>> timers_;
+  std::unordered_map<TimerId, TimerKey> timer_keys_;
+  std::uint64_t next_timer_id_ = 1;
+  std::uint64_t arm_seq_ = 0;
+  std::unordered_map<WatchId, Watcher> watchers_;
+  WatchId next_watch_id_ = 2;  // 1 is the timerfd
+  std::deque<Callback> posted_;
+  bool stop_ = false;
+};
+
+// Runs a "sans I/O" service's timers from the loop: whenever armed, a loop timer is set at
+// service.next_deadline(); when it fires, service.advance(loop.now()) runs and the timer is re-set
+// at the new next_deadline(). A service must move its deadline past `now` in advance(now).
+class ServiceDriver {
+ public:
+  using DeadlineFn = std::function<std::optional<TimePoint>()>;
+  using AdvanceFn = std::function<void(TimePoint)>;
+
+  ServiceDriver(EventLoop& loop, DeadlineFn next_deadline, AdvanceFn advance);
+
+  template <class Service>
+    requires requires(Service& s, TimePoint t) {
+      s.advance(t);
+      { s.next_deadline() } -> std::convertible_to<std::optional<TimePoint>>;
+    }
+  ServiceDriver(EventLoop& loop, Service& service)
+      : ServiceDriver(
+            loop, [&service] { return std::optional<TimePoint>(service.next_deadline()); },
+            [&service](TimePoint now) { service.advance(now); }) {}
+
+  ServiceDriver(const ServiceDriver&) = delete;
+  ServiceDriver& operator=(const ServiceDriver&) = delete;
+  ~ServiceDriver();
+
+  // Re-reads next_deadline() and (re)sets the loop timer. Call after anything that may have
+  // changed it (a frame fed in, an API call). The constructor arms once.
+  void rearm();
+  [[nodiscard]] std::optional<TimePoint> armed_deadline() const { return armed_at_; }
+
+  // Makes `transport` feed received frames to service.on_frame(frame, timestamp), then rearm().
+  // The transport keeps a pointer to this driver: destroy the transport (or replace its
+  // receiver) before the driver.
+  template <class Service>
+    requires requires(Service& s, const CanFrame& f, TimePoint t) { s.on_frame(f, t); }
+  void bind_receiver(CanTransport& transport, Service& service) {
+    transport.set_receiver([this, &service](const CanFrame& frame, TimePoint timestamp) {
+      service.on_frame(frame, timestamp);
+      rearm();
+    });
+  }
+
+ private:
+  void on_timer();
+
+  EventLoop& loop_;
+  DeadlineFn next_deadline_;
+  AdvanceFn advance_;
+  EventLoop::TimerId timer_ = 0;
+  std::optional<TimePoint> armed_at_;
+};
+
+// Watches transport.fd() (if >= 0) and calls transport.poll_readable() when it is readable.
+// Returns the watch id, or 0 if the transport has no descriptor.
+EventLoop::WatchId watch_transport(EventLoop& loop, CanTransport& transport);
+
+}  // namespace oegw::canopen

@@ -1,0 +1,319 @@
+#include "canopen/io/socketcan_transport.hpp"
+
+#include <fcntl.h>
+#include <linux/can/raw.h>
+#include <net/if.h>
+#include <net/if_arp.h>
+#include <sys/ioctl.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <utility>
+
+#include "canopen/io/clock.hpp"
+
+namespace oegw::canopen {
+
+namespace {
+
+std::string errno_text(int e) { return std::strerror(e); }
+
+// Closes on scope exit unless released.
+class FdGuard {
+ public:
+  explicit FdGuard(int fd) : fd_(fd) {}
+  FdGuard(const FdGuard&) = delete;
+  FdGuard& operator=(const FdGuard&) = delete;
+  ~FdGuard() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  [[nodiscard]] int get() const { return fd_; }
+  int release() { return std::exchange(fd_, -1); }
+
+ private:
+  int fd_;
+};
+
+void fill_ifreq(ifreq& ifr, const std::string& name) {
+  std::memset(&ifr, 0, sizeof ifr);
+  std::memcpy(ifr.ifr_name, name.data(), name.size());  // length checked by the caller
+}
+
+void validate_name(const std::string& name) {
+  if (name.empty() || name.size() >= IFNAMSIZ || name.find('/') != std::string::npos ||
+      name.find_first_of(" \t\n:") != std::string::npos) {
+    throw CanOpenError(CanOpenError::Reason::InvalidName, EINVAL, "invalid CAN interface name '" + name + "'");
+  }
+}
+
+template <class T>
+void set_option(int fd, int level, int option, const T* value, std::size_t size, const char* option_name,
+                const std::string& interface) {
+  if (::setsockopt(fd, level, option, value, static_cast<socklen_t>(size)) != 0) {
+    const int e = errno;
+    throw CanOpenError(CanOpenError::Reason::SystemError, e,
+                       std::string("setsockopt(") + option_name + ") on CAN interface '" + interface +
+                           "': " + errno_text(e));
+  }
+}
+
+constexpr std::int64_t kMaxPlausibleAgeUs = 10'000'000;  // 10 s
+
+}  // namespace
+
+// ---- interface probing --------------------------------------------------------------------
+
+InterfaceInfo probe_interface(const std::string& name) {
+  validate_name(name);
+  // Any socket can ask about interfaces; AF_UNIX works even without CAN support in the kernel.
+  FdGuard s(::socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0));
+  if (s.get() < 0) {
+    const int e = errno;
+    throw CanOpenError(CanOpenError::Reason::SystemError, e, "cannot query network interfaces: " + errno_text(e));
+  }
+  InterfaceInfo info;
+  ifreq ifr;
+  fill_ifreq(ifr, name);
+  if (::ioctl(s.get(), SIOCGIFINDEX, &ifr) != 0) {
+    const int e = errno;
+    if (e == ENODEV) return info;
+    throw CanOpenError(CanOpenError::Reason::SystemError, e,
+                       "cannot query network interface '" + name + "': " + errno_text(e));
+  }
+  info.exists = true;
+  info.index = ifr.ifr_ifindex;
+  fill_ifreq(ifr, name);
+  if (::ioctl(s.get(), SIOCGIFHWADDR, &ifr) == 0) info.is_can = ifr.ifr_hwaddr.sa_family == ARPHRD_CAN;
+  fill_ifreq(ifr, name);
+  if (::ioctl(s.get(), SIOCGIFFLAGS, &ifr) == 0) info.up = (ifr.ifr_flags & IFF_UP) != 0;
+  return info;
+}
+
+int check_can_interface(const std::string& name) {
+  const InterfaceInfo info = probe_interface(name);
+  if (!info.exists) {
+    throw CanOpenError(CanOpenError::Reason::NoSuchInterface, ENODEV, "no such CAN interface '" + name + "'");
+  }
+  if (!info.is_can) {
+    throw CanOpenError(CanOpenError::Reason::NotCanInterface, ENODEV, "interface '" + name + "' is not a CAN interface");
+  }
+  if (!info.up) {
+    throw CanOpenError(CanOpenError::Reason::InterfaceDown, ENETDOWN, "interface '" + name + "' is down");
+  }
+  return info.index;
+}
+
+// ---- conversions --------------------------------------------------------------------------
+
+namespace socketcan {
+
+::can_frame to_kernel(const CanFrame& frame) {
+  ::can_frame k;
+  std::memset(&k, 0, sizeof k);
+  k.can_id = frame.extended ? ((frame.id & CAN_EFF_MASK) | CAN_EFF_FLAG) : (frame.id & CAN_SFF_MASK);
+  if (frame.rtr) k.can_id |= CAN_RTR_FLAG;
+  k.len = std::min<std::uint8_t>(frame.dlc, CAN_MAX_DLEN);
+  if (!frame.rtr) std::copy_n(frame.data.begin(), k.len, k.data);
+  return k;
+}
+
+std::optional<CanFrame> from_kernel(const ::can_frame& k) {
+  if (is_error_frame(k)) return std::nullopt;
+  CanFrame f;
+  f.extended = (k.can_id & CAN_EFF_FLAG) != 0;
+  f.id = k.can_id & (f.extended ? CAN_EFF_MASK : CAN_SFF_MASK);
+  f.rtr = (k.can_id & CAN_RTR_FLAG) != 0;
+  f.dlc = std::min<std::uint8_t>(k.len, CAN_MAX_DLEN);
+  if (!f.rtr) std::copy_n(k.data, f.dlc, f.data.begin());
+  return f;
+}
+
+std::vector<BusEvent> decode_error_frame(const ::can_frame& k) {
+  std::vector<BusEvent> events;
+  if (!is_error_frame(k)) return events;
+  auto add = [&events](BusEvent e) {
+    if (std::find(events.begin(), events.end(), e) == events.end()) events.push_back(e);
+  };
+  const canid_t cls = k.can_id & CAN_ERR_MASK;
+  // The class bits carry details in data[] only with CAN_ERR_DLC bytes; a short error frame
+  // still reports its classes.
+  const std::uint8_t ctrl = k.len > 1 ? k.data[1] : 0;
+  if (cls & CAN_ERR_TX_TIMEOUT) add(BusEvent::TxTimeout);
+  if (cls & CAN_ERR_LOSTARB) add(BusEvent::LostArbitration);
+  if (cls & CAN_ERR_CRTL) {
+    if (ctrl & (CAN_ERR_CRTL_RX_OVERFLOW | CAN_ERR_CRTL_TX_OVERFLOW)) add(BusEvent::ControllerOverflow);
+    if (ctrl & (CAN_ERR_CRTL_RX_WARNING | CAN_ERR_CRTL_TX_WARNING)) add(BusEvent::ErrorWarning);
+    if (ctrl & (CAN_ERR_CRTL_RX_PASSIVE | CAN_ERR_CRTL_TX_PASSIVE)) add(BusEvent::ErrorPassive);
+    if (ctrl & CAN_ERR_CRTL_ACTIVE) add(BusEvent::ErrorActive);
+  }
+  if (cls & CAN_ERR_PROT) add(BusEvent::ProtocolError);
+  if (cls & CAN_ERR_TRX) add(BusEvent::TransceiverError);
+  if (cls & CAN_ERR_ACK) add(BusEvent::NoAck);
+  if (cls & CAN_ERR_BUSOFF) add(BusEvent::BusOff);
+  if (cls & CAN_ERR_BUSERROR) add(BusEvent::BusError);
+  if (cls & CAN_ERR_RESTARTED) add(BusEvent::Restarted);
+  return events;
+}
+
+::can_filter to_kernel(const CanFilter& filter) {
+  ::can_filter k{};
+  const canid_t id_mask = filter.extended ? CAN_EFF_MASK : CAN_SFF_MASK;
+  k.can_id = (filter.id & id_mask) | (filter.extended ? CAN_EFF_FLAG : 0U);
+  // Always compare the frame format, never the RTR bit: data and remote frames both match.
+  k.can_mask = (filter.mask & id_mask) | CAN_EFF_FLAG;
+  if (filter.invert) k.can_id |= CAN_INV_FILTER;
+  return k;
+}
+
+TimePoint timestamp_from_realtime(const timespec& stamp, const timespec& realtime_now, TimePoint monotonic_now) {
+  const std::int64_t age_us = (static_cast<std::int64_t>(realtime_now.tv_sec) - stamp.tv_sec) * 1'000'000 +
+                              (static_cast<std::int64_t>(realtime_now.tv_nsec) - stamp.tv_nsec) / 1'000;
+  if (age_us < 0 || age_us > kMaxPlausibleAgeUs) return monotonic_now;
+  return monotonic_now - Duration{age_us};
+}
+
+}  // namespace socketcan
+
+// ---- the transport ------------------------------------------------------------------------
+
+std::unique_ptr<SocketCanTransport> SocketCanTransport::open(const std::string& interface, SocketCanOptions options) {
+  validate_name(interface);
+  FdGuard s(::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW));
+  if (s.get() < 0) {
+    const int e = errno;
+    if (e == EAFNOSUPPORT) {
+      throw CanOpenError(CanOpenError::Reason::NoKernelSupport, e,
+                         "kernel has no CAN support (socket(PF_CAN): " + errno_text(e) + ")");
+    }
+    if (e == EPROTONOSUPPORT) {
+      throw CanOpenError(CanOpenError::Reason::NoKernelSupport, e,
+                         "kernel has no CAN_RAW support (socket(PF_CAN, CAN_RAW): " + errno_text(e) + ")");
+    }
+    throw CanOpenError(CanOpenError::Reason::SystemError, e, "cannot create a CAN socket: " + errno_text(e));
+  }
+  const int index = check_can_interface(interface);
+
+  if (options.filters) {
+    std::vector<::can_filter> k;
+    k.reserve(options.filters->size());
+    for (const CanFilter& f : *options.filters) k.push_back(socketcan::to_kernel(f));
+    set_option(s.get(), SOL_CAN_RAW, CAN_RAW_FILTER, k.data(), k.size() * sizeof(::can_filter), "CAN_RAW_FILTER",
+               interface);
+  }
+  const can_err_mask_t err_mask = options.error_mask & CAN_ERR_MASK;
+  set_option(s.get(), SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &err_mask, sizeof err_mask, "CAN_RAW_ERR_FILTER", interface);
+  const int loopback = options.loopback ? 1 : 0;
+  set_option(s.get(), SOL_CAN_RAW, CAN_RAW_LOOPBACK, &loopback, sizeof loopback, "CAN_RAW_LOOPBACK", interface);
+  const int own = options.receive_own ? 1 : 0;
+  set_option(s.get(), SOL_CAN_RAW, CAN_RAW_RECV_OWN_MSGS, &own, sizeof own, "CAN_RAW_RECV_OWN_MSGS", interface);
+  const int on = 1;
+  set_option(s.get(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on, "SO_TIMESTAMPNS", interface);
+  set_option(s.get(), SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on, "SO_RXQ_OVFL", interface);
+
+  sockaddr_can addr{};
+  addr.can_family = AF_CAN;
+  addr.can_ifindex = index;
+  if (::bind(s.get(), reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
+    const int e = errno;
+    if (e == ENODEV) {
+      throw CanOpenError(CanOpenError::Reason::NoSuchInterface, e, "no such CAN interface '" + interface + "'");
+    }
+    if (e == ENETDOWN) {
+      throw CanOpenError(CanOpenError::Reason::InterfaceDown, e, "interface '" + interface + "' is down");
+    }
+    throw CanOpenError(CanOpenError::Reason::SystemError, e,
+                       "cannot bind to CAN interface '" + interface + "': " + errno_text(e));
+  }
+  return std::unique_ptr<SocketCanTransport>(
+      new SocketCanTransport(s.release(), interface, index, std::max<std::size_t>(options.max_batch, 1)));
+}
+
+std::unique_ptr<SocketCanTransport> SocketCanTransport::adopt(int fd, std::string interface, std::size_t max_batch) {
+  if (fd < 0) throw std::invalid_argument("SocketCanTransport::adopt: invalid file descriptor");
+  const int flags = ::fcntl(fd, F_GETFL);
+  if (flags >= 0) ::fcntl(fd, F_SETFL, flags | O_NONBLOCK);
+  const int on = 1;
+  (void)::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
+  (void)::setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on);
+  return std::unique_ptr<SocketCanTransport>(
+      new SocketCanTransport(fd, std::move(interface), 0, std::max<std::size_t>(max_batch, 1)));
+}
+
+SocketCanTransport::~SocketCanTransport() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+SendResult SocketCanTransport::send(const CanFrame& frame) {
+  if (!is_valid_frame(frame)) {
+    ++counters_.errors;
+    return {SendStatus::InvalidFrame, 0};
+  }
+  const ::can_frame k = socketcan::to_kernel(frame);
+  const ssize_t n = ::send(fd_, &k, sizeof k, MSG_DONTWAIT | MSG_NOSIGNAL);
+  if (n == static_cast<ssize_t>(sizeof k)) {
+    ++counters_.tx_frames;
+    return {};
+  }
+  const int e = n < 0 ? errno : EIO;
+  if (e == ENOBUFS || e == EAGAIN) {
+    ++counters_.tx_dropped;
+    return {SendStatus::QueueFull, e};
+  }
+  ++counters_.errors;
+  if (e == ENETDOWN) return {SendStatus::InterfaceDown, e};
+  return {SendStatus::Error, e};
+}
+
+void SocketCanTransport::poll_readable() {
+  for (std::size_t i = 0; i < max_batch_; ++i) {
+    ::can_frame k;
+    iovec iov{&k, sizeof k};
+    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(std::uint32_t))];
+    msghdr msg{};
+    msg.msg_iov = &iov;
+    msg.msg_iovlen = 1;
+    msg.msg_control = control;
+    msg.msg_controllen = sizeof control;
+    const ssize_t n = ::recvmsg(fd_, &msg, MSG_DONTWAIT);
+    if (n < 0) {
+      const int e = errno;
+      if (e == EAGAIN || e == EWOULDBLOCK) return;
+      if (e == EINTR) continue;
+      ++counters_.errors;
+      if (e == ENETDOWN) deliver_event(BusEvent::InterfaceDown);
+      return;
+    }
+    if (n != static_cast<ssize_t>(sizeof k)) {  // CAN FD/XL frames are not enabled; be safe
+      ++counters_.errors;
+      continue;
+    }
+    timespec real_now{};
+    timespec mono_now{};
+    ::clock_gettime(CLOCK_REALTIME, &real_now);
+    ::clock_gettime(CLOCK_MONOTONIC, &mono_now);
+    const TimePoint read_time = time_point_from_monotonic(mono_now.tv_sec, mono_now.tv_nsec);
+    TimePoint stamp = read_time;
+    for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
+      if (c->cmsg_level != SOL_SOCKET) continue;
+      if (c->cmsg_type == SCM_TIMESTAMPNS) {
+        timespec ts;
+        std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+        stamp = socketcan::timestamp_from_realtime(ts, real_now, read_time);
+      } else if (c->cmsg_type == SO_RXQ_OVFL) {
+        std::uint32_t dropped = 0;
+        std::memcpy(&dropped, CMSG_DATA(c), sizeof dropped);
+        counters_.rx_dropped = std::max<std::uint64_t>(counters_.rx_dropped, dropped);  // cumulative
+      }
+    }
+    if (socketcan::is_error_frame(k)) {
+      for (BusEvent e : socketcan::decode_error_frame(k)) deliver_event(e);
+    } else if (auto frame = socketcan::from_kernel(k)) {
+      deliver_frame(*frame, stamp);
+    }
+  }
+}
+
+}  // namespace oegw::canopen

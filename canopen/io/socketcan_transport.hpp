@@ -1,0 +1,147 @@
+// Linux SocketCAN (CAN_RAW) transport.
+//
+//   auto can = SocketCanTransport::open("can0", {.filters = std::vector<CanFilter>{{0x580, 0x780}}});
+//   watch_transport(loop, *can);        // the loop calls can->poll_readable() when readable
+//
+// * Non-blocking socket; send() never blocks: a full TX queue (ENOBUFS) drops the frame, counts
+//   it in counters().tx_dropped and returns SendStatus::QueueFull.
+// * CAN_RAW_FILTER from the options (default: everything); CAN_RAW_ERR_FILTER so the controller
+//   state comes in as error frames, decoded to BusEvents; CAN_RAW_LOOPBACK on (other programs on
+//   this host, e.g. candump, see our frames), CAN_RAW_RECV_OWN_MSGS off (we do not).
+// * Receive timestamps: SO_TIMESTAMPNS, taken by the kernel when the frame arrived. The kernel
+//   gives CLOCK_REALTIME, while TimePoint is CLOCK_MONOTONIC; the frame's age (realtime now minus
+//   realtime stamp) is subtracted from the monotonic time of reading. So a backlog drained late
+//   still carries its arrival times. If the realtime clock was stepped in between (age negative
+//   or above 10 s) the monotonic time of reading is used instead.
+// * SO_RXQ_OVFL: frames the kernel dropped because we read too slowly -> counters().rx_dropped.
+//
+// Opening failures throw CanOpenError (one policy for every open problem), whose what() names the
+// problem, e.g. "no such CAN interface 'can7'".
+#pragma once
+
+#include <linux/can.h>
+#include <linux/can/error.h>
+#include <time.h>
+
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "canopen/io/can_transport.hpp"
+
+namespace oegw::canopen {
+
+// One receive filter: a frame matches if (frame id & mask) == (id & mask) and its format
+// (11/29-bit) is that of `extended`. Data and remote frames both match. `invert` matches
+// everything else. Several filters are OR-ed.
+struct CanFilter {
+  std::uint32_t id = 0;
+  std::uint32_t mask = 0;
+  bool extended = false;
+  bool invert = false;
+};
+
+// The error classes received by default: controller state, bus-off, restarts, TX timeouts,
+// protocol/transceiver errors and missing ACKs. Not lost arbitration nor bus errors, which can
+// flood.
+inline constexpr std::uint32_t kDefaultCanErrorMask = CAN_ERR_TX_TIMEOUT | CAN_ERR_CRTL | CAN_ERR_PROT |
+                                                      CAN_ERR_TRX | CAN_ERR_ACK | CAN_ERR_BUSOFF |
+                                                      CAN_ERR_RESTARTED;
+
+struct SocketCanOptions {
+  // nullopt: receive every frame. An empty list: receive no data frames (error frames only).
+  std::optional<std::vector<CanFilter>> filters;
+  std::uint32_t error_mask = kDefaultCanErrorMask;  // CAN_ERR_* classes; 0 = no error frames
+  bool loopback = true;                               // CAN_RAW_LOOPBACK
+  bool receive_own = false;                           // CAN_RAW_RECV_OWN_MSGS
+  std::size_t max_batch = 256;                        // frames read per poll_readable() call
+};
+
+class CanOpenError : public std::runtime_error {
+ public:
+  enum class Reason {
+    NoKernelSupport,   // no PF_CAN (or no CAN_RAW) in this kernel
+    InvalidName,       // empty or too long for an interface name
+    NoSuchInterface,
+    NotCanInterface,   // exists, but its hardware type is not ARPHRD_CAN
+    InterfaceDown,
+    SystemError,       // anything else: see error()
+  };
+  CanOpenError(Reason reason, int error, const std::string& message)
+      : std::runtime_error(message), reason_(reason), error_(error) {}
+  [[nodiscard]] Reason reason() const { return reason_; }
+  [[nodiscard]] int error() const { return error_; }  // errno, where one applies
+
+ private:
+  Reason reason_;
+  int error_;
+};
+
+// What the kernel says about a network interface (without needing CAN support).
+struct InterfaceInfo {
+  bool exists = false;
+  int index = 0;
+  bool is_can = false;  // ARPHRD_CAN: can*, vcan*, vxcan*, slcan*
+  bool up = false;      // IFF_UP
+};
+// Throws CanOpenError(InvalidName) for a bad name, CanOpenError(SystemError) if the kernel
+// cannot be asked.
+[[nodiscard]] InterfaceInfo probe_interface(const std::string& name);
+// probe_interface(), then throws CanOpenError for a missing, non-CAN or down interface.
+// Returns the interface index.
+int check_can_interface(const std::string& name);
+
+// Conversions to and from the kernel's struct can_frame (exposed for testing).
+namespace socketcan {
+// `frame` must satisfy is_valid_frame(); a remote frame carries no data.
+[[nodiscard]] ::can_frame to_kernel(const CanFrame& frame);
+// nullopt for an error frame (CAN_ERR_FLAG); a len above 8 is clamped to 8.
+[[nodiscard]] std::optional<CanFrame> from_kernel(const ::can_frame& frame);
+[[nodiscard]] inline bool is_error_frame(const ::can_frame& frame) { return (frame.can_id & CAN_ERR_FLAG) != 0; }
+// The events an error frame reports, in CAN_ERR_* class bit order (TX timeout, lost arbitration,
+// controller [overflow, warning, passive, active], protocol, transceiver, no ACK, bus-off, bus
+// error, restarted), without duplicates.
+[[nodiscard]] std::vector<BusEvent> decode_error_frame(const ::can_frame& frame);
+[[nodiscard]] ::can_filter to_kernel(const CanFilter& filter);
+// See the header comment: maps a CLOCK_REALTIME kernel timestamp to monotonic TimePoint.
+[[nodiscard]] TimePoint timestamp_from_realtime(const timespec& stamp, const timespec& realtime_now,
+                                                TimePoint monotonic_now);
+}  // namespace socketcan
+
+class SocketCanTransport final : public CanTransport {
+ public:
+  // Throws CanOpenError, with messages such as:
+  //   "kernel has no CAN support (socket(PF_CAN): Address family not supported by protocol)"
+  //   "no such CAN interface 'can7'"
+  //   "interface 'eth0' is not a CAN interface"
+  //   "interface 'can0' is down"
+  [[nodiscard]] static std::unique_ptr<SocketCanTransport> open(const std::string& interface,
+                                                                SocketCanOptions options = {});
+  // Takes ownership of an already bound CAN_RAW socket (e.g. one handed over by a privileged
+  // helper or by systemd socket activation); `interface` is only used in messages. The fd is made
+  // non-blocking and SO_TIMESTAMPNS/SO_RXQ_OVFL are enabled where the socket supports them; the
+  // CAN_RAW options are left as the socket has them. Throws std::invalid_argument for fd < 0.
+  [[nodiscard]] static std::unique_ptr<SocketCanTransport> adopt(int fd, std::string interface,
+                                                                 std::size_t max_batch = 256);
+  ~SocketCanTransport() override;
+
+  SendResult send(const CanFrame& frame) override;
+  [[nodiscard]] int fd() const override { return fd_; }
+  void poll_readable() override;
+
+  [[nodiscard]] const std::string& interface() const { return interface_; }
+  [[nodiscard]] int interface_index() const { return index_; }  // 0 when adopted
+
+ private:
+  SocketCanTransport(int fd, std::string interface, int index, std::size_t max_batch)
+      : fd_(fd), interface_(std::move(interface)), index_(index), max_batch_(max_batch) {}
+
+  int fd_;
+  std::string interface_;
+  int index_;
+  std::size_t max_batch_;
+};
+
+}  // namespace oegw::canopen

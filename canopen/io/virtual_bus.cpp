@@ -1,0 +1,110 @@
+#include "canopen/io/virtual_bus.hpp"
+
+#include "canopen/io/event_loop.hpp"
+
+namespace oegw::canopen {
+
+std::string BusRecord::to_string() const { return sender + ": " + frame.to_string(); }
+
+VirtualPort::~VirtualPort() {
+  if (bus_ != nullptr) bus_->detach(id_);
+}
+
+SendResult VirtualPort::send(const CanFrame& frame) {
+  if (!is_valid_frame(frame)) {
+    ++counters_.errors;
+    return {SendStatus::InvalidFrame, 0};
+  }
+  if (!connected_ || bus_ == nullptr) {
+    ++counters_.tx_dropped;
+    return {};
+  }
+  ++counters_.tx_frames;
+  bus_->enqueue(id_, name_, frame);
+  return {};
+}
+
+VirtualBus::~VirtualBus() {
+  for (auto& [id, port] : ports_) port->bus_ = nullptr;
+}
+
+std::unique_ptr<VirtualPort> VirtualBus::attach(std::string name, PortOptions options) {
+  const std::uint64_t id = next_id_++;
+  std::unique_ptr<VirtualPort> port(new VirtualPort(this, id, std::move(name), options));
+  ports_.emplace(id, port.get());
+  return port;
+}
+
+SendResult VirtualBus::inject(const CanFrame& frame, std::string sender) {
+  if (!is_valid_frame(frame)) return {SendStatus::InvalidFrame, 0};
+  enqueue(0, sender, frame);
+  return {};
+}
+
+void VirtualBus::drop_next(std::size_t count, FramePredicate match) {
+  drop_count_ = count;
+  drop_match_ = std::move(match);
+}
+
+void VirtualBus::enqueue(std::uint64_t sender_id, const std::string& sender, const CanFrame& frame) {
+  if (drop_count_ > 0 && (!drop_match_ || drop_match_(frame))) {
+    --drop_count_;
+    ++dropped_;
+    return;
+  }
+  const bool was_empty = queue_.empty();
+  queue_.push_back(Pending{sender_id, sender, frame});
+  if (was_empty && !delivering_ && wakeup_) wakeup_();
+}
+
+std::size_t VirtualBus::deliver_all(TimePoint now, std::size_t max_frames) {
+  if (delivering_) return 0;
+  delivering_ = true;
+  struct Reset {
+    bool& flag;
+    ~Reset() { flag = false; }
+  } reset{delivering_};
+
+  std::size_t delivered = 0;
+  std::vector<std::uint64_t> targets;
+  while (!queue_.empty() && delivered < max_frames) {
+    Pending p = std::move(queue_.front());
+    queue_.pop_front();
+    ++delivered;
+    BusRecord record{now, std::move(p.sender), p.frame};
+    if (logging_) log_.push_back(record);
+    if (tap_) tap_(record);
+    // Snapshot: receivers may attach or destroy ports while we deliver.
+    targets.clear();
+    for (const auto& [id, port] : ports_) targets.push_back(id);
+    for (std::uint64_t id : targets) {
+      auto it = ports_.find(id);
+      if (it == ports_.end()) continue;
+      VirtualPort* port = it->second;
+      if (!port->connected_) continue;
+      if (id == p.sender_id && !port->options_.receive_own) continue;
+      port->deliver_frame(record.frame, now);
+    }
+  }
+  return delivered;
+}
+
+void VirtualBus::run_on(EventLoop& loop) {
+  // Delivers in batches so that a frame storm cannot starve the loop's timers and descriptors.
+  constexpr std::size_t kBatch = 1024;
+  std::weak_ptr<int> alive = alive_;
+  auto post_delivery = std::make_shared<std::function<void()>>();
+  *post_delivery = [this, &loop, alive, weak_self = std::weak_ptr(post_delivery)] {
+    loop.post([this, &loop, alive, weak_self] {
+      if (alive.expired()) return;
+      deliver_all(loop.now(), kBatch);
+      if (!queue_.empty()) {
+        if (auto self = weak_self.lock()) (*self)();
+      }
+    });
+  };
+  set_wakeup([post_delivery] { (*post_delivery)(); });
+  if (!queue_.empty()) (*post_delivery)();
+}
+
+}  // namespace oegw::canopen

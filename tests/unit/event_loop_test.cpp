@@ -1,0 +1,365 @@
+#include "canopen/io/event_loop.hpp"
+
+#include <fcntl.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <string>
+#include <vector>
+
+#include "canopen/io/virtual_bus.hpp"
+
+using namespace oegw::canopen;
+using namespace std::chrono_literals;
+using ::testing::ElementsAre;
+using ::testing::IsEmpty;
+
+namespace {
+
+struct Pipe {
+  int r = -1;
+  int w = -1;
+  Pipe() {
+    int fds[2];
+    if (::pipe2(fds, O_NONBLOCK | O_CLOEXEC) != 0) throw std::runtime_error("pipe2");
+    r = fds[0];
+    w = fds[1];
+  }
+  ~Pipe() {
+    ::close(r);
+    ::close(w);
+  }
+};
+
+TEST(EventLoopSimulated, FiresTimersInTimeOrderMovingTheClockToEach) {
+  SimulatedClock clock(TimePoint{100ms});
+  EventLoop loop(clock);
+  std::vector<std::pair<std::string, TimePoint>> fired;
+  auto note = [&](std::string name) { return [&, name] { fired.emplace_back(name, loop.now()); }; };
+  loop.call_at(TimePoint{300ms}, note("c"));
+  loop.call_at(TimePoint{150ms}, note("a"));
+  loop.call_after(100ms, note("b"));  // 200 ms
+  loop.call_at(TimePoint{400ms}, note("late"));
+
+  EXPECT_EQ(loop.advance_to(TimePoint{350ms}), 3u);
+  EXPECT_THAT(fired, ElementsAre(std::pair<std::string, TimePoint>{"a", TimePoint{150ms}},
+                                 std::pair<std::string, TimePoint>{"b", TimePoint{200ms}},
+                                 std::pair<std::string, TimePoint>{"c", TimePoint{300ms}}));
+  EXPECT_EQ(clock.now(), TimePoint{350ms});
+  EXPECT_EQ(loop.next_timer(), TimePoint{400ms});
+}
+
+TEST(EventLoopSimulated, SameTimeTimersFireInArmingOrder) {
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  std::vector<int> order;
+  for (int i = 0; i < 5; ++i) loop.call_at(TimePoint{10ms}, [&, i] { order.push_back(i); });
+  loop.advance_to(TimePoint{10ms});  // due exactly at the target: fires
+  EXPECT_THAT(order, ElementsAre(0, 1, 2, 3, 4));
+}
+
+TEST(EventLoopSimulated, TimerArmedByACallbackWithinTheWindowFiresInTheSameAdvance) {
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  std::vector<TimePoint> fired;
+  loop.call_at(TimePoint{10ms}, [&] {
+    fired.push_back(loop.now());
+    loop.call_after(5ms, [&] { fired.push_back(loop.now()); });
+    loop.call_after(50ms, [&] { fired.push_back(loop.now()); });
+  });
+  loop.advance_to(TimePoint{20ms});
+  EXPECT_THAT(fired, ElementsAre(TimePoint{10ms}, TimePoint{15ms}));
+  loop.advance_to(TimePoint{60ms});
+  EXPECT_THAT(fired, ElementsAre(TimePoint{10ms}, TimePoint{15ms}, TimePoint{60ms}));
+}
+
+TEST(EventLoopSimulated, CancelledTimersDoNotFire) {
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  int a = 0;
+  int b = 0;
+  auto ta = loop.call_at(TimePoint{1ms}, [&] { ++a; });
+  auto tb = loop.call_at(TimePoint{2ms}, [&] { ++b; });
+  EXPECT_TRUE(loop.pending(ta));
+  EXPECT_TRUE(loop.cancel(ta));
+  EXPECT_FALSE(loop.cancel(ta));
+  EXPECT_FALSE(loop.pending(ta));
+  loop.advance_to(TimePoint{5ms});
+  EXPECT_EQ(a, 0);
+  EXPECT_EQ(b, 1);
+  EXPECT_FALSE(loop.cancel(tb)) << "a fired one-shot timer no longer exists";
+}
+
+TEST(EventLoopSimulated, ACallbackCanCancelALaterTimerDueInTheSameAdvance) {
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  int later = 0;
+  EventLoop::TimerId second = 0;
+  loop.call_at(TimePoint{1ms}, [&] { loop.cancel(second); });
+  second = loop.call_at(TimePoint{2ms}, [&] { ++later; });
+  loop.advance_to(TimePoint{3ms});
+  EXPECT_EQ(later, 0);
+}
+
+TEST(EventLoopSimulated, PeriodicTimerFiresAtFixedRateUntilItCancelsItself) {
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  std::vector<TimePoint> ticks;
+  EventLoop::TimerId id = 0;
+  id = loop.call_every(TimePoint{100ms}, 100ms, [&] {
+    ticks.push_back(loop.now());
+    if (ticks.size() == 4) loop.cancel(id);
+  });
+  loop.advance_to(TimePoint{250ms});
+  EXPECT_THAT(ticks, ElementsAre(TimePoint{100ms}, TimePoint{200ms}));
+  loop.advance_to(TimePoint{1s});
+  EXPECT_THAT(ticks, ElementsAre(TimePoint{100ms}, TimePoint{200ms}, TimePoint{300ms}, TimePoint{400ms}));
+  EXPECT_FALSE(loop.pending(id));
+  EXPECT_THROW(loop.call_every(TimePoint{}, 0us, [] {}), std::invalid_argument);
+}
+
+TEST(EventLoopSimulated, PostedCallbacksRunBeforeTimersAndInOrder) {
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  std::vector<std::string> order;
+  loop.call_at(TimePoint{1ms}, [&] {
+    order.push_back("timer");
+    loop.post([&] { order.push_back("posted-by-timer"); });
+  });
+  loop.post([&] { order.push_back("p1"); });
+  loop.post([&] {
+    order.push_back("p2");
+    loop.post([&] { order.push_back("p3"); });
+  });
+  loop.call_at(TimePoint{2ms}, [&] { order.push_back("timer2"); });
+  loop.advance_to(TimePoint{5ms});
+  EXPECT_THAT(order, ElementsAre("p1", "p2", "p3", "timer", "posted-by-timer", "timer2"));
+}
+
+TEST(EventLoopSimulated, AdvanceRefusesToGoBackAndRealLoopRefusesAdvance) {
+  SimulatedClock clock(TimePoint{1s});
+  EventLoop loop(clock);
+  EXPECT_THROW(loop.advance_to(TimePoint{999ms}), std::logic_error);
+  EventLoop real;
+  EXPECT_FALSE(real.simulated());
+  EXPECT_THROW(real.advance_to(real.now() + 1ms), std::logic_error);
+}
+
+TEST(EventLoopSimulated, RunOnceFiresTimersDueNowButNeverMovesTheClock) {
+  SimulatedClock clock(TimePoint{1s});
+  EventLoop loop(clock);
+  int now_timer = 0;
+  int future_timer = 0;
+  loop.call_at(TimePoint{1s}, [&] { ++now_timer; });
+  loop.call_at(TimePoint{2s}, [&] { ++future_timer; });
+  EXPECT_EQ(loop.run_once(0us), 1u);
+  EXPECT_EQ(now_timer, 1);
+  EXPECT_EQ(future_timer, 0);
+  EXPECT_EQ(clock.now(), TimePoint{1s});
+}
+
+TEST(EventLoop, FdWatcherRunsWhenAPipeBecomesReadable) {
+  EventLoop loop;
+  Pipe p;
+  std::string got;
+  auto id = loop.watch(p.r, io_events::kReadable, [&](std::uint32_t ev) {
+    EXPECT_TRUE(ev & io_events::kReadable);
+    char buf[16];
+    const auto n = ::read(p.r, buf, sizeof buf);
+    if (n > 0) got.append(buf, static_cast<std::size_t>(n));
+  });
+  EXPECT_EQ(loop.run_once(0us), 0u) << "nothing written yet";
+  ASSERT_EQ(::write(p.w, "hi", 2), 2);
+  EXPECT_EQ(loop.run_once(1s), 1u);  // returns as soon as readable, long before 1 s
+  EXPECT_EQ(got, "hi");
+  EXPECT_TRUE(loop.unwatch(id));
+  EXPECT_FALSE(loop.unwatch(id));
+  ASSERT_EQ(::write(p.w, "x", 1), 1);
+  EXPECT_EQ(loop.run_once(0us), 0u) << "unwatched: callback must not run";
+  EXPECT_EQ(got, "hi");
+}
+
+TEST(EventLoop, WatchingTheSameFdTwiceThrows) {
+  EventLoop loop;
+  Pipe p;
+  loop.watch(p.r, io_events::kReadable, [](std::uint32_t) {});
+  EXPECT_THROW(loop.watch(p.r, io_events::kReadable, [](std::uint32_t) {}), std::system_error);
+}
+
+TEST(EventLoop, AWatcherRemovedByAnEarlierCallbackInTheSameBatchDoesNotRun) {
+  EventLoop loop;
+  Pipe p1;
+  Pipe p2;
+  int runs = 0;
+  EventLoop::WatchId w1 = 0;
+  EventLoop::WatchId w2 = 0;
+  // Whichever runs first removes the other.
+  w1 = loop.watch(p1.r, io_events::kReadable, [&](std::uint32_t) { ++runs; loop.unwatch(w2); loop.unwatch(w1); });
+  w2 = loop.watch(p2.r, io_events::kReadable, [&](std::uint32_t) { ++runs; loop.unwatch(w1); loop.unwatch(w2); });
+  ASSERT_EQ(::write(p1.w, "a", 1), 1);
+  ASSERT_EQ(::write(p2.w, "b", 1), 1);
+  loop.run_once(0us);
+  EXPECT_EQ(runs, 1);
+}
+
+TEST(EventLoop, RealTimerFiresViaTimerfdAndRunStopsFromACallback) {
+  EventLoop loop;
+  const TimePoint start = loop.now();
+  TimePoint fired{};
+  int periodic = 0;
+  loop.call_every(start + 1ms, 1ms, [&] { ++periodic; });
+  loop.call_after(5ms, [&] {
+    fired = loop.now();
+    loop.stop();
+  });
+  loop.run();  // blocks in epoll_wait; only the timerfd can wake it
+  EXPECT_GE(fired - start, 5ms);
+  EXPECT_LT(fired - start, 2s);
+  EXPECT_GE(periodic, 1);
+  EXPECT_FALSE(loop.stop_requested()) << "run() resets the stop flag";
+}
+
+TEST(EventLoop, RunOnceWithTimeoutReturnsWhenNothingHappens) {
+  EventLoop loop;
+  const TimePoint start = loop.now();
+  EXPECT_EQ(loop.run_once(2ms), 0u);
+  EXPECT_GE(loop.now() - start, 2ms);
+}
+
+TEST(EventLoop, StopBeforeRunReturnsAtOnce) {
+  EventLoop loop;
+  loop.call_after(10s, [] { FAIL() << "must not wait for this"; });
+  loop.stop();
+  loop.run();
+  SUCCEED();
+}
+
+TEST(EventLoop, BlockedSigtermIsDeliveredThroughSignalfdAndStopsTheLoop) {
+  EventLoop loop;
+  loop.handle_signals({SIGTERM, SIGINT});
+  // Blocked now: raise() leaves it pending instead of killing the process.
+  sigset_t mask;
+  ::pthread_sigmask(SIG_SETMASK, nullptr, &mask);
+  EXPECT_EQ(sigismember(&mask, SIGTERM), 1);
+  ASSERT_EQ(::raise(SIGTERM), 0);
+  bool timer_ran = false;
+  loop.call_after(10s, [&] { timer_ran = true; });
+  loop.run();  // would hang for 10 s (and then fail) if the signal were not seen
+  EXPECT_FALSE(timer_ran);
+}
+
+TEST(EventLoop, SignalCallbackGetsTheSignalNumberAndMaskIsRestoredAfterwards) {
+  sigset_t before;
+  ::pthread_sigmask(SIG_SETMASK, nullptr, &before);
+  ASSERT_EQ(sigismember(&before, SIGUSR1), 0);
+  {
+    EventLoop loop;
+    std::vector<int> got;
+    loop.handle_signals({SIGUSR1}, [&](int signo) { got.push_back(signo); });
+    ASSERT_EQ(::raise(SIGUSR1), 0);
+    loop.run_once(1s);
+    EXPECT_THAT(got, ElementsAre(SIGUSR1));
+    EXPECT_FALSE(loop.stop_requested()) << "a callback replaces the default stop";
+    ASSERT_EQ(::raise(SIGUSR1), 0);  // left pending: the destructor must discard it
+  }
+  sigset_t after;
+  ::pthread_sigmask(SIG_SETMASK, nullptr, &after);
+  EXPECT_EQ(sigismember(&after, SIGUSR1), 0);
+}
+
+// A stand-in for a "sans I/O" service: a heartbeat producer every 100 ms, plus a one-off
+// deadline requested by a frame.
+struct FakeService {
+  TimePoint next_beat;
+  std::optional<TimePoint> oneoff;
+  std::vector<std::string> log;
+  std::optional<TimePoint> next_deadline() const {
+    if (oneoff && *oneoff < next_beat) return oneoff;
+    return next_beat;
+  }
+  void advance(TimePoint now) {
+    if (oneoff && *oneoff <= now) {
+      log.push_back("oneoff@" + std::to_string(now.time_since_epoch().count()));
+      oneoff.reset();
+    }
+    while (next_beat <= now) {
+      log.push_back("beat@" + std::to_string(now.time_since_epoch().count()));
+      next_beat += 100ms;
+    }
+  }
+  bool on_frame(const CanFrame& f, TimePoint t) {
+    log.push_back("frame " + f.to_string());
+    oneoff = t + 30ms;
+    return true;
+  }
+};
+
+TEST(ServiceDriver, AdvancesTheServiceAtEachDeadline) {
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  FakeService svc;
+  svc.next_beat = TimePoint{100ms};
+  ServiceDriver driver(loop, svc);
+  EXPECT_EQ(driver.armed_deadline(), TimePoint{100ms});
+  loop.advance_to(TimePoint{350ms});
+  EXPECT_THAT(svc.log, ElementsAre("beat@100000", "beat@200000", "beat@300000"));
+  EXPECT_EQ(driver.armed_deadline(), TimePoint{400ms});
+}
+
+TEST(ServiceDriver, FramesFromATransportReachTheServiceAndRearmTheTimer) {
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  VirtualBus bus;
+  bus.run_on(loop);
+  auto node_port = bus.attach("node");
+  auto tester = bus.attach("tester");
+  FakeService svc;
+  svc.next_beat = TimePoint{100ms};
+  ServiceDriver driver(loop, svc);
+  driver.bind_receiver(*node_port, svc);
+
+  loop.call_at(TimePoint{120ms}, [&] { tester->send(CanFrame{0x601, {0x40}}); });
+  loop.advance_to(TimePoint{260ms});
+  // The frame at 120 ms asks for a one-off at 150 ms, before the 200 ms beat.
+  EXPECT_THAT(svc.log, ElementsAre("beat@100000", "frame 601#40", "oneoff@150000", "beat@200000"));
+}
+
+TEST(ServiceDriver, ExplicitRearmPicksUpAnEarlierDeadlineAndDestructorCancels) {
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  FakeService svc;
+  svc.next_beat = TimePoint{1s};
+  {
+    ServiceDriver driver(loop, svc);
+    svc.oneoff = TimePoint{10ms};  // changed behind the driver's back
+    driver.rearm();
+    EXPECT_EQ(driver.armed_deadline(), TimePoint{10ms});
+    loop.advance_to(TimePoint{20ms});
+    EXPECT_THAT(svc.log, ElementsAre("oneoff@10000"));
+  }
+  EXPECT_EQ(loop.next_timer(), std::nullopt) << "destroyed driver must cancel its timer";
+  loop.advance_to(TimePoint{2s});
+  EXPECT_THAT(svc.log, ElementsAre("oneoff@10000"));
+}
+
+TEST(ServiceDriver, IdleServiceArmsNothing) {
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  int advances = 0;
+  ServiceDriver driver(loop, [] { return std::optional<TimePoint>{}; }, [&](TimePoint) { ++advances; });
+  EXPECT_EQ(driver.armed_deadline(), std::nullopt);
+  EXPECT_EQ(loop.next_timer(), std::nullopt);
+  loop.advance_to(TimePoint{10s});
+  EXPECT_EQ(advances, 0);
+}
+
+TEST(WatchTransport, TransportWithoutFdIsNotWatched) {
+  EventLoop loop;
+  VirtualBus bus;
+  auto port = bus.attach("p");
+  EXPECT_EQ(watch_transport(loop, *port), 0u);
+}
+
+}  // namespace

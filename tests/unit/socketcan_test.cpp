@@ -1,0 +1,468 @@
+#include "canopen/io/socketcan_transport.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <linux/can/error.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+
+#include "canopen/io/clock.hpp"
+#include "canopen/io/event_loop.hpp"
+
+using namespace oegw::canopen;
+using namespace std::chrono_literals;
+using ::testing::ElementsAre;
+using ::testing::IsEmpty;
+
+namespace {
+
+::can_frame kframe(canid_t id, std::initializer_list<std::uint8_t> data) {
+  ::can_frame k;
+  std::memset(&k, 0, sizeof k);
+  k.can_id = id;
+  k.len = static_cast<std::uint8_t>(data.size());
+  std::copy(data.begin(), data.end(), k.data);
+  return k;
+}
+
+// ---- frame conversion ---------------------------------------------------------------------
+
+TEST(SocketCanConversion, StandardDataFrameBothWays) {
+  const CanFrame f{0x601, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}};
+  const ::can_frame k = socketcan::to_kernel(f);
+  EXPECT_EQ(k.can_id, 0x601u) << "no EFF/RTR/ERR flag on an 11-bit data frame";
+  EXPECT_EQ(k.len, 8);
+  EXPECT_EQ(k.data[0], 0x40);
+  EXPECT_EQ(k.data[2], 0x10);
+  const auto back = socketcan::from_kernel(k);
+  ASSERT_TRUE(back.has_value());
+  EXPECT_EQ(*back, f);
+  EXPECT_FALSE(back->extended);
+  EXPECT_FALSE(back->rtr);
+}
+
+TEST(SocketCanConversion, ExtendedIdentifierSetsAndReadsTheEffFlag) {
+  const CanFrame f{0x18FF1234, {0xAA}};
+  ASSERT_TRUE(f.extended);
+  const ::can_frame k = socketcan::to_kernel(f);
+  EXPECT_EQ(k.can_id, 0x18FF1234u | CAN_EFF_FLAG);
+  EXPECT_EQ(k.len, 1);
+  const auto back = socketcan::from_kernel(k);
+  ASSERT_TRUE(back);
+  EXPECT_TRUE(back->extended);
+  EXPECT_EQ(back->id, 0x18FF1234u);
+  EXPECT_EQ(back->to_string(), "18FF1234#AA");
+}
+
+TEST(SocketCanConversion, ExtendedFrameWithASmallIdKeepsItsFormat) {
+  CanFrame f{0x123, {}};
+  f.extended = true;  // 29-bit frame whose id happens to fit 11 bits
+  const ::can_frame k = socketcan::to_kernel(f);
+  EXPECT_EQ(k.can_id, 0x123u | CAN_EFF_FLAG);
+  const auto back = socketcan::from_kernel(k);
+  ASSERT_TRUE(back);
+  EXPECT_TRUE(back->extended);
+  EXPECT_EQ(back->id, 0x123u);
+}
+
+TEST(SocketCanConversion, RemoteFramesCarryDlcButNoData) {
+  CanFrame f = CanFrame::remote(0x701, 1);
+  f.data[0] = 0x55;  // must not leak onto the wire
+  const ::can_frame k = socketcan::to_kernel(f);
+  EXPECT_EQ(k.can_id, 0x701u | CAN_RTR_FLAG);
+  EXPECT_EQ(k.len, 1);
+  EXPECT_EQ(k.data[0], 0);
+  ::can_frame in = kframe(0x1ABCDEF0 | CAN_EFF_FLAG | CAN_RTR_FLAG, {});
+  in.len = 4;
+  in.data[0] = 0x99;  // garbage in an RTR frame is ignored
+  const auto back = socketcan::from_kernel(in);
+  ASSERT_TRUE(back);
+  EXPECT_TRUE(back->rtr);
+  EXPECT_TRUE(back->extended);
+  EXPECT_EQ(back->id, 0x1ABCDEF0u);
+  EXPECT_EQ(back->dlc, 4);
+  EXPECT_EQ(back->data[0], 0);
+  EXPECT_EQ(back->to_string(), "1ABCDEF0#R4");
+}
+
+TEST(SocketCanConversion, ErrorFramesAreNotDataFrames) {
+  const ::can_frame err = kframe(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0});
+  EXPECT_TRUE(socketcan::is_error_frame(err));
+  EXPECT_FALSE(socketcan::from_kernel(err).has_value());
+  EXPECT_FALSE(socketcan::is_error_frame(kframe(0x7FF, {})));
+}
+
+TEST(SocketCanConversion, OversizedKernelLengthIsClampedTo8) {
+  ::can_frame k = kframe(0x100, {1, 2, 3, 4, 5, 6, 7, 8});
+  k.len = 15;
+  const auto back = socketcan::from_kernel(k);
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->dlc, 8);
+}
+
+TEST(SocketCanConversion, StandardIdBitsAboveElevenAreNotInterpretedForSff) {
+  // The kernel never delivers this, but the conversion must not turn stray bits into an id.
+  const auto back = socketcan::from_kernel(kframe(0x0000F123, {}));
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->id, 0x123u);
+  EXPECT_FALSE(back->extended);
+}
+
+TEST(SocketCanFilter, ComparesFrameFormatButNotRtr) {
+  const ::can_filter sff = socketcan::to_kernel(CanFilter{0x580, 0x780});
+  EXPECT_EQ(sff.can_id, 0x580u);
+  EXPECT_EQ(sff.can_mask, 0x780u | CAN_EFF_FLAG);
+  EXPECT_EQ(sff.can_mask & CAN_RTR_FLAG, 0u);
+  const ::can_filter eff = socketcan::to_kernel(CanFilter{0x18FF0000, 0x1FFF0000, true});
+  EXPECT_EQ(eff.can_id, 0x18FF0000u | CAN_EFF_FLAG);
+  EXPECT_EQ(eff.can_mask, 0x1FFF0000u | CAN_EFF_FLAG);
+  const ::can_filter inv = socketcan::to_kernel(CanFilter{0x700, 0x780, false, true});
+  EXPECT_EQ(inv.can_id, 0x700u | CAN_INV_FILTER);
+}
+
+// ---- error frames -------------------------------------------------------------------------
+
+struct ErrorCase {
+  const char* name;
+  canid_t classes;
+  std::uint8_t ctrl;  // data[1]
+  std::vector<BusEvent> expected;
+};
+
+class SocketCanErrorDecoding : public ::testing::TestWithParam<ErrorCase> {};
+
+TEST_P(SocketCanErrorDecoding, MapsErrorClassesToBusEvents) {
+  const ErrorCase& c = GetParam();
+  ::can_frame k = kframe(CAN_ERR_FLAG | c.classes, {0, c.ctrl, 0, 0, 0, 0, 0, 0});
+  EXPECT_EQ(socketcan::decode_error_frame(k), c.expected);
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Table, SocketCanErrorDecoding,
+    ::testing::Values(
+        ErrorCase{"BusOff", CAN_ERR_BUSOFF, 0, {BusEvent::BusOff}},
+        ErrorCase{"Restarted", CAN_ERR_RESTARTED, 0, {BusEvent::Restarted}},
+        ErrorCase{"TxTimeout", CAN_ERR_TX_TIMEOUT, 0, {BusEvent::TxTimeout}},
+        ErrorCase{"RxWarning", CAN_ERR_CRTL, CAN_ERR_CRTL_RX_WARNING, {BusEvent::ErrorWarning}},
+        ErrorCase{"TxWarning", CAN_ERR_CRTL, CAN_ERR_CRTL_TX_WARNING, {BusEvent::ErrorWarning}},
+        ErrorCase{"RxPassive", CAN_ERR_CRTL, CAN_ERR_CRTL_RX_PASSIVE, {BusEvent::ErrorPassive}},
+        ErrorCase{"TxPassive", CAN_ERR_CRTL, CAN_ERR_CRTL_TX_PASSIVE, {BusEvent::ErrorPassive}},
+        ErrorCase{"Active", CAN_ERR_CRTL, CAN_ERR_CRTL_ACTIVE, {BusEvent::ErrorActive}},
+        ErrorCase{"RxOverflow", CAN_ERR_CRTL, CAN_ERR_CRTL_RX_OVERFLOW, {BusEvent::ControllerOverflow}},
+        ErrorCase{"TxOverflow", CAN_ERR_CRTL, CAN_ERR_CRTL_TX_OVERFLOW, {BusEvent::ControllerOverflow}},
+        ErrorCase{"CrtlUnspecified", CAN_ERR_CRTL, 0, {}},
+        ErrorCase{"CtrlBitsIgnoredWithoutCrtlClass", CAN_ERR_ACK, CAN_ERR_CRTL_TX_PASSIVE, {BusEvent::NoAck}},
+        ErrorCase{"WarningAndPassiveTogetherNoDuplicates", CAN_ERR_CRTL,
+                  CAN_ERR_CRTL_RX_WARNING | CAN_ERR_CRTL_TX_WARNING | CAN_ERR_CRTL_TX_PASSIVE,
+                  {BusEvent::ErrorWarning, BusEvent::ErrorPassive}},
+        ErrorCase{"Protocol", CAN_ERR_PROT, 0, {BusEvent::ProtocolError}},
+        ErrorCase{"Transceiver", CAN_ERR_TRX, 0, {BusEvent::TransceiverError}},
+        ErrorCase{"LostArbitration", CAN_ERR_LOSTARB, 0, {BusEvent::LostArbitration}},
+        ErrorCase{"BusError", CAN_ERR_BUSERROR, 0, {BusEvent::BusError}},
+        ErrorCase{"BusOffAfterPassiveInOrder", CAN_ERR_BUSOFF | CAN_ERR_CRTL | CAN_ERR_TX_TIMEOUT,
+                  CAN_ERR_CRTL_TX_PASSIVE, {BusEvent::TxTimeout, BusEvent::ErrorPassive, BusEvent::BusOff}},
+        ErrorCase{"RestartedAndActive", CAN_ERR_RESTARTED | CAN_ERR_CRTL, CAN_ERR_CRTL_ACTIVE,
+                  {BusEvent::ErrorActive, BusEvent::Restarted}}),
+    [](const ::testing::TestParamInfo<ErrorCase>& p) { return std::string(p.param.name); });
+
+TEST(SocketCanErrorDecodingMisc, DataFrameDecodesToNoEvents) {
+  EXPECT_THAT(socketcan::decode_error_frame(kframe(CAN_ERR_BUSOFF, {0, 0})), IsEmpty())
+      << "without CAN_ERR_FLAG the id is just an id";
+}
+
+TEST(SocketCanErrorDecodingMisc, ShortErrorFrameDoesNotReadPastLen) {
+  ::can_frame k = kframe(CAN_ERR_FLAG | CAN_ERR_CRTL | CAN_ERR_BUSOFF, {});
+  k.data[1] = CAN_ERR_CRTL_TX_PASSIVE;  // beyond len: must be ignored
+  EXPECT_THAT(socketcan::decode_error_frame(k), ElementsAre(BusEvent::BusOff));
+}
+
+// ---- timestamps ---------------------------------------------------------------------------
+
+TEST(SocketCanTimestamp, SubtractsTheFrameAgeFromTheMonotonicReadTime) {
+  const timespec stamp{1'700'000'000, 100'000'000};
+  const timespec now{1'700'000'000, 350'500'000};  // 250.5 ms later
+  EXPECT_EQ(socketcan::timestamp_from_realtime(stamp, now, TimePoint{10s}), TimePoint{10s - 250500us});
+  const timespec across_second{1'700'000'001, 50'000'000};  // 950 ms later
+  EXPECT_EQ(socketcan::timestamp_from_realtime(stamp, across_second, TimePoint{10s}), TimePoint{9050ms});
+}
+
+TEST(SocketCanTimestamp, FallsBackToReadTimeWhenTheRealtimeClockJumped) {
+  const TimePoint read{10s};
+  const timespec stamp{1'700'000'000, 0};
+  EXPECT_EQ(socketcan::timestamp_from_realtime(stamp, timespec{1'699'999'999, 0}, read), read) << "backwards step";
+  EXPECT_EQ(socketcan::timestamp_from_realtime(stamp, timespec{1'700'000'011, 0}, read), read) << "forward step";
+}
+
+// ---- opening ------------------------------------------------------------------------------
+
+bool kernel_has_can() {
+  const int s = ::socket(PF_CAN, SOCK_RAW | SOCK_CLOEXEC, CAN_RAW);
+  if (s >= 0) {
+    ::close(s);
+    return true;
+  }
+  return errno != EAFNOSUPPORT;
+}
+
+std::string open_error(const std::string& name, CanOpenError::Reason* reason = nullptr) {
+  try {
+    auto t = SocketCanTransport::open(name);
+    return "opened";
+  } catch (const CanOpenError& e) {
+    if (reason) *reason = e.reason();
+    return e.what();
+  }
+}
+
+TEST(SocketCanOpen, NamesTheMissingKernelSupportOrTheMissingInterface) {
+  CanOpenError::Reason reason{};
+  if (!kernel_has_can()) {
+    // This build machine: no AF_CAN at all. The socket is created first, so every name fails
+    // the same way, before any interface lookup.
+    EXPECT_EQ(open_error("vcan0", &reason),
+              "kernel has no CAN support (socket(PF_CAN): Address family not supported by protocol)");
+    EXPECT_EQ(reason, CanOpenError::Reason::NoKernelSupport);
+    EXPECT_EQ(open_error("oegwnope0"),
+              "kernel has no CAN support (socket(PF_CAN): Address family not supported by protocol)");
+  } else {
+    // A kernel with CAN (the test VM): the interface is what is missing.
+    EXPECT_EQ(open_error("oegwnope0", &reason), "no such CAN interface 'oegwnope0'");
+    EXPECT_EQ(reason, CanOpenError::Reason::NoSuchInterface);
+    EXPECT_EQ(open_error("lo", &reason), "interface 'lo' is not a CAN interface");
+    EXPECT_EQ(reason, CanOpenError::Reason::NotCanInterface);
+  }
+}
+
+TEST(SocketCanOpen, RejectsImpossibleInterfaceNames) {
+  CanOpenError::Reason reason{};
+  EXPECT_EQ(open_error("", &reason), "invalid CAN interface name ''");
+  EXPECT_EQ(reason, CanOpenError::Reason::InvalidName);
+  EXPECT_EQ(open_error("a_name_far_too_long_for_linux"), "invalid CAN interface name 'a_name_far_too_long_for_linux'");
+}
+
+TEST(SocketCanInterfaceCheck, MissingInterface) {
+  EXPECT_FALSE(probe_interface("oegwnope0").exists);
+  try {
+    check_can_interface("oegwnope0");
+    FAIL() << "must throw";
+  } catch (const CanOpenError& e) {
+    EXPECT_STREQ(e.what(), "no such CAN interface 'oegwnope0'");
+    EXPECT_EQ(e.reason(), CanOpenError::Reason::NoSuchInterface);
+  }
+}
+
+TEST(SocketCanInterfaceCheck, LoopbackIsNotACanInterface) {
+  const InterfaceInfo lo = probe_interface("lo");
+  ASSERT_TRUE(lo.exists) << "every Linux network namespace has lo";
+  EXPECT_GT(lo.index, 0);
+  EXPECT_FALSE(lo.is_can);
+  try {
+    check_can_interface("lo");
+    FAIL() << "must throw";
+  } catch (const CanOpenError& e) {
+    EXPECT_STREQ(e.what(), "interface 'lo' is not a CAN interface");
+    EXPECT_EQ(e.reason(), CanOpenError::Reason::NotCanInterface);
+  }
+}
+
+// ---- live round trip (only where a vcan interface exists: the test VM) --------------------
+
+TEST(SocketCanLive, RoundTripFiltersTimestampsAndNoOwnEcho) {
+  const char* env = std::getenv("OEGW_VCAN");
+  const std::string ifname = env ? env : "vcan0";
+  if (!kernel_has_can()) GTEST_SKIP() << "kernel has no CAN support; the open test above covers this";
+  const InterfaceInfo info = probe_interface(ifname);
+  if (!info.exists || !info.is_can || !info.up) GTEST_SKIP() << "no CAN interface '" << ifname << "' up";
+
+  auto a = SocketCanTransport::open(ifname);
+  SocketCanOptions only_sdo;
+  only_sdo.filters = std::vector<CanFilter>{{0x580, 0x780}};
+  auto b = SocketCanTransport::open(ifname, only_sdo);
+  ASSERT_GE(a->fd(), 0);
+
+  EventLoop loop;
+  watch_transport(loop, *a);
+  watch_transport(loop, *b);
+  std::vector<std::string> a_seen;
+  std::vector<std::pair<std::string, TimePoint>> b_seen;
+  a->set_receiver([&](const CanFrame& f, TimePoint) { a_seen.push_back(f.to_string()); });
+  b->set_receiver([&](const CanFrame& f, TimePoint t) { b_seen.emplace_back(f.to_string(), t); });
+
+  const TimePoint before = loop.now();
+  ASSERT_TRUE(a->send(CanFrame{0x701, {0x05}}).ok());
+  ASSERT_TRUE(a->send(CanFrame{0x581, {0x60, 0x00, 0x10, 0x00}}).ok());
+  ASSERT_TRUE(a->send(CanFrame::remote(0x5FF, 0)).ok());
+  for (int i = 0; i < 50 && b_seen.size() < 2; ++i) loop.run_once(20ms);
+  const TimePoint after = loop.now();
+  ASSERT_EQ(b_seen.size(), 2u);
+  EXPECT_EQ(b_seen[0].first, "581#60001000");
+  EXPECT_EQ(b_seen[1].first, "5FF#R");
+  EXPECT_GE(b_seen[0].second, before - 1ms);
+  EXPECT_LE(b_seen[0].second, after);
+  EXPECT_THAT(a_seen, IsEmpty()) << "CAN_RAW_RECV_OWN_MSGS must be off";
+  EXPECT_EQ(a->counters().tx_frames, 3u);
+  EXPECT_EQ(b->counters().rx_frames, 2u);
+}
+
+// ---- the read/write path, over a datagram socketpair standing in for CAN_RAW ----------------
+// A CAN_RAW socket exchanges one struct can_frame per datagram; an AF_UNIX datagram socketpair
+// does the same, so everything past open() is exercised here without AF_CAN.
+
+struct FakeCanSocket {
+  int peer = -1;
+  std::unique_ptr<SocketCanTransport> transport;
+  explicit FakeCanSocket(std::size_t max_batch = 256) {
+    int fds[2];
+    if (::socketpair(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0, fds) != 0) throw std::runtime_error("socketpair");
+    transport = SocketCanTransport::adopt(fds[0], "fake0", max_batch);
+    peer = fds[1];
+  }
+  ~FakeCanSocket() { ::close(peer); }
+  void inject(const ::can_frame& k) const { ASSERT_EQ(::send(peer, &k, sizeof k, 0), static_cast<ssize_t>(sizeof k)); }
+};
+
+TEST(SocketCanTransportIo, ReceivesFramesWithKernelTimestampsAndEventsSeparately) {
+  FakeCanSocket s;
+  std::vector<std::pair<std::string, TimePoint>> frames;
+  std::vector<BusEvent> events;
+  s.transport->set_receiver([&](const CanFrame& f, TimePoint t) { frames.emplace_back(f.to_string(), t); });
+  s.transport->set_event_handler([&](BusEvent e) { events.push_back(e); });
+  SteadyClock clock;
+  const TimePoint before = clock.now();
+  s.inject(kframe(0x181, {0x01, 0x02}));
+  s.inject(kframe(CAN_ERR_FLAG | CAN_ERR_CRTL, {0, CAN_ERR_CRTL_TX_PASSIVE, 0, 0, 0, 0, 0, 0}));
+  s.inject(kframe(0x18FF0001 | CAN_EFF_FLAG, {0xFF}));
+  s.inject(kframe(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0}));
+  s.transport->poll_readable();
+  const TimePoint after = clock.now();
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0].first, "181#0102");
+  EXPECT_EQ(frames[1].first, "18FF0001#FF");
+  for (const auto& [text, t] : frames) {
+    EXPECT_GE(t, before - 1ms) << text;  // arrival time, mapped to the monotonic clock
+    EXPECT_LE(t, after) << text;
+  }
+  EXPECT_THAT(events, ElementsAre(BusEvent::ErrorPassive, BusEvent::BusOff));
+  EXPECT_EQ(s.transport->counters().rx_frames, 2u);
+  EXPECT_EQ(s.transport->counters().error_frames, 2u);
+  s.transport->poll_readable();  // nothing left: returns at once, no double delivery
+  EXPECT_EQ(frames.size(), 2u);
+}
+
+TEST(SocketCanTransportIo, ABacklogKeepsItsArrivalTimesNotTheReadTime) {
+  FakeCanSocket s;
+  std::vector<TimePoint> stamps;
+  s.transport->set_receiver([&](const CanFrame&, TimePoint t) { stamps.push_back(t); });
+  EventLoop idle;  // nothing watched: run_once(timeout) just waits the timeout out
+  SteadyClock clock;
+  const TimePoint sent = clock.now();
+  s.inject(kframe(0x181, {}));
+  idle.run_once(30ms);
+  const TimePoint read_start = clock.now();
+  ASSERT_GE(read_start - sent, 30ms);
+  s.transport->poll_readable();
+  ASSERT_EQ(stamps.size(), 1u);
+  EXPECT_GE(stamps[0], sent - 1ms);
+  EXPECT_LT(stamps[0], read_start - 20ms) << "stamped when read, not when it arrived";
+}
+
+TEST(SocketCanTransportIo, SkipsDatagramsOfTheWrongSizeAndCountsThem) {
+  FakeCanSocket s;
+  int frames = 0;
+  s.transport->set_receiver([&](const CanFrame&, TimePoint) { ++frames; });
+  const char junk[5] = {1, 2, 3, 4, 5};
+  ASSERT_EQ(::send(s.peer, junk, sizeof junk, 0), 5);
+  s.inject(kframe(0x100, {}));
+  s.transport->poll_readable();
+  EXPECT_EQ(frames, 1);
+  EXPECT_EQ(s.transport->counters().errors, 1u);
+}
+
+TEST(SocketCanTransportIo, ReadsAtMostMaxBatchFramesPerPoll) {
+  FakeCanSocket s(2);
+  int frames = 0;
+  s.transport->set_receiver([&](const CanFrame&, TimePoint) { ++frames; });
+  for (int i = 0; i < 3; ++i) s.inject(kframe(0x100, {}));
+  s.transport->poll_readable();
+  EXPECT_EQ(frames, 2);
+  s.transport->poll_readable();
+  EXPECT_EQ(frames, 3);
+}
+
+TEST(SocketCanTransportIo, SendWritesOneKernelFramePerCall) {
+  FakeCanSocket s;
+  ASSERT_TRUE(s.transport->send(CanFrame{0x18FF1234, {0xDE, 0xAD}}).ok());
+  ::can_frame k;
+  ASSERT_EQ(::recv(s.peer, &k, sizeof k, MSG_DONTWAIT), static_cast<ssize_t>(sizeof k));
+  EXPECT_EQ(k.can_id, 0x18FF1234u | CAN_EFF_FLAG);
+  EXPECT_EQ(k.len, 2);
+  EXPECT_EQ(k.data[0], 0xDE);
+  EXPECT_EQ(k.data[1], 0xAD);
+  EXPECT_EQ(s.transport->counters().tx_frames, 1u);
+}
+
+TEST(SocketCanTransportIo, InvalidFrameIsRefusedWithoutWriting) {
+  FakeCanSocket s;
+  CanFrame bad{0x100, {}};
+  bad.dlc = 9;
+  EXPECT_EQ(s.transport->send(bad).status, SendStatus::InvalidFrame);
+  ::can_frame k;
+  EXPECT_LT(::recv(s.peer, &k, sizeof k, MSG_DONTWAIT), 0);
+  EXPECT_EQ(s.transport->counters().tx_frames, 0u);
+}
+
+TEST(SocketCanTransportIo, FullTxQueueDropsAndCountsInsteadOfBlocking) {
+  FakeCanSocket s;
+  SendResult r;
+  int sent = 0;
+  while ((r = s.transport->send(CanFrame{0x181, {1}})).ok() && sent < 1'000'000) ++sent;
+  EXPECT_EQ(r.status, SendStatus::QueueFull) << "after " << sent << " frames";
+  EXPECT_EQ(r.error, EAGAIN);
+  EXPECT_EQ(s.transport->counters().tx_dropped, 1u);
+  EXPECT_EQ(s.transport->counters().tx_frames, static_cast<std::uint64_t>(sent));
+  EXPECT_EQ(s.transport->counters().errors, 0u) << "a full queue is not an error";
+}
+
+TEST(SocketCanTransportIo, EventLoopPollsTheTransportWhenReadable) {
+  FakeCanSocket s;
+  EventLoop loop;
+  std::vector<std::string> got;
+  s.transport->set_receiver([&](const CanFrame& f, TimePoint) { got.push_back(f.to_string()); });
+  EXPECT_NE(watch_transport(loop, *s.transport), 0u);
+  EXPECT_EQ(loop.run_once(0us), 0u);
+  s.inject(kframe(0x701, {0x7F}));
+  loop.run_once(1s);
+  EXPECT_THAT(got, ElementsAre("701#7F"));
+}
+
+TEST(SocketCanTransportIo, AdoptRejectsABadDescriptor) {
+  EXPECT_THROW((void)SocketCanTransport::adopt(-1, "x"), std::invalid_argument);
+}
+
+// ---- send validation (no socket needed) ---------------------------------------------------
+
+TEST(CanTransportHelpers, FrameValidity) {
+  EXPECT_TRUE(is_valid_frame(CanFrame{0x7FF, {}}));
+  CanFrame f{0x7FF, {}};
+  f.id = 0x800;
+  EXPECT_FALSE(is_valid_frame(f));
+  f.extended = true;
+  EXPECT_TRUE(is_valid_frame(f));
+  f.id = 0x20000000;
+  EXPECT_FALSE(is_valid_frame(f));
+  CanFrame g{0x100, {}};
+  g.dlc = 9;
+  EXPECT_FALSE(is_valid_frame(g));
+}
+
+TEST(CanTransportHelpers, NamesForLogs) {
+  EXPECT_EQ(to_string(BusEvent::BusOff), "bus off");
+  EXPECT_EQ(to_string(BusEvent::ErrorPassive), "error passive");
+  EXPECT_EQ(to_string(SendStatus::QueueFull), "TX queue full, frame dropped");
+}
+
+}  // namespace
