@@ -114,12 +114,12 @@ void Tpdo::reload() {
   reset_runtime();
 }
 
+// Kept across a reset: the last payload sent (a reconfiguration such as a new event timer is not
+// a change of data) and the end of the inhibit time (no frame sooner, whatever happens).
 void Tpdo::reset_runtime() {
   requested_ = false;
   changed_ = false;
   restart_ = true;
-  have_sent_ = false;
-  inhibit_until_.reset();
   event_deadline_.reset();
   sync_count_ = 0;
   waiting_start_ = sync_start_ != 0;

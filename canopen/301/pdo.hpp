@@ -27,6 +27,10 @@
 // path does no map look-ups. Those pointers stay valid as long as the mapped objects are not
 // removed or replaced in the OD; after such a change, or after ObjectDictionary::reset_to_defaults
 // (which runs no observers), call PdoService::reload().
+//
+// Wiring (one node): SyncService::set_handler -> PdoService::on_sync; PdoService::on_length_error
+// -> EmcyProducer::raise; NMT state changes -> PdoService::set_operational. The service installs
+// hooks and an observer holding `this` in the OD: it must outlive every later write to the OD.
 #pragma once
 
 #include <array>

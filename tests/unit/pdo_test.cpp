@@ -1,6 +1,9 @@
 // PDO transmission and reception (CiA 301 §7.2.2, objects 1400h..1BFFh), frame by frame.
 #include "canopen/301/pdo.hpp"
 
+#include "canopen/301/emcy.hpp"
+#include "canopen/301/sync.hpp"
+
 #include <gtest/gtest.h>
 
 #include <utility>
@@ -178,6 +181,9 @@ TEST_F(PdoFixture, Mcb402EventTimerExample) {
   // 1801h:05 = 0x0064 = 100 ms (the SDO server hands the OD the UNSIGNED16's two bytes).
   ASSERT_EQ(od.write(0x1801, 5, Bytes{0x64, 0x00}), SdoAbortCode::None);
   svc->advance(t0 + 3ms);  // the loop calls advance after the SDO write; the timer starts here
+  EXPECT_EQ(sent.size(), 1u) << "a new event timer is not a data change";
+  od.set<std::int16_t>(0x6401, 1, 0x7FFF);  // rewritten, unchanged
+  svc->advance(t0 + 4ms);
   EXPECT_EQ(sent.size(), 1u);
   EXPECT_EQ(svc->next_deadline(), t0 + 103ms);
   svc->advance(t0 + 102ms);
@@ -455,6 +461,44 @@ TEST_F(PdoFixture, ManyPdosWithArbitraryCobIds) {
   EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0x34u);
   EXPECT_TRUE(svc->on_frame(CanFrame(0x300 + 17, {0x17}), t0));
   EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0x17u);
+}
+
+TEST_F(PdoFixture, RpdoValueRefusedByLimitsLeavesOtherEntriesApplied) {
+  od.find(0x6200, 1)->high = std::uint64_t{0x0F};
+  install_rpdo(od, 1, {.cob_id = 0x205, .mapping = {0x62000108, 0x62000208}});
+  auto svc = make();
+  svc->set_operational(true, t0);
+  svc->on_frame(CanFrame(0x205, {0x10, 0x22}), t0);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u) << "0x10 is above the limit";
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 2), 0x22u);
+}
+
+// One node wired as the services' headers describe: its own SYNC producer (Novotechnik §3: SYNC
+// 0x080) drives a synchronous TPDO and RPDO; an RPDO length error becomes EMCY 8210h.
+TEST_F(PdoFixture, WiredWithSyncProducerAndEmcy) {
+  install_tpdo(od, 1, tpdo1(2));
+  install_rpdo(od, 1, {.cob_id = 0x205, .transmission_type = 0, .mapping = {0x62000108, 0x62000208}});
+  auto svc = make();
+  SyncService sync(od, [this](const CanFrame& f) { sent.push_back(f); },
+                   {.cob_id = 0x40000080, .period_us = 10'000, .counter_overflow = 4});
+  EmcyProducer emcy(od, [this](const CanFrame& f) { sent.push_back(f); }, NodeId{5});
+  sync.set_handler([&](std::uint8_t counter, TimePoint now) { svc->on_sync(counter, now); });
+  svc->on_length_error = [&](std::uint16_t, std::uint16_t code) { emcy.raise(code, 0x10, t0); };
+  svc->set_operational(true, t0);
+  sync.advance(t0);
+  svc->on_frame(CanFrame(0x205, {7, 8}), t0 + 1ms);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
+  sync.advance(t0 + 10ms);  // SYNC 1: RPDO applied, TPDO (every 2nd) not yet
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 7u);
+  ASSERT_EQ(sent.size(), 1u);
+  EXPECT_EQ(sent[0], CanFrame(0x080, {1}));
+  sync.advance(t0 + 20ms);  // SYNC 2: TPDO
+  ASSERT_EQ(sent.size(), 3u);
+  EXPECT_EQ(sent[1], CanFrame(0x080, {2}));
+  EXPECT_EQ(sent[2].id, 0x185u);
+  svc->on_frame(CanFrame(0x205, {1}), t0 + 21ms);  // one byte short
+  ASSERT_EQ(sent.size(), 4u);
+  EXPECT_EQ(sent[3], CanFrame(0x085, {0x10, 0x82, 0x11, 0, 0, 0, 0, 0}));
 }
 
 }  // namespace
