@@ -31,6 +31,7 @@
 // Wiring (one node): SyncService::set_handler -> PdoService::on_sync; PdoService::on_length_error
 // -> EmcyProducer::raise; NMT state changes -> PdoService::set_operational. The service installs
 // hooks and an observer holding `this` in the OD: it must outlive every later write to the OD.
+// Install every PDO before constructing the service: it does not see PDOs installed later.
 #pragma once
 
 #include <array>

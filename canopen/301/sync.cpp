@@ -64,6 +64,8 @@ bool SyncService::on_frame(const CanFrame& frame, TimePoint now) {
   const CobId cob{od_.get<std::uint32_t>(0x1005, 0)};
   if (frame.rtr || frame.id != cob.can_id() || frame.extended != cob.extended()) return false;
   if (cob.bit30()) return false;  // we are the producer: a foreign SYNC on our ID is not ours to consume
+  const bool counter_expected = od_.get<std::uint8_t>(0x1019, 0) != 0;
+  if (frame.dlc != (counter_expected ? 1 : 0) && on_length_error) on_length_error(kEmcyUnexpectedSyncLength);
   deliver(frame.dlc >= 1 ? frame.data[0] : 0, now);
   return true;
 }

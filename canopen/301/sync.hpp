@@ -41,6 +41,11 @@ class SyncService {
   SyncService& operator=(const SyncService&) = delete;
 
   void set_handler(SyncHandler handler) { handler_ = std::move(handler); }
+  // CiA 301 §7.2.5.2 / Table 26: a received SYNC whose length does not match 1019h (DLC 0 when
+  // 1019h = 0, DLC 1 otherwise) is reported with EMCY code 8240h "unexpected SYNC data length".
+  // The SYNC is still delivered, with the counter byte when there is one (0 otherwise).
+  static constexpr std::uint16_t kEmcyUnexpectedSyncLength = 0x8240;
+  std::function<void(std::uint16_t emcy_code)> on_length_error;
 
   bool on_frame(const CanFrame& frame, TimePoint now);
   void advance(TimePoint now);

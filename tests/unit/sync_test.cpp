@@ -47,6 +47,22 @@ TEST_F(SyncFixture, ConsumerDeliversSyncWithAndWithoutCounter) {
   EXPECT_TRUE(sent.empty());
 }
 
+TEST_F(SyncFixture, UnexpectedLengthReports8240) {
+  SyncService s(od, [](const CanFrame&) {});
+  std::vector<std::uint16_t> errors;
+  s.on_length_error = [&](std::uint16_t code) { errors.push_back(code); };
+  s.set_handler([&](std::uint8_t c, TimePoint) { counters.push_back(c); });
+  EXPECT_TRUE(s.on_frame(CanFrame(0x080, {}), t0));
+  EXPECT_TRUE(errors.empty());
+  EXPECT_TRUE(s.on_frame(CanFrame(0x080, {3}), t0));  // counter not configured (1019h = 0)
+  EXPECT_EQ(errors, (std::vector<std::uint16_t>{0x8240}));
+  ASSERT_EQ(od.write(0x1019, 0, std::vector<std::uint8_t>{8}), SdoAbortCode::None);
+  EXPECT_TRUE(s.on_frame(CanFrame(0x080, {4}), t0));
+  EXPECT_TRUE(s.on_frame(CanFrame(0x080, {}), t0));  // counter missing
+  EXPECT_EQ(errors.size(), 2u);
+  EXPECT_EQ(counters, (std::vector<std::uint8_t>{0, 3, 4, 0}));
+}
+
 TEST_F(SyncFixture, ConsumerFollowsCobIdChange) {
   SyncService s(od, [](const CanFrame&) {});
   s.set_handler([&](std::uint8_t c, TimePoint) { counters.push_back(c); });
