@@ -336,7 +336,11 @@ SdoAbortCode ObjectDictionary::write(std::uint16_t index, std::uint8_t sub, std:
   const SdoAbortCode c = check_write(index, sub, origin);
   if (c != SdoAbortCode::None) return c;
   Object& obj = *find(index);
-  SubObject& s = *obj.find(sub);
+  return write_resolved(obj, *obj.find(sub), bytes, origin);
+}
+
+SdoAbortCode ObjectDictionary::write_resolved(Object& obj, SubObject& s, std::span<const std::uint8_t> bytes,
+                                              Origin origin) {
   const std::size_t n = fixed_size(s.type);
   if (n != 0) {
     if (bytes.size() > n) return SdoAbortCode::LengthTooHigh;
@@ -345,9 +349,9 @@ SdoAbortCode ObjectDictionary::write(std::uint16_t index, std::uint8_t sub, std:
     return SdoAbortCode::LengthTooHigh;
   }
   if (const SdoAbortCode lc = check_limits(s, bytes); lc != SdoAbortCode::None) return lc;
-  if (const SdoAbortCode hc = obj.run_hooks(sub, bytes, origin); hc != SdoAbortCode::None) return hc;
+  if (const SdoAbortCode hc = obj.run_hooks(s.sub_index, bytes, origin); hc != SdoAbortCode::None) return hc;
   s.value.assign(bytes.begin(), bytes.end());
-  for (auto& o : observers_) o(index, sub, origin);
+  for (auto& o : observers_) o(obj.index(), s.sub_index, origin);
   return SdoAbortCode::None;
 }
 

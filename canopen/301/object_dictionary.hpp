@@ -171,6 +171,12 @@ class ObjectDictionary {
                                   Origin origin = Origin::Sdo) const;
   [[nodiscard]] SdoAbortCode write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> bytes,
                                    Origin origin = Origin::Sdo);
+  // The commit half of write() for a caller that has already resolved the entry and checked
+  // its access with check_write() (an RPDO resolves its mapping once, when the mapping becomes
+  // valid, so the per-frame path does no map look-ups). Checks length, limits and hooks,
+  // commits, then notifies observers.
+  [[nodiscard]] SdoAbortCode write_resolved(Object& obj, SubObject& sub, std::span<const std::uint8_t> bytes,
+                                            Origin origin);
   // Checks an SDO/PDO access without transferring data (SDO initiate; PDO mapping).
   [[nodiscard]] SdoAbortCode check_read(std::uint16_t index, std::uint8_t sub, Origin origin = Origin::Sdo) const;
   [[nodiscard]] SdoAbortCode check_write(std::uint16_t index, std::uint8_t sub, Origin origin = Origin::Sdo) const;

@@ -1,0 +1,116 @@
+// Emergency object (CiA 301 §7.2.7), producer and consumer, "sans I/O".
+//
+// EMCY frame: error code (UNSIGNED16, little endian), error register (1001h), 5 bytes of
+// manufacturer-specific error field.
+//
+// EmcyProducer objects (installed by the constructor when absent):
+//   1001h error register         UNSIGNED8 ro   bit 0 (generic) while any error is active, ORed
+//                                               with the register bits of every active error
+//   1003h pre-defined error field ARRAY of UNSIGNED32: sub 0 = number of errors (rw, only 0 may be
+//                                 written: clears the history; others 0609 0030h), sub 1 = newest;
+//                                 entry = error code | additional information << 16 (0 here)
+//   1014h COB-ID EMCY            UNSIGNED32 rw  default 80h + node-ID; bit 31 = 1: no EMCY sent
+//   1015h inhibit time EMCY      UNSIGNED16 rw  100 µs units; EMCYs raised sooner are queued
+//
+// EmcyConsumer: 1028h (ARRAY of UNSIGNED32, sub n = COB-ID of node n's EMCY, bit 31 = 1: not
+// consumed) maps received EMCY frames to a callback.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <optional>
+#include <unordered_map>
+#include <vector>
+
+#include "canopen/301/object_dictionary.hpp"
+#include "canopen/can_frame.hpp"
+#include "canopen/types.hpp"
+
+namespace oegw::canopen {
+
+using EmcyManufacturerField = std::array<std::uint8_t, 5>;
+
+struct EmcyConfig {
+  std::uint8_t history_size = 8;      // 1003h sub-indices 1..n (1..254)
+  std::optional<std::uint32_t> cob_id = std::nullopt;  // default 80h + node-ID
+  std::uint16_t inhibit_time = 0;     // 100 µs units
+  std::size_t queue_limit = 16;       // EMCYs held back by the inhibit time; more are dropped
+};
+
+class EmcyProducer {
+ public:
+  // CiA 301 §7.2.7.1, Table 26: error code 0000h "error reset or no error".
+  static constexpr std::uint16_t kErrorReset = 0x0000;
+
+  EmcyProducer(ObjectDictionary& od, FrameSink sink, NodeId node, EmcyConfig config = {});
+  EmcyProducer(const EmcyProducer&) = delete;
+  EmcyProducer& operator=(const EmcyProducer&) = delete;
+
+  // An error occurred: records it (1001h, 1003h) and sends its EMCY. `register_bits` are the
+  // 1001h bits this error sets besides bit 0 (e.g. 0x10 communication error). Returns false, and
+  // sends nothing, if the code is already active.
+  bool raise(std::uint16_t code, std::uint8_t register_bits, const EmcyManufacturerField& msef, TimePoint now);
+  bool raise(std::uint16_t code, std::uint8_t register_bits, TimePoint now) { return raise(code, register_bits, {}, now); }
+  // The error is gone: updates 1001h; when no error remains, sends the error-reset EMCY (0000h).
+  // Returns false if the code was not active.
+  bool clear(std::uint16_t code, TimePoint now);
+
+  [[nodiscard]] bool active(std::uint16_t code) const;
+  [[nodiscard]] std::size_t active_count() const { return active_.size(); }
+  [[nodiscard]] std::uint8_t error_register() const;
+  // EMCYs dropped because the inhibit queue was full.
+  [[nodiscard]] std::size_t dropped() const { return dropped_; }
+
+  bool on_frame(const CanFrame&, TimePoint) { return false; }  // a producer consumes nothing
+  void advance(TimePoint now);
+  [[nodiscard]] std::optional<TimePoint> next_deadline() const;
+
+ private:
+  struct ActiveError {
+    std::uint16_t code;
+    std::uint8_t bits;
+  };
+  void update_register();
+  void push_history(std::uint32_t entry);
+  void emit(std::uint16_t code, const EmcyManufacturerField& msef, TimePoint now);
+  [[nodiscard]] Duration inhibit() const;
+
+  ObjectDictionary& od_;
+  FrameSink sink_;
+  std::vector<ActiveError> active_;
+  std::deque<CanFrame> queue_;
+  std::optional<TimePoint> last_sent_;
+  std::size_t queue_limit_;
+  std::size_t dropped_ = 0;
+};
+
+struct EmcyMessage {
+  NodeId node;
+  std::uint16_t code = 0;
+  std::uint8_t error_register = 0;
+  EmcyManufacturerField msef{};
+};
+
+using EmcyHandler = std::function<void(const EmcyMessage&, TimePoint)>;
+
+class EmcyConsumer {
+ public:
+  // Installs 1028h with `nodes` entries (sub n = 80h + n, consumed) when absent.
+  EmcyConsumer(ObjectDictionary& od, EmcyHandler handler, std::uint8_t nodes = 127);
+  EmcyConsumer(const EmcyConsumer&) = delete;
+  EmcyConsumer& operator=(const EmcyConsumer&) = delete;
+
+  bool on_frame(const CanFrame& frame, TimePoint now);
+  void advance(TimePoint) {}
+  [[nodiscard]] std::optional<TimePoint> next_deadline() const { return std::nullopt; }
+
+ private:
+  void rebuild();
+  ObjectDictionary& od_;
+  EmcyHandler handler_;
+  std::unordered_map<std::uint32_t, std::uint8_t> by_id_;  // CAN-ID (| bit 31 if 29-bit) -> node
+};
+
+}  // namespace oegw::canopen

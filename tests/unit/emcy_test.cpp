@@ -1,0 +1,198 @@
+// Emergency producer/consumer (CiA 301 §7.2.7, objects 1001h, 1003h, 1014h, 1015h, 1028h).
+#include "canopen/301/emcy.hpp"
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+namespace oegw::canopen {
+namespace {
+
+using namespace std::chrono_literals;
+using Bytes = std::vector<std::uint8_t>;
+
+class EmcyFixture : public ::testing::Test {
+ protected:
+  ObjectDictionary od;
+  std::vector<CanFrame> sent;
+  TimePoint t0{Duration{2'000'000}};
+  FrameSink sink() {
+    return [this](const CanFrame& f) { sent.push_back(f); };
+  }
+};
+
+TEST_F(EmcyFixture, InstallsObjects) {
+  EmcyProducer p(od, sink(), NodeId{0x11}, {.history_size = 4});
+  EXPECT_EQ(od.get<std::uint32_t>(0x1014, 0), 0x91u);  // 80h + node-ID
+  EXPECT_EQ(od.get<std::uint16_t>(0x1015, 0), 0u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 0u);
+  EXPECT_NE(od.find(0x1003, 4), nullptr);
+  EXPECT_EQ(od.find(0x1003, 5), nullptr);
+}
+
+// Novotechnik §9.1 "Emergency Messages": "0x5000 1 0 0 Device Hardware Fault ... If the internal
+// error bit is reset to 0, an EMCY with 0x0000 is sent"; COB-ID 0x80 + node-ID, DLC 8, error
+// code in bytes 0-1, error register (1001h) in byte 2.
+TEST_F(EmcyFixture, NovotechnikHardwareFaultAndReset) {
+  EmcyProducer p(od, sink(), NodeId{0x01});
+  EXPECT_TRUE(p.raise(0x5000, 0x00, t0));
+  ASSERT_EQ(sent.size(), 1u);
+  EXPECT_EQ(sent[0], CanFrame(0x081, {0x00, 0x50, 0x01, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x01u);
+  EXPECT_TRUE(p.clear(0x5000, t0 + 1ms));
+  ASSERT_EQ(sent.size(), 2u);
+  EXPECT_EQ(sent[1], CanFrame(0x081, {0x00, 0x00, 0x00, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x00u);
+  EXPECT_FALSE(p.clear(0x5000, t0 + 2ms));
+  EXPECT_EQ(sent.size(), 2u);
+}
+
+TEST_F(EmcyFixture, ManufacturerFieldAndRegisterBits) {
+  EmcyProducer p(od, sink(), NodeId{0x05});
+  EXPECT_TRUE(p.raise(0x8130, 0x10, {1, 2, 3, 4, 5}, t0));  // life guard error, communication bit
+  ASSERT_EQ(sent.size(), 1u);
+  EXPECT_EQ(sent[0], CanFrame(0x085, {0x30, 0x81, 0x11, 1, 2, 3, 4, 5}));
+  EXPECT_FALSE(p.raise(0x8130, 0x10, t0)) << "already active";
+  EXPECT_EQ(sent.size(), 1u);
+  EXPECT_TRUE(p.raise(0x4210, 0x08, t0));  // temperature
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x19u);
+  // One error gone, one left: register updated, no reset EMCY.
+  EXPECT_TRUE(p.clear(0x8130, t0));
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x09u);
+  EXPECT_EQ(sent.size(), 2u);
+  EXPECT_TRUE(p.active(0x4210));
+  EXPECT_FALSE(p.active(0x8130));
+  EXPECT_TRUE(p.clear(0x4210, t0));
+  ASSERT_EQ(sent.size(), 3u);
+  EXPECT_EQ(get_u16(sent[2].data.data()), 0x0000);
+}
+
+// CiA 301 §7.5.2.13: 1003h newest at sub-index 1, sub-index 0 = number of errors; writing 0
+// clears; any other value is refused with 0609 0030h.
+TEST_F(EmcyFixture, PredefinedErrorFieldHistory) {
+  EmcyProducer p(od, sink(), NodeId{0x05}, {.history_size = 3});
+  p.raise(0x1000, 0, t0);
+  p.raise(0x2310, 0x02, t0);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 2u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 1), 0x2310u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 2), 0x1000u);
+  p.raise(0x3100, 0x04, t0);
+  p.raise(0x4210, 0x08, t0);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 3u) << "capped at the field size";
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 1), 0x4210u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 3), 0x2310u) << "the oldest fell off";
+  p.clear(0x4210, t0);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 3u) << "clearing an error does not touch the history";
+
+  EXPECT_EQ(od.write(0x1003, 0, Bytes{2}), SdoAbortCode::InvalidValue);
+  EXPECT_EQ(od.write(0x1003, 1, encode<std::uint32_t>(0)), SdoAbortCode::WriteOfReadOnly);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 3u);
+  ASSERT_EQ(od.write(0x1003, 0, Bytes{0}), SdoAbortCode::None);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 0u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 1), 0u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 3), 0u);
+  p.raise(0x5000, 0, t0);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 1), 0x5000u);
+}
+
+// MCB-402 §5 1015h: "Inhibit Time for emergency messages. If the Inhibit Time is set to 0, inhibit
+// delay is disabled. The Inhibit Time is a multiple of 100usec".
+TEST_F(EmcyFixture, InhibitTimeQueuesInOrder) {
+  EmcyProducer p(od, sink(), NodeId{0x03}, {.inhibit_time = 50});  // 5 ms
+  p.raise(0x1000, 0, t0);
+  p.raise(0x2000, 0, t0 + 1ms);
+  p.raise(0x3000, 0, t0 + 2ms);
+  ASSERT_EQ(sent.size(), 1u);
+  EXPECT_EQ(p.next_deadline(), t0 + 5ms);
+  p.advance(t0 + 4999us);
+  EXPECT_EQ(sent.size(), 1u);
+  p.advance(t0 + 5ms);
+  ASSERT_EQ(sent.size(), 2u);
+  EXPECT_EQ(get_u16(sent[1].data.data()), 0x2000);
+  EXPECT_EQ(p.next_deadline(), t0 + 10ms);
+  p.advance(t0 + 12ms);
+  ASSERT_EQ(sent.size(), 3u);
+  EXPECT_EQ(get_u16(sent[2].data.data()), 0x3000);
+  EXPECT_FALSE(p.next_deadline().has_value());
+  // After a quiet period the next one goes out at once.
+  p.raise(0x4000, 0, t0 + 30ms);
+  EXPECT_EQ(sent.size(), 4u);
+  // 0 disables the inhibit time.
+  ASSERT_EQ(od.write(0x1015, 0, encode<std::uint16_t>(0)), SdoAbortCode::None);
+  p.raise(0x5000, 0, t0 + 30ms);
+  EXPECT_EQ(sent.size(), 5u);
+}
+
+TEST_F(EmcyFixture, QueueLimitDrops) {
+  EmcyProducer p(od, sink(), NodeId{0x03}, {.inhibit_time = 10, .queue_limit = 1});
+  p.raise(0x1000, 0, t0);
+  p.raise(0x2000, 0, t0);
+  p.raise(0x3000, 0, t0);
+  EXPECT_EQ(p.dropped(), 1u);
+  p.advance(t0 + 1ms);
+  p.advance(t0 + 2ms);
+  ASSERT_EQ(sent.size(), 2u);
+  EXPECT_EQ(get_u16(sent[1].data.data()), 0x2000);
+}
+
+TEST_F(EmcyFixture, InvalidCobIdSendsNothingButRecords) {
+  EmcyProducer p(od, sink(), NodeId{0x03});
+  ASSERT_EQ(od.write(0x1014, 0, encode<std::uint32_t>(0x80000083)), SdoAbortCode::None);
+  p.raise(0x1000, 0, t0);
+  EXPECT_TRUE(sent.empty());
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 1u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 1u);
+}
+
+TEST_F(EmcyFixture, CobIdChangeWhileValidRefused) {
+  EmcyProducer p(od, sink(), NodeId{0x03});
+  EXPECT_EQ(od.write(0x1014, 0, encode<std::uint32_t>(0x93)), SdoAbortCode::InvalidValue);
+  ASSERT_EQ(od.write(0x1014, 0, encode<std::uint32_t>(0x80000083)), SdoAbortCode::None);
+  ASSERT_EQ(od.write(0x1014, 0, encode<std::uint32_t>(0x93)), SdoAbortCode::None);
+  p.raise(0x1000, 0, t0);
+  ASSERT_EQ(sent.size(), 1u);
+  EXPECT_EQ(sent[0].id, 0x93u);
+}
+
+// Consumer: Novotechnik §9.1 "0x5051 1 1 0 Position overflow error" from node 1.
+TEST_F(EmcyFixture, ConsumerReportsNodeCodeRegisterAndField) {
+  std::vector<EmcyMessage> got;
+  EmcyConsumer c(od, [&](const EmcyMessage& m, TimePoint) { got.push_back(m); });
+  EXPECT_EQ(od.get<std::uint32_t>(0x1028, 1), 0x81u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1028, 127), 0xFFu);
+  EXPECT_TRUE(c.on_frame(CanFrame(0x081, {0x51, 0x50, 0x01, 0x01, 0, 0, 0, 0}), t0));
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].node, NodeId{1});
+  EXPECT_EQ(got[0].code, 0x5051);
+  EXPECT_EQ(got[0].error_register, 0x01);
+  EXPECT_EQ(got[0].msef, (EmcyManufacturerField{1, 0, 0, 0, 0}));
+  EXPECT_FALSE(c.on_frame(CanFrame(0x080, {}), t0)) << "SYNC, not an EMCY";
+  EXPECT_FALSE(c.on_frame(CanFrame(0x181, {1}), t0));
+  // Disable node 1, move node 2 to another COB-ID.
+  ASSERT_EQ(od.write(0x1028, 1, encode<std::uint32_t>(0x80000081)), SdoAbortCode::None);
+  ASSERT_EQ(od.write(0x1028, 2, encode<std::uint32_t>(0x3F0)), SdoAbortCode::None);
+  EXPECT_FALSE(c.on_frame(CanFrame(0x081, {0, 0x10, 1, 0, 0, 0, 0, 0}), t0));
+  EXPECT_FALSE(c.on_frame(CanFrame(0x082, {0, 0x10, 1, 0, 0, 0, 0, 0}), t0));
+  EXPECT_TRUE(c.on_frame(CanFrame(0x3F0, {0, 0x10, 1, 0, 0, 0, 0, 0}), t0));
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_EQ(got[1].node, NodeId{2});
+  EXPECT_EQ(got[1].code, 0x1000);
+}
+
+TEST_F(EmcyFixture, ProducerToConsumerRoundTrip) {
+  std::vector<EmcyMessage> got;
+  EmcyConsumer c(od, [&](const EmcyMessage& m, TimePoint) { got.push_back(m); });
+  ObjectDictionary dev;
+  EmcyProducer p(dev, [&](const CanFrame& f) { c.on_frame(f, t0); }, NodeId{0x2A});
+  p.raise(0xFF00, 0x80, {9, 8, 7, 6, 5}, t0);
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].node, NodeId{0x2A});
+  EXPECT_EQ(got[0].code, 0xFF00);
+  EXPECT_EQ(got[0].error_register, 0x81);
+  EXPECT_EQ(got[0].msef, (EmcyManufacturerField{9, 8, 7, 6, 5}));
+}
+
+}  // namespace
+}  // namespace oegw::canopen
