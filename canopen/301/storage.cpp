@@ -269,11 +269,11 @@ SdoAbortCode ParameterStore::restore_defaults(Group group) {
   return write_atomically(serialize(*entries)) ? SdoAbortCode::None : SdoAbortCode::HardwareError;
 }
 
-bool ParameterStore::write_atomically(const std::string& text) {
-  const std::filesystem::path tmp = temp_path();
+bool write_file_atomically(const std::filesystem::path& file, const std::string& text, std::string& error) {
+  const std::filesystem::path tmp = file.string() + ".tmp";
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) {
-    last_error_ = errno_text("open temp file");
+    error = errno_text("open temp file");
     return false;
   }
   std::size_t done = 0;
@@ -281,7 +281,7 @@ bool ParameterStore::write_atomically(const std::string& text) {
     const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
-      last_error_ = errno_text("write temp file");
+      error = errno_text("write temp file");
       ::close(fd);
       ::unlink(tmp.c_str());
       return false;
@@ -289,22 +289,26 @@ bool ParameterStore::write_atomically(const std::string& text) {
     done += static_cast<std::size_t>(n);
   }
   if (::fsync(fd) != 0) {
-    last_error_ = errno_text("fsync temp file");
+    error = errno_text("fsync temp file");
     ::close(fd);
     ::unlink(tmp.c_str());
     return false;
   }
   if (::close(fd) != 0) {
-    last_error_ = errno_text("close temp file");
+    error = errno_text("close temp file");
     ::unlink(tmp.c_str());
     return false;
   }
-  if (::rename(tmp.c_str(), file_.c_str()) != 0) {
-    last_error_ = errno_text("rename temp file");
+  if (::rename(tmp.c_str(), file.c_str()) != 0) {
+    error = errno_text("rename temp file");
     ::unlink(tmp.c_str());
     return false;
   }
-  return fsync_dir(file_.parent_path(), last_error_);
+  return fsync_dir(file.parent_path(), error);
+}
+
+bool ParameterStore::write_atomically(const std::string& text) {
+  return write_file_atomically(file_, text, last_error_);
 }
 
 bool ParameterStore::remove_atomically() {

@@ -47,6 +47,11 @@
 
 namespace oegw::canopen {
 
+// Replaces `file` with `text` so that a power loss at any moment leaves either the old or the
+// new content: write a temporary file beside it, fsync, rename over `file`, fsync the directory.
+// On failure returns false with `error` set and leaves `file` as it was.
+bool write_file_atomically(const std::filesystem::path& file, const std::string& text, std::string& error);
+
 class ParameterStore {
  public:
   enum class Group : std::uint8_t { All = 1, Communication = 2, Application = 3 };

@@ -47,6 +47,10 @@ class SyncService {
   static constexpr std::uint16_t kEmcyUnexpectedSyncLength = 0x8240;
   std::function<void(std::uint16_t emcy_code)> on_length_error;
 
+  // Re-reads 1005h/1006h/1019h (after reset_to_defaults or a parameter load, which bypass the
+  // OD observers).
+  void reload() { reconfigure(); }
+
   bool on_frame(const CanFrame& frame, TimePoint now);
   void advance(TimePoint now);
   [[nodiscard]] std::optional<TimePoint> next_deadline() const;

@@ -1,0 +1,269 @@
+#include "canopen/node.hpp"
+
+#include <fstream>
+#include <sstream>
+
+namespace oegw::canopen {
+
+namespace {
+
+constexpr std::uint16_t kDeviceType = 0x1000;
+constexpr std::uint16_t kDeviceName = 0x1008;
+constexpr std::uint16_t kHardwareVersion = 0x1009;
+constexpr std::uint16_t kSoftwareVersion = 0x100A;
+constexpr std::uint16_t kIdentity = 0x1018;
+constexpr std::uint16_t kSdoServer = 0x1200;
+
+std::vector<std::uint8_t> text(const std::string& s) { return {s.begin(), s.end()}; }
+
+// The COB-ID entries whose CiA 301 default is "function code + node-ID" (§7.3.5, Table 36).
+bool is_node_relative_cob(std::uint16_t index, std::uint8_t sub) {
+  if (index == 0x1014 && sub == 0) return true;
+  if (index == kSdoServer && (sub == 1 || sub == 2)) return true;
+  if (index >= 0x1400 && index <= 0x15FF && sub == 1) return true;
+  if (index >= 0x1800 && index <= 0x19FF && sub == 1) return true;
+  return false;
+}
+
+bool is_function_code(std::uint32_t base) {
+  switch (base) {
+    case cob::kEmcy:
+    case cob::kTpdo1:
+    case cob::kRpdo1:
+    case cob::kTpdo2:
+    case cob::kRpdo2:
+    case cob::kTpdo3:
+    case cob::kRpdo3:
+    case cob::kTpdo4:
+    case cob::kRpdo4:
+    case cob::kSdoTx:
+    case cob::kSdoRx: return true;
+    default: return false;
+  }
+}
+
+}  // namespace
+
+Node::Node(ObjectDictionary& od, NodeConfig config, FrameSink sink)
+    : od_(od),
+      cfg_(std::move(config)),
+      sink_(std::move(sink)),
+      bit_timing_(cfg_.bit_timing_index),
+      installed_((install_communication_objects(), true)),
+      store_(cfg_.store_path.empty() ? nullptr : std::make_unique<ParameterStore>(od_, cfg_.store_path)),
+      nmt_(cfg_.node_id, [this](const CanFrame& f) { sink_(f); }),
+      hb_producer_(od_, cfg_.node_id, [this](const CanFrame& f) { sink_(f); }),
+      hb_consumer_(od_),
+      emcy_(od_, [this](const CanFrame& f) { send(f); }, cfg_.node_id, cfg_.emcy),
+      sync_(od_, [this](const CanFrame& f) { send(f); }, cfg_.sync),
+      pdo_(od_, [this](const CanFrame& f) { send(f); }),
+      sdo_(od_, [this](const CanFrame& f) { send(f); }, cfg_.node_id, cfg_.sdo_timeout),
+      lss_(cfg_.identity, cfg_.node_id, cfg_.bit_timing_index, [this](const CanFrame& f) { sink_(f); },
+           LssSlave::Callbacks{
+               .on_pending_node_id = [this](NodeId id) { nmt_.set_pending_node_id(id); },
+               .on_pending_bit_timing = {},
+               .on_activate_bit_timing =
+                   [this](std::uint8_t index, Duration delay) {
+                     bit_timing_ = index;
+                     if (on_bit_timing) on_bit_timing(index, delay);
+                   },
+               .on_store = cfg_.store_path.empty()
+                               ? std::function<std::uint8_t(NodeId, std::uint8_t)>{}
+                               : [this](NodeId id, std::uint8_t bt) { return store_lss(id, bt); },
+               .on_start_nmt = [this]() { nmt_.reset(true, now_); },
+           }) {
+  (void)installed_;
+  nmt_.on_reset([this](bool communication_only) { handle_reset(communication_only, now_); });
+  nmt_.on_state_change([this](NmtState s) { handle_state(s); });
+  sync_.set_handler([this](std::uint8_t counter, TimePoint now) { pdo_.on_sync(counter, now); });
+  sync_.on_length_error = [this](std::uint16_t code) { emcy_.raise(code, 0x10, now_); };
+  // CiA 301 §7.2.7.1: an RPDO of the wrong length is reported with EMCY 8210h (or 8220h).
+  pdo_.on_length_error = [this](std::uint16_t, std::uint16_t code) { emcy_.raise(code, 0x10, now_); };
+}
+
+void Node::install_communication_objects() {
+  od_.add_var(kDeviceType, "Device type", DataType::Unsigned32, Access::Const,
+              encode<std::uint32_t>(cfg_.device_type));
+  od_.add_var(kDeviceName, "Manufacturer device name", DataType::VisibleString, Access::Const,
+              text(cfg_.device_name));
+  od_.add_var(kHardwareVersion, "Manufacturer hardware version", DataType::VisibleString, Access::Const,
+              text(cfg_.hardware_version));
+  od_.add_var(kSoftwareVersion, "Manufacturer software version", DataType::VisibleString, Access::Const,
+              text(cfg_.software_version));
+  od_.add_record(kIdentity, "Identity object");
+  od_.add_record_member(kIdentity, 1, "Vendor-ID", DataType::Unsigned32, Access::ReadOnly,
+                        encode<std::uint32_t>(cfg_.identity.vendor));
+  od_.add_record_member(kIdentity, 2, "Product code", DataType::Unsigned32, Access::ReadOnly,
+                        encode<std::uint32_t>(cfg_.identity.product));
+  od_.add_record_member(kIdentity, 3, "Revision number", DataType::Unsigned32, Access::ReadOnly,
+                        encode<std::uint32_t>(cfg_.identity.revision));
+  od_.add_record_member(kIdentity, 4, "Serial number", DataType::Unsigned32, Access::ReadOnly,
+                        encode<std::uint32_t>(cfg_.identity.serial));
+  // CiA 301 §7.5.2.33: the default SDO server's COB-IDs are read-only.
+  od_.add_record(kSdoServer, "SDO server parameter");
+  od_.add_record_member(kSdoServer, 1, "COB-ID client to server (rx)", DataType::Unsigned32, Access::ReadOnly,
+                        encode<std::uint32_t>(cob::kSdoRx + cfg_.node_id.value()));
+  od_.add_record_member(kSdoServer, 2, "COB-ID server to client (tx)", DataType::Unsigned32, Access::ReadOnly,
+                        encode<std::uint32_t>(cob::kSdoTx + cfg_.node_id.value()));
+  install_heartbeat_producer_objects(od_, cfg_.heartbeat_ms);
+  if (cfg_.heartbeat_consumers > 0) install_heartbeat_consumer_objects(od_, cfg_.heartbeat_consumers);
+}
+
+ParameterStore::LoadResult Node::start(TimePoint now) {
+  now_ = now;
+  load_lss_file();
+  ParameterStore::LoadResult result{.ok = true, .file_present = false, .applied = 0, .skipped = 0, .error = {}};
+  if (store_) result = store_->load();
+  hb_producer_.reload();
+  hb_consumer_.reload();
+  sync_.reload();
+  pdo_.reload();
+  nmt_.start(now);
+  return result;
+}
+
+void Node::load_lss_file() {
+  if (cfg_.store_path.empty()) return;
+  std::ifstream in(lss_path());
+  if (!in) return;
+  int node = -1;
+  int bt = -1;
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream ls(line);
+    std::string key;
+    int value = -1;
+    if (std::getline(ls, key, '=') && (ls >> value)) {
+      if (key == "node_id") node = value;
+      if (key == "bit_timing") bt = value;
+    }
+  }
+  // A half-written or foreign file is ignored: the configured defaults stay.
+  if (node < 1 || node > 127 || bt < 0 || bt > 9) return;
+  const NodeId id{static_cast<std::uint8_t>(node)};
+  if (id != cfg_.node_id) rebase_node_id(cfg_.node_id, id);
+  nmt_.set_pending_node_id(id);
+  lss_.set_active_node_id(id);
+  sdo_.set_cob_ids(CobId{cob::kSdoRx + id.value()}, CobId{cob::kSdoTx + id.value()});
+  bit_timing_ = static_cast<std::uint8_t>(bt);
+}
+
+std::filesystem::path Node::lss_path() const {
+  std::filesystem::path p = cfg_.store_path;
+  p += ".lss";
+  return p;
+}
+
+std::uint8_t Node::store_lss(NodeId id, std::uint8_t bit_timing) {
+  std::ostringstream out;
+  out << "node_id=" << static_cast<int>(id.value()) << "\nbit_timing=" << static_cast<int>(bit_timing) << "\n";
+  std::string error;
+  // CiA 305 §8.3.5: error code 2 = storage media access error.
+  return write_file_atomically(lss_path(), out.str(), error) ? 0 : 2;
+}
+
+void Node::rebase_node_id(NodeId from, NodeId to) {
+  std::vector<std::uint16_t> indices;
+  for (const auto& [index, obj] : od_.objects()) indices.push_back(index);
+  for (const std::uint16_t index : indices) {
+    for (auto& [sub, s] : od_.find(index)->subs()) {
+      if (!is_node_relative_cob(index, sub) || s.default_value.size() != 4) continue;
+      const std::uint32_t def = get_u32(s.default_value.data());
+      const CobId cob{def};
+      if (cob.extended()) continue;
+      const std::uint32_t id = cob.can_id();
+      if (id < from.value() || !is_function_code(id - from.value())) continue;
+      const std::uint32_t moved = (def & ~0x7FFu) | (id - from.value() + to.value());
+      put_u32(s.default_value.data(), moved);
+    }
+  }
+}
+
+void Node::handle_reset(bool communication_only, TimePoint now) {
+  now_ = now;
+  const NodeId old_id = nmt_.node_id();
+  const NodeId new_id = nmt_.pending_node_id();
+  if (new_id.valid() && new_id != old_id && old_id.valid()) rebase_node_id(old_id, new_id);
+  if (communication_only) {
+    od_.reset_to_defaults(0x1000, 0x1FFF);
+  } else {
+    od_.reset_to_defaults(0x0000, 0xFFFF);
+  }
+  if (store_) {
+    if (communication_only) {
+      (void)store_->load(0x1000, 0x1FFF);
+    } else {
+      (void)store_->load();
+    }
+  }
+  if (new_id.valid()) {
+    lss_.set_active_node_id(new_id);
+    sdo_.set_cob_ids(CobId{cob::kSdoRx + new_id.value()}, CobId{cob::kSdoTx + new_id.value()});
+  }
+  sdo_.reset();
+  hb_producer_.reload();
+  hb_consumer_.reload();
+  sync_.reload();
+  pdo_.reload();
+}
+
+void Node::handle_state(NmtState s) {
+  gate_ = s;
+  if (s == NmtState::Initialisation) {
+    hb_producer_.stop();
+  } else if (!hb_producer_.running()) {
+    hb_producer_.start(s, nmt_.node_id(), nmt_.last_transition());
+  } else {
+    hb_producer_.set_state(s);
+  }
+  // CiA 301 §7.3.2.2.1: PDOs only in operational; leaving a state drops SDO transfers only
+  // through reset (the server keeps running in pre-operational and operational).
+  pdo_.set_operational(s == NmtState::Operational, nmt_.last_transition());
+  if (s == NmtState::Stopped) sdo_.reset();
+  if (on_state_change) on_state_change(s);
+}
+
+void Node::send(const CanFrame& frame) {
+  // CiA 301 §7.3.2.2.1, Table 47: in Stopped (and during initialisation) only NMT, heartbeat and
+  // LSS are served; SDO, EMCY, SYNC and PDO frames are held back.
+  if (gate_ != NmtState::PreOperational && gate_ != NmtState::Operational) return;
+  sink_(frame);
+}
+
+bool Node::on_frame(const CanFrame& frame, TimePoint now) {
+  now_ = now;
+  if (nmt_.on_frame(frame, now)) return true;
+  if (lss_.on_frame(frame, now)) return true;
+  if (hb_consumer_.on_frame(frame, now)) return true;
+  const bool serving = gate_ == NmtState::PreOperational || gate_ == NmtState::Operational;
+  if (!serving) return false;
+  if (sync_.on_frame(frame, now)) return true;
+  if (sdo_.on_frame(frame, now)) return true;
+  return pdo_.on_frame(frame, now);
+}
+
+void Node::advance(TimePoint now) {
+  now_ = now;
+  hb_producer_.advance(now);
+  hb_consumer_.advance(now);
+  sdo_.advance(now);
+  emcy_.advance(now);
+  sync_.advance(now);
+  pdo_.advance(now);
+}
+
+std::optional<TimePoint> Node::next_deadline() const {
+  std::optional<TimePoint> best;
+  auto take = [&best](std::optional<TimePoint> t) {
+    if (t && (!best || *t < *best)) best = t;
+  };
+  take(hb_producer_.next_deadline());
+  take(hb_consumer_.next_deadline());
+  take(sdo_.next_deadline());
+  take(emcy_.next_deadline());
+  take(sync_.next_deadline());
+  take(pdo_.next_deadline());
+  return best;
+}
+
+}  // namespace oegw::canopen

@@ -1,0 +1,113 @@
+// A CANopen slave device (CiA 301 + CiA 305 LSS slave) assembled from the services in 301/ and
+// 305/: NMT slave, heartbeat producer/consumer, SDO server, EMCY producer, SYNC, PDOs, LSS slave
+// and the parameter store. The application builds its object dictionary (its own objects and
+// its PDOs with install_rpdo/install_tpdo) and hands it to a Node, which adds the communication
+// objects and routes frames. Still sans I/O: frames and time come in, frames go to the sink.
+//
+// What the Node wires (CiA 301 §7.3.2, CiA 305 §4):
+//  * NMT state gates the services: SDO and EMCY in pre-operational and operational, PDOs only in
+//    operational, heartbeat and NMT/LSS in every state.
+//  * Reset communication restores 1000h–1FFFh to defaults, then re-applies the stored values;
+//    reset node does the same for the whole dictionary. A node-ID configured by LSS becomes
+//    active here: every COB-ID default of the form "function code + node-ID" follows it.
+//  * LSS "store configuration" persists node-ID and bit timing beside the parameter file.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "canopen/301/emcy.hpp"
+#include "canopen/301/heartbeat.hpp"
+#include "canopen/301/nmt_slave.hpp"
+#include "canopen/301/object_dictionary.hpp"
+#include "canopen/301/pdo.hpp"
+#include "canopen/301/sdo_server.hpp"
+#include "canopen/301/storage.hpp"
+#include "canopen/301/sync.hpp"
+#include "canopen/305/lss_slave.hpp"
+#include "canopen/can_frame.hpp"
+#include "canopen/types.hpp"
+
+namespace oegw::canopen {
+
+struct NodeConfig {
+  NodeId node_id{0x20};
+  std::uint32_t device_type = 0;              // 1000h
+  std::string device_name = "oegw";           // 1008h
+  std::string hardware_version = "1";         // 1009h
+  std::string software_version = "0.1.0";     // 100Ah
+  lss::Address identity{};                    // 1018h:01..04, and the LSS address
+  std::uint16_t heartbeat_ms = 0;             // 1017h default
+  std::uint8_t heartbeat_consumers = 0;       // 1016h entries (0: no 1016h)
+  std::uint8_t bit_timing_index = 3;          // CiA 305 table 0: 3 = 250 kbit/s
+  std::filesystem::path store_path;           // empty: no 1010h/1011h, LSS store unsupported
+  EmcyConfig emcy{};
+  SyncConfig sync{};
+  Duration sdo_timeout = std::chrono::seconds(1);
+};
+
+class Node {
+ public:
+  // `od` holds the application's objects and PDOs; the Node adds the communication objects.
+  Node(ObjectDictionary& od, NodeConfig config, FrameSink sink);
+  Node(const Node&) = delete;
+  Node& operator=(const Node&) = delete;
+
+  // Power-on: applies the stored parameters (and an LSS-stored node-ID), sends the boot-up
+  // message and enters pre-operational. Returns the store's load result so that a refused
+  // (corrupt) file can be reported by the owner; the node then runs on defaults.
+  ParameterStore::LoadResult start(TimePoint now);
+
+  bool on_frame(const CanFrame& frame, TimePoint now);
+  void advance(TimePoint now);
+  [[nodiscard]] std::optional<TimePoint> next_deadline() const;
+
+  [[nodiscard]] NmtState state() const { return nmt_.state(); }
+  [[nodiscard]] NodeId node_id() const { return nmt_.node_id(); }
+  [[nodiscard]] ObjectDictionary& od() { return od_; }
+  [[nodiscard]] EmcyProducer& emcy() { return emcy_; }
+  [[nodiscard]] PdoService& pdo() { return pdo_; }
+  [[nodiscard]] HeartbeatConsumer& heartbeat_consumer() { return hb_consumer_; }
+  [[nodiscard]] NmtSlave& nmt() { return nmt_; }
+  [[nodiscard]] LssSlave& lss() { return lss_; }
+  [[nodiscard]] SyncService& sync() { return sync_; }
+  [[nodiscard]] std::uint8_t bit_timing_index() const { return bit_timing_; }
+
+  // Called on every NMT state change, after the Node has applied it.
+  std::function<void(NmtState)> on_state_change;
+  // Called when LSS activates a new bit timing (the transport must switch its bit rate).
+  std::function<void(std::uint8_t table_index, Duration delay)> on_bit_timing;
+
+ private:
+  void install_communication_objects();
+  void handle_reset(bool communication_only, TimePoint now);
+  void handle_state(NmtState s);
+  void rebase_node_id(NodeId from, NodeId to);
+  void load_lss_file();
+  std::uint8_t store_lss(NodeId id, std::uint8_t bit_timing);
+  [[nodiscard]] std::filesystem::path lss_path() const;
+  void send(const CanFrame& frame);
+
+  ObjectDictionary& od_;
+  NodeConfig cfg_;
+  FrameSink sink_;
+  NmtState gate_ = NmtState::Initialisation;  // what the sink lets through, see send()
+  TimePoint now_{};
+  std::uint8_t bit_timing_;
+
+  // Construction order matters: the services read the objects installed before them.
+  bool installed_;
+  std::unique_ptr<ParameterStore> store_;
+  NmtSlave nmt_;
+  HeartbeatProducer hb_producer_;
+  HeartbeatConsumer hb_consumer_;
+  EmcyProducer emcy_;
+  SyncService sync_;
+  PdoService pdo_;
+  SdoServer sdo_;
+  LssSlave lss_;
+};
+
+}  // namespace oegw::canopen
