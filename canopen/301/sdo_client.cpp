@@ -130,7 +130,9 @@ bool SdoClient::mux_matches(const std::uint8_t* d) const {
 
 void SdoClient::handle(const CanFrame& f) {
   const std::uint8_t* d = f.data.data();
-  if (f.dlc >= 1 && d[0] == kAbort) {  // the server aborted (never a valid block segment either)
+  // The server aborted: scs = 4; in a block upload sub-block only 0x80 (0x81.. are segments).
+  const bool sub_block = state_ == State::BlockUploadSubBlock;
+  if (f.dlc >= 1 && (sub_block ? d[0] == kAbort : (d[0] >> 5) == 4)) {
     finish(f.dlc == 8 ? static_cast<SdoAbortCode>(get_u32(d + 4)) : SdoAbortCode::GeneralError);
     return;
   }

@@ -75,9 +75,11 @@ bool SdoServer::on_frame(const CanFrame& frame, TimePoint now) {
 
 void SdoServer::handle(const CanFrame& f, TimePoint /*now*/) {
   const std::uint8_t* d = f.data.data();
-  // An abort is never answered (CiA 301 §7.2.4.3.17); in a block download sub-block 0x80 would
-  // be "last segment, sequence number 0", which is not a valid segment either.
-  if (f.dlc >= 1 && d[0] == kAbort) {
+  // An abort (ccs = 4, the other bits reserved) is never answered (CiA 301 §7.2.4.3.17). In a
+  // block download sub-block 0x81..0x9F are last segments; 0x80 would be "last segment,
+  // sequence number 0", which is not a valid segment, so there it is the abort.
+  const bool sub_block = state_ == State::BlockDownloadSubBlock;
+  if (f.dlc >= 1 && (sub_block ? d[0] == kAbort : (d[0] >> 5) == 4)) {
     drop();
     return;
   }

@@ -13,7 +13,7 @@
 //  * A frame whose DLC is below 8 is a protocol error (CiA 301 §7.2.4.3: every SDO frame carries
 //    8 data bytes). The server answers 0x05040001 "command specifier not valid or unknown": the
 //    command byte of a short frame cannot be interpreted as a valid SDO command, and 301 has no
-//    more specific code for a malformed frame. An abort frame from the client (first byte 0x80)
+//    more specific code for a malformed frame. An abort frame from the client (ccs = 4: 0x80..0x9F)
 //    is never answered, whatever its DLC: it just ends the transfer.
 //  * An initiate request that arrives during a transfer abandons the old transfer silently
 //    (nothing is written, no abort frame is sent for it — the client has obviously given up on
