@@ -67,13 +67,13 @@ void SdoServer::advance(TimePoint now) {
 
 bool SdoServer::on_frame(const CanFrame& frame, TimePoint now) {
   if (!matches(rx_, frame)) return false;
-  if (!frame.rtr) handle(frame, now);  // SDO never uses remote frames: ignore them
+  if (!frame.rtr) handle(frame);  // SDO never uses remote frames: ignore them
   if (state_ != State::Idle) deadline_ = now + timeout_;
   flush();
   return true;
 }
 
-void SdoServer::handle(const CanFrame& f, TimePoint /*now*/) {
+void SdoServer::handle(const CanFrame& f) {
   const std::uint8_t* d = f.data.data();
   // An abort (ccs = 4, the other bits reserved) is never answered (CiA 301 §7.2.4.3.17). In a
   // block download sub-block 0x81..0x9F are last segments; 0x80 would be "last segment,

@@ -79,7 +79,7 @@ class SdoServer {
     BlockUploadEnd,
   };
 
-  void handle(const CanFrame& f, TimePoint now);
+  void handle(const CanFrame& f);
   void initiate_download(const std::uint8_t* d);
   void initiate_upload(const std::uint8_t* d);
   void initiate_block_download(const std::uint8_t* d);

@@ -293,6 +293,30 @@ TEST_F(SdoClientTest, CancelAll) {
   EXPECT_EQ(client->queued(), 0u);
 }
 
+TEST_F(SdoClientTest, SetCobIdsFailsTheTransferInFlightAndMovesTheChannel) {
+  client->upload(0x1000, 0, record());
+  client->upload(0x1000, 0, record());
+  go();
+  out.clear();
+  client->set_cob_ids(CobId(0x641), CobId(0x5C1));
+  // The first is failed without a frame (the server is on another channel now); the second starts there.
+  EXPECT_EQ(out, (std::vector<CanFrame>{CanFrame(0x641, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0})}));
+  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::GeneralError)}));
+  EXPECT_FALSE(client->on_frame(CanFrame(kResp, {0x43, 0x00, 0x10, 0x00, 1, 2, 3, 4}), t));
+  EXPECT_TRUE(client->on_frame(CanFrame(0x5C1, {0x43, 0x00, 0x10, 0x00, 1, 2, 3, 4}), t));
+  EXPECT_EQ(results.back(), ok({1, 2, 3, 4}));
+}
+
+TEST_F(SdoClientTest, ServerAbortWithReservedBitsAndShortAbort) {
+  client->upload(0x1000, 0, record());
+  client->upload(0x1000, 0, record());
+  go();
+  EXPECT_EQ(srv({0x81, 0x00, 0x10, 0x00, 0x00, 0x00, 0x02, 0x06}), req({0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}));
+  EXPECT_EQ(srv({0x80, 0x00, 0x10}), none());  // short: code unknown, reported as general error
+  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::ObjectDoesNotExist),
+                                          failed(SdoAbortCode::GeneralError)}));
+}
+
 // ---------------------------------------------------------------------------------------------
 // Block transfer
 

@@ -83,8 +83,10 @@ TEST_F(SdoServerTest, NovotechnikExpeditedUploadCommandBytes) {
   EXPECT_EQ(rx({0x40, 0x10, 0x10, 0x01, 0, 0, 0, 0}), tx({0x43, 0x10, 0x10, 0x01, 0x01, 0x00, 0x00, 0x00}));
 }
 
-// MCB-402 manual, §4 (setting the event timer): "Write : 603 22 01 18 05 aa bb 00 00,
-// 0xbbaa = duration in ms". 0x22 = expedited, size not indicated, into UNSIGNED16 1801h:05.
+// MCB-402 manual (003_44a28fc862638d35.txt), §4 "Using in a non CANOPEN network", node 03h:
+// "Write : 603 22 01 18 05 aa bb 00 00  0xbbaa = duration in ms" (TPDO2 event timer, listed in
+// §5 as 1801h:05 rw). 0x22 = expedited, size not indicated, into an UNSIGNED16: the server takes
+// the object's 2 bytes.
 TEST_F(SdoServerTest, Mcb402EventTimerWrite) {
   EXPECT_EQ(rx({0x22, 0x01, 0x18, 0x05, 0xE8, 0x03, 0x00, 0x00}), tx({0x60, 0x01, 0x18, 0x05, 0, 0, 0, 0}));
   EXPECT_EQ(dict.od.get<std::uint16_t>(0x1801, 5), 1000);
@@ -262,6 +264,18 @@ TEST_F(SdoServerTest, ClientAbortIsNeverAnswered) {
   rx({0x21, 0x00, 0x21, 0x00, 10, 0, 0, 0});
   EXPECT_EQ(rx({0x80, 0x00}), none());  // even a short one
   EXPECT_FALSE(server.busy());
+}
+
+TEST_F(SdoServerTest, AnyAbortCommandByteEndsTheTransfer) {
+  // ccs = 4 with reserved bits set is still an abort (CiA 301 §7.2.4.3.17).
+  rx({0x21, 0x00, 0x21, 0x00, 10, 0, 0, 0});
+  EXPECT_EQ(rx({0x9F, 0x00, 0x21, 0x00, 0, 0, 0, 0x08}), none());
+  EXPECT_FALSE(server.busy());
+  // Inside a block download sub-block 0x81 is "last segment, sequence number 1".
+  rx({0xC2, 0x00, 0x21, 0x00, 2, 0, 0, 0});
+  EXPECT_EQ(rx({0x81, 0xAA, 0xBB, 0, 0, 0, 0, 0}), tx({0xA2, 1, 127, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(rx({0xD5, 0, 0, 0, 0, 0, 0, 0}), tx({0xA1, 0, 0, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(dict.value(0x2100), (std::vector<std::uint8_t>{0xAA, 0xBB}));
 }
 
 TEST_F(SdoServerTest, RemoteFramesAreIgnored) {
