@@ -1,0 +1,386 @@
+#include "canopen/301/sdo_client.hpp"
+
+#include <algorithm>
+#include <array>
+
+#include "canopen/301/crc16.hpp"
+
+namespace oegw::canopen {
+
+namespace {
+
+constexpr std::size_t kSegmentData = 7;
+constexpr std::uint8_t kAbort = 0x80;
+
+bool matches(CobId cob, const CanFrame& f) {
+  return cob.valid() && f.id == cob.can_id() && f.extended == cob.extended();
+}
+
+std::size_t round_up_segments(std::size_t n) {
+  return std::max<std::size_t>(kSegmentData, (n + kSegmentData - 1) / kSegmentData * kSegmentData);
+}
+
+}  // namespace
+
+SdoClientConfig SdoClientConfig::for_node(NodeId server) {
+  SdoClientConfig c;
+  c.request_cob = CobId(cob::kSdoRx + server.value());
+  c.response_cob = CobId(cob::kSdoTx + server.value());
+  return c;
+}
+
+SdoClient::SdoClient(FrameSink sink, SdoClientConfig config) : sink_(std::move(sink)), cfg_(config) {
+  cfg_.block_size = std::clamp<std::uint8_t>(cfg_.block_size, 1, 127);
+}
+
+void SdoClient::upload(std::uint16_t index, std::uint8_t sub, Callback callback, SdoTransfer mode) {
+  queue_.push_back(Request{true, index, sub, {}, std::move(callback), mode});
+}
+
+void SdoClient::download(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data, Callback callback,
+                         SdoTransfer mode) {
+  queue_.push_back(Request{false, index, sub, std::move(data), std::move(callback), mode});
+}
+
+std::optional<TimePoint> SdoClient::next_deadline() const {
+  if (state_ != State::Idle) return deadline_;
+  if (!queue_.empty()) return now_;  // a queued request is waiting to start: due now
+  return std::nullopt;
+}
+
+void SdoClient::advance(TimePoint now) {
+  now_ = now;
+  if (state_ != State::Idle && now >= deadline_) abort(SdoAbortCode::Timeout);
+  pump();
+}
+
+bool SdoClient::on_frame(const CanFrame& frame, TimePoint now) {
+  if (!matches(cfg_.response_cob, frame)) return false;
+  now_ = now;
+  if (!frame.rtr && state_ != State::Idle) {
+    handle(frame);
+    deadline_ = now + cfg_.timeout;
+  }
+  pump();
+  return true;
+}
+
+void SdoClient::set_cob_ids(CobId request, CobId response) {
+  cfg_.request_cob = request;
+  cfg_.response_cob = response;
+  if (state_ != State::Idle) finish(SdoAbortCode::GeneralError);
+  pump();
+}
+
+void SdoClient::cancel_all(SdoAbortCode code) {
+  if (state_ != State::Idle) abort(code);
+  for (auto& r : queue_) done_.push_back(Done{std::move(r.callback), code, {}});
+  queue_.clear();
+  pump();
+}
+
+void SdoClient::start(TimePoint now) {
+  current_ = std::move(queue_.front());
+  queue_.pop_front();
+  deadline_ = now + cfg_.timeout;
+  buffer_.clear();
+  pos_ = 0;
+  toggle_ = false;
+  crc_ = false;
+  const auto lo = static_cast<std::uint8_t>(current_.index);
+  const auto hi = static_cast<std::uint8_t>(current_.index >> 8);
+  const std::uint8_t sub = current_.sub;
+  if (current_.upload) {
+    if (current_.mode == SdoTransfer::Block) {
+      state_ = State::BlockUploadInitiate;
+      send({static_cast<std::uint8_t>(0xA0 | (cfg_.crc ? 0x04 : 0x00)), lo, hi, sub, cfg_.block_size, cfg_.pst, 0,
+            0});
+    } else {
+      state_ = State::UploadInitiate;
+      send({0x40, lo, hi, sub, 0, 0, 0, 0});
+    }
+    return;
+  }
+  size_ = current_.data.size();
+  const bool block = current_.mode == SdoTransfer::Block ||
+                     (current_.mode == SdoTransfer::Auto && cfg_.block_threshold != 0 && size_ >= cfg_.block_threshold);
+  if (block) {
+    state_ = State::BlockDownloadInitiate;
+    std::array<std::uint8_t, 8> out{static_cast<std::uint8_t>(0xC2 | (cfg_.crc ? 0x04 : 0x00)), lo, hi, sub};
+    put_u32(out.data() + 4, static_cast<std::uint32_t>(size_));
+    send(out);
+    return;
+  }
+  state_ = State::DownloadInitiate;
+  if (current_.mode == SdoTransfer::Auto && size_ >= 1 && size_ <= 4) {
+    std::array<std::uint8_t, 8> out{static_cast<std::uint8_t>(0x23 | ((4 - size_) << 2)), lo, hi, sub};
+    std::copy(current_.data.begin(), current_.data.end(), out.begin() + 4);
+    pos_ = size_;  // all data went with the initiate request
+    send(out);
+    return;
+  }
+  std::array<std::uint8_t, 8> out{0x21, lo, hi, sub};
+  put_u32(out.data() + 4, static_cast<std::uint32_t>(size_));
+  send(out);
+}
+
+bool SdoClient::mux_matches(const std::uint8_t* d) const {
+  return get_u16(d + 1) == current_.index && d[3] == current_.sub;
+}
+
+void SdoClient::handle(const CanFrame& f) {
+  const std::uint8_t* d = f.data.data();
+  // The server aborted: scs = 4; in a block upload sub-block only 0x80 (0x81.. are segments).
+  const bool sub_block = state_ == State::BlockUploadSubBlock;
+  if (f.dlc >= 1 && (sub_block ? d[0] == kAbort : (d[0] >> 5) == 4)) {
+    finish(f.dlc == 8 ? static_cast<SdoAbortCode>(get_u32(d + 4)) : SdoAbortCode::GeneralError);
+    return;
+  }
+  if (f.dlc < 8) return abort(SdoAbortCode::UnknownCommandSpecifier);  // see SdoServer: DLC is always 8
+  const std::uint8_t cmd = d[0];
+  const auto scs = static_cast<std::uint8_t>(cmd >> 5);
+  switch (state_) {
+    case State::UploadInitiate:
+      if (scs == 2) return on_upload_initiate(d);
+      break;
+    case State::UploadSegment:
+      if (scs == 0) return on_upload_segment(d);
+      break;
+    case State::DownloadInitiate:
+      if (scs == 3) return on_download_initiate(d);
+      break;
+    case State::DownloadSegment:
+      if (scs == 1) return on_download_segment(d);
+      break;
+    case State::BlockDownloadInitiate:
+      if ((cmd & 0xE3) == 0xA0) return on_block_download_initiate(d);
+      break;
+    case State::BlockDownloadAck:
+      if ((cmd & 0xE3) == 0xA2) return on_block_download_ack(d);
+      break;
+    case State::BlockDownloadEnd:
+      if ((cmd & 0xE3) == 0xA1) return finish(SdoAbortCode::None);
+      break;
+    case State::BlockUploadInitiate:
+      if ((cmd & 0xE1) == 0xC0) return on_block_upload_initiate(d);
+      if (scs == 2) return on_upload_initiate(d);  // the server switched protocol (pst)
+      break;
+    case State::BlockUploadSubBlock:
+      return on_block_upload_segment(d);
+    case State::BlockUploadEnd:
+      if ((cmd & 0xE1) == 0xC1) return on_block_upload_end(d);
+      break;
+    case State::Idle:
+      return;
+  }
+  abort(SdoAbortCode::UnknownCommandSpecifier);
+}
+
+void SdoClient::on_upload_initiate(const std::uint8_t* d) {
+  if (!mux_matches(d)) return abort(SdoAbortCode::GeneralError);
+  const std::uint8_t cmd = d[0];
+  size_indicated_ = (cmd & 0x01) != 0;
+  if ((cmd & 0x02) != 0) {  // expedited
+    const std::size_t n = size_indicated_ ? 4u - ((cmd >> 2) & 0x03u) : 4u;
+    buffer_.assign(d + 4, d + 4 + n);
+    return finish(SdoAbortCode::None);
+  }
+  size_ = get_u32(d + 4);
+  if (size_indicated_ && size_ > cfg_.max_upload_size) return abort(SdoAbortCode::OutOfMemory);
+  toggle_ = false;
+  state_ = State::UploadSegment;
+  send({0x60, 0, 0, 0, 0, 0, 0, 0});
+}
+
+void SdoClient::on_upload_segment(const std::uint8_t* d) {
+  const std::uint8_t cmd = d[0];
+  if (((cmd & 0x10) != 0) != toggle_) return abort(SdoAbortCode::ToggleBitNotAlternated);
+  const std::size_t n = kSegmentData - ((cmd >> 1) & 0x07u);
+  const std::size_t cap = size_indicated_ ? size_ : cfg_.max_upload_size;
+  if (buffer_.size() + n > cap) {
+    return abort(size_indicated_ ? SdoAbortCode::LengthMismatch : SdoAbortCode::OutOfMemory);
+  }
+  buffer_.insert(buffer_.end(), d + 1, d + 1 + n);
+  if ((cmd & 0x01) != 0) {
+    if (size_indicated_ && buffer_.size() != size_) return abort(SdoAbortCode::LengthMismatch);
+    return finish(SdoAbortCode::None);
+  }
+  toggle_ = !toggle_;
+  send({static_cast<std::uint8_t>(0x60 | (toggle_ ? 0x10 : 0x00)), 0, 0, 0, 0, 0, 0, 0});
+}
+
+void SdoClient::on_download_initiate(const std::uint8_t* d) {
+  if (!mux_matches(d)) return abort(SdoAbortCode::GeneralError);
+  if (pos_ == size_ && size_ != 0) return finish(SdoAbortCode::None);  // expedited: done
+  state_ = State::DownloadSegment;
+  toggle_ = false;
+  send_download_segment();
+}
+
+void SdoClient::send_download_segment() {
+  const std::size_t n = std::min(kSegmentData, size_ - pos_);
+  last_in_block_ = pos_ + n == size_;
+  std::array<std::uint8_t, 8> out{};
+  out[0] = static_cast<std::uint8_t>((toggle_ ? 0x10 : 0x00) | ((kSegmentData - n) << 1) | (last_in_block_ ? 1 : 0));
+  std::copy_n(current_.data.begin() + static_cast<std::ptrdiff_t>(pos_), n, out.begin() + 1);
+  pos_ += n;
+  send(out);
+}
+
+void SdoClient::on_download_segment(const std::uint8_t* d) {
+  if (((d[0] & 0x10) != 0) != toggle_) return abort(SdoAbortCode::ToggleBitNotAlternated);
+  if (last_in_block_) return finish(SdoAbortCode::None);
+  toggle_ = !toggle_;
+  send_download_segment();
+}
+
+void SdoClient::on_block_download_initiate(const std::uint8_t* d) {
+  if (!mux_matches(d)) return abort(SdoAbortCode::GeneralError);
+  crc_ = cfg_.crc && (d[0] & 0x04) != 0;
+  blksize_ = d[4];
+  if (blksize_ == 0 || blksize_ > 127) return abort(SdoAbortCode::InvalidBlockSize);
+  pos_ = 0;
+  send_download_sub_block();
+}
+
+void SdoClient::send_download_sub_block() {
+  state_ = State::BlockDownloadAck;
+  std::size_t p = pos_;
+  sent_in_block_ = 0;
+  last_in_block_ = false;
+  while (sent_in_block_ < blksize_ && !last_in_block_) {
+    const std::size_t n = std::min(kSegmentData, size_ - p);
+    last_in_block_ = p + n == size_;
+    ++sent_in_block_;
+    std::array<std::uint8_t, 8> out{};
+    out[0] = static_cast<std::uint8_t>(sent_in_block_ | (last_in_block_ ? 0x80 : 0x00));
+    std::copy_n(current_.data.begin() + static_cast<std::ptrdiff_t>(p), n, out.begin() + 1);
+    p += n;
+    send(out);
+  }
+}
+
+void SdoClient::on_block_download_ack(const std::uint8_t* d) {
+  const std::uint8_t ackseq = d[1];
+  const std::uint8_t blksize = d[2];
+  if (ackseq > sent_in_block_) return abort(SdoAbortCode::InvalidSequenceNumber);
+  if (blksize == 0 || blksize > 127) return abort(SdoAbortCode::InvalidBlockSize);
+  if (ackseq == sent_in_block_ && last_in_block_) {
+    const std::size_t in_last = size_ == 0 ? 0 : (size_ - 1) % kSegmentData + 1;
+    std::array<std::uint8_t, 8> out{};
+    out[0] = static_cast<std::uint8_t>(0xC1 | ((kSegmentData - in_last) << 2));
+    put_u16(out.data() + 1, crc_ ? crc16_ccitt(current_.data) : 0);
+    state_ = State::BlockDownloadEnd;
+    send(out);
+    return;
+  }
+  pos_ = std::min(size_, pos_ + std::size_t{ackseq} * kSegmentData);  // retransmit from ackseq + 1
+  blksize_ = blksize;
+  send_download_sub_block();
+}
+
+void SdoClient::on_block_upload_initiate(const std::uint8_t* d) {
+  if (!mux_matches(d)) return abort(SdoAbortCode::GeneralError);
+  crc_ = cfg_.crc && (d[0] & 0x04) != 0;
+  size_indicated_ = (d[0] & 0x02) != 0;
+  size_ = get_u32(d + 4);
+  if (size_indicated_ && size_ > cfg_.max_upload_size) return abort(SdoAbortCode::OutOfMemory);
+  blksize_ = cfg_.block_size;
+  expected_seq_ = 1;
+  last_segment_received_ = false;
+  state_ = State::BlockUploadSubBlock;
+  send({0xA3, 0, 0, 0, 0, 0, 0, 0});
+}
+
+void SdoClient::on_block_upload_segment(const std::uint8_t* d) {
+  const std::uint8_t seq = d[0] & 0x7F;
+  const bool last = (d[0] & 0x80) != 0;
+  if (seq == 0 || seq > blksize_) return abort(SdoAbortCode::InvalidSequenceNumber);
+  if (seq == expected_seq_) {
+    const std::size_t cap = round_up_segments(size_indicated_ ? size_ : cfg_.max_upload_size);
+    if (buffer_.size() + kSegmentData > cap) {
+      return abort(size_indicated_ ? SdoAbortCode::LengthMismatch : SdoAbortCode::OutOfMemory);
+    }
+    buffer_.insert(buffer_.end(), d + 1, d + 1 + kSegmentData);
+    ++expected_seq_;
+    last_segment_received_ = last;
+  }
+  if (seq == blksize_ || last) {
+    const auto ackseq = static_cast<std::uint8_t>(expected_seq_ - 1);
+    if (last_segment_received_) {
+      state_ = State::BlockUploadEnd;
+    } else {
+      expected_seq_ = 1;
+    }
+    send({0xA2, ackseq, blksize_, 0, 0, 0, 0, 0});
+  }
+}
+
+void SdoClient::on_block_upload_end(const std::uint8_t* d) {
+  const std::size_t unused = (d[0] >> 2) & 0x07u;
+  const std::size_t total = buffer_.size() - unused;  // at least one segment was received
+  if (size_indicated_ && total != size_) return abort(SdoAbortCode::LengthMismatch);
+  buffer_.resize(total);
+  if (crc_ && crc16_ccitt(buffer_) != get_u16(d + 1)) return abort(SdoAbortCode::CrcError);
+  send({0xA1, 0, 0, 0, 0, 0, 0, 0});
+  finish(SdoAbortCode::None);
+}
+
+void SdoClient::finish(SdoAbortCode code) {
+  std::vector<std::uint8_t> data;
+  if (code == SdoAbortCode::None && current_.upload) data = std::move(buffer_);
+  done_.push_back(Done{std::move(current_.callback), code, std::move(data)});
+  state_ = State::Idle;
+  buffer_.clear();
+  current_ = Request{};
+}
+
+void SdoClient::abort(SdoAbortCode code) {
+  std::array<std::uint8_t, 8> out{kAbort, static_cast<std::uint8_t>(current_.index),
+                                  static_cast<std::uint8_t>(current_.index >> 8), current_.sub};
+  put_u32(out.data() + 4, static_cast<std::uint32_t>(code));
+  send(out);
+  finish(code);
+}
+
+void SdoClient::send(const std::array<std::uint8_t, 8>& bytes) {
+  if (!cfg_.request_cob.valid()) return;
+  CanFrame f;
+  f.id = cfg_.request_cob.can_id();
+  f.extended = cfg_.request_cob.extended();
+  f.dlc = 8;
+  f.data = bytes;
+  outbox_.push_back(f);
+}
+
+void SdoClient::send(std::initializer_list<std::uint8_t> bytes) {
+  std::array<std::uint8_t, 8> out{};
+  std::copy(bytes.begin(), bytes.end(), out.begin());
+  send(out);
+}
+
+// Sends queued frames, runs finished callbacks, starts the next request. Re-entrant calls (a
+// server wired straight to the sink answering at once, a callback queueing a request) only add
+// work; the outermost call does it, in order.
+void SdoClient::pump() {
+  if (pumping_) return;
+  pumping_ = true;
+  for (;;) {
+    if (!outbox_.empty()) {
+      const CanFrame f = outbox_.front();
+      outbox_.pop_front();
+      if (sink_) sink_(f);
+    } else if (!done_.empty()) {
+      Done d = std::move(done_.front());
+      done_.pop_front();
+      if (d.callback) d.callback(d.code, std::move(d.data));
+    } else if (state_ == State::Idle && !queue_.empty()) {
+      start(now_);
+    } else {
+      break;
+    }
+  }
+  pumping_ = false;
+}
+
+}  // namespace oegw::canopen

@@ -1,0 +1,155 @@
+// SDO client (CiA 301 §7.2.4): reads and writes the object dictionary of one SDO server.
+//
+// Requests are queued FIFO; one transfer is in flight at a time and the next starts when it
+// finishes. "Sans I/O": upload()/download() only queue a request. Transfers are started, and
+// timers run, in advance(now) and on_frame(now); next_deadline() reports "due now" (the last
+// time the client was given) while a queued request waits to start, so an event loop that
+// honours next_deadline() starts it at once.
+//
+// Transfer choice for a download: expedited for 1..4 bytes, segmented otherwise, block when the
+// request asks for it or its size reaches SdoClientConfig::block_threshold. An upload is a normal
+// upload (the server picks expedited or segmented) unless the request asks for block transfer.
+//
+// Every request ends with exactly one callback: SdoAbortCode::None and the data (empty for a
+// download), or the abort code — the server's, or the one this client sent (0x05040000 on
+// timeout, ...). Callbacks run after the frame or timer that finished the transfer has been fully
+// handled; they may queue further requests.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <initializer_list>
+#include <optional>
+#include <vector>
+
+#include "canopen/can_frame.hpp"
+#include "canopen/types.hpp"
+
+namespace oegw::canopen {
+
+struct SdoClientConfig {
+  CobId request_cob;   // client -> server (0x600 + node-ID)
+  CobId response_cob;  // server -> client (0x580 + node-ID)
+  Duration timeout = std::chrono::seconds(1);
+  // Downloads of at least this many bytes use block transfer; 0 = only when a request asks.
+  std::size_t block_threshold = 0;
+  std::uint8_t block_size = 127;  // sub-block size asked for in a block upload (1..127)
+  std::uint8_t pst = 0;           // block upload protocol switch threshold (0 = no switch)
+  bool crc = true;                // ask for the block-transfer CRC
+  std::size_t max_upload_size = 1u << 20;  // larger uploads abort with 0x05040005
+
+  // The default SDO channel of a server node (CiA 301 §7.3.5).
+  static SdoClientConfig for_node(NodeId server);
+};
+
+enum class SdoTransfer : std::uint8_t {
+  Auto,       // see above
+  Segmented,  // never expedited (for the odd server that wants it; also handy in tests)
+  Block,
+};
+
+class SdoClient {
+ public:
+  using Callback = std::function<void(SdoAbortCode code, std::vector<std::uint8_t> data)>;
+
+  SdoClient(FrameSink sink, SdoClientConfig config);
+  SdoClient(FrameSink sink, NodeId server) : SdoClient(std::move(sink), SdoClientConfig::for_node(server)) {}
+
+  void upload(std::uint16_t index, std::uint8_t sub, Callback callback, SdoTransfer mode = SdoTransfer::Auto);
+  void download(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data, Callback callback,
+                SdoTransfer mode = SdoTransfer::Auto);
+
+  // True if the frame is on the response COB-ID.
+  bool on_frame(const CanFrame& frame, TimePoint now);
+  void advance(TimePoint now);
+  [[nodiscard]] std::optional<TimePoint> next_deadline() const;
+
+  // Changes the COB-IDs; a transfer in progress is aborted (0x08000000 to its callback, no frame).
+  void set_cob_ids(CobId request, CobId response);
+  // Sends an abort for the transfer in flight, if any, and fails it and every queued request
+  // with `code`.
+  void cancel_all(SdoAbortCode code = SdoAbortCode::GeneralError);
+
+  [[nodiscard]] bool busy() const { return state_ != State::Idle; }
+  [[nodiscard]] std::size_t queued() const { return queue_.size(); }
+  [[nodiscard]] const SdoClientConfig& config() const { return cfg_; }
+
+ private:
+  enum class State : std::uint8_t {
+    Idle,
+    UploadInitiate,
+    UploadSegment,
+    DownloadInitiate,
+    DownloadSegment,
+    BlockDownloadInitiate,
+    BlockDownloadAck,
+    BlockDownloadEnd,
+    BlockUploadInitiate,
+    BlockUploadSubBlock,
+    BlockUploadEnd,
+  };
+  struct Request {
+    bool upload = true;
+    std::uint16_t index = 0;
+    std::uint8_t sub = 0;
+    std::vector<std::uint8_t> data;
+    Callback callback;
+    SdoTransfer mode = SdoTransfer::Auto;
+  };
+  struct Done {
+    Callback callback;
+    SdoAbortCode code;
+    std::vector<std::uint8_t> data;
+  };
+
+  void start(TimePoint now);
+  void handle(const CanFrame& f);
+  void on_upload_initiate(const std::uint8_t* d);
+  void on_upload_segment(const std::uint8_t* d);
+  void on_download_initiate(const std::uint8_t* d);
+  void on_download_segment(const std::uint8_t* d);
+  void on_block_download_initiate(const std::uint8_t* d);
+  void on_block_download_ack(const std::uint8_t* d);
+  void on_block_upload_initiate(const std::uint8_t* d);
+  void on_block_upload_segment(const std::uint8_t* d);
+  void on_block_upload_end(const std::uint8_t* d);
+  void send_download_segment();
+  void send_download_sub_block();
+  [[nodiscard]] bool mux_matches(const std::uint8_t* d) const;
+
+  void finish(SdoAbortCode code);
+  void abort(SdoAbortCode code);  // sends the abort frame, then finish(code)
+  void send(const std::array<std::uint8_t, 8>& bytes);
+  void send(std::initializer_list<std::uint8_t> bytes);
+  void pump();
+
+  FrameSink sink_;
+  SdoClientConfig cfg_;
+  std::deque<Request> queue_;
+  State state_ = State::Idle;
+  Request current_;
+  TimePoint now_{};
+  TimePoint deadline_{};
+
+  std::vector<std::uint8_t> buffer_;  // upload: received data
+  bool size_indicated_ = false;
+  std::size_t size_ = 0;
+  std::size_t pos_ = 0;  // download: first byte not yet sent/acknowledged
+  bool toggle_ = false;
+  bool crc_ = false;
+  std::uint8_t blksize_ = 0;
+  std::uint8_t sent_in_block_ = 0;
+  bool last_in_block_ = false;
+  std::uint8_t expected_seq_ = 1;
+  bool last_segment_received_ = false;
+
+  std::deque<CanFrame> outbox_;
+  std::deque<Done> done_;
+  bool pumping_ = false;
+};
+
+}  // namespace oegw::canopen

@@ -1,0 +1,419 @@
+#include "canopen/301/sdo_server.hpp"
+
+#include <algorithm>
+#include <array>
+
+#include "canopen/301/crc16.hpp"
+
+namespace oegw::canopen {
+
+namespace {
+
+constexpr std::size_t kSegmentData = 7;
+
+bool matches(CobId cob, const CanFrame& f) {
+  return cob.valid() && f.id == cob.can_id() && f.extended == cob.extended();
+}
+
+// Client command specifiers (CiA 301 §7.2.4.3, ccs = bits 7..5 of byte 0).
+constexpr std::uint8_t kCcsDownloadSegment = 0;
+constexpr std::uint8_t kCcsInitiateDownload = 1;
+constexpr std::uint8_t kCcsInitiateUpload = 2;
+constexpr std::uint8_t kCcsUploadSegment = 3;
+constexpr std::uint8_t kCcsBlockUpload = 5;
+constexpr std::uint8_t kCcsBlockDownload = 6;
+constexpr std::uint8_t kAbort = 0x80;
+
+bool is_initiate(std::uint8_t cmd) {
+  const auto ccs = static_cast<std::uint8_t>(cmd >> 5);
+  return ccs == kCcsInitiateDownload || ccs == kCcsInitiateUpload ||
+         (ccs == kCcsBlockUpload && (cmd & 0x03) == 0) || (ccs == kCcsBlockDownload && (cmd & 0x01) == 0);
+}
+
+std::size_t round_up_segments(std::size_t n) {
+  return std::max<std::size_t>(kSegmentData, (n + kSegmentData - 1) / kSegmentData * kSegmentData);
+}
+
+}  // namespace
+
+SdoServer::SdoServer(ObjectDictionary& od, FrameSink sink, CobId rx, CobId tx, Duration timeout)
+    : od_(od), sink_(std::move(sink)), rx_(rx), tx_(tx), timeout_(timeout) {}
+
+SdoServer::SdoServer(ObjectDictionary& od, FrameSink sink, NodeId node, Duration timeout)
+    : SdoServer(od, std::move(sink), CobId(cob::kSdoRx + node.value()), CobId(cob::kSdoTx + node.value()),
+                timeout) {}
+
+void SdoServer::set_cob_ids(CobId rx, CobId tx) {
+  rx_ = rx;
+  tx_ = tx;
+  drop();
+}
+
+void SdoServer::reset() { drop(); }
+
+void SdoServer::set_block_size(std::uint8_t blksize) {
+  block_size_ = std::clamp<std::uint8_t>(blksize, 1, kMaxBlockSize);
+}
+
+std::optional<TimePoint> SdoServer::next_deadline() const {
+  if (state_ == State::Idle) return std::nullopt;
+  return deadline_;
+}
+
+void SdoServer::advance(TimePoint now) {
+  if (state_ != State::Idle && now >= deadline_) abort_transfer(SdoAbortCode::Timeout);
+  flush();
+}
+
+bool SdoServer::on_frame(const CanFrame& frame, TimePoint now) {
+  if (!matches(rx_, frame)) return false;
+  if (!frame.rtr) handle(frame);  // SDO never uses remote frames: ignore them
+  if (state_ != State::Idle) deadline_ = now + timeout_;
+  flush();
+  return true;
+}
+
+void SdoServer::handle(const CanFrame& f) {
+  const std::uint8_t* d = f.data.data();
+  // An abort (ccs = 4, the other bits reserved) is never answered (CiA 301 §7.2.4.3.17). In a
+  // block download sub-block 0x81..0x9F are last segments; 0x80 would be "last segment,
+  // sequence number 0", which is not a valid segment, so there it is the abort.
+  const bool sub_block = state_ == State::BlockDownloadSubBlock;
+  if (f.dlc >= 1 && (sub_block ? d[0] == kAbort : (d[0] >> 5) == 4)) {
+    drop();
+    return;
+  }
+  if (f.dlc < 8) {
+    if (state_ != State::Idle) {
+      abort_transfer(SdoAbortCode::UnknownCommandSpecifier);
+    } else {
+      abort(f.dlc >= 3 ? get_u16(d + 1) : 0, f.dlc >= 4 ? d[3] : 0, SdoAbortCode::UnknownCommandSpecifier);
+    }
+    return;
+  }
+  if (state_ == State::BlockDownloadSubBlock) {
+    block_download_segment(d);
+    return;
+  }
+  const std::uint8_t cmd = d[0];
+  if (is_initiate(cmd)) {
+    drop();  // a new initiate abandons whatever was in progress (see header)
+    switch (cmd >> 5) {
+      case kCcsInitiateDownload: initiate_download(d); break;
+      case kCcsInitiateUpload: initiate_upload(d); break;
+      case kCcsBlockUpload: initiate_block_upload(d); break;
+      default: initiate_block_download(d); break;
+    }
+    return;
+  }
+  const auto ccs = static_cast<std::uint8_t>(cmd >> 5);
+  switch (state_) {
+    case State::DownloadSegmented:
+      if (ccs == kCcsDownloadSegment) return download_segment(d);
+      break;
+    case State::UploadSegmented:
+      if (ccs == kCcsUploadSegment) return upload_segment(d);
+      break;
+    case State::BlockDownloadEnd:
+      if ((cmd & 0xE1) == 0xC1) return block_download_end(d);
+      break;
+    case State::BlockUploadStart:
+      if ((cmd & 0xE3) == 0xA3) return send_upload_sub_block();
+      break;
+    case State::BlockUploadAck:
+      if ((cmd & 0xE3) == 0xA2) return block_upload_ack(d);
+      break;
+    case State::BlockUploadEnd:
+      if ((cmd & 0xE3) == 0xA1) return drop();  // transfer complete
+      break;
+    case State::Idle:
+      abort(get_u16(d + 1), d[3], SdoAbortCode::UnknownCommandSpecifier);
+      return;
+    case State::BlockDownloadSubBlock:
+      break;
+  }
+  abort_transfer(SdoAbortCode::UnknownCommandSpecifier);
+}
+
+SdoAbortCode SdoServer::check_announced_size(std::uint32_t size) const {
+  const SubObject* s = od_.find(index_, sub_);
+  const std::size_t n = fixed_size(s->type);
+  if (n != 0) {
+    if (size > n) return SdoAbortCode::LengthTooHigh;
+    if (size < n) return SdoAbortCode::LengthTooLow;
+  } else if (size > s->max_size) {
+    return SdoAbortCode::LengthTooHigh;
+  }
+  return SdoAbortCode::None;
+}
+
+SdoAbortCode SdoServer::overflow_code() const {
+  // More data than announced: length mismatch. No size announced: a fixed-size object is "too
+  // long" (what the object dictionary would say), a string/DOMAIN has outgrown the buffer cap.
+  if (size_indicated_) return SdoAbortCode::LengthMismatch;
+  const SubObject* s = od_.find(index_, sub_);
+  if (s != nullptr && fixed_size(s->type) != 0) return SdoAbortCode::LengthTooHigh;
+  return SdoAbortCode::OutOfMemory;
+}
+
+void SdoServer::initiate_download(const std::uint8_t* d) {
+  const std::uint8_t cmd = d[0];
+  index_ = get_u16(d + 1);
+  sub_ = d[3];
+  if (const SdoAbortCode c = od_.check_write(index_, sub_); c != SdoAbortCode::None) return abort_transfer(c);
+  const SubObject* s = od_.find(index_, sub_);
+  const std::size_t fixed = fixed_size(s->type);
+  const bool expedited = (cmd & 0x02) != 0;
+  size_indicated_ = (cmd & 0x01) != 0;
+  if (expedited) {
+    // e=1, s=0: "unspecified number of bytes" — take the object's size (the MCB-402 writes its
+    // UNSIGNED16 event timer with 0x22 and four data bytes), or all four for variable types.
+    std::size_t n = 4;
+    if (size_indicated_) {
+      n = 4u - ((cmd >> 2) & 0x03u);
+    } else if (fixed != 0 && fixed < 4) {
+      n = fixed;
+    }
+    const SdoAbortCode c = od_.write(index_, sub_, std::span<const std::uint8_t>(d + 4, n));
+    if (c != SdoAbortCode::None) return abort_transfer(c);
+    send({0x60, d[1], d[2], d[3], 0, 0, 0, 0});
+    return;
+  }
+  if (size_indicated_) {
+    size_ = get_u32(d + 4);
+    if (const SdoAbortCode c = check_announced_size(static_cast<std::uint32_t>(size_)); c != SdoAbortCode::None)
+      return abort_transfer(c);
+    capacity_ = size_;
+  } else {
+    capacity_ = fixed != 0 ? fixed : s->max_size;
+  }
+  buffer_.clear();
+  toggle_ = false;
+  state_ = State::DownloadSegmented;
+  send({0x60, d[1], d[2], d[3], 0, 0, 0, 0});
+}
+
+void SdoServer::download_segment(const std::uint8_t* d) {
+  const std::uint8_t cmd = d[0];
+  if (((cmd & 0x10) != 0) != toggle_) return abort_transfer(SdoAbortCode::ToggleBitNotAlternated);
+  const std::size_t n = kSegmentData - ((cmd >> 1) & 0x07u);
+  if (buffer_.size() + n > capacity_) return abort_transfer(overflow_code());
+  buffer_.insert(buffer_.end(), d + 1, d + 1 + n);
+  const auto response = static_cast<std::uint8_t>(0x20 | (toggle_ ? 0x10 : 0x00));
+  toggle_ = !toggle_;
+  if ((cmd & 0x01) != 0) {
+    if (size_indicated_ && buffer_.size() != size_) return abort_transfer(SdoAbortCode::LengthMismatch);
+    const SdoAbortCode c = od_.write(index_, sub_, buffer_);
+    if (c != SdoAbortCode::None) return abort_transfer(c);
+    drop();
+  }
+  send({response, 0, 0, 0, 0, 0, 0, 0});
+}
+
+void SdoServer::initiate_upload(const std::uint8_t* d) {
+  index_ = get_u16(d + 1);
+  sub_ = d[3];
+  buffer_.clear();
+  if (const SdoAbortCode c = od_.read(index_, sub_, buffer_); c != SdoAbortCode::None) return abort_transfer(c);
+  respond_upload_initiate();
+}
+
+void SdoServer::respond_upload_initiate() {
+  const auto lo = static_cast<std::uint8_t>(index_);
+  const auto hi = static_cast<std::uint8_t>(index_ >> 8);
+  if (!buffer_.empty() && buffer_.size() <= 4) {
+    std::array<std::uint8_t, 8> out{};
+    out[0] = static_cast<std::uint8_t>(0x43 | ((4 - buffer_.size()) << 2));
+    out[1] = lo;
+    out[2] = hi;
+    out[3] = sub_;
+    std::copy(buffer_.begin(), buffer_.end(), out.begin() + 4);
+    drop();
+    send(out);
+    return;
+  }
+  size_ = buffer_.size();
+  pos_ = 0;
+  toggle_ = false;
+  state_ = State::UploadSegmented;
+  std::array<std::uint8_t, 8> out{0x41, lo, hi, sub_, 0, 0, 0, 0};
+  put_u32(out.data() + 4, static_cast<std::uint32_t>(size_));
+  send(out);
+}
+
+void SdoServer::upload_segment(const std::uint8_t* d) {
+  if (((d[0] & 0x10) != 0) != toggle_) return abort_transfer(SdoAbortCode::ToggleBitNotAlternated);
+  const std::size_t n = std::min(kSegmentData, size_ - pos_);
+  const bool last = pos_ + n == size_;
+  std::array<std::uint8_t, 8> out{};
+  out[0] = static_cast<std::uint8_t>((toggle_ ? 0x10 : 0x00) | ((kSegmentData - n) << 1) | (last ? 0x01 : 0x00));
+  std::copy_n(buffer_.begin() + static_cast<std::ptrdiff_t>(pos_), n, out.begin() + 1);
+  pos_ += n;
+  toggle_ = !toggle_;
+  if (last) drop();
+  send(out);
+}
+
+void SdoServer::initiate_block_download(const std::uint8_t* d) {
+  const std::uint8_t cmd = d[0];
+  index_ = get_u16(d + 1);
+  sub_ = d[3];
+  if (const SdoAbortCode c = od_.check_write(index_, sub_); c != SdoAbortCode::None) return abort_transfer(c);
+  const SubObject* s = od_.find(index_, sub_);
+  size_indicated_ = (cmd & 0x02) != 0;
+  if (size_indicated_) {
+    size_ = get_u32(d + 4);
+    if (const SdoAbortCode c = check_announced_size(static_cast<std::uint32_t>(size_)); c != SdoAbortCode::None)
+      return abort_transfer(c);
+    capacity_ = size_;
+  } else {
+    const std::size_t fixed = fixed_size(s->type);
+    capacity_ = fixed != 0 ? fixed : s->max_size;
+  }
+  crc_ = (cmd & 0x04) != 0;
+  buffer_.clear();
+  blksize_ = block_size_;
+  expected_seq_ = 1;
+  last_segment_received_ = false;
+  state_ = State::BlockDownloadSubBlock;
+  send({0xA4, d[1], d[2], d[3], blksize_, 0, 0, 0});  // sc = 1: the server can check a CRC
+}
+
+void SdoServer::block_download_segment(const std::uint8_t* d) {
+  const std::uint8_t seq = d[0] & 0x7F;
+  const bool last = (d[0] & 0x80) != 0;
+  if (seq == 0 || seq > blksize_) return abort_transfer(SdoAbortCode::InvalidSequenceNumber);
+  if (seq == expected_seq_) {
+    // Segments carry 7 bytes; the unused ones of the last are only known at the block end.
+    if (buffer_.size() + kSegmentData > round_up_segments(capacity_)) return abort_transfer(overflow_code());
+    buffer_.insert(buffer_.end(), d + 1, d + 1 + kSegmentData);
+    ++expected_seq_;
+    last_segment_received_ = last;
+  }
+  if (seq == blksize_ || last) {
+    const auto ackseq = static_cast<std::uint8_t>(expected_seq_ - 1);
+    if (last_segment_received_) {
+      state_ = State::BlockDownloadEnd;
+    } else {
+      expected_seq_ = 1;
+    }
+    send({0xA2, ackseq, blksize_, 0, 0, 0, 0, 0});
+  }
+}
+
+void SdoServer::block_download_end(const std::uint8_t* d) {
+  const std::size_t unused = (d[0] >> 2) & 0x07u;
+  const std::size_t total = buffer_.size() - unused;  // buffer_ holds at least one segment here
+  if (size_indicated_ && total != size_) return abort_transfer(SdoAbortCode::LengthMismatch);
+  buffer_.resize(total);
+  if (crc_ && crc16_ccitt(buffer_) != get_u16(d + 1)) return abort_transfer(SdoAbortCode::CrcError);
+  const SdoAbortCode c = od_.write(index_, sub_, buffer_);
+  if (c != SdoAbortCode::None) return abort_transfer(c);
+  drop();
+  send({0xA1, 0, 0, 0, 0, 0, 0, 0});
+}
+
+void SdoServer::initiate_block_upload(const std::uint8_t* d) {
+  index_ = get_u16(d + 1);
+  sub_ = d[3];
+  buffer_.clear();
+  if (const SdoAbortCode c = od_.read(index_, sub_, buffer_); c != SdoAbortCode::None) return abort_transfer(c);
+  const std::uint8_t blksize = d[4];
+  const std::uint8_t pst = d[5];
+  if (blksize == 0 || blksize > kMaxBlockSize) return abort_transfer(SdoAbortCode::InvalidBlockSize);
+  if (pst != 0 && buffer_.size() <= pst) {
+    respond_upload_initiate();  // protocol switch: answer as a normal upload
+    return;
+  }
+  crc_ = (d[0] & 0x04) != 0;
+  blksize_ = blksize;
+  size_ = buffer_.size();
+  pos_ = 0;
+  state_ = State::BlockUploadStart;
+  std::array<std::uint8_t, 8> out{0xC6, d[1], d[2], d[3], 0, 0, 0, 0};  // sc = 1, s = 1
+  put_u32(out.data() + 4, static_cast<std::uint32_t>(size_));
+  send(out);
+}
+
+void SdoServer::send_upload_sub_block() {
+  state_ = State::BlockUploadAck;
+  std::size_t p = pos_;
+  sent_in_block_ = 0;
+  last_in_block_ = false;
+  while (sent_in_block_ < blksize_ && !last_in_block_) {
+    const std::size_t n = std::min(kSegmentData, size_ - p);
+    last_in_block_ = p + n == size_;
+    ++sent_in_block_;
+    std::array<std::uint8_t, 8> out{};
+    out[0] = static_cast<std::uint8_t>(sent_in_block_ | (last_in_block_ ? 0x80 : 0x00));
+    std::copy_n(buffer_.begin() + static_cast<std::ptrdiff_t>(p), n, out.begin() + 1);
+    p += n;
+    send(out);
+  }
+}
+
+void SdoServer::block_upload_ack(const std::uint8_t* d) {
+  const std::uint8_t ackseq = d[1];
+  const std::uint8_t blksize = d[2];
+  if (ackseq > sent_in_block_) return abort_transfer(SdoAbortCode::InvalidSequenceNumber);
+  if (blksize == 0 || blksize > kMaxBlockSize) return abort_transfer(SdoAbortCode::InvalidBlockSize);
+  if (ackseq == sent_in_block_ && last_in_block_) {
+    const std::size_t in_last = size_ == 0 ? 0 : (size_ - 1) % kSegmentData + 1;
+    std::array<std::uint8_t, 8> out{};
+    out[0] = static_cast<std::uint8_t>(0xC1 | ((kSegmentData - in_last) << 2));
+    put_u16(out.data() + 1, crc_ ? crc16_ccitt(buffer_) : 0);
+    state_ = State::BlockUploadEnd;
+    send(out);
+    return;
+  }
+  pos_ = std::min(size_, pos_ + std::size_t{ackseq} * kSegmentData);
+  blksize_ = blksize;
+  send_upload_sub_block();
+}
+
+void SdoServer::abort(std::uint16_t index, std::uint8_t sub, SdoAbortCode code) {
+  drop();
+  std::array<std::uint8_t, 8> out{kAbort, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8),
+                                  sub, 0, 0, 0, 0};
+  put_u32(out.data() + 4, static_cast<std::uint32_t>(code));
+  send(out);
+}
+
+void SdoServer::drop() {
+  state_ = State::Idle;
+  buffer_.clear();
+  buffer_.shrink_to_fit();
+  size_indicated_ = false;
+  crc_ = false;
+}
+
+void SdoServer::send(std::initializer_list<std::uint8_t> bytes) {
+  std::array<std::uint8_t, 8> out{};
+  std::copy(bytes.begin(), bytes.end(), out.begin());
+  send(out);
+}
+
+void SdoServer::send(const std::array<std::uint8_t, 8>& bytes) {
+  if (!tx_.valid()) return;
+  CanFrame f;
+  f.id = tx_.can_id();
+  f.extended = tx_.extended();
+  f.dlc = 8;
+  f.data = bytes;
+  outbox_.push_back(f);
+}
+
+// Frames are queued and sent once the state is settled. If the sink feeds a reply straight back
+// (a client wired directly to this server), the nested call only queues, and this loop sends.
+void SdoServer::flush() {
+  if (flushing_) return;
+  flushing_ = true;
+  while (!outbox_.empty()) {
+    const CanFrame f = outbox_.front();
+    outbox_.pop_front();
+    if (sink_) sink_(f);
+  }
+  flushing_ = false;
+}
+
+}  // namespace oegw::canopen
