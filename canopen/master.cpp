@@ -1,0 +1,84 @@
+#include "canopen/master.hpp"
+
+namespace oegw::canopen {
+
+namespace {
+ObjectDictionary& with_consumer_objects(ObjectDictionary& od, std::uint8_t entries) {
+  if (od.find(0x1016) == nullptr) install_heartbeat_consumer_objects(od, entries);
+  return od;
+}
+}  // namespace
+
+Master::Master(ObjectDictionary& od, FrameSink sink, MasterConfig config)
+    : od_(with_consumer_objects(od, config.heartbeat_entries)),
+      sink_(std::move(sink)),
+      cfg_(config),
+      nmt_([this](const CanFrame& f) { sink_(f); }),
+      hb_(od_),
+      emcy_(od_, [this](const EmcyMessage& m, TimePoint t) {
+        if (on_emcy) on_emcy(m, t);
+      }) {
+  hb_.on_timeout([this](NodeId n) {
+    if (on_heartbeat_timeout) on_heartbeat_timeout(n);
+  });
+  hb_.on_boot([this](NodeId n) {
+    if (on_boot) on_boot(n);
+  });
+  hb_.on_state([this](NodeId n, NmtState s) {
+    if (on_state) on_state(n, s);
+  });
+}
+
+SdoClient& Master::sdo(NodeId server) {
+  auto& slot = sdo_[server.value()];
+  if (!slot) {
+    SdoClientConfig c = SdoClientConfig::for_node(server);
+    c.timeout = cfg_.sdo_timeout;
+    slot = std::make_unique<SdoClient>([this](const CanFrame& f) { sink_(f); }, c);
+  }
+  return *slot;
+}
+
+SdoAbortCode Master::monitor_heartbeat(NodeId node, std::uint16_t ms) {
+  Object* obj = od_.find(0x1016);
+  // Reuse the node's entry if it has one, else the first unused entry.
+  std::optional<std::uint8_t> target;
+  for (const auto& [sub, s] : obj->subs()) {
+    if (sub == 0 || s.value.size() != 4) continue;
+    const std::uint32_t v = get_u32(s.value.data());
+    const auto entry_node = static_cast<std::uint8_t>(v >> 16);
+    if (entry_node == node.value()) {
+      target = sub;
+      break;
+    }
+    if (!target && (v & 0xFFFFu) == 0) target = sub;
+  }
+  if (!target) return SdoAbortCode::ResourceNotAvailable;
+  return od_.set<std::uint32_t>(0x1016, *target, heartbeat_consumer_entry(node, ms), Origin::Sdo);
+}
+
+bool Master::on_frame(const CanFrame& frame, TimePoint now) {
+  if (hb_.on_frame(frame, now)) return true;
+  if (emcy_.on_frame(frame, now)) return true;
+  for (auto& [id, client] : sdo_) {
+    if (client->on_frame(frame, now)) return true;
+  }
+  if (on_other_frame) on_other_frame(frame, now);
+  return false;
+}
+
+void Master::advance(TimePoint now) {
+  hb_.advance(now);
+  for (auto& [id, client] : sdo_) client->advance(now);
+}
+
+std::optional<TimePoint> Master::next_deadline() const {
+  std::optional<TimePoint> best = hb_.next_deadline();
+  for (const auto& [id, client] : sdo_) {
+    const auto t = client->next_deadline();
+    if (t && (!best || *t < *best)) best = t;
+  }
+  return best;
+}
+
+}  // namespace oegw::canopen

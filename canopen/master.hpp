@@ -1,0 +1,62 @@
+// A CANopen manager (CiA 301 NMT master side): NMT commands, one SDO client per server node
+// (each with its own request queue), heartbeat consumer, EMCY consumer. Sans I/O like every
+// service here. Used by the gateway's downstream network manager and by built-in test hosts.
+#pragma once
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+
+#include "canopen/301/emcy.hpp"
+#include "canopen/301/heartbeat.hpp"
+#include "canopen/301/nmt_master.hpp"
+#include "canopen/301/object_dictionary.hpp"
+#include "canopen/301/sdo_client.hpp"
+#include "canopen/can_frame.hpp"
+#include "canopen/types.hpp"
+
+namespace oegw::canopen {
+
+struct MasterConfig {
+  std::uint8_t heartbeat_entries = 16;  // 1016h size in the master's own dictionary
+  Duration sdo_timeout = std::chrono::seconds(1);
+};
+
+class Master {
+ public:
+  // `od` is the master's own dictionary (1016h and 1028h are added to it).
+  Master(ObjectDictionary& od, FrameSink sink, MasterConfig config = {});
+  Master(const Master&) = delete;
+  Master& operator=(const Master&) = delete;
+
+  [[nodiscard]] NmtMaster& nmt() { return nmt_; }
+  // The SDO client toward `server` (created on first use, default COB-IDs of CiA 301 §7.3.5).
+  [[nodiscard]] SdoClient& sdo(NodeId server);
+
+  // Watches `node`'s heartbeat with the given consumer time (writes a 1016h entry). Returns the
+  // SDO abort code of that write (e.g. 0x06040043 if the node is already watched differently).
+  SdoAbortCode monitor_heartbeat(NodeId node, std::uint16_t ms);
+
+  std::function<void(NodeId)> on_heartbeat_timeout;
+  std::function<void(NodeId)> on_boot;
+  std::function<void(NodeId, NmtState)> on_state;
+  std::function<void(const EmcyMessage&, TimePoint)> on_emcy;
+  // Every frame no service claimed (PDOs, foreign traffic).
+  std::function<void(const CanFrame&, TimePoint)> on_other_frame;
+
+  bool on_frame(const CanFrame& frame, TimePoint now);
+  void advance(TimePoint now);
+  [[nodiscard]] std::optional<TimePoint> next_deadline() const;
+
+ private:
+  ObjectDictionary& od_;
+  FrameSink sink_;
+  MasterConfig cfg_;
+  NmtMaster nmt_;
+  HeartbeatConsumer hb_;
+  EmcyConsumer emcy_;
+  std::map<std::uint8_t, std::unique_ptr<SdoClient>> sdo_;
+};
+
+}  // namespace oegw::canopen
