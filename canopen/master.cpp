@@ -21,9 +21,6 @@ Master::Master(ObjectDictionary& od, FrameSink sink, MasterConfig config)
   hb_.on_timeout([this](NodeId n) {
     if (on_heartbeat_timeout) on_heartbeat_timeout(n);
   });
-  hb_.on_boot([this](NodeId n) {
-    if (on_boot) on_boot(n);
-  });
   hb_.on_state([this](NodeId n, NmtState s) {
     if (on_state) on_state(n, s);
   });
@@ -58,6 +55,12 @@ SdoAbortCode Master::monitor_heartbeat(NodeId node, std::uint16_t ms) {
 }
 
 bool Master::on_frame(const CanFrame& frame, TimePoint now) {
+  // CiA 301 §7.2.8.3.2.1: the boot-up message (700h + node-ID, one byte 00h) is reported for
+  // every node, watched by 1016h or not: a node that rebooted must be reconfigured.
+  if (!frame.rtr && frame.dlc == 1 && frame.data[0] == 0 && frame.id > cob::kHeartbeat &&
+      frame.id <= cob::kHeartbeat + 127 && on_boot) {
+    on_boot(NodeId{static_cast<std::uint8_t>(frame.id - cob::kHeartbeat)});
+  }
   if (hb_.on_frame(frame, now)) return true;
   if (emcy_.on_frame(frame, now)) return true;
   for (auto& [id, client] : sdo_) {

@@ -39,6 +39,7 @@ class Master {
   SdoAbortCode monitor_heartbeat(NodeId node, std::uint16_t ms);
 
   std::function<void(NodeId)> on_heartbeat_timeout;
+  // A boot-up message from any node (watched or not).
   std::function<void(NodeId)> on_boot;
   std::function<void(NodeId, NmtState)> on_state;
   std::function<void(const EmcyMessage&, TimePoint)> on_emcy;

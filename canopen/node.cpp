@@ -79,6 +79,52 @@ Node::Node(ObjectDictionary& od, NodeConfig config, FrameSink sink)
   sync_.on_length_error = [this](std::uint16_t code) { emcy_.raise(code, 0x10, now_); };
   // CiA 301 §7.2.7.1: an RPDO of the wrong length is reported with EMCY 8210h (or 8220h).
   pdo_.on_length_error = [this](std::uint16_t, std::uint16_t code) { emcy_.raise(code, 0x10, now_); };
+  // CiA 301 Table 26: 8130h "life guard error or heartbeat error"; a consumer timeout is a
+  // communication error for 1029h.
+  hb_consumer_.on_timeout([this](NodeId) {
+    emcy_.raise(0x8130, 0x10, now_);
+    communication_error(now_);
+  });
+  hb_consumer_.on_state([this](NodeId, NmtState) {
+    if (emcy_.active(0x8130)) emcy_.clear(0x8130, now_);
+  });
+}
+
+void Node::communication_error(TimePoint now) {
+  switch (od_.get<std::uint8_t>(0x1029, 1)) {
+    case 0:
+      if (nmt_.state() == NmtState::Operational) nmt_.enter(NmtState::PreOperational, now);
+      break;
+    case 2: nmt_.enter(NmtState::Stopped, now); break;
+    default: break;  // 1: no state change
+  }
+}
+
+void Node::on_bus_event(BusEvent event, TimePoint now) {
+  now_ = now;
+  switch (event) {
+    case BusEvent::ErrorPassive: emcy_.raise(0x8120, 0x10, now); break;
+    case BusEvent::ErrorActive:
+      if (emcy_.active(0x8120)) emcy_.clear(0x8120, now);
+      break;
+    case BusEvent::BusOff:
+      bus_off_ = true;
+      communication_error(now);
+      break;
+    case BusEvent::Restarted:
+      if (bus_off_) {
+        bus_off_ = false;
+        if (emcy_.active(0x8120)) emcy_.clear(0x8120, now);
+        emcy_.raise(0x8140, 0x10, now);  // "recovered from bus off": an event, reported once
+        emcy_.clear(0x8140, now);
+      }
+      break;
+    case BusEvent::ControllerOverflow:
+      emcy_.raise(0x8110, 0x10, now);  // "CAN overrun (objects lost)"
+      emcy_.clear(0x8110, now);
+      break;
+    default: break;
+  }
 }
 
 void Node::install_communication_objects() {
@@ -105,6 +151,11 @@ void Node::install_communication_objects() {
                         encode<std::uint32_t>(cob::kSdoRx + cfg_.node_id.value()));
   od_.add_record_member(kSdoServer, 2, "COB-ID server to client (tx)", DataType::Unsigned32, Access::ReadOnly,
                         encode<std::uint32_t>(cob::kSdoTx + cfg_.node_id.value()));
+  // CiA 301 §7.5.2.32: error behaviour; sub 1 = communication error, default 0 (enter
+  // pre-operational when operational).
+  od_.add_array(0x1029, "Error behaviour", DataType::Unsigned8, Access::ReadWrite, 1, {0});
+  od_.find(0x1029, 1)->name = "Communication error";
+  od_.find(0x1029, 1)->high = std::uint64_t{2};
   install_heartbeat_producer_objects(od_, cfg_.heartbeat_ms);
   if (cfg_.heartbeat_consumers > 0) install_heartbeat_consumer_objects(od_, cfg_.heartbeat_consumers);
 }

@@ -28,6 +28,7 @@
 #include "canopen/301/sync.hpp"
 #include "canopen/305/lss_slave.hpp"
 #include "canopen/can_frame.hpp"
+#include "canopen/io/can_transport.hpp"
 #include "canopen/types.hpp"
 
 namespace oegw::canopen {
@@ -62,6 +63,11 @@ class Node {
 
   bool on_frame(const CanFrame& frame, TimePoint now);
   void advance(TimePoint now);
+  // What the CAN controller reports (SocketCAN error frames). CiA 301 Table 26: error passive
+  // raises EMCY 8120h (cleared when error-active again), leaving bus-off sends 8140h, a
+  // controller overrun 8110h; bus-off and a heartbeat-consumer timeout are communication errors
+  // handled as 1029h:01 says (0 = pre-operational, 1 = no change, 2 = stopped).
+  void on_bus_event(BusEvent event, TimePoint now);
   [[nodiscard]] std::optional<TimePoint> next_deadline() const;
 
   [[nodiscard]] NmtState state() const { return nmt_.state(); }
@@ -89,6 +95,7 @@ class Node {
   std::uint8_t store_lss(NodeId id, std::uint8_t bit_timing);
   [[nodiscard]] std::filesystem::path lss_path() const;
   void send(const CanFrame& frame);
+  void communication_error(TimePoint now);
 
   ObjectDictionary& od_;
   NodeConfig cfg_;
@@ -96,6 +103,7 @@ class Node {
   NmtState gate_ = NmtState::Initialisation;  // what the sink lets through, see send()
   TimePoint now_{};
   std::uint8_t bit_timing_;
+  bool bus_off_ = false;
 
   // Construction order matters: the services read the objects installed before them.
   bool installed_;

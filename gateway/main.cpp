@@ -1,6 +1,38 @@
+// oegw — the CiA 852 operator-environment gateway program.
 #include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include "gateway/core_demo.hpp"
+
 int main(int argc, char** argv) {
   CLI::App app{"oegw — CiA 852 operator-environment gateway"};
+  app.require_subcommand(0, 1);
+
+  oegw::gateway::DemoOptions demo;
+  auto* demo_cmd = app.add_subcommand("demo", "The embedded demo: a device and a host on the virtual bus (default)");
+  demo_cmd->add_option("--seconds", demo.live_seconds, "How long the joystick moves in operational")
+      ->check(CLI::Range(0.0, 3600.0));
+  demo_cmd->add_flag("--frames", demo.frames, "Print every CAN frame (candump notation)");
+
+  oegw::gateway::DeviceOptions device;
+  int node_id = 0x20;
+  bool no_motion = false;
+  std::string store;
+  auto* dev_cmd = app.add_subcommand("device", "Run the protocol core's demo device on a SocketCAN interface");
+  dev_cmd->add_option("-i,--interface", device.interface, "SocketCAN interface")->required();
+  dev_cmd->add_option("-n,--node-id", node_id, "CANopen node-ID 1..127 (0x.. accepted)")->check(CLI::Range(1, 127));
+  dev_cmd->add_option("--heartbeat-ms", device.heartbeat_ms, "Producer heartbeat time (1017h default)");
+  dev_cmd->add_option("--store", store, "Parameter file for 1010h/1011h and LSS store");
+  dev_cmd->add_flag("--no-motion", no_motion, "Keep the inputs still (for scripted peers)");
+
   CLI11_PARSE(app, argc, argv);
-  return 0;
+  spdlog::set_pattern("%^%l%$: %v");  // journald adds its own timestamps
+
+  if (*dev_cmd) {
+    device.node_id = oegw::canopen::NodeId{static_cast<std::uint8_t>(node_id)};
+    device.store_path = store;
+    device.motion = !no_motion;
+    return oegw::gateway::run_device(device);
+  }
+  return oegw::gateway::run_demo(demo);
 }

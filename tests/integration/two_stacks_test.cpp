@@ -280,4 +280,30 @@ TEST_F(TwoStacks, StoredParametersSurviveResetAndRestoreBringsDefaultsBack) {
   EXPECT_EQ(device_od_->get<std::uint16_t>(0x1017, 0), 100);
 }
 
+TEST_F(TwoStacks, BusOffAndErrorPassiveBecomeEmcysAndFollow1029h) {
+  boot();
+  host_->nmt().start(kDevice);
+  net_.run_for(10ms);
+  device_->on_bus_event(BusEvent::ErrorPassive, net_.now());
+  net_.run_for(1ms);
+  ASSERT_EQ(emcys_.size(), 1u);
+  EXPECT_EQ(emcys_[0].code, 0x8120);
+  EXPECT_EQ(emcys_[0].error_register & 0x11, 0x11) << "generic + communication bits of 1001h";
+  // Bus-off in operational with 1029h:01 = 0: the device falls back to pre-operational.
+  device_->on_bus_event(BusEvent::BusOff, net_.now());
+  EXPECT_EQ(device_->state(), NmtState::PreOperational);
+  device_->on_bus_event(BusEvent::Restarted, net_.now());
+  net_.run_for(1ms);
+  ASSERT_GE(emcys_.size(), 3u);
+  EXPECT_EQ(emcys_[1].code, 0x0000) << "8120h cleared on restart: error reset";
+  EXPECT_EQ(emcys_[2].code, 0x8140) << "recovered from bus off";
+  // 1029h:01 = 1: no state change on a communication error.
+  EXPECT_EQ(download(0x1029, 1, {1}), SdoAbortCode::None);
+  EXPECT_EQ(download(0x1029, 1, {3}), SdoAbortCode::ValueTooHigh);
+  host_->nmt().start(kDevice);
+  net_.run_for(10ms);
+  device_->on_bus_event(BusEvent::BusOff, net_.now());
+  EXPECT_EQ(device_->state(), NmtState::Operational);
+}
+
 }  // namespace
