@@ -84,7 +84,7 @@ HeartbeatConsumer::HeartbeatConsumer(ObjectDictionary& od) : od_(od) {
   std::uint8_t count = 0;
   if (obj != nullptr) {
     for (const auto& [sub, s] : obj->subs()) count = std::max(count, sub);
-    obj->add_write_hook([this](Object& o, std::uint8_t sub, std::span<const std::uint8_t> bytes, Origin) {
+    obj->add_write_hook([](Object& o, std::uint8_t sub, std::span<const std::uint8_t> bytes, Origin) {
       if (sub == 0 || bytes.size() != 4) return SdoAbortCode::None;
       const Decoded d = decode_entry(get_u32(bytes.data()));
       if (!d.used) return SdoAbortCode::None;

@@ -248,8 +248,9 @@ SdoAbortCode ParameterStore::save(Group group) {
   bool corrupt = false;
   std::string error;
   Entries entries = read_file(corrupt, error).value_or(Entries{});  // a corrupt file is replaced
-  const auto [first, last] = range(group);
-  std::erase_if(entries, [&](const auto& e) { return e.first.first >= first && e.first.first <= last; });
+  const auto [first, last] = range(group);  // plain copies below: clang 14 cannot capture bindings
+  const std::uint16_t lo = first, hi = last;
+  std::erase_if(entries, [lo, hi](const auto& e) { return e.first.first >= lo && e.first.first <= hi; });
   for (const auto& [index, obj] : od_.objects()) {
     if (index < first || index > last || excluded(index)) continue;
     for (const auto& [sub, s] : obj.subs())
@@ -265,7 +266,8 @@ SdoAbortCode ParameterStore::restore_defaults(Group group) {
   if (!entries && !corrupt) return SdoAbortCode::None;  // nothing stored: defaults already
   if (group == Group::All || corrupt) return remove_atomically() ? SdoAbortCode::None : SdoAbortCode::HardwareError;
   const auto [first, last] = range(group);
-  std::erase_if(*entries, [&](const auto& e) { return e.first.first >= first && e.first.first <= last; });
+  const std::uint16_t lo = first, hi = last;
+  std::erase_if(*entries, [lo, hi](const auto& e) { return e.first.first >= lo && e.first.first <= hi; });
   return write_atomically(serialize(*entries)) ? SdoAbortCode::None : SdoAbortCode::HardwareError;
 }
 
