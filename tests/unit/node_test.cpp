@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -176,6 +177,392 @@ TEST_F(NodeTest, RebuiltOnSameDictionaryLeavesNoDanglingCallbacks) {
     // Back to the defaults for the next round (reset node).
     nmt(0x81, kId.value());
   }
+}
+
+// ------------------------------------------------------------------ boot-up and identity
+
+// CiA 301 §7.3.2.2.2 / §7.2.8.3.2.2: boot-up 700h+id with 00h, then heartbeats every 1017h ms
+// with the NMT state (7Fh pre-operational), the first one period after the boot-up.
+TEST_F(NodeTest, BootUpThenHeartbeatAtProducerTime) {
+  make();
+  const TimePoint t0 = now;
+  const auto r = start();
+  EXPECT_TRUE(r.ok);
+  EXPECT_FALSE(r.file_present);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x720u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x00});
+  EXPECT_EQ(node->state(), NmtState::PreOperational);
+  EXPECT_EQ(node->next_deadline(), t0 + 100ms);
+
+  out.clear();
+  at(t0 + 99ms);
+  EXPECT_TRUE(out.empty());
+  at(t0 + 100ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x720u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
+  out.clear();
+  at(t0 + 200ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
+}
+
+TEST_F(NodeTest, IdentityObjectsReadableViaSdo) {
+  make();
+  start();
+  auto expect_upload = [&](std::uint16_t index, std::uint8_t sub, Bytes response) {
+    const auto r = sdo_read(index, sub);
+    ASSERT_EQ(r.size(), 1u);
+    EXPECT_EQ(r[0].id, 0x5A0u);
+    EXPECT_EQ(bytes(r[0]), response) << std::hex << index << ":" << int(sub);
+  };
+  // 1000h device type 000F0191h: expedited, 4 bytes (cs 43h).
+  expect_upload(0x1000, 0, {0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00});
+  // 1018h identity: sub 0 = 4 (cs 4Fh, 1 byte), then vendor, product, revision, serial.
+  expect_upload(0x1018, 0, {0x4F, 0x18, 0x10, 0x00, 0x04, 0x00, 0x00, 0x00});
+  expect_upload(0x1018, 1, {0x43, 0x18, 0x10, 0x01, 0x34, 0x12, 0x00, 0x00});
+  expect_upload(0x1018, 2, {0x43, 0x18, 0x10, 0x02, 0x52, 0x08, 0x00, 0x00});
+  expect_upload(0x1018, 3, {0x43, 0x18, 0x10, 0x03, 0x02, 0x00, 0x01, 0x00});
+  expect_upload(0x1018, 4, {0x43, 0x18, 0x10, 0x04, 0x2A, 0x00, 0x00, 0x00});
+  // 1008h "oegw node" (9 bytes): segmented upload, initiate with size indicated (cs 41h).
+  expect_upload(0x1008, 0, {0x41, 0x08, 0x10, 0x00, 0x09, 0x00, 0x00, 0x00});
+  auto seg = rx(0x620, {0x60, 0, 0, 0, 0, 0, 0, 0});
+  ASSERT_EQ(seg.size(), 1u);
+  EXPECT_EQ(bytes(seg[0]), (Bytes{0x00, 'o', 'e', 'g', 'w', ' ', 'n', 'o'}));
+  seg = rx(0x620, {0x70, 0, 0, 0, 0, 0, 0, 0});
+  ASSERT_EQ(seg.size(), 1u);
+  // toggle 1, n = 5 unused bytes, c = 1 (last): 10h | 0Ah | 01h.
+  EXPECT_EQ(bytes(seg[0]), (Bytes{0x1B, 'd', 'e', 0, 0, 0, 0, 0}));
+  // 1000h is const: a download is refused with 0601 0002h.
+  const auto w = sdo_write(0x1000, 0, u32(1));
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(bytes(w[0]), (Bytes{0x80, 0x00, 0x10, 0x00, 0x02, 0x00, 0x01, 0x06}));
+}
+
+// ------------------------------------------------------------------ NMT gating
+
+// CiA 301 §7.3.2.2.1, Table 47: which services run in which NMT state.
+TEST_F(NodeTest, NmtStateGatesServices) {
+  make();
+  start();
+  const TimePoint t0 = now;
+
+  // Stopped: no SDO answer, no EMCY, no PDO; heartbeat with 04h; NMT still served.
+  EXPECT_TRUE(nmt(0x02, kId.value()).empty());
+  EXPECT_EQ(node->state(), NmtState::Stopped);
+  EXPECT_TRUE(sdo_read(0x1000, 0).empty());
+  out.clear();
+  EXPECT_TRUE(node->emcy().raise(0x5000, 0x00, now));
+  node->advance(now);
+  EXPECT_TRUE(out.empty());
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 1, 0x11), SdoAbortCode::None);
+  node->advance(now);
+  EXPECT_TRUE(out.empty());
+  EXPECT_TRUE(rx(0x220, {0x33}).empty());
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
+  at(t0 + 100ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x720u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x04});
+  EXPECT_TRUE(node->emcy().clear(0x5000, now));
+
+  // Pre-operational: SDO yes, PDO no; heartbeat 7Fh.
+  nmt(0x80, 0);
+  EXPECT_EQ(node->state(), NmtState::PreOperational);
+  auto r = sdo_read(0x1000, 0);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x5A0u);
+  out.clear();
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 1, 0x12), SdoAbortCode::None);
+  node->advance(now);
+  EXPECT_TRUE(out.empty());
+  EXPECT_TRUE(rx(0x220, {0x33}).empty());
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
+  out.clear();
+  at(t0 + 200ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
+
+  // Operational: entering it sends the event-driven TPDO1 once; changes and RPDOs are served.
+  r = nmt(0x01, kId.value());
+  EXPECT_EQ(node->state(), NmtState::Operational);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x1A0u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x12, 0x00}));
+  out.clear();
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 2, 0x34), SdoAbortCode::None);
+  node->advance(now);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x1A0u);
+  EXPECT_EQ(bytes(out[0]), (Bytes{0x12, 0x34}));
+  EXPECT_TRUE(rx(0x220, {0x33}).empty());
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0x33u);
+  r = sdo_read(0x1000, 0);
+  ASSERT_EQ(r.size(), 1u);
+  out.clear();
+  at(t0 + 300ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x05});
+
+  // Back to stopped: PDO silent again.
+  nmt(0x02, 0);
+  out.clear();
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 2, 0x35), SdoAbortCode::None);
+  node->advance(now);
+  EXPECT_TRUE(out.empty());
+}
+
+// ------------------------------------------------------------------ resets and stored values
+
+// CiA 301 §7.3.2.2.2: reset communication restores 1000h–1FFFh, reset node (application) the
+// whole dictionary; stored values (1010h, §7.5.2.13) are re-applied after either.
+TEST_F(NodeTest, ResetCommunicationAndResetNodeWithStoredValues) {
+  make();
+  start();
+  // Store 1017h = 300 (communication group, 1010h:02) and 2000h:00 = 0x55 and 6200h:01 = 9
+  // (all parameters, 1010h:01), then change them again.
+  sdo_ok(0x1017, 0, u16(300));
+  sdo_ok(0x6200, 1, {9});
+  sdo_ok(0x2000, 0, u16(0x55));
+  sdo_ok(0x1010, 1, u32(ParameterStore::kSaveSignature));
+  ASSERT_TRUE(std::filesystem::exists(store_path()));
+  sdo_ok(0x1017, 0, u16(500));
+  sdo_ok(0x1016, 1, u32(heartbeat_consumer_entry(NodeId{5}, 200)));
+  sdo_ok(0x6200, 1, {7});
+  sdo_ok(0x2000, 0, u16(0x66));
+  const auto ro = sdo_write(0x6000, 1, {0});  // read-only to SDO (0601 0002h); set locally
+  ASSERT_EQ(ro.size(), 1u);
+  EXPECT_EQ(ro[0].data[0], 0x80);
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 1, 0x42), SdoAbortCode::None);  // not stored (ro)
+
+  // Reset communication: comm objects back to default then stored; application untouched.
+  auto r = nmt(0x82, kId.value());
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x720u);
+  EXPECT_EQ(bytes(r[0]), Bytes{0x00});
+  EXPECT_EQ(node->state(), NmtState::PreOperational);
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 300u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1016, 1), 0u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 7u);
+  EXPECT_EQ(od.get<std::uint16_t>(0x2000, 0), 0x66u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6000, 1), 0x42u);
+  // The heartbeat follows the restored 1017h.
+  const TimePoint t1 = now;
+  out.clear();
+  at(t1 + 299ms);
+  EXPECT_TRUE(out.empty());
+  at(t1 + 300ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
+
+  // Reset node: everything back to default, then every stored value.
+  sdo_ok(0x1017, 0, u16(500));
+  r = nmt(0x81, 0);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), Bytes{0x00});
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 300u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 9u);
+  EXPECT_EQ(od.get<std::uint16_t>(0x2000, 0), 0x55u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6000, 1), 0u);
+
+  // Restore defaults (1011h:01 "load") then reset node: factory values.
+  sdo_ok(0x1011, 1, u32(ParameterStore::kLoadSignature));
+  nmt(0x81, 0);
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
+  EXPECT_EQ(od.get<std::uint16_t>(0x2000, 0), 7u);
+}
+
+// ------------------------------------------------------------------ LSS through the Node
+
+// CiA 305: configure node-ID 21h, store it, and activate it with NMT reset communication.
+TEST_F(NodeTest, LssConfiguresStoresAndActivatesNodeId) {
+  make();
+  start();
+  EXPECT_TRUE(lss({0x04, 0x01}).empty());  // switch state global: configuration
+  auto r = lss({0x11, 0x21});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x7E4u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x11, 0x00, 0, 0, 0, 0, 0, 0}));
+  r = lss({0x17});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x17, 0x00, 0, 0, 0, 0, 0, 0}));
+  std::filesystem::path lss_file = store_path();
+  lss_file += ".lss";
+  ASSERT_TRUE(std::filesystem::exists(lss_file));
+  {
+    std::ifstream in(lss_file);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(text, "node_id=33\nbit_timing=3\n");
+  }
+  // Written atomically: no temporary left beside it.
+  for (const auto& e : std::filesystem::directory_iterator(dir_))
+    EXPECT_TRUE(e.path() == lss_file) << e.path();
+  EXPECT_TRUE(lss({0x04, 0x00}).empty());  // back to waiting
+  // Still 20h until reset communication (CiA 305: the new node-ID is pending).
+  EXPECT_EQ(node->node_id(), kId);
+  EXPECT_EQ(sdo_read(0x1000, 0).size(), 1u);
+
+  r = nmt(0x82, kId.value());
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x721u);
+  EXPECT_EQ(bytes(r[0]), Bytes{0x00});
+  EXPECT_EQ(node->node_id(), NodeId{0x21});
+  EXPECT_TRUE(sdo_read(0x1000, 0, kId).empty());
+  r = sdo_read(0x1000, 0, NodeId{0x21});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x5A1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1200, 1), 0x621u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1200, 2), 0x5A1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1800, 1), 0x1A1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1801, 1), 0x2A1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1400, 1), 0x221u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1014, 0), 0xA1u);
+  out.clear();
+  EXPECT_TRUE(node->emcy().raise(0x5000, 0x00, now));
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0xA1u);
+  EXPECT_TRUE(node->emcy().clear(0x5000, now));
+  nmt(0x01, 0x21);
+  EXPECT_EQ(node->state(), NmtState::Operational);
+  out.clear();
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 1, 0x01), SdoAbortCode::None);
+  node->advance(now);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x1A1u);
+  // Heartbeats on 721h.
+  out.clear();
+  after(100ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x721u);
+
+  // Power cycle: a new Node (fresh dictionary) on the same store comes up as 21h.
+  node.reset();
+  ObjectDictionary od2;
+  build_od(od2);
+  Node second(od2, config(), [this](const CanFrame& f) { out.push_back(f); });
+  out.clear();
+  EXPECT_TRUE(second.start(now).ok);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x721u);
+  EXPECT_EQ(second.node_id(), NodeId{0x21});
+  EXPECT_EQ(second.lss().active_node_id(), NodeId{0x21});
+  EXPECT_EQ(od2.get<std::uint32_t>(0x1200, 1), 0x621u);
+  EXPECT_EQ(od2.get<std::uint32_t>(0x1800, 1), 0x1A1u);
+  EXPECT_EQ(od2.get<std::uint32_t>(0x1801, 1), 0x2A1u);
+  EXPECT_EQ(od2.get<std::uint32_t>(0x1400, 1), 0x221u);
+  EXPECT_EQ(od2.get<std::uint32_t>(0x1014, 0), 0xA1u);
+  out.clear();
+  second.on_frame(CanFrame(0x621, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}), now);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x5A1u);
+  EXPECT_EQ(bytes(out[0]), (Bytes{0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}));
+}
+
+// ------------------------------------------------------------------ corrupt parameter file
+
+TEST_F(NodeTest, CorruptParameterFileIsReportedAndNodeRunsOnDefaults) {
+  // A file whose first entries are intact but whose last one was altered after the CRC was
+  // computed: the whole file is refused, nothing applied.
+  std::string text = ParameterStore::serialize({{{0x1017, 0}, {0x2C, 0x01}}, {{0x6200, 1}, {0x09}}});
+  const auto pos = text.find("6200 01 09");
+  ASSERT_NE(pos, std::string::npos);
+  text[pos + 9] = '8';
+  {
+    std::ofstream f(store_path(), std::ios::binary);
+    f << text;
+  }
+  make();
+  const TimePoint t0 = now;
+  const auto r = start();
+  EXPECT_FALSE(r.ok);
+  EXPECT_TRUE(r.file_present);
+  EXPECT_EQ(r.applied, 0u);
+  EXPECT_FALSE(r.error.empty());
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x720u);  // boots anyway
+  EXPECT_EQ(node->state(), NmtState::PreOperational);
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
+  out.clear();
+  at(t0 + 100ms);  // heartbeat on the default period
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
+  // And the same on reset node.
+  nmt(0x81, 0);
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
+}
+
+// ------------------------------------------------------------------ SYNC producer
+
+// CiA 301 §7.2.5 / §7.5.2.5-6: 1005h bit 30 makes the node the SYNC producer, one SYNC every
+// 1006h µs; TPDO type 1 goes out after every SYNC (§7.5.2.35).
+TEST_F(NodeTest, SyncProducerDrivesSynchronousTpdo) {
+  NodeConfig c = config();
+  c.sync = SyncConfig{.cob_id = cob::kSync | 0x40000000u, .period_us = 10'000};
+  make(c);
+  start();
+  const TimePoint t0 = now;
+  EXPECT_TRUE(node->sync().producer());
+  EXPECT_EQ(od.get<std::uint32_t>(0x1005, 0), 0x40000080u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1006, 0), 10'000u);
+  at(t0);  // production starts: first SYNC one period later
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 1, 0x5A), SdoAbortCode::None);
+  auto r = nmt(0x01, 0);
+  ASSERT_EQ(r.size(), 1u);  // event-driven TPDO1 once on entering operational
+  EXPECT_EQ(r[0].id, 0x1A0u);
+  for (int i = 1; i <= 3; ++i) {
+    out.clear();
+    at(t0 + i * 10ms - 1us);
+    EXPECT_TRUE(out.empty()) << i;
+    at(t0 + i * 10ms);
+    ASSERT_EQ(out.size(), 2u) << i;
+    EXPECT_EQ(out[0].id, 0x080u);
+    EXPECT_EQ(out[0].dlc, 0u);
+    EXPECT_EQ(out[1].id, 0x2A0u);
+    EXPECT_EQ(bytes(out[1]), Bytes{0x5A});
+  }
+  // In pre-operational the SYNC goes on, the TPDO does not.
+  nmt(0x80, 0);
+  out.clear();
+  at(t0 + 40ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x080u);
+}
+
+// ------------------------------------------------------------------ EMCY
+
+// CiA 301 §7.2.7: EMCY 80h+id: error code, 1001h, manufacturer field; 1003h history; the last
+// cleared error sends the error-reset EMCY 0000h.
+TEST_F(NodeTest, EmcyRaiseAndClearInPreOperational) {
+  make();
+  start();
+  out.clear();
+  EXPECT_TRUE(node->emcy().raise(0x8130, 0x10, now));  // life guard / heartbeat error, comm bit
+  node->advance(now);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0xA0u);
+  EXPECT_EQ(bytes(out[0]), (Bytes{0x30, 0x81, 0x11, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x11u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 1) & 0xFFFFu, 0x8130u);
+  auto r = sdo_read(0x1001, 0);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x4F, 0x01, 0x10, 0x00, 0x11, 0, 0, 0}));
+  r = sdo_read(0x1003, 1);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x43, 0x03, 0x10, 0x01, 0x30, 0x81, 0x00, 0x00}));
+
+  out.clear();
+  EXPECT_TRUE(node->emcy().clear(0x8130, now));
+  node->advance(now);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0xA0u);
+  EXPECT_EQ(bytes(out[0]), (Bytes{0x00, 0x00, 0x00, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 1u);  // the history keeps the entry
 }
 
 }  // namespace
