@@ -226,6 +226,11 @@ void Node::rebase_node_id(NodeId from, NodeId to) {
       if (id < from.value() || !is_function_code(id - from.value())) continue;
       const std::uint32_t moved = (def & ~0x7FFu) | (id - from.value() + to.value());
       put_u32(s.default_value.data(), moved);
+      // CiA 305 §4 / CiA 301 §7.3.5: at power-on with an LSS-stored node-ID no reset_to_defaults
+      // follows, so an entry still holding the old default must move as well (it used to keep
+      // the old node-ID: TPDOs, EMCY and 1200h stayed on 0x20 while the node booted as 0x21).
+      // A value the application changed is left alone; a stored value is applied afterwards.
+      if (s.value.size() == 4 && get_u32(s.value.data()) == def) s.value = s.default_value;
     }
   }
 }

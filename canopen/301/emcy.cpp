@@ -35,12 +35,12 @@ EmcyProducer::EmcyProducer(ObjectDictionary& od, FrameSink sink, NodeId node, Em
 
   // CiA 301 §7.5.2.13: only 0 may be written to 1003h:00 (clears the history), 0609 0030h
   // otherwise. The entries themselves are read-only to SDO.
-  od_.find(kErrorField)->add_write_hook([](Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin o) {
+  subs_ += od_.find(kErrorField)->add_write_hook([](Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin o) {
     if (o == Origin::Local || sub != 0) return SdoAbortCode::None;
     return (b.size() == 1 && b[0] == 0) ? SdoAbortCode::None : SdoAbortCode::InvalidValue;
   });
   // CiA 301 §7.5.2.17: bits 0..29 of 1014h may not change while the EMCY is valid (bit 31 = 0).
-  od_.find(kCobIdEmcy)->add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin o) {
+  subs_ += od_.find(kCobIdEmcy)->add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin o) {
     if (o == Origin::Local || b.size() != 4) return SdoAbortCode::None;
     const CobId cur{od_.get<std::uint32_t>(kCobIdEmcy, 0)};
     const CobId next{get_u32(b.data())};
@@ -48,7 +48,7 @@ EmcyProducer::EmcyProducer(ObjectDictionary& od, FrameSink sink, NodeId node, Em
       return SdoAbortCode::InvalidValue;
     return SdoAbortCode::None;
   });
-  od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
+  subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
     if (index != kErrorField || sub != 0 || od_.get<std::uint8_t>(kErrorField, 0) != 0) return;
     Object* obj = od_.find(kErrorField);
     for (auto& [si, s] : obj->subs())
@@ -156,7 +156,7 @@ EmcyConsumer::EmcyConsumer(ObjectDictionary& od, EmcyHandler handler, std::uint8
       s.value = s.default_value;
     }
   }
-  od_.add_observer([this](std::uint16_t index, std::uint8_t, Origin) {
+  subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t, Origin) {
     if (index == kEmcyConsumer) rebuild();
   });
   rebuild();

@@ -84,6 +84,7 @@ class EmcyProducer {
   std::optional<TimePoint> last_sent_;
   std::size_t queue_limit_;
   std::size_t dropped_ = 0;
+  Subscriptions subs_;  // declared last: unregisters the OD callbacks first on destruction
 };
 
 struct EmcyMessage {
@@ -111,6 +112,7 @@ class EmcyConsumer {
   ObjectDictionary& od_;
   EmcyHandler handler_;
   std::unordered_map<std::uint32_t, std::uint8_t> by_id_;  // CAN-ID (| bit 31 if 29-bit) -> node
+  Subscriptions subs_;  // declared last: unregisters the OD callbacks first on destruction
 };
 
 }  // namespace oegw::canopen

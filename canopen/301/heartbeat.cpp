@@ -45,7 +45,7 @@ Object& install_heartbeat_consumer_objects(ObjectDictionary& od, std::uint8_t en
 HeartbeatProducer::HeartbeatProducer(ObjectDictionary& od, NodeId node_id, FrameSink sink)
     : od_(od), node_id_(node_id), sink_(std::move(sink)) {
   reload();
-  od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
+  subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
     if (index == kProducerIndex && sub == 0) reload();
   });
 }
@@ -84,7 +84,7 @@ HeartbeatConsumer::HeartbeatConsumer(ObjectDictionary& od) : od_(od) {
   std::uint8_t count = 0;
   if (obj != nullptr) {
     for (const auto& [sub, s] : obj->subs()) count = std::max(count, sub);
-    obj->add_write_hook([](Object& o, std::uint8_t sub, std::span<const std::uint8_t> bytes, Origin) {
+    subs_ += obj->add_write_hook([](Object& o, std::uint8_t sub, std::span<const std::uint8_t> bytes, Origin) {
       if (sub == 0 || bytes.size() != 4) return SdoAbortCode::None;
       const Decoded d = decode_entry(get_u32(bytes.data()));
       if (!d.used) return SdoAbortCode::None;
@@ -95,7 +95,7 @@ HeartbeatConsumer::HeartbeatConsumer(ObjectDictionary& od) : od_(od) {
       }
       return SdoAbortCode::None;
     });
-    od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
+    subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
       if (index == kConsumerIndex && sub != 0) load_entry(sub);
     });
   }

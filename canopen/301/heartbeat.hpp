@@ -69,6 +69,7 @@ class HeartbeatProducer {
   bool running_ = false;
   Duration period_{0};
   TimePoint reference_{};  // last heartbeat sent, or the start
+  Subscriptions subs_;  // declared last: unregisters the OD callbacks first on destruction
 };
 
 class HeartbeatConsumer {
@@ -115,6 +116,7 @@ class HeartbeatConsumer {
   NodeCallback on_timeout_;
   NodeCallback on_boot_;
   StateCallback on_state_;
+  Subscriptions subs_;  // declared last: unregisters the OD callbacks first on destruction
 };
 
 }  // namespace oegw::canopen

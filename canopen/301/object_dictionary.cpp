@@ -154,12 +154,21 @@ const SubObject* Object::find(std::uint8_t sub) const {
   return it == subs_.end() ? nullptr : &it->second;
 }
 
+Subscription Object::add_write_hook(WriteHook hook) {
+  if (!hooks_) hooks_ = std::make_shared<detail::CallbackList<WriteHook>>();
+  const std::uint64_t id = hooks_->add(std::move(hook));
+  return Subscription(hooks_, id);
+}
+
 SdoAbortCode Object::run_hooks(std::uint8_t sub, std::span<const std::uint8_t> bytes, Origin origin) {
-  for (auto& h : hooks_) {
-    const SdoAbortCode c = h(*this, sub, bytes, origin);
-    if (c != SdoAbortCode::None) return c;
-  }
-  return SdoAbortCode::None;
+  if (!hooks_) return SdoAbortCode::None;
+  const auto keep = hooks_;  // a hook may replace this Object; its list stays alive until we return
+  SdoAbortCode c = SdoAbortCode::None;
+  keep->for_each_until([&](WriteHook& h) {
+    c = h(*this, sub, bytes, origin);
+    return c != SdoAbortCode::None;
+  });
+  return c;
 }
 
 namespace {
@@ -280,6 +289,11 @@ SubObject& ObjectDictionary::add_record_member(std::uint16_t index, std::uint8_t
   return added;
 }
 
+Subscription ObjectDictionary::add_observer(ChangeObserver obs) {
+  const std::uint64_t id = observers_->add(std::move(obs));
+  return Subscription(observers_, id);
+}
+
 bool ObjectDictionary::remove(std::uint16_t index) { return objects_.erase(index) != 0; }
 
 Object* ObjectDictionary::find(std::uint16_t index) {
@@ -351,7 +365,13 @@ SdoAbortCode ObjectDictionary::write_resolved(Object& obj, SubObject& s, std::sp
   if (const SdoAbortCode lc = check_limits(s, bytes); lc != SdoAbortCode::None) return lc;
   if (const SdoAbortCode hc = obj.run_hooks(s.sub_index, bytes, origin); hc != SdoAbortCode::None) return hc;
   s.value.assign(bytes.begin(), bytes.end());
-  for (auto& o : observers_) o(obj.index(), s.sub_index, origin);
+  const std::uint16_t index = obj.index();  // an observer may replace the Object
+  const std::uint8_t si = s.sub_index;
+  const auto keep = observers_;
+  keep->for_each_until([&](ChangeObserver& o) {
+    o(index, si, origin);
+    return false;
+  });
   return SdoAbortCode::None;
 }
 

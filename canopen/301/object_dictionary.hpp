@@ -18,6 +18,7 @@
 #include <variant>
 #include <vector>
 
+#include "canopen/301/subscription.hpp"
 #include "canopen/types.hpp"
 
 namespace oegw::canopen {
@@ -101,6 +102,11 @@ using ChangeObserver = std::function<void(std::uint16_t index, std::uint8_t sub,
 class Object {
  public:
   Object(std::uint16_t index, std::string name, ObjectCode code) : index_(index), name_(std::move(name)), code_(code) {}
+  // Move-only: the write hooks capture their services and belong to exactly one Object.
+  Object(const Object&) = delete;
+  Object& operator=(const Object&) = delete;
+  Object(Object&&) noexcept = default;
+  Object& operator=(Object&&) noexcept = default;
 
   [[nodiscard]] std::uint16_t index() const { return index_; }
   [[nodiscard]] const std::string& name() const { return name_; }
@@ -112,8 +118,11 @@ class Object {
   [[nodiscard]] const std::map<std::uint8_t, SubObject>& subs() const { return subs_; }
   [[nodiscard]] std::map<std::uint8_t, SubObject>& subs() { return subs_; }
 
-  // Several hooks may be installed; the first that refuses wins.
-  void add_write_hook(WriteHook hook) { hooks_.push_back(std::move(hook)); }
+  // Several hooks may be installed; the first that refuses wins. The hook stays installed as
+  // long as the returned Subscription lives (and the Object exists: removing or replacing the
+  // Object drops its hooks, and the Subscription then releases nothing).
+  Subscription add_write_hook(WriteHook hook);
+  [[nodiscard]] std::size_t write_hook_count() const { return hooks_ ? hooks_->size() : 0; }
   [[nodiscard]] SdoAbortCode run_hooks(std::uint8_t sub, std::span<const std::uint8_t> bytes, Origin origin);
 
  private:
@@ -121,7 +130,7 @@ class Object {
   std::string name_;
   ObjectCode code_;
   std::map<std::uint8_t, SubObject> subs_;
-  std::vector<WriteHook> hooks_;
+  std::shared_ptr<detail::CallbackList<WriteHook>> hooks_;  // created by the first add_write_hook
 };
 
 // Encode/decode a C++ value to/from its CANopen little-endian bytes.
@@ -140,7 +149,7 @@ std::vector<std::uint8_t> encode_width(std::uint64_t v, std::size_t width);
 
 class ObjectDictionary {
  public:
-  ObjectDictionary() = default;
+  ObjectDictionary() : observers_(std::make_shared<detail::CallbackList<ChangeObserver>>()) {}
   ObjectDictionary(const ObjectDictionary&) = delete;
   ObjectDictionary& operator=(const ObjectDictionary&) = delete;
 
@@ -200,8 +209,11 @@ class ObjectDictionary {
     }
   }
 
-  // Observers are told of every committed write, whatever its origin.
-  void add_observer(ChangeObserver obs) { observers_.push_back(std::move(obs)); }
+  // Observers are told of every committed write, whatever its origin, for as long as the returned
+  // Subscription lives. A service keeps it as a member so that destroying the service
+  // unregisters the observer (the dictionary may outlive it, e.g. a Node rebuilt on it).
+  Subscription add_observer(ChangeObserver obs);
+  [[nodiscard]] std::size_t observer_count() const { return observers_->size(); }
 
   // Sets every sub-object whose index is in [first, last] back to its default (1011h restore,
   // NMT reset communication / reset application). Does not run hooks.
@@ -209,7 +221,7 @@ class ObjectDictionary {
 
  private:
   std::map<std::uint16_t, Object> objects_;
-  std::vector<ChangeObserver> observers_;
+  std::shared_ptr<detail::CallbackList<ChangeObserver>> observers_;
 };
 
 }  // namespace oegw::canopen

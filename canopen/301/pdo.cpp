@@ -322,7 +322,7 @@ PdoService::PdoService(ObjectDictionary& od, FrameSink sink) : od_(od), sink_(st
       install_hooks(true, n);
     }
   }
-  od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) { on_od_change(index, sub); });
+  subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) { on_od_change(index, sub); });
   reload();
 }
 
@@ -345,11 +345,11 @@ Rpdo* PdoService::rpdo(std::uint16_t n) {
 }
 
 void PdoService::install_hooks(bool transmit, std::uint16_t n) {
-  od_.find(comm_index(transmit, n))
+  subs_ += od_.find(comm_index(transmit, n))
       ->add_write_hook([this, transmit, n](Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin) {
         return check_comm_write(transmit, n, sub, b);
       });
-  od_.find(map_index(transmit, n))
+  subs_ += od_.find(map_index(transmit, n))
       ->add_write_hook([this, transmit, n](Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin) {
         return check_map_write(transmit, n, sub, b);
       });

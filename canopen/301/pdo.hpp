@@ -30,7 +30,8 @@
 //
 // Wiring (one node): SyncService::set_handler -> PdoService::on_sync; PdoService::on_length_error
 // -> EmcyProducer::raise; NMT state changes -> PdoService::set_operational. The service installs
-// hooks and an observer holding `this` in the OD: it must outlive every later write to the OD.
+// hooks and an observer holding `this` in the OD and removes them in its destructor (their
+// Subscriptions), so the OD may outlive it.
 // Install every PDO before constructing the service: it does not see PDOs installed later.
 #pragma once
 
@@ -225,6 +226,7 @@ class PdoService {
   std::unordered_map<std::uint32_t, Rpdo*> rx_by_id_;
   std::unordered_map<std::uint32_t, Tpdo*> rtr_by_id_;
   std::unordered_map<std::uint32_t, std::vector<Tpdo*>> watch_;  // index << 8 | sub -> TPDOs mapping it
+  Subscriptions subs_;  // declared last: unregisters the OD callbacks first on destruction
 };
 
 }  // namespace oegw::canopen

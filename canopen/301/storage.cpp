@@ -174,7 +174,7 @@ ParameterStore::ParameterStore(ObjectDictionary& od, std::filesystem::path file)
       obj = &od_.add_array(index, index == kStoreIndex ? "Store parameters" : "Restore default parameters",
                            DataType::Unsigned32, Access::ReadWrite, 3, encode<std::uint32_t>(1));
     }
-    obj->add_write_hook([this, index](Object&, std::uint8_t sub, std::span<const std::uint8_t> bytes, Origin) {
+    subs_ += obj->add_write_hook([this, index](Object&, std::uint8_t sub, std::span<const std::uint8_t> bytes, Origin) {
       if (sub == 0) return SdoAbortCode::None;
       const std::uint32_t expected = index == kStoreIndex ? kSaveSignature : kLoadSignature;
       if (bytes.size() != 4 || get_u32(bytes.data()) != expected) return SdoAbortCode::CannotTransfer;
@@ -184,7 +184,7 @@ ParameterStore::ParameterStore(ObjectDictionary& od, std::filesystem::path file)
     });
   }
   // After an accepted signature the entry reads 1 again ("on command").
-  od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
+  subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
     if (sub == 0 || !excluded(index)) return;
     if (SubObject* s = od_.find(index, sub)) s->value = encode<std::uint32_t>(1);
   });

@@ -101,6 +101,7 @@ class ParameterStore {
   ObjectDictionary& od_;
   std::filesystem::path file_;
   std::string last_error_;
+  Subscriptions subs_;  // declared last: unregisters the OD callbacks first on destruction
 };
 
 }  // namespace oegw::canopen

@@ -17,7 +17,7 @@ SyncService::SyncService(ObjectDictionary& od, FrameSink sink, SyncConfig config
                 {config.counter_overflow});
 
   // CiA 301 §7.5.2.5: the CAN-ID may not change while this node produces SYNC (bit 30 = 1).
-  od_.find(0x1005)->add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin o) {
+  subs_ += od_.find(0x1005)->add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin o) {
     if (o == Origin::Local || b.size() != 4) return SdoAbortCode::None;
     const CobId cur{od_.get<std::uint32_t>(0x1005, 0)};
     const CobId next{get_u32(b.data())};
@@ -27,13 +27,13 @@ SyncService::SyncService(ObjectDictionary& od, FrameSink sink, SyncConfig config
   });
   // CiA 301 §7.5.2.41: 1019h is 0 or 2..240, and may only be written while 1006h is 0
   // (0800 0022h: not in the present state).
-  od_.find(0x1019)->add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin o) {
+  subs_ += od_.find(0x1019)->add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin o) {
     if (o == Origin::Local || b.size() != 1) return SdoAbortCode::None;
     if (b[0] == 1 || b[0] > 240) return SdoAbortCode::InvalidValue;
     if (od_.get<std::uint32_t>(0x1006, 0) != 0) return SdoAbortCode::CannotTransferDeviceState;
     return SdoAbortCode::None;
   });
-  od_.add_observer([this](std::uint16_t index, std::uint8_t, Origin) {
+  subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t, Origin) {
     if (index == 0x1005 || index == 0x1006 || index == 0x1019) reconfigure();
   });
 }

@@ -34,7 +34,7 @@ void build(ObjectDictionary& od) {
   Object& even = od.add_var(0x2102, "Even", DataType::Domain, Access::ReadWrite, {});
   even.add_write_hook([](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
     return b.size() % 2 == 0 ? SdoAbortCode::None : SdoAbortCode::InvalidValue;
-  });
+  }).detach();  // stateless: may live as long as the Object
 }
 
 }  // namespace
@@ -43,7 +43,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   ObjectDictionary od;
   build(od);
   int writes = 0;
-  od.add_observer([&](std::uint16_t, std::uint8_t, Origin) { ++writes; });
+  const Subscription obs = od.add_observer([&](std::uint16_t, std::uint8_t, Origin) { ++writes; });
   std::vector<CanFrame> out;
   SdoServer server(od, [&](const CanFrame& f) { out.push_back(f); }, NodeId{3});
   TimePoint now{std::chrono::seconds(1)};

@@ -49,11 +49,11 @@ TEST(ObjectDictionary, RefusesWrongLengthAndOutOfRangeWithoutChangingValue) {
 TEST(ObjectDictionary, HookRefusalLeavesValueAndObserversUntouched) {
   ObjectDictionary od;
   Object& o = od.add_var(0x2002, "Even only", DataType::Unsigned8, Access::ReadWrite, {2});
-  o.add_write_hook([](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
+  const Subscription hook = o.add_write_hook([](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
     return (b[0] % 2) ? SdoAbortCode::InvalidValue : SdoAbortCode::None;
   });
   int notified = 0;
-  od.add_observer([&](std::uint16_t, std::uint8_t, Origin) { ++notified; });
+  const Subscription obs = od.add_observer([&](std::uint16_t, std::uint8_t, Origin) { ++notified; });
   EXPECT_EQ(od.set<std::uint8_t>(0x2002, 0, 3, Origin::Sdo), SdoAbortCode::InvalidValue);
   EXPECT_EQ(od.get<std::uint8_t>(0x2002, 0), 2);
   EXPECT_EQ(notified, 0);
@@ -91,6 +91,97 @@ TEST(ObjectDictionary, SignedDecodeSignExtendsOddWidths) {
   EXPECT_EQ(decode_signed(i24), -1);
   const std::uint8_t u24[3] = {0xFF, 0xFF, 0x7F};
   EXPECT_EQ(decode_signed(u24), 0x7FFFFF);
+}
+
+// Subscriptions (observer and hook lifetime): a callback is removed with its handle.
+TEST(ObjectDictionarySubscription, ObserverAndHookRemovedWhenHandleDies) {
+  ObjectDictionary od;
+  Object& o = od.add_var(0x2002, "Even only", DataType::Unsigned8, Access::ReadWrite, {2});
+  int notified = 0;
+  {
+    const Subscription hook = o.add_write_hook([](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
+      return (b[0] % 2) ? SdoAbortCode::InvalidValue : SdoAbortCode::None;
+    });
+    const Subscription obs = od.add_observer([&](std::uint16_t, std::uint8_t, Origin) { ++notified; });
+    EXPECT_EQ(od.observer_count(), 1u);
+    EXPECT_EQ(o.write_hook_count(), 1u);
+    EXPECT_EQ(od.set<std::uint8_t>(0x2002, 0, 3, Origin::Sdo), SdoAbortCode::InvalidValue);
+    EXPECT_EQ(od.set<std::uint8_t>(0x2002, 0, 4, Origin::Sdo), SdoAbortCode::None);
+    EXPECT_EQ(notified, 1);
+  }
+  EXPECT_EQ(od.observer_count(), 0u);
+  EXPECT_EQ(o.write_hook_count(), 0u);
+  EXPECT_EQ(od.set<std::uint8_t>(0x2002, 0, 3, Origin::Sdo), SdoAbortCode::None);
+  EXPECT_EQ(notified, 1);
+}
+
+TEST(ObjectDictionarySubscription, ReleasingAfterObjectReplacedOrRemovedIsSafe) {
+  ObjectDictionary od;
+  Subscription a = od.add_var(0x2000, "A", DataType::Unsigned8, Access::ReadWrite, {0})
+                       .add_write_hook([](Object&, std::uint8_t, std::span<const std::uint8_t>, Origin) {
+                         return SdoAbortCode::InvalidValue;
+                       });
+  Subscription b = od.add_var(0x2001, "B", DataType::Unsigned8, Access::ReadWrite, {0})
+                       .add_write_hook([](Object&, std::uint8_t, std::span<const std::uint8_t>, Origin) {
+                         return SdoAbortCode::InvalidValue;
+                       });
+  EXPECT_TRUE(a.active());
+  // Replacing the object drops its hooks: the new object accepts the write.
+  od.add_var(0x2000, "A again", DataType::Unsigned8, Access::ReadWrite, {0});
+  EXPECT_FALSE(a.active());
+  EXPECT_EQ(od.set<std::uint8_t>(0x2000, 0, 1, Origin::Sdo), SdoAbortCode::None);
+  EXPECT_TRUE(od.remove(0x2001));
+  EXPECT_FALSE(b.active());
+  a.reset();
+  b.reset();
+  a.reset();  // twice: still nothing
+}
+
+TEST(ObjectDictionarySubscription, HandleMayOutliveDictionary) {
+  Subscription obs;
+  Subscription hook;
+  {
+    ObjectDictionary od;
+    obs = od.add_observer([](std::uint16_t, std::uint8_t, Origin) {});
+    hook = od.add_var(0x2000, "A", DataType::Unsigned8, Access::ReadWrite, {0})
+               .add_write_hook([](Object&, std::uint8_t, std::span<const std::uint8_t>, Origin) {
+                 return SdoAbortCode::None;
+               });
+    EXPECT_TRUE(obs.active());
+  }
+  EXPECT_FALSE(obs.active());
+  EXPECT_FALSE(hook.active());
+}  // destructors run here: must not touch the dead dictionary
+
+TEST(ObjectDictionarySubscription, CallbacksMayUnsubscribeAndSubscribeDuringNotification) {
+  ObjectDictionary od;
+  od.add_var(0x2000, "A", DataType::Unsigned8, Access::ReadWrite, {0});
+  int first = 0;
+  int second = 0;
+  int late = 0;
+  Subscription s2;
+  Subscription s3;
+  Subscription s1 = od.add_observer([&](std::uint16_t, std::uint8_t, Origin) {
+    ++first;
+    s2.reset();  // removes the next observer before it runs
+    if (!s3.active())
+      s3 = od.add_observer([&](std::uint16_t, std::uint8_t, Origin) { ++late; });  // from the next write on
+  });
+  s2 = od.add_observer([&](std::uint16_t, std::uint8_t, Origin) { ++second; });
+  EXPECT_EQ(od.set<std::uint8_t>(0x2000, 0, 1), SdoAbortCode::None);
+  EXPECT_EQ(first, 1);
+  EXPECT_EQ(second, 0);
+  EXPECT_EQ(late, 0);
+  EXPECT_EQ(od.set<std::uint8_t>(0x2000, 0, 2), SdoAbortCode::None);
+  EXPECT_EQ(first, 2);
+  EXPECT_EQ(late, 1);
+  EXPECT_EQ(od.observer_count(), 2u);
+  // An observer that removes itself.
+  Subscription self;
+  self = od.add_observer([&](std::uint16_t, std::uint8_t, Origin) { self.reset(); });
+  EXPECT_EQ(od.set<std::uint8_t>(0x2000, 0, 3), SdoAbortCode::None);
+  EXPECT_FALSE(self.active());
+  EXPECT_EQ(od.observer_count(), 2u);
 }
 
 }  // namespace

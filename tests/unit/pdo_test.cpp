@@ -364,7 +364,7 @@ TEST_F(PdoFixture, BitMappedBooleans) {
 TEST_F(PdoFixture, RpdoEventDrivenWritesAtOnceWithPdoOrigin) {
   install_rpdo(od, 1, {.cob_id = 0x205, .transmission_type = 255, .mapping = {0x62000108}});
   std::vector<Origin> origins;
-  od.add_observer([&](std::uint16_t index, std::uint8_t, Origin o) {
+  const Subscription obs = od.add_observer([&](std::uint16_t index, std::uint8_t, Origin o) {
     if (index == 0x6200) origins.push_back(o);
   });
   auto svc = make();

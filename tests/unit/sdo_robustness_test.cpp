@@ -47,9 +47,10 @@ class SdoRobustness : public ::testing::Test {
   SdoServer server{dict.od, [this](const CanFrame& f) { out.push_back(f); }, NodeId{3}};
   std::mt19937 rng{20261121};
   int od_writes = 0;
+  Subscription od_writes_obs;
 
   void SetUp() override {
-    dict.od.add_observer([this](std::uint16_t, std::uint8_t, Origin) { ++od_writes; });
+    od_writes_obs = dict.od.add_observer([this](std::uint16_t, std::uint8_t, Origin) { ++od_writes; });
   }
 
   std::vector<CanFrame> send(const CanFrame& f) {

@@ -47,6 +47,7 @@ struct TestDictionary {
   ObjectDictionary od;
   int stores = 0;    // accepted "save" writes to 1010h
   int restores = 0;  // accepted "load" writes to 1011h
+  Subscriptions hooks;
 
   TestDictionary() {
     od.add_var(0x1000, "Device type", DataType::Unsigned32, Access::Const, encode<std::uint32_t>(0x00080196));
@@ -54,14 +55,14 @@ struct TestDictionary {
                bytes_of("OEGW test device"));
     Object& store = od.add_array(0x1010, "Store parameters", DataType::Unsigned32, Access::ReadWrite, 4,
                                  encode<std::uint32_t>(1));
-    store.add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
+    hooks += store.add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
       if (b.size() != 4 || get_u32(b.data()) != kSaveSignature) return SdoAbortCode::CannotTransfer;
       ++stores;
       return SdoAbortCode::None;
     });
     Object& restore = od.add_array(0x1011, "Restore default parameters", DataType::Unsigned32, Access::ReadWrite,
                                    4, encode<std::uint32_t>(1));
-    restore.add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
+    hooks += restore.add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
       if (b.size() != 4 || get_u32(b.data()) != kLoadSignature) return SdoAbortCode::CannotTransfer;
       ++restores;
       return SdoAbortCode::None;
@@ -84,7 +85,7 @@ struct TestDictionary {
     od.find(0x2101, 0)->max_size = 10;
     Object& even = od.add_var(0x2102, "Even-length domain", DataType::Domain, Access::ReadWrite, {});
     od.find(0x2102, 0)->max_size = 1000;
-    even.add_write_hook([](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
+    hooks += even.add_write_hook([](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
       return b.size() % 2 == 0 ? SdoAbortCode::None : SdoAbortCode::InvalidValue;
     });
     od.reset_to_defaults(0x0000, 0xFFFF);

@@ -1,0 +1,569 @@
+// The Node (CiA 301 slave + CiA 305 LSS slave) frame by frame: a manual TimePoint, a vector sink,
+// no bus. Each test feeds frames with rx() and checks exactly what the node sent.
+#include "canopen/node.hpp"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+namespace oegw::canopen {
+namespace {
+
+using namespace std::chrono_literals;
+using Bytes = std::vector<std::uint8_t>;
+
+constexpr NodeId kId{0x20};
+
+Bytes bytes(const CanFrame& f) { return Bytes(f.data.begin(), f.data.begin() + f.dlc); }
+
+class NodeTest : public ::testing::Test {
+ protected:
+  NodeTest() {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("oegw-node-test-" + std::to_string(::getpid()) + "-" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+    build_od(od);
+  }
+  ~NodeTest() override { std::filesystem::remove_all(dir_); }
+
+  // The application's part of the dictionary: inputs, an output, two TPDOs and an RPDO whose
+  // COB-ID defaults follow the node-ID.
+  static void build_od(ObjectDictionary& d) {
+    d.add_array(0x6000, "Read input 8-bit", DataType::Unsigned8, Access::ReadOnly, 2, {0}, true);
+    d.add_array(0x6200, "Write output 8-bit", DataType::Unsigned8, Access::ReadWrite, 1, {0}, true);
+    d.add_var(0x2000, "Setting", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(7));
+    install_tpdo(d, 1,
+                 PdoParameters{.cob_id = cob::kTpdo1 + kId.value(),
+                               .transmission_type = 0xFF,
+                               .mapping = {pdo_map(0x6000, 1, 8), pdo_map(0x6000, 2, 8)}});
+    install_tpdo(d, 2,
+                 PdoParameters{.cob_id = cob::kTpdo2 + kId.value(),
+                               .transmission_type = 1,
+                               .mapping = {pdo_map(0x6000, 1, 8)}});
+    install_rpdo(d, 1,
+                 PdoParameters{.cob_id = cob::kRpdo1 + kId.value(),
+                               .transmission_type = 0xFF,
+                               .mapping = {pdo_map(0x6200, 1, 8)}});
+  }
+
+  NodeConfig config() const {
+    NodeConfig c;
+    c.node_id = kId;
+    c.device_type = 0x000F0191;
+    c.device_name = "oegw node";
+    c.identity = {.vendor = 0x1234, .product = 0x852, .revision = 0x10002, .serial = 42};
+    c.heartbeat_ms = 100;
+    c.heartbeat_consumers = 2;
+    c.store_path = store_path();
+    return c;
+  }
+  std::filesystem::path store_path() const { return dir_ / "params.txt"; }
+
+  void make(NodeConfig c) {
+    node.reset();
+    node = std::make_unique<Node>(od, std::move(c), [this](const CanFrame& f) { out.push_back(f); });
+  }
+  void make() { make(config()); }
+  ParameterStore::LoadResult start() {
+    out.clear();
+    return node->start(now);
+  }
+
+  // Advances the clock to `t` and lets the node run its timers.
+  void at(TimePoint t) {
+    now = t;
+    node->advance(now);
+  }
+  void after(Duration d) { at(now + d); }
+
+  std::vector<CanFrame> rx(const CanFrame& f) {
+    out.clear();
+    node->on_frame(f, now);
+    node->advance(now);
+    return out;
+  }
+  std::vector<CanFrame> rx(std::uint32_t id, std::initializer_list<std::uint8_t> b) { return rx(CanFrame(id, b)); }
+  std::vector<CanFrame> nmt(std::uint8_t cs, std::uint8_t target = 0) { return rx(0x000, {cs, target}); }
+  std::vector<CanFrame> lss(std::initializer_list<std::uint8_t> b) {
+    Bytes v(b);
+    v.resize(8, 0);
+    return rx(CanFrame(cob::kLssMaster, std::span<const std::uint8_t>(v)));
+  }
+
+  // Expedited SDO upload/download on the node's current default SDO COB-IDs.
+  std::vector<CanFrame> sdo_read(std::uint16_t index, std::uint8_t sub, NodeId id = kId) {
+    return rx(cob::kSdoRx + id.value(),
+              {0x40, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8), sub, 0, 0, 0, 0});
+  }
+  std::vector<CanFrame> sdo_write(std::uint16_t index, std::uint8_t sub, const Bytes& data, NodeId id = kId) {
+    const auto cs = static_cast<std::uint8_t>(0x23 | ((4 - data.size()) << 2));
+    Bytes f{cs, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8), sub, 0, 0, 0, 0};
+    std::copy(data.begin(), data.end(), f.begin() + 4);
+    return rx(CanFrame(cob::kSdoRx + id.value(), std::span<const std::uint8_t>(f)));
+  }
+  // Writes and expects the download response 60h.
+  void sdo_ok(std::uint16_t index, std::uint8_t sub, const Bytes& data, NodeId id = kId) {
+    const auto r = sdo_write(index, sub, data, id);
+    ASSERT_EQ(r.size(), 1u) << std::hex << index << ":" << int(sub);
+    EXPECT_EQ(r[0].id, cob::kSdoTx + id.value());
+    EXPECT_EQ(bytes(r[0]), (Bytes{0x60, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8),
+                                  sub, 0, 0, 0, 0}))
+        << std::hex << index << ":" << int(sub);
+  }
+  static Bytes u32(std::uint32_t v) { return encode<std::uint32_t>(v); }
+  static Bytes u16(std::uint16_t v) { return encode<std::uint16_t>(v); }
+
+  std::filesystem::path dir_;
+  ObjectDictionary od;
+  std::vector<CanFrame> out;
+  TimePoint now{std::chrono::seconds(100)};
+  std::unique_ptr<Node> node;
+};
+
+// ------------------------------------------------------------------ lifetime (regression)
+
+// A Node destroyed while its ObjectDictionary lives used to leave OD observers and write hooks
+// capturing the dead services: the next write was undefined behaviour (seen as a hang). Every
+// service now holds its registrations and releases them in its destructor.
+TEST_F(NodeTest, RebuiltOnSameDictionaryLeavesNoDanglingCallbacks) {
+  make();
+  start();
+  const std::size_t observers = od.observer_count();
+  const std::size_t hooks_1005 = od.find(0x1005)->write_hook_count();
+  const std::size_t hooks_1016 = od.find(0x1016)->write_hook_count();
+  const std::size_t hooks_1a00 = od.find(0x1A00)->write_hook_count();
+  EXPECT_GT(observers, 0u);
+  sdo_ok(0x1017, 0, u16(50));
+  for (int round = 0; round < 3; ++round) {
+    node.reset();
+    EXPECT_EQ(od.observer_count(), 0u);
+    EXPECT_EQ(od.find(0x1005)->write_hook_count(), 0u);
+    EXPECT_EQ(od.find(0x1016)->write_hook_count(), 0u);
+    EXPECT_EQ(od.find(0x1A00)->write_hook_count(), 0u);
+    // Writes with no node on the dictionary touch nothing dead.
+    EXPECT_EQ(od.set<std::uint16_t>(0x1017, 0, 20), SdoAbortCode::None);
+    EXPECT_EQ(od.set<std::uint8_t>(0x6000, 1, 3), SdoAbortCode::None);
+
+    make();
+    start();
+    EXPECT_EQ(od.observer_count(), observers);
+    EXPECT_EQ(od.find(0x1005)->write_hook_count(), hooks_1005);
+    EXPECT_EQ(od.find(0x1016)->write_hook_count(), hooks_1016);
+    EXPECT_EQ(od.find(0x1A00)->write_hook_count(), hooks_1a00);
+
+    sdo_ok(0x1017, 0, u16(50));
+    EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 50u);
+    sdo_ok(0x1016, 1, u32(heartbeat_consumer_entry(NodeId{5}, 200)));
+    // The duplicate check of the (one) live consumer hook still refuses a second entry for 5.
+    const auto dup = sdo_write(0x1016, 2, u32(heartbeat_consumer_entry(NodeId{5}, 300)));
+    ASSERT_EQ(dup.size(), 1u);
+    EXPECT_EQ(dup[0].data[0], 0x80);
+    EXPECT_EQ(get_u32(dup[0].data.data() + 4), static_cast<std::uint32_t>(SdoAbortCode::ParameterIncompatibility));
+    sdo_ok(0x1005, 0, u32(0x40000080));  // become SYNC producer
+    // TPDO1 remapping, CiA 301 §7.5.2.36 procedure: invalidate, sub 0 = 0, entries, sub 0 = n.
+    sdo_ok(0x1800, 1, u32(CobId::kInvalidBit | (cob::kTpdo1 + kId.value())));
+    sdo_ok(0x1A00, 0, {0});
+    sdo_ok(0x1A00, 1, u32(pdo_map(0x6000, 2, 8)));
+    sdo_ok(0x1A00, 0, {1});
+    sdo_ok(0x1800, 1, u32(cob::kTpdo1 + kId.value()));
+    EXPECT_EQ(node->pdo().tpdo(1)->dlc(), 1u);
+    // Back to the defaults for the next round (reset node).
+    nmt(0x81, kId.value());
+  }
+}
+
+// ------------------------------------------------------------------ boot-up and identity
+
+// CiA 301 §7.3.2.2.2 / §7.2.8.3.2.2: boot-up 700h+id with 00h, then heartbeats every 1017h ms
+// with the NMT state (7Fh pre-operational), the first one period after the boot-up.
+TEST_F(NodeTest, BootUpThenHeartbeatAtProducerTime) {
+  make();
+  const TimePoint t0 = now;
+  const auto r = start();
+  EXPECT_TRUE(r.ok);
+  EXPECT_FALSE(r.file_present);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x720u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x00});
+  EXPECT_EQ(node->state(), NmtState::PreOperational);
+  EXPECT_EQ(node->next_deadline(), t0 + 100ms);
+
+  out.clear();
+  at(t0 + 99ms);
+  EXPECT_TRUE(out.empty());
+  at(t0 + 100ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x720u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
+  out.clear();
+  at(t0 + 200ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
+}
+
+TEST_F(NodeTest, IdentityObjectsReadableViaSdo) {
+  make();
+  start();
+  auto expect_upload = [&](std::uint16_t index, std::uint8_t sub, Bytes response) {
+    const auto r = sdo_read(index, sub);
+    ASSERT_EQ(r.size(), 1u);
+    EXPECT_EQ(r[0].id, 0x5A0u);
+    EXPECT_EQ(bytes(r[0]), response) << std::hex << index << ":" << int(sub);
+  };
+  // 1000h device type 000F0191h: expedited, 4 bytes (cs 43h).
+  expect_upload(0x1000, 0, {0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00});
+  // 1018h identity: sub 0 = 4 (cs 4Fh, 1 byte), then vendor, product, revision, serial.
+  expect_upload(0x1018, 0, {0x4F, 0x18, 0x10, 0x00, 0x04, 0x00, 0x00, 0x00});
+  expect_upload(0x1018, 1, {0x43, 0x18, 0x10, 0x01, 0x34, 0x12, 0x00, 0x00});
+  expect_upload(0x1018, 2, {0x43, 0x18, 0x10, 0x02, 0x52, 0x08, 0x00, 0x00});
+  expect_upload(0x1018, 3, {0x43, 0x18, 0x10, 0x03, 0x02, 0x00, 0x01, 0x00});
+  expect_upload(0x1018, 4, {0x43, 0x18, 0x10, 0x04, 0x2A, 0x00, 0x00, 0x00});
+  // 1008h "oegw node" (9 bytes): segmented upload, initiate with size indicated (cs 41h).
+  expect_upload(0x1008, 0, {0x41, 0x08, 0x10, 0x00, 0x09, 0x00, 0x00, 0x00});
+  auto seg = rx(0x620, {0x60, 0, 0, 0, 0, 0, 0, 0});
+  ASSERT_EQ(seg.size(), 1u);
+  EXPECT_EQ(bytes(seg[0]), (Bytes{0x00, 'o', 'e', 'g', 'w', ' ', 'n', 'o'}));
+  seg = rx(0x620, {0x70, 0, 0, 0, 0, 0, 0, 0});
+  ASSERT_EQ(seg.size(), 1u);
+  // toggle 1, n = 5 unused bytes, c = 1 (last): 10h | 0Ah | 01h.
+  EXPECT_EQ(bytes(seg[0]), (Bytes{0x1B, 'd', 'e', 0, 0, 0, 0, 0}));
+  // 1000h is const: a download is refused with 0601 0002h.
+  const auto w = sdo_write(0x1000, 0, u32(1));
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(bytes(w[0]), (Bytes{0x80, 0x00, 0x10, 0x00, 0x02, 0x00, 0x01, 0x06}));
+}
+
+// ------------------------------------------------------------------ NMT gating
+
+// CiA 301 §7.3.2.2.1, Table 47: which services run in which NMT state.
+TEST_F(NodeTest, NmtStateGatesServices) {
+  make();
+  start();
+  const TimePoint t0 = now;
+
+  // Stopped: no SDO answer, no EMCY, no PDO; heartbeat with 04h; NMT still served.
+  EXPECT_TRUE(nmt(0x02, kId.value()).empty());
+  EXPECT_EQ(node->state(), NmtState::Stopped);
+  EXPECT_TRUE(sdo_read(0x1000, 0).empty());
+  out.clear();
+  EXPECT_TRUE(node->emcy().raise(0x5000, 0x00, now));
+  node->advance(now);
+  EXPECT_TRUE(out.empty());
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 1, 0x11), SdoAbortCode::None);
+  node->advance(now);
+  EXPECT_TRUE(out.empty());
+  EXPECT_TRUE(rx(0x220, {0x33}).empty());
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
+  at(t0 + 100ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x720u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x04});
+  EXPECT_TRUE(node->emcy().clear(0x5000, now));
+
+  // Pre-operational: SDO yes, PDO no; heartbeat 7Fh.
+  nmt(0x80, 0);
+  EXPECT_EQ(node->state(), NmtState::PreOperational);
+  auto r = sdo_read(0x1000, 0);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x5A0u);
+  out.clear();
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 1, 0x12), SdoAbortCode::None);
+  node->advance(now);
+  EXPECT_TRUE(out.empty());
+  EXPECT_TRUE(rx(0x220, {0x33}).empty());
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
+  out.clear();
+  at(t0 + 200ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
+
+  // Operational: entering it sends the event-driven TPDO1 once; changes and RPDOs are served.
+  r = nmt(0x01, kId.value());
+  EXPECT_EQ(node->state(), NmtState::Operational);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x1A0u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x12, 0x00}));
+  out.clear();
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 2, 0x34), SdoAbortCode::None);
+  node->advance(now);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x1A0u);
+  EXPECT_EQ(bytes(out[0]), (Bytes{0x12, 0x34}));
+  EXPECT_TRUE(rx(0x220, {0x33}).empty());
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0x33u);
+  r = sdo_read(0x1000, 0);
+  ASSERT_EQ(r.size(), 1u);
+  out.clear();
+  at(t0 + 300ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x05});
+
+  // Back to stopped: PDO silent again.
+  nmt(0x02, 0);
+  out.clear();
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 2, 0x35), SdoAbortCode::None);
+  node->advance(now);
+  EXPECT_TRUE(out.empty());
+}
+
+// ------------------------------------------------------------------ resets and stored values
+
+// CiA 301 §7.3.2.2.2: reset communication restores 1000h–1FFFh, reset node (application) the
+// whole dictionary; stored values (1010h, §7.5.2.13) are re-applied after either.
+TEST_F(NodeTest, ResetCommunicationAndResetNodeWithStoredValues) {
+  make();
+  start();
+  // Store 1017h = 300 (communication group, 1010h:02) and 2000h:00 = 0x55 and 6200h:01 = 9
+  // (all parameters, 1010h:01), then change them again.
+  sdo_ok(0x1017, 0, u16(300));
+  sdo_ok(0x6200, 1, {9});
+  sdo_ok(0x2000, 0, u16(0x55));
+  sdo_ok(0x1010, 1, u32(ParameterStore::kSaveSignature));
+  ASSERT_TRUE(std::filesystem::exists(store_path()));
+  sdo_ok(0x1017, 0, u16(500));
+  sdo_ok(0x1016, 1, u32(heartbeat_consumer_entry(NodeId{5}, 200)));
+  sdo_ok(0x6200, 1, {7});
+  sdo_ok(0x2000, 0, u16(0x66));
+  const auto ro = sdo_write(0x6000, 1, {0});  // read-only to SDO (0601 0002h); set locally
+  ASSERT_EQ(ro.size(), 1u);
+  EXPECT_EQ(ro[0].data[0], 0x80);
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 1, 0x42), SdoAbortCode::None);  // not stored (ro)
+
+  // Reset communication: comm objects back to default then stored; application untouched.
+  auto r = nmt(0x82, kId.value());
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x720u);
+  EXPECT_EQ(bytes(r[0]), Bytes{0x00});
+  EXPECT_EQ(node->state(), NmtState::PreOperational);
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 300u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1016, 1), 0u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 7u);
+  EXPECT_EQ(od.get<std::uint16_t>(0x2000, 0), 0x66u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6000, 1), 0x42u);
+  // The heartbeat follows the restored 1017h.
+  const TimePoint t1 = now;
+  out.clear();
+  at(t1 + 299ms);
+  EXPECT_TRUE(out.empty());
+  at(t1 + 300ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
+
+  // Reset node: everything back to default, then every stored value.
+  sdo_ok(0x1017, 0, u16(500));
+  r = nmt(0x81, 0);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), Bytes{0x00});
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 300u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 9u);
+  EXPECT_EQ(od.get<std::uint16_t>(0x2000, 0), 0x55u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6000, 1), 0u);
+
+  // Restore defaults (1011h:01 "load") then reset node: factory values.
+  sdo_ok(0x1011, 1, u32(ParameterStore::kLoadSignature));
+  nmt(0x81, 0);
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
+  EXPECT_EQ(od.get<std::uint16_t>(0x2000, 0), 7u);
+}
+
+// ------------------------------------------------------------------ LSS through the Node
+
+// CiA 305: configure node-ID 21h, store it, and activate it with NMT reset communication.
+TEST_F(NodeTest, LssConfiguresStoresAndActivatesNodeId) {
+  make();
+  start();
+  EXPECT_TRUE(lss({0x04, 0x01}).empty());  // switch state global: configuration
+  auto r = lss({0x11, 0x21});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x7E4u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x11, 0x00, 0, 0, 0, 0, 0, 0}));
+  r = lss({0x17});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x17, 0x00, 0, 0, 0, 0, 0, 0}));
+  std::filesystem::path lss_file = store_path();
+  lss_file += ".lss";
+  ASSERT_TRUE(std::filesystem::exists(lss_file));
+  {
+    std::ifstream in(lss_file);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(text, "node_id=33\nbit_timing=3\n");
+  }
+  // Written atomically: no temporary left beside it.
+  for (const auto& e : std::filesystem::directory_iterator(dir_))
+    EXPECT_TRUE(e.path() == lss_file) << e.path();
+  EXPECT_TRUE(lss({0x04, 0x00}).empty());  // back to waiting
+  // Still 20h until reset communication (CiA 305: the new node-ID is pending).
+  EXPECT_EQ(node->node_id(), kId);
+  EXPECT_EQ(sdo_read(0x1000, 0).size(), 1u);
+
+  r = nmt(0x82, kId.value());
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x721u);
+  EXPECT_EQ(bytes(r[0]), Bytes{0x00});
+  EXPECT_EQ(node->node_id(), NodeId{0x21});
+  EXPECT_TRUE(sdo_read(0x1000, 0, kId).empty());
+  r = sdo_read(0x1000, 0, NodeId{0x21});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x5A1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1200, 1), 0x621u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1200, 2), 0x5A1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1800, 1), 0x1A1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1801, 1), 0x2A1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1400, 1), 0x221u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1014, 0), 0xA1u);
+  out.clear();
+  EXPECT_TRUE(node->emcy().raise(0x5000, 0x00, now));
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0xA1u);
+  EXPECT_TRUE(node->emcy().clear(0x5000, now));
+  nmt(0x01, 0x21);
+  EXPECT_EQ(node->state(), NmtState::Operational);
+  out.clear();
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 1, 0x01), SdoAbortCode::None);
+  node->advance(now);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x1A1u);
+  // Heartbeats on 721h.
+  out.clear();
+  after(100ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x721u);
+
+  // Power cycle: a new Node (fresh dictionary) on the same store comes up as 21h.
+  node.reset();
+  ObjectDictionary od2;
+  build_od(od2);
+  Node second(od2, config(), [this](const CanFrame& f) { out.push_back(f); });
+  out.clear();
+  EXPECT_TRUE(second.start(now).ok);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x721u);
+  EXPECT_EQ(second.node_id(), NodeId{0x21});
+  EXPECT_EQ(second.lss().active_node_id(), NodeId{0x21});
+  EXPECT_EQ(od2.get<std::uint32_t>(0x1200, 1), 0x621u);
+  EXPECT_EQ(od2.get<std::uint32_t>(0x1800, 1), 0x1A1u);
+  EXPECT_EQ(od2.get<std::uint32_t>(0x1801, 1), 0x2A1u);
+  EXPECT_EQ(od2.get<std::uint32_t>(0x1400, 1), 0x221u);
+  EXPECT_EQ(od2.get<std::uint32_t>(0x1014, 0), 0xA1u);
+  out.clear();
+  second.on_frame(CanFrame(0x621, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}), now);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x5A1u);
+  EXPECT_EQ(bytes(out[0]), (Bytes{0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}));
+}
+
+// ------------------------------------------------------------------ corrupt parameter file
+
+TEST_F(NodeTest, CorruptParameterFileIsReportedAndNodeRunsOnDefaults) {
+  // A file whose first entries are intact but whose last one was altered after the CRC was
+  // computed: the whole file is refused, nothing applied.
+  std::string text = ParameterStore::serialize({{{0x1017, 0}, {0x2C, 0x01}}, {{0x6200, 1}, {0x09}}});
+  const auto pos = text.find("6200 01 09");
+  ASSERT_NE(pos, std::string::npos);
+  text[pos + 9] = '8';
+  {
+    std::ofstream f(store_path(), std::ios::binary);
+    f << text;
+  }
+  make();
+  const TimePoint t0 = now;
+  const auto r = start();
+  EXPECT_FALSE(r.ok);
+  EXPECT_TRUE(r.file_present);
+  EXPECT_EQ(r.applied, 0u);
+  EXPECT_FALSE(r.error.empty());
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x720u);  // boots anyway
+  EXPECT_EQ(node->state(), NmtState::PreOperational);
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
+  out.clear();
+  at(t0 + 100ms);  // heartbeat on the default period
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
+  // And the same on reset node.
+  nmt(0x81, 0);
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
+}
+
+// ------------------------------------------------------------------ SYNC producer
+
+// CiA 301 §7.2.5 / §7.5.2.5-6: 1005h bit 30 makes the node the SYNC producer, one SYNC every
+// 1006h µs; TPDO type 1 goes out after every SYNC (§7.5.2.35).
+TEST_F(NodeTest, SyncProducerDrivesSynchronousTpdo) {
+  NodeConfig c = config();
+  c.sync = SyncConfig{.cob_id = cob::kSync | 0x40000000u, .period_us = 10'000};
+  make(c);
+  start();
+  const TimePoint t0 = now;
+  EXPECT_TRUE(node->sync().producer());
+  EXPECT_EQ(od.get<std::uint32_t>(0x1005, 0), 0x40000080u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1006, 0), 10'000u);
+  at(t0);  // production starts: first SYNC one period later
+  EXPECT_EQ(od.set<std::uint8_t>(0x6000, 1, 0x5A), SdoAbortCode::None);
+  auto r = nmt(0x01, 0);
+  ASSERT_EQ(r.size(), 1u);  // event-driven TPDO1 once on entering operational
+  EXPECT_EQ(r[0].id, 0x1A0u);
+  for (int i = 1; i <= 3; ++i) {
+    out.clear();
+    at(t0 + i * 10ms - 1us);
+    EXPECT_TRUE(out.empty()) << i;
+    at(t0 + i * 10ms);
+    ASSERT_EQ(out.size(), 2u) << i;
+    EXPECT_EQ(out[0].id, 0x080u);
+    EXPECT_EQ(out[0].dlc, 0u);
+    EXPECT_EQ(out[1].id, 0x2A0u);
+    EXPECT_EQ(bytes(out[1]), Bytes{0x5A});
+  }
+  // In pre-operational the SYNC goes on, the TPDO does not.
+  nmt(0x80, 0);
+  out.clear();
+  at(t0 + 40ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x080u);
+}
+
+// ------------------------------------------------------------------ EMCY
+
+// CiA 301 §7.2.7: EMCY 80h+id: error code, 1001h, manufacturer field; 1003h history; the last
+// cleared error sends the error-reset EMCY 0000h.
+TEST_F(NodeTest, EmcyRaiseAndClearInPreOperational) {
+  make();
+  start();
+  out.clear();
+  EXPECT_TRUE(node->emcy().raise(0x8130, 0x10, now));  // life guard / heartbeat error, comm bit
+  node->advance(now);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0xA0u);
+  EXPECT_EQ(bytes(out[0]), (Bytes{0x30, 0x81, 0x11, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x11u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 1) & 0xFFFFu, 0x8130u);
+  auto r = sdo_read(0x1001, 0);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x4F, 0x01, 0x10, 0x00, 0x11, 0, 0, 0}));
+  r = sdo_read(0x1003, 1);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x43, 0x03, 0x10, 0x01, 0x30, 0x81, 0x00, 0x00}));
+
+  out.clear();
+  EXPECT_TRUE(node->emcy().clear(0x8130, now));
+  node->advance(now);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0xA0u);
+  EXPECT_EQ(bytes(out[0]), (Bytes{0x00, 0x00, 0x00, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0u);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 1u);  // the history keeps the entry
+}
+
+}  // namespace
+}  // namespace oegw::canopen
