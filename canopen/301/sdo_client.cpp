@@ -187,6 +187,7 @@ void SdoClient::on_upload_initiate(const std::uint8_t* d) {
   }
   size_ = get_u32(d + 4);
   if (size_indicated_ && size_ > cfg_.max_upload_size) return abort(SdoAbortCode::OutOfMemory);
+  if (size_indicated_) buffer_.reserve(size_);  // one allocation, not one per doubling
   toggle_ = false;
   state_ = State::UploadSegment;
   send({0x60, 0, 0, 0, 0, 0, 0, 0});
@@ -285,6 +286,7 @@ void SdoClient::on_block_upload_initiate(const std::uint8_t* d) {
   size_indicated_ = (d[0] & 0x02) != 0;
   size_ = get_u32(d + 4);
   if (size_indicated_ && size_ > cfg_.max_upload_size) return abort(SdoAbortCode::OutOfMemory);
+  if (size_indicated_) buffer_.reserve(round_up_segments(size_));  // segments carry 7 bytes each
   blksize_ = cfg_.block_size;
   expected_seq_ = 1;
   last_segment_received_ = false;

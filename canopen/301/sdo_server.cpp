@@ -382,7 +382,9 @@ void SdoServer::abort(std::uint16_t index, std::uint8_t sub, SdoAbortCode code) 
 void SdoServer::drop() {
   state_ = State::Idle;
   buffer_.clear();
-  buffer_.shrink_to_fit();
+  // Keep a small buffer for the next transfer (every upload copies the value into it); give
+  // back what a large DOMAIN transfer grew.
+  if (buffer_.capacity() > kKeptBufferCapacity) buffer_.shrink_to_fit();
   size_indicated_ = false;
   crc_ = false;
 }

@@ -66,7 +66,7 @@ std::size_t VirtualBus::deliver_all(TimePoint now, std::size_t max_frames) {
   } reset{delivering_};
 
   std::size_t delivered = 0;
-  std::vector<std::uint64_t> targets;
+  std::vector<std::uint64_t>& targets = targets_;  // reused: deliver_all() is not re-entered
   while (!queue_.empty() && delivered < max_frames) {
     Pending p = std::move(queue_.front());
     queue_.pop_front();

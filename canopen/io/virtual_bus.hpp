@@ -134,6 +134,7 @@ class VirtualBus {
   std::uint64_t next_id_ = 1;
   std::deque<Pending> queue_;
   bool delivering_ = false;
+  std::vector<std::uint64_t> targets_;  // deliver_all()'s per-frame snapshot of the port ids
   Tap tap_;
   bool logging_ = false;
   std::vector<BusRecord> log_;
