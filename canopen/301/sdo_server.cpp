@@ -410,11 +410,13 @@ void SdoServer::send(const std::array<std::uint8_t, 8>& bytes) {
 void SdoServer::flush() {
   if (flushing_) return;
   flushing_ = true;
-  while (!outbox_.empty()) {
-    const CanFrame f = outbox_.front();
-    outbox_.pop_front();
+  // By index: the nested calls append while we send. clear() keeps the capacity, so sending
+  // does not allocate (a std::deque drained to empty frees and reallocates its chunk).
+  for (std::size_t i = 0; i < outbox_.size(); ++i) {
+    const CanFrame f = outbox_[i];
     if (sink_) sink_(f);
   }
+  outbox_.clear();
   flushing_ = false;
 }
 

@@ -130,7 +130,7 @@ class SdoServer {
   std::uint8_t sent_in_block_ = 0;
   bool last_in_block_ = false;
 
-  std::deque<CanFrame> outbox_;
+  std::vector<CanFrame> outbox_;  // sent by flush()
   bool flushing_ = false;
 };
 
