@@ -7,6 +7,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <cstring>
 #include <functional>
@@ -198,14 +199,23 @@ class ObjectDictionary {
     if (s != nullptr) std::memcpy(&v, s->value.data(), std::min(sizeof(T), s->value.size()));
     return v;
   }
+  // set() encodes into a stack buffer: an application updating its inputs (the TPDO path) does
+  // not allocate.
   template <class T>
   SdoAbortCode set(std::uint16_t index, std::uint8_t sub, T v, Origin origin = Origin::Local) {
+    static_assert(std::is_arithmetic_v<T> && sizeof(T) <= 8);
     const SubObject* s = find(index, sub);
     if (s == nullptr) return write(index, sub, {}, origin);  // reports the right "does not exist" code
+    std::array<std::uint8_t, 8> buf{};
     if constexpr (std::is_floating_point_v<T>) {
-      return write(index, sub, encode(v), origin);
+      std::memcpy(buf.data(), &v, sizeof(T));  // x86/ARM Linux targets are little endian
+      return write(index, sub, std::span<const std::uint8_t>(buf.data(), sizeof(T)), origin);
     } else {
-      return write(index, sub, encode_width(static_cast<std::uint64_t>(v), s->value.size()), origin);
+      const std::size_t width = s->value.size();
+      if (width > buf.size()) return write(index, sub, encode_width(static_cast<std::uint64_t>(v), width), origin);
+      const auto u = static_cast<std::uint64_t>(v);
+      for (std::size_t i = 0; i < width; ++i) buf[i] = static_cast<std::uint8_t>(u >> (8 * i));
+      return write(index, sub, std::span<const std::uint8_t>(buf.data(), width), origin);
     }
   }
 

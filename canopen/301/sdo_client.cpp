@@ -44,7 +44,7 @@ void SdoClient::download(std::uint16_t index, std::uint8_t sub, std::vector<std:
 
 std::optional<TimePoint> SdoClient::next_deadline() const {
   if (state_ != State::Idle) return deadline_;
-  if (!queue_.empty()) return now_;  // a queued request is waiting to start: due now
+  if (queued() != 0) return now_;  // a queued request is waiting to start: due now
   return std::nullopt;
 }
 
@@ -74,14 +74,23 @@ void SdoClient::set_cob_ids(CobId request, CobId response) {
 
 void SdoClient::cancel_all(SdoAbortCode code) {
   if (state_ != State::Idle) abort(code);
-  for (auto& r : queue_) done_.push_back(Done{std::move(r.callback), code, {}});
+  for (std::size_t i = queue_head_; i < queue_.size(); ++i)
+    done_.push_back(Done{std::move(queue_[i].callback), code, {}});
   queue_.clear();
+  queue_head_ = 0;
   pump();
 }
 
 void SdoClient::start(TimePoint now) {
-  current_ = std::move(queue_.front());
-  queue_.pop_front();
+  current_ = std::move(queue_[queue_head_++]);
+  if (queue_head_ == queue_.size()) {
+    queue_.clear();  // keeps the capacity: queueing a request does not allocate
+    queue_head_ = 0;
+  } else if (queue_head_ >= 64 && queue_head_ * 2 >= queue_.size()) {
+    // Never drained (always a request waiting): drop the started half.
+    queue_.erase(queue_.begin(), queue_.begin() + static_cast<std::ptrdiff_t>(queue_head_));
+    queue_head_ = 0;
+  }
   deadline_ = now + cfg_.timeout;
   buffer_.clear();
   pos_ = 0;
@@ -187,6 +196,7 @@ void SdoClient::on_upload_initiate(const std::uint8_t* d) {
   }
   size_ = get_u32(d + 4);
   if (size_indicated_ && size_ > cfg_.max_upload_size) return abort(SdoAbortCode::OutOfMemory);
+  if (size_indicated_) buffer_.reserve(size_);  // one allocation, not one per doubling
   toggle_ = false;
   state_ = State::UploadSegment;
   send({0x60, 0, 0, 0, 0, 0, 0, 0});
@@ -285,6 +295,7 @@ void SdoClient::on_block_upload_initiate(const std::uint8_t* d) {
   size_indicated_ = (d[0] & 0x02) != 0;
   size_ = get_u32(d + 4);
   if (size_indicated_ && size_ > cfg_.max_upload_size) return abort(SdoAbortCode::OutOfMemory);
+  if (size_indicated_) buffer_.reserve(round_up_segments(size_));  // segments carry 7 bytes each
   blksize_ = cfg_.block_size;
   expected_seq_ = 1;
   last_segment_received_ = false;
@@ -366,15 +377,21 @@ void SdoClient::pump() {
   if (pumping_) return;
   pumping_ = true;
   for (;;) {
-    if (!outbox_.empty()) {
-      const CanFrame f = outbox_.front();
-      outbox_.pop_front();
+    if (outbox_head_ < outbox_.size()) {
+      const CanFrame f = outbox_[outbox_head_++];
+      if (outbox_head_ == outbox_.size()) {
+        outbox_.clear();  // keeps the capacity: no allocation per frame
+        outbox_head_ = 0;
+      }
       if (sink_) sink_(f);
-    } else if (!done_.empty()) {
-      Done d = std::move(done_.front());
-      done_.pop_front();
+    } else if (done_head_ < done_.size()) {
+      Done d = std::move(done_[done_head_++]);
+      if (done_head_ == done_.size()) {
+        done_.clear();
+        done_head_ = 0;
+      }
       if (d.callback) d.callback(d.code, std::move(d.data));
-    } else if (state_ == State::Idle && !queue_.empty()) {
+    } else if (state_ == State::Idle && queued() != 0) {
       start(now_);
     } else {
       break;

@@ -75,7 +75,7 @@ class SdoClient {
   void cancel_all(SdoAbortCode code = SdoAbortCode::GeneralError);
 
   [[nodiscard]] bool busy() const { return state_ != State::Idle; }
-  [[nodiscard]] std::size_t queued() const { return queue_.size(); }
+  [[nodiscard]] std::size_t queued() const { return queue_.size() - queue_head_; }
   [[nodiscard]] const SdoClientConfig& config() const { return cfg_; }
 
  private:
@@ -129,7 +129,8 @@ class SdoClient {
 
   FrameSink sink_;
   SdoClientConfig cfg_;
-  std::deque<Request> queue_;
+  std::vector<Request> queue_;  // requests queue_[queue_head_..] wait to start (see outbox_)
+  std::size_t queue_head_ = 0;
   State state_ = State::Idle;
   Request current_;
   TimePoint now_{};
@@ -147,8 +148,12 @@ class SdoClient {
   std::uint8_t expected_seq_ = 1;
   bool last_segment_received_ = false;
 
-  std::deque<CanFrame> outbox_;
-  std::deque<Done> done_;
+  // FIFOs drained by pump(): a vector read from a head index and cleared (capacity kept) once
+  // drained, so that sending a frame or finishing a transfer does not allocate.
+  std::vector<CanFrame> outbox_;
+  std::size_t outbox_head_ = 0;
+  std::vector<Done> done_;
+  std::size_t done_head_ = 0;
   bool pumping_ = false;
 };
 

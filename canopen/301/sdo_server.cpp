@@ -382,7 +382,9 @@ void SdoServer::abort(std::uint16_t index, std::uint8_t sub, SdoAbortCode code) 
 void SdoServer::drop() {
   state_ = State::Idle;
   buffer_.clear();
-  buffer_.shrink_to_fit();
+  // Keep a small buffer for the next transfer (every upload copies the value into it); give
+  // back what a large DOMAIN transfer grew.
+  if (buffer_.capacity() > kKeptBufferCapacity) buffer_.shrink_to_fit();
   size_indicated_ = false;
   crc_ = false;
 }
@@ -408,11 +410,13 @@ void SdoServer::send(const std::array<std::uint8_t, 8>& bytes) {
 void SdoServer::flush() {
   if (flushing_) return;
   flushing_ = true;
-  while (!outbox_.empty()) {
-    const CanFrame f = outbox_.front();
-    outbox_.pop_front();
+  // By index: the nested calls append while we send. clear() keeps the capacity, so sending
+  // does not allocate (a std::deque drained to empty frees and reallocates its chunk).
+  for (std::size_t i = 0; i < outbox_.size(); ++i) {
+    const CanFrame f = outbox_[i];
     if (sink_) sink_(f);
   }
+  outbox_.clear();
   flushing_ = false;
 }
 

@@ -43,6 +43,8 @@ class SdoServer {
  public:
   static constexpr Duration kDefaultTimeout = std::chrono::seconds(1);
   static constexpr std::uint8_t kMaxBlockSize = 127;
+  // Transfer buffer capacity kept between transfers (larger buffers are released at the end).
+  static constexpr std::size_t kKeptBufferCapacity = 4096;
 
   // rx: client -> server (default 0x600 + node-ID); tx: server -> client (0x580 + node-ID).
   SdoServer(ObjectDictionary& od, FrameSink sink, CobId rx, CobId tx, Duration timeout = kDefaultTimeout);
@@ -128,7 +130,7 @@ class SdoServer {
   std::uint8_t sent_in_block_ = 0;
   bool last_in_block_ = false;
 
-  std::deque<CanFrame> outbox_;
+  std::vector<CanFrame> outbox_;  // sent by flush()
   bool flushing_ = false;
 };
 

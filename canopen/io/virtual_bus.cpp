@@ -52,7 +52,7 @@ void VirtualBus::enqueue(std::uint64_t sender_id, const std::string& sender, con
     ++dropped_;
     return;
   }
-  const bool was_empty = queue_.empty();
+  const bool was_empty = pending() == 0;
   queue_.push_back(Pending{sender_id, sender, frame});
   if (was_empty && !delivering_ && wakeup_) wakeup_();
 }
@@ -66,10 +66,17 @@ std::size_t VirtualBus::deliver_all(TimePoint now, std::size_t max_frames) {
   } reset{delivering_};
 
   std::size_t delivered = 0;
-  std::vector<std::uint64_t> targets;
-  while (!queue_.empty() && delivered < max_frames) {
-    Pending p = std::move(queue_.front());
-    queue_.pop_front();
+  std::vector<std::uint64_t>& targets = targets_;  // reused: deliver_all() is not re-entered
+  while (head_ < queue_.size() && delivered < max_frames) {
+    Pending p = std::move(queue_[head_++]);
+    if (head_ == queue_.size()) {
+      queue_.clear();  // keeps the capacity: queueing a frame does not allocate
+      head_ = 0;
+    } else if (head_ >= 1024 && head_ * 2 >= queue_.size()) {
+      // Never drained (a flood delivered in batches): drop the delivered half.
+      queue_.erase(queue_.begin(), queue_.begin() + static_cast<std::ptrdiff_t>(head_));
+      head_ = 0;
+    }
     ++delivered;
     BusRecord record{now, std::move(p.sender), p.frame};
     if (logging_) log_.push_back(record);
@@ -98,13 +105,13 @@ void VirtualBus::run_on(EventLoop& loop) {
     loop.post([this, &loop, alive, weak_self] {
       if (alive.expired()) return;
       deliver_all(loop.now(), kBatch);
-      if (!queue_.empty()) {
+      if (pending() != 0) {
         if (auto self = weak_self.lock()) (*self)();
       }
     });
   };
   set_wakeup([post_delivery] { (*post_delivery)(); });
-  if (!queue_.empty()) (*post_delivery)();
+  if (pending() != 0) (*post_delivery)();
 }
 
 }  // namespace oegw::canopen

@@ -99,7 +99,7 @@ class VirtualBus {
   // from inside a receiver returns 0 at once (the outer call keeps draining).
   std::size_t deliver_all(TimePoint now, std::size_t max_frames = 1'000'000);
 
-  [[nodiscard]] std::size_t pending() const { return queue_.size(); }
+  [[nodiscard]] std::size_t pending() const { return queue_.size() - head_; }
 
   // Observes every frame as it is delivered (dropped frames are not seen).
   void set_tap(Tap tap) { tap_ = std::move(tap); }
@@ -132,8 +132,12 @@ class VirtualBus {
 
   std::map<std::uint64_t, VirtualPort*> ports_;  // id order = attach order
   std::uint64_t next_id_ = 1;
-  std::deque<Pending> queue_;
+  // FIFO: frames queue_[head_..] are pending. A vector cleared (capacity kept) when drained, so
+  // that a frame on the bus costs no allocation (a drained std::deque frees its chunk).
+  std::vector<Pending> queue_;
+  std::size_t head_ = 0;
   bool delivering_ = false;
+  std::vector<std::uint64_t> targets_;  // deliver_all()'s per-frame snapshot of the port ids
   Tap tap_;
   bool logging_ = false;
   std::vector<BusRecord> log_;

@@ -29,6 +29,27 @@ TEST(ObjectDictionary, EnforcesAccessPerOrigin) {
   EXPECT_EQ(od.get<std::uint32_t>(0x1000, 0), 0x04030201u);
 }
 
+TEST(ObjectDictionary, SetEncodesToTheObjectsWidthLittleEndian) {
+  ObjectDictionary od;
+  od.add_var(0x2010, "I16", DataType::Integer16, Access::ReadWrite, {});
+  od.add_var(0x2011, "U24", DataType::Unsigned24, Access::ReadWrite, {});
+  od.add_var(0x2012, "U64", DataType::Unsigned64, Access::ReadWrite, {});
+  od.add_var(0x2013, "R32", DataType::Real32, Access::ReadWrite, {});
+  od.add_var(0x2014, "BOOLEAN", DataType::Boolean, Access::ReadWrite, {});
+  od.reset_to_defaults(0x2010, 0x2014);
+  EXPECT_EQ(od.set<std::int16_t>(0x2010, 0, -2), SdoAbortCode::None);
+  EXPECT_EQ(od.find(0x2010, 0)->value, (std::vector<std::uint8_t>{0xFE, 0xFF}));
+  EXPECT_EQ(od.set<std::uint32_t>(0x2011, 0, 0x00123456), SdoAbortCode::None);
+  EXPECT_EQ(od.find(0x2011, 0)->value, (std::vector<std::uint8_t>{0x56, 0x34, 0x12}));
+  EXPECT_EQ(od.set<int>(0x2012, 0, -1), SdoAbortCode::None);  // sign-extended to the width
+  EXPECT_EQ(od.find(0x2012, 0)->value, std::vector<std::uint8_t>(8, 0xFF));
+  EXPECT_EQ(od.set<float>(0x2013, 0, 1.5f), SdoAbortCode::None);
+  EXPECT_EQ(od.find(0x2013, 0)->value, encode<float>(1.5f));
+  EXPECT_EQ(od.set<bool>(0x2014, 0, true), SdoAbortCode::None);
+  EXPECT_EQ(od.find(0x2014, 0)->value, (std::vector<std::uint8_t>{1}));
+  EXPECT_EQ(od.set<std::uint8_t>(0x2015, 0, 1), SdoAbortCode::ObjectDoesNotExist);
+}
+
 TEST(ObjectDictionary, RefusesWrongLengthAndOutOfRangeWithoutChangingValue) {
   ObjectDictionary od;
   od.add_var(0x2001, "Limited", DataType::Integer16, Access::ReadWrite, encode<std::int16_t>(5));

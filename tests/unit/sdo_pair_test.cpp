@@ -291,4 +291,29 @@ TEST(SdoPair, ManyQueuedRequestsAllComplete) {
   }
 }
 
+TEST(SdoPair, RequestsQueuedFromCallbacksRunInOrderWhenTheQueueNeverEmpties) {
+  Pair p;
+  std::vector<int> order;
+  int queued = 0;
+  std::function<void()> queue_one = [&] {
+    const int id = queued++;
+    p.client.upload(0x1000, 0, [&, id](SdoAbortCode c, std::vector<std::uint8_t> d) {
+      EXPECT_EQ(c, SdoAbortCode::None);
+      EXPECT_EQ(d, encode<std::uint32_t>(0x00080196));
+      order.push_back(id);
+      if (queued < 300) {  // two more for each one done: the queue never drains
+        queue_one();
+        queue_one();
+      }
+    });
+  };
+  queue_one();
+  queue_one();
+  p.run();
+  ASSERT_EQ(order.size(), static_cast<std::size_t>(queued));
+  for (std::size_t i = 0; i < order.size(); ++i) ASSERT_EQ(order[i], static_cast<int>(i));
+  EXPECT_EQ(p.client.queued(), 0u);
+  EXPECT_FALSE(p.client.busy());
+}
+
 }  // namespace
