@@ -75,14 +75,19 @@ done
 [ -f /out/job.sh ] || fail "no job.sh in the out dir"
 
 say "ready: running job"
-{
-  chroot $r /usr/bin/env -i $ENV /bin/bash /run/oegw-out/job.sh </dev/null
-  echo $? >/out/rc.tmp
-} 2>&1 | tee /out/output.log
-if [ -f /out/rc.tmp ]; then
-  mv /out/rc.tmp /out/rc
-  say "job exit status $(cat /out/rc)"
-else
-  fail "job status missing"
-fi
+# Output goes through a fifo to tee, so that processes the job leaves behind
+# (e.g. a background candump) cannot keep us waiting: they are killed once
+# the job's main process exits.
+mkfifo /joblog
+tee /out/output.log </joblog &
+teepid=$!
+chroot $r /usr/bin/env -i $ENV /bin/bash /run/oegw-out/job.sh </dev/null >/joblog 2>&1
+rc=$?
+for p in /proc/[0-9]*; do
+  p=${p#/proc/}
+  [ "$p" = 1 ] || [ "$p" = $$ ] || [ "$p" = "$teepid" ] || kill -9 "$p" 2>/dev/null
+done
+wait $teepid
+echo $rc >/out/rc
+say "job exit status $rc"
 halt
