@@ -30,7 +30,12 @@ fail() {
 mount -t proc proc /proc
 mount -t sysfs sysfs /sys
 mount -t devtmpfs devtmpfs /dev 2>/dev/null
-echo 1 >/proc/sys/kernel/printk 2>/dev/null  # keep the console for test output
+if grep -q 'oegw.debug=1' /proc/cmdline; then
+  set -x
+  say "debug boot; uptime $(cut -d' ' -f1 /proc/uptime)s"
+else
+  echo 1 >/proc/sys/kernel/printk 2>/dev/null  # keep the console for test output
+fi
 
 for m in $(cat /modules/order); do
   insmod "/modules/$m" || fail "insmod $m"
@@ -74,7 +79,7 @@ for d in vcan0 vcan1; do
 done
 [ -f /out/job.sh ] || fail "no job.sh in the out dir"
 
-say "ready: running job"
+say "ready: running job (uptime $(cut -d' ' -f1 /proc/uptime)s)"
 # Output goes through a fifo to tee, so that processes the job leaves behind
 # (e.g. a background candump) cannot keep us waiting: they are killed once
 # the job's main process exits.

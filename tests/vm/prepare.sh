@@ -63,8 +63,10 @@ ver=$(apt-cache policy "$pkg" 2>/dev/null | sed -n 's/^ *Candidate: *//p' | head
 key="${pkg}_${ver//:/%3a}"
 kdir="$cache/kernels/$key"
 
+# The build depends on this script and init.sh: their hash is the stamp.
+recipe=$(cat "$here/prepare.sh" "$here/init.sh" | sha256sum | cut -d' ' -f1)
 if [[ -e $kdir/ok && -e $kdir/initramfs.cpio.gz && -e $kdir/vmlinuz && \
-      $kdir/ok -nt "$here/prepare.sh" && $kdir/ok -nt "$here/init.sh" ]]; then
+      $(cat "$kdir/ok") == "$recipe" ]]; then
   ln -sfn "kernels/$key" "$cache/current"
   note "up to date: $kdir"
   exit 0
@@ -150,7 +152,7 @@ chmod 644 "$kdir.tmp/vmlinuz"
 echo "$kver" >"$kdir.tmp/kver"
 tr '\n' ' ' <"$ird/modules/order" >"$kdir.tmp/modules.txt"
 rm -rf "$tree" "$ird"   # keep the cache small: vmlinuz + initramfs are all we need
-touch "$kdir.tmp/ok"
+echo "$recipe" >"$kdir.tmp/ok"
 rm -rf "$kdir"
 mv "$kdir.tmp" "$kdir"
 ln -sfn "kernels/$key" "$cache/current"

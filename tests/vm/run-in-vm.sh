@@ -20,6 +20,7 @@
 #   OEGW_VM_KEEP=1   keep the out dir after success (it is always kept on failure)
 #   OEGW_VM_QUIET=1  do not echo the serial console live (it is still logged)
 #   OEGW_VM_MEM      guest memory in MiB (default 1024)
+#   OEGW_VM_DEBUG=1  verbose boot: kernel messages and a trace of the guest's init
 set -uo pipefail
 
 die() { echo "run-in-vm.sh: error: $*" >&2; exit 125; }
@@ -53,6 +54,8 @@ if [[ -n ${OEGW_VM_OUT:-} ]]; then
   rm -f "$out"/{rc,rc.tmp,booted,boot-error,output.log,serial.log,job.sh}
 else
   mkdir -p "$cache/runs" || die "cannot create $cache/runs"
+  # Old kept runs (failures, OEGW_VM_KEEP) are removed after two days.
+  find "$cache/runs" -mindepth 1 -maxdepth 1 -mtime +2 -exec rm -rf {} + 2>/dev/null
   out=$(mktemp -d "$cache/runs/run.XXXXXX") || die "mktemp failed"
 fi
 out=$(realpath "$out")
@@ -83,12 +86,18 @@ cwd_g=$(guestpath "$cwd") || exit 125
 } >"$out/job.sh"
 
 serial="$out/serial.log"
+append="console=ttyS0 panic=-1 rdinit=/init mitigations=off tsc=reliable no_timer_check i8042.noaux i8042.nokbd nomodeset"
+if [[ ${OEGW_VM_DEBUG:-0} == 1 ]]; then
+  append+=" loglevel=7 oegw.debug=1"   # kernel messages and init's trace on the console
+else
+  append+=" quiet loglevel=1"
+fi
 qemu=(qemu-system-x86_64
   -accel tcg -machine q35 -cpu max -smp 1 -m "${OEGW_VM_MEM:-1024}"
   -nic none -no-reboot -nodefaults -display none -monitor none
   -chardev "file,id=con,path=$serial,append=on" -serial chardev:con
   -kernel "$kdir/vmlinuz" -initrd "$kdir/initramfs.cpio.gz"
-  -append "console=ttyS0 quiet loglevel=1 panic=-1 rdinit=/init mitigations=off tsc=reliable no_timer_check i8042.noaux i8042.nokbd nomodeset"
+  -append "$append"
   -virtfs "local,path=/,mount_tag=hostroot,security_model=none,readonly=on,multidevs=remap"
   -virtfs "local,path=$out,mount_tag=out,security_model=none,multidevs=remap"
 )
