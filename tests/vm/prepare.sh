@@ -41,6 +41,9 @@ fi
 
 mkdir -p "$cache/deb" "$cache/kernels" || die "cannot create cache dir $cache"
 cache=$(cd "$cache" && pwd)
+# One prepare at a time per cache (parallel ctest runs share it).
+exec 9>"$cache/.lock"
+flock 9 || die "cannot lock $cache/.lock"
 
 # --- resolve the kernel package -------------------------------------------
 pkg=${OEGW_VM_KERNEL_PKG:-}
@@ -78,8 +81,13 @@ if [[ -z $deb ]]; then
   note "downloading $pkg ($ver) into $cache/deb"
   # apt-get download writes into the current directory. As root it warns
   # that the _apt sandbox user cannot write there; run it unsandboxed.
-  (cd "$cache/deb" && apt-get download -q -o APT::Sandbox::User="$(id -un)" "$pkg") \
-    || die "apt-get download $pkg failed (network? stale apt lists: run 'apt-get update')"
+  if ! (cd "$cache/deb" && apt-get download -q -o APT::Sandbox::User="$(id -un)" "$pkg"); then
+    if [[ -e $cache/current/ok ]]; then
+      note "warning: apt-get download $pkg failed (stale apt lists? run 'apt-get update'); reusing cached $(readlink "$cache/current")"
+      exit 0
+    fi
+    die "apt-get download $pkg failed (network? stale apt lists: run 'apt-get update')"
+  fi
   deb=$(ls "$cache/deb/${pkg}"_*.deb 2>/dev/null | head -n1 || true)
   [[ -n $deb ]] || die "apt-get download $pkg produced no .deb in $cache/deb"
 fi
@@ -156,4 +164,7 @@ echo "$recipe" >"$kdir.tmp/ok"
 rm -rf "$kdir"
 mv "$kdir.tmp" "$kdir"
 ln -sfn "kernels/$key" "$cache/current"
+# Keep only what is current: older kernel packages and their builds go.
+find "$cache/kernels" -mindepth 1 -maxdepth 1 ! -name "$key" -exec rm -rf {} +
+find "$cache/deb" -mindepth 1 -maxdepth 1 ! -name "$(basename "$deb")" -exec rm -f {} +
 note "ready: $kdir (kernel $kver, initramfs $(du -h "$kdir/initramfs.cpio.gz" | cut -f1); modules: $(cat "$kdir/modules.txt"))"
