@@ -84,9 +84,10 @@ class FakeNode(threading.Thread):
                 t = (d[0] >> 4) & 1
                 n = (d[0] >> 1) & 7
                 down[1] += d[1:8 - n]
+                if d[0] & 1:  # store before answering: the client may look at once
+                    self.od[down[0]] = down[1]
                 self.send(0x580 + NODE, bytes([0x20 | t << 4]) + bytes(7))
                 if d[0] & 1:
-                    self.od[down[0]] = down[1]
                     down = None
         self.bus.shutdown()
 
