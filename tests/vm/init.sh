@@ -3,7 +3,8 @@
 #
 # Loads the modules listed in /modules/order, mounts the host root read-only
 # (9p tag "hostroot") on /newroot and the host's writable result dir (9p tag
-# "out") on /out, gives the chroot writable tmpfs /tmp and /run plus /proc,
+# "out") on /out, gives the chroot a writable /tmp (tmpfs overlay over the
+# host's) and tmpfs /run plus /proc,
 # /sys, /dev, creates vcan0 and vcan1, then runs /out/job.sh (written by
 # run-in-vm.sh) in the chroot. Its output goes to the console and to
 # /out/output.log, its exit status to /out/rc. Then the VM powers off.
@@ -55,11 +56,14 @@ mount9p out /out "" || fail "mount 9p 'out' (is -virtfs ...mount_tag=out given?)
 mount9p hostroot /newroot "ro,cache=loose" || fail "mount 9p 'hostroot'"
 
 r=/newroot
-# The host's /tmp stays reachable (read-only) as /run/host-tmp.
-mkdir -p /hosttmp && mount --bind $r/tmp /hosttmp
-mount -t tmpfs -o mode=1777 tmpfs $r/tmp || fail "tmpfs on /tmp"
+# /tmp: the host's /tmp (read-only 9p) under a tmpfs overlay, so paths in
+# the host's /tmp (a checkout, a build dir) work unchanged and /tmp is
+# writable; writes stay in the guest.
+mkdir -p /scratch && mount -t tmpfs -o mode=755 tmpfs /scratch || fail "tmpfs on /scratch"
+mkdir -p /scratch/upper /scratch/work && chmod 1777 /scratch/upper
+mount -t overlay -o lowerdir=$r/tmp,upperdir=/scratch/upper,workdir=/scratch/work overlay $r/tmp ||
+  fail "overlay on /tmp"
 mount -t tmpfs -o mode=755 tmpfs $r/run || fail "tmpfs on /run"
-mkdir -p $r/run/host-tmp && mount --move /hosttmp $r/run/host-tmp
 mkdir -p $r/run/oegw-out && mount --bind /out $r/run/oegw-out || fail "bind /out"
 mount -t proc proc $r/proc || fail "proc"
 mount -t sysfs sysfs $r/sys || fail "sysfs"

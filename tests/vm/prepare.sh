@@ -115,7 +115,7 @@ depmod -b "$modroot" "$kver" || die "depmod -b $modroot $kver failed"
 # --- module list, in load order ---------------------------------------------
 # Each module's dependencies come first (modprobe --show-depends prints the
 # chain in insmod order). can-gw is optional.
-want=(virtio_pci 9pnet_virtio 9p can can-raw vcan can-gw)
+want=(virtio_pci 9pnet_virtio 9p overlay can can-raw vcan can-gw)
 optional=" can-gw "
 order=()
 for m in "${want[@]}"; do

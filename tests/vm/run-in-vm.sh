@@ -4,7 +4,8 @@
 # Usage: tests/vm/run-in-vm.sh [--cwd DIR] [--timeout SECONDS] <guest-script> [args...]
 #
 # The guest sees the host's root file system read-only (as its own root, in a
-# chroot), with tmpfs on /tmp and /run, HOME=/tmp, and vcan0 + vcan1 up.
+# chroot), with a writable tmpfs overlay on /tmp (host files show through,
+# writes stay in the guest), tmpfs /run, HOME=/tmp, and vcan0 + vcan1 up.
 # <guest-script> is a path on the host (relative paths are taken from the
 # current directory); it runs with cwd = --cwd (default: the current
 # directory), under bash if it is not executable. $OEGW_VM_OUT in the guest
@@ -60,26 +61,19 @@ else
 fi
 out=$(realpath "$out")
 
-# Inside the guest, /tmp and /run are fresh tmpfs; the host's /tmp is at
-# /run/host-tmp (the host's /run is not reachable).
-guestpath() {
-  case $1 in
-    /tmp|/tmp/*) echo "/run/host-tmp${1#/tmp}" ;;
-    /run|/run/*) die "$1: the host's /run is not visible in the guest" ;;
-    *) echo "$1" ;;
-  esac
-}
-script_g=$(guestpath "$script") || exit 125
-cwd_g=$(guestpath "$cwd") || exit 125
-
+# Inside the guest, /tmp is the host's /tmp under a writable tmpfs overlay;
+# /run is a fresh tmpfs, so nothing of the host's /run is visible.
+for p in "$script" "$cwd"; do
+  case $p in /run|/run/*) die "$p: the host's /run is not visible in the guest" ;; esac
+done
 # The job: cd, then run the script with its arguments. printf %q quoting is
 # bash syntax; init.sh runs job.sh with the chroot's (= the host's) bash.
 {
-  echo "cd $(printf %q "$cwd_g") || { echo 'run-in-vm.sh: cannot cd to guest cwd' >&2; exit 125; }"
+  echo "cd $(printf %q "$cwd") || { echo 'run-in-vm.sh: cannot cd to guest cwd' >&2; exit 125; }"
   if [[ -x $script ]]; then
-    printf 'exec %q' "$script_g"
+    printf 'exec %q' "$script"
   else
-    printf 'exec /bin/bash %q' "$script_g"
+    printf 'exec /bin/bash %q' "$script"
   fi
   for a in "$@"; do printf ' %q' "$a"; done
   echo
