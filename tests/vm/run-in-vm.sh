@@ -101,7 +101,7 @@ start=$(date +%s.%N)
 # Echo the console live unless quiet; tail stops when qemu is done.
 tail_pid=
 if [[ ${OEGW_VM_QUIET:-0} != 1 ]]; then
-  tail -n +1 -f "$serial" 2>/dev/null &
+  tail -n +1 -f --pid=$$ "$serial" 2>/dev/null &   # --pid: ends with us even on SIGKILL
   tail_pid=$!
 fi
 # qemu in its own process group under timeout(1): --kill-after makes sure it
