@@ -21,6 +21,7 @@
 #   OEGW_VM_KEEP=1   keep the out dir after success (it is always kept on failure)
 #   OEGW_VM_QUIET=1  do not echo the serial console live (it is still logged)
 #   OEGW_VM_MEM      guest memory in MiB (default 1024)
+#   OEGW_VM_CPU      qemu -cpu model (default max)
 #   OEGW_VM_DEBUG=1  verbose boot: kernel messages and a trace of the guest's init
 set -uo pipefail
 
@@ -87,7 +88,7 @@ else
   append+=" quiet loglevel=1"
 fi
 qemu=(qemu-system-x86_64
-  -accel tcg -machine q35 -cpu max -smp 1 -m "${OEGW_VM_MEM:-1024}"
+  -accel tcg -machine q35 -cpu "${OEGW_VM_CPU:-max}" -smp 1 -m "${OEGW_VM_MEM:-1024}"
   -nic none -no-reboot -nodefaults -display none -monitor none
   -chardev "file,id=con,path=$serial,append=on" -serial chardev:con
   -kernel "$kdir/vmlinuz" -initrd "$kdir/initramfs.cpio.gz"
