@@ -105,9 +105,12 @@ if [[ ${OEGW_VM_QUIET:-0} != 1 ]]; then
   tail -n +1 -f --pid=$$ "$serial" 2>/dev/null &   # --pid: ends with us even on SIGKILL
   tail_pid=$!
 fi
-# qemu in its own process group under timeout(1): --kill-after makes sure it
-# dies even if it ignores SIGTERM.
-timeout --kill-after=10 "$timeout_s" "${qemu[@]}" </dev/null >"$out/qemu.log" 2>&1 &
+# qemu under timeout(1), which --kill-after makes sure it dies even if it
+# ignores SIGTERM. setpriv --pdeathsig: if this script is killed outright
+# (SIGKILL), timeout gets SIGTERM and passes it on to qemu.
+pdeath=()
+setpriv --help 2>/dev/null | grep pdeathsig >/dev/null && pdeath=(setpriv --pdeathsig TERM)
+"${pdeath[@]}" timeout --kill-after=10 "$timeout_s" "${qemu[@]}" </dev/null >"$out/qemu.log" 2>&1 &
 qpid=$!
 # If we are stopped (ctest timeout, ^C), take qemu with us.
 trap 'kill -TERM "$qpid" 2>/dev/null; wait "$qpid" 2>/dev/null; [[ -n $tail_pid ]] && kill "$tail_pid" 2>/dev/null; echo "run-in-vm.sh: interrupted; serial log: $serial" >&2; exit 143' TERM INT HUP
