@@ -1,0 +1,45 @@
+# Helpers for guest scripts of the VM tier (source it; bash).
+# shellcheck shell=bash
+
+PY=/usr/bin/python3   # python3-can lives here; a python3 on PATH may lack it
+
+fails=0
+passes=0
+pass() { echo "PASS: $*"; passes=$((passes + 1)); }
+fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
+
+# Number of raw CAN receivers (sockets) bound to device $1.
+can_receivers() {
+  awk -v d="$1" '$1 == d { n++ } END { print n + 0 }' /proc/net/can/rcvlist_* 2>/dev/null
+}
+
+# wait_receivers DEV N [TIMEOUT_S]: until at least N receivers are bound to DEV.
+wait_receivers() {
+  local dev=$1 n=$2 t=${3:-10} i=0
+  while (($(can_receivers "$dev") < n)); do
+    ((i++ >= t * 20)) && { echo "timeout waiting for $n receivers on $dev" >&2; return 1; }
+    sleep 0.05
+  done
+}
+
+# start_candump DEV FILE [candump args...]: candump -L in the background,
+# returns once it is bound; its pid is in $candump_pid.
+start_candump() {
+  local dev=$1 file=$2
+  shift 2
+  local before
+  before=$(can_receivers "$dev")
+  candump -L "$@" "$dev" >"$file" 2>&1 &
+  candump_pid=$!
+  wait_receivers "$dev" $((before + 1))
+}
+
+# stop_candump: stop the candump started last, letting it flush.
+stop_candump() {
+  kill -INT "$candump_pid" 2>/dev/null
+  wait "$candump_pid" 2>/dev/null
+  return 0
+}
+
+# frames FILE: the "IFACE ID#DATA" part of candump -L lines.
+frames() { awk '{ print $2, $3 }' "$1"; }
