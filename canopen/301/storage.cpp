@@ -253,8 +253,11 @@ SdoAbortCode ParameterStore::save(Group group) {
   std::erase_if(entries, [lo, hi](const auto& e) { return e.first.first >= lo && e.first.first <= hi; });
   for (const auto& [index, obj] : od_.objects()) {
     if (index < first || index > last || excluded(index)) continue;
+    // Only what differs from the default is stored. A value left at its default follows the
+    // default, which matters for the COB-IDs whose default is "function code + node-ID": after
+    // an LSS node-ID change (CiA 305) they must move with the node-ID, not come back absolute.
     for (const auto& [sub, s] : obj.subs())
-      if (writable(s.access)) entries[{index, sub}] = s.value;
+      if (writable(s.access) && s.value != s.default_value) entries[{index, sub}] = s.value;
   }
   return write_atomically(serialize(entries)) ? SdoAbortCode::None : SdoAbortCode::HardwareError;
 }

@@ -133,12 +133,13 @@ TEST_F(StorageFixture, NovotechnikSaveSignaturePersistsWritableObjects) {
   EXPECT_EQ(text.find("2002 00"), std::string::npos);  // ro
   EXPECT_EQ(text.find("6004 00"), std::string::npos);  // ro
   EXPECT_EQ(text.find("1010 "), std::string::npos);
+  EXPECT_EQ(text.find("2100 00"), std::string::npos);  // at its default: follows the default
 
   ObjectDictionary fresh;
   const auto r = reboot(fresh);
   EXPECT_TRUE(r.ok) << r.error;
   EXPECT_TRUE(r.file_present);
-  EXPECT_EQ(r.applied, 4u);  // 1017, 2000, 2100, 6003
+  EXPECT_EQ(r.applied, 3u);  // 1017, 2000, 6003 (2100 is at its default)
   EXPECT_EQ(fresh.get<std::uint16_t>(0x1017, 0), 500);
   EXPECT_EQ(fresh.get<std::uint8_t>(0x2000, 0), 0x40);
   EXPECT_EQ(fresh.get<std::uint32_t>(0x6003, 0), 1234u);
