@@ -1,0 +1,125 @@
+// A sub-device driver: one node of one device family. It turns that node's PDOs and EMCYs into
+// named signals (signal.hpp) and output commands into its RPDOs, and says how the node must be
+// configured at boot. Sans I/O like the protocol core: frames and time in, frames out.
+//
+// The downstream network manager (network_manager.hpp) owns the boot sequence, heartbeat and
+// SDO client; it calls the driver's hooks. The mapping layer reads signals and sets outputs.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "canopen/301/emcy.hpp"
+#include "canopen/can_frame.hpp"
+#include "canopen/types.hpp"
+#include "subdevices/signal.hpp"
+
+namespace oegw::subdevices {
+
+using canopen::CanFrame;
+using canopen::EmcyMessage;
+using canopen::FrameSink;
+using canopen::NodeId;
+
+// One SDO download of the boot configuration (CiA 301 / the bus.yml "sdo" list).
+struct SdoWrite {
+  std::uint16_t index = 0;
+  std::uint8_t sub = 0;
+  std::vector<std::uint8_t> data;  // little endian, the object's size
+  std::string what;                // for logs: "TPDO1 event timer 50 ms"
+};
+
+// 1000h / 1018h values to check at boot; unset fields are not checked.
+struct ExpectedIdentity {
+  std::optional<std::uint32_t> device_type;
+  std::optional<std::uint32_t> vendor_id;
+  std::optional<std::uint32_t> product_code;
+  std::optional<std::uint32_t> revision;
+  std::optional<std::uint32_t> serial;
+};
+
+// A decoded EMCY, for logs and for the gateway's status message.
+struct DecodedEmcy {
+  std::uint16_t code = 0;
+  std::string text;              // "elobau 4001h 0x0021: X axis signal 1 out of range"
+  bool error = true;             // false for the error-reset EMCY (0000h)
+  std::vector<std::size_t> affected;  // signal indices put into Error; empty = all inputs
+};
+
+class Driver {
+ public:
+  Driver() = default;
+  Driver(const Driver&) = delete;
+  Driver& operator=(const Driver&) = delete;
+  virtual ~Driver() = default;
+
+  [[nodiscard]] virtual std::string_view family() const = 0;  // "elobau-mfg", "mcb402", ...
+  [[nodiscard]] NodeId node() const { return node_; }
+
+  // The signals, in a fixed order; a signal's index is its position here.
+  [[nodiscard]] virtual const std::vector<SignalInfo>& signals() const = 0;
+  [[nodiscard]] std::optional<std::size_t> find_signal(std::string_view name) const;
+  [[nodiscard]] const SignalValue& value(std::size_t index) const { return values_.at(index); }
+
+  // Boot: what the master checks and writes before NMT start (driver defaults; the network
+  // manager appends the configuration file's own writes after these).
+  [[nodiscard]] virtual ExpectedIdentity expected_identity() const { return {}; }
+  [[nodiscard]] virtual std::vector<SdoWrite> configuration() const { return {}; }
+
+  // Runtime. on_frame() gets every frame whose COB-ID belongs to this node's PDOs (the network
+  // manager routes by COB-ID); it returns false for a frame it does not use (counted).
+  virtual bool on_frame(const CanFrame& frame, TimePoint now) = 0;
+  virtual DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) = 0;
+  // The COB-IDs of the node's TPDOs the driver consumes (for routing and receive filters).
+  [[nodiscard]] virtual std::vector<std::uint32_t> consumed_cob_ids() const = 0;
+
+  // The network manager reports the node's life: operational (configured, started) or not.
+  // Going offline marks every input Offline; coming back leaves them Offline until a PDO
+  // arrives (the neutral interlock is the mapping layer's job).
+  virtual void on_online(TimePoint now);
+  virtual void on_offline(TimePoint now);
+
+  // Outputs: sets output signal `index` to `value` and sends what the device needs (RPDO).
+  // Returns false (sending nothing) for a non-output signal or a value out of range.
+  virtual bool set_output(std::size_t index, std::int64_t value, TimePoint now) = 0;
+
+  // Called with a signal's index whenever its value or status changed.
+  std::function<void(std::size_t index, const SignalValue& value)> on_change;
+
+  [[nodiscard]] const InputCounters& counters() const { return counters_; }
+
+ protected:
+  // Drivers are built by their factory with their node and the sink for RPDOs.
+  void init(NodeId node, FrameSink sink, std::size_t signal_count);
+  // Updates a signal; calls on_change if value or status differ.
+  void update(std::size_t index, std::int64_t value, SignalStatus status, TimePoint now);
+  void send(const CanFrame& frame) {
+    if (sink_) sink_(frame);
+  }
+
+  InputCounters counters_;
+
+ private:
+  NodeId node_{};
+  FrameSink sink_;
+  std::vector<SignalValue> values_;
+};
+
+// Creates a driver by family name ("elobau-mfg", "mcb402", "novotechnik-406", "cia401").
+// `options` are the family's settings from the configuration (e.g. the elobau channel
+// tolerance, the generic node's EDS path); unknown options are an error. Returns nullptr and
+// sets `error` for an unknown family or bad options.
+struct DriverOptions {
+  std::vector<std::pair<std::string, std::string>> values;  // key -> value, as written
+  [[nodiscard]] std::optional<std::string> get(std::string_view key) const;
+};
+std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink,
+                                    const DriverOptions& options, std::string& error);
+
+}  // namespace oegw::subdevices

@@ -1,0 +1,71 @@
+// Base of the sub-device simulators: a canopen::Node (the real protocol core) with the device's
+// object dictionary, plus the faults a bench test needs: go silent (cable pulled), stop the
+// heartbeat only, reboot. Each family's simulator (sim/<family>_sim.hpp) builds the dictionary
+// and PDO layout its document describes and adds its own controls (move an axis, press a button,
+// inject an error code).
+#pragma once
+
+#include <memory>
+#include <optional>
+#include <string_view>
+
+#include "canopen/301/object_dictionary.hpp"
+#include "canopen/node.hpp"
+
+namespace oegw::subdevices::sim {
+
+using canopen::CanFrame;
+using canopen::FrameSink;
+using canopen::NodeId;
+using canopen::TimePoint;
+
+class SimulatedDevice {
+ public:
+  virtual ~SimulatedDevice() = default;
+  SimulatedDevice(const SimulatedDevice&) = delete;
+  SimulatedDevice& operator=(const SimulatedDevice&) = delete;
+
+  [[nodiscard]] virtual std::string_view family() const = 0;
+
+  [[nodiscard]] canopen::Node& node() { return *node_; }
+  [[nodiscard]] canopen::ObjectDictionary& od() { return *od_; }
+
+  // Power on: boot-up message, pre-operational.
+  virtual void start(TimePoint now);
+  // Power cycle: volatile state back to power-on values (the dictionary's defaults plus what
+  // the device stored), boot-up again.
+  virtual void reboot(TimePoint now);
+  // Cable pulled (true) / plugged back (false): nothing is sent or received meanwhile.
+  void set_silent(bool silent) { silent_ = silent; }
+  [[nodiscard]] bool silent() const { return silent_; }
+  // The heartbeat stops while everything else goes on (a firmware fault).
+  void set_heartbeat_stopped(bool stopped) { heartbeat_stopped_ = stopped; }
+
+  // Sans-I/O entry points, as canopen::Node's.
+  bool on_frame(const CanFrame& frame, TimePoint now);
+  void advance(TimePoint now);
+  [[nodiscard]] std::optional<TimePoint> next_deadline() const;
+
+ protected:
+  // `sink` is where the device's frames go (a bus port); the Node built by the subclass must
+  // send through out(), which applies the faults.
+  explicit SimulatedDevice(FrameSink sink) : sink_(std::move(sink)) {}
+  [[nodiscard]] FrameSink out() {
+    return [this](const CanFrame& f) { send(f); };
+  }
+  // Subclasses call this from their constructor, after building `od` (PDOs installed).
+  void build(std::unique_ptr<canopen::ObjectDictionary> od, const canopen::NodeConfig& config);
+  // The device's own reaction to a power cycle (e.g. elobau's zero-position rule).
+  virtual void on_power_cycle(TimePoint /*now*/) {}
+
+ private:
+  void send(const CanFrame& frame);
+
+  FrameSink sink_;
+  bool silent_ = false;
+  bool heartbeat_stopped_ = false;
+  std::unique_ptr<canopen::ObjectDictionary> od_;
+  std::unique_ptr<canopen::Node> node_;
+};
+
+}  // namespace oegw::subdevices::sim
