@@ -71,6 +71,14 @@ class Driver {
   // manager appends the configuration file's own writes after these).
   [[nodiscard]] virtual ExpectedIdentity expected_identity() const { return {}; }
   [[nodiscard]] virtual std::vector<SdoWrite> configuration() const { return {}; }
+  // Objects the driver must read from the node at boot, before configuration() is written
+  // (e.g. a generic node's actual PDO mapping). Each answer goes to on_boot_read(); returning
+  // false there refuses the node (the network manager reports it and does not start it).
+  [[nodiscard]] virtual std::vector<std::pair<std::uint16_t, std::uint8_t>> boot_reads() const { return {}; }
+  virtual bool on_boot_read(std::uint16_t /*index*/, std::uint8_t /*sub*/, std::span<const std::uint8_t> /*data*/,
+                            std::string& /*error*/) {
+    return true;
+  }
 
   // Runtime. on_frame() gets every frame whose COB-ID belongs to this node's PDOs (the network
   // manager routes by COB-ID); it returns false for a frame it does not use (counted).

@@ -13,6 +13,7 @@
 
 namespace oegw::subdevices {
 
+using canopen::Duration;
 using canopen::TimePoint;
 
 // DESIGN.md "Behaviour users rely on": every input carries one of these.

@@ -47,9 +47,18 @@ flock 9 || die "cannot lock $cache/.lock"
 
 # --- resolve the kernel package -------------------------------------------
 pkg=${OEGW_VM_KERNEL_PKG:-}
+resolve_kernel_pkg() {
+  apt-cache depends linux-image-amd64 2>/dev/null |
+    sed -n 's/^ *Depends: *\(linux-image-[0-9][^ ]*-amd64\) *$/\1/p' | head -n1
+}
 if [[ -z $pkg ]]; then
-  pkg=$(apt-cache depends linux-image-amd64 2>/dev/null |
-        sed -n 's/^ *Depends: *\(linux-image-[0-9][^ ]*-amd64\) *$/\1/p' | head -n1) || true
+  pkg=$(resolve_kernel_pkg) || true
+  # A fresh machine may have no apt lists yet: as root, fetch them once and ask again.
+  if [[ -z $pkg && $(id -u) -eq 0 && ! -e $cache/current/ok ]]; then
+    note "apt-cache knows no linux-image-amd64: running apt-get update"
+    apt-get update -qq || true
+    pkg=$(resolve_kernel_pkg) || true
+  fi
 fi
 if [[ -z $pkg ]]; then
   if [[ -e $cache/current/ok ]]; then

@@ -1,0 +1,283 @@
+#include "subdevices/network_manager.hpp"
+
+#include <algorithm>
+#include <cstdio>
+
+namespace oegw::subdevices {
+
+using canopen::SdoAbortCode;
+
+std::string_view to_string(NodeState s) {
+  switch (s) {
+    case NodeState::Idle: return "idle";
+    case NodeState::WaitingBootUp: return "waiting for boot-up";
+    case NodeState::Configuring: return "configuring";
+    case NodeState::Operational: return "operational";
+    case NodeState::Missing: return "missing";
+    case NodeState::Refused: return "refused";
+  }
+  return "unknown";
+}
+
+namespace {
+
+std::string hex32(std::uint32_t v) {
+  char b[16];
+  std::snprintf(b, sizeof b, "%08Xh", v);
+  return b;
+}
+
+std::string obj(std::uint16_t index, std::uint8_t sub) {
+  char b[16];
+  std::snprintf(b, sizeof b, "%04Xh:%02X", index, sub);
+  return b;
+}
+
+// A check of a UNSIGNED32 answer against an expected value (CiA 302-2 identity check).
+std::function<std::string(const std::vector<std::uint8_t>&)> expect_u32(std::uint16_t index, std::uint8_t sub,
+                                                                         std::optional<std::uint32_t> want) {
+  return [index, sub, want](const std::vector<std::uint8_t>& d) -> std::string {
+    if (d.size() != 4) return obj(index, sub) + " answered " + std::to_string(d.size()) + " bytes, expected 4";
+    if (!want) return {};
+    const std::uint32_t got = canopen::get_u32(d.data());
+    if (got != *want) return obj(index, sub) + " is " + hex32(got) + ", the configuration expects " + hex32(*want);
+    return {};
+  };
+}
+
+std::optional<std::uint32_t> pick(std::optional<std::uint32_t> configured, std::optional<std::uint32_t> driver) {
+  return configured ? configured : driver;
+}
+
+}  // namespace
+
+NetworkManager::NetworkManager(canopen::Master& master, Timing timing) : master_(master), timing_(timing) {
+  master_.on_boot = [this](NodeId n) {
+    Managed* m = find(n);
+    if (m == nullptr || m->state == NodeState::Idle) return;  // start() has not run yet
+    if (m->started_once) ++counters_.reboots_seen;
+    if (m->state == NodeState::Operational) m->driver->on_offline(now_);
+    configure(*m, now_);  // it just booted: its dictionary is at power-on values
+  };
+  master_.on_heartbeat_timeout = [this](NodeId n) {
+    Managed* m = find(n);
+    if (m != nullptr && m->state == NodeState::Operational) lost(*m, "heartbeat lost", now_);
+  };
+  master_.on_state = [this](NodeId n, canopen::NmtState s) {
+    Managed* m = find(n);
+    if (m == nullptr || m->state != NodeState::Operational) return;
+    if (s != canopen::NmtState::Operational && s != canopen::NmtState::Initialisation)
+      lost(*m, "the node left operational (now " + std::string(canopen::to_string(s)) + ")", now_);
+  };
+  master_.on_emcy = [this](const EmcyMessage& e, TimePoint t) {
+    Managed* m = find(e.node);
+    if (m == nullptr) {
+      ++counters_.unknown_emcy;
+      return;
+    }
+    const DecodedEmcy d = m->driver->on_emcy(e, t);
+    if (on_emcy) on_emcy(m->settings.name, e, d);
+  };
+}
+
+bool NetworkManager::add(NodeSettings settings, std::unique_ptr<Driver> driver) {
+  if (!driver || driver->node() != settings.node) return false;
+  for (const auto& m : nodes_)
+    if (m->settings.node == settings.node || m->settings.name == settings.name) return false;
+  auto m = std::make_unique<Managed>();
+  m->settings = std::move(settings);
+  m->driver = std::move(driver);
+  for (const std::uint32_t cob : m->driver->consumed_cob_ids()) by_cob_[cob] = m.get();
+  nodes_.push_back(std::move(m));
+  return true;
+}
+
+void NetworkManager::start(TimePoint now) {
+  now_ = now;
+  for (auto& m : nodes_) begin_boot(*m, now);
+}
+
+NetworkManager::Managed* NetworkManager::find(NodeId node) {
+  for (auto& m : nodes_)
+    if (m->settings.node == node) return m.get();
+  return nullptr;
+}
+
+const NetworkManager::Managed* NetworkManager::find(std::string_view name) const {
+  for (const auto& m : nodes_)
+    if (m->settings.name == name) return m.get();
+  return nullptr;
+}
+
+NodeState NetworkManager::state(std::string_view name) const {
+  const Managed* m = find(name);
+  return m ? m->state : NodeState::Idle;
+}
+
+Driver* NetworkManager::driver(std::string_view name) {
+  const Managed* m = find(name);
+  return m ? m->driver.get() : nullptr;
+}
+
+std::vector<std::string> NetworkManager::names() const {
+  std::vector<std::string> out;
+  for (const auto& m : nodes_) out.push_back(m->settings.name);
+  return out;
+}
+
+bool NetworkManager::fault() const {
+  return std::any_of(nodes_.begin(), nodes_.end(),
+                     [](const auto& m) { return m->settings.mandatory && m->state != NodeState::Operational; });
+}
+
+void NetworkManager::set_state(Managed& m, NodeState s, const std::string& why, TimePoint /*now*/) {
+  m.state = s;
+  if (on_node_state) on_node_state(m.settings.name, s, why);
+}
+
+std::uint16_t NetworkManager::consumer_ms(const Managed& m) const {
+  if (m.settings.heartbeat_timeout_ms != 0) return m.settings.heartbeat_timeout_ms;
+  return static_cast<std::uint16_t>(std::min<unsigned>(0xFFFF, m.settings.heartbeat_ms * 3u / 2u));
+}
+
+void NetworkManager::begin_boot(Managed& m, TimePoint now) {
+  ++m.generation;
+  master_.sdo(m.settings.node).cancel_all(SdoAbortCode::GeneralError);
+  master_.nmt().reset_communication(m.settings.node);
+  m.deadline = now + timing_.boot_wait;
+  set_state(m, NodeState::WaitingBootUp, "NMT reset communication sent", now);
+}
+
+void NetworkManager::configure(Managed& m, TimePoint now) {
+  ++m.generation;
+  m.deadline.reset();
+  master_.sdo(m.settings.node).cancel_all(SdoAbortCode::GeneralError);
+  const ExpectedIdentity drv = m.driver->expected_identity();
+  const ExpectedIdentity& cfg = m.settings.identity;
+  m.steps.clear();
+  m.next_step = 0;
+  // CiA 302-2 boot-up: device type and identity first.
+  m.steps.push_back({true, 0x1000, 0, {}, "device type", expect_u32(0x1000, 0, pick(cfg.device_type, drv.device_type))});
+  const std::optional<std::uint32_t> ident[4] = {pick(cfg.vendor_id, drv.vendor_id), pick(cfg.product_code, drv.product_code),
+                                                 pick(cfg.revision, drv.revision), pick(cfg.serial, drv.serial)};
+  static const char* const names[4] = {"vendor-ID", "product code", "revision number", "serial number"};
+  for (std::uint8_t sub = 1; sub <= 4; ++sub)
+    if (ident[sub - 1]) m.steps.push_back({true, 0x1018, sub, {}, names[sub - 1], expect_u32(0x1018, sub, ident[sub - 1])});
+  for (const auto& [index, sub] : m.driver->boot_reads()) {
+    Driver* d = m.driver.get();
+    const std::uint16_t i = index;
+    const std::uint8_t s = sub;
+    m.steps.push_back({true, index, sub, {}, "driver read", [d, i, s](const std::vector<std::uint8_t>& data) {
+                         std::string error;
+                         if (!d->on_boot_read(i, s, data, error)) return obj(i, s) + ": " + error;
+                         return std::string{};
+                       }});
+  }
+  if (m.settings.heartbeat_ms != 0)
+    m.steps.push_back({false, 0x1017, 0, canopen::encode<std::uint16_t>(m.settings.heartbeat_ms), "producer heartbeat", {}});
+  for (const SdoWrite& w : m.driver->configuration()) m.steps.push_back({false, w.index, w.sub, w.data, w.what, {}});
+  for (const SdoWrite& w : m.settings.sdo) m.steps.push_back({false, w.index, w.sub, w.data, w.what, {}});
+  set_state(m, NodeState::Configuring, "boot-up seen: checking identity and configuring", now);
+  run_step(m);
+}
+
+void NetworkManager::run_step(Managed& m) {
+  if (m.next_step >= m.steps.size()) {
+    finish(m, now_);
+    return;
+  }
+  const Step& step = m.steps[m.next_step];
+  const std::uint64_t gen = m.generation;
+  Managed* mp = &m;
+  auto done = [this, mp, gen](SdoAbortCode code, std::vector<std::uint8_t> data) {
+    if (mp->generation != gen || mp->state != NodeState::Configuring) return;  // overtaken
+    const Step& st = mp->steps[mp->next_step];
+    const std::string where = std::string(st.read ? "reading " : "writing ") + obj(st.index, st.sub) +
+                              (st.what.empty() ? "" : " (" + st.what + ")");
+    if (code == SdoAbortCode::Timeout) {
+      fail(*mp, NodeState::Missing, where + ": no answer (SDO timeout)", now_);
+      return;
+    }
+    if (code != SdoAbortCode::None) {
+      fail(*mp, NodeState::Refused, where + ": abort " + hex32(static_cast<std::uint32_t>(code)) + " " +
+                                        std::string(canopen::to_string(code)), now_);
+      return;
+    }
+    if (st.check) {
+      const std::string error = st.check(data);
+      if (!error.empty()) {
+        fail(*mp, NodeState::Refused, error, now_);
+        return;
+      }
+    }
+    ++mp->next_step;
+    run_step(*mp);
+  };
+  if (step.read) {
+    master_.sdo(m.settings.node).upload(step.index, step.sub, done);
+  } else {
+    master_.sdo(m.settings.node).download(step.index, step.sub, step.data, done);
+  }
+}
+
+void NetworkManager::finish(Managed& m, TimePoint now) {
+  if (m.settings.heartbeat_ms != 0) (void)master_.monitor_heartbeat(m.settings.node, consumer_ms(m));
+  master_.nmt().start(m.settings.node);
+  m.backoff = Duration{0};
+  m.started_once = true;
+  m.driver->on_online(now);
+  set_state(m, NodeState::Operational, "configured and started", now);
+}
+
+void NetworkManager::fail(Managed& m, NodeState s, const std::string& why, TimePoint now) {
+  ++m.generation;
+  m.driver->on_offline(now);
+  m.backoff = m.backoff == Duration{0} ? timing_.retry_first : std::min(m.backoff * 2, timing_.retry_max);
+  m.deadline = now + m.backoff;
+  set_state(m, s, why, now);
+}
+
+void NetworkManager::lost(Managed& m, const std::string& why, TimePoint now) { fail(m, NodeState::Missing, why, now); }
+
+bool NetworkManager::on_frame(const CanFrame& frame, TimePoint now) {
+  now_ = now;
+  if (master_.on_frame(frame, now)) return true;
+  if (frame.extended || frame.rtr) return false;
+  if (auto it = by_cob_.find(frame.id); it != by_cob_.end()) {
+    Managed& m = *it->second;
+    // PDOs count only from a node we configured and started (CiA 301: none outside
+    // operational); anything else is ignored, never passed through.
+    if (m.state == NodeState::Operational) return m.driver->on_frame(frame, now);
+    return false;
+  }
+  if (frame.id >= canopen::cob::kTpdo1 && frame.id < canopen::cob::kSdoTx) ++counters_.unknown_pdo;
+  return false;
+}
+
+void NetworkManager::advance(TimePoint now) {
+  now_ = now;
+  master_.advance(now);
+  for (auto& mp : nodes_) {
+    Managed& m = *mp;
+    if (!m.deadline || *m.deadline > now) continue;
+    m.deadline.reset();
+    switch (m.state) {
+      case NodeState::WaitingBootUp:
+        // No boot-up: the node may not have reset (or be absent). Asking its identity tells.
+        configure(m, now);
+        break;
+      case NodeState::Missing:
+      case NodeState::Refused: begin_boot(m, now); break;
+      default: break;
+    }
+  }
+}
+
+std::optional<TimePoint> NetworkManager::next_deadline() const {
+  std::optional<TimePoint> best = master_.next_deadline();
+  for (const auto& m : nodes_)
+    if (m->deadline && (!best || *m->deadline < *best)) best = m->deadline;
+  return best;
+}
+
+}  // namespace oegw::subdevices

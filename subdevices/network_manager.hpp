@@ -1,0 +1,135 @@
+// The downstream network manager: the gateway as NMT master of the cab's sub-devices (CiA 302
+// concepts, bus.yml vocabulary). For each configured node it
+//   1. resets communication and waits for the boot-up (or finds the node already there),
+//   2. reads 1000h and 1018h and checks them against the configuration,
+//   3. runs the driver's boot reads (e.g. a generic node's actual PDO mapping),
+//   4. writes the producer heartbeat (1017h), the driver's configuration and the configured
+//      `sdo` list, in that order,
+//   5. starts heartbeat monitoring and sends NMT start; the driver is told the node is online.
+// Then it watches: a heartbeat timeout or a node leaving operational marks its inputs offline
+// and starts the boot again; a boot-up seen at any time (the device rebooted) reconfigures and
+// restarts it; a missing node is retried with back-off (1 s doubling to 30 s). A node marked
+// mandatory keeps fault() true until it is operational. Sans I/O: frames and time in.
+#pragma once
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "canopen/master.hpp"
+#include "subdevices/driver.hpp"
+
+namespace oegw::subdevices {
+
+struct NodeSettings {
+  std::string name;                        // "right_grip"
+  NodeId node{};
+  std::uint16_t heartbeat_ms = 100;        // written to the node's 1017h (0: not written, not watched)
+  std::uint16_t heartbeat_timeout_ms = 0;  // consumer time; 0 = 1.5 × heartbeat_ms (CiA 302 practice)
+  bool mandatory = false;
+  ExpectedIdentity identity;               // checked besides the driver's own expectations
+  std::vector<SdoWrite> sdo;               // written after the driver's configuration
+};
+
+enum class NodeState : std::uint8_t {
+  Idle,           // not started yet
+  WaitingBootUp,  // reset communication sent, waiting for the boot-up
+  Configuring,    // identity check, boot reads, configuration writes
+  Operational,    // started, inputs flowing
+  Missing,        // no answer / heartbeat lost: retried with back-off
+  Refused,        // wrong identity or a configuration the node refused: retried with back-off
+};
+[[nodiscard]] std::string_view to_string(NodeState s);
+
+struct NetworkCounters {
+  std::uint64_t unknown_pdo = 0;     // a PDO-range frame no configured node's driver consumes
+  std::uint64_t unknown_emcy = 0;    // an EMCY from a node not in the configuration
+  std::uint64_t reboots_seen = 0;    // boot-ups of configured nodes after their first start
+};
+
+struct NetworkTiming {
+  Duration boot_wait = std::chrono::seconds(2);    // boot-up wait after reset communication
+  Duration retry_first = std::chrono::seconds(1);  // back-off starts here ...
+  Duration retry_max = std::chrono::seconds(30);   // ... doubles up to here
+};
+
+class NetworkManager {
+ public:
+  using Timing = NetworkTiming;
+
+  // `master` is the downstream CANopen master (its NMT, SDO clients, heartbeat and EMCY
+  // consumers); the network manager installs itself on its callbacks.
+  explicit NetworkManager(canopen::Master& master, Timing timing = {});
+  NetworkManager(const NetworkManager&) = delete;
+  NetworkManager& operator=(const NetworkManager&) = delete;
+
+  // Adds a node; the driver must be for settings.node. Returns false (adding nothing) for a
+  // node-ID or name already present.
+  bool add(NodeSettings settings, std::unique_ptr<Driver> driver);
+
+  // Boots every node.
+  void start(TimePoint now);
+
+  // Frames: give every downstream frame here (it feeds the master first, then routes PDOs).
+  bool on_frame(const CanFrame& frame, TimePoint now);
+  void advance(TimePoint now);
+  [[nodiscard]] std::optional<TimePoint> next_deadline() const;
+
+  [[nodiscard]] NodeState state(std::string_view name) const;
+  [[nodiscard]] Driver* driver(std::string_view name);
+  [[nodiscard]] std::vector<std::string> names() const;
+  // True while any mandatory node is not operational.
+  [[nodiscard]] bool fault() const;
+  [[nodiscard]] const NetworkCounters& counters() const { return counters_; }
+
+  // Every state change of a node, with a human-readable reason ("1018h:01 is 00000001h, the
+  // configuration expects 0000015Ah").
+  std::function<void(const std::string& name, NodeState state, const std::string& why)> on_node_state;
+  // EMCYs of configured nodes, decoded by their driver.
+  std::function<void(const std::string& name, const EmcyMessage&, const DecodedEmcy&)> on_emcy;
+
+ private:
+  struct Step {
+    bool read = true;
+    std::uint16_t index = 0;
+    std::uint8_t sub = 0;
+    std::vector<std::uint8_t> data;
+    std::string what;
+    // For reads: checks the answer; returns an error text, or empty when fine.
+    std::function<std::string(const std::vector<std::uint8_t>&)> check;
+  };
+  struct Managed {
+    NodeSettings settings;
+    std::unique_ptr<Driver> driver;
+    NodeState state = NodeState::Idle;
+    std::uint64_t generation = 0;  // bumps on every (re)boot: stale SDO callbacks are ignored
+    std::optional<TimePoint> deadline;  // boot-up wait end, or the next retry
+    Duration backoff{0};
+    bool started_once = false;
+    std::vector<Step> steps;
+    std::size_t next_step = 0;
+  };
+
+  Managed* find(NodeId node);
+  const Managed* find(std::string_view name) const;
+  void set_state(Managed& m, NodeState s, const std::string& why, TimePoint now);
+  void begin_boot(Managed& m, TimePoint now);   // reset communication, wait for boot-up
+  void configure(Managed& m, TimePoint now);    // identity, boot reads, writes, start
+  void run_step(Managed& m);
+  void finish(Managed& m, TimePoint now);
+  void fail(Managed& m, NodeState s, const std::string& why, TimePoint now);
+  void lost(Managed& m, const std::string& why, TimePoint now);
+  [[nodiscard]] std::uint16_t consumer_ms(const Managed& m) const;
+
+  canopen::Master& master_;
+  Timing timing_;
+  std::vector<std::unique_ptr<Managed>> nodes_;
+  std::map<std::uint32_t, Managed*> by_cob_;  // consumed TPDO COB-ID -> node
+  NetworkCounters counters_;
+  TimePoint now_{};
+};
+
+}  // namespace oegw::subdevices

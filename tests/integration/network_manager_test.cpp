@@ -1,0 +1,254 @@
+// The downstream network manager against real protocol-core nodes on the virtual bus, with a
+// simulated clock: boot sequence frame by frame, identity check, missing node back-off,
+// heartbeat loss, reboot mid-operation, SDO timeout during configuration, mandatory nodes,
+// PDO routing and bad input.
+#include "subdevices/network_manager.hpp"
+
+#include <gtest/gtest.h>
+
+#include "canopen/node.hpp"
+#include "virtual_network.hpp"
+
+using namespace oegw::canopen;
+using namespace oegw::subdevices;
+using namespace std::chrono_literals;
+
+namespace {
+
+constexpr NodeId kNode{0x11};
+
+// A minimal driver: one input byte from TPDO1 (6000h:01).
+class ByteDriver final : public Driver {
+ public:
+  ByteDriver(NodeId node, FrameSink sink) {
+    signals_ = {SignalInfo{"in", SignalKind::Digital, 0, 255, 0, "bits"}};
+    init(node, std::move(sink), signals_.size());
+  }
+  std::string_view family() const override { return "test-byte"; }
+  const std::vector<SignalInfo>& signals() const override { return signals_; }
+  ExpectedIdentity expected_identity() const override { return {.device_type = 0x000F0191}; }
+  std::vector<SdoWrite> configuration() const override {
+    return {SdoWrite{0x1800, 5, encode<std::uint16_t>(50), "TPDO1 event timer 50 ms"}};
+  }
+  bool on_frame(const CanFrame& f, TimePoint now) override {
+    if (f.id != cob::kTpdo1 + node().value()) return false;
+    if (f.dlc != 1) {
+      ++counters_.wrong_length;
+      return false;
+    }
+    update(0, f.data[0], SignalStatus::Valid, now);
+    return true;
+  }
+  DecodedEmcy on_emcy(const EmcyMessage& e, TimePoint now) override {
+    emcys.push_back(e.code);
+    if (e.code != 0) update(0, 0, SignalStatus::Error, now);
+    return {e.code, "test", e.code != 0, {}};
+  }
+  std::vector<std::uint32_t> consumed_cob_ids() const override { return {cob::kTpdo1 + node().value()}; }
+  bool set_output(std::size_t, std::int64_t, TimePoint) override { return false; }
+  std::vector<std::uint16_t> emcys;
+
+ private:
+  std::vector<SignalInfo> signals_;
+};
+
+class Device {
+ public:
+  Device(oegw::testing::VirtualNetwork& net, std::uint32_t vendor = 0x15A) {
+    od.add_array(0x6000, "Read input 8-bit", DataType::Unsigned8, Access::ReadOnly, 1, {0}, true);
+    install_tpdo(od, 1, PdoParameters{.cob_id = cob::kTpdo1 + kNode.value(), .transmission_type = 0xFF,
+                                      .mapping = {pdo_map(0x6000, 1, 8)}});
+    NodeConfig cfg;
+    cfg.node_id = kNode;
+    cfg.device_type = 0x000F0191;
+    cfg.identity = {.vendor = vendor, .product = 1, .revision = 1, .serial = 7};
+    node = std::make_unique<Node>(od, cfg, net.sink("device"));
+    net.attach("device", *node);
+  }
+  ObjectDictionary od;
+  std::unique_ptr<Node> node;
+};
+
+class NetworkManagerTest : public ::testing::Test {
+ protected:
+  NetworkManagerTest() {
+    master_ = std::make_unique<Master>(master_od_, net_.sink("gateway"), MasterConfig{.heartbeat_entries = 8,
+                                                                                     .sdo_timeout = 100ms});
+    manager_ = std::make_unique<NetworkManager>(*master_);
+    net_.attach("gateway", *manager_);
+    manager_->on_node_state = [this](const std::string&, NodeState s, const std::string& why) {
+      states_.push_back(s);
+      reasons_.push_back(why);
+    };
+    auto drv = std::make_unique<ByteDriver>(kNode, net_.sink("gateway"));
+    driver_ = drv.get();
+    NodeSettings settings{.name = "grip", .node = kNode, .heartbeat_ms = 100, .heartbeat_timeout_ms = 0,
+                          .mandatory = true, .identity = {.vendor_id = 0x15A}, .sdo = {}};
+    settings.sdo.push_back(SdoWrite{0x1800, 2, {0xFE}, "TPDO1 type 254"});
+    EXPECT_TRUE(manager_->add(settings, std::move(drv)));
+    net_.bus().set_logging(true);
+  }
+  void start() {
+    manager_->start(net_.now());
+    net_.settle();
+  }
+  std::vector<std::string> frames() {
+    std::vector<std::string> out;
+    for (const auto& r : net_.bus().log()) out.push_back(r.sender + " " + r.frame.to_string());
+    return out;
+  }
+
+  oegw::testing::VirtualNetwork net_;
+  ObjectDictionary master_od_;
+  std::unique_ptr<Master> master_;
+  std::unique_ptr<NetworkManager> manager_;
+  ByteDriver* driver_ = nullptr;
+  std::vector<NodeState> states_;
+  std::vector<std::string> reasons_;
+};
+
+TEST_F(NetworkManagerTest, BootsTheNodeFrameByFrame) {
+  Device dev(net_);
+  (void)dev.node->start(net_.now());
+  net_.settle();
+  net_.bus().clear_log();
+  EXPECT_TRUE(manager_->fault()) << "mandatory and not yet operational";
+  start();
+  net_.run_for(50ms);
+  EXPECT_EQ(manager_->state("grip"), NodeState::Operational);
+  EXPECT_FALSE(manager_->fault());
+  EXPECT_EQ(dev.node->state(), NmtState::Operational);
+  const std::vector<std::string> want = {
+      "gateway 000#8211",                   // NMT reset communication
+      "device 711#00",                      // boot-up
+      "gateway 611#4000100000000000",       // read 1000h
+      "device 591#4300100091010F00",        //   000F0191h
+      "gateway 611#4018100100000000",       // read 1018h:01
+      "device 591#431810015A010000",        //   0000015Ah
+      "gateway 611#2B17100064000000",       // 1017h = 100 ms
+      "device 591#6017100000000000",
+      "gateway 611#2B00180532000000",       // driver: 1800h:05 = 50 ms
+      "device 591#6000180500000000",
+      "gateway 611#2F001802FE000000",       // configuration file: 1800h:02 = FEh
+      "device 591#6000180200000000",
+      "gateway 000#0111",                   // NMT start
+  };
+  const auto got = frames();
+  ASSERT_GE(got.size(), want.size());
+  for (std::size_t i = 0; i < want.size(); ++i) EXPECT_EQ(got[i], want[i]) << "frame " << i;
+  (void)dev.od.set<std::uint8_t>(0x6000, 1, 0x42);
+  net_.run_for(10ms);
+  EXPECT_EQ(driver_->value(0).value, 0x42);
+  EXPECT_EQ(driver_->value(0).status, SignalStatus::Valid);
+}
+
+TEST_F(NetworkManagerTest, WrongIdentityIsRefusedWithTheReasonAndNotStarted) {
+  Device dev(net_, 0x999);
+  (void)dev.node->start(net_.now());
+  start();
+  net_.run_for(50ms);
+  EXPECT_EQ(manager_->state("grip"), NodeState::Refused);
+  EXPECT_EQ(reasons_.back(), "1018h:01 is 00000999h, the configuration expects 0000015Ah");
+  EXPECT_EQ(dev.node->state(), NmtState::PreOperational) << "a wrong device is never started";
+  EXPECT_TRUE(manager_->fault());
+  // Retried after the back-off: NMT reset communication again at +1 s.
+  net_.bus().clear_log();
+  net_.run_for(1s);
+  ASSERT_FALSE(frames().empty());
+  EXPECT_EQ(frames()[0], "gateway 000#8211");
+}
+
+TEST_F(NetworkManagerTest, MissingNodeIsRetriedWithDoublingBackOff) {
+  std::vector<TimePoint> resets;
+  net_.bus().set_tap([&](const BusRecord& r) {
+    if (r.frame == CanFrame(0x000, {0x82, 0x11})) resets.push_back(r.time);
+  });
+  start();
+  net_.run_for(30s);
+  EXPECT_EQ(manager_->state("grip"), NodeState::Missing);
+  EXPECT_EQ(driver_->value(0).status, SignalStatus::Offline);
+  // Boot wait 2 s, SDO timeout 100 ms, then back-off 1, 2, 4, 8 s between attempts.
+  ASSERT_GE(resets.size(), 4u);
+  std::vector<Duration> gaps;
+  for (std::size_t i = 1; i < resets.size(); ++i) gaps.push_back(std::chrono::duration_cast<Duration>(resets[i] - resets[i - 1]));
+  EXPECT_EQ(gaps[0], 2s + 100ms + 1s);
+  EXPECT_EQ(gaps[1], 2s + 100ms + 2s);
+  EXPECT_EQ(gaps[2], 2s + 100ms + 4s);
+  // The node appears: the next attempt brings it up.
+  Device dev(net_);
+  (void)dev.node->start(net_.now());
+  net_.run_for(20s);
+  EXPECT_EQ(manager_->state("grip"), NodeState::Operational);
+}
+
+TEST_F(NetworkManagerTest, HeartbeatLossMarksInputsOfflineAndTheReturningNodeIsRestarted) {
+  Device dev(net_);
+  (void)dev.node->start(net_.now());
+  start();
+  net_.run_for(100ms);
+  (void)dev.od.set<std::uint8_t>(0x6000, 1, 7);
+  net_.run_for(10ms);
+  ASSERT_EQ(driver_->value(0).status, SignalStatus::Valid);
+  net_.detach("device");  // cable pulled: nothing more from the device
+  net_.run_for(200ms);
+  EXPECT_EQ(manager_->state("grip"), NodeState::Missing);
+  EXPECT_EQ(reasons_.back(), "heartbeat lost");
+  EXPECT_EQ(driver_->value(0).status, SignalStatus::Offline);
+  EXPECT_EQ(driver_->value(0).value, 0) << "offline inputs go to their neutral value";
+  net_.attach("device", *dev.node);
+  net_.run_for(5s);
+  EXPECT_EQ(manager_->state("grip"), NodeState::Operational);
+  EXPECT_EQ(dev.node->state(), NmtState::Operational);
+}
+
+TEST_F(NetworkManagerTest, RebootMidOperationIsReconfiguredAndRestarted) {
+  Device dev(net_);
+  (void)dev.node->start(net_.now());
+  start();
+  net_.run_for(100ms);
+  ASSERT_EQ(dev.node->state(), NmtState::Operational);
+  dev.node->nmt().reset(false, net_.now());  // the device reboots on its own
+  net_.run_for(100ms);
+  EXPECT_EQ(manager_->counters().reboots_seen, 1u);
+  EXPECT_EQ(manager_->state("grip"), NodeState::Operational);
+  EXPECT_EQ(dev.node->state(), NmtState::Operational);
+  EXPECT_EQ(dev.od.get<std::uint16_t>(0x1017, 0), 100) << "reconfigured after the reboot";
+}
+
+TEST_F(NetworkManagerTest, SdoTimeoutDuringConfigurationLeavesTheNodeStoppedAndRetries) {
+  Device dev(net_);
+  (void)dev.node->start(net_.now());
+  net_.bus().drop_next(1, [](const CanFrame& f) { return f.id == 0x591 && f.data[1] == 0x17; });
+  start();
+  net_.run_for(150ms);
+  EXPECT_EQ(manager_->state("grip"), NodeState::Missing);
+  EXPECT_NE(reasons_.back().find("writing 1017h:00 (producer heartbeat): no answer (SDO timeout)"), std::string::npos)
+      << reasons_.back();
+  EXPECT_EQ(dev.node->state(), NmtState::PreOperational);
+  net_.run_for(2s);
+  EXPECT_EQ(manager_->state("grip"), NodeState::Operational);
+}
+
+TEST_F(NetworkManagerTest, BadInputIsCountedAndNeverPassedThrough) {
+  Device dev(net_);
+  (void)dev.node->start(net_.now());
+  start();
+  net_.run_for(100ms);
+  (void)dev.od.set<std::uint8_t>(0x6000, 1, 9);
+  net_.run_for(10ms);
+  net_.bus().inject(CanFrame(0x191, {0x01, 0x02}), "intruder");  // wrong length for this PDO
+  net_.bus().inject(CanFrame(0x1A5, {0x01}), "intruder");        // a node not configured
+  net_.bus().inject(CanFrame(0x0A5, {0x00, 0x10, 0x01, 0, 0, 0, 0, 0}), "intruder");  // its EMCY
+  net_.run_for(10ms);
+  EXPECT_EQ(driver_->value(0).value, 9);
+  EXPECT_EQ(driver_->counters().wrong_length, 1u);
+  EXPECT_EQ(manager_->counters().unknown_pdo, 1u);
+  EXPECT_EQ(manager_->counters().unknown_emcy, 1u);
+  // An EMCY from the configured node reaches its driver.
+  dev.node->emcy().raise(0x1000, 0, net_.now());
+  net_.run_for(10ms);
+  ASSERT_EQ(driver_->emcys.size(), 1u);
+  EXPECT_EQ(driver_->value(0).status, SignalStatus::Error);
+}
+
+}  // namespace
