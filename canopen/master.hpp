@@ -31,6 +31,8 @@ class Master {
   Master& operator=(const Master&) = delete;
 
   [[nodiscard]] NmtMaster& nmt() { return nmt_; }
+  // The master's way out onto the bus, for services layered on it (LSS master).
+  [[nodiscard]] const FrameSink& sink() const { return sink_; }
   // The SDO client toward `server` (created on first use, default COB-IDs of CiA 301 §7.3.5).
   [[nodiscard]] SdoClient& sdo(NodeId server);
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <memory>
 
 namespace oegw::subdevices {
 
@@ -51,7 +52,8 @@ std::optional<std::uint32_t> pick(std::optional<std::uint32_t> configured, std::
 
 }  // namespace
 
-NetworkManager::NetworkManager(canopen::Master& master, Timing timing) : master_(master), timing_(timing) {
+NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
+    : master_(master), timing_(timing), lss_(master.sink()) {
   master_.on_boot = [this](NodeId n) {
     Managed* m = find(n);
     if (m == nullptr || m->state == NodeState::Idle) return;  // start() has not run yet
@@ -239,8 +241,39 @@ void NetworkManager::fail(Managed& m, NodeState s, const std::string& why, TimeP
 
 void NetworkManager::lost(Managed& m, const std::string& why, TimePoint now) { fail(m, NodeState::Missing, why, now); }
 
+void NetworkManager::commission(std::optional<canopen::lss::Address> address, NodeId new_id,
+                                std::optional<std::uint8_t> bit_timing, TimePoint now,
+                                std::function<void(bool, const std::string&)> done) {
+  using canopen::LssMaster;
+  now_ = now;
+  auto failed = std::make_shared<bool>(false);
+  auto step = [failed, done](const char* what) {
+    return [failed, done, what](const LssMaster::Result& r) {
+      if (*failed) return;
+      if (r.status == LssMaster::Status::Ok) return;
+      *failed = true;
+      std::string why = std::string("LSS ") + what + ": ";
+      if (r.status == LssMaster::Status::Timeout) why += "no answer";
+      else why += "refused with error " + std::to_string(r.error);
+      done(false, why);
+    };
+  };
+  if (address) {
+    lss_.switch_state_selective(*address, now, step("switch state selective"));
+  } else {
+    lss_.switch_state_global(canopen::lss::Mode::Configuration, now, step("switch state global"));
+  }
+  lss_.configure_node_id(new_id, now, step("configure node-ID"));
+  if (bit_timing) lss_.configure_bit_timing(*bit_timing, now, step("configure bit timing"));
+  lss_.store_configuration(now, step("store configuration"));
+  lss_.switch_state_global(canopen::lss::Mode::Waiting, now, [failed, done](const LssMaster::Result&) {
+    if (!*failed) done(true, "node-ID configured and stored; active after reset communication");
+  });
+}
+
 bool NetworkManager::on_frame(const CanFrame& frame, TimePoint now) {
   now_ = now;
+  if (lss_.on_frame(frame, now)) return true;
   if (master_.on_frame(frame, now)) return true;
   if (frame.extended || frame.rtr) return false;
   if (auto it = by_cob_.find(frame.id); it != by_cob_.end()) {
@@ -257,6 +290,7 @@ bool NetworkManager::on_frame(const CanFrame& frame, TimePoint now) {
 void NetworkManager::advance(TimePoint now) {
   now_ = now;
   master_.advance(now);
+  lss_.advance(now);
   for (auto& mp : nodes_) {
     Managed& m = *mp;
     if (!m.deadline || *m.deadline > now) continue;
@@ -275,6 +309,7 @@ void NetworkManager::advance(TimePoint now) {
 
 std::optional<TimePoint> NetworkManager::next_deadline() const {
   std::optional<TimePoint> best = master_.next_deadline();
+  if (const auto t = lss_.next_deadline(); t && (!best || *t < *best)) best = t;
   for (const auto& m : nodes_)
     if (m->deadline && (!best || *m->deadline < *best)) best = m->deadline;
   return best;

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "canopen/305/lss_master.hpp"
 #include "canopen/master.hpp"
 #include "subdevices/driver.hpp"
 
@@ -78,6 +79,14 @@ class NetworkManager {
   void advance(TimePoint now);
   [[nodiscard]] std::optional<TimePoint> next_deadline() const;
 
+  // CiA 305 commissioning of a device found at a default node-ID (e.g. an elobau grip at 11h):
+  // switch it to LSS configuration — selectively by its LSS address (1018h values) when given,
+  // else globally, so only one unconfigured device may be on the bus — configure the node-ID
+  // (and the bit timing, CiA 305 table 0 index), store, switch back to waiting. The new
+  // node-ID takes effect at the device's next reset communication. `done(ok, why)`.
+  void commission(std::optional<canopen::lss::Address> address, NodeId new_id, std::optional<std::uint8_t> bit_timing,
+                  TimePoint now, std::function<void(bool ok, const std::string& why)> done);
+
   [[nodiscard]] NodeState state(std::string_view name) const;
   [[nodiscard]] Driver* driver(std::string_view name);
   [[nodiscard]] std::vector<std::string> names() const;
@@ -126,6 +135,7 @@ class NetworkManager {
 
   canopen::Master& master_;
   Timing timing_;
+  canopen::LssMaster lss_;
   std::vector<std::unique_ptr<Managed>> nodes_;
   std::map<std::uint32_t, Managed*> by_cob_;  // consumed TPDO COB-ID -> node
   NetworkCounters counters_;

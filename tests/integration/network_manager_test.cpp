@@ -5,6 +5,9 @@
 #include "subdevices/network_manager.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
 
 #include "canopen/node.hpp"
 #include "virtual_network.hpp"
@@ -54,7 +57,7 @@ class ByteDriver final : public Driver {
 
 class Device {
  public:
-  Device(oegw::testing::VirtualNetwork& net, std::uint32_t vendor = 0x15A) {
+  Device(oegw::testing::VirtualNetwork& net, std::uint32_t vendor = 0x15A, std::filesystem::path store = {}) {
     od.add_array(0x6000, "Read input 8-bit", DataType::Unsigned8, Access::ReadOnly, 1, {0}, true);
     install_tpdo(od, 1, PdoParameters{.cob_id = cob::kTpdo1 + kNode.value(), .transmission_type = 0xFF,
                                       .mapping = {pdo_map(0x6000, 1, 8)}});
@@ -62,6 +65,7 @@ class Device {
     cfg.node_id = kNode;
     cfg.device_type = 0x000F0191;
     cfg.identity = {.vendor = vendor, .product = 1, .revision = 1, .serial = 7};
+    cfg.store_path = std::move(store);  // LSS "store configuration" needs somewhere to store
     node = std::make_unique<Node>(od, cfg, net.sink("device"));
     net.attach("device", *node);
   }
@@ -249,6 +253,39 @@ TEST_F(NetworkManagerTest, BadInputIsCountedAndNeverPassedThrough) {
   net_.run_for(10ms);
   ASSERT_EQ(driver_->emcys.size(), 1u);
   EXPECT_EQ(driver_->value(0).status, SignalStatus::Error);
+}
+
+}  // namespace
+
+namespace {
+
+TEST_F(NetworkManagerTest, CommissionsADeviceFoundAtItsDefaultNodeIdByLss) {
+  const auto store = std::filesystem::temp_directory_path() / ("oegw-nm-lss-" + std::to_string(::getpid()));
+  Device dev(net_, 0x15A, store);  // at 11h, the elobau default
+  (void)dev.node->start(net_.now());
+  net_.settle();
+  std::optional<std::pair<bool, std::string>> result;
+  manager_->commission(lss::Address{.vendor = 0x15A, .product = 1, .revision = 1, .serial = 7}, NodeId{0x12}, 2,
+                       net_.now(), [&](bool ok, const std::string& why) { result.emplace(ok, why); });
+  net_.run_for(1s);
+  ASSERT_TRUE(result.has_value());
+  EXPECT_TRUE(result->first) << result->second;
+  EXPECT_EQ(dev.node->lss().pending_node_id(), NodeId{0x12});
+  net_.bus().clear_log();
+  master_->nmt().reset_communication(kNode);
+  net_.run_for(10ms);
+  ASSERT_FALSE(frames().empty());
+  EXPECT_EQ(frames()[1], "device 712#00") << "boots with the new node-ID";
+
+  // A node-ID out of range is refused by the device, and said so.
+  result.reset();
+  manager_->commission(std::nullopt, NodeId{0x80}, std::nullopt, net_.now(),
+                       [&](bool ok, const std::string& why) { result.emplace(ok, why); });
+  net_.run_for(1s);
+  ASSERT_TRUE(result.has_value());
+  EXPECT_FALSE(result->first);
+  EXPECT_EQ(result->second, "LSS configure node-ID: refused with error 1");
+  std::filesystem::remove(store.string() + ".lss");
 }
 
 }  // namespace
