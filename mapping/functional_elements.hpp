@@ -1,0 +1,65 @@
+// The CiA 852 functional elements (FE) and where each of their fields lives in the upstream
+// object dictionary (CiA 852 clause 9, Tables 1–7). Shared by the mapping file (which names FE
+// fields) and the upstream device (which builds the dictionary). Pure data, no I/O.
+//
+// Layout decisions where clause 9 does not add up (documented in mapping/README.md):
+//  * push-button cluster n uses 6000h sub-indices 31h + 8(n−1) … 38h + 8(n−1): cluster 8 is
+//    69h–70h (Table 5 prints "61h to 70h", which would be 16 entries);
+//  * indicator cluster n uses 6200h/6206h/6207h sub-indices 01h + 8(n−1) … 08h + 8(n−1):
+//    cluster 8 is 39h–40h (Table 6 prints "31h to 40h"), one UNSIGNED8 per 8 indicators as
+//    in CiA 401 6200h;
+//  * display n parameter p (p = 1…12) uses 6411h/6443h/6444h sub-index 12(n−1) + p: display 8
+//    is 55h–60h (Table 7 prints ABh–C0h for display 8 and 18h as display 1's last entry of
+//    6443h/6444h; neither matches 12 parameters per display).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "canopen/301/object_dictionary.hpp"
+
+namespace oegw::mapping {
+
+enum class FeKind : std::uint8_t { Joystick, FootPedal, Encoder, Wheel, ButtonCluster, IndicatorCluster, Display };
+
+// "joystick", "pedal", "encoder", "wheel", "buttons", "indicators", "display" — the names used
+// in mapping files ("joystick.1", "indicators.2").
+[[nodiscard]] std::string_view to_string(FeKind k);
+[[nodiscard]] std::optional<FeKind> fe_kind_from_string(std::string_view s);
+// Highest instance number (CiA 852 §9.1): 16 joysticks/pedals, 8 of everything else.
+[[nodiscard]] std::uint8_t max_instances(FeKind k);
+// True for the FEs whose values flow from the operator to the host (inputs).
+[[nodiscard]] bool is_input(FeKind k);
+
+struct FeId {
+  FeKind kind = FeKind::Joystick;
+  std::uint8_t instance = 1;  // 1-based
+  friend bool operator==(const FeId&, const FeId&) = default;
+  friend auto operator<=>(const FeId&, const FeId&) = default;
+};
+
+// One FE field as the mapping file names it, and its place in the dictionary.
+struct FeField {
+  std::string name;                 // "x", "buttons[3]", "memory_x", "switch[17]", "indicator[5]", "parameter[2]"
+  std::uint16_t index = 0;          // 6000h, 6401h, 6120h, 6200h, 6411h
+  std::uint8_t sub = 0;
+  std::uint8_t bit = 0xFF;          // bit within the UNSIGNED8 for one-bit fields, 0xFF = whole value
+  canopen::DataType type = canopen::DataType::Unsigned8;  // of the whole OD entry
+};
+
+// Every field of one FE instance, in dictionary order:
+//  joystick n:  memory_x, memory_y, memory_z (6000h sub 2n−1, bits 0..2), buttons[1..8] (6000h
+//               sub 2n, bits 0..7), x, y, z (6401h sub 3n−2 … 3n, INTEGER16)
+//  pedal n:     memory_x (6000h sub 20h+n, bit 0), position (6401h sub 30h+n, INTEGER16)
+//  encoder n:   position (6120h sub 80h+n, INTEGER32 as CiA 401 defines 6120h; see README)
+//  wheel n:     position (6401h sub 40h+n, INTEGER16)
+//  buttons n:   switch[1..64] (6000h sub 31h+8(n−1)+⌊(i−1)/8⌋, bit (i−1) mod 8)
+//  indicators n: indicator[1..64] (6200h sub 01h+8(n−1)+⌊(i−1)/8⌋, bit (i−1) mod 8)
+//  display n:   parameter[1..12] (6411h sub 12(n−1)+p, INTEGER16)
+[[nodiscard]] std::vector<FeField> fe_fields(FeId fe);
+[[nodiscard]] std::optional<FeField> find_fe_field(FeId fe, std::string_view name);
+
+}  // namespace oegw::mapping
