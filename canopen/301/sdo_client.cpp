@@ -4,20 +4,18 @@
 #include <array>
 
 #include "canopen/301/crc16.hpp"
+#include "canopen/301/sdo_block.hpp"
 
 namespace oegw::canopen {
 
 namespace {
 
-constexpr std::size_t kSegmentData = 7;
+using sdo_block::kSegmentData;
+using sdo_block::round_up_segments;
 constexpr std::uint8_t kAbort = 0x80;
 
 bool matches(CobId cob, const CanFrame& f) {
   return cob.valid() && f.id == cob.can_id() && f.extended == cob.extended();
-}
-
-std::size_t round_up_segments(std::size_t n) {
-  return std::max<std::size_t>(kSegmentData, (n + kSegmentData - 1) / kSegmentData * kSegmentData);
 }
 
 }  // namespace
@@ -296,35 +294,20 @@ void SdoClient::on_block_upload_initiate(const std::uint8_t* d) {
   size_ = get_u32(d + 4);
   if (size_indicated_ && size_ > cfg_.max_upload_size) return abort(SdoAbortCode::OutOfMemory);
   if (size_indicated_) buffer_.reserve(round_up_segments(size_));  // segments carry 7 bytes each
-  blksize_ = cfg_.block_size;
-  expected_seq_ = 1;
-  last_segment_received_ = false;
+  rx_block_.start(cfg_.block_size);
   state_ = State::BlockUploadSubBlock;
   send({0xA3, 0, 0, 0, 0, 0, 0, 0});
 }
 
 void SdoClient::on_block_upload_segment(const std::uint8_t* d) {
-  const std::uint8_t seq = d[0] & 0x7F;
-  const bool last = (d[0] & 0x80) != 0;
-  if (seq == 0 || seq > blksize_) return abort(SdoAbortCode::InvalidSequenceNumber);
-  if (seq == expected_seq_) {
-    const std::size_t cap = round_up_segments(size_indicated_ ? size_ : cfg_.max_upload_size);
-    if (buffer_.size() + kSegmentData > cap) {
-      return abort(size_indicated_ ? SdoAbortCode::LengthMismatch : SdoAbortCode::OutOfMemory);
-    }
-    buffer_.insert(buffer_.end(), d + 1, d + 1 + kSegmentData);
-    ++expected_seq_;
-    last_segment_received_ = last;
-  }
-  if (seq == blksize_ || last) {
-    const auto ackseq = static_cast<std::uint8_t>(expected_seq_ - 1);
-    if (last_segment_received_) {
-      state_ = State::BlockUploadEnd;
-    } else {
-      expected_seq_ = 1;
-    }
-    send({0xA2, ackseq, blksize_, 0, 0, 0, 0, 0});
-  }
+  const auto r = rx_block_.segment(d, buffer_, size_indicated_ ? size_ : cfg_.max_upload_size);
+  if (r.outcome == sdo_block::SubBlockReceiver::Outcome::BadSequence)
+    return abort(SdoAbortCode::InvalidSequenceNumber);
+  if (r.outcome == sdo_block::SubBlockReceiver::Outcome::Overflow)
+    return abort(size_indicated_ ? SdoAbortCode::LengthMismatch : SdoAbortCode::OutOfMemory);
+  if (!r.ack) return;
+  if (rx_block_.finished()) state_ = State::BlockUploadEnd;
+  send(*r.ack);
 }
 
 void SdoClient::on_block_upload_end(const std::uint8_t* d) {

@@ -26,6 +26,7 @@
 #include <optional>
 #include <vector>
 
+#include "canopen/301/sdo_block.hpp"
 #include "canopen/can_frame.hpp"
 #include "canopen/types.hpp"
 
@@ -145,8 +146,7 @@ class SdoClient {
   std::uint8_t blksize_ = 0;
   std::uint8_t sent_in_block_ = 0;
   bool last_in_block_ = false;
-  std::uint8_t expected_seq_ = 1;
-  bool last_segment_received_ = false;
+  sdo_block::SubBlockReceiver rx_block_;  // receiving side of block transfers
 
   // FIFOs drained by pump(): a vector read from a head index and cleared (capacity kept) once
   // drained, so that sending a frame or finishing a transfer does not allocate.

@@ -1,5 +1,7 @@
 #include "canopen/301/sdo_server.hpp"
 
+#include "canopen/301/sdo_block.hpp"
+
 #include <algorithm>
 #include <array>
 
@@ -9,7 +11,8 @@ namespace oegw::canopen {
 
 namespace {
 
-constexpr std::size_t kSegmentData = 7;
+using sdo_block::kSegmentData;
+using sdo_block::round_up_segments;
 
 bool matches(CobId cob, const CanFrame& f) {
   return cob.valid() && f.id == cob.can_id() && f.extended == cob.extended();
@@ -28,10 +31,6 @@ bool is_initiate(std::uint8_t cmd) {
   const auto ccs = static_cast<std::uint8_t>(cmd >> 5);
   return ccs == kCcsInitiateDownload || ccs == kCcsInitiateUpload ||
          (ccs == kCcsBlockUpload && (cmd & 0x03) == 0) || (ccs == kCcsBlockDownload && (cmd & 0x01) == 0);
-}
-
-std::size_t round_up_segments(std::size_t n) {
-  return std::max<std::size_t>(kSegmentData, (n + kSegmentData - 1) / kSegmentData * kSegmentData);
 }
 
 }  // namespace
@@ -272,33 +271,19 @@ void SdoServer::initiate_block_download(const std::uint8_t* d) {
   }
   crc_ = (cmd & 0x04) != 0;
   buffer_.clear();
-  blksize_ = block_size_;
-  expected_seq_ = 1;
-  last_segment_received_ = false;
+  rx_block_.start(block_size_);
   state_ = State::BlockDownloadSubBlock;
-  send({0xA4, d[1], d[2], d[3], blksize_, 0, 0, 0});  // sc = 1: the server can check a CRC
+  send({0xA4, d[1], d[2], d[3], rx_block_.blksize(), 0, 0, 0});  // sc = 1: the server can check a CRC
 }
 
 void SdoServer::block_download_segment(const std::uint8_t* d) {
-  const std::uint8_t seq = d[0] & 0x7F;
-  const bool last = (d[0] & 0x80) != 0;
-  if (seq == 0 || seq > blksize_) return abort_transfer(SdoAbortCode::InvalidSequenceNumber);
-  if (seq == expected_seq_) {
-    // Segments carry 7 bytes; the unused ones of the last are only known at the block end.
-    if (buffer_.size() + kSegmentData > round_up_segments(capacity_)) return abort_transfer(overflow_code());
-    buffer_.insert(buffer_.end(), d + 1, d + 1 + kSegmentData);
-    ++expected_seq_;
-    last_segment_received_ = last;
-  }
-  if (seq == blksize_ || last) {
-    const auto ackseq = static_cast<std::uint8_t>(expected_seq_ - 1);
-    if (last_segment_received_) {
-      state_ = State::BlockDownloadEnd;
-    } else {
-      expected_seq_ = 1;
-    }
-    send({0xA2, ackseq, blksize_, 0, 0, 0, 0, 0});
-  }
+  const auto r = rx_block_.segment(d, buffer_, capacity_);
+  if (r.outcome == sdo_block::SubBlockReceiver::Outcome::BadSequence)
+    return abort_transfer(SdoAbortCode::InvalidSequenceNumber);
+  if (r.outcome == sdo_block::SubBlockReceiver::Outcome::Overflow) return abort_transfer(overflow_code());
+  if (!r.ack) return;
+  if (rx_block_.finished()) state_ = State::BlockDownloadEnd;
+  send(*r.ack);
 }
 
 void SdoServer::block_download_end(const std::uint8_t* d) {

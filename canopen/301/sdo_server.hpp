@@ -34,6 +34,7 @@
 #include <vector>
 
 #include "canopen/301/object_dictionary.hpp"
+#include "canopen/301/sdo_block.hpp"
 #include "canopen/can_frame.hpp"
 #include "canopen/types.hpp"
 
@@ -125,8 +126,7 @@ class SdoServer {
   bool toggle_ = false;
   bool crc_ = false;           // block transfer: both sides use the CRC
   std::uint8_t blksize_ = 0;   // current sub-block size
-  std::uint8_t expected_seq_ = 1;
-  bool last_segment_received_ = false;
+  sdo_block::SubBlockReceiver rx_block_;  // receiving side of block transfers
   std::uint8_t sent_in_block_ = 0;
   bool last_in_block_ = false;
 
