@@ -34,11 +34,6 @@ void set_raw(ObjectDictionary& od, std::uint16_t index, std::uint8_t sub, std::u
     for (std::size_t i = 0; i < s->value.size(); ++i) s->value[i] = static_cast<std::uint8_t>(v >> (8 * i));
 }
 
-template <class T>
-T get(ObjectDictionary& od, std::uint16_t index, std::uint8_t sub) {
-  return od.get<T>(index, sub);
-}
-
 int level_rank(std::string_view level) {
   if (level == "Info") return 1;
   if (level == "Warn") return 2;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "canopen/master.hpp"
+#include "subdevices/families.hpp"
 #include "subdevices/novotechnik_406.hpp"
 #include "subdevices/sim/novotechnik_406_sim.hpp"
 #include "virtual_network.hpp"
@@ -348,6 +349,45 @@ TEST_F(NovotechnikSim, NmtStartupBit3StartsOperationalAfterStore) {
   sim_->reboot(net_.now());
   net_.run_for(1ms);
   EXPECT_EQ(sim_->node().state(), NmtState::Operational);
+}
+
+// §3.3 / §4.1: TPDO2 (280h + node = 2FFh) synchronous (1801h:02 = 1): one PDO per SYNC (080h),
+// same default mapping. Position -42 is below the work area: EMCY 9090h state 05h (§5.7.1 bits 2, 0).
+TEST_F(NovotechnikSim, Tpdo2SynchronousOnEverySync) {
+  boot();
+  configure_and_start();
+  sim_->set_position(-42, net_.now());
+  sim_->set_speed(7, net_.now());
+  net_.run_for(1ms);
+  EXPECT_EQ(driver_->value(Novotechnik406Driver::kWorkArea).value, 0x05);
+  EXPECT_EQ(exchange(0x080, {}, 0x2FF), std::vector<CanFrame>{CanFrame(0x2FF, {0xD6, 0xFF, 0xFF, 0xFF, 0x07, 0x00})});
+  EXPECT_EQ(exchange(0x080, {}, 0x2FF).size(), 1u);
+}
+
+// §4.1 1800h:02 = 255 "synchronous to measurement cycle": every new measurement is sent at once.
+TEST_F(NovotechnikSim, Type255SendsEachMeasurement) {
+  std::string error;
+  auto d = make_novotechnik_406_driver(kNode, net_.sink("driver"),
+                                       DriverOptions{{{"transmission_type", "255"}, {"event_timer_ms", "1000"}}}, error);
+  ASSERT_NE(d, nullptr) << error;
+  driver_.reset(static_cast<Novotechnik406Driver*>(d.release()));
+  boot();
+  configure_and_start();
+  net_.bus().clear_log();
+  sim_->set_position(11, net_.now());
+  net_.run_for(1ms);
+  sim_->set_position(12, net_.now());
+  net_.run_for(1ms);
+  EXPECT_EQ(frames(0x1FF).size(), 2u);
+  EXPECT_EQ(pos().value, 12);
+}
+
+// §4.3 2001h CAN bit rate in kbit/s: only the §3.1 rates are accepted.
+TEST_F(NovotechnikSim, BitRateObjectAcceptsDocumentedRatesOnly) {
+  boot();
+  EXPECT_EQ(download(0x2001, 0, encode<std::uint16_t>(500)), SdoAbortCode::None);
+  EXPECT_EQ(download(0x2001, 0, encode<std::uint16_t>(300)), SdoAbortCode::InvalidValue);
+  EXPECT_EQ(download(0x2000, 0, {0x00}), SdoAbortCode::ValueTooLow);  // node-ID range 1..127
 }
 
 }  // namespace
