@@ -1,0 +1,267 @@
+#include "subdevices/novotechnik_406.hpp"
+
+#include <charconv>
+#include <cstdio>
+#include <limits>
+
+#include "subdevices/families.hpp"
+
+namespace oegw::subdevices {
+
+namespace novotechnik {
+namespace {
+
+using E = EmcyEffect;
+// §9.1 "Emergency Messages": Byte 0,1 error code | Byte 2 error register | Byte 3 | level.
+constexpr EmcyEntry kTable[] = {
+    {0x0000, 0, 0, "Hard", "sensor error reset, no error", E::Clear},
+    {0x1000, 1, 0, "Hard", "unknown error, position value 0x7FFFFFFC", E::PositionError},
+    {0x3100, 1, 0, "Error", "supply voltage fault", E::PositionError},
+    {0x3100, 1, 1, "Warn", "supply voltage overrun, factory-set maximum threshold exceeded", E::None},
+    {0x3100, 1, 2, "Warn", "supply voltage underrun, factory-set minimum threshold exceeded", E::None},
+    {0x4210, 1, 1, "Warn", "temperature overrun, factory-set maximum threshold exceeded", E::None},
+    {0x4210, 1, 2, "Warn", "temperature underrun, factory-set minimum threshold exceeded", E::None},
+    {0x5000, 1, 0, "Hard", "device hardware fault, position value 0x7FFFFFFC", E::PositionError},
+    {0x5000, 0, 0, "Info", "life guarding error", E::None},
+    {0x5000, 0, 1, "Info", "maintenance required (operating time limit)", E::None},
+    {0x5000, 1, 2, "Hard", "hardware ASIC fault, position value 0x7FFFFFFC", E::PositionError},
+    {0x5000, 2, 0, "Hard", "memory lost", E::PositionError},
+    {0x5051, 0, 0, "Info", "valid position", E::Clear},
+    {0x5051, 1, 0, "Error", "measurement error, position value 0x7FFFFFFC", E::PositionError},
+    {0x5051, 1, 1, "Error",
+     "position overflow error \"Out of range (+)\", position value 0x7FFFFFF8, reset via 2100h", E::PositionError},
+    {0x5051, 1, 2, "Error",
+     "position underflow error \"Out of range (-)\", position value 0x80000008, reset via 2100h", E::PositionError},
+    {0x5051, 2, 1, "Warn", "position overflow warning, position value 0x7FFFFFF8", E::PositionError},
+    {0x5051, 2, 2, "Warn", "position underflow warning, position value 0x80000008", E::PositionError},
+    {0x6000, 1, 0, "Hard", "device software fault, position value 0x7FFFFFFC", E::PositionError},
+    {0x6000, 2, 0, "Hard", "insufficient event timer value for the CAN bit rate, TPDO1 sent partially", E::None},
+    {0x8110, 1, 0, "Hard", "CAN controller overflow (CAN overrun), data lost", E::None},
+    {0x8110, 2, 0, "Hard", "CAN buffer overflow, data lost", E::None},
+    {0x8120, 0, 0, "Hard", "CAN error passive", E::None},
+    {0x8140, 0, 0, "Hard", "CAN recovered from bus-off", E::None},
+    {0x9080, 1, 0, "Warn", "encoder CAM state changed", E::Cams},
+    {0x9090, 1, 0, "Warn", "work area state changed", E::WorkArea},
+};
+
+}  // namespace
+
+const EmcyEntry* find_emcy(std::uint16_t code, std::uint8_t error_register, std::uint8_t byte3) {
+  for (const EmcyEntry& e : kTable)
+    if (e.code == code && e.error_register == error_register && e.byte3 == byte3) return &e;
+  // A stack that ORs other 1001h bits into byte 2: match code and byte 3; among several
+  // candidates (5000h/x/0) the first one that faults the position wins (safe side).
+  const EmcyEntry* found = nullptr;
+  for (const EmcyEntry& e : kTable) {
+    if (e.code != code || e.byte3 != byte3) continue;
+    if (found == nullptr || (found->effect != E::PositionError && e.effect == E::PositionError)) found = &e;
+  }
+  return found;
+}
+
+}  // namespace novotechnik
+
+namespace {
+
+constexpr std::int64_t kInt32Min = std::numeric_limits<std::int32_t>::min();
+constexpr std::int64_t kInt32Max = std::numeric_limits<std::int32_t>::max();
+constexpr std::int64_t kInt16Min = std::numeric_limits<std::int16_t>::min();
+constexpr std::int64_t kInt16Max = std::numeric_limits<std::int16_t>::max();
+
+std::vector<std::uint8_t> le(std::uint64_t v, std::size_t n) {
+  std::vector<std::uint8_t> out(n);
+  for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<std::uint8_t>(v >> (8 * i));
+  return out;
+}
+
+std::optional<std::uint64_t> parse_uint(const std::string& s) {
+  std::uint64_t v = 0;
+  const char* b = s.data();
+  const char* e = s.data() + s.size();
+  int base = 10;
+  if (s.size() > 2 && s[0] == '0' && (s[1] == 'x' || s[1] == 'X')) {
+    b += 2;
+    base = 16;
+  }
+  if (b == e) return std::nullopt;
+  auto [p, ec] = std::from_chars(b, e, v, base);
+  if (ec != std::errc{} || p != e) return std::nullopt;
+  return v;
+}
+
+}  // namespace
+
+Novotechnik406Driver::Novotechnik406Driver(NodeId node, FrameSink sink, Novotechnik406Options options)
+    : options_(options),
+      signals_{
+          {"position", SignalKind::Position, kInt32Min, kInt32Max, 0, "counts"},
+          {"speed", SignalKind::Speed, kInt16Min, kInt16Max, 0, "0.1 deg/s"},
+          {"cams", SignalKind::Digital, 0, 15, 0, "bits"},
+          {"work_area", SignalKind::Digital, 0, 255, 0, "bits"},
+      } {
+  init(node, std::move(sink), signals_.size());
+}
+
+bool Novotechnik406Driver::is_error_position(std::int32_t position) {
+  const auto u = static_cast<std::uint32_t>(position);
+  return u >= 0x7FFFFFF0u && u <= 0x8000000Fu;
+}
+
+ExpectedIdentity Novotechnik406Driver::expected_identity() const {
+  ExpectedIdentity id;
+  id.device_type = novotechnik::kDeviceType;
+  id.vendor_id = novotechnik::kVendorId;
+  id.product_code = options_.product_code;
+  return id;
+}
+
+std::vector<SdoWrite> Novotechnik406Driver::configuration() const {
+  const std::uint32_t cob = 0x180u + node().value();
+  std::vector<SdoWrite> w;
+  // §8.2 step 1: deactivate TPDO1 (bit 31), keeping bit 30 (no RTR) as the default 40000180h.
+  w.push_back({0x1800, 1, le(0xC0000000u | cob, 4), "TPDO1 COB-ID: disable"});
+  w.push_back({0x1800, 2, le(options_.transmission_type, 1),
+               "TPDO1 transmission type " + std::to_string(options_.transmission_type)});
+  // §8.2 note: the event timer must be higher than the inhibit time (except 0).
+  w.push_back({0x1800, 3, le(0, 2), "TPDO1 inhibit time 0"});
+  w.push_back({0x1800, 5, le(options_.event_timer_ms, 2),
+               "TPDO1 event timer " + std::to_string(options_.event_timer_ms) + " ms"});
+  // §8.2 steps 2..4 with the §4.1 default entries.
+  w.push_back({0x1A00, 0, le(0, 1), "TPDO1 mapping: clear"});
+  w.push_back({0x1A00, 1, le(0x60200120u, 4), "TPDO1 mapping 1: position value channel 1, 32 bit"});
+  w.push_back({0x1A00, 2, le(0x60300110u, 4), "TPDO1 mapping 2: speed value channel 1, 16 bit"});
+  w.push_back({0x1A00, 0, le(2, 1), "TPDO1 mapping: 2 entries"});
+  // §8.2 step 5: re-activate.
+  w.push_back({0x1800, 1, le(0x40000000u | cob, 4), "TPDO1 COB-ID: enable"});
+  return w;
+}
+
+std::vector<std::uint32_t> Novotechnik406Driver::consumed_cob_ids() const { return {0x180u + node().value()}; }
+
+void Novotechnik406Driver::fault_position(TimePoint now) {
+  update(kPosition, signals_[kPosition].neutral, SignalStatus::Error, now);
+  update(kSpeed, signals_[kSpeed].neutral, SignalStatus::Error, now);
+}
+
+bool Novotechnik406Driver::on_frame(const CanFrame& frame, TimePoint now) {
+  if (frame.extended || frame.rtr || frame.id != 0x180u + node().value()) {
+    ++counters_.unknown_cob;
+    return false;
+  }
+  if (frame.dlc != kTpdo1Length) {
+    ++counters_.wrong_length;
+    return true;
+  }
+  const auto& d = frame.data;
+  const auto raw = static_cast<std::uint32_t>(d[0]) | static_cast<std::uint32_t>(d[1]) << 8 |
+                   static_cast<std::uint32_t>(d[2]) << 16 | static_cast<std::uint32_t>(d[3]) << 24;
+  const auto position = static_cast<std::int32_t>(raw);
+  const auto speed = static_cast<std::int16_t>(static_cast<std::uint16_t>(d[4] | d[5] << 8));
+  if (is_error_position(position)) {
+    last_marker_ = raw;
+    fault_position(now);
+  } else {
+    last_marker_.reset();
+    update(kPosition, position, SignalStatus::Valid, now);
+    update(kSpeed, speed, SignalStatus::Valid, now);
+  }
+  // Cam and work-area states come only by EMCY: known to be unknown once the node talks.
+  for (const std::size_t i : {kCams, kWorkArea})
+    if (value(i).status == SignalStatus::Offline) update(i, signals_[i].neutral, SignalStatus::NotAvailable, now);
+  return true;
+}
+
+DecodedEmcy Novotechnik406Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
+  DecodedEmcy out;
+  out.code = emcy.code;
+  const std::uint8_t byte3 = emcy.msef[0];
+  const novotechnik::EmcyEntry* e = novotechnik::find_emcy(emcy.code, emcy.error_register, byte3);
+  char head[64];
+  std::snprintf(head, sizeof head, "novotechnik %04Xh/%u/%u", emcy.code, emcy.error_register, byte3);
+  if (e == nullptr) {
+    ++counters_.unknown_emcy;
+    out.error = false;
+    out.text = std::string(head) + ": unknown EMCY (ignored)";
+    return out;
+  }
+  out.text = std::string(head) + " (" + e->level + "): " + e->text;
+  out.error = false;
+  switch (e->effect) {
+    case novotechnik::EmcyEffect::None: break;
+    case novotechnik::EmcyEffect::PositionError:
+      out.error = true;
+      out.affected = {kPosition, kSpeed};
+      fault_position(now);
+      break;
+    case novotechnik::EmcyEffect::Clear:
+      // The error is gone; the value itself comes with the next TPDO1. Until then the signals
+      // keep the neutral value but are no longer in Error (NotAvailable: nothing vouched for).
+      for (const std::size_t i : {kPosition, kSpeed})
+        if (value(i).status == SignalStatus::Error) update(i, signals_[i].neutral, SignalStatus::NotAvailable, now);
+      break;
+    case novotechnik::EmcyEffect::Cams: {
+      // Byte 4: changed CAM bits, byte 7: CAM state bits (CAM 1..4 = bits 0..3, 6300h coding).
+      const std::uint8_t changed = emcy.msef[1];
+      const std::uint8_t state = emcy.msef[4];
+      if (state > 0x0F || changed > 0x0F) {
+        ++counters_.unknown_emcy;
+        out.text += " (bad CAM bits, ignored)";
+        break;
+      }
+      char tail[48];
+      std::snprintf(tail, sizeof tail, ", changed 0x%X, state 0x%X", changed, state);
+      out.text += tail;
+      update(kCams, state, SignalStatus::Valid, now);
+      break;
+    }
+    case novotechnik::EmcyEffect::WorkArea: {
+      const std::uint8_t state = emcy.msef[4];
+      char tail[32];
+      std::snprintf(tail, sizeof tail, ", state 0x%02X", state);
+      out.text += tail;
+      update(kWorkArea, state, SignalStatus::Valid, now);
+      break;
+    }
+  }
+  return out;
+}
+
+std::unique_ptr<Driver> make_novotechnik_406_driver(NodeId node, FrameSink sink, const DriverOptions& options,
+                                                    std::string& error) {
+  Novotechnik406Options o;
+  for (const auto& [key, text] : options.values) {
+    const auto v = parse_uint(text);
+    if (key == "event_timer_ms") {
+      if (!v || *v < 1 || *v > 65535) {
+        error = "novotechnik-406: event_timer_ms must be 1..65535 (got '" + text + "')";
+        return nullptr;
+      }
+      o.event_timer_ms = static_cast<std::uint16_t>(*v);
+    } else if (key == "transmission_type") {
+      if (!v || !((*v >= 1 && *v <= 240) || *v == 254 || *v == 255)) {
+        error = "novotechnik-406: transmission_type must be 1..240, 254 or 255 (got '" + text + "')";
+        return nullptr;
+      }
+      o.transmission_type = static_cast<std::uint8_t>(*v);
+    } else if (key == "product_code") {
+      bool known = false;
+      for (const std::uint32_t p : novotechnik::kProductCodes) known = known || (v && *v == p);
+      if (!known) {
+        error = "novotechnik-406: product_code must be one of 0x0BD5, 0x0BB9, 0x0BBC, 0x0BC5, 0x0BE0 (got '" +
+                text + "')";
+        return nullptr;
+      }
+      o.product_code = static_cast<std::uint32_t>(*v);
+    } else {
+      error = "novotechnik-406: unknown option '" + key + "' (expected event_timer_ms, transmission_type, product_code)";
+      return nullptr;
+    }
+  }
+  if (node.value() < 1 || node.value() > 127) {
+    error = "novotechnik-406: node-ID must be 1..127";
+    return nullptr;
+  }
+  return std::make_unique<Novotechnik406Driver>(node, std::move(sink), o);
+}
+
+}  // namespace oegw::subdevices

@@ -1,0 +1,128 @@
+// Novotechnik CANopen sensors (series MZ1-2200, MC1-2800, MB1-3600), CiA 406 encoder profile.
+// Source: /work/shared/reference/004_965670f51e9c840d.txt ("the document"; sections cited as §n).
+//
+// TPDO1 (COB-ID 180h + node-ID, §3.1; default mapping §4.1 1A00h), 6 bytes, little endian:
+//   bytes 0..3  position value, INTEGER32 (1A00h:01 = 60200120h, channel 1 of 6004h, §4.2)
+//   bytes 4..5  speed value channel 1, INTEGER16 (1A00h:02 = 60300110h, 6030h:01)
+// configuration() rewrites that mapping with the §8.2 procedure (disable COB-ID, sub 0 = 0,
+// entries, sub 0 = 2, enable) so that a custom mapping saved in the sensor cannot be misread.
+//
+// Signals (index: name, kind, unit, range, neutral):
+//   0 position   Position  counts (steps, 6001h per revolution; 6002h total)  INT32 range, neutral 0
+//   1 speed      Speed     0.1 deg/s (§3.4 "Resolution speed 0,1°/s")        INT16 range, neutral 0
+//   2 cams       Digital   bits  CAM state channel 1 (6300h:01, bit n-1 = CAM n), 0..15, neutral 0
+//   3 work_area  Digital   bits  work-area state byte of EMCY 9090h (6400h coding), 0..255, neutral 0
+// "Neutral" of an absolute encoder: there is no "not operated" position. 0 is the fault value the
+// driver reports with Error/Offline: the encoder zero point after the preset (6003h), NOT a safe
+// state — a consumer must act on the status, never on the value 0. Speed 0 = standstill, the value
+// the sensor itself sends on a process error (§9). cams/work_area are only reported by the EMCYs
+// 9080h/9090h (§9.1; the default TPDO1 does not carry them): NotAvailable until the first one.
+//
+// Error positions (§9.1 EMCY table, §10.1 bits 12/13/20/21, §10.2):
+//   7FFFFFFCh  measurement error, unknown error, device hardware / ASIC / software fault
+//   7FFFFFF8h  position overflow "Out of range (+)" (error 5051h/1/1 or warning 5051h/2/1)
+//   80000008h  position underflow "Out of range (-)" (error 5051h/1/2 or warning 5051h/2/2)
+//   any other value in 7FFFFFF0h..7FFFFFFFh or 80000000h..8000000Fh: reserved marker band, Error
+//   (a 44-turn 16-bit encoder, 650Ah:03 = 2BFFFFh, cannot reach it).
+// Each puts position AND speed into Error with the neutral value (the sensor sets speed to 0 on
+// a process error, §9, so its speed is not a measurement either). The next ordinary position
+// clears it. last_error_position() tells which marker was seen. Not treated as a marker: the
+// "0x7FF0" of §9's prose, which lies inside the measuring range (0..2BFFFFh) and contradicts the
+// §9.1 table; flagging it would fault a valid position of 32752 counts.
+//
+// EMCYs (§9.1): decoded by (error code, byte 2 error register, byte 3) into the table's text.
+// Entries whose position value is a marker, and the Hard/Error-level sensor faults (supply
+// voltage fault, memory lost: scaling/preset may be gone), put position and speed into Error
+// (DecodedEmcy::error = true, affected = {position, speed}); 0000h and 5051h/0/0 "valid position"
+// clear it; 9080h updates `cams` (byte 7 state, byte 4 changed bits), 9090h updates `work_area`
+// (byte 7); warnings, info and CAN-controller EMCYs are decoded to text only (error = false,
+// affected empty). A code the table lacks is counted (counters().unknown_emcy) and ignored.
+//
+// Options:
+//   event_timer_ms     TPDO1 event timer 1800h:05, 1..65535 (default 10). 0 is refused: §8.2 says
+//                      TPDO1 is then never sent in the default type 254.
+//   transmission_type  1800h:02: 254 (event timer, default), 255 (measurement cycle, 1 ms) or
+//                      1..240 (every n-th SYNC).
+//   product_code       1018h:02 to check at boot: 0x0BD5 (MZ1-2200), 0x0BB9 (MC1-2800), 0x0BBC
+//                      (MB1-3600) from §4.1; 0x0BC5 and 0x0BE0 (only in the §6 LSS example) are
+//                      accepted too. Unset: only the vendor-ID 0182h is checked (the document
+//                      lists several products and ExpectedIdentity holds one).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "subdevices/driver.hpp"
+
+namespace oegw::subdevices {
+
+namespace novotechnik {
+inline constexpr std::uint32_t kVendorId = 0x00000182;     // §4.1 1018h:01
+inline constexpr std::uint32_t kDeviceType = 0x00020196;   // §4.1 1000h: DS406 multi-sensor
+inline constexpr std::int32_t kErrorFault = 0x7FFFFFFC;    // §9.1
+inline constexpr std::int32_t kErrorOverflow = 0x7FFFFFF8;  // §9.1 "Out of range (+)"
+inline constexpr std::int32_t kErrorUnderflow = static_cast<std::int32_t>(0x80000008u);  // "(-)"
+inline constexpr std::uint32_t kProductCodes[] = {0x0BD5, 0x0BB9, 0x0BBC, 0x0BC5, 0x0BE0};
+
+enum class EmcyEffect : std::uint8_t {
+  None,          // text only: warning, info, communication
+  PositionError, // position and speed -> Error
+  Clear,         // error reset / valid position
+  Cams,          // 9080h
+  WorkArea,      // 9090h
+};
+struct EmcyEntry {
+  std::uint16_t code;
+  std::uint8_t error_register;  // byte 2 as the table gives it
+  std::uint8_t byte3;
+  const char* level;            // "Hard", "Error", "Warn", "Info", ""
+  const char* text;
+  EmcyEffect effect;
+};
+// The §9.1 table; nullptr for a combination it does not list.
+[[nodiscard]] const EmcyEntry* find_emcy(std::uint16_t code, std::uint8_t error_register, std::uint8_t byte3);
+}  // namespace novotechnik
+
+struct Novotechnik406Options {
+  std::uint16_t event_timer_ms = 10;
+  std::uint8_t transmission_type = 254;
+  std::optional<std::uint32_t> product_code;
+};
+
+class Novotechnik406Driver final : public Driver {
+ public:
+  static constexpr std::size_t kPosition = 0;
+  static constexpr std::size_t kSpeed = 1;
+  static constexpr std::size_t kCams = 2;
+  static constexpr std::size_t kWorkArea = 3;
+  static constexpr std::uint8_t kTpdo1Length = 6;
+
+  Novotechnik406Driver(NodeId node, FrameSink sink, Novotechnik406Options options);
+
+  [[nodiscard]] std::string_view family() const override { return "novotechnik-406"; }
+  [[nodiscard]] const std::vector<SignalInfo>& signals() const override { return signals_; }
+  [[nodiscard]] ExpectedIdentity expected_identity() const override;
+  [[nodiscard]] std::vector<SdoWrite> configuration() const override;
+  bool on_frame(const CanFrame& frame, TimePoint now) override;
+  DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) override;
+  [[nodiscard]] std::vector<std::uint32_t> consumed_cob_ids() const override;
+  bool set_output(std::size_t, std::int64_t, TimePoint) override { return false; }  // no outputs
+
+  // The error marker of the most recent TPDO1 that carried one (nullopt after a good position).
+  [[nodiscard]] std::optional<std::uint32_t> last_error_position() const { return last_marker_; }
+  [[nodiscard]] const Novotechnik406Options& options() const { return options_; }
+
+  // True if `position` is one of the document's error markers (or in the reserved band).
+  [[nodiscard]] static bool is_error_position(std::int32_t position);
+
+ private:
+  void fault_position(TimePoint now);
+
+  Novotechnik406Options options_;
+  std::vector<SignalInfo> signals_;
+  std::optional<std::uint32_t> last_marker_;
+};
+
+}  // namespace oegw::subdevices

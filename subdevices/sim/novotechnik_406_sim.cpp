@@ -1,0 +1,416 @@
+#include "subdevices/sim/novotechnik_406_sim.hpp"
+
+#include <memory>
+
+#include "canopen/301/pdo.hpp"
+
+namespace oegw::subdevices::sim {
+
+using canopen::Access;
+using canopen::DataType;
+using canopen::encode;
+using canopen::NmtState;
+using canopen::ObjectDictionary;
+using canopen::Origin;
+using canopen::SdoAbortCode;
+
+namespace {
+
+constexpr std::uint32_t kPosMarkerFault = 0x7FFFFFFC;
+constexpr std::uint32_t kPosMarkerOverflow = 0x7FFFFFF8;
+constexpr std::uint32_t kPosMarkerUnderflow = 0x80000008;
+constexpr std::uint32_t kTotalRange = 0x002C0000;   // 6002h default
+constexpr std::uint32_t kStepsPerRev = 0x00010000;  // 6001h default
+constexpr std::uint16_t kRevolutions = 0x002C;      // 6502h
+
+std::uint32_t u32(std::span<const std::uint8_t> b) {
+  std::uint32_t v = 0;
+  for (std::size_t i = 0; i < b.size() && i < 4; ++i) v |= static_cast<std::uint32_t>(b[i]) << (8 * i);
+  return v;
+}
+
+void set_raw(ObjectDictionary& od, std::uint16_t index, std::uint8_t sub, std::uint64_t v) {
+  if (canopen::SubObject* s = od.find(index, sub))
+    for (std::size_t i = 0; i < s->value.size(); ++i) s->value[i] = static_cast<std::uint8_t>(v >> (8 * i));
+}
+
+int level_rank(std::string_view level) {
+  if (level == "Info") return 1;
+  if (level == "Warn") return 2;
+  if (level == "Error") return 3;
+  return 4;  // Hard: "Hard errors rises always"
+}
+
+}  // namespace
+
+Novotechnik406Sim::Novotechnik406Sim(FrameSink sink, Novotechnik406SimConfig config)
+    : SimulatedDevice(std::move(sink)), cfg_(std::move(config)) {
+  auto od = std::make_unique<ObjectDictionary>();
+  build_od(*od);
+  canopen::NodeConfig nc;
+  nc.node_id = cfg_.node_id;
+  nc.device_type = 0x00020196;  // §4.1 1000h
+  nc.device_name = "MC1-2832-A7F-614-511";
+  nc.hardware_version = "400000000.00";
+  nc.software_version = "V 1.03.0";
+  nc.identity = {.vendor = 0x00000182, .product = cfg_.product_code, .revision = cfg_.revision,
+                 .serial = cfg_.serial};
+  nc.heartbeat_ms = cfg_.heartbeat_ms;
+  switch (cfg_.bit_rate_kbit) {  // CiA 305 table 0, as §6.2 lists it
+    case 1000: nc.bit_timing_index = 0; break;
+    case 800: nc.bit_timing_index = 1; break;
+    case 500: nc.bit_timing_index = 2; break;
+    case 125: nc.bit_timing_index = 4; break;
+    case 50: nc.bit_timing_index = 6; break;
+    default: nc.bit_timing_index = 3; break;
+  }
+  nc.store_path = cfg_.store_path;
+  build(std::move(od), nc);
+  // §4.1 1029h:02 "internal device error: measurement error", beside the core's sub 1.
+  if (canopen::Object* o = this->od().find(0x1029)) {
+    canopen::SubObject s;
+    s.sub_index = 2;
+    s.name = "Internal device error";
+    s.type = DataType::Unsigned8;
+    s.access = Access::ReadWrite;
+    s.value = s.default_value = {0};
+    s.high = std::uint64_t{2};
+    o->add_sub(std::move(s));
+    if (canopen::SubObject* s0 = o->find(0)) s0->value = s0->default_value = {2};
+  }
+  install_hooks();
+}
+
+void Novotechnik406Sim::build_od(ObjectDictionary& od) {
+  const auto id = cfg_.node_id.value();
+  // §4.1 communication objects the Node does not add itself.
+  od.add_var(0x1002, "Manufacturer status register", DataType::Unsigned32, Access::ReadOnly, encode<std::uint32_t>(0));
+  od.add_var(0x100C, "Guard time", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(0));
+  od.add_var(0x100D, "Life time factor", DataType::Unsigned8, Access::ReadWrite, {0});
+  // 1010h subs 1..5 / 1011h subs 1..4 (the ParameterStore adds its hooks to these).
+  od.add_array(0x1010, "Store parameter field", DataType::Unsigned32, Access::ReadWrite, 5, encode<std::uint32_t>(1));
+  od.add_array(0x1011, "Restore default parameters", DataType::Unsigned32, Access::ReadWrite, 4,
+               encode<std::uint32_t>(1));
+  od.add_var(0x1F80, "NMT startup", DataType::Unsigned32, Access::ReadWrite, encode<std::uint32_t>(0));
+
+  // §4.3 manufacturer specific.
+  od.add_var(0x2000, "Node-ID", DataType::Unsigned8, Access::ReadWrite, {id});
+  od.find(0x2000, 0)->low = std::uint64_t{1};
+  od.find(0x2000, 0)->high = std::uint64_t{127};
+  od.add_var(0x2001, "CAN bit rate", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(cfg_.bit_rate_kbit));
+  od.add_var(0x2002, "Temperature", DataType::Integer16, Access::ReadOnly, encode<std::int16_t>(350), true);
+  od.add_var(0x2003, "Supply voltage", DataType::Unsigned16, Access::ReadOnly, encode<std::uint16_t>(240), true);
+  od.add_array(0x2010, "Filter position and speed", DataType::Unsigned8, Access::ReadWrite, 2, {0});
+  od.find(0x2010, 1)->high = std::uint64_t{7};
+  od.find(0x2010, 2)->value = od.find(0x2010, 2)->default_value = {3};
+  od.find(0x2010, 2)->high = std::uint64_t{8};
+  od.add_var(0x2100, "Position error reset", DataType::Boolean, Access::WriteOnly, {0});
+  od.add_var(0x2101, "Power management", DataType::Boolean, Access::WriteOnly, {0});
+  od.add_var(0x2104, "EMCY behaviour", DataType::Unsigned8, Access::ReadWrite, {0});
+  od.find(0x2104, 0)->high = std::uint64_t{3};
+
+  // §4.2 device profile.
+  od.add_var(0x6000, "Operating parameter", DataType::Unsigned8, Access::ReadWrite, {0});
+  od.find(0x6000, 0)->high = std::uint64_t{7};
+  od.add_var(0x6001, "Measuring units per revolution", DataType::Unsigned32, Access::ReadWrite,
+             encode<std::uint32_t>(kStepsPerRev));
+  od.find(0x6001, 0)->low = std::uint64_t{1};
+  od.find(0x6001, 0)->high = std::uint64_t{kStepsPerRev};  // §5.4: can only be reduced
+  od.add_var(0x6002, "Total measuring range", DataType::Unsigned32, Access::ReadWrite,
+             encode<std::uint32_t>(kTotalRange));
+  od.find(0x6002, 0)->low = std::uint64_t{1};
+  od.find(0x6002, 0)->high = std::uint64_t{kTotalRange};  // §5.5
+  od.add_var(0x6003, "Preset value", DataType::Unsigned32, Access::ReadWrite, encode<std::uint32_t>(0));
+  od.add_var(0x6004, "Position value", DataType::Integer32, Access::ReadOnly, encode<std::int32_t>(0), true);
+  od.add_var(0x600C, "Position raw value", DataType::Unsigned32, Access::ReadOnly, encode<std::uint32_t>(0), true);
+  od.add_array(0x6020, "Position value channel", DataType::Integer32, Access::ReadOnly, 1, encode<std::int32_t>(0),
+               true);
+  od.add_array(0x6030, "Speed value", DataType::Integer16, Access::ReadOnly, 1, encode<std::int16_t>(0), true);
+  od.add_array(0x6031, "Speed parameter", DataType::Unsigned8, Access::ReadWrite, 1, {2});
+  od.add_record_member(0x6031, 2, "Speed integration time", DataType::Unsigned16, Access::ReadWrite,
+                       encode<std::uint16_t>(1));
+  if (canopen::SubObject* s0 = od.find(0x6031, 0)) s0->value = s0->default_value = {2};
+  od.add_array(0x6300, "CAM state register", DataType::Unsigned8, Access::ReadOnly, 1, {0}, true);
+  od.add_array(0x6301, "CAM enable", DataType::Unsigned8, Access::ReadWrite, 1, {0});
+  od.add_array(0x6302, "CAM polarity", DataType::Unsigned8, Access::ReadWrite, 1, {0});
+  for (std::uint16_t i = 0; i < 4; ++i) {
+    od.add_array(static_cast<std::uint16_t>(0x6310 + i), "CAM low limit", DataType::Integer32, Access::ReadWrite, 1,
+                 encode<std::int32_t>(0));
+    od.add_array(static_cast<std::uint16_t>(0x6320 + i), "CAM high limit", DataType::Integer32, Access::ReadWrite, 1,
+                 encode<std::int32_t>(0x002BFFFF));
+    od.add_array(static_cast<std::uint16_t>(0x6330 + i), "CAM hysteresis", DataType::Unsigned16, Access::ReadWrite, 1,
+                 encode<std::uint16_t>(0));
+  }
+  od.add_array(0x6400, "Work area state", DataType::Unsigned8, Access::ReadOnly, 1, {0}, true);
+  od.add_array(0x6401, "Work area low limit", DataType::Integer32, Access::ReadWrite, 1, encode<std::int32_t>(0));
+  od.add_array(0x6402, "Work area high limit", DataType::Integer32, Access::ReadWrite, 1,
+               encode<std::int32_t>(0x002BFFFF));
+  od.add_var(0x6500, "Operating status", DataType::Unsigned16, Access::ReadOnly, encode<std::uint16_t>(0));
+  od.add_var(0x6501, "Singleturn resolution", DataType::Unsigned32, Access::ReadOnly,
+             encode<std::uint32_t>(kStepsPerRev));
+  od.add_var(0x6502, "Number of distinguishable revolutions", DataType::Unsigned16, Access::ReadOnly,
+             encode<std::uint16_t>(kRevolutions));
+  od.add_var(0x6503, "Alarms", DataType::Unsigned16, Access::ReadOnly, encode<std::uint16_t>(0), true);
+  od.add_var(0x6504, "Supported alarms", DataType::Unsigned16, Access::ReadOnly, encode<std::uint16_t>(0xC002));
+  od.add_var(0x6505, "Warnings", DataType::Unsigned16, Access::ReadOnly, encode<std::uint16_t>(0), true);
+  od.add_var(0x6506, "Supported warnings", DataType::Unsigned16, Access::ReadOnly, encode<std::uint16_t>(0xC05C));
+  od.add_var(0x6507, "Profile and software version", DataType::Unsigned32, Access::ReadOnly,
+             encode<std::uint32_t>(0x01020302));
+  od.add_var(0x6508, "Operating time", DataType::Unsigned32, Access::ReadOnly, encode<std::uint32_t>(0));
+  od.add_var(0x6509, "Offset value", DataType::Integer32, Access::ReadOnly, encode<std::int32_t>(0));
+  od.add_record(0x650A, "Module identification");
+  od.add_record_member(0x650A, 1, "Manufacturer offset value", DataType::Integer32, Access::ReadOnly,
+                       encode<std::int32_t>(0));
+  od.add_record_member(0x650A, 2, "Manufacturer min position value", DataType::Integer32, Access::ReadOnly,
+                       encode<std::int32_t>(0));
+  od.add_record_member(0x650A, 3, "Manufacturer max position value", DataType::Integer32, Access::ReadOnly,
+                       encode<std::int32_t>(0x002BFFFF));
+  od.add_var(0x650B, "Serial number", DataType::Unsigned32, Access::ReadOnly, encode<std::uint32_t>(cfg_.serial));
+  od.add_var(0x650D, "Absolute accuracy", DataType::Unsigned8, Access::ReadOnly, {0x10});
+  od.add_var(0x650E, "Device capability", DataType::Unsigned16, Access::ReadOnly, encode<std::uint16_t>(0x0003));
+
+  // §4.1 TPDOs: default mapping 60200120h (position ch. 1) + 60300110h (speed ch. 1).
+  const std::vector<std::uint32_t> mapping = {0x60200120, 0x60300110};
+  canopen::install_tpdo(od, 1,
+                        canopen::PdoParameters{.cob_id = 0x40000000u | (0x180u + id),
+                                               .transmission_type = 0xFE,
+                                               .inhibit_time = 0,
+                                               .event_timer = 0,
+                                               .sync_start = 0,
+                                               .mapping = mapping,
+                                               .mapping_capacity = 5});
+  canopen::install_tpdo(od, 2,
+                        canopen::PdoParameters{.cob_id = 0x40000000u | (0x280u + id),
+                                               .transmission_type = 0x01,
+                                               .inhibit_time = 0,
+                                               .event_timer = 0,
+                                               .sync_start = 0,
+                                               .mapping = mapping,
+                                               .mapping_capacity = 5});
+}
+
+void Novotechnik406Sim::install_hooks() {
+  ObjectDictionary& d = od();
+  // §5.4/§5.5: writing 6001h/6002h only with scaling on (6000h bit 2 = 0); each updates the other.
+  for (const std::uint16_t index : {std::uint16_t{0x6001}, std::uint16_t{0x6002}}) {
+    subs_ += d.find(index)->add_write_hook([this, index](canopen::Object&, std::uint8_t, std::span<const std::uint8_t> b,
+                                                         Origin origin) {
+      if (origin != Origin::Sdo) return SdoAbortCode::None;
+      if ((od().get<std::uint8_t>(0x6000, 0) & 0x04) != 0) return SdoAbortCode::CannotTransferDeviceState;
+      const std::uint32_t v = u32(b);
+      if (index == 0x6001) {
+        set_raw(od(), 0x6002, 0, static_cast<std::uint64_t>(v) * kRevolutions);
+        set_raw(od(), 0x6501, 0, v);
+      } else {
+        const std::uint32_t per_rev = v / kRevolutions;
+        if (per_rev == 0) return SdoAbortCode::InvalidValue;
+        set_raw(od(), 0x6001, 0, per_rev);
+        set_raw(od(), 0x6501, 0, per_rev);
+      }
+      return SdoAbortCode::None;
+    });
+  }
+  // §4.2 6031h:02: "The following values are allowed: 1, 2, 3, 6, 12, 25 ms"; §5.2 couples it
+  // with 2010h:02.
+  subs_ += d.find(0x6031)->add_write_hook([this](canopen::Object&, std::uint8_t sub, std::span<const std::uint8_t> b,
+                                                 Origin) {
+    if (sub != 2) return SdoAbortCode::None;
+    static constexpr std::pair<std::uint16_t, std::uint8_t> kTable[] = {{1, 3}, {2, 4}, {3, 5}, {6, 6}, {12, 7}, {25, 8}};
+    const auto v = static_cast<std::uint16_t>(u32(b));
+    for (const auto& [ms, filter] : kTable)
+      if (ms == v) {
+        set_raw(od(), 0x2010, 2, filter);
+        return SdoAbortCode::None;
+      }
+    return SdoAbortCode::InvalidValue;
+  });
+  subs_ += d.find(0x2010)->add_write_hook([this](canopen::Object&, std::uint8_t sub, std::span<const std::uint8_t> b,
+                                                 Origin) {
+    if (sub != 2 || b.empty()) return SdoAbortCode::None;
+    static constexpr std::uint16_t kMs[] = {0, 0, 1, 1, 2, 3, 6, 12, 25};  // §5.2, filter 0..8
+    if (b[0] < std::size(kMs)) set_raw(od(), 0x6031, 2, kMs[b[0]]);
+    return SdoAbortCode::None;
+  });
+  // §4.3 2000h: the new node-ID becomes effective after a communication restart (§7.1).
+  subs_ += d.find(0x2000)->add_write_hook([this](canopen::Object&, std::uint8_t, std::span<const std::uint8_t> b,
+                                                 Origin origin) {
+    if (origin == Origin::Sdo && !b.empty()) node().nmt().set_pending_node_id(NodeId{b[0]});
+    return SdoAbortCode::None;
+  });
+  subs_ += d.find(0x2001)->add_write_hook([](canopen::Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
+    switch (u32(b)) {
+      case 50: case 125: case 250: case 500: case 800: case 1000: return SdoAbortCode::None;
+      default: return SdoAbortCode::InvalidValue;
+    }
+  });
+  // §4.3 2100h position error reset: clears "Out of range (+/-)" once the sensor is back in range.
+  subs_ += d.find(0x2100)->add_write_hook([this](canopen::Object&, std::uint8_t, std::span<const std::uint8_t>, Origin) {
+    if (fault_ == Fault::Overflow || fault_ == Fault::Underflow) {
+      const auto lo = od().get<std::int32_t>(0x650A, 2);
+      const auto hi = od().get<std::int32_t>(0x650A, 3);
+      if (position_ > lo && position_ < hi) {
+        fault_ = Fault::Measurement;  // lets clear_fault() run the common path
+        (void)clear_fault(now_);
+      }
+    }
+    return SdoAbortCode::None;
+  });
+}
+
+void Novotechnik406Sim::apply_startup(TimePoint now) {
+  now_ = now;
+  // §4.1 1F80h: "Bit 3 set: sensor starts in operational mode".
+  if ((od().get<std::uint32_t>(0x1F80, 0) & 0x08) != 0) node().nmt().enter(NmtState::Operational, now);
+  publish(now);
+}
+
+void Novotechnik406Sim::start(TimePoint now) {
+  SimulatedDevice::start(now);
+  apply_startup(now);
+}
+
+void Novotechnik406Sim::reboot(TimePoint now) {
+  fault_.reset();
+  forced_raw_.reset();
+  SimulatedDevice::reboot(now);
+  apply_startup(now);
+}
+
+void Novotechnik406Sim::publish(TimePoint now) {
+  ObjectDictionary& d = od();
+  std::uint32_t raw = static_cast<std::uint32_t>(position_);
+  std::int16_t speed = speed_;
+  if (forced_raw_) {
+    raw = *forced_raw_;
+    speed = 0;  // §9: "speed value is set to 0x0000"
+  }
+  // Direct assignment: no "change" event, so type 254 keeps to its event timer.
+  set_raw(d, 0x6004, 0, raw);
+  set_raw(d, 0x6020, 1, raw);
+  set_raw(d, 0x600C, 0, raw);
+  set_raw(d, 0x6030, 1, static_cast<std::uint16_t>(speed));
+  if (canopen::Tpdo* t = node().pdo().tpdo(1); t != nullptr && t->transmission_type() == 0xFF && t->active())
+    t->request(now);
+}
+
+void Novotechnik406Sim::set_position(std::int32_t position, TimePoint now) {
+  now_ = now;
+  position_ = position;
+  update_cams_and_work_area(now);
+  publish(now);
+}
+
+void Novotechnik406Sim::set_speed(std::int16_t speed, TimePoint now) {
+  now_ = now;
+  speed_ = speed;
+  publish(now);
+}
+
+void Novotechnik406Sim::inject_error_position(std::uint32_t raw, TimePoint now) {
+  now_ = now;
+  forced_raw_ = raw;
+  publish(now);
+}
+
+void Novotechnik406Sim::set_bits(std::uint16_t index, std::uint32_t mask, bool on) {
+  const std::uint32_t v = od().get<std::uint32_t>(index, 0);
+  set_raw(od(), index, 0, on ? (v | mask) : (v & ~mask));
+}
+
+void Novotechnik406Sim::inject_fault(Fault fault, TimePoint now) {
+  now_ = now;
+  struct Row {
+    std::uint16_t code;
+    std::uint8_t reg, b3;
+    std::uint32_t marker;
+    std::uint16_t alarm, warning;
+    std::uint32_t status;  // 1002h bit (§10.1)
+    const char* level;
+  };
+  static constexpr Row kRows[] = {
+      {0x5051, 1, 0, kPosMarkerFault, 1u << 0, 0, 1u << 22, "Error"},           // Measurement
+      {0x5051, 1, 1, kPosMarkerOverflow, 1u << 13, 0, 1u << 12, "Error"},       // Overflow
+      {0x5051, 1, 2, kPosMarkerUnderflow, 1u << 12, 0, 1u << 13, "Error"},      // Underflow
+      {0x5051, 2, 1, kPosMarkerOverflow, 0, 1u << 13, 1u << 20, "Warn"},        // OverflowWarning
+      {0x5051, 2, 2, kPosMarkerUnderflow, 0, 1u << 12, 1u << 21, "Warn"},       // UnderflowWarning
+      {0x5000, 1, 0, kPosMarkerFault, 1u << 1, 0, 1u << 31, "Hard"},            // HardwareFault
+      {0x6000, 1, 0, kPosMarkerFault, 1u << 1, 0, 1u << 27, "Hard"},            // SoftwareFault
+  };
+  const Row& r = kRows[static_cast<std::size_t>(fault)];
+  fault_ = fault;
+  forced_raw_ = r.marker;
+  set_bits(0x6503, r.alarm, true);
+  set_bits(0x6505, r.warning, true);
+  set_bits(0x1002, r.status, true);
+  set_bits(0x1002, 1u << 26, false);  // "valid position"
+  publish(now);
+  send_emcy(r.code, r.reg, r.b3, {0, 0, 0, 0}, now, r.level);
+}
+
+bool Novotechnik406Sim::clear_fault(TimePoint now) {
+  now_ = now;
+  if (!fault_) return false;
+  if (*fault_ == Fault::Overflow || *fault_ == Fault::Underflow) return false;  // 2100h only
+  fault_.reset();
+  forced_raw_.reset();
+  set_raw(od(), 0x6503, 0, 0);
+  set_raw(od(), 0x6505, 0, 0);
+  set_raw(od(), 0x1002, 0, 1u << 26);
+  publish(now);
+  send_emcy(0x0000, 0, 0, {0, 0, 0, 0}, now, "Hard");  // §9.1 "Sensor Error resetted, no error"
+  return true;
+}
+
+void Novotechnik406Sim::send_emcy(std::uint16_t code, std::uint8_t error_register, std::uint8_t byte3,
+                                  std::array<std::uint8_t, 4> bytes4to7, TimePoint now, std::string_view level) {
+  now_ = now;
+  const NmtState s = node().state();
+  if (s != NmtState::PreOperational && s != NmtState::Operational) return;
+  const int rank = level_rank(level);
+  const int suppress = od().get<std::uint8_t>(0x2104, 0);  // 1: info, 2: +warnings, 3: +errors
+  if (rank < 4 && rank <= suppress) return;
+  const std::uint32_t cob = od().get<std::uint32_t>(0x1014, 0);
+  if ((cob & 0x80000000u) != 0) return;
+  set_raw(od(), 0x1001, 0, error_register);
+  CanFrame f;
+  f.id = cob & 0x7FF;
+  f.dlc = 8;
+  f.data = {static_cast<std::uint8_t>(code), static_cast<std::uint8_t>(code >> 8), error_register, byte3,
+            bytes4to7[0], bytes4to7[1], bytes4to7[2], bytes4to7[3]};
+  out()(f);
+}
+
+void Novotechnik406Sim::update_cams_and_work_area(TimePoint now) {
+  ObjectDictionary& d = od();
+  const std::int32_t p = position_;
+  // §5.6 CAMs (hysteresis not simulated); "The CAM high limit value can have a lower value than
+  // the CAM low limit": then the CAM is active outside [high, low].
+  const std::uint8_t enable = d.get<std::uint8_t>(0x6301, 1);
+  const std::uint8_t polarity = d.get<std::uint8_t>(0x6302, 1);
+  std::uint8_t cams = 0;
+  for (std::uint16_t i = 0; i < 4; ++i) {
+    if ((enable & (1u << i)) == 0) continue;
+    const auto lo = d.get<std::int32_t>(static_cast<std::uint16_t>(0x6310 + i), 1);
+    const auto hi = d.get<std::int32_t>(static_cast<std::uint16_t>(0x6320 + i), 1);
+    bool active = lo <= hi ? (p >= lo && p <= hi) : (p >= lo || p <= hi);
+    if ((polarity & (1u << i)) != 0) active = !active;
+    if (active) cams = static_cast<std::uint8_t>(cams | (1u << i));
+  }
+  const std::uint8_t old_cams = d.get<std::uint8_t>(0x6300, 1);
+  if (cams != old_cams) {
+    set_raw(d, 0x6300, 1, cams);
+    send_emcy(0x9080, 1, 0, {static_cast<std::uint8_t>(cams ^ old_cams), 0, 0, cams}, now, "Warn");
+  }
+  // §5.7.1 work area state.
+  std::uint8_t area = 0;
+  if (p < d.get<std::int32_t>(0x6401, 1)) area |= 0x04;
+  if (p > d.get<std::int32_t>(0x6402, 1)) area |= 0x02;
+  if (p <= d.get<std::int32_t>(0x650A, 2) || p >= d.get<std::int32_t>(0x650A, 3)) area |= 0x01;
+  const std::uint8_t old_area = d.get<std::uint8_t>(0x6400, 1);
+  if (area != old_area) {
+    set_raw(d, 0x6400, 1, area);
+    send_emcy(0x9090, 1, 0, {0, 0, 0, area}, now, "Warn");
+  }
+}
+
+}  // namespace oegw::subdevices::sim
