@@ -208,6 +208,14 @@ void Mcb402Sim::move_axis(std::size_t axis, std::int16_t raw, TimePoint now) {
   node().advance(now);
 }
 
+void Mcb402Sim::convert_axis(std::size_t axis, std::int16_t converted, TimePoint now) {
+  if (axis < 1 || axis > mcb402::kAxes) throw std::out_of_range("MCB-402 axis is 1..4");
+  const std::int32_t z = od().get<std::uint16_t>(0x5401, static_cast<std::uint8_t>(axis));
+  const std::int32_t v = converted;
+  const std::int32_t out = v > z ? v - z : (v < -z ? v + z : 0);
+  move_axis(axis, static_cast<std::int16_t>(out), now);
+}
+
 void Mcb402Sim::set_button(std::size_t button, bool pressed, TimePoint now) {
   if (button < 1 || button > mcb402::kButtons) throw std::out_of_range("MCB-402 button is 1..7");
   const auto bit = static_cast<std::uint8_t>(1u << cfg_.button_bits[button - 1]);

@@ -9,8 +9,8 @@
 //   1400h/1600h RPDO1 200h+id, type FFh: 6200h:01
 //   1800h/1A00h TPDO1 180h+id, type FFh, event timer 0: 6000h:01..04 (4 bytes)
 //   1801h/1A01h TPDO2 280h+id, type FFh, event timer 0: 6401h:01..04 (8 bytes)
-//   5003h debounce (stored, not applied)  5401h zero point enlargement 1000h (stored, not applied:
-//   move_axis() sets the value after it)
+//   5003h debounce (stored, not applied)  5401h zero point enlargement 1000h (applied by
+//   convert_axis(); move_axis() sets the value after it)
 //   6000h:01..04 inputs: 01 memory flags (0 in mode 4), 02 direction inputs, 03 IN7..IN0 = the
 //   buttons, 04 IN11..IN8; each = NOT(pin level) XOR 6002h (the pins are pulled up and shorted to
 //   GND when pressed: "inverted level because active low")
@@ -68,6 +68,9 @@ class Mcb402Sim final : public SimulatedDevice {
 
   // Axis 1..4 (X, Y, Z, T) to `raw` (the signed value after the zero-point processing).
   void move_axis(std::size_t axis, std::int16_t raw, TimePoint now);
+  // Axis 1..4 from the 16-bit conversion result before the zero point enlargement: applies
+  // 5401h as [CO4013 Index 5401] says (v > z: v - z; v < -z: v + z; else 0), then move_axis().
+  void convert_axis(std::size_t axis, std::int16_t converted, TimePoint now);
   // Push button BP1..BP7.
   void press(std::size_t button, TimePoint now) { set_button(button, true, now); }
   void release(std::size_t button, TimePoint now) { set_button(button, false, now); }

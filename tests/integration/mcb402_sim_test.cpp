@@ -158,6 +158,25 @@ TEST_F(Mcb402OnBus, AxesArriveByTheEventTimerOnly) {
   EXPECT_EQ(frames(0x283).size(), 11u) << "one every 20 ms";
 }
 
+TEST_F(Mcb402OnBus, ZeroPointEnlargementAsTheFormula) {
+  boot();
+  // [CO4013 Index 5401] "If 6401 > 5401 then 6401 = 6401 - 5401, else if 6401 < -5401 then
+  // 6401 = 6401 + 5401, else 6401 = 0"; default 1000h.
+  sim_->convert_axis(1, 0x2000, net_.now());
+  sim_->convert_axis(2, 0x0800, net_.now());
+  sim_->convert_axis(3, -0x1800, net_.now());
+  sim_->convert_axis(4, -0x1000, net_.now());
+  net_.run_for(20ms);
+  EXPECT_EQ(v(kX).value, 0x1000);
+  EXPECT_EQ(v(kY).value, 0);
+  EXPECT_EQ(v(kZ).value, -0x0800);
+  EXPECT_EQ(v(kT).value, 0) << "-5401 itself is inside the zone";
+  ASSERT_EQ(download(0x5401, 1, {0x00, 0x00}), SdoAbortCode::None);
+  sim_->convert_axis(1, 0x2000, net_.now());
+  net_.run_for(20ms);
+  EXPECT_EQ(v(kX).value, 0x2000);
+}
+
 TEST_F(Mcb402OnBus, TheDocumentsEventTimerFrameIsAcceptedLiterally) {
   boot();
   net_.bus().clear_log();
