@@ -1,0 +1,255 @@
+#include "subdevices/mcb402.hpp"
+
+#include <charconv>
+#include <string_view>
+
+#include "subdevices/families.hpp"
+
+namespace oegw::subdevices {
+
+namespace {
+
+using namespace mcb402;
+
+constexpr std::uint32_t kTpdo1 = 0x180;
+constexpr std::uint32_t kTpdo2 = 0x280;
+constexpr std::uint32_t kRpdo1 = 0x200;
+constexpr std::uint8_t kTpdo1Length = 4;  // 6000h:01..04
+constexpr std::uint8_t kTpdo2Length = 8;  // 6401h:01..04
+
+std::vector<SignalInfo> make_signals() {
+  std::vector<SignalInfo> s;
+  for (const char* axis : {"x", "y", "z", "t"})
+    s.push_back(SignalInfo{.name = axis, .kind = SignalKind::Axis, .min = -32768, .max = 32767, .neutral = 0,
+                           .unit = "raw16"});
+  for (std::size_t i = 1; i <= kButtons; ++i)
+    s.push_back(SignalInfo{.name = "buttons[" + std::to_string(i) + "]", .kind = SignalKind::Button, .min = 0,
+                           .max = 1, .neutral = 0, .unit = "bool"});
+  for (std::size_t i = 1; i <= kLeds; ++i)
+    s.push_back(SignalInfo{.name = "leds[" + std::to_string(i) + "]", .kind = SignalKind::Output, .min = 0,
+                           .max = 1, .neutral = 0, .unit = "bool"});
+  return s;
+}
+
+std::vector<std::uint8_t> le(std::uint32_t v, std::size_t n) {
+  std::vector<std::uint8_t> out(n);
+  for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<std::uint8_t>(v >> (8 * i));
+  return out;
+}
+
+std::optional<unsigned long> parse_number(std::string_view text, unsigned long max) {
+  unsigned long v = 0;
+  const char* end = text.data() + text.size();
+  auto [p, ec] = std::from_chars(text.data(), end, v);
+  if (ec != std::errc{} || p != end || text.empty() || v > max) return std::nullopt;
+  return v;
+}
+
+}  // namespace
+
+std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, std::string& error) {
+  Mcb402Options o;
+  for (const auto& [key, value] : options.values) {
+    if (key == "event_timer_ms") {
+      const auto v = parse_number(value, 65535);
+      if (!v || *v == 0) {
+        error = "mcb402: event_timer_ms must be 1..65535 (1801h:05, ms; 0 would leave the axes unsent), got '" +
+                value + "'";
+        return std::nullopt;
+      }
+      o.event_timer_ms = static_cast<std::uint16_t>(*v);
+    } else if (key == "button_timer_ms") {
+      const auto v = parse_number(value, 65535);
+      if (!v) {
+        error = "mcb402: button_timer_ms must be 0..65535 (1800h:05, ms), got '" + value + "'";
+        return std::nullopt;
+      }
+      o.button_timer_ms = static_cast<std::uint16_t>(*v);
+    } else if (key == "button_bits") {
+      ButtonBits bits{};
+      std::size_t n = 0;
+      unsigned seen = 0;
+      std::string_view rest = value;
+      bool ok = true;
+      while (ok) {
+        const auto comma = rest.find(',');
+        const auto v = parse_number(rest.substr(0, comma), 7);
+        if (!v || n == kButtons || (seen & (1u << *v)) != 0) {
+          ok = false;
+          break;
+        }
+        seen |= 1u << *v;
+        bits[n++] = static_cast<std::uint8_t>(*v);
+        if (comma == std::string_view::npos) break;
+        rest.remove_prefix(comma + 1);
+      }
+      if (!ok || n != kButtons) {
+        error = "mcb402: button_bits must be 7 distinct bit numbers 0..7 for BP1..BP7 (e.g. 1,2,3,4,5,7,6), got '" +
+                value + "'";
+        return std::nullopt;
+      }
+      o.button_bits = bits;
+    } else {
+      error = "mcb402: unknown option '" + key + "' (expected event_timer_ms, button_timer_ms, button_bits)";
+      return std::nullopt;
+    }
+  }
+  return o;
+}
+
+std::unique_ptr<Driver> make_mcb402_driver(NodeId node, FrameSink sink, const DriverOptions& options,
+                                           std::string& error) {
+  if (!node.valid()) {
+    error = "mcb402: node-ID must be 1..127 (jumpers CN3)";
+    return nullptr;
+  }
+  auto o = parse_mcb402_options(options, error);
+  if (!o) return nullptr;
+  return std::make_unique<Mcb402Driver>(node, std::move(sink), *o);
+}
+
+Mcb402Driver::Mcb402Driver(NodeId node, FrameSink sink, Mcb402Options options)
+    : options_(options), signals_(make_signals()) {
+  init(node, std::move(sink), signals_.size());
+}
+
+ExpectedIdentity Mcb402Driver::expected_identity() const {
+  return ExpectedIdentity{.device_type = kDeviceType, .vendor_id = kVendorId, .product_code = kProductCode,
+                          .revision = std::nullopt, .serial = std::nullopt};
+}
+
+std::vector<SdoWrite> Mcb402Driver::configuration() const {
+  std::vector<SdoWrite> w;
+  w.push_back({0x1800, 2, {0xFF}, "TPDO1 (buttons) transmission type 255, event driven"});
+  w.push_back({0x1800, 5, le(options_.button_timer_ms, 2),
+               "TPDO1 (buttons) event timer " + std::to_string(options_.button_timer_ms) + " ms"});
+  w.push_back({0x1801, 2, {0xFF}, "TPDO2 (axes) transmission type 255, event driven"});
+  w.push_back({0x1801, 5, le(options_.event_timer_ms, 2),
+               "TPDO2 (axes) event timer " + std::to_string(options_.event_timer_ms) + " ms"});
+  w.push_back({0x6002, 3, {0x00}, "input polarity IN7..IN0 not inverted (1 = button pressed)"});
+  w.push_back({0x6202, 1, {0x00}, "output polarity OUT3..OUT0 not inverted (1 = LED on)"});
+  for (std::uint8_t i = 1; i <= kAxes; ++i)
+    w.push_back({0x6431, i, le(0, 4), "analogue input " + std::to_string(i) + " offset 0 (signed axis values)"});
+  return w;
+}
+
+std::vector<std::uint32_t> Mcb402Driver::consumed_cob_ids() const {
+  return {kTpdo1 + node().value(), kTpdo2 + node().value()};
+}
+
+bool Mcb402Driver::on_frame(const CanFrame& frame, TimePoint now) {
+  const std::uint32_t id = node().value();
+  if (frame.extended || frame.rtr || (frame.id != kTpdo1 + id && frame.id != kTpdo2 + id)) {
+    ++counters_.unknown_cob;
+    return false;
+  }
+  if (frame.id == kTpdo1 + id) {
+    if (frame.dlc != kTpdo1Length) {
+      ++counters_.wrong_length;
+      return true;
+    }
+    on_tpdo1(frame, now);
+  } else {
+    if (frame.dlc != kTpdo2Length) {
+      ++counters_.wrong_length;
+      return true;
+    }
+    on_tpdo2(frame, now);
+  }
+  return true;
+}
+
+void Mcb402Driver::on_tpdo1(const CanFrame& frame, TimePoint now) {
+  const std::uint8_t cc = frame.data[kButtonByte];
+  for (std::size_t i = 0; i < kButtons; ++i)
+    update(kFirstButton + i, (cc >> options_.button_bits[i]) & 1u, SignalStatus::Valid, now);
+}
+
+void Mcb402Driver::on_tpdo2(const CanFrame& frame, TimePoint now) {
+  for (std::size_t a = 0; a < kAxes; ++a) {
+    if ((broken_ & (1u << a)) != 0) {
+      update(a, signals_[a].neutral, SignalStatus::Error, now);
+      continue;
+    }
+    const auto raw = static_cast<std::int16_t>(canopen::get_u16(&frame.data[2 * a]));
+    update(a, raw, SignalStatus::Valid, now);
+  }
+}
+
+void Mcb402Driver::set_broken(std::uint8_t axes, TimePoint now) {
+  broken_ = static_cast<std::uint8_t>(axes & 0x0F);
+  for (std::size_t a = 0; a < kAxes; ++a)
+    if ((broken_ & (1u << a)) != 0) update(a, signals_[a].neutral, SignalStatus::Error, now);
+}
+
+DecodedEmcy Mcb402Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
+  DecodedEmcy d;
+  d.code = emcy.code;
+  switch (emcy.code) {
+    case canopen::EmcyProducer::kErrorReset: {
+      d.error = false;
+      d.text = "MCB-402 0000h: error reset";
+      broken_ = 0;
+      // The affected signals stay at neutral until their next PDO brings a fresh value.
+      return d;
+    }
+    case kEmcyCableBreak: {
+      // [CO4013 "Emergency Messages"] "20 31 81 00 8x 00 00 00": byte 4 (msef[1]) = 8xh.
+      const std::uint8_t b = emcy.msef[1];
+      std::uint8_t axes = static_cast<std::uint8_t>(b & 0x0F);
+      if ((b & 0xF0) != 0x80 || axes == 0) {
+        ++counters_.unknown_emcy;
+        axes = 0x0F;  // which axis is unknown: all of them
+        d.text = "MCB-402 3120h: cable break, undecodable axis byte";
+      } else {
+        d.text = "MCB-402 3120h: cable break on axis";
+        static constexpr std::array<const char*, kAxes> kNames{" X", " Y", " Z", " T"};
+        for (std::size_t a = 0; a < kAxes; ++a)
+          if ((axes & (1u << a)) != 0) d.text += kNames[a];
+      }
+      // Axes no longer in the set are released from the latch; their next TPDO2 value is good.
+      set_broken(axes, now);
+      for (std::size_t a = 0; a < kAxes; ++a)
+        if ((axes & (1u << a)) != 0) d.affected.push_back(a);
+      return d;
+    }
+    case kEmcyCanWarning:
+    case kEmcyLifeGuarding:
+    case kEmcyBusOffRecovered: {
+      d.text = emcy.code == kEmcyCanWarning     ? "MCB-402 8100h: CAN bus in error warning state"
+               : emcy.code == kEmcyLifeGuarding ? "MCB-402 8130h: life guarding error"
+                                                : "MCB-402 8140h: return from CAN bus off";
+      for (std::size_t i = 0; i < signals_.size(); ++i) {
+        if (signals_[i].output()) continue;
+        update(i, signals_[i].neutral, SignalStatus::Error, now);
+      }
+      return d;  // affected empty: all inputs
+    }
+    default:
+      ++counters_.unknown_emcy;
+      // Reported as an error for the log; the driver cannot tell what it affects and leaves the
+      // signals alone (bad input is counted and ignored).
+      d.text = "MCB-402: undocumented EMCY code, ignored";
+      return d;
+  }
+}
+
+void Mcb402Driver::send_outputs() {
+  send(CanFrame(kRpdo1 + node().value(), {outputs_}));
+}
+
+void Mcb402Driver::on_online(TimePoint now) {
+  Driver::on_online(now);
+  send_outputs();
+}
+
+bool Mcb402Driver::set_output(std::size_t index, std::int64_t value, TimePoint now) {
+  if (index < kFirstLed || index >= kFirstLed + kLeds || value < 0 || value > 1) return false;
+  const auto bit = static_cast<std::uint8_t>(1u << (index - kFirstLed));
+  outputs_ = static_cast<std::uint8_t>(value != 0 ? (outputs_ | bit) : (outputs_ & ~bit));
+  update(index, value, SignalStatus::Valid, now);
+  send_outputs();
+  return true;
+}
+
+}  // namespace oegw::subdevices

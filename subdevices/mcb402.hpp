@@ -1,0 +1,133 @@
+// MCB-402 joystick controller (frenzel + berg CO4013A CANopen controller, operation mode 4).
+// Source: reference/003_44a28fc862638d35.txt ("MCB-402 CANOPEN Controller for joystick", v1.0),
+// quoted below as [MCB §n] for the board's own chapters 1-4 and [CO4013 <object/section>] for the
+// controller's chapter 5.
+//
+// Signals (index = position in signals()):
+//   0  x            Axis    raw16  -32768..32767, neutral 0   6401h:01, TPDO2 bytes 0-1 (X, CN5)
+//   1  y            Axis    raw16  -32768..32767, neutral 0   6401h:02, TPDO2 bytes 2-3 (Y, CN9)
+//   2  z            Axis    raw16  -32768..32767, neutral 0   6401h:03, TPDO2 bytes 4-5 (Z, CN7)
+//   3  t            Axis    raw16  -32768..32767, neutral 0   6401h:04, TPDO2 bytes 6-7 ("T axis",
+//                                                             CN8 [MCB §2]; the CO4013 chapter
+//                                                             calls it the W axis)
+//   4..10  buttons[1]..buttons[7]   Button  bool 0..1, neutral 0, 1 = pressed   BP1..BP7 (CN6),
+//                                   TPDO1 byte 2 (6000h:03) — bit table below
+//   11..14 leds[1]..leds[4]         Output  bool 0..1, 1 = LED on   OUT0..OUT3 (CN10),
+//                                   RPDO1 byte 0 (6200h:01) bits 0..3
+//
+// Wire layouts:
+//   TPDO1 0x180+id, 4 bytes [CO4013 "Operation mode 4", default PDO mapping]: 6000h:01 memory
+//     flags (forced to 0), 6000h:02 direction inputs, 6000h:03 general-purpose IN7..IN0 = the push
+//     buttons, 6000h:04 IN11..IN8. [MCB §4]: "183 00 00 cc 0(0)", "when pressed the corresponding
+//     bit is set to 1". The pins are active low (short to GND), and the controller already inverts
+//     them into 6000h ("inverted level because active low", [CO4013 6000h sub 3]), so on the wire
+//     1 = pressed: the driver does not invert again, and pins the polarity object 6002h:03 to 0 at
+//     boot so that nobody's stored inversion changes that meaning.
+//   Button bits of byte cc, [MCB §4] "Bit of cc 7 6 5 4 3 2 1 0 / N° BP 6 7 5 4 3 2 1": read as
+//     written, bit 7 = BP6, bit 6 = BP7, bits 5..1 = BP5..BP1, bit 0 unused. The extracted table is
+//     damaged (7 entries under 8 columns, BP6/BP7 in unexpected order): the option `button_bits`
+//     overrides it, and it must be checked on a real board.
+//   TPDO2 0x280+id, 8 bytes: X, Y, Z, T as INTEGER16 little endian ("the word for X axis is
+//     0xbbaa"); 2.5 V = 0x0000, 5 V = 0x7FFF, 0 V = 0x8000 [MCB §4].
+//   RPDO1 0x200+id, 1 byte: 6200h:01, bits 0..3 = OUT0..OUT3 ([CO4013 "Operation mode 4"]); the
+//     output pins are active low and the controller inverts 6200h onto them (a 1 lights the LED
+//     wired from +5 V), 6202h:01 pinned to 0 at boot. set_output() always sends the whole
+//     remembered byte; on_online() re-sends it (a rebooted board starts with 6200h = 0).
+//   EMCY 0x80+id, cable break [CO4013 "Emergency Messages"]: "20 31 81 00 8x 00 00 00" = code
+//     3120h, 1001h = 81h, byte 4 = 80h | axis bits (bit 0 X, bit 1 Y, bit 2 Z, bit 3 W/T); the
+//     active errors are ORed, so byte 4 is the set of broken axes. Those axes go to Error (value 0)
+//     and stay there, whatever TPDO2 carries, until an EMCY 3120h without their bit or the
+//     error-reset EMCY 0000h; the next TPDO2 then makes them Valid. The latch survives on_offline()
+//     (a heartbeat loss does not repeat the EMCY). A 3120h whose byte 4 is not 8xh with x != 0 is
+//     counted (unknown_emcy) and puts all four axes in Error.
+//   Other documented EMCYs: 8130h life guarding, 8100h CAN error warning, 8140h return from bus
+//     off: every input to Error (value neutral) until 0000h or the next PDO carrying it. Any other
+//     code: counted (unknown_emcy), signals untouched (returned with error = true, for the log).
+//
+// Boot configuration (configuration()), in this order:
+//   1800h:02 = FFh, 1800h:05 = button_timer_ms  TPDO1 event driven + periodic refresh
+//   1801h:02 = FFh, 1801h:05 = event_timer_ms   TPDO2: the [MCB §4] example
+//                                               "603 22 01 18 05 aa bb 00 00" (axes each 0xbbaa ms;
+//                                               without it the axes are sent once, at start, as
+//                                               6423h is FALSE by default)
+//   6002h:03 = 00h, 6202h:01 = 00h              input / output polarity as described above
+//   6431h:01..04 = 0                            analogue offset 0: 6401h stays signed
+// Options: event_timer_ms (1..65535, default 20 — the document gives no value, its default 0
+// would mean no periodic axes), button_timer_ms (0..65535, default 100, 0 = on change only),
+// button_bits (seven distinct bit numbers 0..7 for BP1..BP7, default "1,2,3,4,5,7,6").
+//
+// Identity [CO4013 1000h, 1018h]: device type 0107 0191h (CO4013A4), vendor 58h, product code
+// 0104 0131h; revision is "revision of the device" and not checked.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "subdevices/driver.hpp"
+
+namespace oegw::subdevices {
+
+namespace mcb402 {
+inline constexpr std::uint32_t kDeviceType = 0x01070191;  // CO4013A4
+inline constexpr std::uint32_t kVendorId = 0x58;
+inline constexpr std::uint32_t kProductCode = 0x01040131;
+inline constexpr std::uint16_t kEmcyCableBreak = 0x3120;
+inline constexpr std::uint16_t kEmcyCanWarning = 0x8100;
+inline constexpr std::uint16_t kEmcyLifeGuarding = 0x8130;
+inline constexpr std::uint16_t kEmcyBusOffRecovered = 0x8140;
+inline constexpr std::size_t kAxes = 4;
+inline constexpr std::size_t kButtons = 7;
+inline constexpr std::size_t kLeds = 4;
+inline constexpr std::size_t kButtonByte = 2;  // 6000h:03 in TPDO1
+// BP1..BP7 -> bit of 6000h:03 ([MCB §4] table, see above).
+using ButtonBits = std::array<std::uint8_t, kButtons>;
+inline constexpr ButtonBits kDefaultButtonBits{1, 2, 3, 4, 5, 7, 6};
+// Signal indices.
+inline constexpr std::size_t kFirstButton = kAxes;
+inline constexpr std::size_t kFirstLed = kAxes + kButtons;
+}  // namespace mcb402
+
+struct Mcb402Options {
+  std::uint16_t event_timer_ms = 20;
+  std::uint16_t button_timer_ms = 100;
+  mcb402::ButtonBits button_bits = mcb402::kDefaultButtonBits;
+};
+
+class Mcb402Driver final : public Driver {
+ public:
+  Mcb402Driver(NodeId node, FrameSink sink, Mcb402Options options);
+
+  [[nodiscard]] std::string_view family() const override { return "mcb402"; }
+  [[nodiscard]] const std::vector<SignalInfo>& signals() const override { return signals_; }
+  [[nodiscard]] ExpectedIdentity expected_identity() const override;
+  [[nodiscard]] std::vector<SdoWrite> configuration() const override;
+  bool on_frame(const CanFrame& frame, TimePoint now) override;
+  DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) override;
+  [[nodiscard]] std::vector<std::uint32_t> consumed_cob_ids() const override;
+  void on_online(TimePoint now) override;
+  bool set_output(std::size_t index, std::int64_t value, TimePoint now) override;
+
+  [[nodiscard]] const Mcb402Options& options() const { return options_; }
+  // Axes (bit 0 = X .. bit 3 = T) latched broken by the cable-break EMCY.
+  [[nodiscard]] std::uint8_t broken_axes() const { return broken_; }
+  [[nodiscard]] std::uint8_t output_byte() const { return outputs_; }
+
+ private:
+  void on_tpdo1(const CanFrame& frame, TimePoint now);
+  void on_tpdo2(const CanFrame& frame, TimePoint now);
+  void set_broken(std::uint8_t axes, TimePoint now);
+  void send_outputs();
+
+  Mcb402Options options_;
+  std::vector<SignalInfo> signals_;
+  std::uint8_t broken_ = 0;
+  std::uint8_t outputs_ = 0;  // 6200h:01 as last commanded
+};
+
+// Parses `options` (event_timer_ms, button_timer_ms, button_bits); nullopt + `error` if bad.
+std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, std::string& error);
+
+}  // namespace oegw::subdevices

@@ -1,0 +1,258 @@
+#include "subdevices/sim/mcb402_sim.hpp"
+
+#include <stdexcept>
+#include <string>
+
+namespace oegw::subdevices::sim {
+
+namespace {
+
+using canopen::Access;
+using canopen::DataType;
+using canopen::encode;
+using canopen::ObjectDictionary;
+using canopen::Origin;
+using canopen::PdoParameters;
+using canopen::pdo_map;
+
+std::vector<std::uint8_t> text(const std::string& s) { return {s.begin(), s.end()}; }
+
+// The controller's own objects ([CO4013] chapter 5, operation mode 4), before the Node adds the
+// communication objects.
+std::unique_ptr<ObjectDictionary> build_od(const Mcb402SimConfig& cfg) {
+  auto od = std::make_unique<ObjectDictionary>();
+  const std::uint8_t id = cfg.node_id.value();
+  od->add_var(0x1002, "Manufacturer status register", DataType::Unsigned32, Access::ReadOnly,
+              encode<std::uint32_t>(0), true);
+  od->add_var(0x100C, "Guard time", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(0));
+  od->add_var(0x100D, "Life time factor", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(0));
+  od->add_var(0x100E, "COB-ID guard", DataType::Unsigned32, Access::ReadWrite, encode<std::uint32_t>(0x700u + id));
+  od->add_var(0x2000, "Device manufacturer", DataType::VisibleString, Access::ReadOnly, text("Frenzel + Berg"));
+  // "the inverted setting of the configuration input bits CFG0 to CFG3": mode 4 = 1011b -> 0100b.
+  od->add_var(0x2101, "System configuration", DataType::Unsigned32, Access::ReadOnly, encode<std::uint32_t>(4));
+  od->add_var(0x2180, "CAN restart time", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(0));
+
+  od->add_array(0x5003, "Filter time digital input", DataType::Unsigned8, Access::ReadWrite, 20, {40});
+  od->add_array(0x5401, "Axis zero position enlargement", DataType::Unsigned16, Access::ReadWrite, 4,
+                encode<std::uint16_t>(0x1000));
+  od->add_array(0x6000, "Digital input 8 bit", DataType::Unsigned8, Access::ReadOnly, 4, {0}, true);
+  od->add_array(0x6002, "Polarity input 8 bit", DataType::Unsigned8, Access::ReadWrite, 4, {0});
+  od->add_var(0x6005, "Global interrupt enable", DataType::Boolean, Access::ReadWrite, {1});
+  od->add_array(0x6006, "Interrupt mask any change", DataType::Unsigned8, Access::ReadWrite, 4, {0xFF});
+  od->add_array(0x6007, "Interrupt mask rising edge", DataType::Unsigned8, Access::ReadWrite, 4, {0});
+  od->add_array(0x6008, "Interrupt mask falling edge", DataType::Unsigned8, Access::ReadWrite, 4, {0});
+  od->add_array(0x6200, "Write to digital output", DataType::Unsigned8, Access::WriteOnly, 1, {0}, true);
+  od->add_array(0x6202, "Polarity output 8 bit", DataType::Unsigned8, Access::ReadWrite, 1, {0});
+  od->add_array(0x6206, "Error mode output 8 bit", DataType::Unsigned8, Access::ReadWrite, 1, {0xFF});
+  od->add_array(0x6207, "Error value output 8 bit", DataType::Unsigned8, Access::ReadWrite, 1, {0});
+  od->add_array(0x6401, "Read analog input 16 bit", DataType::Integer16, Access::ReadOnly, 4,
+                encode<std::int16_t>(0), true);
+  od->add_array(0x6421, "Analog input interrupt trigger", DataType::Unsigned8, Access::ReadWrite, 4, {7});
+  od->add_var(0x6423, "Analog input global interrupt enable", DataType::Boolean, Access::ReadWrite, {0});
+  const char* limits[] = {"Analog input upper limit", "Analog input lower limit", "Analog input interrupt delta",
+                          "Analog input negative delta", "Analog input positive delta"};
+  for (std::uint16_t i = 0; i < 5; ++i)
+    od->add_array(static_cast<std::uint16_t>(0x6424 + i), limits[i], DataType::Integer32, Access::ReadWrite, 4,
+                  encode<std::int32_t>(0));
+  od->add_array(0x6431, "Analog input offset", DataType::Integer32, Access::ReadWrite, 4, encode<std::int32_t>(0));
+
+  // [CO4013 "Operation mode 4"] default PDO mapping; [CO4013 Index 1400] type FFh, event time 0.
+  canopen::install_rpdo(*od, 1,
+                        PdoParameters{.cob_id = canopen::cob::kRpdo1 + id,
+                                      .transmission_type = 0xFF,
+                                      .mapping = {pdo_map(0x6200, 1, 8)}});
+  canopen::install_tpdo(*od, 1,
+                        PdoParameters{.cob_id = canopen::cob::kTpdo1 + id,
+                                      .transmission_type = 0xFF,
+                                      .inhibit_time = 0,
+                                      .event_timer = 0,
+                                      .mapping = {pdo_map(0x6000, 1, 8), pdo_map(0x6000, 2, 8),
+                                                  pdo_map(0x6000, 3, 8), pdo_map(0x6000, 4, 8)}});
+  canopen::install_tpdo(*od, 2,
+                        PdoParameters{.cob_id = canopen::cob::kTpdo2 + id,
+                                      .transmission_type = 0xFF,
+                                      .inhibit_time = 0,
+                                      .event_timer = 0,
+                                      .mapping = {pdo_map(0x6401, 1, 16), pdo_map(0x6401, 2, 16),
+                                                  pdo_map(0x6401, 3, 16), pdo_map(0x6401, 4, 16)}});
+  return od;
+}
+
+std::uint8_t bit_timing_for(std::uint16_t kbaud) {
+  switch (kbaud) {  // CiA 305 Table 1
+    case 500: return 2;
+    case 250: return 3;
+    case 125: return 4;
+    case 50: return 6;
+    case 20: return 7;
+    default: throw std::invalid_argument("MCB-402: bit rate must be 20, 50, 125, 250 or 500 kbit/s");
+  }
+}
+
+}  // namespace
+
+std::optional<Mcb402SimConfig> Mcb402SimConfig::from_jumpers(std::uint8_t address_pins, std::uint8_t baud_pins) {
+  const auto address = static_cast<std::uint8_t>(~address_pins & 0x7F);
+  if (address == 0) return std::nullopt;
+  Mcb402SimConfig c;
+  c.node_id = NodeId{address};
+  switch (baud_pins & 0x07) {
+    case 0b101: c.kbaud = 500; break;
+    case 0b100: c.kbaud = 250; break;
+    case 0b011: c.kbaud = 125; break;
+    case 0b010: c.kbaud = 50; break;
+    case 0b001: c.kbaud = 20; break;
+    default: return std::nullopt;
+  }
+  return c;
+}
+
+Mcb402Sim::Mcb402Sim(FrameSink sink, Mcb402SimConfig config) : SimulatedDevice(std::move(sink)), cfg_(config) {
+  if (!cfg_.node_id.valid()) throw std::invalid_argument("MCB-402: node-ID must be 1..127");
+  canopen::NodeConfig nc;
+  nc.node_id = cfg_.node_id;
+  nc.device_type = mcb402::kDeviceType;
+  nc.device_name = "CO4013A";
+  nc.hardware_version = "1.0";
+  nc.identity = {.vendor = mcb402::kVendorId, .product = mcb402::kProductCode, .revision = cfg_.revision,
+                 .serial = 0};
+  nc.heartbeat_ms = cfg_.heartbeat_ms;
+  nc.bit_timing_index = bit_timing_for(cfg_.kbaud);
+  nc.store_path = cfg_.store_path;
+  build(build_od(cfg_), nc);
+  dict_ = &od();
+
+  // [CO4013 Index 1018] sub-index 0 = 3: no serial number. No 100Ah in the document's table.
+  auto& identity = *od().find(0x1018);
+  identity.subs().erase(4);
+  identity.find(0)->value = {3};
+  identity.find(0)->default_value = {3};
+  (void)od().remove(0x100A);
+
+  node().on_state_change = [this](canopen::NmtState s) {
+    // [CO4013 Index 1002] bit 31: the device is in operational state.
+    auto* status = od().find(0x1002, 0);
+    const std::uint32_t v = s == canopen::NmtState::Operational ? 0x80000000u : 0u;
+    status->value = encode<std::uint32_t>(v);
+    // After a reset the dictionary holds its defaults: the pins are read again.
+    refresh_inputs(true);
+  };
+  subs_ += od().add_observer([this](std::uint16_t index, std::uint8_t, Origin origin) {
+    if (origin == Origin::Sdo && (index == 0x6002 || index == 0x6431)) refresh_inputs(true);
+  });
+}
+
+std::uint8_t Mcb402Sim::bit_timing_index() const { return bit_timing_for(cfg_.kbaud); }
+
+void Mcb402Sim::write_input(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> bytes,
+                            bool notify) {
+  if (notify) {
+    (void)od().write(index, sub, bytes, Origin::Local);  // observers: the TPDO sees a change
+  } else {
+    od().find(index, sub)->value.assign(bytes.begin(), bytes.end());  // sampled, no event
+  }
+}
+
+bool Mcb402Sim::digital_interrupt(std::uint8_t before, std::uint8_t after, std::uint8_t sub) const {
+  if (dict_->get<std::uint8_t>(0x6005, 0) == 0) return false;
+  const auto changed = static_cast<std::uint8_t>(before ^ after);
+  const auto rising = static_cast<std::uint8_t>(after & ~before);
+  const auto falling = static_cast<std::uint8_t>(before & ~after);
+  return ((changed & dict_->get<std::uint8_t>(0x6006, sub)) | (rising & dict_->get<std::uint8_t>(0x6007, sub)) |
+          (falling & dict_->get<std::uint8_t>(0x6008, sub))) != 0;
+}
+
+bool Mcb402Sim::analogue_interrupt(std::size_t axis, std::int16_t before, std::int16_t after) const {
+  if (dict_->get<std::uint8_t>(0x6423, 0) == 0) return false;
+  const auto sub = static_cast<std::uint8_t>(axis + 1);
+  const std::uint8_t trigger = dict_->get<std::uint8_t>(0x6421, sub);
+  const std::int32_t delta = std::int32_t{after} - std::int32_t{before};
+  bool fire = false;
+  if ((trigger & 0x01) != 0 && after > dict_->get<std::int32_t>(0x6424, sub)) fire = true;
+  if ((trigger & 0x02) != 0 && after < dict_->get<std::int32_t>(0x6425, sub)) fire = true;
+  if ((trigger & 0x04) != 0 && (delta < 0 ? -delta : delta) > dict_->get<std::int32_t>(0x6426, sub)) fire = true;
+  if ((trigger & 0x08) != 0 && -delta > dict_->get<std::int32_t>(0x6427, sub)) fire = true;
+  if ((trigger & 0x10) != 0 && delta > dict_->get<std::int32_t>(0x6428, sub)) fire = true;
+  return fire;
+}
+
+void Mcb402Sim::refresh_inputs(bool notify) {
+  // 6000h: NOT(pin) XOR polarity. Sub 1 (memory flags) is forced to 0 in mode 4; the direction
+  // inputs and IN11..IN8 are not wired on the MCB-402 (pulled up).
+  const std::array<std::uint8_t, 4> level{0x00, 0x00, static_cast<std::uint8_t>(~pins_), 0x00};
+  for (std::uint8_t sub = 1; sub <= 4; ++sub) {
+    std::uint8_t v = level[sub - 1];
+    if (sub > 1) v = static_cast<std::uint8_t>(v ^ od().get<std::uint8_t>(0x6002, sub));
+    if (sub == 4) v &= 0x0F;
+    const std::uint8_t before = od().get<std::uint8_t>(0x6000, sub);
+    if (v == before) continue;
+    const std::array<std::uint8_t, 1> b{v};
+    write_input(0x6000, sub, b, notify && digital_interrupt(before, v, sub));
+  }
+  for (std::size_t a = 0; a < mcb402::kAxes; ++a) {
+    const auto sub = static_cast<std::uint8_t>(a + 1);
+    const std::int32_t physical = (broken_ & (1u << a)) != 0 ? -32768 : axes_[a];
+    const auto v = static_cast<std::int16_t>(
+        static_cast<std::uint16_t>(static_cast<std::uint32_t>(physical + od().get<std::int32_t>(0x6431, sub))));
+    const auto before = od().get<std::int16_t>(0x6401, sub);
+    if (v == before) continue;
+    const auto b = encode<std::int16_t>(v);
+    write_input(0x6401, sub, b, notify && analogue_interrupt(a, before, v));
+  }
+}
+
+void Mcb402Sim::move_axis(std::size_t axis, std::int16_t raw, TimePoint now) {
+  if (axis < 1 || axis > mcb402::kAxes) throw std::out_of_range("MCB-402 axis is 1..4");
+  axes_[axis - 1] = raw;
+  refresh_inputs(true);
+  node().advance(now);
+}
+
+void Mcb402Sim::convert_axis(std::size_t axis, std::int16_t converted, TimePoint now) {
+  if (axis < 1 || axis > mcb402::kAxes) throw std::out_of_range("MCB-402 axis is 1..4");
+  const std::int32_t z = od().get<std::uint16_t>(0x5401, static_cast<std::uint8_t>(axis));
+  const std::int32_t v = converted;
+  const std::int32_t out = v > z ? v - z : (v < -z ? v + z : 0);
+  move_axis(axis, static_cast<std::int16_t>(out), now);
+}
+
+void Mcb402Sim::set_button(std::size_t button, bool pressed, TimePoint now) {
+  if (button < 1 || button > mcb402::kButtons) throw std::out_of_range("MCB-402 button is 1..7");
+  const auto bit = static_cast<std::uint8_t>(1u << cfg_.button_bits[button - 1]);
+  // CN6: a button shorts its input to GND.
+  pins_ = static_cast<std::uint8_t>(pressed ? (pins_ & ~bit) : (pins_ | bit));
+  refresh_inputs(true);
+  node().advance(now);
+}
+
+void Mcb402Sim::cable_break(std::size_t axis, bool broken, TimePoint now) {
+  if (axis < 1 || axis > mcb402::kAxes) throw std::out_of_range("MCB-402 axis is 1..4");
+  const std::uint8_t before = broken_;
+  const auto bit = static_cast<std::uint8_t>(1u << (axis - 1));
+  broken_ = static_cast<std::uint8_t>(broken ? (broken_ | bit) : (broken_ & ~bit));
+  refresh_inputs(true);
+  if (broken_ == before) return;
+  auto& emcy = node().emcy();
+  if (emcy.active(mcb402::kEmcyCableBreak)) emcy.clear(mcb402::kEmcyCableBreak, now);
+  // "20 31 81 00 8x 00 00 00": 1001h = generic + device error (bit 7); byte 4 = 80h | axes.
+  if (broken_ != 0)
+    emcy.raise(mcb402::kEmcyCableBreak, 0x80,
+               canopen::EmcyManufacturerField{0x00, static_cast<std::uint8_t>(0x80 | broken_), 0, 0, 0}, now);
+  node().advance(now);
+}
+
+std::uint8_t Mcb402Sim::leds() const {
+  // [CO4013 Index 6200]: 6200h XOR 6202h, then inverted onto the active-low pins: a 1 lights the
+  // LED wired from +5 V (CN10). 6206h/6207h: in a device error the outputs selected by 6206h take
+  // the 6207h value (1 = active).
+  std::uint8_t v = dict_->get<std::uint8_t>(0x6200, 1) ^ dict_->get<std::uint8_t>(0x6202, 1);
+  if (device_error_) {
+    const std::uint8_t mode = dict_->get<std::uint8_t>(0x6206, 1);
+    v = static_cast<std::uint8_t>((v & ~mode) | (dict_->get<std::uint8_t>(0x6207, 1) & mode));
+  }
+  return static_cast<std::uint8_t>(v & 0x0F);
+}
+
+void Mcb402Sim::on_power_cycle(TimePoint /*now*/) { device_error_ = false; }
+
+}  // namespace oegw::subdevices::sim

@@ -1,0 +1,398 @@
+// Mcb402Driver frame by frame. Vectors: reference/003_44a28fc862638d35.txt, "MCB-402 CANOPEN
+// Controller for joystick" v1.0 — [MCB §4] "Using in a non CANOPEN network" (frames 183/283/603),
+// [CO4013 ...] the CO4013A chapter 5 sections named in each test.
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "canopen/301/emcy.hpp"
+#include "canopen/301/sdo_client.hpp"
+#include "subdevices/families.hpp"
+#include "subdevices/mcb402.hpp"
+
+using namespace oegw::subdevices;
+using oegw::canopen::CanFrame;
+using oegw::canopen::EmcyConsumer;
+using oegw::canopen::ObjectDictionary;
+using oegw::canopen::SdoAbortCode;
+using oegw::canopen::SdoClient;
+using oegw::canopen::TimePoint;
+using namespace std::chrono_literals;
+
+namespace {
+
+constexpr NodeId kNode{0x03};  // [MCB §4] "the MCB402 is configured at address 0x03"
+constexpr std::size_t kX = 0, kY = 1, kZ = 2, kT = 3;
+constexpr std::size_t button(std::size_t n) { return mcb402::kFirstButton + n - 1; }
+constexpr std::size_t led(std::size_t n) { return mcb402::kFirstLed + n - 1; }
+
+class Mcb402Test : public ::testing::Test {
+ protected:
+  Mcb402Test() { make({}); }
+
+  void make(const DriverOptions& options) {
+    std::string error;
+    driver_ = make_mcb402_driver(kNode, [this](const CanFrame& f) { sent_.push_back(f); }, options, error);
+    ASSERT_NE(driver_, nullptr) << error;
+    driver_->on_change = [this](std::size_t i, const SignalValue&) { changes_.push_back(i); };
+    emcy_ = std::make_unique<EmcyConsumer>(od_, [this](const oegw::canopen::EmcyMessage& m, TimePoint now) {
+      decoded_.push_back(driver_->on_emcy(m, now));
+    });
+  }
+  TimePoint at(int ms) const { return TimePoint{} + std::chrono::milliseconds(ms); }
+  bool frame(const CanFrame& f, int ms = 0) { return driver_->on_frame(f, at(ms)); }
+  // EMCY frames go through the real consumer, as the Master hands them over.
+  void emcy(const CanFrame& f, int ms = 0) { ASSERT_TRUE(emcy_->on_frame(f, at(ms))); }
+  const SignalValue& v(std::size_t i) const { return driver_->value(i); }
+  Mcb402Driver& mcb() { return dynamic_cast<Mcb402Driver&>(*driver_); }
+
+  std::unique_ptr<Driver> driver_;
+  std::vector<CanFrame> sent_;
+  std::vector<std::size_t> changes_;
+  ObjectDictionary od_;
+  std::unique_ptr<EmcyConsumer> emcy_;
+  std::vector<DecodedEmcy> decoded_;
+};
+
+TEST_F(Mcb402Test, SignalListNamesKindsAndRanges) {
+  const auto& s = driver_->signals();
+  ASSERT_EQ(s.size(), 15u);
+  const char* names[] = {"x",          "y",          "z",          "t",          "buttons[1]",
+                         "buttons[2]", "buttons[3]", "buttons[4]", "buttons[5]", "buttons[6]",
+                         "buttons[7]", "leds[1]",    "leds[2]",    "leds[3]",    "leds[4]"};
+  for (std::size_t i = 0; i < s.size(); ++i) EXPECT_EQ(s[i].name, names[i]);
+  // [MCB §4]: 0 V = 0x8000, 2.5 V = 0x0000, 5 V = 0x7FFF.
+  for (std::size_t a = 0; a < 4; ++a) {
+    EXPECT_EQ(s[a].kind, SignalKind::Axis);
+    EXPECT_EQ(s[a].min, -32768);
+    EXPECT_EQ(s[a].max, 32767);
+    EXPECT_EQ(s[a].neutral, 0);
+    EXPECT_EQ(s[a].unit, "raw16");
+  }
+  for (std::size_t b = 1; b <= 7; ++b) EXPECT_EQ(s[button(b)].kind, SignalKind::Button);
+  for (std::size_t l = 1; l <= 4; ++l) EXPECT_TRUE(s[led(l)].output());
+  EXPECT_EQ(driver_->find_signal("buttons[7]"), button(7));
+  EXPECT_EQ(driver_->family(), "mcb402");
+  for (std::size_t i = 0; i < s.size(); ++i) EXPECT_EQ(v(i).status, SignalStatus::Offline);
+}
+
+TEST_F(Mcb402Test, ConsumesTpdo1AndTpdo2OfItsNode) {
+  // [MCB §4] "0x183 = 0x180 + address", "283 aa bb ...".
+  EXPECT_EQ(driver_->consumed_cob_ids(), (std::vector<std::uint32_t>{0x183, 0x283}));
+}
+
+TEST_F(Mcb402Test, ExpectedIdentityFromTheDictionaryChapter) {
+  // [CO4013 Index 1000] CO4013A4 = 0107 0191h; [CO4013 Index 1018] vendor 58h, product 0104 0131h.
+  const auto id = driver_->expected_identity();
+  EXPECT_EQ(id.device_type, 0x01070191u);
+  EXPECT_EQ(id.vendor_id, 0x58u);
+  EXPECT_EQ(id.product_code, 0x01040131u);
+  EXPECT_FALSE(id.revision.has_value()) << "the document gives no revision value";
+  EXPECT_FALSE(id.serial.has_value()) << "1018h has sub-indices 1..3 only";
+}
+
+TEST_F(Mcb402Test, ConfigurationWritesTheEventTimerAsTheDocumentsExample) {
+  make({{{"event_timer_ms", "500"}}});
+  const auto writes = driver_->configuration();
+  // Sent through a real SDO client, as the Master does at boot.
+  std::vector<CanFrame> out;
+  SdoClient client([&out](const CanFrame& f) { out.push_back(f); }, kNode);
+  int done = 0;
+  for (const auto& w : writes) {
+    client.download(w.index, w.sub, w.data, [&done](SdoAbortCode c, std::vector<std::uint8_t>) {
+      EXPECT_EQ(c, SdoAbortCode::None);
+      ++done;
+    });
+  }
+  for (std::size_t i = 0; i < writes.size(); ++i) {
+    client.advance(at(static_cast<int>(i)));
+    ASSERT_EQ(out.size(), i + 1);
+    const CanFrame& req = out.back();
+    ASSERT_TRUE(client.on_frame(CanFrame(0x583, {0x60, req.data[1], req.data[2], req.data[3], 0, 0, 0, 0}),
+                                at(static_cast<int>(i))));
+  }
+  EXPECT_EQ(done, static_cast<int>(writes.size()));
+  // [MCB §4] "Write : 603 22 01 18 05 aa bb 00 00   0xbbaa = duration in ms": 500 ms = 0x01F4.
+  // The client indicates the size (2Bh: expedited, 2 bytes) where the example leaves it open (22h);
+  // the index, sub-index and data bytes are the example's.
+  bool found = false;
+  for (const CanFrame& f : out) {
+    if (f.data[1] == 0x01 && f.data[2] == 0x18 && f.data[3] == 0x05) {
+      found = true;
+      EXPECT_EQ(f.id, 0x603u);
+      EXPECT_EQ(f.dlc, 8);
+      EXPECT_EQ(f.data[0], 0x2B);
+      const std::vector<std::uint8_t> doc{0x22, 0x01, 0x18, 0x05, 0xF4, 0x01, 0x00, 0x00};
+      EXPECT_EQ(std::vector<std::uint8_t>(f.data.begin() + 1, f.data.end()),
+                std::vector<std::uint8_t>(doc.begin() + 1, doc.end()))
+          << f.to_string();
+    }
+  }
+  EXPECT_TRUE(found);
+  // The transmission type is written first (the event timer only acts in types 254/255,
+  // [CO4013 "Description of transmission type"]), then the timer.
+  auto pos = [&writes](std::uint16_t index, std::uint8_t sub) {
+    for (std::size_t i = 0; i < writes.size(); ++i)
+      if (writes[i].index == index && writes[i].sub == sub) return static_cast<int>(i);
+    return -1;
+  };
+  ASSERT_GE(pos(0x1801, 2), 0);
+  EXPECT_LT(pos(0x1801, 2), pos(0x1801, 5));
+  EXPECT_EQ(writes[static_cast<std::size_t>(pos(0x1801, 2))].data, (std::vector<std::uint8_t>{0xFF}));
+  EXPECT_EQ(writes[static_cast<std::size_t>(pos(0x1800, 5))].data, (std::vector<std::uint8_t>{100, 0}));
+  // Polarity pinned: 6000h is "inverted level because active low" — 1 = pressed only while 6002h:03 = 0.
+  ASSERT_GE(pos(0x6002, 3), 0);
+  EXPECT_EQ(writes[static_cast<std::size_t>(pos(0x6002, 3))].data, (std::vector<std::uint8_t>{0x00}));
+  ASSERT_GE(pos(0x6202, 1), 0);
+  for (std::uint8_t a = 1; a <= 4; ++a) {
+    ASSERT_GE(pos(0x6431, a), 0) << "6431h offset would make 6401h unsigned";
+    EXPECT_EQ(writes[static_cast<std::size_t>(pos(0x6431, a))].data.size(), 4u) << "INTEGER32";
+  }
+}
+
+TEST_F(Mcb402Test, DefaultEventTimerIsTwentyMilliseconds) {
+  int seen = 0;
+  for (const auto& w : driver_->configuration()) {
+    if (w.index == 0x1801 && w.sub == 5) {
+      EXPECT_EQ(w.data, (std::vector<std::uint8_t>{20, 0}));
+      ++seen;
+    }
+  }
+  EXPECT_EQ(seen, 1);
+}
+
+TEST_F(Mcb402Test, Tpdo2AxesAreSignedLittleEndianWords) {
+  // [MCB §4] "283 aa bb cc dd ee ff gg hh Axis X Y Z T (signed 16 bits) ... neutral 0x0000, 5V
+  // 0x7FFF, 0V 0x8000. The word for X axis is 0xbbaa."
+  EXPECT_TRUE(frame(CanFrame(0x283, {0xFF, 0x7F, 0x00, 0x80, 0x00, 0x00, 0x34, 0x12}), 5));
+  EXPECT_EQ(v(kX).value, 32767);
+  EXPECT_EQ(v(kY).value, -32768);
+  EXPECT_EQ(v(kZ).value, 0);
+  EXPECT_EQ(v(kT).value, 0x1234);
+  for (std::size_t a = 0; a < 4; ++a) {
+    EXPECT_EQ(v(a).status, SignalStatus::Valid);
+    EXPECT_EQ(v(a).timestamp, at(5));
+  }
+  EXPECT_EQ(changes_, (std::vector<std::size_t>{kX, kY, kZ, kT}));
+  changes_.clear();
+  EXPECT_TRUE(frame(CanFrame(0x283, {0xFF, 0x7F, 0x00, 0x80, 0x01, 0x00, 0x34, 0x12}), 6));
+  EXPECT_EQ(changes_, (std::vector<std::size_t>{kZ})) << "on_change only for what changed";
+  EXPECT_EQ(v(kZ).value, 1);
+}
+
+TEST_F(Mcb402Test, Tpdo1ButtonBitsAsTheDocumentsTable) {
+  // [MCB §4] "183 00 00 cc 0 — when pressed, the corresponding bit is set to 1";
+  // "Bit of cc 7 6 5 4 3 2 1 0 / N° BP 6 7 5 4 3 2 1".
+  const std::uint8_t bit_of[8] = {0, 1, 2, 3, 4, 5, 7, 6};  // index = BP number
+  for (std::size_t bp = 1; bp <= 7; ++bp) {
+    const auto cc = static_cast<std::uint8_t>(1u << bit_of[bp]);
+    ASSERT_TRUE(frame(CanFrame(0x183, {0x00, 0x00, cc, 0x00})));
+    for (std::size_t b = 1; b <= 7; ++b) {
+      EXPECT_EQ(v(button(b)).value, b == bp ? 1 : 0) << "cc=" << int(cc) << " BP" << b;
+      EXPECT_EQ(v(button(b)).status, SignalStatus::Valid);
+    }
+  }
+  // Bit 0 is no button; bytes 0, 1, 3 (memory, direction, IN11..IN8) carry none.
+  ASSERT_TRUE(frame(CanFrame(0x183, {0xFF, 0xFF, 0x01, 0xFF})));
+  for (std::size_t b = 1; b <= 7; ++b) EXPECT_EQ(v(button(b)).value, 0);
+  ASSERT_TRUE(frame(CanFrame(0x183, {0x00, 0x00, 0xFE, 0x00})));
+  for (std::size_t b = 1; b <= 7; ++b) EXPECT_EQ(v(button(b)).value, 1);
+}
+
+TEST_F(Mcb402Test, ActiveHighOnTheWireIsNotInvertedAgain) {
+  // [CO4013 Index 6000 sub 3] "inverted level because active low": the controller inverts the
+  // pins, so 00h = nothing pressed (the document's power-on example "183 00 00 cc 0").
+  ASSERT_TRUE(frame(CanFrame(0x183, {0x00, 0x00, 0x00, 0x00})));
+  for (std::size_t b = 1; b <= 7; ++b) {
+    EXPECT_EQ(v(button(b)).value, 0);
+    EXPECT_EQ(v(button(b)).status, SignalStatus::Valid);
+  }
+}
+
+TEST_F(Mcb402Test, ButtonBitsOptionOverridesTheTable) {
+  make({{{"button_bits", "0,1,2,3,4,5,6"}}});
+  ASSERT_TRUE(frame(CanFrame(0x183, {0x00, 0x00, 0x41, 0x00})));
+  EXPECT_EQ(v(button(1)).value, 1);
+  EXPECT_EQ(v(button(7)).value, 1);
+  EXPECT_EQ(v(button(6)).value, 0);
+}
+
+TEST_F(Mcb402Test, WrongLengthAndForeignFramesAreCountedAndIgnored) {
+  ASSERT_TRUE(frame(CanFrame(0x283, {0x10, 0x00, 0x20, 0x00, 0x30, 0x00, 0x40, 0x00})));
+  ASSERT_TRUE(frame(CanFrame(0x183, {0x00, 0x00, 0x02, 0x00})));
+  changes_.clear();
+  EXPECT_TRUE(frame(CanFrame(0x283, {0xFF, 0x7F, 0xFF, 0x7F, 0xFF, 0x7F})));   // 6 bytes
+  EXPECT_TRUE(frame(CanFrame(0x183, {0x00, 0x00, 0xFE})));                     // 3 bytes
+  EXPECT_TRUE(frame(CanFrame(0x183, {0x00, 0x00, 0xFE, 0x00, 0x00})));         // 5 bytes
+  EXPECT_EQ(driver_->counters().wrong_length, 3u);
+  EXPECT_FALSE(frame(CanFrame(0x184, {0x00, 0x00, 0xFE, 0x00})));  // another node
+  EXPECT_FALSE(frame(CanFrame(0x203, {0x01})));                    // our own RPDO
+  EXPECT_FALSE(frame(CanFrame::remote(0x283, 8)));
+  EXPECT_EQ(driver_->counters().unknown_cob, 3u);
+  EXPECT_TRUE(changes_.empty());
+  EXPECT_EQ(v(kX).value, 0x10);
+  EXPECT_EQ(v(button(1)).value, 1);
+  EXPECT_EQ(v(button(2)).value, 0);
+}
+
+TEST_F(Mcb402Test, CableBreakEmcyPutsThatAxisInErrorUntilReset) {
+  ASSERT_TRUE(frame(CanFrame(0x283, {0x00, 0x10, 0x00, 0x20, 0x00, 0x30, 0x00, 0x40}), 1));
+  // [CO4013 "Emergency Messages"] cable break detection "20 31 81 00 8x 00 00 00", bit1 = y-axis.
+  emcy(CanFrame(0x83, {0x20, 0x31, 0x81, 0x00, 0x82, 0x00, 0x00, 0x00}), 2);
+  ASSERT_EQ(decoded_.size(), 1u);
+  EXPECT_EQ(decoded_[0].code, 0x3120);
+  EXPECT_TRUE(decoded_[0].error);
+  EXPECT_EQ(decoded_[0].affected, (std::vector<std::size_t>{kY}));
+  EXPECT_EQ(v(kY).status, SignalStatus::Error);
+  EXPECT_EQ(v(kY).value, 0) << "neutral";
+  EXPECT_EQ(v(kX).status, SignalStatus::Valid);
+  EXPECT_EQ(mcb().broken_axes(), 0x02);
+  // The broken axis keeps sending something: never passed through.
+  ASSERT_TRUE(frame(CanFrame(0x283, {0x00, 0x11, 0x00, 0x80, 0x00, 0x31, 0x00, 0x41}), 3));
+  EXPECT_EQ(v(kY).status, SignalStatus::Error);
+  EXPECT_EQ(v(kY).value, 0);
+  EXPECT_EQ(v(kX).value, 0x1100);
+  EXPECT_EQ(v(kX).status, SignalStatus::Valid);
+  // Error reset (CiA 301 0000h): the latch is released, the next TPDO2 value is good.
+  emcy(CanFrame(0x83, {0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00}), 4);
+  EXPECT_FALSE(decoded_.back().error);
+  EXPECT_EQ(mcb().broken_axes(), 0);
+  EXPECT_EQ(v(kY).status, SignalStatus::Error) << "no fresh value yet";
+  ASSERT_TRUE(frame(CanFrame(0x283, {0x00, 0x11, 0x00, 0x21, 0x00, 0x31, 0x00, 0x41}), 5));
+  EXPECT_EQ(v(kY).status, SignalStatus::Valid);
+  EXPECT_EQ(v(kY).value, 0x2100);
+}
+
+TEST_F(Mcb402Test, CableBreakBitsAreORedAndASmallerSetReleasesAxes) {
+  ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0})));
+  // [CO4013 "Emergency Messages"] bit0 x, bit1 y, bit2 z, bit3 w; "combined with a logical or".
+  emcy(CanFrame(0x83, {0x20, 0x31, 0x81, 0x00, 0x89, 0x00, 0x00, 0x00}));
+  EXPECT_EQ(decoded_.back().affected, (std::vector<std::size_t>{kX, kT}));
+  EXPECT_EQ(v(kX).status, SignalStatus::Error);
+  EXPECT_EQ(v(kT).status, SignalStatus::Error);
+  EXPECT_EQ(v(kY).status, SignalStatus::Valid);
+  emcy(CanFrame(0x83, {0x20, 0x31, 0x81, 0x00, 0x88, 0x00, 0x00, 0x00}));  // X repaired, T still broken
+  EXPECT_EQ(mcb().broken_axes(), 0x08);
+  ASSERT_TRUE(frame(CanFrame(0x283, {5, 0, 6, 0, 7, 0, 8, 0})));
+  EXPECT_EQ(v(kX).status, SignalStatus::Valid);
+  EXPECT_EQ(v(kX).value, 5);
+  EXPECT_EQ(v(kT).status, SignalStatus::Error);
+  EXPECT_EQ(v(kT).value, 0);
+}
+
+TEST_F(Mcb402Test, UndecodableCableBreakByteFailsAllAxes) {
+  ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0})));
+  emcy(CanFrame(0x83, {0x20, 0x31, 0x81, 0x00, 0x00, 0x00, 0x00, 0x00}));  // no axis bit, no 8xh
+  EXPECT_EQ(driver_->counters().unknown_emcy, 1u);
+  for (std::size_t a = 0; a < 4; ++a) {
+    EXPECT_EQ(v(a).status, SignalStatus::Error);
+    EXPECT_EQ(v(a).value, 0);
+  }
+  emcy(CanFrame(0x83, {0x20, 0x31, 0x81, 0x00, 0x42, 0x00, 0x00, 0x00}));  // high nibble not 8
+  EXPECT_EQ(driver_->counters().unknown_emcy, 2u);
+  EXPECT_EQ(mcb().broken_axes(), 0x0F);
+}
+
+TEST_F(Mcb402Test, LifeGuardingEmcyFailsEveryInputUntilFreshPdos) {
+  ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0})));
+  ASSERT_TRUE(frame(CanFrame(0x183, {0, 0, 0x02, 0})));
+  // [CO4013 "Emergency Messages"] Life-Guarding Error "30 81 11 00 00 00 00 00".
+  emcy(CanFrame(0x83, {0x30, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00}));
+  EXPECT_TRUE(decoded_.back().error);
+  EXPECT_TRUE(decoded_.back().affected.empty()) << "all inputs";
+  for (std::size_t i = 0; i < led(1); ++i) {
+    EXPECT_EQ(v(i).status, SignalStatus::Error) << i;
+    EXPECT_EQ(v(i).value, 0) << i;
+  }
+  ASSERT_TRUE(frame(CanFrame(0x183, {0, 0, 0x02, 0})));
+  EXPECT_EQ(v(button(1)).status, SignalStatus::Valid);
+  EXPECT_EQ(v(button(1)).value, 1);
+  EXPECT_EQ(v(kX).status, SignalStatus::Error) << "axes wait for their own PDO";
+  // CAN error warning "00 81 11 ..." and return from bus off "40 81 11 ..." are decoded too.
+  emcy(CanFrame(0x83, {0x00, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00}));
+  emcy(CanFrame(0x83, {0x40, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00}));
+  EXPECT_EQ(driver_->counters().unknown_emcy, 0u);
+  EXPECT_EQ(v(button(1)).status, SignalStatus::Error);
+}
+
+TEST_F(Mcb402Test, UnknownEmcyCodeIsCountedAndChangesNothing) {
+  ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0})));
+  changes_.clear();
+  emcy(CanFrame(0x83, {0x00, 0x50, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00}));
+  EXPECT_EQ(driver_->counters().unknown_emcy, 1u);
+  EXPECT_TRUE(changes_.empty());
+  EXPECT_EQ(v(kX).status, SignalStatus::Valid);
+}
+
+TEST_F(Mcb402Test, LedsSendTheWholeRememberedOutputByte) {
+  // [CO4013 "Operation mode 4"] RPDO1 = 6200h:01, bits 0..3 = OUT0..OUT3.
+  EXPECT_TRUE(driver_->set_output(led(1), 1, at(1)));
+  EXPECT_TRUE(driver_->set_output(led(3), 1, at(2)));
+  EXPECT_TRUE(driver_->set_output(led(4), 1, at(3)));
+  EXPECT_TRUE(driver_->set_output(led(1), 0, at(4)));
+  ASSERT_EQ(sent_.size(), 4u);
+  EXPECT_EQ(sent_[0], CanFrame(0x203, {0x01}));
+  EXPECT_EQ(sent_[1], CanFrame(0x203, {0x05}));
+  EXPECT_EQ(sent_[2], CanFrame(0x203, {0x0D}));
+  EXPECT_EQ(sent_[3], CanFrame(0x203, {0x0C}));
+  EXPECT_EQ(v(led(3)).value, 1);
+  EXPECT_EQ(v(led(1)).value, 0);
+  // Out of range, or not an output: refused, nothing sent.
+  EXPECT_FALSE(driver_->set_output(led(2), 2, at(5)));
+  EXPECT_FALSE(driver_->set_output(led(2), -1, at(5)));
+  EXPECT_FALSE(driver_->set_output(kX, 1, at(5)));
+  EXPECT_FALSE(driver_->set_output(button(1), 1, at(5)));
+  EXPECT_FALSE(driver_->set_output(99, 1, at(5)));
+  EXPECT_EQ(sent_.size(), 4u);
+  EXPECT_EQ(mcb().output_byte(), 0x0C);
+}
+
+TEST_F(Mcb402Test, OfflineMarksInputsAndOnlineResendsOutputs) {
+  ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0})));
+  ASSERT_TRUE(driver_->set_output(led(2), 1, at(0)));
+  sent_.clear();
+  driver_->on_offline(at(10));
+  for (std::size_t i = 0; i < led(1); ++i) {
+    EXPECT_EQ(v(i).status, SignalStatus::Offline);
+    EXPECT_EQ(v(i).value, 0);
+  }
+  EXPECT_EQ(v(led(2)).value, 1) << "outputs keep their command";
+  driver_->on_online(at(20));
+  ASSERT_EQ(sent_.size(), 1u);
+  EXPECT_EQ(sent_[0], CanFrame(0x203, {0x02})) << "a rebooted board starts with 6200h = 0";
+  EXPECT_EQ(v(kX).status, SignalStatus::Offline) << "inputs wait for a PDO";
+}
+
+TEST_F(Mcb402Test, CableBreakLatchSurvivesOffline) {
+  emcy(CanFrame(0x83, {0x20, 0x31, 0x81, 0x00, 0x81, 0x00, 0x00, 0x00}));
+  driver_->on_offline(at(1));
+  driver_->on_online(at(2));
+  ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0}), 3));
+  EXPECT_EQ(v(kX).status, SignalStatus::Error);
+  EXPECT_EQ(v(kY).status, SignalStatus::Valid);
+}
+
+TEST_F(Mcb402Test, OptionsAreCheckedAndUnknownOnesRefused) {
+  std::string error;
+  auto sink = [](const CanFrame&) {};
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "0"}}}, error), nullptr);
+  EXPECT_NE(error.find("event_timer_ms"), std::string::npos);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "65536"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "2x"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_timer_ms", "-1"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", "1,2,3,4,5,6"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", "1,2,3,4,5,6,6"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", "1,2,3,4,5,6,8"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", "0,1,2,3,4,5,6,7"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"heartbeat", "100"}}}, error), nullptr);
+  EXPECT_NE(error.find("unknown option 'heartbeat'"), std::string::npos);
+  EXPECT_EQ(make_mcb402_driver(NodeId{0}, sink, {}, error), nullptr);
+  auto d = make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "65535"}, {"button_timer_ms", "0"}}}, error);
+  ASSERT_NE(d, nullptr) << error;
+  const auto& o = dynamic_cast<Mcb402Driver&>(*d).options();
+  EXPECT_EQ(o.event_timer_ms, 65535);
+  EXPECT_EQ(o.button_timer_ms, 0);
+  EXPECT_EQ(o.button_bits, mcb402::kDefaultButtonBits);
+}
+
+}  // namespace
