@@ -1,5 +1,7 @@
 #include "subdevices/sim/mcb402_sim.hpp"
 
+#include "subdevices/sim/signal_names.hpp"
+
 #include <stdexcept>
 #include <string>
 
@@ -254,5 +256,29 @@ std::uint8_t Mcb402Sim::leds() const {
 }
 
 void Mcb402Sim::on_power_cycle(TimePoint /*now*/) { device_error_ = false; }
+
+}  // namespace oegw::subdevices::sim
+
+namespace oegw::subdevices::sim {
+
+bool Mcb402Sim::set_input(std::string_view signal, std::int64_t value, TimePoint now) {
+  static constexpr std::string_view kAxes[] = {"x", "y", "z", "t"};
+  for (std::size_t a = 0; a < 4; ++a) {
+    if (signal != kAxes[a]) continue;
+    if (value < -32768 || value > 32767) return false;
+    move_axis(a + 1, static_cast<std::int16_t>(value), now);
+    return true;
+  }
+  if (const auto b = indexed_signal(signal, "buttons"); b && *b >= 1 && *b <= 7 && (value == 0 || value == 1)) {
+    set_button(*b, value == 1, now);
+    return true;
+  }
+  return false;
+}
+
+std::optional<std::int64_t> Mcb402Sim::output(std::string_view signal) const {
+  if (const auto n = indexed_signal(signal, "leds"); n && *n >= 1 && *n <= 4) return led(*n) ? 1 : 0;
+  return std::nullopt;
+}
 
 }  // namespace oegw::subdevices::sim

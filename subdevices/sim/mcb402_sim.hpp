@@ -66,6 +66,10 @@ class Mcb402Sim final : public SimulatedDevice {
   // 50 -> 6, 20 -> 7).
   [[nodiscard]] std::uint8_t bit_timing_index() const;
 
+  // Driver signal names: x, y, z, t (raw16), buttons[1..7] (0/1); outputs leds[1..4].
+  bool set_input(std::string_view signal, std::int64_t value, TimePoint now) override;
+  [[nodiscard]] std::optional<std::int64_t> output(std::string_view signal) const override;
+
   // Axis 1..4 (X, Y, Z, T) to `raw` (the signed value after the zero-point processing).
   void move_axis(std::size_t axis, std::int16_t raw, TimePoint now);
   // Axis 1..4 from the 16-bit conversion result before the zero point enlargement: applies

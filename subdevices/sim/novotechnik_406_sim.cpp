@@ -414,3 +414,19 @@ void Novotechnik406Sim::update_cams_and_work_area(TimePoint now) {
 }
 
 }  // namespace oegw::subdevices::sim
+
+namespace oegw::subdevices::sim {
+
+bool Novotechnik406Sim::set_input(std::string_view signal, std::int64_t value, TimePoint now) {
+  if (signal == "position" && value >= INT32_MIN && value <= INT32_MAX) {
+    set_position(static_cast<std::int32_t>(value), now);
+    return true;
+  }
+  if (signal == "speed" && value >= INT16_MIN && value <= INT16_MAX) {
+    set_speed(static_cast<std::int16_t>(value), now);
+    return true;
+  }
+  return false;
+}
+
+}  // namespace oegw::subdevices::sim

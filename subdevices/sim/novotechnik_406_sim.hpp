@@ -67,6 +67,10 @@ class Novotechnik406Sim : public SimulatedDevice {
   void start(TimePoint now) override;
   void reboot(TimePoint now) override;
 
+  // Driver signal names: position (counts), speed (0.1 deg/s). No outputs.
+  bool set_input(std::string_view signal, std::int64_t value, TimePoint now) override;
+  [[nodiscard]] std::optional<std::int64_t> output(std::string_view) const override { return std::nullopt; }
+
   // The measured position (what 6004h shows once preset and scaling are applied) and speed.
   void set_position(std::int32_t position, TimePoint now);
   void set_speed(std::int16_t speed, TimePoint now);

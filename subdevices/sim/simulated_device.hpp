@@ -7,6 +7,7 @@
 
 #include <memory>
 #include <optional>
+#include <cstdint>
 #include <string_view>
 
 #include "canopen/301/object_dictionary.hpp"
@@ -40,6 +41,14 @@ class SimulatedDevice {
   [[nodiscard]] bool silent() const { return silent_; }
   // The heartbeat stops while everything else goes on (a firmware fault).
   void set_heartbeat_stopped(bool stopped) { heartbeat_stopped_ = stopped; }
+
+  // Moves an input by the name its driver gives the signal ("x", "buttons[3]", "position"),
+  // in the driver's unit (elobau percent, MCB-402 raw16, encoder counts). For oegw-sim and the
+  // demo; tests use the family's own controls. False for an unknown name or a value the device
+  // cannot show.
+  virtual bool set_input(std::string_view signal, std::int64_t value, TimePoint now) = 0;
+  // The current state of an output by its driver signal name ("leds[2]"), or nullopt.
+  [[nodiscard]] virtual std::optional<std::int64_t> output(std::string_view signal) const = 0;
 
   // Sans-I/O entry points, as canopen::Node's.
   bool on_frame(const CanFrame& frame, TimePoint now);
