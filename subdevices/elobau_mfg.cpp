@@ -216,13 +216,15 @@ void ElobauMfgDriver::on_tpdo1(const CanFrame& frame, TimePoint now) {
 
 void ElobauMfgDriver::publish_axis(std::size_t a, TimePoint now) {
   const Axis& ax = axes_[a];
-  if (!ax.ch1) return;  // Offline until channel 1 arrives
   const std::size_t index = kX + a;
+  if (global_emcy_ || ax.emcy) {  // an EMCY error shows at once, PDO or not
+    update(index, signals_[index].neutral, SignalStatus::Error, now);
+    return;
+  }
+  if (!ax.ch1) return;  // Offline until channel 1 arrives
   const std::int8_t v = *ax.ch1;
   SignalStatus status = SignalStatus::Valid;
-  if (global_emcy_ || ax.emcy) {
-    status = SignalStatus::Error;
-  } else if (v == kNotAvailableValue) {
+  if (v == kNotAvailableValue) {
     status = SignalStatus::NotAvailable;
   } else if (!valid_value(v)) {
     status = SignalStatus::Error;  // 126, or a value the document does not define
@@ -239,15 +241,16 @@ void ElobauMfgDriver::publish_axis(std::size_t a, TimePoint now) {
 }
 
 void ElobauMfgDriver::publish_buttons(TimePoint now) {
-  if (!buttons_) return;
-  for (std::size_t b = 0; b < kButtons; ++b) {
-    const bool err = global_emcy_ || button_emcy_[b];
-    const std::int64_t bit = (*buttons_ >> b) & 1u;
-    update(kFirstButton + b, err ? 0 : bit, err ? SignalStatus::Error : SignalStatus::Valid, now);
-  }
-  // Button 12 is the presence sensor (§15.2.1).
-  const bool err = global_emcy_ || button_emcy_[11];
-  update(kPresence, err ? 0 : (*buttons_ >> 11) & 1u, err ? SignalStatus::Error : SignalStatus::Valid, now);
+  // An EMCY error shows at once; otherwise a button stays Offline until TPDO #0 arrives.
+  auto one = [&](std::size_t index, std::size_t bit, bool err) {
+    if (err) {
+      update(index, 0, SignalStatus::Error, now);
+    } else if (buttons_) {
+      update(index, (*buttons_ >> bit) & 1u, SignalStatus::Valid, now);
+    }
+  };
+  for (std::size_t b = 0; b < kButtons; ++b) one(kFirstButton + b, b, global_emcy_ || button_emcy_[b]);
+  one(kPresence, 11, global_emcy_ || button_emcy_[11]);  // button 12 = presence sensor (§15.2.1)
 }
 
 void ElobauMfgDriver::publish_all(TimePoint now) {
