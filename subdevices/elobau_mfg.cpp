@@ -221,7 +221,10 @@ void ElobauMfgDriver::publish_axis(std::size_t a, TimePoint now) {
     update(index, signals_[index].neutral, SignalStatus::Error, now);
     return;
   }
-  if (!ax.ch1) return;  // Offline until channel 1 arrives
+  if (!ax.ch1) {  // Offline until channel 1 arrives (back to Offline when a latch clears)
+    if (value(index).status == SignalStatus::Error) update(index, signals_[index].neutral, SignalStatus::Offline, now);
+    return;
+  }
   const std::int8_t v = *ax.ch1;
   SignalStatus status = SignalStatus::Valid;
   if (v == kNotAvailableValue) {
@@ -247,6 +250,8 @@ void ElobauMfgDriver::publish_buttons(TimePoint now) {
       update(index, 0, SignalStatus::Error, now);
     } else if (buttons_) {
       update(index, (*buttons_ >> bit) & 1u, SignalStatus::Valid, now);
+    } else if (value(index).status == SignalStatus::Error) {
+      update(index, 0, SignalStatus::Offline, now);
     }
   };
   for (std::size_t b = 0; b < kButtons; ++b) one(kFirstButton + b, b, global_emcy_ || button_emcy_[b]);

@@ -393,4 +393,82 @@ TEST_F(ElobauOnBus, NodeIdBySdoBecomesActiveAfterResetCommunication) {
   EXPECT_EQ(frames(0x712).size(), 1u);  // boot-up on the new node-ID
 }
 
+TEST_F(ElobauOnBus, DictionaryMatchesTable14) {
+  boot();
+  EXPECT_EQ(upload(0x1014, 0), encode<std::uint32_t>(0x91));         // 80h + node-ID
+  EXPECT_EQ(upload(0x1018, 2), encode<std::uint32_t>(0x00010003));   // product code
+  EXPECT_EQ(upload(0x1400, 1), encode<std::uint32_t>(0x211));
+  EXPECT_EQ(upload(0x1400, 2), (Bytes{254}));
+  EXPECT_EQ(upload(0x1600, 1), encode<std::uint32_t>(0x22000108));
+  EXPECT_EQ(upload(0x1600, 8), encode<std::uint32_t>(0x22000808));
+  EXPECT_EQ(upload(0x1800, 0), (Bytes{5}));
+  EXPECT_EQ(upload(0x1800, 3), encode<std::uint16_t>(20));
+  EXPECT_EQ(upload(0x1801, 1), encode<std::uint32_t>(0x291));
+  EXPECT_EQ(upload(0x1801, 5), encode<std::uint16_t>(100));
+  EXPECT_EQ(upload(0x1A00, 1), encode<std::uint32_t>(0x20002008));
+  EXPECT_EQ(upload(0x1A00, 7), encode<std::uint32_t>(0x21001108));
+  EXPECT_EQ(upload(0x1A00, 8), encode<std::uint32_t>(0x40020008));
+  EXPECT_EQ(upload(0x1A01, 5), encode<std::uint32_t>(0x20042108));
+  EXPECT_EQ(upload(0x2000, 0x01), (Bytes{3}));
+  EXPECT_EQ(upload(0x2003, 0x06), encode<std::uint16_t>(200));       // X1
+  EXPECT_EQ(upload(0x2003, 0x07), (Bytes{0x9C}));                    // Y1 = -100
+  EXPECT_EQ(upload(0x2004, 0x1B), (Bytes{126}));
+  EXPECT_EQ(upload(0x2004, 0x1C), (Bytes{127}));
+  EXPECT_EQ(upload(0x2100, 0x01), (Bytes{63}));
+  EXPECT_EQ(upload(0x2200, 0x00), (Bytes{9}));
+  EXPECT_EQ(upload(0x2200, 0x0A), encode<std::uint16_t>(0xFFFF));
+  EXPECT_EQ(upload(0x4000, 0), (Bytes{1}));
+  EXPECT_EQ(upload(0x4002, 0), (Bytes{0xFF}));
+  EXPECT_EQ(upload(0x5001, 0), encode<std::uint16_t>(20));
+  EXPECT_EQ(upload(0x5999, 1), encode<std::uint16_t>(250));
+  EXPECT_EQ(upload(0x5999, 2), (Bytes{0x11}));
+}
+
+TEST_F(ElobauOnBus, ErrorBehaviourPreOperational) {
+  boot();
+  EXPECT_EQ(download(0x4000, 0, {0}), SdoAbortCode::None);  // §12.2: 0 = pre-operational
+  sim_->raise_error(0x0020, net_.now());
+  net_.run_for(10ms);
+  EXPECT_EQ(sim_->node().state(), NmtState::PreOperational);
+  EXPECT_EQ(emcys_.size(), 1u) << "EMCY still sent in pre-operational";
+  EXPECT_EQ(val("y").status, SignalStatus::Error);
+}
+
+TEST_F(ElobauOnBus, Signal1OutOfRangeSendsTheErrorValueOnChannel1) {
+  boot();
+  sim_->move_axis("wheel_c", -30);
+  sim_->raise_error(0x0050, net_.now());  // Table 6: thumb wheel C, signal 1, out of range
+  net_.run_for(10ms);
+  EXPECT_EQ(sim_->transmitted("wheel_c", 1), 126);
+  EXPECT_EQ(sim_->transmitted("wheel_c", 2), -30);
+  EXPECT_EQ(emcys_.back().affected, (std::vector<std::size_t>{idx("wheel_c")}));
+  net_.run_for(500ms);
+  EXPECT_EQ(val("wheel_c").status, SignalStatus::Error);
+}
+
+TEST_F(ElobauOnBus, AutoNmtStartAfterPowerOn) {
+  EXPECT_EQ(sim_->od().write(0x5000, 0, Bytes{1}), SdoAbortCode::None);  // 5000h: 1 = activated
+  sim_->start(net_.now());
+  drv_->on_online(net_.now());
+  net_.run_for(150ms);
+  EXPECT_EQ(sim_->node().state(), NmtState::Operational);
+  EXPECT_FALSE(frames(0x191).empty());
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+}
+
+TEST_F(ElobauOnBus, BusOffBeyondTheLimitTakesTheGripOffLine) {
+  boot();
+  EXPECT_EQ(download(0x5001, 0, encode<std::uint16_t>(2)), SdoAbortCode::None);
+  sim_->bus_off(net_.now());
+  sim_->bus_off(net_.now());
+  net_.run_for(10ms);
+  EXPECT_EQ(emcys_.size(), 2u);
+  EXPECT_EQ(emcys_.back().text, "elobau EMCY 8140h: recovered from bus off (count 2)");
+  sim_->bus_off(net_.now());  // third: beyond the limit of 2
+  net_.bus().clear_log();
+  net_.run_for(500ms);
+  EXPECT_TRUE(sim_->silent());
+  EXPECT_TRUE(net_.bus().log().empty());
+}
+
 }  // namespace

@@ -433,5 +433,31 @@ TEST_F(ElobauDriverTest, ConfigurationPinsCodesTimersAndErrorBehaviour) {
   EXPECT_EQ(id.device_type, 0u);
 }
 
+TEST_F(ElobauDriverTest, EmcyErrorShowsBeforeTheFirstPdoAndResetReturnsToOffline) {
+  // §12.3: an EMCY may arrive before any TPDO (e.g. right after NMT start).
+  emcy(0x1000, {0x10, 0x00, 0xFF, 0xFF, 0xFF});
+  emcy(0x1000, {0x61, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+  EXPECT_EQ(val("buttons[1]").status, SignalStatus::Error);
+  EXPECT_EQ(val("y").status, SignalStatus::Offline);
+  emcy(0x0000, {});
+  EXPECT_EQ(val("x").status, SignalStatus::Offline) << "no data yet: not Valid";
+  EXPECT_EQ(val("buttons[1]").status, SignalStatus::Offline);
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(val("buttons[1]").value, 1);
+}
+
+TEST_F(ElobauDriverTest, AxisEmcyWithoutErrorValueInPdoClearsOnTheNextGoodPair) {
+  // 0012h "signal difference too high" is "function not implemented" (Table 6): if it comes,
+  // the PDOs may not carry 126; the next agreeing pair ends it.
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  emcy(0x1000, {0x12, 0x00, 0xFF, 0xFF, 0xFF});
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Error) << "channel 1 alone does not clear it";
+  tpdo1({0x0A, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+}
+
 }  // namespace
 }  // namespace oegw::subdevices
