@@ -62,7 +62,8 @@ std::optional<std::size_t> ElobauMfgSim::axis_index(std::string_view name) {
   return std::nullopt;
 }
 
-ElobauMfgSim::ElobauMfgSim(FrameSink sink, ElobauMfgSimConfig config) : SimulatedDevice(std::move(sink)) {
+ElobauMfgSim::ElobauMfgSim(FrameSink sink, ElobauMfgSimConfig config)
+    : SimulatedDevice(std::move(sink)), parameters_saved_(config.parameters_saved) {
   auto od = std::make_unique<ObjectDictionary>();
   build_od(*od, config);
   canopen::NodeConfig nc;
@@ -85,6 +86,7 @@ ElobauMfgSim::ElobauMfgSim(FrameSink sink, ElobauMfgSimConfig config) : Simulate
     if (index == kLed && sub >= 1 && sub <= 8 && origin != Origin::Local)
       apply_led_byte(sub, this->od().get<std::uint8_t>(kLed, sub));
     if (index == kLss && sub == 2) node().nmt().set_pending_node_id(NodeId{this->od().get<std::uint8_t>(kLss, 2)});
+    if (index == 0x1010 && sub == 1) parameters_saved_ = true;  // committed: the store accepted "save"
   });
   // 5999h: baud rate from the list of §16, "save" signature on :03.
   subs_ += d.find(kLss)->add_write_hook([this](canopen::Object&, std::uint8_t sub, std::span<const std::uint8_t> b,
@@ -380,6 +382,13 @@ void ElobauMfgSim::start(TimePoint now) {
   arm_zero_rule();
   publish();
   SimulatedDevice::start(now);
+  if (!parameters_saved_) raise_error(0x0002, now);  // Table 6: until the first saving
+  if (od().get<std::uint8_t>(kAutoStart, 0) == 1) node().nmt().enter(NmtState::Operational, now);
+}
+
+void ElobauMfgSim::reboot(TimePoint now) {
+  SimulatedDevice::reboot(now);
+  if (!parameters_saved_) raise_error(0x0002, now);
   if (od().get<std::uint8_t>(kAutoStart, 0) == 1) node().nmt().enter(NmtState::Operational, now);
 }
 

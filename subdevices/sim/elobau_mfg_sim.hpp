@@ -30,6 +30,10 @@
 //   * 5999h (§7): :01 baud rate (20, 50, 125, 250, 500, 800, 1000 only), :02 node-ID (becomes
 //     active at the next reset communication, like LSS), :03 "save" = 1010h:01 "save".
 //   * 5000h = 1: operational by itself after power-on.
+//   * Parameter checksum error 0002h until the parameters were first saved (config flag).
+//   Not modelled: the 5 ms coding cycle, filter/debounce, the transformation from raw voltages
+//   (axes are moved in percent), button timeout monitoring 2100h:08h (raise_error(61h..6Bh)
+//   scripts it), the LED message timeout ("function not implemented"), 599Ah.
 #pragma once
 
 #include <array>
@@ -52,6 +56,9 @@ struct ElobauMfgSimConfig {
   std::array<std::uint8_t, 5> axis_config = {3, 3, 3, 3, 3};  // 20xxh:01h default: both signals
   std::uint16_t heartbeat_ms = 0;                 // 1017h default
   std::filesystem::path store_path;               // empty: no 1010h/1011h
+  // Table 6 0002h "is also set until first parameter saving process": false = a grip whose
+  // parameters were never saved raises it at every power-on until 1010h:01 (or 5999h:03) "save".
+  bool parameters_saved = true;
 };
 
 class ElobauMfgSim : public SimulatedDevice {
@@ -63,6 +70,7 @@ class ElobauMfgSim : public SimulatedDevice {
 
   [[nodiscard]] std::string_view family() const override { return "elobau-mfg"; }
   void start(TimePoint now) override;
+  void reboot(TimePoint now) override;
 
   // Axes by signal name: "x", "y", "wheel_a", "wheel_b", "wheel_c". `percent` is the physical
   // deflection (-110..110); channel 2 reads percent + offset (a mismatch). False for a bad name.
@@ -111,6 +119,7 @@ class ElobauMfgSim : public SimulatedDevice {
   std::array<std::uint8_t, kLeds> leds_{};
   std::set<std::uint16_t> errors_;
   std::uint16_t bus_off_count_ = 0;
+  bool parameters_saved_ = true;
   canopen::Subscriptions subs_;  // last: released before the dictionary goes
 };
 

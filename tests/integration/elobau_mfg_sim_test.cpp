@@ -4,6 +4,9 @@
 // (/work/shared/reference/000_499d7da4c768c72f.txt); each test names its section/table.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -469,6 +472,47 @@ TEST_F(ElobauOnBus, BusOffBeyondTheLimitTakesTheGripOffLine) {
   net_.run_for(500ms);
   EXPECT_TRUE(sim_->silent());
   EXPECT_TRUE(net_.bus().log().empty());
+}
+
+class ElobauNeverSaved : public ElobauOnBus {
+ protected:
+  ElobauNeverSaved() : ElobauOnBus(config()) {}
+  ~ElobauNeverSaved() override { std::filesystem::remove_all(dir()); }
+  static std::filesystem::path dir() {
+    return std::filesystem::temp_directory_path() / ("oegw-elobau-" + std::to_string(::getpid()));
+  }
+  static ElobauMfgSimConfig config() {
+    std::filesystem::remove_all(dir());
+    std::filesystem::create_directories(dir());
+    ElobauMfgSimConfig c;
+    c.store_path = dir() / "params.txt";
+    c.parameters_saved = false;
+    return c;
+  }
+};
+
+TEST_F(ElobauNeverSaved, ParameterChecksumErrorUntilFirstSave) {
+  // Table 6 0002h: "This error is also set until first parameter saving process."
+  sim_->start(net_.now());
+  net_.run_for(5ms);
+  ASSERT_EQ(emcys_.size(), 1u);
+  EXPECT_EQ(emcys_[0].text, "elobau 4001h 0002h: Parameter Checksum Error");
+  host_->nmt().start(kGrip);
+  net_.run_for(300ms);
+  EXPECT_EQ(val("x").status, SignalStatus::Error) << "every input, whatever the PDOs say";
+  EXPECT_EQ(val("buttons[1]").status, SignalStatus::Error);
+  // §7: 5999h:03 "save" saves all parameters (incl. LSS); §8: restart the joystick afterwards.
+  EXPECT_EQ(download(0x5999, 3, encode<std::uint32_t>(0x65766173)), SdoAbortCode::None);
+  EXPECT_TRUE(std::filesystem::exists(dir() / "params.txt"));
+  drv_->on_offline(net_.now());
+  emcys_.clear();
+  sim_->reboot(net_.now());
+  net_.settle();
+  host_->nmt().start(kGrip);
+  drv_->on_online(net_.now());
+  net_.run_for(300ms);
+  EXPECT_TRUE(emcys_.empty());
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
 }
 
 }  // namespace
