@@ -1,0 +1,449 @@
+// elobau MFG 34xG / 36xG driver; the rules and sources are in elobau_mfg.hpp.
+#include "subdevices/elobau_mfg.hpp"
+
+#include <charconv>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+
+#include "subdevices/families.hpp"
+
+namespace oegw::subdevices {
+
+namespace {
+
+constexpr std::uint32_t kTpdo0 = 0x180;  // §14.1
+constexpr std::uint32_t kTpdo1 = 0x280;  // §14.2
+constexpr std::uint32_t kRpdo0 = 0x200;  // §14.3
+constexpr std::uint16_t kAxisIndex = 0x2000;  // 2000h X .. 2004h wheel C (Table 14)
+
+constexpr std::array<const char*, ElobauMfgDriver::kAxes> kAxisNames = {"x", "y", "wheel_a", "wheel_b", "wheel_c"};
+
+// leds[i] -> (RPDO #0 byte, bit shift): Table 9 positions, in the order of the mask bits of
+// 2200h:0Ah (Table 14), bit i-1 = leds[i].
+struct LedPos {
+  std::uint8_t byte;
+  std::uint8_t shift;
+};
+constexpr std::array<LedPos, ElobauMfgDriver::kLeds> kLedPos = {{
+    {0, 0}, {0, 2}, {0, 4}, {0, 6},  // button 1 LED 1/2, button 2 LED 1/2
+    {1, 0}, {1, 2}, {1, 4}, {1, 6},  // button 3 LED 1/2, button 4 LED 1/2
+    {2, 0}, {2, 2},                  // button 5 LED 1/2
+    {5, 0}, {5, 2},                  // wheel A LED 2-2 / 2-1 (alt. button 8 LED 1/2)
+    {6, 0}, {6, 2},                  // wheel B LED 2-2 / 2-1 (alt. button 9 LED 1/2)
+    {5, 4},                          // wheel A LED 1+3 (alt. button 10 LED 1)
+    {6, 4},                          // wheel B LED 1+3 (alt. button 10 LED 2)
+}};
+constexpr std::uint8_t kNoChange = 0b11;  // Table 13
+
+struct ManufacturerError {
+  std::uint16_t code;
+  const char* name;
+};
+// §12.5 Table 6 (0003h/0004h are "not used" and therefore unknown here).
+constexpr ManufacturerError kManufacturerErrors[] = {
+    {0x0000, "No Manufacturer Specific Error Code"},
+    {0x0001, "Application Program Checksum Error"},
+    {0x0002, "Parameter Checksum Error"},
+    {0x0005, "RAM Test Error"},
+    {0x0010, "X Axis, Signal 1, Out Of Range"},
+    {0x0011, "X Axis, Signal 2, Out Of Range"},
+    {0x0012, "X Axis, Signal Difference Too High"},
+    {0x0020, "Y Axis, Signal 1, Out Of Range"},
+    {0x0021, "Y Axis, Signal 2, Out Of Range"},
+    {0x0022, "Y Axis, Signal Difference Too High"},
+    {0x0030, "Thumb Wheel A, Signal 1, Out Of Range"},
+    {0x0031, "Thumb Wheel A, Signal 2, Out Of Range"},
+    {0x0032, "Thumb Wheel A, Signal Difference Too High"},
+    {0x0040, "Thumb Wheel B, Signal 1, Out Of Range"},
+    {0x0041, "Thumb Wheel B, Signal 2, Out Of Range"},
+    {0x0042, "Thumb Wheel B, Signal Difference Too High"},
+    {0x0050, "Thumb Wheel C, Signal 1, Out Of Range"},
+    {0x0051, "Thumb Wheel C, Signal 2, Out Of Range"},
+    {0x0052, "Thumb Wheel C, Signal Difference Too High"},
+    {0x0061, "Button 1 Timeout"},
+    {0x0062, "Button 2 Timeout"},
+    {0x0063, "Button 3 Timeout"},
+    {0x0064, "Button 4 Timeout"},
+    {0x0065, "Button 5 Timeout"},
+    {0x0066, "Button 6 Timeout"},
+    {0x0067, "Button 7 Timeout"},
+    {0x0068, "Button 8 Timeout"},
+    {0x0069, "Button 9 Timeout"},
+    {0x006A, "Button 10 Timeout"},
+    {0x006B, "Button 11 Timeout"},
+    {0x0070, "LED Message Timeout"},
+};
+
+std::string hex4(std::uint16_t v) {
+  char buf[8];
+  std::snprintf(buf, sizeof buf, "%04Xh", v);
+  return buf;
+}
+
+SdoWrite write_u8(std::uint16_t index, std::uint8_t sub, std::uint8_t v, std::string what) {
+  return SdoWrite{index, sub, {v}, std::move(what)};
+}
+SdoWrite write_u16(std::uint16_t index, std::uint8_t sub, std::uint16_t v, std::string what) {
+  return SdoWrite{index, sub, {static_cast<std::uint8_t>(v), static_cast<std::uint8_t>(v >> 8)}, std::move(what)};
+}
+
+}  // namespace
+
+ElobauMfgDriver::ElobauMfgDriver(NodeId node, FrameSink sink, ElobauMfgOptions options) : opt_(options) {
+  const std::int64_t lim = opt_.clamp_detent ? 100 : 110;
+  for (const char* n : kAxisNames)
+    signals_.push_back(SignalInfo{.name = n, .kind = SignalKind::Axis, .min = -lim, .max = lim, .neutral = 0,
+                                  .unit = "percent"});
+  for (std::size_t b = 1; b <= kButtons; ++b)
+    signals_.push_back(SignalInfo{.name = "buttons[" + std::to_string(b) + "]", .kind = SignalKind::Button,
+                                  .min = 0, .max = 1, .neutral = 0, .unit = "bits"});
+  signals_.push_back(
+      SignalInfo{.name = "presence", .kind = SignalKind::Button, .min = 0, .max = 1, .neutral = 0, .unit = "bits"});
+  for (std::size_t l = 1; l <= kLeds; ++l)
+    signals_.push_back(SignalInfo{.name = "leds[" + std::to_string(l) + "]", .kind = SignalKind::Output, .min = 0,
+                                  .max = 2, .neutral = 0, .unit = "led"});
+  init(node, std::move(sink), signals_.size());
+}
+
+const char* ElobauMfgDriver::manufacturer_error_name(std::uint16_t code) {
+  for (const auto& e : kManufacturerErrors)
+    if (e.code == code) return e.name;
+  return nullptr;
+}
+
+ExpectedIdentity ElobauMfgDriver::expected_identity() const {
+  // Table 14: 1000h = 0 (no standard profile), 1018h:01 = 000000B4h (elobau). The product code
+  // (00010003h in the table) depends on the grip variant ("refer to the product overview"):
+  // not checked.
+  ExpectedIdentity id;
+  id.device_type = 0x00000000;
+  id.vendor_id = 0x000000B4;
+  return id;
+}
+
+std::vector<SdoWrite> ElobauMfgDriver::configuration() const {
+  std::vector<SdoWrite> w;
+  // §14.1/14.2: both TPDOs cyclic with the same period, so every channel-1 frame has its
+  // channel-2 partner (a stored configuration may have disabled the timers).
+  w.push_back(write_u16(0x1800, 5, opt_.cycle_ms, "TPDO #0 (channel 1) event timer " + std::to_string(opt_.cycle_ms) + " ms"));
+  w.push_back(write_u16(0x1801, 5, opt_.cycle_ms, "TPDO #1 (channel 2) event timer " + std::to_string(opt_.cycle_ms) + " ms"));
+  // §12.2: 4000h = 1 keeps the grip operational and sends the error value of the failed signal
+  // (per-signal errors instead of the whole node going pre-operational/stopped).
+  w.push_back(write_u8(0x4000, 0, 1, "error behaviour: no state change, error values in the PDOs"));
+  // The codes this driver decodes (defaults of 20xxh:1Bh/1Ch and 2100h:09h/0Ah, which are PARA).
+  for (std::size_t a = 0; a < kAxes; ++a) {
+    const auto idx = static_cast<std::uint16_t>(kAxisIndex + a);
+    w.push_back(write_u8(idx, 0x1B, static_cast<std::uint8_t>(kErrorValue),
+                         std::string(kAxisNames[a]) + " error value 126"));
+    w.push_back(write_u8(idx, 0x1C, static_cast<std::uint8_t>(kNotAvailableValue),
+                         std::string(kAxisNames[a]) + " not-available value 127"));
+  }
+  w.push_back(write_u8(0x2100, 0x09, 0, "buttons error value 0 (released)"));
+  w.push_back(write_u8(0x2100, 0x0A, 0, "buttons not-available value 0 (released)"));
+  return w;
+}
+
+std::vector<std::uint32_t> ElobauMfgDriver::consumed_cob_ids() const {
+  return {kTpdo0 + node().value(), kTpdo1 + node().value()};
+}
+
+bool ElobauMfgDriver::valid_value(std::int8_t v) const { return v >= -110 && v <= 110; }
+
+std::int8_t ElobauMfgDriver::limit100(std::int8_t v) {
+  if (v > 100) return 100;
+  if (v < -100) return -100;
+  return v;
+}
+
+bool ElobauMfgDriver::on_frame(const CanFrame& frame, TimePoint now) {
+  const bool ours = !frame.rtr && !frame.extended;
+  if (ours && frame.id == kTpdo0 + node().value()) {
+    if (frame.dlc != 8) {
+      ++counters_.wrong_length;
+      return false;
+    }
+    on_tpdo0(frame, now);
+    return true;
+  }
+  if (ours && frame.id == kTpdo1 + node().value()) {
+    if (frame.dlc != 8) {
+      ++counters_.wrong_length;
+      return false;
+    }
+    on_tpdo1(frame, now);
+    return true;
+  }
+  ++counters_.unknown_cob;
+  return false;
+}
+
+void ElobauMfgDriver::on_tpdo0(const CanFrame& frame, TimePoint now) {
+  for (std::size_t a = 0; a < kAxes; ++a) {
+    const auto v = static_cast<std::int8_t>(frame.data[a]);
+    if (!valid_value(v) && v != kErrorValue && v != kNotAvailableValue) ++stats_.out_of_range;
+    axes_[a].ch1 = v;
+  }
+  buttons_ = static_cast<std::uint16_t>(frame.data[5] | (frame.data[6] << 8));
+  if (opt_.channel2_timeout_ms > 0) {
+    if (!ch2_reference_) ch2_reference_ = now;
+    channel2_late_ = now - *ch2_reference_ > std::chrono::milliseconds(opt_.channel2_timeout_ms);
+    if (channel2_late_) ++stats_.channel2_missing;
+  }
+  publish_all(now);
+}
+
+void ElobauMfgDriver::on_tpdo1(const CanFrame& frame, TimePoint now) {
+  for (std::size_t a = 0; a < kAxes; ++a) {
+    Axis& ax = axes_[a];
+    const auto v2 = static_cast<std::int8_t>(frame.data[a]);
+    if (!valid_value(v2) && v2 != kErrorValue && v2 != kNotAvailableValue) ++stats_.out_of_range;
+    ax.ch2 = v2;
+    const bool ch1_ok = ax.ch1 && valid_value(*ax.ch1);
+    ax.mismatch = false;
+    if (ch1_ok && valid_value(v2)) {
+      const int diff = std::abs(limit100(*ax.ch1) - limit100(v2));
+      ax.mismatch = diff > opt_.channel_tolerance;
+      if (ax.mismatch) ++counters_.mismatches;
+    }
+    // A good pair after an axis EMCY: the fault is over (the device sends 126 while it lasts).
+    if (ch1_ok && (valid_value(v2) || v2 == kNotAvailableValue) && !ax.mismatch) ax.emcy = false;
+  }
+  ch2_reference_ = now;
+  channel2_late_ = false;
+  for (std::size_t a = 0; a < kAxes; ++a) publish_axis(a, now);
+}
+
+void ElobauMfgDriver::publish_axis(std::size_t a, TimePoint now) {
+  const Axis& ax = axes_[a];
+  const std::size_t index = kX + a;
+  if (global_emcy_ || ax.emcy) {  // an EMCY error shows at once, PDO or not
+    update(index, signals_[index].neutral, SignalStatus::Error, now);
+    return;
+  }
+  if (!ax.ch1) {  // Offline until channel 1 arrives (back to Offline when a latch clears)
+    if (value(index).status == SignalStatus::Error) update(index, signals_[index].neutral, SignalStatus::Offline, now);
+    return;
+  }
+  const std::int8_t v = *ax.ch1;
+  SignalStatus status = SignalStatus::Valid;
+  if (v == kNotAvailableValue) {
+    status = SignalStatus::NotAvailable;
+  } else if (!valid_value(v)) {
+    status = SignalStatus::Error;  // 126, or a value the document does not define
+  } else if (ax.ch2 && *ax.ch2 != kNotAvailableValue && !valid_value(*ax.ch2)) {
+    status = SignalStatus::Error;  // channel 2 reports an error (or nonsense)
+  } else if (ax.mismatch || channel2_late_) {
+    status = SignalStatus::Error;
+  }
+  if (status != SignalStatus::Valid) {
+    update(index, signals_[index].neutral, status, now);
+    return;
+  }
+  update(index, opt_.clamp_detent ? limit100(v) : v, status, now);
+}
+
+void ElobauMfgDriver::publish_buttons(TimePoint now) {
+  // An EMCY error shows at once; otherwise a button stays Offline until TPDO #0 arrives.
+  auto one = [&](std::size_t index, std::size_t bit, bool err) {
+    if (err) {
+      update(index, 0, SignalStatus::Error, now);
+    } else if (buttons_) {
+      update(index, (*buttons_ >> bit) & 1u, SignalStatus::Valid, now);
+    } else if (value(index).status == SignalStatus::Error) {
+      update(index, 0, SignalStatus::Offline, now);
+    }
+  };
+  for (std::size_t b = 0; b < kButtons; ++b) one(kFirstButton + b, b, global_emcy_ || button_emcy_[b]);
+  one(kPresence, 11, global_emcy_ || button_emcy_[11]);  // button 12 = presence sensor (§15.2.1)
+}
+
+void ElobauMfgDriver::publish_all(TimePoint now) {
+  for (std::size_t a = 0; a < kAxes; ++a) publish_axis(a, now);
+  publish_buttons(now);
+}
+
+DecodedEmcy ElobauMfgDriver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
+  DecodedEmcy d;
+  d.code = emcy.code;
+  switch (emcy.code) {
+    case 0x0000: {  // §12.4: error reset or no error
+      d.error = false;
+      d.text = "elobau EMCY 0000h: error reset";
+      global_emcy_ = false;
+      led_emcy_ = false;
+      button_emcy_.fill(false);
+      for (auto& ax : axes_) ax.emcy = false;
+      publish_all(now);
+      for (std::size_t l = 0; l < kLeds; ++l)
+        if (leds_[l]) update(kFirstLed + l, value(kFirstLed + l).value, SignalStatus::Valid, now);
+      return d;
+    }
+    case 0x8110:
+    case 0x8120:
+    case 0x8140: {  // §12.4: communication notices; the values the device sends stay valid
+      d.error = false;
+      d.text = emcy.code == 0x8110   ? "elobau EMCY 8110h: CAN overrun (object lost)"
+               : emcy.code == 0x8120 ? "elobau EMCY 8120h: CAN in error passive mode"
+                                     : "elobau EMCY 8140h: recovered from bus off (count " +
+                                           std::to_string(emcy.msef[0]) + ")";
+      return d;
+    }
+    case 0x1000: break;  // §12.4: generic error = manufacturer specific (4001h)
+    default:
+      ++counters_.unknown_emcy;
+      d.error = false;
+      d.text = "elobau EMCY " + hex4(emcy.code) + ": unknown code (ignored)";
+      return d;
+  }
+  // Table 5: 4001h in bytes 3..4; the device uses only byte 3 (byte 4 is 00h, or FFh "not used").
+  const std::uint16_t m =
+      emcy.msef[1] == 0xFF ? emcy.msef[0] : static_cast<std::uint16_t>(emcy.msef[0] | (emcy.msef[1] << 8));
+  const char* name = manufacturer_error_name(m);
+  if (name == nullptr) {
+    ++counters_.unknown_emcy;
+    d.error = false;
+    d.text = "elobau EMCY 1000h, 4001h " + hex4(m) + ": unknown manufacturer code (ignored)";
+    return d;
+  }
+  d.error = true;
+  d.text = "elobau 4001h " + hex4(m) + ": " + name;
+  if (m >= 0x0010 && m <= 0x0052 && (m & 0x0F) <= 2) {
+    const std::size_t a = (m >> 4) - 1;
+    axes_[a].emcy = true;
+    d.affected = {kX + a};
+    publish_axis(a, now);
+  } else if (m >= 0x0061 && m <= 0x006B) {
+    const std::size_t b = m - 0x0061;
+    button_emcy_[b] = true;
+    d.affected = {kFirstButton + b};
+    publish_buttons(now);
+  } else if (m == 0x0070) {
+    led_emcy_ = true;
+    for (std::size_t l = 0; l < kLeds; ++l) {
+      d.affected.push_back(kFirstLed + l);
+      update(kFirstLed + l, value(kFirstLed + l).value, SignalStatus::Error, now);
+    }
+  } else {  // 0000h, 0001h, 0002h, 0005h: the whole device is in doubt
+    global_emcy_ = true;
+    for (std::size_t i = 0; i < kFirstLed; ++i) d.affected.push_back(i);
+    publish_all(now);
+  }
+  return d;
+}
+
+std::array<std::uint8_t, 8> ElobauMfgDriver::led_payload() const {
+  std::array<std::uint8_t, 8> p;
+  p.fill(0xFF);  // every position "no change", spares included
+  for (std::size_t l = 0; l < kLeds; ++l) {
+    if (!leds_[l]) continue;
+    const LedPos pos = kLedPos[l];
+    p[pos.byte] = static_cast<std::uint8_t>((p[pos.byte] & ~(kNoChange << pos.shift)) | (*leds_[l] << pos.shift));
+  }
+  return p;
+}
+
+bool ElobauMfgDriver::set_output(std::size_t index, std::int64_t v, TimePoint now) {
+  if (index < kFirstLed || index >= kFirstLed + kLeds || v < 0 || v > 2) return false;
+  const std::size_t l = index - kFirstLed;
+  const auto code = static_cast<std::uint8_t>(v);  // 0 off 00, 1 on 01, 2 blink 10 (Table 13)
+  const bool unchanged = leds_[l] == code && leds_sent_;
+  leds_[l] = code;
+  if (!unchanged) {
+    const auto p = led_payload();
+    send(CanFrame(kRpdo0 + node().value(), std::span<const std::uint8_t>(p.data(), p.size())));
+    leds_sent_ = true;
+  }
+  update(index, v, led_emcy_ ? SignalStatus::Error : SignalStatus::Valid, now);
+  return true;
+}
+
+void ElobauMfgDriver::reset_state() {
+  axes_ = {};
+  buttons_.reset();
+  button_emcy_.fill(false);
+  global_emcy_ = false;
+  led_emcy_ = false;
+  channel2_late_ = false;
+  ch2_reference_.reset();
+}
+
+void ElobauMfgDriver::on_online(TimePoint now) {
+  reset_state();
+  leds_sent_ = false;
+  bool any = false;
+  for (const auto& l : leds_) any = any || l.has_value();
+  if (any) {
+    const auto p = led_payload();
+    send(CanFrame(kRpdo0 + node().value(), std::span<const std::uint8_t>(p.data(), p.size())));
+    leds_sent_ = true;
+    for (std::size_t l = 0; l < kLeds; ++l)
+      if (leds_[l]) update(kFirstLed + l, value(kFirstLed + l).value, SignalStatus::Valid, now);
+  }
+}
+
+void ElobauMfgDriver::on_offline(TimePoint now) {
+  Driver::on_offline(now);
+  reset_state();
+  leds_sent_ = false;
+}
+
+namespace {
+
+bool parse_int(const std::string& s, long long lo, long long hi, long long& out) {
+  long long v = 0;
+  const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
+  if (ec != std::errc{} || p != s.data() + s.size() || v < lo || v > hi) return false;
+  out = v;
+  return true;
+}
+
+}  // namespace
+
+std::unique_ptr<Driver> make_elobau_mfg_driver(NodeId node, FrameSink sink, const DriverOptions& options,
+                                               std::string& error) {
+  ElobauMfgOptions o;
+  for (const auto& [key, val] : options.values) {
+    long long n = 0;
+    if (key == "channel_tolerance") {
+      if (!parse_int(val, 0, 100, n)) {
+        error = "elobau-mfg: channel_tolerance '" + val + "' is not a percentage 0..100";
+        return nullptr;
+      }
+      o.channel_tolerance = static_cast<int>(n);
+    } else if (key == "detent") {
+      if (val != "pass" && val != "clamp") {
+        error = "elobau-mfg: detent '" + val + "' must be 'pass' or 'clamp'";
+        return nullptr;
+      }
+      o.clamp_detent = val == "clamp";
+    } else if (key == "channel2_timeout_ms") {
+      if (!parse_int(val, 0, 600000, n)) {
+        error = "elobau-mfg: channel2_timeout_ms '" + val + "' is not 0..600000";
+        return nullptr;
+      }
+      o.channel2_timeout_ms = static_cast<std::uint32_t>(n);
+    } else if (key == "cycle_ms") {
+      if (!parse_int(val, 5, 65535, n)) {
+        error = "elobau-mfg: cycle_ms '" + val + "' is not 5..65535 (the document's 5 ms coding cycle)";
+        return nullptr;
+      }
+      o.cycle_ms = static_cast<std::uint16_t>(n);
+    } else {
+      error = "elobau-mfg: unknown option '" + key +
+              "' (expected channel_tolerance, detent, channel2_timeout_ms, cycle_ms)";
+      return nullptr;
+    }
+  }
+  if (o.channel2_timeout_ms != 0 && o.channel2_timeout_ms <= o.cycle_ms) {
+    error = "elobau-mfg: channel2_timeout_ms must exceed cycle_ms (" + std::to_string(o.cycle_ms) + " ms)";
+    return nullptr;
+  }
+  if (!node.valid()) {
+    error = "elobau-mfg: node-ID " + std::to_string(node.value()) + " is not 1..127";
+    return nullptr;
+  }
+  return std::make_unique<ElobauMfgDriver>(node, std::move(sink), o);
+}
+
+}  // namespace oegw::subdevices

@@ -1,0 +1,463 @@
+// ElobauMfgDriver frame by frame. Source: "CANopen Protocol for MFG 34xG and 36xG" v01.21
+// (/work/shared/reference/000_499d7da4c768c72f.txt); each test names its section/table.
+#include "subdevices/elobau_mfg.hpp"
+
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "subdevices/families.hpp"
+
+namespace oegw::subdevices {
+namespace {
+
+using namespace std::chrono_literals;
+using canopen::Duration;
+using canopen::EmcyManufacturerField;
+
+constexpr NodeId kNode{0x11};  // §7: default node-ID 0x11
+
+class ElobauDriverTest : public ::testing::Test {
+ protected:
+  explicit ElobauDriverTest(DriverOptions opts = {}) {
+    std::string err;
+    auto d = make_elobau_mfg_driver(kNode, [this](const CanFrame& f) { sent.push_back(f); }, opts, err);
+    EXPECT_TRUE(d) << err;
+    drv.reset(static_cast<ElobauMfgDriver*>(d.release()));
+    drv->on_change = [this](std::size_t i, const SignalValue& v) { changes.emplace_back(i, v); };
+    drv->on_online(t);
+  }
+  std::size_t idx(std::string_view name) const {
+    auto i = drv->find_signal(name);
+    EXPECT_TRUE(i) << name;
+    return i.value_or(0);
+  }
+  const SignalValue& val(std::string_view name) const { return drv->value(idx(name)); }
+  // §14.1 Table 7: X, Y, A, B, C (channel 1), buttons 1..8, buttons 9..16, FFh.
+  bool tpdo0(std::initializer_list<std::uint8_t> b) { return drv->on_frame(CanFrame(0x191, b), t); }
+  // §14.2 Table 8: X, Y, A, B, C (channel 2), FFh, FFh, FFh.
+  bool tpdo1(std::initializer_list<std::uint8_t> b) { return drv->on_frame(CanFrame(0x291, b), t); }
+  DecodedEmcy emcy(std::uint16_t code, EmcyManufacturerField msef) {
+    return drv->on_emcy(EmcyMessage{kNode, code, 0, msef}, t);
+  }
+
+  std::unique_ptr<ElobauMfgDriver> drv;
+  std::vector<CanFrame> sent;
+  std::vector<std::pair<std::size_t, SignalValue>> changes;
+  TimePoint t{Duration{1'000'000}};
+};
+
+TEST_F(ElobauDriverTest, SignalListNamesUnitsAndRanges) {
+  const auto& s = drv->signals();
+  ASSERT_EQ(s.size(), 38u);
+  EXPECT_EQ(s[0].name, "x");
+  EXPECT_EQ(s[4].name, "wheel_c");
+  EXPECT_EQ(s[0].min, -110);  // §15.1.2: detent ±110 reported by default ("pass")
+  EXPECT_EQ(s[0].max, 110);
+  EXPECT_EQ(s[0].unit, "percent");
+  EXPECT_EQ(s[5].name, "buttons[1]");
+  EXPECT_EQ(s[20].name, "buttons[16]");
+  EXPECT_EQ(s[21].name, "presence");
+  EXPECT_EQ(s[22].name, "leds[1]");
+  EXPECT_EQ(s[37].name, "leds[16]");
+  EXPECT_TRUE(s[22].output());
+  EXPECT_EQ(drv->consumed_cob_ids(), (std::vector<std::uint32_t>{0x191, 0x291}));
+}
+
+TEST_F(ElobauDriverTest, Tpdo0DecodesAxesAsSignedPercentAndButtonBits) {
+  // Table 7 + Table 12: X = -50 % (CEh), Y = +100 % (64h), A = 0, B = -110 (92h, detent),
+  // C = +110 (6Eh), buttons 1 and 3 pressed (05h), button 12 (presence) pressed (08h), FFh.
+  EXPECT_TRUE(tpdo0({0xCE, 0x64, 0x00, 0x92, 0x6E, 0x05, 0x08, 0xFF}));
+  EXPECT_EQ(val("x").value, -50);
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(val("y").value, 100);
+  EXPECT_EQ(val("wheel_a").value, 0);
+  EXPECT_EQ(val("wheel_b").value, -110);
+  EXPECT_EQ(val("wheel_c").value, 110);
+  EXPECT_EQ(val("buttons[1]").value, 1);
+  EXPECT_EQ(val("buttons[2]").value, 0);
+  EXPECT_EQ(val("buttons[3]").value, 1);
+  EXPECT_EQ(val("buttons[12]").value, 1);
+  EXPECT_EQ(val("presence").value, 1);  // §15.2.1: presence sensor = button 12
+  EXPECT_EQ(val("presence").status, SignalStatus::Valid);
+  EXPECT_EQ(val("buttons[16]").value, 0);
+  EXPECT_EQ(val("x").timestamp, t);
+}
+
+TEST(ElobauDriverOptions, ClampReportsDetentAsHundred) {
+  std::string err;
+  auto d = make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"detent", "clamp"}}}, err);
+  ASSERT_TRUE(d) << err;
+  // §15.1.2: the detent is the jump 100 % -> 110 %; "clamp" reports it as 100 %.
+  d->on_frame(CanFrame(0x191, {0x6E, 0x92, 0x64, 0x00, 0x00, 0x00, 0x00, 0xFF}), TimePoint{});
+  EXPECT_EQ(d->value(0).value, 100);
+  EXPECT_EQ(d->value(1).value, -100);
+  EXPECT_EQ(d->value(2).value, 100);
+  EXPECT_EQ(d->signals()[0].max, 100);
+}
+
+TEST(ElobauDriverOptions, UnknownOrBadOptionsAreRefused) {
+  std::string err;
+  EXPECT_FALSE(make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"tolerance", "5"}}}, err));
+  EXPECT_NE(err.find("unknown option"), std::string::npos);
+  EXPECT_FALSE(make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"detent", "round"}}}, err));
+  EXPECT_FALSE(make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"channel_tolerance", "5x"}}}, err));
+  EXPECT_FALSE(make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"cycle_ms", "2"}}}, err));  // §14.2 Notice
+  EXPECT_FALSE(make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"channel2_timeout_ms", "50"}}}, err))
+      << "a timeout below the 100 ms cycle would always fire";
+  EXPECT_TRUE(make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"channel2_timeout_ms", "250"}}}, err)) << err;
+}
+
+TEST_F(ElobauDriverTest, ErrorValue126AndNotAvailable127) {
+  // §15.1 / Table 14 20xxh:1Bh = 126 error value, 1Ch = 127 not-available value.
+  tpdo0({0x7E, 0x7F, 0x14, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+  EXPECT_EQ(val("x").value, 0);  // neutral, never 126
+  EXPECT_EQ(val("y").status, SignalStatus::NotAvailable);
+  EXPECT_EQ(val("y").value, 0);
+  EXPECT_EQ(val("wheel_a").value, 20);
+  EXPECT_EQ(val("wheel_a").status, SignalStatus::Valid);
+  // A good value afterwards clears it.
+  tpdo0({0x0A, 0x00, 0x14, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(val("x").value, 10);
+  EXPECT_EQ(val("y").status, SignalStatus::Valid);
+}
+
+TEST_F(ElobauDriverTest, UndefinedValuesBeyondDetentAreErrors) {
+  // Only -110..110 (Tables 10/11) plus the codes 126/127 are defined: 111 (6Fh) and -128 (80h) are not.
+  tpdo0({0x6F, 0x80, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+  EXPECT_EQ(val("x").value, 0);
+  EXPECT_EQ(val("y").status, SignalStatus::Error);
+  EXPECT_EQ(drv->stats().out_of_range, 2u);
+}
+
+TEST_F(ElobauDriverTest, ChannelMismatchBeyondToleranceIsAnError) {
+  // Tables 7/8: channel 1 X = 50, channel 2 X = 56 (> 5 % apart), Y = 20 / 25 (5 %: within).
+  tpdo0({0x32, 0x14, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  tpdo1({0x38, 0x19, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+  EXPECT_EQ(val("x").value, 0);
+  EXPECT_EQ(val("y").status, SignalStatus::Valid);
+  EXPECT_EQ(val("y").value, 20);
+  EXPECT_EQ(drv->counters().mismatches, 1u);
+  // The verdict holds for the next channel-1 frame until a TPDO #1 agrees again.
+  tpdo0({0x33, 0x14, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+  tpdo1({0x34, 0x14, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(val("x").value, 51);
+  EXPECT_EQ(drv->counters().mismatches, 1u);
+}
+
+TEST(ElobauDriverOptions, ToleranceOptionIsHonoured) {
+  std::string err;
+  auto d = make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"channel_tolerance", "10"}}}, err);
+  ASSERT_TRUE(d);
+  d->on_frame(CanFrame(0x191, {0x32, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF}), TimePoint{});
+  d->on_frame(CanFrame(0x291, {0x3C, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF}), TimePoint{});
+  EXPECT_EQ(d->value(0).status, SignalStatus::Valid);  // 50 vs 60: exactly 10
+  d->on_frame(CanFrame(0x291, {0x3D, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF}), TimePoint{});
+  EXPECT_EQ(d->value(0).status, SignalStatus::Error);  // 50 vs 61
+}
+
+TEST_F(ElobauDriverTest, DetentOnOneChannelAndHundredOnTheOtherAgree) {
+  // §15.1.2: "The detent function is a jump from 100% to 110%" — the same mechanical end.
+  tpdo0({0x6E, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  tpdo1({0x64, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(val("x").value, 110);
+  EXPECT_EQ(drv->counters().mismatches, 0u);
+}
+
+TEST_F(ElobauDriverTest, Channel2ErrorIsAnErrorChannel2NotAvailableIsNot) {
+  tpdo0({0x32, 0x32, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  // Table 14 20xxh:01h: 1 = only signal 1 available -> channel 2 carries 127.
+  tpdo1({0x7E, 0x7F, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+  EXPECT_EQ(val("y").status, SignalStatus::Valid);
+  EXPECT_EQ(val("y").value, 50);
+  // Sticky until channel 2 recovers: the next TPDO #0 does not flicker back to Valid.
+  tpdo0({0x32, 0x32, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+  tpdo1({0x32, 0x7F, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+}
+
+TEST_F(ElobauDriverTest, MissingChannel2IsNotAnErrorByDefault) {
+  for (int i = 0; i < 50; ++i) {
+    t += 100ms;
+    tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  }
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(drv->stats().channel2_missing, 0u);
+}
+
+class ElobauDriverChannel2Timeout : public ElobauDriverTest {
+ protected:
+  ElobauDriverChannel2Timeout() : ElobauDriverTest(DriverOptions{{{"channel2_timeout_ms", "250"}}}) {}
+};
+
+TEST_F(ElobauDriverChannel2Timeout, OverdueChannel2MakesAxesErrors) {
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  tpdo1({0x0A, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  t += 250ms;
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid) << "exactly the timeout is still in time";
+  t += 1ms;
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+  EXPECT_EQ(val("wheel_c").status, SignalStatus::Error);
+  EXPECT_EQ(val("buttons[1]").status, SignalStatus::Valid) << "buttons have no second channel";
+  EXPECT_EQ(drv->stats().channel2_missing, 1u);
+  tpdo1({0x0A, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+}
+
+TEST_F(ElobauDriverChannel2Timeout, NeverSeenChannel2CountsFromTheFirstChannel1Frame) {
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  t += 300ms;
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+}
+
+TEST_F(ElobauDriverTest, WrongLengthAndForeignFramesAreCountedAndIgnored) {
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_FALSE(tpdo0({0x50, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00}));  // 7 bytes, Table 7 has 8
+  EXPECT_FALSE(tpdo1({0x50}));
+  EXPECT_FALSE(drv->on_frame(CanFrame(0x192, {0x50, 0, 0, 0, 0, 0, 0, 0xFF}), t));  // another node
+  EXPECT_FALSE(drv->on_frame(CanFrame::remote(0x191, 8), t));
+  EXPECT_EQ(drv->counters().wrong_length, 2u);
+  EXPECT_EQ(drv->counters().unknown_cob, 2u);
+  EXPECT_EQ(val("x").value, 10) << "nothing of a bad frame is passed through";
+}
+
+TEST_F(ElobauDriverTest, OnChangeFiresOnlyOnChange) {
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  const auto n = changes.size();
+  EXPECT_EQ(n, 5u + 16u + 1u);  // every input left Offline
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_EQ(changes.size(), n);
+  tpdo0({0x0B, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  ASSERT_EQ(changes.size(), n + 1);
+  EXPECT_EQ(changes.back().first, idx("x"));
+  EXPECT_EQ(changes.back().second.value, 11);
+}
+
+TEST_F(ElobauDriverTest, OfflineThenOnlineWaitsForAPdo) {
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  drv->on_offline(t);
+  EXPECT_EQ(val("x").status, SignalStatus::Offline);
+  EXPECT_EQ(val("x").value, 0);
+  EXPECT_EQ(val("buttons[1]").value, 0);
+  drv->on_online(t);
+  EXPECT_EQ(val("x").status, SignalStatus::Offline);
+  tpdo1({0x0A, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Offline) << "channel 2 alone reports nothing";
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+}
+
+// §12.3 Table 5: code, error register (always 0), 4001h in bytes 3..4, then FFh.
+TEST_F(ElobauDriverTest, EmcyAxisOutOfRangeIsDecodedAndPutsThatAxisInError) {
+  tpdo0({0x0A, 0x14, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  tpdo1({0x0A, 0x14, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  auto d = emcy(0x1000, {0x21, 0x00, 0xFF, 0xFF, 0xFF});  // Table 6 0021h
+  EXPECT_TRUE(d.error);
+  EXPECT_EQ(d.text, "elobau 4001h 0021h: Y Axis, Signal 2, Out Of Range");
+  EXPECT_EQ(d.affected, (std::vector<std::size_t>{idx("y")}));
+  EXPECT_EQ(val("y").status, SignalStatus::Error);
+  EXPECT_EQ(val("y").value, 0);
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  // §12.2 (4000h = 1): the device then sends the error value on channel 2 -> stays Error.
+  tpdo0({0x0A, 0x14, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_EQ(val("y").status, SignalStatus::Error);
+  tpdo1({0x0A, 0x7E, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("y").status, SignalStatus::Error);
+  // Fault gone: a good pair clears it.
+  tpdo0({0x0A, 0x14, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  tpdo1({0x0A, 0x14, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("y").status, SignalStatus::Valid);
+}
+
+TEST_F(ElobauDriverTest, EmcyEveryTable6AxisCodeHitsItsAxis) {
+  tpdo0({0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  const std::pair<std::uint8_t, const char*> cases[] = {
+      {0x10, "x"}, {0x12, "x"}, {0x20, "y"}, {0x31, "wheel_a"}, {0x42, "wheel_b"}, {0x50, "wheel_c"}};
+  for (const auto& [code, name] : cases) {
+    auto d = emcy(0x1000, {code, 0x00, 0xFF, 0xFF, 0xFF});
+    ASSERT_EQ(d.affected.size(), 1u) << int(code);
+    EXPECT_EQ(d.affected[0], idx(name)) << int(code);
+    EXPECT_EQ(val(name).status, SignalStatus::Error);
+  }
+}
+
+TEST_F(ElobauDriverTest, EmcyButtonTimeoutLatchesUntilErrorReset) {
+  tpdo0({0x00, 0x00, 0x00, 0x00, 0x00, 0x04, 0x00, 0xFF});
+  auto d = emcy(0x1000, {0x63, 0x00, 0xFF, 0xFF, 0xFF});  // Table 6 0063h button 3 timeout
+  EXPECT_EQ(d.text, "elobau 4001h 0063h: Button 3 Timeout");
+  EXPECT_EQ(d.affected, (std::vector<std::size_t>{idx("buttons[3]")}));
+  EXPECT_EQ(val("buttons[3]").status, SignalStatus::Error);
+  // The device sends the button error value 0 (2100h:09h): indistinguishable from released.
+  tpdo0({0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_EQ(val("buttons[3]").status, SignalStatus::Error);
+  EXPECT_EQ(val("buttons[2]").status, SignalStatus::Valid);
+  d = emcy(0x0000, {0x00, 0x00, 0xFF, 0xFF, 0xFF});  // §12.4 0000h error reset
+  EXPECT_FALSE(d.error);
+  EXPECT_EQ(val("buttons[3]").status, SignalStatus::Valid);
+  // Button 11 = 006Bh, the last of Table 6.
+  EXPECT_EQ(emcy(0x1000, {0x6B, 0x00, 0xFF, 0xFF, 0xFF}).affected, (std::vector<std::size_t>{idx("buttons[11]")}));
+}
+
+TEST_F(ElobauDriverTest, EmcyChecksumErrorPutsEveryInputInErrorUntilReset) {
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  auto d = emcy(0x1000, {0x02, 0x00, 0xFF, 0xFF, 0xFF});  // Table 6 0002h
+  EXPECT_EQ(d.text, "elobau 4001h 0002h: Parameter Checksum Error");
+  EXPECT_EQ(d.affected.size(), 22u);
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+  EXPECT_EQ(val("buttons[1]").status, SignalStatus::Error);
+  EXPECT_EQ(val("buttons[1]").value, 0);
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Error) << "a PDO does not vouch for a corrupt parameter set";
+  emcy(0x0000, {0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(val("x").value, 10);
+  EXPECT_EQ(val("buttons[1]").value, 1);
+}
+
+TEST_F(ElobauDriverTest, EmcyOneByteCodeWithFfFillerIsDecodedToo) {
+  // Table 5 fills unused manufacturer bytes with FFh; "uses only the 1st byte".
+  auto d = emcy(0x1000, {0x11, 0xFF, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(d.text, "elobau 4001h 0011h: X Axis, Signal 2, Out Of Range");
+}
+
+TEST_F(ElobauDriverTest, EmcyUnknownCodesAreCountedAndIgnored) {
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  auto d = emcy(0x1000, {0x03, 0x00, 0xFF, 0xFF, 0xFF});  // Table 6: 0003h "not used"
+  EXPECT_FALSE(d.error);
+  d = emcy(0x1000, {0x13, 0x00, 0xFF, 0xFF, 0xFF});
+  d = emcy(0x5000, {0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(drv->counters().unknown_emcy, 3u);
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+}
+
+TEST_F(ElobauDriverTest, EmcyCommunicationNoticesInvalidateNothing) {
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  auto d = emcy(0x8140, {0x03, 0xFF, 0xFF, 0xFF, 0xFF});  // §12.4: count of bus-offs in byte 3
+  EXPECT_FALSE(d.error);
+  EXPECT_EQ(d.text, "elobau EMCY 8140h: recovered from bus off (count 3)");
+  EXPECT_FALSE(emcy(0x8120, {}).error);
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(drv->counters().unknown_emcy, 0u);
+}
+
+// §14.3 Table 9 + Table 13: 2 bits per LED, 00 off, 01 on, 10 blink, 11 no change.
+TEST_F(ElobauDriverTest, LedCommandsCarryTheWholeStateWithNoChangeElsewhere) {
+  ASSERT_TRUE(drv->set_output(idx("leds[1]"), 1, t));  // button 1 LED 1 on: byte 0 bits 0,1 = 01
+  ASSERT_EQ(sent.size(), 1u);
+  EXPECT_EQ(sent[0], CanFrame(0x211, {0xFD, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF}));
+  ASSERT_TRUE(drv->set_output(idx("leds[4]"), 2, t));  // button 2 LED 2 blink: byte 0 bits 6,7 = 10
+  EXPECT_EQ(sent.back(), CanFrame(0x211, {0xBD, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF}));
+  ASSERT_TRUE(drv->set_output(idx("leds[10]"), 0, t));  // button 5 LED 2 off: byte 2 bits 2,3 = 00
+  EXPECT_EQ(sent.back(), CanFrame(0x211, {0xBD, 0xFF, 0xF3, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF}));
+  EXPECT_EQ(val("leds[4]").value, 2);
+  EXPECT_EQ(val("leds[4]").status, SignalStatus::Valid);
+}
+
+TEST_F(ElobauDriverTest, ThumbWheelLedsFollowTheMaskBitOrder) {
+  // 2200h:0Ah bit 10 = wheel A LED 2-2 (RPDO byte 5 bits 0,1); bit 14 = wheel A LED 1+3
+  // (byte 5 bits 4,5); bit 13 = wheel B LED 2-1 (byte 6 bits 2,3); bit 15 = wheel B LED 1+3
+  // (byte 6 bits 4,5).
+  drv->set_output(idx("leds[11]"), 1, t);
+  EXPECT_EQ(sent.back(), CanFrame(0x211, {0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFD, 0xFF, 0xFF}));
+  drv->set_output(idx("leds[15]"), 0, t);
+  EXPECT_EQ(sent.back(), CanFrame(0x211, {0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xCD, 0xFF, 0xFF}));
+  drv->set_output(idx("leds[14]"), 2, t);
+  drv->set_output(idx("leds[16]"), 1, t);
+  EXPECT_EQ(sent.back(), CanFrame(0x211, {0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xCD, 0xDB, 0xFF}));
+}
+
+TEST_F(ElobauDriverTest, BadOutputsSendNothingAndRepeatsAreNotResent) {
+  EXPECT_FALSE(drv->set_output(idx("leds[1]"), 3, t));  // 11 is "no change", not a state
+  EXPECT_FALSE(drv->set_output(idx("leds[1]"), -1, t));
+  EXPECT_FALSE(drv->set_output(idx("x"), 1, t));
+  EXPECT_FALSE(drv->set_output(999, 1, t));
+  EXPECT_TRUE(sent.empty());
+  drv->set_output(idx("leds[2]"), 1, t);
+  drv->set_output(idx("leds[2]"), 1, t);
+  EXPECT_EQ(sent.size(), 1u) << "§14.3: cyclic update is not necessary";
+}
+
+TEST_F(ElobauDriverTest, OnlineAgainResendsTheLedState) {
+  drv->set_output(idx("leds[3]"), 1, t);  // byte 0 bits 4,5 = 01
+  drv->on_offline(t);
+  drv->on_online(t);
+  ASSERT_EQ(sent.size(), 2u);
+  EXPECT_EQ(sent.back(), CanFrame(0x211, {0xDF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF}));
+}
+
+TEST_F(ElobauDriverTest, LedTimeoutEmcyMarksLedsUntilReset) {
+  drv->set_output(idx("leds[1]"), 1, t);
+  auto d = emcy(0x1000, {0x70, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(d.text, "elobau 4001h 0070h: LED Message Timeout");
+  EXPECT_EQ(d.affected.size(), 16u);
+  EXPECT_EQ(val("leds[1]").status, SignalStatus::Error);
+  EXPECT_EQ(val("leds[1]").value, 1);
+  emcy(0x0000, {});
+  EXPECT_EQ(val("leds[1]").status, SignalStatus::Valid);
+}
+
+TEST_F(ElobauDriverTest, ConfigurationPinsCodesTimersAndErrorBehaviour) {
+  const auto w = drv->configuration();
+  auto find = [&w](std::uint16_t i, std::uint8_t s) -> const SdoWrite* {
+    for (const auto& x : w)
+      if (x.index == i && x.sub == s) return &x;
+    return nullptr;
+  };
+  ASSERT_TRUE(find(0x1801, 5));  // Table 14: 1801h:05 event timer, U16 ms
+  EXPECT_EQ(find(0x1801, 5)->data, (std::vector<std::uint8_t>{100, 0}));
+  ASSERT_TRUE(find(0x1800, 5));
+  ASSERT_TRUE(find(0x4000, 0));  // §12.2: 1 = no state change, error value sent
+  EXPECT_EQ(find(0x4000, 0)->data, (std::vector<std::uint8_t>{1}));
+  ASSERT_TRUE(find(0x2004, 0x1B));
+  EXPECT_EQ(find(0x2004, 0x1B)->data, (std::vector<std::uint8_t>{126}));
+  EXPECT_EQ(find(0x2002, 0x1C)->data, (std::vector<std::uint8_t>{127}));
+  EXPECT_EQ(find(0x2100, 0x09)->data, (std::vector<std::uint8_t>{0}));
+  EXPECT_FALSE(find(0x1017, 0)) << "heartbeat is the network manager's";
+  EXPECT_FALSE(find(0x1800, 2)) << "transmission type is ro (Table 14)";
+  const auto id = drv->expected_identity();
+  EXPECT_EQ(id.vendor_id, 0x000000B4u);  // Table 14 1018h:01
+  EXPECT_EQ(id.device_type, 0u);
+}
+
+TEST_F(ElobauDriverTest, EmcyErrorShowsBeforeTheFirstPdoAndResetReturnsToOffline) {
+  // §12.3: an EMCY may arrive before any TPDO (e.g. right after NMT start).
+  emcy(0x1000, {0x10, 0x00, 0xFF, 0xFF, 0xFF});
+  emcy(0x1000, {0x61, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+  EXPECT_EQ(val("buttons[1]").status, SignalStatus::Error);
+  EXPECT_EQ(val("y").status, SignalStatus::Offline);
+  emcy(0x0000, {});
+  EXPECT_EQ(val("x").status, SignalStatus::Offline) << "no data yet: not Valid";
+  EXPECT_EQ(val("buttons[1]").status, SignalStatus::Offline);
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(val("buttons[1]").value, 1);
+}
+
+TEST_F(ElobauDriverTest, AxisEmcyWithoutErrorValueInPdoClearsOnTheNextGoodPair) {
+  // 0012h "signal difference too high" is "function not implemented" (Table 6): if it comes,
+  // the PDOs may not carry 126; the next agreeing pair ends it.
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  emcy(0x1000, {0x12, 0x00, 0xFF, 0xFF, 0xFF});
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Error) << "channel 1 alone does not clear it";
+  tpdo1({0x0A, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+}
+
+}  // namespace
+}  // namespace oegw::subdevices
