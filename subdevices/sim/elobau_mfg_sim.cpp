@@ -1,6 +1,8 @@
 // Simulated elobau MFG 34xG / 36xG grip; what is modelled is listed in elobau_mfg_sim.hpp.
 #include "subdevices/sim/elobau_mfg_sim.hpp"
 
+#include "subdevices/sim/signal_names.hpp"
+
 #include <algorithm>
 #include <string>
 
@@ -399,6 +401,25 @@ void ElobauMfgSim::on_power_cycle(TimePoint /*now*/) {
   set_silent(false);
   arm_zero_rule();
   // The reset that follows restores the dictionary; publish() runs when it is pre-operational.
+}
+
+}  // namespace oegw::subdevices::sim
+
+namespace oegw::subdevices::sim {
+
+bool ElobauMfgSim::set_input(std::string_view signal, std::int64_t value, TimePoint /*now*/) {
+  if (axis_index(signal)) {
+    if (value < -110 || value > 110) return false;
+    return move_axis(signal, static_cast<int>(value));
+  }
+  if (const auto b = indexed_signal(signal, "buttons"); b && *b >= 1 && *b <= 16 && (value == 0 || value == 1))
+    return value == 1 ? press(static_cast<int>(*b)) : release(static_cast<int>(*b));
+  return false;
+}
+
+std::optional<std::int64_t> ElobauMfgSim::output(std::string_view signal) const {
+  if (const auto n = indexed_signal(signal, "leds"); n && *n >= 1 && *n <= kLeds) return led(*n);
+  return std::nullopt;
 }
 
 }  // namespace oegw::subdevices::sim

@@ -72,6 +72,11 @@ class ElobauMfgSim : public SimulatedDevice {
   void start(TimePoint now) override;
   void reboot(TimePoint now) override;
 
+  // Driver signal names: x, y, wheel_a..wheel_c (percent), buttons[1..16] (0/1); outputs
+  // leds[1..16] (0 off / 1 on / 2 blink, as displayed).
+  bool set_input(std::string_view signal, std::int64_t value, TimePoint now) override;
+  [[nodiscard]] std::optional<std::int64_t> output(std::string_view signal) const override;
+
   // Axes by signal name: "x", "y", "wheel_a", "wheel_b", "wheel_c". `percent` is the physical
   // deflection (-110..110); channel 2 reads percent + offset (a mismatch). False for a bad name.
   bool move_axis(std::string_view axis, int percent, int channel2_offset = 0);
