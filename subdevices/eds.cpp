@@ -306,6 +306,13 @@ bool Parser::read_value(const Section& s, const Key& k, DataType type, std::opti
   if (!parse_value_number(k.value, v))
     return fail(k.line, where + "expected a number (decimal, 0x hex, 0 octal, optionally with $NODEID+), got " +
                             quote(k.value));
+  // A signed value written in hexadecimal is the type's two's complement (0x8000 = -32768 for
+  // INTEGER16), as EDS tools write limits and defaults.
+  const std::size_t width = canopen::fixed_size(type);
+  if (canopen::is_signed_integer(type) && width < 8 && upper(v.text).find("0X") != std::string::npos &&
+      v.text.find('-') == std::string::npos && v.number < (std::uint64_t{1} << (width * 8)) &&
+      (v.number >> (width * 8 - 1)) != 0)
+    v.number |= ~std::uint64_t{0} << (width * 8);
   if (!fits(type, v.number))
     return fail(k.line, where + "expected a value that fits " + std::string(to_string(type)) + ", got " +
                             quote(k.value));

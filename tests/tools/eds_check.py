@@ -56,6 +56,13 @@ def value(text):
     return number(t), False
 
 
+def signed_hex(text, v, bits, signed):
+    """A signed type's value written in hex is its two's complement: 0x8000 = -32768 (INTEGER16)."""
+    if signed and bits < 64 and "0x" in text.lower() and "-" not in text and (1 << (bits - 1)) <= v < (1 << bits):
+        return v - (1 << bits)
+    return v
+
+
 def load(path):
     cp = configparser.ConfigParser(strict=True, interpolation=None, comment_prefixes=(";", "#"),
                                    inline_comment_prefixes=None, empty_lines_in_values=False)
@@ -132,6 +139,7 @@ def check_entry(path, index, sub, sec):
     default = sec.get("defaultvalue", None)
     if default is not None and default.strip() != "" and bits:
         v, _ = value(default)
+        v = signed_hex(default, v, bits, signed)
         lo, hi = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if signed else (0, (1 << bits) - 1)
         if not lo <= v <= hi:
             raise ValueError(where + ": DefaultValue %s does not fit" % default)
@@ -144,6 +152,7 @@ def summary_line(index, sub, dt, acc, pdo, default):
         shown = "-"
     elif bits:
         v, rel = value(default)
+        v = signed_hex(default, v, bits, TYPES[dt][1])
         shown = ("$NODEID+" if rel else "") + str(v)
     else:
         shown = "'" + default.strip() + "'"

@@ -341,5 +341,71 @@ TEST(Cia401, OfflineMarksInputsOnly) {
   EXPECT_EQ(f.status("out[1]"), SignalStatus::Valid);
 }
 
+// Whatever a (broken or hostile) node answers to the mapping read and whatever it then sends,
+// the driver neither crashes nor reports a value outside a signal's range.
+TEST(Cia401, RandomMappingAnswersAndFramesStayWithinRanges) {
+  Fixture f(kCluster);
+  std::uint32_t seed = 77;
+  auto rnd = [&seed]() {
+    seed = seed * 1664525u + 1013904223u;
+    return seed >> 8;
+  };
+  const std::uint32_t useful[] = {0x60000108, 0x60000208, 0x61200120, 0x64010110, 0x62000108, 0x64110110,
+                                  0x00050008, 0x60000110};
+  for (int round = 0; round < 300; ++round) {
+    f.drv->reset_mapping();
+    for (int guard = 0; guard < 10 && !f.drv->mapping_complete(); ++guard) {
+      for (const auto& q : f.drv->mapping_reads()) {
+        switch (rnd() % 25) {
+          case 0: f.drv->apply_mapping_abort(q.index, q.sub, SdoAbortCode::ObjectDoesNotExist); break;
+          case 1: {
+            Bytes junk(rnd() % 6);
+            for (auto& b : junk) b = static_cast<std::uint8_t>(rnd());
+            (void)f.drv->apply_mapping_read(q.index, q.sub, junk);
+            break;
+          }
+          default:
+            if (q.sub == 0 && q.index >= 0x1600) {
+              (void)f.drv->apply_mapping_read(q.index, q.sub, Bytes{static_cast<std::uint8_t>(rnd() % 9)});
+            } else if (q.sub == 2) {
+              (void)f.drv->apply_mapping_read(q.index, q.sub, Bytes{0xFF});
+            } else if (q.index < 0x1600 || (q.index >= 0x1800 && q.index < 0x1A00)) {
+              const std::uint32_t cob = (q.index >= 0x1800 ? 0x180u : 0x200u) + (rnd() % 4) * 0x100u + 0x21u;
+              (void)f.drv->apply_mapping_read(q.index, q.sub, canopen::encode<std::uint32_t>(cob));
+            } else {
+              (void)f.drv->apply_mapping_read(q.index, q.sub,
+                                              canopen::encode<std::uint32_t>(useful[rnd() % std::size(useful)]));
+            }
+        }
+      }
+    }
+    ASSERT_TRUE(f.drv->mapping_complete());
+    for (int i = 0; i < 20; ++i) {
+      CanFrame fr;
+      const auto ids = f.drv->consumed_cob_ids();
+      fr.id = (ids.empty() || rnd() % 4 == 0) ? 0x180u + (rnd() % 4) * 0x100u + 0x21u : ids[rnd() % ids.size()];
+      fr.dlc = static_cast<std::uint8_t>(rnd() % 9);
+      for (auto& b : fr.data) b = static_cast<std::uint8_t>(rnd());
+      (void)f.drv->on_frame(fr, t0);
+      const std::size_t out = rnd() % f.drv->signals().size();
+      const auto& info = f.drv->signals()[out];
+      const std::int64_t v = (rnd() % 2 == 0) ? static_cast<std::int64_t>(rnd() % 70000) - 35000
+                                              : info.min + static_cast<std::int64_t>(rnd() % 200);
+      (void)f.drv->set_output(out, v, t0);
+    }
+    for (std::size_t i = 0; i < f.drv->signals().size(); ++i) {
+      const auto& si = f.drv->signals()[i];
+      ASSERT_GE(f.drv->value(i).value, si.min) << si.name;
+      ASSERT_LE(f.drv->value(i).value, si.max) << si.name;
+    }
+  }
+  for (const CanFrame& fr : f.sent) ASSERT_LE(fr.dlc, 8);
+  std::size_t decoded = 0;
+  for (const auto& [i, v] : f.changes)
+    if (!f.drv->signals()[i].output() && v.status == SignalStatus::Valid) ++decoded;
+  EXPECT_GT(decoded, 10u) << "the random mappings did decode frames";
+  EXPECT_GT(f.sent.size(), 10u) << "and send outputs";
+}
+
 }  // namespace
 }  // namespace oegw::subdevices

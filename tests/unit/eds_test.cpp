@@ -135,6 +135,12 @@ TEST(Eds, NumberFormatsAndNodeIdForms) {
   EXPECT_EQ(od->write(0x6000, 1, canopen::encode<std::int16_t>(-1001), canopen::Origin::Local),
             SdoAbortCode::ValueTooLow);
   EXPECT_EQ(od->write(0x6000, 1, canopen::encode<std::int16_t>(999), canopen::Origin::Local), SdoAbortCode::None);
+  // A signed value in hex is the type's two's complement (0x8000 = -32768 for INTEGER16).
+  text = replace(text, "LowLimit=-1000", "LowLimit=0x8000");
+  f = parse(text, "t.eds", error);
+  ASSERT_TRUE(f) << error;
+  od = build_dictionary(*f, NodeId{5});
+  EXPECT_EQ(od->write(0x6000, 1, canopen::encode<std::int16_t>(-32768), canopen::Origin::Local), SdoAbortCode::None);
   auto plain = replace(kMinimal, "DefaultValue=0x00010191", "DefaultValue=$NODEID");
   f = parse(plain, "t.eds", error);
   ASSERT_TRUE(f) << error;
