@@ -238,6 +238,11 @@ void Cia401Driver::build(Pdo& p) {
   }
 }
 
+bool Cia401Driver::needs_sync() const {
+  return std::any_of(pdos_.begin(), pdos_.end(),
+                     [](const Pdo& p) { return p.usable() && p.transmission_type && *p.transmission_type <= 240; });
+}
+
 // ---- runtime --------------------------------------------------------------------------------
 
 std::vector<std::uint32_t> Cia401Driver::consumed_cob_ids() const {

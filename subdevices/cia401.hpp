@@ -94,6 +94,9 @@ class Cia401Driver final : public Driver {
   canopen::SdoAbortCode apply_mapping_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data);
   void apply_mapping_abort(std::uint16_t index, std::uint8_t sub, canopen::SdoAbortCode code);
   [[nodiscard]] bool mapping_complete() const { return mapping_reads().empty(); }
+  // True when a PDO in use is synchronous (transmission type 0..240, CiA 301 §7.5.2.35): the
+  // node then sends (TPDO) or applies (RPDO) it only at a SYNC, which someone must produce.
+  [[nodiscard]] bool needs_sync() const;
 
   bool on_frame(const CanFrame& frame, TimePoint now) override;
   DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) override;

@@ -17,9 +17,11 @@
 // Numbers are decimal, 0x-hexadecimal or 0-octal (CiA 306 §4.5.3); a value may be written
 // "$NODEID+0x180" or "0x180+$NODEID" (the node-ID is added when the dictionary is built).
 // Comments start with ';' at the beginning of a line. Keys are case-insensitive, as INI keys.
-// Not supported (refused with a precise error): CompactSubObj, ObjectLinks-only objects,
-// DOMAIN values given by UploadFile/DownloadFile.
-// Other sections ([FileInfo], [DummyUsage], [Comments], unlisted objects) are ignored.
+// Not supported: CompactSubObj (refused with a precise error). Other keys (Denotation,
+// ParameterValue, ObjectFlags, UploadFile, ...) and other sections ([FileInfo], [DummyUsage],
+// [Comments], [xxxxObjectLinks], sections of unlisted objects) are ignored.
+// A signed value written in hexadecimal is the type's two's complement (0x8000 = -32768 for
+// INTEGER16).
 //
 // Errors: parse_eds() never throws and never crashes on any input; a malformed file yields
 // "file:line: what was expected" (line = the offending line, or the section header).

@@ -162,6 +162,7 @@ TEST(Cia401, MappingReadsAreAskedStepByStep) {
   EXPECT_EQ(f.drv->apply_mapping_read(0x1A00, 2, canopen::encode<std::uint32_t>(0x64010210)), SdoAbortCode::None);
   EXPECT_TRUE(f.drv->mapping_complete());
   EXPECT_EQ(f.drv->consumed_cob_ids(), (std::vector<std::uint32_t>{0x1A1}));
+  EXPECT_FALSE(f.drv->needs_sync()) << "TPDO1 is event-driven (FFh)";
   // CiA 301 §7.2.2: 6000h:1 in byte 0, 6401h:2 in bytes 1..2 (this mapping, not the EDS's).
   EXPECT_TRUE(f.drv->on_frame(CanFrame(0x1A1, {0x81, 0x34, 0x12}), t0));
   EXPECT_EQ(f.val("in[1]"), 0x81);
@@ -192,6 +193,18 @@ TEST(Cia401, RefusedMappingValuesDisableThatPdo) {
   g.drv->apply_mapping_abort(0x1801, 1, SdoAbortCode::ObjectDoesNotExist);
   EXPECT_GT(g.read_mapping(), 0);
   EXPECT_EQ(g.drv->consumed_cob_ids(), (std::vector<std::uint32_t>{0x1A1}));
+}
+
+// CiA 301 §7.5.2.35: transmission types 0..240 are synchronous.
+TEST(Cia401, SynchronousPdoMeansSyncIsNeeded) {
+  Fixture f(kPedal);
+  f.node_od->find(0x1800, 2)->value = {1};
+  f.read_mapping();
+  EXPECT_TRUE(f.drv->needs_sync());
+  f.node_od->find(0x1800, 2)->value = {0xFE};
+  f.drv->reset_mapping();
+  f.read_mapping();
+  EXPECT_FALSE(f.drv->needs_sync());
 }
 
 TEST(Cia401, NoFrameIsUsedBeforeTheMappingIsRead) {
