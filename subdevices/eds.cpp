@@ -212,8 +212,9 @@ class Parser {
   std::string& error_;
   std::vector<Section> sections_;
   int last_line_ = 0;
-  // Object sections by (index << 16 | 0x1_0000_00 for subs...) -> position in sections_.
-  std::map<std::uint32_t, std::size_t> object_sections_;  // index << 9 | (sub + 1), 0 for the object
+  // Object sections -> position in sections_, keyed index << 9 | (sub + 1) ([1A00subN]) or
+  // index << 9 ([1A00]); see object_key().
+  std::map<std::uint32_t, std::size_t> object_sections_;
 };
 
 // Section names "1A00" or "1A00sub3" (hex, case-insensitive) -> key; nullopt for other names.
