@@ -1,0 +1,374 @@
+#include "subdevices/cia401.hpp"
+
+#include <algorithm>
+
+#include "subdevices/families.hpp"
+
+namespace oegw::subdevices {
+
+using canopen::CobId;
+using canopen::DataType;
+using canopen::SdoAbortCode;
+
+namespace {
+
+constexpr std::uint16_t kDigitalIn8 = 0x6000;
+constexpr std::uint16_t kDigitalIn32 = 0x6120;
+constexpr std::uint16_t kAnalogIn16 = 0x6401;
+constexpr std::uint16_t kDigitalOut8 = 0x6200;
+constexpr std::uint16_t kAnalogOut16 = 0x6411;
+constexpr std::uint16_t kPdosPerDirection = 4;  // 1400h–1403h, 1800h–1803h (CiA 401 pre-defined set)
+
+DataType expected_type(std::uint16_t index) {
+  switch (index) {
+    case kDigitalIn8:
+    case kDigitalOut8: return DataType::Unsigned8;
+    case kDigitalIn32: return DataType::Unsigned32;
+    default: return DataType::Integer16;
+  }
+}
+
+std::uint32_t u32(std::span<const std::uint8_t> d) { return static_cast<std::uint32_t>(canopen::decode_unsigned(d)); }
+
+std::int64_t limit_as_signed(const std::optional<eds::Value>& v, DataType t, std::int64_t fallback) {
+  if (!v || !v->numeric || v->node_relative) return fallback;
+  if (canopen::is_signed_integer(t)) {
+    const std::size_t n = canopen::fixed_size(t);
+    return canopen::decode_signed(canopen::encode_width(v->number, n));
+  }
+  return static_cast<std::int64_t>(v->number);
+}
+
+// CiA 301 §7.2.7.1, Table 26: the error code classes it defines.
+const char* emcy_class(std::uint16_t code) {
+  const unsigned hi = code >> 12;
+  const unsigned hi8 = code >> 8;
+  if (hi8 == 0x10) return "generic error";
+  if (hi == 0x2) return "current";
+  if (hi == 0x3) return "voltage";
+  if (hi == 0x4) return "temperature";
+  if (hi8 == 0x50) return "device hardware";
+  if (hi == 0x6) return "device software";
+  if (hi8 == 0x70) return "additional modules";
+  if (hi == 0x8) return "monitoring / communication";
+  if (hi8 == 0x90) return "external error";
+  if (hi8 == 0xF0) return "additional functions";
+  if (hi8 == 0xFF) return "device specific";
+  return nullptr;
+}
+
+std::string hex4(std::uint32_t v) {
+  static constexpr char kHex[] = "0123456789ABCDEF";
+  std::string s(4, '0');
+  for (int i = 3; i >= 0; --i) {
+    s[static_cast<std::size_t>(i)] = kHex[v & 0xF];
+    v >>= 4;
+  }
+  return s;
+}
+
+}  // namespace
+
+bool Cia401Driver::Pdo::complete() const {
+  if (failed) return true;
+  if (!cob_id || !transmission_type) return false;
+  if ((*cob_id & CobId::kInvalidBit) != 0) return true;  // not used: its mapping does not matter
+  if (!count) return false;
+  return std::all_of(entries.begin(), entries.end(), [](const auto& e) { return e.has_value(); });
+}
+
+bool Cia401Driver::Pdo::usable() const {
+  return !failed && complete() && (*cob_id & CobId::kInvalidBit) == 0 && !decoded.empty() && bits > 0 && bits <= 64;
+}
+
+Cia401Driver::Cia401Driver(NodeId node, FrameSink sink, eds::File file) : eds_(std::move(file)) {
+  add_signals(kDigitalIn8, "in", SignalKind::Digital, 0, 255, "bits");
+  add_signals(kDigitalIn32, "in32", SignalKind::Digital, 0, 0xFFFFFFFFll, "bits");
+  add_signals(kAnalogIn16, "analog", SignalKind::Analog, -32768, 32767, "raw16");
+  add_signals(kDigitalOut8, "out", SignalKind::Output, 0, 255, "bits");
+  add_signals(kAnalogOut16, "aout", SignalKind::Output, -32768, 32767, "raw16");
+  init(node, std::move(sink), signals_.size());
+  for (std::uint16_t n = 1; n <= kPdosPerDirection; ++n) {
+    for (bool transmit : {false, true}) {
+      Pdo p;
+      p.transmit = transmit;
+      p.number = n;
+      if (eds_.find(p.comm_index()) != nullptr && eds_.find(p.map_index()) != nullptr) pdos_.push_back(std::move(p));
+    }
+  }
+}
+
+void Cia401Driver::add_signals(std::uint16_t index, const char* prefix, SignalKind kind, std::int64_t min,
+                               std::int64_t max, const char* unit) {
+  const eds::ObjectEntry* o = eds_.find(index);
+  if (o == nullptr || o->code == canopen::ObjectCode::Var) return;
+  const DataType t = expected_type(index);
+  for (const auto& [sub, e] : o->subs) {
+    if (sub == 0 || e.type != t) continue;  // another type is not CiA 401's object: not decoded
+    SignalInfo s;
+    s.name = std::string(prefix) + "[" + std::to_string(sub) + "]";
+    s.kind = kind;
+    s.min = min;
+    s.max = max;
+    s.unit = unit;
+    if (kind == SignalKind::Output) {
+      s.min = std::max(min, limit_as_signed(e.low, t, min));
+      s.max = std::min(max, limit_as_signed(e.high, t, max));
+    }
+    s.neutral = std::clamp<std::int64_t>(0, s.min, s.max);
+    std::int64_t initial = 0;
+    if (e.default_value && e.default_value->numeric && !e.default_value->node_relative)
+      initial = limit_as_signed(e.default_value, t, 0);
+    by_object_[std::uint32_t{index} << 8 | sub] = signals_.size();
+    width_.push_back(static_cast<std::uint8_t>(canopen::fixed_size(t) * 8));
+    outputs_.push_back(std::clamp(initial, s.min, s.max));
+    signals_.push_back(std::move(s));
+  }
+}
+
+ExpectedIdentity Cia401Driver::expected_identity() const {
+  ExpectedIdentity id;
+  if (auto dt = eds_.default_number(0x1000, 0, node())) id.device_type = static_cast<std::uint32_t>(*dt);
+  auto pick = [&](std::string_view key, std::uint8_t sub) -> std::optional<std::uint32_t> {
+    if (auto v = eds_.device_number(key)) return v;
+    if (auto v = eds_.default_number(0x1018, sub, node())) return static_cast<std::uint32_t>(*v);
+    return std::nullopt;
+  };
+  id.vendor_id = pick("VendorNumber", 1);
+  id.product_code = pick("ProductNumber", 2);
+  id.revision = pick("RevisionNumber", 3);
+  return id;
+}
+
+// ---- boot-time mapping read -----------------------------------------------------------------
+
+void Cia401Driver::reset_mapping() {
+  for (Pdo& p : pdos_) {
+    Pdo fresh;
+    fresh.transmit = p.transmit;
+    fresh.number = p.number;
+    p = std::move(fresh);
+  }
+}
+
+std::vector<SdoRead> Cia401Driver::mapping_reads() const {
+  std::vector<SdoRead> reads;
+  for (const Pdo& p : pdos_) {
+    if (p.complete()) continue;
+    const std::string name = std::string(p.transmit ? "TPDO" : "RPDO") + std::to_string(p.number);
+    if (!p.cob_id) reads.push_back({p.comm_index(), 1, name + " COB-ID"});
+    if (!p.transmission_type) reads.push_back({p.comm_index(), 2, name + " transmission type"});
+    if (p.cob_id && (*p.cob_id & CobId::kInvalidBit) != 0) continue;
+    if (!p.count) {
+      reads.push_back({p.map_index(), 0, name + " number of mapped objects"});
+      continue;
+    }
+    for (std::size_t i = 0; i < p.entries.size(); ++i)
+      if (!p.entries[i])
+        reads.push_back({p.map_index(), static_cast<std::uint8_t>(i + 1), name + " mapping entry " + std::to_string(i + 1)});
+  }
+  return reads;
+}
+
+Cia401Driver::Pdo* Cia401Driver::find_pdo(std::uint16_t index) {
+  for (Pdo& p : pdos_)
+    if (p.comm_index() == index || p.map_index() == index) return &p;
+  return nullptr;
+}
+
+SdoAbortCode Cia401Driver::apply_mapping_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data) {
+  Pdo* p = find_pdo(index);
+  if (p == nullptr) return SdoAbortCode::ObjectDoesNotExist;
+  auto refuse = [p](SdoAbortCode c) {
+    p->failed = true;
+    p->decoded.clear();
+    return c;
+  };
+  if (index == p->comm_index()) {
+    if (sub == 1) {
+      if (data.size() != 4) return refuse(SdoAbortCode::LengthMismatch);
+      p->cob_id = u32(data);
+    } else if (sub == 2) {
+      if (data.size() != 1) return refuse(SdoAbortCode::LengthMismatch);
+      p->transmission_type = data[0];
+    } else {
+      return SdoAbortCode::SubIndexDoesNotExist;
+    }
+  } else if (sub == 0) {
+    if (data.size() != 1) return refuse(SdoAbortCode::LengthMismatch);
+    if (data[0] > 64) return refuse(SdoAbortCode::ValueTooHigh);
+    p->count = data[0];
+    p->entries.assign(data[0], std::nullopt);
+  } else {
+    if (!p->count || sub > *p->count) return SdoAbortCode::SubIndexDoesNotExist;
+    if (data.size() != 4) return refuse(SdoAbortCode::LengthMismatch);
+    p->entries[sub - 1] = u32(data);
+  }
+  if (p->complete() && !p->failed) build(*p);
+  return SdoAbortCode::None;
+}
+
+void Cia401Driver::apply_mapping_abort(std::uint16_t index, std::uint8_t /*sub*/, SdoAbortCode /*code*/) {
+  if (Pdo* p = find_pdo(index); p != nullptr) {
+    p->failed = true;
+    p->decoded.clear();
+  }
+}
+
+int Cia401Driver::signal_for(std::uint32_t entry) const {
+  auto it = by_object_.find(entry >> 8);
+  if (it == by_object_.end()) return -1;
+  if ((entry & 0xFF) != width_[it->second]) return -1;  // a partial or oversized mapping: not decoded
+  return static_cast<int>(it->second);
+}
+
+void Cia401Driver::build(Pdo& p) {
+  p.decoded.clear();
+  p.bits = 0;
+  if ((*p.cob_id & CobId::kInvalidBit) != 0) return;
+  for (const auto& e : p.entries) {
+    const std::uint32_t raw = *e;
+    const unsigned bits = raw & 0xFF;
+    int sig = signal_for(raw);
+    // A TPDO carries inputs only; an RPDO outputs only (a misdirected entry is skipped).
+    if (sig >= 0 && signals_[static_cast<std::size_t>(sig)].output() != !p.transmit) sig = -1;
+    p.decoded.push_back(Entry{raw, sig});
+    p.bits += bits;
+    if (bits == 0) p.bits = 65;  // CiA 301 §7.5.2.36: a zero-length entry is invalid
+  }
+}
+
+bool Cia401Driver::needs_sync() const {
+  return std::any_of(pdos_.begin(), pdos_.end(),
+                     [](const Pdo& p) { return p.usable() && p.transmission_type && *p.transmission_type <= 240; });
+}
+
+// ---- runtime --------------------------------------------------------------------------------
+
+std::vector<std::uint32_t> Cia401Driver::consumed_cob_ids() const {
+  std::vector<std::uint32_t> ids;
+  for (const Pdo& p : pdos_) {
+    if (!p.transmit || !p.usable()) continue;
+    const CobId c{*p.cob_id};
+    ids.push_back(c.extended() ? (c.can_id() | CobId::kExtendedBit) : c.can_id());
+  }
+  return ids;
+}
+
+bool Cia401Driver::on_frame(const CanFrame& frame, TimePoint now) {
+  for (const Pdo& p : pdos_) {
+    if (!p.transmit || !p.usable()) continue;
+    const CobId c{*p.cob_id};
+    if (c.can_id() != frame.id || c.extended() != frame.extended) continue;
+    if (frame.rtr || frame.dlc != (p.bits + 7) / 8) {
+      ++counters_.wrong_length;
+      return false;
+    }
+    std::uint64_t payload = 0;
+    for (std::size_t i = 0; i < frame.dlc; ++i) payload |= std::uint64_t{frame.data[i]} << (8 * i);
+    unsigned offset = 0;
+    for (const Entry& e : p.decoded) {
+      const unsigned bits = e.raw & 0xFF;
+      if (e.signal >= 0) {
+        const auto idx = static_cast<std::size_t>(e.signal);
+        const std::uint64_t mask = bits >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << bits) - 1;
+        const std::uint64_t raw = (payload >> offset) & mask;
+        std::int64_t v = static_cast<std::int64_t>(raw);
+        if (signals_[idx].min < 0 && bits < 64 && (raw >> (bits - 1)) != 0)
+          v = static_cast<std::int64_t>(raw | ~mask);  // INTEGER16: sign-extend
+        update(idx, v, SignalStatus::Valid, now);
+      }
+      offset += bits;
+    }
+    return true;
+  }
+  ++counters_.unknown_cob;
+  return false;
+}
+
+DecodedEmcy Cia401Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
+  DecodedEmcy d;
+  d.code = emcy.code;
+  if (emcy.code == canopen::EmcyProducer::kErrorReset) {
+    d.error = false;
+    d.text = "cia401 EMCY 0000h: error reset";
+    for (std::size_t i = 0; i < signals_.size(); ++i)
+      if (!signals_[i].output() && value(i).status == SignalStatus::Error)
+        update(i, signals_[i].neutral, SignalStatus::Stale, now);
+    return d;
+  }
+  const char* cls = emcy_class(emcy.code);
+  if (cls == nullptr) {
+    ++counters_.unknown_emcy;
+    d.text = "cia401 EMCY " + hex4(emcy.code) + "h: unknown error code (ignored)";
+    d.error = false;
+    return d;
+  }
+  d.text = "cia401 EMCY " + hex4(emcy.code) + "h: " + cls;
+  for (std::size_t i = 0; i < signals_.size(); ++i)
+    if (!signals_[i].output()) update(i, signals_[i].neutral, SignalStatus::Error, now);
+  return d;
+}
+
+bool Cia401Driver::set_output(std::size_t index, std::int64_t v, TimePoint now) {
+  if (index >= signals_.size() || !signals_[index].output()) return false;
+  if (v < signals_[index].min || v > signals_[index].max) return false;
+  const auto sig = static_cast<int>(index);
+  std::vector<const Pdo*> targets;
+  for (const Pdo& p : pdos_) {
+    if (p.transmit || !p.usable()) continue;
+    if (std::any_of(p.decoded.begin(), p.decoded.end(), [sig](const Entry& e) { return e.signal == sig; }))
+      targets.push_back(&p);
+  }
+  if (targets.empty()) return false;
+  outputs_[index] = v;
+  for (const Pdo* p : targets) {
+    std::uint64_t payload = 0;
+    unsigned offset = 0;
+    for (const Entry& e : p->decoded) {
+      const unsigned bits = e.raw & 0xFF;
+      if (e.signal >= 0) {
+        const std::uint64_t mask = bits >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << bits) - 1;
+        payload |= (static_cast<std::uint64_t>(outputs_[static_cast<std::size_t>(e.signal)]) & mask) << offset;
+      }
+      offset += bits;
+    }
+    const CobId c{*p->cob_id};
+    CanFrame f;
+    f.id = c.can_id();
+    f.extended = c.extended();
+    f.dlc = static_cast<std::uint8_t>((p->bits + 7) / 8);
+    for (std::size_t i = 0; i < f.dlc; ++i) f.data[i] = static_cast<std::uint8_t>(payload >> (8 * i));
+    send(f);
+  }
+  update(index, v, SignalStatus::Valid, now);
+  return true;
+}
+
+std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const DriverOptions& options,
+                                           std::string& error) {
+  for (const auto& [k, v] : options.values) {
+    if (k != "eds") {
+      error = "cia401: unknown option '" + k + "' (expected: eds)";
+      return nullptr;
+    }
+  }
+  if (!node.valid()) {
+    error = "cia401: node-ID " + std::to_string(node.value()) + " is not 1..127";
+    return nullptr;
+  }
+  const auto path = options.get("eds");
+  if (!path || path->empty()) {
+    error = "cia401: option 'eds' (path of the node's EDS file) is required";
+    return nullptr;
+  }
+  std::string why;
+  auto file = eds::load(*path, why);
+  if (!file) {
+    error = "cia401: " + why;
+    return nullptr;
+  }
+  return std::make_unique<Cia401Driver>(node, std::move(sink), std::move(*file));
+}
+
+}  // namespace oegw::subdevices

@@ -1,0 +1,51 @@
+#include "subdevices/sim/cia401_sim.hpp"
+
+namespace oegw::subdevices::sim {
+
+namespace {
+
+canopen::NodeConfig config_from(const eds::File& file, NodeId node) {
+  canopen::NodeConfig cfg;
+  cfg.node_id = node;
+  cfg.device_type = static_cast<std::uint32_t>(file.default_number(0x1000, 0, node).value_or(0));
+  for (const auto& [k, v] : file.device_info)
+    if (k == "ProductName") cfg.device_name = v;
+  cfg.identity.vendor = static_cast<std::uint32_t>(file.default_number(0x1018, 1, node).value_or(0));
+  cfg.identity.product = static_cast<std::uint32_t>(file.default_number(0x1018, 2, node).value_or(0));
+  cfg.identity.revision = static_cast<std::uint32_t>(file.default_number(0x1018, 3, node).value_or(0));
+  cfg.identity.serial = static_cast<std::uint32_t>(file.default_number(0x1018, 4, node).value_or(0));
+  cfg.heartbeat_ms = static_cast<std::uint16_t>(file.default_number(0x1017, 0, node).value_or(0));
+  return cfg;
+}
+
+}  // namespace
+
+Cia401Sim::Cia401Sim(const eds::File& file, NodeId node, FrameSink sink) : SimulatedDevice(std::move(sink)), eds_(file) {
+  auto od = eds::build_dictionary(eds_, node);
+  // The PDO objects are re-installed with the EDS defaults in the layout PdoService runs.
+  for (std::uint16_t n = 1; n <= 512; ++n) {
+    if (auto p = eds::pdo_defaults(eds_, false, n, node)) canopen::install_rpdo(*od, n, *p);
+    if (auto p = eds::pdo_defaults(eds_, true, n, node)) canopen::install_tpdo(*od, n, *p);
+  }
+  build(std::move(od), config_from(eds_, node));
+}
+
+std::unique_ptr<Cia401Sim> Cia401Sim::from_file(const std::filesystem::path& eds_path, NodeId node, FrameSink sink,
+                                                std::string& error) {
+  auto file = eds::load(eds_path, error);
+  if (!file) return nullptr;
+  return std::make_unique<Cia401Sim>(*file, node, std::move(sink));
+}
+
+canopen::SdoAbortCode Cia401Sim::set_input(std::uint16_t index, std::uint8_t sub, std::int64_t value) {
+  return od().set<std::int64_t>(index, sub, value, canopen::Origin::Local);
+}
+
+std::optional<std::int64_t> Cia401Sim::output(std::uint16_t index, std::uint8_t sub) {
+  const canopen::SubObject* s = od().find(index, sub);
+  if (s == nullptr || canopen::fixed_size(s->type) == 0) return std::nullopt;
+  if (canopen::is_signed_integer(s->type)) return canopen::decode_signed(s->value);
+  return static_cast<std::int64_t>(canopen::decode_unsigned(s->value));
+}
+
+}  // namespace oegw::subdevices::sim

@@ -1,0 +1,44 @@
+// Simulator of a generic CiA 401 node built from its EDS file (CiA 306): the dictionary is the
+// one eds::build_dictionary() makes (every object, type, access, default, limit of the EDS, with
+// $NODEID resolved), the PDOs are installed with the EDS defaults (1400h/1600h, 1800h/1A00h),
+// and a canopen::Node runs it — so its PDO mapping can be read and changed over SDO like a real
+// node's. 1000h, 1017h and 1018h come from the EDS defaults ([DeviceInfo] ProductName is the
+// device name).
+//
+// Controls: set_input(index, sub, value) writes an input object (6000h, 6120h, 6401h, ...) as the
+// device's application would (the TPDOs mapping it then send); output(index, sub) reads what the
+// RPDOs wrote (6200h, 6411h, ...).
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "subdevices/eds.hpp"
+#include "subdevices/sim/simulated_device.hpp"
+
+namespace oegw::subdevices::sim {
+
+class Cia401Sim : public SimulatedDevice {
+ public:
+  Cia401Sim(const eds::File& file, NodeId node, FrameSink sink);
+  // Loads the EDS; nullptr with `error` ("file:line: ...") if it cannot be read or parsed.
+  static std::unique_ptr<Cia401Sim> from_file(const std::filesystem::path& eds_path, NodeId node, FrameSink sink,
+                                              std::string& error);
+
+  [[nodiscard]] std::string_view family() const override { return "cia401"; }
+
+  // Writes an input as the device's application (Origin::Local): returns the dictionary's
+  // verdict (ObjectDoesNotExist, ValueTooHigh, ...). The value is taken modulo the object's width.
+  canopen::SdoAbortCode set_input(std::uint16_t index, std::uint8_t sub, std::int64_t value);
+  // The current value of a numeric entry (sign-extended for signed types); nullopt if absent.
+  [[nodiscard]] std::optional<std::int64_t> output(std::uint16_t index, std::uint8_t sub);
+
+  [[nodiscard]] const eds::File& eds() const { return eds_; }
+
+ private:
+  eds::File eds_;
+};
+
+}  // namespace oegw::subdevices::sim
