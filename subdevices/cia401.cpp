@@ -372,3 +372,26 @@ std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const Dr
 }
 
 }  // namespace oegw::subdevices
+
+namespace oegw::subdevices {
+
+std::vector<std::pair<std::uint16_t, std::uint8_t>> Cia401Driver::boot_reads() const {
+  std::vector<std::pair<std::uint16_t, std::uint8_t>> out;
+  for (const SdoRead& r : mapping_reads()) out.emplace_back(r.index, r.sub);
+  return out;
+}
+
+bool Cia401Driver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                                std::string& error) {
+  const canopen::SdoAbortCode code = apply_mapping_read(index, sub, data);
+  if (code == canopen::SdoAbortCode::None) return true;
+  error = std::string(canopen::to_string(code));
+  return false;
+}
+
+bool Cia401Driver::on_boot_read_abort(std::uint16_t index, std::uint8_t sub, canopen::SdoAbortCode code) {
+  apply_mapping_abort(index, sub, code);  // that PDO is simply not used
+  return true;
+}
+
+}  // namespace oegw::subdevices

@@ -98,6 +98,13 @@ class Cia401Driver final : public Driver {
   // node then sends (TPDO) or applies (RPDO) it only at a SYNC, which someone must produce.
   [[nodiscard]] bool needs_sync() const;
 
+  // The Driver's boot-read hooks, run by the network manager: the mapping read above.
+  void begin_boot() override { reset_mapping(); }
+  [[nodiscard]] std::vector<std::pair<std::uint16_t, std::uint8_t>> boot_reads() const override;
+  bool on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                    std::string& error) override;
+  bool on_boot_read_abort(std::uint16_t index, std::uint8_t sub, canopen::SdoAbortCode code) override;
+
   bool on_frame(const CanFrame& frame, TimePoint now) override;
   DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) override;
   [[nodiscard]] std::vector<std::uint32_t> consumed_cob_ids() const override;

@@ -72,12 +72,18 @@ class Driver {
   [[nodiscard]] virtual ExpectedIdentity expected_identity() const { return {}; }
   [[nodiscard]] virtual std::vector<SdoWrite> configuration() const { return {}; }
   // Objects the driver must read from the node at boot, before configuration() is written
-  // (e.g. a generic node's actual PDO mapping). Each answer goes to on_boot_read(); returning
-  // false there refuses the node (the network manager reports it and does not start it).
+  // (e.g. a generic node's actual PDO mapping). The network manager calls begin_boot(), then
+  // asks boot_reads() in rounds until it returns nothing (an answer may tell what to read
+  // next), handing each answer to on_boot_read() and each refused read to
+  // on_boot_read_abort(). Returning false from either refuses the node (with `error`).
+  virtual void begin_boot() {}
   [[nodiscard]] virtual std::vector<std::pair<std::uint16_t, std::uint8_t>> boot_reads() const { return {}; }
   virtual bool on_boot_read(std::uint16_t /*index*/, std::uint8_t /*sub*/, std::span<const std::uint8_t> /*data*/,
                             std::string& /*error*/) {
     return true;
+  }
+  virtual bool on_boot_read_abort(std::uint16_t /*index*/, std::uint8_t /*sub*/, canopen::SdoAbortCode /*code*/) {
+    return false;
   }
 
   // Runtime. on_frame() gets every frame whose COB-ID belongs to this node's PDOs (the network

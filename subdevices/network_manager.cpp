@@ -89,9 +89,14 @@ bool NetworkManager::add(NodeSettings settings, std::unique_ptr<Driver> driver) 
   auto m = std::make_unique<Managed>();
   m->settings = std::move(settings);
   m->driver = std::move(driver);
-  for (const std::uint32_t cob : m->driver->consumed_cob_ids()) by_cob_[cob] = m.get();
+  route(*m);
   nodes_.push_back(std::move(m));
   return true;
+}
+
+void NetworkManager::route(Managed& m) {
+  std::erase_if(by_cob_, [&m](const auto& e) { return e.second == &m; });
+  for (const std::uint32_t cob : m.driver->consumed_cob_ids()) by_cob_[cob] = &m;
 }
 
 void NetworkManager::start(TimePoint now) {
@@ -159,26 +164,20 @@ void NetworkManager::configure(Managed& m, TimePoint now) {
   m.steps.clear();
   m.next_step = 0;
   // CiA 302-2 boot-up: device type and identity first.
-  m.steps.push_back({true, 0x1000, 0, {}, "device type", expect_u32(0x1000, 0, pick(cfg.device_type, drv.device_type))});
+  using Kind = Step::Kind;
+  m.steps.push_back({Kind::Read, 0x1000, 0, {}, "device type", expect_u32(0x1000, 0, pick(cfg.device_type, drv.device_type))});
   const std::optional<std::uint32_t> ident[4] = {pick(cfg.vendor_id, drv.vendor_id), pick(cfg.product_code, drv.product_code),
                                                  pick(cfg.revision, drv.revision), pick(cfg.serial, drv.serial)};
   static const char* const names[4] = {"vendor-ID", "product code", "revision number", "serial number"};
   for (std::uint8_t sub = 1; sub <= 4; ++sub)
-    if (ident[sub - 1]) m.steps.push_back({true, 0x1018, sub, {}, names[sub - 1], expect_u32(0x1018, sub, ident[sub - 1])});
-  for (const auto& [index, sub] : m.driver->boot_reads()) {
-    Driver* d = m.driver.get();
-    const std::uint16_t i = index;
-    const std::uint8_t s = sub;
-    m.steps.push_back({true, index, sub, {}, "driver read", [d, i, s](const std::vector<std::uint8_t>& data) {
-                         std::string error;
-                         if (!d->on_boot_read(i, s, data, error)) return obj(i, s) + ": " + error;
-                         return std::string{};
-                       }});
-  }
+    if (ident[sub - 1])
+      m.steps.push_back({Kind::Read, 0x1018, sub, {}, names[sub - 1], expect_u32(0x1018, sub, ident[sub - 1])});
+  m.driver->begin_boot();
+  m.steps.push_back({Kind::DriverReads, 0, 0, {}, "driver reads", {}});
   if (m.settings.heartbeat_ms != 0)
-    m.steps.push_back({false, 0x1017, 0, canopen::encode<std::uint16_t>(m.settings.heartbeat_ms), "producer heartbeat", {}});
-  for (const SdoWrite& w : m.driver->configuration()) m.steps.push_back({false, w.index, w.sub, w.data, w.what, {}});
-  for (const SdoWrite& w : m.settings.sdo) m.steps.push_back({false, w.index, w.sub, w.data, w.what, {}});
+    m.steps.push_back({Kind::Write, 0x1017, 0, canopen::encode<std::uint16_t>(m.settings.heartbeat_ms), "producer heartbeat", {}});
+  for (const SdoWrite& w : m.driver->configuration()) m.steps.push_back({Kind::Write, w.index, w.sub, w.data, w.what, {}});
+  for (const SdoWrite& w : m.settings.sdo) m.steps.push_back({Kind::Write, w.index, w.sub, w.data, w.what, {}});
   set_state(m, NodeState::Configuring, "boot-up seen: checking identity and configuring", now);
   run_step(m);
 }
@@ -188,16 +187,45 @@ void NetworkManager::run_step(Managed& m) {
     finish(m, now_);
     return;
   }
+  if (m.steps[m.next_step].kind == Step::Kind::DriverReads) {
+    // Ask the driver for its next round of reads; they run before this marker, which is asked
+    // again afterwards. No more reads: on to the writes.
+    auto reads = m.driver->boot_reads();
+    if (reads.empty()) {
+      ++m.next_step;
+      run_step(m);
+      return;
+    }
+    Driver* d = m.driver.get();
+    std::vector<Step> round;
+    for (const auto& [index, sub] : reads) {
+      const std::uint16_t i = index;
+      const std::uint8_t s = sub;
+      Step st{Step::Kind::Read, index, sub, {}, "driver read", [d, i, s](const std::vector<std::uint8_t>& data) {
+                std::string error;
+                if (!d->on_boot_read(i, s, data, error)) return obj(i, s) + ": " + error;
+                return std::string{};
+              }};
+      st.driver_read = true;
+      round.push_back(std::move(st));
+    }
+    m.steps.insert(m.steps.begin() + static_cast<std::ptrdiff_t>(m.next_step), round.begin(), round.end());
+  }
   const Step& step = m.steps[m.next_step];
   const std::uint64_t gen = m.generation;
   Managed* mp = &m;
   auto done = [this, mp, gen](SdoAbortCode code, std::vector<std::uint8_t> data) {
     if (mp->generation != gen || mp->state != NodeState::Configuring) return;  // overtaken
     const Step& st = mp->steps[mp->next_step];
-    const std::string where = std::string(st.read ? "reading " : "writing ") + obj(st.index, st.sub) +
+    const std::string where = std::string(st.kind == Step::Kind::Read ? "reading " : "writing ") + obj(st.index, st.sub) +
                               (st.what.empty() ? "" : " (" + st.what + ")");
     if (code == SdoAbortCode::Timeout) {
       fail(*mp, NodeState::Missing, where + ": no answer (SDO timeout)", now_);
+      return;
+    }
+    if (code != SdoAbortCode::None && st.driver_read && mp->driver->on_boot_read_abort(st.index, st.sub, code)) {
+      ++mp->next_step;  // the driver can do without this object
+      run_step(*mp);
       return;
     }
     if (code != SdoAbortCode::None) {
@@ -215,7 +243,7 @@ void NetworkManager::run_step(Managed& m) {
     ++mp->next_step;
     run_step(*mp);
   };
-  if (step.read) {
+  if (step.kind == Step::Kind::Read) {
     master_.sdo(m.settings.node).upload(step.index, step.sub, done);
   } else {
     master_.sdo(m.settings.node).download(step.index, step.sub, step.data, done);
@@ -223,6 +251,7 @@ void NetworkManager::run_step(Managed& m) {
 }
 
 void NetworkManager::finish(Managed& m, TimePoint now) {
+  route(m);  // what the driver consumes may depend on what it read at boot
   if (m.settings.heartbeat_ms != 0) (void)master_.monitor_heartbeat(m.settings.node, consumer_ms(m));
   master_.nmt().start(m.settings.node);
   m.backoff = Duration{0};

@@ -102,13 +102,15 @@ class NetworkManager {
 
  private:
   struct Step {
-    bool read = true;
+    enum class Kind : std::uint8_t { Read, Write, DriverReads };  // DriverReads: ask the driver
+    Kind kind = Kind::Read;
     std::uint16_t index = 0;
     std::uint8_t sub = 0;
     std::vector<std::uint8_t> data;
     std::string what;
     // For reads: checks the answer; returns an error text, or empty when fine.
     std::function<std::string(const std::vector<std::uint8_t>&)> check;
+    bool driver_read = false;  // a read the driver asked for: aborts go to on_boot_read_abort
   };
   struct Managed {
     NodeSettings settings;
@@ -128,6 +130,7 @@ class NetworkManager {
   void begin_boot(Managed& m, TimePoint now);   // reset communication, wait for boot-up
   void configure(Managed& m, TimePoint now);    // identity, boot reads, writes, start
   void run_step(Managed& m);
+  void route(Managed& m);  // (re)builds the COB-ID routing of a node's TPDOs
   void finish(Managed& m, TimePoint now);
   void fail(Managed& m, NodeState s, const std::string& why, TimePoint now);
   void lost(Managed& m, const std::string& why, TimePoint now);

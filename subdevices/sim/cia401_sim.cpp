@@ -1,5 +1,7 @@
 #include "subdevices/sim/cia401_sim.hpp"
 
+#include "subdevices/sim/signal_names.hpp"
+
 namespace oegw::subdevices::sim {
 
 namespace {
@@ -37,15 +39,42 @@ std::unique_ptr<Cia401Sim> Cia401Sim::from_file(const std::filesystem::path& eds
   return std::make_unique<Cia401Sim>(*file, node, std::move(sink));
 }
 
-canopen::SdoAbortCode Cia401Sim::set_input(std::uint16_t index, std::uint8_t sub, std::int64_t value) {
+canopen::SdoAbortCode Cia401Sim::set_object(std::uint16_t index, std::uint8_t sub, std::int64_t value) {
   return od().set<std::int64_t>(index, sub, value, canopen::Origin::Local);
 }
 
-std::optional<std::int64_t> Cia401Sim::output(std::uint16_t index, std::uint8_t sub) {
+std::optional<std::int64_t> Cia401Sim::object_value(std::uint16_t index, std::uint8_t sub) const {
   const canopen::SubObject* s = od().find(index, sub);
   if (s == nullptr || canopen::fixed_size(s->type) == 0) return std::nullopt;
   if (canopen::is_signed_integer(s->type)) return canopen::decode_signed(s->value);
   return static_cast<std::int64_t>(canopen::decode_unsigned(s->value));
+}
+
+}  // namespace oegw::subdevices::sim
+
+namespace oegw::subdevices::sim {
+
+namespace {
+struct NamedObject {
+  std::string_view base;
+  std::uint16_t index;
+};
+constexpr NamedObject kInputs[] = {{"in", 0x6000}, {"in32", 0x6120}, {"analog", 0x6401}};
+constexpr NamedObject kOutputs[] = {{"out", 0x6200}, {"aout", 0x6411}};
+}  // namespace
+
+bool Cia401Sim::set_input(std::string_view signal, std::int64_t value, TimePoint /*now*/) {
+  for (const auto& n : kInputs)
+    if (const auto k = indexed_signal(signal, n.base); k && *k >= 1 && *k <= 0xFE)
+      return set_object(n.index, static_cast<std::uint8_t>(*k), value) == canopen::SdoAbortCode::None;
+  return false;
+}
+
+std::optional<std::int64_t> Cia401Sim::output(std::string_view signal) const {
+  for (const auto& n : kOutputs)
+    if (const auto k = indexed_signal(signal, n.base); k && *k >= 1 && *k <= 0xFE)
+      return object_value(n.index, static_cast<std::uint8_t>(*k));
+  return std::nullopt;
 }
 
 }  // namespace oegw::subdevices::sim

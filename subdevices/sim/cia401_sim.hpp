@@ -31,9 +31,14 @@ class Cia401Sim : public SimulatedDevice {
 
   // Writes an input as the device's application (Origin::Local): returns the dictionary's
   // verdict (ObjectDoesNotExist, ValueTooHigh, ...). The value is taken modulo the object's width.
-  canopen::SdoAbortCode set_input(std::uint16_t index, std::uint8_t sub, std::int64_t value);
+  canopen::SdoAbortCode set_object(std::uint16_t index, std::uint8_t sub, std::int64_t value);
   // The current value of a numeric entry (sign-extended for signed types); nullopt if absent.
-  [[nodiscard]] std::optional<std::int64_t> output(std::uint16_t index, std::uint8_t sub);
+  [[nodiscard]] std::optional<std::int64_t> object_value(std::uint16_t index, std::uint8_t sub) const;
+
+  // Driver signal names: in[k] (6000h:k), in32[k] (6120h:k), analog[k] (6401h:k); outputs
+  // out[k] (6200h:k), aout[k] (6411h:k).
+  bool set_input(std::string_view signal, std::int64_t value, TimePoint now) override;
+  [[nodiscard]] std::optional<std::int64_t> output(std::string_view signal) const override;
 
   [[nodiscard]] const eds::File& eds() const { return eds_; }
 

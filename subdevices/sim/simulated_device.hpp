@@ -30,6 +30,7 @@ class SimulatedDevice {
 
   [[nodiscard]] canopen::Node& node() { return *node_; }
   [[nodiscard]] canopen::ObjectDictionary& od() { return *od_; }
+  [[nodiscard]] const canopen::ObjectDictionary& od() const { return *od_; }
 
   // Power on: boot-up message, pre-operational.
   virtual void start(TimePoint now);

@@ -133,9 +133,9 @@ TEST_F(Cia401Bus, PedalMappingReadThenInputsFlow) {
   // CiA 852 §12.1 / the PDO service: entering Operational sends the event-driven TPDO once.
   EXPECT_EQ(status("analog[1]"), SignalStatus::Valid);
   EXPECT_EQ(val("analog[1]"), 0);
-  ASSERT_EQ(sim_->set_input(0x6401, 1, -1234), SdoAbortCode::None);
-  ASSERT_EQ(sim_->set_input(0x6401, 2, 20000), SdoAbortCode::None);
-  ASSERT_EQ(sim_->set_input(0x6000, 1, 0x5A), SdoAbortCode::None);
+  ASSERT_EQ(sim_->set_object(0x6401, 1, -1234), SdoAbortCode::None);
+  ASSERT_EQ(sim_->set_object(0x6401, 2, 20000), SdoAbortCode::None);
+  ASSERT_EQ(sim_->set_object(0x6000, 1, 0x5A), SdoAbortCode::None);
   net_.run_for(5ms);
   EXPECT_EQ(val("analog[1]"), -1234);
   EXPECT_EQ(val("analog[2]"), 20000);
@@ -154,18 +154,18 @@ TEST_F(Cia401Bus, OutputsReachTheSimulatorsObjects) {
   EXPECT_EQ(drv_->consumed_cob_ids(), (std::vector<std::uint32_t>{0x180u + kNode.value(), 0x280u + kNode.value()}));
   ASSERT_TRUE(drv_->set_output(sig("out[1]"), 0x3C, net_.now()));
   net_.run_for(5ms);
-  EXPECT_EQ(sim_->output(0x6200, 1), 0x3C);
+  EXPECT_EQ(sim_->object_value(0x6200, 1), 0x3C);
   ASSERT_TRUE(drv_->set_output(sig("aout[1]"), 777, net_.now()));
   net_.run_for(5ms);
-  EXPECT_EQ(sim_->output(0x6411, 1), 777);
-  EXPECT_EQ(sim_->output(0x6200, 1), 0x3C) << "the other mapped outputs were sent as remembered";
+  EXPECT_EQ(sim_->object_value(0x6411, 1), 777);
+  EXPECT_EQ(sim_->object_value(0x6200, 1), 0x3C) << "the other mapped outputs were sent as remembered";
   ASSERT_TRUE(drv_->set_output(sig("out[2]"), 0xFF, net_.now()));
   net_.run_for(5ms);
-  EXPECT_EQ(sim_->output(0x6200, 2), 0xFF);
-  EXPECT_EQ(sim_->output(0x6411, 1), 777);
+  EXPECT_EQ(sim_->object_value(0x6200, 2), 0xFF);
+  EXPECT_EQ(sim_->object_value(0x6411, 1), 777);
   // Inputs of the cluster: 16 buttons in 6000h:1..2, a 32-bit group in 6120h:1.
-  ASSERT_EQ(sim_->set_input(0x6000, 2, 0x80), SdoAbortCode::None);
-  ASSERT_EQ(sim_->set_input(0x6120, 1, 0xDEADBEEF), SdoAbortCode::None);
+  ASSERT_EQ(sim_->set_object(0x6000, 2, 0x80), SdoAbortCode::None);
+  ASSERT_EQ(sim_->set_object(0x6120, 1, 0xDEADBEEF), SdoAbortCode::None);
   net_.run_for(5ms);
   EXPECT_EQ(val("in[2]"), 0x80);
   EXPECT_EQ(val("in32[1]"), 0xDEADBEEFll);
@@ -190,9 +190,9 @@ TEST_F(Cia401Bus, RemappedTpdoIsDecodedFromTheMappingReadBack) {
   boot_and_start();
   EXPECT_EQ(drv_->consumed_cob_ids(), (std::vector<std::uint32_t>{0x180u + kNode.value(), 0x380u + kNode.value()}));
   bus_pdos_.clear();
-  ASSERT_EQ(sim_->set_input(0x6000, 1, 0x0F), SdoAbortCode::None);
-  ASSERT_EQ(sim_->set_input(0x6401, 1, 100), SdoAbortCode::None);
-  ASSERT_EQ(sim_->set_input(0x6401, 2, -200), SdoAbortCode::None);
+  ASSERT_EQ(sim_->set_object(0x6000, 1, 0x0F), SdoAbortCode::None);
+  ASSERT_EQ(sim_->set_object(0x6401, 1, 100), SdoAbortCode::None);
+  ASSERT_EQ(sim_->set_object(0x6401, 2, -200), SdoAbortCode::None);
   net_.run_for(5ms);
   // The frame on the bus is in the new layout: 6000h:1 first.
   ASSERT_FALSE(bus_pdos_.empty());
@@ -221,15 +221,15 @@ TEST_F(Cia401Bus, RemappedRpdoCarriesOutputsWhereTheNodeExpectsThem) {
   ASSERT_TRUE(drv_->set_output(sig("out[2]"), 0xA5, net_.now()));
   ASSERT_TRUE(drv_->set_output(sig("aout[1]"), 321, net_.now()));
   net_.run_for(5ms);
-  EXPECT_EQ(sim_->output(0x6200, 2), 0xA5);
-  EXPECT_EQ(sim_->output(0x6411, 1), 321);
-  EXPECT_EQ(sim_->output(0x6200, 1), 0);
+  EXPECT_EQ(sim_->object_value(0x6200, 2), 0xA5);
+  EXPECT_EQ(sim_->object_value(0x6411, 1), 321);
+  EXPECT_EQ(sim_->object_value(0x6200, 1), 0);
 }
 
 TEST_F(Cia401Bus, EmcyFromTheNodePutsInputsInErrorUntilReset) {
   make(kPedal);
   boot_and_start();
-  ASSERT_EQ(sim_->set_input(0x6401, 1, 500), SdoAbortCode::None);
+  ASSERT_EQ(sim_->set_object(0x6401, 1, 500), SdoAbortCode::None);
   net_.run_for(5ms);
   ASSERT_EQ(val("analog[1]"), 500);
   // CiA 301 Table 26: 5000h device hardware.
