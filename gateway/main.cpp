@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include "gateway/bench_programs.hpp"
 #include "gateway/core_demo.hpp"
 
 int main(int argc, char** argv) {
@@ -25,9 +26,19 @@ int main(int argc, char** argv) {
   dev_cmd->add_option("--store", store, "Parameter file for 1010h/1011h and LSS store");
   dev_cmd->add_flag("--no-motion", no_motion, "Keep the inputs still (for scripted peers)");
 
+  oegw::gateway::MasterOptions master;
+  auto* master_cmd = app.add_subcommand("master", "Run the downstream network manager with drivers on a SocketCAN interface");
+  master_cmd->add_option("-i,--interface", master.interface, "SocketCAN interface")->required();
+  master_cmd->add_option("--heartbeat-ms", master.heartbeat_ms, "Producer heartbeat written to every node")
+      ->check(CLI::Range(0, 65535));
+  master_cmd->add_option("--until-operational", master.until_operational,
+                         "Exit 0 once every node is operational, 1 after this many seconds");
+  master_cmd->add_option("devices", master.devices, "family:node[:key=value,...], as for oegw-sim")->required();
+
   CLI11_PARSE(app, argc, argv);
   spdlog::set_pattern("%^%l%$: %v");  // journald adds its own timestamps
 
+  if (*master_cmd) return oegw::gateway::run_master(master);
   if (*dev_cmd) {
     device.node_id = oegw::canopen::NodeId{static_cast<std::uint8_t>(node_id)};
     device.store_path = store;

@@ -1,0 +1,23 @@
+// oegw-sim — simulated sub-devices (elobau MFG, MCB-402, Novotechnik CiA 406, generic CiA 401)
+// on a SocketCAN interface, for bench-testing the gateway without hardware.
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include "gateway/bench_programs.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"oegw-sim — simulated cab devices on a SocketCAN interface"};
+  oegw::gateway::SimOptions o;
+  app.add_option("-i,--interface", o.interface, "SocketCAN interface")->required();
+  app.add_flag("--motion", o.motion, "Sweep every axis and press the buttons in turn");
+  app.add_flag("--commands", o.commands,
+               "Read commands from standard input: '<device> <signal> <value>', '<device> silent on|off', "
+               "'<device> heartbeat on|off', '<device> reboot'");
+  app.add_option("devices", o.devices,
+                 "family:node[:key=value,...], e.g. elobau-mfg:0x11 mcb402:0x03 "
+                 "cia401:0x30:eds=subdevices/eds/generic_pedal.eds (options: name, heartbeat_ms, store, eds)")
+      ->required();
+  CLI11_PARSE(app, argc, argv);
+  spdlog::set_pattern("%^%l%$: %v");
+  return oegw::gateway::run_sim(o);
+}

@@ -1,0 +1,120 @@
+#include "subdevices/sim/sim_bench.hpp"
+
+#include <cmath>
+#include <numbers>
+#include <sstream>
+
+#include "subdevices/sim/sim_registry.hpp"
+
+namespace oegw::subdevices::sim {
+
+bool SimBench::add(const DeviceSpec& spec, std::string& error) {
+  DeviceSpec sim_spec = spec;
+  std::string name = spec.name();
+  std::erase_if(sim_spec.options.values, [&name](const auto& kv) {
+    if (kv.first != "name") return false;
+    name = kv.second;
+    return true;
+  });
+  for (const auto& e : devices_) {
+    if (e.name == name) {
+      error = "device name '" + name + "' used twice";
+      return false;
+    }
+  }
+  // The simulator takes only its own options; the driver (for the signal list) the family's.
+  DeviceSpec driver_spec = sim_spec;
+  std::erase_if(driver_spec.options.values, [](const auto& kv) { return kv.first == "heartbeat_ms" || kv.first == "store"; });
+  auto sim = make_simulator(sim_spec, sink_, error);
+  if (!sim) return false;
+  auto driver = make_driver(spec.family, spec.node, {}, driver_spec.options, error);
+  if (!driver) return false;
+  devices_.push_back({name, std::move(sim), driver->signals()});
+  return true;
+}
+
+void SimBench::start(TimePoint now) {
+  for (auto& e : devices_) e.sim->start(now);
+}
+
+bool SimBench::on_frame(const CanFrame& frame, TimePoint now) {
+  bool used = false;
+  for (auto& e : devices_) used = e.sim->on_frame(frame, now) || used;  // NMT/SYNC reach every node
+  return used;
+}
+
+void SimBench::advance(TimePoint now) {
+  for (auto& e : devices_) e.sim->advance(now);
+}
+
+std::optional<TimePoint> SimBench::next_deadline() const {
+  std::optional<TimePoint> best;
+  for (const auto& e : devices_) {
+    const auto t = e.sim->next_deadline();
+    if (t && (!best || *t < *best)) best = t;
+  }
+  return best;
+}
+
+void SimBench::move(TimePoint now) {
+  const double t = std::chrono::duration<double>(now.time_since_epoch()).count();
+  for (auto& e : devices_) {
+    std::size_t axis = 0;
+    std::size_t buttons = 0;
+    for (const auto& s : e.signals) buttons += s.kind == SignalKind::Button ? 1 : 0;
+    std::size_t button = 0;
+    for (const auto& s : e.signals) {
+      if (s.kind == SignalKind::Axis || s.kind == SignalKind::Analog || s.kind == SignalKind::Position) {
+        const double phase = 2 * std::numbers::pi * t / 4.0 + 0.7 * static_cast<double>(axis++);
+        const double span = std::min<double>(static_cast<double>(s.max - s.neutral), static_cast<double>(s.neutral - s.min));
+        const double amplitude = s.kind == SignalKind::Position ? 1000.0 : 0.8 * span;
+        (void)e.sim->set_input(s.name, s.neutral + std::llround(amplitude * std::sin(phase)), now);
+      } else if (s.kind == SignalKind::Button && buttons > 0) {
+        const auto pressed = static_cast<std::size_t>(t) % buttons;
+        (void)e.sim->set_input(s.name, button++ == pressed ? 1 : 0, now);
+      }
+    }
+  }
+}
+
+SimulatedDevice* SimBench::device(std::string_view name) {
+  for (auto& e : devices_)
+    if (e.name == name) return e.sim.get();
+  return nullptr;
+}
+
+std::vector<std::string> SimBench::names() const {
+  std::vector<std::string> out;
+  for (const auto& e : devices_) out.push_back(e.name);
+  return out;
+}
+
+std::string SimBench::command(std::string_view line, TimePoint now) {
+  std::istringstream in{std::string(line)};
+  std::string name, what, value;
+  in >> name >> what >> value;
+  if (name.empty()) return "error: empty command";
+  SimulatedDevice* d = device(name);
+  if (d == nullptr) {
+    std::string known;
+    for (const auto& n : names()) known += (known.empty() ? "" : ", ") + n;
+    return "error: no device '" + name + "' (devices: " + known + ")";
+  }
+  if (what == "reboot") {
+    d->reboot(now);
+    return "ok " + name + " rebooted";
+  }
+  if (what == "silent" || what == "heartbeat") {
+    if (value != "on" && value != "off") return "error: " + what + " takes on or off";
+    if (what == "silent") d->set_silent(value == "on");
+    else d->set_heartbeat_stopped(value == "off");
+    return "ok " + name + " " + what + " " + value;
+  }
+  char* end = nullptr;
+  const long long v = std::strtoll(value.c_str(), &end, 0);
+  if (what.empty() || value.empty() || *end != '\0') return "error: expected <device> <signal> <value>";
+  if (!d->set_input(what, v, now)) return "error: " + name + " has no input '" + what + "' taking " + value;
+  return "ok " + name + " " + what + " = " + value;
+}
+
+}  // namespace oegw::subdevices::sim

@@ -1,0 +1,69 @@
+#include "subdevices/sim/sim_registry.hpp"
+
+#include <cstdlib>
+
+#include "subdevices/sim/cia401_sim.hpp"
+#include "subdevices/sim/elobau_mfg_sim.hpp"
+#include "subdevices/sim/mcb402_sim.hpp"
+#include "subdevices/sim/novotechnik_406_sim.hpp"
+
+namespace oegw::subdevices::sim {
+
+std::unique_ptr<SimulatedDevice> make_simulator(const DeviceSpec& spec, FrameSink sink, std::string& error) {
+  std::uint16_t heartbeat_ms = 0;
+  std::filesystem::path store;
+  std::string eds;
+  for (const auto& [key, value] : spec.options.values) {
+    if (key == "heartbeat_ms") {
+      char* end = nullptr;
+      const long v = std::strtol(value.c_str(), &end, 0);
+      if (value.empty() || *end != '\0' || v < 0 || v > 0xFFFF) {
+        error = spec.name() + ": heartbeat_ms '" + value + "' is not 0..65535";
+        return nullptr;
+      }
+      heartbeat_ms = static_cast<std::uint16_t>(v);
+    } else if (key == "store") {
+      store = value;
+    } else if (key == "eds" && spec.family == "cia401") {
+      eds = value;
+    } else {
+      error = spec.name() + ": unknown simulator option '" + key + "' (expected heartbeat_ms, store" +
+              (spec.family == "cia401" ? ", eds)" : ")");
+      return nullptr;
+    }
+  }
+  if (spec.family == "elobau-mfg") {
+    ElobauMfgSimConfig c;
+    c.node_id = spec.node;
+    c.heartbeat_ms = heartbeat_ms;
+    c.store_path = store;
+    return std::make_unique<ElobauMfgSim>(std::move(sink), c);
+  }
+  if (spec.family == "mcb402") {
+    Mcb402SimConfig c;
+    c.node_id = spec.node;
+    c.heartbeat_ms = heartbeat_ms;
+    c.store_path = store;
+    return std::make_unique<Mcb402Sim>(std::move(sink), c);
+  }
+  if (spec.family == "novotechnik-406") {
+    Novotechnik406SimConfig c;
+    c.node_id = spec.node;
+    c.heartbeat_ms = heartbeat_ms;
+    c.store_path = store;
+    return std::make_unique<Novotechnik406Sim>(std::move(sink), c);
+  }
+  if (spec.family == "cia401") {
+    if (eds.empty()) {
+      error = spec.name() + ": the cia401 simulator needs eds=<file>";
+      return nullptr;
+    }
+    auto sim = Cia401Sim::from_file(eds, spec.node, std::move(sink), error);
+    if (!sim) return nullptr;
+    return sim;
+  }
+  error = "unknown simulator family '" + spec.family + "' (expected elobau-mfg, mcb402, novotechnik-406, cia401)";
+  return nullptr;
+}
+
+}  // namespace oegw::subdevices::sim
