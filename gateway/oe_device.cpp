@@ -22,6 +22,12 @@ namespace {
 
 std::uint8_t u8(unsigned v) { return static_cast<std::uint8_t>(v); }
 
+// An integer entry's value in its own signedness.
+std::int64_t entry_value(const canopen::SubObject& s) {
+  if (canopen::is_signed_integer(s.type)) return canopen::decode_signed(s.value);
+  return static_cast<std::int64_t>(canopen::decode_unsigned(s.value));
+}
+
 bool has(const std::vector<FeId>& fes, FeKind k, unsigned n) {
   return std::find(fes.begin(), fes.end(), FeId{k, u8(n)}) != fes.end();
 }
@@ -201,6 +207,9 @@ canopen::NodeConfig build_oe_dictionary(const OeDeviceConfig& cfg, ObjectDiction
     } else {
       canopen::install_rpdo(od, p.number, p.params);
     }
+    // Tables 10, 14, 18, 22, 26, 30, 34: "highest sub-index supported" is const.
+    const auto comm = static_cast<std::uint16_t>((p.transmit ? 0x1800 : 0x1400) + p.number - 1);
+    od.find(comm, 0)->access = Access::Const;
   }
 
   canopen::NodeConfig nc;
@@ -237,10 +246,26 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
     for (const auto& f : mapping::fe_fields(fe))
       outputs_[static_cast<std::uint32_t>(f.index) << 8 | f.sub].push_back({fe, f.name, f.bit});
   }
+  if (!outputs_.empty()) {
+    // Annex A: 1028h mandatory with outputs; sub n = 80h + n, the device's own EMCY not consumed.
+    canopen::Object& o = od_.add_array(0x1028, "Emergency consumer object", DataType::Unsigned32, Access::ReadWrite,
+                                       127, canopen::encode<std::uint32_t>(0));
+    for (auto& [si, so] : o.subs()) {
+      if (si == 0) continue;
+      std::uint32_t v = 0x80u + si;
+      if (si == cfg_.node_id.value()) v |= 0x80000000u;
+      so.default_value = canopen::encode<std::uint32_t>(v);
+      so.value = so.default_value;
+    }
+    emcy_consumer_ = std::make_unique<canopen::EmcyConsumer>(
+        od_, [this](const canopen::EmcyMessage& m, TimePoint t) {
+          if (on_emcy_) on_emcy_(m, t);
+        });
+  }
   node_ = std::make_unique<canopen::Node>(od_, nc, sink_);
   for (const auto& [key, refs] : outputs_) {
     const canopen::SubObject* s = od_.find(static_cast<std::uint16_t>(key >> 8), static_cast<std::uint8_t>(key));
-    output_shadow_[key] = s ? canopen::decode_signed(s->value) : 0;
+    output_shadow_[key] = s ? entry_value(*s) : 0;
   }
   node_->on_state_change = [this](NmtState s) { handle_state(s); };
   subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) { handle_od_change(index, sub); });
@@ -252,14 +277,15 @@ canopen::ParameterStore::LoadResult OeDevice::start(TimePoint now) {
   // The store may have applied output values: they are the outputs' starting state.
   for (auto& [key, v] : output_shadow_) {
     const canopen::SubObject* s = od_.find(static_cast<std::uint16_t>(key >> 8), static_cast<std::uint8_t>(key));
-    if (s) v = canopen::decode_signed(s->value);
+    if (s) v = entry_value(*s);
   }
   return r;
 }
 
 bool OeDevice::on_frame(const canopen::CanFrame& frame, TimePoint now) {
   now_ = now;
-  const bool mine = node_->on_frame(frame, now);
+  bool mine = node_->on_frame(frame, now);
+  if (!mine && emcy_consumer_) mine = emcy_consumer_->on_frame(frame, now);
   advance(now);
   return mine;
 }
@@ -319,10 +345,27 @@ std::optional<std::int64_t> OeDevice::get(FeId fe, std::string_view field) const
   const canopen::SubObject* s = od_.find(f->index, f->sub);
   if (s == nullptr) return std::nullopt;
   if (f->bit != 0xFF) return (s->value.at(0) >> f->bit) & 1;
-  return canopen::decode_signed(s->value);
+  return entry_value(*s);
+}
+
+// NMT reset node/communication and 1011h restore assign defaults without observers: report the
+// outputs that moved.
+void OeDevice::resync_outputs() {
+  for (auto& [key, v] : output_shadow_) {
+    const auto index = static_cast<std::uint16_t>(key >> 8);
+    const auto sub = static_cast<std::uint8_t>(key);
+    const canopen::SubObject* so = od_.find(index, sub);
+    if (so == nullptr) continue;
+    const std::int64_t cur = entry_value(*so);
+    if (cur == v) continue;
+    const std::int64_t old = v;
+    v = cur;
+    report_outputs(index, sub, old);
+  }
 }
 
 void OeDevice::handle_state(NmtState s) {
+  resync_outputs();
   // CiA 852 §8.6: entering operational with 6423h FALSE sends EMCY 0080h; no state change.
   auto& emcy = node_->emcy();
   if (s == NmtState::Operational) {
@@ -344,7 +387,7 @@ void OeDevice::handle_od_change(std::uint16_t index, std::uint8_t sub) {
   if (it == output_shadow_.end()) return;
   const std::int64_t old = it->second;
   const canopen::SubObject* s = od_.find(index, sub);
-  it->second = canopen::decode_signed(s->value);
+  it->second = entry_value(*s);
   report_outputs(index, sub, old);
 }
 

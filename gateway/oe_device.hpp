@@ -148,6 +148,9 @@ class OeDevice {
   void clear_subdevice_fault(canopen::NodeId node, canopen::TimePoint now);
   [[nodiscard]] const std::map<std::uint8_t, std::string>& faulty_subdevices() const { return faults_; }
 
+  // EMCY messages of other nodes (1028h, present when outputs exist).
+  void on_emcy(canopen::EmcyHandler cb) { on_emcy_ = std::move(cb); }
+
   [[nodiscard]] canopen::Node& node() { return *node_; }
   [[nodiscard]] canopen::ObjectDictionary& od() { return od_; }
   [[nodiscard]] const OeDeviceConfig& config() const { return cfg_; }
@@ -160,6 +163,7 @@ class OeDevice {
   };
   void handle_state(canopen::NmtState s);
   void handle_od_change(std::uint16_t index, std::uint8_t sub);
+  void resync_outputs();
   void report_outputs(std::uint16_t index, std::uint8_t sub, std::int64_t old_value);
   void send_emcy_frame(std::uint16_t code, const canopen::EmcyManufacturerField& msef);
   [[nodiscard]] bool analog_interrupt_enabled() const;
@@ -167,8 +171,10 @@ class OeDevice {
   OeDeviceConfig cfg_;
   canopen::FrameSink sink_;
   canopen::ObjectDictionary od_;
+  std::unique_ptr<canopen::EmcyConsumer> emcy_consumer_;
   std::unique_ptr<canopen::Node> node_;
   OutputCallback on_output_;
+  canopen::EmcyHandler on_emcy_;
   canopen::TimePoint now_{};
   bool hb_lost_seen_ = false;
   std::map<std::uint8_t, std::string> faults_;                   // node-ID -> name

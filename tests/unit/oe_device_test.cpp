@@ -463,5 +463,52 @@ TEST_F(OeDeviceTest, SubdeviceFaultEmcy) {
   EXPECT_TRUE(dev->faulty_subdevices().empty());
 }
 
+// NMT reset node restores the defaults without observers (CiA 301 §7.3.2.2.1): the outputs that
+// moved back are still reported, so the sub-devices' LEDs follow the dictionary.
+TEST_F(OeDeviceTest, ResetNodeReportsOutputsBackToDefault) {
+  make({indicators(2)});
+  sdo_ok(0x6200, 9, {0x81});
+  outputs.clear();
+  nmt(0x81);
+  EXPECT_EQ(u8(0x6200, 9), 0);
+  using O = std::tuple<FeId, std::string, std::int64_t>;
+  EXPECT_EQ(outputs, (std::vector<O>{{indicators(2), "indicator[1]", 0}, {indicators(2), "indicator[8]", 0}}));
+}
+
+// CiA 852 Tables 10/30: communication sub 0 is const; §8.5 variable mapping: the host remaps
+// TPDO 1 by the CiA 301 procedure and the new layout goes out.
+TEST_F(OeDeviceTest, CommSub0ConstAndVariableMapping) {
+  make({joystick(1), indicators(1)});
+  EXPECT_EQ(od().find(0x1800, 0)->access, canopen::Access::Const);
+  EXPECT_EQ(od().find(0x1400, 0)->access, canopen::Access::Const);
+  sdo_ok(0x1A00, 0, {0});
+  sdo_ok(0x1A00, 1, canopen::encode<std::uint32_t>(0x60000208));
+  sdo_ok(0x1A00, 0, {1});
+  sdo_ok(0x1800, 1, canopen::encode<std::uint32_t>(0x1A0));
+  nmt(0x01);
+  out.clear();
+  ASSERT_TRUE(dev->set_input(joystick(1), "buttons[8]", 1, now));
+  const auto t = frames_with_id(0x1A0);
+  ASSERT_EQ(t.size(), 1u);
+  EXPECT_EQ(bytes(t[0]), (Bytes{0x80}));
+}
+
+// CiA 852 §8.6 / Annex A 1028h: with outputs, other nodes' EMCYs are received; not its own.
+TEST_F(OeDeviceTest, EmcyConsumerWithOutputs) {
+  make({display(1)});
+  std::vector<canopen::EmcyMessage> got;
+  dev->on_emcy([&](const canopen::EmcyMessage& m, TimePoint) { got.push_back(m); });
+  EXPECT_EQ(u32(0x1028, 0x05), 0x85u);
+  EXPECT_EQ(u32(0x1028, 0x20), 0x800000A0u);
+  rx(0x85, {0x00, 0x50, 0x01, 1, 2, 3, 4, 5});
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].node.value(), 5);
+  EXPECT_EQ(got[0].code, 0x5000);
+  rx(0xA0, {0x00, 0x50, 0x01, 0, 0, 0, 0, 0});
+  EXPECT_EQ(got.size(), 1u);
+  make({joystick(1)});  // inputs only: no 1028h
+  EXPECT_EQ(od().find(0x1028), nullptr);
+}
+
 }  // namespace
 }  // namespace oegw::gateway
