@@ -52,20 +52,30 @@ void add_sparse_array(ObjectDictionary& od, std::uint16_t index, std::string nam
   }
 }
 
-// The FE (of the configured ones) owning an entry, for names.
+// The name of an entry after the FE field(s) it holds: "joystick 1 x", "joystick 1 memory",
+// "joystick 1 buttons 1-8", "buttons 2 switch 9-16", "display 1 parameter 3".
 std::string entry_name(const std::vector<FeId>& fes, std::uint16_t index, std::uint8_t sub) {
   for (const FeId& fe : fes) {
-    for (const auto& f : mapping::fe_fields(fe)) {
-      if (f.index == index && f.sub == sub) {
-        std::string n = std::string(mapping::to_string(fe.kind)) + " " + std::to_string(fe.instance);
-        if (f.bit == 0xFF) return n + " " + f.name;
-        return n + " byte " + std::to_string(sub);
-      }
+    std::vector<std::string> names;
+    for (const auto& f : mapping::fe_fields(fe))
+      if (f.index == index && f.sub == sub) names.push_back(f.name);
+    if (names.empty()) continue;
+    std::string n = std::string(mapping::to_string(fe.kind)) + " " + std::to_string(fe.instance) + " ";
+    const std::string& first = names.front();
+    const auto br = first.find('[');
+    if (names.size() == 1) {
+      if (br == std::string::npos) return n + first;
+      return n + first.substr(0, br) + " " + first.substr(br + 1, first.size() - br - 2);
     }
+    if (first.rfind("memory", 0) == 0) return n + "memory";
+    const std::string& last = names.back();
+    const auto lbr = last.find('[');
+    if (br == std::string::npos || lbr == std::string::npos) return n + first;
+    return n + first.substr(0, br) + " " + first.substr(br + 1, first.size() - br - 2) + "-" +
+           last.substr(lbr + 1, last.size() - lbr - 2);
   }
   return "entry " + std::to_string(sub);
 }
-
 
 }  // namespace
 

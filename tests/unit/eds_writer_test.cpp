@@ -136,6 +136,8 @@ TEST_F(EdsWriterTest, ObjectSections) {
   EXPECT_EQ(a.at("SubNumber"), "14");
   EXPECT_EQ(ini.sections.at("6000sub0").at("DefaultValue"), "0x38");
   EXPECT_TRUE(ini.sections.count("6000sub21"));
+  EXPECT_EQ(ini.sections.at("6000sub2").at("ParameterName"), "joystick 1 buttons 1-8");
+  EXPECT_EQ(ini.sections.at("6000sub38").at("ParameterName"), "buttons 1 switch 57-64");
   EXPECT_FALSE(ini.sections.count("6000sub5"));
   const auto& in = ini.sections.at("6401sub1");
   EXPECT_EQ(in.at("DataType"), "0x0003");
