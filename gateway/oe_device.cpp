@@ -283,13 +283,9 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
 
 canopen::ParameterStore::LoadResult OeDevice::start(TimePoint now) {
   now_ = now;
-  auto r = node_->start(now);
-  // The store may have applied output values: they are the outputs' starting state.
-  for (auto& [key, v] : output_shadow_) {
-    const canopen::SubObject* s = od_.find(static_cast<std::uint16_t>(key >> 8), static_cast<std::uint8_t>(key));
-    if (s) v = entry_value(*s);
-  }
-  return r;
+  // Stored output values (1010h) are reported through on_output by the state change to
+  // pre-operational that start() makes (resync_outputs).
+  return node_->start(now);
 }
 
 bool OeDevice::on_frame(const canopen::CanFrame& frame, TimePoint now) {

@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
+#include <filesystem>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -68,8 +71,10 @@ TEST(OeDeviceType, Table8Rows) {
 
 class OeDeviceTest : public ::testing::Test {
  protected:
-  void make(std::vector<FeId> fes, std::uint16_t host_node = 0, std::uint16_t host_ms = 0) {
+  void make(std::vector<FeId> fes, std::uint16_t host_node = 0, std::uint16_t host_ms = 0,
+            std::filesystem::path store = {}) {
     OeDeviceConfig c;
+    c.store_path = std::move(store);
     c.node_id = kId;
     c.identity = {.vendor = 0x1234, .product = 0x852, .revision = 0x10000, .serial = 7};
     c.heartbeat_ms = 0;  // no heartbeat frames to filter in these tests
@@ -508,6 +513,26 @@ TEST_F(OeDeviceTest, EmcyConsumerWithOutputs) {
   EXPECT_EQ(got.size(), 1u);
   make({joystick(1)});  // inputs only: no 1028h
   EXPECT_EQ(od().find(0x1028), nullptr);
+}
+
+// CiA 301 1010h: stored output values come back at power-on and are reported through on_output
+// (the sub-devices must show them); inputs are read-only and never stored.
+TEST_F(OeDeviceTest, StoredOutputsReportedAtStart) {
+  const auto dir = std::filesystem::temp_directory_path() / ("oegw-oe-store-" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  make({joystick(1), indicators(1)}, 0, 0, dir / "params.txt");
+  sdo_ok(0x6200, 1, {0x03});
+  sdo_ok(0x6423, 0, {1});
+  ASSERT_TRUE(dev->set_input(joystick(1), "x", 77, now));
+  sdo_ok(0x1010, 1, {0x73, 0x61, 0x76, 0x65});
+  outputs.clear();
+  make({joystick(1), indicators(1)}, 0, 0, dir / "params.txt");
+  using O = std::tuple<FeId, std::string, std::int64_t>;
+  EXPECT_EQ(outputs, (std::vector<O>{{indicators(1), "indicator[1]", 1}, {indicators(1), "indicator[2]", 1}}));
+  EXPECT_EQ(u8(0x6423, 0), 1);
+  EXPECT_EQ(dev->get(joystick(1), "x"), 0);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace
