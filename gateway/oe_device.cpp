@@ -250,6 +250,10 @@ canopen::NodeConfig build_oe_dictionary(const OeDeviceConfig& cfg, ObjectDiction
 // ---------------------------------------------------------------------------------------------
 
 OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move(cfg)), sink_(std::move(sink)) {
+  // A FE listed twice counts once; an instance outside §9.1's ranges is dropped.
+  std::erase_if(cfg_.fes, [](const FeId& f) { return f.instance < 1 || f.instance > mapping::max_instances(f.kind); });
+  std::sort(cfg_.fes.begin(), cfg_.fes.end());
+  cfg_.fes.erase(std::unique(cfg_.fes.begin(), cfg_.fes.end()), cfg_.fes.end());
   const canopen::NodeConfig nc = build_oe_dictionary(cfg_, od_);
   for (const FeId& fe : cfg_.fes) {
     if (mapping::is_input(fe.kind)) continue;

@@ -535,5 +535,14 @@ TEST_F(OeDeviceTest, StoredOutputsReportedAtStart) {
   std::filesystem::remove_all(dir);
 }
 
+// CiA 852 §9.1 instance ranges: duplicates count once, out-of-range instances are dropped.
+TEST_F(OeDeviceTest, DuplicateAndOutOfRangeFesIgnored) {
+  make({indicators(1), indicators(1), indicators(9), joystick(17), joystick(0)});
+  EXPECT_EQ(dev->config().fes, (std::vector<FeId>{indicators(1)}));
+  EXPECT_EQ(u32(0x1000, 0), 0xA0820191u);
+  sdo_ok(0x6200, 1, {0x01});
+  EXPECT_EQ(outputs.size(), 1u);  // one report, not two
+}
+
 }  // namespace
 }  // namespace oegw::gateway
