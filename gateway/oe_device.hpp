@@ -57,6 +57,24 @@
 //    second fault while 7000h is active is reported by an extra 7000h frame (the EMCY producer
 //    records one active 7000h); a sub-device recovering while others are still faulty sends
 //    EMCY 0000h naming it, with the remaining error register; the last one clears 7000h.
+//  * TPDO numbers follow CiA 301 (TPDO n = 1800h/1A00h + n − 1), as Table 9 (TPDO 1 = 1800h)
+//    and the RPDO tables (RPDO 1/2 = 1400h/1401h) do; Tables 13, 17, 21, 25 print 1814h, 181Ch,
+//    1820h, 1822h for TPDO 20, 28, 32, 34 (1800h + n), which contradicts both. The clause
+//    headings, the text and the PDO numbers win: pedal 1 is TPDO 20 at 1813h.
+//  * Pedal pairs (Table 16 maps pedal 2's entries into TPDO 20): a PDO maps only the configured
+//    pedals of its pair, encoders and wheels likewise.
+//  * Table 12 sub 3 ("FFFFh if 3-axis joystick not supported") is not applied: z always exists
+//    (0 when not fed), so the PDO layout does not depend on the axis count.
+//  * Tables 32/36 give RPDO mapping sub 0 the access "const", §8.5 makes variable mapping
+//    mandatory: every mapping sub 0 is rw (the core's CiA 301 mapping procedure). The
+//    communication records' sub 0 is const (Tables 10, 14, ...).
+//  * TPDO COB-IDs use the "8000 …h" form (RTR allowed: the core serves RTR for types 252/253).
+//  * Annex A: 1028h (EMCY consumer) exists when outputs exist, consuming 81h..FFh except the
+//    device's own EMCY (that entry keeps the configured node-ID across an LSS change); received
+//    EMCYs go to on_emcy().
+//  * Outputs: 6444h is INTEGER32 (CiA 401); an error value outside INTEGER16 is clamped when
+//    applied to 6411h. Output values restored from the store (1010h) or by an NMT reset are
+//    reported through on_output.
 //  * Host heartbeat loss: detected from the Node's heartbeat-consumer EMCY 8130h (the Node owns
 //    the consumer's callback), or called directly by the gateway.
 #pragma once
