@@ -136,6 +136,7 @@ int run_master(const MasterOptions& options) {
     std::fflush(stdout);
     if (options.until_operational > 0 && !network.fault()) loop.stop();
   };
+  network.on_bad_input = [](const std::string& what) { spdlog::warn("{}", what); };
   network.on_emcy = [](const std::string& name, const EmcyMessage& e, const sd::DecodedEmcy& d) {
     std::printf("emcy %s: %04Xh %s\n", name.c_str(), e.code, d.text.c_str());
   };

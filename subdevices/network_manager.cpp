@@ -74,10 +74,12 @@ NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
   master_.on_emcy = [this](const EmcyMessage& e, TimePoint t) {
     Managed* m = find(e.node);
     if (m == nullptr) {
-      ++counters_.unknown_emcy;
+      if (counters_.unknown_emcy++ == 0 && on_bad_input)
+        on_bad_input("EMCY from node " + std::to_string(e.node.value()) + ", not in the configuration, ignored");
       return;
     }
     const DecodedEmcy d = m->driver->on_emcy(e, t);
+    report_bad_input(*m);
     if (on_emcy) on_emcy(m->settings.name, e, d);
   };
 }
@@ -309,11 +311,34 @@ bool NetworkManager::on_frame(const CanFrame& frame, TimePoint now) {
     Managed& m = *it->second;
     // PDOs count only from a node we configured and started (CiA 301: none outside
     // operational); anything else is ignored, never passed through.
-    if (m.state == NodeState::Operational) return m.driver->on_frame(frame, now);
-    return false;
+    if (m.state != NodeState::Operational) return false;
+    const bool used = m.driver->on_frame(frame, now);
+    report_bad_input(m);
+    return used;
   }
-  if (frame.id >= canopen::cob::kTpdo1 && frame.id < canopen::cob::kSdoTx) ++counters_.unknown_pdo;
+  if (frame.id >= canopen::cob::kTpdo1 && frame.id < canopen::cob::kSdoTx) {
+    if (counters_.unknown_pdo++ == 0 && on_bad_input) {
+      char b[96];
+      std::snprintf(b, sizeof b, "PDO %03Xh from a node not in the configuration ignored (counted from now on)",
+                    static_cast<unsigned>(frame.id));
+      on_bad_input(b);
+    }
+  }
   return false;
+}
+
+void NetworkManager::report_once(std::uint64_t& seen, std::uint64_t now_count, const std::string& what) {
+  if (seen == 0 && now_count > 0 && on_bad_input) on_bad_input(what);
+  seen = now_count;
+}
+
+void NetworkManager::report_bad_input(Managed& m) {
+  const InputCounters& c = m.driver->counters();
+  const std::string& n = m.settings.name;
+  report_once(m.reported.wrong_length, c.wrong_length, n + ": PDO of the wrong length ignored (counted from now on)");
+  report_once(m.reported.unknown_cob, c.unknown_cob, n + ": frame on a COB-ID the driver does not use ignored");
+  report_once(m.reported.unknown_emcy, c.unknown_emcy, n + ": EMCY with an unknown code ignored");
+  report_once(m.reported.mismatches, c.mismatches, n + ": redundant channels disagree (signal set to error)");
 }
 
 void NetworkManager::advance(TimePoint now) {

@@ -97,6 +97,9 @@ class NetworkManager {
   // Every state change of a node, with a human-readable reason ("1018h:01 is 00000001h, the
   // configuration expects 0000015Ah").
   std::function<void(const std::string& name, NodeState state, const std::string& why)> on_node_state;
+  // Bad input, once per kind and source (CiA 301 frames the gateway ignores): "grip: 3 frames of
+  // the wrong length", "unknown PDO 1A5h". For the log; the counters keep counting.
+  std::function<void(const std::string& what)> on_bad_input;
   // EMCYs of configured nodes, decoded by their driver.
   std::function<void(const std::string& name, const EmcyMessage&, const DecodedEmcy&)> on_emcy;
 
@@ -122,6 +125,7 @@ class NetworkManager {
     bool started_once = false;
     std::vector<Step> steps;
     std::size_t next_step = 0;
+    InputCounters reported;  // what on_bad_input has already said
   };
 
   Managed* find(NodeId node);
@@ -130,7 +134,9 @@ class NetworkManager {
   void begin_boot(Managed& m, TimePoint now);   // reset communication, wait for boot-up
   void configure(Managed& m, TimePoint now);    // identity, boot reads, writes, start
   void run_step(Managed& m);
-  void route(Managed& m);  // (re)builds the COB-ID routing of a node's TPDOs
+  void route(Managed& m);
+  void report_bad_input(Managed& m);
+  void report_once(std::uint64_t& seen, std::uint64_t now_count, const std::string& what);  // (re)builds the COB-ID routing of a node's TPDOs
   void finish(Managed& m, TimePoint now);
   void fail(Managed& m, NodeState s, const std::string& why, TimePoint now);
   void lost(Managed& m, const std::string& why, TimePoint now);

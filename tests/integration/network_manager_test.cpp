@@ -240,14 +240,20 @@ TEST_F(NetworkManagerTest, BadInputIsCountedAndNeverPassedThrough) {
   net_.run_for(100ms);
   (void)dev.od.set<std::uint8_t>(0x6000, 1, 9);
   net_.run_for(10ms);
+  std::vector<std::string> logged;
+  manager_->on_bad_input = [&](const std::string& what) { logged.push_back(what); };
   net_.bus().inject(CanFrame(0x191, {0x01, 0x02}), "intruder");  // wrong length for this PDO
+  net_.bus().inject(CanFrame(0x191, {0x01, 0x02, 0x03}), "intruder");  // again: counted, not logged again
   net_.bus().inject(CanFrame(0x1A5, {0x01}), "intruder");        // a node not configured
   net_.bus().inject(CanFrame(0x0A5, {0x00, 0x10, 0x01, 0, 0, 0, 0, 0}), "intruder");  // its EMCY
   net_.run_for(10ms);
   EXPECT_EQ(driver_->value(0).value, 9);
-  EXPECT_EQ(driver_->counters().wrong_length, 1u);
+  EXPECT_EQ(driver_->counters().wrong_length, 2u);
   EXPECT_EQ(manager_->counters().unknown_pdo, 1u);
   EXPECT_EQ(manager_->counters().unknown_emcy, 1u);
+  EXPECT_EQ(logged, (std::vector<std::string>{"grip: PDO of the wrong length ignored (counted from now on)",
+                                              "PDO 1A5h from a node not in the configuration ignored (counted from now on)",
+                                              "EMCY from node 37, not in the configuration, ignored"}));
   // An EMCY from the configured node reaches its driver.
   dev.node->emcy().raise(0x1000, 0, net_.now());
   net_.run_for(10ms);
