@@ -1,0 +1,91 @@
+// What the gateway publishes about each functional element (FE) to the machine application, and
+// the commands it takes back — independent of the transport (DDS, LCM). The upstream CANopen
+// side uses the CiA 852 dictionary instead; these are the same values, per FE instance.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace oegw::gateway {
+
+// Mirrors subdevices::SignalStatus: the worst status of the signals feeding the FE.
+enum class FeStatus : std::uint8_t { Valid = 0, Error = 1, NotAvailable = 2, Stale = 3, Offline = 4 };
+
+struct SampleHeader {
+  std::uint8_t instance = 1;      // 1-based FE instance (CiA 852 §5.3)
+  FeStatus status = FeStatus::Offline;
+  std::int64_t timestamp_us = 0;  // source time: reception of the frame that carried the value (CLOCK_MONOTONIC µs)
+  std::uint32_t seq = 0;          // per FE instance, +1 per published sample
+};
+
+struct JoystickSample {
+  SampleHeader h;
+  std::int16_t x = 0, y = 0, z = 0;  // CiA 401 INTEGER16 full scale
+  std::uint8_t buttons = 0;          // bit i = button i+1
+  std::uint8_t memory = 0;           // bits m-x, m-y, m-z
+};
+struct PedalSample {
+  SampleHeader h;
+  std::int16_t position = 0;
+  std::uint8_t memory = 0;
+};
+struct WheelSample {
+  SampleHeader h;
+  std::int16_t position = 0;
+};
+struct EncoderSample {
+  SampleHeader h;
+  std::int32_t position = 0;
+};
+struct ButtonClusterSample {
+  SampleHeader h;
+  std::uint64_t switches = 0;  // bit i = switch i+1 (64 switches)
+};
+
+struct SubdeviceState {
+  std::string name;
+  std::uint8_t node_id = 0;
+  std::string state;  // "operational", "missing", ...
+};
+struct GatewayStatus {
+  std::int64_t timestamp_us = 0;
+  std::uint32_t seq = 0;
+  std::string upstream_state;           // upstream NMT state: "operational", ...
+  std::vector<SubdeviceState> subdevices;
+  std::vector<std::uint16_t> active_emcys;  // codes the gateway has active upstream
+};
+
+// Commands in, from the machine application.
+struct IndicatorCommand {
+  std::uint8_t instance = 1;
+  std::uint64_t indicators = 0;  // bit i = indicator i+1
+};
+struct DisplayCommand {
+  std::uint8_t instance = 1;
+  std::array<std::int16_t, 12> parameters{};
+};
+
+// One transport (DDS or LCM). Publishing never blocks the gateway's loop for long; a transport
+// that cannot keep up drops samples (keep-last) rather than queueing without bound.
+class Publisher {
+ public:
+  virtual ~Publisher() = default;
+  virtual void publish(const JoystickSample&) = 0;
+  virtual void publish(const PedalSample&) = 0;
+  virtual void publish(const WheelSample&) = 0;
+  virtual void publish(const EncoderSample&) = 0;
+  virtual void publish(const ButtonClusterSample&) = 0;
+  virtual void publish(const GatewayStatus&) = 0;
+
+  // Commands received are handed to these from poll() (in the gateway's loop).
+  std::function<void(const IndicatorCommand&)> on_indicator_command;
+  std::function<void(const DisplayCommand&)> on_display_command;
+  // A descriptor the loop watches (or -1: call poll() periodically), and the work when readable.
+  [[nodiscard]] virtual int fd() const { return -1; }
+  virtual void poll() {}
+};
+
+}  // namespace oegw::gateway
