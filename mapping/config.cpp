@@ -512,6 +512,11 @@ class Loader {
       }
       set_int(ks, "heartbeat_ms", "heartbeat_ms", 0, 65535, s.heartbeat_ms);
       set_int(ks, "heartbeat_timeout_ms", "heartbeat_timeout_ms", 0, 65535, s.heartbeat_timeout_ms);
+      if (const auto* t = find(ks, "heartbeat_timeout_ms");
+          t && s.heartbeat_timeout_ms != 0 && s.heartbeat_ms != 0 && s.heartbeat_timeout_ms <= s.heartbeat_ms)
+        error(t->value, "heartbeat_timeout_ms " + t->value.Scalar() + " is not longer than heartbeat_ms " +
+                            std::to_string(s.heartbeat_ms) + "; expected more than " + std::to_string(s.heartbeat_ms) +
+                            " (or 0 for 1.5 x heartbeat_ms)");
       if (const auto* m = find(ks, "mandatory")) if (auto b = boolean(*m, "mandatory")) s.mandatory = *b;
       if (const auto* id = find(ks, "identity")) {
         const auto ids = entries(id->value, what + " identity",
@@ -549,6 +554,7 @@ class Loader {
       // Signals from the catalogue.
       if (drv && !s.driver.empty()) {
         std::string err;
+        if (!catalogue_) err = "no signal catalogue";
         auto sig = catalogue_ ? catalogue_(s.driver, s.options, err) : std::nullopt;
         if (sig) {
           s.signals = std::move(*sig);
@@ -778,8 +784,26 @@ class Loader {
       FieldOptions opts;
       bool opts_ok = true;
       if (e.value.IsMap()) {
-        std::vector<std::string_view> allowed = {"signal", "scale", "offset", "invert", "clamp"};
-        if (input) for (auto k : {"deadband", "fault", "interlock"}) allowed.emplace_back(k);
+        // What applies depends on the field: a one-bit input has no scale; outputs no fault.
+        const auto first = *find_fe_field(fe.id, group ? key->base + "[1]" : key->element(0));
+        const bool bit = first.bit != 0xFF;
+        std::vector<std::string_view> allowed;
+        if (!input) allowed = {"signal", "scale", "offset", "invert", "clamp"};
+        else if (bit) allowed = {"signal", "invert", "fault", "interlock"};
+        else allowed = {"signal", "scale", "offset", "deadband", "invert", "clamp", "fault", "interlock"};
+        std::int64_t lo = std::numeric_limits<std::int64_t>::min() / 2, hi = std::numeric_limits<std::int64_t>::max() / 2;
+        if (input && bit) {
+          lo = 0;
+          hi = 1;
+        } else if (input && first.type == DataType::Integer16) {
+          lo = -32768;
+          hi = 32767;
+        } else if (input) {
+          lo = std::numeric_limits<std::int32_t>::min();
+          hi = std::numeric_limits<std::int32_t>::max();
+        }
+        range_lo_ = lo;
+        range_hi_ = hi;
         const auto os = entries(e.value, fe_name + " " + e.name, allowed,
                                 "a map with " + join(allowed));
         const auto* s = find(os, "signal");
@@ -905,7 +929,7 @@ class Loader {
       } else if (e.name == "deadband") {
         if (auto v = integer(e, "deadband", 0, 2147483647LL)) o.deadband = *v; else ok = false;
       } else if (e.name == "fault") {
-        if (auto v = integer(e, "fault", -2147483648LL, 2147483647LL)) o.fault = *v; else ok = false;
+        if (auto v = integer(e, "fault", range_lo_, range_hi_)) o.fault = *v; else ok = false;
       } else if (e.name == "invert") {
         if (auto v = boolean(e, "invert")) o.invert = *v; else ok = false;
       } else if (e.name == "interlock") {
@@ -916,8 +940,9 @@ class Loader {
           lo = parse_integer(e.value[0].IsScalar() ? e.value[0].Scalar() : "");
           hi = parse_integer(e.value[1].IsScalar() ? e.value[1].Scalar() : "");
         }
-        if (!lo || !hi || *lo > *hi) {
-          error(e.value, "found " + node_kind(e.value) + " for clamp; expected [min, max] with integers min <= max");
+        if (!lo || !hi || *lo > *hi || *lo < range_lo_ || *hi > range_hi_) {
+          error(e.value, "found " + node_kind(e.value) + " for clamp; expected [min, max] with integers " +
+                             std::to_string(range_lo_) + " <= min <= max <= " + std::to_string(range_hi_));
           ok = false;
         } else {
           o.clamp = std::pair(*lo, *hi);
@@ -933,6 +958,7 @@ class Loader {
   Config cfg_;
   std::map<std::string, Location> fed_;
   std::map<std::string, Location> fe_seen_;
+  std::int64_t range_lo_ = 0, range_hi_ = 0;  // of the field whose options are parsed
 };
 
 }  // namespace

@@ -252,8 +252,8 @@ functional_elements:
       "heartbeat_timeout_ms, mandatory, identity, sdo, options (did you mean 'heartbeat_ms'?)",
       "t.yaml:5:53: unknown key 'colour' in sub-device 'a'; expected one of driver, node_id, heartbeat_ms, "
       "heartbeat_timeout_ms, mandatory, identity, sdo, options",
-      "t.yaml:8:23: unknown key 'deadbnd' in joystick.1 x; expected one of signal, scale, offset, invert, clamp, "
-      "deadband, fault, interlock (did you mean 'deadband'?)"));
+      "t.yaml:8:23: unknown key 'deadbnd' in joystick.1 x; expected one of signal, scale, offset, deadband, "
+      "invert, clamp, fault, interlock (did you mean 'deadband'?)"));
 }
 
 TEST(MappingConfig, InstanceOutOfRangeKindUnknownAndNoInstance) {
@@ -547,15 +547,39 @@ TEST(MappingConfig, LongFormOptionsAreParsedAndChecked) {
     z: { scale: 2 }
   indicators.1:
     indicator[1]: { signal: "right_grip.leds[1]", deadband: 2 }
+  joystick.2:
+    buttons[1]: { signal: "right_grip.buttons[1]", scale: 2, fault: 2 }
+    x: { signal: right_grip.x, fault: 40000, clamp: [-40000, 0] }
+  encoder.1:
+    position: { signal: knob.position, fault: 40000, clamp: [-40000, 0] }
 )");
   EXPECT_THAT(errors(bad), ElementsAre(
-      "t.yaml:10:39: found [5, -5] for clamp; expected [min, max] with integers min <= max",
+      "t.yaml:10:39: found [5, -5] for clamp; expected [min, max] with integers -32768 <= min <= max <= 32767",
       "t.yaml:10:55: found '0' for scale; expected a non-zero number",
       "t.yaml:11:42: deadband -1 is out of range; expected 0..2147483647",
       "t.yaml:11:54: found 'maybe' for invert; expected true or false",
       "t.yaml:12:8: no 'signal' in joystick.1 z; expected the feeding signal, e.g. right_grip.x",
       "t.yaml:14:51: unknown key 'deadband' in indicators.1 indicator[1]; expected one of signal, scale, offset, "
-      "invert, clamp"));
+      "invert, clamp",
+      "t.yaml:16:52: unknown key 'scale' in joystick.2 buttons[1]; expected one of signal, invert, fault, interlock",
+      "t.yaml:16:69: fault 2 is out of range; expected 0..1",
+      "t.yaml:17:39: fault 40000 is out of range; expected -32768..32767",
+      "t.yaml:17:53: found [-40000, 0] for clamp; expected [min, max] with integers -32768 <= min <= max <= 32767"));
+  // An INTEGER32 field (6120h) takes what an INTEGER16 one refuses.
+  EXPECT_EQ(bad.errors.size(), 10u);
+}
+
+TEST(MappingConfig, HeartbeatTimeoutMustExceedTheHeartbeat) {
+  const auto r = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  a: { driver: mcb402, node_id: 2, heartbeat_ms: 100, heartbeat_timeout_ms: 100 }
+  b: { driver: mcb402, node_id: 3, heartbeat_ms: 100, heartbeat_timeout_ms: 250 }
+  c: { driver: mcb402, node_id: 4, heartbeat_ms: 0, heartbeat_timeout_ms: 10 }
+functional_elements: {}
+)");
+  EXPECT_THAT(errors(r), ElementsAre("t.yaml:4:77: heartbeat_timeout_ms 100 is not longer than heartbeat_ms 100; "
+                                     "expected more than 100 (or 0 for 1.5 x heartbeat_ms)"));
 }
 
 TEST(MappingConfig, PublishAndUpstreamSectionsKeepTheirData) {
