@@ -277,7 +277,12 @@ class Loader {
       return result;
     }
     cfg_.file = file_;
-    check(root);
+    try {
+      check(root);
+    } catch (const YAML::Exception& e) {  // not expected: every access is type-checked first
+      error(Location{file_, e.mark.is_null() ? 1 : e.mark.line + 1, e.mark.is_null() ? 1 : e.mark.column + 1},
+            "unreadable YAML: " + e.msg + "; expected the layout mapping/README.md describes");
+    }
     std::stable_sort(errors_.begin(), errors_.end(), [](const Diagnostic& a, const Diagnostic& b) {
       return std::pair(a.where.line, a.where.column) < std::pair(b.where.line, b.where.column);
     });

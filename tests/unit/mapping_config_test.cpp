@@ -8,6 +8,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -119,7 +121,7 @@ TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
   EXPECT_EQ(pedal->options.get("eds"), std::optional<std::string>("subdevices/eds/generic_pedal.eds"));
   const auto* knob = c.find_subdevice("seat_knob");
   ASSERT_NE(knob, nullptr);
-  EXPECT_EQ(knob->identity.device_type, std::optional<std::uint32_t>(0x00010196));
+  EXPECT_FALSE(knob->identity.device_type.has_value());
   ASSERT_EQ(knob->sdo.size(), 1u);
   const auto w = knob->sdo[0].to_sdo_write();
   EXPECT_EQ(w.index, 0x1800);
@@ -569,6 +571,38 @@ TEST(MappingConfig, LongFormOptionsAreParsedAndChecked) {
   EXPECT_EQ(bad.errors.size(), 10u);
 }
 
+TEST(MappingConfig, SubdeviceIdentityHeartbeatAndOptionsAreKept) {
+  const auto r = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  a:
+    driver: elobau-mfg
+    node_id: 2
+    heartbeat_ms: 50
+    heartbeat_timeout_ms: 120
+    mandatory: true
+    identity: { device_type: 0x00010196, vendor_id: 0x0000004B, product_code: 12, revision: 0x00020001, serial: 99 }
+    options: { tolerance: 3 }
+  b: { driver: mcb402, node_id: 3, identity: { vendor_id: 7 } }
+functional_elements: {}
+)");
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  const auto& a = r.config->subdevices[0];
+  EXPECT_EQ(a.heartbeat_ms, 50);
+  EXPECT_EQ(a.heartbeat_timeout_ms, 120);
+  EXPECT_TRUE(a.mandatory);
+  EXPECT_EQ(a.identity.device_type, std::optional<std::uint32_t>(0x00010196));
+  EXPECT_EQ(a.identity.vendor_id, std::optional<std::uint32_t>(0x4B));
+  EXPECT_EQ(a.identity.product_code, std::optional<std::uint32_t>(12));
+  EXPECT_EQ(a.identity.revision, std::optional<std::uint32_t>(0x00020001));
+  EXPECT_EQ(a.identity.serial, std::optional<std::uint32_t>(99));
+  EXPECT_EQ(a.options.get("tolerance"), std::optional<std::string>("3"));
+  EXPECT_EQ(a.node(), subdevices::NodeId{2});
+  const auto& b = r.config->subdevices[1];
+  EXPECT_EQ(b.identity.vendor_id, std::optional<std::uint32_t>(7));
+  EXPECT_FALSE(b.identity.product_code.has_value());  // unset: not checked
+}
+
 TEST(MappingConfig, HeartbeatTimeoutMustExceedTheHeartbeat) {
   const auto r = load(R"(upstream: { node_id: 1 }
 downstream: { interface: can1 }
@@ -611,6 +645,23 @@ functional_elements: {}
   EXPECT_FALSE(c.publish.lcm.enabled);
   EXPECT_EQ(c.publish.lcm.url, "udpm://239.255.76.67:7667?ttl=1");
   EXPECT_EQ(c.publish.lcm.channel_prefix, "CAB_");
+}
+
+TEST(MappingConfig, EveryPrefixOfTheDemoFileGivesAConfigOrErrorsNeverACrash) {
+  std::ifstream in(source_dir() + "/config/demo.yaml");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_GT(text.size(), 1000u);
+  std::size_t ok = 0;
+  for (std::size_t n = 0; n <= text.size(); n += 7) {
+    const auto r = load(text.substr(0, n));
+    EXPECT_NE(r.ok(), !r.errors.empty()) << n;  // exactly one of the two
+    for (const auto& e : r.errors) {
+      EXPECT_GE(e.where.line, 1);
+      EXPECT_GE(e.where.column, 1);
+    }
+    ok += r.ok() ? 1 : 0;
+  }
+  EXPECT_GT(ok, 0u);  // the cuts after the last element's lines load
 }
 
 TEST(MappingConfig, MissingFileIsAnErrorNotACrash) {
