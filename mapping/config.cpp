@@ -893,14 +893,14 @@ class Loader {
         if (!fresh) {
           error(e.key, fe_name + " " + fname + " is fed twice (first at " + it->second.line_column() +
                            "); expected each field fed by one signal");
-          continue;
+          break;  // one error per entry
         }
         if (!input) {
           auto [ot, ofresh] = outputs_fed.emplace(std::pair(dev_name, sname), loc(e.key));
           if (!ofresh) {
             error(sig_node, "output signal '" + full + "' is driven twice (first at " + ot->second.line_column() +
                                 "); expected each output driven by one field");
-            continue;
+            break;
           }
         }
         if (!opts_ok) continue;

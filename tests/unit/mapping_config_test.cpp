@@ -409,6 +409,9 @@ TEST(MappingConfig, FieldFedTwiceAndOutputDrivenTwice) {
     buttons: right_grip.buttons[1..8]
     buttons[8]: right_grip.buttons[9]
   joystick.01: { x: right_grip.x }
+  buttons.1:
+    switch[1..4]: cluster.in[1..4]
+    switch[3..6]: cluster.in[3..6]
   indicators.1:
     indicator[1..2]: left_grip.leds[1..2]
     indicator[3]: left_grip.leds[2]
@@ -418,7 +421,9 @@ TEST(MappingConfig, FieldFedTwiceAndOutputDrivenTwice) {
       "signal",
       "t.yaml:12:3: functional element 'joystick.01' appears twice (first at line 9, column 3); expected each "
       "functional element once",
-      "t.yaml:15:19: output signal 'left_grip.leds[2]' is driven twice (first at line 14, column 5); expected each "
+      "t.yaml:15:5: buttons.1 switch[3] is fed twice (first at line 14, column 5); expected each field fed by one "
+      "signal",
+      "t.yaml:18:19: output signal 'left_grip.leds[2]' is driven twice (first at line 17, column 5); expected each "
       "output driven by one field"));
 }
 
