@@ -20,7 +20,9 @@ using subdevices::SignalInfo;
 using subdevices::SignalKind;
 
 std::string Location::str() const { return file + ":" + std::to_string(line) + ":" + std::to_string(column); }
-std::string Location::line_column() const { return "line " + std::to_string(line) + ", column " + std::to_string(column); }
+std::string Location::line_column() const {
+  return "line " + std::to_string(line) + ", column " + std::to_string(column);
+}
 std::string Diagnostic::str() const { return where.str() + ": " + message; }
 
 std::string LoadResult::error_text() const {
@@ -46,10 +48,13 @@ namespace {
 std::size_t type_size(DataType t) {
   switch (t) {
     case DataType::Integer8:
-    case DataType::Unsigned8: return 1;
+    case DataType::Unsigned8:
+      return 1;
     case DataType::Integer16:
-    case DataType::Unsigned16: return 2;
-    default: return 4;
+    case DataType::Unsigned16:
+      return 2;
+    default:
+      return 4;
   }
 }
 
@@ -146,7 +151,8 @@ std::string compress_names(const std::vector<std::string>& names) {
 
 std::string node_kind(const YAML::Node& n) {
   switch (n.Type()) {
-    case YAML::NodeType::Map: return "a map";
+    case YAML::NodeType::Map:
+      return "a map";
     case YAML::NodeType::Sequence: {
       std::string out = "[";
       for (const auto& item : n) {
@@ -155,8 +161,10 @@ std::string node_kind(const YAML::Node& n) {
       }
       return out + "]";
     }
-    case YAML::NodeType::Scalar: return "'" + n.Scalar() + "'";
-    default: return "nothing";
+    case YAML::NodeType::Scalar:
+      return "'" + n.Scalar() + "'";
+    default:
+      return "nothing";
   }
 }
 
@@ -304,8 +312,8 @@ class Loader {
   void error(const YAML::Node& n, std::string msg) { error(loc(n), std::move(msg)); }
 
   // The entries of a map; unknown keys (when `allowed` is not empty) and duplicates reported.
-  std::vector<Entry> entries(const YAML::Node& map, std::string_view what,
-                             const std::vector<std::string_view>& allowed, const std::string& expected_map) {
+  std::vector<Entry> entries(const YAML::Node& map, std::string_view what, const std::vector<std::string_view>& allowed,
+                             const std::string& expected_map) {
     std::vector<Entry> out;
     if (!map.IsMap()) {
       error(map, "found " + node_kind(map) + " for " + std::string(what) + "; expected " + expected_map);
@@ -417,31 +425,48 @@ class Loader {
   void check(const YAML::Node& root) {
     const std::string top = "a map with upstream, downstream, publish, subdevices, functional_elements";
     if (!root.IsMap()) {
-      error(root.IsNull() ? Location{file_, 1, 1} : loc(root), "found " + node_kind(root) + " at the top; expected " + top);
+      error(root.IsNull() ? Location{file_, 1, 1} : loc(root),
+            "found " + node_kind(root) + " at the top; expected " + top);
       return;
     }
-    const auto es = entries(root, "the file", {"upstream", "downstream", "publish", "subdevices", "functional_elements"},
-                            top);
-    if (const auto* e = find(es, "upstream")) upstream(*e); else missing(root, "upstream", "the file", "an upstream section with at least node_id");
-    if (const auto* e = find(es, "downstream")) downstream(*e); else missing(root, "downstream", "the file", "a downstream section");
+    const auto es =
+        entries(root, "the file", {"upstream", "downstream", "publish", "subdevices", "functional_elements"}, top);
+    if (const auto* e = find(es, "upstream"))
+      upstream(*e);
+    else
+      missing(root, "upstream", "the file", "an upstream section with at least node_id");
+    if (const auto* e = find(es, "downstream"))
+      downstream(*e);
+    else
+      missing(root, "downstream", "the file", "a downstream section");
     if (const auto* e = find(es, "publish")) publish(*e);
-    if (const auto* e = find(es, "subdevices")) subdevices(*e); else missing(root, "subdevices", "the file", "a subdevices section");
-    if (const auto* e = find(es, "functional_elements")) functional_elements(*e);
-    else missing(root, "functional_elements", "the file", "a functional_elements section");
+    if (const auto* e = find(es, "subdevices"))
+      subdevices(*e);
+    else
+      missing(root, "subdevices", "the file", "a subdevices section");
+    if (const auto* e = find(es, "functional_elements"))
+      functional_elements(*e);
+    else
+      missing(root, "functional_elements", "the file", "a functional_elements section");
   }
 
   void upstream(const Entry& sec) {
     auto& u = cfg_.upstream;
     u.where = loc(sec.key);
-    const auto es = entries(sec.value, "upstream", {"interface", "node_id", "bitrate", "identity", "heartbeat_ms", "store"},
-                            "a map with interface, node_id, bitrate, identity, heartbeat_ms, store");
+    const auto es =
+        entries(sec.value, "upstream", {"interface", "node_id", "bitrate", "identity", "heartbeat_ms", "store"},
+                "a map with interface, node_id, bitrate, identity, heartbeat_ms, store");
     if (!sec.value.IsMap()) return;
-    if (const auto* e = find(es, "interface")) if (auto s = string(*e, "interface")) u.interface = *s;
-    if (find(es, "node_id")) set_int(es, "node_id", "node_id", 1, 127, u.node_id);
-    else missing(sec.value, "node_id", "upstream", "the gateway's node-ID 1..127");
+    if (const auto* e = find(es, "interface"))
+      if (auto s = string(*e, "interface")) u.interface = *s;
+    if (find(es, "node_id"))
+      set_int(es, "node_id", "node_id", 1, 127, u.node_id);
+    else
+      missing(sec.value, "node_id", "upstream", "the gateway's node-ID 1..127");
     bitrate(es, "bitrate", u.bitrate);
     set_int(es, "heartbeat_ms", "heartbeat_ms", 0, 65535, u.heartbeat_ms);
-    if (const auto* e = find(es, "store")) if (auto s = string(*e, "store")) u.store = *s;
+    if (const auto* e = find(es, "store"))
+      if (auto s = string(*e, "store")) u.store = *s;
     if (const auto* e = find(es, "identity")) {
       const auto ids = entries(e->value, "upstream identity", {"vendor_id", "product_code", "revision", "serial"},
                                "a map with vendor_id, product_code, revision, serial");
@@ -456,7 +481,8 @@ class Loader {
     auto& d = cfg_.downstream;
     d.where = loc(sec.key);
     const auto es = entries(sec.value, "downstream", {"interface", "bitrate"}, "a map with interface, bitrate");
-    if (const auto* e = find(es, "interface")) if (auto s = string(*e, "interface")) d.interface = *s;
+    if (const auto* e = find(es, "interface"))
+      if (auto s = string(*e, "interface")) d.interface = *s;
     bitrate(es, "bitrate", d.bitrate);
   }
 
@@ -465,20 +491,25 @@ class Loader {
     if (const auto* e = find(es, "dds")) {
       auto& d = cfg_.publish.dds;
       d.enabled = true;
-      const auto ds = entries(e->value, "publish dds", {"enabled", "domain", "partition"},
-                              "a map with enabled, domain, partition");
-      if (const auto* x = find(ds, "enabled")) if (auto b = boolean(*x, "enabled")) d.enabled = *b;
+      const auto ds =
+          entries(e->value, "publish dds", {"enabled", "domain", "partition"}, "a map with enabled, domain, partition");
+      if (const auto* x = find(ds, "enabled"))
+        if (auto b = boolean(*x, "enabled")) d.enabled = *b;
       set_int(ds, "domain", "domain", 0, 232, d.domain);
-      if (const auto* x = find(ds, "partition")) if (auto s = string(*x, "partition")) d.partition = *s;
+      if (const auto* x = find(ds, "partition"))
+        if (auto s = string(*x, "partition")) d.partition = *s;
     }
     if (const auto* e = find(es, "lcm")) {
       auto& l = cfg_.publish.lcm;
       l.enabled = true;
       const auto ls = entries(e->value, "publish lcm", {"enabled", "url", "channel_prefix"},
                               "a map with enabled, url, channel_prefix");
-      if (const auto* x = find(ls, "enabled")) if (auto b = boolean(*x, "enabled")) l.enabled = *b;
-      if (const auto* x = find(ls, "url")) if (auto s = string(*x, "url")) l.url = *s;
-      if (const auto* x = find(ls, "channel_prefix")) if (auto s = string(*x, "channel_prefix")) l.channel_prefix = *s;
+      if (const auto* x = find(ls, "enabled"))
+        if (auto b = boolean(*x, "enabled")) l.enabled = *b;
+      if (const auto* x = find(ls, "url"))
+        if (auto s = string(*x, "url")) l.url = *s;
+      if (const auto* x = find(ls, "channel_prefix"))
+        if (auto s = string(*x, "channel_prefix")) l.channel_prefix = *s;
     }
   }
 
@@ -495,11 +526,13 @@ class Loader {
         return std::islower(static_cast<unsigned char>(c)) || std::isdigit(static_cast<unsigned char>(c)) || c == '_';
       });
       if (!good_name)
-        error(e.key, "sub-device name '" + e.name + "' has characters other than a-z, 0-9 and _; expected a name like right_grip");
+        error(e.key, "sub-device name '" + e.name +
+                         "' has characters other than a-z, 0-9 and _; expected a name like right_grip");
       const auto what = "sub-device '" + e.name + "'";
-      const auto ks = entries(e.value, what,
-                              {"driver", "node_id", "heartbeat_ms", "heartbeat_timeout_ms", "mandatory", "identity", "sdo", "options"},
-                              "a map with driver, node_id, heartbeat_ms, heartbeat_timeout_ms, mandatory, identity, sdo, options");
+      const auto ks = entries(
+          e.value, what,
+          {"driver", "node_id", "heartbeat_ms", "heartbeat_timeout_ms", "mandatory", "identity", "sdo", "options"},
+          "a map with driver, node_id, heartbeat_ms, heartbeat_timeout_ms, mandatory, identity, sdo, options");
       if (!e.value.IsMap()) {
         cfg_.subdevices.push_back(std::move(s));
         continue;
@@ -522,11 +555,12 @@ class Loader {
         error(t->value, "heartbeat_timeout_ms " + t->value.Scalar() + " is not longer than heartbeat_ms " +
                             std::to_string(s.heartbeat_ms) + "; expected more than " + std::to_string(s.heartbeat_ms) +
                             " (or 0 for 1.5 x heartbeat_ms)");
-      if (const auto* m = find(ks, "mandatory")) if (auto b = boolean(*m, "mandatory")) s.mandatory = *b;
+      if (const auto* m = find(ks, "mandatory"))
+        if (auto b = boolean(*m, "mandatory")) s.mandatory = *b;
       if (const auto* id = find(ks, "identity")) {
-        const auto ids = entries(id->value, what + " identity",
-                                 {"device_type", "vendor_id", "product_code", "revision", "serial"},
-                                 "a map with device_type, vendor_id, product_code, revision, serial");
+        const auto ids =
+            entries(id->value, what + " identity", {"device_type", "vendor_id", "product_code", "revision", "serial"},
+                    "a map with device_type, vendor_id, product_code, revision, serial");
         auto opt = [&](std::string_view k, std::optional<std::uint32_t>& out) {
           if (const auto* x = find(ids, k))
             if (auto v = integer(*x, k, 0, 0xFFFFFFFF, true)) out = static_cast<std::uint32_t>(*v);
@@ -602,8 +636,18 @@ class Loader {
       const auto* se = need("sub_index", "a sub-index 0..255");
       const auto* ve = need("value", "the value to write");
       const auto* te = need("type", "one of u8, u16, u32, i8, i16, i32");
-      if (ie) { if (auto v = integer(*ie, "index", 0x1000, 0xFFFF, true)) w.index = static_cast<std::uint16_t>(*v); else good = false; }
-      if (se) { if (auto v = integer(*se, "sub_index", 0, 255, true)) w.sub_index = static_cast<std::uint8_t>(*v); else good = false; }
+      if (ie) {
+        if (auto v = integer(*ie, "index", 0x1000, 0xFFFF, true))
+          w.index = static_cast<std::uint16_t>(*v);
+        else
+          good = false;
+      }
+      if (se) {
+        if (auto v = integer(*se, "sub_index", 0, 255, true))
+          w.sub_index = static_cast<std::uint8_t>(*v);
+        else
+          good = false;
+      }
       const DataTypeName* type = nullptr;
       if (te) {
         const std::string t = te->value.IsScalar() ? te->value.Scalar() : "";
@@ -612,7 +656,8 @@ class Loader {
         if (!type) {
           std::vector<std::string_view> names;
           for (const auto& d : kSdoTypes) names.push_back(d.name);
-          error(te->value, "found " + node_kind(te->value) + " for type; expected one of " + join(names) + did_you_mean(t, names));
+          error(te->value,
+                "found " + node_kind(te->value) + " for type; expected one of " + join(names) + did_you_mean(t, names));
           good = false;
         } else {
           w.type = type->type;
@@ -635,7 +680,8 @@ class Loader {
     std::map<std::pair<int, int>, const SdoWriteConfig*> explicit_cobs;  // (index, sub)
     for (const auto& w : s.sdo) {
       const bool pdo = (w.index >= 0x1400 && w.index <= 0x15FF) || (w.index >= 0x1800 && w.index <= 0x19FF);
-      if ((pdo && w.sub_index == 1) || (w.index == 0x1014 && w.sub_index == 0)) explicit_cobs[{w.index, w.sub_index}] = &w;
+      if ((pdo && w.sub_index == 1) || (w.index == 0x1014 && w.sub_index == 0))
+        explicit_cobs[{w.index, w.sub_index}] = &w;
     }
     auto add_default = [&](std::uint32_t cob, std::string what, int index, int sub) {
       if (explicit_cobs.count({index, sub})) return;
@@ -654,15 +700,20 @@ class Loader {
       if (v & 0x80000000u) continue;  // not valid: the PDO/EMCY is off
       const std::uint32_t cob = v & 0x1FFFFFFFu;
       char what[64];
-      std::snprintf(what, sizeof what, "%s %04Xh:%02X", key.first == 0x1014 ? "EMCY" : key.first < 0x1800 ? "RPDO" : "TPDO",
+      std::snprintf(what, sizeof what, "%s %04Xh:%02X",
+                    key.first == 0x1014  ? "EMCY"
+                    : key.first < 0x1800 ? "RPDO"
+                                         : "TPDO",
                     static_cast<unsigned>(key.first), static_cast<unsigned>(key.second));
       const bool extended = (v & 0x20000000u) != 0;
-      const bool restricted = !extended && (cob <= 0x7F || (cob >= 0x101 && cob <= 0x180) || (cob >= 0x581 && cob <= 0x5FF) ||
-                                            (cob >= 0x601 && cob <= 0x67F) || (cob >= 0x6E0 && cob <= 0x6FF) || cob >= 0x701 ||
-                                            cob == 0x80 || cob == 0x100);
+      const bool restricted =
+          !extended && (cob <= 0x7F || (cob >= 0x101 && cob <= 0x180) || (cob >= 0x581 && cob <= 0x5FF) ||
+                        (cob >= 0x601 && cob <= 0x67F) || (cob >= 0x6E0 && cob <= 0x6FF) || cob >= 0x701 ||
+                        cob == 0x80 || cob == 0x100);
       if (restricted) {
-        error(w->where, "COB-ID " + hex(cob, 3) + " of " + s.name + " " + what +
-                            " is reserved by CiA 301 (NMT, SYNC, TIME, SDO, heartbeat or LSS); expected a PDO/EMCY COB-ID");
+        error(w->where,
+              "COB-ID " + hex(cob, 3) + " of " + s.name + " " + what +
+                  " is reserved by CiA 301 (NMT, SYNC, TIME, SDO, heartbeat or LSS); expected a PDO/EMCY COB-ID");
         continue;
       }
       cobs.push_back({cob | (extended ? 0x20000000u : 0u), s.name + " " + what, true, w->where});
@@ -675,8 +726,8 @@ class Loader {
       for (std::size_t j = 0; j < cobs.size(); ++j) {
         if (i == j || cobs[i].cob != cobs[j].cob) continue;
         if (cobs[j].explicit_ && j > i) continue;  // report a pair of explicit ones once, at the later
-        error(cobs[i].where, "COB-ID " + hex(cobs[i].cob, 3) + " of " + cobs[i].owner + " clashes with " + cobs[j].owner +
-                                 "; expected a COB-ID no other node uses");
+        error(cobs[i].where, "COB-ID " + hex(cobs[i].cob, 3) + " of " + cobs[i].owner + " clashes with " +
+                                 cobs[j].owner + "; expected a COB-ID no other node uses");
         break;
       }
     }
@@ -700,14 +751,16 @@ class Loader {
         continue;
       }
       const auto range = "1.." + std::to_string(max_instances(*kind));
-      const auto inst = dot == std::string::npos ? std::nullopt : parse_integer(std::string_view(e.name).substr(dot + 1));
+      const auto inst =
+          dot == std::string::npos ? std::nullopt : parse_integer(std::string_view(e.name).substr(dot + 1));
       if (!inst || e.name.substr(dot + 1).find_first_not_of("0123456789") != std::string::npos) {
-        error(e.key, "functional element '" + e.name + "' has no instance number; expected " + kind_name + ".N with N " + range);
+        error(e.key, "functional element '" + e.name + "' has no instance number; expected " + kind_name +
+                         ".N with N " + range);
         continue;
       }
       if (*inst < 1 || *inst > max_instances(*kind)) {
-        error(e.key, "instance " + std::to_string(*inst) + " of '" + e.name + "' is out of range; expected " + kind_name +
-                         "." + range + " (CiA 852 clause 9)");
+        error(e.key, "instance " + std::to_string(*inst) + " of '" + e.name + "' is out of range; expected " +
+                         kind_name + "." + range + " (CiA 852 clause 9)");
         continue;
       }
       FunctionalElementConfig fe;
@@ -751,13 +804,20 @@ class Loader {
   }
   static std::string kind_name(SignalKind k) {
     switch (k) {
-      case SignalKind::Axis: return "an Axis";
-      case SignalKind::Button: return "a Button";
-      case SignalKind::Position: return "a Position";
-      case SignalKind::Speed: return "a Speed";
-      case SignalKind::Digital: return "a Digital";
-      case SignalKind::Analog: return "an Analog";
-      case SignalKind::Output: return "an Output";
+      case SignalKind::Axis:
+        return "an Axis";
+      case SignalKind::Button:
+        return "a Button";
+      case SignalKind::Position:
+        return "a Position";
+      case SignalKind::Speed:
+        return "a Speed";
+      case SignalKind::Digital:
+        return "a Digital";
+      case SignalKind::Analog:
+        return "an Analog";
+      case SignalKind::Output:
+        return "an Output";
     }
     return "an unknown";
   }
@@ -775,7 +835,8 @@ class Loader {
     for (const auto& e : es) {
       // The field key: "x", "buttons" (a group: buttons[1..n]), "buttons[3]", "indicator[1..4]".
       auto key = parse_ref(e.name);
-      const bool group = key && !key->indexed && !find_fe_field(fe.id, key->base) && find_fe_field(fe.id, key->base + "[1]");
+      const bool group =
+          key && !key->indexed && !find_fe_field(fe.id, key->base) && find_fe_field(fe.id, key->base + "[1]");
       if (!key || (!group && !find_fe_field(fe.id, key->element(0))) ||
           (key->indexed && !find_fe_field(fe.id, key->element(key->count() - 1)))) {
         std::vector<std::string> bases;
@@ -793,10 +854,14 @@ class Loader {
         const auto first = *find_fe_field(fe.id, group ? key->base + "[1]" : key->element(0));
         const bool bit = first.bit != 0xFF;
         std::vector<std::string_view> allowed;
-        if (!input) allowed = {"signal", "scale", "offset", "invert", "clamp"};
-        else if (bit) allowed = {"signal", "invert", "fault", "interlock"};
-        else allowed = {"signal", "scale", "offset", "deadband", "invert", "clamp", "fault", "interlock"};
-        std::int64_t lo = std::numeric_limits<std::int64_t>::min() / 2, hi = std::numeric_limits<std::int64_t>::max() / 2;
+        if (!input)
+          allowed = {"signal", "scale", "offset", "invert", "clamp"};
+        else if (bit)
+          allowed = {"signal", "invert", "fault", "interlock"};
+        else
+          allowed = {"signal", "scale", "offset", "deadband", "invert", "clamp", "fault", "interlock"};
+        std::int64_t lo = std::numeric_limits<std::int64_t>::min() / 2,
+                     hi = std::numeric_limits<std::int64_t>::max() / 2;
         if (input && bit) {
           lo = 0;
           hi = 1;
@@ -809,8 +874,7 @@ class Loader {
         }
         range_lo_ = lo;
         range_hi_ = hi;
-        const auto os = entries(e.value, fe_name + " " + e.name, allowed,
-                                "a map with " + join(allowed));
+        const auto os = entries(e.value, fe_name + " " + e.name, allowed, "a map with " + join(allowed));
         const auto* s = find(os, "signal");
         if (!s) {
           missing(e.value, "signal", fe_name + " " + e.name, "the feeding signal, e.g. right_grip.x");
@@ -854,15 +918,15 @@ class Loader {
         fkey.first = 1;
         fkey.last = sref->count();
         if (!find_fe_field(fe.id, fkey.element(fkey.count() - 1))) {
-          error(sig_node, "signal range '" + text + "' has " + std::to_string(sref->count()) + " elements but " + fe_name +
-                              " has " + e.name + "[1.." + std::to_string(count_group(all, e.name)) +
+          error(sig_node, "signal range '" + text + "' has " + std::to_string(sref->count()) + " elements but " +
+                              fe_name + " has " + e.name + "[1.." + std::to_string(count_group(all, e.name)) +
                               "]; expected at most " + std::to_string(count_group(all, e.name)) + " signals");
           continue;
         }
       } else if (fkey.count() != sref->count()) {
         error(sig_node, fe_name + " " + e.name + " has " + std::to_string(fkey.count()) + " element" +
-                            (fkey.count() == 1 ? "" : "s") + " but '" + text + "' has " + std::to_string(sref->count()) +
-                            "; expected ranges of equal length");
+                            (fkey.count() == 1 ? "" : "s") + " but '" + text + "' has " +
+                            std::to_string(sref->count()) + "; expected ranges of equal length");
         continue;
       }
       if (dev->signals.empty()) continue;  // its driver was already refused
@@ -877,8 +941,9 @@ class Loader {
           const bool base_known = std::any_of(sig_names.begin(), sig_names.end(), [&](const std::string& n) {
             return sref->indexed && n.rfind(sref->base + "[", 0) == 0;
           });
-          error(sig_node, "sub-device '" + dev_name + "' (" + dev->driver + ") has no signal '" + sname + "'; expected one of " +
-                              compress_names(sig_names) + (base_known ? "" : did_you_mean(sname, sig_names)));
+          error(sig_node, "sub-device '" + dev_name + "' (" + dev->driver + ") has no signal '" + sname +
+                              "'; expected one of " + compress_names(sig_names) +
+                              (base_known ? "" : did_you_mean(sname, sig_names)));
           break;
         }
         const auto full = dev_name + "." + sname;
@@ -928,17 +993,35 @@ class Loader {
     for (const auto& e : os) {
       if (e.name == "signal") continue;
       if (e.name == "scale") {
-        if (auto v = real(e, "scale")) o.scale = *v; else ok = false;
+        if (auto v = real(e, "scale"))
+          o.scale = *v;
+        else
+          ok = false;
       } else if (e.name == "offset") {
-        if (auto v = integer(e, "offset", -2147483648LL, 2147483647LL)) o.offset = *v; else ok = false;
+        if (auto v = integer(e, "offset", -2147483648LL, 2147483647LL))
+          o.offset = *v;
+        else
+          ok = false;
       } else if (e.name == "deadband") {
-        if (auto v = integer(e, "deadband", 0, 2147483647LL)) o.deadband = *v; else ok = false;
+        if (auto v = integer(e, "deadband", 0, 2147483647LL))
+          o.deadband = *v;
+        else
+          ok = false;
       } else if (e.name == "fault") {
-        if (auto v = integer(e, "fault", range_lo_, range_hi_)) o.fault = *v; else ok = false;
+        if (auto v = integer(e, "fault", range_lo_, range_hi_))
+          o.fault = *v;
+        else
+          ok = false;
       } else if (e.name == "invert") {
-        if (auto v = boolean(e, "invert")) o.invert = *v; else ok = false;
+        if (auto v = boolean(e, "invert"))
+          o.invert = *v;
+        else
+          ok = false;
       } else if (e.name == "interlock") {
-        if (auto v = boolean(e, "interlock")) o.interlock = *v; else ok = false;
+        if (auto v = boolean(e, "interlock"))
+          o.interlock = *v;
+        else
+          ok = false;
       } else if (e.name == "clamp") {
         std::optional<std::int64_t> lo, hi;
         if (e.value.IsSequence() && e.value.size() == 2) {

@@ -33,7 +33,7 @@ struct Location {
 
 struct Diagnostic {
   Location where;
-  std::string message;  // "what was found; expected what"
+  std::string message;                    // "what was found; expected what"
   [[nodiscard]] std::string str() const;  // "file:line:column: message"
 };
 
@@ -54,7 +54,7 @@ struct UpstreamConfig {
   std::uint8_t node_id = 0;  // required
   std::uint32_t bitrate = 250000;
   UpstreamIdentity identity;
-  std::uint16_t heartbeat_ms = 0;  // 1017h producer heartbeat time at power-on (0 = off)
+  std::uint16_t heartbeat_ms = 0;                      // 1017h producer heartbeat time at power-on (0 = off)
   std::string store = "/var/lib/oegw/upstream.store";  // 1010h/1011h store
   Location where;
 };
@@ -107,12 +107,12 @@ struct SubdeviceConfig {
 
 // One FE field and the signal feeding it (input FEs) or fed by it (indicators, displays).
 struct FieldBinding {
-  FeField field;                    // name, index, sub-index, bit, type
-  std::string subdevice;            // "right_grip"
-  std::string signal;               // "x", "buttons[3]"
+  FeField field;          // name, index, sub-index, bit, type
+  std::string subdevice;  // "right_grip"
+  std::string signal;     // "x", "buttons[3]"
   subdevices::SignalInfo signal_info;
-  FieldOptions options;             // as written
-  Location where;                   // the field's key
+  FieldOptions options;  // as written
+  Location where;        // the field's key
   [[nodiscard]] InputParams input_params() const { return resolve_input(signal_info, field, options); }
   [[nodiscard]] OutputParams output_params() const { return resolve_output(signal_info, field, options); }
 };
@@ -129,14 +129,14 @@ struct Config {
   UpstreamConfig upstream;
   DownstreamConfig downstream;
   PublishConfig publish;
-  std::vector<SubdeviceConfig> subdevices;                  // in file order
+  std::vector<SubdeviceConfig> subdevices;                   // in file order
   std::vector<FunctionalElementConfig> functional_elements;  // sorted by FeId
   [[nodiscard]] const SubdeviceConfig* find_subdevice(std::string_view name) const;
 };
 
 struct LoadResult {
-  std::optional<Config> config;     // set iff errors is empty
-  std::vector<Diagnostic> errors;   // in file order
+  std::optional<Config> config;    // set iff errors is empty
+  std::vector<Diagnostic> errors;  // in file order
   [[nodiscard]] bool ok() const { return config.has_value(); }
   [[nodiscard]] std::string error_text() const;  // one diagnostic per line
 };

@@ -40,7 +40,7 @@ struct FieldOptions {
   std::int64_t deadband = 0;  // signal units
   bool invert = false;
   std::optional<std::pair<std::int64_t, std::int64_t>> clamp;  // FE units (outputs: signal units)
-  std::optional<std::int64_t> fault;                            // FE units
+  std::optional<std::int64_t> fault;                           // FE units
   std::optional<bool> interlock;
 };
 
