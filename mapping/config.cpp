@@ -890,10 +890,21 @@ class Loader {
       }
       const std::string text = sig_node.Scalar();
       const auto dot = text.find('.');
-      const auto sref = dot == std::string::npos ? std::nullopt : parse_ref(std::string_view(text).substr(dot + 1));
-      if (!sref) {
+      std::string sig_text = dot == std::string::npos ? std::string() : text.substr(dot + 1);
+      // An explicit bit of a bit-packed signal: "cluster.in[1].bit3".
+      std::optional<unsigned> pick;
+      if (const auto b = sig_text.rfind(".bit"); b != std::string::npos) {
+        const auto digits = sig_text.substr(b + 4);
+        const auto v = parse_integer(digits);
+        if (!digits.empty() && digits.find_first_not_of("0123456789") == std::string::npos && v && *v < 64) {
+          pick = static_cast<unsigned>(*v);
+          sig_text.resize(b);
+        }
+      }
+      const auto sref = sig_text.empty() ? std::nullopt : parse_ref(sig_text);
+      if (!sref || (pick && sref->range())) {
         error(sig_node, "found '" + text + "' for " + fe_name + " " + e.name +
-                            "; expected a signal as subdevice.signal or subdevice.signal[a..b]");
+                            "; expected a signal as subdevice.signal, subdevice.signal[a..b] or subdevice.signal.bitN");
         continue;
       }
       const std::string dev_name = text.substr(0, dot);
@@ -906,36 +917,21 @@ class Loader {
                             did_you_mean(dev_name, names));
         continue;
       }
-      // Element counts.
-      FieldRef fkey = *key;
-      if (group) {
-        if (!sref->indexed) {
-          error(sig_node, "found the single signal '" + text + "' for the field group " + fe_name + " " + e.name +
-                              "; expected a signal range like " + dev_name + "." + sref->base + "[1..8]");
-          continue;
-        }
-        fkey.indexed = true;
-        fkey.first = 1;
-        fkey.last = sref->count();
-        if (!find_fe_field(fe.id, fkey.element(fkey.count() - 1))) {
-          error(sig_node, "signal range '" + text + "' has " + std::to_string(sref->count()) + " elements but " +
-                              fe_name + " has " + e.name + "[1.." + std::to_string(count_group(all, e.name)) +
-                              "]; expected at most " + std::to_string(count_group(all, e.name)) + " signals");
-          continue;
-        }
-      } else if (fkey.count() != sref->count()) {
-        error(sig_node, fe_name + " " + e.name + " has " + std::to_string(fkey.count()) + " element" +
-                            (fkey.count() == 1 ? "" : "s") + " but '" + text + "' has " +
-                            std::to_string(sref->count()) + "; expected ranges of equal length");
-        continue;
-      }
       if (dev->signals.empty()) continue;  // its driver was already refused
+      const FeField first = *find_fe_field(fe.id, group ? key->base + "[1]" : key->element(0));
+      const bool bit_field = first.bit != 0xFF;
+      // The signal's elements; a bit-packed one (a CiA 401 byte) feeds one-bit fields bit by bit.
+      struct Source {
+        const SignalInfo* info;
+        std::string name;
+        std::uint8_t bit;
+      };
+      std::vector<Source> sources;
+      bool bad = false, expanded = false;
       std::vector<std::string> sig_names;
-      for (const auto& s : dev->signals) sig_names.push_back(s.name);
-      for (long i = 0; i < fkey.count(); ++i) {
-        const auto fname = fkey.element(i);
+      for (const auto& si : dev->signals) sig_names.push_back(si.name);
+      for (long i = 0; i < sref->count() && !bad; ++i) {
         const auto sname = sref->element(i);
-        const auto field = find_fe_field(fe.id, fname);
         const SignalInfo* info = dev->find_signal(sname);
         if (!info) {
           const bool base_known = std::any_of(sig_names.begin(), sig_names.end(), [&](const std::string& n) {
@@ -944,11 +940,60 @@ class Loader {
           error(sig_node, "sub-device '" + dev_name + "' (" + dev->driver + ") has no signal '" + sname +
                               "'; expected one of " + compress_names(sig_names) +
                               (base_known ? "" : did_you_mean(sname, sig_names)));
+          bad = true;
           break;
         }
-        const auto full = dev_name + "." + sname;
-        if (!fits(*info, *field, input)) {
-          error(sig_node, "signal '" + full + "' is " + kind_name(info->kind) + " signal; expected " +
+        const unsigned width = bit_width(*info);
+        if (pick) {
+          if (width == 0 || *pick >= width) {
+            error(sig_node, "found bit " + std::to_string(*pick) + " of '" + dev_name + "." + sname + "'" +
+                                (width == 0 ? ", which is not bit-packed" : "") + "; expected " +
+                                (width == 0 ? std::string("the signal without .bitN")
+                                            : "a bit 0.." + std::to_string(width - 1)));
+            bad = true;
+            break;
+          }
+          sources.push_back({info, sname, static_cast<std::uint8_t>(*pick)});
+        } else if (bit_field && width > 0) {
+          expanded = true;
+          for (unsigned bit = 0; bit < width; ++bit) sources.push_back({info, sname, static_cast<std::uint8_t>(bit)});
+        } else {
+          sources.push_back({info, sname, 0xFF});
+        }
+      }
+      if (bad) continue;
+      // Element counts.
+      const long n = static_cast<long>(sources.size());
+      FieldRef fkey = *key;
+      if (group) {
+        if (!sref->indexed && !expanded) {
+          error(sig_node, "found the single signal '" + text + "' for the field group " + fe_name + " " + e.name +
+                              "; expected a signal range such as " + dev_name + ".buttons[1..8], or a bit-packed signal");
+          continue;
+        }
+        fkey.indexed = true;
+        fkey.first = 1;
+        fkey.last = n;
+        if (!find_fe_field(fe.id, fkey.element(n - 1))) {
+          const auto size = std::to_string(count_group(all, e.name));
+          error(sig_node, "signal range '" + text + "' has " + std::to_string(n) + (expanded ? " bits" : " elements") +
+                              " but " + fe_name + " has " + e.name + "[1.." + size + "]; expected at most " + size +
+                              " signals");
+          continue;
+        }
+      } else if (fkey.count() != n) {
+        error(sig_node, fe_name + " " + e.name + " has " + std::to_string(fkey.count()) + " element" +
+                            (fkey.count() == 1 ? "" : "s") + " but '" + text + "' has " + std::to_string(n) +
+                            (expanded ? " bits" : "") + "; expected ranges of equal length");
+        continue;
+      }
+      for (long i = 0; i < n; ++i) {
+        const auto fname = fkey.element(i);
+        const auto& src = sources[static_cast<std::size_t>(i)];
+        const auto field = find_fe_field(fe.id, fname);
+        const auto full = dev_name + "." + src.name;
+        if (!fits(*src.info, *field, input)) {
+          error(sig_node, "signal '" + full + "' is " + kind_name(src.info->kind) + " signal; expected " +
                               accepted_kinds(*field, input) + " for " + fe_name + " " + fname +
                               (input ? "" : " (an output functional element)"));
           break;
@@ -961,10 +1006,11 @@ class Loader {
           break;  // one error per entry
         }
         if (!input) {
-          auto [ot, ofresh] = outputs_fed.emplace(std::pair(dev_name, sname), loc(e.key));
+          const auto out_name = src.bit == 0xFF ? full : full + " bit " + std::to_string(src.bit);
+          auto [ot, ofresh] = outputs_fed.emplace(std::pair(dev_name, out_name), loc(e.key));
           if (!ofresh) {
-            error(sig_node, "output signal '" + full + "' is driven twice (first at " + ot->second.line_column() +
-                                "); expected each output driven by one field");
+            error(sig_node, "output signal '" + out_name + "' is driven twice (first at " +
+                                ot->second.line_column() + "); expected each output driven by one field");
             break;
           }
         }
@@ -972,8 +1018,9 @@ class Loader {
         FieldBinding b;
         b.field = *field;
         b.subdevice = dev_name;
-        b.signal = sname;
-        b.signal_info = *info;
+        b.signal = src.name;
+        b.signal_bit = src.bit;
+        b.signal_info = *src.info;
         b.options = opts;
         b.where = loc(e.key);
         fe.fields.push_back(std::move(b));

@@ -35,8 +35,21 @@ double default_scale(const SignalInfo& signal, const FeField& field) {
   return static_cast<double>(kI16Max) / static_cast<double>(span);
 }
 
-InputParams resolve_input(const SignalInfo& signal, const FeField& field, const FieldOptions& o) {
+unsigned bit_width(const SignalInfo& signal) {
+  const bool packable =
+      signal.kind == SignalKind::Digital || (signal.kind == SignalKind::Output && signal.unit == "bits");
+  if (!packable || signal.min != 0 || signal.max < 3 || signal.max > 0xFFFFFFFFLL) return 0;
+  const auto m = static_cast<std::uint64_t>(signal.max);
+  if ((m & (m + 1)) != 0) return 0;  // not 2^n - 1
+  unsigned n = 0;
+  for (auto v = m; v != 0; v >>= 1) ++n;
+  return n;
+}
+
+InputParams resolve_input(const SignalInfo& signal, const FeField& field, const FieldOptions& o,
+                          std::uint8_t signal_bit) {
   InputParams p;
+  p.signal_bit = signal_bit;
   p.signal_neutral = signal.neutral;
   p.offset = o.offset;
   p.deadband = o.deadband < 0 ? 0 : o.deadband;
@@ -74,6 +87,7 @@ InputParams resolve_input(const SignalInfo& signal, const FeField& field, const 
 }
 
 bool in_zero_position(const InputParams& p, std::int64_t raw) {
+  if (p.mode == InputParams::Mode::Bit && p.signal_bit != 0xFF) return ((raw >> p.signal_bit) & 1) == 0;
   const auto d = raw - p.signal_neutral;
   return (d < 0 ? -d : d) <= p.deadband;
 }
@@ -81,7 +95,7 @@ bool in_zero_position(const InputParams& p, std::int64_t raw) {
 std::int64_t translate_input(const InputParams& p, std::int64_t raw) {
   std::int64_t v = raw;
   if (p.mode == InputParams::Mode::Bit) {
-    bool on = v != 0;
+    bool on = p.signal_bit == 0xFF ? v != 0 : ((v >> p.signal_bit) & 1) != 0;
     if (p.invert) on = !on;
     return on ? 1 : 0;
   }
@@ -111,8 +125,10 @@ std::int64_t FieldTranslator::update(const subdevices::SignalValue& v) {
   return value_;
 }
 
-OutputParams resolve_output(const SignalInfo& signal, const FeField& field, const FieldOptions& o) {
+OutputParams resolve_output(const SignalInfo& signal, const FeField& field, const FieldOptions& o,
+                            std::uint8_t signal_bit) {
   OutputParams p;
+  p.signal_bit = signal_bit;
   p.bit = one_bit(field);
   p.scale = o.scale.value_or(1.0);
   p.offset = o.offset;
@@ -133,6 +149,14 @@ std::int64_t translate_output(const OutputParams& p, std::int64_t fe_value) {
   std::int64_t out = p.scale == 1.0 ? v : std::llround(static_cast<double>(v) * p.scale);
   out += p.offset;
   return std::clamp(out, p.clamp_min, std::max(p.clamp_min, p.clamp_max));
+}
+
+std::int64_t apply_output(const OutputParams& p, std::int64_t fe_value, std::int64_t current) {
+  if (p.signal_bit == 0xFF) return translate_output(p, fe_value);
+  bool on = fe_value != 0;
+  if (p.invert) on = !on;
+  const auto mask = std::int64_t{1} << p.signal_bit;
+  return on ? (current | mask) : (current & ~mask);
 }
 
 }  // namespace oegw::mapping

@@ -15,13 +15,17 @@
 //    6120h) passes unscaled; a signal wider than INTEGER32 (an UNSIGNED32 encoder) keeps its
 //    32-bit pattern (two's complement), so a wrapping counter keeps wrapping.
 //  * One-bit fields (buttons, memory bits, switches): 1 when the (inverted) signal is non-zero.
+//    A bit-packed signal (a CiA 401 input byte: Digital, 0..2^n−1, n ≥ 2; see bit_width()) feeds
+//    one-bit fields bit by bit: field k takes bit `signal_bit` of the value.
 //  * Fault value: what the field holds while its signal is not Valid; the FE neutral (the
 //    signal's neutral translated) unless the file says otherwise.
 //  * Neutral interlock (axes: Axis/Analog signals into INTEGER16 fields): after any non-Valid
 //    status (and at start), the field stays at neutral until the input has been seen inside its
 //    deadband around neutral; then it follows again. Set `interlock: false` to disable.
 //  * Outputs (indicator bits, display parameters -> output signals): value * scale + offset,
-//    a bit inverted when `invert`, then clamped to the output signal's range (or `clamp`).
+//    a bit inverted when `invert`, then clamped to the output signal's range (or `clamp`). An
+//    indicator bit driving one bit of a bit-packed output (a CiA 401 output byte) sets or clears
+//    that bit of the output's current value (apply_output()).
 #pragma once
 
 #include <cstdint>
@@ -58,11 +62,16 @@ struct InputParams {
   std::int64_t neutral = 0;  // the FE value of the signal's neutral
   std::int64_t fault = 0;    // while not Valid
   bool interlock = false;
+  std::uint8_t signal_bit = 0xFF;  // Bit mode on a bit-packed signal: the bit taken; 0xFF = value != 0
 };
+
+// The number of bits of a bit-packed signal (Digital, or an Output in "bits", with range
+// 0..2^n−1, n ≥ 2: a CiA 401 input/output byte), else 0. Such a signal feeds n one-bit fields.
+[[nodiscard]] unsigned bit_width(const subdevices::SignalInfo& signal);
 
 // Defaults for `signal` feeding `field`, overridden by `options`.
 [[nodiscard]] InputParams resolve_input(const subdevices::SignalInfo& signal, const FeField& field,
-                                        const FieldOptions& options);
+                                        const FieldOptions& options, std::uint8_t signal_bit = 0xFF);
 // The default scale alone (1.0 when the value passes unscaled).
 [[nodiscard]] double default_scale(const subdevices::SignalInfo& signal, const FeField& field);
 
@@ -96,10 +105,15 @@ struct OutputParams {
   bool invert = false;
   std::int64_t clamp_min = 0;
   std::int64_t clamp_max = 0;
+  std::uint8_t signal_bit = 0xFF;  // the bit of a bit-packed output this field drives; 0xFF = whole value
 };
 [[nodiscard]] OutputParams resolve_output(const subdevices::SignalInfo& signal, const FeField& field,
-                                          const FieldOptions& options);
+                                          const FieldOptions& options, std::uint8_t signal_bit = 0xFF);
 // The FE value (an indicator bit 0/1, a display parameter) -> the output signal's value.
 [[nodiscard]] std::int64_t translate_output(const OutputParams& p, std::int64_t fe_value);
+// The output signal's new value given its `current` one: translate_output() for a whole-value
+// field; for a field driving one bit of a bit-packed output, `current` with that bit set to the
+// (inverted) FE bit.
+[[nodiscard]] std::int64_t apply_output(const OutputParams& p, std::int64_t fe_value, std::int64_t current);
 
 }  // namespace oegw::mapping

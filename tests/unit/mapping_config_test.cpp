@@ -35,9 +35,9 @@ std::optional<std::vector<SignalInfo>> fake_catalogue(std::string_view family, c
     allowed = {"tolerance"};
     for (const char* n : {"x", "y", "wheel_a", "wheel_b", "wheel_c"}) s.push_back({n, SignalKind::Axis, -110, 110, 0, "percent"});
     add_range(s, "buttons", 16, SignalKind::Button, 0, 1, "bits");
-    add_range(s, "leds", 12, SignalKind::Output, 0, 3, "code");
+    add_range(s, "leds", 16, SignalKind::Output, 0, 2, "code");  // off / on / blink
   } else if (family == "mcb402") {
-    for (const char* n : {"x", "y", "z", "r"}) s.push_back({n, SignalKind::Axis, -32768, 32767, 0, "raw16"});
+    for (const char* n : {"x", "y", "z", "t"}) s.push_back({n, SignalKind::Axis, -32768, 32767, 0, "raw16"});
     add_range(s, "buttons", 7, SignalKind::Button, 0, 1, "bits");
     add_range(s, "leds", 4, SignalKind::Output, 0, 1, "bits");
   } else if (family == "novotechnik-406") {
@@ -49,9 +49,9 @@ std::optional<std::vector<SignalInfo>> fake_catalogue(std::string_view family, c
       error = "option 'eds' missing";
       return std::nullopt;
     }
-    add_range(s, "in", 8, SignalKind::Digital, 0, 1, "bits");
+    add_range(s, "in", 8, SignalKind::Digital, 0, 255, "bits");  // one signal per input byte
     add_range(s, "analog", 4, SignalKind::Analog, -32768, 32767, "raw16");
-    add_range(s, "out", 8, SignalKind::Output, 0, 1, "bits");
+    add_range(s, "out", 8, SignalKind::Output, 0, 255, "bits");  // one signal per output byte
     add_range(s, "aout", 4, SignalKind::Output, -32768, 32767, "raw16");
   } else {
     error = "no such family";
@@ -115,7 +115,7 @@ TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
   const auto* grip = c.find_subdevice("right_grip");
   ASSERT_NE(grip, nullptr);
   EXPECT_TRUE(grip->mandatory);
-  EXPECT_EQ(grip->signals.size(), 33u);  // from the catalogue
+  EXPECT_EQ(grip->signals.size(), 37u);  // from the catalogue
   const auto* pedal = c.find_subdevice("pedal");
   ASSERT_NE(pedal, nullptr);
   EXPECT_EQ(pedal->options.get("eds"), std::optional<std::string>("subdevices/eds/generic_pedal.eds"));
@@ -189,7 +189,7 @@ TEST(MappingConfig, BadExampleReportsEveryErrorAtOnceInFileOrder) {
       f + "14:8: unknown sub-device 'rigth_grip' in signal 'rigth_grip.y'; expected one of right_grip, left_grip, knob "
           "(did you mean 'right_grip'?)",
       f + "15:8: sub-device 'right_grip' (elobau-mfg) has no signal 'q'; expected one of x, y, wheel_a, wheel_b, "
-          "wheel_c, buttons[1..16], leds[1..12]",
+          "wheel_c, buttons[1..16], leds[1..16]",
       f + "17:5: joystick.1 buttons[2] is fed twice (first at line 16, column 5); expected each field fed by one signal",
       f + "19:20: joystick.2 buttons[1..8] has 8 elements but 'left_grip.buttons[1..7]' has 7; expected ranges of "
           "equal length",
@@ -303,12 +303,12 @@ TEST(MappingConfig, SignalOfAnUnknownSubDeviceOrNotProvidedByTheDriver) {
 )");
   EXPECT_THAT(errors(r), ElementsAre(
       "t.yaml:10:8: unknown sub-device 'left' in signal 'left.x'; expected one of right_grip, left_grip, knob, cluster",
-      "t.yaml:11:8: sub-device 'left_grip' (mcb402) has no signal 'w'; expected one of x, y, z, r, buttons[1..7], "
+      "t.yaml:11:8: sub-device 'left_grip' (mcb402) has no signal 'w'; expected one of x, y, z, t, buttons[1..7], "
       "leds[1..4]",
-      "t.yaml:12:20: sub-device 'left_grip' (mcb402) has no signal 'buttons[8]'; expected one of x, y, z, r, "
+      "t.yaml:12:20: sub-device 'left_grip' (mcb402) has no signal 'buttons[8]'; expected one of x, y, z, t, "
       "buttons[1..7], leds[1..4]",
-      "t.yaml:13:8: found 'left_grip' for joystick.1 z; expected a signal as subdevice.signal or "
-      "subdevice.signal[a..b]"));
+      "t.yaml:13:8: found 'left_grip' for joystick.1 z; expected a signal as subdevice.signal, "
+      "subdevice.signal[a..b] or subdevice.signal.bitN"));
 }
 
 TEST(MappingConfig, TypesThatDoNotFit) {
@@ -318,7 +318,7 @@ TEST(MappingConfig, TypesThatDoNotFit) {
     buttons[1]: left_grip.x
   encoder.1: { position: knob.speed }
   indicators.1:
-    indicator[1..2]: cluster.in[1..2]
+    indicator[1..8]: cluster.in[1]
   display.1:
     parameter[1]: left_grip.y
     parameter[2]: cluster.aout[1]
@@ -410,8 +410,8 @@ TEST(MappingConfig, FieldFedTwiceAndOutputDrivenTwice) {
     buttons[8]: right_grip.buttons[9]
   joystick.01: { x: right_grip.x }
   buttons.1:
-    switch[1..4]: cluster.in[1..4]
-    switch[3..6]: cluster.in[3..6]
+    switch[1..4]: right_grip.buttons[1..4]
+    switch[3..6]: right_grip.buttons[3..6]
   indicators.1:
     indicator[1..2]: left_grip.leds[1..2]
     indicator[3]: left_grip.leds[2]
@@ -437,7 +437,10 @@ TEST(MappingConfig, DuplicateKeyInOneMap) {
 
 TEST(MappingConfig, RangesExpandElementWiseAndLengthsMustAgree) {
   const auto r = load(kHead + R"(  buttons.2:
-    switch[9..12]: cluster.in[5..8]
+    switch[9]: cluster.in[5].bit0
+    switch[10]: cluster.in[6].bit0
+    switch[11]: cluster.in[7].bit0
+    switch[12]: cluster.in[8].bit7
     switch: right_grip.buttons[1..8]
   indicators.1:
     indicator[1..4]: right_grip.leds[1..4]
@@ -447,10 +450,12 @@ TEST(MappingConfig, RangesExpandElementWiseAndLengthsMustAgree) {
   ASSERT_EQ(b2.fields.size(), 12u);
   EXPECT_EQ(b2.fields[0].field.name, "switch[1]");
   EXPECT_EQ(b2.fields[0].signal, "buttons[1]");
+  EXPECT_EQ(b2.fields[0].signal_bit, 0xFF);  // a Button: the whole value
   EXPECT_EQ(b2.fields[8].field.name, "switch[9]");
   EXPECT_EQ(b2.fields[8].signal, "in[5]");
   EXPECT_EQ(b2.fields[8].field.sub, 0x3A);  // cluster 2: 39h.., switch 9 is the next byte
   EXPECT_EQ(b2.fields[11].signal, "in[8]");
+  EXPECT_EQ(b2.fields[11].signal_bit, 7);
   EXPECT_EQ(r.config->functional_elements[1].fields[3].signal, "leds[4]");
 
   const auto bad = load(kHead + R"(  joystick.1:
@@ -458,7 +463,7 @@ TEST(MappingConfig, RangesExpandElementWiseAndLengthsMustAgree) {
     x: right_grip.buttons[1..2]
     buttons[4]: right_grip.buttons[2..3]
   buttons.1:
-    switch: cluster.analog
+    switch: knob.position
   joystick.2:
     buttons: right_grip.buttons[1..9]
 )");
@@ -468,10 +473,69 @@ TEST(MappingConfig, RangesExpandElementWiseAndLengthsMustAgree) {
       "t.yaml:11:8: joystick.1 x has 1 element but 'right_grip.buttons[1..2]' has 2; expected ranges of equal length",
       "t.yaml:12:17: joystick.1 buttons[4] has 1 element but 'right_grip.buttons[2..3]' has 2; expected ranges of "
       "equal length",
-      "t.yaml:14:13: found the single signal 'cluster.analog' for the field group buttons.1 switch; expected a "
-      "signal range like cluster.analog[1..8]",
+      "t.yaml:14:13: found the single signal 'knob.position' for the field group buttons.1 switch; expected a "
+      "signal range such as knob.buttons[1..8], or a bit-packed signal",
       "t.yaml:16:14: signal range 'right_grip.buttons[1..9]' has 9 elements but joystick.2 has buttons[1..8]; "
       "expected at most 8 signals"));
+}
+
+TEST(MappingConfig, BitPackedSignalsFeedOneBitFieldsBitByBit) {
+  // cia401 in[k]/out[k] are bytes (0..255, "bits"): one byte feeds eight switches or is driven
+  // by eight indicators; `.bitN` picks one bit.
+  const auto r = load(kHead + R"(  buttons.1:
+    switch: cluster.in[1..2]
+  joystick.1:
+    buttons[1..8]: cluster.in[3]
+    memory_x: cluster.in[4].bit5
+  indicators.1:
+    indicator[9..16]: cluster.out[2]
+    indicator[17]: cluster.out[3].bit2
+)");
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  const auto& j1 = r.config->functional_elements[0];
+  ASSERT_EQ(j1.fields.size(), 9u);
+  EXPECT_EQ(j1.fields[0].field.name, "memory_x");
+  EXPECT_EQ(j1.fields[0].signal, "in[4]");
+  EXPECT_EQ(j1.fields[0].signal_bit, 5);
+  EXPECT_EQ(j1.fields[8].field.name, "buttons[8]");
+  EXPECT_EQ(j1.fields[8].signal_bit, 7);
+  const auto& b1 = r.config->functional_elements[1];
+  ASSERT_EQ(b1.fields.size(), 16u);  // switch[1..16] from two bytes
+  EXPECT_EQ(b1.fields[9].field.name, "switch[10]");
+  EXPECT_EQ(b1.fields[9].signal, "in[2]");
+  EXPECT_EQ(b1.fields[9].signal_bit, 1);
+  const auto& i1 = r.config->functional_elements[2];
+  ASSERT_EQ(i1.fields.size(), 9u);
+  EXPECT_EQ(i1.fields[0].field.name, "indicator[9]");
+  EXPECT_EQ(i1.fields[0].signal, "out[2]");
+  EXPECT_EQ(i1.fields[0].signal_bit, 0);
+  EXPECT_EQ(i1.fields[8].signal, "out[3]");
+  EXPECT_EQ(i1.fields[8].signal_bit, 2);
+  EXPECT_EQ(i1.fields[8].output_params().signal_bit, 2);
+  EXPECT_EQ(j1.fields[0].input_params().signal_bit, 5);
+
+  const auto bad = load(kHead + R"(  buttons.1:
+    switch[1..4]: cluster.in[1]
+    switch[5]: cluster.in[2].bit8
+    switch[6]: left_grip.buttons[1].bit0
+    switch[7]: "cluster.in[1..2].bit0"
+  indicators.1:
+    indicator[1..8]: cluster.out[1]
+    indicator[9]: cluster.out[1].bit3
+  joystick.1:
+    buttons: cluster.in[1..2]
+)");
+  EXPECT_THAT(errors(bad), ElementsAre(
+      "t.yaml:10:19: buttons.1 switch[1..4] has 4 elements but 'cluster.in[1]' has 8 bits; expected ranges of equal "
+      "length",
+      "t.yaml:11:16: found bit 8 of 'cluster.in[2]'; expected a bit 0..7",
+      "t.yaml:12:16: found bit 0 of 'left_grip.buttons[1]', which is not bit-packed; expected the signal without .bitN",
+      "t.yaml:13:16: found 'cluster.in[1..2].bit0' for buttons.1 switch[7]; expected a signal as subdevice.signal, "
+      "subdevice.signal[a..b] or subdevice.signal.bitN",
+      "t.yaml:16:19: output signal 'cluster.out[1] bit 3' is driven twice (first at line 15, column 5); expected "
+      "each output driven by one field",
+      "t.yaml:18:14: signal range 'cluster.in[1..2]' has 16 bits but joystick.1 has buttons[1..8]; expected at most 8 "
+      "signals"));
 }
 
 TEST(MappingConfig, DriversAndTheirOptionsAreCheckedByTheCatalogue) {

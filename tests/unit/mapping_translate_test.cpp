@@ -149,6 +149,35 @@ TEST(MappingTranslate, ButtonFaultValueIsReleasedAndButtonsAreNotInterlocked) {
   EXPECT_EQ(t.update(valid(1)), 1);
 }
 
+TEST(MappingTranslate, BitPackedSignalsAreRecognisedByTheirRange) {
+  EXPECT_EQ(bit_width({"in[1]", SignalKind::Digital, 0, 255, 0, "bits"}), 8u);
+  EXPECT_EQ(bit_width({"in[1]", SignalKind::Digital, 0, 0xFFFF, 0, "bits"}), 16u);
+  EXPECT_EQ(bit_width({"out[1]", SignalKind::Output, 0, 255, 0, "bits"}), 8u);
+  EXPECT_EQ(bit_width(kButton), 0u);                                                // 0..1: one value
+  EXPECT_EQ(bit_width(kLed), 0u);                                                   // LED codes 0..3
+  EXPECT_EQ(bit_width({"out[1]", SignalKind::Output, 0, 255, 0, "raw16"}), 0u);     // not "bits"
+  EXPECT_EQ(bit_width({"in[1]", SignalKind::Digital, 0, 100, 0, "bits"}), 0u);      // not 2^n - 1
+  EXPECT_EQ(bit_width({"a", SignalKind::Analog, 0, 255, 0, "bits"}), 0u);           // not Digital
+}
+
+TEST(MappingTranslate, OneBitOfAnInputByteFeedsAButton) {
+  const SignalInfo byte{"in[1]", SignalKind::Digital, 0, 255, 0, "bits"};
+  const auto p = resolve_input(byte, joystick_button(), {}, 3);
+  EXPECT_EQ(translate_input(p, 0x08), 1);
+  EXPECT_EQ(translate_input(p, 0xF7), 0);  // every other line on: still off
+  FieldOptions o;
+  o.invert = true;
+  EXPECT_EQ(translate_input(resolve_input(byte, joystick_button(), o, 3), 0xF7), 1);
+  // With the interlock on, a held line is counted only after its own bit was seen released.
+  o = {};
+  o.interlock = true;
+  FieldTranslator t(resolve_input(byte, joystick_button(), o, 3));
+  EXPECT_EQ(t.update(valid(0x08)), 0);
+  EXPECT_EQ(t.update(valid(0x01)), 0);  // bit 3 released (other lines do not matter)
+  EXPECT_FALSE(t.interlocked());
+  EXPECT_EQ(t.update(valid(0x09)), 1);
+}
+
 // ---- Fault value and neutral interlock --------------------------------------------------------
 
 TEST(MappingTranslate, StartsAtTheFaultValueAndInterlockedUntilSeenAtZero) {
@@ -242,6 +271,24 @@ TEST(MappingTranslate, DisplayParametersDriveAnalogueOutputsClampedToTheirRange)
   o.invert = true;
   const auto q = resolve_output(kAout, display_parameter(), o);
   EXPECT_EQ(translate_output(q, 100), -40);  // -100 * 0.5 + 10
+}
+
+TEST(MappingTranslate, IndicatorBitsComposeABitPackedOutputByte) {
+  const SignalInfo byte{"out[1]", SignalKind::Output, 0, 255, 0, "bits"};
+  const auto b0 = resolve_output(byte, indicator(), {}, 0);
+  const auto b5 = resolve_output(byte, indicator(), {}, 5);
+  std::int64_t out = 0;
+  out = apply_output(b5, 1, out);
+  EXPECT_EQ(out, 0x20);
+  out = apply_output(b0, 1, out);
+  EXPECT_EQ(out, 0x21);
+  out = apply_output(b5, 0, out);  // clears its own bit only
+  EXPECT_EQ(out, 0x01);
+  FieldOptions inv;
+  inv.invert = true;
+  EXPECT_EQ(apply_output(resolve_output(byte, indicator(), inv, 7), 1, 0xFF), 0x7F);
+  // A whole-value output ignores `current`.
+  EXPECT_EQ(apply_output(resolve_output(kLed, indicator(), {}), 1, 3), 1);
 }
 
 }  // namespace
