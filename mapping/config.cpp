@@ -946,10 +946,10 @@ class Loader {
         const unsigned width = bit_width(*info);
         if (pick) {
           if (width == 0 || *pick >= width) {
-            error(sig_node, "found bit " + std::to_string(*pick) + " of '" + dev_name + "." + sname + "'" +
-                                (width == 0 ? ", which is not bit-packed" : "") + "; expected " +
-                                (width == 0 ? std::string("the signal without .bitN")
-                                            : "a bit 0.." + std::to_string(width - 1)));
+            error(sig_node,
+                  "found bit " + std::to_string(*pick) + " of '" + dev_name + "." + sname + "'" +
+                      (width == 0 ? ", which is not bit-packed" : "") + "; expected " +
+                      (width == 0 ? std::string("the signal without .bitN") : "a bit 0.." + std::to_string(width - 1)));
             bad = true;
             break;
           }
@@ -968,7 +968,8 @@ class Loader {
       if (group) {
         if (!sref->indexed && !expanded) {
           error(sig_node, "found the single signal '" + text + "' for the field group " + fe_name + " " + e.name +
-                              "; expected a signal range such as " + dev_name + ".buttons[1..8], or a bit-packed signal");
+                              "; expected a signal range such as " + dev_name +
+                              ".buttons[1..8], or a bit-packed signal");
           continue;
         }
         fkey.indexed = true;
@@ -1009,8 +1010,8 @@ class Loader {
           const auto out_name = src.bit == 0xFF ? full : full + " bit " + std::to_string(src.bit);
           auto [ot, ofresh] = outputs_fed.emplace(std::pair(dev_name, out_name), loc(e.key));
           if (!ofresh) {
-            error(sig_node, "output signal '" + out_name + "' is driven twice (first at " +
-                                ot->second.line_column() + "); expected each output driven by one field");
+            error(sig_node, "output signal '" + out_name + "' is driven twice (first at " + ot->second.line_column() +
+                                "); expected each output driven by one field");
             break;
           }
         }

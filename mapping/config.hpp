@@ -107,18 +107,16 @@ struct SubdeviceConfig {
 
 // One FE field and the signal feeding it (input FEs) or fed by it (indicators, displays).
 struct FieldBinding {
-  FeField field;          // name, index, sub-index, bit, type
-  std::string subdevice;  // "right_grip"
-  std::string signal;     // "x", "buttons[3]"
+  FeField field;                   // name, index, sub-index, bit, type
+  std::string subdevice;           // "right_grip"
+  std::string signal;              // "x", "buttons[3]"
   std::uint8_t signal_bit = 0xFF;  // one bit of a bit-packed signal (CiA 401 byte) feeds/drives this
                                    // one-bit field; 0xFF = the whole value (translate.hpp)
   subdevices::SignalInfo signal_info;
   FieldOptions options;  // as written
   Location where;        // the field's key
   [[nodiscard]] InputParams input_params() const { return resolve_input(signal_info, field, options, signal_bit); }
-  [[nodiscard]] OutputParams output_params() const {
-    return resolve_output(signal_info, field, options, signal_bit);
-  }
+  [[nodiscard]] OutputParams output_params() const { return resolve_output(signal_info, field, options, signal_bit); }
 };
 
 struct FunctionalElementConfig {
