@@ -37,6 +37,18 @@ const SignalInfo* SubdeviceConfig::find_signal(std::string_view n) const {
   return nullptr;
 }
 
+subdevices::NodeSettings SubdeviceConfig::node_settings() const {
+  subdevices::NodeSettings n;
+  n.name = name;
+  n.node = node();
+  n.heartbeat_ms = heartbeat_ms;
+  n.heartbeat_timeout_ms = heartbeat_timeout_ms;
+  n.mandatory = mandatory;
+  n.identity = identity;
+  for (const auto& w : sdo) n.sdo.push_back(w.to_sdo_write());
+  return n;
+}
+
 const SubdeviceConfig* Config::find_subdevice(std::string_view n) const {
   for (const auto& s : subdevices)
     if (s.name == n) return &s;

@@ -18,6 +18,7 @@
 #include "mapping/functional_elements.hpp"
 #include "mapping/translate.hpp"
 #include "subdevices/driver.hpp"
+#include "subdevices/network_manager.hpp"
 #include "subdevices/signal.hpp"
 
 namespace oegw::mapping {
@@ -103,6 +104,8 @@ struct SubdeviceConfig {
   Location where;
   [[nodiscard]] subdevices::NodeId node() const { return subdevices::NodeId{node_id}; }
   [[nodiscard]] const subdevices::SignalInfo* find_signal(std::string_view name) const;
+  // What the downstream network manager needs for this node (the sdo list as byte writes).
+  [[nodiscard]] subdevices::NodeSettings node_settings() const;
 };
 
 // One FE field and the signal feeding it (input FEs) or fed by it (indicators, displays).

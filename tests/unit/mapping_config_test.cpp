@@ -127,6 +127,9 @@ TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
   EXPECT_EQ(w.index, 0x1800);
   EXPECT_EQ(w.sub, 5);
   EXPECT_EQ(w.data, (std::vector<std::uint8_t>{20, 0}));  // UNSIGNED16, little endian
+  const auto settings = knob->node_settings();
+  ASSERT_EQ(settings.sdo.size(), 1u);
+  EXPECT_EQ(settings.sdo[0].data, w.data);
 
   // Sorted by FeId: joystick 1, 2, pedal 1, encoder 1, wheel 1, buttons 1, indicators 1, 2.
   std::vector<std::string> fes;
@@ -667,6 +670,13 @@ functional_elements: {}
   EXPECT_EQ(a.identity.serial, std::optional<std::uint32_t>(99));
   EXPECT_EQ(a.options.get("tolerance"), std::optional<std::string>("3"));
   EXPECT_EQ(a.node(), subdevices::NodeId{2});
+  const auto ns = a.node_settings();
+  EXPECT_EQ(ns.name, "a");
+  EXPECT_EQ(ns.node, subdevices::NodeId{2});
+  EXPECT_EQ(ns.heartbeat_ms, 50);
+  EXPECT_EQ(ns.heartbeat_timeout_ms, 120);
+  EXPECT_TRUE(ns.mandatory);
+  EXPECT_EQ(ns.identity.serial, std::optional<std::uint32_t>(99));
   const auto& b = r.config->subdevices[1];
   EXPECT_EQ(b.identity.vendor_id, std::optional<std::uint32_t>(7));
   EXPECT_FALSE(b.identity.product_code.has_value());  // unset: not checked
