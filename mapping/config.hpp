@@ -1,0 +1,155 @@
+// The mapping file: the engineer's one configuration file (mapping/README.md documents every
+// key). load_config() parses (yaml-cpp) and validates; it returns either a complete Config or
+// every error found, each as "file:line:column: what was found; expected what" (1-based).
+// Nothing is half-built: a Config exists only when there is no error.
+//
+// Sub-device signals are checked against a SignalCatalogue the caller injects (the gateway
+// passes one built on the driver factory; tests pass a fake one), so this layer never creates
+// a driver.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "mapping/functional_elements.hpp"
+#include "mapping/translate.hpp"
+#include "subdevices/driver.hpp"
+#include "subdevices/network_manager.hpp"
+#include "subdevices/signal.hpp"
+
+namespace oegw::mapping {
+
+// Where a node was found in the file (1-based line and column).
+struct Location {
+  std::string file;
+  int line = 0;
+  int column = 0;
+  [[nodiscard]] std::string str() const;          // "file:line:column"
+  [[nodiscard]] std::string line_column() const;  // "line 5, column 3"
+};
+
+struct Diagnostic {
+  Location where;
+  std::string message;                    // "what was found; expected what"
+  [[nodiscard]] std::string str() const;  // "file:line:column: message"
+};
+
+// Returns the signals a driver family provides with these options, or nullopt and an error
+// (unknown family, options the family refuses).
+using SignalCatalogue = std::function<std::optional<std::vector<subdevices::SignalInfo>>(
+    std::string_view family, const subdevices::DriverOptions& options, std::string& error)>;
+
+struct UpstreamIdentity {  // 1018h sub-indices 1..4
+  std::uint32_t vendor_id = 0;
+  std::uint32_t product_code = 0;
+  std::uint32_t revision = 0;
+  std::uint32_t serial = 0;
+};
+
+struct UpstreamConfig {
+  std::string interface = "can0";
+  std::uint8_t node_id = 0;  // required
+  std::uint32_t bitrate = 250000;
+  UpstreamIdentity identity;
+  std::uint16_t heartbeat_ms = 0;                      // 1017h producer heartbeat time at power-on (0 = off)
+  std::string store = "/var/lib/oegw/upstream.store";  // 1010h/1011h store
+  Location where;
+};
+
+struct DownstreamConfig {
+  std::string interface = "can1";
+  std::uint32_t bitrate = 250000;
+  Location where;
+};
+
+struct DdsConfig {
+  bool enabled = false;
+  std::uint32_t domain = 0;
+  std::string partition;
+};
+struct LcmConfig {
+  bool enabled = false;
+  std::string url = "udpm://239.255.76.67:7667?ttl=0";
+  std::string channel_prefix = "OEGW_";
+};
+struct PublishConfig {  // kept as data for the publishing issue
+  DdsConfig dds;
+  LcmConfig lcm;
+};
+
+struct SdoWriteConfig {
+  std::uint16_t index = 0;
+  std::uint8_t sub_index = 0;
+  std::int64_t value = 0;
+  canopen::DataType type = canopen::DataType::Unsigned32;
+  Location where;
+  [[nodiscard]] subdevices::SdoWrite to_sdo_write() const;  // little-endian bytes of `type`
+};
+
+struct SubdeviceConfig {
+  std::string name;    // "right_grip"
+  std::string driver;  // "elobau-mfg", "mcb402", "novotechnik-406", "cia401"
+  std::uint8_t node_id = 0;
+  std::uint16_t heartbeat_ms = 100;
+  std::uint16_t heartbeat_timeout_ms = 0;  // 0 = 1.5 x heartbeat_ms
+  bool mandatory = false;
+  subdevices::ExpectedIdentity identity;
+  std::vector<SdoWriteConfig> sdo;
+  subdevices::DriverOptions options;
+  std::vector<subdevices::SignalInfo> signals;  // from the catalogue
+  Location where;
+  [[nodiscard]] subdevices::NodeId node() const { return subdevices::NodeId{node_id}; }
+  [[nodiscard]] const subdevices::SignalInfo* find_signal(std::string_view name) const;
+  // What the downstream network manager needs for this node (the sdo list as byte writes).
+  [[nodiscard]] subdevices::NodeSettings node_settings() const;
+};
+
+// One FE field and the signal feeding it (input FEs) or fed by it (indicators, displays).
+struct FieldBinding {
+  FeField field;                   // name, index, sub-index, bit, type
+  std::string subdevice;           // "right_grip"
+  std::string signal;              // "x", "buttons[3]"
+  std::uint8_t signal_bit = 0xFF;  // one bit of a bit-packed signal (CiA 401 byte) feeds/drives this
+                                   // one-bit field; 0xFF = the whole value (translate.hpp)
+  subdevices::SignalInfo signal_info;
+  FieldOptions options;  // as written
+  Location where;        // the field's key
+  [[nodiscard]] InputParams input_params() const { return resolve_input(signal_info, field, options, signal_bit); }
+  [[nodiscard]] OutputParams output_params() const { return resolve_output(signal_info, field, options, signal_bit); }
+};
+
+struct FunctionalElementConfig {
+  FeId id;
+  std::vector<FieldBinding> fields;  // in the FE's dictionary order
+  Location where;
+  [[nodiscard]] bool input() const { return is_input(id.kind); }
+};
+
+struct Config {
+  std::string file;
+  UpstreamConfig upstream;
+  DownstreamConfig downstream;
+  PublishConfig publish;
+  std::vector<SubdeviceConfig> subdevices;                   // in file order
+  std::vector<FunctionalElementConfig> functional_elements;  // sorted by FeId
+  [[nodiscard]] const SubdeviceConfig* find_subdevice(std::string_view name) const;
+};
+
+struct LoadResult {
+  std::optional<Config> config;    // set iff errors is empty
+  std::vector<Diagnostic> errors;  // in file order
+  [[nodiscard]] bool ok() const { return config.has_value(); }
+  [[nodiscard]] std::string error_text() const;  // one diagnostic per line
+};
+
+// Reads and validates the mapping file at `path`.
+[[nodiscard]] LoadResult load_config(const std::string& path, const SignalCatalogue& catalogue);
+// The same for text already in memory; `file` names it in the diagnostics.
+[[nodiscard]] LoadResult load_config_text(std::string_view text, std::string_view file,
+                                          const SignalCatalogue& catalogue);
+
+}  // namespace oegw::mapping

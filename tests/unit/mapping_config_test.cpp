@@ -1,0 +1,752 @@
+// The mapping file: parsing, validation with file:line:column diagnostics (all at once), and
+// the resulting Config. Requirements: issue 4 "The mapping file" (validation refuses before
+// anything starts, with file:line:column, what was found and what was expected; all errors at
+// once) and DESIGN.md "A mapping file, as a first sketch". Signals come from a fake catalogue
+// (the drivers are written elsewhere): elobau-mfg, mcb402, novotechnik-406, cia401.
+#include "mapping/config.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+namespace oegw::mapping {
+namespace {
+
+using subdevices::DriverOptions;
+using subdevices::SignalInfo;
+using subdevices::SignalKind;
+using ::testing::ElementsAre;
+
+void add_range(std::vector<SignalInfo>& out, const std::string& base, int n, SignalKind k, std::int64_t lo,
+               std::int64_t hi, const std::string& unit) {
+  for (int i = 1; i <= n; ++i) out.push_back({base + "[" + std::to_string(i) + "]", k, lo, hi, 0, unit});
+}
+
+// Options each fake family accepts: elobau-mfg "tolerance", cia401 "eds" (required).
+std::optional<std::vector<SignalInfo>> fake_catalogue(std::string_view family, const DriverOptions& options,
+                                                       std::string& error) {
+  std::vector<std::string> allowed;
+  std::vector<SignalInfo> s;
+  if (family == "elobau-mfg") {
+    allowed = {"tolerance"};
+    for (const char* n : {"x", "y", "wheel_a", "wheel_b", "wheel_c"}) s.push_back({n, SignalKind::Axis, -110, 110, 0, "percent"});
+    add_range(s, "buttons", 16, SignalKind::Button, 0, 1, "bits");
+    add_range(s, "leds", 16, SignalKind::Output, 0, 2, "code");  // off / on / blink
+  } else if (family == "mcb402") {
+    for (const char* n : {"x", "y", "z", "t"}) s.push_back({n, SignalKind::Axis, -32768, 32767, 0, "raw16"});
+    add_range(s, "buttons", 7, SignalKind::Button, 0, 1, "bits");
+    add_range(s, "leds", 4, SignalKind::Output, 0, 1, "bits");
+  } else if (family == "novotechnik-406") {
+    s.push_back({"position", SignalKind::Position, 0, 0xFFFFFFFF, 0, "counts"});
+    s.push_back({"speed", SignalKind::Speed, -32768, 32767, 0, "counts/s"});
+  } else if (family == "cia401") {
+    allowed = {"eds"};
+    if (!options.get("eds")) {
+      error = "option 'eds' missing";
+      return std::nullopt;
+    }
+    add_range(s, "in", 8, SignalKind::Digital, 0, 255, "bits");  // one signal per input byte
+    add_range(s, "analog", 4, SignalKind::Analog, -32768, 32767, "raw16");
+    add_range(s, "out", 8, SignalKind::Output, 0, 255, "bits");  // one signal per output byte
+    add_range(s, "aout", 4, SignalKind::Output, -32768, 32767, "raw16");
+  } else {
+    error = "no such family";
+    return std::nullopt;
+  }
+  for (const auto& [k, v] : options.values)
+    if (std::find(allowed.begin(), allowed.end(), k) == allowed.end()) {
+      error = "unknown option '" + k + "'";
+      return std::nullopt;
+    }
+  return s;
+}
+
+const std::string kHead = R"(upstream: { interface: can0, node_id: 0x20 }
+downstream: { interface: can1 }
+subdevices:
+  right_grip: { driver: elobau-mfg, node_id: 0x11 }
+  left_grip: { driver: mcb402, node_id: 0x03 }
+  knob: { driver: novotechnik-406, node_id: 0x7F }
+  cluster: { driver: cia401, node_id: 0x31, options: { eds: x.eds } }
+functional_elements:
+)";  // 8 lines: functional elements start on line 9
+
+// The repository root, from this file's path (the tests run from the build tree).
+std::string source_dir() {
+  std::string f = __FILE__;
+  return f.substr(0, f.rfind("/tests/unit/"));
+}
+
+LoadResult load(const std::string& text) { return load_config_text(text, "t.yaml", fake_catalogue); }
+
+std::vector<std::string> errors(const LoadResult& r) {
+  std::vector<std::string> out;
+  for (const auto& e : r.errors) out.push_back(e.str());
+  return out;
+}
+
+
+// ---- The files in config/ ------------------------------------------------------------------
+
+TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
+  const auto r = load_config(source_dir() + "/config/demo.yaml", fake_catalogue);
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  const Config& c = *r.config;
+  EXPECT_EQ(c.upstream.interface, "virtual");
+  EXPECT_EQ(c.upstream.node_id, 0x20);
+  EXPECT_EQ(c.upstream.bitrate, 250000u);
+  EXPECT_EQ(c.upstream.identity.product_code, 0x852u);
+  EXPECT_EQ(c.upstream.identity.revision, 0x00010000u);
+  EXPECT_EQ(c.upstream.heartbeat_ms, 100);
+  EXPECT_EQ(c.downstream.interface, "virtual");
+  EXPECT_FALSE(c.publish.dds.enabled);
+  EXPECT_EQ(c.publish.lcm.channel_prefix, "OEGW_");
+
+  ASSERT_EQ(c.subdevices.size(), 5u);
+  std::vector<std::pair<std::string, int>> nodes;
+  for (const auto& s : c.subdevices) nodes.emplace_back(s.name, s.node_id);
+  EXPECT_THAT(nodes, ElementsAre(std::pair<std::string, int>{"right_grip", 0x11}, std::pair<std::string, int>{"left_grip", 0x03},
+                                 std::pair<std::string, int>{"pedal", 0x30}, std::pair<std::string, int>{"seat_knob", 0x7F},
+                                 std::pair<std::string, int>{"cluster", 0x31}));
+  const auto* grip = c.find_subdevice("right_grip");
+  ASSERT_NE(grip, nullptr);
+  EXPECT_TRUE(grip->mandatory);
+  EXPECT_EQ(grip->signals.size(), 37u);  // from the catalogue
+  const auto* pedal = c.find_subdevice("pedal");
+  ASSERT_NE(pedal, nullptr);
+  EXPECT_EQ(pedal->options.get("eds"), std::optional<std::string>("subdevices/eds/generic_pedal.eds"));
+  const auto* knob = c.find_subdevice("seat_knob");
+  ASSERT_NE(knob, nullptr);
+  EXPECT_FALSE(knob->identity.device_type.has_value());
+  ASSERT_EQ(knob->sdo.size(), 1u);
+  const auto w = knob->sdo[0].to_sdo_write();
+  EXPECT_EQ(w.index, 0x1800);
+  EXPECT_EQ(w.sub, 5);
+  EXPECT_EQ(w.data, (std::vector<std::uint8_t>{20, 0}));  // UNSIGNED16, little endian
+  const auto settings = knob->node_settings();
+  ASSERT_EQ(settings.sdo.size(), 1u);
+  EXPECT_EQ(settings.sdo[0].data, w.data);
+
+  // Sorted by FeId: joystick 1, 2, pedal 1, encoder 1, wheel 1, buttons 1, indicators 1, 2.
+  std::vector<std::string> fes;
+  for (const auto& fe : c.functional_elements)
+    fes.push_back(std::string(to_string(fe.id.kind)) + "." + std::to_string(fe.id.instance));
+  EXPECT_THAT(fes, ElementsAre("joystick.1", "joystick.2", "pedal.1", "encoder.1", "wheel.1", "buttons.1",
+                               "indicators.1", "indicators.2"));
+  const auto& j1 = c.functional_elements[0];
+  // Dictionary order (functional_elements.hpp): buttons[1..8] before x, y.
+  ASSERT_EQ(j1.fields.size(), 10u);
+  EXPECT_EQ(j1.fields[0].field.name, "buttons[1]");
+  EXPECT_EQ(j1.fields[0].signal, "buttons[1]");
+  EXPECT_EQ(j1.fields[0].field.index, 0x6000);
+  EXPECT_EQ(j1.fields[0].field.sub, 2);
+  EXPECT_EQ(j1.fields[8].field.name, "x");
+  EXPECT_EQ(j1.fields[8].subdevice, "right_grip");
+  EXPECT_EQ(j1.fields[8].options.deadband, 2);
+  EXPECT_EQ(j1.fields[8].field.index, 0x6401);
+  EXPECT_EQ(j1.fields[8].field.sub, 1);
+  EXPECT_EQ(j1.fields[8].input_params().scale, 32767.0 / 100.0);  // percent: 100 % = full scale
+  const auto& j2 = c.functional_elements[1];
+  ASSERT_EQ(j2.fields.size(), 10u);  // 7 buttons + x, y, z
+  EXPECT_TRUE(j2.fields[8].options.invert);
+  EXPECT_EQ(j2.fields[9].options.clamp, (std::pair<std::int64_t, std::int64_t>(-32767, 32767)));
+  const auto& pedal1 = c.functional_elements[2];
+  ASSERT_EQ(pedal1.fields.size(), 1u);
+  EXPECT_EQ(pedal1.fields[0].signal, "analog[1]");
+  EXPECT_EQ(pedal1.fields[0].options.fault, std::optional<std::int64_t>(0));
+  const auto& ind2 = c.functional_elements[7];
+  ASSERT_EQ(ind2.fields.size(), 4u);
+  EXPECT_FALSE(ind2.input());
+  EXPECT_EQ(ind2.fields[3].field.name, "indicator[4]");
+  EXPECT_EQ(ind2.fields[3].signal, "leds[4]");
+  EXPECT_EQ(ind2.fields[3].field.index, 0x6200);
+  EXPECT_EQ(ind2.fields[3].field.sub, 0x09);  // indicator cluster 2 starts at 6200h sub 09h
+  EXPECT_EQ(ind2.fields[3].field.bit, 3);
+}
+
+TEST(MappingConfig, BadExampleReportsEveryErrorAtOnceInFileOrder) {
+  const auto path = source_dir() + "/config/bad_example.yaml";
+  const auto r = load_config(path, fake_catalogue);
+  EXPECT_FALSE(r.ok());
+  EXPECT_FALSE(r.config.has_value());  // nothing half-built
+  const std::string f = path + ":";
+  EXPECT_THAT(errors(r), ElementsAre(
+      f + "2:39: node_id 0x80 is out of range; expected 1..127",
+      f + "2:45: unknown key 'bitrat' in upstream; expected one of interface, node_id, bitrate, identity, heartbeat_ms, "
+          "store (did you mean 'bitrate'?)",
+      f + "3:41: bitrate 300000 is not a CiA 301 bit rate; expected one of 10000, 20000, 50000, 125000, 250000, 500000, "
+          "800000, 1000000",
+      f + "6:41: node_id 0x11 of 'left_grip' is already used by sub-device 'right_grip' (line 5, column 46), so all "
+          "their default COB-IDs clash; expected a node-ID of its own",
+      f + "7:55: COB-ID 0x191 of knob TPDO 1800h:01 clashes with right_grip TPDO1 (default); expected a COB-ID no other "
+          "node uses",
+      f + "9:3: instance 17 of 'joystick.17' is out of range; expected joystick.1..16 (CiA 852 clause 9)",
+      f + "10:3: unknown functional element kind 'joystik' in 'joystik.1'; expected one of joystick, pedal, encoder, "
+          "wheel, buttons, indicators, display (did you mean 'joystick'?)",
+      f + "12:8: signal 'right_grip.buttons[1]' is a Button signal; expected an Axis or Analog signal for joystick.1 x",
+      f + "13:5: joystick.1 has no field 'w'; expected one of memory_x, memory_y, memory_z, buttons[1..8], x, y, z",
+      f + "14:8: unknown sub-device 'rigth_grip' in signal 'rigth_grip.y'; expected one of right_grip, left_grip, knob "
+          "(did you mean 'right_grip'?)",
+      f + "15:8: sub-device 'right_grip' (elobau-mfg) has no signal 'q'; expected one of x, y, wheel_a, wheel_b, "
+          "wheel_c, buttons[1..16], leds[1..16]",
+      f + "17:5: joystick.1 buttons[2] is fed twice (first at line 16, column 5); expected each field fed by one signal",
+      f + "19:20: joystick.2 buttons[1..8] has 8 elements but 'left_grip.buttons[1..7]' has 7; expected ranges of "
+          "equal length",
+      f + "21:19: signal 'right_grip.x' is an Axis signal; expected an Output signal for indicators.1 indicator[1] (an "
+          "output functional element)"));
+}
+
+// ---- One error at a time, inline -----------------------------------------------------------
+
+TEST(MappingConfig, MinimalFileAndDefaults) {
+  const auto r = load(kHead + "  joystick.1: { x: right_grip.x }\n");
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  EXPECT_EQ(r.config->upstream.bitrate, 250000u);
+  EXPECT_EQ(r.config->upstream.heartbeat_ms, 0);
+  EXPECT_EQ(r.config->downstream.bitrate, 250000u);
+  EXPECT_EQ(r.config->subdevices[0].heartbeat_ms, 100);
+  EXPECT_FALSE(r.config->subdevices[0].mandatory);
+  EXPECT_FALSE(r.config->publish.dds.enabled);
+  EXPECT_FALSE(r.config->publish.lcm.enabled);
+  ASSERT_EQ(r.config->functional_elements.size(), 1u);
+  EXPECT_EQ(r.config->functional_elements[0].fields[0].where.str(), "t.yaml:9:17");
+}
+
+TEST(MappingConfig, YamlSyntaxErrorCarriesItsMarkAndAHintForBracketsInFlowMaps) {
+  const auto r = load(kHead + "  joystick.1: { buttons: right_grip.buttons[1..8] }\n");
+  EXPECT_THAT(errors(r), ElementsAre("t.yaml:9:44: YAML syntax error: end of map flow not found; expected well-formed "
+                                     "YAML (inside { }, quote names with [ ], e.g. \"buttons[1..8]\", or use block style)"));
+  // Quoted, the same line is fine.
+  EXPECT_TRUE(load(kHead + "  joystick.1: { buttons: \"right_grip.buttons[1..8]\" }\n").ok());
+  const auto r2 = load("upstream: { node_id: 1\n");
+  ASSERT_EQ(r2.errors.size(), 1u);
+  EXPECT_THAT(r2.errors[0].str(), ::testing::StartsWith("t.yaml:2:1: YAML syntax error: "));
+}
+
+TEST(MappingConfig, EmptyFileAndMissingSections) {
+  EXPECT_THAT(errors(load("")),
+              ElementsAre("t.yaml:1:1: found nothing at the top; expected a map with upstream, downstream, publish, "
+                          "subdevices, functional_elements"));
+  EXPECT_THAT(errors(load("upstream: { interface: can0 }\n")),
+              ElementsAre("t.yaml:1:1: no 'downstream' in the file; expected a downstream section",
+                          "t.yaml:1:1: no 'subdevices' in the file; expected a subdevices section",
+                          "t.yaml:1:1: no 'functional_elements' in the file; expected a functional_elements section",
+                          "t.yaml:1:11: no 'node_id' in upstream; expected the gateway's node-ID 1..127"));
+}
+
+TEST(MappingConfig, UnknownKeysEverywhereWithNearMissSuggestions) {
+  const auto r = load(R"(upstream: { node_id: 1, identity: { vendor: 1 } }
+downstream: { interface: can1 }
+publsh: {}
+subdevices:
+  a: { driver: mcb402, node_id: 2, hearbeat_ms: 50, colour: red }
+functional_elements:
+  joystick.1:
+    x: { signal: a.x, deadbnd: 3 }
+)");
+  EXPECT_THAT(errors(r), ElementsAre(
+      "t.yaml:1:37: unknown key 'vendor' in upstream identity; expected one of vendor_id, product_code, revision, "
+      "serial",
+      "t.yaml:3:1: unknown key 'publsh' in the file; expected one of upstream, downstream, publish, subdevices, "
+      "functional_elements (did you mean 'publish'?)",
+      "t.yaml:5:36: unknown key 'hearbeat_ms' in sub-device 'a'; expected one of driver, node_id, heartbeat_ms, "
+      "heartbeat_timeout_ms, mandatory, identity, sdo, options (did you mean 'heartbeat_ms'?)",
+      "t.yaml:5:53: unknown key 'colour' in sub-device 'a'; expected one of driver, node_id, heartbeat_ms, "
+      "heartbeat_timeout_ms, mandatory, identity, sdo, options",
+      "t.yaml:8:23: unknown key 'deadbnd' in joystick.1 x; expected one of signal, scale, offset, deadband, "
+      "invert, clamp, fault, interlock (did you mean 'deadband'?)"));
+}
+
+TEST(MappingConfig, InstanceOutOfRangeKindUnknownAndNoInstance) {
+  const auto r = load(kHead + R"(  joystick.0: { x: right_grip.x }
+  pedal.17: { position: right_grip.x }
+  buttons.9:
+    switch[1]: cluster.in[1]
+  whel.1: { position: right_grip.wheel_a }
+  encoder: { position: knob.position }
+  encoder.x: { position: knob.position }
+)");
+  EXPECT_THAT(errors(r), ElementsAre(
+      "t.yaml:9:3: instance 0 of 'joystick.0' is out of range; expected joystick.1..16 (CiA 852 clause 9)",
+      "t.yaml:10:3: instance 17 of 'pedal.17' is out of range; expected pedal.1..16 (CiA 852 clause 9)",
+      "t.yaml:11:3: instance 9 of 'buttons.9' is out of range; expected buttons.1..8 (CiA 852 clause 9)",
+      "t.yaml:13:3: unknown functional element kind 'whel' in 'whel.1'; expected one of joystick, pedal, encoder, "
+      "wheel, buttons, indicators, display (did you mean 'wheel'?)",
+      "t.yaml:14:3: functional element 'encoder' has no instance number; expected encoder.N with N 1..8",
+      "t.yaml:15:3: functional element 'encoder.x' has no instance number; expected encoder.N with N 1..8"));
+}
+
+TEST(MappingConfig, FieldTheElementDoesNotHave) {
+  const auto r = load(kHead + R"(  wheel.1: { x: right_grip.wheel_a }
+  joystick.1:
+    buttons[9]: right_grip.buttons[9]
+    buttons[7..9]: right_grip.buttons[7..9]
+    memroy_x: right_grip.buttons[1]
+)");
+  EXPECT_THAT(errors(r), ElementsAre(
+      "t.yaml:9:14: wheel.1 has no field 'x'; expected one of position",
+      "t.yaml:11:5: joystick.1 has no field 'buttons[9]'; expected one of memory_x, memory_y, memory_z, buttons[1..8], "
+      "x, y, z",
+      "t.yaml:12:5: joystick.1 has no field 'buttons[7..9]'; expected one of memory_x, memory_y, memory_z, "
+      "buttons[1..8], x, y, z",
+      "t.yaml:13:5: joystick.1 has no field 'memroy_x'; expected one of memory_x, memory_y, memory_z, buttons[1..8], "
+      "x, y, z (did you mean 'memory_x'?)"));
+}
+
+TEST(MappingConfig, SignalOfAnUnknownSubDeviceOrNotProvidedByTheDriver) {
+  const auto r = load(kHead + R"(  joystick.1:
+    x: left.x
+    y: left_grip.w
+    buttons[1..8]: left_grip.buttons[1..8]
+    z: left_grip
+)");
+  EXPECT_THAT(errors(r), ElementsAre(
+      "t.yaml:10:8: unknown sub-device 'left' in signal 'left.x'; expected one of right_grip, left_grip, knob, cluster",
+      "t.yaml:11:8: sub-device 'left_grip' (mcb402) has no signal 'w'; expected one of x, y, z, t, buttons[1..7], "
+      "leds[1..4]",
+      "t.yaml:12:20: sub-device 'left_grip' (mcb402) has no signal 'buttons[8]'; expected one of x, y, z, t, "
+      "buttons[1..7], leds[1..4]",
+      "t.yaml:13:8: found 'left_grip' for joystick.1 z; expected a signal as subdevice.signal, "
+      "subdevice.signal[a..b] or subdevice.signal.bitN"));
+}
+
+TEST(MappingConfig, TypesThatDoNotFit) {
+  const auto r = load(kHead + R"(  joystick.1:
+    x: left_grip.buttons[1]
+    y: left_grip.leds[1]
+    buttons[1]: left_grip.x
+  encoder.1: { position: knob.speed }
+  indicators.1:
+    indicator[1..8]: cluster.in[1]
+  display.1:
+    parameter[1]: left_grip.y
+    parameter[2]: cluster.aout[1]
+  pedal.1:
+    position: cluster.analog[1]
+)");
+  EXPECT_THAT(errors(r), ElementsAre(
+      "t.yaml:10:8: signal 'left_grip.buttons[1]' is a Button signal; expected an Axis or Analog signal for "
+      "joystick.1 x",
+      "t.yaml:11:8: signal 'left_grip.leds[1]' is an Output signal; expected an Axis or Analog signal for joystick.1 y",
+      "t.yaml:12:17: signal 'left_grip.x' is an Axis signal; expected a Button or Digital signal for joystick.1 "
+      "buttons[1]",
+      "t.yaml:13:26: signal 'knob.speed' is a Speed signal; expected a Position or Analog signal for encoder.1 position",
+      "t.yaml:15:22: signal 'cluster.in[1]' is a Digital signal; expected an Output signal for indicators.1 "
+      "indicator[1] (an output functional element)",
+      "t.yaml:17:19: signal 'left_grip.y' is an Axis signal; expected an Output signal for display.1 parameter[1] (an "
+      "output functional element)"));
+}
+
+TEST(MappingConfig, NodeIdsOutOfRangeBadNumbersAndDuplicates) {
+  const auto r = load(R"(upstream: { node_id: 0 }
+downstream: { interface: can1 }
+subdevices:
+  a: { driver: mcb402, node_id: 128 }
+  b: { driver: mcb402, node_id: abc }
+  c: { driver: mcb402, node_id: -1 }
+  d: { driver: mcb402, node_id: 0x7f }
+  e: { driver: mcb402, node_id: 127 }
+  f: { driver: mcb402, node_id: [1] }
+functional_elements: {}
+)");
+  EXPECT_THAT(errors(r), ElementsAre(
+      "t.yaml:1:22: node_id 0 is out of range; expected 1..127",
+      "t.yaml:4:33: node_id 128 is out of range; expected 1..127",
+      "t.yaml:5:33: node_id 'abc' is not a number; expected an integer 1..127 (decimal or 0x hex)",
+      "t.yaml:6:33: node_id -1 is out of range; expected 1..127",
+      "t.yaml:8:33: node_id 127 of 'e' is already used by sub-device 'd' (line 7, column 33), so all their default "
+      "COB-IDs clash; expected a node-ID of its own",
+      "t.yaml:9:33: found [1] for node_id; expected an integer 1..127"));
+}
+
+TEST(MappingConfig, ExplicitCobIdsClashWithDefaultsAndEachOther) {
+  const auto r = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  a:
+    driver: mcb402
+    node_id: 2
+    sdo:
+      - { index: 0x1800, sub_index: 1, value: 0x183, type: u32 }
+      - { index: 0x1801, sub_index: 1, value: 0x3A0, type: u32 }
+      - { index: 0x1400, sub_index: 1, value: 0x80000203, type: u32 }
+      - { index: 0x1014, sub_index: 0, value: 0x705, type: u32 }
+  b:
+    driver: mcb402
+    node_id: 3
+    sdo:
+      - { index: 0x1402, sub_index: 1, value: 0x3A0, type: u32 }
+      - { index: 0x1801, sub_index: 1, value: 0x190, type: u32 }
+functional_elements: {}
+)");
+  // a TPDO1 -> 0x183 = b's default TPDO1, which b keeps: clash. a TPDO2 and b RPDO3 both 0x3A0:
+  // clash, reported once, at the later one. a RPDO1 -> 0x203 = b's default RPDO1, but bit 31 says
+  // the PDO is off: no clash. a EMCY -> 0x705, b's heartbeat range: reserved.
+  EXPECT_THAT(errors(r), ElementsAre(
+      "t.yaml:8:9: COB-ID 0x183 of a TPDO 1800h:01 clashes with b TPDO1 (default); expected a COB-ID no other node "
+      "uses",
+      "t.yaml:11:9: COB-ID 0x705 of a EMCY 1014h:00 is reserved by CiA 301 (NMT, SYNC, TIME, SDO, heartbeat or LSS); "
+      "expected a PDO/EMCY COB-ID",
+      "t.yaml:16:9: COB-ID 0x3A0 of b RPDO 1402h:01 clashes with a TPDO 1801h:01; expected a COB-ID no other node "
+      "uses"));
+}
+
+TEST(MappingConfig, ExplicitCobIdReplacesTheNodesOwnDefault) {
+  // b moves its TPDO1 away from 0x183 and a takes it: no clash.
+  const auto r = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  a: { driver: mcb402, node_id: 2, sdo: [ { index: 0x1800, sub_index: 1, value: 0x183, type: u32 } ] }
+  b: { driver: mcb402, node_id: 3, sdo: [ { index: 0x1800, sub_index: 1, value: 0x1A0, type: u32 } ] }
+functional_elements: {}
+)");
+  EXPECT_TRUE(r.ok()) << r.error_text();
+}
+
+TEST(MappingConfig, FieldFedTwiceAndOutputDrivenTwice) {
+  const auto r = load(kHead + R"(  joystick.1:
+    buttons: right_grip.buttons[1..8]
+    buttons[8]: right_grip.buttons[9]
+  joystick.01: { x: right_grip.x }
+  buttons.1:
+    switch[1..4]: right_grip.buttons[1..4]
+    switch[3..6]: right_grip.buttons[3..6]
+  indicators.1:
+    indicator[1..2]: left_grip.leds[1..2]
+    indicator[3]: left_grip.leds[2]
+)");
+  EXPECT_THAT(errors(r), ElementsAre(
+      "t.yaml:11:5: joystick.1 buttons[8] is fed twice (first at line 10, column 5); expected each field fed by one "
+      "signal",
+      "t.yaml:12:3: functional element 'joystick.01' appears twice (first at line 9, column 3); expected each "
+      "functional element once",
+      "t.yaml:15:5: buttons.1 switch[3] is fed twice (first at line 14, column 5); expected each field fed by one "
+      "signal",
+      "t.yaml:18:19: output signal 'left_grip.leds[2]' is driven twice (first at line 17, column 5); expected each "
+      "output driven by one field"));
+}
+
+TEST(MappingConfig, DuplicateKeyInOneMap) {
+  const auto r = load(kHead + R"(  joystick.1:
+    x: right_grip.x
+    x: right_grip.y
+)");
+  EXPECT_THAT(errors(r), ElementsAre("t.yaml:11:5: duplicate key 'x' in joystick.1; expected each key once"));
+}
+
+TEST(MappingConfig, RangesExpandElementWiseAndLengthsMustAgree) {
+  const auto r = load(kHead + R"(  buttons.2:
+    switch[9]: cluster.in[5].bit0
+    switch[10]: cluster.in[6].bit0
+    switch[11]: cluster.in[7].bit0
+    switch[12]: cluster.in[8].bit7
+    switch: right_grip.buttons[1..8]
+  indicators.1:
+    indicator[1..4]: right_grip.leds[1..4]
+)");
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  const auto& b2 = r.config->functional_elements[0];
+  ASSERT_EQ(b2.fields.size(), 12u);
+  EXPECT_EQ(b2.fields[0].field.name, "switch[1]");
+  EXPECT_EQ(b2.fields[0].signal, "buttons[1]");
+  EXPECT_EQ(b2.fields[0].signal_bit, 0xFF);  // a Button: the whole value
+  EXPECT_EQ(b2.fields[8].field.name, "switch[9]");
+  EXPECT_EQ(b2.fields[8].signal, "in[5]");
+  EXPECT_EQ(b2.fields[8].field.sub, 0x3A);  // cluster 2: 39h.., switch 9 is the next byte
+  EXPECT_EQ(b2.fields[11].signal, "in[8]");
+  EXPECT_EQ(b2.fields[11].signal_bit, 7);
+  EXPECT_EQ(r.config->functional_elements[1].fields[3].signal, "leds[4]");
+
+  const auto bad = load(kHead + R"(  joystick.1:
+    buttons[1..3]: right_grip.buttons[1]
+    x: right_grip.buttons[1..2]
+    buttons[4]: right_grip.buttons[2..3]
+  buttons.1:
+    switch: knob.position
+  joystick.2:
+    buttons: right_grip.buttons[1..9]
+)");
+  EXPECT_THAT(errors(bad), ElementsAre(
+      "t.yaml:10:20: joystick.1 buttons[1..3] has 3 elements but 'right_grip.buttons[1]' has 1; expected ranges of "
+      "equal length",
+      "t.yaml:11:8: joystick.1 x has 1 element but 'right_grip.buttons[1..2]' has 2; expected ranges of equal length",
+      "t.yaml:12:17: joystick.1 buttons[4] has 1 element but 'right_grip.buttons[2..3]' has 2; expected ranges of "
+      "equal length",
+      "t.yaml:14:13: found the single signal 'knob.position' for the field group buttons.1 switch; expected a "
+      "signal range such as knob.buttons[1..8], or a bit-packed signal",
+      "t.yaml:16:14: signal range 'right_grip.buttons[1..9]' has 9 elements but joystick.2 has buttons[1..8]; "
+      "expected at most 8 signals"));
+}
+
+TEST(MappingConfig, BitPackedSignalsFeedOneBitFieldsBitByBit) {
+  // cia401 in[k]/out[k] are bytes (0..255, "bits"): one byte feeds eight switches or is driven
+  // by eight indicators; `.bitN` picks one bit.
+  const auto r = load(kHead + R"(  buttons.1:
+    switch: cluster.in[1..2]
+  joystick.1:
+    buttons[1..8]: cluster.in[3]
+    memory_x: cluster.in[4].bit5
+  indicators.1:
+    indicator[9..16]: cluster.out[2]
+    indicator[17]: cluster.out[3].bit2
+)");
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  const auto& j1 = r.config->functional_elements[0];
+  ASSERT_EQ(j1.fields.size(), 9u);
+  EXPECT_EQ(j1.fields[0].field.name, "memory_x");
+  EXPECT_EQ(j1.fields[0].signal, "in[4]");
+  EXPECT_EQ(j1.fields[0].signal_bit, 5);
+  EXPECT_EQ(j1.fields[8].field.name, "buttons[8]");
+  EXPECT_EQ(j1.fields[8].signal_bit, 7);
+  const auto& b1 = r.config->functional_elements[1];
+  ASSERT_EQ(b1.fields.size(), 16u);  // switch[1..16] from two bytes
+  EXPECT_EQ(b1.fields[9].field.name, "switch[10]");
+  EXPECT_EQ(b1.fields[9].signal, "in[2]");
+  EXPECT_EQ(b1.fields[9].signal_bit, 1);
+  const auto& i1 = r.config->functional_elements[2];
+  ASSERT_EQ(i1.fields.size(), 9u);
+  EXPECT_EQ(i1.fields[0].field.name, "indicator[9]");
+  EXPECT_EQ(i1.fields[0].signal, "out[2]");
+  EXPECT_EQ(i1.fields[0].signal_bit, 0);
+  EXPECT_EQ(i1.fields[8].signal, "out[3]");
+  EXPECT_EQ(i1.fields[8].signal_bit, 2);
+  EXPECT_EQ(i1.fields[8].output_params().signal_bit, 2);
+  EXPECT_EQ(j1.fields[0].input_params().signal_bit, 5);
+
+  const auto bad = load(kHead + R"(  buttons.1:
+    switch[1..4]: cluster.in[1]
+    switch[5]: cluster.in[2].bit8
+    switch[6]: left_grip.buttons[1].bit0
+    switch[7]: "cluster.in[1..2].bit0"
+  indicators.1:
+    indicator[1..8]: cluster.out[1]
+    indicator[9]: cluster.out[1].bit3
+  joystick.1:
+    buttons: cluster.in[1..2]
+)");
+  EXPECT_THAT(errors(bad), ElementsAre(
+      "t.yaml:10:19: buttons.1 switch[1..4] has 4 elements but 'cluster.in[1]' has 8 bits; expected ranges of equal "
+      "length",
+      "t.yaml:11:16: found bit 8 of 'cluster.in[2]'; expected a bit 0..7",
+      "t.yaml:12:16: found bit 0 of 'left_grip.buttons[1]', which is not bit-packed; expected the signal without .bitN",
+      "t.yaml:13:16: found 'cluster.in[1..2].bit0' for buttons.1 switch[7]; expected a signal as subdevice.signal, "
+      "subdevice.signal[a..b] or subdevice.signal.bitN",
+      "t.yaml:16:19: output signal 'cluster.out[1] bit 3' is driven twice (first at line 15, column 5); expected "
+      "each output driven by one field",
+      "t.yaml:18:14: signal range 'cluster.in[1..2]' has 16 bits but joystick.1 has buttons[1..8]; expected at most 8 "
+      "signals"));
+}
+
+TEST(MappingConfig, DriversAndTheirOptionsAreCheckedByTheCatalogue) {
+  const auto r = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  a: { driver: mcb420, node_id: 2 }
+  b: { driver: cia401, node_id: 3 }
+  c: { driver: elobau-mfg, node_id: 4, options: { colour: red } }
+  d: { node_id: 5 }
+functional_elements:
+  joystick.1: { x: a.x, y: b.analog }
+)");
+  EXPECT_THAT(errors(r), ElementsAre(
+      "t.yaml:4:16: unknown driver 'mcb420' (no such family); expected one of elobau-mfg, mcb402, novotechnik-406, "
+      "cia401 (did you mean 'mcb402'?)",
+      "t.yaml:5:16: driver cia401 refused sub-device 'b': option 'eds' missing; expected options the cia401 driver "
+      "accepts",
+      "t.yaml:6:40: driver elobau-mfg refused sub-device 'c': unknown option 'colour'; expected options the "
+      "elobau-mfg driver accepts",
+      "t.yaml:7:6: no 'driver' in sub-device 'd'; expected one of elobau-mfg, mcb402, novotechnik-406, cia401"));
+  // Signals of a refused driver are not reported again.
+}
+
+TEST(MappingConfig, SdoWritesAreTypedAndRangeChecked) {
+  const auto r = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  a:
+    driver: mcb402
+    node_id: 2
+    sdo:
+      - { index: 0x1017, sub_index: 0, value: 70000, type: u16 }
+      - { index: 0x2000, sub_index: 1, value: -129, type: i8 }
+      - { index: 0x2000, sub_index: 2, value: 1, type: uint8 }
+      - { index: 0x0FFF, sub_index: 0, value: 1, type: u8 }
+      - { index: 0x2001, value: 1, type: u8 }
+      - { index: 0x2002, sub_index: 0, value: -2, type: i16 }
+functional_elements: {}
+)");
+  EXPECT_THAT(errors(r), ElementsAre(
+      "t.yaml:8:47: value of type u16 70000 is out of range; expected 0x0..0xFFFF",
+      "t.yaml:9:47: value of type i8 -129 is out of range; expected -128..127",
+      "t.yaml:10:56: found 'uint8' for type; expected one of u8, u16, u32, i8, i16, i32",
+      "t.yaml:11:18: index 0x0FFF is out of range; expected 0x1000..0xFFFF",
+      "t.yaml:12:9: no 'sub_index' in an sdo write; expected a sub-index 0..255"));
+  const auto ok = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  a: { driver: mcb402, node_id: 2, sdo: [ { index: 0x2002, sub_index: 0, value: -2, type: i16 } ] }
+functional_elements: {}
+)");
+  ASSERT_TRUE(ok.ok()) << ok.error_text();
+  EXPECT_EQ(ok.config->subdevices[0].sdo[0].to_sdo_write().data, (std::vector<std::uint8_t>{0xFE, 0xFF}));
+}
+
+TEST(MappingConfig, LongFormOptionsAreParsedAndChecked) {
+  const auto r = load(kHead + R"(  joystick.1:
+    x: { signal: right_grip.x, scale: 300, offset: -5, deadband: 2, invert: true, clamp: [-30000, 30000], fault: 7, interlock: false }
+    buttons: { signal: "right_grip.buttons[1..2]", invert: yes }
+  indicators.1:
+    indicator[1]: { signal: "right_grip.leds[1]", scale: 2 }
+)");
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  const auto& x = r.config->functional_elements[0].fields[2];
+  ASSERT_EQ(x.field.name, "x");
+  EXPECT_EQ(x.options.scale, std::optional<double>(300.0));
+  EXPECT_EQ(x.options.offset, -5);
+  EXPECT_EQ(x.options.deadband, 2);
+  EXPECT_TRUE(x.options.invert);
+  EXPECT_EQ(x.options.clamp, (std::pair<std::int64_t, std::int64_t>(-30000, 30000)));
+  EXPECT_EQ(x.options.fault, std::optional<std::int64_t>(7));
+  EXPECT_EQ(x.options.interlock, std::optional<bool>(false));
+  EXPECT_TRUE(r.config->functional_elements[0].fields[1].options.invert);  // buttons[2]
+  EXPECT_EQ(r.config->functional_elements[1].fields[0].output_params().scale, 2.0);
+
+  const auto bad = load(kHead + R"(  joystick.1:
+    x: { signal: right_grip.x, clamp: [5, -5], scale: 0 }
+    y: { signal: right_grip.y, deadband: -1, invert: maybe }
+    z: { scale: 2 }
+  indicators.1:
+    indicator[1]: { signal: "right_grip.leds[1]", deadband: 2 }
+  joystick.2:
+    buttons[1]: { signal: "right_grip.buttons[1]", scale: 2, fault: 2 }
+    x: { signal: right_grip.x, fault: 40000, clamp: [-40000, 0] }
+  encoder.1:
+    position: { signal: knob.position, fault: 40000, clamp: [-40000, 0] }
+)");
+  EXPECT_THAT(errors(bad), ElementsAre(
+      "t.yaml:10:39: found [5, -5] for clamp; expected [min, max] with integers -32768 <= min <= max <= 32767",
+      "t.yaml:10:55: found '0' for scale; expected a non-zero number",
+      "t.yaml:11:42: deadband -1 is out of range; expected 0..2147483647",
+      "t.yaml:11:54: found 'maybe' for invert; expected true or false",
+      "t.yaml:12:8: no 'signal' in joystick.1 z; expected the feeding signal, e.g. right_grip.x",
+      "t.yaml:14:51: unknown key 'deadband' in indicators.1 indicator[1]; expected one of signal, scale, offset, "
+      "invert, clamp",
+      "t.yaml:16:52: unknown key 'scale' in joystick.2 buttons[1]; expected one of signal, invert, fault, interlock",
+      "t.yaml:16:69: fault 2 is out of range; expected 0..1",
+      "t.yaml:17:39: fault 40000 is out of range; expected -32768..32767",
+      "t.yaml:17:53: found [-40000, 0] for clamp; expected [min, max] with integers -32768 <= min <= max <= 32767"));
+  // An INTEGER32 field (6120h) takes what an INTEGER16 one refuses.
+  EXPECT_EQ(bad.errors.size(), 10u);
+}
+
+TEST(MappingConfig, SubdeviceIdentityHeartbeatAndOptionsAreKept) {
+  const auto r = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  a:
+    driver: elobau-mfg
+    node_id: 2
+    heartbeat_ms: 50
+    heartbeat_timeout_ms: 120
+    mandatory: true
+    identity: { device_type: 0x00010196, vendor_id: 0x0000004B, product_code: 12, revision: 0x00020001, serial: 99 }
+    options: { tolerance: 3 }
+  b: { driver: mcb402, node_id: 3, identity: { vendor_id: 7 } }
+functional_elements: {}
+)");
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  const auto& a = r.config->subdevices[0];
+  EXPECT_EQ(a.heartbeat_ms, 50);
+  EXPECT_EQ(a.heartbeat_timeout_ms, 120);
+  EXPECT_TRUE(a.mandatory);
+  EXPECT_EQ(a.identity.device_type, std::optional<std::uint32_t>(0x00010196));
+  EXPECT_EQ(a.identity.vendor_id, std::optional<std::uint32_t>(0x4B));
+  EXPECT_EQ(a.identity.product_code, std::optional<std::uint32_t>(12));
+  EXPECT_EQ(a.identity.revision, std::optional<std::uint32_t>(0x00020001));
+  EXPECT_EQ(a.identity.serial, std::optional<std::uint32_t>(99));
+  EXPECT_EQ(a.options.get("tolerance"), std::optional<std::string>("3"));
+  EXPECT_EQ(a.node(), subdevices::NodeId{2});
+  const auto ns = a.node_settings();
+  EXPECT_EQ(ns.name, "a");
+  EXPECT_EQ(ns.node, subdevices::NodeId{2});
+  EXPECT_EQ(ns.heartbeat_ms, 50);
+  EXPECT_EQ(ns.heartbeat_timeout_ms, 120);
+  EXPECT_TRUE(ns.mandatory);
+  EXPECT_EQ(ns.identity.serial, std::optional<std::uint32_t>(99));
+  const auto& b = r.config->subdevices[1];
+  EXPECT_EQ(b.identity.vendor_id, std::optional<std::uint32_t>(7));
+  EXPECT_FALSE(b.identity.product_code.has_value());  // unset: not checked
+}
+
+TEST(MappingConfig, HeartbeatTimeoutMustExceedTheHeartbeat) {
+  const auto r = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  a: { driver: mcb402, node_id: 2, heartbeat_ms: 100, heartbeat_timeout_ms: 100 }
+  b: { driver: mcb402, node_id: 3, heartbeat_ms: 100, heartbeat_timeout_ms: 250 }
+  c: { driver: mcb402, node_id: 4, heartbeat_ms: 0, heartbeat_timeout_ms: 10 }
+functional_elements: {}
+)");
+  EXPECT_THAT(errors(r), ElementsAre("t.yaml:4:77: heartbeat_timeout_ms 100 is not longer than heartbeat_ms 100; "
+                                     "expected more than 100 (or 0 for 1.5 x heartbeat_ms)"));
+}
+
+TEST(MappingConfig, PublishAndUpstreamSectionsKeepTheirData) {
+  const auto r = load(R"(upstream:
+  interface: can0
+  node_id: 0x20
+  bitrate: 500000
+  identity: { vendor_id: 0x1234, product_code: 2, revision: 3, serial: 4 }
+  heartbeat_ms: 250
+  store: /var/lib/oegw/x.store
+downstream: { interface: can1, bitrate: 125000 }
+publish:
+  dds: { domain: 7, partition: cab }
+  lcm: { enabled: false, url: "udpm://239.255.76.67:7667?ttl=1", channel_prefix: CAB_ }
+subdevices: {}
+functional_elements: {}
+)");
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  const auto& c = *r.config;
+  EXPECT_EQ(c.upstream.bitrate, 500000u);
+  EXPECT_EQ(c.upstream.identity.vendor_id, 0x1234u);
+  EXPECT_EQ(c.upstream.identity.serial, 4u);
+  EXPECT_EQ(c.upstream.heartbeat_ms, 250);
+  EXPECT_EQ(c.upstream.store, "/var/lib/oegw/x.store");
+  EXPECT_EQ(c.downstream.bitrate, 125000u);
+  EXPECT_TRUE(c.publish.dds.enabled);  // a dds section turns it on unless enabled: false
+  EXPECT_EQ(c.publish.dds.domain, 7u);
+  EXPECT_EQ(c.publish.dds.partition, "cab");
+  EXPECT_FALSE(c.publish.lcm.enabled);
+  EXPECT_EQ(c.publish.lcm.url, "udpm://239.255.76.67:7667?ttl=1");
+  EXPECT_EQ(c.publish.lcm.channel_prefix, "CAB_");
+}
+
+TEST(MappingConfig, EveryPrefixOfTheDemoFileGivesAConfigOrErrorsNeverACrash) {
+  std::ifstream in(source_dir() + "/config/demo.yaml");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_GT(text.size(), 1000u);
+  std::size_t ok = 0;
+  for (std::size_t n = 0; n <= text.size(); n += 7) {
+    const auto r = load(text.substr(0, n));
+    EXPECT_NE(r.ok(), !r.errors.empty()) << n;  // exactly one of the two
+    for (const auto& e : r.errors) {
+      EXPECT_GE(e.where.line, 1);
+      EXPECT_GE(e.where.column, 1);
+    }
+    ok += r.ok() ? 1 : 0;
+  }
+  EXPECT_GT(ok, 0u);  // the cuts after the last element's lines load
+}
+
+TEST(MappingConfig, MissingFileIsAnErrorNotACrash) {
+  const auto r = load_config("/nonexistent/oegw.yaml", fake_catalogue);
+  EXPECT_THAT(errors(r), ElementsAre("/nonexistent/oegw.yaml:1:1: cannot open the file; expected a readable mapping file"));
+}
+
+}  // namespace
+}  // namespace oegw::mapping
