@@ -1,0 +1,291 @@
+#include "gateway/gateway.hpp"
+
+#include <algorithm>
+
+namespace oegw::gateway {
+
+using canopen::TimePoint;
+using subdevices::SignalStatus;
+namespace sd = oegw::subdevices;
+
+mapping::SignalCatalogue driver_catalogue() {
+  return [](std::string_view family, const sd::DriverOptions& options,
+            std::string& error) -> std::optional<std::vector<sd::SignalInfo>> {
+    // A driver on node 1 with no bus: only its signal list is wanted.
+    auto driver = sd::make_driver(family, canopen::NodeId{1}, {}, options, error);
+    if (!driver) return std::nullopt;
+    return driver->signals();
+  };
+}
+
+namespace {
+
+OeDeviceConfig oe_config(const mapping::Config& c, const GatewayOptions& o) {
+  OeDeviceConfig oe;
+  oe.node_id = canopen::NodeId{c.upstream.node_id};
+  oe.identity = {c.upstream.identity.vendor_id, c.upstream.identity.product_code, c.upstream.identity.revision,
+                 c.upstream.identity.serial};
+  oe.heartbeat_ms = c.upstream.heartbeat_ms;
+  for (const auto& fe : c.functional_elements) {
+    oe.fes.push_back(fe.id);
+    // Table 8 distinguishes joysticks with buttons.
+    if (fe.id.kind == mapping::FeKind::Joystick &&
+        std::none_of(fe.fields.begin(), fe.fields.end(),
+                     [](const auto& f) { return f.field.name.rfind("buttons", 0) == 0; }))
+      oe.joysticks_without_buttons.insert(fe.id);
+  }
+  oe.store_path = o.store_path ? *o.store_path : std::filesystem::path(c.upstream.store);
+  return oe;
+}
+
+SignalStatus worse(SignalStatus a, SignalStatus b) {
+  auto rank = [](SignalStatus s) {
+    switch (s) {
+      case SignalStatus::Valid: return 0;
+      case SignalStatus::Stale: return 1;
+      case SignalStatus::NotAvailable: return 2;
+      case SignalStatus::Error: return 3;
+      case SignalStatus::Offline: return 4;
+    }
+    return 4;
+  };
+  return rank(a) >= rank(b) ? a : b;
+}
+
+}  // namespace
+
+Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, canopen::FrameSink downstream,
+                 GatewayOptions options)
+    : config_(config),
+      master_(master_od_, downstream, canopen::MasterConfig{.heartbeat_entries = 32, .sdo_timeout = options.sdo_timeout}),
+      network_(master_, options.timing) {
+  oe_ = std::make_unique<OeDevice>(oe_config(config_, options), std::move(upstream));
+  for (const auto& sc : config_.subdevices) {
+    std::string error;
+    auto driver = sd::make_driver(sc.driver, sc.node(), downstream, sc.options, error);
+    if (!driver) throw std::runtime_error(sc.where.str() + ": " + error);  // load_config checked it
+    sd::NodeSettings ns;
+    ns.name = sc.name;
+    ns.node = sc.node();
+    ns.heartbeat_ms = sc.heartbeat_ms;
+    ns.heartbeat_timeout_ms = sc.heartbeat_timeout_ms;
+    ns.mandatory = sc.mandatory;
+    ns.identity = sc.identity;
+    for (const auto& w : sc.sdo) ns.sdo.push_back(w.to_sdo_write());
+    sd::Driver* d = driver.get();
+    const std::string name = sc.name;
+    d->on_change = [this, name](std::size_t i, const sd::SignalValue& v) { on_signal(name, i, v); };
+    network_.add(std::move(ns), std::move(driver));
+    subs_[sc.name] = Sub{&sc, d, false, false, "not booted yet"};
+  }
+  for (const auto& fe : config_.functional_elements) {
+    for (const auto& f : fe.fields) {
+      Binding b{fe.id, &f, std::nullopt, {}, 0, SignalStatus::Offline};
+      Sub& s = subs_.at(f.subdevice);
+      b.signal = *s.driver->find_signal(f.signal);
+      if (fe.input()) {
+        b.translator.emplace(f.input_params());
+      } else {
+        b.output = f.output_params();
+      }
+      by_signal_[{f.subdevice, b.signal}].push_back(bindings_.size());
+      bindings_.push_back(std::move(b));
+    }
+  }
+  network_.on_node_state = [this](const std::string& name, sd::NodeState st, const std::string& why) {
+    auto it = subs_.find(name);
+    if (it == subs_.end()) return;
+    Sub& s = it->second;
+    const bool was = s.operational;
+    s.operational = st == sd::NodeState::Operational;
+    if (!s.operational) s.emcy_error = false;
+    s.why = std::string(sd::to_string(st)) + " (" + why + ")";
+    log(name + ": " + s.why);
+    if (s.operational && !was) {
+      // Outputs the host set meanwhile reach the device now.
+      for (auto& b : bindings_) {
+        if (b.field->subdevice != name || b.translator) continue;
+        const auto v = oe_->get(b.fe, b.field->field.name);
+        if (v) on_output(b.fe, b.field->field.name, *v);
+      }
+    }
+    // Only a node that failed (not one still booting for the first time) is a fault.
+    if (st == sd::NodeState::Missing || st == sd::NodeState::Refused || s.operational) update_fault(s);
+  };
+  network_.on_emcy = [this](const std::string& name, const canopen::EmcyMessage& e, const sd::DecodedEmcy& d) {
+    auto it = subs_.find(name);
+    if (it == subs_.end()) return;
+    log(name + ": EMCY " + std::to_string(e.code) + " " + d.text);
+    it->second.emcy_error = d.error && e.code != 0;
+    update_fault(it->second);
+  };
+  network_.on_bad_input = [this](const std::string& what) { log(what); };
+  oe_->on_output([this](mapping::FeId fe, const std::string& field, std::int64_t value) { on_output(fe, field, value); });
+}
+
+canopen::ParameterStore::LoadResult Gateway::start(TimePoint now) {
+  now_ = now;
+  auto r = oe_->start(now);
+  // Every input starts at its fault value (the signals are Offline until their node is up).
+  for (auto& b : bindings_)
+    if (b.translator) (void)oe_->set_input(b.fe, b.field->field.name, b.translator->value(), now);
+  network_.start(now);
+  return r;
+}
+
+void Gateway::log(const std::string& line) {
+  if (on_log) on_log(line);
+}
+
+void Gateway::on_signal(const std::string& sub, std::size_t index, const sd::SignalValue& v) {
+  auto it = by_signal_.find({sub, index});
+  std::set<mapping::FeId> changed;
+  if (it != by_signal_.end()) {
+    for (const std::size_t bi : it->second) {
+      Binding& b = bindings_[bi];
+      if (!b.translator) continue;
+      const std::int64_t before = b.translator->value();
+      const SignalStatus status_before = b.status;
+      const std::int64_t fe_value = b.translator->update(v);
+      b.status = v.status;
+      if (fe_value != before || b.status != status_before) changed.insert(b.fe);
+      (void)oe_->set_input(b.fe, b.field->field.name, fe_value, now_);
+    }
+  }
+  auto s = subs_.find(sub);
+  if (s != subs_.end()) update_fault(s->second);
+  if (on_fe_change)
+    for (const auto& fe : changed) on_fe_change(fe);
+}
+
+void Gateway::update_fault(Sub& s) {
+  // A bound input in Error / NotAvailable counts; Offline is the node's own state.
+  std::string reason;
+  if (!s.operational) {
+    reason = s.why;
+  } else if (s.emcy_error) {
+    reason = "error EMCY";
+  } else {
+    for (const auto& b : bindings_) {
+      if (b.field->subdevice != s.config->name || !b.translator) continue;
+      if (b.status == SignalStatus::Error || b.status == SignalStatus::NotAvailable) {
+        reason = b.field->signal + " " + std::string(sd::to_string(b.status));
+        break;
+      }
+    }
+  }
+  const std::string& name = s.config->name;
+  const bool was = faults_.count(name) != 0;
+  if (!reason.empty() && !was) {
+    faults_[name] = reason;
+    oe_->raise_subdevice_fault(name, s.config->node(), now_);
+    log(name + ": fault (" + reason + "): its inputs are at their fault values, EMCY 7000h sent upstream");
+  } else if (reason.empty() && was) {
+    faults_.erase(name);
+    oe_->clear_subdevice_fault(s.config->node(), now_);
+    log(name + ": fault cleared");
+  } else if (!reason.empty()) {
+    faults_[name] = reason;
+  }
+}
+
+void Gateway::on_output(mapping::FeId fe, const std::string& field, std::int64_t value) {
+  for (auto& b : bindings_) {
+    if (b.translator || !(b.fe == fe) || b.field->field.name != field) continue;
+    Sub& s = subs_.at(b.field->subdevice);
+    const auto key = std::make_pair(b.field->subdevice, b.signal);
+    const std::int64_t current = output_values_.count(key) ? output_values_[key] : 0;
+    const std::int64_t next = mapping::apply_output(b.output, value, current);
+    output_values_[key] = next;
+    if (s.operational) (void)s.driver->set_output(b.signal, next, now_);
+  }
+}
+
+bool Gateway::on_upstream_frame(const canopen::CanFrame& frame, TimePoint now) {
+  now_ = now;
+  return oe_->on_frame(frame, now);
+}
+
+bool Gateway::on_downstream_frame(const canopen::CanFrame& frame, TimePoint now) {
+  now_ = now;
+  return network_.on_frame(frame, now);
+}
+
+void Gateway::on_upstream_bus_event(canopen::BusEvent event, TimePoint now) {
+  now_ = now;
+  oe_->node().on_bus_event(event, now);
+}
+
+void Gateway::advance(TimePoint now) {
+  now_ = now;
+  oe_->advance(now);
+  network_.advance(now);
+}
+
+std::optional<TimePoint> Gateway::next_deadline() const {
+  auto a = oe_->next_deadline();
+  auto b = network_.next_deadline();
+  if (!a) return b;
+  if (!b) return a;
+  return std::min(*a, *b);
+}
+
+std::vector<mapping::FeId> Gateway::fes() const {
+  std::vector<mapping::FeId> out;
+  for (const auto& fe : config_.functional_elements) out.push_back(fe.id);
+  return out;
+}
+
+std::vector<Gateway::FieldState> Gateway::fields(mapping::FeId fe) const {
+  std::vector<FieldState> out;
+  for (const auto& b : bindings_) {
+    if (!(b.fe == fe)) continue;
+    FieldState f;
+    f.name = b.field->field.name;
+    f.value = oe_->get(fe, f.name).value_or(0);
+    f.status = b.translator ? b.status : SignalStatus::Valid;
+    f.interlocked = b.translator && b.translator->interlocked() && b.status == SignalStatus::Valid;
+    out.push_back(f);
+  }
+  return out;
+}
+
+FeStatus Gateway::status(mapping::FeId fe) const {
+  SignalStatus worst = SignalStatus::Valid;
+  bool any = false;
+  for (const auto& b : bindings_) {
+    if (!(b.fe == fe) || !b.translator) continue;
+    worst = any ? worse(worst, b.status) : b.status;
+    any = true;
+  }
+  return static_cast<FeStatus>(static_cast<std::uint8_t>(worst));
+}
+
+void Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, TimePoint now) {
+  now_ = now;
+  const mapping::FeId fe{mapping::FeKind::IndicatorCluster, instance};
+  for (unsigned i = 1; i <= 64; ++i) {
+    const std::string field = "indicator[" + std::to_string(i) + "]";
+    const auto f = mapping::find_fe_field(fe, field);
+    if (!f) continue;
+    const std::int64_t bit = static_cast<std::int64_t>((bits >> (i - 1)) & 1u);
+    auto* sub = oe_->od().find(f->index, f->sub);
+    if (sub == nullptr) continue;
+    std::uint8_t byte = sub->value.empty() ? 0 : sub->value[0];
+    byte = static_cast<std::uint8_t>(bit ? (byte | (1u << f->bit)) : (byte & ~(1u << f->bit)));
+    // Written as the host would: the dictionary's observers report the change to on_output.
+    (void)oe_->od().write(f->index, f->sub, std::span<const std::uint8_t>(&byte, 1), canopen::Origin::Local);
+  }
+}
+
+void Gateway::command_display(std::uint8_t instance, const std::array<std::int16_t, 12>& parameters, TimePoint now) {
+  now_ = now;
+  const mapping::FeId fe{mapping::FeKind::Display, instance};
+  for (unsigned p = 1; p <= 12; ++p) {
+    const auto f = mapping::find_fe_field(fe, "parameter[" + std::to_string(p) + "]");
+    if (!f || oe_->od().find(f->index, f->sub) == nullptr) continue;
+    (void)oe_->od().set<std::int16_t>(f->index, f->sub, parameters[p - 1], canopen::Origin::Local);
+  }
+}
+
+}  // namespace oegw::gateway

@@ -1,0 +1,117 @@
+// The OE interface module at run time: one CiA 852 device upstream (OeDevice), the network
+// manager and drivers downstream, and between them the mapping file's bindings with their
+// translators and the fault policy. Sans I/O: frames and time come in on two sides.
+//
+// Fault policy (DESIGN.md "A lost input never keeps the machine moving"):
+//  * a sub-device that is lost (heartbeat timeout, refused at boot, never seen), reports an
+//    error EMCY, or sends error / not-available codes for a bound signal: every FE field it
+//    feeds takes its fault value at once (the translators see the non-Valid status), and EMCY
+//    7000h ("additional modules", CiA 852 Table 37) goes upstream naming it; when the cause is
+//    gone the error-reset EMCY follows;
+//  * neutral interlock: after that, each axis stays at neutral until it has been seen inside
+//    its deadband (mapping/translate.hpp).
+#pragma once
+
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "canopen/master.hpp"
+#include "gateway/fe_samples.hpp"
+#include "gateway/oe_device.hpp"
+#include "mapping/config.hpp"
+#include "mapping/translate.hpp"
+#include "subdevices/network_manager.hpp"
+
+namespace oegw::gateway {
+
+// The catalogue of driver signals the mapping file is checked against (built on make_driver).
+mapping::SignalCatalogue driver_catalogue();
+
+struct GatewayOptions {
+  std::optional<std::filesystem::path> store_path;  // overrides upstream.store (demo, tests)
+  canopen::Duration sdo_timeout = std::chrono::seconds(1);
+  subdevices::NetworkTiming timing{};
+};
+
+class Gateway {
+ public:
+  Gateway(const mapping::Config& config, canopen::FrameSink upstream, canopen::FrameSink downstream,
+          GatewayOptions options = {});
+  Gateway(const Gateway&) = delete;
+  Gateway& operator=(const Gateway&) = delete;
+
+  // Powers the upstream device on (boot-up) and starts booting the sub-devices.
+  canopen::ParameterStore::LoadResult start(canopen::TimePoint now);
+
+  bool on_upstream_frame(const canopen::CanFrame& frame, canopen::TimePoint now);
+  bool on_downstream_frame(const canopen::CanFrame& frame, canopen::TimePoint now);
+  void on_upstream_bus_event(canopen::BusEvent event, canopen::TimePoint now);
+  void advance(canopen::TimePoint now);
+  [[nodiscard]] std::optional<canopen::TimePoint> next_deadline() const;
+
+  // The state of one FE: its fields' current values (as in the upstream dictionary) and the
+  // worst status of the signals feeding it.
+  struct FieldState {
+    std::string name;
+    std::int64_t value = 0;
+    subdevices::SignalStatus status = subdevices::SignalStatus::Offline;
+    bool interlocked = false;
+  };
+  [[nodiscard]] std::vector<FieldState> fields(mapping::FeId fe) const;
+  [[nodiscard]] FeStatus status(mapping::FeId fe) const;
+  [[nodiscard]] std::vector<mapping::FeId> fes() const;
+
+  // Commands from the machine application (DDS/LCM): written into the upstream dictionary as
+  // the host would (the last writer wins, whatever its source), then driven to the outputs.
+  void command_indicators(std::uint8_t instance, std::uint64_t bits, canopen::TimePoint now);
+  void command_display(std::uint8_t instance, const std::array<std::int16_t, 12>& parameters, canopen::TimePoint now);
+
+  [[nodiscard]] OeDevice& upstream() { return *oe_; }
+  [[nodiscard]] subdevices::NetworkManager& downstream() { return network_; }
+  [[nodiscard]] const std::map<std::string, std::string>& faults() const { return faults_; }
+
+  // An FE's value or status changed (for the publishers).
+  std::function<void(mapping::FeId)> on_fe_change;
+  // Log lines ("right_grip: missing (heartbeat lost)"), for journald.
+  std::function<void(const std::string&)> on_log;
+
+ private:
+  struct Binding {
+    mapping::FeId fe;
+    const mapping::FieldBinding* field;
+    std::optional<mapping::FieldTranslator> translator;  // inputs
+    mapping::OutputParams output;                         // outputs
+    std::size_t signal = 0;                               // index in the driver's signals
+    subdevices::SignalStatus status = subdevices::SignalStatus::Offline;
+  };
+  struct Sub {
+    const mapping::SubdeviceConfig* config = nullptr;
+    subdevices::Driver* driver = nullptr;
+    bool operational = false;
+    bool emcy_error = false;
+    std::string why;
+  };
+
+  void on_signal(const std::string& sub, std::size_t index, const subdevices::SignalValue& v);
+  void on_output(mapping::FeId fe, const std::string& field, std::int64_t value);
+  void update_fault(Sub& s);
+  void log(const std::string& line);
+
+  mapping::Config config_;
+  canopen::ObjectDictionary master_od_;
+  canopen::Master master_;
+  subdevices::NetworkManager network_;
+  std::unique_ptr<OeDevice> oe_;
+  std::map<std::string, Sub> subs_;
+  std::vector<Binding> bindings_;
+  std::map<std::pair<std::string, std::size_t>, std::vector<std::size_t>> by_signal_;  // -> bindings_
+  std::map<std::pair<std::string, std::size_t>, std::int64_t> output_values_;        // last sent
+  std::map<std::string, std::string> faults_;  // sub-device -> reason
+  canopen::TimePoint now_{};
+};
+
+}  // namespace oegw::gateway
