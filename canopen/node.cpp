@@ -79,6 +79,11 @@ Node::Node(ObjectDictionary& od, NodeConfig config, FrameSink sink)
   sync_.on_length_error = [this](std::uint16_t code) { emcy_.raise(code, 0x10, now_); };
   // CiA 301 §7.2.7.1: an RPDO of the wrong length is reported with EMCY 8210h (or 8220h).
   pdo_.on_length_error = [this](std::uint16_t, std::uint16_t code) { emcy_.raise(code, 0x10, now_); };
+  // The length error is over once an RPDO of the right length has been processed.
+  pdo_.on_rpdo = [this](std::uint16_t) {
+    for (const std::uint16_t code : {PdoService::kEmcyPdoLengthError, PdoService::kEmcyPdoLengthExceeded})
+      if (emcy_.active(code)) emcy_.clear(code, now_);
+  };
   // CiA 301 Table 26: 8130h "life guard error or heartbeat error"; a consumer timeout is a
   // communication error for 1029h.
   hb_consumer_.on_timeout([this](NodeId) {

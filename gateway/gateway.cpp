@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include <fmt/format.h>
+
 namespace oegw::gateway {
 
 using canopen::TimePoint;
@@ -115,7 +117,7 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
   network_.on_emcy = [this](const std::string& name, const canopen::EmcyMessage& e, const sd::DecodedEmcy& d) {
     auto it = subs_.find(name);
     if (it == subs_.end()) return;
-    log(name + ": EMCY " + std::to_string(e.code) + " " + d.text);
+    log(name + ": EMCY " + fmt::format("{:04X}h", e.code) + " " + d.text);
     it->second.emcy_error = d.error && e.code != 0;
     update_fault(it->second);
   };

@@ -4,16 +4,24 @@
 
 #include "gateway/bench_programs.hpp"
 #include "gateway/core_demo.hpp"
+#include "gateway/programs.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{"oegw — CiA 852 operator-environment gateway"};
   app.require_subcommand(0, 1);
 
-  oegw::gateway::DemoOptions demo;
-  auto* demo_cmd = app.add_subcommand("demo", "The embedded demo: a device and a host on the virtual bus (default)");
-  demo_cmd->add_option("--seconds", demo.live_seconds, "How long the joystick moves in operational")
+  oegw::gateway::GatewayDemoOptions demo;
+  auto* demo_cmd = app.add_subcommand("demo", "The embedded demo: gateway, simulated cab devices and a host (default)");
+  demo_cmd->add_option("--seconds", demo.seconds, "How long the operator moves the joysticks")
       ->check(CLI::Range(0.0, 3600.0));
-  demo_cmd->add_flag("--frames", demo.frames, "Print every CAN frame (candump notation)");
+  demo_cmd->add_flag("--frames", demo.frames, "Print every CAN frame of both buses (candump notation)");
+  demo_cmd->add_flag("--fast", demo.fast, "Run on a simulated clock, as fast as possible (deterministic)");
+
+  oegw::gateway::DemoOptions core_demo;
+  auto* core_cmd = app.add_subcommand("core-demo", "The protocol core's demo: one CiA 301 device and a host");
+  core_cmd->add_option("--seconds", core_demo.live_seconds, "How long the inputs move in operational")
+      ->check(CLI::Range(0.0, 3600.0));
+  core_cmd->add_flag("--frames", core_demo.frames, "Print every CAN frame (candump notation)");
 
   oegw::gateway::DeviceOptions device;
   int node_id = 0x20;
@@ -35,15 +43,29 @@ int main(int argc, char** argv) {
                          "Exit 0 once every node is operational, 1 after this many seconds");
   master_cmd->add_option("devices", master.devices, "family:node[:key=value,...], as for oegw-sim")->required();
 
+  std::string config_file;
+  auto* check_cmd = app.add_subcommand("check", "Validate a mapping file and print the upstream layout");
+  check_cmd->add_option("file", config_file, "Mapping file (YAML)")->required();
+  std::string eds_out = "-";
+  auto* eds_cmd = app.add_subcommand("eds", "Write the EDS of the upstream device a mapping file configures");
+  eds_cmd->add_option("file", config_file, "Mapping file (YAML)")->required();
+  eds_cmd->add_option("-o,--output", eds_out, "EDS file to write (default: standard output)");
+  auto* run_cmd = app.add_subcommand("run", "Run the gateway on the CAN interfaces the mapping file names");
+  run_cmd->add_option("file", config_file, "Mapping file (YAML)")->required();
+
   CLI11_PARSE(app, argc, argv);
   spdlog::set_pattern("%^%l%$: %v");  // journald adds its own timestamps
 
   if (*master_cmd) return oegw::gateway::run_master(master);
+  if (*check_cmd) return oegw::gateway::run_check(config_file);
+  if (*eds_cmd) return oegw::gateway::run_eds(config_file, eds_out);
+  if (*run_cmd) return oegw::gateway::run_gateway(config_file);
   if (*dev_cmd) {
     device.node_id = oegw::canopen::NodeId{static_cast<std::uint8_t>(node_id)};
     device.store_path = store;
     device.motion = !no_motion;
     return oegw::gateway::run_device(device);
   }
-  return oegw::gateway::run_demo(demo);
+  if (*core_cmd) return oegw::gateway::run_demo(core_demo);
+  return oegw::gateway::run_gateway_demo(demo);
 }

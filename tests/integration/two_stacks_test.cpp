@@ -212,6 +212,11 @@ TEST_F(TwoStacks, RpdoWritesOutputsAndAShortRpdoRaisesEmcy8210) {
   EXPECT_EQ(emcys_[0].node, kDevice);
   EXPECT_EQ(emcys_[0].code, 0x8210);
   EXPECT_EQ(device_od_->get<std::uint8_t>(0x6200, 1), 0x0F) << "a short RPDO changes nothing";
+  net_.bus().inject(CanFrame(0x220, {0x0A}), "host");
+  net_.run_for(1ms);
+  ASSERT_EQ(emcys_.size(), 2u) << "a good RPDO ends the length error";
+  EXPECT_EQ(emcys_[1].code, 0x0000);
+  EXPECT_EQ(device_od_->get<std::uint8_t>(0x6200, 1), 0x0A);
 }
 
 TEST_F(TwoStacks, NmtCommandsDriveTheStateMachine) {

@@ -1,0 +1,275 @@
+// `oegw demo`: the whole gateway on the in-process virtual bus, in real time. Downstream, the
+// simulated cab devices of config/demo.yaml (an elobau grip, an MCB-402, a pedal, an encoder,
+// a button cluster with lamps) with an operator moving them; the gateway in the middle; upstream,
+// a built-in host controller (a CANopen master) that configures the gateway's PDOs, starts it
+// and reads the joystick from its TPDOs. Then a grip cable is pulled and plugged back.
+#include <unistd.h>
+
+#include <cstdio>
+#include <fstream>
+
+#include <fmt/format.h>
+
+#include "canopen/io/event_loop.hpp"
+#include "canopen/io/virtual_bus.hpp"
+#include "gateway/demo_files.hpp"
+#include "gateway/gateway.hpp"
+#include "gateway/programs.hpp"
+#include "subdevices/sim/sim_bench.hpp"
+
+namespace oegw::gateway {
+
+using namespace canopen;
+using namespace std::chrono_literals;
+namespace sd = oegw::subdevices;
+
+namespace {
+
+constexpr NodeId kGateway{0x20};
+
+std::string replace_all(std::string s, const std::string& from, const std::string& to) {
+  for (auto p = s.find(from); p != std::string::npos; p = s.find(from, p + to.size())) s.replace(p, from.size(), to);
+  return s;
+}
+
+// One line per FE: "joystick.1  valid     x=+12000 y=-300 buttons=10000000".
+std::string fe_line(const Gateway& gw, mapping::FeId fe) {
+  static const char* const kStatus[] = {"valid", "ERROR", "n/a", "stale", "OFFLINE"};
+  std::string out = fmt::format("  {:<13} {:<8}", fmt::format("{}.{}", mapping::to_string(fe.kind), fe.instance),
+                                kStatus[static_cast<int>(gw.status(fe))]);
+  std::string bits_name, bits;
+  bool held = false;
+  for (const auto& f : gw.fields(fe)) {
+    const auto bracket = f.name.find('[');
+    if (bracket != std::string::npos) {
+      const std::string base = f.name.substr(0, bracket);
+      if (base != bits_name && !bits_name.empty()) out += fmt::format(" {}={}", bits_name, bits), bits.clear();
+      bits_name = base;
+      bits += f.value ? '1' : '0';
+      continue;
+    }
+    out += fmt::format(" {}={:+6d}", f.name, f.value);
+    held = held || f.interlocked;
+  }
+  if (!bits_name.empty()) out += fmt::format(" {}={}", bits_name, bits);
+  if (held) out += "  (held at neutral until the axis is seen at zero)";
+  return out;
+}
+
+}  // namespace
+
+int run_gateway_demo(const GatewayDemoOptions& options) {
+  // The demo's files go into a private folder: nothing is left behind, nothing outside is read.
+  char tmpl[] = "/tmp/oegw-demo-XXXXXX";
+  const char* dir_c = ::mkdtemp(tmpl);
+  if (dir_c == nullptr) {
+    std::perror("oegw demo: mkdtemp");
+    return 1;
+  }
+  const std::filesystem::path dir = dir_c;
+  std::ofstream(dir / "generic_pedal.eds") << demo_files::kPedalEds;
+  std::ofstream(dir / "button_cluster.eds") << demo_files::kClusterEds;
+  const std::string yaml = replace_all(demo_files::kDemoYaml, "subdevices/eds/", dir.string() + "/");
+  auto loaded = mapping::load_config_text(yaml, "config/demo.yaml", driver_catalogue());
+  if (!loaded.ok()) {
+    std::fprintf(stderr, "%s", loaded.error_text().c_str());
+    std::filesystem::remove_all(dir);
+    return 1;
+  }
+  const mapping::Config& cfg = *loaded.config;
+
+  // --fast: the same script on a simulated clock, as fast as the machine goes (tests use it).
+  SimulatedClock sim_clock;
+  auto loop_ptr = options.fast ? std::make_unique<EventLoop>(sim_clock) : std::make_unique<EventLoop>();
+  EventLoop& loop = *loop_ptr;
+  bool done = false;
+  VirtualBus up_bus, down_bus;
+  up_bus.run_on(loop);
+  down_bus.run_on(loop);
+  auto gw_up = up_bus.attach("gateway");
+  auto host_port = up_bus.attach("host");
+  auto gw_down = down_bus.attach("gateway");
+  auto sims_port = down_bus.attach("devices");
+  if (options.frames) {
+    up_bus.set_tap([](const BusRecord& r) { std::printf("    up   %-8s %s\n", r.sender.c_str(), r.frame.to_string().c_str()); });
+    down_bus.set_tap([](const BusRecord& r) { std::printf("    down %-8s %s\n", r.sender.c_str(), r.frame.to_string().c_str()); });
+  }
+
+  const TimePoint t0 = loop.now();
+  const bool tty = ::isatty(STDOUT_FILENO) != 0 && !options.frames && !options.fast;
+  auto say = [&](const std::string& s) {
+    std::printf("[%6.2f s] %s\n", std::chrono::duration<double>(loop.now() - t0).count(), s.c_str());
+    std::fflush(stdout);
+  };
+  int failures = 0;
+  auto check = [&](bool ok, const std::string& what) {
+    if (!ok) ++failures;
+    say(std::string(ok ? "ok: " : "FAILED: ") + what);
+  };
+
+  // Downstream: the simulated devices, with the options their drivers take.
+  sd::sim::SimBench bench(gw_down ? sims_port->sink() : FrameSink{});
+  for (const auto& s : cfg.subdevices) {
+    sd::DeviceSpec spec{s.driver, s.node(), s.options};
+    spec.options.values.emplace_back("name", s.name);
+    std::string error;
+    if (!bench.add(spec, error)) {
+      std::fprintf(stderr, "oegw demo: %s\n", error.c_str());
+      return 1;
+    }
+  }
+  // The gateway.
+  GatewayOptions gopt;
+  gopt.store_path = dir / "upstream.store";
+  Gateway gw(cfg, gw_up->sink(), gw_down->sink(), gopt);
+  gw.on_log = [&](const std::string& line) { say("gateway: " + line); };
+  // Upstream: the host controller.
+  ObjectDictionary host_od;
+  Master host(host_od, host_port->sink(), MasterConfig{.heartbeat_entries = 2, .sdo_timeout = 500ms});
+  std::size_t tpdos = 0;
+  std::int16_t host_x = 0, x_min = 0, x_max = 0;
+  std::vector<std::uint16_t> emcys;
+  host.on_other_frame = [&](const CanFrame& f, TimePoint) {
+    if (f.id == 0x1A0 && f.dlc >= 4) {
+      ++tpdos;
+      host_x = static_cast<std::int16_t>(get_u16(&f.data[0]));
+      x_min = std::min(x_min, host_x);
+      x_max = std::max(x_max, host_x);
+    }
+  };
+  host.on_emcy = [&](const EmcyMessage& m, TimePoint) {
+    emcys.push_back(m.code);
+    say(fmt::format("host: EMCY from the gateway: {:04X}h {}", m.code,
+                    m.code == 0x7000 ? fmt::format("(additional modules: sub-device {:02X}h failed)", m.msef[0])
+                    : m.code == 0 ? "(error reset)" : ""));
+  };
+
+  ServiceDriver bench_drv(loop, bench), gw_drv(loop, gw), host_drv(loop, host);
+  sims_port->set_receiver([&](const CanFrame& f, TimePoint t) { bench.on_frame(f, t); bench_drv.rearm(); });
+  gw_down->set_receiver([&](const CanFrame& f, TimePoint t) { gw.on_downstream_frame(f, t); gw_drv.rearm(); });
+  gw_up->set_receiver([&](const CanFrame& f, TimePoint t) { gw.on_upstream_frame(f, t); gw_drv.rearm(); });
+  host_port->set_receiver([&](const CanFrame& f, TimePoint t) { host.on_frame(f, t); host_drv.rearm(); });
+
+  std::printf(
+      "oegw demo: the CiA 852 gateway between a simulated cab and a built-in host controller\n"
+      "  downstream: elobau grip 11h, MCB-402 03h, pedal 30h, Novotechnik encoder 7Fh, button cluster 31h\n"
+      "  upstream:   the gateway is node 20h; the host configures its PDOs and reads the joysticks\n"
+      "  mapping:    config/demo.yaml (run `oegw check config/demo.yaml` to see the layout)\n\n");
+
+  bool moving = false;
+  loop.call_every(loop.now(), 20ms, [&] {
+    if (!moving) return;
+    bench.move(loop.now());
+    bench_drv.rearm();
+  });
+  auto sdo_write = [&](std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data, std::function<void()> next) {
+    host.sdo(kGateway).download(index, sub, data, [&, index, sub, next](SdoAbortCode c, std::vector<std::uint8_t>) {
+      if (c != SdoAbortCode::None) check(false, fmt::format("host: SDO {:04X}h:{:02X}: {}", index, sub, to_string(c)));
+      next();
+    });
+    host_drv.rearm();
+  };
+  auto view = [&](bool final_frame) {
+    std::vector<std::string> lines;
+    for (const auto& fe : gw.fes()) lines.push_back(fe_line(gw, fe));
+    std::string nodes = "  sub-devices:";
+    for (const auto& n : gw.downstream().names()) nodes += fmt::format(" {}={}", n, sd::to_string(gw.downstream().state(n)));
+    lines.push_back(nodes);
+    lines.push_back(fmt::format("  host: {} TPDO1 frames, joystick.1 x as the host reads it = {:+6d}", tpdos, host_x));
+    static std::size_t drawn = 0;
+    if (tty && drawn > 0) std::printf("\x1b[%zuA", drawn);
+    for (const auto& l : lines) std::printf("%s\x1b[K\n", l.c_str());
+    drawn = tty && !final_frame ? lines.size() : 0;
+    std::fflush(stdout);
+  };
+
+  // The script, step by step.
+  std::vector<std::pair<Duration, std::function<void()>>> steps;
+  auto at = [&](Duration d, std::function<void()> fn) { steps.emplace_back(d, std::move(fn)); };
+  at(0ms, [&] {
+    say("power on: the gateway boots (upstream boot-up 720#00) and boots its sub-devices");
+    (void)gw.start(loop.now());
+    bench.start(loop.now());
+    (void)host.monitor_heartbeat(kGateway, 300);
+    gw_drv.rearm();
+    bench_drv.rearm();
+  });
+  at(2500ms, [&] {
+    bool all = true;
+    for (const auto& n : gw.downstream().names()) all = all && gw.downstream().state(n) == sd::NodeState::Operational;
+    check(all, "every sub-device configured and operational");
+    say("host: enables TPDO1 (joystick 1) on 1A0h and RPDO5 (indicators 2) on 225h, sets 6423h TRUE, starts node 20h");
+    // CiA 852 clause 12: the PDOs are disabled by default; the host assigns their COB-IDs.
+    sdo_write(0x1800, 1, encode<std::uint32_t>(0x1A0), [&] {
+      sdo_write(0x1404, 1, encode<std::uint32_t>(0x225), [&] {
+        sdo_write(0x6423, 0, {1}, [&] {
+          host.nmt().start(kGateway);
+          host_drv.rearm();
+          moving = true;
+          say("the operator moves the joysticks:");
+        });
+      });
+    });
+  });
+  const auto live = std::chrono::duration_cast<Duration>(std::chrono::duration<double>(options.seconds));
+  EventLoop::TimerId view_timer = loop.call_every(loop.now() + 3s, tty ? 100ms : 1s, [&] { view(false); });
+  at(3000ms + live, [&] {
+    loop.cancel(view_timer);
+    view(true);
+    check(tpdos > 0 && x_max - x_min > 20000, fmt::format("the host saw joystick 1 move in {} TPDOs (x from {} to {})", tpdos, x_min, x_max));
+    say("host: RPDO 225h#0500000000000000 -> indicators.2 lamps 1 and 3 -> the MCB-402's LEDs");
+    (void)host_port->send(CanFrame(0x225, {0x05, 0, 0, 0, 0, 0, 0, 0}));  // RPDO 5 maps 6200h:09..10h
+  });
+  at(3500ms + live, [&] {
+    auto* mcb = bench.device("left_grip");
+    check(mcb && mcb->output("leds[1]") == 1 && mcb->output("leds[2]") == 0 && mcb->output("leds[3]") == 1,
+          "MCB-402 LEDs 1 and 3 lit, 2 off");
+    say("the right grip's cable is pulled");
+    (void)bench.command("right_grip silent on", loop.now());
+  });
+  at(4500ms + live, [&] {
+    view(true);
+    const auto f = gw.fields({mapping::FeKind::Joystick, 1});
+    const bool neutral = std::all_of(f.begin(), f.end(), [](const auto& s) { return s.value == 0; });
+    check(gw.status({mapping::FeKind::Joystick, 1}) == FeStatus::Offline && neutral,
+          "joystick.1 went offline and every field to its fault value (neutral)");
+    check(std::count(emcys.begin(), emcys.end(), 0x7000) > 0, "the host got EMCY 7000h naming the grip");
+    say("the cable is plugged back and the grip powers up with its stick deflected");
+    moving = false;
+    (void)bench.command("right_grip x 60", loop.now());
+    (void)bench.command("right_grip silent off", loop.now());
+    (void)bench.command("right_grip reboot", loop.now());
+    bench_drv.rearm();
+  });
+  at(7500ms + live, [&] {
+    view(true);
+    const auto x = gw.fields({mapping::FeKind::Joystick, 1});
+    check(gw.downstream().state("right_grip") == sd::NodeState::Operational, "the grip is back: reconfigured and started");
+    check(!x.empty() && std::all_of(x.begin(), x.end(), [](const auto& s) { return s.name != "x" || s.value == 0; }),
+          "joystick.1 x held at neutral although the stick reads 60 %: it has not been seen at zero yet");
+    say("the operator lets the stick and the wheels go back to zero, then moves again");
+    for (const char* axis : {"x", "y", "wheel_a", "wheel_b", "wheel_c"})
+      (void)bench.command(std::string("right_grip ") + axis + " 0", loop.now());
+    moving = true;
+    bench_drv.rearm();
+  });
+  at(9000ms + live, [&] {
+    view(true);
+    check(std::count(emcys.begin(), emcys.end(), 0x0000) > 0, "the host got the error-reset EMCY");
+    check(gw.status({mapping::FeKind::Joystick, 1}) == FeStatus::Valid, "joystick.1 valid and following again");
+    done = true;
+    loop.stop();
+  });
+  for (auto& [d, fn] : steps) loop.call_at(t0 + d, fn);
+  if (options.fast) {
+    while (!done) loop.advance_by(5ms);
+  } else {
+    loop.handle_signals({SIGINT, SIGTERM});
+    loop.run();
+  }
+  std::filesystem::remove_all(dir);
+  std::printf("\n%s\n", failures == 0 ? "demo complete: every step as expected" : "demo: SOME STEPS FAILED");
+  return failures == 0 ? 0 : 1;
+}
+
+}  // namespace oegw::gateway

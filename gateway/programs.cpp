@@ -1,0 +1,175 @@
+#include "gateway/programs.hpp"
+
+#include <cstdio>
+#include <fstream>
+#include <iostream>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "canopen/io/event_loop.hpp"
+#include "canopen/io/socketcan_transport.hpp"
+#include "gateway/eds_writer.hpp"
+#include "gateway/gateway.hpp"
+
+namespace oegw::gateway {
+
+using namespace canopen;
+
+namespace {
+
+std::optional<mapping::Config> load(const std::string& file) {
+  auto r = mapping::load_config(file, driver_catalogue());
+  if (!r.ok()) {
+    std::fprintf(stderr, "%s", r.error_text().c_str());
+    if (!r.error_text().empty() && r.error_text().back() != '\n') std::fprintf(stderr, "\n");
+    std::fprintf(stderr, "%s: %zu error%s; nothing was started\n", file.c_str(), r.errors.size(),
+                 r.errors.size() == 1 ? "" : "s");
+    return std::nullopt;
+  }
+  return std::move(r.config);
+}
+
+std::vector<mapping::FeId> fe_ids(const mapping::Config& c) {
+  std::vector<mapping::FeId> out;
+  for (const auto& fe : c.functional_elements) out.push_back(fe.id);
+  return out;
+}
+
+std::string fe_name(mapping::FeId id) { return fmt::format("{}.{}", mapping::to_string(id.kind), id.instance); }
+
+// Where an FE field travels in the PDOs of clause 12: "TPDO 1 (180h+ID) byte 2 bit 3".
+std::string pdo_place(const std::vector<OePdo>& pdos, const mapping::FeField& f) {
+  for (const auto& p : pdos) {
+    unsigned bit_pos = 0;
+    for (const std::uint32_t entry : p.params.mapping) {
+      const auto index = static_cast<std::uint16_t>(entry >> 16);
+      const auto sub = static_cast<std::uint8_t>(entry >> 8);
+      const unsigned bits = entry & 0xFF;
+      if (index == f.index && sub == f.sub) {
+        const unsigned at = bit_pos + (f.bit == 0xFF ? 0 : f.bit);
+        const CobId cob{p.params.cob_id};
+        std::string where = fmt::format("{} {:>2} (COB-ID {:08X}h{})", p.transmit ? "TPDO" : "RPDO", p.number,
+                                        p.params.cob_id, cob.valid() ? "" : ", disabled by default");
+        if (f.bit == 0xFF) return where + fmt::format(" bytes {}-{}", at / 8, (at + bits) / 8 - 1);
+        return where + fmt::format(" byte {} bit {}", at / 8, at % 8);
+      }
+      bit_pos += bits;
+    }
+  }
+  return "not in a default PDO";
+}
+
+}  // namespace
+
+int run_check(const std::string& file) {
+  const auto cfg = load(file);
+  if (!cfg) return 1;
+  const auto fes = fe_ids(*cfg);
+  const NodeId node{cfg->upstream.node_id};
+  std::set<mapping::FeId> no_buttons;
+  for (const auto& fe : cfg->functional_elements)
+    if (fe.id.kind == mapping::FeKind::Joystick &&
+        std::none_of(fe.fields.begin(), fe.fields.end(), [](const auto& b) { return b.field.name.rfind("buttons", 0) == 0; }))
+      no_buttons.insert(fe.id);
+  std::printf("%s: valid\n\n", file.c_str());
+  std::printf("upstream: node-ID %02Xh on %s, 1000h device type = %08Xh (CiA 852 Table 8)\n", node.value(),
+              cfg->upstream.interface.c_str(), device_type_for(fes, no_buttons));
+  std::printf("downstream: %s\n", cfg->downstream.interface.c_str());
+  for (const auto& s : cfg->subdevices)
+    std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id, s.mandatory ? "  mandatory" : "");
+  const auto pdos = oe_pdos(fes, node);
+  std::printf("\nfunctional elements (field <- signal: object, PDO):\n");
+  for (const auto& fe : cfg->functional_elements) {
+    for (const auto& b : fe.fields) {
+      const std::string arrow = fe.input() ? "<-" : "->";
+      const std::string signal = b.subdevice + "." + b.signal + (b.signal_bit != 0xFF ? fmt::format(".bit{}", b.signal_bit) : "");
+      const std::string obj = fmt::format("{:04X}h:{:02X}{}", b.field.index, b.field.sub,
+                                          b.field.bit == 0xFF ? "" : fmt::format(" bit {}", b.field.bit));
+      std::printf("  %-13s %-14s %s %-24s %-16s %s\n", fe_name(fe.id).c_str(), b.field.name.c_str(), arrow.c_str(),
+                  signal.c_str(), obj.c_str(), pdo_place(pdos, b.field).c_str());
+    }
+  }
+  return 0;
+}
+
+int run_eds(const std::string& file, const std::string& out) {
+  const auto cfg = load(file);
+  if (!cfg) return 1;
+  OeDeviceConfig oe;
+  oe.node_id = NodeId{cfg->upstream.node_id};
+  oe.identity = {cfg->upstream.identity.vendor_id, cfg->upstream.identity.product_code, cfg->upstream.identity.revision,
+                 cfg->upstream.identity.serial};
+  oe.heartbeat_ms = cfg->upstream.heartbeat_ms;
+  oe.fes = fe_ids(*cfg);
+  oe.store_path = "/nonexistent/eds-only";  // 1010h/1011h present as in the running device; never written
+  OeDevice device(oe, {});
+  EdsInfo info;
+  info.file_name = out == "-" ? "oegw.eds" : std::filesystem::path(out).filename().string();
+  info.vendor = oe.identity.vendor;
+  info.product = oe.identity.product;
+  info.revision = oe.identity.revision;
+  info.node_id = oe.node_id;
+  if (out == "-") {
+    std::cout << eds_text(device.od(), info);
+    return 0;
+  }
+  std::string error;
+  if (!write_eds(out, device.od(), info, error)) {
+    std::fprintf(stderr, "oegw eds: %s\n", error.c_str());
+    return 1;
+  }
+  std::printf("%s: EDS of node %02Xh written\n", out.c_str(), oe.node_id.value());
+  return 0;
+}
+
+int run_gateway(const std::string& file) {
+  const auto cfg = load(file);
+  if (!cfg) return 1;
+  std::unique_ptr<SocketCanTransport> up, down;
+  try {
+    up = SocketCanTransport::open(cfg->upstream.interface);
+  } catch (const CanOpenError& e) {
+    spdlog::error("{}: upstream.interface: {}", file, e.what());
+    return 2;
+  }
+  try {
+    down = SocketCanTransport::open(cfg->downstream.interface);
+  } catch (const CanOpenError& e) {
+    spdlog::error("{}: downstream.interface: {}", file, e.what());
+    return 2;
+  }
+  EventLoop loop;
+  Gateway gw(*cfg, up->sink(), down->sink());
+  gw.on_log = [](const std::string& line) { spdlog::info("{}", line); };
+  ServiceDriver driver(loop, gw);
+  up->set_receiver([&](const CanFrame& f, TimePoint t) {
+    gw.on_upstream_frame(f, t);
+    driver.rearm();
+  });
+  down->set_receiver([&](const CanFrame& f, TimePoint t) {
+    gw.on_downstream_frame(f, t);
+    driver.rearm();
+  });
+  up->set_event_handler([&](BusEvent e) {
+    spdlog::warn("upstream {}: {}", cfg->upstream.interface, to_string(e));
+    gw.on_upstream_bus_event(e, loop.now());
+    driver.rearm();
+  });
+  down->set_event_handler([&](BusEvent e) { spdlog::warn("downstream {}: {}", cfg->downstream.interface, to_string(e)); });
+  watch_transport(loop, *up);
+  watch_transport(loop, *down);
+  loop.handle_signals({SIGINT, SIGTERM}, [&](int sig) {
+    spdlog::info("signal {}: stopping", sig);
+    loop.stop();
+  });
+  const auto stored = gw.start(loop.now());
+  if (!stored.ok) spdlog::warn("upstream store {} refused ({}); running on defaults", cfg->upstream.store, stored.error);
+  driver.rearm();
+  spdlog::info("oegw: node {:02X}h on {}, {} sub-devices on {}", cfg->upstream.node_id, cfg->upstream.interface,
+               cfg->subdevices.size(), cfg->downstream.interface);
+  loop.run();
+  return 0;
+}
+
+}  // namespace oegw::gateway
