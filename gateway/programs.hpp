@@ -13,7 +13,7 @@ int run_eds(const std::string& file, const std::string& out);
 int run_gateway(const std::string& file);
 
 struct GatewayDemoOptions {
-  double seconds = 10.0;  // how long the operator moves the joysticks before the faults
+  double seconds = 6.0;  // how long the operator moves the joysticks before the faults
   bool frames = false;    // print every frame of both buses
   bool fast = false;      // simulated clock: deterministic, as fast as the machine goes
 };
