@@ -245,46 +245,26 @@ void SdoClient::on_download_segment(const std::uint8_t* d) {
 void SdoClient::on_block_download_initiate(const std::uint8_t* d) {
   if (!mux_matches(d)) return abort(SdoAbortCode::GeneralError);
   crc_ = cfg_.crc && (d[0] & 0x04) != 0;
-  blksize_ = d[4];
-  if (blksize_ == 0 || blksize_ > 127) return abort(SdoAbortCode::InvalidBlockSize);
-  pos_ = 0;
+  if (d[4] == 0 || d[4] > 127) return abort(SdoAbortCode::InvalidBlockSize);
+  tx_block_.start(d[4]);
   send_download_sub_block();
 }
 
 void SdoClient::send_download_sub_block() {
   state_ = State::BlockDownloadAck;
-  std::size_t p = pos_;
-  sent_in_block_ = 0;
-  last_in_block_ = false;
-  while (sent_in_block_ < blksize_ && !last_in_block_) {
-    const std::size_t n = std::min(kSegmentData, size_ - p);
-    last_in_block_ = p + n == size_;
-    ++sent_in_block_;
-    std::array<std::uint8_t, 8> out{};
-    out[0] = static_cast<std::uint8_t>(sent_in_block_ | (last_in_block_ ? 0x80 : 0x00));
-    std::copy_n(current_.data.begin() + static_cast<std::ptrdiff_t>(p), n, out.begin() + 1);
-    p += n;
-    send(out);
-  }
+  tx_block_.send_sub_block(current_.data, [this](const std::array<std::uint8_t, 8>& out) { send(out); });
 }
 
 void SdoClient::on_block_download_ack(const std::uint8_t* d) {
-  const std::uint8_t ackseq = d[1];
-  const std::uint8_t blksize = d[2];
-  if (ackseq > sent_in_block_) return abort(SdoAbortCode::InvalidSequenceNumber);
-  if (blksize == 0 || blksize > 127) return abort(SdoAbortCode::InvalidBlockSize);
-  if (ackseq == sent_in_block_ && last_in_block_) {
-    const std::size_t in_last = size_ == 0 ? 0 : (size_ - 1) % kSegmentData + 1;
-    std::array<std::uint8_t, 8> out{};
-    out[0] = static_cast<std::uint8_t>(0xC1 | ((kSegmentData - in_last) << 2));
-    put_u16(out.data() + 1, crc_ ? crc16_ccitt(current_.data) : 0);
-    state_ = State::BlockDownloadEnd;
-    send(out);
-    return;
+  using Ack = sdo_block::SubBlockSender::Ack;
+  switch (tx_block_.acknowledge(d, size_, 127)) {
+    case Ack::BadSequence: return abort(SdoAbortCode::InvalidSequenceNumber);
+    case Ack::BadBlockSize: return abort(SdoAbortCode::InvalidBlockSize);
+    case Ack::Done:
+      state_ = State::BlockDownloadEnd;
+      return send(sdo_block::SubBlockSender::end_frame(size_, crc_ ? crc16_ccitt(current_.data) : 0));
+    case Ack::Continue: return send_download_sub_block();
   }
-  pos_ = std::min(size_, pos_ + std::size_t{ackseq} * kSegmentData);  // retransmit from ackseq + 1
-  blksize_ = blksize;
-  send_download_sub_block();
 }
 
 void SdoClient::on_block_upload_initiate(const std::uint8_t* d) {

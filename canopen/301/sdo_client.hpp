@@ -140,13 +140,12 @@ class SdoClient {
   std::vector<std::uint8_t> buffer_;  // upload: received data
   bool size_indicated_ = false;
   std::size_t size_ = 0;
-  std::size_t pos_ = 0;  // download: first byte not yet sent/acknowledged
+  std::size_t pos_ = 0;  // segmented download: next byte to send
   bool toggle_ = false;
   bool crc_ = false;
-  std::uint8_t blksize_ = 0;
-  std::uint8_t sent_in_block_ = 0;
-  bool last_in_block_ = false;
-  sdo_block::SubBlockReceiver rx_block_;  // receiving side of block transfers
+  bool last_in_block_ = false;  // segmented download: the segment just sent was the last
+  sdo_block::SubBlockReceiver rx_block_;  // block upload: receiving side
+  sdo_block::SubBlockSender tx_block_;    // block download: sending side
 
   // FIFOs drained by pump(): a vector read from a head index and cleared (capacity kept) once
   // drained, so that sending a frame or finishing a transfer does not allocate.

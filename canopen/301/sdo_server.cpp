@@ -311,9 +311,8 @@ void SdoServer::initiate_block_upload(const std::uint8_t* d) {
     return;
   }
   crc_ = (d[0] & 0x04) != 0;
-  blksize_ = blksize;
+  tx_block_.start(blksize);
   size_ = buffer_.size();
-  pos_ = 0;
   state_ = State::BlockUploadStart;
   std::array<std::uint8_t, 8> out{0xC6, d[1], d[2], d[3], 0, 0, 0, 0};  // sc = 1, s = 1
   put_u32(out.data() + 4, static_cast<std::uint32_t>(size_));
@@ -322,38 +321,19 @@ void SdoServer::initiate_block_upload(const std::uint8_t* d) {
 
 void SdoServer::send_upload_sub_block() {
   state_ = State::BlockUploadAck;
-  std::size_t p = pos_;
-  sent_in_block_ = 0;
-  last_in_block_ = false;
-  while (sent_in_block_ < blksize_ && !last_in_block_) {
-    const std::size_t n = std::min(kSegmentData, size_ - p);
-    last_in_block_ = p + n == size_;
-    ++sent_in_block_;
-    std::array<std::uint8_t, 8> out{};
-    out[0] = static_cast<std::uint8_t>(sent_in_block_ | (last_in_block_ ? 0x80 : 0x00));
-    std::copy_n(buffer_.begin() + static_cast<std::ptrdiff_t>(p), n, out.begin() + 1);
-    p += n;
-    send(out);
-  }
+  tx_block_.send_sub_block(buffer_, [this](const std::array<std::uint8_t, 8>& out) { send(out); });
 }
 
 void SdoServer::block_upload_ack(const std::uint8_t* d) {
-  const std::uint8_t ackseq = d[1];
-  const std::uint8_t blksize = d[2];
-  if (ackseq > sent_in_block_) return abort_transfer(SdoAbortCode::InvalidSequenceNumber);
-  if (blksize == 0 || blksize > kMaxBlockSize) return abort_transfer(SdoAbortCode::InvalidBlockSize);
-  if (ackseq == sent_in_block_ && last_in_block_) {
-    const std::size_t in_last = size_ == 0 ? 0 : (size_ - 1) % kSegmentData + 1;
-    std::array<std::uint8_t, 8> out{};
-    out[0] = static_cast<std::uint8_t>(0xC1 | ((kSegmentData - in_last) << 2));
-    put_u16(out.data() + 1, crc_ ? crc16_ccitt(buffer_) : 0);
-    state_ = State::BlockUploadEnd;
-    send(out);
-    return;
+  using Ack = sdo_block::SubBlockSender::Ack;
+  switch (tx_block_.acknowledge(d, size_, kMaxBlockSize)) {
+    case Ack::BadSequence: return abort_transfer(SdoAbortCode::InvalidSequenceNumber);
+    case Ack::BadBlockSize: return abort_transfer(SdoAbortCode::InvalidBlockSize);
+    case Ack::Done:
+      state_ = State::BlockUploadEnd;
+      return send(sdo_block::SubBlockSender::end_frame(size_, crc_ ? crc16_ccitt(buffer_) : 0));
+    case Ack::Continue: return send_upload_sub_block();
   }
-  pos_ = std::min(size_, pos_ + std::size_t{ackseq} * kSegmentData);
-  blksize_ = blksize;
-  send_upload_sub_block();
 }
 
 void SdoServer::abort(std::uint16_t index, std::uint8_t sub, SdoAbortCode code) {

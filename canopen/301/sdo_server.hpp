@@ -122,13 +122,11 @@ class SdoServer {
   bool size_indicated_ = false;
   std::size_t size_ = 0;       // announced size (download) or value size (upload)
   std::size_t capacity_ = 0;   // most bytes the download may carry
-  std::size_t pos_ = 0;        // upload: first byte not yet acknowledged
+  std::size_t pos_ = 0;        // segmented upload: next byte to send
   bool toggle_ = false;
   bool crc_ = false;           // block transfer: both sides use the CRC
-  std::uint8_t blksize_ = 0;   // current sub-block size
-  sdo_block::SubBlockReceiver rx_block_;  // receiving side of block transfers
-  std::uint8_t sent_in_block_ = 0;
-  bool last_in_block_ = false;
+  sdo_block::SubBlockReceiver rx_block_;  // block download: receiving side
+  sdo_block::SubBlockSender tx_block_;    // block upload: sending side
 
   std::vector<CanFrame> outbox_;  // sent by flush()
   bool flushing_ = false;
