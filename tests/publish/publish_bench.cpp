@@ -20,6 +20,7 @@
 #include "gateway/publish/dds_publisher.hpp"
 #include "gateway/publish/lcm_publisher.hpp"
 #include "tests/publish/child_process.hpp"
+#include "tests/publish/private_network.hpp"
 
 namespace {
 
@@ -80,6 +81,9 @@ void report(const char* name, Result r) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // lo only, for this process and the subscribers (see private_network.hpp: LCM's IGMP join).
+  const bool private_net = oegw::test::enter_private_network();
+  std::printf("network: %s\n", private_net ? "private namespace, lo only" : "host (loopback settings)");
   long n = 10'000;
   for (int i = 1; i + 1 < argc; ++i)
     if (std::strcmp(argv[i], "--samples") == 0) n = std::atol(argv[i + 1]);

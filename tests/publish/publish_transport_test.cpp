@@ -1,6 +1,7 @@
 // The DDS and LCM publishers against subscribers in another process (the example programs), the
 // commands coming back, lcm-logger recording a session, and the errors for bad settings.
 // All traffic stays on this host: Cyclone DDS's loopback-only configuration, LCM with ttl=0.
+// The process runs in a private network namespace (private_network.hpp): lo only.
 // Each test uses its own DDS partition / LCM channel prefix (by pid) so parallel runs do not mix.
 #include <gtest/gtest.h>
 #include <lcm/lcm.h>
@@ -23,6 +24,7 @@
 #include "oegw/display_command_t.hpp"
 #include "oegw/indicator_command_t.hpp"
 #include "tests/publish/child_process.hpp"
+#include "tests/publish/private_network.hpp"
 
 namespace oegw::gateway {
 namespace {
@@ -353,3 +355,11 @@ TEST(PublishSettings, TheLoopbackDdsConfigurationKeepsTrafficOnThisHost) {
 
 }  // namespace
 }  // namespace oegw::gateway
+
+int main(int argc, char** argv) {
+  // Before gtest or any transport starts a thread: this process and the subscribers, lcm-logger
+  // and decoder it starts see only a loopback interface.
+  oegw::test::enter_private_network();
+  ::testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
