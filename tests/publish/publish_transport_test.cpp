@@ -258,6 +258,94 @@ TEST(DdsPublisher, CommandsSentOverDdsReachTheCallbacks) {
   dds_delete(pp);
 }
 
+// The machine application's side of a DDS test: a participant of its own in the publisher's
+// domain and partition.
+struct DdsApp {
+  dds_entity_t pp = 0, sub = 0;
+  explicit DdsApp(const DdsSettings& s) {
+    pp = dds_create_participant(s.domain, nullptr, nullptr);
+    dds_qos_t* pq = dds_create_qos();
+    dds_qset_partition1(pq, s.partition.c_str());
+    sub = dds_create_subscriber(pp, pq, nullptr);
+    dds_delete_qos(pq);
+  }
+  ~DdsApp() { dds_delete(pp); }
+  DdsApp(const DdsApp&) = delete;
+  DdsApp& operator=(const DdsApp&) = delete;
+};
+
+TEST(DdsPublisher, AReaderAskingForThePeriodAsDeadlineSeesTheJoystickStop) {
+  DdsSettings s;
+  s.partition = unique("oegw-deadline-");
+  s.period_us = 20'000;
+  DdsPublisher dds(s);
+  DdsApp app(s);
+  const dds_entity_t t = dds_create_topic(app.pp, &oegw_Joystick_desc, "oegw/joystick", nullptr, nullptr);
+  dds_qos_t* q = dds_create_qos();
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_MSECS(10));
+  dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
+  dds_qset_deadline(q, DDS_USECS(s.period_us));  // what the gateway offers: compatible
+  const dds_entity_t r = dds_create_reader(app.sub, t, q, nullptr);
+  dds_delete_qos(q);
+  ASSERT_GT(r, 0);
+  ASSERT_TRUE(wait_for([&] { return dds.joystick_readers() >= 1; }));
+
+  JoystickSample j;
+  j.h.instance = 5;
+  j.h.seq = 1;
+  dds.publish(j);
+  ASSERT_TRUE(wait_for([&] {
+    void* p[1] = {nullptr};
+    dds_sample_info_t si[1];
+    const int n = dds_take(r, p, si, 1, 1);
+    if (n > 0) dds_return_loan(r, p, n);
+    return n > 0;
+  }));
+  // Nothing more is published: the reader is told the instance missed its deadline.
+  dds_requested_deadline_missed_status_t st{};
+  ASSERT_TRUE(wait_for([&] {
+    return dds_get_requested_deadline_missed_status(r, &st) == 0 && st.total_count > 0;
+  })) << "no deadline-missed status";
+}
+
+TEST(DdsPublisher, ALateReaderGetsTheLastGatewayStatus) {
+  DdsSettings s;
+  s.partition = unique("oegw-status-");
+  DdsPublisher dds(s);
+  GatewayStatus gs;
+  gs.timestamp_us = 123;
+  gs.seq = 7;
+  gs.upstream_state = "operational";
+  gs.subdevices = {{"right_grip", 0x11, "operational"}, {"left_grip", 0x03, "missing"}};
+  gs.active_emcys = {0x8130, 0xFF01};
+  dds.publish(gs);  // before any reader exists
+
+  DdsApp app(s);
+  const dds_entity_t t = dds_create_topic(app.pp, &oegw_GatewayStatus_desc, "oegw/status", nullptr, nullptr);
+  dds_qos_t* q = dds_create_qos();
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_MSECS(10));
+  dds_qset_durability(q, DDS_DURABILITY_TRANSIENT_LOCAL);
+  const dds_entity_t r = dds_create_reader(app.sub, t, q, nullptr);
+  dds_delete_qos(q);
+  ASSERT_GT(r, 0);
+  void* p[1] = {nullptr};
+  dds_sample_info_t si[1];
+  int n = 0;
+  ASSERT_TRUE(wait_for([&] { return (n = dds_take(r, p, si, 1, 1)) > 0; })) << "the status did not arrive";
+  const auto* m = static_cast<const oegw_GatewayStatus*>(p[0]);
+  EXPECT_EQ(m->seq, 7u);
+  EXPECT_EQ(m->timestamp_us, 123);
+  EXPECT_STREQ(m->upstream_state, "operational");
+  ASSERT_EQ(m->subdevices._length, 2u);
+  EXPECT_STREQ(m->subdevices._buffer[1].name, "left_grip");
+  EXPECT_EQ(m->subdevices._buffer[1].node_id, 0x03);
+  EXPECT_STREQ(m->subdevices._buffer[1].state, "missing");
+  ASSERT_EQ(m->active_emcys._length, 2u);
+  EXPECT_EQ(m->active_emcys._buffer[0], 0x8130);
+  EXPECT_EQ(m->active_emcys._buffer[1], 0xFF01);
+  dds_return_loan(r, p, n);
+}
+
 TEST(LcmPublisher, CommandsSentOverLcmReachTheCallbacks) {
   LcmSettings s;
   s.channel_prefix = unique("C") + "_";
