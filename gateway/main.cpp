@@ -14,6 +14,8 @@ int main(int argc, char** argv) {
   demo_cmd->add_option("--seconds", demo.live_seconds, "How long the joystick moves in operational")
       ->check(CLI::Range(0.0, 3600.0));
   demo_cmd->add_flag("--frames", demo.frames, "Print every CAN frame (candump notation)");
+  demo_cmd->add_flag("--publish", demo.publish,
+                     "Publish the joystick on DDS (loopback) and LCM (ttl=0), take indicator commands back");
 
   oegw::gateway::DeviceOptions device;
   int node_id = 0x20;
