@@ -16,6 +16,9 @@
 #include "canopen/io/socketcan_transport.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
+#include "gateway/publish/dds_publisher.hpp"
+#include "gateway/publish/lcm_publisher.hpp"
+#include "gateway/publish/publish_schedule.hpp"
 
 namespace oegw::gateway {
 
@@ -25,6 +28,26 @@ using namespace std::chrono_literals;
 namespace {
 
 constexpr std::uint32_t kDeviceType = 0x000F0191;  // CiA 401 profile, digital+analogue in/out
+
+// Hands every sample to each transport that could be opened.
+class FanOut final : public Publisher {
+ public:
+  void add(Publisher* p) { outs_.push_back(p); }
+  [[nodiscard]] bool empty() const { return outs_.empty(); }
+  void publish(const JoystickSample& s) override { each(s); }
+  void publish(const PedalSample& s) override { each(s); }
+  void publish(const WheelSample& s) override { each(s); }
+  void publish(const EncoderSample& s) override { each(s); }
+  void publish(const ButtonClusterSample& s) override { each(s); }
+  void publish(const GatewayStatus& s) override { each(s); }
+
+ private:
+  template <class S>
+  void each(const S& s) {
+    for (auto* p : outs_) p->publish(s);
+  }
+  std::vector<Publisher*> outs_;
+};
 
 std::int16_t full_scale(double v) { return static_cast<std::int16_t>(std::lround(v * 32767.0)); }
 
@@ -133,6 +156,41 @@ int run_demo(const DemoOptions& options) {
     ++failures;
     say("FAILED: " + what);
   };
+  // DDS / LCM (--publish): joystick.1 from TPDO1, on change and every 100 ms.
+  std::unique_ptr<DdsPublisher> dds;
+  std::unique_ptr<LcmPublisher> lcm;
+  FanOut fan;
+  std::vector<EventLoop::WatchId> publisher_watches;
+  if (options.publish) {
+    try {
+      dds = std::make_unique<DdsPublisher>(DdsSettings{});
+      fan.add(dds.get());
+      say("publishing joystick.1 on DDS: topic oegw/joystick, domain 0, partition oegw, loopback only");
+    } catch (const PublishConfigError& e) {
+      fail(e.what());
+    }
+    try {
+      lcm = std::make_unique<LcmPublisher>(LcmSettings{});
+      fan.add(lcm.get());
+      say("publishing joystick.1 on LCM: channel OEGW_JOYSTICK_1, udpm://239.255.76.67:7667?ttl=0");
+    } catch (const PublishConfigError& e) {
+      fail(e.what());
+    }
+  }
+  PublishSchedule schedule(fan, 100'000);
+  const auto now_us = [&] { return std::chrono::duration_cast<Duration>(loop.now().time_since_epoch()).count(); };
+  JoystickSample joystick;  // instance 1, offline until the first TPDO
+  std::uint32_t status_seq = 0;
+  const auto publish_status = [&](const char* device_state) {
+    if (fan.empty()) return;
+    GatewayStatus st;
+    st.timestamp_us = now_us();
+    st.seq = ++status_seq;
+    st.upstream_state = "demo";
+    st.subdevices.push_back({"device", dev_id.value(), device_state});
+    fan.publish(st);
+  };
+
   std::size_t tpdos = 0;
   std::size_t emcys = 0;
   std::optional<TimePoint> silent_since;
@@ -143,6 +201,7 @@ int run_demo(const DemoOptions& options) {
 
   host.on_boot = [&](NodeId n) {
     booted = true;
+    publish_status("booted");
     say(fmt::format("host: node 0x{:02X} booted (boot-up message {:03X}#00)", n.value(), 0x700 + n.value()));
   };
   host.on_emcy = [&](const EmcyMessage& m, TimePoint) {
@@ -153,6 +212,12 @@ int run_demo(const DemoOptions& options) {
   host.on_heartbeat_timeout = [&](NodeId) {
     if (silent_since && last_heartbeat)
       loss_detected_after = std::chrono::duration_cast<Duration>(loop.now() - *last_heartbeat);
+    joystick.h.status = FeStatus::Offline;  // a lost input never keeps the machine moving: neutral
+    joystick.h.timestamp_us = now_us();
+    joystick.x = joystick.y = 0;
+    joystick.buttons = 0;
+    if (!fan.empty()) schedule.update(joystick, now_us());
+    publish_status("missing");
     say(fmt::format("host: heartbeat of node 0x20 LOST ({:.0f} ms after its last heartbeat; consumer time 250 ms)\n"
                     "            -> the gateway will drive every input fed by such a node to neutral",
                     std::chrono::duration<double, std::milli>(loss_detected_after).count()));
@@ -163,6 +228,12 @@ int run_demo(const DemoOptions& options) {
       x = static_cast<std::int16_t>(get_u16(&f.data[0]));
       y = static_cast<std::int16_t>(get_u16(&f.data[2]));
       buttons = f.data[4];
+      joystick.h.status = FeStatus::Valid;
+      joystick.h.timestamp_us = now_us();
+      joystick.x = x;
+      joystick.y = y;
+      joystick.buttons = buttons;
+      if (!fan.empty()) schedule.update(joystick, now_us());
     }
   };
 
@@ -248,6 +319,22 @@ int run_demo(const DemoOptions& options) {
     host_driver.rearm();
   });
   EventLoop::TimerId motion = 0;
+  EventLoop::TimerId publish_tick = 0;
+  if (!fan.empty()) {
+    publish_tick = loop.call_every(loop.now(), 100ms, [&] { schedule.tick(now_us()); });
+    // indicators.1 -> the device's output byte 6200h:01 (RPDO1 220h); the last command wins.
+    const auto on_indicators = [&](const IndicatorCommand& c) {
+      if (c.instance != 1) return;
+      const auto byte = static_cast<std::uint8_t>(c.indicators & 0xFF);
+      say(fmt::format("indicators.1 command {:02X}h -> RPDO1 220h#{:02X}", byte, byte));
+      (void)host_port->send(CanFrame(0x220, {byte}));
+    };
+    for (Publisher* p : {static_cast<Publisher*>(dds.get()), static_cast<Publisher*>(lcm.get())}) {
+      if (p == nullptr || p->fd() < 0) continue;
+      p->on_indicator_command = on_indicators;
+      publisher_watches.push_back(loop.watch(p->fd(), io_events::kReadable, [p](std::uint32_t) { p->poll(); }));
+    }
+  }
   script.then([&](Script::Next next) {
     say("host: NMT start node 0x20 -> operational; the device's inputs start moving");
     host.nmt().start(dev_id);
@@ -310,6 +397,8 @@ int run_demo(const DemoOptions& options) {
   script.then(wait(10ms));
   script.on_end = [&] {
     loop.cancel(motion);
+    if (publish_tick != 0) loop.cancel(publish_tick);
+    for (auto w : publisher_watches) loop.unwatch(w);
     loop.stop();
   };
   loop.post([&] { script.run(); });
@@ -323,6 +412,9 @@ int run_demo(const DemoOptions& options) {
       "the last heartbeat; %s\n",
       frames, tpdos, emcys, std::chrono::duration<double, std::milli>(loss_detected_after).count(),
       failures == 0 ? "every step as expected" : "SOME STEPS FAILED");
+  if (!fan.empty())
+    std::printf("published: %llu joystick.1 samples on %s\n", static_cast<unsigned long long>(schedule.published()),
+                dds && lcm ? "DDS and LCM" : (dds ? "DDS" : "LCM"));
   return failures == 0 ? 0 : 1;
 }
 

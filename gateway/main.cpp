@@ -22,6 +22,8 @@ int main(int argc, char** argv) {
   core_cmd->add_option("--seconds", core_demo.live_seconds, "How long the inputs move in operational")
       ->check(CLI::Range(0.0, 3600.0));
   core_cmd->add_flag("--frames", core_demo.frames, "Print every CAN frame (candump notation)");
+  core_cmd->add_flag("--publish", core_demo.publish,
+                     "Publish the joystick on DDS (loopback) and LCM (ttl=0), take indicator commands back");
 
   oegw::gateway::DeviceOptions device;
   int node_id = 0x20;

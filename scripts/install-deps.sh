@@ -13,6 +13,13 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev clang
   # independent CAN peers and the SocketCAN-in-a-VM tier
   can-utils python3-can qemu-system-x86 busybox-static kmod cpio iproute2
+  # publishing to the machine application: Cyclone DDS (C library + CMake package) and idlc,
+  # which generates the DDS types from gateway/publish/oegw.idl at build time
+  cyclonedds-dev cyclonedds-tools
+  # LCM: the library and lcm-gen (types from gateway/publish/lcm/*.lcm), lcm-logger for the
+  # recorded-session test; libglib2.0-dev because liblcm-dev's lcm.pc requires glib-2.0 and
+  # gthread-2.0 .pc files that liblcm-dev does not pull in (pkg-config lcm fails without them)
+  liblcm-dev liblcm-bin libglib2.0-dev
 )
 
 missing=()

@@ -1,0 +1,243 @@
+#include "gateway/publish/dds_publisher.hpp"
+
+#include <sys/eventfd.h>
+#include <unistd.h>
+
+#include <array>
+#include <cerrno>
+#include <cstring>
+#include <vector>
+
+#include "dds/dds.h"
+#include "oegw.h"
+
+namespace oegw::gateway {
+
+std::string dds_config_xml(const std::string& network) {
+  if (network.empty()) return {};
+  if (network == "loopback") {
+    // DESIGN.md, "Keep test and demo traffic on this host": checked to send nothing on eth0.
+    return "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"lo\"/></Interfaces>"
+           "<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex>"
+           "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>";
+  }
+  return "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"" + network +
+         "\"/></Interfaces></General></Domain></CycloneDDS>";
+}
+
+namespace {
+
+dds_entity_t check(dds_entity_t e, const char* what) {
+  if (e < 0) throw PublishConfigError(std::string("publish.dds: ") + what + ": " + dds_strretcode(e));
+  return e;
+}
+
+// Cyclone says why a domain cannot be created only in its log ("Error" is all the return code
+// tells): while the domain and participant are created, its error lines are collected here
+// (and not printed) to go into the exception.
+class CycloneErrors {
+ public:
+  CycloneErrors() { dds_set_log_sink(&CycloneErrors::sink, this); }
+  ~CycloneErrors() { dds_set_log_sink(nullptr, nullptr); }
+  CycloneErrors(const CycloneErrors&) = delete;
+  CycloneErrors& operator=(const CycloneErrors&) = delete;
+  [[nodiscard]] std::string text() const { return text_.empty() ? "" : " — " + text_; }
+
+ private:
+  static void sink(void* self, const dds_log_data_t* d) {
+    if ((d->priority & (DDS_LC_FATAL | DDS_LC_ERROR | DDS_LC_WARNING)) == 0 || d->message == nullptr) return;
+    // `message` is the text alone (the default sink prints a header of `hdrsize` bytes before it).
+    std::string m(d->message, d->size);
+    while (!m.empty() && (m.back() == '\n' || m.back() == ' ')) m.pop_back();
+    auto& t = static_cast<CycloneErrors*>(self)->text_;
+    if (!m.empty()) t += (t.empty() ? "" : "; ") + m;
+  }
+  std::string text_;
+};
+
+oegw_FeStatus to_dds(FeStatus s) { return static_cast<oegw_FeStatus>(static_cast<int>(s)); }
+
+}  // namespace
+
+struct DdsPublisher::Impl {
+  dds_entity_t domain = 0;  // >0 when this publisher created the domain (with the raw config)
+  dds_entity_t participant = 0;
+  dds_entity_t joystick = 0, pedal = 0, wheel = 0, encoder = 0, buttons = 0, status = 0;  // writers
+  dds_entity_t indicators = 0, display = 0;                                                 // readers
+  int event_fd = -1;
+
+  static void on_data(dds_entity_t /*reader*/, void* arg) {
+    const std::uint64_t one = 1;
+    // A full counter only means poll() has work already; nothing to do on failure.
+    [[maybe_unused]] auto n = ::write(static_cast<Impl*>(arg)->event_fd, &one, sizeof one);
+  }
+
+  ~Impl() {
+    if (participant > 0) dds_delete(participant);
+    if (domain > 0) dds_delete(domain);
+    if (event_fd >= 0) ::close(event_fd);
+  }
+};
+
+DdsPublisher::DdsPublisher(const DdsSettings& s) : impl_(std::make_unique<Impl>()) {
+  if (s.period_us <= 0) throw PublishConfigError("publish.dds.period: must be > 0");
+  const std::string xml = dds_config_xml(s.network);
+  CycloneErrors errors;
+  if (!xml.empty()) {
+    // The configuration travels with the domain (dds_create_domain's raw config) rather than the
+    // process environment: no other component's CYCLONEDDS_URI changes it, and nothing to clean up.
+    // A domain this process created already (another publisher, a test's command writer) is shared.
+    const dds_entity_t d = dds_create_domain(s.domain, xml.c_str());
+    if (d > 0) {
+      impl_->domain = d;
+    } else if (d != DDS_RETCODE_PRECONDITION_NOT_MET) {
+      throw PublishConfigError("publish.dds.domain: cannot create domain " + std::to_string(s.domain) + ": " +
+                               dds_strretcode(d) + (s.network.empty() ? "" : " (network '" + s.network + "')") +
+                               errors.text());
+    }
+  }
+  impl_->participant = dds_create_participant(s.domain, nullptr, nullptr);
+  if (impl_->participant < 0)
+    throw PublishConfigError("publish.dds.domain: cannot create domain " + std::to_string(s.domain) + ": " +
+                             dds_strretcode(impl_->participant) + errors.text());
+
+  const dds_entity_t pp = impl_->participant;
+  dds_qos_t* pqos = dds_create_qos();
+  dds_qset_partition1(pqos, s.partition.c_str());
+  const dds_entity_t pub = dds_create_publisher(pp, pqos, nullptr);
+  const dds_entity_t sub = dds_create_subscriber(pp, pqos, nullptr);
+  dds_delete_qos(pqos);
+  check(pub, "create publisher");
+  check(sub, "create subscriber");
+
+  // Control data: reliable, the newest value per instance only, a deadline of one period.
+  dds_qos_t* q = dds_create_qos();
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_MSECS(10));
+  dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
+  dds_qset_deadline(q, DDS_USECS(s.period_us));
+  auto writer = [&](const dds_topic_descriptor_t* desc, const char* kind, const dds_qos_t* qos) {
+    const std::string name = s.topic_prefix + kind;
+    const dds_entity_t t = check(dds_create_topic(pp, desc, name.c_str(), nullptr, nullptr), name.c_str());
+    return check(dds_create_writer(pub, t, qos, nullptr), name.c_str());
+  };
+  impl_->joystick = writer(&oegw_Joystick_desc, "joystick", q);
+  impl_->pedal = writer(&oegw_Pedal_desc, "pedal", q);
+  impl_->wheel = writer(&oegw_Wheel_desc, "wheel", q);
+  impl_->encoder = writer(&oegw_Encoder_desc, "encoder", q);
+  impl_->buttons = writer(&oegw_ButtonCluster_desc, "buttons", q);
+  dds_delete_qos(q);
+
+  dds_qos_t* sq = dds_create_qos();
+  dds_qset_reliability(sq, DDS_RELIABILITY_RELIABLE, DDS_MSECS(10));
+  dds_qset_history(sq, DDS_HISTORY_KEEP_LAST, 1);
+  dds_qset_durability(sq, DDS_DURABILITY_TRANSIENT_LOCAL);
+  impl_->status = writer(&oegw_GatewayStatus_desc, "status", sq);
+  dds_delete_qos(sq);
+
+  // Commands: a listener (Cyclone's thread) only signals the eventfd; poll() takes them.
+  impl_->event_fd = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+  if (impl_->event_fd < 0) throw PublishConfigError(std::string("publish.dds: eventfd: ") + std::strerror(errno));
+  dds_listener_t* l = dds_create_listener(impl_.get());
+  dds_lset_data_available(l, &Impl::on_data);
+  dds_qos_t* cq = dds_create_qos();
+  dds_qset_reliability(cq, DDS_RELIABILITY_RELIABLE, DDS_MSECS(10));
+  dds_qset_history(cq, DDS_HISTORY_KEEP_LAST, 1);
+  auto reader = [&](const dds_topic_descriptor_t* desc, const char* kind) {
+    const std::string name = s.topic_prefix + kind;
+    const dds_entity_t t = check(dds_create_topic(pp, desc, name.c_str(), nullptr, nullptr), name.c_str());
+    return check(dds_create_reader(sub, t, cq, l), name.c_str());
+  };
+  impl_->indicators = reader(&oegw_IndicatorCommand_desc, "indicators");
+  impl_->display = reader(&oegw_DisplayCommand_desc, "display");
+  dds_delete_qos(cq);
+  dds_delete_listener(l);
+}
+
+DdsPublisher::~DdsPublisher() = default;
+
+void DdsPublisher::publish(const JoystickSample& s) {
+  const oegw_Joystick m{s.h.instance, to_dds(s.h.status), s.h.timestamp_us, s.h.seq, s.x, s.y, s.z, s.buttons,
+                        s.memory};
+  dds_write(impl_->joystick, &m);
+}
+void DdsPublisher::publish(const PedalSample& s) {
+  const oegw_Pedal m{s.h.instance, to_dds(s.h.status), s.h.timestamp_us, s.h.seq, s.position, s.memory};
+  dds_write(impl_->pedal, &m);
+}
+void DdsPublisher::publish(const WheelSample& s) {
+  const oegw_Wheel m{s.h.instance, to_dds(s.h.status), s.h.timestamp_us, s.h.seq, s.position};
+  dds_write(impl_->wheel, &m);
+}
+void DdsPublisher::publish(const EncoderSample& s) {
+  const oegw_Encoder m{s.h.instance, to_dds(s.h.status), s.h.timestamp_us, s.h.seq, s.position};
+  dds_write(impl_->encoder, &m);
+}
+void DdsPublisher::publish(const ButtonClusterSample& s) {
+  const oegw_ButtonCluster m{s.h.instance, to_dds(s.h.status), s.h.timestamp_us, s.h.seq, s.switches};
+  dds_write(impl_->buttons, &m);
+}
+void DdsPublisher::publish(const GatewayStatus& s) {
+  // dds_write serialises; the sample only borrows these buffers.
+  std::vector<oegw_SubdeviceState> subs;
+  subs.reserve(s.subdevices.size());
+  for (const auto& d : s.subdevices)
+    subs.push_back({const_cast<char*>(d.name.c_str()), d.node_id, const_cast<char*>(d.state.c_str())});
+  std::vector<std::uint16_t> emcys(s.active_emcys);
+  oegw_GatewayStatus m{};
+  m.timestamp_us = s.timestamp_us;
+  m.seq = s.seq;
+  m.upstream_state = const_cast<char*>(s.upstream_state.c_str());
+  m.subdevices._maximum = m.subdevices._length = static_cast<std::uint32_t>(subs.size());
+  m.subdevices._buffer = subs.data();
+  m.subdevices._release = false;
+  m.active_emcys._maximum = m.active_emcys._length = static_cast<std::uint32_t>(emcys.size());
+  m.active_emcys._buffer = emcys.data();
+  m.active_emcys._release = false;
+  dds_write(impl_->status, &m);
+}
+
+int DdsPublisher::fd() const { return impl_->event_fd; }
+
+void DdsPublisher::poll() {
+  std::uint64_t n = 0;
+  [[maybe_unused]] auto r = ::read(impl_->event_fd, &n, sizeof n);  // EAGAIN: nothing signalled; take anyway
+  constexpr int kBatch = 8;
+  {
+    std::array<void*, kBatch> ptrs{};
+    std::array<dds_sample_info_t, kBatch> infos{};
+    int got = 0;
+    while ((got = dds_take(impl_->indicators, ptrs.data(), infos.data(), kBatch, kBatch)) > 0) {
+      for (int i = 0; i < got; ++i) {
+        if (!infos[static_cast<std::size_t>(i)].valid_data) continue;
+        const auto* m = static_cast<const oegw_IndicatorCommand*>(ptrs[static_cast<std::size_t>(i)]);
+        if (on_indicator_command) on_indicator_command(IndicatorCommand{m->instance, m->indicators});
+      }
+      dds_return_loan(impl_->indicators, ptrs.data(), got);
+      ptrs.fill(nullptr);
+    }
+  }
+  {
+    std::array<void*, kBatch> ptrs{};
+    std::array<dds_sample_info_t, kBatch> infos{};
+    int got = 0;
+    while ((got = dds_take(impl_->display, ptrs.data(), infos.data(), kBatch, kBatch)) > 0) {
+      for (int i = 0; i < got; ++i) {
+        if (!infos[static_cast<std::size_t>(i)].valid_data) continue;
+        const auto* m = static_cast<const oegw_DisplayCommand*>(ptrs[static_cast<std::size_t>(i)]);
+        DisplayCommand c{m->instance, {}};
+        for (std::size_t k = 0; k < c.parameters.size(); ++k) c.parameters[k] = m->parameters[k];
+        if (on_display_command) on_display_command(c);
+      }
+      dds_return_loan(impl_->display, ptrs.data(), got);
+      ptrs.fill(nullptr);
+    }
+  }
+}
+
+std::uint32_t DdsPublisher::joystick_readers() const {
+  dds_publication_matched_status_t st{};
+  if (dds_get_publication_matched_status(impl_->joystick, &st) < 0) return 0;
+  return st.current_count;
+}
+
+}  // namespace oegw::gateway

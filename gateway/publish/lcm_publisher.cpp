@@ -1,0 +1,157 @@
+#include "gateway/publish/lcm_publisher.hpp"
+
+#include <lcm/lcm.h>
+
+#include <regex>
+#include <vector>
+
+#include "oegw/button_cluster_t.hpp"
+#include "oegw/display_command_t.hpp"
+#include "oegw/encoder_t.hpp"
+#include "oegw/gateway_status_t.hpp"
+#include "oegw/indicator_command_t.hpp"
+#include "oegw/joystick_t.hpp"
+#include "oegw/pedal_t.hpp"
+#include "oegw/wheel_t.hpp"
+
+namespace oegw::gateway {
+
+namespace {
+template <class M>
+void send(lcm_t* lcm, const std::string& channel, const M& m) {
+  std::vector<std::uint8_t> buf(static_cast<std::size_t>(m.getEncodedSize()));
+  if (m.encode(buf.data(), 0, static_cast<int>(buf.size())) < 0) return;
+  lcm_publish(lcm, channel.c_str(), buf.data(), static_cast<unsigned>(buf.size()));
+}
+std::int8_t status_of(FeStatus s) { return static_cast<std::int8_t>(s); }
+}  // namespace
+
+struct LcmPublisher::Impl {
+  lcm_t* lcm = nullptr;
+  LcmPublisher* owner = nullptr;
+  std::string indicators_prefix, display_prefix;
+
+  static void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
+    auto* self = static_cast<Impl*>(user);
+    const std::string ch(channel);
+    if (ch.rfind(self->indicators_prefix, 0) == 0) {
+      oegw::indicator_command_t m;
+      if (m.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) < 0) return;
+      if (self->owner->on_indicator_command)
+        self->owner->on_indicator_command(
+            IndicatorCommand{static_cast<std::uint8_t>(m.instance), static_cast<std::uint64_t>(m.indicators)});
+    } else if (ch.rfind(self->display_prefix, 0) == 0) {
+      oegw::display_command_t m;
+      if (m.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) < 0) return;
+      DisplayCommand c{static_cast<std::uint8_t>(m.instance), {}};
+      for (std::size_t k = 0; k < c.parameters.size(); ++k) c.parameters[k] = m.parameters[k];
+      if (self->owner->on_display_command) self->owner->on_display_command(c);
+    }
+  }
+};
+
+LcmPublisher::LcmPublisher(const LcmSettings& s) : impl_(std::make_unique<Impl>()), prefix_(s.channel_prefix) {
+  // lcm_create() says little on failure (a line on stderr); check the shape first to name it.
+  static const std::regex shape(R"(^[a-z]+://[^?]*(\?[A-Za-z_]+=[^&]*(&[A-Za-z_]+=[^&]*)*)?$)");
+  if (!std::regex_match(s.url, shape))
+    throw PublishConfigError("publish.lcm.url: \"" + s.url +
+                             "\" does not parse (expected provider://address[?option=value&...], e.g. "
+                             "udpm://239.255.76.67:7667?ttl=0)");
+  if (s.channel_prefix.empty() || s.channel_prefix.find_first_of(".*?[]()|^$\\ ") != std::string::npos)
+    throw PublishConfigError("publish.lcm.channel_prefix: \"" + s.channel_prefix +
+                             "\" must be non-empty, without spaces or regex characters");
+  impl_->lcm = lcm_create(s.url.c_str());
+  if (impl_->lcm == nullptr)
+    throw PublishConfigError("publish.lcm.url: cannot open \"" + s.url +
+                             "\" (unknown provider, bad address or option, or the socket could not be set up)");
+  impl_->owner = this;
+  impl_->indicators_prefix = prefix_ + "INDICATORS_";
+  impl_->display_prefix = prefix_ + "DISPLAY_";
+  const std::string pattern = prefix_ + "(INDICATORS|DISPLAY)_[0-9]+";
+  if (lcm_subscribe(impl_->lcm, pattern.c_str(), &Impl::on_message, impl_.get()) == nullptr) {
+    lcm_destroy(impl_->lcm);
+    throw PublishConfigError("publish.lcm.url: cannot subscribe to the command channels on \"" + s.url + "\"");
+  }
+}
+
+LcmPublisher::~LcmPublisher() {
+  if (impl_->lcm != nullptr) lcm_destroy(impl_->lcm);
+}
+
+void LcmPublisher::publish(const JoystickSample& s) {
+  oegw::joystick_t m;
+  m.instance = static_cast<std::int8_t>(s.h.instance);
+  m.status = status_of(s.h.status);
+  m.timestamp_us = s.h.timestamp_us;
+  m.seq = static_cast<std::int32_t>(s.h.seq);
+  m.x = s.x;
+  m.y = s.y;
+  m.z = s.z;
+  m.buttons = s.buttons;
+  m.memory = s.memory;
+  send(impl_->lcm, prefix_ + "JOYSTICK_" + std::to_string(s.h.instance), m);
+}
+void LcmPublisher::publish(const PedalSample& s) {
+  oegw::pedal_t m;
+  m.instance = static_cast<std::int8_t>(s.h.instance);
+  m.status = status_of(s.h.status);
+  m.timestamp_us = s.h.timestamp_us;
+  m.seq = static_cast<std::int32_t>(s.h.seq);
+  m.position = s.position;
+  m.memory = s.memory;
+  send(impl_->lcm, prefix_ + "PEDAL_" + std::to_string(s.h.instance), m);
+}
+void LcmPublisher::publish(const WheelSample& s) {
+  oegw::wheel_t m;
+  m.instance = static_cast<std::int8_t>(s.h.instance);
+  m.status = status_of(s.h.status);
+  m.timestamp_us = s.h.timestamp_us;
+  m.seq = static_cast<std::int32_t>(s.h.seq);
+  m.position = s.position;
+  send(impl_->lcm, prefix_ + "WHEEL_" + std::to_string(s.h.instance), m);
+}
+void LcmPublisher::publish(const EncoderSample& s) {
+  oegw::encoder_t m;
+  m.instance = static_cast<std::int8_t>(s.h.instance);
+  m.status = status_of(s.h.status);
+  m.timestamp_us = s.h.timestamp_us;
+  m.seq = static_cast<std::int32_t>(s.h.seq);
+  m.position = s.position;
+  send(impl_->lcm, prefix_ + "ENCODER_" + std::to_string(s.h.instance), m);
+}
+void LcmPublisher::publish(const ButtonClusterSample& s) {
+  oegw::button_cluster_t m;
+  m.instance = static_cast<std::int8_t>(s.h.instance);
+  m.status = status_of(s.h.status);
+  m.timestamp_us = s.h.timestamp_us;
+  m.seq = static_cast<std::int32_t>(s.h.seq);
+  m.switches = static_cast<std::int64_t>(s.switches);
+  send(impl_->lcm, prefix_ + "BUTTONS_" + std::to_string(s.h.instance), m);
+}
+void LcmPublisher::publish(const GatewayStatus& s) {
+  oegw::gateway_status_t m;
+  m.timestamp_us = s.timestamp_us;
+  m.seq = static_cast<std::int32_t>(s.seq);
+  m.upstream_state = s.upstream_state;
+  for (const auto& d : s.subdevices) {
+    oegw::subdevice_state_t sd;
+    sd.name = d.name;
+    sd.node_id = d.node_id;
+    sd.state = d.state;
+    m.subdevices.push_back(sd);
+  }
+  m.n_subdevices = static_cast<std::int32_t>(m.subdevices.size());
+  for (auto c : s.active_emcys) m.active_emcys.push_back(static_cast<std::int16_t>(c));
+  m.n_active_emcys = static_cast<std::int32_t>(m.active_emcys.size());
+  send(impl_->lcm, prefix_ + "STATUS", m);
+}
+
+int LcmPublisher::fd() const { return lcm_get_fileno(impl_->lcm); }
+
+void LcmPublisher::poll() {
+  // Bounded: at most 64 messages per call so a flood cannot starve the gateway's loop.
+  for (int i = 0; i < 64 && lcm_handle_timeout(impl_->lcm, 0) > 0; ++i) {
+  }
+}
+
+}  // namespace oegw::gateway

@@ -1,0 +1,51 @@
+// The FE samples on LCM (liblcm C API, types from gateway/publish/lcm/*.lcm), commands back.
+//
+// Channels (prefix configurable, default "OEGW_"), one per FE instance n:
+//   OEGW_JOYSTICK_n  OEGW_PEDAL_n  OEGW_WHEEL_n  OEGW_ENCODER_n  OEGW_BUTTONS_n   FE samples out
+//   OEGW_STATUS                                                                gateway status out
+//   OEGW_INDICATORS_n  OEGW_DISPLAY_n                                           commands in
+// LCM has no QoS: every sample is one UDP datagram, best effort; the seq numbers show loss.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "gateway/fe_samples.hpp"
+#include "gateway/publish/dds_publisher.hpp"  // PublishConfigError
+
+namespace oegw::gateway {
+
+struct LcmSettings {
+  // publish.lcm.url. ttl=0: multicast that never leaves the host (tests, demo).
+  std::string url = "udpm://239.255.76.67:7667?ttl=0";
+  std::string channel_prefix = "OEGW_";  // publish.lcm.channel_prefix
+};
+
+class LcmPublisher final : public Publisher {
+ public:
+  explicit LcmPublisher(const LcmSettings& settings);  // throws PublishConfigError
+  ~LcmPublisher() override;
+  LcmPublisher(const LcmPublisher&) = delete;
+  LcmPublisher& operator=(const LcmPublisher&) = delete;
+
+  void publish(const JoystickSample&) override;
+  void publish(const PedalSample&) override;
+  void publish(const WheelSample&) override;
+  void publish(const EncoderSample&) override;
+  void publish(const ButtonClusterSample&) override;
+  void publish(const GatewayStatus&) override;
+
+  // lcm_get_fileno(); poll() handles whatever is readable without blocking.
+  [[nodiscard]] int fd() const override;
+  void poll() override;
+
+  [[nodiscard]] const std::string& prefix() const { return prefix_; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::string prefix_;
+};
+
+}  // namespace oegw::gateway
