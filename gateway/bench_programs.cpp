@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 
@@ -99,7 +100,10 @@ int run_master(const MasterOptions& options) {
   };
   EventLoop loop;
   ObjectDictionary od;
-  Master master(od, sink);
+  // One 1016h entry per device (at least the default 16): with fewer, the later devices' heartbeats
+  // would go unwatched.
+  Master master(od, sink,
+                MasterConfig{.heartbeat_entries = static_cast<std::uint8_t>(std::clamp<std::size_t>(options.devices.size(), 16, 127))});
   sd::NetworkManager network(master);
   for (const auto& text : options.devices) {
     std::string error;

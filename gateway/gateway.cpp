@@ -1,6 +1,7 @@
 #include "gateway/gateway.hpp"
 
 #include <algorithm>
+#include <array>
 
 #include <fmt/format.h>
 
@@ -54,12 +55,22 @@ SignalStatus worse(SignalStatus a, SignalStatus b) {
   return rank(a) >= rank(b) ? a : b;
 }
 
+// 1016h entries of the downstream master: one per sub-device whose heartbeat is watched (at
+// least the 32 it always had, at most the 127 sub-indexes 1016h has). A fixed 32 left the 33rd
+// and later sub-devices unwatched: Master::monitor_heartbeat() found no free entry, and a node
+// that went silent stayed "operational" with its inputs frozen at their last values.
+std::uint8_t heartbeat_entries(const mapping::Config& c) {
+  std::size_t n = 0;
+  for (const auto& s : c.subdevices) n += s.heartbeat_ms != 0 ? 1 : 0;
+  return static_cast<std::uint8_t>(std::clamp<std::size_t>(n, 32, 127));
+}
+
 }  // namespace
 
 Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, canopen::FrameSink downstream,
                  GatewayOptions options)
     : config_(config),
-      master_(master_od_, downstream, canopen::MasterConfig{.heartbeat_entries = 32, .sdo_timeout = options.sdo_timeout}),
+      master_(master_od_, downstream, canopen::MasterConfig{.heartbeat_entries = heartbeat_entries(config), .sdo_timeout = options.sdo_timeout}),
       network_(master_, options.timing) {
   oe_ = std::make_unique<OeDevice>(oe_config(config_, options), std::move(upstream));
   for (const auto& sc : config_.subdevices) {
@@ -78,19 +89,21 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     const std::string name = sc.name;
     d->on_change = [this, name](std::size_t i, const sd::SignalValue& v) { on_signal(name, i, v); };
     network_.add(std::move(ns), std::move(driver));
-    subs_[sc.name] = Sub{&sc, d, false, false, "not booted yet"};
+    subs_[sc.name] = Sub{&sc, d, false, false, "not booted yet", std::vector<std::vector<std::size_t>>(d->signals().size()), {}};
   }
   for (const auto& fe : config_.functional_elements) {
     for (const auto& f : fe.fields) {
-      Binding b{fe.id, &f, std::nullopt, {}, 0, SignalStatus::Offline};
+      Binding b{fe.id, &f, std::nullopt, std::nullopt, {}, 0, SignalStatus::Offline};
       Sub& s = subs_.at(f.subdevice);
       b.signal = *s.driver->find_signal(f.signal);
       if (fe.input()) {
         b.translator.emplace(f.input_params());
+        b.target = mapping::find_fe_field(fe.id, f.field.name);
+        s.inputs.push_back(bindings_.size());
       } else {
         b.output = f.output_params();
       }
-      by_signal_[{f.subdevice, b.signal}].push_back(bindings_.size());
+      s.by_signal.at(b.signal).push_back(bindings_.size());
       bindings_.push_back(std::move(b));
     }
   }
@@ -140,24 +153,48 @@ void Gateway::log(const std::string& line) {
 }
 
 void Gateway::on_signal(const std::string& sub, std::size_t index, const sd::SignalValue& v) {
-  auto it = by_signal_.find({sub, index});
-  std::set<mapping::FeId> changed;
-  if (it != by_signal_.end()) {
-    for (const std::size_t bi : it->second) {
+  // Runs for every changed signal of every PDO: no allocation unless more than kInline FEs change.
+  constexpr std::size_t kInline = 8;
+  std::array<mapping::FeId, kInline> changed{};
+  std::size_t n_changed = 0;
+  std::set<mapping::FeId> more;  // only when kInline is exceeded
+  auto note = [&](mapping::FeId fe) {  // keeps changed[0, n_changed) sorted and unique
+    std::size_t at = 0;
+    while (at < n_changed && changed[at] < fe) ++at;
+    if (at < n_changed && changed[at] == fe) return;
+    if (n_changed == kInline) {
+      more.insert(fe);
+      return;
+    }
+    for (std::size_t i = n_changed; i > at; --i) changed[i] = changed[i - 1];
+    changed[at] = fe;
+    ++n_changed;
+  };
+  auto s = subs_.find(sub);
+  if (s == subs_.end()) return;
+  if (index < s->second.by_signal.size()) {
+    for (const std::size_t bi : s->second.by_signal[index]) {
       Binding& b = bindings_[bi];
       if (!b.translator) continue;
       const std::int64_t before = b.translator->value();
       const SignalStatus status_before = b.status;
       const std::int64_t fe_value = b.translator->update(v);
       b.status = v.status;
-      if (fe_value != before || b.status != status_before) changed.insert(b.fe);
-      (void)oe_->set_input(b.fe, b.field->field.name, fe_value, now_);
+      if (fe_value != before || b.status != status_before) note(b.fe);
+      if (b.target) (void)oe_->set_input(b.fe, *b.target, fe_value, now_);
+      else (void)oe_->set_input(b.fe, b.field->field.name, fe_value, now_);
     }
   }
-  auto s = subs_.find(sub);
-  if (s != subs_.end()) update_fault(s->second);
-  if (on_fe_change)
-    for (const auto& fe : changed) on_fe_change(fe);
+  update_fault(s->second);
+  if (on_fe_change) {
+    // In FE order, each once (as a std::set gave them).
+    if (more.empty()) {
+      for (std::size_t i = 0; i < n_changed; ++i) on_fe_change(changed[i]);
+    } else {
+      for (std::size_t i = 0; i < n_changed; ++i) more.insert(changed[i]);
+      for (const auto& fe : more) on_fe_change(fe);
+    }
+  }
 }
 
 void Gateway::update_fault(Sub& s) {
@@ -168,8 +205,8 @@ void Gateway::update_fault(Sub& s) {
   } else if (s.emcy_error) {
     reason = "error EMCY";
   } else {
-    for (const auto& b : bindings_) {
-      if (b.field->subdevice != s.config->name || !b.translator) continue;
+    for (const std::size_t bi : s.inputs) {  // this sub-device's input bindings only (per PDO)
+      const Binding& b = bindings_[bi];
       if (b.status == SignalStatus::Error || b.status == SignalStatus::NotAvailable) {
         reason = b.field->signal + " " + std::string(sd::to_string(b.status));
         break;

@@ -84,6 +84,7 @@ class Gateway {
     mapping::FeId fe;
     const mapping::FieldBinding* field;
     std::optional<mapping::FieldTranslator> translator;  // inputs
+    std::optional<mapping::FeField> target;              // inputs: the field, looked up once
     mapping::OutputParams output;                         // outputs
     std::size_t signal = 0;                               // index in the driver's signals
     subdevices::SignalStatus status = subdevices::SignalStatus::Offline;
@@ -94,6 +95,8 @@ class Gateway {
     bool operational = false;
     bool emcy_error = false;
     std::string why;
+    std::vector<std::vector<std::size_t>> by_signal;  // driver signal index -> bindings_
+    std::vector<std::size_t> inputs;                   // its input bindings, in bindings_ order
   };
 
   void on_signal(const std::string& sub, std::size_t index, const subdevices::SignalValue& v);
@@ -108,7 +111,6 @@ class Gateway {
   std::unique_ptr<OeDevice> oe_;
   std::map<std::string, Sub> subs_;
   std::vector<Binding> bindings_;
-  std::map<std::pair<std::string, std::size_t>, std::vector<std::size_t>> by_signal_;  // -> bindings_
   std::map<std::pair<std::string, std::size_t>, std::int64_t> output_values_;        // last sent
   std::map<std::string, std::string> faults_;  // sub-device -> reason
   canopen::TimePoint now_{};

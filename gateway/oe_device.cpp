@@ -318,10 +318,16 @@ bool OeDevice::analog_interrupt_enabled() const {
 
 bool OeDevice::set_input(FeId fe, std::string_view field, std::int64_t value, TimePoint now) {
   now_ = now;
-  if (!mapping::is_input(fe.kind)) return false;
-  if (std::find(cfg_.fes.begin(), cfg_.fes.end(), fe) == cfg_.fes.end()) return false;
   const auto f = mapping::find_fe_field(fe, field);
   if (!f) return false;
+  return set_input(fe, *f, value, now);
+}
+
+bool OeDevice::set_input(FeId fe, const mapping::FeField& field, std::int64_t value, TimePoint now) {
+  now_ = now;
+  if (!mapping::is_input(fe.kind)) return false;
+  if (std::find(cfg_.fes.begin(), cfg_.fes.end(), fe) == cfg_.fes.end()) return false;
+  const mapping::FeField* const f = &field;
   canopen::SubObject* s = od_.find(f->index, f->sub);
   if (s == nullptr) return false;
   std::int64_t raw = value;
@@ -339,8 +345,9 @@ bool OeDevice::set_input(FeId fe, std::string_view field, std::int64_t value, Ti
   // CiA 401 6423h FALSE: analogue inputs raise no event; the value is stored without telling
   // the PDO service (see the header), so only TPDOs sent for another reason carry it.
   if (f->index == 0x6401 && od_.find(0x6423) != nullptr && !analog_interrupt_enabled()) {
-    const auto bytes = canopen::encode_width(static_cast<std::uint64_t>(raw), s->value.size());
-    s->value = bytes;
+    // In place, little endian as encode_width() (no allocation: this runs for every axis change).
+    const auto u = static_cast<std::uint64_t>(raw);
+    for (std::size_t i = 0; i < s->value.size(); ++i) s->value[i] = static_cast<std::uint8_t>(i < 8 ? u >> (8 * i) : 0);
     return true;
   }
   const SdoAbortCode rc = od_.set<std::int64_t>(f->index, f->sub, raw, Origin::Local);

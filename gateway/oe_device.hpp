@@ -151,6 +151,9 @@ class OeDevice {
   // One-bit fields set/clear their bit. Returns false for an unknown FE/field, an output FE or a
   // value out of the field's range (nothing written).
   bool set_input(mapping::FeId fe, std::string_view field, std::int64_t value, canopen::TimePoint now);
+  // The same for a field already looked up (mapping::find_fe_field(fe, name)): the per-frame path
+  // of the gateway resolves its fields once and does not allocate here.
+  bool set_input(mapping::FeId fe, const mapping::FeField& field, std::int64_t value, canopen::TimePoint now);
   // Reads an FE field (inputs and outputs) from the dictionary.
   [[nodiscard]] std::optional<std::int64_t> get(mapping::FeId fe, std::string_view field) const;
 

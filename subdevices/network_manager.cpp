@@ -327,18 +327,19 @@ bool NetworkManager::on_frame(const CanFrame& frame, TimePoint now) {
   return false;
 }
 
-void NetworkManager::report_once(std::uint64_t& seen, std::uint64_t now_count, const std::string& what) {
-  if (seen == 0 && now_count > 0 && on_bad_input) on_bad_input(what);
+void NetworkManager::report_once(std::uint64_t& seen, std::uint64_t now_count, const std::string& name, const char* what) {
+  // The line is built only when it is reported: this runs for every PDO (no allocation).
+  if (seen == 0 && now_count > 0 && on_bad_input) on_bad_input(name + what);
   seen = now_count;
 }
 
 void NetworkManager::report_bad_input(Managed& m) {
   const InputCounters& c = m.driver->counters();
   const std::string& n = m.settings.name;
-  report_once(m.reported.wrong_length, c.wrong_length, n + ": PDO of the wrong length ignored (counted from now on)");
-  report_once(m.reported.unknown_cob, c.unknown_cob, n + ": frame on a COB-ID the driver does not use ignored");
-  report_once(m.reported.unknown_emcy, c.unknown_emcy, n + ": EMCY with an unknown code ignored");
-  report_once(m.reported.mismatches, c.mismatches, n + ": redundant channels disagree (signal set to error)");
+  report_once(m.reported.wrong_length, c.wrong_length, n, ": PDO of the wrong length ignored (counted from now on)");
+  report_once(m.reported.unknown_cob, c.unknown_cob, n, ": frame on a COB-ID the driver does not use ignored");
+  report_once(m.reported.unknown_emcy, c.unknown_emcy, n, ": EMCY with an unknown code ignored");
+  report_once(m.reported.mismatches, c.mismatches, n, ": redundant channels disagree (signal set to error)");
 }
 
 void NetworkManager::advance(TimePoint now) {

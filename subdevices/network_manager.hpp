@@ -136,7 +136,7 @@ class NetworkManager {
   void run_step(Managed& m);
   void route(Managed& m);
   void report_bad_input(Managed& m);
-  void report_once(std::uint64_t& seen, std::uint64_t now_count, const std::string& what);  // (re)builds the COB-ID routing of a node's TPDOs
+  void report_once(std::uint64_t& seen, std::uint64_t now_count, const std::string& name, const char* what);  // (re)builds the COB-ID routing of a node's TPDOs
   void finish(Managed& m, TimePoint now);
   void fail(Managed& m, NodeState s, const std::string& why, TimePoint now);
   void lost(Managed& m, const std::string& why, TimePoint now);

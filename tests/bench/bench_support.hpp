@@ -49,28 +49,12 @@ class AllocCounter {
   std::uint64_t start_;
 };
 
-// Runs `op` `samples` times (after as many untimed warm-up calls), timing each call, and reports
-// the distribution in ns. Returns the mean in seconds, for State::SetIterationTime: a percentile
-// benchmark runs with Iterations(1) and UseManualTime(), so that its Time column is the mean.
-template <class Op>
-double report_percentiles(benchmark::State& state, std::size_t samples, Op&& op) {
-  using clock = std::chrono::steady_clock;
-  for (std::size_t i = 0; i < samples; ++i) op();
-  std::vector<std::int64_t> ns(samples);
-  std::vector<std::int64_t> overhead(samples);
-  for (std::size_t i = 0; i < samples; ++i) {  // cost of the two clock reads alone
-    const auto a = clock::now();
-    const auto b = clock::now();
-    overhead[i] = std::chrono::duration_cast<std::chrono::nanoseconds>(b - a).count();
-  }
-  for (std::size_t i = 0; i < samples; ++i) {
-    const auto a = clock::now();
-    op();
-    const auto b = clock::now();
-    ns[i] = std::chrono::duration_cast<std::chrono::nanoseconds>(b - a).count();
-  }
+// Reports a distribution of samples in ns (sorted in place) as p50/p90/p99/p99.9/max counters
+// and "samples". Returns the mean in seconds, for State::SetIterationTime.
+inline double report_samples(benchmark::State& state, std::vector<std::int64_t>& ns) {
+  const std::size_t samples = ns.size();
+  if (samples == 0) return 0.0;
   std::sort(ns.begin(), ns.end());
-  std::sort(overhead.begin(), overhead.end());
   auto pct = [&](double p) {
     const auto idx = static_cast<std::size_t>(p * static_cast<double>(samples - 1) + 0.5);
     return static_cast<double>(ns[std::min(idx, samples - 1)]);
@@ -80,11 +64,42 @@ double report_percentiles(benchmark::State& state, std::size_t samples, Op&& op)
   state.counters["p99_ns"] = pct(0.99);
   state.counters["p99.9_ns"] = pct(0.999);
   state.counters["max_ns"] = static_cast<double>(ns.back());
-  state.counters["clock_ns"] = static_cast<double>(overhead[samples / 2]);
   state.counters["samples"] = static_cast<double>(samples);
   double sum = 0;
   for (const auto v : ns) sum += static_cast<double>(v);
   return sum / static_cast<double>(samples) * 1e-9;
+}
+
+// The cost of two consecutive steady_clock reads (median of `samples`), in ns.
+inline double clock_pair_ns(std::size_t samples) {
+  using clock = std::chrono::steady_clock;
+  std::vector<std::int64_t> overhead(samples);
+  for (std::size_t i = 0; i < samples; ++i) {
+    const auto a = clock::now();
+    const auto b = clock::now();
+    overhead[i] = std::chrono::duration_cast<std::chrono::nanoseconds>(b - a).count();
+  }
+  std::sort(overhead.begin(), overhead.end());
+  return static_cast<double>(overhead[samples / 2]);
+}
+
+// Runs `op` `samples` times (after as many untimed warm-up calls), timing each call, and reports
+// the distribution in ns. Returns the mean in seconds, for State::SetIterationTime: a percentile
+// benchmark runs with Iterations(1) and UseManualTime(), so that its Time column is the mean.
+template <class Op>
+double report_percentiles(benchmark::State& state, std::size_t samples, Op&& op) {
+  using clock = std::chrono::steady_clock;
+  for (std::size_t i = 0; i < samples; ++i) op();
+  std::vector<std::int64_t> ns(samples);
+  const double overhead = clock_pair_ns(samples);
+  for (std::size_t i = 0; i < samples; ++i) {
+    const auto a = clock::now();
+    op();
+    const auto b = clock::now();
+    ns[i] = std::chrono::duration_cast<std::chrono::nanoseconds>(b - a).count();
+  }
+  state.counters["clock_ns"] = overhead;
+  return report_samples(state, ns);
 }
 
 }  // namespace oegw::bench

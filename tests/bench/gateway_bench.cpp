@@ -1,0 +1,117 @@
+// The gateway's hot path (DESIGN.md "Numbers to reach"): a downstream PDO received → the
+// upstream TPDO queued. The Gateway is built from YAML text, booted for real against the
+// simulators on a virtual bus under a simulated clock and configured by a host controller
+// (gateway_rig.hpp); then it is cut from the buses and fed elobau TPDO #0 frames (181h-based,
+// node 11h → 191h) with a changing x, each of which must produce TPDO 1 (1A0h, joystick.1).
+//
+//  * BM_Latency/<variant>: per frame, steady_clock before on_downstream_frame() → steady_clock
+//    taken in the upstream FrameSink when TPDO 1 is queued. 20,000 samples after 2,000 warm-up
+//    frames; p50/p90/p99/p99.9/max in ns ("clock_ns": the cost of one clock pair).
+//  * BM_Throughput/<variant>: on_downstream_frame() on a stream of changing frames; items/s =
+//    downstream frames translated per second, "tpdo/frame" must be 1.
+//  * Both report "allocs/frame": heap allocations per frame on the hot path.
+// Variants: 0 = one grip feeding joystick.1; 1 = the full FE set (48 sub-devices, gateway_rss.cpp).
+// Figures only; nothing asserts on time.
+#include "tests/bench/bench_support.hpp"
+#include "tests/bench/gateway_rig.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <vector>
+
+namespace {
+
+using namespace oegw;
+using clock_type = std::chrono::steady_clock;
+
+std::unique_ptr<bench::GatewayRig> make_rig(int variant) {
+  const std::string yaml =
+      variant == 0 ? bench::yaml_one_grip() : bench::yaml_full_set(OEGW_SOURCE_DIR "/subdevices/eds");
+  auto rig = std::make_unique<bench::GatewayRig>(bench::load_or_throw(yaml, variant == 0 ? "one_grip.yaml" : "full_set.yaml"));
+  rig->build_gateway();
+  rig->build_rest();
+  rig->boot();
+  rig->detach();
+  return rig;
+}
+
+// Elobau TPDO #0 of node 11h: X, Y, wheel A, B, C (S8 %), buttons 1..8, 9..16, FFh.
+canopen::CanFrame grip_frame(std::int8_t x) {
+  return canopen::CanFrame(0x191, {static_cast<std::uint8_t>(x), 0, 0, 0, 0, 0, 0, 0xFF});
+}
+
+// x alternates between two values outside the deadband: every frame changes joystick.1 x.
+std::int8_t x_for(std::uint64_t i) { return (i & 1u) ? std::int8_t{40} : std::int8_t{-40}; }
+
+void check_one_tpdo(bench::GatewayRig& rig, std::uint64_t before, const char* where) {
+  if (rig.upstream().frames != before + 1 || rig.upstream().last.id != 0x1A0)
+    throw std::runtime_error(std::string(where) + ": a changed grip frame did not queue exactly one TPDO 1 (1A0h)");
+}
+
+void BM_Latency(benchmark::State& state) {
+  auto rig = make_rig(static_cast<int>(state.range(0)));
+  auto& gw = rig->gw();
+  auto& up = rig->upstream();
+  const auto now = rig->now();
+  constexpr std::size_t kWarmup = 2'000, kSamples = 20'000;
+  std::vector<std::int64_t> ns(kSamples);
+  std::vector<canopen::CanFrame> frames;
+  frames.reserve(kWarmup + kSamples);
+  for (std::size_t i = 0; i < kWarmup + kSamples; ++i) frames.push_back(grip_frame(x_for(i)));
+  std::uint64_t allocs = 0;
+  for (auto _ : state) {
+    for (std::size_t i = 0; i < kWarmup; ++i) (void)gw.on_downstream_frame(frames[i], now);
+    const auto a0 = bench::g_allocations;
+    for (std::size_t i = 0; i < kSamples; ++i) {
+      const auto before = up.frames;
+      const auto t0 = clock_type::now();
+      (void)gw.on_downstream_frame(frames[kWarmup + i], now);
+      ns[i] = std::chrono::duration_cast<std::chrono::nanoseconds>(up.at - t0).count();
+      if (up.frames != before + 1) {
+        state.SkipWithError("a frame did not queue exactly one upstream TPDO");
+        return;
+      }
+    }
+    allocs = bench::g_allocations - a0;
+    state.SetIterationTime(bench::report_samples(state, ns));
+  }
+  if (up.last.id != 0x1A0) state.SkipWithError("the upstream frame is not TPDO 1 (1A0h)");
+  state.counters["clock_ns"] = bench::clock_pair_ns(kSamples);
+  state.counters["allocs/frame"] = static_cast<double>(allocs) / static_cast<double>(kSamples);
+  state.counters["downstream_sent"] = static_cast<double>(rig->downstream_while_detached());
+}
+BENCHMARK(BM_Latency)->Arg(0)->Arg(1)->ArgName("full_set")->Iterations(1)->UseManualTime()->Unit(benchmark::kMicrosecond);
+
+void BM_Throughput(benchmark::State& state) {
+  auto rig = make_rig(static_cast<int>(state.range(0)));
+  auto& gw = rig->gw();
+  auto& up = rig->upstream();
+  const auto now = rig->now();
+  const canopen::CanFrame frames[2] = {grip_frame(x_for(0)), grip_frame(x_for(1))};
+  {
+    const auto before = up.frames;
+    (void)gw.on_downstream_frame(frames[0], now);
+    (void)gw.on_downstream_frame(frames[1], now);
+    check_one_tpdo(*rig, before + 1, "throughput warm-up");
+  }
+  const auto up0 = up.frames;
+  std::uint64_t i = 0;
+  bench::AllocCounter allocs;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(gw.on_downstream_frame(frames[i & 1u], now));
+    ++i;
+  }
+  allocs.report(state);
+  state.counters["allocs/frame"] = state.counters["allocs/iter"];
+  state.counters.erase("allocs/iter");
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));
+  state.counters["frames/s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["tpdo/frame"] = state.iterations() == 0 ? 0.0
+                                                         : static_cast<double>(up.frames - up0) / static_cast<double>(state.iterations());
+}
+BENCHMARK(BM_Throughput)->Arg(0)->Arg(1)->ArgName("full_set");
+
+}  // namespace

@@ -1,0 +1,95 @@
+// The Gateway end to end on the virtual buses (tests/bench/gateway_rig.hpp): the real boot of its
+// sub-devices against the simulators, a host enabling TPDO 1, then frames fed to the hot path.
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "tests/bench/gateway_rig.hpp"
+
+using namespace oegw;
+using namespace std::chrono_literals;
+
+namespace {
+
+canopen::CanFrame grip1_frame(std::int8_t x, std::uint8_t buttons = 0) {
+  return canopen::CanFrame(0x191, {static_cast<std::uint8_t>(x), 0, 0, 0, 0, buttons, 0, 0xFF});
+}
+
+std::unique_ptr<bench::GatewayRig> booted(const std::string& yaml) {
+  auto rig = std::make_unique<bench::GatewayRig>(bench::load_or_throw(yaml, "test.yaml"));
+  rig->build_gateway();
+  rig->build_rest();
+  rig->boot();
+  return rig;
+}
+
+TEST(Gateway, FullFeSetBootsAndWatchesTheHeartbeatOfEverySubDevice) {
+  auto rig = booted(bench::yaml_full_set(OEGW_SOURCE_DIR "/subdevices/eds"));
+  ASSERT_EQ(rig->gw().downstream().names().size(), 48u);
+  // The 48th sub-device: with a fixed 32-entry 1016h its heartbeat was never watched, and it
+  // stayed operational although silent.
+  EXPECT_EQ(rig->command("cluster8 silent on"), "ok cluster8 silent on");
+  EXPECT_EQ(rig->command("grip16 silent on"), "ok grip16 silent on");
+  rig->run_for(1s);
+  EXPECT_EQ(rig->gw().downstream().state("cluster8"), subdevices::NodeState::Missing);
+  EXPECT_EQ(rig->gw().downstream().state("grip16"), subdevices::NodeState::Missing);
+  EXPECT_EQ(rig->gw().status({mapping::FeKind::Joystick, 16}), gateway::FeStatus::Offline);
+  EXPECT_EQ(rig->gw().downstream().state("grip1"), subdevices::NodeState::Operational);
+  EXPECT_EQ(rig->gw().status({mapping::FeKind::Joystick, 1}), gateway::FeStatus::Valid);
+  EXPECT_TRUE(rig->gw().faults().count("grip16"));
+}
+
+TEST(Gateway, AChangedGripFrameQueuesTpdo1AtOnceAndAnUnchangedOneNothing) {
+  auto rig = booted(bench::yaml_one_grip());
+  rig->detach();
+  auto& up = rig->upstream();
+  std::vector<mapping::FeId> changes;
+  rig->gw().on_fe_change = [&](mapping::FeId fe) { changes.push_back(fe); };
+  const auto before = up.frames;
+  EXPECT_TRUE(rig->gw().on_downstream_frame(grip1_frame(40), rig->now()));
+  ASSERT_EQ(up.frames, before + 1);
+  EXPECT_EQ(up.last.id, 0x1A0u);
+  EXPECT_EQ(static_cast<std::int16_t>(canopen::get_u16(&up.last.data[0])), 13107);  // 40 % of 32767
+  ASSERT_EQ(changes.size(), 1u);
+  EXPECT_EQ(changes[0], (mapping::FeId{mapping::FeKind::Joystick, 1}));
+  // x and a button in one frame: each changed field queues TPDO 1 at once (today one TPDO per
+  // field, the last carrying both); the frame is fully reflected when the call returns.
+  EXPECT_TRUE(rig->gw().on_downstream_frame(grip1_frame(-40, 0x01), rig->now()));
+  EXPECT_GE(up.frames, before + 2);
+  EXPECT_EQ(up.last.id, 0x1A0u);
+  EXPECT_EQ(static_cast<std::int16_t>(canopen::get_u16(&up.last.data[0])), -13107);
+  EXPECT_EQ(up.last.data[7], 0x01);  // buttons[1]
+  EXPECT_GE(changes.size(), 2u);
+  const auto after_frames = up.frames;
+  const auto after_changes = changes.size();
+  EXPECT_TRUE(rig->gw().on_downstream_frame(grip1_frame(-40, 0x01), rig->now()));
+  EXPECT_EQ(up.frames, after_frames) << "nothing changed, nothing sent";
+  EXPECT_EQ(changes.size(), after_changes);
+  EXPECT_EQ(rig->downstream_while_detached(), 0u);
+}
+
+TEST(Gateway, OneSignalFeedingSeveralFesReportsEachOnceInFeOrder) {
+  const std::string yaml = bench::yaml_head() +
+                           "subdevices:\n"
+                           "  grip1: { driver: elobau-mfg, node_id: 0x11 }\n"
+                           "functional_elements:\n"
+                           "  wheel.2: { position: { signal: grip1.x, deadband: 2 } }\n"
+                           "  joystick.3: { x: { signal: grip1.x, deadband: 2 }, y: { signal: grip1.x, deadband: 2 } }\n"
+                           "  joystick.1: { x: { signal: grip1.x, deadband: 2 } }\n"
+                           "  pedal.1: { position: { signal: grip1.x, deadband: 2 } }\n";
+  auto rig = booted(yaml);
+  rig->detach();
+  std::vector<mapping::FeId> changes;
+  rig->gw().on_fe_change = [&](mapping::FeId fe) { changes.push_back(fe); };
+  EXPECT_TRUE(rig->gw().on_downstream_frame(grip1_frame(-25), rig->now()));
+  const std::vector<mapping::FeId> expected{{mapping::FeKind::Joystick, 1},
+                                            {mapping::FeKind::Joystick, 3},
+                                            {mapping::FeKind::FootPedal, 1},
+                                            {mapping::FeKind::Wheel, 2}};
+  ASSERT_EQ(changes.size(), expected.size());
+  for (std::size_t i = 0; i < expected.size(); ++i) EXPECT_EQ(changes[i], expected[i]) << i;
+  for (const auto& fe : expected)
+    for (const auto& f : rig->gw().fields(fe)) EXPECT_EQ(f.value, -8192) << f.name;  // -25 % of 32767
+}
+
+}  // namespace
