@@ -19,6 +19,7 @@
 #include "gateway/publish/dds_publisher.hpp"
 #include "gateway/publish/lcm_publisher.hpp"
 #include "gateway/publish/publish_schedule.hpp"
+#include "gateway/publishing.hpp"
 
 namespace oegw::gateway {
 
@@ -28,26 +29,6 @@ using namespace std::chrono_literals;
 namespace {
 
 constexpr std::uint32_t kDeviceType = 0x000F0191;  // CiA 401 profile, digital+analogue in/out
-
-// Hands every sample to each transport that could be opened.
-class FanOut final : public Publisher {
- public:
-  void add(Publisher* p) { outs_.push_back(p); }
-  [[nodiscard]] bool empty() const { return outs_.empty(); }
-  void publish(const JoystickSample& s) override { each(s); }
-  void publish(const PedalSample& s) override { each(s); }
-  void publish(const WheelSample& s) override { each(s); }
-  void publish(const EncoderSample& s) override { each(s); }
-  void publish(const ButtonClusterSample& s) override { each(s); }
-  void publish(const GatewayStatus& s) override { each(s); }
-
- private:
-  template <class S>
-  void each(const S& s) {
-    for (auto* p : outs_) p->publish(s);
-  }
-  std::vector<Publisher*> outs_;
-};
 
 std::int16_t full_scale(double v) { return static_cast<std::int16_t>(std::lround(v * 32767.0)); }
 

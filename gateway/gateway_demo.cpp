@@ -15,6 +15,8 @@
 #include "gateway/demo_files.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/programs.hpp"
+#include "gateway/publish/dds_publisher.hpp"
+#include "gateway/publishing.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 
 namespace oegw::gateway {
@@ -144,6 +146,23 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
                     : m.code == 0 ? "(error reset)" : ""));
   };
 
+  // --publish: every FE on DDS (loopback only) and LCM (ttl=0), as a machine application sees it.
+  std::unique_ptr<GatewayPublishing> publishing;
+  if (options.publish) {
+    mapping::PublishConfig pc;
+    pc.dds.enabled = true;
+    pc.lcm.enabled = true;
+    try {
+      publishing = std::make_unique<GatewayPublishing>(gw, pc, [&loop] { return loop.now(); });
+      say("publishing every FE on DDS (topics oegw/*, domain 0, loopback only) and LCM (OEGW_*, ttl=0)");
+      for (Publisher* p : publishing->publishers())
+        if (p->fd() >= 0) loop.watch(p->fd(), io_events::kReadable, [p](std::uint32_t) { p->poll(); });
+      loop.call_every(loop.now(), std::chrono::microseconds(publishing->period_us()), [&] { publishing->tick(); });
+    } catch (const PublishConfigError& e) {
+      check(false, e.what());
+    }
+  }
+
   ServiceDriver bench_drv(loop, bench), gw_drv(loop, gw), host_drv(loop, host);
   sims_port->set_receiver([&](const CanFrame& f, TimePoint t) { bench.on_frame(f, t); bench_drv.rearm(); });
   gw_down->set_receiver([&](const CanFrame& f, TimePoint t) { gw.on_downstream_frame(f, t); gw_drv.rearm(); });
@@ -268,6 +287,7 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     loop.run();
   }
   std::filesystem::remove_all(dir);
+  if (publishing) std::printf("published: %llu FE samples\n", static_cast<unsigned long long>(publishing->published()));
   std::printf("\n%s\n", failures == 0 ? "demo complete: every step as expected" : "demo: SOME STEPS FAILED");
   return failures == 0 ? 0 : 1;
 }

@@ -11,6 +11,8 @@
 #include "canopen/io/socketcan_transport.hpp"
 #include "gateway/eds_writer.hpp"
 #include "gateway/gateway.hpp"
+#include "gateway/publish/dds_publisher.hpp"
+#include "gateway/publishing.hpp"
 
 namespace oegw::gateway {
 
@@ -159,6 +161,21 @@ int run_gateway(const std::string& file) {
   down->set_event_handler([&](BusEvent e) { spdlog::warn("downstream {}: {}", cfg->downstream.interface, to_string(e)); });
   watch_transport(loop, *up);
   watch_transport(loop, *down);
+  std::unique_ptr<GatewayPublishing> publishing;
+  try {
+    publishing = std::make_unique<GatewayPublishing>(gw, cfg->publish, [&loop] { return loop.now(); });
+  } catch (const PublishConfigError& e) {
+    spdlog::error("{}: {}", file, e.what());
+    return 2;
+  }
+  if (publishing->active()) {
+    for (Publisher* p : publishing->publishers())
+      if (p->fd() >= 0) loop.watch(p->fd(), io_events::kReadable, [p](std::uint32_t) { p->poll(); });
+    loop.call_every(loop.now(), std::chrono::microseconds(publishing->period_us()), [&] {
+      publishing->tick();
+      driver.rearm();
+    });
+  }
   loop.handle_signals({SIGINT, SIGTERM}, [&](int sig) {
     spdlog::info("signal {}: stopping", sig);
     loop.stop();

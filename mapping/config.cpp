@@ -499,17 +499,21 @@ class Loader {
   }
 
   void publish(const Entry& sec) {
-    const auto es = entries(sec.value, "publish", {"dds", "lcm"}, "a map with dds, lcm");
+    const auto es = entries(sec.value, "publish", {"period_ms", "dds", "lcm"}, "a map with period_ms, dds, lcm");
+    set_int(es, "period_ms", "period_ms", 1, 60000, cfg_.publish.period_ms);
     if (const auto* e = find(es, "dds")) {
       auto& d = cfg_.publish.dds;
       d.enabled = true;
       const auto ds =
-          entries(e->value, "publish dds", {"enabled", "domain", "partition"}, "a map with enabled, domain, partition");
+          entries(e->value, "publish dds", {"enabled", "domain", "partition", "network"},
+                  "a map with enabled, domain, partition, network");
       if (const auto* x = find(ds, "enabled"))
         if (auto b = boolean(*x, "enabled")) d.enabled = *b;
       set_int(ds, "domain", "domain", 0, 232, d.domain);
       if (const auto* x = find(ds, "partition"))
         if (auto s = string(*x, "partition")) d.partition = *s;
+      if (const auto* x = find(ds, "network"))
+        if (auto s = string(*x, "network")) d.network = *s;
     }
     if (const auto* e = find(es, "lcm")) {
       auto& l = cfg_.publish.lcm;

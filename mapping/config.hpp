@@ -69,14 +69,18 @@ struct DownstreamConfig {
 struct DdsConfig {
   bool enabled = false;
   std::uint32_t domain = 0;
-  std::string partition;
+  std::string partition = "oegw";
+  // "loopback" (nothing leaves the host: tests, demo), an interface name (the cab network), or
+  // "" (Cyclone's own configuration, CYCLONEDDS_URI).
+  std::string network = "loopback";
 };
 struct LcmConfig {
   bool enabled = false;
   std::string url = "udpm://239.255.76.67:7667?ttl=0";
   std::string channel_prefix = "OEGW_";
 };
-struct PublishConfig {  // kept as data for the publishing issue
+struct PublishConfig {
+  std::uint32_t period_ms = 100;  // every FE is published on change and at least this often
   DdsConfig dds;
   LcmConfig lcm;
 };

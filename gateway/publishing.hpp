@@ -1,0 +1,72 @@
+// The gateway's functional elements on DDS and/or LCM (the mapping file's `publish:`): every
+// input FE is published on change and at least every period (gateway/publish/publish_schedule),
+// with the gateway status; indicator and display commands come back into the gateway (the last
+// writer wins, whichever its source: host CANopen, DDS or LCM — see README).
+#pragma once
+
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "gateway/fe_samples.hpp"
+#include "gateway/gateway.hpp"
+#include "gateway/publish/publish_schedule.hpp"
+#include "mapping/config.hpp"
+
+namespace oegw::gateway {
+
+// Hands every sample to each transport.
+class FanOut final : public Publisher {
+ public:
+  void add(Publisher* p) { outs_.push_back(p); }
+  [[nodiscard]] bool empty() const { return outs_.empty(); }
+  [[nodiscard]] const std::vector<Publisher*>& outputs() const { return outs_; }
+  void publish(const JoystickSample& s) override { each(s); }
+  void publish(const PedalSample& s) override { each(s); }
+  void publish(const WheelSample& s) override { each(s); }
+  void publish(const EncoderSample& s) override { each(s); }
+  void publish(const ButtonClusterSample& s) override { each(s); }
+  void publish(const GatewayStatus& s) override { each(s); }
+
+ private:
+  template <class S>
+  void each(const S& s) {
+    for (auto* p : outs_) p->publish(s);
+  }
+  std::vector<Publisher*> outs_;
+};
+
+class GatewayPublishing {
+ public:
+  // Opens the transports `config` enables; throws PublishConfigError naming the setting that
+  // cannot be applied (nothing is left open then). `clock` gives the loop's time.
+  GatewayPublishing(Gateway& gateway, const mapping::PublishConfig& config, std::function<canopen::TimePoint()> clock);
+  ~GatewayPublishing();
+  GatewayPublishing(const GatewayPublishing&) = delete;
+  GatewayPublishing& operator=(const GatewayPublishing&) = delete;
+
+  [[nodiscard]] bool active() const { return !fan_.empty(); }
+  // The transports, for the loop to watch fd() and call poll() (commands in).
+  [[nodiscard]] const std::vector<Publisher*>& publishers() const { return fan_.outputs(); }
+  // Republishes what is due and the gateway status; call every period (or at next_due()).
+  void tick();
+  [[nodiscard]] std::int64_t period_us() const { return schedule_.period_us(); }
+  [[nodiscard]] std::uint64_t published() const { return schedule_.published(); }
+
+  // The sample of one FE as the gateway holds it now (also used by tests).
+  void publish_fe(mapping::FeId fe);
+
+ private:
+  [[nodiscard]] std::int64_t now_us() const;
+  void publish_status();
+
+  Gateway& gw_;
+  std::function<canopen::TimePoint()> clock_;
+  std::unique_ptr<Publisher> dds_;
+  std::unique_ptr<Publisher> lcm_;
+  FanOut fan_;
+  PublishSchedule schedule_;
+  std::uint32_t status_seq_ = 0;
+};
+
+}  // namespace oegw::gateway
