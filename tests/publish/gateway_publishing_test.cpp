@@ -1,0 +1,135 @@
+// The gateway's publishing (GatewayPublishing) over LCM, in-process: a simulated elobau grip
+// booted by the Gateway (virtual bus, simulated clock) -> joystick.1 on OEGW_JOYSTICK_1 as a
+// second LCM instance (the machine application) receives it; its indicator command on
+// OEGW_INDICATORS_1 -> the gateway -> the grip's LEDs. Runs in a private network namespace.
+#include <gtest/gtest.h>
+#include <lcm/lcm.h>
+#include <poll.h>
+
+#include <optional>
+
+#include "gateway/gateway.hpp"
+#include "gateway/publishing.hpp"
+#include "oegw/indicator_command_t.hpp"
+#include "oegw/joystick_t.hpp"
+#include "private_network.hpp"
+#include "subdevices/sim/sim_bench.hpp"
+#include "../integration/virtual_network.hpp"
+
+using namespace oegw;
+using namespace oegw::canopen;
+using namespace std::chrono_literals;
+
+namespace {
+
+constexpr const char* kYaml = R"(
+upstream: { interface: virtual, node_id: 0x20 }
+downstream: { interface: virtual }
+publish:
+  period_ms: 50
+  lcm: { url: "udpm://239.255.76.67:7667?ttl=0", channel_prefix: OEGW_ }
+subdevices:
+  grip: { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 100 }
+functional_elements:
+  joystick.1:
+    x: { signal: grip.x, deadband: 2 }
+    y: { signal: grip.y, deadband: 2 }
+  indicators.1:
+    indicator[1..2]: grip.leds[1..2]
+)";
+
+struct App {  // the machine application: its own LCM instance
+  lcm_t* lcm = lcm_create("udpm://239.255.76.67:7667?ttl=0");
+  std::optional<oegw::joystick_t> last;
+  ~App() {
+    if (lcm) lcm_destroy(lcm);
+  }
+  static void on_joystick(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+    oegw::joystick_t m;
+    if (m.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) >= 0) static_cast<App*>(user)->last = m;
+  }
+};
+
+// Waits (bounded) until `fd` is readable, then runs `work`.
+bool wait_readable(int fd, int ms) {
+  pollfd p{fd, POLLIN, 0};
+  return ::poll(&p, 1, ms) > 0;
+}
+
+TEST(GatewayPublishing, JoystickGoesOutOnLcmAndIndicatorCommandsLightTheGripLeds) {
+  auto loaded = mapping::load_config_text(kYaml, "test.yaml", gateway::driver_catalogue());
+  ASSERT_TRUE(loaded.ok()) << loaded.error_text();
+  oegw::testing::VirtualNetwork down, up;
+  subdevices::sim::SimBench bench(down.sink("sims"));
+  std::string error;
+  auto spec = subdevices::parse_device_spec("elobau-mfg:0x11:name=grip", error);
+  ASSERT_TRUE(spec && bench.add(*spec, error)) << error;
+  gateway::GatewayOptions opt;
+  opt.store_path = "";
+  gateway::Gateway gw(*loaded.config, up.sink("gateway"), down.sink("gateway"), opt);
+  down.attach("sims", bench);
+  // The gateway sits on two buses: one driver per side is enough for frames; its timers run
+  // from the downstream network's loop.
+  struct Up {
+    gateway::Gateway& gw;
+    bool on_frame(const CanFrame& f, TimePoint t) { return gw.on_upstream_frame(f, t); }
+    void advance(TimePoint) {}
+    std::optional<TimePoint> next_deadline() const { return std::nullopt; }
+  } up_side{gw};
+  struct Down {
+    gateway::Gateway& gw;
+    bool on_frame(const CanFrame& f, TimePoint t) { return gw.on_downstream_frame(f, t); }
+    void advance(TimePoint t) { gw.advance(t); }
+    std::optional<TimePoint> next_deadline() const { return gw.next_deadline(); }
+  } down_side{gw};
+  down.attach("gateway", down_side);
+  up.attach("gateway", up_side);
+
+  App app;
+  ASSERT_NE(app.lcm, nullptr);
+  lcm_subscribe(app.lcm, "OEGW_JOYSTICK_1", &App::on_joystick, &app);
+  gateway::GatewayPublishing pub(gw, loaded.config->publish, [&down] { return down.now(); });
+  ASSERT_TRUE(pub.active());
+
+  (void)gw.start(down.now());
+  bench.start(down.now());
+  down.run_for(2s);
+  ASSERT_EQ(gw.downstream().state("grip"), subdevices::NodeState::Operational);
+  (void)bench.command("grip x 0", down.now());
+  down.run_for(100ms);
+  (void)bench.command("grip x 50", down.now());
+  down.run_for(100ms);
+  // The app receives joystick.1 valid with x = 50 % of full scale.
+  for (int i = 0; i < 40 && !(app.last && app.last->x == 16384); ++i) {
+    if (wait_readable(lcm_get_fileno(app.lcm), 50)) lcm_handle(app.lcm);
+    pub.tick();
+  }
+  ASSERT_TRUE(app.last.has_value()) << "no joystick sample on OEGW_JOYSTICK_1";
+  EXPECT_EQ(app.last->instance, 1);
+  EXPECT_EQ(app.last->status, 0) << "valid";
+  EXPECT_EQ(app.last->x, 16384) << "50 % -> 32767 * 0.5, rounded";
+
+  // The app lights indicators 1 and 2 of indicators.1: the grip's LEDs 1 and 2 go on.
+  oegw::indicator_command_t cmd;
+  cmd.instance = 1;
+  cmd.indicators = 0x3;
+  std::vector<std::uint8_t> buf(static_cast<std::size_t>(cmd.getEncodedSize()));
+  cmd.encode(buf.data(), 0, static_cast<int>(buf.size()));
+  lcm_publish(app.lcm, "OEGW_INDICATORS_1", buf.data(), static_cast<unsigned>(buf.size()));
+  auto* grip = bench.device("grip");
+  for (int i = 0; i < 40 && grip->output("leds[2]") != 1; ++i) {
+    for (auto* p : pub.publishers())
+      if (p->fd() >= 0 && wait_readable(p->fd(), 50)) p->poll();
+    down.run_for(10ms);
+  }
+  EXPECT_EQ(grip->output("leds[1]"), 1);
+  EXPECT_EQ(grip->output("leds[2]"), 1);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  oegw::test::enter_private_network();  // lo only, for this process
+  ::testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
