@@ -139,28 +139,51 @@ void Gateway::log(const std::string& line) {
   if (on_log) on_log(line);
 }
 
+bool Gateway::feed(Binding& b, const Sub& s, const sd::SignalValue& v) {
+  sd::SignalValue in = v;
+  if (s.forced && in.status == SignalStatus::Valid) in.status = SignalStatus::Error;
+  const std::int64_t before = b.translator->value();
+  const SignalStatus status_before = b.status;
+  const std::int64_t fe_value = b.translator->update(in);
+  b.status = in.status;
+  (void)oe_->set_input(b.fe, b.field->field.name, fe_value, now_);
+  return fe_value != before || b.status != status_before;
+}
+
 void Gateway::on_signal(const std::string& sub, std::size_t index, const sd::SignalValue& v) {
   auto it = by_signal_.find({sub, index});
+  auto s = subs_.find(sub);
   std::set<mapping::FeId> changed;
-  if (it != by_signal_.end()) {
+  if (it != by_signal_.end() && s != subs_.end()) {
     for (const std::size_t bi : it->second) {
       Binding& b = bindings_[bi];
       if (!b.translator) continue;
-      const std::int64_t before = b.translator->value();
-      const SignalStatus status_before = b.status;
-      const std::int64_t fe_value = b.translator->update(v);
-      b.status = v.status;
-      if (fe_value != before || b.status != status_before) changed.insert(b.fe);
-      (void)oe_->set_input(b.fe, b.field->field.name, fe_value, now_);
+      if (feed(b, s->second, v)) changed.insert(b.fe);
     }
   }
-  auto s = subs_.find(sub);
   if (s != subs_.end()) update_fault(s->second);
   if (on_fe_change)
     for (const auto& fe : changed) on_fe_change(fe);
 }
 
 void Gateway::update_fault(Sub& s) {
+  // Fix (e2e test UnknownErrorEmcyStillPutsTheFieldsAtTheirFaultValues): an error EMCY the
+  // driver does not map to a signal (e.g. an MCB-402 code it does not know) left every signal
+  // Valid, so the fields kept following while the log and EMCY 7000h said "at their fault
+  // values". While the error EMCY lasts, the node's inputs are held at their fault values (set
+  // before the EMCY goes up); on the error reset they are fed again from the driver's current
+  // values, through the neutral interlock.
+  const bool forced = s.operational && s.emcy_error;
+  if (forced != s.forced) {
+    s.forced = forced;
+    std::set<mapping::FeId> changed;
+    for (auto& b : bindings_) {
+      if (b.field->subdevice != s.config->name || !b.translator) continue;
+      if (feed(b, s, s.driver->value(b.signal))) changed.insert(b.fe);
+    }
+    if (on_fe_change)
+      for (const auto& fe : changed) on_fe_change(fe);
+  }
   // A bound input in Error / NotAvailable counts; Offline is the node's own state.
   std::string reason;
   if (!s.operational) {

@@ -94,11 +94,16 @@ class Gateway {
     bool operational = false;
     bool emcy_error = false;
     std::string why;
+    // An error EMCY holds every input of this node at its fault value, also when the driver
+    // leaves its signals Valid (an EMCY code it cannot map to a signal).
+    bool forced = false;
   };
 
   void on_signal(const std::string& sub, std::size_t index, const subdevices::SignalValue& v);
   void on_output(mapping::FeId fe, const std::string& field, std::int64_t value);
   void update_fault(Sub& s);
+  // Feeds one input binding (the EMCY hold of its node applied); returns true if it changed.
+  bool feed(Binding& b, const Sub& s, const subdevices::SignalValue& v);
   void log(const std::string& line);
 
   mapping::Config config_;

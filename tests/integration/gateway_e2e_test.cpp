@@ -572,6 +572,8 @@ TEST_F(GatewayE2E, SubdeviceErrorEmcy) {
   run_for(300ms);
   ASSERT_EQ(emcys(0x7000).size(), 1u) << dump();
   EXPECT_EQ(emcys(0x7000)[0].msef[0], 0x11);
+  ASSERT_FALSE(joy1_at_emcy_.empty());
+  EXPECT_TRUE(neutral(joy1_at_emcy_.front())) << "fault values before the EMCY leaves";
   EXPECT_NE(gw_->faults().count("right_grip"), 0u);
   EXPECT_EQ(gw_->faults().at("right_grip"), "error EMCY");
   EXPECT_TRUE(neutral(gw_->fields(kJoy1)));
@@ -583,6 +585,38 @@ TEST_F(GatewayE2E, SubdeviceErrorEmcy) {
   EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
   EXPECT_TRUE(gw_->faults().empty()) << log_;
   EXPECT_EQ(gw_->status(kJoy1), FeStatus::Valid);
+}
+
+// An error EMCY the driver does not map to any signal (MCB-402: an undocumented code, "signals
+// untouched") still faults the sub-device: its fields go to their fault values at once.
+TEST_F(GatewayE2E, UnknownErrorEmcyStillPutsTheFieldsAtTheirFaultValues) {
+  build();
+  boot_and_start();
+  cmd("left_grip x 10000");
+  cmd("left_grip buttons[1] 1");
+  run_for(300ms);
+  ASSERT_EQ(field(kJoy2, "x"), 10000);
+  mcb().node().emcy().raise(0x5000, 0x80, loop_.now());  // "device hardware", not in the document
+  run_for(300ms);
+  ASSERT_EQ(emcys(0x7000).size(), 1u) << dump();
+  EXPECT_EQ(emcys(0x7000)[0].msef[0], 0x03);
+  EXPECT_TRUE(neutral(gw_->fields(kJoy2))) << log_;
+  EXPECT_NE(gw_->status(kJoy2), FeStatus::Valid);
+  EXPECT_EQ(i16(*last(kTpdo5), 0), 0) << dump();
+  EXPECT_EQ(last(kTpdo5)->data[7], 0x00);
+  // The device's error reset: the fault clears, the axis is held until seen at neutral.
+  mcb().node().emcy().clear(0x5000, loop_.now());
+  run_for(300ms);
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_TRUE(gw_->faults().empty());
+  EXPECT_EQ(field(kJoy2, "x"), 0);
+  EXPECT_EQ(field(kJoy2, "buttons[1]"), 1) << "a button has no interlock";
+  cmd("left_grip x 0");
+  run_for(300ms);
+  cmd("left_grip x 10000");
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy2, "x"), 10000);
+  EXPECT_EQ(gw_->status(kJoy2), FeStatus::Valid);
 }
 
 TEST_F(GatewayE2E, Mcb402CableBreak) {
@@ -611,6 +645,36 @@ TEST_F(GatewayE2E, Mcb402CableBreak) {
   run_for(300ms);
   EXPECT_EQ(field(kJoy2, "y"), 12000);
   EXPECT_EQ(i16(*last(kTpdo5), 2), 12000);
+}
+
+TEST_F(GatewayE2E, TwoFaultySubdevicesEachNamedAndClearedInTurn) {
+  build();
+  boot_and_start();
+  cmd("right_grip heartbeat off");
+  run_for(400ms);
+  mcb().cable_break(2, true, loop_.now());
+  run_for(300ms);
+  // oe_device.hpp: the second fault while 7000h is active is an extra 7000h frame naming it.
+  const auto e = emcys(0x7000);
+  ASSERT_EQ(e.size(), 2u) << dump();
+  EXPECT_EQ(e[0].msef[0], 0x11);
+  EXPECT_EQ(e[1].msef[0], 0x03);
+  EXPECT_EQ(gw_->faults().size(), 2u);
+  // The MCB-402 recovers first: EMCY 0000h naming it, the error register still set (the grip).
+  mcb().cable_break(2, false, loop_.now());
+  run_for(300ms);
+  auto r = emcys(0x0000);
+  ASSERT_EQ(r.size(), 1u) << dump();
+  EXPECT_EQ(r[0].msef[0], 0x03);
+  EXPECT_EQ(r[0].error_register & 0x01, 0x01);
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Offline);
+  // Then the grip: the last one clears 7000h, register 0.
+  cmd("right_grip heartbeat on");
+  run_for(5s);
+  r = emcys(0x0000);
+  ASSERT_EQ(r.size(), 2u) << dump();
+  EXPECT_EQ(r[1].error_register, 0x00);
+  EXPECT_TRUE(gw_->faults().empty()) << log_;
 }
 
 TEST_F(GatewayE2E, WrongIdentityAtBootRefusesTheMandatoryNode) {
