@@ -677,6 +677,40 @@ TEST_F(GatewayE2E, TwoFaultySubdevicesEachNamedAndClearedInTurn) {
   EXPECT_TRUE(gw_->faults().empty()) << log_;
 }
 
+// The host resets the gateway (NMT reset node): the application objects go back to their
+// defaults, the EMCY producer forgets its errors. What the host reads afterwards must still be
+// the truth: the inputs' current values, and the sub-device that is still lost.
+TEST_F(GatewayE2E, HostResetNodeKeepsInputsAndFaultsTrue) {
+  build();
+  boot_and_start();
+  cmd("right_grip x 50");
+  cmd("right_grip buttons[2] 1");
+  cmd("seat_knob position 777");
+  run_for(300ms);
+  cmd("left_grip heartbeat off");
+  run_for(400ms);
+  ASSERT_EQ(emcys(0x7000).size(), 1u);
+  emcys_.clear();
+  upstream_.clear();
+  host_->nmt().reset_node(kGw);
+  run_for(500ms);
+  EXPECT_TRUE(std::any_of(upstream_.begin(), upstream_.end(),
+                          [](const BusRecord& r) { return r.frame.to_string() == "720#00"; }))
+      << dump();
+  EXPECT_EQ(gw_->upstream().node().state(), NmtState::PreOperational);
+  const auto x = sdo_read(0x6401, 1);
+  ASSERT_TRUE(x.has_value());
+  EXPECT_EQ(static_cast<std::int16_t>(decode_unsigned(*x)), 16384) << "the stick is still at 50 %";
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x6000, 2)), 0x02u) << "joystick 1 buttons";
+  EXPECT_EQ(static_cast<std::int32_t>(decode_unsigned(*sdo_read(0x6120, 0x81))), 777);
+  // The MCB-402 is still lost: EMCY 7000h naming it again after the boot-up, and 1001h says so.
+  const auto e = emcys(0x7000);
+  ASSERT_EQ(e.size(), 1u) << dump();
+  EXPECT_EQ(e[0].msef[0], 0x03);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1001, 0)) & 0x01, 0x01u);
+  EXPECT_EQ(gw_->status(kJoy2), FeStatus::Offline);
+}
+
 TEST_F(GatewayE2E, WrongIdentityAtBootRefusesTheMandatoryNode) {
   build(", identity: { vendor_id: 0x99 }");  // the elobau grip answers B4h
   power_on();
@@ -756,6 +790,27 @@ TEST_F(GatewayE2E, IndicatorsFromHostReachElobauAndMcb402LedsByRpdoAndSdo) {
   EXPECT_EQ(left->output("leds[2]"), 1);
   EXPECT_EQ(left->output("leds[4]"), 1);
   EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x09)), 0x0Au);
+}
+
+TEST_F(GatewayE2E, IndicatorsSetWhileTheMcb402IsLostReachItWhenItReturns) {
+  build();
+  boot_and_start();
+  cmd("left_grip silent on");
+  run_for(400ms);
+  ASSERT_EQ(gw_->downstream().state("left_grip"), sd::NodeState::Missing);
+  (void)host_port_->send(CanFrame(kRpdo5, {0x06, 0, 0, 0, 0, 0, 0, 0}));  // lamps 2, 3
+  run_for(100ms);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x09)), 0x06u);
+  auto* left = bench_->device("left_grip");
+  EXPECT_EQ(left->output("leds[2]"), 0) << "the board is unplugged";
+  cmd("left_grip silent off");
+  cmd("left_grip reboot");  // powers up with its outputs off
+  run_for(5s);
+  ASSERT_EQ(gw_->downstream().state("left_grip"), sd::NodeState::Operational) << log_;
+  EXPECT_EQ(left->output("leds[1]"), 0);
+  EXPECT_EQ(left->output("leds[2]"), 1);
+  EXPECT_EQ(left->output("leds[3]"), 1);
+  EXPECT_EQ(left->output("leds[4]"), 0);
 }
 
 TEST_F(GatewayE2E, HostHeartbeatLossAppliesErrorValuesToTheLeds) {
