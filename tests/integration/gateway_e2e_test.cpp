@@ -10,7 +10,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <atomic>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -709,6 +708,30 @@ TEST_F(GatewayE2E, HostResetNodeKeepsInputsAndFaultsTrue) {
   EXPECT_EQ(e[0].msef[0], 0x03);
   EXPECT_EQ(decode_unsigned(*sdo_read(0x1001, 0)) & 0x01, 0x01u);
   EXPECT_EQ(gw_->status(kJoy2), FeStatus::Offline);
+}
+
+// Upstream bus-off and recovery (the controller restarted): EMCY 8140h, 1029h:01 = 0 takes the
+// gateway to pre-operational; a sub-device fault still active is not cleared by it.
+TEST_F(GatewayE2E, UpstreamBusOffRecoveryReportsEmcy8140hAndKeepsTheSubdeviceFault) {
+  build();
+  boot_and_start();
+  cmd("left_grip heartbeat off");
+  run_for(400ms);
+  ASSERT_EQ(emcys(0x7000).size(), 1u);
+  gw_->on_upstream_bus_event(BusEvent::BusOff, loop_.now());
+  run_for(10ms);
+  EXPECT_EQ(gw_->upstream().node().state(), NmtState::PreOperational);
+  gw_->on_upstream_bus_event(BusEvent::Restarted, loop_.now());
+  run_for(100ms);
+  EXPECT_EQ(emcys(0x8140).size(), 1u) << dump();
+  EXPECT_TRUE(emcys(0x0000).empty()) << "7000h is still active: no error reset";
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1001, 0)) & 0x01, 0x01u);
+  EXPECT_EQ(gw_->status(kJoy2), FeStatus::Offline);
+  // The MCB-402 comes back: now the last error goes, 0000h.
+  cmd("left_grip heartbeat on");
+  run_for(5s);
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1001, 0)), 0x00u);
 }
 
 TEST_F(GatewayE2E, WrongIdentityAtBootRefusesTheMandatoryNode) {
