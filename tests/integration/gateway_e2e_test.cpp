@@ -871,6 +871,49 @@ TEST_F(GatewayE2E, HostHeartbeatLossAppliesErrorValuesToTheLeds) {
   EXPECT_EQ(right->output("leds[2]"), 1);
 }
 
+// 1010h "save" keeps the host's upstream configuration (PDO COB-IDs, 6423h) across a restart of
+// the gateway process (a new Gateway on the same store file); the sub-devices are booted again.
+TEST_F(GatewayE2E, SavedUpstreamConfigurationSurvivesAGatewayRestart) {
+  build();
+  boot_and_start();
+  ASSERT_EQ(sdo_write(0x1010, 1, {'s', 'a', 'v', 'e'}), SdoAbortCode::None);
+  // Power cycle of the gateway: a new process on the same mapping file and store.
+  gw_up_->set_receiver({});
+  gw_down_->set_receiver({});
+  gw_drv_.reset();
+  gw_.reset();
+  gw::GatewayOptions opt;
+  opt.store_path = store_;
+  gw_ = std::make_unique<Gateway>(config_, gw_up_->sink(), gw_down_->sink(), opt);
+  gw_drv_ = std::make_unique<ServiceDriver>(loop_, *gw_);
+  gw_down_->set_receiver([this](const CanFrame& f, TimePoint t) {
+    gw_->on_downstream_frame(f, t);
+    gw_drv_->rearm();
+  });
+  gw_up_->set_receiver([this](const CanFrame& f, TimePoint t) {
+    gw_->on_upstream_frame(f, t);
+    gw_drv_->rearm();
+  });
+  const auto loaded = gw_->start(loop_.now());
+  EXPECT_TRUE(loaded.ok) << loaded.error;
+  run_for(3s);
+  EXPECT_TRUE(all_operational()) << log_;
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1800, 1)), kTpdo1);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1804, 1)), kTpdo5);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1404, 1)), kRpdo5);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x6423, 0)), 1u);
+  // Only the NMT start is needed now.
+  emcys_.clear();
+  pdos_.clear();
+  host_->nmt().start(kGw);
+  run_for(100ms);
+  cmd("right_grip x 50");
+  run_for(300ms);
+  ASSERT_TRUE(last(kTpdo1)) << dump();
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 16384);
+  EXPECT_TRUE(emcys(0x0080).empty()) << "6423h TRUE was stored";
+}
+
 // ---- A bad mapping file: refused with file:line:column, nothing built --------------------------
 
 TEST(GatewayE2EBadMapping, ErrorsCarryFileLineColumnAndNoGatewayIsBuilt) {
