@@ -118,7 +118,15 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     auto it = subs_.find(name);
     if (it == subs_.end()) return;
     log(name + ": EMCY " + fmt::format("{:04X}h", e.code) + " " + d.text);
-    it->second.emcy_error = d.error && e.code != 0;
+    // Fix (e2e test AWarningEmcyDoesNotEndAnActiveSubdeviceError): a warning EMCY (decoded
+    // error = false, e.g. elobau 8140h "recovered from bus off") used to end an active error
+    // EMCY, so the fault was cleared (EMCY 0000h upstream) while the device still reported it.
+    // Only the device's error reset (0000h) ends it; an error EMCY starts it.
+    if (e.code == 0) {
+      it->second.emcy_error = false;
+    } else if (d.error) {
+      it->second.emcy_error = true;
+    }
     update_fault(it->second);
   };
   network_.on_bad_input = [this](const std::string& what) { log(what); };

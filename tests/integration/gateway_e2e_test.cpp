@@ -618,6 +618,39 @@ TEST_F(GatewayE2E, UnknownErrorEmcyStillPutsTheFieldsAtTheirFaultValues) {
   EXPECT_EQ(gw_->status(kJoy2), FeStatus::Valid);
 }
 
+// A warning EMCY (elobau 8140h "recovered from bus-off", decoded as no error) while an error
+// EMCY is active does not end the error: the fault stays until the device's error reset. With
+// 0001h the driver itself holds every input in Error; 0070h (LED message timeout) marks only
+// the LEDs, so only the gateway's EMCY state keeps the fault.
+class GatewayE2EWarning : public GatewayE2E, public ::testing::WithParamInterface<std::uint16_t> {};
+
+TEST_P(GatewayE2EWarning, AWarningEmcyDoesNotEndAnActiveSubdeviceError) {
+  build();
+  boot_and_start();
+  grip().raise_error(GetParam(), loop_.now());
+  run_for(300ms);
+  ASSERT_EQ(emcys(0x7000).size(), 1u) << dump();
+  EXPECT_NE(gw_->status(kJoy1), FeStatus::Valid);
+  grip().bus_off(loop_.now());  // EMCY 8140h with the bus-off count
+  run_for(300ms);
+  ASSERT_NE(log_.find("right_grip: EMCY 8140h"), std::string::npos) << log_;
+  EXPECT_NE(gw_->faults().count("right_grip"), 0u) << log_;
+  EXPECT_TRUE(emcys(0x0000).empty()) << dump();
+  EXPECT_NE(gw_->status(kJoy1), FeStatus::Valid);
+  cmd("right_grip x 50");
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy1, "x"), 0) << "still held while the error is active";
+  grip().clear_error(GetParam(), loop_.now());
+  cmd("right_grip x 0");
+  run_for(500ms);
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_TRUE(gw_->faults().empty()) << log_;
+  cmd("right_grip x 50");
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy1, "x"), 16384);
+}
+INSTANTIATE_TEST_SUITE_P(Elobau, GatewayE2EWarning, ::testing::Values(std::uint16_t{0x0001}, std::uint16_t{0x0070}));
+
 TEST_F(GatewayE2E, Mcb402CableBreak) {
   build();
   boot_and_start();
