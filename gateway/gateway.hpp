@@ -10,6 +10,10 @@
 //    gone the error-reset EMCY follows;
 //  * neutral interlock: after that, each axis stays at neutral until it has been seen inside
 //    its deadband (mapping/translate.hpp).
+//  * an error EMCY lasts until the sub-device's error reset (0000h): a warning EMCY (decoded
+//    error = false) does not end it, and while it lasts every input of that node is held at its
+//    fault value, also when the driver maps the EMCY to no signal (tests/integration/
+//    gateway_e2e_test.cpp).
 #pragma once
 
 #include <map>

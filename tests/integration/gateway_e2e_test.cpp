@@ -318,10 +318,11 @@ TEST_F(GatewayE2E, HostConfiguresAndStartsTheGateway) {
   EXPECT_EQ(upstream_.front().frame.id, 0x720u);
   EXPECT_EQ(upstream_.front().frame.dlc, 1);
   EXPECT_EQ(upstream_.front().frame.data[0], 0x00);
-  // 1000h per Table 8 as `oegw check` prints it: joystick (with buttons) 0x08, pedal, encoder,
-  // wheel, buttons, indicators; the value is the one device_type_for computes for the FE set.
+  // 1000h per Table 8 for this FE set: the value `oegw check config/demo.yaml` prints (the extra
+  // indicators.3 adds no bit) and the one device_type_for computes.
   const auto dt = sdo_read(0x1000, 0);
   ASSERT_TRUE(dt.has_value());
+  EXPECT_EQ(decode_unsigned(*dt), 0xBF870191u);
   EXPECT_EQ(decode_unsigned(*dt), gw::device_type_for(gw_->fes()));
   EXPECT_EQ(decode_unsigned(*dt) & 0xFFFF, 0x0191u);
   // 1018h as the mapping file says.
