@@ -257,6 +257,10 @@ void Node::handle_reset(bool communication_only, TimePoint now) {
       (void)store_->load();
     }
   }
+  // Fix (gateway e2e HostResetNodeKeepsInputsAndFaultsTrue): the EMCY producer keeps its active
+  // errors across a reset, but 1001h had just been reset to 0 — an error register saying "no
+  // error" while errors are active. 1001h follows the producer again.
+  emcy_.reapply_register();
   if (new_id.valid()) {
     lss_.set_active_node_id(new_id);
     sdo_.set_cob_ids(CobId{cob::kSdoRx + new_id.value()}, CobId{cob::kSdoTx + new_id.value()});

@@ -131,7 +131,15 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     auto it = subs_.find(name);
     if (it == subs_.end()) return;
     log(name + ": EMCY " + fmt::format("{:04X}h", e.code) + " " + d.text);
-    it->second.emcy_error = d.error && e.code != 0;
+    // Fix (e2e test AWarningEmcyDoesNotEndAnActiveSubdeviceError): a warning EMCY (decoded
+    // error = false, e.g. elobau 8140h "recovered from bus off") used to end an active error
+    // EMCY, so the fault was cleared (EMCY 0000h upstream) while the device still reported it.
+    // Only the device's error reset (0000h) ends it; an error EMCY starts it.
+    if (e.code == 0) {
+      it->second.emcy_error = false;
+    } else if (d.error) {
+      it->second.emcy_error = true;
+    }
     update_fault(it->second);
   };
   network_.on_bad_input = [this](const std::string& what) { log(what); };
@@ -150,6 +158,21 @@ canopen::ParameterStore::LoadResult Gateway::start(TimePoint now) {
 
 void Gateway::log(const std::string& line) {
   if (on_log) on_log(line);
+}
+
+bool Gateway::feed(Binding& b, const Sub& s, const sd::SignalValue& v) {
+  sd::SignalValue in = v;
+  if (s.forced && in.status == SignalStatus::Valid) in.status = SignalStatus::Error;
+  const std::int64_t before = b.translator->value();
+  const SignalStatus status_before = b.status;
+  const std::int64_t fe_value = b.translator->update(in);
+  b.status = in.status;
+  if (b.target) {
+    (void)oe_->set_input(b.fe, *b.target, fe_value, now_);
+  } else {
+    (void)oe_->set_input(b.fe, b.field->field.name, fe_value, now_);
+  }
+  return fe_value != before || b.status != status_before;
 }
 
 void Gateway::on_signal(const std::string& sub, std::size_t index, const sd::SignalValue& v) {
@@ -176,13 +199,7 @@ void Gateway::on_signal(const std::string& sub, std::size_t index, const sd::Sig
     for (const std::size_t bi : s->second.by_signal[index]) {
       Binding& b = bindings_[bi];
       if (!b.translator) continue;
-      const std::int64_t before = b.translator->value();
-      const SignalStatus status_before = b.status;
-      const std::int64_t fe_value = b.translator->update(v);
-      b.status = v.status;
-      if (fe_value != before || b.status != status_before) note(b.fe);
-      if (b.target) (void)oe_->set_input(b.fe, *b.target, fe_value, now_);
-      else (void)oe_->set_input(b.fe, b.field->field.name, fe_value, now_);
+      if (feed(b, s->second, v)) note(b.fe);
     }
   }
   update_fault(s->second);
@@ -198,6 +215,23 @@ void Gateway::on_signal(const std::string& sub, std::size_t index, const sd::Sig
 }
 
 void Gateway::update_fault(Sub& s) {
+  // Fix (e2e test UnknownErrorEmcyStillPutsTheFieldsAtTheirFaultValues): an error EMCY the
+  // driver does not map to a signal (e.g. an MCB-402 code it does not know) left every signal
+  // Valid, so the fields kept following while the log and EMCY 7000h said "at their fault
+  // values". While the error EMCY lasts, the node's inputs are held at their fault values (set
+  // before the EMCY goes up); on the error reset they are fed again from the driver's current
+  // values, through the neutral interlock.
+  const bool forced = s.operational && s.emcy_error;
+  if (forced != s.forced) {
+    s.forced = forced;
+    std::set<mapping::FeId> changed;
+    for (const std::size_t bi : s.inputs) {
+      Binding& b = bindings_[bi];
+      if (feed(b, s, s.driver->value(b.signal))) changed.insert(b.fe);
+    }
+    if (on_fe_change)
+      for (const auto& fe : changed) on_fe_change(fe);
+  }
   // A bound input in Error / NotAvailable counts; Offline is the node's own state.
   std::string reason;
   if (!s.operational) {

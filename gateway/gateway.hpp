@@ -10,6 +10,10 @@
 //    gone the error-reset EMCY follows;
 //  * neutral interlock: after that, each axis stays at neutral until it has been seen inside
 //    its deadband (mapping/translate.hpp).
+//  * an error EMCY lasts until the sub-device's error reset (0000h): a warning EMCY (decoded
+//    error = false) does not end it, and while it lasts every input of that node is held at its
+//    fault value, also when the driver maps the EMCY to no signal (tests/integration/
+//    gateway_e2e_test.cpp).
 #pragma once
 
 #include <map>
@@ -97,11 +101,16 @@ class Gateway {
     std::string why;
     std::vector<std::vector<std::size_t>> by_signal;  // driver signal index -> bindings_
     std::vector<std::size_t> inputs;                   // its input bindings, in bindings_ order
+    // An error EMCY holds every input of this node at its fault value, also when the driver
+    // leaves its signals Valid (an EMCY code it cannot map to a signal).
+    bool forced = false;
   };
 
   void on_signal(const std::string& sub, std::size_t index, const subdevices::SignalValue& v);
   void on_output(mapping::FeId fe, const std::string& field, std::int64_t value);
   void update_fault(Sub& s);
+  // Feeds one input binding (the EMCY hold of its node applied); returns true if it changed.
+  bool feed(Binding& b, const Sub& s, const subdevices::SignalValue& v);
   void log(const std::string& line);
 
   mapping::Config config_;

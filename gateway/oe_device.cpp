@@ -348,9 +348,11 @@ bool OeDevice::set_input(FeId fe, const mapping::FeField& field, std::int64_t va
     // In place, little endian as encode_width() (no allocation: this runs for every axis change).
     const auto u = static_cast<std::uint64_t>(raw);
     for (std::size_t i = 0; i < s->value.size(); ++i) s->value[i] = static_cast<std::uint8_t>(i < 8 ? u >> (8 * i) : 0);
+    input_shadow_[std::uint32_t{f->index} << 8 | f->sub] = s->value;  // same size: no reallocation
     return true;
   }
   const SdoAbortCode rc = od_.set<std::int64_t>(f->index, f->sub, raw, Origin::Local);
+  if (rc == SdoAbortCode::None) input_shadow_[std::uint32_t{f->index} << 8 | f->sub] = s->value;
   node_->advance(now);  // event-driven TPDOs go out now
   return rc == SdoAbortCode::None;
 }
@@ -382,6 +384,9 @@ void OeDevice::resync_outputs() {
 }
 
 void OeDevice::handle_state(NmtState s) {
+  const bool booted_again = last_state_ == NmtState::Initialisation && s == NmtState::PreOperational;
+  last_state_ = s;
+  if (booted_again) after_reset();
   resync_outputs();
   // CiA 852 §8.6: entering operational with 6423h FALSE sends EMCY 0080h; no state change.
   auto& emcy = node_->emcy();
@@ -391,6 +396,29 @@ void OeDevice::handle_state(NmtState s) {
   } else if (emcy.active(kEmcyAnalogInputsDisabled)) {
     emcy.clear(kEmcyAnalogInputsDisabled, now_);
   }
+}
+
+namespace {
+canopen::EmcyManufacturerField subdevice_msef(canopen::NodeId node, std::string_view name) {
+  canopen::EmcyManufacturerField m{};
+  m[0] = node.value();
+  for (std::size_t i = 0; i < 4 && i < name.size(); ++i) m[1 + i] = static_cast<std::uint8_t>(name[i]);
+  return m;
+}
+}  // namespace
+
+// Fix (gateway e2e HostResetNodeKeepsInputsAndFaultsTrue): after an NMT reset node from the
+// host, 6000h/6401h/6120h read their defaults (0) although the operator still holds the stick,
+// and a sub-device that is still lost was never reported again (the host that reset us — e.g.
+// after its own restart — had no way to learn it). After every boot-up: the inputs get their
+// current values back (pre-operational: no TPDO), and each faulty sub-device is reported again
+// with EMCY 7000h (the producer kept the error active across the reset).
+void OeDevice::after_reset() {
+  for (const auto& [key, bytes] : input_shadow_) {
+    canopen::SubObject* so = od_.find(static_cast<std::uint16_t>(key >> 8), static_cast<std::uint8_t>(key));
+    if (so != nullptr && so->value.size() == bytes.size()) so->value = bytes;
+  }
+  for (const auto& [node, name] : faults_) send_emcy_frame(kEmcyAdditionalModules, subdevice_msef(canopen::NodeId{node}, name));
 }
 
 void OeDevice::handle_od_change(std::uint16_t index, std::uint8_t sub) {
@@ -466,14 +494,6 @@ void OeDevice::send_emcy_frame(std::uint16_t code, const canopen::EmcyManufactur
   sink_(f);
 }
 
-namespace {
-canopen::EmcyManufacturerField subdevice_msef(canopen::NodeId node, std::string_view name) {
-  canopen::EmcyManufacturerField m{};
-  m[0] = node.value();
-  for (std::size_t i = 0; i < 4 && i < name.size(); ++i) m[1 + i] = static_cast<std::uint8_t>(name[i]);
-  return m;
-}
-}  // namespace
 
 void OeDevice::raise_subdevice_fault(std::string_view name, canopen::NodeId node, TimePoint now) {
   now_ = now;

@@ -77,6 +77,10 @@
 //    reported through on_output.
 //  * Host heartbeat loss: detected from the Node's heartbeat-consumer EMCY 8130h (the Node owns
 //    the consumer's callback), or called directly by the gateway.
+//  * NMT reset node / reset communication from the host: the inputs keep their current values
+//    (6000h/6401h/6120h are written back after the reset restored their defaults), 1001h keeps
+//    the active errors, and every sub-device still faulty is reported again with EMCY 7000h
+//    right after the boot-up.
 #pragma once
 
 #include <cstdint>
@@ -185,6 +189,7 @@ class OeDevice {
   void handle_state(canopen::NmtState s);
   void handle_od_change(std::uint16_t index, std::uint8_t sub);
   void resync_outputs();
+  void after_reset();
   void report_outputs(std::uint16_t index, std::uint8_t sub, std::int64_t old_value);
   void send_emcy_frame(std::uint16_t code, const canopen::EmcyManufacturerField& msef);
   [[nodiscard]] bool analog_interrupt_enabled() const;
@@ -201,6 +206,10 @@ class OeDevice {
   std::map<std::uint8_t, std::string> faults_;                   // node-ID -> name
   std::map<std::uint32_t, std::vector<OutputRef>> outputs_;      // index << 8 | sub -> fields
   std::map<std::uint32_t, std::int64_t> output_shadow_;          // last value of each output entry
+  // Last bytes written by set_input per input entry (index << 8 | sub): an NMT reset node
+  // restores the application objects to their defaults, but the inputs have not moved.
+  std::map<std::uint32_t, std::vector<std::uint8_t>> input_shadow_;
+  canopen::NmtState last_state_ = canopen::NmtState::Initialisation;
   canopen::Subscriptions subs_;  // last: released before the OD/Node go
 };
 

@@ -56,6 +56,9 @@ class EmcyProducer {
   // The error is gone: updates 1001h; when no error remains, sends the error-reset EMCY (0000h).
   // Returns false if the code was not active.
   bool clear(std::uint16_t code, TimePoint now);
+  // Rewrites 1001h from the active errors (after a reset restored the dictionary's defaults:
+  // a reset does not make an active error go away).
+  void reapply_register() { update_register(); }
 
   [[nodiscard]] bool active(std::uint16_t code) const;
   [[nodiscard]] std::size_t active_count() const { return active_.size(); }

@@ -1,0 +1,992 @@
+// Tier 2, end to end: the whole gateway between two virtual buses on a simulated clock.
+// Downstream, the simulated cab devices (SimBench, as `oegw-sim` runs them); in the middle the
+// Gateway built from a mapping file (the demo's, plus the elobau LEDs); upstream a host
+// canopen::Master that configures the CiA 852 PDOs by SDO (disabled by default, clause 12),
+// sets 6423h TRUE and NMT-starts node 20h, then checks the exact TPDO bytes the mapping
+// promises (oe_device.hpp: PDO numbers and byte layouts) and every fault of the fault policy
+// (gateway.hpp) as FE values, FE status and upstream EMCY. Nothing sleeps: time only moves
+// when a test advances the loop.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "canopen/io/clock.hpp"
+#include "canopen/io/event_loop.hpp"
+#include "canopen/io/virtual_bus.hpp"
+#include "canopen/master.hpp"
+#include "gateway/gateway.hpp"
+#include "subdevices/sim/elobau_mfg_sim.hpp"
+#include "subdevices/sim/mcb402_sim.hpp"
+#include "subdevices/sim/sim_bench.hpp"
+
+using namespace oegw::canopen;
+using namespace std::chrono_literals;
+using oegw::gateway::FeStatus;
+using oegw::gateway::Gateway;
+using oegw::mapping::FeId;
+using oegw::mapping::FeKind;
+namespace sd = oegw::subdevices;
+namespace gw = oegw::gateway;
+using Bytes = std::vector<std::uint8_t>;
+
+namespace {
+
+constexpr NodeId kGw{0x20};
+constexpr std::uint8_t kHostNode = 0x01;
+const FeId kJoy1{FeKind::Joystick, 1};
+const FeId kJoy2{FeKind::Joystick, 2};
+const FeId kPedal1{FeKind::FootPedal, 1};
+const FeId kEnc1{FeKind::Encoder, 1};
+const FeId kWheel1{FeKind::Wheel, 1};
+const FeId kButtons1{FeKind::ButtonCluster, 1};
+
+// COB-IDs the host assigns (clause 12: every PDO but TPDO 1 has none by default).
+constexpr std::uint32_t kTpdo1 = 0x1A0;   // joystick 1 (the default 180h + node-ID)
+constexpr std::uint32_t kTpdo5 = 0x2A0;   // joystick 2
+constexpr std::uint32_t kTpdo20 = 0x2B0;  // pedals 1, 2
+constexpr std::uint32_t kTpdo28 = 0x2C0;  // encoders 1, 2
+constexpr std::uint32_t kTpdo32 = 0x2D0;  // wheels 1..4
+constexpr std::uint32_t kTpdo34 = 0x2E0;  // push-button cluster 1
+constexpr std::uint32_t kRpdo1 = 0x220;   // indicators 1 (the cluster's lamps)
+constexpr std::uint32_t kRpdo5 = 0x225;   // indicators 2 (MCB-402 OUT0..3)
+constexpr std::uint32_t kRpdo6 = 0x226;   // indicators 3 (elobau LEDs)
+
+// config/demo.yaml with absolute EDS paths, plus the elobau LEDs as indicators.3. `extra` goes
+// into right_grip's flow map (e.g. an identity check).
+std::string mapping_yaml(const std::string& right_grip_extra = "") {
+  const std::string eds = std::string(OEGW_SOURCE_DIR) + "/subdevices/eds/";
+  return R"(upstream:
+  interface: virtual
+  node_id: 0x20
+  bitrate: 250000
+  identity: { vendor_id: 0x00000000, product_code: 0x00000852, revision: 0x00010000, serial: 1 }
+  heartbeat_ms: 100
+downstream: { interface: virtual, bitrate: 250000 }
+subdevices:
+  right_grip: { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 100, mandatory: true)" +
+         right_grip_extra + R"( }
+  left_grip:  { driver: mcb402, node_id: 0x03, heartbeat_ms: 100 }
+  pedal:
+    driver: cia401
+    node_id: 0x30
+    heartbeat_ms: 100
+    options: { eds: )" +
+         eds + R"(generic_pedal.eds }
+  seat_knob:
+    driver: novotechnik-406
+    node_id: 0x7F
+    sdo:
+      - { index: 0x1800, sub_index: 5, value: 20, type: u16 }
+  cluster:
+    driver: cia401
+    node_id: 0x31
+    options: { eds: )" +
+         eds + R"(button_cluster.eds }
+functional_elements:
+  joystick.1:
+    x: { signal: right_grip.x, deadband: 2 }
+    y: { signal: right_grip.y, deadband: 2 }
+    buttons: right_grip.buttons[1..8]
+  wheel.1: { position: { signal: right_grip.wheel_a, deadband: 2 } }
+  joystick.2:
+    x: { signal: left_grip.x, deadband: 300 }
+    y: { signal: left_grip.y, deadband: 300, invert: true }
+    z: { signal: left_grip.z, deadband: 300, clamp: [-32767, 32767] }
+    buttons: left_grip.buttons[1..7]
+  pedal.1:
+    position: { signal: "pedal.analog[1]", deadband: 100, fault: 0 }
+  encoder.1: { position: seat_knob.position }
+  buttons.1:
+    switch[1..8]: cluster.in[1]
+  indicators.1:
+    indicator[1..8]: cluster.out[1]
+  indicators.2:
+    indicator[1..4]: left_grip.leds[1..4]
+  indicators.3:
+    indicator[1..2]: right_grip.leds[1..2]
+)";
+}
+
+std::int16_t i16(const CanFrame& f, std::size_t at) { return static_cast<std::int16_t>(get_u16(&f.data[at])); }
+
+class GatewayE2E : public ::testing::Test {
+ protected:
+  // Builds everything; `right_grip_extra` changes the mapping file (identity tests).
+  void build(const std::string& right_grip_extra = "") {
+    auto loaded = oegw::mapping::load_config_text(mapping_yaml(right_grip_extra), "e2e.yaml", gw::driver_catalogue());
+    ASSERT_TRUE(loaded.ok()) << loaded.error_text();
+    config_ = std::move(*loaded.config);
+    up_.run_on(loop_);
+    down_.run_on(loop_);
+    gw_up_ = up_.attach("gateway");
+    host_port_ = up_.attach("host");
+    gw_down_ = down_.attach("gateway");
+    sims_port_ = down_.attach("devices");
+    up_.set_tap([this](const BusRecord& r) { upstream_.push_back(r); });
+    bench_ = std::make_unique<sd::sim::SimBench>(sims_port_->sink());
+    for (const auto& s : config_.subdevices) {
+      sd::DeviceSpec spec{s.driver, s.node(), s.options};
+      spec.options.values.emplace_back("name", s.name);
+      std::string error;
+      ASSERT_TRUE(bench_->add(spec, error)) << error;
+    }
+    store_ = std::filesystem::path(::testing::TempDir()) /
+             fmt::format("gateway_e2e_{}_{}.store", ::getpid(), ::testing::UnitTest::GetInstance()->random_seed());
+    std::filesystem::remove(store_);
+    gw::GatewayOptions opt;
+    opt.store_path = store_;
+    gw_ = std::make_unique<Gateway>(config_, gw_up_->sink(), gw_down_->sink(), opt);
+    gw_->on_log = [this](const std::string& l) { log_ += fmt::format("[{:>6}] {}\n", ms(), l); };
+    host_ = std::make_unique<Master>(host_od_, host_port_->sink(), MasterConfig{.heartbeat_entries = 2, .sdo_timeout = 500ms});
+    host_->on_emcy = [this](const EmcyMessage& m, TimePoint) {
+      emcys_.push_back(m);
+      // What the host could read at the very moment the EMCY arrives.
+      joy1_at_emcy_.push_back(gw_->fields(kJoy1));
+    };
+    host_->on_other_frame = [this](const CanFrame& f, TimePoint) { pdos_.push_back(f); };
+    bench_drv_ = std::make_unique<ServiceDriver>(loop_, *bench_);
+    gw_drv_ = std::make_unique<ServiceDriver>(loop_, *gw_);
+    host_drv_ = std::make_unique<ServiceDriver>(loop_, *host_);
+    sims_port_->set_receiver([this](const CanFrame& f, TimePoint t) {
+      bench_->on_frame(f, t);
+      bench_drv_->rearm();
+    });
+    gw_down_->set_receiver([this](const CanFrame& f, TimePoint t) {
+      gw_->on_downstream_frame(f, t);
+      gw_drv_->rearm();
+    });
+    gw_up_->set_receiver([this](const CanFrame& f, TimePoint t) {
+      gw_->on_upstream_frame(f, t);
+      gw_drv_->rearm();
+    });
+    host_port_->set_receiver([this](const CanFrame& f, TimePoint t) {
+      host_->on_frame(f, t);
+      host_drv_->rearm();
+    });
+  }
+  void TearDown() override {
+    for (auto* p : {gw_up_.get(), host_port_.get(), gw_down_.get(), sims_port_.get()})
+      if (p) p->set_receiver({});
+    if (!store_.empty()) std::filesystem::remove(store_);
+  }
+
+  long ms() const { return static_cast<long>(std::chrono::duration_cast<std::chrono::milliseconds>(loop_.now() - t0_).count()); }
+  void run_for(Duration d) {
+    for (auto* drv : {bench_drv_.get(), gw_drv_.get(), host_drv_.get()}) drv->rearm();
+    loop_.advance_by(Duration{0});
+    for (auto* drv : {bench_drv_.get(), gw_drv_.get(), host_drv_.get()}) drv->rearm();
+    loop_.advance_by(d);
+  }
+  std::string cmd(const std::string& line) {
+    const std::string r = bench_->command(line, loop_.now());
+    EXPECT_EQ(r.rfind("ok", 0), 0u) << line << ": " << r;
+    return r;
+  }
+
+  // Power on: the gateway boots (boot-up 720#00) and its sub-devices.
+  void power_on() {
+    t0_ = loop_.now();
+    (void)gw_->start(loop_.now());
+    bench_->start(loop_.now());
+    run_for(3s);
+  }
+  bool all_operational() {
+    for (const auto& n : gw_->downstream().names())
+      if (gw_->downstream().state(n) != sd::NodeState::Operational) return false;
+    return true;
+  }
+
+  SdoAbortCode sdo_write(std::uint16_t index, std::uint8_t sub, Bytes data) {
+    SdoAbortCode code = SdoAbortCode::GeneralError;
+    bool done = false;
+    host_->sdo(kGw).download(index, sub, std::move(data), [&](SdoAbortCode c, Bytes) {
+      code = c;
+      done = true;
+    });
+    for (int i = 0; i < 100 && !done; ++i) run_for(10ms);
+    EXPECT_TRUE(done) << fmt::format("SDO download {:04X}h:{:02X} never finished", index, sub);
+    return code;
+  }
+  std::optional<Bytes> sdo_read(std::uint16_t index, std::uint8_t sub) {
+    std::optional<Bytes> out;
+    bool done = false;
+    host_->sdo(kGw).upload(index, sub, [&](SdoAbortCode c, Bytes d) {
+      if (c == SdoAbortCode::None) out = std::move(d);
+      done = true;
+    });
+    for (int i = 0; i < 100 && !done; ++i) run_for(10ms);
+    return out;
+  }
+  void enable_pdo(std::uint16_t comm_index, std::uint32_t cob) {
+    ASSERT_EQ(sdo_write(comm_index, 1, encode<std::uint32_t>(cob)), SdoAbortCode::None)
+        << fmt::format("{:04X}h:01 = {:X}h", comm_index, cob);
+  }
+  // The host's whole set-up (demo order): PDOs, 6423h, NMT start.
+  void host_configures_and_starts(bool analog_interrupts = true) {
+    enable_pdo(0x1800, kTpdo1);   // TPDO 1
+    enable_pdo(0x1804, kTpdo5);   // TPDO 5
+    enable_pdo(0x1813, kTpdo20);  // TPDO 20
+    enable_pdo(0x181B, kTpdo28);  // TPDO 28
+    enable_pdo(0x181F, kTpdo32);  // TPDO 32
+    enable_pdo(0x1821, kTpdo34);  // TPDO 34
+    enable_pdo(0x1400, kRpdo1);   // RPDO 1
+    enable_pdo(0x1404, kRpdo5);   // RPDO 5
+    enable_pdo(0x1405, kRpdo6);   // RPDO 6
+    if (analog_interrupts) {
+      ASSERT_EQ(sdo_write(0x6423, 0, {1}), SdoAbortCode::None);
+    }
+    host_->nmt().start(kGw);
+    run_for(200ms);
+    ASSERT_EQ(gw_->upstream().node().state(), NmtState::Operational);
+  }
+  void boot_and_start() {
+    power_on();
+    ASSERT_TRUE(all_operational()) << log_;
+    host_configures_and_starts();
+    pdos_.clear();
+    emcys_.clear();
+    joy1_at_emcy_.clear();
+  }
+
+  std::vector<CanFrame> pdos(std::uint32_t id) const {
+    std::vector<CanFrame> r;
+    for (const auto& f : pdos_)
+      if (f.id == id) r.push_back(f);
+    return r;
+  }
+  std::optional<CanFrame> last(std::uint32_t id) const {
+    auto v = pdos(id);
+    if (v.empty()) return std::nullopt;
+    return v.back();
+  }
+  std::vector<EmcyMessage> emcys(std::uint16_t code) const {
+    std::vector<EmcyMessage> r;
+    for (const auto& e : emcys_)
+      if (e.code == code) r.push_back(e);
+    return r;
+  }
+  std::int64_t field(FeId fe, const std::string& name) const {
+    for (const auto& f : gw_->fields(fe))
+      if (f.name == name) return f.value;
+    ADD_FAILURE() << "no field " << name;
+    return -1;
+  }
+  bool neutral(const std::vector<Gateway::FieldState>& fields) const {
+    return std::all_of(fields.begin(), fields.end(), [](const auto& f) { return f.value == 0; });
+  }
+  sd::sim::ElobauMfgSim& grip() { return dynamic_cast<sd::sim::ElobauMfgSim&>(*bench_->device("right_grip")); }
+  sd::sim::Mcb402Sim& mcb() { return dynamic_cast<sd::sim::Mcb402Sim&>(*bench_->device("left_grip")); }
+  std::string dump() const {
+    std::string s = log_ + "upstream frames:\n";
+    for (const auto& r : upstream_) s += "  " + r.to_string() + "\n";
+    return s;
+  }
+
+  oegw::mapping::Config config_;
+  SimulatedClock clock_;
+  EventLoop loop_{clock_};
+  TimePoint t0_{};
+  VirtualBus up_, down_;
+  std::unique_ptr<VirtualPort> gw_up_, host_port_, gw_down_, sims_port_;
+  std::unique_ptr<sd::sim::SimBench> bench_;
+  std::filesystem::path store_;
+  std::unique_ptr<Gateway> gw_;
+  ObjectDictionary host_od_;
+  std::unique_ptr<Master> host_;
+  std::unique_ptr<ServiceDriver> bench_drv_, gw_drv_, host_drv_;
+  std::vector<BusRecord> upstream_;
+  std::vector<CanFrame> pdos_;
+  std::vector<EmcyMessage> emcys_;
+  std::vector<std::vector<Gateway::FieldState>> joy1_at_emcy_;
+  std::string log_;
+};
+
+// ---- Configuration, start, and the TPDO bytes of every FE kind ---------------------------------
+
+TEST_F(GatewayE2E, HostConfiguresAndStartsTheGateway) {
+  build();
+  power_on();
+  EXPECT_TRUE(all_operational()) << log_;
+  // Boot-up first, in pre-operational; the upstream heartbeat follows (1017h = 100 ms).
+  ASSERT_FALSE(upstream_.empty());
+  EXPECT_EQ(upstream_.front().frame.id, 0x720u);
+  EXPECT_EQ(upstream_.front().frame.dlc, 1);
+  EXPECT_EQ(upstream_.front().frame.data[0], 0x00);
+  // 1000h per Table 8 for this FE set: the value `oegw check config/demo.yaml` prints (the extra
+  // indicators.3 adds no bit) and the one device_type_for computes.
+  const auto dt = sdo_read(0x1000, 0);
+  ASSERT_TRUE(dt.has_value());
+  EXPECT_EQ(decode_unsigned(*dt), 0xBF870191u);
+  EXPECT_EQ(decode_unsigned(*dt), gw::device_type_for(gw_->fes()));
+  EXPECT_EQ(decode_unsigned(*dt) & 0xFFFF, 0x0191u);
+  // 1018h as the mapping file says.
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1018, 2)), 0x852u);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1018, 3)), 0x10000u);
+  // PDOs disabled by default: nothing on 1A0h before the host enables it.
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1800, 1)), 0x800001A0u);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1804, 1)) >> 31, 1u);
+  host_configures_and_starts();
+  run_for(150ms);
+  EXPECT_TRUE(std::any_of(upstream_.begin(), upstream_.end(),
+                          [](const BusRecord& r) { return r.frame.id == 0x720 && r.frame.data[0] == 0x05; }));
+  // 6423h TRUE before the start: no EMCY 0080h.
+  EXPECT_TRUE(emcys(0x0080).empty());
+}
+
+TEST_F(GatewayE2E, Joystick1Tpdo1CarriesXYZMemoryAndButtons) {
+  build();
+  boot_and_start();
+  cmd("right_grip x 50");   // 50 % of 32767 = 16383.5 -> 16384 (halves away from zero)
+  cmd("right_grip y -25");  // -8191.75 -> -8192
+  cmd("right_grip buttons[3] 1");
+  run_for(300ms);
+  const auto f = last(kTpdo1);
+  ASSERT_TRUE(f) << dump();
+  // oe_device.hpp: 6401h x, y, z (INTEGER16 LE), 6000h memory byte, 6000h buttons byte.
+  EXPECT_EQ(f->dlc, 8);
+  EXPECT_EQ(i16(*f, 0), 16384);
+  EXPECT_EQ(i16(*f, 2), -8192);
+  EXPECT_EQ(i16(*f, 4), 0) << "z is not fed: 0";
+  EXPECT_EQ(f->data[6], 0x00) << "memory bits";
+  EXPECT_EQ(f->data[7], 0x04) << "buttons[3] = bit 2";
+  EXPECT_EQ(f->to_string(), "1A0#004000E000000004");
+  // The detent (110 %) is clamped to full scale, never -32768.
+  cmd("right_grip x -110");
+  run_for(300ms);
+  EXPECT_EQ(i16(*last(kTpdo1), 0), -32767);
+  // Inside the deadband (2 %): neutral.
+  cmd("right_grip x 2");
+  run_for(300ms);
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 0);
+  cmd("right_grip x 3");
+  run_for(300ms);
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 983);  // 3 * 327.67 = 983.01
+  // Event-driven on change (type FFh): a frame per change, none while nothing changes.
+  const auto n = pdos(kTpdo1).size();
+  run_for(1s);
+  EXPECT_EQ(pdos(kTpdo1).size(), n) << "nothing changed: no TPDO (event timer 0)";
+  EXPECT_TRUE(emcys_.empty());
+}
+
+TEST_F(GatewayE2E, Joystick2FromMcb402WithInvertedY) {
+  build();
+  boot_and_start();
+  cmd("left_grip x 10000");
+  cmd("left_grip y -12000");  // invert: true -> +12000
+  cmd("left_grip z 200");     // inside the deadband of 300 -> 0
+  cmd("left_grip buttons[2] 1");
+  run_for(300ms);
+  const auto f = last(kTpdo5);
+  ASSERT_TRUE(f) << dump();
+  EXPECT_EQ(f->dlc, 8);
+  EXPECT_EQ(i16(*f, 0), 10000);
+  EXPECT_EQ(i16(*f, 2), 12000);
+  EXPECT_EQ(i16(*f, 4), 0);
+  EXPECT_EQ(f->data[6], 0x00);
+  EXPECT_EQ(f->data[7], 0x02);
+  cmd("left_grip z -32768");  // clamp [-32767, 32767]
+  cmd("left_grip y 32767");   // inverted: -32767
+  run_for(300ms);
+  EXPECT_EQ(i16(*last(kTpdo5), 4), -32767);
+  EXPECT_EQ(i16(*last(kTpdo5), 2), -32767);
+  EXPECT_EQ(field(kJoy2, "y"), -32767);
+}
+
+TEST_F(GatewayE2E, PedalEncoderWheelAndButtonClusterTpdos) {
+  build();
+  boot_and_start();
+  cmd("pedal analog[1] 20000");
+  cmd("seat_knob position 123456");
+  cmd("right_grip wheel_a 20");  // 20 % -> 6553.4 -> 6553
+  cmd("cluster in[1] 5");        // switch[1], switch[3]
+  run_for(500ms);
+  // TPDO 20: pedal 1 memory (6000h:21h), position (6401h:31h).
+  const auto p = last(kTpdo20);
+  ASSERT_TRUE(p) << dump();
+  EXPECT_EQ(p->dlc, 3);
+  EXPECT_EQ(p->data[0], 0x00);
+  EXPECT_EQ(i16(*p, 1), 20000);
+  // TPDO 28: encoder 1 (6120h:81h) INTEGER32.
+  const auto e = last(kTpdo28);
+  ASSERT_TRUE(e) << dump();
+  EXPECT_EQ(e->dlc, 4);
+  EXPECT_EQ(static_cast<std::int32_t>(get_u32(&e->data[0])), 123456);
+  // TPDO 32: wheel 1 (6401h:41h).
+  const auto w = last(kTpdo32);
+  ASSERT_TRUE(w) << dump();
+  EXPECT_EQ(w->dlc, 2);
+  EXPECT_EQ(i16(*w, 0), 6553);
+  // TPDO 34: push-button cluster 1, its 6000h bytes; switch k = bit k-1 of the first.
+  const auto b = last(kTpdo34);
+  ASSERT_TRUE(b) << dump();
+  EXPECT_GE(b->dlc, 1);
+  EXPECT_EQ(b->data[0], 0x05);
+  // A negative encoder value keeps its sign, the pedal's deadband (100) gives neutral.
+  cmd("seat_knob position -5");
+  cmd("pedal analog[1] 99");
+  run_for(500ms);
+  EXPECT_EQ(static_cast<std::int32_t>(get_u32(&last(kTpdo28)->data[0])), -5);
+  EXPECT_EQ(i16(*last(kTpdo20), 1), 0);
+  EXPECT_EQ(field(kPedal1, "position"), 0);
+  EXPECT_EQ(field(kEnc1, "position"), -5);
+  EXPECT_EQ(field(kWheel1, "position"), 6553);
+  EXPECT_EQ(field(kButtons1, "switch[3]"), 1);
+}
+
+// ---- Faults -----------------------------------------------------------------------------------
+
+TEST_F(GatewayE2E, HeartbeatLossFaultValueAtOnceEmcy7000hThenRecovery) {
+  build();
+  boot_and_start();
+  cmd("right_grip x 40");
+  cmd("right_grip buttons[1] 1");
+  run_for(300ms);
+  ASSERT_NE(field(kJoy1, "x"), 0);
+  cmd("right_grip heartbeat off");
+  run_for(400ms);  // consumer time 150 ms
+  EXPECT_EQ(gw_->downstream().state("right_grip"), sd::NodeState::Missing) << log_;
+  const auto e = emcys(0x7000);
+  ASSERT_EQ(e.size(), 1u) << dump();
+  EXPECT_EQ(e[0].node, kGw);
+  EXPECT_EQ(e[0].msef[0], 0x11) << "the sub-device's node-ID in manufacturer byte 0";
+  EXPECT_EQ(e[0].msef[1], 'r');
+  EXPECT_EQ(e[0].error_register & 0x01, 0x01);
+  // At the moment the EMCY reached the host, every field of joystick 1 already was neutral.
+  ASSERT_FALSE(joy1_at_emcy_.empty());
+  EXPECT_TRUE(neutral(joy1_at_emcy_.front()));
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Offline);
+  EXPECT_EQ(gw_->status(kWheel1), FeStatus::Offline);
+  EXPECT_EQ(gw_->status(kJoy2), FeStatus::Valid) << "the other grip is not affected";
+  const auto f = last(kTpdo1);
+  ASSERT_TRUE(f);
+  EXPECT_EQ(f->to_string(), "1A0#0000000000000000") << "the host read neutral";
+  // The fault TPDO went out before (or with) the EMCY: no TPDO after the EMCY carries x != 0.
+  cmd("right_grip heartbeat on");
+  cmd("right_grip x 0");
+  cmd("right_grip buttons[1] 0");
+  run_for(5s);
+  EXPECT_EQ(gw_->downstream().state("right_grip"), sd::NodeState::Operational) << log_;
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Valid);
+  cmd("right_grip x 40");
+  run_for(300ms);
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 13107);
+}
+
+TEST_F(GatewayE2E, ElobauErrorCode126OnXThenNeutralInterlockAfterRecovery) {
+  build();
+  boot_and_start();
+  cmd("right_grip x 50");
+  run_for(300ms);
+  ASSERT_EQ(i16(*last(kTpdo1), 0), 16384);
+  ASSERT_TRUE(grip().inject("x", sd::sim::ElobauMfgSim::Fault::Error, 1));
+  run_for(300ms);
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Error);
+  EXPECT_EQ(field(kJoy1, "x"), 0);
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 0) << dump();
+  const auto e = emcys(0x7000);
+  ASSERT_EQ(e.size(), 1u) << dump();
+  EXPECT_EQ(e[0].msef[0], 0x11);
+  ASSERT_FALSE(joy1_at_emcy_.empty());
+  EXPECT_TRUE(neutral(joy1_at_emcy_.front())) << "x at its fault value when the EMCY left";
+  EXPECT_EQ(gw_->downstream().state("right_grip"), sd::NodeState::Operational) << "an input error, not a lost node";
+  // Recovery with the stick still deflected: the error reset goes up, x stays at neutral.
+  ASSERT_TRUE(grip().inject("x", sd::sim::ElobauMfgSim::Fault::None, 1));
+  run_for(300ms);
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Valid);
+  EXPECT_EQ(field(kJoy1, "x"), 0) << "interlocked: not seen in its deadband yet";
+  const auto joy = gw_->fields(kJoy1);
+  const auto x_state = std::find_if(joy.begin(), joy.end(), [](const auto& f) { return f.name == "x"; });
+  ASSERT_NE(x_state, joy.end());
+  EXPECT_TRUE(x_state->interlocked);
+  cmd("right_grip x 60");
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy1, "x"), 0) << "still held";
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 0);
+  cmd("right_grip x 1");  // inside the 2 % deadband: released
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy1, "x"), 0);
+  cmd("right_grip x 60");
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy1, "x"), 19660);  // 60 * 327.67 = 19660.2
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 19660);
+  // y was never faulty: it followed throughout.
+  cmd("right_grip y 10");
+  run_for(300ms);
+  EXPECT_EQ(i16(*last(kTpdo1), 2), 3277);
+}
+
+TEST_F(GatewayE2E, ElobauNotAvailable127OnX) {
+  build();
+  boot_and_start();
+  cmd("right_grip x 30");
+  run_for(300ms);
+  ASSERT_TRUE(grip().inject("x", sd::sim::ElobauMfgSim::Fault::NotAvailable, 1));
+  run_for(300ms);
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::NotAvailable);
+  EXPECT_EQ(field(kJoy1, "x"), 0);
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 0);
+  ASSERT_EQ(emcys(0x7000).size(), 1u) << dump();
+  EXPECT_EQ(emcys(0x7000)[0].msef[0], 0x11);
+  ASSERT_TRUE(grip().inject("x", sd::sim::ElobauMfgSim::Fault::None, 1));
+  cmd("right_grip x 0");
+  run_for(300ms);
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Valid);
+  EXPECT_TRUE(gw_->faults().empty());
+}
+
+TEST_F(GatewayE2E, ElobauChannelMismatch) {
+  build();
+  boot_and_start();
+  ASSERT_TRUE(grip().move_axis("x", 30, 20));  // channel 2 reads 50 %: 20 > tolerance 5
+  run_for(300ms);
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Error) << log_;
+  EXPECT_EQ(field(kJoy1, "x"), 0);
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 0);
+  ASSERT_EQ(emcys(0x7000).size(), 1u) << dump();
+  EXPECT_EQ(emcys(0x7000)[0].msef[0], 0x11);
+  ASSERT_TRUE(grip().move_axis("x", 0, 0));
+  run_for(300ms);
+  EXPECT_EQ(emcys(0x0000).size(), 1u);
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Valid);
+  ASSERT_TRUE(grip().move_axis("x", 30, 3));  // within tolerance
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy1, "x"), 9830);  // 30 * 327.67 = 9830.1
+  EXPECT_EQ(emcys(0x7000).size(), 1u);
+}
+
+TEST_F(GatewayE2E, SubdeviceErrorEmcy) {
+  build();
+  boot_and_start();
+  cmd("right_grip x 20");
+  run_for(300ms);
+  grip().raise_error(0x0001, loop_.now());  // Table 6 0001h: every input Error
+  run_for(300ms);
+  ASSERT_EQ(emcys(0x7000).size(), 1u) << dump();
+  EXPECT_EQ(emcys(0x7000)[0].msef[0], 0x11);
+  ASSERT_FALSE(joy1_at_emcy_.empty());
+  EXPECT_TRUE(neutral(joy1_at_emcy_.front())) << "fault values before the EMCY leaves";
+  EXPECT_NE(gw_->faults().count("right_grip"), 0u);
+  EXPECT_EQ(gw_->faults().at("right_grip"), "error EMCY");
+  EXPECT_TRUE(neutral(gw_->fields(kJoy1)));
+  EXPECT_EQ(field(kWheel1, "position"), 0);
+  EXPECT_EQ(last(kTpdo1)->to_string(), "1A0#0000000000000000");
+  grip().clear_error(0x0001, loop_.now());  // the grip's error reset 0000h
+  cmd("right_grip x 0");
+  run_for(500ms);
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_TRUE(gw_->faults().empty()) << log_;
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Valid);
+}
+
+// An error EMCY the driver does not map to any signal (MCB-402: an undocumented code, "signals
+// untouched") still faults the sub-device: its fields go to their fault values at once.
+TEST_F(GatewayE2E, UnknownErrorEmcyStillPutsTheFieldsAtTheirFaultValues) {
+  build();
+  boot_and_start();
+  cmd("left_grip x 10000");
+  cmd("left_grip buttons[1] 1");
+  run_for(300ms);
+  ASSERT_EQ(field(kJoy2, "x"), 10000);
+  mcb().node().emcy().raise(0x5000, 0x80, loop_.now());  // "device hardware", not in the document
+  run_for(300ms);
+  ASSERT_EQ(emcys(0x7000).size(), 1u) << dump();
+  EXPECT_EQ(emcys(0x7000)[0].msef[0], 0x03);
+  EXPECT_TRUE(neutral(gw_->fields(kJoy2))) << log_;
+  EXPECT_NE(gw_->status(kJoy2), FeStatus::Valid);
+  EXPECT_EQ(i16(*last(kTpdo5), 0), 0) << dump();
+  EXPECT_EQ(last(kTpdo5)->data[7], 0x00);
+  // The device's error reset: the fault clears, the axis is held until seen at neutral.
+  mcb().node().emcy().clear(0x5000, loop_.now());
+  run_for(300ms);
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_TRUE(gw_->faults().empty());
+  EXPECT_EQ(field(kJoy2, "x"), 0);
+  EXPECT_EQ(field(kJoy2, "buttons[1]"), 1) << "a button has no interlock";
+  cmd("left_grip x 0");
+  run_for(300ms);
+  cmd("left_grip x 10000");
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy2, "x"), 10000);
+  EXPECT_EQ(gw_->status(kJoy2), FeStatus::Valid);
+}
+
+// A warning EMCY (elobau 8140h "recovered from bus-off", decoded as no error) while an error
+// EMCY is active does not end the error: the fault stays until the device's error reset. With
+// 0001h the driver itself holds every input in Error; 0070h (LED message timeout) marks only
+// the LEDs, so only the gateway's EMCY state keeps the fault.
+class GatewayE2EWarning : public GatewayE2E, public ::testing::WithParamInterface<std::uint16_t> {};
+
+TEST_P(GatewayE2EWarning, AWarningEmcyDoesNotEndAnActiveSubdeviceError) {
+  build();
+  boot_and_start();
+  grip().raise_error(GetParam(), loop_.now());
+  run_for(300ms);
+  ASSERT_EQ(emcys(0x7000).size(), 1u) << dump();
+  EXPECT_NE(gw_->status(kJoy1), FeStatus::Valid);
+  grip().bus_off(loop_.now());  // EMCY 8140h with the bus-off count
+  run_for(300ms);
+  ASSERT_NE(log_.find("right_grip: EMCY 8140h"), std::string::npos) << log_;
+  EXPECT_NE(gw_->faults().count("right_grip"), 0u) << log_;
+  EXPECT_TRUE(emcys(0x0000).empty()) << dump();
+  EXPECT_NE(gw_->status(kJoy1), FeStatus::Valid);
+  cmd("right_grip x 50");
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy1, "x"), 0) << "still held while the error is active";
+  grip().clear_error(GetParam(), loop_.now());
+  cmd("right_grip x 0");
+  run_for(500ms);
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_TRUE(gw_->faults().empty()) << log_;
+  cmd("right_grip x 50");
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy1, "x"), 16384);
+}
+INSTANTIATE_TEST_SUITE_P(Elobau, GatewayE2EWarning, ::testing::Values(std::uint16_t{0x0001}, std::uint16_t{0x0070}));
+
+TEST_F(GatewayE2E, Mcb402CableBreak) {
+  build();
+  boot_and_start();
+  cmd("left_grip y -12000");
+  run_for(300ms);
+  ASSERT_EQ(i16(*last(kTpdo5), 2), 12000);
+  mcb().cable_break(2, true, loop_.now());  // axis 2 = Y
+  run_for(300ms);
+  EXPECT_EQ(gw_->status(kJoy2), FeStatus::Error) << log_;
+  EXPECT_EQ(field(kJoy2, "y"), 0);
+  EXPECT_EQ(i16(*last(kTpdo5), 2), 0) << dump();
+  ASSERT_EQ(emcys(0x7000).size(), 1u) << dump();
+  EXPECT_EQ(emcys(0x7000)[0].msef[0], 0x03);
+  EXPECT_EQ(emcys(0x7000)[0].msef[1], 'l');
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Valid) << "the right grip is not affected";
+  // Mended while y is still at -12000: error reset, then y held until seen at neutral.
+  mcb().cable_break(2, false, loop_.now());
+  run_for(300ms);
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_EQ(field(kJoy2, "y"), 0);
+  cmd("left_grip y 100");
+  run_for(300ms);
+  cmd("left_grip y -12000");
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy2, "y"), 12000);
+  EXPECT_EQ(i16(*last(kTpdo5), 2), 12000);
+}
+
+TEST_F(GatewayE2E, TwoFaultySubdevicesEachNamedAndClearedInTurn) {
+  build();
+  boot_and_start();
+  cmd("right_grip heartbeat off");
+  run_for(400ms);
+  mcb().cable_break(2, true, loop_.now());
+  run_for(300ms);
+  // oe_device.hpp: the second fault while 7000h is active is an extra 7000h frame naming it.
+  const auto e = emcys(0x7000);
+  ASSERT_EQ(e.size(), 2u) << dump();
+  EXPECT_EQ(e[0].msef[0], 0x11);
+  EXPECT_EQ(e[1].msef[0], 0x03);
+  EXPECT_EQ(gw_->faults().size(), 2u);
+  // The MCB-402 recovers first: EMCY 0000h naming it, the error register still set (the grip).
+  mcb().cable_break(2, false, loop_.now());
+  run_for(300ms);
+  auto r = emcys(0x0000);
+  ASSERT_EQ(r.size(), 1u) << dump();
+  EXPECT_EQ(r[0].msef[0], 0x03);
+  EXPECT_EQ(r[0].error_register & 0x01, 0x01);
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Offline);
+  // Then the grip: the last one clears 7000h, register 0.
+  cmd("right_grip heartbeat on");
+  run_for(5s);
+  r = emcys(0x0000);
+  ASSERT_EQ(r.size(), 2u) << dump();
+  EXPECT_EQ(r[1].error_register, 0x00);
+  EXPECT_TRUE(gw_->faults().empty()) << log_;
+}
+
+// The host resets the gateway (NMT reset node): the application objects go back to their
+// defaults, the EMCY producer forgets its errors. What the host reads afterwards must still be
+// the truth: the inputs' current values, and the sub-device that is still lost.
+TEST_F(GatewayE2E, HostResetNodeKeepsInputsAndFaultsTrue) {
+  build();
+  boot_and_start();
+  cmd("right_grip x 50");
+  cmd("right_grip buttons[2] 1");
+  cmd("seat_knob position 777");
+  run_for(300ms);
+  cmd("left_grip heartbeat off");
+  run_for(400ms);
+  ASSERT_EQ(emcys(0x7000).size(), 1u);
+  emcys_.clear();
+  upstream_.clear();
+  host_->nmt().reset_node(kGw);
+  run_for(500ms);
+  EXPECT_TRUE(std::any_of(upstream_.begin(), upstream_.end(),
+                          [](const BusRecord& r) { return r.frame.to_string() == "720#00"; }))
+      << dump();
+  EXPECT_EQ(gw_->upstream().node().state(), NmtState::PreOperational);
+  const auto x = sdo_read(0x6401, 1);
+  ASSERT_TRUE(x.has_value());
+  EXPECT_EQ(static_cast<std::int16_t>(decode_unsigned(*x)), 16384) << "the stick is still at 50 %";
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x6000, 2)), 0x02u) << "joystick 1 buttons";
+  EXPECT_EQ(static_cast<std::int32_t>(decode_unsigned(*sdo_read(0x6120, 0x81))), 777);
+  // The MCB-402 is still lost: EMCY 7000h naming it again after the boot-up, and 1001h says so.
+  const auto e = emcys(0x7000);
+  ASSERT_EQ(e.size(), 1u) << dump();
+  EXPECT_EQ(e[0].msef[0], 0x03);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1001, 0)) & 0x01, 0x01u);
+  EXPECT_EQ(gw_->status(kJoy2), FeStatus::Offline);
+}
+
+// Upstream bus-off and recovery (the controller restarted): EMCY 8140h, 1029h:01 = 0 takes the
+// gateway to pre-operational; a sub-device fault still active is not cleared by it.
+TEST_F(GatewayE2E, UpstreamBusOffRecoveryReportsEmcy8140hAndKeepsTheSubdeviceFault) {
+  build();
+  boot_and_start();
+  cmd("left_grip heartbeat off");
+  run_for(400ms);
+  ASSERT_EQ(emcys(0x7000).size(), 1u);
+  gw_->on_upstream_bus_event(BusEvent::BusOff, loop_.now());
+  run_for(10ms);
+  EXPECT_EQ(gw_->upstream().node().state(), NmtState::PreOperational);
+  gw_->on_upstream_bus_event(BusEvent::Restarted, loop_.now());
+  run_for(100ms);
+  EXPECT_EQ(emcys(0x8140).size(), 1u) << dump();
+  EXPECT_TRUE(emcys(0x0000).empty()) << "7000h is still active: no error reset";
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1001, 0)) & 0x01, 0x01u);
+  EXPECT_EQ(gw_->status(kJoy2), FeStatus::Offline);
+  // The MCB-402 comes back: now the last error goes, 0000h.
+  cmd("left_grip heartbeat on");
+  run_for(5s);
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1001, 0)), 0x00u);
+}
+
+TEST_F(GatewayE2E, WrongIdentityAtBootRefusesTheMandatoryNode) {
+  build(", identity: { vendor_id: 0x99 }");  // the elobau grip answers B4h
+  power_on();
+  EXPECT_EQ(gw_->downstream().state("right_grip"), sd::NodeState::Refused) << log_;
+  EXPECT_EQ(gw_->downstream().state("left_grip"), sd::NodeState::Operational);
+  EXPECT_TRUE(gw_->downstream().fault()) << "mandatory";
+  EXPECT_NE(gw_->faults().count("right_grip"), 0u);
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Offline);
+  EXPECT_TRUE(neutral(gw_->fields(kJoy1)));
+  // The EMCY went up in pre-operational, naming the grip.
+  const auto e = emcys(0x7000);
+  ASSERT_GE(e.size(), 1u) << dump();
+  EXPECT_EQ(e[0].msef[0], 0x11);
+  // The host starts the gateway anyway: joystick 1 stays neutral while the grip moves.
+  host_configures_and_starts();
+  cmd("right_grip x 50");
+  run_for(500ms);
+  EXPECT_EQ(field(kJoy1, "x"), 0);
+  EXPECT_NE(gw_->downstream().state("right_grip"), sd::NodeState::Operational);
+}
+
+TEST_F(GatewayE2E, AnalogInterruptsDisabledAtStartSendsEmcy0080hAndStaysOperational) {
+  build();
+  power_on();
+  host_configures_and_starts(/*analog_interrupts=*/false);
+  run_for(300ms);
+  const auto e = emcys(0x0080);
+  ASSERT_EQ(e.size(), 1u) << dump();
+  EXPECT_EQ(e[0].error_register, 0x01);
+  EXPECT_EQ(gw_->upstream().node().state(), NmtState::Operational);
+  const auto hb = std::count_if(upstream_.begin(), upstream_.end(),
+                                [](const BusRecord& r) { return r.frame.id == 0x720 && r.frame.data[0] == 0x05; });
+  EXPECT_GT(hb, 0) << "the heartbeat says operational";
+  // Axis changes alone send nothing while 6423h is FALSE, a button does (carrying the axis).
+  pdos_.clear();
+  cmd("right_grip x 50");
+  run_for(300ms);
+  EXPECT_TRUE(pdos(kTpdo1).empty()) << dump();
+  cmd("right_grip buttons[1] 1");
+  run_for(300ms);
+  ASSERT_FALSE(pdos(kTpdo1).empty());
+  EXPECT_EQ(last(kTpdo1)->to_string(), "1A0#0040000000000001");
+  // Setting 6423h TRUE clears it (error reset).
+  ASSERT_EQ(sdo_write(0x6423, 0, {1}), SdoAbortCode::None);
+  run_for(100ms);
+  EXPECT_EQ(emcys(0x0000).size(), 1u);
+  EXPECT_EQ(gw_->upstream().node().state(), NmtState::Operational);
+}
+
+TEST_F(GatewayE2E, IndicatorsFromHostReachElobauAndMcb402LedsByRpdoAndSdo) {
+  build();
+  boot_and_start();
+  // RPDO 5 -> indicators.2 (6200h:09h) -> MCB-402 OUT0..3.
+  (void)host_port_->send(CanFrame(kRpdo5, {0x05, 0, 0, 0, 0, 0, 0, 0}));
+  // RPDO 6 -> indicators.3 (6200h:11h) -> elobau LEDs 1, 2.
+  (void)host_port_->send(CanFrame(kRpdo6, {0x02, 0, 0, 0, 0, 0, 0, 0}));
+  // RPDO 1 -> indicators.1 -> the cluster's output byte.
+  (void)host_port_->send(CanFrame(kRpdo1, {0xA5, 0, 0, 0, 0, 0, 0, 0}));
+  run_for(300ms);
+  auto* left = bench_->device("left_grip");
+  auto* right = bench_->device("right_grip");
+  auto* cluster = bench_->device("cluster");
+  EXPECT_EQ(left->output("leds[1]"), 1);
+  EXPECT_EQ(left->output("leds[2]"), 0);
+  EXPECT_EQ(left->output("leds[3]"), 1);
+  EXPECT_EQ(left->output("leds[4]"), 0);
+  EXPECT_EQ(right->output("leds[1]"), 0);
+  EXPECT_EQ(right->output("leds[2]"), 1);
+  EXPECT_EQ(cluster->output("out[1]"), 0xA5);
+  // SDO download of 6200h:11h (indicators.3) and 6200h:09h (indicators.2).
+  ASSERT_EQ(sdo_write(0x6200, 0x11, {0x01}), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x6200, 0x09, {0x0A}), SdoAbortCode::None);
+  run_for(300ms);
+  EXPECT_EQ(right->output("leds[1]"), 1);
+  EXPECT_EQ(right->output("leds[2]"), 0);
+  EXPECT_EQ(left->output("leds[1]"), 0);
+  EXPECT_EQ(left->output("leds[2]"), 1);
+  EXPECT_EQ(left->output("leds[4]"), 1);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x09)), 0x0Au);
+}
+
+TEST_F(GatewayE2E, IndicatorsSetWhileTheMcb402IsLostReachItWhenItReturns) {
+  build();
+  boot_and_start();
+  cmd("left_grip silent on");
+  run_for(400ms);
+  ASSERT_EQ(gw_->downstream().state("left_grip"), sd::NodeState::Missing);
+  (void)host_port_->send(CanFrame(kRpdo5, {0x06, 0, 0, 0, 0, 0, 0, 0}));  // lamps 2, 3
+  run_for(100ms);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x09)), 0x06u);
+  auto* left = bench_->device("left_grip");
+  EXPECT_EQ(left->output("leds[2]"), 0) << "the board is unplugged";
+  cmd("left_grip silent off");
+  cmd("left_grip reboot");  // powers up with its outputs off
+  run_for(5s);
+  ASSERT_EQ(gw_->downstream().state("left_grip"), sd::NodeState::Operational) << log_;
+  EXPECT_EQ(left->output("leds[1]"), 0);
+  EXPECT_EQ(left->output("leds[2]"), 1);
+  EXPECT_EQ(left->output("leds[3]"), 1);
+  EXPECT_EQ(left->output("leds[4]"), 0);
+}
+
+TEST_F(GatewayE2E, HostHeartbeatLossAppliesErrorValuesToTheLeds) {
+  build();
+  boot_and_start();
+  // The host produces its heartbeat (701h, 100 ms) and the gateway consumes it (1016h:01).
+  bool host_alive = true;
+  loop_.call_every(loop_.now(), 100ms, [&] {
+    if (host_alive) (void)host_port_->send(CanFrame(0x700 + kHostNode, {0x05}));
+  });
+  ASSERT_EQ(sdo_write(0x1016, 1, encode<std::uint32_t>(std::uint32_t{kHostNode} << 16 | 250)), SdoAbortCode::None);
+  // Error mode for every bit of indicators.2 and .3, error values: MCB OUT1/OUT3, elobau LED 2.
+  ASSERT_EQ(sdo_write(0x6206, 0x09, {0xFF}), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x6207, 0x09, {0x0A}), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x6206, 0x11, {0xFF}), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x6207, 0x11, {0x02}), SdoAbortCode::None);
+  (void)host_port_->send(CanFrame(kRpdo5, {0x05, 0, 0, 0, 0, 0, 0, 0}));
+  (void)host_port_->send(CanFrame(kRpdo6, {0x01, 0, 0, 0, 0, 0, 0, 0}));
+  run_for(1s);
+  auto* left = bench_->device("left_grip");
+  auto* right = bench_->device("right_grip");
+  ASSERT_EQ(left->output("leds[1]"), 1);
+  ASSERT_EQ(left->output("leds[3]"), 1);
+  ASSERT_EQ(right->output("leds[1]"), 1);
+  EXPECT_TRUE(emcys(0x8130).empty());
+  host_alive = false;
+  run_for(500ms);
+  EXPECT_EQ(emcys(0x8130).size(), 1u) << dump();
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x09)), 0x0Au);
+  EXPECT_EQ(left->output("leds[1]"), 0);
+  EXPECT_EQ(left->output("leds[2]"), 1);
+  EXPECT_EQ(left->output("leds[3]"), 0);
+  EXPECT_EQ(left->output("leds[4]"), 1);
+  EXPECT_EQ(right->output("leds[1]"), 0);
+  EXPECT_EQ(right->output("leds[2]"), 1);
+}
+
+// 1010h "save" keeps the host's upstream configuration (PDO COB-IDs, 6423h) across a restart of
+// the gateway process (a new Gateway on the same store file); the sub-devices are booted again.
+TEST_F(GatewayE2E, SavedUpstreamConfigurationSurvivesAGatewayRestart) {
+  build();
+  boot_and_start();
+  ASSERT_EQ(sdo_write(0x1010, 1, {'s', 'a', 'v', 'e'}), SdoAbortCode::None);
+  // Power cycle of the gateway: a new process on the same mapping file and store.
+  gw_up_->set_receiver({});
+  gw_down_->set_receiver({});
+  gw_drv_.reset();
+  gw_.reset();
+  gw::GatewayOptions opt;
+  opt.store_path = store_;
+  gw_ = std::make_unique<Gateway>(config_, gw_up_->sink(), gw_down_->sink(), opt);
+  gw_drv_ = std::make_unique<ServiceDriver>(loop_, *gw_);
+  gw_down_->set_receiver([this](const CanFrame& f, TimePoint t) {
+    gw_->on_downstream_frame(f, t);
+    gw_drv_->rearm();
+  });
+  gw_up_->set_receiver([this](const CanFrame& f, TimePoint t) {
+    gw_->on_upstream_frame(f, t);
+    gw_drv_->rearm();
+  });
+  const auto loaded = gw_->start(loop_.now());
+  EXPECT_TRUE(loaded.ok) << loaded.error;
+  run_for(3s);
+  EXPECT_TRUE(all_operational()) << log_;
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1800, 1)), kTpdo1);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1804, 1)), kTpdo5);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1404, 1)), kRpdo5);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x6423, 0)), 1u);
+  // Only the NMT start is needed now.
+  emcys_.clear();
+  pdos_.clear();
+  host_->nmt().start(kGw);
+  run_for(100ms);
+  cmd("right_grip x 50");
+  run_for(300ms);
+  ASSERT_TRUE(last(kTpdo1)) << dump();
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 16384);
+  EXPECT_TRUE(emcys(0x0080).empty()) << "6423h TRUE was stored";
+}
+
+// ---- A bad mapping file: refused with file:line:column, nothing built --------------------------
+
+TEST(GatewayE2EBadMapping, ErrorsCarryFileLineColumnAndNoGatewayIsBuilt) {
+  std::string text = mapping_yaml();
+  // An unknown key with a suggestion (line 6), a signal the elobau driver does not provide
+  // (line 28, at the signal's value), an FE instance out of range (line 38).
+  auto replace = [&](const std::string& from, const std::string& to) {
+    const auto p = text.find(from);
+    ASSERT_NE(p, std::string::npos) << from;
+    text.replace(p, from.size(), to);
+  };
+  replace("  heartbeat_ms: 100\ndownstream", "  heartbeat_msec: 100\ndownstream");
+  replace("    y: { signal: right_grip.y, deadband: 2 }", "    y: { signal: right_grip.why, deadband: 2 }");
+  replace("  encoder.1:", "  encoder.9:");
+  const auto r = oegw::mapping::load_config_text(text, "bad.yaml", gw::driver_catalogue());
+  ASSERT_FALSE(r.ok());
+  EXPECT_FALSE(r.config.has_value()) << "no Config, so no Gateway can be constructed";
+  std::vector<std::string> lines;
+  for (const auto& d : r.errors) lines.push_back(d.str());
+  ASSERT_EQ(lines.size(), 3u) << r.error_text();
+  EXPECT_EQ(lines[0],
+            "bad.yaml:6:3: unknown key 'heartbeat_msec' in upstream; expected one of interface, node_id, bitrate, "
+            "identity, heartbeat_ms, store (did you mean 'heartbeat_ms'?)");
+  EXPECT_EQ(lines[1].rfind("bad.yaml:28:18: sub-device 'right_grip' (elobau-mfg) has no signal 'why'; expected one of x, y,", 0),
+            0u)
+      << lines[1];
+  EXPECT_EQ(lines[2].rfind("bad.yaml:38:3: instance 9 of 'encoder.9' is out of range; expected encoder.1..8", 0), 0u)
+      << lines[2];
+  // A YAML syntax error (unquoted brackets inside braces) is one error with the parser's mark.
+  const auto s = oegw::mapping::load_config_text(
+      "upstream: { node_id: 0x20 }\ndownstream: {}\nsubdevices: {}\nfunctional_elements:\n"
+      "  joystick.1: { buttons: right_grip.buttons[1..8] }\n",
+      "syntax.yaml", gw::driver_catalogue());
+  ASSERT_FALSE(s.ok());
+  ASSERT_EQ(s.errors.size(), 1u) << s.error_text();
+  EXPECT_EQ(s.errors[0].where.file, "syntax.yaml");
+  EXPECT_EQ(s.errors[0].where.line, 5);
+  EXPECT_GT(s.errors[0].where.column, 0);
+  EXPECT_EQ(s.errors[0].str().rfind("syntax.yaml:5:", 0), 0u) << s.errors[0].str();
+}
+
+}  // namespace

@@ -1,0 +1,163 @@
+#!/bin/bash
+# Guest test: the whole gateway on real SocketCAN. `oegw run` with a mapping file whose upstream
+# is vcan0 and downstream vcan1 (config/demo.yaml's devices and FEs); the cab devices are
+# `oegw-sim --motion` processes on vcan1 (the elobau grip alone in one, so that it can be
+# unplugged by killing it); python3-can is the host on vcan0 (gateway_host.py): boot-up, 1000h
+# (= what `oegw check` prints), TPDO1 enabled on 1A0h, 6423h TRUE, NMT start, joystick 1 moving in
+# TPDO1, then EMCY 7000h naming node 11h when the grip's process dies. candump on vcan0 confirms
+# the upstream frames; SIGTERM stops the gateway with exit 0.
+# Args: OEGW OEGW_SIM SOURCE_DIR
+set -uo pipefail
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+# shellcheck source=lib.sh
+. "$here/lib.sh"
+oegw=$1
+sim=$2
+src=$3
+dir=/run/oegw-gateway
+mkdir -p "$dir"
+t0=$(date +%s.%N)
+elapsed() { awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }'; }
+
+# The mapping file: demo.yaml with real interfaces, a store under /run and absolute EDS paths.
+# The sub-devices' heartbeat is slower than the demo's (TCG guest: keep timing margins wide).
+cat >"$dir/oegw.yaml" <<YAML
+upstream:
+  interface: vcan0
+  node_id: 0x20
+  bitrate: 250000
+  identity: { vendor_id: 0x00000000, product_code: 0x00000852, revision: 0x00010000, serial: 1 }
+  heartbeat_ms: 200
+  store: $dir/upstream.store
+downstream:
+  interface: vcan1
+  bitrate: 250000
+subdevices:
+  right_grip: { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 200, heartbeat_timeout_ms: 600, mandatory: true }
+  left_grip:  { driver: mcb402, node_id: 0x03, heartbeat_ms: 200, heartbeat_timeout_ms: 600 }
+  pedal:
+    driver: cia401
+    node_id: 0x30
+    heartbeat_ms: 200
+    heartbeat_timeout_ms: 600
+    options: { eds: $src/subdevices/eds/generic_pedal.eds }
+  seat_knob:
+    driver: novotechnik-406
+    node_id: 0x7F
+    heartbeat_ms: 200
+    heartbeat_timeout_ms: 600
+  cluster:
+    driver: cia401
+    node_id: 0x31
+    heartbeat_ms: 200
+    heartbeat_timeout_ms: 600
+    options: { eds: $src/subdevices/eds/button_cluster.eds }
+functional_elements:
+  joystick.1:
+    x: { signal: right_grip.x, deadband: 2 }
+    y: { signal: right_grip.y, deadband: 2 }
+    buttons: right_grip.buttons[1..8]
+  wheel.1: { position: { signal: right_grip.wheel_a, deadband: 2 } }
+  joystick.2:
+    x: { signal: left_grip.x, deadband: 300 }
+    y: { signal: left_grip.y, deadband: 300, invert: true }
+    z: { signal: left_grip.z, deadband: 300, clamp: [-32767, 32767] }
+    buttons: left_grip.buttons[1..7]
+  pedal.1:
+    position: { signal: "pedal.analog[1]", deadband: 100, fault: 0 }
+  encoder.1: { position: seat_knob.position }
+  buttons.1:
+    switch[1..8]: cluster.in[1]
+  indicators.1:
+    indicator[1..8]: cluster.out[1]
+  indicators.2:
+    indicator[1..4]: left_grip.leds[1..4]
+YAML
+
+"$oegw" check "$dir/oegw.yaml" >/tmp/check.out 2>&1
+rc=$?
+((rc == 0)) && pass "oegw check: valid" || fail "oegw check exit $rc: $(cat /tmp/check.out)"
+dt=$(sed -n 's/.*1000h device type = \([0-9A-F]\{8\}\)h.*/\1/p' /tmp/check.out)
+[[ -n "$dt" ]] && pass "oegw check prints 1000h = ${dt}h" || fail "no 1000h in: $(cat /tmp/check.out)"
+
+start_candump vcan0 /tmp/up.dump || fail "candump vcan0 did not start"
+up_candump=$candump_pid
+start_candump vcan1 /tmp/down.dump || fail "candump vcan1 did not start"
+down_candump=$candump_pid
+# The host first (it waits for the boot-up), then the devices, then the gateway.
+"$PY" "$here/gateway_host.py" vcan0 /tmp/gw.host-ready "${dt:-0}" >/tmp/host.log 2>&1 &
+host_pid=$!
+for ((i = 0; i < 600; i++)); do [[ -e /tmp/gw.host-ready ]] && break; sleep 0.05; done
+[[ -e /tmp/gw.host-ready ]] && echo "host up after $(elapsed) s" || fail "python3-can host did not come up"
+receivers=$(can_receivers vcan1)
+"$sim" -i vcan1 --motion elobau-mfg:0x11:name=right_grip >/tmp/sim-grip.log 2>&1 &
+grip_pid=$!
+"$sim" -i vcan1 --motion mcb402:0x03:name=left_grip \
+  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
+  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" >/tmp/sim-others.log 2>&1 &
+others_pid=$!
+wait_receivers vcan1 $((receivers + 2)) 20 || fail "the simulators did not bind vcan1"
+"$oegw" run "$dir/oegw.yaml" >/tmp/gateway.log 2>&1 &
+gw_pid=$!
+echo "gateway started after $(elapsed) s"
+
+# The host asks for the grip to be unplugged.
+for ((i = 0; i < 1800; i++)); do
+  if [[ -e /tmp/gw.kill-grip ]]; then
+    echo "grip simulator killed after $(elapsed) s"
+    kill -KILL "$grip_pid"
+    wait "$grip_pid" 2>/dev/null
+    rm -f /tmp/gw.kill-grip
+  fi
+  kill -0 "$host_pid" 2>/dev/null || break
+  sleep 0.05
+done
+wait "$host_pid"
+host_rc=$?
+echo "host finished after $(elapsed) s"
+sed 's/^/    host: /' /tmp/host.log
+((host_rc == 0)) && pass "python3-can host: every check" || fail "python3-can host exit $host_rc"
+
+kill -TERM "$gw_pid"
+wait "$gw_pid"
+rc=$?
+((rc == 0)) && pass "SIGTERM stops oegw run cleanly (exit 0)" || fail "oegw run exit $rc after SIGTERM"
+kill -TERM "$others_pid" 2>/dev/null
+wait "$others_pid" 2>/dev/null
+stop_candump  # vcan1's
+candump_pid=$up_candump
+stop_candump
+echo "== gateway log (journald format: level: message)"
+sed 's/^/    /' /tmp/gateway.log | head -60
+
+# candump's view of the upstream bus.
+got=$(frames /tmp/up.dump)
+expect_frame() {
+  if grep -qx "vcan0 $1" <<<"$got"; then pass "candump vcan0: $1 ($2)"; else fail "candump vcan0 lacks $1 ($2)"; fi
+}
+expect_re() {
+  if grep -qE "^vcan0 $1\$" <<<"$got"; then pass "candump vcan0: $1 ($2)"; else fail "candump vcan0 lacks $1 ($2)"; fi
+}
+expect_frame '720#00' "gateway boot-up"
+expect_frame '620#4000100000000000' "SDO upload request 1000h"
+expect_frame "5A0#43001000${dt:6:2}${dt:4:2}${dt:2:2}${dt:0:2}" "1000h = ${dt}h"
+expect_frame '620#23001801A0010000' "TPDO1 COB-ID 1A0h"
+expect_frame '5A0#6000180100000000' "download confirmed"
+expect_frame '620#2F23640001000000' "6423h = TRUE"
+expect_frame '000#0120' "NMT start node 20h"
+expect_frame '720#05' "heartbeat operational"
+expect_re '1A0#[0-9A-F]{16}' "TPDO1, 8 bytes"
+expect_frame '0A0#0070011172696768' "EMCY 7000h, register 01h, node 11h, 'righ'"
+n=$(grep -cE '^vcan0 1A0#' <<<"$got")
+echo "candump vcan0: $n TPDO1 frames, $(wc -l </tmp/up.dump) frames in all"
+# The upstream bus carried nothing of the downstream one.
+if grep -qE '^vcan0 (711|703|730|77F|731)#' <<<"$got"; then fail "downstream heartbeats on vcan0"; else pass "vcan0 carries no sub-device frames"; fi
+if grep -qE '^vcan1 711#05' <<<"$(frames /tmp/down.dump)"; then pass "candump vcan1: grip operational (711#05)"; else fail "no 711#05 on vcan1"; fi
+# The gateway's log (journald: "level: message", no timestamps) names the lost grip.
+for line in 'info: right_grip: operational (configured and started)' 'info: right_grip: missing (heartbeat lost)' \
+  'info: right_grip: fault (missing (heartbeat lost)): its inputs are at their fault values, EMCY 7000h sent upstream'; do
+  if grep -qxF "$line" /tmp/gateway.log; then pass "log: $line"; else fail "log lacks: $line"; fi
+done
+cp /tmp/up.dump /tmp/down.dump /tmp/gateway.log /tmp/host.log "${OEGW_VM_OUT:-/tmp}/" 2>/dev/null
+echo "total $(elapsed) s; $passes passed, $fails failed"
+((fails == 0))
