@@ -281,7 +281,10 @@ bool Gateway::on_upstream_frame(const canopen::CanFrame& frame, TimePoint now) {
 
 bool Gateway::on_downstream_frame(const canopen::CanFrame& frame, TimePoint now) {
   now_ = now;
-  return network_.on_frame(frame, now);
+  oe_->begin_batch();  // one upstream TPDO per downstream frame, whatever it changed
+  const bool used = network_.on_frame(frame, now);
+  oe_->end_batch(now);
+  return used;
 }
 
 void Gateway::on_upstream_bus_event(canopen::BusEvent event, TimePoint now) {

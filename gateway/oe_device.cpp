@@ -353,7 +353,7 @@ bool OeDevice::set_input(FeId fe, const mapping::FeField& field, std::int64_t va
   }
   const SdoAbortCode rc = od_.set<std::int64_t>(f->index, f->sub, raw, Origin::Local);
   if (rc == SdoAbortCode::None) input_shadow_[std::uint32_t{f->index} << 8 | f->sub] = s->value;
-  node_->advance(now);  // event-driven TPDOs go out now
+  if (batch_depth_ == 0) node_->advance(now);  // event-driven TPDOs go out now (see begin_batch)
   return rc == SdoAbortCode::None;
 }
 
@@ -519,6 +519,16 @@ void OeDevice::clear_subdevice_fault(canopen::NodeId node, TimePoint now) {
   } else {
     send_emcy_frame(canopen::EmcyProducer::kErrorReset, msef);
   }
+}
+
+}  // namespace oegw::gateway
+
+namespace oegw::gateway {
+
+void OeDevice::begin_batch() { ++batch_depth_; }
+
+void OeDevice::end_batch(canopen::TimePoint now) {
+  if (batch_depth_ > 0 && --batch_depth_ == 0) node_->advance(now);
 }
 
 }  // namespace oegw::gateway

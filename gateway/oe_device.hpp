@@ -155,6 +155,11 @@ class OeDevice {
   // One-bit fields set/clear their bit. Returns false for an unknown FE/field, an output FE or a
   // value out of the field's range (nothing written).
   bool set_input(mapping::FeId fe, std::string_view field, std::int64_t value, canopen::TimePoint now);
+  // Between begin_batch() and end_batch(), set_input only updates the dictionary; end_batch()
+  // then sends the event-driven TPDOs once, so that a downstream frame changing several fields
+  // (x, y and a button) gives one TPDO carrying all of them, not one per field.
+  void begin_batch();
+  void end_batch(canopen::TimePoint now);
   // The same for a field already looked up (mapping::find_fe_field(fe, name)): the per-frame path
   // of the gateway resolves its fields once and does not allocate here.
   bool set_input(mapping::FeId fe, const mapping::FeField& field, std::int64_t value, canopen::TimePoint now);
@@ -200,6 +205,7 @@ class OeDevice {
   std::unique_ptr<canopen::EmcyConsumer> emcy_consumer_;
   std::unique_ptr<canopen::Node> node_;
   OutputCallback on_output_;
+  unsigned batch_depth_ = 0;
   canopen::EmcyHandler on_emcy_;
   canopen::TimePoint now_{};
   bool hb_lost_seen_ = false;

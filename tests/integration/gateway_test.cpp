@@ -52,10 +52,10 @@ TEST(Gateway, AChangedGripFrameQueuesTpdo1AtOnceAndAnUnchangedOneNothing) {
   EXPECT_EQ(static_cast<std::int16_t>(canopen::get_u16(&up.last.data[0])), 13107);  // 40 % of 32767
   ASSERT_EQ(changes.size(), 1u);
   EXPECT_EQ(changes[0], (mapping::FeId{mapping::FeKind::Joystick, 1}));
-  // x and a button in one frame: each changed field queues TPDO 1 at once (today one TPDO per
-  // field, the last carrying both); the frame is fully reflected when the call returns.
+  // x and a button in one frame: ONE TPDO 1 carrying both (no intermediate snapshot with the
+  // new x and the old button), queued before the call returns.
   EXPECT_TRUE(rig->gw().on_downstream_frame(grip1_frame(-40, 0x01), rig->now()));
-  EXPECT_GE(up.frames, before + 2);
+  EXPECT_EQ(up.frames, before + 2);
   EXPECT_EQ(up.last.id, 0x1A0u);
   EXPECT_EQ(static_cast<std::int16_t>(canopen::get_u16(&up.last.data[0])), -13107);
   EXPECT_EQ(up.last.data[7], 0x01);  // buttons[1]
