@@ -78,12 +78,18 @@ LcmPublisher::~LcmPublisher() {
   if (impl_->lcm != nullptr) lcm_destroy(impl_->lcm);
 }
 
+// The fields every FE message starts with (oegw/*.lcm).
+template <class M>
+void set_header(M& m, const SampleHeader& h) {
+  m.instance = static_cast<std::int8_t>(h.instance);
+  m.status = status_of(h.status);
+  m.timestamp_us = h.timestamp_us;
+  m.seq = static_cast<std::int32_t>(h.seq);
+}
+
 void LcmPublisher::publish(const JoystickSample& s) {
   oegw::joystick_t m;
-  m.instance = static_cast<std::int8_t>(s.h.instance);
-  m.status = status_of(s.h.status);
-  m.timestamp_us = s.h.timestamp_us;
-  m.seq = static_cast<std::int32_t>(s.h.seq);
+  set_header(m, s.h);
   m.x = s.x;
   m.y = s.y;
   m.z = s.z;
@@ -93,38 +99,26 @@ void LcmPublisher::publish(const JoystickSample& s) {
 }
 void LcmPublisher::publish(const PedalSample& s) {
   oegw::pedal_t m;
-  m.instance = static_cast<std::int8_t>(s.h.instance);
-  m.status = status_of(s.h.status);
-  m.timestamp_us = s.h.timestamp_us;
-  m.seq = static_cast<std::int32_t>(s.h.seq);
+  set_header(m, s.h);
   m.position = s.position;
   m.memory = s.memory;
   send(impl_->lcm, prefix_ + "PEDAL_" + std::to_string(s.h.instance), m);
 }
 void LcmPublisher::publish(const WheelSample& s) {
   oegw::wheel_t m;
-  m.instance = static_cast<std::int8_t>(s.h.instance);
-  m.status = status_of(s.h.status);
-  m.timestamp_us = s.h.timestamp_us;
-  m.seq = static_cast<std::int32_t>(s.h.seq);
+  set_header(m, s.h);
   m.position = s.position;
   send(impl_->lcm, prefix_ + "WHEEL_" + std::to_string(s.h.instance), m);
 }
 void LcmPublisher::publish(const EncoderSample& s) {
   oegw::encoder_t m;
-  m.instance = static_cast<std::int8_t>(s.h.instance);
-  m.status = status_of(s.h.status);
-  m.timestamp_us = s.h.timestamp_us;
-  m.seq = static_cast<std::int32_t>(s.h.seq);
+  set_header(m, s.h);
   m.position = s.position;
   send(impl_->lcm, prefix_ + "ENCODER_" + std::to_string(s.h.instance), m);
 }
 void LcmPublisher::publish(const ButtonClusterSample& s) {
   oegw::button_cluster_t m;
-  m.instance = static_cast<std::int8_t>(s.h.instance);
-  m.status = status_of(s.h.status);
-  m.timestamp_us = s.h.timestamp_us;
-  m.seq = static_cast<std::int32_t>(s.h.seq);
+  set_header(m, s.h);
   m.switches = static_cast<std::int64_t>(s.switches);
   send(impl_->lcm, prefix_ + "BUTTONS_" + std::to_string(s.h.instance), m);
 }
