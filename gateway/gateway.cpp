@@ -339,12 +339,11 @@ FeStatus Gateway::status(mapping::FeId fe) const {
 
 void Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, TimePoint now) {
   now_ = now;
-  const mapping::FeId fe{mapping::FeKind::IndicatorCluster, instance};
-  for (unsigned i = 1; i <= 64; ++i) {
-    const std::string field = "indicator[" + std::to_string(i) + "]";
-    const auto f = mapping::find_fe_field(fe, field);
-    if (!f) continue;
-    const std::int64_t bit = static_cast<std::int64_t>((bits >> (i - 1)) & 1u);
+  // fe_fields() lists indicator[1..64] in order (mapping/functional_elements.hpp): one pass.
+  const auto fields = mapping::fe_fields({mapping::FeKind::IndicatorCluster, instance});
+  for (std::size_t k = 0; k < fields.size(); ++k) {
+    const mapping::FeField* f = &fields[k];
+    const std::int64_t bit = static_cast<std::int64_t>((bits >> k) & 1u);
     auto* sub = oe_->od().find(f->index, f->sub);
     if (sub == nullptr) continue;
     std::uint8_t byte = sub->value.empty() ? 0 : sub->value[0];
@@ -356,11 +355,12 @@ void Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, Time
 
 void Gateway::command_display(std::uint8_t instance, const std::array<std::int16_t, 12>& parameters, TimePoint now) {
   now_ = now;
-  const mapping::FeId fe{mapping::FeKind::Display, instance};
-  for (unsigned p = 1; p <= 12; ++p) {
-    const auto f = mapping::find_fe_field(fe, "parameter[" + std::to_string(p) + "]");
-    if (!f || oe_->od().find(f->index, f->sub) == nullptr) continue;
-    (void)oe_->od().set<std::int16_t>(f->index, f->sub, parameters[p - 1], canopen::Origin::Local);
+  // fe_fields() lists parameter[1..12] in order: one pass.
+  const auto fields = mapping::fe_fields({mapping::FeKind::Display, instance});
+  for (std::size_t p = 0; p < fields.size() && p < parameters.size(); ++p) {
+    const mapping::FeField& f = fields[p];
+    if (oe_->od().find(f.index, f.sub) == nullptr) continue;
+    (void)oe_->od().set<std::int16_t>(f.index, f.sub, parameters[p], canopen::Origin::Local);
   }
 }
 
