@@ -9,6 +9,19 @@
 
 namespace oegw::subdevices::sim {
 
+namespace {
+// The three families configured by node-ID, heartbeat and store alone.
+template <class Sim, class Config>
+std::unique_ptr<SimulatedDevice> make(const DeviceSpec& spec, FrameSink sink, std::uint16_t heartbeat_ms,
+                                      const std::filesystem::path& store) {
+  Config c;
+  c.node_id = spec.node;
+  c.heartbeat_ms = heartbeat_ms;
+  c.store_path = store;
+  return std::make_unique<Sim>(std::move(sink), c);
+}
+}  // namespace
+
 std::unique_ptr<SimulatedDevice> make_simulator(const DeviceSpec& spec, FrameSink sink, std::string& error) {
   std::uint16_t heartbeat_ms = 0;
   std::filesystem::path store;
@@ -32,27 +45,9 @@ std::unique_ptr<SimulatedDevice> make_simulator(const DeviceSpec& spec, FrameSin
       return nullptr;
     }
   }
-  if (spec.family == "elobau-mfg") {
-    ElobauMfgSimConfig c;
-    c.node_id = spec.node;
-    c.heartbeat_ms = heartbeat_ms;
-    c.store_path = store;
-    return std::make_unique<ElobauMfgSim>(std::move(sink), c);
-  }
-  if (spec.family == "mcb402") {
-    Mcb402SimConfig c;
-    c.node_id = spec.node;
-    c.heartbeat_ms = heartbeat_ms;
-    c.store_path = store;
-    return std::make_unique<Mcb402Sim>(std::move(sink), c);
-  }
-  if (spec.family == "novotechnik-406") {
-    Novotechnik406SimConfig c;
-    c.node_id = spec.node;
-    c.heartbeat_ms = heartbeat_ms;
-    c.store_path = store;
-    return std::make_unique<Novotechnik406Sim>(std::move(sink), c);
-  }
+  if (spec.family == "elobau-mfg") return make<ElobauMfgSim, ElobauMfgSimConfig>(spec, std::move(sink), heartbeat_ms, store);
+  if (spec.family == "mcb402") return make<Mcb402Sim, Mcb402SimConfig>(spec, std::move(sink), heartbeat_ms, store);
+  if (spec.family == "novotechnik-406") return make<Novotechnik406Sim, Novotechnik406SimConfig>(spec, std::move(sink), heartbeat_ms, store);
   if (spec.family == "cia401") {
     if (eds.empty()) {
       error = spec.name() + ": the cia401 simulator needs eds=<file>";
