@@ -318,7 +318,7 @@ std::vector<Gateway::FieldState> Gateway::fields(mapping::FeId fe) const {
     if (!(b.fe == fe)) continue;
     FieldState f;
     f.name = b.field->field.name;
-    f.value = oe_->get(fe, f.name).value_or(0);
+    f.value = oe_->get(fe, b.field->field).value_or(0);  // the binding's field, looked up at load
     f.status = b.translator ? b.status : SignalStatus::Valid;
     f.interlocked = b.translator && b.translator->interlocked() && b.status == SignalStatus::Valid;
     out.push_back(f);

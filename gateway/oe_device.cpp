@@ -358,12 +358,16 @@ bool OeDevice::set_input(FeId fe, const mapping::FeField& field, std::int64_t va
 }
 
 std::optional<std::int64_t> OeDevice::get(FeId fe, std::string_view field) const {
-  if (std::find(cfg_.fes.begin(), cfg_.fes.end(), fe) == cfg_.fes.end()) return std::nullopt;
   const auto f = mapping::find_fe_field(fe, field);
   if (!f) return std::nullopt;
-  const canopen::SubObject* s = od_.find(f->index, f->sub);
+  return get(fe, *f);
+}
+
+std::optional<std::int64_t> OeDevice::get(FeId fe, const mapping::FeField& f) const {
+  if (std::find(cfg_.fes.begin(), cfg_.fes.end(), fe) == cfg_.fes.end()) return std::nullopt;
+  const canopen::SubObject* s = od_.find(f.index, f.sub);
   if (s == nullptr) return std::nullopt;
-  if (f->bit != 0xFF) return (s->value.at(0) >> f->bit) & 1;
+  if (f.bit != 0xFF) return (s->value.at(0) >> f.bit) & 1;
   return entry_value(*s);
 }
 

@@ -165,6 +165,8 @@ class OeDevice {
   bool set_input(mapping::FeId fe, const mapping::FeField& field, std::int64_t value, canopen::TimePoint now);
   // Reads an FE field (inputs and outputs) from the dictionary.
   [[nodiscard]] std::optional<std::int64_t> get(mapping::FeId fe, std::string_view field) const;
+  // The same for a field already looked up (no search of the FE's field list).
+  [[nodiscard]] std::optional<std::int64_t> get(mapping::FeId fe, const mapping::FeField& field) const;
 
   // Called for every output field whose value changed (an RPDO, an SDO download, or the error
   // values applied by host_heartbeat_lost()).
