@@ -2,7 +2,7 @@
 //
 //   lcm_subscriber [--count N] [--timeout SECONDS] [--url URL] [--channel REGEX]
 //
-// Defaults: URL udpm://239.255.76.67:7667?ttl=0 (multicast that never leaves the host), channels
+// Defaults: URL udpm://224.0.0.1:7667?ttl=0 (multicast that never leaves the host), channels
 // OEGW_JOYSTICK_[0-9]+. Prints one line per joystick sample:
 //   joystick instance=1 status=valid seq=7 ts_us=123 x=100 y=-5 z=0 buttons=0x01 memory=0x00 rx_us=130
 // (rx_us: CLOCK_MONOTONIC microseconds at reception, comparable with ts_us on this host).
@@ -47,7 +47,7 @@ void on_joystick(const lcm_recv_buf_t* rbuf, const char* /*channel*/, void* /*us
 int main(int argc, char** argv) {
   long count = -1;
   double timeout_s = 10.0;
-  const char* url = "udpm://239.255.76.67:7667?ttl=0";
+  const char* url = "udpm://224.0.0.1:7667?ttl=0";
   const char* channel = "OEGW_JOYSTICK_[0-9]+";
   for (int i = 1; i + 1 < argc; i += 2) {
     if (std::strcmp(argv[i], "--count") == 0) count = std::atol(argv[i + 1]);

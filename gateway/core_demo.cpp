@@ -153,7 +153,7 @@ int run_demo(const DemoOptions& options) {
     try {
       lcm = std::make_unique<LcmPublisher>(LcmSettings{});
       fan.add(lcm.get());
-      say("publishing joystick.1 on LCM: channel OEGW_JOYSTICK_1, udpm://239.255.76.67:7667?ttl=0");
+      say("publishing joystick.1 on LCM: channel OEGW_JOYSTICK_1, udpm://224.0.0.1:7667?ttl=0");
     } catch (const PublishConfigError& e) {
       fail(e.what());
     }

@@ -37,7 +37,7 @@ struct DemoOptions {
   double live_seconds = 3.0;  // how long the joystick moves in operational
   bool frames = false;        // print every frame on the bus (candump notation)
   // Publish the joystick as joystick.1 on DDS (loopback-only Cyclone configuration, partition
-  // "oegw") and LCM (udpm://239.255.76.67:7667?ttl=0), and take indicators.1 commands back into
+  // "oegw") and LCM (udpm://224.0.0.1:7667?ttl=0), and take indicators.1 commands back into
   // the device's output 6200h:01. Off by default: LCM 1.3.1 joins its multicast group on the
   // default route's interface, which sends IGMP reports there (README, "Keeping it on the host").
   bool publish = false;

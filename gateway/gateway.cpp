@@ -36,6 +36,7 @@ OeDeviceConfig oe_config(const mapping::Config& c, const GatewayOptions& o) {
         std::none_of(fe.fields.begin(), fe.fields.end(),
                      [](const auto& f) { return f.field.name.rfind("buttons", 0) == 0; }))
       oe.joysticks_without_buttons.insert(fe.id);
+    if (!fe.input() && !fe.accepts(mapping::CommandSource::Canopen)) oe.host_may_not_command.insert(fe.id);
   }
   oe.store_path = o.store_path ? *o.store_path : std::filesystem::path(c.upstream.store);
   return oe;
@@ -337,10 +338,28 @@ FeStatus Gateway::status(mapping::FeId fe) const {
   return static_cast<FeStatus>(static_cast<std::uint8_t>(worst));
 }
 
-void Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, TimePoint now) {
+bool Gateway::command_allowed(mapping::FeId fe, mapping::CommandSource source) {
+  const mapping::FunctionalElementConfig* c = config_.find_fe(fe);
+  const auto fe_name = std::string(mapping::to_string(fe.kind)) + "." + std::to_string(fe.instance);
+  const auto src = std::string(mapping::to_string(source));
+  if (c != nullptr && c->accepts(source)) return true;
+  ++refused_commands_;
+  // Logged once per FE and source: a machine application commanding at 100 Hz must not flood
+  // the journal; refused_commands() keeps the count.
+  if (refused_logged_.insert({fe, static_cast<std::uint8_t>(source)}).second)
+    log(c == nullptr ? fe_name + ": a command from " + src + " ignored: the mapping file does not configure " + fe_name
+                     : fe_name + ": a command from " + src + " ignored: its sources are " +
+                           mapping::describe_sources(c->sources));
+  return false;
+}
+
+bool Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, TimePoint now,
+                                 mapping::CommandSource source) {
   now_ = now;
+  const mapping::FeId fe{mapping::FeKind::IndicatorCluster, instance};
+  if (instance < 1 || instance > mapping::max_instances(fe.kind) || !command_allowed(fe, source)) return false;
   // fe_fields() lists indicator[1..64] in order (mapping/functional_elements.hpp): one pass.
-  const auto fields = mapping::fe_fields({mapping::FeKind::IndicatorCluster, instance});
+  const auto fields = mapping::fe_fields(fe);
   for (std::size_t k = 0; k < fields.size(); ++k) {
     const mapping::FeField* f = &fields[k];
     const std::int64_t bit = static_cast<std::int64_t>((bits >> k) & 1u);
@@ -351,17 +370,22 @@ void Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, Time
     // Written as the host would: the dictionary's observers report the change to on_output.
     (void)oe_->od().write(f->index, f->sub, std::span<const std::uint8_t>(&byte, 1), canopen::Origin::Local);
   }
+  return true;
 }
 
-void Gateway::command_display(std::uint8_t instance, const std::array<std::int16_t, 12>& parameters, TimePoint now) {
+bool Gateway::command_display(std::uint8_t instance, const std::array<std::int16_t, 12>& parameters, TimePoint now,
+                              mapping::CommandSource source) {
   now_ = now;
+  const mapping::FeId fe{mapping::FeKind::Display, instance};
+  if (instance < 1 || instance > mapping::max_instances(fe.kind) || !command_allowed(fe, source)) return false;
   // fe_fields() lists parameter[1..12] in order: one pass.
-  const auto fields = mapping::fe_fields({mapping::FeKind::Display, instance});
+  const auto fields = mapping::fe_fields(fe);
   for (std::size_t p = 0; p < fields.size() && p < parameters.size(); ++p) {
     const mapping::FeField& f = fields[p];
     if (oe_->od().find(f.index, f.sub) == nullptr) continue;
     (void)oe_->od().set<std::int16_t>(f.index, f.sub, parameters[p], canopen::Origin::Local);
   }
+  return true;
 }
 
 }  // namespace oegw::gateway

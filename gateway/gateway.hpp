@@ -70,9 +70,16 @@ class Gateway {
   [[nodiscard]] std::vector<mapping::FeId> fes() const;
 
   // Commands from the machine application (DDS/LCM): written into the upstream dictionary as
-  // the host would (the last writer wins, whatever its source), then driven to the outputs.
-  void command_indicators(std::uint8_t instance, std::uint64_t bits, canopen::TimePoint now);
-  void command_display(std::uint8_t instance, const std::array<std::int16_t, 12>& parameters, canopen::TimePoint now);
+  // the host would, then driven to the outputs. Only the sources the FE lists in the mapping
+  // file are taken (mapping::CommandSource; the host's own writes are checked by OeDevice);
+  // among those the last writer wins. Returns false, changing nothing, for a source the FE does
+  // not take or an FE the mapping file does not configure (logged once per FE and source).
+  bool command_indicators(std::uint8_t instance, std::uint64_t bits, canopen::TimePoint now,
+                          mapping::CommandSource source);
+  bool command_display(std::uint8_t instance, const std::array<std::int16_t, 12>& parameters, canopen::TimePoint now,
+                       mapping::CommandSource source);
+  // Commands refused so far (a source the FE does not take, an FE not configured).
+  [[nodiscard]] std::uint64_t refused_commands() const { return refused_commands_; }
 
   [[nodiscard]] OeDevice& upstream() { return *oe_; }
   [[nodiscard]] subdevices::NetworkManager& downstream() { return network_; }
@@ -112,6 +119,7 @@ class Gateway {
   // Feeds one input binding (the EMCY hold of its node applied); returns true if it changed.
   bool feed(Binding& b, const Sub& s, const subdevices::SignalValue& v);
   void log(const std::string& line);
+  bool command_allowed(mapping::FeId fe, mapping::CommandSource source);
 
   mapping::Config config_;
   canopen::ObjectDictionary master_od_;
@@ -123,6 +131,8 @@ class Gateway {
   std::map<std::pair<std::string, std::size_t>, std::int64_t> output_values_;        // last sent
   std::map<std::string, std::string> faults_;  // sub-device -> reason
   canopen::TimePoint now_{};
+  std::uint64_t refused_commands_ = 0;
+  std::set<std::pair<mapping::FeId, std::uint8_t>> refused_logged_;  // (FE, source) already logged
 };
 
 }  // namespace oegw::gateway

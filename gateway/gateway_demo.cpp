@@ -146,15 +146,22 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
                     : m.code == 0 ? "(error reset)" : ""));
   };
 
-  // --publish: every FE on DDS (loopback only) and LCM (ttl=0), as a machine application sees it.
+  std::printf(
+      "oegw demo: the CiA 852 gateway between a simulated cab and a built-in host controller\n"
+      "  downstream: elobau grip 11h, MCB-402 03h, pedal 30h, Novotechnik encoder 7Fh, button cluster 31h\n"
+      "  upstream:   the gateway is node 20h; the host configures its PDOs and reads the joysticks\n"
+      "  mapping:    config/demo.yaml (run `oegw check config/demo.yaml` to see the layout)\n\n");
+
+  // Every FE on DDS (loopback only) and LCM (ttl=0, 224.0.0.1), as a machine application sees
+  // it: the embedded demo.yaml's publish section (--no-publish turns it off).
   std::unique_ptr<GatewayPublishing> publishing;
-  if (options.publish) {
-    mapping::PublishConfig pc;
-    pc.dds.enabled = true;
-    pc.lcm.enabled = true;
+  if (options.publish && (cfg.publish.dds.enabled || cfg.publish.lcm.enabled)) {
     try {
-      publishing = std::make_unique<GatewayPublishing>(gw, pc, [&loop] { return loop.now(); });
-      say("publishing every FE on DDS (topics oegw/*, domain 0, loopback only) and LCM (OEGW_*, ttl=0)");
+      publishing = std::make_unique<GatewayPublishing>(gw, cfg.publish, [&loop] { return loop.now(); });
+      say(fmt::format("publishing every FE on DDS (topics oegw/*, domain {}, partition {}, network {}) and LCM "
+                      "(channels {}*, {}); indicators.1 takes its commands from there",
+                      cfg.publish.dds.domain, cfg.publish.dds.partition, cfg.publish.dds.network,
+                      cfg.publish.lcm.channel_prefix, cfg.publish.lcm.url));
       for (Publisher* p : publishing->publishers())
         if (p->fd() >= 0) loop.watch(p->fd(), io_events::kReadable, [p](std::uint32_t) { p->poll(); });
       loop.call_every(loop.now(), std::chrono::microseconds(publishing->period_us()), [&] { publishing->tick(); });
@@ -168,12 +175,6 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   gw_down->set_receiver([&](const CanFrame& f, TimePoint t) { gw.on_downstream_frame(f, t); gw_drv.rearm(); });
   gw_up->set_receiver([&](const CanFrame& f, TimePoint t) { gw.on_upstream_frame(f, t); gw_drv.rearm(); });
   host_port->set_receiver([&](const CanFrame& f, TimePoint t) { host.on_frame(f, t); host_drv.rearm(); });
-
-  std::printf(
-      "oegw demo: the CiA 852 gateway between a simulated cab and a built-in host controller\n"
-      "  downstream: elobau grip 11h, MCB-402 03h, pedal 30h, Novotechnik encoder 7Fh, button cluster 31h\n"
-      "  upstream:   the gateway is node 20h; the host configures its PDOs and reads the joysticks\n"
-      "  mapping:    config/demo.yaml (run `oegw check config/demo.yaml` to see the layout)\n\n");
 
   bool moving = false;
   loop.call_every(loop.now(), 20ms, [&] {
@@ -197,7 +198,7 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     lines.push_back(fmt::format("  host: {} TPDO1 frames, joystick.1 x as the host reads it = {:+6d}", tpdos, host_x));
     static std::size_t drawn = 0;
     if (tty && drawn > 0) std::printf("\x1b[%zuA", drawn);
-    for (const auto& l : lines) std::printf("%s\x1b[K\n", l.c_str());
+    for (const auto& l : lines) std::printf(tty ? "%s\x1b[K\n" : "%s\n", l.c_str());
     drawn = tty && !final_frame ? lines.size() : 0;
     std::fflush(stdout);
   };
@@ -238,11 +239,21 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     check(tpdos > 0 && x_max - x_min > 20000, fmt::format("the host saw joystick 1 move in {} TPDOs (x from {} to {})", tpdos, x_min, x_max));
     say("host: RPDO 225h#0500000000000000 -> indicators.2 lamps 1 and 3 -> the MCB-402's LEDs");
     (void)host_port->send(CanFrame(0x225, {0x05, 0, 0, 0, 0, 0, 0, 0}));  // RPDO 5 maps 6200h:09..10h
+    // indicators.1 lists `sources: [dds, lcm]` in demo.yaml: the host may not drive its lamps.
+    say("host: SDO write 6200h:01 = FFh (indicators.1, the cluster's lamps, driven by the machine application)");
+    host.sdo(kGateway).download(0x6200, 0x01, {0xFF}, [&](SdoAbortCode c, std::vector<std::uint8_t>) {
+      check(c == SdoAbortCode::CannotTransferLocalControl,
+            fmt::format("the gateway refused it: abort {:08X}h ({}); the lamps stay as DDS/LCM set them",
+                        static_cast<std::uint32_t>(c), to_string(c)));
+    });
+    host_drv.rearm();
   });
   at(3500ms + live, [&] {
     auto* mcb = bench.device("left_grip");
     check(mcb && mcb->output("leds[1]") == 1 && mcb->output("leds[2]") == 0 && mcb->output("leds[3]") == 1,
           "MCB-402 LEDs 1 and 3 lit, 2 off");
+    auto* cluster = bench.device("cluster");
+    check(cluster && cluster->output("out[1]") == 0, "the button cluster's lamps unchanged by the refused write");
     say("the right grip's cable is pulled");
     (void)bench.command("right_grip silent on", loop.now());
   });

@@ -16,8 +16,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0, 3600.0));
   demo_cmd->add_flag("--frames", demo.frames, "Print every CAN frame of both buses (candump notation)");
   demo_cmd->add_flag("--fast", demo.fast, "Run on a simulated clock, as fast as possible (deterministic)");
-  demo_cmd->add_flag("--publish", demo.publish,
-                     "Also publish every FE on DDS (loopback) and LCM (ttl=0); indicator commands come back");
+  demo_cmd->add_flag("--publish,!--no-publish", demo.publish,
+                     "Publish every FE on DDS (loopback only) and LCM (ttl=0) and take indicator commands back "
+                     "(the default; --no-publish turns it off)");
 
   oegw::gateway::DemoOptions core_demo;
   auto* core_cmd = app.add_subcommand("core-demo", "The protocol core's demo: one CiA 301 device and a host");

@@ -281,8 +281,28 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
     const canopen::SubObject* s = od_.find(static_cast<std::uint16_t>(key >> 8), static_cast<std::uint8_t>(key));
     output_shadow_[key] = s ? entry_value(*s) : 0;
   }
+  refuse_host_commands();
   node_->on_state_change = [this](NmtState s) { handle_state(s); };
   subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) { handle_od_change(index, sub); });
+}
+
+void OeDevice::refuse_host_commands() {
+  std::set<std::uint32_t> refused;  // index << 8 | sub of the entries the host may not write
+  for (const FeId& fe : cfg_.host_may_not_command)
+    if (!mapping::is_input(fe.kind) && std::binary_search(cfg_.fes.begin(), cfg_.fes.end(), fe))
+      for (const auto& f : mapping::fe_fields(fe)) refused.insert(static_cast<std::uint32_t>(f.index) << 8 | f.sub);
+  if (refused.empty()) return;
+  for (const std::uint16_t index : {std::uint16_t{0x6200}, std::uint16_t{0x6411}}) {
+    canopen::Object* o = od_.find(index);
+    if (o == nullptr) continue;
+    subs_ += o->add_write_hook(
+        [refused](canopen::Object& obj, std::uint8_t sub, std::span<const std::uint8_t>, Origin origin) {
+          if (origin == Origin::Local) return SdoAbortCode::None;
+          return refused.count(static_cast<std::uint32_t>(obj.index()) << 8 | sub) != 0
+                     ? SdoAbortCode::CannotTransferLocalControl
+                     : SdoAbortCode::None;
+        });
+  }
 }
 
 canopen::ParameterStore::LoadResult OeDevice::start(TimePoint now) {

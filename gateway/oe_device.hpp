@@ -117,6 +117,11 @@ struct OeDeviceConfig {
   std::uint16_t host_heartbeat_ms = 0;   // 1016h:01 default consumer time
   std::vector<mapping::FeId> fes;
   std::set<mapping::FeId> joysticks_without_buttons;  // affects 1000h only (Table 8)
+  // Output FEs the host may not command (their mapping-file `sources` leave out canopen): an SDO
+  // download of their 6200h/6411h entries is aborted with 0800 0021h ("cannot be transferred
+  // because of local control", CiA 301 Table 22) and their bytes in an RPDO are ignored. Writes
+  // of the gateway itself (Origin::Local: DDS/LCM commands, 6206h/6443h error values) pass.
+  std::set<mapping::FeId> host_may_not_command;
   std::filesystem::path store_path;      // empty: no 1010h/1011h
 };
 
@@ -193,6 +198,7 @@ class OeDevice {
     std::string field;
     std::uint8_t bit;
   };
+  void refuse_host_commands();
   void handle_state(canopen::NmtState s);
   void handle_od_change(std::uint16_t index, std::uint8_t sub);
   void resync_outputs();

@@ -23,10 +23,17 @@ GatewayPublishing::GatewayPublishing(Gateway& gateway, const mapping::PublishCon
     lcm_ = std::make_unique<LcmPublisher>(LcmSettings{config.lcm.url, config.lcm.channel_prefix});
     fan_.add(lcm_.get());
   }
-  for (Publisher* p : fan_.outputs()) {
-    p->on_indicator_command = [this](const IndicatorCommand& c) { gw_.command_indicators(c.instance, c.indicators, clock_()); };
-    p->on_display_command = [this](const DisplayCommand& c) { gw_.command_display(c.instance, c.parameters, clock_()); };
-  }
+  auto take_commands = [this](Publisher* p, mk::CommandSource source) {
+    if (p == nullptr) return;
+    p->on_indicator_command = [this, source](const IndicatorCommand& c) {
+      (void)gw_.command_indicators(c.instance, c.indicators, clock_(), source);
+    };
+    p->on_display_command = [this, source](const DisplayCommand& c) {
+      (void)gw_.command_display(c.instance, c.parameters, clock_(), source);
+    };
+  };
+  take_commands(dds_.get(), mk::CommandSource::Dds);
+  take_commands(lcm_.get(), mk::CommandSource::Lcm);
   if (!active()) return;
   auto previous = std::move(gw_.on_fe_change);
   gw_.on_fe_change = [this, previous](mapping::FeId fe) {

@@ -1,7 +1,7 @@
 // The gateway's functional elements on DDS and/or LCM (the mapping file's `publish:`): every
 // input FE is published on change and at least every period (gateway/publish/publish_schedule),
-// with the gateway status; indicator and display commands come back into the gateway (the last
-// writer wins, whichever its source: host CANopen, DDS or LCM — see README).
+// with the gateway status; indicator and display commands come back into the gateway from the
+// sources each FE takes (mapping file `sources`; among them the last writer wins — see README).
 #pragma once
 
 #include <functional>

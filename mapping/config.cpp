@@ -10,6 +10,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <regex>
 #include <set>
 #include <sstream>
 
@@ -53,6 +54,31 @@ const SubdeviceConfig* Config::find_subdevice(std::string_view n) const {
   for (const auto& s : subdevices)
     if (s.name == n) return &s;
   return nullptr;
+}
+
+const FunctionalElementConfig* Config::find_fe(FeId id) const {
+  for (const auto& f : functional_elements)
+    if (f.id == id) return &f;
+  return nullptr;
+}
+
+std::string_view to_string(CommandSource s) {
+  switch (s) {
+    case CommandSource::Canopen:
+      return "canopen";
+    case CommandSource::Dds:
+      return "dds";
+    case CommandSource::Lcm:
+      return "lcm";
+  }
+  return "?";
+}
+
+std::string describe_sources(CommandSources sources) {
+  std::string out;
+  for (auto s : {CommandSource::Canopen, CommandSource::Dds, CommandSource::Lcm})
+    if ((sources & static_cast<CommandSources>(s)) != 0) out += (out.empty() ? "" : ", ") + std::string(to_string(s));
+  return out.empty() ? "none" : out;
 }
 
 namespace {
@@ -460,6 +486,64 @@ class Loader {
       functional_elements(*e);
     else
       missing(root, "functional_elements", "the file", "a functional_elements section");
+    command_sources_reachable();
+  }
+
+  // An output FE whose only sources are transports the publish section leaves off could never
+  // be commanded: refused here rather than found out in the cab.
+  void command_sources_reachable() {
+    const auto& p = cfg_.publish;
+    for (const auto& fe : cfg_.functional_elements) {
+      if (fe.input() || fe.sources == kAllCommandSources || fe.accepts(CommandSource::Canopen)) continue;
+      const bool dds = fe.accepts(CommandSource::Dds) && p.dds.enabled;
+      const bool lcm = fe.accepts(CommandSource::Lcm) && p.lcm.enabled;
+      if (dds || lcm) continue;
+      error(fe.sources_where, std::string(to_string(fe.id.kind)) + "." + std::to_string(fe.id.instance) +
+                                  " takes commands only from " + describe_sources(fe.sources) +
+                                  ", which the publish section does not enable; expected publish." +
+                                  (fe.accepts(CommandSource::Dds) ? "dds" : "lcm") +
+                                  " enabled, or canopen among the sources");
+    }
+  }
+
+  // `sources: [canopen, dds, lcm]` or one name: who may command an output FE (config.hpp).
+  void command_sources(const Entry& e, FunctionalElementConfig& fe, const std::string& fe_name) {
+    static const std::vector<std::string_view> names = {"canopen", "dds", "lcm"};
+    const std::string expected = "a list of canopen, dds, lcm, e.g. sources: [canopen, dds]";
+    if (fe.input()) {
+      error(e.key, fe_name + " is an input; 'sources' applies to indicators and display (commands in)");
+      return;
+    }
+    std::vector<YAML::Node> items;
+    if (e.value.IsScalar() && !e.value.Scalar().empty()) {
+      items.push_back(e.value);
+    } else if (e.value.IsSequence() && e.value.size() > 0) {
+      for (const auto& n : e.value) items.push_back(n);
+    } else {
+      error(e.value, "found " + node_kind(e.value) + " for " + fe_name + " sources; expected " + expected);
+      return;
+    }
+    CommandSources set = 0;
+    bool ok = true;
+    for (const auto& n : items) {
+      const std::string name = n.IsScalar() ? n.Scalar() : std::string();
+      const auto it = std::find(names.begin(), names.end(), name);
+      if (it == names.end()) {
+        error(n, "found " + (n.IsScalar() ? "'" + name + "'" : node_kind(n)) + " in " + fe_name +
+                     " sources; expected one of canopen, dds, lcm" + did_you_mean(name, names));
+        ok = false;
+        continue;
+      }
+      const auto bit = static_cast<CommandSources>(1u << (it - names.begin()));
+      if ((set & bit) != 0) {
+        error(n, "'" + name + "' appears twice in " + fe_name + " sources; expected each source once");
+        ok = false;
+      }
+      set = static_cast<CommandSources>(set | bit);
+    }
+    if (!ok) return;
+    fe.sources = set;
+    fe.sources_where = loc(e.value);
   }
 
   void upstream(const Entry& sec) {
@@ -523,7 +607,10 @@ class Loader {
       if (const auto* x = find(ls, "enabled"))
         if (auto b = boolean(*x, "enabled")) l.enabled = *b;
       if (const auto* x = find(ls, "url"))
-        if (auto s = string(*x, "url")) l.url = *s;
+        if (auto s = string(*x, "url")) {
+          l.url = *s;
+          link_local_lcm_group(*x);
+        }
       if (const auto* x = find(ls, "channel_prefix"))
         if (auto s = string(*x, "channel_prefix")) l.channel_prefix = *s;
     }
@@ -749,6 +836,24 @@ class Loader {
     }
   }
 
+  // The groups 224.0.0.0/24 reach every host of the link: the gateway's host-local default
+  // udpm://224.0.0.1:7667?ttl=0 uses 224.0.0.1 because the kernel never sends an IGMP report for
+  // it (so nothing at all leaves the host), but with a ttl above 0 every device on the cab
+  // network would receive each sample. A network deployment uses an administratively scoped
+  // group (239.x.x.x) instead.
+  void link_local_lcm_group(const Entry& e) {
+    static const std::regex udpm(R"(^udpm://224\.0\.0\.[0-9]+(:[0-9]+)?(\?(.*))?$)");
+    static const std::regex ttl(R"((^|&)ttl=([0-9]+)(&|$))");
+    std::smatch m, t;
+    const std::string url = e.value.Scalar();
+    if (!std::regex_match(url, m, udpm)) return;
+    const std::string options = m[3].str();
+    if (!std::regex_search(options, t, ttl) || std::stoul(t[2].str()) == 0) return;
+    error(e.value, "publish lcm url '" + url + "' sends to a link-local group (224.0.0.x) with ttl " + t[2].str() +
+                       ", so every host on the network would receive it; expected ttl=0 (this host only) or a "
+                       "239.x.x.x group for a network, e.g. udpm://239.255.76.67:7667?ttl=1");
+  }
+
   // ---------------------------------------------------------------------------------------------
   void functional_elements(const Entry& sec) {
     const auto es = entries(sec.value, "functional_elements", {}, "a map of kind.instance -> {field: signal, ...}");
@@ -848,7 +953,13 @@ class Loader {
     const auto es = entries(fe_entry.value, fe_name, {}, "a map of field -> signal, e.g. { x: right_grip.x }");
     if (fe_entry.value.IsMap() && es.empty() && fe_entry.value.size() == 0)
       error(fe_entry.value, fe_name + " has no fields; expected at least one field fed by a signal");
+    if (es.size() == 1 && es.front().name == "sources")
+      error(fe_entry.value, fe_name + " has only 'sources' and no fields; expected at least one field fed by a signal");
     for (const auto& e : es) {
+      if (e.name == "sources") {
+        command_sources(e, fe, fe_name);
+        continue;
+      }
       // The field key: "x", "buttons" (a group: buttons[1..n]), "buttons[3]", "indicator[1..4]".
       auto key = parse_ref(e.name);
       const bool group =

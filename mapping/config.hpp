@@ -76,7 +76,10 @@ struct DdsConfig {
 };
 struct LcmConfig {
   bool enabled = false;
-  std::string url = "udpm://239.255.76.67:7667?ttl=0";
+  // Host-local by default: ttl=0 keeps the data on the host, and the all-hosts group 224.0.0.1
+  // is the one group the kernel never reports by IGMP (RFC 2236 §6, RFC 3376 §5), so not even
+  // a membership report leaves. A deployment names its group, e.g. udpm://239.255.76.67:7667?ttl=1.
+  std::string url = "udpm://224.0.0.1:7667?ttl=0";
   std::string channel_prefix = "OEGW_";
 };
 struct PublishConfig {
@@ -126,11 +129,26 @@ struct FieldBinding {
   [[nodiscard]] OutputParams output_params() const { return resolve_output(signal_info, field, options, signal_bit); }
 };
 
+// Who may command an output FE (indicators, display). CiA 852 has the host write 6200h/6411h
+// over CANopen; the gateway adds the machine application over DDS and LCM. An FE lists the
+// sources it takes (`sources: [canopen, dds, lcm]` in the mapping file, all three when absent);
+// among them the last write wins. A write from a source not listed changes nothing: over
+// CANopen an SDO download is aborted with 0800 0021h (CiA 301 Table 22, "local control") and
+// the FE's bytes in an RPDO are ignored; over DDS/LCM the command is dropped and logged.
+enum class CommandSource : std::uint8_t { Canopen = 1, Dds = 2, Lcm = 4 };
+using CommandSources = std::uint8_t;  // a set of CommandSource bits
+inline constexpr CommandSources kAllCommandSources = 7;
+[[nodiscard]] std::string_view to_string(CommandSource s);           // "canopen", "dds", "lcm"
+[[nodiscard]] std::string describe_sources(CommandSources sources);  // "canopen, dds"
+
 struct FunctionalElementConfig {
   FeId id;
   std::vector<FieldBinding> fields;  // in the FE's dictionary order
+  CommandSources sources = kAllCommandSources;  // output FEs only
   Location where;
+  Location sources_where;  // the `sources` value, when written
   [[nodiscard]] bool input() const { return is_input(id.kind); }
+  [[nodiscard]] bool accepts(CommandSource s) const { return (sources & static_cast<CommandSources>(s)) != 0; }
 };
 
 struct Config {
@@ -141,6 +159,7 @@ struct Config {
   std::vector<SubdeviceConfig> subdevices;                   // in file order
   std::vector<FunctionalElementConfig> functional_elements;  // sorted by FeId
   [[nodiscard]] const SubdeviceConfig* find_subdevice(std::string_view name) const;
+  [[nodiscard]] const FunctionalElementConfig* find_fe(FeId id) const;
 };
 
 struct LoadResult {

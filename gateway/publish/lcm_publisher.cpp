@@ -56,7 +56,7 @@ LcmPublisher::LcmPublisher(const LcmSettings& s) : impl_(std::make_unique<Impl>(
   if (!std::regex_match(s.url, shape))
     throw PublishConfigError("publish.lcm.url: \"" + s.url +
                              "\" does not parse (expected provider://address[?option=value&...], e.g. "
-                             "udpm://239.255.76.67:7667?ttl=0)");
+                             "udpm://224.0.0.1:7667?ttl=0)");
   if (s.channel_prefix.empty() || s.channel_prefix.find_first_of(".*?[]()|^$\\ ") != std::string::npos)
     throw PublishConfigError("publish.lcm.channel_prefix: \"" + s.channel_prefix +
                              "\" must be non-empty, without spaces or regex characters");

@@ -18,7 +18,7 @@ namespace oegw::gateway {
 
 struct LcmSettings {
   // publish.lcm.url. ttl=0: multicast that never leaves the host (tests, demo).
-  std::string url = "udpm://239.255.76.67:7667?ttl=0";
+  std::string url = "udpm://224.0.0.1:7667?ttl=0";
   std::string channel_prefix = "OEGW_";  // publish.lcm.channel_prefix
 };
 

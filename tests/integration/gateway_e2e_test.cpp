@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -118,8 +119,10 @@ std::int16_t i16(const CanFrame& f, std::size_t at) { return static_cast<std::in
 class GatewayE2E : public ::testing::Test {
  protected:
   // Builds everything; `right_grip_extra` changes the mapping file (identity tests).
-  void build(const std::string& right_grip_extra = "") {
-    auto loaded = oegw::mapping::load_config_text(mapping_yaml(right_grip_extra), "e2e.yaml", gw::driver_catalogue());
+  void build(const std::string& right_grip_extra = "", const std::function<std::string(std::string)>& edit = {}) {
+    std::string yaml = mapping_yaml(right_grip_extra);
+    if (edit) yaml = edit(yaml);
+    auto loaded = oegw::mapping::load_config_text(yaml, "e2e.yaml", gw::driver_catalogue());
     ASSERT_TRUE(loaded.ok()) << loaded.error_text();
     config_ = std::move(*loaded.config);
     up_.run_on(loop_);
@@ -903,6 +906,113 @@ TEST_F(GatewayE2E, HostHeartbeatLossAppliesErrorValuesToTheLeds) {
   EXPECT_EQ(left->output("leds[4]"), 1);
   EXPECT_EQ(right->output("leds[1]"), 0);
   EXPECT_EQ(right->output("leds[2]"), 1);
+}
+
+// ---- Who commands the outputs: the mapping file's `sources` per FE ---------------------------
+
+// indicators.1 (the cluster's lamps) from DDS only, indicators.2 (MCB-402) from the host and LCM,
+// indicators.3 (elobau LEDs) from all three (no `sources`).
+std::string with_sources(std::string yaml) {
+  auto put = [&yaml](const std::string& after, const std::string& line) {
+    const auto at = yaml.find(after);
+    EXPECT_NE(at, std::string::npos) << after;
+    yaml.insert(at + after.size(), line);
+  };
+  put("  indicators.1:\n", "    sources: [dds]\n");
+  put("  indicators.2:\n", "    sources: [canopen, lcm]\n");
+  put("downstream: { interface: virtual, bitrate: 250000 }\n", "publish: { dds: { enabled: true } }\n");
+  return yaml;
+}
+
+TEST_F(GatewayE2E, HostMayNotCommandAnFeWhoseSourcesLeaveOutCanopen) {
+  build("", with_sources);
+  boot_and_start();
+  auto* cluster = bench_->device("cluster");
+  // SDO download: refused with "local control", nothing changes.
+  EXPECT_EQ(sdo_write(0x6200, 0x01, {0xFF}), SdoAbortCode::CannotTransferLocalControl);
+  // RPDO 1 maps indicators.1 only: its bytes are ignored.
+  (void)host_port_->send(CanFrame(kRpdo1, {0xA5, 0, 0, 0, 0, 0, 0, 0}));
+  run_for(300ms);
+  EXPECT_EQ(cluster->output("out[1]"), 0);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x01)), 0u);
+  // The FE's error mode/value stay the host's to configure, and the host may read the lamps.
+  EXPECT_EQ(sdo_write(0x6206, 0x01, {0xFF}), SdoAbortCode::None);
+  // The machine application over DDS drives them.
+  EXPECT_TRUE(gw_->command_indicators(1, 0x3C, loop_.now(), oegw::mapping::CommandSource::Dds));
+  run_for(300ms);
+  EXPECT_EQ(cluster->output("out[1]"), 0x3C);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x01)), 0x3Cu);
+  // LCM is not among its sources: refused, counted, logged once.
+  EXPECT_FALSE(gw_->command_indicators(1, 0xFF, loop_.now(), oegw::mapping::CommandSource::Lcm));
+  EXPECT_FALSE(gw_->command_indicators(1, 0x01, loop_.now(), oegw::mapping::CommandSource::Lcm));
+  run_for(300ms);
+  EXPECT_EQ(cluster->output("out[1]"), 0x3C);
+  EXPECT_EQ(gw_->refused_commands(), 2u);
+  const std::string line = "indicators.1: a command from lcm ignored: its sources are dds";
+  const auto first = log_.find(line);
+  EXPECT_NE(first, std::string::npos) << log_;
+  EXPECT_EQ(log_.find(line, first + 1), std::string::npos) << "logged once per FE and source\n" << log_;
+  // An FE the mapping file does not configure takes nothing.
+  EXPECT_FALSE(gw_->command_indicators(4, 0xFF, loop_.now(), oegw::mapping::CommandSource::Dds));
+  EXPECT_FALSE(gw_->command_display(1, {}, loop_.now(), oegw::mapping::CommandSource::Dds));
+  EXPECT_EQ(gw_->refused_commands(), 4u);
+}
+
+TEST_F(GatewayE2E, AmongTheListedSourcesTheLastWriteWins) {
+  build("", with_sources);
+  boot_and_start();
+  auto* left = bench_->device("left_grip");
+  auto leds = [&] {
+    std::string s;
+    for (int i = 1; i <= 4; ++i) s += std::to_string(*left->output("leds[" + std::to_string(i) + "]"));
+    return s;
+  };
+  using oegw::mapping::CommandSource;
+  // indicators.2 takes canopen and lcm.
+  ASSERT_EQ(sdo_write(0x6200, 0x09, {0x05}), SdoAbortCode::None);
+  run_for(200ms);
+  EXPECT_EQ(leds(), "1010");
+  EXPECT_TRUE(gw_->command_indicators(2, 0x0A, loop_.now(), CommandSource::Lcm));
+  run_for(200ms);
+  EXPECT_EQ(leds(), "0101") << "LCM wrote last";
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x09)), 0x0Au) << "the host reads what LCM set";
+  (void)host_port_->send(CanFrame(kRpdo5, {0x01, 0, 0, 0, 0, 0, 0, 0}));
+  run_for(200ms);
+  EXPECT_EQ(leds(), "1000") << "the host's RPDO wrote last";
+  EXPECT_FALSE(gw_->command_indicators(2, 0x0F, loop_.now(), CommandSource::Dds)) << "DDS is not listed";
+  run_for(200ms);
+  EXPECT_EQ(leds(), "1000");
+  // indicators.3 lists no sources: all three.
+  auto* right = bench_->device("right_grip");
+  EXPECT_TRUE(gw_->command_indicators(3, 0x02, loop_.now(), CommandSource::Dds));
+  run_for(200ms);
+  EXPECT_EQ(right->output("leds[2]"), 1);
+  ASSERT_EQ(sdo_write(0x6200, 0x11, {0x01}), SdoAbortCode::None);
+  run_for(200ms);
+  EXPECT_EQ(right->output("leds[1]"), 1);
+  EXPECT_EQ(right->output("leds[2]"), 0);
+}
+
+// A DDS-only FE still takes its error values when the host's heartbeat is lost (CiA 401
+// 6206h/6207h apply to every output, whoever commands it: the safe side).
+TEST_F(GatewayE2E, HostHeartbeatLossAppliesErrorValuesAlsoToAnFeTheHostDoesNotCommand) {
+  build("", with_sources);
+  boot_and_start();
+  bool host_alive = true;
+  loop_.call_every(loop_.now(), 100ms, [&] {
+    if (host_alive) (void)host_port_->send(CanFrame(0x700 + kHostNode, {0x05}));
+  });
+  ASSERT_EQ(sdo_write(0x1016, 1, encode<std::uint32_t>(std::uint32_t{kHostNode} << 16 | 250)), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x6206, 0x01, {0xFF}), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x6207, 0x01, {0x81}), SdoAbortCode::None);
+  ASSERT_TRUE(gw_->command_indicators(1, 0x3C, loop_.now(), oegw::mapping::CommandSource::Dds));
+  run_for(500ms);
+  auto* cluster = bench_->device("cluster");
+  ASSERT_EQ(cluster->output("out[1]"), 0x3C);
+  host_alive = false;
+  run_for(500ms);
+  EXPECT_EQ(emcys(0x8130).size(), 1u) << dump();
+  EXPECT_EQ(cluster->output("out[1]"), 0x81);
 }
 
 // 1010h "save" keeps the host's upstream configuration (PDO COB-IDs, 6423h) across a restart of

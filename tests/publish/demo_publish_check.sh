@@ -1,5 +1,5 @@
 #!/bin/sh
-# `oegw demo --publish` watched by the example subscribers in other processes: both see
+# `oegw demo` (publishing by default) watched by the example subscribers in other processes: both see
 # joystick.1 valid while the joystick moves, then offline when the device's heartbeat is lost.
 #   demo_publish_check.sh OEGW DDS_SUBSCRIBER LCM_SUBSCRIBER   (run inside in_private_net.sh)
 set -eu
@@ -14,7 +14,7 @@ until grep -q '^ready$' "$dir/dds.out" 2>/dev/null && grep -q '^ready$' "$dir/lc
   i=$((i + 1)); [ $i -lt 200 ] || { echo "subscribers did not start" >&2; exit 1; }
   sleep 0.05
 done
-"$oegw" demo --publish --seconds 1
+"$oegw" demo --seconds 1   # publishes by default (config/demo.yaml)
 kill $d $l 2>/dev/null || true
 wait $d $l 2>/dev/null || true
 rc=0

@@ -27,7 +27,7 @@ upstream: { interface: virtual, node_id: 0x20 }
 downstream: { interface: virtual }
 publish:
   period_ms: 50
-  lcm: { url: "udpm://239.255.76.67:7667?ttl=0", channel_prefix: OEGW_ }
+  lcm: { url: "udpm://224.0.0.1:7667?ttl=0", channel_prefix: OEGW_ }
 subdevices:
   grip: { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 100 }
 functional_elements:
@@ -36,10 +36,13 @@ functional_elements:
     y: { signal: grip.y, deadband: 2 }
   indicators.1:
     indicator[1..2]: grip.leds[1..2]
+  indicators.2:
+    sources: [canopen]                # the host only: LCM commands are refused
+    indicator[1..2]: grip.leds[3..4]
 )";
 
 struct App {  // the machine application: its own LCM instance
-  lcm_t* lcm = lcm_create("udpm://239.255.76.67:7667?ttl=0");
+  lcm_t* lcm = lcm_create("udpm://224.0.0.1:7667?ttl=0");
   std::optional<oegw::joystick_t> last;
   ~App() {
     if (lcm) lcm_destroy(lcm);
@@ -109,13 +112,19 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndIndicatorCommandsLightTheGripLeds
   EXPECT_EQ(app.last->status, 0) << "valid";
   EXPECT_EQ(app.last->x, 16384) << "50 % -> 32767 * 0.5, rounded";
 
-  // The app lights indicators 1 and 2 of indicators.1: the grip's LEDs 1 and 2 go on.
-  oegw::indicator_command_t cmd;
-  cmd.instance = 1;
-  cmd.indicators = 0x3;
-  std::vector<std::uint8_t> buf(static_cast<std::size_t>(cmd.getEncodedSize()));
-  cmd.encode(buf.data(), 0, static_cast<int>(buf.size()));
-  lcm_publish(app.lcm, "OEGW_INDICATORS_1", buf.data(), static_cast<unsigned>(buf.size()));
+  // The app tries indicators.2 (sources: [canopen]), then lights indicators 1 and 2 of
+  // indicators.1: the grip's LEDs 1 and 2 go on, 3 and 4 stay off.
+  auto command = [&](std::uint8_t instance, std::int64_t bits) {
+    oegw::indicator_command_t cmd;
+    cmd.instance = instance;
+    cmd.indicators = bits;
+    std::vector<std::uint8_t> buf(static_cast<std::size_t>(cmd.getEncodedSize()));
+    cmd.encode(buf.data(), 0, static_cast<int>(buf.size()));
+    lcm_publish(app.lcm, ("OEGW_INDICATORS_" + std::to_string(instance)).c_str(), buf.data(),
+                static_cast<unsigned>(buf.size()));
+  };
+  command(2, 0x3);
+  command(1, 0x3);
   auto* grip = bench.device("grip");
   for (int i = 0; i < 40 && grip->output("leds[2]") != 1; ++i) {
     for (auto* p : pub.publishers())
@@ -124,6 +133,9 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndIndicatorCommandsLightTheGripLeds
   }
   EXPECT_EQ(grip->output("leds[1]"), 1);
   EXPECT_EQ(grip->output("leds[2]"), 1);
+  EXPECT_EQ(grip->output("leds[3]"), 0) << "indicators.2 takes no LCM commands";
+  EXPECT_EQ(grip->output("leds[4]"), 0);
+  EXPECT_EQ(gw.refused_commands(), 1u);
 }
 
 }  // namespace

@@ -437,7 +437,7 @@ TEST(PublishSettings, TheLoopbackDdsConfigurationKeepsTrafficOnThisHost) {
   EXPECT_NE(xml.find("<NetworkInterface name=\"lo\"/>"), std::string::npos);
   EXPECT_NE(xml.find("<AllowMulticast>false</AllowMulticast>"), std::string::npos);
   EXPECT_NE(xml.find("<Peer address=\"127.0.0.1\"/>"), std::string::npos);
-  EXPECT_EQ(LcmSettings{}.url, "udpm://239.255.76.67:7667?ttl=0");
+  EXPECT_EQ(LcmSettings{}.url, "udpm://224.0.0.1:7667?ttl=0");
   EXPECT_EQ(DdsSettings{}.network, "loopback");
 }
 

@@ -103,8 +103,16 @@ TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
   EXPECT_EQ(c.upstream.identity.revision, 0x00010000u);
   EXPECT_EQ(c.upstream.heartbeat_ms, 100);
   EXPECT_EQ(c.downstream.interface, "virtual");
-  EXPECT_FALSE(c.publish.dds.enabled);
+  // The demo publishes on both, host-local (DESIGN.md "Keep test and demo traffic on this host").
+  EXPECT_TRUE(c.publish.dds.enabled);
+  EXPECT_EQ(c.publish.dds.network, "loopback");
+  EXPECT_TRUE(c.publish.lcm.enabled);
+  EXPECT_EQ(c.publish.lcm.url, "udpm://224.0.0.1:7667?ttl=0");
   EXPECT_EQ(c.publish.lcm.channel_prefix, "OEGW_");
+  // The cluster's lamps come from the machine application, the MCB-402's LEDs from the host.
+  ASSERT_NE(c.find_fe({FeKind::IndicatorCluster, 1}), nullptr);
+  EXPECT_EQ(describe_sources(c.find_fe({FeKind::IndicatorCluster, 1})->sources), "dds, lcm");
+  EXPECT_EQ(describe_sources(c.find_fe({FeKind::IndicatorCluster, 2})->sources), "canopen");
 
   ASSERT_EQ(c.subdevices.size(), 5u);
   std::vector<std::pair<std::string, int>> nodes;
@@ -724,6 +732,88 @@ functional_elements: {}
   EXPECT_FALSE(c.publish.lcm.enabled);
   EXPECT_EQ(c.publish.lcm.url, "udpm://239.255.76.67:7667?ttl=1");
   EXPECT_EQ(c.publish.lcm.channel_prefix, "CAB_");
+}
+
+// Who may command an output FE (config.hpp CommandSource): all three by default; a list narrows
+// it; every mistake is named with its place.
+TEST(MappingConfig, CommandSourcesPerOutputFe) {
+  const std::string head = R"(upstream: { interface: can0, node_id: 0x20 }
+downstream: { interface: can1 }
+publish: { dds: { enabled: true }, lcm: { enabled: false } }
+subdevices:
+  grip: { driver: elobau-mfg, node_id: 0x11 }
+  cluster: { driver: cia401, node_id: 0x31, options: { eds: x.eds } }
+functional_elements:
+)";  // functional elements start on line 8
+  const auto r = load(head + R"(  indicators.1:
+    sources: [dds]
+    indicator[1..2]: grip.leds[1..2]
+  indicators.2:
+    sources: canopen
+    indicator[1..8]: cluster.out[1]
+  display.1:
+    parameter[1]: cluster.aout[1]
+)");
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  const auto* i1 = r.config->find_fe({FeKind::IndicatorCluster, 1});
+  const auto* i2 = r.config->find_fe({FeKind::IndicatorCluster, 2});
+  const auto* d1 = r.config->find_fe({FeKind::Display, 1});
+  ASSERT_TRUE(i1 && i2 && d1);
+  EXPECT_TRUE(i1->accepts(CommandSource::Dds));
+  EXPECT_FALSE(i1->accepts(CommandSource::Canopen));
+  EXPECT_FALSE(i1->accepts(CommandSource::Lcm));
+  EXPECT_EQ(describe_sources(i1->sources), "dds");
+  EXPECT_EQ(i1->sources_where.str(), "t.yaml:9:14");
+  EXPECT_EQ(describe_sources(i2->sources), "canopen");
+  EXPECT_EQ(d1->sources, kAllCommandSources) << "absent: canopen, dds and lcm";
+  EXPECT_EQ(describe_sources(d1->sources), "canopen, dds, lcm");
+  EXPECT_EQ(r.config->find_fe({FeKind::IndicatorCluster, 3}), nullptr);
+
+  const auto bad = load(head + R"(  indicators.1:
+    sources: [dds, ddz, dds]
+    indicator[1..2]: grip.leds[1..2]
+  indicators.2:
+    sources: []
+    indicator[1..8]: cluster.out[1]
+  indicators.3:
+    sources: [lcm]
+    indicator[3..4]: grip.leds[3..4]
+  indicators.4:
+    sources: [canopen]
+  joystick.1:
+    sources: [dds]
+    x: grip.x
+)");
+  EXPECT_THAT(errors(bad),
+              ElementsAre("t.yaml:9:20: found 'ddz' in indicators.1 sources; expected one of canopen, dds, lcm "
+                          "(did you mean 'dds'?)",
+                          "t.yaml:9:25: 'dds' appears twice in indicators.1 sources; expected each source once",
+                          "t.yaml:12:14: found [] for indicators.2 sources; expected a list of canopen, "
+                          "dds, lcm, e.g. sources: [canopen, dds]",
+                          "t.yaml:15:14: indicators.3 takes commands only from lcm, which the publish section does "
+                          "not enable; expected publish.lcm enabled, or canopen among the sources",
+                          "t.yaml:18:5: indicators.4 has only 'sources' and no fields; expected at least one field "
+                          "fed by a signal",
+                          "t.yaml:20:5: joystick.1 is an input; 'sources' applies to indicators and display "
+                          "(commands in)"));
+}
+
+// The host-local LCM default uses the all-hosts group 224.0.0.1 with ttl=0; a link-local group
+// with a ttl above 0 would reach every device on the cab network and is refused.
+TEST(MappingConfig, LcmLinkLocalGroupOnlyWithTtlZero) {
+  auto with_url = [](const std::string& url) {
+    return load("upstream: { interface: can0, node_id: 0x20 }\ndownstream: { interface: can1 }\n"
+                "publish:\n  lcm: { url: \"" + url + "\" }\nsubdevices: {}\nfunctional_elements: {}\n");
+  };
+  EXPECT_EQ(LcmConfig{}.url, "udpm://224.0.0.1:7667?ttl=0");
+  EXPECT_TRUE(with_url("udpm://224.0.0.1:7667?ttl=0").ok());
+  EXPECT_TRUE(with_url("udpm://224.0.0.1:7667").ok()) << "LCM's default ttl is 0";
+  EXPECT_TRUE(with_url("udpm://239.255.76.67:7667?ttl=1").ok());
+  EXPECT_THAT(errors(with_url("udpm://224.0.0.1:7667?recv_buf_size=65536&ttl=1")),
+              ElementsAre("t.yaml:4:15: publish lcm url 'udpm://224.0.0.1:7667?recv_buf_size=65536&ttl=1' sends to "
+                          "a link-local group (224.0.0.x) with ttl 1, so every host on the network would receive "
+                          "it; expected ttl=0 (this host only) or a 239.x.x.x group for a network, e.g. "
+                          "udpm://239.255.76.67:7667?ttl=1"));
 }
 
 TEST(MappingConfig, EveryPrefixOfTheDemoFileGivesAConfigOrErrorsNeverACrash) {
