@@ -75,6 +75,12 @@
 //  * Outputs: 6444h is INTEGER32 (CiA 401); an error value outside INTEGER16 is clamped when
 //    applied to 6411h. Output values restored from the store (1010h) or by an NMT reset are
 //    reported through on_output.
+//  * Output FEs the mapping file gives to DDS/LCM only (`sources` without canopen;
+//    OeDeviceConfig::host_may_not_command): a host SDO download of their 6200h/6411h entries is
+//    aborted with 0800 0021h, the CiA 301 code for "cannot be transferred because of local
+//    control"; their bytes in an RPDO are ignored while the RPDO's other entries apply (CiA 301
+//    has no error for one refused entry). 6206h/6207h and 6443h/6444h stay writable, and the
+//    error values apply to these FEs too on a host heartbeat loss.
 //  * Host heartbeat loss: detected from the Node's heartbeat-consumer EMCY 8130h (the Node owns
 //    the consumer's callback), or called directly by the gateway.
 //  * NMT reset node / reset communication from the host: the inputs keep their current values

@@ -92,6 +92,23 @@ int run_check(const std::string& file) {
                   signal.c_str(), obj.c_str(), pdo_place(pdos, b.field).c_str());
     }
   }
+  const auto& p = cfg->publish;
+  std::printf("\npublish: every %u ms; DDS %s; LCM %s\n", p.period_ms,
+              p.dds.enabled ? fmt::format("domain {}, partition {}, network {}", p.dds.domain, p.dds.partition,
+                                          p.dds.network.empty() ? "(CYCLONEDDS_URI)" : p.dds.network)
+                                  .c_str()
+                            : "off",
+              p.lcm.enabled ? fmt::format("{}, channels {}*", p.lcm.url, p.lcm.channel_prefix).c_str() : "off");
+  bool outputs = false;
+  for (const auto& fe : cfg->functional_elements) {
+    if (fe.input()) continue;
+    if (!outputs) std::printf("commands in (sources of each output FE; among them the last write wins):\n");
+    outputs = true;
+    std::printf("  %-13s %s%s\n", fe_name(fe.id).c_str(), mapping::describe_sources(fe.sources).c_str(),
+                fe.accepts(mapping::CommandSource::Canopen)
+                    ? ""
+                    : "  (host: SDO download aborted 0800 0021h, its RPDO bytes ignored)");
+  }
   return 0;
 }
 
