@@ -357,7 +357,7 @@ bool Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, Time
                                  mapping::CommandSource source) {
   now_ = now;
   const mapping::FeId fe{mapping::FeKind::IndicatorCluster, instance};
-  if (instance < 1 || instance > mapping::max_instances(fe.kind) || !command_allowed(fe, source)) return false;
+  if (!command_allowed(fe, source)) return false;  // also an instance outside 1..8: not configured
   // fe_fields() lists indicator[1..64] in order (mapping/functional_elements.hpp): one pass.
   const auto fields = mapping::fe_fields(fe);
   for (std::size_t k = 0; k < fields.size(); ++k) {
@@ -377,7 +377,7 @@ bool Gateway::command_display(std::uint8_t instance, const std::array<std::int16
                               mapping::CommandSource source) {
   now_ = now;
   const mapping::FeId fe{mapping::FeKind::Display, instance};
-  if (instance < 1 || instance > mapping::max_instances(fe.kind) || !command_allowed(fe, source)) return false;
+  if (!command_allowed(fe, source)) return false;  // also an instance outside 1..8: not configured
   // fe_fields() lists parameter[1..12] in order: one pass.
   const auto fields = mapping::fe_fields(fe);
   for (std::size_t p = 0; p < fields.size() && p < parameters.size(); ++p) {

@@ -955,7 +955,13 @@ TEST_F(GatewayE2E, HostMayNotCommandAnFeWhoseSourcesLeaveOutCanopen) {
   // An FE the mapping file does not configure takes nothing.
   EXPECT_FALSE(gw_->command_indicators(4, 0xFF, loop_.now(), oegw::mapping::CommandSource::Dds));
   EXPECT_FALSE(gw_->command_display(1, {}, loop_.now(), oegw::mapping::CommandSource::Dds));
-  EXPECT_EQ(gw_->refused_commands(), 4u);
+  EXPECT_FALSE(gw_->command_indicators(0, 0xFF, loop_.now(), oegw::mapping::CommandSource::Dds));
+  EXPECT_FALSE(gw_->command_indicators(200, 0xFF, loop_.now(), oegw::mapping::CommandSource::Dds));
+  EXPECT_EQ(gw_->refused_commands(), 6u);
+  EXPECT_NE(log_.find("indicators.200: a command from dds ignored: the mapping file does not configure "
+                      "indicators.200"),
+            std::string::npos)
+      << log_;
 }
 
 TEST_F(GatewayE2E, AmongTheListedSourcesTheLastWriteWins) {
