@@ -35,9 +35,10 @@ functional_elements:
     x: { signal: grip.x, deadband: 2 }
     y: { signal: grip.y, deadband: 2 }
   indicators.1:
+    sources: [lcm]                    # the machine application over LCM only
     indicator[1..2]: grip.leds[1..2]
   indicators.2:
-    sources: [canopen]                # the host only: LCM commands are refused
+    sources: [canopen, dds]           # LCM commands are refused
     indicator[1..2]: grip.leds[3..4]
 )";
 
