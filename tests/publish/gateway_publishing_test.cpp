@@ -1,7 +1,9 @@
 // The gateway's publishing (GatewayPublishing) over LCM, in-process: a simulated elobau grip
 // booted by the Gateway (virtual bus, simulated clock) -> joystick.1 on OEGW_JOYSTICK_1 as a
 // second LCM instance (the machine application) receives it; its indicator command on
-// OEGW_INDICATORS_1 -> the gateway -> the grip's LEDs. Runs in a private network namespace.
+// OEGW_INDICATORS_1 -> the gateway -> the grip's LEDs; a DDS writer likewise. Each indicator FE
+// takes only the sources its `sources` list (LCM for indicators.1; the host and DDS for
+// indicators.2): the others are refused and counted. Runs in a private network namespace.
 #include <gtest/gtest.h>
 #include <lcm/lcm.h>
 #include <poll.h>
@@ -9,7 +11,9 @@
 #include <optional>
 
 #include "gateway/gateway.hpp"
+#include "dds/dds.h"
 #include "gateway/publishing.hpp"
+#include "oegw.h"
 #include "oegw/indicator_command_t.hpp"
 #include "oegw/joystick_t.hpp"
 #include "private_network.hpp"
@@ -28,6 +32,7 @@ downstream: { interface: virtual }
 publish:
   period_ms: 50
   lcm: { url: "udpm://224.0.0.1:7667?ttl=0", channel_prefix: OEGW_ }
+  dds: { domain: 0, partition: oegw-gateway-publishing, network: loopback }
 subdevices:
   grip: { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 100 }
 functional_elements:
@@ -60,7 +65,7 @@ bool wait_readable(int fd, int ms) {
   return ::poll(&p, 1, ms) > 0;
 }
 
-TEST(GatewayPublishing, JoystickGoesOutOnLcmAndIndicatorCommandsLightTheGripLeds) {
+TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyTheLedsOfFesListingThem) {
   auto loaded = mapping::load_config_text(kYaml, "test.yaml", gateway::driver_catalogue());
   ASSERT_TRUE(loaded.ok()) << loaded.error_text();
   oegw::testing::VirtualNetwork down, up;
@@ -137,6 +142,39 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndIndicatorCommandsLightTheGripLeds
   EXPECT_EQ(grip->output("leds[3]"), 0) << "indicators.2 takes no LCM commands";
   EXPECT_EQ(grip->output("leds[4]"), 0);
   EXPECT_EQ(gw.refused_commands(), 1u);
+
+  // Over DDS: indicators.1 (LCM only) is refused, indicators.2 (canopen, dds) lights LEDs 3, 4.
+  const dds_entity_t pp = dds_create_participant(0, nullptr, nullptr);
+  ASSERT_GT(pp, 0);
+  dds_qos_t* pq = dds_create_qos();
+  dds_qset_partition1(pq, "oegw-gateway-publishing");
+  const dds_entity_t dpub = dds_create_publisher(pp, pq, nullptr);
+  dds_delete_qos(pq);
+  dds_qos_t* q = dds_create_qos();
+  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+  const dds_entity_t w = dds_create_writer(
+      dpub, dds_create_topic(pp, &oegw_IndicatorCommand_desc, "oegw/indicators", nullptr, nullptr), q, nullptr);
+  dds_delete_qos(q);
+  ASSERT_GT(w, 0);
+  dds_publication_matched_status_t ms{};
+  for (int i = 0; i < 2000 && (dds_get_publication_matched_status(w, &ms) != 0 || ms.current_count == 0); ++i)
+    (void)::poll(nullptr, 0, 5);  // discovery happens in Cyclone's threads: bounded wait for the match
+  ASSERT_GT(ms.current_count, 0u) << "the gateway's DDS reader never matched";
+  const oegw_IndicatorCommand refused{1, 0x0};
+  const oegw_IndicatorCommand taken{2, 0x3};
+  ASSERT_EQ(dds_write(w, &refused), 0);
+  ASSERT_EQ(dds_write(w, &taken), 0);
+  for (int i = 0; i < 200 && grip->output("leds[4]") != 1; ++i) {
+    for (auto* p : pub.publishers())
+      if (p->fd() >= 0 && wait_readable(p->fd(), 10)) p->poll();
+    down.run_for(10ms);
+  }
+  EXPECT_EQ(grip->output("leds[3]"), 1);
+  EXPECT_EQ(grip->output("leds[4]"), 1);
+  EXPECT_EQ(grip->output("leds[1]"), 1) << "DDS may not clear indicators.1";
+  EXPECT_EQ(grip->output("leds[2]"), 1);
+  EXPECT_EQ(gw.refused_commands(), 2u);
+  dds_delete(pp);
 }
 
 }  // namespace
