@@ -248,6 +248,14 @@ class GatewayE2E : public ::testing::Test {
     run_for(200ms);
     ASSERT_EQ(gw_->upstream().node().state(), NmtState::Operational);
   }
+  // The host produces its heartbeat (701h, 100 ms) while `alive`, and the gateway consumes it
+  // (1016h:01, 250 ms).
+  void host_heartbeat_watched(const bool& alive) {
+    loop_.call_every(loop_.now(), 100ms, [this, &alive] {
+      if (alive) (void)host_port_->send(CanFrame(0x700 + kHostNode, {0x05}));
+    });
+    ASSERT_EQ(sdo_write(0x1016, 1, encode<std::uint32_t>(std::uint32_t{kHostNode} << 16 | 250)), SdoAbortCode::None);
+  }
   void boot_and_start() {
     power_on();
     ASSERT_TRUE(all_operational()) << log_;
@@ -876,12 +884,8 @@ TEST_F(GatewayE2E, IndicatorsSetWhileTheMcb402IsLostReachItWhenItReturns) {
 TEST_F(GatewayE2E, HostHeartbeatLossAppliesErrorValuesToTheLeds) {
   build();
   boot_and_start();
-  // The host produces its heartbeat (701h, 100 ms) and the gateway consumes it (1016h:01).
   bool host_alive = true;
-  loop_.call_every(loop_.now(), 100ms, [&] {
-    if (host_alive) (void)host_port_->send(CanFrame(0x700 + kHostNode, {0x05}));
-  });
-  ASSERT_EQ(sdo_write(0x1016, 1, encode<std::uint32_t>(std::uint32_t{kHostNode} << 16 | 250)), SdoAbortCode::None);
+  host_heartbeat_watched(host_alive);
   // Error mode for every bit of indicators.2 and .3, error values: MCB OUT1/OUT3, elobau LED 2.
   ASSERT_EQ(sdo_write(0x6206, 0x09, {0xFF}), SdoAbortCode::None);
   ASSERT_EQ(sdo_write(0x6207, 0x09, {0x0A}), SdoAbortCode::None);
@@ -1005,10 +1009,7 @@ TEST_F(GatewayE2E, HostHeartbeatLossAppliesErrorValuesAlsoToAnFeTheHostDoesNotCo
   build("", with_sources);
   boot_and_start();
   bool host_alive = true;
-  loop_.call_every(loop_.now(), 100ms, [&] {
-    if (host_alive) (void)host_port_->send(CanFrame(0x700 + kHostNode, {0x05}));
-  });
-  ASSERT_EQ(sdo_write(0x1016, 1, encode<std::uint32_t>(std::uint32_t{kHostNode} << 16 | 250)), SdoAbortCode::None);
+  host_heartbeat_watched(host_alive);
   ASSERT_EQ(sdo_write(0x6206, 0x01, {0xFF}), SdoAbortCode::None);
   ASSERT_EQ(sdo_write(0x6207, 0x01, {0x81}), SdoAbortCode::None);
   ASSERT_TRUE(gw_->command_indicators(1, 0x3C, loop_.now(), oegw::mapping::CommandSource::Dds));

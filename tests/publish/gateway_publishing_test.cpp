@@ -8,12 +8,12 @@
 #include <lcm/lcm.h>
 #include <poll.h>
 
+#include <functional>
 #include <optional>
 
 #include "gateway/gateway.hpp"
-#include "dds/dds.h"
+#include "dds_command_writer.hpp"
 #include "gateway/publishing.hpp"
-#include "oegw.h"
 #include "oegw/indicator_command_t.hpp"
 #include "oegw/joystick_t.hpp"
 #include "private_network.hpp"
@@ -132,11 +132,15 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
   command(2, 0x3);
   command(1, 0x3);
   auto* grip = bench.device("grip");
-  for (int i = 0; i < 40 && grip->output("leds[2]") != 1; ++i) {
-    for (auto* p : pub.publishers())
-      if (p->fd() >= 0 && wait_readable(p->fd(), 50)) p->poll();
-    down.run_for(10ms);
-  }
+  // The gateway's loop: wait on the transports' fds, poll(), let the bus carry the RPDO.
+  auto serve_until = [&](const std::function<bool()>& done) {
+    for (int i = 0; i < 200 && !done(); ++i) {
+      for (auto* p : pub.publishers())
+        if (p->fd() >= 0 && wait_readable(p->fd(), 10)) p->poll();
+      down.run_for(10ms);
+    }
+  };
+  serve_until([&] { return grip->output("leds[2]") == 1; });
   EXPECT_EQ(grip->output("leds[1]"), 1);
   EXPECT_EQ(grip->output("leds[2]"), 1);
   EXPECT_EQ(grip->output("leds[3]"), 0) << "indicators.2 takes no LCM commands";
@@ -144,37 +148,16 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
   EXPECT_EQ(gw.refused_commands(), 1u);
 
   // Over DDS: indicators.1 (LCM only) is refused, indicators.2 (canopen, dds) lights LEDs 3, 4.
-  const dds_entity_t pp = dds_create_participant(0, nullptr, nullptr);
-  ASSERT_GT(pp, 0);
-  dds_qos_t* pq = dds_create_qos();
-  dds_qset_partition1(pq, "oegw-gateway-publishing");
-  const dds_entity_t dpub = dds_create_publisher(pp, pq, nullptr);
-  dds_delete_qos(pq);
-  dds_qos_t* q = dds_create_qos();
-  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
-  const dds_entity_t w = dds_create_writer(
-      dpub, dds_create_topic(pp, &oegw_IndicatorCommand_desc, "oegw/indicators", nullptr, nullptr), q, nullptr);
-  dds_delete_qos(q);
-  ASSERT_GT(w, 0);
-  dds_publication_matched_status_t ms{};
-  for (int i = 0; i < 2000 && (dds_get_publication_matched_status(w, &ms) != 0 || ms.current_count == 0); ++i)
-    (void)::poll(nullptr, 0, 5);  // discovery happens in Cyclone's threads: bounded wait for the match
-  ASSERT_GT(ms.current_count, 0u) << "the gateway's DDS reader never matched";
-  const oegw_IndicatorCommand refused{1, 0x0};
-  const oegw_IndicatorCommand taken{2, 0x3};
-  ASSERT_EQ(dds_write(w, &refused), 0);
-  ASSERT_EQ(dds_write(w, &taken), 0);
-  for (int i = 0; i < 200 && grip->output("leds[4]") != 1; ++i) {
-    for (auto* p : pub.publishers())
-      if (p->fd() >= 0 && wait_readable(p->fd(), 10)) p->poll();
-    down.run_for(10ms);
-  }
+  const oegw::test::DdsIndicatorWriter dds(0, "oegw-gateway-publishing");
+  ASSERT_TRUE(dds.ready()) << "the gateway's DDS reader never matched";
+  ASSERT_TRUE(dds.write(1, 0x0));  // refused
+  ASSERT_TRUE(dds.write(2, 0x3));  // taken
+  serve_until([&] { return grip->output("leds[4]") == 1; });
   EXPECT_EQ(grip->output("leds[3]"), 1);
   EXPECT_EQ(grip->output("leds[4]"), 1);
   EXPECT_EQ(grip->output("leds[1]"), 1) << "DDS may not clear indicators.1";
   EXPECT_EQ(grip->output("leds[2]"), 1);
   EXPECT_EQ(gw.refused_commands(), 2u);
-  dds_delete(pp);
 }
 
 }  // namespace

@@ -23,6 +23,7 @@
 #include "gateway/publish/lcm_publisher.hpp"
 #include "gateway/publish/publish_schedule.hpp"
 #include "oegw.h"
+#include "dds_command_writer.hpp"
 #include "oegw/indicator_command_t.hpp"
 #include "subdevices/device_spec.hpp"
 #include "subdevices/network_manager.hpp"
@@ -219,26 +220,6 @@ TEST_F(GripToDdsAndLcm, IndicatorCommandsOverDdsAndLcmLightTheGripsLeds) {
   ASSERT_EQ(network_.state("grip"), NodeState::Operational);
   EXPECT_EQ(led(1), 0);
 
-  // DDS: the machine application's writer.
-  const dds_entity_t pp = dds_create_participant(ds.domain, nullptr, nullptr);
-  dds_qos_t* pq = dds_create_qos();
-  dds_qset_partition1(pq, ds.partition.c_str());
-  const dds_entity_t pub = dds_create_publisher(pp, pq, nullptr);
-  dds_delete_qos(pq);
-  dds_qos_t* q = dds_create_qos();
-  dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
-  const dds_entity_t w = dds_create_writer(
-      pub, dds_create_topic(pp, &oegw_IndicatorCommand_desc, "oegw/indicators", nullptr, nullptr), q, nullptr);
-  dds_delete_qos(q);
-  ASSERT_GT(w, 0);
-  dds_publication_matched_status_t ms{};
-  const auto wall_end = std::chrono::steady_clock::now() + 10s;
-  while ((dds_get_publication_matched_status(w, &ms) != 0 || ms.current_count == 0) &&
-         std::chrono::steady_clock::now() < wall_end)
-    test::ChildProcess::pause_ms(5);
-  ASSERT_GT(ms.current_count, 0u);
-  const oegw_IndicatorCommand ic{1, 0b0101};
-  ASSERT_EQ(dds_write(w, &ic), 0);
   // The gateway's loop: wait on the publisher's fd, poll(), let the bus carry the RPDO.
   const auto wait_led = [&](Publisher& p, int i, std::int64_t want) {
     const auto end = std::chrono::steady_clock::now() + 10s;
@@ -250,11 +231,17 @@ TEST_F(GripToDdsAndLcm, IndicatorCommandsOverDdsAndLcmLightTheGripsLeds) {
     }
     return false;
   };
-  ASSERT_TRUE(wait_led(dds, 1, 1)) << "DDS command did not light LED 1";
-  EXPECT_EQ(led(2), 0);
-  EXPECT_EQ(led(3), 1);
-  EXPECT_EQ(led(4), 0);
-  dds_delete(pp);
+
+  // DDS: the machine application's writer.
+  {
+    const test::DdsIndicatorWriter writer(ds.domain, ds.partition);
+    ASSERT_TRUE(writer.ready()) << "the DDS command reader never matched";
+    ASSERT_TRUE(writer.write(1, 0b0101));
+    ASSERT_TRUE(wait_led(dds, 1, 1)) << "DDS command did not light LED 1";
+    EXPECT_EQ(led(2), 0);
+    EXPECT_EQ(led(3), 1);
+    EXPECT_EQ(led(4), 0);
+  }
 
   // LCM: the same, last writer wins.
   lcm_t* app = lcm_create(ls.url.c_str());
