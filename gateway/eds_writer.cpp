@@ -109,6 +109,11 @@ std::string eds_text(const canopen::ObjectDictionary& od, const EdsInfo& info) {
     << "\nCreationDate=" << info.creation_date << "\nCreatedBy=" << info.created_by
     << "\nModificationTime=" << info.creation_time << "\nModificationDate=" << info.creation_date
     << "\nModifiedBy=" << info.created_by << "\n\n";
+  if (!info.comments.empty()) {
+    o << "[Comments]\nLines=" << info.comments.size() << "\n";
+    for (std::size_t i = 0; i < info.comments.size(); ++i) o << "Line" << i + 1 << "=" << info.comments[i] << "\n";
+    o << "\n";
+  }
 
   unsigned rx = 0, tx = 0;
   for (const auto& [index, obj] : od.objects()) {

@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "canopen/301/object_dictionary.hpp"
 #include "canopen/types.hpp"
@@ -39,6 +40,8 @@ struct EdsInfo {
   bool baud_10 = false, baud_20 = false, baud_50 = false, baud_125 = true, baud_250 = true, baud_500 = true,
        baud_800 = false, baud_1000 = true;
   bool lss_supported = true;
+  // CiA 306 [Comments] lines (e.g. which entries the host may not write: mapping-file `sources`).
+  std::vector<std::string> comments;
 };
 
 [[nodiscard]] std::string eds_text(const canopen::ObjectDictionary& od, const EdsInfo& info);

@@ -145,6 +145,17 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
   };
   network_.on_bad_input = [this](const std::string& what) { log(what); };
   oe_->on_output([this](mapping::FeId fe, const std::string& field, std::int64_t value) { on_output(fe, field, value); });
+  oe_->on_host_write_refused([this](mapping::FeId fe, canopen::Origin origin) {
+    ++refused_commands_;
+    // Once per FE and way (SDO, RPDO): an RPDO at 100 Hz must not flood the journal.
+    const auto way = static_cast<std::uint8_t>(0x10 | static_cast<std::uint8_t>(origin));
+    if (!refused_logged_.insert({fe, way}).second) return;
+    const mapping::FunctionalElementConfig* c = config_.find_fe(fe);
+    log(std::string(mapping::to_string(fe.kind)) + "." + std::to_string(fe.instance) +
+        (origin == canopen::Origin::Pdo ? ": the host's RPDO bytes for it ignored"
+                                        : ": the host's SDO write refused (abort 0800 0021h)") +
+        ": its sources are " + mapping::describe_sources(c ? c->sources : 0));
+  });
 }
 
 canopen::ParameterStore::LoadResult Gateway::start(TimePoint now) {

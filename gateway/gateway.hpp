@@ -78,7 +78,8 @@ class Gateway {
                           mapping::CommandSource source);
   bool command_display(std::uint8_t instance, const std::array<std::int16_t, 12>& parameters, canopen::TimePoint now,
                        mapping::CommandSource source);
-  // Commands refused so far (a source the FE does not take, an FE not configured).
+  // Commands refused so far: a source the FE does not take (each refused SDO download and each
+  // refused RPDO entry of the host counts), an FE not configured.
   [[nodiscard]] std::uint64_t refused_commands() const { return refused_commands_; }
 
   [[nodiscard]] OeDevice& upstream() { return *oe_; }

@@ -287,20 +287,21 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
 }
 
 void OeDevice::refuse_host_commands() {
-  std::set<std::uint32_t> refused;  // index << 8 | sub of the entries the host may not write
+  std::map<std::uint32_t, FeId> refused;  // index << 8 | sub of the entries the host may not write
   for (const FeId& fe : cfg_.host_may_not_command)
-    if (!mapping::is_input(fe.kind) && std::binary_search(cfg_.fes.begin(), cfg_.fes.end(), fe))
-      for (const auto& f : mapping::fe_fields(fe)) refused.insert(static_cast<std::uint32_t>(f.index) << 8 | f.sub);
+    if (!mapping::is_input(fe.kind) && std::find(cfg_.fes.begin(), cfg_.fes.end(), fe) != cfg_.fes.end())
+      for (const auto& f : mapping::fe_fields(fe)) refused.emplace(static_cast<std::uint32_t>(f.index) << 8 | f.sub, fe);
   if (refused.empty()) return;
   for (const std::uint16_t index : {std::uint16_t{0x6200}, std::uint16_t{0x6411}}) {
     canopen::Object* o = od_.find(index);
     if (o == nullptr) continue;
     subs_ += o->add_write_hook(
-        [refused](canopen::Object& obj, std::uint8_t sub, std::span<const std::uint8_t>, Origin origin) {
+        [this, refused](canopen::Object& obj, std::uint8_t sub, std::span<const std::uint8_t>, Origin origin) {
           if (origin == Origin::Local) return SdoAbortCode::None;
-          return refused.count(static_cast<std::uint32_t>(obj.index()) << 8 | sub) != 0
-                     ? SdoAbortCode::CannotTransferLocalControl
-                     : SdoAbortCode::None;
+          const auto it = refused.find(static_cast<std::uint32_t>(obj.index()) << 8 | sub);
+          if (it == refused.end()) return SdoAbortCode::None;
+          if (on_refused_) on_refused_(it->second, origin);
+          return SdoAbortCode::CannotTransferLocalControl;
         });
   }
 }

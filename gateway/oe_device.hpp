@@ -184,6 +184,10 @@ class OeDevice {
   using OutputCallback = std::function<void(mapping::FeId, const std::string& field, std::int64_t value)>;
   void on_output(OutputCallback cb) { on_output_ = std::move(cb); }
 
+  // A host write (SDO download or RPDO entry) of an FE in host_may_not_command was refused.
+  using RefusedWriteCallback = std::function<void(mapping::FeId, canopen::Origin)>;
+  void on_host_write_refused(RefusedWriteCallback cb) { on_refused_ = std::move(cb); }
+
   // CiA 401 6206h/6207h and 6443h/6444h: outputs whose error mode is set take their error value.
   void host_heartbeat_lost(canopen::TimePoint now);
 
@@ -219,6 +223,7 @@ class OeDevice {
   std::unique_ptr<canopen::EmcyConsumer> emcy_consumer_;
   std::unique_ptr<canopen::Node> node_;
   OutputCallback on_output_;
+  RefusedWriteCallback on_refused_;
   unsigned batch_depth_ = 0;
   canopen::EmcyHandler on_emcy_;
   canopen::TimePoint now_{};

@@ -129,6 +129,15 @@ int run_eds(const std::string& file, const std::string& out) {
   info.product = oe.identity.product;
   info.revision = oe.identity.revision;
   info.node_id = oe.node_id;
+  for (const auto& fe : cfg->functional_elements) {
+    if (fe.input() || fe.accepts(mapping::CommandSource::Canopen)) continue;
+    const auto fields = mapping::fe_fields(fe.id);
+    info.comments.push_back(fmt::format(
+        "{} ({:04X}h sub {:02X}h..{:02X}h) takes commands from {} only: an SDO download is aborted with 08000021h "
+        "(local control), its bytes in an RPDO are ignored",
+        fe_name(fe.id), fields.front().index, fields.front().sub, fields.back().sub,
+        mapping::describe_sources(fe.sources)));
+  }
   if (out == "-") {
     std::cout << eds_text(device.od(), info);
     return 0;

@@ -1,5 +1,8 @@
 #include "mapping/config.hpp"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -10,7 +13,6 @@
 #include <fstream>
 #include <limits>
 #include <map>
-#include <regex>
 #include <set>
 #include <sstream>
 
@@ -500,8 +502,10 @@ class Loader {
       if (dds || lcm) continue;
       error(fe.sources_where, std::string(to_string(fe.id.kind)) + "." + std::to_string(fe.id.instance) +
                                   " takes commands only from " + describe_sources(fe.sources) +
-                                  ", which the publish section does not enable; expected publish." +
-                                  (fe.accepts(CommandSource::Dds) ? "dds" : "lcm") +
+                                  ", which the publish section does not enable; expected " +
+                                  (fe.accepts(CommandSource::Dds) && fe.accepts(CommandSource::Lcm)
+                                       ? "publish.dds or publish.lcm"
+                                       : fe.accepts(CommandSource::Dds) ? "publish.dds" : "publish.lcm") +
                                   " enabled, or canopen among the sources");
     }
   }
@@ -842,16 +846,26 @@ class Loader {
   // network would receive each sample. A network deployment uses an administratively scoped
   // group (239.x.x.x) instead.
   void link_local_lcm_group(const Entry& e) {
-    static const std::regex udpm(R"(^udpm://224\.0\.0\.[0-9]+(:[0-9]+)?(\?(.*))?$)");
-    static const std::regex ttl(R"((^|&)ttl=([0-9]+)(&|$))");
-    std::smatch m, t;
     const std::string url = e.value.Scalar();
-    if (!std::regex_match(url, m, udpm)) return;
-    const std::string options = m[3].str();
-    if (!std::regex_search(options, t, ttl) || std::stoul(t[2].str()) == 0) return;
-    error(e.value, "publish lcm url '" + url + "' sends to a link-local group (224.0.0.x) with ttl " + t[2].str() +
-                       ", so every host on the network would receive it; expected ttl=0 (this host only) or a "
-                       "239.x.x.x group for a network, e.g. udpm://239.255.76.67:7667?ttl=1");
+    const std::string scheme = "udpm://";
+    if (url.rfind(scheme, 0) != 0) return;
+    const auto q = url.find('?');
+    const std::string host_port = url.substr(scheme.size(), q == std::string::npos ? std::string::npos : q - scheme.size());
+    const std::string host = host_port.substr(0, host_port.find(':'));
+    // The address as liblcm reads it (inet_aton: "224.0.1" and hex forms are addresses too).
+    in_addr a{};
+    if (::inet_aton(host.c_str(), &a) == 0 || (ntohl(a.s_addr) & 0xFFFFFF00u) != 0xE0000000u) return;
+    // Every ttl option (the last one counts for liblcm) must read exactly "0"; absent means 0.
+    std::string ttl = "0";
+    if (q != std::string::npos) {
+      std::stringstream opts(url.substr(q + 1));
+      for (std::string kv; std::getline(opts, kv, '&');)
+        if (kv.rfind("ttl=", 0) == 0) ttl = kv.substr(4);
+    }
+    if (ttl == "0") return;
+    error(e.value, "publish lcm url '" + url + "' sends to the link-local group " + ::inet_ntoa(a) + " with ttl '" +
+                       ttl + "', so every host on the network would receive it; expected ttl=0 (this host only) or "
+                       "a 239.x.x.x group for a network, e.g. udpm://239.255.76.67:7667?ttl=1");
   }
 
   // ---------------------------------------------------------------------------------------------

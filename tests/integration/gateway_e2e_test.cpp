@@ -939,6 +939,12 @@ TEST_F(GatewayE2E, HostMayNotCommandAnFeWhoseSourcesLeaveOutCanopen) {
   run_for(300ms);
   EXPECT_EQ(cluster->output("out[1]"), 0);
   EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x01)), 0u);
+  EXPECT_EQ(gw_->refused_commands(), 9u) << "the SDO download and RPDO 1's eight entries";
+  EXPECT_NE(log_.find("indicators.1: the host's SDO write refused (abort 0800 0021h): its sources are dds"),
+            std::string::npos)
+      << log_;
+  EXPECT_NE(log_.find("indicators.1: the host's RPDO bytes for it ignored: its sources are dds"), std::string::npos)
+      << log_;
   // The FE's error mode/value stay the host's to configure, and the host may read the lamps.
   EXPECT_EQ(sdo_write(0x6206, 0x01, {0xFF}), SdoAbortCode::None);
   // The machine application over DDS drives them.
@@ -951,7 +957,7 @@ TEST_F(GatewayE2E, HostMayNotCommandAnFeWhoseSourcesLeaveOutCanopen) {
   EXPECT_FALSE(gw_->command_indicators(1, 0x01, loop_.now(), oegw::mapping::CommandSource::Lcm));
   run_for(300ms);
   EXPECT_EQ(cluster->output("out[1]"), 0x3C);
-  EXPECT_EQ(gw_->refused_commands(), 2u);
+  EXPECT_EQ(gw_->refused_commands(), 11u);
   const std::string line = "indicators.1: a command from lcm ignored: its sources are dds";
   const auto first = log_.find(line);
   EXPECT_NE(first, std::string::npos) << log_;
@@ -961,11 +967,35 @@ TEST_F(GatewayE2E, HostMayNotCommandAnFeWhoseSourcesLeaveOutCanopen) {
   EXPECT_FALSE(gw_->command_display(1, {}, loop_.now(), oegw::mapping::CommandSource::Dds));
   EXPECT_FALSE(gw_->command_indicators(0, 0xFF, loop_.now(), oegw::mapping::CommandSource::Dds));
   EXPECT_FALSE(gw_->command_indicators(200, 0xFF, loop_.now(), oegw::mapping::CommandSource::Dds));
-  EXPECT_EQ(gw_->refused_commands(), 6u);
+  EXPECT_EQ(gw_->refused_commands(), 15u);
   EXPECT_NE(log_.find("indicators.200: a command from dds ignored: the mapping file does not configure "
                       "indicators.200"),
             std::string::npos)
       << log_;
+}
+
+// An RPDO the host maps with a refused entry (indicators.1, DDS only) and an accepted one
+// (indicators.2): the refused bytes are dropped, the rest of the RPDO applies (CiA 301 has no
+// error for one entry; the gateway logs it once).
+TEST_F(GatewayE2E, AnRpdoMixingARefusedAndAnAcceptedEntryAppliesTheAcceptedOne) {
+  build("", with_sources);
+  boot_and_start();
+  // CiA 301 §7.5.2.35 mapping procedure: disable, clear, map, count, enable.
+  ASSERT_EQ(sdo_write(0x1400, 1, encode<std::uint32_t>(0x80000000u | kRpdo1)), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x1600, 0, {0}), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x1600, 1, encode<std::uint32_t>(0x62000108)), SdoAbortCode::None);  // indicators.1
+  ASSERT_EQ(sdo_write(0x1600, 2, encode<std::uint32_t>(0x62000908)), SdoAbortCode::None);  // indicators.2
+  ASSERT_EQ(sdo_write(0x1600, 0, {2}), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x1400, 1, encode<std::uint32_t>(kRpdo1)), SdoAbortCode::None);
+  (void)host_port_->send(CanFrame(kRpdo1, {0xFF, 0x05}));
+  run_for(300ms);
+  EXPECT_EQ(bench_->device("cluster")->output("out[1]"), 0) << "indicators.1 is the machine application's";
+  auto* left = bench_->device("left_grip");
+  EXPECT_EQ(left->output("leds[1]"), 1);
+  EXPECT_EQ(left->output("leds[2]"), 0);
+  EXPECT_EQ(left->output("leds[3]"), 1);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x09)), 0x05u);
+  EXPECT_EQ(gw_->refused_commands(), 1u);
 }
 
 TEST_F(GatewayE2E, AmongTheListedSourcesTheLastWriteWins) {

@@ -6,8 +6,9 @@ set -eu
 oegw=$1 dds_sub=$2 lcm_sub=$3
 dir=$(mktemp -d)
 trap 'kill $d $l 2>/dev/null || true; rm -rf "$dir"' EXIT
-"$dds_sub" --timeout 60 > "$dir/dds.out" & d=$!
-"$lcm_sub" --timeout 60 > "$dir/lcm.out" & l=$!
+# The demo's own names (config/demo.yaml): partition oegw-demo, channels OEGW_DEMO_*.
+"$dds_sub" --timeout 60 --partition oegw-demo > "$dir/dds.out" & d=$!
+"$lcm_sub" --timeout 60 --channel 'OEGW_DEMO_JOYSTICK_[0-9]+' > "$dir/lcm.out" & l=$!
 # Wait (bounded) for both subscribers to be listening.
 i=0
 until grep -q '^ready$' "$dir/dds.out" 2>/dev/null && grep -q '^ready$' "$dir/lcm.out" 2>/dev/null; do

@@ -110,6 +110,14 @@ def check(path):
         if re.fullmatch(r"[0-9A-F]{4}", sec) and int(sec, 16) not in listed:
             problems.append(f"section [{sec}] is in no object list")
 
+    # CiA 306 [Comments]: Lines=n and exactly Line1..Linen.
+    if cp.has_section("Comments"):
+        c = cp["Comments"]
+        n = num(c.get("Lines", "-1"))
+        keys = sorted(k for k in c if k != "Lines")
+        if keys != sorted(f"Line{i}" for i in range(1, n + 1)):
+            problems.append(f"[Comments] Lines={n} but keys {keys}")
+
     if cp.has_section("DeviceInfo"):
         d = cp["DeviceInfo"]
         rx = sum(1 for i in listed if 0x1400 <= i <= 0x15FF)

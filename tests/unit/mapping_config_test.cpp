@@ -108,7 +108,9 @@ TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
   EXPECT_EQ(c.publish.dds.network, "loopback");
   EXPECT_TRUE(c.publish.lcm.enabled);
   EXPECT_EQ(c.publish.lcm.url, "udpm://224.0.0.1:7667?ttl=0");
-  EXPECT_EQ(c.publish.lcm.channel_prefix, "OEGW_");
+  // Its own names: never mixed with a real gateway's (partition oegw, OEGW_*) on one computer.
+  EXPECT_EQ(c.publish.dds.partition, "oegw-demo");
+  EXPECT_EQ(c.publish.lcm.channel_prefix, "OEGW_DEMO_");
   // The cluster's lamps come from the machine application, the MCB-402's LEDs from the host.
   ASSERT_NE(c.find_fe({FeKind::IndicatorCluster, 1}), nullptr);
   EXPECT_EQ(describe_sources(c.find_fe({FeKind::IndicatorCluster, 1})->sources), "dds, lcm");
@@ -809,11 +811,22 @@ TEST(MappingConfig, LcmLinkLocalGroupOnlyWithTtlZero) {
   EXPECT_TRUE(with_url("udpm://224.0.0.1:7667?ttl=0").ok());
   EXPECT_TRUE(with_url("udpm://224.0.0.1:7667").ok()) << "LCM's default ttl is 0";
   EXPECT_TRUE(with_url("udpm://239.255.76.67:7667?ttl=1").ok());
+  EXPECT_TRUE(with_url("udpm://224.0.1.5:7667?ttl=1").ok()) << "not link-local";
   EXPECT_THAT(errors(with_url("udpm://224.0.0.1:7667?recv_buf_size=65536&ttl=1")),
               ElementsAre("t.yaml:4:15: publish lcm url 'udpm://224.0.0.1:7667?recv_buf_size=65536&ttl=1' sends to "
-                          "a link-local group (224.0.0.x) with ttl 1, so every host on the network would receive "
+                          "the link-local group 224.0.0.1 with ttl '1', so every host on the network would receive "
                           "it; expected ttl=0 (this host only) or a 239.x.x.x group for a network, e.g. "
                           "udpm://239.255.76.67:7667?ttl=1"));
+  // Whatever liblcm would read as a ttl above 0, or as a 224.0.0.x address, never a crash.
+  for (const char* url : {"udpm://224.0.0.1:7667?ttl=99999999999999999999", "udpm://224.0.0.1:7667?ttl=0x1",
+                          "udpm://224.0.0.1:7667?ttl=-1", "udpm://224.0.0.1:7667?ttl=1x",
+                          "udpm://224.0.1:7667?ttl=1", "udpm://0xE0000001:7667?ttl=1",
+                          "udpm://224.0.0.1:7667?ttl=0&ttl=1"}) {
+    const auto r = with_url(url);
+    ASSERT_EQ(r.errors.size(), 1u) << url;
+    EXPECT_NE(r.errors[0].message.find("link-local group 224.0.0.1"), std::string::npos) << r.error_text();
+  }
+  EXPECT_TRUE(with_url("udpm://224.0.0.1:7667?ttl=1&ttl=0").ok()) << "the last ttl counts, as in liblcm";
 }
 
 TEST(MappingConfig, EveryPrefixOfTheDemoFileGivesAConfigOrErrorsNeverACrash) {
