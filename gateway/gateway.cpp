@@ -145,6 +145,10 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
   };
   network_.on_bad_input = [this](const std::string& what) { log(what); };
   oe_->on_output([this](mapping::FeId fe, const std::string& field, std::int64_t value) { on_output(fe, field, value); });
+  for (const auto& fe : config_.functional_elements)
+    if (!fe.input() && fe.command_timeout_ms > 0)
+      watches_.push_back({fe.id, std::chrono::milliseconds(fe.command_timeout_ms), TimePoint{}, false});
+  oe_->on_host_command([this](mapping::FeId fe) { command_seen(fe); });
   oe_->on_host_write_refused([this](mapping::FeId fe, canopen::Origin origin) {
     ++refused_commands_;
     // Once per FE and way (SDO, RPDO): an RPDO at 100 Hz must not flood the journal.
@@ -161,6 +165,8 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
 canopen::ParameterStore::LoadResult Gateway::start(TimePoint now) {
   now_ = now;
   auto r = oe_->start(now);
+  // A command watchdog runs from power-on: a commander that never starts is a silent one.
+  for (auto& w : watches_) w.last = now;
   // Every input starts at its fault value (the signals are Offline until their node is up).
   for (auto& b : bindings_)
     if (b.translator) (void)oe_->set_input(b.fe, b.field->field.name, b.translator->value(), now);
@@ -308,14 +314,37 @@ void Gateway::advance(TimePoint now) {
   now_ = now;
   oe_->advance(now);
   network_.advance(now);
+  for (auto& w : watches_) {
+    if (w.expired || now - w.last < w.timeout) continue;
+    // The FE's commander fell silent: its outputs take their error values (CiA 401 6206h/6207h,
+    // 6443h/6444h — what a lost host heartbeat does to every output) until the next command.
+    w.expired = true;
+    oe_->apply_error_values(w.fe, now);
+    log(fmt::format("{}.{}: no command for {} ms: outputs set to their error values until the next command",
+                    mapping::to_string(w.fe.kind), w.fe.instance,
+                    std::chrono::duration_cast<std::chrono::milliseconds>(w.timeout).count()));
+  }
 }
 
 std::optional<TimePoint> Gateway::next_deadline() const {
-  auto a = oe_->next_deadline();
-  auto b = network_.next_deadline();
-  if (!a) return b;
-  if (!b) return a;
-  return std::min(*a, *b);
+  auto best = oe_->next_deadline();
+  auto take = [&best](std::optional<TimePoint> t) {
+    if (t && (!best || *t < *best)) best = t;
+  };
+  take(network_.next_deadline());
+  for (const auto& w : watches_)
+    if (!w.expired) take(w.last + w.timeout);
+  return best;
+}
+
+void Gateway::command_seen(mapping::FeId fe) {
+  for (auto& w : watches_) {
+    if (!(w.fe == fe)) continue;
+    w.last = now_;
+    if (w.expired)
+      log(fmt::format("{}.{}: commands again", mapping::to_string(fe.kind), fe.instance));
+    w.expired = false;
+  }
 }
 
 std::vector<mapping::FeId> Gateway::fes() const {
@@ -369,6 +398,7 @@ bool Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, Time
   now_ = now;
   const mapping::FeId fe{mapping::FeKind::IndicatorCluster, instance};
   if (!command_allowed(fe, source)) return false;  // also an instance outside 1..8: not configured
+  command_seen(fe);
   // fe_fields() lists indicator[1..64] in order (mapping/functional_elements.hpp): one pass.
   const auto fields = mapping::fe_fields(fe);
   for (std::size_t k = 0; k < fields.size(); ++k) {
@@ -389,6 +419,7 @@ bool Gateway::command_display(std::uint8_t instance, const std::array<std::int16
   now_ = now;
   const mapping::FeId fe{mapping::FeKind::Display, instance};
   if (!command_allowed(fe, source)) return false;  // also an instance outside 1..8: not configured
+  command_seen(fe);
   // fe_fields() lists parameter[1..12] in order: one pass.
   const auto fields = mapping::fe_fields(fe);
   for (std::size_t p = 0; p < fields.size() && p < parameters.size(); ++p) {

@@ -121,6 +121,7 @@ class Gateway {
   bool feed(Binding& b, const Sub& s, const subdevices::SignalValue& v);
   void log(const std::string& line);
   bool command_allowed(mapping::FeId fe, mapping::CommandSource source);
+  void command_seen(mapping::FeId fe);  // an accepted command: restarts the FE's watchdog
 
   mapping::Config config_;
   canopen::ObjectDictionary master_od_;
@@ -133,6 +134,13 @@ class Gateway {
   std::map<std::string, std::string> faults_;  // sub-device -> reason
   canopen::TimePoint now_{};
   std::uint64_t refused_commands_ = 0;
+  struct CommandWatch {  // mapping-file command_timeout_ms of one output FE
+    mapping::FeId fe;
+    canopen::Duration timeout;
+    canopen::TimePoint last;
+    bool expired = false;
+  };
+  std::vector<CommandWatch> watches_;
   std::set<std::pair<mapping::FeId, std::uint8_t>> refused_logged_;  // (FE, source) already logged
 };
 

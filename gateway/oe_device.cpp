@@ -281,26 +281,37 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
     const canopen::SubObject* s = od_.find(static_cast<std::uint16_t>(key >> 8), static_cast<std::uint8_t>(key));
     output_shadow_[key] = s ? entry_value(*s) : 0;
   }
-  refuse_host_commands();
+  watch_host_commands();
   node_->on_state_change = [this](NmtState s) { handle_state(s); };
   subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) { handle_od_change(index, sub); });
 }
 
-void OeDevice::refuse_host_commands() {
-  std::map<std::uint32_t, FeId> refused;  // index << 8 | sub of the entries the host may not write
-  for (const FeId& fe : cfg_.host_may_not_command)
-    if (!mapping::is_input(fe.kind) && std::find(cfg_.fes.begin(), cfg_.fes.end(), fe) != cfg_.fes.end())
-      for (const auto& f : mapping::fe_fields(fe)) refused.emplace(static_cast<std::uint32_t>(f.index) << 8 | f.sub, fe);
-  if (refused.empty()) return;
+void OeDevice::watch_host_commands() {
+  // index << 8 | sub of every output entry -> its FE and whether the host may write it.
+  struct Entry {
+    FeId fe;
+    bool refused;
+  };
+  std::map<std::uint32_t, Entry> entries;
+  for (const auto& [key, refs] : outputs_) {
+    if (refs.empty()) continue;
+    const FeId fe = refs.front().fe;
+    entries.emplace(key, Entry{fe, cfg_.host_may_not_command.count(fe) != 0});
+  }
+  if (entries.empty()) return;
   for (const std::uint16_t index : {std::uint16_t{0x6200}, std::uint16_t{0x6411}}) {
     canopen::Object* o = od_.find(index);
     if (o == nullptr) continue;
     subs_ += o->add_write_hook(
-        [this, refused](canopen::Object& obj, std::uint8_t sub, std::span<const std::uint8_t>, Origin origin) {
+        [this, entries](canopen::Object& obj, std::uint8_t sub, std::span<const std::uint8_t>, Origin origin) {
           if (origin == Origin::Local) return SdoAbortCode::None;
-          const auto it = refused.find(static_cast<std::uint32_t>(obj.index()) << 8 | sub);
-          if (it == refused.end()) return SdoAbortCode::None;
-          if (on_refused_) on_refused_(it->second, origin);
+          const auto it = entries.find(static_cast<std::uint32_t>(obj.index()) << 8 | sub);
+          if (it == entries.end()) return SdoAbortCode::None;
+          if (!it->second.refused) {
+            if (on_host_command_) on_host_command_(it->second.fe);
+            return SdoAbortCode::None;
+          }
+          if (on_refused_) on_refused_(it->second.fe, origin);
           return SdoAbortCode::CannotTransferLocalControl;
         });
   }
@@ -475,13 +486,21 @@ void OeDevice::report_outputs(std::uint16_t index, std::uint8_t sub, std::int64_
   }
 }
 
-void OeDevice::host_heartbeat_lost(TimePoint now) {
+void OeDevice::host_heartbeat_lost(TimePoint now) { apply_error_values(std::nullopt, now); }
+
+void OeDevice::apply_error_values(std::optional<FeId> only, TimePoint now) {
   now_ = now;
+  // The entries of `only` (every output entry when none is given).
+  auto mine = [&](std::uint16_t index, std::uint8_t sub) {
+    if (!only) return true;
+    const auto it = outputs_.find(static_cast<std::uint32_t>(index) << 8 | sub);
+    return it != outputs_.end() && !it->second.empty() && it->second.front().fe == *only;
+  };
   // CiA 401 6206h/6207h: per bit, mode 1 = take the error value; 6443h/6444h per channel.
   if (const canopen::Object* o = od_.find(0x6200)) {
     std::vector<std::uint8_t> subs;
     for (const auto& [s, so] : o->subs())
-      if (s != 0) subs.push_back(s);
+      if (s != 0 && mine(0x6200, s)) subs.push_back(s);
     for (std::uint8_t s : subs) {
       const auto cur = od_.get<std::uint8_t>(0x6200, s);
       const auto mode = od_.get<std::uint8_t>(0x6206, s);
@@ -493,7 +512,7 @@ void OeDevice::host_heartbeat_lost(TimePoint now) {
   if (const canopen::Object* o = od_.find(0x6411)) {
     std::vector<std::uint8_t> subs;
     for (const auto& [s, so] : o->subs())
-      if (s != 0) subs.push_back(s);
+      if (s != 0 && mine(0x6411, s)) subs.push_back(s);
     for (std::uint8_t s : subs) {
       if (od_.get<std::uint8_t>(0x6443, s) != 1) continue;
       const std::int32_t ev = od_.get<std::int32_t>(0x6444, s);

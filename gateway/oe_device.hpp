@@ -187,9 +187,15 @@ class OeDevice {
   // A host write (SDO download or RPDO entry) of an FE in host_may_not_command was refused.
   using RefusedWriteCallback = std::function<void(mapping::FeId, canopen::Origin)>;
   void on_host_write_refused(RefusedWriteCallback cb) { on_refused_ = std::move(cb); }
+  // A host write (SDO download or RPDO entry) of an output FE the host may command is about to
+  // be applied (called before the value commits; for command watchdogs).
+  void on_host_command(std::function<void(mapping::FeId)> cb) { on_host_command_ = std::move(cb); }
 
   // CiA 401 6206h/6207h and 6443h/6444h: outputs whose error mode is set take their error value.
   void host_heartbeat_lost(canopen::TimePoint now);
+  // The same for one output FE, or for every output FE when `only` is empty (its commander fell
+  // silent: mapping-file command_timeout_ms).
+  void apply_error_values(std::optional<mapping::FeId> only, canopen::TimePoint now);
 
   void raise_subdevice_fault(std::string_view name, canopen::NodeId node, canopen::TimePoint now);
   void clear_subdevice_fault(canopen::NodeId node, canopen::TimePoint now);
@@ -208,7 +214,7 @@ class OeDevice {
     std::string field;
     std::uint8_t bit;
   };
-  void refuse_host_commands();
+  void watch_host_commands();
   void handle_state(canopen::NmtState s);
   void handle_od_change(std::uint16_t index, std::uint8_t sub);
   void resync_outputs();
@@ -224,6 +230,7 @@ class OeDevice {
   std::unique_ptr<canopen::Node> node_;
   OutputCallback on_output_;
   RefusedWriteCallback on_refused_;
+  std::function<void(mapping::FeId)> on_host_command_;
   unsigned batch_depth_ = 0;
   canopen::EmcyHandler on_emcy_;
   canopen::TimePoint now_{};

@@ -104,10 +104,13 @@ int run_check(const std::string& file) {
     if (fe.input()) continue;
     if (!outputs) std::printf("commands in (sources of each output FE; among them the last write wins):\n");
     outputs = true;
-    std::printf("  %-13s %s%s\n", fe_name(fe.id).c_str(), mapping::describe_sources(fe.sources).c_str(),
+    std::printf("  %-13s %s%s%s\n", fe_name(fe.id).c_str(), mapping::describe_sources(fe.sources).c_str(),
                 fe.accepts(mapping::CommandSource::Canopen)
                     ? ""
-                    : "  (host: SDO download aborted 0800 0021h, its RPDO bytes ignored)");
+                    : "  (host: SDO download aborted 0800 0021h, its RPDO bytes ignored)",
+                fe.command_timeout_ms == 0
+                    ? ""
+                    : fmt::format("  error values after {} ms without a command", fe.command_timeout_ms).c_str());
   }
   return 0;
 }

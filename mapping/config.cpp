@@ -967,11 +967,21 @@ class Loader {
     const auto es = entries(fe_entry.value, fe_name, {}, "a map of field -> signal, e.g. { x: right_grip.x }");
     if (fe_entry.value.IsMap() && es.empty() && fe_entry.value.size() == 0)
       error(fe_entry.value, fe_name + " has no fields; expected at least one field fed by a signal");
-    if (es.size() == 1 && es.front().name == "sources")
-      error(fe_entry.value, fe_name + " has only 'sources' and no fields; expected at least one field fed by a signal");
+    if (!es.empty() && std::all_of(es.begin(), es.end(), [](const Entry& x) {
+          return x.name == "sources" || x.name == "command_timeout_ms";
+        }))
+      error(fe_entry.value, fe_name + " has only '" + es.front().name +
+                                "' and no fields; expected at least one field fed by a signal");
     for (const auto& e : es) {
       if (e.name == "sources") {
         command_sources(e, fe, fe_name);
+        continue;
+      }
+      if (e.name == "command_timeout_ms") {
+        if (input)
+          error(e.key, fe_name + " is an input; 'command_timeout_ms' applies to indicators and display (commands in)");
+        else if (auto v = integer(e, fe_name + " command_timeout_ms", 0, 600000))
+          fe.command_timeout_ms = static_cast<std::uint32_t>(*v);
         continue;
       }
       // The field key: "x", "buttons" (a group: buttons[1..n]), "buttons[3]", "indicator[1..4]".

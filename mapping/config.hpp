@@ -145,6 +145,10 @@ struct FunctionalElementConfig {
   FeId id;
   std::vector<FieldBinding> fields;  // in the FE's dictionary order
   CommandSources sources = kAllCommandSources;  // output FEs only
+  // Output FEs: when no accepted command (from any listed source) arrives for this long, the
+  // FE's outputs take their CiA 401 error values (6206h/6207h, 6443h/6444h) until the next
+  // command. 0 = no watchdog (a commander may send on change only).
+  std::uint32_t command_timeout_ms = 0;
   Location where;
   Location sources_where;  // the `sources` value, when written
   [[nodiscard]] bool input() const { return is_input(id.kind); }

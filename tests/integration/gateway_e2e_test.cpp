@@ -998,6 +998,61 @@ TEST_F(GatewayE2E, AnRpdoMixingARefusedAndAnAcceptedEntryAppliesTheAcceptedOne) 
   EXPECT_EQ(gw_->refused_commands(), 1u);
 }
 
+// command_timeout_ms: an output FE whose commander falls silent takes its error values
+// (6206h/6207h) until the next command; any accepted command restarts the watchdog — a DDS
+// command for indicators.1 (DDS only), the host's SDO downloads for indicators.2.
+TEST_F(GatewayE2E, ASilentCommanderPutsItsFeToTheErrorValuesUntilTheNextCommand) {
+  build("", [](std::string yaml) {
+    yaml = with_sources(yaml);
+    auto put = [&yaml](const std::string& after, const std::string& line) {
+      yaml.insert(yaml.find(after) + after.size(), line);
+    };
+    put("    sources: [dds]\n", "    command_timeout_ms: 500\n");
+    put("    sources: [canopen, lcm]\n", "    command_timeout_ms: 1000\n");
+    return yaml;
+  });
+  boot_and_start();
+  using oegw::mapping::CommandSource;
+  auto* cluster = bench_->device("cluster");
+  auto* left = bench_->device("left_grip");
+  // Nobody commanded since power-on: both timed out already (error values = defaults: off).
+  EXPECT_NE(log_.find("indicators.1: no command for 500 ms: outputs set to their error values"), std::string::npos)
+      << log_;
+  ASSERT_EQ(sdo_write(0x6206, 0x01, {0xFF}), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x6207, 0x01, {0x81}), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x6206, 0x09, {0x0F}), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x6207, 0x09, {0x0A}), SdoAbortCode::None);
+
+  // indicators.1: commanded every 300 ms, it follows; silent for 500 ms, error values.
+  ASSERT_TRUE(gw_->command_indicators(1, 0x3C, loop_.now(), CommandSource::Dds));
+  EXPECT_NE(log_.find("indicators.1: commands again"), std::string::npos) << log_;
+  run_for(300ms);
+  ASSERT_TRUE(gw_->command_indicators(1, 0x3C, loop_.now(), CommandSource::Dds));
+  run_for(300ms);
+  EXPECT_EQ(cluster->output("out[1]"), 0x3C) << "600 ms after the first command, 300 ms after the last";
+  run_for(250ms);
+  EXPECT_EQ(cluster->output("out[1]"), 0x81) << "silent for 550 ms > 500 ms\n" << log_;
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x01)), 0x81u);
+  ASSERT_TRUE(gw_->command_indicators(1, 0x0F, loop_.now(), CommandSource::Dds));
+  run_for(100ms);
+  EXPECT_EQ(cluster->output("out[1]"), 0x0F) << "the next command takes over again";
+
+  // indicators.2: the host's SDO downloads restart its 1000 ms watchdog; a refused DDS command
+  // does not.
+  ASSERT_EQ(sdo_write(0x6200, 0x09, {0x05}), SdoAbortCode::None);
+  run_for(800ms);
+  ASSERT_EQ(sdo_write(0x6200, 0x09, {0x05}), SdoAbortCode::None);
+  run_for(700ms);
+  EXPECT_FALSE(gw_->command_indicators(2, 0x05, loop_.now(), CommandSource::Dds));
+  std::string leds;
+  for (int i = 1; i <= 4; ++i) leds += std::to_string(*left->output("leds[" + std::to_string(i) + "]"));
+  EXPECT_EQ(leds, "1010") << "1500 ms after the first write, 700 ms after the last";
+  run_for(400ms);
+  leds.clear();
+  for (int i = 1; i <= 4; ++i) leds += std::to_string(*left->output("leds[" + std::to_string(i) + "]"));
+  EXPECT_EQ(leds, "0101") << "silent for 1100 ms: 6207h:09 = 0Ah\n" << log_;
+}
+
 TEST_F(GatewayE2E, AmongTheListedSourcesTheLastWriteWins) {
   build("", with_sources);
   boot_and_start();

@@ -800,6 +800,39 @@ functional_elements:
                           "(commands in)"));
 }
 
+TEST(MappingConfig, CommandTimeoutPerOutputFe) {
+  const std::string head = R"(upstream: { interface: can0, node_id: 0x20 }
+downstream: { interface: can1 }
+subdevices:
+  grip: { driver: elobau-mfg, node_id: 0x11 }
+functional_elements:
+)";  // functional elements start on line 6
+  const auto r = load(head + R"(  indicators.1:
+    command_timeout_ms: 250
+    indicator[1..2]: grip.leds[1..2]
+  indicators.2:
+    indicator[1..2]: grip.leds[3..4]
+)");
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  EXPECT_EQ(r.config->find_fe({FeKind::IndicatorCluster, 1})->command_timeout_ms, 250u);
+  EXPECT_EQ(r.config->find_fe({FeKind::IndicatorCluster, 2})->command_timeout_ms, 0u) << "off by default";
+  const auto bad = load(head + R"(  indicators.1:
+    command_timeout_ms: 700000
+    indicator[1..2]: grip.leds[1..2]
+  joystick.1:
+    command_timeout_ms: 100
+    x: grip.x
+  indicators.2:
+    command_timeout_ms: 100
+)");
+  EXPECT_THAT(errors(bad),
+              ElementsAre("t.yaml:7:25: indicators.1 command_timeout_ms 700000 is out of range; expected 0..600000",
+                          "t.yaml:10:5: joystick.1 is an input; 'command_timeout_ms' applies to indicators and "
+                          "display (commands in)",
+                          "t.yaml:13:5: indicators.2 has only 'command_timeout_ms' and no fields; expected at least "
+                          "one field fed by a signal"));
+}
+
 // The host-local LCM default uses the all-hosts group 224.0.0.1 with ttl=0; a link-local group
 // with a ttl above 0 would reach every device on the cab network and is refused.
 TEST(MappingConfig, LcmLinkLocalGroupOnlyWithTtlZero) {
