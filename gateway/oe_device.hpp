@@ -80,7 +80,9 @@
 //    aborted with 0800 0021h, the CiA 301 code for "cannot be transferred because of local
 //    control"; their bytes in an RPDO are ignored while the RPDO's other entries apply (CiA 301
 //    has no error for one refused entry). 6206h/6207h and 6443h/6444h stay writable, and the
-//    error values apply to these FEs too on a host heartbeat loss.
+//    error values apply to these FEs too on a host heartbeat loss. CiA 401 resets still apply:
+//    an NMT reset node puts them back to their default (or stored) values, and 1010h "save"
+//    stores their current values, whoever wrote them.
 //  * Host heartbeat loss: detected from the Node's heartbeat-consumer EMCY 8130h (the Node owns
 //    the consumer's callback), or called directly by the gateway.
 //  * NMT reset node / reset communication from the host: the inputs keep their current values
