@@ -43,8 +43,9 @@ int main(int argc, char** argv) {
       if (s.decode(ev->data, 0, static_cast<int>(ev->datalen)) < 0) {
         ++bad;
       } else {
-        std::printf("status seq=%u upstream=%s subdevices=%d emcys=%d\n", static_cast<unsigned>(s.seq),
-                    s.upstream_state.c_str(), s.n_subdevices, s.n_active_emcys);
+        std::printf("status seq=%u upstream=%s subdevices=%d emcys=%d refused=%lld\n", static_cast<unsigned>(s.seq),
+                    s.upstream_state.c_str(), s.n_subdevices, s.n_active_emcys,
+                    static_cast<long long>(s.refused_commands));
         ++statuses;
       }
     } else {

@@ -56,6 +56,7 @@ struct GatewayStatus {
   std::string upstream_state;           // upstream NMT state: "operational", ...
   std::vector<SubdeviceState> subdevices;
   std::vector<std::uint16_t> active_emcys;  // codes the gateway has active upstream
+  std::uint64_t refused_commands = 0;        // Gateway::refused_commands()
 };
 
 // Commands in, from the machine application.

@@ -127,6 +127,7 @@ void GatewayPublishing::publish_status() {
     st.subdevices.push_back({name, node, std::string(subdevices::to_string(gw_.downstream().state(name)))});
   }
   if (!gw_.faults().empty()) st.active_emcys.push_back(OeDevice::kEmcyAdditionalModules);
+  st.refused_commands = gw_.refused_commands();
   fan_.publish(st);
 }
 

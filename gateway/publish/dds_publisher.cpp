@@ -193,6 +193,7 @@ void DdsPublisher::publish(const GatewayStatus& s) {
   m.active_emcys._maximum = m.active_emcys._length = static_cast<std::uint32_t>(emcys.size());
   m.active_emcys._buffer = emcys.data();
   m.active_emcys._release = false;
+  m.refused_commands = s.refused_commands;
   dds_write(impl_->status, &m);
 }
 

@@ -137,6 +137,7 @@ void LcmPublisher::publish(const GatewayStatus& s) {
   m.n_subdevices = static_cast<std::int32_t>(m.subdevices.size());
   for (auto c : s.active_emcys) m.active_emcys.push_back(static_cast<std::int16_t>(c));
   m.n_active_emcys = static_cast<std::int32_t>(m.active_emcys.size());
+  m.refused_commands = static_cast<std::int64_t>(s.refused_commands);
   send(impl_->lcm, prefix_ + "STATUS", m);
 }
 

@@ -14,6 +14,7 @@
 #include "gateway/gateway.hpp"
 #include "dds_command_writer.hpp"
 #include "gateway/publishing.hpp"
+#include "oegw/gateway_status_t.hpp"
 #include "oegw/indicator_command_t.hpp"
 #include "oegw/joystick_t.hpp"
 #include "private_network.hpp"
@@ -50,12 +51,17 @@ functional_elements:
 struct App {  // the machine application: its own LCM instance
   lcm_t* lcm = lcm_create("udpm://224.0.0.1:7667?ttl=0");
   std::optional<oegw::joystick_t> last;
+  std::optional<oegw::gateway_status_t> status;
   ~App() {
     if (lcm) lcm_destroy(lcm);
   }
   static void on_joystick(const lcm_recv_buf_t* rbuf, const char*, void* user) {
     oegw::joystick_t m;
     if (m.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) >= 0) static_cast<App*>(user)->last = m;
+  }
+  static void on_status(const lcm_recv_buf_t* rbuf, const char*, void* user) {
+    oegw::gateway_status_t m;
+    if (m.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) >= 0) static_cast<App*>(user)->status = m;
   }
 };
 
@@ -97,6 +103,7 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
   App app;
   ASSERT_NE(app.lcm, nullptr);
   lcm_subscribe(app.lcm, "OEGW_JOYSTICK_1", &App::on_joystick, &app);
+  lcm_subscribe(app.lcm, "OEGW_STATUS", &App::on_status, &app);
   gateway::GatewayPublishing pub(gw, loaded.config->publish, [&down] { return down.now(); });
   ASSERT_TRUE(pub.active());
 
@@ -158,6 +165,13 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
   EXPECT_EQ(grip->output("leds[1]"), 1) << "DDS may not clear indicators.1";
   EXPECT_EQ(grip->output("leds[2]"), 1);
   EXPECT_EQ(gw.refused_commands(), 2u);
+  // The machine application sees the refusals in the gateway status.
+  for (int i = 0; i < 40 && !(app.status && app.status->refused_commands == 2); ++i) {
+    pub.tick();
+    if (wait_readable(lcm_get_fileno(app.lcm), 50)) lcm_handle(app.lcm);
+  }
+  ASSERT_TRUE(app.status.has_value()) << "no gateway status on OEGW_STATUS";
+  EXPECT_EQ(app.status->refused_commands, 2);
 }
 
 }  // namespace

@@ -181,6 +181,7 @@ TEST(LcmPublisher, LcmLoggerRecordsASessionThatDecodesWithTheProjectsTypes) {
   gs.upstream_state = "operational";
   gs.subdevices.push_back({"right_grip", 0x11, "operational"});
   gs.active_emcys = {0x8130};
+  gs.refused_commands = 2;
   lcm.publish(gs);
   // The logger writes in arrival order and flushes (at most every 10 ms) when a message comes in:
   // probes keep it flushing; once the status (the last session message) is in the file, so is the rest.
@@ -204,7 +205,7 @@ TEST(LcmPublisher, LcmLoggerRecordsASessionThatDecodesWithTheProjectsTypes) {
   ASSERT_EQ(joy_lines.size(), tee.joy.size());
   for (std::size_t i = 0; i < joy_lines.size(); ++i) EXPECT_EQ(joy_lines[i], line_of(tee.joy[i]));
   bool status_seen = false;
-  for (const auto& l : lines) status_seen |= l == "status seq=1 upstream=operational subdevices=1 emcys=1";
+  for (const auto& l : lines) status_seen |= l == "status seq=1 upstream=operational subdevices=1 emcys=1 refused=2";
   EXPECT_TRUE(status_seen);
   std::remove(file.c_str());
 }
@@ -318,6 +319,7 @@ TEST(DdsPublisher, ALateReaderGetsTheLastGatewayStatus) {
   gs.upstream_state = "operational";
   gs.subdevices = {{"right_grip", 0x11, "operational"}, {"left_grip", 0x03, "missing"}};
   gs.active_emcys = {0x8130, 0xFF01};
+  gs.refused_commands = 3;
   dds.publish(gs);  // before any reader exists
 
   DdsApp app(s);
@@ -343,6 +345,7 @@ TEST(DdsPublisher, ALateReaderGetsTheLastGatewayStatus) {
   ASSERT_EQ(m->active_emcys._length, 2u);
   EXPECT_EQ(m->active_emcys._buffer[0], 0x8130);
   EXPECT_EQ(m->active_emcys._buffer[1], 0xFF01);
+  EXPECT_EQ(m->refused_commands, 3u);
   dds_return_loan(r, p, n);
 }
 
