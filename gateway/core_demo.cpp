@@ -144,16 +144,21 @@ int run_demo(const DemoOptions& options) {
   std::vector<EventLoop::WatchId> publisher_watches;
   if (options.publish) {
     try {
-      dds = std::make_unique<DdsPublisher>(DdsSettings{});
+      // A demo's own names: never mixed with a real gateway's (partition oegw, OEGW_*).
+      DdsSettings ds;
+      ds.partition = "oegw-demo";
+      dds = std::make_unique<DdsPublisher>(ds);
       fan.add(dds.get());
-      say("publishing joystick.1 on DDS: topic oegw/joystick, domain 0, partition oegw, loopback only");
+      say("publishing joystick.1 on DDS: topic oegw/joystick, domain 0, partition oegw-demo, loopback only");
     } catch (const PublishConfigError& e) {
       fail(e.what());
     }
     try {
-      lcm = std::make_unique<LcmPublisher>(LcmSettings{});
+      LcmSettings ls;
+      ls.channel_prefix = "OEGW_DEMO_";
+      lcm = std::make_unique<LcmPublisher>(ls);
       fan.add(lcm.get());
-      say("publishing joystick.1 on LCM: channel OEGW_JOYSTICK_1, udpm://224.0.0.1:7667?ttl=0");
+      say("publishing joystick.1 on LCM: channel OEGW_DEMO_JOYSTICK_1, udpm://224.0.0.1:7667?ttl=0");
     } catch (const PublishConfigError& e) {
       fail(e.what());
     }

@@ -37,7 +37,7 @@ struct DemoOptions {
   double live_seconds = 3.0;  // how long the joystick moves in operational
   bool frames = false;        // print every frame on the bus (candump notation)
   // Publish the joystick as joystick.1 on DDS (loopback-only Cyclone configuration, partition
-  // "oegw") and LCM (udpm://224.0.0.1:7667?ttl=0), and take indicators.1 commands back into
+  // "oegw-demo") and LCM (udpm://224.0.0.1:7667?ttl=0, OEGW_DEMO_*), and take indicators.1 commands back into
   // the device's output 6200h:01. Off by default: this is the protocol core's demo; `oegw demo`
   // is the one that publishes (README, "Watching the gateway from DDS and LCM").
   bool publish = false;

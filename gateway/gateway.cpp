@@ -166,7 +166,11 @@ canopen::ParameterStore::LoadResult Gateway::start(TimePoint now) {
   now_ = now;
   auto r = oe_->start(now);
   // A command watchdog runs from power-on: a commander that never starts is a silent one.
-  for (auto& w : watches_) w.last = now;
+  for (auto& w : watches_) {
+    w.last = now;
+    w.expired = false;
+  }
+  started_ = true;
   // Every input starts at its fault value (the signals are Offline until their node is up).
   for (auto& b : bindings_)
     if (b.translator) (void)oe_->set_input(b.fe, b.field->field.name, b.translator->value(), now);
@@ -294,7 +298,17 @@ void Gateway::on_output(mapping::FeId fe, const std::string& field, std::int64_t
 
 bool Gateway::on_upstream_frame(const canopen::CanFrame& frame, TimePoint now) {
   now_ = now;
-  return oe_->on_frame(frame, now);
+  const bool used = oe_->on_frame(frame, now);
+  hold_error_values(now);
+  return used;
+}
+
+void Gateway::hold_error_values(TimePoint now) {
+  // While an FE's commander is silent its outputs stay at their error values, also when the host
+  // changes 6206h/6207h/6443h/6444h meanwhile or an NMT reset / 1011h restore puts the outputs
+  // back to their defaults (only writes what differs: cheap when nothing changed).
+  for (const auto& w : watches_)
+    if (w.expired) oe_->apply_error_values(w.fe, now);
 }
 
 bool Gateway::on_downstream_frame(const canopen::CanFrame& frame, TimePoint now) {
@@ -315,7 +329,7 @@ void Gateway::advance(TimePoint now) {
   oe_->advance(now);
   network_.advance(now);
   for (auto& w : watches_) {
-    if (w.expired || now - w.last < w.timeout) continue;
+    if (!started_ || w.expired || now - w.last < w.timeout) continue;
     // The FE's commander fell silent: its outputs take their error values (CiA 401 6206h/6207h,
     // 6443h/6444h — what a lost host heartbeat does to every output) until the next command.
     w.expired = true;
@@ -333,7 +347,7 @@ std::optional<TimePoint> Gateway::next_deadline() const {
   };
   take(network_.next_deadline());
   for (const auto& w : watches_)
-    if (!w.expired) take(w.last + w.timeout);
+    if (started_ && !w.expired) take(w.last + w.timeout);
   return best;
 }
 

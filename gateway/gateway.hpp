@@ -122,6 +122,7 @@ class Gateway {
   void log(const std::string& line);
   bool command_allowed(mapping::FeId fe, mapping::CommandSource source);
   void command_seen(mapping::FeId fe);  // an accepted command: restarts the FE's watchdog
+  void hold_error_values(canopen::TimePoint now);
 
   mapping::Config config_;
   canopen::ObjectDictionary master_od_;
@@ -141,6 +142,7 @@ class Gateway {
     bool expired = false;
   };
   std::vector<CommandWatch> watches_;
+  bool started_ = false;  // start() called: the watchdogs run from then
   std::set<std::pair<mapping::FeId, std::uint8_t>> refused_logged_;  // (FE, source) already logged
 };
 

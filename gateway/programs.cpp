@@ -199,7 +199,11 @@ int run_gateway(const std::string& file) {
   }
   if (publishing->active()) {
     for (Publisher* p : publishing->publishers())
-      if (p->fd() >= 0) loop.watch(p->fd(), io_events::kReadable, [p](std::uint32_t) { p->poll(); });
+      if (p->fd() >= 0)
+        loop.watch(p->fd(), io_events::kReadable, [p, &driver](std::uint32_t) {
+          p->poll();  // a command may restart a command watchdog: its deadline moves
+          driver.rearm();
+        });
     loop.call_every(loop.now(), std::chrono::microseconds(publishing->period_us()), [&] {
       publishing->tick();
       driver.rearm();

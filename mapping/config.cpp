@@ -970,8 +970,11 @@ class Loader {
     if (!es.empty() && std::all_of(es.begin(), es.end(), [](const Entry& x) {
           return x.name == "sources" || x.name == "command_timeout_ms";
         }))
-      error(fe_entry.value, fe_name + " has only '" + es.front().name +
-                                "' and no fields; expected at least one field fed by a signal");
+    {
+      std::string keys;
+      for (const auto& x : es) keys += (keys.empty() ? "'" : " and '") + x.name + "'";
+      error(fe_entry.value, fe_name + " has only " + keys + " and no fields; expected at least one field fed by a signal");
+    }
     for (const auto& e : es) {
       if (e.name == "sources") {
         command_sources(e, fe, fe_name);

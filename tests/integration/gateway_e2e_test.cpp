@@ -1011,19 +1011,34 @@ TEST_F(GatewayE2E, ASilentCommanderPutsItsFeToTheErrorValuesUntilTheNextCommand)
     put("    sources: [canopen, lcm]\n", "    command_timeout_ms: 1000\n");
     return yaml;
   });
-  boot_and_start();
   using oegw::mapping::CommandSource;
   auto* cluster = bench_->device("cluster");
   auto* left = bench_->device("left_grip");
-  // Nobody commanded since power-on: both timed out already (error values = defaults: off).
+  auto leds = [&] {
+    std::string out;
+    for (int i = 1; i <= 4; ++i) out += std::to_string(*left->output("leds[" + std::to_string(i) + "]"));
+    return out;
+  };
+  // The loop may run before power-on: the watchdogs start with the gateway, not before.
+  run_for(600ms);
+  EXPECT_EQ(log_.find("no command for"), std::string::npos) << log_;
+  boot_and_start();
+  // Nobody commanded since power-on: both timed out (error values = defaults: off).
   EXPECT_NE(log_.find("indicators.1: no command for 500 ms: outputs set to their error values"), std::string::npos)
       << log_;
+  EXPECT_NE(log_.find("indicators.2: no command for 1000 ms"), std::string::npos) << log_;
+  // Error values configured while timed out apply at once (the FE holds its error values).
   ASSERT_EQ(sdo_write(0x6206, 0x01, {0xFF}), SdoAbortCode::None);
   ASSERT_EQ(sdo_write(0x6207, 0x01, {0x81}), SdoAbortCode::None);
   ASSERT_EQ(sdo_write(0x6206, 0x09, {0x0F}), SdoAbortCode::None);
   ASSERT_EQ(sdo_write(0x6207, 0x09, {0x0A}), SdoAbortCode::None);
+  run_for(100ms);
+  EXPECT_EQ(cluster->output("out[1]"), 0x81);
+  EXPECT_EQ(leds(), "0101");
 
-  // indicators.1: commanded every 300 ms, it follows; silent for 500 ms, error values.
+  // The host commands indicators.2 (1000 ms watchdog), DDS commands indicators.1 (500 ms).
+  ASSERT_EQ(sdo_write(0x6200, 0x09, {0x05}), SdoAbortCode::None);
+  EXPECT_NE(log_.find("indicators.2: commands again"), std::string::npos) << log_;
   ASSERT_TRUE(gw_->command_indicators(1, 0x3C, loop_.now(), CommandSource::Dds));
   EXPECT_NE(log_.find("indicators.1: commands again"), std::string::npos) << log_;
   run_for(300ms);
@@ -1033,24 +1048,18 @@ TEST_F(GatewayE2E, ASilentCommanderPutsItsFeToTheErrorValuesUntilTheNextCommand)
   run_for(250ms);
   EXPECT_EQ(cluster->output("out[1]"), 0x81) << "silent for 550 ms > 500 ms\n" << log_;
   EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x01)), 0x81u);
+  EXPECT_EQ(leds(), "1010") << "indicators.2 is commanded (850 ms < 1000 ms): only indicators.1 took error values";
   ASSERT_TRUE(gw_->command_indicators(1, 0x0F, loop_.now(), CommandSource::Dds));
   run_for(100ms);
   EXPECT_EQ(cluster->output("out[1]"), 0x0F) << "the next command takes over again";
 
-  // indicators.2: the host's SDO downloads restart its 1000 ms watchdog; a refused DDS command
-  // does not.
-  ASSERT_EQ(sdo_write(0x6200, 0x09, {0x05}), SdoAbortCode::None);
-  run_for(800ms);
+  // indicators.2: the host's SDO download restarts its watchdog; a refused DDS command does not.
   ASSERT_EQ(sdo_write(0x6200, 0x09, {0x05}), SdoAbortCode::None);
   run_for(700ms);
   EXPECT_FALSE(gw_->command_indicators(2, 0x05, loop_.now(), CommandSource::Dds));
-  std::string leds;
-  for (int i = 1; i <= 4; ++i) leds += std::to_string(*left->output("leds[" + std::to_string(i) + "]"));
-  EXPECT_EQ(leds, "1010") << "1500 ms after the first write, 700 ms after the last";
+  EXPECT_EQ(leds(), "1010") << "700 ms after the last host write";
   run_for(400ms);
-  leds.clear();
-  for (int i = 1; i <= 4; ++i) leds += std::to_string(*left->output("leds[" + std::to_string(i) + "]"));
-  EXPECT_EQ(leds, "0101") << "silent for 1100 ms: 6207h:09 = 0Ah\n" << log_;
+  EXPECT_EQ(leds(), "0101") << "silent for 1100 ms: 6207h:09 = 0Ah\n" << log_;
 }
 
 TEST_F(GatewayE2E, AmongTheListedSourcesTheLastWriteWins) {
