@@ -10,7 +10,7 @@
 #   * the subscribers see the demo's samples (valid while moving, offline when the grip is lost);
 #   * on the namespace's lo the capture sees the DDS traffic (so capturing works);
 #   * on the link not one packet arrives: no IGMP report (LCM's group 224.0.0.1 is never
-#     reported, RFC 3376 §5), no multicast, nothing on the DDS or LCM ports.
+#     reported, RFC 3376 §5), no multicast, nothing on the DDS or LCM ports, not even an ARP.
 # Needs root (ip netns, tcpdump): without it, it fails and says why.
 #   demo_stays_on_host.sh OEGW DDS_SUBSCRIBER LCM_SUBSCRIBER
 set -eu
@@ -18,32 +18,43 @@ here=$(cd "$(dirname "$0")" && pwd)
 oegw=$1 dds_sub=$2 lcm_sub=$3
 command -v tcpdump >/dev/null || { echo "FAILED: tcpdump is missing (scripts/install-deps.sh installs it)" >&2; exit 1; }
 [ "$(id -u)" -eq 0 ] || { echo "FAILED: needs root for a network namespace and tcpdump" >&2; exit 1; }
-ns=oegw-demo-$$
-up=oegwu$$      # host end of the link
-down=oegwd$$    # the namespace's end: its default route
+# Names of this run only (a random suffix: a PID reused in a container cannot clash).
+rnd=$(od -An -N3 -tx1 /dev/urandom | tr -d ' \n')
+ns=oegw-demo-$rnd
+up=oegwu$rnd      # host end of the link
+down=oegwd$rnd    # the namespace's end: its default route
 dir=$(mktemp -d)
 pids=""
+made_ns=0
 cleanup() {
   for p in $pids; do kill "$p" 2>/dev/null || true; done
-  ip netns del "$ns" 2>/dev/null || true
+  if [ "$made_ns" -eq 1 ]; then
+    ip netns pids "$ns" 2>/dev/null | xargs -r kill 2>/dev/null || true  # the demo, subscribers, capture
+    ip netns del "$ns" 2>/dev/null || true
+  fi
   rm -rf "$dir"
 }
 trap cleanup EXIT
-ip netns add "$ns"
+# dash runs an EXIT trap on exit only: a ctest timeout (SIGTERM) or Ctrl-C cleans up too.
+trap 'exit 143' TERM
+trap 'exit 130' INT
+trap 'exit 129' HUP
+ip netns add "$ns" 2>"$dir/netns.err" || { echo "FAILED: cannot create a network namespace: $(cat "$dir/netns.err")" >&2; exit 1; }
+made_ns=1
 ip link add "$up" type veth peer name "$down" netns "$ns"
 ip link set "$up" up
 ip netns exec "$ns" sh -e -c "
-  sysctl -qw net.ipv6.conf.all.disable_ipv6=1 net.ipv6.conf.default.disable_ipv6=1
+  sysctl -qw net.ipv6.conf.all.disable_ipv6=1 net.ipv6.conf.default.disable_ipv6=1 2>/dev/null || true
   ip link set lo up
   ip addr add 192.0.2.2/24 dev $down
   ip link set $down up
   ip route add default via 192.0.2.1"
-# Whatever the demo or the subscribers could send: IGMP, any IPv4 multicast, DDS (7400+) and LCM
-# (7667) ports. On the link: what arrives from the namespace (-Q in on the host end).
-filter='igmp or (ip and dst net 224.0.0.0/4) or udp portrange 7400-7700'
-tcpdump -i "$up" -Q in -n -U -w "$dir/link.pcap" "$filter" 2>"$dir/link.err" &
+# On the link: everything that arrives from the namespace (-Q in on the host end; IPv6 is off
+# there, so nothing is expected at all: no IGMP, no multicast, no ARP for a unicast off the host).
+# On lo: the DDS and LCM ports, to prove the capture and the demo work.
+timeout 110 tcpdump -i "$up" -Q in -n -U -w "$dir/link.pcap" 2>"$dir/link.err" &
 pids="$pids $!"
-ip netns exec "$ns" tcpdump -i lo -n -U -w "$dir/lo.pcap" "$filter" 2>"$dir/lo.err" &
+timeout 110 ip netns exec "$ns" tcpdump -i lo -n -U -w "$dir/lo.pcap" 'udp portrange 7400-7700' 2>"$dir/lo.err" &
 pids="$pids $!"
 for c in link lo; do
   n=0
@@ -53,7 +64,10 @@ for c in link lo; do
   done
 done
 rc=0
-ip netns exec "$ns" "$here/demo_publish_check.sh" "$oegw" "$dds_sub" "$lcm_sub" || rc=1
+# In the background and waited for: a signal interrupts `wait` and the traps run at once.
+ip netns exec "$ns" "$here/demo_publish_check.sh" "$oegw" "$dds_sub" "$lcm_sub" &
+check=$!
+wait "$check" || rc=1
 sleep 0.5  # let the last datagrams reach the capture buffers
 for p in $pids; do kill -INT "$p" 2>/dev/null || true; done
 for p in $pids; do wait "$p" 2>/dev/null || true; done
