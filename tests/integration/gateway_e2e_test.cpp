@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -1060,6 +1061,35 @@ TEST_F(GatewayE2E, ASilentCommanderPutsItsFeToTheErrorValuesUntilTheNextCommand)
   EXPECT_EQ(leds(), "1010") << "700 ms after the last host write";
   run_for(400ms);
   EXPECT_EQ(leds(), "0101") << "silent for 1100 ms: 6207h:09 = 0Ah\n" << log_;
+}
+
+// The same rules for a display (6411h, error value 6444h): display.1 parameter 1 drives the
+// cluster's analogue output, from DDS only, with a 400 ms watchdog.
+TEST_F(GatewayE2E, ADisplayTakesItsSourcesAndItsWatchdogLikeAnIndicatorCluster) {
+  build("", [](std::string yaml) {
+    return with_sources(yaml) +
+           "  display.1:\n    sources: [dds]\n    command_timeout_ms: 400\n    parameter[1]: cluster.aout[1]\n";
+  });
+  boot_and_start();
+  using oegw::mapping::CommandSource;
+  auto* cluster = bench_->device("cluster");
+  ASSERT_EQ(sdo_write(0x6444, 0x01, encode<std::int32_t>(777)), SdoAbortCode::None);  // 6443h:01 = 1 by default
+  std::array<std::int16_t, 12> p{};
+  p[0] = 500;
+  ASSERT_TRUE(gw_->command_display(1, p, loop_.now(), CommandSource::Dds));
+  run_for(100ms);
+  EXPECT_EQ(cluster->output("aout[1]"), 500);
+  EXPECT_EQ(sdo_write(0x6411, 0x01, encode<std::int16_t>(100)), SdoAbortCode::CannotTransferLocalControl);
+  EXPECT_FALSE(gw_->command_display(1, p, loop_.now(), CommandSource::Lcm));
+  run_for(100ms);
+  EXPECT_EQ(cluster->output("aout[1]"), 500) << "200 ms after the command";
+  run_for(250ms);
+  EXPECT_EQ(cluster->output("aout[1]"), 777) << "silent for 450 ms > 400 ms: 6444h:01\n" << log_;
+  EXPECT_EQ(static_cast<std::int16_t>(decode_unsigned(*sdo_read(0x6411, 0x01))), 777);
+  p[0] = 300;
+  ASSERT_TRUE(gw_->command_display(1, p, loop_.now(), CommandSource::Dds));
+  run_for(100ms);
+  EXPECT_EQ(cluster->output("aout[1]"), 300);
 }
 
 TEST_F(GatewayE2E, AmongTheListedSourcesTheLastWriteWins) {
