@@ -7,15 +7,17 @@
 # route (192.0.2.2/24 via 192.0.2.1, TEST-NET-1): exactly where LCM joins its multicast group and
 # where an IGMP report or a ttl>0 datagram would go. The capture sits on the veth's host end, so
 # no other traffic of this computer can be mistaken for the demo's. Passes when:
-#   * the subscribers see the demo's samples (valid while moving, offline when the grip is lost);
+#   * the subscribers see the demo's samples (valid while moving, offline when the grip is lost),
+#     and lcm-logger's recording of the session decodes with the oegw LCM types;
 #   * on the namespace's lo the capture sees the DDS traffic (so capturing works);
 #   * on the link not one packet arrives: no IGMP report (LCM's group 224.0.0.1 is never
 #     reported, RFC 3376 §5), no multicast, nothing on the DDS or LCM ports, not even an ARP.
 # Needs root (ip netns, tcpdump): without it, it fails and says why.
-#   demo_stays_on_host.sh OEGW DDS_SUBSCRIBER LCM_SUBSCRIBER
+#   demo_stays_on_host.sh OEGW DDS_SUBSCRIBER LCM_SUBSCRIBER [LCM_LOG_DECODE LCM_LOGGER]
 set -eu
 here=$(cd "$(dirname "$0")" && pwd)
 oegw=$1 dds_sub=$2 lcm_sub=$3
+shift 3  # the rest (LCM_LOG_DECODE LCM_LOGGER) goes to demo_publish_check.sh
 command -v tcpdump >/dev/null || { echo "FAILED: tcpdump is missing (scripts/install-deps.sh installs it)" >&2; exit 1; }
 [ "$(id -u)" -eq 0 ] || { echo "FAILED: needs root for a network namespace and tcpdump" >&2; exit 1; }
 # Names of this run only (a random suffix: a PID reused in a container cannot clash).
@@ -65,7 +67,7 @@ for c in link lo; do
 done
 rc=0
 # In the background and waited for: a signal interrupts `wait` and the traps run at once.
-ip netns exec "$ns" "$here/demo_publish_check.sh" "$oegw" "$dds_sub" "$lcm_sub" &
+ip netns exec "$ns" "$here/demo_publish_check.sh" "$oegw" "$dds_sub" "$lcm_sub" "$@" &
 check=$!
 wait "$check" || rc=1
 sleep 0.5  # let the last datagrams reach the capture buffers
