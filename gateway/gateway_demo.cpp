@@ -170,18 +170,7 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   }
 
   ServiceDriver bench_drv(loop, bench), gw_drv(loop, gw), host_drv(loop, host);
-  if (publishing) {
-    for (Publisher* p : publishing->publishers())
-      if (p->fd() >= 0)
-        loop.watch(p->fd(), io_events::kReadable, [p, &gw_drv](std::uint32_t) {
-          p->poll();  // a command may restart a command watchdog: its deadline moves
-          gw_drv.rearm();
-        });
-    loop.call_every(loop.now(), std::chrono::microseconds(publishing->period_us()), [&] {
-      publishing->tick();
-      gw_drv.rearm();
-    });
-  }
+  if (publishing) publishing->run_on(loop, [&gw_drv] { gw_drv.rearm(); });
   sims_port->set_receiver([&](const CanFrame& f, TimePoint t) { bench.on_frame(f, t); bench_drv.rearm(); });
   gw_down->set_receiver([&](const CanFrame& f, TimePoint t) { gw.on_downstream_frame(f, t); gw_drv.rearm(); });
   gw_up->set_receiver([&](const CanFrame& f, TimePoint t) { gw.on_upstream_frame(f, t); gw_drv.rearm(); });

@@ -197,18 +197,7 @@ int run_gateway(const std::string& file) {
     spdlog::error("{}: {}", file, e.what());
     return 2;
   }
-  if (publishing->active()) {
-    for (Publisher* p : publishing->publishers())
-      if (p->fd() >= 0)
-        loop.watch(p->fd(), io_events::kReadable, [p, &driver](std::uint32_t) {
-          p->poll();  // a command may restart a command watchdog: its deadline moves
-          driver.rearm();
-        });
-    loop.call_every(loop.now(), std::chrono::microseconds(publishing->period_us()), [&] {
-      publishing->tick();
-      driver.rearm();
-    });
-  }
+  publishing->run_on(loop, [&driver] { driver.rearm(); });
   loop.handle_signals({SIGINT, SIGTERM}, [&](int sig) {
     spdlog::info("signal {}: stopping", sig);
     loop.stop();

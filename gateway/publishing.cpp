@@ -131,6 +131,20 @@ void GatewayPublishing::publish_status() {
   fan_.publish(st);
 }
 
+void GatewayPublishing::run_on(canopen::EventLoop& loop, std::function<void()> rearm) {
+  if (!active()) return;
+  for (Publisher* p : publishers())
+    if (p->fd() >= 0)
+      loop.watch(p->fd(), canopen::io_events::kReadable, [p, rearm](std::uint32_t) {
+        p->poll();
+        rearm();
+      });
+  loop.call_every(loop.now(), std::chrono::microseconds(period_us()), [this, rearm] {
+    tick();
+    rearm();
+  });
+}
+
 void GatewayPublishing::tick() {
   if (!active()) return;
   schedule_.tick(now_us());

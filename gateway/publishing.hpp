@@ -8,6 +8,7 @@
 #include <memory>
 #include <vector>
 
+#include "canopen/io/event_loop.hpp"
 #include "gateway/fe_samples.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/publish/publish_schedule.hpp"
@@ -55,6 +56,10 @@ class GatewayPublishing {
 
   // The sample of one FE as the gateway holds it now (also used by tests).
   void publish_fe(mapping::FeId fe);
+
+  // Runs on `loop`: each transport's fd is polled for commands and tick() every period; after
+  // each, `rearm` (the gateway's ServiceDriver::rearm: a command may move a watchdog deadline).
+  void run_on(canopen::EventLoop& loop, std::function<void()> rearm);
 
  private:
   [[nodiscard]] std::int64_t now_us() const;
