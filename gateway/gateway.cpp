@@ -155,7 +155,7 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     const auto way = static_cast<std::uint8_t>(0x10 | static_cast<std::uint8_t>(origin));
     if (!refused_logged_.insert({fe, way}).second) return;
     const mapping::FunctionalElementConfig* c = config_.find_fe(fe);
-    log(std::string(mapping::to_string(fe.kind)) + "." + std::to_string(fe.instance) +
+    log(mapping::fe_name(fe) +
         (origin == canopen::Origin::Pdo ? ": the host's RPDO bytes for it ignored"
                                         : ": the host's SDO write refused (abort 0800 0021h)") +
         ": its sources are " + mapping::describe_sources(c ? c->sources : 0));
@@ -334,8 +334,8 @@ void Gateway::advance(TimePoint now) {
     // 6443h/6444h — what a lost host heartbeat does to every output) until the next command.
     w.expired = true;
     oe_->apply_error_values(w.fe, now);
-    log(fmt::format("{}.{}: no command for {} ms: outputs set to their error values until the next command",
-                    mapping::to_string(w.fe.kind), w.fe.instance,
+    log(fmt::format("{}: no command for {} ms: outputs set to their error values until the next command",
+                    mapping::fe_name(w.fe),
                     std::chrono::duration_cast<std::chrono::milliseconds>(w.timeout).count()));
   }
 }
@@ -356,7 +356,7 @@ void Gateway::command_seen(mapping::FeId fe) {
     if (!(w.fe == fe)) continue;
     w.last = now_;
     if (w.expired)
-      log(fmt::format("{}.{}: commands again", mapping::to_string(fe.kind), fe.instance));
+      log(mapping::fe_name(fe) + ": commands again");
     w.expired = false;
   }
 }
@@ -394,7 +394,7 @@ FeStatus Gateway::status(mapping::FeId fe) const {
 
 bool Gateway::command_allowed(mapping::FeId fe, mapping::CommandSource source) {
   const mapping::FunctionalElementConfig* c = config_.find_fe(fe);
-  const auto fe_name = std::string(mapping::to_string(fe.kind)) + "." + std::to_string(fe.instance);
+  const auto fe_name = mapping::fe_name(fe);
   const auto src = std::string(mapping::to_string(source));
   if (c != nullptr && c->accepts(source)) return true;
   ++refused_commands_;

@@ -37,7 +37,7 @@ std::string replace_all(std::string s, const std::string& from, const std::strin
 // One line per FE: "joystick.1  valid     x=+12000 y=-300 buttons=10000000".
 std::string fe_line(const Gateway& gw, mapping::FeId fe) {
   static const char* const kStatus[] = {"valid", "ERROR", "n/a", "stale", "OFFLINE"};
-  std::string out = fmt::format("  {:<13} {:<8}", fmt::format("{}.{}", mapping::to_string(fe.kind), fe.instance),
+  std::string out = fmt::format("  {:<13} {:<8}", mapping::fe_name(fe),
                                 kStatus[static_cast<int>(gw.status(fe))]);
   std::string bits_name, bits;
   bool held = false;

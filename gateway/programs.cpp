@@ -38,7 +38,6 @@ std::vector<mapping::FeId> fe_ids(const mapping::Config& c) {
   return out;
 }
 
-std::string fe_name(mapping::FeId id) { return fmt::format("{}.{}", mapping::to_string(id.kind), id.instance); }
 
 // Where an FE field travels in the PDOs of clause 12: "TPDO 1 (180h+ID) byte 2 bit 3".
 std::string pdo_place(const std::vector<OePdo>& pdos, const mapping::FeField& f) {
@@ -88,7 +87,7 @@ int run_check(const std::string& file) {
       const std::string signal = b.subdevice + "." + b.signal + (b.signal_bit != 0xFF ? fmt::format(".bit{}", b.signal_bit) : "");
       const std::string obj = fmt::format("{:04X}h:{:02X}{}", b.field.index, b.field.sub,
                                           b.field.bit == 0xFF ? "" : fmt::format(" bit {}", b.field.bit));
-      std::printf("  %-13s %-14s %s %-24s %-16s %s\n", fe_name(fe.id).c_str(), b.field.name.c_str(), arrow.c_str(),
+      std::printf("  %-13s %-14s %s %-24s %-16s %s\n", mapping::fe_name(fe.id).c_str(), b.field.name.c_str(), arrow.c_str(),
                   signal.c_str(), obj.c_str(), pdo_place(pdos, b.field).c_str());
     }
   }
@@ -104,7 +103,7 @@ int run_check(const std::string& file) {
     if (fe.input()) continue;
     if (!outputs) std::printf("commands in (sources of each output FE; among them the last write wins):\n");
     outputs = true;
-    std::printf("  %-13s %s%s%s\n", fe_name(fe.id).c_str(), mapping::describe_sources(fe.sources).c_str(),
+    std::printf("  %-13s %s%s%s\n", mapping::fe_name(fe.id).c_str(), mapping::describe_sources(fe.sources).c_str(),
                 fe.accepts(mapping::CommandSource::Canopen)
                     ? ""
                     : "  (host: SDO download aborted 0800 0021h, its RPDO bytes ignored)",
@@ -138,7 +137,7 @@ int run_eds(const std::string& file, const std::string& out) {
     info.comments.push_back(fmt::format(
         "{} ({:04X}h sub {:02X}h..{:02X}h) takes commands from {} only: an SDO download is aborted with 08000021h "
         "(local control), its bytes in an RPDO are ignored",
-        fe_name(fe.id), fields.front().index, fields.front().sub, fields.back().sub,
+        mapping::fe_name(fe.id), fields.front().index, fields.front().sub, fields.back().sub,
         mapping::describe_sources(fe.sources)));
   }
   if (out == "-") {

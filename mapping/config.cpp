@@ -500,7 +500,7 @@ class Loader {
       const bool dds = fe.accepts(CommandSource::Dds) && p.dds.enabled;
       const bool lcm = fe.accepts(CommandSource::Lcm) && p.lcm.enabled;
       if (dds || lcm) continue;
-      error(fe.sources_where, std::string(to_string(fe.id.kind)) + "." + std::to_string(fe.id.instance) +
+      error(fe.sources_where, fe_name(fe.id) +
                                   " takes commands only from " + describe_sources(fe.sources) +
                                   ", which the publish section does not enable; expected " +
                                   (fe.accepts(CommandSource::Dds) && fe.accepts(CommandSource::Lcm)
@@ -963,7 +963,7 @@ class Loader {
     const auto all = fe_fields(fe.id);
     std::vector<std::string> field_names;
     for (const auto& f : all) field_names.push_back(f.name);
-    const std::string fe_name = std::string(to_string(fe.id.kind)) + "." + std::to_string(fe.id.instance);
+    const std::string fe_name = mapping::fe_name(fe.id);
     const auto es = entries(fe_entry.value, fe_name, {}, "a map of field -> signal, e.g. { x: right_grip.x }");
     if (fe_entry.value.IsMap() && es.empty() && fe_entry.value.size() == 0)
       error(fe_entry.value, fe_name + " has no fields; expected at least one field fed by a signal");

@@ -4,6 +4,8 @@ namespace oegw::mapping {
 
 using canopen::DataType;
 
+std::string fe_name(FeId fe) { return std::string(to_string(fe.kind)) + "." + std::to_string(fe.instance); }
+
 std::string_view to_string(FeKind k) {
   switch (k) {
     case FeKind::Joystick: return "joystick";

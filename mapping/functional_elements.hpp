@@ -40,6 +40,8 @@ struct FeId {
   friend bool operator==(const FeId&, const FeId&) = default;
   friend auto operator<=>(const FeId&, const FeId&) = default;
 };
+// "joystick.1", "indicators.2": how mapping files, logs and `oegw check` name an FE.
+[[nodiscard]] std::string fe_name(FeId fe);
 
 // One FE field as the mapping file names it, and its place in the dictionary.
 struct FeField {

@@ -144,7 +144,7 @@ TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
   // Sorted by FeId: joystick 1, 2, pedal 1, encoder 1, wheel 1, buttons 1, indicators 1, 2.
   std::vector<std::string> fes;
   for (const auto& fe : c.functional_elements)
-    fes.push_back(std::string(to_string(fe.id.kind)) + "." + std::to_string(fe.id.instance));
+    fes.push_back(fe_name(fe.id));
   EXPECT_THAT(fes, ElementsAre("joystick.1", "joystick.2", "pedal.1", "encoder.1", "wheel.1", "buttons.1",
                                "indicators.1", "indicators.2"));
   const auto& j1 = c.functional_elements[0];
