@@ -150,15 +150,11 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
       watches_.push_back({fe.id, std::chrono::milliseconds(fe.command_timeout_ms), TimePoint{}, false});
   oe_->on_host_command([this](mapping::FeId fe) { command_seen(fe); });
   oe_->on_host_write_refused([this](mapping::FeId fe, canopen::Origin origin) {
-    ++refused_commands_;
-    // Once per FE and way (SDO, RPDO): an RPDO at 100 Hz must not flood the journal.
-    const auto way = static_cast<std::uint8_t>(0x10 | static_cast<std::uint8_t>(origin));
-    if (!refused_logged_.insert({fe, way}).second) return;
     const mapping::FunctionalElementConfig* c = config_.find_fe(fe);
-    log(mapping::fe_name(fe) +
-        (origin == canopen::Origin::Pdo ? ": the host's RPDO bytes for it ignored"
-                                        : ": the host's SDO write refused (abort 0800 0021h)") +
-        ": its sources are " + mapping::describe_sources(c ? c->sources : 0));
+    const bool rpdo = origin == canopen::Origin::Pdo;
+    refused(fe, rpdo ? "RPDO" : "SDO",
+            std::string(rpdo ? "the host's RPDO bytes for it ignored" : "the host's SDO write refused (abort 0800 0021h)") +
+                ": its sources are " + mapping::describe_sources(c ? c->sources : 0));
   });
 }
 
@@ -392,27 +388,32 @@ FeStatus Gateway::status(mapping::FeId fe) const {
   return static_cast<FeStatus>(static_cast<std::uint8_t>(worst));
 }
 
-bool Gateway::command_allowed(mapping::FeId fe, mapping::CommandSource source) {
-  const mapping::FunctionalElementConfig* c = config_.find_fe(fe);
-  const auto fe_name = mapping::fe_name(fe);
-  const auto src = std::string(mapping::to_string(source));
-  if (c != nullptr && c->accepts(source)) return true;
+void Gateway::refused(mapping::FeId fe, std::string_view way, const std::string& why) {
   ++refused_commands_;
-  // Logged once per FE and source: a machine application commanding at 100 Hz must not flood
-  // the journal; refused_commands() keeps the count.
-  if (refused_logged_.insert({fe, static_cast<std::uint8_t>(source)}).second)
-    log(c == nullptr ? fe_name + ": a command from " + src + " ignored: the mapping file does not configure " + fe_name
-                     : fe_name + ": a command from " + src + " ignored: its sources are " +
-                           mapping::describe_sources(c->sources));
-  return false;
+  // Logged once per FE and way (dds, lcm, SDO, RPDO): a commander at 100 Hz must not flood the
+  // journal; refused_commands() keeps the count.
+  if (refused_logged_.emplace(fe, std::string(way)).second) log(mapping::fe_name(fe) + ": " + why);
+}
+
+bool Gateway::take_command(mapping::FeId fe, mapping::CommandSource source, TimePoint now) {
+  now_ = now;
+  const mapping::FunctionalElementConfig* c = config_.find_fe(fe);  // none: instance outside 1..8 too
+  if (c == nullptr || !c->accepts(source)) {
+    const auto src = std::string(mapping::to_string(source));
+    refused(fe, src,
+            "a command from " + src + " ignored: " +
+                (c == nullptr ? "the mapping file does not configure " + mapping::fe_name(fe)
+                              : "its sources are " + mapping::describe_sources(c->sources)));
+    return false;
+  }
+  command_seen(fe);
+  return true;
 }
 
 bool Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, TimePoint now,
                                  mapping::CommandSource source) {
-  now_ = now;
   const mapping::FeId fe{mapping::FeKind::IndicatorCluster, instance};
-  if (!command_allowed(fe, source)) return false;  // also an instance outside 1..8: not configured
-  command_seen(fe);
+  if (!take_command(fe, source, now)) return false;
   // fe_fields() lists indicator[1..64] in order (mapping/functional_elements.hpp): one pass.
   const auto fields = mapping::fe_fields(fe);
   for (std::size_t k = 0; k < fields.size(); ++k) {
@@ -430,10 +431,8 @@ bool Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, Time
 
 bool Gateway::command_display(std::uint8_t instance, const std::array<std::int16_t, 12>& parameters, TimePoint now,
                               mapping::CommandSource source) {
-  now_ = now;
   const mapping::FeId fe{mapping::FeKind::Display, instance};
-  if (!command_allowed(fe, source)) return false;  // also an instance outside 1..8: not configured
-  command_seen(fe);
+  if (!take_command(fe, source, now)) return false;
   // fe_fields() lists parameter[1..12] in order: one pass.
   const auto fields = mapping::fe_fields(fe);
   for (std::size_t p = 0; p < fields.size() && p < parameters.size(); ++p) {

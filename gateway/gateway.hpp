@@ -120,7 +120,11 @@ class Gateway {
   // Feeds one input binding (the EMCY hold of its node applied); returns true if it changed.
   bool feed(Binding& b, const Sub& s, const subdevices::SignalValue& v);
   void log(const std::string& line);
-  bool command_allowed(mapping::FeId fe, mapping::CommandSource source);
+  // A command from `source` for `fe`: true if the FE takes it (its watchdog restarts), else
+  // refused() and false.
+  bool take_command(mapping::FeId fe, mapping::CommandSource source, canopen::TimePoint now);
+  // Counts a refused command and logs it once per FE and way ("dds", "lcm", "SDO", "RPDO").
+  void refused(mapping::FeId fe, std::string_view way, const std::string& why);
   void command_seen(mapping::FeId fe);  // an accepted command: restarts the FE's watchdog
   void hold_error_values(canopen::TimePoint now);
 
@@ -143,7 +147,7 @@ class Gateway {
   };
   std::vector<CommandWatch> watches_;
   bool started_ = false;  // start() called: the watchdogs run from then
-  std::set<std::pair<mapping::FeId, std::uint8_t>> refused_logged_;  // (FE, source) already logged
+  std::set<std::pair<mapping::FeId, std::string>> refused_logged_;  // (FE, way) already logged
 };
 
 }  // namespace oegw::gateway
