@@ -490,31 +490,22 @@ void OeDevice::host_heartbeat_lost(TimePoint now) { apply_error_values(std::null
 
 void OeDevice::apply_error_values(std::optional<FeId> only, TimePoint now) {
   now_ = now;
-  // The entries of `only` (every output entry when none is given).
-  auto mine = [&](std::uint16_t index, std::uint8_t sub) {
-    if (!only) return true;
-    const auto it = outputs_.find(static_cast<std::uint32_t>(index) << 8 | sub);
-    return it != outputs_.end() && !it->second.empty() && it->second.front().fe == *only;
-  };
-  // CiA 401 6206h/6207h: per bit, mode 1 = take the error value; 6443h/6444h per channel.
-  if (const canopen::Object* o = od_.find(0x6200)) {
-    std::vector<std::uint8_t> subs;
-    for (const auto& [s, so] : o->subs())
-      if (s != 0 && mine(0x6200, s)) subs.push_back(s);
-    for (std::uint8_t s : subs) {
+  // outputs_ holds exactly the configured output entries (6200h and 6411h sub-indices), each
+  // belonging to one FE: walk them, no search per entry (the gateway calls this per upstream frame
+  // while a command watchdog has expired).
+  for (const auto& [key, refs] : outputs_) {
+    if (refs.empty() || (only && !(refs.front().fe == *only))) continue;
+    const auto index = static_cast<std::uint16_t>(key >> 8);
+    const auto s = static_cast<std::uint8_t>(key);
+    if (index == 0x6200) {
+      // CiA 401 6206h/6207h: per bit, mode 1 = take the error value.
       const auto cur = od_.get<std::uint8_t>(0x6200, s);
       const auto mode = od_.get<std::uint8_t>(0x6206, s);
       const auto val = od_.get<std::uint8_t>(0x6207, s);
       const auto next = static_cast<std::uint8_t>((cur & ~mode) | (val & mode));
       if (next != cur) (void)od_.set<std::uint8_t>(0x6200, s, next, Origin::Local);
-    }
-  }
-  if (const canopen::Object* o = od_.find(0x6411)) {
-    std::vector<std::uint8_t> subs;
-    for (const auto& [s, so] : o->subs())
-      if (s != 0 && mine(0x6411, s)) subs.push_back(s);
-    for (std::uint8_t s : subs) {
-      if (od_.get<std::uint8_t>(0x6443, s) != 1) continue;
+    } else if (index == 0x6411 && od_.get<std::uint8_t>(0x6443, s) == 1) {
+      // 6443h/6444h per channel.
       const std::int32_t ev = od_.get<std::int32_t>(0x6444, s);
       const auto clamped = static_cast<std::int16_t>(std::clamp<std::int32_t>(ev, -32768, 32767));
       if (clamped != od_.get<std::int16_t>(0x6411, s)) (void)od_.set<std::int16_t>(0x6411, s, clamped, Origin::Local);
