@@ -143,10 +143,6 @@ class GatewayE2E : public ::testing::Test {
     store_ = std::filesystem::path(::testing::TempDir()) /
              fmt::format("gateway_e2e_{}_{}.store", ::getpid(), ::testing::UnitTest::GetInstance()->random_seed());
     std::filesystem::remove(store_);
-    gw::GatewayOptions opt;
-    opt.store_path = store_;
-    gw_ = std::make_unique<Gateway>(config_, gw_up_->sink(), gw_down_->sink(), opt);
-    gw_->on_log = [this](const std::string& l) { log_ += fmt::format("[{:>6}] {}\n", ms(), l); };
     host_ = std::make_unique<Master>(host_od_, host_port_->sink(), MasterConfig{.heartbeat_entries = 2, .sdo_timeout = 500ms});
     host_->on_emcy = [this](const EmcyMessage& m, TimePoint) {
       emcys_.push_back(m);
@@ -155,12 +151,29 @@ class GatewayE2E : public ::testing::Test {
     };
     host_->on_other_frame = [this](const CanFrame& f, TimePoint) { pdos_.push_back(f); };
     bench_drv_ = std::make_unique<ServiceDriver>(loop_, *bench_);
-    gw_drv_ = std::make_unique<ServiceDriver>(loop_, *gw_);
     host_drv_ = std::make_unique<ServiceDriver>(loop_, *host_);
     sims_port_->set_receiver([this](const CanFrame& f, TimePoint t) {
       bench_->on_frame(f, t);
       bench_drv_->rearm();
     });
+    connect_gateway();
+    host_port_->set_receiver([this](const CanFrame& f, TimePoint t) {
+      host_->on_frame(f, t);
+      host_drv_->rearm();
+    });
+  }
+  // A gateway process on the mapping file and store_, attached to both buses (a restart calls
+  // this again: the old gateway is detached and destroyed first).
+  void connect_gateway() {
+    gw_up_->set_receiver({});
+    gw_down_->set_receiver({});
+    gw_drv_.reset();
+    gw_.reset();
+    gw::GatewayOptions opt;
+    opt.store_path = store_;
+    gw_ = std::make_unique<Gateway>(config_, gw_up_->sink(), gw_down_->sink(), opt);
+    gw_->on_log = [this](const std::string& l) { log_ += fmt::format("[{:>6}] {}\n", ms(), l); };
+    gw_drv_ = std::make_unique<ServiceDriver>(loop_, *gw_);
     gw_down_->set_receiver([this](const CanFrame& f, TimePoint t) {
       gw_->on_downstream_frame(f, t);
       gw_drv_->rearm();
@@ -168,10 +181,6 @@ class GatewayE2E : public ::testing::Test {
     gw_up_->set_receiver([this](const CanFrame& f, TimePoint t) {
       gw_->on_upstream_frame(f, t);
       gw_drv_->rearm();
-    });
-    host_port_->set_receiver([this](const CanFrame& f, TimePoint t) {
-      host_->on_frame(f, t);
-      host_drv_->rearm();
     });
   }
   void TearDown() override {
@@ -293,6 +302,13 @@ class GatewayE2E : public ::testing::Test {
     return std::all_of(fields.begin(), fields.end(), [](const auto& f) { return f.value == 0; });
   }
   sd::sim::ElobauMfgSim& grip() { return dynamic_cast<sd::sim::ElobauMfgSim&>(*bench_->device("right_grip")); }
+  // The MCB-402's OUT0..3 as "1010".
+  std::string mcb_leds() const {
+    std::string out;
+    for (int i = 1; i <= 4; ++i)
+      out += std::to_string(*bench_->device("left_grip")->output("leds[" + std::to_string(i) + "]"));
+    return out;
+  }
   sd::sim::Mcb402Sim& mcb() { return dynamic_cast<sd::sim::Mcb402Sim&>(*bench_->device("left_grip")); }
   std::string dump() const {
     std::string s = log_ + "upstream frames:\n";
@@ -917,12 +933,15 @@ TEST_F(GatewayE2E, HostHeartbeatLossAppliesErrorValuesToTheLeds) {
 
 // indicators.1 (the cluster's lamps) from DDS only, indicators.2 (MCB-402) from the host and LCM,
 // indicators.3 (elobau LEDs) from all three (no `sources`).
+// Inserts `line` into a mapping file right after the first `after`.
+void insert_after(std::string& yaml, const std::string& after, const std::string& line) {
+  const auto at = yaml.find(after);
+  ASSERT_NE(at, std::string::npos) << after;
+  yaml.insert(at + after.size(), line);
+}
+
 std::string with_sources(std::string yaml) {
-  auto put = [&yaml](const std::string& after, const std::string& line) {
-    const auto at = yaml.find(after);
-    EXPECT_NE(at, std::string::npos) << after;
-    yaml.insert(at + after.size(), line);
-  };
+  auto put = [&yaml](const std::string& after, const std::string& line) { insert_after(yaml, after, line); };
   put("  indicators.1:\n", "    sources: [dds]\n");
   put("  indicators.2:\n", "    sources: [canopen, lcm]\n");
   put("downstream: { interface: virtual, bitrate: 250000 }\n", "publish: { dds: { enabled: true } }\n");
@@ -1005,21 +1024,12 @@ TEST_F(GatewayE2E, AnRpdoMixingARefusedAndAnAcceptedEntryAppliesTheAcceptedOne) 
 TEST_F(GatewayE2E, ASilentCommanderPutsItsFeToTheErrorValuesUntilTheNextCommand) {
   build("", [](std::string yaml) {
     yaml = with_sources(yaml);
-    auto put = [&yaml](const std::string& after, const std::string& line) {
-      yaml.insert(yaml.find(after) + after.size(), line);
-    };
-    put("    sources: [dds]\n", "    command_timeout_ms: 500\n");
-    put("    sources: [canopen, lcm]\n", "    command_timeout_ms: 1000\n");
+    insert_after(yaml, "    sources: [dds]\n", "    command_timeout_ms: 500\n");
+    insert_after(yaml, "    sources: [canopen, lcm]\n", "    command_timeout_ms: 1000\n");
     return yaml;
   });
   using oegw::mapping::CommandSource;
   auto* cluster = bench_->device("cluster");
-  auto* left = bench_->device("left_grip");
-  auto leds = [&] {
-    std::string out;
-    for (int i = 1; i <= 4; ++i) out += std::to_string(*left->output("leds[" + std::to_string(i) + "]"));
-    return out;
-  };
   // The loop may run before power-on: the watchdogs start with the gateway, not before.
   run_for(600ms);
   EXPECT_EQ(log_.find("no command for"), std::string::npos) << log_;
@@ -1035,7 +1045,7 @@ TEST_F(GatewayE2E, ASilentCommanderPutsItsFeToTheErrorValuesUntilTheNextCommand)
   ASSERT_EQ(sdo_write(0x6207, 0x09, {0x0A}), SdoAbortCode::None);
   run_for(100ms);
   EXPECT_EQ(cluster->output("out[1]"), 0x81);
-  EXPECT_EQ(leds(), "0101");
+  EXPECT_EQ(mcb_leds(), "0101");
 
   // The host commands indicators.2 (1000 ms watchdog), DDS commands indicators.1 (500 ms).
   ASSERT_EQ(sdo_write(0x6200, 0x09, {0x05}), SdoAbortCode::None);
@@ -1049,7 +1059,7 @@ TEST_F(GatewayE2E, ASilentCommanderPutsItsFeToTheErrorValuesUntilTheNextCommand)
   run_for(250ms);
   EXPECT_EQ(cluster->output("out[1]"), 0x81) << "silent for 550 ms > 500 ms\n" << log_;
   EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x01)), 0x81u);
-  EXPECT_EQ(leds(), "1010") << "indicators.2 is commanded (850 ms < 1000 ms): only indicators.1 took error values";
+  EXPECT_EQ(mcb_leds(), "1010") << "indicators.2 is commanded (850 ms < 1000 ms): only indicators.1 took error values";
   ASSERT_TRUE(gw_->command_indicators(1, 0x0F, loop_.now(), CommandSource::Dds));
   run_for(100ms);
   EXPECT_EQ(cluster->output("out[1]"), 0x0F) << "the next command takes over again";
@@ -1058,9 +1068,9 @@ TEST_F(GatewayE2E, ASilentCommanderPutsItsFeToTheErrorValuesUntilTheNextCommand)
   ASSERT_EQ(sdo_write(0x6200, 0x09, {0x05}), SdoAbortCode::None);
   run_for(700ms);
   EXPECT_FALSE(gw_->command_indicators(2, 0x05, loop_.now(), CommandSource::Dds));
-  EXPECT_EQ(leds(), "1010") << "700 ms after the last host write";
+  EXPECT_EQ(mcb_leds(), "1010") << "700 ms after the last host write";
   run_for(400ms);
-  EXPECT_EQ(leds(), "0101") << "silent for 1100 ms: 6207h:09 = 0Ah\n" << log_;
+  EXPECT_EQ(mcb_leds(), "0101") << "silent for 1100 ms: 6207h:09 = 0Ah\n" << log_;
 }
 
 // The same rules for a display (6411h, error value 6444h): display.1 parameter 1 drives the
@@ -1095,27 +1105,21 @@ TEST_F(GatewayE2E, ADisplayTakesItsSourcesAndItsWatchdogLikeAnIndicatorCluster) 
 TEST_F(GatewayE2E, AmongTheListedSourcesTheLastWriteWins) {
   build("", with_sources);
   boot_and_start();
-  auto* left = bench_->device("left_grip");
-  auto leds = [&] {
-    std::string s;
-    for (int i = 1; i <= 4; ++i) s += std::to_string(*left->output("leds[" + std::to_string(i) + "]"));
-    return s;
-  };
   using oegw::mapping::CommandSource;
   // indicators.2 takes canopen and lcm.
   ASSERT_EQ(sdo_write(0x6200, 0x09, {0x05}), SdoAbortCode::None);
   run_for(200ms);
-  EXPECT_EQ(leds(), "1010");
+  EXPECT_EQ(mcb_leds(), "1010");
   EXPECT_TRUE(gw_->command_indicators(2, 0x0A, loop_.now(), CommandSource::Lcm));
   run_for(200ms);
-  EXPECT_EQ(leds(), "0101") << "LCM wrote last";
+  EXPECT_EQ(mcb_leds(), "0101") << "LCM wrote last";
   EXPECT_EQ(decode_unsigned(*sdo_read(0x6200, 0x09)), 0x0Au) << "the host reads what LCM set";
   (void)host_port_->send(CanFrame(kRpdo5, {0x01, 0, 0, 0, 0, 0, 0, 0}));
   run_for(200ms);
-  EXPECT_EQ(leds(), "1000") << "the host's RPDO wrote last";
+  EXPECT_EQ(mcb_leds(), "1000") << "the host's RPDO wrote last";
   EXPECT_FALSE(gw_->command_indicators(2, 0x0F, loop_.now(), CommandSource::Dds)) << "DDS is not listed";
   run_for(200ms);
-  EXPECT_EQ(leds(), "1000");
+  EXPECT_EQ(mcb_leds(), "1000");
   // indicators.3 lists no sources: all three.
   auto* right = bench_->device("right_grip");
   EXPECT_TRUE(gw_->command_indicators(3, 0x02, loop_.now(), CommandSource::Dds));
@@ -1153,22 +1157,7 @@ TEST_F(GatewayE2E, SavedUpstreamConfigurationSurvivesAGatewayRestart) {
   boot_and_start();
   ASSERT_EQ(sdo_write(0x1010, 1, {'s', 'a', 'v', 'e'}), SdoAbortCode::None);
   // Power cycle of the gateway: a new process on the same mapping file and store.
-  gw_up_->set_receiver({});
-  gw_down_->set_receiver({});
-  gw_drv_.reset();
-  gw_.reset();
-  gw::GatewayOptions opt;
-  opt.store_path = store_;
-  gw_ = std::make_unique<Gateway>(config_, gw_up_->sink(), gw_down_->sink(), opt);
-  gw_drv_ = std::make_unique<ServiceDriver>(loop_, *gw_);
-  gw_down_->set_receiver([this](const CanFrame& f, TimePoint t) {
-    gw_->on_downstream_frame(f, t);
-    gw_drv_->rearm();
-  });
-  gw_up_->set_receiver([this](const CanFrame& f, TimePoint t) {
-    gw_->on_upstream_frame(f, t);
-    gw_drv_->rearm();
-  });
+  connect_gateway();
   const auto loaded = gw_->start(loop_.now());
   EXPECT_TRUE(loaded.ok) << loaded.error;
   run_for(3s);
