@@ -24,6 +24,7 @@
 #include "gateway/publish/publish_schedule.hpp"
 #include "oegw.h"
 #include "dds_command_writer.hpp"
+#include "tests/publish/subscriber_lines.hpp"
 #include "oegw/indicator_command_t.hpp"
 #include "subdevices/device_spec.hpp"
 #include "subdevices/network_manager.hpp"
@@ -39,19 +40,8 @@ using namespace std::chrono_literals;
 namespace oegw::gateway {
 namespace {
 
-const char* status_name(FeStatus s) {
-  static const char* const names[] = {"valid", "error", "not_available", "stale", "offline"};
-  return names[static_cast<int>(s)];
-}
-std::string line_of(const JoystickSample& j) {
-  char b[256];
-  std::snprintf(b, sizeof b,
-                "joystick instance=%u status=%s seq=%u ts_us=%lld x=%d y=%d z=%d buttons=0x%02x memory=0x%02x",
-                j.h.instance, status_name(j.h.status), j.h.seq, static_cast<long long>(j.h.timestamp_us), j.x, j.y,
-                j.z, j.buttons, j.memory);
-  return b;
-}
-std::string without_rx(const std::string& l) { return l.substr(0, l.find(" rx_us=")); }
+using test::line_of;
+using test::without_rx;
 std::int64_t us(TimePoint t) { return t.time_since_epoch().count(); }
 
 // Publishes to DDS and LCM, then waits until both subscribers printed the sample (they keep the

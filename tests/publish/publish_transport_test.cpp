@@ -25,28 +25,15 @@
 #include "oegw/indicator_command_t.hpp"
 #include "tests/publish/child_process.hpp"
 #include "tests/publish/private_network.hpp"
+#include "tests/publish/subscriber_lines.hpp"
 
 namespace oegw::gateway {
 namespace {
 
 using namespace std::chrono_literals;
 using test::ChildProcess;
-
-const char* status_name(FeStatus s) {
-  static const char* const names[] = {"valid", "error", "not_available", "stale", "offline"};
-  return names[static_cast<int>(s)];
-}
-
-// The example subscribers' line, without the trailing " rx_us=...".
-std::string line_of(const JoystickSample& j) {
-  char b[256];
-  std::snprintf(b, sizeof b,
-                "joystick instance=%u status=%s seq=%u ts_us=%lld x=%d y=%d z=%d buttons=0x%02x memory=0x%02x",
-                j.h.instance, status_name(j.h.status), j.h.seq, static_cast<long long>(j.h.timestamp_us), j.x, j.y,
-                j.z, j.buttons, j.memory);
-  return b;
-}
-std::string without_rx(const std::string& l) { return l.substr(0, l.find(" rx_us=")); }
+using test::line_of;
+using test::without_rx;
 
 // Forwards to a transport and remembers what went out.
 struct Tee : Publisher {
