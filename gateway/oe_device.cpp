@@ -287,33 +287,24 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
 }
 
 void OeDevice::watch_host_commands() {
-  // index << 8 | sub of every output entry -> its FE and whether the host may write it.
-  struct Entry {
-    FeId fe;
-    bool refused;
-  };
-  std::map<std::uint32_t, Entry> entries;
-  for (const auto& [key, refs] : outputs_) {
-    if (refs.empty()) continue;
-    const FeId fe = refs.front().fe;
-    entries.emplace(key, Entry{fe, cfg_.host_may_not_command.count(fe) != 0});
-  }
-  if (entries.empty()) return;
+  if (outputs_.empty()) return;
   for (const std::uint16_t index : {std::uint16_t{0x6200}, std::uint16_t{0x6411}}) {
     canopen::Object* o = od_.find(index);
     if (o == nullptr) continue;
-    subs_ += o->add_write_hook(
-        [this, entries](canopen::Object& obj, std::uint8_t sub, std::span<const std::uint8_t>, Origin origin) {
-          if (origin == Origin::Local) return SdoAbortCode::None;
-          const auto it = entries.find(static_cast<std::uint32_t>(obj.index()) << 8 | sub);
-          if (it == entries.end()) return SdoAbortCode::None;
-          if (!it->second.refused) {
-            if (on_host_command_) on_host_command_(it->second.fe);
-            return SdoAbortCode::None;
-          }
-          if (on_refused_) on_refused_(it->second.fe, origin);
-          return SdoAbortCode::CannotTransferLocalControl;
-        });
+    subs_ += o->add_write_hook([this](canopen::Object& obj, std::uint8_t sub, std::span<const std::uint8_t>,
+                                      Origin origin) {
+      if (origin == Origin::Local) return SdoAbortCode::None;
+      // outputs_: index << 8 | sub of every configured output entry -> its FE's fields.
+      const auto it = outputs_.find(static_cast<std::uint32_t>(obj.index()) << 8 | sub);
+      if (it == outputs_.end() || it->second.empty()) return SdoAbortCode::None;
+      const FeId fe = it->second.front().fe;
+      if (cfg_.host_may_not_command.count(fe) == 0) {
+        if (on_host_command_) on_host_command_(fe);
+        return SdoAbortCode::None;
+      }
+      if (on_refused_) on_refused_(fe, origin);
+      return SdoAbortCode::CannotTransferLocalControl;
+    });
   }
 }
 
