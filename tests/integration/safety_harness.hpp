@@ -335,10 +335,12 @@ class Bench {
       // What the gateway's interface carried: while it is down, nothing (its own frames never
       // reach the bus then).
       if (!gw_link_down) mon_.on_downstream(r, r.sender == "gateway");
+      if (r.sender == "gateway" && r.frame.id >= 0x200 && r.frame.id < 0x580) rpdos_.push_back(r);
     });
     up_.set_tap([this](const BusRecord& r) {
       if (trace_) trace_line("up", r);
       mon_.on_upstream(r, *gw_);
+      if (r.frame.id == 0x80u + kGwNode) up_emcys_.push_back(r);
     });
     mon_.context = [this] {
       return (context_ ? context_() : std::string()) + (trace_ ? "\nframes:\n" + trace_tail(60) : std::string());
@@ -424,6 +426,7 @@ class Bench {
   }
   // The host produces its heartbeat (701h, 100 ms) while host_alive, watched by the gateway (1016h:01, 250 ms).
   void host_heartbeat() {
+    host_hb_first = loop_.now();
     loop_.call_every(loop_.now(), 100ms, [this] {
       if (host_alive) (void)host_port_->send(CanFrame(0x701, {0x05}));
     });
@@ -587,11 +590,21 @@ class Bench {
     return log_.substr(pos);
   }
 
+  // The gateway's RPDOs downstream and its EMCYs upstream, as delivered.
+  [[nodiscard]] const std::vector<BusRecord>& rpdos() const { return rpdos_; }
+  [[nodiscard]] const std::vector<BusRecord>& up_emcys() const { return up_emcys_; }
+  // Feeds a frame to the gateway's downstream side directly (sans I/O), as its interface would.
+  void gateway_receives(const CanFrame& f) {
+    gw_->on_downstream_frame(f, loop_.now());
+    gw_drv_->rearm();
+  }
+
   // Fault switches of the wiring.
   bool dev_drop_all = false;    // bus-off: nothing from/to the device
   bool dev_drop_tpdos = false;  // its TPDOs are lost
   bool gw_link_down = false;    // the gateway's downstream interface is down
   bool host_alive = true;
+  TimePoint host_hb_first{};  // the host's heartbeats go at host_hb_first + k x 100 ms
 
  private:
   void device_out(const CanFrame& f) {
@@ -625,6 +638,7 @@ class Bench {
   std::function<void(TimePoint)> on_trigger_;
   std::function<std::string()> context_;
   std::string log_;
+  std::vector<BusRecord> rpdos_, up_emcys_;
   bool trace_ = false;
   std::string trace_text_;
 };

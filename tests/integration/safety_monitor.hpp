@@ -118,6 +118,7 @@ class Monitor {
     Duration grace{2ms};              // processing grace: 1 ms + the 1 ms tick of the harness
     Duration reboot_report{1000ms};   // a boot-up not followed by proof of life within this: EMCY due
     std::size_t max_reports = 8;      // ADD_FAILUREs per test; later violations are only counted
+    bool inputs = true;               // invariants (1) and (2); false: outputs only (3)
   };
 
   Monitor(Knowledge k, Options o) : k_(std::move(k)), o_(o) {
@@ -261,7 +262,8 @@ class Monitor {
         violation(t, fmt::format("host heartbeat lost: {} should show its error state {:02X}h on RPDO {:03X}h "
                                  "by {}, the device got {}",
                                  mapping::fe_name(o.k->fe), *o.expect, cob, at(o.expect_by),
-                                 o.last_sent ? fmt::format("{:02X}h", *o.last_sent) : std::string("nothing")));
+                                 o.last_sent ? fmt::format("{:02X}h", *o.last_sent) : std::string("nothing")),
+                  {}, /*input=*/false);
         o.expect.reset();
       }
     }
@@ -479,12 +481,13 @@ class Monitor {
       violation(t, fmt::format("RPDO {} to node {:02X}h carries {} = {:02X}h, which nobody commanded (commanded "
                                "{:02X}h, before it {:02X}h; error mode {:02X}h value {:02X}h)",
                                f.to_string(), o.k->node, mapping::fe_name(o.k->fe), state, o.current, o.previous,
-                               o.mode, o.value));
+                               o.mode, o.value),
+                {}, /*input=*/false);
     if (o.expect && state == *o.expect) o.expect.reset();
   }
 
-  void violation(TimePoint t, const std::string& what, const std::string& once_key = {}) {
-    if (!enabled_) return;
+  void violation(TimePoint t, const std::string& what, const std::string& once_key = {}, bool input = true) {
+    if (!enabled_ || (input && !o_.inputs)) return;
     if (!once_key.empty()) {
       // A lasting condition is reported when it starts, not every tick.
       auto& last = once_[once_key];
