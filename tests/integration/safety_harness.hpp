@@ -332,9 +332,11 @@ class Bench {
           bench_drv_->rearm();
         }
       }
-      // What the gateway's interface carried: while it is down, nothing (its own frames never
-      // reach the bus then).
-      if (!gw_link_down) mon_.on_downstream(r, r.sender == "gateway");
+      // What the gateway's interface carried: everything it sent (a frame of its own on the bus
+      // left while the interface was up) and what it receives now (the flag as its receiver,
+      // right after this tap, sees it).
+      const bool from_gateway = r.sender == "gateway";
+      if (from_gateway || !gw_link_down) mon_.on_downstream(r, from_gateway);
       if (r.sender == "gateway" && r.frame.id >= 0x200 && r.frame.id < 0x580) rpdos_.push_back(r);
     });
     up_.set_tap([this](const BusRecord& r) {
@@ -343,9 +345,12 @@ class Bench {
       if (r.frame.id == 0x80u + kGwNode) up_emcys_.push_back(r);
     });
     mon_.context = [this] {
-      return (context_ ? context_() : std::string()) + (trace_ ? "\nframes:\n" + trace_tail(60) : std::string());
+      return (context_ ? context_() : std::string()) + (trace_ ? "\nframes:\n" + trace_tail(trace_lines_) : std::string());
     };
-    trace_ = std::getenv("OEGW_SAFETY_TRACE") != nullptr;
+    if (const char* tr = std::getenv("OEGW_SAFETY_TRACE")) {
+      trace_ = true;
+      trace_lines_ = std::max<std::size_t>(60, std::strtoul(tr, nullptr, 10));
+    }
   }
 
   // Power on of the gateway; the host configures the upstream PDOs (and 6423h) and NMT-starts it.
@@ -411,7 +416,7 @@ class Bench {
   // The host commands indicators.1 (6200h:01) by SDO download or by RPDO 1; the monitor is told.
   void command_outputs(std::uint8_t bits, bool by_rpdo) {
     if (!fam_.out) return;
-    mon_.commanded(*fam_.out, bits, loop_.now());
+    mon_.commanded(*fam_.out, bits, loop_.now(), by_rpdo);
     if (by_rpdo) {
       (void)host_port_->send(CanFrame(kUpRpdo1, {bits, 0, 0, 0, 0, 0, 0, 0}));
     } else {
@@ -640,6 +645,7 @@ class Bench {
   std::string log_;
   std::vector<BusRecord> rpdos_, up_emcys_;
   bool trace_ = false;
+  std::size_t trace_lines_ = 60;
   std::string trace_text_;
 };
 

@@ -149,6 +149,7 @@ class Monitor {
         if (cs == 0x01) {
           n.start = t;
           n.op_hb.reset();
+          n.first_op.reset();
           n.bad_state.reset();
           n.pdo.clear();
           n.lost_reported = false;
@@ -170,6 +171,7 @@ class Monitor {
         } else if (n.start) {
           if (s == 0x05) {
             if (!n.bad_state) n.op_hb = t;
+            if (!n.first_op) n.first_op = t;
           } else if (n.op_hb && !n.bad_state) {
             n.bad_state = t;  // once operational, another state is a loss
           }
@@ -189,10 +191,16 @@ class Monitor {
     const TimePoint t = r.time;
     refresh(t);
     const CanFrame& f = r.frame;
+    if (f.id == 0x700u + k_.gateway_node && f.dlc == 1) gw_operational_ = f.data[0] == 0x05;
+    if (f.id == 0 && f.dlc >= 2 && (f.data[1] == k_.gateway_node || f.data[1] == 0))
+      gw_operational_ = f.data[0] == 0x01;
     if (f.id == 0x80u + k_.gateway_node && f.dlc == 8) {
       const std::uint16_t code = static_cast<std::uint16_t>(f.data[0] | (f.data[1] << 8));
       const std::uint8_t named = f.data[3];
-      if (code == 0x8130) host_lost(t);
+      if (code == 0x8130) {
+        host_lost(t);
+        gw_operational_ = false;  // 1029h:01 = 0 (default): pre-operational on the loss
+      }
       auto it = nodes_.find(named);
       auto note = [&](NodeState& n, bool raise) {
         if (!raise && n.emcy && !hb_alive(n, t))
@@ -240,8 +248,10 @@ class Monitor {
       if (std::any_of(ufe.fields.begin(), ufe.fields.end(), [&](const UpField& f) { return !proven(f, t); }))
         check_fe(ufe, gw, t, "gateway state (the next DDS/LCM sample)");
       for (const auto& fld : ufe.fields) {
+        // While the gateway is not operational upstream it sends no PDO (CiA 301) and the host
+        // knows it from its heartbeat; when it is operational again it must send the values.
         auto it = up_last_.find({ufe.cob, fld.name});
-        if (it != up_last_.end() && it->second != fld.fault && !proven(fld, t))
+        if (gw_operational_ && it != up_last_.end() && it->second != fld.fault && !proven(fld, t))
           violation(t, fmt::format("the last upstream TPDO still shows {} {} = {} without proof of life of node "
                                    "{:02X}h: {}",
                                    mapping::fe_name(ufe.fe), fld.name, it->second, fld.node, field_life_text(fld, t)),
@@ -258,6 +268,12 @@ class Monitor {
       if (!due) n.lost_reported = false;
     }
     for (auto& [cob, o] : outs_) {
+      if (o.expect && o.expect_after_restart) {
+        const NodeState& n = nodes_.at(o.k->node);
+        if (!(n.start && *n.start >= o.lost_at && n.first_op)) continue;
+        o.expect_by = *n.first_op + o_.grace;
+        o.expect_after_restart = false;
+      }
       if (o.expect && t > o.expect_by && o.last_sent != *o.expect && node_hb_alive(o.k->node, t)) {
         violation(t, fmt::format("host heartbeat lost: {} should show its error state {:02X}h on RPDO {:03X}h "
                                  "by {}, the device got {}",
@@ -270,7 +286,10 @@ class Monitor {
   }
 
   // ---- What the test did (for invariant 3) ----
-  void commanded(FeId fe, std::uint64_t bits, TimePoint) {
+  // `by_rpdo`: the host's RPDO, which the gateway applies only while operational (its heartbeat,
+  // the host's NMT commands and 1029h on a host heartbeat loss tell the monitor its state).
+  void commanded(FeId fe, std::uint64_t bits, TimePoint, bool by_rpdo = false) {
+    if (by_rpdo && !gw_operational_) return;  // not a command: CiA 301 processes no PDO then
     for (auto& [cob, o] : outs_)
       if (o.k->fe == fe) {
         o.previous = o.current;
@@ -324,6 +343,7 @@ class Monitor {
     const NodeKnowledge* k = nullptr;
     std::optional<TimePoint> start;      // the gateway's last NMT start to it (reset: none)
     std::optional<TimePoint> op_hb;      // last 05h heartbeat after `start`
+    std::optional<TimePoint> first_op;   // first 05h heartbeat after `start` (the proof: live from here)
     std::optional<TimePoint> bad_state;  // a heartbeat in another state after being operational
     std::optional<TimePoint> bootup;     // its last boot-up
     std::map<std::uint32_t, TimePoint> pdo;  // arrival of each TPDO after `start`
@@ -340,6 +360,8 @@ class Monitor {
     std::optional<std::uint64_t> last_sent;
     std::optional<std::uint64_t> expect;
     TimePoint expect_by{};
+    bool expect_after_restart = false;
+    TimePoint lost_at{};
   };
 
   static long ms(Duration d) { return static_cast<long>(std::chrono::duration_cast<std::chrono::milliseconds>(d).count()); }
@@ -394,10 +416,14 @@ class Monitor {
     for (const auto& p : n.k->tpdos) {
       if (p.deadline == Duration{0}) continue;
       auto it = n.pdo.find(p.cob);
-      const TimePoint from = it == n.pdo.end() ? *n.start : it->second;
+      // No PDO yet: the deadline runs from the proof of life (the first 05h heartbeat after NMT
+      // start, when the gateway takes the node's inputs as live); before it the heartbeat rule
+      // above applies.
+      if (it == n.pdo.end() && !n.first_op) continue;
+      const TimePoint from = it == n.pdo.end() ? *n.first_op : it->second;
       if (t - from > p.deadline + g)
         return fmt::format("TPDO {:03X}h {} (deadline {} ms)", p.cob,
-                           it == n.pdo.end() ? "not received since NMT start at " + at(*n.start)
+                           it == n.pdo.end() ? "not received since the first heartbeat in operational at " + at(*n.first_op)
                                              : "last received at " + at(it->second),
                            ms(p.deadline));
     }
@@ -457,7 +483,11 @@ class Monitor {
   void host_lost(TimePoint t) {
     for (auto& [cob, o] : outs_) {
       o.expect = error_state(o, o.current);
+      // A node alive now gets it in the same call; a node the gateway must first restart gets
+      // it when it is proven alive again (first 05h heartbeat after its next NMT start).
       o.expect_by = t + o_.grace;
+      o.expect_after_restart = !node_hb_alive(o.k->node, t);
+      o.lost_at = t;
       o.previous = o.current;
       o.current = *o.expect;  // what the outputs hold from now on
     }
@@ -513,6 +543,7 @@ class Monitor {
   std::size_t violations_ = 0;
   std::vector<std::string> reports_;
   bool enabled_ = true;
+  bool gw_operational_ = false;
   TimePoint t0_{};
 };
 

@@ -66,7 +66,7 @@ struct Runner {
   bool chance(double p) { return std::bernoulli_distribution(p)(rng); }
   void note(const std::string& what) {
     recent.push_back(fmt::format("step {} t={} ms: {}", step, b.ms(), what));
-    if (recent.size() > 25) recent.pop_front();
+    if (recent.size() > 60) recent.pop_front();
   }
   std::string context() const {
     std::string s = fmt::format("family {} seed {} step {}; replay: OEGW_SAFETY_SEED={} OEGW_SAFETY_FAMILY={}\nlast actions:\n",
