@@ -78,6 +78,7 @@ struct Family {
   std::uint64_t out_mask = 0;
   Duration pdo_period{0};    // the device's TPDO event timer (0: on change only)
   Duration pdo_deadline{0};  // 3 x that: contract point 2
+  Duration pdo_deadline_max{0};  // the longest deadline of the device's TPDOs (MCB-402: buttons 300 ms)
   Knowledge knowledge;
 };
 
@@ -130,6 +131,7 @@ functional_elements:
       f.out_mask = 0x03;
       f.pdo_period = 100ms;
       f.pdo_deadline = 300ms;
+      f.pdo_deadline_max = 300ms;
       NodeKnowledge n{"grip", 0x11, 150ms, {{0x191, 300ms}, {0x291, 300ms}}};
       UpFe fe{f.fe, f.up_cob, {{"x", 0, 2, -1, 0, 0x11, 0x191}, {"y", 2, 2, -1, 0, 0x11, 0x191}}};
       bits(fe, "buttons", 8, 7, 0x11, 0x191);
@@ -163,6 +165,7 @@ functional_elements:
       f.out_mask = 0x0F;
       f.pdo_period = 20ms;
       f.pdo_deadline = 60ms;
+      f.pdo_deadline_max = 300ms;
       NodeKnowledge n{"grip", 0x03, 150ms, {{0x183, 300ms}, {0x283, 60ms}}};
       UpFe fe{f.fe, f.up_cob,
               {{"x", 0, 2, -1, 0, 0x03, 0x283}, {"y", 2, 2, -1, 0, 0x03, 0x283}, {"z", 4, 2, -1, 0, 0x03, 0x283}}};
@@ -187,6 +190,7 @@ functional_elements:
       f.up_cob = 0x2C0;
       f.pdo_period = 10ms;
       f.pdo_deadline = 30ms;
+      f.pdo_deadline_max = 30ms;
       NodeKnowledge n{"knob", 0x7F, 150ms, {{0x1FF, 30ms}}};
       UpFe fe{f.fe, f.up_cob, {{"position", 0, 4, -1, 0, 0x7F, 0x1FF}}};
       f.knowledge = {kGwNode, {n}, {fe}, {}};
@@ -216,6 +220,7 @@ functional_elements:
       f.up_cob = 0x2B0;
       f.pdo_period = 50ms;
       f.pdo_deadline = 150ms;
+      f.pdo_deadline_max = 150ms;
       NodeKnowledge n{"pedal", 0x30, 150ms, {{0x1B0, 150ms}}};
       UpFe fe{f.fe, f.up_cob, {{"position", 1, 2, -1, 0, 0x30, 0x1B0}}};
       f.knowledge = {kGwNode, {n}, {fe}, {}};
@@ -519,7 +524,9 @@ class Bench {
       if (on) {
         n.inject_error_position(marker, now);
       } else {
-        n.set_position(n.position(), now);
+        // The simulator keeps an injected raw value until a power cycle (no other public
+        // control undoes it): the sensor is power-cycled.
+        n.reboot(now);
       }
     }
     bench_drv_->rearm();
