@@ -456,6 +456,30 @@ TEST_F(OeDeviceTest, HostHeartbeatLossNoticedWhileSendingInputTpdosAppliesTheErr
   EXPECT_EQ(outputs, (std::vector<O>{{indicators(1), "indicator[1]", 0}}));
 }
 
+// The host's heartbeat comes back in the state it had: that is the evidence that ends EMCY 8130h
+// (error reset), and a second loss applies the error values again.
+TEST_F(OeDeviceTest, AReturningHostHeartbeatClears8130hAndASecondLossAppliesTheErrorValuesAgain) {
+  make({indicators(1)}, /*host_node=*/1, /*host_ms=*/100);
+  nmt(0x01);
+  rx(0x701, {0x05});
+  sdo_ok(0x6200, 1, {0x01});
+  now += 150ms;
+  dev->advance(now);
+  ASSERT_TRUE(dev->node().emcy().active(0x8130));
+  ASSERT_EQ(u8(0x6200, 1), 0x00);
+  nmt(0x01);                                  // the host restarts us (1029h took us to pre-op)
+  const auto back = rx(0x701, {0x05});        // the host is back, still operational
+  EXPECT_FALSE(dev->node().emcy().active(0x8130));
+  bool reset_sent = false;
+  for (const auto& f : back) reset_sent = reset_sent || (f.id == 0x80 + kId.value() && f.data[0] == 0 && f.data[1] == 0);
+  EXPECT_TRUE(reset_sent) << "EMCY error reset upstream";
+  sdo_ok(0x6200, 1, {0x01});
+  now += 150ms;                               // lost again
+  dev->advance(now);
+  EXPECT_TRUE(dev->node().emcy().active(0x8130));
+  EXPECT_EQ(u8(0x6200, 1), 0x00) << "the error value again";
+}
+
 // Table 37 7000h for sub-device faults; node-ID and name in the manufacturer bytes.
 TEST_F(OeDeviceTest, SubdeviceFaultEmcy) {
   make({joystick(1)});
