@@ -39,6 +39,7 @@
 #include <functional>
 #include <map>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -148,6 +149,7 @@ class Monitor {
         if (target != 0 && target != id) continue;
         if (cs == 0x01) {
           n.start = t;
+          n.lapsed = false;
           n.op_hb.reset();
           n.first_op.reset();
           n.bad_state.reset();
@@ -213,10 +215,28 @@ class Monitor {
         note(it->second, code == 0x7000);
       } else if (code == 0x0000 && (f.data[2] & 0x01) == 0) {
         // The error reset of the last active error (the EMCY producer's own 0000h, no name):
-        // every sub-device fault is cleared.
-        for (auto& [id, n] : nodes_)
-          if (n.emcy) note(n, false);
+        // every sub-device fault is cleared. If only 7000h was active, this frame IS the clear
+        // of the (last) sub-device fault: evidence needed as for a named one. If another error
+        // (e.g. 8130h) was active too, the sub-device fault may have ended silently before (the
+        // producer says nothing while errors remain): then it is wrong only for a node that is
+        // past a deadline of the contract now.
+        const bool only_7000 = std::all_of(active_codes_.begin(), active_codes_.end(),
+                                           [](std::uint16_t c) { return c == 0x7000; });
+        for (auto& [id, n] : nodes_) {
+          if (!n.emcy) continue;
+          if (only_7000) {
+            note(n, false);
+            continue;
+          }
+          if (const auto due = emcy_due(n, t))
+            violation(t, fmt::format("EMCY {} (no error left) while {} (node {:02X}h) is lost: {}", f.to_string(),
+                                     n.k->name, n.k->id, *due));
+          n.emcy = false;
+          n.emcy_log.push_back({t, false});
+        }
+        active_codes_.clear();
       }
+      if (code != 0x0000) active_codes_.insert(code);
     }
     for (const auto& fe : k_.inputs) {
       if (f.id != fe.cob) continue;
@@ -274,7 +294,7 @@ class Monitor {
         o.expect_by = *n.first_op + o_.grace;
         o.expect_after_restart = false;
       }
-      if (o.expect && t > o.expect_by && o.last_sent != *o.expect && node_hb_alive(o.k->node, t)) {
+      if (o.expect && t > o.expect_by && o.last_sent != *o.expect && node_driven(o.k->node, t)) {
         violation(t, fmt::format("host heartbeat lost: {} should show its error state {:02X}h on RPDO {:03X}h "
                                  "by {}, the device got {}",
                                  mapping::fe_name(o.k->fe), *o.expect, cob, at(o.expect_by),
@@ -350,6 +370,7 @@ class Monitor {
     bool emcy = false;                       // 7000h naming it active upstream
     std::vector<EmcyEvent> emcy_log;
     bool lost_reported = false;
+    bool lapsed = false;  // its proof lapsed since `start`: the gateway must restart it first
     std::map<std::uint32_t, TimePoint> fresh_until;  // per TPDO: last time it was seen proven
     std::optional<TimePoint> hb_proven_at;           // last time the heartbeat proof held
   };
@@ -366,12 +387,23 @@ class Monitor {
 
   static long ms(Duration d) { return static_cast<long>(std::chrono::duration_cast<std::chrono::milliseconds>(d).count()); }
 
+  // The first 05h heartbeat after NMT start came within the consumer time (else the node is
+  // `missing` by contract until the gateway starts it again).
+  [[nodiscard]] bool started_in_time(const NodeState& n) const {
+    return n.start && n.first_op && *n.first_op - *n.start <= n.k->consumer;
+  }
   [[nodiscard]] bool hb_alive(const NodeState& n, TimePoint t) const {
-    return n.start && n.op_hb && !n.bad_state && *n.op_hb >= *n.start && t - *n.op_hb <= n.k->consumer;
+    return started_in_time(n) && n.op_hb && !n.bad_state && *n.op_hb >= *n.start && t - *n.op_hb <= n.k->consumer;
   }
   [[nodiscard]] bool node_hb_alive(std::uint8_t node, TimePoint t) const {
     auto it = nodes_.find(node);
     return it != nodes_.end() && hb_alive(it->second, t);
+  }
+  // Alive and never lapsed since the gateway started it: one the gateway can drive now (a node
+  // whose heartbeat came back by itself is restarted by the gateway first).
+  [[nodiscard]] bool node_driven(std::uint8_t node, TimePoint t) const {
+    auto it = nodes_.find(node);
+    return it != nodes_.end() && hb_alive(it->second, t) && !it->second.lapsed;
   }
   [[nodiscard]] bool pdo_fresh(const NodeState& n, std::uint32_t cob, TimePoint t) const {
     for (const auto& p : n.k->tpdos) {
@@ -397,6 +429,7 @@ class Monitor {
   void refresh(TimePoint t) {
     for (auto& [id, n] : nodes_) {
       if (hb_alive(n, t)) n.hb_proven_at = t;
+      if (n.start && (n.first_op || t - *n.start > n.k->consumer) && !hb_alive(n, t)) n.lapsed = true;
       for (const auto& p : n.k->tpdos)
         if (hb_alive(n, t) && pdo_fresh(n, p.cob, t)) n.fresh_until[p.cob] = t;
     }
@@ -409,7 +442,7 @@ class Monitor {
       return fmt::format("boot-up at {} and no NMT start since", at(*n.bootup));
     if (!n.start) return std::nullopt;
     if (n.bad_state && t - *n.bad_state > g) return fmt::format("a heartbeat in another state at {}", at(*n.bad_state));
-    if (!n.op_hb && t - *n.start > n.k->consumer + g)
+    if (!started_in_time(n) && t - *n.start > n.k->consumer + g)
       return fmt::format("NMT start at {} and no heartbeat in operational within {} ms", at(*n.start), ms(n.k->consumer));
     if (n.op_hb && t - *n.op_hb > n.k->consumer + g)
       return fmt::format("last heartbeat in operational at {} (consumer time {} ms)", at(*n.op_hb), ms(n.k->consumer));
@@ -486,7 +519,7 @@ class Monitor {
       // A node alive now gets it in the same call; a node the gateway must first restart gets
       // it when it is proven alive again (first 05h heartbeat after its next NMT start).
       o.expect_by = t + o_.grace;
-      o.expect_after_restart = !node_hb_alive(o.k->node, t);
+      o.expect_after_restart = !node_driven(o.k->node, t);
       o.lost_at = t;
       o.previous = o.current;
       o.current = *o.expect;  // what the outputs hold from now on
@@ -544,6 +577,7 @@ class Monitor {
   std::vector<std::string> reports_;
   bool enabled_ = true;
   bool gw_operational_ = false;
+  std::set<std::uint16_t> active_codes_;  // EMCY codes the gateway has raised and not reset
   TimePoint t0_{};
 };
 
