@@ -45,6 +45,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdio>
 #include <cstdlib>
 #include <set>
 #include <string>
@@ -246,6 +247,10 @@ class SafetyMatrix : public ::testing::TestWithParam<Cell> {
       return std::string("cell ") + name(GetParam().family) + "/" + fault_name(GetParam().fault) + "/" +
              phase_name(GetParam().phase) + "\n" + b_->tail(25);
     });
+  }
+  // OEGW_SAFETY_LOG=1: every cell prints its gateway log (what a passing cell went through).
+  void TearDown() override {
+    if (std::getenv("OEGW_SAFETY_LOG") != nullptr && b_) std::printf("%s", b_->log().c_str());
   }
   Bench& b() { return *b_; }
   // The gateway log (and with OEGW_SAFETY_TRACE=<lines>, the last frames of both buses).
