@@ -205,9 +205,11 @@ class Monitor {
       }
       auto it = nodes_.find(named);
       auto note = [&](NodeState& n, bool raise) {
-        if (!raise && n.emcy && !hb_alive(n, t))
-          violation(t, fmt::format("EMCY {} clears {} (node {:02X}h) without proof of life: {}", f.to_string(),
-                                   n.k->name, n.k->id, life_text(n, t)));
+        // Evidence: the heartbeat proof, and no deadline of the contract overdue (a PDO).
+        const auto due = emcy_due(n, t);
+        if (!raise && n.emcy && (!hb_alive(n, t) || due))
+          violation(t, fmt::format("EMCY {} clears {} (node {:02X}h) without proof of life: {}{}", f.to_string(),
+                                   n.k->name, n.k->id, life_text(n, t), due ? "; overdue: " + *due : std::string()));
         n.emcy = raise;
         n.emcy_log.push_back({t, raise});
       };
