@@ -200,5 +200,30 @@ TEST_F(SafetyFindings, ElobauNoFalseMismatchWhenTheStickMovesRightAfterACyclicTp
   EXPECT_EQ(b.field("x"), 16384) << b.log();
 }
 
+// Random Cia401Cluster seed 1 (before the monitor learnt it): a sub-device recovering while EMCY
+// 8130h (the host's heartbeat lost) is still active sends nothing upstream — the EMCY producer
+// stays silent while errors remain, and only a sub-device recovering while another SUB-DEVICE is
+// faulty gets its named 0000h (oe_device.hpp). The host learns of the recovery only when 8130h
+// ends. Expected (as for the other case): EMCY 0000h naming the node, with the remaining error
+// register. Minor: the host errs on the safe side, but its view of the cab is wrong meanwhile.
+TEST_F(SafetyFindings, ARecoveryWhileTheHostHeartbeatIsLostIsReportedUpstream) {
+  Bench& b = boot(FamilyId::Mcb402);
+  b.host_heartbeat();
+  b.run_for(300ms);
+  b.host_alive = false;
+  b.run_for(400ms);  // EMCY 8130h
+  b.dev()->set_heartbeat_stopped(true);
+  b.run_for(400ms);  // the grip lost: 7000h naming it
+  ASSERT_TRUE(b.mon().emcy_active_at(0x03, b.now())) << b.log();
+  const TimePoint lost = b.now();
+  b.dev()->set_heartbeat_stopped(false);
+  ASSERT_TRUE(b.run_until([&] { return b.node_state() == sd::NodeState::Operational; }, 10s)) << b.log();
+  b.run_for(10ms);
+  bool named_clear = false;
+  for (const auto& r : b.up_emcys())
+    if (r.time > lost && r.frame.data[0] == 0 && r.frame.data[1] == 0 && r.frame.data[3] == 0x03) named_clear = true;
+  EXPECT_TRUE(named_clear) << "no EMCY 0000h naming the grip when it recovered (8130h still active)\n" << b.log();
+}
+
 }  // namespace
 }  // namespace oegw::testing::safety
