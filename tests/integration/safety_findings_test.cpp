@@ -129,6 +129,8 @@ TEST_F(SafetyFindings, ANodeThatNeverSendsAPdoAfterStartIsStaleAndReported) {
 // the node goes live (the gateway resets the node's EMCY state on every state change, the
 // elobau driver its own at on_online): its inputs are live although the device never sent its
 // error reset. Expected: held at the fault values, status error, EMCY 7000h, until 0000h.
+// A regression of 1e501f5: on 7f97b59 (no `starting` state between configuring and operational)
+// this test passes.
 TEST_F(SafetyFindings, AnErrorEmcyDuringConfigurationHoldsTheInputsUntilTheErrorReset) {
   b_ = std::make_unique<Bench>(FamilyId::Elobau);
   Bench& b = *b_;
