@@ -605,6 +605,8 @@ class Bench {
   // The gateway's RPDOs downstream and its EMCYs upstream, as delivered.
   [[nodiscard]] const std::vector<BusRecord>& rpdos() const { return rpdos_; }
   [[nodiscard]] const std::vector<BusRecord>& up_emcys() const { return up_emcys_; }
+  // What the gateway sent while its downstream interface was down (lost).
+  [[nodiscard]] const std::vector<BusRecord>& lost_tx() const { return lost_tx_; }
   // Feeds a frame to the gateway's downstream side directly (sans I/O), as its interface would.
   void gateway_receives(const CanFrame& f) {
     gw_->on_downstream_frame(f, loop_.now());
@@ -625,7 +627,11 @@ class Bench {
     (void)sims_port_->send(f);
   }
   void gateway_out(const CanFrame& f) {
-    if (gw_link_down) return;
+    if (gw_link_down) {
+      mon_.sent_into_dead_interface(f, loop_.now());
+      lost_tx_.push_back({loop_.now(), "gateway", f});
+      return;
+    }
     (void)gw_down_->send(f);
   }
   void trace_line(const char* bus, const BusRecord& r) {
@@ -650,7 +656,7 @@ class Bench {
   std::function<void(TimePoint)> on_trigger_;
   std::function<std::string()> context_;
   std::string log_;
-  std::vector<BusRecord> rpdos_, up_emcys_;
+  std::vector<BusRecord> rpdos_, up_emcys_, lost_tx_;
   bool trace_ = false;
   std::size_t trace_lines_ = 60;
   std::string trace_text_;

@@ -296,6 +296,9 @@ class Monitor {
         o.expect_by = *n.first_op + o_.grace;
         o.expect_after_restart = false;
       }
+      // Sent in the same call that noticed the loss, before the EMCY reached the bus, but into
+      // a dead interface: the gateway did what it could.
+      if (o.expect && o.last_attempt == *o.expect && o.last_attempt_time >= o.lost_at) o.expect.reset();
       if (o.expect && t > o.expect_by && o.last_sent != *o.expect && node_driven(o.k->node, t)) {
         violation(t, fmt::format("host heartbeat lost: {} should show its error state {:02X}h on RPDO {:03X}h "
                                  "by {}, the device got {}",
@@ -305,6 +308,18 @@ class Monitor {
         o.expect.reset();
       }
     }
+  }
+
+  // A frame the gateway sent while its downstream interface was down (lost before the bus): it
+  // did what it could — an error state it carried counts as applied (the node, restarted when
+  // the interface is back, gets the current outputs again).
+  void sent_into_dead_interface(const CanFrame& f, TimePoint t) {
+    auto it = outs_.find(f.id);
+    if (it == outs_.end()) return;
+    OutState& o = it->second;
+    o.last_attempt = decode_state(o, f, o.last_sent.value_or(0));
+    o.last_attempt_time = t;
+    if (o.expect && *o.last_attempt == *o.expect) o.expect.reset();
   }
 
   // ---- What the test did (for invariant 3) ----
@@ -385,6 +400,8 @@ class Monitor {
     TimePoint expect_by{};
     bool expect_after_restart = false;
     TimePoint lost_at{};
+    std::optional<std::uint64_t> last_attempt;  // sent into a dead interface
+    TimePoint last_attempt_time{};
   };
 
   static long ms(Duration d) { return static_cast<long>(std::chrono::duration_cast<std::chrono::milliseconds>(d).count()); }
@@ -528,11 +545,7 @@ class Monitor {
     }
   }
 
-  void check_output(const CanFrame& f, TimePoint t) {
-    auto it = outs_.find(f.id);
-    if (it == outs_.end()) return;
-    OutState& o = it->second;
-    std::uint64_t state = o.last_sent.value_or(0);
+  static std::uint64_t decode_state(const OutState& o, const CanFrame& f, std::uint64_t state) {
     for (std::size_t k = 0; k < o.k->bits.size(); ++k) {
       const OutBit& b = o.k->bits[k];
       if (b.byte >= f.dlc) continue;
@@ -540,6 +553,14 @@ class Monitor {
       if (b.width == 2 && code == 3) continue;  // elobau "no change"
       state = code != 0 ? (state | (1ull << k)) : (state & ~(1ull << k));
     }
+    return state;
+  }
+
+  void check_output(const CanFrame& f, TimePoint t) {
+    auto it = outs_.find(f.id);
+    if (it == outs_.end()) return;
+    OutState& o = it->second;
+    const std::uint64_t state = decode_state(o, f, o.last_sent.value_or(0));
     o.last_sent = state;
     const std::uint64_t allowed[] = {o.current, o.previous, error_state(o, o.current), error_state(o, o.previous)};
     if (std::find(std::begin(allowed), std::end(allowed), state) == std::end(allowed))
