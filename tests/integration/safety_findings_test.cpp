@@ -227,5 +227,61 @@ TEST_F(SafetyFindings, ARecoveryWhileTheHostHeartbeatIsLostIsReportedUpstream) {
   EXPECT_TRUE(named_clear) << "no EMCY 0000h naming the grip when it recovered (8130h still active)\n" << b.log();
 }
 
+// ---- Found on main 6554f26 (after the fixes of the defects above) ----------------------------
+
+// Random Novotechnik406 seeds 2 (step 5382) and 3 (step 1080): the PDOs a `starting` node sends
+// are kept and applied at its proof of life — also when the kept PDO is already older than its
+// freshness deadline (here 40 ms, deadline 30 ms: the sensor's PDOs stopped 10 ms after the
+// last one): the FE shows a live position from a PDO the contract counts as stale. Expected: a
+// kept PDO older than its deadline at the proof of life is not applied (stale).
+TEST_F(SafetyFindings, AKeptPdoOlderThanItsDeadlineIsNotAppliedAtTheProofOfLife) {
+  b_ = std::make_unique<Bench>(FamilyId::Novotechnik);
+  Bench& b = *b_;
+  b.build();
+  b.start_gateway();
+  b.deflect(true);
+  b.on_next(
+      [](const BusRecord& r) { return r.sender == "gateway" && r.frame.id == 0 && r.frame.data[0] == 0x01; },
+      [&b](TimePoint) { b.loop().call_after(55ms, [&b] { b.dev_drop_tpdos = true; }); });
+  b.power_device();
+  ASSERT_TRUE(b.run_until([&] { return b.node_state() == sd::NodeState::Operational; }, 3s)) << b.log();
+  EXPECT_EQ(b.field("position"), 0) << "a position from a PDO older than 30 ms shown live\n" << b.log();
+  EXPECT_NE(b.status(), FeStatus::Valid);
+  EXPECT_EQ(b.mon().violations(), 0u);
+}
+
+// Random Cia401Pedal seeds 2 (step 1157) and 3 (step 4698): a node whose PDOs stop during an
+// error EMCY. At its error reset the gateway clears the fault ("error reset EMCY 0000h") although
+// the last PDO is already past its deadline, and reports it stale only one deadline AFTER the
+// reset (the freshness clock restarts at the reset). Expected: the error reset ends the error;
+// the overdue PDO keeps the node faulty (stale) without a gap.
+TEST_F(SafetyFindings, AnErrorResetDoesNotRestartTheFreshnessDeadline) {
+  Bench& b = boot(FamilyId::Cia401Pedal);
+  b.dev_drop_tpdos = true;
+  b.run_for(60ms);
+  b.error_emcy(true);
+  b.run_for(170ms);  // the last PDO is 230 ms old (deadline 150 ms)
+  b.error_emcy(false);
+  b.run_for(20ms);
+  EXPECT_TRUE(b.mon().emcy_active_at(0x30, b.now())) << "cleared with its PDO overdue\n" << b.log();
+  EXPECT_NE(b.status(), FeStatus::Valid);
+}
+
+// Random Elobau seed 3 (step 6725). Contract point 2: "elobau cycle_ms default 100 -> 300 ms for
+// TPDO #0/#1". The gateway enforces TPDO #0 only (the driver declares TPDO #1, the redundant
+// channel 2, no carrier: "No TPDO #1 at all is not an error by default"): with TPDO #1 gone, x is
+// shown live, unchecked by its second channel, with no fault. Either the contract or the driver
+// is to be changed; as the contract stands: stale, fault and EMCY 7000h after 300 ms.
+TEST_F(SafetyFindings, ElobauTpdo1HasTheContractsFreshnessDeadline) {
+  Bench& b = boot(FamilyId::Elobau);
+  b.deflect(true);
+  b.run_for(300ms);
+  ASSERT_EQ(b.field("x"), 16384);
+  b.dev_drop_cob = 0x291;
+  b.run_for(300ms + 100ms + 10ms);  // the last TPDO #1 at most one cycle before the drop
+  EXPECT_TRUE(b.mon().emcy_active_at(0x11, b.now())) << "no TPDO #1 for 400 ms\n" << b.log();
+  EXPECT_EQ(b.field("x"), 0);
+}
+
 }  // namespace
 }  // namespace oegw::testing::safety

@@ -616,6 +616,7 @@ class Bench {
   // Fault switches of the wiring.
   bool dev_drop_all = false;    // bus-off: nothing from/to the device
   bool dev_drop_tpdos = false;  // its TPDOs are lost
+  std::optional<std::uint32_t> dev_drop_cob;  // the device's frames on this COB-ID are lost
   bool gw_link_down = false;    // the gateway's downstream interface is down
   bool host_alive = true;
   TimePoint host_hb_first{};  // the host's heartbeats go at host_hb_first + k x 100 ms
@@ -624,6 +625,7 @@ class Bench {
   void device_out(const CanFrame& f) {
     if (dev_drop_all) return;
     if (dev_drop_tpdos && ((f.id >= 0x181 && f.id <= 0x4FF) && (f.id & 0x7F) == fam_.node)) return;
+    if (dev_drop_cob && f.id == *dev_drop_cob) return;
     (void)sims_port_->send(f);
   }
   void gateway_out(const CanFrame& f) {

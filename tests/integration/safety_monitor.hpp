@@ -471,9 +471,10 @@ class Monitor {
       // No PDO yet: the deadline runs from the proof of life (the first 05h heartbeat after NMT
       // start, when the gateway takes the node's inputs as live); before it the heartbeat rule
       // above applies.
-      if (it == n.pdo.end() && !n.first_op) continue;
+      // A PDO already overdue at the proof of life is due from the proof of life.
+      if (!n.first_op) continue;
       const TimePoint from = it == n.pdo.end() ? *n.first_op : it->second;
-      if (t - from > p.deadline + g)
+      if (t - std::max(from + p.deadline, *n.first_op) > g)
         return fmt::format("TPDO {:03X}h {} (deadline {} ms)", p.cob,
                            it == n.pdo.end() ? "not received since the first heartbeat in operational at " + at(*n.first_op)
                                              : "last received at " + at(it->second),
