@@ -24,6 +24,9 @@ Master::Master(ObjectDictionary& od, FrameSink sink, MasterConfig config)
   hb_.on_state([this](NodeId n, NmtState s) {
     if (on_state) on_state(n, s);
   });
+  hb_.on_heartbeat([this](NodeId n, NmtState s) {
+    if (on_heartbeat) on_heartbeat(n, s);
+  });
 }
 
 SdoClient& Master::sdo(NodeId server) {

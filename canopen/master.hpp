@@ -44,6 +44,8 @@ class Master {
   // A boot-up message from any node (watched or not).
   std::function<void(NodeId)> on_boot;
   std::function<void(NodeId, NmtState)> on_state;
+  // Every heartbeat of a watched node (HeartbeatConsumer::on_heartbeat), after on_state.
+  std::function<void(NodeId, NmtState)> on_heartbeat;
   std::function<void(const EmcyMessage&, TimePoint)> on_emcy;
   // Every frame no service claimed (PDOs, foreign traffic).
   std::function<void(const CanFrame&, TimePoint)> on_other_frame;

@@ -78,18 +78,13 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     std::string error;
     auto driver = sd::make_driver(sc.driver, sc.node(), downstream, sc.options, error);
     if (!driver) throw std::runtime_error(sc.where.str() + ": " + error);  // load_config checked it
-    sd::NodeSettings ns;
-    ns.name = sc.name;
-    ns.node = sc.node();
-    ns.heartbeat_ms = sc.heartbeat_ms;
-    ns.heartbeat_timeout_ms = sc.heartbeat_timeout_ms;
-    ns.mandatory = sc.mandatory;
-    ns.identity = sc.identity;
-    for (const auto& w : sc.sdo) ns.sdo.push_back(w.to_sdo_write());
+    sd::NodeSettings ns = sc.node_settings();
     sd::Driver* d = driver.get();
     const std::string name = sc.name;
     d->on_change = [this, name](std::size_t i, const sd::SignalValue& v) { on_signal(name, i, v); };
     network_.add(std::move(ns), std::move(driver));
+    if (std::any_of(d->signals().begin(), d->signals().end(), [](const sd::SignalInfo& i) { return i.output(); }))
+      output_drivers_.push_back(d);
     subs_[sc.name] = Sub{&sc, d, false, false, "not booted yet", std::vector<std::vector<std::size_t>>(d->signals().size()), {}};
   }
   for (const auto& fe : config_.functional_elements) {
@@ -118,15 +113,18 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     s.why = std::string(sd::to_string(st)) + " (" + why + ")";
     log(name + ": " + s.why);
     if (s.operational && !was) {
-      // Outputs the host set meanwhile reach the device now.
+      // Outputs the host set meanwhile reach the device now, all in one frame per RPDO.
+      s.driver->begin_outputs();
       for (auto& b : bindings_) {
         if (b.field->subdevice != name || b.translator) continue;
         const auto v = oe_->get(b.fe, b.field->field.name);
         if (v) on_output(b.fe, b.field->field.name, *v);
       }
+      s.driver->end_outputs(now_);
     }
-    // Only a node that failed (not one still booting for the first time) is a fault.
-    if (st == sd::NodeState::Missing || st == sd::NodeState::Refused || s.operational) update_fault(s);
+    // Only a node that failed (not one still booting for the first time) is a fault; only the
+    // proof of life the network manager names (`why`) makes it operational again.
+    if (st == sd::NodeState::Missing || st == sd::NodeState::Refused || s.operational) update_fault(s, why);
   };
   network_.on_emcy = [this](const std::string& name, const canopen::EmcyMessage& e, const sd::DecodedEmcy& d) {
     auto it = subs_.find(name);
@@ -141,7 +139,7 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     } else if (d.error) {
       it->second.emcy_error = true;
     }
-    update_fault(it->second);
+    update_fault(it->second, "error reset EMCY 0000h");
   };
   network_.on_bad_input = [this](const std::string& what) { log(what); };
   oe_->on_output([this](mapping::FeId fe, const std::string& field, std::int64_t value) { on_output(fe, field, value); });
@@ -220,7 +218,7 @@ void Gateway::on_signal(const std::string& sub, std::size_t index, const sd::Sig
       if (feed(b, s->second, v)) note(b.fe);
     }
   }
-  update_fault(s->second);
+  update_fault(s->second, "fresh PDO");
   if (on_fe_change) {
     // In FE order, each once (as a std::set gave them).
     if (more.empty()) {
@@ -232,7 +230,7 @@ void Gateway::on_signal(const std::string& sub, std::size_t index, const sd::Sig
   }
 }
 
-void Gateway::update_fault(Sub& s) {
+void Gateway::update_fault(Sub& s, std::string_view evidence) {
   // Fix (e2e test UnknownErrorEmcyStillPutsTheFieldsAtTheirFaultValues): an error EMCY the
   // driver does not map to a signal (e.g. an MCB-402 code it does not know) left every signal
   // Valid, so the fields kept following while the log and EMCY 7000h said "at their fault
@@ -263,6 +261,11 @@ void Gateway::update_fault(Sub& s) {
         reason = b.field->signal + " " + std::string(sd::to_string(b.status));
         break;
       }
+      if (b.status == SignalStatus::Stale) {  // its PDO is overdue: the value is no evidence
+        reason = fmt::format("{} stale (no PDO for {} ms)", b.field->signal,
+                             std::chrono::duration_cast<std::chrono::milliseconds>(s.driver->freshness(b.signal)).count());
+        break;
+      }
     }
   }
   const std::string& name = s.config->name;
@@ -274,7 +277,7 @@ void Gateway::update_fault(Sub& s) {
   } else if (reason.empty() && was) {
     faults_.erase(name);
     oe_->clear_subdevice_fault(s.config->node(), now_);
-    log(name + ": fault cleared");
+    log(name + ": fault cleared (" + std::string(evidence) + ")");
   } else if (!reason.empty()) {
     faults_[name] = reason;
   }
@@ -292,10 +295,22 @@ void Gateway::on_output(mapping::FeId fe, const std::string& field, std::int64_t
   }
 }
 
+void Gateway::begin_outputs() {
+  for (sd::Driver* d : output_drivers_) d->begin_outputs();
+}
+
+void Gateway::end_outputs(TimePoint now) {
+  for (sd::Driver* d : output_drivers_) d->end_outputs(now);
+}
+
 bool Gateway::on_upstream_frame(const canopen::CanFrame& frame, TimePoint now) {
   now_ = now;
+  // One host command (an SDO download, an RPDO, the error values of a heartbeat loss) reaches
+  // each sub-device as one frame per RPDO, never as the states in between.
+  begin_outputs();
   const bool used = oe_->on_frame(frame, now);
   hold_error_values(now);
+  end_outputs(now);
   return used;
 }
 
@@ -310,8 +325,10 @@ void Gateway::hold_error_values(TimePoint now) {
 bool Gateway::on_downstream_frame(const canopen::CanFrame& frame, TimePoint now) {
   now_ = now;
   oe_->begin_batch();  // one upstream TPDO per downstream frame, whatever it changed
+  begin_outputs();     // the TPDOs end_batch() sends can notice a host heartbeat loss
   const bool used = network_.on_frame(frame, now);
   oe_->end_batch(now);
+  end_outputs(now);
   return used;
 }
 
@@ -322,8 +339,11 @@ void Gateway::on_upstream_bus_event(canopen::BusEvent event, TimePoint now) {
 
 void Gateway::advance(TimePoint now) {
   now_ = now;
+  begin_outputs();
   oe_->advance(now);
+  oe_->begin_batch();  // inputs going stale together: one TPDO
   network_.advance(now);
+  oe_->end_batch(now);
   for (auto& w : watches_) {
     if (!started_ || w.expired || now - w.last < w.timeout) continue;
     // The FE's commander fell silent: its outputs take their error values (CiA 401 6206h/6207h,
@@ -334,6 +354,7 @@ void Gateway::advance(TimePoint now) {
                     mapping::fe_name(w.fe),
                     std::chrono::duration_cast<std::chrono::milliseconds>(w.timeout).count()));
   }
+  end_outputs(now);
 }
 
 std::optional<TimePoint> Gateway::next_deadline() const {
@@ -414,6 +435,7 @@ bool Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, Time
                                  mapping::CommandSource source) {
   const mapping::FeId fe{mapping::FeKind::IndicatorCluster, instance};
   if (!take_command(fe, source, now)) return false;
+  begin_outputs();  // all 64 bits of the command: one frame per RPDO of each sub-device
   // fe_fields() lists indicator[1..64] in order (mapping/functional_elements.hpp): one pass.
   const auto fields = mapping::fe_fields(fe);
   for (std::size_t k = 0; k < fields.size(); ++k) {
@@ -426,6 +448,7 @@ bool Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, Time
     // Written as the host would: the dictionary's observers report the change to on_output.
     (void)oe_->od().write(f->index, f->sub, std::span<const std::uint8_t>(&byte, 1), canopen::Origin::Local);
   }
+  end_outputs(now);
   return true;
 }
 
@@ -433,6 +456,7 @@ bool Gateway::command_display(std::uint8_t instance, const std::array<std::int16
                               mapping::CommandSource source) {
   const mapping::FeId fe{mapping::FeKind::Display, instance};
   if (!take_command(fe, source, now)) return false;
+  begin_outputs();
   // fe_fields() lists parameter[1..12] in order: one pass.
   const auto fields = mapping::fe_fields(fe);
   for (std::size_t p = 0; p < fields.size() && p < parameters.size(); ++p) {
@@ -440,6 +464,7 @@ bool Gateway::command_display(std::uint8_t instance, const std::array<std::int16
     if (oe_->od().find(f.index, f.sub) == nullptr) continue;
     (void)oe_->od().set<std::int16_t>(f.index, f.sub, parameters[p], canopen::Origin::Local);
   }
+  end_outputs(now);
   return true;
 }
 

@@ -116,7 +116,11 @@ class Gateway {
 
   void on_signal(const std::string& sub, std::size_t index, const subdevices::SignalValue& v);
   void on_output(mapping::FeId fe, const std::string& field, std::int64_t value);
-  void update_fault(Sub& s);
+  // Raises or clears the node's fault; `evidence` names what cleared it, for the log.
+  void update_fault(Sub& s, std::string_view evidence);
+  // Output batches of every driver with outputs (Driver::begin_outputs).
+  void begin_outputs();
+  void end_outputs(canopen::TimePoint now);
   // Feeds one input binding (the EMCY hold of its node applied); returns true if it changed.
   bool feed(Binding& b, const Sub& s, const subdevices::SignalValue& v);
   void log(const std::string& line);
@@ -134,6 +138,7 @@ class Gateway {
   subdevices::NetworkManager network_;
   std::unique_ptr<OeDevice> oe_;
   std::map<std::string, Sub> subs_;
+  std::vector<subdevices::Driver*> output_drivers_;  // the drivers with output signals
   std::vector<Binding> bindings_;
   std::map<std::pair<std::string, std::size_t>, std::int64_t> output_values_;        // last sent
   std::map<std::string, std::string> faults_;  // sub-device -> reason

@@ -325,8 +325,15 @@ bool OeDevice::on_frame(const canopen::CanFrame& frame, TimePoint now) {
 
 void OeDevice::advance(TimePoint now) {
   now_ = now;
+  step_node(now);
+}
+
+void OeDevice::step_node(TimePoint now) {
   node_->advance(now);
-  // The Node reports a heartbeat-consumer timeout with EMCY 8130h (CiA 301 Table 26).
+  // The Node reports a heartbeat-consumer timeout with EMCY 8130h (CiA 301 Table 26). Every
+  // path that advances the Node (a timer, an upstream frame, the TPDOs a downstream frame
+  // sends) can be the one that notices the time-out: the error values follow at once, in the
+  // same call, whichever it is.
   const bool lost = node_->emcy().active(0x8130);
   if (lost && !hb_lost_seen_) host_heartbeat_lost(now);
   hb_lost_seen_ = lost;
@@ -376,7 +383,7 @@ bool OeDevice::set_input(FeId fe, const mapping::FeField& field, std::int64_t va
   }
   const SdoAbortCode rc = od_.set<std::int64_t>(f->index, f->sub, raw, Origin::Local);
   if (rc == SdoAbortCode::None) input_shadow_[std::uint32_t{f->index} << 8 | f->sub] = s->value;
-  if (batch_depth_ == 0) node_->advance(now);  // event-driven TPDOs go out now (see begin_batch)
+  if (batch_depth_ == 0) step_node(now);  // event-driven TPDOs go out now (see begin_batch)
   return rc == SdoAbortCode::None;
 }
 
@@ -554,7 +561,7 @@ namespace oegw::gateway {
 void OeDevice::begin_batch() { ++batch_depth_; }
 
 void OeDevice::end_batch(canopen::TimePoint now) {
-  if (batch_depth_ > 0 && --batch_depth_ == 0) node_->advance(now);
+  if (batch_depth_ > 0 && --batch_depth_ == 0) step_node(now);
 }
 
 }  // namespace oegw::gateway

@@ -216,6 +216,8 @@ class OeDevice {
     std::string field;
     std::uint8_t bit;
   };
+  // node_->advance() and, when that noticed the host's heartbeat time-out, the error values.
+  void step_node(canopen::TimePoint now);
   void watch_host_commands();
   void handle_state(canopen::NmtState s);
   void handle_od_change(std::uint16_t index, std::uint8_t sub);

@@ -46,6 +46,7 @@ subdevices::NodeSettings SubdeviceConfig::node_settings() const {
   n.node = node();
   n.heartbeat_ms = heartbeat_ms;
   n.heartbeat_timeout_ms = heartbeat_timeout_ms;
+  n.pdo_timeout_ms = pdo_timeout_ms;
   n.mandatory = mandatory;
   n.identity = identity;
   for (const auto& w : sdo) n.sdo.push_back(w.to_sdo_write());
@@ -638,8 +639,10 @@ class Loader {
       const auto what = "sub-device '" + e.name + "'";
       const auto ks = entries(
           e.value, what,
-          {"driver", "node_id", "heartbeat_ms", "heartbeat_timeout_ms", "mandatory", "identity", "sdo", "options"},
-          "a map with driver, node_id, heartbeat_ms, heartbeat_timeout_ms, mandatory, identity, sdo, options");
+          {"driver", "node_id", "heartbeat_ms", "heartbeat_timeout_ms", "pdo_timeout_ms", "mandatory", "identity", "sdo",
+           "options"},
+          "a map with driver, node_id, heartbeat_ms, heartbeat_timeout_ms, pdo_timeout_ms, mandatory, identity, sdo, "
+          "options");
       if (!e.value.IsMap()) {
         cfg_.subdevices.push_back(std::move(s));
         continue;
@@ -662,6 +665,11 @@ class Loader {
         error(t->value, "heartbeat_timeout_ms " + t->value.Scalar() + " is not longer than heartbeat_ms " +
                             std::to_string(s.heartbeat_ms) + "; expected more than " + std::to_string(s.heartbeat_ms) +
                             " (or 0 for 1.5 x heartbeat_ms)");
+      set_int(ks, "pdo_timeout_ms", "pdo_timeout_ms", 0, 65535, s.pdo_timeout_ms);
+      // Proof of life (DESIGN.md): without a heartbeat only fresh PDOs show the node is there.
+      if (const auto* h = find(ks, "heartbeat_ms"); h && s.heartbeat_ms == 0 && s.pdo_timeout_ms == 0)
+        error(h->value, "heartbeat_ms 0 leaves " + what +
+                            " without proof of life; expected a heartbeat (heartbeat_ms > 0) or pdo_timeout_ms > 0");
       if (const auto* m = find(ks, "mandatory"))
         if (auto b = boolean(*m, "mandatory")) s.mandatory = *b;
       if (const auto* id = find(ks, "identity")) {

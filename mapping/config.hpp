@@ -103,6 +103,7 @@ struct SubdeviceConfig {
   std::uint8_t node_id = 0;
   std::uint16_t heartbeat_ms = 100;
   std::uint16_t heartbeat_timeout_ms = 0;  // 0 = 1.5 x heartbeat_ms
+  std::uint16_t pdo_timeout_ms = 0;        // PDO freshness deadline; 0 = 3 x the event timers (driver.hpp)
   bool mandatory = false;
   subdevices::ExpectedIdentity identity;
   std::vector<SdoWriteConfig> sdo;

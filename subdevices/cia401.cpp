@@ -98,6 +98,21 @@ Cia401Driver::Cia401Driver(NodeId node, FrameSink sink, eds::File file) : eds_(s
   }
 }
 
+void Cia401Driver::refresh_carriers() {
+  std::vector<Carrier> carriers;
+  for (const Pdo& p : pdos_) {
+    if (!p.transmit || !p.usable()) continue;
+    Carrier c;
+    c.comm_index = p.comm_index();
+    c.event_timer_ms = static_cast<std::uint16_t>(eds_.default_number(p.comm_index(), 5, node()).value_or(0));
+    c.transmission_type = p.transmission_type.value_or(0xFF);
+    for (const Entry& e : p.decoded)
+      if (e.signal >= 0) c.signals.push_back(static_cast<std::size_t>(e.signal));
+    carriers.push_back(std::move(c));
+  }
+  set_carriers(std::move(carriers));
+}
+
 void Cia401Driver::add_signals(std::uint16_t index, const char* prefix, SignalKind kind, std::int64_t min,
                                std::int64_t max, const char* unit) {
   const eds::ObjectEntry* o = eds_.find(index);
@@ -143,6 +158,7 @@ ExpectedIdentity Cia401Driver::expected_identity() const {
 // ---- boot-time mapping read -----------------------------------------------------------------
 
 void Cia401Driver::reset_mapping() {
+  pending_.clear();
   for (Pdo& p : pdos_) {
     Pdo fresh;
     fresh.transmit = p.transmit;
@@ -314,18 +330,27 @@ bool Cia401Driver::set_output(std::size_t index, std::int64_t v, TimePoint now) 
   if (index >= signals_.size() || !signals_[index].output()) return false;
   if (v < signals_[index].min || v > signals_[index].max) return false;
   const auto sig = static_cast<int>(index);
-  std::vector<const Pdo*> targets;
-  for (const Pdo& p : pdos_) {
+  bool mapped = false;
+  for (std::size_t k = 0; k < pdos_.size(); ++k) {
+    const Pdo& p = pdos_[k];
     if (p.transmit || !p.usable()) continue;
-    if (std::any_of(p.decoded.begin(), p.decoded.end(), [sig](const Entry& e) { return e.signal == sig; }))
-      targets.push_back(&p);
+    if (std::none_of(p.decoded.begin(), p.decoded.end(), [sig](const Entry& e) { return e.signal == sig; })) continue;
+    mapped = true;
+    if (std::find(pending_.begin(), pending_.end(), k) == pending_.end()) pending_.push_back(k);
   }
-  if (targets.empty()) return false;
+  if (!mapped) return false;
   outputs_[index] = v;
-  for (const Pdo* p : targets) {
+  if (!outputs_deferred()) flush_outputs(now);
+  update(index, v, SignalStatus::Valid, now);
+  return true;
+}
+
+void Cia401Driver::flush_outputs(TimePoint /*now*/) {
+  for (const std::size_t k : pending_) {
+    const Pdo& p = pdos_[k];
     std::uint64_t payload = 0;
     unsigned offset = 0;
-    for (const Entry& e : p->decoded) {
+    for (const Entry& e : p.decoded) {
       const unsigned bits = e.raw & 0xFF;
       if (e.signal >= 0) {
         const std::uint64_t mask = bits >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << bits) - 1;
@@ -333,16 +358,15 @@ bool Cia401Driver::set_output(std::size_t index, std::int64_t v, TimePoint now) 
       }
       offset += bits;
     }
-    const CobId c{*p->cob_id};
+    const CobId c{*p.cob_id};
     CanFrame f;
     f.id = c.can_id();
     f.extended = c.extended();
-    f.dlc = static_cast<std::uint8_t>((p->bits + 7) / 8);
+    f.dlc = static_cast<std::uint8_t>((p.bits + 7) / 8);
     for (std::size_t i = 0; i < f.dlc; ++i) f.data[i] = static_cast<std::uint8_t>(payload >> (8 * i));
     send(f);
   }
-  update(index, v, SignalStatus::Valid, now);
-  return true;
+  pending_.clear();
 }
 
 std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const DriverOptions& options,

@@ -138,6 +138,10 @@ class Cia401Driver final : public Driver {
     }
   };
 
+  // Each usable TPDO read back at boot, with the event timer its EDS declares (18xxh:05
+  // DefaultValue; the mapping file's `sdo` writes replace it) and the type read from the node.
+  void refresh_carriers() override;
+  void flush_outputs(TimePoint now) override;
   void add_signals(std::uint16_t index, const char* prefix, SignalKind kind, std::int64_t min, std::int64_t max,
                    const char* unit);
   Pdo* find_pdo(std::uint16_t index);
@@ -150,6 +154,7 @@ class Cia401Driver final : public Driver {
   std::vector<std::uint8_t> width_;                 // bits of each signal's object
   std::vector<std::int64_t> outputs_;               // remembered output values, by signal
   std::vector<Pdo> pdos_;
+  std::vector<std::size_t> pending_;                // RPDOs (pdos_ index) to send at flush_outputs()
 };
 
 // Family factory (families.hpp): options "eds" = path to the node's EDS file.

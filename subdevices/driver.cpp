@@ -1,5 +1,7 @@
 #include "subdevices/driver.hpp"
 
+#include <algorithm>
+
 namespace oegw::subdevices {
 
 std::string_view to_string(SignalStatus s) {
@@ -37,6 +39,7 @@ void Driver::init(NodeId node, FrameSink sink, std::size_t signal_count) {
   node_ = node;
   sink_ = std::move(sink);
   values_.assign(signal_count, SignalValue{});
+  rebuild_deadlines();
 }
 
 void Driver::update(std::size_t index, std::int64_t value, SignalStatus status, TimePoint now) {
@@ -57,6 +60,74 @@ void Driver::on_offline(TimePoint now) {
     if (s[i].output()) continue;
     update(i, s[i].neutral, SignalStatus::Offline, now);
   }
+}
+
+void Driver::end_outputs(TimePoint now) {
+  if (output_batch_ > 0 && --output_batch_ == 0) flush_outputs(now);
+}
+
+void Driver::set_carriers(std::vector<Carrier> carriers) {
+  carriers_ = std::move(carriers);
+  rebuild_deadlines();
+}
+
+void Driver::apply_boot_writes(const std::vector<SdoWrite>& writes) {
+  refresh_carriers();
+  for (const SdoWrite& w : writes) {
+    for (Carrier& c : carriers_) {
+      if (w.index != c.comm_index || w.data.empty()) continue;
+      if (w.sub == 5 && w.data.size() >= 2) c.event_timer_ms = static_cast<std::uint16_t>(w.data[0] | (w.data[1] << 8));
+      if (w.sub == 2) c.transmission_type = w.data[0];
+    }
+  }
+  rebuild_deadlines();
+}
+
+void Driver::set_pdo_timeout(Duration timeout) {
+  pdo_timeout_ = timeout;
+  rebuild_deadlines();
+}
+
+void Driver::rebuild_deadlines() {
+  deadline_.assign(values_.size(), Duration{0});
+  for (const Carrier& c : carriers_) {
+    Duration d = pdo_timeout_;
+    if (d.count() == 0 && c.event_timer_ms != 0 && c.transmission_type >= 254)
+      d = std::chrono::milliseconds(c.event_timer_ms) * kMissedPeriods;
+    for (const std::size_t i : c.signals)
+      if (i < deadline_.size() && (deadline_[i].count() == 0 || (d.count() != 0 && d < deadline_[i]))) deadline_[i] = d;
+  }
+  with_deadline_.clear();
+  for (std::size_t i = 0; i < deadline_.size(); ++i)
+    if (deadline_[i].count() != 0) with_deadline_.push_back(i);
+}
+
+Duration Driver::freshness(std::size_t index) const {
+  return index < deadline_.size() ? deadline_[index] : Duration{0};
+}
+
+Duration Driver::longest_freshness() const {
+  Duration d{0};
+  for (const std::size_t i : with_deadline_) d = std::max(d, deadline_[i]);
+  return d;
+}
+
+void Driver::advance(TimePoint now) {
+  for (const std::size_t i : with_deadline_) {
+    const SignalValue& v = values_[i];
+    if (v.status == SignalStatus::Valid && now >= v.timestamp + deadline_[i]) update(i, v.value, SignalStatus::Stale, now);
+  }
+}
+
+std::optional<TimePoint> Driver::next_deadline() const {
+  std::optional<TimePoint> best;
+  for (const std::size_t i : with_deadline_) {
+    const SignalValue& v = values_[i];
+    if (v.status != SignalStatus::Valid) continue;
+    const TimePoint t = v.timestamp + deadline_[i];
+    if (!best || t < *best) best = t;
+  }
+  return best;
 }
 
 std::optional<std::string> DriverOptions::get(std::string_view key) const {

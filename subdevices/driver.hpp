@@ -101,7 +101,31 @@ class Driver {
 
   // Outputs: sets output signal `index` to `value` and sends what the device needs (RPDO).
   // Returns false (sending nothing) for a non-output signal or a value out of range.
+  // Between begin_outputs() and end_outputs() nothing is sent: end_outputs() sends each RPDO
+  // whose content changed once, so that one command changing several outputs reaches the
+  // device as one frame per RPDO and never as the intermediate states (an LED byte 00h -> 05h
+  // is one frame 05h, not 01h then 05h). Nests; the outermost end_outputs() sends.
   virtual bool set_output(std::size_t index, std::int64_t value, TimePoint now) = 0;
+  void begin_outputs() { ++output_batch_; }
+  void end_outputs(TimePoint now);
+
+  // Freshness of the values (DESIGN.md "Proof of life"). A signal carried by a TPDO the device
+  // sends periodically (event timer T, transmission type 254/255, CiA 301 §7.5.2.35) is Stale
+  // once kMissedPeriods × T pass without that PDO: the node may still send its heartbeat, but
+  // the value is no longer evidence. The mapping file's pdo_timeout_ms replaces the derived
+  // deadline for every PDO-carried signal (also PDOs sent on change only, which have none).
+  static constexpr int kMissedPeriods = 3;
+  // The boot writes that were made (the driver's configuration() and the mapping file's `sdo`
+  // list, in that order): event timers (18xxh:05) and transmission types (18xxh:02) written
+  // there replace the driver's defaults.
+  void apply_boot_writes(const std::vector<SdoWrite>& writes);
+  void set_pdo_timeout(Duration timeout);  // 0: the deadlines derived from the event timers
+  // The deadline of one signal (0: none), and the largest of all (0: none).
+  [[nodiscard]] Duration freshness(std::size_t index) const;
+  [[nodiscard]] Duration longest_freshness() const;
+  // Marks Valid signals whose PDO is overdue Stale (on_change reports them).
+  void advance(TimePoint now);
+  [[nodiscard]] std::optional<TimePoint> next_deadline() const;
 
   // Called with a signal's index whenever its value or status changed.
   std::function<void(std::size_t index, const SignalValue& value)> on_change;
@@ -116,13 +140,37 @@ class Driver {
   void send(const CanFrame& frame) {
     if (sink_) sink_(frame);
   }
+  // Inside begin_outputs()/end_outputs(): set_output() records what changed and leaves the
+  // sending to flush_outputs(), which end_outputs() calls once.
+  [[nodiscard]] bool outputs_deferred() const { return output_batch_ > 0; }
+  virtual void flush_outputs(TimePoint /*now*/) {}
+
+  // One TPDO of the device and the input signals it carries (for freshness).
+  struct Carrier {
+    std::uint16_t comm_index = 0x1800;     // 1800h + TPDO number - 1
+    std::uint16_t event_timer_ms = 0;      // 0: sent on change (or SYNC) only
+    std::uint8_t transmission_type = 254;  // the event timer counts for 254/255 only
+    std::vector<std::size_t> signals;
+  };
+  // Declares the carriers (in the constructor, or from refresh_carriers()).
+  void set_carriers(std::vector<Carrier> carriers);
+  // Called by apply_boot_writes() first: a driver that learns its PDO layout at boot (the
+  // generic CiA 401 node) declares its carriers here.
+  virtual void refresh_carriers() {}
 
   InputCounters counters_;
 
  private:
+  void rebuild_deadlines();
+
   NodeId node_{};
   FrameSink sink_;
   std::vector<SignalValue> values_;
+  unsigned output_batch_ = 0;
+  std::vector<Carrier> carriers_;
+  Duration pdo_timeout_{0};
+  std::vector<Duration> deadline_;          // by signal; 0 = none
+  std::vector<std::size_t> with_deadline_;  // the signals that have one
 };
 
 // Creates a driver by family name ("elobau-mfg", "mcb402", "novotechnik-406", "cia401").

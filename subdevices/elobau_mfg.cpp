@@ -104,6 +104,11 @@ ElobauMfgDriver::ElobauMfgDriver(NodeId node, FrameSink sink, ElobauMfgOptions o
     signals_.push_back(SignalInfo{.name = "leds[" + std::to_string(l) + "]", .kind = SignalKind::Output, .min = 0,
                                   .max = 2, .neutral = 0, .unit = "led"});
   init(node, std::move(sink), signals_.size());
+  // TPDO #0 carries every axis's channel 1 and the buttons (§14.1), sent every cycle_ms (written
+  // to 1800h:05 at boot) and on change; TPDO #1 only cross-checks (channel2_timeout_ms).
+  Carrier tpdo0{.comm_index = 0x1800, .event_timer_ms = opt_.cycle_ms, .transmission_type = 254, .signals = {}};
+  for (std::size_t i = 0; i < kFirstLed; ++i) tpdo0.signals.push_back(i);
+  set_carriers({tpdo0});
 }
 
 const char* ElobauMfgDriver::manufacturer_error_name(std::uint16_t code) {
@@ -349,13 +354,18 @@ bool ElobauMfgDriver::set_output(std::size_t index, std::int64_t v, TimePoint no
   const auto code = static_cast<std::uint8_t>(v);  // 0 off 00, 1 on 01, 2 blink 10 (Table 13)
   const bool unchanged = leds_[l] == code && leds_sent_;
   leds_[l] = code;
-  if (!unchanged) {
-    const auto p = led_payload();
-    send(CanFrame(kRpdo0 + node().value(), std::span<const std::uint8_t>(p.data(), p.size())));
-    leds_sent_ = true;
-  }
+  leds_dirty_ = leds_dirty_ || !unchanged;
+  if (!outputs_deferred()) flush_outputs(now);
   update(index, v, led_emcy_ ? SignalStatus::Error : SignalStatus::Valid, now);
   return true;
+}
+
+void ElobauMfgDriver::flush_outputs(TimePoint /*now*/) {
+  if (!leds_dirty_) return;
+  leds_dirty_ = false;
+  const auto p = led_payload();
+  send(CanFrame(kRpdo0 + node().value(), std::span<const std::uint8_t>(p.data(), p.size())));
+  leds_sent_ = true;
 }
 
 void ElobauMfgDriver::reset_state() {
@@ -371,6 +381,7 @@ void ElobauMfgDriver::reset_state() {
 void ElobauMfgDriver::on_online(TimePoint now) {
   reset_state();
   leds_sent_ = false;
+  leds_dirty_ = false;
   bool any = false;
   for (const auto& l : leds_) any = any || l.has_value();
   if (any) {

@@ -132,6 +132,7 @@ class ElobauMfgDriver final : public Driver {
   [[nodiscard]] static const char* manufacturer_error_name(std::uint16_t code);
 
  private:
+  void flush_outputs(TimePoint now) override;
   struct Axis {
     std::optional<std::int8_t> ch1;
     std::optional<std::int8_t> ch2;
@@ -159,6 +160,7 @@ class ElobauMfgDriver final : public Driver {
   std::optional<TimePoint> ch2_reference_;  // last TPDO #1, or the first TPDO #0 before one
   std::array<std::optional<std::uint8_t>, kLeds> leds_{};  // commanded 2-bit codes
   bool leds_sent_ = false;                                 // the state went out since online
+  bool leds_dirty_ = false;                                // changed, not sent yet (output batch)
 };
 
 // Factory (families.hpp). Options: channel_tolerance, detent, channel2_timeout_ms, cycle_ms.

@@ -111,6 +111,12 @@ std::unique_ptr<Driver> make_mcb402_driver(NodeId node, FrameSink sink, const Dr
 Mcb402Driver::Mcb402Driver(NodeId node, FrameSink sink, Mcb402Options options)
     : options_(options), signals_(make_signals()) {
   init(node, std::move(sink), signals_.size());
+  // TPDO1 (buttons) and TPDO2 (axes), type FFh with the event timers configuration() writes.
+  Carrier tpdo1{.comm_index = 0x1800, .event_timer_ms = options_.button_timer_ms, .transmission_type = 0xFF, .signals = {}};
+  for (std::size_t i = 0; i < kButtons; ++i) tpdo1.signals.push_back(kFirstButton + i);
+  Carrier tpdo2{.comm_index = 0x1801, .event_timer_ms = options_.event_timer_ms, .transmission_type = 0xFF, .signals = {}};
+  for (std::size_t a = 0; a < kAxes; ++a) tpdo2.signals.push_back(a);
+  set_carriers({tpdo1, tpdo2});
 }
 
 ExpectedIdentity Mcb402Driver::expected_identity() const {
@@ -240,6 +246,7 @@ void Mcb402Driver::send_outputs() {
 
 void Mcb402Driver::on_online(TimePoint now) {
   Driver::on_online(now);
+  outputs_pending_ = false;
   send_outputs();
 }
 
@@ -248,8 +255,15 @@ bool Mcb402Driver::set_output(std::size_t index, std::int64_t value, TimePoint n
   const auto bit = static_cast<std::uint8_t>(1u << (index - kFirstLed));
   outputs_ = static_cast<std::uint8_t>(value != 0 ? (outputs_ | bit) : (outputs_ & ~bit));
   update(index, value, SignalStatus::Valid, now);
-  send_outputs();
+  outputs_pending_ = true;
+  if (!outputs_deferred()) flush_outputs(now);
   return true;
+}
+
+void Mcb402Driver::flush_outputs(TimePoint /*now*/) {
+  if (!outputs_pending_) return;
+  outputs_pending_ = false;
+  send_outputs();
 }
 
 }  // namespace oegw::subdevices

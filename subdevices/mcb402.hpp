@@ -120,11 +120,13 @@ class Mcb402Driver final : public Driver {
   void on_tpdo2(const CanFrame& frame, TimePoint now);
   void set_broken(std::uint8_t axes, TimePoint now);
   void send_outputs();
+  void flush_outputs(TimePoint now) override;
 
   Mcb402Options options_;
   std::vector<SignalInfo> signals_;
   std::uint8_t broken_ = 0;
   std::uint8_t outputs_ = 0;  // 6200h:01 as last commanded
+  bool outputs_pending_ = false;  // set_output() inside an output batch: RPDO1 not sent yet
 };
 
 // Parses `options` (event_timer_ms, button_timer_ms, button_bits); nullopt + `error` if bad.

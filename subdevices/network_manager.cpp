@@ -13,6 +13,7 @@ std::string_view to_string(NodeState s) {
     case NodeState::Idle: return "idle";
     case NodeState::WaitingBootUp: return "waiting for boot-up";
     case NodeState::Configuring: return "configuring";
+    case NodeState::Starting: return "starting";
     case NodeState::Operational: return "operational";
     case NodeState::Missing: return "missing";
     case NodeState::Refused: return "refused";
@@ -65,6 +66,13 @@ NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
     Managed* m = find(n);
     if (m != nullptr && m->state == NodeState::Operational) lost(*m, "heartbeat lost", now_);
   };
+  master_.on_heartbeat = [this](NodeId n, canopen::NmtState s) {
+    Managed* m = find(n);
+    // Only a heartbeat in operational proves the start took effect; one in another state may
+    // have been on its way before the node saw the NMT start: the deadline decides.
+    if (m != nullptr && m->state == NodeState::Starting && s == canopen::NmtState::Operational)
+      go_live(*m, "first heartbeat in operational after NMT start", now_);
+  };
   master_.on_state = [this](NodeId n, canopen::NmtState s) {
     Managed* m = find(n);
     if (m == nullptr || m->state != NodeState::Operational) return;
@@ -91,6 +99,7 @@ bool NetworkManager::add(NodeSettings settings, std::unique_ptr<Driver> driver) 
   auto m = std::make_unique<Managed>();
   m->settings = std::move(settings);
   m->driver = std::move(driver);
+  m->driver->set_pdo_timeout(std::chrono::milliseconds(m->settings.pdo_timeout_ms));
   route(*m);
   nodes_.push_back(std::move(m));
   return true;
@@ -252,14 +261,37 @@ void NetworkManager::run_step(Managed& m) {
   }
 }
 
+Duration NetworkManager::proof_deadline(const Managed& m) const {
+  if (m.settings.heartbeat_ms != 0) return std::chrono::milliseconds(consumer_ms(m));
+  // No heartbeat (the mapping file then requires pdo_timeout_ms): the first PDO is the proof.
+  const Duration d = m.driver->longest_freshness();
+  return d.count() != 0 ? d : timing_.boot_wait;
+}
+
 void NetworkManager::finish(Managed& m, TimePoint now) {
   route(m);  // what the driver consumes may depend on what it read at boot
+  // The event timers actually written decide the PDOs' freshness deadlines.
+  std::vector<SdoWrite> writes;
+  for (const Step& st : m.steps)
+    if (st.kind == Step::Kind::Write) writes.push_back({st.index, st.sub, st.data, {}});
+  m.driver->apply_boot_writes(writes);
   if (m.settings.heartbeat_ms != 0) (void)master_.monitor_heartbeat(m.settings.node, consumer_ms(m));
   master_.nmt().start(m.settings.node);
-  m.backoff = Duration{0};
   m.started_once = true;
+  const Duration wait = proof_deadline(m);
+  m.deadline = now + wait;
+  const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(wait).count();
+  set_state(m, NodeState::Starting,
+            std::string("configured, NMT start sent: waiting ") + std::to_string(ms) + " ms for " +
+                (m.settings.heartbeat_ms != 0 ? "a heartbeat in operational" : "a first PDO"),
+            now);
+}
+
+void NetworkManager::go_live(Managed& m, const std::string& evidence, TimePoint now) {
+  m.deadline.reset();
+  m.backoff = Duration{0};
   m.driver->on_online(now);
-  set_state(m, NodeState::Operational, "configured and started", now);
+  set_state(m, NodeState::Operational, evidence, now);
 }
 
 void NetworkManager::fail(Managed& m, NodeState s, const std::string& why, TimePoint now) {
@@ -309,7 +341,9 @@ bool NetworkManager::on_frame(const CanFrame& frame, TimePoint now) {
   if (frame.extended || frame.rtr) return false;
   if (auto it = by_cob_.find(frame.id); it != by_cob_.end()) {
     Managed& m = *it->second;
-    // PDOs count only from a node we configured and started (CiA 301: none outside
+    // Without a heartbeat, the first PDO after the NMT start is the node's proof of life.
+    if (m.state == NodeState::Starting && m.settings.heartbeat_ms == 0) go_live(m, "first PDO after NMT start", now);
+    // PDOs count only from a node we configured, started and saw alive (CiA 301: none outside
     // operational); anything else is ignored, never passed through.
     if (m.state != NodeState::Operational) return false;
     const bool used = m.driver->on_frame(frame, now);
@@ -348,6 +382,7 @@ void NetworkManager::advance(TimePoint now) {
   lss_.advance(now);
   for (auto& mp : nodes_) {
     Managed& m = *mp;
+    if (m.state == NodeState::Operational) m.driver->advance(now);  // overdue PDOs: Stale
     if (!m.deadline || *m.deadline > now) continue;
     m.deadline.reset();
     switch (m.state) {
@@ -355,6 +390,14 @@ void NetworkManager::advance(TimePoint now) {
         // No boot-up: the node may not have reset (or be absent). Asking its identity tells.
         configure(m, now);
         break;
+      case NodeState::Starting: {
+        const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(proof_deadline(m)).count();
+        lost(m,
+             std::string("no ") + (m.settings.heartbeat_ms != 0 ? "heartbeat in operational" : "PDO") + " within " +
+                 std::to_string(ms) + " ms of NMT start",
+             now);
+        break;
+      }
       case NodeState::Missing:
       case NodeState::Refused: begin_boot(m, now); break;
       default: break;
@@ -365,8 +408,11 @@ void NetworkManager::advance(TimePoint now) {
 std::optional<TimePoint> NetworkManager::next_deadline() const {
   std::optional<TimePoint> best = master_.next_deadline();
   if (const auto t = lss_.next_deadline(); t && (!best || *t < *best)) best = t;
-  for (const auto& m : nodes_)
+  for (const auto& m : nodes_) {
     if (m->deadline && (!best || *m->deadline < *best)) best = m->deadline;
+    if (m->state != NodeState::Operational) continue;
+    if (const auto t = m->driver->next_deadline(); t && (!best || *t < *best)) best = t;
+  }
   return best;
 }
 

@@ -5,11 +5,19 @@
 //   3. runs the driver's boot reads (e.g. a generic node's actual PDO mapping),
 //   4. writes the producer heartbeat (1017h), the driver's configuration and the configured
 //      `sdo` list, in that order,
-//   5. starts heartbeat monitoring and sends NMT start; the driver is told the node is online.
-// Then it watches: a heartbeat timeout or a node leaving operational marks its inputs offline
-// and starts the boot again; a boot-up seen at any time (the device rebooted) reconfigures and
-// restarts it; a missing node is retried with back-off (1 s doubling to 30 s). A node marked
-// mandatory keeps fault() true until it is operational. Sans I/O: frames and time in.
+//   5. starts heartbeat monitoring and sends NMT start (state `starting`),
+//   6. waits for proof of life: the first heartbeat reporting operational after the NMT start
+//      (with heartbeat_ms 0: the first PDO), within the consumer time counted from the NMT
+//      start; only then is the node operational and its driver told it is online. CiA 301's
+//      consumer starts watching at the first heartbeat, so a node that never sends one would
+//      never time out: this deadline is the network manager's own. A heartbeat in another
+//      state meanwhile does not count against the node: it may have been sent before the node
+//      received the start (the frames crossed on the bus).
+// Then it watches: a heartbeat timeout, a node leaving operational, or no proof of life in
+// time marks its inputs offline and starts the boot again; a boot-up seen at any time (the
+// device rebooted) reconfigures and restarts it; a missing node is retried with back-off (1 s
+// doubling to 30 s). Inputs whose PDOs are overdue become Stale (Driver::advance). A node
+// marked mandatory keeps fault() true until it is operational. Sans I/O: frames and time in.
 #pragma once
 
 #include <functional>
@@ -30,6 +38,7 @@ struct NodeSettings {
   NodeId node{};
   std::uint16_t heartbeat_ms = 100;        // written to the node's 1017h (0: not written, not watched)
   std::uint16_t heartbeat_timeout_ms = 0;  // consumer time; 0 = 1.5 × heartbeat_ms (CiA 302 practice)
+  std::uint16_t pdo_timeout_ms = 0;        // freshness deadline of every PDO-carried input; 0 = derived
   bool mandatory = false;
   ExpectedIdentity identity;               // checked besides the driver's own expectations
   std::vector<SdoWrite> sdo;               // written after the driver's configuration
@@ -39,7 +48,8 @@ enum class NodeState : std::uint8_t {
   Idle,           // not started yet
   WaitingBootUp,  // reset communication sent, waiting for the boot-up
   Configuring,    // identity check, boot reads, configuration writes
-  Operational,    // started, inputs flowing
+  Starting,       // NMT start sent, waiting for proof of life (heartbeat in operational)
+  Operational,    // started and alive, inputs flowing
   Missing,        // no answer / heartbeat lost: retried with back-off
   Refused,        // wrong identity or a configuration the node refused: retried with back-off
 };
@@ -137,7 +147,9 @@ class NetworkManager {
   void route(Managed& m);
   void report_bad_input(Managed& m);
   void report_once(std::uint64_t& seen, std::uint64_t now_count, const std::string& name, const char* what);  // (re)builds the COB-ID routing of a node's TPDOs
-  void finish(Managed& m, TimePoint now);
+  void finish(Managed& m, TimePoint now);                           // NMT start: Starting
+  void go_live(Managed& m, const std::string& evidence, TimePoint now);  // proof of life seen
+  [[nodiscard]] Duration proof_deadline(const Managed& m) const;
   void fail(Managed& m, NodeState s, const std::string& why, TimePoint now);
   void lost(Managed& m, const std::string& why, TimePoint now);
   [[nodiscard]] std::uint16_t consumer_ms(const Managed& m) const;

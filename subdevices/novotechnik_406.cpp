@@ -100,6 +100,10 @@ Novotechnik406Driver::Novotechnik406Driver(NodeId node, FrameSink sink, Novotech
           {"work_area", SignalKind::Digital, 0, 255, 0, "bits"},
       } {
   init(node, std::move(sink), signals_.size());
+  // TPDO1 carries position and speed (§4.1), every event_timer_ms in type 254 (§8.2); in type
+  // 255 at least as often; SYNC types (1..240) have no event-timer deadline.
+  set_carriers({Carrier{.comm_index = 0x1800, .event_timer_ms = options_.event_timer_ms,
+                        .transmission_type = options_.transmission_type, .signals = {kPosition, kSpeed}}});
 }
 
 bool Novotechnik406Driver::is_error_position(std::int32_t position) {

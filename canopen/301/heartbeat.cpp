@@ -146,6 +146,7 @@ bool HeartbeatConsumer::on_frame(const CanFrame& frame, TimePoint now) {
     e.status = Status::Active;
     e.last = now;
     if (changed && on_state_) on_state_(node, state);
+    if (on_heartbeat_) on_heartbeat_(node, state);
   }
   return mine;
 }

@@ -86,6 +86,10 @@ class HeartbeatConsumer {
   void on_timeout(NodeCallback cb) { on_timeout_ = std::move(cb); }
   void on_boot(NodeCallback cb) { on_boot_ = std::move(cb); }
   void on_state(StateCallback cb) { on_state_ = std::move(cb); }
+  // Every heartbeat (not the boot-up) of a monitored node, with the state it reports, changed
+  // or not: a master that needs proof of life after a command of its own (NMT start) cannot
+  // rely on on_state(), which reports changes only.
+  void on_heartbeat(StateCallback cb) { on_heartbeat_ = std::move(cb); }
 
   // True for a heartbeat/boot-up frame (700h+id, DLC 1, not RTR) from a monitored node.
   bool on_frame(const CanFrame& frame, TimePoint now);
@@ -116,6 +120,7 @@ class HeartbeatConsumer {
   NodeCallback on_timeout_;
   NodeCallback on_boot_;
   StateCallback on_state_;
+  StateCallback on_heartbeat_;
   Subscriptions subs_;  // declared last: unregisters the OD callbacks first on destruction
 };
 

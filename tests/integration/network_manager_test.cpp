@@ -119,9 +119,14 @@ TEST_F(NetworkManagerTest, BootsTheNodeFrameByFrame) {
   EXPECT_TRUE(manager_->fault()) << "mandatory and not yet operational";
   start();
   net_.run_for(50ms);
-  EXPECT_EQ(manager_->state("grip"), NodeState::Operational);
-  EXPECT_FALSE(manager_->fault());
+  // Started, but no heartbeat in operational yet: no proof of life, inputs not live.
+  EXPECT_EQ(manager_->state("grip"), NodeState::Starting);
+  EXPECT_TRUE(manager_->fault());
   EXPECT_EQ(dev.node->state(), NmtState::Operational);
+  net_.run_for(100ms);  // the node's first heartbeat (1017h = 100 ms) reports operational
+  EXPECT_EQ(manager_->state("grip"), NodeState::Operational);
+  EXPECT_EQ(reasons_.back(), "first heartbeat in operational after NMT start");
+  EXPECT_FALSE(manager_->fault());
   const std::vector<std::string> want = {
       "gateway 000#8211",                   // NMT reset communication
       "device 711#00",                      // boot-up

@@ -264,9 +264,9 @@ functional_elements:
       "t.yaml:3:1: unknown key 'publsh' in the file; expected one of upstream, downstream, publish, subdevices, "
       "functional_elements (did you mean 'publish'?)",
       "t.yaml:5:36: unknown key 'hearbeat_ms' in sub-device 'a'; expected one of driver, node_id, heartbeat_ms, "
-      "heartbeat_timeout_ms, mandatory, identity, sdo, options (did you mean 'heartbeat_ms'?)",
+      "heartbeat_timeout_ms, pdo_timeout_ms, mandatory, identity, sdo, options (did you mean 'heartbeat_ms'?)",
       "t.yaml:5:53: unknown key 'colour' in sub-device 'a'; expected one of driver, node_id, heartbeat_ms, "
-      "heartbeat_timeout_ms, mandatory, identity, sdo, options",
+      "heartbeat_timeout_ms, pdo_timeout_ms, mandatory, identity, sdo, options",
       "t.yaml:8:23: unknown key 'deadbnd' in joystick.1 x; expected one of signal, scale, offset, deadband, "
       "invert, clamp, fault, interlock (did you mean 'deadband'?)"));
 }
@@ -698,11 +698,31 @@ downstream: { interface: can1 }
 subdevices:
   a: { driver: mcb402, node_id: 2, heartbeat_ms: 100, heartbeat_timeout_ms: 100 }
   b: { driver: mcb402, node_id: 3, heartbeat_ms: 100, heartbeat_timeout_ms: 250 }
-  c: { driver: mcb402, node_id: 4, heartbeat_ms: 0, heartbeat_timeout_ms: 10 }
+  c: { driver: mcb402, node_id: 4, heartbeat_ms: 0, heartbeat_timeout_ms: 10, pdo_timeout_ms: 100 }
 functional_elements: {}
 )");
   EXPECT_THAT(errors(r), ElementsAre("t.yaml:4:77: heartbeat_timeout_ms 100 is not longer than heartbeat_ms 100; "
                                      "expected more than 100 (or 0 for 1.5 x heartbeat_ms)"));
+}
+
+TEST(MappingConfig, ASubdeviceWithoutHeartbeatNeedsAPdoTimeout) {
+  const auto r = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  a: { driver: mcb402, node_id: 2, heartbeat_ms: 0 }
+  b: { driver: mcb402, node_id: 3, heartbeat_ms: 0, pdo_timeout_ms: 200 }
+functional_elements: {}
+)");
+  EXPECT_THAT(errors(r), ElementsAre("t.yaml:4:50: heartbeat_ms 0 leaves sub-device 'a' without proof of life; expected "
+                                     "a heartbeat (heartbeat_ms > 0) or pdo_timeout_ms > 0"));
+  const auto ok = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  b: { driver: mcb402, node_id: 3, heartbeat_ms: 0, pdo_timeout_ms: 200 }
+functional_elements: {}
+)");
+  ASSERT_TRUE(ok.ok()) << ok.error_text();
+  EXPECT_EQ(ok.config->subdevices[0].node_settings().pdo_timeout_ms, 200);
 }
 
 TEST(MappingConfig, PublishAndUpstreamSectionsKeepTheirData) {
