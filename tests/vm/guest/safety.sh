@@ -26,6 +26,8 @@ elapsed() { awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }
 # Timings are this file's: the grips' heartbeat 100 ms with a 400 ms consumer time (TCG guest:
 # four periods of margin), the elobau TPDO cycle 100 ms (freshness deadline 3 x 100 ms), the
 # MCB-402 axes every 50 ms (deadline 150 ms; the default 20 ms leaves a TCG guest little margin).
+# The encoder keeps its 10 ms event timer (frame load) but gets pdo_timeout_ms 200: its default
+# deadline of 30 ms gave false stale faults in a TCG guest.
 cat >"$dir/oegw.yaml" <<YAML
 upstream:
   interface: vcan0
@@ -62,6 +64,7 @@ subdevices:
     node_id: 0x7F
     heartbeat_ms: 200
     heartbeat_timeout_ms: 600
+    pdo_timeout_ms: 200
 functional_elements:
   joystick.1:
     x: { signal: right_grip.x, deadband: 2 }
