@@ -27,7 +27,9 @@ elapsed() { awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }
 # four periods of margin), the elobau TPDO cycle 100 ms (freshness deadline 3 x 100 ms), the
 # MCB-402 axes every 50 ms (deadline 150 ms; the default 20 ms leaves a TCG guest little margin).
 # The encoder keeps its 10 ms event timer (frame load) but gets pdo_timeout_ms 200: its default
-# deadline of 30 ms gave false stale faults in a TCG guest.
+# deadline of 30 ms gave false stale faults in a TCG guest. Joystick 2's deadband is wide (2000):
+# the MCB-402 sends its sweeping axes every 50 ms, about 2000 apart near zero, and the neutral
+# interlock must see x in the deadband before joystick 2 goes live (300 took up to a minute).
 cat >"$dir/oegw.yaml" <<YAML
 upstream:
   interface: vcan0
@@ -71,9 +73,9 @@ functional_elements:
     y: { signal: right_grip.y, deadband: 2 }
     buttons: right_grip.buttons[1..8]
   joystick.2:
-    x: { signal: left_grip.x, deadband: 300 }
-    y: { signal: left_grip.y, deadband: 300 }
-    z: { signal: left_grip.z, deadband: 300, clamp: [-32767, 32767] }
+    x: { signal: left_grip.x, deadband: 2000 }
+    y: { signal: left_grip.y, deadband: 2000 }
+    z: { signal: left_grip.z, deadband: 2000, clamp: [-32767, 32767] }
     buttons: left_grip.buttons[1..7]
   pedal.1:
     position: { signal: "pedal.analog[1]", deadband: 100, fault: 0 }

@@ -540,9 +540,15 @@ def host_heartbeat_round(h, n):
         delay = 1000 * (first[1][0] - e[1][0])
         log(f"loss {n}: EMCY 8130h -> {fmt_frame(first[1])}: {delay:.1f} ms")
         h.check(delay <= 250, f"loss {n}: error values {delay:.1f} ms after EMCY 8130h (bound 250 ms)")
-    # The host comes back.
+    # The host comes back, and starts the gateway again: on the heartbeat-consumer time-out it
+    # went pre-operational (1029h:01 = 00h, CiA 301 §7.2.8.3.2.3), as a real host would find it.
     h.hb_on.set()
-    time.sleep(0.6)
+    time.sleep(0.3)
+    m = h.up.mark()
+    h.send_up(0x000, [0x01, GW])
+    h.check(h.up.wait(lambda f: f[1] == 0x700 + GW and f[2] == b"\x05", 3, m) is not None,
+            f"loss {n}: heartbeat back and NMT start: the gateway reports operational (720#05)")
+    time.sleep(0.3)
     return delay
 
 
