@@ -90,7 +90,10 @@ Node::Node(ObjectDictionary& od, NodeConfig config, FrameSink sink)
     emcy_.raise(0x8130, 0x10, now_);
     communication_error(now_);
   });
-  hb_consumer_.on_state([this](NodeId, NmtState) {
+  // The error is over with the next heartbeat of the producer, whatever state it reports: a
+  // producer that comes back in the state it had (the usual case) changes no state, so a
+  // state-change callback would leave 8130h active for good, and a later loss unreported.
+  hb_consumer_.on_heartbeat([this](NodeId, NmtState) {
     if (emcy_.active(0x8130)) emcy_.clear(0x8130, now_);
   });
 }

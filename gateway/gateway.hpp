@@ -3,11 +3,15 @@
 // translators and the fault policy. Sans I/O: frames and time come in on two sides.
 //
 // Fault policy (DESIGN.md "A lost input never keeps the machine moving"):
-//  * a sub-device that is lost (heartbeat timeout, refused at boot, never seen), reports an
-//    error EMCY, or sends error / not-available codes for a bound signal: every FE field it
-//    feeds takes its fault value at once (the translators see the non-Valid status), and EMCY
-//    7000h ("additional modules", CiA 852 Table 37) goes upstream naming it; when the cause is
-//    gone the error-reset EMCY follows;
+//  * a sub-device that is lost (heartbeat timeout, no heartbeat in operational after NMT start,
+//    refused at boot, never seen), reports an error EMCY, sends error / not-available codes for a
+//    bound signal, or whose PDOs are overdue (Stale, Driver::advance): every FE field it feeds
+//    takes its fault value at once (the translators see the non-Valid status), and EMCY 7000h
+//    ("additional modules", CiA 852 Table 37) goes upstream naming it; when evidence shows the
+//    cause gone (the network manager's proof of life, a fresh PDO, the error reset) the
+//    error-reset EMCY follows and the log names the evidence (README "Fault policy");
+//  * outputs: every entry point (upstream frame, timer, DDS/LCM command, a node coming back)
+//    runs in an output batch, so one command reaches each sub-device as one frame per RPDO;
 //  * neutral interlock: after that, each axis stays at neutral until it has been seen inside
 //    its deadband (mapping/translate.hpp).
 //  * an error EMCY lasts until the sub-device's error reset (0000h): a warning EMCY (decoded

@@ -97,6 +97,12 @@ void Driver::rebuild_deadlines() {
     for (const std::size_t i : c.signals)
       if (i < deadline_.size() && (deadline_[i].count() == 0 || (d.count() != 0 && d < deadline_[i]))) deadline_[i] = d;
   }
+  // A driver that declares no carriers: pdo_timeout_ms covers every input signal.
+  if (carriers_.empty() && pdo_timeout_.count() != 0) {
+    const auto& info = signals();
+    for (std::size_t i = 0; i < deadline_.size() && i < info.size(); ++i)
+      if (!info[i].output()) deadline_[i] = pdo_timeout_;
+  }
   with_deadline_.clear();
   for (std::size_t i = 0; i < deadline_.size(); ++i)
     if (deadline_[i].count() != 0) with_deadline_.push_back(i);

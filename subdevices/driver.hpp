@@ -113,7 +113,8 @@ class Driver {
   // sends periodically (event timer T, transmission type 254/255, CiA 301 §7.5.2.35) is Stale
   // once kMissedPeriods × T pass without that PDO: the node may still send its heartbeat, but
   // the value is no longer evidence. The mapping file's pdo_timeout_ms replaces the derived
-  // deadline for every PDO-carried signal (also PDOs sent on change only, which have none).
+  // deadline for every PDO-carried signal (also PDOs sent on change only, which have none), or
+  // for every input signal of a driver that declares no carriers.
   static constexpr int kMissedPeriods = 3;
   // The boot writes that were made (the driver's configuration() and the mapping file's `sdo`
   // list, in that order): event timers (18xxh:05) and transmission types (18xxh:02) written

@@ -149,6 +149,7 @@ class GatewayRig {
         [this, down](const canopen::CanFrame& f) {
           if (detached_) {
             ++downstream_while_detached_;
+            if (on_downstream_detached) on_downstream_detached(f);
             return;
           }
           (void)down->send(f);
@@ -230,6 +231,9 @@ class GatewayRig {
     rearm_all();
     loop_.advance_by(extra);
   }
+
+  // While detached, every frame the gateway sends downstream (RPDOs to the devices) also goes here.
+  std::function<void(const canopen::CanFrame&)> on_downstream_detached;
 
   // Cuts the gateway from both buses: from now on the caller feeds it and the sinks record.
   void detach() { detached_ = true; }

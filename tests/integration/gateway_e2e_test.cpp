@@ -133,7 +133,12 @@ class GatewayE2E : public ::testing::Test {
     gw_down_ = down_.attach("gateway");
     sims_port_ = down_.attach("devices");
     up_.set_tap([this](const BusRecord& r) { upstream_.push_back(r); });
-    bench_ = std::make_unique<sd::sim::SimBench>(sims_port_->sink());
+    // The devices' frames pass drop_from_devices_ (a test cuts some of them: PDOs that stop).
+    bench_ = std::make_unique<sd::sim::SimBench>([this, sink = sims_port_->sink()](const CanFrame& f) {
+      if (drop_from_devices_ && drop_from_devices_(f)) return;
+      sink(f);
+    });
+    down_.set_tap([this](const BusRecord& r) { downstream_.push_back(r); });
     for (const auto& s : config_.subdevices) {
       sd::DeviceSpec spec{s.driver, s.node(), s.options};
       spec.options.values.emplace_back("name", s.name);
@@ -329,6 +334,8 @@ class GatewayE2E : public ::testing::Test {
   std::unique_ptr<Master> host_;
   std::unique_ptr<ServiceDriver> bench_drv_, gw_drv_, host_drv_;
   std::vector<BusRecord> upstream_;
+  std::vector<BusRecord> downstream_;
+  std::function<bool(const CanFrame&)> drop_from_devices_;
   std::vector<CanFrame> pdos_;
   std::vector<EmcyMessage> emcys_;
   std::vector<std::vector<Gateway::FieldState>> joy1_at_emcy_;
@@ -1217,6 +1224,174 @@ TEST(GatewayE2EBadMapping, ErrorsCarryFileLineColumnAndNoGatewayIsBuilt) {
   EXPECT_EQ(s.errors[0].where.line, 5);
   EXPECT_GT(s.errors[0].where.column, 0);
   EXPECT_EQ(s.errors[0].str().rfind("syntax.yaml:5:", 0), 0u) << s.errors[0].str();
+}
+
+}  // namespace
+
+namespace {
+
+// ---- Proof of life and atomic outputs (issue 9) -------------------------------------------------
+
+// Frames the gateway sent downstream on `id` since `from` (an index into downstream_), as text.
+std::vector<std::string> frames_to(const std::vector<BusRecord>& records, std::size_t from, std::uint32_t id) {
+  std::vector<std::string> out;
+  for (std::size_t i = from; i < records.size(); ++i)
+    if (records[i].sender == "gateway" && records[i].frame.id == id) out.push_back(records[i].frame.to_string());
+  return out;
+}
+
+// Finding 1: the grip's heartbeat stops and never comes back, also after the gateway reset it.
+// The reboot, configuration and NMT start are no proof of life: the fault stays (no EMCY 0000h),
+// and the stick deflected afterwards never reaches the host.
+TEST_F(GatewayE2E, AHeartbeatThatNeverReturnsAfterTheResetKeepsTheFaultAndTheStickNeutral) {
+  build();
+  boot_and_start();
+  cmd("right_grip heartbeat off");
+  run_for(400ms);  // consumer time 150 ms
+  ASSERT_EQ(emcys(0x7000).size(), 1u) << dump();
+  run_for(4s);  // retries: reset communication, boot-up, configuration, NMT start, no heartbeat
+  EXPECT_GE(gw_->downstream().counters().reboots_seen, 1u) << log_;
+  EXPECT_TRUE(emcys(0x0000).empty()) << "cleared without evidence\n" << dump();
+  EXPECT_EQ(gw_->faults().count("right_grip"), 1u);
+  EXPECT_NE(log_.find("right_grip: missing (no heartbeat in operational within 150 ms of NMT start)"), std::string::npos)
+      << log_;
+  const std::size_t seen = pdos(kTpdo1).size();
+  cmd("right_grip x 50");
+  run_for(5s);
+  const auto after = pdos(kTpdo1);
+  for (std::size_t i = seen; i < after.size(); ++i) EXPECT_EQ(i16(after[i], 0), 0) << after[i].to_string();
+  EXPECT_EQ(field(kJoy1, "x"), 0);
+  EXPECT_NE(gw_->status(kJoy1), FeStatus::Valid);
+  EXPECT_TRUE(emcys(0x0000).empty()) << dump();
+  // The heartbeat returns: that is the evidence; the stick must then be seen at zero first.
+  cmd("right_grip heartbeat on");
+  run_for(40s);  // the back-off has grown meanwhile (at most 30 s)
+  ASSERT_EQ(gw_->downstream().state("right_grip"), sd::NodeState::Operational) << log_;
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_NE(log_.find("right_grip: fault cleared (first heartbeat in operational after NMT start)"), std::string::npos)
+      << log_;
+  EXPECT_EQ(field(kJoy1, "x"), 0) << "held at neutral until the stick has been seen at zero";
+  cmd("right_grip x 0");
+  run_for(300ms);
+  cmd("right_grip x 40");
+  run_for(300ms);
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 13107);
+}
+
+// Finding 2: the MCB-402's pre-operational heartbeat crosses the gateway's NMT start on the bus
+// (sent before the node saw the start, received after it was sent). That is not the node leaving
+// operational: no fault, no EMCY, and joystick 2 goes live with the node's operational heartbeat.
+TEST_F(GatewayE2E, APreOperationalHeartbeatThatCrossedTheNmtStartIsNoFault) {
+  build();
+  auto* devices = sims_port_.get();
+  sims_port_->set_receiver([this, devices](const CanFrame& f, TimePoint t) {
+    if (f.id == 0 && f.dlc == 2 && f.data[0] == 0x01 && f.data[1] == 0x03)
+      (void)devices->send(CanFrame(0x703, {0x7F}));  // queued before the node acts on the start
+    bench_->on_frame(f, t);
+    bench_drv_->rearm();
+  });
+  power_on();
+  ASSERT_TRUE(all_operational()) << log_;
+  host_configures_and_starts();
+  run_for(500ms);
+  EXPECT_TRUE(emcys(0x7000).empty()) << dump();
+  EXPECT_TRUE(gw_->faults().empty()) << log_;
+  EXPECT_EQ(log_.find("left operational"), std::string::npos) << log_;
+  EXPECT_EQ(gw_->status(kJoy2), FeStatus::Valid);
+}
+
+// Finding 4: one host command changing several LEDs of the MCB-402 reaches it as one frame with
+// the new state, never through states nobody commanded (00h -> 05h is not 01h then 05h).
+TEST_F(GatewayE2E, OneHostCommandChangingSeveralLedsReachesTheMcb402AsOneFrame) {
+  build();
+  boot_and_start();
+  bool host_alive = true;
+  host_heartbeat_watched(host_alive);
+  run_for(200ms);
+  std::size_t from = downstream_.size();
+  (void)host_port_->send(CanFrame(kRpdo5, {0x05, 0, 0, 0, 0, 0, 0, 0}));  // RPDO: 00h -> 05h
+  run_for(100ms);
+  EXPECT_EQ(frames_to(downstream_, from, 0x203), (std::vector<std::string>{"203#05"}));
+  EXPECT_EQ(mcb_leds(), "1010");
+  from = downstream_.size();
+  ASSERT_EQ(sdo_write(0x6200, 0x09, {0x0A}), SdoAbortCode::None);  // SDO: 05h -> 0Ah
+  run_for(100ms);
+  EXPECT_EQ(frames_to(downstream_, from, 0x203), (std::vector<std::string>{"203#0A"}));
+  EXPECT_EQ(mcb_leds(), "0101");
+  // Several elobau LEDs from one RPDO: one RPDO #0 (211h) frame.
+  from = downstream_.size();
+  (void)host_port_->send(CanFrame(kRpdo6, {0x03, 0, 0, 0, 0, 0, 0, 0}));
+  run_for(100ms);
+  EXPECT_EQ(frames_to(downstream_, from, 0x211).size(), 1u);
+  // The error values of a host heartbeat loss: 0Ah -> 05h in one frame.
+  ASSERT_EQ(sdo_write(0x6206, 0x09, {0xFF}), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x6207, 0x09, {0x05}), SdoAbortCode::None);
+  from = downstream_.size();
+  host_alive = false;
+  run_for(500ms);
+  ASSERT_EQ(emcys(0x8130).size(), 1u) << dump();
+  EXPECT_EQ(frames_to(downstream_, from, 0x203), (std::vector<std::string>{"203#05"}));
+}
+
+// Finding 3, end to end: the host heartbeat stops while the sub-devices keep sending PDOs; the
+// error values reach the MCB-402 at the consumer time, whichever frame or timer notices it.
+TEST_F(GatewayE2E, HostHeartbeatLossUnderDownstreamLoadSetsTheErrorValuesAtTheDeadline) {
+  build();
+  boot_and_start();
+  bool host_alive = true;
+  host_heartbeat_watched(host_alive);
+  ASSERT_EQ(sdo_write(0x6206, 0x09, {0xFF}), SdoAbortCode::None);
+  ASSERT_EQ(sdo_write(0x6207, 0x09, {0x0A}), SdoAbortCode::None);
+  (void)host_port_->send(CanFrame(kRpdo5, {0x05, 0, 0, 0, 0, 0, 0, 0}));
+  run_for(300ms);
+  ASSERT_EQ(mcb_leds(), "1010");
+  host_alive = false;
+  const TimePoint stopped = loop_.now();
+  std::optional<TimePoint> applied;
+  for (int i = 0; i < 600 && !applied; ++i) {
+    cmd(fmt::format("right_grip x {}", i % 2 == 0 ? 10 : 20));  // a PDO load downstream
+    run_for(1ms);
+    if (mcb_leds() == "0101") applied = loop_.now();
+  }
+  ASSERT_TRUE(applied) << dump();
+  ASSERT_EQ(emcys(0x8130).size(), 1u);
+  // The last heartbeat came at most 100 ms before `stopped`; the consumer time is 250 ms.
+  EXPECT_LE(*applied - stopped, 250ms + 2ms) << "error values late";
+}
+
+// PDOs stop while the heartbeat goes on (a firmware fault, a TPDO disabled by another tool): past
+// the freshness deadline (3 x the 100 ms event timer) the stick is stale, at neutral, and the host
+// is told; a fresh PDO is the evidence that clears it, and the stick passes the interlock.
+TEST_F(GatewayE2E, PdosThatStopWhileTheHeartbeatGoesOnMakeTheJoystickStale) {
+  build();
+  boot_and_start();
+  cmd("right_grip x 50");
+  run_for(300ms);
+  ASSERT_EQ(i16(*last(kTpdo1), 0), 16384);
+  bool cut = true;
+  drop_from_devices_ = [&cut](const CanFrame& f) { return cut && (f.id == 0x191 || f.id == 0x291); };
+  run_for(200ms);
+  EXPECT_EQ(field(kJoy1, "x"), 16384) << "within the deadline";
+  run_for(200ms);
+  EXPECT_EQ(gw_->downstream().state("right_grip"), sd::NodeState::Operational) << "its heartbeat goes on";
+  EXPECT_EQ(field(kJoy1, "x"), 0);
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Stale);
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 0) << "the host read neutral";
+  const auto e = emcys(0x7000);
+  ASSERT_EQ(e.size(), 1u) << dump();
+  EXPECT_EQ(e[0].msef[0], 0x11);
+  EXPECT_NE(log_.find("right_grip: fault (x stale (no PDO for 300 ms))"), std::string::npos) << log_;
+  cut = false;  // PDOs again, the stick still deflected
+  run_for(300ms);
+  EXPECT_EQ(gw_->status(kJoy1), FeStatus::Valid);
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_NE(log_.find("right_grip: fault cleared (fresh PDO)"), std::string::npos) << log_;
+  EXPECT_EQ(field(kJoy1, "x"), 0) << "neutral interlock";
+  cmd("right_grip x 0");
+  run_for(300ms);
+  cmd("right_grip x 40");
+  run_for(300ms);
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 13107);
 }
 
 }  // namespace

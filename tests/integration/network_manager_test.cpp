@@ -300,3 +300,94 @@ TEST_F(NetworkManagerTest, CommissionsADeviceFoundAtItsDefaultNodeIdByLss) {
 }
 
 }  // namespace
+
+namespace {
+
+// A node without heartbeat (heartbeat_ms 0, pdo_timeout_ms set, as the mapping file requires):
+// after the NMT start its first PDO is the proof of life; once its PDOs stop (here: another
+// master stops it, which no heartbeat would tell), the input is Stale past pdo_timeout_ms.
+TEST(NetworkManagerProofOfLife, WithoutHeartbeatTheFirstPdoIsTheProofAndOverduePdosMakeTheInputStale) {
+  oegw::testing::VirtualNetwork net;
+  ObjectDictionary master_od;
+  Master master(master_od, net.sink("gateway"), MasterConfig{.heartbeat_entries = 8, .sdo_timeout = 100ms});
+  NetworkManager manager(master);
+  net.attach("gateway", manager);
+  std::vector<std::string> reasons;
+  std::vector<NodeState> states;
+  manager.on_node_state = [&](const std::string&, NodeState s, const std::string& why) {
+    states.push_back(s);
+    reasons.push_back(why);
+  };
+  auto drv = std::make_unique<ByteDriver>(kNode, net.sink("gateway"));
+  ByteDriver* driver = drv.get();
+  NodeSettings settings{.name = "grip", .node = kNode, .heartbeat_ms = 0, .heartbeat_timeout_ms = 0,
+                        .pdo_timeout_ms = 200, .mandatory = false, .identity = {}, .sdo = {}};
+  ASSERT_TRUE(manager.add(settings, std::move(drv)));
+  Device dev(net);
+  (void)dev.node->start(net.now());
+  net.settle();
+  manager.start(net.now());
+  net.run_for(20ms);
+  // Started, then the PDO the node sends on entering operational proves it alive.
+  ASSERT_GE(states.size(), 2u);
+  EXPECT_EQ(states[states.size() - 2], NodeState::Starting);
+  EXPECT_EQ(reasons[reasons.size() - 2], "configured, NMT start sent: waiting 200 ms for a first PDO");
+  ASSERT_EQ(manager.state("grip"), NodeState::Operational);
+  EXPECT_EQ(reasons.back(), "first PDO after NMT start");
+  (void)dev.od.set<std::uint8_t>(0x6000, 1, 0x42);
+  net.run_for(10ms);
+  EXPECT_EQ(driver->value(0).status, SignalStatus::Valid);
+  EXPECT_EQ(driver->value(0).value, 0x42);
+  EXPECT_EQ(driver->freshness(0), 200ms);
+  // The event timer (50 ms, the driver's boot write) keeps the value fresh...
+  net.run_for(500ms);
+  EXPECT_EQ(driver->value(0).status, SignalStatus::Valid);
+  master.nmt().stop(kNode);  // ...until the node stops sending
+  net.run_for(150ms);
+  EXPECT_EQ(driver->value(0).status, SignalStatus::Valid) << "within pdo_timeout_ms";
+  net.run_for(100ms);
+  EXPECT_EQ(driver->value(0).status, SignalStatus::Stale);
+}
+
+// Without pdo_timeout_ms a TPDO's deadline is 3 x the event timer actually written at boot: the
+// driver's default, replaced by the mapping file's `sdo` write of 18xxh:05 when there is one.
+TEST(DriverFreshness, TheDeadlineFollowsTheEventTimerWrittenAtBoot) {
+  struct Carried final : Driver {
+    Carried() {
+      signals_ = {SignalInfo{"a", SignalKind::Analog, -100, 100, 0, "raw16"}, SignalInfo{"b", SignalKind::Button, 0, 1, 0, "bits"}};
+      init(NodeId{5}, {}, signals_.size());
+      set_carriers({Carrier{.comm_index = 0x1800, .event_timer_ms = 20, .transmission_type = 0xFE, .signals = {0}},
+                    Carrier{.comm_index = 0x1801, .event_timer_ms = 0, .transmission_type = 0xFE, .signals = {1}}});
+    }
+    std::string_view family() const override { return "test"; }
+    const std::vector<SignalInfo>& signals() const override { return signals_; }
+    bool on_frame(const CanFrame&, TimePoint) override { return false; }
+    DecodedEmcy on_emcy(const EmcyMessage&, TimePoint) override { return {}; }
+    std::vector<std::uint32_t> consumed_cob_ids() const override { return {}; }
+    bool set_output(std::size_t, std::int64_t, TimePoint) override { return false; }
+    void feed(std::size_t i, std::int64_t v, TimePoint t) { update(i, v, SignalStatus::Valid, t); }
+    std::vector<SignalInfo> signals_;
+  } d;
+  EXPECT_EQ(d.freshness(0), 60ms);
+  EXPECT_EQ(d.freshness(1), 0ms) << "sent on change only: no deadline";
+  d.apply_boot_writes({SdoWrite{0x1800, 5, encode<std::uint16_t>(20), "driver"}, SdoWrite{0x1800, 5, encode<std::uint16_t>(500), "file"}});
+  EXPECT_EQ(d.freshness(0), 1500ms) << "the last write wins";
+  d.apply_boot_writes({SdoWrite{0x1800, 2, {0x01}, "every SYNC"}});
+  EXPECT_EQ(d.freshness(0), 0ms) << "a synchronous PDO has no event-timer deadline";
+  d.set_pdo_timeout(250ms);
+  EXPECT_EQ(d.freshness(0), 250ms);
+  EXPECT_EQ(d.freshness(1), 250ms) << "pdo_timeout_ms covers PDOs sent on change too";
+  const TimePoint t0{std::chrono::seconds(1)};
+  d.feed(0, 7, t0);
+  d.feed(1, 1, t0 + 100ms);
+  EXPECT_EQ(d.next_deadline(), t0 + 250ms);
+  d.advance(t0 + 249ms);
+  EXPECT_EQ(d.value(0).status, SignalStatus::Valid);
+  d.advance(t0 + 250ms);
+  EXPECT_EQ(d.value(0).status, SignalStatus::Stale);
+  EXPECT_EQ(d.value(0).value, 7) << "the last value, no longer vouched for";
+  EXPECT_EQ(d.value(1).status, SignalStatus::Valid);
+  EXPECT_EQ(d.next_deadline(), t0 + 350ms);
+}
+
+}  // namespace

@@ -436,6 +436,50 @@ TEST_F(OeDeviceTest, HostHeartbeatLostAppliesErrorValues) {
   EXPECT_TRUE(dev->node().emcy().active(0x8130));
 }
 
+// Issue 9 finding 3: the TPDOs a downstream frame sends (end_batch) advance the Node, and that
+// call can be the one that notices the host's heartbeat time-out. The error values must follow in
+// that same call, not at the next timer wake-up (which can be a heartbeat period later).
+TEST_F(OeDeviceTest, HostHeartbeatLossNoticedWhileSendingInputTpdosAppliesTheErrorValuesAtOnce) {
+  make({joystick(1), indicators(1)}, /*host_node=*/1, /*host_ms=*/100);
+  sdo_ok(0x6423, 0, {1});
+  nmt(0x01);
+  sdo_ok(0x6200, 1, {0x01});  // indicator 1 on; 6206h:01 = 01h, 6207h:01 = 0: error value off
+  rx(0x701, {0x05});          // host heartbeat: monitoring starts
+  outputs.clear();
+  now += 150ms;               // past the consumer time, no timer call in between
+  dev->begin_batch();         // a downstream frame moves the joystick
+  ASSERT_TRUE(dev->set_input(joystick(1), "x", 1000, now));
+  dev->end_batch(now);
+  EXPECT_TRUE(dev->node().emcy().active(0x8130));
+  EXPECT_EQ(u8(0x6200, 1), 0x00) << "the error value, in the same call";
+  using O = std::tuple<FeId, std::string, std::int64_t>;
+  EXPECT_EQ(outputs, (std::vector<O>{{indicators(1), "indicator[1]", 0}}));
+}
+
+// The host's heartbeat comes back in the state it had: that is the evidence that ends EMCY 8130h
+// (error reset), and a second loss applies the error values again.
+TEST_F(OeDeviceTest, AReturningHostHeartbeatClears8130hAndASecondLossAppliesTheErrorValuesAgain) {
+  make({indicators(1)}, /*host_node=*/1, /*host_ms=*/100);
+  nmt(0x01);
+  rx(0x701, {0x05});
+  sdo_ok(0x6200, 1, {0x01});
+  now += 150ms;
+  dev->advance(now);
+  ASSERT_TRUE(dev->node().emcy().active(0x8130));
+  ASSERT_EQ(u8(0x6200, 1), 0x00);
+  nmt(0x01);                                  // the host restarts us (1029h took us to pre-op)
+  const auto back = rx(0x701, {0x05});        // the host is back, still operational
+  EXPECT_FALSE(dev->node().emcy().active(0x8130));
+  bool reset_sent = false;
+  for (const auto& f : back) reset_sent = reset_sent || (f.id == 0x80 + kId.value() && f.data[0] == 0 && f.data[1] == 0);
+  EXPECT_TRUE(reset_sent) << "EMCY error reset upstream";
+  sdo_ok(0x6200, 1, {0x01});
+  now += 150ms;                               // lost again
+  dev->advance(now);
+  EXPECT_TRUE(dev->node().emcy().active(0x8130));
+  EXPECT_EQ(u8(0x6200, 1), 0x00) << "the error value again";
+}
+
 // Table 37 7000h for sub-device faults; node-ID and name in the manufacturer bytes.
 TEST_F(OeDeviceTest, SubdeviceFaultEmcy) {
   make({joystick(1)});
