@@ -303,20 +303,24 @@ class Host:
 # ------------------------------------------------------------------------------- scenarios
 
 class BootRace:
-    """Scenario 2's injector on vcan1: at the gateway's first NMT start of the MCB-402 (000#01 03),
-    send 703#7F at once, as if the device's heartbeat queued before the start went out after it."""
+    """Scenario 2's injector on vcan1: at each NMT start of the MCB-402 by the gateway (000#01 03),
+    while armed, send 703#7F at once, as if the device's heartbeat queued before the start went
+    out after it. Up to three attempts: if the simulator's own 703#05 came first (its heartbeat
+    phase, 100 ms), the 7Fh is a real loss, the gateway restarts the node, and the next start is
+    tried again."""
 
     def __init__(self, host):
         self.host = host
-        self.start_frame = None
-        self.injected_at = None
+        self.attempts = []       # (index in the vcan1 record, kernel timestamp) of each NMT start
+        self.armed = True
         host.down.hooks.append(self.hook)
 
     def hook(self, f):
-        if self.injected_at is None and f[1] == 0x000 and len(f[2]) == 2 and f[2][0] == 0x01 and f[2][1] in (MCB, 0):
-            self.start_frame = f
+        if (self.armed and len(self.attempts) < 3 and f[1] == 0x000 and len(f[2]) == 2 and f[2][0] == 0x01
+                and f[2][1] in (MCB, 0)):
             self.host.down_bus.send(can.Message(arbitration_id=0x700 + MCB, is_extended_id=False, data=[0x7F]))
-            self.injected_at = time.time()
+            with self.host.down.cv:
+                self.attempts.append((len(self.host.down.frames), f[0]))  # the hook runs before f is stored
 
 
 def setup(h):
@@ -335,35 +339,54 @@ def setup(h):
 
 def scenario_boot_race(h, race):
     # The gateway boots its sub-devices as soon as it runs; the injector was armed before.
-    r = h.down.wait(lambda f: f[1] == 0x000 and f[2] == bytes([0x01, MCB]), 30)
-    if not h.check(r is not None and race.injected_at is not None, "the gateway NMT-started the MCB-402 (000#0103); "
-                   "703#7F injected right after it"):
-        return None
-    start_i = r[0]
-    # Bus order on vcan1 (receive_own_messages): the first 703h frame after the start must be the
-    # injected 7Fh; a 703#05 of the simulator before it would make the 7Fh a real loss.
-    first = h.down.wait(is_id(0x700 + MCB), 5, start_i + 1)
-    if first is None or first[1][2] != b"\x7F":
-        log(f"race lost: first 703h after the NMT start is {fmt_frame(first[1]) if first else None}")
+    won = None
+    for k in range(3):
+        deadline = time.monotonic() + (30 if k == 0 else 15)
+        while len(race.attempts) <= k and time.monotonic() < deadline:
+            time.sleep(0.05)
+        if len(race.attempts) <= k:
+            break
+        start_i, start_t = race.attempts[k]
+        # Bus order on vcan1 (receive_own_messages): the first 703h frame after the start must be
+        # the injected 7Fh; a 703#05 of the simulator before it would make the 7Fh a real loss.
+        first = h.down.wait(is_id(0x700 + MCB), 5, start_i + 1)
+        if first is not None and first[1][2] == b"\x7F":
+            won = (k, start_t)
+            log(f"attempt {k + 1}: 703#7F injected {1000 * (first[1][0] - start_t):.1f} ms after 000#0103 "
+                "(bus timestamps), before the simulator's first heartbeat in operational")
+            break
+        log(f"attempt {k + 1}: race lost: first 703h after the NMT start is {fmt_frame(first[1]) if first else None}")
+    race.armed = False
+    if won is None:
+        if not race.attempts:
+            h.check(False, "the gateway NMT-started the MCB-402 (000#0103)")
+            return None
+        # Let the node recover from the (real) losses before the next scenario uses it.
+        h.wait_reset(MCB, 15, 0)
         return "SKIP"
-    log(f"703#7F injected {1000 * (first[1][0] - r[1][0]):.1f} ms after 000#0103 (bus timestamps)")
+    k, start_t = won
     # Joystick 2 becomes live: TPDO5 x takes several values (the MCB-402 sweeps its axes).
-    up_start = 0
     xs = set()
     deadline = time.monotonic() + 20
-    i = up_start
+    i = 0
     while time.monotonic() < deadline and len(xs) < 5:
-        got = h.up.wait(is_id(TPDO5), max(deadline - time.monotonic(), 0.01), i)
+        got = h.up.wait(lambda f: f[1] == TPDO5 and f[0] > start_t, max(deadline - time.monotonic(), 0.01), i)
         if got is None:
             break
         i = got[0] + 1
         xs.add(joy(got[1])[0])
     h.check(len(xs) >= 5, f"joystick 2 live: TPDO5 x took {len(xs)} values ({sorted(xs)[:6]}...)")
     time.sleep(1.0)  # a false fault would have come by now (consumer time 400 ms)
-    bad = h.up.since(0, emcy_7000_naming(MCB))
-    h.check(not bad, "no EMCY 7000h naming 03h since the gateway started"
+    bad = h.up.since(0, lambda f: emcy_7000_naming(MCB)(f) and f[0] > start_t)
+    h.check(not bad, f"no EMCY 7000h naming 03h since that NMT start (attempt {k + 1})"
             + (f": got {[fmt_frame(f) for f in bad]}" if bad else ""))
-    return None
+    if k > 0:
+        # The earlier attempts were real losses: their fault must clear after this start.
+        with h.up.cv:
+            frames = list(h.up.frames)
+        ok = any(frames[j][0] > start_t for j in reset_indexes(frames, MCB))
+        h.check(ok, "the fault of the earlier attempts clears after this NMT start (EMCY 0000h)")
+    return f"won at attempt {k + 1}"
 
 
 def scenario_outputs_atomic(h):
@@ -575,6 +598,8 @@ def main():
     global T0
     ready, grip_fifo, windows = sys.argv[1:4]
     T0 = time.monotonic()
+    # Hand the GIL over sooner (default 5 ms): the injector thread must answer within a few ms.
+    sys.setswitchinterval(0.0005)
     h = Host(grip_fifo, windows)
     race = BootRace(h)
     open(ready, "w").close()
