@@ -83,9 +83,8 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     const std::string name = sc.name;
     d->on_change = [this, name](std::size_t i, const sd::SignalValue& v) { on_signal(name, i, v); };
     network_.add(std::move(ns), std::move(driver));
-    if (std::any_of(d->signals().begin(), d->signals().end(), [](const sd::SignalInfo& i) { return i.output(); }))
-      output_drivers_.push_back(d);
     subs_[sc.name] = Sub{&sc, d, false, false, "not booted yet", std::vector<std::vector<std::size_t>>(d->signals().size()), {}};
+    batched_.reserve(config_.subdevices.size());  // no allocation in an output batch
   }
   for (const auto& fe : config_.functional_elements) {
     for (const auto& f : fe.fields) {
@@ -291,16 +290,22 @@ void Gateway::on_output(mapping::FeId fe, const std::string& field, std::int64_t
     const std::int64_t current = output_values_.count(key) ? output_values_[key] : 0;
     const std::int64_t next = mapping::apply_output(b.output, value, current);
     output_values_[key] = next;
-    if (s.operational) (void)s.driver->set_output(b.signal, next, now_);
+    if (!s.operational) continue;
+    if (output_depth_ > 0 && std::find(batched_.begin(), batched_.end(), s.driver) == batched_.end()) {
+      s.driver->begin_outputs();  // sent once, at the outermost end_outputs()
+      batched_.push_back(s.driver);
+    }
+    (void)s.driver->set_output(b.signal, next, now_);
   }
 }
 
-void Gateway::begin_outputs() {
-  for (sd::Driver* d : output_drivers_) d->begin_outputs();
-}
+void Gateway::begin_outputs() { ++output_depth_; }
 
 void Gateway::end_outputs(TimePoint now) {
-  for (sd::Driver* d : output_drivers_) d->end_outputs(now);
+  if (output_depth_ == 0 || --output_depth_ != 0) return;
+  // Only the drivers on_output() touched are in a batch (nothing to do on most frames).
+  for (sd::Driver* d : batched_) d->end_outputs(now);
+  batched_.clear();
 }
 
 bool Gateway::on_upstream_frame(const canopen::CanFrame& frame, TimePoint now) {

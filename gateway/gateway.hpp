@@ -122,7 +122,8 @@ class Gateway {
   void on_output(mapping::FeId fe, const std::string& field, std::int64_t value);
   // Raises or clears the node's fault; `evidence` names what cleared it, for the log.
   void update_fault(Sub& s, std::string_view evidence);
-  // Output batches of every driver with outputs (Driver::begin_outputs).
+  // An output batch (nests): the drivers on_output() reaches meanwhile send once, at the end
+  // (Driver::begin_outputs), one frame per RPDO however many outputs changed.
   void begin_outputs();
   void end_outputs(canopen::TimePoint now);
   // Feeds one input binding (the EMCY hold of its node applied); returns true if it changed.
@@ -142,7 +143,8 @@ class Gateway {
   subdevices::NetworkManager network_;
   std::unique_ptr<OeDevice> oe_;
   std::map<std::string, Sub> subs_;
-  std::vector<subdevices::Driver*> output_drivers_;  // the drivers with output signals
+  unsigned output_depth_ = 0;
+  std::vector<subdevices::Driver*> batched_;  // drivers in the current output batch
   std::vector<Binding> bindings_;
   std::map<std::pair<std::string, std::size_t>, std::int64_t> output_values_;        // last sent
   std::map<std::string, std::string> faults_;  // sub-device -> reason

@@ -271,6 +271,11 @@ class GatewayE2E : public ::testing::Test {
     });
     ASSERT_EQ(sdo_write(0x1016, 1, encode<std::uint32_t>(std::uint32_t{kHostNode} << 16 | 250)), SdoAbortCode::None);
   }
+  // CiA 401 error mode (6206h) and error value (6207h) of one 6200h sub-index, by the host.
+  void error_values(std::uint8_t sub, std::uint8_t mode, std::uint8_t value) {
+    ASSERT_EQ(sdo_write(0x6206, sub, {mode}), SdoAbortCode::None);
+    ASSERT_EQ(sdo_write(0x6207, sub, {value}), SdoAbortCode::None);
+  }
   void boot_and_start() {
     power_on();
     ASSERT_TRUE(all_operational()) << log_;
@@ -911,10 +916,8 @@ TEST_F(GatewayE2E, HostHeartbeatLossAppliesErrorValuesToTheLeds) {
   bool host_alive = true;
   host_heartbeat_watched(host_alive);
   // Error mode for every bit of indicators.2 and .3, error values: MCB OUT1/OUT3, elobau LED 2.
-  ASSERT_EQ(sdo_write(0x6206, 0x09, {0xFF}), SdoAbortCode::None);
-  ASSERT_EQ(sdo_write(0x6207, 0x09, {0x0A}), SdoAbortCode::None);
-  ASSERT_EQ(sdo_write(0x6206, 0x11, {0xFF}), SdoAbortCode::None);
-  ASSERT_EQ(sdo_write(0x6207, 0x11, {0x02}), SdoAbortCode::None);
+  error_values(0x09, 0xFF, 0x0A);
+  error_values(0x11, 0xFF, 0x02);
   (void)host_port_->send(CanFrame(kRpdo5, {0x05, 0, 0, 0, 0, 0, 0, 0}));
   (void)host_port_->send(CanFrame(kRpdo6, {0x01, 0, 0, 0, 0, 0, 0, 0}));
   run_for(1s);
@@ -1324,8 +1327,7 @@ TEST_F(GatewayE2E, OneHostCommandChangingSeveralLedsReachesTheMcb402AsOneFrame) 
   run_for(100ms);
   EXPECT_EQ(frames_to(downstream_, from, 0x211).size(), 1u);
   // The error values of a host heartbeat loss: 0Ah -> 05h in one frame.
-  ASSERT_EQ(sdo_write(0x6206, 0x09, {0xFF}), SdoAbortCode::None);
-  ASSERT_EQ(sdo_write(0x6207, 0x09, {0x05}), SdoAbortCode::None);
+  error_values(0x09, 0xFF, 0x05);
   from = downstream_.size();
   host_alive = false;
   run_for(500ms);
@@ -1340,8 +1342,7 @@ TEST_F(GatewayE2E, HostHeartbeatLossUnderDownstreamLoadSetsTheErrorValuesAtTheDe
   boot_and_start();
   bool host_alive = true;
   host_heartbeat_watched(host_alive);
-  ASSERT_EQ(sdo_write(0x6206, 0x09, {0xFF}), SdoAbortCode::None);
-  ASSERT_EQ(sdo_write(0x6207, 0x09, {0x0A}), SdoAbortCode::None);
+  error_values(0x09, 0xFF, 0x0A);
   (void)host_port_->send(CanFrame(kRpdo5, {0x05, 0, 0, 0, 0, 0, 0, 0}));
   run_for(300ms);
   ASSERT_EQ(mcb_leds(), "1010");

@@ -154,7 +154,7 @@ echo "candump vcan0: $n TPDO1 frames, $(wc -l </tmp/up.dump) frames in all"
 if grep -qE '^vcan0 (711|703|730|77F|731)#' <<<"$got"; then fail "downstream heartbeats on vcan0"; else pass "vcan0 carries no sub-device frames"; fi
 if grep -qE '^vcan1 711#05' <<<"$(frames /tmp/down.dump)"; then pass "candump vcan1: grip operational (711#05)"; else fail "no 711#05 on vcan1"; fi
 # The gateway's log (journald: "level: message", no timestamps) names the lost grip.
-for line in 'info: right_grip: operational (configured and started)' 'info: right_grip: missing (heartbeat lost)' \
+for line in 'info: right_grip: operational (first heartbeat in operational after NMT start)' 'info: right_grip: missing (heartbeat lost)' \
   'info: right_grip: fault (missing (heartbeat lost)): its inputs are at their fault values, EMCY 7000h sent upstream'; do
   if grep -qxF "$line" /tmp/gateway.log; then pass "log: $line"; else fail "log lacks: $line"; fi
 done
