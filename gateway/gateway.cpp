@@ -108,7 +108,9 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     Sub& s = it->second;
     const bool was = s.operational;
     s.operational = st == sd::NodeState::Operational;
-    if (!s.operational) s.emcy_error = false;
+    // A device that resets forgets its errors (its EMCYs from before are void); one that
+    // reports an error while it is configured or started still has it when it goes live.
+    if (st == sd::NodeState::WaitingBootUp || st == sd::NodeState::Configuring) s.emcy_error = false;
     s.why = std::string(sd::to_string(st)) + " (" + why + ")";
     log(name + ": " + s.why);
     if (s.operational && !was) {

@@ -308,9 +308,11 @@ DecodedEmcy Cia401Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
   if (emcy.code == canopen::EmcyProducer::kErrorReset) {
     d.error = false;
     d.text = "cia401 EMCY 0000h: error reset";
+    // No longer Error, but no value either until the next PDO: Offline, as before the first
+    // one (Stale means a PDO is overdue, which a node sending on change only never is).
     for (std::size_t i = 0; i < signals_.size(); ++i)
       if (!signals_[i].output() && value(i).status == SignalStatus::Error)
-        update(i, signals_[i].neutral, SignalStatus::Stale, now);
+        update(i, signals_[i].neutral, SignalStatus::Offline, now);
     return d;
   }
   const char* cls = emcy_class(emcy.code);

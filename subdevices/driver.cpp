@@ -118,20 +118,27 @@ Duration Driver::longest_freshness() const {
   return d;
 }
 
+std::optional<TimePoint> Driver::stale_at(std::size_t i) const {
+  const SignalValue& v = values_[i];
+  if (v.status == SignalStatus::Valid) return v.timestamp + deadline_[i];
+  // Never had a PDO while the node is alive: counted from the proof of life (or from when the
+  // signal went offline, if later).
+  if (v.status == SignalStatus::Offline && alive_since_) return std::max(*alive_since_, v.timestamp) + deadline_[i];
+  return std::nullopt;
+}
+
 void Driver::advance(TimePoint now) {
   for (const std::size_t i : with_deadline_) {
-    const SignalValue& v = values_[i];
-    if (v.status == SignalStatus::Valid && now >= v.timestamp + deadline_[i]) update(i, v.value, SignalStatus::Stale, now);
+    const auto at = stale_at(i);
+    if (at && now >= *at) update(i, values_[i].value, SignalStatus::Stale, now);
   }
 }
 
 std::optional<TimePoint> Driver::next_deadline() const {
   std::optional<TimePoint> best;
   for (const std::size_t i : with_deadline_) {
-    const SignalValue& v = values_[i];
-    if (v.status != SignalStatus::Valid) continue;
-    const TimePoint t = v.timestamp + deadline_[i];
-    if (!best || t < *best) best = t;
+    const auto at = stale_at(i);
+    if (at && (!best || *at < *best)) best = at;
   }
   return best;
 }

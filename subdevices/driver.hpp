@@ -124,7 +124,11 @@ class Driver {
   // The deadline of one signal (0: none), and the largest of all (0: none).
   [[nodiscard]] Duration freshness(std::size_t index) const;
   [[nodiscard]] Duration longest_freshness() const;
-  // Marks Valid signals whose PDO is overdue Stale (on_change reports them).
+  // Since when the node is proven alive (the network manager; nullopt while it is not): a
+  // signal with a deadline that has had no PDO since then, nor since it went offline, is Stale
+  // once the deadline passes (a node that starts but never sends its PDOs).
+  void set_alive_since(std::optional<TimePoint> since) { alive_since_ = since; }
+  // Marks signals whose PDO is overdue Stale (on_change reports them).
   void advance(TimePoint now);
   [[nodiscard]] std::optional<TimePoint> next_deadline() const;
 
@@ -163,6 +167,7 @@ class Driver {
 
  private:
   void rebuild_deadlines();
+  [[nodiscard]] std::optional<TimePoint> stale_at(std::size_t index) const;  // nullopt: not due
 
   NodeId node_{};
   FrameSink sink_;
@@ -170,6 +175,7 @@ class Driver {
   unsigned output_batch_ = 0;
   std::vector<Carrier> carriers_;
   Duration pdo_timeout_{0};
+  std::optional<TimePoint> alive_since_;
   std::vector<Duration> deadline_;          // by signal; 0 = none
   std::vector<std::size_t> with_deadline_;  // the signals that have one
 };

@@ -183,11 +183,21 @@ bool ElobauMfgDriver::on_frame(const CanFrame& frame, TimePoint now) {
   return false;
 }
 
+bool ElobauMfgDriver::channels_disagree(std::int8_t ch1, std::int8_t ch2) const {
+  return std::abs(limit100(ch1) - limit100(ch2)) > opt_.channel_tolerance;
+}
+
 void ElobauMfgDriver::on_tpdo0(const CanFrame& frame, TimePoint now) {
   for (std::size_t a = 0; a < kAxes; ++a) {
     const auto v = static_cast<std::int8_t>(frame.data[a]);
     if (!valid_value(v) && v != kErrorValue && v != kNotAvailableValue) ++stats_.out_of_range;
-    axes_[a].ch1 = v;
+    Axis& ax = axes_[a];
+    ax.ch1 = v;
+    if (ax.suspect) {  // the channel 2 that disagreed against this newer channel 1
+      ax.suspect = false;
+      ax.mismatch = valid_value(v) && ax.ch2 && valid_value(*ax.ch2) && channels_disagree(v, *ax.ch2);
+      if (ax.mismatch) ++counters_.mismatches;
+    }
   }
   buttons_ = static_cast<std::uint16_t>(frame.data[5] | (frame.data[6] << 8));
   if (opt_.channel2_timeout_ms > 0) {
@@ -205,14 +215,12 @@ void ElobauMfgDriver::on_tpdo1(const CanFrame& frame, TimePoint now) {
     if (!valid_value(v2) && v2 != kErrorValue && v2 != kNotAvailableValue) ++stats_.out_of_range;
     ax.ch2 = v2;
     const bool ch1_ok = ax.ch1 && valid_value(*ax.ch1);
-    ax.mismatch = false;
-    if (ch1_ok && valid_value(v2)) {
-      const int diff = std::abs(limit100(*ax.ch1) - limit100(v2));
-      ax.mismatch = diff > opt_.channel_tolerance;
-      if (ax.mismatch) ++counters_.mismatches;
-    }
+    const bool disagree = ch1_ok && valid_value(v2) && channels_disagree(*ax.ch1, v2);
+    // A verdict already given holds while they disagree; a new disagreement waits for TPDO #0.
+    ax.suspect = disagree && !ax.mismatch;
+    ax.mismatch = disagree && ax.mismatch;
     // A good pair after an axis EMCY: the fault is over (the device sends 126 while it lasts).
-    if (ch1_ok && (valid_value(v2) || v2 == kNotAvailableValue) && !ax.mismatch) ax.emcy = false;
+    if (ch1_ok && (valid_value(v2) || v2 == kNotAvailableValue) && !disagree) ax.emcy = false;
   }
   ch2_reference_ = now;
   channel2_late_ = false;
@@ -385,9 +393,8 @@ void ElobauMfgDriver::on_online(TimePoint now) {
   bool any = false;
   for (const auto& l : leds_) any = any || l.has_value();
   if (any) {
-    const auto p = led_payload();
-    send(CanFrame(kRpdo0 + node().value(), std::span<const std::uint8_t>(p.data(), p.size())));
-    leds_sent_ = true;
+    leds_dirty_ = true;  // sent now, or at the end of the caller's output batch
+    if (!outputs_deferred()) flush_outputs(now);
     for (std::size_t l = 0; l < kLeds; ++l)
       if (leds_[l]) update(kFirstLed + l, value(kFirstLed + l).value, SignalStatus::Valid, now);
   }

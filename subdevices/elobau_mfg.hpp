@@ -31,9 +31,14 @@
 //     single-channel axis, 20xxh:01h = 1).
 //   * |ch1 - ch2| > channel_tolerance (both limited to ±100 first: the detent is a jump from 100
 //     to 110 at the same mechanical end, §15.1.2) -> Error, counters().mismatches++. The pair is
-//     compared when TPDO #1 arrives, against the TPDO #0 of the same cycle (both are sent on the
-//     same timer or change; 180h+id wins arbitration over 280h+id, so it is received first);
-//     the verdict holds until the next TPDO #1. Comparing on TPDO #0 too would flag every fast
+//     compared when TPDO #1 arrives, against the last TPDO #0. The two TPDOs have their own event
+//     timers and only TPDO #0 an inhibit time (2 ms, Table 14): after a movement TPDO #1 can
+//     carry the new channel 2 before TPDO #0 may carry the new channel 1. So a TPDO #1 that
+//     disagrees is only a suspicion, decided by the next TPDO #0: if its channel 1 still
+//     disagrees with that channel 2, the axis is Error (mismatches++), else the pair was just
+//     out of step. A real disagreement is thus reported one TPDO #0 later (within its inhibit
+//     time when the stick moves, at most one cycle when it rests); the verdict then holds until a
+//     TPDO #1 agrees. Comparing every TPDO #0 with the last TPDO #1 would flag every fast
 //     movement for the instant between the two frames.
 //   * No TPDO #1 at all is not an error by default (a grip may have TPDO #1 disabled): the axis
 //     stays Valid on channel 1, unchecked. Option channel2_timeout_ms > 0 makes it one: every
@@ -137,8 +142,10 @@ class ElobauMfgDriver final : public Driver {
     std::optional<std::int8_t> ch1;
     std::optional<std::int8_t> ch2;
     bool mismatch = false;
+    bool suspect = false;  // the last TPDO #1 disagreed: the next TPDO #0 decides
     bool emcy = false;  // latched by an axis EMCY, cleared by a good pair or the error reset
   };
+  [[nodiscard]] bool channels_disagree(std::int8_t ch1, std::int8_t ch2) const;
   void on_tpdo0(const CanFrame& frame, TimePoint now);
   void on_tpdo1(const CanFrame& frame, TimePoint now);
   void publish_axis(std::size_t a, TimePoint now);

@@ -246,8 +246,8 @@ void Mcb402Driver::send_outputs() {
 
 void Mcb402Driver::on_online(TimePoint now) {
   Driver::on_online(now);
-  outputs_pending_ = false;
-  send_outputs();
+  outputs_pending_ = true;  // sent now, or at the end of the caller's output batch
+  if (!outputs_deferred()) flush_outputs(now);
 }
 
 bool Mcb402Driver::set_output(std::size_t index, std::int64_t value, TimePoint now) {

@@ -59,8 +59,10 @@ NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
     Managed* m = find(n);
     if (m == nullptr || m->state == NodeState::Idle) return;  // start() has not run yet
     if (m->started_once) ++counters_.reboots_seen;
-    if (m->state == NodeState::Operational) m->driver->on_offline(now_);
+    const bool was_live = m->state == NodeState::Operational;
     configure(*m, now_);  // it just booted: its dictionary is at power-on values
+    // The inputs go offline after the state says why (see fail()).
+    if (was_live) m->driver->on_offline(now_);
   };
   master_.on_heartbeat_timeout = [this](NodeId n) {
     Managed* m = find(n);
@@ -169,6 +171,8 @@ void NetworkManager::begin_boot(Managed& m, TimePoint now) {
 void NetworkManager::configure(Managed& m, TimePoint now) {
   ++m.generation;
   m.deadline.reset();
+  m.held.clear();
+  m.driver->set_alive_since(std::nullopt);
   master_.sdo(m.settings.node).cancel_all(SdoAbortCode::GeneralError);
   const ExpectedIdentity drv = m.driver->expected_identity();
   const ExpectedIdentity& cfg = m.settings.identity;
@@ -290,16 +294,31 @@ void NetworkManager::finish(Managed& m, TimePoint now) {
 void NetworkManager::go_live(Managed& m, const std::string& evidence, TimePoint now) {
   m.deadline.reset();
   m.backoff = Duration{0};
+  // One output batch for what the driver re-sends (a rebooted device forgot its outputs) and
+  // what the state's observers set: the device gets the current state once.
+  m.driver->begin_outputs();
   m.driver->on_online(now);
+  m.driver->set_alive_since(now);  // from now on a PDO that never comes is overdue too
+  // PDOs the node sent after the NMT start, before its proof of life: the last of each, as
+  // received (a node sending on change only may send nothing else for a long time).
+  std::vector<std::pair<CanFrame, TimePoint>> held;
+  held.swap(m.held);
   set_state(m, NodeState::Operational, evidence, now);
+  for (const auto& [frame, at] : held)
+    if (m.state == NodeState::Operational) (void)m.driver->on_frame(frame, at);
+  m.driver->end_outputs(now);
 }
 
 void NetworkManager::fail(Managed& m, NodeState s, const std::string& why, TimePoint now) {
   ++m.generation;
-  m.driver->on_offline(now);
+  m.held.clear();
+  m.driver->set_alive_since(std::nullopt);
   m.backoff = m.backoff == Duration{0} ? timing_.retry_first : std::min(m.backoff * 2, timing_.retry_max);
   m.deadline = now + m.backoff;
+  // The state first, then the inputs: whoever watches both sees the inputs go offline because
+  // the node failed, never as a moment where the node still counts as live with no bad input.
   set_state(m, s, why, now);
+  m.driver->on_offline(now);
 }
 
 void NetworkManager::lost(Managed& m, const std::string& why, TimePoint now) { fail(m, NodeState::Missing, why, now); }
@@ -341,8 +360,18 @@ bool NetworkManager::on_frame(const CanFrame& frame, TimePoint now) {
   if (frame.extended || frame.rtr) return false;
   if (auto it = by_cob_.find(frame.id); it != by_cob_.end()) {
     Managed& m = *it->second;
-    // Without a heartbeat, the first PDO after the NMT start is the node's proof of life.
+    // Without a heartbeat, the first PDO after the NMT start is the node's proof of life; with
+    // one, PDOs before the proof are kept (the last per COB-ID) for go_live().
     if (m.state == NodeState::Starting && m.settings.heartbeat_ms == 0) go_live(m, "first PDO after NMT start", now);
+    if (m.state == NodeState::Starting) {
+      auto same = std::find_if(m.held.begin(), m.held.end(), [&](const auto& h) { return h.first.id == frame.id; });
+      if (same != m.held.end()) {
+        *same = {frame, now};
+      } else {
+        m.held.emplace_back(frame, now);
+      }
+      return true;
+    }
     // PDOs count only from a node we configured, started and saw alive (CiA 301: none outside
     // operational); anything else is ignored, never passed through.
     if (m.state != NodeState::Operational) return false;

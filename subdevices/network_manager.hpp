@@ -136,6 +136,7 @@ class NetworkManager {
     std::vector<Step> steps;
     std::size_t next_step = 0;
     InputCounters reported;  // what on_bad_input has already said
+    std::vector<std::pair<CanFrame, TimePoint>> held;  // Starting: last PDO per COB-ID, for go_live
   };
 
   Managed* find(NodeId node);

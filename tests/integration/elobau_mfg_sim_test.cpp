@@ -241,7 +241,8 @@ TEST_F(ElobauOnBus, OnlyChannel2InErrorStillMakesTheAxisAnError) {
 TEST_F(ElobauOnBus, ChannelMismatchIsAnError) {
   boot();
   sim_->move_axis("x", 40, 10);  // channel 2 reads 50
-  net_.run_for(10ms);
+  // The disagreeing TPDO #1 is a suspicion; the next TPDO #0 (one 100 ms cycle) confirms it.
+  net_.run_for(110ms);
   EXPECT_EQ(val("x").status, SignalStatus::Error);
   EXPECT_GE(drv_->counters().mismatches, 1u);
   net_.run_for(300ms);

@@ -325,7 +325,7 @@ TEST(Cia401, EmcyErrorsPutInputsInErrorUntilResetOrGoodValue) {
   EXPECT_EQ(f.val("in[1]"), 0);
   d = f.drv->on_emcy(EmcyMessage{kNode, 0x0000, 0x00, {}}, t0);
   EXPECT_FALSE(d.error);
-  EXPECT_EQ(f.status("analog[1]"), SignalStatus::Stale) << "no longer Error; no fresh value yet";
+  EXPECT_EQ(f.status("analog[1]"), SignalStatus::Offline) << "no longer Error; no value until the next PDO (a PDO sent on change only is never overdue)";
   EXPECT_EQ(f.val("analog[1]"), 0);
   ASSERT_TRUE(f.drv->on_frame(CanFrame(0x1A1, {0x10, 0x00, 0x20, 0x00, 0x01}), t0));
   EXPECT_EQ(f.status("analog[1]"), SignalStatus::Valid);

@@ -138,6 +138,11 @@ TEST_F(ElobauDriverTest, ChannelMismatchBeyondToleranceIsAnError) {
   tpdo0({0x32, 0x14, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
   EXPECT_EQ(val("x").status, SignalStatus::Valid);
   tpdo1({0x38, 0x19, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  // A TPDO #1 may run ahead of TPDO #0 (its own timer, no inhibit time): the next TPDO #0
+  // decides. Channel 1 still 50 against 56: a mismatch.
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(drv->counters().mismatches, 0u);
+  tpdo0({0x32, 0x14, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
   EXPECT_EQ(val("x").status, SignalStatus::Error);
   EXPECT_EQ(val("x").value, 0);
   EXPECT_EQ(val("y").status, SignalStatus::Valid);
@@ -152,6 +157,19 @@ TEST_F(ElobauDriverTest, ChannelMismatchBeyondToleranceIsAnError) {
   EXPECT_EQ(drv->counters().mismatches, 1u);
 }
 
+// The grip's TPDO #1 carries a movement before TPDO #0 may (its 2 ms inhibit time, Table 14): the
+// channels were only out of step, no mismatch.
+TEST_F(ElobauDriverTest, ATpdo1AheadOfTpdo0IsNoMismatch) {
+  tpdo0({0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  tpdo1({0x00, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  tpdo1({0x32, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});  // the stick moved to 50 %
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  tpdo0({0x32, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});  // channel 1 catches up
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(val("x").value, 50);
+  EXPECT_EQ(drv->counters().mismatches, 0u);
+}
+
 TEST(ElobauDriverOptions, ToleranceOptionIsHonoured) {
   std::string err;
   auto d = make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"channel_tolerance", "10"}}}, err);
@@ -160,7 +178,8 @@ TEST(ElobauDriverOptions, ToleranceOptionIsHonoured) {
   d->on_frame(CanFrame(0x291, {0x3C, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF}), TimePoint{});
   EXPECT_EQ(d->value(0).status, SignalStatus::Valid);  // 50 vs 60: exactly 10
   d->on_frame(CanFrame(0x291, {0x3D, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF}), TimePoint{});
-  EXPECT_EQ(d->value(0).status, SignalStatus::Error);  // 50 vs 61
+  d->on_frame(CanFrame(0x191, {0x32, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF}), TimePoint{});
+  EXPECT_EQ(d->value(0).status, SignalStatus::Error);  // 50 vs 61, confirmed by the next TPDO #0
 }
 
 TEST_F(ElobauDriverTest, DetentOnOneChannelAndHundredOnTheOtherAgree) {
