@@ -86,9 +86,10 @@ Node::Node(ObjectDictionary& od, NodeConfig config, FrameSink sink)
   };
   // CiA 301 Table 26: 8130h "life guard error or heartbeat error"; a consumer timeout is a
   // communication error for 1029h.
-  hb_consumer_.on_timeout([this](NodeId) {
+  hb_consumer_.on_timeout([this](NodeId n) {
     emcy_.raise(0x8130, 0x10, now_);
     communication_error(now_);
+    if (on_heartbeat_timeout) on_heartbeat_timeout(n);
   });
   // The error is over with the next heartbeat of the producer, whatever state it reports: a
   // producer that comes back in the state it had (the usual case) changes no state, so a

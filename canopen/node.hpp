@@ -83,6 +83,8 @@ class Node {
 
   // Called on every NMT state change, after the Node has applied it.
   std::function<void(NmtState)> on_state_change;
+  // The heartbeat consumer timed out (after EMCY 8130h was raised), on whichever path noticed it.
+  std::function<void(NodeId)> on_heartbeat_timeout;
   // Called when LSS activates a new bit timing (the transport must switch its bit rate).
   std::function<void(std::uint8_t table_index, Duration delay)> on_bit_timing;
 

@@ -108,9 +108,9 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     Sub& s = it->second;
     const bool was = s.operational;
     s.operational = st == sd::NodeState::Operational;
-    // A device that resets forgets its errors (its EMCYs from before are void); one that
-    // reports an error while it is configured or started still has it when it goes live.
-    if (st == sd::NodeState::WaitingBootUp || st == sd::NodeState::Configuring) s.emcy_error = false;
+    // An error EMCY holds until the device's error reset 0000h, across losses and the gateway's
+    // reset communication (which makes no device repeat its EMCYs); only a boot-up the device
+    // made on its own voids it (on_unsolicited_boot).
     s.why = std::string(sd::to_string(st)) + " (" + why + ")";
     log(name + ": " + s.why);
     if (s.operational && !was) {
@@ -141,6 +141,9 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
       it->second.emcy_error = true;
     }
     update_fault(it->second, "error reset EMCY 0000h");
+  };
+  network_.on_unsolicited_boot = [this](const std::string& name) {
+    if (auto it = subs_.find(name); it != subs_.end()) it->second.emcy_error = false;
   };
   network_.on_bad_input = [this](const std::string& what) { log(what); };
   oe_->on_output([this](mapping::FeId fe, const std::string& field, std::int64_t value) { on_output(fe, field, value); });
@@ -249,28 +252,37 @@ void Gateway::update_fault(Sub& s, std::string_view evidence) {
     if (on_fe_change)
       for (const auto& fe : changed) on_fe_change(fe);
   }
-  // A bound input in Error / NotAvailable counts; Offline is the node's own state.
-  std::string reason;
-  if (!s.operational) {
-    reason = s.why;
-  } else if (s.emcy_error) {
-    reason = "error EMCY";
-  } else {
+  // A bound input in Error / NotAvailable / Stale counts; Offline is the node's own state. The
+  // cause is found without building text: this runs for every PDO, and the reason string is
+  // made only when the cause changes (no allocation per frame while a fault lasts).
+  const Cause cause = [&] {
+    if (!s.operational) return Cause{Cause::Kind::State, 0, SignalStatus::Offline};
+    if (s.emcy_error) return Cause{Cause::Kind::Emcy, 0, SignalStatus::Error};
     for (const std::size_t bi : s.inputs) {  // this sub-device's input bindings only (per PDO)
-      const Binding& b = bindings_[bi];
-      if (b.status == SignalStatus::Error || b.status == SignalStatus::NotAvailable) {
-        reason = b.field->signal + " " + std::string(sd::to_string(b.status));
-        break;
-      }
-      if (b.status == SignalStatus::Stale) {  // its PDO is overdue: the value is no evidence
-        reason = fmt::format("{} stale (no PDO for {} ms)", b.field->signal,
-                             std::chrono::duration_cast<std::chrono::milliseconds>(s.driver->freshness(b.signal)).count());
-        break;
-      }
+      const SignalStatus st = bindings_[bi].status;
+      if (st == SignalStatus::Error || st == SignalStatus::NotAvailable || st == SignalStatus::Stale)
+        return Cause{Cause::Kind::Input, bi, st};
+    }
+    return Cause{};
+  }();
+  const std::string& name = s.config->name;
+  const bool was = s.cause.kind != Cause::Kind::None;
+  if (cause == s.cause && cause.kind != Cause::Kind::State) return;
+  std::string reason;
+  switch (cause.kind) {
+    case Cause::Kind::None: break;
+    case Cause::Kind::State: reason = s.why; break;
+    case Cause::Kind::Emcy: reason = "error EMCY"; break;
+    case Cause::Kind::Input: {
+      const Binding& b = bindings_[cause.binding];
+      reason = cause.status == SignalStatus::Stale
+                   ? fmt::format("{} stale (no PDO for {} ms)", b.field->signal,
+                                 std::chrono::duration_cast<std::chrono::milliseconds>(s.driver->freshness(b.signal)).count())
+                   : b.field->signal + " " + std::string(sd::to_string(cause.status));
+      break;
     }
   }
-  const std::string& name = s.config->name;
-  const bool was = faults_.count(name) != 0;
+  s.cause = cause;
   if (!reason.empty() && !was) {
     faults_[name] = reason;
     oe_->raise_subdevice_fault(name, s.config->node(), now_);

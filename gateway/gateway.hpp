@@ -105,6 +105,14 @@ class Gateway {
     std::size_t signal = 0;                               // index in the driver's signals
     subdevices::SignalStatus status = subdevices::SignalStatus::Offline;
   };
+  // What keeps a sub-device faulty (update_fault): its state, an error EMCY, or one bound input.
+  struct Cause {
+    enum class Kind : std::uint8_t { None, State, Emcy, Input };
+    Kind kind = Kind::None;
+    std::size_t binding = 0;  // Input: the index in bindings_
+    subdevices::SignalStatus status = subdevices::SignalStatus::Valid;
+    friend bool operator==(const Cause&, const Cause&) = default;
+  };
   struct Sub {
     const mapping::SubdeviceConfig* config = nullptr;
     subdevices::Driver* driver = nullptr;
@@ -116,6 +124,7 @@ class Gateway {
     // An error EMCY holds every input of this node at its fault value, also when the driver
     // leaves its signals Valid (an EMCY code it cannot map to a signal).
     bool forced = false;
+    Cause cause;  // the fault's cause (Kind::None: not faulty)
   };
 
   void on_signal(const std::string& sub, std::size_t index, const subdevices::SignalValue& v);

@@ -283,6 +283,10 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
   }
   watch_host_commands();
   node_->on_state_change = [this](NmtState s) { handle_state(s); };
+  // CiA 401 6206h/6207h on a host heartbeat loss, in the call that notices it: the timer, an
+  // upstream frame (also a late heartbeat, which reports the time-out it overran), or the TPDOs
+  // a downstream frame sends.
+  node_->on_heartbeat_timeout = [this](canopen::NodeId) { host_heartbeat_lost(now_); };
   subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) { handle_od_change(index, sub); });
 }
 
@@ -329,14 +333,8 @@ void OeDevice::advance(TimePoint now) {
 }
 
 void OeDevice::step_node(TimePoint now) {
-  node_->advance(now);
-  // The Node reports a heartbeat-consumer timeout with EMCY 8130h (CiA 301 Table 26). Every
-  // path that advances the Node (a timer, an upstream frame, the TPDOs a downstream frame
-  // sends) can be the one that notices the time-out: the error values follow at once, in the
-  // same call, whichever it is.
-  const bool lost = node_->emcy().active(0x8130);
-  if (lost && !hb_lost_seen_) host_heartbeat_lost(now);
-  hb_lost_seen_ = lost;
+  now_ = now;
+  node_->advance(now);  // a heartbeat time-out it notices applies the error values (see above)
 }
 
 std::optional<TimePoint> OeDevice::next_deadline() const { return node_->next_deadline(); }

@@ -83,8 +83,8 @@
 //    error values apply to these FEs too on a host heartbeat loss. CiA 401 resets still apply:
 //    an NMT reset node puts them back to their default (or stored) values, and 1010h "save"
 //    stores their current values, whoever wrote them.
-//  * Host heartbeat loss: detected from the Node's heartbeat-consumer EMCY 8130h (the Node owns
-//    the consumer's callback), or called directly by the gateway.
+//  * Host heartbeat loss: reported by the Node's heartbeat consumer (Node::on_heartbeat_timeout,
+//    after its EMCY 8130h), on whichever path notices it, or called directly by the gateway.
 //  * NMT reset node / reset communication from the host: the inputs keep their current values
 //    (6000h/6401h/6120h are written back after the reset restored their defaults), 1001h keeps
 //    the active errors, and every sub-device still faulty is reported again with EMCY 7000h
@@ -216,7 +216,7 @@ class OeDevice {
     std::string field;
     std::uint8_t bit;
   };
-  // node_->advance() and, when that noticed the host's heartbeat time-out, the error values.
+  // node_->advance() (the Node's heartbeat time-out applies the error values, whoever calls).
   void step_node(canopen::TimePoint now);
   void watch_host_commands();
   void handle_state(canopen::NmtState s);
@@ -238,7 +238,6 @@ class OeDevice {
   unsigned batch_depth_ = 0;
   canopen::EmcyHandler on_emcy_;
   canopen::TimePoint now_{};
-  bool hb_lost_seen_ = false;
   std::map<std::uint8_t, std::string> faults_;                   // node-ID -> name
   std::map<std::uint32_t, std::vector<OutputRef>> outputs_;      // index << 8 | sub -> fields
   std::map<std::uint32_t, std::int64_t> output_shadow_;          // last value of each output entry

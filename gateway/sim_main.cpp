@@ -12,7 +12,8 @@ int main(int argc, char** argv) {
   app.add_flag("--motion", o.motion, "Sweep every axis and press the buttons in turn");
   app.add_flag("--commands", o.commands,
                "Read commands from standard input: '<device> <signal> <value>', '<device> silent on|off', "
-               "'<device> heartbeat on|off', '<device> reboot'");
+               "'<device> heartbeat on|off', '<device> pdo on|off' (TPDOs stop; heartbeat and SDO go on), "
+               "'<device> reboot'");
   app.add_option("devices", o.devices,
                  "family:node[:key=value,...], e.g. elobau-mfg:0x11 mcb402:0x03 "
                  "cia401:0x30:eds=subdevices/eds/generic_pedal.eds (options: name, heartbeat_ms, store, eds)")

@@ -103,6 +103,7 @@ void Cia401Driver::refresh_carriers() {
   for (const Pdo& p : pdos_) {
     if (!p.transmit || !p.usable()) continue;
     Carrier c;
+    c.cob_id = CobId{*p.cob_id}.can_id();
     c.comm_index = p.comm_index();
     c.event_timer_ms = static_cast<std::uint16_t>(eds_.default_number(p.comm_index(), 5, node()).value_or(0));
     c.transmission_type = p.transmission_type.value_or(0xFF);

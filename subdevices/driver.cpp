@@ -43,6 +43,10 @@ void Driver::init(NodeId node, FrameSink sink, std::size_t signal_count) {
 }
 
 void Driver::update(std::size_t index, std::int64_t value, SignalStatus status, TimePoint now) {
+  // A value whose carrier PDO is overdue stays Stale, whatever frame republishes it.
+  if (status == SignalStatus::Valid && index < fresh_at_.size() && fresh_at_[index] && deadline_[index].count() != 0 &&
+      now >= *fresh_at_[index] + deadline_[index])
+    status = SignalStatus::Stale;
   SignalValue& v = values_.at(index);
   if (v.value == value && v.status == status) {
     v.timestamp = now;
@@ -88,8 +92,25 @@ void Driver::set_pdo_timeout(Duration timeout) {
   rebuild_deadlines();
 }
 
+void Driver::pdo_received(std::uint32_t can_id, TimePoint now) {
+  auto refresh = [&](std::size_t i) {
+    if (i >= deadline_.size() || deadline_[i].count() == 0) return;
+    const auto at = stale_at(i);
+    if (at && now >= *at && values_[i].status == SignalStatus::Valid) update(i, values_[i].value, SignalStatus::Stale, now);
+    fresh_at_[i] = now;
+  };
+  if (carriers_.empty()) {  // pdo_timeout_ms on a driver without carriers: every input
+    for (const std::size_t i : with_deadline_) refresh(i);
+    return;
+  }
+  for (const Carrier& c : carriers_)
+    if (c.cob_id == can_id)
+      for (const std::size_t i : c.signals) refresh(i);
+}
+
 void Driver::rebuild_deadlines() {
   deadline_.assign(values_.size(), Duration{0});
+  fresh_at_.resize(values_.size());
   for (const Carrier& c : carriers_) {
     Duration d = pdo_timeout_;
     if (d.count() == 0 && c.event_timer_ms != 0 && c.transmission_type >= 254)
@@ -120,7 +141,7 @@ Duration Driver::longest_freshness() const {
 
 std::optional<TimePoint> Driver::stale_at(std::size_t i) const {
   const SignalValue& v = values_[i];
-  if (v.status == SignalStatus::Valid) return v.timestamp + deadline_[i];
+  if (v.status == SignalStatus::Valid) return (fresh_at_[i] ? *fresh_at_[i] : v.timestamp) + deadline_[i];
   // Never had a PDO while the node is alive: counted from the proof of life (or from when the
   // signal went offline, if later).
   if (v.status == SignalStatus::Offline && alive_since_) return std::max(*alive_since_, v.timestamp) + deadline_[i];

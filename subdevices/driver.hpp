@@ -128,6 +128,12 @@ class Driver {
   // signal with a deadline that has had no PDO since then, nor since it went offline, is Stale
   // once the deadline passes (a node that starts but never sends its PDOs).
   void set_alive_since(std::optional<TimePoint> since) { alive_since_ = since; }
+  // The network manager calls this for every PDO it routes here, before on_frame(): the signals
+  // its carrier holds are fresh from `now` on. Only this makes a value fresh: a driver that
+  // republishes a value from an older frame (the elobau's channel-2 TPDO, an EMCY) cannot
+  // revive an overdue signal (update() keeps it Stale). A PDO that arrives after its deadline
+  // first marks its signals Stale (the deadline passed before anyone looked).
+  void pdo_received(std::uint32_t can_id, TimePoint now);
   // Marks signals whose PDO is overdue Stale (on_change reports them).
   void advance(TimePoint now);
   [[nodiscard]] std::optional<TimePoint> next_deadline() const;
@@ -152,6 +158,7 @@ class Driver {
 
   // One TPDO of the device and the input signals it carries (for freshness).
   struct Carrier {
+    std::uint32_t cob_id = 0;              // the CAN-ID it arrives on (pdo_received)
     std::uint16_t comm_index = 0x1800;     // 1800h + TPDO number - 1
     std::uint16_t event_timer_ms = 0;      // 0: sent on change (or SYNC) only
     std::uint8_t transmission_type = 254;  // the event timer counts for 254/255 only
@@ -177,6 +184,7 @@ class Driver {
   Duration pdo_timeout_{0};
   std::optional<TimePoint> alive_since_;
   std::vector<Duration> deadline_;          // by signal; 0 = none
+  std::vector<std::optional<TimePoint>> fresh_at_;  // by signal: its carrier's last PDO
   std::vector<std::size_t> with_deadline_;  // the signals that have one
 };
 

@@ -106,7 +106,8 @@ ElobauMfgDriver::ElobauMfgDriver(NodeId node, FrameSink sink, ElobauMfgOptions o
   init(node, std::move(sink), signals_.size());
   // TPDO #0 carries every axis's channel 1 and the buttons (§14.1), sent every cycle_ms (written
   // to 1800h:05 at boot) and on change; TPDO #1 only cross-checks (channel2_timeout_ms).
-  Carrier tpdo0{.comm_index = 0x1800, .event_timer_ms = opt_.cycle_ms, .transmission_type = 254, .signals = {}};
+  Carrier tpdo0{.cob_id = kTpdo0 + node.value(), .comm_index = 0x1800, .event_timer_ms = opt_.cycle_ms,
+                .transmission_type = 254, .signals = {}};
   for (std::size_t i = 0; i < kFirstLed; ++i) tpdo0.signals.push_back(i);
   set_carriers({tpdo0});
 }

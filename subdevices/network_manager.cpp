@@ -60,6 +60,7 @@ NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
     if (m == nullptr || m->state == NodeState::Idle) return;  // start() has not run yet
     if (m->started_once) ++counters_.reboots_seen;
     const bool was_live = m->state == NodeState::Operational;
+    if (m->state != NodeState::WaitingBootUp && on_unsolicited_boot) on_unsolicited_boot(m->settings.name);
     configure(*m, now_);  // it just booted: its dictionary is at power-on values
     // The inputs go offline after the state says why (see fail()).
     if (was_live) m->driver->on_offline(now_);
@@ -304,8 +305,11 @@ void NetworkManager::go_live(Managed& m, const std::string& evidence, TimePoint 
   std::vector<std::pair<CanFrame, TimePoint>> held;
   held.swap(m.held);
   set_state(m, NodeState::Operational, evidence, now);
-  for (const auto& [frame, at] : held)
-    if (m.state == NodeState::Operational) (void)m.driver->on_frame(frame, at);
+  for (const auto& [frame, at] : held) {
+    if (m.state != NodeState::Operational) break;
+    m.driver->pdo_received(frame.id, at);
+    (void)m.driver->on_frame(frame, at);
+  }
   m.driver->end_outputs(now);
 }
 
@@ -375,6 +379,7 @@ bool NetworkManager::on_frame(const CanFrame& frame, TimePoint now) {
     // PDOs count only from a node we configured, started and saw alive (CiA 301: none outside
     // operational); anything else is ignored, never passed through.
     if (m.state != NodeState::Operational) return false;
+    m.driver->pdo_received(frame.id, now);
     const bool used = m.driver->on_frame(frame, now);
     report_bad_input(m);
     return used;

@@ -110,6 +110,10 @@ class NetworkManager {
   // Bad input, once per kind and source (CiA 301 frames the gateway ignores): "grip: 3 frames of
   // the wrong length", "unknown PDO 1A5h". For the log; the counters keep counting.
   std::function<void(const std::string& what)> on_bad_input;
+  // A boot-up the gateway did not ask for (a power cycle, the device's own reset): whatever the
+  // node reported before it (EMCYs) is void. A boot-up answering the gateway's reset
+  // communication is not reported here: that reset leaves the device's errors as they were.
+  std::function<void(const std::string& name)> on_unsolicited_boot;
   // EMCYs of configured nodes, decoded by their driver.
   std::function<void(const std::string& name, const EmcyMessage&, const DecodedEmcy&)> on_emcy;
 

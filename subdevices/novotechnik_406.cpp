@@ -102,7 +102,8 @@ Novotechnik406Driver::Novotechnik406Driver(NodeId node, FrameSink sink, Novotech
   init(node, std::move(sink), signals_.size());
   // TPDO1 carries position and speed (§4.1), every event_timer_ms in type 254 (§8.2); in type
   // 255 at least as often; SYNC types (1..240) have no event-timer deadline.
-  set_carriers({Carrier{.comm_index = 0x1800, .event_timer_ms = options_.event_timer_ms,
+  set_carriers({Carrier{.cob_id = canopen::cob::kTpdo1 + node.value(), .comm_index = 0x1800,
+                        .event_timer_ms = options_.event_timer_ms,
                         .transmission_type = options_.transmission_type, .signals = {kPosition, kSpeed}}});
 }
 

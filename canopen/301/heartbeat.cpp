@@ -135,6 +135,13 @@ bool HeartbeatConsumer::on_frame(const CanFrame& frame, TimePoint now) {
       ++invalid_frames_;
       continue;
     }
+    // A heartbeat that arrives after the consumer time (the caller reached its timers late, or
+    // a frame was read before them) first ends the monitoring period it overran: the time-out
+    // is reported, then the heartbeat resumes monitoring as any returning one does.
+    if (e.status == Status::Active && now >= e.last + e.time) {
+      e.status = Status::TimedOut;
+      if (on_timeout_) on_timeout_(e.node);
+    }
     const auto state = static_cast<NmtState>(frame.data[0]);
     const bool changed = e.state != state;
     e.state = state;

@@ -8,7 +8,8 @@
 // Consumer: 1016h sub 1..n, UNSIGNED32 = node-ID (bits 23..16) << 16 | time in ms (bits 15..0);
 // an entry with node-ID 0 or > 127 or time 0 is unused. Monitoring of a node starts at the first
 // heartbeat received from it; a timeout is reported exactly when `now` reaches last + time, once;
-// monitoring resumes with the next heartbeat. A boot-up (state 00h) is reported with on_boot()
+// monitoring resumes with the next heartbeat. A heartbeat received at or after last + time
+// (advance() was not called in time) reports that timeout first, then resumes monitoring. A boot-up (state 00h) is reported with on_boot()
 // and, not being a heartbeat, suspends monitoring until the next heartbeat (the producer's first
 // heartbeat comes one of its periods after its boot-up). Two entries with the same node-ID and a
 // non-zero time are refused with 06040043h (parameter incompatibility).

@@ -104,10 +104,11 @@ std::string SimBench::command(std::string_view line, TimePoint now) {
     d->reboot(now);
     return "ok " + name + " rebooted";
   }
-  if (what == "silent" || what == "heartbeat") {
+  if (what == "silent" || what == "heartbeat" || what == "pdo") {
     if (value != "on" && value != "off") return "error: " + what + " takes on or off";
     if (what == "silent") d->set_silent(value == "on");
-    else d->set_heartbeat_stopped(value == "off");
+    else if (what == "heartbeat") d->set_heartbeat_stopped(value == "off");
+    else d->set_pdo_stopped(value == "off");
     return "ok " + name + " " + what + " " + value;
   }
   char* end = nullptr;

@@ -5,6 +5,7 @@
 //   <device> <signal> <value>     e.g. "grip x 50", "pedal analog[1] 12000"
 //   <device> silent on|off        cable pulled / plugged back
 //   <device> heartbeat on|off     heartbeat stops / resumes (everything else goes on)
+//   <device> pdo on|off           TPDOs stop / resume (heartbeat, SDO, EMCY go on)
 //   <device> reboot               power cycle
 // Device names are the spec's "name=" option, else family@node ("elobau-mfg@11h").
 #pragma once

@@ -20,7 +20,21 @@ void SimulatedDevice::send(const CanFrame& frame) {
   if (heartbeat_stopped_ && frame.id == canopen::cob::kHeartbeat + node_->node_id().value() && frame.dlc == 1 &&
       frame.data[0] != 0)
     return;
+  if (pdo_stopped_ && is_tpdo(frame)) return;
   if (sink_) sink_(frame);
+}
+
+bool SimulatedDevice::is_tpdo(const CanFrame& frame) const {
+  // CiA 301 §7.5.2.35: TPDO communication parameters at 1800h..19FFh, COB-ID in sub-index 01h
+  // (bit 31 set: the PDO does not exist / is not valid; bit 29: 29-bit identifier).
+  const auto& objects = od_->objects();
+  for (auto it = objects.lower_bound(0x1800); it != objects.end() && it->first <= 0x19FF; ++it) {
+    const canopen::SubObject* s = od_->find(it->first, 1);
+    if (s == nullptr || s->value.size() < 4) continue;
+    const canopen::CobId cob{od_->get<std::uint32_t>(it->first, 1)};
+    if (cob.valid() && cob.extended() == frame.extended && cob.can_id() == frame.id) return true;
+  }
+  return false;
 }
 
 bool SimulatedDevice::on_frame(const CanFrame& frame, TimePoint now) {

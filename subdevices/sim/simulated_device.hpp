@@ -1,6 +1,6 @@
 // Base of the sub-device simulators: a canopen::Node (the real protocol core) with the device's
 // object dictionary, plus the faults a bench test needs: go silent (cable pulled), stop the
-// heartbeat only, reboot. Each family's simulator (sim/<family>_sim.hpp) builds the dictionary
+// heartbeat only, stop the TPDOs only, reboot. Each family's simulator (sim/<family>_sim.hpp) builds the dictionary
 // and PDO layout its document describes and adds its own controls (move an axis, press a button,
 // inject an error code).
 #pragma once
@@ -42,6 +42,12 @@ class SimulatedDevice {
   [[nodiscard]] bool silent() const { return silent_; }
   // The heartbeat stops while everything else goes on (a firmware fault).
   void set_heartbeat_stopped(bool stopped) { heartbeat_stopped_ = stopped; }
+  // The TPDOs stop while the heartbeat, SDO, EMCY and NMT go on (e.g. a sensor task that hangs
+  // while the communication task lives). A TPDO is a frame whose identifier is the COB-ID
+  // (sub-index 01h) of a valid TPDO communication parameter 1800h..19FFh (CiA 301 §7.2.2) as
+  // the dictionary holds it at the moment of sending; every other frame still goes out.
+  void set_pdo_stopped(bool stopped) { pdo_stopped_ = stopped; }
+  [[nodiscard]] bool pdo_stopped() const { return pdo_stopped_; }
 
   // Moves an input by the name its driver gives the signal ("x", "buttons[3]", "position"),
   // in the driver's unit (elobau percent, MCB-402 raw16, encoder counts). For oegw-sim and the
@@ -70,10 +76,12 @@ class SimulatedDevice {
 
  private:
   void send(const CanFrame& frame);
+  [[nodiscard]] bool is_tpdo(const CanFrame& frame) const;
 
   FrameSink sink_;
   bool silent_ = false;
   bool heartbeat_stopped_ = false;
+  bool pdo_stopped_ = false;
   std::unique_ptr<canopen::ObjectDictionary> od_;
   std::unique_ptr<canopen::Node> node_;
 };

@@ -83,7 +83,7 @@ def main():
         while time.monotonic() < deadline:
             msg = p.recv_id(0x80 + NODE, max(deadline - time.monotonic(), 0.01), "EMCY 7000h")
             d = bytes(msg.data)
-            if len(d) == 8 and struct.unpack_from("<H", d)[0] == 0x7000:
+            if len(d) == 8 and struct.unpack_from("<H", d)[0] == 0x7000 and d[3] == 0x11:  # not another node's
                 emcy = d
                 break
         check(emcy is not None and emcy[3] == 0x11 and emcy[2] & 0x01,

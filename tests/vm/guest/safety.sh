@@ -1,0 +1,167 @@
+#!/bin/bash
+# Guest test (vm_safety): the safety findings of issue 9, outside in, on real SocketCAN. The built
+# `oegw run` sits between vcan0 (the host: safety_host.py on python3-can, which also watches
+# vcan1 and injects one frame there) and vcan1 (`oegw-sim` processes: the elobau grip 11h alone
+# with --commands read from a FIFO the host writes, the MCB-402 03h, a CiA 401 pedal and a
+# Novotechnik encoder with --motion as frame load). Only frames are judged: the host's view of
+# vcan0/vcan1 (kernel timestamps) and candump's recordings of both buses.
+# Scenarios (one PASS/FAIL line each; details in safety_host.py):
+#   1 heartbeat never returns after a reboot   2 boot race (pre-operational heartbeat after NMT start)
+#   3 outputs atomic (6200h 00h->05h->0Ah)     4 host heartbeat loss under load: error values, one frame
+#   5 PDOs stop while the heartbeat goes on    6 reboot with the stick deflected (zero position)
+#   4b the host's heartbeat lost again after it came back (twice more)
+# Args: OEGW OEGW_SIM SOURCE_DIR
+set -uo pipefail
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+# shellcheck source=lib.sh
+. "$here/lib.sh"
+oegw=$1
+sim=$2
+src=$3
+dir=/run/oegw-safety
+mkdir -p "$dir"
+t0=$(date +%s.%N)
+elapsed() { awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }'; }
+
+# Timings are this file's: the grips' heartbeat 100 ms with a 400 ms consumer time (TCG guest:
+# four periods of margin), the elobau TPDO cycle 100 ms (freshness deadline 3 x 100 ms), the
+# MCB-402 axes every 50 ms (deadline 150 ms; the default 20 ms leaves a TCG guest little margin).
+# The encoder keeps its 10 ms event timer (frame load) but gets pdo_timeout_ms 200: its default
+# deadline of 30 ms gave false stale faults in a TCG guest. Joystick 2's deadband is wide (2000):
+# the MCB-402 sends its sweeping axes every 50 ms, about 2000 apart near zero, and the neutral
+# interlock must see x in the deadband before joystick 2 goes live (300 took up to a minute).
+cat >"$dir/oegw.yaml" <<YAML
+upstream:
+  interface: vcan0
+  node_id: 0x20
+  bitrate: 250000
+  identity: { vendor_id: 0x00000000, product_code: 0x00000852, revision: 0x00010000, serial: 1 }
+  heartbeat_ms: 200
+  store: $dir/upstream.store
+downstream:
+  interface: vcan1
+  bitrate: 250000
+subdevices:
+  right_grip:
+    driver: elobau-mfg
+    node_id: 0x11
+    heartbeat_ms: 100
+    heartbeat_timeout_ms: 400
+    mandatory: true
+    options: { cycle_ms: 100 }
+  left_grip:
+    driver: mcb402
+    node_id: 0x03
+    heartbeat_ms: 100
+    heartbeat_timeout_ms: 400
+    options: { event_timer_ms: 50, button_timer_ms: 100 }
+  pedal:
+    driver: cia401
+    node_id: 0x30
+    heartbeat_ms: 200
+    heartbeat_timeout_ms: 600
+    options: { eds: $src/subdevices/eds/generic_pedal.eds }
+  seat_knob:
+    driver: novotechnik-406
+    node_id: 0x7F
+    heartbeat_ms: 200
+    heartbeat_timeout_ms: 600
+    pdo_timeout_ms: 200
+functional_elements:
+  joystick.1:
+    x: { signal: right_grip.x, deadband: 2 }
+    y: { signal: right_grip.y, deadband: 2 }
+    buttons: right_grip.buttons[1..8]
+  joystick.2:
+    x: { signal: left_grip.x, deadband: 2000 }
+    y: { signal: left_grip.y, deadband: 2000 }
+    z: { signal: left_grip.z, deadband: 2000, clamp: [-32767, 32767] }
+    buttons: left_grip.buttons[1..7]
+  pedal.1:
+    position: { signal: "pedal.analog[1]", deadband: 100, fault: 0 }
+  encoder.1: { position: seat_knob.position }
+  indicators.1:
+    indicator[1..4]: left_grip.leds[1..4]
+YAML
+
+"$oegw" check "$dir/oegw.yaml" >/tmp/check.out 2>&1
+rc=$?
+((rc == 0)) || { fail "oegw check exit $rc: $(cat /tmp/check.out)"; exit 1; }
+
+start_candump vcan0 /tmp/up.dump || fail "candump vcan0 did not start"
+up_candump=$candump_pid
+start_candump vcan1 /tmp/down.dump || fail "candump vcan1 did not start"
+down_candump=$candump_pid
+
+# The grip's commands come from a FIFO the host writes; this shell keeps it open read-write, so
+# the simulator never sees end of file (which would end it) and nobody blocks on open.
+mkfifo /tmp/grip.cmd
+exec 3<>/tmp/grip.cmd
+# The host first (it watches both buses from before the gateway starts), then the devices, then
+# the gateway.
+"$PY" "$here/safety_host.py" /tmp/safety.ready /tmp/grip.cmd /tmp/safety.windows >/tmp/host.log 2>&1 &
+host_pid=$!
+for ((i = 0; i < 900; i++)); do [[ -e /tmp/safety.ready ]] && break; sleep 0.05; done
+[[ -e /tmp/safety.ready ]] && echo "host up after $(elapsed) s" || fail "python3-can host did not come up"
+receivers=$(can_receivers vcan1)
+"$sim" -i vcan1 --commands elobau-mfg:0x11:name=right_grip <&3 >/tmp/sim-grip.log 2>&1 &
+grip_pid=$!
+"$sim" -i vcan1 --motion mcb402:0x03:name=left_grip \
+  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
+  </dev/null >/tmp/sim-others.log 2>&1 &
+others_pid=$!
+wait_receivers vcan1 $((receivers + 2)) 20 || fail "the simulators did not bind vcan1"
+"$oegw" run "$dir/oegw.yaml" >/tmp/gateway.log 2>&1 &
+gw_pid=$!
+echo "gateway started after $(elapsed) s"
+
+# The host prints as it goes; its exit status is the number of failed scenarios.
+tail -n +1 -f /tmp/host.log --pid "$host_pid" | sed -u 's/^/    host: /' &
+tail_pid=$!
+wait "$host_pid"
+host_rc=$?
+wait "$tail_pid" 2>/dev/null
+echo "host finished after $(elapsed) s (exit $host_rc)"
+
+kill -TERM "$gw_pid"
+wait "$gw_pid"
+rc=$?
+((rc == 0)) || fail "oegw run exit $rc after SIGTERM"
+kill -TERM "$grip_pid" "$others_pid" 2>/dev/null
+wait "$grip_pid" "$others_pid" 2>/dev/null
+exec 3>&-
+stop_candump  # vcan1's
+candump_pid=$up_candump
+stop_candump
+
+# The host's verdicts, one line per scenario.
+while IFS= read -r line; do
+  case $line in
+    "PASS: scenario"*) pass "${line#PASS: }" ;;
+    "FAIL: scenario"*) fail "${line#FAIL: }" ;;
+  esac
+done </tmp/host.log
+grep -q '^PASS: scenario\|^FAIL: scenario' /tmp/host.log || fail "the host reported no scenario (exit $host_rc)"
+
+# candump's own record of vcan1 (kernel timestamps, the host's clock): the MCB-402 RPDO1 frames
+# (203h) in each window the host wrote ("name t_from t_to expected-frames...").
+if [[ -s /tmp/safety.windows ]]; then
+  while read -r name from to expected; do
+    got=$(awk -v a="$from" -v b="$to" '{ t = substr($1, 2, length($1) - 2) + 0 }
+           t > a && t <= b && $2 == "vcan1" && $3 ~ /^203#/ { printf "%s%s", sep, $3; sep = " " }' /tmp/down.dump)
+    if [[ "$got" == "${expected//,/ }" ]]; then
+      pass "candump vcan1, $name: exactly ${expected//,/ }"
+    else
+      fail "candump vcan1, $name: expected ${expected//,/ }, got '${got}'"
+    fi
+  done </tmp/safety.windows
+fi
+
+echo "== gateway log (journald format: level: message)"
+grep -v 'debug:' /tmp/gateway.log | sed 's/^/    /' | head -120
+echo "== grip simulator"
+sed 's/^/    /' /tmp/sim-grip.log | head -60
+cp /tmp/up.dump /tmp/down.dump /tmp/gateway.log /tmp/host.log /tmp/sim-grip.log /tmp/safety.windows \
+  "${OEGW_VM_OUT:-/tmp}/" 2>/dev/null
+echo "total $(elapsed) s; $passes passed, $fails failed"
+((fails == 0))
