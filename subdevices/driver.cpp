@@ -155,6 +155,12 @@ void Driver::advance(TimePoint now) {
   }
 }
 
+bool Driver::all_stale() const {
+  if (with_deadline_.empty()) return false;
+  return std::all_of(with_deadline_.begin(), with_deadline_.end(),
+                     [this](std::size_t i) { return values_[i].status == SignalStatus::Stale; });
+}
+
 std::optional<TimePoint> Driver::next_deadline() const {
   std::optional<TimePoint> best;
   for (const std::size_t i : with_deadline_) {

@@ -136,6 +136,9 @@ class Driver {
   void pdo_received(std::uint32_t can_id, TimePoint now);
   // Marks signals whose PDO is overdue Stale (on_change reports them).
   void advance(TimePoint now);
+  // True when the driver has freshness deadlines and every signal that has one is Stale: for a
+  // node without heartbeat, the sign that it is gone (or stopped by someone else).
+  [[nodiscard]] bool all_stale() const;
   [[nodiscard]] std::optional<TimePoint> next_deadline() const;
 
   // Called with a signal's index whenever its value or status changed.

@@ -416,7 +416,15 @@ void NetworkManager::advance(TimePoint now) {
   lss_.advance(now);
   for (auto& mp : nodes_) {
     Managed& m = *mp;
-    if (m.state == NodeState::Operational) m.driver->advance(now);  // overdue PDOs: Stale
+    if (m.state == NodeState::Operational) {
+      m.driver->advance(now);  // overdue PDOs: Stale
+      // Without a heartbeat the PDOs are the only proof of life: all of them overdue, the node
+      // is lost (stopped by another master, unplugged) and booted again like any lost node.
+      if (m.settings.heartbeat_ms == 0 && m.driver->all_stale()) {
+        lost(m, "no PDO within its deadline (no heartbeat watched)", now);
+        continue;
+      }
+    }
     if (!m.deadline || *m.deadline > now) continue;
     m.deadline.reset();
     switch (m.state) {

@@ -346,7 +346,9 @@ TEST(NetworkManagerProofOfLife, WithoutHeartbeatTheFirstPdoIsTheProofAndOverdueP
   net.run_for(150ms);
   EXPECT_EQ(driver->value(0).status, SignalStatus::Valid) << "within pdo_timeout_ms";
   net.run_for(100ms);
-  EXPECT_EQ(driver->value(0).status, SignalStatus::Stale);
+  EXPECT_EQ(driver->value(0).status, SignalStatus::Offline) << "every PDO overdue: the node is lost";
+  EXPECT_EQ(manager.state("grip"), NodeState::Missing);
+  EXPECT_EQ(reasons.back(), "no PDO within its deadline (no heartbeat watched)");
 }
 
 // Without pdo_timeout_ms a TPDO's deadline is 3 x the event timer actually written at boot: the
