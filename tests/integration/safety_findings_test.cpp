@@ -229,7 +229,8 @@ TEST_F(SafetyFindings, ARecoveryWhileTheHostHeartbeatIsLostIsReportedUpstream) {
 
 // ---- Found on main 6554f26 (after the fixes of the defects above) ----------------------------
 
-// Random Novotechnik406 seeds 2 (step 5382) and 3 (step 1080): the PDOs a `starting` node sends
+// Random Novotechnik406 seeds 2 (step 5382) and 3 (step 1080), Mcb402 seeds 8, 14, 15, 16, 21
+// (TPDO2 axes, deadline 60 ms): the PDOs a `starting` node sends
 // are kept and applied at its proof of life — also when the kept PDO is already older than its
 // freshness deadline (here 40 ms, deadline 30 ms: the sensor's PDOs stopped 10 ms after the
 // last one): the FE shows a live position from a PDO the contract counts as stale. Expected: a
@@ -250,7 +251,8 @@ TEST_F(SafetyFindings, AKeptPdoOlderThanItsDeadlineIsNotAppliedAtTheProofOfLife)
   EXPECT_EQ(b.mon().violations(), 0u);
 }
 
-// Random Cia401Pedal seeds 2 (step 1157) and 3 (step 4698): a node whose PDOs stop during an
+// Random Cia401Pedal seeds 2 (step 1157) and 3 (step 4698), Elobau seeds 4, 9 (also: no PDO at
+// all after the proof of life, the error reset then restarting the clock): a node whose PDOs stop during an
 // error EMCY. At its error reset the gateway clears the fault ("error reset EMCY 0000h") although
 // the last PDO is already past its deadline, and reports it stale only one deadline AFTER the
 // reset (the freshness clock restarts at the reset). Expected: the error reset ends the error;
@@ -267,7 +269,7 @@ TEST_F(SafetyFindings, AnErrorResetDoesNotRestartTheFreshnessDeadline) {
   EXPECT_NE(b.status(), FeStatus::Valid);
 }
 
-// Random Elobau seed 3 (step 6725). Contract point 2: "elobau cycle_ms default 100 -> 300 ms for
+// Random Elobau seeds 3 (step 6725), 10, 22. Contract point 2: "elobau cycle_ms default 100 -> 300 ms for
 // TPDO #0/#1". The gateway enforces TPDO #0 only (the driver declares TPDO #1, the redundant
 // channel 2, no carrier: "No TPDO #1 at all is not an error by default"): with TPDO #1 gone, x is
 // shown live, unchecked by its second channel, with no fault. Either the contract or the driver
