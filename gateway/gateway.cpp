@@ -110,7 +110,9 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     s.operational = st == sd::NodeState::Operational;
     // An error EMCY holds until the device's error reset 0000h, across losses and the gateway's
     // reset communication (which makes no device repeat its EMCYs); only a boot-up the device
-    // made on its own voids it (on_unsolicited_boot).
+    // made on its own or answering an NMT reset node voids it (on_application_reset). A node
+    // lost while it holds one is booted again by reset node: reset, it reports the error again
+    // if it persists, and the gateway does not wait for an error reset that may have been lost.
     s.why = std::string(sd::to_string(st)) + " (" + why + ")";
     log(name + ": " + s.why);
     if (s.operational && !was) {
@@ -125,6 +127,8 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     }
     // Only a node that failed (not one still booting for the first time) is a fault; only the
     // proof of life the network manager names (`why`) makes it operational again.
+    if ((st == sd::NodeState::Missing || st == sd::NodeState::Refused) && s.emcy_error)
+      network_.reset_application_next(name);
     if (st == sd::NodeState::Missing || st == sd::NodeState::Refused || s.operational) update_fault(s, why);
   };
   network_.on_emcy = [this](const std::string& name, const canopen::EmcyMessage& e, const sd::DecodedEmcy& d) {
@@ -142,7 +146,7 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     }
     update_fault(it->second, "error reset EMCY 0000h");
   };
-  network_.on_unsolicited_boot = [this](const std::string& name) {
+  network_.on_application_reset = [this](const std::string& name) {
     if (auto it = subs_.find(name); it != subs_.end()) it->second.emcy_error = false;
   };
   network_.on_bad_input = [this](const std::string& what) { log(what); };

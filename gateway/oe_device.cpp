@@ -547,6 +547,10 @@ void OeDevice::clear_subdevice_fault(canopen::NodeId node, TimePoint now) {
   faults_.erase(it);
   if (faults_.empty()) {
     node_->emcy().clear(kEmcyAdditionalModules, now);
+    // With another error still active (EMCY 8130h: the host's heartbeat lost) the producer stays
+    // silent (CiA 301 §7.2.7.2 allows it): the recovery is reported as for a sub-device among
+    // others, EMCY 0000h naming it with the remaining error register.
+    if (node_->emcy().active_count() != 0) send_emcy_frame(canopen::EmcyProducer::kErrorReset, msef);
   } else {
     send_emcy_frame(canopen::EmcyProducer::kErrorReset, msef);
   }

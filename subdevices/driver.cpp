@@ -43,9 +43,9 @@ void Driver::init(NodeId node, FrameSink sink, std::size_t signal_count) {
 }
 
 void Driver::update(std::size_t index, std::int64_t value, SignalStatus status, TimePoint now) {
-  // A value whose carrier PDO is overdue stays Stale, whatever frame republishes it.
-  if (status == SignalStatus::Valid && index < fresh_at_.size() && fresh_at_[index] && deadline_[index].count() != 0 &&
-      now >= *fresh_at_[index] + deadline_[index])
+  // A value whose carrier PDO is overdue stays Stale, whatever frame republishes it; so does a
+  // signal that loses its value (an error reset) while the node is alive and its PDO overdue.
+  if ((status == SignalStatus::Valid || (status == SignalStatus::Offline && alive_since_)) && overdue(index, now))
     status = SignalStatus::Stale;
   SignalValue& v = values_.at(index);
   if (v.value == value && v.status == status) {
@@ -92,37 +92,75 @@ void Driver::set_pdo_timeout(Duration timeout) {
   rebuild_deadlines();
 }
 
-void Driver::pdo_received(std::uint32_t can_id, TimePoint now) {
-  auto refresh = [&](std::size_t i) {
-    if (i >= deadline_.size() || deadline_[i].count() == 0) return;
-    const auto at = stale_at(i);
-    if (at && now >= *at && values_[i].status == SignalStatus::Valid) update(i, values_[i].value, SignalStatus::Stale, now);
-    fresh_at_[i] = now;
-  };
-  if (carriers_.empty()) {  // pdo_timeout_ms on a driver without carriers: every input
-    for (const std::size_t i : with_deadline_) refresh(i);
-    return;
+void Driver::set_alive_since(std::optional<TimePoint> since) {
+  alive_since_ = since;
+  for (Watch& w : watches_) w.last.reset();  // PDOs of an earlier life prove nothing now
+}
+
+std::optional<TimePoint> Driver::due(const Watch& w) const {
+  if (w.last) return *w.last + w.deadline;
+  // Never seen since the proof of life: a required PDO is due one deadline after it.
+  if (w.required && alive_since_) return *alive_since_ + w.deadline;
+  return std::nullopt;
+}
+
+bool Driver::overdue(std::size_t index, TimePoint now) const {
+  if (index >= watch_mask_.size()) return false;
+  for (std::uint32_t m = watch_mask_[index], k = 0; m != 0; m >>= 1, ++k) {
+    if ((m & 1u) == 0) continue;
+    const auto at = due(watches_[k]);
+    if (at && now >= *at) return true;
   }
-  for (const Carrier& c : carriers_)
-    if (c.cob_id == can_id)
-      for (const std::size_t i : c.signals) refresh(i);
+  return false;
+}
+
+bool Driver::watched(std::size_t index) const {
+  const SignalStatus st = values_[index].status;
+  return st == SignalStatus::Valid || (st == SignalStatus::Offline && alive_since_);
+}
+
+void Driver::mark_stale(const Watch& w, TimePoint now) {
+  for (const std::size_t i : w.signals)
+    if (watched(i)) update(i, values_[i].value, SignalStatus::Stale, now);
+}
+
+void Driver::pdo_received(std::uint32_t can_id, TimePoint now) {
+  for (Watch& w : watches_) {
+    if (w.cob != can_id && w.cob != kAnyCob) continue;
+    // Read after its deadline (the loop reached it late): the deadline was missed all the same.
+    if (const auto at = due(w); at && now >= *at) mark_stale(w, now);
+    w.last = now;
+  }
 }
 
 void Driver::rebuild_deadlines() {
   deadline_.assign(values_.size(), Duration{0});
-  fresh_at_.resize(values_.size());
+  watch_mask_.assign(values_.size(), 0);
+  watches_.clear();
+  auto add = [this](std::uint32_t cob, Duration d, bool required, const std::vector<std::size_t>& signals) {
+    if (d.count() == 0 || watches_.size() >= 32) return;
+    const auto k = static_cast<std::uint32_t>(watches_.size());
+    watches_.push_back(Watch{cob, d, required, {}, std::nullopt});
+    for (const std::size_t i : signals) {
+      if (i >= deadline_.size()) continue;
+      watches_.back().signals.push_back(i);
+      watch_mask_[i] |= 1u << k;
+      if (deadline_[i].count() == 0 || d < deadline_[i]) deadline_[i] = d;
+    }
+  };
   for (const Carrier& c : carriers_) {
     Duration d = pdo_timeout_;
     if (d.count() == 0 && c.event_timer_ms != 0 && c.transmission_type >= 254)
       d = std::chrono::milliseconds(c.event_timer_ms) * kMissedPeriods;
-    for (const std::size_t i : c.signals)
-      if (i < deadline_.size() && (deadline_[i].count() == 0 || (d.count() != 0 && d < deadline_[i]))) deadline_[i] = d;
+    add(c.cob_id, d, c.required, c.signals);
   }
-  // A driver that declares no carriers: pdo_timeout_ms covers every input signal.
+  // A driver that declares no carriers: pdo_timeout_ms covers every input, refreshed by any PDO.
   if (carriers_.empty() && pdo_timeout_.count() != 0) {
     const auto& info = signals();
+    std::vector<std::size_t> inputs;
     for (std::size_t i = 0; i < deadline_.size() && i < info.size(); ++i)
-      if (!info[i].output()) deadline_[i] = pdo_timeout_;
+      if (!info[i].output()) inputs.push_back(i);
+    add(kAnyCob, pdo_timeout_, true, inputs);
   }
   with_deadline_.clear();
   for (std::size_t i = 0; i < deadline_.size(); ++i)
@@ -139,20 +177,9 @@ Duration Driver::longest_freshness() const {
   return d;
 }
 
-std::optional<TimePoint> Driver::stale_at(std::size_t i) const {
-  const SignalValue& v = values_[i];
-  if (v.status == SignalStatus::Valid) return (fresh_at_[i] ? *fresh_at_[i] : v.timestamp) + deadline_[i];
-  // Never had a PDO while the node is alive: counted from the proof of life (or from when the
-  // signal went offline, if later).
-  if (v.status == SignalStatus::Offline && alive_since_) return std::max(*alive_since_, v.timestamp) + deadline_[i];
-  return std::nullopt;
-}
-
 void Driver::advance(TimePoint now) {
-  for (const std::size_t i : with_deadline_) {
-    const auto at = stale_at(i);
-    if (at && now >= *at) update(i, values_[i].value, SignalStatus::Stale, now);
-  }
+  for (const Watch& w : watches_)
+    if (const auto at = due(w); at && now >= *at) mark_stale(w, now);
 }
 
 bool Driver::all_stale() const {
@@ -163,9 +190,12 @@ bool Driver::all_stale() const {
 
 std::optional<TimePoint> Driver::next_deadline() const {
   std::optional<TimePoint> best;
-  for (const std::size_t i : with_deadline_) {
-    const auto at = stale_at(i);
-    if (at && (!best || *at < *best)) best = at;
+  for (const Watch& w : watches_) {
+    const auto at = due(w);
+    if (!at || (best && *at >= *best)) continue;
+    // Only while it still has a signal to mark: an overdue PDO whose signals are all stale
+    // already is no reason to wake up.
+    if (std::any_of(w.signals.begin(), w.signals.end(), [this](std::size_t i) { return watched(i); })) best = at;
   }
   return best;
 }

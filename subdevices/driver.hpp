@@ -127,7 +127,7 @@ class Driver {
   // Since when the node is proven alive (the network manager; nullopt while it is not): a
   // signal with a deadline that has had no PDO since then, nor since it went offline, is Stale
   // once the deadline passes (a node that starts but never sends its PDOs).
-  void set_alive_since(std::optional<TimePoint> since) { alive_since_ = since; }
+  void set_alive_since(std::optional<TimePoint> since);
   // The network manager calls this for every PDO it routes here, before on_frame(): the signals
   // its carrier holds are fresh from `now` on. Only this makes a value fresh: a driver that
   // republishes a value from an older frame (the elobau's channel-2 TPDO, an EMCY) cannot
@@ -162,6 +162,9 @@ class Driver {
   // One TPDO of the device and the input signals it carries (for freshness).
   struct Carrier {
     std::uint32_t cob_id = 0;              // the CAN-ID it arrives on (pdo_received)
+    // false: a PDO the device may not send at all (the elobau's channel-2 TPDO #1, which a grip
+    // may have disabled): watched only once it has been seen since the proof of life.
+    bool required = true;
     std::uint16_t comm_index = 0x1800;     // 1800h + TPDO number - 1
     std::uint16_t event_timer_ms = 0;      // 0: sent on change (or SYNC) only
     std::uint8_t transmission_type = 254;  // the event timer counts for 254/255 only
@@ -176,8 +179,22 @@ class Driver {
   InputCounters counters_;
 
  private:
+  // One watched PDO: its deadline, the signals it carries, when it last came. A signal is as
+  // fresh as the stalest PDO that carries it (an elobau axis needs TPDO #0, and TPDO #1 once
+  // seen: one of them alone does not keep it live).
+  static constexpr std::uint32_t kAnyCob = 0xFFFFFFFF;  // a driver without carriers: any PDO
+  struct Watch {
+    std::uint32_t cob;
+    Duration deadline;
+    bool required;
+    std::vector<std::size_t> signals;
+    std::optional<TimePoint> last;
+  };
   void rebuild_deadlines();
-  [[nodiscard]] std::optional<TimePoint> stale_at(std::size_t index) const;  // nullopt: not due
+  [[nodiscard]] std::optional<TimePoint> due(const Watch& w) const;  // nullopt: not watched yet
+  [[nodiscard]] bool overdue(std::size_t index, TimePoint now) const;
+  [[nodiscard]] bool watched(std::size_t index) const;  // Valid, or Offline while alive
+  void mark_stale(const Watch& w, TimePoint now);
 
   NodeId node_{};
   FrameSink sink_;
@@ -186,8 +203,9 @@ class Driver {
   std::vector<Carrier> carriers_;
   Duration pdo_timeout_{0};
   std::optional<TimePoint> alive_since_;
-  std::vector<Duration> deadline_;          // by signal; 0 = none
-  std::vector<std::optional<TimePoint>> fresh_at_;  // by signal: its carrier's last PDO
+  std::vector<Duration> deadline_;          // by signal: the shortest of its PDOs'; 0 = none
+  std::vector<Watch> watches_;
+  std::vector<std::uint32_t> watch_mask_;   // by signal: bit k = watches_[k] carries it
   std::vector<std::size_t> with_deadline_;  // the signals that have one
 };
 

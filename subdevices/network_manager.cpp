@@ -60,7 +60,8 @@ NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
     if (m == nullptr || m->state == NodeState::Idle) return;  // start() has not run yet
     if (m->started_once) ++counters_.reboots_seen;
     const bool was_live = m->state == NodeState::Operational;
-    if (m->state != NodeState::WaitingBootUp && on_unsolicited_boot) on_unsolicited_boot(m->settings.name);
+    const bool application_reset = m->state != NodeState::WaitingBootUp || m->reset_node_sent;
+    if (application_reset && on_application_reset) on_application_reset(m->settings.name);
     configure(*m, now_);  // it just booted: its dictionary is at power-on values
     // The inputs go offline after the state says why (see fail()).
     if (was_live) m->driver->on_offline(now_);
@@ -161,16 +162,29 @@ std::uint16_t NetworkManager::consumer_ms(const Managed& m) const {
   return static_cast<std::uint16_t>(std::min<unsigned>(0xFFFF, m.settings.heartbeat_ms * 3u / 2u));
 }
 
+void NetworkManager::reset_application_next(std::string_view name) {
+  for (auto& m : nodes_)
+    if (m->settings.name == name) m->reset_node_next = true;
+}
+
 void NetworkManager::begin_boot(Managed& m, TimePoint now) {
   ++m.generation;
   master_.sdo(m.settings.node).cancel_all(SdoAbortCode::GeneralError);
-  master_.nmt().reset_communication(m.settings.node);
+  m.reset_node_sent = m.reset_node_next;
+  m.reset_node_next = false;
+  if (m.reset_node_sent) {
+    master_.nmt().reset_node(m.settings.node);
+  } else {
+    master_.nmt().reset_communication(m.settings.node);
+  }
   m.deadline = now + timing_.boot_wait;
-  set_state(m, NodeState::WaitingBootUp, "NMT reset communication sent", now);
+  set_state(m, NodeState::WaitingBootUp,
+            m.reset_node_sent ? "NMT reset node sent (to clear the error it reported)" : "NMT reset communication sent", now);
 }
 
 void NetworkManager::configure(Managed& m, TimePoint now) {
   ++m.generation;
+  m.reset_node_sent = false;
   m.deadline.reset();
   m.held.clear();
   m.driver->set_alive_since(std::nullopt);
@@ -307,8 +321,8 @@ void NetworkManager::go_live(Managed& m, const std::string& evidence, TimePoint 
   set_state(m, NodeState::Operational, evidence, now);
   for (const auto& [frame, at] : held) {
     if (m.state != NodeState::Operational) break;
-    m.driver->pdo_received(frame.id, at);
-    (void)m.driver->on_frame(frame, at);
+    m.driver->pdo_received(frame.id, at);  // fresh as of its reception...
+    (void)m.driver->on_frame(frame, now);  // ...judged now: past its deadline it is Stale at once
   }
   m.driver->end_outputs(now);
 }

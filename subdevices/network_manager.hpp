@@ -110,10 +110,14 @@ class NetworkManager {
   // Bad input, once per kind and source (CiA 301 frames the gateway ignores): "grip: 3 frames of
   // the wrong length", "unknown PDO 1A5h". For the log; the counters keep counting.
   std::function<void(const std::string& what)> on_bad_input;
-  // A boot-up the gateway did not ask for (a power cycle, the device's own reset): whatever the
-  // node reported before it (EMCYs) is void. A boot-up answering the gateway's reset
-  // communication is not reported here: that reset leaves the device's errors as they were.
-  std::function<void(const std::string& name)> on_unsolicited_boot;
+  // A boot-up after a reset of the device's application: one the gateway did not ask for (a
+  // power cycle, the device's own reset) or the answer to its NMT reset node. Whatever the node
+  // reported before (EMCYs) is void. A boot-up answering the gateway's reset communication is
+  // not reported here: that reset leaves the device's errors as they were.
+  std::function<void(const std::string& name)> on_application_reset;
+  // The next (re)boot of the node sends NMT reset node instead of reset communication: the
+  // gateway holds an error the device reported and wants it reset, or reported again.
+  void reset_application_next(std::string_view name);
   // EMCYs of configured nodes, decoded by their driver.
   std::function<void(const std::string& name, const EmcyMessage&, const DecodedEmcy&)> on_emcy;
 
@@ -137,6 +141,8 @@ class NetworkManager {
     std::optional<TimePoint> deadline;  // boot-up wait end, or the next retry
     Duration backoff{0};
     bool started_once = false;
+    bool reset_node_next = false;  // reset_application_next(): begin_boot() sends reset node
+    bool reset_node_sent = false;  // the boot-up awaited answers a reset node
     std::vector<Step> steps;
     std::size_t next_step = 0;
     InputCounters reported;  // what on_bad_input has already said

@@ -358,8 +358,8 @@ TEST(DriverFreshness, TheDeadlineFollowsTheEventTimerWrittenAtBoot) {
     Carried() {
       signals_ = {SignalInfo{"a", SignalKind::Analog, -100, 100, 0, "raw16"}, SignalInfo{"b", SignalKind::Button, 0, 1, 0, "bits"}};
       init(NodeId{5}, {}, signals_.size());
-      set_carriers({Carrier{.comm_index = 0x1800, .event_timer_ms = 20, .transmission_type = 0xFE, .signals = {0}},
-                    Carrier{.comm_index = 0x1801, .event_timer_ms = 0, .transmission_type = 0xFE, .signals = {1}}});
+      set_carriers({Carrier{.cob_id = 0x185, .comm_index = 0x1800, .event_timer_ms = 20, .transmission_type = 0xFE, .signals = {0}},
+                    Carrier{.cob_id = 0x285, .comm_index = 0x1801, .event_timer_ms = 0, .transmission_type = 0xFE, .signals = {1}}});
     }
     std::string_view family() const override { return "test"; }
     const std::vector<SignalInfo>& signals() const override { return signals_; }
@@ -380,7 +380,9 @@ TEST(DriverFreshness, TheDeadlineFollowsTheEventTimerWrittenAtBoot) {
   EXPECT_EQ(d.freshness(0), 250ms);
   EXPECT_EQ(d.freshness(1), 250ms) << "pdo_timeout_ms covers PDOs sent on change too";
   const TimePoint t0{std::chrono::seconds(1)};
+  d.pdo_received(0x185, t0);  // only the carrier PDO itself refreshes (the network manager calls this)
   d.feed(0, 7, t0);
+  d.pdo_received(0x285, t0 + 100ms);
   d.feed(1, 1, t0 + 100ms);
   EXPECT_EQ(d.next_deadline(), t0 + 250ms);
   d.advance(t0 + 249ms);
@@ -390,6 +392,11 @@ TEST(DriverFreshness, TheDeadlineFollowsTheEventTimerWrittenAtBoot) {
   EXPECT_EQ(d.value(0).value, 7) << "the last value, no longer vouched for";
   EXPECT_EQ(d.value(1).status, SignalStatus::Valid);
   EXPECT_EQ(d.next_deadline(), t0 + 350ms);
+  d.feed(0, 8, t0 + 300ms);  // republished without its PDO: no evidence
+  EXPECT_EQ(d.value(0).status, SignalStatus::Stale);
+  d.pdo_received(0x185, t0 + 400ms);  // a late PDO, then its value
+  d.feed(0, 8, t0 + 400ms);
+  EXPECT_EQ(d.value(0).status, SignalStatus::Valid);
 }
 
 }  // namespace

@@ -402,6 +402,11 @@ class Bench {
     on_trigger_ = std::move(action);
   }
   [[nodiscard]] bool trigger_pending() const { return static_cast<bool>(trigger_); }
+  // Drops an armed trigger that has not fired (a scenario's end removes every fault).
+  void cancel_trigger() {
+    trigger_ = {};
+    on_trigger_ = {};
+  }
 
   // ---- Host side ----
   SdoAbortCode sdo_write(std::uint16_t index, std::uint8_t sub, Bytes data) {
@@ -436,6 +441,7 @@ class Bench {
   }
   // The host produces its heartbeat (701h, 100 ms) while host_alive, watched by the gateway (1016h:01, 250 ms).
   void host_heartbeat() {
+    if (!fam_.out) return;  // CiA 852 Annex A: 1016h (the host's heartbeat watched) exists with outputs only
     host_hb_first = loop_.now();
     loop_.call_every(loop_.now(), 100ms, [this] {
       if (host_alive) (void)host_port_->send(CanFrame(0x701, {0x05}));

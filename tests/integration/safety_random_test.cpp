@@ -256,6 +256,7 @@ struct Runner {
     }
   }
   void remove_all() {
+    b.cancel_trigger();  // an armed fault that has not fired yet would strike after the end
     while (hb_stopped || pdos || emcy || value || na || mism) remove_one();
     b.host_alive = true;
   }
