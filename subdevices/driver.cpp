@@ -45,7 +45,8 @@ void Driver::init(NodeId node, FrameSink sink, std::size_t signal_count) {
 void Driver::update(std::size_t index, std::int64_t value, SignalStatus status, TimePoint now) {
   // A value whose carrier PDO is overdue stays Stale, whatever frame republishes it; so does a
   // signal that loses its value (an error reset) while the node is alive and its PDO overdue.
-  if ((status == SignalStatus::Valid || (status == SignalStatus::Offline && alive_since_)) && overdue(index, now))
+  if ((status == SignalStatus::Valid || (status == SignalStatus::Offline && alive_since_)) && earliest_due_ &&
+      now >= *earliest_due_ && overdue(index, now))
     status = SignalStatus::Stale;
   SignalValue& v = values_.at(index);
   if (v.value == value && v.status == status) {
@@ -94,10 +95,20 @@ void Driver::set_pdo_timeout(Duration timeout) {
 
 void Driver::set_alive_since(std::optional<TimePoint> since) {
   alive_since_ = since;
-  for (Watch& w : watches_) w.last.reset();  // PDOs of an earlier life prove nothing now
+  for (Watch& w : watches_) {
+    w.last.reset();  // PDOs of an earlier life prove nothing now
+    w.due = compute_due(w);
+  }
+  refresh_earliest_due();
 }
 
-std::optional<TimePoint> Driver::due(const Watch& w) const {
+void Driver::refresh_earliest_due() {
+  earliest_due_.reset();
+  for (const Watch& w : watches_)
+    if (w.due && (!earliest_due_ || *w.due < *earliest_due_)) earliest_due_ = w.due;
+}
+
+std::optional<TimePoint> Driver::compute_due(const Watch& w) const {
   if (w.last) return *w.last + w.deadline;
   // Never seen since the proof of life: a required PDO is due one deadline after it.
   if (w.required && alive_since_) return *alive_since_ + w.deadline;
@@ -106,11 +117,8 @@ std::optional<TimePoint> Driver::due(const Watch& w) const {
 
 bool Driver::overdue(std::size_t index, TimePoint now) const {
   if (index >= watch_mask_.size()) return false;
-  for (std::uint32_t m = watch_mask_[index], k = 0; m != 0; m >>= 1, ++k) {
-    if ((m & 1u) == 0) continue;
-    const auto at = due(watches_[k]);
-    if (at && now >= *at) return true;
-  }
+  for (std::uint32_t m = watch_mask_[index], k = 0; m != 0; m >>= 1, ++k)
+    if ((m & 1u) != 0 && watches_[k].due && now >= *watches_[k].due) return true;
   return false;
 }
 
@@ -128,9 +136,11 @@ void Driver::pdo_received(std::uint32_t can_id, TimePoint now) {
   for (Watch& w : watches_) {
     if (w.cob != can_id && w.cob != kAnyCob) continue;
     // Read after its deadline (the loop reached it late): the deadline was missed all the same.
-    if (const auto at = due(w); at && now >= *at) mark_stale(w, now);
+    if (w.due && now >= *w.due) mark_stale(w, now);
     w.last = now;
+    w.due = now + w.deadline;
   }
+  refresh_earliest_due();
 }
 
 void Driver::rebuild_deadlines() {
@@ -140,7 +150,7 @@ void Driver::rebuild_deadlines() {
   auto add = [this](std::uint32_t cob, Duration d, bool required, const std::vector<std::size_t>& signals) {
     if (d.count() == 0 || watches_.size() >= 32) return;
     const auto k = static_cast<std::uint32_t>(watches_.size());
-    watches_.push_back(Watch{cob, d, required, {}, std::nullopt});
+    watches_.push_back(Watch{cob, d, required, {}, std::nullopt, std::nullopt});
     for (const std::size_t i : signals) {
       if (i >= deadline_.size()) continue;
       watches_.back().signals.push_back(i);
@@ -162,6 +172,8 @@ void Driver::rebuild_deadlines() {
       if (!info[i].output()) inputs.push_back(i);
     add(kAnyCob, pdo_timeout_, true, inputs);
   }
+  for (Watch& w : watches_) w.due = compute_due(w);
+  refresh_earliest_due();
   with_deadline_.clear();
   for (std::size_t i = 0; i < deadline_.size(); ++i)
     if (deadline_[i].count() != 0) with_deadline_.push_back(i);
@@ -179,7 +191,7 @@ Duration Driver::longest_freshness() const {
 
 void Driver::advance(TimePoint now) {
   for (const Watch& w : watches_)
-    if (const auto at = due(w); at && now >= *at) mark_stale(w, now);
+    if (w.due && now >= *w.due) mark_stale(w, now);
 }
 
 bool Driver::all_stale() const {
@@ -191,7 +203,7 @@ bool Driver::all_stale() const {
 std::optional<TimePoint> Driver::next_deadline() const {
   std::optional<TimePoint> best;
   for (const Watch& w : watches_) {
-    const auto at = due(w);
+    const auto& at = w.due;
     if (!at || (best && *at >= *best)) continue;
     // Only while it still has a signal to mark: an overdue PDO whose signals are all stale
     // already is no reason to wake up.

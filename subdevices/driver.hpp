@@ -189,12 +189,14 @@ class Driver {
     bool required;
     std::vector<std::size_t> signals;
     std::optional<TimePoint> last;
+    std::optional<TimePoint> due;  // compute_due(), kept current: nullopt while not watched
   };
   void rebuild_deadlines();
-  [[nodiscard]] std::optional<TimePoint> due(const Watch& w) const;  // nullopt: not watched yet
+  [[nodiscard]] std::optional<TimePoint> compute_due(const Watch& w) const;  // nullopt: not watched yet
   [[nodiscard]] bool overdue(std::size_t index, TimePoint now) const;
   [[nodiscard]] bool watched(std::size_t index) const;  // Valid, or Offline while alive
   void mark_stale(const Watch& w, TimePoint now);
+  void refresh_earliest_due();  // after any Watch::due changed
 
   NodeId node_{};
   FrameSink sink_;
@@ -206,6 +208,7 @@ class Driver {
   std::vector<Duration> deadline_;          // by signal: the shortest of its PDOs'; 0 = none
   std::vector<Watch> watches_;
   std::vector<std::uint32_t> watch_mask_;   // by signal: bit k = watches_[k] carries it
+  std::optional<TimePoint> earliest_due_;   // the soonest Watch::due: before it nothing is overdue
   std::vector<std::size_t> with_deadline_;  // the signals that have one
 };
 
