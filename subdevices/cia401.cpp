@@ -74,6 +74,7 @@ bool Cia401Driver::Pdo::complete() const {
   if (!cob_id || !transmission_type) return false;
   if ((*cob_id & CobId::kInvalidBit) != 0) return true;  // not used: its mapping does not matter
   if (!count) return false;
+  if (transmit && !event_timer_done) return false;  // 18xxh:05 read (or refused) after the mapping
   return std::all_of(entries.begin(), entries.end(), [](const auto& e) { return e.has_value(); });
 }
 
@@ -105,7 +106,7 @@ void Cia401Driver::refresh_carriers() {
     Carrier c;
     c.cob_id = CobId{*p.cob_id}.can_id();
     c.comm_index = p.comm_index();
-    c.event_timer_ms = static_cast<std::uint16_t>(eds_.default_number(p.comm_index(), 5, node()).value_or(0));
+    c.event_timer_ms = p.event_timer.value_or(0);  // as read from the node at boot
     c.transmission_type = p.transmission_type.value_or(0xFF);
     for (const Entry& e : p.decoded)
       if (e.signal >= 0) c.signals.push_back(static_cast<std::size_t>(e.signal));
@@ -183,6 +184,9 @@ std::vector<SdoRead> Cia401Driver::mapping_reads() const {
     for (std::size_t i = 0; i < p.entries.size(); ++i)
       if (!p.entries[i])
         reads.push_back({p.map_index(), static_cast<std::uint8_t>(i + 1), name + " mapping entry " + std::to_string(i + 1)});
+    // The event timer the node actually uses (its stored value may not be the EDS's): the
+    // freshness deadline of the inputs this TPDO carries (Driver::kMissedPeriods).
+    if (p.transmit && !p.event_timer_done) reads.push_back({p.comm_index(), 5, name + " event timer"});
   }
   return reads;
 }
@@ -208,6 +212,10 @@ SdoAbortCode Cia401Driver::apply_mapping_read(std::uint16_t index, std::uint8_t 
     } else if (sub == 2) {
       if (data.size() != 1) return refuse(SdoAbortCode::LengthMismatch);
       p->transmission_type = data[0];
+    } else if (sub == 5 && p->transmit) {
+      if (data.size() != 2) return refuse(SdoAbortCode::LengthMismatch);
+      p->event_timer = static_cast<std::uint16_t>(data[0] | (data[1] << 8));
+      p->event_timer_done = true;
     } else {
       return SdoAbortCode::SubIndexDoesNotExist;
     }
@@ -225,11 +233,17 @@ SdoAbortCode Cia401Driver::apply_mapping_read(std::uint16_t index, std::uint8_t 
   return SdoAbortCode::None;
 }
 
-void Cia401Driver::apply_mapping_abort(std::uint16_t index, std::uint8_t /*sub*/, SdoAbortCode /*code*/) {
-  if (Pdo* p = find_pdo(index); p != nullptr) {
-    p->failed = true;
-    p->decoded.clear();
+void Cia401Driver::apply_mapping_abort(std::uint16_t index, std::uint8_t sub, SdoAbortCode /*code*/) {
+  Pdo* p = find_pdo(index);
+  if (p == nullptr) return;
+  if (p->transmit && index == p->comm_index() && sub == 5) {
+    // 18xxh:05 is optional (CiA 301 §7.5.2.35): without it the TPDO has no event timer.
+    p->event_timer_done = true;
+    if (p->complete() && !p->failed) build(*p);
+    return;
   }
+  p->failed = true;
+  p->decoded.clear();
 }
 
 int Cia401Driver::signal_for(std::uint32_t entry) const {

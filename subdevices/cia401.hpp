@@ -35,7 +35,8 @@
 // mapping_reads() lists, for every PDO the EDS declares (RPDO 1..4: 1400h–1403h/1600h–1603h,
 // TPDO 1..4: 1800h–1803h/1A00h–1A03h), the reads not yet answered: the communication parameter's
 // COB-ID (sub 1) and transmission type (sub 2) and the mapping's entry count (sub 0); once a
-// count is known, its entries 1..count. So it is called repeatedly until it returns nothing.
+// count is known, its entries 1..count and, for a TPDO, its event timer (sub 5, optional: a
+// refused read means none). So it is called repeatedly until it returns nothing.
 // A PDO whose COB-ID has bit 31 set (not valid), or whose parameter read was aborted, is not used.
 // apply_mapping_read() returns SdoAbortCode::None when the value is taken; LengthMismatch for
 // data of the wrong size, SubIndexDoesNotExist for a read it did not ask for, ValueTooHigh for an
@@ -122,6 +123,8 @@ class Cia401Driver final : public Driver {
     std::uint16_t number = 0;  // 1..4
     std::optional<std::uint32_t> cob_id;
     std::optional<std::uint8_t> transmission_type;
+    std::optional<std::uint16_t> event_timer;  // TPDO 18xxh:05 as read (none: absent)
+    bool event_timer_done = false;              // TPDO: read or refused
     std::optional<std::uint8_t> count;
     std::vector<std::optional<std::uint32_t>> entries;
     bool failed = false;  // a read was aborted or refused: the PDO is not used
@@ -138,8 +141,8 @@ class Cia401Driver final : public Driver {
     }
   };
 
-  // Each usable TPDO read back at boot, with the event timer its EDS declares (18xxh:05
-  // DefaultValue; the mapping file's `sdo` writes replace it) and the type read from the node.
+  // Each usable TPDO read back at boot, with the event timer and type read from the node (the
+  // mapping file's `sdo` writes, made after the reads, replace them).
   void refresh_carriers() override;
   void flush_outputs(TimePoint now) override;
   void add_signals(std::uint16_t index, const char* prefix, SignalKind kind, std::int64_t min, std::int64_t max,

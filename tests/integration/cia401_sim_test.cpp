@@ -126,9 +126,9 @@ TEST_F(Cia401Bus, PedalMappingReadThenInputsFlow) {
   make(kPedal);
   ASSERT_EQ(boots_, std::vector<NodeId>{kNode});
   boot_and_start();
-  // Round 1: 1800h:1, :2, 1A00h:0 and 1801h:1, :2, 1A01h:0; round 2: 1A00h:1..3 (TPDO2's
-  // COB-ID is not valid, so its entries are not read).
-  EXPECT_EQ(sdo_reads_, 9);
+  // Round 1: 1800h:1, :2, 1A00h:0 and 1801h:1, :2, 1A01h:0; round 2: 1A00h:1..3 and TPDO1's
+  // event timer 1800h:5 (TPDO2's COB-ID is not valid, so its entries are not read).
+  EXPECT_EQ(sdo_reads_, 10);
   EXPECT_EQ(drv_->consumed_cob_ids(), (std::vector<std::uint32_t>{0x180u + kNode.value()}));
   // CiA 852 §12.1 / the PDO service: entering Operational sends the event-driven TPDO once.
   EXPECT_EQ(status("analog[1]"), SignalStatus::Valid);

@@ -153,14 +153,20 @@ TEST(Cia401, MappingReadsAreAskedStepByStep) {
   EXPECT_EQ(f.drv->apply_mapping_read(0x1801, 1, canopen::encode<std::uint32_t>(0x800002A1)), SdoAbortCode::None);
   EXPECT_EQ(f.drv->apply_mapping_read(0x1801, 2, Bytes{0xFF}), SdoAbortCode::None);
   r = f.drv->mapping_reads();
-  ASSERT_EQ(r.size(), 2u) << "TPDO2 is not valid: its mapping is not read";
+  ASSERT_EQ(r.size(), 3u) << "TPDO2 is not valid: its mapping is not read";
   EXPECT_EQ(r[0].index, 0x1A00);
   EXPECT_EQ(r[0].sub, 1);
   EXPECT_EQ(r[1].sub, 2);
+  EXPECT_EQ(r[2].index, 0x1800) << "TPDO1's event timer, as the node has it";
+  EXPECT_EQ(r[2].sub, 5);
   EXPECT_TRUE(f.drv->consumed_cob_ids().empty());
   EXPECT_EQ(f.drv->apply_mapping_read(0x1A00, 1, canopen::encode<std::uint32_t>(0x60000108)), SdoAbortCode::None);
   EXPECT_EQ(f.drv->apply_mapping_read(0x1A00, 2, canopen::encode<std::uint32_t>(0x64010210)), SdoAbortCode::None);
+  EXPECT_FALSE(f.drv->mapping_complete()) << "the event timer is still unknown";
+  EXPECT_EQ(f.drv->apply_mapping_read(0x1800, 5, canopen::encode<std::uint16_t>(200)), SdoAbortCode::None);
   EXPECT_TRUE(f.drv->mapping_complete());
+  f.drv->apply_boot_writes({});  // what the network manager does before NMT start
+  EXPECT_EQ(f.drv->freshness(f.sig("in[1]")), std::chrono::milliseconds(600)) << "3 x the node's 200 ms";
   EXPECT_EQ(f.drv->consumed_cob_ids(), (std::vector<std::uint32_t>{0x1A1}));
   EXPECT_FALSE(f.drv->needs_sync()) << "TPDO1 is event-driven (FFh)";
   // CiA 301 §7.2.2: 6000h:1 in byte 0, 6401h:2 in bytes 1..2 (this mapping, not the EDS's).
@@ -382,6 +388,8 @@ TEST(Cia401, RandomMappingAnswersAndFramesStayWithinRanges) {
               (void)f.drv->apply_mapping_read(q.index, q.sub, Bytes{static_cast<std::uint8_t>(rnd() % 9)});
             } else if (q.sub == 2) {
               (void)f.drv->apply_mapping_read(q.index, q.sub, Bytes{0xFF});
+            } else if (q.sub == 5) {  // a TPDO's event timer
+              (void)f.drv->apply_mapping_read(q.index, q.sub, canopen::encode<std::uint16_t>(rnd() % 500));
             } else if (q.index < 0x1600 || (q.index >= 0x1800 && q.index < 0x1A00)) {
               const std::uint32_t cob = (q.index >= 0x1800 ? 0x180u : 0x200u) + (rnd() % 4) * 0x100u + 0x21u;
               (void)f.drv->apply_mapping_read(q.index, q.sub, canopen::encode<std::uint32_t>(cob));
