@@ -117,13 +117,13 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     log(name + ": " + s.why);
     if (s.operational && !was) {
       // Outputs the host set meanwhile reach the device now, all in one frame per RPDO.
-      s.driver->begin_outputs();
+      begin_outputs();
       for (auto& b : bindings_) {
         if (b.field->subdevice != name || b.translator) continue;
         const auto v = oe_->get(b.fe, b.field->field.name);
         if (v) on_output(b.fe, b.field->field.name, *v);
       }
-      s.driver->end_outputs(now_);
+      end_outputs(now_);
     }
     // Only a node that failed (not one still booting for the first time) is a fault; only the
     // proof of life the network manager names (`why`) makes it operational again.
