@@ -1,5 +1,7 @@
 #include "gateway/gateway.hpp"
 
+#include "gateway/runtime_config.hpp"
+
 #include <algorithm>
 #include <array>
 
@@ -22,25 +24,6 @@ mapping::SignalCatalogue driver_catalogue() {
 }
 
 namespace {
-
-OeDeviceConfig oe_config(const mapping::Config& c, const GatewayOptions& o) {
-  OeDeviceConfig oe;
-  oe.node_id = canopen::NodeId{c.upstream.node_id};
-  oe.identity = {c.upstream.identity.vendor_id, c.upstream.identity.product_code, c.upstream.identity.revision,
-                 c.upstream.identity.serial};
-  oe.heartbeat_ms = c.upstream.heartbeat_ms;
-  for (const auto& fe : c.functional_elements) {
-    oe.fes.push_back(fe.id);
-    // Table 8 distinguishes joysticks with buttons.
-    if (fe.id.kind == mapping::FeKind::Joystick &&
-        std::none_of(fe.fields.begin(), fe.fields.end(),
-                     [](const auto& f) { return f.field.name.rfind("buttons", 0) == 0; }))
-      oe.joysticks_without_buttons.insert(fe.id);
-    if (!fe.input() && !fe.accepts(mapping::CommandSource::Canopen)) oe.host_may_not_command.insert(fe.id);
-  }
-  oe.store_path = o.store_path ? *o.store_path : std::filesystem::path(c.upstream.store);
-  return oe;
-}
 
 SignalStatus worse(SignalStatus a, SignalStatus b) {
   auto rank = [](SignalStatus s) {
@@ -72,33 +55,53 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
                  GatewayOptions options)
     : config_(config),
       master_(master_od_, downstream, canopen::MasterConfig{.heartbeat_entries = heartbeat_entries(config), .sdo_timeout = options.sdo_timeout}),
-      network_(master_, options.timing) {
-  oe_ = std::make_unique<OeDevice>(oe_config(config_, options), std::move(upstream));
+      network_(master_, options.timing),
+      oe_(std::make_unique<OeDevice>(device_config(config_, options.store_path), std::move(upstream))),
+      model_(oe_->config().fes) {
+  // The CiA 852 device mirrors every changed input slot into its dictionary at once.
+  model_.on_slot_change([this](mapping::FeId fe, FeSlot slot, std::int64_t v) { oe_->mirror_input(fe, slot, v, now_); });
+  arbiter_ = std::make_unique<CommandArbiter>(config_, *oe_, model_, now_);
+  arbiter_->log = [this](const std::string& line) { log(line); };
+  arbiter_->drive = [this](mapping::FeId fe, FieldRef ref, std::int64_t v) { on_output(fe, ref, v); };
   for (const auto& sc : config_.subdevices) {
     std::string error;
     auto driver = sd::make_driver(sc.driver, sc.node(), downstream, sc.options, error);
     if (!driver) throw std::runtime_error(sc.where.str() + ": " + error);  // load_config checked it
     sd::NodeSettings ns = sc.node_settings();
     sd::Driver* d = driver.get();
-    const std::string name = sc.name;
-    d->on_change = [this, name](std::size_t i, const sd::SignalValue& v) { on_signal(name, i, v); };
     network_.add(std::move(ns), std::move(driver));
-    subs_[sc.name] = Sub{&sc, d, false, false, "not booted yet", std::vector<std::vector<std::size_t>>(d->signals().size()), {}};
+    const std::size_t n = d->signals().size();
+    Sub& s = subs_[sc.name];
+    s = Sub{&sc, d, false, false, "not booted yet", std::vector<std::vector<std::size_t>>(n), {}, {},
+            std::vector<std::int64_t>(n, 0)};
+    // The sub-device's entry is found once, here: no look-up by name per signal.
+    d->on_change = [this, sp = &s](std::size_t i, const sd::SignalValue& v) { on_signal(*sp, i, v); };
     batched_.reserve(config_.subdevices.size());  // no allocation in an output batch
   }
   for (const auto& fe : config_.functional_elements) {
+    std::size_t group = 0;
+    if (fe.input()) {
+      group = groups_.size();
+      groups_.push_back({fe.id, {}});
+    } else {
+      output_groups_.push_back({fe.id, std::vector<std::vector<std::size_t>>(mapping::fe_fields(fe.id).size())});
+      (void)model_.set_status(fe.id, FeStatus::Valid, {});  // commanded, not fed: always Valid
+    }
     for (const auto& f : fe.fields) {
-      Binding b{fe.id, &f, std::nullopt, std::nullopt, {}, 0, SignalStatus::Offline};
+      Binding b{fe.id, &f, *field_ref(fe.id, f.field.name), std::nullopt, {}, 0, group, SignalStatus::Offline};
       Sub& s = subs_.at(f.subdevice);
       b.signal = *s.driver->find_signal(f.signal);
+      const std::size_t bi = bindings_.size();
       if (fe.input()) {
         b.translator.emplace(f.input_params());
-        b.target = mapping::find_fe_field(fe.id, f.field.name);
-        s.inputs.push_back(bindings_.size());
+        s.inputs.push_back(bi);
+        groups_.back().inputs.push_back(bi);
       } else {
         b.output = f.output_params();
+        s.outputs.push_back(bi);
+        output_groups_.back().by_field.at(b.ref.bit).push_back(bi);
       }
-      s.by_signal.at(b.signal).push_back(bindings_.size());
+      s.by_signal.at(b.signal).push_back(bi);
       bindings_.push_back(std::move(b));
     }
   }
@@ -116,13 +119,9 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     s.why = std::string(sd::to_string(st)) + " (" + why + ")";
     log(name + ": " + s.why);
     if (s.operational && !was) {
-      // Outputs the host set meanwhile reach the device now, all in one frame per RPDO.
+      // Output values commanded meanwhile reach the device now, all in one frame per RPDO.
       begin_outputs();
-      for (auto& b : bindings_) {
-        if (b.field->subdevice != name || b.translator) continue;
-        const auto v = oe_->get(b.fe, b.field->field.name);
-        if (v) on_output(b.fe, b.field->field.name, *v);
-      }
+      for (const std::size_t bi : s.outputs) drive(bindings_[bi], s, model_.read(bindings_[bi].fe, bindings_[bi].ref));
       end_outputs(now_);
     }
     // Only a node that failed (not one still booting for the first time) is a fault; only the
@@ -135,10 +134,8 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     auto it = subs_.find(name);
     if (it == subs_.end()) return;
     log(name + ": EMCY " + fmt::format("{:04X}h", e.code) + " " + d.text);
-    // Fix (e2e test AWarningEmcyDoesNotEndAnActiveSubdeviceError): a warning EMCY (decoded
-    // error = false, e.g. elobau 8140h "recovered from bus off") used to end an active error
-    // EMCY, so the fault was cleared (EMCY 0000h upstream) while the device still reported it.
-    // Only the device's error reset (0000h) ends it; an error EMCY starts it.
+    // Only the device's error reset (0000h) ends an error EMCY; a warning (decoded error =
+    // false, e.g. elobau 8140h "recovered from bus off") leaves it active.
     if (e.code == 0) {
       it->second.emcy_error = false;
     } else if (d.error) {
@@ -150,33 +147,17 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     if (auto it = subs_.find(name); it != subs_.end()) it->second.emcy_error = false;
   };
   network_.on_bad_input = [this](const std::string& what) { log(what); };
-  oe_->on_output([this](mapping::FeId fe, const std::string& field, std::int64_t value) { on_output(fe, field, value); });
-  for (const auto& fe : config_.functional_elements)
-    if (!fe.input() && fe.command_timeout_ms > 0)
-      watches_.push_back({fe.id, std::chrono::milliseconds(fe.command_timeout_ms), TimePoint{}, false});
-  oe_->on_host_command([this](mapping::FeId fe) { command_seen(fe); });
-  oe_->on_host_write_refused([this](mapping::FeId fe, canopen::Origin origin) {
-    const mapping::FunctionalElementConfig* c = config_.find_fe(fe);
-    const bool rpdo = origin == canopen::Origin::Pdo;
-    refused(fe, rpdo ? "RPDO" : "SDO",
-            std::string(rpdo ? "the host's RPDO bytes for it ignored" : "the host's SDO write refused (abort 0800 0021h)") +
-                ": its sources are " + mapping::describe_sources(c ? c->sources : 0));
-  });
 }
 
 canopen::ParameterStore::LoadResult Gateway::start(TimePoint now) {
   now_ = now;
   auto r = oe_->start(now);
-  // A command watchdog runs from power-on: a commander that never starts is a silent one.
-  for (auto& w : watches_) {
-    w.last = now;
-    w.expired = false;
-  }
-  started_ = true;
+  arbiter_->start(now);
   // Every input starts at its fault value (the signals are Offline until their node is up).
   for (auto& b : bindings_)
-    if (b.translator) (void)oe_->set_input(b.fe, b.field->field.name, b.translator->value(), now);
+    if (b.translator) (void)model_.write(b.fe, b.ref, b.translator->value(), now);
   network_.start(now);
+  publish_changes();
   return r;
 }
 
@@ -184,77 +165,53 @@ void Gateway::log(const std::string& line) {
   if (on_log) on_log(line);
 }
 
-bool Gateway::feed(Binding& b, const Sub& s, const sd::SignalValue& v) {
+void Gateway::feed(Binding& b, const Sub& s, const sd::SignalValue& v) {
   sd::SignalValue in = v;
   if (s.forced && in.status == SignalStatus::Valid) in.status = SignalStatus::Error;
-  const std::int64_t before = b.translator->value();
   const SignalStatus status_before = b.status;
   const std::int64_t fe_value = b.translator->update(in);
   b.status = in.status;
-  if (b.target) {
-    (void)oe_->set_input(b.fe, *b.target, fe_value, now_);
-  } else {
-    (void)oe_->set_input(b.fe, b.field->field.name, fe_value, now_);
+  // The source time: the reception of the frame that carried the value, or now when the
+  // gateway decided the status itself (the EMCY hold).
+  const TimePoint source = in.status == v.status ? v.timestamp : now_;
+  (void)model_.write(b.fe, b.ref, fe_value, source);
+  if (b.status == status_before) return;
+  SignalStatus worst = SignalStatus::Valid;
+  bool any = false;
+  for (const std::size_t bi : groups_[b.group].inputs) {
+    worst = any ? worse(worst, bindings_[bi].status) : bindings_[bi].status;
+    any = true;
   }
-  return fe_value != before || b.status != status_before;
+  (void)model_.set_status(b.fe, static_cast<FeStatus>(static_cast<std::uint8_t>(worst)), now_);
 }
 
-void Gateway::on_signal(const std::string& sub, std::size_t index, const sd::SignalValue& v) {
-  // Runs for every changed signal of every PDO: no allocation unless more than kInline FEs change.
-  constexpr std::size_t kInline = 8;
-  std::array<mapping::FeId, kInline> changed{};
-  std::size_t n_changed = 0;
-  std::set<mapping::FeId> more;  // only when kInline is exceeded
-  auto note = [&](mapping::FeId fe) {  // keeps changed[0, n_changed) sorted and unique
-    std::size_t at = 0;
-    while (at < n_changed && changed[at] < fe) ++at;
-    if (at < n_changed && changed[at] == fe) return;
-    if (n_changed == kInline) {
-      more.insert(fe);
-      return;
-    }
-    for (std::size_t i = n_changed; i > at; --i) changed[i] = changed[i - 1];
-    changed[at] = fe;
-    ++n_changed;
-  };
-  auto s = subs_.find(sub);
-  if (s == subs_.end()) return;
-  if (index < s->second.by_signal.size()) {
-    for (const std::size_t bi : s->second.by_signal[index]) {
+void Gateway::on_signal(Sub& s, std::size_t index, const sd::SignalValue& v) {
+  // Runs for every changed signal of every PDO: no look-up by name, no allocation.
+  if (index < s.by_signal.size())
+    for (const std::size_t bi : s.by_signal[index]) {
       Binding& b = bindings_[bi];
-      if (!b.translator) continue;
-      if (feed(b, s->second, v)) note(b.fe);
+      if (b.translator) feed(b, s, v);
     }
-  }
-  update_fault(s->second, "fresh PDO");
+  update_fault(s, "fresh PDO");
+}
+
+void Gateway::publish_changes() {
   if (on_fe_change) {
-    // In FE order, each once (as a std::set gave them).
-    if (more.empty()) {
-      for (std::size_t i = 0; i < n_changed; ++i) on_fe_change(changed[i]);
-    } else {
-      for (std::size_t i = 0; i < n_changed; ++i) more.insert(changed[i]);
-      for (const auto& fe : more) on_fe_change(fe);
-    }
+    model_.for_each_changed([this](mapping::FeId fe) { on_fe_change(fe); });
+  } else {
+    model_.for_each_changed([](mapping::FeId) {});
   }
 }
 
 void Gateway::update_fault(Sub& s, std::string_view evidence) {
-  // Fix (e2e test UnknownErrorEmcyStillPutsTheFieldsAtTheirFaultValues): an error EMCY the
-  // driver does not map to a signal (e.g. an MCB-402 code it does not know) left every signal
-  // Valid, so the fields kept following while the log and EMCY 7000h said "at their fault
-  // values". While the error EMCY lasts, the node's inputs are held at their fault values (set
-  // before the EMCY goes up); on the error reset they are fed again from the driver's current
-  // values, through the neutral interlock.
+  // While an error EMCY lasts, the node's inputs are held at their fault values (set before the
+  // EMCY goes up), also those the driver leaves Valid (an EMCY code it maps to no signal); on
+  // the error reset they are fed again from the driver's current values, through the neutral
+  // interlock.
   const bool forced = s.operational && s.emcy_error;
   if (forced != s.forced) {
     s.forced = forced;
-    std::set<mapping::FeId> changed;
-    for (const std::size_t bi : s.inputs) {
-      Binding& b = bindings_[bi];
-      if (feed(b, s, s.driver->value(b.signal))) changed.insert(b.fe);
-    }
-    if (on_fe_change)
-      for (const auto& fe : changed) on_fe_change(fe);
+    for (const std::size_t bi : s.inputs) feed(bindings_[bi], s, s.driver->value(bindings_[bi].signal));
   }
   // A bound input in Error / NotAvailable / Stale counts; Offline is the node's own state. The
   // cause is found without building text: this runs for every PDO, and the reason string is
@@ -300,21 +257,24 @@ void Gateway::update_fault(Sub& s, std::string_view evidence) {
   }
 }
 
-void Gateway::on_output(mapping::FeId fe, const std::string& field, std::int64_t value) {
-  for (auto& b : bindings_) {
-    if (b.translator || !(b.fe == fe) || b.field->field.name != field) continue;
-    Sub& s = subs_.at(b.field->subdevice);
-    const auto key = std::make_pair(b.field->subdevice, b.signal);
-    const std::int64_t current = output_values_.count(key) ? output_values_[key] : 0;
-    const std::int64_t next = mapping::apply_output(b.output, value, current);
-    output_values_[key] = next;
-    if (!s.operational) continue;
-    if (output_depth_ > 0 && std::find(batched_.begin(), batched_.end(), s.driver) == batched_.end()) {
-      s.driver->begin_outputs();  // sent once, at the outermost end_outputs()
-      batched_.push_back(s.driver);
-    }
-    (void)s.driver->set_output(b.signal, next, now_);
+void Gateway::on_output(mapping::FeId fe, FieldRef ref, std::int64_t value) {
+  for (auto& g : output_groups_) {
+    if (!(g.fe == fe)) continue;
+    if (ref.bit >= g.by_field.size()) return;
+    for (const std::size_t bi : g.by_field[ref.bit]) drive(bindings_[bi], subs_.at(bindings_[bi].field->subdevice), value);
+    return;
   }
+}
+
+void Gateway::drive(Binding& b, Sub& s, std::int64_t value) {
+  std::int64_t& current = s.output_values[b.signal];
+  current = mapping::apply_output(b.output, value, current);
+  if (!s.operational) return;  // sent when the node comes back (on_node_state)
+  if (output_depth_ > 0 && std::find(batched_.begin(), batched_.end(), s.driver) == batched_.end()) {
+    s.driver->begin_outputs();  // sent once, at the outermost end_outputs()
+    batched_.push_back(s.driver);
+  }
+  (void)s.driver->set_output(b.signal, current, now_);
 }
 
 void Gateway::begin_outputs() { ++output_depth_; }
@@ -332,17 +292,10 @@ bool Gateway::on_upstream_frame(const canopen::CanFrame& frame, TimePoint now) {
   // each sub-device as one frame per RPDO, never as the states in between.
   begin_outputs();
   const bool used = oe_->on_frame(frame, now);
-  hold_error_values(now);
+  arbiter_->hold_error_values(now);
   end_outputs(now);
+  publish_changes();
   return used;
-}
-
-void Gateway::hold_error_values(TimePoint now) {
-  // While an FE's commander is silent its outputs stay at their error values, also when the host
-  // changes 6206h/6207h/6443h/6444h meanwhile or an NMT reset / 1011h restore puts the outputs
-  // back to their defaults (only writes what differs: cheap when nothing changed).
-  for (const auto& w : watches_)
-    if (w.expired) oe_->apply_error_values(w.fe, now);
 }
 
 bool Gateway::on_downstream_frame(const canopen::CanFrame& frame, TimePoint now) {
@@ -352,12 +305,16 @@ bool Gateway::on_downstream_frame(const canopen::CanFrame& frame, TimePoint now)
   const bool used = network_.on_frame(frame, now);
   oe_->end_batch(now);
   end_outputs(now);
+  publish_changes();
   return used;
 }
 
 void Gateway::on_upstream_bus_event(canopen::BusEvent event, TimePoint now) {
   now_ = now;
+  begin_outputs();
   oe_->node().on_bus_event(event, now);
+  end_outputs(now);
+  publish_changes();
 }
 
 void Gateway::advance(TimePoint now) {
@@ -367,17 +324,9 @@ void Gateway::advance(TimePoint now) {
   oe_->begin_batch();  // inputs going stale together: one TPDO
   network_.advance(now);
   oe_->end_batch(now);
-  for (auto& w : watches_) {
-    if (!started_ || w.expired || now - w.last < w.timeout) continue;
-    // The FE's commander fell silent: its outputs take their error values (CiA 401 6206h/6207h,
-    // 6443h/6444h — what a lost host heartbeat does to every output) until the next command.
-    w.expired = true;
-    oe_->apply_error_values(w.fe, now);
-    log(fmt::format("{}: no command for {} ms: outputs set to their error values until the next command",
-                    mapping::fe_name(w.fe),
-                    std::chrono::duration_cast<std::chrono::milliseconds>(w.timeout).count()));
-  }
+  arbiter_->advance(now);
   end_outputs(now);
+  publish_changes();
 }
 
 std::optional<TimePoint> Gateway::next_deadline() const {
@@ -386,19 +335,8 @@ std::optional<TimePoint> Gateway::next_deadline() const {
     if (t && (!best || *t < *best)) best = t;
   };
   take(network_.next_deadline());
-  for (const auto& w : watches_)
-    if (started_ && !w.expired) take(w.last + w.timeout);
+  take(arbiter_->next_deadline());
   return best;
-}
-
-void Gateway::command_seen(mapping::FeId fe) {
-  for (auto& w : watches_) {
-    if (!(w.fe == fe)) continue;
-    w.last = now_;
-    if (w.expired)
-      log(mapping::fe_name(fe) + ": commands again");
-    w.expired = false;
-  }
 }
 
 std::vector<mapping::FeId> Gateway::fes() const {
@@ -413,7 +351,7 @@ std::vector<Gateway::FieldState> Gateway::fields(mapping::FeId fe) const {
     if (!(b.fe == fe)) continue;
     FieldState f;
     f.name = b.field->field.name;
-    f.value = oe_->get(fe, b.field->field).value_or(0);  // the binding's field, looked up at load
+    f.value = model_.read(fe, b.ref);
     f.status = b.translator ? b.status : SignalStatus::Valid;
     f.interlocked = b.translator && b.translator->interlocked() && b.status == SignalStatus::Valid;
     out.push_back(f);
@@ -421,74 +359,26 @@ std::vector<Gateway::FieldState> Gateway::fields(mapping::FeId fe) const {
   return out;
 }
 
-FeStatus Gateway::status(mapping::FeId fe) const {
-  SignalStatus worst = SignalStatus::Valid;
-  bool any = false;
-  for (const auto& b : bindings_) {
-    if (!(b.fe == fe) || !b.translator) continue;
-    worst = any ? worse(worst, b.status) : b.status;
-    any = true;
-  }
-  return static_cast<FeStatus>(static_cast<std::uint8_t>(worst));
-}
-
-void Gateway::refused(mapping::FeId fe, std::string_view way, const std::string& why) {
-  ++refused_commands_;
-  // Logged once per FE and way (dds, lcm, SDO, RPDO): a commander at 100 Hz must not flood the
-  // journal; refused_commands() keeps the count.
-  if (refused_logged_.emplace(fe, std::string(way)).second) log(mapping::fe_name(fe) + ": " + why);
-}
-
-bool Gateway::take_command(mapping::FeId fe, mapping::CommandSource source, TimePoint now) {
-  now_ = now;
-  const mapping::FunctionalElementConfig* c = config_.find_fe(fe);  // none: instance outside 1..8 too
-  if (c == nullptr || !c->accepts(source)) {
-    const auto src = std::string(mapping::to_string(source));
-    refused(fe, src,
-            "a command from " + src + " ignored: " +
-                (c == nullptr ? "the mapping file does not configure " + mapping::fe_name(fe)
-                              : "its sources are " + mapping::describe_sources(c->sources)));
-    return false;
-  }
-  command_seen(fe);
-  return true;
-}
+FeStatus Gateway::status(mapping::FeId fe) const { return model_.has(fe) ? model_.status(fe) : FeStatus::Valid; }
 
 bool Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, TimePoint now,
                                  mapping::CommandSource source) {
-  const mapping::FeId fe{mapping::FeKind::IndicatorCluster, instance};
-  if (!take_command(fe, source, now)) return false;
+  now_ = now;
   begin_outputs();  // all 64 bits of the command: one frame per RPDO of each sub-device
-  // fe_fields() lists indicator[1..64] in order (mapping/functional_elements.hpp): one pass.
-  const auto fields = mapping::fe_fields(fe);
-  for (std::size_t k = 0; k < fields.size(); ++k) {
-    const mapping::FeField* f = &fields[k];
-    const std::int64_t bit = static_cast<std::int64_t>((bits >> k) & 1u);
-    auto* sub = oe_->od().find(f->index, f->sub);
-    if (sub == nullptr) continue;
-    std::uint8_t byte = sub->value.empty() ? 0 : sub->value[0];
-    byte = static_cast<std::uint8_t>(bit ? (byte | (1u << f->bit)) : (byte & ~(1u << f->bit)));
-    // Written as the host would: the dictionary's observers report the change to on_output.
-    (void)oe_->od().write(f->index, f->sub, std::span<const std::uint8_t>(&byte, 1), canopen::Origin::Local);
-  }
+  const bool taken = arbiter_->command_indicators(instance, bits, source, now);
   end_outputs(now);
-  return true;
+  publish_changes();
+  return taken;
 }
 
 bool Gateway::command_display(std::uint8_t instance, const std::array<std::int16_t, 12>& parameters, TimePoint now,
                               mapping::CommandSource source) {
-  const mapping::FeId fe{mapping::FeKind::Display, instance};
-  if (!take_command(fe, source, now)) return false;
+  now_ = now;
   begin_outputs();
-  // fe_fields() lists parameter[1..12] in order: one pass.
-  const auto fields = mapping::fe_fields(fe);
-  for (std::size_t p = 0; p < fields.size() && p < parameters.size(); ++p) {
-    const mapping::FeField& f = fields[p];
-    if (oe_->od().find(f.index, f.sub) == nullptr) continue;
-    (void)oe_->od().set<std::int16_t>(f.index, f.sub, parameters[p], canopen::Origin::Local);
-  }
+  const bool taken = arbiter_->command_display(instance, parameters, source, now);
   end_outputs(now);
-  return true;
+  publish_changes();
+  return taken;
 }
 
 }  // namespace oegw::gateway

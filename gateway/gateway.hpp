@@ -2,6 +2,10 @@
 // manager and drivers downstream, and between them the mapping file's bindings with their
 // translators and the fault policy. Sans I/O: frames and time come in on two sides.
 //
+// Data path (ARCHITECTURE.md): driver → translator (a binding's FieldTranslator) → FeModel →
+// CiA 852 device (mirrored into the dictionary at once) | DDS | LCM (on_fe_change, once per FE
+// at the end of each entry point); commands → CommandArbiter → outputs (the output bindings).
+//
 // Fault policy (DESIGN.md "A lost input never keeps the machine moving"):
 //  * a sub-device that is lost (heartbeat timeout, no heartbeat in operational after NMT start,
 //    refused at boot, never seen), reports an error EMCY, sends error / not-available codes for a
@@ -23,11 +27,12 @@
 #include <map>
 #include <memory>
 #include <optional>
-#include <set>
 #include <string>
 #include <vector>
 
 #include "canopen/master.hpp"
+#include "gateway/command_arbiter.hpp"
+#include "gateway/fe_model.hpp"
 #include "gateway/fe_samples.hpp"
 #include "gateway/oe_device.hpp"
 #include "mapping/config.hpp"
@@ -61,8 +66,8 @@ class Gateway {
   void advance(canopen::TimePoint now);
   [[nodiscard]] std::optional<canopen::TimePoint> next_deadline() const;
 
-  // The state of one FE: its fields' current values (as in the upstream dictionary) and the
-  // worst status of the signals feeding it.
+  // The bound fields of one FE as the FE model holds them, with the status of the signal feeding
+  // each (diagnostics, the demo, tests: the publishers read the typed model()).
   struct FieldState {
     std::string name;
     std::int64_t value = 0;
@@ -73,9 +78,8 @@ class Gateway {
   [[nodiscard]] FeStatus status(mapping::FeId fe) const;
   [[nodiscard]] std::vector<mapping::FeId> fes() const;
 
-  // Commands from the machine application (DDS/LCM): written into the upstream dictionary as
-  // the host would, then driven to the outputs. Only the sources the FE lists in the mapping
-  // file are taken (mapping::CommandSource; the host's own writes are checked by OeDevice);
+  // Commands from the machine application (DDS/LCM), through the command arbiter
+  // (gateway/command_arbiter.hpp): only the sources the FE lists in the mapping file are taken;
   // among those the last writer wins. Returns false, changing nothing, for a source the FE does
   // not take or an FE the mapping file does not configure (logged once per FE and source).
   bool command_indicators(std::uint8_t instance, std::uint64_t bits, canopen::TimePoint now,
@@ -84,13 +88,15 @@ class Gateway {
                        mapping::CommandSource source);
   // Commands refused so far: a source the FE does not take (each refused SDO download and each
   // refused RPDO entry of the host counts), an FE not configured.
-  [[nodiscard]] std::uint64_t refused_commands() const { return refused_commands_; }
+  [[nodiscard]] std::uint64_t refused_commands() const { return arbiter_->refused(); }
 
   [[nodiscard]] OeDevice& upstream() { return *oe_; }
+  [[nodiscard]] const FeModel& model() const { return model_; }
   [[nodiscard]] subdevices::NetworkManager& downstream() { return network_; }
   [[nodiscard]] const std::map<std::string, std::string>& faults() const { return faults_; }
 
-  // An FE's value or status changed (for the publishers).
+  // An FE's value or status changed (for the publishers): once per FE, in FE order, at the end
+  // of the call that changed it (the model is then complete for that frame).
   std::function<void(mapping::FeId)> on_fe_change;
   // Log lines ("right_grip: missing (heartbeat lost)"), for journald.
   std::function<void(const std::string&)> on_log;
@@ -99,11 +105,22 @@ class Gateway {
   struct Binding {
     mapping::FeId fe;
     const mapping::FieldBinding* field;
+    FieldRef ref;                                         // the FE model's field
     std::optional<mapping::FieldTranslator> translator;  // inputs
-    std::optional<mapping::FeField> target;              // inputs: the field, looked up once
     mapping::OutputParams output;                         // outputs
     std::size_t signal = 0;                               // index in the driver's signals
+    std::size_t group = 0;                                // inputs: index in groups_ (its FE)
     subdevices::SignalStatus status = subdevices::SignalStatus::Offline;
+  };
+  // The input bindings of one FE (its status is the worst of theirs).
+  struct FeGroup {
+    mapping::FeId fe;
+    std::vector<std::size_t> inputs;
+  };
+  // The output bindings of one output FE, per field (indicator k−1, parameter p−1).
+  struct OutputGroup {
+    mapping::FeId fe;
+    std::vector<std::vector<std::size_t>> by_field;
   };
   // What keeps a sub-device faulty (update_fault): its state, an error EMCY, or one bound input.
   struct Cause {
@@ -121,53 +138,44 @@ class Gateway {
     std::string why;
     std::vector<std::vector<std::size_t>> by_signal;  // driver signal index -> bindings_
     std::vector<std::size_t> inputs;                   // its input bindings, in bindings_ order
+    std::vector<std::size_t> outputs;                  // its output bindings
+    std::vector<std::int64_t> output_values;           // per driver signal: the value last set
     // An error EMCY holds every input of this node at its fault value, also when the driver
     // leaves its signals Valid (an EMCY code it cannot map to a signal).
     bool forced = false;
     Cause cause;  // the fault's cause (Kind::None: not faulty)
   };
 
-  void on_signal(const std::string& sub, std::size_t index, const subdevices::SignalValue& v);
-  void on_output(mapping::FeId fe, const std::string& field, std::int64_t value);
+  void on_signal(Sub& s, std::size_t index, const subdevices::SignalValue& v);
+  void on_output(mapping::FeId fe, FieldRef ref, std::int64_t value);
+  void drive(Binding& b, Sub& s, std::int64_t value);
   // Raises or clears the node's fault; `evidence` names what cleared it, for the log.
   void update_fault(Sub& s, std::string_view evidence);
   // An output batch (nests): the drivers on_output() reaches meanwhile send once, at the end
   // (Driver::begin_outputs), one frame per RPDO however many outputs changed.
   void begin_outputs();
   void end_outputs(canopen::TimePoint now);
-  // Feeds one input binding (the EMCY hold of its node applied); returns true if it changed.
-  bool feed(Binding& b, const Sub& s, const subdevices::SignalValue& v);
+  // Feeds one input binding (the EMCY hold of its node applied) into the FE model.
+  void feed(Binding& b, const Sub& s, const subdevices::SignalValue& v);
+  // The FEs the call changed, to the publishers (on_fe_change).
+  void publish_changes();
   void log(const std::string& line);
-  // A command from `source` for `fe`: true if the FE takes it (its watchdog restarts), else
-  // refused() and false.
-  bool take_command(mapping::FeId fe, mapping::CommandSource source, canopen::TimePoint now);
-  // Counts a refused command and logs it once per FE and way ("dds", "lcm", "SDO", "RPDO").
-  void refused(mapping::FeId fe, std::string_view way, const std::string& why);
-  void command_seen(mapping::FeId fe);  // an accepted command: restarts the FE's watchdog
-  void hold_error_values(canopen::TimePoint now);
 
   mapping::Config config_;
   canopen::ObjectDictionary master_od_;
   canopen::Master master_;
   subdevices::NetworkManager network_;
   std::unique_ptr<OeDevice> oe_;
+  FeModel model_;
+  canopen::TimePoint now_{};
+  std::unique_ptr<CommandArbiter> arbiter_;
   std::map<std::string, Sub> subs_;
   unsigned output_depth_ = 0;
   std::vector<subdevices::Driver*> batched_;  // drivers in the current output batch
   std::vector<Binding> bindings_;
-  std::map<std::pair<std::string, std::size_t>, std::int64_t> output_values_;        // last sent
+  std::vector<FeGroup> groups_;
+  std::vector<OutputGroup> output_groups_;
   std::map<std::string, std::string> faults_;  // sub-device -> reason
-  canopen::TimePoint now_{};
-  std::uint64_t refused_commands_ = 0;
-  struct CommandWatch {  // mapping-file command_timeout_ms of one output FE
-    mapping::FeId fe;
-    canopen::Duration timeout;
-    canopen::TimePoint last;
-    bool expired = false;
-  };
-  std::vector<CommandWatch> watches_;
-  bool started_ = false;  // start() called: the watchdogs run from then
-  std::set<std::pair<mapping::FeId, std::string>> refused_logged_;  // (FE, way) already logged
 };
 
 }  // namespace oegw::gateway

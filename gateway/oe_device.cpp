@@ -258,7 +258,7 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
   for (const FeId& fe : cfg_.fes) {
     if (mapping::is_input(fe.kind)) continue;
     for (const auto& f : mapping::fe_fields(fe))
-      outputs_[static_cast<std::uint32_t>(f.index) << 8 | f.sub].push_back({fe, f.name, f.bit});
+      outputs_[static_cast<std::uint32_t>(f.index) << 8 | f.sub].push_back({fe, *field_ref(fe, f.name), f.bit});
   }
   if (!outputs_.empty()) {
     // Annex A: 1028h mandatory with outputs; sub n = 80h + n, the device's own EMCY not consumed.
@@ -282,6 +282,7 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
     output_shadow_[key] = s ? entry_value(*s) : 0;
   }
   watch_host_commands();
+  index_inputs();
   node_->on_state_change = [this](NmtState s) { handle_state(s); };
   // CiA 401 6206h/6207h on a host heartbeat loss, in the call that notices it: the timer, an
   // upstream frame (also a late heartbeat, which reports the time-out it overran), or the TPDOs
@@ -302,12 +303,8 @@ void OeDevice::watch_host_commands() {
       const auto it = outputs_.find(static_cast<std::uint32_t>(obj.index()) << 8 | sub);
       if (it == outputs_.end() || it->second.empty()) return SdoAbortCode::None;
       const FeId fe = it->second.front().fe;
-      if (cfg_.host_may_not_command.count(fe) == 0) {
-        if (on_host_command_) on_host_command_(fe);
-        return SdoAbortCode::None;
-      }
-      if (on_refused_) on_refused_(fe, origin);
-      return SdoAbortCode::CannotTransferLocalControl;
+      const bool take = on_host_write_ ? on_host_write_(fe, origin) : cfg_.host_may_not_command.count(fe) == 0;
+      return take ? SdoAbortCode::None : SdoAbortCode::CannotTransferLocalControl;
     });
   }
 }
@@ -370,19 +367,87 @@ bool OeDevice::set_input(FeId fe, const mapping::FeField& field, std::int64_t va
     const std::int64_t hi = (std::int64_t{1} << (8 * w - 1)) - 1;
     if (value < lo || value > hi) return false;
   }
+  const bool ok = write_input_entry(InputEntry{f->index, f->sub, 0, false}, raw);
+  if (batch_depth_ == 0) step_node(now);  // event-driven TPDOs go out now (see begin_batch)
+  return ok;
+}
+
+bool OeDevice::write_input_entry(const InputEntry& e, std::int64_t raw) {
+  canopen::SubObject* s = od_.find(e.index, e.sub);
+  if (s == nullptr) return false;
   // CiA 401 6423h FALSE: analogue inputs raise no event; the value is stored without telling
   // the PDO service (see the header), so only TPDOs sent for another reason carry it.
-  if (f->index == 0x6401 && od_.find(0x6423) != nullptr && !analog_interrupt_enabled()) {
+  if (e.index == 0x6401 && od_.find(0x6423) != nullptr && !analog_interrupt_enabled()) {
     // In place, little endian as encode_width() (no allocation: this runs for every axis change).
     const auto u = static_cast<std::uint64_t>(raw);
     for (std::size_t i = 0; i < s->value.size(); ++i) s->value[i] = static_cast<std::uint8_t>(i < 8 ? u >> (8 * i) : 0);
-    input_shadow_[std::uint32_t{f->index} << 8 | f->sub] = s->value;  // same size: no reallocation
+    input_shadow_[std::uint32_t{e.index} << 8 | e.sub] = s->value;  // same size: no reallocation
     return true;
   }
-  const SdoAbortCode rc = od_.set<std::int64_t>(f->index, f->sub, raw, Origin::Local);
-  if (rc == SdoAbortCode::None) input_shadow_[std::uint32_t{f->index} << 8 | f->sub] = s->value;
-  if (batch_depth_ == 0) step_node(now);  // event-driven TPDOs go out now (see begin_batch)
+  const SdoAbortCode rc = od_.set<std::int64_t>(e.index, e.sub, raw, Origin::Local);
+  if (rc == SdoAbortCode::None) input_shadow_[std::uint32_t{e.index} << 8 | e.sub] = s->value;
   return rc == SdoAbortCode::None;
+}
+
+void OeDevice::index_inputs() {
+  // Each input slot's entries, in the order of fe_fields (mapping/functional_elements.hpp): a
+  // bit field's k-th byte holds its bits 8k..8k+7.
+  for (const FeId& fe : cfg_.fes) {
+    if (!mapping::is_input(fe.kind)) continue;
+    for (const auto& f : mapping::fe_fields(fe)) {
+      const auto ref = field_ref(fe, f.name);
+      if (!ref) continue;
+      const bool bits = ref->bit != 0xFF;
+      const InputEntry e{f.index, f.sub, static_cast<std::uint8_t>(bits ? (ref->bit / 8) * 8 : 0), bits};
+      Span& span = input_index_[static_cast<std::size_t>(fe.kind)][fe.instance][static_cast<std::size_t>(ref->slot)];
+      const bool known = std::any_of(input_entries_.begin() + span.first, input_entries_.begin() + span.first + span.count,
+                                     [&](const InputEntry& x) { return x.index == e.index && x.sub == e.sub; });
+      if (known) continue;
+      if (span.count == 0) span.first = static_cast<std::uint16_t>(input_entries_.size());
+      // fe_fields lists a slot's fields together, so its entries stay contiguous.
+      input_entries_.push_back(e);
+      ++span.count;
+    }
+  }
+}
+
+void OeDevice::mirror_input(FeId fe, FeSlot slot, std::int64_t value, TimePoint now) {
+  now_ = now;
+  const auto k = static_cast<std::size_t>(fe.kind);
+  if (k >= input_index_.size() || fe.instance >= input_index_[k].size()) return;
+  const Span span = input_index_[k][fe.instance][static_cast<std::size_t>(slot)];
+  bool wrote = false;
+  for (std::uint16_t i = span.first; i < span.first + span.count; ++i) {
+    const InputEntry& e = input_entries_[i];
+    std::int64_t raw = value;
+    if (e.bits) {
+      raw = static_cast<std::int64_t>((static_cast<std::uint64_t>(value) >> e.shift) & 0xFFu);
+      const canopen::SubObject* s = od_.find(e.index, e.sub);
+      if (s == nullptr || (!s->value.empty() && s->value[0] == raw)) continue;
+    }
+    wrote = write_input_entry(e, raw) || wrote;
+  }
+  if (wrote && batch_depth_ == 0) step_node(now);
+}
+
+void OeDevice::write_indicators(FeId fe, std::uint64_t bits) {
+  for (const auto& [key, refs] : outputs_) {
+    if (refs.empty() || !(refs.front().fe == fe) || (key >> 8) != 0x6200) continue;
+    // The entry's eight indicators: bits 8k..8k+7 of the command (k = the first one's bit / 8).
+    const auto sub = static_cast<std::uint8_t>(key);
+    const auto byte = static_cast<std::uint8_t>(bits >> ((refs.front().ref.bit / 8) * 8));
+    if (od_.get<std::uint8_t>(0x6200, sub) != byte) (void)od_.set<std::uint8_t>(0x6200, sub, byte, Origin::Local);
+  }
+}
+
+void OeDevice::write_display(FeId fe, const std::array<std::int16_t, 12>& parameters) {
+  for (const auto& [key, refs] : outputs_) {
+    if (refs.empty() || !(refs.front().fe == fe) || (key >> 8) != 0x6411) continue;
+    const auto sub = static_cast<std::uint8_t>(key);
+    const std::uint8_t p = refs.front().ref.bit;
+    if (p < parameters.size() && od_.get<std::int16_t>(0x6411, sub) != parameters[p])
+      (void)od_.set<std::int16_t>(0x6411, sub, parameters[p], Origin::Local);
+  }
 }
 
 std::optional<std::int64_t> OeDevice::get(FeId fe, std::string_view field) const {
@@ -474,10 +539,10 @@ void OeDevice::report_outputs(std::uint16_t index, std::uint8_t sub, std::int64_
   const std::int64_t now_value = output_shadow_[key];
   for (const OutputRef& r : outputs_[key]) {
     if (r.bit == 0xFF) {
-      if (now_value != old_value) on_output_(r.fe, r.field, now_value);
+      if (now_value != old_value) on_output_(r.fe, r.ref, now_value);
     } else {
       const auto b = (now_value >> r.bit) & 1;
-      if (b != ((old_value >> r.bit) & 1)) on_output_(r.fe, r.field, b);
+      if (b != ((old_value >> r.bit) & 1)) on_output_(r.fe, r.ref, b);
     }
   }
 }

@@ -91,6 +91,7 @@
 //    right after the boot-up.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -103,6 +104,7 @@
 #include <vector>
 
 #include "canopen/node.hpp"
+#include "gateway/fe_model.hpp"
 #include "mapping/functional_elements.hpp"
 
 namespace oegw::gateway {
@@ -166,32 +168,41 @@ class OeDevice {
 
   // Writes an input FE field (Origin::Local): a change sends the event-driven TPDOs mapping it.
   // One-bit fields set/clear their bit. Returns false for an unknown FE/field, an output FE or a
-  // value out of the field's range (nothing written).
+  // value out of the field's range (nothing written). For a device used on its own (tests); the
+  // gateway mirrors its FE model instead (mirror_input).
   bool set_input(mapping::FeId fe, std::string_view field, std::int64_t value, canopen::TimePoint now);
-  // Between begin_batch() and end_batch(), set_input only updates the dictionary; end_batch()
+  bool set_input(mapping::FeId fe, const mapping::FeField& field, std::int64_t value, canopen::TimePoint now);
+  // The FE model's sink: one slot of an input FE changed to `value` (FeModel::slot_value: a bit
+  // field as its bits, e.g. the 64 switches of a cluster). Writes the dictionary entries that
+  // slot occupies (6000h bytes, 6401h, 6120h), only those that differ; the entries were looked
+  // up at construction, so this neither searches nor allocates. A change sends the event-driven
+  // TPDOs mapping it (at end_batch() inside a batch).
+  void mirror_input(mapping::FeId fe, FeSlot slot, std::int64_t value, canopen::TimePoint now);
+  // Between begin_batch() and end_batch(), input writes only update the dictionary; end_batch()
   // then sends the event-driven TPDOs once, so that a downstream frame changing several fields
   // (x, y and a button) gives one TPDO carrying all of them, not one per field.
   void begin_batch();
   void end_batch(canopen::TimePoint now);
-  // The same for a field already looked up (mapping::find_fe_field(fe, name)): the per-frame path
-  // of the gateway resolves its fields once and does not allocate here.
-  bool set_input(mapping::FeId fe, const mapping::FeField& field, std::int64_t value, canopen::TimePoint now);
   // Reads an FE field (inputs and outputs) from the dictionary.
   [[nodiscard]] std::optional<std::int64_t> get(mapping::FeId fe, std::string_view field) const;
-  // The same for a field already looked up (no search of the FE's field list).
   [[nodiscard]] std::optional<std::int64_t> get(mapping::FeId fe, const mapping::FeField& field) const;
 
-  // Called for every output field whose value changed (an RPDO, an SDO download, or the error
-  // values applied by host_heartbeat_lost()).
-  using OutputCallback = std::function<void(mapping::FeId, const std::string& field, std::int64_t value)>;
+  // Output FEs written by the gateway itself (Origin::Local: DDS/LCM commands the command
+  // arbiter accepted). Entries that change are reported through on_output, as a host write is.
+  void write_indicators(mapping::FeId fe, std::uint64_t bits);
+  void write_display(mapping::FeId fe, const std::array<std::int16_t, 12>& parameters);
+
+  // Called for every output field whose value changed (an RPDO, an SDO download, a write above,
+  // the error values, an NMT reset or 1011h restore putting defaults back).
+  using OutputCallback = std::function<void(mapping::FeId, FieldRef, std::int64_t value)>;
   void on_output(OutputCallback cb) { on_output_ = std::move(cb); }
 
-  // A host write (SDO download or RPDO entry) of an FE in host_may_not_command was refused.
-  using RefusedWriteCallback = std::function<void(mapping::FeId, canopen::Origin)>;
-  void on_host_write_refused(RefusedWriteCallback cb) { on_refused_ = std::move(cb); }
-  // A host write (SDO download or RPDO entry) of an output FE the host may command is about to
-  // be applied (called before the value commits; for command watchdogs).
-  void on_host_command(std::function<void(mapping::FeId)> cb) { on_host_command_ = std::move(cb); }
+  // A host write (SDO download or RPDO entry) of an output FE, before it commits: return true to
+  // take it. Refused: an SDO download is aborted with 0800 0021h ("cannot be transferred because
+  // of local control", CiA 301 Table 22), the FE's bytes in an RPDO are ignored. Unset: the
+  // config's host_may_not_command decides.
+  using HostWriteCheck = std::function<bool(mapping::FeId, canopen::Origin)>;
+  void on_host_write(HostWriteCheck cb) { on_host_write_ = std::move(cb); }
 
   // CiA 401 6206h/6207h and 6443h/6444h: outputs whose error mode is set take their error value.
   void host_heartbeat_lost(canopen::TimePoint now);
@@ -213,9 +224,19 @@ class OeDevice {
  private:
   struct OutputRef {
     mapping::FeId fe;
-    std::string field;
-    std::uint8_t bit;
+    FieldRef ref;
+    std::uint8_t bit;  // within the dictionary entry (6200h byte), 0xFF = whole value
   };
+  // One dictionary entry an input slot occupies: the slot's value >> shift is the entry's value
+  // (a bit field: one byte per entry; a whole value: shift 0).
+  struct InputEntry {
+    std::uint16_t index = 0;
+    std::uint8_t sub = 0;
+    std::uint8_t shift = 0;
+    bool bits = false;
+  };
+  void index_inputs();
+  bool write_input_entry(const InputEntry& e, std::int64_t raw);
   // node_->advance() (the Node's heartbeat time-out applies the error values, whoever calls).
   void step_node(canopen::TimePoint now);
   void watch_host_commands();
@@ -233,8 +254,14 @@ class OeDevice {
   std::unique_ptr<canopen::EmcyConsumer> emcy_consumer_;
   std::unique_ptr<canopen::Node> node_;
   OutputCallback on_output_;
-  RefusedWriteCallback on_refused_;
-  std::function<void(mapping::FeId)> on_host_command_;
+  HostWriteCheck on_host_write_;
+  std::vector<InputEntry> input_entries_;
+  // kind × instance × slot → [first, first + count) in input_entries_.
+  struct Span {
+    std::uint16_t first = 0;
+    std::uint16_t count = 0;
+  };
+  std::array<std::array<std::array<Span, kFeSlots>, 17>, 7> input_index_{};
   unsigned batch_depth_ = 0;
   canopen::EmcyHandler on_emcy_;
   canopen::TimePoint now_{};

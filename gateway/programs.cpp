@@ -13,6 +13,7 @@
 #include "gateway/gateway.hpp"
 #include "gateway/publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
+#include "gateway/runtime_config.hpp"
 
 namespace oegw::gateway {
 
@@ -32,11 +33,6 @@ std::optional<mapping::Config> load(const std::string& file) {
   return std::move(r.config);
 }
 
-std::vector<mapping::FeId> fe_ids(const mapping::Config& c) {
-  std::vector<mapping::FeId> out;
-  for (const auto& fe : c.functional_elements) out.push_back(fe.id);
-  return out;
-}
 
 
 // Where an FE field travels in the PDOs of clause 12: "TPDO 1 (180h+ID) byte 2 bit 3".
@@ -66,16 +62,12 @@ std::string pdo_place(const std::vector<OePdo>& pdos, const mapping::FeField& f)
 int run_check(const std::string& file) {
   const auto cfg = load(file);
   if (!cfg) return 1;
-  const auto fes = fe_ids(*cfg);
+  const auto device = eds_device(*cfg);  // the dictionary `oegw run` builds
+  const auto& fes = device->config().fes;
   const NodeId node{cfg->upstream.node_id};
-  std::set<mapping::FeId> no_buttons;
-  for (const auto& fe : cfg->functional_elements)
-    if (fe.id.kind == mapping::FeKind::Joystick &&
-        std::none_of(fe.fields.begin(), fe.fields.end(), [](const auto& b) { return b.field.name.rfind("buttons", 0) == 0; }))
-      no_buttons.insert(fe.id);
   std::printf("%s: valid\n\n", file.c_str());
   std::printf("upstream: node-ID %02Xh on %s, 1000h device type = %08Xh (CiA 852 Table 8)\n", node.value(),
-              cfg->upstream.interface.c_str(), device_type_for(fes, no_buttons));
+              cfg->upstream.interface.c_str(), device->od().get<std::uint32_t>(0x1000, 0));
   std::printf("downstream: %s\n", cfg->downstream.interface.c_str());
   for (const auto& s : cfg->subdevices)
     std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id, s.mandatory ? "  mandatory" : "");
@@ -117,39 +109,18 @@ int run_check(const std::string& file) {
 int run_eds(const std::string& file, const std::string& out) {
   const auto cfg = load(file);
   if (!cfg) return 1;
-  OeDeviceConfig oe;
-  oe.node_id = NodeId{cfg->upstream.node_id};
-  oe.identity = {cfg->upstream.identity.vendor_id, cfg->upstream.identity.product_code, cfg->upstream.identity.revision,
-                 cfg->upstream.identity.serial};
-  oe.heartbeat_ms = cfg->upstream.heartbeat_ms;
-  oe.fes = fe_ids(*cfg);
-  oe.store_path = "/nonexistent/eds-only";  // 1010h/1011h present as in the running device; never written
-  OeDevice device(oe, {});
-  EdsInfo info;
-  info.file_name = out == "-" ? "oegw.eds" : std::filesystem::path(out).filename().string();
-  info.vendor = oe.identity.vendor;
-  info.product = oe.identity.product;
-  info.revision = oe.identity.revision;
-  info.node_id = oe.node_id;
-  for (const auto& fe : cfg->functional_elements) {
-    if (fe.input() || fe.accepts(mapping::CommandSource::Canopen)) continue;
-    const auto fields = mapping::fe_fields(fe.id);
-    info.comments.push_back(fmt::format(
-        "{} ({:04X}h sub {:02X}h..{:02X}h) takes commands from {} only: an SDO download is aborted with 08000021h "
-        "(local control), its bytes in an RPDO are ignored",
-        mapping::fe_name(fe.id), fields.front().index, fields.front().sub, fields.back().sub,
-        mapping::describe_sources(fe.sources)));
-  }
+  const auto device = eds_device(*cfg);
+  const EdsInfo info = eds_info(*cfg, out == "-" ? "oegw.eds" : std::filesystem::path(out).filename().string());
   if (out == "-") {
-    std::cout << eds_text(device.od(), info);
+    std::cout << eds_text(device->od(), info);
     return 0;
   }
   std::string error;
-  if (!write_eds(out, device.od(), info, error)) {
+  if (!write_eds(out, device->od(), info, error)) {
     std::fprintf(stderr, "oegw eds: %s\n", error.c_str());
     return 1;
   }
-  std::printf("%s: EDS of node %02Xh written\n", out.c_str(), oe.node_id.value());
+  std::printf("%s: EDS of node %02Xh written\n", out.c_str(), info.node_id.value());
   return 0;
 }
 

@@ -52,65 +52,42 @@ std::int64_t GatewayPublishing::now_us() const {
   return std::chrono::duration_cast<canopen::Duration>(clock_().time_since_epoch()).count();
 }
 
+namespace {
+std::int64_t to_us(canopen::TimePoint t) {
+  return std::chrono::duration_cast<std::chrono::microseconds>(t.time_since_epoch()).count();
+}
+// The header of a sample: the FE's status and source time (the reception of the frame that
+// carried its latest value; fe_model.hpp).
+template <class State>
+SampleHeader header_of(mapping::FeId fe, const State& st) {
+  return SampleHeader{fe.instance, st.h.status, to_us(st.h.source_time), 0};
+}
+}  // namespace
+
 void GatewayPublishing::publish_fe(mapping::FeId fe) {
   if (!active()) return;
-  SampleHeader h;
-  h.instance = fe.instance;
-  h.status = gw_.status(fe);
-  h.timestamp_us = now_us();
-  const auto fields = gw_.fields(fe);
-  auto value = [&fields](std::string_view name) -> std::int64_t {
-    for (const auto& f : fields)
-      if (f.name == name) return f.value;
-    return 0;
-  };
-  // Bit i of the result = field base[i+1] (buttons[1..8], switch[1..64]).
-  auto bits = [&fields](std::string_view base) {
-    std::uint64_t out = 0;
-    for (const auto& f : fields) {
-      if (f.name.size() <= base.size() + 2 || f.name.compare(0, base.size(), base) != 0 || f.name[base.size()] != '[') continue;
-      const unsigned i = static_cast<unsigned>(std::stoul(f.name.substr(base.size() + 1)));
-      if (i >= 1 && i <= 64 && f.value != 0) out |= std::uint64_t{1} << (i - 1);
-    }
-    return out;
-  };
+  // The typed state, as the translators wrote it: no field names, no allocation.
+  const FeModel& m = gw_.model();
   const std::int64_t now = now_us();
   switch (fe.kind) {
-    case mk::FeKind::Joystick: {
-      JoystickSample s{h};
-      s.x = static_cast<std::int16_t>(value("x"));
-      s.y = static_cast<std::int16_t>(value("y"));
-      s.z = static_cast<std::int16_t>(value("z"));
-      s.buttons = static_cast<std::uint8_t>(bits("buttons"));
-      s.memory = static_cast<std::uint8_t>((value("memory_x") ? 1 : 0) | (value("memory_y") ? 2 : 0) | (value("memory_z") ? 4 : 0));
-      schedule_.update(s, now);
+    case mk::FeKind::Joystick:
+      if (const auto* st = m.get<JoystickState>(fe))
+        schedule_.update(JoystickSample{header_of(fe, *st), st->x, st->y, st->z, st->buttons, st->memory}, now);
       break;
-    }
-    case mk::FeKind::FootPedal: {
-      PedalSample s{h};
-      s.position = static_cast<std::int16_t>(value("position"));
-      s.memory = static_cast<std::uint8_t>(value("memory_x") ? 1 : 0);
-      schedule_.update(s, now);
+    case mk::FeKind::FootPedal:
+      if (const auto* st = m.get<PedalState>(fe))
+        schedule_.update(PedalSample{header_of(fe, *st), st->position, st->memory}, now);
       break;
-    }
-    case mk::FeKind::Wheel: {
-      WheelSample s{h};
-      s.position = static_cast<std::int16_t>(value("position"));
-      schedule_.update(s, now);
+    case mk::FeKind::Wheel:
+      if (const auto* st = m.get<WheelState>(fe)) schedule_.update(WheelSample{header_of(fe, *st), st->position}, now);
       break;
-    }
-    case mk::FeKind::Encoder: {
-      EncoderSample s{h};
-      s.position = static_cast<std::int32_t>(value("position"));
-      schedule_.update(s, now);
+    case mk::FeKind::Encoder:
+      if (const auto* st = m.get<EncoderState>(fe)) schedule_.update(EncoderSample{header_of(fe, *st), st->position}, now);
       break;
-    }
-    case mk::FeKind::ButtonCluster: {
-      ButtonClusterSample s{h};
-      s.switches = bits("switch");
-      schedule_.update(s, now);
+    case mk::FeKind::ButtonCluster:
+      if (const auto* st = m.get<ButtonClusterState>(fe))
+        schedule_.update(ButtonClusterSample{header_of(fe, *st), st->switches}, now);
       break;
-    }
     case mk::FeKind::IndicatorCluster:
     case mk::FeKind::Display: break;  // outputs: commanded, not published
   }

@@ -37,7 +37,9 @@ class OeDeviceHost : public ::testing::Test {
     c.fes = {kJoy, kWheel, kButtons, kLeds};
     gw_ = std::make_unique<OeDevice>(c, net_.sink("gw"));
     net_.attach("gw", *gw_);
-    gw_->on_output([this](FeId fe, const std::string& f, std::int64_t v) { outputs_.emplace_back(fe, f, v); });
+    gw_->on_output([this](FeId fe, oegw::gateway::FieldRef r, std::int64_t v) {
+      outputs_.emplace_back(fe, oegw::gateway::field_name(fe, r), v);
+    });
     host_ = std::make_unique<Master>(host_od_, net_.sink("host"), MasterConfig{.heartbeat_entries = 4});
     net_.attach("host", *host_);
     host_->on_emcy = [this](const EmcyMessage& m, TimePoint) { emcys_.push_back(m); };

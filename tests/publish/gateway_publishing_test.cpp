@@ -10,6 +10,7 @@
 
 #include <functional>
 #include <optional>
+#include <set>
 
 #include "gateway/gateway.hpp"
 #include "dds_command_writer.hpp"
@@ -91,12 +92,20 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
     void advance(TimePoint) {}
     std::optional<TimePoint> next_deadline() const { return std::nullopt; }
   } up_side{gw};
+  // The reception time of every frame the grip sends, as the bus delivered it (µs): what a
+  // sample's timestamp_us must be (README "Publishing": the source time, not the publish time).
+  std::set<std::int64_t> grip_frames_us;
   struct Down {
     gateway::Gateway& gw;
-    bool on_frame(const CanFrame& f, TimePoint t) { return gw.on_downstream_frame(f, t); }
+    std::set<std::int64_t>& grip_frames_us;
+    bool on_frame(const CanFrame& f, TimePoint t) {
+      if ((f.id & 0x7F) == 0x11 && f.id >= 0x180 && f.id < 0x580)
+        grip_frames_us.insert(std::chrono::duration_cast<std::chrono::microseconds>(t.time_since_epoch()).count());
+      return gw.on_downstream_frame(f, t);
+    }
     void advance(TimePoint t) { gw.advance(t); }
     std::optional<TimePoint> next_deadline() const { return gw.next_deadline(); }
-  } down_side{gw};
+  } down_side{gw, grip_frames_us};
   down.attach("gateway", down_side);
   up.attach("gateway", up_side);
 
@@ -104,7 +113,9 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
   ASSERT_NE(app.lcm, nullptr);
   lcm_subscribe(app.lcm, "OEGW_JOYSTICK_1", &App::on_joystick, &app);
   lcm_subscribe(app.lcm, "OEGW_STATUS", &App::on_status, &app);
-  gateway::GatewayPublishing pub(gw, loaded.config->publish, [&down] { return down.now(); });
+  // The publisher's clock runs 7 ms behind the bus, as a loop that reads a frame later than the
+  // kernel received it: a sample stamped with the publish time would show it.
+  gateway::GatewayPublishing pub(gw, loaded.config->publish, [&down] { return down.now() + 7ms; });
   ASSERT_TRUE(pub.active());
 
   (void)gw.start(down.now());
@@ -124,6 +135,21 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
   EXPECT_EQ(app.last->instance, 1);
   EXPECT_EQ(app.last->status, 0) << "valid";
   EXPECT_EQ(app.last->x, 16384) << "50 % -> 32767 * 0.5, rounded";
+  // Its timestamp is the reception time of the grip's PDO that carried x = 50 %, and the
+  // periodic republishes of the unchanged value (new seq, later publish time) keep it.
+  const std::int64_t carried_at = app.last->timestamp_us;
+  EXPECT_EQ(grip_frames_us.count(carried_at), 1u) << carried_at << " is not the reception time of a grip frame";
+  const std::int32_t first_seq = app.last->seq;
+  for (int i = 0; i < 40 && app.last->seq < first_seq + 2; ++i) {
+    down.run_for(60ms);  // more than period_ms: the next tick republishes
+    pub.tick();
+    if (wait_readable(lcm_get_fileno(app.lcm), 50)) lcm_handle(app.lcm);
+  }
+  ASSERT_GE(app.last->seq, first_seq + 2) << "no periodic republish";
+  EXPECT_EQ(app.last->x, 16384);
+  EXPECT_EQ(app.last->timestamp_us, carried_at) << "a republish carries the source time, not the publish time";
+  EXPECT_LT(app.last->timestamp_us,
+            std::chrono::duration_cast<std::chrono::microseconds>(down.now().time_since_epoch()).count() - 100000);
 
   // The app tries indicators.2 (sources: [canopen]), then lights indicators 1 and 2 of
   // indicators.1: the grip's LEDs 1 and 2 go on, 3 and 4 stay off.

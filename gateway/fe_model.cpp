@@ -1,0 +1,241 @@
+#include "gateway/fe_model.hpp"
+
+#include <algorithm>
+#include <charconv>
+
+#include <fmt/format.h>
+
+namespace oegw::gateway {
+
+using mapping::FeId;
+using mapping::FeKind;
+
+namespace {
+
+// "buttons[3]" with base "buttons" → 3; 0 when `name` is not base[k].
+unsigned indexed(std::string_view name, std::string_view base) {
+  if (name.size() < base.size() + 3 || name.substr(0, base.size()) != base || name[base.size()] != '[' ||
+      name.back() != ']')
+    return 0;
+  unsigned k = 0;
+  const auto digits = name.substr(base.size() + 1, name.size() - base.size() - 2);
+  const auto [p, ec] = std::from_chars(digits.data(), digits.data() + digits.size(), k);
+  return ec == std::errc{} && p == digits.data() + digits.size() ? k : 0;
+}
+
+std::optional<FieldRef> bit_of(std::string_view name, std::string_view base, FeSlot slot, unsigned count) {
+  const unsigned k = indexed(name, base);
+  if (k < 1 || k > count) return std::nullopt;
+  return FieldRef{slot, static_cast<std::uint8_t>(k - 1)};
+}
+
+template <class T>
+bool assign(T& dst, std::int64_t v) {
+  const auto n = static_cast<T>(v);
+  if (dst == n) return false;
+  dst = n;
+  return true;
+}
+
+template <class T>
+bool assign_bit(T& dst, std::uint8_t bit, std::int64_t v) {
+  const T mask = static_cast<T>(T{1} << bit);
+  const T n = static_cast<T>(v != 0 ? (dst | mask) : (dst & static_cast<T>(~mask)));
+  if (dst == n) return false;
+  dst = n;
+  return true;
+}
+
+// Writes `ref` of one typed state; false when the value is unchanged or the state has no such slot.
+bool write_slot(JoystickState& s, FieldRef r, std::int64_t v) {
+  switch (r.slot) {
+    case FeSlot::X: return assign(s.x, v);
+    case FeSlot::Y: return assign(s.y, v);
+    case FeSlot::Z: return assign(s.z, v);
+    case FeSlot::Buttons: return r.bit < 8 && assign_bit(s.buttons, r.bit, v);
+    case FeSlot::Memory: return r.bit < 3 && assign_bit(s.memory, r.bit, v);
+    default: return false;
+  }
+}
+bool write_slot(PedalState& s, FieldRef r, std::int64_t v) {
+  if (r.slot == FeSlot::Position) return assign(s.position, v);
+  return r.slot == FeSlot::Memory && r.bit == 0 && assign_bit(s.memory, 0, v);
+}
+bool write_slot(WheelState& s, FieldRef r, std::int64_t v) { return r.slot == FeSlot::Position && assign(s.position, v); }
+bool write_slot(EncoderState& s, FieldRef r, std::int64_t v) {
+  return r.slot == FeSlot::Position && assign(s.position, v);
+}
+bool write_slot(ButtonClusterState& s, FieldRef r, std::int64_t v) {
+  return r.slot == FeSlot::Switches && r.bit < 64 && assign_bit(s.switches, r.bit, v);
+}
+bool write_slot(IndicatorState& s, FieldRef r, std::int64_t v) {
+  return r.slot == FeSlot::Indicators && r.bit < 64 && assign_bit(s.indicators, r.bit, v);
+}
+bool write_slot(DisplayState& s, FieldRef r, std::int64_t v) {
+  return r.slot == FeSlot::Parameters && r.bit < 12 && assign(s.parameters[r.bit], v);
+}
+
+std::int64_t slot_of(const JoystickState& s, FeSlot slot) {
+  switch (slot) {
+    case FeSlot::X: return s.x;
+    case FeSlot::Y: return s.y;
+    case FeSlot::Z: return s.z;
+    case FeSlot::Buttons: return s.buttons;
+    case FeSlot::Memory: return s.memory;
+    default: return 0;
+  }
+}
+std::int64_t slot_of(const PedalState& s, FeSlot slot) {
+  return slot == FeSlot::Position ? s.position : slot == FeSlot::Memory ? s.memory : 0;
+}
+std::int64_t slot_of(const WheelState& s, FeSlot slot) { return slot == FeSlot::Position ? s.position : 0; }
+std::int64_t slot_of(const EncoderState& s, FeSlot slot) { return slot == FeSlot::Position ? s.position : 0; }
+std::int64_t slot_of(const ButtonClusterState& s, FeSlot slot) {
+  return slot == FeSlot::Switches ? static_cast<std::int64_t>(s.switches) : 0;
+}
+std::int64_t slot_of(const IndicatorState& s, FeSlot slot) {
+  return slot == FeSlot::Indicators ? static_cast<std::int64_t>(s.indicators) : 0;
+}
+std::int64_t slot_of(const DisplayState&, FeSlot) { return 0; }  // per parameter: read()
+
+FeState initial_state(FeKind k) {
+  switch (k) {
+    case FeKind::Joystick: return JoystickState{};
+    case FeKind::FootPedal: return PedalState{};
+    case FeKind::Wheel: return WheelState{};
+    case FeKind::Encoder: return EncoderState{};
+    case FeKind::ButtonCluster: return ButtonClusterState{};
+    case FeKind::IndicatorCluster: return IndicatorState{};
+    case FeKind::Display: return DisplayState{};
+  }
+  return JoystickState{};
+}
+
+FeHeader& header(FeState& s) {
+  return std::visit([](auto& st) -> FeHeader& { return st.h; }, s);
+}
+const FeHeader& header(const FeState& s) {
+  return std::visit([](const auto& st) -> const FeHeader& { return st.h; }, s);
+}
+
+}  // namespace
+
+std::optional<FieldRef> field_ref(FeId fe, std::string_view name) {
+  switch (fe.kind) {
+    case FeKind::Joystick:
+      if (name == "x") return FieldRef{FeSlot::X};
+      if (name == "y") return FieldRef{FeSlot::Y};
+      if (name == "z") return FieldRef{FeSlot::Z};
+      if (name == "memory_x") return FieldRef{FeSlot::Memory, 0};
+      if (name == "memory_y") return FieldRef{FeSlot::Memory, 1};
+      if (name == "memory_z") return FieldRef{FeSlot::Memory, 2};
+      return bit_of(name, "buttons", FeSlot::Buttons, 8);
+    case FeKind::FootPedal:
+      if (name == "position") return FieldRef{FeSlot::Position};
+      if (name == "memory_x") return FieldRef{FeSlot::Memory, 0};
+      return std::nullopt;
+    case FeKind::Encoder:
+    case FeKind::Wheel:
+      if (name == "position") return FieldRef{FeSlot::Position};
+      return std::nullopt;
+    case FeKind::ButtonCluster: return bit_of(name, "switch", FeSlot::Switches, 64);
+    case FeKind::IndicatorCluster: return bit_of(name, "indicator", FeSlot::Indicators, 64);
+    case FeKind::Display: return bit_of(name, "parameter", FeSlot::Parameters, 12);
+  }
+  return std::nullopt;
+}
+
+std::string field_name(FeId fe, FieldRef r) {
+  const unsigned k = static_cast<unsigned>(r.bit) + 1;
+  switch (r.slot) {
+    case FeSlot::X: return "x";
+    case FeSlot::Y: return "y";
+    case FeSlot::Z: return "z";
+    case FeSlot::Position: return "position";
+    case FeSlot::Memory: return r.bit == 0 ? "memory_x" : r.bit == 1 ? "memory_y" : "memory_z";
+    case FeSlot::Buttons: return fmt::format("buttons[{}]", k);
+    case FeSlot::Switches: return fmt::format("switch[{}]", k);
+    case FeSlot::Indicators: return fmt::format("indicator[{}]", k);
+    case FeSlot::Parameters: return fmt::format("parameter[{}]", k);
+  }
+  (void)fe;
+  return "?";
+}
+
+FeModel::FeModel(std::vector<FeId> fes) {
+  for (auto& row : index_) row.fill(-1);
+  std::erase_if(fes, [](const FeId& f) { return f.instance < 1 || f.instance > mapping::max_instances(f.kind); });
+  std::sort(fes.begin(), fes.end());
+  fes.erase(std::unique(fes.begin(), fes.end()), fes.end());
+  ids_ = fes;
+  for (const FeId& f : ids_) {
+    index_[static_cast<std::size_t>(f.kind)][f.instance] = static_cast<std::int16_t>(entries_.size());
+    entries_.push_back({f, initial_state(f.kind)});
+  }
+  changed_.reserve(entries_.size());
+}
+
+int FeModel::find(FeId fe) const {
+  const auto k = static_cast<std::size_t>(fe.kind);
+  if (k >= index_.size() || fe.instance >= index_[k].size()) return -1;
+  return index_[k][fe.instance];
+}
+
+void FeModel::mark(std::size_t i) {
+  if (entries_[i].published_mark) return;
+  entries_[i].published_mark = true;
+  changed_.push_back(static_cast<std::uint16_t>(i));  // capacity reserved: no allocation
+}
+
+void FeModel::sort_changed() { std::sort(changed_.begin(), changed_.end()); }  // entries_ is in FE order
+
+bool FeModel::write(FeId fe, FieldRef ref, std::int64_t value, canopen::TimePoint source_time) {
+  const int i = find(fe);
+  if (i < 0) return false;
+  Entry& e = entries_[static_cast<std::size_t>(i)];
+  const bool changed = std::visit([&](auto& s) { return write_slot(s, ref, value); }, e.state);
+  if (!changed) return false;
+  header(e.state).source_time = source_time;
+  mark(static_cast<std::size_t>(i));
+  if (on_slot_) on_slot_(fe, ref.slot, ref.slot == FeSlot::Parameters ? read(fe, ref) : slot_value(fe, ref.slot));
+  return true;
+}
+
+bool FeModel::set_status(FeId fe, FeStatus status, canopen::TimePoint when) {
+  const int i = find(fe);
+  if (i < 0) return false;
+  FeHeader& h = header(entries_[static_cast<std::size_t>(i)].state);
+  if (h.status == status) return false;
+  h.status = status;
+  h.source_time = when;
+  mark(static_cast<std::size_t>(i));
+  return true;
+}
+
+std::int64_t FeModel::slot_value(FeId fe, FeSlot slot) const {
+  const int i = find(fe);
+  if (i < 0) return 0;
+  return std::visit([slot](const auto& s) { return slot_of(s, slot); }, entries_[static_cast<std::size_t>(i)].state);
+}
+
+std::int64_t FeModel::read(FeId fe, FieldRef ref) const {
+  if (ref.slot == FeSlot::Parameters) {
+    const auto* d = get<DisplayState>(fe);
+    return d != nullptr && ref.bit < d->parameters.size() ? d->parameters[ref.bit] : 0;
+  }
+  const std::int64_t v = slot_value(fe, ref.slot);
+  if (ref.bit == 0xFF) return v;
+  return (static_cast<std::uint64_t>(v) >> ref.bit) & 1u;
+}
+
+FeStatus FeModel::status(FeId fe) const {
+  const int i = find(fe);
+  return i < 0 ? FeStatus::Offline : header(entries_[static_cast<std::size_t>(i)].state).status;
+}
+
+canopen::TimePoint FeModel::source_time(FeId fe) const {
+  const int i = find(fe);
+  return i < 0 ? canopen::TimePoint{} : header(entries_[static_cast<std::size_t>(i)].state).source_time;
+}
+
+}  // namespace oegw::gateway

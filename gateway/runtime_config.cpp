@@ -1,0 +1,58 @@
+#include "gateway/runtime_config.hpp"
+
+#include <algorithm>
+
+#include <fmt/format.h>
+
+namespace oegw::gateway {
+
+OeDeviceConfig device_config(const mapping::Config& c, std::optional<std::filesystem::path> store) {
+  OeDeviceConfig oe;
+  oe.node_id = canopen::NodeId{c.upstream.node_id};
+  oe.identity = {c.upstream.identity.vendor_id, c.upstream.identity.product_code, c.upstream.identity.revision,
+                 c.upstream.identity.serial};
+  oe.heartbeat_ms = c.upstream.heartbeat_ms;
+  for (const auto& fe : c.functional_elements) {
+    oe.fes.push_back(fe.id);
+    // CiA 852 Table 8 distinguishes joysticks with buttons.
+    if (fe.id.kind == mapping::FeKind::Joystick &&
+        std::none_of(fe.fields.begin(), fe.fields.end(),
+                     [](const auto& f) { return f.field.name.rfind("buttons", 0) == 0; }))
+      oe.joysticks_without_buttons.insert(fe.id);
+    if (!fe.input() && !fe.accepts(mapping::CommandSource::Canopen)) oe.host_may_not_command.insert(fe.id);
+  }
+  oe.store_path = store ? *store : std::filesystem::path(c.upstream.store);
+  return oe;
+}
+
+EdsInfo eds_info(const mapping::Config& c, std::string file_name) {
+  EdsInfo info;
+  info.file_name = std::move(file_name);
+  info.vendor = c.upstream.identity.vendor_id;
+  info.product = c.upstream.identity.product_code;
+  info.revision = c.upstream.identity.revision;
+  info.node_id = canopen::NodeId{c.upstream.node_id};
+  for (const auto& fe : c.functional_elements) {
+    if (fe.input() || fe.accepts(mapping::CommandSource::Canopen)) continue;
+    const auto fields = mapping::fe_fields(fe.id);
+    info.comments.push_back(fmt::format(
+        "{} ({:04X}h sub {:02X}h..{:02X}h) takes commands from {} only: an SDO download is aborted with 08000021h "
+        "(local control), its bytes in an RPDO are ignored",
+        mapping::fe_name(fe.id), fields.front().index, fields.front().sub, fields.back().sub,
+        mapping::describe_sources(fe.sources)));
+  }
+  return info;
+}
+
+std::unique_ptr<OeDevice> eds_device(const mapping::Config& c) {
+  // 1010h/1011h exist as in the running device; the store itself is never opened (start()).
+  std::optional<std::filesystem::path> store;
+  if (!c.upstream.store.empty()) store = "/nonexistent/eds-only";
+  return std::make_unique<OeDevice>(device_config(c, store), canopen::FrameSink{});
+}
+
+std::string upstream_eds(const mapping::Config& c, std::string file_name) {
+  return eds_text(eds_device(c)->od(), eds_info(c, std::move(file_name)));
+}
+
+}  // namespace oegw::gateway

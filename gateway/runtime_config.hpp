@@ -1,0 +1,30 @@
+// The one translation of a mapping file (mapping::Config) into the run-time configuration of the
+// upstream CiA 852 device. `oegw run` (through Gateway), `oegw check`, `oegw eds` and the demo
+// all use it, so the EDS describes exactly the dictionary the running gateway has (1000h of a
+// joystick without buttons, the entries the host may not write, 1010h/1011h).
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "gateway/eds_writer.hpp"
+#include "gateway/oe_device.hpp"
+#include "mapping/config.hpp"
+
+namespace oegw::gateway {
+
+// `store` replaces upstream.store (demo, tests, `oegw eds`); the store is only touched at start().
+[[nodiscard]] OeDeviceConfig device_config(const mapping::Config& config,
+                                           std::optional<std::filesystem::path> store = std::nullopt);
+
+// The EDS of the device `config` describes: identity, node-ID and the CiA 306 [Comments] naming
+// each output FE the host may not command (mapping-file `sources` without canopen).
+[[nodiscard]] EdsInfo eds_info(const mapping::Config& config, std::string file_name);
+// The device itself, never started (its dictionary holds the defaults the EDS describes).
+[[nodiscard]] std::unique_ptr<OeDevice> eds_device(const mapping::Config& config);
+// The text `oegw eds` writes: eds_text() of the dictionary device_config() builds.
+[[nodiscard]] std::string upstream_eds(const mapping::Config& config, std::string file_name);
+
+}  // namespace oegw::gateway

@@ -1,0 +1,104 @@
+// The typed FE model (gateway/fe_model.hpp): field names resolve once to slots, writes report
+// changes once per FE in FE order, the source time follows the value, and the device sink sees
+// every changed slot with its whole value.
+#include <gtest/gtest.h>
+
+#include "gateway/fe_model.hpp"
+
+namespace {
+
+using namespace oegw;
+using gateway::FeModel;
+using gateway::FeSlot;
+using gateway::FieldRef;
+using mapping::FeId;
+using mapping::FeKind;
+
+const FeId kJoy1{FeKind::Joystick, 1};
+const FeId kJoy2{FeKind::Joystick, 2};
+const FeId kCluster3{FeKind::ButtonCluster, 3};
+const FeId kDisplay1{FeKind::Display, 1};
+
+canopen::TimePoint at(int ms) { return canopen::TimePoint{} + std::chrono::milliseconds(ms); }
+
+TEST(FeModel, EveryFieldOfEveryFeResolvesToASlotAndBack) {
+  for (int k = 0; k <= static_cast<int>(FeKind::Display); ++k) {
+    const FeId fe{static_cast<FeKind>(k), 1};
+    for (const auto& f : mapping::fe_fields(fe)) {
+      const auto ref = gateway::field_ref(fe, f.name);
+      ASSERT_TRUE(ref) << mapping::fe_name(fe) << " " << f.name;
+      EXPECT_EQ(gateway::field_name(fe, *ref), f.name);
+    }
+  }
+  EXPECT_FALSE(gateway::field_ref(kJoy1, "w"));
+  EXPECT_FALSE(gateway::field_ref(kJoy1, "buttons[9]"));
+  EXPECT_FALSE(gateway::field_ref(kJoy1, "buttons[0]"));
+  EXPECT_FALSE(gateway::field_ref(kCluster3, "switch[65]"));
+  EXPECT_FALSE(gateway::field_ref(kDisplay1, "parameter[13]"));
+  EXPECT_FALSE(gateway::field_ref({FeKind::Wheel, 1}, "x"));
+}
+
+TEST(FeModel, AWriteChangesTheTypedStateAndStampsTheSourceTime) {
+  FeModel m({kJoy1, kCluster3});
+  EXPECT_TRUE(m.write(kJoy1, *gateway::field_ref(kJoy1, "x"), -1200, at(5)));
+  EXPECT_TRUE(m.write(kJoy1, *gateway::field_ref(kJoy1, "buttons[3]"), 1, at(7)));
+  EXPECT_TRUE(m.write(kJoy1, *gateway::field_ref(kJoy1, "memory_z"), 1, at(7)));
+  const auto* j = m.get<gateway::JoystickState>(kJoy1);
+  ASSERT_NE(j, nullptr);
+  EXPECT_EQ(j->x, -1200);
+  EXPECT_EQ(j->buttons, 0x04);
+  EXPECT_EQ(j->memory, 0x04);
+  EXPECT_EQ(j->h.source_time, at(7));
+  // The same value again is no change and keeps the source time of the frame that carried it.
+  EXPECT_FALSE(m.write(kJoy1, *gateway::field_ref(kJoy1, "x"), -1200, at(9)));
+  EXPECT_EQ(m.source_time(kJoy1), at(7));
+  EXPECT_TRUE(m.write(kCluster3, *gateway::field_ref(kCluster3, "switch[64]"), 1, at(8)));
+  EXPECT_EQ(m.get<gateway::ButtonClusterState>(kCluster3)->switches, std::uint64_t{1} << 63);
+  EXPECT_EQ(m.get<gateway::PedalState>(kJoy1), nullptr) << "wrong kind";
+  EXPECT_FALSE(m.write(kJoy2, FieldRef{FeSlot::X}, 1, at(1))) << "not configured";
+}
+
+TEST(FeModel, ChangedFesAreReportedOnceEachInFeOrder) {
+  FeModel m({kCluster3, kJoy2, kJoy1});
+  (void)m.write(kCluster3, FieldRef{FeSlot::Switches, 0}, 1, at(1));
+  (void)m.write(kJoy2, FieldRef{FeSlot::X}, 5, at(1));
+  (void)m.write(kJoy2, FieldRef{FeSlot::Y}, 5, at(1));
+  (void)m.set_status(kJoy1, gateway::FeStatus::Valid, at(1));
+  std::vector<FeId> seen;
+  m.for_each_changed([&](FeId fe) { seen.push_back(fe); });
+  EXPECT_EQ(seen, (std::vector<FeId>{kJoy1, kJoy2, kCluster3}));
+  seen.clear();
+  m.for_each_changed([&](FeId fe) { seen.push_back(fe); });
+  EXPECT_TRUE(seen.empty());
+}
+
+TEST(FeModel, TheSlotObserverSeesTheWholeSlotValue) {
+  FeModel m({kCluster3, kJoy1});
+  std::vector<std::tuple<FeId, FeSlot, std::int64_t>> calls;
+  m.on_slot_change([&](FeId fe, FeSlot s, std::int64_t v) { calls.emplace_back(fe, s, v); });
+  (void)m.write(kCluster3, FieldRef{FeSlot::Switches, 9}, 1, at(1));
+  (void)m.write(kCluster3, FieldRef{FeSlot::Switches, 9}, 1, at(2));  // no change: no call
+  (void)m.write(kJoy1, FieldRef{FeSlot::Buttons, 0}, 1, at(3));
+  (void)m.write(kJoy1, FieldRef{FeSlot::Z}, -32768, at(3));
+  ASSERT_EQ(calls.size(), 3u);
+  EXPECT_EQ(calls[0], std::make_tuple(kCluster3, FeSlot::Switches, std::int64_t{1} << 9));
+  EXPECT_EQ(calls[1], std::make_tuple(kJoy1, FeSlot::Buttons, std::int64_t{1}));
+  EXPECT_EQ(calls[2], std::make_tuple(kJoy1, FeSlot::Z, std::int64_t{-32768}));
+}
+
+TEST(FeModel, AStatusChangeIsStampedWithTheTimeItWasDecided) {
+  FeModel m({kJoy1});
+  EXPECT_EQ(m.status(kJoy1), gateway::FeStatus::Offline);
+  EXPECT_TRUE(m.set_status(kJoy1, gateway::FeStatus::Stale, at(40)));
+  EXPECT_FALSE(m.set_status(kJoy1, gateway::FeStatus::Stale, at(50)));
+  EXPECT_EQ(m.source_time(kJoy1), at(40));
+}
+
+TEST(FeModel, DisplayParametersAreReadOneByOne) {
+  FeModel m({kDisplay1});
+  EXPECT_TRUE(m.write(kDisplay1, FieldRef{FeSlot::Parameters, 11}, -7, at(1)));
+  EXPECT_EQ(m.read(kDisplay1, FieldRef{FeSlot::Parameters, 11}), -7);
+  EXPECT_EQ(m.get<gateway::DisplayState>(kDisplay1)->parameters[11], -7);
+}
+
+}  // namespace
