@@ -2,6 +2,7 @@
 
 #include <lcm/lcm.h>
 
+#include <array>
 #include <regex>
 #include <vector>
 
@@ -17,19 +18,31 @@
 namespace oegw::gateway {
 
 namespace {
-template <class M>
-void send(lcm_t* lcm, const std::string& channel, const M& m) {
-  std::vector<std::uint8_t> buf(static_cast<std::size_t>(m.getEncodedSize()));
-  if (m.encode(buf.data(), 0, static_cast<int>(buf.size())) < 0) return;
-  lcm_publish(lcm, channel.c_str(), buf.data(), static_cast<unsigned>(buf.size()));
-}
 std::int8_t status_of(FeStatus s) { return static_cast<std::int8_t>(s); }
+
+// The FE channels, "<prefix>JOYSTICK_<n>" …, for instances 1..16: built once, so a sample
+// costs no string building.
+enum Channel : std::size_t { kJoystick, kPedal, kWheel, kEncoder, kButtons, kChannels };
+constexpr std::array<const char*, kChannels> kChannelNames = {"JOYSTICK_", "PEDAL_", "WHEEL_", "ENCODER_", "BUTTONS_"};
 }  // namespace
 
 struct LcmPublisher::Impl {
   lcm_t* lcm = nullptr;
   LcmPublisher* owner = nullptr;
   std::string indicators_prefix, display_prefix;
+  std::array<std::array<std::string, 17>, kChannels> channels;
+  std::vector<std::uint8_t> buf;  // reused: grows to the largest message once
+
+  // Instances are 1..16 (CiA 852 §9.1; the FE model holds no other).
+  const std::string& channel(Channel c, std::uint8_t instance) const { return channels[c][instance < 17 ? instance : 0]; }
+
+  // Encodes into the reused buffer and publishes (no allocation for a size seen before).
+  template <class M>
+  void send(const std::string& ch, const M& m) {
+    buf.resize(static_cast<std::size_t>(m.getEncodedSize()));
+    if (m.encode(buf.data(), 0, static_cast<int>(buf.size())) < 0) return;
+    lcm_publish(lcm, ch.c_str(), buf.data(), static_cast<unsigned>(buf.size()));
+  }
 
   static void on_message(const lcm_recv_buf_t* rbuf, const char* channel, void* user) {
     auto* self = static_cast<Impl*>(user);
@@ -65,6 +78,9 @@ LcmPublisher::LcmPublisher(const LcmSettings& s) : impl_(std::make_unique<Impl>(
     throw PublishConfigError("publish.lcm.url: cannot open \"" + s.url +
                              "\" (unknown provider, bad address or option, or the socket could not be set up)");
   impl_->owner = this;
+  for (std::size_t c = 0; c < kChannels; ++c)
+    for (std::size_t n = 0; n < 17; ++n) impl_->channels[c][n] = prefix_ + kChannelNames[c] + std::to_string(n);
+  impl_->buf.reserve(256);
   impl_->indicators_prefix = prefix_ + "INDICATORS_";
   impl_->display_prefix = prefix_ + "DISPLAY_";
   const std::string pattern = prefix_ + "(INDICATORS|DISPLAY)_[0-9]+";
@@ -95,32 +111,32 @@ void LcmPublisher::publish(const JoystickSample& s) {
   m.z = s.z;
   m.buttons = s.buttons;
   m.memory = s.memory;
-  send(impl_->lcm, prefix_ + "JOYSTICK_" + std::to_string(s.h.instance), m);
+  impl_->send(impl_->channel(kJoystick, s.h.instance), m);
 }
 void LcmPublisher::publish(const PedalSample& s) {
   oegw::pedal_t m;
   set_header(m, s.h);
   m.position = s.position;
   m.memory = s.memory;
-  send(impl_->lcm, prefix_ + "PEDAL_" + std::to_string(s.h.instance), m);
+  impl_->send(impl_->channel(kPedal, s.h.instance), m);
 }
 void LcmPublisher::publish(const WheelSample& s) {
   oegw::wheel_t m;
   set_header(m, s.h);
   m.position = s.position;
-  send(impl_->lcm, prefix_ + "WHEEL_" + std::to_string(s.h.instance), m);
+  impl_->send(impl_->channel(kWheel, s.h.instance), m);
 }
 void LcmPublisher::publish(const EncoderSample& s) {
   oegw::encoder_t m;
   set_header(m, s.h);
   m.position = s.position;
-  send(impl_->lcm, prefix_ + "ENCODER_" + std::to_string(s.h.instance), m);
+  impl_->send(impl_->channel(kEncoder, s.h.instance), m);
 }
 void LcmPublisher::publish(const ButtonClusterSample& s) {
   oegw::button_cluster_t m;
   set_header(m, s.h);
   m.switches = static_cast<std::int64_t>(s.switches);
-  send(impl_->lcm, prefix_ + "BUTTONS_" + std::to_string(s.h.instance), m);
+  impl_->send(impl_->channel(kButtons, s.h.instance), m);
 }
 void LcmPublisher::publish(const GatewayStatus& s) {
   oegw::gateway_status_t m;
@@ -138,7 +154,7 @@ void LcmPublisher::publish(const GatewayStatus& s) {
   for (auto c : s.active_emcys) m.active_emcys.push_back(static_cast<std::int16_t>(c));
   m.n_active_emcys = static_cast<std::int32_t>(m.active_emcys.size());
   m.refused_commands = static_cast<std::int64_t>(s.refused_commands);
-  send(impl_->lcm, prefix_ + "STATUS", m);
+  impl_->send(prefix_ + "STATUS", m);  // once per period: the channel name may be built
 }
 
 int LcmPublisher::fd() const { return lcm_get_fileno(impl_->lcm); }

@@ -11,9 +11,15 @@
 //    downstream frames translated per second, "tpdo/frame" must be 1.
 //  * Both report "allocs/frame": heap allocations per frame on the hot path.
 // Variants: 0 = one grip feeding joystick.1; 1 = the full FE set (48 sub-devices, gateway_rss.cpp).
+//  * BM_ThroughputPublishing: variant 0 with GatewayPublishing on (DDS loopback, LCM ttl=0): every
+//    frame also builds the joystick sample from the FE model and publishes it on both transports;
+//    "allocs/frame" then counts the whole input path including publishing (liblcm and Cyclone DDS
+//    included).
 // Figures only; nothing asserts on time.
 #include "tests/bench/bench_support.hpp"
 #include "tests/bench/gateway_rig.hpp"
+
+#include "gateway/publishing.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -113,5 +119,39 @@ void BM_Throughput(benchmark::State& state) {
                                                          : static_cast<double>(up.frames - up0) / static_cast<double>(state.iterations());
 }
 BENCHMARK(BM_Throughput)->Arg(0)->Arg(1)->ArgName("full_set");
+
+void BM_ThroughputPublishing(benchmark::State& state) {
+  const std::string yaml = bench::yaml_one_grip() +
+                           "publish:\n"
+                           "  period_ms: 1000\n"
+                           "  lcm: { url: \"udpm://224.0.0.1:7667?ttl=0\", channel_prefix: OEGW_BENCH_ }\n"
+                           "  dds: { domain: 0, partition: oegw-bench, network: loopback }\n";
+  const mapping::Config cfg = bench::load_or_throw(yaml, "one_grip_publishing.yaml");
+  bench::GatewayRig rig(cfg);
+  rig.build_gateway();
+  rig.build_rest();
+  rig.boot();
+  rig.detach();
+  auto& gw = rig.gw();
+  const auto now = rig.now();
+  gateway::GatewayPublishing pub(gw, cfg.publish, [now] { return now; });
+  const canopen::CanFrame frames[2] = {grip_frame(x_for(0)), grip_frame(x_for(1))};
+  for (int w = 0; w < 100; ++w) (void)gw.on_downstream_frame(frames[w & 1], now);  // first samples, DDS matching
+  const auto published0 = pub.published();
+  std::uint64_t i = 0;
+  bench::AllocCounter allocs;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(gw.on_downstream_frame(frames[i & 1u], now));
+    ++i;
+  }
+  allocs.report(state);
+  state.counters["allocs/frame"] = state.counters["allocs/iter"];
+  state.counters.erase("allocs/iter");
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));
+  state.counters["samples/frame"] = state.iterations() == 0 ? 0.0
+                                                            : static_cast<double>(pub.published() - published0) /
+                                                                  static_cast<double>(state.iterations());
+}
+BENCHMARK(BM_ThroughputPublishing);
 
 }  // namespace
