@@ -261,9 +261,9 @@ void Node::handle_reset(bool communication_only, TimePoint now) {
       (void)store_->load();
     }
   }
-  // Fix (gateway e2e HostResetNodeKeepsInputsAndFaultsTrue): the EMCY producer keeps its active
-  // errors across a reset, but 1001h had just been reset to 0 — an error register saying "no
-  // error" while errors are active. 1001h follows the producer again.
+  // The EMCY producer keeps its active errors across a reset, while the reset has just put 1001h
+  // back to 0: 1001h follows the producer again, so the error register never says "no error"
+  // while errors are active (CiA 301 §7.5.2.2).
   emcy_.reapply_register();
   if (new_id.valid()) {
     lss_.set_active_node_id(new_id);

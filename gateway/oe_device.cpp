@@ -504,12 +504,11 @@ canopen::EmcyManufacturerField subdevice_msef(canopen::NodeId node, std::string_
 }
 }  // namespace
 
-// Fix (gateway e2e HostResetNodeKeepsInputsAndFaultsTrue): after an NMT reset node from the
-// host, 6000h/6401h/6120h read their defaults (0) although the operator still holds the stick,
-// and a sub-device that is still lost was never reported again (the host that reset us — e.g.
-// after its own restart — had no way to learn it). After every boot-up: the inputs get their
-// current values back (pre-operational: no TPDO), and each faulty sub-device is reported again
-// with EMCY 7000h (the producer kept the error active across the reset).
+// After every boot-up (an NMT reset node or communication from the host): the inputs get their
+// current values back — the reset restored 6000h/6401h/6120h to their defaults although the
+// operator still holds the stick — without a TPDO (pre-operational), and each sub-device still
+// faulty is reported again with EMCY 7000h (the producer kept the error active across the
+// reset), so a host that reset us after its own restart learns of it.
 void OeDevice::after_reset() {
   for (const auto& [key, bytes] : input_shadow_) {
     canopen::SubObject* so = od_.find(static_cast<std::uint16_t>(key >> 8), static_cast<std::uint8_t>(key));

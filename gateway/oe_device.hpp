@@ -33,7 +33,7 @@
 //    (in the clause 12 order). COB-IDs: TPDO 1 = 8000 0180h + node-ID (Table 10), every other
 //    PDO 8000 0000h (Tables 14, 18, 22, 26, 30, 34; §12.2.2) — the host assigns them.
 //
-// Decisions on CiA 852 where the text is open or inconsistent (also in the report):
+// Decisions on CiA 852 where the text is open or inconsistent (this list is their record):
 //  * Table 8 bit positions: specific functionality = bits 24–31, M = bit 23, I/O functionality
 //    = bits 16–19 (bit 16 digital input, 17 digital output, 18 analogue input, 19 analogue
 //    output), profile 0191h = bits 0–15. "0" in a row means "this FE does not set the bit".
