@@ -12,6 +12,7 @@
 
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
+#include "gateway/cab_rig.hpp"
 #include "gateway/demo_files.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/programs.hpp"
@@ -85,16 +86,11 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   auto loop_ptr = options.fast ? std::make_unique<EventLoop>(sim_clock) : std::make_unique<EventLoop>();
   EventLoop& loop = *loop_ptr;
   bool done = false;
-  VirtualBus up_bus, down_bus;
-  up_bus.run_on(loop);
-  down_bus.run_on(loop);
-  auto gw_up = up_bus.attach("gateway");
-  auto host_port = up_bus.attach("host");
-  auto gw_down = down_bus.attach("gateway");
-  auto sims_port = down_bus.attach("devices");
+  // The simulated cab: the devices of demo.yaml downstream, the gateway, a host upstream.
+  CabRig rig(cfg, loop, CabRigOptions{.store = dir / "upstream.store"});
   if (options.frames) {
-    up_bus.set_tap([](const BusRecord& r) { std::printf("    up   %-8s %s\n", r.sender.c_str(), r.frame.to_string().c_str()); });
-    down_bus.set_tap([](const BusRecord& r) { std::printf("    down %-8s %s\n", r.sender.c_str(), r.frame.to_string().c_str()); });
+    rig.up().set_tap([](const BusRecord& r) { std::printf("    up   %-8s %s\n", r.sender.c_str(), r.frame.to_string().c_str()); });
+    rig.down().set_tap([](const BusRecord& r) { std::printf("    down %-8s %s\n", r.sender.c_str(), r.frame.to_string().c_str()); });
   }
 
   const TimePoint t0 = loop.now();
@@ -109,25 +105,18 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     say(std::string(ok ? "ok: " : "FAILED: ") + what);
   };
 
-  // Downstream: the simulated devices, with the options their drivers take.
-  sd::sim::SimBench bench(gw_down ? sims_port->sink() : FrameSink{});
-  for (const auto& s : cfg.subdevices) {
-    sd::DeviceSpec spec{s.driver, s.node(), s.options};
-    spec.options.values.emplace_back("name", s.name);
-    std::string error;
-    if (!bench.add(spec, error)) {
-      std::fprintf(stderr, "oegw demo: %s\n", error.c_str());
-      return 1;
-    }
+  rig.on_gateway = [&](Gateway& g) { g.on_log = [&](const std::string& line) { say("gateway: " + line); }; };
+  try {
+    rig.build();
+  } catch (const std::runtime_error& e) {
+    std::fprintf(stderr, "oegw demo: %s\n", e.what());
+    std::filesystem::remove_all(dir);
+    return 1;
   }
-  // The gateway.
-  GatewayOptions gopt;
-  gopt.store_path = dir / "upstream.store";
-  Gateway gw(cfg, gw_up->sink(), gw_down->sink(), gopt);
-  gw.on_log = [&](const std::string& line) { say("gateway: " + line); };
-  // Upstream: the host controller.
-  ObjectDictionary host_od;
-  Master host(host_od, host_port->sink(), MasterConfig{.heartbeat_entries = 2, .sdo_timeout = 500ms});
+  Gateway& gw = rig.gw();
+  Master& host = rig.host();
+  sd::sim::SimBench& bench = rig.devices();
+  VirtualPort* host_port = &rig.host_port();
   std::size_t tpdos = 0;
   std::int16_t host_x = 0, x_min = 0, x_max = 0;
   std::vector<std::uint16_t> emcys;
@@ -169,25 +158,20 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     }
   }
 
-  ServiceDriver bench_drv(loop, bench), gw_drv(loop, gw), host_drv(loop, host);
-  if (publishing) publishing->run_on(loop, [&gw_drv] { gw_drv.rearm(); });
-  sims_port->set_receiver([&](const CanFrame& f, TimePoint t) { bench.on_frame(f, t); bench_drv.rearm(); });
-  gw_down->set_receiver([&](const CanFrame& f, TimePoint t) { gw.on_downstream_frame(f, t); gw_drv.rearm(); });
-  gw_up->set_receiver([&](const CanFrame& f, TimePoint t) { gw.on_upstream_frame(f, t); gw_drv.rearm(); });
-  host_port->set_receiver([&](const CanFrame& f, TimePoint t) { host.on_frame(f, t); host_drv.rearm(); });
+  if (publishing) publishing->run_on(loop, [&rig] { rig.rearm(); });
 
   bool moving = false;
   loop.call_every(loop.now(), 20ms, [&] {
     if (!moving) return;
     bench.move(loop.now());
-    bench_drv.rearm();
+    rig.rearm();
   });
   auto sdo_write = [&](std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data, std::function<void()> next) {
     host.sdo(kGateway).download(index, sub, data, [&, index, sub, next](SdoAbortCode c, std::vector<std::uint8_t>) {
       if (c != SdoAbortCode::None) check(false, fmt::format("host: SDO {:04X}h:{:02X}: {}", index, sub, to_string(c)));
       next();
     });
-    host_drv.rearm();
+    rig.rearm();
   };
   auto view = [&](bool final_frame) {
     std::vector<std::string> lines;
@@ -208,11 +192,9 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   auto at = [&](Duration d, std::function<void()> fn) { steps.emplace_back(d, std::move(fn)); };
   at(0ms, [&] {
     say("power on: the gateway boots (upstream boot-up 720#00) and boots its sub-devices");
-    (void)gw.start(loop.now());
-    bench.start(loop.now());
+    rig.power_on();
     (void)host.monitor_heartbeat(kGateway, 300);
-    gw_drv.rearm();
-    bench_drv.rearm();
+    rig.rearm();
   });
   at(2500ms, [&] {
     bool all = true;
@@ -224,7 +206,7 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
       sdo_write(0x1404, 1, encode<std::uint32_t>(0x225), [&] {
         sdo_write(0x6423, 0, {1}, [&] {
           host.nmt().start(kGateway);
-          host_drv.rearm();
+          rig.rearm();
           moving = true;
           say("the operator moves the joysticks:");
         });
@@ -247,7 +229,7 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
                         "commands drive those lamps",
                         static_cast<std::uint32_t>(c), to_string(c)));
     });
-    host_drv.rearm();
+    rig.rearm();
   });
   at(3500ms + live, [&] {
     auto* mcb = bench.device("left_grip");
@@ -270,7 +252,7 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     (void)bench.command("right_grip x 60", loop.now());
     (void)bench.command("right_grip silent off", loop.now());
     (void)bench.command("right_grip reboot", loop.now());
-    bench_drv.rearm();
+    rig.rearm();
   });
   at(7500ms + live, [&] {
     view(true);
@@ -282,7 +264,7 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     for (const char* axis : {"x", "y", "wheel_a", "wheel_b", "wheel_c"})
       (void)bench.command(std::string("right_grip ") + axis + " 0", loop.now());
     moving = true;
-    bench_drv.rearm();
+    rig.rearm();
   });
   at(9000ms + live, [&] {
     view(true);

@@ -22,6 +22,7 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
+#include "gateway/cab_rig.hpp"
 #include "gateway/gateway.hpp"
 #include "subdevices/sim/elobau_mfg_sim.hpp"
 #include "subdevices/sim/mcb402_sim.hpp"
@@ -126,81 +127,40 @@ class GatewayE2E : public ::testing::Test {
     auto loaded = oegw::mapping::load_config_text(yaml, "e2e.yaml", gw::driver_catalogue());
     ASSERT_TRUE(loaded.ok()) << loaded.error_text();
     config_ = std::move(*loaded.config);
-    up_.run_on(loop_);
-    down_.run_on(loop_);
-    gw_up_ = up_.attach("gateway");
-    host_port_ = up_.attach("host");
-    gw_down_ = down_.attach("gateway");
-    sims_port_ = down_.attach("devices");
-    up_.set_tap([this](const BusRecord& r) { upstream_.push_back(r); });
-    // The devices' frames pass drop_from_devices_ (a test cuts some of them: PDOs that stop).
-    bench_ = std::make_unique<sd::sim::SimBench>([this, sink = sims_port_->sink()](const CanFrame& f) {
-      if (drop_from_devices_ && drop_from_devices_(f)) return;
-      sink(f);
-    });
-    down_.set_tap([this](const BusRecord& r) { downstream_.push_back(r); });
-    for (const auto& s : config_.subdevices) {
-      sd::DeviceSpec spec{s.driver, s.node(), s.options};
-      spec.options.values.emplace_back("name", s.name);
-      std::string error;
-      ASSERT_TRUE(bench_->add(spec, error)) << error;
-    }
     store_ = std::filesystem::path(::testing::TempDir()) /
              fmt::format("gateway_e2e_{}_{}.store", ::getpid(), ::testing::UnitTest::GetInstance()->random_seed());
     std::filesystem::remove(store_);
-    host_ = std::make_unique<Master>(host_od_, host_port_->sink(), MasterConfig{.heartbeat_entries = 2, .sdo_timeout = 500ms});
+    rig_ = std::make_unique<gw::CabRig>(config_, loop_, gw::CabRigOptions{.store = store_});
+    rig_->up().set_tap([this](const BusRecord& r) { upstream_.push_back(r); });
+    rig_->down().set_tap([this](const BusRecord& r) { downstream_.push_back(r); });
+    // The devices' frames pass drop_from_devices_ (a test cuts some of them: PDOs that stop).
+    rig_->from_devices = [this](const CanFrame& f) { return drop_from_devices_ && drop_from_devices_(f); };
+    rig_->on_gateway = [this](Gateway& g) {
+      gw_ = &g;
+      g.on_log = [this](const std::string& l) { log_ += fmt::format("[{:>6}] {}\n", ms(), l); };
+    };
+    rig_->build_devices();
+    bench_ = &rig_->devices();
+    host_ = &rig_->host();
+    host_port_ = &rig_->host_port();
     host_->on_emcy = [this](const EmcyMessage& m, TimePoint) {
       emcys_.push_back(m);
       // What the host could read at the very moment the EMCY arrives.
       joy1_at_emcy_.push_back(gw_->fields(kJoy1));
     };
     host_->on_other_frame = [this](const CanFrame& f, TimePoint) { pdos_.push_back(f); };
-    bench_drv_ = std::make_unique<ServiceDriver>(loop_, *bench_);
-    host_drv_ = std::make_unique<ServiceDriver>(loop_, *host_);
-    sims_port_->set_receiver([this](const CanFrame& f, TimePoint t) {
-      bench_->on_frame(f, t);
-      bench_drv_->rearm();
-    });
     connect_gateway();
-    host_port_->set_receiver([this](const CanFrame& f, TimePoint t) {
-      host_->on_frame(f, t);
-      host_drv_->rearm();
-    });
   }
   // A gateway process on the mapping file and store_, attached to both buses (a restart calls
   // this again: the old gateway is detached and destroyed first).
-  void connect_gateway() {
-    gw_up_->set_receiver({});
-    gw_down_->set_receiver({});
-    gw_drv_.reset();
-    gw_.reset();
-    gw::GatewayOptions opt;
-    opt.store_path = store_;
-    gw_ = std::make_unique<Gateway>(config_, gw_up_->sink(), gw_down_->sink(), opt);
-    gw_->on_log = [this](const std::string& l) { log_ += fmt::format("[{:>6}] {}\n", ms(), l); };
-    gw_drv_ = std::make_unique<ServiceDriver>(loop_, *gw_);
-    gw_down_->set_receiver([this](const CanFrame& f, TimePoint t) {
-      gw_->on_downstream_frame(f, t);
-      gw_drv_->rearm();
-    });
-    gw_up_->set_receiver([this](const CanFrame& f, TimePoint t) {
-      gw_->on_upstream_frame(f, t);
-      gw_drv_->rearm();
-    });
-  }
+  void connect_gateway() { rig_->connect_gateway(); }
   void TearDown() override {
-    for (auto* p : {gw_up_.get(), host_port_.get(), gw_down_.get(), sims_port_.get()})
-      if (p) p->set_receiver({});
+    rig_.reset();
     if (!store_.empty()) std::filesystem::remove(store_);
   }
 
   long ms() const { return static_cast<long>(std::chrono::duration_cast<std::chrono::milliseconds>(loop_.now() - t0_).count()); }
-  void run_for(Duration d) {
-    for (auto* drv : {bench_drv_.get(), gw_drv_.get(), host_drv_.get()}) drv->rearm();
-    loop_.advance_by(Duration{0});
-    for (auto* drv : {bench_drv_.get(), gw_drv_.get(), host_drv_.get()}) drv->rearm();
-    loop_.advance_by(d);
-  }
+  void run_for(Duration d) { rig_->run_for(d); }
   std::string cmd(const std::string& line) {
     const std::string r = bench_->command(line, loop_.now());
     EXPECT_EQ(r.rfind("ok", 0), 0u) << line << ": " << r;
@@ -210,8 +170,7 @@ class GatewayE2E : public ::testing::Test {
   // Power on: the gateway boots (boot-up 720#00) and its sub-devices.
   void power_on() {
     t0_ = loop_.now();
-    (void)gw_->start(loop_.now());
-    bench_->start(loop_.now());
+    rig_->power_on();
     run_for(3s);
   }
   bool all_operational() {
@@ -330,14 +289,13 @@ class GatewayE2E : public ::testing::Test {
   SimulatedClock clock_;
   EventLoop loop_{clock_};
   TimePoint t0_{};
-  VirtualBus up_, down_;
-  std::unique_ptr<VirtualPort> gw_up_, host_port_, gw_down_, sims_port_;
-  std::unique_ptr<sd::sim::SimBench> bench_;
   std::filesystem::path store_;
-  std::unique_ptr<Gateway> gw_;
-  ObjectDictionary host_od_;
-  std::unique_ptr<Master> host_;
-  std::unique_ptr<ServiceDriver> bench_drv_, gw_drv_, host_drv_;
+  std::unique_ptr<gw::CabRig> rig_;  // the demo's harness (gateway/cab_rig.hpp)
+  // Into rig_: the simulators, the host, its port, the current gateway (connect_gateway).
+  sd::sim::SimBench* bench_ = nullptr;
+  Master* host_ = nullptr;
+  VirtualPort* host_port_ = nullptr;
+  Gateway* gw_ = nullptr;
   std::vector<BusRecord> upstream_;
   std::vector<BusRecord> downstream_;
   std::function<bool(const CanFrame&)> drop_from_devices_;
@@ -1286,13 +1244,11 @@ TEST_F(GatewayE2E, AHeartbeatThatNeverReturnsAfterTheResetKeepsTheFaultAndTheSti
 // operational: no fault, no EMCY, and joystick 2 goes live with the node's operational heartbeat.
 TEST_F(GatewayE2E, APreOperationalHeartbeatThatCrossedTheNmtStartIsNoFault) {
   build();
-  auto* devices = sims_port_.get();
-  sims_port_->set_receiver([this, devices](const CanFrame& f, TimePoint t) {
+  rig_->to_devices = [this](const CanFrame& f) {
     if (f.id == 0 && f.dlc == 2 && f.data[0] == 0x01 && f.data[1] == 0x03)
-      (void)devices->send(CanFrame(0x703, {0x7F}));  // queued before the node acts on the start
-    bench_->on_frame(f, t);
-    bench_drv_->rearm();
-  });
+      (void)rig_->devices_port().send(CanFrame(0x703, {0x7F}));  // queued before the node acts on the start
+    return false;
+  };
   power_on();
   ASSERT_TRUE(all_operational()) << log_;
   host_configures_and_starts();

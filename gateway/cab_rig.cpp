@@ -1,0 +1,123 @@
+#include "gateway/cab_rig.hpp"
+
+#include <stdexcept>
+
+namespace oegw::gateway {
+
+using canopen::CanFrame;
+using canopen::TimePoint;
+
+CabRig::CabRig(const mapping::Config& config, canopen::EventLoop& loop, CabRigOptions options)
+    : config_(config), loop_(loop), options_(std::move(options)) {
+  up_.run_on(loop_);
+  down_.run_on(loop_);
+  gw_up_ = up_.attach("gateway");
+  host_port_ = up_.attach("host");
+  gw_down_ = down_.attach("gateway");
+  sims_port_ = down_.attach("devices");
+}
+
+CabRig::~CabRig() {
+  // The receivers point at the service drivers and the participants: cut them first.
+  for (auto* p : {gw_up_.get(), host_port_.get(), gw_down_.get(), sims_port_.get()})
+    if (p) p->set_receiver({});
+  up_.set_tap({});
+  down_.set_tap({});
+}
+
+void CabRig::build_devices() {
+  bench_ = std::make_unique<subdevices::sim::SimBench>([this, sink = sims_port_->sink()](const CanFrame& f) {
+    if (from_devices && from_devices(f)) return;
+    sink(f);
+  });
+  for (const auto& s : config_.subdevices) {
+    subdevices::DeviceSpec spec{s.driver, s.node(), s.options};
+    spec.options.values.emplace_back("name", s.name);
+    std::string error;
+    if (!bench_->add(spec, error)) throw std::runtime_error("simulator " + s.name + ": " + error);
+  }
+  host_ = std::make_unique<canopen::Master>(
+      host_od_, host_port_->sink(),
+      canopen::MasterConfig{.heartbeat_entries = options_.host_heartbeat_entries, .sdo_timeout = options_.host_sdo_timeout});
+  bench_drv_ = std::make_unique<canopen::ServiceDriver>(loop_, *bench_);
+  host_drv_ = std::make_unique<canopen::ServiceDriver>(loop_, *host_);
+  sims_port_->set_receiver([this](const CanFrame& f, TimePoint t) {
+    if (to_devices && to_devices(f)) return;
+    bench_->on_frame(f, t);
+    bench_drv_->rearm();
+  });
+  host_port_->set_receiver([this](const CanFrame& f, TimePoint t) {
+    host_->on_frame(f, t);
+    host_drv_->rearm();
+  });
+}
+
+void CabRig::connect_gateway() {
+  gw_up_->set_receiver({});
+  gw_down_->set_receiver({});
+  gw_drv_.reset();
+  gw_.reset();
+  GatewayOptions opt = options_.gateway;
+  opt.store_path = options_.store;
+  gw_ = std::make_unique<Gateway>(
+      config_,
+      [this, sink = gw_up_->sink()](const CanFrame& f) {
+        if (from_gateway_up && from_gateway_up(f)) return;
+        sink(f);
+      },
+      [this, sink = gw_down_->sink()](const CanFrame& f) {
+        if (from_gateway_down && from_gateway_down(f)) return;
+        sink(f);
+      },
+      opt);
+  if (on_gateway) on_gateway(*gw_);
+  gw_drv_ = std::make_unique<canopen::ServiceDriver>(loop_, *gw_);
+  gw_down_->set_receiver([this](const CanFrame& f, TimePoint t) {
+    gw_->on_downstream_frame(f, t);
+    gw_drv_->rearm();
+  });
+  gw_up_->set_receiver([this](const CanFrame& f, TimePoint t) {
+    gw_->on_upstream_frame(f, t);
+    gw_drv_->rearm();
+  });
+}
+
+void CabRig::build() {
+  build_devices();
+  connect_gateway();
+}
+
+void CabRig::drop_devices() {
+  sims_port_->set_receiver({});
+  host_port_->set_receiver({});
+  bench_drv_.reset();
+  host_drv_.reset();
+  bench_.reset();
+  host_.reset();
+}
+
+void CabRig::power_on() {
+  (void)gw_->start(loop_.now());
+  if (bench_) bench_->start(loop_.now());
+  rearm();
+}
+
+void CabRig::rearm() {
+  for (auto* d : {bench_drv_.get(), gw_drv_.get(), host_drv_.get()})
+    if (d) d->rearm();
+}
+
+void CabRig::run_for(canopen::Duration d) {
+  rearm();
+  loop_.advance_by(canopen::Duration{0});
+  rearm();
+  loop_.advance_by(d);
+}
+
+std::string CabRig::command(const std::string& line) {
+  auto r = bench_->command(line, loop_.now());
+  rearm();
+  return r;
+}
+
+}  // namespace oegw::gateway

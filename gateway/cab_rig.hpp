@@ -1,0 +1,97 @@
+// A simulated cab around one Gateway, on two virtual buses in one event loop: downstream the
+// sub-devices of a mapping file as simulators (subdevices/sim, written from the manufacturers'
+// documents), upstream a host controller (a canopen::Master). `oegw demo`, the e2e tests
+// (tests/integration/gateway_e2e_test.cpp) and the benchmark rig (tests/bench/gateway_rig.hpp)
+// are built on it; each adds what it watches (bus taps, the interceptors below, its own host
+// script).
+//
+// Ports on each bus, in this order (the order frames are delivered in): upstream "gateway",
+// "host"; downstream "gateway", "devices". More can be attached (VirtualBus::attach).
+#pragma once
+
+#include <chrono>
+#include <filesystem>
+#include <functional>
+#include <memory>
+
+#include "canopen/io/event_loop.hpp"
+#include "canopen/io/virtual_bus.hpp"
+#include "canopen/master.hpp"
+#include "gateway/gateway.hpp"
+#include "mapping/config.hpp"
+#include "subdevices/sim/sim_bench.hpp"
+
+namespace oegw::gateway {
+
+struct CabRigOptions {
+  std::filesystem::path store;  // the gateway's 1010h store (replaces upstream.store)
+  canopen::Duration host_sdo_timeout = std::chrono::milliseconds(500);
+  std::uint8_t host_heartbeat_entries = 2;
+  GatewayOptions gateway{};  // its store_path is set from `store`
+};
+
+class CabRig {
+ public:
+  // `loop` runs everything (a simulated clock in tests and `oegw demo --fast`).
+  CabRig(const mapping::Config& config, canopen::EventLoop& loop, CabRigOptions options = {});
+  ~CabRig();
+  CabRig(const CabRig&) = delete;
+  CabRig& operator=(const CabRig&) = delete;
+
+  // Interceptors, set before the frames flow; each returns true when it consumed the frame (it
+  // does not reach the bus).
+  std::function<bool(const canopen::CanFrame&)> from_devices;       // a simulator's frame
+  std::function<bool(const canopen::CanFrame&)> from_gateway_up;    // the gateway's upstream frame
+  std::function<bool(const canopen::CanFrame&)> from_gateway_down;  // the gateway's downstream frame
+  std::function<bool(const canopen::CanFrame&)> to_devices;         // a frame the simulators would receive
+  // Called with each gateway connect_gateway() makes, before it is attached (on_log, ...).
+  std::function<void(Gateway&)> on_gateway;
+
+  // The simulators (one per sub-device of the mapping file, named as there) and the host.
+  // Throws std::runtime_error naming a sub-device whose simulator cannot be built.
+  void build_devices();
+  // A gateway on the mapping file and the store, attached to both buses. Called again: a
+  // restart (the old gateway is detached and destroyed first, the store kept).
+  void connect_gateway();
+  // build_devices() and connect_gateway().
+  void build();
+  // Destroys the simulators and the host: what remains is the gateway (memory figures).
+  void drop_devices();
+
+  // Power on: the gateway (boot-up) and every simulator.
+  void power_on();
+  // After anything done from outside the loop (a command, a frame sent by hand): the service
+  // drivers look at their deadlines again.
+  void rearm();
+  // Runs the loop for `d` (simulated clock).
+  void run_for(canopen::Duration d);
+  // A text command to the simulators (SimBench::command), e.g. "grip x 50".
+  std::string command(const std::string& line);
+
+  [[nodiscard]] Gateway& gw() { return *gw_; }
+  [[nodiscard]] const Gateway& gw() const { return *gw_; }
+  [[nodiscard]] canopen::Master& host() { return *host_; }
+  [[nodiscard]] subdevices::sim::SimBench& devices() { return *bench_; }
+  [[nodiscard]] canopen::VirtualBus& up() { return up_; }
+  [[nodiscard]] canopen::VirtualBus& down() { return down_; }
+  [[nodiscard]] canopen::VirtualPort& host_port() { return *host_port_; }
+  [[nodiscard]] canopen::VirtualPort& devices_port() { return *sims_port_; }
+  [[nodiscard]] canopen::EventLoop& loop() { return loop_; }
+  [[nodiscard]] canopen::TimePoint now() const { return loop_.now(); }
+  [[nodiscard]] const mapping::Config& config() const { return config_; }
+  [[nodiscard]] canopen::ServiceDriver& gateway_driver() { return *gw_drv_; }
+
+ private:
+  mapping::Config config_;
+  canopen::EventLoop& loop_;
+  CabRigOptions options_;
+  canopen::VirtualBus up_, down_;
+  std::unique_ptr<canopen::VirtualPort> gw_up_, host_port_, gw_down_, sims_port_;
+  std::unique_ptr<subdevices::sim::SimBench> bench_;
+  std::unique_ptr<Gateway> gw_;
+  canopen::ObjectDictionary host_od_;
+  std::unique_ptr<canopen::Master> host_;
+  std::unique_ptr<canopen::ServiceDriver> bench_drv_, gw_drv_, host_drv_;
+};
+
+}  // namespace oegw::gateway
