@@ -73,6 +73,7 @@ void CabRig::connect_gateway() {
   if (on_gateway) on_gateway(*gw_);
   gw_drv_ = std::make_unique<canopen::ServiceDriver>(loop_, *gw_);
   gw_down_->set_receiver([this](const CanFrame& f, TimePoint t) {
+    if (to_gateway_down && to_gateway_down(f)) return;
     gw_->on_downstream_frame(f, t);
     gw_drv_->rearm();
   });

@@ -44,6 +44,7 @@ class CabRig {
   std::function<bool(const canopen::CanFrame&)> from_gateway_up;    // the gateway's upstream frame
   std::function<bool(const canopen::CanFrame&)> from_gateway_down;  // the gateway's downstream frame
   std::function<bool(const canopen::CanFrame&)> to_devices;         // a frame the simulators would receive
+  std::function<bool(const canopen::CanFrame&)> to_gateway_down;    // a frame the gateway would receive downstream
   // Called with each gateway connect_gateway() makes, before it is attached (on_log, ...).
   std::function<void(Gateway&)> on_gateway;
 

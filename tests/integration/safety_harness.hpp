@@ -29,6 +29,7 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
+#include "gateway/cab_rig.hpp"
 #include "gateway/gateway.hpp"
 #include "safety_monitor.hpp"
 #include "subdevices/sim/cia401_sim.hpp"
@@ -269,10 +270,8 @@ class Bench {
   Bench(const Bench&) = delete;
   Bench& operator=(const Bench&) = delete;
   ~Bench() {
-    for (auto* p : {gw_up_.get(), host_port_.get(), gw_down_.get(), sims_port_.get(), other_.get()})
-      if (p) p->set_receiver({});
-    up_.set_tap({});
-    down_.set_tap({});
+    other_.reset();
+    rig_.reset();
     if (!store_.empty()) std::filesystem::remove(store_);
   }
 
@@ -281,52 +280,38 @@ class Bench {
     auto loaded = mapping::load_config_text(fam_.yaml, "safety.yaml", gateway::driver_catalogue());
     ASSERT_TRUE(loaded.ok()) << loaded.error_text();
     config_ = std::move(*loaded.config);
-    up_.run_on(loop_);
-    down_.run_on(loop_);
-    gw_up_ = up_.attach("gateway");
-    host_port_ = up_.attach("host");
-    gw_down_ = down_.attach("gateway");
-    sims_port_ = down_.attach("devices");
-    other_ = down_.attach("other");
-    bench_ = std::make_unique<sim::SimBench>([this](const CanFrame& f) { device_out(f); });
-    for (const auto& s : config_.subdevices) {
-      sd::DeviceSpec spec{s.driver, s.node(), s.options};
-      spec.options.values.emplace_back("name", s.name);
-      std::string error;
-      ASSERT_TRUE(bench_->add(spec, error)) << error;
-    }
-    dev()->set_silent(true);
     store_ = std::filesystem::path(::testing::TempDir()) /
              fmt::format("safety_{}_{}_{}.store", ::getpid(), name(fam_.id), reinterpret_cast<std::uintptr_t>(this));
     std::filesystem::remove(store_);
-    gateway::GatewayOptions opt;
-    opt.store_path = store_;
-    gw_ = std::make_unique<gateway::Gateway>(config_, gw_up_->sink(), [this](const CanFrame& f) { gateway_out(f); }, opt);
-    gw_->on_log = [this](const std::string& l) { log_ += fmt::format("[{:>7}] {}\n", ms(), l); };
-    gw_->on_fe_change = [this](FeId fe) { mon_.on_sample(fe, *gw_, loop_.now()); };
-    host_ = std::make_unique<Master>(host_od_, host_port_->sink(), MasterConfig{.heartbeat_entries = 2, .sdo_timeout = 500ms});
-    bench_drv_ = std::make_unique<ServiceDriver>(loop_, *bench_);
-    host_drv_ = std::make_unique<ServiceDriver>(loop_, *host_);
-    gw_drv_ = std::make_unique<ServiceDriver>(loop_, *gw_);
-    sims_port_->set_receiver([this](const CanFrame& f, TimePoint t) {
-      if (dev_drop_all) return;
-      bench_->on_frame(f, t);
-      bench_drv_->rearm();
-    });
-    gw_down_->set_receiver([this](const CanFrame& f, TimePoint t) {
-      if (gw_link_down) return;
-      gw_->on_downstream_frame(f, t);
-      gw_drv_->rearm();
-    });
-    gw_up_->set_receiver([this](const CanFrame& f, TimePoint t) {
-      gw_->on_upstream_frame(f, t);
-      gw_drv_->rearm();
-    });
-    host_port_->set_receiver([this](const CanFrame& f, TimePoint t) {
-      host_->on_frame(f, t);
-      host_drv_->rearm();
-    });
-    down_.set_tap([this](const BusRecord& r) {
+    // The cab of gateway/cab_rig.hpp (the demo's and the e2e tests' harness), with this bench's
+    // fault switches in its wiring and another master's port on the downstream bus.
+    rig_ = std::make_unique<gateway::CabRig>(config_, loop_, gateway::CabRigOptions{.store = store_});
+    other_ = rig_->down().attach("other");
+    rig_->from_devices = [this](const CanFrame& f) { return device_dropped(f); };
+    rig_->to_devices = [this](const CanFrame&) { return dev_drop_all; };
+    rig_->from_gateway_down = [this](const CanFrame& f) {
+      if (!gw_link_down) return false;
+      mon_.sent_into_dead_interface(f, loop_.now());
+      lost_tx_.push_back({loop_.now(), "gateway", f});
+      return true;
+    };
+    rig_->to_gateway_down = [this](const CanFrame&) { return gw_link_down; };
+    rig_->on_gateway = [this](gateway::Gateway& g) {
+      gw_ = &g;
+      g.on_log = [this](const std::string& l) { log_ += fmt::format("[{:>7}] {}\n", ms(), l); };
+      g.on_fe_change = [this](FeId fe) { mon_.on_sample(fe, *gw_, loop_.now()); };
+    };
+    try {
+      rig_->build_devices();
+    } catch (const std::runtime_error& e) {
+      FAIL() << e.what();
+    }
+    bench_ = &rig_->devices();
+    host_ = &rig_->host();
+    host_port_ = &rig_->host_port();
+    dev()->set_silent(true);
+    rig_->connect_gateway();
+    rig_->down().set_tap([this](const BusRecord& r) {
       if (trace_) trace_line("down", r);
       if (trigger_ && trigger_(r)) {
         trigger_ = {};
@@ -334,7 +319,7 @@ class Bench {
           auto action = std::move(on_trigger_);
           on_trigger_ = {};
           action(r.time);
-          bench_drv_->rearm();
+          rig_->rearm();
         }
       }
       // What the gateway's interface carried: everything it sent (a frame of its own on the bus
@@ -344,7 +329,7 @@ class Bench {
       if (from_gateway || !gw_link_down) mon_.on_downstream(r, from_gateway);
       if (r.sender == "gateway" && r.frame.id >= 0x200 && r.frame.id < 0x580) rpdos_.push_back(r);
     });
-    up_.set_tap([this](const BusRecord& r) {
+    rig_->up().set_tap([this](const BusRecord& r) {
       if (trace_) trace_line("up", r);
       mon_.on_upstream(r, *gw_);
       if (r.frame.id == 0x80u + kGwNode) up_emcys_.push_back(r);
@@ -378,15 +363,10 @@ class Bench {
   void power_device() {
     dev()->set_silent(false);
     dev()->start(loop_.now());
-    bench_drv_->rearm();
+    rig_->rearm();
   }
 
-  void run_for(Duration d) {
-    for (auto* drv : {bench_drv_.get(), gw_drv_.get(), host_drv_.get()}) drv->rearm();
-    loop_.advance_by(Duration{0});
-    for (auto* drv : {bench_drv_.get(), gw_drv_.get(), host_drv_.get()}) drv->rearm();
-    loop_.advance_by(d);
-  }
+  void run_for(Duration d) { rig_->run_for(d); }
   // Runs in 1 ms steps until `done` (true) or `limit` passed (false).
   bool run_until(const std::function<bool()>& done, Duration limit) {
     const TimePoint end = loop_.now() + limit;
@@ -482,7 +462,7 @@ class Bench {
       case FamilyId::Cia401Pedal: (void)dev()->set_input("analog[1]", static_cast<std::int64_t>(level * 20000), now); break;
       case FamilyId::Cia401Cluster: (void)dev()->set_input("in[1]", level > 0.5 ? 5 : (level < -0.5 ? 2 : 0), now); break;
     }
-    bench_drv_->rearm();
+    rig_->rearm();
   }
   // The family's error EMCY (elobau 4001h 0001h, MCB-402 cable break X, Novotechnik measurement
   // error, CiA 401 1000h generic error) and its clearing.
@@ -513,7 +493,7 @@ class Bench {
         }
         break;
     }
-    bench_drv_->rearm();
+    rig_->rearm();
   }
   // Error / not-available codes in the PDO (elobau 126 / 127 on x channel 1, Novotechnik
   // 7FFFFFFCh); `restore` puts the real value back.
@@ -535,11 +515,11 @@ class Bench {
         n.reboot(now);
       }
     }
-    bench_drv_->rearm();
+    rig_->rearm();
   }
   void mismatch(bool on, int percent = 50) {
     (void)as<sim::ElobauMfgSim>().move_axis("x", percent, on ? 20 : 0);
-    bench_drv_->rearm();
+    rig_->rearm();
   }
   // After a bus-off: the device's own EMCY where its document has one (elobau 8140h with the
   // count and the zero-position rule; MCB-402 8140h; Novotechnik 8140h; CiA 301 8140h for the
@@ -562,7 +542,7 @@ class Bench {
         break;
       case FamilyId::Novotechnik: as<sim::Novotechnik406Sim>().send_emcy(0x8140, 0, 0, {0, 0, 0, 0}, now); break;
     }
-    bench_drv_->rearm();
+    rig_->rearm();
   }
 
   // ---- Accessors ----
@@ -616,7 +596,7 @@ class Bench {
   // Feeds a frame to the gateway's downstream side directly (sans I/O), as its interface would.
   void gateway_receives(const CanFrame& f) {
     gw_->on_downstream_frame(f, loop_.now());
-    gw_drv_->rearm();
+    rig_->rearm();
   }
 
   // Fault switches of the wiring.
@@ -628,19 +608,14 @@ class Bench {
   TimePoint host_hb_first{};  // the host's heartbeats go at host_hb_first + k x 100 ms
 
  private:
-  void device_out(const CanFrame& f) {
-    if (dev_drop_all) return;
-    if (dev_drop_tpdos && ((f.id >= 0x181 && f.id <= 0x4FF) && (f.id & 0x7F) == fam_.node)) return;
-    if (dev_drop_cob && f.id == *dev_drop_cob) return;
-    (void)sims_port_->send(f);
+  // True when the device's frame is lost on its way to the bus.
+  bool device_dropped(const CanFrame& f) const {
+    if (dev_drop_all) return true;
+    if (dev_drop_tpdos && ((f.id >= 0x181 && f.id <= 0x4FF) && (f.id & 0x7F) == fam_.node)) return true;
+    return dev_drop_cob && f.id == *dev_drop_cob;
   }
-  void gateway_out(const CanFrame& f) {
-    if (gw_link_down) {
-      mon_.sent_into_dead_interface(f, loop_.now());
-      lost_tx_.push_back({loop_.now(), "gateway", f});
-      return;
-    }
-    (void)gw_down_->send(f);
+  void device_out(const CanFrame& f) {
+    if (!device_dropped(f)) (void)rig_->devices_port().send(f);
   }
   void trace_line(const char* bus, const BusRecord& r) {
     trace_text_ += fmt::format("[{:>7}] {:4} {}\n", ms_at(r.time), bus, r.to_string());
@@ -652,14 +627,14 @@ class Bench {
   SimulatedClock clock_;
   EventLoop loop_{clock_};
   TimePoint t0_{};
-  VirtualBus up_, down_;
-  std::unique_ptr<VirtualPort> gw_up_, host_port_, gw_down_, sims_port_, other_;
-  std::unique_ptr<sim::SimBench> bench_;
   std::filesystem::path store_;
-  std::unique_ptr<gateway::Gateway> gw_;
-  ObjectDictionary host_od_;
-  std::unique_ptr<Master> host_;
-  std::unique_ptr<ServiceDriver> bench_drv_, gw_drv_, host_drv_;
+  std::unique_ptr<gateway::CabRig> rig_;
+  std::unique_ptr<VirtualPort> other_;  // another master on the downstream bus
+  // Into rig_:
+  sim::SimBench* bench_ = nullptr;
+  Master* host_ = nullptr;
+  VirtualPort* host_port_ = nullptr;
+  gateway::Gateway* gw_ = nullptr;
   std::function<bool(const BusRecord&)> trigger_;
   std::function<void(TimePoint)> on_trigger_;
   std::function<std::string()> context_;
