@@ -23,6 +23,7 @@
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
 #include "gateway/gateway.hpp"
+#include "profiles/cia852/device_type.hpp"
 #include "subdevices/sim/elobau_mfg_sim.hpp"
 #include "subdevices/sim/mcb402_sim.hpp"
 #include "subdevices/sim/sim_bench.hpp"
@@ -363,7 +364,7 @@ TEST_F(GatewayE2E, HostConfiguresAndStartsTheGateway) {
   const auto dt = sdo_read(0x1000, 0);
   ASSERT_TRUE(dt.has_value());
   EXPECT_EQ(decode_unsigned(*dt), 0xBF870191u);
-  EXPECT_EQ(decode_unsigned(*dt), gw::device_type_for(gw_->fes()));
+  EXPECT_EQ(decode_unsigned(*dt), oegw::cia852::device_type_for(gw_->fes()));
   EXPECT_EQ(decode_unsigned(*dt) & 0xFFFF, 0x0191u);
   // 1018h as the mapping file says.
   EXPECT_EQ(decode_unsigned(*sdo_read(0x1018, 2)), 0x852u);
