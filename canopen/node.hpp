@@ -27,8 +27,8 @@
 #include "canopen/301/storage.hpp"
 #include "canopen/301/sync.hpp"
 #include "canopen/305/lss_slave.hpp"
+#include "canopen/bus_event.hpp"
 #include "canopen/can_frame.hpp"
-#include "canopen/io/can_transport.hpp"
 #include "canopen/types.hpp"
 
 namespace oegw::canopen {

@@ -26,7 +26,7 @@
 
 #include "canopen/types.hpp"
 #include "gateway/fe_samples.hpp"
-#include "mapping/functional_elements.hpp"
+#include "mapping/fe_names.hpp"
 
 namespace oegw::gateway {
 
@@ -47,7 +47,7 @@ struct FieldRef {
 };
 
 // The FieldRef of the field of `fe` that the mapping file names `name` ("x", "buttons[3]",
-// "switch[17]", "parameter[2]"); nullopt when `fe` has no such field (mapping/functional_elements).
+// "switch[17]", "parameter[2]"); nullopt when `fe` has no such field (profiles/cia852/fe_table.hpp).
 [[nodiscard]] std::optional<FieldRef> field_ref(mapping::FeId fe, std::string_view name);
 // The mapping-file name of a field (diagnostics, logs, tests).
 [[nodiscard]] std::string field_name(mapping::FeId fe, FieldRef ref);

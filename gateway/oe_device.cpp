@@ -2,8 +2,6 @@
 
 #include <algorithm>
 
-#include "canopen/301/heartbeat.hpp"
-
 namespace oegw::gateway {
 
 using canopen::Access;
@@ -11,8 +9,6 @@ using canopen::DataType;
 using canopen::NmtState;
 using canopen::ObjectDictionary;
 using canopen::Origin;
-using canopen::PdoParameters;
-using canopen::pdo_map;
 using canopen::SdoAbortCode;
 using canopen::TimePoint;
 using mapping::FeId;
@@ -20,241 +16,20 @@ using mapping::FeKind;
 
 namespace {
 
-std::uint8_t u8(unsigned v) { return static_cast<std::uint8_t>(v); }
-
 // An integer entry's value in its own signedness.
 std::int64_t entry_value(const canopen::SubObject& s) {
   if (canopen::is_signed_integer(s.type)) return canopen::decode_signed(s.value);
   return static_cast<std::int64_t>(canopen::decode_unsigned(s.value));
 }
 
-bool has(const std::vector<FeId>& fes, FeKind k, unsigned n) {
-  return std::find(fes.begin(), fes.end(), FeId{k, u8(n)}) != fes.end();
-}
-bool has_kind(const std::vector<FeId>& fes, FeKind k) {
-  return std::any_of(fes.begin(), fes.end(), [k](const FeId& f) { return f.kind == k; });
-}
-
-// An ARRAY holding only the given sub-indexes; sub 0 = the highest one (CiA 301 §7.4.3).
-void add_sparse_array(ObjectDictionary& od, std::uint16_t index, std::string name, DataType type, Access access,
-                      const std::set<std::uint8_t>& subs, std::vector<std::uint8_t> dflt, bool mappable,
-                      const std::function<std::string(std::uint8_t)>& sub_name) {
-  if (subs.empty()) return;
-  const std::uint8_t highest = *subs.rbegin();
-  canopen::Object& obj = od.add_array(index, std::move(name), type, access, highest, std::move(dflt), mappable);
-  for (std::uint8_t s = 1; s <= highest; ++s) {
-    if (subs.count(s) == 0) {
-      obj.subs().erase(s);
-    } else {
-      obj.find(s)->name = sub_name(s);
-    }
-    if (s == 255) break;
-  }
-}
-
-// The name of an entry after the FE field(s) it holds: "joystick 1 x", "joystick 1 memory",
-// "joystick 1 buttons 1-8", "buttons 2 switch 9-16", "display 1 parameter 3".
-std::string entry_name(const std::vector<FeId>& fes, std::uint16_t index, std::uint8_t sub) {
-  for (const FeId& fe : fes) {
-    std::vector<std::string> names;
-    for (const auto& f : mapping::fe_fields(fe))
-      if (f.index == index && f.sub == sub) names.push_back(f.name);
-    if (names.empty()) continue;
-    std::string n = std::string(mapping::to_string(fe.kind)) + " " + std::to_string(fe.instance) + " ";
-    const std::string& first = names.front();
-    const auto br = first.find('[');
-    if (names.size() == 1) {
-      if (br == std::string::npos) return n + first;
-      return n + first.substr(0, br) + " " + first.substr(br + 1, first.size() - br - 2);
-    }
-    if (first.rfind("memory", 0) == 0) return n + "memory";
-    const std::string& last = names.back();
-    const auto lbr = last.find('[');
-    if (br == std::string::npos || lbr == std::string::npos) return n + first;
-    return n + first.substr(0, br) + " " + first.substr(br + 1, first.size() - br - 2) + "-" +
-           last.substr(lbr + 1, last.size() - lbr - 2);
-  }
-  return "entry " + std::to_string(sub);
-}
-
 }  // namespace
-
-std::uint32_t device_type_for(const std::vector<FeId>& fes, const std::set<FeId>& joysticks_without_buttons) {
-  // CiA 852 Table 8: every row sets bit 7 of the specific functionality and M.
-  std::uint32_t specific = 0x80;
-  std::uint32_t io = 0;
-  for (const FeId& fe : fes) {
-    switch (fe.kind) {
-      case FeKind::Joystick:
-        specific |= 0x01;
-        io |= 0x4;
-        if (joysticks_without_buttons.count(fe) == 0) io |= 0x1;
-        break;
-      case FeKind::FootPedal: specific |= 0x02; io |= 0x4; break;
-      case FeKind::Encoder: specific |= 0x04; io |= 0x4; break;
-      case FeKind::Wheel: specific |= 0x08; io |= 0x4; break;
-      case FeKind::ButtonCluster: specific |= 0x10; io |= 0x1; break;
-      case FeKind::IndicatorCluster: specific |= 0x20; io |= 0x2; break;
-      case FeKind::Display: specific |= 0x40; io |= 0xA; break;
-    }
-  }
-  return specific << 24 | 1u << 23 | io << 16 | kProfile401;
-}
-
-std::vector<OePdo> oe_pdos(const std::vector<FeId>& fes, canopen::NodeId node_id) {
-  std::vector<OePdo> out;
-  auto add = [&](bool transmit, unsigned number, std::vector<std::uint32_t> mapping, std::uint32_t cob) {
-    if (mapping.empty()) return;
-    PdoParameters p;
-    p.cob_id = cob;
-    p.transmission_type = 0xFF;  // §12.1
-    p.mapping = std::move(mapping);
-    p.mapping_capacity = 8;
-    out.push_back({transmit, static_cast<std::uint16_t>(number), std::move(p)});
-  };
-  constexpr std::uint32_t kDisabled = 0x80000000u;
-  // §12.2.1/§12.2.2: TPDO 1 joystick 1, TPDO 5..19 joysticks 2..16 (Table 12 layout).
-  for (unsigned n = 1; n <= 16; ++n) {
-    if (!has(fes, FeKind::Joystick, n)) continue;
-    std::vector<std::uint32_t> m = {pdo_map(0x6401, u8(3 * n - 2), 16), pdo_map(0x6401, u8(3 * n - 1), 16),
-                                    pdo_map(0x6401, u8(3 * n), 16), pdo_map(0x6000, u8(2 * n - 1), 8),
-                                    pdo_map(0x6000, u8(2 * n), 8)};
-    // Table 10: (8000 0180h or C000 0180h) + node-ID for TPDO 1; 8000 0000h for TPDO 5..19.
-    add(true, n == 1 ? 1 : 3 + n, std::move(m), n == 1 ? kDisabled + 0x180 + node_id.value() : kDisabled);
-  }
-  // §12.2.3/§12.2.4, Table 16: TPDO 20 + k carries pedals 2k+1 and 2k+2.
-  for (unsigned k = 0; k < 8; ++k) {
-    std::vector<std::uint32_t> m;
-    for (unsigned p = 2 * k + 1; p <= 2 * k + 2; ++p) {
-      if (!has(fes, FeKind::FootPedal, p)) continue;
-      m.push_back(pdo_map(0x6000, u8(0x20 + p), 8));
-      m.push_back(pdo_map(0x6401, u8(0x30 + p), 16));
-    }
-    add(true, 20 + k, std::move(m), kDisabled);
-  }
-  // §12.2.5/§12.2.6, Table 20: TPDO 28 + k carries encoders 2k+1, 2k+2.
-  for (unsigned k = 0; k < 4; ++k) {
-    std::vector<std::uint32_t> m;
-    for (unsigned e = 2 * k + 1; e <= 2 * k + 2; ++e)
-      if (has(fes, FeKind::Encoder, e)) m.push_back(pdo_map(0x6120, u8(0x80 + e), 32));
-    add(true, 28 + k, std::move(m), kDisabled);
-  }
-  // §12.2.7/§12.2.8, Table 24: TPDO 32 wheels 1..4, TPDO 33 wheels 5..8.
-  for (unsigned k = 0; k < 2; ++k) {
-    std::vector<std::uint32_t> m;
-    for (unsigned w = 4 * k + 1; w <= 4 * k + 4; ++w)
-      if (has(fes, FeKind::Wheel, w)) m.push_back(pdo_map(0x6401, u8(0x40 + w), 16));
-    add(true, 32 + k, std::move(m), kDisabled);
-  }
-  // §12.2.9/§12.2.10, Table 28: TPDO 34 + (n−1) push-button cluster n, eight bytes.
-  for (unsigned n = 1; n <= 8; ++n) {
-    if (!has(fes, FeKind::ButtonCluster, n)) continue;
-    std::vector<std::uint32_t> m;
-    for (unsigned b = 0; b < 8; ++b) m.push_back(pdo_map(0x6000, u8(0x31 + 8 * (n - 1) + b), 8));
-    add(true, 33 + n, std::move(m), kDisabled);
-  }
-  // §12.2.11/§12.2.12, Table 32: RPDO 1 indicator cluster 1, RPDO 5..11 clusters 2..8.
-  for (unsigned n = 1; n <= 8; ++n) {
-    if (!has(fes, FeKind::IndicatorCluster, n)) continue;
-    std::vector<std::uint32_t> m;
-    for (unsigned b = 0; b < 8; ++b) m.push_back(pdo_map(0x6200, u8(0x01 + 8 * (n - 1) + b), 8));
-    add(false, n == 1 ? 1 : 3 + n, std::move(m), kDisabled);
-  }
-  // §12.2.13/§12.2.14, Table 36: display 1 on RPDO 2, 4, 12; display d on RPDO 13+3(d−2)...
-  for (unsigned d = 1; d <= 8; ++d) {
-    if (!has(fes, FeKind::Display, d)) continue;
-    const unsigned numbers[3] = {d == 1 ? 2u : 13 + 3 * (d - 2), d == 1 ? 4u : 14 + 3 * (d - 2),
-                                 d == 1 ? 12u : 15 + 3 * (d - 2)};
-    for (unsigned r = 0; r < 3; ++r) {
-      std::vector<std::uint32_t> m;
-      for (unsigned p = 4 * r + 1; p <= 4 * r + 4; ++p) m.push_back(pdo_map(0x6411, u8(12 * (d - 1) + p), 16));
-      add(false, numbers[r], std::move(m), kDisabled);
-    }
-  }
-  return out;
-}
-
-canopen::NodeConfig build_oe_dictionary(const OeDeviceConfig& cfg, ObjectDictionary& od) {
-  const auto& fes = cfg.fes;
-  std::map<std::uint16_t, std::set<std::uint8_t>> subs;
-  for (const FeId& fe : fes)
-    for (const auto& f : mapping::fe_fields(fe)) subs[f.index].insert(f.sub);
-  auto namer = [&](std::uint16_t index) {
-    return [&fes, index](std::uint8_t s) { return entry_name(fes, index, s); };
-  };
-  auto subs_of = [&](std::uint16_t index) { return subs.count(index) ? subs[index] : std::set<std::uint8_t>{}; };
-
-  add_sparse_array(od, 0x6000, "Read input 8-bit", DataType::Unsigned8, Access::ReadOnly, subs_of(0x6000), {0}, true,
-                   namer(0x6000));
-  add_sparse_array(od, 0x6120, "Read input 32-bit", DataType::Integer32, Access::ReadOnly, subs_of(0x6120),
-                   canopen::encode<std::int32_t>(0), true, namer(0x6120));
-  add_sparse_array(od, 0x6401, "Read analogue input 16-bit", DataType::Integer16, Access::ReadOnly, subs_of(0x6401),
-                   canopen::encode<std::int16_t>(0), true, namer(0x6401));
-  if (has_kind(fes, FeKind::Joystick) || has_kind(fes, FeKind::FootPedal) || has_kind(fes, FeKind::Wheel))
-    od.add_var(0x6423, "Analogue input global interrupt enable", DataType::Boolean, Access::ReadWrite, {0});
-  const auto ind = subs_of(0x6200);
-  add_sparse_array(od, 0x6200, "Write output 8-bit", DataType::Unsigned8, Access::ReadWrite, ind, {0}, true,
-                   namer(0x6200));
-  add_sparse_array(od, 0x6206, "Error mode output 8-bit", DataType::Unsigned8, Access::ReadWrite, ind, {0x01}, false,
-                   namer(0x6200));
-  add_sparse_array(od, 0x6207, "Error value output 8-bit", DataType::Unsigned8, Access::ReadWrite, ind, {0x00}, false,
-                   namer(0x6200));
-  const auto disp = subs_of(0x6411);
-  add_sparse_array(od, 0x6411, "Write analogue output 16-bit", DataType::Integer16, Access::ReadWrite, disp,
-                   canopen::encode<std::int16_t>(0), true, namer(0x6411));
-  add_sparse_array(od, 0x6443, "Analogue output error mode", DataType::Unsigned8, Access::ReadWrite, disp, {0x01},
-                   false, namer(0x6411));
-  add_sparse_array(od, 0x6444, "Analogue output error value integer", DataType::Integer32, Access::ReadWrite, disp,
-                   canopen::encode<std::int32_t>(0), false, namer(0x6411));
-  // 6206h/6443h: CiA 401 error modes are 0 or 1 per bit/channel; 6443h channels hold 0 or 1.
-  if (auto* o = od.find(0x6443))
-    for (auto& [s, sub] : o->subs())
-      if (s != 0) sub.high = std::uint64_t{1};
-
-  for (const OePdo& p : oe_pdos(fes, cfg.node_id)) {
-    if (p.transmit) {
-      canopen::install_tpdo(od, p.number, p.params);
-    } else {
-      canopen::install_rpdo(od, p.number, p.params);
-    }
-    // Tables 10, 14, 18, 22, 26, 30, 34: "highest sub-index supported" is const.
-    const auto comm = static_cast<std::uint16_t>((p.transmit ? 0x1800 : 0x1400) + p.number - 1);
-    od.find(comm, 0)->access = Access::Const;
-  }
-
-  canopen::NodeConfig nc;
-  nc.node_id = cfg.node_id;
-  nc.device_type = device_type_for(fes, cfg.joysticks_without_buttons);
-  nc.device_name = cfg.device_name;
-  nc.hardware_version = cfg.hardware_version;
-  nc.software_version = cfg.software_version;
-  nc.identity.vendor = cfg.identity.vendor;
-  nc.identity.product = cfg.identity.product;
-  nc.identity.revision = cfg.identity.revision;
-  nc.identity.serial = cfg.identity.serial;
-  nc.heartbeat_ms = cfg.heartbeat_ms;
-  nc.store_path = cfg.store_path;
-  const bool outputs = has_kind(fes, FeKind::IndicatorCluster) || has_kind(fes, FeKind::Display);
-  if (outputs) {
-    // §8.3 / Annex A: heartbeat consumer mandatory with outputs; one entry, the host's.
-    nc.heartbeat_consumers = 1;
-    canopen::Object& hb = canopen::install_heartbeat_consumer_objects(od, 1);
-    const auto v = canopen::encode<std::uint32_t>(
-        canopen::heartbeat_consumer_entry(canopen::NodeId{static_cast<std::uint8_t>(cfg.host_node)}, cfg.host_heartbeat_ms));
-    hb.find(1)->default_value = v;
-    hb.find(1)->value = v;
-  }
-  return nc;
-}
-
-// ---------------------------------------------------------------------------------------------
 
 OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move(cfg)), sink_(std::move(sink)) {
   // A FE listed twice counts once; an instance outside §9.1's ranges is dropped.
   std::erase_if(cfg_.fes, [](const FeId& f) { return f.instance < 1 || f.instance > mapping::max_instances(f.kind); });
   std::sort(cfg_.fes.begin(), cfg_.fes.end());
   cfg_.fes.erase(std::unique(cfg_.fes.begin(), cfg_.fes.end()), cfg_.fes.end());
-  const canopen::NodeConfig nc = build_oe_dictionary(cfg_, od_);
+  const canopen::NodeConfig nc = cia852::build_dictionary(cfg_, od_);
   for (const FeId& fe : cfg_.fes) {
     if (mapping::is_input(fe.kind)) continue;
     for (const auto& f : mapping::fe_fields(fe))
@@ -390,7 +165,7 @@ bool OeDevice::write_input_entry(const InputEntry& e, std::int64_t raw) {
 }
 
 void OeDevice::index_inputs() {
-  // Each input slot's entries, in the order of fe_fields (mapping/functional_elements.hpp): a
+  // Each input slot's entries, in the order of fe_fields (profiles/cia852/fe_table.hpp): a
   // bit field's k-th byte holds its bits 8k..8k+7.
   for (const FeId& fe : cfg_.fes) {
     if (!mapping::is_input(fe.kind)) continue;

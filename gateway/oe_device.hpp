@@ -1,49 +1,9 @@
-// The upstream CiA 852 device ("OE interface module"): the object dictionary of the configured
-// functional elements (FE), their default PDOs, and the behaviour CiA 852 adds to CiA 301/401.
-//
-// What build_oe_dictionary() creates (CiA 852 clauses 9, 11, 12; only what the configured FEs need):
-//  * 6000h "Read input 8-bit" UNSIGNED8 ro mappable: joystick n memory (sub 2n−1) and buttons
-//    (sub 2n), pedal n memory (sub 20h+n), push-button cluster n (subs 31h+8(n−1) … 38h+8(n−1)).
-//  * 6401h "Read analogue input 16-bit" INTEGER16 ro mappable: joystick n x/y/z (subs 3n−2 … 3n),
-//    pedal n (sub 30h+n), wheel n (sub 40h+n).
-//  * 6120h "Read input 32-bit" INTEGER32 ro mappable: encoder n (sub 80h+n).
-//  * 6423h "Analogue input global interrupt enable" BOOLEAN rw, default FALSE: present when an
-//    FE with analogue inputs (joystick, pedal, wheel) is configured (Tables 1, 2, 4).
-//  * 6200h "Write output 8-bit" UNSIGNED8 rw mappable, 6206h "Error mode output 8-bit" UNSIGNED8
-//    rw default 01h, 6207h "Error value output 8-bit" UNSIGNED8 rw default 0: indicator cluster n
-//    (subs 01h+8(n−1) … 08h+8(n−1)).
-//  * 6411h "Write analogue output 16-bit" INTEGER16 rw mappable, 6443h "Analogue output error
-//    mode" UNSIGNED8 rw default 01h, 6444h "Analogue output error value integer" INTEGER32 rw
-//    default 0 (INTEGER32 as CiA 401 defines 6444h): display n parameter p (sub 12(n−1)+p).
-//  Sub-index layout: mapping/functional_elements.hpp. The ARRAYs hold only the sub-indexes of
-//  the configured instances (gaps allowed: a missing sub answers SDO abort 0609 0011h); sub 0 is
-//  the highest sub-index present (CiA 301 §7.4.3), so its value is not the number of entries.
-//  * 1000h per Table 8 (device_type_for()), 1016h (host heartbeat consumer, one entry) when an
-//    output FE exists (§8.3, Annex A), everything else of CiA 301 from canopen::Node.
-//  * PDOs of clause 12 (all disabled, transmission type FFh, inhibit 0, event timer 0):
-//      TPDO 1, 5..19   joystick 1, 2..16: 6401 x,y,z (10h), 6000 memory, buttons (08h)
-//      TPDO 20..27     pedals 2k+1, 2k+2 (k = 0..7): 6000 memory, 6401 position per pedal
-//      TPDO 28..31     encoders 2k+1, 2k+2: 6120 position (20h)
-//      TPDO 32, 33     wheels 1..4, 5..8: 6401 position
-//      TPDO 34..41     push-button cluster 1..8: its eight 6000h bytes
-//      RPDO 1, 5..11   indicator cluster 1, 2..8: its eight 6200h bytes
-//      RPDO 2, 4, 12   display 1 parameters 1–4, 5–8, 9–12
-//      RPDO 13..33     display d (2..8): RPDOs 13+3(d−2) … 15+3(d−2), 4 parameters each
-//    A PDO exists when one of its FEs is configured; it maps only the configured FEs' entries
-//    (in the clause 12 order). COB-IDs: TPDO 1 = 8000 0180h + node-ID (Table 10), every other
-//    PDO 8000 0000h (Tables 14, 18, 22, 26, 30, 34; §12.2.2) — the host assigns them.
+// The upstream CiA 852 device ("OE interface module") at run time: the behaviour CiA 852 adds to
+// CiA 301/401 on the dictionary of the configured functional elements (FE). The dictionary, its
+// default PDOs and 1000h are built by profiles/cia852/ (dictionary.hpp, pdo_defaults.hpp,
+// device_type.hpp).
 //
 // Decisions on CiA 852 where the text is open or inconsistent (this list is their record):
-//  * Table 8 bit positions: specific functionality = bits 24–31, M = bit 23, I/O functionality
-//    = bits 16–19 (bit 16 digital input, 17 digital output, 18 analogue input, 19 analogue
-//    output), profile 0191h = bits 0–15. "0" in a row means "this FE does not set the bit".
-//    A joystick sets the digital-input bit only when it has buttons ("Joystick with buttons");
-//    memory bits alone do not, as for the foot pedal whose row never sets it.
-//  * The joystick dictionary layout is fixed (3 axes, memory and buttons bytes always exist):
-//    TPDO 1 sub 4/5 (6000h) are mandatory and fixed byte positions help the host. A joystick
-//    without buttons is declared in OeDeviceConfig::joysticks_without_buttons (1000h only).
-//  * RPDO 13–34 for displays 2–8 (22 PDOs for 21 needed): three each, RPDO 34 unused.
-//  * Encoder mapping entries are printed without length (6120 81h): 20h (INTEGER32) is used.
 //  * 6423h (CiA 401: analogue inputs raise no "interrupt" when FALSE): while FALSE, set_input of
 //    a 6401h field updates the dictionary without an event — SDO reads and every TPDO sent for
 //    another reason (a button, the event timer, SYNC) carry the current value, but an axis
@@ -57,18 +17,6 @@
 //    second fault while 7000h is active is reported by an extra 7000h frame (the EMCY producer
 //    records one active 7000h); a sub-device recovering while others are still faulty sends
 //    EMCY 0000h naming it, with the remaining error register; the last one clears 7000h.
-//  * TPDO numbers follow CiA 301 (TPDO n = 1800h/1A00h + n − 1), as Table 9 (TPDO 1 = 1800h)
-//    and the RPDO tables (RPDO 1/2 = 1400h/1401h) do; Tables 13, 17, 21, 25 print 1814h, 181Ch,
-//    1820h, 1822h for TPDO 20, 28, 32, 34 (1800h + n), which contradicts both. The clause
-//    headings, the text and the PDO numbers win: pedal 1 is TPDO 20 at 1813h.
-//  * Pedal pairs (Table 16 maps pedal 2's entries into TPDO 20): a PDO maps only the configured
-//    pedals of its pair, encoders and wheels likewise.
-//  * Table 12 sub 3 ("FFFFh if 3-axis joystick not supported") is not applied: z always exists
-//    (0 when not fed), so the PDO layout does not depend on the axis count.
-//  * Tables 32/36 give RPDO mapping sub 0 the access "const", §8.5 makes variable mapping
-//    mandatory: every mapping sub 0 is rw (the core's CiA 301 mapping procedure). The
-//    communication records' sub 0 is const (Tables 10, 14, ...).
-//  * TPDO COB-IDs use the "8000 …h" form (RTR allowed: the core serves RTR for types 252/253).
 //  * Annex A: 1028h (EMCY consumer) exists when outputs exist, consuming 81h..FFh except the
 //    device's own EMCY (that entry keeps the configured node-ID across an LSS change); received
 //    EMCYs go to on_emcy().
@@ -105,52 +53,14 @@
 
 #include "canopen/node.hpp"
 #include "gateway/fe_model.hpp"
-#include "mapping/functional_elements.hpp"
+#include "mapping/fe_names.hpp"
+#include "profiles/cia852/dictionary.hpp"
 
 namespace oegw::gateway {
 
-struct OeIdentity {
-  std::uint32_t vendor = 0;
-  std::uint32_t product = 0;
-  std::uint32_t revision = 0;
-  std::uint32_t serial = 0;
-};
-
-struct OeDeviceConfig {
-  canopen::NodeId node_id{0x20};
-  OeIdentity identity{};
-  std::string device_name = "oegw OE interface module";
-  std::string hardware_version = "1";
-  std::string software_version = "0.1.0";
-  std::uint16_t heartbeat_ms = 1000;     // 1017h default (mandatory, Annex A)
-  std::uint16_t host_node = 0;           // 1016h:01 default host node-ID (0: entry unused)
-  std::uint16_t host_heartbeat_ms = 0;   // 1016h:01 default consumer time
-  std::vector<mapping::FeId> fes;
-  std::set<mapping::FeId> joysticks_without_buttons;  // affects 1000h only (Table 8)
-  // Output FEs the host may not command (their mapping-file `sources` leave out canopen): an SDO
-  // download of their 6200h/6411h entries is aborted with 0800 0021h ("cannot be transferred
-  // because of local control", CiA 301 Table 22) and their bytes in an RPDO are ignored. Writes
-  // of the gateway itself (Origin::Local: DDS/LCM commands, 6206h/6443h error values) pass.
-  std::set<mapping::FeId> host_may_not_command;
-  std::filesystem::path store_path;      // empty: no 1010h/1011h
-};
-
-// CiA 852 §11.2 Table 8.
-inline constexpr std::uint16_t kProfile401 = 0x0191;
-[[nodiscard]] std::uint32_t device_type_for(const std::vector<mapping::FeId>& fes,
-                                            const std::set<mapping::FeId>& joysticks_without_buttons = {});
-
-// One PDO of clause 12 for this FE set.
-struct OePdo {
-  bool transmit = true;
-  std::uint16_t number = 0;
-  canopen::PdoParameters params;
-};
-[[nodiscard]] std::vector<OePdo> oe_pdos(const std::vector<mapping::FeId>& fes, canopen::NodeId node_id);
-
-// The application objects and PDOs (not the CiA 301 objects the Node adds). Returns the
-// NodeConfig to construct the Node with (1000h, identity, 1016h ...).
-canopen::NodeConfig build_oe_dictionary(const OeDeviceConfig& cfg, canopen::ObjectDictionary& od);
+// The device is configured as its dictionary is (profiles/cia852/dictionary.hpp).
+using OeIdentity = cia852::Identity;
+using OeDeviceConfig = cia852::DeviceConfig;
 
 class OeDevice {
  public:

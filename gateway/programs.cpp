@@ -7,13 +7,14 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "canopen/306/eds_writer.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/socketcan_transport.hpp"
-#include "gateway/eds_writer.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
 #include "gateway/runtime_config.hpp"
+#include "profiles/cia852/pdo_defaults.hpp"
 
 namespace oegw::gateway {
 
@@ -36,7 +37,7 @@ std::optional<mapping::Config> load(const std::string& file) {
 
 
 // Where an FE field travels in the PDOs of clause 12: "TPDO 1 (180h+ID) byte 2 bit 3".
-std::string pdo_place(const std::vector<OePdo>& pdos, const mapping::FeField& f) {
+std::string pdo_place(const std::vector<cia852::DefaultPdo>& pdos, const mapping::FeField& f) {
   for (const auto& p : pdos) {
     unsigned bit_pos = 0;
     for (const std::uint32_t entry : p.params.mapping) {
@@ -71,7 +72,7 @@ int run_check(const std::string& file) {
   std::printf("downstream: %s\n", cfg->downstream.interface.c_str());
   for (const auto& s : cfg->subdevices)
     std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id, s.mandatory ? "  mandatory" : "");
-  const auto pdos = oe_pdos(fes, node);
+  const auto pdos = cia852::default_pdos(fes, node);
   std::printf("\nfunctional elements (field <- signal: object, PDO):\n");
   for (const auto& fe : cfg->functional_elements) {
     for (const auto& b : fe.fields) {

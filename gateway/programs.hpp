@@ -1,4 +1,4 @@
-// The gateway's own sub-commands: oegw check, oegw eds, oegw run, oegw demo.
+// The daemon's sub-commands: oegw check, oegw eds, oegw run.
 #pragma once
 
 #include <string>
@@ -11,14 +11,5 @@ int run_check(const std::string& file);
 int run_eds(const std::string& file, const std::string& out);
 // The daemon: upstream and downstream on the SocketCAN interfaces FILE names, until SIGTERM.
 int run_gateway(const std::string& file);
-
-struct GatewayDemoOptions {
-  double seconds = 6.0;  // how long the operator moves the joysticks before the faults
-  bool frames = false;    // print every frame of both buses
-  bool fast = false;      // simulated clock: deterministic, as fast as the machine goes
-  bool publish = true;    // publish as demo.yaml says (DDS loopback, LCM ttl=0); commands come back
-};
-// The embedded demo: gateway + simulated cab devices + a built-in host, on the virtual bus.
-int run_gateway_demo(const GatewayDemoOptions& options);
 
 }  // namespace oegw::gateway

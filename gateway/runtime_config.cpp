@@ -25,8 +25,8 @@ OeDeviceConfig device_config(const mapping::Config& c, std::optional<std::filesy
   return oe;
 }
 
-EdsInfo eds_info(const mapping::Config& c, std::string file_name) {
-  EdsInfo info;
+canopen::EdsInfo eds_info(const mapping::Config& c, std::string file_name) {
+  canopen::EdsInfo info;
   info.file_name = std::move(file_name);
   info.vendor = c.upstream.identity.vendor_id;
   info.product = c.upstream.identity.product_code;
@@ -52,7 +52,7 @@ std::unique_ptr<OeDevice> eds_device(const mapping::Config& c) {
 }
 
 std::string upstream_eds(const mapping::Config& c, std::string file_name) {
-  return eds_text(eds_device(c)->od(), eds_info(c, std::move(file_name)));
+  return canopen::eds_text(eds_device(c)->od(), eds_info(c, std::move(file_name)));
 }
 
 }  // namespace oegw::gateway

@@ -9,7 +9,7 @@
 #include <optional>
 #include <string>
 
-#include "gateway/eds_writer.hpp"
+#include "canopen/306/eds_writer.hpp"
 #include "gateway/oe_device.hpp"
 #include "mapping/config.hpp"
 
@@ -21,7 +21,7 @@ namespace oegw::gateway {
 
 // The EDS of the device `config` describes: identity, node-ID and the CiA 306 [Comments] naming
 // each output FE the host may not command (mapping-file `sources` without canopen).
-[[nodiscard]] EdsInfo eds_info(const mapping::Config& config, std::string file_name);
+[[nodiscard]] canopen::EdsInfo eds_info(const mapping::Config& config, std::string file_name);
 // The device itself, never started (its dictionary holds the defaults the EDS describes).
 [[nodiscard]] std::unique_ptr<OeDevice> eds_device(const mapping::Config& config);
 // The text `oegw eds` writes: eds_text() of the dictionary device_config() builds.

@@ -15,7 +15,7 @@
 #include <string_view>
 #include <vector>
 
-#include "mapping/functional_elements.hpp"
+#include "mapping/fe_names.hpp"
 #include "mapping/translate.hpp"
 #include "subdevices/driver.hpp"
 #include "subdevices/network_manager.hpp"

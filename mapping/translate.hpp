@@ -32,7 +32,7 @@
 #include <optional>
 #include <utility>
 
-#include "mapping/functional_elements.hpp"
+#include "mapping/fe_names.hpp"
 #include "subdevices/signal.hpp"
 
 namespace oegw::mapping {

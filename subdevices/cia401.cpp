@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "profiles/cia401/objects.hpp"
 #include "subdevices/families.hpp"
 
 namespace oegw::subdevices {
@@ -12,25 +13,20 @@ using canopen::SdoAbortCode;
 
 namespace {
 
-constexpr std::uint16_t kDigitalIn8 = 0x6000;
-constexpr std::uint16_t kDigitalIn32 = 0x6120;
-constexpr std::uint16_t kAnalogIn16 = 0x6401;
-constexpr std::uint16_t kDigitalOut8 = 0x6200;
-constexpr std::uint16_t kAnalogOut16 = 0x6411;
 constexpr std::uint16_t kPdosPerDirection = 4;  // 1400h–1403h, 1800h–1803h (CiA 401 pre-defined set)
 
 DataType expected_type(std::uint16_t index) {
   switch (index) {
-    case kDigitalIn8:
-    case kDigitalOut8: return DataType::Unsigned8;
-    case kDigitalIn32: return DataType::Unsigned32;
+    case cia401::kReadInput8:
+    case cia401::kWriteOutput8: return DataType::Unsigned8;
+    case cia401::kReadInput32: return DataType::Unsigned32;
     default: return DataType::Integer16;
   }
 }
 
 std::uint32_t u32(std::span<const std::uint8_t> d) { return static_cast<std::uint32_t>(canopen::decode_unsigned(d)); }
 
-std::int64_t limit_as_signed(const std::optional<eds::Value>& v, DataType t, std::int64_t fallback) {
+std::int64_t limit_as_signed(const std::optional<canopen::eds::Value>& v, DataType t, std::int64_t fallback) {
   if (!v || !v->numeric || v->node_relative) return fallback;
   if (canopen::is_signed_integer(t)) {
     const std::size_t n = canopen::fixed_size(t);
@@ -82,12 +78,12 @@ bool Cia401Driver::Pdo::usable() const {
   return !failed && complete() && (*cob_id & CobId::kInvalidBit) == 0 && !decoded.empty() && bits > 0 && bits <= 64;
 }
 
-Cia401Driver::Cia401Driver(NodeId node, FrameSink sink, eds::File file) : eds_(std::move(file)) {
-  add_signals(kDigitalIn8, "in", SignalKind::Digital, 0, 255, "bits");
-  add_signals(kDigitalIn32, "in32", SignalKind::Digital, 0, 0xFFFFFFFFll, "bits");
-  add_signals(kAnalogIn16, "analog", SignalKind::Analog, -32768, 32767, "raw16");
-  add_signals(kDigitalOut8, "out", SignalKind::Output, 0, 255, "bits");
-  add_signals(kAnalogOut16, "aout", SignalKind::Output, -32768, 32767, "raw16");
+Cia401Driver::Cia401Driver(NodeId node, FrameSink sink, canopen::eds::File file) : eds_(std::move(file)) {
+  add_signals(cia401::kReadInput8, "in", SignalKind::Digital, 0, 255, "bits");
+  add_signals(cia401::kReadInput32, "in32", SignalKind::Digital, 0, 0xFFFFFFFFll, "bits");
+  add_signals(cia401::kReadAnalogueInput16, "analog", SignalKind::Analog, -32768, 32767, "raw16");
+  add_signals(cia401::kWriteOutput8, "out", SignalKind::Output, 0, 255, "bits");
+  add_signals(cia401::kWriteAnalogueOutput16, "aout", SignalKind::Output, -32768, 32767, "raw16");
   init(node, std::move(sink), signals_.size());
   for (std::uint16_t n = 1; n <= kPdosPerDirection; ++n) {
     for (bool transmit : {false, true}) {
@@ -117,7 +113,7 @@ void Cia401Driver::refresh_carriers() {
 
 void Cia401Driver::add_signals(std::uint16_t index, const char* prefix, SignalKind kind, std::int64_t min,
                                std::int64_t max, const char* unit) {
-  const eds::ObjectEntry* o = eds_.find(index);
+  const canopen::eds::ObjectEntry* o = eds_.find(index);
   if (o == nullptr || o->code == canopen::ObjectCode::Var) return;
   const DataType t = expected_type(index);
   for (const auto& [sub, e] : o->subs) {
@@ -404,7 +400,7 @@ std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const Dr
     return nullptr;
   }
   std::string why;
-  auto file = eds::load(*path, why);
+  auto file = canopen::eds::load(*path, why);
   if (!file) {
     error = "cia401: " + why;
     return nullptr;

@@ -70,7 +70,7 @@
 #include <vector>
 
 #include "subdevices/driver.hpp"
-#include "subdevices/eds.hpp"
+#include "canopen/306/eds_reader.hpp"
 
 namespace oegw::subdevices {
 
@@ -83,7 +83,7 @@ struct SdoRead {
 
 class Cia401Driver final : public Driver {
  public:
-  Cia401Driver(NodeId node, FrameSink sink, eds::File file);
+  Cia401Driver(NodeId node, FrameSink sink, canopen::eds::File file);
 
   [[nodiscard]] std::string_view family() const override { return "cia401"; }
   [[nodiscard]] const std::vector<SignalInfo>& signals() const override { return signals_; }
@@ -111,7 +111,7 @@ class Cia401Driver final : public Driver {
   [[nodiscard]] std::vector<std::uint32_t> consumed_cob_ids() const override;
   bool set_output(std::size_t index, std::int64_t value, TimePoint now) override;
 
-  [[nodiscard]] const eds::File& eds() const { return eds_; }
+  [[nodiscard]] const canopen::eds::File& eds() const { return eds_; }
 
  private:
   struct Entry {
@@ -151,7 +151,7 @@ class Cia401Driver final : public Driver {
   void build(Pdo& p);
   [[nodiscard]] int signal_for(std::uint32_t entry) const;
 
-  eds::File eds_;
+  canopen::eds::File eds_;
   std::vector<SignalInfo> signals_;
   std::map<std::uint32_t, std::size_t> by_object_;  // index << 8 | sub -> signal
   std::vector<std::uint8_t> width_;                 // bits of each signal's object

@@ -8,30 +8,11 @@
 #include <functional>
 #include <string_view>
 
+#include "canopen/bus_event.hpp"
 #include "canopen/can_frame.hpp"
 #include "canopen/types.hpp"
 
 namespace oegw::canopen {
-
-// Controller / bus conditions reported by a transport. SocketCAN reports them as error frames
-// (linux/can/error.h); the virtual bus only reports what a test injects.
-enum class BusEvent : std::uint8_t {
-  ErrorActive,         // controller (back) in error-active state (CAN_ERR_CRTL_ACTIVE)
-  Restarted,           // controller restarted after bus-off (CAN_ERR_RESTARTED)
-  ErrorWarning,        // RX or TX error counter reached the warning level (96)
-  ErrorPassive,        // RX or TX error counter reached error-passive (128)
-  BusOff,              // TX error counter > 255: the controller left the bus
-  TxTimeout,           // the driver gave up transmitting a frame
-  ControllerOverflow,  // RX or TX buffer overflow in the controller: frames were lost
-  LostArbitration,
-  ProtocolError,       // form/stuff/bit/CRC error
-  TransceiverError,
-  NoAck,               // transmitted frame was not acknowledged: nobody else on the bus?
-  BusError,
-  InterfaceDown,       // the network interface went down (ENETDOWN)
-};
-
-[[nodiscard]] std::string_view to_string(BusEvent event);
 
 // What send() did with a frame. Only InvalidFrame is a caller bug; the others are conditions of
 // the bus/driver that a CANopen stack must survive (they are counted, never thrown).

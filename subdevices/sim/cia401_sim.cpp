@@ -6,7 +6,7 @@ namespace oegw::subdevices::sim {
 
 namespace {
 
-canopen::NodeConfig config_from(const eds::File& file, NodeId node) {
+canopen::NodeConfig config_from(const canopen::eds::File& file, NodeId node) {
   canopen::NodeConfig cfg;
   cfg.node_id = node;
   cfg.device_type = static_cast<std::uint32_t>(file.default_number(0x1000, 0, node).value_or(0));
@@ -22,19 +22,19 @@ canopen::NodeConfig config_from(const eds::File& file, NodeId node) {
 
 }  // namespace
 
-Cia401Sim::Cia401Sim(const eds::File& file, NodeId node, FrameSink sink) : SimulatedDevice(std::move(sink)), eds_(file) {
-  auto od = eds::build_dictionary(eds_, node);
+Cia401Sim::Cia401Sim(const canopen::eds::File& file, NodeId node, FrameSink sink) : SimulatedDevice(std::move(sink)), eds_(file) {
+  auto od = canopen::eds::build_dictionary(eds_, node);
   // The PDO objects are re-installed with the EDS defaults in the layout PdoService runs.
   for (std::uint16_t n = 1; n <= 512; ++n) {
-    if (auto p = eds::pdo_defaults(eds_, false, n, node)) canopen::install_rpdo(*od, n, *p);
-    if (auto p = eds::pdo_defaults(eds_, true, n, node)) canopen::install_tpdo(*od, n, *p);
+    if (auto p = canopen::eds::pdo_defaults(eds_, false, n, node)) canopen::install_rpdo(*od, n, *p);
+    if (auto p = canopen::eds::pdo_defaults(eds_, true, n, node)) canopen::install_tpdo(*od, n, *p);
   }
   build(std::move(od), config_from(eds_, node));
 }
 
 std::unique_ptr<Cia401Sim> Cia401Sim::from_file(const std::filesystem::path& eds_path, NodeId node, FrameSink sink,
                                                 std::string& error) {
-  auto file = eds::load(eds_path, error);
+  auto file = canopen::eds::load(eds_path, error);
   if (!file) return nullptr;
   return std::make_unique<Cia401Sim>(*file, node, std::move(sink));
 }

@@ -1,5 +1,5 @@
 // Simulator of a generic CiA 401 node built from its EDS file (CiA 306): the dictionary is the
-// one eds::build_dictionary() makes (every object, type, access, default, limit of the EDS, with
+// one canopen::eds::build_dictionary() makes (every object, type, access, default, limit of the EDS, with
 // $NODEID resolved), the PDOs are installed with the EDS defaults (1400h/1600h, 1800h/1A00h),
 // and a canopen::Node runs it — so its PDO mapping can be read and changed over SDO like a real
 // node's. 1000h, 1017h and 1018h come from the EDS defaults ([DeviceInfo] ProductName is the
@@ -15,14 +15,14 @@
 #include <optional>
 #include <string>
 
-#include "subdevices/eds.hpp"
+#include "canopen/306/eds_reader.hpp"
 #include "subdevices/sim/simulated_device.hpp"
 
 namespace oegw::subdevices::sim {
 
 class Cia401Sim : public SimulatedDevice {
  public:
-  Cia401Sim(const eds::File& file, NodeId node, FrameSink sink);
+  Cia401Sim(const canopen::eds::File& file, NodeId node, FrameSink sink);
   // Loads the EDS; nullptr with `error` ("file:line: ...") if it cannot be read or parsed.
   static std::unique_ptr<Cia401Sim> from_file(const std::filesystem::path& eds_path, NodeId node, FrameSink sink,
                                               std::string& error);
@@ -40,10 +40,10 @@ class Cia401Sim : public SimulatedDevice {
   bool set_input(std::string_view signal, std::int64_t value, TimePoint now) override;
   [[nodiscard]] std::optional<std::int64_t> output(std::string_view signal) const override;
 
-  [[nodiscard]] const eds::File& eds() const { return eds_; }
+  [[nodiscard]] const canopen::eds::File& eds() const { return eds_; }
 
  private:
-  eds::File eds_;
+  canopen::eds::File eds_;
 };
 
 }  // namespace oegw::subdevices::sim

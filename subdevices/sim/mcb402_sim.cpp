@@ -113,10 +113,10 @@ Mcb402Sim::Mcb402Sim(FrameSink sink, Mcb402SimConfig config) : SimulatedDevice(s
   if (!cfg_.node_id.valid()) throw std::invalid_argument("MCB-402: node-ID must be 1..127");
   canopen::NodeConfig nc;
   nc.node_id = cfg_.node_id;
-  nc.device_type = mcb402::kDeviceType;
+  nc.device_type = co4013::kDeviceType;
   nc.device_name = "CO4013A";
   nc.hardware_version = "1.0";
-  nc.identity = {.vendor = mcb402::kVendorId, .product = mcb402::kProductCode, .revision = cfg_.revision,
+  nc.identity = {.vendor = co4013::kVendorId, .product = co4013::kProductCode, .revision = cfg_.revision,
                  .serial = 0};
   nc.heartbeat_ms = cfg_.heartbeat_ms;
   nc.bit_timing_index = bit_timing_for(cfg_.kbaud);
@@ -191,7 +191,7 @@ void Mcb402Sim::refresh_inputs(bool notify) {
     const std::array<std::uint8_t, 1> b{v};
     write_input(0x6000, sub, b, notify && digital_interrupt(before, v, sub));
   }
-  for (std::size_t a = 0; a < mcb402::kAxes; ++a) {
+  for (std::size_t a = 0; a < co4013::kAxes; ++a) {
     const auto sub = static_cast<std::uint8_t>(a + 1);
     const std::int32_t physical = (broken_ & (1u << a)) != 0 ? -32768 : axes_[a];
     const auto v = static_cast<std::int16_t>(
@@ -204,14 +204,14 @@ void Mcb402Sim::refresh_inputs(bool notify) {
 }
 
 void Mcb402Sim::move_axis(std::size_t axis, std::int16_t raw, TimePoint now) {
-  if (axis < 1 || axis > mcb402::kAxes) throw std::out_of_range("MCB-402 axis is 1..4");
+  if (axis < 1 || axis > co4013::kAxes) throw std::out_of_range("MCB-402 axis is 1..4");
   axes_[axis - 1] = raw;
   refresh_inputs(true);
   node().advance(now);
 }
 
 void Mcb402Sim::convert_axis(std::size_t axis, std::int16_t converted, TimePoint now) {
-  if (axis < 1 || axis > mcb402::kAxes) throw std::out_of_range("MCB-402 axis is 1..4");
+  if (axis < 1 || axis > co4013::kAxes) throw std::out_of_range("MCB-402 axis is 1..4");
   const std::int32_t z = od().get<std::uint16_t>(0x5401, static_cast<std::uint8_t>(axis));
   const std::int32_t v = converted;
   const std::int32_t out = v > z ? v - z : (v < -z ? v + z : 0);
@@ -219,7 +219,7 @@ void Mcb402Sim::convert_axis(std::size_t axis, std::int16_t converted, TimePoint
 }
 
 void Mcb402Sim::set_button(std::size_t button, bool pressed, TimePoint now) {
-  if (button < 1 || button > mcb402::kButtons) throw std::out_of_range("MCB-402 button is 1..7");
+  if (button < 1 || button > co4013::kButtons) throw std::out_of_range("MCB-402 button is 1..7");
   const auto bit = static_cast<std::uint8_t>(1u << cfg_.button_bits[button - 1]);
   // CN6: a button shorts its input to GND.
   pins_ = static_cast<std::uint8_t>(pressed ? (pins_ & ~bit) : (pins_ | bit));
@@ -228,17 +228,17 @@ void Mcb402Sim::set_button(std::size_t button, bool pressed, TimePoint now) {
 }
 
 void Mcb402Sim::cable_break(std::size_t axis, bool broken, TimePoint now) {
-  if (axis < 1 || axis > mcb402::kAxes) throw std::out_of_range("MCB-402 axis is 1..4");
+  if (axis < 1 || axis > co4013::kAxes) throw std::out_of_range("MCB-402 axis is 1..4");
   const std::uint8_t before = broken_;
   const auto bit = static_cast<std::uint8_t>(1u << (axis - 1));
   broken_ = static_cast<std::uint8_t>(broken ? (broken_ | bit) : (broken_ & ~bit));
   refresh_inputs(true);
   if (broken_ == before) return;
   auto& emcy = node().emcy();
-  if (emcy.active(mcb402::kEmcyCableBreak)) emcy.clear(mcb402::kEmcyCableBreak, now);
+  if (emcy.active(co4013::kEmcyCableBreak)) emcy.clear(co4013::kEmcyCableBreak, now);
   // "20 31 81 00 8x 00 00 00": 1001h = generic + device error (bit 7); byte 4 = 80h | axes.
   if (broken_ != 0)
-    emcy.raise(mcb402::kEmcyCableBreak, 0x80,
+    emcy.raise(co4013::kEmcyCableBreak, 0x80,
                canopen::EmcyManufacturerField{0x00, static_cast<std::uint8_t>(0x80 | broken_), 0, 0, 0}, now);
   node().advance(now);
 }

@@ -36,17 +36,29 @@
 #include <optional>
 
 #include "canopen/301/subscription.hpp"
-#include "subdevices/mcb402.hpp"
 #include "subdevices/sim/simulated_device.hpp"
 
 namespace oegw::subdevices::sim {
+
+// The controller as the document describes it, independent of the driver's reading of it.
+namespace co4013 {
+inline constexpr std::uint32_t kDeviceType = 0x01070191;   // [CO4013 1000h] CO4013A4
+inline constexpr std::uint32_t kVendorId = 0x58;           // [CO4013 1018h]
+inline constexpr std::uint32_t kProductCode = 0x01040131;  // [CO4013 1018h]
+inline constexpr std::uint16_t kEmcyCableBreak = 0x3120;   // [CO4013 "Emergency Messages"]
+inline constexpr std::size_t kAxes = 4;                    // X, Y, Z, T [MCB §2]
+inline constexpr std::size_t kButtons = 7;                 // BP1..BP7 [MCB §4]
+// BP1..BP7 -> bit of 6000h:03, [MCB §4] "Bit of cc 7 6 5 4 3 2 1 0 / N° BP 6 7 5 4 3 2 1".
+using ButtonBits = std::array<std::uint8_t, kButtons>;
+inline constexpr ButtonBits kDefaultButtonBits{1, 2, 3, 4, 5, 7, 6};
+}  // namespace co4013
 
 struct Mcb402SimConfig {
   NodeId node_id{0x03};
   std::uint16_t kbaud = 250;  // 20, 50, 125, 250 or 500 [MCB §1]
   std::uint32_t revision = 1;
   std::uint16_t heartbeat_ms = 0;  // 1017h default (document: 0)
-  mcb402::ButtonBits button_bits = mcb402::kDefaultButtonBits;
+  co4013::ButtonBits button_bits = co4013::kDefaultButtonBits;
   std::filesystem::path store_path;  // empty: no 1010h/1011h
 
   // [MCB §3] CN3 jumpers. Address pins 14,12,10,8,6,4,2 (bit 6 .. bit 0 of `address_pins`) and
@@ -101,7 +113,7 @@ class Mcb402Sim final : public SimulatedDevice {
 
   Mcb402SimConfig cfg_;
   std::uint8_t pins_ = 0xFF;  // IN7..IN0 pin levels: pulled up
-  std::array<std::int16_t, mcb402::kAxes> axes_{};
+  std::array<std::int16_t, co4013::kAxes> axes_{};
   std::uint8_t broken_ = 0;
   bool device_error_ = false;
   const canopen::ObjectDictionary* dict_ = nullptr;  // od(), for the const accessors

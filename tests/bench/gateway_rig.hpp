@@ -1,4 +1,4 @@
-// Shared by gateway_bench.cpp and gateway_rss.cpp: the simulated cab of gateway/cab_rig.hpp (the
+// Shared by gateway_bench.cpp and gateway_rss.cpp: the simulated cab of programs/cab_rig.hpp (the
 // harness of the demo and the e2e tests) on a mapping file built from YAML text, booted for real,
 // with the host enabling TPDO 1 (joystick.1 on 1A0h), setting 6423h TRUE and starting the
 // gateway, as gateway_demo.cpp does; all on a SimulatedClock, so the boot is deterministic and
@@ -24,7 +24,7 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
-#include "gateway/cab_rig.hpp"
+#include "programs/cab_rig.hpp"
 #include "gateway/gateway.hpp"
 #include "mapping/config.hpp"
 #include "subdevices/sim/sim_bench.hpp"

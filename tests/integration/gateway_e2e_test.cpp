@@ -22,8 +22,9 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
-#include "gateway/cab_rig.hpp"
+#include "programs/cab_rig.hpp"
 #include "gateway/gateway.hpp"
+#include "profiles/cia852/device_type.hpp"
 #include "subdevices/sim/elobau_mfg_sim.hpp"
 #include "subdevices/sim/mcb402_sim.hpp"
 #include "subdevices/sim/sim_bench.hpp"
@@ -290,7 +291,7 @@ class GatewayE2E : public ::testing::Test {
   EventLoop loop_{clock_};
   TimePoint t0_{};
   std::filesystem::path store_;
-  std::unique_ptr<gw::CabRig> rig_;  // the demo's harness (gateway/cab_rig.hpp)
+  std::unique_ptr<gw::CabRig> rig_;  // the demo's harness (programs/cab_rig.hpp)
   // Into rig_: the simulators, the host, its port, the current gateway (connect_gateway).
   sd::sim::SimBench* bench_ = nullptr;
   Master* host_ = nullptr;
@@ -321,7 +322,7 @@ TEST_F(GatewayE2E, HostConfiguresAndStartsTheGateway) {
   const auto dt = sdo_read(0x1000, 0);
   ASSERT_TRUE(dt.has_value());
   EXPECT_EQ(decode_unsigned(*dt), 0xBF870191u);
-  EXPECT_EQ(decode_unsigned(*dt), gw::device_type_for(gw_->fes()));
+  EXPECT_EQ(decode_unsigned(*dt), oegw::cia852::device_type_for(gw_->fes()));
   EXPECT_EQ(decode_unsigned(*dt) & 0xFFFF, 0x0191u);
   // 1018h as the mapping file says.
   EXPECT_EQ(decode_unsigned(*sdo_read(0x1018, 2)), 0x852u);

@@ -29,7 +29,7 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
-#include "gateway/cab_rig.hpp"
+#include "programs/cab_rig.hpp"
 #include "gateway/gateway.hpp"
 #include "safety_monitor.hpp"
 #include "subdevices/sim/cia401_sim.hpp"
@@ -283,7 +283,7 @@ class Bench {
     store_ = std::filesystem::path(::testing::TempDir()) /
              fmt::format("safety_{}_{}_{}.store", ::getpid(), name(fam_.id), reinterpret_cast<std::uintptr_t>(this));
     std::filesystem::remove(store_);
-    // The cab of gateway/cab_rig.hpp (the demo's and the e2e tests' harness), with this bench's
+    // The cab of programs/cab_rig.hpp (the demo's and the e2e tests' harness), with this bench's
     // fault switches in its wiring and another master's port on the downstream bus.
     rig_ = std::make_unique<gateway::CabRig>(config_, loop_, gateway::CabRigOptions{.store = store_});
     other_ = rig_->down().attach("other");

@@ -43,7 +43,7 @@ const std::string kHead =
 void expect_eds_equals_device(const std::string& yaml) {
   const mapping::Config c = load(yaml);
   gateway::Gateway gw(c, {}, {});  // never started: its dictionary holds the defaults
-  const std::string running = gateway::eds_text(gw.upstream().od(), gateway::eds_info(c, "oegw.eds"));
+  const std::string running = canopen::eds_text(gw.upstream().od(), gateway::eds_info(c, "oegw.eds"));
   const std::string written = gateway::upstream_eds(c, "oegw.eds");
   EXPECT_EQ(written, running);
   EXPECT_EQ(eds_value(written, "1000", "DefaultValue"),
@@ -98,7 +98,7 @@ TEST(UpstreamEds, TheDemoFileGivesTheDeviceItsOwnEds) {
   ASSERT_TRUE(r.ok()) << r.error_text();
   gateway::Gateway gw(*r.config, {}, {});
   EXPECT_EQ(gateway::upstream_eds(*r.config, "oegw.eds"),
-            gateway::eds_text(gw.upstream().od(), gateway::eds_info(*r.config, "oegw.eds")));
+            canopen::eds_text(gw.upstream().od(), gateway::eds_info(*r.config, "oegw.eds")));
 }
 
 }  // namespace

@@ -3,10 +3,10 @@
 
   eds_check.py FILE...            checks every file; exit 0 if all are well-formed, 1 otherwise
   eds_check.py --summary FILE     prints one line per sub-object, in the format eds_test.cpp
-                                  compares with the C++ reader (subdevices/eds.cpp):
+                                  compares with the C++ reader (canopen/306/eds_reader.cpp):
                                   IIII:SS TTTT access pdo default
 
-The checks mirror CiA 306 §4.5/§4.6 as subdevices/eds.hpp describes them, written separately:
+The checks mirror CiA 306 §4.5/§4.6 as canopen/306/eds_reader.hpp describes them, written separately:
 strict INI (no duplicate sections or keys), [MandatoryObjects] present, SupportedObjects=n with
 entries 1..n, one section per listed object, ParameterName everywhere, ObjectType 7/8/9,
 DataType a CiA 301 static type, AccessType ro/wo/rw/rwr/rww/const, PDOMapping 0/1, SubNumber

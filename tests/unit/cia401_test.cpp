@@ -39,10 +39,10 @@ struct Fixture {
     EXPECT_TRUE(d) << error;
     drv.reset(static_cast<Cia401Driver*>(d.release()));
     drv->on_change = [this](std::size_t i, const SignalValue& v) { changes.emplace_back(i, v); };
-    node_od = eds::build_dictionary(drv->eds(), kNode);
+    node_od = canopen::eds::build_dictionary(drv->eds(), kNode);
     for (std::uint16_t n = 1; n <= 4; ++n) {
-      if (auto p = eds::pdo_defaults(drv->eds(), true, n, kNode)) canopen::install_tpdo(*node_od, n, *p);
-      if (auto p = eds::pdo_defaults(drv->eds(), false, n, kNode)) canopen::install_rpdo(*node_od, n, *p);
+      if (auto p = canopen::eds::pdo_defaults(drv->eds(), true, n, kNode)) canopen::install_tpdo(*node_od, n, *p);
+      if (auto p = canopen::eds::pdo_defaults(drv->eds(), false, n, kNode)) canopen::install_rpdo(*node_od, n, *p);
     }
   }
   // The network manager's loop, answered from node_od; returns the number of reads made.

@@ -1,4 +1,4 @@
-// The EDS reader (subdevices/eds.hpp), against CiA 306 (EDS file format, §4.5 object sections,
+// The EDS reader (canopen/306/eds_reader.hpp), against CiA 306 (EDS file format, §4.5 object sections,
 // §4.5.3 number formats and $NODEID, §4.6 object lists) and the sample files shipped in
 // subdevices/eds/. Malformed files must give "file:line: what was expected", never a crash.
 #include <gtest/gtest.h>
@@ -11,9 +11,9 @@
 #include <string>
 #include <vector>
 
-#include "subdevices/eds.hpp"
+#include "canopen/306/eds_reader.hpp"
 
-namespace oegw::subdevices::eds {
+namespace oegw::canopen::eds {
 namespace {
 
 using canopen::Access;
@@ -373,4 +373,4 @@ TEST(Eds, AgreesWithPythonConfigparser) {
 }
 
 }  // namespace
-}  // namespace oegw::subdevices::eds
+}  // namespace oegw::canopen::eds

@@ -1,7 +1,7 @@
 // The EDS writer (CiA 306 INI) on the CiA 852 device's dictionary. EdsFile.* also writes the EDS
 // of a device with every FE kind to $OEGW_EDS_OUT when set: tests/tools/eds_parse_check.py runs
 // it and parses the file with python3's configparser (an independent reader).
-#include "gateway/eds_writer.hpp"
+#include "canopen/306/eds_writer.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -17,6 +17,9 @@
 namespace oegw::gateway {
 namespace {
 
+using canopen::EdsInfo;
+using canopen::eds_text;
+using canopen::write_eds;
 using mapping::FeId;
 using mapping::FeKind;
 

@@ -148,7 +148,7 @@ TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
   EXPECT_THAT(fes, ElementsAre("joystick.1", "joystick.2", "pedal.1", "encoder.1", "wheel.1", "buttons.1",
                                "indicators.1", "indicators.2"));
   const auto& j1 = c.functional_elements[0];
-  // Dictionary order (functional_elements.hpp): buttons[1..8] before x, y.
+  // Dictionary order (profiles/cia852/fe_table.hpp): buttons[1..8] before x, y.
   ASSERT_EQ(j1.fields.size(), 10u);
   EXPECT_EQ(j1.fields[0].field.name, "buttons[1]");
   EXPECT_EQ(j1.fields[0].signal, "buttons[1]");

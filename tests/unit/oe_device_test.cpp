@@ -1,5 +1,6 @@
-// The upstream CiA 852 device (gateway/oe_device.hpp) frame by frame: a vector sink, a manual
-// clock, SDO/NMT/RPDO frames from a "host" written by hand. Each vector names its CiA 852 clause.
+// The upstream CiA 852 device (gateway/oe_device.hpp; its dictionary: profiles/cia852/) frame by
+// frame: a vector sink, a manual clock, SDO/NMT/RPDO frames from a "host" written by hand. Each
+// vector names its CiA 852 clause.
 #include "gateway/oe_device.hpp"
 
 #include <gtest/gtest.h>
@@ -11,6 +12,8 @@
 #include <tuple>
 #include <vector>
 
+#include "profiles/cia852/device_type.hpp"
+
 namespace oegw::gateway {
 namespace {
 
@@ -21,6 +24,7 @@ using canopen::NodeId;
 using canopen::ObjectDictionary;
 using canopen::Origin;
 using canopen::TimePoint;
+using cia852::device_type_for;
 using mapping::FeId;
 using mapping::FeKind;
 using Bytes = std::vector<std::uint8_t>;

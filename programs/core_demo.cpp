@@ -1,4 +1,4 @@
-#include "gateway/core_demo.hpp"
+#include "programs/core_demo.hpp"
 
 #include <unistd.h>
 

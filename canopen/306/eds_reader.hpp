@@ -1,6 +1,6 @@
 // An EDS (electronic data sheet, CiA 306) reader: the INI file a CANopen device's vendor ships
-// to describe its object dictionary. Used by the generic CiA 401 driver (cia401.hpp) to know
-// which objects a node has, and by its simulator to build a dictionary.
+// to describe its object dictionary. A driver learns from it which objects a node has; a
+// simulator builds a dictionary from it (build_dictionary, pdo_defaults).
 //
 // What is read (CiA 306 §4.5/§4.6):
 //   [DeviceInfo]                     kept as key -> value (VendorNumber, ProductNumber, ...)
@@ -23,7 +23,7 @@
 // A signed value written in hexadecimal is the type's two's complement (0x8000 = -32768 for
 // INTEGER16).
 //
-// Errors: parse_eds() never throws and never crashes on any input; a malformed file yields
+// Errors: parse() never throws and never crashes on any input; a malformed file yields
 // "file:line: what was expected" (line = the offending line, or the section header).
 #pragma once
 
@@ -40,10 +40,10 @@
 #include "canopen/301/pdo.hpp"
 #include "canopen/types.hpp"
 
-namespace oegw::subdevices::eds {
+namespace oegw::canopen::eds {
 
 // A source line, carried for error messages and ignored by ==, so that a file written by
-// write_eds() and parsed back compares equal to the original.
+// write() and parsed back compares equal to the original.
 struct Line {
   int number = 0;
   friend bool operator==(const Line&, const Line&) { return true; }
@@ -130,4 +130,4 @@ std::unique_ptr<canopen::ObjectDictionary> build_dictionary(const File& file, ca
 std::optional<canopen::PdoParameters> pdo_defaults(const File& file, bool transmit, std::uint16_t n,
                                                    canopen::NodeId node);
 
-}  // namespace oegw::subdevices::eds
+}  // namespace oegw::canopen::eds

@@ -21,7 +21,7 @@
 #include "canopen/301/object_dictionary.hpp"
 #include "canopen/types.hpp"
 
-namespace oegw::gateway {
+namespace oegw::canopen {
 
 struct EdsInfo {
   std::string file_name = "oegw.eds";
@@ -49,4 +49,4 @@ struct EdsInfo {
 bool write_eds(const std::filesystem::path& path, const canopen::ObjectDictionary& od, const EdsInfo& info,
                std::string& error);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::canopen

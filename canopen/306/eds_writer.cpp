@@ -1,4 +1,4 @@
-#include "gateway/eds_writer.hpp"
+#include "canopen/306/eds_writer.hpp"
 
 #include <cstdio>
 #include <cstring>
@@ -6,12 +6,7 @@
 #include <sstream>
 #include <vector>
 
-namespace oegw::gateway {
-
-using canopen::DataType;
-using canopen::Object;
-using canopen::ObjectCode;
-using canopen::SubObject;
+namespace oegw::canopen {
 
 namespace {
 
@@ -188,4 +183,4 @@ bool write_eds(const std::filesystem::path& path, const canopen::ObjectDictionar
   return true;
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::canopen

@@ -1,4 +1,4 @@
-#include "gateway/bench_programs.hpp"
+#include "programs/bench_programs.hpp"
 
 #include <unistd.h>
 

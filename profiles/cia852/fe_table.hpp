@@ -1,6 +1,7 @@
 // The CiA 852 functional elements (FE) and where each of their fields lives in the upstream
-// object dictionary (CiA 852 clause 9, Tables 1–7). Shared by the mapping file (which names FE
-// fields) and the upstream device (which builds the dictionary). Pure data, no I/O.
+// object dictionary (CiA 852 clause 9, Tables 1–7): the one table of the CiA 852 layout. The
+// dictionary (dictionary.hpp) and the default PDOs (pdo_defaults.hpp) take their sub-indices
+// from it; the mapping file names FE fields by it. Pure data, no I/O.
 //
 // Layout decisions where clause 9 does not add up (documented in mapping/README.md):
 //  * push-button cluster n uses 6000h sub-indices 31h + 8(n−1) … 38h + 8(n−1): cluster 8 is
@@ -20,8 +21,9 @@
 #include <vector>
 
 #include "canopen/301/object_dictionary.hpp"
+#include "profiles/cia401/objects.hpp"
 
-namespace oegw::mapping {
+namespace oegw::cia852 {
 
 enum class FeKind : std::uint8_t { Joystick, FootPedal, Encoder, Wheel, ButtonCluster, IndicatorCluster, Display };
 
@@ -64,4 +66,4 @@ struct FeField {
 [[nodiscard]] std::vector<FeField> fe_fields(FeId fe);
 [[nodiscard]] std::optional<FeField> find_fe_field(FeId fe, std::string_view name);
 
-}  // namespace oegw::mapping
+}  // namespace oegw::cia852

@@ -3,6 +3,8 @@
 // a button cluster with lamps) with an operator moving them; the gateway in the middle; upstream,
 // a built-in host controller (a CANopen master) that configures the gateway's PDOs, starts it
 // and reads the joystick from its TPDOs. Then a grip cable is pulled and plugged back.
+#include "programs/gateway_demo.hpp"
+
 #include <unistd.h>
 
 #include <cstdio>
@@ -12,12 +14,11 @@
 
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
-#include "gateway/cab_rig.hpp"
-#include "gateway/demo_files.hpp"
+#include "programs/cab_rig.hpp"
 #include "gateway/gateway.hpp"
-#include "gateway/programs.hpp"
 #include "gateway/publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
+#include "programs/demo_files.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 
 namespace oegw::gateway {

@@ -3,7 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
-#include "gateway/bench_programs.hpp"
+#include "programs/bench_programs.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{"oegw-sim — simulated cab devices on a SocketCAN interface"};

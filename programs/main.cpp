@@ -2,9 +2,10 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
-#include "gateway/bench_programs.hpp"
-#include "gateway/core_demo.hpp"
 #include "gateway/programs.hpp"
+#include "programs/bench_programs.hpp"
+#include "programs/core_demo.hpp"
+#include "programs/gateway_demo.hpp"
 
 int main(int argc, char** argv) {
   CLI::App app{"oegw — CiA 852 operator-environment gateway"};

@@ -1,4 +1,4 @@
-#include "subdevices/eds.hpp"
+#include "canopen/306/eds_reader.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -8,7 +8,7 @@
 #include <fstream>
 #include <sstream>
 
-namespace oegw::subdevices::eds {
+namespace oegw::canopen::eds {
 
 using canopen::Access;
 using canopen::DataType;
@@ -653,4 +653,4 @@ std::optional<canopen::PdoParameters> pdo_defaults(const File& file, bool transm
   return p;
 }
 
-}  // namespace oegw::subdevices::eds
+}  // namespace oegw::canopen::eds

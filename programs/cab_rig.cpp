@@ -1,4 +1,4 @@
-#include "gateway/cab_rig.hpp"
+#include "programs/cab_rig.hpp"
 
 #include <stdexcept>
 

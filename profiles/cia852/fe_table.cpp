@@ -1,6 +1,6 @@
-#include "mapping/functional_elements.hpp"
+#include "profiles/cia852/fe_table.hpp"
 
-namespace oegw::mapping {
+namespace oegw::cia852 {
 
 using canopen::DataType;
 
@@ -35,6 +35,12 @@ bool is_input(FeKind k) { return k != FeKind::IndicatorCluster && k != FeKind::D
 namespace {
 std::string indexed(std::string_view base, unsigned i) { return std::string(base) + "[" + std::to_string(i) + "]"; }
 std::uint8_t u8(unsigned v) { return static_cast<std::uint8_t>(v); }
+// The CiA 401 objects clause 9 places the FEs in.
+constexpr std::uint16_t kIn8 = cia401::kReadInput8;
+constexpr std::uint16_t kIn32 = cia401::kReadInput32;
+constexpr std::uint16_t kAnalogueIn16 = cia401::kReadAnalogueInput16;
+constexpr std::uint16_t kOut8 = cia401::kWriteOutput8;
+constexpr std::uint16_t kAnalogueOut16 = cia401::kWriteAnalogueOutput16;
 }  // namespace
 
 std::vector<FeField> fe_fields(FeId fe) {
@@ -45,28 +51,28 @@ std::vector<FeField> fe_fields(FeId fe) {
     case FeKind::Joystick: {
       // CiA 852 Table 1 / Figure 5: memory function bits m-x, m-y, m-z.
       const char* const mem[3] = {"memory_x", "memory_y", "memory_z"};
-      for (unsigned b = 0; b < 3; ++b) out.push_back({mem[b], 0x6000, u8(2 * n - 1), u8(b), DataType::Unsigned8});
-      for (unsigned b = 0; b < 8; ++b) out.push_back({indexed("buttons", b + 1), 0x6000, u8(2 * n), u8(b), DataType::Unsigned8});
+      for (unsigned b = 0; b < 3; ++b) out.push_back({mem[b], kIn8, u8(2 * n - 1), u8(b), DataType::Unsigned8});
+      for (unsigned b = 0; b < 8; ++b) out.push_back({indexed("buttons", b + 1), kIn8, u8(2 * n), u8(b), DataType::Unsigned8});
       const char* const axes[3] = {"x", "y", "z"};
-      for (unsigned a = 0; a < 3; ++a) out.push_back({axes[a], 0x6401, u8(3 * n - 2 + a), 0xFF, DataType::Integer16});
+      for (unsigned a = 0; a < 3; ++a) out.push_back({axes[a], kAnalogueIn16, u8(3 * n - 2 + a), 0xFF, DataType::Integer16});
       break;
     }
     case FeKind::FootPedal:
-      out.push_back({"memory_x", 0x6000, u8(0x20 + n), 0, DataType::Unsigned8});  // Table 2 / Figure 6
-      out.push_back({"position", 0x6401, u8(0x30 + n), 0xFF, DataType::Integer16});
+      out.push_back({"memory_x", kIn8, u8(0x20 + n), 0, DataType::Unsigned8});  // Table 2 / Figure 6
+      out.push_back({"position", kAnalogueIn16, u8(0x30 + n), 0xFF, DataType::Integer16});
       break;
-    case FeKind::Encoder: out.push_back({"position", 0x6120, u8(0x80 + n), 0xFF, DataType::Integer32}); break;
-    case FeKind::Wheel: out.push_back({"position", 0x6401, u8(0x40 + n), 0xFF, DataType::Integer16}); break;
+    case FeKind::Encoder: out.push_back({"position", kIn32, u8(0x80 + n), 0xFF, DataType::Integer32}); break;
+    case FeKind::Wheel: out.push_back({"position", kAnalogueIn16, u8(0x40 + n), 0xFF, DataType::Integer16}); break;
     case FeKind::ButtonCluster:
       for (unsigned i = 1; i <= 64; ++i)
-        out.push_back({indexed("switch", i), 0x6000, u8(0x31 + 8 * (n - 1) + (i - 1) / 8), u8((i - 1) % 8), DataType::Unsigned8});
+        out.push_back({indexed("switch", i), kIn8, u8(0x31 + 8 * (n - 1) + (i - 1) / 8), u8((i - 1) % 8), DataType::Unsigned8});
       break;
     case FeKind::IndicatorCluster:
       for (unsigned i = 1; i <= 64; ++i)
-        out.push_back({indexed("indicator", i), 0x6200, u8(0x01 + 8 * (n - 1) + (i - 1) / 8), u8((i - 1) % 8), DataType::Unsigned8});
+        out.push_back({indexed("indicator", i), kOut8, u8(0x01 + 8 * (n - 1) + (i - 1) / 8), u8((i - 1) % 8), DataType::Unsigned8});
       break;
     case FeKind::Display:
-      for (unsigned p = 1; p <= 12; ++p) out.push_back({indexed("parameter", p), 0x6411, u8(12 * (n - 1) + p), 0xFF, DataType::Integer16});
+      for (unsigned p = 1; p <= 12; ++p) out.push_back({indexed("parameter", p), kAnalogueOut16, u8(12 * (n - 1) + p), 0xFF, DataType::Integer16});
       break;
   }
   return out;
@@ -78,4 +84,4 @@ std::optional<FeField> find_fe_field(FeId fe, std::string_view name) {
   return std::nullopt;
 }
 
-}  // namespace oegw::mapping
+}  // namespace oegw::cia852

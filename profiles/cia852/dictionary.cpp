@@ -1,0 +1,146 @@
+#include "profiles/cia852/dictionary.hpp"
+
+#include <algorithm>
+#include <functional>
+#include <map>
+
+#include "canopen/301/heartbeat.hpp"
+#include "canopen/301/pdo.hpp"
+#include "profiles/cia401/objects.hpp"
+#include "profiles/cia852/device_type.hpp"
+#include "profiles/cia852/pdo_defaults.hpp"
+
+namespace oegw::cia852 {
+
+using canopen::Access;
+using canopen::DataType;
+using canopen::ObjectDictionary;
+
+namespace {
+
+bool has_kind(const std::vector<FeId>& fes, FeKind k) {
+  return std::any_of(fes.begin(), fes.end(), [k](const FeId& f) { return f.kind == k; });
+}
+
+// An ARRAY holding only the given sub-indexes; sub 0 = the highest one (CiA 301 §7.4.3).
+void add_sparse_array(ObjectDictionary& od, std::uint16_t index, DataType type, Access access,
+                      const std::set<std::uint8_t>& subs, std::vector<std::uint8_t> dflt, bool mappable,
+                      const std::function<std::string(std::uint8_t)>& sub_name) {
+  if (subs.empty()) return;
+  const std::uint8_t highest = *subs.rbegin();
+  canopen::Object& obj =
+      od.add_array(index, std::string(cia401::object_name(index)), type, access, highest, std::move(dflt), mappable);
+  for (std::uint8_t s = 1; s <= highest; ++s) {
+    if (subs.count(s) == 0) {
+      obj.subs().erase(s);
+    } else {
+      obj.find(s)->name = sub_name(s);
+    }
+    if (s == 255) break;
+  }
+}
+
+// The name of an entry after the FE field(s) it holds: "joystick 1 x", "joystick 1 memory",
+// "joystick 1 buttons 1-8", "buttons 2 switch 9-16", "display 1 parameter 3".
+std::string entry_name(const std::vector<FeId>& fes, std::uint16_t index, std::uint8_t sub) {
+  for (const FeId& fe : fes) {
+    std::vector<std::string> names;
+    for (const auto& f : fe_fields(fe))
+      if (f.index == index && f.sub == sub) names.push_back(f.name);
+    if (names.empty()) continue;
+    std::string n = std::string(to_string(fe.kind)) + " " + std::to_string(fe.instance) + " ";
+    const std::string& first = names.front();
+    const auto br = first.find('[');
+    if (names.size() == 1) {
+      if (br == std::string::npos) return n + first;
+      return n + first.substr(0, br) + " " + first.substr(br + 1, first.size() - br - 2);
+    }
+    if (first.rfind("memory", 0) == 0) return n + "memory";
+    const std::string& last = names.back();
+    const auto lbr = last.find('[');
+    if (br == std::string::npos || lbr == std::string::npos) return n + first;
+    return n + first.substr(0, br) + " " + first.substr(br + 1, first.size() - br - 2) + "-" +
+           last.substr(lbr + 1, last.size() - lbr - 2);
+  }
+  return "entry " + std::to_string(sub);
+}
+
+}  // namespace
+
+canopen::NodeConfig build_dictionary(const DeviceConfig& cfg, ObjectDictionary& od) {
+  using namespace cia401;
+  const auto& fes = cfg.fes;
+  std::map<std::uint16_t, std::set<std::uint8_t>> subs;
+  for (const FeId& fe : fes)
+    for (const auto& f : fe_fields(fe)) subs[f.index].insert(f.sub);
+  auto namer = [&](std::uint16_t index) {
+    return [&fes, index](std::uint8_t s) { return entry_name(fes, index, s); };
+  };
+  auto subs_of = [&](std::uint16_t index) { return subs.count(index) ? subs[index] : std::set<std::uint8_t>{}; };
+
+  add_sparse_array(od, kReadInput8, DataType::Unsigned8, Access::ReadOnly, subs_of(kReadInput8), {0}, true,
+                   namer(kReadInput8));
+  add_sparse_array(od, kReadInput32, DataType::Integer32, Access::ReadOnly, subs_of(kReadInput32),
+                   canopen::encode<std::int32_t>(0), true, namer(kReadInput32));
+  add_sparse_array(od, kReadAnalogueInput16, DataType::Integer16, Access::ReadOnly, subs_of(kReadAnalogueInput16),
+                   canopen::encode<std::int16_t>(0), true, namer(kReadAnalogueInput16));
+  if (has_kind(fes, FeKind::Joystick) || has_kind(fes, FeKind::FootPedal) || has_kind(fes, FeKind::Wheel))
+    od.add_var(kAnalogueInputGlobalInterruptEnable, std::string(object_name(kAnalogueInputGlobalInterruptEnable)),
+               DataType::Boolean, Access::ReadWrite, {0});
+  // 6206h/6207h: one mode/value byte per 6200h byte, named after it.
+  const auto ind = subs_of(kWriteOutput8);
+  add_sparse_array(od, kWriteOutput8, DataType::Unsigned8, Access::ReadWrite, ind, {0}, true, namer(kWriteOutput8));
+  add_sparse_array(od, kErrorModeOutput8, DataType::Unsigned8, Access::ReadWrite, ind, {0x01}, false,
+                   namer(kWriteOutput8));
+  add_sparse_array(od, kErrorValueOutput8, DataType::Unsigned8, Access::ReadWrite, ind, {0x00}, false,
+                   namer(kWriteOutput8));
+  // 6443h/6444h: one mode/value per 6411h channel, named after it.
+  const auto disp = subs_of(kWriteAnalogueOutput16);
+  add_sparse_array(od, kWriteAnalogueOutput16, DataType::Integer16, Access::ReadWrite, disp,
+                   canopen::encode<std::int16_t>(0), true, namer(kWriteAnalogueOutput16));
+  add_sparse_array(od, kAnalogueOutputErrorMode, DataType::Unsigned8, Access::ReadWrite, disp, {0x01}, false,
+                   namer(kWriteAnalogueOutput16));
+  add_sparse_array(od, kAnalogueOutputErrorValueInteger, DataType::Integer32, Access::ReadWrite, disp,
+                   canopen::encode<std::int32_t>(0), false, namer(kWriteAnalogueOutput16));
+  // 6206h/6443h: CiA 401 error modes are 0 or 1 per bit/channel; 6443h channels hold 0 or 1.
+  if (auto* o = od.find(kAnalogueOutputErrorMode))
+    for (auto& [s, sub] : o->subs())
+      if (s != 0) sub.high = std::uint64_t{1};
+
+  for (const DefaultPdo& p : default_pdos(fes, cfg.node_id)) {
+    if (p.transmit) {
+      canopen::install_tpdo(od, p.number, p.params);
+    } else {
+      canopen::install_rpdo(od, p.number, p.params);
+    }
+    // Tables 10, 14, 18, 22, 26, 30, 34: "highest sub-index supported" is const.
+    const auto comm = static_cast<std::uint16_t>((p.transmit ? 0x1800 : 0x1400) + p.number - 1);
+    od.find(comm, 0)->access = Access::Const;
+  }
+
+  canopen::NodeConfig nc;
+  nc.node_id = cfg.node_id;
+  nc.device_type = device_type_for(fes, cfg.joysticks_without_buttons);
+  nc.device_name = cfg.device_name;
+  nc.hardware_version = cfg.hardware_version;
+  nc.software_version = cfg.software_version;
+  nc.identity.vendor = cfg.identity.vendor;
+  nc.identity.product = cfg.identity.product;
+  nc.identity.revision = cfg.identity.revision;
+  nc.identity.serial = cfg.identity.serial;
+  nc.heartbeat_ms = cfg.heartbeat_ms;
+  nc.store_path = cfg.store_path;
+  const bool outputs = has_kind(fes, FeKind::IndicatorCluster) || has_kind(fes, FeKind::Display);
+  if (outputs) {
+    // §8.3 / Annex A: heartbeat consumer mandatory with outputs; one entry, the host's.
+    nc.heartbeat_consumers = 1;
+    canopen::Object& hb = canopen::install_heartbeat_consumer_objects(od, 1);
+    const auto v = canopen::encode<std::uint32_t>(
+        canopen::heartbeat_consumer_entry(canopen::NodeId{static_cast<std::uint8_t>(cfg.host_node)}, cfg.host_heartbeat_ms));
+    hb.find(1)->default_value = v;
+    hb.find(1)->value = v;
+  }
+  return nc;
+}
+
+}  // namespace oegw::cia852

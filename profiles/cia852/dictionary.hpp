@@ -1,0 +1,74 @@
+// The object dictionary of a CiA 852 OE interface module for its configured functional elements
+// (FE): the application objects and default PDOs build_dictionary() adds (CiA 852 clauses 9, 11,
+// 12; only what the configured FEs need), and the NodeConfig the CiA 301 objects are built from.
+//
+//  * 6000h "Read input 8-bit" UNSIGNED8 ro mappable: joystick n memory (sub 2n−1) and buttons
+//    (sub 2n), pedal n memory (sub 20h+n), push-button cluster n (subs 31h+8(n−1) … 38h+8(n−1)).
+//  * 6401h "Read analogue input 16-bit" INTEGER16 ro mappable: joystick n x/y/z (subs 3n−2 … 3n),
+//    pedal n (sub 30h+n), wheel n (sub 40h+n).
+//  * 6120h "Read input 32-bit" INTEGER32 ro mappable: encoder n (sub 80h+n).
+//  * 6423h "Analogue input global interrupt enable" BOOLEAN rw, default FALSE: present when an
+//    FE with analogue inputs (joystick, pedal, wheel) is configured (Tables 1, 2, 4).
+//  * 6200h "Write output 8-bit" UNSIGNED8 rw mappable, 6206h "Error mode output 8-bit" UNSIGNED8
+//    rw default 01h, 6207h "Error value output 8-bit" UNSIGNED8 rw default 0: indicator cluster n
+//    (subs 01h+8(n−1) … 08h+8(n−1)).
+//  * 6411h "Write analogue output 16-bit" INTEGER16 rw mappable, 6443h "Analogue output error
+//    mode" UNSIGNED8 rw default 01h (each channel 0 or 1), 6444h "Analogue output error value
+//    integer" INTEGER32 rw default 0 (INTEGER32 as CiA 401 defines 6444h): display n parameter p
+//    (sub 12(n−1)+p).
+//  Sub-index layout: fe_table.hpp, the one table both this dictionary and the PDOs read. The
+//  ARRAYs hold only the sub-indexes of the configured instances (gaps allowed: a missing sub
+//  answers SDO abort 0609 0011h); sub 0 is the highest sub-index present (CiA 301 §7.4.3), so its
+//  value is not the number of entries. Each entry is named after the FE field(s) it holds
+//  ("joystick 1 x", "joystick 1 memory", "buttons 2 switch 9-16").
+//  * 1000h per Table 8 (device_type.hpp), 1016h (host heartbeat consumer, one entry) when an
+//    output FE exists (§8.3, Annex A), everything else of CiA 301 from canopen::Node.
+//  * PDOs of clause 12 (pdo_defaults.hpp). Tables 32/36 give RPDO mapping sub 0 the access
+//    "const", §8.5 makes variable mapping mandatory: every mapping sub 0 is rw (the core's CiA 301
+//    mapping procedure). The communication records' sub 0 is const (Tables 10, 14, ...).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "canopen/301/object_dictionary.hpp"
+#include "canopen/node.hpp"
+#include "profiles/cia852/fe_table.hpp"
+
+namespace oegw::cia852 {
+
+// 1018h.
+struct Identity {
+  std::uint32_t vendor = 0;
+  std::uint32_t product = 0;
+  std::uint32_t revision = 0;
+  std::uint32_t serial = 0;
+};
+
+struct DeviceConfig {
+  canopen::NodeId node_id{0x20};
+  Identity identity{};
+  std::string device_name = "oegw OE interface module";
+  std::string hardware_version = "1";
+  std::string software_version = "0.1.0";
+  std::uint16_t heartbeat_ms = 1000;     // 1017h default (mandatory, Annex A)
+  std::uint16_t host_node = 0;           // 1016h:01 default host node-ID (0: entry unused)
+  std::uint16_t host_heartbeat_ms = 0;   // 1016h:01 default consumer time
+  std::vector<FeId> fes;
+  std::set<FeId> joysticks_without_buttons;  // affects 1000h only (Table 8)
+  // Output FEs the host may not command (their mapping-file `sources` leave out canopen): an SDO
+  // download of their 6200h/6411h entries is aborted with 0800 0021h ("cannot be transferred
+  // because of local control", CiA 301 Table 22) and their bytes in an RPDO are ignored. Writes
+  // of the gateway itself (Origin::Local: DDS/LCM commands, 6206h/6443h error values) pass.
+  std::set<FeId> host_may_not_command;
+  std::filesystem::path store_path;      // empty: no 1010h/1011h
+};
+
+// Adds the application objects and PDOs to `od` (not the CiA 301 objects the Node adds). Returns
+// the NodeConfig to construct the Node with (1000h, identity, 1016h ...).
+canopen::NodeConfig build_dictionary(const DeviceConfig& cfg, canopen::ObjectDictionary& od);
+
+}  // namespace oegw::cia852

@@ -1,0 +1,15 @@
+// `oegw demo`: the gateway with simulated cab devices and a built-in host, on the virtual bus.
+#pragma once
+
+namespace oegw::gateway {
+
+struct GatewayDemoOptions {
+  double seconds = 6.0;  // how long the operator moves the joysticks before the faults
+  bool frames = false;    // print every frame of both buses
+  bool fast = false;      // simulated clock: deterministic, as fast as the machine goes
+  bool publish = true;    // publish as demo.yaml says (DDS loopback, LCM ttl=0); commands come back
+};
+// The embedded demo: gateway + simulated cab devices + a built-in host, on the virtual bus.
+int run_gateway_demo(const GatewayDemoOptions& options);
+
+}  // namespace oegw::gateway
