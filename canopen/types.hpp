@@ -2,6 +2,7 @@
 // with a COB-ID, a sub-index or an abort code.
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <optional>
@@ -133,6 +134,50 @@ inline constexpr std::uint32_t kSdoRx = 0x600;  // client -> server
 inline constexpr std::uint32_t kHeartbeat = 0x700;
 inline constexpr std::uint32_t kLssMaster = 0x7E5;  // CiA 305 §5: master -> slaves
 inline constexpr std::uint32_t kLssSlave = 0x7E4;   // CiA 305 §5: slave -> master
+
+// CiA 301 §7.3.5, Table 36 "restricted CAN-IDs" (11-bit): no PDO or EMCY may use them (NMT,
+// the reserved ranges, the default SDO, NMT error control and LSS identifiers).
+[[nodiscard]] constexpr bool restricted(std::uint32_t can_id) {
+  return can_id == 0x000 || (can_id >= 0x001 && can_id <= 0x07F) || (can_id >= 0x101 && can_id <= 0x180) ||
+         (can_id >= 0x581 && can_id <= 0x5FF) || (can_id >= 0x601 && can_id <= 0x67F) ||
+         (can_id >= 0x6E0 && can_id <= 0x6FF) || (can_id >= 0x701 && can_id <= 0x77F) ||
+         (can_id >= 0x780 && can_id <= 0x7FF);
+}
+
+// The object entries that hold the COB-ID of a PDO or of the EMCY: RPDO 1400h..15FFh sub 01h and
+// TPDO 1800h..19FFh sub 01h (CiA 301 §7.5.2.35, §7.5.2.37), COB-ID EMCY 1014h sub 00h.
+[[nodiscard]] constexpr bool is_pdo_or_emcy_cob_entry(std::uint16_t index, std::uint8_t sub) {
+  const bool pdo = (index >= 0x1400 && index <= 0x15FF) || (index >= 0x1800 && index <= 0x19FF);
+  return (pdo && sub == 1) || (index == 0x1014 && sub == 0);
+}
+
+// One COB-ID of a node's predefined connection set (CiA 301 §7.3.5, Table 36).
+struct DefaultCobId {
+  std::string_view service;  // "EMCY", "TPDO1" .. "RPDO4", "SDO server->client", ...
+  std::uint32_t cob_id = 0;
+  std::uint16_t index = 0;  // the entry that re-assigns it (is_pdo_or_emcy_cob_entry); 0: none
+  std::uint8_t sub = 0;
+};
+
+// The COB-IDs node `node` (1..127) occupies by default: EMCY, TPDO1/RPDO1 .. TPDO4/RPDO4, the
+// default SDO (server->client, client->server) and NMT error control, in that order.
+[[nodiscard]] constexpr std::array<DefaultCobId, 12> predefined_connection_set(NodeId node) {
+  const std::uint32_t n = node.value();
+  return {{
+      {"EMCY", kEmcy + n, 0x1014, 0},
+      {"TPDO1", kTpdo1 + n, 0x1800, 1},
+      {"RPDO1", kRpdo1 + n, 0x1400, 1},
+      {"TPDO2", kTpdo2 + n, 0x1801, 1},
+      {"RPDO2", kRpdo2 + n, 0x1401, 1},
+      {"TPDO3", kTpdo3 + n, 0x1802, 1},
+      {"RPDO3", kRpdo3 + n, 0x1402, 1},
+      {"TPDO4", kTpdo4 + n, 0x1803, 1},
+      {"RPDO4", kRpdo4 + n, 0x1403, 1},
+      {"SDO server->client", kSdoTx + n, 0, 0},
+      {"SDO client->server", kSdoRx + n, 0, 0},
+      {"heartbeat", kHeartbeat + n, 0, 0},
+  }};
+}
 }  // namespace cob
 
 }  // namespace oegw::canopen

@@ -40,13 +40,6 @@ void copy_bits(const std::uint8_t* src, unsigned so, std::uint8_t* dst, unsigned
   }
 }
 
-// CiA 301 §7.3.5, Table 36 "restricted CAN-IDs": a PDO may not use them (0609 0030h).
-bool restricted_can_id(std::uint32_t id) {
-  return id == 0x000 || (id >= 0x001 && id <= 0x07F) || (id >= 0x101 && id <= 0x180) ||
-         (id >= 0x581 && id <= 0x5FF) || (id >= 0x601 && id <= 0x67F) || (id >= 0x6E0 && id <= 0x6FF) ||
-         (id >= 0x701 && id <= 0x77F) || (id >= 0x780 && id <= 0x7FF);
-}
-
 void install_comm(ObjectDictionary& od, bool transmit, std::uint16_t n, const PdoParameters& p) {
   const std::uint16_t idx = comm_index(transmit, n);
   od.remove(idx);
@@ -366,7 +359,8 @@ SdoAbortCode PdoService::check_comm_write(bool transmit, std::uint16_t n, std::u
       // CiA 301 §7.5.2.35/37: bits 0..29 may not change while the PDO exists (bit 31 = 0).
       if (cur.valid() && next.valid() && (cur.raw() & 0x3FFFFFFFu) != (next.raw() & 0x3FFFFFFFu))
         return SdoAbortCode::InvalidValue;
-      if (next.valid() && !next.extended() && restricted_can_id(next.can_id())) return SdoAbortCode::InvalidValue;
+      // A restricted CAN-ID (cob::restricted) is refused with 0609 0030h.
+      if (next.valid() && !next.extended() && cob::restricted(next.can_id())) return SdoAbortCode::InvalidValue;
       return SdoAbortCode::None;
     }
     case 2: {

@@ -10,8 +10,8 @@
 // every `timer_late` (5 ms: a loop busy with frames that reaches its timers late). Per episode:
 //  * lag_us: the error-value RPDO (203h) queued − the consumer deadline (last heartbeat + 250 ms);
 //  * frames_after: downstream frames handled after the deadline before that RPDO (0: the first
-//    frame after the deadline noticed it, as it must; before the fix the frame path could notice
-//    the time-out and leave the outputs until the next timer wake-up).
+//    frame after the deadline noticed it, as it must: the frame path that notices the time-out
+//    applies the error values itself, it does not leave them to the next timer wake-up).
 // Figures only; nothing asserts on time.
 #include "tests/bench/bench_support.hpp"
 #include "tests/bench/gateway_rig.hpp"
@@ -26,17 +26,8 @@ using namespace oegw;
 using canopen::CanFrame;
 using canopen::TimePoint;
 
-std::string yaml() {
-  return bench::yaml_head() +
-         "subdevices:\n"
-         "  grip1: { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 100 }\n"
-         "  leds: { driver: mcb402, node_id: 0x03, heartbeat_ms: 100 }\n"
-         "functional_elements:\n"
-         "  joystick.1:\n"
-         "    x: { signal: grip1.x, deadband: 2 }\n"
-         "  indicators.1:\n"
-         "    indicator[1..4]: leds.leds[1..4]\n";
-}
+// An elobau grip on joystick.1, an MCB-402's outputs on indicators.1 (tests/fixtures).
+std::string yaml() { return fixtures::mapping_file("grip_and_leds.yaml"); }
 
 // An expedited SDO download to the gateway (node 20h), as the host would send it.
 CanFrame sdo_download(std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t size) {

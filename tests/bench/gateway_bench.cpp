@@ -35,7 +35,7 @@ using clock_type = std::chrono::steady_clock;
 
 std::unique_ptr<bench::GatewayRig> make_rig(int variant) {
   const std::string yaml =
-      variant == 0 ? bench::yaml_one_grip() : bench::yaml_full_set(OEGW_SOURCE_DIR "/subdevices/eds");
+      variant == 0 ? bench::yaml_one_grip() : bench::yaml_full_set();
   auto rig = std::make_unique<bench::GatewayRig>(bench::load_or_throw(yaml, variant == 0 ? "one_grip.yaml" : "full_set.yaml"));
   rig->build_gateway();
   rig->build_rest();

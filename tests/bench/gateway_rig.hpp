@@ -28,75 +28,28 @@
 #include "gateway/gateway.hpp"
 #include "mapping/config.hpp"
 #include "subdevices/sim/sim_bench.hpp"
+#include "tests/fixtures/fixtures.hpp"
 
 namespace oegw::bench {
 
 using namespace std::chrono_literals;
 
-// The upstream part common to every variant (the store path is overridden by the rig).
-inline std::string yaml_head() {
-  return "upstream:\n"
-         "  interface: virtual\n"
-         "  node_id: 0x20\n"
-         "  bitrate: 1000000\n"
-         "  heartbeat_ms: 100\n"
-         "  store: /nonexistent/oegw-bench.store\n"
-         "downstream:\n"
-         "  interface: virtual\n"
-         "  bitrate: 1000000\n";
-}
-
-// Small: one elobau grip (node 11h) feeding joystick.1 (x, y, buttons[1..8]).
-inline std::string yaml_one_grip() {
-  return yaml_head() +
-         "subdevices:\n"
-         "  grip1: { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 100, mandatory: true }\n"
-         "functional_elements:\n"
-         "  joystick.1:\n"
-         "    x: { signal: grip1.x, deadband: 2 }\n"
-         "    y: { signal: grip1.y, deadband: 2 }\n"
-         "    buttons: grip1.buttons[1..8]\n";
-}
-
-// The full FE set of DESIGN.md "Numbers to reach", 48 sub-devices:
+// The rig's mapping files (tests/fixtures/): one_grip.yaml, one elobau grip (node 11h) feeding
+// joystick.1 (x, y, buttons[1..8]); full_fe_set.yaml, the full FE set of DESIGN.md "Numbers to
+// reach", 48 sub-devices:
 //   16 joysticks  <- 16 elobau grips, nodes 11h..20h (x, y, buttons[1..8])
 //    8 wheels     <- wheel_a of grips 1..8
 //   16 pedals     <- 16 generic CiA 401 pedal nodes (generic_pedal.eds, analog[1]), 30h..3Fh
 //    8 encoders   <- 8 Novotechnik CiA 406 encoders (position), 40h..47h
 //    8 clusters   <- 8 generic CiA 401 button-cluster nodes (button_cluster.eds), 50h..57h:
 //                    buttons.n switch[1..16] <- in[1..2], indicators.n indicator[1..8] <- out[1]
-// `eds_dir` holds generic_pedal.eds and button_cluster.eds.
+// Both run the bus at 1 Mbit/s; the rig overrides their store path.
 struct FullSetCounts {
   static constexpr int grips = 16, pedals = 16, encoders = 8, clusters = 8, wheels = 8;
   static constexpr int nodes = grips + pedals + encoders + clusters;
 };
-inline std::string yaml_full_set(const std::string& eds_dir) {
-  std::string y = yaml_head() + "subdevices:\n";
-  for (int i = 1; i <= FullSetCounts::grips; ++i)
-    y += fmt::format("  grip{}: {{ driver: elobau-mfg, node_id: {:#x}, heartbeat_ms: 100, mandatory: true }}\n", i,
-                     0x10 + i);
-  for (int i = 1; i <= FullSetCounts::pedals; ++i)
-    y += fmt::format("  pedal{}: {{ driver: cia401, node_id: {:#x}, heartbeat_ms: 100, options: {{ eds: {}/generic_pedal.eds }} }}\n",
-                     i, 0x2F + i, eds_dir);
-  for (int i = 1; i <= FullSetCounts::encoders; ++i)
-    y += fmt::format("  enc{}: {{ driver: novotechnik-406, node_id: {:#x}, heartbeat_ms: 100 }}\n", i, 0x3F + i);
-  for (int i = 1; i <= FullSetCounts::clusters; ++i)
-    y += fmt::format("  cluster{}: {{ driver: cia401, node_id: {:#x}, heartbeat_ms: 100, options: {{ eds: {}/button_cluster.eds }} }}\n",
-                     i, 0x4F + i, eds_dir);
-  y += "functional_elements:\n";
-  for (int i = 1; i <= FullSetCounts::grips; ++i)
-    y += fmt::format("  joystick.{0}:\n    x: {{ signal: grip{0}.x, deadband: 2 }}\n    y: {{ signal: grip{0}.y, deadband: 2 }}\n"
-                     "    buttons: grip{0}.buttons[1..8]\n",
-                     i);
-  for (int i = 1; i <= FullSetCounts::wheels; ++i)
-    y += fmt::format("  wheel.{0}: {{ position: {{ signal: grip{0}.wheel_a, deadband: 2 }} }}\n", i);
-  for (int i = 1; i <= FullSetCounts::pedals; ++i)
-    y += fmt::format("  pedal.{0}: {{ position: {{ signal: \"pedal{0}.analog[1]\", deadband: 100, fault: 0 }} }}\n", i);
-  for (int i = 1; i <= FullSetCounts::encoders; ++i) y += fmt::format("  encoder.{0}: {{ position: enc{0}.position }}\n", i);
-  for (int i = 1; i <= FullSetCounts::clusters; ++i)
-    y += fmt::format("  buttons.{0}:\n    switch[1..16]: cluster{0}.in[1..2]\n  indicators.{0}:\n    indicator[1..8]: cluster{0}.out[1]\n", i);
-  return y;
-}
+inline std::string yaml_one_grip() { return fixtures::mapping_file("one_grip.yaml"); }
+inline std::string yaml_full_set() { return fixtures::mapping_file("full_fe_set.yaml"); }
 
 inline mapping::Config load_or_throw(const std::string& yaml, const char* name) {
   auto r = mapping::load_config_text(yaml, name, gateway::driver_catalogue());

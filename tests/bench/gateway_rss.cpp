@@ -44,7 +44,7 @@ int main() {
   using namespace std::chrono_literals;
   try {
     const long base_rss = status_kib("VmRSS"), base_heap = heap_kib();
-    const std::string yaml = bench::yaml_full_set(OEGW_SOURCE_DIR "/subdevices/eds");
+    const std::string yaml = bench::yaml_full_set();
     bench::GatewayRig rig(bench::load_or_throw(yaml, "full_set.yaml"));
     rig.build_gateway();
     const long gw_rss = status_kib("VmRSS"), gw_heap = heap_kib();

@@ -28,6 +28,7 @@
 #include "subdevices/sim/elobau_mfg_sim.hpp"
 #include "subdevices/sim/mcb402_sim.hpp"
 #include "subdevices/sim/sim_bench.hpp"
+#include "tests/fixtures/fixtures.hpp"
 
 using namespace oegw::canopen;
 using namespace std::chrono_literals;
@@ -61,60 +62,14 @@ constexpr std::uint32_t kRpdo1 = 0x220;   // indicators 1 (the cluster's lamps)
 constexpr std::uint32_t kRpdo5 = 0x225;   // indicators 2 (MCB-402 OUT0..3)
 constexpr std::uint32_t kRpdo6 = 0x226;   // indicators 3 (elobau LEDs)
 
-// config/demo.yaml with absolute EDS paths, plus the elobau LEDs as indicators.3. `extra` goes
-// into right_grip's flow map (e.g. an identity check).
+// tests/fixtures/demo_cab.yaml: config/demo.yaml's devices and FEs, plus the elobau LEDs as
+// indicators.3. `right_grip_extra` goes into right_grip's flow map, after "mandatory: true" (e.g.
+// ", identity: { vendor_id: 0x99 }").
 std::string mapping_yaml(const std::string& right_grip_extra = "") {
-  const std::string eds = std::string(OEGW_SOURCE_DIR) + "/subdevices/eds/";
-  return R"(upstream:
-  interface: virtual
-  node_id: 0x20
-  bitrate: 250000
-  identity: { vendor_id: 0x00000000, product_code: 0x00000852, revision: 0x00010000, serial: 1 }
-  heartbeat_ms: 100
-downstream: { interface: virtual, bitrate: 250000 }
-subdevices:
-  right_grip: { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 100, mandatory: true)" +
-         right_grip_extra + R"( }
-  left_grip:  { driver: mcb402, node_id: 0x03, heartbeat_ms: 100 }
-  pedal:
-    driver: cia401
-    node_id: 0x30
-    heartbeat_ms: 100
-    options: { eds: )" +
-         eds + R"(generic_pedal.eds }
-  seat_knob:
-    driver: novotechnik-406
-    node_id: 0x7F
-    sdo:
-      - { index: 0x1800, sub_index: 5, value: 20, type: u16 }
-  cluster:
-    driver: cia401
-    node_id: 0x31
-    options: { eds: )" +
-         eds + R"(button_cluster.eds }
-functional_elements:
-  joystick.1:
-    x: { signal: right_grip.x, deadband: 2 }
-    y: { signal: right_grip.y, deadband: 2 }
-    buttons: right_grip.buttons[1..8]
-  wheel.1: { position: { signal: right_grip.wheel_a, deadband: 2 } }
-  joystick.2:
-    x: { signal: left_grip.x, deadband: 300 }
-    y: { signal: left_grip.y, deadband: 300, invert: true }
-    z: { signal: left_grip.z, deadband: 300, clamp: [-32767, 32767] }
-    buttons: left_grip.buttons[1..7]
-  pedal.1:
-    position: { signal: "pedal.analog[1]", deadband: 100, fault: 0 }
-  encoder.1: { position: seat_knob.position }
-  buttons.1:
-    switch[1..8]: cluster.in[1]
-  indicators.1:
-    indicator[1..8]: cluster.out[1]
-  indicators.2:
-    indicator[1..4]: left_grip.leds[1..4]
-  indicators.3:
-    indicator[1..2]: right_grip.leds[1..2]
-)";
+  std::string yaml = oegw::fixtures::mapping_file("demo_cab.yaml");
+  const std::string end = "mandatory: true";
+  yaml.insert(yaml.find(end) + end.size(), right_grip_extra);
+  return yaml;
 }
 
 std::int16_t i16(const CanFrame& f, std::size_t at) { return static_cast<std::int16_t>(get_u16(&f.data[at])); }

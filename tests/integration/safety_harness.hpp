@@ -37,6 +37,7 @@
 #include "subdevices/sim/mcb402_sim.hpp"
 #include "subdevices/sim/novotechnik_406_sim.hpp"
 #include "subdevices/sim/sim_bench.hpp"
+#include "tests/fixtures/fixtures.hpp"
 
 namespace oegw::testing::safety {
 
@@ -65,7 +66,7 @@ inline constexpr FamilyId kFamilies[] = {FamilyId::Elobau, FamilyId::Mcb402, Fam
 // move its input.
 struct Family {
   FamilyId id;
-  std::string yaml;        // the mapping file
+  std::string yaml;        // the mapping file (tests/fixtures/safety_<family>.yaml)
   std::string dut;         // the sub-device's name
   std::uint8_t node = 0;
   FeId fe;                 // its input FE
@@ -86,18 +87,7 @@ struct Family {
 inline constexpr std::uint8_t kGwNode = 0x20;
 inline constexpr std::uint32_t kUpRpdo1 = 0x220;
 
-inline std::string upstream_yaml() {
-  return R"(upstream:
-  interface: virtual
-  node_id: 0x20
-  identity: { vendor_id: 0, product_code: 0x852, revision: 0x10000, serial: 1 }
-  heartbeat_ms: 100
-downstream: { interface: virtual }
-)";
-}
-
 inline Family make_family(FamilyId id) {
-  const std::string eds = std::string(OEGW_SOURCE_DIR) + "/subdevices/eds/";
   Family f;
   f.id = id;
   auto bits = [](UpFe& fe, const std::string& base, std::size_t n, std::size_t byte, std::uint8_t node,
@@ -109,16 +99,7 @@ inline Family make_family(FamilyId id) {
     case FamilyId::Elobau: {
       // elobau MFG: TPDO #0 180h+id (x, y, wheels, buttons), #1 280h+id (channel 2); cycle_ms 100
       // (the driver's default event timer) -> 300 ms. RPDO #0 200h+id, 2 bits per LED (Table 9/13).
-      f.yaml = upstream_yaml() + R"(subdevices:
-  grip: { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 100 }
-functional_elements:
-  joystick.1:
-    x: { signal: grip.x, deadband: 2 }
-    y: { signal: grip.y, deadband: 2 }
-    buttons: grip.buttons[1..8]
-  indicators.1:
-    indicator[1..2]: grip.leds[1..2]
-)";
+      f.yaml = fixtures::mapping_file("safety_elobau.yaml");
       f.dut = "grip";
       f.node = 0x11;
       f.fe = {FeKind::Joystick, 1};
@@ -142,17 +123,7 @@ functional_elements:
     case FamilyId::Mcb402: {
       // MCB-402: TPDO1 183h buttons (button_timer_ms 100 -> 300 ms), TPDO2 283h axes
       // (event_timer_ms 20 -> 60 ms); RPDO1 203h byte 0 bits 0..3 = OUT0..3.
-      f.yaml = upstream_yaml() + R"(subdevices:
-  grip: { driver: mcb402, node_id: 0x03, heartbeat_ms: 100 }
-functional_elements:
-  joystick.1:
-    x: { signal: grip.x, deadband: 300 }
-    y: { signal: grip.y, deadband: 300 }
-    z: { signal: grip.z, deadband: 300 }
-    buttons: grip.buttons[1..7]
-  indicators.1:
-    indicator[1..4]: grip.leds[1..4]
-)";
+      f.yaml = fixtures::mapping_file("safety_mcb402.yaml");
       f.dut = "grip";
       f.node = 0x03;
       f.fe = {FeKind::Joystick, 1};
@@ -176,11 +147,7 @@ functional_elements:
     }
     case FamilyId::Novotechnik: {
       // Novotechnik CiA 406: TPDO1 1FFh position (event_timer_ms 10 -> 30 ms). Encoder 1 = TPDO 28.
-      f.yaml = upstream_yaml() + R"(subdevices:
-  knob: { driver: novotechnik-406, node_id: 0x7F, heartbeat_ms: 100 }
-functional_elements:
-  encoder.1: { position: knob.position }
-)";
+      f.yaml = fixtures::mapping_file("safety_novotechnik_406.yaml");
       f.dut = "knob";
       f.node = 0x7F;
       f.fe = {FeKind::Encoder, 1};
@@ -200,16 +167,7 @@ functional_elements:
     case FamilyId::Cia401Pedal: {
       // generic_pedal.eds: TPDO1 1B0h = 6401h:01, 6401h:02, 6000h:01, event timer 50 -> 150 ms.
       // Pedal 1 = TPDO 20 (1813h): memory byte, then position INTEGER16.
-      f.yaml = upstream_yaml() + R"(subdevices:
-  pedal:
-    driver: cia401
-    node_id: 0x30
-    heartbeat_ms: 100
-    options: { eds: )" + eds + R"(generic_pedal.eds }
-functional_elements:
-  pedal.1:
-    position: { signal: "pedal.analog[1]", deadband: 100 }
-)";
+      f.yaml = fixtures::mapping_file("safety_cia401_pedal.yaml");
       f.dut = "pedal";
       f.node = 0x30;
       f.fe = {FeKind::FootPedal, 1};
@@ -230,18 +188,7 @@ functional_elements:
     case FamilyId::Cia401Cluster: {
       // button_cluster.eds: TPDO1 1B1h = 6000h:01, 6000h:02, event timer 0 (on change only: no
       // deadline); RPDO1 231h = 6200h:01, 6200h:02, 6411h:01. Cluster 1 = TPDO 34 (1821h).
-      f.yaml = upstream_yaml() + R"(subdevices:
-  cluster:
-    driver: cia401
-    node_id: 0x31
-    heartbeat_ms: 100
-    options: { eds: )" + eds + R"(button_cluster.eds }
-functional_elements:
-  buttons.1:
-    switch[1..8]: cluster.in[1]
-  indicators.1:
-    indicator[1..8]: cluster.out[1]
-)";
+      f.yaml = fixtures::mapping_file("safety_cia401_cluster.yaml");
       f.dut = "cluster";
       f.node = 0x31;
       f.fe = {FeKind::ButtonCluster, 1};

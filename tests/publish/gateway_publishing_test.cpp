@@ -21,6 +21,7 @@
 #include "private_network.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "../integration/virtual_network.hpp"
+#include "tests/fixtures/fixtures.hpp"
 
 using namespace oegw;
 using namespace oegw::canopen;
@@ -28,26 +29,6 @@ using namespace std::chrono_literals;
 
 namespace {
 
-constexpr const char* kYaml = R"(
-upstream: { interface: virtual, node_id: 0x20 }
-downstream: { interface: virtual }
-publish:
-  period_ms: 50
-  lcm: { url: "udpm://224.0.0.1:7667?ttl=0", channel_prefix: OEGW_ }
-  dds: { domain: 0, partition: oegw-gateway-publishing, network: loopback }
-subdevices:
-  grip: { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 100 }
-functional_elements:
-  joystick.1:
-    x: { signal: grip.x, deadband: 2 }
-    y: { signal: grip.y, deadband: 2 }
-  indicators.1:
-    sources: [lcm]                    # the machine application over LCM only
-    indicator[1..2]: grip.leds[1..2]
-  indicators.2:
-    sources: [canopen, dds]           # LCM commands are refused
-    indicator[1..2]: grip.leds[3..4]
-)";
 
 struct App {  // the machine application: its own LCM instance
   lcm_t* lcm = lcm_create("udpm://224.0.0.1:7667?ttl=0");
@@ -73,7 +54,8 @@ bool wait_readable(int fd, int ms) {
 }
 
 TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyTheLedsOfFesListingThem) {
-  auto loaded = mapping::load_config_text(kYaml, "test.yaml", gateway::driver_catalogue());
+  auto loaded = mapping::load_config_text(fixtures::mapping_file("publishing_grip.yaml"), "test.yaml",
+                                           gateway::driver_catalogue());
   ASSERT_TRUE(loaded.ok()) << loaded.error_text();
   oegw::testing::VirtualNetwork down, up;
   subdevices::sim::SimBench bench(down.sink("sims"));

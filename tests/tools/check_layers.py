@@ -76,6 +76,10 @@ ALLOWED = {
     ("subdevices/sim/sim_registry.hpp", "subdevices/device_spec.hpp"),
     # The publishers publish the FE samples (header-only types of the gateway's FE model).
     ("gateway/publish", "gateway/fe_samples.hpp"),
+    # The rule for publish.lcm.url (224.0.0.0/24, ttl=0) lives beside the LCM publisher; the
+    # mapping file applies it at load time (gateway/publish/lcm_url.hpp: standard library only,
+    # its own library oegw_lcm_url, no liblcm).
+    ("mapping/sections/publish.cpp", "gateway/publish/lcm_url.hpp"),
 }
 
 SOURCE_SUFFIXES = (".cpp", ".hpp", ".h", ".c", ".cpp.in", ".hpp.in", ".inl")

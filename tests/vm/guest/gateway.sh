@@ -19,61 +19,8 @@ mkdir -p "$dir"
 t0=$(date +%s.%N)
 elapsed() { awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }'; }
 
-# The mapping file: demo.yaml with real interfaces, a store under /run and absolute EDS paths.
-# The sub-devices' heartbeat is slower than the demo's (TCG guest: keep timing margins wide).
-cat >"$dir/oegw.yaml" <<YAML
-upstream:
-  interface: vcan0
-  node_id: 0x20
-  bitrate: 250000
-  identity: { vendor_id: 0x00000000, product_code: 0x00000852, revision: 0x00010000, serial: 1 }
-  heartbeat_ms: 200
-  store: $dir/upstream.store
-downstream:
-  interface: vcan1
-  bitrate: 250000
-subdevices:
-  right_grip: { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 200, heartbeat_timeout_ms: 600, mandatory: true }
-  left_grip:  { driver: mcb402, node_id: 0x03, heartbeat_ms: 200, heartbeat_timeout_ms: 600 }
-  pedal:
-    driver: cia401
-    node_id: 0x30
-    heartbeat_ms: 200
-    heartbeat_timeout_ms: 600
-    options: { eds: $src/subdevices/eds/generic_pedal.eds }
-  seat_knob:
-    driver: novotechnik-406
-    node_id: 0x7F
-    heartbeat_ms: 200
-    heartbeat_timeout_ms: 600
-    pdo_timeout_ms: 200  # its default deadline, 3 x its 10 ms event timer, gave false stale faults in TCG
-  cluster:
-    driver: cia401
-    node_id: 0x31
-    heartbeat_ms: 200
-    heartbeat_timeout_ms: 600
-    options: { eds: $src/subdevices/eds/button_cluster.eds }
-functional_elements:
-  joystick.1:
-    x: { signal: right_grip.x, deadband: 2 }
-    y: { signal: right_grip.y, deadband: 2 }
-    buttons: right_grip.buttons[1..8]
-  wheel.1: { position: { signal: right_grip.wheel_a, deadband: 2 } }
-  joystick.2:
-    x: { signal: left_grip.x, deadband: 300 }
-    y: { signal: left_grip.y, deadband: 300, invert: true }
-    z: { signal: left_grip.z, deadband: 300, clamp: [-32767, 32767] }
-    buttons: left_grip.buttons[1..7]
-  pedal.1:
-    position: { signal: "pedal.analog[1]", deadband: 100, fault: 0 }
-  encoder.1: { position: seat_knob.position }
-  buttons.1:
-    switch[1..8]: cluster.in[1]
-  indicators.1:
-    indicator[1..8]: cluster.out[1]
-  indicators.2:
-    indicator[1..4]: left_grip.leds[1..4]
-YAML
+# The mapping file: tests/fixtures/vm_gateway.yaml (its comments say why its timings are what they are).
+mapping_fixture vm_gateway.yaml "$src" "$dir" >"$dir/oegw.yaml" || { fail "cannot read tests/fixtures/vm_gateway.yaml"; exit 1; }
 
 "$oegw" check "$dir/oegw.yaml" >/tmp/check.out 2>&1
 rc=$?

@@ -23,66 +23,8 @@ mkdir -p "$dir"
 t0=$(date +%s.%N)
 elapsed() { awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }'; }
 
-# Timings are this file's: the grips' heartbeat 100 ms with a 400 ms consumer time (TCG guest:
-# four periods of margin), the elobau TPDO cycle 100 ms (freshness deadline 3 x 100 ms), the
-# MCB-402 axes every 50 ms (deadline 150 ms; the default 20 ms leaves a TCG guest little margin).
-# The encoder keeps its 10 ms event timer (frame load) but gets pdo_timeout_ms 200: its default
-# deadline of 30 ms gave false stale faults in a TCG guest. Joystick 2's deadband is wide (2000):
-# the MCB-402 sends its sweeping axes every 50 ms, about 2000 apart near zero, and the neutral
-# interlock must see x in the deadband before joystick 2 goes live (300 took up to a minute).
-cat >"$dir/oegw.yaml" <<YAML
-upstream:
-  interface: vcan0
-  node_id: 0x20
-  bitrate: 250000
-  identity: { vendor_id: 0x00000000, product_code: 0x00000852, revision: 0x00010000, serial: 1 }
-  heartbeat_ms: 200
-  store: $dir/upstream.store
-downstream:
-  interface: vcan1
-  bitrate: 250000
-subdevices:
-  right_grip:
-    driver: elobau-mfg
-    node_id: 0x11
-    heartbeat_ms: 100
-    heartbeat_timeout_ms: 400
-    mandatory: true
-    options: { cycle_ms: 100 }
-  left_grip:
-    driver: mcb402
-    node_id: 0x03
-    heartbeat_ms: 100
-    heartbeat_timeout_ms: 400
-    options: { event_timer_ms: 50, button_timer_ms: 100 }
-  pedal:
-    driver: cia401
-    node_id: 0x30
-    heartbeat_ms: 200
-    heartbeat_timeout_ms: 600
-    options: { eds: $src/subdevices/eds/generic_pedal.eds }
-  seat_knob:
-    driver: novotechnik-406
-    node_id: 0x7F
-    heartbeat_ms: 200
-    heartbeat_timeout_ms: 600
-    pdo_timeout_ms: 200
-functional_elements:
-  joystick.1:
-    x: { signal: right_grip.x, deadband: 2 }
-    y: { signal: right_grip.y, deadband: 2 }
-    buttons: right_grip.buttons[1..8]
-  joystick.2:
-    x: { signal: left_grip.x, deadband: 2000 }
-    y: { signal: left_grip.y, deadband: 2000 }
-    z: { signal: left_grip.z, deadband: 2000, clamp: [-32767, 32767] }
-    buttons: left_grip.buttons[1..7]
-  pedal.1:
-    position: { signal: "pedal.analog[1]", deadband: 100, fault: 0 }
-  encoder.1: { position: seat_knob.position }
-  indicators.1:
-    indicator[1..4]: left_grip.leds[1..4]
-YAML
+# The mapping file: tests/fixtures/vm_safety.yaml (its comments say why its timings are what they are).
+mapping_fixture vm_safety.yaml "$src" "$dir" >"$dir/oegw.yaml" || { fail "cannot read tests/fixtures/vm_safety.yaml"; exit 1; }
 
 "$oegw" check "$dir/oegw.yaml" >/tmp/check.out 2>&1
 rc=$?

@@ -1,0 +1,102 @@
+#include "gateway/publish/lcm_url.hpp"
+
+#include <array>
+
+namespace oegw::gateway {
+
+namespace {
+
+constexpr bool is_digit(char c) { return c >= '0' && c <= '9'; }
+constexpr bool is_ascii_space(char c) {
+  return c == ' ' || c == '\t' || c == '\n' || c == '\v' || c == '\f' || c == '\r';
+}
+constexpr int digit_value(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return 99;
+}
+
+// One part of an address as strtoul(..., 0) reads it: 0x-hex, 0-octal or decimal. `at` moves
+// past the digits; nullopt beyond 32 bits.
+std::optional<std::uint64_t> address_part(std::string_view s, std::size_t& at) {
+  int base = 10;
+  if (s[at] == '0') {
+    base = 8;
+    if (at + 2 < s.size() && (s[at + 1] == 'x' || s[at + 1] == 'X') && digit_value(s[at + 2]) < 16) {
+      base = 16;
+      at += 2;
+    }
+  }
+  std::uint64_t v = 0;
+  bool overflow = false;
+  while (at < s.size() && digit_value(s[at]) < base) {
+    v = v * static_cast<std::uint64_t>(base) + static_cast<std::uint64_t>(digit_value(s[at]));
+    if (v > 0xFFFFFFFFu) {
+      overflow = true;
+      v = 0xFFFFFFFFu + 1u;
+    }
+    ++at;
+  }
+  if (overflow) return std::nullopt;
+  return v;
+}
+
+}  // namespace
+
+std::optional<std::uint32_t> parse_inet_aton(std::string_view text) {
+  text = text.substr(0, text.find('\0'));
+  static constexpr std::array<std::uint64_t, 4> kLastPartMax = {0xFFFFFFFFu, 0xFFFFFFu, 0xFFFFu, 0xFFu};
+  std::array<std::uint32_t, 3> parts{};
+  std::size_t n = 0;  // parts before the last
+  std::size_t at = 0;
+  std::uint64_t last = 0;
+  for (;;) {
+    if (at >= text.size() || !is_digit(text[at])) return std::nullopt;
+    const auto v = address_part(text, at);
+    if (!v) return std::nullopt;
+    if (at < text.size() && text[at] == '.') {
+      if (n > 2 || *v > 0xFF) return std::nullopt;
+      parts[n++] = static_cast<std::uint32_t>(*v);
+      ++at;
+      continue;
+    }
+    last = *v;
+    break;
+  }
+  if (at < text.size() && !is_ascii_space(text[at])) return std::nullopt;
+  if (last > kLastPartMax[n]) return std::nullopt;
+  std::uint32_t address = static_cast<std::uint32_t>(last);
+  for (std::size_t i = 0; i < n; ++i) address |= parts[i] << (24 - 8 * i);
+  return address;
+}
+
+std::string dotted_quad(std::uint32_t a) {
+  return std::to_string(a >> 24) + "." + std::to_string((a >> 16) & 0xFF) + "." + std::to_string((a >> 8) & 0xFF) +
+         "." + std::to_string(a & 0xFF);
+}
+
+std::optional<LinkLocalSend> link_local_send(std::string_view url) {
+  constexpr std::string_view kScheme = "udpm://";
+  if (url.substr(0, kScheme.size()) != kScheme) return std::nullopt;
+  const auto q = url.find('?');
+  const auto host_port =
+      url.substr(kScheme.size(), q == std::string_view::npos ? std::string_view::npos : q - kScheme.size());
+  const auto host = host_port.substr(0, host_port.find(':'));
+  const auto group = parse_inet_aton(host);
+  if (!group || (*group & 0xFFFFFF00u) != 0xE0000000u) return std::nullopt;
+  std::string_view ttl = "0";
+  if (q != std::string_view::npos) {
+    std::string_view options = url.substr(q + 1);
+    while (!options.empty()) {
+      const auto amp = options.find('&');
+      const auto kv = options.substr(0, amp);
+      if (kv.substr(0, 4) == "ttl=") ttl = kv.substr(4);
+      options = amp == std::string_view::npos ? std::string_view() : options.substr(amp + 1);
+    }
+  }
+  if (ttl == "0") return std::nullopt;
+  return LinkLocalSend{dotted_quad(*group), std::string(ttl)};
+}
+
+}  // namespace oegw::gateway

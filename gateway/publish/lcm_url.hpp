@@ -1,0 +1,38 @@
+// What an LCM URL (publish.lcm.url) reaches, read the way liblcm reads it: the one rule the
+// mapping file applies to it. Standard library only, so that the mapping file's checks need no
+// liblcm.
+//
+// The groups 224.0.0.0/24 reach every host of the link (RFC 5771 §4, "Local Network Control
+// Block"). The gateway's host-local default udpm://224.0.0.1:7667?ttl=0 uses 224.0.0.1 because
+// the kernel never sends an IGMP report for it (RFC 2236 §6, RFC 3376 §5), so nothing at all
+// leaves the host; but with a ttl above 0 every device on the cab network would receive each
+// sample. A network deployment uses an administratively scoped group (239.x.x.x, RFC 2365).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+namespace oegw::gateway {
+
+// A udpm:// URL that sends to a link-local group with a ttl other than 0.
+struct LinkLocalSend {
+  std::string group;  // dotted quad, "224.0.0.1"
+  std::string ttl;    // as written, "1"
+};
+
+// The URL's link-local send, or nullopt when the URL is not udpm://, its group is not in
+// 224.0.0.0/24, or every ttl option reads exactly "0" (the last one counts, as for liblcm;
+// absent means 0).
+[[nodiscard]] std::optional<LinkLocalSend> link_local_send(std::string_view url);
+
+// An IPv4 address in the forms inet_aton(3) accepts (liblcm parses the group with it): "a.b.c.d",
+// "a.b.c" (c 16 bits), "a.b" (b 24 bits), "a" (32 bits), each part decimal, 0-octal or 0x-hex,
+// the text ending at a NUL or an ASCII white space. Host byte order.
+[[nodiscard]] std::optional<std::uint32_t> parse_inet_aton(std::string_view text);
+
+// "224.0.0.1" for 0xE0000001.
+[[nodiscard]] std::string dotted_quad(std::uint32_t address);
+
+}  // namespace oegw::gateway

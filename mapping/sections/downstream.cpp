@@ -1,0 +1,14 @@
+// The `downstream` section: the sub-devices' bus, of which the gateway is the master.
+#include "mapping/sections/sections.hpp"
+
+namespace oegw::mapping::sections {
+
+void read_downstream(YamlReader& r, const MapEntry& sec, DownstreamConfig& d) {
+  d.where = r.loc(sec.key);
+  const auto es = r.entries(sec.value, "downstream", {"interface", "bitrate"}, "a map with interface, bitrate");
+  if (const auto* e = r.find(es, "interface"))
+    if (auto s = r.string(*e, "interface")) d.interface = *s;
+  r.bitrate(es, "bitrate", d.bitrate);
+}
+
+}  // namespace oegw::mapping::sections

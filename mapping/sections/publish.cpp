@@ -1,0 +1,58 @@
+// The `publish` section: the FE samples on DDS and LCM, and the commands coming back.
+#include "gateway/publish/lcm_url.hpp"
+#include "mapping/sections/sections.hpp"
+
+namespace oegw::mapping::sections {
+
+namespace {
+
+// A section written is enabled unless it says `enabled: false`.
+void read_dds(YamlReader& r, const MapEntry& e, DdsConfig& d) {
+  d.enabled = true;
+  const auto ds = r.entries(e.value, "publish dds", {"enabled", "domain", "partition", "network"},
+                            "a map with enabled, domain, partition, network");
+  if (const auto* x = r.find(ds, "enabled"))
+    if (auto b = r.boolean(*x, "enabled")) d.enabled = *b;
+  r.set_int(ds, "domain", "domain", 0, 232, d.domain);
+  if (const auto* x = r.find(ds, "partition"))
+    if (auto s = r.string(*x, "partition")) d.partition = *s;
+  if (const auto* x = r.find(ds, "network"))
+    if (auto s = r.string(*x, "network")) d.network = *s;
+}
+
+// The one rule for the URL (gateway/publish/lcm_url.hpp): no link-local group beyond this host.
+void check_lcm_url(YamlReader& r, const MapEntry& e) {
+  const std::string url = e.value.Scalar();
+  const auto send = gateway::link_local_send(url);
+  if (!send) return;
+  r.error(e.value, "publish lcm url '" + url + "' sends to the link-local group " + send->group + " with ttl '" +
+                       send->ttl +
+                       "', so every host on the network would receive it; expected ttl=0 (this host only) "
+                       "or a 239.x.x.x group for a network, e.g. udpm://239.255.76.67:7667?ttl=1");
+}
+
+void read_lcm(YamlReader& r, const MapEntry& e, LcmConfig& l) {
+  l.enabled = true;
+  const auto ls = r.entries(e.value, "publish lcm", {"enabled", "url", "channel_prefix"},
+                            "a map with enabled, url, channel_prefix");
+  if (const auto* x = r.find(ls, "enabled"))
+    if (auto b = r.boolean(*x, "enabled")) l.enabled = *b;
+  if (const auto* x = r.find(ls, "url"))
+    if (auto s = r.string(*x, "url")) {
+      l.url = *s;
+      check_lcm_url(r, *x);
+    }
+  if (const auto* x = r.find(ls, "channel_prefix"))
+    if (auto s = r.string(*x, "channel_prefix")) l.channel_prefix = *s;
+}
+
+}  // namespace
+
+void read_publish(YamlReader& r, const MapEntry& sec, PublishConfig& p) {
+  const auto es = r.entries(sec.value, "publish", {"period_ms", "dds", "lcm"}, "a map with period_ms, dds, lcm");
+  r.set_int(es, "period_ms", "period_ms", 1, 60000, p.period_ms);
+  if (const auto* e = r.find(es, "dds")) read_dds(r, *e, p.dds);
+  if (const auto* e = r.find(es, "lcm")) read_lcm(r, *e, p.lcm);
+}
+
+}  // namespace oegw::mapping::sections

@@ -1,0 +1,23 @@
+// The parsers of the mapping file's top-level sections (mapping/README.md documents each key).
+// Each reads its section through a YamlReader, which collects the errors, and fills its part of
+// the Config; load_config() (config.cpp) calls them in this order, since the functional elements
+// refer to the sub-devices.
+#pragma once
+
+#include "mapping/config.hpp"
+#include "mapping/yaml_reader.hpp"
+
+namespace oegw::mapping::sections {
+
+void read_upstream(YamlReader& r, const MapEntry& section, UpstreamConfig& out);      // upstream.cpp
+void read_downstream(YamlReader& r, const MapEntry& section, DownstreamConfig& out);  // downstream.cpp
+void read_publish(YamlReader& r, const MapEntry& section, PublishConfig& out);        // publish.cpp
+// subdevices.cpp; the signals of each come from `catalogue`.
+void read_subdevices(YamlReader& r, const MapEntry& section, const SignalCatalogue& catalogue,
+                     std::vector<SubdeviceConfig>& out);
+// functional_elements.cpp; the fields' signals are looked up in `config.subdevices`.
+void read_functional_elements(YamlReader& r, const MapEntry& section, Config& config);
+// functional_elements.cpp: an output FE whose only sources the publish section leaves off.
+void check_command_sources_reachable(YamlReader& r, const Config& config);
+
+}  // namespace oegw::mapping::sections

@@ -1,0 +1,236 @@
+// The `subdevices` section: the nodes on the downstream bus, their drivers, supervision times,
+// identity checks, SDO writes at boot and driver options; their signals from the catalogue.
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <map>
+#include <utility>
+
+#include "mapping/sections/cob_ids.hpp"
+#include "mapping/sections/sections.hpp"
+
+namespace oegw::mapping::sections {
+
+namespace {
+
+using canopen::DataType;
+
+constexpr std::array<std::string_view, 4> kFamilies = {"elobau-mfg", "mcb402", "novotechnik-406", "cia401"};
+
+const std::vector<std::string_view> kSubdeviceKeys = {
+    "driver", "node_id", "heartbeat_ms", "heartbeat_timeout_ms", "pdo_timeout_ms", "mandatory", "identity", "sdo",
+    "options"};
+
+// The types an `sdo` write may name, with their value ranges.
+struct DataTypeName {
+  std::string_view name;
+  DataType type;
+  std::int64_t min, max;
+};
+constexpr std::array<DataTypeName, 6> kSdoTypes = {{
+    {"u8", DataType::Unsigned8, 0, 0xFF},
+    {"u16", DataType::Unsigned16, 0, 0xFFFF},
+    {"u32", DataType::Unsigned32, 0, 0xFFFFFFFF},
+    {"i8", DataType::Integer8, -128, 127},
+    {"i16", DataType::Integer16, -32768, 32767},
+    {"i32", DataType::Integer32, std::numeric_limits<std::int32_t>::min(), std::numeric_limits<std::int32_t>::max()},
+}};
+
+bool good_name(const std::string& name) {
+  return !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
+    return std::islower(static_cast<unsigned char>(c)) || std::isdigit(static_cast<unsigned char>(c)) || c == '_';
+  });
+}
+
+// heartbeat_ms, heartbeat_timeout_ms (longer than the heartbeat), pdo_timeout_ms, and proof of
+// life: without a heartbeat only fresh PDOs show the node is there.
+void read_supervision(YamlReader& r, const std::vector<MapEntry>& ks, const std::string& what, SubdeviceConfig& s) {
+  r.set_int(ks, "heartbeat_ms", "heartbeat_ms", 0, 65535, s.heartbeat_ms);
+  r.set_int(ks, "heartbeat_timeout_ms", "heartbeat_timeout_ms", 0, 65535, s.heartbeat_timeout_ms);
+  if (const auto* t = r.find(ks, "heartbeat_timeout_ms");
+      t && s.heartbeat_timeout_ms != 0 && s.heartbeat_ms != 0 && s.heartbeat_timeout_ms <= s.heartbeat_ms)
+    r.error(t->value, "heartbeat_timeout_ms " + t->value.Scalar() + " is not longer than heartbeat_ms " +
+                          std::to_string(s.heartbeat_ms) + "; expected more than " + std::to_string(s.heartbeat_ms) +
+                          " (or 0 for 1.5 x heartbeat_ms)");
+  r.set_int(ks, "pdo_timeout_ms", "pdo_timeout_ms", 0, 65535, s.pdo_timeout_ms);
+  if (const auto* h = r.find(ks, "heartbeat_ms"); h && s.heartbeat_ms == 0 && s.pdo_timeout_ms == 0)
+    r.error(h->value, "heartbeat_ms 0 leaves " + what +
+                          " without proof of life; expected a heartbeat (heartbeat_ms > 0) or pdo_timeout_ms > 0");
+}
+
+// The 1000h/1018h values checked at boot; each one optional.
+void read_identity(YamlReader& r, const MapEntry& e, const std::string& what, subdevices::ExpectedIdentity& id) {
+  const auto ids =
+      r.entries(e.value, what + " identity", {"device_type", "vendor_id", "product_code", "revision", "serial"},
+                "a map with device_type, vendor_id, product_code, revision, serial");
+  auto opt = [&](std::string_view k, std::optional<std::uint32_t>& out) {
+    if (const auto* x = r.find(ids, k))
+      if (auto v = r.integer(*x, k, 0, 0xFFFFFFFF, true)) out = static_cast<std::uint32_t>(*v);
+  };
+  opt("device_type", id.device_type);
+  opt("vendor_id", id.vendor_id);
+  opt("product_code", id.product_code);
+  opt("revision", id.revision);
+  opt("serial", id.serial);
+}
+
+// The driver's options, name -> one scalar each; the driver judges them (read_signals).
+void read_options(YamlReader& r, const MapEntry& e, const std::string& what, subdevices::DriverOptions& options) {
+  for (const auto& x : r.entries(e.value, what + " options", {}, "a map of the driver's options")) {
+    if (!x.value.IsScalar()) {
+      r.error(x.value, "found " + node_kind(x.value) + " for option '" + x.name + "'; expected a single value");
+      continue;
+    }
+    options.values.emplace_back(x.name, x.value.Scalar());
+  }
+}
+
+const DataTypeName* sdo_type(YamlReader& r, const MapEntry& te) {
+  const std::string t = te.value.IsScalar() ? te.value.Scalar() : "";
+  const DataTypeName* type = nullptr;
+  for (const auto& d : kSdoTypes)
+    if (d.name == t) type = &d;
+  if (!type) {
+    std::vector<std::string_view> names;
+    for (const auto& d : kSdoTypes) names.push_back(d.name);
+    r.error(te.value,
+            "found " + node_kind(te.value) + " for type; expected one of " + join(names) + did_you_mean(t, names));
+  }
+  return type;
+}
+
+// One `{ index, sub_index, value, type }` write; nullopt (errors reported) unless all four fit.
+std::optional<SdoWriteConfig> read_sdo_write(YamlReader& r, const YAML::Node& item) {
+  SdoWriteConfig w;
+  w.where = r.loc(item);
+  const auto ks = r.entries(item, "an sdo write", {"index", "sub_index", "value", "type"},
+                            "a map with index, sub_index, value, type");
+  if (!item.IsMap()) return std::nullopt;
+  bool good = true;
+  auto need = [&](std::string_view k, std::string_view expected) -> const MapEntry* {
+    const auto* e = r.find(ks, k);
+    if (!e) {
+      r.missing(item, k, "an sdo write", expected);
+      good = false;
+    }
+    return e;
+  };
+  const auto* ie = need("index", "an object index 0x1000..0xFFFF");
+  const auto* se = need("sub_index", "a sub-index 0..255");
+  const auto* ve = need("value", "the value to write");
+  const auto* te = need("type", "one of u8, u16, u32, i8, i16, i32");
+  if (ie) {
+    if (auto v = r.integer(*ie, "index", 0x1000, 0xFFFF, true))
+      w.index = static_cast<std::uint16_t>(*v);
+    else
+      good = false;
+  }
+  if (se) {
+    if (auto v = r.integer(*se, "sub_index", 0, 255, true))
+      w.sub_index = static_cast<std::uint8_t>(*v);
+    else
+      good = false;
+  }
+  const DataTypeName* type = te ? sdo_type(r, *te) : nullptr;
+  if (te && !type) good = false;
+  if (type) w.type = type->type;
+  if (ve && type) {
+    if (auto v = r.integer(*ve, std::string("value of type ") + std::string(type->name), type->min, type->max,
+                           type->min == 0))
+      w.value = *v;
+    else
+      good = false;
+  }
+  if (!good) return std::nullopt;
+  return w;
+}
+
+void read_sdo_list(YamlReader& r, const MapEntry& l, SubdeviceConfig& s) {
+  if (!l.value.IsSequence()) {
+    r.error(l.value, "found " + node_kind(l.value) + " for sdo; expected a list of {index, sub_index, value, type}");
+    return;
+  }
+  for (const auto& item : l.value)
+    if (auto w = read_sdo_write(r, item)) s.sdo.push_back(*w);
+}
+
+// The driver's signals from the catalogue; an unknown driver or options it refuses are errors.
+void read_signals(YamlReader& r, const SignalCatalogue& catalogue, const MapEntry& drv, const std::vector<MapEntry>& ks,
+                  const std::string& what, SubdeviceConfig& s) {
+  std::string err;
+  if (!catalogue) err = "no signal catalogue";
+  auto sig = catalogue ? catalogue(s.driver, s.options, err) : std::nullopt;
+  if (sig) {
+    s.signals = std::move(*sig);
+  } else if (std::find(kFamilies.begin(), kFamilies.end(), s.driver) == kFamilies.end()) {
+    r.error(drv.value, "unknown driver '" + s.driver + "'" + (err.empty() ? "" : " (" + err + ")") +
+                           "; expected one of " + join(kFamilies) + did_you_mean(s.driver, kFamilies));
+  } else {
+    const auto* o = r.find(ks, "options");
+    r.error(o ? o->key : drv.value, "driver " + s.driver + " refused " + what + ": " + err + "; expected options the " +
+                                        s.driver + " driver accepts");
+  }
+}
+
+// Node-IDs name each node's default COB-IDs: two sub-devices on one node-ID are reported as that,
+// once, not as 13 clashes.
+using NodesInUse = std::map<int, std::pair<std::string, Location>>;
+void check_node_id_unique(YamlReader& r, const MapEntry& nid, const SubdeviceConfig& s, NodesInUse& by_node) {
+  auto [it, fresh] = by_node.emplace(s.node_id, std::pair(s.name, r.loc(nid.value)));
+  if (!fresh)
+    r.error(nid.value, "node_id " + nid.value.Scalar() + " of '" + s.name + "' is already used by sub-device '" +
+                           it->second.first + "' (" + it->second.second.line_column() +
+                           "), so all their default COB-IDs clash; expected a node-ID of its own");
+}
+
+// The map of one sub-device; its errors are reported, `s` keeps what could be read.
+void read_subdevice(YamlReader& r, const MapEntry& e, const std::vector<MapEntry>& ks, const SignalCatalogue& catalogue,
+                    NodesInUse& by_node, SubdeviceConfig& s) {
+  const auto what = "sub-device '" + e.name + "'";
+  const auto* drv = r.find(ks, "driver");
+  if (drv) {
+    if (auto d = r.string(*drv, "driver")) s.driver = *d;
+  } else {
+    r.missing(e.value, "driver", what, "one of " + join(kFamilies));
+  }
+  if (r.find(ks, "node_id"))
+    r.set_int(ks, "node_id", "node_id", 1, 127, s.node_id, false);
+  else
+    r.missing(e.value, "node_id", what, "its node-ID 1..127");
+  read_supervision(r, ks, what, s);
+  if (const auto* m = r.find(ks, "mandatory"))
+    if (auto b = r.boolean(*m, "mandatory")) s.mandatory = *b;
+  if (const auto* id = r.find(ks, "identity")) read_identity(r, *id, what, s.identity);
+  if (const auto* o = r.find(ks, "options")) read_options(r, *o, what, s.options);
+  if (const auto* l = r.find(ks, "sdo")) read_sdo_list(r, *l, s);
+  if (s.node_id != 0) check_node_id_unique(r, *r.find(ks, "node_id"), s, by_node);
+  if (drv && !s.driver.empty()) read_signals(r, catalogue, *drv, ks, what, s);
+}
+
+}  // namespace
+
+void read_subdevices(YamlReader& r, const MapEntry& sec, const SignalCatalogue& catalogue,
+                     std::vector<SubdeviceConfig>& out) {
+  const auto es = r.entries(sec.value, "subdevices", {}, "a map of sub-device name -> {driver, node_id, ...}");
+  NodesInUse by_node;
+  std::vector<CobUse> cobs;
+  for (const auto& e : es) {
+    SubdeviceConfig s;
+    s.name = e.name;
+    s.where = r.loc(e.key);
+    if (!good_name(e.name))
+      r.error(e.key, "sub-device name '" + e.name +
+                         "' has characters other than a-z, 0-9 and _; expected a name like right_grip");
+    const auto ks = r.entries(e.value, "sub-device '" + e.name + "'", kSubdeviceKeys,
+                              "a map with driver, node_id, heartbeat_ms, heartbeat_timeout_ms, pdo_timeout_ms, "
+                              "mandatory, identity, sdo, options");
+    if (e.value.IsMap()) {
+      read_subdevice(r, e, ks, catalogue, by_node, s);
+      if (s.node_id != 0) add_cob_uses(r, s, cobs);
+    }
+    out.push_back(std::move(s));
+  }
+  check_cob_clashes(r, cobs);
+}
+
+}  // namespace oegw::mapping::sections

@@ -1,0 +1,130 @@
+// Reading the mapping file's YAML (yaml-cpp) and reporting what is wrong with it. Every value
+// is read through a YamlReader, which type- and range-checks it and collects one Diagnostic per
+// error, "file:line:column: what was found; expected what" (config.hpp), so that a file with
+// several mistakes gets them all at once. Nothing here knows the sections of the file.
+#pragma once
+
+#include <yaml-cpp/yaml.h>
+
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "mapping/config.hpp"
+
+namespace oegw::mapping {
+
+// ---- Wording of the diagnostics --------------------------------------------------------------
+
+// "0x7F", or zero-padded to `width` hex digits: "0x181".
+[[nodiscard]] std::string hex(std::int64_t v, int width = 0);
+
+// Levenshtein distance (insertions, deletions, substitutions of one character each).
+[[nodiscard]] std::size_t edit_distance(std::string_view a, std::string_view b);
+
+// " (did you mean 'x'?)" for a near miss among `candidates`, else "".
+template <typename Range>
+[[nodiscard]] std::string did_you_mean(std::string_view found, const Range& candidates) {
+  std::size_t best = std::numeric_limits<std::size_t>::max();
+  std::string best_name;
+  for (const auto& c : candidates) {
+    const std::string_view cv(c);
+    const auto d = edit_distance(found, cv);
+    if (d < best) {
+      best = d;
+      best_name = std::string(cv);
+    }
+  }
+  if (best_name.empty() || best == 0) return "";
+  if ((best <= 2 && best < found.size()) || best * 3 <= found.size()) return " (did you mean '" + best_name + "'?)";
+  return "";
+}
+
+// "a, b, c".
+template <typename Range>
+[[nodiscard]] std::string join(const Range& names, std::string_view sep = ", ") {
+  std::string out;
+  for (const auto& n : names) {
+    if (!out.empty()) out += sep;
+    out += std::string_view(n);
+  }
+  return out;
+}
+
+// "buttons[1]", "buttons[2]", ... -> "buttons[1..16]"; other names unchanged; joined by ", ".
+[[nodiscard]] std::string compress_names(const std::vector<std::string>& names);
+
+// What a node is, for "found ...": "a map", "[a, b]" (a list of scalars), "a list", "'text'",
+// "nothing".
+[[nodiscard]] std::string node_kind(const YAML::Node& n);
+
+// A decimal or 0x-hex integer with an optional sign; nullopt for anything else or beyond int64.
+[[nodiscard]] std::optional<std::int64_t> parse_integer(std::string_view s);
+
+// ---- Parsing the text ------------------------------------------------------------------------
+
+struct ParsedYaml {
+  YAML::Node root;
+  std::optional<Diagnostic> error;  // a syntax error: nothing else can be checked
+};
+
+// The YAML document of `text`, or its syntax error at the parser's mark (with a hint for the
+// commonest slip of this format: "[ ]" unquoted inside a "{ }" flow map).
+[[nodiscard]] ParsedYaml parse_yaml(std::string_view text, const std::string& file);
+
+// ---- Reading values, collecting the errors ---------------------------------------------------
+
+// One key of a map, with its key node (for the key's position) and its value.
+struct MapEntry {
+  std::string name;
+  YAML::Node key;
+  YAML::Node value;
+};
+
+class YamlReader {
+ public:
+  explicit YamlReader(std::string file) : file_(std::move(file)) {}
+
+  [[nodiscard]] const std::string& file() const { return file_; }
+  [[nodiscard]] Location loc(const YAML::Node& n) const;  // 1:1 for a node without a mark
+  void error(const Location& l, std::string msg) { errors_.push_back({l, std::move(msg)}); }
+  void error(const YAML::Node& n, std::string msg) { error(loc(n), std::move(msg)); }
+  // The errors so far, sorted by position (stable: one position keeps the order found).
+  [[nodiscard]] std::vector<Diagnostic> take_errors();
+  [[nodiscard]] bool has_errors() const { return !errors_.empty(); }
+
+  // The entries of `map` (described as `what`); a non-map, a non-scalar key, a duplicate key and
+  // (when `allowed` is not empty) an unknown key are errors, and such entries are left out.
+  std::vector<MapEntry> entries(const YAML::Node& map, std::string_view what,
+                                const std::vector<std::string_view>& allowed, const std::string& expected_map);
+  // The entry named `name`, or nullptr.
+  [[nodiscard]] static const MapEntry* find(const std::vector<MapEntry>& es, std::string_view name);
+  // "no 'key' in what; expected ...", at `map`.
+  void missing(const YAML::Node& map, std::string_view key, std::string_view what, std::string_view expected);
+
+  // Typed values; each reports its own error and returns nullopt.
+  std::optional<std::int64_t> integer(const MapEntry& e, std::string_view what, std::int64_t lo, std::int64_t hi,
+                                      bool show_hex = false);
+  std::optional<std::string> string(const MapEntry& e, std::string_view what);  // a non-empty scalar
+  std::optional<bool> boolean(const MapEntry& e, std::string_view what);        // true/yes/on, false/no/off
+  std::optional<double> real(const MapEntry& e, std::string_view what);         // finite and non-zero
+
+  // `out` = the integer at `key` in lo..hi, when the key is there and its value fits.
+  template <typename T>
+  void set_int(const std::vector<MapEntry>& es, std::string_view key, std::string_view what, std::int64_t lo,
+               std::int64_t hi, T& out, bool show_hex = false) {
+    if (const auto* e = find(es, key))
+      if (auto v = integer(*e, what, lo, hi, show_hex)) out = static_cast<T>(*v);
+  }
+  // `out` = the "bitrate" entry when it is one of the CiA 301 bit rates (10 kbit/s .. 1 Mbit/s).
+  void bitrate(const std::vector<MapEntry>& es, std::string_view what, std::uint32_t& out);
+
+ private:
+  std::string file_;
+  std::vector<Diagnostic> errors_;
+};
+
+}  // namespace oegw::mapping
