@@ -90,6 +90,7 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     for (const auto& f : fe.fields) {
       Binding b{fe.id, &f, *field_ref(fe.id, f.field.name), std::nullopt, {}, 0, group, SignalStatus::Offline};
       Sub& s = subs_.at(f.subdevice);
+      b.sub = &s;
       b.signal = *s.driver->find_signal(f.signal);
       const std::size_t bi = bindings_.size();
       if (fe.input()) {
@@ -261,7 +262,7 @@ void Gateway::on_output(mapping::FeId fe, FieldRef ref, std::int64_t value) {
   for (auto& g : output_groups_) {
     if (!(g.fe == fe)) continue;
     if (ref.bit >= g.by_field.size()) return;
-    for (const std::size_t bi : g.by_field[ref.bit]) drive(bindings_[bi], subs_.at(bindings_[bi].field->subdevice), value);
+    for (const std::size_t bi : g.by_field[ref.bit]) drive(bindings_[bi], *bindings_[bi].sub, value);
     return;
   }
 }

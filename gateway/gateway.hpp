@@ -6,7 +6,7 @@
 // CiA 852 device (mirrored into the dictionary at once) | DDS | LCM (on_fe_change, once per FE
 // at the end of each entry point); commands → CommandArbiter → outputs (the output bindings).
 //
-// Fault policy (DESIGN.md "A lost input never keeps the machine moving"):
+// Fault policy (README "Fault policy": a lost input never keeps the machine moving):
 //  * a sub-device that is lost (heartbeat timeout, no heartbeat in operational after NMT start,
 //    refused at boot, never seen), reports an error EMCY, sends error / not-available codes for a
 //    bound signal, or whose PDOs are overdue (Stale, Driver::advance): every FE field it feeds
@@ -102,6 +102,7 @@ class Gateway {
   std::function<void(const std::string&)> on_log;
 
  private:
+  struct Sub;
   struct Binding {
     mapping::FeId fe;
     const mapping::FieldBinding* field;
@@ -111,6 +112,7 @@ class Gateway {
     std::size_t signal = 0;                               // index in the driver's signals
     std::size_t group = 0;                                // inputs: index in groups_ (its FE)
     subdevices::SignalStatus status = subdevices::SignalStatus::Offline;
+    Sub* sub = nullptr;  // its sub-device (no look-up by name on the way to an output)
   };
   // The input bindings of one FE (its status is the worst of theirs).
   struct FeGroup {

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "profiles/cia401/objects.hpp"
+
 namespace oegw::gateway {
 
 using canopen::Access;
@@ -68,7 +70,7 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
 
 void OeDevice::watch_host_commands() {
   if (outputs_.empty()) return;
-  for (const std::uint16_t index : {std::uint16_t{0x6200}, std::uint16_t{0x6411}}) {
+  for (const std::uint16_t index : {std::uint16_t{cia401::kWriteOutput8}, std::uint16_t{cia401::kWriteAnalogueOutput16}}) {
     canopen::Object* o = od_.find(index);
     if (o == nullptr) continue;
     subs_ += o->add_write_hook([this](canopen::Object& obj, std::uint8_t sub, std::span<const std::uint8_t>,
@@ -112,7 +114,7 @@ void OeDevice::step_node(TimePoint now) {
 std::optional<TimePoint> OeDevice::next_deadline() const { return node_->next_deadline(); }
 
 bool OeDevice::analog_interrupt_enabled() const {
-  const canopen::SubObject* s = od_.find(0x6423, 0);
+  const canopen::SubObject* s = od_.find(cia401::kAnalogueInputGlobalInterruptEnable, 0);
   return s != nullptr && !s->value.empty() && s->value[0] != 0;
 }
 
@@ -152,7 +154,7 @@ bool OeDevice::write_input_entry(const InputEntry& e, std::int64_t raw) {
   if (s == nullptr) return false;
   // CiA 401 6423h FALSE: analogue inputs raise no event; the value is stored without telling
   // the PDO service (see the header), so only TPDOs sent for another reason carry it.
-  if (e.index == 0x6401 && od_.find(0x6423) != nullptr && !analog_interrupt_enabled()) {
+  if (e.index == cia401::kReadAnalogueInput16 && od_.find(cia401::kAnalogueInputGlobalInterruptEnable) != nullptr && !analog_interrupt_enabled()) {
     // In place, little endian as encode_width() (no allocation: this runs for every axis change).
     const auto u = static_cast<std::uint64_t>(raw);
     for (std::size_t i = 0; i < s->value.size(); ++i) s->value[i] = static_cast<std::uint8_t>(i < 8 ? u >> (8 * i) : 0);
@@ -207,21 +209,21 @@ void OeDevice::mirror_input(FeId fe, FeSlot slot, std::int64_t value, TimePoint 
 
 void OeDevice::write_indicators(FeId fe, std::uint64_t bits) {
   for (const auto& [key, refs] : outputs_) {
-    if (refs.empty() || !(refs.front().fe == fe) || (key >> 8) != 0x6200) continue;
+    if (refs.empty() || !(refs.front().fe == fe) || (key >> 8) != cia401::kWriteOutput8) continue;
     // The entry's eight indicators: bits 8k..8k+7 of the command (k = the first one's bit / 8).
     const auto sub = static_cast<std::uint8_t>(key);
     const auto byte = static_cast<std::uint8_t>(bits >> ((refs.front().ref.bit / 8) * 8));
-    if (od_.get<std::uint8_t>(0x6200, sub) != byte) (void)od_.set<std::uint8_t>(0x6200, sub, byte, Origin::Local);
+    if (od_.get<std::uint8_t>(cia401::kWriteOutput8, sub) != byte) (void)od_.set<std::uint8_t>(cia401::kWriteOutput8, sub, byte, Origin::Local);
   }
 }
 
 void OeDevice::write_display(FeId fe, const std::array<std::int16_t, 12>& parameters) {
   for (const auto& [key, refs] : outputs_) {
-    if (refs.empty() || !(refs.front().fe == fe) || (key >> 8) != 0x6411) continue;
+    if (refs.empty() || !(refs.front().fe == fe) || (key >> 8) != cia401::kWriteAnalogueOutput16) continue;
     const auto sub = static_cast<std::uint8_t>(key);
     const std::uint8_t p = refs.front().ref.bit;
-    if (p < parameters.size() && od_.get<std::int16_t>(0x6411, sub) != parameters[p])
-      (void)od_.set<std::int16_t>(0x6411, sub, parameters[p], Origin::Local);
+    if (p < parameters.size() && od_.get<std::int16_t>(cia401::kWriteAnalogueOutput16, sub) != parameters[p])
+      (void)od_.set<std::int16_t>(cia401::kWriteAnalogueOutput16, sub, parameters[p], Origin::Local);
   }
 }
 
@@ -263,7 +265,7 @@ void OeDevice::handle_state(NmtState s) {
   // CiA 852 §8.6: entering operational with 6423h FALSE sends EMCY 0080h; no state change.
   auto& emcy = node_->emcy();
   if (s == NmtState::Operational) {
-    if (od_.find(0x6423) != nullptr && !analog_interrupt_enabled())
+    if (od_.find(cia401::kAnalogueInputGlobalInterruptEnable) != nullptr && !analog_interrupt_enabled())
       emcy.raise(kEmcyAnalogInputsDisabled, 0x00, now_);
   } else if (emcy.active(kEmcyAnalogInputsDisabled)) {
     emcy.clear(kEmcyAnalogInputsDisabled, now_);
@@ -293,11 +295,11 @@ void OeDevice::after_reset() {
 }
 
 void OeDevice::handle_od_change(std::uint16_t index, std::uint8_t sub) {
-  if (index == 0x6423 && analog_interrupt_enabled()) {
+  if (index == cia401::kAnalogueInputGlobalInterruptEnable && analog_interrupt_enabled()) {
     if (node_->emcy().active(kEmcyAnalogInputsDisabled)) node_->emcy().clear(kEmcyAnalogInputsDisabled, now_);
     return;
   }
-  if (index != 0x6200 && index != 0x6411) return;
+  if (index != cia401::kWriteOutput8 && index != cia401::kWriteAnalogueOutput16) return;
   const std::uint32_t key = static_cast<std::uint32_t>(index) << 8 | sub;
   auto it = output_shadow_.find(key);
   if (it == output_shadow_.end()) return;
@@ -332,18 +334,18 @@ void OeDevice::apply_error_values(std::optional<FeId> only, TimePoint now) {
     if (refs.empty() || (only && !(refs.front().fe == *only))) continue;
     const auto index = static_cast<std::uint16_t>(key >> 8);
     const auto s = static_cast<std::uint8_t>(key);
-    if (index == 0x6200) {
+    if (index == cia401::kWriteOutput8) {
       // CiA 401 6206h/6207h: per bit, mode 1 = take the error value.
-      const auto cur = od_.get<std::uint8_t>(0x6200, s);
-      const auto mode = od_.get<std::uint8_t>(0x6206, s);
-      const auto val = od_.get<std::uint8_t>(0x6207, s);
+      const auto cur = od_.get<std::uint8_t>(cia401::kWriteOutput8, s);
+      const auto mode = od_.get<std::uint8_t>(cia401::kErrorModeOutput8, s);
+      const auto val = od_.get<std::uint8_t>(cia401::kErrorValueOutput8, s);
       const auto next = static_cast<std::uint8_t>((cur & ~mode) | (val & mode));
-      if (next != cur) (void)od_.set<std::uint8_t>(0x6200, s, next, Origin::Local);
-    } else if (index == 0x6411 && od_.get<std::uint8_t>(0x6443, s) == 1) {
+      if (next != cur) (void)od_.set<std::uint8_t>(cia401::kWriteOutput8, s, next, Origin::Local);
+    } else if (index == cia401::kWriteAnalogueOutput16 && od_.get<std::uint8_t>(cia401::kAnalogueOutputErrorMode, s) == 1) {
       // 6443h/6444h per channel.
-      const std::int32_t ev = od_.get<std::int32_t>(0x6444, s);
+      const std::int32_t ev = od_.get<std::int32_t>(cia401::kAnalogueOutputErrorValueInteger, s);
       const auto clamped = static_cast<std::int16_t>(std::clamp<std::int32_t>(ev, -32768, 32767));
-      if (clamped != od_.get<std::int16_t>(0x6411, s)) (void)od_.set<std::int16_t>(0x6411, s, clamped, Origin::Local);
+      if (clamped != od_.get<std::int16_t>(cia401::kWriteAnalogueOutput16, s)) (void)od_.set<std::int16_t>(cia401::kWriteAnalogueOutput16, s, clamped, Origin::Local);
     }
   }
 }

@@ -109,7 +109,7 @@ class Driver {
   void begin_outputs() { ++output_batch_; }
   void end_outputs(TimePoint now);
 
-  // Freshness of the values (DESIGN.md "Proof of life"). A signal carried by a TPDO the device
+  // Freshness of the values (README "Fault policy: proof of life, deadlines, evidence"). A signal carried by a TPDO the device
   // sends periodically (event timer T, transmission type 254/255, CiA 301 §7.5.2.35) is Stale
   // once kMissedPeriods × T pass without that PDO: the node may still send its heartbeat, but
   // the value is no longer evidence. The mapping file's pdo_timeout_ms replaces the derived

@@ -16,7 +16,7 @@ namespace oegw::subdevices {
 using canopen::Duration;
 using canopen::TimePoint;
 
-// DESIGN.md "Behaviour users rely on": every input carries one of these.
+// Every input carries one of these (README "Fault policy").
 enum class SignalStatus : std::uint8_t {
   Valid,         // a fresh value the device vouches for
   Error,         // the device reported an error for this signal (error code, EMCY, mismatch)

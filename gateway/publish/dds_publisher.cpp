@@ -16,7 +16,8 @@ namespace oegw::gateway {
 std::string dds_config_xml(const std::string& network) {
   if (network.empty()) return {};
   if (network == "loopback") {
-    // DESIGN.md, "Keep test and demo traffic on this host": checked to send nothing on eth0.
+    // Test and demo traffic stays on this host (README "Network"): checked to send nothing on eth0
+    // (tests/publish/demo_stays_on_host.sh).
     return "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"lo\"/></Interfaces>"
            "<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex>"
            "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>";

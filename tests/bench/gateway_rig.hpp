@@ -35,8 +35,8 @@ namespace oegw::bench {
 using namespace std::chrono_literals;
 
 // The rig's mapping files (tests/fixtures/): one_grip.yaml, one elobau grip (node 11h) feeding
-// joystick.1 (x, y, buttons[1..8]); full_fe_set.yaml, the full FE set of DESIGN.md "Numbers to
-// reach", 48 sub-devices:
+// joystick.1 (x, y, buttons[1..8]); full_fe_set.yaml, the full FE set (16 of each input FE kind
+// that has 16 instances, 8 of the others), 48 sub-devices:
 //   16 joysticks  <- 16 elobau grips, nodes 11h..20h (x, y, buttons[1..8])
 //    8 wheels     <- wheel_a of grips 1..8
 //   16 pedals     <- 16 generic CiA 401 pedal nodes (generic_pedal.eds, analog[1]), 30h..3Fh

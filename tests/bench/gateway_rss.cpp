@@ -1,6 +1,6 @@
-// `oegw_bench_rss`: the resident memory of the gateway with the full FE set of DESIGN.md
-// "Numbers to reach" (16 joysticks, 16 pedals, 8 encoders, 8 wheels, 8 clusters; 48 sub-devices,
-// gateway_rig.hpp yaml_full_set()). Not a Google Benchmark: it prints figures and fails (exit 1)
+// `oegw_bench_rss`: the resident memory of the gateway with the full FE set (16 joysticks,
+// 16 pedals, 8 encoders, 8 wheels, 8 clusters; 48 sub-devices,
+// tests/fixtures/full_fe_set.yaml). Not a Google Benchmark: it prints figures and fails (exit 1)
 // only when the set cannot be brought up (a sub-device not operational, no TPDO at the host).
 //
 // The simulators run in this process too, so the figures are taken in phases:

@@ -20,7 +20,7 @@ namespace {
 using canopen::SdoAbortCode;
 using Bytes = std::vector<std::uint8_t>;
 
-const std::filesystem::path kRoot = std::filesystem::path(__FILE__).parent_path().parent_path().parent_path();
+const std::filesystem::path kRoot = OEGW_SOURCE_DIR;  // the source tree (tests/CMakeLists.txt)
 const std::string kPedal = (kRoot / "subdevices/eds/generic_pedal.eds").string();
 const std::string kCluster = (kRoot / "subdevices/eds/button_cluster.eds").string();
 constexpr NodeId kNode{0x21};

@@ -22,7 +22,7 @@ using canopen::NodeId;
 using canopen::ObjectCode;
 using canopen::SdoAbortCode;
 
-const std::filesystem::path kRoot = std::filesystem::path(__FILE__).parent_path().parent_path().parent_path();
+const std::filesystem::path kRoot = OEGW_SOURCE_DIR;  // the source tree (tests/CMakeLists.txt)
 const std::filesystem::path kPedal = kRoot / "subdevices/eds/generic_pedal.eds";
 const std::filesystem::path kCluster = kRoot / "subdevices/eds/button_cluster.eds";
 

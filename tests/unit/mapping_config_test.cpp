@@ -1,7 +1,7 @@
 // The mapping file: parsing, validation with file:line:column diagnostics (all at once), and
 // the resulting Config. Requirements: issue 4 "The mapping file" (validation refuses before
 // anything starts, with file:line:column, what was found and what was expected; all errors at
-// once) and DESIGN.md "A mapping file, as a first sketch". Signals come from a fake catalogue
+// once) and mapping/README.md. Signals come from a fake catalogue
 // (the drivers are written elsewhere): elobau-mfg, mcb402, novotechnik-406, cia401.
 #include "mapping/config.hpp"
 
@@ -75,11 +75,8 @@ subdevices:
 functional_elements:
 )";  // 8 lines: functional elements start on line 9
 
-// The repository root, from this file's path (the tests run from the build tree).
-std::string source_dir() {
-  std::string f = __FILE__;
-  return f.substr(0, f.rfind("/tests/unit/"));
-}
+// The repository root (tests/CMakeLists.txt defines it; the tests run from the build tree).
+std::string source_dir() { return OEGW_SOURCE_DIR; }
 
 LoadResult load(const std::string& text) { return load_config_text(text, "t.yaml", fake_catalogue); }
 
@@ -103,7 +100,7 @@ TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
   EXPECT_EQ(c.upstream.identity.revision, 0x00010000u);
   EXPECT_EQ(c.upstream.heartbeat_ms, 100);
   EXPECT_EQ(c.downstream.interface, "virtual");
-  // The demo publishes on both, host-local (DESIGN.md "Keep test and demo traffic on this host").
+  // The demo publishes on both, host-local (README "Network": test and demo traffic stays on this host).
   EXPECT_TRUE(c.publish.dds.enabled);
   EXPECT_EQ(c.publish.dds.network, "loopback");
   EXPECT_TRUE(c.publish.lcm.enabled);

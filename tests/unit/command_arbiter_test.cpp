@@ -1,0 +1,134 @@
+// The command arbiter (gateway/command_arbiter.hpp) on a CiA 852 device alone: who may command
+// an output FE, last writer wins, the refusal count, and the command watchdog with its CiA 401
+// error values, as the outputs (drive) see them.
+#include <gtest/gtest.h>
+
+#include <tuple>
+#include <vector>
+
+#include "gateway/command_arbiter.hpp"
+#include "gateway/runtime_config.hpp"
+
+namespace {
+
+using namespace oegw;
+using namespace std::chrono_literals;
+using gateway::FieldRef;
+using mapping::CommandSource;
+using mapping::FeId;
+using mapping::FeKind;
+
+const FeId kLeds1{FeKind::IndicatorCluster, 1};  // sources: dds only, watchdog 100 ms
+const FeId kLeds2{FeKind::IndicatorCluster, 2};  // all sources, no watchdog
+const FeId kDisplay1{FeKind::Display, 1};        // canopen and lcm
+
+mapping::Config config() {
+  mapping::Config c;
+  c.upstream.node_id = 0x20;
+  c.upstream.store = "";
+  mapping::FunctionalElementConfig a;
+  a.id = kLeds1;
+  a.sources = static_cast<mapping::CommandSources>(CommandSource::Dds);
+  a.command_timeout_ms = 100;
+  mapping::FunctionalElementConfig b;
+  b.id = kLeds2;
+  mapping::FunctionalElementConfig d;
+  d.id = kDisplay1;
+  d.sources = static_cast<mapping::CommandSources>(CommandSource::Canopen) | static_cast<mapping::CommandSources>(CommandSource::Lcm);
+  c.functional_elements = {a, b, d};
+  return c;
+}
+
+struct Rig {
+  mapping::Config cfg = config();
+  canopen::TimePoint now{};
+  gateway::OeDevice device{gateway::device_config(cfg), [](const canopen::CanFrame&) {}};
+  gateway::FeModel model{device.config().fes};
+  gateway::CommandArbiter arbiter{cfg, device, model, now};
+  std::vector<std::tuple<FeId, FieldRef, std::int64_t>> driven;
+  std::vector<std::string> log;
+  Rig() {
+    arbiter.drive = [this](FeId fe, FieldRef r, std::int64_t v) { driven.emplace_back(fe, r, v); };
+    arbiter.log = [this](const std::string& l) { log.push_back(l); };
+    (void)device.start(now);
+    arbiter.start(now);
+    driven.clear();
+  }
+  std::uint64_t leds(FeId fe) const { return model.get<gateway::IndicatorState>(fe)->indicators; }
+};
+
+TEST(CommandArbiter, ASourceTheFeTakesDrivesTheOutputsAndAnotherIsRefusedAndCounted) {
+  Rig r;
+  EXPECT_TRUE(r.arbiter.command_indicators(1, 0x05, CommandSource::Dds, r.now));
+  EXPECT_EQ(r.leds(kLeds1), 0x05u);
+  ASSERT_EQ(r.driven.size(), 2u);  // indicator[1] and indicator[3], each once
+  EXPECT_EQ(r.driven[0], std::make_tuple(kLeds1, FieldRef{gateway::FeSlot::Indicators, 0}, std::int64_t{1}));
+  EXPECT_EQ(r.driven[1], std::make_tuple(kLeds1, FieldRef{gateway::FeSlot::Indicators, 2}, std::int64_t{1}));
+  EXPECT_EQ(r.device.od().get<std::uint8_t>(0x6200, 0x01), 0x05) << "the host reads the command back";
+  r.driven.clear();
+  EXPECT_FALSE(r.arbiter.command_indicators(1, 0xFF, CommandSource::Lcm, r.now));
+  EXPECT_FALSE(r.arbiter.command_indicators(1, 0x00, CommandSource::Lcm, r.now));
+  EXPECT_TRUE(r.driven.empty());
+  EXPECT_EQ(r.leds(kLeds1), 0x05u);
+  EXPECT_EQ(r.arbiter.refused(), 2u);
+  ASSERT_EQ(r.log.size(), 1u) << "logged once per FE and way";
+  EXPECT_EQ(r.log[0], "indicators.1: a command from lcm ignored: its sources are dds");
+  EXPECT_FALSE(r.arbiter.command_indicators(3, 0x01, CommandSource::Dds, r.now)) << "not configured";
+  EXPECT_EQ(r.arbiter.refused(), 3u);
+}
+
+TEST(CommandArbiter, AmongTheSourcesTheLastWriterWins) {
+  Rig r;
+  EXPECT_TRUE(r.arbiter.command_indicators(2, 0x0F, CommandSource::Dds, r.now));
+  EXPECT_TRUE(r.arbiter.command_indicators(2, 0x30, CommandSource::Lcm, r.now));
+  EXPECT_EQ(r.leds(kLeds2), 0x30u);
+  // The host's SDO download of 6200h:09 (indicators.2) goes through the device to the arbiter.
+  const std::uint8_t byte = 0x81;
+  EXPECT_EQ(r.device.od().write(0x6200, 0x09, std::span<const std::uint8_t>(&byte, 1), canopen::Origin::Sdo),
+            canopen::SdoAbortCode::None);
+  EXPECT_EQ(r.leds(kLeds2), 0x81u);
+}
+
+TEST(CommandArbiter, AHostWriteOfAnFeWithoutCanopenIsAbortedWithLocalControl) {
+  Rig r;
+  const std::uint8_t byte = 0xFF;
+  EXPECT_EQ(r.device.od().write(0x6200, 0x01, std::span<const std::uint8_t>(&byte, 1), canopen::Origin::Sdo),
+            canopen::SdoAbortCode::CannotTransferLocalControl);
+  EXPECT_EQ(r.leds(kLeds1), 0u);
+  EXPECT_TRUE(r.driven.empty());
+  EXPECT_EQ(r.arbiter.refused(), 1u);
+  ASSERT_EQ(r.log.size(), 1u);
+  EXPECT_EQ(r.log[0], "indicators.1: the host's SDO write refused (abort 0800 0021h): its sources are dds");
+  // Display 1 takes the host: 6411h:01 applies.
+  EXPECT_EQ(r.device.od().set<std::int16_t>(0x6411, 0x01, -300, canopen::Origin::Sdo), canopen::SdoAbortCode::None);
+  EXPECT_EQ(r.model.get<gateway::DisplayState>(kDisplay1)->parameters[0], -300);
+}
+
+TEST(CommandArbiter, ASilentCommanderGivesTheErrorValuesUntilTheNextCommand) {
+  Rig r;
+  // CiA 401 6206h:01 = 0Fh (error mode on for indicators 1..4), 6207h:01 = 03h.
+  (void)r.device.od().set<std::uint8_t>(0x6206, 0x01, 0x0F, canopen::Origin::Sdo);
+  (void)r.device.od().set<std::uint8_t>(0x6207, 0x01, 0x03, canopen::Origin::Sdo);
+  ASSERT_TRUE(r.arbiter.command_indicators(1, 0xF0, CommandSource::Dds, r.now));
+  EXPECT_EQ(r.arbiter.next_deadline(), r.now + 100ms);
+  r.now += 99ms;
+  r.arbiter.advance(r.now);
+  EXPECT_EQ(r.leds(kLeds1), 0xF0u);
+  r.now += 1ms;
+  r.arbiter.advance(r.now);
+  EXPECT_EQ(r.leds(kLeds1), 0xF3u) << "indicators 1..4 take 6207h, 5..8 keep their value";
+  EXPECT_EQ(r.log.back(), "indicators.1: no command for 100 ms: outputs set to their error values until the next command");
+  EXPECT_FALSE(r.arbiter.next_deadline()) << "indicators.2 and display.1 have no watchdog";
+  // The host rewrites the error value meanwhile: the silent FE follows it.
+  (void)r.device.od().set<std::uint8_t>(0x6207, 0x01, 0x00, canopen::Origin::Sdo);
+  r.arbiter.hold_error_values(r.now);
+  EXPECT_EQ(r.leds(kLeds1), 0xF0u);
+  // The next command ends it and restarts the watchdog.
+  r.now += 5ms;
+  ASSERT_TRUE(r.arbiter.command_indicators(1, 0x01, CommandSource::Dds, r.now));
+  EXPECT_EQ(r.leds(kLeds1), 0x01u);
+  EXPECT_EQ(r.log.back(), "indicators.1: commands again");
+  EXPECT_EQ(r.arbiter.next_deadline(), r.now + 100ms);
+}
+
+}  // namespace
