@@ -91,6 +91,21 @@ void BM_Latency(benchmark::State& state) {
 }
 BENCHMARK(BM_Latency)->Arg(0)->Arg(1)->ArgName("full_set")->Iterations(1)->UseManualTime()->Unit(benchmark::kMicrosecond);
 
+// The measured loop: the two frames alternately into the gateway, heap allocations counted.
+void feed_frames(benchmark::State& state, gateway::Gateway& gw, const canopen::CanFrame (&frames)[2],
+                 canopen::TimePoint now) {
+  std::uint64_t i = 0;
+  bench::AllocCounter allocs;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(gw.on_downstream_frame(frames[i & 1u], now));
+    ++i;
+  }
+  allocs.report(state);
+  state.counters["allocs/frame"] = state.counters["allocs/iter"];
+  state.counters.erase("allocs/iter");
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));
+}
+
 void BM_Throughput(benchmark::State& state) {
   auto rig = make_rig(static_cast<int>(state.range(0)));
   auto& gw = rig->gw();
@@ -104,16 +119,7 @@ void BM_Throughput(benchmark::State& state) {
     check_one_tpdo(*rig, before + 1, "throughput warm-up");
   }
   const auto up0 = up.frames;
-  std::uint64_t i = 0;
-  bench::AllocCounter allocs;
-  for (auto _ : state) {
-    benchmark::DoNotOptimize(gw.on_downstream_frame(frames[i & 1u], now));
-    ++i;
-  }
-  allocs.report(state);
-  state.counters["allocs/frame"] = state.counters["allocs/iter"];
-  state.counters.erase("allocs/iter");
-  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));
+  feed_frames(state, gw, frames, now);
   state.counters["frames/s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
   state.counters["tpdo/frame"] = state.iterations() == 0 ? 0.0
                                                          : static_cast<double>(up.frames - up0) / static_cast<double>(state.iterations());
@@ -138,16 +144,7 @@ void BM_ThroughputPublishing(benchmark::State& state) {
   const canopen::CanFrame frames[2] = {grip_frame(x_for(0)), grip_frame(x_for(1))};
   for (int w = 0; w < 100; ++w) (void)gw.on_downstream_frame(frames[w & 1], now);  // first samples, DDS matching
   const auto published0 = pub.published();
-  std::uint64_t i = 0;
-  bench::AllocCounter allocs;
-  for (auto _ : state) {
-    benchmark::DoNotOptimize(gw.on_downstream_frame(frames[i & 1u], now));
-    ++i;
-  }
-  allocs.report(state);
-  state.counters["allocs/frame"] = state.counters["allocs/iter"];
-  state.counters.erase("allocs/iter");
-  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));
+  feed_frames(state, gw, frames, now);
   state.counters["samples/frame"] = state.iterations() == 0 ? 0.0
                                                             : static_cast<double>(pub.published() - published0) /
                                                                   static_cast<double>(state.iterations());
