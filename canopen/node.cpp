@@ -236,9 +236,9 @@ void Node::rebase_node_id(NodeId from, NodeId to) {
       const std::uint32_t moved = (def & ~0x7FFu) | (id - from.value() + to.value());
       put_u32(s.default_value.data(), moved);
       // CiA 305 §4 / CiA 301 §7.3.5: at power-on with an LSS-stored node-ID no reset_to_defaults
-      // follows, so an entry still holding the old default must move as well (it used to keep
-      // the old node-ID: TPDOs, EMCY and 1200h stayed on 0x20 while the node booted as 0x21).
-      // A value the application changed is left alone; a stored value is applied afterwards.
+      // follows, so an entry still holding the old default moves as well (else TPDOs, EMCY and
+      // 1200h would stay on the old node-ID while the node boots with the new one). A value the
+      // application changed is left alone; a stored value is applied afterwards.
       if (s.value.size() == 4 && get_u32(s.value.data()) == def) s.value = s.default_value;
     }
   }

@@ -173,6 +173,14 @@ FeModel::FeModel(std::vector<FeId> fes) {
     entries_.push_back({f, initial_state(f.kind)});
   }
   changed_.reserve(entries_.size());
+  round_.reserve(entries_.size());
+}
+
+void FeModel::stamp(FeId fe, canopen::TimePoint when) {
+  const int i = find(fe);
+  if (i < 0) return;
+  header(entries_[static_cast<std::size_t>(i)].state).source_time = when;
+  mark(static_cast<std::size_t>(i));
 }
 
 int FeModel::find(FeId fe) const {

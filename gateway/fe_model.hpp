@@ -119,17 +119,24 @@ class FeModel {
   }
 
   // The FEs changed since the last call, in FE order, each once; clears the marks. No
-  // allocation (the list's capacity is the FE count).
+  // allocation (both lists' capacity is the FE count). `f` may change the model (a consumer
+  // that commands an output): those changes are reported in a further round of this call.
   template <class F>
   void for_each_changed(F&& f) {
-    if (changed_.empty()) return;
-    sort_changed();
-    for (const std::uint16_t i : changed_) {
-      entries_[i].published_mark = false;
-      f(entries_[i].id);
+    if (reporting_) return;  // a call from inside f: the outer call reports it
+    reporting_ = true;
+    while (!changed_.empty()) {
+      sort_changed();
+      round_.swap(changed_);  // changed_ is now empty (and keeps its capacity)
+      for (const std::uint16_t i : round_) entries_[i].published_mark = false;
+      for (const std::uint16_t i : round_) f(entries_[i].id);
+      round_.clear();
     }
-    changed_.clear();
+    reporting_ = false;
   }
+  // Stamps the FE's source time without a change of value or status (start: the time the
+  // gateway set every input to its fault value) and marks it changed.
+  void stamp(mapping::FeId fe, canopen::TimePoint when);
   [[nodiscard]] bool any_changed() const { return !changed_.empty(); }
 
   // Called by write() for every slot whose value changed: (FE, slot, slot_value()).
@@ -149,6 +156,8 @@ class FeModel {
   std::vector<mapping::FeId> ids_;
   std::vector<Entry> entries_;
   std::vector<std::uint16_t> changed_;
+  std::vector<std::uint16_t> round_;  // the round for_each_changed is reporting
+  bool reporting_ = false;
   SlotObserver on_slot_;
   // kind × instance (1..16) → index in entries_, or −1.
   std::array<std::array<std::int16_t, 17>, 7> index_{};

@@ -59,7 +59,9 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
       oe_(std::make_unique<OeDevice>(device_config(config_, options.store_path), std::move(upstream))),
       model_(oe_->config().fes) {
   // The CiA 852 device mirrors every changed input slot into its dictionary at once.
-  model_.on_slot_change([this](mapping::FeId fe, FeSlot slot, std::int64_t v) { oe_->mirror_input(fe, slot, v, now_); });
+  model_.on_slot_change([this](mapping::FeId fe, FeSlot slot, std::int64_t v) {
+    if (mapping::is_input(fe.kind)) oe_->mirror_input(fe, slot, v, now_);
+  });
   arbiter_ = std::make_unique<CommandArbiter>(config_, *oe_, model_, now_);
   arbiter_->log = [this](const std::string& line) { log(line); };
   arbiter_->drive = [this](mapping::FeId fe, FieldRef ref, std::int64_t v) { on_output(fe, ref, v); };
@@ -154,9 +156,11 @@ canopen::ParameterStore::LoadResult Gateway::start(TimePoint now) {
   now_ = now;
   auto r = oe_->start(now);
   arbiter_->start(now);
-  // Every input starts at its fault value (the signals are Offline until their node is up).
+  // Every input starts at its fault value (the signals are Offline until their node is up),
+  // stamped with the time the gateway decided it.
   for (auto& b : bindings_)
     if (b.translator) (void)model_.write(b.fe, b.ref, b.translator->value(), now);
+  for (const auto& fe : model_.fes()) model_.stamp(fe, now);
   network_.start(now);
   publish_changes();
   return r;
@@ -166,15 +170,16 @@ void Gateway::log(const std::string& line) {
   if (on_log) on_log(line);
 }
 
-void Gateway::feed(Binding& b, const Sub& s, const sd::SignalValue& v) {
+void Gateway::feed(Binding& b, const Sub& s, const sd::SignalValue& v, bool decided_now) {
   sd::SignalValue in = v;
   if (s.forced && in.status == SignalStatus::Valid) in.status = SignalStatus::Error;
   const SignalStatus status_before = b.status;
   const std::int64_t fe_value = b.translator->update(in);
   b.status = in.status;
   // The source time: the reception of the frame that carried the value, or now when the
-  // gateway decided the status itself (the EMCY hold).
-  const TimePoint source = in.status == v.status ? v.timestamp : now_;
+  // gateway decided the value itself (the EMCY hold and its end, which re-feeds the driver's
+  // last values: their frames are older than what the FE has already shown).
+  const TimePoint source = !decided_now && in.status == v.status ? v.timestamp : now_;
   (void)model_.write(b.fe, b.ref, fe_value, source);
   if (b.status == status_before) return;
   SignalStatus worst = SignalStatus::Valid;
@@ -212,7 +217,7 @@ void Gateway::update_fault(Sub& s, std::string_view evidence) {
   const bool forced = s.operational && s.emcy_error;
   if (forced != s.forced) {
     s.forced = forced;
-    for (const std::size_t bi : s.inputs) feed(bindings_[bi], s, s.driver->value(bindings_[bi].signal));
+    for (const std::size_t bi : s.inputs) feed(bindings_[bi], s, s.driver->value(bindings_[bi].signal), true);
   }
   // A bound input in Error / NotAvailable / Stale counts; Offline is the node's own state. The
   // cause is found without building text: this runs for every PDO, and the reason string is

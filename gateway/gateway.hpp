@@ -158,7 +158,8 @@ class Gateway {
   void begin_outputs();
   void end_outputs(canopen::TimePoint now);
   // Feeds one input binding (the EMCY hold of its node applied) into the FE model.
-  void feed(Binding& b, const Sub& s, const subdevices::SignalValue& v);
+  // `decided_now`: the value is the gateway's decision of now, not a frame's (source time).
+  void feed(Binding& b, const Sub& s, const subdevices::SignalValue& v, bool decided_now = false);
   // The FEs the call changed, to the publishers (on_fe_change).
   void publish_changes();
   void log(const std::string& line);

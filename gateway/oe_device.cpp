@@ -202,6 +202,9 @@ void OeDevice::mirror_input(FeId fe, FeSlot slot, std::int64_t value, TimePoint 
       const canopen::SubObject* s = od_.find(e.index, e.sub);
       if (s == nullptr || (!s->value.empty() && s->value[0] == raw)) continue;
     }
+    // Cannot fail: the entries were looked up from the same FE table at construction and the
+    // model's types are the entries' types (a bit field's byte, INTEGER16, INTEGER32), so the
+    // value fits; no write hook sits on the input objects.
     wrote = write_input_entry(e, raw) || wrote;
   }
   if (wrote && batch_depth_ == 0) step_node(now);

@@ -1,6 +1,6 @@
 // elobau MFG 34xG / 36xG multifunction joystick grips (family "elobau-mfg").
-// Source: "CANopen Protocol for MFG 34xG and 36xG" v01.21 (elobau, 2014-03-10),
-// /work/shared/reference/000_499d7da4c768c72f.txt — section numbers below are that document's.
+// Source: "CANopen Protocol for MFG 34xG and 36xG" v01.21 (elobau, 2014-03-10); section
+// numbers below are that document's.
 //
 // Frames (default node-ID 0x11, 250 kbit/s, §7):
 //   TPDO #0  180h+id  8 bytes (§14.1, Table 7): X, Y, wheel A, B, C channel 1 (S8 %), buttons 1..8,

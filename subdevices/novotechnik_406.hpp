@@ -1,5 +1,6 @@
 // Novotechnik CANopen sensors (series MZ1-2200, MC1-2800, MB1-3600), CiA 406 encoder profile.
-// Source: /work/shared/reference/004_965670f51e9c840d.txt ("the document"; sections cited as §n).
+// Source: the Novotechnik "CANopen" sensor protocol document ("the document"; CiA 301 v4.2,
+// CiA 406 v3.2, CiA 305 LSS; sections cited as §n).
 //
 // TPDO1 (COB-ID 180h + node-ID, §3.1; default mapping §4.1 1A00h), 6 bytes, little endian:
 //   bytes 0..3  position value, INTEGER32 (1A00h:01 = 60200120h, channel 1 of 6004h, §4.2)

@@ -55,7 +55,8 @@ struct SignalValue {
   friend bool operator==(const SignalValue&, const SignalValue&) = default;
 };
 
-// Counters for bad input (issue: "counted, logged once per kind, ignored").
+// Counters for bad input: each malformed or unexpected frame is counted, logged once per kind
+// and ignored.
 struct InputCounters {
   std::uint64_t wrong_length = 0;   // a PDO/EMCY whose DLC does not fit its layout
   std::uint64_t unknown_cob = 0;    // a frame from this node on a COB-ID the driver does not use

@@ -1,6 +1,6 @@
 // Simulated elobau MFG 34xG / 36xG joystick grip: a canopen::Node with the object dictionary,
 // PDOs and EMCYs of "CANopen Protocol for MFG 34xG and 36xG" v01.21
-// (/work/shared/reference/000_499d7da4c768c72f.txt; section numbers are that document's).
+// (section numbers are that document's).
 //
 // What it models:
 //   * OD (Table 14): 1000h = 0, 1008h "JST", 1009h/100Ah "0.00", 1014h ro, 1017h, 1018h (vendor

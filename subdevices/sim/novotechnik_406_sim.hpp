@@ -1,5 +1,6 @@
 // Simulated Novotechnik CANopen sensor, CiA 406 encoder profile.
-// Source: /work/shared/reference/004_965670f51e9c840d.txt (sections cited as §n).
+// Source: the Novotechnik "CANopen" sensor protocol document (CiA 301 v4.2, CiA 406 v3.2, CiA 305
+// LSS; sections cited as §n).
 //
 // A real canopen::Node (CiA 301 + CiA 305 LSS) with the §4 object library:
 //   1000h 00020196h; 1001h; 1002h manufacturer status (bits of §10.1); 1008h/1009h/100Ah the §4.1

@@ -1,7 +1,7 @@
 // ElobauMfgDriver against ElobauMfgSim over the virtual bus, simulated clock. A Master NMT-starts
 // the grip and routes its TPDOs and EMCYs to the driver; the driver's RPDOs reach the grip.
 // Source: "CANopen Protocol for MFG 34xG and 36xG" v01.21
-// (/work/shared/reference/000_499d7da4c768c72f.txt); each test names its section/table.
+// (elobau "CANopen Protocol for MFG 34xG and 36xG"); each test names its section/table.
 #include <gtest/gtest.h>
 
 #include <unistd.h>

@@ -1,5 +1,5 @@
 // Novotechnik406Driver against Novotechnik406Sim over the virtual bus, simulated clock.
-// Document: /work/shared/reference/004_965670f51e9c840d.txt ("Novotechnik CANopen" V02), §n.
+// Document: the Novotechnik "CANopen" sensor protocol document (V02), §n.
 #include <gtest/gtest.h>
 
 #include <filesystem>

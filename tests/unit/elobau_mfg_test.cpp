@@ -1,5 +1,5 @@
 // ElobauMfgDriver frame by frame. Source: "CANopen Protocol for MFG 34xG and 36xG" v01.21
-// (/work/shared/reference/000_499d7da4c768c72f.txt); each test names its section/table.
+// (elobau); each test names its section/table.
 #include "subdevices/elobau_mfg.hpp"
 
 #include <gtest/gtest.h>

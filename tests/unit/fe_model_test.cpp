@@ -3,7 +3,10 @@
 // every changed slot with its whole value.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "gateway/fe_model.hpp"
+#include "gateway/gateway.hpp"
 
 namespace {
 
@@ -99,6 +102,42 @@ TEST(FeModel, DisplayParametersAreReadOneByOne) {
   EXPECT_TRUE(m.write(kDisplay1, FieldRef{FeSlot::Parameters, 11}, -7, at(1)));
   EXPECT_EQ(m.read(kDisplay1, FieldRef{FeSlot::Parameters, 11}), -7);
   EXPECT_EQ(m.get<gateway::DisplayState>(kDisplay1)->parameters[11], -7);
+}
+
+// The gateway's model at start: every input at its fault value, offline, stamped with the
+// start time (a consumer never sees a source time of 0); an output FE commanded from inside an
+// on_fe_change callback is reported too, in the same call.
+TEST(GatewayModel, StartStampsEveryFeAndAChangeMadeByAConsumerIsReportedToo) {
+  auto r = mapping::load_config_text(
+      "upstream: { interface: virtual, node_id: 0x20 }\n"
+      "downstream: { interface: virtual }\n"
+      "publish: { dds: { domain: 0, network: loopback } }\n"
+      "subdevices:\n"
+      "  grip: { driver: elobau-mfg, node_id: 0x11 }\n"
+      "functional_elements:\n"
+      "  joystick.1: { x: { signal: grip.x } }\n"
+      "  indicators.1:\n"
+      "    sources: [dds]\n"
+      "    indicator[1]: grip.leds[1]\n",
+      "t.yaml", gateway::driver_catalogue());
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  gateway::Gateway gw(*r.config, [](const canopen::CanFrame&) {}, [](const canopen::CanFrame&) {});
+  std::vector<FeId> seen;
+  bool commanded = false;
+  gw.on_fe_change = [&](FeId fe) {
+    seen.push_back(fe);
+    if (!commanded) {
+      commanded = true;
+      (void)gw.command_indicators(1, 0x01, at(10), mapping::CommandSource::Dds);
+    }
+  };
+  (void)gw.start(at(10));
+  EXPECT_EQ(gw.model().source_time(kJoy1), at(10));
+  EXPECT_EQ(gw.model().status(kJoy1), gateway::FeStatus::Offline);
+  const FeId leds{FeKind::IndicatorCluster, 1};
+  EXPECT_EQ(gw.model().get<gateway::IndicatorState>(leds)->indicators, 1u);
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), kJoy1), 1);
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), leds), 2) << "the start, then the command made from the callback";
 }
 
 }  // namespace

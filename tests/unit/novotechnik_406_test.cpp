@@ -1,4 +1,4 @@
-// Novotechnik406Driver frame by frame. Document: /work/shared/reference/004_965670f51e9c840d.txt
+// Novotechnik406Driver frame by frame. Document: the Novotechnik "CANopen" sensor protocol
 // ("Novotechnik CANopen", V02 21.01.25), sections cited as §n.
 #include "subdevices/novotechnik_406.hpp"
 

@@ -388,6 +388,35 @@ TEST_F(OeDeviceTest, ButtonClusterTpdo) {
   EXPECT_EQ(bytes(t[0]), (Bytes{0, 0x02, 0, 0, 0, 0, 0, 0}));
 }
 
+// The FE model's sink: a cluster's 64 switches as one slot value land in its eight 6000h bytes
+// (switch k = bit (k−1) mod 8 of byte ⌊(k−1)/8⌋), one TPDO 35 for the whole change; a joystick's
+// buttons and memory bytes and its axes likewise.
+TEST_F(OeDeviceTest, MirroredSlotsFillEveryByteOfTheirEntries) {
+  make({buttons(2), joystick(1)});
+  sdo_ok(0x1822, 1, canopen::encode<std::uint32_t>(0x290));  // TPDO 35
+  nmt(0x01);
+  out.clear();
+  const std::uint64_t switches = (std::uint64_t{1} << 9) | (std::uint64_t{1} << 63) | (std::uint64_t{0xA5} << 16);
+  dev->mirror_input(buttons(2), oegw::gateway::FeSlot::Switches, static_cast<std::int64_t>(switches), now);
+  const auto t = frames_with_id(0x290);
+  ASSERT_EQ(t.size(), 1u);
+  EXPECT_EQ(bytes(t[0]), (Bytes{0, 0x02, 0xA5, 0, 0, 0, 0, 0x80}));
+  EXPECT_EQ(od().get<std::uint8_t>(0x6000, 0x3A), 0x02);  // cluster 2 = subs 39h..40h
+  EXPECT_EQ(od().get<std::uint8_t>(0x6000, 0x40), 0x80);
+  EXPECT_EQ(dev->get(buttons(2), "switch[64]"), 1);
+  EXPECT_EQ(dev->get(buttons(2), "switch[63]"), 0);
+  dev->mirror_input(joystick(1), oegw::gateway::FeSlot::Buttons, 0x81, now);
+  dev->mirror_input(joystick(1), oegw::gateway::FeSlot::Memory, 0x05, now);
+  dev->mirror_input(joystick(1), oegw::gateway::FeSlot::Z, -32768, now);
+  EXPECT_EQ(od().get<std::uint8_t>(0x6000, 0x02), 0x81);
+  EXPECT_EQ(od().get<std::uint8_t>(0x6000, 0x01), 0x05);
+  EXPECT_EQ(od().get<std::int16_t>(0x6401, 0x03), -32768);
+  // An unchanged slot writes nothing: no TPDO.
+  out.clear();
+  dev->mirror_input(buttons(2), oegw::gateway::FeSlot::Switches, static_cast<std::int64_t>(switches), now);
+  EXPECT_TRUE(frames_with_id(0x290).empty());
+}
+
 // Host writes RPDO 1 (indicators) and SDO 6411h (display) → on_output per changed field.
 TEST_F(OeDeviceTest, HostWritesReachOnOutput) {
   make({indicators(1), display(1)});
