@@ -91,6 +91,7 @@ class Gateway {
   [[nodiscard]] std::uint64_t refused_commands() const { return arbiter_->refused(); }
 
   [[nodiscard]] OeDevice& upstream() { return *oe_; }
+  [[nodiscard]] const OeDevice& upstream() const { return *oe_; }
   [[nodiscard]] const FeModel& model() const { return model_; }
   [[nodiscard]] subdevices::NetworkManager& downstream() { return network_; }
   [[nodiscard]] const std::map<std::string, std::string>& faults() const { return faults_; }

@@ -488,6 +488,19 @@ class Monitor {
     const auto fields = gw.fields(ufe.fe);
     for (const auto& fld : ufe.fields) {
       if (!proven(fld, t)) any_lost = true;
+      // What the host reads by SDO (the upstream dictionary) is what the FE model holds, and
+      // without proof of life it is the fault value too.
+      const auto od = gw.upstream().get(ufe.fe, fld.name);
+      for (const auto& s : fields)
+        if (s.name == fld.name && od && *od != s.value)
+          violation(t, fmt::format("{}: {} {} = {} in the FE model but {} in the dictionary", what,
+                                   mapping::fe_name(ufe.fe), fld.name, s.value, *od),
+                    "dictionary " + mapping::fe_name(ufe.fe) + fld.name);
+      if (od && *od != fld.fault && !proven(fld, t))
+        violation(t, fmt::format("{}: {} {} reads {} in the dictionary (fault value {}) without proof of life of node "
+                                 "{:02X}h: {}",
+                                 what, mapping::fe_name(ufe.fe), fld.name, *od, fld.fault, fld.node, field_life_text(fld, t)),
+                  "dictionary " + mapping::fe_name(ufe.fe) + fld.name);
       for (const auto& s : fields) {
         if (s.name != fld.name || s.value == fld.fault || proven(fld, t)) continue;
         violation(t, fmt::format("{}: {} {} = {} (fault value {}) without proof of life of node {:02X}h: {}", what,
