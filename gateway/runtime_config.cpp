@@ -41,6 +41,9 @@ canopen::EdsInfo eds_info(const mapping::Config& c, std::string file_name) {
         mapping::fe_name(fe.id), fields.front().index, fields.front().sub, fields.back().sub,
         mapping::describe_sources(fe.sources)));
   }
+  // CiA 302-7 network IDs, as the host names the two buses in remote SDO/EMCY.
+  info.comments.push_back(fmt::format("network IDs: upstream (this device's bus) {}, downstream (its sub-devices) {}",
+                                      c.upstream.network_id, c.downstream.network_id));
   return info;
 }
 

@@ -140,6 +140,16 @@ void read_file(YamlReader& r, const YAML::Node& root, const SignalCatalogue& cat
   else
     r.missing(root, "functional_elements", "the file", "a functional_elements section");
   sections::check_command_sources_reachable(r, cfg);
+  // CiA 302-7: a network ID names one network; the two buses need two.
+  if (cfg.upstream.network_id == cfg.downstream.network_id) {
+    const bool down_written = cfg.downstream.network_id_where.line != 0;
+    const Location at = down_written                               ? cfg.downstream.network_id_where
+                        : cfg.upstream.network_id_where.line != 0 ? cfg.upstream.network_id_where
+                                                                   : cfg.downstream.where;
+    r.error(at, std::string(down_written ? "downstream" : "upstream") + " network_id " +
+                    std::to_string(cfg.upstream.network_id) +
+                    " names both buses; expected two distinct network IDs 1..127 (defaults: upstream 1, downstream 2)");
+  }
 }
 
 }  // namespace

@@ -57,13 +57,19 @@ struct UpstreamConfig {
   UpstreamIdentity identity;
   std::uint16_t heartbeat_ms = 0;                      // 1017h producer heartbeat time at power-on (0 = off)
   std::string store = "/var/lib/oegw/upstream.store";  // 1010h/1011h store
+  // The network ID of the host's bus (CiA 302-7 multi-level networking: the number the host uses
+  // to name a network in a remote SDO/EMCY), 1..127, distinct from downstream.network_id.
+  std::uint8_t network_id = 1;
   Location where;
+  Location network_id_where;  // the `network_id` value, when written
 };
 
 struct DownstreamConfig {
   std::string interface = "can1";
   std::uint32_t bitrate = 250000;
+  std::uint8_t network_id = 2;  // the sub-devices' network (see UpstreamConfig::network_id)
   Location where;
+  Location network_id_where;  // the `network_id` value, when written
 };
 
 struct DdsConfig {

@@ -5,10 +5,13 @@ namespace oegw::mapping::sections {
 
 void read_downstream(YamlReader& r, const MapEntry& sec, DownstreamConfig& d) {
   d.where = r.loc(sec.key);
-  const auto es = r.entries(sec.value, "downstream", {"interface", "bitrate"}, "a map with interface, bitrate");
+  const auto es = r.entries(sec.value, "downstream", {"interface", "bitrate", "network_id"},
+                            "a map with interface, bitrate, network_id");
   if (const auto* e = r.find(es, "interface"))
     if (auto s = r.string(*e, "interface")) d.interface = *s;
   r.bitrate(es, "bitrate", d.bitrate);
+  if (const auto* e = r.find(es, "network_id")) d.network_id_where = r.loc(e->value);
+  r.set_int(es, "network_id", "network_id", 1, 127, d.network_id);
 }
 
 }  // namespace oegw::mapping::sections

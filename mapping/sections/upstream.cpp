@@ -20,8 +20,8 @@ void read_identity(YamlReader& r, const MapEntry& e, UpstreamIdentity& id) {
 void read_upstream(YamlReader& r, const MapEntry& sec, UpstreamConfig& u) {
   u.where = r.loc(sec.key);
   const auto es =
-      r.entries(sec.value, "upstream", {"interface", "node_id", "bitrate", "identity", "heartbeat_ms", "store"},
-                "a map with interface, node_id, bitrate, identity, heartbeat_ms, store");
+      r.entries(sec.value, "upstream", {"interface", "node_id", "bitrate", "identity", "heartbeat_ms", "store", "network_id"},
+                "a map with interface, node_id, bitrate, identity, heartbeat_ms, store, network_id");
   if (!sec.value.IsMap()) return;
   if (const auto* e = r.find(es, "interface"))
     if (auto s = r.string(*e, "interface")) u.interface = *s;
@@ -31,6 +31,8 @@ void read_upstream(YamlReader& r, const MapEntry& sec, UpstreamConfig& u) {
     r.missing(sec.value, "node_id", "upstream", "the gateway's node-ID 1..127");
   r.bitrate(es, "bitrate", u.bitrate);
   r.set_int(es, "heartbeat_ms", "heartbeat_ms", 0, 65535, u.heartbeat_ms);
+  if (const auto* e = r.find(es, "network_id")) u.network_id_where = r.loc(e->value);
+  r.set_int(es, "network_id", "network_id", 1, 127, u.network_id);
   if (const auto* e = r.find(es, "store"))
     if (auto s = r.string(*e, "store")) u.store = *s;
   if (const auto* e = r.find(es, "identity")) read_identity(r, *e, u.identity);

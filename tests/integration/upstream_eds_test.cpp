@@ -90,6 +90,7 @@ TEST(UpstreamEds, OutputsTheHostMayNotCommandAreNamedAndTheDictionaryMatches) {
   const std::string eds = gateway::upstream_eds(load(yaml), "oegw.eds");
   EXPECT_NE(eds.find("indicators.1 (6200h sub 01h..08h) takes commands from dds only"), std::string::npos) << eds;
   EXPECT_EQ(eds.find("indicators.2 (6200h"), std::string::npos);
+  EXPECT_NE(eds.find("=network IDs: upstream (this device's bus) 1, downstream (its sub-devices) 2\n"), std::string::npos);
 }
 
 TEST(UpstreamEds, TheDemoFileGivesTheDeviceItsOwnEds) {

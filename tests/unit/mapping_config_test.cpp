@@ -184,7 +184,7 @@ TEST(MappingConfig, BadExampleReportsEveryErrorAtOnceInFileOrder) {
   EXPECT_THAT(errors(r), ElementsAre(
       f + "2:39: node_id 0x80 is out of range; expected 1..127",
       f + "2:45: unknown key 'bitrat' in upstream; expected one of interface, node_id, bitrate, identity, heartbeat_ms, "
-          "store (did you mean 'bitrate'?)",
+          "store, network_id (did you mean 'bitrate'?)",
       f + "3:41: bitrate 300000 is not a CiA 301 bit rate; expected one of 10000, 20000, 50000, 125000, 250000, 500000, "
           "800000, 1000000",
       f + "6:41: node_id 0x11 of 'left_grip' is already used by sub-device 'right_grip' (line 5, column 46), so all "
@@ -215,12 +215,38 @@ TEST(MappingConfig, MinimalFileAndDefaults) {
   EXPECT_EQ(r.config->upstream.bitrate, 250000u);
   EXPECT_EQ(r.config->upstream.heartbeat_ms, 0);
   EXPECT_EQ(r.config->downstream.bitrate, 250000u);
+  EXPECT_EQ(r.config->upstream.network_id, 1);
+  EXPECT_EQ(r.config->downstream.network_id, 2);
   EXPECT_EQ(r.config->subdevices[0].heartbeat_ms, 100);
   EXPECT_FALSE(r.config->subdevices[0].mandatory);
   EXPECT_FALSE(r.config->publish.dds.enabled);
   EXPECT_FALSE(r.config->publish.lcm.enabled);
   ASSERT_EQ(r.config->functional_elements.size(), 1u);
   EXPECT_EQ(r.config->functional_elements[0].fields[0].where.str(), "t.yaml:9:17");
+}
+
+// CiA 302-7 network IDs of the two buses: 1..127 each, distinct, named where written.
+TEST(MappingConfig, NetworkIdsAreInRangeAndDistinct) {
+  auto with = [](const std::string& up, const std::string& down) {
+    std::string t = kHead;
+    t.replace(t.find("node_id: 0x20 }"), 15, "node_id: 0x20" + up + " }");
+    t.replace(t.find("interface: can1 }"), 17, "interface: can1" + down + " }");
+    return load(t + "  joystick.1: { x: right_grip.x }\n");
+  };
+  const auto ok = with(", network_id: 7", ", network_id: 3");
+  ASSERT_TRUE(ok.ok()) << ok.error_text();
+  EXPECT_EQ(ok.config->upstream.network_id, 7);
+  EXPECT_EQ(ok.config->downstream.network_id, 3);
+  EXPECT_EQ(errors(with(", network_id: 0", "")),
+            (std::vector<std::string>{"t.yaml:1:57: network_id 0 is out of range; expected 1..127"}));
+  EXPECT_EQ(errors(with("", ", network_id: 128")),
+            (std::vector<std::string>{"t.yaml:2:44: network_id 128 is out of range; expected 1..127"}));
+  EXPECT_EQ(errors(with(", network_id: 4", ", network_id: 4")),
+            (std::vector<std::string>{"t.yaml:2:44: downstream network_id 4 names both buses; expected two distinct "
+                                      "network IDs 1..127 (defaults: upstream 1, downstream 2)"}));
+  EXPECT_EQ(errors(with(", network_id: 2", "")),
+            (std::vector<std::string>{"t.yaml:1:57: upstream network_id 2 names both buses; expected two distinct "
+                                      "network IDs 1..127 (defaults: upstream 1, downstream 2)"}));
 }
 
 TEST(MappingConfig, YamlSyntaxErrorCarriesItsMarkAndAHintForBracketsInFlowMaps) {
