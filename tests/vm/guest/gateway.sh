@@ -15,14 +15,11 @@ oegw=$1
 sim=$2
 src=$3
 dir=/run/oegw-gateway
-mkdir -p "$dir"
 t0=$(date +%s.%N)
 elapsed() { awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }'; }
 
 # The mapping file: tests/fixtures/vm_gateway.yaml (its comments say why its timings are what they are).
-mapping_fixture vm_gateway.yaml "$src" "$dir" >"$dir/oegw.yaml" || { fail "cannot read tests/fixtures/vm_gateway.yaml"; exit 1; }
-
-"$oegw" check "$dir/oegw.yaml" >/tmp/check.out 2>&1
+prepare_gateway_run vm_gateway.yaml "$src" "$dir" "$oegw"
 rc=$?
 ((rc == 0)) && pass "oegw check: valid" || fail "oegw check exit $rc: $(cat /tmp/check.out)"
 dt=$(sed -n 's/.*1000h device type = \([0-9A-F]\{8\}\)h.*/\1/p' /tmp/check.out)

@@ -19,14 +19,11 @@ oegw=$1
 sim=$2
 src=$3
 dir=/run/oegw-safety
-mkdir -p "$dir"
 t0=$(date +%s.%N)
 elapsed() { awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }'; }
 
 # The mapping file: tests/fixtures/vm_safety.yaml (its comments say why its timings are what they are).
-mapping_fixture vm_safety.yaml "$src" "$dir" >"$dir/oegw.yaml" || { fail "cannot read tests/fixtures/vm_safety.yaml"; exit 1; }
-
-"$oegw" check "$dir/oegw.yaml" >/tmp/check.out 2>&1
+prepare_gateway_run vm_safety.yaml "$src" "$dir" "$oegw"
 rc=$?
 ((rc == 0)) || { fail "oegw check exit $rc: $(cat /tmp/check.out)"; exit 1; }
 
