@@ -202,11 +202,10 @@ void Gateway::on_signal(Sub& s, std::size_t index, const sd::SignalValue& v) {
 }
 
 void Gateway::publish_changes() {
-  if (on_fe_change) {
-    model_.for_each_changed([this](mapping::FeId fe) { on_fe_change(fe); });
-  } else {
-    model_.for_each_changed([](mapping::FeId) {});
-  }
+  // Also without a consumer: the marks are cleared.
+  model_.for_each_changed([this](mapping::FeId fe) {
+    if (on_fe_change) on_fe_change(fe);
+  });
 }
 
 void Gateway::update_fault(Sub& s, std::string_view evidence) {
@@ -343,12 +342,6 @@ std::optional<TimePoint> Gateway::next_deadline() const {
   take(network_.next_deadline());
   take(arbiter_->next_deadline());
   return best;
-}
-
-std::vector<mapping::FeId> Gateway::fes() const {
-  std::vector<mapping::FeId> out;
-  for (const auto& fe : config_.functional_elements) out.push_back(fe.id);
-  return out;
 }
 
 std::vector<Gateway::FieldState> Gateway::fields(mapping::FeId fe) const {

@@ -76,7 +76,7 @@ class Gateway {
   };
   [[nodiscard]] std::vector<FieldState> fields(mapping::FeId fe) const;
   [[nodiscard]] FeStatus status(mapping::FeId fe) const;
-  [[nodiscard]] std::vector<mapping::FeId> fes() const;
+  [[nodiscard]] const std::vector<mapping::FeId>& fes() const { return model_.fes(); }  // in FE order
 
   // Commands from the machine application (DDS/LCM), through the command arbiter
   // (gateway/command_arbiter.hpp): only the sources the FE lists in the mapping file are taken;

@@ -25,11 +25,15 @@ CabRig::~CabRig() {
   down_.set_tap({});
 }
 
-void CabRig::build_devices() {
-  bench_ = std::make_unique<subdevices::sim::SimBench>([this, sink = sims_port_->sink()](const CanFrame& f) {
-    if (from_devices && from_devices(f)) return;
+canopen::FrameSink CabRig::through(const Interceptor& consumed, canopen::FrameSink sink) {
+  return [&consumed, sink = std::move(sink)](const CanFrame& f) {
+    if (consumed && consumed(f)) return;
     sink(f);
-  });
+  };
+}
+
+void CabRig::build_devices() {
+  bench_ = std::make_unique<subdevices::sim::SimBench>(through(from_devices, sims_port_->sink()));
   for (const auto& s : config_.subdevices) {
     subdevices::DeviceSpec spec{s.driver, s.node(), s.options};
     spec.options.values.emplace_back("name", s.name);
@@ -59,17 +63,8 @@ void CabRig::connect_gateway() {
   gw_.reset();
   GatewayOptions opt = options_.gateway;
   opt.store_path = options_.store;
-  gw_ = std::make_unique<Gateway>(
-      config_,
-      [this, sink = gw_up_->sink()](const CanFrame& f) {
-        if (from_gateway_up && from_gateway_up(f)) return;
-        sink(f);
-      },
-      [this, sink = gw_down_->sink()](const CanFrame& f) {
-        if (from_gateway_down && from_gateway_down(f)) return;
-        sink(f);
-      },
-      opt);
+  gw_ = std::make_unique<Gateway>(config_, through(from_gateway_up, gw_up_->sink()),
+                                  through(from_gateway_down, gw_down_->sink()), opt);
   if (on_gateway) on_gateway(*gw_);
   gw_drv_ = std::make_unique<canopen::ServiceDriver>(loop_, *gw_);
   gw_down_->set_receiver([this](const CanFrame& f, TimePoint t) {

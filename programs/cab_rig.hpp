@@ -39,12 +39,13 @@ class CabRig {
   CabRig& operator=(const CabRig&) = delete;
 
   // Interceptors, set before the frames flow; each returns true when it consumed the frame (it
-  // does not reach the bus).
-  std::function<bool(const canopen::CanFrame&)> from_devices;       // a simulator's frame
-  std::function<bool(const canopen::CanFrame&)> from_gateway_up;    // the gateway's upstream frame
-  std::function<bool(const canopen::CanFrame&)> from_gateway_down;  // the gateway's downstream frame
-  std::function<bool(const canopen::CanFrame&)> to_devices;         // a frame the simulators would receive
-  std::function<bool(const canopen::CanFrame&)> to_gateway_down;    // a frame the gateway would receive downstream
+  // does not reach the bus, or the receiver).
+  using Interceptor = std::function<bool(const canopen::CanFrame&)>;
+  Interceptor from_devices;       // a simulator's frame
+  Interceptor from_gateway_up;    // the gateway's upstream frame
+  Interceptor from_gateway_down;  // the gateway's downstream frame
+  Interceptor to_devices;         // a frame the simulators would receive
+  Interceptor to_gateway_down;    // a frame the gateway would receive downstream
   // Called with each gateway connect_gateway() makes, before it is attached (on_log, ...).
   std::function<void(Gateway&)> on_gateway;
 
@@ -83,6 +84,9 @@ class CabRig {
   [[nodiscard]] canopen::ServiceDriver& gateway_driver() { return *gw_drv_; }
 
  private:
+  // `sink` behind the interceptor member `consumed` (read at each frame, so it may be set later).
+  canopen::FrameSink through(const Interceptor& consumed, canopen::FrameSink sink);
+
   mapping::Config config_;
   canopen::EventLoop& loop_;
   CabRigOptions options_;
