@@ -2,6 +2,7 @@
 
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 
 namespace oegw::canopen {
 
@@ -13,6 +14,7 @@ constexpr std::uint16_t kHardwareVersion = 0x1009;
 constexpr std::uint16_t kSoftwareVersion = 0x100A;
 constexpr std::uint16_t kIdentity = 0x1018;
 constexpr std::uint16_t kSdoServer = 0x1200;
+constexpr std::size_t kMaxExtraSdoServers = 127;  // 1201h..127Fh
 
 std::vector<std::uint8_t> text(const std::string& s) { return {s.begin(), s.end()}; }
 
@@ -73,6 +75,7 @@ Node::Node(ObjectDictionary& od, NodeConfig config, FrameSink sink)
                .on_start_nmt = [this]() { nmt_.reset(true, now_); },
            }) {
   (void)installed_;
+  install_sdo_channels();
   nmt_.on_reset([this](bool communication_only) { handle_reset(communication_only, now_); });
   nmt_.on_state_change([this](NmtState s) { handle_state(s); });
   sync_.set_handler([this](std::uint8_t counter, TimePoint now) { pdo_.on_sync(counter, now); });
@@ -167,6 +170,122 @@ void Node::install_communication_objects() {
   od_.find(0x1029, 1)->high = std::uint64_t{2};
   install_heartbeat_producer_objects(od_, cfg_.heartbeat_ms);
   if (cfg_.heartbeat_consumers > 0) install_heartbeat_consumer_objects(od_, cfg_.heartbeat_consumers);
+  install_sdo_channel_objects();
+}
+
+// CiA 301 §7.5.2.33: 1201h..127Fh "SDO server parameter", sub 0 = 3, sub 1/2 the COB-IDs (rw
+// for the additional channels), sub 3 the node-ID of the SDO client.
+void Node::install_sdo_channel_objects() {
+  if (cfg_.sdo_servers.size() > kMaxExtraSdoServers)
+    throw std::invalid_argument("NodeConfig::sdo_servers: at most 127 additional SDO server channels (1201h..127Fh)");
+  for (std::size_t k = 1; k <= cfg_.sdo_servers.size(); ++k) {
+    const auto index = static_cast<std::uint16_t>(kSdoServer + k);
+    const SdoServerChannel& c = cfg_.sdo_servers[k - 1];
+    od_.add_record(index, "SDO server parameter");
+    od_.add_record_member(index, 1, "COB-ID client to server (rx)", DataType::Unsigned32, Access::ReadWrite,
+                          encode<std::uint32_t>(c.request));
+    od_.add_record_member(index, 2, "COB-ID server to client (tx)", DataType::Unsigned32, Access::ReadWrite,
+                          encode<std::uint32_t>(c.response));
+    SubObject& client = od_.add_record_member(index, 3, "Node-ID of the SDO client", DataType::Unsigned8,
+                                              Access::ReadWrite, {0});
+    client.high = std::uint64_t{127};
+  }
+}
+
+void Node::install_sdo_channels() {
+  for (std::size_t k = 1; k <= cfg_.sdo_servers.size(); ++k) {
+    const auto index = static_cast<std::uint16_t>(kSdoServer + k);
+    extra_sdo_.push_back(std::make_unique<SdoServer>(od_, [this](const CanFrame& f) { send(f); },
+                                                     CobId{CobId::kInvalidBit}, CobId{CobId::kInvalidBit},
+                                                     cfg_.sdo_timeout));
+    subs_ += od_.find(index)->add_write_hook(
+        [this, index](Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin origin) {
+          if (origin == Origin::Local) return SdoAbortCode::None;
+          return check_sdo_channel_write(index, sub, b);
+        });
+  }
+  pending_.assign(extra_sdo_.size(), false);
+  if (extra_sdo_.empty()) return;
+  subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
+    if (index <= kSdoServer || index > kSdoServer + extra_sdo_.size() || (sub != 1 && sub != 2)) return;
+    const std::size_t k = index - kSdoServer;
+    if (dispatching_) {
+      pending_[k - 1] = true;
+    } else {
+      apply_sdo_channel(k);
+    }
+  });
+  reload_sdo_channels();
+}
+
+SdoAbortCode Node::check_sdo_channel_write(std::uint16_t index, std::uint8_t sub,
+                                           std::span<const std::uint8_t> b) const {
+  if ((sub != 1 && sub != 2) || b.size() != 4) return SdoAbortCode::None;  // the OD checks length and range
+  const CobId cur{od_.get<std::uint32_t>(index, sub)};
+  const CobId next{get_u32(b.data())};
+  // CiA 301 §7.5.2.33: the identifier may change only while the COB-ID is not valid (bit 31 = 1).
+  if (cur.valid() && next.valid() && (cur.raw() & 0x3FFFFFFFu) != (next.raw() & 0x3FFFFFFFu))
+    return SdoAbortCode::InvalidValue;
+  if (!next.valid()) return SdoAbortCode::None;
+  // CiA 301 §7.3.5: a restricted CAN-ID is not for a configurable COB-ID; an 11-bit COB-ID has
+  // nothing in bits 11..28.
+  if (!next.extended() && (cob::restricted(next.can_id()) || (next.raw() & 0x1FFFF800u) != 0))
+    return SdoAbortCode::InvalidValue;
+  if (cob_in_use(next, index, sub)) return SdoAbortCode::InvalidValue;
+  return SdoAbortCode::None;
+}
+
+bool Node::cob_in_use(CobId cob, std::uint16_t except_index, std::uint8_t except_sub) const {
+  auto same = [&cob](std::uint32_t raw) {
+    const CobId other{raw};
+    return other.extended() == cob.extended() && other.can_id() == cob.can_id();
+  };
+  for (const auto& [index, obj] : od_.objects()) {
+    if (index < 0x1005) continue;
+    if (index > 0x19FF) break;  // the COB-ID entries are all below 1A00h
+    for (const auto& [sub, s] : obj.subs()) {
+      if ((index == except_index && sub == except_sub) || s.value.size() != 4) continue;
+      const std::uint32_t raw = get_u32(s.value.data());
+      bool used = false;
+      if (index == 0x1005 && sub == 0) {
+        used = true;  // SYNC: consumed or produced, bit 31 is "don't care" (CiA 301 §7.5.2.5)
+      } else if (index == 0x1012 && sub == 0) {
+        used = (raw & (CobId::kInvalidBit | CobId::kBit30)) != 0;  // TIME: consumed (bit 31) or produced (bit 30)
+      } else if ((index == 0x1014 && sub == 0) || (index == 0x1028 && sub != 0) ||
+                 (index >= 0x1200 && index <= 0x12FF && (sub == 1 || sub == 2)) ||
+                 (index >= 0x1400 && index <= 0x15FF && sub == 1) || (index >= 0x1800 && index <= 0x19FF && sub == 1)) {
+        used = CobId{raw}.valid();
+      }
+      if (used && same(raw)) return true;
+    }
+  }
+  return false;
+}
+
+void Node::apply_sdo_channel(std::size_t k) {
+  const auto index = static_cast<std::uint16_t>(kSdoServer + k);
+  const CobId rx{od_.get<std::uint32_t>(index, 1)};
+  const CobId tx{od_.get<std::uint32_t>(index, 2)};
+  // The channel serves only with both COB-IDs valid (see the header).
+  const std::uint32_t off = (rx.valid() && tx.valid()) ? 0 : CobId::kInvalidBit;
+  const CobId eff_rx{rx.raw() | off};
+  const CobId eff_tx{tx.raw() | off};
+  SdoServer& s = *extra_sdo_[k - 1];
+  if (s.rx_cob_id() != eff_rx || s.tx_cob_id() != eff_tx) s.set_cob_ids(eff_rx, eff_tx);
+}
+
+void Node::reload_sdo_channels() {
+  for (std::size_t k = 1; k <= extra_sdo_.size(); ++k) {
+    pending_[k - 1] = false;
+    apply_sdo_channel(k);
+    extra_sdo_[k - 1]->reset();
+  }
+}
+
+SdoServer& Node::sdo_server(std::size_t channel) {
+  if (channel == 0) return sdo_;
+  if (channel > extra_sdo_.size()) throw std::out_of_range("Node::sdo_server: no such SDO server channel");
+  return *extra_sdo_[channel - 1];
 }
 
 ParameterStore::LoadResult Node::start(TimePoint now) {
@@ -178,6 +297,7 @@ ParameterStore::LoadResult Node::start(TimePoint now) {
   hb_consumer_.reload();
   sync_.reload();
   pdo_.reload();
+  reload_sdo_channels();
   nmt_.start(now);
   return result;
 }
@@ -270,6 +390,7 @@ void Node::handle_reset(bool communication_only, TimePoint now) {
     sdo_.set_cob_ids(CobId{cob::kSdoRx + new_id.value()}, CobId{cob::kSdoTx + new_id.value()});
   }
   sdo_.reset();
+  reload_sdo_channels();
   hb_producer_.reload();
   hb_consumer_.reload();
   sync_.reload();
@@ -288,7 +409,10 @@ void Node::handle_state(NmtState s) {
   // CiA 301 §7.3.2.2.1: PDOs only in operational; leaving a state drops SDO transfers only
   // through reset (the server keeps running in pre-operational and operational).
   pdo_.set_operational(s == NmtState::Operational, nmt_.last_transition());
-  if (s == NmtState::Stopped) sdo_.reset();
+  if (s == NmtState::Stopped) {
+    sdo_.reset();
+    for (auto& extra : extra_sdo_) extra->reset();
+  }
   if (on_state_change) on_state_change(s);
 }
 
@@ -308,6 +432,25 @@ bool Node::on_frame(const CanFrame& frame, TimePoint now) {
   if (!serving) return false;
   if (sync_.on_frame(frame, now)) return true;
   if (sdo_.on_frame(frame, now)) return true;
+  if (!extra_sdo_.empty()) {
+    // A channel's COB-IDs written through an SDO channel change after the answer is out.
+    const bool outer = dispatching_;  // a client wired straight back to the node nests calls
+    dispatching_ = true;
+    bool taken = false;
+    for (auto& extra : extra_sdo_)
+      if (extra->on_frame(frame, now)) {
+        taken = true;
+        break;
+      }
+    dispatching_ = outer;
+    if (!outer)
+      for (std::size_t k = 1; k <= pending_.size(); ++k)
+        if (pending_[k - 1]) {
+          pending_[k - 1] = false;
+          apply_sdo_channel(k);
+        }
+    if (taken) return true;
+  }
   return pdo_.on_frame(frame, now);
 }
 
@@ -316,6 +459,7 @@ void Node::advance(TimePoint now) {
   hb_producer_.advance(now);
   hb_consumer_.advance(now);
   sdo_.advance(now);
+  for (auto& extra : extra_sdo_) extra->advance(now);
   emcy_.advance(now);
   sync_.advance(now);
   pdo_.advance(now);
@@ -329,6 +473,7 @@ std::optional<TimePoint> Node::next_deadline() const {
   take(hb_producer_.next_deadline());
   take(hb_consumer_.next_deadline());
   take(sdo_.next_deadline());
+  for (const auto& extra : extra_sdo_) take(extra->next_deadline());
   take(emcy_.next_deadline());
   take(sync_.next_deadline());
   take(pdo_.next_deadline());

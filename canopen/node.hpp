@@ -11,12 +11,30 @@
 //    reset node does the same for the whole dictionary. A node-ID configured by LSS becomes
 //    active here: every COB-ID default of the form "function code + node-ID" follows it.
 //  * LSS "store configuration" persists node-ID and bit timing beside the parameter file.
+//  * Additional SDO server channels 1201h..127Fh (NodeConfig::sdo_servers, CiA 301 §7.2.4,
+//    §7.5.2.33): one SdoServer each on the COB-IDs of its sub 1/2, under the same NMT gating,
+//    timers and resets as the default channel 1200h. A channel serves only while both COB-IDs
+//    are valid (bit 31 = 0); with one of them not valid it is disabled as a whole (a request
+//    without a way to answer would change the dictionary unconfirmed). Writes of sub 1/2 (SDO;
+//    the application's own Local writes are not checked):
+//      - bits 0..29 may change only while bit 31 is set (0609 0030h otherwise), as for PDOs;
+//      - a valid COB-ID on a restricted CAN-ID (cob::restricted), an 11-bit one with bits 11..28
+//        set, or one the device already uses is refused with 0609 0030h. "In use": 1005h SYNC,
+//        1012h TIME (when consumed or produced), and the valid entries of 1014h EMCY, 1028h EMCY
+//        consumer, 1200h..12FFh sub 1/2, 1400h..15FFh sub 1 and 1800h..19FFh sub 1;
+//      - a change takes effect at once and drops a transfer in progress on that channel; a write
+//        that arrives through that very channel takes effect after its confirmation was sent (so
+//        disabling a channel through itself is confirmed on it).
+//    The defaults in NodeConfig are not checked (the owner validates them, e.g. the mapping
+//    file). Sub 3 "node-ID of the SDO client" (0..127, 0 = not given) is stored, not used.
 #pragma once
 
+#include <cstddef>
 #include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "canopen/301/emcy.hpp"
 #include "canopen/301/heartbeat.hpp"
@@ -33,6 +51,14 @@
 
 namespace oegw::canopen {
 
+// One additional SDO server channel, 1200h + k (CiA 301 §7.5.2.33): the defaults of its
+// COB-IDs, bit 31 set = not valid. Both not valid (the default): disabled until the host
+// writes them.
+struct SdoServerChannel {
+  std::uint32_t request = CobId::kInvalidBit;   // sub 1 "COB-ID client to server"
+  std::uint32_t response = CobId::kInvalidBit;  // sub 2 "COB-ID server to client"
+};
+
 struct NodeConfig {
   NodeId node_id{0x20};
   std::uint32_t device_type = 0;              // 1000h
@@ -47,6 +73,8 @@ struct NodeConfig {
   EmcyConfig emcy{};
   SyncConfig sync{};
   Duration sdo_timeout = std::chrono::seconds(1);
+  // 1201h, 1202h, ... in this order; at most 127 (1201h..127Fh), more throws std::invalid_argument.
+  std::vector<SdoServerChannel> sdo_servers;
 };
 
 class Node {
@@ -80,6 +108,10 @@ class Node {
   [[nodiscard]] LssSlave& lss() { return lss_; }
   [[nodiscard]] SyncService& sync() { return sync_; }
   [[nodiscard]] std::uint8_t bit_timing_index() const { return bit_timing_; }
+  // The SDO server channels: 1 (the default 1200h) + NodeConfig::sdo_servers.size().
+  [[nodiscard]] std::size_t sdo_server_count() const { return 1 + extra_sdo_.size(); }
+  // Channel 0 = 1200h (the default server), k = 1200h + k; out of range throws std::out_of_range.
+  [[nodiscard]] SdoServer& sdo_server(std::size_t channel);
 
   // Called on every NMT state change, after the Node has applied it.
   std::function<void(NmtState)> on_state_change;
@@ -98,6 +130,14 @@ class Node {
   [[nodiscard]] std::filesystem::path lss_path() const;
   void send(const CanFrame& frame);
   void communication_error(TimePoint now);
+  void install_sdo_channel_objects();
+  void install_sdo_channels();
+  [[nodiscard]] SdoAbortCode check_sdo_channel_write(std::uint16_t index, std::uint8_t sub,
+                                                     std::span<const std::uint8_t> bytes) const;
+  [[nodiscard]] bool cob_in_use(CobId cob, std::uint16_t except_index, std::uint8_t except_sub) const;
+  // Gives channel k (1-based) the COB-IDs its entries hold now; a change drops its transfer.
+  void apply_sdo_channel(std::size_t k);
+  void reload_sdo_channels();
 
   ObjectDictionary& od_;
   NodeConfig cfg_;
@@ -118,6 +158,10 @@ class Node {
   PdoService pdo_;
   SdoServer sdo_;
   LssSlave lss_;
+  std::vector<std::unique_ptr<SdoServer>> extra_sdo_;  // channel k at [k - 1]
+  bool dispatching_ = false;                           // inside on_frame: channel changes wait
+  std::vector<bool> pending_;                          // channel k changed while dispatching
+  Subscriptions subs_;  // declared last: unregisters the OD callbacks first on destruction
 };
 
 }  // namespace oegw::canopen

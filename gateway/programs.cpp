@@ -70,6 +70,15 @@ int run_check(const std::string& file) {
   std::printf("upstream: network %u, node-ID %02Xh on %s, 1000h device type = %08Xh (CiA 852 Table 8)\n",
               cfg->upstream.network_id, node.value(), cfg->upstream.interface.c_str(),
               device->od().get<std::uint32_t>(0x1000, 0));
+  // 1201h..: the additional SDO server channels (upstream.sdo_servers).
+  for (std::size_t k = 1; k <= cfg->upstream.sdo_servers.size(); ++k) {
+    const auto& s = cfg->upstream.sdo_servers[k - 1];
+    const std::string cobs = s.enabled() ? fmt::format("request {:03X}h, response {:03X}h", *s.request, *s.response)
+                                         : std::string("disabled until the host sets its COB-IDs");
+    const std::string target =
+        s.subdevice.empty() ? std::string("the gateway's own dictionary") : "bound to " + s.subdevice;
+    std::printf("  SDO server %04Xh: %s, %s\n", static_cast<unsigned>(0x1200 + k), cobs.c_str(), target.c_str());
+  }
   std::printf("downstream: network %u, %s\n", cfg->downstream.network_id, cfg->downstream.interface.c_str());
   for (const auto& s : cfg->subdevices)
     std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id, s.mandatory ? "  mandatory" : "");

@@ -22,6 +22,10 @@ OeDeviceConfig device_config(const mapping::Config& c, std::optional<std::filesy
     if (!fe.input() && !fe.accepts(mapping::CommandSource::Canopen)) oe.host_may_not_command.insert(fe.id);
   }
   oe.store_path = store ? *store : std::filesystem::path(c.upstream.store);
+  // 1201h..: a channel without COB-IDs in the file is disabled until the host writes them.
+  for (const auto& s : c.upstream.sdo_servers)
+    oe.sdo_servers.push_back(s.enabled() ? canopen::SdoServerChannel{*s.request, *s.response}
+                                         : canopen::SdoServerChannel{});
   return oe;
 }
 
@@ -40,6 +44,18 @@ canopen::EdsInfo eds_info(const mapping::Config& c, std::string file_name) {
         "(local control), its bytes in an RPDO are ignored",
         mapping::fe_name(fe.id), fields.front().index, fields.front().sub, fields.back().sub,
         mapping::describe_sources(fe.sources)));
+  }
+  // 1201h..: where each additional SDO server channel leads (upstream.sdo_servers).
+  for (std::size_t k = 1; k <= c.upstream.sdo_servers.size(); ++k) {
+    const auto& s = c.upstream.sdo_servers[k - 1];
+    const mapping::SubdeviceConfig* d = s.subdevice.empty() ? nullptr : c.find_subdevice(s.subdevice);
+    info.comments.push_back(fmt::format(
+        "SDO server {:04X}h ({}): {}", 0x1200 + k,
+        s.enabled() ? fmt::format("COB-IDs {:03X}h/{:03X}h", *s.request, *s.response)
+                    : std::string("disabled until the host sets its COB-IDs"),
+        d ? fmt::format("bound to sub-device {} (node {:02X}h on network {})", d->name, d->node_id,
+                        c.downstream.network_id)
+          : std::string("the gateway's own dictionary")));
   }
   // CiA 302-7 network IDs, as the host names the two buses in remote SDO/EMCY.
   info.comments.push_back(fmt::format("network IDs: upstream (this device's bus) {}, downstream (its sub-devices) {}",

@@ -140,6 +140,7 @@ void read_file(YamlReader& r, const YAML::Node& root, const SignalCatalogue& cat
   else
     r.missing(root, "functional_elements", "the file", "a functional_elements section");
   sections::check_command_sources_reachable(r, cfg);
+  sections::check_sdo_servers(r, cfg);
   // CiA 302-7: a network ID names one network; the two buses need two.
   if (cfg.upstream.network_id == cfg.downstream.network_id) {
     const bool down_written = cfg.downstream.network_id_where.line != 0;

@@ -50,6 +50,20 @@ struct UpstreamIdentity {  // 1018h sub-indices 1..4
   std::uint32_t serial = 0;
 };
 
+// One additional SDO server channel of the gateway (`upstream.sdo_servers`): the k-th entry
+// (1-based) is 1200h + k (CiA 301 §7.5.2.33). With `subdevice` the channel is bound to that
+// sub-device (its requests go to the sub-device's dictionary); without, it serves the gateway's
+// own dictionary. Without request/response the channel is disabled (COB-IDs 8000 0000h) until
+// the host writes 1200h+k:01/02.
+struct SdoServerConfig {
+  std::string subdevice;                   // the bound sub-device's name; empty: not bound
+  std::optional<std::uint32_t> request;    // COB-ID client -> server (1200h+k:01), 11-bit
+  std::optional<std::uint32_t> response;   // COB-ID server -> client (1200h+k:02), 11-bit
+  Location where;                          // the list entry
+  Location subdevice_where, request_where, response_where;  // the values, when written
+  [[nodiscard]] bool enabled() const { return request.has_value() && response.has_value(); }
+};
+
 struct UpstreamConfig {
   std::string interface = "can0";
   std::uint8_t node_id = 0;  // required
@@ -60,6 +74,7 @@ struct UpstreamConfig {
   // The network ID of the host's bus (CiA 302-7 multi-level networking: the number the host uses
   // to name a network in a remote SDO/EMCY), 1..127, distinct from downstream.network_id.
   std::uint8_t network_id = 1;
+  std::vector<SdoServerConfig> sdo_servers;  // 1201h, 1202h, ... (at most 127)
   Location where;
   Location network_id_where;  // the `network_id` value, when written
 };

@@ -10,6 +10,8 @@
 namespace oegw::mapping::sections {
 
 void read_upstream(YamlReader& r, const MapEntry& section, UpstreamConfig& out);      // upstream.cpp
+// upstream.cpp: upstream.sdo_servers against the sub-devices and the gateway's own COB-IDs.
+void check_sdo_servers(YamlReader& r, const Config& config);
 void read_downstream(YamlReader& r, const MapEntry& section, DownstreamConfig& out);  // downstream.cpp
 void read_publish(YamlReader& r, const MapEntry& section, PublishConfig& out);        // publish.cpp
 // subdevices.cpp; the signals of each come from `catalogue`.

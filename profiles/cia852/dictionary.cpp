@@ -130,6 +130,7 @@ canopen::NodeConfig build_dictionary(const DeviceConfig& cfg, ObjectDictionary& 
   nc.identity.serial = cfg.identity.serial;
   nc.heartbeat_ms = cfg.heartbeat_ms;
   nc.store_path = cfg.store_path;
+  nc.sdo_servers = cfg.sdo_servers;
   const bool outputs = has_kind(fes, FeKind::IndicatorCluster) || has_kind(fes, FeKind::Display);
   if (outputs) {
     // §8.3 / Annex A: heartbeat consumer mandatory with outputs; one entry, the host's.

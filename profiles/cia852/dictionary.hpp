@@ -65,6 +65,8 @@ struct DeviceConfig {
   // of the gateway itself (Origin::Local: DDS/LCM commands, 6206h/6443h error values) pass.
   std::set<FeId> host_may_not_command;
   std::filesystem::path store_path;      // empty: no 1010h/1011h
+  // Additional SDO server channels 1201h.. (CiA 301 §7.5.2.33; canopen::Node installs them).
+  std::vector<canopen::SdoServerChannel> sdo_servers;
 };
 
 // Adds the application objects and PDOs to `od` (not the CiA 301 objects the Node adds). Returns

@@ -1124,7 +1124,7 @@ TEST(GatewayE2EBadMapping, ErrorsCarryFileLineColumnAndNoGatewayIsBuilt) {
   ASSERT_EQ(lines.size(), 3u) << r.error_text();
   EXPECT_EQ(lines[0],
             "bad.yaml:6:3: unknown key 'heartbeat_msec' in upstream; expected one of interface, node_id, bitrate, "
-            "identity, heartbeat_ms, store, network_id (did you mean 'heartbeat_ms'?)");
+            "identity, heartbeat_ms, store, network_id, sdo_servers (did you mean 'heartbeat_ms'?)");
   EXPECT_EQ(lines[1].rfind("bad.yaml:28:18: sub-device 'right_grip' (elobau-mfg) has no signal 'why'; expected one of x, y,", 0),
             0u)
       << lines[1];

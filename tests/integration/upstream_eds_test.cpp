@@ -103,3 +103,52 @@ TEST(UpstreamEds, TheDemoFileGivesTheDeviceItsOwnEds) {
 }
 
 }  // namespace
+
+// upstream.sdo_servers: the EDS lists 1201h.. (OptionalObjects, one RECORD each) with the
+// defaults the mapping file gives, names where each channel leads in [Comments], and equals the
+// running device's.
+TEST(UpstreamEds, AdditionalSdoServerChannelsAreListedWithTheirDefaults) {
+  const std::string yaml =
+      "upstream:\n"
+      "  interface: virtual\n"
+      "  node_id: 0x20\n"
+      "  sdo_servers:\n"
+      "    - { subdevice: grip, request: 0x690, response: 0x6B0 }\n"
+      "    - {}\n"
+      "downstream: { interface: virtual }\n"
+      "subdevices:\n"
+      "  grip: { driver: elobau-mfg, node_id: 0x11 }\n"
+      "functional_elements:\n"
+      "  joystick.1: { x: { signal: grip.x } }\n";
+  expect_eds_equals_device(yaml);
+  const std::string eds = gateway::upstream_eds(load(yaml), "oegw.eds");
+  const auto optional = eds.substr(eds.find("[OptionalObjects]"));
+  const std::string list = optional.substr(0, optional.find("\n\n") + 1);
+  EXPECT_TRUE(std::regex_search(list, std::regex("\n[0-9]+=0x1201\n[0-9]+=0x1202\n"))) << list;
+  EXPECT_EQ(eds.find("[1203]"), std::string::npos);
+  for (const char* index : {"1201", "1202"}) {
+    EXPECT_EQ(eds_value(eds, index, "ParameterName"), "SDO server parameter");
+    EXPECT_EQ(eds_value(eds, index, "ObjectType"), "0x9");
+    EXPECT_EQ(eds_value(eds, index, "SubNumber"), "4");
+    EXPECT_EQ(eds_value(eds, std::string(index) + "sub0", "DefaultValue"), "0x3");
+    for (const char* sub : {"sub1", "sub2", "sub3"}) {
+      EXPECT_EQ(eds_value(eds, index + std::string(sub), "AccessType"), "rw") << index << sub;
+      EXPECT_EQ(eds_value(eds, index + std::string(sub), "PDOMapping"), "0") << index << sub;
+    }
+    EXPECT_EQ(eds_value(eds, std::string(index) + "sub1", "DataType"), "0x0007");
+    EXPECT_EQ(eds_value(eds, std::string(index) + "sub3", "DataType"), "0x0005");
+    EXPECT_EQ(eds_value(eds, std::string(index) + "sub3", "DefaultValue"), "0x0");
+  }
+  EXPECT_EQ(eds_value(eds, "1201sub1", "DefaultValue"), "0x690");
+  EXPECT_EQ(eds_value(eds, "1201sub2", "DefaultValue"), "0x6B0");
+  EXPECT_EQ(eds_value(eds, "1202sub1", "DefaultValue"), "0x80000000");
+  EXPECT_EQ(eds_value(eds, "1202sub2", "DefaultValue"), "0x80000000");
+  // The default channel is unchanged: node-relative and read-only.
+  EXPECT_EQ(eds_value(eds, "1200sub1", "DefaultValue"), "$NODEID+0x600");
+  EXPECT_EQ(eds_value(eds, "1200sub1", "AccessType"), "ro");
+  EXPECT_NE(eds.find("=SDO server 1201h (COB-IDs 690h/6B0h): bound to sub-device grip (node 11h on network 2)\n"),
+            std::string::npos)
+      << eds;
+  EXPECT_NE(eds.find("=SDO server 1202h (disabled until the host sets its COB-IDs): the gateway's own dictionary\n"),
+            std::string::npos);
+}

@@ -184,7 +184,7 @@ TEST(MappingConfig, BadExampleReportsEveryErrorAtOnceInFileOrder) {
   EXPECT_THAT(errors(r), ElementsAre(
       f + "2:39: node_id 0x80 is out of range; expected 1..127",
       f + "2:45: unknown key 'bitrat' in upstream; expected one of interface, node_id, bitrate, identity, heartbeat_ms, "
-          "store, network_id (did you mean 'bitrate'?)",
+          "store, network_id, sdo_servers (did you mean 'bitrate'?)",
       f + "3:41: bitrate 300000 is not a CiA 301 bit rate; expected one of 10000, 20000, 50000, 125000, 250000, 500000, "
           "800000, 1000000",
       f + "6:41: node_id 0x11 of 'left_grip' is already used by sub-device 'right_grip' (line 5, column 46), so all "
@@ -925,6 +925,161 @@ TEST(MappingConfig, EveryPrefixOfTheDemoFileGivesAConfigOrErrorsNeverACrash) {
 TEST(MappingConfig, MissingFileIsAnErrorNotACrash) {
   const auto r = load_config("/nonexistent/oegw.yaml", fake_catalogue);
   EXPECT_THAT(errors(r), ElementsAre("/nonexistent/oegw.yaml:1:1: cannot open the file; expected a readable mapping file"));
+}
+
+
+// ---- upstream.sdo_servers ------------------------------------------------------------------
+
+namespace sdo_servers {
+
+// The list entries start on line 4, each "    - " + entry; the file has one input FE, or with
+// `outputs` also an indicator cluster (the gateway then consumes the other nodes' EMCYs, 1028h).
+std::string file(const std::vector<std::string>& entries, bool outputs = false) {
+  std::string t = "upstream:\n  node_id: 0x20\n  sdo_servers:\n";
+  for (const auto& e : entries) t += "    - " + e + "\n";
+  t += R"(downstream: { interface: can1 }
+subdevices:
+  right_grip: { driver: elobau-mfg, node_id: 0x11 }
+  left_grip: { driver: mcb402, node_id: 0x03 }
+functional_elements:
+  joystick.1: { x: right_grip.x }
+)";
+  if (outputs) t += "  indicators.1:\n    indicator[1..2]: left_grip.leds[1..2]\n";
+  return t;
+}
+
+}  // namespace sdo_servers
+
+// Entry k is 1200h + k: bound or not, with both COB-IDs or none (disabled until the host writes them).
+TEST(MappingConfig, SdoServersAreReadInOrder) {
+  const auto r = load(sdo_servers::file({"{ subdevice: right_grip, request: 0x690, response: 0x6B0 }", "{}",
+                                         "{ request: 1700, response: 0x6A5 }"}));
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  const auto& s = r.config->upstream.sdo_servers;
+  ASSERT_EQ(s.size(), 3u);
+  EXPECT_EQ(s[0].subdevice, "right_grip");
+  EXPECT_EQ(s[0].request, 0x690u);
+  EXPECT_EQ(s[0].response, 0x6B0u);
+  EXPECT_TRUE(s[0].enabled());
+  EXPECT_EQ(s[0].where.str(), "t.yaml:4:7");
+  EXPECT_EQ(s[0].subdevice_where.str(), "t.yaml:4:20");
+  EXPECT_EQ(s[0].request_where.str(), "t.yaml:4:41");
+  EXPECT_EQ(s[0].response_where.str(), "t.yaml:4:58");
+  EXPECT_TRUE(s[1].subdevice.empty());
+  EXPECT_FALSE(s[1].enabled());
+  EXPECT_FALSE(s[1].request.has_value());
+  EXPECT_EQ(s[2].request, 0x6A4u);
+  EXPECT_EQ(s[2].response, 0x6A5u);
+  // None at all: the default.
+  EXPECT_TRUE(load(kHead + "  joystick.1: { x: right_grip.x }\n").config->upstream.sdo_servers.empty());
+}
+
+TEST(MappingConfig, SdoServerEntryErrors) {
+  using sdo_servers::file;
+  EXPECT_EQ(errors(load(file({"{ subdevice: rigth_grip, request: 0x690, response: 0x6B0 }"}))),
+            (std::vector<std::string>{"t.yaml:4:20: unknown sub-device 'rigth_grip' for SDO server 1201h; expected one "
+                                      "of right_grip, left_grip (did you mean 'right_grip'?)"}));
+  EXPECT_EQ(errors(load(file({"{}", "{ request: 0x690 }"}))),
+            (std::vector<std::string>{"t.yaml:5:18: request of SDO server 1202h without response; expected both "
+                                      "COB-IDs, or neither (the channel is then disabled until the host writes "
+                                      "1202h:01/02)"}));
+  EXPECT_EQ(errors(load(file({"{ subdevice: left_grip, response: 0x6B0 }"}))),
+            (std::vector<std::string>{"t.yaml:4:41: response of SDO server 1201h without request; expected both "
+                                      "COB-IDs, or neither (the channel is then disabled until the host writes "
+                                      "1201h:01/02)"}));
+  EXPECT_EQ(errors(load(file({"{ subdevice: right_grip, requets: 0x690, response: 0x6B0 }"}))),
+            (std::vector<std::string>{
+                "t.yaml:4:32: unknown key 'requets' in upstream sdo_servers entry 1 (1201h); expected one of "
+                "subdevice, request, response (did you mean 'request'?)",
+                "t.yaml:4:58: response of SDO server 1201h without request; expected both COB-IDs, or neither (the "
+                "channel is then disabled until the host writes 1201h:01/02)"}));
+  EXPECT_EQ(errors(load(file({"{ request: 0x800, response: 0x6B0 }"}))),
+            (std::vector<std::string>{"t.yaml:4:18: request 0x800 is out of range; expected 0x0..0x7FF"}));
+  EXPECT_EQ(errors(load(file({"[0x690, 0x6B0]"}))),
+            (std::vector<std::string>{"t.yaml:4:7: found [0x690, 0x6B0] for upstream sdo_servers entry 1 (1201h); "
+                                      "expected a map with subdevice, request, response"}));
+  const std::string not_a_list = "upstream:\n  node_id: 0x20\n  sdo_servers: { request: 0x690 }\n" +
+                                 sdo_servers::file({}).substr(sdo_servers::file({}).find("downstream"));
+  EXPECT_EQ(errors(load(not_a_list)),
+            (std::vector<std::string>{"t.yaml:3:16: found a map for sdo_servers; expected a list of {subdevice, "
+                                      "request, response}"}));
+}
+
+// Restricted CAN-IDs (CiA 301 §7.3.5), each named with its range.
+TEST(MappingConfig, SdoServerRestrictedCanIdsNameTheirRange) {
+  const auto r = load(sdo_servers::file({"{ request: 0x605, response: 0x585 }", "{ request: 0x000, response: 0x07F }",
+                                         "{ request: 0x101, response: 0x6E0 }", "{ request: 0x720, response: 0x7E5 }"}));
+  EXPECT_THAT(
+      errors(r),
+      ElementsAre(
+          "t.yaml:4:18: request COB-ID 0x605 of SDO server 1201h is a CAN-ID CiA 301 restricts: 601h..67Fh (the default "
+          "SDO client->server identifiers); expected an 11-bit COB-ID outside 000h..07Fh, 101h..180h, 581h..5FFh, "
+          "601h..67Fh, 6E0h..6FFh, 701h..7FFh",
+          "t.yaml:4:35: response COB-ID 0x585 of SDO server 1201h is a CAN-ID CiA 301 restricts: 581h..5FFh (the "
+          "default SDO server->client identifiers); expected an 11-bit COB-ID outside 000h..07Fh, 101h..180h, "
+          "581h..5FFh, 601h..67Fh, 6E0h..6FFh, 701h..7FFh",
+          "t.yaml:5:18: request COB-ID 0x000 of SDO server 1202h is a CAN-ID CiA 301 restricts: 000h (NMT); expected "
+          "an 11-bit COB-ID outside 000h..07Fh, 101h..180h, 581h..5FFh, 601h..67Fh, 6E0h..6FFh, 701h..7FFh",
+          "t.yaml:5:35: response COB-ID 0x07F of SDO server 1202h is a CAN-ID CiA 301 restricts: 001h..07Fh "
+          "(reserved); expected an 11-bit COB-ID outside 000h..07Fh, 101h..180h, 581h..5FFh, 601h..67Fh, 6E0h..6FFh, "
+          "701h..7FFh",
+          "t.yaml:6:18: request COB-ID 0x101 of SDO server 1203h is a CAN-ID CiA 301 restricts: 101h..180h "
+          "(reserved); expected an 11-bit COB-ID outside 000h..07Fh, 101h..180h, 581h..5FFh, 601h..67Fh, 6E0h..6FFh, "
+          "701h..7FFh",
+          "t.yaml:6:35: response COB-ID 0x6E0 of SDO server 1203h is a CAN-ID CiA 301 restricts: 6E0h..6FFh "
+          "(reserved); expected an 11-bit COB-ID outside 000h..07Fh, 101h..180h, 581h..5FFh, 601h..67Fh, 6E0h..6FFh, "
+          "701h..7FFh",
+          "t.yaml:7:18: request COB-ID 0x720 of SDO server 1204h is a CAN-ID CiA 301 restricts: 701h..77Fh (NMT error "
+          "control); expected an 11-bit COB-ID outside 000h..07Fh, 101h..180h, 581h..5FFh, 601h..67Fh, 6E0h..6FFh, "
+          "701h..7FFh",
+          "t.yaml:7:35: response COB-ID 0x7E5 of SDO server 1204h is a CAN-ID CiA 301 restricts: 780h..7FFh "
+          "(reserved, LSS); expected an 11-bit COB-ID outside 000h..07Fh, 101h..180h, 581h..5FFh, 601h..67Fh, "
+          "6E0h..6FFh, 701h..7FFh"));
+}
+
+// A COB-ID used twice: among the channels (at the later, naming the earlier), and against the
+// gateway's own COB-IDs on the host's bus.
+TEST(MappingConfig, SdoServerCobIdsClash) {
+  using sdo_servers::file;
+  EXPECT_THAT(errors(load(file({"{ request: 0x690, response: 0x6B0 }", "{ request: 0x6B0, response: 0x6C0 }",
+                                "{ request: 0x6D0, response: 0x6D0 }"}))),
+              ElementsAre("t.yaml:5:18: request COB-ID 0x6B0 of SDO server 1202h is already used by SDO server 1201h "
+                          "response (line 4, column 35); expected a COB-ID no other object of the gateway uses",
+                          "t.yaml:6:35: response COB-ID 0x6D0 of SDO server 1203h is already used by SDO server 1203h "
+                          "request (line 6, column 18); expected a COB-ID no other object of the gateway uses"));
+  EXPECT_THAT(errors(load(file({"{ request: 0x1A0, response: 0x0A0 }", "{ request: 0x080, response: 0x100 }",
+                                "{ request: 0x520, response: 0x2A0 }"}))),
+              ElementsAre("t.yaml:4:18: request COB-ID 0x1A0 of SDO server 1201h clashes with the gateway's TPDO1 (180h "
+                          "+ node-ID 20h); expected a COB-ID no other object of the gateway uses",
+                          "t.yaml:4:35: response COB-ID 0x0A0 of SDO server 1201h clashes with the gateway's EMCY (080h "
+                          "+ node-ID 20h); expected a COB-ID no other object of the gateway uses",
+                          "t.yaml:5:18: request COB-ID 0x080 of SDO server 1202h clashes with the gateway's SYNC "
+                          "(1005h); expected a COB-ID no other object of the gateway uses",
+                          "t.yaml:5:35: response COB-ID 0x100 of SDO server 1202h clashes with TIME (100h, CiA 301 "
+                          "predefined connection set); expected a COB-ID no other object of the gateway uses",
+                          "t.yaml:6:18: request COB-ID 0x520 of SDO server 1203h clashes with the gateway's RPDO4 "
+                          "(500h + node-ID 20h); expected a COB-ID no other object of the gateway uses",
+                          "t.yaml:6:35: response COB-ID 0x2A0 of SDO server 1203h clashes with the gateway's TPDO2 "
+                          "(280h + node-ID 20h); expected a COB-ID no other object of the gateway uses"));
+  // The other nodes' EMCYs only when the gateway consumes them (1028h, with output FEs).
+  const std::vector<std::string> emcy{"{ request: 0x091, response: 0x0FF }"};
+  EXPECT_TRUE(load(file(emcy)).ok());
+  EXPECT_THAT(errors(load(file(emcy, true))),
+              ElementsAre("t.yaml:4:18: request COB-ID 0x091 of SDO server 1201h clashes with the EMCY of node 11h, "
+                          "which the gateway consumes (1028h); expected a COB-ID no other object of the gateway uses",
+                          "t.yaml:4:35: response COB-ID 0x0FF of SDO server 1201h clashes with the EMCY of node 7Fh, "
+                          "which the gateway consumes (1028h); expected a COB-ID no other object of the gateway uses"));
+}
+
+TEST(MappingConfig, AtMost127SdoServers) {
+  const std::vector<std::string> max(127, "{}");
+  const auto ok = load(sdo_servers::file(max));
+  ASSERT_TRUE(ok.ok()) << ok.error_text();
+  EXPECT_EQ(ok.config->upstream.sdo_servers.size(), 127u);
+  std::vector<std::string> more(129, "{}");
+  EXPECT_EQ(errors(load(sdo_servers::file(more))),
+            (std::vector<std::string>{"t.yaml:131:7: sdo_servers entry 128 is beyond 127Fh; expected at most 127 "
+                                      "additional SDO server channels (1201h..127Fh)"}));
 }
 
 }  // namespace
