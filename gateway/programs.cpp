@@ -70,7 +70,8 @@ int run_check(const std::string& file) {
   std::printf("upstream: network %u, node-ID %02Xh on %s, 1000h device type = %08Xh (CiA 852 Table 8)\n",
               cfg->upstream.network_id, node.value(), cfg->upstream.interface.c_str(),
               device->od().get<std::uint32_t>(0x1000, 0));
-  std::printf("downstream: network %u, %s\n", cfg->downstream.network_id, cfg->downstream.interface.c_str());
+  std::printf("downstream: network %u, %s, sub-device EMCYs forwarded upstream: %s\n", cfg->downstream.network_id,
+              cfg->downstream.interface.c_str(), std::string(mapping::to_string(cfg->downstream.emcy_forwarding)).c_str());
   for (const auto& s : cfg->subdevices)
     std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id, s.mandatory ? "  mandatory" : "");
   const auto pdos = cia852::default_pdos(fes, node);
