@@ -1,6 +1,10 @@
 // Decodes an LCM log (as recorded by `lcm-logger`) with oegw's LCM types and prints the joystick
-// samples in the same format as lcm_subscriber, and a count of the others:
+// samples in the same format as lcm_subscriber, each gateway status (a line, then one per
+// sub-device and per upstream node whose EMCYs it consumed), and a count of the others:
 //   lcm_log_decode FILE [CHANNEL_PREFIX]      (prefix default OEGW_)
+//   status seq=3 upstream=operational subdevices=1 emcys=1 refused=0
+//     subdevice right_grip node=11h state=operational emcys=2 last=1000h reg=00h msef=21 00 ff ff ff ts_us=4100
+//     upstream_emcy node=05h emcys=1 last=8130h reg=11h msef=00 00 00 00 00 ts_us=5000
 #include <lcm/eventlog.h>
 
 #include <cstdint>
@@ -9,6 +13,16 @@
 
 #include "oegw/gateway_status_t.hpp"
 #include "oegw/joystick_t.hpp"
+
+namespace {
+// " emcys=N last=CODEh reg=REGh msef=.. .. .. .. .. ts_us=T"
+void print_emcy(std::int64_t count, const oegw::emcy_t& e) {
+  std::printf(" emcys=%lld last=%04Xh reg=%02Xh msef=%02x %02x %02x %02x %02x ts_us=%lld\n", static_cast<long long>(count),
+              static_cast<unsigned>(static_cast<std::uint16_t>(e.code)), static_cast<unsigned>(e.error_register),
+              static_cast<unsigned>(e.msef[0]), static_cast<unsigned>(e.msef[1]), static_cast<unsigned>(e.msef[2]),
+              static_cast<unsigned>(e.msef[3]), static_cast<unsigned>(e.msef[4]), static_cast<long long>(e.timestamp_us));
+}
+}  // namespace
 
 int main(int argc, char** argv) {
   if (argc < 2) {
@@ -46,6 +60,14 @@ int main(int argc, char** argv) {
         std::printf("status seq=%u upstream=%s subdevices=%d emcys=%d refused=%lld\n", static_cast<unsigned>(s.seq),
                     s.upstream_state.c_str(), s.n_subdevices, s.n_active_emcys,
                     static_cast<long long>(s.refused_commands));
+        for (const auto& d : s.subdevices) {
+          std::printf("  subdevice %s node=%02Xh state=%s", d.name.c_str(), static_cast<unsigned>(d.node_id), d.state.c_str());
+          print_emcy(d.emcy_count, d.last_emcy);
+        }
+        for (const auto& u : s.upstream_emcys) {
+          std::printf("  upstream_emcy node=%02Xh", static_cast<unsigned>(u.node_id));
+          print_emcy(u.count, u.last);
+        }
         ++statuses;
       }
     } else {

@@ -45,10 +45,26 @@ struct ButtonClusterSample {
   std::uint64_t switches = 0;  // bit i = switch i+1 (64 switches)
 };
 
+// One EMCY as received (CiA 301 §7.2.7.3: error code, the sender's 1001h, 5 manufacturer bytes)
+// and when (the gateway's clock, µs, as the samples' timestamps). All zeros: none yet.
+struct EmcySample {
+  std::uint16_t code = 0;
+  std::uint8_t error_register = 0;
+  std::array<std::uint8_t, 5> msef{};
+  std::int64_t timestamp_us = 0;
+};
 struct SubdeviceState {
   std::string name;
   std::uint8_t node_id = 0;
   std::string state;  // "operational", "missing", ...
+  EmcySample last_emcy;         // the last EMCY it sent
+  std::uint64_t emcy_count = 0;  // EMCYs it sent since the gateway started
+};
+// EMCYs of another upstream node the gateway consumes (1028h).
+struct UpstreamEmcy {
+  std::uint8_t node_id = 0;
+  EmcySample last;
+  std::uint64_t count = 0;
 };
 struct GatewayStatus {
   std::int64_t timestamp_us = 0;
@@ -57,6 +73,7 @@ struct GatewayStatus {
   std::vector<SubdeviceState> subdevices;
   std::vector<std::uint16_t> active_emcys;  // codes the gateway has active upstream
   std::uint64_t refused_commands = 0;        // Gateway::refused_commands()
+  std::vector<UpstreamEmcy> upstream_emcys;  // per upstream node that sent one, by node-ID
 };
 
 // Commands in, from the machine application.

@@ -6,6 +6,7 @@
 #include <array>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 namespace oegw::gateway {
 
@@ -136,7 +137,12 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
   network_.on_emcy = [this](const std::string& name, const canopen::EmcyMessage& e, const sd::DecodedEmcy& d) {
     auto it = subs_.find(name);
     if (it == subs_.end()) return;
+    it->second.emcy = EmcyRecord{e, now_, it->second.emcy.count + 1};
     log(name + ": EMCY " + fmt::format("{:04X}h", e.code) + " " + d.text);
+    // Remote EMCY: upstream first, then the 7000h the fault policy may raise for it below.
+    const mapping::EmcyForwarding fwd = config_.downstream.emcy_forwarding;
+    if (fwd == mapping::EmcyForwarding::All || (fwd == mapping::EmcyForwarding::Faults && (e.code == 0 || d.error)))
+      (void)oe_->forward_subdevice_emcy(e, now_);
     // Only the device's error reset (0000h) ends an error EMCY; a warning (decoded error =
     // false, e.g. elobau 8140h "recovered from bus off") leaves it active.
     if (e.code == 0) {
@@ -146,6 +152,29 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     }
     update_fault(it->second, "error reset EMCY 0000h");
   };
+  // A sub-device's EMCY reaches the host before the 7000h it causes: its driver's decoding
+  // (inside the network manager's EMCY handler) already moves signals and so the fault policy,
+  // whose fault EMCYs wait (fault_emcy) until network_.on_emcy above has forwarded it.
+  master_.on_emcy = [this, decode = std::move(master_.on_emcy)](const canopen::EmcyMessage& e, TimePoint t) {
+    decoding_emcy_ = true;
+    if (decode) decode(e, t);
+    decoding_emcy_ = false;
+    for (const auto& [node, raise] : held_fault_emcys_) {
+      if (raise) {
+        oe_->raise_subdevice_fault(node->config->name, node->config->node(), now_);
+      } else {
+        oe_->clear_subdevice_fault(node->config->node(), now_);
+      }
+    }
+    held_fault_emcys_.clear();
+  };
+  // 1028h: EMCYs of other upstream nodes, logged and kept for the status.
+  oe_->on_emcy([this](const canopen::EmcyMessage& m, TimePoint t) {
+    EmcyRecord& r = upstream_emcys_[m.node.value()];
+    r = EmcyRecord{m, t, r.count + 1};
+    log(fmt::format("upstream EMCY from node {:02X}h: {:04X}h register {:02X}h, manufacturer bytes {:02X}", m.node.value(),
+                    m.code, m.error_register, fmt::join(m.msef, " ")));
+  });
   network_.on_application_reset = [this](const std::string& name) {
     if (auto it = subs_.find(name); it != subs_.end()) it->second.emcy_error = false;
   };
@@ -251,14 +280,24 @@ void Gateway::update_fault(Sub& s, std::string_view evidence) {
   s.cause = cause;
   if (!reason.empty() && !was) {
     faults_[name] = reason;
-    oe_->raise_subdevice_fault(name, s.config->node(), now_);
+    fault_emcy(s, true);
     log(name + ": fault (" + reason + "): its inputs are at their fault values, EMCY 7000h sent upstream");
   } else if (reason.empty() && was) {
     faults_.erase(name);
-    oe_->clear_subdevice_fault(s.config->node(), now_);
+    fault_emcy(s, false);
     log(name + ": fault cleared (" + std::string(evidence) + ")");
   } else if (!reason.empty()) {
     faults_[name] = reason;
+  }
+}
+
+void Gateway::fault_emcy(Sub& s, bool raise) {
+  if (decoding_emcy_) {
+    held_fault_emcys_.emplace_back(&s, raise);
+  } else if (raise) {
+    oe_->raise_subdevice_fault(s.config->name, s.config->node(), now_);
+  } else {
+    oe_->clear_subdevice_fault(s.config->node(), now_);
   }
 }
 
@@ -356,6 +395,11 @@ std::vector<Gateway::FieldState> Gateway::fields(mapping::FeId fe) const {
     out.push_back(f);
   }
   return out;
+}
+
+Gateway::EmcyRecord Gateway::subdevice_emcy(const std::string& name) const {
+  const auto it = subs_.find(name);
+  return it == subs_.end() ? EmcyRecord{} : it->second.emcy;
 }
 
 FeStatus Gateway::status(mapping::FeId fe) const { return model_.has(fe) ? model_.status(fe) : FeStatus::Valid; }

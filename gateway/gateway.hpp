@@ -22,12 +22,21 @@
 //    error = false) does not end it, and while it lasts every input of that node is held at its
 //    fault value, also when the driver maps the EMCY to no signal (tests/integration/
 //    gateway_e2e_test.cpp).
+//
+// EMCYs (README "Fault policy", gateway/oe_device.hpp for the frames):
+//  * every EMCY a configured sub-device sends is counted and kept (subdevice_emcy) and, as the
+//    mapping file's downstream.emcy_forwarding says (all, faults, none), passed upstream as an
+//    EMCY of the gateway (remote EMCY, OeDevice::forward_subdevice_emcy), before the EMCY 7000h
+//    the fault policy may send for the same EMCY;
+//  * the EMCYs of other upstream nodes the CiA 852 device consumes (1028h, present when the
+//    mapping file has output FEs) are logged and kept per node (upstream_emcys).
 #pragma once
 
 #include <map>
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "canopen/master.hpp"
@@ -96,6 +105,18 @@ class Gateway {
   [[nodiscard]] subdevices::NetworkManager& downstream() { return network_; }
   [[nodiscard]] const std::map<std::string, std::string>& faults() const { return faults_; }
 
+  // The EMCYs received from one node: the last one, when it arrived (the gateway's clock), how
+  // many so far; all zeros before the first.
+  struct EmcyRecord {
+    canopen::EmcyMessage last{};
+    canopen::TimePoint time{};
+    std::uint64_t count = 0;
+  };
+  // A sub-device's EMCYs, by its mapping-file name (zeros for an unknown name).
+  [[nodiscard]] EmcyRecord subdevice_emcy(const std::string& name) const;
+  // The EMCYs of other upstream nodes the CiA 852 device consumed (1028h), by node-ID.
+  [[nodiscard]] const std::map<std::uint8_t, EmcyRecord>& upstream_emcys() const { return upstream_emcys_; }
+
   // An FE's value or status changed (for the publishers): once per FE, in FE order, at the end
   // of the call that changed it (the model is then complete for that frame).
   std::function<void(mapping::FeId)> on_fe_change;
@@ -147,6 +168,7 @@ class Gateway {
     // leaves its signals Valid (an EMCY code it cannot map to a signal).
     bool forced = false;
     Cause cause;  // the fault's cause (Kind::None: not faulty)
+    EmcyRecord emcy;  // the EMCYs it sent
   };
 
   void on_signal(Sub& s, std::size_t index, const subdevices::SignalValue& v);
@@ -154,6 +176,9 @@ class Gateway {
   void drive(Binding& b, Sub& s, std::int64_t value);
   // Raises or clears the node's fault; `evidence` names what cleared it, for the log.
   void update_fault(Sub& s, std::string_view evidence);
+  // The fault policy's EMCY for a node (7000h, or the 0000h of its recovery); while a
+  // sub-device's EMCY is being decoded, held until that EMCY has been forwarded.
+  void fault_emcy(Sub& s, bool raise);
   // An output batch (nests): the drivers on_output() reaches meanwhile send once, at the end
   // (Driver::begin_outputs), one frame per RPDO however many outputs changed.
   void begin_outputs();
@@ -180,6 +205,9 @@ class Gateway {
   std::vector<FeGroup> groups_;
   std::vector<OutputGroup> output_groups_;
   std::map<std::string, std::string> faults_;  // sub-device -> reason
+  std::map<std::uint8_t, EmcyRecord> upstream_emcys_;  // upstream node-ID -> its EMCYs (1028h)
+  bool decoding_emcy_ = false;                                   // inside a sub-device's EMCY
+  std::vector<std::pair<Sub*, bool>> held_fault_emcys_;          // fault_emcy calls meanwhile
 };
 
 }  // namespace oegw::gateway

@@ -294,7 +294,8 @@ void OeDevice::after_reset() {
     canopen::SubObject* so = od_.find(static_cast<std::uint16_t>(key >> 8), static_cast<std::uint8_t>(key));
     if (so != nullptr && so->value.size() == bytes.size()) so->value = bytes;
   }
-  for (const auto& [node, name] : faults_) send_emcy_frame(kEmcyAdditionalModules, subdevice_msef(canopen::NodeId{node}, name));
+  for (const auto& [node, name] : faults_)
+    (void)node_->emcy().report(kEmcyAdditionalModules, subdevice_msef(canopen::NodeId{node}, name), node, now_);
 }
 
 void OeDevice::handle_od_change(std::uint16_t index, std::uint8_t sub) {
@@ -353,23 +354,6 @@ void OeDevice::apply_error_values(std::optional<FeId> only, TimePoint now) {
   }
 }
 
-void OeDevice::send_emcy_frame(std::uint16_t code, const canopen::EmcyManufacturerField& msef) {
-  const NmtState st = node_->state();
-  if (st != NmtState::PreOperational && st != NmtState::Operational) return;
-  const canopen::CobId cob{od_.get<std::uint32_t>(0x1014, 0)};
-  if (!cob.valid()) return;
-  canopen::CanFrame f;
-  f.id = cob.can_id();
-  f.extended = cob.extended();
-  f.dlc = 8;
-  f.data[0] = static_cast<std::uint8_t>(code);
-  f.data[1] = static_cast<std::uint8_t>(code >> 8);
-  f.data[2] = node_->emcy().error_register();
-  std::copy(msef.begin(), msef.end(), f.data.begin() + 3);
-  sink_(f);
-}
-
-
 void OeDevice::raise_subdevice_fault(std::string_view name, canopen::NodeId node, TimePoint now) {
   now_ = now;
   if (faults_.count(node.value()) != 0) return;
@@ -377,9 +361,9 @@ void OeDevice::raise_subdevice_fault(std::string_view name, canopen::NodeId node
   const auto msef = subdevice_msef(node, name);
   auto& emcy = node_->emcy();
   if (!emcy.active(kEmcyAdditionalModules)) {
-    emcy.raise(kEmcyAdditionalModules, 0x00, msef, now);
+    emcy.raise(kEmcyAdditionalModules, 0x00, msef, now, node.value());
   } else {
-    send_emcy_frame(kEmcyAdditionalModules, msef);
+    (void)emcy.report(kEmcyAdditionalModules, msef, node.value(), now);
   }
 }
 
@@ -394,10 +378,19 @@ void OeDevice::clear_subdevice_fault(canopen::NodeId node, TimePoint now) {
     // With another error still active (EMCY 8130h: the host's heartbeat lost) the producer stays
     // silent (CiA 301 §7.2.7.2 allows it): the recovery is reported as for a sub-device among
     // others, EMCY 0000h naming it with the remaining error register.
-    if (node_->emcy().active_count() != 0) send_emcy_frame(canopen::EmcyProducer::kErrorReset, msef);
+    if (node_->emcy().active_count() != 0) (void)node_->emcy().report(canopen::EmcyProducer::kErrorReset, msef, node.value(), now);
   } else {
-    send_emcy_frame(canopen::EmcyProducer::kErrorReset, msef);
+    (void)node_->emcy().report(canopen::EmcyProducer::kErrorReset, msef, node.value(), now);
   }
+}
+
+canopen::EmcyManufacturerField OeDevice::forwarded_msef(const canopen::EmcyMessage& emcy) {
+  return {emcy.node.value(), emcy.error_register, emcy.msef[0], emcy.msef[1], emcy.msef[2]};
+}
+
+bool OeDevice::forward_subdevice_emcy(const canopen::EmcyMessage& emcy, TimePoint now) {
+  now_ = now;
+  return node_->emcy().report(emcy.code, forwarded_msef(emcy), emcy.node.value(), now);
 }
 
 }  // namespace oegw::gateway

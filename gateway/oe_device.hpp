@@ -12,11 +12,30 @@
 //    profile-specific bit) each time the node enters operational with 6423h FALSE and 6423h
 //    exists; it stays active while operational and FALSE, and is cleared (error reset) when the
 //    host sets 6423h TRUE or the node leaves operational. No NMT state change.
+//  * Every EMCY the device sends goes through its Node's EMCY producer (canopen/301/emcy.hpp):
+//    1015h inhibit time and its queue, 1003h history, byte 2 = 1001h, 1014h bit 31 = none sent.
 //  * Sub-device faults: EMCY 7000h (Table 37, "additional modules"), register bit 0 only,
-//    manufacturer bytes = node-ID of the sub-device, then up to 4 ASCII bytes of its name. A
-//    second fault while 7000h is active is reported by an extra 7000h frame (the EMCY producer
-//    records one active 7000h); a sub-device recovering while others are still faulty sends
-//    EMCY 0000h naming it, with the remaining error register; the last one clears 7000h.
+//    manufacturer bytes = node-ID of the sub-device, then up to 4 ASCII bytes of its name;
+//    1003h entry 7000h | node-ID << 16. A second fault while 7000h is active is reported by an
+//    extra 7000h frame, an event EMCY of the producer (EmcyProducer::report: 1015h and 1003h
+//    apply, 1001h unchanged; the producer holds one active 7000h); a sub-device recovering while
+//    others are still faulty sends EMCY 0000h naming it (an event too, not in 1003h), with the
+//    remaining error register; the last one clears 7000h.
+//  * Remote EMCY (CiA 302-7 multi-level networking: the host diagnoses the sub-layered network
+//    through the gateway; CiA 852 §5.2, §8.7): forward_subdevice_emcy() passes a sub-device's
+//    EMCY on as an event EMCY of this device:
+//        byte 0..1  the sub-device's own error code (0000h error reset included)
+//        byte 2     this device's 1001h (CiA 301 §7.2.7.3: byte 2 is the producer's error
+//                   register; the forward leaves it unchanged)
+//        byte 3     the sub-device's node-ID (1..127)
+//        byte 4     the sub-device's error register (its byte 2)
+//        byte 5..7  the sub-device's manufacturer-specific bytes 0..2 (its bytes 3..5); its
+//                   bytes 3..4 (frame bytes 6..7) do not fit and are lost
+//    1003h entry: code | node-ID << 16 (none for 0000h). CiA 301 and CiA 302-7 define no frame
+//    for a forwarded EMCY (302-7 names the service only); this layout is the gateway's own. A
+//    host tells a forward by byte 3, the sub-device's node-ID (never 0): the gateway's own EMCYs
+//    carry 0 there, except 7000h and the 0000h naming a recovered sub-device (node-ID, then
+//    name characters in bytes 4..7), which a forwarded 7000h or 0000h of that node resembles.
 //  * Annex A: 1028h (EMCY consumer) exists when outputs exist, consuming 81h..FFh except the
 //    device's own EMCY (that entry keeps the configured node-ID across an LSS change); received
 //    EMCYs go to on_emcy().
@@ -122,6 +141,12 @@ class OeDevice {
 
   void raise_subdevice_fault(std::string_view name, canopen::NodeId node, canopen::TimePoint now);
   void clear_subdevice_fault(canopen::NodeId node, canopen::TimePoint now);
+  // A sub-device's EMCY passed upstream as this device's (remote EMCY, the layout above).
+  // Returns false when the producer could not send it (1014h bit 31, inhibit queue full); in
+  // Stopped, the Node holds every EMCY back.
+  bool forward_subdevice_emcy(const canopen::EmcyMessage& emcy, canopen::TimePoint now);
+  // The manufacturer bytes of a forwarded EMCY: [node-ID, register, its msef 0..2].
+  [[nodiscard]] static canopen::EmcyManufacturerField forwarded_msef(const canopen::EmcyMessage& emcy);
   [[nodiscard]] const std::map<std::uint8_t, std::string>& faulty_subdevices() const { return faults_; }
 
   // EMCY messages of other nodes (1028h, present when outputs exist).
@@ -155,7 +180,6 @@ class OeDevice {
   void resync_outputs();
   void after_reset();
   void report_outputs(std::uint16_t index, std::uint8_t sub, std::int64_t old_value);
-  void send_emcy_frame(std::uint16_t code, const canopen::EmcyManufacturerField& msef);
   [[nodiscard]] bool analog_interrupt_enabled() const;
 
   OeDeviceConfig cfg_;

@@ -62,6 +62,11 @@ template <class State>
 SampleHeader header_of(mapping::FeId fe, const State& st) {
   return SampleHeader{fe.instance, st.h.status, to_us(st.h.source_time), 0};
 }
+// A node's last EMCY for the status: all zeros before the first.
+EmcySample emcy_sample(const Gateway::EmcyRecord& r) {
+  if (r.count == 0) return {};
+  return EmcySample{r.last.code, r.last.error_register, r.last.msef, to_us(r.time)};
+}
 }  // namespace
 
 void GatewayPublishing::publish_fe(mapping::FeId fe) {
@@ -101,10 +106,13 @@ void GatewayPublishing::publish_status() {
   for (const auto& name : gw_.downstream().names()) {
     std::uint8_t node = 0;
     if (auto* d = gw_.downstream().driver(name)) node = d->node().value();
-    st.subdevices.push_back({name, node, std::string(subdevices::to_string(gw_.downstream().state(name)))});
+    const Gateway::EmcyRecord e = gw_.subdevice_emcy(name);
+    st.subdevices.push_back({name, node, std::string(subdevices::to_string(gw_.downstream().state(name))),
+                             emcy_sample(e), e.count});
   }
   if (!gw_.faults().empty()) st.active_emcys.push_back(OeDevice::kEmcyAdditionalModules);
   st.refused_commands = gw_.refused_commands();
+  for (const auto& [node, e] : gw_.upstream_emcys()) st.upstream_emcys.push_back({node, emcy_sample(e), e.count});
   fan_.publish(st);
 }
 

@@ -79,10 +79,25 @@ struct UpstreamConfig {
   Location network_id_where;  // the `network_id` value, when written
 };
 
+// Which sub-device EMCYs the gateway passes upstream as its own (remote EMCY, CiA 302-7;
+// gateway/oe_device.hpp gives the frame): every one; the errors (those the driver decodes as
+// an error, DecodedEmcy::error) and the error resets 0000h; none. Whatever is chosen, the fault
+// policy's EMCY 7000h naming a faulty sub-device goes up.
+enum class EmcyForwarding : std::uint8_t { All, Faults, None };
+[[nodiscard]] constexpr std::string_view to_string(EmcyForwarding f) {
+  switch (f) {
+    case EmcyForwarding::All: return "all";
+    case EmcyForwarding::Faults: return "faults";
+    case EmcyForwarding::None: return "none";
+  }
+  return "?";
+}
+
 struct DownstreamConfig {
   std::string interface = "can1";
   std::uint32_t bitrate = 250000;
   std::uint8_t network_id = 2;  // the sub-devices' network (see UpstreamConfig::network_id)
+  EmcyForwarding emcy_forwarding = EmcyForwarding::All;
   Location where;
   Location network_id_where;  // the `network_id` value, when written
 };

@@ -83,9 +83,9 @@ void EmcyProducer::push_history(std::uint32_t entry) {
   (void)od_.set<std::uint8_t>(kErrorField, 0, std::min<std::uint8_t>(static_cast<std::uint8_t>(count + 1), capacity));
 }
 
-void EmcyProducer::emit(std::uint16_t code, const EmcyManufacturerField& msef, TimePoint now) {
+bool EmcyProducer::emit(std::uint16_t code, const EmcyManufacturerField& msef, TimePoint now) {
   const CobId cob{od_.get<std::uint32_t>(kCobIdEmcy, 0)};
-  if (!cob.valid()) return;
+  if (!cob.valid()) return false;
   CanFrame f;
   f.id = cob.can_id();
   f.extended = cob.extended();
@@ -98,23 +98,30 @@ void EmcyProducer::emit(std::uint16_t code, const EmcyManufacturerField& msef, T
   if (inhibited || !queue_.empty()) {
     if (queue_.size() >= queue_limit_) {
       ++dropped_;
-      return;
+      return false;
     }
     queue_.push_back(f);
-    return;
+    return true;
   }
   sink_(f);
   last_sent_ = now;
+  return true;
 }
 
 bool EmcyProducer::raise(std::uint16_t code, std::uint8_t register_bits, const EmcyManufacturerField& msef,
-                         TimePoint now) {
+                         TimePoint now, std::uint16_t info) {
   if (active(code)) return false;
   active_.push_back({code, register_bits});
   update_register();
-  push_history(code);
-  emit(code, msef, now);
+  push_history(std::uint32_t{code} | std::uint32_t{info} << 16);
+  (void)emit(code, msef, now);
   return true;
+}
+
+bool EmcyProducer::report(std::uint16_t code, const EmcyManufacturerField& msef, std::uint16_t info, TimePoint now) {
+  // CiA 301 §7.5.2.13: 1003h lists the errors that occurred; an error reset is none.
+  if (code != kErrorReset) push_history(std::uint32_t{code} | std::uint32_t{info} << 16);
+  return emit(code, msef, now);
 }
 
 bool EmcyProducer::clear(std::uint16_t code, TimePoint now) {
@@ -124,7 +131,7 @@ bool EmcyProducer::clear(std::uint16_t code, TimePoint now) {
   update_register();
   // CiA 301 §7.2.7.2: when the last error is gone the producer sends "error reset" (0000h). With
   // errors remaining it may stay silent, which it does.
-  if (active_.empty()) emit(kErrorReset, {}, now);
+  if (active_.empty()) (void)emit(kErrorReset, {}, now);
   return true;
 }
 

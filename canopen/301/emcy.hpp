@@ -8,9 +8,21 @@
 //                                               with the register bits of every active error
 //   1003h pre-defined error field ARRAY of UNSIGNED32: sub 0 = number of errors (rw, only 0 may be
 //                                 written: clears the history; others 0609 0030h), sub 1 = newest;
-//                                 entry = error code | additional information << 16 (0 here)
+//                                 entry = error code | additional information << 16 (CiA 301
+//                                 §7.5.2.13: bits 16..31 are manufacturer-specific; the caller's
+//                                 `info`, 0 unless given)
 //   1014h COB-ID EMCY            UNSIGNED32 rw  default 80h + node-ID; bit 31 = 1: no EMCY sent
 //   1015h inhibit time EMCY      UNSIGNED16 rw  100 µs units; EMCYs raised sooner are queued
+//
+// Two kinds of EMCY go out, both through one queue (1015h: in the order they were made, each at
+// least the inhibit time after the one before; a full queue drops the new one, counted in
+// dropped()), both with byte 2 = 1001h as it is when the EMCY is made, both recorded in 1003h
+// except the error reset 0000h, neither sent while 1014h bit 31 is set:
+//  * an error held active (raise/clear): sets its 1001h bits until cleared; the error reset
+//    0000h follows when the last active error goes;
+//  * an event (report): sent once, 1001h and the active errors unchanged — for what the device
+//    reports but does not hold, e.g. a gateway passing on another node's EMCY (CiA 302-7
+//    remote EMCY) or a second fault of a class already active.
 //
 // EmcyConsumer: 1028h (ARRAY of UNSIGNED32, sub n = COB-ID of node n's EMCY, bit 31 = 1: not
 // consumed) maps received EMCY frames to a callback.
@@ -48,11 +60,17 @@ class EmcyProducer {
   EmcyProducer(const EmcyProducer&) = delete;
   EmcyProducer& operator=(const EmcyProducer&) = delete;
 
-  // An error occurred: records it (1001h, 1003h) and sends its EMCY. `register_bits` are the
-  // 1001h bits this error sets besides bit 0 (e.g. 0x10 communication error). Returns false, and
-  // sends nothing, if the code is already active.
-  bool raise(std::uint16_t code, std::uint8_t register_bits, const EmcyManufacturerField& msef, TimePoint now);
+  // An error occurred: records it (1001h, 1003h entry code | info << 16) and sends its EMCY.
+  // `register_bits` are the 1001h bits this error sets besides bit 0 (e.g. 0x10 communication
+  // error). Returns false, and sends nothing, if the code is already active.
+  bool raise(std::uint16_t code, std::uint8_t register_bits, const EmcyManufacturerField& msef, TimePoint now,
+             std::uint16_t info = 0);
   bool raise(std::uint16_t code, std::uint8_t register_bits, TimePoint now) { return raise(code, register_bits, {}, now); }
+  // An event EMCY: sent once (queued behind the inhibit time like any other), byte 2 = the
+  // current 1001h, which it does not change; recorded in 1003h as code | info << 16 unless it is
+  // the error reset 0000h. Returns false when it cannot go out: 1014h bit 31 set, or the inhibit
+  // queue full (counted in dropped()).
+  bool report(std::uint16_t code, const EmcyManufacturerField& msef, std::uint16_t info, TimePoint now);
   // The error is gone: updates 1001h; when no error remains, sends the error-reset EMCY (0000h).
   // Returns false if the code was not active.
   bool clear(std::uint16_t code, TimePoint now);
@@ -77,7 +95,8 @@ class EmcyProducer {
   };
   void update_register();
   void push_history(std::uint32_t entry);
-  void emit(std::uint16_t code, const EmcyManufacturerField& msef, TimePoint now);
+  // Sends or queues the frame; false if 1014h bit 31 is set or the queue is full.
+  bool emit(std::uint16_t code, const EmcyManufacturerField& msef, TimePoint now);
   [[nodiscard]] Duration inhibit() const;
 
   ObjectDictionary& od_;

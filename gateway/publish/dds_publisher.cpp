@@ -3,6 +3,7 @@
 #include <sys/eventfd.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
 #include <cstring>
@@ -179,11 +180,23 @@ void DdsPublisher::publish(const ButtonClusterSample& s) {
 }
 void DdsPublisher::publish(const GatewayStatus& s) {
   // dds_write serialises; the sample only borrows these buffers.
+  auto emcy = [](const EmcySample& e) {
+    oegw_Emcy m{};
+    m.code = e.code;
+    m.error_register = e.error_register;
+    std::copy(e.msef.begin(), e.msef.end(), m.msef);
+    m.timestamp_us = e.timestamp_us;
+    return m;
+  };
   std::vector<oegw_SubdeviceState> subs;
   subs.reserve(s.subdevices.size());
   for (const auto& d : s.subdevices)
-    subs.push_back({const_cast<char*>(d.name.c_str()), d.node_id, const_cast<char*>(d.state.c_str())});
+    subs.push_back({const_cast<char*>(d.name.c_str()), d.node_id, const_cast<char*>(d.state.c_str()), emcy(d.last_emcy),
+                    d.emcy_count});
   std::vector<std::uint16_t> emcys(s.active_emcys);
+  std::vector<oegw_UpstreamEmcy> upstream;
+  upstream.reserve(s.upstream_emcys.size());
+  for (const auto& u : s.upstream_emcys) upstream.push_back({u.node_id, emcy(u.last), u.count});
   oegw_GatewayStatus m{};
   m.timestamp_us = s.timestamp_us;
   m.seq = s.seq;
@@ -195,6 +208,9 @@ void DdsPublisher::publish(const GatewayStatus& s) {
   m.active_emcys._buffer = emcys.data();
   m.active_emcys._release = false;
   m.refused_commands = s.refused_commands;
+  m.upstream_emcys._maximum = m.upstream_emcys._length = static_cast<std::uint32_t>(upstream.size());
+  m.upstream_emcys._buffer = upstream.data();
+  m.upstream_emcys._release = false;
   dds_write(impl_->status, &m);
 }
 

@@ -2,17 +2,21 @@
 
 #include <lcm/lcm.h>
 
+#include <algorithm>
 #include <array>
 #include <regex>
 #include <vector>
 
 #include "oegw/button_cluster_t.hpp"
 #include "oegw/display_command_t.hpp"
+#include "oegw/emcy_t.hpp"
 #include "oegw/encoder_t.hpp"
 #include "oegw/gateway_status_t.hpp"
 #include "oegw/indicator_command_t.hpp"
 #include "oegw/joystick_t.hpp"
 #include "oegw/pedal_t.hpp"
+#include "oegw/subdevice_state_t.hpp"
+#include "oegw/upstream_emcy_t.hpp"
 #include "oegw/wheel_t.hpp"
 
 namespace oegw::gateway {
@@ -143,17 +147,35 @@ void LcmPublisher::publish(const GatewayStatus& s) {
   m.timestamp_us = s.timestamp_us;
   m.seq = static_cast<std::int32_t>(s.seq);
   m.upstream_state = s.upstream_state;
+  auto emcy = [](const EmcySample& e) {
+    oegw::emcy_t out;
+    out.code = static_cast<std::int16_t>(e.code);
+    out.error_register = e.error_register;
+    std::copy(e.msef.begin(), e.msef.end(), out.msef);
+    out.timestamp_us = e.timestamp_us;
+    return out;
+  };
   for (const auto& d : s.subdevices) {
     oegw::subdevice_state_t sd;
     sd.name = d.name;
     sd.node_id = d.node_id;
     sd.state = d.state;
+    sd.last_emcy = emcy(d.last_emcy);
+    sd.emcy_count = static_cast<std::int64_t>(d.emcy_count);
     m.subdevices.push_back(sd);
   }
   m.n_subdevices = static_cast<std::int32_t>(m.subdevices.size());
   for (auto c : s.active_emcys) m.active_emcys.push_back(static_cast<std::int16_t>(c));
   m.n_active_emcys = static_cast<std::int32_t>(m.active_emcys.size());
   m.refused_commands = static_cast<std::int64_t>(s.refused_commands);
+  for (const auto& u : s.upstream_emcys) {
+    oegw::upstream_emcy_t ue;
+    ue.node_id = u.node_id;
+    ue.last = emcy(u.last);
+    ue.count = static_cast<std::int64_t>(u.count);
+    m.upstream_emcys.push_back(ue);
+  }
+  m.n_upstream_emcys = static_cast<std::int32_t>(m.upstream_emcys.size());
   impl_->send(prefix_ + "STATUS", m);  // once per period: the channel name may be built
 }
 

@@ -88,7 +88,18 @@ class GatewayE2E : public ::testing::Test {
     std::filesystem::remove(store_);
     rig_ = std::make_unique<gw::CabRig>(config_, loop_, gw::CabRigOptions{.store = store_});
     rig_->up().set_tap([this](const BusRecord& r) { upstream_.push_back(r); });
-    rig_->down().set_tap([this](const BusRecord& r) { downstream_.push_back(r); });
+    rig_->down().set_tap([this](const BusRecord& r) {
+      downstream_.push_back(r);
+      // A sub-device's EMCY: the gateway forwards it upstream (remote EMCY, oe_device.hpp).
+      if (r.frame.id > 0x80 && r.frame.id < 0x100 && r.frame.dlc == 8) {
+        EmcyMessage m;
+        m.node = NodeId{static_cast<std::uint8_t>(r.frame.id - 0x80)};
+        m.code = get_u16(r.frame.data.data());
+        m.error_register = r.frame.data[2];
+        std::copy_n(r.frame.data.begin() + 3, 5, m.msef.begin());
+        to_forward_.push_back(m);
+      }
+    });
     // The devices' frames pass drop_from_devices_ (a test cuts some of them: PDOs that stop).
     rig_->from_devices = [this](const CanFrame& f) { return drop_from_devices_ && drop_from_devices_(f); };
     rig_->on_gateway = [this](Gateway& g) {
@@ -100,6 +111,16 @@ class GatewayE2E : public ::testing::Test {
     host_ = &rig_->host();
     host_port_ = &rig_->host_port();
     host_->on_emcy = [this](const EmcyMessage& m, TimePoint) {
+      // emcys_: the gateway's own EMCYs (what these tests assert); a sub-device's EMCY passed
+      // on (code, then node-ID, its register and its bytes 0..2) goes to forwarded_.
+      const auto fwd = std::find_if(to_forward_.begin(), to_forward_.end(), [&](const EmcyMessage& d) {
+        return d.code == m.code && gw::OeDevice::forwarded_msef(d) == m.msef;
+      });
+      if (fwd != to_forward_.end()) {
+        forwarded_.push_back(m);
+        to_forward_.erase(fwd);
+        return;
+      }
       emcys_.push_back(m);
       // What the host could read at the very moment the EMCY arrives.
       joy1_at_emcy_.push_back(gw_->fields(kJoy1));
@@ -257,6 +278,8 @@ class GatewayE2E : public ::testing::Test {
   std::function<bool(const CanFrame&)> drop_from_devices_;
   std::vector<CanFrame> pdos_;
   std::vector<EmcyMessage> emcys_;
+  std::vector<EmcyMessage> to_forward_;  // sub-device EMCYs seen downstream, not yet upstream
+  std::vector<EmcyMessage> forwarded_;   // those the host received from the gateway
   std::vector<std::vector<Gateway::FieldState>> joy1_at_emcy_;
   std::string log_;
 };

@@ -25,6 +25,9 @@
 //      a boot-up (reboot / NMT reset) not followed by proof of life within `reboot_report`) and,
 //      `grace` later, no EMCY 7000h naming the node is active upstream. Also: an EMCY clearing
 //      the node's fault (0000h naming it) while the node has no heartbeat proof of life.
+//  A sub-device's own EMCY the gateway passes upstream (remote EMCY, gateway/oe_device.hpp: its
+//  code, then its node-ID, register and manufacturer bytes 0..2) names no fault of the gateway's:
+//  the monitor recognises it from the sub-device's frame it saw downstream and leaves it out.
 //  (3) UNCOMMANDED OUTPUT. An RPDO the gateway sends to a sub-device carries, for the bits bound
 //      to an indicator FE, a state nobody commanded: allowed are the current and the previous
 //      commanded state (the test reports each command as it issues it) and their CiA 401 error
@@ -35,6 +38,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -184,6 +188,11 @@ class Monitor {
     for (auto& [id, n] : nodes_)
       for (const auto& p : n.k->tpdos)
         if (p.cob == f.id && n.start && !from_gateway) n.pdo[p.cob] = t;
+    // A sub-device's EMCY: the frame the gateway forwards for it, byte 2 (the gateway's 1001h)
+    // aside.
+    if (!from_gateway && f.id > 0x80 && f.id < 0x100 && f.dlc == 8 && nodes_.count(static_cast<std::uint8_t>(f.id - 0x80)))
+      forwards_.push_back({f.data[0], f.data[1], 0, static_cast<std::uint8_t>(f.id - 0x80), f.data[2], f.data[3], f.data[4],
+                           f.data[5]});
     if (from_gateway) check_output(f, t);
     refresh(t);
   }
@@ -196,7 +205,14 @@ class Monitor {
     if (f.id == 0x700u + k_.gateway_node && f.dlc == 1) gw_operational_ = f.data[0] == 0x05;
     if (f.id == 0 && f.dlc >= 2 && (f.data[1] == k_.gateway_node || f.data[1] == 0))
       gw_operational_ = f.data[0] == 0x01;
-    if (f.id == 0x80u + k_.gateway_node && f.dlc == 8) {
+    const auto forward = std::find_if(forwards_.begin(), forwards_.end(), [&](const std::array<std::uint8_t, 8>& b) {
+      for (std::size_t i = 0; i < 8; ++i)
+        if (i != 2 && b[i] != f.data[i]) return false;
+      return true;
+    });
+    const bool forwarded = f.id == 0x80u + k_.gateway_node && f.dlc == 8 && forward != forwards_.end();
+    if (forwarded) forwards_.erase(forward);
+    if (f.id == 0x80u + k_.gateway_node && f.dlc == 8 && !forwarded) {
       const std::uint16_t code = static_cast<std::uint16_t>(f.data[0] | (f.data[1] << 8));
       const std::uint8_t named = f.data[3];
       if (code == 0x8130) {
@@ -615,6 +631,7 @@ class Monitor {
   bool enabled_ = true;
   bool gw_operational_ = false;
   std::set<std::uint16_t> active_codes_;  // EMCY codes the gateway has raised and not reset
+  std::vector<std::array<std::uint8_t, 8>> forwards_;  // sub-device EMCYs the gateway will pass on
   TimePoint t0_{};
 };
 

@@ -8,9 +8,11 @@
 #include <lcm/lcm.h>
 #include <poll.h>
 
+#include <chrono>
 #include <functional>
 #include <optional>
 #include <set>
+#include <vector>
 
 #include "gateway/gateway.hpp"
 #include "dds_command_writer.hpp"
@@ -19,6 +21,7 @@
 #include "oegw/indicator_command_t.hpp"
 #include "oegw/joystick_t.hpp"
 #include "private_network.hpp"
+#include "subdevices/sim/elobau_mfg_sim.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "../integration/virtual_network.hpp"
 #include "tests/fixtures/fixtures.hpp"
@@ -180,6 +183,42 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
   }
   ASSERT_TRUE(app.status.has_value()) << "no gateway status on OEGW_STATUS";
   EXPECT_EQ(app.status->refused_commands, 2);
+  ASSERT_EQ(app.status->n_subdevices, 1);
+  EXPECT_EQ(app.status->n_upstream_emcys, 0) << "no upstream EMCY yet";
+
+  // The grip's EMCY (elobau Table 5: 1000h, 4001h = 0021h "Y Axis, Signal 2, Out Of Range") and
+  // one of upstream node 05h, which the gateway consumes (1028h: it has output FEs): the status
+  // carries the grip's last EMCY with its reception time and count, and node 05h's.
+  const std::int64_t before_us = std::chrono::duration_cast<std::chrono::microseconds>(down.now().time_since_epoch()).count();
+  dynamic_cast<subdevices::sim::ElobauMfgSim&>(*grip).raise_error(0x0021, down.now());
+  down.run_for(50ms);
+  auto host = up.sink("host");
+  host(CanFrame(0x085, {0x30, 0x81, 0x11, 0x01, 0x02, 0x03, 0x04, 0x05}));
+  up.run_for(10ms);
+  auto has_both = [&] {
+    return app.status && app.status->n_upstream_emcys == 1 && app.status->subdevices[0].last_emcy.code == 0x1000;
+  };
+  for (int i = 0; i < 40 && !has_both(); ++i) {
+    pub.tick();
+    if (wait_readable(lcm_get_fileno(app.lcm), 50)) lcm_handle(app.lcm);
+  }
+  ASSERT_TRUE(has_both()) << "the status never carried both EMCYs";
+  const auto& sub = app.status->subdevices[0];
+  EXPECT_EQ(sub.name, "grip");
+  EXPECT_EQ(sub.last_emcy.error_register, 0x00);
+  EXPECT_EQ(std::vector<std::uint8_t>(sub.last_emcy.msef, sub.last_emcy.msef + 5),
+            (std::vector<std::uint8_t>{0x21, 0x00, 0xFF, 0xFF, 0xFF}));
+  EXPECT_GE(sub.last_emcy.timestamp_us, before_us);
+  EXPECT_LE(sub.last_emcy.timestamp_us,
+            std::chrono::duration_cast<std::chrono::microseconds>(down.now().time_since_epoch()).count());
+  EXPECT_GE(sub.emcy_count, 1);
+  EXPECT_EQ(sub.emcy_count, static_cast<std::int64_t>(gw.subdevice_emcy("grip").count));
+  const auto& u = app.status->upstream_emcys[0];
+  EXPECT_EQ(u.node_id, 0x05);
+  EXPECT_EQ(static_cast<std::uint16_t>(u.last.code), 0x8130);
+  EXPECT_EQ(u.last.error_register, 0x11);
+  EXPECT_EQ(std::vector<std::uint8_t>(u.last.msef, u.last.msef + 5), (std::vector<std::uint8_t>{1, 2, 3, 4, 5}));
+  EXPECT_EQ(u.count, 1);
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <poll.h>
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
@@ -166,9 +167,10 @@ TEST(LcmPublisher, LcmLoggerRecordsASessionThatDecodesWithTheProjectsTypes) {
   GatewayStatus gs;
   gs.seq = 1;
   gs.upstream_state = "operational";
-  gs.subdevices.push_back({"right_grip", 0x11, "operational"});
+  gs.subdevices.push_back({"right_grip", 0x11, "operational", {0x1000, 0x00, {0x21, 0x00, 0xFF, 0xFF, 0xFF}, 4100}, 2});
   gs.active_emcys = {0x8130};
   gs.refused_commands = 2;
+  gs.upstream_emcys.push_back({0x05, {0x8130, 0x11, {1, 2, 3, 4, 5}, 5000}, 1});
   lcm.publish(gs);
   // The logger writes in arrival order and flushes (at most every 10 ms) when a message comes in:
   // probes keep it flushing; once the status (the last session message) is in the file, so is the rest.
@@ -191,9 +193,13 @@ TEST(LcmPublisher, LcmLoggerRecordsASessionThatDecodesWithTheProjectsTypes) {
     if (l.rfind("joystick instance=3 ", 0) == 0) joy_lines.push_back(l);
   ASSERT_EQ(joy_lines.size(), tee.joy.size());
   for (std::size_t i = 0; i < joy_lines.size(); ++i) EXPECT_EQ(joy_lines[i], line_of(tee.joy[i]));
-  bool status_seen = false;
-  for (const auto& l : lines) status_seen |= l == "status seq=1 upstream=operational subdevices=1 emcys=1 refused=2";
-  EXPECT_TRUE(status_seen);
+  // The status line, then one per sub-device and per upstream node (examples/lcm_log_decode.cpp).
+  const auto status = std::find(lines.begin(), lines.end(), "status seq=1 upstream=operational subdevices=1 emcys=1 refused=2");
+  ASSERT_NE(status, lines.end());
+  ASSERT_GE(lines.end() - status, 3);
+  EXPECT_EQ(status[1],
+            "  subdevice right_grip node=11h state=operational emcys=2 last=1000h reg=00h msef=21 00 ff ff ff ts_us=4100");
+  EXPECT_EQ(status[2], "  upstream_emcy node=05h emcys=1 last=8130h reg=11h msef=01 02 03 04 05 ts_us=5000");
   std::remove(file.c_str());
 }
 
@@ -304,9 +310,11 @@ TEST(DdsPublisher, ALateReaderGetsTheLastGatewayStatus) {
   gs.timestamp_us = 123;
   gs.seq = 7;
   gs.upstream_state = "operational";
-  gs.subdevices = {{"right_grip", 0x11, "operational"}, {"left_grip", 0x03, "missing"}};
+  gs.subdevices = {{"right_grip", 0x11, "operational"},
+                   {"left_grip", 0x03, "missing", {0x3120, 0x81, {0x00, 0x82, 0x00, 0x00, 0x00}, 987654}, 3}};
   gs.active_emcys = {0x8130, 0xFF01};
   gs.refused_commands = 3;
+  gs.upstream_emcys = {{0x05, {0xFF01, 0x80, {9, 8, 7, 6, 5}, 1234}, 7}, {0x7E, {0x0000, 0x00, {}, 2345}, 1}};
   dds.publish(gs);  // before any reader exists
 
   DdsApp app(s);
@@ -333,6 +341,27 @@ TEST(DdsPublisher, ALateReaderGetsTheLastGatewayStatus) {
   EXPECT_EQ(m->active_emcys._buffer[0], 0x8130);
   EXPECT_EQ(m->active_emcys._buffer[1], 0xFF01);
   EXPECT_EQ(m->refused_commands, 3u);
+  // Each sub-device's last EMCY and count (zeros before the first), the EMCYs consumed upstream.
+  const auto& none = m->subdevices._buffer[0];
+  EXPECT_EQ(none.last_emcy.code, 0);
+  EXPECT_EQ(none.last_emcy.timestamp_us, 0);
+  EXPECT_EQ(none.emcy_count, 0u);
+  const auto& mcb = m->subdevices._buffer[1];
+  EXPECT_EQ(mcb.last_emcy.code, 0x3120);
+  EXPECT_EQ(mcb.last_emcy.error_register, 0x81);
+  EXPECT_EQ(std::vector<std::uint8_t>(mcb.last_emcy.msef, mcb.last_emcy.msef + 5), (std::vector<std::uint8_t>{0, 0x82, 0, 0, 0}));
+  EXPECT_EQ(mcb.last_emcy.timestamp_us, 987654);
+  EXPECT_EQ(mcb.emcy_count, 3u);
+  ASSERT_EQ(m->upstream_emcys._length, 2u);
+  const auto& u = m->upstream_emcys._buffer[0];
+  EXPECT_EQ(u.node_id, 0x05);
+  EXPECT_EQ(u.last.code, 0xFF01);
+  EXPECT_EQ(u.last.error_register, 0x80);
+  EXPECT_EQ(std::vector<std::uint8_t>(u.last.msef, u.last.msef + 5), (std::vector<std::uint8_t>{9, 8, 7, 6, 5}));
+  EXPECT_EQ(u.last.timestamp_us, 1234);
+  EXPECT_EQ(u.count, 7u);
+  EXPECT_EQ(m->upstream_emcys._buffer[1].node_id, 0x7E);
+  EXPECT_EQ(m->upstream_emcys._buffer[1].count, 1u);
   dds_return_loan(r, p, n);
 }
 

@@ -156,6 +156,95 @@ TEST_F(EmcyFixture, CobIdChangeWhileValidRefused) {
   EXPECT_EQ(sent[0].id, 0x93u);
 }
 
+// ---- Event EMCYs (report): sent once, 1001h untouched, through the same 1015h queue -----------
+
+// 1015h = 1000 (100 ms): two reports made together leave 100 ms apart, in order, and a raise
+// made meanwhile queues behind them (one queue for both kinds).
+TEST_F(EmcyFixture, ReportGoesThroughTheInhibitQueue) {
+  EmcyProducer p(od, sink(), NodeId{0x20}, {.inhibit_time = 1000});
+  EXPECT_TRUE(p.report(0x1000, {0x11, 0x00, 0x21, 0x00, 0xFF}, 0x11, t0));
+  EXPECT_TRUE(p.report(0x3120, {0x03, 0x81, 0x00, 0x81, 0x00}, 0x03, t0));
+  EXPECT_TRUE(p.raise(0x7000, 0x00, {0x11, 'r', 'i', 'g', 'h'}, t0 + 10ms, 0x11));
+  ASSERT_EQ(sent.size(), 1u);
+  EXPECT_EQ(sent[0], CanFrame(0x0A0, {0x00, 0x10, 0x00, 0x11, 0x00, 0x21, 0x00, 0xFF}));
+  EXPECT_EQ(p.next_deadline(), t0 + 100ms);
+  p.advance(t0 + 99ms);
+  EXPECT_EQ(sent.size(), 1u) << "held back by 1015h";
+  p.advance(t0 + 100ms);
+  ASSERT_EQ(sent.size(), 2u);
+  EXPECT_EQ(sent[1], CanFrame(0x0A0, {0x20, 0x31, 0x00, 0x03, 0x81, 0x00, 0x81, 0x00}))
+      << "byte 2: 1001h when the report was made (no error then)";
+  EXPECT_EQ(p.next_deadline(), t0 + 200ms);
+  p.advance(t0 + 200ms);
+  ASSERT_EQ(sent.size(), 3u);
+  EXPECT_EQ(sent[2], CanFrame(0x0A0, {0x00, 0x70, 0x01, 0x11, 'r', 'i', 'g', 'h'}));
+  EXPECT_FALSE(p.next_deadline().has_value());
+}
+
+// 1003h: newest first, entry = code | info << 16; raise() takes the same info; an error reset
+// (0000h) is no error and is not recorded.
+TEST_F(EmcyFixture, ReportIsRecordedIn1003hWithItsInfo) {
+  EmcyProducer p(od, sink(), NodeId{0x20}, {.history_size = 4});
+  EXPECT_TRUE(p.raise(0x7000, 0x00, {0x11, 'r', 'i', 'g', 'h'}, t0, 0x11));
+  EXPECT_TRUE(p.report(0x7000, {0x03, 'l', 'e', 'f', 't'}, 0x03, t0));
+  EXPECT_TRUE(p.report(0x5051, {0x7F, 0x01, 0x00, 0x00, 0x00}, 0x7F, t0));
+  EXPECT_TRUE(p.report(EmcyProducer::kErrorReset, {0x7F, 0x00, 0x00, 0x00, 0x00}, 0x7F, t0));
+  EXPECT_EQ(sent.size(), 4u) << "the error reset is sent";
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 3u) << "but not recorded";
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 1), 0x007F5051u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 2), 0x00037000u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 3), 0x00117000u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 4), 0u);
+  p.raise(0x8130, 0x10, t0);  // no info: 0
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 1), 0x8130u);
+}
+
+// A report leaves 1001h and the active errors alone; byte 2 carries 1001h as it is.
+TEST_F(EmcyFixture, ReportLeavesTheErrorRegisterUnchanged) {
+  EmcyProducer p(od, sink(), NodeId{0x20});
+  EXPECT_TRUE(p.report(0x1000, {0x11, 0x80, 0x01, 0x02, 0x03}, 0x11, t0));
+  EXPECT_EQ(sent.back().data[2], 0x00);
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x00u);
+  EXPECT_EQ(p.active_count(), 0u);
+  EXPECT_FALSE(p.active(0x1000));
+  p.raise(0x8130, 0x10, t0);
+  EXPECT_TRUE(p.report(0x3120, {0x03, 0x81, 0x00, 0x81, 0x00}, 0x03, t0));
+  EXPECT_EQ(sent.back().data[2], 0x11) << "the producer's own 1001h";
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x11u);
+  EXPECT_EQ(p.active_count(), 1u);
+  EXPECT_FALSE(p.active(0x3120));
+  // A reported code is not active: clearing it is refused.
+  EXPECT_FALSE(p.clear(0x3120, t0));
+  p.clear(0x8130, t0);
+  EXPECT_EQ(get_u16(sent.back().data.data()), 0x0000) << "the last active error's reset";
+}
+
+// 1014h bit 31: nothing goes out (report returns false), 1003h still records it.
+TEST_F(EmcyFixture, ReportSilencedByCobIdBit31) {
+  EmcyProducer p(od, sink(), NodeId{0x20});
+  ASSERT_EQ(od.write(0x1014, 0, encode<std::uint32_t>(0x800000A0)), SdoAbortCode::None);
+  EXPECT_FALSE(p.report(0x1000, {0x11, 0, 0, 0, 0}, 0x11, t0));
+  EXPECT_TRUE(sent.empty());
+  EXPECT_EQ(od.get<std::uint32_t>(0x1003, 1), 0x00111000u);
+  EXPECT_EQ(p.dropped(), 0u) << "not a queue overflow";
+}
+
+// A full inhibit queue drops the report and counts it.
+TEST_F(EmcyFixture, ReportIntoAFullQueueIsDroppedAndCounted) {
+  EmcyProducer p(od, sink(), NodeId{0x20}, {.inhibit_time = 10, .queue_limit = 2});
+  EXPECT_TRUE(p.report(0x1000, {}, 1, t0));   // sent
+  EXPECT_TRUE(p.report(0x2000, {}, 2, t0));   // queued
+  EXPECT_TRUE(p.raise(0x3000, 0, t0));        // queued
+  EXPECT_FALSE(p.report(0x4000, {}, 4, t0));  // no room
+  EXPECT_EQ(p.dropped(), 1u);
+  p.advance(t0 + 1ms);
+  p.advance(t0 + 2ms);
+  p.advance(t0 + 3ms);
+  ASSERT_EQ(sent.size(), 3u);
+  EXPECT_EQ(get_u16(sent[1].data.data()), 0x2000);
+  EXPECT_EQ(get_u16(sent[2].data.data()), 0x3000);
+}
+
 // Consumer: Novotechnik §9.1 "0x5051 1 1 0 Position overflow error" from node 1.
 TEST_F(EmcyFixture, ConsumerReportsNodeCodeRegisterAndField) {
   std::vector<EmcyMessage> got;

@@ -249,6 +249,29 @@ TEST(MappingConfig, NetworkIdsAreInRangeAndDistinct) {
                                       "network IDs 1..127 (defaults: upstream 1, downstream 2)"}));
 }
 
+// downstream.emcy_forwarding: which sub-device EMCYs go upstream (all by default).
+TEST(MappingConfig, EmcyForwardingIsAllFaultsOrNone) {
+  auto with = [](const std::string& down) {
+    std::string t = kHead;
+    t.replace(t.find("interface: can1 }"), 17, "interface: can1" + down + " }");
+    return load(t + "  joystick.1: { x: right_grip.x }\n");
+  };
+  const auto dflt = with("");
+  ASSERT_TRUE(dflt.ok()) << dflt.error_text();
+  EXPECT_EQ(dflt.config->downstream.emcy_forwarding, oegw::mapping::EmcyForwarding::All);
+  const auto faults = with(", emcy_forwarding: faults");
+  ASSERT_TRUE(faults.ok()) << faults.error_text();
+  EXPECT_EQ(faults.config->downstream.emcy_forwarding, oegw::mapping::EmcyForwarding::Faults);
+  const auto none = with(", emcy_forwarding: none");
+  ASSERT_TRUE(none.ok()) << none.error_text();
+  EXPECT_EQ(none.config->downstream.emcy_forwarding, oegw::mapping::EmcyForwarding::None);
+  EXPECT_EQ(with(", emcy_forwarding: all").config->downstream.emcy_forwarding, oegw::mapping::EmcyForwarding::All);
+  EXPECT_EQ(errors(with(", emcy_forwarding: errors")),
+            (std::vector<std::string>{"t.yaml:2:49: found 'errors' for emcy_forwarding; expected one of all, faults, none"}));
+  EXPECT_EQ(errors(with(", emcy_forwarding: [all]")),
+            (std::vector<std::string>{"t.yaml:2:49: found [all] for emcy_forwarding; expected a text"}));
+}
+
 TEST(MappingConfig, YamlSyntaxErrorCarriesItsMarkAndAHintForBracketsInFlowMaps) {
   const auto r = load(kHead + "  joystick.1: { buttons: right_grip.buttons[1..8] }\n");
   EXPECT_THAT(errors(r), ElementsAre("t.yaml:9:44: YAML syntax error: end of map flow not found; expected well-formed "

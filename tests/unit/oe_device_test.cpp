@@ -547,6 +547,80 @@ TEST_F(OeDeviceTest, SubdeviceFaultEmcy) {
   EXPECT_TRUE(dev->faulty_subdevices().empty());
 }
 
+// The extra 7000h of a second faulty sub-device and the 0000h naming a recovered one go through
+// the EMCY producer: 1015h holds them back (100 ms here), 1003h records the 7000h with the
+// node-ID in bits 16..23, 1001h stays as the active 7000h set it.
+TEST_F(OeDeviceTest, ExtraSubdeviceEmcysHonourTheInhibitTimeAndLandIn1003h) {
+  make({joystick(1)});
+  sdo_ok(0x6423, 0, {1});
+  sdo_ok(0x1015, 0, canopen::encode<std::uint16_t>(1000));
+  nmt(0x01);
+  out.clear();
+  dev->raise_subdevice_fault("grip", NodeId{0x11}, now);
+  dev->raise_subdevice_fault("pedal", NodeId{0x12}, now);
+  auto e = frames_with_id(0xA0);
+  ASSERT_EQ(e.size(), 1u) << "the second 7000h waits for the inhibit time";
+  EXPECT_EQ(bytes(e[0]), (Bytes{0x00, 0x70, 0x01, 0x11, 'g', 'r', 'i', 'p'}));
+  EXPECT_EQ(dev->next_deadline(), now + 100ms);
+  now += 99ms;
+  dev->advance(now);
+  EXPECT_EQ(frames_with_id(0xA0).size(), 1u);
+  now += 1ms;
+  dev->advance(now);
+  e = frames_with_id(0xA0);
+  ASSERT_EQ(e.size(), 2u);
+  EXPECT_EQ(bytes(e[1]), (Bytes{0x00, 0x70, 0x01, 0x12, 'p', 'e', 'd', 'a'}));
+  EXPECT_EQ(u8(0x1003, 0), 2u);
+  EXPECT_EQ(u32(0x1003, 1), 0x00127000u);
+  EXPECT_EQ(u32(0x1003, 2), 0x00117000u);
+  EXPECT_EQ(u8(0x1001, 0), 0x01u);
+  // grip recovers 10 ms later: its 0000h waits until 100 ms after the last EMCY.
+  now += 10ms;
+  dev->clear_subdevice_fault(NodeId{0x11}, now);
+  EXPECT_EQ(frames_with_id(0xA0).size(), 2u);
+  now += 90ms;
+  dev->advance(now);
+  e = frames_with_id(0xA0);
+  ASSERT_EQ(e.size(), 3u);
+  EXPECT_EQ(bytes(e[2]), (Bytes{0x00, 0x00, 0x01, 0x11, 'g', 'r', 'i', 'p'}));
+  EXPECT_EQ(u8(0x1003, 0), 2u) << "an error reset is not recorded";
+}
+
+// Remote EMCY (oe_device.hpp): a sub-device's EMCY as the gateway's own — its code, the
+// gateway's 1001h, then [node-ID, its register, its manufacturer bytes 0..2]; 1003h records
+// code | node-ID << 16; 1001h unchanged. MCB-402 [CO4013 "Emergency Messages"] cable break on
+// node 03h: 083 [8] 20 31 81 00 81 00 00 00.
+TEST_F(OeDeviceTest, ForwardedSubdeviceEmcyCarriesItsCodeRegisterNodeAndBytes) {
+  make({joystick(1)});
+  sdo_ok(0x6423, 0, {1});
+  nmt(0x01);
+  out.clear();
+  const canopen::EmcyMessage cable{NodeId{0x03}, 0x3120, 0x81, {0x00, 0x81, 0x00, 0x00, 0x00}};
+  EXPECT_TRUE(dev->forward_subdevice_emcy(cable, now));
+  auto e = frames_with_id(0xA0);
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_EQ(bytes(e[0]), (Bytes{0x20, 0x31, 0x00, 0x03, 0x81, 0x00, 0x81, 0x00}));
+  EXPECT_EQ(u8(0x1001, 0), 0x00u) << "a forward raises nothing on the gateway";
+  EXPECT_EQ(u32(0x1003, 1), 0x00033120u);
+  // The fault policy's 7000h follows; the sub-device's error reset is forwarded with the
+  // gateway's register (7000h still active), and not recorded.
+  dev->raise_subdevice_fault("left_grip", NodeId{0x03}, now);
+  out.clear();
+  EXPECT_TRUE(dev->forward_subdevice_emcy({NodeId{0x03}, 0x0000, 0x00, {}}, now));
+  e = frames_with_id(0xA0);
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_EQ(bytes(e[0]), (Bytes{0x00, 0x00, 0x01, 0x03, 0x00, 0x00, 0x00, 0x00}));
+  EXPECT_EQ(u8(0x1003, 0), 2u);
+  // Bytes 3..4 of the sub-device's manufacturer field do not fit.
+  EXPECT_EQ(OeDevice::forwarded_msef({NodeId{0x11}, 0x1000, 0x00, {0x21, 0x00, 0xFF, 0xAA, 0xBB}}),
+            (canopen::EmcyManufacturerField{0x11, 0x00, 0x21, 0x00, 0xFF}));
+  // Stopped: the Node holds every EMCY back (CiA 301 Table 47).
+  nmt(0x02);
+  out.clear();
+  (void)dev->forward_subdevice_emcy(cable, now);
+  EXPECT_TRUE(frames_with_id(0xA0).empty());
+}
+
 // NMT reset node restores the defaults without observers (CiA 301 §7.3.2.2.1): the outputs that
 // moved back are still reported, so the sub-devices' LEDs follow the dictionary.
 TEST_F(OeDeviceTest, ResetNodeReportsOutputsBackToDefault) {
