@@ -31,13 +31,43 @@ SdoClient::SdoClient(FrameSink sink, SdoClientConfig config) : sink_(std::move(s
   cfg_.block_size = std::clamp<std::uint8_t>(cfg_.block_size, 1, 127);
 }
 
-void SdoClient::upload(std::uint16_t index, std::uint8_t sub, Callback callback, SdoTransfer mode) {
-  queue_.push_back(Request{true, index, sub, {}, std::move(callback), mode});
+SdoClient::Ticket SdoClient::upload(std::uint16_t index, std::uint8_t sub, Callback callback, SdoTransfer mode) {
+  const Ticket ticket = next_ticket();
+  queue_.push_back(Request{true, index, sub, {}, std::move(callback), mode, ticket});
+  return ticket;
 }
 
-void SdoClient::download(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data, Callback callback,
-                         SdoTransfer mode) {
-  queue_.push_back(Request{false, index, sub, std::move(data), std::move(callback), mode});
+SdoClient::Ticket SdoClient::download(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
+                                      Callback callback, SdoTransfer mode) {
+  const Ticket ticket = next_ticket();
+  queue_.push_back(Request{false, index, sub, std::move(data), std::move(callback), mode, ticket});
+  return ticket;
+}
+
+SdoClient::Ticket SdoClient::next_ticket() {
+  if (++last_ticket_ == 0) ++last_ticket_;
+  return last_ticket_;
+}
+
+bool SdoClient::cancel(Ticket ticket, SdoAbortCode code) {
+  if (ticket == 0) return false;
+  if (code == SdoAbortCode::None) code = SdoAbortCode::GeneralError;
+  if (state_ != State::Idle && current_.ticket == ticket) {
+    abort(code);
+    pump();
+    return true;
+  }
+  const auto first = queue_.begin() + static_cast<std::ptrdiff_t>(queue_head_);
+  const auto it = std::find_if(first, queue_.end(), [ticket](const Request& r) { return r.ticket == ticket; });
+  if (it == queue_.end()) return false;
+  done_.push_back(Done{std::move(it->callback), code, {}});
+  queue_.erase(it);
+  if (queue_head_ == queue_.size()) {
+    queue_.clear();
+    queue_head_ = 0;
+  }
+  pump();
+  return true;
 }
 
 std::optional<TimePoint> SdoClient::next_deadline() const {

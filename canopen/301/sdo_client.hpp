@@ -14,6 +14,10 @@
 // download), or the abort code — the server's, or the one this client sent (0x05040000 on
 // timeout, ...). Callbacks run after the frame or timer that finished the transfer has been fully
 // handled; they may queue further requests.
+//
+// upload()/download() return a ticket naming the request; cancel(ticket, code) withdraws it: a
+// queued request is removed, the one in flight is aborted on the bus with `code`; its callback
+// is then called once with `code`.
 #pragma once
 
 #include <array>
@@ -56,13 +60,15 @@ enum class SdoTransfer : std::uint8_t {
 class SdoClient {
  public:
   using Callback = std::function<void(SdoAbortCode code, std::vector<std::uint8_t> data)>;
+  // Names one request: unique per client (counting from 1, wrapping past 0), never 0.
+  using Ticket = std::uint32_t;
 
   SdoClient(FrameSink sink, SdoClientConfig config);
   SdoClient(FrameSink sink, NodeId server) : SdoClient(std::move(sink), SdoClientConfig::for_node(server)) {}
 
-  void upload(std::uint16_t index, std::uint8_t sub, Callback callback, SdoTransfer mode = SdoTransfer::Auto);
-  void download(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data, Callback callback,
-                SdoTransfer mode = SdoTransfer::Auto);
+  Ticket upload(std::uint16_t index, std::uint8_t sub, Callback callback, SdoTransfer mode = SdoTransfer::Auto);
+  Ticket download(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data, Callback callback,
+                  SdoTransfer mode = SdoTransfer::Auto);
 
   // True if the frame is on the response COB-ID.
   bool on_frame(const CanFrame& frame, TimePoint now);
@@ -74,6 +80,11 @@ class SdoClient {
   // Sends an abort for the transfer in flight, if any, and fails it and every queued request
   // with `code`.
   void cancel_all(SdoAbortCode code = SdoAbortCode::GeneralError);
+  // Withdraws one request: queued, it is removed; in flight, the abort frame with `code` is sent
+  // (SdoAbortCode::None counts as 0x08000000). Its callback is called once with that code,
+  // after this returns unless called from a callback. False (nothing done) if the ticket is
+  // unknown or its transfer has finished.
+  bool cancel(Ticket ticket, SdoAbortCode code);
 
   [[nodiscard]] bool busy() const { return state_ != State::Idle; }
   [[nodiscard]] std::size_t queued() const { return queue_.size() - queue_head_; }
@@ -100,6 +111,7 @@ class SdoClient {
     std::vector<std::uint8_t> data;
     Callback callback;
     SdoTransfer mode = SdoTransfer::Auto;
+    Ticket ticket = 0;
   };
   struct Done {
     Callback callback;
@@ -127,6 +139,7 @@ class SdoClient {
   void send(const std::array<std::uint8_t, 8>& bytes);
   void send(std::initializer_list<std::uint8_t> bytes);
   void pump();
+  Ticket next_ticket();
 
   FrameSink sink_;
   SdoClientConfig cfg_;
@@ -154,6 +167,7 @@ class SdoClient {
   std::vector<Done> done_;
   std::size_t done_head_ = 0;
   bool pumping_ = false;
+  Ticket last_ticket_ = 0;
 };
 
 }  // namespace oegw::canopen

@@ -56,16 +56,24 @@ class SdoRemote {
   SdoRemote& operator=(const SdoRemote&) = delete;
   virtual ~SdoRemote() = default;
 
-  // A network indication named `target`: SdoAbortCode::None and Local (the server's own
-  // dictionary) or Remote, or the code the server aborts the indication with.
+  // A network indication named `target` (bytes 4 and 5 as received, not range-checked by the
+  // server): SdoAbortCode::None and Local (the server's own dictionary) or Remote, or the code
+  // the server aborts the indication with (the target then does not change).
   virtual SdoAbortCode select(const SdoTarget& target, Selection& selection) = 0;
   // Starts a transfer to `target`. `done` is called exactly once — possibly before this returns
-  // (a request refused at once) — unless the ticket is cancelled first.
+  // (a request refused at once), or later from anywhere (the other bus's frame handling): the
+  // server sends its answer from inside `done` — unless the ticket is cancelled first. A
+  // server has at most one transfer pending; it never cancels a ticket whose done was called.
+  // `data` (a download's whole value, at most SdoServer::kMaxRemoteDownload bytes) is valid only
+  // during the call.
   virtual Ticket upload(const SdoTarget& target, std::uint16_t index, std::uint8_t sub, Done done) = 0;
   virtual Ticket download(const SdoTarget& target, std::uint16_t index, std::uint8_t sub,
                           std::span<const std::uint8_t> data, Done done) = 0;
-  // The server's client gave up on the transfer (its abort, a new request, the channel reset):
-  // the remote transfer is aborted with `why` (queued: dropped) and `done` is not called.
+  // The server's client gave up on the transfer: `why` is the client's own abort code, or
+  // 0x060A0023 (a new request while this one is in flight), 0x05040001 (a malformed frame),
+  // 0x08000000 (the channel reset, its COB-IDs changed, rebound, or the server destroyed). The
+  // remote transfer is aborted with `why` (queued: dropped) and `done` must not be called (the
+  // server ignores it if it is).
   virtual void cancel(Ticket ticket, SdoAbortCode why) = 0;
 };
 

@@ -25,6 +25,7 @@ constexpr std::uint8_t kCcsInitiateUpload = 2;
 constexpr std::uint8_t kCcsUploadSegment = 3;
 constexpr std::uint8_t kCcsBlockUpload = 5;
 constexpr std::uint8_t kCcsBlockDownload = 6;
+constexpr std::uint8_t kCcsNetworkIndication = 7;  // see sdo_remote.hpp for the frame layout
 constexpr std::uint8_t kAbort = 0x80;
 
 bool is_initiate(std::uint8_t cmd) {
@@ -42,38 +43,74 @@ SdoServer::SdoServer(ObjectDictionary& od, FrameSink sink, NodeId node, Duration
     : SdoServer(od, std::move(sink), CobId(cob::kSdoRx + node.value()), CobId(cob::kSdoTx + node.value()),
                 timeout) {}
 
+SdoServer::~SdoServer() { cancel_remote(SdoAbortCode::GeneralError); }
+
 void SdoServer::set_cob_ids(CobId rx, CobId tx) {
   rx_ = rx;
   tx_ = tx;
-  drop();
+  reset();
 }
 
-void SdoServer::reset() { drop(); }
+void SdoServer::reset() {
+  cancel_remote(SdoAbortCode::GeneralError);
+  drop();
+  selected_.reset();
+}
+
+void SdoServer::set_remote(SdoRemote* remote) {
+  cancel_remote(SdoAbortCode::GeneralError);
+  drop();
+  selected_.reset();
+  remote_ = remote;
+}
+
+void SdoServer::bind(std::optional<SdoTarget> target) {
+  cancel_remote(SdoAbortCode::GeneralError);
+  drop();
+  selected_.reset();
+  bound_ = target;
+}
+
+std::optional<SdoTarget> SdoServer::target() const { return bound_ ? bound_ : selected_; }
 
 void SdoServer::set_block_size(std::uint8_t blksize) {
   block_size_ = std::clamp<std::uint8_t>(blksize, 1, kMaxBlockSize);
 }
 
 std::optional<TimePoint> SdoServer::next_deadline() const {
-  if (state_ == State::Idle) return std::nullopt;
+  if (state_ == State::Idle || state_ == State::RemoteWait) return std::nullopt;
+  if (arm_deadline_) return now_;  // the remote answered: due now, advance() starts the time-out
   return deadline_;
 }
 
 void SdoServer::advance(TimePoint now) {
-  if (state_ != State::Idle && now >= deadline_) abort_transfer(SdoAbortCode::Timeout);
+  now_ = now;
+  if (arm_deadline_) {
+    arm_deadline_ = false;
+    deadline_ = now + timeout_;
+  }
+  if (state_ != State::Idle && state_ != State::RemoteWait && now >= deadline_) abort_transfer(SdoAbortCode::Timeout);
   flush();
 }
 
 bool SdoServer::on_frame(const CanFrame& frame, TimePoint now) {
   if (!matches(rx_, frame)) return false;
+  now_ = now;
+  const bool nested = handling_;
+  handling_ = true;
   if (!frame.rtr) handle(frame);  // SDO never uses remote frames: ignore them
-  if (state_ != State::Idle) deadline_ = now + timeout_;
+  handling_ = nested;
+  if (state_ != State::Idle && state_ != State::RemoteWait) {
+    deadline_ = now + timeout_;
+    arm_deadline_ = false;
+  }
   flush();
   return true;
 }
 
 void SdoServer::handle(const CanFrame& f) {
   const std::uint8_t* d = f.data.data();
+  if (state_ == State::RemoteWait) return frame_while_waiting(f);
   // An abort (ccs = 4, the other bits reserved) is never answered (CiA 301 §7.2.4.3.17). In a
   // block download sub-block 0x81..0x9F are last segments; 0x80 would be "last segment,
   // sequence number 0", which is not a valid segment, so there it is the abort.
@@ -95,8 +132,17 @@ void SdoServer::handle(const CanFrame& f) {
     return;
   }
   const std::uint8_t cmd = d[0];
+  if ((cmd >> 5) == kCcsNetworkIndication && remote_ != nullptr) {
+    drop();  // like an initiate, it abandons whatever was in progress
+    network_indication(d);
+    return;
+  }
   if (is_initiate(cmd)) {
     drop();  // a new initiate abandons whatever was in progress (see header)
+    if (target()) {
+      if (remote_ == nullptr) return abort(get_u16(d + 1), d[3], SdoAbortCode::ResourceNotAvailable);
+      routed_ = true;
+    }
     switch (cmd >> 5) {
       case kCcsInitiateDownload: initiate_download(d); break;
       case kCcsInitiateUpload: initiate_upload(d); break;
@@ -129,12 +175,14 @@ void SdoServer::handle(const CanFrame& f) {
       abort(get_u16(d + 1), d[3], SdoAbortCode::UnknownCommandSpecifier);
       return;
     case State::BlockDownloadSubBlock:
+    case State::RemoteWait:  // handled above
       break;
   }
   abort_transfer(SdoAbortCode::UnknownCommandSpecifier);
 }
 
 SdoAbortCode SdoServer::check_announced_size(std::uint32_t size) const {
+  if (routed_) return size > kMaxRemoteDownload ? SdoAbortCode::OutOfMemory : SdoAbortCode::None;
   const SubObject* s = od_.find(index_, sub_);
   const std::size_t n = fixed_size(s->type);
   if (n != 0) {
@@ -150,6 +198,7 @@ SdoAbortCode SdoServer::overflow_code() const {
   // More data than announced: length mismatch. No size announced: a fixed-size object is "too
   // long" (what the object dictionary would say), a string/DOMAIN has outgrown the buffer cap.
   if (size_indicated_) return SdoAbortCode::LengthMismatch;
+  if (routed_) return SdoAbortCode::OutOfMemory;
   const SubObject* s = od_.find(index_, sub_);
   if (s != nullptr && fixed_size(s->type) != 0) return SdoAbortCode::LengthTooHigh;
   return SdoAbortCode::OutOfMemory;
@@ -159,6 +208,7 @@ void SdoServer::initiate_download(const std::uint8_t* d) {
   const std::uint8_t cmd = d[0];
   index_ = get_u16(d + 1);
   sub_ = d[3];
+  if (routed_) return initiate_remote_download(d);
   if (const SdoAbortCode c = od_.check_write(index_, sub_); c != SdoAbortCode::None) return abort_transfer(c);
   const SubObject* s = od_.find(index_, sub_);
   const std::size_t fixed = fixed_size(s->type);
@@ -202,6 +252,7 @@ void SdoServer::download_segment(const std::uint8_t* d) {
   toggle_ = !toggle_;
   if ((cmd & 0x01) != 0) {
     if (size_indicated_ && buffer_.size() != size_) return abort_transfer(SdoAbortCode::LengthMismatch);
+    if (routed_) return start_remote_download(RemoteStep::LastSegment, response);
     const SdoAbortCode c = od_.write(index_, sub_, buffer_);
     if (c != SdoAbortCode::None) return abort_transfer(c);
     drop();
@@ -212,6 +263,7 @@ void SdoServer::download_segment(const std::uint8_t* d) {
 void SdoServer::initiate_upload(const std::uint8_t* d) {
   index_ = get_u16(d + 1);
   sub_ = d[3];
+  if (routed_) return start_remote_upload(RemoteStep::Upload);
   buffer_.clear();
   if (const SdoAbortCode c = od_.read(index_, sub_, buffer_); c != SdoAbortCode::None) return abort_transfer(c);
   respond_upload_initiate();
@@ -257,14 +309,19 @@ void SdoServer::initiate_block_download(const std::uint8_t* d) {
   const std::uint8_t cmd = d[0];
   index_ = get_u16(d + 1);
   sub_ = d[3];
-  if (const SdoAbortCode c = od_.check_write(index_, sub_); c != SdoAbortCode::None) return abort_transfer(c);
-  const SubObject* s = od_.find(index_, sub_);
+  const SubObject* s = nullptr;
+  if (!routed_) {
+    if (const SdoAbortCode c = od_.check_write(index_, sub_); c != SdoAbortCode::None) return abort_transfer(c);
+    s = od_.find(index_, sub_);
+  }
   size_indicated_ = (cmd & 0x02) != 0;
   if (size_indicated_) {
     size_ = get_u32(d + 4);
     if (const SdoAbortCode c = check_announced_size(static_cast<std::uint32_t>(size_)); c != SdoAbortCode::None)
       return abort_transfer(c);
     capacity_ = size_;
+  } else if (routed_) {
+    capacity_ = kMaxRemoteDownload;
   } else {
     const std::size_t fixed = fixed_size(s->type);
     capacity_ = fixed != 0 ? fixed : s->max_size;
@@ -292,6 +349,7 @@ void SdoServer::block_download_end(const std::uint8_t* d) {
   if (size_indicated_ && total != size_) return abort_transfer(SdoAbortCode::LengthMismatch);
   buffer_.resize(total);
   if (crc_ && crc16_ccitt(buffer_) != get_u16(d + 1)) return abort_transfer(SdoAbortCode::CrcError);
+  if (routed_) return start_remote_download(RemoteStep::BlockDownloadEnd, 0xA1);
   const SdoAbortCode c = od_.write(index_, sub_, buffer_);
   if (c != SdoAbortCode::None) return abort_transfer(c);
   drop();
@@ -301,20 +359,32 @@ void SdoServer::block_download_end(const std::uint8_t* d) {
 void SdoServer::initiate_block_upload(const std::uint8_t* d) {
   index_ = get_u16(d + 1);
   sub_ = d[3];
-  buffer_.clear();
-  if (const SdoAbortCode c = od_.read(index_, sub_, buffer_); c != SdoAbortCode::None) return abort_transfer(c);
   const std::uint8_t blksize = d[4];
   const std::uint8_t pst = d[5];
+  const bool crc = (d[0] & 0x04) != 0;
+  if (routed_) {
+    // Checked before the remote is asked: a remote transfer is not started for nothing.
+    if (blksize == 0 || blksize > kMaxBlockSize) return abort_transfer(SdoAbortCode::InvalidBlockSize);
+    block_upload_ = {blksize, pst, crc};
+    return start_remote_upload(RemoteStep::BlockUpload);
+  }
+  buffer_.clear();
+  if (const SdoAbortCode c = od_.read(index_, sub_, buffer_); c != SdoAbortCode::None) return abort_transfer(c);
   if (blksize == 0 || blksize > kMaxBlockSize) return abort_transfer(SdoAbortCode::InvalidBlockSize);
-  if (pst != 0 && buffer_.size() <= pst) {
+  respond_block_upload_initiate({blksize, pst, crc});
+}
+
+void SdoServer::respond_block_upload_initiate(BlockUploadRequest request) {
+  if (request.pst != 0 && buffer_.size() <= request.pst) {
     respond_upload_initiate();  // protocol switch: answer as a normal upload
     return;
   }
-  crc_ = (d[0] & 0x04) != 0;
-  tx_block_.start(blksize);
+  crc_ = request.crc;
+  tx_block_.start(request.blksize);
   size_ = buffer_.size();
   state_ = State::BlockUploadStart;
-  std::array<std::uint8_t, 8> out{0xC6, d[1], d[2], d[3], 0, 0, 0, 0};  // sc = 1, s = 1
+  std::array<std::uint8_t, 8> out{0xC6, static_cast<std::uint8_t>(index_), static_cast<std::uint8_t>(index_ >> 8),
+                                  sub_, 0, 0, 0, 0};  // sc = 1, s = 1
   put_u32(out.data() + 4, static_cast<std::uint32_t>(size_));
   send(out);
 }
@@ -344,8 +414,139 @@ void SdoServer::abort(std::uint16_t index, std::uint8_t sub, SdoAbortCode code) 
   send(out);
 }
 
+// ---------------------------------------------------------------------------------------------
+// Remote (routed) mode
+
+void SdoServer::network_indication(const std::uint8_t* d) {
+  if (bound_) return abort(get_u16(d + 1), d[3], SdoAbortCode::CannotTransferLocalControl);
+  const SdoTarget target{d[4], d[5]};
+  SdoRemote::Selection selection = SdoRemote::Selection::Local;
+  if (const SdoAbortCode c = remote_->select(target, selection); c != SdoAbortCode::None)
+    return abort(get_u16(d + 1), d[3], c);
+  if (selection == SdoRemote::Selection::Remote) {
+    selected_ = target;
+  } else {
+    selected_.reset();
+  }
+  send({0xE0, d[1], d[2], d[3], d[4], d[5], d[6], d[7]});
+}
+
+void SdoServer::initiate_remote_download(const std::uint8_t* d) {
+  const std::uint8_t cmd = d[0];
+  size_indicated_ = (cmd & 0x01) != 0;
+  if ((cmd & 0x02) != 0) {
+    // Expedited. With s = 0 the object's size is unknown here: all four bytes go, the remote
+    // server decides.
+    const std::size_t n = size_indicated_ ? 4u - ((cmd >> 2) & 0x03u) : 4u;
+    buffer_.assign(d + 4, d + 4 + n);
+    return start_remote_download(RemoteStep::ExpeditedDownload, 0x60);
+  }
+  if (size_indicated_) {
+    size_ = get_u32(d + 4);
+    if (const SdoAbortCode c = check_announced_size(static_cast<std::uint32_t>(size_)); c != SdoAbortCode::None)
+      return abort_transfer(c);
+    capacity_ = size_;
+  } else {
+    capacity_ = kMaxRemoteDownload;
+  }
+  buffer_.clear();
+  toggle_ = false;
+  state_ = State::DownloadSegmented;
+  send({0x60, d[1], d[2], d[3], 0, 0, 0, 0});
+}
+
+void SdoServer::start_remote_upload(RemoteStep step) {
+  const SdoTarget target = *this->target();
+  state_ = State::RemoteWait;
+  step_ = step;
+  const std::uint32_t generation = ++remote_generation_;
+  const SdoRemote::Ticket ticket = remote_->upload(target, index_, sub_, remote_done(generation));
+  if (state_ == State::RemoteWait && remote_generation_ == generation) ticket_ = ticket;
+}
+
+void SdoServer::start_remote_download(RemoteStep step, std::uint8_t response) {
+  const SdoTarget target = *this->target();
+  state_ = State::RemoteWait;
+  step_ = step;
+  remote_response_ = response;
+  const std::uint32_t generation = ++remote_generation_;
+  const SdoRemote::Ticket ticket = remote_->download(target, index_, sub_, buffer_, remote_done(generation));
+  if (state_ == State::RemoteWait && remote_generation_ == generation) ticket_ = ticket;
+}
+
+SdoRemote::Done SdoServer::remote_done(std::uint32_t generation) {
+  return [this, generation](SdoAbortCode code, std::vector<std::uint8_t> data) {
+    on_remote_done(generation, code, std::move(data));
+  };
+}
+
+void SdoServer::on_remote_done(std::uint32_t generation, SdoAbortCode code, std::vector<std::uint8_t> data) {
+  if (state_ != State::RemoteWait || generation != remote_generation_) return;  // cancelled or replaced
+  ++remote_generation_;
+  state_ = State::Idle;
+  if (code != SdoAbortCode::None) {
+    abort_transfer(code);
+  } else {
+    switch (step_) {
+      case RemoteStep::Upload:
+        buffer_ = std::move(data);
+        respond_upload_initiate();
+        break;
+      case RemoteStep::BlockUpload:
+        buffer_ = std::move(data);
+        respond_block_upload_initiate(block_upload_);
+        break;
+      case RemoteStep::ExpeditedDownload:
+        drop();
+        send({remote_response_, static_cast<std::uint8_t>(index_), static_cast<std::uint8_t>(index_ >> 8), sub_, 0,
+              0, 0, 0});
+        break;
+      case RemoteStep::LastSegment:
+      case RemoteStep::BlockDownloadEnd:
+        drop();
+        send({remote_response_, 0, 0, 0, 0, 0, 0, 0});
+        break;
+    }
+  }
+  if (handling_) return;  // inside on_frame: it sets the deadline and flushes
+  if (state_ != State::Idle) arm_deadline_ = true;
+  flush();
+}
+
+void SdoServer::frame_while_waiting(const CanFrame& f) {
+  const std::uint8_t* d = f.data.data();
+  if (f.dlc >= 1 && (d[0] >> 5) == 4) {  // the client's abort: passed on, never answered
+    const auto code = f.dlc == 8 ? static_cast<SdoAbortCode>(get_u32(d + 4)) : SdoAbortCode::GeneralError;
+    cancel_remote(code == SdoAbortCode::None ? SdoAbortCode::GeneralError : code);
+    drop();
+    return;
+  }
+  // Anything else ends the wait: the remote transfer is cancelled with the code the client gets.
+  std::uint16_t index = index_;
+  std::uint8_t sub = sub_;
+  SdoAbortCode code = SdoAbortCode::UnknownCommandSpecifier;  // a short frame, as in any state
+  if (f.dlc >= 8) {
+    code = SdoAbortCode::ResourceNotAvailable;
+    if (is_initiate(d[0]) || (d[0] >> 5) == kCcsNetworkIndication) {  // a new request: its multiplexer
+      index = get_u16(d + 1);
+      sub = d[3];
+    }
+  }
+  cancel_remote(code);
+  abort(index, sub, code);
+}
+
+void SdoServer::cancel_remote(SdoAbortCode why) {
+  if (state_ != State::RemoteWait) return;
+  ++remote_generation_;
+  state_ = State::Idle;
+  remote_->cancel(ticket_, why);
+}
+
 void SdoServer::drop() {
   state_ = State::Idle;
+  routed_ = false;
+  arm_deadline_ = false;
   buffer_.clear();
   // Keep a small buffer for the next transfer (every upload copies the value into it); give
   // back what a large DOMAIN transfer grew.

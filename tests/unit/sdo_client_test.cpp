@@ -433,4 +433,85 @@ TEST_F(SdoClientTest, BlockUploadProtocolSwitch) {
   EXPECT_EQ(results, (std::vector<Result>{ok({1, 2, 3, 4}), ok(bytes_of("hi"))}));
 }
 
+// ---------------------------------------------------------------------------------------------
+// Tickets and cancel()
+
+TEST_F(SdoClientTest, TicketsAreUniqueAndNeverZero) {
+  const SdoClient::Ticket a = client->upload(0x1000, 0, record());
+  const SdoClient::Ticket b = client->download(0x2000, 0, {1}, record());
+  const SdoClient::Ticket c = client->upload(0x1000, 0, record(), SdoTransfer::Block);
+  EXPECT_NE(a, 0u);
+  EXPECT_NE(a, b);
+  EXPECT_NE(b, c);
+  EXPECT_NE(a, c);
+}
+
+TEST_F(SdoClientTest, CancelQueuedRequestRemovesItWithoutAFrame) {
+  client->upload(0x1000, 0, record());
+  const SdoClient::Ticket second = client->upload(0x1001, 0, record());
+  client->upload(0x1002, 0, record());
+  EXPECT_EQ(go(), req({0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}));
+  out.clear();
+  EXPECT_TRUE(client->cancel(second, SdoAbortCode::CannotTransferLocalControl));
+  EXPECT_EQ(out, none());
+  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::CannotTransferLocalControl)}));
+  EXPECT_EQ(client->queued(), 1u);
+  EXPECT_TRUE(client->busy());
+  // Its callback is not called again, and the others go on in order.
+  EXPECT_EQ(srv({0x4F, 0x00, 0x10, 0x00, 7, 0, 0, 0}), req({0x40, 0x02, 0x10, 0x00, 0, 0, 0, 0}));
+  srv({0x4F, 0x02, 0x10, 0x00, 9, 0, 0, 0});
+  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::CannotTransferLocalControl), ok({7}), ok({9})}));
+  EXPECT_FALSE(client->cancel(second, SdoAbortCode::GeneralError));
+}
+
+TEST_F(SdoClientTest, CancelInFlightAbortsOnTheBusAndStartsTheNext) {
+  const SdoClient::Ticket first = client->upload(0x1008, 0, record());
+  client->upload(0x1000, 0, record());
+  go();
+  EXPECT_EQ(srv({0x41, 0x08, 0x10, 0x00, 20, 0, 0, 0}), req({0x60, 0, 0, 0, 0, 0, 0, 0}));
+  out.clear();
+  EXPECT_TRUE(client->cancel(first, SdoAbortCode::ResourceNotAvailable));
+  EXPECT_EQ(out, (std::vector<CanFrame>{abort_frame(kReq, 0x1008, 0, SdoAbortCode::ResourceNotAvailable),
+                                        CanFrame(kReq, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0})}));
+  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::ResourceNotAvailable)}));
+  EXPECT_FALSE(client->cancel(first, SdoAbortCode::ResourceNotAvailable));
+  // The next request is served; the cancelled one gets no second callback.
+  EXPECT_EQ(srv({0x4F, 0x00, 0x10, 0x00, 5, 0, 0, 0}), none());
+  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::ResourceNotAvailable), ok({5})}));
+}
+
+TEST_F(SdoClientTest, CancelOfUnknownOrFinishedTicketsDoesNothing) {
+  EXPECT_FALSE(client->cancel(0, SdoAbortCode::GeneralError));
+  EXPECT_FALSE(client->cancel(12345, SdoAbortCode::GeneralError));
+  const SdoClient::Ticket done = client->upload(0x1000, 0, record());
+  go();
+  srv({0x4F, 0x00, 0x10, 0x00, 1, 0, 0, 0});
+  out.clear();
+  EXPECT_FALSE(client->cancel(done, SdoAbortCode::GeneralError));
+  EXPECT_EQ(out, none());
+  EXPECT_EQ(results, (std::vector<Result>{ok({1})}));
+}
+
+TEST_F(SdoClientTest, CancelWithoutACodeIsAGeneralError) {
+  const SdoClient::Ticket t1 = client->download(0x2000, 0, {1}, record());
+  go();
+  out.clear();
+  EXPECT_TRUE(client->cancel(t1, SdoAbortCode::None));
+  EXPECT_EQ(out, aborted(0x2000, 0, SdoAbortCode::GeneralError));
+  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::GeneralError)}));
+}
+
+TEST_F(SdoClientTest, CancelFromACallback) {
+  SdoClient::Ticket later = 0;
+  client->upload(0x1000, 0, [&](SdoAbortCode, std::vector<std::uint8_t>) {
+    EXPECT_TRUE(client->cancel(later, SdoAbortCode::NoDataAvailable));
+  });
+  later = client->upload(0x1001, 0, record());
+  go();
+  EXPECT_EQ(srv({0x4F, 0x00, 0x10, 0x00, 1, 0, 0, 0}), none());  // the second never starts
+  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::NoDataAvailable)}));
+  EXPECT_FALSE(client->busy());
+  EXPECT_EQ(client->queued(), 0u);
+}
+
 }  // namespace
