@@ -11,7 +11,8 @@
 // below is therefore this project's decision, chosen to look like every other SDO request:
 //
 //   request  (client -> server)  E0h | 00 00 00 | network | node | 00 00
-//            byte 0: ccs = 7 (bits 7..5), bits 4..0 reserved 0; bytes 1..3: the multiplexer,
+//            byte 0: ccs = 7 (bits 7..5), bits 4..0 reserved 0 (sent 0; the SdoServer takes
+//            any byte 0 with ccs = 7, as it takes any abort with ccs = 4); bytes 1..3: the multiplexer,
 //            which names no object here and is sent 0; byte 4: network ID (1..127); byte 5:
 //            node-ID (1..127); bytes 6..7 reserved (sent 0, ignored).
 //   response (server -> client)  E0h | bytes 1..7 of the request echoed (scs = 7)

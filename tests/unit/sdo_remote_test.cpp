@@ -173,6 +173,9 @@ TEST_F(SdoRemoteTest, NetworkIndicationIsEchoedAndNamesTheTarget) {
   EXPECT_EQ(server.target(), kNode20);
   EXPECT_FALSE(server.busy());
   EXPECT_TRUE(remote.calls.empty());
+  // Reserved bits in byte 0 are not checked; the answer is E0h.
+  EXPECT_EQ(rx({0xE5, 0, 0, 0, 2, 0x21, 0, 0}), tx({0xE0, 0, 0, 0, 2, 0x21, 0, 0}));
+  EXPECT_EQ(server.target(), (SdoTarget{2, 0x21}));
 }
 
 TEST_F(SdoRemoteTest, NetworkIndicationNamingTheServerItselfReturnsToTheOwnDictionary) {
