@@ -57,8 +57,20 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     : config_(config),
       master_(master_od_, downstream, canopen::MasterConfig{.heartbeat_entries = heartbeat_entries(config), .sdo_timeout = options.sdo_timeout}),
       network_(master_, options.timing),
+      remote_sdo_(std::make_unique<RemoteSdo>(config_, master_, network_, now_,
+                                              [this] { return oe_->node().node_id(); })),
       oe_(std::make_unique<OeDevice>(device_config(config_, options.store_path), std::move(upstream))),
       model_(oe_->config().fes) {
+  // Every SDO server channel of the device reaches the sub-devices (remote SDO); a channel the
+  // mapping file binds to a sub-device goes nowhere else (gateway/remote_sdo.hpp).
+  remote_sdo_->on_log = [this](const std::string& line) { log(line); };
+  canopen::Node& device = oe_->node();
+  for (std::size_t k = 0; k < device.sdo_server_count(); ++k) {
+    canopen::SdoServer& server = device.sdo_server(k);
+    server.set_remote(remote_sdo_.get());
+    if (k >= 1 && k <= config_.upstream.sdo_servers.size() && !config_.upstream.sdo_servers[k - 1].subdevice.empty())
+      server.bind(remote_sdo_->target_of(config_.upstream.sdo_servers[k - 1].subdevice));
+  }
   // The CiA 852 device mirrors every changed input slot into its dictionary at once.
   model_.on_slot_change([this](mapping::FeId fe, FeSlot slot, std::int64_t v) {
     if (mapping::is_input(fe.kind)) oe_->mirror_input(fe, slot, v, now_);

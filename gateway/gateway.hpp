@@ -44,6 +44,7 @@
 #include "gateway/fe_model.hpp"
 #include "gateway/fe_samples.hpp"
 #include "gateway/oe_device.hpp"
+#include "gateway/remote_sdo.hpp"
 #include "mapping/config.hpp"
 #include "mapping/translate.hpp"
 #include "subdevices/network_manager.hpp"
@@ -103,6 +104,8 @@ class Gateway {
   [[nodiscard]] const OeDevice& upstream() const { return *oe_; }
   [[nodiscard]] const FeModel& model() const { return model_; }
   [[nodiscard]] subdevices::NetworkManager& downstream() { return network_; }
+  // Remote SDO: the host's transfers to sub-devices (gateway/remote_sdo.hpp).
+  [[nodiscard]] const RemoteSdo& remote_sdo() const { return *remote_sdo_; }
   [[nodiscard]] const std::map<std::string, std::string>& faults() const { return faults_; }
 
   // The EMCYs received from one node: the last one, when it arrived (the gateway's clock), how
@@ -194,6 +197,7 @@ class Gateway {
   canopen::ObjectDictionary master_od_;
   canopen::Master master_;
   subdevices::NetworkManager network_;
+  std::unique_ptr<RemoteSdo> remote_sdo_;  // before oe_: its SDO servers point to it
   std::unique_ptr<OeDevice> oe_;
   FeModel model_;
   canopen::TimePoint now_{};

@@ -71,6 +71,11 @@ class Driver {
   // manager appends the configuration file's own writes after these).
   [[nodiscard]] virtual ExpectedIdentity expected_identity() const { return {}; }
   [[nodiscard]] virtual std::vector<SdoWrite> configuration() const { return {}; }
+  // Objects besides configuration() that a remote SDO write from the host must not change while
+  // the node's signals are in use (gateway/remote_sdo.hpp): e.g. a manufacturer object that sets
+  // the node-ID or bit rate. The communication objects the gateway configures are protected
+  // for every driver.
+  [[nodiscard]] virtual bool protects(std::uint16_t /*index*/, std::uint8_t /*sub*/) const { return false; }
   // Objects the driver must read from the node at boot, before configuration() is written
   // (e.g. a generic node's actual PDO mapping). The network manager calls begin_boot(), then
   // asks boot_reads() in rounds until it returns nothing (an answer may tell what to read

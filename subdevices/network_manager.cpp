@@ -169,7 +169,7 @@ void NetworkManager::reset_application_next(std::string_view name) {
 
 void NetworkManager::begin_boot(Managed& m, TimePoint now) {
   ++m.generation;
-  master_.sdo(m.settings.node).cancel_all(SdoAbortCode::GeneralError);
+  master_.sdo(m.settings.node).cancel_all(SdoAbortCode::CannotTransferDeviceState);
   m.reset_node_sent = m.reset_node_next;
   m.reset_node_next = false;
   if (m.reset_node_sent) {
@@ -188,7 +188,7 @@ void NetworkManager::configure(Managed& m, TimePoint now) {
   m.deadline.reset();
   m.held.clear();
   m.driver->set_alive_since(std::nullopt);
-  master_.sdo(m.settings.node).cancel_all(SdoAbortCode::GeneralError);
+  master_.sdo(m.settings.node).cancel_all(SdoAbortCode::CannotTransferDeviceState);
   const ExpectedIdentity drv = m.driver->expected_identity();
   const ExpectedIdentity& cfg = m.settings.identity;
   m.steps.clear();

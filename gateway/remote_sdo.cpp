@@ -1,0 +1,165 @@
+#include "gateway/remote_sdo.hpp"
+
+#include <algorithm>
+
+#include <fmt/format.h>
+
+namespace oegw::gateway {
+
+using canopen::SdoAbortCode;
+using canopen::SdoTarget;
+namespace sd = oegw::subdevices;
+
+namespace {
+
+std::string abort_text(SdoAbortCode code) {
+  const auto v = static_cast<std::uint32_t>(code);
+  return fmt::format("{:04X} {:04X}h ({})", v >> 16, v & 0xFFFF, canopen::to_string(code));
+}
+
+// What the gateway configures on every sub-device and decodes from it (CiA 301 §7.5.2): the
+// PDO communication and mapping parameters, the heartbeat consumer/producer, store and restore.
+bool communication_protected(std::uint16_t index) {
+  return (index >= 0x1400 && index <= 0x1BFF) || index == 0x1016 || index == 0x1017 || index == 0x1010 ||
+         index == 0x1011;
+}
+
+}  // namespace
+
+RemoteSdo::RemoteSdo(const mapping::Config& config, canopen::Master& master, sd::NetworkManager& network,
+                     const canopen::TimePoint& now, std::function<canopen::NodeId()> self)
+    : config_(config), master_(master), network_(network), now_(now), self_(std::move(self)) {
+  for (const auto& fe : config_.functional_elements)
+    for (const auto& f : fe.fields) in_use_.insert(f.subdevice);
+}
+
+void RemoteSdo::log(const std::string& line) {
+  if (on_log) on_log(line);
+}
+
+const mapping::SubdeviceConfig* RemoteSdo::find(const SdoTarget& target) const {
+  if (target.network != config_.downstream.network_id) return nullptr;
+  for (const auto& s : config_.subdevices)
+    if (s.node_id == target.node) return &s;
+  return nullptr;
+}
+
+SdoTarget RemoteSdo::target_of(const std::string& name) const {
+  for (const auto& s : config_.subdevices)
+    if (s.name == name) return {config_.downstream.network_id, s.node_id};
+  return {};
+}
+
+SdoAbortCode RemoteSdo::select(const SdoTarget& target, Selection& selection) {
+  const bool own_network = target.network == config_.upstream.network_id;
+  if ((target.network == 0 && target.node == 0) || (own_network && target.node == self_().value())) {
+    selection = Selection::Local;
+    return SdoAbortCode::None;
+  }
+  if (!own_network && target.network != config_.downstream.network_id) {
+    ++counters_.refused;
+    log(fmt::format("remote SDO: network indication refused: network {} is neither the upstream ({}) nor the "
+                    "downstream ({}) network",
+                    target.network, config_.upstream.network_id, config_.downstream.network_id));
+    return SdoAbortCode::ObjectDoesNotExist;
+  }
+  if (find(target) == nullptr) {
+    ++counters_.refused;
+    log(fmt::format("remote SDO: network indication refused: node {:02X}h on network {} is no {}", target.node,
+                    target.network, own_network ? "node the gateway reaches (only itself)" : "configured sub-device"));
+    return SdoAbortCode::SubIndexDoesNotExist;
+  }
+  selection = Selection::Remote;
+  return SdoAbortCode::None;
+}
+
+SdoAbortCode RemoteSdo::check(const SdoTarget& target, const mapping::SubdeviceConfig*& sub) const {
+  sub = find(target);
+  if (sub == nullptr) return SdoAbortCode::SubIndexDoesNotExist;
+  switch (network_.state(sub->name)) {
+    case sd::NodeState::Missing: return SdoAbortCode::HardwareError;
+    case sd::NodeState::Idle:
+    case sd::NodeState::WaitingBootUp:
+    case sd::NodeState::Configuring: return SdoAbortCode::CannotTransferDeviceState;
+    case sd::NodeState::Starting:
+    case sd::NodeState::Operational:
+    case sd::NodeState::Refused: break;
+  }
+  return SdoAbortCode::None;
+}
+
+bool RemoteSdo::write_refused(const mapping::SubdeviceConfig& sub, std::uint16_t index, std::uint8_t sub_index) {
+  if (!in_use_.contains(sub.name)) return false;
+  if (communication_protected(index)) return true;
+  for (const auto& w : sub.sdo)
+    if (w.index == index) return true;
+  if (sd::Driver* d = network_.driver(sub.name)) {
+    if (d->protects(index, sub_index)) return true;
+    for (const auto& w : d->configuration())
+      if (w.index == index) return true;
+  }
+  return false;
+}
+
+RemoteSdo::Ticket RemoteSdo::refuse(SdoAbortCode code, const std::string& what, Done& done) {
+  ++counters_.refused;
+  log("remote SDO: " + what + " refused: " + abort_text(code));
+  const Ticket t = next_++;
+  done(code, {});
+  return t;
+}
+
+RemoteSdo::Ticket RemoteSdo::track(std::uint8_t node, Done done) {
+  ++counters_.transfers;
+  const Ticket t = next_++;
+  pending_.push_back({t, node, 0, std::move(done)});
+  return t;
+}
+
+void RemoteSdo::finish(Ticket ticket, SdoAbortCode code, std::vector<std::uint8_t> data) {
+  auto it = std::find_if(pending_.begin(), pending_.end(), [&](const Pending& p) { return p.ticket == ticket; });
+  if (it == pending_.end()) return;  // cancelled meanwhile
+  Done done = std::move(it->done);
+  pending_.erase(it);
+  if (code != SdoAbortCode::None) ++counters_.remote_aborts;
+  done(code, std::move(data));
+}
+
+RemoteSdo::Ticket RemoteSdo::upload(const SdoTarget& target, std::uint16_t index, std::uint8_t sub, Done done) {
+  const mapping::SubdeviceConfig* sc = nullptr;
+  if (const SdoAbortCode c = check(target, sc); c != SdoAbortCode::None)
+    return refuse(c, fmt::format("read of node {:02X}h {:04X}h:{:02X}", target.node, index, sub), done);
+  const Ticket t = track(target.node, std::move(done));
+  canopen::SdoClient& client = master_.sdo(sc->node());
+  pending_.back().client_ticket = client.upload(
+      index, sub, [this, t](SdoAbortCode code, std::vector<std::uint8_t> data) { finish(t, code, std::move(data)); });
+  client.advance(now_);  // starts it now, not at the next turn of the event loop
+  return t;
+}
+
+RemoteSdo::Ticket RemoteSdo::download(const SdoTarget& target, std::uint16_t index, std::uint8_t sub,
+                                      std::span<const std::uint8_t> data, Done done) {
+  const mapping::SubdeviceConfig* sc = nullptr;
+  const std::string what = fmt::format("write of node {:02X}h {:04X}h:{:02X}", target.node, index, sub);
+  if (const SdoAbortCode c = check(target, sc); c != SdoAbortCode::None) return refuse(c, what, done);
+  if (write_refused(*sc, index, sub))
+    return refuse(SdoAbortCode::CannotTransferLocalControl,
+                  what + " (" + sc->name + ": the gateway configures this object and its FEs are in use)", done);
+  const Ticket t = track(target.node, std::move(done));
+  canopen::SdoClient& client = master_.sdo(sc->node());
+  pending_.back().client_ticket =
+      client.download(index, sub, std::vector<std::uint8_t>(data.begin(), data.end()),
+                      [this, t](SdoAbortCode code, std::vector<std::uint8_t> out) { finish(t, code, std::move(out)); });
+  client.advance(now_);
+  return t;
+}
+
+void RemoteSdo::cancel(Ticket ticket, SdoAbortCode why) {
+  auto it = std::find_if(pending_.begin(), pending_.end(), [&](const Pending& p) { return p.ticket == ticket; });
+  if (it == pending_.end()) return;
+  const Pending p = std::move(*it);
+  pending_.erase(it);  // before the client's callback: it must find nothing
+  master_.sdo(canopen::NodeId{p.node}).cancel(p.client_ticket, why);
+}
+
+}  // namespace oegw::gateway

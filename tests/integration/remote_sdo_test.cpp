@@ -1,0 +1,358 @@
+// Remote SDO through the gateway on the virtual buses (issue 11): the simulated cab of
+// programs/cab_rig.hpp on tests/fixtures/demo_cab.yaml plus two additional SDO server channels
+// (1201h on 690h/6B0h bound to left_grip, 1202h on 691h/6B1h unbound). The host's SDO clients
+// (the rig's on the default channel 620h/5A0h, a second host's on the extra channels) reach every
+// sub-device; each expected value is read from the simulator's own dictionary (written from the
+// manufacturers' documents), never from the gateway. Frames are judged on both buses' taps.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "canopen/301/sdo_client.hpp"
+#include "canopen/io/clock.hpp"
+#include "canopen/io/event_loop.hpp"
+#include "canopen/io/virtual_bus.hpp"
+#include "gateway/gateway.hpp"
+#include "programs/cab_rig.hpp"
+#include "subdevices/sim/sim_bench.hpp"
+#include "tests/fixtures/fixtures.hpp"
+
+using namespace oegw::canopen;
+using namespace std::chrono_literals;
+namespace gw = oegw::gateway;
+namespace sd = oegw::subdevices;
+
+namespace {
+
+using Bytes = std::vector<std::uint8_t>;
+
+constexpr NodeId kGw{0x20};
+constexpr std::uint8_t kUp = 1, kDown = 2;  // the mapping file's default network IDs
+constexpr std::uint8_t kGrip = 0x11, kLeft = 0x03, kPedal = 0x30, kKnob = 0x7F, kCluster = 0x31;
+constexpr std::uint32_t kDefaultRx = 0x620, kDefaultTx = 0x5A0;
+constexpr std::uint32_t kBoundRx = 0x690, kBoundTx = 0x6B0;  // 1201h, bound to left_grip
+constexpr std::uint32_t kFreeRx = 0x691, kFreeTx = 0x6B1;    // 1202h, unbound
+
+std::string mapping_yaml() {
+  std::string yaml = oegw::fixtures::mapping_file("demo_cab.yaml");
+  const std::string after = "  heartbeat_ms: 100\n";  // upstream's, the first of the file
+  yaml.insert(yaml.find(after) + after.size(),
+              "  sdo_servers:\n"
+              "    - { subdevice: left_grip, request: 0x690, response: 0x6B0 }\n"
+              "    - { request: 0x691, response: 0x6B1 }\n");
+  return yaml;
+}
+
+struct Result {
+  bool done = false;
+  SdoAbortCode code = SdoAbortCode::GeneralError;
+  Bytes data;
+};
+
+class RemoteSdo : public ::testing::Test {
+ protected:
+  void SetUp() override { build(); }
+
+  void build(gw::GatewayOptions options = {}, Duration host_timeout = 3s) {
+    auto loaded = oegw::mapping::load_config_text(mapping_yaml(), "remote.yaml", gw::driver_catalogue());
+    ASSERT_TRUE(loaded.ok()) << loaded.error_text();
+    config_ = std::move(*loaded.config);
+    store_ = std::filesystem::path(::testing::TempDir()) / fmt::format("remote_sdo_{}.store", ::getpid());
+    std::filesystem::remove(store_);
+    rig_ = std::make_unique<gw::CabRig>(
+        config_, loop_, gw::CabRigOptions{.store = store_, .host_sdo_timeout = host_timeout, .gateway = options});
+    rig_->up().set_tap([this](const BusRecord& r) { up_.push_back(r.frame); });
+    rig_->down().set_tap([this](const BusRecord& r) { down_.push_back(r.frame); });
+    rig_->to_devices = [this](const CanFrame& f) { return drop_to_devices_ && drop_to_devices_(f); };
+    rig_->to_gateway_down = [this](const CanFrame& f) { return drop_to_gateway_ && drop_to_gateway_(f); };
+    rig_->on_gateway = [this](gw::Gateway& g) {
+      g.on_log = [this](const std::string& l) { log_ += l + "\n"; };
+    };
+    rig_->build();
+    // A second host tool on the extra channels: plain SDO clients, no network indication needed.
+    port2_ = rig_->up().attach("host2");
+    bound_ = std::make_unique<SdoClient>([this](const CanFrame& f) { (void)port2_->send(f); },
+                                         SdoClientConfig{.request_cob = CobId(kBoundRx), .response_cob = CobId(kBoundTx),
+                                                         .timeout = host_timeout});
+    free_ = std::make_unique<SdoClient>([this](const CanFrame& f) { (void)port2_->send(f); },
+                                        SdoClientConfig{.request_cob = CobId(kFreeRx), .response_cob = CobId(kFreeTx),
+                                                        .timeout = host_timeout});
+    port2_->set_receiver([this](const CanFrame& f, TimePoint t) {
+      (void)bound_->on_frame(f, t);
+      (void)free_->on_frame(f, t);
+    });
+    rig_->power_on();
+    run_for(3s);
+    for (const auto& n : rig_->gw().downstream().names())
+      ASSERT_EQ(rig_->gw().downstream().state(n), sd::NodeState::Operational) << n << "\n" << log_;
+  }
+  void TearDown() override {
+    port2_.reset();
+    rig_.reset();
+    std::filesystem::remove(store_);
+  }
+
+  void run_for(Duration d) {
+    const TimePoint end = loop_.now() + d;
+    while (loop_.now() < end) {
+      bound_->advance(loop_.now());
+      free_->advance(loop_.now());
+      rig_->rearm();
+      loop_.advance_by(1ms);
+    }
+  }
+  // Runs until `r` is done (at most 5 s of simulated time).
+  void wait(const Result& r) {
+    for (int i = 0; i < 5000 && !r.done; ++i) run_for(1ms);
+    ASSERT_TRUE(r.done) << "the transfer never finished\n" << log_;
+  }
+  SdoClient::Callback into(Result& r) {
+    return [&r](SdoAbortCode c, Bytes d) {
+      r.code = c;
+      r.data = std::move(d);
+      r.done = true;
+    };
+  }
+  Result read(SdoClient& c, std::uint16_t index, std::uint8_t sub, SdoTransfer mode = SdoTransfer::Auto) {
+    Result r;
+    c.upload(index, sub, into(r), mode);
+    wait(r);
+    return r;
+  }
+  Result write(SdoClient& c, std::uint16_t index, std::uint8_t sub, Bytes data) {
+    Result r;
+    c.download(index, sub, std::move(data), into(r));
+    wait(r);
+    return r;
+  }
+  SdoClient& host() { return rig_->host().sdo(kGw); }
+
+  // The network indication as a raw frame on channel `rx`; returns the gateway's answer on `tx`.
+  std::optional<CanFrame> indicate(std::uint8_t network, std::uint8_t node, std::uint32_t rx = kDefaultRx,
+                                   std::uint32_t tx = kDefaultTx) {
+    const std::size_t from = up_.size();
+    (void)rig_->host_port().send(CanFrame(rx, {0xE0, 0, 0, 0, network, node, 0, 0}));
+    run_for(5ms);
+    for (std::size_t i = from; i < up_.size(); ++i)
+      if (up_[i].id == tx) return up_[i];
+    return std::nullopt;
+  }
+  void select(std::uint8_t network, std::uint8_t node) {
+    const auto answer = indicate(network, node);
+    ASSERT_TRUE(answer.has_value());
+    ASSERT_EQ(answer->data, (std::array<std::uint8_t, 8>{0xE0, 0, 0, 0, network, node, 0, 0}));
+  }
+  std::uint32_t sim_u32(const char* device, std::uint16_t index, std::uint8_t sub) {
+    auto* d = rig_->devices().device(device);
+    EXPECT_NE(d, nullptr) << device;
+    return d == nullptr ? 0 : d->od().get<std::uint32_t>(index, sub);
+  }
+  std::string sim_string(const char* device, std::uint16_t index) {
+    const Bytes v = rig_->devices().device(device)->od().find(index)->find(0)->value;
+    return {v.begin(), v.end()};
+  }
+  bool downstream_has(std::uint32_t id, std::initializer_list<std::uint8_t> head) const {
+    for (const auto& f : down_) {
+      if (f.id != id || f.dlc < head.size()) continue;
+      if (std::equal(head.begin(), head.end(), f.data.begin())) return true;
+    }
+    return false;
+  }
+
+  SimulatedClock clock_;
+  EventLoop loop_{clock_};
+  oegw::mapping::Config config_;
+  std::filesystem::path store_;
+  std::unique_ptr<gw::CabRig> rig_;
+  std::unique_ptr<VirtualPort> port2_;
+  std::unique_ptr<SdoClient> bound_, free_;
+  std::function<bool(const CanFrame&)> drop_to_devices_, drop_to_gateway_;
+  std::vector<CanFrame> up_, down_;
+  std::string log_;
+};
+
+TEST_F(RemoteSdo, EveryFamilysIdentityThroughANetworkIndication) {
+  const std::pair<const char*, std::uint8_t> nodes[] = {
+      {"right_grip", kGrip}, {"left_grip", kLeft}, {"pedal", kPedal}, {"seat_knob", kKnob}, {"cluster", kCluster}};
+  for (const auto& [name, node] : nodes) {
+    select(kDown, node);
+    for (std::uint8_t sub = 1; sub <= 2; ++sub) {
+      const Result r = read(host(), 0x1018, sub);
+      ASSERT_EQ(r.code, SdoAbortCode::None) << name << " 1018h:" << int(sub) << "\n" << log_;
+      ASSERT_EQ(r.data.size(), 4u);
+      EXPECT_EQ(get_u32(r.data.data()), sim_u32(name, 0x1018, sub)) << name;
+    }
+    // The request went to that node's default SDO server on the cab's bus.
+    EXPECT_TRUE(downstream_has(0x600 + node, {0x40, 0x18, 0x10, 0x01})) << name;
+  }
+}
+
+TEST_F(RemoteSdo, SegmentedAndBlockUploadsOfAString) {
+  select(kDown, kKnob);
+  const std::string expected = sim_string("seat_knob", 0x1008);
+  ASSERT_EQ(expected, "MC1-2832-A7F-614-511");  // Novotechnik document §4.1
+  for (const SdoTransfer mode : {SdoTransfer::Auto, SdoTransfer::Block}) {
+    const Result r = read(host(), 0x1008, 0, mode);
+    ASSERT_EQ(r.code, SdoAbortCode::None) << log_;
+    EXPECT_EQ(std::string(r.data.begin(), r.data.end()), expected);
+  }
+  select(kDown, kLeft);
+  const Result r = read(host(), 0x1008, 0);
+  EXPECT_EQ(std::string(r.data.begin(), r.data.end()), sim_string("left_grip", 0x1008));
+}
+
+TEST_F(RemoteSdo, AnElobauParameterIsWrittenAndReadBack) {
+  select(kDown, kGrip);
+  ASSERT_EQ(write(host(), 0x5001, 0, {30, 0}).code, SdoAbortCode::None) << log_;
+  EXPECT_EQ(rig_->devices().device("right_grip")->od().get<std::uint16_t>(0x5001, 0), 30);
+  const Result r = read(host(), 0x5001, 0);
+  EXPECT_EQ(r.data, (Bytes{30, 0}));
+}
+
+TEST_F(RemoteSdo, WritesOfWhatTheGatewayConfiguredAreRefused) {
+  select(kDown, kGrip);
+  const std::uint32_t cob = sim_u32("right_grip", 0x1800, 1);
+  const std::size_t before = down_.size();
+  EXPECT_EQ(write(host(), 0x1800, 1, {0x91, 0x01, 0, 0x80}).code, SdoAbortCode::CannotTransferLocalControl);
+  EXPECT_EQ(write(host(), 0x1A00, 0, {0}).code, SdoAbortCode::CannotTransferLocalControl);
+  EXPECT_EQ(write(host(), 0x1017, 0, {0, 0}).code, SdoAbortCode::CannotTransferLocalControl);
+  EXPECT_EQ(write(host(), 0x1010, 1, {'s', 'a', 'v', 'e'}).code, SdoAbortCode::CannotTransferLocalControl);
+  EXPECT_EQ(write(host(), 0x2000, 0x1B, {0}).code, SdoAbortCode::CannotTransferLocalControl);  // driver config
+  EXPECT_EQ(write(host(), 0x5999, 2, {0x12}).code, SdoAbortCode::CannotTransferLocalControl);   // elobau LSS
+  for (std::size_t i = before; i < down_.size(); ++i)
+    EXPECT_NE(down_[i].id, 0x600u + kGrip) << "a refused write reached the grip";
+  EXPECT_EQ(sim_u32("right_grip", 0x1800, 1), cob);
+  // The Novotechnik's 1800h:05 is in the mapping file's sdo list.
+  select(kDown, kKnob);
+  EXPECT_EQ(write(host(), 0x1800, 5, {50, 0}).code, SdoAbortCode::CannotTransferLocalControl);
+  // Reads are always allowed.
+  EXPECT_EQ(read(host(), 0x1800, 5).code, SdoAbortCode::None);
+}
+
+TEST_F(RemoteSdo, RefusedNetworkIndicationsKeepTheTarget) {
+  select(kDown, kGrip);
+  auto a = indicate(9, kGrip);
+  ASSERT_TRUE(a.has_value());
+  EXPECT_EQ(a->data, (std::array<std::uint8_t, 8>{0x80, 0, 0, 0, 0x00, 0x00, 0x02, 0x06}));  // 0602 0000h
+  a = indicate(kDown, 0x44);
+  EXPECT_EQ(a->data, (std::array<std::uint8_t, 8>{0x80, 0, 0, 0, 0x11, 0x00, 0x09, 0x06}));  // 0609 0011h
+  a = indicate(kUp, 0x05);  // another node of the host's own bus
+  EXPECT_EQ(a->data, (std::array<std::uint8_t, 8>{0x80, 0, 0, 0, 0x11, 0x00, 0x09, 0x06}));
+  // Still the grip.
+  EXPECT_EQ(get_u32(read(host(), 0x1018, 1).data.data()), sim_u32("right_grip", 0x1018, 1));
+}
+
+TEST_F(RemoteSdo, NamingTheGatewayItselfReturnsToItsDictionary) {
+  select(kDown, kGrip);
+  select(kUp, kGw.value());
+  EXPECT_EQ(get_u32(read(host(), 0x1018, 2).data.data()), 0x852u);  // demo_cab.yaml's product code
+  select(kDown, kKnob);
+  select(0, 0);
+  EXPECT_EQ(get_u32(read(host(), 0x1018, 2).data.data()), 0x852u);
+}
+
+TEST_F(RemoteSdo, ThreeHostChannelsAtOnce) {
+  select(kDown, kGrip);
+  ASSERT_TRUE(indicate(kDown, kKnob, kFreeRx, kFreeTx).has_value());
+  Result a, b, c;
+  host().upload(0x1018, 1, into(a));
+  bound_->upload(0x1018, 1, into(b));
+  free_->upload(0x1008, 0, into(c));
+  wait(a);
+  wait(b);
+  wait(c);
+  EXPECT_EQ(a.code, SdoAbortCode::None);
+  EXPECT_EQ(get_u32(a.data.data()), sim_u32("right_grip", 0x1018, 1));
+  EXPECT_EQ(b.code, SdoAbortCode::None);
+  EXPECT_EQ(get_u32(b.data.data()), sim_u32("left_grip", 0x1018, 1));
+  EXPECT_EQ(std::string(c.data.begin(), c.data.end()), sim_string("seat_knob", 0x1008));
+}
+
+TEST_F(RemoteSdo, TheBoundChannelRefusesANetworkIndication) {
+  const auto a = indicate(kDown, kGrip, kBoundRx, kBoundTx);
+  ASSERT_TRUE(a.has_value());
+  EXPECT_EQ(a->data, (std::array<std::uint8_t, 8>{0x80, 0, 0, 0, 0x21, 0x00, 0x00, 0x08}));  // 0800 0021h
+  EXPECT_EQ(get_u32(read(*bound_, 0x1018, 1).data.data()), sim_u32("left_grip", 0x1018, 1));
+}
+
+TEST_F(RemoteSdo, ASecondRequestWhileOneIsInFlight) {
+  select(kDown, kGrip);
+  drop_to_devices_ = [](const CanFrame& f) { return f.id == 0x600u + kGrip; };  // the grip never hears it
+  const std::size_t up0 = up_.size(), down0 = down_.size();
+  (void)rig_->host_port().send(CanFrame(kDefaultRx, {0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0}));
+  run_for(5ms);
+  (void)rig_->host_port().send(CanFrame(kDefaultRx, {0x40, 0x08, 0x10, 0x00, 0, 0, 0, 0}));
+  run_for(5ms);
+  std::vector<CanFrame> answers;
+  for (std::size_t i = up0; i < up_.size(); ++i)
+    if (up_[i].id == kDefaultTx) answers.push_back(up_[i]);
+  ASSERT_EQ(answers.size(), 1u);
+  EXPECT_EQ(answers[0].data, (std::array<std::uint8_t, 8>{0x80, 0x08, 0x10, 0x00, 0x23, 0x00, 0x0A, 0x06}));  // 060A 0023h
+  // The first transfer was aborted on the cab's bus with the same code.
+  bool aborted = false;
+  for (std::size_t i = down0; i < down_.size(); ++i)
+    aborted |= down_[i].id == 0x600u + kGrip && down_[i].data == std::array<std::uint8_t, 8>{0x80, 0x18, 0x10, 0x01, 0x23, 0x00, 0x0A, 0x06};
+  EXPECT_TRUE(aborted);
+}
+
+TEST_F(RemoteSdo, ANodeBeingBootedIsRefusedUntilItIsUp) {
+  select(kDown, kGrip);
+  // The grip reboots; its SDO answers are held back, so the gateway's configuration of it stays
+  // in progress (on the virtual bus it would otherwise finish within one step).
+  drop_to_gateway_ = [](const CanFrame& f) { return f.id == 0x580u + kGrip; };
+  (void)rig_->command("right_grip reboot");
+  run_for(50ms);
+  ASSERT_EQ(rig_->gw().downstream().state("right_grip"), sd::NodeState::Configuring) << log_;
+  const std::size_t down0 = down_.size();
+  EXPECT_EQ(read(host(), 0x1018, 1).code, SdoAbortCode::CannotTransferDeviceState);
+  std::size_t grip_requests = 0;
+  for (std::size_t i = down0; i < down_.size(); ++i) grip_requests += down_[i].id == 0x600u + kGrip ? 1 : 0;
+  EXPECT_EQ(grip_requests, 0u) << "the refused read reached the grip";
+  drop_to_gateway_ = nullptr;
+  run_for(5s);
+  ASSERT_EQ(rig_->gw().downstream().state("right_grip"), sd::NodeState::Operational) << log_;
+  EXPECT_EQ(read(host(), 0x1018, 1).code, SdoAbortCode::None);
+}
+
+TEST_F(RemoteSdo, TheGatewayTakingANodeBackEndsATransferInFlight) {
+  select(kDown, kGrip);
+  drop_to_devices_ = [](const CanFrame& f) { return f.id == 0x600u + kGrip; };  // it stays in flight
+  Result r;
+  host().upload(0x1018, 1, into(r));
+  run_for(10ms);
+  ASSERT_FALSE(r.done);
+  drop_to_devices_ = nullptr;
+  (void)rig_->command("right_grip reboot");  // its boot-up: the gateway reconfigures it at once
+  run_for(10ms);
+  ASSERT_TRUE(r.done) << "the host still waits for a node the gateway took back\n" << log_;
+  EXPECT_EQ(r.code, SdoAbortCode::CannotTransferDeviceState);
+  run_for(3s);
+  EXPECT_EQ(rig_->gw().downstream().state("right_grip"), sd::NodeState::Operational) << log_;
+}
+
+class RemoteSdoTimeout : public RemoteSdo {
+ protected:
+  // The gateway's downstream SDO time-out (100 ms) below the encoder's heartbeat consumer time
+  // (150 ms): a silent node is first a remote time-out, then missing.
+  void SetUp() override { build(gw::GatewayOptions{.sdo_timeout = 100ms}); }
+};
+
+TEST_F(RemoteSdoTimeout, APoweredOffNodeTimesOutThenIsMissing) {
+  select(kDown, kKnob);
+  (void)rig_->command("seat_knob silent on");
+  EXPECT_EQ(read(host(), 0x1018, 1).code, SdoAbortCode::Timeout);
+  run_for(1s);
+  ASSERT_EQ(rig_->gw().downstream().state("seat_knob"), sd::NodeState::Missing) << log_;
+  EXPECT_EQ(read(host(), 0x1018, 1).code, SdoAbortCode::HardwareError);
+  (void)rig_->command("seat_knob silent off");
+}
+
+}  // namespace
