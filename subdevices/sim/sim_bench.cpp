@@ -4,6 +4,7 @@
 #include <numbers>
 #include <sstream>
 
+#include "subdevices/sim/mcb402_sim.hpp"
 #include "subdevices/sim/sim_registry.hpp"
 
 namespace oegw::subdevices::sim {
@@ -110,6 +111,18 @@ std::string SimBench::command(std::string_view line, TimePoint now) {
     else if (what == "heartbeat") d->set_heartbeat_stopped(value == "off");
     else d->set_pdo_stopped(value == "off");
     return "ok " + name + " " + what + " " + value;
+  }
+  if (what == "cable_break") {
+    // MCB-402 only: axis 1..4 cable broken / mended (EMCY 3120h and its error reset).
+    auto* mcb = dynamic_cast<Mcb402Sim*>(d);
+    std::string state;
+    in >> state;
+    const long axis = std::strtol(value.c_str(), nullptr, 10);
+    if (mcb == nullptr) return "error: " + name + " is no MCB-402: cable_break is an MCB-402 fault";
+    if (axis < 1 || axis > 4 || (state != "on" && state != "off"))
+      return "error: expected <device> cable_break <axis 1..4> on|off";
+    mcb->cable_break(static_cast<std::size_t>(axis), state == "on", now);
+    return "ok " + name + " cable_break " + value + " " + state;
   }
   char* end = nullptr;
   const long long v = std::strtoll(value.c_str(), &end, 0);

@@ -7,6 +7,7 @@
 //   <device> heartbeat on|off     heartbeat stops / resumes (everything else goes on)
 //   <device> pdo on|off           TPDOs stop / resume (heartbeat, SDO, EMCY go on)
 //   <device> reboot               power cycle
+//   <device> cable_break N on|off MCB-402: axis N (1..4) cable broken / mended (EMCY 3120h)
 // Device names are the spec's "name=" option, else family@node ("elobau-mfg@11h").
 #pragma once
 

@@ -52,10 +52,12 @@ ABORT_NAMES = {
     0x06070010: "data type does not match, length of service parameter does not match",
     0x06070012: "data type does not match, length of service parameter too high",
     0x06070013: "data type does not match, length of service parameter too low",
+    0x06060000: "access failed due to a hardware error",
     0x06090011: "sub-index does not exist",
     0x06090030: "invalid value for parameter",
     0x06090031: "value of parameter written too high",
     0x06090032: "value of parameter written too low",
+    0x060A0023: "resource not available: SDO connection",
     0x08000000: "general error",
     0x08000020: "data cannot be transferred or stored to the application",
     0x08000021: "data cannot be transferred because of local control",
@@ -144,12 +146,20 @@ class Peer:
                 return got
 
     # --- SDO client -------------------------------------------------------------
-    def _sdo_request(self, node, frame, index, sub, what):
-        self.send(0x600 + node, frame)
+    # The SDO channel of a request: the server's default one (600h/580h + node-ID, CiA 301
+    # §7.3.5), or an explicit (client->server, server->client) COB-ID pair: an additional SDO
+    # server channel (1201h..).
+    @staticmethod
+    def _cobs(node, cobs):
+        return cobs if cobs is not None else (0x600 + node, 0x580 + node)
+
+    def _sdo_request(self, node, frame, index, sub, what, cobs=None):
+        req, resp = self._cobs(node, cobs)
+        self.send(req, frame)
         try:
-            msg = self.recv_id(0x580 + node, self.timeout, what)
+            msg = self.recv_id(resp, self.timeout, what)
         except Timeout:
-            self.sdo_abort(node, index, sub, ABORT_TIMEOUT)
+            self.sdo_abort(node, index, sub, ABORT_TIMEOUT, cobs)
             raise
         d = bytes(msg.data).ljust(8, b"\0")
         if d[0] == 0x80:
@@ -157,25 +167,37 @@ class Peer:
             raise SdoAbort(aidx, asub, code)
         return d
 
-    def sdo_abort(self, node, index, sub, code):
-        self.send(0x600 + node, struct.pack("<BHBI", 0x80, index, sub, code))
+    def sdo_abort(self, node, index, sub, code, cobs=None):
+        self.send(self._cobs(node, cobs)[0], struct.pack("<BHBI", 0x80, index, sub, code))
 
-    def _check_mux(self, d, node, index, sub):
+    def network_indication(self, node, network, target, cobs=None):
+        """SDO network indication (ccs 7) to the server `node`: from now on its channel's
+        requests go to node `target` of `network` (the layout oegw decided:
+        canopen/301/sdo_remote.hpp). Returns the answer's 8 bytes; SdoAbort if refused."""
+        check_node(node)
+        self.drain()
+        frame = bytes([0xE0, 0, 0, 0, network, target, 0, 0])
+        d = self._sdo_request(node, frame, 0, 0, f"network indication answer from node 0x{node:02X}", cobs)
+        if d != frame:
+            raise PeerError(f"network indication answered {d.hex()}, expected {frame.hex()}")
+        return d
+
+    def _check_mux(self, d, node, index, sub, cobs=None):
         ridx, rsub = struct.unpack_from("<HB", d, 1)
         if (ridx, rsub) != (index, sub):
-            self.sdo_abort(node, index, sub, 0x08000000)
+            self.sdo_abort(node, index, sub, 0x08000000, cobs)
             raise PeerError(f"SDO response for 0x{ridx:04X}:{rsub:02X}, expected 0x{index:04X}:{sub:02X}")
 
-    def sdo_upload(self, node, index, sub):
+    def sdo_upload(self, node, index, sub, cobs=None):
         """Read an object (expedited or segmented); returns its bytes."""
         check_node(node)
         self.drain()
         what = f"SDO upload response 0x{index:04X}:{sub:02X} from node 0x{node:02X}"
-        d = self._sdo_request(node, struct.pack("<BHB4x", 0x40, index, sub), index, sub, what)
+        d = self._sdo_request(node, struct.pack("<BHB4x", 0x40, index, sub), index, sub, what, cobs)
         if d[0] & 0xE0 != 0x40:
-            self.sdo_abort(node, index, sub, 0x05040001)
+            self.sdo_abort(node, index, sub, 0x05040001, cobs)
             raise PeerError(f"unexpected SDO response {d.hex()} to upload initiate")
-        self._check_mux(d, node, index, sub)
+        self._check_mux(d, node, index, sub, cobs)
         e, s = d[0] & 0x02, d[0] & 0x01
         if e:
             n = (d[0] >> 2) & 0x03 if s else 0
@@ -184,12 +206,12 @@ class Peer:
         data, toggle = bytearray(), 0
         while True:
             seg = self._sdo_request(node, bytes([0x60 | toggle << 4]) + bytes(7), index, sub,
-                                    what.replace("upload response", "upload segment"))
+                                    what.replace("upload response", "upload segment"), cobs)
             if seg[0] & 0xE0 != 0x00:
-                self.sdo_abort(node, index, sub, 0x05040001)
+                self.sdo_abort(node, index, sub, 0x05040001, cobs)
                 raise PeerError(f"unexpected SDO response {seg.hex()} to upload segment")
             if (seg[0] >> 4) & 1 != toggle:
-                self.sdo_abort(node, index, sub, 0x05030000)
+                self.sdo_abort(node, index, sub, 0x05030000, cobs)
                 raise PeerError("SDO upload segment toggle bit not alternated")
             n = (seg[0] >> 1) & 0x07
             data += seg[1:8 - n]
@@ -200,7 +222,7 @@ class Peer:
             raise PeerError(f"SDO upload: size indicated {size}, received {len(data)}")
         return bytes(data)
 
-    def sdo_download(self, node, index, sub, data):
+    def sdo_download(self, node, index, sub, data, cobs=None):
         """Write an object: expedited up to 4 bytes, segmented beyond."""
         check_node(node)
         self.drain()
@@ -211,11 +233,11 @@ class Peer:
             frame = struct.pack("<BHB", cmd, index, sub) + data.ljust(4, b"\0")
         else:
             frame = struct.pack("<BHBI", 0x21, index, sub, len(data))
-        d = self._sdo_request(node, frame, index, sub, what)
+        d = self._sdo_request(node, frame, index, sub, what, cobs)
         if d[0] != 0x60:
-            self.sdo_abort(node, index, sub, 0x05040001)
+            self.sdo_abort(node, index, sub, 0x05040001, cobs)
             raise PeerError(f"unexpected SDO response {d.hex()} to download initiate")
-        self._check_mux(d, node, index, sub)
+        self._check_mux(d, node, index, sub, cobs)
         if 0 < len(data) <= 4:
             return
         toggle, pos = 0, 0
@@ -225,12 +247,12 @@ class Peer:
             last = pos >= len(data)
             cmd = toggle << 4 | (7 - len(chunk)) << 1 | (1 if last else 0)
             seg = self._sdo_request(node, bytes([cmd]) + chunk.ljust(7, b"\0"), index, sub,
-                                    what.replace("download response", "download segment response"))
+                                    what.replace("download response", "download segment response"), cobs)
             if seg[0] & 0xE0 != 0x20:
-                self.sdo_abort(node, index, sub, 0x05040001)
+                self.sdo_abort(node, index, sub, 0x05040001, cobs)
                 raise PeerError(f"unexpected SDO response {seg.hex()} to download segment")
             if (seg[0] >> 4) & 1 != toggle:
-                self.sdo_abort(node, index, sub, 0x05030000)
+                self.sdo_abort(node, index, sub, 0x05030000, cobs)
                 raise PeerError("SDO download segment response toggle bit not alternated")
             if last:
                 return
