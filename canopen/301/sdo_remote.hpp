@@ -19,7 +19,8 @@
 //   refusal                      the abort frame 80h | 00 00 00 | abort code (CiA 301 §7.2.4.3.17)
 //
 // The target stays until the client names another one, the server's COB-IDs change, or the
-// server is reset (NMT reset communication): then the server's own dictionary is the target
+// server is reset (NMT reset communication, power-on, entering NMT stopped: canopen/node.cpp
+// resets its SDO servers then): the server's own dictionary is the target
 // again. Naming the server itself (its own network ID and node-ID, or network 0 and node 0)
 // returns to the own dictionary. A channel bound to a target by configuration refuses network
 // indications (0800 0021h).

@@ -34,6 +34,10 @@ def u32(b):
     return struct.unpack("<I", bytes(b).ljust(4, b"\0")[:4])[0]
 
 
+def hx(code):
+    return "none" if code is None else f"{code:08X}h"
+
+
 def abort_code(fn):
     """Runs fn; the SDO abort code it raised, or None when it succeeded."""
     try:
@@ -62,15 +66,15 @@ def main():
                 time.sleep(0.5)
             except Timeout:
                 seen.add("timeout")
-        check(vendor == 0xB4, f"right_grip 1018h:01 through the gateway = {vendor!r} (elobau vendor-ID B4h)")
-        check(seen <= {0x08000022, 0x06060000}, f"while the grip booted only 0800 0022h / 0606 0000h: {seen}")
+        check(vendor == 0xB4, f"right_grip 1018h:01 through the gateway = {hx(vendor)} (elobau vendor-ID B4h)")
+        check(seen <= {0x08000022, 0x06060000}, f"while the grip booted only 0800 0022h / 0606 0000h: {sorted(hx(c) if isinstance(c, int) else c for c in seen)}")
 
         # 2. Refused and allowed writes on the grip.
         code = abort_code(lambda: p.sdo_download(GW, 0x1800, 1, struct.pack("<I", 0x191)))
-        check(code == 0x08000021, f"write of the grip's 1800h:01 refused with 0800 0021h (got {code!r})")
+        check(code == 0x08000021, f"write of the grip's 1800h:01 refused with 0800 0021h (got {hx(code)})")
         code = abort_code(lambda: p.sdo_download(GW, 0x5001, 0, struct.pack("<H", 30)))
         back = u32(p.sdo_upload(GW, 0x5001, 0)) if code is None else None
-        check(code is None and back == 30, f"elobau 5001h written 30 and read back {back!r} (abort {code!r})")
+        check(code is None and back == 30, f"elobau 5001h written 30 and read back {back!r} (abort {hx(code)})")
         p.sdo_download(GW, 0x5001, 0, struct.pack("<H", 20))
 
         # 3. A segmented upload (a 20-character 1008h) from the encoder.
@@ -80,9 +84,9 @@ def main():
 
         # 4. Refused network indications, then back to the gateway's own dictionary.
         code = abort_code(lambda: p.network_indication(GW, 9, GRIP))
-        check(code == 0x06020000, f"network 9 refused with 0602 0000h (got {code!r})")
+        check(code == 0x06020000, f"network 9 refused with 0602 0000h (got {hx(code)})")
         code = abort_code(lambda: p.network_indication(GW, DOWN_NET, 0x44))
-        check(code == 0x06090011, f"node 44h (not configured) refused with 0609 0011h (got {code!r})")
+        check(code == 0x06090011, f"node 44h (not configured) refused with 0609 0011h (got {hx(code)})")
         p.network_indication(GW, UP_NET, GW)
         product = u32(p.sdo_upload(GW, 0x1018, 2))
         check(product == 0x852, f"after naming itself, 1018h:02 is the gateway's own: {product:#x}")
@@ -91,7 +95,7 @@ def main():
         vendor = u32(p.sdo_upload(GW, 0x1018, 1, cobs=BOUND))
         check(vendor == 0x58, f"left_grip 1018h:01 on the bound channel 690h/6B0h = {vendor:#x} (MCB-402 58h)")
         code = abort_code(lambda: p.network_indication(GW, DOWN_NET, GRIP, cobs=BOUND))
-        check(code == 0x08000021, f"a network indication on the bound channel refused with 0800 0021h ({code!r})")
+        check(code == 0x08000021, f"a network indication on the bound channel refused with 0800 0021h ({hx(code)})")
 
         # 6. Remote EMCY: the MCB-402's cable-break EMCY 3120h (its bytes 20 31 81 00 81 00 00 00)
         # reaches vcan0 as the gateway's EMCY (0A0h) with its code, node-ID 03h, its register 81h
