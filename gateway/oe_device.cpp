@@ -390,7 +390,7 @@ canopen::EmcyManufacturerField OeDevice::forwarded_msef(const canopen::EmcyMessa
 
 bool OeDevice::forward_subdevice_emcy(const canopen::EmcyMessage& emcy, TimePoint now) {
   now_ = now;
-  return node_->emcy().report(emcy.code, forwarded_msef(emcy), emcy.node.value(), now);
+  return node_->emcy().report(emcy.code, forwarded_msef(emcy), emcy.node.value(), now, /*relayed=*/true);
 }
 
 }  // namespace oegw::gateway

@@ -17,11 +17,14 @@ std::string abort_text(SdoAbortCode code) {
   return fmt::format("{:04X} {:04X}h ({})", v >> 16, v & 0xFFFF, canopen::to_string(code));
 }
 
-// What the gateway configures on every sub-device and decodes from it (CiA 301 §7.5.2): the
-// PDO communication and mapping parameters, the heartbeat consumer/producer, store and restore.
+// What the gateway configures on every sub-device and relies on (CiA 301 §7.5.2): the PDO
+// communication and mapping parameters, SYNC 1005h, the EMCY COB-ID 1014h (the fault policy and
+// remote EMCY listen on 80h + node-ID), the heartbeat consumer/producer 1016h/1017h, the error
+// behaviour 1029h (what the node does on an error decides its proof of life), store and restore
+// 1010h/1011h, NMT startup 1F80h.
 bool communication_protected(std::uint16_t index) {
-  return (index >= 0x1400 && index <= 0x1BFF) || index == 0x1016 || index == 0x1017 || index == 0x1010 ||
-         index == 0x1011;
+  return (index >= 0x1400 && index <= 0x1BFF) || index == 0x1005 || index == 0x1010 || index == 0x1011 ||
+         index == 0x1014 || index == 0x1016 || index == 0x1017 || index == 0x1029 || index == 0x1F80;
 }
 
 }  // namespace
@@ -138,7 +141,7 @@ RemoteSdo::Ticket RemoteSdo::upload(const SdoTarget& target, std::uint16_t index
 }
 
 RemoteSdo::Ticket RemoteSdo::download(const SdoTarget& target, std::uint16_t index, std::uint8_t sub,
-                                      std::span<const std::uint8_t> data, Done done) {
+                                      std::span<const std::uint8_t> data, bool size_indicated, Done done) {
   const mapping::SubdeviceConfig* sc = nullptr;
   const std::string what = fmt::format("write of node {:02X}h {:04X}h:{:02X}", target.node, index, sub);
   if (const SdoAbortCode c = check(target, sc); c != SdoAbortCode::None) return refuse(c, what, done);
@@ -149,7 +152,8 @@ RemoteSdo::Ticket RemoteSdo::download(const SdoTarget& target, std::uint16_t ind
   canopen::SdoClient& client = master_.sdo(sc->node());
   pending_.back().client_ticket =
       client.download(index, sub, std::vector<std::uint8_t>(data.begin(), data.end()),
-                      [this, t](SdoAbortCode code, std::vector<std::uint8_t> out) { finish(t, code, std::move(out)); });
+                      [this, t](SdoAbortCode code, std::vector<std::uint8_t> out) { finish(t, code, std::move(out)); },
+                      size_indicated ? canopen::SdoTransfer::Auto : canopen::SdoTransfer::ExpeditedUnsized);
   client.advance(now_);
   return t;
 }

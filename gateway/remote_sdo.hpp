@@ -21,10 +21,12 @@
 //    one is in flight: 060A 0023h (canopen/301/sdo_server.hpp).
 //  * Writes (CiA 852 leaves the policy open): reads are always allowed. A write is refused with
 //    0800 0021h ("local control": the gateway controls that object) when it would change what the
-//    gateway configured and decodes — the PDO communication and mapping parameters 1400h–1BFFh,
-//    the heartbeat objects 1016h/1017h, store 1010h and restore 1011h, every object the driver or
-//    the mapping file's `sdo` list writes at boot, and what the driver names as protected (elobau
-//    5999h: node-ID and bit rate by SDO) — while functional elements of the mapping file are fed
+//    gateway configured and relies on — the PDO communication and mapping parameters 1400h–1BFFh,
+//    SYNC 1005h, EMCY 1014h, the heartbeat objects 1016h/1017h, error behaviour 1029h, store 1010h
+//    and restore 1011h, NMT startup 1F80h, every object (all its sub-indexes) the driver or the
+//    mapping file's `sdo` list writes at boot, and what the driver names (Driver::protects: node-ID
+//    and bit rate by SDO — elobau 5999h, Novotechnik 2000h/2001h —, the outputs the gateway drives,
+//    the objects its decoding depends on) — while functional elements of the mapping file are fed
 //    by or drive that sub-device. Other writes (an elobau parameter, ...) are carried out. The
 //    gateway does not reconfigure a node behind the host's back: refusing keeps the FE
 //    translation exact and is visible to the host at once.
@@ -58,7 +60,7 @@ class RemoteSdo final : public canopen::SdoRemote {
   canopen::SdoAbortCode select(const canopen::SdoTarget& target, Selection& selection) override;
   Ticket upload(const canopen::SdoTarget& target, std::uint16_t index, std::uint8_t sub, Done done) override;
   Ticket download(const canopen::SdoTarget& target, std::uint16_t index, std::uint8_t sub,
-                  std::span<const std::uint8_t> data, Done done) override;
+                  std::span<const std::uint8_t> data, bool size_indicated, Done done) override;
   void cancel(Ticket ticket, canopen::SdoAbortCode why) override;
 
   // The target a channel bound to sub-device `name` has (the mapping file checked the name).

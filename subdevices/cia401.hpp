@@ -101,6 +101,12 @@ class Cia401Driver final : public Driver {
 
   // The Driver's boot-read hooks, run by the network manager: the mapping read above.
   void begin_boot() override { reset_mapping(); }
+  // The CiA 401 application objects 6000h..6FFFh: the inputs it decodes (with their polarity,
+  // filters and interrupt masks), the outputs the gateway drives (with their polarity and error
+  // modes) — a remote write of any of them changes what the FEs see or command.
+  [[nodiscard]] bool protects(std::uint16_t index, std::uint8_t /*sub*/) const override {
+    return index >= 0x6000 && index <= 0x6FFF;
+  }
   [[nodiscard]] std::vector<std::pair<std::uint16_t, std::uint8_t>> boot_reads() const override;
   bool on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
                     std::string& error) override;

@@ -122,8 +122,11 @@ class ElobauMfgDriver final : public Driver {
   [[nodiscard]] const std::vector<SignalInfo>& signals() const override { return signals_; }
   [[nodiscard]] ExpectedIdentity expected_identity() const override;
   [[nodiscard]] std::vector<SdoWrite> configuration() const override;
-  // 5999h "LSS": bit rate (sub 1), node-ID (sub 2) and their store (sub 3) by SDO (document §7).
-  [[nodiscard]] bool protects(std::uint16_t index, std::uint8_t /*sub*/) const override { return index == 0x5999; }
+  // 5999h "LSS": bit rate (sub 1), node-ID (sub 2) and their store (sub 3) by SDO (document §7);
+  // 2200h the LEDs the gateway drives (its output signals).
+  [[nodiscard]] bool protects(std::uint16_t index, std::uint8_t /*sub*/) const override {
+    return index == 0x5999 || index == 0x2200;
+  }
   bool on_frame(const CanFrame& frame, TimePoint now) override;
   DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) override;
   [[nodiscard]] std::vector<std::uint32_t> consumed_cob_ids() const override;

@@ -104,6 +104,10 @@ class Mcb402Driver final : public Driver {
   [[nodiscard]] const std::vector<SignalInfo>& signals() const override { return signals_; }
   [[nodiscard]] ExpectedIdentity expected_identity() const override;
   [[nodiscard]] std::vector<SdoWrite> configuration() const override;
+  // 6200h the LEDs the gateway drives; 5401h the zero point enlargement its axis values depend on.
+  [[nodiscard]] bool protects(std::uint16_t index, std::uint8_t /*sub*/) const override {
+    return index == 0x6200 || index == 0x5401;
+  }
   bool on_frame(const CanFrame& frame, TimePoint now) override;
   DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) override;
   [[nodiscard]] std::vector<std::uint32_t> consumed_cob_ids() const override;

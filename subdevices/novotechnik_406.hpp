@@ -106,6 +106,12 @@ class Novotechnik406Driver final : public Driver {
   [[nodiscard]] const std::vector<SignalInfo>& signals() const override { return signals_; }
   [[nodiscard]] ExpectedIdentity expected_identity() const override;
   [[nodiscard]] std::vector<SdoWrite> configuration() const override;
+  // 2000h node-ID and 2001h bit rate by SDO (document §4.3, §7.1); CiA 406 6000h..6003h
+  // (operating parameters, measuring units, preset) and 6200h (cyclic timer): what the position
+  // means and when it comes.
+  [[nodiscard]] bool protects(std::uint16_t index, std::uint8_t /*sub*/) const override {
+    return index == 0x2000 || index == 0x2001 || (index >= 0x6000 && index <= 0x6003) || index == 0x6200;
+  }
   bool on_frame(const CanFrame& frame, TimePoint now) override;
   DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) override;
   [[nodiscard]] std::vector<std::uint32_t> consumed_cob_ids() const override;

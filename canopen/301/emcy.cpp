@@ -83,7 +83,7 @@ void EmcyProducer::push_history(std::uint32_t entry) {
   (void)od_.set<std::uint8_t>(kErrorField, 0, std::min<std::uint8_t>(static_cast<std::uint8_t>(count + 1), capacity));
 }
 
-bool EmcyProducer::emit(std::uint16_t code, const EmcyManufacturerField& msef, TimePoint now) {
+bool EmcyProducer::emit(std::uint16_t code, const EmcyManufacturerField& msef, TimePoint now, bool relayed) {
   const CobId cob{od_.get<std::uint32_t>(kCobIdEmcy, 0)};
   if (!cob.valid()) return false;
   CanFrame f;
@@ -97,10 +97,14 @@ bool EmcyProducer::emit(std::uint16_t code, const EmcyManufacturerField& msef, T
   const bool inhibited = inh.count() > 0 && last_sent_ && now < *last_sent_ + inh;
   if (inhibited || !queue_.empty()) {
     if (queue_.size() >= queue_limit_) {
+      // Full: a relayed EMCY is dropped; an own one takes the place of the oldest relayed one
+      // queued, and is dropped only when the queue holds nothing but own EMCYs.
+      auto relayed_one = std::find_if(queue_.begin(), queue_.end(), [](const Queued& q) { return q.relayed; });
       ++dropped_;
-      return false;
+      if (relayed || relayed_one == queue_.end()) return false;
+      queue_.erase(relayed_one);
     }
-    queue_.push_back(f);
+    queue_.push_back({f, relayed});
     return true;
   }
   sink_(f);
@@ -118,10 +122,11 @@ bool EmcyProducer::raise(std::uint16_t code, std::uint8_t register_bits, const E
   return true;
 }
 
-bool EmcyProducer::report(std::uint16_t code, const EmcyManufacturerField& msef, std::uint16_t info, TimePoint now) {
+bool EmcyProducer::report(std::uint16_t code, const EmcyManufacturerField& msef, std::uint16_t info, TimePoint now,
+                          bool relayed) {
   // CiA 301 §7.5.2.13: 1003h lists the errors that occurred; an error reset is none.
   if (code != kErrorReset) push_history(std::uint32_t{code} | std::uint32_t{info} << 16);
-  return emit(code, msef, now);
+  return emit(code, msef, now, relayed);
 }
 
 bool EmcyProducer::clear(std::uint16_t code, TimePoint now) {
@@ -138,7 +143,7 @@ bool EmcyProducer::clear(std::uint16_t code, TimePoint now) {
 void EmcyProducer::advance(TimePoint now) {
   const Duration inh = inhibit();
   while (!queue_.empty() && (inh.count() == 0 || !last_sent_ || now >= *last_sent_ + inh)) {
-    sink_(queue_.front());
+    sink_(queue_.front().frame);
     queue_.pop_front();
     last_sent_ = now;
   }

@@ -70,7 +70,12 @@ class EmcyProducer {
   // current 1001h, which it does not change; recorded in 1003h as code | info << 16 unless it is
   // the error reset 0000h. Returns false when it cannot go out: 1014h bit 31 set, or the inhibit
   // queue full (counted in dropped()).
-  bool report(std::uint16_t code, const EmcyManufacturerField& msef, std::uint16_t info, TimePoint now);
+  // `relayed`: an EMCY the device passes on for another node (a gateway's remote EMCY). While
+  // the inhibit queue is full a relayed EMCY is dropped, and one of the device's own EMCYs (every
+  // raise()/clear(), a report() not relayed) takes the place of the oldest relayed one queued
+  // (that one counted in dropped()): another node's flood never drops the device's own errors.
+  bool report(std::uint16_t code, const EmcyManufacturerField& msef, std::uint16_t info, TimePoint now,
+              bool relayed = false);
   // The error is gone: updates 1001h; when no error remains, sends the error-reset EMCY (0000h).
   // Returns false if the code was not active.
   bool clear(std::uint16_t code, TimePoint now);
@@ -96,13 +101,17 @@ class EmcyProducer {
   void update_register();
   void push_history(std::uint32_t entry);
   // Sends or queues the frame; false if 1014h bit 31 is set or the queue is full.
-  bool emit(std::uint16_t code, const EmcyManufacturerField& msef, TimePoint now);
+  bool emit(std::uint16_t code, const EmcyManufacturerField& msef, TimePoint now, bool relayed = false);
   [[nodiscard]] Duration inhibit() const;
 
   ObjectDictionary& od_;
   FrameSink sink_;
   std::vector<ActiveError> active_;
-  std::deque<CanFrame> queue_;
+  struct Queued {
+    CanFrame frame;
+    bool relayed = false;
+  };
+  std::deque<Queued> queue_;
   std::optional<TimePoint> last_sent_;
   std::size_t queue_limit_;
   std::size_t dropped_ = 0;

@@ -149,7 +149,14 @@ void SdoClient::start(TimePoint now) {
     return;
   }
   state_ = State::DownloadInitiate;
-  if (current_.mode == SdoTransfer::Auto && size_ >= 1 && size_ <= 4) {
+  if (current_.mode == SdoTransfer::ExpeditedUnsized && size_ == 4) {
+    std::array<std::uint8_t, 8> out{0x22, lo, hi, sub};
+    std::copy(current_.data.begin(), current_.data.end(), out.begin() + 4);
+    pos_ = size_;
+    send(out);
+    return;
+  }
+  if ((current_.mode == SdoTransfer::Auto || current_.mode == SdoTransfer::ExpeditedUnsized) && size_ >= 1 && size_ <= 4) {
     std::array<std::uint8_t, 8> out{static_cast<std::uint8_t>(0x23 | ((4 - size_) << 2)), lo, hi, sub};
     std::copy(current_.data.begin(), current_.data.end(), out.begin() + 4);
     pos_ = size_;  // all data went with the initiate request

@@ -55,6 +55,10 @@ enum class SdoTransfer : std::uint8_t {
   Auto,       // see above
   Segmented,  // never expedited (for the odd server that wants it; also handy in tests)
   Block,
+  // Download only: expedited without size indication (e = 1, s = 0, CiA 301 §7.2.4.3.3) of
+  // exactly four bytes, the server taking as many as its object has (what a gateway relays when
+  // its own client sent it so). Other sizes are sent as Auto.
+  ExpeditedUnsized,
 };
 
 class SdoClient {

@@ -435,8 +435,8 @@ void SdoServer::initiate_remote_download(const std::uint8_t* d) {
   const std::uint8_t cmd = d[0];
   size_indicated_ = (cmd & 0x01) != 0;
   if ((cmd & 0x02) != 0) {
-    // Expedited. With s = 0 the object's size is unknown here: all four bytes go, the remote
-    // server decides.
+    // Expedited. With s = 0 the object's size is unknown here: the four bytes go on as an
+    // expedited download without size (SdoRemote::download), the remote server decides.
     const std::size_t n = size_indicated_ ? 4u - ((cmd >> 2) & 0x03u) : 4u;
     buffer_.assign(d + 4, d + 4 + n);
     return start_remote_download(RemoteStep::ExpeditedDownload, 0x60);
@@ -470,7 +470,8 @@ void SdoServer::start_remote_download(RemoteStep step, std::uint8_t response) {
   step_ = step;
   remote_response_ = response;
   const std::uint32_t generation = ++remote_generation_;
-  const SdoRemote::Ticket ticket = remote_->download(target, index_, sub_, buffer_, remote_done(generation));
+  const bool unsized = step == RemoteStep::ExpeditedDownload && !size_indicated_;
+  const SdoRemote::Ticket ticket = remote_->download(target, index_, sub_, buffer_, !unsized, remote_done(generation));
   if (state_ == State::RemoteWait && remote_generation_ == generation) ticket_ = ticket;
 }
 

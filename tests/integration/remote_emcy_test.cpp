@@ -283,4 +283,21 @@ TEST_F(RemoteEmcy, AnUpstreamEmcyOfAnotherNodeIsLoggedAndKept) {
   EXPECT_EQ(gw_->upstream_emcys().size(), 1u);
 }
 
+// A flood of forwarded EMCYs (17 x elobau 8140h, with 1015h = 1 s) fills the inhibit queue; the
+// gateway's own 7000h for a sub-device lost meanwhile still goes out (it takes the place of a
+// forwarded one), and before the forwarded ones still queued.
+TEST_F(RemoteEmcy, ForwardedEmcysNeverCrowdOutTheGatewaysOwn7000h) {
+  build();
+  ASSERT_EQ(gw_->upstream().od().write(0x1015, 0, encode<std::uint16_t>(10000)), SdoAbortCode::None);
+  for (int i = 0; i < 17; ++i) grip().bus_off(now());  // 17 warnings 8140h
+  rig_->run_for(20ms);
+  (void)rig_->command("left_grip heartbeat off");
+  rig_->run_for(1s);
+  ASSERT_FALSE(gw_->faults().empty());
+  rig_->run_for(25s);
+  EXPECT_EQ(up(0x7000).size(), 1u) << "the gateway's 7000h for left_grip never went out\n" << dump().substr(0, 4000);
+  EXPECT_LT(up(0x8140).size(), 17u) << "a forwarded one gave its place";
+  EXPECT_GE(gw_->upstream().node().emcy().dropped(), 1u);
+}
+
 }  // namespace

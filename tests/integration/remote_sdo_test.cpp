@@ -22,6 +22,7 @@
 #include "canopen/io/virtual_bus.hpp"
 #include "gateway/gateway.hpp"
 #include "programs/cab_rig.hpp"
+#include "subdevices/sim/mcb402_sim.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/fixtures/fixtures.hpp"
 
@@ -336,6 +337,60 @@ TEST_F(RemoteSdo, TheGatewayTakingANodeBackEndsATransferInFlight) {
   EXPECT_EQ(r.code, SdoAbortCode::CannotTransferDeviceState);
   run_for(3s);
   EXPECT_EQ(rig_->gw().downstream().state("right_grip"), sd::NodeState::Operational) << log_;
+}
+
+TEST_F(RemoteSdo, NodeIdBitRateAndEmcyCobIdOfSubdevicesInUseAreRefused) {
+  select(kDown, kKnob);  // Novotechnik document §4.3, §7.1: 2000h node-ID, 2001h bit rate by SDO
+  EXPECT_EQ(write(host(), 0x2000, 0, {0x40}).code, SdoAbortCode::CannotTransferLocalControl);
+  EXPECT_EQ(write(host(), 0x2001, 0, {0xF4, 0x01}).code, SdoAbortCode::CannotTransferLocalControl);
+  EXPECT_EQ(write(host(), 0x6003, 0, {0, 0, 0, 0}).code, SdoAbortCode::CannotTransferLocalControl);  // preset
+  EXPECT_EQ(rig_->devices().device("seat_knob")->od().get<std::uint8_t>(0x2000, 0), kKnob);
+  // The MCB-402's 1014h: with bit 31 set its cable-break EMCY would never reach the gateway.
+  select(kDown, kLeft);
+  EXPECT_EQ(write(host(), 0x1014, 0, {0x83, 0x00, 0x00, 0x80}).code, SdoAbortCode::CannotTransferLocalControl);
+  EXPECT_EQ(write(host(), 0x6200, 1, {0x0F}).code, SdoAbortCode::CannotTransferLocalControl);  // its LEDs
+  auto& mcb = dynamic_cast<oegw::subdevices::sim::Mcb402Sim&>(*rig_->devices().device("left_grip"));
+  mcb.cable_break(2, true, loop_.now());
+  run_for(500ms);
+  EXPECT_FALSE(rig_->gw().faults().empty()) << "the cable break went unseen\n" << log_;
+}
+
+TEST_F(RemoteSdo, AnExpeditedDownloadWithoutSizeIsRelayedAsOne) {
+  // 100Ch guard time (UNSIGNED16) written as the MCB-402 document writes its SDOs: 22h, no size.
+  select(kDown, kLeft);
+  const std::size_t up0 = up_.size();
+  (void)rig_->host_port().send(CanFrame(kDefaultRx, {0x22, 0x0C, 0x10, 0x00, 0x05, 0x00, 0x00, 0x00}));
+  run_for(20ms);
+  EXPECT_TRUE(downstream_has(0x600u + kLeft, {0x22, 0x0C, 0x10, 0x00, 0x05, 0x00, 0x00, 0x00}));
+  std::optional<CanFrame> answer;
+  for (std::size_t i = up0; i < up_.size(); ++i)
+    if (up_[i].id == kDefaultTx) answer = up_[i];
+  ASSERT_TRUE(answer.has_value());
+  EXPECT_EQ(answer->data, (std::array<std::uint8_t, 8>{0x60, 0x0C, 0x10, 0x00, 0, 0, 0, 0}));
+  EXPECT_EQ(rig_->devices().device("left_grip")->od().get<std::uint16_t>(0x100C, 0), 5);
+}
+
+TEST_F(RemoteSdo, SegmentedAndBlockDownloadsFromTheHost) {
+  // The host chooses segmented or block on its bus; the gateway writes the grip as the value's
+  // size allows (expedited for two bytes).
+  select(kDown, kGrip);
+  std::uint8_t v = 40;
+  for (const SdoTransfer mode : {SdoTransfer::Segmented, SdoTransfer::Block}) {
+    Result r;
+    host().download(0x5001, 0, {v, 0}, into(r), mode);
+    wait(r);
+    ASSERT_EQ(r.code, SdoAbortCode::None) << log_;
+    EXPECT_EQ(rig_->devices().device("right_grip")->od().get<std::uint16_t>(0x5001, 0), v);
+    v = static_cast<std::uint8_t>(v + 1);
+  }
+  // A block upload of each family's 1018h:01.
+  for (const auto& [name, node] : {std::pair{"right_grip", kGrip}, std::pair{"left_grip", kLeft},
+                                   std::pair{"pedal", kPedal}, std::pair{"seat_knob", kKnob}}) {
+    select(kDown, node);
+    const Result r = read(host(), 0x1018, 1, SdoTransfer::Block);
+    ASSERT_EQ(r.code, SdoAbortCode::None) << name;
+    EXPECT_EQ(get_u32(r.data.data()), sim_u32(name, 0x1018, 1)) << name;
+  }
 }
 
 class RemoteSdoTimeout : public RemoteSdo {

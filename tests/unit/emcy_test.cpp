@@ -245,6 +245,29 @@ TEST_F(EmcyFixture, ReportIntoAFullQueueIsDroppedAndCounted) {
   EXPECT_EQ(get_u16(sent[2].data.data()), 0x3000);
 }
 
+// A full queue: a relayed EMCY (a gateway's remote EMCY) is dropped; the device's own EMCY takes
+// the place of the oldest relayed one, so another node's flood never drops it.
+TEST_F(EmcyFixture, OwnEmcysTakeThePlaceOfRelayedOnesInAFullQueue) {
+  EmcyProducer p(od, sink(), NodeId{0x20}, {.inhibit_time = 10, .queue_limit = 2});
+  EXPECT_TRUE(p.report(0x8140, {0x11}, 0x11, t0, true));   // sent
+  EXPECT_TRUE(p.report(0x8140, {0x12}, 0x12, t0, true));   // queued
+  EXPECT_TRUE(p.report(0x8140, {0x13}, 0x13, t0, true));   // queued: full
+  EXPECT_FALSE(p.report(0x8140, {0x14}, 0x14, t0, true));  // relayed into a full queue: dropped
+  EXPECT_TRUE(p.raise(0x7000, 0, {0x03}, t0, 0x03));       // own: replaces the relayed 12h one
+  EXPECT_EQ(p.dropped(), 2u);
+  for (int ms = 1; ms <= 3; ++ms) p.advance(t0 + std::chrono::milliseconds(ms));
+  ASSERT_EQ(sent.size(), 3u);
+  EXPECT_EQ(sent[1].data[3], 0x13);
+  EXPECT_EQ(get_u16(sent[2].data.data()), 0x7000);
+  // Own ones fill the queue: then an own one is dropped too (the queue limit holds).
+  EXPECT_TRUE(p.raise(0x1000, 0, t0 + 3ms));  // sent
+  EXPECT_TRUE(p.raise(0x2000, 0, t0 + 3ms));  // queued behind the inhibit time
+  EXPECT_TRUE(p.raise(0x3000, 0, t0 + 3ms));  // queued: full
+  EXPECT_TRUE(p.raise(0x4000, 0, t0 + 3ms));  // active, but the queue is full of own EMCYs
+  EXPECT_EQ(p.dropped(), 3u);
+  EXPECT_EQ(sent.size(), 4u);
+}
+
 // Consumer: Novotechnik §9.1 "0x5051 1 1 0 Position overflow error" from node 1.
 TEST_F(EmcyFixture, ConsumerReportsNodeCodeRegisterAndField) {
   std::vector<EmcyMessage> got;

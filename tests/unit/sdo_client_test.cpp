@@ -107,6 +107,17 @@ TEST_F(SdoClientTest, ExpeditedDownloadNovotechnikStore) {
   EXPECT_EQ(results, (std::vector<Result>{ok()}));
 }
 
+// ExpeditedUnsized: e = 1, s = 0 (CiA 301 §7.2.4.3.3), as the MCB-402 document writes its SDOs
+// ("603 22 01 18 05 aa bb 00 00"); other sizes go as Auto would send them.
+TEST_F(SdoClientTest, ExpeditedDownloadWithoutSize) {
+  client->download(0x1801, 5, {0x14, 0x00, 0x00, 0x00}, record(), SdoTransfer::ExpeditedUnsized);
+  EXPECT_EQ(go(), req({0x22, 0x01, 0x18, 0x05, 0x14, 0x00, 0x00, 0x00}));
+  client->download(0x2001, 0, {1, 2}, record(), SdoTransfer::ExpeditedUnsized);
+  EXPECT_EQ(srv({0x60, 0x01, 0x18, 0x05, 0, 0, 0, 0}), req({0x2B, 0x01, 0x20, 0x00, 1, 2, 0, 0}));
+  EXPECT_EQ(srv({0x60, 0x01, 0x20, 0x00, 0, 0, 0, 0}), none());
+  EXPECT_EQ(results, (std::vector<Result>{ok(), ok()}));
+}
+
 TEST_F(SdoClientTest, ExpeditedDownloadCommandBytes) {
   client->download(0x2000, 0, {0x40}, record());
   EXPECT_EQ(go(), req({0x2F, 0x00, 0x20, 0x00, 0x40, 0, 0, 0}));  // Novotechnik §7.1 node-ID example

@@ -61,6 +61,7 @@ const char* mode_name(SdoTransfer m) {
     case SdoTransfer::Auto: return "Auto";
     case SdoTransfer::Segmented: return "Segmented";
     case SdoTransfer::Block: return "Block";
+    case SdoTransfer::ExpeditedUnsized: return "ExpeditedUnsized";
   }
   return "?";
 }

@@ -65,7 +65,7 @@ class FakeRemote : public SdoRemote {
     return start(Call{true, target, index, sub, {}, next_++, std::move(done)});
   }
   Ticket download(const SdoTarget& target, std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
-                  Done done) override {
+                  bool /*size_indicated*/, Done done) override {
     return start(Call{false, target, index, sub, {data.begin(), data.end()}, next_++, std::move(done)});
   }
   void cancel(Ticket ticket, SdoAbortCode why) override { cancels.push_back({ticket, why}); }
