@@ -76,9 +76,12 @@ void OeDevice::watch_host_commands() {
     subs_ += o->add_write_hook([this](canopen::Object& obj, std::uint8_t sub, std::span<const std::uint8_t>,
                                       Origin origin) {
       if (origin == Origin::Local) return SdoAbortCode::None;
-      // outputs_: index << 8 | sub of every configured output entry -> its FE's fields.
+      // outputs_: index << 8 | sub of every configured output entry -> its FE's fields. Any
+      // other entry belongs to an instance that is not configured (its default PDOs map it,
+      // profiles/cia852/dictionary.hpp): it keeps its neutral value, the write is refused
+      // (SDO abort 0800 0020h, the RPDO's byte ignored).
       const auto it = outputs_.find(static_cast<std::uint32_t>(obj.index()) << 8 | sub);
-      if (it == outputs_.end() || it->second.empty()) return SdoAbortCode::None;
+      if (it == outputs_.end() || it->second.empty()) return sub == 0 ? SdoAbortCode::None : SdoAbortCode::CannotTransfer;
       const FeId fe = it->second.front().fe;
       const bool take = on_host_write_ ? on_host_write_(fe, origin) : cfg_.host_may_not_command.count(fe) == 0;
       return take ? SdoAbortCode::None : SdoAbortCode::CannotTransferLocalControl;

@@ -3,11 +3,11 @@
 // default PDOs and 1000h are built by profiles/cia852/ (dictionary.hpp, pdo_defaults.hpp,
 // device_type.hpp).
 //
-// Decisions on CiA 852 where the text is open or inconsistent (this list is their record):
-//  * 6423h (CiA 401: analogue inputs raise no "interrupt" when FALSE): while FALSE, set_input of
-//    a 6401h field updates the dictionary without an event — SDO reads and every TPDO sent for
-//    another reason (a button, the event timer, SYNC) carry the current value, but an axis
-//    change alone sends nothing. 6120h (a digital input in CiA 401) is not affected.
+// Decisions on CiA 852 where the text is open or inconsistent (this list is their record; those
+// on PDOs — which exist, their layouts, the instances not configured, 6423h and the TPDOs — are
+// in README.md "CiA 852 decisions"):
+//  * 6423h FALSE: an axis change (6401h) updates the dictionary without a TPDO event; TPDOs sent
+//    for another reason carry it (README "CiA 852 decisions").
 //  * §8.6 EMCY 0080h: raised with error register 01h (generic only: §11.3 forbids the
 //    profile-specific bit) each time the node enters operational with 6423h FALSE and 6423h
 //    exists; it stays active while operational and FALSE, and is cleared (error reset) when the

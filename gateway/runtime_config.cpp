@@ -4,6 +4,8 @@
 
 #include <fmt/format.h>
 
+#include "profiles/cia852/pdo_defaults.hpp"
+
 namespace oegw::gateway {
 
 OeDeviceConfig device_config(const mapping::Config& c, std::optional<std::filesystem::path> store) {
@@ -57,6 +59,10 @@ canopen::EdsInfo eds_info(const mapping::Config& c, std::string file_name) {
                         c.downstream.network_id)
           : std::string("the gateway's own dictionary")));
   }
+  // Where a host built from CiA 852's printed PDO tables would differ (README "CiA 852 decisions").
+  std::vector<mapping::FeId> fes;
+  for (const auto& fe : c.functional_elements) fes.push_back(fe.id);
+  for (auto& line : cia852::pdo_eds_comments(fes)) info.comments.push_back(std::move(line));
   // CiA 302-7 network IDs, as the host names the two buses in remote SDO/EMCY.
   info.comments.push_back(fmt::format("network IDs: upstream (this device's bus) {}, downstream (its sub-devices) {}",
                                       c.upstream.network_id, c.downstream.network_id));

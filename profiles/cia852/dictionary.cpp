@@ -40,29 +40,39 @@ void add_sparse_array(ObjectDictionary& od, std::uint16_t index, DataType type, 
   }
 }
 
-// The name of an entry after the FE field(s) it holds: "joystick 1 x", "joystick 1 memory",
-// "joystick 1 buttons 1-8", "buttons 2 switch 9-16", "display 1 parameter 3".
-std::string entry_name(const std::vector<FeId>& fes, std::uint16_t index, std::uint8_t sub) {
-  for (const FeId& fe : fes) {
-    std::vector<std::string> names;
-    for (const auto& f : fe_fields(fe))
-      if (f.index == index && f.sub == sub) names.push_back(f.name);
-    if (names.empty()) continue;
-    std::string n = std::string(to_string(fe.kind)) + " " + std::to_string(fe.instance) + " ";
-    const std::string& first = names.front();
-    const auto br = first.find('[');
-    if (names.size() == 1) {
-      if (br == std::string::npos) return n + first;
-      return n + first.substr(0, br) + " " + first.substr(br + 1, first.size() - br - 2);
+// The name of each entry after the FE field(s) it holds, by index << 8 | sub: "joystick 1 x",
+// "joystick 1 memory", "joystick 1 buttons 1-8", "buttons 2 switch 9-16", "display 1 parameter
+// 3"; an instance that is not configured adds " (not configured)".
+std::map<std::uint32_t, std::string> entry_names(const std::vector<FeId>& instances,
+                                                 const std::vector<FeId>& configured) {
+  std::map<std::uint32_t, std::string> out;
+  for (const FeId& fe : instances) {
+    // The fields of one entry are listed together (fe_table.hpp).
+    std::map<std::uint32_t, std::vector<std::string>> by_entry;
+    for (const auto& f : fe_fields(fe)) by_entry[std::uint32_t{f.index} << 8 | f.sub].push_back(f.name);
+    const std::string n = std::string(to_string(fe.kind)) + " " + std::to_string(fe.instance) + " ";
+    const std::string tail =
+        std::find(configured.begin(), configured.end(), fe) == configured.end() ? " (not configured)" : "";
+    for (const auto& [key, names] : by_entry) {
+      const std::string& first = names.front();
+      const auto br = first.find('[');
+      const std::string& last = names.back();
+      const auto lbr = last.find('[');
+      std::string name;
+      if (names.size() == 1) {
+        name = br == std::string::npos ? first : first.substr(0, br) + " " + first.substr(br + 1, first.size() - br - 2);
+      } else if (first.rfind("memory", 0) == 0) {
+        name = "memory";
+      } else if (br == std::string::npos || lbr == std::string::npos) {
+        name = first;
+      } else {
+        name = first.substr(0, br) + " " + first.substr(br + 1, first.size() - br - 2) + "-" +
+               last.substr(lbr + 1, last.size() - lbr - 2);
+      }
+      out.emplace(key, n + name + tail);
     }
-    if (first.rfind("memory", 0) == 0) return n + "memory";
-    const std::string& last = names.back();
-    const auto lbr = last.find('[');
-    if (br == std::string::npos || lbr == std::string::npos) return n + first;
-    return n + first.substr(0, br) + " " + first.substr(br + 1, first.size() - br - 2) + "-" +
-           last.substr(lbr + 1, last.size() - lbr - 2);
   }
-  return "entry " + std::to_string(sub);
+  return out;
 }
 
 }  // namespace
@@ -70,34 +80,51 @@ std::string entry_name(const std::vector<FeId>& fes, std::uint16_t index, std::u
 canopen::NodeConfig build_dictionary(const DeviceConfig& cfg, ObjectDictionary& od) {
   using namespace cia401;
   const auto& fes = cfg.fes;
-  std::map<std::uint16_t, std::set<std::uint8_t>> subs;
+  // The entries of the configured instances, and those of every instance the default PDOs map
+  // (each instance of a supported kind, pdo_defaults.hpp): an instance that is not configured
+  // reads the default below, 0 — CiA 852 and CiA 401 name no not-available value for these
+  // objects; 0 is the neutral one (memory off, buttons and switches released, axis centred,
+  // pedal/wheel/encoder position 0 as Tables 2 and 7 default, indicators off). Nothing writes
+  // them: the inputs are ro and only configured FEs are fed; host writes of the outputs are
+  // refused (OeDevice), so they never change.
+  const std::vector<FeId> mapped_fes = pdo_instances(fes);
+  std::map<std::uint16_t, std::set<std::uint8_t>> subs, mapped;
   for (const FeId& fe : fes)
     for (const auto& f : fe_fields(fe)) subs[f.index].insert(f.sub);
-  auto namer = [&](std::uint16_t index) {
-    return [&fes, index](std::uint8_t s) { return entry_name(fes, index, s); };
+  for (const FeId& fe : mapped_fes)
+    for (const auto& f : fe_fields(fe)) mapped[f.index].insert(f.sub);
+  const auto names = entry_names(mapped_fes, fes);
+  auto namer = [&names](std::uint16_t index) {
+    return [&names, index](std::uint8_t s) {
+      const auto it = names.find(std::uint32_t{index} << 8 | s);
+      return it != names.end() ? it->second : "entry " + std::to_string(s);
+    };
   };
   auto subs_of = [&](std::uint16_t index) { return subs.count(index) ? subs[index] : std::set<std::uint8_t>{}; };
+  auto mapped_of = [&](std::uint16_t index) { return mapped.count(index) ? mapped[index] : std::set<std::uint8_t>{}; };
 
-  add_sparse_array(od, kReadInput8, DataType::Unsigned8, Access::ReadOnly, subs_of(kReadInput8), {0}, true,
+  add_sparse_array(od, kReadInput8, DataType::Unsigned8, Access::ReadOnly, mapped_of(kReadInput8), {0}, true,
                    namer(kReadInput8));
-  add_sparse_array(od, kReadInput32, DataType::Integer32, Access::ReadOnly, subs_of(kReadInput32),
+  add_sparse_array(od, kReadInput32, DataType::Integer32, Access::ReadOnly, mapped_of(kReadInput32),
                    canopen::encode<std::int32_t>(0), true, namer(kReadInput32));
-  add_sparse_array(od, kReadAnalogueInput16, DataType::Integer16, Access::ReadOnly, subs_of(kReadAnalogueInput16),
+  add_sparse_array(od, kReadAnalogueInput16, DataType::Integer16, Access::ReadOnly, mapped_of(kReadAnalogueInput16),
                    canopen::encode<std::int16_t>(0), true, namer(kReadAnalogueInput16));
   if (has_kind(fes, FeKind::Joystick) || has_kind(fes, FeKind::FootPedal) || has_kind(fes, FeKind::Wheel))
     od.add_var(kAnalogueInputGlobalInterruptEnable, std::string(object_name(kAnalogueInputGlobalInterruptEnable)),
                DataType::Boolean, Access::ReadWrite, {0});
-  // 6206h/6207h: one mode/value byte per 6200h byte, named after it.
+  // 6206h/6207h: one mode/value byte per 6200h byte of a configured cluster, named after it.
   const auto ind = subs_of(kWriteOutput8);
-  add_sparse_array(od, kWriteOutput8, DataType::Unsigned8, Access::ReadWrite, ind, {0}, true, namer(kWriteOutput8));
+  add_sparse_array(od, kWriteOutput8, DataType::Unsigned8, Access::ReadWrite, mapped_of(kWriteOutput8), {0}, true,
+                   namer(kWriteOutput8));
   add_sparse_array(od, kErrorModeOutput8, DataType::Unsigned8, Access::ReadWrite, ind, {0x01}, false,
                    namer(kWriteOutput8));
   add_sparse_array(od, kErrorValueOutput8, DataType::Unsigned8, Access::ReadWrite, ind, {0x00}, false,
                    namer(kWriteOutput8));
-  // 6443h/6444h: one mode/value per 6411h channel, named after it.
+  // 6443h/6444h: one mode/value per 6411h channel of a configured display, named after it.
   const auto disp = subs_of(kWriteAnalogueOutput16);
-  add_sparse_array(od, kWriteAnalogueOutput16, DataType::Integer16, Access::ReadWrite, disp,
-                   canopen::encode<std::int16_t>(0), true, namer(kWriteAnalogueOutput16));
+  add_sparse_array(od, kWriteAnalogueOutput16, DataType::Integer16, Access::ReadWrite,
+                   mapped_of(kWriteAnalogueOutput16), canopen::encode<std::int16_t>(0), true,
+                   namer(kWriteAnalogueOutput16));
   add_sparse_array(od, kAnalogueOutputErrorMode, DataType::Unsigned8, Access::ReadWrite, disp, {0x01}, false,
                    namer(kWriteAnalogueOutput16));
   add_sparse_array(od, kAnalogueOutputErrorValueInteger, DataType::Integer32, Access::ReadWrite, disp,

@@ -1,6 +1,6 @@
 // The object dictionary of a CiA 852 OE interface module for its configured functional elements
 // (FE): the application objects and default PDOs build_dictionary() adds (CiA 852 clauses 9, 11,
-// 12; only what the configured FEs need), and the NodeConfig the CiA 301 objects are built from.
+// 12; what the configured FE kinds need), and the NodeConfig the CiA 301 objects are built from.
 //
 //  * 6000h "Read input 8-bit" UNSIGNED8 ro mappable: joystick n memory (sub 2n−1) and buttons
 //    (sub 2n), pedal n memory (sub 20h+n), push-button cluster n (subs 31h+8(n−1) … 38h+8(n−1)).
@@ -16,16 +16,23 @@
 //    mode" UNSIGNED8 rw default 01h (each channel 0 or 1), 6444h "Analogue output error value
 //    integer" INTEGER32 rw default 0 (INTEGER32 as CiA 401 defines 6444h): display n parameter p
 //    (sub 12(n−1)+p).
-//  Sub-index layout: fe_table.hpp, the one table both this dictionary and the PDOs read. The
-//  ARRAYs hold only the sub-indexes of the configured instances (gaps allowed: a missing sub
-//  answers SDO abort 0609 0011h); sub 0 is the highest sub-index present (CiA 301 §7.4.3), so its
-//  value is not the number of entries. Each entry is named after the FE field(s) it holds
-//  ("joystick 1 x", "joystick 1 memory", "buttons 2 switch 9-16").
+//  Sub-index layout: fe_table.hpp, the one table both this dictionary and the PDOs read.
+//  Which instances have entries: every PDO of a supported kind exists with its full default
+//  mapping (pdo_defaults.hpp), so 6000h, 6401h, 6120h, 6200h and 6411h hold the entries of every
+//  instance of each configured kind (pdo_instances()). An instance that is not configured keeps
+//  its entries at 0 — CiA 852 and CiA 401 name no not-available value for them, and 0 is the
+//  neutral one (memory off, buttons released, axis centred, position 0, indicators off, display
+//  parameter 0) — and they never change: the inputs are ro and fed only for configured FEs, a
+//  host write of the outputs is refused (OeDevice: SDO abort 0800 0020h, RPDO bytes ignored).
+//  Their entries are named "… (not configured)". 6206h/6207h and 6443h/6444h exist only for the
+//  configured instances (no output of another instance ever takes an error value). The ARRAYs
+//  may have gaps (a missing sub answers SDO abort 0609 0011h); sub 0 is the highest sub-index
+//  present (CiA 301 §7.4.3), so its value is not the number of entries. Each entry is named
+//  after the FE field(s) it holds ("joystick 1 x", "joystick 1 memory", "buttons 2 switch 9-16").
 //  * 1000h per Table 8 (device_type.hpp), 1016h (host heartbeat consumer, one entry) when an
 //    output FE exists (§8.3, Annex A), everything else of CiA 301 from canopen::Node.
-//  * PDOs of clause 12 (pdo_defaults.hpp). Tables 32/36 give RPDO mapping sub 0 the access
-//    "const", §8.5 makes variable mapping mandatory: every mapping sub 0 is rw (the core's CiA 301
-//    mapping procedure). The communication records' sub 0 is const (Tables 10, 14, ...).
+//  * PDOs of clause 12 (pdo_defaults.hpp): every mapping sub 0 is rw, every communication
+//    record's sub 0 const (Tables 10, 14, ...); README.md "CiA 852 decisions".
 #pragma once
 
 #include <cstdint>

@@ -3,15 +3,8 @@
 // dictionary (dictionary.hpp) and the default PDOs (pdo_defaults.hpp) take their sub-indices
 // from it; the mapping file names FE fields by it. Pure data, no I/O.
 //
-// Layout decisions where clause 9 does not add up (documented in mapping/README.md):
-//  * push-button cluster n uses 6000h sub-indices 31h + 8(n−1) … 38h + 8(n−1): cluster 8 is
-//    69h–70h (Table 5 prints "61h to 70h", which would be 16 entries);
-//  * indicator cluster n uses 6200h/6206h/6207h sub-indices 01h + 8(n−1) … 08h + 8(n−1):
-//    cluster 8 is 39h–40h (Table 6 prints "31h to 40h"), one UNSIGNED8 per 8 indicators as
-//    in CiA 401 6200h;
-//  * display n parameter p (p = 1…12) uses 6411h/6443h/6444h sub-index 12(n−1) + p: display 8
-//    is 55h–60h (Table 7 prints ABh–C0h for display 8 and 18h as display 1's last entry of
-//    6443h/6444h; neither matches 12 parameters per display).
+// Where clause 9's tables do not add up (Tables 5, 6, 7: push-button cluster 8, indicator cluster
+// 8, display sub-indices), one rule per kind is used: README.md "CiA 852 decisions".
 #pragma once
 
 #include <cstdint>

@@ -383,21 +383,27 @@ TEST_F(GatewayE2E, PedalEncoderWheelAndButtonClusterTpdos) {
   cmd("right_grip wheel_a 20");  // 20 % -> 6553.4 -> 6553
   cmd("cluster in[1] 5");        // switch[1], switch[3]
   run_for(500ms);
-  // TPDO 20: pedal 1 memory (6000h:21h), position (6401h:31h).
+  // TPDO 20 (Table 16): pedal 1 memory (6000h:21h), position (6401h:31h), then pedal 2's
+  // (not configured: 0).
   const auto p = last(kTpdo20);
   ASSERT_TRUE(p) << dump();
-  EXPECT_EQ(p->dlc, 3);
+  EXPECT_EQ(p->dlc, 6);
+  EXPECT_EQ(p->data[3], 0x00);
+  EXPECT_EQ(i16(*p, 4), 0);
   EXPECT_EQ(p->data[0], 0x00);
   EXPECT_EQ(i16(*p, 1), 20000);
-  // TPDO 28: encoder 1 (6120h:81h) INTEGER32.
+  // TPDO 28 (Table 20): encoder 1 (6120h:81h) INTEGER32, then encoder 2 (not configured: 0).
   const auto e = last(kTpdo28);
   ASSERT_TRUE(e) << dump();
-  EXPECT_EQ(e->dlc, 4);
+  EXPECT_EQ(e->dlc, 8);
+  EXPECT_EQ(get_u32(&e->data[4]), 0u);
   EXPECT_EQ(static_cast<std::int32_t>(get_u32(&e->data[0])), 123456);
-  // TPDO 32: wheel 1 (6401h:41h).
+  // TPDO 32 (Table 24): wheel 1 (6401h:41h), then wheels 2..4 (not configured: 0).
   const auto w = last(kTpdo32);
   ASSERT_TRUE(w) << dump();
-  EXPECT_EQ(w->dlc, 2);
+  EXPECT_EQ(w->dlc, 8);
+  EXPECT_EQ(i16(*w, 2), 0);
+  EXPECT_EQ(i16(*w, 6), 0);
   EXPECT_EQ(i16(*w, 0), 6553);
   // TPDO 34: push-button cluster 1, its 6000h bytes; switch k = bit k-1 of the first.
   const auto b = last(kTpdo34);

@@ -113,7 +113,8 @@ TEST_F(OeDeviceHost, HostConfiguresStartsAndExchangesProcessData) {
   net_.run_for(1ms);
   auto w = others_with(0x2B0);
   ASSERT_EQ(w.size(), 1u);
-  EXPECT_EQ(Bytes(w[0].data.begin(), w[0].data.begin() + w[0].dlc), (Bytes{0x01, 0x80}));
+  // Table 24: wheel 1 at bytes 0-1, wheels 2..4 (not configured) read 0.
+  EXPECT_EQ(Bytes(w[0].data.begin(), w[0].data.begin() + w[0].dlc), (Bytes{0x01, 0x80, 0, 0, 0, 0, 0, 0}));
   auto b = others_with(0x3B0);
   ASSERT_EQ(b.size(), 1u);
   EXPECT_EQ(Bytes(b[0].data.begin(), b[0].data.begin() + b[0].dlc), (Bytes{0, 0, 0, 0, 0, 0, 0, 0x80}));

@@ -96,9 +96,11 @@ TEST_F(EdsWriterTest, DeviceInfo) {
   EXPECT_EQ(d.at("BaudRate_1000"), "1");
   EXPECT_EQ(d.at("BaudRate_800"), "0");
   EXPECT_EQ(d.at("LSS_Supported"), "1");  // CiA 852 §8.2
-  // TPDO 1, 5 (joysticks), 20 (pedal), 28 (encoder), 32 (wheel), 34 (buttons); RPDO 1, 2, 4, 12.
-  EXPECT_EQ(d.at("NrOfTXPDO"), "6");
-  EXPECT_EQ(d.at("NrOfRXPDO"), "4");
+  // Every PDO of each kind (CiA 852 clause 12): TPDO 1, 5..19 (joysticks), 20..27 (pedals),
+  // 28..31 (encoders), 32, 33 (wheels), 34..41 (push-button clusters); RPDO 1, 5..11
+  // (indicator clusters), 2, 4, 12..33 (displays).
+  EXPECT_EQ(d.at("NrOfTXPDO"), "38");
+  EXPECT_EQ(d.at("NrOfRXPDO"), "32");
   EXPECT_EQ(ini.sections.at("FileInfo").at("EDSVersion"), "4.0");
   EXPECT_EQ(ini.sections.at("DummyUsage").at("Dummy0007"), "1");
 }
@@ -133,15 +135,17 @@ TEST_F(EdsWriterTest, ObjectSections) {
   EXPECT_EQ(dt.at("AccessType"), "const");
   EXPECT_EQ(dt.at("DefaultValue"), "0xFF8F0191");  // every FE kind: Table 8
   EXPECT_EQ(dt.at("PDOMapping"), "0");
-  // 6000h: joystick 1 (1, 2), joystick 2 (3, 4), pedal 1 (21h), buttons 1 (31h..38h) + sub 0.
+  // 6000h: joysticks 1..16 (01h..20h), pedals 1..16 (21h..30h), push-button clusters 1..8
+  // (31h..70h), the default PDOs of the three kinds map them all; + sub 0.
   const auto& a = ini.sections.at("6000");
   EXPECT_EQ(a.at("ObjectType"), "0x8");
-  EXPECT_EQ(a.at("SubNumber"), "14");
-  EXPECT_EQ(ini.sections.at("6000sub0").at("DefaultValue"), "0x38");
+  EXPECT_EQ(a.at("SubNumber"), "113");
+  EXPECT_EQ(ini.sections.at("6000sub0").at("DefaultValue"), "0x70");
   EXPECT_TRUE(ini.sections.count("6000sub21"));
   EXPECT_EQ(ini.sections.at("6000sub2").at("ParameterName"), "joystick 1 buttons 1-8");
   EXPECT_EQ(ini.sections.at("6000sub38").at("ParameterName"), "buttons 1 switch 57-64");
-  EXPECT_FALSE(ini.sections.count("6000sub5"));
+  EXPECT_EQ(ini.sections.at("6000sub5").at("ParameterName"), "joystick 3 memory (not configured)");
+  EXPECT_FALSE(ini.sections.count("6000sub71"));
   const auto& in = ini.sections.at("6401sub1");
   EXPECT_EQ(in.at("DataType"), "0x0003");
   EXPECT_EQ(in.at("AccessType"), "ro");

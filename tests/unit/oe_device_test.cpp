@@ -137,22 +137,25 @@ TEST_F(OeDeviceTest, DeviceTypeObjectHoldsTheComputedValue) {
   EXPECT_NE(od().find(0x1017), nullptr);  // Annex A: producer heartbeat time, mandatory
 }
 
-// CiA 852 clause 15 / clause 12 categories: only the configured FEs' objects, sub-indexes and PDOs.
-TEST_F(OeDeviceTest, OnlyConfiguredObjectsExist) {
+// CiA 852 clause 12 categories ("Mandatory, if joystick supported (see 1000h)"): the objects and
+// PDOs of the configured FE kinds — every instance of the kind the default PDOs map, the
+// unconfigured ones at 0 (README "CiA 852 decisions") — and nothing of the other kinds.
+TEST_F(OeDeviceTest, ObjectsAndPdosOfTheConfiguredKinds) {
   make({joystick(2), indicators(1)});
-  // 6000h: joystick 2 memory (sub 3) and buttons (sub 4) only; sub 0 = highest present.
+  // 6000h: the memory and button bytes of joysticks 1..16 (subs 1..20h); joystick 2's are 3, 4.
   ASSERT_NE(od().find(0x6000), nullptr);
-  EXPECT_EQ(u8(0x6000, 0), 4);
-  EXPECT_EQ(od().find(0x6000, 1), nullptr);
-  EXPECT_EQ(od().find(0x6000, 2), nullptr);
-  EXPECT_NE(od().find(0x6000, 3), nullptr);
-  EXPECT_NE(od().find(0x6000, 4), nullptr);
+  EXPECT_EQ(u8(0x6000, 0), 0x20);
+  for (std::uint8_t s = 1; s <= 0x20; ++s) EXPECT_NE(od().find(0x6000, s), nullptr) << int(s);
+  EXPECT_EQ(od().find(0x6000, 0x21), nullptr);  // no pedal
+  EXPECT_EQ(od().find(0x6000, 1)->name, "joystick 1 memory (not configured)");
+  EXPECT_EQ(od().find(0x6000, 3)->name, "joystick 2 memory");
   std::vector<std::uint8_t> tmp;
-  EXPECT_EQ(od().read(0x6000, 1, tmp), canopen::SdoAbortCode::SubIndexDoesNotExist);
-  // 6401h: x/y/z of joystick 2 = subs 4..6.
-  EXPECT_EQ(u8(0x6401, 0), 6);
-  EXPECT_EQ(od().find(0x6401, 3), nullptr);
-  for (std::uint8_t s = 4; s <= 6; ++s) {
+  EXPECT_EQ(od().read(0x6000, 1, tmp), canopen::SdoAbortCode::None);
+  EXPECT_EQ(tmp, (Bytes{0}));
+  // 6401h: x/y/z of joysticks 1..16 = subs 1..30h.
+  EXPECT_EQ(u8(0x6401, 0), 0x30);
+  EXPECT_EQ(od().find(0x6401, 0x31), nullptr);
+  for (std::uint8_t s = 1; s <= 0x30; ++s) {
     const auto* so = od().find(0x6401, s);
     ASSERT_NE(so, nullptr);
     EXPECT_EQ(so->type, canopen::DataType::Integer16);
@@ -164,7 +167,8 @@ TEST_F(OeDeviceTest, OnlyConfiguredObjectsExist) {
   EXPECT_EQ(od().find(0x6411), nullptr);
   EXPECT_EQ(od().find(0x6443), nullptr);
   EXPECT_EQ(od().find(0x6444), nullptr);
-  // Indicators: 6200h rw mappable, 6206h default 01h, 6207h default 0 (Table 6).
+  // Indicators: 6200h rw mappable for clusters 1..8 (01h..40h); 6206h default 01h, 6207h
+  // default 0 (Table 6) for the configured cluster 1 only.
   for (std::uint8_t s = 1; s <= 8; ++s) {
     ASSERT_NE(od().find(0x6200, s), nullptr);
     EXPECT_EQ(od().find(0x6200, s)->access, canopen::Access::ReadWrite);
@@ -172,13 +176,21 @@ TEST_F(OeDeviceTest, OnlyConfiguredObjectsExist) {
     EXPECT_EQ(u8(0x6206, s), 0x01);
     EXPECT_EQ(u8(0x6207, s), 0x00);
   }
-  EXPECT_EQ(od().find(0x6200, 9), nullptr);
+  EXPECT_NE(od().find(0x6200, 9), nullptr);
+  EXPECT_NE(od().find(0x6200, 0x40), nullptr);
+  EXPECT_EQ(od().find(0x6200, 0x41), nullptr);
+  EXPECT_EQ(od().find(0x6206, 9), nullptr);
   EXPECT_NE(od().find(0x1016), nullptr);  // §8.3: outputs need the heartbeat consumer
-  // PDOs: TPDO 5 (joystick 2, §12.2.2) and RPDO 1 (indicator cluster 1), nothing else.
+  // PDOs: TPDO 1, 5..19 (joysticks, §12.2.1/§12.2.2) and RPDO 1, 5..11 (indicator clusters).
   std::vector<std::uint16_t> pdo_objects;
   for (const auto& [i, o] : od().objects())
     if (i >= 0x1400 && i <= 0x1BFF) pdo_objects.push_back(i);
-  EXPECT_EQ(pdo_objects, (std::vector<std::uint16_t>{0x1400, 0x1600, 0x1804, 0x1A04}));
+  std::vector<std::uint16_t> want{0x1400, 0x1404, 0x1405, 0x1406, 0x1407, 0x1408, 0x1409, 0x140A,
+                                  0x1600, 0x1604, 0x1605, 0x1606, 0x1607, 0x1608, 0x1609, 0x160A, 0x1800};
+  for (std::uint16_t i = 0x1804; i <= 0x1812; ++i) want.push_back(i);
+  want.push_back(0x1A00);
+  for (std::uint16_t i = 0x1A04; i <= 0x1A12; ++i) want.push_back(i);
+  EXPECT_EQ(pdo_objects, want);
 }
 
 TEST_F(OeDeviceTest, InputOnlyDeviceHasNoConsumerAndButtonsOnlyNo6423) {
@@ -186,8 +198,10 @@ TEST_F(OeDeviceTest, InputOnlyDeviceHasNoConsumerAndButtonsOnlyNo6423) {
   EXPECT_EQ(od().find(0x1016), nullptr);
   EXPECT_EQ(od().find(0x6423), nullptr);  // no analogue input FE
   EXPECT_EQ(od().find(0x6401), nullptr);
-  EXPECT_EQ(u8(0x6000, 0), 0x31 + 16 + 7);
-  EXPECT_EQ(od().find(0x6000, 0x31 + 16 - 1), nullptr);
+  // Clusters 1..8 (31h..70h): TPDO 34..41 map them all.
+  EXPECT_EQ(u8(0x6000, 0), 0x70);
+  EXPECT_EQ(od().find(0x6000, 0x30), nullptr);
+  EXPECT_NE(od().find(0x6000, 0x31), nullptr);
 }
 
 // CiA 852 §12.2.1 Tables 10 and 12: TPDO 1 of joystick 1.
@@ -224,7 +238,8 @@ TEST_F(OeDeviceTest, JoystickTpdos5To19) {
   EXPECT_EQ(u32(0x1A12, 3), 0x64013010u);
   EXPECT_EQ(u32(0x1A12, 4), 0x60001F08u);
   EXPECT_EQ(u32(0x1A12, 5), 0x60002008u);
-  EXPECT_EQ(od().find(0x1800), nullptr);  // joystick 1 not configured: no TPDO 1
+  // Joystick 1 not configured: TPDO 1 still exists (joystick supported, §12.2.1).
+  EXPECT_EQ(u32(0x1A00, 1), 0x64010110u);
 }
 
 // CiA 852 §12.2.3 Table 16 (TPDO 20: pedals 1, 2), §12.2.5 Table 20 (TPDO 28: encoders 1, 2),
@@ -240,10 +255,12 @@ TEST_F(OeDeviceTest, PedalEncoderWheelButtonTpdos) {
   EXPECT_EQ(u32(0x1A13, 2), 0x64013110u);
   EXPECT_EQ(u32(0x1A13, 3), 0x60002208u);
   EXPECT_EQ(u32(0x1A13, 4), 0x64013210u);
-  // TPDO 21: pedals 3, 4 — only pedal 4 configured.
-  EXPECT_EQ(u8(0x1A14, 0), 2);
-  EXPECT_EQ(u32(0x1A14, 1), 0x60002408u);
-  EXPECT_EQ(u32(0x1A14, 2), 0x64013410u);
+  // TPDO 21: pedals 3, 4 — only pedal 4 configured; pedal 3's entries stay at subs 1, 2.
+  EXPECT_EQ(u8(0x1A14, 0), 4);
+  EXPECT_EQ(u32(0x1A14, 1), 0x60002308u);
+  EXPECT_EQ(u32(0x1A14, 2), 0x64013310u);
+  EXPECT_EQ(u32(0x1A14, 3), 0x60002408u);
+  EXPECT_EQ(u32(0x1A14, 4), 0x64013410u);
   // TPDO 28.
   EXPECT_EQ(u32(0x181B, 1), 0x80000000u);
   EXPECT_EQ(u8(0x1A1B, 0), 2);
@@ -253,7 +270,7 @@ TEST_F(OeDeviceTest, PedalEncoderWheelButtonTpdos) {
   EXPECT_EQ(u8(0x1A1F, 0), 4);
   EXPECT_EQ(u32(0x1A1F, 1), 0x64014110u);
   EXPECT_EQ(u32(0x1A1F, 4), 0x64014410u);
-  EXPECT_EQ(od().find(0x1820), nullptr);  // TPDO 33: no wheel 5..8
+  EXPECT_EQ(u32(0x1A20, 1), 0x64014510u);  // TPDO 33: wheels 5..8, none configured
   // TPDO 34: 6000 31h..38h; TPDO 41: push-button cluster 8 = 6000 69h..70h.
   EXPECT_EQ(u8(0x1A21, 0), 8);
   EXPECT_EQ(u32(0x1A21, 1), 0x60003108u);
@@ -289,7 +306,8 @@ TEST_F(OeDeviceTest, IndicatorAndDisplayRpdos) {
   EXPECT_EQ(u8(0x6443, 0x60), 1);
   EXPECT_EQ(od().get<std::int32_t>(0x6444, 0x60), 0);
   EXPECT_NE(od().find(0x6411, 0x18), nullptr);  // display 2 = 0Dh..18h
-  EXPECT_EQ(od().find(0x6411, 0x19), nullptr);  // display 3 not configured
+  EXPECT_EQ(od().find(0x6411, 0x19)->name, "display 3 parameter 1 (not configured)");
+  EXPECT_EQ(od().find(0x6443, 0x19), nullptr);  // no error mode for display 3
 }
 
 // CiA 852 §8.6: entering operational with 6423h FALSE sends EMCY 0080h and stays operational.
