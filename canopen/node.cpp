@@ -51,6 +51,7 @@ Node::Node(ObjectDictionary& od, NodeConfig config, FrameSink sink)
       cfg_(std::move(config)),
       sink_(std::move(sink)),
       bit_timing_(cfg_.bit_timing_index),
+      cob_base_(cfg_.node_id),
       installed_((install_communication_objects(), true)),
       store_(cfg_.store_path.empty() ? nullptr : std::make_unique<ParameterStore>(od_, cfg_.store_path)),
       nmt_(cfg_.node_id, [this](const CanFrame& f) { sink_(f); }),
@@ -322,6 +323,7 @@ void Node::load_lss_file() {
   if (node < 1 || node > 127 || bt < 0 || bt > 9) return;
   const NodeId id{static_cast<std::uint8_t>(node)};
   if (id != cfg_.node_id) rebase_node_id(cfg_.node_id, id);
+  cob_base_ = id;
   nmt_.set_pending_node_id(id);
   lss_.set_active_node_id(id);
   sdo_.set_cob_ids(CobId{cob::kSdoRx + id.value()}, CobId{cob::kSdoTx + id.value()});
@@ -366,9 +368,11 @@ void Node::rebase_node_id(NodeId from, NodeId to) {
 
 void Node::handle_reset(bool communication_only, TimePoint now) {
   now_ = now;
-  const NodeId old_id = nmt_.node_id();
   const NodeId new_id = nmt_.pending_node_id();
-  if (new_id.valid() && new_id != old_id && old_id.valid()) rebase_node_id(old_id, new_id);
+  if (new_id.valid() && new_id != cob_base_ && cob_base_.valid()) {
+    rebase_node_id(cob_base_, new_id);
+    cob_base_ = new_id;
+  }
   if (communication_only) {
     od_.reset_to_defaults(0x1000, 0x1FFF);
   } else {
@@ -385,8 +389,10 @@ void Node::handle_reset(bool communication_only, TimePoint now) {
   // back to 0: 1001h follows the producer again, so the error register never says "no error"
   // while errors are active (CiA 301 §7.5.2.2).
   emcy_.reapply_register();
+  // CiA 305: the pending node-ID becomes the active one, FFh included (the node stays in
+  // initialisation then, see NmtSlave, and answers "identify non-configured remote slave").
+  lss_.set_active_node_id(new_id);
   if (new_id.valid()) {
-    lss_.set_active_node_id(new_id);
     sdo_.set_cob_ids(CobId{cob::kSdoRx + new_id.value()}, CobId{cob::kSdoTx + new_id.value()});
   }
   sdo_.reset();

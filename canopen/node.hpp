@@ -27,6 +27,12 @@
 //        disabling a channel through itself is confirmed on it).
 //    The defaults in NodeConfig are not checked (the owner validates them, e.g. the mapping
 //    file). Sub 3 "node-ID of the SDO client" (0..127, 0 = not given) is stored, not used.
+//  * LSS node-ID FFh (CiA 305 §4, "unconfigured"): a reset with pending node-ID FFh leaves the
+//    node in NMT initialisation, silent but for LSS, and the LSS slave's active node-ID becomes
+//    FFh, so it answers "identify non-configured remote slave". NMT commands are ignored there
+//    (NmtSlave). Configuring a valid node-ID and switching LSS back to waiting starts NMT: the
+//    reset communication moves the COB-ID defaults from the last valid node-ID to the new one
+//    and boots with it.
 #pragma once
 
 #include <cstddef>
@@ -146,6 +152,9 @@ class Node {
   TimePoint now_{};
   std::uint8_t bit_timing_;
   bool bus_off_ = false;
+  // The node-ID the "function code + node-ID" COB-ID defaults are built on: the last valid
+  // active node-ID (the node-ID itself may be FFh, unconfigured, meanwhile).
+  NodeId cob_base_;
 
   // Construction order matters: the services read the objects installed before them.
   bool installed_;
