@@ -15,6 +15,7 @@ constexpr std::uint16_t kSoftwareVersion = 0x100A;
 constexpr std::uint16_t kIdentity = 0x1018;
 constexpr std::uint16_t kSdoServer = 0x1200;
 constexpr std::size_t kMaxExtraSdoServers = 127;  // 1201h..127Fh
+constexpr std::uint16_t kEmcySoftware = 0x6000;   // CiA 301 / CiA 852 Table 37: generic software error
 
 std::vector<std::uint8_t> text(const std::string& s) { return {s.begin(), s.end()}; }
 
@@ -299,6 +300,7 @@ ParameterStore::LoadResult Node::start(TimePoint now) {
   sync_.reload();
   pdo_.reload();
   reload_sdo_channels();
+  store_refused_ = !result.ok;
   nmt_.start(now);
   return result;
 }
@@ -379,11 +381,8 @@ void Node::handle_reset(bool communication_only, TimePoint now) {
     od_.reset_to_defaults(0x0000, 0xFFFF);
   }
   if (store_) {
-    if (communication_only) {
-      (void)store_->load(0x1000, 0x1FFF);
-    } else {
-      (void)store_->load();
-    }
+    const ParameterStore::LoadResult r = communication_only ? store_->load(0x1000, 0x1FFF) : store_->load();
+    store_refused_ = !r.ok;  // EMCY in initialisation would be held back: applied in handle_state
   }
   // The EMCY producer keeps its active errors across a reset, while the reset has just put 1001h
   // back to 0: 1001h follows the producer again, so the error register never says "no error"
@@ -403,8 +402,20 @@ void Node::handle_reset(bool communication_only, TimePoint now) {
   pdo_.reload();
 }
 
+void Node::apply_store_result(bool refused) {
+  if (refused && !emcy_.active(kEmcySoftware)) {
+    emcy_.raise(kEmcySoftware, 0x00, now_);
+  } else if (!refused && emcy_.active(kEmcySoftware)) {
+    emcy_.clear(kEmcySoftware, now_);
+  }
+}
+
 void Node::handle_state(NmtState s) {
   gate_ = s;
+  if (s == NmtState::PreOperational && store_refused_) {
+    apply_store_result(*store_refused_);
+    store_refused_.reset();
+  }
   if (s == NmtState::Initialisation) {
     hb_producer_.stop();
   } else if (!hb_producer_.running()) {

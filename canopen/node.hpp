@@ -92,7 +92,9 @@ class Node {
 
   // Power-on: applies the stored parameters (and an LSS-stored node-ID), sends the boot-up
   // message and enters pre-operational. Returns the store's load result so that a refused
-  // (corrupt) file can be reported by the owner; the node then runs on defaults.
+  // (corrupt) file can be reported by the owner; the node then runs on defaults and holds EMCY
+  // 6000h "generic software error" (CiA 852 Table 37) active until a reset loads an intact
+  // store file again (e.g. after the host saved with 1010h) or the file is gone.
   ParameterStore::LoadResult start(TimePoint now);
 
   bool on_frame(const CanFrame& frame, TimePoint now);
@@ -135,6 +137,7 @@ class Node {
   std::uint8_t store_lss(NodeId id, std::uint8_t bit_timing);
   [[nodiscard]] std::filesystem::path lss_path() const;
   void send(const CanFrame& frame);
+  void apply_store_result(bool refused);
   void communication_error(TimePoint now);
   void install_sdo_channel_objects();
   void install_sdo_channels();
@@ -155,6 +158,7 @@ class Node {
   // The node-ID the "function code + node-ID" COB-ID defaults are built on: the last valid
   // active node-ID (the node-ID itself may be FFh, unconfigured, meanwhile).
   NodeId cob_base_;
+  std::optional<bool> store_refused_;  // a reset's load result, applied once pre-operational
 
   // Construction order matters: the services read the objects installed before them.
   bool installed_;

@@ -182,7 +182,11 @@ int run_gateway(const std::string& file) {
     gw.on_upstream_bus_event(e, loop.now());
     driver.rearm();
   });
-  down->set_event_handler([&](BusEvent e) { spdlog::warn("downstream {}: {}", cfg->downstream.interface, to_string(e)); });
+  down->set_event_handler([&](BusEvent e) {
+    spdlog::warn("downstream {}: {}", cfg->downstream.interface, to_string(e));
+    gw.on_downstream_bus_event(e, loop.now());
+    driver.rearm();
+  });
   watch_transport(loop, *up);
   watch_transport(loop, *down);
   std::unique_ptr<GatewayPublishing> publishing;

@@ -620,8 +620,12 @@ TEST_F(NodeTest, CorruptParameterFileIsReportedAndNodeRunsOnDefaults) {
   EXPECT_TRUE(r.file_present);
   EXPECT_EQ(r.applied, 0u);
   EXPECT_FALSE(r.error.empty());
-  ASSERT_EQ(out.size(), 1u);
-  EXPECT_EQ(out[0].id, 0x720u);  // boots anyway
+  // Boots anyway, then EMCY 6000h "generic software error" (CiA 852 Table 37): it runs on defaults.
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_EQ(out[0].id, 0x720u);
+  EXPECT_EQ(out[1].id, 0xA0u);
+  EXPECT_EQ(bytes(out[1]), (Bytes{0x00, 0x60, 0x01, 0, 0, 0, 0, 0}));
+  EXPECT_TRUE(node->emcy().active(0x6000));
   EXPECT_EQ(node->state(), NmtState::PreOperational);
   EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100u);
   EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
@@ -629,10 +633,22 @@ TEST_F(NodeTest, CorruptParameterFileIsReportedAndNodeRunsOnDefaults) {
   at(t0 + 100ms);  // heartbeat on the default period
   ASSERT_EQ(out.size(), 1u);
   EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
-  // And the same on reset node.
-  nmt(0x81, 0);
+  // And the same on reset node; the error stays active, not sent again.
+  auto r2 = nmt(0x81, 0);
+  ASSERT_EQ(r2.size(), 1u);
+  EXPECT_EQ(r2[0].id, 0x720u);
+  EXPECT_TRUE(node->emcy().active(0x6000));
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x01u);
   EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100u);
   EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
+  // The host saves (1010h:01 "save"): the file is intact again, and the next reset ends 6000h.
+  sdo_ok(0x1010, 1, u32(ParameterStore::kSaveSignature));
+  r2 = nmt(0x82, 0);
+  ASSERT_EQ(r2.size(), 2u);
+  EXPECT_EQ(r2[0].id, 0x720u);
+  EXPECT_EQ(r2[1].id, 0xA0u);
+  EXPECT_EQ(bytes(r2[1]), (Bytes{0x00, 0x00, 0x00, 0, 0, 0, 0, 0}));
+  EXPECT_FALSE(node->emcy().active(0x6000));
 }
 
 // ------------------------------------------------------------------ SYNC producer
