@@ -15,6 +15,7 @@ constexpr std::uint16_t kSoftwareVersion = 0x100A;
 constexpr std::uint16_t kIdentity = 0x1018;
 constexpr std::uint16_t kSdoServer = 0x1200;
 constexpr std::size_t kMaxExtraSdoServers = 127;  // 1201h..127Fh
+constexpr std::uint16_t kEmcySoftware = 0x6000;   // CiA 301 / CiA 852 Table 37: generic software error
 
 std::vector<std::uint8_t> text(const std::string& s) { return {s.begin(), s.end()}; }
 
@@ -51,6 +52,7 @@ Node::Node(ObjectDictionary& od, NodeConfig config, FrameSink sink)
       cfg_(std::move(config)),
       sink_(std::move(sink)),
       bit_timing_(cfg_.bit_timing_index),
+      cob_base_(cfg_.node_id),
       installed_((install_communication_objects(), true)),
       store_(cfg_.store_path.empty() ? nullptr : std::make_unique<ParameterStore>(od_, cfg_.store_path)),
       nmt_(cfg_.node_id, [this](const CanFrame& f) { sink_(f); }),
@@ -298,6 +300,7 @@ ParameterStore::LoadResult Node::start(TimePoint now) {
   sync_.reload();
   pdo_.reload();
   reload_sdo_channels();
+  store_refused_ = !result.ok;
   nmt_.start(now);
   return result;
 }
@@ -322,6 +325,7 @@ void Node::load_lss_file() {
   if (node < 1 || node > 127 || bt < 0 || bt > 9) return;
   const NodeId id{static_cast<std::uint8_t>(node)};
   if (id != cfg_.node_id) rebase_node_id(cfg_.node_id, id);
+  cob_base_ = id;
   nmt_.set_pending_node_id(id);
   lss_.set_active_node_id(id);
   sdo_.set_cob_ids(CobId{cob::kSdoRx + id.value()}, CobId{cob::kSdoTx + id.value()});
@@ -366,27 +370,28 @@ void Node::rebase_node_id(NodeId from, NodeId to) {
 
 void Node::handle_reset(bool communication_only, TimePoint now) {
   now_ = now;
-  const NodeId old_id = nmt_.node_id();
   const NodeId new_id = nmt_.pending_node_id();
-  if (new_id.valid() && new_id != old_id && old_id.valid()) rebase_node_id(old_id, new_id);
+  if (new_id.valid() && new_id != cob_base_ && cob_base_.valid()) {
+    rebase_node_id(cob_base_, new_id);
+    cob_base_ = new_id;
+  }
   if (communication_only) {
     od_.reset_to_defaults(0x1000, 0x1FFF);
   } else {
     od_.reset_to_defaults(0x0000, 0xFFFF);
   }
   if (store_) {
-    if (communication_only) {
-      (void)store_->load(0x1000, 0x1FFF);
-    } else {
-      (void)store_->load();
-    }
+    const ParameterStore::LoadResult r = communication_only ? store_->load(0x1000, 0x1FFF) : store_->load();
+    store_refused_ = !r.ok;  // EMCY in initialisation would be held back: applied in handle_state
   }
   // The EMCY producer keeps its active errors across a reset, while the reset has just put 1001h
   // back to 0: 1001h follows the producer again, so the error register never says "no error"
   // while errors are active (CiA 301 §7.5.2.2).
   emcy_.reapply_register();
+  // CiA 305: the pending node-ID becomes the active one, FFh included (the node stays in
+  // initialisation then, see NmtSlave, and answers "identify non-configured remote slave").
+  lss_.set_active_node_id(new_id);
   if (new_id.valid()) {
-    lss_.set_active_node_id(new_id);
     sdo_.set_cob_ids(CobId{cob::kSdoRx + new_id.value()}, CobId{cob::kSdoTx + new_id.value()});
   }
   sdo_.reset();
@@ -397,8 +402,20 @@ void Node::handle_reset(bool communication_only, TimePoint now) {
   pdo_.reload();
 }
 
+void Node::apply_store_result(bool refused) {
+  if (refused && !emcy_.active(kEmcySoftware)) {
+    emcy_.raise(kEmcySoftware, 0x00, now_);
+  } else if (!refused && emcy_.active(kEmcySoftware)) {
+    emcy_.clear(kEmcySoftware, now_);
+  }
+}
+
 void Node::handle_state(NmtState s) {
   gate_ = s;
+  if (s == NmtState::PreOperational && store_refused_) {
+    apply_store_result(*store_refused_);
+    store_refused_.reset();
+  }
   if (s == NmtState::Initialisation) {
     hb_producer_.stop();
   } else if (!hb_producer_.running()) {

@@ -27,6 +27,12 @@
 //        disabling a channel through itself is confirmed on it).
 //    The defaults in NodeConfig are not checked (the owner validates them, e.g. the mapping
 //    file). Sub 3 "node-ID of the SDO client" (0..127, 0 = not given) is stored, not used.
+//  * LSS node-ID FFh (CiA 305 §4, "unconfigured"): a reset with pending node-ID FFh leaves the
+//    node in NMT initialisation, silent but for LSS, and the LSS slave's active node-ID becomes
+//    FFh, so it answers "identify non-configured remote slave". NMT commands are ignored there
+//    (NmtSlave). Configuring a valid node-ID and switching LSS back to waiting starts NMT: the
+//    reset communication moves the COB-ID defaults from the last valid node-ID to the new one
+//    and boots with it.
 #pragma once
 
 #include <cstddef>
@@ -86,7 +92,9 @@ class Node {
 
   // Power-on: applies the stored parameters (and an LSS-stored node-ID), sends the boot-up
   // message and enters pre-operational. Returns the store's load result so that a refused
-  // (corrupt) file can be reported by the owner; the node then runs on defaults.
+  // (corrupt) file can be reported by the owner; the node then runs on defaults and holds EMCY
+  // 6000h "generic software error" (CiA 852 Table 37) active until a reset loads an intact
+  // store file again (e.g. after the host saved with 1010h) or the file is gone.
   ParameterStore::LoadResult start(TimePoint now);
 
   bool on_frame(const CanFrame& frame, TimePoint now);
@@ -129,6 +137,7 @@ class Node {
   std::uint8_t store_lss(NodeId id, std::uint8_t bit_timing);
   [[nodiscard]] std::filesystem::path lss_path() const;
   void send(const CanFrame& frame);
+  void apply_store_result(bool refused);
   void communication_error(TimePoint now);
   void install_sdo_channel_objects();
   void install_sdo_channels();
@@ -146,6 +155,10 @@ class Node {
   TimePoint now_{};
   std::uint8_t bit_timing_;
   bool bus_off_ = false;
+  // The node-ID the "function code + node-ID" COB-ID defaults are built on: the last valid
+  // active node-ID (the node-ID itself may be FFh, unconfigured, meanwhile).
+  NodeId cob_base_;
+  std::optional<bool> store_refused_;  // a reset's load result, applied once pre-operational
 
   // Construction order matters: the services read the objects installed before them.
   bool installed_;

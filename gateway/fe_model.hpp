@@ -73,7 +73,7 @@ struct WheelState {
 };
 struct EncoderState {
   FeHeader h;
-  std::int32_t position = 0;  // 6120h INTEGER32
+  std::uint32_t position = 0;  // 6120h UNSIGNED32
 };
 struct ButtonClusterState {
   FeHeader h;

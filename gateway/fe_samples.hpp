@@ -38,7 +38,7 @@ struct WheelSample {
 };
 struct EncoderSample {
   SampleHeader h;
-  std::int32_t position = 0;
+  std::uint32_t position = 0;  // 6120h UNSIGNED32; DDS `long` and LCM int32_t carry its 32 bits
 };
 struct ButtonClusterSample {
   SampleHeader h;

@@ -356,6 +356,8 @@ bool Gateway::on_upstream_frame(const canopen::CanFrame& frame, TimePoint now) {
 
 bool Gateway::on_downstream_frame(const canopen::CanFrame& frame, TimePoint now) {
   now_ = now;
+  // A frame received: the downstream interface works again.
+  if (oe_->node().emcy().active(kEmcyHardware)) oe_->node().emcy().clear(kEmcyHardware, now);
   oe_->begin_batch();  // one upstream TPDO per downstream frame, whatever it changed
   begin_outputs();     // the TPDOs end_batch() sends can notice a host heartbeat loss
   const bool used = network_.on_frame(frame, now);
@@ -371,6 +373,13 @@ void Gateway::on_upstream_bus_event(canopen::BusEvent event, TimePoint now) {
   oe_->node().on_bus_event(event, now);
   end_outputs(now);
   publish_changes();
+}
+
+void Gateway::on_downstream_bus_event(canopen::BusEvent event, TimePoint now) {
+  now_ = now;
+  if (event != canopen::BusEvent::InterfaceDown) return;
+  auto& emcy = oe_->node().emcy();
+  if (!emcy.active(kEmcyHardware)) emcy.raise(kEmcyHardware, 0x00, now);
 }
 
 void Gateway::advance(TimePoint now) {

@@ -73,6 +73,12 @@ class Gateway {
   bool on_upstream_frame(const canopen::CanFrame& frame, canopen::TimePoint now);
   bool on_downstream_frame(const canopen::CanFrame& frame, canopen::TimePoint now);
   void on_upstream_bus_event(canopen::BusEvent event, canopen::TimePoint now);
+  // What the downstream controller reports. The interface going down (BusEvent::InterfaceDown)
+  // takes every sub-device away with the gateway's own hardware: EMCY 5000h "generic CANopen
+  // device hardware error" (CiA 852 Table 37) upstream, held until a downstream frame is received
+  // again. The sub-devices' own losses follow as 7000h from their heartbeats, as usual.
+  void on_downstream_bus_event(canopen::BusEvent event, canopen::TimePoint now);
+  static constexpr std::uint16_t kEmcyHardware = 0x5000;
   void advance(canopen::TimePoint now);
   [[nodiscard]] std::optional<canopen::TimePoint> next_deadline() const;
 

@@ -143,8 +143,10 @@ bool OeDevice::set_input(FeId fe, const mapping::FeField& field, std::int64_t va
     raw = byte;
   } else {
     const std::size_t w = canopen::fixed_size(f->type);
-    const std::int64_t lo = -(std::int64_t{1} << (8 * w - 1));
-    const std::int64_t hi = (std::int64_t{1} << (8 * w - 1)) - 1;
+    const bool is_unsigned = f->type == DataType::Unsigned8 || f->type == DataType::Unsigned16 ||
+                             f->type == DataType::Unsigned32;
+    const std::int64_t lo = is_unsigned ? 0 : -(std::int64_t{1} << (8 * w - 1));
+    const std::int64_t hi = is_unsigned ? (std::int64_t{1} << (8 * w)) - 1 : (std::int64_t{1} << (8 * w - 1)) - 1;
     if (value < lo || value > hi) return false;
   }
   const bool ok = write_input_entry(InputEntry{f->index, f->sub, 0, false}, raw);

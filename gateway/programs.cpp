@@ -67,6 +67,19 @@ int run_check(const std::string& file) {
   const auto& fes = device->config().fes;
   const NodeId node{cfg->upstream.node_id};
   std::printf("%s: valid\n\n", file.c_str());
+  // Valid, but departing from CiA 852 / CiA 305 (mapping/README.md).
+  bool warned = false;
+  if (cfg->upstream.heartbeat_ms == 0) {
+    std::printf("warning: upstream.heartbeat_ms is 0: no heartbeat at power-on; CiA 852 §8.3 says the heartbeat "
+                "producer shall be used (default 100 ms)\n");
+    warned = true;
+  }
+  if (cfg->upstream.identity.serial == 0) {
+    std::printf("warning: upstream.identity.serial is 0 (1018h:04): two gateways of one product then share an LSS "
+                "address and cannot be told apart by LSS switch state selective; give each its own serial\n");
+    warned = true;
+  }
+  if (warned) std::printf("\n");
   std::printf("upstream: network %u, node-ID %02Xh on %s, 1000h device type = %08Xh (CiA 852 Table 8)\n",
               cfg->upstream.network_id, node.value(), cfg->upstream.interface.c_str(),
               device->od().get<std::uint32_t>(0x1000, 0));
@@ -169,7 +182,11 @@ int run_gateway(const std::string& file) {
     gw.on_upstream_bus_event(e, loop.now());
     driver.rearm();
   });
-  down->set_event_handler([&](BusEvent e) { spdlog::warn("downstream {}: {}", cfg->downstream.interface, to_string(e)); });
+  down->set_event_handler([&](BusEvent e) {
+    spdlog::warn("downstream {}: {}", cfg->downstream.interface, to_string(e));
+    gw.on_downstream_bus_event(e, loop.now());
+    driver.rearm();
+  });
   watch_transport(loop, *up);
   watch_transport(loop, *down);
   std::unique_ptr<GatewayPublishing> publishing;

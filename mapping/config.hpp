@@ -69,7 +69,9 @@ struct UpstreamConfig {
   std::uint8_t node_id = 0;  // required
   std::uint32_t bitrate = 250000;
   UpstreamIdentity identity;
-  std::uint16_t heartbeat_ms = 0;                      // 1017h producer heartbeat time at power-on (0 = off)
+  // 1017h producer heartbeat time at power-on. CiA 852 §8.3: heartbeat "shall be used", so the
+  // default is 100 ms (mapping/README.md); 0 (off) only when written, and `oegw check` warns.
+  std::uint16_t heartbeat_ms = 100;
   std::string store = "/var/lib/oegw/upstream.store";  // 1010h/1011h store
   // The network ID of the host's bus (CiA 302-7 multi-level networking: the number the host uses
   // to name a network in a remote SDO/EMCY), 1..127, distinct from downstream.network_id.

@@ -42,7 +42,7 @@ namespace {
 // ---- Which signal kinds fit which field ------------------------------------------------------
 
 // Inputs: a one-bit field takes a Button or Digital signal, an INTEGER16 field an Axis or Analog
-// one, an INTEGER32 field a Position or Analog one. Outputs take Output signals.
+// one, a 32-bit field (UNSIGNED32 encoder) a Position or Analog one. Outputs take Output signals.
 bool fits(const SignalInfo& s, const FeField& f, bool input) {
   if (!input) return s.kind == SignalKind::Output;
   if (f.bit != 0xFF) return s.kind == SignalKind::Button || s.kind == SignalKind::Digital;
@@ -91,10 +91,11 @@ std::vector<std::string_view> allowed_options(const FeField& first, bool input) 
 }
 
 // The range of the FE value, for `fault` and `clamp`: 0..1 for a one-bit input, the OD type's
-// for an INTEGER16/INTEGER32 input; outputs (in signal units) only loosely bounded.
+// for an INTEGER16/UNSIGNED32/INTEGER32 input; outputs (in signal units) only loosely bounded.
 ValueRange option_range(const FeField& first, bool input) {
   if (input && first.bit != 0xFF) return {0, 1};
   if (input && first.type == DataType::Integer16) return {-32768, 32767};
+  if (input && first.type == DataType::Unsigned32) return {0, std::numeric_limits<std::uint32_t>::max()};
   if (input) return {std::numeric_limits<std::int32_t>::min(), std::numeric_limits<std::int32_t>::max()};
   return {std::numeric_limits<std::int64_t>::min() / 2, std::numeric_limits<std::int64_t>::max() / 2};
 }

@@ -18,12 +18,12 @@ constexpr std::int64_t kI16Min = std::numeric_limits<std::int16_t>::min();
 constexpr std::int64_t kI16Max = std::numeric_limits<std::int16_t>::max();
 constexpr std::int64_t kI32Min = std::numeric_limits<std::int32_t>::min();
 constexpr std::int64_t kI32Max = std::numeric_limits<std::int32_t>::max();
+constexpr std::int64_t kU32Max = std::numeric_limits<std::uint32_t>::max();
 
 bool one_bit(const FeField& f) { return f.bit != 0xFF; }
 
-std::int64_t wrap32(std::int64_t v) {
-  return static_cast<std::int64_t>(static_cast<std::int32_t>(static_cast<std::uint32_t>(v & 0xFFFFFFFF)));
-}
+// The low 32 bits as UNSIGNED32 (two's complement of a negative value).
+std::int64_t wrap32(std::int64_t v) { return v & 0xFFFFFFFF; }
 
 }  // namespace
 
@@ -69,10 +69,15 @@ InputParams resolve_input(const SignalInfo& signal, const FeField& field, const 
     const bool scaled = p.scale != 1.0;
     p.clamp_min = scaled ? -kI16Max : kI16Min;
     p.clamp_max = kI16Max;
+  } else if (field.type == DataType::Unsigned32) {
+    p.clamp_min = 0;
+    p.clamp_max = kU32Max;
+    // A signal outside 0..FFFFFFFFh (a signed INTEGER32 position, a wider counter) keeps its
+    // 32-bit pattern unless scale or clamp says otherwise.
+    if (!o.scale && !o.clamp && (signal.min < 0 || signal.max > kU32Max)) p.mode = InputParams::Mode::Wrap32;
   } else {
     p.clamp_min = kI32Min;
     p.clamp_max = kI32Max;
-    if (!o.scale && !o.clamp && (signal.min < kI32Min || signal.max > kI32Max)) p.mode = InputParams::Mode::Wrap32;
   }
   if (o.clamp) {
     p.clamp_min = o.clamp->first;

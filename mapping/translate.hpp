@@ -11,9 +11,9 @@
 //    signal whose range fits INTEGER16 (MCB-402 raw16, generic 6401h) passes unscaled; a wider
 //    signal is scaled so that max(|min|, |max|) becomes 32767.
 //  * Default clamp for an INTEGER16 field: ±32767 when the value is scaled (symmetric full
-//    scale), the INTEGER16 range -32768..32767 when it passes unscaled. INTEGER32 (encoder
-//    6120h) passes unscaled; a signal wider than INTEGER32 (an UNSIGNED32 encoder) keeps its
-//    32-bit pattern (two's complement), so a wrapping counter keeps wrapping.
+//    scale), the INTEGER16 range -32768..32767 when it passes unscaled. UNSIGNED32 (encoder
+//    6120h) passes unscaled; a signal outside 0..FFFFFFFFh (a signed INTEGER32 position) keeps
+//    its 32-bit pattern (two's complement), so a wrapping counter keeps wrapping.
 //  * One-bit fields (buttons, memory bits, switches): 1 when the (inverted) signal is non-zero.
 //    A bit-packed signal (a CiA 401 input byte: Digital, 0..2^n−1, n ≥ 2; see bit_width()) feeds
 //    one-bit fields bit by bit: field k takes bit `signal_bit` of the value.
@@ -50,7 +50,7 @@ struct FieldOptions {
 
 // The resolved parameters of one input field: everything FieldTranslator needs.
 struct InputParams {
-  enum class Mode : std::uint8_t { Value, Bit, Wrap32 };
+  enum class Mode : std::uint8_t { Value, Bit, Wrap32 };  // Wrap32: the low 32 bits, UNSIGNED32
   Mode mode = Mode::Value;
   double scale = 1.0;
   std::int64_t offset = 0;

@@ -171,7 +171,7 @@ void DdsPublisher::publish(const WheelSample& s) {
   dds_write(impl_->wheel, &m);
 }
 void DdsPublisher::publish(const EncoderSample& s) {
-  const oegw_Encoder m{s.h.instance, to_dds(s.h.status), s.h.timestamp_us, s.h.seq, s.position};
+  const oegw_Encoder m{s.h.instance, to_dds(s.h.status), s.h.timestamp_us, s.h.seq, static_cast<std::int32_t>(s.position)};
   dds_write(impl_->encoder, &m);
 }
 void DdsPublisher::publish(const ButtonClusterSample& s) {

@@ -120,7 +120,7 @@ void LcmPublisher::publish(const JoystickSample& s) {
 void LcmPublisher::publish(const PedalSample& s) {
   oegw::pedal_t m;
   set_header(m, s.h);
-  m.position = s.position;
+  m.position = static_cast<std::int32_t>(s.position);  // the 32 bits of UNSIGNED32 (LCM has no unsigned type)
   m.memory = s.memory;
   impl_->send(impl_->channel(kPedal, s.h.instance), m);
 }

@@ -105,8 +105,9 @@ canopen::NodeConfig build_dictionary(const DeviceConfig& cfg, ObjectDictionary& 
 
   add_sparse_array(od, kReadInput8, DataType::Unsigned8, Access::ReadOnly, mapped_of(kReadInput8), {0}, true,
                    namer(kReadInput8));
-  add_sparse_array(od, kReadInput32, DataType::Integer32, Access::ReadOnly, mapped_of(kReadInput32),
-                   canopen::encode<std::int32_t>(0), true, namer(kReadInput32));
+  // 6120h: UNSIGNED32 (CiA 852 §9.4 "an unsigned 32-bit value", CiA 401 "read input 32-bit").
+  add_sparse_array(od, kReadInput32, DataType::Unsigned32, Access::ReadOnly, mapped_of(kReadInput32),
+                   canopen::encode<std::uint32_t>(0), true, namer(kReadInput32));
   add_sparse_array(od, kReadAnalogueInput16, DataType::Integer16, Access::ReadOnly, mapped_of(kReadAnalogueInput16),
                    canopen::encode<std::int16_t>(0), true, namer(kReadAnalogueInput16));
   if (has_kind(fes, FeKind::Joystick) || has_kind(fes, FeKind::FootPedal) || has_kind(fes, FeKind::Wheel))
@@ -116,7 +117,12 @@ canopen::NodeConfig build_dictionary(const DeviceConfig& cfg, ObjectDictionary& 
   const auto ind = subs_of(kWriteOutput8);
   add_sparse_array(od, kWriteOutput8, DataType::Unsigned8, Access::ReadWrite, mapped_of(kWriteOutput8), {0}, true,
                    namer(kWriteOutput8));
-  add_sparse_array(od, kErrorModeOutput8, DataType::Unsigned8, Access::ReadWrite, ind, {0x01}, false,
+  // 6206h default FFh, not Table 6's 01h: CiA 401 6206h is a mask, bit n = output line n of the
+  // 6200h byte takes its 6207h value on a device error (the MCB-402's CiA 401 implementation
+  // documents the same, default FFh). Table 6 gives one mode per entry ("error mode 1-to-8"), and
+  // 01h as a mask would leave indicators 2..8 of each byte lit when the host is lost; FFh is
+  // "error mode on" for all eight (README "CiA 852 decisions").
+  add_sparse_array(od, kErrorModeOutput8, DataType::Unsigned8, Access::ReadWrite, ind, {0xFF}, false,
                    namer(kWriteOutput8));
   add_sparse_array(od, kErrorValueOutput8, DataType::Unsigned8, Access::ReadWrite, ind, {0x00}, false,
                    namer(kWriteOutput8));

@@ -6,7 +6,7 @@
 //    (sub 2n), pedal n memory (sub 20h+n), push-button cluster n (subs 31h+8(n−1) … 38h+8(n−1)).
 //  * 6401h "Read analogue input 16-bit" INTEGER16 ro mappable: joystick n x/y/z (subs 3n−2 … 3n),
 //    pedal n (sub 30h+n), wheel n (sub 40h+n).
-//  * 6120h "Read input 32-bit" INTEGER32 ro mappable: encoder n (sub 80h+n).
+//  * 6120h "Read input 32-bit" UNSIGNED32 ro mappable: encoder n (sub 80h+n).
 //  * 6423h "Analogue input global interrupt enable" BOOLEAN rw, default FALSE: present when an
 //    FE with analogue inputs (joystick, pedal, wheel) is configured (Tables 1, 2, 4).
 //  * 6200h "Write output 8-bit" UNSIGNED8 rw mappable, 6206h "Error mode output 8-bit" UNSIGNED8

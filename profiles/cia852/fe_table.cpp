@@ -61,7 +61,7 @@ std::vector<FeField> fe_fields(FeId fe) {
       out.push_back({"memory_x", kIn8, u8(0x20 + n), 0, DataType::Unsigned8});  // Table 2 / Figure 6
       out.push_back({"position", kAnalogueIn16, u8(0x30 + n), 0xFF, DataType::Integer16});
       break;
-    case FeKind::Encoder: out.push_back({"position", kIn32, u8(0x80 + n), 0xFF, DataType::Integer32}); break;
+    case FeKind::Encoder: out.push_back({"position", kIn32, u8(0x80 + n), 0xFF, DataType::Unsigned32}); break;
     case FeKind::Wheel: out.push_back({"position", kAnalogueIn16, u8(0x40 + n), 0xFF, DataType::Integer16}); break;
     case FeKind::ButtonCluster:
       for (unsigned i = 1; i <= 64; ++i)

@@ -51,7 +51,7 @@ struct FeField {
 //  joystick n:  memory_x, memory_y, memory_z (6000h sub 2n−1, bits 0..2), buttons[1..8] (6000h
 //               sub 2n, bits 0..7), x, y, z (6401h sub 3n−2 … 3n, INTEGER16)
 //  pedal n:     memory_x (6000h sub 20h+n, bit 0), position (6401h sub 30h+n, INTEGER16)
-//  encoder n:   position (6120h sub 80h+n, INTEGER32 as CiA 401 defines 6120h; see README)
+//  encoder n:   position (6120h sub 80h+n, UNSIGNED32 as CiA 852 §9.4 and CiA 401 define 6120h)
 //  wheel n:     position (6401h sub 40h+n, INTEGER16)
 //  buttons n:   switch[1..64] (6000h sub 31h+8(n−1)+⌊(i−1)/8⌋, bit (i−1) mod 8)
 //  indicators n: indicator[1..64] (6200h sub 01h+8(n−1)+⌊(i−1)/8⌋, bit (i−1) mod 8)

@@ -392,7 +392,7 @@ TEST_F(GatewayE2E, PedalEncoderWheelAndButtonClusterTpdos) {
   EXPECT_EQ(i16(*p, 4), 0);
   EXPECT_EQ(p->data[0], 0x00);
   EXPECT_EQ(i16(*p, 1), 20000);
-  // TPDO 28 (Table 20): encoder 1 (6120h:81h) INTEGER32, then encoder 2 (not configured: 0).
+  // TPDO 28 (Table 20): encoder 1 (6120h:81h) UNSIGNED32, then encoder 2 (not configured: 0).
   const auto e = last(kTpdo28);
   ASSERT_TRUE(e) << dump();
   EXPECT_EQ(e->dlc, 8);
@@ -410,14 +410,15 @@ TEST_F(GatewayE2E, PedalEncoderWheelAndButtonClusterTpdos) {
   ASSERT_TRUE(b) << dump();
   EXPECT_GE(b->dlc, 1);
   EXPECT_EQ(b->data[0], 0x05);
-  // A negative encoder value keeps its sign, the pedal's deadband (100) gives neutral.
+  // A negative encoder value keeps its 32-bit pattern (6120h is UNSIGNED32), the pedal's deadband
+  // (100) gives neutral.
   cmd("seat_knob position -5");
   cmd("pedal analog[1] 99");
   run_for(500ms);
   EXPECT_EQ(static_cast<std::int32_t>(get_u32(&last(kTpdo28)->data[0])), -5);
   EXPECT_EQ(i16(*last(kTpdo20), 1), 0);
   EXPECT_EQ(field(kPedal1, "position"), 0);
-  EXPECT_EQ(field(kEnc1, "position"), -5);
+  EXPECT_EQ(field(kEnc1, "position"), 0xFFFFFFFBLL);  // -5 as UNSIGNED32
   EXPECT_EQ(field(kWheel1, "position"), 6553);
   EXPECT_EQ(field(kButtons1, "switch[3]"), 1);
 }

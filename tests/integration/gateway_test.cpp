@@ -68,6 +68,28 @@ TEST(Gateway, AChangedGripFrameQueuesTpdo1AtOnceAndAnUnchangedOneNothing) {
   EXPECT_EQ(rig->downstream_while_detached(), 0u);
 }
 
+// CiA 852 Table 37 5000h: the downstream interface going down is the gateway's own hardware; held
+// until a downstream frame shows it works again.
+TEST(Gateway, DownstreamInterfaceDownRaisesEmcy5000hUntilAFrameArrives) {
+  auto rig = booted(bench::yaml_one_grip());
+  rig->detach();
+  auto& up = rig->upstream();
+  const auto before = up.frames;
+  rig->gw().on_downstream_bus_event(canopen::BusEvent::InterfaceDown, rig->now());
+  ASSERT_EQ(up.frames, before + 1);
+  EXPECT_EQ(up.last.id, 0xA0u);
+  EXPECT_EQ(canopen::get_u16(&up.last.data[0]), 0x5000u);
+  EXPECT_EQ(up.last.data[2] & 0x01, 0x01);
+  EXPECT_TRUE(rig->gw().upstream().node().emcy().active(0x5000));
+  rig->gw().on_downstream_bus_event(canopen::BusEvent::InterfaceDown, rig->now());  // still down: once
+  rig->gw().on_downstream_bus_event(canopen::BusEvent::ErrorWarning, rig->now());   // not a loss
+  EXPECT_EQ(up.frames, before + 1);
+  (void)rig->gw().on_downstream_frame(grip1_frame(0), rig->now());
+  EXPECT_FALSE(rig->gw().upstream().node().emcy().active(0x5000));
+  EXPECT_EQ(up.last.id, 0xA0u);
+  EXPECT_EQ(canopen::get_u16(&up.last.data[0]), 0x0000u);
+}
+
 TEST(Gateway, OneSignalFeedingSeveralFesReportsEachOnceInFeOrder) {
   auto rig = booted(fixtures::mapping_file("one_signal_several_fes.yaml"));
   rig->detach();

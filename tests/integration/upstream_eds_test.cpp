@@ -11,6 +11,8 @@
 
 #include "gateway/gateway.hpp"
 #include "gateway/runtime_config.hpp"
+#include "canopen/306/eds_reader.hpp"
+#include "tests/fixtures/fixtures.hpp"
 
 namespace {
 
@@ -152,3 +154,134 @@ TEST(UpstreamEds, AdditionalSdoServerChannelsAreListedWithTheirDefaults) {
   EXPECT_NE(eds.find("=SDO server 1202h (disabled until the host sets its COB-IDs): the gateway's own dictionary\n"),
             std::string::npos);
 }
+
+// ---------------------------------------------------------------- EDS versus SDO upload
+//
+// Every object of the EDS `oegw eds` writes, read back with the CiA 306 reader, against the
+// running device built from the same Config (device_config(), as `oegw run` builds it): the
+// default value equals an SDO upload from the started device, a read-only/const entry refuses an
+// SDO download (0601 0002h), a write-only one refuses an upload (0601 0001h).
+namespace eds_vs_device {
+
+using canopen::CanFrame;
+using Bytes = std::vector<std::uint8_t>;
+
+struct Host {
+  std::unique_ptr<gateway::Gateway> gw;
+  std::vector<CanFrame> up;
+  canopen::TimePoint now{std::chrono::seconds(10)};
+  canopen::NodeId node;
+
+  explicit Host(const mapping::Config& c) : node(c.upstream.node_id) {
+    gateway::GatewayOptions o;
+    o.store_path = std::filesystem::path("/nonexistent/oegw-eds-vs-device.store");
+    gw = std::make_unique<gateway::Gateway>(c, [this](const CanFrame& f) { up.push_back(f); },
+                                            [](const CanFrame&) {}, o);
+    (void)gw->start(now);
+  }
+  std::optional<CanFrame> request(const Bytes& b) {
+    up.clear();
+    CanFrame f(0x600 + node.value(), std::span<const std::uint8_t>(b));
+    (void)gw->on_upstream_frame(f, now);
+    for (const auto& r : up)
+      if (r.id == 0x580u + node.value()) return r;
+    return std::nullopt;
+  }
+  // Expedited or segmented upload: the bytes, or the abort code.
+  std::pair<Bytes, std::uint32_t> upload(std::uint16_t index, std::uint8_t sub) {
+    const auto lo = static_cast<std::uint8_t>(index), hi = static_cast<std::uint8_t>(index >> 8);
+    auto r = request({0x40, lo, hi, sub, 0, 0, 0, 0});
+    if (!r) return {{}, 0xFFFFFFFFu};
+    if (r->data[0] == 0x80) return {{}, canopen::get_u32(&r->data[4])};
+    if ((r->data[0] & 0x02) != 0) {  // expedited
+      const std::size_t n = (r->data[0] & 0x01) ? 4 - ((r->data[0] >> 2) & 3) : 4;
+      return {Bytes(r->data.begin() + 4, r->data.begin() + 4 + n), 0};
+    }
+    Bytes out;
+    std::uint8_t toggle = 0;
+    for (int guard = 0; guard < 64; ++guard) {
+      auto s = request({static_cast<std::uint8_t>(0x60 | toggle), 0, 0, 0, 0, 0, 0, 0});
+      if (!s) return {{}, 0xFFFFFFFFu};
+      if (s->data[0] == 0x80) return {{}, canopen::get_u32(&s->data[4])};
+      const std::size_t n = 7 - ((s->data[0] >> 1) & 7);
+      out.insert(out.end(), s->data.begin() + 1, s->data.begin() + 1 + n);
+      if (s->data[0] & 0x01) break;
+      toggle ^= 0x10;
+    }
+    return {out, 0};
+  }
+  std::uint32_t download(std::uint16_t index, std::uint8_t sub, const Bytes& data) {
+    const auto cs = static_cast<std::uint8_t>(0x23 | ((4 - data.size()) << 2));
+    Bytes f{cs, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8), sub, 0, 0, 0, 0};
+    std::copy(data.begin(), data.end(), f.begin() + 4);
+    auto r = request(f);
+    if (!r) return 0xFFFFFFFFu;
+    return r->data[0] == 0x80 ? canopen::get_u32(&r->data[4]) : 0;
+  }
+};
+
+// The EDS default as the device's bytes (little endian, the type's size; strings as written).
+Bytes expected_bytes(const canopen::eds::SubEntry& e, canopen::NodeId node) {
+  const auto& v = *e.default_value;
+  if (!v.numeric) return Bytes(v.text.begin(), v.text.end());
+  const std::uint64_t n = v.number + (v.node_relative ? node.value() : 0);
+  const std::size_t w = canopen::fixed_size(e.type);
+  Bytes b(w);
+  for (std::size_t i = 0; i < w; ++i) b[i] = static_cast<std::uint8_t>(n >> (8 * i));
+  return b;
+}
+
+void expect_eds_matches_uploads(const std::string& yaml, const std::string& what) {
+  SCOPED_TRACE(what);
+  const mapping::Config c = load(yaml);
+  std::string error;
+  const auto file = canopen::eds::parse(gateway::upstream_eds(c, "oegw.eds"), "oegw.eds", error);
+  ASSERT_TRUE(file) << error;
+  Host host(c);
+  // The device as the EDS describes it at power-on: 1003h and 1001h may hold what start()
+  // raised, the store is absent (so no 6000h), nothing else moved.
+  std::size_t compared = 0;
+  for (const auto& [index, obj] : file->objects) {
+    for (const auto& [sub, e] : obj.subs) {
+      SCOPED_TRACE(fmt::format("{:04X}h sub {:02X}h", index, sub));
+      const bool readable = e.access != canopen::Access::WriteOnly;
+      const auto [bytes, abort] = host.upload(index, sub);
+      if (!readable) {
+        EXPECT_EQ(abort, 0x06010001u);
+        continue;
+      }
+      ASSERT_EQ(abort, 0u) << std::hex << abort;
+      if (e.default_value) {
+        EXPECT_EQ(bytes, expected_bytes(e, host.node));
+        ++compared;
+      }
+      // A read-only or const entry refuses a download of its own value (cheap: no state change).
+      if ((e.access == canopen::Access::ReadOnly || e.access == canopen::Access::Const) && !bytes.empty() &&
+          bytes.size() <= 4) {
+        EXPECT_EQ(host.download(index, sub, bytes), 0x06010002u);
+      }
+    }
+  }
+  EXPECT_GT(compared, 20u);
+}
+
+TEST(UpstreamEdsVersusDevice, DemoCab) {
+  expect_eds_matches_uploads(fixtures::mapping_file("demo_cab.yaml"), "demo_cab.yaml");
+}
+TEST(UpstreamEdsVersusDevice, OneGrip) {
+  expect_eds_matches_uploads(fixtures::mapping_file("one_grip.yaml"), "one_grip.yaml");
+}
+TEST(UpstreamEdsVersusDevice, FullFeSet) {
+  expect_eds_matches_uploads(fixtures::mapping_file("full_fe_set.yaml"), "full_fe_set.yaml");
+}
+TEST(UpstreamEdsVersusDevice, SdoServers) {
+  expect_eds_matches_uploads(fixtures::mapping_file("sdo_servers.yaml"), "sdo_servers.yaml");
+}
+TEST(UpstreamEdsVersusDevice, AJoystickWithoutButtons) {
+  expect_eds_matches_uploads(kHead +
+                                 "functional_elements:\n"
+                                 "  joystick.1: { x: { signal: grip.x }, y: { signal: grip.y } }\n",
+                             "joystick without buttons");
+}
+
+}  // namespace eds_vs_device

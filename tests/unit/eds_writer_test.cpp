@@ -153,7 +153,7 @@ TEST_F(EdsWriterTest, ObjectSections) {
   EXPECT_EQ(in.at("DefaultValue"), "0");
   EXPECT_EQ(ini.sections.at("6423").at("DataType"), "0x0001");
   EXPECT_EQ(ini.sections.at("6423").at("DefaultValue"), "0");
-  EXPECT_EQ(ini.sections.at("6206sub1").at("DefaultValue"), "0x1");
+  EXPECT_EQ(ini.sections.at("6206sub1").at("DefaultValue"), "0xFF");
   EXPECT_EQ(ini.sections.at("6443sub1").at("HighLimit"), "0x1");
   EXPECT_EQ(ini.sections.at("6444sub1").at("DataType"), "0x0004");
   // RECORD: TPDO 1 with a node-relative COB-ID, TPDO 5 absolute (CiA 852 §12.2.1 / §12.2.2).

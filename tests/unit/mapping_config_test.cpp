@@ -213,7 +213,7 @@ TEST(MappingConfig, MinimalFileAndDefaults) {
   const auto r = load(kHead + "  joystick.1: { x: right_grip.x }\n");
   ASSERT_TRUE(r.ok()) << r.error_text();
   EXPECT_EQ(r.config->upstream.bitrate, 250000u);
-  EXPECT_EQ(r.config->upstream.heartbeat_ms, 0);
+  EXPECT_EQ(r.config->upstream.heartbeat_ms, 100);  // CiA 852 §8.3: heartbeat "shall be used"
   EXPECT_EQ(r.config->downstream.bitrate, 250000u);
   EXPECT_EQ(r.config->upstream.network_id, 1);
   EXPECT_EQ(r.config->downstream.network_id, 2);
@@ -681,7 +681,7 @@ TEST(MappingConfig, LongFormOptionsAreParsedAndChecked) {
     buttons[1]: { signal: "right_grip.buttons[1]", scale: 2, fault: 2 }
     x: { signal: right_grip.x, fault: 40000, clamp: [-40000, 0] }
   encoder.1:
-    position: { signal: knob.position, fault: 40000, clamp: [-40000, 0] }
+    position: { signal: knob.position, fault: 40000, clamp: [0, 40000] }
 )");
   EXPECT_THAT(errors(bad), ElementsAre(
       "t.yaml:10:39: found [5, -5] for clamp; expected [min, max] with integers -32768 <= min <= max <= 32767",
@@ -695,7 +695,7 @@ TEST(MappingConfig, LongFormOptionsAreParsedAndChecked) {
       "t.yaml:16:69: fault 2 is out of range; expected 0..1",
       "t.yaml:17:39: fault 40000 is out of range; expected -32768..32767",
       "t.yaml:17:53: found [-40000, 0] for clamp; expected [min, max] with integers -32768 <= min <= max <= 32767"));
-  // An INTEGER32 field (6120h) takes what an INTEGER16 one refuses.
+  // An UNSIGNED32 field (6120h) takes what an INTEGER16 one refuses.
   EXPECT_EQ(bad.errors.size(), 10u);
 }
 

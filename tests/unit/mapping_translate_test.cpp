@@ -63,16 +63,21 @@ TEST(MappingTranslate, WideSignalIsScaledSoItsLargerEndIsFullScale) {
   EXPECT_EQ(translate_input(p, 50000), 16384);
 }
 
-TEST(MappingTranslate, EncoderInteger32PassesAndUnsigned32KeepsItsBitPattern) {
+// 6120h is UNSIGNED32 (CiA 852 §9.4): an UNSIGNED32 counter passes as it is, a signed INTEGER32
+// position keeps its 32-bit pattern (two's complement).
+TEST(MappingTranslate, EncoderUnsigned32PassesAndInteger32KeepsItsBitPattern) {
   const auto p = resolve_input(kEncoder, encoder_position(), {});
   EXPECT_EQ(translate_input(p, 2147483647LL), 2147483647LL);
-  EXPECT_EQ(translate_input(p, -2147483648LL), -2147483648LL);
+  EXPECT_EQ(translate_input(p, -2147483648LL), 0x80000000LL);
+  EXPECT_EQ(translate_input(p, -1), 0xFFFFFFFFLL);
   EXPECT_EQ(translate_input(p, 70000), 70000);  // no INTEGER16 clamp on 6120h
   EXPECT_FALSE(p.interlock);                     // an absolute position has no neutral to wait for
   const auto u = resolve_input(kEncoderU32, encoder_position(), {});
-  EXPECT_EQ(translate_input(u, 0xFFFFFFFFLL), -1);             // wraps like the counter does
-  EXPECT_EQ(translate_input(u, 0x80000000LL), -2147483648LL);
+  EXPECT_EQ(translate_input(u, 0xFFFFFFFFLL), 0xFFFFFFFFLL);
+  EXPECT_EQ(translate_input(u, 0x80000000LL), 0x80000000LL);
   EXPECT_EQ(translate_input(u, 5), 5);
+  EXPECT_EQ(u.clamp_min, 0);
+  EXPECT_EQ(u.clamp_max, 0xFFFFFFFFLL);
 }
 
 TEST(MappingTranslate, ExplicitScaleOffsetAndClamp) {

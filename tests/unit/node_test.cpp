@@ -460,6 +460,146 @@ TEST_F(NodeTest, LssConfiguresStoresAndActivatesNodeId) {
   EXPECT_EQ(bytes(out[0]), (Bytes{0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}));
 }
 
+// ------------------------------------------------------------------ LSS node-ID FFh (CiA 305)
+
+TEST_F(NodeTest, LssNodeIdFfhLeavesTheNodeUnconfiguredAndSilentButForLss) {
+  make();
+  start();
+  EXPECT_TRUE(lss({0x04, 0x01}).empty());  // 7E5#04 01: configuration
+  auto r = lss({0x11, 0xFF});              // 7E5#11 FF
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x7E4u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x11, 0x00, 0, 0, 0, 0, 0, 0}));  // 7E4#11 00
+  EXPECT_TRUE(lss({0x04, 0x00}).empty());  // 7E5#04 00: waiting; the node stays at 20h (active)
+  EXPECT_EQ(node->state(), NmtState::PreOperational);
+  EXPECT_TRUE(nmt(0x82, 0x00).empty());    // 000#82 00: no boot-up
+  EXPECT_EQ(node->state(), NmtState::Initialisation);
+  EXPECT_TRUE(node->node_id().unconfigured());
+  EXPECT_TRUE(node->lss().active_node_id().unconfigured());
+  // Silent: no heartbeat, no SDO answer, no EMCY.
+  out.clear();
+  after(1s);
+  EXPECT_TRUE(out.empty());
+  EXPECT_TRUE(sdo_read(0x1000, 0).empty());
+  out.clear();
+  (void)node->emcy().raise(0x5000, 0x00, now);
+  EXPECT_TRUE(out.empty());
+  (void)node->emcy().clear(0x5000, now);
+  // NMT commands addressed to it (all nodes, its old ID, FFh) do nothing while unconfigured.
+  for (const std::uint8_t cs : {0x01, 0x02, 0x80, 0x81, 0x82})
+    for (const std::uint8_t target : {0x00, 0x20, 0xFF}) {
+      EXPECT_TRUE(nmt(cs, target).empty()) << int(cs) << " " << int(target);
+      EXPECT_EQ(node->state(), NmtState::Initialisation);
+    }
+  // LSS is served: identify non-configured remote slave 7E5#4C -> 7E4#50.
+  r = lss({0x4C});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x7E4u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x50, 0, 0, 0, 0, 0, 0, 0}));
+}
+
+// CiA 305's recovery: switch state selective (the 1018h address), configure node-ID, switch
+// state global waiting -> the node starts with the new node-ID; NMT then works as usual.
+TEST_F(NodeTest, LssRecoversAnUnconfiguredNodeBySelectiveSwitchAndNewNodeId) {
+  make();
+  start();
+  lss({0x04, 0x01});
+  lss({0x11, 0xFF});
+  lss({0x04, 0x00});
+  nmt(0x82, 0x00);
+  ASSERT_EQ(node->state(), NmtState::Initialisation);
+  // Switch state selective on 1018h:01..04 = 1234h, 852h, 10002h, 42: 7E4#44.
+  EXPECT_TRUE(lss({0x40, 0x34, 0x12, 0x00, 0x00}).empty());
+  EXPECT_TRUE(lss({0x41, 0x52, 0x08, 0x00, 0x00}).empty());
+  EXPECT_TRUE(lss({0x42, 0x02, 0x00, 0x01, 0x00}).empty());
+  auto r = lss({0x43, 42, 0x00, 0x00, 0x00});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x44, 0, 0, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(node->lss().mode(), lss::Mode::Configuration);
+  // Inquire node-ID: still FFh (active).
+  r = lss({0x5E});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x5E, 0xFF, 0, 0, 0, 0, 0, 0}));
+  r = lss({0x11, 0x21});  // configure node-ID 21h
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x11, 0x00, 0, 0, 0, 0, 0, 0}));
+  EXPECT_TRUE(lss({0x4C}).empty());  // a node-ID is pending: no longer "non-configured"
+  EXPECT_EQ(node->state(), NmtState::Initialisation);
+  // Switch state global waiting: NMT starts, boot-up 721#00.
+  r = lss({0x04, 0x00});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x721u);
+  EXPECT_EQ(bytes(r[0]), Bytes{0x00});
+  EXPECT_EQ(node->state(), NmtState::PreOperational);
+  EXPECT_EQ(node->node_id(), NodeId{0x21});
+  EXPECT_EQ(node->lss().active_node_id(), NodeId{0x21});
+  EXPECT_TRUE(lss({0x4C}).empty());
+  // The COB-ID defaults moved from 20h (the last valid node-ID) to 21h.
+  EXPECT_EQ(od.get<std::uint32_t>(0x1200, 1), 0x621u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1200, 2), 0x5A1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1800, 1), 0x1A1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1801, 1), 0x2A1u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1400, 1), 0x221u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1014, 0), 0xA1u);
+  EXPECT_TRUE(sdo_read(0x1000, 0, kId).empty());
+  r = sdo_read(0x1000, 0, NodeId{0x21});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x5A1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}));
+  out.clear();
+  after(100ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x721u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
+  // NMT: start, reset communication, reset node behave, with boot-ups on 721h.
+  for (const CanFrame& f : nmt(0x01, 0x21)) EXPECT_EQ(f.id, 0x1A1u);  // TPDO 1 on entering operational
+  EXPECT_EQ(node->state(), NmtState::Operational);
+  EXPECT_TRUE(nmt(0x02, 0x20).empty());  // its old node-ID: not addressed any more
+  EXPECT_EQ(node->state(), NmtState::Operational);
+  r = nmt(0x82, 0x21);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x721u);
+  EXPECT_EQ(node->state(), NmtState::PreOperational);
+  r = nmt(0x81, 0x00);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x721u);
+  EXPECT_EQ(bytes(r[0]), Bytes{0x00});
+  EXPECT_EQ(node->node_id(), NodeId{0x21});
+  EXPECT_EQ(od.get<std::uint32_t>(0x1800, 1), 0x1A1u);
+}
+
+// The same recovery by switch state global, back to the original node-ID; a later LSS change
+// moves the COB-IDs on from there.
+TEST_F(NodeTest, LssRecoversAnUnconfiguredNodeByGlobalSwitch) {
+  make();
+  start();
+  lss({0x04, 0x01});
+  lss({0x11, 0xFF});
+  lss({0x04, 0x00});
+  nmt(0x82, 0x00);
+  ASSERT_EQ(node->state(), NmtState::Initialisation);
+  EXPECT_TRUE(lss({0x04, 0x01}).empty());
+  auto r = lss({0x11, 0x20});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x11, 0x00, 0, 0, 0, 0, 0, 0}));
+  r = lss({0x04, 0x00});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x720u);
+  EXPECT_EQ(node->state(), NmtState::PreOperational);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1800, 1), 0x1A0u);
+  EXPECT_EQ(sdo_read(0x1000, 0).size(), 1u);
+  // A configured node switched to waiting does not restart (only an unconfigured one does).
+  lss({0x04, 0x01});
+  lss({0x11, 0x22});
+  EXPECT_TRUE(lss({0x04, 0x00}).empty());
+  EXPECT_EQ(node->node_id(), kId);
+  r = nmt(0x82, 0x20);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x722u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1800, 1), 0x1A2u);
+  EXPECT_EQ(od.get<std::uint32_t>(0x1200, 1), 0x622u);
+}
+
 // ------------------------------------------------------------------ corrupt parameter file
 
 TEST_F(NodeTest, CorruptParameterFileIsReportedAndNodeRunsOnDefaults) {
@@ -480,8 +620,12 @@ TEST_F(NodeTest, CorruptParameterFileIsReportedAndNodeRunsOnDefaults) {
   EXPECT_TRUE(r.file_present);
   EXPECT_EQ(r.applied, 0u);
   EXPECT_FALSE(r.error.empty());
-  ASSERT_EQ(out.size(), 1u);
-  EXPECT_EQ(out[0].id, 0x720u);  // boots anyway
+  // Boots anyway, then EMCY 6000h "generic software error" (CiA 852 Table 37): it runs on defaults.
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_EQ(out[0].id, 0x720u);
+  EXPECT_EQ(out[1].id, 0xA0u);
+  EXPECT_EQ(bytes(out[1]), (Bytes{0x00, 0x60, 0x01, 0, 0, 0, 0, 0}));
+  EXPECT_TRUE(node->emcy().active(0x6000));
   EXPECT_EQ(node->state(), NmtState::PreOperational);
   EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100u);
   EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
@@ -489,10 +633,22 @@ TEST_F(NodeTest, CorruptParameterFileIsReportedAndNodeRunsOnDefaults) {
   at(t0 + 100ms);  // heartbeat on the default period
   ASSERT_EQ(out.size(), 1u);
   EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
-  // And the same on reset node.
-  nmt(0x81, 0);
+  // And the same on reset node; the error stays active, not sent again.
+  auto r2 = nmt(0x81, 0);
+  ASSERT_EQ(r2.size(), 1u);
+  EXPECT_EQ(r2[0].id, 0x720u);
+  EXPECT_TRUE(node->emcy().active(0x6000));
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x01u);
   EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100u);
   EXPECT_EQ(od.get<std::uint8_t>(0x6200, 1), 0u);
+  // The host saves (1010h:01 "save"): the file is intact again, and the next reset ends 6000h.
+  sdo_ok(0x1010, 1, u32(ParameterStore::kSaveSignature));
+  r2 = nmt(0x82, 0);
+  ASSERT_EQ(r2.size(), 2u);
+  EXPECT_EQ(r2[0].id, 0x720u);
+  EXPECT_EQ(r2[1].id, 0xA0u);
+  EXPECT_EQ(bytes(r2[1]), (Bytes{0x00, 0x00, 0x00, 0, 0, 0, 0, 0}));
+  EXPECT_FALSE(node->emcy().active(0x6000));
 }
 
 // ------------------------------------------------------------------ SYNC producer

@@ -167,13 +167,14 @@ TEST_F(OeDeviceTest, ObjectsAndPdosOfTheConfiguredKinds) {
   EXPECT_EQ(od().find(0x6411), nullptr);
   EXPECT_EQ(od().find(0x6443), nullptr);
   EXPECT_EQ(od().find(0x6444), nullptr);
-  // Indicators: 6200h rw mappable for clusters 1..8 (01h..40h); 6206h default 01h, 6207h
-  // default 0 (Table 6) for the configured cluster 1 only.
+  // Indicators: 6200h rw mappable for clusters 1..8 (01h..40h); 6206h default FFh (every line;
+  // README "CiA 852 decisions": Table 6 prints 01h), 6207h default 0 (Table 6), for the
+  // configured cluster 1 only.
   for (std::uint8_t s = 1; s <= 8; ++s) {
     ASSERT_NE(od().find(0x6200, s), nullptr);
     EXPECT_EQ(od().find(0x6200, s)->access, canopen::Access::ReadWrite);
     EXPECT_TRUE(od().find(0x6200, s)->pdo_mappable);
-    EXPECT_EQ(u8(0x6206, s), 0x01);
+    EXPECT_EQ(u8(0x6206, s), 0xFF);
     EXPECT_EQ(u8(0x6207, s), 0x00);
   }
   EXPECT_NE(od().find(0x6200, 9), nullptr);
@@ -460,7 +461,7 @@ TEST_F(OeDeviceTest, HostHeartbeatLostAppliesErrorValues) {
   make({indicators(1), display(1)}, /*host_node=*/1, /*host_ms=*/100);
   EXPECT_EQ(u32(0x1016, 1), 0x00010064u);
   nmt(0x01);
-  sdo_ok(0x6200, 1, {0xFF});            // indicators 1..8 on; 6206h:01 = 01h → only bit 0 reacts
+  sdo_ok(0x6200, 1, {0xFF});            // indicators 1..8 on; 6206h:01 = FFh (default) → all 8 react
   sdo_ok(0x6207, 2, {0x0F});            // byte 2: error value 0Fh...
   sdo_ok(0x6206, 2, {0xF0});            // ...for bits 4..7 only
   sdo_ok(0x6200, 2, {0x3C});
@@ -475,13 +476,20 @@ TEST_F(OeDeviceTest, HostHeartbeatLostAppliesErrorValues) {
   EXPECT_TRUE(outputs.empty());
   now += 100ms;
   dev->advance(now);
-  EXPECT_EQ(u8(0x6200, 1), 0xFE);
+  EXPECT_EQ(u8(0x6200, 1), 0x00);  // every lamp of the byte at its error value
   EXPECT_EQ(u8(0x6200, 2), 0x0C);  // (3Ch & 0Fh) | (0Fh & F0h)
   EXPECT_EQ(od().get<std::int16_t>(0x6411, 1), -7);
   EXPECT_EQ(od().get<std::int16_t>(0x6411, 2), 300);
   EXPECT_EQ(od().get<std::int16_t>(0x6411, 3), 0);  // already at its error value 0
   using O = std::tuple<FeId, std::string, std::int64_t>;
   EXPECT_EQ(outputs, (std::vector<O>{{indicators(1), "indicator[1]", 0},
+                                     {indicators(1), "indicator[2]", 0},
+                                     {indicators(1), "indicator[3]", 0},
+                                     {indicators(1), "indicator[4]", 0},
+                                     {indicators(1), "indicator[5]", 0},
+                                     {indicators(1), "indicator[6]", 0},
+                                     {indicators(1), "indicator[7]", 0},
+                                     {indicators(1), "indicator[8]", 0},
                                      {indicators(1), "indicator[13]", 0},
                                      {indicators(1), "indicator[14]", 0},
                                      {display(1), "parameter[1]", -7}}));
@@ -496,7 +504,7 @@ TEST_F(OeDeviceTest, HostHeartbeatLossNoticedWhileSendingInputTpdosAppliesTheErr
   make({joystick(1), indicators(1)}, /*host_node=*/1, /*host_ms=*/100);
   sdo_ok(0x6423, 0, {1});
   nmt(0x01);
-  sdo_ok(0x6200, 1, {0x01});  // indicator 1 on; 6206h:01 = 01h, 6207h:01 = 0: error value off
+  sdo_ok(0x6200, 1, {0x01});  // indicator 1 on; 6206h:01 = FFh, 6207h:01 = 0: error value off
   rx(0x701, {0x05});          // host heartbeat: monitoring starts
   outputs.clear();
   now += 150ms;               // past the consumer time, no timer call in between
