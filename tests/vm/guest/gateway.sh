@@ -15,8 +15,6 @@ oegw=$1
 sim=$2
 src=$3
 dir=/run/oegw-gateway
-t0=$(date +%s.%N)
-elapsed() { awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }'; }
 
 # The mapping file: tests/fixtures/vm_gateway.yaml (its comments say why its timings are what they are).
 prepare_gateway_run vm_gateway.yaml "$src" "$dir" "$oegw"

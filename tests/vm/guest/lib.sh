@@ -5,6 +5,11 @@ PY=/usr/bin/python3   # python3-can lives here; a python3 on PATH may lack it
 
 fails=0
 passes=0
+# The script's clock, from the moment it sourced this file: `elapsed` prints the seconds since,
+# with one decimal ("12.3"); `elapsed s` appends the unit ("12.3s").
+t0=$(date +%s.%N)
+elapsed() { awk -v a="$t0" -v b="$(date +%s.%N)" -v u="${1:-}" 'BEGIN { printf "%.1f%s", b - a, u }'; }
+
 pass() { echo "PASS: $*"; passes=$((passes + 1)); }
 fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
 

@@ -8,8 +8,6 @@ here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 # shellcheck source=lib.sh
 . "$here/lib.sh"
 peer() { "$PY" "$here/python_peer.py" --channel vcan0 "$@"; }
-t0=$(date +%s.%N)
-elapsed() { awk -v s="$t0" -v e="$(date +%s.%N)" 'BEGIN { printf "%.1fs", e - s }'; }
 
 # expect_rc WANT DESCRIPTION -- command...
 expect_rc() {
@@ -41,7 +39,7 @@ vcan0 620#2B171000E8030000
 vcan0 620#8017100000000405'
 got=$(frames /tmp/peer.dump)
 if [[ $got == "$expected" ]]; then
-  pass "candump saw exactly the expected frames ($(elapsed))"
+  pass "candump saw exactly the expected frames ($(elapsed s))"
 else
   fail "candump saw:"$'\n'"$(cat /tmp/peer.dump)"$'\n'"expected:"$'\n'"$expected"
 fi
@@ -77,5 +75,5 @@ else
   fail "python_peer_test.py on vcan1"
 fi
 
-echo "== peer_test checks: $passes passed, $fails failed ($(elapsed))"
+echo "== peer_test checks: $passes passed, $fails failed ($(elapsed s))"
 ((fails == 0))

@@ -16,8 +16,6 @@ oegw=$1
 sim=$2
 src=$3
 dir=/run/oegw-remote
-t0=$(date +%s.%N)
-elapsed() { awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }'; }
 
 prepare_gateway_run vm_gateway.yaml "$src" "$dir" "$oegw"
 # The bound channel goes under `upstream:` (after its store line), then the file is checked again.
@@ -57,6 +55,10 @@ wait "$tail_pid" 2>/dev/null
 echo "host finished after $(elapsed) s"
 ((host_rc == 0)) && pass "python3-can host: every remote check" || fail "python3-can host: $host_rc failed"
 
+# can-utils, a second peer we did not write, as a plain SDO client on the bound channel: upload
+# 1018h:02 of left_grip (the MCB-402's product code 0104 0131h comes back on 6B0h; checked below).
+cansend vcan0 690#4018100200000000
+sleep 1
 kill -TERM "$gw_pid"
 wait "$gw_pid"
 rc=$?
@@ -85,6 +87,7 @@ expect "$down" 'vcan1 67F#4008100000000000' "gateway -> seat_knob: upload 1008h 
 expect "$up" 'vcan0 690#4018100100000000' "host on the bound channel: upload 1018h:01"
 expect "$down" 'vcan1 603#4018100100000000' "gateway -> left_grip: upload 1018h:01"
 expect "$up" 'vcan0 6B0#4318100158000000' "bound channel answer: MCB-402 vendor-ID 58h"
+expect "$up" 'vcan0 6B0#4318100231010401' "cansend's upload on the bound channel: MCB-402 product code 01040131h"
 expect "$down" 'vcan1 083#2031810081000000' "left_grip: EMCY 3120h cable break"
 expect "$up" 'vcan0 0A0#2031[0-9A-F]{2}0381008100' "gateway: left_grip's EMCY 3120h, node 03h, register 81h"
 # The refused write never reached the grip.

@@ -19,8 +19,6 @@ oegw=$1
 sim=$2
 src=$3
 dir=/run/oegw-safety
-t0=$(date +%s.%N)
-elapsed() { awk -v a="$t0" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }'; }
 
 # The mapping file: tests/fixtures/vm_safety.yaml (its comments say why its timings are what they are).
 prepare_gateway_run vm_safety.yaml "$src" "$dir" "$oegw"

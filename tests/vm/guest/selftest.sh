@@ -7,8 +7,6 @@ here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$here/lib.sh"
 
 [[ ${OEGW_VM:-} == 1 ]] || echo "warning: not inside the oegw test VM" >&2
-t0=$(date +%s.%N)
-elapsed() { awk -v s="$t0" -v e="$(date +%s.%N)" 'BEGIN { printf "%.1fs", e - s }'; }
 
 echo "== kernel $(uname -r); $(ip -br link show vcan0 | tr -s ' ')"
 for d in vcan0 vcan1; do
@@ -26,7 +24,7 @@ stop_candump
 expected=$'vcan0 123#DEADBEEF\nvcan0 1ABCDEF0#0102\nvcan0 000#'
 got=$(frames /tmp/dump1)
 if [[ $got == "$expected" ]]; then
-  pass "candump saw cansend's frames ($(elapsed))"
+  pass "candump saw cansend's frames ($(elapsed s))"
 else
   fail "candump saw:"$'\n'"$(cat /tmp/dump1)"$'\n'"expected:"$'\n'"$expected"
 fi
@@ -43,7 +41,7 @@ if [[ -e /tmp/py.ready ]]; then
   wait "$pypid"
   prc=$?
   cat /tmp/py.recv
-  ((prc == 0)) && pass "python3-can received cansend's frames ($(elapsed))" || fail "python3-can receive (exit $prc)"
+  ((prc == 0)) && pass "python3-can received cansend's frames ($(elapsed s))" || fail "python3-can receive (exit $prc)"
 else
   kill "$pypid" 2>/dev/null
   cat /tmp/py.recv
@@ -58,7 +56,7 @@ if "$PY" "$here/selftest_can.py" send vcan0; then
   expected=$'vcan0 701#05\nvcan0 12345678#CAFE\nvcan0 080#'
   got=$(frames /tmp/dump2)
   if [[ $got == "$expected" ]]; then
-    pass "candump saw python3-can's frames ($(elapsed))"
+    pass "candump saw python3-can's frames ($(elapsed s))"
   else
     fail "candump saw:"$'\n'"$(cat /tmp/dump2)"$'\n'"expected:"$'\n'"$expected"
   fi
@@ -67,5 +65,5 @@ else
   fail "python3-can send failed"
 fi
 
-echo "== selftest checks: $passes passed, $fails failed ($(elapsed))"
+echo "== selftest checks: $passes passed, $fails failed ($(elapsed s))"
 ((fails == 0))
