@@ -55,7 +55,7 @@ std::uint8_t heartbeat_entries(const mapping::Config& c) {
 Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, canopen::FrameSink downstream,
                  GatewayOptions options)
     : config_(config),
-      master_(master_od_, downstream, canopen::MasterConfig{.heartbeat_entries = heartbeat_entries(config), .sdo_timeout = options.sdo_timeout}),
+      master_(master_od_, downstream, canopen::MasterConfig{.heartbeat_entries = heartbeat_entries(config), .sdo_timeout = options.sdo_timeout.value_or(std::chrono::milliseconds(config.downstream.sdo_timeout_ms))}),
       network_(master_, options.timing),
       remote_sdo_(std::make_unique<RemoteSdo>(config_, master_, network_, now_,
                                               [this] { return oe_->node().node_id(); })),

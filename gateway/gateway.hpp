@@ -56,7 +56,8 @@ mapping::SignalCatalogue driver_catalogue();
 
 struct GatewayOptions {
   std::optional<std::filesystem::path> store_path;  // overrides upstream.store (demo, tests)
-  canopen::Duration sdo_timeout = std::chrono::seconds(1);
+  // Overrides downstream.sdo_timeout_ms (tests).
+  std::optional<canopen::Duration> sdo_timeout;
   subdevices::NetworkTiming timing{};
 };
 

@@ -92,8 +92,9 @@ int run_check(const std::string& file) {
         s.subdevice.empty() ? std::string("the gateway's own dictionary") : "bound to " + s.subdevice;
     std::printf("  SDO server %04Xh: %s, %s\n", static_cast<unsigned>(0x1200 + k), cobs.c_str(), target.c_str());
   }
-  std::printf("downstream: network %u, %s, sub-device EMCYs forwarded upstream: %s\n", cfg->downstream.network_id,
-              cfg->downstream.interface.c_str(), std::string(mapping::to_string(cfg->downstream.emcy_forwarding)).c_str());
+  std::printf("downstream: network %u, %s, sub-device EMCYs forwarded upstream: %s, SDO time-out %u ms\n",
+              cfg->downstream.network_id, cfg->downstream.interface.c_str(),
+              std::string(mapping::to_string(cfg->downstream.emcy_forwarding)).c_str(), cfg->downstream.sdo_timeout_ms);
   for (const auto& s : cfg->subdevices)
     std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id, s.mandatory ? "  mandatory" : "");
   const auto pdos = cia852::default_pdos(fes, node);

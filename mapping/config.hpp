@@ -100,6 +100,9 @@ struct DownstreamConfig {
   std::uint32_t bitrate = 250000;
   std::uint8_t network_id = 2;  // the sub-devices' network (see UpstreamConfig::network_id)
   EmcyForwarding emcy_forwarding = EmcyForwarding::All;
+  // The gateway's SDO client time-out toward every sub-device (its boot and configuration, and
+  // the host's remote SDO: a host must wait longer than this for the gateway's 0504 0000h).
+  std::uint16_t sdo_timeout_ms = 1000;
   Location where;
   Location network_id_where;  // the `network_id` value, when written
 };

@@ -5,13 +5,15 @@ namespace oegw::mapping::sections {
 
 void read_downstream(YamlReader& r, const MapEntry& sec, DownstreamConfig& d) {
   d.where = r.loc(sec.key);
-  const auto es = r.entries(sec.value, "downstream", {"interface", "bitrate", "network_id", "emcy_forwarding"},
-                            "a map with interface, bitrate, network_id, emcy_forwarding");
+  const auto es =
+      r.entries(sec.value, "downstream", {"interface", "bitrate", "network_id", "emcy_forwarding", "sdo_timeout_ms"},
+                "a map with interface, bitrate, network_id, emcy_forwarding, sdo_timeout_ms");
   if (const auto* e = r.find(es, "interface"))
     if (auto s = r.string(*e, "interface")) d.interface = *s;
   r.bitrate(es, "bitrate", d.bitrate);
   if (const auto* e = r.find(es, "network_id")) d.network_id_where = r.loc(e->value);
   r.set_int(es, "network_id", "network_id", 1, 127, d.network_id);
+  r.set_int(es, "sdo_timeout_ms", "sdo_timeout_ms", 10, 60000, d.sdo_timeout_ms);
   if (const auto* e = r.find(es, "emcy_forwarding")) {
     if (auto s = r.string(*e, "emcy_forwarding")) {
       bool known = false;

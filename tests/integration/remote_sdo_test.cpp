@@ -62,8 +62,12 @@ class RemoteSdo : public ::testing::Test {
  protected:
   void SetUp() override { build(); }
 
-  void build(gw::GatewayOptions options = {}, Duration host_timeout = 3s) {
-    auto loaded = oegw::mapping::load_config_text(mapping_yaml(), "remote.yaml", gw::driver_catalogue());
+  // `downstream_extra` goes into the downstream flow map (", sdo_timeout_ms: 100").
+  void build(gw::GatewayOptions options = {}, Duration host_timeout = 3s, const std::string& downstream_extra = "") {
+    std::string yaml = mapping_yaml();
+    const std::string down = "downstream: { interface: virtual, bitrate: 250000";
+    yaml.insert(yaml.find(down) + down.size(), downstream_extra);
+    auto loaded = oegw::mapping::load_config_text(yaml, "remote.yaml", gw::driver_catalogue());
     ASSERT_TRUE(loaded.ok()) << loaded.error_text();
     config_ = std::move(*loaded.config);
     store_ = std::filesystem::path(::testing::TempDir()) / fmt::format("remote_sdo_{}.store", ::getpid());
@@ -395,9 +399,9 @@ TEST_F(RemoteSdo, SegmentedAndBlockDownloadsFromTheHost) {
 
 class RemoteSdoTimeout : public RemoteSdo {
  protected:
-  // The gateway's downstream SDO time-out (100 ms) below the encoder's heartbeat consumer time
-  // (150 ms): a silent node is first a remote time-out, then missing.
-  void SetUp() override { build(gw::GatewayOptions{.sdo_timeout = 100ms}); }
+  // The gateway's downstream SDO time-out (downstream.sdo_timeout_ms: 100) below the encoder's
+  // heartbeat consumer time (150 ms): a silent node is first a remote time-out, then missing.
+  void SetUp() override { build({}, 3s, ", sdo_timeout_ms: 100"); }
 };
 
 TEST_F(RemoteSdoTimeout, APoweredOffNodeTimesOutThenIsMissing) {

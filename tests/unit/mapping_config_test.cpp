@@ -249,6 +249,23 @@ TEST(MappingConfig, NetworkIdsAreInRangeAndDistinct) {
                                       "network IDs 1..127 (defaults: upstream 1, downstream 2)"}));
 }
 
+// downstream.sdo_timeout_ms: the gateway's SDO client time-out toward the sub-devices.
+TEST(MappingConfig, DownstreamSdoTimeoutIsInRange) {
+  auto with = [](const std::string& down) {
+    std::string t = kHead;
+    t.replace(t.find("interface: can1 }"), 17, "interface: can1" + down + " }");
+    return load(t + "  joystick.1: { x: right_grip.x }\n");
+  };
+  const auto dflt = with("");
+  ASSERT_TRUE(dflt.ok()) << dflt.error_text();
+  EXPECT_EQ(dflt.config->downstream.sdo_timeout_ms, 1000);
+  const auto set = with(", sdo_timeout_ms: 200");
+  ASSERT_TRUE(set.ok()) << set.error_text();
+  EXPECT_EQ(set.config->downstream.sdo_timeout_ms, 200);
+  EXPECT_EQ(errors(with(", sdo_timeout_ms: 5")),
+            (std::vector<std::string>{"t.yaml:2:48: sdo_timeout_ms 5 is out of range; expected 10..60000"}));
+}
+
 // downstream.emcy_forwarding: which sub-device EMCYs go upstream (all by default).
 TEST(MappingConfig, EmcyForwardingIsAllFaultsOrNone) {
   auto with = [](const std::string& down) {
