@@ -171,13 +171,7 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     decoding_emcy_ = true;
     if (decode) decode(e, t);
     decoding_emcy_ = false;
-    for (const auto& [node, raise] : held_fault_emcys_) {
-      if (raise) {
-        oe_->raise_subdevice_fault(node->config->name, node->config->node(), now_);
-      } else {
-        oe_->clear_subdevice_fault(node->config->node(), now_);
-      }
-    }
+    for (const auto& [node, raise] : held_fault_emcys_) fault_emcy(*node, raise);  // sent now
     held_fault_emcys_.clear();
   };
   // 1028h: EMCYs of other upstream nodes, logged and kept for the status.

@@ -228,13 +228,17 @@ void SdoServer::initiate_download(const std::uint8_t* d) {
     send({0x60, d[1], d[2], d[3], 0, 0, 0, 0});
     return;
   }
+  begin_segmented_download(d, fixed != 0 ? fixed : s->max_size);
+}
+
+void SdoServer::begin_segmented_download(const std::uint8_t* d, std::size_t unsized_capacity) {
   if (size_indicated_) {
     size_ = get_u32(d + 4);
     if (const SdoAbortCode c = check_announced_size(static_cast<std::uint32_t>(size_)); c != SdoAbortCode::None)
       return abort_transfer(c);
     capacity_ = size_;
   } else {
-    capacity_ = fixed != 0 ? fixed : s->max_size;
+    capacity_ = unsized_capacity;
   }
   buffer_.clear();
   toggle_ = false;
@@ -441,18 +445,7 @@ void SdoServer::initiate_remote_download(const std::uint8_t* d) {
     buffer_.assign(d + 4, d + 4 + n);
     return start_remote_download(RemoteStep::ExpeditedDownload, 0x60);
   }
-  if (size_indicated_) {
-    size_ = get_u32(d + 4);
-    if (const SdoAbortCode c = check_announced_size(static_cast<std::uint32_t>(size_)); c != SdoAbortCode::None)
-      return abort_transfer(c);
-    capacity_ = size_;
-  } else {
-    capacity_ = kMaxRemoteDownload;
-  }
-  buffer_.clear();
-  toggle_ = false;
-  state_ = State::DownloadSegmented;
-  send({0x60, d[1], d[2], d[3], 0, 0, 0, 0});
+  begin_segmented_download(d, kMaxRemoteDownload);
 }
 
 void SdoServer::start_remote_upload(RemoteStep step) {

@@ -156,6 +156,9 @@ class SdoServer {
   void respond_block_upload_initiate(BlockUploadRequest request);
   void network_indication(const std::uint8_t* d);
   void initiate_remote_download(const std::uint8_t* d);
+  // A segmented download's initiate, local or remote: the announced size checked (or, unsized,
+  // `unsized_capacity` the most it may carry), then the initiate response.
+  void begin_segmented_download(const std::uint8_t* d, std::size_t unsized_capacity);
   void start_remote_upload(RemoteStep step);
   void start_remote_download(RemoteStep step, std::uint8_t response);  // buffer_ holds the data
   SdoRemote::Done remote_done(std::uint32_t generation);
