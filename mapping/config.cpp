@@ -5,14 +5,20 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cstdio>
-#include <fstream>
-#include <sstream>
 
+#include "canopen/text_file.hpp"
 #include "mapping/sections/sections.hpp"
 #include "mapping/yaml_reader.hpp"
 
 namespace oegw::mapping {
+
+bool valid_subdevice_name(std::string_view name) {
+  return !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_';
+  });
+}
 
 using canopen::DataType;
 using subdevices::SignalInfo;
@@ -179,15 +185,13 @@ LoadResult load_config_text(std::string_view text, std::string_view file, const 
 }
 
 LoadResult load_config(const std::string& path, const SignalCatalogue& catalogue) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
+  const auto file = canopen::read_text_file(path, YamlLimits::kFileBytes);
+  if (!file.text) {
     LoadResult r;
-    r.errors.push_back({{path, 1, 1}, "cannot open the file; expected a readable mapping file"});
+    r.errors.push_back({{path, 1, 1}, file.error});
     return r;
   }
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return load_config_text(ss.str(), path, catalogue);
+  return load_config_text(*file.text, path, catalogue);
 }
 
 }  // namespace oegw::mapping

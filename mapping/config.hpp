@@ -138,6 +138,11 @@ struct SdoWriteConfig {
   [[nodiscard]] subdevices::SdoWrite to_sdo_write() const;  // little-endian bytes of `type`
 };
 
+// A sub-device's name: a-z, 0-9 and _ (it names DDS/LCM fields and log lines).
+[[nodiscard]] bool valid_subdevice_name(std::string_view name);
+// CANopen node-IDs 1..127: no more sub-devices than that on one bus.
+inline constexpr std::size_t kMaxSubdevices = 127;
+
 struct SubdeviceConfig {
   std::string name;    // "right_grip"
   std::string driver;  // "elobau-mfg", "mcb402", "novotechnik-406", "cia401"

@@ -282,8 +282,9 @@ class FieldEntry {
   const SubdeviceConfig* subdevice(const SignalRef& sig, const YAML::Node& node) {
     for (const auto& d : subdevices_)
       if (d.name == sig.device) return &d;
-    std::vector<std::string> names;
-    for (const auto& d : subdevices_) names.push_back(d.name);
+    std::vector<std::string> names;  // a refused name (reported where it stands) is no suggestion
+    for (const auto& d : subdevices_)
+      if (valid_subdevice_name(d.name)) names.push_back(d.name);
     r_.error(node, "unknown sub-device '" + sig.device + "' in signal '" + sig.text + "'; expected one of " +
                        (names.empty() ? std::string("the sub-devices section's names") : join(names)) +
                        did_you_mean(sig.device, names));

@@ -94,6 +94,16 @@ std::optional<std::int64_t> parse_integer(std::string_view s) {
   return neg ? -sv : sv;
 }
 
+bool looks_like_integer(std::string_view s) {
+  if (!s.empty() && (s.front() == '-' || s.front() == '+')) s.remove_prefix(1);
+  const bool hexa = s.size() > 2 && s[0] == '0' && (s[1] == 'x' || s[1] == 'X');
+  if (hexa) s.remove_prefix(2);
+  if (s.empty()) return false;
+  return std::all_of(s.begin(), s.end(), [hexa](char c) {
+    return (c >= '0' && c <= '9') || (hexa && ((c >= 'a' && c <= 'f') || (c >= 'A' && c <= 'F')));
+  });
+}
+
 namespace {
 
 // The text of 1-based line `line`, or nullopt past the end.
@@ -115,20 +125,235 @@ std::string flow_map_hint(std::string_view text, int line) {
   return "";
 }
 
+// The first line up to `last` whose indentation holds a tab, and the tab's column (1-based).
+std::optional<std::pair<int, int>> tab_indent(std::string_view text, int last) {
+  for (int line = 1; line <= last; ++line) {
+    const auto l = line_of(text, line);
+    if (!l) break;
+    for (std::size_t i = 0; i < l->size() && ((*l)[i] == ' ' || (*l)[i] == '\t'); ++i)
+      if ((*l)[i] == '\t') return std::pair(line, static_cast<int>(i) + 1);
+  }
+  return std::nullopt;
+}
+
+Location at(const std::string& file, std::string_view text, std::size_t offset) {
+  Location l{file, 1, 1};
+  for (std::size_t i = 0; i < offset && i < text.size(); ++i) {
+    if (text[i] == '\n') {
+      ++l.line;
+      l.column = 1;
+    } else {
+      ++l.column;
+    }
+  }
+  return l;
+}
+
+std::string byte_hex(unsigned char b) {
+  static constexpr char kDigits[] = "0123456789ABCDEF";
+  return std::string("0x") + kDigits[b >> 4] + kDigits[b & 0xF];
+}
+
+std::string limit_text(std::size_t limit) { return std::to_string(limit) + " (mapping/README.md, \"Limits\")"; }
+
+// YAML is UTF-8 text (YAML 1.2 §5.1, §5.2): no NUL or other C0 control character besides tab,
+// line feed and carriage return, no DEL, no broken or overlong sequence.
+std::optional<Diagnostic> check_text(std::string_view text, const std::string& file) {
+  std::size_t i = 0;
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") i = 3;  // a byte-order mark is allowed
+  while (i < text.size()) {
+    const auto b = static_cast<unsigned char>(text[i]);
+    if (b < 0x80) {
+      if ((b < 0x20 && b != '\t' && b != '\n' && b != '\r') || b == 0x7F)
+        return Diagnostic{at(file, text, i), "byte " + byte_hex(b) + (b == 0 ? " (NUL)" : " (a control character)") +
+                                                 " is not text; expected a UTF-8 text file"};
+      ++i;
+      continue;
+    }
+    const std::size_t n = b >= 0xF0 && b <= 0xF4 ? 4 : b >= 0xE0 && b <= 0xEF ? 3 : b >= 0xC2 && b <= 0xDF ? 2 : 0;
+    bool ok = n != 0 && i + n <= text.size();
+    std::uint32_t cp = n == 2 ? b & 0x1Fu : n == 3 ? b & 0x0Fu : b & 0x07u;
+    for (std::size_t k = 1; ok && k < n; ++k) {
+      const auto c = static_cast<unsigned char>(text[i + k]);
+      ok = (c & 0xC0) == 0x80;
+      cp = (cp << 6) | (c & 0x3Fu);
+    }
+    if (ok && n == 3) ok = cp >= 0x800 && (cp < 0xD800 || cp > 0xDFFF);
+    if (ok && n == 4) ok = cp >= 0x10000 && cp <= 0x10FFFF;
+    if (!ok) return Diagnostic{at(file, text, i), "byte " + byte_hex(b) + " is not UTF-8; expected a UTF-8 text file"};
+    i += n;
+  }
+  return std::nullopt;
+}
+
+// Indentation (with the "- " markers of lists nested on one line) and flow nesting, counted on
+// the text, so that yaml-cpp's recursive parser never sees a file nested deeper than YamlLimits
+// allows. Quoted scalars and comments are skipped; a quote opens a scalar only where a scalar
+// can start (so the ' of "don't" in a plain scalar is text).
+std::optional<Diagnostic> check_layout(std::string_view text, const std::string& file) {
+  int depth = 0;
+  char quote = 0;  // ', " or # (a comment) while inside one
+  bool line_start = true;
+  char prev = ' ';
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (line_start && !quote) {
+      line_start = false;
+      std::size_t j = i;
+      const auto marker = [&](std::size_t k) {
+        return (text[k] == '-' || text[k] == '?' || text[k] == ':') && k + 1 < text.size() &&
+               (text[k + 1] == ' ' || text[k + 1] == '\t');
+      };
+      while (j < text.size() && (text[j] == ' ' || text[j] == '\t' || marker(j))) ++j;
+      const bool content = j < text.size() && text[j] != '\n' && text[j] != '\r' && text[j] != '#';
+      if (content && j - i > static_cast<std::size_t>(YamlLimits::kIndent))
+        return Diagnostic{at(file, text, i), "indentation of " + std::to_string(j - i) +
+                                                 " columns; expected at most " + limit_text(YamlLimits::kIndent)};
+    }
+    if (c == '\n') {
+      line_start = true;
+      prev = ' ';
+      if (quote == '#') quote = 0;
+      continue;
+    }
+    if (quote == '#') continue;
+    if (quote != 0) {
+      if (quote == '"' && c == '\\') {
+        ++i;  // an escaped character
+      } else if (c == quote) {
+        if (quote == '\'' && i + 1 < text.size() && text[i + 1] == '\'')
+          ++i;  // '' inside '...'
+        else
+          quote = 0;
+      }
+      prev = c;
+      continue;
+    }
+    const bool can_start = prev == ' ' || prev == '\t' || prev == '[' || prev == '{' || prev == ',';
+    if ((c == '"' || c == '\'') && can_start) {
+      quote = c;
+    } else if (c == '#' && (prev == ' ' || prev == '\t')) {
+      quote = '#';
+    } else if (c == '[' || c == '{') {
+      if (++depth > YamlLimits::kFlowNesting)
+        return Diagnostic{at(file, text, i), "[ ] and { } nested deeper than " +
+                                                 std::to_string(YamlLimits::kFlowNesting) +
+                                                 " levels; expected at most " + limit_text(YamlLimits::kFlowNesting)};
+    } else if ((c == ']' || c == '}') && depth > 0) {
+      --depth;
+    }
+    prev = c;
+  }
+  return std::nullopt;
+}
+
+// The parsed tree against YamlLimits: depth, the length of each scalar, and the number of nodes
+// (an alias counts its whole target each time it is used, so a "billion laughs" file stops here
+// instead of in whatever walks the tree next).
+class TreeCheck {
+ public:
+  explicit TreeCheck(const std::string& file) : file_(file) {}
+  std::optional<Diagnostic> run(const YAML::Node& n) {
+    walk(n, 1);
+    return std::move(error_);
+  }
+
+ private:
+  [[nodiscard]] Location loc(const YAML::Node& n) const {
+    const auto m = n.Mark();
+    return m.is_null() ? Location{file_, 1, 1} : Location{file_, m.line + 1, m.column + 1};
+  }
+  void walk(const YAML::Node& n, int depth) {
+    if (error_) return;
+    if (++nodes_ > YamlLimits::kNodes) {
+      error_ = Diagnostic{loc(n), "more than " + std::to_string(YamlLimits::kNodes) +
+                                      " values (an alias counted each time it is used); expected at most " +
+                                      limit_text(YamlLimits::kNodes)};
+      return;
+    }
+    if (n.IsScalar()) {
+      if (n.Scalar().size() > YamlLimits::kScalarBytes)
+        error_ = Diagnostic{loc(n), "a value of " + std::to_string(n.Scalar().size()) + " bytes; expected at most " +
+                                        limit_text(YamlLimits::kScalarBytes)};
+      return;
+    }
+    if (!n.IsMap() && !n.IsSequence()) return;
+    if (depth > YamlLimits::kDepth) {
+      error_ = Diagnostic{loc(n), "maps and lists nested deeper than " + std::to_string(YamlLimits::kDepth) +
+                                      " levels; expected at most " + limit_text(YamlLimits::kDepth)};
+      return;
+    }
+    for (auto it = n.begin(); it != n.end() && !error_; ++it) {
+      if (n.IsMap()) {
+        walk(it->first, depth + 1);
+        walk(it->second, depth + 1);
+      } else {
+        walk(*it, depth + 1);
+      }
+    }
+  }
+  const std::string& file_;
+  std::size_t nodes_ = 0;
+  std::optional<Diagnostic> error_;
+};
+
+// Where the second document of `text` starts: the document marker ("---", or "..." ending the
+// first) on or before the line of its node's mark (the end of the text for an empty document).
+Location second_document(std::string_view text, const std::string& file, const YAML::Node& doc) {
+  const int mark_line = doc.Mark().is_null() ? std::numeric_limits<int>::max() : doc.Mark().line + 1;
+  Location l{file, 1, 1};
+  int line = 1;
+  for (std::size_t start = 0; start < text.size() && line <= mark_line; ++line) {
+    const auto end = text.find('\n', start);
+    const auto t = text.substr(start, end == std::string_view::npos ? std::string_view::npos : end - start);
+    const auto marker = t.substr(0, 3);
+    if ((marker == "---" || marker == "...") && (t.size() == 3 || t[3] == ' ' || t[3] == '\t' || t[3] == '\r'))
+      l.line = line;
+    if (end == std::string_view::npos) break;
+    start = end + 1;
+  }
+  return l;
+}
+
 }  // namespace
 
 ParsedYaml parse_yaml(std::string_view text, const std::string& file) {
   ParsedYaml out;
+  if (text.size() > YamlLimits::kFileBytes) {
+    out.error = Diagnostic{{file, 1, 1}, "a text of " + std::to_string(text.size()) + " bytes; expected at most " +
+                                             limit_text(YamlLimits::kFileBytes)};
+    return out;
+  }
+  if ((out.error = check_text(text, file)) || (out.error = check_layout(text, file))) return out;
+  std::vector<YAML::Node> docs;
   try {
-    out.root = YAML::Load(std::string(text));
+    docs = YAML::LoadAll(std::string(text));
   } catch (const YAML::Exception& e) {
     Location l{file, e.mark.line + 1, e.mark.column + 1};
     if (e.mark.is_null()) l.line = l.column = 1;
-    out.error =
-        Diagnostic{l, "YAML syntax error: " + e.msg + "; expected well-formed YAML" + flow_map_hint(text, l.line)};
+    std::string hint = flow_map_hint(text, l.line);
+    if (const auto tab = tab_indent(text, l.line)) {
+      l.line = tab->first;
+      l.column = tab->second;
+      hint = " (line " + std::to_string(tab->first) + " is indented with a tab: YAML indents with spaces only)";
+    }
+    out.error = Diagnostic{l, "YAML syntax error: " + e.msg + "; expected well-formed YAML" + hint};
+    return out;
   }
+  if (docs.size() > 1) {
+    out.error = Diagnostic{second_document(text, file, docs[1]),
+                           "a second YAML document starts here; expected one document per mapping file "
+                           "(the second would be ignored)"};
+    return out;
+  }
+  if (!docs.empty()) out.root = docs.front();
+  out.error = TreeCheck(file).run(out.root);
   return out;
 }
+
+namespace {
+constexpr std::string_view kMergeKey = "<<";  // YAML 1.1 merge key (yaml.org/type/merge.html)
+}  // namespace
 
 Location YamlReader::loc(const YAML::Node& n) const {
   const auto m = n.Mark();
@@ -151,24 +376,49 @@ std::vector<MapEntry> YamlReader::entries(const YAML::Node& map, std::string_vie
     error(map, "found " + node_kind(map) + " for " + std::string(what) + "; expected " + expected_map);
     return out;
   }
+  // The map's own keys first: they win over merged ones wherever "<<" stands.
+  std::set<std::string> own;
+  for (auto it = map.begin(); it != map.end(); ++it)
+    if (it->first.IsScalar() && it->first.Scalar() != kMergeKey) own.insert(it->first.Scalar());
   std::set<std::string> seen;
+  const auto add = [&](const YAML::Node& key, const YAML::Node& value, bool merged) {
+    const std::string name = key.Scalar();
+    if (merged && (own.count(name) != 0 || seen.count(name) != 0)) return;  // set here, or by an earlier merge
+    if (!seen.insert(name).second) {
+      error(key, "duplicate key '" + name + "' in " + std::string(what) + "; expected each key once");
+      return;
+    }
+    if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), name) == allowed.end()) {
+      error(key, "unknown key '" + name + "' in " + std::string(what) + "; expected one of " + join(allowed) +
+                     did_you_mean(name, allowed));
+      return;
+    }
+    out.push_back({name, key, value});
+  };
   for (auto it = map.begin(); it != map.end(); ++it) {
     const YAML::Node key = it->first;
     if (!key.IsScalar()) {
       error(key, "found " + node_kind(key) + " as a key in " + std::string(what) + "; expected a name");
       continue;
     }
-    const std::string name = key.Scalar();
-    if (!seen.insert(name).second) {
-      error(key, "duplicate key '" + name + "' in " + std::string(what) + "; expected each key once");
+    if (key.Scalar() != kMergeKey) {
+      add(key, it->second, false);
       continue;
     }
-    if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), name) == allowed.end()) {
-      error(key, "unknown key '" + name + "' in " + std::string(what) + "; expected one of " + join(allowed) +
-                     did_you_mean(name, allowed));
-      continue;
+    std::vector<YAML::Node> sources;
+    if (it->second.IsSequence())
+      for (const auto& s : it->second) sources.push_back(s);
+    else
+      sources.push_back(it->second);
+    for (const auto& src : sources) {
+      if (!src.IsMap()) {
+        error(src, "found " + node_kind(src) + " for the merge key '<<' in " + std::string(what) +
+                       "; expected an alias of a map (<<: *name) or a list of them");
+        continue;
+      }
+      // A merged map may merge others itself: its entries as it sees them, then ours win.
+      for (const auto& e : entries(src, what, {}, expected_map)) add(e.key, e.value, true);
     }
-    out.push_back({name, key, it->second});
   }
   return out;
 }
@@ -192,6 +442,10 @@ std::optional<std::int64_t> YamlReader::integer(const MapEntry& e, std::string_v
     return std::nullopt;
   }
   const auto v = parse_integer(e.value.Scalar());
+  if (!v && looks_like_integer(e.value.Scalar())) {  // beyond 64 bits
+    error(e.value, std::string(what) + " " + e.value.Scalar() + " is out of range; expected " + range);
+    return std::nullopt;
+  }
   if (!v) {
     error(e.value, std::string(what) + " '" + e.value.Scalar() + "' is not a number; expected an integer " + range +
                        " (decimal or 0x hex)");

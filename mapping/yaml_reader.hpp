@@ -63,16 +63,35 @@ template <typename Range>
 
 // A decimal or 0x-hex integer with an optional sign; nullopt for anything else or beyond int64.
 [[nodiscard]] std::optional<std::int64_t> parse_integer(std::string_view s);
+// True when `s` is written as such an integer, whatever its size (to tell "out of range" from
+// "not a number").
+[[nodiscard]] bool looks_like_integer(std::string_view s);
 
 // ---- Parsing the text ------------------------------------------------------------------------
+
+// The limits of a mapping file (mapping/README.md, "Limits"). A mapping file for the largest cab
+// CANopen allows (127 sub-devices, every FE) is far inside each; beyond them the file is refused
+// before yaml-cpp reads it (nesting, text) or before anything else reads it (the tree), so a
+// hostile or broken file costs neither memory nor stack.
+struct YamlLimits {
+  static constexpr std::size_t kFileBytes = 1024 * 1024;  // the whole file
+  static constexpr int kFlowNesting = 32;                  // [ ] and { } inside each other
+  static constexpr int kIndent = 128;                      // columns of indentation and "- " markers
+  static constexpr int kDepth = 32;                        // maps and lists inside each other
+  static constexpr std::size_t kScalarBytes = 4096;        // one value or key
+  static constexpr std::size_t kNodes = 200000;            // nodes, aliases counted where used
+};
 
 struct ParsedYaml {
   YAML::Node root;
   std::optional<Diagnostic> error;  // a syntax error: nothing else can be checked
 };
 
-// The YAML document of `text`, or its syntax error at the parser's mark (with a hint for the
-// commonest slip of this format: "[ ]" unquoted inside a "{ }" flow map).
+// The one YAML document of `text`, or the first error: a byte that is not UTF-8 text (a NUL, a
+// control character, a broken sequence), a limit of YamlLimits passed, a syntax error at the
+// parser's mark (with a hint for the commonest slips of this format: "[ ]" unquoted inside a
+// "{ }" flow map, a tab in the indentation), or a second document ("---") after the first, which
+// yaml-cpp's Load would silently drop.
 [[nodiscard]] ParsedYaml parse_yaml(std::string_view text, const std::string& file);
 
 // ---- Reading values, collecting the errors ---------------------------------------------------
@@ -98,6 +117,9 @@ class YamlReader {
 
   // The entries of `map` (described as `what`); a non-map, a non-scalar key, a duplicate key and
   // (when `allowed` is not empty) an unknown key are errors, and such entries are left out.
+  // A merge key (YAML 1.1 "<<: *grip", or "<<: [*a, *b]") adds the entries of the maps it names
+  // that the map does not set itself, at its place; of several merged maps the first that sets a
+  // key wins (the YAML merge-key rule). yaml-cpp 0.7 reads "<<" as a plain key.
   std::vector<MapEntry> entries(const YAML::Node& map, std::string_view what,
                                 const std::vector<std::string_view>& allowed, const std::string& expected_map);
   // The entry named `name`, or nullptr.

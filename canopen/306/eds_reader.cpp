@@ -2,11 +2,11 @@
 
 #include <algorithm>
 #include <cctype>
-#include <cerrno>
 #include <charconv>
 #include <cstring>
-#include <fstream>
 #include <sstream>
+
+#include "canopen/text_file.hpp"
 
 namespace oegw::canopen::eds {
 
@@ -557,18 +557,12 @@ std::optional<File> parse(std::string_view text, std::string_view name, std::str
 }
 
 std::optional<File> load(const std::filesystem::path& path, std::string& error) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    error = path.string() + ": cannot read: " + std::strerror(errno);
+  const auto file = read_text_file(path.string(), kMaxFileBytes);
+  if (!file.text) {
+    error = path.string() + ": " + file.error + " (an EDS file)";
     return std::nullopt;
   }
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) {
-    error = path.string() + ": cannot read: I/O error";
-    return std::nullopt;
-  }
-  return parse(ss.str(), path.string(), error);
+  return parse(*file.text, path.string(), error);
 }
 
 std::string write(const File& file) {

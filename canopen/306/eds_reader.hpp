@@ -115,7 +115,10 @@ struct File {
 // Parses EDS text. `name` is used in error messages ("pedal.eds:12: ..."). Returns nullopt
 // and sets `error` on malformed input.
 std::optional<File> parse(std::string_view text, std::string_view name, std::string& error);
-// Reads and parses a file; an unreadable file is "path: cannot read: <reason>".
+// Reads and parses a file; an unreadable one is "path: cannot open: <reason>; ...", one that is
+// not a regular file or is larger than kMaxFileBytes is refused unread (canopen/text_file.hpp).
+// The largest EDS files of real devices are a few hundred kilobytes.
+inline constexpr std::size_t kMaxFileBytes = 4 * 1024 * 1024;
 std::optional<File> load(const std::filesystem::path& path, std::string& error);
 
 // Writes an EDS that parse() reads back equal (==) to `file` (lists, objects, sub sections).

@@ -1,6 +1,7 @@
 // The `subdevices` section: the nodes on the downstream bus, their drivers, supervision times,
 // identity checks, SDO writes at boot and driver options; their signals from the catalogue.
 #include <algorithm>
+#include <span>
 #include <array>
 #include <cctype>
 #include <map>
@@ -35,12 +36,6 @@ constexpr std::array<DataTypeName, 6> kSdoTypes = {{
     {"i16", DataType::Integer16, -32768, 32767},
     {"i32", DataType::Integer32, std::numeric_limits<std::int32_t>::min(), std::numeric_limits<std::int32_t>::max()},
 }};
-
-bool good_name(const std::string& name) {
-  return !name.empty() && std::all_of(name.begin(), name.end(), [](char c) {
-    return std::islower(static_cast<unsigned char>(c)) || std::isdigit(static_cast<unsigned char>(c)) || c == '_';
-  });
-}
 
 // heartbeat_ms, heartbeat_timeout_ms (longer than the heartbeat), pdo_timeout_ms, and proof of
 // life: without a heartbeat only fresh PDOs show the node is there.
@@ -163,8 +158,8 @@ void read_signals(YamlReader& r, const SignalCatalogue& catalogue, const MapEntr
   if (sig) {
     s.signals = std::move(*sig);
   } else if (std::find(kFamilies.begin(), kFamilies.end(), s.driver) == kFamilies.end()) {
-    r.error(drv.value, "unknown driver '" + s.driver + "'" + (err.empty() ? "" : " (" + err + ")") +
-                           "; expected one of " + join(kFamilies) + did_you_mean(s.driver, kFamilies));
+    r.error(drv.value, "unknown driver '" + s.driver + "'; expected one of " + join(kFamilies) +
+                           did_you_mean(s.driver, kFamilies));
   } else {
     const auto* o = r.find(ks, "options");
     r.error(o ? o->key : drv.value, "driver " + s.driver + " refused " + what + ": " + err + "; expected options the " +
@@ -214,11 +209,17 @@ void read_subdevices(YamlReader& r, const MapEntry& sec, const SignalCatalogue& 
   const auto es = r.entries(sec.value, "subdevices", {}, "a map of sub-device name -> {driver, node_id, ...}");
   NodesInUse by_node;
   std::vector<CobUse> cobs;
-  for (const auto& e : es) {
+  // Beyond 127 the rest is not read (a file of 100 000 sub-devices costs nothing more than one
+  // of 128); the first 127 are, so that references to them are no further errors.
+  if (es.size() > kMaxSubdevices)
+    r.error(es[kMaxSubdevices].key, "sub-device " + std::to_string(kMaxSubdevices + 1) + " ('" +
+                                        es[kMaxSubdevices].name + "'); expected at most " +
+                                        std::to_string(kMaxSubdevices) + " (one per CANopen node-ID)");
+  for (const auto& e : std::span(es).first(std::min(es.size(), kMaxSubdevices))) {
     SubdeviceConfig s;
     s.name = e.name;
     s.where = r.loc(e.key);
-    if (!good_name(e.name))
+    if (!valid_subdevice_name(e.name))
       r.error(e.key, "sub-device name '" + e.name +
                          "' has characters other than a-z, 0-9 and _; expected a name like right_grip");
     const auto ks = r.entries(e.value, "sub-device '" + e.name + "'", kSubdeviceKeys,

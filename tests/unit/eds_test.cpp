@@ -274,7 +274,16 @@ TEST(Eds, MalformedFilesGiveFileLineAndWhatWasExpected) {
 TEST(Eds, UnreadableFileIsReported) {
   std::string error;
   EXPECT_FALSE(load("/nonexistent/oegw/pedal.eds", error));
-  EXPECT_EQ(error.rfind("/nonexistent/oegw/pedal.eds: cannot read:", 0), 0u) << error;
+  EXPECT_EQ(error.rfind("/nonexistent/oegw/pedal.eds: cannot open:", 0), 0u) << error;
+}
+
+// `eds: /dev/zero` once filled memory until std::bad_alloc; a directory read as an empty file.
+TEST(Eds, OnlyARegularFileIsRead) {
+  std::string error;
+  EXPECT_FALSE(load("/dev/zero", error));
+  EXPECT_EQ(error, "/dev/zero: is a character device; expected a regular file (an EDS file)");
+  EXPECT_FALSE(load("/", error));
+  EXPECT_EQ(error, "/: is a directory; expected a regular file (an EDS file)");
 }
 
 // No input crashes the reader: every truncation and many byte mutations of the sample files

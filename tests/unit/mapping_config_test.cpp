@@ -8,6 +8,9 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+
+#include <cstdio>
 #include <fstream>
 #include <iterator>
 #include <string>
@@ -626,7 +629,7 @@ functional_elements:
   joystick.1: { x: a.x, y: b.analog }
 )");
   EXPECT_THAT(errors(r), ElementsAre(
-      "t.yaml:4:16: unknown driver 'mcb420' (no such family); expected one of elobau-mfg, mcb402, novotechnik-406, "
+      "t.yaml:4:16: unknown driver 'mcb420'; expected one of elobau-mfg, mcb402, novotechnik-406, "
       "cia401 (did you mean 'mcb402'?)",
       "t.yaml:5:16: driver cia401 refused sub-device 'b': option 'eds' missing; expected options the cia401 driver "
       "accepts",
@@ -964,7 +967,7 @@ TEST(MappingConfig, EveryPrefixOfTheDemoFileGivesAConfigOrErrorsNeverACrash) {
 
 TEST(MappingConfig, MissingFileIsAnErrorNotACrash) {
   const auto r = load_config("/nonexistent/oegw.yaml", fake_catalogue);
-  EXPECT_THAT(errors(r), ElementsAre("/nonexistent/oegw.yaml:1:1: cannot open the file; expected a readable mapping file"));
+  EXPECT_THAT(errors(r), ElementsAre("/nonexistent/oegw.yaml:1:1: cannot open: No such file or directory; expected a readable file"));
 }
 
 
@@ -1120,6 +1123,177 @@ TEST(MappingConfig, AtMost127SdoServers) {
   EXPECT_EQ(errors(load(sdo_servers::file(more))),
             (std::vector<std::string>{"t.yaml:131:7: sdo_servers entry 128 is beyond 127Fh; expected at most 127 "
                                       "additional SDO server channels (1201h..127Fh)"}));
+}
+
+// ---- Bad input: what yaml-cpp would silently accept, limits, messages a new user can act on -----
+
+TEST(MappingConfig, ASecondDocumentIsRefusedWhereItStarts) {
+  const std::string one = kHead + "  joystick.1: { x: right_grip.x }\n";  // lines 1-9
+  EXPECT_TRUE(load(one).ok()) << load(one).error_text();
+  // yaml-cpp's Load reads the first document and drops the rest: a second node_id, junk, or an
+  // empty document after "---" would never be seen.
+  for (const std::string tail : {"---\nupstream: { node_id: 5 }\n", "---\n", "...\n---\n[unclosed\n"}) {
+    const auto r = load(one + tail);
+    ASSERT_FALSE(r.ok()) << tail;
+    ASSERT_EQ(r.errors.size(), 1u);
+    if (tail.back() == '\n' && tail.find('[') == std::string::npos) {
+      EXPECT_EQ(r.errors[0].where.line, 10) << tail;
+      EXPECT_THAT(r.errors[0].message, ::testing::HasSubstr("a second YAML document starts here")) << tail;
+    }
+  }
+  // A leading "---" (one document) is fine.
+  EXPECT_TRUE(load("---\n" + one).ok());
+}
+
+TEST(MappingConfig, BytesThatAreNotUtf8TextAreRefusedAtTheirPosition) {
+  const std::string good = kHead + "  joystick.1: { x: right_grip.x }\n";
+  auto with = [&](std::size_t at, std::string bytes) {
+    std::string t = good;
+    t.insert(at, bytes);
+    return errors(load(t));
+  };
+  const auto line2 = good.find("downstream");
+  EXPECT_EQ(with(line2 + 4, std::string(1, '\0')),
+            (std::vector<std::string>{"t.yaml:2:5: byte 0x00 (NUL) is not text; expected a UTF-8 text file"}));
+  EXPECT_EQ(with(3, "\x07"),  // inside a comment or not: a control character is no text
+            (std::vector<std::string>{"t.yaml:1:4: byte 0x07 (a control character) is not text; expected a UTF-8 "
+                                      "text file"}));
+  EXPECT_EQ(with(line2, "\x8F"), (std::vector<std::string>{"t.yaml:2:1: byte 0x8F is not UTF-8; expected a UTF-8 text file"}));
+  EXPECT_EQ(with(line2, "\xC0\xAF"), (std::vector<std::string>{"t.yaml:2:1: byte 0xC0 is not UTF-8; expected a UTF-8 text file"}));
+  // UTF-8 itself, and a byte-order mark, are text.
+  EXPECT_TRUE(load("\xEF\xBB\xBF" + good + "# Fahrersitz links, Knopf \xC3\xA4\n").ok());
+}
+
+TEST(MappingConfig, ATabInTheIndentationIsNamed) {
+  std::string t = kHead + "  joystick.1:\n\tx: right_grip.x\n";
+  const auto e = errors(load(t));
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_THAT(e[0], ::testing::StartsWith("t.yaml:10:1: YAML syntax error: "));
+  EXPECT_THAT(e[0], ::testing::HasSubstr("(line 10 is indented with a tab: YAML indents with spaces only)"));
+}
+
+TEST(MappingConfig, AnIntegerBeyond64BitsIsOutOfRangeNotNaN) {
+  const std::string t = "upstream: { interface: can0, node_id: 0x20, heartbeat_ms: 99999999999999999999999 }\n" +
+                        kHead.substr(kHead.find("downstream")) + "  joystick.1: { x: right_grip.x }\n";
+  EXPECT_EQ(errors(load(t)), (std::vector<std::string>{"t.yaml:1:59: heartbeat_ms 99999999999999999999999 is out of "
+                                                       "range; expected 0..65535"}));
+}
+
+TEST(MappingConfig, AnUnknownDriverIsReportedOnce) {
+  std::string t = kHead + "  joystick.1: { x: right_grip.x }\n";
+  t.replace(t.find("elobau-mfg"), 10, "elobau-mgf");
+  const auto e = errors(load(t));
+  ASSERT_FALSE(e.empty());
+  EXPECT_EQ(e[0], "t.yaml:4:25: unknown driver 'elobau-mgf'; expected one of elobau-mfg, mcb402, novotechnik-406, "
+                  "cia401 (did you mean 'elobau-mfg'?)");
+}
+
+TEST(MappingConfig, ARefusedSubdeviceNameIsNoSuggestion) {
+  std::string t = kHead + "  joystick.1: { x: right_gripp.x }\n";
+  t.replace(t.find("right_grip:"), 10, "Right_grip");
+  for (const auto& e : errors(load(t))) EXPECT_THAT(e, ::testing::Not(::testing::HasSubstr("did you mean 'Right_grip'")));
+  EXPECT_THAT(errors(load(t)), ::testing::Contains(::testing::HasSubstr("sub-device name 'Right_grip' has characters")));
+}
+
+TEST(MappingConfig, MergeKeysWriteTwinGrips) {
+  const std::string t = R"(upstream: { interface: can0, node_id: 0x20 }
+downstream: { interface: can1 }
+subdevices:
+  right_grip: &grip { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 50, mandatory: true }
+  left_grip:
+    <<: *grip
+    node_id: 0x12
+functional_elements:
+  joystick.1: { x: right_grip.x }
+  joystick.2: { x: left_grip.x }
+)";
+  const auto r = load(t);
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  const auto* left = r.config->find_subdevice("left_grip");
+  ASSERT_NE(left, nullptr);
+  EXPECT_EQ(left->driver, "elobau-mfg");
+  EXPECT_EQ(left->node_id, 0x12);  // its own key wins over the merged one
+  EXPECT_EQ(left->heartbeat_ms, 50);
+  EXPECT_TRUE(left->mandatory);
+  // Several merged maps: the first that sets a key wins; a merge of a non-map is an error.
+  const std::string several = R"(upstream: { interface: can0, node_id: 0x20 }
+downstream: { interface: can1 }
+subdevices:
+  a: &a { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 50 }
+  b: &b { driver: mcb402, node_id: 0x12, heartbeat_ms: 200, mandatory: true }
+  c: { <<: [*b, *a], node_id: 0x13 }
+functional_elements:
+  joystick.1: { x: c.x }
+)";
+  const auto r2 = load(several);
+  ASSERT_TRUE(r2.ok()) << r2.error_text();
+  EXPECT_EQ(r2.config->find_subdevice("c")->driver, "mcb402");
+  EXPECT_EQ(r2.config->find_subdevice("c")->heartbeat_ms, 200);
+  EXPECT_TRUE(r2.config->find_subdevice("c")->mandatory);
+  EXPECT_THAT(errors(load(R"(upstream: { interface: can0, node_id: 0x20, <<: 5 })")),
+              ::testing::Contains(::testing::HasSubstr("for the merge key '<<' in upstream; expected an alias of a map")));
+}
+
+TEST(MappingConfig, LimitsAreNamedBeforeAnythingIsRead) {
+  // 10^6 nested brackets: refused where the 33rd opens, before yaml-cpp recurses into them.
+  const std::string deep = "upstream: " + std::string(1000000, '[');
+  EXPECT_EQ(errors(load(deep)),
+            (std::vector<std::string>{"t.yaml:1:43: [ ] and { } nested deeper than 32 levels; expected at most 32 "
+                                      "(mapping/README.md, \"Limits\")"}));
+  // Brackets inside quotes and comments are text.
+  EXPECT_TRUE(load(kHead + "  joystick.1: { x: right_grip.x }  # [[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[\n").ok());
+  // Lists nested on one line ("- - - -") are as deep as they are wide.
+  std::string dashes;
+  for (int i = 0; i < 100; ++i) dashes += "- ";
+  EXPECT_THAT(errors(load("subdevices:\n  " + dashes + "x\n")),
+              ::testing::ElementsAre("t.yaml:2:1: indentation of 202 columns; expected at most 128 (mapping/README.md, "
+                                     "\"Limits\")"));
+  // A 5000-byte value.
+  EXPECT_THAT(errors(load("upstream: { interface: " + std::string(5000, 'c') + " }\n")),
+              ::testing::ElementsAre("t.yaml:1:24: a value of 5000 bytes; expected at most 4096 (mapping/README.md, "
+                                     "\"Limits\")"));
+  // Aliases that expand to 10^9 values.
+  std::string laughs = "a0: &a0 [x, x, x, x, x, x, x, x, x, x]\n";
+  for (int i = 1; i <= 9; ++i) {
+    laughs += "a" + std::to_string(i) + ": &a" + std::to_string(i) + " [";
+    for (int k = 0; k < 10; ++k) laughs += std::string(k ? ", " : "") + "*a" + std::to_string(i - 1);
+    laughs += "]\n";
+  }
+  const auto e = errors(load(laughs));
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_THAT(e[0], ::testing::HasSubstr("more than 200000 values (an alias counted each time it is used)"));
+  // The text itself.
+  EXPECT_THAT(errors(load(std::string(1024 * 1024 + 1, '#'))),
+              ::testing::ElementsAre("t.yaml:1:1: a text of 1048577 bytes; expected at most 1048576 "
+                                     "(mapping/README.md, \"Limits\")"));
+}
+
+TEST(MappingConfig, AtMost127Subdevices) {
+  auto file = [](int n) {
+    std::string t = "upstream: { interface: can0, node_id: 0x20 }\ndownstream: { interface: can1 }\nsubdevices:\n";
+    for (int i = 1; i <= n; ++i)
+      t += "  g" + std::to_string(i) + ": { driver: novotechnik-406, node_id: " + std::to_string(i > 127 ? 1 : i) + " }\n";
+    return t + "functional_elements:\n  encoder.1: { position: g1.position }\n";
+  };
+  EXPECT_TRUE(load(file(127)).ok()) << load(file(127)).error_text();
+  EXPECT_EQ(errors(load(file(128))),
+            (std::vector<std::string>{"t.yaml:131:3: sub-device 128 ('g128'); expected at most 127 (one per CANopen "
+                                      "node-ID)"}));
+}
+
+TEST(MappingConfig, OnlyARegularFileIsRead) {
+  const auto one = [](const std::string& path) { return errors(load_config(path, fake_catalogue)); };
+  EXPECT_EQ(one("/dev/zero"), (std::vector<std::string>{"/dev/zero:1:1: is a character device; expected a regular file"}));
+  EXPECT_EQ(one(source_dir()), (std::vector<std::string>{source_dir() + ":1:1: is a directory; expected a regular file"}));
+  EXPECT_EQ(one("/nonexistent/x.yaml"),
+            (std::vector<std::string>{"/nonexistent/x.yaml:1:1: cannot open: No such file or directory; expected a "
+                                      "readable file"}));
+  // A FIFO with no writer: refused at once instead of blocking forever.
+  const std::string fifo = ::testing::TempDir() + "oegw_mapping_fifo";
+  std::remove(fifo.c_str());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  EXPECT_EQ(one(fifo), (std::vector<std::string>{fifo + ":1:1: is a FIFO; expected a regular file"}));
+  std::remove(fifo.c_str());
 }
 
 }  // namespace
