@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "canopen/306/eds_check.hpp"
 #include "profiles/cia401/objects.hpp"
 #include "subdevices/families.hpp"
 
@@ -403,6 +404,11 @@ std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const Dr
   auto file = canopen::eds::load(*path, why);
   if (!file) {
     error = "cia401: " + why;
+    return nullptr;
+  }
+  if (const auto problems = canopen::eds::check_pdo_mappings(*file); !problems.empty()) {
+    error = "cia401: " + problems.front() +
+            (problems.size() > 1 ? " (and " + std::to_string(problems.size() - 1) + " more)" : "");
     return nullptr;
   }
   return std::make_unique<Cia401Driver>(node, std::move(sink), std::move(*file));
