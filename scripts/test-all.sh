@@ -15,10 +15,35 @@ ctest --test-dir "$BUILD" --output-on-failure --timeout 900 -j2
 # Fuzzing smoke runs: the SDO server under libFuzzer + ASan/UBSan (clang), a short bounded run.
 FUZZ_BUILD=${OEGW_FUZZ_BUILD_DIR:-build-fuzz}
 CXX=clang++ cmake -S . -B "$FUZZ_BUILD" -G Ninja -DOEGW_FUZZ=ON -DOEGW_VM_TESTS=OFF >/dev/null
-cmake --build "$FUZZ_BUILD" --target sdo_server_fuzz sdo_remote_fuzz
-"$FUZZ_BUILD"/tests/fuzz/sdo_server_fuzz -max_total_time=15 -print_final_stats=1 2>&1 | tail -4
+FUZZERS=(sdo_server_fuzz sdo_remote_fuzz mapping_fuzz eds_fuzz oe_device_fuzz)
+cmake --build "$FUZZ_BUILD" --target "${FUZZERS[@]}"
+# Each writes what it finds into a fresh corpus directory (the first); the seeds after it are
+# only read: SDO conversations of every transfer type run to their ends (make_seeds.py), the
+# shipped mapping files and EDS files. A crash or a broken invariant exits non-zero.
+CORPUS=$(mktemp -d)
+trap 'rm -rf "$CORPUS"' EXIT
+python3 tests/fuzz/make_seeds.py "$CORPUS/seeds"
+fuzz() {  # target seconds seed-dirs... [-- libFuzzer options]
+  local t=$1 s=$2
+  shift 2
+  local rc=0
+  mkdir -p "$CORPUS/$t"
+  echo "== $t (${s} s)"
+  "$FUZZ_BUILD/tests/fuzz/$t" -max_total_time="$s" -print_final_stats=1 -artifact_prefix="$FUZZ_BUILD/$t-" "$@" \
+    >"$CORPUS/$t.log" 2>&1 || rc=$?
+  grep -E "^stat::|DONE|ERROR|SUMMARY|Test unit written|deadly signal" "$CORPUS/$t.log" || true
+  [ "$rc" -eq 0 ] || { tail -40 "$CORPUS/$t.log"; echo "$t failed (exit $rc)"; }
+  return "$rc"
+}
+fuzz sdo_server_fuzz 15 "$CORPUS/sdo_server_fuzz" "$CORPUS/seeds/sdo_server_fuzz"
 # The same server in its remote (routed) mode, against a fake remote that answers, refuses, is late.
-"$FUZZ_BUILD"/tests/fuzz/sdo_remote_fuzz -max_total_time=10 -print_final_stats=1 2>&1 | tail -4
+fuzz sdo_remote_fuzz 10 "$CORPUS/sdo_remote_fuzz"
+# The mapping-file loader with the real drivers, and the device a loaded file builds.
+fuzz mapping_fuzz 15 "$CORPUS/mapping_fuzz" config tests/fixtures -dict=tests/fuzz/mapping.dict
+# The EDS reader, its mapping check, dictionary and write-back.
+fuzz eds_fuzz 10 "$CORPUS/eds_fuzz" subdevices/eds -dict=tests/fuzz/eds.dict
+# The whole upstream device (every FE kind at its largest instance count), every COB-ID, time running.
+fuzz oe_device_fuzz 20 "$CORPUS/oe_device_fuzz" "$CORPUS/seeds/oe_device_fuzz"
 
 # Tier 4: benchmarks print their figures; a crash fails the run, a slow machine does not.
 for b in "$BUILD"/tests/bench/oegw_bench_*; do

@@ -1,5 +1,7 @@
 #include "profiles/cia852/fe_table.hpp"
 
+#include <iterator>
+
 namespace oegw::cia852 {
 
 using canopen::DataType;
@@ -43,10 +45,11 @@ constexpr std::uint16_t kOut8 = cia401::kWriteOutput8;
 constexpr std::uint16_t kAnalogueOut16 = cia401::kWriteAnalogueOutput16;
 }  // namespace
 
-std::vector<FeField> fe_fields(FeId fe) {
+namespace {
+
+std::vector<FeField> build_fields(FeId fe) {
   const unsigned n = fe.instance;
   std::vector<FeField> out;
-  if (n < 1 || n > max_instances(fe.kind)) return out;
   switch (fe.kind) {
     case FeKind::Joystick: {
       // CiA 852 Table 1 / Figure 5: memory function bits m-x, m-y, m-z.
@@ -76,6 +79,28 @@ std::vector<FeField> fe_fields(FeId fe) {
       break;
   }
   return out;
+}
+
+constexpr FeKind kAllKinds[] = {FeKind::Joystick,      FeKind::FootPedal,        FeKind::Encoder, FeKind::Wheel,
+                                FeKind::ButtonCluster, FeKind::IndicatorCluster, FeKind::Display};
+constexpr unsigned kSlots = 17;  // instances 0..16 per kind (0 stays empty)
+
+}  // namespace
+
+const std::vector<FeField>& fe_fields(FeId fe) {
+  // Built once: the device's dictionary, its default PDOs and the mapping loader ask for fields
+  // thousands of times while a full cab boots (find_fe_field per PDO entry).
+  static const std::vector<std::vector<FeField>> table = [] {
+    std::vector<std::vector<FeField>> t(std::size(kAllKinds) * kSlots);
+    for (const FeKind k : kAllKinds)
+      for (unsigned n = 1; n <= max_instances(k); ++n)
+        t[static_cast<unsigned>(k) * kSlots + n] = build_fields({k, static_cast<std::uint8_t>(n)});
+    return t;
+  }();
+  static const std::vector<FeField> none;
+  const auto k = static_cast<unsigned>(fe.kind);
+  if (k >= std::size(kAllKinds) || fe.instance < 1 || fe.instance > max_instances(fe.kind)) return none;
+  return table[k * kSlots + fe.instance];
 }
 
 std::optional<FeField> find_fe_field(FeId fe, std::string_view name) {

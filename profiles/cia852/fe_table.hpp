@@ -56,7 +56,7 @@ struct FeField {
 //  buttons n:   switch[1..64] (6000h sub 31h+8(n−1)+⌊(i−1)/8⌋, bit (i−1) mod 8)
 //  indicators n: indicator[1..64] (6200h sub 01h+8(n−1)+⌊(i−1)/8⌋, bit (i−1) mod 8)
 //  display n:   parameter[1..12] (6411h sub 12(n−1)+p, INTEGER16)
-[[nodiscard]] std::vector<FeField> fe_fields(FeId fe);
+[[nodiscard]] const std::vector<FeField>& fe_fields(FeId fe);
 [[nodiscard]] std::optional<FeField> find_fe_field(FeId fe, std::string_view name);
 
 }  // namespace oegw::cia852
