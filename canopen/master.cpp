@@ -18,6 +18,12 @@ Master::Master(ObjectDictionary& od, FrameSink sink, MasterConfig config)
       emcy_(od_, [this](const EmcyMessage& m, TimePoint t) {
         if (on_emcy) on_emcy(m, t);
       }) {
+  if (cfg_.sync_period.count() > 0) {
+    const auto us = std::chrono::duration_cast<std::chrono::microseconds>(cfg_.sync_period).count();
+    sync_ = std::make_unique<SyncService>(
+        od_, [this](const CanFrame& f) { sink_(f); },
+        SyncConfig{.cob_id = cob::kSync | CobId::kBit30, .period_us = static_cast<std::uint32_t>(us)});
+  }
   hb_.on_timeout([this](NodeId n) {
     if (on_heartbeat_timeout) on_heartbeat_timeout(n);
   });
@@ -76,10 +82,13 @@ bool Master::on_frame(const CanFrame& frame, TimePoint now) {
 void Master::advance(TimePoint now) {
   hb_.advance(now);
   for (auto& [id, client] : sdo_) client->advance(now);
+  if (sync_) sync_->advance(now);
 }
 
 std::optional<TimePoint> Master::next_deadline() const {
   std::optional<TimePoint> best = hb_.next_deadline();
+  if (sync_)
+    if (const auto t = sync_->next_deadline(); t && (!best || *t < *best)) best = t;
   for (const auto& [id, client] : sdo_) {
     const auto t = client->next_deadline();
     if (t && (!best || *t < *best)) best = t;

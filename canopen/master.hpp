@@ -1,5 +1,7 @@
 // A CANopen manager (CiA 301 NMT master side): NMT commands, one SDO client per server node
-// (each with its own request queue), heartbeat consumer, EMCY consumer. Sans I/O like every
+// (each with its own request queue), heartbeat consumer, EMCY consumer and, when a SYNC period
+// is configured, the network's SYNC producer (CiA 301 §7.2.5: 1005h bit 30 set, 1006h the
+// period, no counter; the first SYNC one period after the first advance()). Sans I/O like every
 // service here. Used by the gateway's downstream network manager and by built-in test hosts.
 #pragma once
 
@@ -13,6 +15,7 @@
 #include "canopen/301/nmt_master.hpp"
 #include "canopen/301/object_dictionary.hpp"
 #include "canopen/301/sdo_client.hpp"
+#include "canopen/301/sync.hpp"
 #include "canopen/can_frame.hpp"
 #include "canopen/types.hpp"
 
@@ -21,6 +24,8 @@ namespace oegw::canopen {
 struct MasterConfig {
   std::uint8_t heartbeat_entries = 16;  // 1016h size in the master's own dictionary
   Duration sdo_timeout = std::chrono::seconds(1);
+  // SYNC produced on 080h every this often (1006h, whole µs); 0: the master produces no SYNC.
+  Duration sync_period{0};
 };
 
 class Master {
@@ -39,6 +44,9 @@ class Master {
   // Watches `node`'s heartbeat with the given consumer time (writes a 1016h entry). Returns the
   // SDO abort code of that write (e.g. 0x06040043 if the node is already watched differently).
   SdoAbortCode monitor_heartbeat(NodeId node, std::uint16_t ms);
+
+  // The SYNC period the master produces (MasterConfig::sync_period; 0: none).
+  [[nodiscard]] Duration sync_period() const { return cfg_.sync_period; }
 
   std::function<void(NodeId)> on_heartbeat_timeout;
   // A boot-up message from any node (watched or not).
@@ -62,6 +70,7 @@ class Master {
   HeartbeatConsumer hb_;
   EmcyConsumer emcy_;
   std::map<std::uint8_t, std::unique_ptr<SdoClient>> sdo_;
+  std::unique_ptr<SyncService> sync_;  // only with a SYNC period
 };
 
 }  // namespace oegw::canopen

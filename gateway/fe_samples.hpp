@@ -53,12 +53,28 @@ struct EmcySample {
   std::array<std::uint8_t, 5> msef{};
   std::int64_t timestamp_us = 0;
 };
+// What a sub-device said about itself at its last boot (subdevices::NodeDiagnostics): 1018h:01..04,
+// 1008h/1009h/100Ah (at most 32 characters each) and 1001h. `present` says which were read:
+// bits 0..3 = 1018h:01..04, bits 4..6 = 1008h/1009h/100Ah, bit 7 = 1001h; what is not present
+// is 0 / "".
+struct SubdeviceIdentity {
+  std::uint32_t vendor_id = 0;
+  std::uint32_t product_code = 0;
+  std::uint32_t revision = 0;
+  std::uint32_t serial = 0;
+  std::string device_name;
+  std::string hardware_version;
+  std::string software_version;
+  std::uint8_t error_register = 0;
+  std::uint8_t present = 0;
+};
 struct SubdeviceState {
   std::string name;
   std::uint8_t node_id = 0;
   std::string state;  // "operational", "missing", ...
   EmcySample last_emcy;         // the last EMCY it sent
   std::uint64_t emcy_count = 0;  // EMCYs it sent since the gateway started
+  SubdeviceIdentity identity;    // read at its last boot
 };
 // EMCYs of another upstream node the gateway consumes (1028h).
 struct UpstreamEmcy {

@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "canopen/306/eds_reader.hpp"
 #include "canopen/306/eds_writer.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/socketcan_transport.hpp"
@@ -58,6 +59,30 @@ std::string pdo_place(const std::vector<cia852::DefaultPdo>& pdos, const mapping
   return "not in a default PDO";
 }
 
+// `oegw check`: the downstream SYNC and what the network manager reads at every boot of a
+// sub-device (subdevices/network_manager.hpp).
+void print_downstream_boot(const mapping::Config& cfg) {
+  if (cfg.downstream.sync_period_ms != 0) {
+    std::printf("  SYNC: produced every %u ms on 080h (synchronous TPDOs of type n: one every n x %u ms)\n",
+                cfg.downstream.sync_period_ms, cfg.downstream.sync_period_ms);
+  } else {
+    std::printf("  SYNC: none (sync_period_ms 0; synchronous transmission types refused)\n");
+  }
+  std::printf("  read at every boot, in pre-operational (NMT 80h first): 1000h; 1018h:01..04 identity (revision: "
+              "major part unless revision_match exact); 1008h device name, 1009h hardware version, 100Ah software "
+              "version, 1001h error register (absent = not present); logged once per boot, in the gateway status\n");
+  for (const auto& s : cfg.subdevices) {
+    if (s.exact_revision) std::printf("  %s: revision compared exactly\n", s.name.c_str());
+    // What the EDS reader accepted with a warning (CiA 306 does not allow it, vendors' tools
+    // write it).
+    if (const auto eds = s.options.get("eds")) {
+      std::string error;
+      if (const auto f = canopen::eds::load(*eds, error))
+        for (const auto& w : f->warnings) std::printf("  %s: %s\n", s.name.c_str(), w.c_str());
+    }
+  }
+}
+
 }  // namespace
 
 int run_check(const std::string& file) {
@@ -95,6 +120,7 @@ int run_check(const std::string& file) {
   std::printf("downstream: network %u, %s, sub-device EMCYs forwarded upstream: %s, SDO time-out %u ms\n",
               cfg->downstream.network_id, cfg->downstream.interface.c_str(),
               std::string(mapping::to_string(cfg->downstream.emcy_forwarding)).c_str(), cfg->downstream.sdo_timeout_ms);
+  print_downstream_boot(*cfg);
   for (const auto& s : cfg->subdevices)
     std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id, s.mandatory ? "  mandatory" : "");
   const auto pdos = cia852::default_pdos(fes, node);

@@ -67,6 +67,30 @@ EmcySample emcy_sample(const Gateway::EmcyRecord& r) {
   if (r.count == 0) return {};
   return EmcySample{r.last.code, r.last.error_register, r.last.msef, to_us(r.time)};
 }
+// A node's boot diagnostics for the status; `present` marks what it had.
+SubdeviceIdentity identity_of(const subdevices::NodeDiagnostics* d) {
+  SubdeviceIdentity out;
+  if (d == nullptr) return out;
+  const std::optional<std::uint32_t>* ids[4] = {&d->vendor_id, &d->product_code, &d->revision, &d->serial};
+  std::uint32_t* to[4] = {&out.vendor_id, &out.product_code, &out.revision, &out.serial};
+  for (std::size_t k = 0; k < 4; ++k)
+    if (*ids[k]) {
+      *to[k] = **ids[k];
+      out.present = static_cast<std::uint8_t>(out.present | (1u << k));
+    }
+  const std::optional<std::string>* texts[3] = {&d->device_name, &d->hardware_version, &d->software_version};
+  std::string* tt[3] = {&out.device_name, &out.hardware_version, &out.software_version};
+  for (std::size_t k = 0; k < 3; ++k)
+    if (*texts[k]) {
+      *tt[k] = **texts[k];
+      out.present = static_cast<std::uint8_t>(out.present | (1u << (4 + k)));
+    }
+  if (d->error_register) {
+    out.error_register = *d->error_register;
+    out.present = static_cast<std::uint8_t>(out.present | 0x80u);
+  }
+  return out;
+}
 }  // namespace
 
 void GatewayPublishing::publish_fe(mapping::FeId fe) {
@@ -108,7 +132,7 @@ void GatewayPublishing::publish_status() {
     if (auto* d = gw_.downstream().driver(name)) node = d->node().value();
     const Gateway::EmcyRecord e = gw_.subdevice_emcy(name);
     st.subdevices.push_back({name, node, std::string(subdevices::to_string(gw_.downstream().state(name))),
-                             emcy_sample(e), e.count});
+                             emcy_sample(e), e.count, identity_of(gw_.downstream().diagnostics(name))});
   }
   if (!gw_.faults().empty()) st.active_emcys.push_back(OeDevice::kEmcyAdditionalModules);
   st.refused_commands = gw_.refused_commands();

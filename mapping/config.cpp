@@ -50,6 +50,7 @@ subdevices::NodeSettings SubdeviceConfig::node_settings() const {
   n.pdo_timeout_ms = pdo_timeout_ms;
   n.mandatory = mandatory;
   n.identity = identity;
+  n.exact_revision = exact_revision;
   for (const auto& w : sdo) n.sdo.push_back(w.to_sdo_write());
   return n;
 }
@@ -147,6 +148,7 @@ void read_file(YamlReader& r, const YAML::Node& root, const SignalCatalogue& cat
     r.missing(root, "functional_elements", "the file", "a functional_elements section");
   sections::check_command_sources_reachable(r, cfg);
   sections::check_sdo_servers(r, cfg);
+  sections::check_sync(r, cfg);
   // CiA 302-7: a network ID names one network; the two buses need two.
   if (cfg.upstream.network_id == cfg.downstream.network_id) {
     const bool down_written = cfg.downstream.network_id_where.line != 0;

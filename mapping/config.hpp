@@ -103,7 +103,13 @@ struct DownstreamConfig {
   // The gateway's SDO client time-out toward every sub-device (its boot and configuration, and
   // the host's remote SDO: a host must wait longer than this for the gateway's 0504 0000h).
   std::uint16_t sdo_timeout_ms = 1000;
+  // The SYNC the gateway produces downstream (CiA 301 §7.2.5, COB-ID 080h, no counter), for the
+  // sub-devices' synchronous TPDOs (transmission types 1..240: one after every n-th SYNC);
+  // 0: no SYNC (then a node configured with a synchronous type is refused, see
+  // sections::check_sync).
+  std::uint16_t sync_period_ms = 0;
   Location where;
+  Location sync_period_where;  // the `sync_period_ms` value, when written
   Location network_id_where;  // the `network_id` value, when written
 };
 
@@ -152,8 +158,12 @@ struct SubdeviceConfig {
   std::uint16_t pdo_timeout_ms = 0;        // PDO freshness deadline; 0 = 3 x the event timers (driver.hpp)
   bool mandatory = false;
   subdevices::ExpectedIdentity identity;
+  // identity.revision_match: `major` (default) compares the upper 16 bits of 1018h:03 only,
+  // `exact` all 32 (NodeSettings::exact_revision).
+  bool exact_revision = false;
   std::vector<SdoWriteConfig> sdo;
   subdevices::DriverOptions options;
+  std::vector<std::pair<std::string, Location>> option_where;  // each option's value, as written
   std::vector<subdevices::SignalInfo> signals;  // from the catalogue
   Location where;
   [[nodiscard]] subdevices::NodeId node() const { return subdevices::NodeId{node_id}; }

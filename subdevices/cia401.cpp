@@ -271,6 +271,22 @@ bool Cia401Driver::needs_sync() const {
                      [](const Pdo& p) { return p.usable() && p.transmission_type && *p.transmission_type <= 240; });
 }
 
+std::vector<SdoWrite> Cia401Driver::configuration() const {
+  const canopen::eds::SubEntry* enable = eds_.find(0x6423, 0);
+  if (enable == nullptr || !canopen::writable(enable->access)) return {};
+  for (const Pdo& p : pdos_) {
+    if (!p.transmit || !p.usable() || !p.transmission_type) continue;
+    const std::uint8_t t = *p.transmission_type;
+    if (t != 0 && t < 254) continue;  // cyclic synchronous: sent at the SYNC, changed or not
+    for (const Entry& e : p.decoded)
+      if ((e.raw >> 16) == 0x6401 && e.signal >= 0)
+        return {SdoWrite{0x6423, 0, {1},
+                         "analogue input global interrupt enable (6423h) TRUE: TPDO" + std::to_string(p.number) +
+                             " maps an analogue input and is sent on change"}};
+  }
+  return {};
+}
+
 // ---- runtime --------------------------------------------------------------------------------
 
 std::vector<std::uint32_t> Cia401Driver::consumed_cob_ids() const {

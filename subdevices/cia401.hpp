@@ -88,6 +88,12 @@ class Cia401Driver final : public Driver {
   [[nodiscard]] std::string_view family() const override { return "cia401"; }
   [[nodiscard]] const std::vector<SignalInfo>& signals() const override { return signals_; }
   [[nodiscard]] ExpectedIdentity expected_identity() const override;
+  // CiA 401: 6423h "analogue input global interrupt enable" (BOOLEAN, default FALSE) gates the
+  // event-driven transmission of every analogue input. When the EDS has 6423h and a TPDO in use
+  // (as read back at boot) maps an analogue input (6401h) with an event-driven transmission
+  // type (254/255) or type 0 (acyclic synchronous: sent on change), 6423h is written TRUE;
+  // otherwise nothing is written.
+  [[nodiscard]] std::vector<SdoWrite> configuration() const override;
 
   // The boot-time mapping read (see the header comment).
   void reset_mapping();

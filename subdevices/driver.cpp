@@ -93,6 +93,17 @@ void Driver::set_pdo_timeout(Duration timeout) {
   rebuild_deadlines();
 }
 
+void Driver::set_sync_period(Duration period) {
+  sync_period_ = period;
+  rebuild_deadlines();
+}
+
+std::optional<std::uint16_t> Driver::synchronous_carrier() const {
+  for (const Carrier& c : carriers_)
+    if (c.transmission_type <= 240) return c.comm_index;
+  return std::nullopt;
+}
+
 void Driver::set_alive_since(std::optional<TimePoint> since) {
   alive_since_ = since;
   for (Watch& w : watches_) {
@@ -162,6 +173,8 @@ void Driver::rebuild_deadlines() {
     Duration d = pdo_timeout_;
     if (d.count() == 0 && c.event_timer_ms != 0 && c.transmission_type >= 254)
       d = std::chrono::milliseconds(c.event_timer_ms) * kMissedPeriods;
+    if (d.count() == 0 && c.transmission_type >= 1 && c.transmission_type <= 240)
+      d = sync_period_ * c.transmission_type * kMissedPeriods;
     add(c.cob_id, d, c.required, c.signals);
   }
   // A driver that declares no carriers: pdo_timeout_ms covers every input, refreshed by any PDO.

@@ -126,6 +126,13 @@ class Driver {
   // there replace the driver's defaults.
   void apply_boot_writes(const std::vector<SdoWrite>& writes);
   void set_pdo_timeout(Duration timeout);  // 0: the deadlines derived from the event timers
+  // SYNC: a TPDO of transmission type n = 1..240 is sent after every n-th SYNC (CiA 301
+  // §7.5.2.35), so with the SYNC period P it is Stale once kMissedPeriods × n × P pass without
+  // it. 0: no SYNC is produced (such a TPDO then has no derived deadline).
+  void set_sync_period(Duration period);
+  // The communication index (18xxh) of the first carrier whose transmission type is synchronous
+  // (0..240: sent only at a SYNC), after apply_boot_writes(); nullopt when none is.
+  [[nodiscard]] std::optional<std::uint16_t> synchronous_carrier() const;
   // The deadline of one signal (0: none), and the largest of all (0: none).
   [[nodiscard]] Duration freshness(std::size_t index) const;
   [[nodiscard]] Duration longest_freshness() const;
@@ -209,6 +216,7 @@ class Driver {
   unsigned output_batch_ = 0;
   std::vector<Carrier> carriers_;
   Duration pdo_timeout_{0};
+  Duration sync_period_{0};
   std::optional<TimePoint> alive_since_;
   std::vector<Duration> deadline_;          // by signal: the shortest of its PDOs'; 0 = none
   std::vector<Watch> watches_;

@@ -35,23 +35,55 @@ std::string obj(std::uint16_t index, std::uint8_t sub) {
   return b;
 }
 
-// A check of a UNSIGNED32 answer against an expected value (CiA 302-2 identity check).
+// A check of a UNSIGNED32 answer against an expected value (CiA 302-2 identity check), in the
+// bits of `mask`; the value read is kept in `keep` when given.
 std::function<std::string(const std::vector<std::uint8_t>&)> expect_u32(std::uint16_t index, std::uint8_t sub,
-                                                                         std::optional<std::uint32_t> want) {
-  return [index, sub, want](const std::vector<std::uint8_t>& d) -> std::string {
+                                                                         std::optional<std::uint32_t> want,
+                                                                         std::optional<std::uint32_t>* keep = nullptr,
+                                                                         std::uint32_t mask = 0xFFFFFFFFu) {
+  return [index, sub, want, keep, mask](const std::vector<std::uint8_t>& d) -> std::string {
     if (d.size() != 4) return obj(index, sub) + " answered " + std::to_string(d.size()) + " bytes, expected 4";
-    if (!want) return {};
     const std::uint32_t got = canopen::get_u32(d.data());
-    if (got != *want) return obj(index, sub) + " is " + hex32(got) + ", the configuration expects " + hex32(*want);
+    if (keep != nullptr) *keep = got;
+    if (!want || (got & mask) == (*want & mask)) return {};
+    if (mask == 0xFFFFFFFFu) return obj(index, sub) + " is " + hex32(got) + ", the configuration expects " + hex32(*want);
+    char b[160];
+    std::snprintf(b, sizeof b, "%s is %08Xh: major revision %04Xh, the configuration expects %04Xh (from %08Xh; the minor revision is not compared)",
+                  obj(index, sub).c_str(), got, got >> 16, *want >> 16, *want);
+    return b;
+  };
+}
+
+// A VISIBLE_STRING answer (CiA 301 §7.1.6.3), kept readable: up to the first NUL, at most
+// NodeDiagnostics::kMaxText characters, non-printable ones as '?'.
+std::function<std::string(const std::vector<std::uint8_t>&)> keep_text(std::optional<std::string>* keep) {
+  return [keep](const std::vector<std::uint8_t>& d) -> std::string {
+    std::string t;
+    for (const std::uint8_t c : d) {
+      if (c == 0 || t.size() == NodeDiagnostics::kMaxText) break;
+      t.push_back(c >= 0x20 && c < 0x7F ? static_cast<char>(c) : '?');
+    }
+    *keep = std::move(t);
     return {};
   };
 }
+
+std::string show(const std::optional<std::uint32_t>& v) { return v ? hex32(*v) : "-"; }
+std::string show(const std::optional<std::string>& v) { return v ? "\"" + *v + "\"" : "-"; }
 
 std::optional<std::uint32_t> pick(std::optional<std::uint32_t> configured, std::optional<std::uint32_t> driver) {
   return configured ? configured : driver;
 }
 
 }  // namespace
+
+std::string NodeDiagnostics::describe() const {
+  char reg[8] = "-";
+  if (error_register) std::snprintf(reg, sizeof reg, "%02Xh", static_cast<unsigned>(*error_register));
+  return "vendor " + show(vendor_id) + ", product " + show(product_code) + ", revision " + show(revision) +
+         ", serial " + show(serial) + ", name " + show(device_name) + ", hardware " + show(hardware_version) +
+         ", software " + show(software_version) + ", error register " + reg;
+}
 
 NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
     : master_(master), timing_(timing), lss_(master.sink()) {
@@ -104,6 +136,7 @@ bool NetworkManager::add(NodeSettings settings, std::unique_ptr<Driver> driver) 
   m->settings = std::move(settings);
   m->driver = std::move(driver);
   m->driver->set_pdo_timeout(std::chrono::milliseconds(m->settings.pdo_timeout_ms));
+  m->driver->set_sync_period(master_.sync_period());
   route(*m);
   nodes_.push_back(std::move(m));
   return true;
@@ -189,32 +222,100 @@ void NetworkManager::configure(Managed& m, TimePoint now) {
   m.held.clear();
   m.driver->set_alive_since(std::nullopt);
   master_.sdo(m.settings.node).cancel_all(SdoAbortCode::CannotTransferDeviceState);
-  const ExpectedIdentity drv = m.driver->expected_identity();
-  const ExpectedIdentity& cfg = m.settings.identity;
+  // Pre-operational before any SDO (step 2 of the header). The NMT command is unconfirmed; the
+  // node handles it before the SDO request queued behind it on the bus.
+  master_.nmt().enter_pre_operational(m.settings.node);
+  m.diag = {};
   m.steps.clear();
   m.next_step = 0;
-  // CiA 302-2 boot-up: device type and identity first.
   using Kind = Step::Kind;
-  m.steps.push_back({Kind::Read, 0x1000, 0, {}, "device type", expect_u32(0x1000, 0, pick(cfg.device_type, drv.device_type))});
-  const std::optional<std::uint32_t> ident[4] = {pick(cfg.vendor_id, drv.vendor_id), pick(cfg.product_code, drv.product_code),
-                                                 pick(cfg.revision, drv.revision), pick(cfg.serial, drv.serial)};
-  static const char* const names[4] = {"vendor-ID", "product code", "revision number", "serial number"};
-  for (std::uint8_t sub = 1; sub <= 4; ++sub)
-    if (ident[sub - 1])
-      m.steps.push_back({Kind::Read, 0x1018, sub, {}, names[sub - 1], expect_u32(0x1018, sub, ident[sub - 1])});
+  add_identity_steps(m);
+  add_diagnostic_steps(m);
+  m.steps.push_back({Kind::Diagnostics, 0, 0, {}, "diagnostics", {}});
   m.driver->begin_boot();
   m.steps.push_back({Kind::DriverReads, 0, 0, {}, "driver reads", {}});
   if (m.settings.heartbeat_ms != 0)
     m.steps.push_back({Kind::Write, 0x1017, 0, canopen::encode<std::uint16_t>(m.settings.heartbeat_ms), "producer heartbeat", {}});
-  for (const SdoWrite& w : m.driver->configuration()) m.steps.push_back({Kind::Write, w.index, w.sub, w.data, w.what, {}});
+  m.steps.push_back({Kind::DriverWrites, 0, 0, {}, "driver configuration", {}});
   for (const SdoWrite& w : m.settings.sdo) m.steps.push_back({Kind::Write, w.index, w.sub, w.data, w.what, {}});
   set_state(m, NodeState::Configuring, "boot-up seen: checking identity and configuring", now);
   run_step(m);
 }
 
+void NetworkManager::add_identity_steps(Managed& m) {
+  // CiA 302-2 boot-up: device type and identity first.
+  const ExpectedIdentity drv = m.driver->expected_identity();
+  const ExpectedIdentity& cfg = m.settings.identity;
+  using Kind = Step::Kind;
+  m.steps.push_back({Kind::Read, 0x1000, 0, {}, "device type", expect_u32(0x1000, 0, pick(cfg.device_type, drv.device_type))});
+  const std::optional<std::uint32_t> ident[4] = {pick(cfg.vendor_id, drv.vendor_id), pick(cfg.product_code, drv.product_code),
+                                                 pick(cfg.revision, drv.revision), pick(cfg.serial, drv.serial)};
+  std::optional<std::uint32_t>* keep[4] = {&m.diag.vendor_id, &m.diag.product_code, &m.diag.revision, &m.diag.serial};
+  static const char* const names[4] = {"vendor-ID", "product code", "revision number", "serial number"};
+  for (std::uint8_t sub = 1; sub <= 4; ++sub) {
+    const std::uint32_t mask = sub == 3 && !m.settings.exact_revision ? 0xFFFF0000u : 0xFFFFFFFFu;
+    Step st{Kind::Read, 0x1018, sub, {}, names[sub - 1], expect_u32(0x1018, sub, ident[sub - 1], keep[sub - 1], mask)};
+    st.optional = !ident[sub - 1];  // CiA 301 §7.5.2.13: only sub 1 is mandatory
+    m.steps.push_back(std::move(st));
+  }
+}
+
+void NetworkManager::add_diagnostic_steps(Managed& m) {
+  using Kind = Step::Kind;
+  const std::pair<std::uint16_t, std::optional<std::string>*> texts[] = {
+      {0x1008, &m.diag.device_name}, {0x1009, &m.diag.hardware_version}, {0x100A, &m.diag.software_version}};
+  static const char* const names[3] = {"manufacturer device name", "manufacturer hardware version",
+                                       "manufacturer software version"};
+  for (std::size_t i = 0; i < 3; ++i) {
+    Step st{Kind::Read, texts[i].first, 0, {}, names[i], keep_text(texts[i].second)};
+    st.optional = true;
+    m.steps.push_back(std::move(st));
+  }
+  std::optional<std::uint8_t>* reg = &m.diag.error_register;
+  Step st{Kind::Read, 0x1001, 0, {}, "error register", [reg](const std::vector<std::uint8_t>& d) -> std::string {
+            if (d.size() != 1) return obj(0x1001, 0) + " answered " + std::to_string(d.size()) + " bytes, expected 1";
+            *reg = d[0];
+            return {};
+          }};
+  st.optional = true;
+  m.steps.push_back(std::move(st));
+}
+
+const NodeDiagnostics* NetworkManager::diagnostics(std::string_view name) const {
+  const Managed* m = find(name);
+  return m ? &m->diag : nullptr;
+}
+
+std::string NetworkManager::sync_refusal(const Managed& m) const {
+  if (master_.sync_period().count() != 0) return {};
+  const auto comm = m.driver->synchronous_carrier();
+  if (!comm) return {};
+  char b[200];
+  std::snprintf(b, sizeof b,
+                "the TPDO of %04Xh has a synchronous transmission type (0..240: sent only at a SYNC) and no SYNC "
+                "is produced downstream (downstream.sync_period_ms not set)",
+                static_cast<unsigned>(*comm));
+  return b;
+}
+
 void NetworkManager::run_step(Managed& m) {
   if (m.next_step >= m.steps.size()) {
     finish(m, now_);
+    return;
+  }
+  if (m.steps[m.next_step].kind == Step::Kind::Diagnostics) {
+    ++m.next_step;
+    const std::uint64_t gen = m.generation;
+    if (on_diagnostics) on_diagnostics(m.settings.name, m.diag);
+    if (m.generation == gen && m.state == NodeState::Configuring) run_step(m);
+    return;
+  }
+  if (m.steps[m.next_step].kind == Step::Kind::DriverWrites) {
+    std::vector<Step> writes;
+    for (const SdoWrite& w : m.driver->configuration()) writes.push_back({Step::Kind::Write, w.index, w.sub, w.data, w.what, {}});
+    const auto at = m.steps.begin() + static_cast<std::ptrdiff_t>(m.next_step);
+    m.steps.insert(m.steps.erase(at), writes.begin(), writes.end());
+    run_step(m);
     return;
   }
   if (m.steps[m.next_step].kind == Step::Kind::DriverReads) {
@@ -251,6 +352,11 @@ void NetworkManager::run_step(Managed& m) {
                               (st.what.empty() ? "" : " (" + st.what + ")");
     if (code == SdoAbortCode::Timeout) {
       fail(*mp, NodeState::Missing, where + ": no answer (SDO timeout)", now_);
+      return;
+    }
+    if (code != SdoAbortCode::None && st.optional) {
+      ++mp->next_step;  // not present
+      run_step(*mp);
       return;
     }
     if (code != SdoAbortCode::None && st.driver_read && mp->driver->on_boot_read_abort(st.index, st.sub, code)) {
@@ -294,6 +400,10 @@ void NetworkManager::finish(Managed& m, TimePoint now) {
   for (const Step& st : m.steps)
     if (st.kind == Step::Kind::Write) writes.push_back({st.index, st.sub, st.data, {}});
   m.driver->apply_boot_writes(writes);
+  if (const std::string why = sync_refusal(m); !why.empty()) {
+    fail(m, NodeState::Refused, why, now);
+    return;
+  }
   if (m.settings.heartbeat_ms != 0) (void)master_.monitor_heartbeat(m.settings.node, consumer_ms(m));
   master_.nmt().start(m.settings.node);
   m.started_once = true;

@@ -1,12 +1,22 @@
 // The downstream network manager: the gateway as NMT master of the cab's sub-devices (CiA 302
 // concepts, bus.yml vocabulary). For each configured node it
 //   1. resets communication and waits for the boot-up (or finds the node already there),
-//   2. reads 1000h and 1018h and checks them against the configuration,
-//   3. runs the driver's boot reads (e.g. a generic node's actual PDO mapping),
-//   4. writes the producer heartbeat (1017h), the driver's configuration and the configured
+//   2. sends NMT enter pre-operational to the node: a node that starts itself (Novotechnik
+//      1F80h bit 3, elobau 5000h) is operational right after its boot-up, or already when the
+//      gateway first sees it, and refuses remapping and store while operational,
+//   3. reads 1000h and 1018h:01..04 and checks them against the configuration (the revision by
+//      its major part, the upper 16 bits, unless NodeSettings::exact_revision; CiA 301
+//      §7.5.2.13); then the diagnostics 1008h/1009h/100Ah and 1001h (NodeDiagnostics: an
+//      abort of these, or of a 1018h sub-index nothing is expected of, means "not present"),
+//      reported once per boot (on_diagnostics),
+//   4. runs the driver's boot reads (e.g. a generic node's actual PDO mapping),
+//   5. writes the producer heartbeat (1017h), the driver's configuration and the configured
 //      `sdo` list, in that order,
-//   5. starts heartbeat monitoring and sends NMT start (state `starting`),
-//   6. waits for proof of life: the first heartbeat reporting operational after the NMT start
+//   6. refuses the node when a TPDO it uses is synchronous (transmission type 0..240) and the
+//      master produces no SYNC (MasterConfig::sync_period 0): those PDOs would never come;
+//      with SYNC, a type n TPDO's freshness deadline is kMissedPeriods × n × the SYNC period,
+//   7. starts heartbeat monitoring and sends NMT start (state `starting`),
+//   8. waits for proof of life: the first heartbeat reporting operational after the NMT start
 //      (with heartbeat_ms 0: the first PDO), within the consumer time counted from the NMT
 //      start; only then is the node operational and its driver told it is online. CiA 301's
 //      consumer starts watching at the first heartbeat, so a node that never sends one would
@@ -41,7 +51,26 @@ struct NodeSettings {
   std::uint16_t pdo_timeout_ms = 0;        // freshness deadline of every PDO-carried input; 0 = derived
   bool mandatory = false;
   ExpectedIdentity identity;               // checked besides the driver's own expectations
+  // 1018h:03: false compares only the major revision (upper 16 bits, CiA 301 §7.5.2.13: a
+  // minor revision is a compatible firmware update); true compares all 32 bits.
+  bool exact_revision = false;
   std::vector<SdoWrite> sdo;               // written after the driver's configuration
+};
+
+// What a node said about itself at its last boot (CiA 301 §7.5.2: 1018h identity, 1008h/1009h/
+// 100Ah VISIBLE_STRINGs, 1001h error register), read during configuration and kept until the
+// next boot. A value the node does not have (the read was aborted) is nullopt.
+struct NodeDiagnostics {
+  std::optional<std::uint32_t> vendor_id, product_code, revision, serial;  // 1018h:01..04
+  std::optional<std::string> device_name;       // 1008h
+  std::optional<std::string> hardware_version;  // 1009h
+  std::optional<std::string> software_version;  // 100Ah
+  std::optional<std::uint8_t> error_register;   // 1001h
+  // Longest string kept (longer ones are cut); non-printable characters become '?'.
+  static constexpr std::size_t kMaxText = 32;
+  // "vendor 000000B4h, product 00000001h, revision 00010003h, serial -, name \"JST\", hardware
+  // \"0.00\", software \"0.00\", error register 00h" (- for what is not present).
+  [[nodiscard]] std::string describe() const;
 };
 
 enum class NodeState : std::uint8_t {
@@ -103,6 +132,12 @@ class NetworkManager {
   // True while any mandatory node is not operational.
   [[nodiscard]] bool fault() const;
   [[nodiscard]] const NetworkCounters& counters() const { return counters_; }
+  // The diagnostics read at the node's last boot (empty before the first); nullptr for an
+  // unknown name.
+  [[nodiscard]] const NodeDiagnostics* diagnostics(std::string_view name) const;
+  // Once per boot of a node, when its diagnostics have been read (before the configuration
+  // writes): for the log.
+  std::function<void(const std::string& name, const NodeDiagnostics&)> on_diagnostics;
 
   // Every state change of a node, with a human-readable reason ("1018h:01 is 00000001h, the
   // configuration expects 0000015Ah").
@@ -123,7 +158,10 @@ class NetworkManager {
 
  private:
   struct Step {
-    enum class Kind : std::uint8_t { Read, Write, DriverReads };  // DriverReads: ask the driver
+    // DriverReads: ask the driver; Diagnostics: report what was read (on_diagnostics);
+    // DriverWrites: the driver's configuration(), asked after its boot reads (it may depend on
+    // what they found, e.g. the generic node's analogue inputs mapped).
+    enum class Kind : std::uint8_t { Read, Write, DriverReads, Diagnostics, DriverWrites };
     Kind kind = Kind::Read;
     std::uint16_t index = 0;
     std::uint8_t sub = 0;
@@ -132,6 +170,7 @@ class NetworkManager {
     // For reads: checks the answer; returns an error text, or empty when fine.
     std::function<std::string(const std::vector<std::uint8_t>&)> check;
     bool driver_read = false;  // a read the driver asked for: aborts go to on_boot_read_abort
+    bool optional = false;     // an abort means "not present": on to the next step
   };
   struct Managed {
     NodeSettings settings;
@@ -147,6 +186,7 @@ class NetworkManager {
     std::size_t next_step = 0;
     InputCounters reported;  // what on_bad_input has already said
     std::vector<std::pair<CanFrame, TimePoint>> held;  // Starting: last PDO per COB-ID, for go_live
+    NodeDiagnostics diag;  // read at the last boot
   };
 
   Managed* find(NodeId node);
@@ -154,6 +194,9 @@ class NetworkManager {
   void set_state(Managed& m, NodeState s, const std::string& why, TimePoint now);
   void begin_boot(Managed& m, TimePoint now);   // reset communication, wait for boot-up
   void configure(Managed& m, TimePoint now);    // identity, boot reads, writes, start
+  void add_identity_steps(Managed& m);          // 1000h, 1018h:01..04 (checked and kept)
+  void add_diagnostic_steps(Managed& m);        // 1008h, 1009h, 100Ah, 1001h (kept)
+  [[nodiscard]] std::string sync_refusal(const Managed& m) const;  // step 6; empty when fine
   void run_step(Managed& m);
   void route(Managed& m);
   void report_bad_input(Managed& m);

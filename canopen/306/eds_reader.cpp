@@ -197,10 +197,14 @@ class Parser {
     error_ = name_ + ":" + std::to_string(line) + ": " + what;
     return false;
   }
+  void warn(int line, const std::string& what) {
+    warnings_.push_back(name_ + ":" + std::to_string(line) + ": warning: " + what);
+  }
   bool tokenize(std::string_view text);
   bool read_lists(File& file);
   bool read_object(File& file, std::uint16_t index, const std::string& list, int list_line);
-  bool read_entry(const Section& s, SubEntry& e, bool var_in_object);
+  bool read_entry(const Section& s, SubEntry& e, bool var_in_object, bool domain = false);
+  bool read_compact(const Section& s, ObjectEntry& o, std::uint64_t count);
   bool read_value(const Section& s, const Key& k, DataType type, std::optional<Value>& out, bool is_limit);
   [[nodiscard]] const Section* find_section(std::string_view name) const {
     for (const auto& s : sections_)
@@ -211,6 +215,7 @@ class Parser {
   std::string name_;
   std::string& error_;
   std::vector<Section> sections_;
+  std::vector<std::string> warnings_;
   int last_line_ = 0;
   // Object sections -> position in sections_, keyed index << 9 | (sub + 1) ([1A00subN]) or
   // index << 9 ([1A00]); see object_key().
@@ -244,6 +249,7 @@ bool Parser::tokenize(std::string_view text) {
   int line_no = 0;
   std::size_t pos = 0;
   Section* current = nullptr;
+  if (text.substr(0, 3) == "\xEF\xBB\xBF") pos = 3;  // UTF-8 byte-order mark
   while (pos < text.size()) {
     std::size_t end = text.find('\n', pos);
     if (end == std::string_view::npos) end = text.size();
@@ -276,9 +282,11 @@ bool Parser::tokenize(std::string_view text) {
     const std::string key = trim(std::string_view(line).substr(0, eq));
     if (key.empty()) return fail(line_no, "expected a key before '='");
     if (current == nullptr) return fail(line_no, "expected a [section] before " + quote(key) + "=");
-    if (const Key* prev = current->get(key); prev != nullptr)
-      return fail(line_no, "duplicate key " + quote(key) + " in [" + current->name + "] (first at line " +
-                               std::to_string(prev->line) + ")");
+    if (const Key* prev = current->get(key); prev != nullptr) {
+      warn(line_no, "duplicate key " + quote(key) + " in [" + current->name + "] ignored: the first, at line " +
+                        std::to_string(prev->line) + ", counts");
+      continue;
+    }
     current->keys.push_back(Key{key, trim(std::string_view(line).substr(eq + 1)), line_no});
   }
   return true;
@@ -287,7 +295,13 @@ bool Parser::tokenize(std::string_view text) {
 bool Parser::read_value(const Section& s, const Key& k, DataType type, std::optional<Value>& out, bool is_limit) {
   const std::string where = "[" + s.name + "] " + k.name + ": ";
   if (!is_integer(type) && !canopen::is_real(type)) {
-    if (is_limit) return fail(k.line, where + "expected no limit for a " + std::string(to_string(type)) + " entry");
+    if (is_limit) {
+      // CiA 306 gives limits to numbers only; tools write empty ones on strings and domains.
+      if (!k.value.empty())
+        warn(k.line, where + "a limit on a " + std::string(to_string(type)) + " entry means nothing: ignored");
+      out.reset();
+      return true;
+    }
     out = Value{k.value, false, 0, false};
     return true;
   }
@@ -321,7 +335,7 @@ bool Parser::read_value(const Section& s, const Key& k, DataType type, std::opti
   return true;
 }
 
-bool Parser::read_entry(const Section& s, SubEntry& e, bool var_in_object) {
+bool Parser::read_entry(const Section& s, SubEntry& e, bool var_in_object, bool domain) {
   const std::string where = "[" + s.name + "] ";
   const Key* name = s.get("ParameterName");
   if (name == nullptr || name->value.empty()) return fail(s.line, where + "expected ParameterName=");
@@ -335,9 +349,9 @@ bool Parser::read_entry(const Section& s, SubEntry& e, bool var_in_object) {
     }
   }
   const Key* dt = s.get("DataType");
-  if (dt == nullptr) return fail(s.line, where + "expected DataType=");
-  std::uint64_t t = 0;
-  if (!parse_integer(dt->value, t) || !is_known_type(t))
+  std::uint64_t t = static_cast<std::uint64_t>(DataType::Domain);
+  if (dt == nullptr && !domain) return fail(s.line, where + "expected DataType=");
+  if (dt != nullptr && (!parse_integer(dt->value, t) || !is_known_type(t)))
     return fail(dt->line, where + "DataType: expected a CiA 301 data type number such as 0x0007, got " +
                               quote(dt->value));
   e.type = static_cast<DataType>(t);
@@ -372,7 +386,8 @@ bool Parser::read_entry(const Section& s, SubEntry& e, bool var_in_object) {
       return sgn ? static_cast<std::int64_t>(v) > static_cast<std::int64_t>(h.number) : v > h.number;
     };
     if ((e.low && !e.low->node_relative && below(*e.low)) || (e.high && !e.high->node_relative && above(*e.high)))
-      return fail(s.get("DefaultValue")->line, where + "DefaultValue: expected a value within LowLimit..HighLimit");
+      warn(s.get("DefaultValue")->line, where + "DefaultValue " + quote(e.default_value->text) +
+                                            " is outside LowLimit..HighLimit: kept as written");
   }
   return true;
 }
@@ -392,20 +407,31 @@ bool Parser::read_object(File& file, std::uint16_t index, const std::string& lis
   o.name = name->value;
   std::uint64_t ot = 7;
   if (const Key* k = s.get("ObjectType"); k != nullptr) {
-    if (!parse_integer(k->value, ot) || (ot != 7 && ot != 8 && ot != 9))
-      return fail(k->line, where + "ObjectType: expected 0x7 (VAR), 0x8 (ARRAY) or 0x9 (RECORD), got " +
-                               quote(k->value));
+    if (!parse_integer(k->value, ot) || (ot != 2 && ot != 5 && ot != 6 && ot != 7 && ot != 8 && ot != 9))
+      return fail(k->line, where + "ObjectType: expected 0x7 (VAR), 0x8 (ARRAY), 0x9 (RECORD), 0x2 (DOMAIN), "
+                                   "0x5 (DEFTYPE) or 0x6 (DEFSTRUCT), got " + quote(k->value));
   }
+  // CiA 306 Table 2: a DOMAIN or a DEFTYPE is held as a VAR, a DEFSTRUCT as a RECORD.
+  if (ot == 2 || ot == 5 || ot == 6) o.object_type = static_cast<std::uint8_t>(ot);
+  o.code = ot == 8 ? ObjectCode::Array : (ot == 9 || ot == 6) ? ObjectCode::Record : ObjectCode::Var;
   if (const Key* k = s.get("CompactSubObj"); k != nullptr) {
     std::uint64_t v = 0;
-    if (!parse_integer(k->value, v) || v != 0)
-      return fail(k->line, where + "CompactSubObj: not supported, expected one [" + hex(index, 4) +
-                               "subN] section per sub-object");
+    if (!parse_integer(k->value, v) || v > 254)
+      return fail(k->line, where + "CompactSubObj: expected the number of sub-objects 0..254, got " + quote(k->value));
+    if (v != 0) {
+      if (o.code != ObjectCode::Array) {
+        warn(k->line, where + "CompactSubObj describes an ARRAY: ObjectType taken as 0x8");
+        o.code = ObjectCode::Array;
+        o.object_type = 0;
+      }
+      if (!read_compact(s, o, v)) return false;
+      file.objects.emplace(index, std::move(o));
+      return true;
+    }
   }
-  o.code = static_cast<ObjectCode>(ot);
   if (o.code == ObjectCode::Var) {
     SubEntry e;
-    if (!read_entry(s, e, true)) return false;
+    if (!read_entry(s, e, true, ot == 2)) return false;
     e.sub = 0;
     o.subs.emplace(0, std::move(e));
     file.objects.emplace(index, std::move(o));
@@ -431,6 +457,34 @@ bool Parser::read_object(File& file, std::uint16_t index, const std::string& lis
   if (o.subs.find(0) == o.subs.end())
     return fail(s.line, where + "expected a section [" + hex(index, 4) + "sub0] (highest sub-index)");
   file.objects.emplace(index, std::move(o));
+  return true;
+}
+
+bool Parser::read_compact(const Section& s, ObjectEntry& o, std::uint64_t count) {
+  SubEntry proto;
+  if (!read_entry(s, proto, true)) return false;
+  o.sub_number = static_cast<std::uint8_t>(count + 1);
+  SubEntry highest;
+  highest.sub = 0;
+  highest.name = "Highest sub-index supported";
+  highest.type = DataType::Unsigned8;
+  highest.access = Access::ReadOnly;
+  highest.default_value = Value{std::to_string(count), false, count, true};
+  highest.line.number = s.line;
+  o.subs.emplace(0, std::move(highest));
+  const Section* names = find_section(s.name + "Name");
+  const Section* values = find_section(s.name + "Value");
+  for (std::uint64_t k = 1; k <= count; ++k) {
+    SubEntry e = proto;
+    e.sub = static_cast<std::uint8_t>(k);
+    e.name = proto.name + std::to_string(k);
+    if (names != nullptr)
+      if (const Key* n = names->get(std::to_string(k)); n != nullptr && !n->value.empty()) e.name = n->value;
+    if (values != nullptr)
+      if (const Key* v = values->get(std::to_string(k)); v != nullptr && !read_value(*values, *v, e.type, e.default_value, false))
+        return false;
+    o.subs.emplace(e.sub, std::move(e));
+  }
   return true;
 }
 
@@ -476,6 +530,7 @@ std::optional<File> Parser::run(std::string_view text) {
   if (const Section* di = find_section("DeviceInfo"); di != nullptr)
     for (const Key& k : di->keys) file.device_info[k.name] = k.value;
   if (!read_lists(file)) return std::nullopt;
+  file.warnings = std::move(warnings_);
   return file;
 }
 
@@ -585,13 +640,13 @@ std::string write(const File& file) {
   for (const auto& [idx, o] : file.objects) {
     os << "[" << hex(idx, 4) << "]\n";
     if (o.code == ObjectCode::Var) {
-      os << "ObjectType=0x7\n";
+      os << "ObjectType=0x" << (o.object_type != 0 ? static_cast<int>(o.object_type) : 7) << "\n";
       if (const SubEntry* e = o.find(0); e != nullptr) write_entry(os, *e, false);
       os << "\n";
       continue;
     }
     os << "ParameterName=" << o.name << "\n";
-    os << "ObjectType=0x" << static_cast<int>(o.code) << "\n";
+    os << "ObjectType=0x" << (o.object_type != 0 ? static_cast<int>(o.object_type) : static_cast<int>(o.code)) << "\n";
     os << "SubNumber=" << o.subs.size() << "\n\n";
     for (const auto& [si, e] : o.subs) {
       os << "[" << hex(idx, 4) << "sub" << hex(si, 1) << "]\n";

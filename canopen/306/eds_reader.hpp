@@ -7,17 +7,33 @@
 //   [MandatoryObjects] [OptionalObjects] [ManufacturerObjects]
 //                                    SupportedObjects=n, then 1=0x1000 .. n=0x....; every listed
 //                                    object must have its section
-//   [1000]                           ParameterName (required), ObjectType (7 VAR, 8 ARRAY,
-//                                    9 RECORD; default 7), and for a VAR: DataType, AccessType
+//   [1000]                           ParameterName (required), ObjectType (CiA 306 Table 2: 7
+//                                    VAR, 8 ARRAY, 9 RECORD, 2 DOMAIN, 5 DEFTYPE, 6 DEFSTRUCT;
+//                                    default 7), and for a VAR: DataType, AccessType
 //                                    (required), DefaultValue, PDOMapping, LowLimit, HighLimit;
 //                                    for an ARRAY/RECORD: SubNumber (required) and one
 //                                    [1000subN] section per sub-object (N in hex), with the VAR
 //                                    keys. Index and sub-index section names are hexadecimal,
-//                                    case-insensitive.
+//                                    case-insensitive. A DOMAIN is a VAR whose DataType may be
+//                                    left out (0x000F); a DEFTYPE is a VAR (its value is the
+//                                    type's size in bits), a DEFSTRUCT a RECORD.
+//   CompactSubObj=n (CiA 306 §4.5.2.2) an ARRAY written in one section: sub 0 is UNSIGNED8 ro
+//                                    with default n; subs 1..n take DataType, AccessType,
+//                                    PDOMapping, DefaultValue, LowLimit and HighLimit of the
+//                                    object's section, their names from [1000Name] (k=name;
+//                                    NrOfEntries=) or else "<ParameterName><k>", and defaults
+//                                    from [1000Value] (k=value) where given.
 // Numbers are decimal, 0x-hexadecimal or 0-octal (CiA 306 §4.5.3); a value may be written
 // "$NODEID+0x180" or "0x180+$NODEID" (the node-ID is added when the dictionary is built).
 // Comments start with ';' at the beginning of a line. Keys are case-insensitive, as INI keys.
-// Not supported: CompactSubObj (refused with a precise error). Other keys (Denotation,
+// A UTF-8 byte-order mark at the start of the file is skipped.
+// Accepted with a warning (File::warnings, "file:line: warning: ..."), as real vendors' tools
+// write them although CiA 306 does not allow them:
+//   - a key written twice in one section: the FIRST value counts (as Windows' profile API, with
+//     which most EDS tools read and write the files, returns it); the later one is ignored;
+//   - a DefaultValue outside LowLimit..HighLimit: kept as written;
+//   - a LowLimit/HighLimit on a string or DOMAIN entry: ignored (an empty one silently).
+// Other keys (Denotation,
 // ParameterValue, ObjectFlags, UploadFile, ...) and other sections ([FileInfo], [DummyUsage],
 // [Comments], [xxxxObjectLinks], sections of unlisted objects) are ignored.
 // A signed value written in hexadecimal is the type's two's complement (0x8000 = -32768 for
@@ -81,6 +97,7 @@ struct ObjectEntry {
   std::uint8_t sub_number = 0;              // SubNumber (ARRAY/RECORD), 0 for a VAR
   std::map<std::uint8_t, SubEntry> subs;    // a VAR has exactly sub 0, with its own fields
   std::string list;                         // "MandatoryObjects", "OptionalObjects", ...
+  std::uint8_t object_type = 0;             // ObjectType as written when not 7/8/9 (2, 5, 6); else 0
   Line line;
   friend bool operator==(const ObjectEntry&, const ObjectEntry&) = default;
   [[nodiscard]] const SubEntry* find(std::uint8_t sub) const {
@@ -93,6 +110,7 @@ struct File {
   std::string path;                                   // for messages
   std::map<std::string, std::string> device_info;     // [DeviceInfo], keys as written
   std::map<std::uint16_t, ObjectEntry> objects;
+  std::vector<std::string> warnings;                  // "file:line: warning: ..." (not compared)
   friend bool operator==(const File& a, const File& b) {
     return a.device_info == b.device_info && a.objects == b.objects;
   }

@@ -188,11 +188,33 @@ void DdsPublisher::publish(const GatewayStatus& s) {
     m.timestamp_us = e.timestamp_us;
     return m;
   };
+  // string<32>: a fixed array of 33 chars in the generated type.
+  auto bounded = [](char* to, std::size_t size, const std::string& from) {
+    const std::size_t n = std::min(size - 1, from.size());
+    std::copy_n(from.data(), n, to);
+    to[n] = '\0';
+  };
   std::vector<oegw_SubdeviceState> subs;
   subs.reserve(s.subdevices.size());
-  for (const auto& d : s.subdevices)
-    subs.push_back({const_cast<char*>(d.name.c_str()), d.node_id, const_cast<char*>(d.state.c_str()), emcy(d.last_emcy),
-                    d.emcy_count});
+  for (const auto& d : s.subdevices) {
+    oegw_SubdeviceState x{};
+    x.name = const_cast<char*>(d.name.c_str());
+    x.node_id = d.node_id;
+    x.state = const_cast<char*>(d.state.c_str());
+    x.last_emcy = emcy(d.last_emcy);
+    x.emcy_count = d.emcy_count;
+    const SubdeviceIdentity& i = d.identity;
+    x.identity.vendor_id = i.vendor_id;
+    x.identity.product_code = i.product_code;
+    x.identity.revision = i.revision;
+    x.identity.serial = i.serial;
+    bounded(x.identity.device_name, sizeof x.identity.device_name, i.device_name);
+    bounded(x.identity.hardware_version, sizeof x.identity.hardware_version, i.hardware_version);
+    bounded(x.identity.software_version, sizeof x.identity.software_version, i.software_version);
+    x.identity.error_register = i.error_register;
+    x.identity.present = i.present;
+    subs.push_back(x);
+  }
   std::vector<std::uint16_t> emcys(s.active_emcys);
   std::vector<oegw_UpstreamEmcy> upstream;
   upstream.reserve(s.upstream_emcys.size());

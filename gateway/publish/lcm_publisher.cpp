@@ -162,6 +162,15 @@ void LcmPublisher::publish(const GatewayStatus& s) {
     sd.state = d.state;
     sd.last_emcy = emcy(d.last_emcy);
     sd.emcy_count = static_cast<std::int64_t>(d.emcy_count);
+    sd.identity.vendor_id = static_cast<std::int32_t>(d.identity.vendor_id);
+    sd.identity.product_code = static_cast<std::int32_t>(d.identity.product_code);
+    sd.identity.revision = static_cast<std::int32_t>(d.identity.revision);
+    sd.identity.serial = static_cast<std::int32_t>(d.identity.serial);
+    sd.identity.device_name = d.identity.device_name;
+    sd.identity.hardware_version = d.identity.hardware_version;
+    sd.identity.software_version = d.identity.software_version;
+    sd.identity.error_register = d.identity.error_register;
+    sd.identity.present = d.identity.present;
     m.subdevices.push_back(sd);
   }
   m.n_subdevices = static_cast<std::int32_t>(m.subdevices.size());

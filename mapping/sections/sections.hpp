@@ -13,6 +13,9 @@ void read_upstream(YamlReader& r, const MapEntry& section, UpstreamConfig& out);
 // upstream.cpp: upstream.sdo_servers against the sub-devices and the gateway's own COB-IDs.
 void check_sdo_servers(YamlReader& r, const Config& config);
 void read_downstream(YamlReader& r, const MapEntry& section, DownstreamConfig& out);  // downstream.cpp
+// A sub-device configured with a synchronous transmission type (option transmission_type, or an
+// sdo write of 1800h..19FFh:02, 0..240) needs downstream.sync_period_ms (downstream.cpp).
+void check_sync(YamlReader& r, const Config& config);
 void read_publish(YamlReader& r, const MapEntry& section, PublishConfig& out);        // publish.cpp
 // subdevices.cpp; the signals of each come from `catalogue`.
 void read_subdevices(YamlReader& r, const MapEntry& section, const SignalCatalogue& catalogue,

@@ -54,10 +54,20 @@ void read_supervision(YamlReader& r, const std::vector<MapEntry>& ks, const std:
 }
 
 // The 1000h/1018h values checked at boot; each one optional.
-void read_identity(YamlReader& r, const MapEntry& e, const std::string& what, subdevices::ExpectedIdentity& id) {
-  const auto ids =
-      r.entries(e.value, what + " identity", {"device_type", "vendor_id", "product_code", "revision", "serial"},
-                "a map with device_type, vendor_id, product_code, revision, serial");
+void read_identity(YamlReader& r, const MapEntry& e, const std::string& what, SubdeviceConfig& s) {
+  subdevices::ExpectedIdentity& id = s.identity;
+  const auto ids = r.entries(e.value, what + " identity",
+                             {"device_type", "vendor_id", "product_code", "revision", "revision_match", "serial"},
+                             "a map with device_type, vendor_id, product_code, revision, revision_match, serial");
+  if (const auto* x = r.find(ids, "revision_match"))
+    if (auto m = r.string(*x, "revision_match")) {
+      if (*m == "exact" || *m == "major") {
+        s.exact_revision = *m == "exact";
+      } else {
+        r.error(x->value, "found '" + *m + "' for revision_match; expected major (the upper 16 bits of 1018h:03, "
+                          "the default) or exact");
+      }
+    }
   auto opt = [&](std::string_view k, std::optional<std::uint32_t>& out) {
     if (const auto* x = r.find(ids, k))
       if (auto v = r.integer(*x, k, 0, 0xFFFFFFFF, true)) out = static_cast<std::uint32_t>(*v);
@@ -70,13 +80,14 @@ void read_identity(YamlReader& r, const MapEntry& e, const std::string& what, su
 }
 
 // The driver's options, name -> one scalar each; the driver judges them (read_signals).
-void read_options(YamlReader& r, const MapEntry& e, const std::string& what, subdevices::DriverOptions& options) {
+void read_options(YamlReader& r, const MapEntry& e, const std::string& what, SubdeviceConfig& s) {
   for (const auto& x : r.entries(e.value, what + " options", {}, "a map of the driver's options")) {
     if (!x.value.IsScalar()) {
       r.error(x.value, "found " + node_kind(x.value) + " for option '" + x.name + "'; expected a single value");
       continue;
     }
-    options.values.emplace_back(x.name, x.value.Scalar());
+    s.options.values.emplace_back(x.name, x.value.Scalar());
+    s.option_where.emplace_back(x.name, r.loc(x.value));
   }
 }
 
@@ -195,8 +206,8 @@ void read_subdevice(YamlReader& r, const MapEntry& e, const std::vector<MapEntry
   read_supervision(r, ks, what, s);
   if (const auto* m = r.find(ks, "mandatory"))
     if (auto b = r.boolean(*m, "mandatory")) s.mandatory = *b;
-  if (const auto* id = r.find(ks, "identity")) read_identity(r, *id, what, s.identity);
-  if (const auto* o = r.find(ks, "options")) read_options(r, *o, what, s.options);
+  if (const auto* id = r.find(ks, "identity")) read_identity(r, *id, what, s);
+  if (const auto* o = r.find(ks, "options")) read_options(r, *o, what, s);
   if (const auto* l = r.find(ks, "sdo")) read_sdo_list(r, *l, s);
   if (s.node_id != 0) check_node_id_unique(r, *r.find(ks, "node_id"), s, by_node);
   if (drv && !s.driver.empty()) read_signals(r, catalogue, *drv, ks, what, s);

@@ -1,5 +1,7 @@
 #include "subdevices/sim/cia401_sim.hpp"
 
+#include <cstdint>
+
 #include "subdevices/sim/signal_names.hpp"
 
 namespace oegw::subdevices::sim {
@@ -12,6 +14,13 @@ canopen::NodeConfig config_from(const canopen::eds::File& file, NodeId node) {
   cfg.device_type = static_cast<std::uint32_t>(file.default_number(0x1000, 0, node).value_or(0));
   for (const auto& [k, v] : file.device_info)
     if (k == "ProductName") cfg.device_name = v;
+  // 1008h/1009h/100Ah as the EDS gives them (their DefaultValue; CiA 306).
+  auto text = [&file](std::uint16_t index, std::string& out) {
+    if (const auto* e = file.find(index, 0); e != nullptr && e->default_value) out = e->default_value->text;
+  };
+  text(0x1008, cfg.device_name);
+  text(0x1009, cfg.hardware_version);
+  text(0x100A, cfg.software_version);
   cfg.identity.vendor = static_cast<std::uint32_t>(file.default_number(0x1018, 1, node).value_or(0));
   cfg.identity.product = static_cast<std::uint32_t>(file.default_number(0x1018, 2, node).value_or(0));
   cfg.identity.revision = static_cast<std::uint32_t>(file.default_number(0x1018, 3, node).value_or(0));
@@ -30,6 +39,10 @@ Cia401Sim::Cia401Sim(const canopen::eds::File& file, NodeId node, FrameSink sink
     if (auto p = canopen::eds::pdo_defaults(eds_, true, n, node)) canopen::install_tpdo(*od, n, *p);
   }
   build(std::move(od), config_from(eds_, node));
+  // The node has the manufacturer strings its EDS lists, no others (an upload of one it lacks
+  // is refused with 0602 0000h).
+  for (const std::uint16_t index : {std::uint16_t{0x1008}, std::uint16_t{0x1009}, std::uint16_t{0x100A}})
+    if (eds_.find(index) == nullptr) (void)this->od().remove(index);
 }
 
 std::unique_ptr<Cia401Sim> Cia401Sim::from_file(const std::filesystem::path& eds_path, NodeId node, FrameSink sink,
@@ -64,6 +77,15 @@ constexpr NamedObject kOutputs[] = {{"out", 0x6200}, {"aout", 0x6411}};
 }  // namespace
 
 bool Cia401Sim::set_input(std::string_view signal, std::int64_t value, TimePoint /*now*/) {
+  // CiA 401 6423h "analogue input global interrupt enable": while FALSE (its default) a new
+  // analogue value triggers no event-driven TPDO; it goes out with the next timer or SYNC.
+  if (const auto k = indexed_signal(signal, "analog"); k && *k >= 1 && *k <= 0xFE)
+    if (const canopen::SubObject* enable = od().find(0x6423, 0); enable != nullptr && canopen::decode_unsigned(enable->value) == 0) {
+      canopen::SubObject* s = od().find(0x6401, static_cast<std::uint8_t>(*k));
+      if (s == nullptr || value < INT16_MIN || value > INT16_MAX) return false;
+      s->value = canopen::encode<std::int16_t>(static_cast<std::int16_t>(value));  // no change event
+      return true;
+    }
   for (const auto& n : kInputs)
     if (const auto k = indexed_signal(signal, n.base); k && *k >= 1 && *k <= 0xFE)
       return set_object(n.index, static_cast<std::uint8_t>(*k), value) == canopen::SdoAbortCode::None;

@@ -423,3 +423,18 @@ std::optional<std::int64_t> ElobauMfgSim::output(std::string_view signal) const 
 }
 
 }  // namespace oegw::subdevices::sim
+
+namespace oegw::subdevices::sim {
+
+// The document says nothing of the NMT state for 1010h:01 "save all parameters" and 5999h:03
+// "save all parameters (incl. LSS)" (§8, Table 14); the simulator takes CiA 301's answer for a
+// store in the wrong state, 0800 0022h, while operational. The PDO mapping is read-only in
+// every state (Table 14), so remapping needs no rule here.
+canopen::SdoAbortCode ElobauMfgSim::refuse_download(std::uint16_t index, std::uint8_t sub,
+                                                    canopen::NmtState state) const {
+  if (state != NmtState::Operational) return SdoAbortCode::None;
+  if ((index == 0x1010 && sub == 1) || (index == kLss && sub == 3)) return SdoAbortCode::CannotTransferDeviceState;
+  return SdoAbortCode::None;
+}
+
+}  // namespace oegw::subdevices::sim

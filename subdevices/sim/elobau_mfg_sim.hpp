@@ -109,6 +109,8 @@ class ElobauMfgSim : public SimulatedDevice {
   void on_power_cycle(TimePoint now) override;
 
  private:
+  [[nodiscard]] canopen::SdoAbortCode refuse_download(std::uint16_t index, std::uint8_t sub,
+                                                      canopen::NmtState state) const override;
   static std::optional<std::size_t> axis_index(std::string_view name);
   void build_od(canopen::ObjectDictionary& od, const ElobauMfgSimConfig& c);
   void publish();  // physical state -> 20xxh, 2100h

@@ -282,3 +282,19 @@ std::optional<std::int64_t> Mcb402Sim::output(std::string_view signal) const {
 }
 
 }  // namespace oegw::subdevices::sim
+
+namespace oegw::subdevices::sim {
+
+// [CO4013 Index 1010/1011] "Writing to this object is only allowed in preoperational mode", and
+// note *2) of the object table: "otherwise the CO4012 will answer requests with SDO abort
+// telegrams". The document gives no abort code: the simulator answers CiA 301's 0800 0022h
+// "data cannot be transferred or stored to the application because of the present device
+// state". The PDO parameters may be set in operational as well ("For the CO4013 setting of all
+// parameters may be done in the device state operational as well as in preoperational").
+canopen::SdoAbortCode Mcb402Sim::refuse_download(std::uint16_t index, std::uint8_t sub, canopen::NmtState state) const {
+  if (state != canopen::NmtState::Operational || sub == 0) return canopen::SdoAbortCode::None;
+  if (index == 0x1010 || index == 0x1011) return canopen::SdoAbortCode::CannotTransferDeviceState;
+  return canopen::SdoAbortCode::None;
+}
+
+}  // namespace oegw::subdevices::sim

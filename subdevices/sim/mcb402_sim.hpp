@@ -105,6 +105,8 @@ class Mcb402Sim final : public SimulatedDevice {
   [[nodiscard]] std::uint8_t broken_axes() const { return broken_; }
 
  private:
+  [[nodiscard]] canopen::SdoAbortCode refuse_download(std::uint16_t index, std::uint8_t sub,
+                                                      canopen::NmtState state) const override;
   void refresh_inputs(bool notify);
   void write_input(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> bytes, bool notify);
   [[nodiscard]] bool digital_interrupt(std::uint8_t before, std::uint8_t after, std::uint8_t sub) const;

@@ -79,6 +79,7 @@ Novotechnik406Sim::Novotechnik406Sim(FrameSink sink, Novotechnik406SimConfig con
     if (canopen::SubObject* s0 = o->find(0)) s0->value = s0->default_value = {2};
   }
   install_hooks();
+  install_startup_rule();
 }
 
 void Novotechnik406Sim::build_od(ObjectDictionary& od) {
@@ -427,6 +428,34 @@ bool Novotechnik406Sim::set_input(std::string_view signal, std::int64_t value, T
     return true;
   }
   return false;
+}
+
+}  // namespace oegw::subdevices::sim
+
+namespace oegw::subdevices::sim {
+
+// §8.2 "For changing of mapping, the sensor must be in pre-operational mode", §11 "Data
+// encryption to the non-volatile memory is only admitted in the pre-operational status": a
+// write of the TPDO mapping 1A00h/1A01h or of 1010h while operational is answered with the §7.3
+// abort 0x08000022 "wrong state".
+// §4.1 1F80h "Bit 3 set: sensor starts in operational mode": after every boot-up, the power-on
+// one (apply_startup) and those after NMT reset node / reset communication, as a CiA 301 node
+// leaving initialisation (CiA 302-2 "NMT start-up" of a self-starting device).
+void Novotechnik406Sim::install_startup_rule() {
+  node().on_state_change = [this](NmtState s) {
+    const NmtState before = last_state_;
+    last_state_ = s;
+    if (s == NmtState::PreOperational && before == NmtState::Initialisation &&
+        (od().get<std::uint32_t>(0x1F80, 0) & 0x08) != 0)
+      node().nmt().enter(NmtState::Operational, node().nmt().last_transition());
+  };
+}
+
+canopen::SdoAbortCode Novotechnik406Sim::refuse_download(std::uint16_t index, std::uint8_t /*sub*/,
+                                                         NmtState state) const {
+  if (state != NmtState::Operational) return SdoAbortCode::None;
+  if (index == 0x1A00 || index == 0x1A01 || index == 0x1010) return SdoAbortCode::CannotTransferDeviceState;
+  return SdoAbortCode::None;
 }
 
 }  // namespace oegw::subdevices::sim

@@ -90,11 +90,14 @@ class Novotechnik406Sim : public SimulatedDevice {
   [[nodiscard]] std::int32_t position() const { return position_; }
 
  private:
+  [[nodiscard]] canopen::SdoAbortCode refuse_download(std::uint16_t index, std::uint8_t sub,
+                                                      canopen::NmtState state) const override;
   void build_od(canopen::ObjectDictionary& od);
   void install_hooks();
   void publish(TimePoint now);
   void update_cams_and_work_area(TimePoint now);
   void apply_startup(TimePoint now);
+  void install_startup_rule();
   void set_bits(std::uint16_t index, std::uint32_t mask, bool on);
 
   Novotechnik406SimConfig cfg_;
@@ -103,6 +106,7 @@ class Novotechnik406Sim : public SimulatedDevice {
   std::optional<Fault> fault_;
   std::optional<std::uint32_t> forced_raw_;
   TimePoint now_{};
+  canopen::NmtState last_state_ = canopen::NmtState::Initialisation;
   canopen::Subscriptions subs_;
 };
 

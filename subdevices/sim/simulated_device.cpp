@@ -39,7 +39,34 @@ bool SimulatedDevice::is_tpdo(const CanFrame& frame) const {
 
 bool SimulatedDevice::on_frame(const CanFrame& frame, TimePoint now) {
   if (silent_) return false;
+  if (refused_in_state(frame)) return true;
   return node_->on_frame(frame, now);
+}
+
+bool SimulatedDevice::refused_in_state(const CanFrame& frame) {
+  const canopen::NmtState state = node_->state();
+  // SDO is served in pre-operational and operational only (CiA 301 §7.3.2.2.1, Table 47).
+  if (state != canopen::NmtState::PreOperational && state != canopen::NmtState::Operational) return false;
+  if (frame.extended || frame.rtr || frame.dlc != 8) return false;
+  const canopen::CobId rx{od_->get<std::uint32_t>(0x1200, 1)};
+  if (!rx.valid() || rx.extended() || frame.id != rx.can_id()) return false;
+  // CiA 301 §7.2.4.3.3 / §7.2.4.3.9: ccs 1 = initiate download; ccs 6 with bit 0 clear = initiate
+  // block download.
+  const std::uint8_t ccs = frame.data[0] >> 5;
+  if (ccs != 1 && !(ccs == 6 && (frame.data[0] & 0x01) == 0)) return false;
+  const auto index = static_cast<std::uint16_t>(frame.data[1] | (frame.data[2] << 8));
+  const std::uint8_t sub = frame.data[3];
+  const canopen::SdoAbortCode code = refuse_download(index, sub, state);
+  if (code == canopen::SdoAbortCode::None) return false;
+  const canopen::CobId tx{od_->get<std::uint32_t>(0x1200, 2)};
+  CanFrame abort;
+  abort.id = tx.can_id();
+  abort.dlc = 8;
+  const auto c = static_cast<std::uint32_t>(code);
+  abort.data = {0x80, frame.data[1], frame.data[2], sub, static_cast<std::uint8_t>(c), static_cast<std::uint8_t>(c >> 8),
+                static_cast<std::uint8_t>(c >> 16), static_cast<std::uint8_t>(c >> 24)};
+  send(abort);
+  return true;
 }
 
 void SimulatedDevice::advance(TimePoint now) { node_->advance(now); }

@@ -73,10 +73,19 @@ class SimulatedDevice {
   void build(std::unique_ptr<canopen::ObjectDictionary> od, const canopen::NodeConfig& config);
   // The device's own reaction to a power cycle (e.g. elobau's zero-position rule).
   virtual void on_power_cycle(TimePoint /*now*/) {}
+  // What the device refuses in its present NMT state (e.g. store parameters while operational):
+  // the abort code an SDO download initiate of index/sub gets (CiA 301 §7.2.4.3.17), before the
+  // dictionary sees it; SdoAbortCode::None lets it through. Asked for every download initiate
+  // (expedited, segmented or block) on the default SDO server channel 1200h.
+  [[nodiscard]] virtual canopen::SdoAbortCode refuse_download(std::uint16_t /*index*/, std::uint8_t /*sub*/,
+                                                              canopen::NmtState /*state*/) const {
+    return canopen::SdoAbortCode::None;
+  }
 
  private:
   void send(const CanFrame& frame);
   [[nodiscard]] bool is_tpdo(const CanFrame& frame) const;
+  bool refused_in_state(const CanFrame& frame);  // answered refuse_download()'s abort
 
   FrameSink sink_;
   bool silent_ = false;

@@ -503,6 +503,10 @@ TEST_F(ElobauNeverSaved, ParameterChecksumErrorUntilFirstSave) {
   EXPECT_EQ(val("x").status, SignalStatus::Error) << "every input, whatever the PDOs say";
   EXPECT_EQ(val("buttons[1]").status, SignalStatus::Error);
   // §7: 5999h:03 "save" saves all parameters (incl. LSS); §8: restart the joystick afterwards.
+  // Saved in pre-operational: the simulator refuses a store while operational (0800 0022h, the
+  // CiA 301 answer taken where the document is silent; subdevices/README.md).
+  host_->nmt().enter_pre_operational(kGrip);
+  net_.settle();
   EXPECT_EQ(download(0x5999, 3, encode<std::uint32_t>(0x65766173)), SdoAbortCode::None);
   EXPECT_TRUE(std::filesystem::exists(dir() / "params.txt"));
   drv_->on_offline(net_.now());

@@ -130,10 +130,27 @@ TEST_F(NetworkManagerTest, BootsTheNodeFrameByFrame) {
   const std::vector<std::string> want = {
       "gateway 000#8211",                   // NMT reset communication
       "device 711#00",                      // boot-up
+      "gateway 000#8011",                   // NMT enter pre-operational before configuring
       "gateway 611#4000100000000000",       // read 1000h
       "device 591#4300100091010F00",        //   000F0191h
       "gateway 611#4018100100000000",       // read 1018h:01
       "device 591#431810015A010000",        //   0000015Ah
+      "gateway 611#4018100200000000",       // read 1018h:02..04 (diagnostics)
+      "device 591#4318100201000000",
+      "gateway 611#4018100300000000",
+      "device 591#4318100301000000",
+      "gateway 611#4018100400000000",
+      "device 591#4318100407000000",
+      "gateway 611#4008100000000000",       // read 1008h device name
+      "device 591#430810006F656777",        //   "oegw"
+      "gateway 611#4009100000000000",       // read 1009h hardware version
+      "device 591#4F09100031000000",        //   "1"
+      "gateway 611#400A100000000000",       // read 100Ah software version
+      "device 591#410A100005000000",        //   5 bytes, segmented
+      "gateway 611#6000000000000000",
+      "device 591#05302E312E300000",        //   "0.1.0"
+      "gateway 611#4001100000000000",       // read 1001h error register
+      "device 591#4F01100000000000",        //   00h
       "gateway 611#2B17100064000000",       // 1017h = 100 ms
       "device 591#6017100000000000",
       "gateway 611#2B00180532000000",       // driver: 1800h:05 = 50 ms

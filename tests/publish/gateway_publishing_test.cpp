@@ -205,6 +205,14 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
   ASSERT_TRUE(has_both()) << "the status never carried both EMCYs";
   const auto& sub = app.status->subdevices[0];
   EXPECT_EQ(sub.name, "grip");
+  // The boot diagnostics the grip answered (elobau Table 14: 1008h "JST", 1009h/100Ah "0.00",
+  // vendor B4h, product 00010003h; 1001h 00h): every one present.
+  EXPECT_EQ(static_cast<std::uint32_t>(sub.identity.vendor_id), 0xB4u);
+  EXPECT_EQ(static_cast<std::uint32_t>(sub.identity.product_code), 0x00010003u);
+  EXPECT_EQ(sub.identity.device_name, "JST");
+  EXPECT_EQ(sub.identity.hardware_version, "0.00");
+  EXPECT_EQ(sub.identity.software_version, "0.00");
+  EXPECT_EQ(static_cast<std::uint8_t>(sub.identity.present), 0xFF);
   EXPECT_EQ(sub.last_emcy.error_register, 0x00);
   EXPECT_EQ(std::vector<std::uint8_t>(sub.last_emcy.msef, sub.last_emcy.msef + 5),
             (std::vector<std::uint8_t>{0x21, 0x00, 0xFF, 0xFF, 0xFF}));

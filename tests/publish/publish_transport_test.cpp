@@ -315,6 +315,8 @@ TEST(DdsPublisher, ALateReaderGetsTheLastGatewayStatus) {
   gs.active_emcys = {0x8130, 0xFF01};
   gs.refused_commands = 3;
   gs.upstream_emcys = {{0x05, {0xFF01, 0x80, {9, 8, 7, 6, 5}, 1234}, 7}, {0x7E, {0x0000, 0x00, {}, 2345}, 1}};
+  // The boot diagnostics: a string longer than the IDL's string<32> is cut.
+  gs.subdevices[0].identity = {0xB4, 0x00010003, 0, 0, "JST", "0.00", std::string(40, 'v'), 0x01, 0x7F};
   dds.publish(gs);  // before any reader exists
 
   DdsApp app(s);
@@ -346,7 +348,15 @@ TEST(DdsPublisher, ALateReaderGetsTheLastGatewayStatus) {
   EXPECT_EQ(none.last_emcy.code, 0);
   EXPECT_EQ(none.last_emcy.timestamp_us, 0);
   EXPECT_EQ(none.emcy_count, 0u);
+  EXPECT_EQ(none.identity.vendor_id, 0xB4u);
+  EXPECT_EQ(none.identity.product_code, 0x00010003u);
+  EXPECT_STREQ(none.identity.device_name, "JST");
+  EXPECT_STREQ(none.identity.hardware_version, "0.00");
+  EXPECT_EQ(std::string(none.identity.software_version), std::string(32, 'v'));
+  EXPECT_EQ(none.identity.error_register, 0x01);
+  EXPECT_EQ(none.identity.present, 0x7F);
   const auto& mcb = m->subdevices._buffer[1];
+  EXPECT_EQ(mcb.identity.present, 0) << "nothing read yet";
   EXPECT_EQ(mcb.last_emcy.code, 0x3120);
   EXPECT_EQ(mcb.last_emcy.error_register, 0x81);
   EXPECT_EQ(std::vector<std::uint8_t>(mcb.last_emcy.msef, mcb.last_emcy.msef + 5), (std::vector<std::uint8_t>{0, 0x82, 0, 0, 0}));

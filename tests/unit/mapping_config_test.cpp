@@ -1298,3 +1298,58 @@ TEST(MappingConfig, OnlyARegularFileIsRead) {
 
 }  // namespace
 }  // namespace oegw::mapping
+
+namespace oegw::mapping {
+namespace {
+
+// downstream.sync_period_ms: the SYNC the gateway produces for synchronous TPDOs (0 = none); a
+// sub-device configured with a synchronous transmission type needs it.
+TEST(MappingConfig, SyncPeriodIsInRangeAndNeededBySynchronousTypes) {
+  auto with = [](const std::string& down, const std::string& knob_sdo) {
+    std::string t = kHead;
+    t.replace(t.find("interface: can1 }"), 17, "interface: can1" + down + " }");
+    t.replace(t.find("node_id: 0x7F }"), 15, "node_id: 0x7F" + knob_sdo + " }");
+    return load(t + "  joystick.1: { x: right_grip.x }\n");
+  };
+  const auto dflt = with("", "");
+  ASSERT_TRUE(dflt.ok()) << dflt.error_text();
+  EXPECT_EQ(dflt.config->downstream.sync_period_ms, 0);
+  const std::string sync_tpdo = ", sdo: [ { index: 0x1800, sub_index: 2, value: 4, type: u8 } ]";
+  const auto set = with(", sync_period_ms: 20", sync_tpdo);
+  ASSERT_TRUE(set.ok()) << set.error_text();
+  EXPECT_EQ(set.config->downstream.sync_period_ms, 20);
+  EXPECT_EQ(errors(with(", sync_period_ms: 10001", "")),
+            (std::vector<std::string>{"t.yaml:2:48: sync_period_ms 10001 is out of range; expected 0..10000"}));
+  EXPECT_EQ(errors(with("", sync_tpdo)),
+            (std::vector<std::string>{
+                "t.yaml:6:58: sub-device 'knob' sdo write 1800h:02 (TPDO transmission type) 4 is a synchronous "
+                "transmission type (the PDO is sent only at a SYNC, CiA 301 §7.5.2.35) and downstream.sync_period_ms is "
+                "0, so no SYNC is produced; expected downstream.sync_period_ms 1..10000, or an asynchronous type (254, "
+                "255)"}));
+  EXPECT_TRUE(with("", ", sdo: [ { index: 0x1800, sub_index: 2, value: 254, type: u8 } ]").ok());
+}
+
+// identity.revision_match: the revision's major part (default) or all of it.
+TEST(MappingConfig, RevisionMatchIsMajorOrExact) {
+  auto with = [](const std::string& id) {
+    std::string t = kHead;
+    t.replace(t.find("node_id: 0x7F }"), 15, "node_id: 0x7F, identity: { revision: 0x00010003" + id + " } }");
+    return load(t + "  joystick.1: { x: right_grip.x }\n");
+  };
+  const auto dflt = with("");
+  ASSERT_TRUE(dflt.ok()) << dflt.error_text();
+  EXPECT_FALSE(dflt.config->find_subdevice("knob")->exact_revision);
+  EXPECT_FALSE(dflt.config->find_subdevice("knob")->node_settings().exact_revision);
+  const auto exact = with(", revision_match: exact");
+  ASSERT_TRUE(exact.ok()) << exact.error_text();
+  EXPECT_TRUE(exact.config->find_subdevice("knob")->node_settings().exact_revision);
+  EXPECT_TRUE(with(", revision_match: major").ok());
+  const auto bad = errors(with(", revision_match: minor"));
+  ASSERT_EQ(bad.size(), 1u);
+  EXPECT_NE(bad[0].find("found 'minor' for revision_match; expected major (the upper 16 bits of 1018h:03, the default) or exact"),
+            std::string::npos)
+      << bad[0];
+}
+
+}  // namespace
+}  // namespace oegw::mapping
