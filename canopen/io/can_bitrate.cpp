@@ -1,5 +1,6 @@
 #include "canopen/io/can_bitrate.hpp"
 
+#include <fcntl.h>
 #include <libsocketcan.h>
 #include <linux/can/netlink.h>
 #include <linux/if_link.h>
@@ -11,6 +12,7 @@
 
 #include <array>
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <string_view>
 
@@ -26,11 +28,26 @@ namespace {
 
 std::string errno_text(int e) { return std::strerror(e); }
 
-// The errno a libsocketcan call left (it sets errno from the netlink acknowledgement); EIO when
-// it failed without one.
-int socketcan_result(int rc) {
-  if (rc == 0) return 0;
-  return errno != 0 ? errno : EIO;
+// Runs a libsocketcan call and returns 0 or the errno it left (set from the netlink
+// acknowledgement; EIO when it failed without one). libsocketcan reports a refusal with
+// perror(), and glibc's perror() overwrites errno (EINVAL) when stderr is a write-only file, as
+// under journald or a redirect: the call runs with stderr on /dev/null opened read-write, which
+// keeps the kernel's errno and leaves the log to the caller's one line.
+template <class Call>
+int socketcan_call(Call&& call) {
+  std::fflush(stderr);
+  const int saved = ::dup(STDERR_FILENO);
+  const int null = ::open("/dev/null", O_RDWR | O_CLOEXEC);
+  if (saved >= 0 && null >= 0) ::dup2(null, STDERR_FILENO);
+  errno = 0;
+  const int rc = call();
+  const int e = rc == 0 ? 0 : (errno != 0 ? errno : EIO);
+  if (saved >= 0) {
+    ::dup2(saved, STDERR_FILENO);
+    ::close(saved);
+  }
+  if (null >= 0) ::close(null);
+  return e;
 }
 
 // Walks the attributes in [data, data + len).
@@ -57,16 +74,13 @@ class NetlinkCanLink final : public CanLink {
     return get_link(info.index, state);
   }
   int stop(const std::string& interface) override {
-    errno = 0;
-    return socketcan_result(can_do_stop(interface.c_str()));
+    return socketcan_call([&] { return can_do_stop(interface.c_str()); });
   }
   int set_bitrate(const std::string& interface, std::uint32_t bitrate) override {
-    errno = 0;
-    return socketcan_result(can_set_bitrate(interface.c_str(), bitrate));
+    return socketcan_call([&] { return can_set_bitrate(interface.c_str(), bitrate); });
   }
   int start(const std::string& interface) override {
-    errno = 0;
-    return socketcan_result(can_do_start(interface.c_str()));
+    return socketcan_call([&] { return can_do_start(interface.c_str()); });
   }
 
  private:

@@ -42,8 +42,8 @@ class CanLink {
   virtual int start(const std::string& interface) = 0;
 };
 
-// The real one: RTM_GETLINK for query(), libsocketcan for the changes (which prints the kernel's
-// refusal, "RTNETLINK answers: ...", on stderr as well).
+// The real one: RTM_GETLINK for query(), libsocketcan for the changes (its own messages on
+// stderr are suppressed: the outcome's message says what failed).
 [[nodiscard]] std::unique_ptr<CanLink> netlink_can_link();
 
 enum class BitRateAction : std::uint8_t {
