@@ -121,6 +121,11 @@ TEST(UpstreamBitRate, ActivateBitTimingReportsTheNewRateInBitPerSecondAtTheSwitc
   d.out.clear();
   d.at(t0 + 399ms);
   EXPECT_TRUE(d.out.empty());
+  // Then the heartbeat (100 ms, the default) goes on.
+  for (auto t = t0 + 400ms; t <= t0 + 700ms; t += 10ms) d.at(t);
+  ASSERT_GE(d.out.size(), 3u);
+  EXPECT_EQ(d.out[0].id, 0x720u);
+  EXPECT_EQ(d.out[0].data[0], 0x7F);
 }
 
 class StoredRate : public ::testing::Test {
@@ -186,6 +191,38 @@ TEST_F(StoredRate, AConfiguredAndStoredRateIsTheDevicesAtTheNextStart) {
   Device again(c);
   EXPECT_EQ(again.device().node().bit_timing_index(), 4u);
   EXPECT_EQ(gateway::upstream_bit_rate(c).bitrate, 125000u);
+}
+
+}  // namespace
+
+namespace {
+
+// The same through the Gateway (what `oegw run` drives): silent for 2 x 100 ms, then the
+// heartbeat goes on.
+TEST(UpstreamBitRate, TheGatewaysHeartbeatGoesOnAfterAnActivate) {
+  const mapping::Config c = load(file_for(250000));
+  std::vector<CanFrame> up;
+  gateway::Gateway gw(c, [&](const CanFrame& f) { up.push_back(f); }, [](const CanFrame&) {});
+  std::vector<std::uint32_t> switches;
+  gw.upstream().on_bit_rate_switch([&](std::uint32_t r) { switches.push_back(r); });
+  TimePoint now{std::chrono::seconds(5)};
+  gw.start(now);
+  auto lss = [&](std::initializer_list<std::uint8_t> b) {
+    std::vector<std::uint8_t> v(b);
+    v.resize(8, 0);
+    gw.on_upstream_frame(CanFrame(canopen::cob::kLssMaster, std::span<const std::uint8_t>(v)), now);
+  };
+  lss({0x04, 0x01});
+  lss({0x13, 0x00, 0x04});
+  lss({0x15, 0x64, 0x00});
+  lss({0x04, 0x00});
+  up.clear();
+  const TimePoint t0 = now;
+  for (now = t0; now <= t0 + 1s; now += 10ms) gw.advance(now);
+  EXPECT_EQ(switches, std::vector<std::uint32_t>{125000});
+  unsigned heartbeats = 0;
+  for (const auto& f : up) heartbeats += f.id == 0x720 ? 1 : 0;
+  EXPECT_GE(heartbeats, 7u);
 }
 
 }  // namespace

@@ -94,7 +94,7 @@ wait_grep /tmp/can1.dump "can1 7E4#1700000000000000$" 5
 expect $? "LSS store configuration confirmed (7E4#1700...)"
 grep -qx "bit_timing=4" "$dir/upstream.store.lss" 2>/dev/null
 expect $? "the store holds bit_timing=4 ($(tr '\n' ' ' <"$dir/upstream.store.lss" 2>/dev/null))"
-cansend can1 7E5#1500F40100000000  # activate bit timing, switch delay 500 ms (01F4h)
+cansend can1 7E5#15F4010000000000  # activate bit timing, switch delay 500 ms (01F4h, low byte first)
 wait_rate can0 125000 10
 expect $? "LSS activate bit timing: ip -details link show can0: bitrate $(rate_of can0)"
 set_rate can1 125000
@@ -103,7 +103,7 @@ cansend can1 7E5#0400000000000000  # back to waiting
 # for the switch delay, switch, silent again for the switch delay).
 wait_grep /tmp/can1.dump "can1 7E5#0400000000000000$" 5
 sleep 0.5
-gap=$(awk '$3 == "7E5#1500F40100000000" { t = substr($1, 2, length($1) - 2) + 0 }
+gap=$(awk '$3 == "7E5#15F4010000000000" { t = substr($1, 2, length($1) - 2) + 0 }
            t && $3 ~ /^720#/ { printf "%.3f", substr($1, 2, length($1) - 2) - t; exit }' /tmp/can1.dump)
 echo "first frame of the gateway ${gap:-never} s after the activate"
 [[ -n $gap ]] && awk -v g="$gap" 'BEGIN { exit !(g >= 0.99) }'
@@ -159,7 +159,7 @@ n=$(grep -c "vcan0 has no bit timing (virtual CAN): upstream.bitrate 250000 not 
 expect $? "vcan0 reported once as without bit timing ($n)"
 cansend vcan0 7E5#0401000000000000
 cansend vcan0 7E5#1300040000000000
-cansend vcan0 7E5#1500640000000000  # 100 ms
+cansend vcan0 7E5#1564000000000000  # 100 ms
 wait_grep /tmp/gw5.log "LSS activate bit timing: vcan0 has no bit timing \(virtual CAN\): 125000 bit/s not applicable" 10
 expect $? "LSS activate on vcan0 reported as not applicable"
 cansend vcan0 7E5#0400000000000000
