@@ -1,8 +1,8 @@
 #include "canopen/node.hpp"
 
-#include <fstream>
-#include <sstream>
 #include <stdexcept>
+
+#include "canopen/305/lss_store.hpp"
 
 namespace oegw::canopen {
 
@@ -55,27 +55,25 @@ Node::Node(ObjectDictionary& od, NodeConfig config, FrameSink sink)
       cob_base_(cfg_.node_id),
       installed_((install_communication_objects(), true)),
       store_(cfg_.store_path.empty() ? nullptr : std::make_unique<ParameterStore>(od_, cfg_.store_path)),
-      nmt_(cfg_.node_id, [this](const CanFrame& f) { sink_(f); }),
-      hb_producer_(od_, cfg_.node_id, [this](const CanFrame& f) { sink_(f); }),
+      nmt_(cfg_.node_id, [this](const CanFrame& f) { emit(f); }),
+      hb_producer_(od_, cfg_.node_id, [this](const CanFrame& f) { emit(f); }),
       hb_consumer_(od_),
       emcy_(od_, [this](const CanFrame& f) { send(f); }, cfg_.node_id, cfg_.emcy),
       sync_(od_, [this](const CanFrame& f) { send(f); }, cfg_.sync),
       pdo_(od_, [this](const CanFrame& f) { send(f); }),
       sdo_(od_, [this](const CanFrame& f) { send(f); }, cfg_.node_id, cfg_.sdo_timeout),
-      lss_(cfg_.identity, cfg_.node_id, cfg_.bit_timing_index, [this](const CanFrame& f) { sink_(f); },
+      lss_(cfg_.identity, cfg_.node_id, cfg_.bit_timing_index, [this](const CanFrame& f) { emit(f); },
            LssSlave::Callbacks{
                .on_pending_node_id = [this](NodeId id) { nmt_.set_pending_node_id(id); },
                .on_pending_bit_timing = {},
                .on_activate_bit_timing =
-                   [this](std::uint8_t index, Duration delay) {
-                     bit_timing_ = index;
-                     if (on_bit_timing) on_bit_timing(index, delay);
-                   },
+                   [this](std::uint8_t index, Duration delay) { begin_bit_timing_switch(index, delay); },
                .on_store = cfg_.store_path.empty()
                                ? std::function<std::uint8_t(NodeId, std::uint8_t)>{}
                                : [this](NodeId id, std::uint8_t bt) { return store_lss(id, bt); },
                .on_start_nmt = [this]() { nmt_.reset(true, now_); },
-           }) {
+           },
+           cfg_.supported_bit_timings) {
   (void)installed_;
   install_sdo_channels();
   nmt_.on_reset([this](bool communication_only) { handle_reset(communication_only, now_); });
@@ -306,44 +304,39 @@ ParameterStore::LoadResult Node::start(TimePoint now) {
 }
 
 void Node::load_lss_file() {
-  if (cfg_.store_path.empty()) return;
-  std::ifstream in(lss_path());
-  if (!in) return;
-  int node = -1;
-  int bt = -1;
-  std::string line;
-  while (std::getline(in, line)) {
-    std::istringstream ls(line);
-    std::string key;
-    int value = -1;
-    if (std::getline(ls, key, '=') && (ls >> value)) {
-      if (key == "node_id") node = value;
-      if (key == "bit_timing") bt = value;
-    }
-  }
   // A half-written or foreign file is ignored: the configured defaults stay.
-  if (node < 1 || node > 127 || bt < 0 || bt > 9) return;
-  const NodeId id{static_cast<std::uint8_t>(node)};
+  const std::optional<LssStored> stored = read_lss_store(cfg_.store_path);
+  if (!stored) return;
+  const NodeId id = stored->node_id;
   if (id != cfg_.node_id) rebase_node_id(cfg_.node_id, id);
   cob_base_ = id;
   nmt_.set_pending_node_id(id);
   lss_.set_active_node_id(id);
   sdo_.set_cob_ids(CobId{cob::kSdoRx + id.value()}, CobId{cob::kSdoTx + id.value()});
-  bit_timing_ = static_cast<std::uint8_t>(bt);
-}
-
-std::filesystem::path Node::lss_path() const {
-  std::filesystem::path p = cfg_.store_path;
-  p += ".lss";
-  return p;
+  bit_timing_ = stored->bit_timing;
+  lss_.set_bit_timing(stored->bit_timing);
 }
 
 std::uint8_t Node::store_lss(NodeId id, std::uint8_t bit_timing) {
-  std::ostringstream out;
-  out << "node_id=" << static_cast<int>(id.value()) << "\nbit_timing=" << static_cast<int>(bit_timing) << "\n";
   std::string error;
   // CiA 305 §8.3.5: error code 2 = storage media access error.
-  return write_file_atomically(lss_path(), out.str(), error) ? 0 : 2;
+  return write_lss_store(cfg_.store_path, LssStored{id, bit_timing}, error) ? 0 : 2;
+}
+
+void Node::begin_bit_timing_switch(std::uint8_t index, Duration delay) {
+  bt_next_ = index;
+  bt_switch_at_ = now_ + delay;
+  bt_resume_at_ = now_ + 2 * delay;
+  advance_bit_timing(now_);  // a switch delay of 0 switches at once
+}
+
+void Node::advance_bit_timing(TimePoint now) {
+  if (bt_switch_at_ && now >= *bt_switch_at_) {
+    bt_switch_at_.reset();
+    bit_timing_ = bt_next_;
+    if (on_bit_timing_switch) on_bit_timing_switch(bt_next_);
+  }
+  if (!bt_switch_at_ && bt_resume_at_ && now >= *bt_resume_at_) bt_resume_at_.reset();
 }
 
 void Node::rebase_node_id(NodeId from, NodeId to) {
@@ -433,11 +426,16 @@ void Node::handle_state(NmtState s) {
   if (on_state_change) on_state_change(s);
 }
 
+void Node::emit(const CanFrame& frame) {
+  if (bt_resume_at_) return;  // CiA 305 activate bit timing: no frame until both delays passed
+  sink_(frame);
+}
+
 void Node::send(const CanFrame& frame) {
   // CiA 301 §7.3.2.2.1, Table 47: in Stopped (and during initialisation) only NMT, heartbeat and
   // LSS are served; SDO, EMCY, SYNC and PDO frames are held back.
   if (gate_ != NmtState::PreOperational && gate_ != NmtState::Operational) return;
-  sink_(frame);
+  emit(frame);
 }
 
 bool Node::on_frame(const CanFrame& frame, TimePoint now) {
@@ -473,6 +471,7 @@ bool Node::on_frame(const CanFrame& frame, TimePoint now) {
 
 void Node::advance(TimePoint now) {
   now_ = now;
+  advance_bit_timing(now);
   hb_producer_.advance(now);
   hb_consumer_.advance(now);
   sdo_.advance(now);
@@ -487,6 +486,8 @@ std::optional<TimePoint> Node::next_deadline() const {
   auto take = [&best](std::optional<TimePoint> t) {
     if (t && (!best || *t < *best)) best = t;
   };
+  take(bt_switch_at_);
+  take(bt_resume_at_);
   take(hb_producer_.next_deadline());
   take(hb_consumer_.next_deadline());
   take(sdo_.next_deadline());

@@ -10,7 +10,15 @@
 //  * Reset communication restores 1000h–1FFFh to defaults, then re-applies the stored values;
 //    reset node does the same for the whole dictionary. A node-ID configured by LSS becomes
 //    active here: every COB-ID default of the form "function code + node-ID" follows it.
-//  * LSS "store configuration" persists node-ID and bit timing beside the parameter file.
+//  * LSS "store configuration" persists node-ID and bit timing beside the parameter file
+//    (canopen/305/lss_store.hpp); at power-on both are applied (bit_timing_index() is then the
+//    stored one; the program sets the interface to it before the node starts).
+//  * LSS "configure bit timing" takes the table-0 indexes of NodeConfig::supported_bit_timings
+//    only (error 1 otherwise). "Activate bit timing" with switch delay d (CiA 305): from the
+//    command on the node sends nothing (every service, heartbeat, LSS) until 2·d have passed;
+//    at d it switches (bit_timing_index() becomes the pending index, on_bit_timing_switch is
+//    called for the transport), between d and 2·d the other nodes switch. Frames produced while
+//    silent are dropped; the heartbeat producer keeps its timing. Received frames are served.
 //  * Additional SDO server channels 1201h..127Fh (NodeConfig::sdo_servers, CiA 301 §7.2.4,
 //    §7.5.2.33): one SdoServer each on the COB-IDs of its sub 1/2, under the same NMT gating,
 //    timers and resets as the default channel 1200h. A channel serves only while both COB-IDs
@@ -75,6 +83,8 @@ struct NodeConfig {
   std::uint16_t heartbeat_ms = 0;             // 1017h default
   std::uint8_t heartbeat_consumers = 0;       // 1016h entries (0: no 1016h)
   std::uint8_t bit_timing_index = 3;          // CiA 305 table 0: 3 = 250 kbit/s
+  // Bit i set = table-0 index i is a rate this device runs at (LSS configure bit timing).
+  lss::BitTimings supported_bit_timings = lss::kAllStandardBitTimings;
   std::filesystem::path store_path;           // empty: no 1010h/1011h, LSS store unsupported
   EmcyConfig emcy{};
   SyncConfig sync{};
@@ -125,8 +135,11 @@ class Node {
   std::function<void(NmtState)> on_state_change;
   // The heartbeat consumer timed out (after EMCY 8130h was raised), on whichever path noticed it.
   std::function<void(NodeId)> on_heartbeat_timeout;
-  // Called when LSS activates a new bit timing (the transport must switch its bit rate).
-  std::function<void(std::uint8_t table_index, Duration delay)> on_bit_timing;
+  // LSS activate bit timing, at the switch (after the first switch delay): the transport must
+  // now switch to the bit rate of table-0 index `table_index`.
+  std::function<void(std::uint8_t table_index)> on_bit_timing_switch;
+  // True from an LSS activate bit timing until twice its switch delay have passed.
+  [[nodiscard]] bool bit_timing_silent() const { return bt_resume_at_.has_value(); }
 
  private:
   void install_communication_objects();
@@ -135,7 +148,11 @@ class Node {
   void rebase_node_id(NodeId from, NodeId to);
   void load_lss_file();
   std::uint8_t store_lss(NodeId id, std::uint8_t bit_timing);
-  [[nodiscard]] std::filesystem::path lss_path() const;
+  void begin_bit_timing_switch(std::uint8_t index, Duration delay);
+  void advance_bit_timing(TimePoint now);
+  // Every frame of the node goes out here (silent during an LSS bit-timing switch); send() adds
+  // the NMT-state gate.
+  void emit(const CanFrame& frame);
   void send(const CanFrame& frame);
   void apply_store_result(bool refused);
   void communication_error(TimePoint now);
@@ -154,6 +171,10 @@ class Node {
   NmtState gate_ = NmtState::Initialisation;  // what the sink lets through, see send()
   TimePoint now_{};
   std::uint8_t bit_timing_;
+  // LSS activate bit timing in progress: the switch, then the end of the silence.
+  std::optional<TimePoint> bt_switch_at_;
+  std::optional<TimePoint> bt_resume_at_;
+  std::uint8_t bt_next_ = 0;
   bool bus_off_ = false;
   // The node-ID the "function code + node-ID" COB-ID defaults are built on: the last valid
   // active node-ID (the node-ID itself may be FFh, unconfigured, meanwhile).

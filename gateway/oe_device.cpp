@@ -65,6 +65,10 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
   // upstream frame (also a late heartbeat, which reports the time-out it overran), or the TPDOs
   // a downstream frame sends.
   node_->on_heartbeat_timeout = [this](canopen::NodeId) { host_heartbeat_lost(now_); };
+  node_->on_bit_timing_switch = [this](std::uint8_t index) {
+    const auto kbit = canopen::lss::standard_bit_rate_kbit(index);
+    if (kbit && on_bit_rate_switch_) on_bit_rate_switch_(std::uint32_t{*kbit} * 1000u);
+  };
   subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) { handle_od_change(index, sub); });
 }
 

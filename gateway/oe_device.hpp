@@ -52,6 +52,11 @@
 //    stores their current values, whoever wrote them.
 //  * Host heartbeat loss: reported by the Node's heartbeat consumer (Node::on_heartbeat_timeout,
 //    after its EMCY 8130h), on whichever path notices it, or called directly by the gateway.
+//  * Bit rate (README "Bit rate"): LSS configure bit timing takes the rates of
+//    OeDeviceConfig::supported_bit_timings, which the EDS lists (gateway/runtime_config.hpp
+//    upstream_bit_timings: one list); LSS activate bit timing calls on_bit_rate_switch at the
+//    switch (canopen/node.hpp: silent for the switch delay, switch, silent again), where the
+//    program sets the upstream interface.
 //  * NMT reset node / reset communication from the host: the inputs keep their current values
 //    (6000h/6401h/6120h are written back after the reset restored their defaults), 1001h keeps
 //    the active errors, and every sub-device still faulty is reported again with EMCY 7000h
@@ -152,6 +157,10 @@ class OeDevice {
   // EMCY messages of other nodes (1028h, present when outputs exist).
   void on_emcy(canopen::EmcyHandler cb) { on_emcy_ = std::move(cb); }
 
+  // LSS activate bit timing, at the switch: the upstream interface must now run at `bit_per_s`.
+  using BitRateSwitch = std::function<void(std::uint32_t bit_per_s)>;
+  void on_bit_rate_switch(BitRateSwitch cb) { on_bit_rate_switch_ = std::move(cb); }
+
   [[nodiscard]] canopen::Node& node() { return *node_; }
   [[nodiscard]] canopen::ObjectDictionary& od() { return od_; }
   [[nodiscard]] const OeDeviceConfig& config() const { return cfg_; }
@@ -198,6 +207,7 @@ class OeDevice {
   std::array<std::array<std::array<Span, kFeSlots>, 17>, 7> input_index_{};
   unsigned batch_depth_ = 0;
   canopen::EmcyHandler on_emcy_;
+  BitRateSwitch on_bit_rate_switch_;
   canopen::TimePoint now_{};
   std::map<std::uint8_t, std::string> faults_;                   // node-ID -> name
   std::map<std::uint32_t, std::vector<OutputRef>> outputs_;      // index << 8 | sub -> fields

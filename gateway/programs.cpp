@@ -9,6 +9,7 @@
 
 #include "canopen/306/eds_reader.hpp"
 #include "canopen/306/eds_writer.hpp"
+#include "canopen/io/can_bitrate.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/socketcan_transport.hpp"
 #include "gateway/gateway.hpp"
@@ -36,6 +37,56 @@ std::optional<mapping::Config> load(const std::string& file) {
 }
 
 
+// "125, 250, 500, 1000 kbit/s": the table-0 rates of `rates`, fastest last.
+std::string rate_list(lss::BitTimings rates) {
+  std::string out;
+  for (int i = 8; i >= 0; --i) {
+    const auto kbit = lss::standard_bit_rate_kbit(static_cast<std::uint8_t>(i));
+    if (!kbit || ((rates >> i) & 1u) == 0) continue;
+    out += (out.empty() ? "" : ", ") + std::to_string(*kbit);
+  }
+  return out + " kbit/s";
+}
+
+// What `oegw run` will do with one interface's bit rate (`oegw check`).
+std::string bit_rate_plan(CanLink& link, const std::string& interface, std::uint32_t bitrate) {
+  if (interface == "virtual") return "the demo's in-process bus: no bit rate";
+  const BitRateOutcome p = plan_bit_rate(link, interface, bitrate);
+  if (!p.ok()) return p.message;
+  switch (p.action) {
+    case BitRateAction::Keep: return fmt::format("{} is at {} bit/s already", interface, bitrate);
+    case BitRateAction::Set:
+      return fmt::format("{} {}: oegw run sets it to {} (interface down, bit rate, up)", interface,
+                         p.before == 0 ? std::string("has no bit rate yet") : fmt::format("is at {} bit/s", p.before),
+                         bitrate);
+    case BitRateAction::NoBitTiming: return interface + " has no bit timing (virtual CAN): not applied";
+    case BitRateAction::Missing: break;
+  }
+  return interface + " is not on this machine (oegw run needs it)";
+}
+
+// Sets one interface's bit rate at start (canopen/io/can_bitrate.hpp), logging what was done;
+// false, logged with the setting's name, when it cannot be set.
+bool set_bit_rate(CanLink& link, const std::string& file, const std::string& setting, const std::string& interface,
+                  std::uint32_t bitrate) {
+  const BitRateOutcome r = apply_bit_rate(link, interface, bitrate);
+  if (!r.ok()) {
+    spdlog::error("{}: {}: {}; nothing was started", file, setting, r.message);
+    return false;
+  }
+  switch (r.action) {
+    case BitRateAction::Set:
+      spdlog::info("{}: {} set from {} to {} bit/s (interface down, bit rate, up)", setting, interface,
+                   r.before == 0 ? std::string("none") : std::to_string(r.before), bitrate);
+      break;
+    case BitRateAction::Keep: spdlog::info("{}: {} is at {} bit/s", setting, interface, bitrate); break;
+    case BitRateAction::NoBitTiming:
+      spdlog::info("{} has no bit timing (virtual CAN): {} {} not applied", interface, setting, bitrate);
+      break;
+    case BitRateAction::Missing: break;  // opening it reports that
+  }
+  return true;
+}
 
 // Where an FE field travels in the PDOs of clause 12: "TPDO 1 (180h+ID) byte 2 bit 3".
 std::string pdo_place(const std::vector<cia852::DefaultPdo>& pdos, const mapping::FeField& f) {
@@ -123,6 +174,17 @@ int run_check(const std::string& file) {
   print_downstream_boot(*cfg);
   for (const auto& s : cfg->subdevices)
     std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id, s.mandatory ? "  mandatory" : "");
+  // What `oegw run` does with the bit rates on this machine (README "Bit rate").
+  const auto link = netlink_can_link();
+  const UpstreamBitRate up_rate = upstream_bit_rate(*cfg);
+  std::printf("\nbit rates (oegw run sets them at start):\n");
+  std::printf("  upstream %u bit/s (%s): %s\n", up_rate.bitrate,
+              up_rate.lss_stored ? fmt::format("LSS-stored, upstream.bitrate is {}", cfg->upstream.bitrate).c_str()
+                                 : "upstream.bitrate",
+              bit_rate_plan(*link, cfg->upstream.interface, up_rate.bitrate).c_str());
+  std::printf("  downstream %u bit/s (downstream.bitrate): %s\n", cfg->downstream.bitrate,
+              bit_rate_plan(*link, cfg->downstream.interface, cfg->downstream.bitrate).c_str());
+  std::printf("  LSS configure bit timing and the EDS: %s\n", rate_list(device->config().supported_bit_timings).c_str());
   const auto pdos = cia852::default_pdos(fes, node);
   std::printf("\nfunctional elements (field <- signal: object, PDO):\n");
   for (const auto& fe : cfg->functional_elements) {
@@ -179,6 +241,14 @@ int run_eds(const std::string& file, const std::string& out) {
 int run_gateway(const std::string& file) {
   const auto cfg = load(file);
   if (!cfg) return 1;
+  // The bit rates first (README "Bit rate"): a refused one starts nothing.
+  const auto link = netlink_can_link();
+  const UpstreamBitRate up_rate = upstream_bit_rate(*cfg);
+  if (!up_rate.note.empty()) spdlog::info("upstream: {}", up_rate.note);
+  if (!set_bit_rate(*link, file, up_rate.lss_stored ? "LSS-stored bit rate" : "upstream.bitrate",
+                    cfg->upstream.interface, up_rate.bitrate) ||
+      !set_bit_rate(*link, file, "downstream.bitrate", cfg->downstream.interface, cfg->downstream.bitrate))
+    return 2;
   std::unique_ptr<SocketCanTransport> up, down;
   try {
     up = SocketCanTransport::open(cfg->upstream.interface);
@@ -204,7 +274,35 @@ int run_gateway(const std::string& file) {
     gw.on_downstream_frame(f, t);
     driver.rearm();
   });
+  // LSS activate bit timing (CiA 305): the node is silent; at the switch the interface is set to
+  // the new rate (down, bit rate, up). Its socket then reports the interface going down once.
+  bool switched = false;
+  gw.upstream().on_bit_rate_switch([&](std::uint32_t rate) {
+    const std::string& name = cfg->upstream.interface;
+    const BitRateOutcome r = apply_bit_rate(*link, name, rate);
+    if (!r.ok()) {
+      spdlog::error("LSS activate bit timing: {}; {} stays at {} bit/s", r.message, name, r.before);
+      return;
+    }
+    switch (r.action) {
+      case BitRateAction::Set:
+        switched = true;
+        spdlog::info("LSS activate bit timing: {} switched from {} to {} bit/s", name, r.before, rate);
+        break;
+      case BitRateAction::Keep: spdlog::info("LSS activate bit timing: {} is at {} bit/s already", name, rate); break;
+      case BitRateAction::NoBitTiming:
+        spdlog::info("LSS activate bit timing: {} has no bit timing (virtual CAN): {} bit/s not applicable; the node "
+                     "stays on the bus",
+                     name, rate);
+        break;
+      case BitRateAction::Missing: spdlog::error("LSS activate bit timing: {} is gone", name); break;
+    }
+  });
   up->set_event_handler([&](BusEvent e) {
+    if (e == BusEvent::InterfaceDown && switched) {
+      switched = false;  // the restart of the bit-rate switch
+      return;
+    }
     spdlog::warn("upstream {}: {}", cfg->upstream.interface, to_string(e));
     gw.on_upstream_bus_event(e, loop.now());
     driver.rearm();

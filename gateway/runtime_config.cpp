@@ -4,9 +4,38 @@
 
 #include <fmt/format.h>
 
+#include "canopen/305/lss_store.hpp"
 #include "profiles/cia852/pdo_defaults.hpp"
 
 namespace oegw::gateway {
+
+canopen::lss::BitTimings upstream_bit_timings(const mapping::Config& c) {
+  canopen::lss::BitTimings rates = cia852::kMandatoryBitTimings;
+  if (const auto index = canopen::lss::standard_bit_timing_index(c.upstream.bitrate)) rates |= 1u << *index;
+  return rates;
+}
+
+UpstreamBitRate upstream_bit_rate(const mapping::Config& c) {
+  UpstreamBitRate r{c.upstream.bitrate, false, {}};
+  if (c.upstream.store.empty()) return r;
+  const auto stored = canopen::read_lss_store(c.upstream.store);
+  if (!stored) return r;
+  const std::string file = canopen::lss_store_path(c.upstream.store).string();
+  const auto kbit = canopen::lss::standard_bit_rate_kbit(stored->bit_timing);
+  if (!kbit) {
+    r.note = fmt::format("the LSS-stored bit timing index {} ({}) is no CiA 305 table-0 rate: upstream.bitrate {} applies",
+                         stored->bit_timing, file, c.upstream.bitrate);
+    return r;
+  }
+  r.bitrate = std::uint32_t{*kbit} * 1000u;
+  r.lss_stored = true;
+  r.note = r.bitrate == c.upstream.bitrate
+               ? fmt::format("the LSS-stored bit rate {} bit/s ({}) is upstream.bitrate's", r.bitrate, file)
+               : fmt::format("the LSS-stored bit rate {} bit/s ({}) overrides upstream.bitrate {}: CiA 305 store "
+                             "configuration keeps the rate the host configured last",
+                             r.bitrate, file, c.upstream.bitrate);
+  return r;
+}
 
 OeDeviceConfig device_config(const mapping::Config& c, std::optional<std::filesystem::path> store) {
   OeDeviceConfig oe;
@@ -24,6 +53,8 @@ OeDeviceConfig device_config(const mapping::Config& c, std::optional<std::filesy
     if (!fe.input() && !fe.accepts(mapping::CommandSource::Canopen)) oe.host_may_not_command.insert(fe.id);
   }
   oe.store_path = store ? *store : std::filesystem::path(c.upstream.store);
+  oe.bit_timing_index = canopen::lss::standard_bit_timing_index(c.upstream.bitrate).value_or(3);
+  oe.supported_bit_timings = upstream_bit_timings(c);
   // 1201h..: a channel without COB-IDs in the file is disabled until the host writes them.
   for (const auto& s : c.upstream.sdo_servers)
     oe.sdo_servers.push_back(s.enabled() ? canopen::SdoServerChannel{*s.request, *s.response}
@@ -38,6 +69,17 @@ canopen::EdsInfo eds_info(const mapping::Config& c, std::string file_name) {
   info.product = c.upstream.identity.product_code;
   info.revision = c.upstream.identity.revision;
   info.node_id = canopen::NodeId{c.upstream.node_id};
+  // CiA 306 BaudRate_xxx: the rates LSS configure bit timing accepts (one list).
+  const canopen::lss::BitTimings rates = upstream_bit_timings(c);
+  auto has = [rates](std::uint8_t index) { return ((rates >> index) & 1u) != 0; };
+  info.baud_1000 = has(0);
+  info.baud_800 = has(1);
+  info.baud_500 = has(2);
+  info.baud_250 = has(3);
+  info.baud_125 = has(4);
+  info.baud_50 = has(6);
+  info.baud_20 = has(7);
+  info.baud_10 = has(8);
   for (const auto& fe : c.functional_elements) {
     if (fe.input() || fe.accepts(mapping::CommandSource::Canopen)) continue;
     const auto fields = mapping::fe_fields(fe.id);

@@ -19,8 +19,24 @@ namespace oegw::gateway {
 [[nodiscard]] OeDeviceConfig device_config(const mapping::Config& config,
                                            std::optional<std::filesystem::path> store = std::nullopt);
 
-// The EDS of the device `config` describes: identity, node-ID and the CiA 306 [Comments] naming
-// each output FE the host may not command (mapping-file `sources` without canopen).
+// The upstream bit rates, one list for the LSS slave and the EDS (device_config's
+// supported_bit_timings): CiA 852 §6.2's mandatory 125, 250, 500 and 1000 kbit/s, and
+// upstream.bitrate when it is another CiA 301 rate.
+[[nodiscard]] canopen::lss::BitTimings upstream_bit_timings(const mapping::Config& config);
+
+// The rate the upstream interface is set to at start. An LSS-stored bit timing (CiA 305 store
+// configuration, <upstream.store>.lss) wins over upstream.bitrate: it is what the host configured
+// last, and the host's other nodes were switched with it (README "Bit rate").
+struct UpstreamBitRate {
+  std::uint32_t bitrate = 0;  // bit/s
+  bool lss_stored = false;    // from the LSS store
+  std::string note;           // which one wins and why, for the log (empty: upstream.bitrate alone)
+};
+[[nodiscard]] UpstreamBitRate upstream_bit_rate(const mapping::Config& config);
+
+// The EDS of the device `config` describes: identity, node-ID, the bit rates (BaudRate_xxx =
+// upstream_bit_timings) and the CiA 306 [Comments] naming each output FE the host may not
+// command (mapping-file `sources` without canopen).
 [[nodiscard]] canopen::EdsInfo eds_info(const mapping::Config& config, std::string file_name);
 // The device itself, never started (its dictionary holds the defaults the EDS describes).
 [[nodiscard]] std::unique_ptr<OeDevice> eds_device(const mapping::Config& config);

@@ -7,8 +7,8 @@ set -euo pipefail
 PACKAGES=(
   # build
   g++ cmake ninja-build pkg-config
-  # libraries
-  libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev
+  # libraries (libsocketcan-dev: setting the CAN interfaces' bit rate over netlink)
+  libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libsocketcan-dev
   # test tiers
   libgtest-dev libgmock-dev libbenchmark-dev clang
   # independent CAN peers and the SocketCAN-in-a-VM tier

@@ -74,4 +74,18 @@ struct AddressRange {
   }
 }
 
+// The table-0 index of a bit rate in bit/s (1000000 -> 0, ..., 10000 -> 8); nullopt for a rate
+// the table does not have.
+[[nodiscard]] constexpr std::optional<std::uint8_t> standard_bit_timing_index(std::uint32_t bit_per_s) {
+  for (std::uint8_t i = 0; i < 9; ++i) {
+    const auto kbit = standard_bit_rate_kbit(i);
+    if (kbit && std::uint32_t{*kbit} * 1000u == bit_per_s) return i;
+  }
+  return std::nullopt;
+}
+
+// A set of table-0 indexes as LssSlave takes it: bit i set = index i supported.
+using BitTimings = std::uint16_t;
+inline constexpr BitTimings kAllStandardBitTimings = 0x01DF;  // 0..8 without the reserved 5
+
 }  // namespace oegw::canopen::lss

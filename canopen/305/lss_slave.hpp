@@ -5,8 +5,10 @@
 // this order, each matching 1018h) moves only the addressed one, which answers 44h.
 //
 // In Configuration: configure node-ID (11h; 1..127 or FFh = unconfigured; error 1 = out of
-// range), configure bit timing (13h; table 0 = CiA table, error 1 = not supported), activate bit
-// timing (15h, switch delay in ms, no answer), store configuration (17h; via the owner's
+// range), configure bit timing (13h; table 0 = CiA table, only the indexes of
+// supported_bit_timings, error 1 for any other index or table), activate bit timing (15h, switch
+// delay in ms, no answer; the owner does the switch, CiA 305: silent for the delay, switch, silent
+// for the delay again), store configuration (17h; via the owner's
 // callback, error 1 = not supported, 2 = storage media access error), inquire vendor/product/
 // revision/serial/node-ID (5Ah–5Eh). In any mode: identify remote slave (46h–4Bh -> 4Fh) and
 // identify non-configured remote slave (4Ch -> 50h).
@@ -50,7 +52,7 @@ class LssSlave {
   // `bit_timing_index`: the active entry of table 0. `supported_bit_timings`: bit i set =
   // table-0 index i supported (default: every index of the standard table).
   LssSlave(lss::Address address, NodeId active_node_id, std::uint8_t bit_timing_index, FrameSink sink,
-           Callbacks callbacks = {}, std::uint16_t supported_bit_timings = 0x01DF);
+           Callbacks callbacks = {}, lss::BitTimings supported_bit_timings = lss::kAllStandardBitTimings);
 
   bool on_frame(const CanFrame& frame, TimePoint now);
   void advance(TimePoint /*now*/) {}
@@ -63,6 +65,10 @@ class LssSlave {
   [[nodiscard]] const Stats& stats() const { return stats_; }
   // The owner applies the pending node-ID at reset communication.
   void set_active_node_id(NodeId id) { active_node_id_ = id; }
+  // The bit timing in use changed outside LSS (a stored one applied at power-on): it is also the
+  // pending one, which activate bit timing switches to.
+  void set_bit_timing(std::uint8_t index) { pending_bit_timing_ = index; }
+  [[nodiscard]] lss::BitTimings supported_bit_timings() const { return supported_bit_timings_; }
 
  private:
   void reply(std::uint8_t cs, std::uint8_t b1 = 0, std::uint8_t b2 = 0);
@@ -75,7 +81,7 @@ class LssSlave {
   std::uint8_t pending_bit_timing_;
   FrameSink sink_;
   Callbacks cb_;
-  std::uint16_t supported_bit_timings_;
+  lss::BitTimings supported_bit_timings_;
   lss::Mode mode_ = lss::Mode::Waiting;
   Stats stats_;
   // Switch-selective / identify progress: the next command specifier expected (0 = none).

@@ -163,6 +163,8 @@ canopen::NodeConfig build_dictionary(const DeviceConfig& cfg, ObjectDictionary& 
   nc.identity.serial = cfg.identity.serial;
   nc.heartbeat_ms = cfg.heartbeat_ms;
   nc.store_path = cfg.store_path;
+  nc.bit_timing_index = cfg.bit_timing_index;
+  nc.supported_bit_timings = cfg.supported_bit_timings;
   nc.sdo_servers = cfg.sdo_servers;
   const bool outputs = has_kind(fes, FeKind::IndicatorCluster) || has_kind(fes, FeKind::Display);
   if (outputs) {

@@ -55,6 +55,10 @@ struct Identity {
   std::uint32_t serial = 0;
 };
 
+// §6.2: "shall support the bit-rates 125 kbit/s, 250 kbit/s, 500 kbit/s and 1000 kbit/s" (CiA 305
+// table 0 indexes 4, 3, 2, 0).
+inline constexpr canopen::lss::BitTimings kMandatoryBitTimings = (1u << 0) | (1u << 2) | (1u << 3) | (1u << 4);
+
 struct DeviceConfig {
   canopen::NodeId node_id{0x20};
   Identity identity{};
@@ -72,6 +76,10 @@ struct DeviceConfig {
   // of the gateway itself (Origin::Local: DDS/LCM commands, 6206h/6443h error values) pass.
   std::set<FeId> host_may_not_command;
   std::filesystem::path store_path;      // empty: no 1010h/1011h
+  // CiA 305 table 0: the bit timing at power-on (3 = 250 kbit/s) and the rates the device runs at
+  // (bit i = index i): LSS configure bit timing takes those, the EDS lists them (BaudRate_xxx).
+  std::uint8_t bit_timing_index = 3;
+  canopen::lss::BitTimings supported_bit_timings = kMandatoryBitTimings;
   // Additional SDO server channels 1201h.. (CiA 301 §7.5.2.33; canopen::Node installs them).
   std::vector<canopen::SdoServerChannel> sdo_servers;
 };

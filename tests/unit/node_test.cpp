@@ -460,6 +460,108 @@ TEST_F(NodeTest, LssConfiguresStoresAndActivatesNodeId) {
   EXPECT_EQ(bytes(out[0]), (Bytes{0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}));
 }
 
+// ------------------------------------------------------------------ LSS bit timing (CiA 305)
+
+// Configure bit timing takes exactly the table-0 indexes of NodeConfig::supported_bit_timings
+// (here CiA 852 §6.2's 1000, 500, 250, 125 kbit/s): error 1 for every other index and table.
+TEST_F(NodeTest, LssConfigureBitTimingTakesOnlyTheSupportedRates) {
+  NodeConfig c = config();
+  c.supported_bit_timings = (1u << 0) | (1u << 2) | (1u << 3) | (1u << 4);
+  make(c);
+  start();
+  EXPECT_TRUE(lss({0x04, 0x01}).empty());
+  for (std::uint8_t index = 0; index < 16; ++index) {
+    const bool supported = index == 0 || index == 2 || index == 3 || index == 4;
+    const auto r = lss({0x13, 0x00, index});
+    ASSERT_EQ(r.size(), 1u) << int(index);
+    EXPECT_EQ(bytes(r[0]), (Bytes{0x13, static_cast<std::uint8_t>(supported ? 0 : 1), 0, 0, 0, 0, 0, 0}))
+        << "index " << int(index);
+  }
+  // Table selector 1 (manufacturer-specific) is not supported either.
+  EXPECT_EQ(bytes(lss({0x13, 0x01, 0x03})[0]), (Bytes{0x13, 0x01, 0, 0, 0, 0, 0, 0}));
+  // The last index taken is the pending one.
+  EXPECT_EQ(node->lss().pending_bit_timing(), 4u);
+}
+
+// Activate bit timing with switch delay 300 ms: nothing leaves the node (heartbeat every 100 ms,
+// EMCY, LSS answers) for 2 x 300 ms; the switch callback comes at 300 ms with the pending index;
+// then the heartbeat resumes on its own timing.
+TEST_F(NodeTest, LssActivateBitTimingIsSilentForTwiceTheSwitchDelayAndSwitchesInBetween) {
+  make();
+  start();
+  std::vector<std::pair<TimePoint, std::uint8_t>> switches;
+  node->on_bit_timing_switch = [&](std::uint8_t index) { switches.emplace_back(now, index); };
+  EXPECT_TRUE(lss({0x04, 0x01}).empty());
+  ASSERT_EQ(lss({0x13, 0x00, 0x04}).size(), 1u);  // 125 kbit/s
+  const TimePoint t0 = now;
+  EXPECT_TRUE(lss({0x15, 0x2C, 0x01}).empty());  // 012Ch = 300 ms
+  EXPECT_TRUE(node->bit_timing_silent());
+  EXPECT_EQ(node->next_deadline(), t0 + 100ms);  // the heartbeat's: it keeps its timing
+  out.clear();
+  // Everything the node would send while silent is dropped.
+  EXPECT_TRUE(lss({0x5E}).empty());                      // inquire node-ID: no answer
+  EXPECT_TRUE(node->emcy().raise(0x5000, 0x00, now));    // EMCY: not sent
+  for (int ms = 10; ms < 300; ms += 10) at(t0 + std::chrono::milliseconds(ms));
+  EXPECT_TRUE(out.empty());
+  EXPECT_TRUE(switches.empty());
+  at(t0 + 300ms);
+  ASSERT_EQ(switches.size(), 1u);
+  EXPECT_EQ(switches[0].first, t0 + 300ms);
+  EXPECT_EQ(switches[0].second, 4u);
+  EXPECT_EQ(node->bit_timing_index(), 4u);
+  for (int ms = 310; ms < 600; ms += 10) at(t0 + std::chrono::milliseconds(ms));
+  EXPECT_TRUE(out.empty());
+  EXPECT_TRUE(node->bit_timing_silent());
+  at(t0 + 600ms);
+  EXPECT_FALSE(node->bit_timing_silent());
+  EXPECT_EQ(switches.size(), 1u);
+  // The heartbeat due at 600 ms is the first frame again.
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x720u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
+  out.clear();
+  at(t0 + 700ms);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
+  // LSS answers again.
+  const auto r = lss({0x5E});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x5E, 0x20, 0, 0, 0, 0, 0, 0}));
+}
+
+// Switch delay 0: the switch happens at once and the node is not silent afterwards.
+TEST_F(NodeTest, LssActivateBitTimingWithoutDelaySwitchesAtOnce) {
+  make();
+  start();
+  std::vector<std::uint8_t> switches;
+  node->on_bit_timing_switch = [&](std::uint8_t index) { switches.push_back(index); };
+  EXPECT_TRUE(lss({0x04, 0x01}).empty());
+  ASSERT_EQ(lss({0x13, 0x00, 0x02}).size(), 1u);
+  EXPECT_TRUE(lss({0x15, 0x00, 0x00}).empty());
+  EXPECT_EQ(switches, std::vector<std::uint8_t>{2});
+  EXPECT_FALSE(node->bit_timing_silent());
+  EXPECT_EQ(lss({0x5E}).size(), 1u);
+}
+
+// Store configuration keeps the configured bit timing; at the next power-on it is the node's
+// (bit_timing_index) and the pending one of its LSS slave, whatever NodeConfig says.
+TEST_F(NodeTest, LssStoredBitTimingIsAppliedAtStart) {
+  make();
+  start();
+  EXPECT_TRUE(lss({0x04, 0x01}).empty());
+  ASSERT_EQ(bytes(lss({0x13, 0x00, 0x04})[0]), (Bytes{0x13, 0, 0, 0, 0, 0, 0, 0}));
+  ASSERT_EQ(bytes(lss({0x17})[0]), (Bytes{0x17, 0, 0, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(node->bit_timing_index(), 3u);  // stored, not activated
+  node.reset();
+  ObjectDictionary od2;
+  build_od(od2);
+  Node again(od2, config(), [](const CanFrame&) {});
+  EXPECT_EQ(again.bit_timing_index(), 3u);  // NodeConfig's until power-on
+  again.start(now);
+  EXPECT_EQ(again.bit_timing_index(), 4u);
+  EXPECT_EQ(again.lss().pending_bit_timing(), 4u);
+}
+
 // ------------------------------------------------------------------ LSS node-ID FFh (CiA 305)
 
 TEST_F(NodeTest, LssNodeIdFfhLeavesTheNodeUnconfiguredAndSilentButForLss) {

@@ -75,7 +75,8 @@ ver=$(apt-cache policy "$pkg" 2>/dev/null | sed -n 's/^ *Candidate: *//p' | head
 key="${pkg}_${ver//:/%3a}"
 kdir="$cache/kernels/$key"
 
-# The build depends on this script and init.sh: their hash is the stamp.
+# The build depends on this script (its module list included) and init.sh:
+# their hash is the stamp, so a changed module list rebuilds a shared cache.
 recipe=$(cat "$here/prepare.sh" "$here/init.sh" | sha256sum | cut -d' ' -f1)
 if [[ -e $kdir/ok && -e $kdir/initramfs.cpio.gz && -e $kdir/vmlinuz && \
       $(cat "$kdir/ok") == "$recipe" ]]; then
@@ -123,8 +124,11 @@ depmod -b "$modroot" "$kver" || die "depmod -b $modroot $kver failed"
 
 # --- module list, in load order ---------------------------------------------
 # Each module's dependencies come first (modprobe --show-depends prints the
-# chain in insmod order). can-gw is optional.
-want=(virtio_pci 9pnet_virtio 9p overlay can can-raw vcan can-gw)
+# chain in insmod order). can-gw is optional. can-dev, sja1000 and kvaser_pci
+# drive the SJA1000 controllers qemu emulates (run-in-vm.sh --kvaser N): real
+# CAN interfaces with bit timing (can0, can1, ...), absent without the option.
+# This list is part of the cache key (the recipe hash below covers this file).
+want=(virtio_pci 9pnet_virtio 9p overlay can can-raw vcan can-gw can-dev sja1000 kvaser_pci)
 optional=" can-gw "
 order=()
 for m in "${want[@]}"; do

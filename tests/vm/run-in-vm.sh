@@ -1,11 +1,14 @@
 #!/bin/bash
 # Boot the oegw test VM (qemu, TCG, no network) and run a script in it.
 #
-# Usage: tests/vm/run-in-vm.sh [--cwd DIR] [--timeout SECONDS] <guest-script> [args...]
+# Usage: tests/vm/run-in-vm.sh [--cwd DIR] [--timeout SECONDS] [--kvaser N] <guest-script> [args...]
 #
 # The guest sees the host's root file system read-only (as its own root, in a
 # chroot), with a writable tmpfs overlay on /tmp (host files show through,
 # writes stay in the guest), tmpfs /run, HOME=/tmp, and vcan0 + vcan1 up.
+# --kvaser N (or OEGW_VM_KVASER=N) adds N emulated kvaser_pci boards (one
+# SJA1000 each) on one emulated CAN bus: the guest gets can0 .. can<N-1>,
+# real CAN interfaces with bit timing, down and without a bit rate.
 # <guest-script> is a path on the host (relative paths are taken from the
 # current directory); it runs with cwd = --cwd (default: the current
 # directory), under bash if it is not executable. $OEGW_VM_OUT in the guest
@@ -23,23 +26,27 @@
 #   OEGW_VM_MEM      guest memory in MiB (default 1024)
 #   OEGW_VM_CPU      qemu -cpu model (default max)
 #   OEGW_VM_DEBUG=1  verbose boot: kernel messages and a trace of the guest's init
+#   OEGW_VM_KVASER   number of emulated kvaser_pci CAN controllers (default 0; --kvaser)
 set -uo pipefail
 
 die() { echo "run-in-vm.sh: error: $*" >&2; exit 125; }
 
 cwd=$PWD
 timeout_s=${OEGW_VM_TIMEOUT:-300}
+kvaser=${OEGW_VM_KVASER:-0}
 while (($#)); do
   case $1 in
     --cwd) cwd=${2:?--cwd needs a dir}; shift 2 ;;
     --timeout) timeout_s=${2:?--timeout needs seconds}; shift 2 ;;
+    --kvaser) kvaser=${2:?--kvaser needs a number}; shift 2 ;;
     --) shift; break ;;
     -h|--help) sed -n '2,/^set -u/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
     -*) die "unknown option $1" ;;
     *) break ;;
   esac
 done
-(($#)) || die "usage: run-in-vm.sh [--cwd DIR] [--timeout S] <guest-script> [args...]"
+(($#)) || die "usage: run-in-vm.sh [--cwd DIR] [--timeout S] [--kvaser N] <guest-script> [args...]"
+[[ $kvaser =~ ^[0-9]$ ]] || die "--kvaser / OEGW_VM_KVASER must be 0..9, not '$kvaser'"
 script=$(realpath -e -- "$1") || die "guest script $1 not found"
 shift
 cwd=$(realpath -e -- "$cwd") || die "cwd not found"
@@ -96,6 +103,11 @@ qemu=(qemu-system-x86_64
   -virtfs "local,path=/,mount_tag=hostroot,security_model=none,readonly=on,multidevs=remap"
   -virtfs "local,path=$out,mount_tag=out,security_model=none,multidevs=remap"
 )
+# Emulated SJA1000 controllers (kvaser_pci), all on one emulated bus cb0.
+if ((kvaser > 0)); then
+  qemu+=(-object can-bus,id=cb0)
+  for ((i = 0; i < kvaser; i++)); do qemu+=(-device kvaser_pci,canbus=cb0); done
+fi
 
 start=$(date +%s.%N)
 : >"$serial"
