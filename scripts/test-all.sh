@@ -15,7 +15,7 @@ ctest --test-dir "$BUILD" --output-on-failure --timeout 900 -j2
 # Fuzzing smoke runs: the SDO server under libFuzzer + ASan/UBSan (clang), a short bounded run.
 FUZZ_BUILD=${OEGW_FUZZ_BUILD_DIR:-build-fuzz}
 CXX=clang++ cmake -S . -B "$FUZZ_BUILD" -G Ninja -DOEGW_FUZZ=ON -DOEGW_VM_TESTS=OFF >/dev/null
-FUZZERS=(sdo_server_fuzz sdo_remote_fuzz mapping_fuzz eds_fuzz oe_device_fuzz)
+FUZZERS=(sdo_server_fuzz sdo_remote_fuzz mapping_fuzz eds_fuzz oe_device_fuzz network_manager_fuzz)
 cmake --build "$FUZZ_BUILD" --target "${FUZZERS[@]}"
 # Each writes what it finds into a fresh corpus directory (the first); the seeds after it are
 # only read: SDO conversations of every transfer type run to their ends (make_seeds.py), the
@@ -44,6 +44,8 @@ fuzz mapping_fuzz 15 "$CORPUS/mapping_fuzz" config tests/fixtures -dict=tests/fu
 fuzz eds_fuzz 10 "$CORPUS/eds_fuzz" subdevices/eds -dict=tests/fuzz/eds.dict
 # The whole upstream device (every FE kind at its largest instance count), every COB-ID, time running.
 fuzz oe_device_fuzz 20 "$CORPUS/oe_device_fuzz" "$CORPUS/seeds/oe_device_fuzz"
+# The downstream network manager booting one node of every driver family, SYNC running.
+fuzz network_manager_fuzz 20 "$CORPUS/network_manager_fuzz" "$CORPUS/seeds/network_manager_fuzz"
 
 # Tier 4: benchmarks print their figures; a crash fails the run, a slow machine does not.
 for b in "$BUILD"/tests/bench/oegw_bench_*; do

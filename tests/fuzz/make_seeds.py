@@ -114,6 +114,25 @@ def main():
               oe_device_chunks([bytes([0xFF] * 8)], sel, 5) for sel in range(9, 49)))
     write(out, o, "host_lost", nmt_start + oe_device_chunks([pad([0x05])], 5, 10) + oe_device_chunks([pad([0x05])], 6, 60))
 
+    # network_manager_fuzz: per node (selector 0..3) its boot-up, answers to the boot's SDO
+    # requests, heartbeats in operational, an EMCY and each TPDO.
+    n = "network_manager_fuzz"
+
+    def nm(node, kind, step, payload):
+        return bytes([node, kind, step, 8]) + pad(payload)
+
+    # Byte 4 below 80h: the fuzzer answers the master's last request itself (see its header).
+    for node in range(4):
+        blob = nm(node, 0, 0, [0x00])
+        for _ in range(40):
+            blob += nm(node, 1, 1, [0x00, 0x00, 0x01, 0x00, 0x00, 0x00])  # answers, identity as expected
+        blob += nm(node, 0, 5, [0x05]) + nm(node, 0, 10, [0x05])
+        blob += nm(node, 2, 1, [0x00, 0x81, 0x11]) + nm(node, 2, 1, [0x00, 0x00, 0x00])
+        for tpdo in range(4):
+            blob += nm(node, 3 + tpdo, 2, [0x10, 0x20, 0x30, 0x40, 0x50, 0x60, 0x70, 0x80])
+        blob += nm(node, 0, 50, [0x05])
+        write(out, n, "boot_%d" % node, blob)
+
 
 if __name__ == "__main__":
     main()
