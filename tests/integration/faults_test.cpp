@@ -203,4 +203,25 @@ TEST_F(Faults, NovotechnikMeasurementErrorKeepsTheSensorOperationalAsConfigured)
   EXPECT_EQ(knob().node().state(), NmtState::PreOperational);
 }
 
+// oegw-sim's text commands for the Novotechnik faults (sim_bench.hpp), as a bench operator types them.
+TEST_F(Faults, NovotechnikFaultsByTheSimulatorsTextCommands) {
+  power_on();
+  EXPECT_EQ(cmd("seat_knob position 1000"), "ok seat_knob position = 1000");
+  EXPECT_EQ(cmd("seat_knob fault overflow"), "ok seat_knob fault overflow");
+  rig_->run_for(300ms);
+  EXPECT_TRUE(driver("seat_knob").any_fault());
+  EXPECT_EQ(cmd("seat_knob fault clear").rfind("error:", 0), 0u) << "out of range: 2100h only";
+  EXPECT_EQ(cmd("left_grip fault overflow").rfind("error:", 0), 0u);
+  EXPECT_EQ(cmd("seat_knob fault nonsense").rfind("error:", 0), 0u);
+  ASSERT_TRUE(rig_->gw().subdevice_command("seat_knob", "position_error_reset", now()));
+  rig_->run_for(300ms);
+  EXPECT_FALSE(driver("seat_knob").any_fault()) << log_;
+  EXPECT_EQ(cmd("seat_knob fault measurement"), "ok seat_knob fault measurement");
+  rig_->run_for(300ms);
+  EXPECT_TRUE(driver("seat_knob").any_fault());
+  EXPECT_EQ(cmd("seat_knob fault clear"), "ok seat_knob fault cleared");
+  rig_->run_for(300ms);
+  EXPECT_FALSE(driver("seat_knob").any_fault()) << log_;
+}
+
 }  // namespace
