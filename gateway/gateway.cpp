@@ -127,11 +127,10 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     Sub& s = it->second;
     const bool was = s.operational;
     s.operational = st == sd::NodeState::Operational;
-    // An error EMCY holds until the device's error reset 0000h, across losses and the gateway's
-    // reset communication (which makes no device repeat its EMCYs); only a boot-up the device
-    // made on its own or answering an NMT reset node voids it (on_application_reset). A node
-    // lost while it holds one is booted again by reset node: reset, it reports the error again
-    // if it persists, and the gateway does not wait for an error reset that may have been lost.
+    // A fault the driver holds (Driver::faulted) lasts until the device's evidence: its clear
+    // code, or its error state read back at the next start (boot_reads). A node lost while its
+    // driver holds one is booted again by reset node: reset, it reports the error again if it
+    // persists, and the gateway does not wait for a clear code that may have been lost.
     s.why = std::string(sd::to_string(st)) + " (" + why + ")";
     log(name + ": " + s.why);
     if (s.operational && !was) {
@@ -142,8 +141,10 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     }
     // Only a node that failed (not one still booting for the first time) is a fault; only the
     // proof of life the network manager names (`why`) makes it operational again.
-    if ((st == sd::NodeState::Missing || st == sd::NodeState::Refused) && s.emcy_error)
+    if ((st == sd::NodeState::Missing || st == sd::NodeState::Refused) && s.driver->any_fault())
       network_.reset_application_next(name);
+    if (st == sd::NodeState::Missing || st == sd::NodeState::Refused) s.failed = true;
+    if (s.operational) s.failed = false;
     if (st == sd::NodeState::Missing || st == sd::NodeState::Refused || s.operational) update_fault(s, why);
   };
   network_.on_emcy = [this](const std::string& name, const canopen::EmcyMessage& e, const sd::DecodedEmcy& d) {
@@ -155,14 +156,9 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     const mapping::EmcyForwarding fwd = config_.downstream.emcy_forwarding;
     if (fwd == mapping::EmcyForwarding::All || (fwd == mapping::EmcyForwarding::Faults && (e.code == 0 || d.error)))
       (void)oe_->forward_subdevice_emcy(e, now_);
-    // Only the device's error reset (0000h) ends an error EMCY; a warning (decoded error =
-    // false, e.g. elobau 8140h "recovered from bus off") leaves it active.
-    if (e.code == 0) {
-      it->second.emcy_error = false;
-    } else if (d.error) {
-      it->second.emcy_error = true;
-    }
-    update_fault(it->second, "error reset EMCY 0000h");
+    // What the EMCY faults or clears is the driver's (d.affected, Driver::faulted): a warning
+    // (81xxh, elobau 0002h) faults nothing, a clear code ends only what it clears.
+    update_fault(it->second, fmt::format("EMCY {:04X}h {}", e.code, d.text));
   };
   // A sub-device's EMCY reaches the host before the 7000h it causes: its driver's decoding
   // (inside the network manager's EMCY handler) already moves signals and so the fault policy,
@@ -182,7 +178,7 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
                     m.code, m.error_register, fmt::join(m.msef, " ")));
   });
   network_.on_application_reset = [this](const std::string& name) {
-    if (auto it = subs_.find(name); it != subs_.end()) it->second.emcy_error = false;
+    if (auto it = subs_.find(name); it != subs_.end()) it->second.driver->on_application_reset(now_);
   };
   network_.on_bad_input = [this](const std::string& what) { log(what); };
   network_.on_diagnostics = [this](const std::string& name, const subdevices::NodeDiagnostics& d) {
@@ -215,7 +211,7 @@ void Gateway::feed(Binding& b, const Sub& s, const sd::SignalValue& v, bool deci
   const std::int64_t fe_value = b.translator->update(in);
   b.status = in.status;
   // The source time: the reception of the frame that carried the value, or now when the
-  // gateway decided the value itself (the EMCY hold and its end, which re-feeds the driver's
+  // gateway decided the value itself (the fault hold and its end, which re-feeds the driver's
   // last values: their frames are older than what the FE has already shown).
   const TimePoint source = !decided_now && in.status == v.status ? v.timestamp : now_;
   (void)model_.write(b.fe, b.ref, fe_value, source);
@@ -247,11 +243,13 @@ void Gateway::publish_changes() {
 }
 
 void Gateway::update_fault(Sub& s, std::string_view evidence) {
-  // While an error EMCY lasts, the node's inputs are held at their fault values (set before the
-  // EMCY goes up), also those the driver leaves Valid (an EMCY code it maps to no signal); on
-  // the error reset they are fed again from the driver's current values, through the neutral
-  // interlock.
-  const bool forced = s.operational && s.emcy_error;
+  // The driver holds the faults its device reported (Driver::faulted): its faulted inputs are
+  // Error and at their fault values before the EMCY goes up. While it holds any (also on a
+  // signal no FE uses, an LED), the node is faulty and every input of it is held at its fault
+  // value: a device that reports a fault is in doubt as a whole. When the driver clears its
+  // last fault (on the device's evidence) they are fed again from the driver's current values,
+  // through the neutral interlock. The hold is the driver's state, not a latch of the gateway.
+  const bool forced = s.operational && s.driver->any_fault();
   if (forced != s.forced) {
     s.forced = forced;
     for (const std::size_t bi : s.inputs) feed(bindings_[bi], s, s.driver->value(bindings_[bi].signal), true);
@@ -259,9 +257,13 @@ void Gateway::update_fault(Sub& s, std::string_view evidence) {
   // A bound input in Error / NotAvailable / Stale counts; Offline is the node's own state. The
   // cause is found without building text: this runs for every PDO, and the reason string is
   // made only when the cause changes (no allocation per frame while a fault lasts).
+  // A node booting for the first time is not faulty (its fields are at their fault values,
+  // Offline): an EMCY or a signal change meanwhile (the MCB-402's power-on 8100h) does not make
+  // it so; only its state does (on_node_state: missing, refused).
+  if (!s.operational && !s.failed && s.cause.kind == Cause::Kind::None) return;
   const Cause cause = [&] {
     if (!s.operational) return Cause{Cause::Kind::State, 0, SignalStatus::Offline};
-    if (s.emcy_error) return Cause{Cause::Kind::Emcy, 0, SignalStatus::Error};
+    if (s.driver->any_fault()) return Cause{Cause::Kind::Emcy, 0, SignalStatus::Error};
     for (const std::size_t bi : s.inputs) {  // this sub-device's input bindings only (per PDO)
       const SignalStatus st = bindings_[bi].status;
       if (st == SignalStatus::Error || st == SignalStatus::NotAvailable || st == SignalStatus::Stale)
@@ -413,6 +415,41 @@ std::vector<Gateway::FieldState> Gateway::fields(mapping::FeId fe) const {
     out.push_back(f);
   }
   return out;
+}
+
+bool Gateway::subdevice_command(const std::string& name, std::string_view command, TimePoint now) {
+  now_ = now;
+  const auto it = subs_.find(name);
+  if (it == subs_.end()) {
+    log("command " + std::string(command) + ": no sub-device '" + name + "'");
+    return false;
+  }
+  Sub& s = it->second;
+  const std::vector<sd::SdoWrite> writes = s.driver->command(command);
+  if (writes.empty()) {
+    std::string known;
+    for (const auto& c : s.driver->commands()) known += (known.empty() ? "" : ", ") + c;
+    log(name + ": no command '" + std::string(command) + "' (" + std::string(s.driver->family()) + " has: " +
+        (known.empty() ? "none" : known) + ")");
+    return false;
+  }
+  if (!s.operational) {
+    log(name + ": command " + std::string(command) + " refused: the node is " + s.why);
+    return false;
+  }
+  // The writes go as SDO downloads; what they change shows only in what the device reports
+  // afterwards (an EMCY, its PDOs), never in the answer itself.
+  for (const sd::SdoWrite& w : writes) {
+    master_.sdo(s.config->node())
+        .download(w.index, w.sub, w.data,
+                  [this, name, what = w.what](canopen::SdoAbortCode code, const std::vector<std::uint8_t>&) {
+                    log(name + ": " + what + (code == canopen::SdoAbortCode::None
+                                                  ? std::string(": done")
+                                                  : ": abort " + std::string(canopen::to_string(code))));
+                  });
+  }
+  log(name + ": command " + std::string(command) + " sent");
+  return true;
 }
 
 Gateway::EmcyRecord Gateway::subdevice_emcy(const std::string& name) const {

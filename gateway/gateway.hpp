@@ -18,10 +18,12 @@
 //    runs in an output batch, so one command reaches each sub-device as one frame per RPDO;
 //  * neutral interlock: after that, each axis stays at neutral until it has been seen inside
 //    its deadband (mapping/translate.hpp).
-//  * an error EMCY lasts until the sub-device's error reset (0000h): a warning EMCY (decoded
-//    error = false) does not end it, and while it lasts every input of that node is held at its
-//    fault value, also when the driver maps the EMCY to no signal (tests/integration/
-//    gateway_e2e_test.cpp).
+//  * EMCY faults are the drivers' (Driver::faulted, subdevices/README.md "Faults"): each driver
+//    says which signals an EMCY faults and what clears them (its clear code, its error state
+//    read back at every start); a warning faults nothing and ends nothing. A faulted bound
+//    input is at its fault value before the EMCY goes up; while the driver holds any fault the
+//    node is faulty (7000h) and every input of it is held at its fault value. The gateway keeps
+//    no EMCY state of its own.
 //
 // EMCYs (README "Fault policy", gateway/oe_device.hpp for the frames):
 //  * every EMCY a configured sub-device sends is counted and kept (subdevice_emcy) and, as the
@@ -103,6 +105,11 @@ class Gateway {
                           mapping::CommandSource source);
   bool command_display(std::uint8_t instance, const std::array<std::int16_t, 12>& parameters, canopen::TimePoint now,
                        mapping::CommandSource source);
+  // A device command of a sub-device's driver (Driver::commands(), e.g. the Novotechnik
+  // "position_error_reset", 2100h): sent as SDO downloads while the node is operational, each
+  // answer logged. False (logged) for an unknown sub-device or command, or a node not
+  // operational. What it changes comes from the device's own evidence (a clear EMCY).
+  bool subdevice_command(const std::string& name, std::string_view command, canopen::TimePoint now);
   // Commands refused so far: a source the FE does not take (each refused SDO download and each
   // refused RPDO entry of the host counts), an FE not configured.
   [[nodiscard]] std::uint64_t refused_commands() const { return arbiter_->refused(); }
@@ -168,14 +175,14 @@ class Gateway {
     const mapping::SubdeviceConfig* config = nullptr;
     subdevices::Driver* driver = nullptr;
     bool operational = false;
-    bool emcy_error = false;
+    bool failed = false;  // missing or refused since it was last operational (a fault)
     std::string why;
     std::vector<std::vector<std::size_t>> by_signal;  // driver signal index -> bindings_
     std::vector<std::size_t> inputs;                   // its input bindings, in bindings_ order
     std::vector<std::size_t> outputs;                  // its output bindings
     std::vector<std::int64_t> output_values;           // per driver signal: the value last set
-    // An error EMCY holds every input of this node at its fault value, also when the driver
-    // leaves its signals Valid (an EMCY code it cannot map to a signal).
+    // The driver holds a fault (Driver::any_fault) while operational: every input of this node
+    // is held at its fault value, also those the driver leaves Valid.
     bool forced = false;
     Cause cause;  // the fault's cause (Kind::None: not faulty)
     EmcyRecord emcy;  // the EMCYs it sent

@@ -338,6 +338,7 @@ DecodedEmcy Cia401Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
     d.text = "cia401 EMCY 0000h: error reset";
     // No longer Error, but no value either until the next PDO: Offline, as before the first
     // one (Stale means a PDO is overdue, which a node sending on change only never is).
+    clear_all_faults();
     for (std::size_t i = 0; i < signals_.size(); ++i)
       if (!signals_[i].output() && value(i).status == SignalStatus::Error)
         update(i, signals_[i].neutral, SignalStatus::Offline, now);
@@ -351,8 +352,18 @@ DecodedEmcy Cia401Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
     return d;
   }
   d.text = "cia401 EMCY " + hex4(emcy.code) + "h: " + cls;
-  for (std::size_t i = 0; i < signals_.size(); ++i)
-    if (!signals_[i].output()) update(i, signals_[i].neutral, SignalStatus::Error, now);
+  if ((emcy.code & 0xFF00) == 0x8100) {
+    // CiA 301 Table 26 81xxh "communication" (CAN overrun, error passive, life guard / heartbeat
+    // error, recovered from bus off): a warning about the bus, not about the values.
+    d.error = false;
+    d.text += " (warning)";
+    return d;
+  }
+  for (std::size_t i = 0; i < signals_.size(); ++i) {
+    if (signals_[i].output()) continue;
+    set_fault(i, now);
+    d.affected.push_back(i);
+  }
   return d;
 }
 

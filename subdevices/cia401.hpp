@@ -51,10 +51,12 @@
 // valid RPDO that maps it, packing the remembered values of the other outputs it maps (and 0 for
 // dummy/unknown entries). Returns false, sending nothing, for a non-output, a value out of range,
 // or an output no valid RPDO maps.
-// EMCY (CiA 301 §7.2.7.1, Table 26; CiA 401 defines no per-channel codes): 0000h clears Error on
-// every input (the value stays neutral until the next PDO); a code of a class Table 26 defines
-// (1000h, 2xxxh, 3xxxh, 4xxxh, 50xxh, 6xxxh, 70xxh, 8xxxh, 90xxh, F0xxh, FFxxh) puts every input
-// into Error with its neutral value; any other code is counted (unknown_emcy) and ignored.
+// EMCY (CiA 301 §7.2.7.1, Table 26; CiA 401 defines no per-channel codes): 0000h clears the
+// faults of every input (the value stays neutral until the next PDO); a code of a class Table 26
+// defines (1000h, 2xxxh, 3xxxh, 4xxxh, 50xxh, 6xxxh, 70xxh, 8xxxh but 81xxh, 90xxh, F0xxh,
+// FFxxh) faults every input (Driver::faulted) until 0000h or the node's next boot-up (it reports
+// again what persists); 81xxh "communication" is a warning (error = false, faults nothing); any
+// other code is counted (unknown_emcy) and ignored.
 // Identity: 1000h DefaultValue and [DeviceInfo] VendorNumber/ProductNumber/RevisionNumber.
 //
 // Factory option: eds=<path> (required). Unknown options, or an EDS that cannot be read or

@@ -39,8 +39,36 @@ void Driver::init(NodeId node, FrameSink sink, std::size_t signal_count) {
   node_ = node;
   sink_ = std::move(sink);
   values_.assign(signal_count, SignalValue{});
+  faults_.assign(signal_count, false);
+  fault_count_ = 0;
   rebuild_deadlines();
 }
+
+void Driver::set_fault(std::size_t index, TimePoint now) {
+  if (index >= faults_.size()) return;
+  set_fault(index);
+  const SignalValue& v = values_[index];
+  update(index, v.value, v.status == SignalStatus::Offline ? SignalStatus::Offline : SignalStatus::Error, now);
+}
+
+void Driver::set_fault(std::size_t index) {
+  if (index >= faults_.size() || faults_[index]) return;
+  faults_[index] = true;
+  ++fault_count_;
+}
+
+void Driver::clear_fault(std::size_t index) {
+  if (index >= faults_.size() || !faults_[index]) return;
+  faults_[index] = false;
+  --fault_count_;
+}
+
+void Driver::clear_all_faults() {
+  faults_.assign(faults_.size(), false);
+  fault_count_ = 0;
+}
+
+void Driver::on_application_reset(TimePoint /*now*/) { clear_all_faults(); }
 
 void Driver::update(std::size_t index, std::int64_t value, SignalStatus status, TimePoint now) {
   // A value whose carrier PDO is overdue stays Stale, whatever frame republishes it; so does a
@@ -48,6 +76,12 @@ void Driver::update(std::size_t index, std::int64_t value, SignalStatus status, 
   if ((status == SignalStatus::Valid || (status == SignalStatus::Offline && alive_since_)) && earliest_due_ &&
       now >= *earliest_due_ && overdue(index, now))
     status = SignalStatus::Stale;
+  // A faulted signal is Error (an input at its neutral value) while the node is alive.
+  if (index < faults_.size() && faults_[index] && status != SignalStatus::Offline) {
+    status = SignalStatus::Error;
+    const auto& info = signals();
+    if (index < info.size() && !info[index].output()) value = info[index].neutral;
+  }
   SignalValue& v = values_.at(index);
   if (v.value == value && v.status == status) {
     v.timestamp = now;

@@ -48,8 +48,14 @@ struct ExpectedIdentity {
 struct DecodedEmcy {
   std::uint16_t code = 0;
   std::string text;              // "elobau 4001h 0x0021: X axis signal 1 out of range"
-  bool error = true;             // false for the error-reset EMCY (0000h)
-  std::vector<std::size_t> affected;  // signal indices put into Error; empty = all inputs
+  // The EMCY reports an error (forwarded upstream under emcy_forwarding: faults). false for a
+  // clear code (0000h, Novotechnik 5051h "valid position"), a warning (81xxh CAN communication,
+  // elobau 0002h "set until first parameter saving") and an undecodable code.
+  bool error = true;
+  // The signals this EMCY puts in Error: as a rule faulted (Driver::faulted) until the driver's
+  // clear evidence; the driver's header says where not (a Novotechnik position warning, which
+  // its PDOs end). Empty: it faults nothing (a warning, a clear code, an unknown code ignored).
+  std::vector<std::size_t> affected;
 };
 
 class Driver {
@@ -90,6 +96,11 @@ class Driver {
   virtual bool on_boot_read_abort(std::uint16_t /*index*/, std::uint8_t /*sub*/, canopen::SdoAbortCode /*code*/) {
     return false;
   }
+
+  // Device commands an integrator may give (Gateway::subdevice_command), by name: the SDO
+  // writes each one is (empty: no such command). E.g. the Novotechnik "position_error_reset".
+  [[nodiscard]] virtual std::vector<std::string> commands() const { return {}; }
+  [[nodiscard]] virtual std::vector<SdoWrite> command(std::string_view /*name*/) const { return {}; }
 
   // Runtime. on_frame() gets every frame whose COB-ID belongs to this node's PDOs (the network
   // manager routes by COB-ID); it returns false for a frame it does not use (counted).
@@ -153,6 +164,20 @@ class Driver {
   [[nodiscard]] bool all_stale() const;
   [[nodiscard]] std::optional<TimePoint> next_deadline() const;
 
+  // Faults (README "Faults: what sets them, what clears them"). The device's own reports of an
+  // error (an EMCY, or its error state read back at boot) fault signals: a faulted input is
+  // Error with its neutral value whatever its PDOs carry (an output keeps its value, status
+  // Error), until the driver clears the fault on the device's evidence — its documented clear
+  // code, or its error state read back at every (re)start (boot_reads()). Going offline and
+  // coming back change nothing (Offline shows meanwhile): only evidence does. The gateway
+  // holds no fault state of its own besides this (gateway/gateway.hpp).
+  [[nodiscard]] bool faulted(std::size_t index) const { return index < faults_.size() && faults_[index]; }
+  [[nodiscard]] bool any_fault() const { return fault_count_ != 0; }
+  // The node booted on its own or answered NMT reset node (its error state is that of a fresh
+  // start). A driver whose boot_reads() read the error state back keeps its faults for that
+  // read-back to decide; the default drops them (the device reports again what persists).
+  virtual void on_application_reset(TimePoint now);
+
   // Called with a signal's index whenever its value or status changed.
   std::function<void(std::size_t index, const SignalValue& value)> on_change;
 
@@ -163,6 +188,13 @@ class Driver {
   void init(NodeId node, FrameSink sink, std::size_t signal_count);
   // Updates a signal; calls on_change if value or status differ.
   void update(std::size_t index, std::int64_t value, SignalStatus status, TimePoint now);
+  // Faults a signal (Error at once) / clears its fault. A cleared input keeps its neutral value
+  // in Error until its next PDO brings a value (that frame is the evidence it is good again).
+  void set_fault(std::size_t index, TimePoint now);
+  // The same without a status change (at boot, while the signals are Offline anyway).
+  void set_fault(std::size_t index);
+  void clear_fault(std::size_t index);
+  void clear_all_faults();
   void send(const CanFrame& frame) {
     if (sink_) sink_(frame);
   }
@@ -213,6 +245,8 @@ class Driver {
   NodeId node_{};
   FrameSink sink_;
   std::vector<SignalValue> values_;
+  std::vector<bool> faults_;  // by signal: faulted (set_fault)
+  std::size_t fault_count_ = 0;
   unsigned output_batch_ = 0;
   std::vector<Carrier> carriers_;
   Duration pdo_timeout_{0};

@@ -226,7 +226,10 @@ void ElobauMfgDriver::on_tpdo1(const CanFrame& frame, TimePoint now) {
     ax.suspect = disagree && !ax.mismatch;
     ax.mismatch = disagree && ax.mismatch;
     // A good pair after an axis EMCY: the fault is over (the device sends 126 while it lasts).
-    if (ch1_ok && (valid_value(v2) || v2 == kNotAvailableValue) && !disagree) ax.emcy = false;
+    if (ch1_ok && (valid_value(v2) || v2 == kNotAvailableValue) && !disagree && ax.emcy) {
+      ax.emcy = false;
+      sync_faults(std::nullopt);
+    }
   }
   ch2_reference_ = now;
   channel2_late_ = false;
@@ -289,10 +292,7 @@ DecodedEmcy ElobauMfgDriver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
     case 0x0000: {  // §12.4: error reset or no error
       d.error = false;
       d.text = "elobau EMCY 0000h: error reset";
-      global_emcy_ = false;
-      led_emcy_ = false;
-      button_emcy_.fill(false);
-      for (auto& ax : axes_) ax.emcy = false;
+      clear_faults();
       publish_all(now);
       for (std::size_t l = 0; l < kLeds; ++l)
         if (leds_[l]) update(kFirstLed + l, value(kFirstLed + l).value, SignalStatus::Valid, now);
@@ -300,7 +300,7 @@ DecodedEmcy ElobauMfgDriver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
     }
     case 0x8110:
     case 0x8120:
-    case 0x8140: {  // §12.4: communication notices; the values the device sends stay valid
+    case 0x8140: {  // §12.4: communication warnings; the values the device sends stay valid
       d.error = false;
       d.text = emcy.code == 0x8110   ? "elobau EMCY 8110h: CAN overrun (object lost)"
                : emcy.code == 0x8120 ? "elobau EMCY 8120h: CAN in error passive mode"
@@ -325,30 +325,96 @@ DecodedEmcy ElobauMfgDriver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
     d.text = "elobau EMCY 1000h, 4001h " + hex4(m) + ": unknown manufacturer code (ignored)";
     return d;
   }
-  d.error = true;
   d.text = "elobau 4001h " + hex4(m) + ": " + name;
+  d.affected = apply_manufacturer_code(m, now);
+  d.error = !d.affected.empty();
+  if (m == 0x0002) d.text += " (warning: also set until the parameters are first saved, faults nothing)";
+  return d;
+}
+
+std::vector<std::size_t> ElobauMfgDriver::apply_manufacturer_code(std::uint16_t m, TimePoint now) {
+  std::vector<std::size_t> affected;
   if (m >= 0x0010 && m <= 0x0052 && (m & 0x0F) <= 2) {
     const std::size_t a = (m >> 4) - 1;
     axes_[a].emcy = true;
-    d.affected = {kX + a};
-    publish_axis(a, now);
+    affected = {kX + a};
   } else if (m >= 0x0061 && m <= 0x006B) {
     const std::size_t b = m - 0x0061;
     button_emcy_[b] = true;
-    d.affected = {kFirstButton + b};
-    publish_buttons(now);
+    affected = {kFirstButton + b};
   } else if (m == 0x0070) {
     led_emcy_ = true;
-    for (std::size_t l = 0; l < kLeds; ++l) {
-      d.affected.push_back(kFirstLed + l);
-      update(kFirstLed + l, value(kFirstLed + l).value, SignalStatus::Error, now);
-    }
-  } else {  // 0000h, 0001h, 0002h, 0005h: the whole device is in doubt
+    for (std::size_t l = 0; l < kLeds; ++l) affected.push_back(kFirstLed + l);
+  } else if (m == 0x0002) {
+    // Table 6 0002h "Parameter Checksum Error CRC32. This error is also set until first
+    // parameter saving process": sent at every power-on of a grip whose parameters were never
+    // saved, so it tells nothing about the values; and every parameter the gateway relies on is
+    // written at every boot (configuration()). A warning: reported, faults nothing.
+  } else if (m == 0x0000 || m == 0x0001 || m == 0x0005) {  // the whole device is in doubt
     global_emcy_ = true;
-    for (std::size_t i = 0; i < kFirstLed; ++i) d.affected.push_back(i);
-    publish_all(now);
+    for (std::size_t i = 0; i < kFirstLed; ++i) affected.push_back(i);
   }
-  return d;
+  sync_faults(now);
+  publish_all(now);  // an EMCY error shows at once, PDO or not
+  if (led_emcy_)
+    for (std::size_t l = 0; l < kLeds; ++l) update(kFirstLed + l, value(kFirstLed + l).value, SignalStatus::Error, now);
+  return affected;
+}
+
+void ElobauMfgDriver::sync_faults(std::optional<TimePoint> now) {
+  auto one = [&](std::size_t index, bool on) {
+    if (!on) {
+      clear_fault(index);
+    } else if (now) {
+      set_fault(index, *now);
+    } else {
+      set_fault(index);
+    }
+  };
+  for (std::size_t a = 0; a < kAxes; ++a) one(kX + a, global_emcy_ || axes_[a].emcy);
+  for (std::size_t b = 0; b < kButtons; ++b) one(kFirstButton + b, global_emcy_ || button_emcy_[b]);
+  one(kPresence, global_emcy_ || button_emcy_[11]);  // button 12 = presence sensor (§15.2.1)
+  for (std::size_t l = 0; l < kLeds; ++l) one(kFirstLed + l, led_emcy_);
+}
+
+void ElobauMfgDriver::clear_faults() {
+  global_emcy_ = false;
+  led_emcy_ = false;
+  button_emcy_.fill(false);
+  for (auto& ax : axes_) ax.emcy = false;
+  sync_faults(std::nullopt);
+}
+
+std::vector<std::pair<std::uint16_t, std::uint8_t>> ElobauMfgDriver::boot_reads() const {
+  if (error_code_read_) return {};
+  return {{0x4001, 0}};
+}
+
+bool ElobauMfgDriver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                                   std::string& /*error*/) {
+  if (index != 0x4001 || sub != 0) return true;
+  error_code_read_ = true;
+  // Table 14 4001h "Error Code", 0: no error. No error: every fault latched before is over (the
+  // grip rebooted, or it recovered while the gateway did not see its 0000h). An error code: it
+  // faults what its EMCY would, beside what is latched (4001h holds one code only).
+  std::uint16_t m = 0;
+  for (std::size_t i = 0; i < data.size() && i < 2; ++i) m = static_cast<std::uint16_t>(m | (data[i] << (8 * i)));
+  if (m == 0) {
+    clear_faults();
+  } else if (manufacturer_error_name(m) != nullptr) {
+    // As its EMCY would, without a status change: the signals are Offline during the boot.
+    if (m >= 0x0010 && m <= 0x0052 && (m & 0x0F) <= 2) axes_[(m >> 4) - 1].emcy = true;
+    if (m >= 0x0061 && m <= 0x006B) button_emcy_[m - 0x0061] = true;
+    if (m == 0x0070) led_emcy_ = true;
+    if (m == 0x0000 || m == 0x0001 || m == 0x0005) global_emcy_ = true;
+    sync_faults(std::nullopt);
+  }
+  return true;
+}
+
+bool ElobauMfgDriver::on_boot_read_abort(std::uint16_t index, std::uint8_t /*sub*/, canopen::SdoAbortCode /*code*/) {
+  if (index == 0x4001) error_code_read_ = true;  // no evidence either way: the faults stay
+  return index == 0x4001;
 }
 
 std::array<std::uint8_t, 8> ElobauMfgDriver::led_payload() const {
@@ -383,11 +449,9 @@ void ElobauMfgDriver::flush_outputs(TimePoint /*now*/) {
 }
 
 void ElobauMfgDriver::reset_state() {
-  axes_ = {};
+  // The values go; the faults stay until the device's evidence (4001h at the next boot).
+  for (auto& ax : axes_) ax = Axis{.emcy = ax.emcy};
   buttons_.reset();
-  button_emcy_.fill(false);
-  global_emcy_ = false;
-  led_emcy_ = false;
   channel2_late_ = false;
   ch2_reference_.reset();
 }

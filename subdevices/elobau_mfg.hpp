@@ -47,18 +47,24 @@
 //   * After power-on and bus-off the device sends 0 for a deflected axis until it has been at
 //     zero (§4): a value of 0 that the driver cannot tell from neutral, hence nothing to do.
 //
-// EMCY (§12.4, §12.5 Table 6): 1000h carries the 4001h code; the driver names it and puts:
+// EMCY (§12.4, §12.5 Table 6): 1000h carries the 4001h code; the driver names it and faults
+// (Driver::faulted):
 //   0010h..0012h -> x, 0020h.. -> y, 0030h.. -> wheel_a, 0040h.. -> wheel_b, 0050h.. -> wheel_c
-//     into Error until a good channel pair follows (with 4000h = 1 the device keeps sending the
-//     error value 126 while the fault lasts, §12.2) or the error reset;
-//   0061h..006Bh (button 1..11 timeout) -> that button Error until the error reset 0000h (the
-//     button error value 2100h:09h is 0, which a PDO cannot tell from "released");
-//   0000h (no manufacturer code), 0001h, 0002h, 0005h -> every input Error until the error reset
-//     (0002h is also sent until the grip's parameters were first saved: save them, §8);
-//   0070h (LED message timeout) -> leds[*] status Error until the error reset;
+//     until a good channel pair follows (with 4000h = 1 the device keeps sending the error value
+//     126 while the fault lasts, §12.2) or the error reset;
+//   0061h..006Bh (button 1..11 timeout) -> that button until the error reset 0000h (the button
+//     error value 2100h:09h is 0, which a PDO cannot tell from "released");
+//   0000h (no manufacturer code), 0001h, 0005h -> every input until the error reset;
+//   0070h (LED message timeout) -> leds[*] (status Error) until the error reset;
+//   0002h (parameter checksum, "also set until first parameter saving process") -> nothing: a
+//     warning, sent at every power-on of a grip whose parameters were never saved (§8: save
+//     them), and every parameter the gateway relies on is written at each boot;
 //   0003h/0004h ("not used") and other codes -> counters().unknown_emcy, ignored.
 //   8110h/8120h/8140h (CAN overrun / error passive / recovered from bus-off, byte 3 = bus-off
-//   count) are decoded with error = false: they invalidate no value the device sends.
+//   count): warnings (error = false), they invalidate no value the device sends.
+// Read-back at every (re)start (boot_reads()): 4001h "Error Code" (Table 14, 0: no error). 0
+// clears every fault latched before (a grip that rebooted or recovered unseen); a Table 6 code
+// faults what its EMCY would. Going offline and coming back keep the faults meanwhile.
 //
 // Outputs: set_output(leds[i]) sends RPDO #0 carrying the whole remembered LED state (LEDs never
 // commanded as 11 "no change", spare positions 11). The device applies the last command it got
@@ -127,6 +133,13 @@ class ElobauMfgDriver final : public Driver {
   [[nodiscard]] bool protects(std::uint16_t index, std::uint8_t /*sub*/) const override {
     return index == 0x5999 || index == 0x2200;
   }
+  // 4001h "Error Code" (Table 14), read back at every (re)start: it decides the faults.
+  void begin_boot() override { error_code_read_ = false; }
+  [[nodiscard]] std::vector<std::pair<std::uint16_t, std::uint8_t>> boot_reads() const override;
+  bool on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                    std::string& error) override;
+  bool on_boot_read_abort(std::uint16_t index, std::uint8_t sub, canopen::SdoAbortCode code) override;
+  void on_application_reset(TimePoint /*now*/) override {}  // the 4001h read-back decides
   bool on_frame(const CanFrame& frame, TimePoint now) override;
   DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) override;
   [[nodiscard]] std::vector<std::uint32_t> consumed_cob_ids() const override;
@@ -157,6 +170,11 @@ class ElobauMfgDriver final : public Driver {
   void publish_buttons(TimePoint now);
   void publish_all(TimePoint now);
   void reset_state();
+  // Latches a Table 6 code's fault; returns the signals it faults.
+  std::vector<std::size_t> apply_manufacturer_code(std::uint16_t m, TimePoint now);
+  // The latches below -> Driver faults (set_fault/clear_fault); without a time, no status change.
+  void sync_faults(std::optional<TimePoint> now);
+  void clear_faults();
   [[nodiscard]] bool valid_value(std::int8_t v) const;
   [[nodiscard]] static std::int8_t limit100(std::int8_t v);
 
@@ -168,6 +186,7 @@ class ElobauMfgDriver final : public Driver {
   std::array<bool, kButtons> button_emcy_{};
   bool global_emcy_ = false;
   bool led_emcy_ = false;
+  bool error_code_read_ = false;  // 4001h read in this boot
   bool channel2_late_ = false;
   std::optional<TimePoint> ch2_reference_;  // last TPDO #1, or the first TPDO #0 before one
   std::array<std::optional<std::uint8_t>, kLeds> leds_{};  // commanded 2-bit codes

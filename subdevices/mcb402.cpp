@@ -65,6 +65,14 @@ std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, 
         return std::nullopt;
       }
       o.button_timer_ms = static_cast<std::uint16_t>(*v);
+    } else if (key == "can_restart_ms") {
+      const auto v = parse_number(value, 65535);
+      if (!v || *v == 0) {
+        error = "mcb402: can_restart_ms must be 1..65535 (2180h, ms; 0 would keep the board off the bus after a "
+                "bus off), got '" + value + "'";
+        return std::nullopt;
+      }
+      o.can_restart_ms = static_cast<std::uint16_t>(*v);
     } else if (key == "button_bits") {
       ButtonBits bits{};
       std::size_t n = 0;
@@ -90,7 +98,7 @@ std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, 
       }
       o.button_bits = bits;
     } else {
-      error = "mcb402: unknown option '" + key + "' (expected event_timer_ms, button_timer_ms, button_bits)";
+      error = "mcb402: unknown option '" + key + "' (expected event_timer_ms, button_timer_ms, can_restart_ms, button_bits)";
       return std::nullopt;
     }
   }
@@ -134,6 +142,8 @@ std::vector<SdoWrite> Mcb402Driver::configuration() const {
   w.push_back({0x1801, 2, {0xFF}, "TPDO2 (axes) transmission type 255, event driven"});
   w.push_back({0x1801, 5, le(options_.event_timer_ms, 2),
                "TPDO2 (axes) event timer " + std::to_string(options_.event_timer_ms) + " ms"});
+  w.push_back({0x2180, 0, le(options_.can_restart_ms, 2),
+               "CAN restart time " + std::to_string(options_.can_restart_ms) + " ms after bus off"});
   w.push_back({0x6002, 3, {0x00}, "input polarity IN7..IN0 not inverted (1 = button pressed)"});
   w.push_back({0x6202, 1, {0x00}, "output polarity OUT3..OUT0 not inverted (1 = LED on)"});
   for (std::uint8_t i = 1; i <= kAxes; ++i)
@@ -174,20 +184,60 @@ void Mcb402Driver::on_tpdo1(const CanFrame& frame, TimePoint now) {
 }
 
 void Mcb402Driver::on_tpdo2(const CanFrame& frame, TimePoint now) {
+  // A faulted axis (cable break) stays Error whatever TPDO2 carries (Driver::update).
   for (std::size_t a = 0; a < kAxes; ++a) {
-    if ((broken_ & (1u << a)) != 0) {
-      update(a, signals_[a].neutral, SignalStatus::Error, now);
-      continue;
-    }
     const auto raw = static_cast<std::int16_t>(canopen::get_u16(&frame.data[2 * a]));
     update(a, raw, SignalStatus::Valid, now);
   }
 }
 
-void Mcb402Driver::set_broken(std::uint8_t axes, TimePoint now) {
+void Mcb402Driver::set_broken(std::uint8_t axes, std::optional<TimePoint> now) {
   broken_ = static_cast<std::uint8_t>(axes & 0x0F);
-  for (std::size_t a = 0; a < kAxes; ++a)
-    if ((broken_ & (1u << a)) != 0) update(a, signals_[a].neutral, SignalStatus::Error, now);
+  for (std::size_t a = 0; a < kAxes; ++a) {
+    if ((broken_ & (1u << a)) != 0) {
+      if (now) {
+        set_fault(a, *now);
+      } else {
+        set_fault(a);
+      }
+    } else if (!unknown_fault_) {
+      clear_fault(a);  // its next TPDO2 value is good
+    }
+  }
+}
+
+void Mcb402Driver::clear_faults() {
+  broken_ = 0;
+  unknown_fault_ = false;
+  clear_all_faults();
+}
+
+std::vector<std::pair<std::uint16_t, std::uint8_t>> Mcb402Driver::boot_reads() const {
+  if (error_register_read_) return {};
+  return {{0x1001, 0}};
+}
+
+bool Mcb402Driver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                                std::string& /*error*/) {
+  if (index != 0x1001 || sub != 0) return true;
+  error_register_read_ = true;
+  const std::uint8_t reg = data.empty() ? 0 : data[0];
+  // [CO4013 Index 1001]: bit 7 "Device Error" — the cable break's 81h ([CO4013 "Emergency
+  // Messages"] "20 31 81 ..."). Clear: no device error, whatever was latched before (a board
+  // repaired and rebooted). Set: the latched axes stay broken; none latched (the EMCY went
+  // before the gateway listened): which axis is unknown, so all four.
+  if ((reg & 0x80) == 0) {
+    clear_faults();
+    return true;
+  }
+  if (!any_fault()) set_broken(0x0F, std::nullopt);
+  return true;
+}
+
+bool Mcb402Driver::on_boot_read_abort(std::uint16_t index, std::uint8_t /*sub*/, canopen::SdoAbortCode /*code*/) {
+  // No evidence either way: the faults stay as they are.
+  if (index == 0x1001) error_register_read_ = true;
+  return index == 0x1001;
 }
 
 DecodedEmcy Mcb402Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
@@ -197,7 +247,7 @@ DecodedEmcy Mcb402Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
     case canopen::EmcyProducer::kErrorReset: {
       d.error = false;
       d.text = "MCB-402 0000h: error reset";
-      broken_ = 0;
+      clear_faults();
       // The affected signals stay at neutral until their next PDO brings a fresh value.
       return d;
     }
@@ -215,7 +265,7 @@ DecodedEmcy Mcb402Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
         for (std::size_t a = 0; a < kAxes; ++a)
           if ((axes & (1u << a)) != 0) d.text += kNames[a];
       }
-      // Axes no longer in the set are released from the latch; their next TPDO2 value is good.
+      // The active errors are ORed into byte 4: axes no longer in the set are mended.
       set_broken(axes, now);
       for (std::size_t a = 0; a < kAxes; ++a)
         if ((axes & (1u << a)) != 0) d.affected.push_back(a);
@@ -224,21 +274,27 @@ DecodedEmcy Mcb402Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
     case kEmcyCanWarning:
     case kEmcyLifeGuarding:
     case kEmcyBusOffRecovered: {
-      d.text = emcy.code == kEmcyCanWarning     ? "MCB-402 8100h: CAN bus in error warning state"
-               : emcy.code == kEmcyLifeGuarding ? "MCB-402 8130h: life guarding error"
-                                                : "MCB-402 8140h: return from CAN bus off";
+      // CAN communication warnings ([CO4013 "Emergency Messages"]): the values the board sends
+      // stay good. 8100h also comes at every power-on ([MCB §4] "083 00 81 11 0").
+      d.error = false;
+      d.text = emcy.code == kEmcyCanWarning     ? "MCB-402 8100h: CAN bus in error warning state (warning)"
+               : emcy.code == kEmcyLifeGuarding ? "MCB-402 8130h: life guarding error (warning)"
+                                                : "MCB-402 8140h: return from CAN bus off (warning)";
+      return d;
+    }
+    default: {
+      ++counters_.unknown_emcy;
+      // An error code the document does not list: what it affects is unknown, so every input
+      // is faulted until the error reset 0000h or a read-back of 1001h without a device error.
+      d.text = "MCB-402: undocumented EMCY code, every input faulted";
+      unknown_fault_ = true;
       for (std::size_t i = 0; i < signals_.size(); ++i) {
         if (signals_[i].output()) continue;
-        update(i, signals_[i].neutral, SignalStatus::Error, now);
+        set_fault(i, now);
+        d.affected.push_back(i);
       }
-      return d;  // affected empty: all inputs
-    }
-    default:
-      ++counters_.unknown_emcy;
-      // Reported as an error for the log; the driver cannot tell what it affects and leaves the
-      // signals alone (bad input is counted and ignored).
-      d.text = "MCB-402: undocumented EMCY code, ignored";
       return d;
+    }
   }
 }
 

@@ -35,14 +35,18 @@
 //     remembered byte; on_online() re-sends it (a rebooted board starts with 6200h = 0).
 //   EMCY 0x80+id, cable break [CO4013 "Emergency Messages"]: "20 31 81 00 8x 00 00 00" = code
 //     3120h, 1001h = 81h, byte 4 = 80h | axis bits (bit 0 X, bit 1 Y, bit 2 Z, bit 3 W/T); the
-//     active errors are ORed, so byte 4 is the set of broken axes. Those axes go to Error (value 0)
-//     and stay there, whatever TPDO2 carries, until an EMCY 3120h without their bit or the
-//     error-reset EMCY 0000h; the next TPDO2 then makes them Valid. The latch survives on_offline()
-//     (a heartbeat loss does not repeat the EMCY). A 3120h whose byte 4 is not 8xh with x != 0 is
-//     counted (unknown_emcy) and puts all four axes in Error.
-//   Other documented EMCYs: 8130h life guarding, 8100h CAN error warning, 8140h return from bus
-//     off: every input to Error (value neutral) until 0000h or the next PDO carrying it. Any other
-//     code: counted (unknown_emcy), signals untouched (returned with error = true, for the log).
+//     active errors are ORed, so byte 4 is the set of broken axes. Those axes are faulted
+//     (Driver::faulted: Error, value 0, whatever TPDO2 carries) until an EMCY 3120h without their
+//     bit, the error-reset EMCY 0000h, or a read-back of 1001h without bit 7 "Device Error" at the
+//     node's next (re)start (boot_reads(): a board repaired and rebooted sends no 0000h); the next
+//     TPDO2 then makes them Valid. Going offline keeps the fault (a heartbeat loss does not
+//     repeat the EMCY); a read-back with bit 7 set keeps it too (all four axes if none was
+//     latched: which one is unknown). A 3120h whose byte 4 is not 8xh with x != 0 is counted
+//     (unknown_emcy) and faults all four axes.
+//   Warnings, faulting nothing (error = false): 8100h CAN error warning (also sent at every
+//     power-on, [MCB §4] "083 00 81 11 0"), 8130h life guarding, 8140h return from bus off.
+//   Any other code: counted (unknown_emcy) and, being an error the document does not explain,
+//     faults every input until 0000h or a 1001h read-back without bit 7.
 //
 // Boot configuration (configuration()), in this order:
 //   1800h:02 = FFh, 1800h:05 = button_timer_ms  TPDO1 event driven + periodic refresh
@@ -50,10 +54,14 @@
 //                                               "603 22 01 18 05 aa bb 00 00" (axes each 0xbbaa ms;
 //                                               without it the axes are sent once, at start, as
 //                                               6423h is FALSE by default)
+//   2180h = can_restart_ms                      CAN restart time after bus off ([CO4013 Index
+//                                               2180]: default 0 = "automatic restart ...
+//                                               prohibited", the board would stay off the bus)
 //   6002h:03 = 00h, 6202h:01 = 00h              input / output polarity as described above
 //   6431h:01..04 = 0                            analogue offset 0: 6401h stays signed
 // Options: event_timer_ms (1..65535, default 20 — the document gives no value, its default 0
 // would mean no periodic axes), button_timer_ms (0..65535, default 100, 0 = on change only),
+// can_restart_ms (1..65535, default 1000: the document gives none, 0 is refused),
 // button_bits (seven distinct bit numbers 0..7 for BP1..BP7, default "1,2,3,4,5,7,6").
 //
 // Identity [CO4013 1000h, 1018h]: device type 0107 0191h (CO4013A4), vendor 58h, product code
@@ -93,6 +101,7 @@ inline constexpr std::size_t kFirstLed = kAxes + kButtons;
 struct Mcb402Options {
   std::uint16_t event_timer_ms = 20;
   std::uint16_t button_timer_ms = 100;
+  std::uint16_t can_restart_ms = 1000;
   mcb402::ButtonBits button_bits = mcb402::kDefaultButtonBits;
 };
 
@@ -108,6 +117,13 @@ class Mcb402Driver final : public Driver {
   [[nodiscard]] bool protects(std::uint16_t index, std::uint8_t /*sub*/) const override {
     return index == 0x6200 || index == 0x5401;
   }
+  // The error register 1001h, read back at every (re)start: it decides the faults.
+  void begin_boot() override { error_register_read_ = false; }
+  [[nodiscard]] std::vector<std::pair<std::uint16_t, std::uint8_t>> boot_reads() const override;
+  bool on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                    std::string& error) override;
+  bool on_boot_read_abort(std::uint16_t index, std::uint8_t sub, canopen::SdoAbortCode code) override;
+  void on_application_reset(TimePoint /*now*/) override {}  // the 1001h read-back decides
   bool on_frame(const CanFrame& frame, TimePoint now) override;
   DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) override;
   [[nodiscard]] std::vector<std::uint32_t> consumed_cob_ids() const override;
@@ -122,13 +138,16 @@ class Mcb402Driver final : public Driver {
  private:
   void on_tpdo1(const CanFrame& frame, TimePoint now);
   void on_tpdo2(const CanFrame& frame, TimePoint now);
-  void set_broken(std::uint8_t axes, TimePoint now);
+  void set_broken(std::uint8_t axes, std::optional<TimePoint> now);
+  void clear_faults();
   void send_outputs();
   void flush_outputs(TimePoint now) override;
 
   Mcb402Options options_;
   std::vector<SignalInfo> signals_;
   std::uint8_t broken_ = 0;
+  bool unknown_fault_ = false;  // an undocumented error EMCY faults every input
+  bool error_register_read_ = false;  // 1001h read in this boot
   std::uint8_t outputs_ = 0;  // 6200h:01 as last commanded
   bool outputs_pending_ = false;  // set_output() inside an output batch: RPDO1 not sent yet
 };

@@ -32,8 +32,8 @@ constexpr EmcyEntry kTable[] = {
      "position overflow error \"Out of range (+)\", position value 0x7FFFFFF8, reset via 2100h", E::PositionError},
     {0x5051, 1, 2, "Error",
      "position underflow error \"Out of range (-)\", position value 0x80000008, reset via 2100h", E::PositionError},
-    {0x5051, 2, 1, "Warn", "position overflow warning, position value 0x7FFFFFF8", E::PositionError},
-    {0x5051, 2, 2, "Warn", "position underflow warning, position value 0x80000008", E::PositionError},
+    {0x5051, 2, 1, "Warn", "position overflow warning, position value 0x7FFFFFF8", E::PositionWarning},
+    {0x5051, 2, 2, "Warn", "position underflow warning, position value 0x80000008", E::PositionWarning},
     {0x6000, 1, 0, "Hard", "device software fault, position value 0x7FFFFFFC", E::PositionError},
     {0x6000, 2, 0, "Hard", "insufficient event timer value for the CAN bit rate, TPDO1 sent partially", E::None},
     {0x8110, 1, 0, "Hard", "CAN controller overflow (CAN overrun), data lost", E::None},
@@ -138,6 +138,15 @@ std::vector<SdoWrite> Novotechnik406Driver::configuration() const {
   w.push_back({0x1A00, 0, le(2, 1), "TPDO1 mapping: 2 entries"});
   // §8.2 step 5: re-activate.
   w.push_back({0x1800, 1, le(0x40000000u | cob, 4), "TPDO1 COB-ID: enable"});
+  // §4.1 1029h "Error Behaviour" (0: change to pre-operational, the default; 1: no change of
+  // NMT mode; 2: stopped). Sub 2 "internal device error: measurement error (EMCY 5051h/1/0/0)"
+  // = 1: the sensor stays operational, sends the EMCY and the marker position 7FFFFFFCh, and the
+  // driver reports Error; in pre-operational its TPDO1 would stop and the network manager
+  // would see it leave operational, reboot it and report it Offline, losing the error itself.
+  // Sub 1 "communication error" = 0, written as the default it is: a sensor that lost the bus
+  // stops in pre-operational, and the network manager restarts it once it is back.
+  w.push_back({0x1029, 1, le(0, 1), "error behaviour on a communication error: pre-operational"});
+  w.push_back({0x1029, 2, le(1, 1), "error behaviour on a measurement error: stay operational"});
   return w;
 }
 
@@ -196,11 +205,20 @@ DecodedEmcy Novotechnik406Driver::on_emcy(const EmcyMessage& emcy, TimePoint now
     case novotechnik::EmcyEffect::PositionError:
       out.error = true;
       out.affected = {kPosition, kSpeed};
+      latch_position_fault(now);
+      break;
+    case novotechnik::EmcyEffect::PositionWarning:
+      // The marker comes in TPDO1 as long as the warning lasts (§9.1): Error now, but no latch
+      // (Driver::faulted): the next ordinary position ends it.
+      out.error = true;
+      out.affected = {kPosition, kSpeed};
       fault_position(now);
       break;
     case novotechnik::EmcyEffect::Clear:
       // The error is gone; the value itself comes with the next TPDO1. Until then the signals
       // keep the neutral value but are no longer in Error (NotAvailable: nothing vouched for).
+      clear_fault(kPosition);
+      clear_fault(kSpeed);
       for (const std::size_t i : {kPosition, kSpeed})
         if (value(i).status == SignalStatus::Error) update(i, signals_[i].neutral, SignalStatus::NotAvailable, now);
       break;
@@ -229,6 +247,48 @@ DecodedEmcy Novotechnik406Driver::on_emcy(const EmcyMessage& emcy, TimePoint now
     }
   }
   return out;
+}
+
+void Novotechnik406Driver::latch_position_fault(std::optional<TimePoint> now) {
+  for (const std::size_t i : {kPosition, kSpeed}) set_fault(i);
+  if (now) fault_position(*now);  // Error at once, also before the first TPDO1
+}
+
+std::vector<std::pair<std::uint16_t, std::uint8_t>> Novotechnik406Driver::boot_reads() const {
+  if (alarms_read_) return {};
+  return {{0x6503, 0}};
+}
+
+bool Novotechnik406Driver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                                        std::string& /*error*/) {
+  if (index != 0x6503 || sub != 0) return true;
+  alarms_read_ = true;
+  std::uint16_t alarms = 0;
+  for (std::size_t i = 0; i < data.size() && i < 2; ++i)
+    alarms = static_cast<std::uint16_t>(alarms | (data[i] << (8 * i)));
+  // §10.2: bit 0 measurement error, bit 1 unknown / hardware / ASIC / software fault / memory
+  // lost, bit 12 underflow, bit 13 overflow error (latched until 2100h). None: the faults
+  // latched before are over (a sensor that rebooted, or reset while the gateway did not see it).
+  constexpr std::uint16_t kPositionAlarms = (1u << 0) | (1u << 1) | (1u << 12) | (1u << 13);
+  if ((alarms & kPositionAlarms) != 0) {
+    latch_position_fault(std::nullopt);
+  } else {
+    clear_fault(kPosition);
+    clear_fault(kSpeed);
+  }
+  return true;
+}
+
+bool Novotechnik406Driver::on_boot_read_abort(std::uint16_t index, std::uint8_t /*sub*/,
+                                              canopen::SdoAbortCode /*code*/) {
+  if (index == 0x6503) alarms_read_ = true;  // no evidence either way: the faults stay
+  return index == 0x6503;
+}
+
+std::vector<SdoWrite> Novotechnik406Driver::command(std::string_view name) const {
+  if (name != "position_error_reset") return {};
+  // §4.1 2100h "Position Error Reset", Bool, W, value 0x01.
+  return {SdoWrite{0x2100, 0, {0x01}, "position error reset (2100h = 1)"}};
 }
 
 std::unique_ptr<Driver> make_novotechnik_406_driver(NodeId node, FrameSink sink, const DriverOptions& options,

@@ -32,12 +32,21 @@
 // §9.1 table; flagging it would fault a valid position of 32752 counts.
 //
 // EMCYs (§9.1): decoded by (error code, byte 2 error register, byte 3) into the table's text.
-// Entries whose position value is a marker, and the Hard/Error-level sensor faults (supply
-// voltage fault, memory lost: scaling/preset may be gone), put position and speed into Error
-// (DecodedEmcy::error = true, affected = {position, speed}); 0000h and 5051h/0/0 "valid position"
-// clear it; 9080h updates `cams` (byte 7 state, byte 4 changed bits), 9090h updates `work_area`
-// (byte 7); warnings, info and CAN-controller EMCYs are decoded to text only (error = false,
-// affected empty). A code the table lacks is counted (counters().unknown_emcy) and ignored.
+// The Error/Hard-level entries whose position value is a marker, and the sensor faults (supply
+// voltage fault, memory lost: scaling/preset may be gone) fault position and speed
+// (Driver::faulted; DecodedEmcy::error = true, affected = {position, speed}) until a clear code:
+// 0000h "sensor error resetted" or 5051h/0/0 "valid position" — for "Out of range (+/-)"
+// (5051h/1/1, 5051h/1/2) only after the position error reset 2100h (command
+// "position_error_reset"), which the sensor answers with its "valid position" EMCY; or, at the
+// next (re)start, a read-back of 6503h "Alarms" (§10.2) without bits 0, 1, 12, 13. The
+// warnings 5051h/2/1 and 5051h/2/2 put the signals in Error without a latch (the marker comes
+// in TPDO1 while they last); 9080h updates `cams` (byte 7 state, byte 4 changed bits), 9090h
+// updates `work_area` (byte 7); other warnings, info and CAN-controller EMCYs are decoded to
+// text only (error = false). A code the table lacks is counted (counters().unknown_emcy) and
+// ignored.
+//
+// Boot: configuration() also writes 1029h:01 = 0 and 1029h:02 = 1 (see there: a measurement
+// error keeps the sensor operational).
 //
 // Options:
 //   event_timer_ms     TPDO1 event timer 1800h:05, 1..65535 (default 10). 0 is refused: §8.2 says
@@ -69,7 +78,8 @@ inline constexpr std::uint32_t kProductCodes[] = {0x0BD5, 0x0BB9, 0x0BBC, 0x0BC5
 
 enum class EmcyEffect : std::uint8_t {
   None,          // text only: warning, info, communication
-  PositionError, // position and speed -> Error
+  PositionError, // position and speed faulted until a clear code (or 6503h = 0 at a restart)
+  PositionWarning,  // position and speed Error now (the PDO carries the marker), not latched
   Clear,         // error reset / valid position
   Cams,          // 9080h
   WorkArea,      // 9090h
@@ -112,8 +122,21 @@ class Novotechnik406Driver final : public Driver {
   [[nodiscard]] bool protects(std::uint16_t index, std::uint8_t /*sub*/) const override {
     return index == 0x2000 || index == 0x2001 || (index >= 0x6000 && index <= 0x6003) || index == 0x6200;
   }
+  // 6503h "Alarms" (§10.2), read back at every (re)start: it decides the faults.
+  void begin_boot() override { alarms_read_ = false; }
+  [[nodiscard]] std::vector<std::pair<std::uint16_t, std::uint8_t>> boot_reads() const override;
+  bool on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
+                    std::string& error) override;
+  bool on_boot_read_abort(std::uint16_t index, std::uint8_t sub, canopen::SdoAbortCode code) override;
+  void on_application_reset(TimePoint /*now*/) override {}  // the 6503h read-back decides
   bool on_frame(const CanFrame& frame, TimePoint now) override;
   DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) override;
+  // §4.3 2100h "Position Error Reset": the SDO write that resets a latched "Out of range (+/-)"
+  // once the sensor is back in the measuring range (Gateway::subdevice_command
+  // "position_error_reset"). The fault clears only on the sensor's answer, its EMCY "valid
+  // position" (§9.1), never on the write itself.
+  [[nodiscard]] std::vector<SdoWrite> command(std::string_view name) const override;
+  [[nodiscard]] std::vector<std::string> commands() const override { return {"position_error_reset"}; }
   [[nodiscard]] std::vector<std::uint32_t> consumed_cob_ids() const override;
   bool set_output(std::size_t, std::int64_t, TimePoint) override { return false; }  // no outputs
 
@@ -126,10 +149,12 @@ class Novotechnik406Driver final : public Driver {
 
  private:
   void fault_position(TimePoint now);
+  void latch_position_fault(std::optional<TimePoint> now);
 
   Novotechnik406Options options_;
   std::vector<SignalInfo> signals_;
   std::optional<std::uint32_t> last_marker_;
+  bool alarms_read_ = false;  // 6503h read in this boot
 };
 
 }  // namespace oegw::subdevices

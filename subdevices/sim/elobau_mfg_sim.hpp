@@ -91,6 +91,9 @@ class ElobauMfgSim : public SimulatedDevice {
   void raise_error(std::uint16_t code, TimePoint now);
   // The error is gone; the last one sends the error reset 0000h.
   void clear_error(std::uint16_t code, TimePoint now);
+  // Whether the parameters were ever saved (ElobauMfgSimConfig::parameters_saved): false, the
+  // grip raises 0002h at its next power-on until 1010h:01 / 5999h:03 "save".
+  void set_parameters_saved(bool saved) { parameters_saved_ = saved; }
   // The controller went bus-off and recovered (§4, §12.4, 5001h).
   void bus_off(TimePoint now);
 

@@ -257,6 +257,25 @@ std::uint8_t Mcb402Sim::leds() const {
 
 void Mcb402Sim::on_power_cycle(TimePoint /*now*/) { device_error_ = false; }
 
+void Mcb402Sim::start(TimePoint now) {
+  SimulatedDevice::start(now);
+  send_power_on_warning();
+}
+
+void Mcb402Sim::reboot(TimePoint now) {
+  SimulatedDevice::reboot(now);
+  send_power_on_warning();
+}
+
+void Mcb402Sim::send_power_on_warning() {
+  // [MCB §4] "At the power on, MCB402 writes on the bus: 703 00 ... 083 00 81 11 0": the
+  // [CO4013 "Emergency Messages"] "CAN Bus in Error Warning state" frame 00 81 11 00 00 00 00 00
+  // (1001h = 11h, generic + communication), sent as an event: the document shows no error reset
+  // after it, so 1001h and the active errors stay as they are.
+  const std::uint8_t id = cfg_.node_id.value();
+  out()(CanFrame(canopen::cob::kEmcy + id, {0x00, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00}));
+}
+
 }  // namespace oegw::subdevices::sim
 
 namespace oegw::subdevices::sim {

@@ -28,6 +28,9 @@
 // mending the last one clears it (error-reset EMCY 0000h). A change of the broken set while one
 // is active is sent as 0000h followed by the new 3120h (the core producer sends each code once).
 // device_error() forces the outputs as 6206h/6207h say (bus off, life guarding in the document).
+// A power cycle keeps what is broken (the board detects it again: 1001h bit 7 stays set, no EMCY
+// is repeated); a cable mended while the board is off (silent) shows as 1001h = 0 after it.
+// Power-on: EMCY 8100h after the boot-up (start(), reboot()), as the [MCB §4] trace.
 #pragma once
 
 #include <array>
@@ -73,6 +76,10 @@ class Mcb402Sim final : public SimulatedDevice {
   Mcb402Sim(FrameSink sink, Mcb402SimConfig config = {});
 
   [[nodiscard]] std::string_view family() const override { return "mcb402"; }
+  // Power on / power cycle: boot-up, then the EMCY 8100h "CAN bus in error warning state" the
+  // [MCB §4] power-on trace shows ("703 00" then "083 00 81 11 0", i.e. 00 81 11 00 00 00 00 00).
+  void start(TimePoint now) override;
+  void reboot(TimePoint now) override;
   [[nodiscard]] const Mcb402SimConfig& config() const { return cfg_; }
   // CiA 305 bit-timing table index of the jumpered bit rate (500 -> 2, 250 -> 3, 125 -> 4,
   // 50 -> 6, 20 -> 7).
@@ -112,6 +119,7 @@ class Mcb402Sim final : public SimulatedDevice {
   [[nodiscard]] bool digital_interrupt(std::uint8_t before, std::uint8_t after, std::uint8_t sub) const;
   [[nodiscard]] bool analogue_interrupt(std::size_t axis, std::int16_t before, std::int16_t after) const;
   void on_power_cycle(TimePoint now) override;
+  void send_power_on_warning();
 
   Mcb402SimConfig cfg_;
   std::uint8_t pins_ = 0xFF;  // IN7..IN0 pin levels: pulled up

@@ -251,7 +251,7 @@ void Novotechnik406Sim::install_hooks() {
       const auto hi = od().get<std::int32_t>(0x650A, 3);
       if (position_ > lo && position_ < hi) {
         fault_ = Fault::Measurement;  // lets clear_fault() run the common path
-        (void)clear_fault(now_);
+        (void)clear_fault(now_);      // "an EMCY with 0x0000 (valid position) is sent"
       }
     }
     return SdoAbortCode::None;
@@ -346,19 +346,36 @@ void Novotechnik406Sim::inject_fault(Fault fault, TimePoint now) {
   set_bits(0x1002, 1u << 26, false);  // "valid position"
   publish(now);
   send_emcy(r.code, r.reg, r.b3, {0, 0, 0, 0}, now, r.level);
+  // §4.1 1029h:02 "Internal device error: measurement error (EMCY Index 0x5051 / 1 / 0 / 0)":
+  // 0 (default) change to pre-operational, 1 no change of NMT mode, 2 change to stopped.
+  if (fault == Fault::Measurement && node().state() == NmtState::Operational) {
+    switch (od().get<std::uint8_t>(0x1029, 2)) {
+      case 0: node().nmt().enter(NmtState::PreOperational, now); break;
+      case 2: node().nmt().enter(NmtState::Stopped, now); break;
+      default: break;
+    }
+  }
 }
 
 bool Novotechnik406Sim::clear_fault(TimePoint now) {
   now_ = now;
   if (!fault_) return false;
   if (*fault_ == Fault::Overflow || *fault_ == Fault::Underflow) return false;  // 2100h only
+  const bool position_error = *fault_ == Fault::Measurement;  // also Overflow/Underflow via 2100h
   fault_.reset();
   forced_raw_.reset();
   set_raw(od(), 0x6503, 0, 0);
   set_raw(od(), 0x6505, 0, 0);
   set_raw(od(), 0x1002, 0, 1u << 26);
   publish(now);
-  send_emcy(0x0000, 0, 0, {0, 0, 0, 0}, now, "Hard");  // §9.1 "Sensor Error resetted, no error"
+  // §9.1: a position error (5051h/1/x) ends with "an EMCY with 0x0000 (valid position)", the
+  // table's 5051h/0/0 "Valid position" (error register and byte 3 both 00h); the other faults
+  // ("an EMCY with 0x0000 is sent") with 0000h "Sensor Error resetted, no error".
+  if (position_error) {
+    send_emcy(0x5051, 0, 0, {0, 0, 0, 0}, now, "Hard");
+  } else {
+    send_emcy(0x0000, 0, 0, {0, 0, 0, 0}, now, "Hard");
+  }
   return true;
 }
 

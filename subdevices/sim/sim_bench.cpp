@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "subdevices/sim/mcb402_sim.hpp"
+#include "subdevices/sim/novotechnik_406_sim.hpp"
 #include "subdevices/sim/sim_registry.hpp"
 
 namespace oegw::subdevices::sim {
@@ -123,6 +124,26 @@ std::string SimBench::command(std::string_view line, TimePoint now) {
       return "error: expected <device> cable_break <axis 1..4> on|off";
     mcb->cable_break(static_cast<std::size_t>(axis), state == "on", now);
     return "ok " + name + " cable_break " + value + " " + state;
+  }
+  if (what == "fault") {
+    // Novotechnik only: a §9.1 position fault, or its clearing (measurement / hardware faults:
+    // "valid position" or 0000h; out of range only through 2100h, refused here).
+    auto* knob = dynamic_cast<Novotechnik406Sim*>(d);
+    if (knob == nullptr) return "error: " + name + " is no Novotechnik sensor: fault is a Novotechnik fault";
+    using F = Novotechnik406Sim::Fault;
+    static const std::pair<const char*, F> kFaults[] = {
+        {"measurement", F::Measurement}, {"overflow", F::Overflow}, {"underflow", F::Underflow},
+        {"hardware", F::HardwareFault}};
+    if (value == "clear") {
+      return knob->clear_fault(now) ? "ok " + name + " fault cleared"
+                                    : "error: " + name + " has no fault it can clear (out of range: write 2100h)";
+    }
+    for (const auto& [n, f] : kFaults) {
+      if (value != n) continue;
+      knob->inject_fault(f, now);
+      return "ok " + name + " fault " + value;
+    }
+    return "error: expected <device> fault measurement|overflow|underflow|hardware|clear";
   }
   char* end = nullptr;
   const long long v = std::strtoll(value.c_str(), &end, 0);

@@ -8,6 +8,8 @@
 //   <device> pdo on|off           TPDOs stop / resume (heartbeat, SDO, EMCY go on)
 //   <device> reboot               power cycle
 //   <device> cable_break N on|off MCB-402: axis N (1..4) cable broken / mended (EMCY 3120h)
+//   <device> fault KIND           Novotechnik: measurement|overflow|underflow|hardware (§9.1
+//                                 EMCY and marker position) or clear (out of range: 2100h only)
 // Device names are the spec's "name=" option, else family@node ("elobau-mfg@11h").
 #pragma once
 

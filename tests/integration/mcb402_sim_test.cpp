@@ -259,12 +259,94 @@ TEST_F(Mcb402OnBus, LedsFollowSetOutputThroughRpdo1) {
   EXPECT_EQ(sim_->leds(), 0x08);
 }
 
+// [MCB §4] "At the power on, MCB402 writes on the bus: 703 00 ... 083 00 81 11 0": the boot-up,
+// then the EMCY "CAN Bus in Error Warning state" 00 81 11 00 00 00 00 00 ([CO4013 "Emergency
+// Messages"]). A warning: decoded, faulting nothing; the joystick is live once started.
+TEST_F(Mcb402OnBus, PowerOnSendsTheTracesWarning8100hWhichFaultsNothing) {
+  sim_->start(net_.now());
+  net_.settle();
+  const auto& log = net_.bus().log();
+  ASSERT_GE(log.size(), 2u);
+  EXPECT_EQ(log[0].frame, CanFrame(0x703, {0x00}));
+  EXPECT_EQ(log[1].frame, CanFrame(0x83, {0x00, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00}));
+  ASSERT_EQ(emcys_.size(), 1u);
+  EXPECT_EQ(emcys_[0].code, 0x8100);
+  EXPECT_FALSE(emcys_[0].error);
+  EXPECT_TRUE(emcys_[0].affected.empty());
+  EXPECT_FALSE(driver_->any_fault());
+  // An event: the board's error register is not left set by it.
+  EXPECT_EQ(upload(0x1001, 0).second, Bytes{0x00});
+  for (const auto& w : driver_->configuration())
+    ASSERT_EQ(download(w.index, w.sub, w.data), SdoAbortCode::None) << w.what;
+  start();
+  sim_->move_axis(1, 1234, net_.now());
+  net_.run_for(50ms);
+  EXPECT_EQ(v(kX).status, SignalStatus::Valid);
+  EXPECT_EQ(v(kX).value, 1234);
+  // After a power cycle, again.
+  emcys_.clear();
+  sim_->reboot(net_.now());
+  net_.settle();
+  ASSERT_EQ(emcys_.size(), 1u);
+  EXPECT_EQ(emcys_[0].code, 0x8100);
+}
+
+// A cable broken while powered, mended while the board is off: the board sends no error reset
+// (it is off), and after the power cycle its 1001h has no device error bit ([CO4013 Index 1001]
+// bit 7): the driver's read-back at the restart clears the latch; one still broken keeps it.
+TEST_F(Mcb402OnBus, CableBreakLatchIsDecidedByThe1001hReadBackAfterAReboot) {
+  boot();
+  sim_->cable_break(1, true, net_.now());
+  net_.run_for(50ms);
+  ASSERT_EQ(v(kX).status, SignalStatus::Error);
+  // Still broken across a power cycle: 1001h = 81h, the latch stays.
+  driver_->on_offline(net_.now());
+  sim_->reboot(net_.now());
+  net_.settle();
+  driver_->on_application_reset(net_.now());
+  driver_->begin_boot();
+  auto reads = driver_->boot_reads();
+  ASSERT_EQ(reads.size(), 1u);
+  EXPECT_EQ(reads[0], (std::pair<std::uint16_t, std::uint8_t>{0x1001, 0}));
+  std::string error;
+  const Bytes reg = upload(0x1001, 0).second;
+  EXPECT_EQ(reg, Bytes{0x81});
+  ASSERT_TRUE(driver_->on_boot_read(0x1001, 0, reg, error));
+  EXPECT_TRUE(driver_->boot_reads().empty());
+  for (const auto& w : driver_->configuration()) ASSERT_EQ(download(w.index, w.sub, w.data), SdoAbortCode::None);
+  start();
+  net_.run_for(50ms);
+  EXPECT_EQ(v(kX).status, SignalStatus::Error);
+  EXPECT_EQ(v(kY).status, SignalStatus::Valid);
+  // Switched off, repaired, switched on: no 0000h ever reaches the gateway.
+  driver_->on_offline(net_.now());
+  sim_->set_silent(true);
+  sim_->cable_break(1, false, net_.now());
+  sim_->set_silent(false);
+  sim_->reboot(net_.now());
+  net_.settle();
+  driver_->on_application_reset(net_.now());
+  driver_->begin_boot();
+  ASSERT_EQ(driver_->boot_reads().size(), 1u);
+  const Bytes reg2 = upload(0x1001, 0).second;
+  EXPECT_EQ(reg2, Bytes{0x00});
+  ASSERT_TRUE(driver_->on_boot_read(0x1001, 0, reg2, error));
+  EXPECT_FALSE(driver_->any_fault());
+  for (const auto& w : driver_->configuration()) ASSERT_EQ(download(w.index, w.sub, w.data), SdoAbortCode::None);
+  start();
+  sim_->move_axis(1, 777, net_.now());
+  net_.run_for(50ms);
+  EXPECT_EQ(v(kX).status, SignalStatus::Valid);
+  EXPECT_EQ(v(kX).value, 777);
+}
+
 TEST_F(Mcb402OnBus, CableBreakPutsTheAxisInErrorAndRecoveryNeedsTheDevice) {
   boot();
   sim_->move_axis(2, 5000, net_.now());
   net_.run_for(20ms);
   ASSERT_EQ(v(kY).value, 5000);
   net_.bus().clear_log();
+  emcys_.clear();  // the power-on 8100h
   sim_->cable_break(2, true, net_.now());
   net_.settle();
   // [CO4013 "Emergency Messages"] cable break detection "20 31 81 00 8x 00 00 00", bit1 = y-axis.

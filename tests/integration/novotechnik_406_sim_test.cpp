@@ -260,7 +260,7 @@ TEST_F(NovotechnikSim, MeasurementErrorGoesToErrorAndRecovers) {
   EXPECT_EQ(sdo({0x40, 0x03, 0x65, 0x00, 0, 0, 0, 0}).data[4], 0x01);  // 6503h alarm bit 0 (§10.2)
   ASSERT_TRUE(sim_->clear_fault(net_.now()));
   net_.run_for(1ms);
-  EXPECT_EQ(decoded_.back().code, 0x0000);
+  EXPECT_EQ(decoded_.back().code, 0x5051) << "§9.1 5051h/0/0 \"Valid position\"";
   EXPECT_FALSE(decoded_.back().error);
   EXPECT_NE(pos().status, SignalStatus::Error);
   net_.run_for(20ms);
@@ -283,7 +283,8 @@ TEST_F(NovotechnikSim, OverflowNeedsPositionErrorReset2100) {
   decoded_.clear();
   EXPECT_EQ(download(0x2100, 0, {0x01}), SdoAbortCode::None);
   ASSERT_FALSE(decoded_.empty());
-  EXPECT_EQ(decoded_.back().code, 0x0000);
+  EXPECT_EQ(decoded_.back().code, 0x5051) << "§9.1: \"an EMCY with 0x0000 (valid position)\", 5051h/0/0";
+  EXPECT_FALSE(decoded_.back().error);
   net_.run_for(20ms);
   EXPECT_EQ(pos().status, SignalStatus::Valid);
   EXPECT_EQ(pos().value, 100);

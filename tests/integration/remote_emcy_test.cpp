@@ -116,6 +116,8 @@ class RemoteEmcy : public ::testing::Test {
 // Table 6 0021h "Y Axis, Signal 2, Out Of Range"; its clearing sends 0000h.
 TEST_F(RemoteEmcy, ElobauErrorAndResetArriveUpstreamWithTheirBytesBeforeThe7000h) {
   build();
+  // The MCB-402's power-on EMCY 8100h ([MCB §4]) was counted during the boot.
+  const auto left_before = gw_->subdevice_emcy("left_grip").count;
   grip().raise_error(0x0021, now());
   rig_->run_for(300ms);
   const Bytes down_error{0x00, 0x10, 0x00, 0x21, 0x00, 0xFF, 0xFF, 0xFF};
@@ -141,13 +143,14 @@ TEST_F(RemoteEmcy, ElobauErrorAndResetArriveUpstreamWithTheirBytesBeforeThe7000h
   EXPECT_EQ(rec.count, 2u);
   EXPECT_EQ(rec.last.code, 0x0000);
   EXPECT_EQ(rec.last.msef, (EmcyManufacturerField{0x00, 0x00, 0xFF, 0xFF, 0xFF}));
-  EXPECT_EQ(gw_->subdevice_emcy("left_grip").count, 0u);
+  EXPECT_EQ(gw_->subdevice_emcy("left_grip").count, left_before);
 }
 
 // MCB-402 [CO4013 "Emergency Messages"]: cable break 3120h "20 31 81 00 8x 00 00 00"; mended,
 // error reset 0000h. Axis 2 (Y): x = 2.
 TEST_F(RemoteEmcy, Mcb402CableBreakAndItsResetArriveUpstream) {
   build();
+  const auto before = gw_->subdevice_emcy("left_grip").count;  // its power-on 8100h ([MCB §4])
   mcb().cable_break(2, true, now());
   rig_->run_for(300ms);
   ASSERT_FALSE(down_emcys_.empty());
@@ -163,7 +166,7 @@ TEST_F(RemoteEmcy, Mcb402CableBreakAndItsResetArriveUpstream) {
   rig_->run_for(300ms);
   ASSERT_TRUE(index_of({0x00, 0x00, 0x01, 0x03, 0x00, 0x00, 0x00, 0x00})) << dump();
   const auto rec = gw_->subdevice_emcy("left_grip");
-  EXPECT_EQ(rec.count, 2u);
+  EXPECT_EQ(rec.count, before + 2u);
   EXPECT_EQ(rec.time, down_emcys_.back().time) << "the reception time of its last EMCY";
   EXPECT_EQ(rec.last.code, 0x0000);
 }
@@ -228,6 +231,7 @@ TEST_F(RemoteEmcy, FaultsForwardsErrorsAndResetsButNoWarnings) {
 // emcy_forwarding: none: no sub-device EMCY goes up, the fault policy's 7000h still does.
 TEST_F(RemoteEmcy, NoneForwardsNothingButThe7000hStays) {
   build("none");
+  const auto before = gw_->subdevice_emcy("left_grip").count;  // its power-on 8100h ([MCB §4])
   mcb().cable_break(2, true, now());
   rig_->run_for(300ms);
   EXPECT_TRUE(up(0x3120).empty()) << dump();
@@ -236,7 +240,7 @@ TEST_F(RemoteEmcy, NoneForwardsNothingButThe7000hStays) {
   mcb().cable_break(2, false, now());
   rig_->run_for(300ms);
   for (const auto& f : up(0x0000)) EXPECT_NE(bytes(f), (Bytes{0x00, 0x00, 0x01, 0x03, 0x00, 0x00, 0x00, 0x00})) << dump();
-  EXPECT_EQ(gw_->subdevice_emcy("left_grip").count, 2u) << "counted all the same";
+  EXPECT_EQ(gw_->subdevice_emcy("left_grip").count, before + 2u) << "counted all the same";
 }
 
 // The host sets 1015h = 100 ms: a second faulty sub-device's extra 7000h leaves 100 ms after

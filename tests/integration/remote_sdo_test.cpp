@@ -23,6 +23,7 @@
 #include "gateway/gateway.hpp"
 #include "programs/cab_rig.hpp"
 #include "subdevices/sim/mcb402_sim.hpp"
+#include "subdevices/sim/novotechnik_406_sim.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/fixtures/fixtures.hpp"
 
@@ -212,6 +213,32 @@ TEST_F(RemoteSdo, SegmentedAndBlockUploadsOfAString) {
   select(kDown, kLeft);
   const Result r = read(host(), 0x1008, 0);
   EXPECT_EQ(std::string(r.data.begin(), r.data.end()), sim_string("left_grip", 0x1008));
+}
+
+// Novotechnik §9.1 "Out of range (+)", "Reset via Position Error Reset (see 4.3 Index 0x2100)":
+// a host may write 2100h through remote SDO (the driver does not protect it), and the driver's
+// fault clears on the sensor's evidence, its "valid position" EMCY 5051h/0/0, not on the write.
+TEST_F(RemoteSdo, ANovotechnikPositionErrorResetByTheHostClearsOnTheSensorsValidPosition) {
+  auto& knob = dynamic_cast<oegw::subdevices::sim::Novotechnik406Sim&>(*rig_->devices().device("seat_knob"));
+  oegw::subdevices::Driver& drv = *rig_->gw().downstream().driver("seat_knob");
+  knob.set_position(1000, loop_.now());
+  run_for(100ms);
+  knob.inject_fault(oegw::subdevices::sim::Novotechnik406Sim::Fault::Overflow, loop_.now());
+  run_for(100ms);
+  ASSERT_TRUE(drv.faulted(0)) << log_;
+  // Still out of range: the write succeeds, the sensor resets nothing, the fault stays.
+  knob.set_position(-100, loop_.now());
+  select(kDown, kKnob);
+  ASSERT_EQ(write(host(), 0x2100, 0, {0x01}).code, SdoAbortCode::None) << log_;
+  run_for(100ms);
+  EXPECT_TRUE(drv.faulted(0)) << "a write is no evidence";
+  EXPECT_EQ(log_.find("EMCY 5051h novotechnik 5051h/0/0"), std::string::npos);
+  knob.set_position(1000, loop_.now());
+  ASSERT_EQ(write(host(), 0x2100, 0, {0x01}).code, SdoAbortCode::None) << log_;
+  run_for(100ms);
+  EXPECT_NE(log_.find("EMCY 5051h novotechnik 5051h/0/0"), std::string::npos) << log_;
+  EXPECT_FALSE(drv.any_fault()) << log_;
+  EXPECT_EQ(rig_->gw().faults().count("seat_knob"), 0u) << log_;
 }
 
 TEST_F(RemoteSdo, AnElobauParameterIsWrittenAndReadBack) {

@@ -325,7 +325,7 @@ TEST(Cia401, EmcyErrorsPutInputsInErrorUntilResetOrGoodValue) {
   EXPECT_TRUE(d.error);
   EXPECT_EQ(d.code, 0x3100);
   EXPECT_EQ(d.text, "cia401 EMCY 3100h: voltage");
-  EXPECT_TRUE(d.affected.empty()) << "all inputs";
+  EXPECT_EQ(d.affected.size(), 3u) << "every input: in[1], in[2], analog[1]";
   EXPECT_EQ(f.status("analog[1]"), SignalStatus::Error);
   EXPECT_EQ(f.val("analog[1]"), 0) << "the neutral value";
   EXPECT_EQ(f.val("in[1]"), 0);
@@ -336,9 +336,25 @@ TEST(Cia401, EmcyErrorsPutInputsInErrorUntilResetOrGoodValue) {
   ASSERT_TRUE(f.drv->on_frame(CanFrame(0x1A1, {0x10, 0x00, 0x20, 0x00, 0x01}), t0));
   EXPECT_EQ(f.status("analog[1]"), SignalStatus::Valid);
   EXPECT_EQ(f.val("analog[1]"), 0x10);
-  // An error cleared by a good value afterwards.
+  // The fault is the driver's until the error reset: a good value does not end it.
   (void)f.drv->on_emcy(EmcyMessage{kNode, 0xFF01, 0x81, {}}, t0);
   EXPECT_EQ(f.status("in[1]"), SignalStatus::Error);
+  ASSERT_TRUE(f.drv->on_frame(CanFrame(0x1A1, {0x10, 0x00, 0x20, 0x00, 0x01}), t0));
+  EXPECT_EQ(f.status("in[1]"), SignalStatus::Error);
+  (void)f.drv->on_emcy(EmcyMessage{kNode, 0x0000, 0x00, {}}, t0);
+  ASSERT_TRUE(f.drv->on_frame(CanFrame(0x1A1, {0x10, 0x00, 0x20, 0x00, 0x01}), t0));
+  EXPECT_EQ(f.status("in[1]"), SignalStatus::Valid);
+  // 81xxh "communication" (CiA 301 Table 26): a warning, faulting nothing.
+  d = f.drv->on_emcy(EmcyMessage{kNode, 0x8120, 0x11, {}}, t0);
+  EXPECT_FALSE(d.error);
+  EXPECT_TRUE(d.affected.empty());
+  EXPECT_FALSE(f.drv->any_fault());
+  EXPECT_EQ(f.status("in[1]"), SignalStatus::Valid);
+  // A boot-up (the node reports again what persists) drops the faults.
+  (void)f.drv->on_emcy(EmcyMessage{kNode, 0x3100, 0x05, {}}, t0);
+  ASSERT_TRUE(f.drv->any_fault());
+  f.drv->on_application_reset(t0);
+  EXPECT_FALSE(f.drv->any_fault());
   ASSERT_TRUE(f.drv->on_frame(CanFrame(0x1A1, {0x10, 0x00, 0x20, 0x00, 0x01}), t0));
   EXPECT_EQ(f.status("in[1]"), SignalStatus::Valid);
   // A code outside Table 26's classes: counted and ignored.

@@ -331,10 +331,33 @@ TEST_F(ElobauDriverTest, EmcyButtonTimeoutLatchesUntilErrorReset) {
   EXPECT_EQ(emcy(0x1000, {0x6B, 0x00, 0xFF, 0xFF, 0xFF}).affected, (std::vector<std::size_t>{idx("buttons[11]")}));
 }
 
+// Table 6 0002h "Parameter Checksum Error CRC32. This error is also set until first parameter
+// saving process": sent at every power-on of a never-saved grip, a warning that faults nothing.
+TEST_F(ElobauDriverTest, EmcyParameterChecksum0002hIsAWarningThatFaultsNothing) {
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  auto d = emcy(0x1000, {0x02, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(d.text.rfind("elobau 4001h 0002h: Parameter Checksum Error", 0), 0u) << d.text;
+  EXPECT_FALSE(d.error);
+  EXPECT_TRUE(d.affected.empty());
+  EXPECT_FALSE(drv->any_fault());
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(val("x").value, 10);
+  EXPECT_EQ(val("buttons[1]").value, 1);
+  // The CAN communication warnings of §12.4 neither.
+  for (const std::uint16_t code : {0x8110, 0x8120, 0x8140}) {
+    d = emcy(code, {0x01, 0x00, 0xFF, 0xFF, 0xFF});
+    EXPECT_FALSE(d.error) << code;
+    EXPECT_TRUE(d.affected.empty()) << code;
+  }
+  EXPECT_FALSE(drv->any_fault());
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+}
+
+// 0001h "Application Program Checksum Error": the whole device is in doubt.
 TEST_F(ElobauDriverTest, EmcyChecksumErrorPutsEveryInputInErrorUntilReset) {
   tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
-  auto d = emcy(0x1000, {0x02, 0x00, 0xFF, 0xFF, 0xFF});  // Table 6 0002h
-  EXPECT_EQ(d.text, "elobau 4001h 0002h: Parameter Checksum Error");
+  auto d = emcy(0x1000, {0x01, 0x00, 0xFF, 0xFF, 0xFF});  // Table 6 0001h
+  EXPECT_EQ(d.text, "elobau 4001h 0001h: Application Program Checksum Error");
   EXPECT_EQ(d.affected.size(), 22u);
   EXPECT_EQ(val("x").status, SignalStatus::Error);
   EXPECT_EQ(val("buttons[1]").status, SignalStatus::Error);
@@ -478,5 +501,48 @@ TEST_F(ElobauDriverTest, AxisEmcyWithoutErrorValueInPdoClearsOnTheNextGoodPair) 
   EXPECT_EQ(val("x").status, SignalStatus::Valid);
 }
 
+// 4001h "Error Code" (Table 14) read back at every (re)start decides the faults latched before:
+// 0 clears them (a grip that rebooted sends no error reset), a Table 6 code faults what its EMCY
+// would; going offline and back keeps them meanwhile.
+TEST_F(ElobauDriverTest, ReadBackOf4001hAtBootDecidesTheLatchedFaults) {
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  emcy(0x1000, {0x63, 0x00, 0xFF, 0xFF, 0xFF});  // button 3 timeout
+  ASSERT_TRUE(drv->faulted(idx("buttons[3]")));
+  drv->on_offline(t);
+  drv->on_online(t);
+  EXPECT_TRUE(drv->faulted(idx("buttons[3]"))) << "offline/online is no evidence";
+  drv->on_application_reset(t);
+  EXPECT_TRUE(drv->faulted(idx("buttons[3]"))) << "the read-back decides, not the boot-up";
+  drv->begin_boot();
+  const auto reads = drv->boot_reads();
+  ASSERT_EQ(reads.size(), 1u);
+  EXPECT_EQ(reads[0], (std::pair<std::uint16_t, std::uint8_t>{0x4001, 0}));
+  std::string error;
+  // Still the button timeout: kept.
+  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x63, 0x00}, error));
+  EXPECT_TRUE(drv->boot_reads().empty());
+  EXPECT_TRUE(drv->faulted(idx("buttons[3]")));
+  // Next start: no error any more.
+  drv->begin_boot();
+  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x00, 0x00}, error));
+  EXPECT_FALSE(drv->any_fault());
+  drv->on_online(t);
+  tpdo0({0x0A, 0x00, 0x04, 0x00, 0x00, 0x04, 0x00, 0xFF});
+  EXPECT_EQ(val("buttons[3]").status, SignalStatus::Valid);
+  EXPECT_EQ(val("buttons[3]").value, 1);
+  // A code read back that the gateway never saw as EMCY: Y axis signal 1 out of range.
+  drv->begin_boot();
+  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x20, 0x00}, error));
+  EXPECT_TRUE(drv->faulted(idx("y")));
+  EXPECT_FALSE(drv->faulted(idx("x")));
+  // The unsaved-parameters code read back: nothing.
+  drv->begin_boot();
+  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x00, 0x00}, error));
+  drv->begin_boot();
+  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x02, 0x00}, error));
+  EXPECT_FALSE(drv->any_fault());
+}
+
 }  // namespace
 }  // namespace oegw::subdevices
+

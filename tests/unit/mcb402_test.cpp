@@ -293,34 +293,40 @@ TEST_F(Mcb402Test, UndecodableCableBreakByteFailsAllAxes) {
   EXPECT_EQ(mcb().broken_axes(), 0x0F);
 }
 
-TEST_F(Mcb402Test, LifeGuardingEmcyFailsEveryInputUntilFreshPdos) {
+// [CO4013 "Emergency Messages"] Life-Guarding Error "30 81 11 ...", CAN Bus in Error Warning state
+// "00 81 11 ..." (also sent at every power-on, [MCB §4] "083 00 81 11 0"), Return from CAN Bus OFF
+// "40 81 11 ...": CAN communication warnings, reported, faulting nothing.
+TEST_F(Mcb402Test, CommunicationWarningEmcysFaultNothing) {
   ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0})));
   ASSERT_TRUE(frame(CanFrame(0x183, {0, 0, 0x02, 0})));
-  // [CO4013 "Emergency Messages"] Life-Guarding Error "30 81 11 00 00 00 00 00".
-  emcy(CanFrame(0x83, {0x30, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00}));
-  EXPECT_TRUE(decoded_.back().error);
-  EXPECT_TRUE(decoded_.back().affected.empty()) << "all inputs";
-  for (std::size_t i = 0; i < led(1); ++i) {
-    EXPECT_EQ(v(i).status, SignalStatus::Error) << i;
-    EXPECT_EQ(v(i).value, 0) << i;
+  for (const std::uint8_t lo : {0x30, 0x00, 0x40}) {
+    emcy(CanFrame(0x83, {lo, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00}));
+    EXPECT_FALSE(decoded_.back().error) << int(lo);
+    EXPECT_TRUE(decoded_.back().affected.empty()) << int(lo);
+    EXPECT_NE(decoded_.back().text.find("warning"), std::string::npos) << decoded_.back().text;
   }
-  ASSERT_TRUE(frame(CanFrame(0x183, {0, 0, 0x02, 0})));
+  EXPECT_EQ(driver_->counters().unknown_emcy, 0u);
+  EXPECT_FALSE(driver_->any_fault());
+  EXPECT_EQ(v(kX).status, SignalStatus::Valid);
+  EXPECT_EQ(v(kX).value, 1);
   EXPECT_EQ(v(button(1)).status, SignalStatus::Valid);
   EXPECT_EQ(v(button(1)).value, 1);
-  EXPECT_EQ(v(kX).status, SignalStatus::Error) << "axes wait for their own PDO";
-  // CAN error warning "00 81 11 ..." and return from bus off "40 81 11 ..." are decoded too.
-  emcy(CanFrame(0x83, {0x00, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00}));
-  emcy(CanFrame(0x83, {0x40, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00}));
-  EXPECT_EQ(driver_->counters().unknown_emcy, 0u);
-  EXPECT_EQ(v(button(1)).status, SignalStatus::Error);
 }
 
-TEST_F(Mcb402Test, UnknownEmcyCodeIsCountedAndChangesNothing) {
+// A code the document does not list: what it affects is unknown, so every input is faulted
+// until the error reset 0000h.
+TEST_F(Mcb402Test, UnknownErrorEmcyIsCountedAndFaultsEveryInputUntilTheErrorReset) {
   ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0})));
-  changes_.clear();
-  emcy(CanFrame(0x83, {0x00, 0x50, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00}));
+  emcy(CanFrame(0x83, {0x00, 0x50, 0x81, 0x00, 0x00, 0x00, 0x00, 0x00}));
   EXPECT_EQ(driver_->counters().unknown_emcy, 1u);
-  EXPECT_TRUE(changes_.empty());
+  EXPECT_TRUE(decoded_.back().error);
+  EXPECT_EQ(decoded_.back().affected.size(), mcb402::kAxes + mcb402::kButtons);
+  EXPECT_EQ(v(kX).status, SignalStatus::Error);
+  ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0})));
+  EXPECT_EQ(v(kX).status, SignalStatus::Error) << "a PDO is no evidence";
+  emcy(CanFrame(0x83, {0, 0, 0, 0, 0, 0, 0, 0}));
+  EXPECT_FALSE(driver_->any_fault());
+  ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0})));
   EXPECT_EQ(v(kX).status, SignalStatus::Valid);
 }
 
@@ -363,13 +369,72 @@ TEST_F(Mcb402Test, OfflineMarksInputsAndOnlineResendsOutputs) {
   EXPECT_EQ(v(kX).status, SignalStatus::Offline) << "inputs wait for a PDO";
 }
 
-TEST_F(Mcb402Test, CableBreakLatchSurvivesOffline) {
+// The cable-break latch survives going offline and back (a heartbeat loss repeats no EMCY), and
+// the boot-up itself; what decides it is the error register 1001h read back at every (re)start
+// ([CO4013 Index 1001] bit 7 "Device Error"): clear after a repair and reboot, kept otherwise.
+TEST_F(Mcb402Test, CableBreakLatchSurvivesOfflineUntilThe1001hReadBack) {
   emcy(CanFrame(0x83, {0x20, 0x31, 0x81, 0x00, 0x81, 0x00, 0x00, 0x00}));
   driver_->on_offline(at(1));
   driver_->on_online(at(2));
   ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0}), 3));
   EXPECT_EQ(v(kX).status, SignalStatus::Error);
   EXPECT_EQ(v(kY).status, SignalStatus::Valid);
+  // Restart with the cable still broken: 1001h = 81h keeps it.
+  driver_->on_offline(at(4));
+  driver_->on_application_reset(at(4));
+  driver_->begin_boot();
+  auto reads = driver_->boot_reads();
+  ASSERT_EQ(reads.size(), 1u);
+  EXPECT_EQ(reads[0], (std::pair<std::uint16_t, std::uint8_t>{0x1001, 0}));
+  std::string error;
+  ASSERT_TRUE(driver_->on_boot_read(0x1001, 0, std::vector<std::uint8_t>{0x81}, error));
+  EXPECT_TRUE(driver_->boot_reads().empty());
+  driver_->on_online(at(5));
+  ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0}), 6));
+  EXPECT_EQ(v(kX).status, SignalStatus::Error);
+  EXPECT_EQ(mcb().broken_axes(), 0x01);
+  // Repaired and rebooted: 1001h = 00h (no device error), the latch goes.
+  driver_->on_offline(at(7));
+  driver_->begin_boot();
+  ASSERT_TRUE(driver_->on_boot_read(0x1001, 0, std::vector<std::uint8_t>{0x00}, error));
+  EXPECT_FALSE(driver_->any_fault());
+  EXPECT_EQ(mcb().broken_axes(), 0x00);
+  driver_->on_online(at(8));
+  ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0}), 9));
+  EXPECT_EQ(v(kX).status, SignalStatus::Valid);
+  EXPECT_EQ(v(kX).value, 1);
+  // Only the communication bit (a warning at power-on, 1001h = 11h): no device error.
+  emcy(CanFrame(0x83, {0x20, 0x31, 0x81, 0x00, 0x82, 0x00, 0x00, 0x00}), 10);
+  driver_->begin_boot();
+  ASSERT_TRUE(driver_->on_boot_read(0x1001, 0, std::vector<std::uint8_t>{0x11}, error));
+  EXPECT_FALSE(driver_->any_fault());
+  // A device error the gateway never saw as EMCY (it went before the gateway listened): which
+  // axis is unknown, so all four.
+  driver_->begin_boot();
+  ASSERT_TRUE(driver_->on_boot_read(0x1001, 0, std::vector<std::uint8_t>{0x81}, error));
+  for (const std::size_t a : {kX, kY, kZ, kT}) EXPECT_TRUE(driver_->faulted(a)) << a;
+  EXPECT_FALSE(driver_->faulted(button(1)));
+  // A refused read is no evidence: the faults stay, the boot goes on.
+  driver_->begin_boot();
+  EXPECT_TRUE(driver_->on_boot_read_abort(0x1001, 0, SdoAbortCode::ObjectDoesNotExist));
+  EXPECT_TRUE(driver_->boot_reads().empty());
+  EXPECT_TRUE(driver_->faulted(kX));
+}
+
+// [CO4013 Index 2180] "CAN Restart Time ... If the restart time is set to 0 automatic restart of the
+// device in case of bus off is prohibited" (default 0): written at configuration.
+TEST_F(Mcb402Test, ConfigurationWritesTheCanRestartTime) {
+  auto find = [this] {
+    for (const auto& w : driver_->configuration())
+      if (w.index == 0x2180 && w.sub == 0) return w.data;
+    return std::vector<std::uint8_t>{};
+  };
+  EXPECT_EQ(find(), (std::vector<std::uint8_t>{0xE8, 0x03})) << "1000 ms, UNSIGNED16";
+  make({{{"can_restart_ms", "250"}}});
+  EXPECT_EQ(find(), (std::vector<std::uint8_t>{250, 0}));
+  std::string error;
+  EXPECT_EQ(make_mcb402_driver(kNode, [](const CanFrame&) {}, {{{"can_restart_ms", "0"}}}, error), nullptr);
+  EXPECT_NE(error.find("can_restart_ms"), std::string::npos);
 }
 
 TEST_F(Mcb402Test, OptionsAreCheckedAndUnknownOnesRefused) {

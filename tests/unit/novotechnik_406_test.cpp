@@ -275,7 +275,7 @@ TEST_F(Novotechnik406Test, ConfigurationFollowsTheMappingProcedure) {
   auto d = make_novotechnik_406_driver(kNode, {}, DriverOptions{{{"event_timer_ms", "50"}}}, error);
   ASSERT_NE(d, nullptr) << error;
   const auto w = d->configuration();
-  ASSERT_EQ(w.size(), 9u);
+  ASSERT_EQ(w.size(), 11u);
   auto is = [](const SdoWrite& s, std::uint16_t idx, std::uint8_t sub, std::vector<std::uint8_t> data) {
     return s.index == idx && s.sub == sub && s.data == data;
   };
@@ -289,6 +289,54 @@ TEST_F(Novotechnik406Test, ConfigurationFollowsTheMappingProcedure) {
   EXPECT_TRUE(is(w[6], 0x1A00, 2, {0x10, 0x01, 0x30, 0x60}));
   EXPECT_TRUE(is(w[7], 0x1A00, 0, {0x02}));                    // step 4
   EXPECT_TRUE(is(w[8], 0x1800, 1, {0xFF, 0x01, 0x00, 0x40}));  // step 5: 40000xxxh
+  // §4.1 1029h "Error Behaviour": communication error 0 (pre-operational), measurement error
+  // 1 "no change of NMT-mode" (the sensor stays operational and reports the error).
+  EXPECT_TRUE(is(w[9], 0x1029, 1, {0x00}));
+  EXPECT_TRUE(is(w[10], 0x1029, 2, {0x01}));
+}
+
+// Faults latched by an error EMCY: a good TPDO1 does not end them, the clear code does; going
+// offline keeps them; 6503h "Alarms" (§10.2) read back at every (re)start decides them.
+TEST_F(Novotechnik406Test, PositionFaultLatchedUntilClearCodeOr6503hReadBack) {
+  ASSERT_TRUE(pdo({0x10, 0, 0, 0, 0, 0}));
+  // §9.1 5051h/1/1 position overflow error "Reset via Position Error Reset".
+  DecodedEmcy d = emcy(0x5051, 1, 1);
+  EXPECT_TRUE(d.error);
+  EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition));
+  ASSERT_TRUE(pdo({0x10, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(pos().status, SignalStatus::Error) << "an ordinary position is no evidence";
+  driver_.on_offline(t(3));
+  driver_.on_application_reset(t(3));
+  driver_.on_online(t(3));
+  EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition));
+  driver_.begin_boot();
+  const auto reads = driver_.boot_reads();
+  ASSERT_EQ(reads.size(), 1u);
+  EXPECT_EQ(reads[0], (std::pair<std::uint16_t, std::uint8_t>{0x6503, 0}));
+  std::string error;
+  ASSERT_TRUE(driver_.on_boot_read(0x6503, 0, std::vector<std::uint8_t>{0x00, 0x20}, error));  // bit 13
+  EXPECT_TRUE(driver_.boot_reads().empty());
+  EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition));
+  // §9.1 5051h/0/0 "Valid position" clears it; the next TPDO1 brings the value.
+  d = emcy(0x5051, 0, 0);
+  EXPECT_FALSE(d.error);
+  EXPECT_FALSE(driver_.any_fault());
+  ASSERT_TRUE(pdo({0x10, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(pos().status, SignalStatus::Valid);
+  // A fault the sensor cleared while unseen: 6503h = 0 at the next start clears it too.
+  (void)emcy(0x5000, 1, 0);
+  ASSERT_TRUE(driver_.any_fault());
+  driver_.begin_boot();
+  ASSERT_TRUE(driver_.on_boot_read(0x6503, 0, std::vector<std::uint8_t>{0x00, 0x00}, error));
+  EXPECT_FALSE(driver_.any_fault());
+  // The position error reset command: 2100h = 1 (§4.1, Bool W 0x01).
+  const auto c = driver_.command("position_error_reset");
+  ASSERT_EQ(c.size(), 1u);
+  EXPECT_EQ(c[0].index, 0x2100);
+  EXPECT_EQ(c[0].sub, 0);
+  EXPECT_EQ(c[0].data, std::vector<std::uint8_t>{0x01});
+  EXPECT_TRUE(driver_.command("reboot").empty());
+  EXPECT_EQ(driver_.commands(), std::vector<std::string>{"position_error_reset"});
 }
 
 TEST_F(Novotechnik406Test, FactoryRefusesBadOptions) {

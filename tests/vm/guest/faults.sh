@@ -1,0 +1,148 @@
+#!/bin/bash
+# Guest test (vm_faults): the life of a sub-device fault outside in, on real SocketCAN (issue 13).
+# `oegw run` (tests/fixtures/vm_gateway.yaml: upstream vcan0, downstream vcan1) starts first; then
+# the `oegw-sim` processes power on: the MCB-402 03h alone with --commands read from a FIFO, the
+# other devices with --motion. Judged on candump's recordings of both buses (the upstream EMCYs of
+# the gateway, node 20h, on 0A0h) and on the gateway's log:
+#   1 EMCY at boot: the MCB-402 sends 8100h right after its boot-up ([MCB §4] "703 00" then
+#     "083 00 81 11 0"); it is a warning: the board goes operational and no EMCY 7000h naming
+#     node 03h goes upstream (0A0#00700103...), its joystick is not held at its fault value.
+#   2 a real fault: cable break on X (EMCY 3120h) -> EMCY 7000h naming 03h; mended (0000h) ->
+#     the gateway's error reset.
+#   3 stale PDOs: the board's TPDOs stop while its heartbeat goes on -> EMCY 7000h naming 03h
+#     within the deadline (3 x its 20 ms event timer, plus a TCG guest's margin); TPDOs back ->
+#     cleared.
+# Args: OEGW OEGW_SIM SOURCE_DIR
+set -uo pipefail
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+# shellcheck source=lib.sh
+. "$here/lib.sh"
+oegw=$1
+sim=$2
+src=$3
+dir=/run/oegw-faults
+
+prepare_gateway_run vm_gateway.yaml "$src" "$dir" "$oegw"
+rc=$?
+((rc == 0)) || { fail "oegw check exit $rc: $(cat /tmp/check.out)"; exit 1; }
+
+start_candump vcan0 /tmp/up.dump || fail "candump vcan0 did not start"
+up_candump=$candump_pid
+start_candump vcan1 /tmp/down.dump || fail "candump vcan1 did not start"
+down_candump=$candump_pid
+
+# The gateway first: it is waiting for the boot-ups when the devices power on, so it receives
+# what the MCB-402 sends right after its own.
+receivers=$(can_receivers vcan1)
+"$oegw" run "$dir/oegw.yaml" >/tmp/gateway.log 2>&1 &
+gw_pid=$!
+wait_receivers vcan1 $((receivers + 1)) 20 || fail "the gateway did not bind vcan1"
+echo "gateway started after $(elapsed) s"
+mkfifo /tmp/mcb.cmd
+exec 3<>/tmp/mcb.cmd
+"$sim" -i vcan1 --commands mcb402:0x03:name=left_grip <&3 >/tmp/sim-mcb.log 2>&1 &
+mcb_pid=$!
+"$sim" -i vcan1 --motion elobau-mfg:0x11:name=right_grip \
+  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
+  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" </dev/null >/tmp/sim-others.log 2>&1 &
+others_pid=$!
+
+# wait_for FILE PATTERN TIMEOUT_S: until a line of FILE matches the extended regex PATTERN.
+wait_for() {
+  local i
+  for ((i = 0; i < $3 * 20; i++)); do
+    grep -Eq "$2" "$1" 2>/dev/null && return 0
+    sleep 0.05
+  done
+  return 1
+}
+# count FILE PATTERN: matching lines.
+count() { grep -Ec "$2" "$1" 2>/dev/null; }
+fault03='vcan0 0A0#00700103'      # EMCY 7000h "additional modules" naming node 03h
+reset='vcan0 0A0#0000'            # the gateway's error reset (naming a node, or its last one)
+
+# 1 EMCY at boot.
+if wait_for /tmp/gateway.log 'left_grip: operational' 60; then
+  pass "scenario 1: the MCB-402 is operational after $(elapsed) s"
+else
+  fail "scenario 1: the MCB-402 never became operational"
+fi
+sleep 2  # its fault, if any, would have gone up by now
+if awk '$2 == "vcan1" && $3 == "703#00" { boot = NR } $2 == "vcan1" && $3 == "083#0081110000000000" && boot { ok = 1 } END { exit !ok }' \
+  /tmp/down.dump; then
+  pass "scenario 1: vcan1 carries 703#00 then the power-on EMCY 083#0081110000000000"
+else
+  fail "scenario 1: no power-on 8100h after the boot-up on vcan1"
+fi
+grep -q 'left_grip: EMCY 8100h' /tmp/gateway.log && pass "scenario 1: the gateway decoded 8100h (a warning)" \
+  || fail "scenario 1: the gateway did not receive the power-on 8100h"
+if (($(count /tmp/up.dump "$fault03") == 0)) && ! grep -q 'left_grip: fault' /tmp/gateway.log; then
+  pass "scenario 1: no EMCY 7000h naming 03h, joystick 2 not at its fault value"
+else
+  fail "scenario 1: the power-on warning faulted the MCB-402: $(grep 'left_grip' /tmp/gateway.log | head -5)"
+fi
+
+# 2 A real fault and its clearing.
+resets_before=$(count /tmp/up.dump "$reset")
+echo "left_grip cable_break 1 on" >&3
+if wait_for /tmp/up.dump "$fault03" 5; then
+  pass "scenario 2: cable break -> EMCY 7000h naming 03h after $(elapsed) s"
+else
+  fail "scenario 2: no EMCY 7000h naming 03h after the cable break"
+fi
+echo "left_grip cable_break 1 off" >&3
+ok=0
+for ((i = 0; i < 100; i++)); do
+  (($(count /tmp/up.dump "$reset") > resets_before)) && { ok=1; break; }
+  sleep 0.05
+done
+((ok)) && pass "scenario 2: mended -> the gateway's error reset" || fail "scenario 2: no error reset after the repair"
+wait_for /tmp/gateway.log 'left_grip: fault cleared' 5 || fail "scenario 2: the fault was not cleared"
+
+# 3 Stale PDOs while the heartbeat goes on.
+faults_before=$(count /tmp/up.dump "$fault03")
+resets_before=$(count /tmp/up.dump "$reset")
+sleep 1
+start=$(date +%s.%N)
+echo "left_grip pdo off" >&3
+ok=0
+for ((i = 0; i < 60; i++)); do
+  (($(count /tmp/up.dump "$fault03") > faults_before)) && { ok=1; break; }
+  sleep 0.05
+done
+took=$(awk -v a="$start" -v b="$(date +%s.%N)" 'BEGIN { printf "%.2f", b - a }')
+if ((ok)); then
+  pass "scenario 3: TPDOs stopped -> EMCY 7000h naming 03h after ${took} s (deadline 60 ms + margin)"
+else
+  fail "scenario 3: no EMCY 7000h naming 03h within 3 s of the TPDOs stopping"
+fi
+grep -q 'left_grip: fault (.*stale' /tmp/gateway.log && pass "scenario 3: the gateway names the stale PDO" \
+  || fail "scenario 3: no stale fault in the gateway log"
+hb=$(awk -v s="$start" '{ t = substr($1, 2, length($1) - 2) + 0 } t > s && $2 == "vcan1" && $3 == "703#05"' /tmp/down.dump | wc -l)
+((hb > 0)) && pass "scenario 3: its heartbeat went on meanwhile ($hb frames)" || fail "scenario 3: no heartbeat while the TPDOs were stopped"
+echo "left_grip pdo on" >&3
+ok=0
+for ((i = 0; i < 100; i++)); do
+  (($(count /tmp/up.dump "$reset") > resets_before)) && { ok=1; break; }
+  sleep 0.05
+done
+((ok)) && pass "scenario 3: TPDOs back -> the gateway's error reset" || fail "scenario 3: no error reset after the TPDOs came back"
+
+kill -TERM "$gw_pid"
+wait "$gw_pid"
+rc=$?
+((rc == 0)) || fail "oegw run exit $rc after SIGTERM"
+kill -TERM "$mcb_pid" "$others_pid" 2>/dev/null
+wait "$mcb_pid" "$others_pid" 2>/dev/null
+exec 3>&-
+stop_candump  # vcan1's
+candump_pid=$up_candump
+stop_candump
+
+echo "== gateway log (journald format: level: message)"
+grep -v 'debug:' /tmp/gateway.log | sed 's/^/    /' | head -120
+echo "== MCB-402 simulator"
+sed 's/^/    /' /tmp/sim-mcb.log | head -40
+cp /tmp/up.dump /tmp/down.dump /tmp/gateway.log /tmp/sim-mcb.log "${OEGW_VM_OUT:-/tmp}/" 2>/dev/null
+echo "total $(elapsed) s; $passes passed, $fails failed"
+((fails == 0))
