@@ -118,19 +118,19 @@ def main():
     # requests, heartbeats in operational, an EMCY and each TPDO.
     n = "network_manager_fuzz"
 
-    def nm(node, kind, step, payload):
-        return bytes([node, kind, step, 8]) + pad(payload)
+    def nm(node, kind, step, payload, dlc=8):
+        return bytes([node, kind, step, dlc]) + pad(payload)
 
     # Byte 4 below 80h: the fuzzer answers the master's last request itself (see its header).
     for node in range(4):
-        blob = nm(node, 0, 0, [0x00])
+        blob = nm(node, 0, 0, [0x00], 1)  # boot-up: one byte (CiA 301 §7.2.8.3.2)
         for _ in range(40):
-            blob += nm(node, 1, 1, [0x00, 0x00, 0x01, 0x00, 0x00, 0x00])  # answers, identity as expected
-        blob += nm(node, 0, 5, [0x05]) + nm(node, 0, 10, [0x05])
+            blob += nm(node, 1, 0, [0x00, 0x00, 0x01, 0x00, 0x00, 0x00])  # answers, identity as expected
+        blob += nm(node, 0, 5, [0x05], 1) + nm(node, 0, 10, [0x05], 1)
         blob += nm(node, 2, 1, [0x00, 0x81, 0x11]) + nm(node, 2, 1, [0x00, 0x00, 0x00])
         for tpdo in range(4):
             blob += nm(node, 3 + tpdo, 2, [0x10, 0x20, 0x30, 0x40, 0x50, 0x60, 0x70, 0x80])
-        blob += nm(node, 0, 50, [0x05])
+        blob += nm(node, 0, 50, [0x05], 1)
         write(out, n, "boot_%d" % node, blob)
 
 

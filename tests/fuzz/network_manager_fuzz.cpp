@@ -19,6 +19,8 @@
 // while the node is Operational; the next deadline is never in the past after advance().
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
+#include <cstdlib>
 #include <map>
 #include <memory>
 #include <vector>
@@ -39,6 +41,15 @@ void check(bool ok) {
 }
 
 constexpr std::uint8_t kNodes[4] = {0x11, 0x03, 0x40, 0x30};
+
+// OEGW_FUZZ_TRACE=1 prints every frame and node state of a run (to read a crash input).
+const bool kTrace = std::getenv("OEGW_FUZZ_TRACE") != nullptr;
+void trace(const char* dir, const CanFrame& f) {
+  if (!kTrace) return;
+  std::fprintf(stderr, "%s %03X [%u]", dir, static_cast<unsigned>(f.id), static_cast<unsigned>(f.dlc));
+  for (unsigned i = 0; i < f.dlc && i < 8; ++i) std::fprintf(stderr, " %02X", f.data[i]);
+  std::fprintf(stderr, "\n");
+}
 
 // The answer a node gives to the master's SDO request `req` (CiA 301 §7.2.4.3), shaped by the
 // chunk `c`; false for a request it does not answer this way (block transfers, aborts).
@@ -74,7 +85,16 @@ bool answer(const CanFrame& req, const subdevices::Driver& driver, const std::ui
       if (index == 0x1018 && sub == 3) expected = id.revision;
       if (index == 0x1018 && sub == 4) expected = id.serial;
       if (expected && c[5] % 2 == 0) v = *expected;
-      f.data[0] = 0x43;
+      // 1..4 bytes from byte 5; 1001h (UNSIGNED8) always 1, the identity 4.
+      // 1..4 bytes from byte 5, except where CiA 301 fixes the size of what the boot reads:
+      // 1001h UNSIGNED8, the identity UNSIGNED32, the PDO parameters (§7.5.2.35-38).
+      unsigned bytes = 4 - ((c[5] >> 1) & 3u);
+      if (index == 0x1001) bytes = 1;
+      if (expected) bytes = 4;
+      if (index >= 0x1400 && index <= 0x1BFF && (index & 0x0200) == 0)  // communication parameters
+        bytes = sub == 1 ? 4 : (sub == 2 || sub == 0 || sub == 4 || sub == 6) ? 1 : 2;
+      if (index >= 0x1600 && index <= 0x1BFF && (index & 0x0200) != 0) bytes = sub == 0 ? 1 : 4;  // mapping
+      f.data[0] = static_cast<std::uint8_t>(0x43 | ((4 - bytes) << 2));
       for (int i = 0; i < 4; ++i) f.data[4 + i] = static_cast<std::uint8_t>(v >> (8 * i));
       return true;
     }
@@ -92,8 +112,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   canopen::Master master(od, sink, canopen::MasterConfig{.sync_period = std::chrono::milliseconds(20)});
   subdevices::NetworkManager network(master);
   std::map<std::string, subdevices::NodeState> states;
-  network.on_node_state = [&](const std::string& name, subdevices::NodeState s, const std::string&) {
+  network.on_node_state = [&](const std::string& name, subdevices::NodeState s, const std::string& why) {
     states[name] = s;
+    if (kTrace) std::fprintf(stderr, "%s: %s (%s)\n", name.c_str(), std::string(to_string(s)).c_str(), why.c_str());
   };
   std::vector<subdevices::Driver*> drivers;
   std::string error;
@@ -126,6 +147,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   std::map<std::uint8_t, CanFrame> last_request;  // the master's last SDO request per node
   const auto sent_ok = [&] {
     for (const CanFrame& f : out) {
+      trace("TX", f);
       check(f.dlc <= 8 && f.id <= 0x7FF && !f.extended);
       if (f.id > 0x600 && f.id <= 0x67F) last_request[static_cast<std::uint8_t>(f.id - 0x600)] = f;
       if (f.id == 0x000 && f.dlc >= 2)
@@ -164,6 +186,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     }
     const std::uint8_t from = static_cast<std::uint8_t>(f.id & 0x7F);
     if (!f.rtr && f.id != 0x7E4 && heard_since_start.count(from) != 0) heard_since_start[from] = true;
+    trace("RX", f);
     (void)network.on_frame(f, now);
     sent_ok();
     invariants();
