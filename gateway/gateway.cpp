@@ -143,9 +143,12 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     // proof of life the network manager names (`why`) makes it operational again.
     if ((st == sd::NodeState::Missing || st == sd::NodeState::Refused) && s.driver->any_fault())
       network_.reset_application_next(name);
-    if (st == sd::NodeState::Missing || st == sd::NodeState::Refused) s.failed = true;
+    // A node that leaves operational for any reason (lost, refused, or its own boot-up: a reboot
+    // while in use) has failed until it is operational again: its inputs are in doubt and the
+    // host is told now, not when (or if) a reboot loop ever settles.
+    if (st == sd::NodeState::Missing || st == sd::NodeState::Refused || (was && !s.operational)) s.failed = true;
     if (s.operational) s.failed = false;
-    if (st == sd::NodeState::Missing || st == sd::NodeState::Refused || s.operational) update_fault(s, why);
+    if (s.failed || s.operational) update_fault(s, why);
   };
   network_.on_emcy = [this](const std::string& name, const canopen::EmcyMessage& e, const sd::DecodedEmcy& d) {
     auto it = subs_.find(name);
@@ -259,7 +262,7 @@ void Gateway::update_fault(Sub& s, std::string_view evidence) {
   // made only when the cause changes (no allocation per frame while a fault lasts).
   // A node booting for the first time is not faulty (its fields are at their fault values,
   // Offline): an EMCY or a signal change meanwhile (the MCB-402's power-on 8100h) does not make
-  // it so; only its state does (on_node_state: missing, refused).
+  // it so; only its state does (on_node_state: missing, refused, or leaving operational).
   if (!s.operational && !s.failed && s.cause.kind == Cause::Kind::None) return;
   const Cause cause = [&] {
     if (!s.operational) return Cause{Cause::Kind::State, 0, SignalStatus::Offline};

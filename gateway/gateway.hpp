@@ -175,7 +175,7 @@ class Gateway {
     const mapping::SubdeviceConfig* config = nullptr;
     subdevices::Driver* driver = nullptr;
     bool operational = false;
-    bool failed = false;  // missing or refused since it was last operational (a fault)
+    bool failed = false;  // missing, refused or rebooted since it was last operational (a fault)
     std::string why;
     std::vector<std::vector<std::size_t>> by_signal;  // driver signal index -> bindings_
     std::vector<std::size_t> inputs;                   // its input bindings, in bindings_ order

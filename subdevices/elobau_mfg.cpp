@@ -332,11 +332,22 @@ DecodedEmcy ElobauMfgDriver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
   return d;
 }
 
+// An axis EMCY: the channel values received before it say nothing about the fault, so only a
+// good pair of TPDO #0 and #1 both received after it clears it (on_tpdo1).
+void ElobauMfgDriver::latch_axis(std::size_t a) {
+  Axis& ax = axes_[a];
+  ax.emcy = true;
+  ax.ch1.reset();
+  ax.ch2.reset();
+  ax.suspect = false;
+  ax.mismatch = false;
+}
+
 std::vector<std::size_t> ElobauMfgDriver::apply_manufacturer_code(std::uint16_t m, TimePoint now) {
   std::vector<std::size_t> affected;
   if (m >= 0x0010 && m <= 0x0052 && (m & 0x0F) <= 2) {
     const std::size_t a = (m >> 4) - 1;
-    axes_[a].emcy = true;
+    latch_axis(a);
     affected = {kX + a};
   } else if (m >= 0x0061 && m <= 0x006B) {
     const std::size_t b = m - 0x0061;
@@ -397,13 +408,13 @@ bool ElobauMfgDriver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::s
   // Table 14 4001h "Error Code", 0: no error. No error: every fault latched before is over (the
   // grip rebooted, or it recovered while the gateway did not see its 0000h). An error code: it
   // faults what its EMCY would, beside what is latched (4001h holds one code only).
-  std::uint16_t m = 0;
-  for (std::size_t i = 0; i < data.size() && i < 2; ++i) m = static_cast<std::uint16_t>(m | (data[i] << (8 * i)));
+  if (data.size() != 2) return true;  // 4001h is UNSIGNED16: another length is no evidence, the faults stay
+  const auto m = static_cast<std::uint16_t>(data[0] | (data[1] << 8));
   if (m == 0) {
     clear_faults();
   } else if (manufacturer_error_name(m) != nullptr) {
     // As its EMCY would, without a status change: the signals are Offline during the boot.
-    if (m >= 0x0010 && m <= 0x0052 && (m & 0x0F) <= 2) axes_[(m >> 4) - 1].emcy = true;
+    if (m >= 0x0010 && m <= 0x0052 && (m & 0x0F) <= 2) latch_axis((m >> 4) - 1);
     if (m >= 0x0061 && m <= 0x006B) button_emcy_[m - 0x0061] = true;
     if (m == 0x0070) led_emcy_ = true;
     if (m == 0x0000 || m == 0x0001 || m == 0x0005) global_emcy_ = true;

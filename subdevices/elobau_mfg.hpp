@@ -164,6 +164,7 @@ class ElobauMfgDriver final : public Driver {
     bool emcy = false;  // latched by an axis EMCY, cleared by a good pair or the error reset
   };
   [[nodiscard]] bool channels_disagree(std::int8_t ch1, std::int8_t ch2) const;
+  void latch_axis(std::size_t a);
   void on_tpdo0(const CanFrame& frame, TimePoint now);
   void on_tpdo1(const CanFrame& frame, TimePoint now);
   void publish_axis(std::size_t a, TimePoint now);

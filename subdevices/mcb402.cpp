@@ -221,7 +221,8 @@ bool Mcb402Driver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::span
                                 std::string& /*error*/) {
   if (index != 0x1001 || sub != 0) return true;
   error_register_read_ = true;
-  const std::uint8_t reg = data.empty() ? 0 : data[0];
+  if (data.size() != 1) return true;  // 1001h is UNSIGNED8: another length is no evidence, the faults stay
+  const std::uint8_t reg = data[0];
   // [CO4013 Index 1001]: bit 7 "Device Error" — the cable break's 81h ([CO4013 "Emergency
   // Messages"] "20 31 81 ..."). Clear: no device error, whatever was latched before (a board
   // repaired and rebooted). Set: the latched axes stay broken; none latched (the EMCY went

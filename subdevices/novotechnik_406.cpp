@@ -206,6 +206,9 @@ DecodedEmcy Novotechnik406Driver::on_emcy(const EmcyMessage& emcy, TimePoint now
       out.error = true;
       out.affected = {kPosition, kSpeed};
       latch_position_fault(now);
+      // 6503h (§10.2) shows position alarms only: a supply voltage fault (§10.3: 6505h bit 4) is
+      // not cleared by a 6503h of 0 read back at the next start, only by the sensor's clear.
+      if (emcy.code == 0x3100) latched_beyond_alarms_ = true;
       break;
     case novotechnik::EmcyEffect::PositionWarning:
       // The marker comes in TPDO1 as long as the warning lasts (§9.1): Error now, but no latch
@@ -219,6 +222,7 @@ DecodedEmcy Novotechnik406Driver::on_emcy(const EmcyMessage& emcy, TimePoint now
       // keep the neutral value but are no longer in Error (NotAvailable: nothing vouched for).
       clear_fault(kPosition);
       clear_fault(kSpeed);
+      latched_beyond_alarms_ = false;
       for (const std::size_t i : {kPosition, kSpeed})
         if (value(i).status == SignalStatus::Error) update(i, signals_[i].neutral, SignalStatus::NotAvailable, now);
       break;
@@ -263,16 +267,15 @@ bool Novotechnik406Driver::on_boot_read(std::uint16_t index, std::uint8_t sub, s
                                         std::string& /*error*/) {
   if (index != 0x6503 || sub != 0) return true;
   alarms_read_ = true;
-  std::uint16_t alarms = 0;
-  for (std::size_t i = 0; i < data.size() && i < 2; ++i)
-    alarms = static_cast<std::uint16_t>(alarms | (data[i] << (8 * i)));
+  if (data.size() != 2) return true;  // 6503h is UNSIGNED16: another length is no evidence, the faults stay
+  const auto alarms = static_cast<std::uint16_t>(data[0] | (data[1] << 8));
   // §10.2: bit 0 measurement error, bit 1 unknown / hardware / ASIC / software fault / memory
   // lost, bit 12 underflow, bit 13 overflow error (latched until 2100h). None: the faults
   // latched before are over (a sensor that rebooted, or reset while the gateway did not see it).
   constexpr std::uint16_t kPositionAlarms = (1u << 0) | (1u << 1) | (1u << 12) | (1u << 13);
   if ((alarms & kPositionAlarms) != 0) {
     latch_position_fault(std::nullopt);
-  } else {
+  } else if (!latched_beyond_alarms_) {
     clear_fault(kPosition);
     clear_fault(kSpeed);
   }

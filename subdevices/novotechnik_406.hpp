@@ -155,6 +155,7 @@ class Novotechnik406Driver final : public Driver {
   std::vector<SignalInfo> signals_;
   std::optional<std::uint32_t> last_marker_;
   bool alarms_read_ = false;  // 6503h read in this boot
+  bool latched_beyond_alarms_ = false;  // a latched fault 6503h does not show (3100h supply voltage)
 };
 
 }  // namespace oegw::subdevices

@@ -41,6 +41,10 @@ std::vector<std::string> check_pdo_mappings(const File& file) {
     const SubEntry* count_entry = obj.find(0);
     const auto count = file.default_number(index, 0, any);
     if (count_entry == nullptr || !count) continue;  // no default mapping: nothing to check
+    // A PDO disabled by default (its COB-ID's bit 31, CiA 301 §7.5.2.35) is not used unless
+    // configured, and then the node's actual mapping is read at boot: its defaults may be sloppy.
+    const auto cob = file.default_number(static_cast<std::uint16_t>(index - 0x200), 1, any);
+    if (cob && (*cob & 0x80000000u) != 0) continue;
     std::uint8_t highest = 0;
     for (const auto& [si, e] : obj.subs) highest = std::max(highest, si);
     if (*count > 64 || *count > highest) {

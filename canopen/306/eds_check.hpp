@@ -6,7 +6,9 @@
 // 1..n is written (a numeric DefaultValue) as index << 16 | sub << 8 | length in bits; it names
 // an object the file describes, whose PDOMapping is 1 and whose data type is exactly that long
 // (a dummy entry, index 0001h–0007h, is the length of that type: CiA 301 §7.4.7.1); together
-// they fit one CAN frame (64 bits).
+// they fit one CAN frame (64 bits). Only PDOs enabled by default are checked (their COB-ID's
+// bit 31 clear in 1400h/1800h sub 1): a disabled one is used only once configured, and then the
+// node's actual mapping is read at boot.
 #pragma once
 
 #include <string>

@@ -11,16 +11,10 @@
 
 #include "canopen/306/eds_check.hpp"
 #include "canopen/306/eds_reader.hpp"
+#include "tests/fuzz/fuzz_support.hpp"
 
 using namespace oegw::canopen;
-
-namespace {
-
-void check(bool ok) {
-  if (!ok) __builtin_trap();
-}
-
-}  // namespace
+using oegw::fuzz::check;
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);

@@ -13,26 +13,11 @@
 #include "gateway/oe_device.hpp"
 #include "gateway/runtime_config.hpp"
 #include "mapping/config.hpp"
-#include "subdevices/driver.hpp"
+#include "tests/fuzz/fuzz_support.hpp"
 
 using namespace oegw;
-
-namespace {
-
-void check(bool ok) {
-  if (!ok) __builtin_trap();
-}
-
-// The drivers' signal lists, as gateway::driver_catalogue gives them (without its DDS/LCM library).
-std::optional<std::vector<subdevices::SignalInfo>> catalogue(std::string_view family,
-                                                             const subdevices::DriverOptions& options,
-                                                             std::string& error) {
-  auto driver = subdevices::make_driver(family, canopen::NodeId{1}, {}, options, error);
-  if (!driver) return std::nullopt;
-  return driver->signals();
-}
-
-}  // namespace
+using fuzz::catalogue;
+using fuzz::check;
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);

@@ -14,8 +14,9 @@
 // with byte 5 even it carries the value the driver expects, so that boots run to their end and
 // the fuzzer spends its time on what follows.
 // Invariants (trap on breach): every frame the master sends is a classic 11-bit frame of at most
-// 8 bytes; a node is Operational only after a frame of its own arrived since its last NMT
-// start (proof of life: never "healthy" on silence); its driver's input values are Valid only
+// 8 bytes; a node is Operational only after its proof of life arrived since the master's last
+// NMT command to it (a heartbeat reporting operational; the pedal, without heartbeat, a TPDO of
+// its own): never "healthy" on silence or on any other frame; its driver's input values are Valid only
 // while the node is Operational; the next deadline is never in the past after advance().
 #include <cstddef>
 #include <cstdint>
@@ -28,17 +29,15 @@
 #include "canopen/master.hpp"
 #include "subdevices/families.hpp"
 #include "subdevices/network_manager.hpp"
+#include "tests/fuzz/fuzz_support.hpp"
 
 using namespace oegw;
+using fuzz::check;
 using canopen::CanFrame;
 using canopen::NodeId;
 using canopen::TimePoint;
 
 namespace {
-
-void check(bool ok) {
-  if (!ok) __builtin_trap();
-}
 
 constexpr std::uint8_t kNodes[4] = {0x11, 0x03, 0x40, 0x30};
 
@@ -184,8 +183,13 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const auto req = last_request.find(node);
       if (req == last_request.end() || !answer(req->second, *drivers[c[0] % 4], c, f)) continue;
     }
+    // Proof of life (network_manager.hpp step 8): a heartbeat reporting operational, or for the
+    // pedal (no heartbeat) one of its TPDOs. Nothing else counts.
     const std::uint8_t from = static_cast<std::uint8_t>(f.id & 0x7F);
-    if (!f.rtr && f.id != 0x7E4 && heard_since_start.count(from) != 0) heard_since_start[from] = true;
+    const std::uint32_t fn = f.id & 0x780;
+    const bool tpdo = fn == 0x180 || fn == 0x280 || fn == 0x380 || fn == 0x480;
+    const bool proof = !f.rtr && (from == kNodes[3] ? tpdo : fn == 0x700 && f.dlc == 1 && f.data[0] == 0x05);
+    if (proof && heard_since_start.count(from) != 0) heard_since_start[from] = true;
     trace("RX", f);
     (void)network.on_frame(f, now);
     sent_ok();

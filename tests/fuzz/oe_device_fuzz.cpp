@@ -22,26 +22,16 @@
 #include "gateway/oe_device.hpp"
 #include "gateway/runtime_config.hpp"
 #include "mapping/config.hpp"
-#include "subdevices/driver.hpp"
 #include "tests/fixtures/fixtures.hpp"
+#include "tests/fuzz/fuzz_support.hpp"
 
 using namespace oegw;
+using fuzz::catalogue;
+using fuzz::check;
 using canopen::CanFrame;
 using canopen::TimePoint;
 
 namespace {
-
-void check(bool ok) {
-  if (!ok) __builtin_trap();
-}
-
-std::optional<std::vector<subdevices::SignalInfo>> catalogue(std::string_view family,
-                                                             const subdevices::DriverOptions& options,
-                                                             std::string& error) {
-  auto driver = subdevices::make_driver(family, canopen::NodeId{1}, {}, options, error);
-  if (!driver) return std::nullopt;
-  return driver->signals();
-}
 
 const gateway::OeDeviceConfig& device_config() {
   static const gateway::OeDeviceConfig cfg = [] {

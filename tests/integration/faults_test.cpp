@@ -119,6 +119,30 @@ TEST_F(Faults, ElobauUnsavedGrip0002hAtPowerOnIsNoFault) {
   EXPECT_EQ(rig_->gw().faults().count("right_grip"), 0u) << log_;
 }
 
+// A grip that reboots while in use (its boot-up while operational): the host is told at once
+// by 7000h naming it, and again by its 0000h only when it is back; a grip that keeps rebooting
+// (every 94 ms, faster than any boot completes) stays reported for as long as it does.
+TEST_F(Faults, ARebootWhileInUseIsReportedAtOnceAndARebootLoopForItsWholeLength) {
+  power_on();
+  ASSERT_EQ(faults_named(kGrip), 0u) << log_;
+  grip().reboot(now());
+  rig_->run_for(50ms);
+  EXPECT_EQ(faults_named(kGrip), 1u) << log_;
+  EXPECT_EQ(rig_->gw().faults().count("right_grip"), 1u) << log_;
+  rig_->run_for(3s);
+  ASSERT_EQ(rig_->gw().downstream().state("right_grip"), sd::NodeState::Operational) << log_;
+  EXPECT_EQ(rig_->gw().faults().count("right_grip"), 0u) << log_;
+  EXPECT_GE(resets_named(kGrip), 1u) << log_;
+
+  const auto before = faults_named(kGrip);
+  for (int i = 0; i < 100; ++i) {
+    grip().reboot(now());
+    rig_->run_for(94ms);
+    ASSERT_EQ(rig_->gw().faults().count("right_grip"), 1u) << "reboot " << i << "\n" << log_;
+  }
+  EXPECT_EQ(faults_named(kGrip), before + 1) << log_;  // reported once, held throughout
+}
+
 // A cable broken while powered, the board switched off, repaired, switched on: it sends no error
 // reset, and its 1001h read back at the restart has no device error: the fault goes, with the
 // gateway's error reset naming it.

@@ -101,6 +101,14 @@ TEST(EdsCheck, DummyEntriesAndTheFrameLimit) {
   EXPECT_THAT(e, ElementsAre("pedal.eds:224: 1A00h maps 80 bits; expected at most 64 (one CAN frame)"));
 }
 
+// A PDO disabled by default (COB-ID bit 31) is not checked: a vendor's sloppy unused TPDO does
+// not refuse the node.
+TEST(EdsCheck, APdoDisabledByDefaultIsNotChecked) {
+  const auto e = check_edited({{"[1A00sub1]", "DefaultValue=0x64010110", "DefaultValue=0x64010910"},
+                               {"[1800sub1]", "DefaultValue=$NODEID+0x180", "DefaultValue=0x800001B0"}});
+  EXPECT_THAT(e, IsEmpty());
+}
+
 // The generic CiA 401 driver refuses such a file when it is configured, so `oegw check` names the
 // line instead of the node failing at boot.
 TEST(EdsCheck, TheCia401DriverRefusesAnInconsistentFile) {

@@ -543,6 +543,33 @@ TEST_F(ElobauDriverTest, ReadBackOf4001hAtBootDecidesTheLatchedFaults) {
   EXPECT_FALSE(drv->any_fault());
 }
 
+// An axis EMCY is cleared by a good channel pair received after it, never by the channel-1
+// value from before it: X 50 %, EMCY 4001h 0010h "X axis signal 1 out of range", then a TPDO #1
+// that agrees with the old TPDO #0 leaves X faulted until a fresh TPDO #0 and #1 agree.
+TEST_F(ElobauDriverTest, AnAxisFaultIsClearedOnlyByAPairReceivedAfterIt) {
+  tpdo0({0x32, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  emcy(0x1000, {0x10, 0x00, 0xFF, 0xFF, 0xFF});
+  ASSERT_TRUE(drv->faulted(idx("x")));
+  tpdo1({0x32, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_TRUE(drv->faulted(idx("x"))) << "channel 1 from before the EMCY is no evidence";
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+  tpdo0({0x32, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
+  tpdo1({0x32, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_FALSE(drv->faulted(idx("x")));
+}
+
+// 4001h is UNSIGNED16: an answer of another length is no evidence, the faults stay.
+TEST_F(ElobauDriverTest, AReadBackOfTheWrongLengthLeavesTheFaults) {
+  emcy(0x1000, {0x63, 0x00, 0xFF, 0xFF, 0xFF});
+  ASSERT_TRUE(drv->any_fault());
+  std::string error;
+  for (const auto& bad : {std::vector<std::uint8_t>{}, std::vector<std::uint8_t>{0x00}}) {
+    drv->begin_boot();
+    ASSERT_TRUE(drv->on_boot_read(0x4001, 0, bad, error));
+    EXPECT_TRUE(drv->any_fault()) << bad.size() << " bytes";
+  }
+}
+
 }  // namespace
 }  // namespace oegw::subdevices
 

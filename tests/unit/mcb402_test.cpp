@@ -421,6 +421,19 @@ TEST_F(Mcb402Test, CableBreakLatchSurvivesOfflineUntilThe1001hReadBack) {
   EXPECT_TRUE(driver_->faulted(kX));
 }
 
+// 1001h is UNSIGNED8: an answer of another length (none, two bytes) is no evidence, and the
+// latch stays (it once read an empty answer as "no device error").
+TEST_F(Mcb402Test, AReadBackOfTheWrongLengthLeavesTheLatch) {
+  emcy(CanFrame(0x83, {0x20, 0x31, 0x81, 0x00, 0x81, 0x00, 0x00, 0x00}));
+  ASSERT_TRUE(driver_->any_fault());
+  std::string error;
+  for (const auto& bad : {std::vector<std::uint8_t>{}, std::vector<std::uint8_t>{0x00, 0x00}}) {
+    driver_->begin_boot();
+    ASSERT_TRUE(driver_->on_boot_read(0x1001, 0, bad, error));
+    EXPECT_TRUE(driver_->any_fault()) << bad.size() << " bytes";
+  }
+}
+
 // [CO4013 Index 2180] "CAN Restart Time ... If the restart time is set to 0 automatic restart of the
 // device in case of bus off is prohibited" (default 0): written at configuration.
 TEST_F(Mcb402Test, ConfigurationWritesTheCanRestartTime) {

@@ -339,6 +339,28 @@ TEST_F(Novotechnik406Test, PositionFaultLatchedUntilClearCodeOr6503hReadBack) {
   EXPECT_EQ(driver_.commands(), std::vector<std::string>{"position_error_reset"});
 }
 
+// What 6503h cannot show it cannot clear: a supply voltage fault (3100h/1/0; §10.3 has it in
+// 6505h, not in the 6503h alarms) survives a 6503h of 0 at the next start; an answer of the
+// wrong length is no evidence either way.
+TEST_F(Novotechnik406Test, ReadBackClearsOnlyWhat6503hShows) {
+  ASSERT_TRUE(pdo({0x10, 0, 0, 0, 0, 0}));
+  (void)emcy(0x3100, 1, 0);
+  ASSERT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition));
+  std::string error;
+  driver_.begin_boot();
+  ASSERT_TRUE(driver_.on_boot_read(0x6503, 0, std::vector<std::uint8_t>{0x00, 0x00}, error));
+  EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition)) << "6503h says nothing of the supply";
+  (void)emcy(0x5051, 0, 0);  // the sensor's own clear
+  EXPECT_FALSE(driver_.any_fault());
+  // A position alarm, then a read-back of one byte, and of none: the latch stays.
+  (void)emcy(0x5051, 1, 1);
+  for (const auto& bad : {std::vector<std::uint8_t>{0x00}, std::vector<std::uint8_t>{}}) {
+    driver_.begin_boot();
+    ASSERT_TRUE(driver_.on_boot_read(0x6503, 0, bad, error));
+    EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition)) << bad.size() << " bytes";
+  }
+}
+
 TEST_F(Novotechnik406Test, FactoryRefusesBadOptions) {
   std::string error;
   EXPECT_EQ(make_novotechnik_406_driver(kNode, {}, DriverOptions{{{"event_timer_ms", "0"}}}, error), nullptr);
