@@ -1,15 +1,14 @@
 // libFuzzer target for the upstream device as the gateway builds it: the CiA 852 dictionary of
 // tests/fixtures/full_fe_set.yaml (16 joysticks, 16 pedals, 8 encoders, 8 wheels, 8 button
-// clusters with their indicators) with a host heartbeat consumer, started, fed frames on every
-// COB-ID it listens to (NMT, SYNC, TIME, SDO, each RPDO, LSS, heartbeats, EMCYs) with time
-// advancing between them.
+// clusters with their indicators, the first commanded from DDS/LCM only) with a host heartbeat
+// consumer, started, fed frames on every COB-ID it listens to (NMT, SYNC, TIME, SDO, each RPDO,
+// LSS, heartbeats, EMCYs) with time advancing between them.
 //
 // Input: 11-byte chunks. Byte 0 picks the CAN-ID: 0..8 NMT, SYNC, TIME, the SDO request, LSS,
 // two heartbeats (the host is node 1), two EMCYs; 9.. each RPDO's current COB-ID (all are
 // disabled by default, Table 10: a seed enables them by SDO); past those an arbitrary 11-bit ID
-// from bytes 0 and 3. byte 1 the time step
-// (x 10 ms, so SDO, heartbeat and inhibit timers all expire), byte 2 the DLC (mod 9; >= F0h an
-// RTR frame), bytes 3..10 the data.
+// from bytes 0 and 3. Byte 1 the time step (x 10 ms, so SDO, heartbeat and inhibit timers all
+// expire), byte 2 the DLC (mod 9; >= F0h an RTR frame), bytes 3..10 the data.
 // Invariants (trap on breach): every frame the device sends is a classic 11-bit frame of at most
 // 8 bytes; its next deadline never lies in the past after advance(); and unless LSS was used (it
 // may change the node-ID), an NMT reset node followed by an SDO upload of 1000h is answered with
@@ -40,6 +39,9 @@ const gateway::OeDeviceConfig& device_config() {
     auto c = gateway::device_config(*r.config, std::filesystem::path("/nonexistent/oegw-fuzz.store"));
     c.host_node = 0x01;  // 1016h:01: the host's heartbeat watched, 250 ms
     c.host_heartbeat_ms = 250;
+    // One output FE the host may not command (mapping-file sources without canopen): its 6200h
+    // entries refuse host writes (0800 0021h) and its RPDO bytes are ignored.
+    c.host_may_not_command.insert(mapping::FeId{mapping::FeKind::IndicatorCluster, 1});
     return c;
   }();
   return cfg;
