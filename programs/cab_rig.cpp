@@ -35,7 +35,11 @@ canopen::FrameSink CabRig::through(const Interceptor& consumed, canopen::FrameSi
 void CabRig::build_devices() {
   bench_ = std::make_unique<subdevices::sim::SimBench>(through(from_devices, sims_port_->sink()));
   for (const auto& s : config_.subdevices) {
-    subdevices::DeviceSpec spec{s.driver, s.node(), s.options};
+    subdevices::DeviceSpec spec{s.driver, s.node(), {}};
+    for (const auto& [key, value] : s.options.values)
+      if (key == "eds") spec.options.values.emplace_back(key, value);
+    if (const auto it = options_.simulator_options.find(s.name); it != options_.simulator_options.end())
+      for (const auto& kv : it->second.values) spec.options.values.push_back(kv);
     spec.options.values.emplace_back("name", s.name);
     std::string error;
     if (!bench_->add(spec, error)) throw std::runtime_error("simulator " + s.name + ": " + error);

@@ -12,6 +12,7 @@
 #include <chrono>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <memory>
 
 #include "canopen/io/event_loop.hpp"
@@ -28,6 +29,11 @@ struct CabRigOptions {
   canopen::Duration host_sdo_timeout = std::chrono::milliseconds(500);
   std::uint8_t host_heartbeat_entries = 2;
   GatewayOptions gateway{};  // its store_path is set from `store`
+  // Options of the simulated devices by sub-device name (subdevices/sim/sim_registry.hpp, e.g.
+  // {"left_grip", {{{"wiring", "0/1/2/3/4/5/6"}}}}: an MCB-402 wired otherwise than the
+  // document's table). The mapping file's driver options never reach a simulator, only a
+  // cia401 node's `eds` (the device and its description are one file).
+  std::map<std::string, subdevices::DriverOptions> simulator_options{};
 };
 
 class CabRig {

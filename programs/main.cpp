@@ -47,7 +47,11 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 65535));
   master_cmd->add_option("--until-operational", master.until_operational,
                          "Exit 0 once every node is operational, 1 after this many seconds");
-  master_cmd->add_option("devices", master.devices, "family:node[:key=value,...], as for oegw-sim")->required();
+  master_cmd
+      ->add_option("devices", master.devices,
+                   "family:node[:key=value,...], as for oegw-sim, with the driver's options (mcb402 requires "
+                   "button_bits=1/2/3/4/5/7/6, or its board's order: subdevices/README.md)")
+      ->required();
 
   std::string config_file;
   auto* check_cmd = app.add_subcommand("check", "Validate a mapping file and print the upstream layout");

@@ -17,7 +17,9 @@ int main(int argc, char** argv) {
                "'<device> fault measurement|overflow|underflow|hardware|clear' (Novotechnik §9.1)");
   app.add_option("devices", o.devices,
                  "family:node[:key=value,...], e.g. elobau-mfg:0x11 mcb402:0x03 "
-                 "cia401:0x30:eds=subdevices/eds/generic_pedal.eds (options: name, heartbeat_ms, store, eds)")
+                 "cia401:0x30:eds=subdevices/eds/generic_pedal.eds (options: name, heartbeat_ms, store, eds; mcb402 "
+                 "wiring=1/2/3/4/5/7/6, the bit of TPDO1 byte 2 each button BP1..BP7 sets, default the "
+                 "document's table as printed)")
       ->required();
   CLI11_PARSE(app, argc, argv);
   spdlog::set_pattern("%^%l%$: %v");

@@ -47,8 +47,30 @@ std::optional<unsigned long> parse_number(std::string_view text, unsigned long m
 
 }  // namespace
 
+std::optional<ButtonBits> parse_button_bits(std::string_view text) {
+  ButtonBits bits{};
+  std::size_t n = 0;
+  unsigned seen = 0;
+  const char separator = text.find('/') != std::string_view::npos ? '/' : ',';
+  while (true) {
+    const auto end = text.find(separator);
+    std::string_view item = text.substr(0, end);
+    while (!item.empty() && item.front() == ' ') item.remove_prefix(1);
+    while (!item.empty() && item.back() == ' ') item.remove_suffix(1);
+    const auto v = parse_number(item, 7);
+    if (!v || n == kButtons || (seen & (1u << *v)) != 0) return std::nullopt;
+    seen |= 1u << *v;
+    bits[n++] = static_cast<std::uint8_t>(*v);
+    if (end == std::string_view::npos) break;
+    text.remove_prefix(end + 1);
+  }
+  if (n != kButtons) return std::nullopt;
+  return bits;
+}
+
 std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, std::string& error) {
   Mcb402Options o;
+  bool has_button_bits = false;
   for (const auto& [key, value] : options.values) {
     if (key == "event_timer_ms") {
       const auto v = parse_number(value, 65535);
@@ -74,33 +96,22 @@ std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, 
       }
       o.can_restart_ms = static_cast<std::uint16_t>(*v);
     } else if (key == "button_bits") {
-      ButtonBits bits{};
-      std::size_t n = 0;
-      unsigned seen = 0;
-      std::string_view rest = value;
-      bool ok = true;
-      while (ok) {
-        const auto comma = rest.find(',');
-        const auto v = parse_number(rest.substr(0, comma), 7);
-        if (!v || n == kButtons || (seen & (1u << *v)) != 0) {
-          ok = false;
-          break;
-        }
-        seen |= 1u << *v;
-        bits[n++] = static_cast<std::uint8_t>(*v);
-        if (comma == std::string_view::npos) break;
-        rest.remove_prefix(comma + 1);
-      }
-      if (!ok || n != kButtons) {
-        error = "mcb402: button_bits must be 7 distinct bit numbers 0..7 for BP1..BP7 (e.g. 1,2,3,4,5,7,6), got '" +
-                value + "'";
+      const auto bits = parse_button_bits(value);
+      if (!bits) {
+        error = "mcb402: button_bits must be 7 distinct bit numbers 0..7 of 6000h:03 for BP1..BP7, separated by "
+                "',' or '/' (e.g. [1, 2, 3, 4, 5, 7, 6]), got '" + value + "'";
         return std::nullopt;
       }
-      o.button_bits = bits;
+      o.button_bits = *bits;
+      has_button_bits = true;
     } else {
       error = "mcb402: unknown option '" + key + "' (expected event_timer_ms, button_timer_ms, can_restart_ms, button_bits)";
       return std::nullopt;
     }
+  }
+  if (!has_button_bits) {
+    error = std::string(kButtonBitsMissing);
+    return std::nullopt;
   }
   return o;
 }

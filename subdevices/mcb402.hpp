@@ -23,10 +23,12 @@
 //     them into 6000h ("inverted level because active low", [CO4013 6000h sub 3]), so on the wire
 //     1 = pressed: the driver does not invert again, and pins the polarity object 6002h:03 to 0 at
 //     boot so that nobody's stored inversion changes that meaning.
-//   Button bits of byte cc, [MCB §4] "Bit of cc 7 6 5 4 3 2 1 0 / N° BP 6 7 5 4 3 2 1": read as
-//     written, bit 7 = BP6, bit 6 = BP7, bits 5..1 = BP5..BP1, bit 0 unused. The extracted table is
-//     damaged (7 entries under 8 columns, BP6/BP7 in unexpected order): the option `button_bits`
-//     overrides it, and it must be checked on a real board.
+//   Button bits of byte cc, [MCB §4] "Bit of cc 7 6 5 4 3 2 1 0 / N° BP 6 7 5 4 3 2 1": the
+//     extracted table is damaged (7 entries under 8 columns, BP6/BP7 in unexpected order; read
+//     as written: bit 7 = BP6, bit 6 = BP7, bits 5..1 = BP5..BP1, bit 0 unused). The driver
+//     therefore has no bit order of its own: the option `button_bits` is required, a
+//     commissioning choice the integrator reads off the board (subdevices/README.md "MCB-402
+//     button bits": press BP1..BP7 one at a time, note the bit of byte 2 of TPDO1 that is set).
 //   TPDO2 0x280+id, 8 bytes: X, Y, Z, T as INTEGER16 little endian ("the word for X axis is
 //     0xbbaa"); 2.5 V = 0x0000, 5 V = 0x7FFF, 0 V = 0x8000 [MCB §4].
 //   RPDO1 0x200+id, 1 byte: 6200h:01, bits 0..3 = OUT0..OUT3 ([CO4013 "Operation mode 4"]); the
@@ -62,7 +64,8 @@
 // Options: event_timer_ms (1..65535, default 20 — the document gives no value, its default 0
 // would mean no periodic axes), button_timer_ms (0..65535, default 100, 0 = on change only),
 // can_restart_ms (1..65535, default 1000: the document gives none, 0 is refused),
-// button_bits (seven distinct bit numbers 0..7 for BP1..BP7, default "1,2,3,4,5,7,6").
+// button_bits (required, no default: seven distinct bit numbers 0..7 of 6000h:03 for BP1..BP7,
+// separated by ',' — a YAML list in the mapping file — or '/' on a command line).
 //
 // Identity [CO4013 1000h, 1018h]: device type 0107 0191h (CO4013A4), vendor 58h, product code
 // 0104 0131h; revision is "revision of the device" and not checked.
@@ -72,6 +75,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "subdevices/driver.hpp"
@@ -90,9 +94,15 @@ inline constexpr std::size_t kAxes = 4;
 inline constexpr std::size_t kButtons = 7;
 inline constexpr std::size_t kLeds = 4;
 inline constexpr std::size_t kButtonByte = 2;  // 6000h:03 in TPDO1
-// BP1..BP7 -> bit of 6000h:03 ([MCB §4] table, see above).
+// BP1..BP7 -> bit of 6000h:03 (the option `button_bits`, see above).
 using ButtonBits = std::array<std::uint8_t, kButtons>;
-inline constexpr ButtonBits kDefaultButtonBits{1, 2, 3, 4, 5, 7, 6};
+// What parse_mcb402_options() says when `button_bits` is missing: the setting and the
+// commissioning step that fills it.
+inline constexpr std::string_view kButtonBitsMissing =
+    "mcb402: option button_bits is required (no default: the document's bit table is damaged): the bit of "
+    "6000h:03 - byte 2 of TPDO1, COB-ID 180h + node-ID - that each push button BP1..BP7 sets, e.g. "
+    "options: { button_bits: [1, 2, 3, 4, 5, 7, 6] }; commissioning: start the board, press BP1..BP7 one at a "
+    "time and note the bit of that byte that goes to 1 (subdevices/README.md \"MCB-402 button bits\")";
 // Signal indices.
 inline constexpr std::size_t kFirstButton = kAxes;
 inline constexpr std::size_t kFirstLed = kAxes + kButtons;
@@ -102,7 +112,7 @@ struct Mcb402Options {
   std::uint16_t event_timer_ms = 20;
   std::uint16_t button_timer_ms = 100;
   std::uint16_t can_restart_ms = 1000;
-  mcb402::ButtonBits button_bits = mcb402::kDefaultButtonBits;
+  mcb402::ButtonBits button_bits{};  // required: parse_mcb402_options() refuses options without it
 };
 
 class Mcb402Driver final : public Driver {
@@ -152,7 +162,11 @@ class Mcb402Driver final : public Driver {
   bool outputs_pending_ = false;  // set_output() inside an output batch: RPDO1 not sent yet
 };
 
-// Parses `options` (event_timer_ms, button_timer_ms, button_bits); nullopt + `error` if bad.
+// Parses `options` (event_timer_ms, button_timer_ms, can_restart_ms, button_bits); nullopt +
+// `error` if one is bad or button_bits is missing.
 std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, std::string& error);
+// "1,2,3,4,5,7,6" or "1/2/3/4/5/7/6" (spaces around the numbers allowed) -> the bits of BP1..BP7;
+// nullopt unless 7 distinct bit numbers 0..7.
+std::optional<mcb402::ButtonBits> parse_button_bits(std::string_view text);
 
 }  // namespace oegw::subdevices

@@ -79,14 +79,25 @@ void read_identity(YamlReader& r, const MapEntry& e, const std::string& what, Su
   opt("serial", id.serial);
 }
 
-// The driver's options, name -> one scalar each; the driver judges them (read_signals).
+// The driver's options, name -> one scalar each, or a list of scalars passed on as their values
+// joined by ',' (e.g. the MCB-402's button_bits: [1, 2, 3, 4, 5, 7, 6]); the driver judges them
+// (read_signals).
 void read_options(YamlReader& r, const MapEntry& e, const std::string& what, SubdeviceConfig& s) {
   for (const auto& x : r.entries(e.value, what + " options", {}, "a map of the driver's options")) {
-    if (!x.value.IsScalar()) {
-      r.error(x.value, "found " + node_kind(x.value) + " for option '" + x.name + "'; expected a single value");
+    std::string value;
+    bool scalars = x.value.IsScalar() || x.value.IsSequence();
+    if (x.value.IsScalar()) value = x.value.Scalar();
+    if (x.value.IsSequence())
+      for (const auto& item : x.value) {
+        scalars = scalars && item.IsScalar();
+        if (item.IsScalar()) value += (value.empty() ? "" : ",") + item.Scalar();
+      }
+    if (!scalars) {
+      r.error(x.value, "found " + node_kind(x.value) + " for option '" + x.name +
+                           "'; expected a single value or a list of single values");
       continue;
     }
-    s.options.values.emplace_back(x.name, x.value.Scalar());
+    s.options.values.emplace_back(x.name, value);
     s.option_where.emplace_back(x.name, r.loc(x.value));
   }
 }

@@ -93,6 +93,26 @@ std::uint8_t bit_timing_for(std::uint16_t kbaud) {
 
 }  // namespace
 
+std::optional<co4013::ButtonBits> co4013::parse_wiring(std::string_view text) {
+  ButtonBits bits{};
+  std::size_t n = 0;
+  unsigned seen = 0;
+  const char separator = text.find('/') != std::string_view::npos ? '/' : ',';
+  while (true) {
+    const auto end = text.find(separator);
+    const std::string_view item = text.substr(0, end);
+    if (item.size() != 1 || item[0] < '0' || item[0] > '7' || n == kButtons) return std::nullopt;
+    const auto bit = static_cast<std::uint8_t>(item[0] - '0');
+    if ((seen & (1u << bit)) != 0) return std::nullopt;
+    seen |= 1u << bit;
+    bits[n++] = bit;
+    if (end == std::string_view::npos) break;
+    text.remove_prefix(end + 1);
+  }
+  if (n != kButtons) return std::nullopt;
+  return bits;
+}
+
 std::optional<Mcb402SimConfig> Mcb402SimConfig::from_jumpers(std::uint8_t address_pins, std::uint8_t baud_pins) {
   const auto address = static_cast<std::uint8_t>(~address_pins & 0x7F);
   if (address == 0) return std::nullopt;

@@ -37,6 +37,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <string_view>
 
 #include "canopen/301/subscription.hpp"
 #include "subdevices/sim/simulated_device.hpp"
@@ -51,9 +52,14 @@ inline constexpr std::uint32_t kProductCode = 0x01040131;  // [CO4013 1018h]
 inline constexpr std::uint16_t kEmcyCableBreak = 0x3120;   // [CO4013 "Emergency Messages"]
 inline constexpr std::size_t kAxes = 4;                    // X, Y, Z, T [MCB §2]
 inline constexpr std::size_t kButtons = 7;                 // BP1..BP7 [MCB §4]
-// BP1..BP7 -> bit of 6000h:03, [MCB §4] "Bit of cc 7 6 5 4 3 2 1 0 / N° BP 6 7 5 4 3 2 1".
+// BP1..BP7 -> bit of 6000h:03: how a board is wired. [MCB §4] "Bit of cc 7 6 5 4 3 2 1 0 / N° BP
+// 6 7 5 4 3 2 1", read as printed, is the simulated board's wiring unless its configuration
+// says otherwise (the table is damaged: a real board may differ, which is why the driver
+// takes the order from the mapping file only).
 using ButtonBits = std::array<std::uint8_t, kButtons>;
-inline constexpr ButtonBits kDefaultButtonBits{1, 2, 3, 4, 5, 7, 6};
+inline constexpr ButtonBits kPrintedTableBits{1, 2, 3, 4, 5, 7, 6};
+// "1/2/3/4/5/7/6" or "1,2,3,4,5,7,6" -> the wiring of BP1..BP7; nullopt unless 7 distinct bits 0..7.
+std::optional<ButtonBits> parse_wiring(std::string_view text);
 }  // namespace co4013
 
 struct Mcb402SimConfig {
@@ -61,7 +67,7 @@ struct Mcb402SimConfig {
   std::uint16_t kbaud = 250;  // 20, 50, 125, 250 or 500 [MCB §1]
   std::uint32_t revision = 1;
   std::uint16_t heartbeat_ms = 0;  // 1017h default (document: 0)
-  co4013::ButtonBits button_bits = co4013::kDefaultButtonBits;
+  co4013::ButtonBits button_bits = co4013::kPrintedTableBits;  // oegw-sim option wiring=
   std::filesystem::path store_path;  // empty: no 1010h/1011h
 
   // [MCB §3] CN3 jumpers. Address pins 14,12,10,8,6,4,2 (bit 6 .. bit 0 of `address_pins`) and

@@ -26,9 +26,18 @@ bool SimBench::add(const DeviceSpec& spec, std::string& error) {
   }
   // The simulator takes only its own options; the driver (for the signal list) the family's.
   DeviceSpec driver_spec = sim_spec;
-  std::erase_if(driver_spec.options.values, [](const auto& kv) { return kv.first == "heartbeat_ms" || kv.first == "store"; });
+  std::erase_if(driver_spec.options.values, [](const auto& kv) {
+    return kv.first == "heartbeat_ms" || kv.first == "store" || kv.first == "wiring";
+  });
   auto sim = make_simulator(sim_spec, sink_, error);
   if (!sim) return false;
+  // The MCB-402 driver requires the button bit order; its signal names do not depend on it, and
+  // this driver decodes nothing: the simulated board's own wiring satisfies it.
+  if (const auto* mcb = dynamic_cast<const Mcb402Sim*>(sim.get())) {
+    std::string bits;
+    for (const auto b : mcb->config().button_bits) bits += (bits.empty() ? "" : ",") + std::to_string(b);
+    driver_spec.options.values.emplace_back("button_bits", bits);
+  }
   auto driver = make_driver(spec.family, spec.node, {}, driver_spec.options, error);
   if (!driver) return false;
   devices_.push_back({name, std::move(sim), driver->signals()});

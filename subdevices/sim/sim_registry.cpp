@@ -10,7 +10,7 @@
 namespace oegw::subdevices::sim {
 
 namespace {
-// The three families configured by node-ID, heartbeat and store alone.
+// The families configured by node-ID, heartbeat and store alone.
 template <class Sim, class Config>
 std::unique_ptr<SimulatedDevice> make(const DeviceSpec& spec, FrameSink sink, std::uint16_t heartbeat_ms,
                                       const std::filesystem::path& store) {
@@ -26,6 +26,7 @@ std::unique_ptr<SimulatedDevice> make_simulator(const DeviceSpec& spec, FrameSin
   std::uint16_t heartbeat_ms = 0;
   std::filesystem::path store;
   std::string eds;
+  std::optional<co4013::ButtonBits> wiring;
   for (const auto& [key, value] : spec.options.values) {
     if (key == "heartbeat_ms") {
       char* end = nullptr;
@@ -39,14 +40,28 @@ std::unique_ptr<SimulatedDevice> make_simulator(const DeviceSpec& spec, FrameSin
       store = value;
     } else if (key == "eds" && spec.family == "cia401") {
       eds = value;
+    } else if (key == "wiring" && spec.family == "mcb402") {
+      wiring = co4013::parse_wiring(value);
+      if (!wiring) {
+        error = spec.name() + ": wiring '" + value +
+                "' is not 7 distinct bits 0..7 of 6000h:03 for BP1..BP7, e.g. wiring=1/2/3/4/5/7/6";
+        return nullptr;
+      }
     } else {
       error = spec.name() + ": unknown simulator option '" + key + "' (expected heartbeat_ms, store" +
-              (spec.family == "cia401" ? ", eds)" : ")");
+              (spec.family == "cia401" ? ", eds)" : spec.family == "mcb402" ? ", wiring)" : ")");
       return nullptr;
     }
   }
+  if (spec.family == "mcb402") {
+    Mcb402SimConfig c;
+    c.node_id = spec.node;
+    c.heartbeat_ms = heartbeat_ms;
+    c.store_path = store;
+    if (wiring) c.button_bits = *wiring;
+    return std::make_unique<Mcb402Sim>(std::move(sink), c);
+  }
   if (spec.family == "elobau-mfg") return make<ElobauMfgSim, ElobauMfgSimConfig>(spec, std::move(sink), heartbeat_ms, store);
-  if (spec.family == "mcb402") return make<Mcb402Sim, Mcb402SimConfig>(spec, std::move(sink), heartbeat_ms, store);
   if (spec.family == "novotechnik-406") return make<Novotechnik406Sim, Novotechnik406SimConfig>(spec, std::move(sink), heartbeat_ms, store);
   if (spec.family == "cia401") {
     if (eds.empty()) {

@@ -9,8 +9,9 @@
 
 namespace oegw::subdevices::sim {
 
-// Options understood: cia401 "eds" (required); every family "heartbeat_ms" (1017h default) and
-// "store" (parameter file). nullptr with `error` for an unknown family or option.
+// Options understood: cia401 "eds" (required); mcb402 "wiring" (the bit of 6000h:03 each push
+// button BP1..BP7 is wired to, "1/2/3/4/5/7/6"; default the document's table as printed); every
+// family "heartbeat_ms" (1017h default) and "store" (parameter file). nullptr with `error` for an unknown family or option.
 std::unique_ptr<SimulatedDevice> make_simulator(const DeviceSpec& spec, FrameSink sink, std::string& error);
 
 }  // namespace oegw::subdevices::sim

@@ -232,7 +232,7 @@ TEST_F(Boot, BootDiagnosticsAreReadKeptAndReportedOncePerBoot) {
   stick.start(net_.now());
   make_gateway();
   add("novotechnik-406", kKnob, NodeSettings{.name = "knob", .heartbeat_ms = 50});
-  add("mcb402", kStick, NodeSettings{.name = "stick", .heartbeat_ms = 50});
+  add("mcb402", kStick, NodeSettings{.name = "stick", .heartbeat_ms = 50}, DriverOptions{{{"button_bits", "1,2,3,4,5,7,6"}}});
   network_->start(net_.now());
   net_.run_for(2s);
   ASSERT_EQ(network_->state("knob"), NodeState::Operational) << log_;

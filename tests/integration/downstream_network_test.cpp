@@ -38,6 +38,8 @@ class DownstreamNetwork : public ::testing::Test {
         if (kv.first == "name") name = kv.second;
         return kv.first == "name";
       });
+      // The bit order the mapping file would give: the simulator's (the document's table).
+      if (spec->family == "mcb402") driver_spec.options.values.emplace_back("button_bits", "1,2,3,4,5,7,6");
       auto driver = make_driver(spec->family, spec->node, net_.sink("gateway"), driver_spec.options, error);
       ASSERT_TRUE(driver) << error;
       NodeSettings s;

@@ -13,6 +13,7 @@
 #include <array>
 #include <filesystem>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -86,7 +87,8 @@ class GatewayE2E : public ::testing::Test {
     store_ = std::filesystem::path(::testing::TempDir()) /
              fmt::format("gateway_e2e_{}_{}.store", ::getpid(), ::testing::UnitTest::GetInstance()->random_seed());
     std::filesystem::remove(store_);
-    rig_ = std::make_unique<gw::CabRig>(config_, loop_, gw::CabRigOptions{.store = store_});
+    rig_ = std::make_unique<gw::CabRig>(config_, loop_,
+                                        gw::CabRigOptions{.store = store_, .simulator_options = sim_options_});
     rig_->up().set_tap([this](const BusRecord& r) { upstream_.push_back(r); });
     rig_->down().set_tap([this](const BusRecord& r) {
       downstream_.push_back(r);
@@ -266,6 +268,8 @@ class GatewayE2E : public ::testing::Test {
   SimulatedClock clock_;
   EventLoop loop_{clock_};
   TimePoint t0_{};
+  // Options of the simulated devices by name (e.g. the MCB-402's wiring), set before build().
+  std::map<std::string, sd::DriverOptions> sim_options_;
   std::filesystem::path store_;
   std::unique_ptr<gw::CabRig> rig_;  // the demo's harness (programs/cab_rig.hpp)
   // Into rig_: the simulators, the host, its port, the current gateway (connect_gateway).
@@ -373,6 +377,56 @@ TEST_F(GatewayE2E, Joystick2FromMcb402WithInvertedY) {
   EXPECT_EQ(i16(*last(kTpdo5), 4), -32767);
   EXPECT_EQ(i16(*last(kTpdo5), 2), -32767);
   EXPECT_EQ(field(kJoy2, "y"), -32767);
+}
+
+// The MCB-402 button bit order is the mapping file's (demo_cab.yaml: the document's table as
+// printed, BP6 = bit 7, BP7 = bit 6), and the simulated board's wiring its own: wired the same,
+// BP6 arrives as buttons[6].
+TEST_F(GatewayE2E, Mcb402ButtonsAsTheMappingFilesBitOrderWhenTheBoardIsWiredSo) {
+  build();
+  boot_and_start();
+  cmd("left_grip buttons[6] 1");
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy2, "buttons[6]"), 1) << dump();
+  EXPECT_EQ(field(kJoy2, "buttons[7]"), 0);
+  const auto f = last(kTpdo5);
+  ASSERT_TRUE(f) << dump();
+  EXPECT_EQ(f->data[7], 0x20) << "buttons[6] = bit 5 of the joystick's button byte";
+}
+
+// A board wired otherwise (BP6 on bit 6, BP7 on bit 7) than the mapping file's choice: the
+// gateway reports the wrong button. Nothing on the bus can tell, which is why the bit order is a
+// commissioning step (README "MCB-402 button bits") and not a default.
+TEST_F(GatewayE2E, Mcb402ButtonBitOrderOtherThanTheBoardsReportsTheWrongButton) {
+  sim_options_["left_grip"] = sd::DriverOptions{{{"wiring", "1/2/3/4/5/6/7"}}};
+  build();
+  boot_and_start();
+  cmd("left_grip buttons[6] 1");
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy2, "buttons[6]"), 0) << dump();
+  EXPECT_EQ(field(kJoy2, "buttons[7]"), 1) << "BP6 pressed, buttons[7] reported";
+  cmd("left_grip buttons[6] 0");
+  cmd("left_grip buttons[1] 1");  // the bits both orders agree on
+  run_for(300ms);
+  EXPECT_EQ(field(kJoy2, "buttons[1]"), 1);
+  EXPECT_EQ(field(kJoy2, "buttons[7]"), 0);
+}
+
+// Without button_bits the mapping file is refused where the sub-device names its driver, with
+// the setting and the commissioning step (what `oegw check` prints).
+TEST(GatewayE2EConfig, Mcb402WithoutButtonBitsIsRefusedWithFileLineColumn) {
+  std::string yaml = mapping_yaml();
+  const std::string bits = ", options: { button_bits: [1, 2, 3, 4, 5, 7, 6] }";
+  ASSERT_NE(yaml.find(bits), std::string::npos);
+  yaml.erase(yaml.find(bits), bits.size());
+  const auto loaded = oegw::mapping::load_config_text(yaml, "e2e.yaml", gw::driver_catalogue());
+  ASSERT_FALSE(loaded.ok());
+  const std::string text = loaded.error_text();
+  EXPECT_NE(text.find("e2e.yaml:10:25: driver mcb402 refused sub-device 'left_grip': mcb402: option button_bits is "
+                      "required"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("press BP1..BP7 one at a time"), std::string::npos) << text;
 }
 
 TEST_F(GatewayE2E, PedalEncoderWheelAndButtonClusterTpdos) {

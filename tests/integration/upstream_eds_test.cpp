@@ -40,7 +40,7 @@ const std::string kHead =
     "downstream: { interface: virtual }\n"
     "subdevices:\n"
     "  grip: { driver: elobau-mfg, node_id: 0x11 }\n"
-    "  mcb: { driver: mcb402, node_id: 0x12 }\n";
+    "  mcb: { driver: mcb402, node_id: 0x12, options: { button_bits: [1, 2, 3, 4, 5, 7, 6] } }\n";
 
 void expect_eds_equals_device(const std::string& yaml) {
   const mapping::Config c = load(yaml);

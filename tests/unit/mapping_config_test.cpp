@@ -29,7 +29,8 @@ void add_range(std::vector<SignalInfo>& out, const std::string& base, int n, Sig
   for (int i = 1; i <= n; ++i) out.push_back({base + "[" + std::to_string(i) + "]", k, lo, hi, 0, unit});
 }
 
-// Options each fake family accepts: elobau-mfg "tolerance", cia401 "eds" (required).
+// Options each fake family accepts: elobau-mfg "tolerance", mcb402 "button_bits", cia401 "eds"
+// (required).
 std::optional<std::vector<SignalInfo>> fake_catalogue(std::string_view family, const DriverOptions& options,
                                                        std::string& error) {
   std::vector<std::string> allowed;
@@ -40,6 +41,7 @@ std::optional<std::vector<SignalInfo>> fake_catalogue(std::string_view family, c
     add_range(s, "buttons", 16, SignalKind::Button, 0, 1, "bits");
     add_range(s, "leds", 16, SignalKind::Output, 0, 2, "code");  // off / on / blink
   } else if (family == "mcb402") {
+    allowed = {"button_bits"};
     for (const char* n : {"x", "y", "z", "t"}) s.push_back({n, SignalKind::Axis, -32768, 32767, 0, "raw16"});
     add_range(s, "buttons", 7, SignalKind::Button, 0, 1, "bits");
     add_range(s, "leds", 4, SignalKind::Output, 0, 1, "bits");
@@ -963,6 +965,29 @@ TEST(MappingConfig, EveryPrefixOfTheDemoFileGivesAConfigOrErrorsNeverACrash) {
     ok += r.ok() ? 1 : 0;
   }
   EXPECT_GT(ok, 0u);  // the cuts after the last element's lines load
+}
+
+// An option may be a list of single values (the MCB-402's button_bits): the driver gets them
+// joined by ','; a list holding a map or a list is an error at that list.
+TEST(MappingConfig, ListOptionsReachTheDriverJoinedByCommas) {
+  const auto r = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  a: { driver: mcb402, node_id: 2, options: { button_bits: [1, 2, 3, 4, 5, 7, 6] } }
+  b: { driver: mcb402, node_id: 3, options: { button_bits: "0,1,2,3,4,5,6" } }
+functional_elements: {}
+)");
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  EXPECT_EQ(r.config->subdevices[0].options.get("button_bits"), std::optional<std::string>("1,2,3,4,5,7,6"));
+  EXPECT_EQ(r.config->subdevices[1].options.get("button_bits"), std::optional<std::string>("0,1,2,3,4,5,6"));
+  const auto bad = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  a: { driver: mcb402, node_id: 2, options: { button_bits: [1, [2]] } }
+functional_elements: {}
+)");
+  EXPECT_THAT(errors(bad), ElementsAre("t.yaml:4:60: found a list for option 'button_bits'; expected a single value "
+                                       "or a list of single values"));
 }
 
 TEST(MappingConfig, MissingFileIsAnErrorNotACrash) {

@@ -30,7 +30,9 @@ class Mcb402Test : public ::testing::Test {
  protected:
   Mcb402Test() { make({}); }
 
-  void make(const DriverOptions& options) {
+  // `options` plus the required button_bits (the document's table as printed) unless given.
+  void make(DriverOptions options) {
+    if (!options.get("button_bits")) options.values.emplace_back("button_bits", "1,2,3,4,5,7,6");
     std::string error;
     driver_ = make_mcb402_driver(kNode, [this](const CanFrame& f) { sent_.push_back(f); }, options, error);
     ASSERT_NE(driver_, nullptr) << error;
@@ -446,31 +448,49 @@ TEST_F(Mcb402Test, ConfigurationWritesTheCanRestartTime) {
   make({{{"can_restart_ms", "250"}}});
   EXPECT_EQ(find(), (std::vector<std::uint8_t>{250, 0}));
   std::string error;
-  EXPECT_EQ(make_mcb402_driver(kNode, [](const CanFrame&) {}, {{{"can_restart_ms", "0"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, [](const CanFrame&) {}, {{{"can_restart_ms", "0"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error), nullptr);
   EXPECT_NE(error.find("can_restart_ms"), std::string::npos);
 }
 
 TEST_F(Mcb402Test, OptionsAreCheckedAndUnknownOnesRefused) {
   std::string error;
   auto sink = [](const CanFrame&) {};
-  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "0"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "0"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error), nullptr);
   EXPECT_NE(error.find("event_timer_ms"), std::string::npos);
-  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "65536"}}}, error), nullptr);
-  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "2x"}}}, error), nullptr);
-  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_timer_ms", "-1"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "65536"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "2x"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_timer_ms", "-1"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error), nullptr);
   EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", "1,2,3,4,5,6"}}}, error), nullptr);
   EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", "1,2,3,4,5,6,6"}}}, error), nullptr);
   EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", "1,2,3,4,5,6,8"}}}, error), nullptr);
   EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", "0,1,2,3,4,5,6,7"}}}, error), nullptr);
-  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"heartbeat", "100"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"heartbeat", "100"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error), nullptr);
   EXPECT_NE(error.find("unknown option 'heartbeat'"), std::string::npos);
   EXPECT_EQ(make_mcb402_driver(NodeId{0}, sink, {}, error), nullptr);
-  auto d = make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "65535"}, {"button_timer_ms", "0"}}}, error);
+  auto d = make_mcb402_driver(kNode, sink,
+                              {{{"event_timer_ms", "65535"}, {"button_timer_ms", "0"}, {"button_bits", "1/2/3/4/5/7/6"}}},
+                              error);
   ASSERT_NE(d, nullptr) << error;
   const auto& o = dynamic_cast<Mcb402Driver&>(*d).options();
   EXPECT_EQ(o.event_timer_ms, 65535);
   EXPECT_EQ(o.button_timer_ms, 0);
-  EXPECT_EQ(o.button_bits, mcb402::kDefaultButtonBits);
+  EXPECT_EQ(o.button_bits, (mcb402::ButtonBits{1, 2, 3, 4, 5, 7, 6})) << "'/' separates as ',' does";
+}
+
+// The bit order has no default (the document's table is damaged): a missing button_bits names
+// the setting and the commissioning step that fills it.
+TEST_F(Mcb402Test, ButtonBitsAreARequiredCommissioningChoice) {
+  std::string error;
+  auto sink = [](const CanFrame&) {};
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {}, error), nullptr);
+  EXPECT_EQ(error, mcb402::kButtonBitsMissing);
+  EXPECT_NE(error.find("button_bits is required"), std::string::npos);
+  EXPECT_NE(error.find("press BP1..BP7 one at a time"), std::string::npos);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "50"}}}, error), nullptr);
+  EXPECT_EQ(error, mcb402::kButtonBitsMissing);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", ""}}}, error), nullptr);
+  EXPECT_NE(error.find("got ''"), std::string::npos);
+  EXPECT_NE(make_mcb402_driver(kNode, sink, {{{"button_bits", "6, 5, 4, 3, 2, 1, 0"}}}, error), nullptr) << error;
 }
 
 }  // namespace

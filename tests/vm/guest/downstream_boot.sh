@@ -16,7 +16,7 @@ start_candump vcan1 /tmp/down.dump || fail "candump did not start"
 "$sim" -i vcan1 --motion elobau-mfg:0x11 mcb402:0x03 >/tmp/sim.log 2>&1 &
 sim_pid=$!
 wait_receivers vcan1 2 || fail "oegw-sim did not bind vcan1"
-timeout 60 "$oegw" master -i vcan1 --until-operational 30 elobau-mfg:0x11 mcb402:0x03 >/tmp/master.log 2>&1
+timeout 60 "$oegw" master -i vcan1 --until-operational 30 elobau-mfg:0x11 mcb402:0x03:button_bits=1/2/3/4/5/7/6 >/tmp/master.log 2>&1
 rc=$?
 ((rc == 0)) && pass "oegw master: both nodes operational" || fail "oegw master exit $rc"
 # Let the inputs flow for a moment, watched by a second master run that only prints signals.
