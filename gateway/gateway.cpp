@@ -174,6 +174,13 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     held_fault_emcys_.clear();
   };
   // 1028h: EMCYs of other upstream nodes, logged and kept for the status.
+  if (auto* cmd = oe_->od().find(cia852::kSubdeviceCommand))
+    command_hook_ = cmd->add_write_hook([this](canopen::Object&, std::uint8_t, std::span<const std::uint8_t> b,
+                                               canopen::Origin) {
+      std::uint32_t v = 0;
+      for (std::size_t i = 0; i < b.size() && i < 4; ++i) v |= static_cast<std::uint32_t>(b[i]) << (8 * i);
+      return host_subdevice_command(v);
+    });
   oe_->on_emcy([this](const canopen::EmcyMessage& m, TimePoint t) {
     EmcyRecord& r = upstream_emcys_[m.node.value()];
     r = EmcyRecord{m, t, r.count + 1};
@@ -418,6 +425,24 @@ std::vector<Gateway::FieldState> Gateway::fields(mapping::FeId fe) const {
     out.push_back(f);
   }
   return out;
+}
+
+canopen::SdoAbortCode Gateway::host_subdevice_command(std::uint32_t value) {
+  const auto node = static_cast<std::uint8_t>(value & 0xFF);
+  const auto code = static_cast<std::uint8_t>((value >> 8) & 0xFF);
+  Sub* s = nullptr;
+  for (auto& [name, sub] : subs_)
+    if (sub.config->node_id == node) s = &sub;
+  if (s == nullptr) return canopen::SdoAbortCode::SubIndexDoesNotExist;  // as remote SDO: node not configured
+  std::string_view command;
+  for (const auto& [c, name] : kSubdeviceCommands)
+    if (c == code) command = name;
+  if ((value >> 16) != 0 || command.empty() || s->driver->command(command).empty())
+    return canopen::SdoAbortCode::InvalidValue;
+  if (!s->operational) return canopen::SdoAbortCode::CannotTransferDeviceState;
+  log("host: 3000h sub-device command " + std::string(command) + " to " + s->config->name);
+  return subdevice_command(s->config->name, command, now_) ? canopen::SdoAbortCode::None
+                                                           : canopen::SdoAbortCode::CannotTransferDeviceState;
 }
 
 bool Gateway::subdevice_command(const std::string& name, std::string_view command, TimePoint now) {

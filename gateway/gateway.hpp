@@ -110,6 +110,11 @@ class Gateway {
   // answer logged. False (logged) for an unknown sub-device or command, or a node not
   // operational. What it changes comes from the device's own evidence (a clear EMCY).
   bool subdevice_command(const std::string& name, std::string_view command, canopen::TimePoint now);
+  // The host's way to the same commands: an SDO download of 3000h "Sub-device command"
+  // (cia852::kSubdeviceCommand) = command code << 8 | node-ID; the codes are kSubdeviceCommands.
+  // Refused, changing nothing: a node not configured 0609 0011h, an unknown code (or one the
+  // node's driver has not, or bits 16..31 set) 0609 0030h, a node not operational 0800 0022h.
+  static constexpr std::pair<std::uint8_t, std::string_view> kSubdeviceCommands[] = {{1, "position_error_reset"}};
   // Commands refused so far: a source the FE does not take (each refused SDO download and each
   // refused RPDO entry of the host counts), an FE not configured.
   [[nodiscard]] std::uint64_t refused_commands() const { return arbiter_->refused(); }
@@ -213,6 +218,8 @@ class Gateway {
   subdevices::NetworkManager network_;
   std::unique_ptr<RemoteSdo> remote_sdo_;  // before oe_: its SDO servers point to it
   std::unique_ptr<OeDevice> oe_;
+  canopen::Subscription command_hook_;  // 3000h's write hook (after oe_: removed before it)
+  canopen::SdoAbortCode host_subdevice_command(std::uint32_t value);
   FeModel model_;
   canopen::TimePoint now_{};
   std::unique_ptr<CommandArbiter> arbiter_;

@@ -43,6 +43,7 @@ OeDeviceConfig device_config(const mapping::Config& c, std::optional<std::filesy
   oe.identity = {c.upstream.identity.vendor_id, c.upstream.identity.product_code, c.upstream.identity.revision,
                  c.upstream.identity.serial};
   oe.heartbeat_ms = c.upstream.heartbeat_ms;
+  oe.subdevice_commands = !c.subdevices.empty();
   for (const auto& fe : c.functional_elements) {
     oe.fes.push_back(fe.id);
     // CiA 852 Table 8 distinguishes joysticks with buttons.

@@ -110,6 +110,9 @@ canopen::NodeConfig build_dictionary(const DeviceConfig& cfg, ObjectDictionary& 
                    canopen::encode<std::uint32_t>(0), true, namer(kReadInput32));
   add_sparse_array(od, kReadAnalogueInput16, DataType::Integer16, Access::ReadOnly, mapped_of(kReadAnalogueInput16),
                    canopen::encode<std::int16_t>(0), true, namer(kReadAnalogueInput16));
+  if (cfg.subdevice_commands)  // the last command accepted reads back; the gateway checks each write
+    od.add_var(kSubdeviceCommand, "Sub-device command", DataType::Unsigned32, Access::ReadWrite,
+               canopen::encode<std::uint32_t>(0));
   if (has_kind(fes, FeKind::Joystick) || has_kind(fes, FeKind::FootPedal) || has_kind(fes, FeKind::Wheel))
     od.add_var(kAnalogueInputGlobalInterruptEnable, std::string(object_name(kAnalogueInputGlobalInterruptEnable)),
                DataType::Boolean, Access::ReadWrite, {0});

@@ -59,8 +59,14 @@ struct Identity {
 // table 0 indexes 4, 3, 2, 0).
 inline constexpr canopen::lss::BitTimings kMandatoryBitTimings = (1u << 0) | (1u << 2) | (1u << 3) | (1u << 4);
 
+// The gateway's own manufacturer-specific object (CiA 301 2000h–5FFFh): a host's command to one
+// sub-device, UNSIGNED32 = command code << 8 | the sub-device's node-ID (gateway/gateway.hpp,
+// README "Commands to a sub-device"). Exists when DeviceConfig::subdevice_commands.
+inline constexpr std::uint16_t kSubdeviceCommand = 0x3000;
+
 struct DeviceConfig {
   canopen::NodeId node_id{0x20};
+  bool subdevice_commands = false;  // 3000h (kSubdeviceCommand)
   Identity identity{};
   std::string device_name = "oegw OE interface module";
   std::string hardware_version = "1";

@@ -207,6 +207,37 @@ TEST_F(Faults, NovotechnikOverflowClearedOnlyAfterTheResetCommandAndTheSensorsVa
   EXPECT_EQ(driver("seat_knob").value(sd::Novotechnik406Driver::kPosition).status, sd::SignalStatus::Valid);
 }
 
+// The same reset from the host, by SDO: 3000h "Sub-device command" = 01h << 8 | 7Fh (the sensor).
+// Refused with a precise abort and no effect for an unknown node, an unknown code, a command the
+// node's driver has not; accepted, 2100h reaches the sensor, and only its 5051h/0/0 clears.
+TEST_F(Faults, TheHostResetsTheNovotechnikPositionErrorThrough3000h) {
+  power_on();
+  knob().set_position(1000, now());
+  rig_->run_for(100ms);
+  knob().inject_fault(sim::Novotechnik406Sim::Fault::Overflow, now());
+  rig_->run_for(300ms);
+  ASSERT_TRUE(driver("seat_knob").faulted(sd::Novotechnik406Driver::kPosition)) << log_;
+  SdoClient& host = rig_->host().sdo(NodeId{0x20});
+  const auto write = [&](std::uint32_t v) {
+    std::optional<SdoAbortCode> got;
+    host.download(0x3000, 0, encode<std::uint32_t>(v), [&](SdoAbortCode c, std::vector<std::uint8_t>) { got = c; });
+    for (int i = 0; i < 2000 && !got; ++i) rig_->run_for(1ms);
+    return got.value_or(SdoAbortCode::Timeout);
+  };
+  EXPECT_EQ(write(0x0155), SdoAbortCode::SubIndexDoesNotExist) << "no sub-device on node 55h";
+  EXPECT_EQ(write(0x027F), SdoAbortCode::InvalidValue) << "no command 02h";
+  EXPECT_EQ(write(0x0103), SdoAbortCode::InvalidValue) << "the MCB-402 has no position error reset";
+  EXPECT_EQ(write(0x0001017F), SdoAbortCode::InvalidValue) << "bits 16..31 are 0";
+  rig_->run_for(300ms);
+  EXPECT_TRUE(driver("seat_knob").faulted(sd::Novotechnik406Driver::kPosition));
+  EXPECT_EQ(write(0x017F), SdoAbortCode::None) << log_;
+  rig_->run_for(300ms);
+  EXPECT_NE(log_.find("host: 3000h sub-device command position_error_reset to seat_knob"), std::string::npos) << log_;
+  EXPECT_NE(log_.find("valid position"), std::string::npos) << log_;
+  EXPECT_FALSE(driver("seat_knob").any_fault()) << log_;
+  EXPECT_GE(resets_named(kKnob), 1u) << log_;
+}
+
 // 1029h as the document says: a sensor left at its default 0 goes to pre-operational on a
 // measurement error ([§4.1] 1029h:02) — what the gateway's configuration avoids.
 TEST_F(Faults, NovotechnikMeasurementErrorKeepsTheSensorOperationalAsConfigured) {
