@@ -1,5 +1,7 @@
 #include "mapping/yaml_reader.hpp"
 
+#include <yaml-cpp/eventhandler.h>
+
 #include <algorithm>
 #include <array>
 #include <charconv>
@@ -7,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <set>
+#include <sstream>
 #include <utility>
 
 namespace oegw::mapping {
@@ -54,6 +57,13 @@ std::string compress_names(const std::vector<std::string>& names) {
   return join(out);
 }
 
+namespace {
+// What a message quotes of a value: a long one (up to YamlLimits::kScalarBytes, or a list of
+// many, repeated by aliases) is cut, so that no error message grows with the file.
+constexpr std::size_t kQuoted = 80;
+std::string quoted(const std::string& s) { return s.size() <= kQuoted ? s : s.substr(0, kQuoted) + "..."; }
+}  // namespace
+
 std::string node_kind(const YAML::Node& n) {
   switch (n.Type()) {
     case YAML::NodeType::Map:
@@ -62,12 +72,13 @@ std::string node_kind(const YAML::Node& n) {
       std::string out = "[";
       for (const auto& item : n) {
         if (!item.IsScalar()) return "a list";
-        out += (out.size() > 1 ? ", " : "") + item.Scalar();
+        if (out.size() > kQuoted) return out + ", ...]";
+        out += (out.size() > 1 ? ", " : "") + quoted(item.Scalar());
       }
       return out + "]";
     }
     case YAML::NodeType::Scalar:
-      return "'" + n.Scalar() + "'";
+      return "'" + quoted(n.Scalar()) + "'";
     default:
       return "nothing";
   }
@@ -298,9 +309,9 @@ class TreeCheck {
 };
 
 // Where the second document of `text` starts: the document marker ("---", or "..." ending the
-// first) on or before the line of its node's mark (the end of the text for an empty document).
-Location second_document(std::string_view text, const std::string& file, const YAML::Node& doc) {
-  const int mark_line = doc.Mark().is_null() ? std::numeric_limits<int>::max() : doc.Mark().line + 1;
+// first) on or before `mark_line` (the parser's mark of that document, 0: unknown).
+Location second_document(std::string_view text, const std::string& file, int mark_line) {
+  if (mark_line <= 0) mark_line = std::numeric_limits<int>::max();
   Location l{file, 1, 1};
   int line = 1;
   for (std::size_t start = 0; start < text.size() && line <= mark_line; ++line) {
@@ -315,6 +326,23 @@ Location second_document(std::string_view text, const std::string& file, const Y
   return l;
 }
 
+// Counts nothing but where a document starts: the parser's events are not kept. yaml-cpp's
+// LoadAll is not used: on some inputs it yields documents without end (a 636-byte file filled
+// memory in mapping_fuzz); asking the parser for two documents at most is bounded.
+class DocumentStart final : public YAML::EventHandler {
+ public:
+  std::optional<YAML::Mark> mark;
+  void OnDocumentStart(const YAML::Mark& m) override { mark = m; }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t, const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t, YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+};
+
 }  // namespace
 
 ParsedYaml parse_yaml(std::string_view text, const std::string& file) {
@@ -325,9 +353,14 @@ ParsedYaml parse_yaml(std::string_view text, const std::string& file) {
     return out;
   }
   if ((out.error = check_text(text, file)) || (out.error = check_layout(text, file))) return out;
-  std::vector<YAML::Node> docs;
+  std::optional<YAML::Mark> second;
   try {
-    docs = YAML::LoadAll(std::string(text));
+    const std::string owned(text);
+    out.root = YAML::Load(owned);  // the first document
+    std::istringstream in(owned);
+    YAML::Parser parser(in);
+    DocumentStart first, next;
+    if (parser.HandleNextDocument(first) && parser.HandleNextDocument(next)) second = next.mark.value_or(YAML::Mark());
   } catch (const YAML::Exception& e) {
     Location l{file, e.mark.line + 1, e.mark.column + 1};
     if (e.mark.is_null()) l.line = l.column = 1;
@@ -340,13 +373,13 @@ ParsedYaml parse_yaml(std::string_view text, const std::string& file) {
     out.error = Diagnostic{l, "YAML syntax error: " + e.msg + "; expected well-formed YAML" + hint};
     return out;
   }
-  if (docs.size() > 1) {
-    out.error = Diagnostic{second_document(text, file, docs[1]),
+  if (second) {
+    out.root = YAML::Node();
+    out.error = Diagnostic{second_document(text, file, second->is_null() ? 0 : second->line + 1),
                            "a second YAML document starts here; expected one document per mapping file "
                            "(the second would be ignored)"};
     return out;
   }
-  if (!docs.empty()) out.root = docs.front();
   out.error = TreeCheck(file).run(out.root);
   return out;
 }

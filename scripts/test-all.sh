@@ -39,7 +39,7 @@ fuzz sdo_server_fuzz 15 "$CORPUS/sdo_server_fuzz" "$CORPUS/seeds/sdo_server_fuzz
 # The same server in its remote (routed) mode, against a fake remote that answers, refuses, is late.
 fuzz sdo_remote_fuzz 10 "$CORPUS/sdo_remote_fuzz"
 # The mapping-file loader with the real drivers, and the device a loaded file builds.
-fuzz mapping_fuzz 15 "$CORPUS/mapping_fuzz" config tests/fixtures -dict=tests/fuzz/mapping.dict
+fuzz mapping_fuzz 15 "$CORPUS/mapping_fuzz" config tests/fixtures tests/fuzz/regressions -dict=tests/fuzz/mapping.dict
 # The EDS reader, its mapping check, dictionary and write-back.
 fuzz eds_fuzz 10 "$CORPUS/eds_fuzz" subdevices/eds -dict=tests/fuzz/eds.dict
 # The whole upstream device (every FE kind at its largest instance count), every COB-ID, time running.

@@ -1197,6 +1197,14 @@ TEST(MappingConfig, ATabInTheIndentationIsNamed) {
   EXPECT_THAT(e[0], ::testing::HasSubstr("(line 10 is indented with a tab: YAML indents with spaces only)"));
 }
 
+// Found by mapping_fuzz: on this 636-byte file yaml-cpp's LoadAll yields documents without end
+// until memory runs out; the loader asks the parser for two documents at most.
+TEST(MappingConfig, AFileOfEndlessDocumentsIsOneErrorNotAllTheMemory) {
+  const auto r = load_config(source_dir() + "/tests/fuzz/regressions/mapping_loadall_oom.yaml", fake_catalogue);
+  ASSERT_EQ(r.errors.size(), 1u);
+  EXPECT_THAT(r.errors[0].message, ::testing::HasSubstr("a second YAML document starts here"));
+}
+
 TEST(MappingConfig, AnIntegerBeyond64BitsIsOutOfRangeNotNaN) {
   const std::string t = "upstream: { interface: can0, node_id: 0x20, heartbeat_ms: 99999999999999999999999 }\n" +
                         kHead.substr(kHead.find("downstream")) + "  joystick.1: { x: right_grip.x }\n";
