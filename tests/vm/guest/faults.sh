@@ -76,8 +76,12 @@ else
 fi
 grep -q 'left_grip: EMCY 8100h' /tmp/gateway.log && pass "scenario 1: the gateway decoded 8100h (a warning)" \
   || fail "scenario 1: the gateway did not receive the power-on 8100h"
-if (($(count /tmp/up.dump "$fault03") == 0)) && ! grep -q 'left_grip: fault' /tmp/gateway.log; then
-  pass "scenario 1: no EMCY 7000h naming 03h, joystick 2 not at its fault value"
+# A TCG guest under load may deliver a 20 ms TPDO late (a stale fault, the freshness rule doing its
+# job, cleared by the next PDO): only a fault for the EMCY is the defect looked for here, and every
+# 7000h naming 03h must then be one of those stale faults.
+stale=$(grep -c 'left_grip: fault ([a-z_]* stale' /tmp/gateway.log)
+if (($(count /tmp/up.dump "$fault03") <= stale)) && ! grep -q 'left_grip: fault (error EMCY' /tmp/gateway.log; then
+  pass "scenario 1: no EMCY 7000h naming 03h for the warning, joystick 2 not at its fault value for it ($stale stale-PDO faults under load)"
 else
   fail "scenario 1: the power-on warning faulted the MCB-402: $(grep 'left_grip' /tmp/gateway.log | head -5)"
 fi
