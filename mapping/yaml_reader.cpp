@@ -138,11 +138,14 @@ std::string flow_map_hint(std::string_view text, int line) {
 
 // The first line up to `last` whose indentation holds a tab, and the tab's column (1-based).
 std::optional<std::pair<int, int>> tab_indent(std::string_view text, int last) {
-  for (int line = 1; line <= last; ++line) {
-    const auto l = line_of(text, line);
-    if (!l) break;
-    for (std::size_t i = 0; i < l->size() && ((*l)[i] == ' ' || (*l)[i] == '\t'); ++i)
-      if ((*l)[i] == '\t') return std::pair(line, static_cast<int>(i) + 1);
+  // One pass over the text (a line_of() per line would rescan it from the start each time).
+  std::size_t start = 0;
+  for (int line = 1; line <= last && start <= text.size(); ++line) {
+    for (std::size_t i = start; i < text.size() && (text[i] == ' ' || text[i] == '\t'); ++i)
+      if (text[i] == '\t') return std::pair(line, static_cast<int>(i - start) + 1);
+    const auto end = text.find('\n', start);
+    if (end == std::string_view::npos) break;
+    start = end + 1;
   }
   return std::nullopt;
 }
