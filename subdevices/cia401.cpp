@@ -447,12 +447,35 @@ namespace oegw::subdevices {
 
 std::vector<std::pair<std::uint16_t, std::uint8_t>> Cia401Driver::boot_reads() const {
   std::vector<std::pair<std::uint16_t, std::uint8_t>> out;
+  if (!error_register_read_) out.emplace_back(0x1001, 0);
   for (const SdoRead& r : mapping_reads()) out.emplace_back(r.index, r.sub);
   return out;
 }
 
+void Cia401Driver::on_error_register(std::span<const std::uint8_t> data) {
+  error_register_read_ = true;
+  if (data.size() != 1) return;  // UNSIGNED8: another length is no evidence, the faults stay
+  // CiA 301 §7.5.2.2: bit 0 generic (set at any error), 1 current, 2 voltage, 3 temperature,
+  // 4 communication, 5 device profile, 7 manufacturer. A communication error alone is the
+  // warning an 81xxh EMCY is (it faults nothing).
+  constexpr std::uint8_t kGeneric = 0x01;
+  constexpr std::uint8_t kCommunication = 0x10;
+  const std::uint8_t reg = data[0];
+  const bool error = (reg & ~(kGeneric | kCommunication)) != 0 || reg == kGeneric;
+  if (!error) {
+    clear_all_faults();
+    return;
+  }
+  for (std::size_t i = 0; i < signals_.size(); ++i)
+    if (!signals_[i].output()) set_fault(i);
+}
+
 bool Cia401Driver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
                                 std::string& error) {
+  if (index == 0x1001 && sub == 0) {
+    on_error_register(data);
+    return true;
+  }
   const canopen::SdoAbortCode code = apply_mapping_read(index, sub, data);
   if (code == canopen::SdoAbortCode::None) return true;
   error = std::string(canopen::to_string(code));
@@ -460,6 +483,10 @@ bool Cia401Driver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::span
 }
 
 bool Cia401Driver::on_boot_read_abort(std::uint16_t index, std::uint8_t sub, canopen::SdoAbortCode code) {
+  if (index == 0x1001 && sub == 0) {
+    error_register_read_ = true;  // no evidence either way: the faults stay
+    return true;
+  }
   apply_mapping_abort(index, sub, code);  // that PDO is simply not used
   return true;
 }

@@ -54,9 +54,14 @@
 // EMCY (CiA 301 §7.2.7.1, Table 26; CiA 401 defines no per-channel codes): 0000h clears the
 // faults of every input (the value stays neutral until the next PDO); a code of a class Table 26
 // defines (1000h, 2xxxh, 3xxxh, 4xxxh, 50xxh, 6xxxh, 70xxh, 8xxxh but 81xxh, 90xxh, F0xxh,
-// FFxxh) faults every input (Driver::faulted) until 0000h or the node's next boot-up (it reports
-// again what persists); 81xxh "communication" is a warning (error = false, faults nothing); any
-// other code is counted (unknown_emcy) and ignored.
+// FFxxh) faults every input (Driver::faulted) until 0000h, or until the read-back of 1001h
+// "error register" (CiA 301 §7.5.2.2) at the node's next (re)start shows no error; 81xxh
+// "communication" is a warning (error = false, faults nothing); any other code is counted
+// (unknown_emcy) and ignored. The 1001h read-back: 00h, or only bit 4 "communication error"
+// (with bit 0 "generic", which CiA 301 sets at any error), ends the faults; any other bit faults
+// every input — also when no EMCY was seen (it went before the gateway listened); a refused read
+// or an answer of the wrong length is no evidence (the faults stay as they are). A boot-up alone
+// clears nothing: a node that rebooted may still be broken.
 // Identity: 1000h DefaultValue and [DeviceInfo] VendorNumber/ProductNumber/RevisionNumber.
 //
 // Factory option: eds=<path> (required). Unknown options, or an EDS that cannot be read or
@@ -107,8 +112,13 @@ class Cia401Driver final : public Driver {
   // node then sends (TPDO) or applies (RPDO) it only at a SYNC, which someone must produce.
   [[nodiscard]] bool needs_sync() const;
 
-  // The Driver's boot-read hooks, run by the network manager: the mapping read above.
-  void begin_boot() override { reset_mapping(); }
+  // The Driver's boot-read hooks, run by the network manager: the mapping read above and
+  // 1001h (see the header comment).
+  void begin_boot() override {
+    reset_mapping();
+    error_register_read_ = false;
+  }
+  void on_application_reset(TimePoint /*now*/) override {}  // the 1001h read-back decides
   // The CiA 401 application objects 6000h..6FFFh: the inputs it decodes (with their polarity,
   // filters and interrupt masks), the outputs the gateway drives (with their polarity and error
   // modes) — a remote write of any of them changes what the FEs see or command.
@@ -162,6 +172,8 @@ class Cia401Driver final : public Driver {
   void add_signals(std::uint16_t index, const char* prefix, SignalKind kind, std::int64_t min, std::int64_t max,
                    const char* unit);
   Pdo* find_pdo(std::uint16_t index);
+  void on_error_register(std::span<const std::uint8_t> data);
+  bool error_register_read_ = false;  // 1001h answered or refused in this boot
   void build(Pdo& p);
   [[nodiscard]] int signal_for(std::uint32_t entry) const;
 

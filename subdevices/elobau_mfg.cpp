@@ -328,7 +328,9 @@ DecodedEmcy ElobauMfgDriver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
   d.text = "elobau 4001h " + hex4(m) + ": " + name;
   d.affected = apply_manufacturer_code(m, now);
   d.error = !d.affected.empty();
-  if (m == 0x0002) d.text += " (warning: also set until the parameters are first saved, faults nothing)";
+  if (m == 0x0002)
+    d.text += opt_.checksum_faults ? " (parameter_checksum: fault: the saved parameters are corrupt)"
+                                       : " (warning: also set until the parameters are first saved, faults nothing)";
   return d;
 }
 
@@ -356,6 +358,9 @@ std::vector<std::size_t> ElobauMfgDriver::apply_manufacturer_code(std::uint16_t 
   } else if (m == 0x0070) {
     led_emcy_ = true;
     for (std::size_t l = 0; l < kLeds; ++l) affected.push_back(kFirstLed + l);
+  } else if (m == 0x0002 && opt_.checksum_faults) {
+    global_emcy_ = true;  // the grip's parameters were saved: 0002h means they are corrupt
+    for (std::size_t i = 0; i < kFirstLed; ++i) affected.push_back(i);
   } else if (m == 0x0002) {
     // Table 6 0002h "Parameter Checksum Error CRC32. This error is also set until first
     // parameter saving process": sent at every power-on of a grip whose parameters were never
@@ -417,7 +422,7 @@ bool ElobauMfgDriver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::s
     if (m >= 0x0010 && m <= 0x0052 && (m & 0x0F) <= 2) latch_axis((m >> 4) - 1);
     if (m >= 0x0061 && m <= 0x006B) button_emcy_[m - 0x0061] = true;
     if (m == 0x0070) led_emcy_ = true;
-    if (m == 0x0000 || m == 0x0001 || m == 0x0005) global_emcy_ = true;
+    if (m == 0x0000 || m == 0x0001 || m == 0x0005 || (m == 0x0002 && opt_.checksum_faults)) global_emcy_ = true;
     sync_faults(std::nullopt);
   }
   return true;
@@ -528,9 +533,16 @@ std::unique_ptr<Driver> make_elobau_mfg_driver(NodeId node, FrameSink sink, cons
         return nullptr;
       }
       o.cycle_ms = static_cast<std::uint16_t>(n);
+    } else if (key == "parameter_checksum") {
+      if (val != "warning" && val != "fault") {
+        error = "elobau-mfg: parameter_checksum '" + val +
+                "' must be 'warning' (grips whose parameters were never saved) or 'fault'";
+        return nullptr;
+      }
+      o.checksum_faults = val == "fault";
     } else {
       error = "elobau-mfg: unknown option '" + key +
-              "' (expected channel_tolerance, detent, channel2_timeout_ms, cycle_ms)";
+              "' (expected channel_tolerance, detent, channel2_timeout_ms, cycle_ms, parameter_checksum)";
       return nullptr;
     }
   }

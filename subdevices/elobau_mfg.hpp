@@ -100,6 +100,12 @@ struct ElobauMfgOptions {
   bool clamp_detent = false;
   std::uint32_t channel2_timeout_ms = 0;
   std::uint16_t cycle_ms = 100;
+  // Table 6 0002h "Parameter Checksum Error CRC32. This error is also set until first parameter
+  // saving process": false (option `parameter_checksum: warning`, the default) reports it and
+  // faults nothing, since a grip whose parameters were never saved sends it at every power-on;
+  // true (`parameter_checksum: fault`, for grips whose parameters were saved at commissioning,
+  // where 0002h can only mean corrupt parameters) faults every input like 0001h.
+  bool checksum_faults = false;
 };
 
 class ElobauMfgDriver final : public Driver {
@@ -195,7 +201,8 @@ class ElobauMfgDriver final : public Driver {
   bool leds_dirty_ = false;                                // changed, not sent yet (output batch)
 };
 
-// Factory (families.hpp). Options: channel_tolerance, detent, channel2_timeout_ms, cycle_ms.
+// Factory (families.hpp). Options: channel_tolerance, detent, channel2_timeout_ms, cycle_ms,
+// parameter_checksum (warning | fault, ElobauMfgOptions::checksum_faults).
 std::unique_ptr<Driver> make_elobau_mfg_driver(NodeId node, FrameSink sink, const DriverOptions& options,
                                                std::string& error);
 

@@ -26,7 +26,7 @@ constexpr EmcyEntry kTable[] = {
     {0x5000, 0, 1, "Info", "maintenance required (operating time limit)", E::None},
     {0x5000, 1, 2, "Hard", "hardware ASIC fault, position value 0x7FFFFFFC", E::PositionError},
     {0x5000, 2, 0, "Hard", "memory lost", E::PositionError},
-    {0x5051, 0, 0, "Info", "valid position", E::Clear},
+    {0x5051, 0, 0, "Info", "valid position", E::ClearPosition},
     {0x5051, 1, 0, "Error", "measurement error, position value 0x7FFFFFFC", E::PositionError},
     {0x5051, 1, 1, "Error",
      "position overflow error \"Out of range (+)\", position value 0x7FFFFFF8, reset via 2100h", E::PositionError},
@@ -202,14 +202,13 @@ DecodedEmcy Novotechnik406Driver::on_emcy(const EmcyMessage& emcy, TimePoint now
   out.error = false;
   switch (e->effect) {
     case novotechnik::EmcyEffect::None: break;
-    case novotechnik::EmcyEffect::PositionError:
+    case novotechnik::EmcyEffect::PositionError: {
       out.error = true;
       out.affected = {kPosition, kSpeed};
-      latch_position_fault(now);
-      // 6503h (§10.2) shows position alarms only: a supply voltage fault (§10.3: 6505h bit 4) is
-      // not cleared by a 6503h of 0 read back at the next start, only by the sensor's clear.
-      if (emcy.code == 0x3100) latched_beyond_alarms_ = true;
+      const std::uint8_t latch = latch_of(emcy.code);
+      set_latches(latch, latch, now);
       break;
+    }
     case novotechnik::EmcyEffect::PositionWarning:
       // The marker comes in TPDO1 as long as the warning lasts (§9.1): Error now, but no latch
       // (Driver::faulted): the next ordinary position ends it.
@@ -218,14 +217,20 @@ DecodedEmcy Novotechnik406Driver::on_emcy(const EmcyMessage& emcy, TimePoint now
       fault_position(now);
       break;
     case novotechnik::EmcyEffect::Clear:
+    case novotechnik::EmcyEffect::ClearPosition: {
+      const bool all = e->effect == novotechnik::EmcyEffect::Clear;
+      set_latches(all ? 0xFF : kLatchPosition, 0, std::nullopt);
+      if (latches_ != 0) {
+        out.text += (latches_ & kLatchSupply) != 0 ? " (the supply voltage fault stays until 0000h)"
+                                                   : " (the device fault stays until 0000h)";
+        break;
+      }
       // The error is gone; the value itself comes with the next TPDO1. Until then the signals
       // keep the neutral value but are no longer in Error (NotAvailable: nothing vouched for).
-      clear_fault(kPosition);
-      clear_fault(kSpeed);
-      latched_beyond_alarms_ = false;
       for (const std::size_t i : {kPosition, kSpeed})
         if (value(i).status == SignalStatus::Error) update(i, signals_[i].neutral, SignalStatus::NotAvailable, now);
       break;
+    }
     case novotechnik::EmcyEffect::Cams: {
       // Byte 4: changed CAM bits, byte 7: CAM state bits (CAM 1..4 = bits 0..3, 6300h coding).
       const std::uint8_t changed = emcy.msef[1];
@@ -253,39 +258,59 @@ DecodedEmcy Novotechnik406Driver::on_emcy(const EmcyMessage& emcy, TimePoint now
   return out;
 }
 
-void Novotechnik406Driver::latch_position_fault(std::optional<TimePoint> now) {
-  for (const std::size_t i : {kPosition, kSpeed}) set_fault(i);
-  if (now) fault_position(*now);  // Error at once, also before the first TPDO1
+std::uint8_t Novotechnik406Driver::latch_of(std::uint16_t code) {
+  switch (code) {
+    case 0x5051: return kLatchPosition;
+    case 0x3100: return kLatchSupply;
+    default: return kLatchDevice;  // 1000h, 5000h, 6000h
+  }
+}
+
+void Novotechnik406Driver::set_latches(std::uint8_t mask, std::uint8_t set, std::optional<TimePoint> now) {
+  latches_ = static_cast<std::uint8_t>((latches_ & ~mask) | (set & mask));
+  for (const std::size_t i : {kPosition, kSpeed}) {
+    if (latches_ != 0) {
+      set_fault(i);
+    } else {
+      clear_fault(i);
+    }
+  }
+  if (latches_ != 0 && now) fault_position(*now);
 }
 
 std::vector<std::pair<std::uint16_t, std::uint8_t>> Novotechnik406Driver::boot_reads() const {
-  if (alarms_read_) return {};
-  return {{0x6503, 0}};
+  std::vector<std::pair<std::uint16_t, std::uint8_t>> reads;
+  if ((reads_done_ & kReadAlarms) == 0) reads.emplace_back(0x6503, 0);
+  if ((reads_done_ & kReadWarnings) == 0) reads.emplace_back(0x6505, 0);
+  return reads;
 }
 
 bool Novotechnik406Driver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
                                         std::string& /*error*/) {
-  if (index != 0x6503 || sub != 0) return true;
-  alarms_read_ = true;
-  if (data.size() != 2) return true;  // 6503h is UNSIGNED16: another length is no evidence, the faults stay
-  const auto alarms = static_cast<std::uint16_t>(data[0] | (data[1] << 8));
-  // §10.2: bit 0 measurement error, bit 1 unknown / hardware / ASIC / software fault / memory
-  // lost, bit 12 underflow, bit 13 overflow error (latched until 2100h). None: the faults
-  // latched before are over (a sensor that rebooted, or reset while the gateway did not see it).
-  constexpr std::uint16_t kPositionAlarms = (1u << 0) | (1u << 1) | (1u << 12) | (1u << 13);
-  if ((alarms & kPositionAlarms) != 0) {
-    latch_position_fault(std::nullopt);
-  } else if (!latched_beyond_alarms_) {
-    clear_fault(kPosition);
-    clear_fault(kSpeed);
+  if ((index != 0x6503 && index != 0x6505) || sub != 0) return true;
+  reads_done_ |= index == 0x6503 ? kReadAlarms : kReadWarnings;
+  if (data.size() != 2) return true;  // both are UNSIGNED16: another length is no evidence, the faults stay
+  const auto bits = static_cast<std::uint16_t>(data[0] | (data[1] << 8));
+  const auto has = [bits](unsigned mask) { return (bits & mask) != 0 ? 0xFF : 0; };
+  if (index == 0x6503) {
+    // §10.2: bit 0 measurement error, bit 12 underflow, bit 13 overflow error (latched until
+    // 2100h); bit 1 unknown / hardware / ASIC / software fault / memory lost. A bit clear: the
+    // fault latched before is over (a sensor that rebooted, or reset while the gateway did not see it).
+    const std::uint8_t position = kLatchPosition & has((1u << 0) | (1u << 12) | (1u << 13));
+    const std::uint8_t device = kLatchDevice & has(1u << 1);
+    set_latches(kLatchPosition | kLatchDevice, position | device, std::nullopt);
+  } else {
+    set_latches(kLatchSupply, kLatchSupply & has(1u << 4), std::nullopt);  // §10.3 bit 4 supply voltage fault
   }
   return true;
 }
 
 bool Novotechnik406Driver::on_boot_read_abort(std::uint16_t index, std::uint8_t /*sub*/,
                                               canopen::SdoAbortCode /*code*/) {
-  if (index == 0x6503) alarms_read_ = true;  // no evidence either way: the faults stay
-  return index == 0x6503;
+  // No evidence either way: the faults stay.
+  if (index == 0x6503) reads_done_ |= kReadAlarms;
+  if (index == 0x6505) reads_done_ |= kReadWarnings;
+  return index == 0x6503 || index == 0x6505;
 }
 
 std::vector<SdoWrite> Novotechnik406Driver::command(std::string_view name) const {

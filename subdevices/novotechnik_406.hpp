@@ -34,11 +34,17 @@
 // EMCYs (§9.1): decoded by (error code, byte 2 error register, byte 3) into the table's text.
 // The Error/Hard-level entries whose position value is a marker, and the sensor faults (supply
 // voltage fault, memory lost: scaling/preset may be gone) fault position and speed
-// (Driver::faulted; DecodedEmcy::error = true, affected = {position, speed}) until a clear code:
-// 0000h "sensor error resetted" or 5051h/0/0 "valid position" — for "Out of range (+/-)"
-// (5051h/1/1, 5051h/1/2) only after the position error reset 2100h (command
-// "position_error_reset"), which the sensor answers with its "valid position" EMCY; or, at the
-// next (re)start, a read-back of 6503h "Alarms" (§10.2) without bits 0, 1, 12, 13. The
+// (Driver::faulted; DecodedEmcy::error = true, affected = {position, speed}) until the clear
+// code of that fault. Each latch has its cause (Latch): a position error (5051h/1/x) ends with
+// 5051h/0/0 "valid position" ("if the internal error bit is reset to 0, an EMCY with 0x0000
+// (valid position) is sent") — for "Out of range (+/-)" (5051h/1/1, 5051h/1/2) only after the
+// position error reset 2100h (command "position_error_reset"); a device fault (1000h, 5000h/1/x,
+// 5000h/2/0 memory lost, 6000h/1/0) and the supply voltage fault (3100h/1/0) only with 0000h
+// "sensor error resetted, no error" (5000h: "an EMCY with 0x0000 is sent"), which ends every
+// latch. A "valid position" does not end a memory loss: the sensor's scaling may still be gone.
+// At the next (re)start the read-backs decide what they show: 6503h "Alarms" (§10.2) bits 0, 12,
+// 13 the position errors and bit 1 the device faults, 6505h "Warnings" (§10.3) bit 4 the supply
+// voltage fault; a refused read or one of the wrong length is no evidence (the latch stays). The
 // warnings 5051h/2/1 and 5051h/2/2 put the signals in Error without a latch (the marker comes
 // in TPDO1 while they last); 9080h updates `cams` (byte 7 state, byte 4 changed bits), 9090h
 // updates `work_area` (byte 7); other warnings, info and CAN-controller EMCYs are decoded to
@@ -78,9 +84,10 @@ inline constexpr std::uint32_t kProductCodes[] = {0x0BD5, 0x0BB9, 0x0BBC, 0x0BC5
 
 enum class EmcyEffect : std::uint8_t {
   None,          // text only: warning, info, communication
-  PositionError, // position and speed faulted until a clear code (or 6503h = 0 at a restart)
+  PositionError, // position and speed faulted until the clear code of its cause (or the read-back)
   PositionWarning,  // position and speed Error now (the PDO carries the marker), not latched
-  Clear,         // error reset / valid position
+  Clear,         // 0000h error reset: every latch ends
+  ClearPosition, // 5051h/0/0 valid position: the position errors (5051h/1/x) end
   Cams,          // 9080h
   WorkArea,      // 9090h
 };
@@ -122,13 +129,14 @@ class Novotechnik406Driver final : public Driver {
   [[nodiscard]] bool protects(std::uint16_t index, std::uint8_t /*sub*/) const override {
     return index == 0x2000 || index == 0x2001 || (index >= 0x6000 && index <= 0x6003) || index == 0x6200;
   }
-  // 6503h "Alarms" (§10.2), read back at every (re)start: it decides the faults.
-  void begin_boot() override { alarms_read_ = false; }
+  // 6503h "Alarms" (§10.2) and 6505h "Warnings" (§10.3), read back at every (re)start: they
+  // decide the faults they show.
+  void begin_boot() override { reads_done_ = 0; }
   [[nodiscard]] std::vector<std::pair<std::uint16_t, std::uint8_t>> boot_reads() const override;
   bool on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
                     std::string& error) override;
   bool on_boot_read_abort(std::uint16_t index, std::uint8_t sub, canopen::SdoAbortCode code) override;
-  void on_application_reset(TimePoint /*now*/) override {}  // the 6503h read-back decides
+  void on_application_reset(TimePoint /*now*/) override {}  // the read-backs decide
   bool on_frame(const CanFrame& frame, TimePoint now) override;
   DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) override;
   // §4.3 2100h "Position Error Reset": the SDO write that resets a latched "Out of range (+/-)"
@@ -148,14 +156,26 @@ class Novotechnik406Driver final : public Driver {
   [[nodiscard]] static bool is_error_position(std::int32_t position);
 
  private:
+  // What keeps position and speed faulted, by what ends it (see the class comment).
+  enum Latch : std::uint8_t {
+    kLatchPosition = 1u << 0,  // 5051h/1/x; 6503h bits 0, 12, 13
+    kLatchDevice = 1u << 1,    // 1000h, 5000h/1/x, 5000h/2/0, 6000h/1/0; 6503h bit 1
+    kLatchSupply = 1u << 2,    // 3100h/1/0; 6505h bit 4
+  };
+  static constexpr std::uint8_t kReadAlarms = 1u << 0;    // 6503h answered or refused
+  static constexpr std::uint8_t kReadWarnings = 1u << 1;  // 6505h answered or refused
+  [[nodiscard]] static std::uint8_t latch_of(std::uint16_t code);
+
   void fault_position(TimePoint now);
-  void latch_position_fault(std::optional<TimePoint> now);
+  // Sets or ends the latches in `mask` to `set`, then faults position and speed while any
+  // latch is held (Error at once when `now` is given, also before the first TPDO1).
+  void set_latches(std::uint8_t mask, std::uint8_t set, std::optional<TimePoint> now);
 
   Novotechnik406Options options_;
   std::vector<SignalInfo> signals_;
   std::optional<std::uint32_t> last_marker_;
-  bool alarms_read_ = false;  // 6503h read in this boot
-  bool latched_beyond_alarms_ = false;  // a latched fault 6503h does not show (3100h supply voltage)
+  std::uint8_t reads_done_ = 0;  // kReadAlarms | kReadWarnings of this boot
+  std::uint8_t latches_ = 0;     // Latch bits
 };
 
 }  // namespace oegw::subdevices

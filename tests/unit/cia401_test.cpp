@@ -350,11 +350,12 @@ TEST(Cia401, EmcyErrorsPutInputsInErrorUntilResetOrGoodValue) {
   EXPECT_TRUE(d.affected.empty());
   EXPECT_FALSE(f.drv->any_fault());
   EXPECT_EQ(f.status("in[1]"), SignalStatus::Valid);
-  // A boot-up (the node reports again what persists) drops the faults.
+  // A boot-up alone is no evidence: the node may have rebooted broken (1001h decides: below).
   (void)f.drv->on_emcy(EmcyMessage{kNode, 0x3100, 0x05, {}}, t0);
   ASSERT_TRUE(f.drv->any_fault());
   f.drv->on_application_reset(t0);
-  EXPECT_FALSE(f.drv->any_fault());
+  EXPECT_TRUE(f.drv->any_fault());
+  (void)f.drv->on_emcy(EmcyMessage{kNode, 0x0000, 0x00, {}}, t0);
   ASSERT_TRUE(f.drv->on_frame(CanFrame(0x1A1, {0x10, 0x00, 0x20, 0x00, 0x01}), t0));
   EXPECT_EQ(f.status("in[1]"), SignalStatus::Valid);
   // A code outside Table 26's classes: counted and ignored.
@@ -363,6 +364,46 @@ TEST(Cia401, EmcyErrorsPutInputsInErrorUntilResetOrGoodValue) {
   EXPECT_EQ(f.drv->counters().unknown_emcy, 1u);
   EXPECT_EQ(f.status("in[1]"), SignalStatus::Valid);
   EXPECT_EQ(f.val("in[1]"), 1);
+}
+
+// 1001h "error register" (CiA 301 §7.5.2.2) read back at every (re)start decides the faults:
+// no error (or a communication error alone) ends them; another bit faults every input, also
+// when the EMCY went before the gateway listened; a refused read or a wrong length keeps them.
+TEST(Cia401, ErrorRegisterReadBackAtEveryBootDecidesTheFaults) {
+  Fixture f(kPedal);
+  f.drv->begin_boot();
+  const auto reads = f.drv->boot_reads();
+  ASSERT_FALSE(reads.empty());
+  EXPECT_EQ(reads[0], (std::pair<std::uint16_t, std::uint8_t>{0x1001, 0}));
+  std::string error;
+  ASSERT_TRUE(f.drv->on_boot_read(0x1001, 0, Bytes{0x05}, error)) << error;  // generic + voltage
+  EXPECT_EQ(f.drv->boot_reads().size(), reads.size() - 1) << "1001h is read once per boot";
+  f.read_mapping();
+  EXPECT_TRUE(f.drv->any_fault()) << "an error the gateway never saw an EMCY of";
+  ASSERT_TRUE(f.drv->on_frame(CanFrame(0x1A1, {0x10, 0x00, 0x20, 0x00, 0x01}), t0));
+  EXPECT_EQ(f.status("analog[1]"), SignalStatus::Error);
+  EXPECT_EQ(f.val("analog[1]"), 0);
+  struct Case {
+    Bytes answer;
+    bool faulted;  // after the read-back, with the faults set before
+  };
+  for (const Case& c : {Case{Bytes{0x01}, true}, Case{Bytes{0x80}, true}, Case{Bytes{0x00, 0x00}, true},
+                        Case{Bytes{}, true}, Case{Bytes{0x11}, false}, Case{Bytes{0x10}, false},
+                        Case{Bytes{0x00}, false}}) {
+    SCOPED_TRACE(testing::Message() << c.answer.size() << " bytes, first " << (c.answer.empty() ? -1 : c.answer[0]));
+    (void)f.drv->on_emcy(EmcyMessage{kNode, 0x5000, 0x81, {}}, t0);
+    ASSERT_TRUE(f.drv->any_fault());
+    f.drv->on_application_reset(t0);
+    f.drv->begin_boot();
+    ASSERT_TRUE(f.drv->on_boot_read(0x1001, 0, c.answer, error)) << error;
+    EXPECT_EQ(f.drv->any_fault(), c.faulted);
+  }
+  // Refused: no evidence either way.
+  (void)f.drv->on_emcy(EmcyMessage{kNode, 0x5000, 0x81, {}}, t0);
+  f.drv->begin_boot();
+  EXPECT_TRUE(f.drv->on_boot_read_abort(0x1001, 0, SdoAbortCode::ObjectDoesNotExist));
+  EXPECT_TRUE(f.drv->any_fault());
+  EXPECT_TRUE(f.drv->boot_reads().empty() || f.drv->boot_reads()[0].first != 0x1001);
 }
 
 TEST(Cia401, OfflineMarksInputsOnly) {

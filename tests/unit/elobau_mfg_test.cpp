@@ -353,6 +353,45 @@ TEST_F(ElobauDriverTest, EmcyParameterChecksum0002hIsAWarningThatFaultsNothing) 
   EXPECT_EQ(val("x").status, SignalStatus::Valid);
 }
 
+// `parameter_checksum: fault` (grips saved at commissioning): 0002h can then only mean corrupt
+// parameters, and faults every input like 0001h, by EMCY and by the 4001h read-back at boot.
+class ElobauChecksumFaultTest : public ElobauDriverTest {
+ protected:
+  ElobauChecksumFaultTest() : ElobauDriverTest(DriverOptions{{{"parameter_checksum", "fault"}}}) {}
+};
+TEST_F(ElobauChecksumFaultTest, Emcy0002hFaultsEveryInputWhenParametersWereSaved) {
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  auto d = emcy(0x1000, {0x02, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_TRUE(d.error);
+  EXPECT_NE(d.text.find("corrupt"), std::string::npos) << d.text;
+  EXPECT_EQ(d.affected.size(), ElobauMfgDriver::kFirstLed) << "every input";
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+  EXPECT_EQ(val("x").value, 0);
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  EXPECT_EQ(val("buttons[1]").status, SignalStatus::Error) << "a PDO is no evidence";
+  // The 4001h read-back at the next boot: 0002h keeps it, 0 ends it.
+  std::string error;
+  drv->begin_boot();
+  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x02, 0x00}, error));
+  EXPECT_TRUE(drv->faulted(idx("x")));
+  drv->begin_boot();
+  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x00, 0x00}, error));
+  EXPECT_FALSE(drv->any_fault());
+  // Read back at a boot without any EMCY seen: faulted too.
+  drv->begin_boot();
+  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x02, 0x00}, error));
+  EXPECT_TRUE(drv->faulted(idx("y")));
+}
+
+TEST(ElobauOptions, ParameterChecksumTakesWarningOrFault) {
+  std::string err;
+  EXPECT_EQ(make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"parameter_checksum", "ignore"}}}, err), nullptr);
+  EXPECT_NE(err.find("parameter_checksum 'ignore' must be 'warning'"), std::string::npos) << err;
+  auto d = make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"parameter_checksum", "warning"}}}, err);
+  ASSERT_NE(d, nullptr) << err;
+  EXPECT_FALSE(static_cast<ElobauMfgDriver&>(*d).options().checksum_faults);
+}
+
 // 0001h "Application Program Checksum Error": the whole device is in doubt.
 TEST_F(ElobauDriverTest, EmcyChecksumErrorPutsEveryInputInErrorUntilReset) {
   tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});

@@ -311,10 +311,12 @@ TEST_F(Novotechnik406Test, PositionFaultLatchedUntilClearCodeOr6503hReadBack) {
   EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition));
   driver_.begin_boot();
   const auto reads = driver_.boot_reads();
-  ASSERT_EQ(reads.size(), 1u);
+  ASSERT_EQ(reads.size(), 2u);
   EXPECT_EQ(reads[0], (std::pair<std::uint16_t, std::uint8_t>{0x6503, 0}));
+  EXPECT_EQ(reads[1], (std::pair<std::uint16_t, std::uint8_t>{0x6505, 0}));
   std::string error;
   ASSERT_TRUE(driver_.on_boot_read(0x6503, 0, std::vector<std::uint8_t>{0x00, 0x20}, error));  // bit 13
+  ASSERT_TRUE(driver_.on_boot_read(0x6505, 0, std::vector<std::uint8_t>{0x00, 0x00}, error));
   EXPECT_TRUE(driver_.boot_reads().empty());
   EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition));
   // §9.1 5051h/0/0 "Valid position" clears it; the next TPDO1 brings the value.
@@ -339,10 +341,10 @@ TEST_F(Novotechnik406Test, PositionFaultLatchedUntilClearCodeOr6503hReadBack) {
   EXPECT_EQ(driver_.commands(), std::vector<std::string>{"position_error_reset"});
 }
 
-// What 6503h cannot show it cannot clear: a supply voltage fault (3100h/1/0; §10.3 has it in
-// 6505h, not in the 6503h alarms) survives a 6503h of 0 at the next start; an answer of the
-// wrong length is no evidence either way.
-TEST_F(Novotechnik406Test, ReadBackClearsOnlyWhat6503hShows) {
+// Each read-back clears only what it shows: a supply voltage fault (3100h/1/0) is in 6505h
+// bit 4 (§10.3), not in the 6503h alarms; an answer of the wrong length, or a refused read, is
+// no evidence either way.
+TEST_F(Novotechnik406Test, ReadBackClearsOnlyWhatItShows) {
   ASSERT_TRUE(pdo({0x10, 0, 0, 0, 0, 0}));
   (void)emcy(0x3100, 1, 0);
   ASSERT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition));
@@ -350,8 +352,15 @@ TEST_F(Novotechnik406Test, ReadBackClearsOnlyWhat6503hShows) {
   driver_.begin_boot();
   ASSERT_TRUE(driver_.on_boot_read(0x6503, 0, std::vector<std::uint8_t>{0x00, 0x00}, error));
   EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition)) << "6503h says nothing of the supply";
-  (void)emcy(0x5051, 0, 0);  // the sensor's own clear
-  EXPECT_FALSE(driver_.any_fault());
+  ASSERT_TRUE(driver_.on_boot_read_abort(0x6505, 0, oegw::canopen::SdoAbortCode::ObjectDoesNotExist));
+  EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition)) << "a refused 6505h is no evidence";
+  EXPECT_TRUE(driver_.boot_reads().empty());
+  driver_.begin_boot();
+  ASSERT_TRUE(driver_.on_boot_read(0x6505, 0, std::vector<std::uint8_t>{0x10, 0x00}, error));  // bit 4 still set
+  EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition));
+  driver_.begin_boot();
+  ASSERT_TRUE(driver_.on_boot_read(0x6505, 0, std::vector<std::uint8_t>{0x00, 0x20}, error));  // a speed warning only
+  EXPECT_FALSE(driver_.any_fault()) << "6505h without bit 4: the supply is back";
   // A position alarm, then a read-back of one byte, and of none: the latch stays.
   (void)emcy(0x5051, 1, 1);
   for (const auto& bad : {std::vector<std::uint8_t>{0x00}, std::vector<std::uint8_t>{}}) {
@@ -359,6 +368,41 @@ TEST_F(Novotechnik406Test, ReadBackClearsOnlyWhat6503hShows) {
     ASSERT_TRUE(driver_.on_boot_read(0x6503, 0, bad, error));
     EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition)) << bad.size() << " bytes";
   }
+  // 6505h = 0 says nothing of the position alarms.
+  ASSERT_TRUE(driver_.on_boot_read(0x6505, 0, std::vector<std::uint8_t>{0x00, 0x00}, error));
+  EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition));
+}
+
+// A clear code ends only the faults it is the clear of (§9.1): 5051h/0/0 "valid position" ends a
+// position error, not a device fault (5000h/2/0 memory lost, 5000h/1/0 hardware, 6000h software)
+// nor the supply voltage fault, whose end is 0000h "sensor error resetted, no error".
+TEST_F(Novotechnik406Test, ValidPositionDoesNotEndDeviceOrSupplyFaults) {
+  struct Case {
+    std::uint16_t code;
+    std::uint8_t reg, b3;
+  };
+  for (const Case c : {Case{0x5000, 2, 0}, Case{0x5000, 1, 0}, Case{0x6000, 1, 0}, Case{0x1000, 1, 0}, Case{0x3100, 1, 0}}) {
+    SCOPED_TRACE(testing::Message() << std::hex << c.code << "/" << int{c.reg} << "/" << int{c.b3});
+    ASSERT_TRUE(pdo({0x10, 0, 0, 0, 0, 0}));
+    ASSERT_TRUE(emcy(c.code, c.reg, c.b3).error);
+    (void)emcy(0x5051, 1, 0);  // a measurement error besides
+    const DecodedEmcy valid = emcy(0x5051, 0, 0);
+    EXPECT_FALSE(valid.error);
+    EXPECT_NE(valid.text.find("stays until 0000h"), std::string::npos) << valid.text;
+    EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kPosition));
+    EXPECT_TRUE(driver_.faulted(Novotechnik406Driver::kSpeed));
+    ASSERT_TRUE(pdo({0x10, 0, 0, 0, 0, 0}));
+    EXPECT_EQ(pos().status, SignalStatus::Error);
+    (void)emcy(0x0000, 0, 0);
+    EXPECT_FALSE(driver_.any_fault());
+    ASSERT_TRUE(pdo({0x10, 0, 0, 0, 0, 0}));
+    EXPECT_EQ(pos().status, SignalStatus::Valid);
+  }
+  // The measurement error alone ends with "valid position".
+  (void)emcy(0x5051, 1, 0);
+  ASSERT_TRUE(driver_.any_fault());
+  (void)emcy(0x5051, 0, 0);
+  EXPECT_FALSE(driver_.any_fault());
 }
 
 TEST_F(Novotechnik406Test, FactoryRefusesBadOptions) {

@@ -12,6 +12,9 @@
 #   3 stale PDOs: the board's TPDOs stop while its heartbeat goes on -> EMCY 7000h naming 03h
 #     within the deadline (3 x its 20 ms event timer, plus a TCG guest's margin); TPDOs back ->
 #     cleared.
+#   4 its own reboot while in use: the board sends a boot-up (703#00) while operational -> EMCY
+#     7000h naming 03h before the gateway has configured it again (a rebooted board's inputs are in
+#     doubt until it is operational again); operational again -> the gateway's error reset.
 # Args: OEGW OEGW_SIM SOURCE_DIR
 set -uo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -131,6 +134,42 @@ for ((i = 0; i < 100; i++)); do
   sleep 0.05
 done
 ((ok)) && pass "scenario 3: TPDOs back -> the gateway's error reset" || fail "scenario 3: no error reset after the TPDOs came back"
+
+# 4 The board's own reboot while in use.
+faults_before=$(count /tmp/up.dump "$fault03")
+resets_before=$(count /tmp/up.dump "$reset")
+boots_before=$(count /tmp/down.dump 'vcan1 703#00')
+echo "left_grip reboot" >&3
+if wait_for /tmp/sim-mcb.log 'ok left_grip rebooted' 5; then
+  ok=0
+  for ((i = 0; i < 100; i++)); do
+    (($(count /tmp/up.dump "$fault03") > faults_before)) && { ok=1; break; }
+    sleep 0.05
+  done
+  ((ok)) && pass "scenario 4: its reboot while in use -> EMCY 7000h naming 03h" \
+    || fail "scenario 4: no EMCY 7000h naming 03h after the board rebooted"
+  # The fault must go up before the node is operational again: the first 7000h after the new
+  # boot-up precedes the gateway's NMT start of node 03h (vcan1 000#0103) that follows it.
+  # Both recordings merged in time order (candump -L: "(seconds.micro) bus frame").
+  if sort -k1,1 /tmp/down.dump /tmp/up.dump | awk -v nb="$boots_before" '
+      $2 == "vcan1" && $3 == "703#00" && ++b == nb + 1 { boot = 1 }
+      boot && $2 == "vcan0" && $3 ~ /^0A0#00700103/ && !start { fault = 1 }
+      boot && $2 == "vcan1" && $3 == "000#0103" { start = 1 }
+      END { exit !fault }'; then
+    pass "scenario 4: the fault went up before the board was started again"
+  else
+    fail "scenario 4: no 7000h naming 03h between the reboot and the board's NMT start"
+  fi
+  ok=0
+  for ((i = 0; i < 200; i++)); do
+    (($(count /tmp/up.dump "$reset") > resets_before)) && { ok=1; break; }
+    sleep 0.05
+  done
+  ((ok)) && pass "scenario 4: operational again -> the gateway's error reset after $(elapsed) s" \
+    || fail "scenario 4: no error reset after the board came back"
+else
+  fail "scenario 4: the simulator did not take the reboot command: $(tail -3 /tmp/sim-mcb.log)"
+fi
 
 kill -TERM "$gw_pid"
 wait "$gw_pid"
