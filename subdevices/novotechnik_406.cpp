@@ -147,6 +147,10 @@ std::vector<SdoWrite> Novotechnik406Driver::configuration() const {
   // stops in pre-operational, and the network manager restarts it once it is back.
   w.push_back({0x1029, 1, le(0, 1), "error behaviour on a communication error: pre-operational"});
   w.push_back({0x1029, 2, le(1, 1), "error behaviour on a measurement error: stay operational"});
+  // §8.1 TPDO2 (280h + ID) is synchronous by default (1801h:02 = 1): with a downstream SYNC it
+  // would send a frame at every SYNC that nobody reads (the gateway uses TPDO1). Disabled (bit 31,
+  // keeping bit 30 "no RTR" as the default 40000280h has it).
+  w.push_back({0x1801, 1, le(0xC0000280u + node().value(), 4), "TPDO2 COB-ID: disable (unused)"});
   return w;
 }
 

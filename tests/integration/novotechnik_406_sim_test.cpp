@@ -353,16 +353,22 @@ TEST_F(NovotechnikSim, NmtStartupBit3StartsOperationalAfterStore) {
 }
 
 // §3.3 / §4.1: TPDO2 (280h + node = 2FFh) synchronous (1801h:02 = 1): one PDO per SYNC (080h),
-// same default mapping. Position -42 is below the work area: EMCY 9090h state 05h (§5.7.1 bits 2, 0).
-TEST_F(NovotechnikSim, Tpdo2SynchronousOnEverySync) {
+// same default mapping. The driver's configuration turns the unused TPDO2 off: then a SYNC brings nothing on 2FFh.
+TEST_F(NovotechnikSim, Tpdo2SynchronousOnEverySyncUntilTheDriverTurnsItOff) {
   boot();
-  configure_and_start();
+  host_->nmt().start(kNode);
+  net_.run_for(1ms);
   sim_->set_position(-42, net_.now());
   sim_->set_speed(7, net_.now());
   net_.run_for(1ms);
-  EXPECT_EQ(driver_->value(Novotechnik406Driver::kWorkArea).value, 0x05);
   EXPECT_EQ(exchange(0x080, {}, 0x2FF), std::vector<CanFrame>{CanFrame(0x2FF, {0xD6, 0xFF, 0xFF, 0xFF, 0x07, 0x00})});
   EXPECT_EQ(exchange(0x080, {}, 0x2FF).size(), 1u);
+  host_->nmt().enter_pre_operational(kNode);
+  net_.run_for(1ms);
+  configure_and_start();
+  sim_->set_position(-43, net_.now());
+  net_.run_for(1ms);
+  EXPECT_TRUE(exchange(0x080, {}, 0x2FF).empty()) << "TPDO2 disabled by the driver (1801h:01 bit 31)";
 }
 
 // §4.1 1800h:02 = 255 "synchronous to measurement cycle": every new measurement is sent at once.

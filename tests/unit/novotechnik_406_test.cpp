@@ -275,7 +275,7 @@ TEST_F(Novotechnik406Test, ConfigurationFollowsTheMappingProcedure) {
   auto d = make_novotechnik_406_driver(kNode, {}, DriverOptions{{{"event_timer_ms", "50"}}}, error);
   ASSERT_NE(d, nullptr) << error;
   const auto w = d->configuration();
-  ASSERT_EQ(w.size(), 11u);
+  ASSERT_EQ(w.size(), 12u);
   auto is = [](const SdoWrite& s, std::uint16_t idx, std::uint8_t sub, std::vector<std::uint8_t> data) {
     return s.index == idx && s.sub == sub && s.data == data;
   };
@@ -293,6 +293,7 @@ TEST_F(Novotechnik406Test, ConfigurationFollowsTheMappingProcedure) {
   // 1 "no change of NMT-mode" (the sensor stays operational and reports the error).
   EXPECT_TRUE(is(w[9], 0x1029, 1, {0x00}));
   EXPECT_TRUE(is(w[10], 0x1029, 2, {0x01}));
+  EXPECT_TRUE(is(w[11], 0x1801, 1, {0xFF, 0x02, 0x00, 0xC0}));  // TPDO2 (unused) off: C00002FFh
 }
 
 // Faults latched by an error EMCY: a good TPDO1 does not end them, the clear code does; going
