@@ -60,7 +60,6 @@ std::string rate_list(lss::BitTimings rates) {
 
 // What `oegw run` will do with one interface's bit rate (`oegw check`).
 std::string bit_rate_plan(CanLink& link, const std::string& interface, std::uint32_t bitrate) {
-  if (interface == "virtual") return "the demo's in-process bus: no bit rate";
   const BitRateOutcome p = plan_bit_rate(link, interface, bitrate);
   if (!p.ok()) return p.message;
   switch (p.action) {
