@@ -16,6 +16,8 @@
 #include "gateway/publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
 #include "gateway/runtime_config.hpp"
+#include "gateway/service_notify.hpp"
+#include "mapping/deployment.hpp"
 #include "profiles/cia852/pdo_defaults.hpp"
 
 namespace oegw::gateway {
@@ -24,8 +26,16 @@ using namespace canopen;
 
 namespace {
 
-std::optional<mapping::Config> load(const std::string& file) {
+// Which commands load the file: `check` and `run` face a cab controller and also refuse what
+// mapping/deployment.hpp lists (the demo's `interface: virtual` among them); `eds` does not.
+enum class Use : std::uint8_t { Eds, Cab };
+
+std::optional<mapping::Config> load(const std::string& file, Use use) {
   auto r = mapping::load_config(file, driver_catalogue());
+  if (r.ok() && use == Use::Cab) {
+    r.errors = mapping::deployment_errors(*r.config);
+    if (!r.errors.empty()) r.config.reset();
+  }
   if (!r.ok()) {
     std::fprintf(stderr, "%s", r.error_text().c_str());
     if (!r.error_text().empty() && r.error_text().back() != '\n') std::fprintf(stderr, "\n");
@@ -50,7 +60,6 @@ std::string rate_list(lss::BitTimings rates) {
 
 // What `oegw run` will do with one interface's bit rate (`oegw check`).
 std::string bit_rate_plan(CanLink& link, const std::string& interface, std::uint32_t bitrate) {
-  if (interface == "virtual") return "the demo's in-process bus: no bit rate";
   const BitRateOutcome p = plan_bit_rate(link, interface, bitrate);
   if (!p.ok()) return p.message;
   switch (p.action) {
@@ -137,8 +146,8 @@ void print_downstream_boot(const mapping::Config& cfg) {
 }  // namespace
 
 int run_check(const std::string& file) {
-  const auto cfg = load(file);
-  if (!cfg) return 1;
+  const auto cfg = load(file, Use::Cab);
+  if (!cfg) return exit_code::kBadFile;
   const auto device = eds_device(*cfg);  // the dictionary `oegw run` builds
   const auto& fes = device->config().fes;
   const NodeId node{cfg->upstream.node_id};
@@ -153,6 +162,10 @@ int run_check(const std::string& file) {
   if (cfg->upstream.identity.serial == 0) {
     std::printf("warning: upstream.identity.serial is 0 (1018h:04): two gateways of one product then share an LSS "
                 "address and cannot be told apart by LSS switch state selective; give each its own serial\n");
+    warned = true;
+  }
+  for (const auto& w : mapping::deployment_warnings(*cfg)) {
+    std::printf("warning: %s\n", w.str().c_str());
     warned = true;
   }
   if (warned) std::printf("\n");
@@ -221,8 +234,8 @@ int run_check(const std::string& file) {
 }
 
 int run_eds(const std::string& file, const std::string& out) {
-  const auto cfg = load(file);
-  if (!cfg) return 1;
+  const auto cfg = load(file, Use::Eds);
+  if (!cfg) return exit_code::kBadFile;
   const auto device = eds_device(*cfg);
   const EdsInfo info = eds_info(*cfg, out == "-" ? "oegw.eds" : std::filesystem::path(out).filename().string());
   if (out == "-") {
@@ -232,15 +245,15 @@ int run_eds(const std::string& file, const std::string& out) {
   std::string error;
   if (!write_eds(out, device->od(), info, error)) {
     std::fprintf(stderr, "oegw eds: %s\n", error.c_str());
-    return 1;
+    return exit_code::kCannotStart;
   }
   std::printf("%s: EDS of node %02Xh written\n", out.c_str(), info.node_id.value());
   return 0;
 }
 
 int run_gateway(const std::string& file) {
-  const auto cfg = load(file);
-  if (!cfg) return 1;
+  const auto cfg = load(file, Use::Cab);
+  if (!cfg) return exit_code::kBadFile;
   // The bit rates first (README "Bit rate"): a refused one starts nothing.
   const auto link = netlink_can_link();
   const UpstreamBitRate up_rate = upstream_bit_rate(*cfg);
@@ -248,19 +261,19 @@ int run_gateway(const std::string& file) {
   if (!set_bit_rate(*link, file, up_rate.lss_stored ? "LSS-stored bit rate" : "upstream.bitrate",
                     cfg->upstream.interface, up_rate.bitrate) ||
       !set_bit_rate(*link, file, "downstream.bitrate", cfg->downstream.interface, cfg->downstream.bitrate))
-    return 2;
+    return exit_code::kCannotStart;
   std::unique_ptr<SocketCanTransport> up, down;
   try {
     up = SocketCanTransport::open(cfg->upstream.interface);
   } catch (const CanOpenError& e) {
     spdlog::error("{}: upstream.interface: {}", file, e.what());
-    return 2;
+    return exit_code::kCannotStart;
   }
   try {
     down = SocketCanTransport::open(cfg->downstream.interface);
   } catch (const CanOpenError& e) {
     spdlog::error("{}: downstream.interface: {}", file, e.what());
-    return 2;
+    return exit_code::kCannotStart;
   }
   EventLoop loop;
   Gateway gw(*cfg, up->sink(), down->sink());
@@ -319,11 +332,15 @@ int run_gateway(const std::string& file) {
     publishing = std::make_unique<GatewayPublishing>(gw, cfg->publish, [&loop] { return loop.now(); });
   } catch (const PublishConfigError& e) {
     spdlog::error("{}: {}", file, e.what());
-    return 2;
+    return exit_code::kCannotStart;
   }
   publishing->run_on(loop, [&driver] { driver.rearm(); });
+  // systemd (gateway/service_notify.hpp): READY=1, STATUS=, WATCHDOG=1 from this loop, STOPPING=1.
+  SystemdNotifier systemd;
+  ServiceNotify notify(systemd, systemd_watchdog_timeout());
   loop.handle_signals({SIGINT, SIGTERM}, [&](int sig) {
     spdlog::info("signal {}: stopping", sig);
+    notify.stopping();
     loop.stop();
   });
   const auto stored = gw.start(loop.now());
@@ -331,6 +348,9 @@ int run_gateway(const std::string& file) {
   driver.rearm();
   spdlog::info("oegw: node {:02X}h on {}, {} sub-devices on {}", cfg->upstream.node_id, cfg->upstream.interface,
                cfg->subdevices.size(), cfg->downstream.interface);
+  const auto report = [&] { notify.update(loop.now(), service_state(gw)); };
+  report();  // both buses open, the device started: READY=1 once it is pre-operational
+  loop.call_every(loop.now() + notify.poll_period(), notify.poll_period(), report);
   loop.run();
   return 0;
 }

@@ -5,6 +5,15 @@
 
 namespace oegw::gateway {
 
+// The exit codes of every oegw command (README "Exit codes"; the unit's RestartPreventExitStatus=
+// names kBadFile: a bad file does not get better by restarting).
+namespace exit_code {
+inline constexpr int kOk = 0;
+inline constexpr int kBadFile = 1;      // the mapping file is refused (check, eds, run); demo: a step failed
+inline constexpr int kCannotStart = 2;  // a CAN interface, its bit rate or publishing cannot be set up
+inline constexpr int kUsage = 64;       // the command line is refused (EX_USAGE)
+}  // namespace exit_code
+
 // Validates FILE and prints the upstream layout; 0 if valid, 1 with every error otherwise.
 int run_check(const std::string& file);
 // Writes the EDS of the upstream device FILE configures to `out` ("-" = standard output).

@@ -163,14 +163,15 @@ void read_file(YamlReader& r, const YAML::Node& root, const SignalCatalogue& cat
 
 }  // namespace
 
-LoadResult load_config_text(std::string_view text, std::string_view file, const SignalCatalogue& catalogue) {
+LoadResult load_config_text(std::string_view text, std::string_view file, const SignalCatalogue& catalogue,
+                            std::optional<std::filesystem::path> base) {
   LoadResult result;
   auto parsed = parse_yaml(text, std::string(file));
   if (parsed.error) {
     result.errors.push_back(std::move(*parsed.error));
     return result;
   }
-  YamlReader r{std::string(file)};
+  YamlReader r{std::string(file), std::move(base)};
   Config cfg;
   cfg.file = std::string(file);
   try {
@@ -193,7 +194,7 @@ LoadResult load_config(const std::string& path, const SignalCatalogue& catalogue
     r.errors.push_back({{path, 1, 1}, file.error});
     return r;
   }
-  return load_config_text(*file.text, path, catalogue);
+  return load_config_text(*file.text, path, catalogue, std::filesystem::path(path).parent_path());
 }
 
 }  // namespace oegw::mapping

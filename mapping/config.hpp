@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <functional>
 #include <optional>
 #include <string>
@@ -79,6 +80,7 @@ struct UpstreamConfig {
   std::vector<SdoServerConfig> sdo_servers;  // 1201h, 1202h, ... (at most 127)
   Location where;
   Location network_id_where;  // the `network_id` value, when written
+  Location interface_where, store_where;  // the values, when written
 };
 
 // Which sub-device EMCYs the gateway passes upstream as its own (remote EMCY, CiA 302-7;
@@ -111,6 +113,7 @@ struct DownstreamConfig {
   Location where;
   Location sync_period_where;  // the `sync_period_ms` value, when written
   Location network_id_where;  // the `network_id` value, when written
+  Location interface_where;   // the `interface` value, when written
 };
 
 struct DdsConfig {
@@ -230,10 +233,13 @@ struct LoadResult {
   [[nodiscard]] std::string error_text() const;  // one diagnostic per line
 };
 
-// Reads and validates the mapping file at `path`.
+// Reads and validates the mapping file at `path`. A relative path in it (an `eds:` option, the
+// upstream store) is taken from the folder `path` is in, not from the working directory.
 [[nodiscard]] LoadResult load_config(const std::string& path, const SignalCatalogue& catalogue);
-// The same for text already in memory; `file` names it in the diagnostics.
+// The same for text already in memory; `file` names it in the diagnostics; a relative path in it
+// is taken from `base`, or left as written without one.
 [[nodiscard]] LoadResult load_config_text(std::string_view text, std::string_view file,
-                                          const SignalCatalogue& catalogue);
+                                          const SignalCatalogue& catalogue,
+                                          std::optional<std::filesystem::path> base = std::nullopt);
 
 }  // namespace oegw::mapping

@@ -391,6 +391,12 @@ namespace {
 constexpr std::string_view kMergeKey = "<<";  // YAML 1.1 merge key (yaml.org/type/merge.html)
 }  // namespace
 
+std::string YamlReader::path(const std::string& written) const {
+  const std::filesystem::path p(written);
+  if (!base_ || p.is_absolute()) return written;
+  return (*base_ / p).lexically_normal().string();
+}
+
 Location YamlReader::loc(const YAML::Node& n) const {
   const auto m = n.Mark();
   if (m.is_null()) return {file_, 1, 1};

@@ -7,6 +7,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cstdint>
+#include <filesystem>
 #include <limits>
 #include <optional>
 #include <string>
@@ -105,9 +106,15 @@ struct MapEntry {
 
 class YamlReader {
  public:
-  explicit YamlReader(std::string file) : file_(std::move(file)) {}
+  // `base`: the folder a relative path in the file is taken from (the mapping file's own folder,
+  // mapping/README.md "Paths"); none: paths stay as written (text that is in no folder).
+  explicit YamlReader(std::string file, std::optional<std::filesystem::path> base = std::nullopt)
+      : file_(std::move(file)), base_(std::move(base)) {}
 
   [[nodiscard]] const std::string& file() const { return file_; }
+  // `written` taken from the base folder when it is relative; an absolute path unchanged; `~` is
+  // not expanded (no shell reads the file): "~/x" is the folder "~" under the base.
+  [[nodiscard]] std::string path(const std::string& written) const;
   [[nodiscard]] Location loc(const YAML::Node& n) const;  // 1:1 for a node without a mark
   void error(const Location& l, std::string msg) { errors_.push_back({l, std::move(msg)}); }
   void error(const YAML::Node& n, std::string msg) { error(loc(n), std::move(msg)); }
@@ -146,6 +153,7 @@ class YamlReader {
 
  private:
   std::string file_;
+  std::optional<std::filesystem::path> base_;
   std::vector<Diagnostic> errors_;
 };
 

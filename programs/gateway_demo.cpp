@@ -31,11 +31,6 @@ namespace {
 
 constexpr NodeId kGateway{0x20};
 
-std::string replace_all(std::string s, const std::string& from, const std::string& to) {
-  for (auto p = s.find(from); p != std::string::npos; p = s.find(from, p + to.size())) s.replace(p, from.size(), to);
-  return s;
-}
-
 // One line per FE: "joystick.1  valid     x=+12000 y=-300 buttons=10000000".
 std::string fe_line(const Gateway& gw, mapping::FeId fe) {
   static const char* const kStatus[] = {"valid", "ERROR", "n/a", "stale", "OFFLINE"};
@@ -71,10 +66,12 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     return 1;
   }
   const std::filesystem::path dir = dir_c;
-  std::ofstream(dir / "generic_pedal.eds") << demo_files::kPedalEds;
-  std::ofstream(dir / "button_cluster.eds") << demo_files::kClusterEds;
-  const std::string yaml = replace_all(demo_files::kDemoYaml, "subdevices/eds/", dir.string() + "/");
-  auto loaded = mapping::load_config_text(yaml, "config/demo.yaml", driver_catalogue());
+  // The source tree's layout: demo.yaml names its EDS files from its own folder config/
+  // (mapping/README.md "Paths"), so they go to subdevices/eds/ beside it.
+  std::filesystem::create_directories(dir / "subdevices/eds");
+  std::ofstream(dir / "subdevices/eds/generic_pedal.eds") << demo_files::kPedalEds;
+  std::ofstream(dir / "subdevices/eds/button_cluster.eds") << demo_files::kClusterEds;
+  auto loaded = mapping::load_config_text(demo_files::kDemoYaml, "config/demo.yaml", driver_catalogue(), dir / "config");
   if (!loaded.ok()) {
     std::fprintf(stderr, "%s", loaded.error_text().c_str());
     std::filesystem::remove_all(dir);
@@ -140,7 +137,8 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
       "oegw demo: the CiA 852 gateway between a simulated cab and a built-in host controller\n"
       "  downstream: elobau grip 11h, MCB-402 03h, pedal 30h, Novotechnik encoder 7Fh, button cluster 31h\n"
       "  upstream:   the gateway is node 20h; the host configures its PDOs and reads the joysticks\n"
-      "  mapping:    config/demo.yaml (run `oegw check config/demo.yaml` to see the layout)\n\n");
+      "  mapping:    config/demo.yaml, on the in-process bus `virtual`; naming can0/can1 instead, `oegw check`\n"
+      "              prints its layout and `oegw run` runs it on a cab controller\n\n");
 
   // Every FE on DDS (loopback only) and LCM (ttl=0, 224.0.0.1), as a machine application sees
   // it: the embedded demo.yaml's publish section (--no-publish turns it off).

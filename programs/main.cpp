@@ -2,14 +2,34 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include <string>
+#include <utility>
+#include <vector>
+
 #include "gateway/programs.hpp"
+#include "programs/version.hpp"
 #include "programs/bench_programs.hpp"
 #include "programs/core_demo.hpp"
 #include "programs/gateway_demo.hpp"
 
+namespace {
+
+// `run --log-level`: spdlog's levels by the names an integrator types, most verbose first (the
+// order the refusal lists them in).
+const std::vector<std::pair<std::string, spdlog::level::level_enum>> kLogLevels = {
+    {"trace", spdlog::level::trace}, {"debug", spdlog::level::debug}, {"info", spdlog::level::info},
+    {"warn", spdlog::level::warn},   {"error", spdlog::level::err},   {"off", spdlog::level::off}};
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  namespace exit_code = oegw::gateway::exit_code;
   CLI::App app{"oegw — CiA 852 operator-environment gateway"};
   app.require_subcommand(0, 1);
+  app.set_version_flag("--version", std::string("oegw ") + oegw::programs::kVersion + " (git " +
+                                        oegw::programs::kGitRevision + ")");
+  app.footer("Exit codes: 0 done; 1 bad mapping file (or a demo step / master wait failed); 2 cannot start "
+             "(CAN interface, bit rate, publishing); 64 usage error (README \"Exit codes\").");
 
   oegw::gateway::GatewayDemoOptions demo;
   auto* demo_cmd = app.add_subcommand("demo", "The embedded demo: gateway, simulated cab devices and a host (default)");
@@ -62,9 +82,23 @@ int main(int argc, char** argv) {
   eds_cmd->add_option("-o,--output", eds_out, "EDS file to write (default: standard output)");
   auto* run_cmd = app.add_subcommand("run", "Run the gateway on the CAN interfaces the mapping file names");
   run_cmd->add_option("file", config_file, "Mapping file (YAML)")->required();
+  std::string log_level = "info";
+  std::vector<std::string> level_names;
+  for (const auto& [name, level] : kLogLevels) level_names.push_back(name);
+  run_cmd->add_option("--log-level", log_level, "Least severe message logged: trace, debug, info (default), warn, error, off")
+      ->check(CLI::IsMember(level_names));
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help and --version end here with 0; every other parse error (CLI11's 105..109 and the
+    // rest) is one usage error, 64 (EX_USAGE, sysexits.h), after CLI11's message.
+    const int rc = app.exit(e);
+    return rc == 0 ? exit_code::kOk : exit_code::kUsage;
+  }
   spdlog::set_pattern("%^%l%$: %v");  // journald adds its own timestamps
+  for (const auto& [name, level] : kLogLevels)
+    if (name == log_level) spdlog::set_level(level);
 
   if (*master_cmd) return oegw::gateway::run_master(master);
   if (*check_cmd) return oegw::gateway::run_check(config_file);

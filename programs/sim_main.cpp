@@ -21,7 +21,11 @@ int main(int argc, char** argv) {
                  "wiring=1/2/3/4/5/7/6, the bit of TPDO1 byte 2 each button BP1..BP7 sets, default the "
                  "document's table as printed)")
       ->required();
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 64;  // as oegw: a usage error is 64 (README "Exit codes")
+  }
   spdlog::set_pattern("%^%l%$: %v");
   return oegw::gateway::run_sim(o);
 }

@@ -22,6 +22,11 @@ PACKAGES=(
   liblcm-dev liblcm-bin libglib2.0-dev
   # tcpdump: an independent check that the demo's DDS/LCM traffic never leaves the host
   tcpdump
+  # libsystemd: sd_notify / sd_watchdog_enabled for the unit's Type=notify and watchdog (oegw run
+  # sends nothing without NOTIFY_SOCKET: systemd is not needed to run it)
+  libsystemd-dev
+  # systemd-analyze verify: the unit file's test (systemd need not run)
+  systemd
 )
 
 missing=()

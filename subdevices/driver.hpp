@@ -267,6 +267,9 @@ struct DriverOptions {
   std::vector<std::pair<std::string, std::string>> values;  // key -> value, as written
   [[nodiscard]] std::optional<std::string> get(std::string_view key) const;
 };
+// The options that name a file (cia401 `eds`): the mapping loader takes a relative one from the
+// mapping file's folder (mapping/README.md "Paths"), so a driver always sees the path to open.
+[[nodiscard]] constexpr bool is_file_option(std::string_view key) { return key == "eds"; }
 std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink,
                                     const DriverOptions& options, std::string& error);
 

@@ -12,8 +12,10 @@ void read_downstream(YamlReader& r, const MapEntry& sec, DownstreamConfig& d) {
       r.entries(sec.value, "downstream",
                 {"interface", "bitrate", "network_id", "emcy_forwarding", "sdo_timeout_ms", "sync_period_ms"},
                 "a map with interface, bitrate, network_id, emcy_forwarding, sdo_timeout_ms, sync_period_ms");
-  if (const auto* e = r.find(es, "interface"))
+  if (const auto* e = r.find(es, "interface")) {
+    d.interface_where = r.loc(e->value);
     if (auto s = r.string(*e, "interface")) d.interface = *s;
+  }
   r.bitrate(es, "bitrate", d.bitrate);
   if (const auto* e = r.find(es, "network_id")) d.network_id_where = r.loc(e->value);
   r.set_int(es, "network_id", "network_id", 1, 127, d.network_id);

@@ -109,8 +109,10 @@ void read_upstream(YamlReader& r, const MapEntry& sec, UpstreamConfig& u) {
                 {"interface", "node_id", "bitrate", "identity", "heartbeat_ms", "store", "network_id", "sdo_servers"},
                 "a map with interface, node_id, bitrate, identity, heartbeat_ms, store, network_id, sdo_servers");
   if (!sec.value.IsMap()) return;
-  if (const auto* e = r.find(es, "interface"))
+  if (const auto* e = r.find(es, "interface")) {
+    u.interface_where = r.loc(e->value);
     if (auto s = r.string(*e, "interface")) u.interface = *s;
+  }
   if (r.find(es, "node_id"))
     r.set_int(es, "node_id", "node_id", 1, 127, u.node_id);
   else
@@ -119,8 +121,10 @@ void read_upstream(YamlReader& r, const MapEntry& sec, UpstreamConfig& u) {
   r.set_int(es, "heartbeat_ms", "heartbeat_ms", 0, 65535, u.heartbeat_ms);
   if (const auto* e = r.find(es, "network_id")) u.network_id_where = r.loc(e->value);
   r.set_int(es, "network_id", "network_id", 1, 127, u.network_id);
-  if (const auto* e = r.find(es, "store"))
-    if (auto s = r.string(*e, "store")) u.store = *s;
+  if (const auto* e = r.find(es, "store")) {
+    u.store_where = r.loc(e->value);
+    if (auto s = r.string(*e, "store")) u.store = r.path(*s);  // from the file's folder
+  }
   if (const auto* e = r.find(es, "identity")) read_identity(r, *e, u.identity);
   if (const auto* e = r.find(es, "sdo_servers")) read_sdo_servers(r, *e, u.sdo_servers);
 }

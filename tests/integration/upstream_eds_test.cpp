@@ -96,8 +96,8 @@ TEST(UpstreamEds, OutputsTheHostMayNotCommandAreNamedAndTheDictionaryMatches) {
 }
 
 TEST(UpstreamEds, TheDemoFileGivesTheDeviceItsOwnEds) {
-  std::filesystem::current_path(OEGW_SOURCE_DIR);  // its EDS paths are relative to the source tree
-  auto r = mapping::load_config("config/demo.yaml", gateway::driver_catalogue());
+  // Its EDS paths are taken from its own folder, whatever the working directory.
+  auto r = mapping::load_config(std::string(OEGW_SOURCE_DIR) + "/config/demo.yaml", gateway::driver_catalogue());
   ASSERT_TRUE(r.ok()) << r.error_text();
   gateway::Gateway gw(*r.config, {}, {});
   EXPECT_EQ(gateway::upstream_eds(*r.config, "oegw.eds"),

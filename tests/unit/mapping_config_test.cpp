@@ -10,7 +10,10 @@
 
 #include <sys/stat.h>
 
+#include <unistd.h>
+
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <string>
@@ -130,7 +133,8 @@ TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
   EXPECT_EQ(grip->signals.size(), 37u);  // from the catalogue
   const auto* pedal = c.find_subdevice("pedal");
   ASSERT_NE(pedal, nullptr);
-  EXPECT_EQ(pedal->options.get("eds"), std::optional<std::string>("subdevices/eds/generic_pedal.eds"));
+  // Written ../subdevices/eds/generic_pedal.eds: taken from config/, the file's folder.
+  EXPECT_EQ(pedal->options.get("eds"), std::optional<std::string>(source_dir() + "/subdevices/eds/generic_pedal.eds"));
   const auto* knob = c.find_subdevice("seat_knob");
   ASSERT_NE(knob, nullptr);
   EXPECT_FALSE(knob->identity.device_type.has_value());
@@ -1382,6 +1386,65 @@ TEST(MappingConfig, RevisionMatchIsMajorOrExact) {
   EXPECT_NE(bad[0].find("found 'minor' for revision_match; expected major (the upper 16 bits of 1018h:03, the default) or exact"),
             std::string::npos)
       << bad[0];
+}
+
+// ---- Paths: taken from the mapping file's folder (mapping/README.md "Paths") ------------------
+
+// A file naming its EDS file `eds` and its store `store`, as written.
+std::string with_paths(const std::string& eds, const std::string& store) {
+  return "upstream: { interface: can0, node_id: 0x20, store: '" + store + "' }\n"
+         "downstream: { interface: can1 }\n"
+         "subdevices:\n  io: { driver: cia401, node_id: 0x31, options: { eds: '" + eds + "' } }\n"
+         "functional_elements:\n  pedal.1: { position: \"io.analog[1]\" }\n";
+}
+
+struct Paths {
+  std::string eds, store;
+};
+Paths paths_of(const LoadResult& r) {
+  if (!r.ok()) return {"not loaded: " + r.error_text(), ""};
+  return {*r.config->subdevices[0].options.get("eds"), r.config->upstream.store};
+}
+
+TEST(MappingPaths, RelativePathsAreTakenFromTheBaseFolder) {
+  const auto p = paths_of(load_config_text(with_paths("pedal.eds", "state/up.store"), "cab.yaml", fake_catalogue,
+                                           std::filesystem::path("/etc/oegw")));
+  EXPECT_EQ(p.eds, "/etc/oegw/pedal.eds");
+  EXPECT_EQ(p.store, "/etc/oegw/state/up.store");
+  // ".." leads out of the folder, and is folded: ../eds from /etc/oegw is /etc/eds.
+  EXPECT_EQ(paths_of(load_config_text(with_paths("../eds/p.eds", "/var/lib/oegw/u.store"), "cab.yaml",
+                                      fake_catalogue, std::filesystem::path("/etc/oegw")))
+                .eds,
+            "/etc/eds/p.eds");
+}
+
+TEST(MappingPaths, AbsolutePathsStayAsWrittenAndTildeIsNotExpanded) {
+  const auto p = paths_of(load_config_text(with_paths("/usr/share/oegw/eds/p.eds", "~/u.store"), "cab.yaml",
+                                           fake_catalogue, std::filesystem::path("/etc/oegw")));
+  EXPECT_EQ(p.eds, "/usr/share/oegw/eds/p.eds");
+  EXPECT_EQ(p.store, "/etc/oegw/~/u.store");  // no shell reads the file: "~" is a folder's name
+}
+
+TEST(MappingPaths, TextWithoutABaseFolderKeepsItsPathsAsWritten) {
+  const auto p = paths_of(load(with_paths("subdevices/eds/p.eds", "u.store")));
+  EXPECT_EQ(p.eds, "subdevices/eds/p.eds");
+  EXPECT_EQ(p.store, "u.store");
+}
+
+TEST(MappingPaths, AFileOnDiskTakesItsPathsFromItsOwnFolderNotTheWorkingDirectory) {
+  const auto dir = std::filesystem::temp_directory_path() / ("oegw-paths-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir / "cab");
+  std::ofstream(dir / "cab/oegw.yaml") << with_paths("eds/p.eds", "u.store");
+  const auto p = paths_of(load_config((dir / "cab/oegw.yaml").string(), fake_catalogue));
+  EXPECT_EQ(p.eds, (dir / "cab/eds/p.eds").string());
+  EXPECT_EQ(p.store, (dir / "cab/u.store").string());
+  // Named from another folder by a relative path: still its own folder.
+  const auto cwd = std::filesystem::current_path();
+  std::filesystem::current_path(dir);
+  const auto q = paths_of(load_config("cab/oegw.yaml", fake_catalogue));
+  std::filesystem::current_path(cwd);
+  EXPECT_EQ(q.eds, "cab/eds/p.eds");
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

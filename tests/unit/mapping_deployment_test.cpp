@@ -1,0 +1,119 @@
+// The checks `oegw check` and `oegw run` add to the loader's (mapping/deployment.hpp), on Configs
+// built here; the built program's messages are tested outside in (tests/CMakeLists.txt
+// oegw_check_cab_*).
+#include "mapping/deployment.hpp"
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+namespace oegw::mapping {
+namespace {
+
+Config cab() {
+  Config c;
+  c.upstream.interface = "can0";
+  c.upstream.interface_where = {"cab.yaml", 2, 14};
+  c.upstream.store = "/tmp/up.store";
+  c.upstream.where = {"cab.yaml", 1, 1};
+  c.downstream.interface = "can1";
+  c.downstream.interface_where = {"cab.yaml", 5, 14};
+  SubdeviceConfig grip;
+  grip.name = "grip";
+  grip.where = {"cab.yaml", 8, 3};
+  c.subdevices.push_back(grip);
+  FunctionalElementConfig fe;
+  FieldBinding b;
+  b.subdevice = "grip";
+  fe.fields.push_back(b);
+  c.functional_elements.push_back(fe);
+  return c;
+}
+
+std::vector<std::string> errors(const Config& c) {
+  std::vector<std::string> out;
+  for (const auto& d : deployment_errors(c)) out.push_back(d.str());
+  return out;
+}
+
+TEST(Deployment, ACabFileHasNothingToRefuseOrWarnAbout) {
+  EXPECT_TRUE(deployment_errors(cab()).empty());
+  EXPECT_TRUE(deployment_warnings(cab()).empty());
+}
+
+TEST(Deployment, InterfaceNamesTheKernelRefuses) {
+  for (const auto& [name, why] : std::vector<std::pair<std::string, std::string>>{
+           {"", "'' is empty"},
+           {"can0123456789abc", "is 16 bytes long"},
+           {"can/0", "contains '/'"},
+           {"can0:1", "contains ':'"},
+           {"can\t0", "contains white space"},
+           {"..", "which the kernel refuses"}}) {
+    Config c = cab();
+    c.upstream.interface = name;
+    const auto e = errors(c);
+    ASSERT_EQ(e.size(), 1u) << name;
+    EXPECT_NE(e[0].find("cab.yaml:2:14: upstream.interface '" + name + "' "), std::string::npos) << e[0];
+    EXPECT_NE(e[0].find(why), std::string::npos) << e[0];
+  }
+  Config c = cab();
+  c.upstream.interface = "can0123456789ab";  // 15 bytes: IFNAMSIZ - 1
+  EXPECT_TRUE(errors(c).empty());
+}
+
+TEST(Deployment, VirtualIsTheDemosBusAndBothBusesOnVirtualAreTwoErrorsNotThree) {
+  Config c = cab();
+  c.upstream.interface = "virtual";
+  c.downstream.interface = "virtual";
+  const auto e = errors(c);
+  ASSERT_EQ(e.size(), 2u);
+  EXPECT_EQ(e[0], "cab.yaml:2:14: upstream.interface: interface virtual is the embedded demo's bus: use oegw demo, "
+                  "or name a CAN interface (can0, can1, vcan0, ...)");
+  EXPECT_EQ(e[1].rfind("cab.yaml:5:14: downstream.interface: interface virtual", 0), 0u) << e[1];
+}
+
+TEST(Deployment, OneInterfaceForBothBusesIsRefusedAtTheDownstreamOne) {
+  Config c = cab();
+  c.downstream.interface = "can0";
+  EXPECT_EQ(errors(c), std::vector<std::string>{"cab.yaml:5:14: downstream.interface can0 is upstream.interface too "
+                                                "(line 2, column 14); expected two CAN interfaces: the host's bus and "
+                                                "the sub-devices' bus"});
+}
+
+TEST(Deployment, AStoreWhoseFolderDoesNotExistIsRefusedAtItsSettingOrItsSection) {
+  Config c = cab();
+  c.upstream.store = "/nonexistent/oegw/up.store";
+  c.upstream.store_where = {"cab.yaml", 3, 10};
+  auto e = errors(c);
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_EQ(e[0].rfind("cab.yaml:3:10: upstream.store /nonexistent/oegw/up.store: its folder /nonexistent/oegw does "
+                       "not exist",
+                       0),
+            0u)
+      << e[0];
+  c.upstream.store_where = {};  // the default, not written: at the upstream section
+  e = errors(c);
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_EQ(e[0].rfind("cab.yaml:1:1: upstream.store /nonexistent/oegw/up.store (the default)", 0), 0u) << e[0];
+  c.upstream.store = "up.store";  // in the working directory: a folder that is there
+  EXPECT_TRUE(errors(c).empty());
+}
+
+TEST(Deployment, WarnsOnAMandatorySubDeviceWithoutHeartbeatAndOnOneNoFeUses) {
+  Config c = cab();
+  c.subdevices[0].mandatory = true;
+  c.subdevices[0].heartbeat_ms = 0;
+  SubdeviceConfig spare;
+  spare.name = "spare";
+  spare.where = {"cab.yaml", 9, 3};
+  c.subdevices.push_back(spare);
+  const auto w = deployment_warnings(c);
+  ASSERT_EQ(w.size(), 2u);
+  EXPECT_EQ(w[0].str().rfind("cab.yaml:8:3: sub-device 'grip' is mandatory with heartbeat_ms 0", 0), 0u) << w[0].str();
+  EXPECT_EQ(w[1].str().rfind("cab.yaml:9:3: sub-device 'spare' feeds no functional element", 0), 0u) << w[1].str();
+  EXPECT_TRUE(deployment_errors(c).empty());  // warnings only
+}
+
+}  // namespace
+}  // namespace oegw::mapping
