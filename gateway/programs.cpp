@@ -12,6 +12,9 @@
 #include "canopen/io/can_bitrate.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/socketcan_transport.hpp"
+#include "gateway/control/control_protocol.hpp"
+#include "gateway/control/control_server.hpp"
+#include "gateway/control/status_report.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
@@ -322,6 +325,21 @@ int run_gateway(const std::string& file) {
     return 2;
   }
   publishing->run_on(loop, [&driver] { driver.rearm(); });
+  // The control socket (`oegw status`; gateway/control/PROTOCOL.md).
+  ControlProtocol protocol;
+  const TimePoint started = loop.now();
+  protocol.add("status", [&](const nlohmann::json&) {
+    return nlohmann::json{{"status", status_report(gw, *cfg, {loop.now(), started})}};
+  });
+  std::unique_ptr<ControlServer> control;
+  try {
+    if (cfg->control.enabled)
+      control = std::make_unique<ControlServer>(loop, control_settings(cfg->control, file),
+                                                [&protocol](std::string_view line) { return protocol.answer(line); });
+  } catch (const ControlError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  }
   loop.handle_signals({SIGINT, SIGTERM}, [&](int sig) {
     spdlog::info("signal {}: stopping", sig);
     loop.stop();
