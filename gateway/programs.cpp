@@ -12,9 +12,7 @@
 #include "canopen/io/can_bitrate.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/socketcan_transport.hpp"
-#include "gateway/control/control_protocol.hpp"
-#include "gateway/control/control_server.hpp"
-#include "gateway/control/status_report.hpp"
+#include "gateway/control/gateway_control.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
@@ -325,17 +323,9 @@ int run_gateway(const std::string& file) {
     return 2;
   }
   publishing->run_on(loop, [&driver] { driver.rearm(); });
-  // The control socket (`oegw status`; gateway/control/PROTOCOL.md).
-  ControlProtocol protocol;
-  const TimePoint started = loop.now();
-  protocol.add("status", [&](const nlohmann::json&) {
-    return nlohmann::json{{"status", status_report(gw, *cfg, {loop.now(), started})}};
-  });
-  std::unique_ptr<ControlServer> control;
+  std::unique_ptr<GatewayControl> control;  // `oegw status` (gateway/control/PROTOCOL.md)
   try {
-    if (cfg->control.enabled)
-      control = std::make_unique<ControlServer>(loop, control_settings(cfg->control, file),
-                                                [&protocol](std::string_view line) { return protocol.answer(line); });
+    if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, gw, *cfg, file);
   } catch (const ControlError& e) {
     spdlog::error("{}", e.what());
     return 2;

@@ -28,7 +28,7 @@ std::string emcy_text(const json& e) {
   if (e.is_null()) return "-";
   std::string data;
   for (const auto& b : e["data"]) data += fmt::format("{:02X}", b.get<unsigned>());
-  return fmt::format("{} reg {} data {} {} ago ({} in all)", hex(e["code"], 4), hex(e["error_register"], 2), data,
+  return fmt::format("{} reg {} data {}, {} ago ({} in all)", hex(e["code"], 4), hex(e["error_register"], 2), data,
                      seconds(e["age_ms"].get<std::int64_t>()), e["count"].get<std::uint64_t>());
 }
 
@@ -47,19 +47,21 @@ void wrap(std::string& out, const std::string& first, const std::vector<std::str
   out += line + "\n";
 }
 
+// One row per sub-device, then its last EMCY, identity and firmware, and why it is faulty.
 void subdevice_rows(std::string& out, const json& s) {
   const json& c = s["counters"];
-  const std::string head = fmt::format("{:<14} {:>4} {:<16} {:<12} {:>9} {:>5} {:>7}  ", s["name"].get<std::string>(),
-                                       hex(s["node_id"], 2), s["driver"].get<std::string>(),
-                                       s["state"].get<std::string>(), c["frames"].get<std::uint64_t>(),
-                                       c["bad_frames"].get<std::uint64_t>(), c["reboots_seen"].get<std::uint64_t>());
-  wrap(out, head, {emcy_text(s["last_emcy"])}, head.size());
+  out += fmt::format("{:<14} {:>4} {:<16} {:<12} {:>9} {:>5} {:>7}\n", s["name"].get<std::string>(), hex(s["node_id"], 2),
+                     s["driver"].get<std::string>(), s["state"].get<std::string>(), c["frames"].get<std::uint64_t>(),
+                     c["bad_frames"].get<std::uint64_t>(), c["reboots_seen"].get<std::uint64_t>());
   const json& id = s["identity"];
   wrap(out, "    ",
        {"vendor " + hex(id["vendor_id"], 8), "product " + hex(id["product_code"], 8), "revision " + hex(id["revision"], 8),
-        "serial " + hex(id["serial"], 8), "name " + text(s["device_name"]), "hardware " + text(s["hardware_version"]),
-        "software " + text(s["software_version"])},
+        "serial " + hex(id["serial"], 8)},
        6);
+  wrap(out, "    ",
+       {"name " + text(s["device_name"]), "hardware " + text(s["hardware_version"]), "software " + text(s["software_version"])},
+       6);
+  if (!s["last_emcy"].is_null()) wrap(out, "    ", {"last EMCY " + emcy_text(s["last_emcy"])}, 6);
   if (s["state"] != "operational" && s["network_state"] != s["state"])
     wrap(out, "    ", {"network manager: " + s["network_state"].get<std::string>()}, 6);
   if (s["fault"].is_string()) wrap(out, "    ", {"fault: " + s["fault"].get<std::string>()}, 6);
@@ -95,8 +97,8 @@ std::string status_table(const json& st) {
   out += fmt::format("downstream: {}, network {}, PDOs of unknown nodes {}, EMCYs of unknown nodes {}\n",
                      down["interface"].get<std::string>(), down["network_id"].get<int>(),
                      dc["unknown_pdo"].get<std::uint64_t>(), dc["unknown_emcy"].get<std::uint64_t>());
-  out += fmt::format("\n{:<14} {:>4} {:<16} {:<12} {:>9} {:>5} {:>7}  {}\n", "sub-device", "node", "driver", "state",
-                     "frames", "bad", "reboots", "last EMCY");
+  out += fmt::format("\n{:<14} {:>4} {:<16} {:<12} {:>9} {:>5} {:>7}\n", "sub-device", "node", "driver", "state",
+                     "frames", "bad", "reboots");
   for (const auto& s : st["subdevices"]) subdevice_rows(out, s);
   out += fmt::format("\n{:<15} {:<14} {}\n", "FE", "status", "fields (value, status if not valid)");
   for (const auto& fe : st["functional_elements"]) fe_rows(out, fe);
