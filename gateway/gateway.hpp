@@ -123,6 +123,7 @@ class Gateway {
   [[nodiscard]] const OeDevice& upstream() const { return *oe_; }
   [[nodiscard]] const FeModel& model() const { return model_; }
   [[nodiscard]] subdevices::NetworkManager& downstream() { return network_; }
+  [[nodiscard]] const subdevices::NetworkManager& downstream() const { return network_; }
   // Remote SDO: the host's transfers to sub-devices (gateway/remote_sdo.hpp).
   [[nodiscard]] const RemoteSdo& remote_sdo() const { return *remote_sdo_; }
   [[nodiscard]] const std::map<std::string, std::string>& faults() const { return faults_; }

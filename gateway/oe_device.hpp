@@ -162,6 +162,7 @@ class OeDevice {
   void on_bit_rate_switch(BitRateSwitch cb) { on_bit_rate_switch_ = std::move(cb); }
 
   [[nodiscard]] canopen::Node& node() { return *node_; }
+  [[nodiscard]] const canopen::Node& node() const { return *node_; }
   [[nodiscard]] canopen::ObjectDictionary& od() { return od_; }
   [[nodiscard]] const OeDeviceConfig& config() const { return cfg_; }
 

@@ -12,6 +12,7 @@
 #include "canopen/io/can_bitrate.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/socketcan_transport.hpp"
+#include "gateway/control/gateway_control.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
@@ -338,6 +339,13 @@ int run_gateway(const std::string& file) {
   // systemd (gateway/service_notify.hpp): READY=1, STATUS=, WATCHDOG=1 from this loop, STOPPING=1.
   SystemdNotifier systemd;
   ServiceNotify notify(systemd, systemd_watchdog_timeout());
+  std::unique_ptr<GatewayControl> control;  // `oegw status` (gateway/control/PROTOCOL.md)
+  try {
+    if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, gw, *cfg, file);
+  } catch (const ControlError& e) {
+    spdlog::error("{}", e.what());
+    return exit_code::kCannotStart;
+  }
   loop.handle_signals({SIGINT, SIGTERM}, [&](int sig) {
     spdlog::info("signal {}: stopping", sig);
     notify.stopping();

@@ -138,6 +138,22 @@ struct PublishConfig {
   LcmConfig lcm;
 };
 
+// The local control socket `oegw run` serves (`oegw status`, later `oegw ctl`; the protocol:
+// gateway/control/PROTOCOL.md). A Unix stream socket only: nothing listens on a network.
+inline constexpr std::string_view kDefaultControlSocket = "/run/oegw/oegw.sock";
+struct ControlConfig {
+  bool enabled = true;
+  std::string socket{kDefaultControlSocket};  // an absolute path, shorter than sun_path
+  // The group that may ask besides root (socket mode 0660, group = this); empty: the socket is
+  // its owner's only (mode 0600). `oegw run` refuses a group this machine does not have.
+  std::string group;
+  Location where;         // the section, when written
+  Location socket_where;  // the `socket` value, when written
+  Location group_where;   // the `group` value, when written
+};
+// The longest socket path a sockaddr_un takes (108 bytes with its NUL, Linux unix(7)).
+inline constexpr std::size_t kMaxControlSocketPath = 107;
+
 struct SdoWriteConfig {
   std::uint16_t index = 0;
   std::uint8_t sub_index = 0;
@@ -220,6 +236,7 @@ struct Config {
   UpstreamConfig upstream;
   DownstreamConfig downstream;
   PublishConfig publish;
+  ControlConfig control;
   std::vector<SubdeviceConfig> subdevices;                   // in file order
   std::vector<FunctionalElementConfig> functional_elements;  // sorted by FeId
   [[nodiscard]] const SubdeviceConfig* find_subdevice(std::string_view name) const;

@@ -6,6 +6,7 @@
 #include <utility>
 #include <vector>
 
+#include "gateway/control/status_command.hpp"
 #include "gateway/programs.hpp"
 #include "programs/version.hpp"
 #include "programs/bench_programs.hpp"
@@ -88,6 +89,13 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--log-level", log_level, "Least severe message logged: trace, debug, info (default), warn, error, off")
       ->check(CLI::IsMember(level_names));
 
+  oegw::gateway::StatusOptions status;
+  auto* status_cmd = app.add_subcommand("status", "Ask the running `oegw run` what it sees (its control socket)");
+  status_cmd->add_option("--socket", status.socket, "Control socket (default: the mapping file's control.socket, else /run/oegw/oegw.sock)");
+  status_cmd->add_option("--config", status.config, "Mapping file whose control.socket to ask");
+  status_cmd->add_flag("--json", status.json, "Print the daemon's JSON answer as it is (gateway/control/PROTOCOL.md)");
+  status_cmd->add_option("--timeout", status.timeout_s, "Seconds to wait for the answer")->check(CLI::Range(0.1, 60.0));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -104,6 +112,7 @@ int main(int argc, char** argv) {
   if (*check_cmd) return oegw::gateway::run_check(config_file);
   if (*eds_cmd) return oegw::gateway::run_eds(config_file, eds_out);
   if (*run_cmd) return oegw::gateway::run_gateway(config_file);
+  if (*status_cmd) return oegw::gateway::run_status(status);
   if (*dev_cmd) {
     device.node_id = oegw::canopen::NodeId{static_cast<std::uint8_t>(node_id)};
     device.store_path = store;

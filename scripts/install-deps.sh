@@ -9,6 +9,8 @@ PACKAGES=(
   g++ cmake ninja-build pkg-config
   # libraries (libsocketcan-dev: setting the CAN interfaces' bit rate over netlink)
   libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libsocketcan-dev
+  # the control socket's JSON (oegw status)
+  nlohmann-json3-dev
   # test tiers
   libgtest-dev libgmock-dev libbenchmark-dev clang
   # independent CAN peers and the SocketCAN-in-a-VM tier

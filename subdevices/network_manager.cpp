@@ -90,7 +90,10 @@ NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
   master_.on_boot = [this](NodeId n) {
     Managed* m = find(n);
     if (m == nullptr || m->state == NodeState::Idle) return;  // start() has not run yet
-    if (m->started_once) ++counters_.reboots_seen;
+    if (m->started_once) {
+      ++counters_.reboots_seen;
+      ++m->counted.reboots_seen;
+    }
     const bool was_live = m->state == NodeState::Operational;
     const bool application_reset = m->state != NodeState::WaitingBootUp || m->reset_node_sent;
     if (application_reset && on_application_reset) on_application_reset(m->settings.name);
@@ -172,6 +175,30 @@ NodeState NetworkManager::state(std::string_view name) const {
 Driver* NetworkManager::driver(std::string_view name) {
   const Managed* m = find(name);
   return m ? m->driver.get() : nullptr;
+}
+
+const Driver* NetworkManager::driver(std::string_view name) const {
+  const Managed* m = find(name);
+  return m ? m->driver.get() : nullptr;
+}
+
+NodeCounters NetworkManager::node_counters(std::string_view name) const {
+  const Managed* m = find(name);
+  return m ? m->counted : NodeCounters{};
+}
+
+void NetworkManager::count_frame(const CanFrame& frame) {
+  if (frame.extended || frame.rtr) return;
+  if (auto it = by_cob_.find(frame.id); it != by_cob_.end()) {
+    ++it->second->counted.frames;
+    return;
+  }
+  // The predefined connection set's node-bound COB-IDs (CiA 301 §7.3.5): EMCY, SDO answer,
+  // heartbeat / boot-up; 080h itself is SYNC.
+  const std::uint32_t function = frame.id & 0x780;
+  const auto node = static_cast<std::uint8_t>(frame.id & 0x7F);
+  if (node == 0 || (function != 0x080 && function != 0x580 && function != 0x700)) return;
+  if (Managed* m = find(NodeId{node})) ++m->counted.frames;
 }
 
 std::vector<std::string> NetworkManager::names() const {
@@ -483,6 +510,7 @@ void NetworkManager::commission(std::optional<canopen::lss::Address> address, No
 
 bool NetworkManager::on_frame(const CanFrame& frame, TimePoint now) {
   now_ = now;
+  count_frame(frame);
   if (lss_.on_frame(frame, now)) return true;
   if (master_.on_frame(frame, now)) return true;
   if (frame.extended || frame.rtr) return false;

@@ -90,6 +90,14 @@ struct NetworkCounters {
   std::uint64_t reboots_seen = 0;    // boot-ups of configured nodes after their first start
 };
 
+// What the network manager counted of one configured node since the gateway started.
+struct NodeCounters {
+  // Frames received from it: its PDOs (the COB-IDs its driver consumes), heartbeats and
+  // boot-ups (700h + node-ID), EMCYs (080h + node-ID), SDO answers (580h + node-ID).
+  std::uint64_t frames = 0;
+  std::uint64_t reboots_seen = 0;  // its boot-ups after its first start (NetworkCounters sums them)
+};
+
 struct NetworkTiming {
   Duration boot_wait = std::chrono::seconds(2);    // boot-up wait after reset communication
   Duration retry_first = std::chrono::seconds(1);  // back-off starts here ...
@@ -128,10 +136,13 @@ class NetworkManager {
 
   [[nodiscard]] NodeState state(std::string_view name) const;
   [[nodiscard]] Driver* driver(std::string_view name);
+  [[nodiscard]] const Driver* driver(std::string_view name) const;
   [[nodiscard]] std::vector<std::string> names() const;
   // True while any mandatory node is not operational.
   [[nodiscard]] bool fault() const;
   [[nodiscard]] const NetworkCounters& counters() const { return counters_; }
+  // One node's counters (zeros for an unknown name).
+  [[nodiscard]] NodeCounters node_counters(std::string_view name) const;
   // The diagnostics read at the node's last boot (empty before the first); nullptr for an
   // unknown name.
   [[nodiscard]] const NodeDiagnostics* diagnostics(std::string_view name) const;
@@ -187,6 +198,7 @@ class NetworkManager {
     InputCounters reported;  // what on_bad_input has already said
     std::vector<std::pair<CanFrame, TimePoint>> held;  // Starting: last PDO per COB-ID, for go_live
     NodeDiagnostics diag;  // read at the last boot
+    NodeCounters counted;
   };
 
   Managed* find(NodeId node);
@@ -199,6 +211,7 @@ class NetworkManager {
   [[nodiscard]] std::string sync_refusal(const Managed& m) const;  // step 6; empty when fine
   void run_step(Managed& m);
   void route(Managed& m);
+  void count_frame(const CanFrame& frame);  // NodeCounters::frames of its sender
   void report_bad_input(Managed& m);
   void report_once(std::uint64_t& seen, std::uint64_t now_count, const std::string& name, const char* what);  // (re)builds the COB-ID routing of a node's TPDOs
   void finish(Managed& m, TimePoint now);                           // NMT start: Starting

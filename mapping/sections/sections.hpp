@@ -17,6 +17,7 @@ void read_downstream(YamlReader& r, const MapEntry& section, DownstreamConfig& o
 // sdo write of 1800h..19FFh:02, 0..240) needs downstream.sync_period_ms (downstream.cpp).
 void check_sync(YamlReader& r, const Config& config);
 void read_publish(YamlReader& r, const MapEntry& section, PublishConfig& out);        // publish.cpp
+void read_control(YamlReader& r, const MapEntry& section, ControlConfig& out);        // control.cpp
 // subdevices.cpp; the signals of each come from `catalogue`.
 void read_subdevices(YamlReader& r, const MapEntry& section, const SignalCatalogue& catalogue,
                      std::vector<SubdeviceConfig>& out);

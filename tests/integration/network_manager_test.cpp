@@ -241,6 +241,30 @@ TEST_F(NetworkManagerTest, RebootMidOperationIsReconfiguredAndRestarted) {
   EXPECT_EQ(dev.od.get<std::uint16_t>(0x1017, 0), 100) << "reconfigured after the reboot";
 }
 
+// `oegw status`'s per-node counters: every frame the device sent (boot-ups, SDO answers,
+// heartbeats, its TPDO, an EMCY) counts for it, nothing of another node or of the gateway does.
+TEST_F(NetworkManagerTest, CountsEachNodesFramesAndReboots) {
+  Device dev(net_);
+  (void)dev.node->start(net_.now());
+  start();
+  net_.run_for(100ms);
+  (void)dev.od.set<std::uint8_t>(0x6000, 1, 7);
+  dev.node->emcy().raise(0x1000, 0x01, net_.now());
+  net_.run_for(300ms);
+  auto stranger = net_.sink("stranger");
+  stranger(CanFrame(0x712, {0x05}));  // another node's heartbeat
+  stranger(CanFrame(0x192, {0x01}));  // and its PDO
+  dev.node->nmt().reset(false, net_.now());  // the device reboots on its own
+  net_.run_for(300ms);
+  std::uint64_t from_device = 0;
+  for (const auto& r : net_.bus().log()) from_device += r.sender == "device" ? 1 : 0;
+  const NodeCounters c = manager_->node_counters("grip");
+  EXPECT_GT(from_device, 10u);
+  EXPECT_EQ(c.frames, from_device);
+  EXPECT_EQ(c.reboots_seen, 1u);
+  EXPECT_EQ(manager_->node_counters("nobody").frames, 0u);
+}
+
 TEST_F(NetworkManagerTest, SdoTimeoutDuringConfigurationLeavesTheNodeStoppedAndRetries) {
   Device dev(net_);
   (void)dev.node->start(net_.now());

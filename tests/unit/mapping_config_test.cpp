@@ -311,7 +311,7 @@ TEST(MappingConfig, YamlSyntaxErrorCarriesItsMarkAndAHintForBracketsInFlowMaps) 
 
 TEST(MappingConfig, EmptyFileAndMissingSections) {
   EXPECT_THAT(errors(load("")),
-              ElementsAre("t.yaml:1:1: found nothing at the top; expected a map with upstream, downstream, publish, "
+              ElementsAre("t.yaml:1:1: found nothing at the top; expected a map with upstream, downstream, publish, control, "
                           "subdevices, functional_elements"));
   EXPECT_THAT(errors(load("upstream: { interface: can0 }\n")),
               ElementsAre("t.yaml:1:1: no 'downstream' in the file; expected a downstream section",
@@ -333,7 +333,7 @@ functional_elements:
   EXPECT_THAT(errors(r), ElementsAre(
       "t.yaml:1:37: unknown key 'vendor' in upstream identity; expected one of vendor_id, product_code, revision, "
       "serial",
-      "t.yaml:3:1: unknown key 'publsh' in the file; expected one of upstream, downstream, publish, subdevices, "
+      "t.yaml:3:1: unknown key 'publsh' in the file; expected one of upstream, downstream, publish, control, subdevices, "
       "functional_elements (did you mean 'publish'?)",
       "t.yaml:5:36: unknown key 'hearbeat_ms' in sub-device 'a'; expected one of driver, node_id, heartbeat_ms, "
       "heartbeat_timeout_ms, pdo_timeout_ms, mandatory, identity, sdo, options (did you mean 'heartbeat_ms'?)",
@@ -1445,6 +1445,48 @@ TEST(MappingPaths, AFileOnDiskTakesItsPathsFromItsOwnFolderNotTheWorkingDirector
   std::filesystem::current_path(cwd);
   EXPECT_EQ(q.eds, "cab/eds/p.eds");
   std::filesystem::remove_all(dir);
+}
+
+// ---- control: the local control socket (gateway/control/PROTOCOL.md) -----------------------
+
+const std::string kWhole = kHead + "  joystick.1: { x: right_grip.x }\n";
+
+TEST(MappingConfig, ControlDefaultsWithoutTheSection) {
+  const auto r = load(kWhole);
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  EXPECT_TRUE(r.config->control.enabled);
+  EXPECT_EQ(r.config->control.socket, "/run/oegw/oegw.sock");
+  EXPECT_EQ(r.config->control.group, "");  // root's only (mode 0600)
+}
+
+TEST(MappingConfig, ControlSectionReadWithTheGroupsPosition) {
+  const auto r = load("control: { socket: /run/cab2/oegw.sock, group: oegw }\n" + kWhole);
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  EXPECT_EQ(r.config->control.socket, "/run/cab2/oegw.sock");
+  EXPECT_EQ(r.config->control.group, "oegw");
+  EXPECT_EQ(r.config->control.group_where.str(), "t.yaml:1:48");  // `oegw run` names it there
+  const auto off = load("control: { enabled: false }\n" + kWhole);
+  ASSERT_TRUE(off.ok()) << off.error_text();
+  EXPECT_FALSE(off.config->control.enabled);
+}
+
+TEST(MappingConfig, ControlSectionErrorsNameTheSetting) {
+  const std::string long_path = "/run/" + std::string(103, 'x');  // 108 characters
+  EXPECT_THAT(errors(load("control: { socket: oegw.sock, group: \"Oegw Users\", enable: true }\n" + kWhole)),
+              ElementsAre("t.yaml:1:20: control socket 'oegw.sock' is a relative path; expected an absolute path, "
+                          "e.g. /run/oegw/oegw.sock",
+                          "t.yaml:1:38: control group 'Oegw Users' is not a group name; expected a-z, 0-9, _ and - "
+                          "(starting with a letter or _, at most 32), e.g. oegw",
+                          "t.yaml:1:52: unknown key 'enable' in control; expected one of enabled, socket, group (did "
+                          "you mean 'enabled'?)"));
+  EXPECT_THAT(errors(load("control: { socket: " + long_path + " }\n" + kWhole)),
+              ElementsAre("t.yaml:1:20: control socket path of 108 characters; expected at most 107 (a Unix socket "
+                          "address holds no more)"));
+  EXPECT_THAT(errors(load("control: { socket: /run/oegw/ }\n" + kWhole)),
+              ElementsAre("t.yaml:1:20: control socket '/run/oegw/' names a folder; expected the socket file's path, "
+                          "e.g. /run/oegw/oegw.sock"));
+  EXPECT_THAT(errors(load("control: /run/oegw.sock\n" + kWhole)),
+              ElementsAre("t.yaml:1:10: found '/run/oegw.sock' for control; expected a map with enabled, socket, group"));
 }
 
 }  // namespace

@@ -1,0 +1,26 @@
+// The client side of the control socket (gateway/control/PROTOCOL.md): one request line, one
+// answer line, within a time-out. Used by `oegw status` (and later `oegw ctl`).
+#pragma once
+
+#include <chrono>
+#include <string>
+
+namespace oegw::gateway {
+
+enum class AskStatus {
+  Ok,                // `text` is the answer line
+  NoDaemon,          // no socket file, or nobody listening on it
+  PermissionDenied,  // the socket's mode and group keep this user out
+  Timeout,           // no whole answer in time
+  Failed,            // anything else (`text` says what)
+};
+
+struct AskResult {
+  AskStatus status = AskStatus::Failed;
+  std::string text;  // the answer line (Ok), else a message naming the socket (and its group)
+};
+
+[[nodiscard]] AskResult ask_daemon(const std::string& socket, const std::string& request_line,
+                                   std::chrono::milliseconds timeout);
+
+}  // namespace oegw::gateway

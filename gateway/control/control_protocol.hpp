@@ -1,0 +1,40 @@
+// The control socket's protocol (gateway/control/PROTOCOL.md): one request per line, a JSON
+// object {"command": "status"} (optionally "protocol": 1), one JSON line in answer, in order, on
+// a connection that may carry several. Every answer has "protocol" and "ok"; a refusal has
+// "error": {"code", "message"}. New commands (`oegw ctl`'s, issue 16) are added by name; a
+// command grows by new fields, never by changing the meaning of one (then "protocol" goes up).
+#pragma once
+
+#include <functional>
+#include <map>
+#include <string>
+#include <string_view>
+
+#include <nlohmann/json.hpp>
+
+namespace oegw::gateway {
+
+inline constexpr int kControlProtocol = 1;
+
+class ControlProtocol {
+ public:
+  // A command's answer: the fields of the answer besides protocol/ok/command, from the request
+  // (the whole object, for the command's own arguments).
+  using Command = std::function<nlohmann::json(const nlohmann::json& request)>;
+  void add(std::string name, Command command) { commands_[std::move(name)] = std::move(command); }
+
+  // The answer line (no newline) to one request line. Never throws: malformed input,
+  // an unknown command or a failing command each give an error answer.
+  [[nodiscard]] std::string answer(std::string_view line) const;
+
+ private:
+  std::map<std::string, Command, std::less<>> commands_;
+};
+
+// {"protocol": 1, "ok": false, "error": {"code": code, "message": message}} as a line.
+[[nodiscard]] std::string control_error(std::string_view code, const std::string& message);
+// A JSON text that never fails to serialise: bytes that are not UTF-8 (a device's 1008h, say)
+// become U+FFFD.
+[[nodiscard]] std::string json_line(const nlohmann::json& j);
+
+}  // namespace oegw::gateway

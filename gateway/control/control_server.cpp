@@ -1,0 +1,239 @@
+#include "gateway/control/control_server.hpp"
+
+#include <fcntl.h>
+#include <grp.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+
+#include "gateway/control/control_protocol.hpp"
+
+namespace oegw::gateway {
+
+namespace ev = canopen::io_events;
+
+namespace {
+
+std::string err(int e) { return std::strerror(e); }
+
+sockaddr_un address(const std::string& path) {
+  sockaddr_un a{};
+  a.sun_family = AF_UNIX;
+  std::memcpy(a.sun_path, path.c_str(), std::min(path.size(), sizeof a.sun_path - 1));
+  return a;
+}
+
+// Somebody listens on `path`: connect() succeeds. ECONNREFUSED: a socket file nobody serves.
+int probe(const std::string& path) {
+  const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return errno;
+  const sockaddr_un a = address(path);
+  const int rc = ::connect(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a);
+  const int e = rc == 0 ? 0 : errno;
+  ::close(fd);
+  return e;
+}
+
+// What is at the path before we bind: nothing, a stale socket (removed), or a refusal.
+void clear_the_path(const ControlSocketSettings& s) {
+  const std::string& p = s.path;
+  struct stat st{};
+  if (::lstat(p.c_str(), &st) != 0) {
+    if (errno != ENOENT) throw ControlError(s.where + ": control.socket: cannot use " + p + ": " + err(errno));
+    const auto folder = std::filesystem::path(p).parent_path();
+    if (::mkdir(folder.c_str(), 0755) != 0 && errno != EEXIST)
+      throw ControlError(s.where + ": control.socket: cannot create the folder " + folder.string() + " for " + p + ": " +
+                         err(errno));
+    return;
+  }
+  if (!S_ISSOCK(st.st_mode))
+    throw ControlError(s.where + ": control.socket: " + p + " exists and is not a socket; remove it or choose another control.socket");
+  const int e = probe(p);
+  if (e == 0)
+    throw ControlError(s.where + ": control.socket: " + p + " is served by a running gateway (`oegw status --socket " + p +
+                       "` asks it); stop that one first, or give this gateway its own control.socket");
+  if (e != ECONNREFUSED) throw ControlError(s.where + ": control.socket: cannot probe " + p + ": " + err(e));
+  if (::unlink(p.c_str()) != 0) throw ControlError(s.where + ": control.socket: cannot remove the stale " + p + ": " + err(errno));
+  if (s.log) s.log("control: removed the stale socket " + p + " (nobody listened on it: a run that ended without removing it)");
+}
+
+}  // namespace
+
+ControlSocketSettings control_settings(const mapping::ControlConfig& c, const std::string& file) {
+  ControlSocketSettings s;
+  s.path = c.socket;
+  s.where = c.socket_where.line != 0 ? c.socket_where.str() : file;
+  if (c.group.empty()) return s;
+  if (const group* g = ::getgrnam(c.group.c_str())) {
+    s.group = g->gr_gid;
+    return s;
+  }
+  const std::string where = c.group_where.line != 0 ? c.group_where.str() : file;
+  throw ControlError(where + ": control.group: no group '" + c.group + "' on this machine (getent group " + c.group +
+                     "); create it (groupadd --system " + c.group + ") or leave control.group out (the socket is then "
+                     "root's only, mode 0600)");
+}
+
+ControlServer::ControlServer(canopen::EventLoop& loop, ControlSocketSettings settings, Handler handler)
+    : loop_(loop), settings_(std::move(settings)), handler_(std::move(handler)) {
+  const std::string& p = settings_.path;
+  const ControlSocketSettings& s = settings_;
+  if (p.empty() || p.size() > mapping::kMaxControlSocketPath) throw ControlError(s.where + ": control.socket: '" + p + "' is no socket path");
+  clear_the_path(settings_);
+  fd_ = ::socket(AF_UNIX, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+  if (fd_ < 0) throw ControlError(s.where + ": control.socket: socket(AF_UNIX): " + err(errno));
+  const sockaddr_un a = address(p);
+  // Created as 0600: nobody else can connect between bind() and the chmod below.
+  const mode_t old = ::umask(0177);
+  const int rc = ::bind(fd_, reinterpret_cast<const sockaddr*>(&a), sizeof a);
+  const int bind_errno = errno;
+  ::umask(old);
+  std::string failure;
+  if (rc != 0) failure = "cannot bind " + p + ": " + err(bind_errno);
+  else if (settings_.group && (::chown(p.c_str(), static_cast<uid_t>(-1), *settings_.group) != 0 || ::chmod(p.c_str(), 0660) != 0))
+    failure = "cannot give " + p + " to group " + std::to_string(*settings_.group) + ": " + err(errno);
+  else if (::listen(fd_, 16) != 0)
+    failure = "cannot listen on " + p + ": " + err(errno);
+  struct stat st{};
+  if (failure.empty() && ::stat(p.c_str(), &st) == 0) {
+    dev_ = st.st_dev;
+    ino_ = st.st_ino;
+  }
+  if (!failure.empty()) {
+    if (rc == 0) ::unlink(p.c_str());
+    ::close(fd_);
+    throw ControlError(s.where + ": control.socket: " + failure);
+  }
+  watch_ = loop_.watch(fd_, ev::kReadable, [this](std::uint32_t) { accept_clients(); });
+}
+
+ControlServer::~ControlServer() {
+  while (!clients_.empty()) close_client(clients_.begin()->first, false);
+  loop_.unwatch(watch_);
+  ::close(fd_);
+  // Only our own socket: a later daemon may have replaced a file we were told was stale.
+  struct stat st{};
+  if (::lstat(settings_.path.c_str(), &st) == 0 && st.st_dev == dev_ && st.st_ino == ino_) ::unlink(settings_.path.c_str());
+}
+
+void ControlServer::accept_clients() {
+  for (;;) {
+    const int fd = ::accept4(fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
+    if (fd < 0) return;  // EAGAIN: all taken; anything else: the next readable tries again
+    if (clients_.size() >= settings_.limits.max_clients) {
+      const std::string busy = control_error("busy", "the gateway serves " + std::to_string(clients_.size()) +
+                                                         " clients already; try again") + "\n";
+      (void)!::send(fd, busy.data(), busy.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+      ::close(fd);
+      ++dropped_;
+      continue;
+    }
+    const std::uint64_t id = next_id_++;
+    Client& c = clients_[id];
+    c.fd = fd;
+    c.watch = loop_.watch(fd, ev::kReadable, [this, id](std::uint32_t e) { on_client(id, e); });
+    arm(id, c, settings_.limits.idle_timeout);
+  }
+}
+
+void ControlServer::on_client(std::uint64_t id, std::uint32_t events) {
+  const auto it = clients_.find(id);
+  if (it == clients_.end()) return;
+  Client& c = it->second;
+  const bool ok = ((events & (ev::kReadable | ev::kHangup | ev::kError)) == 0 || c.closing || read_requests(c)) &&
+                  ((events & ev::kWritable) == 0 || flush(c));
+  if (!ok) return close_client(id, false);
+  if (c.closing && c.out.empty()) return close_client(id, false);
+  if (c.out.size() > settings_.limits.max_pending) return close_client(id, true);
+  rewatch(id, c);
+}
+
+bool ControlServer::read_requests(Client& c) {
+  char buf[4096];
+  for (;;) {
+    const ssize_t n = ::recv(c.fd, buf, sizeof buf, MSG_DONTWAIT);
+    if (n == 0) {
+      c.closing = true;  // the client is done sending: answer what it asked, then close
+      break;
+    }
+    if (n < 0) {
+      if (errno == EAGAIN || errno == EWOULDBLOCK) break;
+      if (errno == EINTR) continue;
+      return false;
+    }
+    c.in.append(buf, static_cast<std::size_t>(n));
+    for (std::size_t nl; (nl = c.in.find('\n')) != std::string::npos;) {
+      std::string_view line(c.in.data(), nl);
+      if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+      if (nl > settings_.limits.max_request) break;
+      c.out += handler_(line) + "\n";
+      ++answered_;
+      c.in.erase(0, nl + 1);
+    }
+    if (c.in.size() > settings_.limits.max_request) {
+      c.out += control_error("request_too_long", "a request line is at most " +
+                                                     std::to_string(settings_.limits.max_request) + " bytes") + "\n";
+      c.in.clear();
+      c.closing = true;
+      break;
+    }
+  }
+  return flush(c);
+}
+
+bool ControlServer::flush(Client& c) {
+  while (!c.out.empty()) {
+    const ssize_t n = ::send(c.fd, c.out.data(), c.out.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+    if (n < 0) {
+      if (errno == EAGAIN || errno == EWOULDBLOCK) return true;
+      if (errno == EINTR) continue;
+      return false;  // EPIPE: the client went away
+    }
+    c.out.erase(0, static_cast<std::size_t>(n));
+  }
+  return true;
+}
+
+void ControlServer::rewatch(std::uint64_t id, Client& c) {
+  // Readable while the client may send (not after its EOF: that would wake the loop for ever),
+  // writable while an answer waits.
+  const std::uint32_t want = (c.closing ? 0u : ev::kReadable) | (c.out.empty() ? 0u : ev::kWritable);
+  if (want != c.events) {
+    loop_.unwatch(c.watch);
+    c.watch = loop_.watch(c.fd, want, [this, id](std::uint32_t e) { on_client(id, e); });
+    c.events = want;
+  }
+  // An answer waiting: the client has write_timeout to take all of it; then idle_timeout again.
+  const bool waiting = !c.out.empty();
+  if (waiting != c.waiting || !waiting) arm(id, c, waiting ? settings_.limits.write_timeout : settings_.limits.idle_timeout);
+  c.waiting = waiting;
+}
+
+void ControlServer::arm(std::uint64_t id, Client& c, canopen::Duration d) {
+  if (c.timer != 0) loop_.cancel(c.timer);
+  c.timer = loop_.call_after(d, [this, id] {
+    if (auto it = clients_.find(id); it != clients_.end()) {
+      it->second.timer = 0;
+      close_client(id, true);
+    }
+  });
+}
+
+void ControlServer::close_client(std::uint64_t id, bool dropped) {
+  const auto it = clients_.find(id);
+  if (it == clients_.end()) return;
+  Client& c = it->second;
+  loop_.unwatch(c.watch);
+  if (c.timer != 0) loop_.cancel(c.timer);
+  ::close(c.fd);
+  clients_.erase(it);
+  if (dropped) ++dropped_;
+}
+
+}  // namespace oegw::gateway

@@ -1,0 +1,168 @@
+#include "gateway/control/status_command.hpp"
+
+#include <cstdio>
+
+#include <fmt/format.h>
+
+#include "gateway/control/control_client.hpp"
+#include "gateway/control/control_protocol.hpp"
+#include "gateway/gateway.hpp"
+
+namespace oegw::gateway {
+
+using nlohmann::json;
+
+namespace {
+
+constexpr std::size_t kWidth = 100;
+
+// A number as hex with `digits` digits and an h, "-" for null (a value the node does not have).
+std::string hex(const json& v, int digits) {
+  if (!v.is_number_unsigned() && !v.is_number_integer()) return "-";
+  return fmt::format("{:0{}X}h", v.get<std::uint64_t>(), digits);
+}
+std::string text(const json& v) { return v.is_string() ? "\"" + v.get<std::string>() + "\"" : "-"; }
+std::string seconds(std::int64_t ms) { return fmt::format("{:.1f} s", static_cast<double>(ms) / 1000.0); }
+
+std::string emcy_text(const json& e) {
+  if (e.is_null()) return "-";
+  std::string data;
+  for (const auto& b : e["data"]) data += fmt::format("{:02X}", b.get<unsigned>());
+  return fmt::format("{} reg {} data {}, {} ago ({} in all)", hex(e["code"], 4), hex(e["error_register"], 2), data,
+                     seconds(e["age_ms"].get<std::int64_t>()), e["count"].get<std::uint64_t>());
+}
+
+// Words after `indent`, wrapped to kWidth.
+void wrap(std::string& out, const std::string& first, const std::vector<std::string>& words, std::size_t indent) {
+  std::string line = first;
+  for (const auto& w : words) {
+    if (line.size() > indent && line.size() + 1 + w.size() > kWidth) {
+      out += line + "\n";
+      line = std::string(indent, ' ');
+    } else if (line.size() > indent) {
+      line += ' ';
+    }
+    line += w;
+  }
+  out += line + "\n";
+}
+
+// One row per sub-device, then its last EMCY, identity and firmware, and why it is faulty.
+void subdevice_rows(std::string& out, const json& s) {
+  const json& c = s["counters"];
+  out += fmt::format("{:<14} {:>4} {:<16} {:<12} {:>9} {:>5} {:>7}\n", s["name"].get<std::string>(), hex(s["node_id"], 2),
+                     s["driver"].get<std::string>(), s["state"].get<std::string>(), c["frames"].get<std::uint64_t>(),
+                     c["bad_frames"].get<std::uint64_t>(), c["reboots_seen"].get<std::uint64_t>());
+  const json& id = s["identity"];
+  wrap(out, "    ",
+       {"vendor " + hex(id["vendor_id"], 8), "product " + hex(id["product_code"], 8), "revision " + hex(id["revision"], 8),
+        "serial " + hex(id["serial"], 8)},
+       6);
+  wrap(out, "    ",
+       {"name " + text(s["device_name"]), "hardware " + text(s["hardware_version"]), "software " + text(s["software_version"])},
+       6);
+  if (!s["last_emcy"].is_null()) wrap(out, "    ", {"last EMCY " + emcy_text(s["last_emcy"])}, 6);
+  if (s["state"] != "operational" && s["network_state"] != s["state"])
+    wrap(out, "    ", {"network manager: " + s["network_state"].get<std::string>()}, 6);
+  if (s["fault"].is_string()) wrap(out, "    ", {"fault: " + s["fault"].get<std::string>()}, 6);
+}
+
+void fe_rows(std::string& out, const json& fe) {
+  std::vector<std::string> words;
+  for (const auto& f : fe["fields"]) {
+    std::string w = f["name"].get<std::string>() + "=" + std::to_string(f["value"].get<std::int64_t>());
+    if (f["status"] != "valid") w += "(" + f["status"].get<std::string>() + ")";
+    if (f["interlocked"].get<bool>()) w += "(held)";
+    words.push_back(w);
+  }
+  const std::string head =
+      fmt::format("{:<15} {:<14} ", fe["name"].get<std::string>(), fe["status"].get<std::string>());
+  wrap(out, head, words, head.size());
+}
+
+}  // namespace
+
+std::string status_table(const json& st) {
+  std::string out;
+  const json& up = st["upstream"];
+  const json& down = st["downstream"];
+  std::string active;
+  for (const auto& e : up["active_emcys"]) active += (active.empty() ? "" : ", ") + hex(e, 4);
+  out += fmt::format("gateway: up {}, mapping file {}\n", seconds(st["uptime_ms"].get<std::int64_t>()),
+                     st["mapping_file"].get<std::string>());
+  out += fmt::format("upstream:   {}, network {}, node-ID {}, {}, active EMCYs: {}\n", up["interface"].get<std::string>(),
+                     up["network_id"].get<int>(), hex(up["node_id"], 2), up["nmt_state"].get<std::string>(),
+                     active.empty() ? "none" : active);
+  const json& dc = down["counters"];
+  out += fmt::format("downstream: {}, network {}, PDOs of unknown nodes {}, EMCYs of unknown nodes {}\n",
+                     down["interface"].get<std::string>(), down["network_id"].get<int>(),
+                     dc["unknown_pdo"].get<std::uint64_t>(), dc["unknown_emcy"].get<std::uint64_t>());
+  out += fmt::format("\n{:<14} {:>4} {:<16} {:<12} {:>9} {:>5} {:>7}\n", "sub-device", "node", "driver", "state",
+                     "frames", "bad", "reboots");
+  for (const auto& s : st["subdevices"]) subdevice_rows(out, s);
+  out += fmt::format("\n{:<15} {:<14} {}\n", "FE", "status", "fields (value, status if not valid)");
+  for (const auto& fe : st["functional_elements"]) fe_rows(out, fe);
+  out += fmt::format("\ncommands refused: {}\n", st["commands"]["refused"].get<std::uint64_t>());
+  return out;
+}
+
+namespace {
+
+std::string socket_of(const StatusOptions& o, bool& ok) {
+  ok = true;
+  if (!o.socket.empty()) return o.socket;
+  if (o.config.empty()) return std::string(mapping::kDefaultControlSocket);
+  auto r = mapping::load_config(o.config, driver_catalogue());
+  if (!r.ok()) {
+    std::fprintf(stderr, "%s\noegw status: %s unreadable; give --socket instead\n", r.error_text().c_str(),
+                 o.config.c_str());
+    ok = false;
+    return {};
+  }
+  return r.config->control.socket;
+}
+
+int exit_code(AskStatus s) {
+  switch (s) {
+    case AskStatus::Ok: return kStatusOk;
+    case AskStatus::NoDaemon: return kStatusNoDaemon;
+    case AskStatus::PermissionDenied: return kStatusPermission;
+    case AskStatus::Timeout: return kStatusTimeout;
+    case AskStatus::Failed: return kStatusFailed;
+  }
+  return kStatusFailed;
+}
+
+}  // namespace
+
+int run_status(const StatusOptions& o) {
+  bool ok = false;
+  const std::string path = socket_of(o, ok);
+  if (!ok) return kStatusFailed;
+  const auto timeout = std::chrono::milliseconds(static_cast<std::int64_t>(o.timeout_s * 1000.0));
+  const AskResult r = ask_daemon(path, json_line(json{{"protocol", kControlProtocol}, {"command", "status"}}), timeout);
+  if (r.status != AskStatus::Ok) {
+    std::fprintf(stderr, "oegw status: %s\n", r.text.c_str());
+    return exit_code(r.status);
+  }
+  const json answer = json::parse(r.text, nullptr, false);
+  const bool good = answer.is_object() && answer.value("ok", false) && answer.contains("status");
+  if (o.json) {
+    std::printf("%s\n", r.text.c_str());
+    return good ? kStatusOk : kStatusFailed;
+  }
+  if (!good) {
+    const std::string why = answer.is_object() && answer.contains("error") ? answer["error"].value("message", r.text) : r.text;
+    std::fprintf(stderr, "oegw status: the gateway answered: %s\n", why.c_str());
+    return kStatusFailed;
+  }
+  try {
+    std::printf("%s", status_table(answer["status"]).c_str());
+  } catch (const json::exception& e) {
+    std::fprintf(stderr, "oegw status: an answer this oegw cannot read (%s); --json shows it\n", e.what());
+    return kStatusFailed;
+  }
+  return kStatusOk;
+}
+
+}  // namespace oegw::gateway

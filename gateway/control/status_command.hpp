@@ -1,0 +1,30 @@
+// `oegw status`: asks the running `oegw run` over its control socket and prints what it sees,
+// as a table that fits 100 columns, or (--json) the daemon's answer as it came.
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace oegw::gateway {
+
+struct StatusOptions {
+  std::string socket;       // empty: from `config`, else mapping::kDefaultControlSocket
+  std::string config;       // a mapping file whose control.socket to ask
+  bool json = false;
+  double timeout_s = 2.0;
+};
+
+// Exit codes of `oegw status` (README "Asking the running gateway").
+inline constexpr int kStatusOk = 0;
+inline constexpr int kStatusFailed = 1;         // a bad answer, an error answer, an unreadable --config
+inline constexpr int kStatusNoDaemon = 3;       // no socket, or nobody listening
+inline constexpr int kStatusPermission = 4;     // the socket's group keeps this user out
+inline constexpr int kStatusTimeout = 5;        // no answer in --timeout
+
+int run_status(const StatusOptions& options);
+
+// The table for a `status` object (the answer's "status"), lines of at most 100 columns.
+[[nodiscard]] std::string status_table(const nlohmann::json& status);
+
+}  // namespace oegw::gateway

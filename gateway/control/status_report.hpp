@@ -1,0 +1,30 @@
+// The answer to the control socket's `status` command (gateway/control/PROTOCOL.md, "status"):
+// what the running gateway sees, built only from the Gateway's public API, so that a test drives
+// a Gateway on the virtual bus and reads the same report `oegw status` prints.
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "canopen/types.hpp"
+#include "gateway/gateway.hpp"
+#include "mapping/config.hpp"
+
+namespace oegw::gateway {
+
+struct StatusContext {
+  canopen::TimePoint now{};      // the gateway's clock now (ages are counted from it)
+  canopen::TimePoint started{};  // when the gateway started
+};
+
+// The `status` object: upstream, downstream, subdevices, functional_elements, commands
+// (PROTOCOL.md lists every field). `config` is the mapping file the gateway runs.
+[[nodiscard]] nlohmann::json status_report(const Gateway& gw, const mapping::Config& config, const StatusContext& at);
+
+// A sub-device's state in one word: "operational", "faulty" (operational, but the fault
+// policy holds its inputs), "booting" (boot-up awaited, configuring, starting), "missing",
+// "refused", "idle".
+[[nodiscard]] std::string subdevice_summary(subdevices::NodeState state, bool faulty);
+
+}  // namespace oegw::gateway

@@ -1,0 +1,164 @@
+// The control socket's `status` report (gateway/control/status_report.hpp) and `oegw status`'s
+// table on the simulated cab (programs/cab_rig.hpp: tests/fixtures/demo_cab.yaml's devices as
+// simulators on the virtual bus, a simulated clock): every sub-device operational with the
+// identity and firmware its simulator's dictionary holds, counters that move with the frames,
+// an MCB-402 cable break as its last EMCY, the device gone silent shown missing with that EMCY.
+#include "gateway/control/status_report.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <sstream>
+
+#include "canopen/io/clock.hpp"
+#include "canopen/io/event_loop.hpp"
+#include "gateway/control/status_command.hpp"
+#include "programs/cab_rig.hpp"
+#include "subdevices/sim/sim_bench.hpp"
+#include "tests/fixtures/fixtures.hpp"
+
+using namespace oegw::canopen;
+using namespace std::chrono_literals;
+namespace gw = oegw::gateway;
+using nlohmann::json;
+
+namespace {
+
+class StatusReport : public ::testing::Test {
+ protected:
+  StatusReport() : loop_(clock_) {
+    auto loaded = oegw::mapping::load_config_text(oegw::fixtures::mapping_file("demo_cab.yaml"), "demo_cab.yaml",
+                                                  gw::driver_catalogue());
+    EXPECT_TRUE(loaded.ok()) << loaded.error_text();
+    config_ = std::move(*loaded.config);
+    store_ = std::filesystem::path(::testing::TempDir()) / ("status_report_" + std::to_string(::getpid()) + ".store");
+    std::filesystem::remove(store_);
+    rig_ = std::make_unique<gw::CabRig>(config_, loop_, gw::CabRigOptions{.store = store_});
+    rig_->build();
+    started_ = loop_.now();
+    rig_->power_on();
+    rig_->run_for(5s);
+  }
+  ~StatusReport() override { std::filesystem::remove(store_); }
+
+  json report() const { return gw::status_report(rig_->gw(), config_, {loop_.now(), started_}); }
+  static const json& sub(const json& r, const std::string& name) {
+    for (const auto& s : r["subdevices"])
+      if (s["name"] == name) return s;
+    throw std::runtime_error("no sub-device " + name);
+  }
+  std::uint32_t sim_u32(const std::string& name, std::uint16_t index, std::uint8_t subindex) {
+    return rig_->devices().device(name)->od().get<std::uint32_t>(index, subindex);
+  }
+
+  SimulatedClock clock_;
+  EventLoop loop_;
+  oegw::mapping::Config config_;
+  std::filesystem::path store_;
+  std::unique_ptr<gw::CabRig> rig_;
+  TimePoint started_{};
+};
+
+TEST_F(StatusReport, EverySubdeviceOperationalWithTheIdentityItsDeviceHolds) {
+  const json r = report();
+  EXPECT_EQ(r["mapping_file"], "demo_cab.yaml");
+  EXPECT_EQ(r["uptime_ms"], 5000);
+  EXPECT_EQ(r["upstream"]["node_id"], 0x20);
+  EXPECT_EQ(r["upstream"]["interface"], "virtual");
+  EXPECT_EQ(r["upstream"]["nmt_state"], std::string(to_string(rig_->gw().upstream().node().state())));
+  EXPECT_EQ(r["upstream"]["active_emcys"], json::array());
+  ASSERT_EQ(r["subdevices"].size(), 5u);
+  for (const auto& s : r["subdevices"]) {
+    const std::string name = s["name"];
+    SCOPED_TRACE(name);
+    EXPECT_EQ(s["state"], "operational");
+    EXPECT_EQ(s["fault"], nullptr);
+    EXPECT_EQ(s["identity"]["vendor_id"], sim_u32(name, 0x1018, 1));
+    EXPECT_EQ(s["identity"]["product_code"], sim_u32(name, 0x1018, 2));
+    EXPECT_EQ(s["identity"]["revision"], sim_u32(name, 0x1018, 3));
+    if (name != "left_grip") {
+      EXPECT_EQ(s["last_emcy"], nullptr);
+    }
+    EXPECT_GT(s["counters"]["frames"].get<std::uint64_t>(), 20u) << "5 s of heartbeats, SDO answers, PDOs";
+    EXPECT_EQ(s["counters"]["bad_frames"], 0);
+    EXPECT_EQ(s["counters"]["reboots_seen"], 0);
+  }
+  // The MCB-402's power-on warning (MCB §4: 083 00 81 11 ...) is its last EMCY, no fault.
+  const json& mcb = sub(r, "left_grip");
+  ASSERT_TRUE(mcb["last_emcy"].is_object()) << mcb.dump();
+  EXPECT_EQ(mcb["last_emcy"]["code"], 0x8100);
+  EXPECT_EQ(mcb["last_emcy"]["error_register"], 0x11);
+  EXPECT_EQ(mcb["last_emcy"]["count"], 1);
+  EXPECT_EQ(sub(r, "right_grip")["node_id"], 0x11);
+  EXPECT_EQ(sub(r, "right_grip")["driver"], "elobau-mfg");
+  EXPECT_EQ(sub(r, "right_grip")["mandatory"], true);
+  const json& enc = sub(r, "seat_knob");  // Novotechnik: a 1008h the report carries as text
+  EXPECT_TRUE(enc["device_name"].is_string()) << enc.dump();
+  // The FEs in FE order, each bound field with its value and status.
+  ASSERT_FALSE(r["functional_elements"].empty());
+  const json& joy = r["functional_elements"][0];
+  EXPECT_EQ(joy["name"], "joystick.1");
+  EXPECT_EQ(joy["status"], "valid");
+  bool x = false;
+  for (const auto& f : joy["fields"])
+    if (f["name"] == "x") {
+      x = true;
+      EXPECT_EQ(f["status"], "valid");
+      EXPECT_EQ(f["value"], 0) << "the grip at rest";
+    }
+  EXPECT_TRUE(x) << joy.dump();
+  EXPECT_EQ(r["commands"]["refused"], 0);
+}
+
+TEST_F(StatusReport, CountersFollowTheFramesAndTheReboots) {
+  const auto before = sub(report(), "right_grip")["counters"]["frames"].get<std::uint64_t>();
+  rig_->run_for(1s);  // 100 ms heartbeats at least
+  const auto after = sub(report(), "right_grip")["counters"]["frames"].get<std::uint64_t>();
+  EXPECT_GE(after - before, 10u);
+  EXPECT_EQ(rig_->command("right_grip reboot").rfind("ok", 0), 0u);
+  rig_->run_for(5s);
+  const json s = sub(report(), "right_grip");
+  EXPECT_EQ(s["counters"]["reboots_seen"], 1);
+  EXPECT_EQ(s["state"], "operational");
+  EXPECT_EQ(report()["downstream"]["counters"]["reboots_seen"], 1);
+}
+
+TEST_F(StatusReport, ALostDeviceIsMissingWithItsLastEmcy) {
+  EXPECT_EQ(rig_->command("left_grip cable_break 1 on").rfind("ok", 0), 0u);
+  rig_->run_for(200ms);
+  json s = sub(report(), "left_grip");
+  ASSERT_TRUE(s["last_emcy"].is_object()) << s.dump();
+  EXPECT_EQ(s["last_emcy"]["code"], 0x3120);
+  EXPECT_LE(s["last_emcy"]["age_ms"].get<std::int64_t>(), 200);
+  EXPECT_EQ(s["state"], "faulty") << "operational, its inputs held at their fault values";
+  EXPECT_TRUE(s["fault"].is_string());
+  EXPECT_EQ(report()["upstream"]["active_emcys"], json::array({0x7000}));
+  EXPECT_EQ(rig_->command("left_grip silent on").rfind("ok", 0), 0u);
+  rig_->run_for(500ms);  // heartbeat lost after 150 ms; the first retry comes 1 s later
+  const json r = report();
+  s = sub(r, "left_grip");
+  EXPECT_EQ(s["state"], "missing");
+  EXPECT_EQ(s["last_emcy"]["code"], 0x3120) << "kept after the device went";
+  EXPECT_GE(s["last_emcy"]["age_ms"].get<std::int64_t>(), 500);
+
+  // `oegw status`'s table of the same report: 100 columns at most, the grip's row says it.
+  const std::string table = gw::status_table(r);
+  std::istringstream lines(table);
+  std::vector<std::string> rows;
+  for (std::string line; std::getline(lines, line);) {
+    EXPECT_LE(line.size(), 100u) << line;
+    rows.push_back(line);
+  }
+  const auto row = std::find_if(rows.begin(), rows.end(), [](const std::string& l) { return l.rfind("left_grip ", 0) == 0; });
+  ASSERT_NE(row, rows.end()) << table;
+  EXPECT_NE(row->find(" 03h mcb402 "), std::string::npos) << *row;
+  EXPECT_NE(row->find(" missing "), std::string::npos) << *row;
+  ASSERT_LT(row + 4, rows.end());
+  EXPECT_EQ(row[1], "    vendor 00000058h product 01040131h revision 00000001h serial -") << "MCB §1018h, as read at boot";
+  EXPECT_EQ(row[2].rfind("    name \"CO4013A\" hardware ", 0), 0u) << row[2];
+  EXPECT_EQ(row[3].rfind("    last EMCY 3120h reg 81h data ", 0), 0u) << row[3];
+  EXPECT_EQ(row[4], "    fault: missing (heartbeat lost)");
+  EXPECT_NE(table.find("\njoystick.2      offline        buttons[1]=0(offline) "), std::string::npos) << table;
+}
+
+}  // namespace
