@@ -22,6 +22,9 @@ PACKAGES=(
   liblcm-dev liblcm-bin libglib2.0-dev
   # tcpdump: an independent check that the demo's DDS/LCM traffic never leaves the host
   tcpdump
+  # the Debian package: dpkg-shlibdeps (dpkg-dev) computes its Depends; the deploy test installs it
+  # into a fresh Debian root made by debootstrap and inspects the installed programs (file)
+  dpkg-dev debootstrap file
 )
 
 missing=()
