@@ -30,6 +30,9 @@ foreach(_t ${_oegw_example_targets})
   endif()
 endforeach()
 install(TARGETS ${OEGW_EXAMPLE_PROGRAMS} RUNTIME DESTINATION lib/oegw/examples)
+# Only what is installed, for scripts/package.sh: `cmake --build B --target oegw_installed`.
+add_custom_target(oegw_installed)
+add_dependencies(oegw_installed oegw oegw-sim ${OEGW_EXAMPLE_PROGRAMS})
 
 file(GLOB OEGW_SAMPLE_EDS CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/subdevices/eds/*.eds)
 install(FILES ${OEGW_SAMPLE_EDS} DESTINATION ${CMAKE_INSTALL_DATADIR}/oegw/eds)

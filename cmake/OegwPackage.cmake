@@ -19,19 +19,18 @@ set(CPACK_DEBIAN_PACKAGE_PRIORITY optional)
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
 set(CPACK_DEBIAN_PACKAGE_SUGGESTS "can-utils")
 set(CPACK_DEBIAN_COMPRESSION_TYPE xz)
-# Debian's control Description: the summary line, then the long text, one space in front.
-set(CPACK_DEBIAN_PACKAGE_DESCRIPTION "CiA 852 operator-environment CANopen gateway
- oegw runs on an operator cab's controller between two CAN buses. Towards the
- host it is one CiA 852 / CiA 401 CANopen device (joysticks, pedals, encoders,
- wheels, buttons, indicators, displays); towards the cab it is the CANopen
- master of the cab's devices (elobau MFG grips, MCB-402 joystick controllers,
- Novotechnik CiA 406 encoders, generic CiA 401 nodes). A mapping file
- (/etc/oegw/oegw.yaml) says which device signal feeds which functional element;
- every operator input is also published to DDS and LCM.
- .
- The package installs the daemon (oegw run, systemd unit oegw.service, not
- enabled), the bench simulator oegw-sim, sample mapping and EDS files and the
- example subscribers.")
+# Debian's control Description: CPack puts the summary line first and indents this long text.
+set(CPACK_DEBIAN_PACKAGE_DESCRIPTION "oegw runs on an operator cab's controller between two CAN buses. Towards the
+host it is one CiA 852 / CiA 401 CANopen device (joysticks, pedals, encoders,
+wheels, buttons, indicators, displays); towards the cab it is the CANopen
+master of the cab's devices (elobau MFG grips, MCB-402 joystick controllers,
+Novotechnik CiA 406 encoders, generic CiA 401 nodes). A mapping file
+(/etc/oegw/oegw.yaml) says which device signal feeds which functional element;
+every operator input is also published to DDS and LCM.
+
+The package installs the daemon (oegw run, systemd unit oegw.service, not
+enabled), the bench simulator oegw-sim, sample mapping and EDS files and the
+example subscribers.")
 set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA
     ${PROJECT_SOURCE_DIR}/packaging/debian/conffiles ${PROJECT_SOURCE_DIR}/packaging/debian/postinst
     ${PROJECT_SOURCE_DIR}/packaging/debian/prerm ${PROJECT_SOURCE_DIR}/packaging/debian/postrm)

@@ -33,11 +33,12 @@ else
   [[ -f $build/CPackConfig.cmake ]] || { echo "package.sh: $build is not a configured build folder" >&2; exit 2; }
 fi
 build=$(cd "$build" && pwd)
-cmake --build "$build" -j "${OEGW_PKG_JOBS:-2}" >&2
+# Only the installed programs (and the libraries they link): not the test tiers of a CI tree.
+cmake --build "$build" -j "${OEGW_PKG_JOBS:-2}" --target oegw_installed >&2
 out=${out:-$build}
 mkdir -p "$out"
 out=$(cd "$out" && pwd)
-# Nothing else to build: CPack installs the built tree into its staging folder below $out.
+# CPack builds nothing: it installs the built tree into its staging folder below $out.
 cpack --config "$build/CPackConfig.cmake" -B "$out" >&2
 rm -rf "$out/_CPack_Packages"
 deb=$(ls -t "$out"/oegw_*.deb | head -n1)
