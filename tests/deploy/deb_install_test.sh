@@ -32,13 +32,14 @@ done
 
 # --- the root: unmounted and removed before and after each run ------------------------------------
 # rm --one-file-system never follows a mount that is still there into the host's files.
-release_root() {
+release() {  # dir: what a killed run (or debootstrap) left mounted in it, then the folder
   local m
-  for m in $(awk -v r="$root/" 'index($2, r) == 1 { print $2 }' /proc/self/mounts | sort -r); do
+  for m in $(awk -v r="$1/" 'index($2, r) == 1 { print $2 }' /proc/self/mounts | sort -r); do
     umount -l "$m" || true
   done
-  rm -rf --one-file-system "$root"
+  rm -rf --one-file-system "$1"
 }
+release_root() { release "$root"; }
 trap release_root EXIT
 
 # --- the cached pristine root ---------------------------------------------------------------------
@@ -55,7 +56,7 @@ if [[ ! -e $tarball ]]; then
   note "no cached root: debootstrap --variant=minbase $suite from $mirror (once)"
   t=$SECONDS
   fresh=$cache/root.tmp
-  rm -rf --one-file-system "$fresh"
+  release "$fresh"
   debootstrap --variant=minbase "$suite" "$fresh" "$mirror" >"$cache/debootstrap.log" 2>&1 ||
     { tail -20 "$cache/debootstrap.log"; die "debootstrap failed (log: $cache/debootstrap.log)"; }
   # A Debian 12 installation's own sources: the release, its updates and security.
@@ -63,7 +64,7 @@ if [[ ! -e $tarball ]]; then
   rm -rf "$fresh"/var/cache/apt/archives/*.deb
   tar -C "$fresh" --numeric-owner -czf "$tarball.tmp" .
   mv "$tarball.tmp" "$tarball"
-  rm -rf --one-file-system "$fresh"
+  release "$fresh"
   find "$cache" -maxdepth 1 -name "$suite-minbase-*.tar.gz" ! -name "$(basename "$tarball")" -delete
   note "cached $tarball ($(du -h "$tarball" | cut -f1), $((SECONDS - t)) s)"
 fi
