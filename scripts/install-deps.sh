@@ -29,6 +29,9 @@ PACKAGES=(
   libsystemd-dev
   # systemd-analyze verify: the unit file's test (systemd need not run)
   systemd
+  # the Debian package: dpkg-shlibdeps (dpkg-dev) computes its Depends; the deploy test installs it
+  # into a fresh Debian root made by debootstrap and inspects the installed programs (file)
+  dpkg-dev debootstrap file
 )
 
 missing=()

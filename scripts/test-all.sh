@@ -9,7 +9,8 @@ BUILD=${OEGW_BUILD_DIR:-build}
 cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 cmake --build "$BUILD"
 
-# Tiers 1, 2 and 3 (the VM tier is labelled `vm`) through CTest.
+# Tiers 1, 2 and 3 (the VM tier is labelled `vm`) and the Debian package installed into a fresh
+# debootstrap root (label `deploy`, tests/deploy) through CTest.
 ctest --test-dir "$BUILD" --output-on-failure --timeout 900 -j2
 
 # Fuzzing smoke runs: the SDO server under libFuzzer + ASan/UBSan (clang), a short bounded run.
