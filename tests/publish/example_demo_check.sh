@@ -53,6 +53,7 @@ case $mode in
     has "$dir/status.out" '^subdevice right_grip node=11h state=operational vendor=[0-9A-F]{8}h product=[0-9A-F]{8}h' "the grip operational, with its identity"
     has "$dir/status.out" '^subdevice cluster node=31h state=operational ' "the button cluster operational"
     has "$dir/status.out" '^subdevice right_grip node=11h state=missing ' "the grip missing when its cable is pulled"
+    has "$dir/status.out" '^emcy [a-z_]+ node=[0-9A-F]{2}h count=[1-9][0-9]* last=[0-9A-F]{4}h reg=[0-9A-F]{2}h msef=([0-9a-f]{2} ){4}[0-9a-f]{2} ts_us=[1-9]' "a sub-device's EMCY"
     has "$dir/status.out" '^active_emcys 7000h$' "the gateway's EMCY 7000h active"
     has "$dir/status.out" '^active_emcys none$' "no active EMCY after the grip is back"
     has "$dir/status.out" '^refused_commands 1$' "the host's refused write counted"
@@ -106,7 +107,10 @@ case $mode in
     has "$dir/decode.out" '^encoder instance=1 status=valid ' "the encoder"
     has "$dir/decode.out" '^wheel instance=1 status=valid ' "the wheel"
     has "$dir/decode.out" '^buttons instance=1 status=valid .* switches=0x[0-9a-f]{16}$' "the button cluster"
-    has "$dir/decode.out" '^status seq=[0-9]+ upstream=operational subdevices=5 emcys=1 refused=1 active=7000h$' "a status with the EMCY and the refused write"
+    has "$dir/decode.out" '^status seq=[0-9]+ upstream=operational subdevices=5 emcys=1 refused=[0-9]+ active=7000h$' "a status with the gateway's EMCY 7000h"
+    # The host's SDO write and the display command (the demo has no display.3) refused.
+    has "$dir/decode.out" '^status seq=[0-9]+ upstream=operational subdevices=5 emcys=0 refused=2 active=none$' "a status with both refusals"
+    has "$dir/decode.out" '^  subdevice [a-z_]+ node=[0-9A-F]{2}h state=operational emcys=[1-9][0-9]* last=[1-9A-F][0-9A-F]{3}h reg=[0-9A-F]{2}h msef=' "a sub-device's EMCY"
     has "$dir/decode.out" '^  subdevice right_grip node=11h state=operational emcys=[0-9]+ last=[0-9A-F]{4}h .* vendor=[0-9A-F]{8}h product=[0-9A-F]{8}h' "the grip's identity"
     has "$dir/decode.out" '^  subdevice right_grip node=11h state=missing ' "the grip missing"
     [ $rc -eq 0 ] || show decode.out decode.err demo.out ;;
