@@ -47,8 +47,19 @@ case $mode in
   status)
     $status --timeout 60 >"$dir/status.out" 2>"$dir/status.err" & pids="$pids $!"; s=$!
     wait_for "$dir/status.out" ready 10 || exit 1
+    if [ "$transport" = lcm ]; then
+      # The plain subscriber on the status channel decodes it as a status (it printed only "ready").
+      "$ex/lcm_subscriber" --url "$url" --channel OEGW_DEMO_STATUS --count 3 --timeout 30 >"$dir/sub.out" 2>"$dir/sub.err" &
+      pids="$pids $!"; l=$!
+      wait_for "$dir/sub.out" ready 10 || exit 1
+    fi
     "$oegw" demo --seconds 1 >"$dir/demo.out" 2>&1 || fail "the demo failed"
     kill -TERM $s; wait $s || fail "the status printer exited $?"
+    if [ "$transport" = lcm ]; then
+      wait $l || fail "lcm_subscriber --channel OEGW_DEMO_STATUS exited $? ($(cat "$dir/sub.err"))"
+      has "$dir/sub.out" '^status seq=[0-9]+ upstream=[a-z-]+ subdevices=5 .* rx_us=[0-9]+$' "lcm_subscriber on the status channel"
+      has "$dir/sub.out" '^  subdevice cluster node=31h state=' "lcm_subscriber's sub-device lines"
+    fi
     has "$dir/status.out" '^upstream state=operational$' "the upstream NMT state"
     has "$dir/status.out" '^subdevice right_grip node=11h state=operational vendor=[0-9A-F]{8}h product=[0-9A-F]{8}h' "the grip operational, with its identity"
     has "$dir/status.out" '^subdevice cluster node=31h state=operational ' "the button cluster operational"
