@@ -5,17 +5,18 @@
  * Prints one line per joystick sample:
  *   joystick instance=1 status=valid seq=7 ts_us=123 x=100 y=-5 z=0 buttons=0x01 memory=0x00 rx_us=130
  * (rx_us: CLOCK_MONOTONIC microseconds when the sample was taken, comparable with ts_us on this host).
- * Exits 0 after N samples (or at the timeout when no --count is given), 2 when the timeout comes first.
+ * Exits 0 after N samples (or at the timeout when no --count is given), 3 when the timeout comes
+ * first, 2 for a command line it refuses, 1 when DDS cannot be opened.
  * The default network is "loopback": the same loopback-only configuration the gateway applies in
- * tests and the demo, so nothing leaves the host. "default" leaves Cyclone's configuration
- * (CYCLONEDDS_URI) alone; an interface name selects the cab network.
+ * tests and the demo, so nothing leaves the host (dds_options.h).
  */
 #include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
 #include <time.h>
 
 #include "dds/dds.h"
+#include "dds_options.h"
+#include "example_args.h"
 #include "oegw.h"
 
 static const char* status_name(oegw_FeStatus s) {
@@ -35,54 +36,44 @@ static long long monotonic_us(void) {
   return (long long)ts.tv_sec * 1000000LL + ts.tv_nsec / 1000;
 }
 
-int main(int argc, char** argv) {
-  long count = -1;
-  double timeout_s = 10.0;
-  unsigned domain = 0;
-  const char* partition = "oegw";
-  const char* network = "loopback";
-  for (int i = 1; i + 1 < argc; i += 2) {
-    if (strcmp(argv[i], "--count") == 0) count = atol(argv[i + 1]);
-    else if (strcmp(argv[i], "--timeout") == 0) timeout_s = atof(argv[i + 1]);
-    else if (strcmp(argv[i], "--domain") == 0) domain = (unsigned)atoi(argv[i + 1]);
-    else if (strcmp(argv[i], "--partition") == 0) partition = argv[i + 1];
-    else if (strcmp(argv[i], "--network") == 0) network = argv[i + 1];
-    else {
-      fprintf(stderr, "usage: %s [--count N] [--timeout S] [--domain D] [--partition P] [--network loopback|IFACE|default]\n", argv[0]);
-      return 1;
-    }
-  }
+struct options {
+  long count; /* -1: until the timeout */
+  double timeout_s;
+  struct dds_options dds;
+};
 
-  /* The network configuration goes with the domain, as in the gateway. */
-  char xml[1024];
-  if (strcmp(network, "loopback") == 0) {
-    snprintf(xml, sizeof xml, "%s",
-             "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"lo\"/></Interfaces>"
-             "<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex>"
-             "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>");
-  } else if (strcmp(network, "default") != 0) {
-    snprintf(xml, sizeof xml,
-             "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"%s\"/></Interfaces>"
-             "</General></Domain></CycloneDDS>", network);
-  } else {
-    xml[0] = 0;
-  }
-  if (xml[0] != 0) {
-    dds_entity_t d = dds_create_domain(domain, xml);
-    if (d < 0) {
-      fprintf(stderr, "cannot create DDS domain %u: %s\n", domain, dds_strretcode(d));
-      return 1;
-    }
-  }
-  dds_entity_t pp = dds_create_participant(domain, NULL, NULL);
-  if (pp < 0) {
-    fprintf(stderr, "cannot create DDS participant in domain %u: %s\n", domain, dds_strretcode(pp));
-    return 1;
-  }
-  dds_qos_t* pq = dds_create_qos();
-  dds_qset_partition1(pq, partition);
-  dds_entity_t sub = dds_create_subscriber(pp, pq, NULL);
-  dds_delete_qos(pq);
+static void usage(FILE* to, const char* prog) {
+  fprintf(to,
+          "usage: %s [--count N] [--timeout SECONDS] " DDS_OPTIONS_USAGE "\n"
+          "Prints the gateway's joystick samples (topic oegw/joystick), one line each.\n"
+          "  --count N         exit 0 after N samples (exit 3 if the timeout comes first)\n"
+          "  --timeout S       stop after S seconds (default 10)\n" DDS_OPTIONS_HELP
+          "  --help            this text\n",
+          prog);
+}
+
+static int take(const char* prog, int c, const char* value, void* ctx) {
+  struct options* o = ctx;
+  const int dds = dds_options_take(prog, c, value, &o->dds);
+  if (dds >= 0) return dds;
+  if (c == 'c') return example_parse_long(prog, "--count", value, 1, 1000000000L, &o->count);
+  return c == 't' && example_parse_seconds(prog, "--timeout", value, &o->timeout_s);
+}
+
+static const struct option longs[] = {{"count", required_argument, NULL, 'c'},
+                                      {"timeout", required_argument, NULL, 't'},
+                                      {"help", no_argument, NULL, 'h'},
+                                      DDS_OPTIONS_LONG,
+                                      {NULL, 0, NULL, 0}};
+
+int main(int argc, char** argv) {
+  struct options o = {-1, 10.0, DDS_OPTIONS_DEFAULT};
+  const int exit = example_parse_options(argc, argv, longs, take, NULL, usage, &o);
+  if (exit >= 0) return exit;
+  const char* prog = example_prog(argv[0]);
+  const dds_entity_t pp = dds_options_participant(prog, &o.dds);
+  if (pp < 0) return EXAMPLE_EXIT_SETUP;
+  const dds_entity_t sub = dds_options_subscriber(prog, pp, &o.dds);
 
   /* The gateway's joystick QoS: reliable, keep-last 1 per instance. (Add dds_qset_deadline with
    * at least the gateway's publish period to be told when an instance stops arriving.) */
@@ -92,9 +83,10 @@ int main(int argc, char** argv) {
   dds_qset_history(q, DDS_HISTORY_KEEP_LAST, 1);
   dds_entity_t reader = dds_create_reader(sub, topic, q, NULL);
   dds_delete_qos(q);
-  if (topic < 0 || reader < 0) {
-    fprintf(stderr, "cannot create the oegw/joystick reader\n");
-    return 1;
+  if (sub < 0 || topic < 0 || reader < 0) {
+    fprintf(stderr, "%s: cannot create the oegw/joystick reader\n", prog);
+    dds_delete(pp);
+    return EXAMPLE_EXIT_SETUP;
   }
 
   dds_entity_t ws = dds_create_waitset(pp);
@@ -103,9 +95,9 @@ int main(int argc, char** argv) {
   printf("ready\n");
   fflush(stdout);
 
-  const long long deadline = monotonic_us() + (long long)(timeout_s * 1e6);
+  const long long deadline = monotonic_us() + (long long)(o.timeout_s * 1e6);
   long received = 0;
-  while (count < 0 || received < count) {
+  while (o.count < 0 || received < o.count) {
     long long left = deadline - monotonic_us();
     if (left <= 0) break;
     if (dds_waitset_wait(ws, NULL, 0, DDS_USECS(left)) <= 0) continue;
@@ -125,5 +117,5 @@ int main(int argc, char** argv) {
     fflush(stdout);
   }
   dds_delete(pp);
-  return (count >= 0 && received < count) ? 2 : 0;
+  return (o.count >= 0 && received < o.count) ? EXAMPLE_EXIT_INCOMPLETE : EXAMPLE_EXIT_OK;
 }

@@ -1,81 +1,98 @@
-// Decodes an LCM log (as recorded by `lcm-logger`) with oegw's LCM types and prints the joystick
-// samples in the same format as lcm_subscriber, each gateway status (a line, then one per
-// sub-device and per upstream node whose EMCYs it consumed), and a count of the others:
-//   lcm_log_decode FILE [CHANNEL_PREFIX]      (prefix default OEGW_)
-//   status seq=3 upstream=operational subdevices=1 emcys=1 refused=0
-//     subdevice right_grip node=11h state=operational emcys=2 last=1000h reg=00h msef=21 00 ff ff ff ts_us=4100
+// Decodes an LCM log (as recorded by `lcm-logger`) with oegw's LCM types: every channel the
+// gateway publishes or takes (lcm_print.hpp), in the format of lcm_subscriber (without rx_us),
+// and a summary of what it found:
+//   lcm_log_decode FILE [CHANNEL_PREFIX]      (prefix default OEGW_; the demo's: OEGW_DEMO_)
+//   joystick instance=1 status=valid seq=7 ts_us=123 x=100 y=-5 z=0 buttons=0x01 memory=0x00
+//   status seq=3 upstream=operational subdevices=1 emcys=1 refused=0 active=7000h
+//     subdevice right_grip node=11h state=operational emcys=2 last=1000h reg=00h msef=21 00 ff ff ff ts_us=4100 vendor=...
 //     upstream_emcy node=05h emcys=1 last=8130h reg=11h msef=00 00 00 00 00 ts_us=5000
+//   decoded joystick=20 pedal=10 wheel=10 encoder=10 buttons=10 indicators=1 display=0 status=10 other=0 bad=0
+// "other": channels outside the prefix or not oegw's; "bad": messages on an oegw channel that do
+// not decode as its type (each also said on stderr). Exits 0, 3 when some were bad, 2 for a
+// command line it refuses, 1 when the file cannot be read.
+#include <getopt.h>
 #include <lcm/eventlog.h>
 
-#include <cstdint>
 #include <cstdio>
 #include <string>
 
-#include "oegw/gateway_status_t.hpp"
-#include "oegw/joystick_t.hpp"
+#include "example_args.h"
+#include "lcm_print.hpp"
 
 namespace {
-// " emcys=N last=CODEh reg=REGh msef=.. .. .. .. .. ts_us=T"
-void print_emcy(std::int64_t count, const oegw::emcy_t& e) {
-  std::printf(" emcys=%lld last=%04Xh reg=%02Xh msef=%02x %02x %02x %02x %02x ts_us=%lld\n", static_cast<long long>(count),
-              static_cast<unsigned>(static_cast<std::uint16_t>(e.code)), static_cast<unsigned>(e.error_register),
-              static_cast<unsigned>(e.msef[0]), static_cast<unsigned>(e.msef[1]), static_cast<unsigned>(e.msef[2]),
-              static_cast<unsigned>(e.msef[3]), static_cast<unsigned>(e.msef[4]), static_cast<long long>(e.timestamp_us));
+
+namespace ex = oegw_examples;
+
+void usage(std::FILE* to, const char* prog) {
+  std::fprintf(to,
+               "usage: %s FILE [CHANNEL_PREFIX]\n"
+               "Prints every oegw message of an LCM log (lcm-logger's file), one line each, then a count.\n"
+               "  CHANNEL_PREFIX    the gateway's publish.lcm.channel_prefix (default OEGW_; the demo's: OEGW_DEMO_)\n"
+               "  --help            this text\n",
+               prog);
 }
+
+// The counts of the summary, by kind (Kind::Unknown: "other").
+struct Counts {
+  long by_kind[static_cast<int>(ex::Kind::Unknown) + 1] = {};
+  long bad = 0;
+  void print() const {
+    static const char* const names[] = {"joystick", "pedal", "wheel", "encoder", "buttons", "indicators", "display", "status", "other"};
+    std::printf("decoded");
+    for (int k = 0; k <= static_cast<int>(ex::Kind::Unknown); ++k) std::printf(" %s=%ld", names[k], by_kind[k]);
+    std::printf(" bad=%ld\n", bad);
+  }
+};
+
+void decode_one(const lcm_eventlog_event_t& ev, const std::string& prefix, Counts& counts) {
+  const std::string channel(ev.channel, static_cast<std::size_t>(ev.channellen));
+  const ex::Kind kind = channel.rfind(prefix, 0) == 0 ? ex::kind_of(channel.substr(prefix.size())) : ex::Kind::Unknown;
+  if (kind != ex::Kind::Unknown) {
+    const auto lines = ex::describe(kind, ev.data, static_cast<std::size_t>(ev.datalen));
+    if (lines.empty()) {
+      std::fprintf(stderr, "event %lld on %s: %d bytes that do not decode as %s\n", static_cast<long long>(ev.eventnum),
+                   channel.c_str(), static_cast<int>(ev.datalen), ex::lcm_type_name(kind));
+      ++counts.bad;
+      return;
+    }
+    for (const auto& l : lines) std::printf("%s\n", l.c_str());
+  }
+  ++counts.by_kind[static_cast<int>(kind)];
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2) {
-    std::fprintf(stderr, "usage: %s FILE [CHANNEL_PREFIX]\n", argv[0]);
-    return 1;
-  }
-  const std::string prefix = argc > 2 ? argv[2] : "OEGW_";
-  lcm_eventlog_t* log = lcm_eventlog_create(argv[1], "r");
-  if (log == nullptr) {
-    std::fprintf(stderr, "cannot open LCM log %s\n", argv[1]);
-    return 1;
-  }
-  static const char* const names[] = {"valid", "error", "not_available", "stale", "offline"};
-  long joysticks = 0, statuses = 0, others = 0, bad = 0;
-  for (lcm_eventlog_event_t* ev = lcm_eventlog_read_next_event(log); ev != nullptr;
-       ev = lcm_eventlog_read_next_event(log)) {
-    const std::string ch(ev->channel, ev->channellen);
-    if (ch.rfind(prefix + "JOYSTICK_", 0) == 0) {
-      oegw::joystick_t j;
-      if (j.decode(ev->data, 0, static_cast<int>(ev->datalen)) < 0) {
-        ++bad;
-      } else {
-        std::printf("joystick instance=%u status=%s seq=%u ts_us=%lld x=%d y=%d z=%d buttons=0x%02x memory=0x%02x\n",
-                    static_cast<unsigned>(static_cast<std::uint8_t>(j.instance)),
-                    j.status >= 0 && j.status <= 4 ? names[j.status] : "?", static_cast<unsigned>(j.seq),
-                    static_cast<long long>(j.timestamp_us), j.x, j.y, j.z, static_cast<unsigned>(j.buttons),
-                    static_cast<unsigned>(j.memory));
-        ++joysticks;
-      }
-    } else if (ch == prefix + "STATUS") {
-      oegw::gateway_status_t s;
-      if (s.decode(ev->data, 0, static_cast<int>(ev->datalen)) < 0) {
-        ++bad;
-      } else {
-        std::printf("status seq=%u upstream=%s subdevices=%d emcys=%d refused=%lld\n", static_cast<unsigned>(s.seq),
-                    s.upstream_state.c_str(), s.n_subdevices, s.n_active_emcys,
-                    static_cast<long long>(s.refused_commands));
-        for (const auto& d : s.subdevices) {
-          std::printf("  subdevice %s node=%02Xh state=%s", d.name.c_str(), static_cast<unsigned>(d.node_id), d.state.c_str());
-          print_emcy(d.emcy_count, d.last_emcy);
-        }
-        for (const auto& u : s.upstream_emcys) {
-          std::printf("  upstream_emcy node=%02Xh", static_cast<unsigned>(u.node_id));
-          print_emcy(u.count, u.last);
-        }
-        ++statuses;
-      }
-    } else {
-      ++others;
+  const char* prog = example_prog(argv[0]);
+  static const option longs[] = {{"help", no_argument, nullptr, 'h'}, {nullptr, 0, nullptr, 0}};
+  for (int c; (c = getopt_long(argc, argv, "", longs, nullptr)) != -1;) {
+    if (c == 'h') {
+      usage(stdout, prog);
+      return EXAMPLE_EXIT_OK;
     }
+    usage(stderr, prog);  // getopt said what is wrong
+    return EXAMPLE_EXIT_USAGE;
+  }
+  const int args = argc - optind;
+  if (args < 1 || args > 2) {
+    if (args < 1) std::fprintf(stderr, "%s: no FILE given\n", prog);
+    else example_unexpected(prog, argv[optind + 2]);
+    usage(stderr, prog);
+    return EXAMPLE_EXIT_USAGE;
+  }
+  const char* file = argv[optind];
+  const std::string prefix = args > 1 ? argv[optind + 1] : "OEGW_";
+  lcm_eventlog_t* log = lcm_eventlog_create(file, "r");
+  if (log == nullptr) {
+    std::fprintf(stderr, "%s: cannot open LCM log %s\n", prog, file);
+    return EXAMPLE_EXIT_SETUP;
+  }
+  Counts counts;
+  for (lcm_eventlog_event_t* ev = lcm_eventlog_read_next_event(log); ev != nullptr; ev = lcm_eventlog_read_next_event(log)) {
+    decode_one(*ev, prefix, counts);
     lcm_eventlog_free_event(ev);
   }
   lcm_eventlog_destroy(log);
-  std::printf("decoded joystick=%ld status=%ld other=%ld bad=%ld\n", joysticks, statuses, others, bad);
-  return bad == 0 ? 0 : 3;
+  counts.print();
+  return counts.bad == 0 ? EXAMPLE_EXIT_OK : EXAMPLE_EXIT_INCOMPLETE;
 }

@@ -168,6 +168,9 @@ TEST(LcmPublisher, LcmLoggerRecordsASessionThatDecodesWithTheProjectsTypes) {
   gs.seq = 1;
   gs.upstream_state = "operational";
   gs.subdevices.push_back({"right_grip", 0x11, "operational", {0x1000, 0x00, {0x21, 0x00, 0xFF, 0xFF, 0xFF}, 4100}, 2});
+  // What it said at boot: 1018h:01 and :04, 1008h, 1001h (present bits 0, 3, 4, 7); the rest absent.
+  gs.subdevices.back().identity = {0x0000012E, 0, 0, 0x00ABCDEF, "MFG grip", "", "", 0x01, 0x99};
+  gs.subdevices.push_back({"pedal", 0x30, "missing", {}, 0});
   gs.active_emcys = {0x8130};
   gs.refused_commands = 2;
   gs.upstream_emcys.push_back({0x05, {0x8130, 0x11, {1, 2, 3, 4, 5}, 5000}, 1});
@@ -194,12 +197,21 @@ TEST(LcmPublisher, LcmLoggerRecordsASessionThatDecodesWithTheProjectsTypes) {
   ASSERT_EQ(joy_lines.size(), tee.joy.size());
   for (std::size_t i = 0; i < joy_lines.size(); ++i) EXPECT_EQ(joy_lines[i], line_of(tee.joy[i]));
   // The status line, then one per sub-device and per upstream node (examples/lcm_log_decode.cpp).
-  const auto status = std::find(lines.begin(), lines.end(), "status seq=1 upstream=operational subdevices=1 emcys=1 refused=2");
+  const auto status =
+      std::find(lines.begin(), lines.end(), "status seq=1 upstream=operational subdevices=2 emcys=1 refused=2 active=8130h");
   ASSERT_NE(status, lines.end());
-  ASSERT_GE(lines.end() - status, 3);
+  ASSERT_GE(lines.end() - status, 4);
+  // Each sub-device with what its `present` mask says it had at boot (and only that).
   EXPECT_EQ(status[1],
-            "  subdevice right_grip node=11h state=operational emcys=2 last=1000h reg=00h msef=21 00 ff ff ff ts_us=4100");
-  EXPECT_EQ(status[2], "  upstream_emcy node=05h emcys=1 last=8130h reg=11h msef=01 02 03 04 05 ts_us=5000");
+            "  subdevice right_grip node=11h state=operational emcys=2 last=1000h reg=00h msef=21 00 ff ff ff ts_us=4100"
+            " vendor=0000012Eh serial=00ABCDEFh name=\"MFG grip\" err=01h");
+  EXPECT_EQ(status[2],
+            "  subdevice pedal node=30h state=missing emcys=0 last=0000h reg=00h msef=00 00 00 00 00 ts_us=0 identity=none");
+  EXPECT_EQ(status[3], "  upstream_emcy node=05h emcys=1 last=8130h reg=11h msef=01 02 03 04 05 ts_us=5000");
+  // The summary (the joystick count includes the probes).
+  const std::string rest = " pedal=0 wheel=0 encoder=0 buttons=0 indicators=0 display=0 status=1 other=0 bad=0";
+  ASSERT_GE(lines.back().size(), rest.size());
+  EXPECT_EQ(lines.back().substr(lines.back().size() - rest.size()), rest) << lines.back();
   std::remove(file.c_str());
 }
 
