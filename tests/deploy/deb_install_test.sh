@@ -115,7 +115,9 @@ expect() {  # name pattern command...: exit 0 and the pattern (grep -E) in the o
 expect "oegw --help" "check" oegw --help
 expect "oegw-sim --help" "--interface|-i" oegw-sim --help
 expect "oegw check /etc/oegw/oegw.yaml" "^/etc/oegw/oegw.yaml: valid" oegw check /etc/oegw/oegw.yaml
-expect "oegw check of the shipped demo file" "valid" oegw check /usr/share/oegw/examples/demo.yaml
+# The shipped demo file names the demo's `interface: virtual`, which check/run refuse; `oegw eds`
+# takes it and reads its (installed, absolute) EDS files.
+expect "oegw eds of the shipped demo file" "^\\[DeviceInfo\\]" oegw eds /usr/share/oegw/examples/demo.yaml
 expect "oegw demo --fast" "demo complete: every step as expected" oegw demo --fast
 for ex in dds_subscriber lcm_subscriber lcm_log_decode; do
   [[ -x $root/usr/lib/oegw/examples/$ex ]] || die "example $ex not installed in /usr/lib/oegw/examples"

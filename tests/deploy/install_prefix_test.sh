@@ -36,8 +36,9 @@ diff <(sed -E 's#/usr(/local)?/bin/oegw#BIN#g' "$src_unit") <(sed "s#$prefix/bin
 
 grep -q "eds: $prefix/share/oegw/eds/generic_pedal.eds" "$conf" || die "the configuration's EDS path is not the installed one: $(grep 'eds:' "$conf")"
 grep -q "interface: can0" "$conf" && grep -q "interface: can1" "$conf" || die "the default configuration is not on can0/can1"
-# The EDS paths point at $prefix: give them the DESTDIR to check the file where it lies.
-sed "s#eds: $prefix/#eds: $r/#" "$conf" >"$dest/check.yaml"
+# The EDS paths point at $prefix: give them the DESTDIR to check the file where it lies; its
+# store folder /var/lib/oegw is the package's (check refuses a missing one): the test's here.
+sed -e "s#eds: $prefix/#eds: $r/#" -e "s#store: /var/lib/oegw/#store: $dest/#" "$conf" >"$dest/check.yaml"
 out=$(cd / && "$r/bin/oegw" check "$dest/check.yaml" 2>&1) || { echo "$out"; die "oegw check of the installed configuration failed"; }
 grep -q "check.yaml: valid" <<<"$out" || { echo "$out"; die "oegw check did not say valid"; }
 
