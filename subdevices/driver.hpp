@@ -87,6 +87,9 @@ class Driver {
   // asks boot_reads() in rounds until it returns nothing (an answer may tell what to read
   // next), handing each answer to on_boot_read() and each refused read to
   // on_boot_read_abort(). Returning false from either refuses the node (with `error`).
+  // The 1001h error register the manager reads for its diagnostics is handed to on_boot_read()
+  // before the first round, so a driver that needs it (and stops listing it once answered) is
+  // not asked for it twice.
   virtual void begin_boot() {}
   [[nodiscard]] virtual std::vector<std::pair<std::uint16_t, std::uint8_t>> boot_reads() const { return {}; }
   virtual bool on_boot_read(std::uint16_t /*index*/, std::uint8_t /*sub*/, std::span<const std::uint8_t> /*data*/,

@@ -334,7 +334,19 @@ void NetworkManager::run_step(Managed& m) {
     ++m.next_step;
     const std::uint64_t gen = m.generation;
     if (on_diagnostics) on_diagnostics(m.settings.name, m.diag);
-    if (m.generation == gen && m.state == NodeState::Configuring) run_step(m);
+    if (m.generation != gen || m.state != NodeState::Configuring) return;
+    // 1001h is read once per boot, here: a driver whose faults it decides (Driver::boot_reads)
+    // takes this answer and does not read it again. Absent (refused): the driver reads it itself
+    // and decides what its refusal means.
+    if (m.diag.error_register) {
+      std::string error;
+      const std::vector<std::uint8_t> reg{*m.diag.error_register};
+      if (!m.driver->on_boot_read(0x1001, 0, reg, error)) {
+        fail(m, NodeState::Refused, obj(0x1001, 0) + ": " + error, now_);
+        return;
+      }
+    }
+    run_step(m);
     return;
   }
   if (m.steps[m.next_step].kind == Step::Kind::DriverWrites) {

@@ -5,6 +5,7 @@
 // its own.
 #include <gtest/gtest.h>
 
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -80,6 +81,34 @@ class Faults : public ::testing::Test {
   std::vector<CanFrame> up_emcys_;
   std::string log_;
 };
+
+// 1001h is read once per boot (network_manager.cpp): the manager's diagnostics read is what the
+// MCB-402 and cia401 drivers decide their faults by, not a second upload of the same object.
+TEST_F(Faults, ErrorRegisterIsReadOncePerBootAndStillDecides) {
+  std::map<std::uint8_t, int> reads;  // node -> SDO upload requests of 1001h:00
+  rig_->down().set_tap([&](const BusRecord& r) {
+    const auto& f = r.frame;
+    if (f.id > 0x600 && f.id < 0x680 && f.dlc == 8 && f.data[0] == 0x40 && f.data[1] == 0x01 && f.data[2] == 0x10 &&
+        f.data[3] == 0x00)
+      ++reads[static_cast<std::uint8_t>(f.id - 0x600)];
+  });
+  power_on();
+  for (const std::uint8_t node : {kGrip, kLeft, kKnob, std::uint8_t{0x30}, std::uint8_t{0x31}})
+    EXPECT_EQ(reads[node], 1) << "node " << int{node};
+  // Still the evidence: a cable break latched, the board rebooted with its device error bit
+  // (the break persists) -> the latch stays after the single read of this boot.
+  (void)cmd("left_grip cable_break 1 on");
+  rig_->run_for(200ms);
+  ASSERT_TRUE(driver("left_grip").any_fault());
+  reads.clear();
+  (void)cmd("left_grip reboot");
+  rig_->run_for(3s);
+  EXPECT_EQ(reads[kLeft], 1);
+  EXPECT_TRUE(driver("left_grip").any_fault()) << log_;
+  (void)cmd("left_grip cable_break 1 off");
+  rig_->run_for(200ms);
+  EXPECT_FALSE(driver("left_grip").any_fault()) << log_;
+}
 
 // [MCB §4] power-on trace "703 00" then "083 00 81 11 0": the EMCY 8100h "CAN bus in error warning
 // state" right after the boot-up, during the gateway's configuration, and never an error reset.
