@@ -1,29 +1,14 @@
 #include "mapping/deployment.hpp"
 
 #include <algorithm>
-#include <cctype>
 #include <filesystem>
 #include <string>
+
+#include "canopen/io/interface_name.hpp"
 
 namespace oegw::mapping {
 
 namespace {
-
-// IFNAMSIZ (linux/if.h) counts the terminating NUL.
-constexpr std::size_t kMaxInterfaceName = 15;
-
-// Why the kernel refuses `name` as an interface name (net/core/dev.c dev_valid_name), or "".
-std::string interface_name_problem(const std::string& name) {
-  if (name.empty()) return "is empty";
-  if (name.size() > kMaxInterfaceName)
-    return "is " + std::to_string(name.size()) + " bytes long, longer than the kernel's 15 (IFNAMSIZ - 1)";
-  if (name == "." || name == "..") return "is '" + name + "', which the kernel refuses";
-  for (const char c : name) {
-    if (c == '/' || c == ':') return std::string("contains '") + c + "'";
-    if (std::isspace(static_cast<unsigned char>(c)) != 0) return "contains white space";
-  }
-  return "";
-}
 
 // The place of a value, or of its section when the value is the default.
 Location at(const Location& value, const Location& section) { return value.line != 0 ? value : section; }
@@ -41,7 +26,7 @@ void check_interface(const Bus& b, std::vector<Diagnostic>& out) {
                                 "interface (can0, can1, vcan0, ...)"});
     return;
   }
-  if (const std::string why = interface_name_problem(b.name); !why.empty())
+  if (const std::string why = canopen::interface_name_problem(b.name); !why.empty())
     out.push_back({b.where, std::string(b.setting) + " '" + b.name + "' " + why +
                                 "; expected a network interface name of 1..15 bytes without '/', ':' or white space"});
 }

@@ -1,5 +1,7 @@
 #include "canopen/io/socketcan_transport.hpp"
 
+#include "canopen/io/interface_name.hpp"
+
 #include <fcntl.h>
 #include <linux/can/raw.h>
 #include <net/if.h>
@@ -43,8 +45,7 @@ void fill_ifreq(ifreq& ifr, const std::string& name) {
 }
 
 void validate_name(const std::string& name) {
-  if (name.empty() || name.size() >= IFNAMSIZ || name.find('/') != std::string::npos ||
-      name.find_first_of(" \t\n:") != std::string::npos) {
+  if (!interface_name_problem(name).empty()) {
     throw CanOpenError(CanOpenError::Reason::InvalidName, EINVAL, "invalid CAN interface name '" + name + "'");
   }
 }
