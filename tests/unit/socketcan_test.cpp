@@ -242,6 +242,11 @@ TEST(SocketCanOpen, RejectsImpossibleInterfaceNames) {
   EXPECT_EQ(open_error("", &reason), "invalid CAN interface name ''");
   EXPECT_EQ(reason, CanOpenError::Reason::InvalidName);
   EXPECT_EQ(open_error("a_name_far_too_long_for_linux"), "invalid CAN interface name 'a_name_far_too_long_for_linux'");
+  // The kernel's rule (dev_valid_name), the one oegw check applies: "." and "..", any white space.
+  for (const char* bad : {".", "..", "can\r0", "can\v0", "can/0", "can:0"}) {
+    EXPECT_EQ(open_error(bad, &reason), std::string("invalid CAN interface name '") + bad + "'") << bad;
+    EXPECT_EQ(reason, CanOpenError::Reason::InvalidName) << bad;
+  }
 }
 
 TEST(SocketCanInterfaceCheck, MissingInterface) {
