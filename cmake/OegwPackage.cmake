@@ -2,7 +2,11 @@
 # cmake/OegwInstall.cmake below the prefix /usr, /etc/oegw/oegw.yaml as a conffile, and the
 # Depends dpkg-shlibdeps (dpkg-dev) computes from the Debian library packages the installed
 # programs link. Installed binaries are stripped: the package carries no debug information.
-set(OEGW_PACKAGE_MAINTAINER "oegw developers <oegw@example.invalid>" CACHE STRING
+# /usr/share/doc/oegw/copyright (Debian Policy §12.5, machine-readable DEP-5) is
+# packaging/debian/copyright, installed by cmake/OegwInstall.cmake with the other docs.
+# The team address, also the Upstream-Contact of packaging/debian/copyright (the deploy test
+# checks that the package's Maintainer is this one).
+set(OEGW_PACKAGE_MAINTAINER "oegw developers <oegw@localhost>" CACHE STRING
     "Maintainer field of the Debian package")
 
 set(CPACK_GENERATOR DEB)
