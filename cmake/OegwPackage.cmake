@@ -5,9 +5,9 @@
 # /usr/share/doc/oegw/copyright (Debian Policy §12.5, machine-readable DEP-5) is
 # packaging/debian/copyright, installed by cmake/OegwInstall.cmake with the other docs.
 # The team address, also the Upstream-Contact of packaging/debian/copyright (the deploy test
-# checks that the package's Maintainer is this one).
-set(OEGW_PACKAGE_MAINTAINER "oegw developers <oegw@localhost>" CACHE STRING
-    "Maintainer field of the Debian package")
+# checks that the two agree). A plain variable, not a cache entry: a cached value outlives a
+# change here (a build tree configured earlier kept the old placeholder address).
+set(OEGW_PACKAGE_MAINTAINER "oegw developers <oegw@localhost>")
 
 set(CPACK_GENERATOR DEB)
 set(CPACK_PACKAGE_NAME oegw)
