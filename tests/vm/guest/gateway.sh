@@ -99,8 +99,8 @@ subs = {d["name"]: d for d in s["subdevices"]}
 for d in s["subdevices"]: print("    identity:", d["name"], d["identity"], d["device_name"], d["software_version"])
 ok = all(isinstance(d["identity"]["vendor_id"], int) and isinstance(d["identity"]["product_code"], int) and d["counters"]["frames"] > 0 for d in s["subdevices"])
 ok = ok and subs["right_grip"]["identity"]["vendor_id"] == 0xB4 and subs["left_grip"]["device_name"] == "CO4013A"
-# The grip's new process boots on its own: a reboot seen, or (when its boot-up meets a retry's
-# reset communication) the answer to that reset; its first boot answered the gateway's reset.
+# The new grip process boots on its own: a reboot seen, or (when its boot-up meets the reset
+# communication of a retry) the answer to that reset; its first boot answered a gateway reset.
 g = subs["right_grip"]["counters"]
 ok = ok and g["reboots_seen"] + g["gateway_resets"] >= 2 and g["gateway_resets"] >= 1
 ok = ok and subs["left_grip"]["last_emcy"]["code"] == 0x8100 and subs["left_grip"]["last_emcy"]["error_register"] == 0x11
