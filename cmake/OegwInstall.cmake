@@ -8,7 +8,8 @@
 #   lib/systemd/system/oegw.service         config/oegw.service, its program paths for this prefix
 #   share/oegw/eds/*.eds                    the sample EDS files (subdevices/eds)
 #   share/oegw/examples/*.yaml              the sample mapping files, EDS paths made absolute
-#   share/doc/oegw/                         README.md, mapping/README.md, subdevices/README.md
+#   share/doc/oegw/                         README.md, mapping/README.md, subdevices/README.md,
+#                                           copyright (packaging/debian/copyright, DEP-5)
 #   <sysconfdir>/oegw/oegw.yaml             config/cab.yaml as the default configuration (/etc for
 #                                           the prefix /usr); an existing one is kept
 #   <localstatedir>/lib/oegw/               the upstream store's folder (/var/lib/oegw)
@@ -38,6 +39,8 @@ file(GLOB OEGW_SAMPLE_EDS CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/subdevices/eds
 install(FILES ${OEGW_SAMPLE_EDS} DESTINATION ${CMAKE_INSTALL_DATADIR}/oegw/eds)
 
 install(FILES README.md DESTINATION ${CMAKE_INSTALL_DOCDIR})
+# Debian Policy §12.5: every package's copyright file at /usr/share/doc/<package>/copyright.
+install(FILES packaging/debian/copyright DESTINATION ${CMAKE_INSTALL_DOCDIR})
 install(FILES mapping/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR}/mapping)
 install(FILES subdevices/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR}/subdevices)
 

@@ -2,8 +2,12 @@
 # cmake/OegwInstall.cmake below the prefix /usr, /etc/oegw/oegw.yaml as a conffile, and the
 # Depends dpkg-shlibdeps (dpkg-dev) computes from the Debian library packages the installed
 # programs link. Installed binaries are stripped: the package carries no debug information.
-set(OEGW_PACKAGE_MAINTAINER "oegw developers <oegw@example.invalid>" CACHE STRING
-    "Maintainer field of the Debian package")
+# /usr/share/doc/oegw/copyright (Debian Policy §12.5, machine-readable DEP-5) is
+# packaging/debian/copyright, installed by cmake/OegwInstall.cmake with the other docs.
+# The team address, also the Upstream-Contact of packaging/debian/copyright (the deploy test
+# checks that the two agree). A plain variable, not a cache entry: a cached value outlives a
+# change here (a build tree configured earlier kept the old placeholder address).
+set(OEGW_PACKAGE_MAINTAINER "oegw developers <oegw@localhost>")
 
 set(CPACK_GENERATOR DEB)
 set(CPACK_PACKAGE_NAME oegw)

@@ -49,8 +49,15 @@ void CommandArbiter::seen(Output& o, TimePoint now) {
   o.expired = false;
 }
 
+std::uint64_t CommandArbiter::refused(FeId fe) const {
+  for (const auto& o : outputs_)
+    if (o.id == fe) return o.refused;
+  return 0;
+}
+
 void CommandArbiter::refuse(FeId fe, std::string_view way, const std::string& why) {
   ++refused_;
+  if (Output* o = find(fe)) ++o->refused;
   // Logged once per FE and way (dds, lcm, SDO, RPDO): a commander at 100 Hz must not flood the
   // journal; refused() keeps the count.
   if (refused_logged_.emplace(fe, std::string(way)).second) say(mapping::fe_name(fe) + ": " + why);

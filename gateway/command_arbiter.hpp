@@ -59,7 +59,11 @@ class CommandArbiter {
   void advance(canopen::TimePoint now);
   [[nodiscard]] std::optional<canopen::TimePoint> next_deadline() const;
 
+  // Commands refused so far: all of them, and those of one configured output FE (a source it
+  // does not take; zero for an FE the mapping file does not configure, whose refusals only the
+  // total counts).
   [[nodiscard]] std::uint64_t refused() const { return refused_; }
+  [[nodiscard]] std::uint64_t refused(mapping::FeId fe) const;
 
   // Where accepted output values go (the gateway's output bindings).
   std::function<void(mapping::FeId, FieldRef, std::int64_t)> drive;
@@ -72,6 +76,7 @@ class CommandArbiter {
     canopen::Duration timeout{};  // zero: no watchdog
     canopen::TimePoint last{};
     bool expired = false;
+    std::uint64_t refused = 0;  // its commands refused (refused(fe))
   };
   Output* find(mapping::FeId fe);
   bool host_write(mapping::FeId fe, canopen::Origin origin);

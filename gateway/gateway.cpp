@@ -427,20 +427,43 @@ std::vector<Gateway::FieldState> Gateway::fields(mapping::FeId fe) const {
   return out;
 }
 
+void Gateway::count_refused(Sub* s) {
+  ++subdevice_commands_refused_;
+  if (s != nullptr) ++s->refused_commands;
+}
+
+std::uint64_t Gateway::subdevice_refused_commands() const {
+  return subdevice_commands_refused_ + remote_sdo_->counters().refused;
+}
+
+std::uint64_t Gateway::subdevice_refused_commands(const std::string& name) const {
+  const auto it = subs_.find(name);
+  return it == subs_.end() ? 0 : it->second.refused_commands + remote_sdo_->refused(name);
+}
+
 canopen::SdoAbortCode Gateway::host_subdevice_command(std::uint32_t value) {
   const auto node = static_cast<std::uint8_t>(value & 0xFF);
   const auto code = static_cast<std::uint8_t>((value >> 8) & 0xFF);
   Sub* s = nullptr;
   for (auto& [name, sub] : subs_)
     if (sub.config->node_id == node) s = &sub;
-  if (s == nullptr) return canopen::SdoAbortCode::SubIndexDoesNotExist;  // as remote SDO: node not configured
+  if (s == nullptr) {
+    count_refused(nullptr);
+    return canopen::SdoAbortCode::SubIndexDoesNotExist;  // as remote SDO: node not configured
+  }
   std::string_view command;
   for (const auto& [c, name] : kSubdeviceCommands)
     if (c == code) command = name;
-  if ((value >> 16) != 0 || command.empty() || s->driver->command(command).empty())
+  if ((value >> 16) != 0 || command.empty() || s->driver->command(command).empty()) {
+    count_refused(s);
     return canopen::SdoAbortCode::InvalidValue;
-  if (!s->operational) return canopen::SdoAbortCode::CannotTransferDeviceState;
+  }
+  if (!s->operational) {
+    count_refused(s);
+    return canopen::SdoAbortCode::CannotTransferDeviceState;
+  }
   log("host: 3000h sub-device command " + std::string(command) + " to " + s->config->name);
+  // subdevice_command() counts its own refusals.
   return subdevice_command(s->config->name, command, now_) ? canopen::SdoAbortCode::None
                                                            : canopen::SdoAbortCode::CannotTransferDeviceState;
 }
@@ -449,12 +472,14 @@ bool Gateway::subdevice_command(const std::string& name, std::string_view comman
   now_ = now;
   const auto it = subs_.find(name);
   if (it == subs_.end()) {
+    count_refused(nullptr);
     log("command " + std::string(command) + ": no sub-device '" + name + "'");
     return false;
   }
   Sub& s = it->second;
   const std::vector<sd::SdoWrite> writes = s.driver->command(command);
   if (writes.empty()) {
+    count_refused(&s);
     std::string known;
     for (const auto& c : s.driver->commands()) known += (known.empty() ? "" : ", ") + c;
     log(name + ": no command '" + std::string(command) + "' (" + std::string(s.driver->family()) + " has: " +
@@ -462,6 +487,7 @@ bool Gateway::subdevice_command(const std::string& name, std::string_view comman
     return false;
   }
   if (!s.operational) {
+    count_refused(&s);
     log(name + ": command " + std::string(command) + " refused: the node is " + s.why);
     return false;
   }

@@ -118,6 +118,15 @@ class Gateway {
   // Commands refused so far: a source the FE does not take (each refused SDO download and each
   // refused RPDO entry of the host counts), an FE not configured.
   [[nodiscard]] std::uint64_t refused_commands() const { return arbiter_->refused(); }
+  // Those of one configured output FE (zero for an input FE: nothing commands it).
+  [[nodiscard]] std::uint64_t refused_commands(mapping::FeId fe) const { return arbiter_->refused(fe); }
+  // Commands aimed at sub-devices that the gateway refused: remote SDO transfers (RemoteSdo:
+  // the node's state, the write policy, a network indication naming no sub-device), 3000h
+  // sub-device commands of the host and subdevice_command() (an unknown node or command, a node
+  // not operational). A sub-device's own SDO aborts are not refusals of the gateway.
+  [[nodiscard]] std::uint64_t subdevice_refused_commands() const;
+  // Those aimed at one configured sub-device (zeros for an unknown name).
+  [[nodiscard]] std::uint64_t subdevice_refused_commands(const std::string& name) const;
 
   [[nodiscard]] OeDevice& upstream() { return *oe_; }
   [[nodiscard]] const OeDevice& upstream() const { return *oe_; }
@@ -192,6 +201,7 @@ class Gateway {
     bool forced = false;
     Cause cause;  // the fault's cause (Kind::None: not faulty)
     EmcyRecord emcy;  // the EMCYs it sent
+    std::uint64_t refused_commands = 0;  // 3000h / subdevice_command() for it, refused
   };
 
   void on_signal(Sub& s, std::size_t index, const subdevices::SignalValue& v);
@@ -221,6 +231,9 @@ class Gateway {
   std::unique_ptr<OeDevice> oe_;
   canopen::Subscription command_hook_;  // 3000h's write hook (after oe_: removed before it)
   canopen::SdoAbortCode host_subdevice_command(std::uint32_t value);
+  // Counts a refused 3000h / subdevice_command() (`s`: the sub-device it was for, or nullptr).
+  void count_refused(Sub* s);
+  std::uint64_t subdevice_commands_refused_ = 0;  // 3000h / subdevice_command() refusals, all
   FeModel model_;
   canopen::TimePoint now_{};
   std::unique_ptr<CommandArbiter> arbiter_;

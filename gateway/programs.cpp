@@ -1,6 +1,9 @@
 #include "gateway/programs.hpp"
 
+#include <grp.h>
+
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 
@@ -144,6 +147,25 @@ void print_downstream_boot(const mapping::Config& cfg) {
   }
 }
 
+// `oegw check`: the control socket `oegw run` will serve (mapping file `control`, PROTOCOL.md);
+// what run would refuse there deployment_errors() has refused already.
+void print_control(const mapping::ControlConfig& c) {
+  if (!c.enabled) {
+    std::printf("control: off (control.enabled false): no socket, oegw status cannot ask this gateway\n");
+    return;
+  }
+  const std::filesystem::path folder = std::filesystem::path(c.socket).parent_path();
+  std::error_code ec;
+  const std::string made = std::filesystem::is_directory(folder, ec) ? "" : ", its folder " + folder.string() + " made by oegw run";
+  std::string who = "mode 0600: root only";
+  if (!c.group.empty()) {
+    const group* g = ::getgrnam(c.group.c_str());
+    who = fmt::format("mode 0660: root and group {} (gid {})", c.group, g != nullptr ? std::to_string(g->gr_gid) : "?");
+  }
+  std::printf("control: socket %s%s, %s; oegw status asks it (oegw status --config FILE finds it)\n", c.socket.c_str(),
+              made.c_str(), who.c_str());
+}
+
 }  // namespace
 
 int run_check(const std::string& file) {
@@ -218,6 +240,7 @@ int run_check(const std::string& file) {
                                   .c_str()
                             : "off",
               p.lcm.enabled ? fmt::format("{}, channels {}*", p.lcm.url, p.lcm.channel_prefix).c_str() : "off");
+  print_control(cfg->control);
   bool outputs = false;
   for (const auto& fe : cfg->functional_elements) {
     if (fe.input()) continue;

@@ -104,8 +104,15 @@ bool RemoteSdo::write_refused(const mapping::SubdeviceConfig& sub, std::uint16_t
   return false;
 }
 
-RemoteSdo::Ticket RemoteSdo::refuse(SdoAbortCode code, const std::string& what, Done& done) {
+std::uint64_t RemoteSdo::refused(const std::string& subdevice) const {
+  const auto it = refused_by_subdevice_.find(subdevice);
+  return it == refused_by_subdevice_.end() ? 0 : it->second;
+}
+
+RemoteSdo::Ticket RemoteSdo::refuse(SdoAbortCode code, const std::string& what, const mapping::SubdeviceConfig* sub,
+                                    Done& done) {
   ++counters_.refused;
+  if (sub != nullptr) ++refused_by_subdevice_[sub->name];
   log("remote SDO: " + what + " refused: " + abort_text(code));
   const Ticket t = next_++;
   done(code, {});
@@ -131,7 +138,7 @@ void RemoteSdo::finish(Ticket ticket, SdoAbortCode code, std::vector<std::uint8_
 RemoteSdo::Ticket RemoteSdo::upload(const SdoTarget& target, std::uint16_t index, std::uint8_t sub, Done done) {
   const mapping::SubdeviceConfig* sc = nullptr;
   if (const SdoAbortCode c = check(target, sc); c != SdoAbortCode::None)
-    return refuse(c, fmt::format("read of node {:02X}h {:04X}h:{:02X}", target.node, index, sub), done);
+    return refuse(c, fmt::format("read of node {:02X}h {:04X}h:{:02X}", target.node, index, sub), sc, done);
   const Ticket t = track(target.node, std::move(done));
   canopen::SdoClient& client = master_.sdo(sc->node());
   pending_.back().client_ticket = client.upload(
@@ -144,10 +151,10 @@ RemoteSdo::Ticket RemoteSdo::download(const SdoTarget& target, std::uint16_t ind
                                       std::span<const std::uint8_t> data, bool size_indicated, Done done) {
   const mapping::SubdeviceConfig* sc = nullptr;
   const std::string what = fmt::format("write of node {:02X}h {:04X}h:{:02X}", target.node, index, sub);
-  if (const SdoAbortCode c = check(target, sc); c != SdoAbortCode::None) return refuse(c, what, done);
+  if (const SdoAbortCode c = check(target, sc); c != SdoAbortCode::None) return refuse(c, what, sc, done);
   if (write_refused(*sc, index, sub))
     return refuse(SdoAbortCode::CannotTransferLocalControl,
-                  what + " (" + sc->name + ": the gateway configures this object and its FEs are in use)", done);
+                  what + " (" + sc->name + ": the gateway configures this object and its FEs are in use)", sc, done);
   const Ticket t = track(target.node, std::move(done));
   canopen::SdoClient& client = master_.sdo(sc->node());
   pending_.back().client_ticket =

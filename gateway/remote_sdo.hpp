@@ -34,6 +34,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <set>
 #include <string>
 #include <vector>
@@ -68,6 +69,9 @@ class RemoteSdo final : public canopen::SdoRemote {
   // True for a write the policy refuses (see the header).
   [[nodiscard]] bool write_refused(const mapping::SubdeviceConfig& sub, std::uint16_t index, std::uint8_t sub_index);
   [[nodiscard]] const RemoteSdoCounters& counters() const { return counters_; }
+  // The transfers to one configured sub-device the gateway refused (its state, the write
+  // policy); a network indication naming no configured sub-device counts only in counters().
+  [[nodiscard]] std::uint64_t refused(const std::string& subdevice) const;
   [[nodiscard]] std::size_t in_flight() const { return pending_.size(); }
 
   // A refused request or a remote abort, for the log ("remote SDO: right_grip 1800h:01 write
@@ -84,7 +88,8 @@ class RemoteSdo final : public canopen::SdoRemote {
   [[nodiscard]] const mapping::SubdeviceConfig* find(const canopen::SdoTarget& target) const;
   // Checks a transfer's target now; SdoAbortCode::None when it may go.
   canopen::SdoAbortCode check(const canopen::SdoTarget& target, const mapping::SubdeviceConfig*& sub) const;
-  Ticket refuse(canopen::SdoAbortCode code, const std::string& what, Done& done);
+  // `sub`: the configured sub-device the transfer was for (nullptr: none).
+  Ticket refuse(canopen::SdoAbortCode code, const std::string& what, const mapping::SubdeviceConfig* sub, Done& done);
   Ticket track(std::uint8_t node, Done done);
   void finish(Ticket ticket, canopen::SdoAbortCode code, std::vector<std::uint8_t> data);
   void log(const std::string& line);
@@ -98,6 +103,7 @@ class RemoteSdo final : public canopen::SdoRemote {
   std::vector<Pending> pending_;
   Ticket next_ = 1;
   RemoteSdoCounters counters_;
+  std::map<std::string, std::uint64_t> refused_by_subdevice_;
 };
 
 }  // namespace oegw::gateway

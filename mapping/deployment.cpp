@@ -1,5 +1,7 @@
 #include "mapping/deployment.hpp"
 
+#include <grp.h>
+
 #include <algorithm>
 #include <filesystem>
 #include <string>
@@ -42,6 +44,44 @@ void check_store(const UpstreamConfig& u, std::vector<Diagnostic>& out) {
                      "/var/lib/oegw)"});
 }
 
+// What `oegw run` refuses of the control socket on this machine (gateway/control/
+// control_server.cpp, which does the same at start): a group the machine lacks; a folder it
+// cannot make (it makes the last one only, mode 0755, as /run/oegw below /run); something at
+// the path that is no socket. A socket a running gateway serves is not refused here: `oegw
+// check` of the running daemon's own file must pass (run says it at start).
+void check_control(const ControlConfig& c, std::vector<Diagnostic>& out) {
+  if (!c.enabled) return;
+  if (!c.group.empty() && ::getgrnam(c.group.c_str()) == nullptr)
+    out.push_back({at(c.group_where, c.where),
+                   "control.group: no group '" + c.group + "' on this machine (getent group " + c.group +
+                       "); create it (groupadd --system " + c.group +
+                       ") or leave control.group out (the socket is then root's only, mode 0600)"});
+  namespace fs = std::filesystem;
+  const fs::path socket(c.socket);
+  const fs::path folder = socket.parent_path();
+  const Location where = at(c.socket_where, c.where);
+  const std::string what = "control.socket " + c.socket + (c.socket_where.line != 0 ? "" : " (the default)");
+  std::error_code ec;
+  const fs::file_status f = fs::status(folder, ec);
+  if (fs::exists(f) && !fs::is_directory(f)) {
+    out.push_back({where, what + ": " + folder.string() + " is not a folder; expected a socket path in a folder"});
+    return;
+  }
+  if (!fs::exists(f)) {
+    if (!fs::is_directory(folder.parent_path(), ec))
+      out.push_back({where, what + ": its folder " + folder.string() + " does not exist, nor does " +
+                                folder.parent_path().string() +
+                                " (oegw run makes only the socket's own folder); expected a socket path whose "
+                                "folder or its parent exists, e.g. " + std::string(kDefaultControlSocket)});
+    return;
+  }
+  const fs::file_status at_path = fs::symlink_status(socket, ec);
+  if (fs::exists(at_path) && !fs::is_socket(at_path))
+    out.push_back({where, what + ": " + c.socket +
+                              " exists and is not a socket (oegw run would not replace it); remove it or choose "
+                              "another control.socket"});
+}
+
 }  // namespace
 
 std::vector<Diagnostic> deployment_errors(const Config& c) {
@@ -57,6 +97,7 @@ std::vector<Diagnostic> deployment_errors(const Config& c) {
                                    up.where.line_column() +
                                    "); expected two CAN interfaces: the host's bus and the sub-devices' bus"});
   check_store(c.upstream, out);
+  check_control(c.control, out);
   std::stable_sort(out.begin(), out.end(), [](const Diagnostic& a, const Diagnostic& b) {
     return std::pair(a.where.line, a.where.column) < std::pair(b.where.line, b.where.column);
   });

@@ -30,8 +30,9 @@ PACKAGES=(
   # systemd-analyze verify: the unit file's test (systemd need not run)
   systemd
   # the Debian package: dpkg-shlibdeps (dpkg-dev) computes its Depends; the deploy test installs it
-  # into a fresh Debian root made by debootstrap and inspects the installed programs (file)
-  dpkg-dev debootstrap file
+  # into a fresh Debian root made by debootstrap and inspects the installed programs (file) and
+  # its copyright file with Debian's DEP-5 reader (python3-debian)
+  dpkg-dev debootstrap file python3-debian
 )
 
 missing=()

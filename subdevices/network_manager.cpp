@@ -90,12 +90,19 @@ NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
   master_.on_boot = [this](NodeId n) {
     Managed* m = find(n);
     if (m == nullptr || m->state == NodeState::Idle) return;  // start() has not run yet
-    if (m->started_once) {
+    // WaitingBootUp: the gateway sent NMT reset communication / reset node (begin_boot) and
+    // this is its answer (CiA 301 §7.2.8.3.2.1: a node in reset sends its boot-up). Any other
+    // boot-up the device did of itself (or another master did to it): a reboot seen.
+    const bool answers_reset = m->state == NodeState::WaitingBootUp;
+    if (answers_reset) {
+      ++counters_.gateway_resets;
+      ++m->counted.gateway_resets;
+    } else if (m->started_once) {
       ++counters_.reboots_seen;
       ++m->counted.reboots_seen;
     }
     const bool was_live = m->state == NodeState::Operational;
-    const bool application_reset = m->state != NodeState::WaitingBootUp || m->reset_node_sent;
+    const bool application_reset = !answers_reset || m->reset_node_sent;
     if (application_reset && on_application_reset) on_application_reset(m->settings.name);
     configure(*m, now_);  // it just booted: its dictionary is at power-on values
     // The inputs go offline after the state says why (see fail()).

@@ -87,7 +87,8 @@ enum class NodeState : std::uint8_t {
 struct NetworkCounters {
   std::uint64_t unknown_pdo = 0;     // a PDO-range frame no configured node's driver consumes
   std::uint64_t unknown_emcy = 0;    // an EMCY from a node not in the configuration
-  std::uint64_t reboots_seen = 0;    // boot-ups of configured nodes after their first start
+  std::uint64_t reboots_seen = 0;    // reboots of configured nodes the gateway did not cause (NodeCounters)
+  std::uint64_t gateway_resets = 0;  // boot-ups answering the gateway's NMT resets (NodeCounters)
 };
 
 // What the network manager counted of one configured node since the gateway started.
@@ -95,7 +96,13 @@ struct NodeCounters {
   // Frames received from it: its PDOs (the COB-IDs its driver consumes), heartbeats and
   // boot-ups (700h + node-ID), EMCYs (080h + node-ID), SDO answers (580h + node-ID).
   std::uint64_t frames = 0;
-  std::uint64_t reboots_seen = 0;  // its boot-ups after its first start (NetworkCounters sums them)
+  // Its boot-ups after its first start that the gateway did not cause: a power cycle, its own
+  // reset, another master's NMT reset — any boot-up while the gateway was not waiting for the
+  // answer to a reset of its own. NetworkCounters sums them.
+  std::uint64_t reboots_seen = 0;
+  // Its boot-ups answering the gateway's own NMT reset communication / reset node (the first
+  // boot, every retry of a lost or refused node): the gateway's doing, not the device's.
+  std::uint64_t gateway_resets = 0;
 };
 
 struct NetworkTiming {

@@ -1,8 +1,10 @@
 #include "gateway/control/status_command.hpp"
 
 #include <cstdio>
+#include <sstream>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "gateway/control/control_client.hpp"
 #include "gateway/control/control_protocol.hpp"
@@ -22,6 +24,10 @@ std::string hex(const json& v, int digits) {
   return fmt::format("{:0{}X}h", v.get<std::uint64_t>(), digits);
 }
 std::string text(const json& v) { return v.is_string() ? "\"" + v.get<std::string>() + "\"" : "-"; }
+// A counter, "-" when the answer lacks it (a daemon of the same protocol before it was added).
+std::string count(const json& o, const char* key) {
+  return o.contains(key) && o[key].is_number_unsigned() ? std::to_string(o[key].get<std::uint64_t>()) : "-";
+}
 std::string seconds(std::int64_t ms) { return fmt::format("{:.1f} s", static_cast<double>(ms) / 1000.0); }
 
 std::string emcy_text(const json& e) {
@@ -47,12 +53,37 @@ void wrap(std::string& out, const std::string& first, const std::vector<std::str
   out += line + "\n";
 }
 
+// name, node, driver, state, frames, bad, reboots, resets, refused (88 columns).
+constexpr const char* kSubdeviceRow = "{:<14} {:>4} {:<16} {:<12} {:>9} {:>5} {:>7} {:>6} {:>7}\n";
+
+// "commands refused: 3 to FEs (indicators.1 2, display.1 1), 1 to sub-devices (right_grip 1)":
+// the totals, then who had any (the FEs in FE order, the sub-devices in file order).
+std::string refused_line(const json& st) {
+  const auto who = [](const json& list, auto&& counter) {
+    std::vector<std::string> out;
+    for (const auto& e : list)
+      if (const std::string n = counter(e); n != "0" && n != "-") out.push_back(e["name"].get<std::string>() + " " + n);
+    return out;
+  };
+  const auto group = [](const std::string& total, const char* to, const std::vector<std::string>& names) {
+    std::string g = total + " to " + to;
+    if (!names.empty()) g += " (" + fmt::format("{}", fmt::join(names, ", ")) + ")";
+    return g;
+  };
+  const json& c = st["commands"];
+  return "commands refused: " +
+         group(count(c, "refused"), "FEs", who(st["functional_elements"], [](const json& fe) { return count(fe, "refused_commands"); })) +
+         ", " +
+         group(count(c, "subdevice_refused"), "sub-devices",
+               who(st["subdevices"], [](const json& d) { return count(d["counters"], "refused_commands"); }));
+}
+
 // One row per sub-device, then its last EMCY, identity and firmware, and why it is faulty.
 void subdevice_rows(std::string& out, const json& s) {
   const json& c = s["counters"];
-  out += fmt::format("{:<14} {:>4} {:<16} {:<12} {:>9} {:>5} {:>7}\n", s["name"].get<std::string>(), hex(s["node_id"], 2),
-                     s["driver"].get<std::string>(), s["state"].get<std::string>(), c["frames"].get<std::uint64_t>(),
-                     c["bad_frames"].get<std::uint64_t>(), c["reboots_seen"].get<std::uint64_t>());
+  out += fmt::format(kSubdeviceRow, s["name"].get<std::string>(), hex(s["node_id"], 2), s["driver"].get<std::string>(),
+                     s["state"].get<std::string>(), c["frames"].get<std::uint64_t>(), c["bad_frames"].get<std::uint64_t>(),
+                     c["reboots_seen"].get<std::uint64_t>(), count(c, "gateway_resets"), count(c, "refused_commands"));
   const json& id = s["identity"];
   wrap(out, "    ",
        {"vendor " + hex(id["vendor_id"], 8), "product " + hex(id["product_code"], 8), "revision " + hex(id["revision"], 8),
@@ -97,12 +128,16 @@ std::string status_table(const json& st) {
   out += fmt::format("downstream: {}, network {}, PDOs of unknown nodes {}, EMCYs of unknown nodes {}\n",
                      down["interface"].get<std::string>(), down["network_id"].get<int>(),
                      dc["unknown_pdo"].get<std::uint64_t>(), dc["unknown_emcy"].get<std::uint64_t>());
-  out += fmt::format("\n{:<14} {:>4} {:<16} {:<12} {:>9} {:>5} {:>7}\n", "sub-device", "node", "driver", "state",
-                     "frames", "bad", "reboots");
+  out += "\n" + fmt::format(kSubdeviceRow, "sub-device", "node", "driver", "state", "frames", "bad", "reboots", "resets",
+                            "refused");
   for (const auto& s : st["subdevices"]) subdevice_rows(out, s);
   out += fmt::format("\n{:<15} {:<14} {}\n", "FE", "status", "fields (value, status if not valid)");
   for (const auto& fe : st["functional_elements"]) fe_rows(out, fe);
-  out += fmt::format("\ncommands refused: {}\n", st["commands"]["refused"].get<std::uint64_t>());
+  std::vector<std::string> words;  // wrapped at its spaces, like the FE rows
+  std::istringstream line(refused_line(st));
+  for (std::string w; line >> w;) words.push_back(w);
+  out += "\n";
+  wrap(out, "", words, 4);
   return out;
 }
 

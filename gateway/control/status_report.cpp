@@ -42,7 +42,7 @@ void add_identity(json& out, const sd::NodeDiagnostics* d) {
   out["error_register"] = optional_value(d->error_register);
 }
 
-json counters_json(const sd::NodeCounters& n, const sd::InputCounters* c) {
+json counters_json(const sd::NodeCounters& n, const sd::InputCounters* c, std::uint64_t refused) {
   const sd::InputCounters none;
   if (c == nullptr) c = &none;
   return json{{"frames", n.frames},
@@ -51,7 +51,9 @@ json counters_json(const sd::NodeCounters& n, const sd::InputCounters* c) {
               {"unknown_cob", c->unknown_cob},
               {"unknown_emcy", c->unknown_emcy},
               {"channel_mismatches", c->mismatches},
-              {"reboots_seen", n.reboots_seen}};
+              {"reboots_seen", n.reboots_seen},
+              {"gateway_resets", n.gateway_resets},
+              {"refused_commands", refused}};
 }
 
 json subdevice_json(const Gateway& gw, const mapping::SubdeviceConfig& s, canopen::TimePoint now) {
@@ -69,7 +71,8 @@ json subdevice_json(const Gateway& gw, const mapping::SubdeviceConfig& s, canope
   add_identity(out, net.diagnostics(s.name));
   out["last_emcy"] = emcy_json(gw.subdevice_emcy(s.name), now);
   const sd::Driver* d = net.driver(s.name);
-  out["counters"] = counters_json(net.node_counters(s.name), d ? &d->counters() : nullptr);
+  out["counters"] =
+      counters_json(net.node_counters(s.name), d ? &d->counters() : nullptr, gw.subdevice_refused_commands(s.name));
   return out;
 }
 
@@ -82,7 +85,10 @@ json fe_json(const Gateway& gw, mapping::FeId fe) {
                           {"interlocked", f.interlocked}});
   // FeStatus mirrors SignalStatus (fe_samples.hpp).
   const auto status = static_cast<sd::SignalStatus>(gw.status(fe));
-  return json{{"name", mapping::fe_name(fe)}, {"status", std::string(sd::to_string(status))}, {"fields", fields}};
+  return json{{"name", mapping::fe_name(fe)},
+              {"status", std::string(sd::to_string(status))},
+              {"fields", fields},
+              {"refused_commands", gw.refused_commands(fe)}};
 }
 
 json upstream_json(const Gateway& gw, const mapping::Config& c, canopen::TimePoint now) {
@@ -126,10 +132,12 @@ json status_report(const Gateway& gw, const mapping::Config& config, const Statu
                                   {"network_id", config.downstream.network_id},
                                   {"counters", json{{"unknown_pdo", n.unknown_pdo},
                                                     {"unknown_emcy", n.unknown_emcy},
-                                                    {"reboots_seen", n.reboots_seen}}}}},
+                                                    {"reboots_seen", n.reboots_seen},
+                                                    {"gateway_resets", n.gateway_resets}}}}},
               {"subdevices", subs},
               {"functional_elements", fes},
-              {"commands", json{{"refused", gw.refused_commands()}}}};
+              {"commands", json{{"refused", gw.refused_commands()},
+                                {"subdevice_refused", gw.subdevice_refused_commands()}}}};
 }
 
 }  // namespace oegw::gateway

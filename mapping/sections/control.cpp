@@ -1,7 +1,7 @@
 // The `control` section: the local control socket of `oegw run` (gateway/control/PROTOCOL.md).
-// Only the form is checked here: whether the group exists is a fact of the machine `oegw run`
-// starts on, not of the file (`oegw check` on a laptop passes a cab's file), so run refuses it
-// there, naming control.group at its file:line:column.
+// Only the form is checked here: whether the group exists, or the socket's folder, is a fact of
+// the machine, which `oegw check` and `oegw run` ask (mapping/deployment.cpp), naming the setting
+// at its file:line:column; the demo and the tests load files without them.
 #include "mapping/sections/sections.hpp"
 
 namespace oegw::mapping::sections {

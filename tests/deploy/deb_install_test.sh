@@ -29,6 +29,8 @@ start=$SECONDS
 for tool in debootstrap chroot flock tar readelf dpkg-deb cpack; do
   command -v "$tool" >/dev/null || die "missing $tool (scripts/install-deps.sh installs it)"
 done
+# Debian's own reader of machine-readable copyright files (python3-debian), with Debian's python3.
+/usr/bin/python3 -c 'import debian.copyright' 2>/dev/null || die "missing python3-debian (scripts/install-deps.sh installs it)"
 
 # --- the root: unmounted and removed before and after each run ------------------------------------
 # rm --one-file-system never follows a mount that is still there into the host's files.
@@ -79,6 +81,12 @@ note "package $(basename "$deb"): $(stat -c %s "$deb") bytes ($(du -h "$deb" | c
 Installed-Size $(dpkg-deb -f "$deb" Installed-Size) KiB ($((SECONDS - t)) s to make)"
 note "Depends: $(dpkg-deb -f "$deb" Depends)"
 [[ -n $(dpkg-deb -f "$deb" Depends) ]] || die "the package has no Depends (dpkg-shlibdeps did not run?)"
+# The Maintainer: a team address of the form "Name <address>", no placeholder left.
+maintainer=$(dpkg-deb -f "$deb" Maintainer)
+note "Maintainer: $maintainer"
+[[ $maintainer =~ ^[^\<\>]+\ \<[^@\ ]+@[^\ \>]+\>$ ]] || die "Maintainer '$maintainer' is not 'Name <address>'"
+! grep -Eiq 'example\.(invalid|com|org|net)|placeholder|changeme|todo|fixme' <<<"$maintainer" ||
+  die "Maintainer '$maintainer' is a placeholder"
 
 # --- a fresh root, the package installed by apt ------------------------------------------------------
 t=$SECONDS
@@ -129,10 +137,33 @@ for f in /usr/bin/oegw /usr/bin/oegw-sim /usr/lib/systemd/system/oegw.service /e
          /usr/share/oegw/eds/generic_pedal.eds /usr/share/oegw/eds/button_cluster.eds \
          /usr/share/oegw/examples/cab.yaml /usr/share/oegw/examples/demo.yaml \
          /usr/share/doc/oegw/README.md /usr/share/doc/oegw/mapping/README.md \
-         /usr/share/doc/oegw/subdevices/README.md /var/lib/oegw; do
+         /usr/share/doc/oegw/subdevices/README.md /usr/share/doc/oegw/copyright /var/lib/oegw; do
   grep -qx -- "$f" <<<"$owned" || die "dpkg -L oegw does not list $f"
 done
 note "ok: dpkg -L oegw lists the programs, the unit, the EDS files, the samples and the docs"
+# Debian Policy §12.5: /usr/share/doc/oegw/copyright, machine-readable (DEP-5) as Debian's reader
+# (python3-debian, strict) takes it: Files: * under Apache-2.0, the licence text the pointer
+# names present in the root (base-files), Upstream-Contact the package's Maintainer.
+copyright=$root/usr/share/doc/oegw/copyright
+[[ -f $copyright ]] || die "no /usr/share/doc/oegw/copyright"
+/usr/bin/python3 - "$copyright" "$maintainer" <<'PY' || die "/usr/share/doc/oegw/copyright: see above"
+import sys
+import debian.copyright as dc
+path, maintainer = sys.argv[1], sys.argv[2]
+c = dc.Copyright(open(path, encoding="utf-8"), strict=True)
+assert c.header.format.startswith("https://www.debian.org/doc/packaging-manuals/copyright-format/1.0"), c.header.format
+assert c.header.upstream_name == "oegw", c.header.upstream_name
+assert c.header.upstream_contact == (maintainer,), (c.header.upstream_contact, maintainer)
+p = c.find_files_paragraph("usr/bin/oegw")
+assert p is not None and p.files == ("*",), "no Files: * paragraph"
+assert p.license.synopsis == "Apache-2.0", p.license.synopsis
+assert "the oegw developers" in p.copyright, p.copyright
+standalone = {l.synopsis: l for l in (q.license for q in c.all_license_paragraphs())}
+assert "/usr/share/common-licenses/Apache-2.0" in standalone["Apache-2.0"].text, "no pointer to common-licenses"
+print("copyright: DEP-5, Files: * Apache-2.0,", p.copyright)
+PY
+[[ -f $root/usr/share/common-licenses/Apache-2.0 ]] || die "the root has no /usr/share/common-licenses/Apache-2.0"
+note "ok: /usr/share/doc/oegw/copyright is DEP-5 (python3-debian), Apache-2.0; Upstream-Contact = Maintainer"
 in_root dpkg-query -W -f='${Conffiles}\n' oegw | grep -q '^ /etc/oegw/oegw.yaml ' ||
   die "/etc/oegw/oegw.yaml is not a conffile of the package"
 # The unit starts the installed program (its path substituted for the install prefix).

@@ -18,7 +18,8 @@ r=$dest$prefix
 for f in bin/oegw bin/oegw-sim lib/oegw/examples/dds_subscriber lib/oegw/examples/lcm_subscriber \
          lib/oegw/examples/lcm_log_decode lib/systemd/system/oegw.service share/oegw/eds/generic_pedal.eds \
          share/oegw/eds/button_cluster.eds share/oegw/examples/cab.yaml share/oegw/examples/demo.yaml \
-         share/doc/oegw/README.md share/doc/oegw/mapping/README.md share/doc/oegw/subdevices/README.md; do
+         share/doc/oegw/README.md share/doc/oegw/mapping/README.md share/doc/oegw/subdevices/README.md \
+         share/doc/oegw/copyright; do
   [[ -e $r/$f ]] || die "$prefix/$f not installed"
 done
 # GNUInstallDirs' rule for /opt/<x>: the configuration in /etc/opt/<x>, the state in /var/opt/<x>.

@@ -265,6 +265,34 @@ TEST_F(NetworkManagerTest, CountsEachNodesFramesAndReboots) {
   EXPECT_EQ(manager_->node_counters("nobody").frames, 0u);
 }
 
+// "reboots seen" are the device's own: the boot-ups answering the gateway's NMT resets (the
+// first boot, the retry of a lost node) are counted apart, as gateway_resets.
+TEST_F(NetworkManagerTest, RebootsSeenAreOnlyTheOnesTheGatewayDidNotCause) {
+  Device dev(net_);
+  (void)dev.node->start(net_.now());
+  start();
+  net_.run_for(100ms);
+  ASSERT_EQ(manager_->state("grip"), NodeState::Operational);
+  EXPECT_EQ(manager_->node_counters("grip").gateway_resets, 1u) << "the boot-up answering start()'s reset";
+  EXPECT_EQ(manager_->node_counters("grip").reboots_seen, 0u);
+  net_.detach("device");  // lost; the gateway's retry resets it when it is back
+  net_.run_for(200ms);
+  ASSERT_EQ(manager_->state("grip"), NodeState::Missing);
+  net_.attach("device", *dev.node);
+  net_.run_for(5s);
+  ASSERT_EQ(manager_->state("grip"), NodeState::Operational);
+  NodeCounters c = manager_->node_counters("grip");
+  EXPECT_EQ(c.gateway_resets, 2u) << "the retry's reset communication, answered";
+  EXPECT_EQ(c.reboots_seen, 0u) << "the gateway caused that boot-up";
+  dev.node->nmt().reset(false, net_.now());  // now the device reboots on its own
+  net_.run_for(300ms);
+  c = manager_->node_counters("grip");
+  EXPECT_EQ(c.reboots_seen, 1u);
+  EXPECT_EQ(c.gateway_resets, 2u);
+  EXPECT_EQ(manager_->counters().reboots_seen, 1u);
+  EXPECT_EQ(manager_->counters().gateway_resets, 2u);
+}
+
 TEST_F(NetworkManagerTest, SdoTimeoutDuringConfigurationLeavesTheNodeStoppedAndRetries) {
   Device dev(net_);
   (void)dev.node->start(net_.now());

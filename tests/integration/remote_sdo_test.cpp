@@ -267,6 +267,13 @@ TEST_F(RemoteSdo, WritesOfWhatTheGatewayConfiguredAreRefused) {
   EXPECT_EQ(write(host(), 0x1800, 5, {50, 0}).code, SdoAbortCode::CannotTransferLocalControl);
   // Reads are always allowed.
   EXPECT_EQ(read(host(), 0x1800, 5).code, SdoAbortCode::None);
+  // Each refusal counts for the sub-device it was aimed at (`oegw status`), and in the totals.
+  const gw::Gateway& g = rig_->gw();
+  EXPECT_EQ(g.subdevice_refused_commands("right_grip"), 6u);
+  EXPECT_EQ(g.subdevice_refused_commands("seat_knob"), 1u);
+  EXPECT_EQ(g.subdevice_refused_commands("left_grip"), 0u);
+  EXPECT_EQ(g.remote_sdo().counters().refused, 7u);
+  EXPECT_EQ(g.subdevice_refused_commands(), 7u);
 }
 
 TEST_F(RemoteSdo, RefusedNetworkIndicationsKeepTheTarget) {

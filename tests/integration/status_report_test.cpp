@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <optional>
 #include <sstream>
 
 #include "canopen/io/clock.hpp"
@@ -24,6 +25,8 @@ using nlohmann::json;
 
 namespace {
 
+const oegw::mapping::FeId kLeds1{oegw::mapping::FeKind::IndicatorCluster, 1};
+
 class StatusReport : public ::testing::Test {
  protected:
   StatusReport() : loop_(clock_) {
@@ -31,6 +34,9 @@ class StatusReport : public ::testing::Test {
                                                   gw::driver_catalogue());
     EXPECT_TRUE(loaded.ok()) << loaded.error_text();
     config_ = std::move(*loaded.config);
+    // indicators.1 takes DDS only here: LCM and the host are refused (CommandsRefused...).
+    for (auto& fe : config_.functional_elements)
+      if (fe.id == kLeds1) fe.sources = static_cast<oegw::mapping::CommandSources>(oegw::mapping::CommandSource::Dds);
     store_ = std::filesystem::path(::testing::TempDir()) / ("status_report_" + std::to_string(::getpid()) + ".store");
     std::filesystem::remove(store_);
     rig_ = std::make_unique<gw::CabRig>(config_, loop_, gw::CabRigOptions{.store = store_});
@@ -46,6 +52,20 @@ class StatusReport : public ::testing::Test {
     for (const auto& s : r["subdevices"])
       if (s["name"] == name) return s;
     throw std::runtime_error("no sub-device " + name);
+  }
+  static const json& fe(const json& r, const std::string& name) {
+    for (const auto& f : r["functional_elements"])
+      if (f["name"] == name) return f;
+    throw std::runtime_error("no FE " + name);
+  }
+  // An SDO download of the host to the gateway; its abort code.
+  SdoAbortCode host_write(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) {
+    std::optional<SdoAbortCode> got;
+    rig_->host().sdo(NodeId{0x20}).download(index, sub, std::move(data),
+                                            [&](SdoAbortCode c, std::vector<std::uint8_t>) { got = c; });
+    rig_->rearm();
+    for (int i = 0; i < 2000 && !got; ++i) rig_->run_for(1ms);
+    return got.value_or(SdoAbortCode::Timeout);
   }
   std::uint32_t sim_u32(const std::string& name, std::uint16_t index, std::uint8_t subindex) {
     return rig_->devices().device(name)->od().get<std::uint32_t>(index, subindex);
@@ -119,8 +139,46 @@ TEST_F(StatusReport, CountersFollowTheFramesAndTheReboots) {
   rig_->run_for(5s);
   const json s = sub(report(), "right_grip");
   EXPECT_EQ(s["counters"]["reboots_seen"], 1);
+  EXPECT_EQ(s["counters"]["gateway_resets"], 1) << "its first boot answered the gateway's reset; the reboot was its own";
   EXPECT_EQ(s["state"], "operational");
   EXPECT_EQ(report()["downstream"]["counters"]["reboots_seen"], 1);
+  EXPECT_EQ(sub(report(), "left_grip")["counters"]["reboots_seen"], 0);
+  EXPECT_EQ(sub(report(), "left_grip")["counters"]["gateway_resets"], 1);
+}
+
+// Refused commands per output FE (LCM, the host's SDO) and per sub-device (3000h): in the
+// report, in the sub-device's row and in the table's last line; the totals count also what
+// names no FE or sub-device of the file.
+TEST_F(StatusReport, RefusedCommandsAreCountedPerFeAndPerSubdevice) {
+  gw::Gateway& g = rig_->gw();
+  EXPECT_FALSE(g.command_indicators(1, 0x01, loop_.now(), oegw::mapping::CommandSource::Lcm));
+  EXPECT_EQ(host_write(0x6200, 0x01, {0xFF}), SdoAbortCode::CannotTransferLocalControl) << "indicators.1: DDS only";
+  EXPECT_FALSE(g.command_indicators(7, 0x01, loop_.now(), oegw::mapping::CommandSource::Dds)) << "no indicators.7";
+  EXPECT_TRUE(g.command_indicators(1, 0x01, loop_.now(), oegw::mapping::CommandSource::Dds));
+  // 3000h: the elobau grip (11h) has no position error reset; node 55h is no sub-device.
+  EXPECT_EQ(host_write(0x3000, 0, {0x11, 0x01, 0, 0}), SdoAbortCode::InvalidValue);
+  EXPECT_EQ(host_write(0x3000, 0, {0x55, 0x01, 0, 0}), SdoAbortCode::SubIndexDoesNotExist);
+  EXPECT_FALSE(g.subdevice_command("left_grip", "position_error_reset", loop_.now())) << "the MCB-402 has none";
+  const json r = report();
+  EXPECT_EQ(fe(r, "indicators.1")["refused_commands"], 2);
+  EXPECT_EQ(fe(r, "indicators.2")["refused_commands"], 0);
+  EXPECT_EQ(fe(r, "joystick.1")["refused_commands"], 0) << "an input FE: nothing commands it";
+  EXPECT_EQ(r["commands"]["refused"], 3);
+  EXPECT_EQ(sub(r, "right_grip")["counters"]["refused_commands"], 1);
+  EXPECT_EQ(sub(r, "left_grip")["counters"]["refused_commands"], 1);
+  EXPECT_EQ(sub(r, "seat_knob")["counters"]["refused_commands"], 0);
+  EXPECT_EQ(r["commands"]["subdevice_refused"], 3);
+  const std::string table = gw::status_table(r);
+  EXPECT_NE(table.find("\ncommands refused: 3 to FEs (indicators.1 2), 3 to sub-devices (right_grip 1, left_grip 1)\n"),
+            std::string::npos)
+      << table;
+  EXPECT_NE(table.find("\nsub-device     node driver           state           frames   bad reboots resets refused\n"),
+            std::string::npos)
+      << table;
+  const auto row = table.find("\nright_grip ");
+  ASSERT_NE(row, std::string::npos) << table;
+  const std::string line = table.substr(row + 1, table.find('\n', row + 1) - row - 1);
+  EXPECT_TRUE(line.ends_with("       0      1       1")) << "reboots 0, resets 1, refused 1: " << line;
 }
 
 TEST_F(StatusReport, ALostDeviceIsMissingWithItsLastEmcy) {

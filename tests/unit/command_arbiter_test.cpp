@@ -77,6 +77,26 @@ TEST(CommandArbiter, ASourceTheFeTakesDrivesTheOutputsAndAnotherIsRefusedAndCoun
   EXPECT_EQ(r.arbiter.refused(), 3u);
 }
 
+TEST(CommandArbiter, EachOutputFeCountsItsOwnRefusalsFromEveryWay) {
+  Rig r;
+  // indicators.1 takes dds only: LCM, the host's SDO and its RPDO bytes are refused.
+  EXPECT_FALSE(r.arbiter.command_indicators(1, 0x01, CommandSource::Lcm, r.now));
+  const std::uint8_t byte = 0xFF;
+  EXPECT_EQ(r.device.od().write(0x6200, 0x01, std::span<const std::uint8_t>(&byte, 1), canopen::Origin::Sdo),
+            canopen::SdoAbortCode::CannotTransferLocalControl);
+  (void)r.device.od().write(0x6200, 0x01, std::span<const std::uint8_t>(&byte, 1), canopen::Origin::Pdo);
+  // display.1 takes canopen and lcm: DDS is refused.
+  EXPECT_FALSE(r.arbiter.command_display(1, {}, CommandSource::Dds, r.now));
+  EXPECT_TRUE(r.arbiter.command_display(1, {}, CommandSource::Lcm, r.now));
+  EXPECT_EQ(r.arbiter.refused(kLeds1), 3u);
+  EXPECT_EQ(r.arbiter.refused(kDisplay1), 1u);
+  EXPECT_EQ(r.arbiter.refused(kLeds2), 0u) << "all sources: nothing refused";
+  // An FE the mapping file does not configure: only the total counts it.
+  EXPECT_FALSE(r.arbiter.command_indicators(3, 0x01, CommandSource::Dds, r.now));
+  EXPECT_EQ(r.arbiter.refused(FeId{FeKind::IndicatorCluster, 3}), 0u);
+  EXPECT_EQ(r.arbiter.refused(), 5u);
+}
+
 TEST(CommandArbiter, AmongTheSourcesTheLastWriterWins) {
   Rig r;
   EXPECT_TRUE(r.arbiter.command_indicators(2, 0x0F, CommandSource::Dds, r.now));

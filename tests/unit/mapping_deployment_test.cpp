@@ -3,6 +3,7 @@
 // oegw_check_cab_*).
 #include "mapping/deployment.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <string>
@@ -97,6 +98,44 @@ TEST(Deployment, AStoreWhoseFolderDoesNotExistIsRefusedAtItsSettingOrItsSection)
   ASSERT_EQ(e.size(), 1u);
   EXPECT_EQ(e[0].rfind("cab.yaml:1:1: upstream.store /nonexistent/oegw/up.store (the default)", 0), 0u) << e[0];
   c.upstream.store = "up.store";  // in the working directory: a folder that is there
+  EXPECT_TRUE(errors(c).empty());
+}
+
+TEST(Deployment, TheControlSocketRunWouldRefuseOnThisMachine) {
+  Config c = cab();
+  c.control.where = {"cab.yaml", 12, 1};
+  c.control.socket = "/tmp/oegw-deployment-test.sock";  // /tmp exists: fine
+  EXPECT_TRUE(errors(c).empty());
+  c.control.socket = "/tmp/oegw-deployment-test-no-such-dir/oegw.sock";  // its folder made by run
+  EXPECT_TRUE(errors(c).empty());
+  c.control.group = "root";
+  EXPECT_TRUE(errors(c).empty());
+  c.control.group = "oegw_no_such_group_x";
+  c.control.group_where = {"cab.yaml", 12, 40};
+  c.control.socket = "/nonexistent-oegw/run/oegw.sock";
+  c.control.socket_where = {"cab.yaml", 12, 20};
+  // In the file's order: the socket (column 20), then the group (column 40).
+  EXPECT_THAT(errors(c),
+              ::testing::ElementsAre(
+                  ::testing::StartsWith("cab.yaml:12:20: control.socket /nonexistent-oegw/run/oegw.sock: its folder "
+                                        "/nonexistent-oegw/run does not exist, nor does /nonexistent-oegw (oegw run "
+                                        "makes only the socket's own folder)"),
+                  ::testing::StartsWith("cab.yaml:12:40: control.group: no group 'oegw_no_such_group_x' on this machine")));
+  c.control.group.clear();
+  // One socket path each: the only error (or "" when there is none, or several).
+  const auto only = [&c](const char* socket) {
+    c.control.socket = socket;
+    const auto all = errors(c);
+    return all.size() == 1 ? all[0] : std::string();
+  };
+  EXPECT_EQ(only("/etc/hostname"),  // a plain file: run does not take it
+            "cab.yaml:12:20: control.socket /etc/hostname: /etc/hostname exists and is not a socket (oegw run "
+            "would not replace it); remove it or choose another control.socket");
+  EXPECT_NE(only("/etc/hostname/oegw.sock").find("/etc/hostname is not a folder"), std::string::npos);
+  c.control.socket_where = {};  // the default's place: the section
+  EXPECT_EQ(only("/nonexistent-oegw/run/oegw.sock").rfind("cab.yaml:12:1: control.socket /nonexistent-oegw/run/oegw.sock (the default): ", 0), 0u);
+  c.control.enabled = false;  // no socket: nothing to refuse
+  c.control.group = "oegw_no_such_group_x";
   EXPECT_TRUE(errors(c).empty());
 }
 

@@ -99,7 +99,10 @@ subs = {d["name"]: d for d in s["subdevices"]}
 for d in s["subdevices"]: print("    identity:", d["name"], d["identity"], d["device_name"], d["software_version"])
 ok = all(isinstance(d["identity"]["vendor_id"], int) and isinstance(d["identity"]["product_code"], int) and d["counters"]["frames"] > 0 for d in s["subdevices"])
 ok = ok and subs["right_grip"]["identity"]["vendor_id"] == 0xB4 and subs["left_grip"]["device_name"] == "CO4013A"
-ok = ok and subs["right_grip"]["counters"]["reboots_seen"] >= 1
+# The new grip process boots on its own: a reboot seen, or (when its boot-up meets the reset
+# communication of a retry) the answer to that reset; its first boot answered a gateway reset.
+g = subs["right_grip"]["counters"]
+ok = ok and g["reboots_seen"] + g["gateway_resets"] >= 2 and g["gateway_resets"] >= 1
 ok = ok and subs["left_grip"]["last_emcy"]["code"] == 0x8100 and subs["left_grip"]["last_emcy"]["error_register"] == 0x11
 ok = ok and any(fe["name"] == "joystick.1" for fe in s["functional_elements"])
 sys.exit(0 if ok else 1)' && pass "oegw status --json: identities (1018h, 1008h), frames, the grip's reboot, left_grip's power-on EMCY 8100h" ||
