@@ -22,6 +22,8 @@ PACKAGES=(
   # recorded-session test; libglib2.0-dev because liblcm-dev's lcm.pc requires glib-2.0 and
   # gthread-2.0 .pc files that liblcm-dev does not pull in (pkg-config lcm fails without them)
   liblcm-dev liblcm-bin libglib2.0-dev
+  # strace: the VM tier counts the system calls `oegw run` makes per translated frame
+  strace
   # tcpdump: an independent check that the demo's DDS/LCM traffic never leaves the host
   tcpdump
   # libsystemd: sd_notify / sd_watchdog_enabled for the unit's Type=notify and watchdog (oegw run

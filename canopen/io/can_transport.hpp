@@ -10,6 +10,7 @@
 
 #include "canopen/bus_event.hpp"
 #include "canopen/can_frame.hpp"
+#include "canopen/io/clock.hpp"
 #include "canopen/types.hpp"
 
 namespace oegw::canopen {
@@ -68,6 +69,19 @@ class CanTransport {
 
   [[nodiscard]] const TransportCounters& counters() const { return counters_; }
 
+  // Where poll_readable() takes "now" from: the event loop's clock, read once per wake-up
+  // (watch_transport sets it), so reading frames costs no clock system call of its own. Without
+  // one a transport reads CLOCK_MONOTONIC itself. `clock` must outlive the transport's use of it.
+  void set_clock(const Clock* clock) { clock_ = clock; }
+
+  // Sending in batches: between begin_batch() and end_batch() a transport may hold the frames
+  // send() takes and put them on the bus together at end_batch() (SocketCanTransport: one
+  // sendmmsg() for all). watch_transport brackets each event-loop wake-up with them, so what one
+  // wake-up sends costs one system call, not one per frame (issue 17). A held frame is Ok for
+  // send(); what end_batch() cannot send is counted (tx_dropped, errors) as send() would have.
+  virtual void begin_batch() {}
+  virtual void end_batch() {}
+
   // A FrameSink for the services, sending through this transport (the result is counted).
   [[nodiscard]] FrameSink sink() {
     return [this](const CanFrame& f) { (void)send(f); };
@@ -78,6 +92,7 @@ class CanTransport {
   void deliver_frame(const CanFrame& frame, TimePoint timestamp);
   void deliver_event(BusEvent event);
   TransportCounters counters_;
+  const Clock* clock_ = nullptr;
 
  private:
   Receiver receiver_;

@@ -2,6 +2,8 @@
 // this interface, so that tests can substitute a SimulatedClock and run without sleeping.
 #pragma once
 
+#include <optional>
+
 #include "canopen/types.hpp"
 
 namespace oegw::canopen {
@@ -17,6 +19,23 @@ class Clock {
 class SteadyClock final : public Clock {
  public:
   [[nodiscard]] TimePoint now() const override;
+};
+
+// The event loop's real-time clock: CLOCK_MONOTONIC, read once per wake-up. Between hold() and
+// release() now() returns the reading hold() took, so every callback of one wake-up (the frame's
+// receiver, the timers due, the services they drive) sees the same instant and a translated frame
+// costs one clock read, not one per caller (issue 17: the clock_gettime calls per frame). Outside a
+// hold it reads the clock.
+class WakeClock final : public Clock {
+ public:
+  [[nodiscard]] TimePoint now() const override { return held_ ? *held_ : steady_.now(); }
+  void hold() { held_ = steady_.now(); }
+  void release() { held_.reset(); }
+  [[nodiscard]] bool held() const { return held_.has_value(); }
+
+ private:
+  SteadyClock steady_;
+  std::optional<TimePoint> held_;
 };
 
 // A clock that only moves when told to. Time never goes backwards: set() to an earlier time is

@@ -160,7 +160,21 @@ bool EventLoop::unwatch(WatchId id) {
   if (it == watchers_.end()) return false;
   ::epoll_ctl(epoll_fd_, EPOLL_CTL_DEL, it->second.fd, nullptr);  // fails only if already closed
   watchers_.erase(it);
+  // Unwatched during a wake-up: its end comes now (a transport's held frames go out), not never.
+  for (std::size_t i = 0; i < brackets_.size();) {
+    if (brackets_[i].id != id) {
+      ++i;
+      continue;
+    }
+    const Bracket b = std::move(brackets_[i]);
+    brackets_.erase(brackets_.begin() + static_cast<std::ptrdiff_t>(i));
+    if (steady_.held()) b.end();
+  }
   return true;
+}
+
+void EventLoop::bracket_wakeups(WatchId id, Callback begin, Callback end) {
+  brackets_.push_back(Bracket{id, std::move(begin), std::move(end)});
 }
 
 void EventLoop::post(Callback fn) { posted_.push_back(std::move(fn)); }
@@ -227,6 +241,22 @@ std::size_t EventLoop::run_once(std::optional<Duration> timeout) {
   if (n < 0) {
     if (errno != EINTR) throw_errno("epoll_wait");
     n = 0;
+  }
+  // One clock reading for everything this wake-up dispatches (WakeClock); released on the way out,
+  // also when a callback throws.
+  struct Hold {
+    WakeClock* clock;
+    std::vector<Bracket>* brackets;
+    ~Hold() {
+      if (clock == nullptr) return;
+      // Sends held in this wake-up go out here. By index: a callback may unwatch (rare).
+      for (std::size_t i = 0; i < brackets->size(); ++i) (*brackets)[i].end();
+      clock->release();
+    }
+  } hold{simulated() || steady_.held() ? nullptr : &steady_, &brackets_};
+  if (hold.clock != nullptr) {
+    hold.clock->hold();
+    for (std::size_t i = 0; i < brackets_.size(); ++i) brackets_[i].begin();
   }
   std::size_t ran = 0;
   for (int i = 0; i < n; ++i) {
@@ -299,7 +329,11 @@ void ServiceDriver::on_timer() {
 EventLoop::WatchId watch_transport(EventLoop& loop, CanTransport& transport) {
   const int fd = transport.fd();
   if (fd < 0) return 0;
-  return loop.watch(fd, io_events::kReadable, [&transport](std::uint32_t) { transport.poll_readable(); });
+  transport.set_clock(&loop.clock());
+  const EventLoop::WatchId id =
+      loop.watch(fd, io_events::kReadable, [&transport](std::uint32_t) { transport.poll_readable(); });
+  loop.bracket_wakeups(id, [&transport] { transport.begin_batch(); }, [&transport] { transport.end_batch(); });
+  return id;
 }
 
 }  // namespace oegw::canopen

@@ -2,7 +2,9 @@
 // signalfd for signals, and a queue of posted callbacks.
 //
 // Two modes:
-//  * real time, `EventLoop loop;` - time is SteadyClock, run()/run_once() block in epoll_wait.
+//  * real time, `EventLoop loop;` - time is CLOCK_MONOTONIC, run()/run_once() block in epoll_wait;
+//    the clock is read once per wake-up and every callback of that wake-up sees that instant
+//    (WakeClock), outside run_once() now() reads the clock.
 //  * deterministic, `EventLoop loop(simulated_clock);` - time only moves through advance_to(),
 //    which fires the timers due in (time, creation) order, setting the clock to each timer's
 //    time first, without sleeping. Descriptors are still served by run_once(), and timers due at
@@ -38,6 +40,7 @@
 #include <optional>
 #include <unordered_map>
 #include <utility>
+#include <vector>
 
 #include "canopen/io/can_transport.hpp"
 #include "canopen/io/clock.hpp"
@@ -90,6 +93,11 @@ class EventLoop {
   WatchId watch(int fd, std::uint32_t events, FdCallback fn);
   bool unwatch(WatchId id);
 
+  // Brackets every real-time wake-up while watch `id` exists: `begin` after epoll_wait returns,
+  // before any callback; `end` after the wake-up's dispatch, also when a callback throws.
+  // watch_transport uses it to batch a transport's sends. Removed by unwatch(id).
+  void bracket_wakeups(WatchId id, Callback begin, Callback end);
+
   // Runs `fn` on the loop soon: in the current/next run_once(), or in advance_to().
   void post(Callback fn);
 
@@ -137,7 +145,7 @@ class EventLoop {
   void arm_timerfd();
   void on_signalfd();
 
-  SteadyClock steady_;
+  WakeClock steady_;  // held from the wake-up to the end of its dispatch (run_once)
   const Clock* clock_ = &steady_;
   SimulatedClock* simulated_ = nullptr;
   int epoll_fd_ = -1;
@@ -154,6 +162,11 @@ class EventLoop {
   std::uint64_t next_timer_id_ = 1;
   std::uint64_t arm_seq_ = 0;
   std::unordered_map<WatchId, Watcher> watchers_;
+  struct Bracket {
+    WatchId id;
+    Callback begin, end;
+  };
+  std::vector<Bracket> brackets_;
   WatchId next_watch_id_ = 2;  // 1 is the timerfd
   std::deque<Callback> posted_;
   bool stop_ = false;
@@ -210,8 +223,10 @@ class ServiceDriver {
   std::optional<TimePoint> armed_at_;
 };
 
-// Watches transport.fd() (if >= 0) and calls transport.poll_readable() when it is readable.
-// Returns the watch id, or 0 if the transport has no descriptor.
+// Watches transport.fd() (if >= 0) and calls transport.poll_readable() when it is readable;
+// the transport reads "now" from the loop's clock (one reading per wake-up) and batches what each
+// wake-up sends (CanTransport::begin_batch/end_batch). Returns the watch id, or 0 if the transport
+// has no descriptor. unwatch() the id before the transport goes.
 EventLoop::WatchId watch_transport(EventLoop& loop, CanTransport& transport);
 
 }  // namespace oegw::canopen

@@ -61,7 +61,9 @@ void set_option(int fd, int level, int option, const T* value, std::size_t size,
   }
 }
 
-constexpr std::int64_t kMaxPlausibleAgeUs = 10'000'000;  // 10 s
+// At most this many frames wait for end_batch(): one sendmmsg() each (a wake-up that sends more,
+// e.g. a SYNC with many RPDOs behind it, sends every kMaxHeld).
+constexpr std::size_t kMaxHeld = 64;
 
 }  // namespace
 
@@ -169,11 +171,19 @@ std::vector<BusEvent> decode_error_frame(const ::can_frame& k) {
   return k;
 }
 
-TimePoint timestamp_from_realtime(const timespec& stamp, const timespec& realtime_now, TimePoint monotonic_now) {
-  const std::int64_t age_us = (static_cast<std::int64_t>(realtime_now.tv_sec) - stamp.tv_sec) * 1'000'000 +
-                              (static_cast<std::int64_t>(realtime_now.tv_nsec) - stamp.tv_nsec) / 1'000;
-  if (age_us < 0 || age_us > kMaxPlausibleAgeUs) return monotonic_now;
-  return monotonic_now - Duration{age_us};
+void StampMapper::sample(const timespec& realtime, TimePoint monotonic) {
+  offset_us_ = static_cast<std::int64_t>(realtime.tv_sec) * 1'000'000 + realtime.tv_nsec / 1'000 -
+               monotonic.time_since_epoch().count();
+  sampled_at_ = monotonic;
+  sampled_ = true;
+}
+
+std::optional<TimePoint> StampMapper::map(const timespec& stamp, TimePoint now) const {
+  if (!sampled_) return std::nullopt;
+  const TimePoint t{Duration{static_cast<std::int64_t>(stamp.tv_sec) * 1'000'000 + stamp.tv_nsec / 1'000 - offset_us_}};
+  if (t > now) return t - now <= kAhead ? std::optional<TimePoint>(now) : std::nullopt;
+  if (now - t > kMaxAge) return std::nullopt;
+  return t;
 }
 
 }  // namespace socketcan
@@ -253,6 +263,11 @@ SendResult SocketCanTransport::send(const CanFrame& frame) {
     return {SendStatus::InvalidFrame, 0};
   }
   const ::can_frame k = socketcan::to_kernel(frame);
+  if (batching_) {
+    held_.push_back(k);
+    if (held_.size() >= kMaxHeld) send_held();
+    return {};
+  }
   const ssize_t n = ::send(fd_, &k, sizeof k, MSG_DONTWAIT | MSG_NOSIGNAL);
   if (n == static_cast<ssize_t>(sizeof k)) {
     ++counters_.tx_frames;
@@ -268,52 +283,133 @@ SendResult SocketCanTransport::send(const CanFrame& frame) {
   return {SendStatus::Error, e};
 }
 
-void SocketCanTransport::poll_readable() {
-  for (std::size_t i = 0; i < max_batch_; ++i) {
-    ::can_frame k;
-    iovec iov{&k, sizeof k};
-    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(std::uint32_t))];
-    msghdr msg{};
-    msg.msg_iov = &iov;
-    msg.msg_iovlen = 1;
-    msg.msg_control = control;
-    msg.msg_controllen = sizeof control;
-    const ssize_t n = ::recvmsg(fd_, &msg, MSG_DONTWAIT);
-    if (n < 0) {
-      const int e = errno;
-      if (e == EAGAIN || e == EWOULDBLOCK) return;
-      if (e == EINTR) continue;
-      ++counters_.errors;
-      if (e == ENETDOWN) deliver_event(BusEvent::InterfaceDown);
-      return;
-    }
-    if (n != static_cast<ssize_t>(sizeof k)) {  // CAN FD/XL frames are not enabled; be safe
-      ++counters_.errors;
+SocketCanTransport::SocketCanTransport(int fd, std::string interface, int index, std::size_t max_batch)
+    : fd_(fd), interface_(std::move(interface)), index_(index), max_batch_(max_batch) {
+  // One recvmmsg() takes up to 64 frames (a full classical frame is 16 bytes): with max_batch
+  // above that, poll_readable() reads again only while the previous call filled every slot.
+  const std::size_t n = std::min<std::size_t>(max_batch_, 64);
+  slots_.resize(n);
+  headers_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    Slot& s = slots_[i];
+    s.iov = iovec{&s.frame, sizeof s.frame};
+    msghdr& h = headers_[i].msg_hdr;
+    h = msghdr{};
+    h.msg_iov = &s.iov;
+    h.msg_iovlen = 1;
+    h.msg_control = s.control;
+  }
+}
+
+void SocketCanTransport::end_batch() {
+  batching_ = false;
+  send_held();
+}
+
+// The held frames in order, in one sendmmsg() (more only if the kernel takes part of them, or
+// after kMaxHeld). A full TX queue drops the rest, as send() would have dropped each.
+void SocketCanTransport::send_held() {
+  const std::size_t n = held_.size();
+  if (n == 0) return;
+  held_iov_.resize(n);
+  held_headers_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    held_iov_[i] = iovec{&held_[i], sizeof(::can_frame)};
+    held_headers_[i] = ::mmsghdr{};
+    held_headers_[i].msg_hdr.msg_iov = &held_iov_[i];
+    held_headers_[i].msg_hdr.msg_iovlen = 1;
+  }
+  std::size_t sent = 0;
+  while (sent < n) {
+    const int r = ::sendmmsg(fd_, held_headers_.data() + sent, static_cast<unsigned>(n - sent), MSG_DONTWAIT | MSG_NOSIGNAL);
+    if (r > 0) {
+      sent += static_cast<std::size_t>(r);
+      counters_.tx_frames += static_cast<std::uint64_t>(r);
       continue;
     }
-    timespec real_now{};
-    timespec mono_now{};
-    ::clock_gettime(CLOCK_REALTIME, &real_now);
-    ::clock_gettime(CLOCK_MONOTONIC, &mono_now);
-    const TimePoint read_time = time_point_from_monotonic(mono_now.tv_sec, mono_now.tv_nsec);
-    TimePoint stamp = read_time;
-    for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
-      if (c->cmsg_level != SOL_SOCKET) continue;
-      if (c->cmsg_type == SCM_TIMESTAMPNS) {
-        timespec ts;
-        std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
-        stamp = socketcan::timestamp_from_realtime(ts, real_now, read_time);
-      } else if (c->cmsg_type == SO_RXQ_OVFL) {
-        std::uint32_t dropped = 0;
-        std::memcpy(&dropped, CMSG_DATA(c), sizeof dropped);
-        counters_.rx_dropped = std::max<std::uint64_t>(counters_.rx_dropped, dropped);  // cumulative
+    const int e = r < 0 ? errno : EIO;
+    if (e == EINTR) continue;
+    if (e == ENOBUFS || e == EAGAIN) {
+      counters_.tx_dropped += n - sent;
+    } else {
+      counters_.errors += n - sent;
+    }
+    break;
+  }
+  held_.clear();
+}
+
+void SocketCanTransport::sample_clocks() {
+  timespec real_now{};
+  timespec mono_now{};
+  ::clock_gettime(CLOCK_REALTIME, &real_now);
+  ::clock_gettime(CLOCK_MONOTONIC, &mono_now);
+  stamps_.sample(real_now, time_point_from_monotonic(mono_now.tv_sec, mono_now.tv_nsec));
+}
+
+int SocketCanTransport::read_batch() {
+  for (auto& h : headers_) {
+    h.msg_hdr.msg_controllen = sizeof(Slot::control);  // the kernel overwrites it with what it wrote
+    h.msg_hdr.msg_flags = 0;
+    h.msg_len = 0;
+  }
+  for (;;) {
+    const int n = ::recvmmsg(fd_, headers_.data(), static_cast<unsigned>(headers_.size()), MSG_DONTWAIT, nullptr);
+    if (n >= 0) return n;
+    const int e = errno;
+    if (e == EINTR) continue;
+    if (e == EAGAIN || e == EWOULDBLOCK) return -1;
+    ++counters_.errors;
+    if (e == ENETDOWN) deliver_event(BusEvent::InterfaceDown);
+    return -1;
+  }
+}
+
+// Everything pending, in as few system calls as the kernel allows: one recvmmsg() per 64 frames
+// (it returns what is queued, so a short batch needs no further call to see EAGAIN), no clock
+// reading per frame (the loop's wake-up time and StampMapper's sampled offset).
+void SocketCanTransport::poll_readable() {
+  const TimePoint now = clock_ != nullptr ? clock_->now() : SteadyClock().now();
+  if (stamps_.needs_sample(now)) sample_clocks();
+  bool resampled = false;
+  std::size_t total = 0;
+  while (total < max_batch_) {
+    const int n = read_batch();
+    if (n <= 0) return;
+    total += static_cast<std::size_t>(n);
+    for (int i = 0; i < n; ++i) {
+      const Slot& slot = slots_[static_cast<std::size_t>(i)];
+      msghdr& msg = headers_[static_cast<std::size_t>(i)].msg_hdr;
+      if (headers_[static_cast<std::size_t>(i)].msg_len != sizeof(::can_frame)) {  // CAN FD/XL are not enabled
+        ++counters_.errors;
+        continue;
+      }
+      TimePoint stamp = now;
+      for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
+        if (c->cmsg_level != SOL_SOCKET) continue;
+        if (c->cmsg_type == SCM_TIMESTAMPNS) {
+          timespec ts;
+          std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+          std::optional<TimePoint> t = stamps_.map(ts, now);
+          if (!t && !resampled) {  // the realtime clock was stepped: sample once more
+            sample_clocks();
+            resampled = true;
+            t = stamps_.map(ts, now);
+          }
+          stamp = t.value_or(now);
+        } else if (c->cmsg_type == SO_RXQ_OVFL) {
+          std::uint32_t dropped = 0;
+          std::memcpy(&dropped, CMSG_DATA(c), sizeof dropped);
+          counters_.rx_dropped = std::max<std::uint64_t>(counters_.rx_dropped, dropped);  // cumulative
+        }
+      }
+      if (socketcan::is_error_frame(slot.frame)) {
+        for (BusEvent e : socketcan::decode_error_frame(slot.frame)) deliver_event(e);
+      } else if (auto frame = socketcan::from_kernel(slot.frame)) {
+        deliver_frame(*frame, stamp);
       }
     }
-    if (socketcan::is_error_frame(k)) {
-      for (BusEvent e : socketcan::decode_error_frame(k)) deliver_event(e);
-    } else if (auto frame = socketcan::from_kernel(k)) {
-      deliver_frame(*frame, stamp);
-    }
+    if (static_cast<std::size_t>(n) < headers_.size()) return;  // the queue is empty
   }
 }
 

@@ -9,10 +9,13 @@
 //   state comes in as error frames, decoded to BusEvents; CAN_RAW_LOOPBACK on (other programs on
 //   this host, e.g. candump, see our frames), CAN_RAW_RECV_OWN_MSGS off (we do not).
 // * Receive timestamps: SO_TIMESTAMPNS, taken by the kernel when the frame arrived. The kernel
-//   gives CLOCK_REALTIME, while TimePoint is CLOCK_MONOTONIC; the frame's age (realtime now minus
-//   realtime stamp) is subtracted from the monotonic time of reading. So a backlog drained late
-//   still carries its arrival times. If the realtime clock was stepped in between (age negative
-//   or above 10 s) the monotonic time of reading is used instead.
+//   gives CLOCK_REALTIME, while TimePoint is CLOCK_MONOTONIC; StampMapper subtracts the offset
+//   between the two, sampled every 100 ms. So a backlog drained late still carries its arrival
+//   times. If the realtime clock was stepped (a stamp more than 1 s ahead or 10 s behind) the
+//   offset is sampled again, and the time of reading is used if that does not explain it.
+// * Reading: recvmmsg(), up to 64 frames per call, and no clock reading of its own when the
+//   event loop's clock is set (watch_transport): per wake-up one read, not one per frame plus
+//   the EAGAIN that ends it (issue 17).
 // * SO_RXQ_OVFL: frames the kernel dropped because we read too slowly -> counters().rx_dropped.
 //
 // Opening failures throw CanOpenError (one policy for every open problem), whose what() names the
@@ -21,6 +24,7 @@
 
 #include <linux/can.h>
 #include <linux/can/error.h>
+#include <sys/socket.h>
 #include <time.h>
 
 #include <memory>
@@ -105,9 +109,29 @@ namespace socketcan {
 // error, restarted), without duplicates.
 [[nodiscard]] std::vector<BusEvent> decode_error_frame(const ::can_frame& frame);
 [[nodiscard]] ::can_filter to_kernel(const CanFilter& filter);
-// See the header comment: maps a CLOCK_REALTIME kernel timestamp to monotonic TimePoint.
-[[nodiscard]] TimePoint timestamp_from_realtime(const timespec& stamp, const timespec& realtime_now,
-                                                TimePoint monotonic_now);
+
+// Maps CLOCK_REALTIME kernel receive stamps (SO_TIMESTAMPNS) to monotonic TimePoints through the
+// offset realtime - monotonic, sampled at most every kResample instead of reading both clocks for
+// every frame (issue 17: two clock_gettime calls per frame). Between samples NTP's slew (at most
+// 500 ppm) moves the true offset by 50 us at most. A stamp the offset cannot explain — more than
+// kAhead after `now` or more than kMaxAge before it — means the realtime clock was stepped: map()
+// returns nullopt, the caller samples again and retries, then falls back to `now`. A stamp up to
+// kAhead after `now` is a frame that arrived after the wake-up `now` was read at: it is `now`.
+class StampMapper {
+ public:
+  static constexpr Duration kResample{100'000};
+  static constexpr Duration kAhead{1'000'000};
+  static constexpr Duration kMaxAge{10'000'000};
+
+  [[nodiscard]] bool needs_sample(TimePoint now) const { return !sampled_ || now - sampled_at_ >= kResample; }
+  void sample(const timespec& realtime, TimePoint monotonic);
+  [[nodiscard]] std::optional<TimePoint> map(const timespec& stamp, TimePoint now) const;
+
+ private:
+  bool sampled_ = false;
+  TimePoint sampled_at_{};
+  std::int64_t offset_us_ = 0;  // realtime - monotonic
+};
 }  // namespace socketcan
 
 class SocketCanTransport final : public CanTransport {
@@ -128,6 +152,9 @@ class SocketCanTransport final : public CanTransport {
   ~SocketCanTransport() override;
 
   SendResult send(const CanFrame& frame) override;
+  // Between them send() holds valid frames; end_batch() sends them with sendmmsg() (issue 17).
+  void begin_batch() override { batching_ = true; }
+  void end_batch() override;
   [[nodiscard]] int fd() const override { return fd_; }
   void poll_readable() override;
 
@@ -135,13 +162,30 @@ class SocketCanTransport final : public CanTransport {
   [[nodiscard]] int interface_index() const { return index_; }  // 0 when adopted
 
  private:
-  SocketCanTransport(int fd, std::string interface, int index, std::size_t max_batch)
-      : fd_(fd), interface_(std::move(interface)), index_(index), max_batch_(max_batch) {}
+  SocketCanTransport(int fd, std::string interface, int index, std::size_t max_batch);
+  // Reads up to the batch size in one recvmmsg(); returns how many it read, -1 to stop.
+  int read_batch();
+  void sample_clocks();
+  void send_held();
+
+  // recvmmsg() buffers: one frame and its control data (timestamp, drop count) per slot.
+  struct Slot {
+    ::can_frame frame;
+    iovec iov;
+    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(std::uint32_t))];
+  };
 
   int fd_;
   std::string interface_;
   int index_;
   std::size_t max_batch_;
+  std::vector<Slot> slots_;
+  std::vector<::mmsghdr> headers_;
+  socketcan::StampMapper stamps_;
+  bool batching_ = false;
+  std::vector<::can_frame> held_;  // frames send() took during a batch
+  std::vector<iovec> held_iov_;
+  std::vector<::mmsghdr> held_headers_;
 };
 
 }  // namespace oegw::canopen

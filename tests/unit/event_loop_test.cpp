@@ -228,6 +228,25 @@ TEST(EventLoop, RunOnceWithTimeoutReturnsWhenNothingHappens) {
   EXPECT_GE(loop.now() - start, 2ms);
 }
 
+// One clock reading per wake-up (WakeClock): everything one wake-up dispatches sees the same
+// instant, however long the callbacks take; outside run_once() now() reads the clock.
+TEST(EventLoop, EveryCallbackOfAWakeUpSeesTheSameNow) {
+  EventLoop loop;
+  SteadyClock steady;
+  std::vector<TimePoint> seen;
+  loop.post([&] {
+    seen.push_back(loop.now());
+    const TimePoint t = steady.now();
+    while (steady.now() < t + 2ms) {
+    }  // the clock moves on while this callback runs
+  });
+  loop.post([&] { seen.push_back(loop.now()); });
+  loop.run_once(0us);
+  ASSERT_EQ(seen.size(), 2u);
+  EXPECT_EQ(seen[0], seen[1]);
+  EXPECT_GE(loop.now(), seen[0] + 2ms) << "read again outside the wake-up";
+}
+
 TEST(EventLoop, StopBeforeRunReturnsAtOnce) {
   EventLoop loop;
   loop.call_after(10s, [] { FAIL() << "must not wait for this"; });

@@ -3,9 +3,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <linux/can/error.h>
+#include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -182,19 +184,31 @@ TEST(SocketCanErrorDecodingMisc, ShortErrorFrameDoesNotReadPastLen) {
 
 // ---- timestamps ---------------------------------------------------------------------------
 
-TEST(SocketCanTimestamp, SubtractsTheFrameAgeFromTheMonotonicReadTime) {
-  const timespec stamp{1'700'000'000, 100'000'000};
-  const timespec now{1'700'000'000, 350'500'000};  // 250.5 ms later
-  EXPECT_EQ(socketcan::timestamp_from_realtime(stamp, now, TimePoint{10s}), TimePoint{10s - 250500us});
-  const timespec across_second{1'700'000'001, 50'000'000};  // 950 ms later
-  EXPECT_EQ(socketcan::timestamp_from_realtime(stamp, across_second, TimePoint{10s}), TimePoint{9050ms});
+// StampMapper: one sampled offset (realtime - monotonic) maps every stamp; no clock per frame.
+TEST(SocketCanTimestamp, SubtractsTheSampledOffset) {
+  socketcan::StampMapper m;
+  EXPECT_TRUE(m.needs_sample(TimePoint{10s}));
+  EXPECT_FALSE(m.map(timespec{1'700'000'000, 0}, TimePoint{10s})) << "no offset yet";
+  m.sample(timespec{1'700'000'000, 350'500'000}, TimePoint{10s});  // realtime 1.7e9 s + 350.5 ms = mono 10 s
+  const timespec stamp{1'700'000'000, 100'000'000};                 // 250.5 ms before
+  EXPECT_EQ(m.map(stamp, TimePoint{10s}), TimePoint{10s - 250500us});
+  EXPECT_EQ(m.map(stamp, TimePoint{10s + 50ms}), TimePoint{10s - 250500us}) << "the same stamp read later";
+  const timespec across_second{1'699'999'999, 950'000'000};         // 400.5 ms before, a second earlier
+  EXPECT_EQ(m.map(across_second, TimePoint{10s}), TimePoint{10s - 400500us});
+  EXPECT_FALSE(m.needs_sample(TimePoint{10s + 99ms}));
+  EXPECT_TRUE(m.needs_sample(TimePoint{10s + 100ms})) << "re-sampled every 100 ms (NTP slew)";
 }
 
-TEST(SocketCanTimestamp, FallsBackToReadTimeWhenTheRealtimeClockJumped) {
-  const TimePoint read{10s};
-  const timespec stamp{1'700'000'000, 0};
-  EXPECT_EQ(socketcan::timestamp_from_realtime(stamp, timespec{1'699'999'999, 0}, read), read) << "backwards step";
-  EXPECT_EQ(socketcan::timestamp_from_realtime(stamp, timespec{1'700'000'011, 0}, read), read) << "forward step";
+TEST(SocketCanTimestamp, AFrameAfterTheWakeUpIsNowAndAStepIsRefused) {
+  socketcan::StampMapper m;
+  m.sample(timespec{1'700'000'000, 0}, TimePoint{10s});
+  // Arrived 3 ms after the wake-up `now` was read at (the loop holds its clock): it is `now`.
+  EXPECT_EQ(m.map(timespec{1'700'000'000, 3'000'000}, TimePoint{10s}), TimePoint{10s});
+  // Further ahead than 1 s, or older than 10 s: the realtime clock was stepped since the sample.
+  EXPECT_FALSE(m.map(timespec{1'700'000'002, 0}, TimePoint{10s})) << "forward step";
+  EXPECT_FALSE(m.map(timespec{1'699'999'989, 0}, TimePoint{10s})) << "backward step";
+  m.sample(timespec{1'700'000'005, 0}, TimePoint{10s});  // after a 5 s forward step
+  EXPECT_EQ(m.map(timespec{1'700'000'004, 900'000'000}, TimePoint{10s}), TimePoint{9900ms});
 }
 
 // ---- opening ------------------------------------------------------------------------------
@@ -359,6 +373,41 @@ TEST(SocketCanTransportIo, ReadsAtMostMaxBatchFramesPerPoll) {
   EXPECT_EQ(frames, 3);
 }
 
+// recvmmsg takes 64 frames per call: a backlog larger than that arrives whole and in order.
+TEST(SocketCanTransportIo, ABacklogBeyondOneBatchArrivesInOrder) {
+  FakeCanSocket s;
+  std::vector<std::uint32_t> ids;
+  std::vector<TimePoint> stamps;
+  s.transport->set_receiver([&](const CanFrame& f, TimePoint t) {
+    ids.push_back(f.id);
+    stamps.push_back(t);
+  });
+  for (std::uint32_t i = 0; i < 200; ++i) s.inject(kframe(0x100 + i, {}));
+  s.transport->poll_readable();
+  ASSERT_EQ(ids.size(), 200u);
+  for (std::uint32_t i = 0; i < 200; ++i) EXPECT_EQ(ids[i], 0x100 + i);
+  EXPECT_TRUE(std::is_sorted(stamps.begin(), stamps.end()));
+  s.transport->poll_readable();
+  EXPECT_EQ(ids.size(), 200u);
+}
+
+// Through the event loop the transport stamps with the loop's held wake-up time as `now`: no
+// frame is later than what every callback of that wake-up sees as the time.
+TEST(SocketCanTransportIo, StampsAreNeverAfterTheLoopsNow) {
+  FakeCanSocket s;
+  EventLoop loop;
+  std::vector<std::pair<TimePoint, TimePoint>> got;  // (stamp, loop.now() in the receiver)
+  s.transport->set_receiver([&](const CanFrame&, TimePoint t) { got.emplace_back(t, loop.now()); });
+  (void)watch_transport(loop, *s.transport);
+  for (int i = 0; i < 5; ++i) s.inject(kframe(0x181, {}));
+  loop.run_once(1s);
+  ASSERT_EQ(got.size(), 5u);
+  for (const auto& [stamp, now] : got) {
+    EXPECT_LE(stamp, now);
+    EXPECT_EQ(now, got[0].second) << "one instant per wake-up";
+  }
+}
+
 TEST(SocketCanTransportIo, SendWritesOneKernelFramePerCall) {
   FakeCanSocket s;
   ASSERT_TRUE(s.transport->send(CanFrame{0x18FF1234, {0xDE, 0xAD}}).ok());
@@ -369,6 +418,71 @@ TEST(SocketCanTransportIo, SendWritesOneKernelFramePerCall) {
   EXPECT_EQ(k.data[0], 0xDE);
   EXPECT_EQ(k.data[1], 0xAD);
   EXPECT_EQ(s.transport->counters().tx_frames, 1u);
+}
+
+// A batch: held until end_batch(), then all of them, in order, in one sendmmsg().
+TEST(SocketCanTransportIo, ABatchGoesOutTogetherAtItsEnd) {
+  FakeCanSocket s;
+  s.transport->begin_batch();
+  for (std::uint32_t i = 0; i < 3; ++i) ASSERT_TRUE(s.transport->send(CanFrame{0x181 + i, {std::uint8_t(i)}}).ok());
+  ::can_frame k;
+  EXPECT_LT(::recv(s.peer, &k, sizeof k, MSG_DONTWAIT), 0) << "held until the batch ends";
+  EXPECT_EQ(s.transport->counters().tx_frames, 0u);
+  s.transport->end_batch();
+  for (std::uint32_t i = 0; i < 3; ++i) {
+    ASSERT_EQ(::recv(s.peer, &k, sizeof k, MSG_DONTWAIT), static_cast<ssize_t>(sizeof k));
+    EXPECT_EQ(k.can_id, 0x181 + i);
+    EXPECT_EQ(k.data[0], i);
+  }
+  EXPECT_EQ(s.transport->counters().tx_frames, 3u);
+  ASSERT_TRUE(s.transport->send(CanFrame{0x200, {}}).ok());  // after the batch: at once
+  EXPECT_EQ(::recv(s.peer, &k, sizeof k, MSG_DONTWAIT), static_cast<ssize_t>(sizeof k));
+}
+
+TEST(SocketCanTransportIo, ABatchIntoAFullQueueCountsWhatItDropped) {
+  FakeCanSocket s;
+  int fit = 0;
+  while (s.transport->send(CanFrame{0x181, {1}}).ok() && fit < 1'000'000) ++fit;  // fill the queue
+  const std::uint64_t dropped = s.transport->counters().tx_dropped;
+  s.transport->begin_batch();
+  for (int i = 0; i < 5; ++i) ASSERT_TRUE(s.transport->send(CanFrame{0x182, {2}}).ok());
+  s.transport->end_batch();
+  EXPECT_EQ(s.transport->counters().tx_dropped, dropped + 5);
+  EXPECT_EQ(s.transport->counters().errors, 0u) << "a full queue is not an error";
+}
+
+// Through the loop: what one wake-up sends leaves when its dispatch ends; an unwatch inside the
+// wake-up sends what the transport held.
+TEST(SocketCanTransportIo, TheLoopBatchesWhatAWakeUpSends) {
+  FakeCanSocket s;
+  EventLoop loop;
+  std::size_t seen_by_peer_during_dispatch = 99;
+  s.transport->set_receiver([&](const CanFrame& f, TimePoint) {
+    (void)s.transport->send(CanFrame{f.id + 1, {}});
+    (void)s.transport->send(CanFrame{f.id + 2, {}});
+    int pending = 0;
+    ::ioctl(s.peer, FIONREAD, &pending);
+    seen_by_peer_during_dispatch = static_cast<std::size_t>(pending);
+  });
+  const EventLoop::WatchId id = watch_transport(loop, *s.transport);
+  s.inject(kframe(0x100, {}));
+  loop.run_once(1s);
+  EXPECT_EQ(seen_by_peer_during_dispatch, 0u);
+  ::can_frame k;
+  for (std::uint32_t want : {0x101u, 0x102u}) {
+    ASSERT_EQ(::recv(s.peer, &k, sizeof k, MSG_DONTWAIT), static_cast<ssize_t>(sizeof k));
+    EXPECT_EQ(k.can_id, want);
+  }
+  s.transport->set_receiver([&](const CanFrame&, TimePoint) {
+    (void)s.transport->send(CanFrame{0x300, {}});
+    loop.unwatch(id);
+  });
+  s.inject(kframe(0x100, {}));
+  loop.run_once(1s);
+  ASSERT_EQ(::recv(s.peer, &k, sizeof k, MSG_DONTWAIT), static_cast<ssize_t>(sizeof k)) << "sent at the unwatch";
+  EXPECT_EQ(k.can_id, 0x300u);
+  ASSERT_TRUE(s.transport->send(CanFrame{0x301, {}}).ok());
+  EXPECT_EQ(::recv(s.peer, &k, sizeof k, MSG_DONTWAIT), static_cast<ssize_t>(sizeof k)) << "no batch left open";
 }
 
 TEST(SocketCanTransportIo, InvalidFrameIsRefusedWithoutWriting) {
