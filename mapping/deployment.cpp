@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <string>
 
+#include "gateway/publish/lcm_url.hpp"
+
 namespace oegw::mapping {
 
 namespace {
@@ -57,6 +59,26 @@ void check_store(const UpstreamConfig& u, std::vector<Diagnostic>& out) {
                      "/var/lib/oegw)"});
 }
 
+// LCM commands are opt-in (`sources` listing lcm, config.hpp): liblcm authenticates nothing and
+// does not name a message's sender, so an FE taking LCM commands on a URL others can send to is
+// commanded by whoever is on that network (SECURITY.md). Warned, not refused: a cab network may
+// be closed by other means (a firewall, a cable of its own).
+void check_lcm_commands(const Config& c, std::vector<Diagnostic>& out) {
+  const auto& lcm = c.publish.lcm;
+  if (!lcm.enabled) return;
+  std::string fes;
+  for (const auto& fe : c.functional_elements)
+    if (!fe.input() && fe.accepts(CommandSource::Lcm)) fes += (fes.empty() ? "" : ", ") + fe_name(fe.id);
+  if (fes.empty()) return;
+  const auto why = gateway::lcm_reaches_beyond_host(lcm.url);
+  if (!why) return;
+  out.push_back({at(lcm.url_where, lcm.where),
+                 "publish.lcm.url " + lcm.url + (lcm.url_where.line != 0 ? "" : " (the default)") +
+                     " carries commands for " + fes + " (sources list lcm), and " + *why +
+                     "; LCM has no authentication: keep lcm out of their sources, use udpm://224.0.0.1:7667?ttl=0 "
+                     "with inbound UDP port 7667 dropped on every interface but lo, or DDS"});
+}
+
 }  // namespace
 
 std::vector<Diagnostic> deployment_errors(const Config& c) {
@@ -94,6 +116,7 @@ std::vector<Diagnostic> deployment_warnings(const Config& c) {
                                   "' feeds no functional element: it is booted and supervised, but nothing of it "
                                   "reaches the host or the machine application"});
   }
+  check_lcm_commands(c, out);
   return out;
 }
 

@@ -33,6 +33,7 @@ void check_lcm_url(YamlReader& r, const MapEntry& e) {
 
 void read_lcm(YamlReader& r, const MapEntry& e, LcmConfig& l) {
   l.enabled = true;
+  l.where = r.loc(e.key);
   const auto ls = r.entries(e.value, "publish lcm", {"enabled", "url", "channel_prefix"},
                             "a map with enabled, url, channel_prefix");
   if (const auto* x = r.find(ls, "enabled"))
@@ -40,6 +41,7 @@ void read_lcm(YamlReader& r, const MapEntry& e, LcmConfig& l) {
   if (const auto* x = r.find(ls, "url"))
     if (auto s = r.string(*x, "url")) {
       l.url = *s;
+      l.url_where = r.loc(x->value);
       check_lcm_url(r, *x);
     }
   if (const auto* x = r.find(ls, "channel_prefix"))

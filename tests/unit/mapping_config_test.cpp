@@ -828,8 +828,8 @@ functional_elements: {}
   EXPECT_EQ(c.publish.lcm.channel_prefix, "CAB_");
 }
 
-// Who may command an output FE (config.hpp CommandSource): all three by default; a list narrows
-// it; every mistake is named with its place.
+// Who may command an output FE (config.hpp CommandSource): canopen and dds by default (LCM is
+// opt-in); a list narrows it; every mistake is named with its place.
 TEST(MappingConfig, CommandSourcesPerOutputFe) {
   const std::string head = R"(upstream: { interface: can0, node_id: 0x20 }
 downstream: { interface: can1 }
@@ -859,8 +859,9 @@ functional_elements:
   EXPECT_EQ(describe_sources(i1->sources), "dds");
   EXPECT_EQ(i1->sources_where.str(), "t.yaml:9:14");
   EXPECT_EQ(describe_sources(i2->sources), "canopen");
-  EXPECT_EQ(d1->sources, kAllCommandSources) << "absent: canopen, dds and lcm";
-  EXPECT_EQ(describe_sources(d1->sources), "canopen, dds, lcm");
+  EXPECT_EQ(d1->sources, kDefaultCommandSources) << "absent: canopen and dds; LCM only when listed";
+  EXPECT_FALSE(d1->accepts(CommandSource::Lcm));
+  EXPECT_EQ(describe_sources(d1->sources), "canopen, dds");
   EXPECT_EQ(r.config->find_fe({FeKind::IndicatorCluster, 3}), nullptr);
 
   const auto bad = load(head + R"(  indicators.1:
