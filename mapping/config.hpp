@@ -8,6 +8,7 @@
 // a driver.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -116,6 +117,19 @@ struct DownstreamConfig {
   Location interface_where;   // the `interface` value, when written
 };
 
+// OMG DDS Security 1.1 for the gateway's participant (publish.dds.security; README "Securing
+// DDS"): the builtin plugins of Cyclone DDS, configured with the domain. Every file is required;
+// a relative path is taken from the mapping file's folder (README "Paths").
+struct DdsSecurityConfig {
+  enum File : std::size_t { IdentityCa, Certificate, PrivateKey, PermissionsCa, Governance, Permissions, kFiles };
+  // The keys in the mapping file, and the settings' names in messages (publish.dds.security.<key>).
+  static constexpr std::array<std::string_view, kFiles> kKeys = {"identity_ca",    "certificate", "private_key",
+                                                                 "permissions_ca", "governance",  "permissions"};
+  std::array<std::string, kFiles> path;  // as resolved
+  std::array<Location, kFiles> where;    // each value
+  Location section;                      // the `security` key
+};
+
 struct DdsConfig {
   bool enabled = false;
   std::uint32_t domain = 0;
@@ -123,6 +137,8 @@ struct DdsConfig {
   // "loopback" (nothing leaves the host: tests, demo), an interface name (the cab network), or
   // "" (Cyclone's own configuration, CYCLONEDDS_URI).
   std::string network = "loopback";
+  std::optional<DdsSecurityConfig> security;  // absent: no DDS Security
+  Location network_where;                     // the `network` value, when written
 };
 struct LcmConfig {
   bool enabled = false;

@@ -76,7 +76,7 @@ void check_lcm_commands(const Config& c, std::vector<Diagnostic>& out) {
                  "publish.lcm.url " + lcm.url + (lcm.url_where.line != 0 ? "" : " (the default)") +
                      " carries commands for " + fes + " (sources list lcm), and " + *why +
                      "; LCM has no authentication: keep lcm out of their sources, use udpm://224.0.0.1:7667?ttl=0 "
-                     "with inbound UDP port 7667 dropped on every interface but lo, or DDS"});
+                     "with inbound UDP port 7667 dropped on every interface but lo, or DDS with publish.dds.security"});
 }
 
 }  // namespace
