@@ -153,6 +153,19 @@ class DdsSecurity : public ::testing::Test {
       if (l->rfind("joystick ", 0) == 0 || l->rfind("sent ", 0) == 0) r.lines.push_back(*l);
   }
 
+  // dds_subscriber --count 1 as `identity`, the gateway served until it exits.
+  Run one_joystick_sample(const std::string& identity) {
+    test::ChildProcess sub(peer(OEGW_DDS_SUBSCRIBER, identity, {"--count", "1", "--timeout", "30"}));
+    Run r;
+    const bool done = serve_until([&] {
+      drain(sub, r);
+      return sub.exited().has_value();
+    });
+    drain(sub, r);
+    r.exit_code = done ? sub.exited().value_or(-1) : -1;
+    return r;
+  }
+
   std::string leds() {
     auto* grip = bench_->device("grip");
     std::string s;
@@ -176,14 +189,8 @@ class DdsSecurity : public ::testing::Test {
 
 TEST_F(DdsSecurity, ThePermittedApplicationReadsTheJoystickAndCommandsTheLeds) {
   start_gateway();
-  test::ChildProcess sub(peer(OEGW_DDS_SUBSCRIBER, "app", {"--count", "1", "--timeout", "30"}));
-  Run s;
-  ASSERT_TRUE(serve_until([&] {
-    drain(sub, s);
-    return sub.exited().has_value();
-  }));
-  drain(sub, s);
-  EXPECT_EQ(sub.exited(), 0);
+  const Run s = one_joystick_sample("app");
+  EXPECT_EQ(s.exit_code, 0);
   ASSERT_EQ(s.lines.size(), 1u);
   EXPECT_NE(s.lines[0].find("joystick instance=1 status=valid"), std::string::npos) << s.lines[0];
 
@@ -221,14 +228,8 @@ TEST_F(DdsSecurity, AParticipantWithoutSecuritySeesNoInputAndItsCommandNeverArri
 
 TEST_F(DdsSecurity, TheReadOnlyParticipantReadsButCannotCommand) {
   start_gateway();
-  test::ChildProcess sub(peer(OEGW_DDS_SUBSCRIBER, "monitor", {"--count", "1", "--timeout", "30"}));
-  Run s;
-  ASSERT_TRUE(serve_until([&] {
-    drain(sub, s);
-    return sub.exited().has_value();
-  }));
-  drain(sub, s);
-  EXPECT_EQ(sub.exited(), 0);
+  const Run s = one_joystick_sample("monitor");
+  EXPECT_EQ(s.exit_code, 0);
   ASSERT_EQ(s.lines.size(), 1u);
   // Its permissions grant no publish: Cyclone refuses it the command topic and writer (exit 1).
   test::ChildProcess cmd(peer(OEGW_DDS_COMMAND, "monitor", {"--timeout", "10", "indicators", "1", "--on", "1-4"}));
