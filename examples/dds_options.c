@@ -1,7 +1,10 @@
 #include "dds_options.h"
 
 #include <ctype.h>
+#include <errno.h>
+#include <limits.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "example_args.h"
@@ -38,21 +41,70 @@ int dds_options_take(const char* prog, int c, const char* value, struct dds_opti
       }
       o->network = value;
       return 1;
-    default: return -1;
+    default:
+      if (c >= 0x100 && c < 0x100 + DDS_SECURITY_FILES) {
+        /* The path goes into Cyclone's XML as a file: URI: nothing that XML would read as markup. */
+        if (value[0] == 0 || strpbrk(value, "<>&\"'") != NULL) {
+          fprintf(stderr, "%s: a DDS Security file '%s': expected a path without < > & or quotes\n", prog, value);
+          return 0;
+        }
+        o->security[c - 0x100] = value;
+        return 1;
+      }
+      return -1;
   }
 }
 
+/* <Security> for the domain, the files as file: URIs (absolute: the domain may outlive a chdir). */
+static int security_xml(const char* prog, const struct dds_options* o, char* out, size_t size) {
+  static const char* const names[DDS_SECURITY_FILES] = {"--identity-ca", "--certificate", "--private-key",
+                                                        "--permissions-ca", "--governance", "--permissions"};
+  char path[DDS_SECURITY_FILES][PATH_MAX];
+  int given = 0;
+  for (int i = 0; i < DDS_SECURITY_FILES; i++) given += o->security[i] != NULL;
+  out[0] = 0;
+  if (given == 0) return 1;
+  for (int i = 0; i < DDS_SECURITY_FILES; i++) {
+    if (o->security[i] == NULL) {
+      fprintf(stderr, "%s: DDS Security needs all six files; %s is missing\n", prog, names[i]);
+      return 0;
+    }
+    if (realpath(o->security[i], path[i]) == NULL) {
+      fprintf(stderr, "%s: %s %s: %s\n", prog, names[i], o->security[i], strerror(errno));
+      return 0;
+    }
+  }
+  if (strcmp(o->network, "default") == 0) {
+    fprintf(stderr, "%s: DDS Security goes with the domain's configuration: give --network loopback or an interface\n", prog);
+    return 0;
+  }
+  const int n = snprintf(out, size,
+                         "<Security><Authentication><IdentityCA>file:%s</IdentityCA><IdentityCertificate>file:%s"
+                         "</IdentityCertificate><PrivateKey>file:%s</PrivateKey></Authentication><AccessControl>"
+                         "<PermissionsCA>file:%s</PermissionsCA><Governance>file:%s</Governance><Permissions>file:%s"
+                         "</Permissions></AccessControl></Security>",
+                         path[0], path[1], path[2], path[3], path[4], path[5]);
+  if (n < 0 || (size_t)n >= size) {
+    fprintf(stderr, "%s: the DDS Security paths are too long\n", prog);
+    return 0;
+  }
+  return 1;
+}
+
 dds_entity_t dds_options_participant(const char* prog, const struct dds_options* o) {
-  char xml[1024] = "";
+  static char security[8 * PATH_MAX];
+  static char xml[9 * PATH_MAX];
+  if (!security_xml(prog, o, security, sizeof security)) return DDS_RETCODE_BAD_PARAMETER;
+  xml[0] = 0;
   if (strcmp(o->network, "loopback") == 0) {
-    snprintf(xml, sizeof xml, "%s",
+    snprintf(xml, sizeof xml,
              "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"lo\"/></Interfaces>"
              "<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex>"
-             "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>");
+             "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery>%s</Domain></CycloneDDS>", security);
   } else if (strcmp(o->network, "default") != 0) {
     snprintf(xml, sizeof xml,
              "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"%s\"/></Interfaces>"
-             "</General></Domain></CycloneDDS>", o->network);
+             "</General>%s</Domain></CycloneDDS>", o->network, security);
   }
   if (xml[0] != 0) {
     const dds_entity_t d = dds_create_domain(o->domain, xml);
@@ -62,7 +114,9 @@ dds_entity_t dds_options_participant(const char* prog, const struct dds_options*
     }
   }
   const dds_entity_t pp = dds_create_participant(o->domain, NULL, NULL);
-  if (pp < 0) fprintf(stderr, "%s: cannot create a DDS participant in domain %u: %s\n", prog, o->domain, dds_strretcode(pp));
+  if (pp < 0)
+    fprintf(stderr, "%s: cannot create a DDS participant in domain %u%s: %s\n", prog, o->domain,
+            security[0] != 0 ? " with DDS Security (Cyclone's log above says why)" : "", dds_strretcode(pp));
   return pp;
 }
 

@@ -9,23 +9,36 @@
 
 #include "dds/dds.h"
 
+/* DDS Security (README "Securing DDS"): the application's six files, as the gateway's
+ * publish.dds.security names them; all or none. */
+enum { DDS_SECURITY_FILES = 6 };
+
 struct dds_options {
   unsigned domain;
   const char* partition;
   const char* network;
+  const char* security[DDS_SECURITY_FILES]; /* identity CA, certificate, key, permissions CA, governance, permissions */
 };
 
-#define DDS_OPTIONS_DEFAULT {0, "oegw", "loopback"}
-/* The getopt_long entries; the values are 'D', 'P' and 'N'. */
+#define DDS_OPTIONS_DEFAULT {0, "oegw", "loopback", {0}}
+/* The getopt_long entries; the values are 'D', 'P', 'N' and 0x100 + the security file's index. */
 #define DDS_OPTIONS_LONG \
   {"domain", required_argument, NULL, 'D'}, {"partition", required_argument, NULL, 'P'}, \
-  {"network", required_argument, NULL, 'N'}
-#define DDS_OPTIONS_USAGE "[--domain 0..232] [--partition P] [--network loopback|IFACE|default]"
+  {"network", required_argument, NULL, 'N'}, {"identity-ca", required_argument, NULL, 0x100}, \
+  {"certificate", required_argument, NULL, 0x101}, {"private-key", required_argument, NULL, 0x102}, \
+  {"permissions-ca", required_argument, NULL, 0x103}, {"governance", required_argument, NULL, 0x104}, \
+  {"permissions", required_argument, NULL, 0x105}
+#define DDS_OPTIONS_USAGE \
+  "[--domain 0..232] [--partition P] [--network loopback|IFACE|default]\n" \
+  "       [--identity-ca F --certificate F --private-key F --permissions-ca F --governance F --permissions F]"
 #define DDS_OPTIONS_HELP \
   "  --domain D        DDS domain (default 0)\n" \
   "  --partition P     the gateway's publish.dds.partition (default oegw; the demo's: oegw-demo)\n" \
   "  --network N       loopback (default: nothing leaves this host), an interface name, or default\n" \
-  "                    (Cyclone's own configuration, CYCLONEDDS_URI)\n"
+  "                    (Cyclone's own configuration, CYCLONEDDS_URI)\n" \
+  "  --identity-ca F, --certificate F, --private-key F, --permissions-ca F, --governance F,\n" \
+  "  --permissions F   DDS Security: this application's identity and the cab's documents, all six\n" \
+  "                    (scripts/make-dds-security.sh makes them); not with --network default\n"
 
 /* Takes option C (one of the above) with its value: 1 taken, 0 refused (said why on stderr),
  * -1 not one of these options. */

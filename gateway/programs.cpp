@@ -2,6 +2,7 @@
 
 #include <grp.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -38,6 +39,10 @@ std::optional<mapping::Config> load(const std::string& file, Use use) {
   auto r = mapping::load_config(file, driver_catalogue());
   if (r.ok() && use == Use::Cab) {
     r.errors = mapping::deployment_errors(*r.config);
+    for (auto& e : dds_security_errors(*r.config)) r.errors.push_back(std::move(e));
+    std::stable_sort(r.errors.begin(), r.errors.end(), [](const mapping::Diagnostic& a, const mapping::Diagnostic& b) {
+      return std::pair(a.where.line, a.where.column) < std::pair(b.where.line, b.where.column);
+    });
     if (!r.errors.empty()) r.config.reset();
   }
   if (!r.ok()) {
@@ -235,8 +240,11 @@ int run_check(const std::string& file) {
   }
   const auto& p = cfg->publish;
   std::printf("\npublish: every %u ms; DDS %s; LCM %s\n", p.period_ms,
-              p.dds.enabled ? fmt::format("domain {}, partition {}, network {}", p.dds.domain, p.dds.partition,
-                                          p.dds.network.empty() ? "(CYCLONEDDS_URI)" : p.dds.network)
+              p.dds.enabled ? fmt::format("domain {}, partition {}, network {}{}", p.dds.domain, p.dds.partition,
+                                          p.dds.network.empty() ? "(CYCLONEDDS_URI)" : p.dds.network,
+                                          p.dds.security ? ", DDS Security (identity " +
+                                                               p.dds.security->path[mapping::DdsSecurityConfig::Certificate] + ")"
+                                                         : std::string())
                                   .c_str()
                             : "off",
               p.lcm.enabled ? fmt::format("{}, channels {}*", p.lcm.url, p.lcm.channel_prefix).c_str() : "off");

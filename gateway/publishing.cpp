@@ -7,6 +7,23 @@ namespace oegw::gateway {
 
 namespace mk = oegw::mapping;
 
+static_assert(std::size_t{kDdsSecurityFiles} == std::size_t{mapping::DdsSecurityConfig::kFiles}, "one list of publish.dds.security's files");
+
+DdsSecuritySettings dds_security_settings(const mapping::DdsSecurityConfig& c) {
+  DdsSecuritySettings s;
+  s.path = c.path;
+  return s;
+}
+
+std::vector<mapping::Diagnostic> dds_security_errors(const mapping::Config& c) {
+  std::vector<mapping::Diagnostic> out;
+  if (!c.publish.dds.enabled || !c.publish.dds.security) return out;
+  const auto& sec = *c.publish.dds.security;
+  for (const auto& p : check_dds_security(dds_security_settings(sec)))
+    out.push_back({sec.where[p.file].line != 0 ? sec.where[p.file] : sec.section, dds_security_setting(p.file) + " " + p.text});
+  return out;
+}
+
 GatewayPublishing::GatewayPublishing(Gateway& gateway, const mapping::PublishConfig& config,
                                      std::function<canopen::TimePoint()> clock)
     : gw_(gateway), clock_(std::move(clock)), schedule_(fan_, std::int64_t{config.period_ms} * 1000) {
@@ -15,6 +32,7 @@ GatewayPublishing::GatewayPublishing(Gateway& gateway, const mapping::PublishCon
     s.domain = config.dds.domain;
     s.partition = config.dds.partition;
     s.network = config.dds.network;
+    if (config.dds.security) s.security = dds_security_settings(*config.dds.security);
     s.period_us = std::int64_t{config.period_ms} * 1000;
     dds_ = std::make_unique<DdsPublisher>(s);
     fan_.add(dds_.get());

@@ -11,6 +11,7 @@
 #include "canopen/io/event_loop.hpp"
 #include "gateway/fe_samples.hpp"
 #include "gateway/gateway.hpp"
+#include "gateway/publish/dds_security.hpp"
 #include "gateway/publish/publish_schedule.hpp"
 #include "mapping/config.hpp"
 
@@ -36,6 +37,12 @@ class FanOut final : public Publisher {
   }
   std::vector<Publisher*> outs_;
 };
+
+// publish.dds.security as the DDS publisher takes it (the paths resolved by the loader).
+[[nodiscard]] DdsSecuritySettings dds_security_settings(const mapping::DdsSecurityConfig& c);
+// Every problem of publish.dds.security's files (dds_security.hpp) at its setting's place in the
+// mapping file: `oegw check` and `oegw run` refuse the file with them, before anything starts.
+[[nodiscard]] std::vector<mapping::Diagnostic> dds_security_errors(const mapping::Config& c);
 
 class GatewayPublishing {
  public:

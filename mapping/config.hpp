@@ -8,6 +8,7 @@
 // a driver.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -116,6 +117,19 @@ struct DownstreamConfig {
   Location interface_where;   // the `interface` value, when written
 };
 
+// OMG DDS Security 1.1 for the gateway's participant (publish.dds.security; README "Securing
+// DDS"): the builtin plugins of Cyclone DDS, configured with the domain. Every file is required;
+// a relative path is taken from the mapping file's folder (README "Paths").
+struct DdsSecurityConfig {
+  enum File : std::size_t { IdentityCa, Certificate, PrivateKey, PermissionsCa, Governance, Permissions, kFiles };
+  // The keys in the mapping file, and the settings' names in messages (publish.dds.security.<key>).
+  static constexpr std::array<std::string_view, kFiles> kKeys = {"identity_ca",    "certificate", "private_key",
+                                                                 "permissions_ca", "governance",  "permissions"};
+  std::array<std::string, kFiles> path;  // as resolved
+  std::array<Location, kFiles> where;    // each value
+  Location section;                      // the `security` key
+};
+
 struct DdsConfig {
   bool enabled = false;
   std::uint32_t domain = 0;
@@ -123,6 +137,8 @@ struct DdsConfig {
   // "loopback" (nothing leaves the host: tests, demo), an interface name (the cab network), or
   // "" (Cyclone's own configuration, CYCLONEDDS_URI).
   std::string network = "loopback";
+  std::optional<DdsSecurityConfig> security;  // absent: no DDS Security
+  Location network_where;                     // the `network` value, when written
 };
 struct LcmConfig {
   bool enabled = false;
@@ -131,6 +147,8 @@ struct LcmConfig {
   // a membership report leaves. A deployment names its group, e.g. udpm://239.255.76.67:7667?ttl=1.
   std::string url = "udpm://224.0.0.1:7667?ttl=0";
   std::string channel_prefix = "OEGW_";
+  Location where;      // the `lcm` section, when written
+  Location url_where;  // the `url` value, when written
 };
 struct PublishConfig {
   std::uint32_t period_ms = 100;  // every FE is published on change and at least this often
@@ -207,20 +225,24 @@ struct FieldBinding {
 
 // Who may command an output FE (indicators, display). CiA 852 has the host write 6200h/6411h
 // over CANopen; the gateway adds the machine application over DDS and LCM. An FE lists the
-// sources it takes (`sources: [canopen, dds, lcm]` in the mapping file, all three when absent);
-// among them the last write wins. A write from a source not listed changes nothing: over
+// sources it takes (`sources: [canopen, dds, lcm]` in the mapping file; canopen and dds when
+// absent); among them the last write wins. LCM only when listed: liblcm neither authenticates
+// nor names a message's sender, so whoever reaches the LCM port could light the cab's lamps
+// (SECURITY.md); a mapping file opts in, and `oegw check` warns when that URL reaches beyond
+// this host (mapping/deployment.hpp). A write from a source not listed changes nothing: over
 // CANopen an SDO download is aborted with 0800 0021h (CiA 301 Table 22, "local control") and
 // the FE's bytes in an RPDO are ignored; over DDS/LCM the command is dropped and logged.
 enum class CommandSource : std::uint8_t { Canopen = 1, Dds = 2, Lcm = 4 };
 using CommandSources = std::uint8_t;  // a set of CommandSource bits
 inline constexpr CommandSources kAllCommandSources = 7;
+inline constexpr CommandSources kDefaultCommandSources = 3;  // canopen, dds: LCM is opt-in
 [[nodiscard]] std::string_view to_string(CommandSource s);           // "canopen", "dds", "lcm"
 [[nodiscard]] std::string describe_sources(CommandSources sources);  // "canopen, dds"
 
 struct FunctionalElementConfig {
   FeId id;
   std::vector<FieldBinding> fields;  // in the FE's dictionary order
-  CommandSources sources = kAllCommandSources;  // output FEs only
+  CommandSources sources = kDefaultCommandSources;  // output FEs only
   // Output FEs: when no accepted command (from any listed source) arrives for this long, the
   // FE's outputs take their CiA 401 error values (6206h/6207h, 6443h/6444h) until the next
   // command. 0 = no watchdog (a commander may send on change only).

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "canopen/io/interface_name.hpp"
+#include "gateway/publish/lcm_url.hpp"
 
 namespace oegw::mapping {
 
@@ -80,6 +81,24 @@ void check_control(const ControlConfig& c, std::vector<Diagnostic>& out) {
     out.push_back({where, what + ": " + c.socket +
                               " exists and is not a socket (oegw run would not replace it); remove it or choose "
                               "another control.socket"});
+// LCM commands are opt-in (`sources` listing lcm, config.hpp): liblcm authenticates nothing and
+// does not name a message's sender, so an FE taking LCM commands on a URL others can send to is
+// commanded by whoever is on that network (SECURITY.md). Warned, not refused: a cab network may
+// be closed by other means (a firewall, a cable of its own).
+void check_lcm_commands(const Config& c, std::vector<Diagnostic>& out) {
+  const auto& lcm = c.publish.lcm;
+  if (!lcm.enabled) return;
+  std::string fes;
+  for (const auto& fe : c.functional_elements)
+    if (!fe.input() && fe.accepts(CommandSource::Lcm)) fes += (fes.empty() ? "" : ", ") + fe_name(fe.id);
+  if (fes.empty()) return;
+  const auto why = gateway::lcm_reaches_beyond_host(lcm.url);
+  if (!why) return;
+  out.push_back({at(lcm.url_where, lcm.where),
+                 "publish.lcm.url " + lcm.url + (lcm.url_where.line != 0 ? "" : " (the default)") +
+                     " carries commands for " + fes + " (sources list lcm), and " + *why +
+                     "; LCM has no authentication: keep lcm out of their sources, use udpm://224.0.0.1:7667?ttl=0 "
+                     "with inbound UDP port 7667 dropped on every interface but lo, or DDS with publish.dds.security"});
 }
 
 }  // namespace
@@ -120,6 +139,7 @@ std::vector<Diagnostic> deployment_warnings(const Config& c) {
                                   "' feeds no functional element: it is booted and supervised, but nothing of it "
                                   "reaches the host or the machine application"});
   }
+  check_lcm_commands(c, out);
   return out;
 }
 

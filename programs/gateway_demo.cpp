@@ -16,6 +16,7 @@
 #include "canopen/io/virtual_bus.hpp"
 #include "programs/cab_rig.hpp"
 #include "gateway/gateway.hpp"
+#include "gateway/programs.hpp"
 #include "gateway/publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
 #include "programs/demo_files.hpp"
@@ -143,14 +144,30 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   // Every FE on DDS (loopback only) and LCM (ttl=0, 224.0.0.1), as a machine application sees
   // it: the embedded demo.yaml's publish section (--no-publish turns it off).
   std::unique_ptr<GatewayPublishing> publishing;
-  if (options.publish && (cfg.publish.dds.enabled || cfg.publish.lcm.enabled)) {
+  mapping::PublishConfig publish = cfg.publish;
+  if (!options.dds_security.empty()) {
+    // The secure mode: the set's file names (scripts/make-dds-security.sh), the gateway's identity.
+    auto& sec = publish.dds.security.emplace();
+    const std::filesystem::path set = std::filesystem::absolute(options.dds_security);
+    sec.path = {(set / "ca.pem").string(),         (set / "gateway.pem").string(),
+                (set / "gateway.key").string(),    (set / "ca.pem").string(),
+                (set / "governance.p7s").string(), (set / "permissions.p7s").string()};
+  }
+  if (options.publish && (publish.dds.enabled || publish.lcm.enabled)) {
     try {
-      publishing = std::make_unique<GatewayPublishing>(gw, cfg.publish, [&loop] { return loop.now(); });
-      say(fmt::format("publishing every FE on DDS (topics oegw/*, domain {}, partition {}, network {}) and LCM "
+      publishing = std::make_unique<GatewayPublishing>(gw, publish, [&loop] { return loop.now(); });
+      say(fmt::format("publishing every FE on DDS (topics oegw/*, domain {}, partition {}, network {}{}) and LCM "
                       "(channels {}*, {}); indicators.1 takes its commands from there",
-                      cfg.publish.dds.domain, cfg.publish.dds.partition, cfg.publish.dds.network,
-                      cfg.publish.lcm.channel_prefix, cfg.publish.lcm.url));
+                      publish.dds.domain, publish.dds.partition, publish.dds.network,
+                      publish.dds.security ? ", DDS Security with " + options.dds_security : std::string(),
+                      publish.lcm.channel_prefix, publish.lcm.url));
     } catch (const PublishConfigError& e) {
+      // A set asked for and refused: no demo without it (it would publish in the clear).
+      if (publish.dds.security) {
+        std::fprintf(stderr, "oegw demo: --dds-security %s: %s\n", options.dds_security.c_str(), e.what());
+        std::filesystem::remove_all(dir);
+        return exit_code::kCannotStart;
+      }
       // The demo goes on without it (an offline machine has no multicast route for LCM); `oegw
       // run` refuses to start instead.
       say(std::string("not publishing: ") + e.what());

@@ -1,6 +1,8 @@
 // `oegw demo`: the gateway with simulated cab devices and a built-in host, on the virtual bus.
 #pragma once
 
+#include <string>
+
 namespace oegw::gateway {
 
 struct GatewayDemoOptions {
@@ -8,6 +10,9 @@ struct GatewayDemoOptions {
   bool frames = false;    // print every frame of both buses
   bool fast = false;      // simulated clock: deterministic, as fast as the machine goes
   bool publish = true;    // publish as demo.yaml says (DDS loopback, LCM ttl=0); commands come back
+  // A folder made by scripts/make-dds-security.sh (--partition oegw-demo): DDS Security for the
+  // demo's participant with the set's gateway identity (README "Securing DDS"); "" = none.
+  std::string dds_security;
 };
 // The embedded demo: gateway + simulated cab devices + a built-in host, on the virtual bus.
 int run_gateway_demo(const GatewayDemoOptions& options);

@@ -41,6 +41,11 @@ int main(int argc, char** argv) {
   demo_cmd->add_flag("--publish,!--no-publish", demo.publish,
                      "Publish every FE on DDS (loopback only) and LCM (ttl=0) and take indicator commands back "
                      "(the default; --no-publish turns it off)");
+  demo_cmd->add_option("--dds-security", demo.dds_security,
+                       "DDS Security with the set in DIR (scripts/make-dds-security.sh --partition oegw-demo DIR): "
+                       "the gateway's identity; watch with the examples' --identity-ca ... options")
+      ->type_name("DIR")
+      ->check(CLI::ExistingDirectory);
 
   oegw::gateway::DemoOptions core_demo;
   auto* core_cmd = app.add_subcommand("core-demo", "The protocol core's demo: one CiA 301 device and a host");

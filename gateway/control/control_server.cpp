@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <grp.h>
+#include <pwd.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
@@ -11,6 +12,7 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <vector>
 
 #include "gateway/control/control_protocol.hpp"
 
@@ -122,10 +124,80 @@ ControlServer::~ControlServer() {
   if (::lstat(settings_.path.c_str(), &st) == 0 && st.st_dev == dev_ && st.st_ino == ino_) ::unlink(settings_.path.c_str());
 }
 
+namespace {
+
+std::string user_name(uid_t uid) {
+  const passwd* p = ::getpwuid(uid);
+  return p ? p->pw_name : "no user of that uid";
+}
+std::string group_name(gid_t gid) {
+  const group* g = ::getgrgid(gid);
+  return g ? g->gr_name : std::to_string(gid);
+}
+
+// The peer's supplementary groups as the kernel recorded them at connect() (SO_PEERGROUPS,
+// Linux 4.13): its own credentials, not what /etc/group says of its user name.
+std::optional<std::vector<gid_t>> peer_groups(int fd) {
+  std::vector<gid_t> groups(64);
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    socklen_t len = static_cast<socklen_t>(groups.size() * sizeof(gid_t));
+    if (::getsockopt(fd, SOL_SOCKET, SO_PEERGROUPS, groups.data(), &len) == 0) {
+      groups.resize(len / sizeof(gid_t));
+      return groups;
+    }
+    if (errno != ERANGE) return std::nullopt;
+    groups.resize(len / sizeof(gid_t) + 1);  // ERANGE: len says how many there are
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+ControlServer::Peer ControlServer::check_peer(int fd) const {
+  Peer p;
+  ucred cred{};
+  socklen_t len = sizeof cred;
+  if (::getsockopt(fd, SOL_SOCKET, SO_PEERCRED, &cred, &len) != 0) {
+    p.why = std::string("its credentials cannot be read (SO_PEERCRED: ") + err(errno) + ")";
+    return p;
+  }
+  p.uid = cred.uid;
+  p.who = "uid " + std::to_string(cred.uid) + " (" + user_name(cred.uid) + "), pid " + std::to_string(cred.pid);
+  if (cred.uid == 0 || cred.uid == ::geteuid()) return p;
+  if (!settings_.group) {
+    p.why = "not root: without control.group the gateway answers root only";
+    return p;
+  }
+  const gid_t g = *settings_.group;
+  if (cred.gid == g) return p;
+  const auto groups = peer_groups(fd);
+  if (!groups)
+    p.why = "not root, and its groups cannot be read (SO_PEERGROUPS: " + err(errno) + ")";
+  else if (std::find(groups->begin(), groups->end(), g) == groups->end())
+    p.why = "not root and not in group " + group_name(g) + " (control.group)";
+  return p;
+}
+
+void ControlServer::refuse(int fd, const Peer& p) {
+  const std::string answer = control_error("permission_denied", "refused " + p.who + ": " + p.why) + "\n";
+  (void)!::send(fd, answer.data(), answer.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+  ::close(fd);
+  ++refused_;
+  const std::uint64_t n = ++refused_by_uid_[p.uid];
+  const auto& out = settings_.warn ? settings_.warn : settings_.log;
+  if (out && (n == 1 || n % 100 == 0))
+    out("control: refused " + p.who + ": " + p.why +
+        (n == 1 ? "" : " (" + std::to_string(n) + " refusals of this uid so far)"));
+}
+
 void ControlServer::accept_clients() {
   for (;;) {
     const int fd = ::accept4(fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
     if (fd < 0) return;  // EAGAIN: all taken; anything else: the next readable tries again
+    if (const Peer p = check_peer(fd); !p.why.empty()) {
+      refuse(fd, p);
+      continue;
+    }
     if (clients_.size() >= settings_.limits.max_clients) {
       const std::string busy = control_error("busy", "the gateway serves " + std::to_string(clients_.size()) +
                                                          " clients already; try again") + "\n";

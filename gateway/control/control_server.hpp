@@ -7,6 +7,14 @@
 //    removed; a socket someone listens on is a live daemon's and is never taken (open() refuses);
 //    anything else at the path is refused too. The destructor removes the file if it is still
 //    this server's (same inode).
+//  * Who is answered: every connection's peer credentials (SO_PEERCRED, SO_PEERGROUPS, unix(7))
+//    are checked on accept, whatever the file's mode: root, the daemon's own user, and with a
+//    group the processes whose primary or supplementary groups hold it. Anyone else gets one
+//    `permission_denied` answer naming the reason and is closed; the refusal is logged with the
+//    uid, user name and pid (the first of each uid, then every 100th, so that a local user cannot
+//    flood the journal). The file's mode is the first door (the kernel refuses connect() without
+//    write permission on it); this is the second, for a mode widened by hand, an fd passed on,
+//    a folder of the wrong owner.
 //  * Bounds (ControlLimits): the request line's length (longer: an error answer, then the
 //    connection is closed), the number of clients (one more: a "busy" answer, closed), the
 //    bytes of answers waiting for one client, and two deadlines: a client silent for
@@ -50,6 +58,7 @@ struct ControlSocketSettings {
   std::optional<gid_t> group;  // nullopt: mode 0600
   ControlLimits limits{};
   std::function<void(const std::string&)> log;  // what it did to the file (stale socket removed)
+  std::function<void(const std::string&)> warn;  // a client refused (see above); `log` when empty
 };
 
 // The settings of the mapping file's `control` section (`file`: the mapping file); ControlError
@@ -70,6 +79,7 @@ class ControlServer {
   [[nodiscard]] std::size_t clients() const { return clients_.size(); }
   [[nodiscard]] std::uint64_t dropped() const { return dropped_; }  // clients dropped by a bound
   [[nodiscard]] std::uint64_t answered() const { return answered_; }
+  [[nodiscard]] std::uint64_t refused() const { return refused_; }  // peers not allowed (above)
 
  private:
   struct Client {
@@ -83,6 +93,13 @@ class ControlServer {
   };
 
   void accept_clients();
+  struct Peer {
+    uid_t uid = static_cast<uid_t>(-1);
+    std::string who = "a client";  // "uid 1001 (anna), pid 4242"
+    std::string why;               // empty: may ask; else why not (its answer and the log)
+  };
+  [[nodiscard]] Peer check_peer(int fd) const;
+  void refuse(int fd, const Peer& p);
   void on_client(std::uint64_t id, std::uint32_t events);
   bool read_requests(Client& c);  // false: drop the client
   bool flush(Client& c);          // false: drop the client
@@ -101,6 +118,8 @@ class ControlServer {
   std::uint64_t next_id_ = 1;
   std::uint64_t dropped_ = 0;
   std::uint64_t answered_ = 0;
+  std::uint64_t refused_ = 0;
+  std::map<uid_t, std::uint64_t> refused_by_uid_;
 };
 
 }  // namespace oegw::gateway

@@ -14,6 +14,7 @@ GatewayControl::GatewayControl(canopen::EventLoop& loop, const Gateway& gw, cons
   });
   ControlSocketSettings settings = control_settings(config.control, file);
   settings.log = [](const std::string& line) { spdlog::info("{}", line); };
+  settings.warn = [](const std::string& line) { spdlog::warn("{}", line); };
   server_ = std::make_unique<ControlServer>(loop, std::move(settings),
                                             [this](std::string_view line) { return protocol_.answer(line); });
   spdlog::info("control: {} (oegw status)", config.control.socket);

@@ -182,14 +182,20 @@ int run_status(const StatusOptions& o) {
   }
   const json answer = json::parse(r.text, nullptr, false);
   const bool good = answer.is_object() && answer.value("ok", false) && answer.contains("status");
+  // The daemon's own refusal of this user (control_server.hpp, SO_PEERCRED): the same exit code
+  // as the socket file's mode keeping it out.
+  const bool denied = !good && answer.is_object() && answer.contains("error") && answer["error"].is_object() &&
+                      answer["error"].value("code", "") == "permission_denied";
   if (o.json) {
     std::printf("%s\n", r.text.c_str());
-    return good ? kStatusOk : kStatusFailed;
+    return good ? kStatusOk : denied ? kStatusPermission : kStatusFailed;
   }
   if (!good) {
-    const std::string why = answer.is_object() && answer.contains("error") ? answer["error"].value("message", r.text) : r.text;
+    const std::string why = answer.is_object() && answer.contains("error") && answer["error"].is_object()
+                                ? answer["error"].value("message", r.text)
+                                : r.text;
     std::fprintf(stderr, "oegw status: the gateway answered: %s\n", why.c_str());
-    return kStatusFailed;
+    return denied ? kStatusPermission : kStatusFailed;
   }
   try {
     std::printf("%s", status_table(answer["status"]).c_str());

@@ -14,17 +14,19 @@
 
 namespace oegw::gateway {
 
-std::string dds_config_xml(const std::string& network) {
+std::string dds_config_xml(const std::string& network, const std::optional<DdsSecuritySettings>& security) {
   if (network.empty()) return {};
+  const std::string sec = security ? dds_security_xml(*security) : "";
   if (network == "loopback") {
     // Test and demo traffic stays on this host (README "Network"): checked to send nothing on eth0
     // (tests/publish/demo_stays_on_host.sh).
     return "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"lo\"/></Interfaces>"
            "<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex>"
-           "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>";
+           "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery>" +
+           sec + "</Domain></CycloneDDS>";
   }
   return "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"" + network +
-         "\"/></Interfaces></General></Domain></CycloneDDS>";
+         "\"/></Interfaces></General>" + sec + "</Domain></CycloneDDS>";
 }
 
 namespace {
@@ -83,7 +85,19 @@ struct DdsPublisher::Impl {
 
 DdsPublisher::DdsPublisher(const DdsSettings& s) : impl_(std::make_unique<Impl>()) {
   if (s.period_us <= 0) throw PublishConfigError("publish.dds.period: must be > 0");
-  const std::string xml = dds_config_xml(s.network);
+  if (s.security) {
+    // Cyclone's plugins would refuse these too, but say so only in its log, naming no setting.
+    const auto problems = check_dds_security(*s.security);
+    if (!problems.empty()) {
+      std::string text;
+      for (const auto& p : problems) text += (text.empty() ? "" : "; ") + dds_security_setting(p.file) + " " + p.text;
+      throw PublishConfigError(text);
+    }
+    if (s.network.empty())
+      throw PublishConfigError("publish.dds.security: needs publish.dds.network loopback or an interface (with \"\" "
+                               "CYCLONEDDS_URI configures the domain)");
+  }
+  const std::string xml = dds_config_xml(s.network, s.security);
   CycloneErrors errors;
   if (!xml.empty()) {
     // The configuration travels with the domain (dds_create_domain's raw config) rather than the
@@ -100,7 +114,8 @@ DdsPublisher::DdsPublisher(const DdsSettings& s) : impl_(std::make_unique<Impl>(
   }
   impl_->participant = dds_create_participant(s.domain, nullptr, nullptr);
   if (impl_->participant < 0)
-    throw PublishConfigError("publish.dds.domain: cannot create domain " + std::to_string(s.domain) + ": " +
+    throw PublishConfigError(std::string(s.security ? "publish.dds.security" : "publish.dds.domain") +
+                             ": cannot create domain " + std::to_string(s.domain) + ": " +
                              dds_strretcode(impl_->participant) + errors.text());
 
   const dds_entity_t pp = impl_->participant;

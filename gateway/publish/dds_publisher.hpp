@@ -12,10 +12,12 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "gateway/fe_samples.hpp"
+#include "gateway/publish/dds_security.hpp"
 
 namespace oegw::gateway {
 
@@ -27,11 +29,15 @@ struct DdsSettings {
   std::string network = "loopback";
   std::int64_t period_us = 100'000;  // the publish period; the FE topics' deadline
   std::string topic_prefix = "oegw/";
+  // publish.dds.security: DDS Security for the participant (dds_security.hpp); needs a network
+  // other than "" (the settings go into the domain's configuration).
+  std::optional<DdsSecuritySettings> security;
 };
 
 // The Cyclone DDS configuration (XML) the publisher applies for `network`: loopback only (no
-// multicast, unicast discovery to 127.0.0.1), or the named interface. Empty for "".
-std::string dds_config_xml(const std::string& network);
+// multicast, unicast discovery to 127.0.0.1), or the named interface, with the <Security> of
+// `security` when given. Empty for "".
+std::string dds_config_xml(const std::string& network, const std::optional<DdsSecuritySettings>& security = {});
 
 // A setting that cannot be applied. what() names it: "publish.dds.domain: cannot create domain 7: ...".
 class PublishConfigError : public std::runtime_error {

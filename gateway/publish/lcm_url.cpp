@@ -76,6 +76,57 @@ std::string dotted_quad(std::uint32_t a) {
          "." + std::to_string(a & 0xFF);
 }
 
+namespace {
+
+// The value of the last `key=` option of a URL's query ("" when absent), as liblcm reads it.
+std::optional<std::string_view> last_option(std::string_view url, std::string_view key) {
+  const auto q = url.find('?');
+  if (q == std::string_view::npos) return std::nullopt;
+  std::optional<std::string_view> found;
+  std::string_view options = url.substr(q + 1);
+  while (!options.empty()) {
+    const auto amp = options.find('&');
+    const auto kv = options.substr(0, amp);
+    if (kv.size() > key.size() && kv.substr(0, key.size()) == key && kv[key.size()] == '=')
+      found = kv.substr(key.size() + 1);
+    options = amp == std::string_view::npos ? std::string_view() : options.substr(amp + 1);
+  }
+  return found;
+}
+
+// "host" of "scheme://host:port?..." (without the port).
+std::string_view url_host(std::string_view url, std::size_t scheme_size) {
+  const auto q = url.find('?');
+  const auto host_port =
+      url.substr(scheme_size, q == std::string_view::npos ? std::string_view::npos : q - scheme_size);
+  return host_port.substr(0, host_port.find(':'));
+}
+
+}  // namespace
+
+std::optional<std::string> lcm_reaches_beyond_host(std::string_view url) {
+  constexpr std::string_view kUdpm = "udpm://", kTcpq = "tcpq://", kMemq = "memq://", kFile = "file://";
+  if (url.substr(0, kMemq.size()) == kMemq || url.substr(0, kFile.size()) == kFile) return std::nullopt;
+  if (url.substr(0, kTcpq.size()) == kTcpq) {
+    const auto host = url_host(url, kTcpq.size());
+    const auto a = parse_inet_aton(host);
+    if (host == "localhost" || (a && (*a >> 24) == 127)) return std::nullopt;
+    return "it connects to the LCM server " + std::string(host.empty() ? "(default)" : host) +
+           ", which relays what anyone connected to it sends";
+  }
+  if (url.substr(0, kUdpm.size()) != kUdpm)
+    return "its provider is none of udpm, tcpq, memq, file: oegw cannot tell who reaches it";
+  const auto host = url_host(url, kUdpm.size());
+  const auto group = parse_inet_aton(host.empty() ? std::string_view("239.255.76.67") : host);
+  const std::string_view ttl = last_option(url, "ttl").value_or("0");
+  if (ttl != "0") return "its ttl " + std::string(ttl) + " makes it a network's group: every device there may send to it";
+  if (!group || *group != 0xE0000001u)
+    return "its group " + (group ? dotted_quad(*group) : std::string(host)) +
+           " is joined on the interface the routing table picks and announced there by IGMP: a device on that "
+           "network may send to it (only 224.0.0.1 with ttl=0 is announced nowhere)";
+  return std::nullopt;
+}
+
 std::optional<LinkLocalSend> link_local_send(std::string_view url) {
   constexpr std::string_view kScheme = "udpm://";
   if (url.substr(0, kScheme.size()) != kScheme) return std::nullopt;

@@ -27,6 +27,16 @@ struct LinkLocalSend {
 // absent means 0).
 [[nodiscard]] std::optional<LinkLocalSend> link_local_send(std::string_view url);
 
+// Why LCM messages from beyond this host reach a subscriber of `url`, or nullopt when only this
+// host can send to it. liblcm 1.3.1's providers: udpm:// reaches beyond with a ttl other than 0
+// (the gateway's own samples leave, and it is a network's group), or with any group but the
+// all-hosts 224.0.0.1 (the kernel joins it on the interface the routing table picks and
+// announces that by IGMP, RFC 3376 §5, inviting senders of the network); tcpq:// to a host other
+// than the loopback (127.0.0.0/8, localhost); memq:// (in the process) and file:// (a log) do
+// not. Anything else is not known to stay here. What it does not cover: 224.0.0.1:7667 is
+// received on every interface, ttl=0 or not (a firewall closes that; SECURITY.md).
+[[nodiscard]] std::optional<std::string> lcm_reaches_beyond_host(std::string_view url);
+
 // An IPv4 address in the forms inet_aton(3) accepts (liblcm parses the group with it): "a.b.c.d",
 // "a.b.c" (c 16 bits), "a.b" (b 24 bits), "a" (32 bits), each part decimal, 0-octal or 0x-hex,
 // the text ending at a NUL or an ASCII white space. Host byte order.

@@ -167,7 +167,7 @@ void read_functional_elements(YamlReader& r, const MapEntry& sec, Config& cfg) {
 void check_command_sources_reachable(YamlReader& r, const Config& cfg) {
   const auto& p = cfg.publish;
   for (const auto& fe : cfg.functional_elements) {
-    if (fe.input() || fe.sources == kAllCommandSources || fe.accepts(CommandSource::Canopen)) continue;
+    if (fe.input() || fe.accepts(CommandSource::Canopen)) continue;
     const bool dds = fe.accepts(CommandSource::Dds) && p.dds.enabled;
     const bool lcm = fe.accepts(CommandSource::Lcm) && p.lcm.enabled;
     if (dds || lcm) continue;

@@ -940,7 +940,7 @@ TEST_F(GatewayE2E, HostHeartbeatLossAppliesErrorValuesToTheLeds) {
 // ---- Who commands the outputs: the mapping file's `sources` per FE ---------------------------
 
 // indicators.1 (the cluster's lamps) from DDS only, indicators.2 (MCB-402) from the host and LCM,
-// indicators.3 (elobau LEDs) from all three (no `sources`).
+// indicators.3 (elobau LEDs) from the host and DDS (no `sources`: LCM is opt-in).
 // Inserts `line` into a mapping file right after the first `after`.
 void insert_after(std::string& yaml, const std::string& after, const std::string& line) {
   const auto at = yaml.find(after);
@@ -1128,11 +1128,17 @@ TEST_F(GatewayE2E, AmongTheListedSourcesTheLastWriteWins) {
   EXPECT_FALSE(gw_->command_indicators(2, 0x0F, loop_.now(), CommandSource::Dds)) << "DDS is not listed";
   run_for(200ms);
   EXPECT_EQ(mcb_leds(), "1000");
-  // indicators.3 lists no sources: all three.
+  // indicators.3 lists no sources: the host and DDS, not LCM (it must be listed to command).
   auto* right = bench_->device("right_grip");
   EXPECT_TRUE(gw_->command_indicators(3, 0x02, loop_.now(), CommandSource::Dds));
   run_for(200ms);
   EXPECT_EQ(right->output("leds[2]"), 1);
+  EXPECT_FALSE(gw_->command_indicators(3, 0x01, loop_.now(), CommandSource::Lcm)) << "LCM is opt-in";
+  run_for(200ms);
+  EXPECT_EQ(right->output("leds[1]"), 0);
+  EXPECT_EQ(right->output("leds[2]"), 1);
+  EXPECT_NE(log_.find("indicators.3: a command from lcm ignored: its sources are canopen, dds"), std::string::npos)
+      << log_;
   ASSERT_EQ(sdo_write(0x6200, 0x11, {0x01}), SdoAbortCode::None);
   run_for(200ms);
   EXPECT_EQ(right->output("leds[1]"), 1);

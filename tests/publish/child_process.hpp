@@ -80,6 +80,15 @@ class ChildProcess {
     pid_ = -1;
     return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
   }
+  // The exit status if the child has exited (-1 when killed by a signal), else nullopt; never blocks.
+  std::optional<int> exited() {
+    if (pid_ <= 0) return exit_;
+    int st = 0;
+    if (::waitpid(pid_, &st, WNOHANG) != pid_) return std::nullopt;
+    pid_ = -1;
+    exit_ = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+    return exit_;
+  }
   void signal(int sig) { ::kill(pid_, sig); }
   // For bounded waits on another party (discovery): a short pause between two checks.
   static void pause_ms(int ms) { ::poll(nullptr, 0, ms); }
@@ -87,6 +96,7 @@ class ChildProcess {
  private:
   pid_t pid_ = -1;
   int out_ = -1;
+  std::optional<int> exit_;
   std::string buf_;
 };
 

@@ -79,6 +79,13 @@ case $name in
   dds_*)
     expect 2 "$name: --domain: '233' is not a whole number from 0 to 232" --domain 233
     expect 2 "$name: --network: 'a\"b' is not loopback, default or an interface name" --network 'a"b'
-    expect 2 "$name: --partition: the partition name is empty" --partition '' ;;
+    expect 2 "$name: --partition: the partition name is empty" --partition ''
+    expect 2 "$name: a DDS Security file 'a<b': expected a path without < > & or quotes" --certificate 'a<b'
+    expect 2 "$name: option '--governance' requires an argument" --governance
+    # DDS Security takes all six files: one alone is refused before anything is opened (exit 1).
+    [ "$name" = dds_command ] && set -- indicators 1 --on 1 || set --
+    expect 1 "$name: DDS Security needs all six files; --identity-ca is missing" --certificate /dev/null "$@"
+    expect 1 "$name: --identity-ca $dir/none.pem: No such file or directory" --identity-ca "$dir/none.pem" \
+      --certificate x --private-key x --permissions-ca x --governance x --permissions x "$@" ;;
 esac
 [ $fails -eq 0 ] || { echo "$fails case(s) FAILED" >&2; exit 1; }

@@ -5,6 +5,10 @@
 // after a warm-up. A timed harness, not Google Benchmark: it accepts and ignores
 // --benchmark_* flags so scripts/test-all.sh can run it with the other benchmarks. Figures only,
 // never asserted. Loopback DDS configuration and LCM ttl=0: nothing leaves the host.
+// DDS three times in one run: plain, and with DDS Security (publish.dds.security) as
+// scripts/make-dds-security.sh makes it with --protection sign (every data submessage MAC'd) and
+// --protection encrypt (the payload AES-GCM encrypted, the submessage signed); the subscriber
+// then runs as the application's identity. The sets are made in a temporary folder and removed.
 //
 //   oegw_bench_publish [--samples N]
 #include <algorithm>
@@ -67,12 +71,12 @@ Result run(Publisher& pub, oegw::test::ChildProcess& sub, long warmup, long n) {
 
 void report(const char* name, Result r) {
   if (r.lat.empty()) {
-    std::printf("%-4s no samples received (lost %ld)\n", name, r.lost);
+    std::printf("%-13s no samples received (lost %ld)\n", name, r.lost);
     return;
   }
   std::sort(r.lat.begin(), r.lat.end());
   const auto pct = [&](double p) { return r.lat[static_cast<std::size_t>(p * static_cast<double>(r.lat.size() - 1))]; };
-  std::printf("%-4s publish -> subscriber callback (other process): n=%zu lost=%ld  p50=%lld us  p99=%lld us  "
+  std::printf("%-13s publish -> subscriber callback (other process): n=%zu lost=%ld  p50=%lld us  p99=%lld us  "
               "p99.9=%lld us  max=%lld us\n",
               name, r.lat.size(), r.lost, static_cast<long long>(pct(0.5)), static_cast<long long>(pct(0.99)),
               static_cast<long long>(pct(0.999)), static_cast<long long>(r.lat.back()));
@@ -91,16 +95,37 @@ int main(int argc, char** argv) {
   const std::string total = std::to_string(warmup + n);
   const std::string tag = std::to_string(::getpid());
 
-  {
+  const std::string sets = "/tmp/oegw-bench-dds-security-" + tag;
+  for (const char* protection : {"", "sign", "encrypt"}) {
     oegw::gateway::DdsSettings s;
     s.partition = "oegw-bench-" + tag;
+    std::vector<std::string> sub_argv{OEGW_DDS_SUBSCRIBER, "--count", total, "--timeout", "120", "--partition", s.partition};
+    if (*protection != 0) {
+      const std::string dir = sets + "/" + protection;
+      const std::string make = std::string(OEGW_MAKE_DDS_SECURITY) + " --protection " + protection + " --partition " +
+                               s.partition + " " + dir + " >/dev/null";
+      if (std::system(make.c_str()) != 0) return 1;
+      oegw::gateway::DdsSecuritySettings sec;
+      sec.path = {dir + "/ca.pem",          dir + "/gateway.pem",    dir + "/gateway.key",
+                  dir + "/ca.pem",          dir + "/governance.p7s", dir + "/permissions.p7s"};
+      s.security = sec;
+      for (const auto& [opt, file] : std::vector<std::pair<std::string, std::string>>{
+               {"--identity-ca", "ca.pem"}, {"--certificate", "app.pem"}, {"--private-key", "app.key"},
+               {"--permissions-ca", "ca.pem"}, {"--governance", "governance.p7s"}, {"--permissions", "permissions.p7s"}}) {
+        sub_argv.push_back(opt);
+        sub_argv.push_back(dir + "/" + file);
+      }
+    }
     oegw::gateway::DdsPublisher dds(s);
-    oegw::test::ChildProcess sub({OEGW_DDS_SUBSCRIBER, "--count", total, "--timeout", "120", "--partition", s.partition});
+    oegw::test::ChildProcess sub(sub_argv);
     if (sub.read_line(10s) != "ready") return 1;
-    const auto end = std::chrono::steady_clock::now() + 10s;
+    // A secure reader matches only after the handshake (authentication, then the keys).
+    const auto end = std::chrono::steady_clock::now() + 20s;
     while (dds.joystick_readers() == 0 && std::chrono::steady_clock::now() < end) oegw::test::ChildProcess::pause_ms(5);
-    report("DDS", run(dds, sub, warmup, n));
+    const std::string name = *protection == 0 ? "DDS" : std::string("DDS ") + (protection[0] == 's' ? "signed" : "encrypted");
+    report(name.c_str(), run(dds, sub, warmup, n));
   }
+  (void)!std::system(("rm -rf " + sets).c_str());
   {
     oegw::gateway::LcmSettings s;
     s.channel_prefix = "B" + tag + "_";

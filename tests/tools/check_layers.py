@@ -84,6 +84,8 @@ ALLOWED = {
     # `oegw check` refuses the names the transport would (canopen/io/interface_name.hpp: header-only,
     # standard library only, no socket).
     ("mapping/deployment.cpp", "canopen/io/interface_name.hpp"),
+    # ... and `oegw check` warns with it when LCM commands reach beyond the host.
+    ("mapping/deployment.cpp", "gateway/publish/lcm_url.hpp"),
 }
 
 SOURCE_SUFFIXES = (".cpp", ".hpp", ".h", ".c", ".cpp.in", ".hpp.in", ".inl")

@@ -32,6 +32,7 @@ mapping::Config config() {
   a.command_timeout_ms = 100;
   mapping::FunctionalElementConfig b;
   b.id = kLeds2;
+  b.sources = mapping::kAllCommandSources;  // written out: LCM is opt-in (mapping/config.hpp)
   mapping::FunctionalElementConfig d;
   d.id = kDisplay1;
   d.sources = static_cast<mapping::CommandSources>(CommandSource::Canopen) | static_cast<mapping::CommandSources>(CommandSource::Lcm);

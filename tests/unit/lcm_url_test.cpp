@@ -36,6 +36,36 @@ TEST(LcmUrl, LinkLocalGroupWithATtlIsReportedWithTheGroupAndTheTtl) {
   EXPECT_EQ(s->ttl, "00");
 }
 
+// Who else can send to a subscriber of the URL: what `oegw check` warns about when LCM carries
+// commands (mapping/deployment.cpp).
+TEST(LcmUrl, OnlyTheAllHostsGroupWithTtl0AndTheInProcessProvidersStayOnThisHost) {
+  EXPECT_FALSE(lcm_reaches_beyond_host("udpm://224.0.0.1:7667?ttl=0"));
+  EXPECT_FALSE(lcm_reaches_beyond_host("udpm://224.0.0.1:7667"));  // no ttl: 0
+  EXPECT_FALSE(lcm_reaches_beyond_host("udpm://0xE0000001:7667?ttl=1&ttl=0"));  // the last ttl counts
+  EXPECT_FALSE(lcm_reaches_beyond_host("memq://"));
+  EXPECT_FALSE(lcm_reaches_beyond_host("file:///tmp/x.lcmlog?mode=r"));
+  EXPECT_FALSE(lcm_reaches_beyond_host("tcpq://127.0.0.1:7700"));
+  EXPECT_FALSE(lcm_reaches_beyond_host("tcpq://localhost:7700"));
+
+  auto why = lcm_reaches_beyond_host("udpm://239.255.76.67:7667?ttl=1");
+  ASSERT_TRUE(why);
+  EXPECT_NE(why->find("its ttl 1 makes it a network's group"), std::string::npos) << *why;
+  why = lcm_reaches_beyond_host("udpm://224.0.0.1:7667?ttl=");
+  ASSERT_TRUE(why);
+  EXPECT_NE(why->find("its ttl  makes"), std::string::npos) << *why;  // only exactly "0" is 0
+  why = lcm_reaches_beyond_host("udpm://239.255.76.67:7667?ttl=0");  // ttl 0, but announced by IGMP
+  ASSERT_TRUE(why);
+  EXPECT_NE(why->find("its group 239.255.76.67 is joined on the interface the routing table picks"), std::string::npos)
+      << *why;
+  why = lcm_reaches_beyond_host("udpm://");  // liblcm's default group
+  ASSERT_TRUE(why);
+  EXPECT_NE(why->find("239.255.76.67"), std::string::npos) << *why;
+  why = lcm_reaches_beyond_host("tcpq://10.0.0.5:7700");
+  ASSERT_TRUE(why);
+  EXPECT_NE(why->find("the LCM server 10.0.0.5"), std::string::npos) << *why;
+  EXPECT_TRUE(lcm_reaches_beyond_host("mpudpm://239.255.76.67:7667"));  // not liblcm 1.3.1's
+}
+
 TEST(LcmUrl, AddressFormsAreThoseOfInetAton) {
   for (const char* text : {"224.0.0.1",
                            "224.0.1",

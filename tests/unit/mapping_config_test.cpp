@@ -828,8 +828,55 @@ functional_elements: {}
   EXPECT_EQ(c.publish.lcm.channel_prefix, "CAB_");
 }
 
-// Who may command an output FE (config.hpp CommandSource): all three by default; a list narrows
-// it; every mistake is named with its place.
+// publish.dds.security: six file paths, all required, relative ones from the file's folder. What
+// the files hold is checked elsewhere (gateway/publish/dds_security.hpp; tests/publish/dds_security_test.cpp).
+TEST(MappingConfig, DdsSecurityTakesSixFilesFromTheFilesFolder) {
+  const std::string head = R"(upstream: { interface: can0, node_id: 0x20 }
+downstream: { interface: can1 }
+publish:
+  dds:
+)";
+  const std::string tail = "subdevices: {}\nfunctional_elements: {}\n";
+  auto r = load_config_text(head + R"(    security:
+      identity_ca: dds/ca.pem
+      certificate: dds/gateway.pem
+      private_key: /etc/keys/gateway.key
+      permissions_ca: dds/ca.pem
+      governance: ../shared/governance.p7s
+      permissions: dds/permissions.p7s
+)" + tail, "/etc/oegw/oegw.yaml", fake_catalogue, std::filesystem::path("/etc/oegw"));
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  ASSERT_TRUE(r.config->publish.dds.security.has_value());
+  const auto& sec = *r.config->publish.dds.security;
+  EXPECT_EQ(sec.path[DdsSecurityConfig::IdentityCa], "/etc/oegw/dds/ca.pem");
+  EXPECT_EQ(sec.path[DdsSecurityConfig::PrivateKey], "/etc/keys/gateway.key");
+  EXPECT_EQ(sec.path[DdsSecurityConfig::Governance], "/etc/shared/governance.p7s");
+  EXPECT_EQ(sec.where[DdsSecurityConfig::Certificate].str(), "/etc/oegw/oegw.yaml:7:20");
+  EXPECT_EQ(sec.section.str(), "/etc/oegw/oegw.yaml:5:5");
+  const auto none = load(head + "    domain: 0\n" + tail);
+  ASSERT_TRUE(none.ok()) << none.error_text();
+  EXPECT_FALSE(none.config->publish.dds.security) << "absent: none";
+
+  const auto bad = load(head + R"(    security:
+      identity_ca: ca.pem
+      certificate: ""
+      private_key: k.pem
+      permissions_ca: ca.pem
+      governance: g.p7s
+      permisions: p.p7s
+)" + tail);
+  EXPECT_THAT(errors(bad),
+              ElementsAre("t.yaml:5:5: publish dds security has no permissions; expected a map with identity_ca, "
+                          "certificate, private_key, permissions_ca, governance, permissions (file paths, from the "
+                          "mapping file's folder)",
+                          "t.yaml:7:20: found '' for certificate; expected a text",
+                          ::testing::StartsWith("t.yaml:11:7: unknown key 'permisions' in publish dds security; expected "
+                                                "one of identity_ca, certificate, private_key, permissions_ca, governance, "
+                                                "permissions (did you mean 'permissions'?)")));
+}
+
+// Who may command an output FE (config.hpp CommandSource): canopen and dds by default (LCM is
+// opt-in); a list narrows it; every mistake is named with its place.
 TEST(MappingConfig, CommandSourcesPerOutputFe) {
   const std::string head = R"(upstream: { interface: can0, node_id: 0x20 }
 downstream: { interface: can1 }
@@ -859,8 +906,9 @@ functional_elements:
   EXPECT_EQ(describe_sources(i1->sources), "dds");
   EXPECT_EQ(i1->sources_where.str(), "t.yaml:9:14");
   EXPECT_EQ(describe_sources(i2->sources), "canopen");
-  EXPECT_EQ(d1->sources, kAllCommandSources) << "absent: canopen, dds and lcm";
-  EXPECT_EQ(describe_sources(d1->sources), "canopen, dds, lcm");
+  EXPECT_EQ(d1->sources, kDefaultCommandSources) << "absent: canopen and dds; LCM only when listed";
+  EXPECT_FALSE(d1->accepts(CommandSource::Lcm));
+  EXPECT_EQ(describe_sources(d1->sources), "canopen, dds");
   EXPECT_EQ(r.config->find_fe({FeKind::IndicatorCluster, 3}), nullptr);
 
   const auto bad = load(head + R"(  indicators.1:

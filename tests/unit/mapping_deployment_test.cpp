@@ -154,5 +154,51 @@ TEST(Deployment, WarnsOnAMandatorySubDeviceWithoutHeartbeatAndOnOneNoFeUses) {
   EXPECT_TRUE(deployment_errors(c).empty());  // warnings only
 }
 
+// An FE that takes LCM commands (sources listing lcm) on a URL others can send to is warned about
+// at the URL, naming publish.lcm.url and the FEs; LCM commands are opt-in (config.hpp).
+Config cab_with_lamps(CommandSources sources, std::string url) {
+  Config c = cab();
+  c.publish.lcm.enabled = true;
+  c.publish.lcm.where = {"cab.yaml", 12, 3};
+  c.publish.lcm.url = std::move(url);
+  c.publish.lcm.url_where = {"cab.yaml", 12, 15};
+  FunctionalElementConfig lamps;
+  lamps.id = {FeKind::IndicatorCluster, 1};
+  lamps.sources = sources;
+  FieldBinding b;
+  b.subdevice = "grip";
+  lamps.fields.push_back(b);
+  c.functional_elements.push_back(lamps);
+  return c;
+}
+
+TEST(Deployment, WarnsWhenAnLcmUrlReachingBeyondThisHostCarriesCommands) {
+  const CommandSources with_lcm = kDefaultCommandSources | static_cast<CommandSources>(CommandSource::Lcm);
+  auto w = deployment_warnings(cab_with_lamps(with_lcm, "udpm://239.255.76.67:7667?ttl=1"));
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(w[0].str().rfind("cab.yaml:12:15: publish.lcm.url udpm://239.255.76.67:7667?ttl=1 carries commands for "
+                             "indicators.1 (sources list lcm), and its ttl 1 makes it a network's group",
+                             0),
+            0u)
+      << w[0].str();
+  EXPECT_TRUE(deployment_errors(cab_with_lamps(with_lcm, "udpm://239.255.76.67:7667?ttl=1")).empty());  // a warning
+
+  // The default URL, not written: at the lcm section, "(the default)".
+  Config c = cab_with_lamps(with_lcm, "udpm://239.255.76.67:7667?ttl=0");
+  c.publish.lcm.url_where = {};
+  w = deployment_warnings(c);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(w[0].str().rfind("cab.yaml:12:3: publish.lcm.url udpm://239.255.76.67:7667?ttl=0 (the default) carries", 0),
+            0u)
+      << w[0].str();
+
+  // Host-local URL, or no FE taking LCM, or LCM off: nothing.
+  EXPECT_TRUE(deployment_warnings(cab_with_lamps(with_lcm, "udpm://224.0.0.1:7667?ttl=0")).empty());
+  EXPECT_TRUE(deployment_warnings(cab_with_lamps(kDefaultCommandSources, "udpm://239.255.76.67:7667?ttl=1")).empty());
+  c = cab_with_lamps(with_lcm, "udpm://239.255.76.67:7667?ttl=1");
+  c.publish.lcm.enabled = false;
+  EXPECT_TRUE(deployment_warnings(c).empty());
+}
+
 }  // namespace
 }  // namespace oegw::mapping
