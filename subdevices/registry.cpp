@@ -13,8 +13,11 @@ std::span<const DriverInfo> drivers() {
       {"mcb402", "MCB-402 joystick base board (CO4013A4): 4 axes, 7 push buttons, 4 LED outputs", mcb402_options(),
        ""},
       {"novotechnik-406", "Novotechnik MZ1-2200 / MC1-2800 / MB1-3600 sensor, CiA 406 encoder profile",
-       novotechnik_406_options(), ""},
-      {"cia401", "generic CiA 401 I/O node (pedals, button clusters, indicator panels) described by its EDS",
+       novotechnik_406_options(),
+       "an absolute encoder has no \"not operated\" position: position's neutral 0 is the value it reports "
+       "while Error or Offline, not a safe state (act on the status); cams and work_area come from the EMCYs "
+       "9080h/9090h only, NotAvailable until the first"},
+      {"cia401", "Generic CiA 401 I/O node (pedals, button clusters, indicator panels) described by its EDS",
        cia401_options(),
        "they come from the node's EDS file (option eds): in[k] per 6000h sub-index (Digital 0..255), "
        "in32[k] per 6120h (Digital, 32 lines), analog[k] per 6401h (Analog -32768..32767), out[k] per 6200h "
