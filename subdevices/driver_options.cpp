@@ -4,10 +4,7 @@
 
 namespace oegw::subdevices {
 
-namespace {
-
-// Decimal (a leading '-' allowed) or 0x.. hexadecimal, the whole text.
-std::optional<std::int64_t> parse_integer(const std::string& s) {
+std::optional<std::int64_t> parse_option_integer(const std::string& s) {
   const char* b = s.data();
   const char* e = s.data() + s.size();
   int base = 10;
@@ -21,6 +18,8 @@ std::optional<std::int64_t> parse_integer(const std::string& s) {
   if (ec != std::errc{} || p != e) return std::nullopt;
   return v;
 }
+
+namespace {
 
 std::string quoted_choices(const std::vector<std::string_view>& choices) {
   std::string out;
@@ -65,7 +64,7 @@ bool parse_options(std::string_view family, const std::vector<OptionSpec>& table
   auto one = [&](const OptionSpec& spec, const std::string& text) {
     std::int64_t number = 0;
     if (spec.type == OptionSpec::Type::Integer) {
-      const auto v = parse_integer(text);
+      const auto v = parse_option_integer(text);
       bool in = false;
       for (const auto& [lo, hi] : spec.ranges) in = in || (v && *v >= lo && *v <= hi);
       if (!in) {

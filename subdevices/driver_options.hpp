@@ -48,6 +48,9 @@ struct OptionSpec {
   [[nodiscard]] std::string ranges_text() const;
 };
 
+// An Integer option's text: decimal (a leading '-' allowed) or 0x.. hexadecimal, the whole text.
+[[nodiscard]] std::optional<std::int64_t> parse_option_integer(const std::string& text);
+
 // The value of one option, checked against its spec: the text as written and, for an Integer,
 // its number.
 struct OptionValue {

@@ -1,6 +1,5 @@
 #include "subdevices/novotechnik_406.hpp"
 
-#include <charconv>
 #include <cstdio>
 #include <limits>
 
@@ -73,21 +72,6 @@ std::vector<std::uint8_t> le(std::uint64_t v, std::size_t n) {
   std::vector<std::uint8_t> out(n);
   for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<std::uint8_t>(v >> (8 * i));
   return out;
-}
-
-std::optional<std::uint64_t> parse_uint(const std::string& s) {
-  std::uint64_t v = 0;
-  const char* b = s.data();
-  const char* e = s.data() + s.size();
-  int base = 10;
-  if (s.size() > 2 && s[0] == '0' && (s[1] == 'x' || s[1] == 'X')) {
-    b += 2;
-    base = 16;
-  }
-  if (b == e) return std::nullopt;
-  auto [p, ec] = std::from_chars(b, e, v, base);
-  if (ec != std::errc{} || p != e) return std::nullopt;
-  return v;
 }
 
 }  // namespace
@@ -351,7 +335,7 @@ std::unique_ptr<Driver> make_novotechnik_406_driver(NodeId node, FrameSink sink,
                                   if (name == "event_timer_ms") o.event_timer_ms = static_cast<std::uint16_t>(v.number);
                                   if (name == "transmission_type") o.transmission_type = static_cast<std::uint8_t>(v.number);
                                   if (name == "product_code") {
-                                    const auto p = parse_uint(v.text);
+                                    const auto p = parse_option_integer(v.text);
                                     bool known = false;
                                     for (const std::uint32_t c : novotechnik::kProductCodes) known = known || (p && *p == c);
                                     if (!known) {
