@@ -57,6 +57,30 @@ std::string accepted_kinds(const FeField& f, bool input) {
   return "a Position or Analog signal";
 }
 
+// Where a signal of this kind could go instead (`oegw check`'s hint after a kind mismatch, issue
+// 16 item 3): every FE kind with a field that fits it, e.g. "a Position signal fits encoder.N
+// position". Read from the FE table with fits() itself, so the hint cannot name a field that
+// would be refused too.
+std::string kind_hint(const SignalInfo& s, std::string_view kind_text) {
+  std::vector<std::string> places;
+  for (const FeKind k : {FeKind::Joystick, FeKind::FootPedal, FeKind::Encoder, FeKind::Wheel, FeKind::ButtonCluster,
+                         FeKind::IndicatorCluster, FeKind::Display}) {
+    std::vector<std::string> names;
+    for (const auto& f : fe_fields(FeId{k, 1}))
+      if (fits(s, f, is_input(k))) names.push_back(f.name);
+    if (names.empty()) continue;
+    const auto fields = compress_names(names);
+    const bool one = fields.find(", ") == std::string::npos;
+    places.push_back(std::string(to_string(k)) + ".N " + (one ? fields : "(" + fields + ")"));
+  }
+  const std::string what = std::string(kind_text) + " signal";
+  if (places.empty()) return "; no functional element field takes " + what + " (CiA 852 clause 9)";
+  std::string list;
+  for (std::size_t i = 0; i < places.size(); ++i)
+    list += (i == 0 ? "" : i + 1 == places.size() ? " or " : ", ") + places[i];
+  return "; " + what + " fits " + list;
+}
+
 std::string kind_name(SignalKind k) {
   switch (k) {
     case SignalKind::Axis:
@@ -386,7 +410,8 @@ class FieldEntry {
       if (!fits(*src.info, *field, input_)) {
         r_.error(node, "signal '" + full + "' is " + kind_name(src.info->kind) + " signal; expected " +
                            accepted_kinds(*field, input_) + " for " + fe_name_ + " " + fname +
-                           (input_ ? "" : " (an output functional element)"));
+                           (input_ ? "" : " (an output functional element)") +
+                           kind_hint(*src.info, kind_name(src.info->kind)));
         return;
       }
       auto [it, fresh] = fed.emplace(fe_name_ + "\n" + fname, r_.loc(e_.key));

@@ -8,6 +8,7 @@
 
 #include "gateway/control/status_command.hpp"
 #include "gateway/programs.hpp"
+#include "gateway/signals_command.hpp"
 #include "programs/version.hpp"
 #include "programs/bench_programs.hpp"
 #include "programs/core_demo.hpp"
@@ -29,7 +30,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(0, 1);
   app.set_version_flag("--version", std::string("oegw ") + oegw::programs::kVersion + " (git " +
                                         oegw::programs::kGitRevision + ")");
-  app.footer("Exit codes: 0 done; 1 bad mapping file (or a demo step / master wait failed); 2 cannot start "
+  app.footer("Exit codes: 0 done; 1 bad mapping file (or a demo step / master wait failed, or options a driver refuses in signals); 2 cannot start "
              "(CAN interface, bit rate, publishing); 64 usage error (README \"Exit codes\").");
 
   oegw::gateway::GatewayDemoOptions demo;
@@ -94,6 +95,15 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--log-level", log_level, "Least severe message logged: trace, debug, info (default), warn, error, off")
       ->check(CLI::IsMember(level_names));
 
+  oegw::gateway::SignalsOptions signals;
+  auto* signals_cmd = app.add_subcommand(
+      "signals", "Every driver's signals (name, direction, kind, range, unit, neutral) and options, from the drivers");
+  signals_cmd->add_option("driver", signals.driver, "One driver: elobau-mfg, mcb402, novotechnik-406, cia401");
+  signals_cmd->add_option("-o,--option", signals.options,
+                          "A driver option key=value, as in the mapping file (e.g. detent=clamp); repeatable");
+  signals_cmd->add_option("--eds", signals.eds, "cia401: the EDS file whose signals to list");
+  signals_cmd->add_flag("--markdown", signals.markdown, "Markdown tables, as in subdevices/README.md");
+
   oegw::gateway::StatusOptions status;
   auto* status_cmd = app.add_subcommand("status", "Ask the running `oegw run` what it sees (its control socket)");
   status_cmd->add_option("--socket", status.socket, "Control socket (default: the mapping file's control.socket, else /run/oegw/oegw.sock)");
@@ -118,6 +128,7 @@ int main(int argc, char** argv) {
   if (*eds_cmd) return oegw::gateway::run_eds(config_file, eds_out);
   if (*run_cmd) return oegw::gateway::run_gateway(config_file);
   if (*status_cmd) return oegw::gateway::run_status(status);
+  if (*signals_cmd) return oegw::gateway::run_signals(signals);
   if (*dev_cmd) {
     device.node_id = oegw::canopen::NodeId{static_cast<std::uint8_t>(node_id)};
     device.store_path = store;

@@ -4,6 +4,7 @@
 
 #include "canopen/306/eds_check.hpp"
 #include "profiles/cia401/objects.hpp"
+#include "subdevices/driver_options.hpp"
 #include "subdevices/families.hpp"
 
 namespace oegw::subdevices {
@@ -410,19 +411,30 @@ void Cia401Driver::flush_outputs(TimePoint /*now*/) {
   pending_.clear();
 }
 
+const std::vector<OptionSpec>& cia401_options() {
+  static const std::vector<OptionSpec> table = {
+      {.name = "eds", .type = OptionSpec::Type::Text, .syntax = "path of the node's EDS file", .required = true,
+       .missing = "cia401: option 'eds' (path of the node's EDS file) is required",
+       .description = "the node's EDS (CiA 306): its 6000h, 6120h, 6401h, 6200h, 6411h sub-indices are the "
+                      "signals; a relative path is taken from the mapping file's folder"},
+  };
+  return table;
+}
+
 std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const DriverOptions& options,
                                            std::string& error) {
-  for (const auto& [k, v] : options.values) {
-    if (k != "eds") {
-      error = "cia401: unknown option '" + k + "' (expected: eds)";
-      return nullptr;
-    }
-  }
+  std::optional<std::string> path;
+  if (!parse_options("cia401", cia401_options(), options,
+                     [&path](const OptionValue& v, std::string& /*error*/) {
+                       path = v.text;
+                       return true;
+                     },
+                     error))
+    return nullptr;
   if (!node.valid()) {
     error = "cia401: node-ID " + std::to_string(node.value()) + " is not 1..127";
     return nullptr;
   }
-  const auto path = options.get("eds");
   if (!path || path->empty()) {
     error = "cia401: option 'eds' (path of the node's EDS file) is required";
     return nullptr;

@@ -64,7 +64,7 @@
 // clears nothing: a node that rebooted may still be broken.
 // Identity: 1000h DefaultValue and [DeviceInfo] VendorNumber/ProductNumber/RevisionNumber.
 //
-// Factory option: eds=<path> (required). Unknown options, or an EDS that cannot be read or
+// Factory option (the table cia401_options() in cia401.cpp): eds=<path> (required). Unknown options, or an EDS that cannot be read or
 // parsed, are an error carrying the parse message ("file:line: what was expected").
 #pragma once
 

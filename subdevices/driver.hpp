@@ -264,8 +264,9 @@ class Driver {
 
 // Creates a driver by family name ("elobau-mfg", "mcb402", "novotechnik-406", "cia401").
 // `options` are the family's settings from the configuration (e.g. the elobau channel
-// tolerance, the generic node's EDS path); unknown options are an error. Returns nullptr and
-// sets `error` for an unknown family or bad options.
+// tolerance, the generic node's EDS path), parsed by the family's option table
+// (driver_options.hpp, also what `oegw signals` lists); unknown options are an error. Returns
+// nullptr and sets `error` for an unknown family or bad options.
 struct DriverOptions {
   std::vector<std::pair<std::string, std::string>> values;  // key -> value, as written
   [[nodiscard]] std::optional<std::string> get(std::string_view key) const;

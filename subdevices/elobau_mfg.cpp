@@ -1,11 +1,11 @@
 // elobau MFG 34xG / 36xG driver; the rules and sources are in elobau_mfg.hpp.
 #include "subdevices/elobau_mfg.hpp"
 
-#include <charconv>
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
 
+#include "subdevices/driver_options.hpp"
 #include "subdevices/families.hpp"
 
 namespace oegw::subdevices {
@@ -492,60 +492,51 @@ void ElobauMfgDriver::on_offline(TimePoint now) {
   leds_sent_ = false;
 }
 
-namespace {
-
-bool parse_int(const std::string& s, long long lo, long long hi, long long& out) {
-  long long v = 0;
-  const auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v);
-  if (ec != std::errc{} || p != s.data() + s.size() || v < lo || v > hi) return false;
-  out = v;
-  return true;
+const std::vector<OptionSpec>& elobau_mfg_options() {
+  using T = OptionSpec::Type;
+  static const std::vector<OptionSpec> table = {
+      {.name = "channel_tolerance", .type = T::Integer, .ranges = {{0, 100}}, .unit = "percent", .default_value = "5",
+       .description = "largest difference between an axis's channel 1 (TPDO #0) and its redundant channel 2 "
+                      "(TPDO #1), both limited to +-100, before the axis is Error; a larger value lets a "
+                      "drifting or miscalibrated sensor pass the cross-check",
+       .safety = true},
+      {.name = "detent", .type = T::Choice, .choices = {"pass", "clamp"}, .default_value = "pass",
+       .description = "pass: the end-of-travel detent +-110 (section 15.1.2) is reported as it is, a press the "
+                      "mapping may use; clamp: reported as +-100. Sets the axes' range, so what full deflection "
+                      "means to the FE",
+       .safety = true},
+      {.name = "channel2_timeout_ms", .type = T::Integer, .ranges = {{0, 600000}}, .unit = "ms", .default_value = "0",
+       .description = "0: a grip that sends no channel 2 (TPDO #1 disabled) is no error, its axes stay Valid "
+                      "unchecked; > 0: every axis is Error while the last channel 2 is older than this when "
+                      "channel 1 arrives. Must exceed cycle_ms",
+       .safety = true},
+      {.name = "cycle_ms", .type = T::Integer, .ranges = {{5, 65535}}, .unit = "ms", .default_value = "100",
+       .note = "(the document's 5 ms coding cycle)",
+       .description = "TPDO #0 / #1 event timers written at boot (1800h:05, 1801h:05); a TPDO missing for 3 "
+                      "cycles makes its signals Stale"},
+      {.name = "parameter_checksum", .type = T::Choice, .choices = {"warning", "fault"}, .default_value = "warning",
+       .note = "(warning: grips whose parameters were never saved; fault: saved at commissioning)",
+       .description = "EMCY 0002h parameter checksum: warning faults nothing (a grip whose parameters were never "
+                      "saved sends it at every power-on); fault faults every input, like 0001h"},
+  };
+  return table;
 }
-
-}  // namespace
 
 std::unique_ptr<Driver> make_elobau_mfg_driver(NodeId node, FrameSink sink, const DriverOptions& options,
                                                std::string& error) {
   ElobauMfgOptions o;
-  for (const auto& [key, val] : options.values) {
-    long long n = 0;
-    if (key == "channel_tolerance") {
-      if (!parse_int(val, 0, 100, n)) {
-        error = "elobau-mfg: channel_tolerance '" + val + "' is not a percentage 0..100";
-        return nullptr;
-      }
-      o.channel_tolerance = static_cast<int>(n);
-    } else if (key == "detent") {
-      if (val != "pass" && val != "clamp") {
-        error = "elobau-mfg: detent '" + val + "' must be 'pass' or 'clamp'";
-        return nullptr;
-      }
-      o.clamp_detent = val == "clamp";
-    } else if (key == "channel2_timeout_ms") {
-      if (!parse_int(val, 0, 600000, n)) {
-        error = "elobau-mfg: channel2_timeout_ms '" + val + "' is not 0..600000";
-        return nullptr;
-      }
-      o.channel2_timeout_ms = static_cast<std::uint32_t>(n);
-    } else if (key == "cycle_ms") {
-      if (!parse_int(val, 5, 65535, n)) {
-        error = "elobau-mfg: cycle_ms '" + val + "' is not 5..65535 (the document's 5 ms coding cycle)";
-        return nullptr;
-      }
-      o.cycle_ms = static_cast<std::uint16_t>(n);
-    } else if (key == "parameter_checksum") {
-      if (val != "warning" && val != "fault") {
-        error = "elobau-mfg: parameter_checksum '" + val +
-                "' must be 'warning' (grips whose parameters were never saved) or 'fault'";
-        return nullptr;
-      }
-      o.checksum_faults = val == "fault";
-    } else {
-      error = "elobau-mfg: unknown option '" + key +
-              "' (expected channel_tolerance, detent, channel2_timeout_ms, cycle_ms, parameter_checksum)";
-      return nullptr;
-    }
-  }
+  const bool ok = parse_options("elobau-mfg", elobau_mfg_options(), options,
+                                [&o](const OptionValue& v, std::string& /*error*/) {
+                                  const std::string_view name = v.spec->name;
+                                  if (name == "channel_tolerance") o.channel_tolerance = static_cast<int>(v.number);
+                                  if (name == "detent") o.clamp_detent = v.text == "clamp";
+                                  if (name == "channel2_timeout_ms") o.channel2_timeout_ms = static_cast<std::uint32_t>(v.number);
+                                  if (name == "cycle_ms") o.cycle_ms = static_cast<std::uint16_t>(v.number);
+                                  if (name == "parameter_checksum") o.checksum_faults = v.text == "fault";
+                                  return true;
+                                },
+                                error);
+  if (!ok) return nullptr;
   if (o.channel2_timeout_ms != 0 && o.channel2_timeout_ms <= o.cycle_ms) {
     error = "elobau-mfg: channel2_timeout_ms must exceed cycle_ms (" + std::to_string(o.cycle_ms) + " ms)";
     return nullptr;

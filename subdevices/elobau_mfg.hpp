@@ -79,7 +79,8 @@
 // 20xxh:1Bh/1Ch = 126/127 and 2100h:09h/0Ah = 0 (the codes decoded here). Heartbeat (1017h) is
 // the network manager's; transmission types are ro (254) and not written.
 //
-// Options: channel_tolerance (percent, 0..100, default 5); detent = "pass" (default: ±110 is
+// Options (the table elobau_mfg_options() in elobau_mfg.cpp is what the factory parses and
+// `oegw signals` lists): channel_tolerance (percent, 0..100, default 5); detent = "pass" (default: ±110 is
 // reported as is, a deliberate detent press the mapping layer may use) | "clamp" (±110 -> ±100);
 // channel2_timeout_ms (0 = off, default); cycle_ms (TPDO event timers written at boot, 5..65535,
 // default 100, §14.2 Notice: not below 5 ms).

@@ -3,6 +3,7 @@
 #include <charconv>
 #include <string_view>
 
+#include "subdevices/driver_options.hpp"
 #include "subdevices/families.hpp"
 
 namespace oegw::subdevices {
@@ -68,51 +69,52 @@ std::optional<ButtonBits> parse_button_bits(std::string_view text) {
   return bits;
 }
 
+const std::vector<OptionSpec>& mcb402_options() {
+  using T = OptionSpec::Type;
+  static const std::vector<OptionSpec> table = {
+      {.name = "event_timer_ms", .type = T::Integer, .ranges = {{1, 65535}}, .unit = "ms", .default_value = "20",
+       .note = "(1801h:05; 0 would leave the axes unsent)",
+       .description = "TPDO2 (axes) event timer written at boot (1801h:05); the document gives no value and its "
+                      "default 0 would send no periodic axes; axes missing for 3 periods are Stale"},
+      {.name = "button_timer_ms", .type = T::Integer, .ranges = {{0, 65535}}, .unit = "ms", .default_value = "100",
+       .note = "(1800h:05)",
+       .description = "TPDO1 (buttons) event timer written at boot (1800h:05); 0: sent on change only (then no "
+                      "deadline for the buttons)"},
+      {.name = "can_restart_ms", .type = T::Integer, .ranges = {{1, 65535}}, .unit = "ms", .default_value = "1000",
+       .note = "(2180h; 0 would keep the board off the bus after a bus off)",
+       .description = "CAN restart time after bus off written at boot (2180h); 0 is refused: the board would "
+                      "stay off the bus"},
+      {.name = "button_bits", .type = T::Text, .syntax = "7 distinct bit numbers 0..7",
+       .required = true, .missing = kButtonBitsMissing, .listing_value = "0/1/2/3/4/5/6",
+       .description = "the bit of 6000h:03 (byte 2 of TPDO1) that each push button BP1..BP7 sets, e.g. "
+                      "[1, 2, 3, 4, 5, 7, 6] (',' in a YAML list, '/' on a command line); no default: the "
+                      "document's bit table is damaged, so a wrong order would report the wrong button"},
+  };
+  return table;
+}
+
 std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, std::string& error) {
   Mcb402Options o;
-  bool has_button_bits = false;
-  for (const auto& [key, value] : options.values) {
-    if (key == "event_timer_ms") {
-      const auto v = parse_number(value, 65535);
-      if (!v || *v == 0) {
-        error = "mcb402: event_timer_ms must be 1..65535 (1801h:05, ms; 0 would leave the axes unsent), got '" +
-                value + "'";
-        return std::nullopt;
-      }
-      o.event_timer_ms = static_cast<std::uint16_t>(*v);
-    } else if (key == "button_timer_ms") {
-      const auto v = parse_number(value, 65535);
-      if (!v) {
-        error = "mcb402: button_timer_ms must be 0..65535 (1800h:05, ms), got '" + value + "'";
-        return std::nullopt;
-      }
-      o.button_timer_ms = static_cast<std::uint16_t>(*v);
-    } else if (key == "can_restart_ms") {
-      const auto v = parse_number(value, 65535);
-      if (!v || *v == 0) {
-        error = "mcb402: can_restart_ms must be 1..65535 (2180h, ms; 0 would keep the board off the bus after a "
-                "bus off), got '" + value + "'";
-        return std::nullopt;
-      }
-      o.can_restart_ms = static_cast<std::uint16_t>(*v);
-    } else if (key == "button_bits") {
-      const auto bits = parse_button_bits(value);
-      if (!bits) {
-        error = "mcb402: button_bits must be 7 distinct bit numbers 0..7 of 6000h:03 for BP1..BP7, separated by "
-                "',' or '/' (e.g. [1, 2, 3, 4, 5, 7, 6]), got '" + value + "'";
-        return std::nullopt;
-      }
-      o.button_bits = *bits;
-      has_button_bits = true;
-    } else {
-      error = "mcb402: unknown option '" + key + "' (expected event_timer_ms, button_timer_ms, can_restart_ms, button_bits)";
-      return std::nullopt;
-    }
-  }
-  if (!has_button_bits) {
-    error = std::string(kButtonBitsMissing);
-    return std::nullopt;
-  }
+  const bool ok = parse_options("mcb402", mcb402_options(), options,
+                                [&o](const OptionValue& v, std::string& err) {
+                                  const std::string_view name = v.spec->name;
+                                  if (name == "event_timer_ms") o.event_timer_ms = static_cast<std::uint16_t>(v.number);
+                                  if (name == "button_timer_ms") o.button_timer_ms = static_cast<std::uint16_t>(v.number);
+                                  if (name == "can_restart_ms") o.can_restart_ms = static_cast<std::uint16_t>(v.number);
+                                  if (name == "button_bits") {
+                                    const auto bits = parse_button_bits(v.text);
+                                    if (!bits) {
+                                      err = "mcb402: button_bits must be 7 distinct bit numbers 0..7 of 6000h:03 for "
+                                            "BP1..BP7, separated by ',' or '/' (e.g. [1, 2, 3, 4, 5, 7, 6]), got '" +
+                                            v.text + "'";
+                                      return false;
+                                    }
+                                    o.button_bits = *bits;
+                                  }
+                                  return true;
+                                },
+                                error);
+  if (!ok) return std::nullopt;
   return o;
 }
 

@@ -61,7 +61,8 @@
 //                                               prohibited", the board would stay off the bus)
 //   6002h:03 = 00h, 6202h:01 = 00h              input / output polarity as described above
 //   6431h:01..04 = 0                            analogue offset 0: 6401h stays signed
-// Options: event_timer_ms (1..65535, default 20 — the document gives no value, its default 0
+// Options (the table mcb402_options() in mcb402.cpp is what the factory parses and `oegw
+// signals` lists): event_timer_ms (1..65535, default 20 — the document gives no value, its default 0
 // would mean no periodic axes), button_timer_ms (0..65535, default 100, 0 = on change only),
 // can_restart_ms (1..65535, default 1000: the document gives none, 0 is refused),
 // button_bits (required, no default: seven distinct bit numbers 0..7 of 6000h:03 for BP1..BP7,

@@ -1,9 +1,9 @@
 #include "subdevices/novotechnik_406.hpp"
 
-#include <charconv>
 #include <cstdio>
 #include <limits>
 
+#include "subdevices/driver_options.hpp"
 #include "subdevices/families.hpp"
 
 namespace oegw::subdevices {
@@ -72,21 +72,6 @@ std::vector<std::uint8_t> le(std::uint64_t v, std::size_t n) {
   std::vector<std::uint8_t> out(n);
   for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<std::uint8_t>(v >> (8 * i));
   return out;
-}
-
-std::optional<std::uint64_t> parse_uint(const std::string& s) {
-  std::uint64_t v = 0;
-  const char* b = s.data();
-  const char* e = s.data() + s.size();
-  int base = 10;
-  if (s.size() > 2 && s[0] == '0' && (s[1] == 'x' || s[1] == 'X')) {
-    b += 2;
-    base = 16;
-  }
-  if (b == e) return std::nullopt;
-  auto [p, ec] = std::from_chars(b, e, v, base);
-  if (ec != std::errc{} || p != e) return std::nullopt;
-  return v;
 }
 
 }  // namespace
@@ -323,37 +308,47 @@ std::vector<SdoWrite> Novotechnik406Driver::command(std::string_view name) const
   return {SdoWrite{0x2100, 0, {0x01}, "position error reset (2100h = 1)"}};
 }
 
+const std::vector<OptionSpec>& novotechnik_406_options() {
+  using T = OptionSpec::Type;
+  static const std::vector<OptionSpec> table = {
+      {.name = "event_timer_ms", .type = T::Integer, .ranges = {{1, 65535}}, .unit = "ms", .default_value = "10",
+       .note = "(0: section 8.2 says TPDO1 is then never sent in type 254)",
+       .description = "TPDO1 event timer written at boot (1800h:05); position and speed missing for 3 periods "
+                      "are Stale"},
+      {.name = "transmission_type", .type = T::Integer, .ranges = {{1, 240}, {254, 254}, {255, 255}},
+       .default_value = "254",
+       .description = "TPDO1 transmission type written at boot (1800h:02): 254 event timer, 255 measurement "
+                      "cycle (1 ms), 1..240 every n-th SYNC (the SYNC period then sets the deadline)"},
+      {.name = "product_code", .type = T::Text, .syntax = "0x0BD5, 0x0BB9, 0x0BBC, 0x0BC5 or 0x0BE0",
+       .description = "1018h:02 checked at boot: 0x0BD5 MZ1-2200, 0x0BB9 MC1-2800, 0x0BBC MB1-3600 (section 4.1; "
+                      "0x0BC5, 0x0BE0 from the LSS example); unset: only the vendor-ID 0182h is checked"},
+  };
+  return table;
+}
+
 std::unique_ptr<Driver> make_novotechnik_406_driver(NodeId node, FrameSink sink, const DriverOptions& options,
                                                     std::string& error) {
   Novotechnik406Options o;
-  for (const auto& [key, text] : options.values) {
-    const auto v = parse_uint(text);
-    if (key == "event_timer_ms") {
-      if (!v || *v < 1 || *v > 65535) {
-        error = "novotechnik-406: event_timer_ms must be 1..65535 (got '" + text + "')";
-        return nullptr;
-      }
-      o.event_timer_ms = static_cast<std::uint16_t>(*v);
-    } else if (key == "transmission_type") {
-      if (!v || !((*v >= 1 && *v <= 240) || *v == 254 || *v == 255)) {
-        error = "novotechnik-406: transmission_type must be 1..240, 254 or 255 (got '" + text + "')";
-        return nullptr;
-      }
-      o.transmission_type = static_cast<std::uint8_t>(*v);
-    } else if (key == "product_code") {
-      bool known = false;
-      for (const std::uint32_t p : novotechnik::kProductCodes) known = known || (v && *v == p);
-      if (!known) {
-        error = "novotechnik-406: product_code must be one of 0x0BD5, 0x0BB9, 0x0BBC, 0x0BC5, 0x0BE0 (got '" +
-                text + "')";
-        return nullptr;
-      }
-      o.product_code = static_cast<std::uint32_t>(*v);
-    } else {
-      error = "novotechnik-406: unknown option '" + key + "' (expected event_timer_ms, transmission_type, product_code)";
-      return nullptr;
-    }
-  }
+  const bool ok = parse_options("novotechnik-406", novotechnik_406_options(), options,
+                                [&o](const OptionValue& v, std::string& err) {
+                                  const std::string_view name = v.spec->name;
+                                  if (name == "event_timer_ms") o.event_timer_ms = static_cast<std::uint16_t>(v.number);
+                                  if (name == "transmission_type") o.transmission_type = static_cast<std::uint8_t>(v.number);
+                                  if (name == "product_code") {
+                                    const auto p = parse_option_integer(v.text);
+                                    bool known = false;
+                                    for (const std::uint32_t c : novotechnik::kProductCodes) known = known || (p && *p == c);
+                                    if (!known) {
+                                      err = "novotechnik-406: product_code must be one of " +
+                                            std::string(v.spec->syntax) + " (got '" + v.text + "')";
+                                      return false;
+                                    }
+                                    o.product_code = static_cast<std::uint32_t>(*p);
+                                  }
+                                  return true;
+                                },
+                                error);
+  if (!ok) return nullptr;
   if (node.value() < 1 || node.value() > 127) {
     error = "novotechnik-406: node-ID must be 1..127";
     return nullptr;

@@ -54,7 +54,8 @@
 // Boot: configuration() also writes 1029h:01 = 0 and 1029h:02 = 1 (see there: a measurement
 // error keeps the sensor operational).
 //
-// Options:
+// Options (the table novotechnik_406_options() in novotechnik_406.cpp is what the factory parses
+// and `oegw signals` lists):
 //   event_timer_ms     TPDO1 event timer 1800h:05, 1..65535 (default 10). 0 is refused: §8.2 says
 //                      TPDO1 is then never sent in the default type 254.
 //   transmission_type  1800h:02: 254 (event timer, default), 255 (measurement cycle, 1 ms) or

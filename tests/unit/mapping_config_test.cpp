@@ -203,7 +203,9 @@ TEST(MappingConfig, BadExampleReportsEveryErrorAtOnceInFileOrder) {
       f + "9:3: instance 17 of 'joystick.17' is out of range; expected joystick.1..16 (CiA 852 clause 9)",
       f + "10:3: unknown functional element kind 'joystik' in 'joystik.1'; expected one of joystick, pedal, encoder, "
           "wheel, buttons, indicators, display (did you mean 'joystick'?)",
-      f + "12:8: signal 'right_grip.buttons[1]' is a Button signal; expected an Axis or Analog signal for joystick.1 x",
+      f + "12:8: signal 'right_grip.buttons[1]' is a Button signal; expected an Axis or Analog signal for joystick.1 x; "
+          "a Button signal fits joystick.N (memory_x, memory_y, memory_z, buttons[1..8]), pedal.N memory_x or "
+          "buttons.N switch[1..64]",
       f + "13:5: joystick.1 has no field 'w'; expected one of memory_x, memory_y, memory_z, buttons[1..8], x, y, z",
       f + "14:8: unknown sub-device 'rigth_grip' in signal 'rigth_grip.y'; expected one of right_grip, left_grip, knob "
           "(did you mean 'right_grip'?)",
@@ -213,7 +215,8 @@ TEST(MappingConfig, BadExampleReportsEveryErrorAtOnceInFileOrder) {
       f + "19:20: joystick.2 buttons[1..8] has 8 elements but 'left_grip.buttons[1..7]' has 7; expected ranges of "
           "equal length",
       f + "21:19: signal 'right_grip.x' is an Axis signal; expected an Output signal for indicators.1 indicator[1] (an "
-          "output functional element)"));
+          "output functional element); an Axis signal fits joystick.N (x, y, z), pedal.N position or wheel.N "
+          "position"));
 }
 
 // ---- One error at a time, inline -----------------------------------------------------------
@@ -396,6 +399,8 @@ TEST(MappingConfig, SignalOfAnUnknownSubDeviceOrNotProvidedByTheDriver) {
       "subdevice.signal[a..b] or subdevice.signal.bitN"));
 }
 
+// Each kind mismatch also says where that signal kind would fit (issue 16 item 3): the FE kinds
+// whose fields take it, read from the FE table, e.g. a Novotechnik position into a wheel.
 TEST(MappingConfig, TypesThatDoNotFit) {
   const auto r = load(kHead + R"(  joystick.1:
     x: left_grip.buttons[1]
@@ -409,18 +414,28 @@ TEST(MappingConfig, TypesThatDoNotFit) {
     parameter[2]: cluster.aout[1]
   pedal.1:
     position: cluster.analog[1]
+  wheel.1: { position: knob.position }
+  encoder.2: { position: left_grip.z }
 )");
   EXPECT_THAT(errors(r), ElementsAre(
       "t.yaml:10:8: signal 'left_grip.buttons[1]' is a Button signal; expected an Axis or Analog signal for "
-      "joystick.1 x",
-      "t.yaml:11:8: signal 'left_grip.leds[1]' is an Output signal; expected an Axis or Analog signal for joystick.1 y",
+      "joystick.1 x; a Button signal fits joystick.N (memory_x, memory_y, memory_z, buttons[1..8]), pedal.N memory_x "
+      "or buttons.N switch[1..64]",
+      "t.yaml:11:8: signal 'left_grip.leds[1]' is an Output signal; expected an Axis or Analog signal for joystick.1 y; "
+      "an Output signal fits indicators.N indicator[1..64] or display.N parameter[1..12]",
       "t.yaml:12:17: signal 'left_grip.x' is an Axis signal; expected a Button or Digital signal for joystick.1 "
-      "buttons[1]",
-      "t.yaml:13:26: signal 'knob.speed' is a Speed signal; expected a Position or Analog signal for encoder.1 position",
+      "buttons[1]; an Axis signal fits joystick.N (x, y, z), pedal.N position or wheel.N position",
+      "t.yaml:13:26: signal 'knob.speed' is a Speed signal; expected a Position or Analog signal for encoder.1 "
+      "position; no functional element field takes a Speed signal (CiA 852 clause 9)",
       "t.yaml:15:22: signal 'cluster.in[1]' is a Digital signal; expected an Output signal for indicators.1 "
-      "indicator[1] (an output functional element)",
+      "indicator[1] (an output functional element); a Digital signal fits joystick.N (memory_x, memory_y, memory_z, "
+      "buttons[1..8]), pedal.N memory_x or buttons.N switch[1..64]",
       "t.yaml:17:19: signal 'left_grip.y' is an Axis signal; expected an Output signal for display.1 parameter[1] (an "
-      "output functional element)"));
+      "output functional element); an Axis signal fits joystick.N (x, y, z), pedal.N position or wheel.N position",
+      "t.yaml:21:24: signal 'knob.position' is a Position signal; expected an Axis or Analog signal for wheel.1 "
+      "position; a Position signal fits encoder.N position",
+      "t.yaml:22:26: signal 'left_grip.z' is an Axis signal; expected a Position or Analog signal for encoder.2 "
+      "position; an Axis signal fits joystick.N (x, y, z), pedal.N position or wheel.N position"));
 }
 
 TEST(MappingConfig, NodeIdsOutOfRangeBadNumbersAndDuplicates) {

@@ -1,0 +1,113 @@
+#include "subdevices/driver_options.hpp"
+
+#include <charconv>
+
+namespace oegw::subdevices {
+
+std::optional<std::int64_t> parse_option_integer(const std::string& s) {
+  const char* b = s.data();
+  const char* e = s.data() + s.size();
+  int base = 10;
+  if (s.size() > 2 && s[0] == '0' && (s[1] == 'x' || s[1] == 'X')) {
+    b += 2;
+    base = 16;
+  }
+  if (b == e) return std::nullopt;
+  std::int64_t v = 0;
+  const auto [p, ec] = std::from_chars(b, e, v, base);
+  if (ec != std::errc{} || p != e) return std::nullopt;
+  return v;
+}
+
+namespace {
+
+std::string quoted_choices(const std::vector<std::string_view>& choices) {
+  std::string out;
+  for (std::size_t i = 0; i < choices.size(); ++i) {
+    if (i > 0) out += i + 1 == choices.size() ? " or " : ", ";
+    out += "'" + std::string(choices[i]) + "'";
+  }
+  return out;
+}
+
+std::string names(const std::vector<OptionSpec>& table) {
+  std::string out;
+  for (const OptionSpec& s : table) out += (out.empty() ? "" : ", ") + std::string(s.name);
+  return out;
+}
+
+}  // namespace
+
+std::string OptionSpec::ranges_text() const {
+  std::string out;
+  for (std::size_t i = 0; i < ranges.size(); ++i) {
+    if (i > 0) out += i + 1 == ranges.size() ? " or " : ", ";
+    const auto [lo, hi] = ranges[i];
+    out += lo == hi ? std::to_string(lo) : std::to_string(lo) + ".." + std::to_string(hi);
+  }
+  return out;
+}
+
+std::string OptionSpec::type_text() const {
+  switch (type) {
+    case Type::Integer: return "integer " + ranges_text() + (unit.empty() ? "" : " (" + std::string(unit) + ")");
+    case Type::Choice: return quoted_choices(choices);
+    case Type::Text: return std::string(syntax);
+  }
+  return {};
+}
+
+bool parse_options(std::string_view family, const std::vector<OptionSpec>& table, const DriverOptions& given,
+                   const std::function<bool(const OptionValue&, std::string& error)>& apply,
+                   std::string& error) {
+  const std::string f(family);
+  auto one = [&](const OptionSpec& spec, const std::string& text) {
+    std::int64_t number = 0;
+    if (spec.type == OptionSpec::Type::Integer) {
+      const auto v = parse_option_integer(text);
+      bool in = false;
+      for (const auto& [lo, hi] : spec.ranges) in = in || (v && *v >= lo && *v <= hi);
+      if (!in) {
+        error = f + ": " + std::string(spec.name) + " '" + text + "' is not an " + spec.type_text() +
+                (spec.note.empty() ? "" : " " + std::string(spec.note));
+        return false;
+      }
+      number = *v;
+    } else if (spec.type == OptionSpec::Type::Choice) {
+      bool in = false;
+      for (const auto c : spec.choices) in = in || c == text;
+      if (!in) {
+        error = f + ": " + std::string(spec.name) + " '" + text + "' must be " + spec.type_text() +
+                (spec.note.empty() ? "" : " " + std::string(spec.note));
+        return false;
+      }
+    }
+    return apply(OptionValue{&spec, text, number}, error);
+  };
+  for (const auto& [key, text] : given.values) {
+    bool known = false;
+    for (const OptionSpec& s : table) known = known || s.name == key;
+    if (!known) {
+      error = f + ": unknown option '" + key + "' (expected " + names(table) + ")";
+      return false;
+    }
+  }
+  for (const OptionSpec& s : table) {
+    if (s.default_value.empty()) continue;
+    if (!one(s, std::string(s.default_value))) return false;
+  }
+  for (const OptionSpec& s : table) {
+    bool present = false;
+    for (const auto& [key, text] : given.values) present = present || key == s.name;
+    if (present || !s.required) continue;
+    error = s.missing.empty() ? f + ": option '" + std::string(s.name) + "' (" + std::string(s.description) + ") is required"
+                              : std::string(s.missing);
+    return false;
+  }
+  for (const auto& [key, text] : given.values)
+    for (const OptionSpec& s : table)
+      if (s.name == key && !one(s, text)) return false;
+  return true;
+}
+
+}  // namespace oegw::subdevices
