@@ -5,10 +5,12 @@
 // and reads the joystick from its TPDOs. Then a grip cable is pulled and plugged back.
 #include "programs/gateway_demo.hpp"
 
+#include <sys/ioctl.h>
 #include <unistd.h>
 
 #include <cstdio>
 #include <fstream>
+#include <string_view>
 
 #include <fmt/format.h>
 
@@ -32,14 +34,17 @@ namespace {
 
 constexpr NodeId kGateway{0x20};
 
-// One line per FE: "joystick.1  valid     x=+12000 y=-300 buttons=10000000".
+// One line per FE: "joystick.1  valid     x=+12000 y=-300 buttons=10000000"; "held" where an
+// axis is valid but held at neutral until it has been seen at zero (the elobau zero-position rule).
 std::string fe_line(const Gateway& gw, mapping::FeId fe) {
   static const char* const kStatus[] = {"valid", "ERROR", "n/a", "stale", "OFFLINE"};
+  const auto fields = gw.fields(fe);
+  const bool held = std::any_of(fields.begin(), fields.end(), [](const auto& f) { return f.interlocked; });
+  const FeStatus status = gw.status(fe);
   std::string out = fmt::format("  {:<13} {:<8}", mapping::fe_name(fe),
-                                kStatus[static_cast<int>(gw.status(fe))]);
+                                held && status == FeStatus::Valid ? "held" : kStatus[static_cast<int>(status)]);
   std::string bits_name, bits;
-  bool held = false;
-  for (const auto& f : gw.fields(fe)) {
+  for (const auto& f : fields) {
     const auto bracket = f.name.find('[');
     if (bracket != std::string::npos) {
       const std::string base = f.name.substr(0, bracket);
@@ -48,12 +53,91 @@ std::string fe_line(const Gateway& gw, mapping::FeId fe) {
       bits += f.value ? '1' : '0';
       continue;
     }
-    out += fmt::format(" {}={:+6d}", f.name, f.value);
-    held = held || f.interlocked;
+    out += fmt::format(" {}={:+6d}{}", f.name, f.value, f.interlocked ? "(held)" : "");
   }
   if (!bits_name.empty()) out += fmt::format(" {}={}", bits_name, bits);
-  if (held) out += "  (held at neutral until the axis is seen at zero)";
   return out;
+}
+
+// "  sub-devices: a=operational b=starting ..." wrapped at `width` columns, continuation rows
+// indented under the first name.
+std::vector<std::string> wrapped(const std::string& head, const std::vector<std::string>& items, std::size_t width) {
+  std::vector<std::string> rows{head};
+  const std::string indent(head.size(), ' ');
+  for (const auto& item : items) {
+    if (rows.back().size() + 1 + item.size() > width && rows.back().size() > indent.size()) rows.push_back(indent);
+    rows.back() += " " + item;
+  }
+  return rows;
+}
+
+// The live table at the bottom of the terminal with the log above it (no curses). Every table row
+// is cut to the terminal's width, so each takes exactly one row of the screen and "cursor up by
+// the rows drawn" finds the table's top again at any size; a log line erases the table (cursor
+// up, CSI J), is printed — wrapping as it likes, scrolling the screen — and the table is drawn
+// again below it. So the screen holds one table, never copies of it. Without a terminal (a pipe,
+// --fast, --frames) log lines and tables are printed one after the other.
+class LiveScreen {
+ public:
+  explicit LiveScreen(bool tty) : tty_(tty) {}
+
+  // The terminal's columns and rows (80x24 if it does not say).
+  [[nodiscard]] std::pair<std::size_t, std::size_t> size() const {
+    winsize ws{};
+    if (!tty_ || ::ioctl(STDOUT_FILENO, TIOCGWINSZ, &ws) != 0 || ws.ws_col == 0) return {80, 24};
+    return {ws.ws_col, ws.ws_row == 0 ? 24 : ws.ws_row};
+  }
+
+  void log(const std::string& line) {
+    erase();
+    std::printf("%s\n", line.c_str());
+    paint();
+  }
+
+  // Replaces the table; `keep`: leave it on the screen as it is, later output below it.
+  void draw(std::vector<std::string> rows, bool keep) {
+    erase();
+    rows_ = std::move(rows);
+    paint();
+    if (keep || !tty_) {
+      rows_.clear();
+      drawn_ = 0;
+    }
+  }
+
+ private:
+  void erase() {
+    if (tty_ && drawn_ > 0) std::printf("\x1b[%zuA\r\x1b[J", drawn_);
+    drawn_ = 0;
+  }
+  void paint() {
+    if (rows_.empty()) return std::fflush(stdout), void();
+    const auto [cols, lines] = size();
+    // One column spare: a row of exactly `cols` leaves some terminals in their pending-wrap state.
+    const std::size_t width = cols > 1 ? cols - 1 : 1;
+    // At most the screen's height less one row, so the log keeps a line and the top stays found.
+    const std::size_t max_rows = lines > 1 ? lines - 1 : 1;
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < rows_.size() && n < max_rows; ++i, ++n) {
+      std::string r = rows_[i];
+      if (n + 1 == max_rows && i + 1 < rows_.size()) r = fmt::format("  ... {} more rows (a taller terminal shows them)", rows_.size() - i);
+      if (tty_ && r.size() > width) r = r.substr(0, width - 1) + "~";
+      std::printf("%s\n", r.c_str());
+    }
+    drawn_ = tty_ ? n : 0;
+    std::fflush(stdout);
+  }
+
+  bool tty_;
+  std::vector<std::string> rows_;
+  std::size_t drawn_ = 0;
+};
+
+// --frames: candump's log format (candump -L), "(seconds.micros) interface id#data", which
+// canplayer replays: `canplayer -I FILE vcan0=up vcan1=down`. The time is the demo's, from 0.
+std::string candump_line(Duration since_start, const char* interface, const CanFrame& f) {
+  const auto us = since_start.count();
+  return fmt::format("({:010}.{:06}) {} {}", us / 1'000'000, us % 1'000'000, interface, f.to_string());
 }
 
 }  // namespace
@@ -87,16 +171,16 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   bool done = false;
   // The simulated cab: the devices of demo.yaml downstream, the gateway, a host upstream.
   CabRig rig(cfg, loop, CabRigOptions{.store = dir / "upstream.store"});
+  const TimePoint t0 = loop.now();
   if (options.frames) {
-    rig.up().set_tap([](const BusRecord& r) { std::printf("    up   %-8s %s\n", r.sender.c_str(), r.frame.to_string().c_str()); });
-    rig.down().set_tap([](const BusRecord& r) { std::printf("    down %-8s %s\n", r.sender.c_str(), r.frame.to_string().c_str()); });
+    rig.up().set_tap([&](const BusRecord& r) { std::printf("%s\n", candump_line(loop.now() - t0, "up", r.frame).c_str()); });
+    rig.down().set_tap([&](const BusRecord& r) { std::printf("%s\n", candump_line(loop.now() - t0, "down", r.frame).c_str()); });
   }
 
-  const TimePoint t0 = loop.now();
   const bool tty = ::isatty(STDOUT_FILENO) != 0 && !options.frames && !options.fast;
+  LiveScreen screen(tty);
   auto say = [&](const std::string& s) {
-    std::printf("[%6.2f s] %s\n", std::chrono::duration<double>(loop.now() - t0).count(), s.c_str());
-    std::fflush(stdout);
+    screen.log(fmt::format("[{:6.2f} s] {}", std::chrono::duration<double>(loop.now() - t0).count(), s));
   };
   int failures = 0;
   auto check = [&](bool ok, const std::string& what) {
@@ -192,30 +276,38 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   auto view = [&](bool final_frame) {
     std::vector<std::string> lines;
     for (const auto& fe : gw.fes()) lines.push_back(fe_line(gw, fe));
-    std::string nodes = "  sub-devices:";
-    for (const auto& n : gw.downstream().names()) nodes += fmt::format(" {}={}", n, sd::to_string(gw.downstream().state(n)));
-    lines.push_back(nodes);
+    std::vector<std::string> nodes;
+    for (const auto& n : gw.downstream().names()) nodes.push_back(fmt::format("{}={}", n, sd::to_string(gw.downstream().state(n))));
+    for (auto& r : wrapped("  sub-devices:", nodes, screen.size().first - 1)) lines.push_back(std::move(r));
     lines.push_back(fmt::format("  host: {} TPDO1 frames, joystick.1 x as the host reads it = {:+6d}", tpdos, host_x));
-    static std::size_t drawn = 0;
-    if (tty && drawn > 0) std::printf("\x1b[%zuA", drawn);
-    for (const auto& l : lines) std::printf(tty ? "%s\x1b[K\n" : "%s\n", l.c_str());
-    drawn = tty && !final_frame ? lines.size() : 0;
-    std::fflush(stdout);
+    screen.draw(std::move(lines), final_frame);
   };
 
   // The script, step by step.
   std::vector<std::pair<Duration, std::function<void()>>> steps;
   auto at = [&](Duration d, std::function<void()> fn) { steps.emplace_back(d, std::move(fn)); };
+  // "every sub-device operational" the moment it is so (polled every 10 ms), not at the next step.
+  bool all_up = false;
+  EventLoop::TimerId up_watch = 0;
   at(0ms, [&] {
     say("power on: the gateway boots (upstream boot-up 720#00) and boots its sub-devices");
     rig.power_on();
     (void)host.monitor_heartbeat(kGateway, 300);
     rig.rearm();
+    up_watch = loop.call_every(loop.now() + 10ms, 10ms, [&] {
+      bool all = true;
+      for (const auto& n : gw.downstream().names()) all = all && gw.downstream().state(n) == sd::NodeState::Operational;
+      if (!all) return;
+      all_up = true;
+      loop.cancel(up_watch);
+      check(true, "every sub-device configured and operational");
+    });
   });
   at(2500ms, [&] {
-    bool all = true;
-    for (const auto& n : gw.downstream().names()) all = all && gw.downstream().state(n) == sd::NodeState::Operational;
-    check(all, "every sub-device configured and operational");
+    if (!all_up) {
+      loop.cancel(up_watch);
+      check(false, "every sub-device configured and operational within 2.5 s");
+    }
     say("host: enables TPDO1 (joystick 1) on 1A0h and RPDO5 (indicators 2) on 225h, sets 6423h TRUE, starts node 20h");
     // CiA 852 clause 12: the PDOs are disabled by default; the host assigns their COB-IDs.
     sdo_write(0x1800, 1, encode<std::uint32_t>(0x1A0), [&] {
@@ -232,8 +324,10 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   const auto live = std::chrono::duration_cast<Duration>(std::chrono::duration<double>(options.seconds));
   EventLoop::TimerId view_timer = loop.call_every(loop.now() + 3s, tty ? 100ms : 1s, [&] { view(false); });
   at(3000ms + live, [&] {
-    loop.cancel(view_timer);
-    view(true);
+    // On a terminal the table stays live to the end; in a pipe it was printed every second while
+    // the operator moved, and from here at each step.
+    if (!tty) loop.cancel(view_timer);
+    view(false);
     check(tpdos > 0 && x_max - x_min > 20000, fmt::format("the host saw joystick 1 move in {} TPDOs (x from {} to {})", tpdos, x_min, x_max));
     say("host: RPDO 225h#0500000000000000 -> indicators.2 lamps 1 and 3 -> the MCB-402's LEDs");
     (void)host_port->send(CanFrame(0x225, {0x05, 0, 0, 0, 0, 0, 0, 0}));  // RPDO 5 maps 6200h:09..10h
@@ -257,7 +351,7 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     (void)bench.command("right_grip silent on", loop.now());
   });
   at(4500ms + live, [&] {
-    view(true);
+    view(false);
     const auto f = gw.fields({mapping::FeKind::Joystick, 1});
     const bool neutral = std::all_of(f.begin(), f.end(), [](const auto& s) { return s.value == 0; });
     check(gw.status({mapping::FeKind::Joystick, 1}) == FeStatus::Offline && neutral,
@@ -271,7 +365,7 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     rig.rearm();
   });
   at(7500ms + live, [&] {
-    view(true);
+    view(false);
     const auto x = gw.fields({mapping::FeKind::Joystick, 1});
     check(gw.downstream().state("right_grip") == sd::NodeState::Operational, "the grip is back: reconfigured and started");
     check(!x.empty() && std::all_of(x.begin(), x.end(), [](const auto& s) { return s.name != "x" || s.value == 0; }),
@@ -283,9 +377,10 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     rig.rearm();
   });
   at(9000ms + live, [&] {
-    view(true);
     check(std::count(emcys.begin(), emcys.end(), 0x0000) > 0, "the host got the error-reset EMCY");
     check(gw.status({mapping::FeKind::Joystick, 1}) == FeStatus::Valid, "joystick.1 valid and following again");
+    loop.cancel(view_timer);
+    view(true);  // the last table stays on the screen, below the log
     done = true;
     loop.stop();
   });

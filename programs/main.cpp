@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
   auto* demo_cmd = app.add_subcommand("demo", "The embedded demo: gateway, simulated cab devices and a host (default)");
   demo_cmd->add_option("--seconds", demo.seconds, "How long the operator moves the joysticks")
       ->check(CLI::Range(0.0, 3600.0));
-  demo_cmd->add_flag("--frames", demo.frames, "Print every CAN frame of both buses (candump notation)");
+  demo_cmd->add_flag("--frames", demo.frames, "Print every CAN frame of both buses in candump's log format (canplayer replays it)");
   demo_cmd->add_flag("--fast", demo.fast, "Run on a simulated clock, as fast as possible (deterministic)");
   demo_cmd->add_flag("--publish,!--no-publish", demo.publish,
                      "Publish every FE on DDS (loopback only) and LCM (ttl=0) and take indicator commands back "

@@ -27,6 +27,8 @@ PACKAGES=(
   liblcm-dev liblcm-bin libglib2.0-dev
   # strace: the VM tier counts the system calls `oegw run` makes per translated frame
   strace
+  # tmux: the demo's live table is judged on the screen a terminal shows (capture-pane)
+  tmux
   # tcpdump: an independent check that the demo's DDS/LCM traffic never leaves the host
   tcpdump
   # libsystemd: sd_notify / sd_watchdog_enabled for the unit's Type=notify and watchdog (oegw run

@@ -104,7 +104,16 @@ NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
     const bool was_live = m->state == NodeState::Operational;
     const bool application_reset = !answers_reset || m->reset_node_sent;
     if (application_reset && on_application_reset) on_application_reset(m->settings.name);
-    configure(*m, now_);  // it just booted: its dictionary is at power-on values
+    // It just booted: its dictionary is at power-on values. The reason says which boot-up this
+    // is, so a second one (e.g. the power-on boot-up crossing the gateway's reset on the bus,
+    // then the reset's own) reads as what it is, not as the same step twice.
+    configure(*m, now_,
+              answers_reset                          ? "boot-up seen: checking identity and configuring"
+              : was_live                             ? "boot-up while operational (the node rebooted): configuring again"
+              : m->state == NodeState::Configuring ||
+                      m->state == NodeState::Starting ? "boot-up again during its configuration (the node reset): "
+                                                        "configuring from the start"
+                                                      : "boot-up seen: checking identity and configuring");
     // The inputs go offline after the state says why (see fail()).
     if (was_live) m->driver->on_offline(now_);
   };
@@ -249,7 +258,7 @@ void NetworkManager::begin_boot(Managed& m, TimePoint now) {
             m.reset_node_sent ? "NMT reset node sent (to clear the error it reported)" : "NMT reset communication sent", now);
 }
 
-void NetworkManager::configure(Managed& m, TimePoint now) {
+void NetworkManager::configure(Managed& m, TimePoint now, const std::string& why) {
   ++m.generation;
   m.reset_node_sent = false;
   m.deadline.reset();
@@ -272,7 +281,7 @@ void NetworkManager::configure(Managed& m, TimePoint now) {
     m.steps.push_back({Kind::Write, 0x1017, 0, canopen::encode<std::uint16_t>(m.settings.heartbeat_ms), "producer heartbeat", {}});
   m.steps.push_back({Kind::DriverWrites, 0, 0, {}, "driver configuration", {}});
   for (const SdoWrite& w : m.settings.sdo) m.steps.push_back({Kind::Write, w.index, w.sub, w.data, w.what, {}});
-  set_state(m, NodeState::Configuring, "boot-up seen: checking identity and configuring", now);
+  set_state(m, NodeState::Configuring, why, now);
   run_step(m);
 }
 
@@ -601,7 +610,7 @@ void NetworkManager::advance(TimePoint now) {
     switch (m.state) {
       case NodeState::WaitingBootUp:
         // No boot-up: the node may not have reset (or be absent). Asking its identity tells.
-        configure(m, now);
+        configure(m, now, "no boot-up within the wait: checking identity and configuring");
         break;
       case NodeState::Starting: {
         const auto ms = std::chrono::duration_cast<std::chrono::milliseconds>(proof_deadline(m)).count();

@@ -212,7 +212,8 @@ class NetworkManager {
   const Managed* find(std::string_view name) const;
   void set_state(Managed& m, NodeState s, const std::string& why, TimePoint now);
   void begin_boot(Managed& m, TimePoint now);   // reset communication, wait for boot-up
-  void configure(Managed& m, TimePoint now);    // identity, boot reads, writes, start
+  // Identity, boot reads, writes, start; `why` is the Configuring state's reason.
+  void configure(Managed& m, TimePoint now, const std::string& why = "boot-up seen: checking identity and configuring");
   void add_identity_steps(Managed& m);          // 1000h, 1018h:01..04 (checked and kept)
   void add_diagnostic_steps(Managed& m);        // 1008h, 1009h, 100Ah, 1001h (kept)
   [[nodiscard]] std::string sync_refusal(const Managed& m) const;  // step 6; empty when fine

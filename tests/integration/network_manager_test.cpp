@@ -5,6 +5,8 @@
 #include "subdevices/network_manager.hpp"
 
 #include <gtest/gtest.h>
+
+#include <algorithm>
 #include <unistd.h>
 
 #include <filesystem>
@@ -291,6 +293,29 @@ TEST_F(NetworkManagerTest, RebootsSeenAreOnlyTheOnesTheGatewayDidNotCause) {
   EXPECT_EQ(c.gateway_resets, 2u);
   EXPECT_EQ(manager_->counters().reboots_seen, 1u);
   EXPECT_EQ(manager_->counters().gateway_resets, 2u);
+}
+
+// Each boot-up is reported as what it is (the demo logged "configuring" twice with one reason):
+// the answer to the gateway's reset, another during the configuration, one while operational.
+TEST_F(NetworkManagerTest, EachBootUpSaysWhichItIs) {
+  Device dev(net_);
+  (void)dev.node->start(net_.now());
+  start();
+  net_.run_for(1ms);
+  const auto said = [this](const std::string& why) { return std::count(reasons_.begin(), reasons_.end(), why); };
+  ASSERT_EQ(manager_->state("grip"), NodeState::Starting) << "configured, NMT start sent, no heartbeat yet";
+  EXPECT_EQ(said("boot-up seen: checking identity and configuring"), 1);
+  const std::string again = "boot-up again during its configuration (the node reset): configuring from the start";
+  const auto before = said(again);
+  dev.node->nmt().reset(false, net_.now());  // a second boot-up before it is operational
+  net_.run_for(1ms);
+  EXPECT_EQ(said("boot-up seen: checking identity and configuring"), 1);
+  EXPECT_EQ(said(again), before + 1);
+  net_.run_for(300ms);
+  ASSERT_EQ(manager_->state("grip"), NodeState::Operational);
+  dev.node->nmt().reset(false, net_.now());
+  net_.run_for(1ms);
+  EXPECT_EQ(said("boot-up while operational (the node rebooted): configuring again"), 1);
 }
 
 TEST_F(NetworkManagerTest, SdoTimeoutDuringConfigurationLeavesTheNodeStoppedAndRetries) {
