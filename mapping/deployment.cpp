@@ -81,6 +81,8 @@ void check_control(const ControlConfig& c, std::vector<Diagnostic>& out) {
     out.push_back({where, what + ": " + c.socket +
                               " exists and is not a socket (oegw run would not replace it); remove it or choose "
                               "another control.socket"});
+}
+
 // LCM commands are opt-in (`sources` listing lcm, config.hpp): liblcm authenticates nothing and
 // does not name a message's sender, so an FE taking LCM commands on a URL others can send to is
 // commanded by whoever is on that network (SECURITY.md). Warned, not refused: a cab network may
