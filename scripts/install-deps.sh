@@ -32,6 +32,10 @@ PACKAGES=(
   # the Debian package: dpkg-shlibdeps (dpkg-dev) computes its Depends; the deploy test installs it
   # into a fresh Debian root made by debootstrap and inspects the installed programs (file)
   dpkg-dev debootstrap file
+  # the cross-builds for ARM cab controllers (scripts/cross-build.sh): Debian's cross compilers,
+  # qemu-user to run the target's tests and programs here, mmdebstrap for the target's sysroot and
+  # fresh roots (arch-test: how mmdebstrap checks that a foreign root can run here)
+  crossbuild-essential-arm64 crossbuild-essential-armhf qemu-user-static mmdebstrap arch-test
 )
 
 missing=()
