@@ -49,18 +49,8 @@ note "fresh bookworm root with $(basename "$deb") installed by apt ($((SECONDS -
 $(chroot "$root" dpkg-query -W -f='${Package}\n' | wc -l) packages)"
 [[ ! -e $root$src ]] || die "the source tree is visible inside the root"
 
-# The programs, run in a private network namespace (the demo's DDS/LCM traffic stays in it).
-expect() {  # name pattern command...: exit 0 and the pattern (grep -E) in the output
-  local name=$1 pattern=$2 out rc=0
-  shift 2
-  out=$("$src/tests/publish/in_private_net.sh" chroot "$root" /usr/bin/env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin \
-        LANG=C.UTF-8 HOME=/root "$@" 2>&1) || rc=$?
-  if [[ $rc -ne 0 ]] || ! grep -Eq -- "$pattern" <<<"$out"; then
-    printf '%s\n' "$out" | tail -30
-    die "$name: exit $rc, expected exit 0 and /$pattern/"
-  fi
-  note "ok: $name"
-}
+# The programs (expect_in_root.sh: chroot, a private network namespace, a clean environment).
+source "$src/tests/deploy/expect_in_root.sh"
 mount -t proc proc "$root/proc"
 expect "uname -m inside the root (emulated)" "^(aarch64|armv7l|armv8l)$" uname -m
 expect "oegw --version" "^oegw [0-9]" oegw --version
