@@ -114,8 +114,9 @@ for arch in "${arches[@]}"; do
   [[ $(dpkg-deb -f "$deb" Architecture) == "$arch" ]] || die "$deb: Architecture $(dpkg-deb -f "$deb" Architecture), expected $arch"
   depends=$(dpkg-deb -f "$deb" Depends)
   # The libraries the programs link, each as the Debian package that ships its soname.
+  names=$(sed -e 's/ ([^)]*)//g' -e 's/, */\n/g' <<<"$depends")
   for lib in libc6 libstdc++6 libddsc0debian liblcm1 libsystemd0; do
-    grep -Eq "(^|, )$lib( |,|$)" <<<"$depends" || die "$deb: Depends lacks $lib: $depends"
+    grep -Fqx "$lib" <<<"$names" || die "$deb: Depends lacks $lib: $depends"
   done
   note "$arch: $(basename "$deb") ($((SECONDS - t)) s), Depends: $depends"
 
