@@ -39,4 +39,18 @@ set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA
     ${PROJECT_SOURCE_DIR}/packaging/debian/conffiles ${PROJECT_SOURCE_DIR}/packaging/debian/postinst
     ${PROJECT_SOURCE_DIR}/packaging/debian/prerm ${PROJECT_SOURCE_DIR}/packaging/debian/postrm)
 set(CPACK_DEBIAN_PACKAGE_CONTROL_STRICT_PERMISSION ON)
+
+# A cross-build (cmake/toolchains/debian-cross.cmake): the package is the target's, and its
+# Depends come from the target's libraries in the sysroot. dpkg-shlibdeps finds them in the
+# sysroot's library folders (-l), runs <triplet>-objdump for DEB_HOST_ARCH, and asks which package
+# ships each one of the sysroot's index that scripts/cross-sysroot.sh writes (DPKG_ADMINDIR: the
+# packages, their file lists under the sysroot's path, their symbols and shlibs files). cpack
+# reads the environment from cmake/OegwCpackCross.cmake when it runs.
+if(CMAKE_CROSSCOMPILING AND OEGW_DEB_ARCH)
+  set(CPACK_DEBIAN_PACKAGE_ARCHITECTURE ${OEGW_DEB_ARCH})
+  set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS_PRIVATE_DIRS ${OEGW_SYSROOT}/lib/${CMAKE_LIBRARY_ARCHITECTURE}
+                                                  ${OEGW_SYSROOT}/usr/lib/${CMAKE_LIBRARY_ARCHITECTURE})
+  set(CPACK_OEGW_SHLIBS_ADMINDIR ${OEGW_SYSROOT}/var/lib/oegw-shlibs)
+  set(CPACK_PROJECT_CONFIG_FILE ${PROJECT_SOURCE_DIR}/cmake/OegwCpackCross.cmake)
+endif()
 include(CPack)

@@ -40,6 +40,10 @@ PACKAGES=(
   # into a fresh Debian root made by debootstrap and inspects the installed programs (file) and
   # its copyright file with Debian's DEP-5 reader (python3-debian)
   dpkg-dev debootstrap file python3-debian
+  # the cross-builds for ARM cab controllers (scripts/cross-build.sh): Debian's cross compilers,
+  # qemu-user to run the target's tests and programs here, mmdebstrap for the target's sysroot and
+  # fresh roots (arch-test: how mmdebstrap checks that a foreign root can run here)
+  crossbuild-essential-arm64 crossbuild-essential-armhf qemu-user-static mmdebstrap arch-test
 )
 
 missing=()

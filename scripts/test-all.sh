@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Builds and runs every test tier: unit, integration (virtual bus), SocketCAN in a qemu VM,
-# benchmarks (figures printed, never asserted). Exits non-zero on any failure.
+# benchmarks (figures printed, never asserted), and the unit and integration tests cross-built for
+# arm64 and armhf under qemu-user. Exits non-zero on any failure.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -58,3 +59,9 @@ done
 # Resident memory of the gateway with the full FE set (figures; fails only if the set does not boot).
 echo "== oegw_bench_rss"
 "$BUILD"/tests/bench/oegw_bench_rss
+
+# The cab controller's processors: the unit and integration tests cross-built for arm64 and armhf
+# and run under qemu-user, and each architecture's Debian package with its Depends checked
+# (README "Building for the cab controller"; build-arm64, build-armhf, the sysroots cached in
+# /var/cache/oegw-cross).
+./scripts/cross-build.sh all

@@ -107,19 +107,8 @@ cp -n "$root"/var/cache/apt/archives/*.deb "$cache/archives/" 2>/dev/null || tru
 note "installed with apt-get in a fresh $suite root: $(grep -c '^Setting up' "$work/apt.log") packages set up ($((SECONDS - t)) s)"
 
 # --- the installed programs ---------------------------------------------------------------------------
-# The programs run in a network namespace of their own (tests/publish/in_private_net.sh): the
-# demo's DDS/LCM traffic meets no other test's subscribers on this host.
-expect() {  # name pattern command...: exit 0 and the pattern (grep -E) in the output
-  local name=$1 pattern=$2 out rc=0
-  shift 2
-  out=$("$src/tests/publish/in_private_net.sh" chroot "$root" /usr/bin/env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin \
-        LANG=C.UTF-8 HOME=/root "$@" 2>&1) || rc=$?
-  if [[ $rc -ne 0 ]] || ! grep -Eq -- "$pattern" <<<"$out"; then
-    printf '%s\n' "$out" | tail -30
-    die "$name: exit $rc, expected exit 0 and /$pattern/"
-  fi
-  note "ok: $name"
-}
+# The programs (expect_in_root.sh: chroot, a private network namespace, a clean environment).
+source "$src/tests/deploy/expect_in_root.sh"
 expect "oegw --help" "check" oegw --help
 expect "oegw-sim --help" "--interface|-i" oegw-sim --help
 expect "oegw check /etc/oegw/oegw.yaml" "^/etc/oegw/oegw.yaml: valid" oegw check /etc/oegw/oegw.yaml
