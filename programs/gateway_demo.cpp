@@ -111,7 +111,10 @@ class LiveScreen {
     drawn_ = 0;
   }
   void paint() {
-    if (rows_.empty()) return std::fflush(stdout), void();
+    if (rows_.empty()) {
+      std::fflush(stdout);
+      return;
+    }
     const auto [cols, lines] = size();
     // One column spare: a row of exactly `cols` leaves some terminals in their pending-wrap state.
     const std::size_t width = cols > 1 ? cols - 1 : 1;

@@ -168,7 +168,7 @@ bool EventLoop::unwatch(WatchId id) {
     }
     const Bracket b = std::move(brackets_[i]);
     brackets_.erase(brackets_.begin() + static_cast<std::ptrdiff_t>(i));
-    if (steady_.held()) b.end();
+    if (wake_.held()) b.end();
   }
   return true;
 }
@@ -253,7 +253,7 @@ std::size_t EventLoop::run_once(std::optional<Duration> timeout) {
       for (std::size_t i = 0; i < brackets->size(); ++i) (*brackets)[i].end();
       clock->release();
     }
-  } hold{simulated() || steady_.held() ? nullptr : &steady_, &brackets_};
+  } hold{simulated() || wake_.held() ? nullptr : &wake_, &brackets_};
   if (hold.clock != nullptr) {
     hold.clock->hold();
     for (std::size_t i = 0; i < brackets_.size(); ++i) brackets_[i].begin();

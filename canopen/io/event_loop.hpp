@@ -145,8 +145,8 @@ class EventLoop {
   void arm_timerfd();
   void on_signalfd();
 
-  WakeClock steady_;  // held from the wake-up to the end of its dispatch (run_once)
-  const Clock* clock_ = &steady_;
+  WakeClock wake_;  // held from the wake-up to the end of its dispatch (run_once)
+  const Clock* clock_ = &wake_;
   SimulatedClock* simulated_ = nullptr;
   int epoll_fd_ = -1;
   int timer_fd_ = -1;

@@ -172,7 +172,8 @@ std::vector<BusEvent> decode_error_frame(const ::can_frame& k) {
 }
 
 void StampMapper::sample(const timespec& realtime, TimePoint monotonic) {
-  offset_us_ = static_cast<std::int64_t>(realtime.tv_sec) * 1'000'000 + realtime.tv_nsec / 1'000 -
+  // The same seconds + nanoseconds -> microseconds as the monotonic clock's (clock.hpp).
+  offset_us_ = time_point_from_monotonic(realtime.tv_sec, realtime.tv_nsec).time_since_epoch().count() -
                monotonic.time_since_epoch().count();
   sampled_at_ = monotonic;
   sampled_ = true;
@@ -180,7 +181,7 @@ void StampMapper::sample(const timespec& realtime, TimePoint monotonic) {
 
 std::optional<TimePoint> StampMapper::map(const timespec& stamp, TimePoint now) const {
   if (!sampled_) return std::nullopt;
-  const TimePoint t{Duration{static_cast<std::int64_t>(stamp.tv_sec) * 1'000'000 + stamp.tv_nsec / 1'000 - offset_us_}};
+  const TimePoint t = time_point_from_monotonic(stamp.tv_sec, stamp.tv_nsec) - Duration{offset_us_};
   if (t > now) return t - now <= kAhead ? std::optional<TimePoint>(now) : std::nullopt;
   if (now - t > kMaxAge) return std::nullopt;
   return t;
