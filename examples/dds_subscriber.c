@@ -105,7 +105,9 @@ int main(int argc, char** argv) {
     dds_sample_info_t infos[16];
     int n = dds_take(reader, samples, infos, 16, 16);
     long long rx = monotonic_us();
-    for (int i = 0; i < n; i++) {
+    /* A take can return more samples than are still wanted (joystick 1 and 2 are written at the
+     * same instant): --count N prints exactly N, the rest of the batch is returned unprinted. */
+    for (int i = 0; i < n && (o.count < 0 || received < o.count); i++) {
       if (!infos[i].valid_data) continue;
       const oegw_Joystick* j = (const oegw_Joystick*)samples[i];
       printf("joystick instance=%u status=%s seq=%u ts_us=%lld x=%d y=%d z=%d buttons=0x%02x memory=0x%02x rx_us=%lld\n",
