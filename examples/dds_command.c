@@ -101,7 +101,7 @@ int main(int argc, char** argv) {
   dds_delete_qos(q);
   if (pub < 0 || topic < 0 || writer < 0) {
     fprintf(stderr, "%s: cannot create the %s writer\n", prog, topic_name);
-    dds_delete(pp);
+    dds_options_close(&o.dds, pp);
     return EXAMPLE_EXIT_SETUP;
   }
   const dds_duration_t timeout = (dds_duration_t)(o.timeout_s * 1e9);
@@ -118,6 +118,6 @@ int main(int argc, char** argv) {
     printf("sent %s on %s\n", text, topic_name);
     status = EXAMPLE_EXIT_OK;
   }
-  dds_delete(pp);
+  dds_options_close(&o.dds, pp);
   return status;
 }

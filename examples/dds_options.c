@@ -91,7 +91,7 @@ static int security_xml(const char* prog, const struct dds_options* o, char* out
   return 1;
 }
 
-dds_entity_t dds_options_participant(const char* prog, const struct dds_options* o) {
+dds_entity_t dds_options_participant(const char* prog, struct dds_options* o) {
   static char security[8 * PATH_MAX];
   static char xml[9 * PATH_MAX];
   if (!security_xml(prog, o, security, sizeof security)) return DDS_RETCODE_BAD_PARAMETER;
@@ -112,12 +112,22 @@ dds_entity_t dds_options_participant(const char* prog, const struct dds_options*
       fprintf(stderr, "%s: cannot create DDS domain %u (network %s): %s\n", prog, o->domain, o->network, dds_strretcode(d));
       return d;
     }
+    o->created_domain = d;
   }
   const dds_entity_t pp = dds_create_participant(o->domain, NULL, NULL);
-  if (pp < 0)
+  if (pp < 0) {
     fprintf(stderr, "%s: cannot create a DDS participant in domain %u%s: %s\n", prog, o->domain,
             security[0] != 0 ? " with DDS Security (Cyclone's log above says why)" : "", dds_strretcode(pp));
+    dds_options_close(o, 0);
+  }
   return pp;
+}
+
+void dds_options_close(struct dds_options* o, dds_entity_t participant) {
+  if (participant > 0) dds_delete(participant);
+  /* Its threads stopped and joined here, before exit() runs the libraries' cleanup. */
+  if (o->created_domain > 0) dds_delete(o->created_domain);
+  o->created_domain = 0;
 }
 
 static dds_entity_t in_partition(const char* prog, dds_entity_t pp, const struct dds_options* o, int publisher) {

@@ -18,9 +18,10 @@ struct dds_options {
   const char* partition;
   const char* network;
   const char* security[DDS_SECURITY_FILES]; /* identity CA, certificate, key, permissions CA, governance, permissions */
+  dds_entity_t created_domain; /* the domain dds_options_participant created for the network (0: none) */
 };
 
-#define DDS_OPTIONS_DEFAULT {0, "oegw", "loopback", {0}}
+#define DDS_OPTIONS_DEFAULT {0, "oegw", "loopback", {0}, 0}
 /* The getopt_long entries; the values are 'D', 'P', 'N' and 0x100 + the security file's index. */
 #define DDS_OPTIONS_LONG \
   {"domain", required_argument, NULL, 'D'}, {"partition", required_argument, NULL, 'P'}, \
@@ -46,7 +47,13 @@ int dds_options_take(const char* prog, int c, const char* value, struct dds_opti
 
 /* The participant and, with the partition, a subscriber or a publisher in it; < 0 (said why on
  * stderr) when Cyclone refuses. */
-dds_entity_t dds_options_participant(const char* prog, const struct dds_options* o);
+dds_entity_t dds_options_participant(const char* prog, struct dds_options* o);
+/* Ends DDS before the program returns: the participant and the domain dds_options_participant
+ * created for the network configuration. Deleting the participant alone leaves that domain (an
+ * explicit dds_create_domain outlives its participants) and its threads running into exit(),
+ * where OpenSSL's cleanup frees its locks while a receive thread still decrypts a DDS Security
+ * message: a SIGSEGV seen under qemu-user, where that thread is slow (issue 18). */
+void dds_options_close(struct dds_options* o, dds_entity_t participant);
 dds_entity_t dds_options_subscriber(const char* prog, dds_entity_t participant, const struct dds_options* o);
 dds_entity_t dds_options_publisher(const char* prog, dds_entity_t participant, const struct dds_options* o);
 

@@ -172,7 +172,7 @@ int main(int argc, char** argv) {
   dds_delete_qos(q);
   if (sub < 0 || topic < 0 || reader < 0) {
     fprintf(stderr, "%s: cannot create the oegw/status reader\n", prog);
-    dds_delete(pp);
+    dds_options_close(&o.dds, pp);
     return EXAMPLE_EXIT_SETUP;
   }
   signal(SIGINT, on_signal);
@@ -193,7 +193,7 @@ int main(int argc, char** argv) {
       if (infos[i].valid_data) print_status((const oegw_GatewayStatus*)samples[i], o.every);
     if (n > 0) dds_return_loan(reader, samples, n);
   }
-  dds_delete(pp);
+  dds_options_close(&o.dds, pp);
   if (!seen.any) fprintf(stderr, "%s: no status on oegw/status in domain %u, partition %s\n", prog, o.dds.domain, o.dds.partition);
   return seen.any ? EXAMPLE_EXIT_OK : EXAMPLE_EXIT_INCOMPLETE;
 }

@@ -85,7 +85,7 @@ int main(int argc, char** argv) {
   dds_delete_qos(q);
   if (sub < 0 || topic < 0 || reader < 0) {
     fprintf(stderr, "%s: cannot create the oegw/joystick reader\n", prog);
-    dds_delete(pp);
+    dds_options_close(&o.dds, pp);
     return EXAMPLE_EXIT_SETUP;
   }
 
@@ -118,6 +118,6 @@ int main(int argc, char** argv) {
     if (n > 0) dds_return_loan(reader, samples, n);
     fflush(stdout);
   }
-  dds_delete(pp);
+  dds_options_close(&o.dds, pp);
   return (o.count >= 0 && received < o.count) ? EXAMPLE_EXIT_INCOMPLETE : EXAMPLE_EXIT_OK;
 }
