@@ -45,7 +45,7 @@ expect() {
   elif [ "$n" -eq 0 ]; then
     echo "FAIL: $what: strace saw no thread made (the check would prove nothing)"; fails=$((fails + 1))
   elif [ -n "$running" ]; then
-    echo "FAIL: $what: exit_group with $(echo $running | wc -w) of its $n threads still running:$running"
+    echo "FAIL: $what: exit_group with $(echo "$running" | wc -w) of its $n threads still running:$running"
     fails=$((fails + 1))
   else
     echo "ok: $what: exit $rc; its $n threads all ended before exit_group"
