@@ -1,5 +1,7 @@
 #include "canopen/309/ascii_gateway.hpp"
 
+#include "canopen/c_integer.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -49,31 +51,8 @@ bool is_unsigned(DataType t) {
   return t == DataType::B || t == DataType::U8 || t == DataType::U16 || t == DataType::U32 || t == DataType::U64;
 }
 
-// A number as ISO C writes an integer constant (strtoull with base 0): 0x.. hex, 0.. octal,
-// else decimal; an optional sign. nullopt for anything else (trailing characters too).
-struct Number {
-  bool negative = false;
-  std::uint64_t magnitude = 0;
-};
-std::optional<Number> parse_number(std::string_view s) {
-  Number n;
-  if (!s.empty() && (s[0] == '-' || s[0] == '+')) {
-    n.negative = s[0] == '-';
-    s.remove_prefix(1);
-  }
-  int base = 10;
-  if (s.size() > 2 && s[0] == '0' && (s[1] == 'x' || s[1] == 'X')) {
-    base = 16;
-    s.remove_prefix(2);
-  } else if (s.size() > 1 && s[0] == '0') {
-    base = 8;
-    s.remove_prefix(1);
-  }
-  if (s.empty()) return std::nullopt;
-  const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), n.magnitude, base);
-  if (ec != std::errc{} || end != s.data() + s.size()) return std::nullopt;
-  return n;
-}
+using Number = CInteger;
+std::optional<Number> parse_number(std::string_view s) { return parse_c_integer(s); }
 
 // An unsigned number in [lo, hi]; `what` names it for the message.
 std::optional<std::uint64_t> parse_unsigned(std::string_view s, std::uint64_t lo, std::uint64_t hi, const char* what,

@@ -35,7 +35,7 @@ namespace sd = oegw::subdevices;
 namespace {
 
 using Frames = std::vector<std::pair<std::uint32_t, std::vector<std::uint8_t>>>;
-constexpr std::uint8_t kGrip = 0x11, kPedal = 0x30, kKnob = 0x7F;
+constexpr std::uint8_t kPedal = 0x30, kKnob = 0x7F;
 
 class Ctl : public ::testing::Test {
  protected:
