@@ -376,15 +376,14 @@ Parsed parse(std::string_view line, const Defaults& defaults) {
     if (args.size() < 4) return error(GatewayError::Syntax, "expected w[rite] <index> <sub-index> <data type> <value>", seq);
     if (auto e = index_sub()) return *e;
     std::string value;
-    if (r.type == DataType::VS) {
-      if (args.size() == 4 || !args[3].quoted) {
-        // Unquoted words are one string, joined by single spaces; quote it to keep spaces.
-        for (std::size_t i = 3; i < args.size(); ++i) {
-          if (args[i].quoted) return error(GatewayError::Syntax, "a vs value is one quoted string or unquoted words", seq);
-          value += (i == 3 ? "" : " ") + args[i].text;
-        }
-      } else {
-        return error(GatewayError::Syntax, "text after the quoted vs value", seq);
+    if (r.type == DataType::VS && args[3].quoted) {
+      if (args.size() != 4) return error(GatewayError::Syntax, "text after the quoted vs value", seq);
+      value = args[3].text;
+    } else if (r.type == DataType::VS) {
+      // Unquoted words are one string, joined by single spaces; quote it to keep spaces.
+      for (std::size_t i = 3; i < args.size(); ++i) {
+        if (args[i].quoted) return error(GatewayError::Syntax, "a vs value is one quoted string or unquoted words", seq);
+        value += (i == 3 ? "" : " ") + args[i].text;
       }
     } else {
       if (args.size() != 4) return error(GatewayError::Syntax, fmt::format("a {} value is one token; text follows '{}'", to_string(r.type), args[3].text), seq);

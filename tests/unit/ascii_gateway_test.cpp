@@ -161,6 +161,9 @@ TEST(AsciiGateway, BadLinesGetExactErrors) {
   EXPECT_EQ(refused("[15] 2 5 w 0x2000 1 os AQ*D"),
             "[15] ERROR: 101 (Syntax error: 'AQ*D' is no MIME Base64 text (RFC 2045), as os values are written)");
   EXPECT_EQ(refused("[16] 2 5 w 0x2000 1 vs \"open"), "[16] ERROR: 101 (Syntax error: a string opened with \" is not closed)");
+  EXPECT_EQ(refused("[28] 2 5 w 0x2000 1 vs \"a\" b"), "[28] ERROR: 101 (Syntax error: text after the quoted vs value)");
+  EXPECT_EQ(refused("[29] 2 5 w 0x2000 1 vs a \"b\""),
+            "[29] ERROR: 101 (Syntax error: a vs value is one quoted string or unquoted words)");
   EXPECT_EQ(refused("[17] 2 5 w 0x2000 1 u8 1 2"), "[17] ERROR: 101 (Syntax error: a u8 value is one token; text follows '1')");
   EXPECT_EQ(refused("[18] 2 5 fly"),
             "[18] ERROR: 100 (Request not supported: no command 'fly'; this gateway has r[ead], w[rite], start, stop, "
