@@ -219,6 +219,15 @@ TEST_F(Ctl, NmtAndTheBootUpEvent) {
       << ::testing::PrintToString(events.lines);
   // The gateway boots it again (its reboot seen) and it is operational once more.
   EXPECT_EQ(rig_->gw().downstream().state("pedal"), sd::NodeState::Operational) << log_;
+  // Stop of a sub-device in use is carried out, and the gateway sees it lost: its FEs at their
+  // fault values (README "Fault policy"), as with any NMT master's stop.
+  EXPECT_EQ(run("[5] 2 17 stop"), "[5] OK");
+  const Frames stop = frames_since({0x000});
+  ASSERT_FALSE(stop.empty());
+  EXPECT_EQ(stop[0], (std::pair<std::uint32_t, std::vector<std::uint8_t>>{0x000, {0x02, 0x11}}));
+  rig_->run_for(500ms);
+  EXPECT_NE(rig_->gw().downstream().state("right_grip"), sd::NodeState::Operational) << log_;
+  EXPECT_EQ(rig_->gw().faults().count("right_grip"), 1u) << log_;
   // NMT to the gateway's own bus is the host's business.
   EXPECT_EQ(run("[2] 1 32 stop"),
             "[2] ERROR: 100 (Request not supported: network 1 is the host's bus: the gateway's own NMT state is its NMT "

@@ -51,8 +51,10 @@ grep -qE '^\[6\] [0-9]+ 2130 1\.0 1 3 3\.0 [0-9]+\.[0-9]+$' /tmp/ctl1.out && pas
   fail "info version answer"
 
 # ---- Refused: the grip's TPDO1 COB-ID; --exit ends at that ERROR with exit 1, the next line unrun.
+t_refused=$(date +%s.%N)
 printf '%s\n' '[7] 2 17 w 0x1800 1 u32 0x80000191' '[8] 2 17 r 0x1018 2 u32' | "$oegw" ctl --exit >/tmp/ctl2.out 2>&1
 rc=$?
+t_refused_end=$(date +%s.%N)
 sed 's/^/    ctl: /' /tmp/ctl2.out
 ((rc == 1)) && pass "oegw ctl --exit: exit 1 at the ERROR" || fail "oegw ctl --exit after a refusal: exit $rc"
 grep -qE '^\[7\] ERROR: 08000021 \(.+\)$' /tmp/ctl2.out && pass "1800h:01: [7] ERROR: 08000021" || fail "no 0800 0021h refusal"
@@ -74,7 +76,10 @@ expect_frame '611#4018100100000000' "upload request 1018h:01"
 expect_frame "591#43181001${v:6:2}${v:4:2}${v:2:2}${v:0:2}" "its answer: the value oegw ctl printed"
 expect_frame '611#2B0150001E000000' "download 5001h = 30 (u16)"
 expect_frame '591#6001500000000000' "download confirmed"
-if grep -qE '^vcan1 611#2[3-F]0018' <<<"$got"; then fail "a write of 1800h reached the grip"; else pass "no write of 1800h on vcan1"; fi
+# The gateway wrote 1800h itself while configuring the grip (before); while `oegw ctl` asked for
+# the refused write (and --exit stopped before line 8), no SDO request went to the grip at all.
+n=$(awk -v a="$t_refused" -v b="$t_refused_end" '{ t = substr($1, 2, length($1) - 2) + 0 } t >= a && t <= b && $3 ~ /^611#/' /tmp/down.dump | wc -l)
+((n == 0)) && pass "no SDO request to the grip while 1800h was refused" || fail "$n SDO requests to the grip while 1800h was refused"
 if grep -qE '^vcan1 605#' <<<"$got"; then fail "a request to node 05h went out"; else pass "nothing sent to node 05h"; fi
 
 # ---- The gateway stops: oegw ctl finds no daemon (exit 3, as oegw status).
