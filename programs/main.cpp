@@ -125,7 +125,7 @@ int main(int argc, char** argv) {
                   "  [seq] [[net] node] r[ead] <index> <sub> <type>      [seq] [[net] node] w[rite] <index> <sub> <type> <value>\n"
                   "  [seq] [[net] node] start|stop|preop|reset node|reset comm\n"
                   "  [seq] set network N | [net] set node N | [net] set sdo_timeout MS | info version\n"
-                  "  types: b u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os d; interactive: history, !!, !N");
+                  "  types: b u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os d; interactive: history, !!, !N\n");
 
   try {
     app.parse(argc, argv);
