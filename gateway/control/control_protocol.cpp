@@ -18,9 +18,10 @@ void ControlProtocol::add(std::string name, Command command) {
 }
 
 std::string ControlProtocol::answer(std::string_view line) const {
-  std::string out;
-  answer(line, [&out](std::string a) { out = std::move(a); });
-  return out.empty() ? control_error("failed", "the command answers later; ask over the socket") : out;
+  // Shared: an async command answering after this returned writes into it, not into a dead frame.
+  auto out = std::make_shared<std::string>();
+  answer(line, [out](std::string a) { *out = std::move(a); });
+  return out->empty() ? control_error("failed", "the command answers later; ask over the socket") : *out;
 }
 
 void ControlProtocol::answer(std::string_view line, Reply reply) const {
