@@ -8,6 +8,36 @@ using nlohmann::json;
 
 std::string json_line(const json& j) { return j.dump(-1, ' ', false, json::error_handler_t::replace); }
 
+std::string bytes_to_hex(const std::vector<std::uint8_t>& bytes) {
+  static constexpr char kDigits[] = "0123456789abcdef";
+  std::string s;
+  for (const std::uint8_t b : bytes) {
+    s += kDigits[b >> 4];
+    s += kDigits[b & 0xF];
+  }
+  return s;
+}
+
+std::optional<std::vector<std::uint8_t>> bytes_from_hex(std::string_view text, std::string& error) {
+  if (text.size() % 2 != 0) {
+    error = "an even number of hex digits";
+    return std::nullopt;
+  }
+  const auto digit = [](char c) {
+    return c >= '0' && c <= '9' ? c - '0' : c >= 'a' && c <= 'f' ? c - 'a' + 10 : c >= 'A' && c <= 'F' ? c - 'A' + 10 : -1;
+  };
+  std::vector<std::uint8_t> out;
+  for (std::size_t i = 0; i < text.size(); i += 2) {
+    const int hi = digit(text[i]), lo = digit(text[i + 1]);
+    if (hi < 0 || lo < 0) {
+      error = "'" + std::string(text.substr(i, 2)) + "' is no hex byte";
+      return std::nullopt;
+    }
+    out.push_back(static_cast<std::uint8_t>(hi * 16 + lo));
+  }
+  return out;
+}
+
 std::string control_error(std::string_view code, const std::string& message) {
   return json_line(
       json{{"protocol", kControlProtocol}, {"ok", false}, {"error", json{{"code", code}, {"message", message}}}});

@@ -6,9 +6,12 @@
 #pragma once
 
 #include <functional>
+#include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -43,6 +46,10 @@ class ControlProtocol {
 
 // {"protocol": 1, "ok": false, "error": {"code": code, "message": message}} as a line.
 [[nodiscard]] std::string control_error(std::string_view code, const std::string& message);
+// A value's bytes as the protocol carries them (`oegw ctl`'s sdo_read/sdo_write "data"):
+// lower-case hex, two digits a byte. bytes_from_hex: nullopt and `error` for text that is not.
+[[nodiscard]] std::string bytes_to_hex(const std::vector<std::uint8_t>& bytes);
+[[nodiscard]] std::optional<std::vector<std::uint8_t>> bytes_from_hex(std::string_view text, std::string& error);
 // A JSON text that never fails to serialise: bytes that are not UTF-8 (a device's 1008h, say)
 // become U+FFFD.
 [[nodiscard]] std::string json_line(const nlohmann::json& j);

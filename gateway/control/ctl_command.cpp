@@ -22,17 +22,6 @@ using ascii::GatewayError;
 
 namespace {
 
-std::string to_hex(const std::vector<std::uint8_t>& b) {
-  std::string s;
-  for (const std::uint8_t c : b) s += fmt::format("{:02x}", c);
-  return s;
-}
-std::vector<std::uint8_t> from_hex(const std::string& s) {
-  std::vector<std::uint8_t> out;
-  for (std::size_t i = 0; i + 1 < s.size(); i += 2) out.push_back(static_cast<std::uint8_t>(std::stoul(s.substr(i, 2), nullptr, 16)));
-  return out;
-}
-
 const char* nmt_service(Command c) {
   switch (c) {
     case Command::Start: return "start";
@@ -96,7 +85,9 @@ std::string CtlSession::answer_of(std::uint32_t seq, const ascii::Request& r, co
   if (a.contains("abort") && a["abort"].get<std::uint32_t>() != 0)
     return ascii::answer_abort(seq, static_cast<canopen::SdoAbortCode>(a["abort"].get<std::uint32_t>()));
   if (r.command == Command::Read) {
-    const auto text = ascii::format(r.type, from_hex(a.value("data", "")));
+    std::string why;
+    const auto bytes = bytes_from_hex(a.value("data", ""), why);
+    const auto text = bytes ? ascii::format(r.type, *bytes) : std::nullopt;
     // A value whose length does not fit the type: lely's gateway answers the same code.
     if (!text) return ascii::answer_abort(seq, canopen::SdoAbortCode::LengthMismatch);
     error = false;
@@ -150,7 +141,7 @@ CtlSession::Outcome CtlSession::execute(std::string_view line) {
                  {"node", r.node},
                  {"index", r.index},
                  {"sub", r.sub}};
-      if (r.command == Command::Write) request["data"] = to_hex(r.data);
+      if (r.command == Command::Write) request["data"] = bytes_to_hex(r.data);
       if (const auto it = sdo_timeout_ms_.find(r.network); it != sdo_timeout_ms_.end()) {
         request["timeout_ms"] = it->second;
         timeout = std::max(timeout, std::chrono::milliseconds(it->second + 2000));

@@ -29,29 +29,13 @@ std::uint64_t field(const json& r, const char* key, std::uint64_t lo, std::uint6
   return it->get<std::uint64_t>();
 }
 
-std::string to_hex(const std::vector<std::uint8_t>& b) {
-  std::string s;
-  for (const std::uint8_t c : b) s += fmt::format("{:02x}", c);
-  return s;
-}
-
 std::vector<std::uint8_t> from_hex(const json& r) {
   const auto it = r.find("data");
   if (it == r.end() || !it->is_string()) throw std::invalid_argument("\"data\": expected the value's bytes in hex");
-  const std::string& s = it->get_ref<const std::string&>();
-  if (s.size() % 2 != 0 || s.empty()) throw std::invalid_argument("\"data\": an even number of hex digits, at least 2");
-  std::vector<std::uint8_t> out;
-  for (std::size_t i = 0; i < s.size(); i += 2) {
-    unsigned v = 0;
-    for (std::size_t k = 0; k < 2; ++k) {
-      const char c = s[i + k];
-      const int d = c >= '0' && c <= '9' ? c - '0' : c >= 'a' && c <= 'f' ? c - 'a' + 10 : c >= 'A' && c <= 'F' ? c - 'A' + 10 : -1;
-      if (d < 0) throw std::invalid_argument("\"data\": '" + std::string(1, c) + "' is no hex digit");
-      v = v * 16 + static_cast<unsigned>(d);
-    }
-    out.push_back(static_cast<std::uint8_t>(v));
-  }
-  return out;
+  std::string why;
+  auto bytes = bytes_from_hex(it->get_ref<const std::string&>(), why);
+  if (!bytes || bytes->empty()) throw std::invalid_argument("\"data\": " + (bytes ? std::string("at least one byte") : why));
+  return *bytes;
 }
 
 // A CiA 309-3 internal error (canopen/309/ascii_gateway.hpp: 100 not supported, 102 internal
@@ -156,7 +140,7 @@ void CtlService::sdo(const json& r, bool write, ControlProtocol::Done done) {
   const std::vector<std::uint8_t> data = write ? from_hex(r) : std::vector<std::uint8_t>{};
   const auto answer = [](SdoAbortCode code, const std::vector<std::uint8_t>& bytes, bool with_data) {
     json j{{"abort", static_cast<std::uint32_t>(code)}};
-    if (with_data && code == SdoAbortCode::None) j["data"] = to_hex(bytes);
+    if (with_data && code == SdoAbortCode::None) j["data"] = bytes_to_hex(bytes);
     return j;
   };
 
