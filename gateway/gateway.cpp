@@ -172,6 +172,12 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     decoding_emcy_ = false;
     for (const auto& [node, raise] : held_fault_emcys_) fault_emcy(*node, raise);  // sent now
     held_fault_emcys_.clear();
+    if (on_downstream_emcy) on_downstream_emcy(e);
+  };
+  // Boot-ups: the network manager's first (it decides what they mean), then the observers'.
+  master_.on_boot = [this, manage = std::move(master_.on_boot)](canopen::NodeId n) {
+    if (manage) manage(n);
+    if (on_downstream_boot_up) on_downstream_boot_up(n);
   };
   // 1028h: EMCYs of other upstream nodes, logged and kept for the status.
   if (auto* cmd = oe_->od().find(cia852::kSubdeviceCommand))
@@ -531,6 +537,34 @@ bool Gateway::command_display(std::uint8_t instance, const std::array<std::int16
   end_outputs(now);
   publish_changes();
   return taken;
+}
+
+RemoteSdo& Gateway::remote_sdo(TimePoint now) {
+  now_ = now;
+  return *remote_sdo_;
+}
+
+std::string Gateway::downstream_nmt(canopen::NodeId node, canopen::NmtCommand cs, TimePoint now) {
+  now_ = now;
+  const Sub* s = nullptr;
+  for (const auto& [name, sub] : subs_)
+    if (sub.config->node_id == node.value()) s = &sub;
+  if (s != nullptr) {
+    const sd::NodeState st = network_.state(s->config->name);
+    // The gateway's own boot and configuration come first (as for remote SDO, 0800 0022h there).
+    if (st == sd::NodeState::Idle || st == sd::NodeState::WaitingBootUp || st == sd::NodeState::Configuring)
+      return fmt::format("{} is being booted by the gateway ({}); try again when it is operational", s->config->name,
+                         sd::to_string(st));
+    // Starting a node the gateway has not configured and started itself would bypass its boot
+    // checks (a refused identity, a lost node): only the network manager starts nodes it boots.
+    if (cs == canopen::NmtCommand::Start && st != sd::NodeState::Operational && st != sd::NodeState::Starting)
+      return fmt::format("{} is {}: the gateway starts it itself once its boot succeeds (reset node boots it again)",
+                         s->config->name, sd::to_string(st));
+  }
+  log(fmt::format("control: NMT {:02X}h to node {:02X}h{}", static_cast<unsigned>(cs), node.value(),
+                  s != nullptr ? " (" + s->config->name + ")" : std::string(" (no sub-device of the mapping file)")));
+  master_.nmt().send(cs, node);
+  return {};
 }
 
 }  // namespace oegw::gateway

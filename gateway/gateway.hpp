@@ -135,6 +135,21 @@ class Gateway {
   [[nodiscard]] const subdevices::NetworkManager& downstream() const { return network_; }
   // Remote SDO: the host's transfers to sub-devices (gateway/remote_sdo.hpp).
   [[nodiscard]] const RemoteSdo& remote_sdo() const { return *remote_sdo_; }
+  // The same RemoteSdo for the control socket's transfers (`oegw ctl`, gateway/control/
+  // ctl_service.hpp): one mechanism, one policy for the host's and the commissioning tool's SDO.
+  // `now` is the entry point's time (the gateway's clock of the call, as for a frame).
+  [[nodiscard]] RemoteSdo& remote_sdo(canopen::TimePoint now);
+  // NMT node control of a downstream node from the control socket (`oegw ctl`). Empty when
+  // sent; else why not, sending nothing: a sub-device the gateway is booting (its boot comes
+  // first), or NMT start of a sub-device the gateway holds as missing or refused (only its own
+  // boot starts a node). A node the mapping file does not configure is commanded as asked
+  // (commissioning a new device). What follows is the network manager's as for any NMT state
+  // change it did not cause (a stopped node in use is lost: its FEs take their fault values).
+  [[nodiscard]] std::string downstream_nmt(canopen::NodeId node, canopen::NmtCommand cs, canopen::TimePoint now);
+  // Every boot-up and EMCY on the downstream bus, configured node or not, after the gateway has
+  // handled it (the control socket's event lines, `oegw ctl`).
+  std::function<void(canopen::NodeId)> on_downstream_boot_up;
+  std::function<void(const canopen::EmcyMessage&)> on_downstream_emcy;
   [[nodiscard]] const std::map<std::string, std::string>& faults() const { return faults_; }
 
   // The EMCYs received from one node: the last one, when it arrived (the gateway's clock), how

@@ -370,9 +370,9 @@ int run_gateway(const std::string& file) {
   // systemd (gateway/service_notify.hpp): READY=1, STATUS=, WATCHDOG=1 from this loop, STOPPING=1.
   SystemdNotifier systemd;
   ServiceNotify notify(systemd, systemd_watchdog_timeout());
-  std::unique_ptr<GatewayControl> control;  // `oegw status` (gateway/control/PROTOCOL.md)
+  std::unique_ptr<GatewayControl> control;  // `oegw status`, `oegw ctl` (gateway/control/PROTOCOL.md)
   try {
-    if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, gw, *cfg, file);
+    if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, gw, *cfg, file, [&driver] { driver.rearm(); });
   } catch (const ControlError& e) {
     spdlog::error("{}", e.what());
     return exit_code::kCannotStart;

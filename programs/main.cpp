@@ -6,6 +6,7 @@
 #include <utility>
 #include <vector>
 
+#include "gateway/control/ctl_command.hpp"
 #include "gateway/control/status_command.hpp"
 #include "gateway/programs.hpp"
 #include "gateway/signals_command.hpp"
@@ -111,6 +112,21 @@ int main(int argc, char** argv) {
   status_cmd->add_flag("--json", status.json, "Print the daemon's JSON answer as it is (gateway/control/PROTOCOL.md)");
   status_cmd->add_option("--timeout", status.timeout_s, "Seconds to wait for the answer")->check(CLI::Range(0.1, 60.0));
 
+  oegw::gateway::CtlOptions ctl;
+  ctl.version = oegw::programs::kVersion;
+  auto* ctl_cmd = app.add_subcommand(
+      "ctl", "CiA 309-3 ASCII commands (read, write, NMT, info version, events) into the running `oegw run`");
+  ctl_cmd->add_option("--socket", ctl.socket, "Control socket (default: the mapping file's control.socket, else /run/oegw/oegw.sock)");
+  ctl_cmd->add_option("--config", ctl.config, "Mapping file whose control.socket to ask");
+  ctl_cmd->add_flag("-e,--exit", ctl.exit_on_error, "Exit 1 at the first ERROR answer (scripts)");
+  ctl_cmd->add_option("--timeout", ctl.timeout_s, "Seconds to wait for one answer (at least the SDO time-out + 2 s)")
+      ->check(CLI::Range(0.1, 120.0));
+  ctl_cmd->footer("Commands, one a line on standard input (gateway/control/PROTOCOL.md, README \"oegw ctl\"):\n"
+                  "  [seq] [[net] node] r[ead] <index> <sub> <type>      [seq] [[net] node] w[rite] <index> <sub> <type> <value>\n"
+                  "  [seq] [[net] node] start|stop|preop|reset node|reset comm\n"
+                  "  [seq] set network N | [net] set node N | [net] set sdo_timeout MS | info version\n"
+                  "  types: b u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os d; interactive: history, !!, !N\n");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -128,6 +144,7 @@ int main(int argc, char** argv) {
   if (*eds_cmd) return oegw::gateway::run_eds(config_file, eds_out);
   if (*run_cmd) return oegw::gateway::run_gateway(config_file);
   if (*status_cmd) return oegw::gateway::run_status(status);
+  if (*ctl_cmd) return oegw::gateway::run_ctl(ctl);
   if (*signals_cmd) return oegw::gateway::run_signals(signals);
   if (*dev_cmd) {
     device.node_id = oegw::canopen::NodeId{static_cast<std::uint8_t>(node_id)};

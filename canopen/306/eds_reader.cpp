@@ -6,6 +6,7 @@
 #include <cstring>
 #include <sstream>
 
+#include "canopen/c_integer.hpp"
 #include "canopen/text_file.hpp"
 
 namespace oegw::canopen::eds {
@@ -61,30 +62,12 @@ std::string hex(std::uint64_t v, int width) {
   return os.str();
 }
 
-// CiA 306 §4.5.3: decimal, 0x hexadecimal, or octal with a leading 0; an optional '-' sign.
+// CiA 306 §4.5.3: decimal, 0x hexadecimal, or octal with a leading 0; an optional '-' sign
+// (two's complement in 64 bits).
 bool parse_integer(std::string_view s, std::uint64_t& out) {
-  bool negative = false;
-  if (!s.empty() && (s[0] == '-' || s[0] == '+')) {
-    negative = s[0] == '-';
-    s.remove_prefix(1);
-  }
-  if (s.empty()) return false;
-  int base = 10;
-  if (s.size() > 2 && s[0] == '0' && (s[1] == 'x' || s[1] == 'X')) {
-    base = 16;
-    s.remove_prefix(2);
-  } else if (s.size() > 1 && s[0] == '0') {
-    base = 8;
-    s.remove_prefix(1);
-  }
-  std::uint64_t v = 0;
-  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), v, base);
-  if (ec != std::errc{} || p != s.data() + s.size()) return false;
-  if (negative) {
-    if (v > (std::uint64_t{1} << 63)) return false;
-    v = ~v + 1;
-  }
-  out = v;
+  const auto n = parse_c_integer(s);
+  if (!n || (n->negative && n->magnitude > (std::uint64_t{1} << 63))) return false;
+  out = n->negative ? ~n->magnitude + 1 : n->magnitude;
   return true;
 }
 

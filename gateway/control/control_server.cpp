@@ -83,6 +83,10 @@ ControlSocketSettings control_settings(const mapping::ControlConfig& c, const st
 }
 
 ControlServer::ControlServer(canopen::EventLoop& loop, ControlSocketSettings settings, Handler handler)
+    : ControlServer(loop, std::move(settings),
+                    AsyncHandler([h = std::move(handler)](std::string_view line, Reply reply) { reply(h(line)); })) {}
+
+ControlServer::ControlServer(canopen::EventLoop& loop, ControlSocketSettings settings, AsyncHandler handler)
     : loop_(loop), settings_(std::move(settings)), handler_(std::move(handler)) {
   const std::string& p = settings_.path;
   const ControlSocketSettings& s = settings_;
@@ -116,6 +120,7 @@ ControlServer::ControlServer(canopen::EventLoop& loop, ControlSocketSettings set
 }
 
 ControlServer::~ControlServer() {
+  *alive_ = false;
   while (!clients_.empty()) close_client(clients_.begin()->first, false);
   loop_.unwatch(watch_);
   ::close(fd_);
@@ -218,15 +223,38 @@ void ControlServer::on_client(std::uint64_t id, std::uint32_t events) {
   const auto it = clients_.find(id);
   if (it == clients_.end()) return;
   Client& c = it->second;
-  const bool ok = ((events & (ev::kReadable | ev::kHangup | ev::kError)) == 0 || c.closing || read_requests(c)) &&
+  const bool ok = ((events & (ev::kReadable | ev::kHangup | ev::kError)) == 0 || c.closing || read_requests(id, c)) &&
                   ((events & ev::kWritable) == 0 || flush(c));
+  settle(id, c, ok);
+}
+
+void ControlServer::settle(std::uint64_t id, Client& c, bool ok) {
   if (!ok) return close_client(id, false);
-  if (c.closing && c.out.empty()) return close_client(id, false);
+  if (c.closing && c.out.empty() && c.slots.empty()) return close_client(id, false);
   if (c.out.size() > settings_.limits.max_pending) return close_client(id, true);
   rewatch(id, c);
 }
 
-bool ControlServer::read_requests(Client& c) {
+void ControlServer::deliver(Client& c) {
+  while (!c.slots.empty() && c.slots.front()) {
+    c.out += *c.slots.front() + "\n";
+    c.slots.pop_front();
+    ++c.first_slot;
+    ++answered_;
+  }
+}
+
+void ControlServer::on_answer(std::uint64_t id, std::uint64_t slot, std::string line) {
+  const auto it = clients_.find(id);
+  if (it == clients_.end()) return;  // the client went away meanwhile
+  Client& c = it->second;
+  if (slot < c.first_slot || slot - c.first_slot >= c.slots.size()) return;
+  c.slots[slot - c.first_slot] = std::move(line);
+  deliver(c);
+  if (!c.reading) settle(id, c, flush(c));
+}
+
+bool ControlServer::read_requests(std::uint64_t id, Client& c) {
   char buf[4096];
   for (;;) {
     const ssize_t n = ::recv(c.fd, buf, sizeof buf, MSG_DONTWAIT);
@@ -244,8 +272,21 @@ bool ControlServer::read_requests(Client& c) {
       std::string_view line(c.in.data(), nl);
       if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
       if (nl > settings_.limits.max_request) break;
-      c.out += handler_(line) + "\n";
-      ++answered_;
+      const std::uint64_t slot = c.first_slot + c.slots.size();
+      c.slots.emplace_back();
+      const auto waiting = static_cast<std::size_t>(
+          std::count_if(c.slots.begin(), c.slots.end(), [](const auto& a) { return !a.has_value(); }));
+      if (waiting > settings_.limits.max_waiting) {
+        c.slots.back() = control_error("busy", std::to_string(settings_.limits.max_waiting) +
+                                                   " requests of this connection wait for their answers already");
+      } else {
+        c.reading = true;  // an answer given at once is taken below, not flushed from inside
+        handler_(line, [this, id, slot, alive = std::weak_ptr<bool>(alive_)](std::string answer) {
+          if (const auto a = alive.lock(); a && *a) on_answer(id, slot, std::move(answer));
+        });
+        c.reading = false;
+      }
+      deliver(c);
       c.in.erase(0, nl + 1);
     }
     if (c.in.size() > settings_.limits.max_request) {
@@ -283,6 +324,14 @@ void ControlServer::rewatch(std::uint64_t id, Client& c) {
   }
   // An answer waiting: the client has write_timeout to take all of it; then idle_timeout again.
   const bool waiting = !c.out.empty();
+  if (!waiting && !c.slots.empty()) {
+    // The gateway owes an answer (an SDO transfer): no idle time-out meanwhile, the command's
+    // own time-out bounds the wait.
+    if (c.timer != 0) loop_.cancel(c.timer);
+    c.timer = 0;
+    c.waiting = false;
+    return;
+  }
   if (waiting != c.waiting || !waiting) arm(id, c, waiting ? settings_.limits.write_timeout : settings_.limits.idle_timeout);
   c.waiting = waiting;
 }

@@ -25,6 +25,7 @@
 #include <sys/types.h>
 
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <map>
 #include <memory>
@@ -47,6 +48,7 @@ class ControlError : public std::runtime_error {
 struct ControlLimits {
   std::size_t max_request = 4096;       // bytes of one request line
   std::size_t max_clients = 8;          // connections served at once
+  std::size_t max_waiting = 16;         // requests of one connection waiting for their answers
   std::size_t max_pending = 1u << 20;   // bytes of answers queued for one client
   canopen::Duration idle_timeout = std::chrono::seconds(30);
   canopen::Duration write_timeout = std::chrono::seconds(2);
@@ -69,9 +71,16 @@ class ControlServer {
  public:
   // The answer line (without newline) to one request line.
   using Handler = std::function<std::string(std::string_view line)>;
+  // The same, answered through `reply` — at once or later (an SDO transfer of `oegw ctl`).
+  // Answers go out in request order; while a connection waits for one it is not dropped as
+  // idle (the command's own time-out bounds the wait). A connection has at most
+  // ControlLimits::max_waiting requests waiting; one more is answered `busy` in its turn.
+  using Reply = std::function<void(std::string line)>;
+  using AsyncHandler = std::function<void(std::string_view line, Reply reply)>;
 
   // Binds and listens; throws ControlError (see above) and changes nothing on the way out.
   ControlServer(canopen::EventLoop& loop, ControlSocketSettings settings, Handler handler);
+  ControlServer(canopen::EventLoop& loop, ControlSocketSettings settings, AsyncHandler handler);
   ~ControlServer();
   ControlServer(const ControlServer&) = delete;
   ControlServer& operator=(const ControlServer&) = delete;
@@ -90,6 +99,10 @@ class ControlServer {
     canopen::EventLoop::TimerId timer = 0;
     std::string in, out;
     bool closing = false;  // close once `out` is written (EOF seen, or the request too long)
+    // Answers in request order: slot `first_slot` is the oldest request not answered yet.
+    std::deque<std::optional<std::string>> slots;
+    std::uint64_t first_slot = 0;
+    bool reading = false;  // inside read_requests (an answer given at once is flushed there)
   };
 
   void accept_clients();
@@ -101,15 +114,19 @@ class ControlServer {
   [[nodiscard]] Peer check_peer(int fd) const;
   void refuse(int fd, const Peer& p);
   void on_client(std::uint64_t id, std::uint32_t events);
-  bool read_requests(Client& c);  // false: drop the client
+  bool read_requests(std::uint64_t id, Client& c);  // false: drop the client
   bool flush(Client& c);          // false: drop the client
   void rewatch(std::uint64_t id, Client& c);
   void arm(std::uint64_t id, Client& c, canopen::Duration d);
   void close_client(std::uint64_t id, bool dropped);
+  void on_answer(std::uint64_t id, std::uint64_t slot, std::string line);
+  void deliver(Client& c);  // the answers now due, in order, to `out`
+  void settle(std::uint64_t id, Client& c, bool ok);  // after reading or writing: close, drop or rewatch
 
   canopen::EventLoop& loop_;
   ControlSocketSettings settings_;
-  Handler handler_;
+  AsyncHandler handler_;
+  std::shared_ptr<bool> alive_ = std::make_shared<bool>(true);  // answers arriving after the end go nowhere
   int fd_ = -1;
   dev_t dev_ = 0;
   ino_t ino_ = 0;

@@ -6,18 +6,20 @@
 
 namespace oegw::gateway {
 
-GatewayControl::GatewayControl(canopen::EventLoop& loop, const Gateway& gw, const mapping::Config& config,
-                               const std::string& file) {
+GatewayControl::GatewayControl(canopen::EventLoop& loop, Gateway& gw, const mapping::Config& config,
+                               const std::string& file, std::function<void()> rearm) {
   const canopen::TimePoint started = loop.now();
   protocol_.add("status", [&loop, &gw, &config, started](const nlohmann::json&) {
     return nlohmann::json{{"status", status_report(gw, config, {loop.now(), started})}};
   });
+  ctl_ = std::make_unique<CtlService>(loop, gw, config, protocol_, std::move(rearm));
   ControlSocketSettings settings = control_settings(config.control, file);
   settings.log = [](const std::string& line) { spdlog::info("{}", line); };
   settings.warn = [](const std::string& line) { spdlog::warn("{}", line); };
-  server_ = std::make_unique<ControlServer>(loop, std::move(settings),
-                                            [this](std::string_view line) { return protocol_.answer(line); });
-  spdlog::info("control: {} (oegw status)", config.control.socket);
+  server_ = std::make_unique<ControlServer>(
+      loop, std::move(settings),
+      ControlServer::AsyncHandler([this](std::string_view line, ControlServer::Reply reply) { protocol_.answer(line, std::move(reply)); }));
+  spdlog::info("control: {} (oegw status, oegw ctl)", config.control.socket);
 }
 
 }  // namespace oegw::gateway

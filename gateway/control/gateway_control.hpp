@@ -1,13 +1,16 @@
 // The control socket of `oegw run` (PROTOCOL.md): the server on the gateway's event loop and the
-// commands it answers on the running Gateway (`status` now; `oegw ctl`'s later, issue 16).
+// commands it answers on the running Gateway: `status` (`oegw status`) and `oegw ctl`'s
+// (sdo_read, sdo_write, nmt, info, events: gateway/control/ctl_service.hpp).
 #pragma once
 
+#include <functional>
 #include <memory>
 #include <string>
 
 #include "canopen/io/event_loop.hpp"
 #include "gateway/control/control_protocol.hpp"
 #include "gateway/control/control_server.hpp"
+#include "gateway/control/ctl_service.hpp"
 #include "gateway/gateway.hpp"
 #include "mapping/config.hpp"
 
@@ -17,10 +20,13 @@ class GatewayControl {
  public:
   // Serves config.control (file: the mapping file, for the errors); throws ControlError (a
   // group this machine lacks, a live daemon's socket, ...). `gw` and `config` outlive it.
-  GatewayControl(canopen::EventLoop& loop, const Gateway& gw, const mapping::Config& config, const std::string& file);
+  // `rearm`: called after a command acted on the gateway (its next deadline may have changed).
+  GatewayControl(canopen::EventLoop& loop, Gateway& gw, const mapping::Config& config, const std::string& file,
+                 std::function<void()> rearm = {});
 
  private:
   ControlProtocol protocol_;
+  std::unique_ptr<CtlService> ctl_;  // destroyed after the server: its answers then go nowhere
   std::unique_ptr<ControlServer> server_;
 };
 

@@ -141,23 +141,20 @@ std::string status_table(const json& st) {
   return out;
 }
 
-namespace {
-
-std::string socket_of(const StatusOptions& o, bool& ok) {
+std::string control_socket_of(const std::string& socket, const std::string& config, const char* program, bool& ok) {
   ok = true;
-  if (!o.socket.empty()) return o.socket;
-  if (o.config.empty()) return std::string(mapping::kDefaultControlSocket);
-  auto r = mapping::load_config(o.config, driver_catalogue());
+  if (!socket.empty()) return socket;
+  if (config.empty()) return std::string(mapping::kDefaultControlSocket);
+  auto r = mapping::load_config(config, driver_catalogue());
   if (!r.ok()) {
-    std::fprintf(stderr, "%s\noegw status: %s unreadable; give --socket instead\n", r.error_text().c_str(),
-                 o.config.c_str());
+    std::fprintf(stderr, "%s\n%s: %s unreadable; give --socket instead\n", r.error_text().c_str(), program, config.c_str());
     ok = false;
     return {};
   }
   return r.config->control.socket;
 }
 
-int exit_code(AskStatus s) {
+int ask_exit_code(AskStatus s) {
   switch (s) {
     case AskStatus::Ok: return kStatusOk;
     case AskStatus::NoDaemon: return kStatusNoDaemon;
@@ -168,17 +165,15 @@ int exit_code(AskStatus s) {
   return kStatusFailed;
 }
 
-}  // namespace
-
 int run_status(const StatusOptions& o) {
   bool ok = false;
-  const std::string path = socket_of(o, ok);
+  const std::string path = control_socket_of(o.socket, o.config, "oegw status", ok);
   if (!ok) return kStatusFailed;
   const auto timeout = std::chrono::milliseconds(static_cast<std::int64_t>(o.timeout_s * 1000.0));
   const AskResult r = ask_daemon(path, json_line(json{{"protocol", kControlProtocol}, {"command", "status"}}), timeout);
   if (r.status != AskStatus::Ok) {
     std::fprintf(stderr, "oegw status: %s\n", r.text.c_str());
-    return exit_code(r.status);
+    return ask_exit_code(r.status);
   }
   const json answer = json::parse(r.text, nullptr, false);
   const bool good = answer.is_object() && answer.value("ok", false) && answer.contains("status");

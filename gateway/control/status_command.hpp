@@ -6,6 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "gateway/control/control_client.hpp"
+
 namespace oegw::gateway {
 
 struct StatusOptions {
@@ -23,6 +25,13 @@ inline constexpr int kStatusPermission = 4;     // the socket's group keeps this
 inline constexpr int kStatusTimeout = 5;        // no answer in --timeout
 
 int run_status(const StatusOptions& options);
+
+// The socket to ask: `socket`, else the mapping file `config`'s control.socket, else the default
+// (`ok` false, after an error on stderr naming `program`, for an unreadable `config`).
+[[nodiscard]] std::string control_socket_of(const std::string& socket, const std::string& config, const char* program,
+                                            bool& ok);
+// The exit code (above) of a failed ask_daemon (`oegw status`, `oegw ctl`).
+[[nodiscard]] int ask_exit_code(AskStatus s);
 
 // The table for a `status` object (the answer's "status"), lines of at most 100 columns.
 [[nodiscard]] std::string status_table(const nlohmann::json& status);

@@ -76,3 +76,37 @@ TEST(ControlProtocol, BytesThatAreNotUtf8BecomeReplacementCharactersNotAnExcepti
 }
 
 }  // namespace
+
+namespace {
+
+// `oegw ctl`'s SDO commands answer later (ControlProtocol::add_async): the envelope is the same,
+// the answer comes once however often the command calls back, and a command that throws after
+// answering does not answer twice. The caller that needs the line at once (answer(line)) gets
+// `failed`, and the later call-back writes nowhere it should not.
+TEST(ControlProtocol, AnAsyncCommandAnswersOnceInTheEnvelope) {
+  ControlProtocol p;
+  ControlProtocol::Done later;
+  p.add_async("slow", [&later](const json&, ControlProtocol::Done done) { later = std::move(done); });
+  p.add_async("twice", [](const json&, ControlProtocol::Done done) {
+    done(json{{"n", 1}});
+    done(json{{"n", 2}});
+    throw std::runtime_error("after the answer");
+  });
+  std::vector<std::string> got;
+  p.answer(R"({"command": "slow"})", [&got](std::string a) { got.push_back(std::move(a)); });
+  EXPECT_TRUE(got.empty());
+  later(json{{"abort", 0}});
+  ASSERT_EQ(got.size(), 1u);
+  const json a = json::parse(got[0]);
+  EXPECT_EQ(a["ok"], true);
+  EXPECT_EQ(a["command"], "slow");
+  EXPECT_EQ(a["abort"], 0);
+  p.answer(R"({"command": "twice"})", [&got](std::string s) { got.push_back(std::move(s)); });
+  ASSERT_EQ(got.size(), 2u);
+  EXPECT_EQ(json::parse(got[1])["n"], 1);
+  const json now = json::parse(p.answer(R"({"command": "slow"})"));
+  EXPECT_EQ(now["error"]["code"], "failed");
+  later(json{{"abort", 0}});  // after answer(line) returned: harmless
+}
+
+}  // namespace

@@ -234,6 +234,55 @@ TEST_F(ControlServerTest, ASilentClientIsDroppedAfterTheIdleTimeout) {
   ::close(fd);
 }
 
+// `oegw ctl`'s SDO commands answer later: answers still go out in request order, a connection
+// waiting for one is not dropped as idle, one whose client left gets nothing (and nothing breaks),
+// and more requests waiting than the bound are answered busy in their turn.
+TEST_F(ControlServerTest, LaterAnswersGoOutInRequestOrder) {
+  std::vector<ControlServer::Reply> later;
+  auto server = std::make_unique<ControlServer>(
+      loop_, settings(ControlLimits{.max_waiting = 2, .idle_timeout = 30s}),
+      ControlServer::AsyncHandler([&later](std::string_view line, ControlServer::Reply reply) {
+        if (line == "now") return reply("at once");
+        later.push_back(std::move(reply));
+      }));
+  const int fd = connect_client();
+  send_text(fd, "slow\nnow\nslow\nnow\n");
+  serve_io();
+  // Two wait ("slow", "slow"); the first "now" waits behind the first; the last "now" is one
+  // request more than max_waiting may wait: answered busy, in its turn.
+  ASSERT_EQ(later.size(), 2u);
+  EXPECT_EQ(received(fd), "");
+  loop_.advance_by(31s);  // owed answers: no idle drop
+  EXPECT_EQ(server->clients(), 1u);
+  later[1]("second");
+  serve_io();
+  EXPECT_EQ(received(fd), "");  // the first is still owed
+  later[0]("first");
+  serve_io();
+  const std::string got = received(fd);
+  EXPECT_EQ(got.substr(0, got.find("{")), "first\nat once\nsecond\n");
+  EXPECT_NE(got.find("\"busy\""), std::string::npos) << got;
+  EXPECT_EQ(server->answered(), 4u);
+  // A client that leaves before its answer: the answer goes nowhere.
+  send_text(fd, "slow\n");
+  serve_io();
+  ASSERT_EQ(later.size(), 3u);
+  ::close(fd);
+  serve_io();
+  EXPECT_EQ(server->clients(), 1u);  // a client that only shut down its side still gets it
+  later[2]("too late");
+  serve_io();
+  EXPECT_EQ(server->clients(), 0u);
+  // And one given after the server is gone changes nothing either.
+  const int fd2 = connect_client();
+  send_text(fd2, "slow\n");
+  serve_io();
+  ASSERT_EQ(later.size(), 4u);
+  server.reset();
+  later[3]("after the end");
+  ::close(fd2);
+}
+
 TEST(ControlSettings, AGroupThisMachineLacksIsRefusedNamingTheSetting) {
   oegw::mapping::ControlConfig c;
   c.group = "oegw_no_such_group_x";

@@ -1,0 +1,520 @@
+#include "canopen/309/ascii_gateway.hpp"
+
+#include "canopen/c_integer.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include <fmt/format.h>
+
+namespace oegw::canopen::ascii {
+
+namespace {
+
+struct TypeRow {
+  DataType type;
+  std::string_view name;
+  std::size_t size;
+};
+constexpr std::array<TypeRow, 14> kTypes{{{DataType::B, "b", 1},
+                                          {DataType::U8, "u8", 1},
+                                          {DataType::U16, "u16", 2},
+                                          {DataType::U32, "u32", 4},
+                                          {DataType::U64, "u64", 8},
+                                          {DataType::I8, "i8", 1},
+                                          {DataType::I16, "i16", 2},
+                                          {DataType::I32, "i32", 4},
+                                          {DataType::I64, "i64", 8},
+                                          {DataType::R32, "r32", 4},
+                                          {DataType::R64, "r64", 8},
+                                          {DataType::VS, "vs", 0},
+                                          {DataType::OS, "os", 0},
+                                          {DataType::D, "d", 0}}};
+
+const TypeRow& row(DataType t) {
+  return *std::find_if(kTypes.begin(), kTypes.end(), [t](const TypeRow& r) { return r.type == t; });
+}
+
+std::string lower(std::string_view s) {
+  std::string out(s);
+  for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return out;
+}
+
+bool is_signed(DataType t) { return t == DataType::I8 || t == DataType::I16 || t == DataType::I32 || t == DataType::I64; }
+bool is_unsigned(DataType t) {
+  return t == DataType::B || t == DataType::U8 || t == DataType::U16 || t == DataType::U32 || t == DataType::U64;
+}
+
+using Number = CInteger;
+std::optional<Number> parse_number(std::string_view s) { return parse_c_integer(s); }
+
+// An unsigned number in [lo, hi]; `what` names it for the message.
+std::optional<std::uint64_t> parse_unsigned(std::string_view s, std::uint64_t lo, std::uint64_t hi, const char* what,
+                                            std::string& error) {
+  const auto n = parse_number(s);
+  if (!n || n->negative) {
+    error = fmt::format("'{}' is no {} (a number such as 5 or 0x1018)", s, what);
+    return std::nullopt;
+  }
+  if (n->magnitude < lo || n->magnitude > hi) {
+    error = fmt::format("{} {} is out of range ({}..{})", what, s, lo, hi);
+    return std::nullopt;
+  }
+  return n->magnitude;
+}
+
+void put_le(std::vector<std::uint8_t>& out, std::uint64_t v, std::size_t size) {
+  for (std::size_t i = 0; i < size; ++i) out.push_back(static_cast<std::uint8_t>(v >> (8 * i)));
+}
+std::uint64_t get_le(std::span<const std::uint8_t> b) {
+  std::uint64_t v = 0;
+  for (std::size_t i = 0; i < b.size(); ++i) v |= static_cast<std::uint64_t>(b[i]) << (8 * i);
+  return v;
+}
+
+// The line in tokens: whitespace separates; a token opened by '"' runs to its closing quote
+// ("" inside is one quote); '#' where a token would start ends the line (a comment).
+struct Token {
+  std::string text;
+  bool quoted = false;
+  std::size_t begin = 0;  // offset in the line (for the rest of a vs value)
+};
+bool tokenize(std::string_view line, std::vector<Token>& out, std::string& error) {
+  std::size_t i = 0;
+  while (i < line.size()) {
+    if (std::isspace(static_cast<unsigned char>(line[i]))) {
+      ++i;
+      continue;
+    }
+    if (line[i] == '#') break;
+    Token t;
+    t.begin = i;
+    if (line[i] == '"') {
+      t.quoted = true;
+      ++i;
+      bool closed = false;
+      while (i < line.size()) {
+        if (line[i] == '"') {
+          if (i + 1 < line.size() && line[i + 1] == '"') {
+            t.text += '"';
+            i += 2;
+            continue;
+          }
+          ++i;
+          closed = true;
+          break;
+        }
+        t.text += line[i++];
+      }
+      if (!closed) {
+        error = "a string opened with \" is not closed";
+        return false;
+      }
+    } else {
+      while (i < line.size() && !std::isspace(static_cast<unsigned char>(line[i]))) t.text += line[i++];
+    }
+    out.push_back(std::move(t));
+  }
+  return true;
+}
+
+bool is_number_token(const Token& t) {
+  return !t.quoted && !t.text.empty() && std::isdigit(static_cast<unsigned char>(t.text[0]));
+}
+
+}  // namespace
+
+std::string_view to_string(GatewayError e) {
+  switch (e) {
+    case GatewayError::None: return "No error";
+    case GatewayError::RequestNotSupported: return "Request not supported";
+    case GatewayError::Syntax: return "Syntax error";
+    case GatewayError::InternalState: return "Request not processed due to internal state";
+    case GatewayError::Timeout: return "Time-out";
+    case GatewayError::NoDefaultNet: return "No default net set";
+    case GatewayError::NoDefaultNode: return "No default node set";
+    case GatewayError::UnsupportedNet: return "Unsupported net";
+    case GatewayError::UnsupportedNode: return "Unsupported node";
+  }
+  return "Unknown error";
+}
+
+std::optional<DataType> parse_type(std::string_view name) {
+  const std::string n = lower(name);
+  for (const auto& r : kTypes)
+    if (r.name == n) return r.type;
+  return std::nullopt;
+}
+std::string_view to_string(DataType t) { return row(t).name; }
+std::size_t size_of(DataType t) { return row(t).size; }
+std::string type_names() {
+  std::string out;
+  for (const auto& r : kTypes) out += (out.empty() ? "" : ", ") + std::string(r.name);
+  return out;
+}
+
+std::optional<std::vector<std::uint8_t>> encode(DataType t, std::string_view text, std::string& error) {
+  std::vector<std::uint8_t> out;
+  const std::size_t size = size_of(t);
+  if (t == DataType::VS) return std::vector<std::uint8_t>(text.begin(), text.end());
+  if (t == DataType::OS || t == DataType::D) {
+    auto b = base64_decode(text);
+    if (!b) error = fmt::format("'{}' is no MIME Base64 text (RFC 2045), as {} values are written", text, to_string(t));
+    return b;
+  }
+  if (t == DataType::R32 || t == DataType::R64) {
+    double v = 0;
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+    if (text.empty() || ec != std::errc{} || end != text.data() + text.size()) {
+      error = fmt::format("'{}' is no {} value (a number such as 1.5 or -2e3)", text, to_string(t));
+      return std::nullopt;
+    }
+    if (t == DataType::R32) {
+      if (std::isfinite(v) && std::fabs(v) > std::numeric_limits<float>::max()) {
+        error = fmt::format("{} is out of range for r32", text);
+        return std::nullopt;
+      }
+      const auto f = static_cast<float>(v);
+      std::uint32_t bits = 0;
+      std::memcpy(&bits, &f, 4);
+      put_le(out, bits, 4);
+    } else {
+      std::uint64_t bits = 0;
+      std::memcpy(&bits, &v, 8);
+      put_le(out, bits, 8);
+    }
+    return out;
+  }
+  const auto n = parse_number(text);
+  if (!n) {
+    error = fmt::format("'{}' is no {} value (a number such as 5, -5 or 0x1F)", text, to_string(t));
+    return std::nullopt;
+  }
+  const unsigned bits = static_cast<unsigned>(size * 8);
+  if (is_unsigned(t)) {
+    const std::uint64_t max = t == DataType::B ? 1 : bits == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << bits) - 1;
+    if ((n->negative && n->magnitude != 0) || n->magnitude > max) {
+      error = fmt::format("{} is out of range for {} (0..{})", text, to_string(t), max);
+      return std::nullopt;
+    }
+    put_le(out, n->magnitude, size);
+    return out;
+  }
+  // Signed: −2^(bits−1) .. 2^(bits−1)−1.
+  const std::uint64_t max_pos = (std::uint64_t{1} << (bits - 1)) - 1;
+  const std::uint64_t max_neg = std::uint64_t{1} << (bits - 1);
+  if (n->negative ? n->magnitude > max_neg : n->magnitude > max_pos) {
+    error = fmt::format("{} is out of range for {} (-{}..{})", text, to_string(t), max_neg, max_pos);
+    return std::nullopt;
+  }
+  const std::uint64_t v = n->negative ? (~n->magnitude + 1) : n->magnitude;
+  put_le(out, v, size);
+  return out;
+}
+
+std::optional<std::string> format(DataType t, std::span<const std::uint8_t> b) {
+  const std::size_t size = size_of(t);
+  if (size != 0 && b.size() != size) return std::nullopt;
+  switch (t) {
+    case DataType::VS: {
+      std::string s = "\"";
+      for (const std::uint8_t c : b) {
+        if (c == '"') s += '"';
+        s += static_cast<char>(c);
+      }
+      return s + "\"";
+    }
+    case DataType::OS:
+    case DataType::D: return base64_encode(b);
+    case DataType::B: return std::to_string(b[0] != 0 ? 1 : 0);
+    case DataType::R32: {
+      float f = 0;
+      const auto bits = static_cast<std::uint32_t>(get_le(b));
+      std::memcpy(&f, &bits, 4);
+      return fmt::format("{}", f);
+    }
+    case DataType::R64: {
+      double d = 0;
+      const std::uint64_t bits = get_le(b);
+      std::memcpy(&d, &bits, 8);
+      return fmt::format("{}", d);
+    }
+    default: break;
+  }
+  const std::uint64_t v = get_le(b);
+  if (is_signed(t)) {
+    const unsigned bits = static_cast<unsigned>(size * 8);
+    const std::int64_t s = bits == 64 ? static_cast<std::int64_t>(v)
+                                      : static_cast<std::int64_t>(v << (64 - bits)) >> (64 - bits);  // sign-extend
+    return std::to_string(s);
+  }
+  return fmt::format("0x{:0{}X}", v, size * 2);
+}
+
+namespace {
+
+Parsed error(GatewayError e, std::string message, std::optional<std::uint32_t> seq) {
+  Parsed p;
+  p.kind = Parsed::Kind::Error;
+  p.error = e;
+  p.message = std::move(message);
+  p.request.sequence = seq;
+  return p;
+}
+
+}  // namespace
+
+Parsed parse(std::string_view line, const Defaults& defaults) {
+  std::vector<Token> tokens;
+  std::string why;
+  // The sequence first, so that even a line that fails later is answered with it.
+  std::optional<std::uint32_t> seq;
+  {
+    std::size_t i = 0;
+    while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+    if (i < line.size() && line[i] == '[') {
+      const std::size_t close = line.find(']', i);
+      if (close == std::string_view::npos) return error(GatewayError::Syntax, "'[' opens a sequence number but no ']' closes it", {});
+      std::string e;
+      const auto n = parse_unsigned(line.substr(i + 1, close - i - 1), 0, 0xFFFFFFFF, "sequence number", e);
+      if (!n) return error(GatewayError::Syntax, e, {});
+      seq = static_cast<std::uint32_t>(*n);
+      line = line.substr(close + 1);
+    }
+  }
+  if (!tokenize(line, tokens, why)) return error(GatewayError::Syntax, why, seq);
+  if (tokens.empty()) {
+    if (seq) return error(GatewayError::Syntax, "a sequence number and no command", seq);
+    Parsed p;
+    return p;
+  }
+  // [[net] node]: up to two numbers before the command.
+  std::vector<std::uint64_t> prefix;
+  std::size_t k = 0;
+  for (; k < tokens.size() && is_number_token(tokens[k]); ++k) {
+    if (prefix.size() == 2) return error(GatewayError::Syntax, "more than two numbers (network and node) before the command", seq);
+    const auto n = parse_number(tokens[k].text);
+    if (!n || n->negative || n->magnitude > 0xFFFF)
+      return error(GatewayError::Syntax, fmt::format("'{}' is no network or node number", tokens[k].text), seq);
+    prefix.push_back(n->magnitude);
+  }
+  if (k == tokens.size()) return error(GatewayError::Syntax, "no command after the network and node numbers", seq);
+  const std::string cmd = lower(tokens[k].text);
+  const std::vector<Token> args(tokens.begin() + static_cast<std::ptrdiff_t>(k) + 1, tokens.end());
+
+  Parsed p;
+  p.kind = Parsed::Kind::Ok;
+  Request& r = p.request;
+  r.sequence = seq;
+
+  // The network of a network-level command ([net] set node, [net] set sdo_timeout).
+  const auto network_level = [&](const char* what) -> std::optional<Parsed> {
+    if (prefix.size() > 1) return error(GatewayError::Syntax, fmt::format("'{}' takes a network number only, not a node", what), seq);
+    if (prefix.size() == 1) {
+      if (prefix[0] < 1 || prefix[0] > 127) return error(GatewayError::UnsupportedNet, fmt::format("network {} (1..127)", prefix[0]), seq);
+      r.network = static_cast<std::uint16_t>(prefix[0]);
+    } else if (defaults.network) {
+      r.network = *defaults.network;
+    } else {
+      return error(GatewayError::NoDefaultNet, "give the network before the command or `set network N` first", seq);
+    }
+    return std::nullopt;
+  };
+  // The network and node of a node-level command ([[net] node] r/w/NMT).
+  const auto node_level = [&]() -> std::optional<Parsed> {
+    std::optional<std::uint64_t> net, node;
+    if (prefix.size() == 2) {
+      net = prefix[0];
+      node = prefix[1];
+    } else if (prefix.size() == 1) {
+      node = prefix[0];
+    }
+    if (!net && defaults.network) net = *defaults.network;
+    if (!node && defaults.node) node = *defaults.node;
+    if (!net) return error(GatewayError::NoDefaultNet, "give the network and node before the command or `set network N` first", seq);
+    if (!node) return error(GatewayError::NoDefaultNode, "give the node before the command or `set node N` first", seq);
+    if (*net < 1 || *net > 127) return error(GatewayError::UnsupportedNet, fmt::format("network {} (1..127)", *net), seq);
+    if (*node < 1 || *node > 127) return error(GatewayError::UnsupportedNode, fmt::format("node {} (1..127)", *node), seq);
+    r.network = static_cast<std::uint16_t>(*net);
+    r.node = static_cast<std::uint8_t>(*node);
+    return std::nullopt;
+  };
+  const auto arg_count = [&](std::size_t n, const char* usage) -> std::optional<Parsed> {
+    if (args.size() != n) return error(GatewayError::Syntax, fmt::format("expected {}", usage), seq);
+    return std::nullopt;
+  };
+  const auto index_sub = [&]() -> std::optional<Parsed> {
+    std::string e;
+    const auto index = parse_unsigned(args[0].text, 0, 0xFFFF, "index", e);
+    if (!index) return error(GatewayError::Syntax, e, seq);
+    const auto sub = parse_unsigned(args[1].text, 0, 0xFF, "sub-index", e);
+    if (!sub) return error(GatewayError::Syntax, e, seq);
+    r.index = static_cast<std::uint16_t>(*index);
+    r.sub = static_cast<std::uint8_t>(*sub);
+    const auto type = parse_type(args[2].text);
+    if (!type) return error(GatewayError::Syntax, fmt::format("'{}' is no data type; one of {}", args[2].text, type_names()), seq);
+    r.type = *type;
+    return std::nullopt;
+  };
+
+  if (cmd == "r" || cmd == "read") {
+    r.command = Command::Read;
+    if (auto e = node_level()) return *e;
+    if (auto e = arg_count(3, "r[ead] <index> <sub-index> <data type>")) return *e;
+    if (auto e = index_sub()) return *e;
+    return p;
+  }
+  if (cmd == "w" || cmd == "write") {
+    r.command = Command::Write;
+    if (auto e = node_level()) return *e;
+    if (args.size() < 4) return error(GatewayError::Syntax, "expected w[rite] <index> <sub-index> <data type> <value>", seq);
+    if (auto e = index_sub()) return *e;
+    std::string value;
+    if (r.type == DataType::VS && args[3].quoted) {
+      if (args.size() != 4) return error(GatewayError::Syntax, "text after the quoted vs value", seq);
+      value = args[3].text;
+    } else if (r.type == DataType::VS) {
+      // Unquoted words are one string, joined by single spaces; quote it to keep spaces.
+      for (std::size_t i = 3; i < args.size(); ++i) {
+        if (args[i].quoted) return error(GatewayError::Syntax, "a vs value is one quoted string or unquoted words", seq);
+        value += (i == 3 ? "" : " ") + args[i].text;
+      }
+    } else {
+      if (args.size() != 4) return error(GatewayError::Syntax, fmt::format("a {} value is one token; text follows '{}'", to_string(r.type), args[3].text), seq);
+      value = args[3].text;
+    }
+    std::string e;
+    auto data = encode(r.type, value, e);
+    if (!data) return error(GatewayError::Syntax, e, seq);
+    r.data = std::move(*data);
+    return p;
+  }
+  const struct {
+    const char* word;
+    const char* second;  // nullptr: none
+    Command command;
+  } nmt[] = {{"start", nullptr, Command::Start},
+             {"stop", nullptr, Command::Stop},
+             {"preop", nullptr, Command::PreOperational},
+             {"preoperational", nullptr, Command::PreOperational},
+             {"reset", "node", Command::ResetNode},
+             {"reset", "comm", Command::ResetCommunication},
+             {"reset", "communication", Command::ResetCommunication}};
+  for (const auto& n : nmt) {
+    if (cmd != n.word) continue;
+    if (n.second != nullptr && (args.empty() || lower(args[0].text) != n.second)) continue;
+    r.command = n.command;
+    if (!prefix.empty() && prefix.back() == 0)
+      return error(GatewayError::RequestNotSupported, "node 0 (all nodes): name each node", seq);
+    if (auto e = node_level()) return *e;
+    if (args.size() != (n.second != nullptr ? 1u : 0u)) return error(GatewayError::Syntax, fmt::format("text after '{}'", cmd), seq);
+    return p;
+  }
+  if (cmd == "reset") return error(GatewayError::Syntax, "expected `reset node` or `reset comm[unication]`", seq);
+  if (cmd == "set") {
+    if (args.empty()) return error(GatewayError::Syntax, "expected set network|node|sdo_timeout <value>", seq);
+    const std::string what = lower(args[0].text);
+    if (args.size() != 2) return error(GatewayError::Syntax, fmt::format("expected set {} <value>", what), seq);
+    std::string e;
+    if (what == "network") {
+      r.command = Command::SetNetwork;
+      if (!prefix.empty()) return error(GatewayError::Syntax, "`set network` takes no network or node before it", seq);
+      const auto v = parse_unsigned(args[1].text, 1, 127, "network", e);
+      if (!v) return error(GatewayError::Syntax, e, seq);
+      r.value = static_cast<std::uint32_t>(*v);
+      return p;
+    }
+    if (what == "node") {
+      r.command = Command::SetNode;
+      if (auto err = network_level("set node")) return *err;
+      const auto v = parse_unsigned(args[1].text, 1, 127, "node", e);
+      if (!v) return error(GatewayError::Syntax, e, seq);
+      r.value = static_cast<std::uint32_t>(*v);
+      return p;
+    }
+    if (what == "sdo_timeout") {
+      r.command = Command::SetSdoTimeout;
+      if (auto err = network_level("set sdo_timeout")) return *err;
+      const auto v = parse_unsigned(args[1].text, 1, 0xFFFF, "SDO time-out in ms", e);
+      if (!v) return error(GatewayError::Syntax, e, seq);
+      r.value = static_cast<std::uint32_t>(*v);
+      return p;
+    }
+    return error(GatewayError::RequestNotSupported, fmt::format("`set {}`; this gateway has set network, set node, set sdo_timeout", what), seq);
+  }
+  if (cmd == "info") {
+    r.command = Command::InfoVersion;
+    if (args.size() != 1 || lower(args[0].text) != "version")
+      return error(GatewayError::RequestNotSupported, "`info` has `info version` only", seq);
+    if (!prefix.empty()) return error(GatewayError::Syntax, "`info version` takes no network or node before it", seq);
+    return p;
+  }
+  return error(GatewayError::RequestNotSupported,
+               fmt::format("no command '{}'; this gateway has r[ead], w[rite], start, stop, preop[erational], reset node, "
+                           "reset comm[unication], set network, set node, set sdo_timeout, info version",
+                           tokens[k].text),
+               seq);
+}
+
+std::string answer_ok(std::uint32_t seq) { return fmt::format("[{}] OK", seq); }
+std::string answer_value(std::uint32_t seq, const std::string& value) { return fmt::format("[{}] {}", seq, value); }
+std::string answer_abort(std::uint32_t seq, SdoAbortCode code) {
+  return fmt::format("[{}] ERROR: {:08X} ({})", seq, static_cast<std::uint32_t>(code), to_string(code));
+}
+std::string answer_error(std::uint32_t seq, GatewayError e, const std::string& detail) {
+  return fmt::format("[{}] ERROR: {} ({}{}{})", seq, static_cast<int>(e), to_string(e), detail.empty() ? "" : ": ", detail);
+}
+
+std::string boot_up_event(std::uint16_t network, std::uint8_t node) { return fmt::format("{} {} BOOT_UP", network, node); }
+std::string emcy_event(std::uint16_t network, std::uint8_t node, std::uint16_t code, std::uint8_t error_register,
+                       std::span<const std::uint8_t, 5> m) {
+  return fmt::format("{} {} EMCY {:04X} {:02X} {} {} {} {} {}", network, node, code, error_register, m[0], m[1], m[2], m[3], m[4]);
+}
+
+namespace {
+constexpr std::string_view kAlphabet = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+}
+
+std::string base64_encode(std::span<const std::uint8_t> b) {
+  std::string out;
+  for (std::size_t i = 0; i < b.size(); i += 3) {
+    const std::size_t n = std::min<std::size_t>(3, b.size() - i);
+    std::uint32_t v = static_cast<std::uint32_t>(b[i]) << 16;
+    if (n > 1) v |= static_cast<std::uint32_t>(b[i + 1]) << 8;
+    if (n > 2) v |= b[i + 2];
+    for (std::size_t k = 0; k < 4; ++k) out += k <= n ? kAlphabet[(v >> (18 - 6 * k)) & 0x3F] : '=';
+  }
+  return out;
+}
+
+std::optional<std::vector<std::uint8_t>> base64_decode(std::string_view t) {
+  if (t.size() % 4 != 0) return std::nullopt;
+  std::vector<std::uint8_t> out;
+  for (std::size_t i = 0; i < t.size(); i += 4) {
+    std::uint32_t v = 0;
+    std::size_t pad = 0;
+    for (std::size_t k = 0; k < 4; ++k) {
+      const char c = t[i + k];
+      if (c == '=' && i + 4 == t.size() && k >= 2) {
+        ++pad;
+        v <<= 6;
+        continue;
+      }
+      const auto pos = kAlphabet.find(c);
+      if (pos == std::string_view::npos || pad != 0) return std::nullopt;
+      v = (v << 6) | static_cast<std::uint32_t>(pos);
+    }
+    out.push_back(static_cast<std::uint8_t>(v >> 16));
+    if (pad < 2) out.push_back(static_cast<std::uint8_t>(v >> 8));
+    if (pad < 1) out.push_back(static_cast<std::uint8_t>(v));
+  }
+  return out;
+}
+
+}  // namespace oegw::canopen::ascii

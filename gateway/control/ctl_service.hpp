@@ -1,0 +1,65 @@
+// The control socket's commands for `oegw ctl` (issue 16; PROTOCOL.md "`oegw ctl`'s commands"):
+// SDO reads and writes, NMT, the gateway's identity and the event lines, on the running Gateway.
+// The CiA 309-3 text is the client's (canopen/309/ascii_gateway.hpp); here are its effects.
+//
+//  * Networks are the mapping file's: upstream.network_id names the gateway's own dictionary
+//    (only the gateway's node-ID is reached there), downstream.network_id the sub-devices.
+//  * Downstream SDO goes through the Gateway's RemoteSdo, the same object and the same policy as
+//    the host's remote SDO (gateway/remote_sdo.hpp): the gateway's own boot and configuration come
+//    first (0800 0022h), a write that would break the FE translation is refused (0800 0021h), a
+//    missing node 0606 0000h, a node no sub-device 0609 0011h, the sub-device's own aborts passed
+//    on. There is no second policy here.
+//  * Upstream SDO reads and writes the gateway's own dictionary as its SDO server does
+//    (ObjectDictionary::read/write with Origin::Sdo: existence, access, length, limits, hooks).
+//  * A request's `timeout_ms` (`set sdo_timeout`) ends a transfer still running after that long
+//    with 0504 0000h (the downstream SDO client's own time-out, downstream.sdo_timeout_ms,
+//    ends it earlier when shorter).
+//  * Events: every boot-up and EMCY on the downstream bus, numbered; a client asks for those
+//    after the last number it saw (`events`). The last kMaxEvents are kept.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "canopen/io/event_loop.hpp"
+#include "gateway/control/control_protocol.hpp"
+#include "gateway/gateway.hpp"
+#include "mapping/config.hpp"
+
+namespace oegw::gateway {
+
+class CtlService {
+ public:
+  static constexpr std::size_t kMaxEvents = 256;
+  static constexpr std::uint32_t kMaxTimeoutMs = 65535;
+
+  // Adds sdo_read, sdo_write, nmt, info and events to `protocol`. `rearm`: called after a
+  // command has acted on the gateway (its next deadline may have changed).
+  CtlService(canopen::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
+             std::function<void()> rearm);
+  ~CtlService();  // cancels the transfers still running
+  CtlService(const CtlService&) = delete;
+  CtlService& operator=(const CtlService&) = delete;
+
+ private:
+  struct Transfer;
+  void sdo(const nlohmann::json& request, bool write, ControlProtocol::Done done);
+  nlohmann::json nmt(const nlohmann::json& request);
+  nlohmann::json info() const;
+  nlohmann::json events(const nlohmann::json& request) const;
+  void record(nlohmann::json event);
+
+  canopen::EventLoop& loop_;
+  Gateway& gw_;
+  const mapping::Config& config_;
+  std::function<void()> rearm_;
+  std::vector<std::shared_ptr<Transfer>> transfers_;
+  std::deque<nlohmann::json> events_;
+  std::uint64_t next_event_ = 1;
+};
+
+}  // namespace oegw::gateway

@@ -1,0 +1,274 @@
+// `oegw ctl` against a Gateway with simulators on the virtual buses (issue 16): the CiA 309-3
+// session (gateway/control/ctl_command.hpp) asks the control protocol with the ctl commands
+// (ctl_service.hpp) in process — the same JSON lines the socket carries — and the downstream
+// frames each command causes are judged frame by frame. Expected values come from the
+// simulators' dictionaries (written from the manufacturers' documents), never from the gateway.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+
+#include "canopen/io/clock.hpp"
+#include "canopen/io/event_loop.hpp"
+#include "canopen/io/virtual_bus.hpp"
+#include "gateway/control/control_protocol.hpp"
+#include "gateway/control/ctl_command.hpp"
+#include "gateway/control/ctl_service.hpp"
+#include "gateway/gateway.hpp"
+#include "programs/cab_rig.hpp"
+#include "subdevices/sim/novotechnik_406_sim.hpp"
+#include "subdevices/sim/sim_bench.hpp"
+#include "tests/fixtures/fixtures.hpp"
+
+using namespace oegw::canopen;
+using namespace std::chrono_literals;
+namespace gw = oegw::gateway;
+namespace sd = oegw::subdevices;
+
+namespace {
+
+using Frames = std::vector<std::pair<std::uint32_t, std::vector<std::uint8_t>>>;
+constexpr std::uint8_t kPedal = 0x30, kKnob = 0x7F;
+
+class Ctl : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    auto loaded = oegw::mapping::load_config_text(oegw::fixtures::mapping_file("demo_cab.yaml"), "ctl.yaml",
+                                                  gw::driver_catalogue());
+    ASSERT_TRUE(loaded.ok()) << loaded.error_text();
+    config_ = std::move(*loaded.config);
+    store_ = std::filesystem::path(::testing::TempDir()) / fmt::format("ctl_{}.store", ::getpid());
+    std::filesystem::remove(store_);
+    rig_ = std::make_unique<gw::CabRig>(config_, loop_, gw::CabRigOptions{.store = store_});
+    rig_->down().set_tap([this](const BusRecord& r) { down_.push_back(r.frame); });
+    rig_->to_devices = [this](const CanFrame& f) { return drop_to_devices_ && drop_to_devices_(f); };
+    rig_->to_gateway_down = [this](const CanFrame& f) { return drop_to_gateway_ && drop_to_gateway_(f); };
+    rig_->on_gateway = [this](gw::Gateway& g) { g.on_log = [this](const std::string& l) { log_ += l + "\n"; }; };
+    rig_->build();
+    rig_->power_on();
+    rig_->run_for(3s);
+    for (const auto& n : rig_->gw().downstream().names())
+      ASSERT_EQ(rig_->gw().downstream().state(n), sd::NodeState::Operational) << n << "\n" << log_;
+    service_ = std::make_unique<gw::CtlService>(loop_, rig_->gw(), config_, protocol_, [this] { rig_->rearm(); });
+    // The session asks the protocol as the socket would, and the loop runs until the answer.
+    session_ = std::make_unique<gw::CtlSession>(
+        [this](const std::string& line, std::chrono::milliseconds) {
+          std::optional<std::string> answer;
+          protocol_.answer(line, [&answer](std::string a) { answer = std::move(a); });
+          for (int i = 0; i < 5000 && !answer; ++i) rig_->run_for(1ms);
+          return answer ? gw::AskResult{gw::AskStatus::Ok, *answer} : gw::AskResult{gw::AskStatus::Timeout, "no answer"};
+        },
+        "0.1.0", 10s);
+    ASSERT_EQ(session_->poll_events().lines, std::vector<std::string>{});
+  }
+  void TearDown() override {
+    session_.reset();
+    service_.reset();
+    rig_.reset();
+    std::filesystem::remove(store_);
+  }
+
+  // One command's answer line; the downstream frames it caused are in frames_since().
+  std::string run(const std::string& line) {
+    mark_ = down_.size();
+    const auto o = session_->execute(line);
+    EXPECT_EQ(o.fatal, 0) << o.why;
+    EXPECT_EQ(o.lines.size(), 1u) << line;
+    rig_->run_for(5ms);  // the frames a command sent without waiting for an answer (NMT) reach the bus
+    return o.lines.empty() ? "" : o.lines[0];
+  }
+  // Runs until the network manager holds `name` in `state` (at most 3 s).
+  void until(const char* name, sd::NodeState state) {
+    for (int i = 0; i < 3000 && rig_->gw().downstream().state(name) != state; ++i) rig_->run_for(1ms);
+    ASSERT_EQ(rig_->gw().downstream().state(name), state) << name << "\n" << log_;
+  }
+  // The frames with these COB-IDs since the last command (all SDO traffic of one node).
+  Frames frames_since(std::initializer_list<std::uint32_t> ids) const {
+    Frames out;
+    for (std::size_t i = mark_; i < down_.size(); ++i)
+      if (std::find(ids.begin(), ids.end(), down_[i].id) != ids.end())
+        out.emplace_back(down_[i].id, std::vector<std::uint8_t>(down_[i].data.begin(), down_[i].data.begin() + down_[i].dlc));
+    return out;
+  }
+  std::uint32_t sim_u32(const char* device, std::uint16_t index, std::uint8_t sub) {
+    return rig_->devices().device(device)->od().get<std::uint32_t>(index, sub);
+  }
+  static std::vector<std::uint8_t> le32(std::uint32_t v) {
+    return {static_cast<std::uint8_t>(v), static_cast<std::uint8_t>(v >> 8), static_cast<std::uint8_t>(v >> 16),
+            static_cast<std::uint8_t>(v >> 24)};
+  }
+
+  SimulatedClock clock_;
+  EventLoop loop_{clock_};
+  oegw::mapping::Config config_;
+  std::filesystem::path store_;
+  std::unique_ptr<gw::CabRig> rig_;
+  gw::ControlProtocol protocol_;
+  std::unique_ptr<gw::CtlService> service_;
+  std::unique_ptr<gw::CtlSession> session_;
+  std::function<bool(const CanFrame&)> drop_to_devices_, drop_to_gateway_;
+  std::vector<CanFrame> down_;
+  std::size_t mark_ = 0;
+  std::string log_;
+};
+
+TEST_F(Ctl, ReadsASubDevicesIdentityFrameByFrame) {
+  const std::uint32_t vendor = sim_u32("right_grip", 0x1018, 1);
+  // lely coctl.md's session, on the mapping file's downstream network 2.
+  EXPECT_EQ(run("[1] set network 2"), "[1] OK");
+  EXPECT_EQ(run("[2] set node 17"), "[2] OK");
+  EXPECT_EQ(run("[3] r 0x1018 0x01 u32"), fmt::format("[3] 0x{:08X}", vendor));
+  // One expedited upload on the node's default SDO channel (CiA 301 §7.2.4.3.6): request
+  // 40h 1018h:01 on 600h + 11h, answer 43h with the four bytes on 580h + 11h. Nothing else.
+  std::vector<std::uint8_t> answer{0x43, 0x18, 0x10, 0x01};
+  for (const auto b : le32(vendor)) answer.push_back(b);
+  EXPECT_EQ(frames_since({0x611, 0x591}),
+            (Frames{{0x611, {0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0}}, {0x591, answer}}));
+  // Net and node on the line, and a string (1008h, segmented upload) of the Novotechnik sensor.
+  const auto name = rig_->devices().device("seat_knob")->od().find(0x1008)->find(0)->value;
+  EXPECT_EQ(run("[4] 2 127 r 0x1008 0 vs"), "[4] \"" + std::string(name.begin(), name.end()) + "\"");
+  // A type whose size does not fit the object: lely's 0607 0010h.
+  EXPECT_EQ(run("[5] 2 17 r 0x1018 1 u16"),
+            "[5] ERROR: 06070010 (" + std::string(to_string(SdoAbortCode::LengthMismatch)) + ")");
+}
+
+TEST_F(Ctl, WritesAnAllowedObjectAndIsRefusedAProtectedOne) {
+  // elobau 5001h (a parameter the gateway does not configure): carried out.
+  EXPECT_EQ(run("[1] 2 17 w 0x5001 0 u16 30"), "[1] OK");
+  EXPECT_EQ(rig_->devices().device("right_grip")->od().get<std::uint16_t>(0x5001, 0), 30);
+  EXPECT_EQ(frames_since({0x611, 0x591}),
+            (Frames{{0x611, {0x2B, 0x01, 0x50, 0x00, 30, 0, 0, 0}}, {0x591, {0x60, 0x01, 0x50, 0x00, 0, 0, 0, 0}}}));
+  EXPECT_EQ(run("[2] 2 17 r 0x5001 0 u16"), "[2] 0x001E");
+  // TPDO 1's COB-ID: the gateway configured it and its FEs use the grip (gateway/remote_sdo.hpp):
+  // refused with 0800 0021h, and not a frame goes to the node.
+  const std::uint32_t cob = sim_u32("right_grip", 0x1800, 1);
+  EXPECT_EQ(run("[3] 2 17 w 0x1800 1 u32 0x80000191"),
+            "[3] ERROR: 08000021 (" + std::string(to_string(SdoAbortCode::CannotTransferLocalControl)) + ")");
+  EXPECT_EQ(frames_since({0x611, 0x591}), Frames{});
+  EXPECT_EQ(sim_u32("right_grip", 0x1800, 1), cob);
+  EXPECT_EQ(run("[4] 2 17 w 0x1017 0 u16 0"),
+            "[4] ERROR: 08000021 (" + std::string(to_string(SdoAbortCode::CannotTransferLocalControl)) + ")");
+  // The same mechanism as the host's remote SDO: counted as refused for that sub-device.
+  EXPECT_EQ(rig_->gw().subdevice_refused_commands("right_grip"), 2u);
+}
+
+TEST_F(Ctl, NodesTheGatewayDoesNotServe) {
+  // A node-ID no sub-device has: RemoteSdo's 0609 0011h, nothing on the bus.
+  EXPECT_EQ(run("[1] 2 5 r 0x1000 0 u32"),
+            "[1] ERROR: 06090011 (" + std::string(to_string(SdoAbortCode::SubIndexDoesNotExist)) + ")");
+  EXPECT_EQ(frames_since({0x605, 0x585}), Frames{});
+  // A network the mapping file does not have.
+  EXPECT_EQ(run("[2] 9 17 r 0x1000 0 u32"),
+            "[2] ERROR: 106 (Unsupported net: network 9: this gateway has 1 (upstream, its own dictionary) and 2 "
+            "(downstream, the sub-devices))");
+  // The host's bus holds only the gateway itself.
+  EXPECT_EQ(run("[3] 1 5 r 0x1000 0 u32"),
+            "[3] ERROR: 107 (Unsupported node: network 1 is the host's bus: only the gateway itself, node 32, is reached "
+            "there)");
+  // A sub-device whose heartbeat is lost: 0606 0000h, no request sent to it.
+  drop_to_gateway_ = [](const CanFrame& f) { return (f.id & 0x7F) == kKnob; };
+  until("seat_knob", sd::NodeState::Missing);
+  EXPECT_EQ(run("[4] 2 127 r 0x1000 0 u32"),
+            "[4] ERROR: 06060000 (" + std::string(to_string(SdoAbortCode::HardwareError)) + ")");
+  EXPECT_EQ(frames_since({0x67F}), Frames{});
+  // Then the gateway boots it again: its own boot comes first, 0800 0022h.
+  until("seat_knob", sd::NodeState::WaitingBootUp);
+  EXPECT_EQ(run("[5] 2 127 w 0x2100 0 u8 1"),
+            "[5] ERROR: 08000022 (" + std::string(to_string(SdoAbortCode::CannotTransferDeviceState)) + ")");
+  EXPECT_EQ(frames_since({0x67F}), Frames{});
+}
+
+TEST_F(Ctl, TheGatewaysOwnDictionaryUpstream) {
+  auto& od = rig_->gw().upstream().od();
+  EXPECT_EQ(run("[1] 1 32 r 0x1018 1 u32"), fmt::format("[1] 0x{:08X}", od.get<std::uint32_t>(0x1018, 1)));
+  EXPECT_EQ(run("[2] 1 32 r 0x1000 0 u32"), fmt::format("[2] 0x{:08X}", od.get<std::uint32_t>(0x1000, 0)));
+  // As its SDO server: a read-only object, an object it has not, a wrong length.
+  EXPECT_EQ(run("[3] 1 32 w 0x1000 0 u32 1"),
+            "[3] ERROR: 06010002 (" + std::string(to_string(SdoAbortCode::WriteOfReadOnly)) + ")");
+  EXPECT_EQ(run("[4] 1 32 r 0x5FFF 0 u8"),
+            "[4] ERROR: 06020000 (" + std::string(to_string(SdoAbortCode::ObjectDoesNotExist)) + ")");
+  EXPECT_EQ(run("[5] 1 32 w 0x1017 0 u16 250"), "[5] OK");
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 250);
+  EXPECT_EQ(run("[6] 1 32 w 0x1017 0 u32 250"),
+            "[6] ERROR: 06070012 (" + std::string(to_string(SdoAbortCode::LengthTooHigh)) + ")");
+  // Nothing of this reached the sub-devices' bus.
+  EXPECT_EQ(frames_since({0x600 + 0x20, 0x580 + 0x20}), Frames{});
+  const std::string info = run("[7] info version");
+  EXPECT_EQ(info, fmt::format("[7] {} {} {}.{} {} 3 3.0 0.1", od.get<std::uint32_t>(0x1018, 1), od.get<std::uint32_t>(0x1018, 2),
+                              od.get<std::uint32_t>(0x1018, 3) >> 16, od.get<std::uint32_t>(0x1018, 3) & 0xFFFF,
+                              od.get<std::uint32_t>(0x1018, 4)));
+}
+
+TEST_F(Ctl, NmtAndTheBootUpEvent) {
+  EXPECT_EQ(run("[1] 2 48 reset node"), "[1] OK");
+  // The reset node frame (CiA 301 §7.2.8.3.1.1: 81h, node-ID); what follows within the 5 ms
+  // run() waits is the gateway's own boot of the pedal answering its boot-up.
+  const Frames nmt = frames_since({0x000});
+  ASSERT_FALSE(nmt.empty());
+  EXPECT_EQ(nmt[0], (std::pair<std::uint32_t, std::vector<std::uint8_t>>{0x000, {0x81, kPedal}}));
+  rig_->run_for(2s);
+  const auto events = session_->poll_events();
+  EXPECT_NE(std::find(events.lines.begin(), events.lines.end(), "2 48 BOOT_UP"), events.lines.end())
+      << ::testing::PrintToString(events.lines);
+  // The gateway boots it again (its reboot seen) and it is operational once more.
+  EXPECT_EQ(rig_->gw().downstream().state("pedal"), sd::NodeState::Operational) << log_;
+  // Stop of a sub-device in use is carried out, and the gateway sees it lost: its FEs at their
+  // fault values (README "Fault policy"), as with any NMT master's stop.
+  EXPECT_EQ(run("[5] 2 17 stop"), "[5] OK");
+  const Frames stop = frames_since({0x000});
+  ASSERT_FALSE(stop.empty());
+  EXPECT_EQ(stop[0], (std::pair<std::uint32_t, std::vector<std::uint8_t>>{0x000, {0x02, 0x11}}));
+  rig_->run_for(500ms);
+  EXPECT_NE(rig_->gw().downstream().state("right_grip"), sd::NodeState::Operational) << log_;
+  EXPECT_EQ(rig_->gw().faults().count("right_grip"), 1u) << log_;
+  // NMT to the gateway's own bus is the host's business.
+  EXPECT_EQ(run("[2] 1 32 stop"),
+            "[2] ERROR: 100 (Request not supported: network 1 is the host's bus: the gateway's own NMT state is its NMT "
+            "master's)");
+  EXPECT_EQ(frames_since({0x000}), Frames{});
+  // Start of a node the gateway holds as missing: refused, it starts only what it booted.
+  drop_to_gateway_ = [](const CanFrame& f) { return (f.id & 0x7F) == kKnob; };
+  until("seat_knob", sd::NodeState::Missing);
+  EXPECT_EQ(run("[3] 2 127 start"),
+            "[3] ERROR: 102 (Request not processed due to internal state: seat_knob is missing: the gateway starts it "
+            "itself once its boot succeeds (reset node boots it again))");
+  EXPECT_EQ(frames_since({0x000}), Frames{});
+  // While the gateway boots it again, no NMT of the tool may cut in.
+  until("seat_knob", sd::NodeState::WaitingBootUp);
+  EXPECT_EQ(run("[4] 2 127 stop"),
+            "[4] ERROR: 102 (Request not processed due to internal state: seat_knob is being booted by the gateway "
+            "(waiting for boot-up); try again when it is operational)");
+  EXPECT_EQ(frames_since({0x000}), Frames{});
+}
+
+TEST_F(Ctl, EmcyEventLine) {
+  auto& knob = dynamic_cast<sd::sim::Novotechnik406Sim&>(*rig_->devices().device("seat_knob"));
+  knob.inject_fault(sd::sim::Novotechnik406Sim::Fault::Overflow, loop_.now());
+  rig_->run_for(100ms);
+  const auto events = session_->poll_events();
+  ASSERT_EQ(events.lines.size(), 1u) << ::testing::PrintToString(events.lines);
+  // lely's layout: net node EMCY code register and the five manufacturer bytes (decimal); the
+  // Novotechnik document's overflow EMCY 5051h/1/1.
+  EXPECT_EQ(events.lines[0].substr(0, 16), "2 127 EMCY 5051 ");
+  EXPECT_EQ(session_->poll_events().lines, std::vector<std::string>{});  // each event once
+}
+
+TEST_F(Ctl, TheSdoTimeoutEndsATransferTheNodeDoesNotAnswer) {
+  EXPECT_EQ(run("[1] 2 set sdo_timeout 50"), "[1] OK");
+  drop_to_devices_ = [](const CanFrame& f) { return f.id == 0x611; };
+  const TimePoint before = loop_.now();
+  EXPECT_EQ(run("[2] 2 17 r 0x1018 1 u32"), "[2] ERROR: 05040000 (" + std::string(to_string(SdoAbortCode::Timeout)) + ")");
+  EXPECT_LT(loop_.now() - before, 100ms);
+  // The transfer was aborted on the bus (the node may have seen part of it) and the next one works.
+  drop_to_devices_ = nullptr;
+  EXPECT_EQ(run("[3] 2 17 r 0x1018 1 u32"), fmt::format("[3] 0x{:08X}", sim_u32("right_grip", 0x1018, 1)));
+}
+
+}  // namespace

@@ -1,0 +1,97 @@
+#!/bin/bash
+# Guest test (vm_ctl, issue 16 item 1): `oegw ctl` outside in. `oegw run` with
+# tests/fixtures/vm_gateway.yaml (downstream vcan1, its control socket at the default path), the
+# cab devices as `oegw-sim` processes on vcan1; `oegw ctl` is a third process that reads 1018h:01
+# of the elobau grip, writes an elobau parameter (5001h) and reads it back, and is refused the
+# grip's TPDO1 COB-ID (1800h:01: the gateway configured it and its FEs use the grip) with
+# 0800 0021h, exiting 1 at that ERROR (--exit). candump on vcan1, an independent peer, judges the
+# frames: the values `oegw ctl` printed are those the grip's SDO answers carried, and no request
+# for 1800h ever reached the bus. Then: no daemon → exit 3.
+# Args: OEGW OEGW_SIM SOURCE_DIR
+set -uo pipefail
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+# shellcheck source=lib.sh
+. "$here/lib.sh"
+oegw=$1
+sim=$2
+src=$3
+dir=/run/oegw-ctl
+
+prepare_gateway_run vm_gateway.yaml "$src" "$dir" "$oegw"
+rc=$?
+((rc == 0)) && pass "oegw check: valid" || fail "oegw check exit $rc: $(cat /tmp/check.out)"
+start_candump vcan1 /tmp/down.dump || fail "candump vcan1 did not start"
+receivers=$(can_receivers vcan1)
+"$sim" -i vcan1 --motion elobau-mfg:0x11:name=right_grip mcb402:0x03:name=left_grip \
+  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
+  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" >/tmp/sim.log 2>&1 &
+sim_pid=$!
+wait_receivers vcan1 $((receivers + 1)) 20 || fail "the simulators did not bind vcan1"
+"$oegw" run "$dir/oegw.yaml" >/tmp/gateway.log 2>&1 &
+gw_pid=$!
+all_up='len(s["subdevices"]) == 5 and all(d["network_state"] == "operational" for d in s["subdevices"])'
+if "$PY" "$here/status_wait.py" "$oegw" /tmp/status.json 120 "$all_up"; then
+  pass "every sub-device operational after $(elapsed) s"
+else
+  fail "sub-devices not operational: $(head -c 2000 /tmp/status.json)"
+fi
+
+# ---- Scripted: read the identity, write and read back an allowed object.
+printf '%s\n' '[1] set network 2' '[2] set node 17' '[3] r 0x1018 1 u32' '[4] 2 17 w 0x5001 0 u16 30' \
+  '[5] 2 17 r 0x5001 0 u16' '[6] info version' | "$oegw" ctl --exit >/tmp/ctl1.out 2>&1
+rc=$?
+sed 's/^/    ctl: /' /tmp/ctl1.out
+((rc == 0)) && pass "oegw ctl --exit: exit 0" || fail "oegw ctl --exit: exit $rc"
+grep -qxF '[1] OK' /tmp/ctl1.out && grep -qxF '[2] OK' /tmp/ctl1.out && pass "set network/node: [n] OK" || fail "set network/node answers"
+vendor=$(sed -n 's/^\[3\] 0x\([0-9A-F]\{8\}\)$/\1/p' /tmp/ctl1.out)
+[[ -n $vendor ]] && pass "1018h:01 = 0x$vendor" || fail "no [3] 0x........ answer"
+grep -qxF '[4] OK' /tmp/ctl1.out && pass "write 5001h: [4] OK" || fail "write 5001h not OK"
+grep -qxF '[5] 0x001E' /tmp/ctl1.out && pass "5001h read back: [5] 0x001E" || fail "5001h not read back as 0x001E"
+grep -qE '^\[6\] [0-9]+ 2130 1\.0 1 3 3\.0 [0-9]+\.[0-9]+$' /tmp/ctl1.out && pass "info version: the gateway's 1018h (852h, rev 1.0, serial 1)" ||
+  fail "info version answer"
+
+# ---- Refused: the grip's TPDO1 COB-ID; --exit ends at that ERROR with exit 1, the next line unrun.
+t_refused=$(date +%s.%N)
+printf '%s\n' '[7] 2 17 w 0x1800 1 u32 0x80000191' '[8] 2 17 r 0x1018 2 u32' | "$oegw" ctl --exit >/tmp/ctl2.out 2>&1
+rc=$?
+t_refused_end=$(date +%s.%N)
+sed 's/^/    ctl: /' /tmp/ctl2.out
+((rc == 1)) && pass "oegw ctl --exit: exit 1 at the ERROR" || fail "oegw ctl --exit after a refusal: exit $rc"
+grep -qE '^\[7\] ERROR: 08000021 \(.+\)$' /tmp/ctl2.out && pass "1800h:01: [7] ERROR: 08000021" || fail "no 0800 0021h refusal"
+grep -q '^\[8\]' /tmp/ctl2.out && fail "--exit ran the line after the ERROR" || pass "--exit ran nothing after it"
+# Without --exit every line runs, exit 0; a node no sub-device has: 0609 0011h.
+printf '%s\n' '[9] 2 5 r 0x1000 0 u32' '[10] 2 17 r 0x1018 2 u32' | "$oegw" ctl >/tmp/ctl3.out 2>&1
+rc=$?
+((rc == 0)) && grep -qE '^\[9\] ERROR: 06090011 ' /tmp/ctl3.out && grep -qE '^\[10\] 0x[0-9A-F]{8}$' /tmp/ctl3.out &&
+  pass "without --exit: [9] ERROR: 06090011, [10] answered, exit 0" || fail "without --exit (exit $rc): $(cat /tmp/ctl3.out)"
+
+# ---- candump vcan1: the SDO frames of the grip, in order.
+stop_candump
+got=$(frames /tmp/down.dump)
+expect_frame() {
+  if grep -qxF "vcan1 $1" <<<"$got"; then pass "candump vcan1: $1 ($2)"; else fail "candump vcan1 lacks $1 ($2)"; fi
+}
+v=${vendor:-00000000}
+expect_frame '611#4018100100000000' "upload request 1018h:01"
+expect_frame "591#43181001${v:6:2}${v:4:2}${v:2:2}${v:0:2}" "its answer: the value oegw ctl printed"
+expect_frame '611#2B0150001E000000' "download 5001h = 30 (u16)"
+expect_frame '591#6001500000000000' "download confirmed"
+# The gateway wrote 1800h itself while configuring the grip (before); while `oegw ctl` asked for
+# the refused write (and --exit stopped before line 8), no SDO request went to the grip at all.
+n=$(awk -v a="$t_refused" -v b="$t_refused_end" '{ t = substr($1, 2, length($1) - 2) + 0 } t >= a && t <= b && $3 ~ /^611#/' /tmp/down.dump | wc -l)
+((n == 0)) && pass "no SDO request to the grip while 1800h was refused" || fail "$n SDO requests to the grip while 1800h was refused"
+if grep -qE '^vcan1 605#' <<<"$got"; then fail "a request to node 05h went out"; else pass "nothing sent to node 05h"; fi
+
+# ---- The gateway stops: oegw ctl finds no daemon (exit 3, as oegw status).
+kill -TERM "$gw_pid"
+wait "$gw_pid"
+rc=$?
+((rc == 0)) && pass "oegw run: SIGTERM, exit 0" || fail "oegw run exit $rc"
+echo '[11] 2 17 r 0x1018 1 u32' | "$oegw" ctl >/tmp/ctl4.out 2>&1
+rc=$?
+((rc == 3)) && pass "no daemon: exit 3 ($(head -1 /tmp/ctl4.out))" || fail "no daemon: exit $rc: $(cat /tmp/ctl4.out)"
+kill -TERM "$sim_pid" 2>/dev/null
+wait "$sim_pid" 2>/dev/null
+cp /tmp/down.dump /tmp/gateway.log /tmp/ctl*.out "${OEGW_VM_OUT:-/tmp}/" 2>/dev/null
+echo "total $(elapsed) s; $passes passed, $fails failed"
+((fails == 0))
