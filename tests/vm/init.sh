@@ -101,8 +101,10 @@ mount -t tmpfs -o mode=1777 tmpfs $r/dev/shm
 # modules of this kernel on the host root (modules-load, kmod-static-nodes),
 # no network (timesyncd), nothing to persist (random seed, journal flush,
 # machine-id commit, utmp), no first boot, no timers (apt-daily would start
-# apt), no binfmt, pstore, repart, TPM (pcrphase), sysusers. journald and the
-# rest of sysinit.target run as on the cab controller.
+# apt), no binfmt, pstore, repart, TPM (pcrphase), sysusers, no fstab to
+# remount, no debug/tracing/config/fuse/hugepage file systems (each a unit
+# start: under TCG on a busy host they cost seconds). journald, sysctl,
+# tmpfiles and the rest of sysinit.target run as on the cab controller.
 boot_systemd() {
   u=$r/etc/systemd/system
   mkdir -p $u $r/run/oegw-vm $r/etc/tmpfiles.d || fail "cannot write units to $u"
@@ -118,7 +120,9 @@ boot_systemd() {
            systemd-random-seed.service systemd-repart.service systemd-pcrphase.service \
            systemd-pcrphase-sysinit.service systemd-sysusers.service systemd-update-utmp.service \
            ldconfig.service systemd-journal-catalog-update.service systemd-update-done.service \
-           timers.target getty.target serial-getty@ttyS0.service; do
+           timers.target getty.target serial-getty@ttyS0.service systemd-remount-fs.service \
+           modprobe@.service dev-hugepages.mount sys-kernel-debug.mount sys-kernel-tracing.mount \
+           sys-kernel-config.mount sys-fs-fuse-connections.mount; do
     rm -f $u/$m && ln -s /dev/null $u/$m || fail "mask $m"
   done
   cat >$u/oegw-vmtest.target <<EOT || fail "write oegw-vmtest.target"
