@@ -1,7 +1,7 @@
 #!/bin/bash
 # Boot the oegw test VM (qemu, TCG, no network) and run a script in it.
 #
-# Usage: tests/vm/run-in-vm.sh [--cwd DIR] [--timeout SECONDS] [--kvaser N] <guest-script> [args...]
+# Usage: tests/vm/run-in-vm.sh [--cwd DIR] [--timeout SECONDS] [--kvaser N] [--systemd] <guest-script> [args...]
 #
 # The guest sees the host's root file system read-only (as its own root, in a
 # chroot), with a writable tmpfs overlay on /tmp (host files show through,
@@ -9,6 +9,9 @@
 # --kvaser N (or OEGW_VM_KVASER=N) adds N emulated kvaser_pci boards (one
 # SJA1000 each) on one emulated CAN bus: the guest gets can0 .. can<N-1>,
 # real CAN interfaces with bit timing, down and without a bit rate.
+# --systemd (or OEGW_VM_SYSTEMD=1) boots the host's systemd as PID 1 on an
+# overlay of the host root (tmpfs upper: /etc, /var, /usr writable in the
+# guest) and runs the script as a service of it (init.sh "systemd boot").
 # <guest-script> is a path on the host (relative paths are taken from the
 # current directory); it runs with cwd = --cwd (default: the current
 # directory), under bash if it is not executable. $OEGW_VM_OUT in the guest
@@ -27,6 +30,7 @@
 #   OEGW_VM_CPU      qemu -cpu model (default max)
 #   OEGW_VM_DEBUG=1  verbose boot: kernel messages and a trace of the guest's init
 #   OEGW_VM_KVASER   number of emulated kvaser_pci CAN controllers (default 0; --kvaser)
+#   OEGW_VM_SYSTEMD=1  boot systemd as PID 1 (--systemd)
 set -uo pipefail
 
 die() { echo "run-in-vm.sh: error: $*" >&2; exit 125; }
@@ -34,18 +38,20 @@ die() { echo "run-in-vm.sh: error: $*" >&2; exit 125; }
 cwd=$PWD
 timeout_s=${OEGW_VM_TIMEOUT:-300}
 kvaser=${OEGW_VM_KVASER:-0}
+systemd=${OEGW_VM_SYSTEMD:-0}
 while (($#)); do
   case $1 in
     --cwd) cwd=${2:?--cwd needs a dir}; shift 2 ;;
     --timeout) timeout_s=${2:?--timeout needs seconds}; shift 2 ;;
     --kvaser) kvaser=${2:?--kvaser needs a number}; shift 2 ;;
+    --systemd) systemd=1; shift ;;
     --) shift; break ;;
     -h|--help) sed -n '2,/^set -u/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
     -*) die "unknown option $1" ;;
     *) break ;;
   esac
 done
-(($#)) || die "usage: run-in-vm.sh [--cwd DIR] [--timeout S] [--kvaser N] <guest-script> [args...]"
+(($#)) || die "usage: run-in-vm.sh [--cwd DIR] [--timeout S] [--kvaser N] [--systemd] <guest-script> [args...]"
 [[ $kvaser =~ ^[0-9]$ ]] || die "--kvaser / OEGW_VM_KVASER must be 0..9, not '$kvaser'"
 script=$(realpath -e -- "$1") || die "guest script $1 not found"
 shift
@@ -94,6 +100,9 @@ if [[ ${OEGW_VM_DEBUG:-0} == 1 ]]; then
 else
   append+=" quiet loglevel=1"
 fi
+# systemd as PID 1 (init.sh, which names the test's target as the default unit); a crash of
+# PID 1 reboots, which -no-reboot turns into qemu's exit.
+[[ $systemd == 1 ]] && append+=" oegw.systemd=1 systemd.crash_reboot=1"
 qemu=(qemu-system-x86_64
   -accel tcg -machine q35 -cpu "${OEGW_VM_CPU:-max}" -smp 1 -m "${OEGW_VM_MEM:-1024}"
   -nic none -no-reboot -nodefaults -display none -monitor none
