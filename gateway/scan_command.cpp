@@ -307,6 +307,7 @@ std::string draft_mapping(const sd::ScanResult& scan, const DraftSettings& setti
   out += "  interface: " + settings.upstream + "  # TODO the host's bus (oegw scan --upstream)\n";
   out += "  node_id: 0x20              # TODO the gateway's node-ID on the host's bus\n";
   out += "  bitrate: " + std::to_string(settings.bitrate) + "\n";
+  if (!settings.store.empty()) out += "  store: " + settings.store + "  # 1010h \"save\" (oegw scan --store)\n";
   out += "\ndownstream:                  # the bus scanned, the gateway is its master\n";
   out += "  interface: " + settings.downstream + "\n";
   out += "  bitrate: " + std::to_string(settings.bitrate) + "  # the scan does not measure it (oegw scan --bitrate)\n";
@@ -396,7 +397,7 @@ int run_scan(const ScanOptions& o) {
     spdlog::warn("{} frame(s) dropped by a full TX queue: nodes may be missing; scan again with a smaller --parallel",
                  port->counters().tx_dropped);
   std::fputs(scan_summary(result).c_str(), stderr);
-  const std::string draft = draft_mapping(result, {.downstream = o.interface, .upstream = o.upstream, .bitrate = o.bitrate});
+  const std::string draft = draft_mapping(result, {.downstream = o.interface, .upstream = o.upstream, .bitrate = o.bitrate, .store = o.store});
   if (o.output == "-") {
     std::fputs(draft.c_str(), stdout);
   } else {

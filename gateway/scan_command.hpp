@@ -18,6 +18,7 @@ struct ScanOptions {
   std::string output = "-";        // the draft; "-" standard output
   std::string upstream = "can0";   // the draft's upstream.interface
   std::uint32_t bitrate = 250000;  // the draft's downstream/upstream bitrate (not measured)
+  std::string store;               // the draft's upstream.store; empty: the default (not written)
   double timeout_ms = 100;         // per SDO read
   double listen_ms = 1000;         // the scan lasts at least this long (heartbeats)
   double lss_timeout_ms = 25;      // per LSS step
@@ -31,6 +32,7 @@ struct DraftSettings {
   std::string downstream = "can1";
   std::string upstream = "can0";
   std::uint32_t bitrate = 250000;
+  std::string store;  // upstream.store; empty: not written (the default /var/lib/oegw/upstream.store)
 };
 
 // The draft mapping file for what a scan found.

@@ -113,6 +113,8 @@ int main(int argc, char** argv) {
   scan_cmd->add_option("--upstream", scan.upstream, "The draft's upstream interface (default can0)");
   scan_cmd->add_option("--bitrate", scan.bitrate, "The draft's bit rate (default 250000; not measured)")
       ->check(CLI::IsMember({10000, 20000, 50000, 125000, 250000, 500000, 800000, 1000000}));
+  scan_cmd->add_option("--store", scan.store,
+                       "The draft's upstream.store (default: not written, i.e. /var/lib/oegw/upstream.store)");
   scan_cmd->add_option("--timeout", scan.timeout_ms, "SDO time-out per read, ms (default 100)")->check(CLI::Range(1.0, 10000.0));
   scan_cmd->add_option("--listen", scan.listen_ms, "The scan lasts at least this long to hear heartbeats, ms (default 1000)")
       ->check(CLI::Range(0.0, 600000.0));

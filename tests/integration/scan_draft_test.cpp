@@ -8,6 +8,8 @@
 #include <fstream>
 #include <sstream>
 
+#include <unistd.h>
+
 #include "gateway/programs.hpp"
 #include "gateway/scan_command.hpp"
 #include "subdevices/bus_scan.hpp"
@@ -49,16 +51,22 @@ class ScanDraft : public ::testing::Test {
 
   // `oegw check` on `text`, written to a file of its own.
   int check(const std::string& text, const std::string& name) {
-    const auto dir = std::filesystem::temp_directory_path() / ("oegw-scan-draft-" + std::to_string(::getpid()));
-    std::filesystem::create_directories(dir);
-    const auto file = dir / name;
+    const auto file = dir_ / name;
     std::ofstream(file) << text;
-    const int rc = gateway::run_check(file.string());
-    std::filesystem::remove_all(dir);
-    return rc;
+    return gateway::run_check(file.string());
   }
+  // The draft's settings: its upstream store in this test's folder (the default's folder,
+  // /var/lib/oegw, is made by the package, not here).
+  gateway::DraftSettings settings() const {
+    return {.downstream = "can1", .upstream = "can0", .bitrate = 250000, .store = (dir_ / "upstream.store").string()};
+  }
+  void SetUp() override { std::filesystem::create_directories(dir_); }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
 
-  testing::VirtualNetwork net_;
+  const std::filesystem::path dir_ =
+      std::filesystem::temp_directory_path() / ("oegw-scan-draft-" + std::to_string(::getpid()));
+
+  oegw::testing::VirtualNetwork net_;
   std::vector<std::unique_ptr<sd::sim::SimulatedDevice>> sims_;
 };
 
@@ -97,7 +105,7 @@ TEST_F(ScanDraft, FindsEveryFamilyNamesItAndTheDraftPassesCheck) {
                           {0x7F, "novotechnik-406"}}));
   EXPECT_FALSE(r.unconfigured);
 
-  const std::string draft = gateway::draft_mapping(r, {.downstream = "can1", .upstream = "can0", .bitrate = 250000});
+  const std::string draft = gateway::draft_mapping(r, settings());
   EXPECT_EQ(check(draft, "draft.yaml"), 0) << draft;
   // The required commissioning choice is a marked placeholder; cia401 needs its EDS: left out.
   EXPECT_NE(draft.find("button_bits: [0, 1, 2, 3, 4, 5, 6]  # TODO placeholder"), std::string::npos) << draft;
@@ -116,7 +124,7 @@ TEST_F(ScanDraft, NoNodeGivesADraftWithoutSubdevicesThatStillPassesCheck) {
   cfg.parallel = 127;
   const sd::ScanResult r = scan(cfg);
   EXPECT_TRUE(r.nodes.empty());
-  const std::string draft = gateway::draft_mapping(r, {});
+  const std::string draft = gateway::draft_mapping(r, settings());
   EXPECT_NE(draft.find("subdevices: {}"), std::string::npos);
   EXPECT_EQ(check(draft, "empty.yaml"), 0) << draft;
 }

@@ -39,7 +39,7 @@ else
 fi
 
 mark=$(wc -l </tmp/scan.dump)
-timeout 120 "$oegw" scan -i vcan1 --upstream vcan0 -o /tmp/draft.yaml 2>/tmp/scan.err
+timeout 120 "$oegw" scan -i vcan1 --upstream vcan0 --store /tmp/upstream.store -o /tmp/draft.yaml 2>/tmp/scan.err
 rc=$?
 sed 's/^/    scan: /' /tmp/scan.err
 ((rc == 0)) && pass "oegw scan exit 0" || fail "oegw scan exit $rc"
