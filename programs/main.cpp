@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include <cstdio>
 #include <string>
 #include <utility>
 #include <vector>
@@ -31,7 +32,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(0, 1);
   app.set_version_flag("--version", std::string("oegw ") + oegw::programs::kVersion + " (git " +
                                         oegw::programs::kGitRevision + ")");
-  app.footer("Exit codes: 0 done; 1 bad mapping file (or a demo step / master wait failed, or options a driver refuses in signals); 2 cannot start "
+  app.footer("Exit codes: 0 done; 1 bad mapping file (or a demo step / master wait failed, or options a driver refuses in signals, or no node found by scan); 2 cannot start "
              "(CAN interface, bit rate, publishing); 64 usage error (README \"Exit codes\").");
 
   oegw::gateway::GatewayDemoOptions demo;
@@ -110,7 +111,8 @@ int main(int argc, char** argv) {
       "scan", "Find every node on the downstream bus (before the gateway runs) and write a draft mapping file");
   scan_cmd->add_option("-i,--interface", scan.interface, "SocketCAN interface of the sub-devices' bus")->required();
   scan_cmd->add_option("-o,--output", scan.output, "Draft mapping file to write (default: standard output)");
-  scan_cmd->add_option("--upstream", scan.upstream, "The draft's upstream interface (default can0)");
+  auto* scan_upstream =
+      scan_cmd->add_option("--upstream", scan.upstream, "The draft's upstream interface (default can0; can1 when -i is can0)");
   scan_cmd->add_option("--bitrate", scan.bitrate, "The draft's bit rate (default 250000; not measured)")
       ->check(CLI::IsMember({10000, 20000, 50000, 125000, 250000, 500000, 800000, 1000000}));
   scan_cmd->add_option("--store", scan.store,
@@ -149,7 +151,15 @@ int main(int argc, char** argv) {
   if (*run_cmd) return oegw::gateway::run_gateway(config_file);
   if (*status_cmd) return oegw::gateway::run_status(status);
   if (*signals_cmd) return oegw::gateway::run_signals(signals);
-  if (*scan_cmd) return oegw::gateway::run_scan(scan);
+  if (*scan_cmd) {
+    // The draft's two buses must differ (oegw check refuses one interface for both).
+    if (!*scan_upstream && scan.interface == scan.upstream) scan.upstream = "can1";
+    if (scan.upstream == scan.interface) {
+      std::fprintf(stderr, "--upstream %s is the interface scanned; expected the host's bus\n", scan.upstream.c_str());
+      return exit_code::kUsage;
+    }
+    return oegw::gateway::run_scan(scan);
+  }
   if (*dev_cmd) {
     device.node_id = oegw::canopen::NodeId{static_cast<std::uint8_t>(node_id)};
     device.store_path = store;
