@@ -79,12 +79,12 @@ void BusScanner::read_next(std::uint8_t id) {
   p.sdo->upload(r.index, r.sub, [this, id, r](SdoAbortCode code, std::vector<std::uint8_t> data) {
     Probe& probe = active_.at(id);
     ScannedNode& n = node(id);
-    if (code == SdoAbortCode::Timeout) {
-      // Nobody at 1000h: absent (unless heard). Later: the node went silent; keep what was read.
-      probe_ended(id);
+    if (code == SdoAbortCode::Timeout && probe.step == 0) {
+      probe_ended(id);  // nobody at 1000h: absent (unless heard)
       return;
     }
-    n.answered_sdo = true;
+    // A later time-out (a slow or busy node) leaves that value unknown; the reads go on.
+    if (code != SdoAbortCode::Timeout) n.answered_sdo = true;
     if (code == SdoAbortCode::None && !data.empty()) {
       const std::uint32_t v = le_value(data);
       switch (r.index) {

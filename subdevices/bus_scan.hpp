@@ -7,8 +7,8 @@
 //    a node in NMT stopped answers no SDO but is still heard;
 //  * reads 1000h, 1018h:01..04 and 1017h of every node-ID first..last by SDO (expedited upload,
 //    CiA 301 §7.2.4.3.6), at most `parallel` node-IDs at a time, each with its own time-out. A
-//    node-ID whose 1000h read times out is absent (unless it was heard); an abort of one object
-//    (the MCB-402 has no 1018h:04) leaves that value unknown and goes on with the next;
+//    node-ID whose 1000h read times out is absent (unless it was heard); an abort or a time-out
+//    of a later object (the MCB-402 has no 1018h:04) leaves that value unknown and goes on;
 //  * then asks "identify non-configured remote slave" (CiA 305 §8.4.3.7) and, if a node without
 //    node-ID answers, runs LSS fastscan (CiA 305 §8.4.4) to read the LSS address of one of them.
 //    Fastscan cannot skip a node already found without configuring it, so one address is read

@@ -7,6 +7,7 @@
 
 #include <deque>
 #include <map>
+#include <set>
 
 #include "canopen/305/lss_slave.hpp"
 #include "subdevices/family_identity.hpp"
@@ -22,8 +23,10 @@ using canopen::lss::Address;
 struct FakeNode {
   std::uint8_t id;
   std::map<std::pair<std::uint16_t, std::uint8_t>, std::uint32_t> objects;
+  std::set<std::pair<std::uint16_t, std::uint8_t>> silent = {};  // requests left unanswered
   std::optional<CanFrame> answer(const CanFrame& f) const {
     if (f.id != 0x600u + id || f.data[0] != 0x40) return std::nullopt;
+    if (silent.count({static_cast<std::uint16_t>(f.data[1] | (f.data[2] << 8)), f.data[3]})) return std::nullopt;
     const std::uint16_t index = static_cast<std::uint16_t>(f.data[1] | (f.data[2] << 8));
     const std::uint8_t sub = f.data[3];
     CanFrame r(0x580u + id, {0x43, f.data[1], f.data[2], sub, 0, 0, 0, 0});
@@ -179,6 +182,24 @@ TEST(BusScan, AnAbortLeavesOneValueUnknownAndTheReadGoesOn) {
   EXPECT_FALSE(r.nodes[0].identity.serial);
   EXPECT_FALSE(r.nodes[0].producer_heartbeat_ms);
   EXPECT_EQ(r.nodes[0].family.family, "mcb402");
+}
+
+TEST(BusScan, ALaterTimeOutLeavesOneValueUnknownAndTheReadGoesOn) {
+  // A busy node misses 1018h:01 and :02 but answers the rest: it is found, without vendor and
+  // product (so no family from them), the later reads made.
+  Harness h(quiet(1));
+  h.cfg.first = h.cfg.last = 3;
+  h.nodes.push_back({3,
+                     {{{0x1000, 0}, 0x01070191}, {{0x1018, 3}, 0x00010002}, {{0x1017, 0}, 100}},
+                     {{0x1018, 1}, {0x1018, 2}}});
+  ASSERT_TRUE(h.run());
+  EXPECT_EQ(h.now, TimePoint{} + 200ms);  // two time-outs
+  const ScanResult r = h.scanner->result();
+  ASSERT_EQ(r.nodes.size(), 1u);
+  EXPECT_EQ(r.nodes[0].identity.device_type, 0x01070191u);
+  EXPECT_FALSE(r.nodes[0].identity.vendor_id);
+  EXPECT_EQ(r.nodes[0].identity.revision, 0x00010002u);
+  EXPECT_EQ(r.nodes[0].producer_heartbeat_ms, 100);
 }
 
 TEST(BusScan, ANodeThatAnswersNoSdoIsFoundByItsHeartbeat) {
