@@ -81,28 +81,9 @@ std::string what_it_does(const sd::OptionSpec& o) {
   return (o.safety ? std::string("SAFETY-RELEVANT: ") : std::string()) + std::string(o.description) + ".";
 }
 
-// Words of `text` in lines of at most 80 columns, the first starting with `indent` spaces, the
-// others with `rest` (a word longer than a line stands alone).
+// `text` in lines of at most 80 columns, the first indented `indent` spaces, the others `rest`.
 std::string wrap(const std::string& text, std::size_t indent, std::size_t rest) {
-  constexpr std::size_t width = 80;
-  std::string out, line(indent, ' ');
-  std::size_t pos = 0;
-  bool first = true;
-  while (pos < text.size()) {
-    auto end = text.find(' ', pos);
-    if (end == std::string::npos) end = text.size();
-    const std::string word = text.substr(pos, end - pos);
-    pos = end + 1;
-    if (word.empty()) continue;
-    if (!first && line.size() + 1 + word.size() > width) {
-      out += line + "\n";
-      line = std::string(rest, ' ');
-      first = true;
-    }
-    line += (first ? "" : " ") + word;
-    first = false;
-  }
-  return out + line + "\n";
+  return wrap_words(text, 80, std::string(indent, ' '), std::string(rest, ' '));
 }
 
 std::string pad(const std::string& s, std::size_t n) { return s.size() >= n ? s : s + std::string(n - s.size(), ' '); }
@@ -165,10 +146,32 @@ std::string describe(const sd::DriverInfo& info, const std::optional<std::vector
   return out;
 }
 
-// The signals of `info`'s driver built with `given`, plus for each required option not given
-// the value its table names for listings; nullopt (no error) when one has none.
-std::optional<std::vector<sd::SignalInfo>> signals_of(const sd::DriverInfo& info, sd::DriverOptions given,
-                                                      std::string& error) {
+}  // namespace
+
+std::string wrap_words(const std::string& text, std::size_t width, const std::string& first_prefix,
+                       const std::string& rest_prefix) {
+  std::string out, line = first_prefix;
+  std::size_t pos = 0;
+  bool first = true;
+  while (pos < text.size()) {
+    auto end = text.find(' ', pos);
+    if (end == std::string::npos) end = text.size();
+    const std::string word = text.substr(pos, end - pos);
+    pos = end + 1;
+    if (word.empty()) continue;
+    if (!first && line.size() + 1 + word.size() > width) {
+      out += line + "\n";
+      line = rest_prefix;
+      first = true;
+    }
+    line += (first ? "" : " ") + word;
+    first = false;
+  }
+  return out + line + "\n";
+}
+
+std::optional<std::vector<sd::SignalInfo>> listing_signals(const sd::DriverInfo& info, sd::DriverOptions given,
+                                                           std::string& error) {
   for (const sd::OptionSpec& o : info.options) {
     if (!o.required || given.get(o.name)) continue;
     if (o.listing_value.empty()) return std::nullopt;
@@ -178,8 +181,6 @@ std::optional<std::vector<sd::SignalInfo>> signals_of(const sd::DriverInfo& info
   if (!driver) return std::nullopt;
   return driver->signals();
 }
-
-}  // namespace
 
 std::string signals_listing(const SignalsOptions& o, std::string& error) {
   sd::DriverOptions given;
@@ -195,7 +196,7 @@ std::string signals_listing(const SignalsOptions& o, std::string& error) {
   std::string out;
   for (const sd::DriverInfo& info : sd::drivers()) {
     if (!o.driver.empty() && info.family != o.driver) continue;
-    const auto signals = signals_of(info, given, error);
+    const auto signals = listing_signals(info, given, error);
     if (!error.empty()) return {};
     if (!out.empty()) out += "\n";
     out += describe(info, signals, o.markdown);

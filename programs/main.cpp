@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include <cstdio>
 #include <string>
 #include <utility>
 #include <vector>
@@ -9,6 +10,7 @@
 #include "gateway/control/ctl_command.hpp"
 #include "gateway/control/status_command.hpp"
 #include "gateway/programs.hpp"
+#include "gateway/scan_command.hpp"
 #include "gateway/signals_command.hpp"
 #include "programs/version.hpp"
 #include "programs/bench_programs.hpp"
@@ -31,7 +33,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(0, 1);
   app.set_version_flag("--version", std::string("oegw ") + oegw::programs::kVersion + " (git " +
                                         oegw::programs::kGitRevision + ")");
-  app.footer("Exit codes: 0 done; 1 bad mapping file (or a demo step / master wait failed, or options a driver refuses in signals); 2 cannot start "
+  app.footer("Exit codes: 0 done; 1 bad mapping file (or a demo step / master wait failed, or options a driver refuses in signals, or no node found by scan); 2 cannot start "
              "(CAN interface, bit rate, publishing); 64 usage error (README \"Exit codes\").");
 
   oegw::gateway::GatewayDemoOptions demo;
@@ -105,6 +107,26 @@ int main(int argc, char** argv) {
   signals_cmd->add_option("--eds", signals.eds, "cia401: the EDS file whose signals to list");
   signals_cmd->add_flag("--markdown", signals.markdown, "Markdown tables, as in subdevices/README.md");
 
+  oegw::gateway::ScanOptions scan;
+  auto* scan_cmd = app.add_subcommand(
+      "scan", "Find every node on the downstream bus (before the gateway runs) and write a draft mapping file");
+  scan_cmd->add_option("-i,--interface", scan.interface, "SocketCAN interface of the sub-devices' bus")->required();
+  scan_cmd->add_option("-o,--output", scan.output, "Draft mapping file to write (default: standard output)");
+  auto* scan_upstream =
+      scan_cmd->add_option("--upstream", scan.upstream, "The draft's upstream interface (default can0; can1 when -i is can0)");
+  scan_cmd->add_option("--bitrate", scan.bitrate, "The draft's bit rate (default 250000; not measured)")
+      ->check(CLI::IsMember({10000, 20000, 50000, 125000, 250000, 500000, 800000, 1000000}));
+  scan_cmd->add_option("--store", scan.store,
+                       "The draft's upstream.store (default: not written, i.e. /var/lib/oegw/upstream.store)");
+  scan_cmd->add_option("--timeout", scan.timeout_ms, "SDO time-out per read, ms (default 100)")->check(CLI::Range(1.0, 10000.0));
+  scan_cmd->add_option("--listen", scan.listen_ms, "The scan lasts at least this long to hear heartbeats, ms (default 1000)")
+      ->check(CLI::Range(0.0, 600000.0));
+  scan_cmd->add_option("--parallel", scan.parallel, "Node-IDs probed at once, 1..127 (default 8)")->check(CLI::Range(1, 127));
+  scan_cmd->add_option("--lss-timeout", scan.lss_timeout_ms, "LSS time-out per step, ms (default 25)")
+      ->check(CLI::Range(1.0, 10000.0));
+  scan_cmd->add_flag("!--no-lss", scan.lss, "Skip LSS (nodes without node-ID)");
+  scan_cmd->add_flag("!--quiet,!-q", scan.progress, "No progress lines on standard error");
+
   oegw::gateway::StatusOptions status;
   auto* status_cmd = app.add_subcommand("status", "Ask the running `oegw run` what it sees (its control socket)");
   status_cmd->add_option("--socket", status.socket, "Control socket (default: the mapping file's control.socket, else /run/oegw/oegw.sock)");
@@ -146,6 +168,15 @@ int main(int argc, char** argv) {
   if (*status_cmd) return oegw::gateway::run_status(status);
   if (*ctl_cmd) return oegw::gateway::run_ctl(ctl);
   if (*signals_cmd) return oegw::gateway::run_signals(signals);
+  if (*scan_cmd) {
+    // The draft's two buses must differ (oegw check refuses one interface for both).
+    if (!*scan_upstream && scan.interface == scan.upstream) scan.upstream = "can1";
+    if (scan.upstream == scan.interface) {
+      std::fprintf(stderr, "--upstream %s is the interface scanned; expected the host's bus\n", scan.upstream.c_str());
+      return exit_code::kUsage;
+    }
+    return oegw::gateway::run_scan(scan);
+  }
   if (*dev_cmd) {
     device.node_id = oegw::canopen::NodeId{static_cast<std::uint8_t>(node_id)};
     device.store_path = store;

@@ -29,6 +29,10 @@ inline constexpr std::uint8_t kIdentifySerialHigh = 0x4B;
 inline constexpr std::uint8_t kIdentifyNonConfigured = 0x4C;
 inline constexpr std::uint8_t kIdentifySlaveResponse = 0x4F;
 inline constexpr std::uint8_t kIdentifyNonConfiguredResponse = 0x50;
+// LSS fastscan (CiA 305 §8.4.4): byte 1..4 IDNumber, 5 BitChecked (0..31, or 80h: reset),
+// 6 LSSSub, 7 LSSNext (0 vendor, 1 product, 2 revision, 3 serial); answered with 4Fh.
+inline constexpr std::uint8_t kFastscan = 0x51;
+inline constexpr std::uint8_t kFastscanReset = 0x80;
 inline constexpr std::uint8_t kInquireVendor = 0x5A;
 inline constexpr std::uint8_t kInquireProduct = 0x5B;
 inline constexpr std::uint8_t kInquireRevision = 0x5C;

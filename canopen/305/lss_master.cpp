@@ -93,9 +93,22 @@ void LssMaster::identify_non_configured(TimePoint now, Callback cb) {
   enqueue({{frame(kIdentifyNonConfigured)}, kIdentifyNonConfiguredResponse, false, true, std::move(cb)}, now);
 }
 
+void LssMaster::fastscan(std::uint32_t id_number, std::uint8_t bit_checked, std::uint8_t sub, std::uint8_t next,
+                         TimePoint now, Callback cb) {
+  CanFrame f = frame(kFastscan, id_number);
+  f.data[5] = bit_checked;
+  f.data[6] = sub;
+  f.data[7] = next;
+  enqueue({{f}, kIdentifySlaveResponse, false, true, std::move(cb), true}, now);
+}
+
 bool LssMaster::on_frame(const CanFrame& f, TimePoint now) {
   if (f.id != cob::kLssSlave || f.extended) return false;
   if (f.rtr || f.dlc != 8 || !active_ || f.data[0] != active_->answer) return true;
+  if (active_->whole_window) {
+    active_->answered = true;
+    return true;
+  }
   Result r;
   if (active_->has_error_code) {
     r.error = f.data[1];
@@ -112,7 +125,7 @@ bool LssMaster::on_frame(const CanFrame& f, TimePoint now) {
 void LssMaster::advance(TimePoint now) {
   if (!active_ || now < deadline_) return;
   Result r;
-  r.status = active_->silence_is_answer ? Status::NoAnswer : Status::Timeout;
+  r.status = active_->answered ? Status::Ok : active_->silence_is_answer ? Status::NoAnswer : Status::Timeout;
   finish(r, now);
 }
 

@@ -49,6 +49,12 @@ class LssMaster {
   void inquire(Inquiry what, TimePoint now, Callback cb = {});
   void identify_remote_slave(const lss::AddressRange& range, TimePoint now, Callback cb = {});
   void identify_non_configured(TimePoint now, Callback cb = {});
+  // One step of LSS fastscan (CiA 305 §8.4.4, cs 51h): every slave without node-ID whose address
+  // matches answers (4Fh), so the step always lasts the whole timeout and then completes Ok if
+  // any answer came, NoAnswer if none: a late second answer must not be taken for the next
+  // step's. `bit_checked` 0..31, or lss::cs::kFastscanReset.
+  void fastscan(std::uint32_t id_number, std::uint8_t bit_checked, std::uint8_t sub, std::uint8_t next,
+                TimePoint now, Callback cb = {});
 
   // True for a frame on 7E4h (answers that match no pending request are dropped).
   bool on_frame(const CanFrame& frame, TimePoint now);
@@ -65,6 +71,8 @@ class LssMaster {
     bool has_error_code = false;
     bool silence_is_answer = false;
     Callback cb;
+    bool whole_window = false;  // fastscan: collect answers until the timeout
+    bool answered = false;      // whole_window: an answer came
   };
   static CanFrame frame(std::uint8_t cs, std::uint32_t value = 0);
   void enqueue(Request r, TimePoint now);

@@ -157,6 +157,33 @@ bool LssSlave::on_frame(const CanFrame& frame, TimePoint /*now*/) {
       return true;
     }
 
+    case kFastscan: {
+      // CiA 305 §8.4.4: only a waiting slave without node-ID takes part. BitChecked 80h restarts
+      // at the vendor-ID and is answered; otherwise the slave answers when it is at LSSSub and the
+      // bits BitChecked..31 of that part of its address equal IDNumber's, and then goes on at
+      // LSSNext. A complete match (bit 0) whose LSSNext goes back (LSSNext < LSSSub) ends the
+      // scan: the slave is selected, i.e. in configuration mode.
+      if (config || !active_node_id_.unconfigured() || !pending_node_id_.unconfigured()) return true;
+      const std::uint8_t bit = frame.data[5], sub = frame.data[6], next = frame.data[7];
+      if (sub > 3 || next > 3 || (bit > 31 && bit != kFastscanReset)) {
+        ++stats_.malformed;
+        return true;
+      }
+      if (bit == kFastscanReset) {
+        fastscan_pos_ = 0;
+        reply(kIdentifySlaveResponse);
+        return true;
+      }
+      if (fastscan_pos_ != sub) return true;
+      const std::uint32_t part[4] = {address_.vendor, address_.product, address_.revision, address_.serial};
+      const std::uint32_t mask = 0xFFFFFFFFu << bit;
+      if (((part[sub] ^ u32) & mask) != 0) return true;
+      fastscan_pos_ = next;
+      reply(kIdentifySlaveResponse);
+      if (bit == 0 && next < sub) switch_mode(lss::Mode::Configuration);
+      return true;
+    }
+
     case kIdentifyNonConfigured:
       if (active_node_id_.unconfigured() && pending_node_id_.unconfigured()) reply(kIdentifyNonConfiguredResponse);
       return true;

@@ -45,7 +45,7 @@ class LssSlave {
     std::function<void()> on_start_nmt;
   };
   struct Stats {
-    std::uint64_t malformed = 0;  // DLC != 8 or RTR on 7E5h
+    std::uint64_t malformed = 0;  // DLC != 8 or RTR on 7E5h; a fastscan with fields out of range
     std::uint64_t unknown = 0;    // unknown command specifier (or not valid in this mode)
   };
 
@@ -88,6 +88,8 @@ class LssSlave {
   std::uint8_t selective_next_ = 0;
   std::uint8_t identify_next_ = 0;
   lss::AddressRange identify_;
+  // Fastscan: the part of the address (0 vendor .. 3 serial) the next step checks.
+  std::uint8_t fastscan_pos_ = 0;
 };
 
 }  // namespace oegw::canopen

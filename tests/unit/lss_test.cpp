@@ -208,6 +208,42 @@ TEST_F(SlaveFixture, UnconfiguredSlaveIdentifiesAndStartsNmtAfterConfiguration) 
   EXPECT_EQ(nmt_starts, 1);
 }
 
+// CiA 305 §8.4.4 fastscan, the slave's side, on the Novotechnik example address: only a waiting
+// slave without node-ID takes part; 80h resets and is answered; a step is answered when the
+// bits BitChecked..31 of the part at LSSSub match; bit 0 with LSSNext < LSSSub selects it.
+TEST_F(SlaveFixture, FastscanOnlyANodeWithoutNodeIdAnswers) {
+  feed(m({0x51, 0, 0, 0, 0, 0x80, 0, 0}));
+  EXPECT_TRUE(sent.empty());  // node-ID 11h: not part of fastscan
+  make(NodeId::unconfigured_id());
+  feed(m({0x51, 0, 0, 0, 0, 0x80, 0, 0}));
+  ASSERT_EQ(sent.size(), 1u);
+  EXPECT_EQ(sent[0], s({0x4F, 0, 0, 0, 0, 0, 0, 0}));
+  // Vendor 00000182h: bits 31..9 are 0 (answered), bit 8 asked as 0 is not its value (silent).
+  feed(m({0x51, 0, 0, 0, 0, 9, 0, 0}));
+  EXPECT_EQ(sent.size(), 2u);
+  feed(m({0x51, 0, 0, 0, 0, 8, 0, 0}));
+  EXPECT_EQ(sent.size(), 2u);
+  // The whole vendor-ID at bit 0, LSSNext 1: answered, the slave moves on to the product code.
+  feed(m({0x51, 0x82, 0x01, 0, 0, 0, 0, 1}));
+  EXPECT_EQ(sent.size(), 3u);
+  feed(m({0x51, 0x82, 0x01, 0, 0, 0, 0, 1}));  // not at the vendor-ID any more: silent
+  EXPECT_EQ(sent.size(), 3u);
+  feed(m({0x51, 0xE0, 0x0B, 0, 0, 0, 1, 2}));
+  feed(m({0x51, 0x03, 0x00, 0x01, 0x00, 0, 2, 3}));
+  EXPECT_EQ(slave->mode(), lss::Mode::Waiting);
+  feed(m({0x51, 0x78, 0x56, 0x34, 0x12, 0, 3, 0}));  // the serial, LSSNext 0 < 3: selected
+  EXPECT_EQ(sent.size(), 6u);
+  EXPECT_EQ(slave->mode(), lss::Mode::Configuration);
+  feed(m({0x51, 0, 0, 0, 0, 0x80, 0, 0}));  // in configuration mode: not part of fastscan
+  EXPECT_EQ(sent.size(), 6u);
+  feed(m({0x04, 0x00, 0, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(nmt_starts, 0);  // back to waiting without a node-ID: NMT does not start
+  feed(m({0x51, 0, 0, 0, 0, 32, 0, 0}));  // BitChecked 32: out of range
+  feed(m({0x51, 0, 0, 0, 0, 0, 4, 0}));   // LSSSub 4: out of range
+  EXPECT_EQ(sent.size(), 6u);
+  EXPECT_EQ(slave->stats().malformed, 2u);
+}
+
 TEST_F(SlaveFixture, MalformedFramesCounted) {
   feed(m({0x04, 0x01}));
   feed(m({0x04, 0x01, 0, 0, 0, 0, 0, 0, 0}));  // >8 bytes: CanFrame keeps 8 -> well formed
@@ -311,6 +347,24 @@ TEST_F(MasterFixture, IdentifySilenceMeansNoAnswer) {
   master.advance(at_ms(100));
   ASSERT_EQ(results.size(), 1u);
   EXPECT_EQ(results[0].status, LssMaster::Status::NoAnswer);
+}
+
+// A fastscan step lasts its whole timeout: several slaves may answer, and a late answer must
+// not complete the next step.
+TEST_F(MasterFixture, FastscanStepCollectsAnswersUntilTheTimeout) {
+  master.fastscan(0x00000182, 8, 0, 0, at_ms(0), record());
+  EXPECT_EQ(sent.back(), m({0x51, 0x82, 0x01, 0, 0, 8, 0, 0}));
+  master.fastscan(0x00000182, 7, 0, 0, at_ms(0), record());
+  master.on_frame(s({0x4F, 0, 0, 0, 0, 0, 0, 0}), at_ms(1));
+  master.on_frame(s({0x4F, 0, 0, 0, 0, 0, 0, 0}), at_ms(2));
+  EXPECT_TRUE(results.empty());
+  master.advance(at_ms(100));
+  ASSERT_EQ(results.size(), 1u);
+  EXPECT_EQ(results[0].status, LssMaster::Status::Ok);
+  EXPECT_EQ(sent.back(), m({0x51, 0x82, 0x01, 0, 0, 7, 0, 0}));
+  master.advance(at_ms(200));
+  ASSERT_EQ(results.size(), 2u);
+  EXPECT_EQ(results[1].status, LssMaster::Status::NoAnswer);
 }
 
 // Master and slave wired back to back through the whole Novotechnik sequence.

@@ -1,0 +1,48 @@
+// `oegw scan -i IF` (issue 16 item 2): finds every node on the downstream bus before the gateway
+// runs (subdevices/bus_scan.hpp: boot-ups, heartbeats, SDO reads of 1000h/1018h/1017h, LSS) and
+// writes a draft mapping file: one `subdevices` entry per node whose driver it can name, each
+// driver's required options as marked placeholders, and commented-out functional-element lines
+// for the node's signals (from the drivers themselves, as `oegw signals` lists them). The draft
+// passes `oegw check` as it is written; mapping/README.md "Drafting the file: oegw scan".
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "subdevices/bus_scan.hpp"
+
+namespace oegw::gateway {
+
+struct ScanOptions {
+  std::string interface;           // the downstream bus
+  std::string output = "-";        // the draft; "-" standard output
+  std::string upstream = "can0";   // the draft's upstream.interface
+  std::uint32_t bitrate = 250000;  // the draft's downstream/upstream bitrate (not measured)
+  std::string store;               // the draft's upstream.store; empty: the default (not written)
+  double timeout_ms = 100;         // per SDO read
+  double listen_ms = 1000;         // the scan lasts at least this long (heartbeats)
+  double lss_timeout_ms = 25;      // per LSS step
+  unsigned parallel = 8;           // node-IDs probed at once
+  bool lss = true;
+  bool progress = true;            // progress lines on standard error
+};
+
+// What the draft says about the command line that made it (its header and interface lines).
+struct DraftSettings {
+  std::string downstream = "can1";
+  std::string upstream = "can0";
+  std::uint32_t bitrate = 250000;
+  std::string store;  // upstream.store; empty: not written (the default /var/lib/oegw/upstream.store)
+};
+
+// The draft mapping file for what a scan found.
+[[nodiscard]] std::string draft_mapping(const subdevices::ScanResult& scan, const DraftSettings& settings);
+
+// A human summary of the scan, one line per node (for standard error).
+[[nodiscard]] std::string scan_summary(const subdevices::ScanResult& scan);
+
+// 0 at least one node found and the draft written; 1 no node found (the draft, without
+// sub-devices, is still written); 2 the interface cannot be opened or the output not written.
+int run_scan(const ScanOptions& options);
+
+}  // namespace oegw::gateway

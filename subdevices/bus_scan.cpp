@@ -1,0 +1,292 @@
+#include "subdevices/bus_scan.hpp"
+
+#include <algorithm>
+
+namespace oegw::subdevices {
+
+namespace {
+
+using canopen::SdoAbortCode;
+using canopen::lss::cs::kFastscanReset;
+
+struct Read {
+  std::uint16_t index;
+  std::uint8_t sub;
+};
+// 1000h first: its answer (or time-out) decides whether anyone is there.
+constexpr Read kReads[] = {{0x1000, 0}, {0x1018, 1}, {0x1018, 2}, {0x1018, 3}, {0x1018, 4}, {0x1017, 0}};
+constexpr std::size_t kReadCount = sizeof kReads / sizeof kReads[0];
+
+std::uint32_t le_value(const std::vector<std::uint8_t>& data) {
+  std::uint32_t v = 0;
+  for (std::size_t i = 0; i < data.size() && i < 4; ++i) v |= static_cast<std::uint32_t>(data[i]) << (8 * i);
+  return v;
+}
+
+bool is_heartbeat(const CanFrame& f) {
+  return !f.extended && !f.rtr && f.dlc == 1 && f.id >= 0x701 && f.id <= 0x77F;
+}
+
+std::optional<canopen::NmtState> nmt_state(std::uint8_t byte) {
+  switch (byte & 0x7F) {  // bit 7: the node-guarding toggle, 0 in a heartbeat
+    case 0x00: return canopen::NmtState::Initialisation;
+    case 0x04: return canopen::NmtState::Stopped;
+    case 0x05: return canopen::NmtState::Operational;
+    case 0x7F: return canopen::NmtState::PreOperational;
+    default: return std::nullopt;
+  }
+}
+
+}  // namespace
+
+BusScanner::BusScanner(FrameSink sink, ScanConfig config)
+    : sink_(std::move(sink)), cfg_(config), lss_(sink_, config.lss_timeout) {
+  cfg_.first = std::clamp<std::uint8_t>(cfg_.first, 1, 127);
+  cfg_.last = std::clamp<std::uint8_t>(cfg_.last, cfg_.first, 127);
+  cfg_.parallel = std::clamp<std::size_t>(cfg_.parallel, 1, 127);
+}
+
+ScannedNode& BusScanner::node(std::uint8_t id) {
+  auto [it, fresh] = nodes_.try_emplace(id);
+  if (fresh) it->second.node = NodeId{id};
+  return it->second;
+}
+
+void BusScanner::start(TimePoint now) {
+  start_ = now_ = now;
+  phase_ = Phase::Probing;
+  for (unsigned id = cfg_.first; id <= cfg_.last; ++id) pending_.push_back(static_cast<std::uint8_t>(id));
+  total_ = pending_.size();
+  while (active_.size() < cfg_.parallel && !pending_.empty()) {
+    const std::uint8_t id = pending_.front();
+    pending_.pop_front();
+    launch(id, now);
+  }
+}
+
+void BusScanner::launch(std::uint8_t id, TimePoint now) {
+  auto cfg = canopen::SdoClientConfig::for_node(NodeId{id});
+  cfg.timeout = cfg_.sdo_timeout;
+  Probe& p = active_[id];
+  p.sdo = std::make_unique<canopen::SdoClient>(sink_, cfg);
+  read_next(id);
+  p.sdo->advance(now);  // starts the queued upload
+}
+
+void BusScanner::read_next(std::uint8_t id) {
+  Probe& p = active_.at(id);
+  const Read r = kReads[p.step];
+  p.sdo->upload(r.index, r.sub, [this, id, r](SdoAbortCode code, std::vector<std::uint8_t> data) {
+    Probe& probe = active_.at(id);
+    ScannedNode& n = node(id);
+    if (code == SdoAbortCode::Timeout && probe.step == 0) {
+      probe_ended(id);  // nobody at 1000h: absent (unless heard)
+      return;
+    }
+    // A later time-out (a slow or busy node) leaves that value unknown; the reads go on.
+    if (code != SdoAbortCode::Timeout) n.answered_sdo = true;
+    if (code == SdoAbortCode::None && !data.empty()) {
+      const std::uint32_t v = le_value(data);
+      switch (r.index) {
+        case 0x1000: n.identity.device_type = v; break;
+        case 0x1017: n.producer_heartbeat_ms = static_cast<std::uint16_t>(v); break;
+        default:
+          switch (r.sub) {
+            case 1: n.identity.vendor_id = v; break;
+            case 2: n.identity.product_code = v; break;
+            case 3: n.identity.revision = v; break;
+            default: n.identity.serial = v; break;
+          }
+      }
+    }
+    if (++probe.step == kReadCount) {
+      probe_ended(id);
+      return;
+    }
+    read_next(id);
+  });
+}
+
+// Called from an SDO callback: the client is still on the stack, so it is released later.
+void BusScanner::probe_ended(std::uint8_t id) {
+  active_.at(id).step = kReadCount + 1;  // marks it finished
+  ended_ = true;
+}
+
+void BusScanner::report(bool lss) {
+  if (!on_progress) return;
+  ScanProgress p;
+  p.probed = probed_;
+  p.total = total_;
+  for (const auto& [id, n] : nodes_) p.found += (n.answered_sdo || n.heard) ? 1 : 0;
+  p.lss = lss;
+  on_progress(p);
+}
+
+bool BusScanner::on_frame(const CanFrame& f, TimePoint now) {
+  now_ = now;
+  if (phase_ == Phase::Idle || phase_ == Phase::Done) return false;
+  if (is_heartbeat(f)) {
+    const auto id = static_cast<std::uint8_t>(f.id - 0x700);
+    ScannedNode& n = node(id);
+    n.heard = true;
+    if (f.data[0] == 0) {
+      n.booted = true;  // a boot-up is not a heartbeat (CiA 301 §7.2.8.3.2.3): no period from it
+      last_heartbeat_.erase(id);
+    } else {
+      if (auto s = nmt_state(f.data[0])) n.state = s;
+      if (auto it = last_heartbeat_.find(id); it != last_heartbeat_.end()) {
+        const Duration gap = now - it->second;
+        if (!n.heartbeat_period || gap < *n.heartbeat_period) n.heartbeat_period = gap;
+      }
+      last_heartbeat_[id] = now;
+    }
+    return true;
+  }
+  if (!f.extended && f.id >= 0x581 && f.id <= 0x5FF) {
+    const auto id = static_cast<std::uint8_t>(f.id - 0x580);
+    auto it = active_.find(id);
+    if (it == active_.end()) return false;
+    it->second.sdo->on_frame(f, now);
+    if (it->second.step < kReadCount) it->second.sdo->advance(now);  // starts the next read
+    advance(now);
+    return true;
+  }
+  if (phase_ == Phase::Lss && lss_.on_frame(f, now)) {
+    advance(now);
+    return true;
+  }
+  return false;
+}
+
+void BusScanner::advance(TimePoint now) {
+  now_ = now;
+  if (phase_ == Phase::Probing) {
+    for (auto& [id, p] : active_)
+      if (p.step < kReadCount) p.sdo->advance(now);
+    // Release the ended probes, start the next node-IDs.
+    while (ended_) {
+      ended_ = false;
+      for (auto it = active_.begin(); it != active_.end();) {
+        if (it->second.step <= kReadCount) {
+          ++it;
+          continue;
+        }
+        it = active_.erase(it);
+        ++probed_;
+        report(false);
+      }
+      while (active_.size() < cfg_.parallel && !pending_.empty()) {
+        const std::uint8_t id = pending_.front();
+        pending_.pop_front();
+        launch(id, now);
+      }
+    }
+    if (active_.empty() && pending_.empty()) after_probing(now);
+  }
+  if (phase_ == Phase::Lss) lss_.advance(now);
+  if (phase_ == Phase::Listening && now >= start_ + cfg_.listen) phase_ = Phase::Done;
+}
+
+std::optional<TimePoint> BusScanner::next_deadline() const {
+  switch (phase_) {
+    case Phase::Probing: {
+      std::optional<TimePoint> d;
+      for (const auto& [id, p] : active_) {
+        if (p.step >= kReadCount) return now_;  // ended: release it now
+        if (auto t = p.sdo->next_deadline(); t && (!d || *t < *d)) d = t;
+      }
+      return d;
+    }
+    case Phase::Lss: return lss_.next_deadline();
+    case Phase::Listening: return std::max(start_ + cfg_.listen, now_);
+    default: return std::nullopt;
+  }
+}
+
+void BusScanner::after_probing(TimePoint now) {
+  if (!cfg_.lss) {
+    phase_ = Phase::Listening;
+    return;
+  }
+  phase_ = Phase::Lss;
+  report(true);
+  lss_.identify_non_configured(now, [this](const canopen::LssMaster::Result& r) {
+    if (r.status != canopen::LssMaster::Status::Ok) {
+      lss_ended(now_);
+      return;
+    }
+    lss_result_.unconfigured = true;
+    lss_.fastscan(0, kFastscanReset, 0, 0, now_, [this](const canopen::LssMaster::Result& reset) {
+      if (reset.status != canopen::LssMaster::Status::Ok) {
+        lss_result_.lss_note = "no answer to LSS fastscan (CiA 305 §8.4.4): the node may not support it";
+        lss_ended(now_);
+        return;
+      }
+      fs_sub_ = 0;
+      fs_bit_ = 31;
+      fs_retry_ = false;
+      fastscan_step(now_);
+    });
+  });
+}
+
+// One fastscan step (CiA 305 §8.4.4, the master's side): bits 31..1 of each part are decided by
+// asking whether any node has the bit 0 (silence: it is 1); bit 0 is confirmed with LSSNext set to
+// the next part, which moves only the nodes that match the whole part on.
+void BusScanner::fastscan_step(TimePoint now) {
+  using Status = canopen::LssMaster::Status;
+  if (fs_bit_ >= 1) {
+    const auto bit = static_cast<std::uint8_t>(fs_bit_);
+    lss_.fastscan(fs_value_[fs_sub_], bit, fs_sub_, fs_sub_, now, [this, bit](const canopen::LssMaster::Result& r) {
+      if (r.status != Status::Ok) fs_value_[fs_sub_] |= 1u << bit;
+      --fs_bit_;
+      fastscan_step(now_);
+    });
+    return;
+  }
+  const auto next = static_cast<std::uint8_t>(fs_sub_ < 3 ? fs_sub_ + 1 : 0);
+  lss_.fastscan(fs_value_[fs_sub_], 0, fs_sub_, next, now, [this](const canopen::LssMaster::Result& r) {
+    if (r.status != Status::Ok) {
+      if (fs_retry_) {
+        lss_result_.lss_note = "LSS fastscan lost the node (no answer for either value of bit 0)";
+        lss_ended(now_);
+        return;
+      }
+      fs_retry_ = true;
+      fs_value_[fs_sub_] |= 1u;
+      fastscan_step(now_);
+      return;
+    }
+    fs_retry_ = false;
+    if (++fs_sub_ < 4) {
+      fs_bit_ = 31;
+      fastscan_step(now_);
+      return;
+    }
+    lss_result_.unconfigured_address =
+        canopen::lss::Address{fs_value_[0], fs_value_[1], fs_value_[2], fs_value_[3]};
+    // The last step selected it (LSS configuration mode): back to waiting, node-ID unchanged.
+    lss_.switch_state_global(canopen::lss::Mode::Waiting, now_, [this](const canopen::LssMaster::Result&) {
+      lss_ended(now_);
+    });
+  });
+}
+
+void BusScanner::lss_ended(TimePoint now) {
+  phase_ = Phase::Listening;
+  if (now >= start_ + cfg_.listen) phase_ = Phase::Done;
+}
+
+ScanResult BusScanner::result() const {
+  ScanResult r = lss_result_;
+  for (const auto& [id, n] : nodes_) {
+    if (!n.answered_sdo && !n.heard) continue;
+    ScannedNode out = n;
+    out.family = name_family(n.identity);
+    r.nodes.push_back(std::move(out));
+  }
+  return r;
+}
+
+}  // namespace oegw::subdevices

@@ -1,0 +1,135 @@
+// The downstream bus scan of `oegw scan` (issue 16 item 2), sans I/O like every service of the
+// protocol core: frames and time in, frames out (canopen/README.md), so that a test drives it on
+// a simulated clock and `oegw scan` on a SocketCAN interface.
+//
+// What it does, from start():
+//  * listens the whole time for boot-ups and heartbeats (700h + node-ID, CiA 301 §7.2.8.3.2):
+//    a node in NMT stopped answers no SDO but is still heard;
+//  * reads 1000h, 1018h:01..04 and 1017h of every node-ID first..last by SDO (expedited upload,
+//    CiA 301 §7.2.4.3.6), at most `parallel` node-IDs at a time, each with its own time-out. A
+//    node-ID whose 1000h read times out is absent (unless it was heard); an abort or a time-out
+//    of a later object (the MCB-402 has no 1018h:04) leaves that value unknown and goes on;
+//  * then asks "identify non-configured remote slave" (CiA 305 §8.4.3.7) and, if a node without
+//    node-ID answers, runs LSS fastscan (CiA 305 §8.4.4) to read the LSS address of one of them.
+//    Fastscan cannot skip a node already found without configuring it, so one address is read
+//    per scan; `ScanResult::unconfigured` says whether nodes without node-ID are present at all.
+//    The node found is sent back to LSS waiting mode, its node-ID still unconfigured;
+//  * ends when all that is done and `listen` has passed since start() (heartbeats of nodes that
+//    answer no SDO come at their producer period).
+// Nothing is written to any node: the scan changes nothing on the bus.
+#pragma once
+
+#include <cstddef>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "canopen/301/sdo_client.hpp"
+#include "canopen/305/lss.hpp"
+#include "canopen/305/lss_master.hpp"
+#include "canopen/can_frame.hpp"
+#include "canopen/types.hpp"
+#include "subdevices/family_identity.hpp"
+
+namespace oegw::subdevices {
+
+using canopen::CanFrame;
+using canopen::Duration;
+using canopen::FrameSink;
+using canopen::NodeId;
+using canopen::TimePoint;
+
+struct ScanConfig {
+  Duration sdo_timeout = std::chrono::milliseconds(100);  // per SDO read
+  std::size_t parallel = 8;    // node-IDs probed at once (1..127); a real interface's TX queue is short
+  Duration listen = std::chrono::milliseconds(1000);       // the scan lasts at least this long
+  bool lss = true;             // identify non-configured + fastscan
+  Duration lss_timeout = std::chrono::milliseconds(25);   // per LSS step (fastscan has up to 132)
+  std::uint8_t first = 1;      // node-IDs probed: first..last (1..127)
+  std::uint8_t last = 127;
+};
+
+struct ScannedNode {
+  NodeId node;
+  bool answered_sdo = false;     // at least one SDO answer (data or abort)
+  bool heard = false;            // a boot-up or heartbeat seen
+  bool booted = false;           // a boot-up seen during the scan
+  std::optional<canopen::NmtState> state;  // the last heartbeat's state
+  NodeIdentity identity;
+  std::optional<std::uint16_t> producer_heartbeat_ms;  // 1017h as read
+  std::optional<Duration> heartbeat_period;            // the shortest gap between two heartbeats heard
+  FamilyMatch family;
+};
+
+struct ScanResult {
+  std::vector<ScannedNode> nodes;  // by node-ID
+  // "identify non-configured remote slave" was answered: at least one node without node-ID.
+  bool unconfigured = false;
+  // The LSS address fastscan read (of one of them); absent when fastscan failed or was not run.
+  std::optional<canopen::lss::Address> unconfigured_address;
+  std::string lss_note;            // why fastscan gave no address, for the report
+};
+
+struct ScanProgress {
+  std::size_t probed = 0;  // node-IDs whose probing ended
+  std::size_t total = 0;
+  std::size_t found = 0;   // nodes found so far (answered or heard)
+  bool lss = false;        // the LSS part is running
+};
+
+class BusScanner {
+ public:
+  BusScanner(FrameSink sink, ScanConfig config);
+  BusScanner(const BusScanner&) = delete;
+  BusScanner& operator=(const BusScanner&) = delete;
+
+  void start(TimePoint now);
+  bool on_frame(const CanFrame& frame, TimePoint now);
+  void advance(TimePoint now);
+  [[nodiscard]] std::optional<TimePoint> next_deadline() const;
+  [[nodiscard]] bool done() const { return phase_ == Phase::Done; }
+  // The nodes found (complete once done()).
+  [[nodiscard]] ScanResult result() const;
+
+  // After every node-ID probed, and when the LSS part starts.
+  std::function<void(const ScanProgress&)> on_progress;
+
+ private:
+  enum class Phase : std::uint8_t { Idle, Probing, Lss, Listening, Done };
+  struct Probe {
+    std::unique_ptr<canopen::SdoClient> sdo;
+    std::size_t step = 0;
+  };
+  void launch(std::uint8_t node, TimePoint now);
+  void read_next(std::uint8_t node);
+  void probe_ended(std::uint8_t node);
+  void after_probing(TimePoint now);
+  void fastscan_step(TimePoint now);
+  void lss_ended(TimePoint now);
+  void report(bool lss);
+  ScannedNode& node(std::uint8_t id);
+
+  FrameSink sink_;
+  ScanConfig cfg_;
+  Phase phase_ = Phase::Idle;
+  TimePoint start_{}, now_{};
+  std::deque<std::uint8_t> pending_;
+  std::map<std::uint8_t, Probe> active_;
+  std::map<std::uint8_t, ScannedNode> nodes_;
+  std::map<std::uint8_t, TimePoint> last_heartbeat_;
+  std::size_t probed_ = 0, total_ = 0;
+  bool ended_ = false;  // a probe ended inside a callback: refill after it returns
+  canopen::LssMaster lss_;
+  ScanResult lss_result_;
+  // Fastscan progress: the part of the address (0..3), the next bit to decide, the value so far.
+  std::uint8_t fs_sub_ = 0;
+  int fs_bit_ = 31;
+  bool fs_retry_ = false;
+  std::uint32_t fs_value_[4] = {};
+};
+
+}  // namespace oegw::subdevices
