@@ -35,7 +35,7 @@ TEST(BusLoad, OneElobauGripIsItsHeartbeatAndTwoTpdosEvery100Ms) {
   EXPECT_DOUBLE_EQ(p.upstream.bits_per_second(), 650.0);
   // TPDO #0's 2 ms inhibit time bounds its change-driven frames: listed, not counted.
   bool listed = false;
-  for (const auto& c : p.downstream.on_change) listed = listed || c.find("191h") != std::string::npos && c.find("at most 500/s") != std::string::npos;
+  for (const auto& c : p.downstream.on_change) listed = listed || (c.find("191h") != std::string::npos && c.find("at most 500/s") != std::string::npos);
   EXPECT_TRUE(listed);
   const std::string text = gateway::describe_bus_load(p.downstream, "downstream");
   EXPECT_NE(text.find("downstream 1000000 bit/s: 0.3 % steady state (30.0 frames/s, 3350 bit/s"), std::string::npos) << text;
