@@ -245,7 +245,8 @@ void NetworkManager::reset_application_next(std::string_view name) {
 
 void NetworkManager::begin_boot(Managed& m, TimePoint now) {
   ++m.generation;
-  // A transfer in flight runs to its end (its callback is ignored: generation): aborting it
+  // A transfer in flight runs to its end on the wire (its requester is answered at once; the
+  // network manager's own callback is ignored: generation): aborting it
   // would let the node's late answer pass for the answer to the next boot's first request
   // (SdoClient::cancel_queued).
   master_.sdo(m.settings.node).cancel_queued(SdoAbortCode::CannotTransferDeviceState);

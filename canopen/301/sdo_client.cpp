@@ -110,6 +110,10 @@ void SdoClient::cancel_all(SdoAbortCode code) {
 }
 
 void SdoClient::cancel_queued(SdoAbortCode code) {
+  // The requester of the transfer in flight is answered now; the transfer itself stays on the
+  // wire (the client busy, its answer or time-out dropped), see the header.
+  if (state_ != State::Idle && current_.callback) done_.push_back(Done{std::move(current_.callback), code, {}});
+  current_.callback = nullptr;
   for (std::size_t i = queue_head_; i < queue_.size(); ++i)
     done_.push_back(Done{std::move(queue_[i].callback), code, {}});
   queue_.clear();
