@@ -16,6 +16,7 @@
 #include "canopen/io/can_bitrate.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/socketcan_transport.hpp"
+#include "gateway/bus_load.hpp"
 #include "gateway/control/gateway_control.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/publish/dds_publisher.hpp"
@@ -226,6 +227,12 @@ int run_check(const std::string& file) {
   std::printf("  downstream %u bit/s (downstream.bitrate): %s\n", cfg->downstream.bitrate,
               bit_rate_plan(*link, cfg->downstream.interface, cfg->downstream.bitrate).c_str());
   std::printf("  LSS configure bit timing and the EDS: %s\n", rate_list(device->config().supported_bit_timings).c_str());
+  // What the configuration puts on each bus with the inputs held still (gateway/bus_load.hpp).
+  BusLoadPrediction load = predict_bus_load(*cfg);
+  load.upstream.bit_rate = up_rate.bitrate;  // the rate oegw run uses (an LSS-stored one wins)
+  std::printf("\nbus load (steady state: periodic frames at their worst-case length; warning above %.0f %%):\n%s%s",
+              kBusLoadWarnPercent, describe_bus_load(load.upstream, "upstream").c_str(),
+              describe_bus_load(load.downstream, "downstream").c_str());
   const auto pdos = cia852::default_pdos(fes, node);
   std::printf("\nfunctional elements (field <- signal: object, PDO):\n");
   for (const auto& fe : cfg->functional_elements) {

@@ -9,8 +9,13 @@ using canopen::TimePoint;
 
 CabRig::CabRig(const mapping::Config& config, canopen::EventLoop& loop, CabRigOptions options)
     : config_(config), loop_(loop), options_(std::move(options)) {
-  up_.run_on(loop_);
-  down_.run_on(loop_);
+  if (options_.timed_buses) {
+    up_.run_timed_on(loop_, config_.upstream.bitrate);
+    down_.run_timed_on(loop_, config_.downstream.bitrate);
+  } else {
+    up_.run_on(loop_);
+    down_.run_on(loop_);
+  }
   gw_up_ = up_.attach("gateway");
   host_port_ = up_.attach("host");
   gw_down_ = down_.attach("gateway");
@@ -34,6 +39,8 @@ canopen::FrameSink CabRig::through(const Interceptor& consumed, canopen::FrameSi
 
 void CabRig::build_devices() {
   bench_ = std::make_unique<subdevices::sim::SimBench>(through(from_devices, sims_port_->sink()));
+  bench_->set_sdo_latency(options_.device_sdo_latency.value_or(
+      options_.timed_buses ? subdevices::sim::kTypicalSdoLatency : canopen::Duration{0}));
   for (const auto& s : config_.subdevices) {
     subdevices::DeviceSpec spec{s.driver, s.node(), {}};
     for (const auto& [key, value] : s.options.values)

@@ -14,6 +14,7 @@
 #include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
@@ -34,6 +35,13 @@ struct CabRigOptions {
   // document's table). The mapping file's driver options never reach a simulator, only a
   // cia401 node's `eds` (the device and its description are one file).
   std::map<std::string, subdevices::DriverOptions> simulator_options{};
+  // Time on the wire (canopen/io/virtual_bus.hpp run_timed_on): both buses at the mapping
+  // file's bit rates (upstream.bitrate, downstream.bitrate), frames taking their real length and
+  // waiting for arbitration. false (the default): the instant buses, where timing does not matter.
+  bool timed_buses = false;
+  // The simulators' SDO latency (SimulatedDevice::set_sdo_latency); unset: none on the instant
+  // buses, subdevices::sim::kTypicalSdoLatency (1 ms) on the timed ones.
+  std::optional<canopen::Duration> device_sdo_latency{};
 };
 
 class CabRig {

@@ -52,13 +52,17 @@ fuzz network_manager_fuzz 20 "$CORPUS/network_manager_fuzz" "$CORPUS/seeds/netwo
 # Tier 4: benchmarks print their figures; a crash fails the run, a slow machine does not.
 for b in "$BUILD"/tests/bench/oegw_bench_*; do
   [ -x "$b" ] || continue
-  case "$b" in *oegw_bench_rss) continue ;; esac  # not a Google Benchmark: run below
+  case "$b" in *oegw_bench_rss|*oegw_bench_cab_timing) continue ;; esac  # not Google Benchmarks: run below
   echo "== $(basename "$b")"
   "$b" --benchmark_min_time=0.2
 done
 # Resident memory of the gateway with the full FE set (figures; fails only if the set does not boot).
 echo "== oegw_bench_rss"
 "$BUILD"/tests/bench/oegw_bench_rss
+# Cab boot time against its bound, and bus load predicted against measured, on the timed bus
+# (simulated time; figures only, fails only if a cab does not boot).
+echo "== oegw_bench_cab_timing"
+"$BUILD"/tests/bench/oegw_bench_cab_timing
 
 # The cab controller's processors: the unit and integration tests cross-built for arm64 and armhf
 # and run under qemu-user, and each architecture's Debian package with its Depends checked

@@ -97,6 +97,23 @@ Cia401Driver::Cia401Driver(NodeId node, FrameSink sink, canopen::eds::File file)
   }
 }
 
+std::vector<Driver::TpdoTraffic> Cia401Driver::expected_tpdos(const std::vector<SdoWrite>& writes) const {
+  const bool booted = std::any_of(pdos_.begin(), pdos_.end(), [](const Pdo& p) { return p.transmit && p.usable(); });
+  if (booted) return Driver::expected_tpdos(writes);
+  std::vector<TpdoTraffic> out;
+  for (std::uint16_t n = 1; n <= kPdosPerDirection; ++n) {
+    const auto d = canopen::eds::pdo_defaults(eds_, true, n, node());
+    if (!d || !CobId{d->cob_id}.valid()) continue;
+    unsigned bits = 0;
+    for (const std::uint32_t e : d->mapping) bits += e & 0xFF;
+    TpdoTraffic t{CobId{d->cob_id}.can_id(), static_cast<std::uint8_t>(std::min(8u, (bits + 7) / 8)), d->event_timer,
+                  d->transmission_type, d->inhibit_time};
+    apply_tpdo_writes(t, static_cast<std::uint16_t>(0x1800 + n - 1), writes);
+    out.push_back(t);
+  }
+  return out;
+}
+
 void Cia401Driver::refresh_carriers() {
   std::vector<Carrier> carriers;
   for (const Pdo& p : pdos_) {
@@ -106,6 +123,7 @@ void Cia401Driver::refresh_carriers() {
     c.comm_index = p.comm_index();
     c.event_timer_ms = p.event_timer.value_or(0);  // as read from the node at boot
     c.transmission_type = p.transmission_type.value_or(0xFF);
+    c.length = static_cast<std::uint8_t>(std::min(8u, (p.bits + 7) / 8));
     for (const Entry& e : p.decoded)
       if (e.signal >= 0) c.signals.push_back(static_cast<std::size_t>(e.signal));
     carriers.push_back(std::move(c));

@@ -168,6 +168,13 @@ class Cia401Driver final : public Driver {
   // Each usable TPDO read back at boot, with the event timer and type read from the node (the
   // mapping file's `sdo` writes, made after the reads, replace them).
   void refresh_carriers() override;
+
+ public:
+  // Before a boot has read the node's PDOs: the EDS's default TPDOs (valid COB-ID, mapping
+  // length, type, inhibit time, event timer), with `writes` applied; after one: the base's.
+  [[nodiscard]] std::vector<TpdoTraffic> expected_tpdos(const std::vector<SdoWrite>& writes) const override;
+
+ private:
   void flush_outputs(TimePoint now) override;
   void add_signals(std::uint16_t index, const char* prefix, SignalKind kind, std::int64_t min, std::int64_t max,
                    const char* unit);

@@ -122,6 +122,26 @@ void Driver::apply_boot_writes(const std::vector<SdoWrite>& writes) {
   rebuild_deadlines();
 }
 
+void Driver::apply_tpdo_writes(TpdoTraffic& t, std::uint16_t comm_index, const std::vector<SdoWrite>& writes) {
+  for (const SdoWrite& w : writes) {
+    if (w.index != comm_index || w.data.empty()) continue;
+    const auto u16 = static_cast<std::uint16_t>(w.data[0] | (w.data.size() >= 2 ? w.data[1] << 8 : 0));
+    if (w.sub == 2) t.transmission_type = w.data[0];
+    if (w.sub == 3) t.inhibit_100us = u16;
+    if (w.sub == 5) t.event_timer_ms = u16;
+  }
+}
+
+std::vector<Driver::TpdoTraffic> Driver::expected_tpdos(const std::vector<SdoWrite>& writes) const {
+  std::vector<TpdoTraffic> out;
+  for (const Carrier& c : carriers_) {
+    TpdoTraffic t{c.cob_id, c.length, c.event_timer_ms, c.transmission_type, c.inhibit_100us};
+    apply_tpdo_writes(t, c.comm_index, writes);
+    out.push_back(t);
+  }
+  return out;
+}
+
 void Driver::set_pdo_timeout(Duration timeout) {
   pdo_timeout_ = timeout;
   rebuild_deadlines();

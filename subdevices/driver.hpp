@@ -181,6 +181,21 @@ class Driver {
   // read-back to decide; the default drops them (the device reports again what persists).
   virtual void on_application_reset(TimePoint now);
 
+  // One TPDO the device sends, as the boot configures it: what `oegw check` counts for the
+  // bus load (gateway/bus_load.hpp).
+  struct TpdoTraffic {
+    std::uint32_t cob_id = 0;
+    std::uint8_t length = 8;               // data bytes
+    std::uint16_t event_timer_ms = 0;      // 0: none
+    std::uint8_t transmission_type = 0xFF;
+    std::uint16_t inhibit_100us = 0;       // 0: none
+  };
+  // The TPDOs the device sends once `writes` (its configuration() and the mapping file's `sdo`
+  // list, in that order) are made: its carriers, with the event timers (18xxh:05), transmission
+  // types (:02) and inhibit times (:03) written there. Without a boot (the generic node reads
+  // its PDOs at boot) a driver answers from its device description.
+  [[nodiscard]] virtual std::vector<TpdoTraffic> expected_tpdos(const std::vector<SdoWrite>& writes) const;
+
   // Called with a signal's index whenever its value or status changed.
   std::function<void(std::size_t index, const SignalValue& value)> on_change;
 
@@ -216,7 +231,11 @@ class Driver {
     std::uint16_t event_timer_ms = 0;      // 0: sent on change (or SYNC) only
     std::uint8_t transmission_type = 254;  // the event timer counts for 254/255 only
     std::vector<std::size_t> signals;
+    std::uint8_t length = 8;               // data bytes of the PDO (its mapping), for the bus load
+    std::uint16_t inhibit_100us = 0;       // 18xxh:03 as the device has it by default
   };
+  // Applies the writes to 18xxh:02/:03/:05 of `comm_index` (expected_tpdos()).
+  static void apply_tpdo_writes(TpdoTraffic& t, std::uint16_t comm_index, const std::vector<SdoWrite>& writes);
   // Declares the carriers (in the constructor, or from refresh_carriers()).
   void set_carriers(std::vector<Carrier> carriers);
   // Called by apply_boot_writes() first: a driver that learns its PDO layout at boot (the

@@ -106,13 +106,14 @@ ElobauMfgDriver::ElobauMfgDriver(NodeId node, FrameSink sink, ElobauMfgOptions o
   init(node, std::move(sink), signals_.size());
   // TPDO #0 carries every axis's channel 1 and the buttons (§14.1), sent every cycle_ms (written
   // to 1800h:05 at boot) and on change; TPDO #1 only cross-checks (channel2_timeout_ms).
+  // Both 8 bytes (§14.1, §14.2); TPDO #0 with the 2 ms inhibit time of Table 14.
   Carrier tpdo0{.cob_id = kTpdo0 + node.value(), .required = true, .comm_index = 0x1800, .event_timer_ms = opt_.cycle_ms,
-                .transmission_type = 254, .signals = {}};
+                .transmission_type = 254, .signals = {}, .length = 8, .inhibit_100us = 20};
   for (std::size_t i = 0; i < kFirstLed; ++i) tpdo0.signals.push_back(i);
   // TPDO #1 (channel 2 of the axes, same cycle, 1801h:05): once seen, its loss leaves the axes
   // unchecked, a doubt like any overdue PDO; a grip with TPDO #1 disabled never sends it.
   Carrier tpdo1{.cob_id = kTpdo1 + node.value(), .required = false, .comm_index = 0x1801, .event_timer_ms = opt_.cycle_ms,
-                .transmission_type = 254, .signals = {}};
+                .transmission_type = 254, .signals = {}, .length = 8};
   for (std::size_t a = 0; a < kAxes; ++a) tpdo1.signals.push_back(kX + a);
   set_carriers({tpdo0, tpdo1});
 }

@@ -134,10 +134,12 @@ Mcb402Driver::Mcb402Driver(NodeId node, FrameSink sink, Mcb402Options options)
   init(node, std::move(sink), signals_.size());
   // TPDO1 (buttons) and TPDO2 (axes), type FFh with the event timers configuration() writes.
   Carrier tpdo1{.cob_id = canopen::cob::kTpdo1 + node.value(), .comm_index = 0x1800,
-                .event_timer_ms = options_.button_timer_ms, .transmission_type = 0xFF, .signals = {}};
+                .event_timer_ms = options_.button_timer_ms, .transmission_type = 0xFF, .signals = {},
+                .length = 4};  // 6000h:01..04 ("Operation mode 4" mapping)
   for (std::size_t i = 0; i < kButtons; ++i) tpdo1.signals.push_back(kFirstButton + i);
   Carrier tpdo2{.cob_id = canopen::cob::kTpdo2 + node.value(), .comm_index = 0x1801,
-                .event_timer_ms = options_.event_timer_ms, .transmission_type = 0xFF, .signals = {}};
+                .event_timer_ms = options_.event_timer_ms, .transmission_type = 0xFF, .signals = {},
+                .length = 8};  // 6401h:01..04, INTEGER16 each
   for (std::size_t a = 0; a < kAxes; ++a) tpdo2.signals.push_back(a);
   set_carriers({tpdo1, tpdo2});
 }

@@ -245,7 +245,11 @@ void NetworkManager::reset_application_next(std::string_view name) {
 
 void NetworkManager::begin_boot(Managed& m, TimePoint now) {
   ++m.generation;
-  master_.sdo(m.settings.node).cancel_all(SdoAbortCode::CannotTransferDeviceState);
+  // A transfer in flight runs to its end on the wire (its requester is answered at once; the
+  // network manager's own callback is ignored: generation): aborting it
+  // would let the node's late answer pass for the answer to the next boot's first request
+  // (SdoClient::cancel_queued).
+  master_.sdo(m.settings.node).cancel_queued(SdoAbortCode::CannotTransferDeviceState);
   m.reset_node_sent = m.reset_node_next;
   m.reset_node_next = false;
   if (m.reset_node_sent) {
@@ -264,7 +268,10 @@ void NetworkManager::configure(Managed& m, TimePoint now, const std::string& why
   m.deadline.reset();
   m.held.clear();
   m.driver->set_alive_since(std::nullopt);
-  master_.sdo(m.settings.node).cancel_all(SdoAbortCode::CannotTransferDeviceState);
+  // As in begin_boot(): a request in flight (e.g. the previous configuration's, when a second
+  // boot-up - the power-on one crossing the gateway's reset - restarts it) is answered before
+  // this configuration's first request goes out, and its answer is ignored.
+  master_.sdo(m.settings.node).cancel_queued(SdoAbortCode::CannotTransferDeviceState);
   // Pre-operational before any SDO (step 2 of the header). The NMT command is unconfirmed; the
   // node handles it before the SDO request queued behind it on the bus.
   master_.nmt().enter_pre_operational(m.settings.node);

@@ -89,7 +89,8 @@ Novotechnik406Driver::Novotechnik406Driver(NodeId node, FrameSink sink, Novotech
   // 255 at least as often; SYNC types (1..240) have no event-timer deadline.
   set_carriers({Carrier{.cob_id = canopen::cob::kTpdo1 + node.value(), .comm_index = 0x1800,
                         .event_timer_ms = options_.event_timer_ms,
-                        .transmission_type = options_.transmission_type, .signals = {kPosition, kSpeed}}});
+                        .transmission_type = options_.transmission_type, .signals = {kPosition, kSpeed},
+                        .length = 6}});  // §4.1 default mapping: 60200120h position + 60300110h speed
 }
 
 bool Novotechnik406Driver::is_error_position(std::int32_t position) {

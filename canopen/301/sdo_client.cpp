@@ -109,6 +109,18 @@ void SdoClient::cancel_all(SdoAbortCode code) {
   pump();
 }
 
+void SdoClient::cancel_queued(SdoAbortCode code) {
+  // The requester of the transfer in flight is answered now; the transfer itself stays on the
+  // wire (the client busy, its answer or time-out dropped), see the header.
+  if (state_ != State::Idle && current_.callback) done_.push_back(Done{std::move(current_.callback), code, {}});
+  current_.callback = nullptr;
+  for (std::size_t i = queue_head_; i < queue_.size(); ++i)
+    done_.push_back(Done{std::move(queue_[i].callback), code, {}});
+  queue_.clear();
+  queue_head_ = 0;
+  pump();
+}
+
 void SdoClient::start(TimePoint now) {
   current_ = std::move(queue_[queue_head_++]);
   if (queue_head_ == queue_.size()) {

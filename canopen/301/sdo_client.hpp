@@ -84,6 +84,13 @@ class SdoClient {
   // Sends an abort for the transfer in flight, if any, and fails it and every queued request
   // with `code`.
   void cancel_all(SdoAbortCode code = SdoAbortCode::GeneralError);
+  // Fails every queued request with `code`, and the transfer in flight's requester at once too,
+  // but lets that transfer run to its end on the wire (its answer, the server's abort, or the
+  // time-out, all dropped) before the next request starts. CiA 301 SDO frames carry
+  // no transaction number: after an abort, the server's late answer to the aborted request is
+  // indistinguishable from an answer to the next one, so a caller that starts over with the
+  // same server (a node that rebooted meanwhile) lets the old request finish first.
+  void cancel_queued(SdoAbortCode code);
   // Withdraws one request: queued, it is removed; in flight, the abort frame with `code` is sent
   // (SdoAbortCode::None counts as 0x08000000). Its callback is called once with that code,
   // after this returns unless called from a callback. False (nothing done) if the ticket is

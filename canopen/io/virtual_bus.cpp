@@ -1,5 +1,8 @@
 #include "canopen/io/virtual_bus.hpp"
 
+#include <stdexcept>
+
+#include "canopen/frame_bits.hpp"
 #include "canopen/io/event_loop.hpp"
 
 namespace oegw::canopen {
@@ -26,6 +29,10 @@ SendResult VirtualPort::send(const CanFrame& frame) {
 
 VirtualBus::~VirtualBus() {
   for (auto& [id, port] : ports_) port->bus_ = nullptr;
+  if (timed_loop_ != nullptr) {
+    if (deliver_timer_ != 0) timed_loop_->cancel(deliver_timer_);
+    if (idle_timer_ != 0) timed_loop_->cancel(idle_timer_);
+  }
 }
 
 std::unique_ptr<VirtualPort> VirtualBus::attach(std::string name, PortOptions options) {
@@ -52,12 +59,44 @@ void VirtualBus::enqueue(std::uint64_t sender_id, const std::string& sender, con
     ++dropped_;
     return;
   }
+  if (timed()) {
+    waiting_.emplace(std::pair{arbitration_key(frame), send_seq_++}, Pending{sender_id, sender, frame});
+    // Every frame sent at this instant competes: arbitration runs after the current callback.
+    if (!on_wire_ && !arbitration_posted_) {
+      arbitration_posted_ = true;
+      timed_loop_->post([this, alive = std::weak_ptr<int>(alive_)] {
+        if (alive.expired()) return;
+        arbitration_posted_ = false;
+        arbitrate();
+      });
+    }
+    return;
+  }
   const bool was_empty = pending() == 0;
   queue_.push_back(Pending{sender_id, sender, frame});
   if (was_empty && !delivering_ && wakeup_) wakeup_();
 }
 
+void VirtualBus::deliver_one(Pending p, TimePoint now) {
+  BusRecord record{now, std::move(p.sender), p.frame};
+  if (logging_) log_.push_back(record);
+  if (tap_) tap_(record);
+  // Snapshot: receivers may attach or destroy ports while we deliver.
+  std::vector<std::uint64_t>& targets = targets_;  // reused: deliveries are not re-entered
+  targets.clear();
+  for (const auto& [id, port] : ports_) targets.push_back(id);
+  for (std::uint64_t id : targets) {
+    auto it = ports_.find(id);
+    if (it == ports_.end()) continue;
+    VirtualPort* port = it->second;
+    if (!port->connected_) continue;
+    if (id == p.sender_id && !port->options_.receive_own) continue;
+    port->deliver_frame(record.frame, now);
+  }
+}
+
 std::size_t VirtualBus::deliver_all(TimePoint now, std::size_t max_frames) {
+  if (timed()) throw std::logic_error("VirtualBus::deliver_all on a timed bus: its event loop moves the frames");
   if (delivering_) return 0;
   delivering_ = true;
   struct Reset {
@@ -66,7 +105,6 @@ std::size_t VirtualBus::deliver_all(TimePoint now, std::size_t max_frames) {
   } reset{delivering_};
 
   std::size_t delivered = 0;
-  std::vector<std::uint64_t>& targets = targets_;  // reused: deliver_all() is not re-entered
   while (head_ < queue_.size() && delivered < max_frames) {
     Pending p = std::move(queue_[head_++]);
     if (head_ == queue_.size()) {
@@ -78,20 +116,7 @@ std::size_t VirtualBus::deliver_all(TimePoint now, std::size_t max_frames) {
       head_ = 0;
     }
     ++delivered;
-    BusRecord record{now, std::move(p.sender), p.frame};
-    if (logging_) log_.push_back(record);
-    if (tap_) tap_(record);
-    // Snapshot: receivers may attach or destroy ports while we deliver.
-    targets.clear();
-    for (const auto& [id, port] : ports_) targets.push_back(id);
-    for (std::uint64_t id : targets) {
-      auto it = ports_.find(id);
-      if (it == ports_.end()) continue;
-      VirtualPort* port = it->second;
-      if (!port->connected_) continue;
-      if (id == p.sender_id && !port->options_.receive_own) continue;
-      port->deliver_frame(record.frame, now);
-    }
+    deliver_one(std::move(p), now);
   }
   return delivered;
 }
@@ -112,6 +137,49 @@ void VirtualBus::run_on(EventLoop& loop) {
   };
   set_wakeup([post_delivery] { (*post_delivery)(); });
   if (pending() != 0) (*post_delivery)();
+}
+
+}  // namespace oegw::canopen
+
+namespace oegw::canopen {
+
+void VirtualBus::run_timed_on(EventLoop& loop, std::uint32_t bit_rate) {
+  if (bit_rate == 0) throw std::invalid_argument("VirtualBus::run_timed_on: bit rate 0");
+  bit_rate_ = bit_rate;
+  timed_loop_ = &loop;
+  set_wakeup({});
+}
+
+Duration VirtualBus::bit_time(std::uint64_t bits) const {
+  if (bit_rate_ == 0) return Duration{0};
+  return Duration{static_cast<Duration::rep>((bits * 1'000'000ull + bit_rate_ - 1) / bit_rate_)};
+}
+
+void VirtualBus::arbitrate() {
+  if (on_wire_ || waiting_.empty()) return;
+  // ISO 11898-1 §10.8.3: of the frames waiting when the bus goes idle, the lowest arbitration
+  // field wins; among equal ones (the same frame from two senders) the one sent first.
+  auto first = waiting_.begin();
+  Pending p = std::move(first->second);
+  waiting_.erase(first);
+  on_wire_ = true;
+  const std::uint32_t bits = frame_bits(p.frame);
+  const TimePoint start = timed_loop_->now();
+  const TimePoint received = start + bit_time(bits - kIntermissionBits);
+  const TimePoint idle = start + bit_time(bits);
+  ++stats_.frames;
+  stats_.bits += bits;
+  stats_.busy += idle - start;
+  auto shared = std::make_shared<Pending>(std::move(p));
+  deliver_timer_ = timed_loop_->call_at(received, [this, shared, received] {
+    deliver_timer_ = 0;
+    deliver_one(std::move(*shared), received);
+  });
+  idle_timer_ = timed_loop_->call_at(idle, [this] {
+    idle_timer_ = 0;
+    on_wire_ = false;
+    arbitrate();
+  });
 }
 
 }  // namespace oegw::canopen

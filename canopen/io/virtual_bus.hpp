@@ -19,6 +19,19 @@
 // PortOptions::receive_own.
 //
 // With an event loop, run_on(loop) posts a deliver_all() to the loop whenever frames are queued.
+//
+// Time on the wire (optional; the default bus is instant): run_timed_on(loop, bit_rate) makes
+// each frame occupy the bus for its real length at that bit rate, stuff bits included
+// (canopen/frame_bits.hpp, ISO 11898-1 §10.4/§10.5). Sent frames wait for the bus; when it goes
+// idle (after the intermission), the waiting frame with the highest priority - the lowest
+// arbitration field, ISO 11898-1 §10.8.3, so the lowest CAN-ID - goes next, frames sent at the
+// same instant all competing. A frame reaches the receivers at the end of its end-of-frame
+// field, stamped with that time (ISO 11898-1 §10.7: a receiver takes a frame as valid at the
+// last-but-one EOF bit; the 1-bit difference is not modelled), and the bus is idle 3 bits
+// later. Times are microseconds: a frame's duration is rounded up to the next microsecond (exact
+// at 1 Mbit/s, 500, 250, 125 kbit/s). stats() counts the frames and bits sent and the time the
+// bus was busy. In this mode deliver_all() is not used (it throws std::logic_error): the loop
+// moves the frames.
 #pragma once
 
 #include <cstdint>
@@ -30,6 +43,7 @@
 #include <vector>
 
 #include "canopen/io/can_transport.hpp"
+#include "canopen/io/event_loop.hpp"
 
 namespace oegw::canopen {
 
@@ -99,7 +113,7 @@ class VirtualBus {
   // from inside a receiver returns 0 at once (the outer call keeps draining).
   std::size_t deliver_all(TimePoint now, std::size_t max_frames = 1'000'000);
 
-  [[nodiscard]] std::size_t pending() const { return queue_.size() - head_; }
+  [[nodiscard]] std::size_t pending() const { return queue_.size() - head_ + waiting_.size(); }
 
   // Observes every frame as it is delivered (dropped frames are not seen).
   void set_tap(Tap tap) { tap_ = std::move(tap); }
@@ -118,6 +132,22 @@ class VirtualBus {
   // Drives the bus from an event loop: whenever frames are queued, a deliver_all(loop.now()) is
   // posted to the loop. The loop must outlive the bus or stop running it first.
   void run_on(EventLoop& loop);
+  // The bus with time on the wire at `bit_rate` bit/s (see the header comment), driven by
+  // `loop` (a simulated clock in tests). Call before any frame is sent; the loop must outlive
+  // the bus. Throws std::invalid_argument for a bit rate of 0.
+  void run_timed_on(EventLoop& loop, std::uint32_t bit_rate);
+  [[nodiscard]] bool timed() const { return bit_rate_ != 0; }
+  [[nodiscard]] std::uint32_t bit_rate() const { return bit_rate_; }
+
+  // What went over the timed bus (all zero on the instant bus).
+  struct Stats {
+    std::uint64_t frames = 0;  // frames transmitted (dropped frames never reach the wire)
+    std::uint64_t bits = 0;    // their length, stuff bits and intermission included
+    Duration busy{0};          // the time they occupied the bus (bits at the bit rate)
+  };
+  [[nodiscard]] const Stats& stats() const { return stats_; }
+  // The duration of `bits` at this bus's bit rate, rounded up to the microsecond.
+  [[nodiscard]] Duration bit_time(std::uint64_t bits) const;
 
  private:
   friend class VirtualPort;
@@ -128,6 +158,10 @@ class VirtualBus {
   };
 
   void enqueue(std::uint64_t sender_id, const std::string& sender, const CanFrame& frame);
+  // Hands one frame to every connected port (but its sender's), logged and tapped.
+  void deliver_one(Pending p, TimePoint now);
+  // Timed bus: the bus went idle or a frame arrived on an idle bus; the winner goes on the wire.
+  void arbitrate();
   void detach(std::uint64_t id) { ports_.erase(id); }
 
   std::map<std::uint64_t, VirtualPort*> ports_;  // id order = attach order
@@ -146,6 +180,15 @@ class VirtualBus {
   std::uint64_t dropped_ = 0;
   std::function<void()> wakeup_;
   std::shared_ptr<int> alive_ = std::make_shared<int>(0);  // for callbacks posted to a loop
+  // Timed bus: the frames waiting for the bus, by (arbitration field, send order).
+  std::uint32_t bit_rate_ = 0;
+  EventLoop* timed_loop_ = nullptr;
+  std::map<std::pair<std::uint64_t, std::uint64_t>, Pending> waiting_;
+  std::uint64_t send_seq_ = 0;
+  bool on_wire_ = false;            // a frame (or its intermission) occupies the bus
+  bool arbitration_posted_ = false;
+  EventLoop::TimerId deliver_timer_ = 0, idle_timer_ = 0;
+  Stats stats_;
 };
 
 }  // namespace oegw::canopen

@@ -40,8 +40,14 @@ bool SimBench::add(const DeviceSpec& spec, std::string& error) {
   }
   auto driver = make_driver(spec.family, spec.node, {}, driver_spec.options, error);
   if (!driver) return false;
+  sim->set_sdo_latency(sdo_latency_);
   devices_.push_back({name, std::move(sim), driver->signals()});
   return true;
+}
+
+void SimBench::set_sdo_latency(canopen::Duration latency) {
+  sdo_latency_ = latency;
+  for (auto& e : devices_) e.sim->set_sdo_latency(latency);
 }
 
 void SimBench::start(TimePoint now) {

@@ -7,9 +7,15 @@ void SimulatedDevice::build(std::unique_ptr<canopen::ObjectDictionary> od, const
   node_ = std::make_unique<canopen::Node>(*od_, config, out());
 }
 
-void SimulatedDevice::start(TimePoint now) { (void)node_->start(now); }
+void SimulatedDevice::start(TimePoint now) {
+  now_ = now;
+  delayed_.clear();
+  (void)node_->start(now);
+}
 
 void SimulatedDevice::reboot(TimePoint now) {
+  now_ = now;
+  delayed_.clear();  // the answers it was about to give die with its application
   on_power_cycle(now);
   node_->nmt().reset(false, now);  // reset application: defaults, stored values, boot-up
 }
@@ -21,7 +27,27 @@ void SimulatedDevice::send(const CanFrame& frame) {
       frame.data[0] != 0)
     return;
   if (pdo_stopped_ && is_tpdo(frame)) return;
+  if (sdo_latency_.count() > 0 && is_sdo_answer(frame)) {
+    delayed_.emplace_back(now_ + sdo_latency_, frame);
+    return;
+  }
   if (sink_) sink_(frame);
+}
+
+bool SimulatedDevice::is_sdo_answer(const CanFrame& frame) const {
+  // CiA 301 §7.5.2.33: the server's answers go out on 1200h:02 (COB-ID server -> client).
+  const canopen::SubObject* s = od_->find(0x1200, 2);
+  if (s == nullptr || s->value.size() < 4) return false;
+  const canopen::CobId tx{od_->get<std::uint32_t>(0x1200, 2)};
+  return tx.valid() && tx.extended() == frame.extended && tx.can_id() == frame.id;
+}
+
+void SimulatedDevice::release_answers(TimePoint now) {
+  while (!delayed_.empty() && delayed_.front().first <= now) {
+    const CanFrame f = delayed_.front().second;
+    delayed_.pop_front();
+    if (!silent_ && sink_) sink_(f);
+  }
 }
 
 bool SimulatedDevice::is_tpdo(const CanFrame& frame) const {
@@ -38,6 +64,7 @@ bool SimulatedDevice::is_tpdo(const CanFrame& frame) const {
 }
 
 bool SimulatedDevice::on_frame(const CanFrame& frame, TimePoint now) {
+  now_ = now;
   if (silent_) return false;
   if (refused_in_state(frame)) return true;
   return node_->on_frame(frame, now);
@@ -69,8 +96,16 @@ bool SimulatedDevice::refused_in_state(const CanFrame& frame) {
   return true;
 }
 
-void SimulatedDevice::advance(TimePoint now) { node_->advance(now); }
+void SimulatedDevice::advance(TimePoint now) {
+  now_ = now;
+  release_answers(now);
+  node_->advance(now);
+}
 
-std::optional<TimePoint> SimulatedDevice::next_deadline() const { return node_->next_deadline(); }
+std::optional<TimePoint> SimulatedDevice::next_deadline() const {
+  std::optional<TimePoint> t = node_->next_deadline();
+  if (!delayed_.empty() && (!t || delayed_.front().first < *t)) t = delayed_.front().first;
+  return t;
+}
 
 }  // namespace oegw::subdevices::sim

@@ -5,6 +5,7 @@
 // inject an error code).
 #pragma once
 
+#include <deque>
 #include <memory>
 #include <optional>
 #include <cstdint>
@@ -57,6 +58,13 @@ class SimulatedDevice {
   // The current state of an output by its driver signal name ("leds[2]"), or nullopt.
   [[nodiscard]] virtual std::optional<std::int64_t> output(std::string_view signal) const = 0;
 
+  // The device's SDO latency: every answer of its SDO server (1200h) leaves `latency` after
+  // the request was received, in order (a device answers from its application cycle, not at
+  // once). 0 (the default): at once. Answers still pending at a reboot are lost, as the
+  // device's are; a silent device's pending answers are not sent.
+  void set_sdo_latency(canopen::Duration latency) { sdo_latency_ = latency; }
+  [[nodiscard]] canopen::Duration sdo_latency() const { return sdo_latency_; }
+
   // Sans-I/O entry points, as canopen::Node's.
   bool on_frame(const CanFrame& frame, TimePoint now);
   void advance(TimePoint now);
@@ -84,6 +92,8 @@ class SimulatedDevice {
 
  private:
   void send(const CanFrame& frame);
+  [[nodiscard]] bool is_sdo_answer(const CanFrame& frame) const;
+  void release_answers(TimePoint now);  // the delayed SDO answers due by `now`
   [[nodiscard]] bool is_tpdo(const CanFrame& frame) const;
   bool refused_in_state(const CanFrame& frame);  // answered refuse_download()'s abort
 
@@ -93,6 +103,9 @@ class SimulatedDevice {
   bool pdo_stopped_ = false;
   std::unique_ptr<canopen::ObjectDictionary> od_;
   std::unique_ptr<canopen::Node> node_;
+  canopen::Duration sdo_latency_{0};
+  TimePoint now_{};  // of the frame or advance() being handled: what send() delays from
+  std::deque<std::pair<TimePoint, CanFrame>> delayed_;  // SDO answers waiting for their time
 };
 
 }  // namespace oegw::subdevices::sim

@@ -491,6 +491,38 @@ TEST_F(SdoClientTest, CancelInFlightAbortsOnTheBusAndStartsTheNext) {
   EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::ResourceNotAvailable), ok({5})}));
 }
 
+TEST_F(SdoClientTest, CancelQueuedLetsTheTransferInFlightEndSoItsLateAnswerCannotPassForTheNext) {
+  // The network manager starting a node's configuration over (a second boot-up) while its
+  // 1000h read is in flight: cancel_all() would abort it and send the new 1000h read, and the
+  // server's answer to the first read, already on its way, would be taken for the second's and
+  // the second's answer then for the next request's (a 08000000h abort in the middle of a boot).
+  client->upload(0x1000, 0, record());
+  client->upload(0x1018, 1, record());
+  EXPECT_EQ(go(), req({0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}));
+  out.clear();
+  client->cancel_queued(SdoAbortCode::CannotTransferDeviceState);
+  EXPECT_EQ(out, none()) << "no abort on the bus";
+  // Both requesters are answered at once (a host's remote SDO in flight must not wait for a node
+  // the gateway took back): the one in flight first, then the queued 1018h:01.
+  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::CannotTransferDeviceState),
+                                          failed(SdoAbortCode::CannotTransferDeviceState)}));
+  EXPECT_TRUE(client->busy()) << "the transfer itself is still on the wire";
+  client->upload(0x1000, 0, record());  // the new configuration's first read waits its turn
+  EXPECT_EQ(go(), none());
+  // The first read's answer ends the first transfer (dropped: no second callback), then the
+  // second starts and its own answer is taken.
+  EXPECT_EQ(srv({0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}), req({0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}));
+  EXPECT_EQ(srv({0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}), none());
+  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::CannotTransferDeviceState),
+                                          failed(SdoAbortCode::CannotTransferDeviceState), ok({0x91, 0x01, 0x0F, 0x00})}));
+  EXPECT_FALSE(client->busy());
+  // Idle, it cancels what is queued and sends nothing.
+  client->upload(0x1001, 0, record());
+  client->cancel_queued(SdoAbortCode::GeneralError);
+  EXPECT_EQ(go(), none());
+  EXPECT_EQ(results.back(), failed(SdoAbortCode::GeneralError));
+}
+
 TEST_F(SdoClientTest, CancelOfUnknownOrFinishedTicketsDoesNothing) {
   EXPECT_FALSE(client->cancel(0, SdoAbortCode::GeneralError));
   EXPECT_FALSE(client->cancel(12345, SdoAbortCode::GeneralError));

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "canopen/frame_bits.hpp"
 #include "canopen/io/event_loop.hpp"
 
 using namespace oegw::canopen;
@@ -369,6 +370,134 @@ TEST(VirtualBus, RunOnLoopIgnoresPostsAfterTheBusIsGone) {
   a->send(CanFrame{0x1, {}});  // posts a delivery
   bus.reset();
   EXPECT_NO_FATAL_FAILURE(loop.advance_to(TimePoint{1ms}));
+}
+
+}  // namespace
+
+// ---- Time on the wire (run_timed_on) -------------------------------------------------------
+
+namespace {
+
+struct TimedFixture {
+  SimulatedClock clock{TimePoint{std::chrono::seconds(100)}};
+  EventLoop loop{clock};
+  VirtualBus bus;
+  std::vector<std::pair<std::string, TimePoint>> seen;  // "frame" and its receive time
+  std::unique_ptr<VirtualPort> listener;
+  explicit TimedFixture(std::uint32_t bit_rate) {
+    bus.run_timed_on(loop, bit_rate);
+    listener = bus.attach("listener");
+    listener->set_receiver([this](const CanFrame& f, TimePoint t) { seen.emplace_back(f.to_string(), t); });
+  }
+  [[nodiscard]] Duration since_start(std::size_t i) const { return seen.at(i).second - TimePoint{std::chrono::seconds(100)}; }
+};
+
+TEST(TimedVirtualBus, AFrameArrivesAfterItsLengthAtTheBitRate) {
+  TimedFixture t(250'000);
+  auto a = t.bus.attach("a");
+  ASSERT_TRUE(a->send(CanFrame{0x080, {}}).ok());  // SYNC: 51 bits (frame_bits_test)
+  t.loop.advance_by(0us);
+  EXPECT_TRUE(t.seen.empty()) << "nothing is on the wire at no time";
+  // Received at the end of EOF: 51 - 3 intermission bits = 48 bits of 4 us.
+  t.loop.advance_by(191us);
+  EXPECT_TRUE(t.seen.empty());
+  t.loop.advance_by(1us);
+  ASSERT_EQ(t.seen.size(), 1u);
+  EXPECT_EQ(t.since_start(0), 192us);
+  EXPECT_EQ(t.bus.stats().frames, 1u);
+  EXPECT_EQ(t.bus.stats().bits, 51u);
+  EXPECT_EQ(t.bus.stats().busy, 204us);
+}
+
+TEST(TimedVirtualBus, FramesSentTogetherGoByPriorityLowestIdFirst) {
+  TimedFixture t(250'000);
+  auto a = t.bus.attach("a");
+  auto b = t.bus.attach("b");
+  // Sent in the reverse order of their priority, at one instant, from two nodes.
+  ASSERT_TRUE(a->send(CanFrame{0x701, {0x05}}).ok());  // 58 bits
+  ASSERT_TRUE(b->send(CanFrame{0x181, {0x12, 0x34}}).ok());  // 66 bits
+  ASSERT_TRUE(a->send(CanFrame{0x000, {0x01, 0x00}}).ok());  // 68 bits
+  t.loop.advance_by(10ms);
+  ASSERT_EQ(t.seen.size(), 3u);
+  EXPECT_EQ(t.seen[0].first, "000#0100");
+  EXPECT_EQ(t.seen[1].first, "181#1234");
+  EXPECT_EQ(t.seen[2].first, "701#05");
+  // Back to back: each starts when the previous one's intermission ends.
+  EXPECT_EQ(t.since_start(0), 4us * (68 - 3));
+  EXPECT_EQ(t.since_start(1), 4us * (68 + 66 - 3));
+  EXPECT_EQ(t.since_start(2), 4us * (68 + 66 + 58 - 3));
+  EXPECT_EQ(t.bus.stats().bits, 68u + 66u + 58u);
+}
+
+TEST(TimedVirtualBus, AFrameOnTheWireIsNotOvertakenButTheWaitingOnesAreReordered) {
+  TimedFixture t(500'000);
+  auto a = t.bus.attach("a");
+  ASSERT_TRUE(a->send(CanFrame{0x701, {0x05}}).ok());  // alone: it takes the bus (58 bits, 116 us)
+  t.loop.advance_by(10us);
+  ASSERT_TRUE(a->send(CanFrame{0x581, {0x43, 0, 0x10, 0, 0x91, 0x01, 0x0F, 0x00}}).ok());
+  t.loop.advance_by(10us);
+  ASSERT_TRUE(a->send(CanFrame{0x080, {}}).ok());  // later, but of higher priority than 581h
+  t.loop.advance_by(10ms);
+  ASSERT_EQ(t.seen.size(), 3u);
+  EXPECT_EQ(t.seen[0].first, "701#05");
+  EXPECT_EQ(t.seen[1].first, "080#");
+  EXPECT_EQ(t.seen[2].first, "581#430010009101" "0F00");
+  EXPECT_EQ(t.since_start(0), 2us * 55);
+  EXPECT_EQ(t.since_start(1), 2us * (58 + 48));
+}
+
+TEST(TimedVirtualBus, AnAnswerSentOnReceptionWaitsForTheIntermission) {
+  TimedFixture t(1'000'000);
+  auto server = t.bus.attach("server");
+  auto client = t.bus.attach("client");
+  server->set_receiver([&](const CanFrame& f, TimePoint) {
+    if (f.id == 0x601) (void)server->send(CanFrame{0x581, {0x60, 0, 0x10, 0, 0, 0, 0, 0}});
+  });
+  ASSERT_TRUE(client->send(CanFrame{0x601, {0x40, 0x00, 0x10, 0, 0, 0, 0, 0}}).ok());  // 124 bits
+  t.loop.advance_by(1ms);
+  ASSERT_EQ(t.seen.size(), 2u);
+  EXPECT_EQ(t.since_start(0), 121us);
+  // The answer starts after the request's 3 intermission bits: 124 us, plus its own length.
+  const CanFrame answer{0x581, {0x60, 0, 0x10, 0, 0, 0, 0, 0}};
+  EXPECT_EQ(t.since_start(1), 124us + std::chrono::microseconds(frame_bits(answer) - 3));
+}
+
+TEST(TimedVirtualBus, DeliverAllIsRefusedAndDroppedFramesNeverTakeTheBus) {
+  TimedFixture t(250'000);
+  auto a = t.bus.attach("a");
+  EXPECT_THROW(t.bus.deliver_all(t.loop.now()), std::logic_error);
+  t.bus.drop_next(1);
+  ASSERT_TRUE(a->send(CanFrame{0x701, {0x05}}).ok());
+  ASSERT_TRUE(a->send(CanFrame{0x702, {0x05}}).ok());
+  EXPECT_EQ(t.bus.pending(), 1u);
+  t.loop.advance_by(1ms);
+  ASSERT_EQ(t.seen.size(), 1u);
+  EXPECT_EQ(t.seen[0].first, "702#05");
+  EXPECT_EQ(t.bus.stats().frames, 1u);
+  EXPECT_EQ(t.bus.dropped_frames(), 1u);
+}
+
+TEST(TimedVirtualBus, ABusDestroyedWithAFrameOnTheWireLeavesNoTimerBehind) {
+  SimulatedClock clock{TimePoint{std::chrono::seconds(1)}};
+  EventLoop loop{clock};
+  {
+    VirtualBus bus;
+    bus.run_timed_on(loop, 125'000);
+    auto a = bus.attach("a");
+    ASSERT_TRUE(a->send(CanFrame{0x701, {0x05}}).ok());
+    loop.advance_by(10us);  // on the wire now
+    EXPECT_TRUE(loop.next_timer().has_value());
+  }
+  EXPECT_FALSE(loop.next_timer().has_value());
+  loop.advance_by(10ms);  // nothing fires on the destroyed bus
+}
+
+TEST(TimedVirtualBus, ABitRateOfZeroIsRefused) {
+  SimulatedClock clock;
+  EventLoop loop{clock};
+  VirtualBus bus;
+  EXPECT_THROW(bus.run_timed_on(loop, 0), std::invalid_argument);
+  EXPECT_FALSE(bus.timed());
 }
 
 }  // namespace
