@@ -36,7 +36,8 @@ expect() {
   end=$(grep -n 'exit_group(' "$d/trace" | head -1 | cut -d: -f1)
   running=""
   for t in $made; do
-    at=$(grep -n "^$t exit(" "$d/trace" | head -1 | cut -d: -f1)
+    # strace pads the pid column ("%-5d "): one space after a 5-digit id, two after a 4-digit one.
+    at=$(grep -nE "^$t +exit\(" "$d/trace" | head -1 | cut -d: -f1)
     if [ -z "$at" ] || [ -z "$end" ] || [ "$at" -gt "$end" ]; then running="$running $t"; fi
   done
   n=$(echo "$made" | grep -c .)
