@@ -86,14 +86,11 @@ for arch in "${arches[@]}"; do
   export QEMU_LD_PREFIX=$sysroot
 
   # --- 3. the build ----------------------------------------------------------------------------------
-  launcher=()
-  if command -v ccache >/dev/null; then
-    launcher=(-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
-  fi
+  # ccache, when installed, comes from CMakeLists.txt (OEGW_CCACHE).
   cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
         -DCMAKE_TOOLCHAIN_FILE="$PWD/cmake/toolchains/$triplet.cmake" -DOEGW_SYSROOT="$sysroot" \
         -DOEGW_VM_TESTS=OFF -DOEGW_BUILD_BENCH=$([[ $bench -eq 1 ]] && echo ON || echo OFF) \
-        "${launcher[@]}" >/dev/null
+        >/dev/null
   t=$SECONDS
   cmake --build "$build" -j "${OEGW_CROSS_JOBS:-2}"
   file -b "$build/programs/oegw" | grep -q "$(case $arch in arm64) echo 'ARM aarch64' ;; armhf) echo 'ARM, EABI5' ;; esac)" ||

@@ -5,8 +5,8 @@
 set -euo pipefail
 
 PACKAGES=(
-  # build
-  g++ cmake ninja-build pkg-config
+  # build (ccache: fresh clones and the cross builds compile unchanged sources from its cache)
+  g++ cmake ninja-build pkg-config ccache
   # libraries (libsocketcan-dev: setting the CAN interfaces' bit rate over netlink)
   libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libsocketcan-dev
   # the control socket's JSON (oegw status)

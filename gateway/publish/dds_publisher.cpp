@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "dds/dds.h"
+#include "gateway/publish/dds_samples.hpp"
 #include "oegw.h"
 
 namespace oegw::gateway {
@@ -58,8 +59,6 @@ class CycloneErrors {
   }
   std::string text_;
 };
-
-oegw_FeStatus to_dds(FeStatus s) { return static_cast<oegw_FeStatus>(static_cast<int>(s)); }
 
 }  // namespace
 
@@ -172,35 +171,25 @@ DdsPublisher::DdsPublisher(const DdsSettings& s) : impl_(std::make_unique<Impl>(
 
 DdsPublisher::~DdsPublisher() = default;
 
-void DdsPublisher::publish(const JoystickSample& s) {
-  const oegw_Joystick m{s.h.instance, to_dds(s.h.status), s.h.timestamp_us, s.h.seq, s.x, s.y, s.z, s.buttons,
-                        s.memory};
-  dds_write(impl_->joystick, &m);
+// Every sample is zero-filled first, padding included (dds_samples.hpp: Cyclone copies it onto the wire).
+template <class Sample, class Dds>
+static void write(dds_entity_t writer, const Sample& s) {
+  Dds m;
+  dds_samples::fill(s, m);
+  dds_write(writer, &m);
 }
-void DdsPublisher::publish(const PedalSample& s) {
-  const oegw_Pedal m{s.h.instance, to_dds(s.h.status), s.h.timestamp_us, s.h.seq, s.position, s.memory};
-  dds_write(impl_->pedal, &m);
-}
-void DdsPublisher::publish(const WheelSample& s) {
-  const oegw_Wheel m{s.h.instance, to_dds(s.h.status), s.h.timestamp_us, s.h.seq, s.position};
-  dds_write(impl_->wheel, &m);
-}
-void DdsPublisher::publish(const EncoderSample& s) {
-  const oegw_Encoder m{s.h.instance, to_dds(s.h.status), s.h.timestamp_us, s.h.seq, static_cast<std::int32_t>(s.position)};
-  dds_write(impl_->encoder, &m);
-}
+void DdsPublisher::publish(const JoystickSample& s) { write<JoystickSample, oegw_Joystick>(impl_->joystick, s); }
+void DdsPublisher::publish(const PedalSample& s) { write<PedalSample, oegw_Pedal>(impl_->pedal, s); }
+void DdsPublisher::publish(const WheelSample& s) { write<WheelSample, oegw_Wheel>(impl_->wheel, s); }
+void DdsPublisher::publish(const EncoderSample& s) { write<EncoderSample, oegw_Encoder>(impl_->encoder, s); }
 void DdsPublisher::publish(const ButtonClusterSample& s) {
-  const oegw_ButtonCluster m{s.h.instance, to_dds(s.h.status), s.h.timestamp_us, s.h.seq, s.switches};
-  dds_write(impl_->buttons, &m);
+  write<ButtonClusterSample, oegw_ButtonCluster>(impl_->buttons, s);
 }
 void DdsPublisher::publish(const GatewayStatus& s) {
   // dds_write serialises; the sample only borrows these buffers.
   auto emcy = [](const EmcySample& e) {
-    oegw_Emcy m{};
-    m.code = e.code;
-    m.error_register = e.error_register;
-    std::copy(e.msef.begin(), e.msef.end(), m.msef);
-    m.timestamp_us = e.timestamp_us;
+    oegw_Emcy m;
+    dds_samples::fill(e, m);
     return m;
   };
   // string<32>: a fixed array of 33 chars in the generated type.
@@ -233,7 +222,13 @@ void DdsPublisher::publish(const GatewayStatus& s) {
   std::vector<std::uint16_t> emcys(s.active_emcys);
   std::vector<oegw_UpstreamEmcy> upstream;
   upstream.reserve(s.upstream_emcys.size());
-  for (const auto& u : s.upstream_emcys) upstream.push_back({u.node_id, emcy(u.last), u.count});
+  for (const auto& u : s.upstream_emcys) {
+    oegw_UpstreamEmcy x{};  // value-initialised: zero, padding included
+    x.node_id = u.node_id;
+    x.last = emcy(u.last);
+    x.count = u.count;
+    upstream.push_back(x);
+  }
   oegw_GatewayStatus m{};
   m.timestamp_us = s.timestamp_us;
   m.seq = s.seq;

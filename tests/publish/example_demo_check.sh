@@ -41,7 +41,14 @@ else
   status="$ex/lcm_status --url $url --prefix OEGW_DEMO_"
   command="$ex/lcm_command --url $url --prefix OEGW_DEMO_"
 fi
-show() { for f in "$@"; do echo "--- $f" >&2; tail -40 "$dir/$f" >&2; done; }
+# A file's failed steps (the demo's FAIL lines, wherever they are), then its end.
+show() {
+  for f in "$@"; do
+    echo "--- $f" >&2
+    grep -n 'FAIL' "$dir/$f" >&2
+    tail -40 "$dir/$f" >&2
+  done
+}
 
 case $mode in
   status)

@@ -10,6 +10,7 @@
 #include <grp.h>
 #include <gtest/gtest.h>
 #include <pwd.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -57,13 +58,22 @@ class ControlPeers : public ::testing::Test {
   void SetUp() override {
     ASSERT_EQ(::geteuid(), 0u) << "this test becomes a second user (setuid) and makes it with useradd: run it as root, "
                                   "as CI does";
-    if (::getgrnam(kGroup) == nullptr) {
-      ASSERT_EQ(std::system((std::string("groupadd --system ") + kGroup).c_str()), 0);
-    }
-    if (::getpwnam(kPeer) == nullptr) {
-      ASSERT_EQ(std::system((std::string("useradd --system --no-create-home --user-group --shell /usr/sbin/nologin ") +
-                             kPeer).c_str()),
-                0);
+    {
+      // CTest runs these cases as parallel processes: the first to take the lock makes the user
+      // and group, the others find them (CI's run-to-run failure: "groupadd: group 'oegw-ctl-test'
+      // already exists", and useradd/groupadd refuse to run while another holds /etc/passwd's lock).
+      const int lock = ::open("/tmp/oegw-control-peers.lock", O_CREAT | O_RDWR | O_CLOEXEC, 0600);
+      ASSERT_GE(lock, 0);
+      ASSERT_EQ(::flock(lock, LOCK_EX), 0);
+      if (::getgrnam(kGroup) == nullptr) {
+        EXPECT_EQ(std::system((std::string("groupadd --system ") + kGroup).c_str()), 0);
+      }
+      if (::getpwnam(kPeer) == nullptr) {
+        EXPECT_EQ(std::system((std::string("useradd --system --no-create-home --user-group --shell /usr/sbin/nologin ") +
+                               kPeer).c_str()),
+                  0);
+      }
+      ::close(lock);  // ends the lock
     }
     const passwd* p = ::getpwnam(kPeer);
     const group* g = ::getgrnam(kGroup);
