@@ -204,14 +204,16 @@ void CtlService::lss(const json& r, ControlProtocol::Done done) {
     const auto node = field(r, "node", 1, 255);
     if (node > 127 && node != 255) throw std::invalid_argument("\"node\": expected 1..127, or 255 (none)");
     // A node-ID a configured sub-device uses while it is on the bus would collide at the next
-    // reset communication. One held missing (or not heard since the gateway's reset: waiting for
-    // its boot-up) may be given: that is how a replacement device gets the node-ID the mapping
+    // reset communication: refused while the network manager has proof of it (starting after
+    // its configuration, operational, or refused for what it answered). A missing node cycles
+    // through missing, waiting for boot-up and configuring (asking its identity, unanswered):
+    // its node-ID may be given — that is how a replacement device gets the node-ID the mapping
     // file expects.
     for (const auto& sub : config_.subdevices) {
       if (sub.node_id != node) continue;
       const auto st = network.state(sub.name);
-      if (st != subdevices::NodeState::Missing && st != subdevices::NodeState::Idle &&
-          st != subdevices::NodeState::WaitingBootUp)
+      if (st == subdevices::NodeState::Operational || st == subdevices::NodeState::Starting ||
+          st == subdevices::NodeState::Refused)
         return done(gateway_error(102, fmt::format("node-ID {} is {}'s, which is on the bus ({}); only a sub-device the "
                                                    "gateway holds missing gives its node-ID away",
                                                    node, sub.name, subdevices::to_string(st))));

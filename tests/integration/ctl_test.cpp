@@ -333,7 +333,11 @@ TEST_F(Ctl, LssGivesANodeWithoutNodeIdItsNodeIdFrameByFrame) {
   EXPECT_EQ(final_request->second, last);
   for (const auto& [id, data] : fs) EXPECT_TRUE(data[0] == 0x51 || data[0] == 0x4F) << fmt::format("{:02X}", data[0]);
   EXPECT_EQ(run("[11] lss_get_node"), "[11] 255");  // selected, and without node-ID
-  // Its node-ID again: the gateway holds the pedal missing, so the mapping file's 30h may be given.
+  // Its node-ID again: the gateway holds the pedal missing, so the mapping file's 30h may be given,
+  // also while it retries it (configuring: asking its identity, unanswered).
+  for (int i = 0; i < 10000 && rig_->gw().downstream().state("pedal") != sd::NodeState::Configuring; ++i)
+    rig_->run_for(1ms);
+  ASSERT_EQ(rig_->gw().downstream().state("pedal"), sd::NodeState::Configuring) << log_;
   EXPECT_EQ(run("[12] lss_set_node 48"), "[12] OK");
   EXPECT_EQ(lss_frames(), (Frames{{0x7E5, F{0x11, kPedal, 0, 0, 0, 0, 0, 0}}, {0x7E4, F{0x11, 0, 0, 0, 0, 0, 0, 0}}}));
   // Store configuration (17h): this simulated pedal has no LSS store and answers error 1.
