@@ -148,6 +148,8 @@ class Gateway {
   [[nodiscard]] std::string downstream_nmt(canopen::NodeId node, canopen::NmtCommand cs, canopen::TimePoint now);
   // Every boot-up and EMCY on the downstream bus, configured node or not, after the gateway has
   // handled it (the control socket's event lines, `oegw ctl`).
+  // A line for the log from the control socket's commands ("control: " + line).
+  void log_control(const std::string& line) { log("control: " + line); }
   std::function<void(canopen::NodeId)> on_downstream_boot_up;
   std::function<void(const canopen::EmcyMessage&)> on_downstream_emcy;
   [[nodiscard]] const std::map<std::string, std::string>& faults() const { return faults_; }

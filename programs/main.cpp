@@ -137,7 +137,7 @@ int main(int argc, char** argv) {
   oegw::gateway::CtlOptions ctl;
   ctl.version = oegw::programs::kVersion;
   auto* ctl_cmd = app.add_subcommand(
-      "ctl", "CiA 309-3 ASCII commands (read, write, NMT, info version, events) into the running `oegw run`");
+      "ctl", "CiA 309-3 ASCII commands (read, write, NMT, LSS, info version, events) into the running `oegw run`");
   ctl_cmd->add_option("--socket", ctl.socket, "Control socket (default: the mapping file's control.socket, else /run/oegw/oegw.sock)");
   ctl_cmd->add_option("--config", ctl.config, "Mapping file whose control.socket to ask");
   ctl_cmd->add_flag("-e,--exit", ctl.exit_on_error, "Exit 1 at the first ERROR answer (scripts)");
@@ -147,6 +147,9 @@ int main(int argc, char** argv) {
                   "  [seq] [[net] node] r[ead] <index> <sub> <type>      [seq] [[net] node] w[rite] <index> <sub> <type> <value>\n"
                   "  [seq] [[net] node] start|stop|preop|reset node|reset comm\n"
                   "  [seq] set network N | [net] set node N | [net] set sdo_timeout MS | info version\n"
+                  "  [seq] [net] lss_switch_glob 0|1 | lss_switch_sel <vendor> <product> <revision> <serial>\n"
+                  "  [seq] [net] lss_set_node ID | lss_conf_bitrate 0 INDEX | lss_activate_bitrate MS | lss_store\n"
+                  "  [seq] [net] lss_inquire_addr [0..3] | lss_get_node | lss_ident_nonconf | _lss_fastscan [MS]\n"
                   "  types: b u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os d; interactive: history, !!, !N\n");
 
   try {

@@ -7,7 +7,6 @@ namespace oegw::subdevices {
 namespace {
 
 using canopen::SdoAbortCode;
-using canopen::lss::cs::kFastscanReset;
 
 struct Read {
   std::uint16_t index;
@@ -217,58 +216,17 @@ void BusScanner::after_probing(TimePoint now) {
       return;
     }
     lss_result_.unconfigured = true;
-    lss_.fastscan(0, kFastscanReset, 0, 0, now_, [this](const canopen::LssMaster::Result& reset) {
-      if (reset.status != canopen::LssMaster::Status::Ok) {
-        lss_result_.lss_note = "no answer to LSS fastscan (CiA 305 §8.4.4): the node may not support it";
+    fastscan_.start(now_, [this](const canopen::LssFastscan::Result& f) {
+      if (!f.address) {
+        lss_result_.lss_note = f.note;
         lss_ended(now_);
         return;
       }
-      fs_sub_ = 0;
-      fs_bit_ = 31;
-      fs_retry_ = false;
-      fastscan_step(now_);
-    });
-  });
-}
-
-// One fastscan step (CiA 305 §8.4.4, the master's side): bits 31..1 of each part are decided by
-// asking whether any node has the bit 0 (silence: it is 1); bit 0 is confirmed with LSSNext set to
-// the next part, which moves only the nodes that match the whole part on.
-void BusScanner::fastscan_step(TimePoint now) {
-  using Status = canopen::LssMaster::Status;
-  if (fs_bit_ >= 1) {
-    const auto bit = static_cast<std::uint8_t>(fs_bit_);
-    lss_.fastscan(fs_value_[fs_sub_], bit, fs_sub_, fs_sub_, now, [this, bit](const canopen::LssMaster::Result& r) {
-      if (r.status != Status::Ok) fs_value_[fs_sub_] |= 1u << bit;
-      --fs_bit_;
-      fastscan_step(now_);
-    });
-    return;
-  }
-  const auto next = static_cast<std::uint8_t>(fs_sub_ < 3 ? fs_sub_ + 1 : 0);
-  lss_.fastscan(fs_value_[fs_sub_], 0, fs_sub_, next, now, [this](const canopen::LssMaster::Result& r) {
-    if (r.status != Status::Ok) {
-      if (fs_retry_) {
-        lss_result_.lss_note = "LSS fastscan lost the node (no answer for either value of bit 0)";
+      lss_result_.unconfigured_address = f.address;
+      // The last step selected it (LSS configuration mode): back to waiting, node-ID unchanged.
+      lss_.switch_state_global(canopen::lss::Mode::Waiting, now_, [this](const canopen::LssMaster::Result&) {
         lss_ended(now_);
-        return;
-      }
-      fs_retry_ = true;
-      fs_value_[fs_sub_] |= 1u;
-      fastscan_step(now_);
-      return;
-    }
-    fs_retry_ = false;
-    if (++fs_sub_ < 4) {
-      fs_bit_ = 31;
-      fastscan_step(now_);
-      return;
-    }
-    lss_result_.unconfigured_address =
-        canopen::lss::Address{fs_value_[0], fs_value_[1], fs_value_[2], fs_value_[3]};
-    // The last step selected it (LSS configuration mode): back to waiting, node-ID unchanged.
-    lss_.switch_state_global(canopen::lss::Mode::Waiting, now_, [this](const canopen::LssMaster::Result&) {
-      lss_ended(now_);
+      });
     });
   });
 }

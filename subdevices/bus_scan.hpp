@@ -30,6 +30,7 @@
 
 #include "canopen/301/sdo_client.hpp"
 #include "canopen/305/lss.hpp"
+#include "canopen/305/lss_fastscan.hpp"
 #include "canopen/305/lss_master.hpp"
 #include "canopen/can_frame.hpp"
 #include "canopen/types.hpp"
@@ -108,7 +109,6 @@ class BusScanner {
   void read_next(std::uint8_t node);
   void probe_ended(std::uint8_t node);
   void after_probing(TimePoint now);
-  void fastscan_step(TimePoint now);
   void lss_ended(TimePoint now);
   void report(bool lss);
   ScannedNode& node(std::uint8_t id);
@@ -125,11 +125,7 @@ class BusScanner {
   bool ended_ = false;  // a probe ended inside a callback: refill after it returns
   canopen::LssMaster lss_;
   ScanResult lss_result_;
-  // Fastscan progress: the part of the address (0..3), the next bit to decide, the value so far.
-  std::uint8_t fs_sub_ = 0;
-  int fs_bit_ = 31;
-  bool fs_retry_ = false;
-  std::uint32_t fs_value_[4] = {};
+  canopen::LssFastscan fastscan_{lss_};
 };
 
 }  // namespace oegw::subdevices

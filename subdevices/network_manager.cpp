@@ -518,6 +518,9 @@ void NetworkManager::commission(std::optional<canopen::lss::Address> address, No
                                 std::function<void(bool, const std::string&)> done) {
   using canopen::LssMaster;
   now_ = now;
+  // The gateway's own LSS work comes first: a client's fastscan ends here (its answer says why).
+  fastscan_.cancel("interrupted: the gateway is commissioning a device by LSS itself");
+  ++own_lss_;
   auto failed = std::make_shared<bool>(false);
   auto step = [failed, done](const char* what) {
     return [failed, done, what](const LssMaster::Result& r) {
@@ -538,7 +541,8 @@ void NetworkManager::commission(std::optional<canopen::lss::Address> address, No
   lss_.configure_node_id(new_id, now, step("configure node-ID"));
   if (bit_timing) lss_.configure_bit_timing(*bit_timing, now, step("configure bit timing"));
   lss_.store_configuration(now, step("store configuration"));
-  lss_.switch_state_global(canopen::lss::Mode::Waiting, now, [failed, done](const LssMaster::Result&) {
+  lss_.switch_state_global(canopen::lss::Mode::Waiting, now, [this, failed, done](const LssMaster::Result&) {
+    --own_lss_;
     if (!*failed) done(true, "node-ID configured and stored; active after reset communication");
   });
 }

@@ -37,6 +37,7 @@
 #include <string>
 #include <vector>
 
+#include "canopen/305/lss_fastscan.hpp"
 #include "canopen/305/lss_master.hpp"
 #include "canopen/master.hpp"
 #include "subdevices/driver.hpp"
@@ -141,6 +142,16 @@ class NetworkManager {
   void commission(std::optional<canopen::lss::Address> address, NodeId new_id, std::optional<std::uint8_t> bit_timing,
                   TimePoint now, std::function<void(bool ok, const std::string& why)> done);
 
+  // LSS for `oegw ctl`'s CiA 309-3 lss_* commands (gateway/control/ctl_service.hpp), on the same
+  // LSS master. The gateway's own LSS work (commission()) comes first: while it runs, client_lss()
+  // is nullptr and the command is refused; when it starts, a client's fastscan still running ends
+  // (LssFastscan::Outcome::Cancelled) and sends no further step. A single client request already
+  // queued or on the wire ends first (it lasts at most the LSS time-out); commission() follows it.
+  [[nodiscard]] canopen::LssMaster* client_lss() { return own_lss_ != 0 ? nullptr : &lss_; }
+  [[nodiscard]] canopen::LssFastscan* client_fastscan() { return own_lss_ != 0 ? nullptr : &fastscan_; }
+  // True while commission() runs.
+  [[nodiscard]] bool own_lss_busy() const { return own_lss_ != 0; }
+
   [[nodiscard]] NodeState state(std::string_view name) const;
   [[nodiscard]] Driver* driver(std::string_view name);
   [[nodiscard]] const Driver* driver(std::string_view name) const;
@@ -232,6 +243,8 @@ class NetworkManager {
   canopen::Master& master_;
   Timing timing_;
   canopen::LssMaster lss_;
+  canopen::LssFastscan fastscan_{lss_};  // `_lss_fastscan` of oegw ctl
+  unsigned own_lss_ = 0;                 // commission() operations running
   std::vector<std::unique_ptr<Managed>> nodes_;
   std::map<std::uint32_t, Managed*> by_cob_;  // consumed TPDO COB-ID -> node
   NetworkCounters counters_;

@@ -13,6 +13,7 @@ CanFrame LssMaster::frame(std::uint8_t cs, std::uint32_t value) {
 }
 
 void LssMaster::enqueue(Request r, TimePoint now) {
+  if (now > now_) now_ = now;
   queue_.push_back(std::move(r));
   pump(now);
 }
@@ -28,8 +29,8 @@ void LssMaster::pump(TimePoint now) {
       if (r.cb) r.cb(Result{});
       continue;
     }
+    deadline_ = now + r.timeout.value_or(timeout_);
     active_ = std::move(r);
-    deadline_ = now + timeout_;
   }
 }
 
@@ -94,16 +95,17 @@ void LssMaster::identify_non_configured(TimePoint now, Callback cb) {
 }
 
 void LssMaster::fastscan(std::uint32_t id_number, std::uint8_t bit_checked, std::uint8_t sub, std::uint8_t next,
-                         TimePoint now, Callback cb) {
+                         TimePoint now, Callback cb, std::optional<Duration> timeout) {
   CanFrame f = frame(kFastscan, id_number);
   f.data[5] = bit_checked;
   f.data[6] = sub;
   f.data[7] = next;
-  enqueue({{f}, kIdentifySlaveResponse, false, true, std::move(cb), true}, now);
+  enqueue({{f}, kIdentifySlaveResponse, false, true, std::move(cb), true, false, timeout}, now);
 }
 
 bool LssMaster::on_frame(const CanFrame& f, TimePoint now) {
   if (f.id != cob::kLssSlave || f.extended) return false;
+  if (now > now_) now_ = now;
   if (f.rtr || f.dlc != 8 || !active_ || f.data[0] != active_->answer) return true;
   if (active_->whole_window) {
     active_->answered = true;
@@ -123,6 +125,7 @@ bool LssMaster::on_frame(const CanFrame& f, TimePoint now) {
 }
 
 void LssMaster::advance(TimePoint now) {
+  if (now > now_) now_ = now;
   if (!active_ || now < deadline_) return;
   Result r;
   r.status = active_->answered ? Status::Ok : active_->silence_is_answer ? Status::NoAnswer : Status::Timeout;

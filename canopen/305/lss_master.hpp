@@ -53,13 +53,17 @@ class LssMaster {
   // matches answers (4Fh), so the step always lasts the whole timeout and then completes Ok if
   // any answer came, NoAnswer if none: a late second answer must not be taken for the next
   // step's. `bit_checked` 0..31, or lss::cs::kFastscanReset.
+  // `timeout`: this step's own (default: the master's).
   void fastscan(std::uint32_t id_number, std::uint8_t bit_checked, std::uint8_t sub, std::uint8_t next,
-                TimePoint now, Callback cb = {});
+                TimePoint now, Callback cb = {}, std::optional<Duration> timeout = std::nullopt);
 
   // True for a frame on 7E4h (answers that match no pending request are dropped).
   bool on_frame(const CanFrame& frame, TimePoint now);
   void advance(TimePoint now);
   [[nodiscard]] std::optional<TimePoint> next_deadline() const;
+
+  // The latest time a request, frame or advance() gave (for callbacks that issue the next request).
+  [[nodiscard]] TimePoint now() const { return now_; }
 
   [[nodiscard]] bool idle() const { return !active_ && queue_.empty(); }
   [[nodiscard]] std::size_t pending() const { return queue_.size() + (active_ ? 1 : 0); }
@@ -73,6 +77,7 @@ class LssMaster {
     Callback cb;
     bool whole_window = false;  // fastscan: collect answers until the timeout
     bool answered = false;      // whole_window: an answer came
+    std::optional<Duration> timeout;  // this request's own (fastscan)
   };
   static CanFrame frame(std::uint8_t cs, std::uint32_t value = 0);
   void enqueue(Request r, TimePoint now);
@@ -84,6 +89,7 @@ class LssMaster {
   std::deque<Request> queue_;
   std::optional<Request> active_;
   TimePoint deadline_{};
+  TimePoint now_{};
 };
 
 }  // namespace oegw::canopen

@@ -1,5 +1,6 @@
 #include "canopen/309/ascii_gateway.hpp"
 
+#include "canopen/305/lss.hpp"
 #include "canopen/c_integer.hpp"
 
 #include <algorithm>
@@ -141,8 +142,29 @@ std::string_view to_string(GatewayError e) {
     case GatewayError::NoDefaultNode: return "No default node set";
     case GatewayError::UnsupportedNet: return "Unsupported net";
     case GatewayError::UnsupportedNode: return "Unsupported node";
+    case GatewayError::LssManufacturer: return "LSS implementation- / manufacturer-specific error";
+    case GatewayError::LssNodeIdNotSupported: return "LSS node-ID not supported";
+    case GatewayError::LssBitRateNotSupported: return "LSS bit-rate not supported";
+    case GatewayError::LssStoreFailed: return "LSS parameter storing failed";
+    case GatewayError::LssMediaError: return "LSS command failed because of media error";
   }
   return "Unknown error";
+}
+
+bool is_lss(Command c) {
+  switch (c) {
+    case Command::LssSwitchGlobal:
+    case Command::LssSwitchSelective:
+    case Command::LssSetNode:
+    case Command::LssConfBitrate:
+    case Command::LssActivateBitrate:
+    case Command::LssStore:
+    case Command::LssInquireAddress:
+    case Command::LssGetNode:
+    case Command::LssIdentNonConfigured:
+    case Command::LssFastscan: return true;
+    default: return false;
+  }
 }
 
 std::optional<DataType> parse_type(std::string_view name) {
@@ -259,6 +281,10 @@ std::optional<std::string> format(DataType t, std::span<const std::uint8_t> b) {
 
 namespace {
 
+constexpr std::string_view kLssCommands =
+    "lss_switch_glob, lss_switch_sel, lss_set_node, lss_conf_bitrate, lss_activate_bitrate, lss_store, "
+    "lss_inquire_addr, lss_get_node, lss_ident_nonconf, _lss_fastscan";
+
 Parsed error(GatewayError e, std::string message, std::optional<std::uint32_t> seq) {
   Parsed p;
   p.kind = Parsed::Kind::Error;
@@ -363,6 +389,112 @@ Parsed parse(std::string_view line, const Defaults& defaults) {
     return std::nullopt;
   };
 
+  // CiA 309-3 LSS commands: `[net] lss_...`, the network only (CANopenNode's and lely's syntax).
+  const auto parse_lss = [&](const std::string& name, const std::string& as_written, const std::vector<Token>& a) -> Parsed {
+    const auto u32 = [&](std::size_t i, std::uint64_t lo, std::uint64_t hi, const char* what) -> std::optional<std::uint32_t> {
+      std::string e;
+      const auto v = parse_unsigned(a[i].text, lo, hi, what, e);
+      if (!v) return std::nullopt;
+      return static_cast<std::uint32_t>(*v);
+    };
+    const auto bad = [&](const char* usage) { return error(GatewayError::Syntax, fmt::format("expected {}", usage), seq); };
+    const struct {
+      const char* word;
+      Command command;
+      const char* usage;
+    } table[] = {{"lss_switch_glob", Command::LssSwitchGlobal, "lss_switch_glob 0|1 (0 waiting, 1 configuration)"},
+                 {"lss_switch_sel", Command::LssSwitchSelective, "lss_switch_sel <vendor-ID> <product code> <revision> <serial>"},
+                 {"lss_set_node", Command::LssSetNode, "lss_set_node <node-ID 1..127, or 255: none>"},
+                 {"lss_conf_bitrate", Command::LssConfBitrate,
+                  "lss_conf_bitrate 0 <table index: 0 1000, 1 800, 2 500, 3 250, 4 125, 6 50, 7 20, 8 10 kbit/s>"},
+                 {"lss_activate_bitrate", Command::LssActivateBitrate, "lss_activate_bitrate <switch delay in ms, 0..65535>"},
+                 {"lss_store", Command::LssStore, "lss_store"},
+                 {"lss_inquire_addr", Command::LssInquireAddress,
+                  "lss_inquire_addr [<part: 0..3 or 0x5A..0x5D (vendor, product, revision, serial)>]"},
+                 {"lss_get_node", Command::LssGetNode, "lss_get_node"},
+                 {"lss_ident_nonconf", Command::LssIdentNonConfigured, "lss_ident_nonconf"},
+                 {"_lss_fastscan", Command::LssFastscan, "_lss_fastscan [<step time-out in ms, 1..65535>]"}};
+    const auto* row = std::find_if(std::begin(table), std::end(table), [&](const auto& t) { return name == t.word; });
+    if (row == std::end(table))
+      return error(GatewayError::RequestNotSupported,
+                   fmt::format("no command '{}'; this gateway's LSS commands are {}", as_written, kLssCommands), seq);
+    r.command = row->command;
+    if (auto e = network_level(row->word)) return *e;
+    switch (r.command) {
+      case Command::LssSwitchGlobal: {
+        if (a.size() != 1) return bad(row->usage);
+        const auto v = u32(0, 0, 1, "mode");
+        if (!v) return bad(row->usage);
+        r.value = *v;
+        return p;
+      }
+      case Command::LssSwitchSelective:
+        if (a.size() != 4) return bad(row->usage);
+        for (std::size_t i = 0; i < 4; ++i) {
+          const auto v = u32(i, 0, 0xFFFFFFFF, "LSS address part");
+          if (!v) return error(GatewayError::Syntax, fmt::format("'{}' is no 32-bit number; expected {}", a[i].text, row->usage), seq);
+          r.address[i] = *v;
+        }
+        return p;
+      case Command::LssSetNode: {
+        if (a.size() != 1) return bad(row->usage);
+        const auto v = u32(0, 1, 255, "node-ID");
+        if (!v || (*v > 127 && *v != 255))
+          return error(GatewayError::Syntax, fmt::format("node-ID '{}': 1..127, or 255 (none)", a[0].text), seq);
+        r.value = *v;
+        return p;
+      }
+      case Command::LssConfBitrate: {
+        if (a.size() != 2) return bad(row->usage);
+        const auto table_selector = u32(0, 0, 0xFF, "table selector");
+        if (!table_selector) return bad(row->usage);
+        if (*table_selector != 0)
+          return error(GatewayError::LssBitRateNotSupported,
+                       fmt::format("table selector {}: only 0, the CiA 305 standard table", *table_selector), seq);
+        const auto index = u32(1, 0, 0xFF, "table index");
+        if (!index) return bad(row->usage);
+        if (!lss::standard_bit_rate_kbit(static_cast<std::uint8_t>(*index)))
+          return error(GatewayError::LssBitRateNotSupported,
+                       fmt::format("table index {} is not in the CiA 305 table (0 1000, 1 800, 2 500, 3 250, 4 125, "
+                                   "6 50, 7 20, 8 10 kbit/s)",
+                                   *index),
+                       seq);
+        r.value = *index;
+        return p;
+      }
+      case Command::LssActivateBitrate: {
+        if (a.size() != 1) return bad(row->usage);
+        const auto v = u32(0, 0, 0xFFFF, "switch delay");
+        if (!v) return bad(row->usage);
+        r.value = *v;
+        return p;
+      }
+      case Command::LssInquireAddress: {
+        if (a.empty()) return p;
+        if (a.size() != 1) return bad(row->usage);
+        const auto v = u32(0, 0, 0xFF, "part");
+        if (v && *v <= 3) r.lss_part = static_cast<std::uint8_t>(*v);
+        else if (v && *v >= lss::cs::kInquireVendor && *v <= lss::cs::kInquireSerial)
+          r.lss_part = static_cast<std::uint8_t>(*v - lss::cs::kInquireVendor);
+        else return bad(row->usage);
+        return p;
+      }
+      case Command::LssFastscan: {
+        if (a.empty()) return p;
+        if (a.size() != 1)
+          return error(GatewayError::Syntax,
+                       fmt::format("expected {} (lely's form with values and masks is not supported)", row->usage), seq);
+        const auto v = u32(0, 1, 0xFFFF, "time-out");
+        if (!v) return bad(row->usage);
+        r.value = *v;
+        return p;
+      }
+      default:
+        if (!a.empty()) return bad(row->usage);
+        return p;
+    }
+  };
+
   if (cmd == "r" || cmd == "read") {
     r.command = Command::Read;
     if (auto e = node_level()) return *e;
@@ -455,10 +587,11 @@ Parsed parse(std::string_view line, const Defaults& defaults) {
     if (!prefix.empty()) return error(GatewayError::Syntax, "`info version` takes no network or node before it", seq);
     return p;
   }
+  if (cmd.starts_with("lss_") || cmd.starts_with("_lss_")) return parse_lss(cmd, tokens[k].text, args);
   return error(GatewayError::RequestNotSupported,
                fmt::format("no command '{}'; this gateway has r[ead], w[rite], start, stop, preop[erational], reset node, "
-                           "reset comm[unication], set network, set node, set sdo_timeout, info version",
-                           tokens[k].text),
+                           "reset comm[unication], set network, set node, set sdo_timeout, info version, {}",
+                           tokens[k].text, kLssCommands),
                seq);
 }
 

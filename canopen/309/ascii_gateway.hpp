@@ -26,6 +26,7 @@
 // was wrong ("ERROR: 101 (Syntax error: 'u9' is no data type; ...)").
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -48,6 +49,12 @@ enum class GatewayError : int {
   NoDefaultNode = 105,
   UnsupportedNet = 106,
   UnsupportedNode = 107,
+  // LSS (CiA 305 answers with an error code; the same codes in lely's and CANopenNode's gateways).
+  LssManufacturer = 501,         // error code FFh: implementation-specific
+  LssNodeIdNotSupported = 502,   // configure node-ID answered error 1
+  LssBitRateNotSupported = 503,  // configure bit timing answered error 1
+  LssStoreFailed = 504,          // store configuration answered error 1 (not supported)
+  LssMediaError = 505,           // store configuration answered error 2 (storage media)
 };
 [[nodiscard]] std::string_view to_string(GatewayError e);
 
@@ -72,7 +79,19 @@ enum class Command : std::uint8_t {
   SetNode,
   SetSdoTimeout,
   InfoVersion,
+  // CiA 309-3 LSS (CiA 305) commands, network-level: `[net] lss_...`.
+  LssSwitchGlobal,      // lss_switch_glob 0|1                     (value: the mode)
+  LssSwitchSelective,   // lss_switch_sel vendor product revision serial (address)
+  LssSetNode,           // lss_set_node 1..127|255                  (value: the node-ID)
+  LssConfBitrate,       // lss_conf_bitrate 0 index                 (value: the table index)
+  LssActivateBitrate,   // lss_activate_bitrate delay_ms            (value: the delay)
+  LssStore,             // lss_store
+  LssInquireAddress,    // lss_inquire_addr [0..3 | 0x5A..0x5D]     (lss_part: the part, none: all four)
+  LssGetNode,           // lss_get_node
+  LssIdentNonConfigured,  // lss_ident_nonconf
+  LssFastscan,          // _lss_fastscan [timeout_ms]              (value: the step time-out, 0: default)
 };
+[[nodiscard]] bool is_lss(Command c);
 
 struct Request {
   std::optional<std::uint32_t> sequence;  // "[n]"; nullopt when the line has none
@@ -83,7 +102,9 @@ struct Request {
   std::uint8_t sub = 0;
   DataType type = DataType::U8;
   std::vector<std::uint8_t> data;  // w: the value, little endian as CiA 301 sends it
-  std::uint32_t value = 0;         // set network / set node / set sdo_timeout
+  std::uint32_t value = 0;         // set network / set node / set sdo_timeout / lss_* (see Command)
+  std::array<std::uint32_t, 4> address{};   // lss_switch_sel: vendor, product, revision, serial
+  std::optional<std::uint8_t> lss_part;     // lss_inquire_addr: 0 vendor .. 3 serial; none: all four
 };
 
 // The defaults `set network` and `set node` gave (per session).

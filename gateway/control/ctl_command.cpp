@@ -10,6 +10,7 @@
 
 #include <fmt/format.h>
 
+#include "canopen/305/lss_fastscan.hpp"
 #include "gateway/control/control_protocol.hpp"
 #include "gateway/control/status_command.hpp"
 
@@ -31,6 +32,46 @@ const char* nmt_service(Command c) {
     case Command::ResetCommunication: return "reset_comm";
     default: return "";
   }
+}
+
+// The control request of a CiA 309-3 LSS command (PROTOCOL.md "`oegw ctl`'s commands": lss).
+json lss_request(const ascii::Request& r) {
+  json j{{"command", "lss"}, {"network", r.network}};
+  switch (r.command) {
+    case Command::LssSwitchGlobal:
+      j["service"] = "switch_global";
+      j["mode"] = r.value;
+      break;
+    case Command::LssSwitchSelective:
+      j["service"] = "switch_selective";
+      j["address"] = r.address;
+      break;
+    case Command::LssSetNode:
+      j["service"] = "set_node";
+      j["node"] = r.value;
+      break;
+    case Command::LssConfBitrate:
+      j["service"] = "conf_bitrate";
+      j["table_index"] = r.value;
+      break;
+    case Command::LssActivateBitrate:
+      j["service"] = "activate_bitrate";
+      j["delay_ms"] = r.value;
+      break;
+    case Command::LssStore: j["service"] = "store"; break;
+    case Command::LssInquireAddress:
+      j["service"] = "inquire_address";
+      if (r.lss_part) j["part"] = *r.lss_part;
+      break;
+    case Command::LssGetNode: j["service"] = "inquire_node"; break;
+    case Command::LssIdentNonConfigured: j["service"] = "identify_non_configured"; break;
+    case Command::LssFastscan:
+      j["service"] = "fastscan";
+      if (r.value != 0) j["timeout_ms"] = r.value;
+      break;
+    default: break;
+  }
+  return j;
 }
 
 // "0.1.0" -> "0.1" (the implementation version of the `info version` answer).
@@ -93,6 +134,17 @@ std::string CtlSession::answer_of(std::uint32_t seq, const ascii::Request& r, co
     error = false;
     return ascii::answer_value(seq, *text);
   }
+  if (ascii::is_lss(r.command)) {
+    error = false;
+    // lely's gw_txt.c: an LSS address as four 32-bit numbers, one part as one, the node-ID in
+    // decimal (hex digits upper-case, as this gateway prints every unsigned value).
+    if (const auto it = a.find("address"); it != a.end() && it->is_array() && it->size() == 4)
+      return fmt::format("[{}] 0x{:08X} 0x{:08X} 0x{:08X} 0x{:08X}", seq, (*it)[0].get<std::uint32_t>(),
+                         (*it)[1].get<std::uint32_t>(), (*it)[2].get<std::uint32_t>(), (*it)[3].get<std::uint32_t>());
+    if (a.contains("value")) return fmt::format("[{}] 0x{:08X}", seq, a["value"].get<std::uint32_t>());
+    if (a.contains("node")) return fmt::format("[{}] {}", seq, a["node"].get<unsigned>());
+    return ascii::answer_ok(seq);
+  }
   if (r.command == Command::InfoVersion) {
     error = false;
     const auto rev = a.value("revision", 0u);
@@ -149,6 +201,15 @@ CtlSession::Outcome CtlSession::execute(std::string_view line) {
       break;
     }
     default:
+      if (ascii::is_lss(r.command)) {
+        request = lss_request(r);
+        if (r.command == Command::LssFastscan) {
+          // A fastscan is up to LssFastscan::kMaxSteps steps of the step time-out each.
+          const std::uint32_t step_ms = r.value != 0 ? r.value : kDefaultLssStepMs;
+          timeout = std::max(timeout, std::chrono::milliseconds(canopen::LssFastscan::kMaxSteps * step_ms + 2000));
+        }
+        break;
+      }
       request = {{"command", "nmt"}, {"network", r.network}, {"node", r.node}, {"service", nmt_service(r.command)}};
       break;
   }

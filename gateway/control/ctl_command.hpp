@@ -36,6 +36,8 @@ struct CtlOptions {
 // Exit codes besides those of `oegw status` (3 no daemon, 4 permission, 5 time-out).
 inline constexpr int kCtlOk = 0;
 inline constexpr int kCtlError = 1;  // --exit: an ERROR answer; or a failed answer of the daemon
+// The daemon's LSS step time-out when `_lss_fastscan` names none (CANopenNode's default too).
+inline constexpr std::uint32_t kDefaultLssStepMs = 100;
 
 class CtlSession {
  public:

@@ -50,6 +50,7 @@ CtlService::CtlService(canopen::EventLoop& loop, Gateway& gw, const mapping::Con
   protocol.add_async("sdo_read", [this](const json& r, ControlProtocol::Done done) { sdo(r, false, std::move(done)); });
   protocol.add_async("sdo_write", [this](const json& r, ControlProtocol::Done done) { sdo(r, true, std::move(done)); });
   protocol.add("nmt", [this](const json& r) { return nmt(r); });
+  protocol.add_async("lss", [this](const json& r, ControlProtocol::Done done) { lss(r, std::move(done)); });
   protocol.add("info", [this](const json&) { return info(); });
   protocol.add("events", [this](const json& r) { return events(r); });
   const std::uint8_t down = config_.downstream.network_id;
@@ -67,6 +68,8 @@ CtlService::CtlService(canopen::EventLoop& loop, Gateway& gw, const mapping::Con
 }
 
 CtlService::~CtlService() {
+  *alive_ = false;
+  if (auto* fs = gw_.downstream().client_fastscan(); fs != nullptr && fastscan_client_) fs->cancel("the control service ended");
   gw_.on_downstream_boot_up = nullptr;
   gw_.on_downstream_emcy = nullptr;
   for (const auto& t : transfers_) {
@@ -129,6 +132,158 @@ json CtlService::nmt(const json& r) {
   if (rearm_) rearm_();
   if (!why.empty()) return gateway_error(102, why);
   return json::object();
+}
+
+namespace {
+
+// The CiA 309-3 answer of an LSS request the slave answered with an error code (CiA 305: 11h,
+// 13h, 17h), or that timed out; `what` names the request.
+json lss_failure(const canopen::LssMaster::Result& r, const char* what, int refused_code, int second_code = 0) {
+  using Status = canopen::LssMaster::Status;
+  if (r.status == Status::Timeout || r.status == Status::NoAnswer)
+    return gateway_error(103, fmt::format("no LSS slave answered {} (none in LSS configuration mode?)", what));
+  if (r.error == 0xFF)
+    return gateway_error(501, fmt::format("{} refused with the implementation-specific error {}", what, r.specific_error));
+  const int code = r.error == 2 && second_code != 0 ? second_code : refused_code;
+  return gateway_error(code, fmt::format("{} refused with LSS error code {}", what, r.error));
+}
+
+}  // namespace
+
+void CtlService::lss(const json& r, ControlProtocol::Done done) {
+  using Status = canopen::LssMaster::Status;
+  using canopen::LssMaster;
+  const auto net = field(r, "network", 1, 127);
+  const auto it = r.find("service");
+  if (it == r.end() || !it->is_string())
+    throw std::invalid_argument(
+        "\"service\": expected switch_global, switch_selective, set_node, conf_bitrate, activate_bitrate, store, "
+        "inquire_address, inquire_node, identify_non_configured or fastscan");
+  const std::string s = it->get<std::string>();
+  if (net == config_.upstream.network_id)
+    return done(gateway_error(100, fmt::format("network {} is the host's bus: LSS is served on the downstream network {} "
+                                               "only (the gateway is no LSS master upstream)",
+                                               net, config_.downstream.network_id)));
+  if (net != config_.downstream.network_id)
+    return done(gateway_error(106, fmt::format("network {}: this gateway has {} (upstream, its own dictionary) and {} "
+                                               "(downstream, the sub-devices)",
+                                               net, config_.upstream.network_id, config_.downstream.network_id)));
+  auto& network = gw_.downstream();
+  LssMaster* master = network.client_lss();
+  if (master == nullptr)
+    return done(gateway_error(102, "the gateway is commissioning a device by LSS itself; try again when it is done"));
+  const canopen::TimePoint now = loop_.now();
+  const std::weak_ptr<bool> alive = alive_;
+  // Answers, unless the service is ending (its destructor cancels a fastscan) or gone.
+  auto answer = [alive, done](json j) {
+    if (const auto a = alive.lock(); !a || !*a) return;
+    done(std::move(j));
+  };
+  auto ok_or = [answer](const char* what, int refused_code, int second_code = 0) {
+    return [answer, what, refused_code, second_code](const LssMaster::Result& res) {
+      answer(res.status == Status::Ok ? json::object() : lss_failure(res, what, refused_code, second_code));
+    };
+  };
+  gw_.log_control(fmt::format("LSS {} on network {}", s, net));
+  if (s == "switch_global") {
+    const auto mode = field(r, "mode", 0, 1);
+    master->switch_state_global(mode == 1 ? canopen::lss::Mode::Configuration : canopen::lss::Mode::Waiting, now,
+                                ok_or("switch state global", 102));
+  } else if (s == "switch_selective") {
+    const auto a = r.find("address");
+    if (a == r.end() || !a->is_array() || a->size() != 4)
+      throw std::invalid_argument("\"address\": expected [vendor, product, revision, serial]");
+    std::uint32_t v[4];
+    for (std::size_t i = 0; i < 4; ++i) {
+      if (!(*a)[i].is_number_unsigned() || (*a)[i].get<std::uint64_t>() > 0xFFFFFFFF)
+        throw std::invalid_argument("\"address\": expected four integers 0..4294967295");
+      v[i] = (*a)[i].get<std::uint32_t>();
+    }
+    master->switch_state_selective({v[0], v[1], v[2], v[3]}, now, ok_or("switch state selective", 102));
+  } else if (s == "set_node") {
+    const auto node = field(r, "node", 1, 255);
+    if (node > 127 && node != 255) throw std::invalid_argument("\"node\": expected 1..127, or 255 (none)");
+    // A node-ID a configured sub-device uses while it is on the bus would collide at the next
+    // reset communication: refused while the network manager has proof of it (starting after
+    // its configuration, operational, or refused for what it answered). A missing node cycles
+    // through missing, waiting for boot-up and configuring (asking its identity, unanswered):
+    // its node-ID may be given — that is how a replacement device gets the node-ID the mapping
+    // file expects.
+    for (const auto& sub : config_.subdevices) {
+      if (sub.node_id != node) continue;
+      const auto st = network.state(sub.name);
+      if (st == subdevices::NodeState::Operational || st == subdevices::NodeState::Starting ||
+          st == subdevices::NodeState::Refused)
+        return done(gateway_error(102, fmt::format("node-ID {} is {}'s, which is on the bus ({}); only a sub-device the "
+                                                   "gateway holds missing gives its node-ID away",
+                                                   node, sub.name, subdevices::to_string(st))));
+    }
+    master->configure_node_id(canopen::NodeId{static_cast<std::uint8_t>(node)}, now, ok_or("configure node-ID", 502));
+  } else if (s == "conf_bitrate") {
+    const auto index = static_cast<std::uint8_t>(field(r, "table_index", 0, 255));
+    if (!canopen::lss::standard_bit_rate_kbit(index))
+      return done(gateway_error(503, fmt::format("table index {} is not in the CiA 305 table", index)));
+    master->configure_bit_timing(index, now, ok_or("configure bit timing", 503));
+  } else if (s == "activate_bitrate") {
+    const auto delay = static_cast<std::uint16_t>(field(r, "delay_ms", 0, 0xFFFF));
+    master->activate_bit_timing(delay, now, ok_or("activate bit timing", 102));
+  } else if (s == "store") {
+    master->store_configuration(now, ok_or("store configuration", 504, 505));
+  } else if (s == "inquire_node") {
+    master->inquire(LssMaster::Inquiry::NodeId, now, [answer](const LssMaster::Result& res) {
+      answer(res.status == Status::Ok ? json{{"node", res.value}} : lss_failure(res, "inquire node-ID", 102));
+    });
+  } else if (s == "inquire_address") {
+    static constexpr LssMaster::Inquiry kParts[] = {LssMaster::Inquiry::Vendor, LssMaster::Inquiry::Product,
+                                                   LssMaster::Inquiry::Revision, LssMaster::Inquiry::Serial};
+    if (r.contains("part")) {
+      const auto part = field(r, "part", 0, 3);
+      master->inquire(kParts[part], now, [answer](const LssMaster::Result& res) {
+        answer(res.status == Status::Ok ? json{{"value", res.value}} : lss_failure(res, "inquire identity", 102));
+      });
+    } else {
+      // The four inquiries queued at once (CiA 305 5Ah..5Dh); answered after the last, or at the
+      // first that fails.
+      auto got = std::make_shared<std::vector<std::uint32_t>>();
+      auto failed = std::make_shared<bool>(false);
+      for (const auto part : kParts) {
+        master->inquire(part, now, [answer, got, failed](const LssMaster::Result& res) {
+          if (*failed) return;
+          if (res.status != Status::Ok) {
+            *failed = true;
+            return answer(lss_failure(res, "inquire identity", 102));
+          }
+          got->push_back(res.value);
+          if (got->size() == 4) answer(json{{"address", *got}});
+        });
+      }
+    }
+  } else if (s == "identify_non_configured") {
+    master->identify_non_configured(now, [answer](const LssMaster::Result& res) {
+      answer(res.status == Status::Ok
+                 ? json::object()
+                 : gateway_error(103, "no LSS slave without node-ID answered identify non-configured remote slave"));
+    });
+  } else if (s == "fastscan") {
+    auto* fastscan = network.client_fastscan();
+    if (fastscan->running()) return done(gateway_error(102, "a fastscan of another client is running"));
+    std::optional<canopen::Duration> step;
+    if (r.contains("timeout_ms")) step = std::chrono::milliseconds(field(r, "timeout_ms", 1, 0xFFFF));
+    fastscan_client_ = true;
+    fastscan->start(
+        now,
+        [this, alive, answer](const canopen::LssFastscan::Result& f) {
+          if (alive.expired()) return;
+          fastscan_client_ = false;  // (the destructor is still running when it cancels)
+          if (f.address)
+            return answer(json{{"address", {f.address->vendor, f.address->product, f.address->revision, f.address->serial}}});
+          answer(gateway_error(f.outcome == canopen::LssFastscan::Outcome::Cancelled ? 102 : 103, f.note));
+        },
+        step);
+  } else {
+    throw std::invalid_argument("\"service\": '" + s + "' is no LSS service of this gateway");
+  }
+  if (rearm_) rearm_();
 }
 
 void CtlService::sdo(const json& r, bool write, ControlProtocol::Done done) {

@@ -14,6 +14,10 @@
 //  * A request's `timeout_ms` (`set sdo_timeout`) ends a transfer still running after that long
 //    with 0504 0000h (the downstream SDO client's own time-out, downstream.sdo_timeout_ms,
 //    ends it earlier when shorter).
+//  * LSS (CiA 305, `lss`): the downstream network manager's LSS master (NetworkManager::
+//    client_lss), the same one its own commissioning uses; that comes first: while it runs, an
+//    `lss` request is refused (102), and a client's fastscan it interrupts is answered 102. One
+//    fastscan at a time; `set_node` refuses the node-ID of a configured sub-device on the bus.
 //  * Events: every boot-up and EMCY on the downstream bus, numbered; a client asks for those
 //    after the last number it saw (`events`). The last kMaxEvents are kept.
 #pragma once
@@ -49,6 +53,7 @@ class CtlService {
   struct Transfer;
   void sdo(const nlohmann::json& request, bool write, ControlProtocol::Done done);
   nlohmann::json nmt(const nlohmann::json& request);
+  void lss(const nlohmann::json& request, ControlProtocol::Done done);
   nlohmann::json info() const;
   nlohmann::json events(const nlohmann::json& request) const;
   void record(nlohmann::json event);
@@ -58,6 +63,9 @@ class CtlService {
   const mapping::Config& config_;
   std::function<void()> rearm_;
   std::vector<std::shared_ptr<Transfer>> transfers_;
+  // Cleared by the destructor: LSS answers that come later are dropped.
+  std::shared_ptr<bool> alive_ = std::make_shared<bool>(true);
+  bool fastscan_client_ = false;  // the network manager's fastscan runs for this service
   std::deque<nlohmann::json> events_;
   std::uint64_t next_event_ = 1;
 };

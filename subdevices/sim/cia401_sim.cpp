@@ -31,14 +31,17 @@ canopen::NodeConfig config_from(const canopen::eds::File& file, NodeId node) {
 
 }  // namespace
 
-Cia401Sim::Cia401Sim(const canopen::eds::File& file, NodeId node, FrameSink sink) : SimulatedDevice(std::move(sink)), eds_(file) {
+Cia401Sim::Cia401Sim(const canopen::eds::File& file, NodeId node, FrameSink sink, const std::filesystem::path& store)
+    : SimulatedDevice(std::move(sink)), eds_(file) {
   auto od = canopen::eds::build_dictionary(eds_, node);
   // The PDO objects are re-installed with the EDS defaults in the layout PdoService runs.
   for (std::uint16_t n = 1; n <= 512; ++n) {
     if (auto p = canopen::eds::pdo_defaults(eds_, false, n, node)) canopen::install_rpdo(*od, n, *p);
     if (auto p = canopen::eds::pdo_defaults(eds_, true, n, node)) canopen::install_tpdo(*od, n, *p);
   }
-  build(std::move(od), config_from(eds_, node));
+  canopen::NodeConfig cfg = config_from(eds_, node);
+  cfg.store_path = store;
+  build(std::move(od), cfg);
   // The node has the manufacturer strings its EDS lists, no others (an upload of one it lacks
   // is refused with 0602 0000h).
   for (const std::uint16_t index : {std::uint16_t{0x1008}, std::uint16_t{0x1009}, std::uint16_t{0x100A}})
@@ -46,10 +49,10 @@ Cia401Sim::Cia401Sim(const canopen::eds::File& file, NodeId node, FrameSink sink
 }
 
 std::unique_ptr<Cia401Sim> Cia401Sim::from_file(const std::filesystem::path& eds_path, NodeId node, FrameSink sink,
-                                                std::string& error) {
+                                                std::string& error, const std::filesystem::path& store) {
   auto file = canopen::eds::load(eds_path, error);
   if (!file) return nullptr;
-  return std::make_unique<Cia401Sim>(*file, node, std::move(sink));
+  return std::make_unique<Cia401Sim>(*file, node, std::move(sink), store);
 }
 
 canopen::SdoAbortCode Cia401Sim::set_object(std::uint16_t index, std::uint8_t sub, std::int64_t value) {

@@ -22,10 +22,12 @@ namespace oegw::subdevices::sim {
 
 class Cia401Sim : public SimulatedDevice {
  public:
-  Cia401Sim(const canopen::eds::File& file, NodeId node, FrameSink sink);
+  // `store`: the node's parameter store (1010h/1011h) and LSS store (`store`.lss); empty: none
+  // (LSS store configuration answered error 1, not supported), as the other simulators.
+  Cia401Sim(const canopen::eds::File& file, NodeId node, FrameSink sink, const std::filesystem::path& store = {});
   // Loads the EDS; nullptr with `error` ("file:line: ...") if it cannot be read or parsed.
   static std::unique_ptr<Cia401Sim> from_file(const std::filesystem::path& eds_path, NodeId node, FrameSink sink,
-                                              std::string& error);
+                                              std::string& error, const std::filesystem::path& store = {});
 
   [[nodiscard]] std::string_view family() const override { return "cia401"; }
 

@@ -68,7 +68,7 @@ std::unique_ptr<SimulatedDevice> make_simulator(const DeviceSpec& spec, FrameSin
       error = spec.name() + ": the cia401 simulator needs eds=<file>";
       return nullptr;
     }
-    auto sim = Cia401Sim::from_file(eds, spec.node, std::move(sink), error);
+    auto sim = Cia401Sim::from_file(eds, spec.node, std::move(sink), error, store);
     if (!sim) return nullptr;
     return sim;
   }

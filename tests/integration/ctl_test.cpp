@@ -17,6 +17,7 @@
 
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
+#include "canopen/305/lss.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "gateway/control/control_protocol.hpp"
 #include "gateway/control/ctl_command.hpp"
@@ -59,10 +60,10 @@ class Ctl : public ::testing::Test {
     service_ = std::make_unique<gw::CtlService>(loop_, rig_->gw(), config_, protocol_, [this] { rig_->rearm(); });
     // The session asks the protocol as the socket would, and the loop runs until the answer.
     session_ = std::make_unique<gw::CtlSession>(
-        [this](const std::string& line, std::chrono::milliseconds) {
+        [this](const std::string& line, std::chrono::milliseconds timeout) {
           std::optional<std::string> answer;
           protocol_.answer(line, [&answer](std::string a) { answer = std::move(a); });
-          for (int i = 0; i < 5000 && !answer; ++i) rig_->run_for(1ms);
+          for (std::int64_t i = 0; i < timeout.count() && !answer; ++i) rig_->run_for(1ms);
           return answer ? gw::AskResult{gw::AskStatus::Ok, *answer} : gw::AskResult{gw::AskStatus::Timeout, "no answer"};
         },
         "0.1.0", 10s);
@@ -269,6 +270,154 @@ TEST_F(Ctl, TheSdoTimeoutEndsATransferTheNodeDoesNotAnswer) {
   // The transfer was aborted on the bus (the node may have seen part of it) and the next one works.
   drop_to_devices_ = nullptr;
   EXPECT_EQ(run("[3] 2 17 r 0x1018 1 u32"), fmt::format("[3] 0x{:08X}", sim_u32("right_grip", 0x1018, 1)));
+}
+
+// The CiA 309-3 LSS commands on the downstream bus, frame by frame against CiA 305's command
+// specifiers (canopen/305/lss.hpp) and the simulated pedal's LSS slave (canopen/305/lss_slave.*):
+// its node-ID taken away with oegw ctl itself (tests/vm/guest/scan.sh does it with cansend), then
+// found by fastscan, given its node-ID again, and booted by the gateway.
+TEST_F(Ctl, LssGivesANodeWithoutNodeIdItsNodeIdFrameByFrame) {
+  const std::uint32_t a[4] = {sim_u32("pedal", 0x1018, 1), sim_u32("pedal", 0x1018, 2), sim_u32("pedal", 0x1018, 3),
+                              sim_u32("pedal", 0x1018, 4)};
+  const auto lss_frames = [this] { return frames_since({0x7E5, 0x7E4}); };
+  using F = std::vector<std::uint8_t>;
+  const auto u32 = [](std::uint8_t cs, std::uint32_t v) {
+    F f{cs};
+    for (const auto b : le32(v)) f.push_back(b);
+    f.resize(8, 0);
+    return f;
+  };
+  EXPECT_EQ(run("[1] set network 2"), "[1] OK");
+  // Switch state selective (40h..43h, CiA 305 §8.3.2), answered 44h by the pedal alone.
+  EXPECT_EQ(run(fmt::format("[2] lss_switch_sel {} {} {} {}", a[0], a[1], a[2], a[3])), "[2] OK");
+  EXPECT_EQ(lss_frames(), (Frames{{0x7E5, u32(0x40, a[0])},
+                                  {0x7E5, u32(0x41, a[1])},
+                                  {0x7E5, u32(0x42, a[2])},
+                                  {0x7E5, u32(0x43, a[3])},
+                                  {0x7E4, u32(0x44, 0)}}));
+  // Inquire node-ID (5Eh): lely prints it in decimal.
+  EXPECT_EQ(run("[3] lss_get_node"), "[3] 48");
+  EXPECT_EQ(lss_frames(), (Frames{{0x7E5, u32(0x5E, 0)}, {0x7E4, u32(0x5E, kPedal)}}));
+  // Inquire the LSS address (5Ah..5Dh), all four parts, and one.
+  EXPECT_EQ(run("[4] lss_inquire_addr"), fmt::format("[4] 0x{:08X} 0x{:08X} 0x{:08X} 0x{:08X}", a[0], a[1], a[2], a[3]));
+  EXPECT_EQ(lss_frames(), (Frames{{0x7E5, u32(0x5A, 0)},
+                                  {0x7E4, u32(0x5A, a[0])},
+                                  {0x7E5, u32(0x5B, 0)},
+                                  {0x7E4, u32(0x5B, a[1])},
+                                  {0x7E5, u32(0x5C, 0)},
+                                  {0x7E4, u32(0x5C, a[2])},
+                                  {0x7E5, u32(0x5D, 0)},
+                                  {0x7E4, u32(0x5D, a[3])}}));
+  EXPECT_EQ(run("[5] lss_inquire_addr 0x5B"), fmt::format("[5] 0x{:08X}", a[1]));
+  // Its node-ID taken away: configure node-ID FFh (11h, answered 11h error 0), waiting (04h 00h,
+  // no answer), and reset communication, after which it has none.
+  EXPECT_EQ(run("[6] lss_set_node 255"), "[6] OK");
+  EXPECT_EQ(lss_frames(), (Frames{{0x7E5, F{0x11, 0xFF, 0, 0, 0, 0, 0, 0}}, {0x7E4, F{0x11, 0, 0, 0, 0, 0, 0, 0}}}));
+  EXPECT_EQ(run("[7] lss_switch_glob 0"), "[7] OK");
+  EXPECT_EQ(lss_frames(), (Frames{{0x7E5, F{0x04, 0, 0, 0, 0, 0, 0, 0}}}));
+  EXPECT_EQ(run("[8] 2 48 reset comm"), "[8] OK");
+  until("pedal", sd::NodeState::Missing);
+  // Identify non-configured remote slave (4Ch), answered 50h.
+  EXPECT_EQ(run("[9] lss_ident_nonconf"), "[9] OK");
+  EXPECT_EQ(lss_frames(), (Frames{{0x7E5, F{0x4C, 0, 0, 0, 0, 0, 0, 0}}, {0x7E4, F{0x50, 0, 0, 0, 0, 0, 0, 0}}}));
+  // Fastscan (51h, CiA 305 §8.4.4) with 10 ms steps finds its address and leaves it selected.
+  EXPECT_EQ(run("[10] _lss_fastscan 10"), fmt::format("[10] 0x{:08X} 0x{:08X} 0x{:08X} 0x{:08X}", a[0], a[1], a[2], a[3]));
+  const Frames fs = lss_frames();
+  ASSERT_GE(fs.size(), 2u);
+  EXPECT_EQ(fs.front(), (Frames::value_type{0x7E5, F{0x51, 0, 0, 0, 0, 0x80, 0, 0}}));  // the reset step
+  EXPECT_EQ(fs[1], (Frames::value_type{0x7E4, F{0x4F, 0, 0, 0, 0, 0, 0, 0}}));
+  F last{0x51};
+  for (const auto b : le32(a[3])) last.push_back(b);
+  last.insert(last.end(), {0, 3, 0});  // bit 0 of the serial confirmed, LSSNext back to the vendor
+  const auto final_request = std::find_if(fs.rbegin(), fs.rend(), [](const auto& f) { return f.first == 0x7E5; });
+  EXPECT_EQ(final_request->second, last);
+  for (const auto& [id, data] : fs) EXPECT_TRUE(data[0] == 0x51 || data[0] == 0x4F) << fmt::format("{:02X}", data[0]);
+  EXPECT_EQ(run("[11] lss_get_node"), "[11] 255");  // selected, and without node-ID
+  // Its node-ID again: the gateway holds the pedal missing, so the mapping file's 30h may be given,
+  // also while it retries it (configuring: asking its identity, unanswered).
+  for (int i = 0; i < 10000 && rig_->gw().downstream().state("pedal") != sd::NodeState::Configuring; ++i)
+    rig_->run_for(1ms);
+  ASSERT_EQ(rig_->gw().downstream().state("pedal"), sd::NodeState::Configuring) << log_;
+  EXPECT_EQ(run("[12] lss_set_node 48"), "[12] OK");
+  EXPECT_EQ(lss_frames(), (Frames{{0x7E5, F{0x11, kPedal, 0, 0, 0, 0, 0, 0}}, {0x7E4, F{0x11, 0, 0, 0, 0, 0, 0, 0}}}));
+  // Store configuration (17h): this simulated pedal has no LSS store and answers error 1.
+  EXPECT_EQ(run("[13] lss_store"),
+            "[13] ERROR: 504 (LSS parameter storing failed: store configuration refused with LSS error code 1)");
+  EXPECT_EQ(lss_frames(), (Frames{{0x7E5, F{0x17, 0, 0, 0, 0, 0, 0, 0}}, {0x7E4, F{0x17, 1, 0, 0, 0, 0, 0, 0}}}));
+  // Bit timing: table 0 index 3 (250 kbit/s) configured (13h), a missing index refused before
+  // any frame.
+  EXPECT_EQ(run("[14] lss_conf_bitrate 0 3"), "[14] OK");
+  EXPECT_EQ(lss_frames(), (Frames{{0x7E5, F{0x13, 0, 3, 0, 0, 0, 0, 0}}, {0x7E4, F{0x13, 0, 0, 0, 0, 0, 0, 0}}}));
+  // Back to waiting: a slave without active node-ID and with a pending one starts NMT (CiA 305),
+  // boots up as 30h, and the gateway boots it as its pedal.
+  EXPECT_EQ(run("[15] lss_switch_glob 0"), "[15] OK");
+  until("pedal", sd::NodeState::Operational);
+  // Nobody without node-ID is left: identify non-configured and fastscan answer time-outs.
+  EXPECT_EQ(run("[16] lss_ident_nonconf"),
+            "[16] ERROR: 103 (Time-out: no LSS slave without node-ID answered identify non-configured remote slave)");
+  EXPECT_EQ(run("[17] _lss_fastscan 10"),
+            "[17] ERROR: 103 (Time-out: no answer to LSS fastscan (CiA 305 §8.4.4): no node without node-ID, or it does "
+            "not support fastscan)");
+  EXPECT_EQ(lss_frames(), (Frames{{0x7E5, F{0x51, 0, 0, 0, 0, 0x80, 0, 0}}}));
+}
+
+TEST_F(Ctl, LssRefusals) {
+  EXPECT_EQ(run("[1] 2 lss_conf_bitrate 0 5"),
+            "[1] ERROR: 503 (LSS bit-rate not supported: table index 5 is not in the CiA 305 table (0 1000, 1 800, 2 "
+            "500, 3 250, 4 125, 6 50, 7 20, 8 10 kbit/s))");
+  // The host's bus: the gateway is no LSS master there; an unknown network: 106.
+  EXPECT_EQ(run("[2] 1 lss_switch_glob 1"),
+            "[2] ERROR: 100 (Request not supported: network 1 is the host's bus: LSS is served on the downstream network "
+            "2 only (the gateway is no LSS master upstream))");
+  EXPECT_EQ(run("[3] 9 lss_store"),
+            "[3] ERROR: 106 (Unsupported net: network 9: this gateway has 1 (upstream, its own dictionary) and 2 "
+            "(downstream, the sub-devices))");
+  EXPECT_EQ(frames_since({0x7E5, 0x7E4}), Frames{});
+  // Nobody in LSS configuration mode: configure node-ID gets no answer (the LSS time-out).
+  EXPECT_EQ(run("[4] 2 lss_set_node 5"),
+            "[4] ERROR: 103 (Time-out: no LSS slave answered configure node-ID (none in LSS configuration mode?))");
+  // The node-ID of a sub-device the gateway runs: refused, nothing sent.
+  EXPECT_EQ(run("[5] 2 lss_set_node 17"),
+            "[5] ERROR: 102 (Request not processed due to internal state: node-ID 17 is right_grip's, which is on the "
+            "bus (operational); only a sub-device the gateway holds missing gives its node-ID away)");
+  EXPECT_EQ(frames_since({0x7E5, 0x7E4}), Frames{});
+  // The gateway's own LSS work comes first: while it commissions a device, an lss_* is refused.
+  std::optional<bool> commissioned;
+  // (a selective switch to an address nobody has: it ends at the LSS time-out, changing nothing)
+  rig_->gw().downstream().commission(lss::Address{1, 2, 3, 4}, NodeId{0x40}, std::nullopt, loop_.now(),
+                                     [&](bool ok, const std::string&) { commissioned = ok; });
+  rig_->rearm();
+  EXPECT_TRUE(rig_->gw().downstream().own_lss_busy());
+  EXPECT_EQ(run("[6] 2 lss_get_node"),
+            "[6] ERROR: 102 (Request not processed due to internal state: the gateway is commissioning a device by LSS "
+            "itself; try again when it is done)");
+  // (its requests queued behind the failed switch still end at their time-outs, then it is done)
+  for (int i = 0; i < 2000 && rig_->gw().downstream().own_lss_busy(); ++i) rig_->run_for(1ms);
+  ASSERT_TRUE(commissioned);
+  EXPECT_FALSE(*commissioned);
+  EXPECT_FALSE(rig_->gw().downstream().own_lss_busy());
+  EXPECT_EQ(run("[7] 2 lss_switch_glob 0"), "[7] OK");
+}
+
+TEST_F(Ctl, TheGatewaysOwnLssWorkInterruptsAFastscan) {
+  // A fastscan of 50 ms steps runs (nobody answers its reset step); the gateway's commissioning
+  // starts meanwhile: the fastscan is answered 102 and sends no further step.
+  std::optional<std::string> answer;
+  protocol_.answer(R"({"protocol": 1, "command": "lss", "network": 2, "service": "fastscan", "timeout_ms": 50})",
+                   [&answer](std::string a) { answer = std::move(a); });
+  rig_->run_for(10ms);
+  EXPECT_FALSE(answer);
+  rig_->gw().downstream().commission(lss::Address{1, 2, 3, 4}, NodeId{0x40}, std::nullopt, loop_.now(),
+                                     [](bool, const std::string&) {});
+  rig_->rearm();
+  ASSERT_TRUE(answer);
+  EXPECT_NE(answer->find(R"("gateway_error":102)"), std::string::npos) << *answer;
+  EXPECT_NE(answer->find("interrupted: the gateway is commissioning a device by LSS itself"), std::string::npos) << *answer;
+  mark_ = down_.size();
+  rig_->run_for(500ms);
+  std::size_t fastscans = 0;
+  for (const auto& [id, data] : frames_since({0x7E5})) fastscans += data[0] == 0x51;
+  EXPECT_EQ(fastscans, 0u);
 }
 
 }  // namespace

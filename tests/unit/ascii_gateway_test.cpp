@@ -167,7 +167,9 @@ TEST(AsciiGateway, BadLinesGetExactErrors) {
   EXPECT_EQ(refused("[17] 2 5 w 0x2000 1 u8 1 2"), "[17] ERROR: 101 (Syntax error: a u8 value is one token; text follows '1')");
   EXPECT_EQ(refused("[18] 2 5 fly"),
             "[18] ERROR: 100 (Request not supported: no command 'fly'; this gateway has r[ead], w[rite], start, stop, "
-            "preop[erational], reset node, reset comm[unication], set network, set node, set sdo_timeout, info version)");
+            "preop[erational], reset node, reset comm[unication], set network, set node, set sdo_timeout, info version, "
+            "lss_switch_glob, lss_switch_sel, lss_set_node, lss_conf_bitrate, lss_activate_bitrate, lss_store, "
+            "lss_inquire_addr, lss_get_node, lss_ident_nonconf, _lss_fastscan)");
   EXPECT_EQ(refused("[19] 2 0 start"), "[19] ERROR: 100 (Request not supported: node 0 (all nodes): name each node)");
   EXPECT_EQ(refused("[20] set network 0"), "[20] ERROR: 101 (Syntax error: network 0 is out of range (1..127))");
   EXPECT_EQ(refused("[21] set sdo_timeout 0", Defaults{2, {}}),
@@ -180,6 +182,95 @@ TEST(AsciiGateway, BadLinesGetExactErrors) {
   EXPECT_EQ(refused("[25]"), "[25] ERROR: 101 (Syntax error: a sequence number and no command)");
   EXPECT_EQ(refused("[26] 1 2 3 r 0x1000 0 u32"), "[26] ERROR: 101 (Syntax error: more than two numbers (network and node) before the command)");
   EXPECT_EQ(refused("[27] 2 info version"), "[27] ERROR: 101 (Syntax error: `info version` takes no network or node before it)");
+}
+
+// The LSS commands as CANopenNode's CO_gateway_ascii.c help text and lely's coctl.md spell them
+// ("All LSS commands start with '[<sequence>] [<net>]'"), and lely's test session (lss_ident_nonconf,
+// lss_switch_sel 0x360 0 0 0, lss_get_node, lss_set_node 2, lss_conf_bitrate 0 ..., lss_store).
+TEST(AsciiGateway, LssCommands) {
+  const Defaults d{2, {}};
+  const Request glob = ok("[1] lss_switch_glob 1", d);
+  EXPECT_EQ(glob.command, Command::LssSwitchGlobal);
+  EXPECT_EQ(glob.network, 2);
+  EXPECT_EQ(glob.value, 1u);
+  EXPECT_EQ(ok("[2] 2 lss_switch_glob 0").value, 0u);
+  const Request sel = ok("[3] lss_switch_sel 0x360 0 0 0", d);
+  EXPECT_EQ(sel.command, Command::LssSwitchSelective);
+  EXPECT_EQ(sel.address, (std::array<std::uint32_t, 4>{0x360, 0, 0, 0}));
+  EXPECT_EQ(ok("[4] 2 lss_switch_sel 0xA5A 0x402 0x00010002 4294967295").address,
+            (std::array<std::uint32_t, 4>{0xA5A, 0x402, 0x10002, 0xFFFFFFFF}));
+  const Request set = ok("[5] lss_set_node 2", d);
+  EXPECT_EQ(set.command, Command::LssSetNode);
+  EXPECT_EQ(set.value, 2u);
+  EXPECT_EQ(ok("[6] lss_set_node 255", d).value, 255u);  // none (CiA 305: FFh, unconfigured)
+  const Request rate = ok("[7] lss_conf_bitrate 0 3", d);
+  EXPECT_EQ(rate.command, Command::LssConfBitrate);
+  EXPECT_EQ(rate.value, 3u);  // 250 kbit/s
+  const Request act = ok("[8] lss_activate_bitrate 100", d);
+  EXPECT_EQ(act.command, Command::LssActivateBitrate);
+  EXPECT_EQ(act.value, 100u);
+  EXPECT_EQ(ok("[9] lss_store", d).command, Command::LssStore);
+  const Request all = ok("[10] lss_inquire_addr", d);
+  EXPECT_EQ(all.command, Command::LssInquireAddress);
+  EXPECT_EQ(all.lss_part, std::nullopt);
+  EXPECT_EQ(ok("[11] lss_inquire_addr 3", d).lss_part, 3);     // CANopenNode: LSSSUB 0..3
+  EXPECT_EQ(ok("[12] lss_inquire_addr 0x5B", d).lss_part, 1);  // lely: the command specifier
+  EXPECT_EQ(ok("[13] lss_get_node", d).command, Command::LssGetNode);
+  EXPECT_EQ(ok("[14] lss_ident_nonconf", d).command, Command::LssIdentNonConfigured);
+  const Request fs = ok("[15] _lss_fastscan", d);
+  EXPECT_EQ(fs.command, Command::LssFastscan);
+  EXPECT_EQ(fs.value, 0u);  // the gateway's step time-out
+  EXPECT_EQ(ok("[16] 2 _lss_fastscan 200").value, 200u);
+  EXPECT_EQ(ok("[17] LSS_STORE", d).command, Command::LssStore);  // commands are case-insensitive
+  for (const auto c : {Command::LssSwitchGlobal, Command::LssFastscan, Command::LssStore}) EXPECT_TRUE(is_lss(c));
+  for (const auto c : {Command::Read, Command::Start, Command::InfoVersion}) EXPECT_FALSE(is_lss(c));
+}
+
+TEST(AsciiGateway, LssCommandsWithBadArguments) {
+  const Defaults d{2, {}};
+  EXPECT_EQ(refused("[1] lss_store"),
+            "[1] ERROR: 104 (No default net set: give the network before the command or `set network N` first)");
+  EXPECT_EQ(refused("[2] 2 17 lss_store"), "[2] ERROR: 101 (Syntax error: 'lss_store' takes a network number only, not a node)");
+  EXPECT_EQ(refused("[3] 200 lss_store"), "[3] ERROR: 106 (Unsupported net: network 200 (1..127))");
+  EXPECT_EQ(refused("[4] lss_switch_glob 2", d),
+            "[4] ERROR: 101 (Syntax error: expected lss_switch_glob 0|1 (0 waiting, 1 configuration))");
+  EXPECT_EQ(refused("[5] lss_switch_glob", d),
+            "[5] ERROR: 101 (Syntax error: expected lss_switch_glob 0|1 (0 waiting, 1 configuration))");
+  EXPECT_EQ(refused("[6] lss_switch_sel 1 2 3", d),
+            "[6] ERROR: 101 (Syntax error: expected lss_switch_sel <vendor-ID> <product code> <revision> <serial>)");
+  EXPECT_EQ(refused("[7] lss_switch_sel 1 2 3 0x100000000", d),
+            "[7] ERROR: 101 (Syntax error: '0x100000000' is no 32-bit number; expected lss_switch_sel <vendor-ID> "
+            "<product code> <revision> <serial>)");
+  EXPECT_EQ(refused("[8] lss_set_node 0", d), "[8] ERROR: 101 (Syntax error: node-ID '0': 1..127, or 255 (none))");
+  EXPECT_EQ(refused("[9] lss_set_node 128", d), "[9] ERROR: 101 (Syntax error: node-ID '128': 1..127, or 255 (none))");
+  EXPECT_EQ(refused("[10] lss_set_node", d), "[10] ERROR: 101 (Syntax error: expected lss_set_node <node-ID 1..127, or 255: none>)");
+  EXPECT_EQ(refused("[11] lss_conf_bitrate 3", d),
+            "[11] ERROR: 101 (Syntax error: expected lss_conf_bitrate 0 <table index: 0 1000, 1 800, 2 500, 3 250, 4 "
+            "125, 6 50, 7 20, 8 10 kbit/s>)");
+  EXPECT_EQ(refused("[12] lss_conf_bitrate 1 3", d),
+            "[12] ERROR: 503 (LSS bit-rate not supported: table selector 1: only 0, the CiA 305 standard table)");
+  EXPECT_EQ(refused("[13] lss_conf_bitrate 0 5", d),
+            "[13] ERROR: 503 (LSS bit-rate not supported: table index 5 is not in the CiA 305 table (0 1000, 1 800, 2 "
+            "500, 3 250, 4 125, 6 50, 7 20, 8 10 kbit/s))");
+  EXPECT_EQ(refused("[14] lss_activate_bitrate 65536", d),
+            "[14] ERROR: 101 (Syntax error: expected lss_activate_bitrate <switch delay in ms, 0..65535>)");
+  EXPECT_EQ(refused("[15] lss_store now", d), "[15] ERROR: 101 (Syntax error: expected lss_store)");
+  EXPECT_EQ(refused("[16] lss_inquire_addr 4", d),
+            "[16] ERROR: 101 (Syntax error: expected lss_inquire_addr [<part: 0..3 or 0x5A..0x5D (vendor, product, "
+            "revision, serial)>])");
+  EXPECT_EQ(refused("[17] lss_get_node 1", d), "[17] ERROR: 101 (Syntax error: expected lss_get_node)");
+  EXPECT_EQ(refused("[18] _lss_fastscan 0", d),
+            "[18] ERROR: 101 (Syntax error: expected _lss_fastscan [<step time-out in ms, 1..65535>])");
+  EXPECT_EQ(refused("[19] _lss_fastscan 0 0xffff0000 0 0xffffffff 0 0xffffffff 0 0xffffffff", d),
+            "[19] ERROR: 101 (Syntax error: expected _lss_fastscan [<step time-out in ms, 1..65535>] (lely's form "
+            "with values and masks is not supported))");
+  EXPECT_EQ(refused("[20] lss_allnodes", d),
+            "[20] ERROR: 100 (Request not supported: no command 'lss_allnodes'; this gateway's LSS commands are "
+            "lss_switch_glob, lss_switch_sel, lss_set_node, lss_conf_bitrate, lss_activate_bitrate, lss_store, "
+            "lss_inquire_addr, lss_get_node, lss_ident_nonconf, _lss_fastscan)");
+  EXPECT_EQ(answer_error(21, GatewayError::LssNodeIdNotSupported, "configure node-ID refused with LSS error code 1"),
+            "[21] ERROR: 502 (LSS node-ID not supported: configure node-ID refused with LSS error code 1)");
+  EXPECT_EQ(answer_error(22, GatewayError::LssMediaError), "[22] ERROR: 505 (LSS command failed because of media error)");
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 // (004_965670f51e9c840d, chapter 6 "LSS / Layer Setting Service", §6.1 node-ID, §6.2 bit rate,
 // §6.3 store configuration) and the elobau manual (000_499d7da4c768c72f, §7 "Baud rate /
 // Node-ID": default node-ID 0x11, default 250 kbit/s, LSS-configurable).
+#include "canopen/305/lss_fastscan.hpp"
 #include "canopen/305/lss_master.hpp"
 #include "canopen/305/lss_slave.hpp"
 
@@ -402,6 +403,107 @@ TEST(LssMasterSlave, ConfigureThroughBothEnds) {
   EXPECT_EQ(persisted->second, 4);
   EXPECT_EQ(node, 0x7Fu);  // still the active one
   EXPECT_EQ(slave.mode(), lss::Mode::Waiting);
+}
+
+// ------------------------------------------------------------------ fastscan (master side)
+
+// LssFastscan through an LssMaster against LssSlave (the independent slave side), on a simulated
+// clock: the slave's answers reach the master 1 ms after each request, each step lasts the step
+// time-out.
+struct FastscanBench {
+  std::vector<CanFrame> wire;  // every frame, both directions, in order
+  std::vector<CanFrame> to_master;
+  std::vector<std::unique_ptr<LssSlave>> slaves;
+  TimePoint now{};
+  LssMaster master{[this](const CanFrame& f) {
+                     wire.push_back(f);
+                     for (auto& sl : slaves) sl->on_frame(f, now);
+                   },
+                   std::chrono::milliseconds(10)};
+  LssFastscan fastscan{master};
+  void add(const lss::Address& a, NodeId id) {
+    slaves.push_back(std::make_unique<LssSlave>(a, id, 3, [this](const CanFrame& f) {
+      wire.push_back(f);
+      to_master.push_back(f);
+    }));
+  }
+  void run() {
+    for (int i = 0; i < 1000 && !master.idle(); ++i) {
+      const auto answers = std::exchange(to_master, {});
+      for (const auto& f : answers) master.on_frame(f, now + std::chrono::milliseconds(1));
+      if (const auto d = master.next_deadline()) {
+        now = *d;
+        master.advance(now);
+      }
+    }
+  }
+  std::size_t count(std::uint8_t cs) const {
+    return static_cast<std::size_t>(std::count_if(wire.begin(), wire.end(), [cs](const CanFrame& f) {
+      return f.id == 0x7E5 && f.data[0] == cs;
+    }));
+  }
+};
+
+// CiA 305 §8.4.4 frame by frame: the reset step 51h with BitChecked 80h, then per part bits 31..1
+// (IDNumber so far, BitChecked, LSSSub = LSSNext = the part), bit 0 with LSSNext the next part; every
+// matching step answered 4Fh on 7E4h. The slave ends selected (LSS configuration mode).
+TEST(LssFastscanTest, ReadsTheAddressOfTheNodeWithoutNodeIdAndLeavesItSelected) {
+  FastscanBench b;
+  b.add(kNovotechnik, NodeId::unconfigured_id());
+  b.add({0x182, 0x0BE0, 0x00010003, 0x1}, NodeId{0x11});  // has a node-ID: takes no part
+  std::optional<LssFastscan::Result> got;
+  b.fastscan.start(b.now, [&](const LssFastscan::Result& r) { got = r; });
+  EXPECT_TRUE(b.fastscan.running());
+  ASSERT_FALSE(b.wire.empty());
+  EXPECT_EQ(b.wire[0], m({0x51, 0, 0, 0, 0, 0x80, 0, 0}));
+  EXPECT_EQ(b.master.next_deadline(), at_ms(10));
+  b.run();
+  ASSERT_TRUE(got);
+  EXPECT_EQ(got->outcome, LssFastscan::Outcome::Found) << got->note;
+  EXPECT_EQ(got->address, kNovotechnik);
+  EXPECT_FALSE(b.fastscan.running());
+  EXPECT_EQ(b.slaves[0]->mode(), lss::Mode::Configuration);
+  EXPECT_EQ(b.slaves[1]->mode(), lss::Mode::Waiting);
+  // The second step: vendor part, bit 31 asked with IDNumber 0 (answered: the bit is 0).
+  EXPECT_EQ(b.wire[1], s({0x4F, 0, 0, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(b.wire[2], m({0x51, 0, 0, 0, 0, 31, 0, 0}));
+  EXPECT_EQ(b.wire[3], s({0x4F, 0, 0, 0, 0, 0, 0, 0}));
+  // The last step: the serial confirmed with LSSNext 0.
+  const auto last = std::find_if(b.wire.rbegin(), b.wire.rend(), [](const CanFrame& f) { return f.id == 0x7E5; });
+  EXPECT_EQ(*last, m({0x51, 0x78, 0x56, 0x34, 0x12, 0, 3, 0}));
+  // 1 reset + 4 × 31 bits + 4 confirmations, and one retry of bit 0 per part that ends in 1
+  // (product 0BE0h and serial 12345678h end in 0, vendor 182h in 0, revision 00010003h in 1).
+  EXPECT_EQ(b.count(0x51), 1u + 4 * 31 + 4 + 1);
+  EXPECT_LE(b.count(0x51), std::size_t{LssFastscan::kMaxSteps});
+}
+
+TEST(LssFastscanTest, NoNodeWithoutNodeIdNoAnswerAfterOneStep) {
+  FastscanBench b;
+  b.add(kNovotechnik, NodeId{0x11});
+  std::optional<LssFastscan::Result> got;
+  b.fastscan.start(b.now, [&](const LssFastscan::Result& r) { got = r; }, std::chrono::milliseconds(250));
+  EXPECT_EQ(b.master.next_deadline(), at_ms(250));  // the step's own time-out
+  b.run();
+  ASSERT_TRUE(got);
+  EXPECT_EQ(got->outcome, LssFastscan::Outcome::NoAnswer);
+  EXPECT_FALSE(got->address);
+  EXPECT_EQ(b.count(0x51), 1u);
+  EXPECT_EQ(b.now, at_ms(250));
+}
+
+TEST(LssFastscanTest, CancelEndsItAndSendsNoFurtherStep) {
+  FastscanBench b;
+  b.add(kNovotechnik, NodeId::unconfigured_id());
+  std::vector<LssFastscan::Result> got;
+  b.fastscan.start(b.now, [&](const LssFastscan::Result& r) { got.push_back(r); });
+  b.fastscan.cancel("the gateway needs the LSS master");
+  ASSERT_EQ(got.size(), 1u);
+  EXPECT_EQ(got[0].outcome, LssFastscan::Outcome::Cancelled);
+  EXPECT_EQ(got[0].note, "the gateway needs the LSS master");
+  b.run();  // the reset step on the wire ends; nothing follows it
+  EXPECT_EQ(got.size(), 1u);
+  EXPECT_EQ(b.count(0x51), 1u);
+  EXPECT_TRUE(b.master.idle());
 }
 
 }  // namespace

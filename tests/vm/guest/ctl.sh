@@ -6,7 +6,11 @@
 # grip's TPDO1 COB-ID (1800h:01: the gateway configured it and its FEs use the grip) with
 # 0800 0021h, exiting 1 at that ERROR (--exit). candump on vcan1, an independent peer, judges the
 # frames: the values `oegw ctl` printed are those the grip's SDO answers carried, and no request
-# for 1800h ever reached the bus. Then: no daemon → exit 3.
+# for 1800h ever reached the bus. LSS (CiA 305) through the daemon: cansend takes the button
+# cluster's node-ID away (as scan.sh does); `oegw ctl` identifies it as non-configured, finds its
+# LSS address with `_lss_fastscan`, gives it 31h again with `lss_set_node`, stores (the cluster
+# simulator's LSS store file), switches to waiting, and the gateway boots it as its cluster again;
+# candump shows the LSS frames of each command. Then: no daemon → exit 3.
 # Args: OEGW OEGW_SIM SOURCE_DIR
 set -uo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -22,9 +26,10 @@ rc=$?
 ((rc == 0)) && pass "oegw check: valid" || fail "oegw check exit $rc: $(cat /tmp/check.out)"
 start_candump vcan1 /tmp/down.dump || fail "candump vcan1 did not start"
 receivers=$(can_receivers vcan1)
+rm -f /tmp/cluster.store /tmp/cluster.store.lss
 "$sim" -i vcan1 --motion elobau-mfg:0x11:name=right_grip mcb402:0x03:name=left_grip \
   "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
-  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" >/tmp/sim.log 2>&1 &
+  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds,store=/tmp/cluster.store" >/tmp/sim.log 2>&1 &
 sim_pid=$!
 wait_receivers vcan1 $((receivers + 1)) 20 || fail "the simulators did not bind vcan1"
 "$oegw" run "$dir/oegw.yaml" >/tmp/gateway.log 2>&1 &
@@ -65,6 +70,44 @@ rc=$?
 ((rc == 0)) && grep -qE '^\[9\] ERROR: 06090011 ' /tmp/ctl3.out && grep -qE '^\[10\] 0x[0-9A-F]{8}$' /tmp/ctl3.out &&
   pass "without --exit: [9] ERROR: 06090011, [10] answered, exit 0" || fail "without --exit (exit $rc): $(cat /tmp/ctl3.out)"
 
+# ---- LSS: the cluster (button_cluster.eds 1018h: vendor A5Ah, product 402h, revision 00010002h,
+# serial 0) loses its node-ID by cansend: switch state selective, configure node-ID FFh, waiting,
+# NMT reset communication. The gateway then holds it missing.
+for f in 405A0A0000000000 4102040000000000 4202000100000000 4300000000000000 11FF000000000000 \
+  0400000000000000; do
+  cansend vcan1 "7E5#$f"
+done
+cansend vcan1 000#8231
+if "$PY" "$here/status_wait.py" "$oegw" /tmp/status.json 60 'subs["cluster"]["network_state"] != "operational"'; then
+  pass "the cluster without node-ID: no longer operational for the gateway"
+else
+  fail "the cluster stayed operational after losing its node-ID"
+fi
+printf '%s\n' '[20] set network 2' '[21] lss_ident_nonconf' '[22] _lss_fastscan 200' '[23] lss_get_node' \
+  '[24] lss_set_node 49' '[25] lss_store' '[26] lss_inquire_addr 3' '[27] lss_switch_glob 0' |
+  "$oegw" ctl --exit >/tmp/ctl5.out 2>&1
+rc=$?
+sed 's/^/    ctl: /' /tmp/ctl5.out
+((rc == 0)) && pass "oegw ctl LSS session: exit 0" || fail "oegw ctl LSS session: exit $rc"
+grep -qxF '[21] OK' /tmp/ctl5.out && pass "lss_ident_nonconf: a node without node-ID answered" || fail "lss_ident_nonconf"
+grep -qxF '[22] 0x00000A5A 0x00000402 0x00010002 0x00000000' /tmp/ctl5.out &&
+  pass "_lss_fastscan: the cluster's LSS address" || fail "_lss_fastscan did not answer the cluster's address"
+grep -qxF '[23] 255' /tmp/ctl5.out && pass "lss_get_node: 255 (selected, no node-ID)" || fail "lss_get_node"
+grep -qxF '[24] OK' /tmp/ctl5.out && pass "lss_set_node 49: OK" || fail "lss_set_node 49"
+grep -qxF '[25] OK' /tmp/ctl5.out && pass "lss_store: OK" || fail "lss_store"
+grep -qxF '[26] 0x00000000' /tmp/ctl5.out && pass "lss_inquire_addr 3: its serial" || fail "lss_inquire_addr 3"
+grep -qxF '[27] OK' /tmp/ctl5.out && pass "lss_switch_glob 0: OK" || fail "lss_switch_glob 0"
+[[ -s /tmp/cluster.store.lss ]] && pass "the cluster's LSS store written ($(tr '\n' ' ' </tmp/cluster.store.lss))" ||
+  fail "no LSS store file of the cluster"
+if "$PY" "$here/status_wait.py" "$oegw" /tmp/status.json 120 'subs["cluster"]["network_state"] == "operational"'; then
+  pass "the gateway booted the cluster at 31h again"
+else
+  fail "the cluster is not operational again: $(head -c 2000 /tmp/status.json)"
+fi
+# On the gateway's own bus, LSS is refused (the gateway is no LSS master there).
+echo '[28] 1 lss_get_node' | "$oegw" ctl >/tmp/ctl6.out 2>&1
+grep -qE '^\[28\] ERROR: 100 ' /tmp/ctl6.out && pass "LSS upstream: ERROR: 100" || fail "LSS upstream: $(cat /tmp/ctl6.out)"
+
 # ---- candump vcan1: the SDO frames of the grip, in order.
 stop_candump
 got=$(frames /tmp/down.dump)
@@ -81,6 +124,25 @@ expect_frame '591#6001500000000000' "download confirmed"
 n=$(awk -v a="$t_refused" -v b="$t_refused_end" '{ t = substr($1, 2, length($1) - 2) + 0 } t >= a && t <= b && $3 ~ /^611#/' /tmp/down.dump | wc -l)
 ((n == 0)) && pass "no SDO request to the grip while 1800h was refused" || fail "$n SDO requests to the grip while 1800h was refused"
 if grep -qE '^vcan1 605#' <<<"$got"; then fail "a request to node 05h went out"; else pass "nothing sent to node 05h"; fi
+# The LSS frames of `oegw ctl` (CiA 305 command specifiers): identify non-configured 4Ch / 50h,
+# the fastscan reset step (BitChecked 80h) answered 4Fh and its last step (serial 0, bit 0,
+# LSSSub 3, LSSNext 0), configure node-ID 31h / error 0, store / error 0, inquire serial 5Dh,
+# inquire node-ID 5Eh, waiting; then the cluster's boot-up at 31h.
+expect_frame '7E5#4C00000000000000' "identify non-configured"
+expect_frame '7E4#5000000000000000' "answered by the cluster"
+expect_frame '7E5#5100000000800000' "fastscan reset step"
+expect_frame '7E4#4F00000000000000' "fastscan answer"
+expect_frame '7E5#5100000000000300' "fastscan: the serial confirmed"
+expect_frame '7E5#1131000000000000' "configure node-ID 31h"
+expect_frame '7E4#1100000000000000' "node-ID configured"
+expect_frame '7E5#1700000000000000' "store configuration"
+expect_frame '7E4#1700000000000000' "stored"
+expect_frame '7E5#5D00000000000000' "inquire serial"
+expect_frame '7E4#5D00000000000000' "its serial 0"
+bad=$(grep -E '^vcan1 7E5#' <<<"$got" | awk '{ b = substr($2, 5, 2); if (b !~ /^(40|41|42|43|11|04|4C|51|17|5D|5E)$/) print }' | head -3)
+[[ -z $bad ]] && pass "LSS: no other command on 7E5h" || fail "other LSS frames: $bad"
+awk '$3 ~ /^7E5#1131/ { s = 1 } s && $3 ~ /^731#00$/ { found = 1 } END { exit !found }' /tmp/down.dump &&
+  pass "the cluster's boot-up at 31h after its node-ID was configured" || fail "no boot-up 731#00 after lss_set_node"
 
 # ---- The gateway stops: oegw ctl finds no daemon (exit 3, as oegw status).
 kill -TERM "$gw_pid"
