@@ -27,6 +27,15 @@ std::vector<unsigned char> filled(const Sample& s) {
   return {storage, storage + sizeof storage};
 }
 
+// The object those bytes hold (copied out: a vector's bytes need not be aligned for it, armhf's
+// -Wcast-align says so).
+template <class Dds>
+Dds as(const std::vector<unsigned char>& bytes) {
+  Dds m;
+  std::memcpy(&m, bytes.data(), sizeof m);
+  return m;
+}
+
 // The bytes of the object that no field covers (padding) are zero; returns how many there are,
 // so a test can say its type has padding at all.
 std::size_t padding_zero(const std::vector<unsigned char>& bytes, const std::vector<Span>& fields) {
@@ -65,7 +74,7 @@ TEST(DdsSamples, AJoystickCarriesItsValuesAndZeroPadding) {
   s.buttons = 0x81;
   s.memory = 0x05;
   const auto bytes = filled<oegw_Joystick>(s);
-  const auto& m = *reinterpret_cast<const oegw_Joystick*>(bytes.data());
+  const auto m = as<oegw_Joystick>(bytes);
   EXPECT_EQ(m.instance, 3);
   EXPECT_EQ(m.status, dds_samples::status(FeStatus::Error));
   EXPECT_EQ(m.timestamp_us, 0x0102030405060708);
@@ -89,7 +98,7 @@ TEST(DdsSamples, EveryOtherInputKindHasZeroPadding) {
   p.position = -200;
   p.memory = 1;
   const auto pb = filled<oegw_Pedal>(p);
-  EXPECT_EQ(reinterpret_cast<const oegw_Pedal*>(pb.data())->position, -200);
+  EXPECT_EQ(as<oegw_Pedal>(pb).position, -200);
   auto pf = header_fields<oegw_Pedal>();
   pf.push_back(OEGW_FIELD(oegw_Pedal, position));
   pf.push_back(OEGW_FIELD(oegw_Pedal, memory));
@@ -99,7 +108,7 @@ TEST(DdsSamples, EveryOtherInputKindHasZeroPadding) {
   w.h = header();
   w.position = 999;
   const auto wb = filled<oegw_Wheel>(w);
-  EXPECT_EQ(reinterpret_cast<const oegw_Wheel*>(wb.data())->position, 999);
+  EXPECT_EQ(as<oegw_Wheel>(wb).position, 999);
   auto wf = header_fields<oegw_Wheel>();
   wf.push_back(OEGW_FIELD(oegw_Wheel, position));
   EXPECT_GE(padding_zero(wb, wf), 3u);
@@ -108,7 +117,7 @@ TEST(DdsSamples, EveryOtherInputKindHasZeroPadding) {
   e.h = header();
   e.position = 0xFFFFFFF0u;  // UNSIGNED32 6120h: its 32 bits in a DDS `long`
   const auto eb = filled<oegw_Encoder>(e);
-  EXPECT_EQ(static_cast<std::uint32_t>(reinterpret_cast<const oegw_Encoder*>(eb.data())->position), 0xFFFFFFF0u);
+  EXPECT_EQ(static_cast<std::uint32_t>(as<oegw_Encoder>(eb).position), 0xFFFFFFF0u);
   auto ef = header_fields<oegw_Encoder>();
   ef.push_back(OEGW_FIELD(oegw_Encoder, position));
   EXPECT_GE(padding_zero(eb, ef), 3u);
@@ -117,7 +126,7 @@ TEST(DdsSamples, EveryOtherInputKindHasZeroPadding) {
   b.h = header();
   b.switches = 0x8000000000000001u;
   const auto bb = filled<oegw_ButtonCluster>(b);
-  EXPECT_EQ(reinterpret_cast<const oegw_ButtonCluster*>(bb.data())->switches, 0x8000000000000001u);
+  EXPECT_EQ(as<oegw_ButtonCluster>(bb).switches, 0x8000000000000001u);
   auto bf = header_fields<oegw_ButtonCluster>();
   bf.push_back(OEGW_FIELD(oegw_ButtonCluster, switches));
   EXPECT_GE(padding_zero(bb, bf), 3u);
@@ -130,7 +139,7 @@ TEST(DdsSamples, AnEmcyCarriesItsBytes) {
   e.msef = {0x11, 0x22, 0x33, 0x44, 0x55};
   e.timestamp_us = 42;
   const auto bytes = filled<oegw_Emcy>(e);
-  const auto& m = *reinterpret_cast<const oegw_Emcy*>(bytes.data());
+  const auto m = as<oegw_Emcy>(bytes);
   EXPECT_EQ(m.code, 0x7000);
   EXPECT_EQ(m.error_register, 0x81);
   EXPECT_EQ(m.msef[0], 0x11);
