@@ -42,6 +42,13 @@ std::vector<std::uint8_t> from_hex(const json& r) {
 // state, 106 unsupported net, 107 unsupported node) with the gateway's reason.
 json gateway_error(int code, std::string message) { return json{{"gateway_error", code}, {"message", std::move(message)}}; }
 
+// CiA 309-3 error 106 (unsupported network) for a network number that is neither of the mapping file's.
+json unknown_network(const mapping::Config& c, std::uint64_t net) {
+  return gateway_error(106, fmt::format("network {}: this gateway has {} (upstream, its own dictionary) and {} "
+                                        "(downstream, the sub-devices)",
+                                        net, c.upstream.network_id, c.downstream.network_id));
+}
+
 }  // namespace
 
 CtlService::CtlService(canopen::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
@@ -125,9 +132,7 @@ json CtlService::nmt(const json& r) {
   if (net == config_.upstream.network_id)
     return gateway_error(100, fmt::format("network {} is the host's bus: the gateway's own NMT state is its NMT master's", net));
   if (net != config_.downstream.network_id)
-    return gateway_error(106, fmt::format("network {}: this gateway has {} (upstream, its own dictionary) and {} (downstream, "
-                                          "the sub-devices)",
-                                          net, config_.upstream.network_id, config_.downstream.network_id));
+    return unknown_network(config_, net);
   const std::string why = gw_.downstream_nmt(canopen::NodeId{static_cast<std::uint8_t>(node)}, cs, loop_.now());
   if (rearm_) rearm_();
   if (!why.empty()) return gateway_error(102, why);
@@ -165,9 +170,7 @@ void CtlService::lss(const json& r, ControlProtocol::Done done) {
                                                "only (the gateway is no LSS master upstream)",
                                                net, config_.downstream.network_id)));
   if (net != config_.downstream.network_id)
-    return done(gateway_error(106, fmt::format("network {}: this gateway has {} (upstream, its own dictionary) and {} "
-                                               "(downstream, the sub-devices)",
-                                               net, config_.upstream.network_id, config_.downstream.network_id)));
+    return done(unknown_network(config_, net));
   auto& network = gw_.downstream();
   LssMaster* master = network.client_lss();
   if (master == nullptr)
@@ -317,9 +320,7 @@ void CtlService::sdo(const json& r, bool write, ControlProtocol::Done done) {
     return done(answer(code, out, true));
   }
   if (net != config_.downstream.network_id)
-    return done(gateway_error(106, fmt::format("network {}: this gateway has {} (upstream, its own dictionary) and {} "
-                                               "(downstream, the sub-devices)",
-                                               net, config_.upstream.network_id, config_.downstream.network_id)));
+    return done(unknown_network(config_, net));
 
   // A sub-device: the host's remote SDO path (RemoteSdo), with its policy.
   auto t = std::make_shared<Transfer>();
