@@ -9,6 +9,9 @@ here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 [[ ${OEGW_VM:-} == 1 ]] || echo "warning: not inside the oegw test VM" >&2
 
 echo "== kernel $(uname -r); $(ip -br link show vcan0 | tr -s ' ')"
+# The clock every time-out in the VM tier runs on (run-in-vm.sh: the host's TSC is not to be trusted).
+cs=$(cat /sys/devices/system/clocksource/clocksource0/current_clocksource 2>/dev/null)
+[[ $cs == hpet ]] && pass "clocksource: hpet" || fail "clocksource: '$cs', not hpet (the guest's TSC is the host's raw rdtsc)"
 for d in vcan0 vcan1; do
   ip link show "$d" | grep -q 'UP' && pass "$d is up" || fail "$d is not up"
 done
