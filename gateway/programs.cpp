@@ -1,5 +1,6 @@
 #include "gateway/programs.hpp"
 
+#include <array>
 #include <grp.h>
 
 #include <algorithm>
@@ -366,6 +367,31 @@ int run_gateway(const std::string& file) {
   });
   watch_transport(loop, *up);
   watch_transport(loop, *down);
+  // The receive buffers (SocketCanOptions::rx_buffer_bytes), and once a second the frames the
+  // kernel dropped because the gateway read them too late: each a reason a heartbeat or PDO may
+  // seem lost (the fault policy then acts on it; this says why).
+  struct Watched {
+    const SocketCanTransport* bus;
+    const char* side;
+    std::uint64_t dropped = 0;
+  };
+  std::array<Watched, 2> watched{Watched{up.get(), "upstream"}, Watched{down.get(), "downstream"}};
+  for (const Watched& w : watched)
+    if (w.bus->rx_buffer_capped())
+      spdlog::warn("{} {}: receive buffer {} kB, less than the {} kB asked (no CAP_NET_ADMIN: net.core.rmem_max "
+                   "caps it); frames are lost if the gateway is held off longer",
+                   w.side, w.bus->interface(), w.bus->rx_buffer_bytes() / 1024,
+                   SocketCanOptions::kDefaultRxBufferBytes / 1024);
+  loop.call_every(loop.now(), std::chrono::seconds(1), [&watched] {
+    for (Watched& w : watched) {
+      const std::uint64_t now_dropped = w.bus->counters().rx_dropped;
+      if (now_dropped > w.dropped)
+        spdlog::warn("{} {}: the kernel dropped {} received frames in the last second (the gateway read them too "
+                     "late; {} since the start)",
+                     w.side, w.bus->interface(), now_dropped - w.dropped, now_dropped);
+      w.dropped = now_dropped;
+    }
+  });
   std::unique_ptr<GatewayPublishing> publishing;
   try {
     publishing = std::make_unique<GatewayPublishing>(gw, cfg->publish, [&loop] { return loop.now(); });
@@ -379,7 +405,7 @@ int run_gateway(const std::string& file) {
   ServiceNotify notify(systemd, systemd_watchdog_timeout());
   std::unique_ptr<GatewayControl> control;  // `oegw status`, `oegw ctl` (gateway/control/PROTOCOL.md)
   try {
-    if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, gw, *cfg, file, [&driver] { driver.rearm(); });
+    if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, gw, *cfg, file, [&driver] { driver.rearm(); }, up.get(), down.get());
   } catch (const ControlError& e) {
     spdlog::error("{}", e.what());
     return exit_code::kCannotStart;

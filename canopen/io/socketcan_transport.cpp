@@ -61,6 +61,20 @@ void set_option(int fd, int level, int option, const T* value, std::size_t size,
   }
 }
 
+// SocketCanOptions::rx_buffer_bytes: SO_RCVBUFFORCE (CAP_NET_ADMIN: past net.core.rmem_max),
+// else SO_RCVBUF (capped at rmem_max). Both take half the kernel's figure: the kernel doubles
+// the value for its sk_buff overhead (socket(7)). Never fatal: the default buffer still works,
+// only with less slack. True if the socket got less than asked.
+bool set_rx_buffer(int fd, std::size_t bytes) {
+  if (bytes == 0) return false;
+  const int half = static_cast<int>(std::min<std::size_t>(bytes / 2, std::size_t{1} << 30));
+  if (::setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &half, sizeof half) == 0) return false;
+  (void)::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &half, sizeof half);
+  int got = 0;
+  socklen_t len = sizeof got;
+  return ::getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &got, &len) != 0 || got < 0 || static_cast<std::size_t>(got) < bytes;
+}
+
 // At most this many frames wait for end_batch(): one sendmmsg() each (a wake-up that sends more,
 // e.g. a SYNC with many RPDOs behind it, sends every kMaxHeld).
 constexpr std::size_t kMaxHeld = 64;
@@ -224,6 +238,7 @@ std::unique_ptr<SocketCanTransport> SocketCanTransport::open(const std::string& 
   const int on = 1;
   set_option(s.get(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on, "SO_TIMESTAMPNS", interface);
   set_option(s.get(), SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on, "SO_RXQ_OVFL", interface);
+  const bool capped = set_rx_buffer(s.get(), options.rx_buffer_bytes);
 
   sockaddr_can addr{};
   addr.can_family = AF_CAN;
@@ -239,8 +254,17 @@ std::unique_ptr<SocketCanTransport> SocketCanTransport::open(const std::string& 
     throw CanOpenError(CanOpenError::Reason::SystemError, e,
                        "cannot bind to CAN interface '" + interface + "': " + errno_text(e));
   }
-  return std::unique_ptr<SocketCanTransport>(
+  std::unique_ptr<SocketCanTransport> t(
       new SocketCanTransport(s.release(), interface, index, std::max<std::size_t>(options.max_batch, 1)));
+  t->rx_buffer_capped_ = capped;
+  return t;
+}
+
+std::size_t SocketCanTransport::rx_buffer_bytes() const {
+  int v = 0;
+  socklen_t len = sizeof v;
+  if (::getsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &v, &len) != 0 || v < 0) return 0;
+  return static_cast<std::size_t>(v);
 }
 
 std::unique_ptr<SocketCanTransport> SocketCanTransport::adopt(int fd, std::string interface, std::size_t max_batch) {

@@ -60,7 +60,22 @@ struct SocketCanOptions {
   std::uint32_t error_mask = kDefaultCanErrorMask;  // CAN_ERR_* classes; 0 = no error frames
   bool loopback = true;                               // CAN_RAW_LOOPBACK
   bool receive_own = false;                           // CAN_RAW_RECV_OWN_MSGS
-  std::size_t max_batch = 256;                        // frames read per poll_readable() call
+  std::size_t max_batch = kDefaultMaxBatch;  // frames read per poll_readable() call
+  // (4,096 was tried, issue 17: in the TCG guest the gateway then read fewer than half as many
+  // frames a second at 6,000 frames/s in as with 256.)
+  static constexpr std::size_t kDefaultMaxBatch = 256;
+  // The socket's receive buffer (SO_RCVBUF), 0: the kernel's default. The default (212,992 bytes,
+  // net.core.rmem_default) holds only ~200 frames (each costs its sk_buff, ~1 KB): 25 ms of a
+  // 1 Mbit/s bus. A reader the scheduler holds off longer loses frames, heartbeats among them
+  // (issue 17: at 6,000 frames/s in the TCG guest the kernel dropped 56 % of the grip's frames
+  // before the gateway read them; 3-11 % with this buffer). The default here, 4 MiB as the
+  // kernel counts it, holds ~4,000 frames: half a second of a full 1 Mbit/s bus. It trades lost
+  // frames for late ones; a frame read late keeps its kernel stamp, from which the freshness
+  // deadlines count, so a reader that far behind still finds its inputs overdue.
+  // Set with SO_RCVBUFFORCE (CAP_NET_ADMIN, which `oegw run` has for the bit rates), else
+  // SO_RCVBUF, which the kernel caps at net.core.rmem_max; rx_buffer_bytes() says what it got.
+  std::size_t rx_buffer_bytes = kDefaultRxBufferBytes;
+  static constexpr std::size_t kDefaultRxBufferBytes = std::size_t{4} << 20;
 };
 
 class CanOpenError : public std::runtime_error {
@@ -148,7 +163,7 @@ class SocketCanTransport final : public CanTransport {
   // non-blocking and SO_TIMESTAMPNS/SO_RXQ_OVFL are enabled where the socket supports them; the
   // CAN_RAW options are left as the socket has them. Throws std::invalid_argument for fd < 0.
   [[nodiscard]] static std::unique_ptr<SocketCanTransport> adopt(int fd, std::string interface,
-                                                                 std::size_t max_batch = 256);
+                                                                 std::size_t max_batch = SocketCanOptions::kDefaultMaxBatch);
   ~SocketCanTransport() override;
 
   SendResult send(const CanFrame& frame) override;
@@ -160,6 +175,10 @@ class SocketCanTransport final : public CanTransport {
 
   [[nodiscard]] const std::string& interface() const { return interface_; }
   [[nodiscard]] int interface_index() const { return index_; }  // 0 when adopted
+  // The receive buffer the kernel grants the socket (getsockopt SO_RCVBUF, in the kernel's own
+  // accounting: sk_buff overhead included), and whether it is less than SocketCanOptions asked.
+  [[nodiscard]] std::size_t rx_buffer_bytes() const;
+  [[nodiscard]] bool rx_buffer_capped() const { return rx_buffer_capped_; }
 
  private:
   SocketCanTransport(int fd, std::string interface, int index, std::size_t max_batch);
@@ -183,6 +202,7 @@ class SocketCanTransport final : public CanTransport {
   std::vector<::mmsghdr> headers_;
   socketcan::StampMapper stamps_;
   bool batching_ = false;
+  bool rx_buffer_capped_ = false;
   std::vector<::can_frame> held_;  // frames send() took during a batch
   std::vector<iovec> held_iov_;
   std::vector<::mmsghdr> held_headers_;

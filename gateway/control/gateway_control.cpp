@@ -7,10 +7,14 @@
 namespace oegw::gateway {
 
 GatewayControl::GatewayControl(canopen::EventLoop& loop, Gateway& gw, const mapping::Config& config,
-                               const std::string& file, std::function<void()> rearm) {
+                               const std::string& file, std::function<void()> rearm, const canopen::CanTransport* up,
+                               const canopen::CanTransport* down) {
   const canopen::TimePoint started = loop.now();
-  protocol_.add("status", [&loop, &gw, &config, started](const nlohmann::json&) {
-    return nlohmann::json{{"status", status_report(gw, config, {loop.now(), started})}};
+  protocol_.add("status", [&loop, &gw, &config, started, up, down](const nlohmann::json&) {
+    StatusContext at{loop.now(), started};
+    if (up != nullptr) at.upstream_bus = &up->counters();
+    if (down != nullptr) at.downstream_bus = &down->counters();
+    return nlohmann::json{{"status", status_report(gw, config, at)}};
   });
   ctl_ = std::make_unique<CtlService>(loop, gw, config, protocol_, std::move(rearm));
   ControlSocketSettings settings = control_settings(config.control, file);

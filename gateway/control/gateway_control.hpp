@@ -21,8 +21,10 @@ class GatewayControl {
   // Serves config.control (file: the mapping file, for the errors); throws ControlError (a
   // group this machine lacks, a live daemon's socket, ...). `gw` and `config` outlive it.
   // `rearm`: called after a command acted on the gateway (its next deadline may have changed).
+  // `up`, `down`: the interfaces' transports, for the counters of `status` (may be null).
   GatewayControl(canopen::EventLoop& loop, Gateway& gw, const mapping::Config& config, const std::string& file,
-                 std::function<void()> rearm = {});
+                 std::function<void()> rearm = {}, const canopen::CanTransport* up = nullptr,
+                 const canopen::CanTransport* down = nullptr);
 
  private:
   ControlProtocol protocol_;

@@ -128,6 +128,11 @@ std::string status_table(const json& st) {
   out += fmt::format("downstream: {}, network {}, PDOs of unknown nodes {}, EMCYs of unknown nodes {}\n",
                      down["interface"].get<std::string>(), down["network_id"].get<int>(),
                      dc["unknown_pdo"].get<std::uint64_t>(), dc["unknown_emcy"].get<std::uint64_t>());
+  // Frames the kernel dropped before the gateway read them: shown only when there are any.
+  for (const auto& [side, j] : {std::pair<const char*, const json*>{"upstream", &up}, {"downstream", &down}})
+    if (j->contains("bus") && (*j)["bus"].value("rx_dropped", std::uint64_t{0}) != 0)
+      out += fmt::format("{}: {} frames read, {} dropped by the kernel before the gateway read them\n", side,
+                         (*j)["bus"]["rx_frames"].get<std::uint64_t>(), (*j)["bus"]["rx_dropped"].get<std::uint64_t>());
   out += "\n" + fmt::format(kSubdeviceRow, "sub-device", "node", "driver", "state", "frames", "bad", "reboots", "resets",
                             "refused");
   for (const auto& s : st["subdevices"]) subdevice_rows(out, s);

@@ -119,13 +119,20 @@ std::string subdevice_summary(sd::NodeState state, bool faulty) {
   return "unknown";
 }
 
+namespace {
+json bus_json(const canopen::TransportCounters& c) {
+  return json{{"rx_frames", c.rx_frames}, {"tx_frames", c.tx_frames},       {"rx_dropped", c.rx_dropped},
+              {"tx_dropped", c.tx_dropped}, {"error_frames", c.error_frames}, {"errors", c.errors}};
+}
+}  // namespace
+
 json status_report(const Gateway& gw, const mapping::Config& config, const StatusContext& at) {
   json subs = json::array();
   for (const auto& s : config.subdevices) subs.push_back(subdevice_json(gw, s, at.now));
   json fes = json::array();
   for (const auto& fe : gw.fes()) fes.push_back(fe_json(gw, fe));
   const sd::NetworkCounters& n = gw.downstream().counters();
-  return json{{"mapping_file", config.file},
+  json report{{"mapping_file", config.file},
               {"uptime_ms", ms_between(at.started, at.now)},
               {"upstream", upstream_json(gw, config, at.now)},
               {"downstream", json{{"interface", config.downstream.interface},
@@ -138,6 +145,9 @@ json status_report(const Gateway& gw, const mapping::Config& config, const Statu
               {"functional_elements", fes},
               {"commands", json{{"refused", gw.refused_commands()},
                                 {"subdevice_refused", gw.subdevice_refused_commands()}}}};
+  if (at.upstream_bus != nullptr) report["upstream"]["bus"] = bus_json(*at.upstream_bus);
+  if (at.downstream_bus != nullptr) report["downstream"]["bus"] = bus_json(*at.downstream_bus);
+  return report;
 }
 
 }  // namespace oegw::gateway

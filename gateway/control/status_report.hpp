@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "canopen/io/can_transport.hpp"
 #include "canopen/types.hpp"
 #include "gateway/gateway.hpp"
 #include "mapping/config.hpp"
@@ -16,6 +17,10 @@ namespace oegw::gateway {
 struct StatusContext {
   canopen::TimePoint now{};      // the gateway's clock now (ages are counted from it)
   canopen::TimePoint started{};  // when the gateway started
+  // The two interfaces' counters (frames, and the frames the kernel dropped before the gateway
+  // read them: SO_RXQ_OVFL), when the caller has the transports; absent: no "bus" object.
+  const canopen::TransportCounters* upstream_bus = nullptr;
+  const canopen::TransportCounters* downstream_bus = nullptr;
 };
 
 // The `status` object: upstream, downstream, subdevices, functional_elements, commands

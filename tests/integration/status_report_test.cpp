@@ -146,6 +146,26 @@ TEST_F(StatusReport, CountersFollowTheFramesAndTheReboots) {
   EXPECT_EQ(sub(report(), "left_grip")["counters"]["gateway_resets"], 1);
 }
 
+// The interfaces' socket counters, when the caller has them (`oegw run`): every field, and the
+// table's line for frames the kernel dropped only when there are any.
+TEST_F(StatusReport, BusCountersOfBothInterfacesAndTheKernelsDropsInTheTable) {
+  EXPECT_FALSE(report()["upstream"].contains("bus")) << "no transports given: no bus object";
+  const TransportCounters up{.rx_frames = 7, .tx_frames = 9, .tx_dropped = 1, .rx_dropped = 0, .error_frames = 2, .errors = 3};
+  TransportCounters down{.rx_frames = 1200, .tx_frames = 40, .tx_dropped = 0, .rx_dropped = 0, .error_frames = 0, .errors = 0};
+  gw::StatusContext at{loop_.now(), started_, &up, &down};
+  json r = gw::status_report(rig_->gw(), config_, at);
+  EXPECT_EQ(r["upstream"]["bus"],
+            (json{{"rx_frames", 7}, {"tx_frames", 9}, {"rx_dropped", 0}, {"tx_dropped", 1}, {"error_frames", 2}, {"errors", 3}}));
+  EXPECT_EQ(r["downstream"]["bus"]["rx_frames"], 1200);
+  EXPECT_EQ(gw::status_table(r).find("dropped by the kernel"), std::string::npos) << "nothing dropped: no line";
+  down.rx_dropped = 345;
+  r = gw::status_report(rig_->gw(), config_, at);
+  EXPECT_EQ(r["downstream"]["bus"]["rx_dropped"], 345);
+  EXPECT_NE(gw::status_table(r).find("\ndownstream: 1200 frames read, 345 dropped by the kernel before the gateway read them\n"),
+            std::string::npos)
+      << gw::status_table(r);
+}
+
 // Refused commands per output FE (LCM, the host's SDO) and per sub-device (3000h): in the
 // report, in the sub-device's row and in the table's last line; the totals count also what
 // names no FE or sub-device of the file.

@@ -144,11 +144,13 @@ read -r n bad <<<"$same"
 floor_bad=$(cat /tmp/lat.floor.[0-9]* | awk '$3 != "miss" && $1 != $2' | wc -l)
 ((floor_bad == 0)) && pass "the floor forwarded every frame unchanged" || fail "$floor_bad frames changed by the floor"
 
-# grip_status: "FRAMES RESETS FAULT" of the grip as `oegw status --json` shows them (control on).
+# grip_status: "FRAMES RESETS DROPPED FAULT" of the grip (DROPPED: vcan1's frames the kernel dropped) as `oegw status --json` shows them (control on).
 grip_status() {
   "$oegw" status --json 2>/dev/null | "$PY" -c 'import json, sys
-g = json.load(sys.stdin)["status"]["subdevices"][0]
-print(g["counters"]["frames"], g["counters"]["gateway_resets"], g.get("fault") or "none")' 2>/dev/null || echo "0 0 unknown"
+s = json.load(sys.stdin)["status"]
+g = s["subdevices"][0]
+print(g["counters"]["frames"], g["counters"]["gateway_resets"], s["downstream"].get("bus", {}).get("rx_dropped", 0),
+      g.get("fault") or "none")' 2>/dev/null || echo "0 0 0 unknown"
 }
 # cpu_window NAME PID SECONDS [status]: the pacer at RATE for a settling 3 s plus SECONDS; CPU %,
 # frames, RSS; with "status", the grip's frames read and resets by the gateway's own count.
@@ -188,10 +190,10 @@ cpu_window() {
   report "            VmRSS (kB) every $step s:$trace"
   report "            pacer: $(cat "/tmp/pace.$name")"
   if [[ ${4:-} == status ]]; then
-    local f0 r0 f1 r1 fault
-    read -r f0 r0 _ <<<"$st0"
-    read -r f1 r1 fault <<<"$st1"
-    report "            oegw status: $(((f1 - f0) / (secs + 3))) grip frames/s read, the grip reset $((r1 - r0)) times (NMT, heartbeat or PDOs lost) from the pacer's start to the window's end; fault now: $fault"
+    local f0 r0 d0 f1 r1 d1 fault
+    read -r f0 r0 d0 _ <<<"$st0"
+    read -r f1 r1 d1 fault <<<"$st1"
+    report "            oegw status: $(((f1 - f0) / (secs + 3))) grip frames/s read, $(((d1 - d0) / (secs + 3))) frames/s dropped by the kernel before the gateway read them, the grip reset $((r1 - r0)) times (NMT, heartbeat or PDOs lost) from the pacer's start to the window's end; fault now: $fault"
   fi
   ((out1 - out0 > 10 + 6 * secs)) && pass "$name forwarded under full load ($((out1 - out0)) frames out)" ||
     fail "$name forwarded nothing under full load ($((out1 - out0)) frames out on vcan0)"
