@@ -1,5 +1,7 @@
 #include "gateway/publishing.hpp"
 
+#include <algorithm>
+
 #include "gateway/publish/dds_publisher.hpp"
 #include "gateway/publish/lcm_publisher.hpp"
 
@@ -113,6 +115,29 @@ SubdeviceIdentity identity_of(const subdevices::NodeDiagnostics* d) {
 
 void GatewayPublishing::publish_fe(mapping::FeId fe) {
   if (!active()) return;
+  if (loop_ == nullptr) {
+    publish_now(fe);
+    return;
+  }
+  if (std::find(changed_.begin(), changed_.end(), fe) == changed_.end()) changed_.push_back(fe);
+  if (flush_posted_) return;
+  flush_posted_ = true;
+  loop_->post([this, alive = std::weak_ptr<bool>(alive_)] {
+    if (!alive.expired()) flush();
+  });
+}
+
+void GatewayPublishing::flush() {
+  flush_posted_ = false;
+  // publish_now() cannot add to the list (it reads the model only); swap for clarity anyway.
+  std::vector<mapping::FeId> fes;
+  fes.swap(changed_);
+  for (const mapping::FeId fe : fes) publish_now(fe);
+  fes.clear();
+  changed_.swap(fes);  // keep the capacity: no allocation per wake-up
+}
+
+void GatewayPublishing::publish_now(mapping::FeId fe) {
   // The typed state, as the translators wrote it: no field names, no allocation.
   const FeModel& m = gw_.model();
   const std::int64_t now = now_us();
@@ -160,6 +185,7 @@ void GatewayPublishing::publish_status() {
 
 void GatewayPublishing::run_on(canopen::EventLoop& loop, std::function<void()> rearm) {
   if (!active()) return;
+  loop_ = &loop;
   for (Publisher* p : publishers())
     if (p->fd() >= 0)
       loop.watch(p->fd(), canopen::io_events::kReadable, [p, rearm](std::uint32_t) {

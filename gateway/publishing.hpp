@@ -61,7 +61,12 @@ class GatewayPublishing {
   [[nodiscard]] std::int64_t period_us() const { return schedule_.period_us(); }
   [[nodiscard]] std::uint64_t published() const { return schedule_.published(); }
 
-  // The sample of one FE as the gateway holds it now (also used by tests).
+  // The sample of one FE as the gateway holds it now (also used by tests). Once run_on() has
+  // given it a loop, a change is published at the end of the loop's wake-up (a posted flush), at
+  // most once per FE: the frames one wake-up reads (a backlog of hundreds when the gateway has
+  // fallen behind) publish each FE's latest value once, not one sample per frame, with no delay
+  // beyond the wake-up itself (issue 17: at 5,000 grip frames/s, every one a change, publishing
+  // each on DDS and LCM kept the gateway so far behind that the grip's PDOs came in stale).
   void publish_fe(mapping::FeId fe);
 
   // Runs on `loop`: each transport's fd is polled for commands and tick() every period; after
@@ -70,7 +75,14 @@ class GatewayPublishing {
 
  private:
   [[nodiscard]] std::int64_t now_us() const;
+  void publish_now(mapping::FeId fe);
+  void flush();
   void publish_status();
+
+  canopen::EventLoop* loop_ = nullptr;  // set by run_on(): changes coalesce per wake-up
+  std::vector<mapping::FeId> changed_;  // FEs changed in this wake-up, in order of change
+  bool flush_posted_ = false;
+  std::shared_ptr<bool> alive_ = std::make_shared<bool>(true);  // a posted flush outliving us does nothing
 
   Gateway& gw_;
   std::function<canopen::TimePoint()> clock_;

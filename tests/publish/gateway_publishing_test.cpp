@@ -229,6 +229,60 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
   EXPECT_EQ(u.count, 1);
 }
 
+// Issue 17: what one wake-up of the loop reads (a backlog, when the gateway has fallen behind)
+// is published once per FE, with the latest value, at the end of that wake-up: nine changes of
+// x read together make one sample (one per frame before: at 5,000 frames/s the publishing kept
+// the gateway so far behind that the grip's PDOs came in stale).
+TEST(GatewayPublishing, ChangesReadInOneWakeUpPublishEachFeOnceWithItsLatestValue) {
+  auto loaded = mapping::load_config_text(fixtures::mapping_file("publishing_grip.yaml"), "test.yaml",
+                                           gateway::driver_catalogue());
+  ASSERT_TRUE(loaded.ok()) << loaded.error_text();
+  oegw::testing::VirtualNetwork down, up;
+  subdevices::sim::SimBench bench(down.sink("sims"));
+  std::string error;
+  auto spec = subdevices::parse_device_spec("elobau-mfg:0x11:name=grip", error);
+  ASSERT_TRUE(spec && bench.add(*spec, error)) << error;
+  gateway::GatewayOptions opt;
+  opt.store_path = "";
+  gateway::Gateway gw(*loaded.config, up.sink("gateway"), down.sink("gateway"), opt);
+  down.attach("sims", bench);
+  struct Side {
+    gateway::Gateway& gw;
+    bool on_frame(const CanFrame& f, TimePoint t) { return gw.on_downstream_frame(f, t); }
+    void advance(TimePoint t) { gw.advance(t); }
+    std::optional<TimePoint> next_deadline() const { return gw.next_deadline(); }
+  } side{gw};
+  down.attach("gateway", side);
+  App app;
+  ASSERT_NE(app.lcm, nullptr);
+  lcm_subscribe(app.lcm, "OEGW_JOYSTICK_1", &App::on_joystick, &app);
+  gateway::GatewayPublishing pub(gw, loaded.config->publish, [&down] { return down.now(); });
+  pub.run_on(down.loop(), [] {});
+  (void)gw.start(down.now());
+  bench.start(down.now());
+  down.run_for(2s);
+  ASSERT_EQ(gw.downstream().state("grip"), subdevices::NodeState::Operational);
+  // The grip's own TPDOs off: x is what the probe sends (TPDO #0, byte 0: x in %, as can_probe).
+  (void)bench.command("grip pdo off", down.now());
+  auto probe = down.sink("probe");
+  probe(CanFrame(0x191, {0, 0, 0, 0, 0, 0, 0, 0}));
+  down.run_for(5ms);
+  while (wait_readable(lcm_get_fileno(app.lcm), 20)) lcm_handle(app.lcm);  // the boot's samples, read
+  const std::uint64_t before = pub.published();
+  for (std::uint8_t v = 10; v <= 90; v = static_cast<std::uint8_t>(v + 10)) probe(CanFrame(0x191, {v, 0, 0, 0, 0, 0, 0, 0}));
+  down.run_for(1ms);  // one delivery of the nine, one wake-up; less than the 50 ms period
+  EXPECT_EQ(pub.published() - before, 1u) << "nine changes read in one wake-up: one sample";
+  for (int i = 0; i < 40 && !(app.last && app.last->x == 29490); ++i)
+    if (wait_readable(lcm_get_fileno(app.lcm), 50)) lcm_handle(app.lcm);
+  ASSERT_TRUE(app.last.has_value());
+  EXPECT_EQ(app.last->x, 29490) << "the latest value: 90 % of 32767";
+  EXPECT_EQ(app.last->status, 0) << "valid";
+  // A change in a later wake-up is a sample of its own, as before.
+  probe(CanFrame(0x191, {20, 0, 0, 0, 0, 0, 0, 0}));
+  down.run_for(1ms);
+  EXPECT_EQ(pub.published() - before, 2u);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
