@@ -56,19 +56,39 @@ bool wait_readable(int fd, int ms) {
   return ::poll(&p, 1, ms) > 0;
 }
 
-TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyTheLedsOfFesListingThem) {
-  auto loaded = mapping::load_config_text(fixtures::mapping_file("publishing_grip.yaml"), "test.yaml",
-                                           gateway::driver_catalogue());
-  ASSERT_TRUE(loaded.ok()) << loaded.error_text();
+// publishing_grip.yaml's gateway between two virtual networks, the elobau grip simulated on
+// the downstream one (each test attaches the gateway's sides itself).
+struct GripCab {
+  mapping::LoadResult loaded = mapping::load_config_text(fixtures::mapping_file("publishing_grip.yaml"), "test.yaml",
+                                                         gateway::driver_catalogue());
   oegw::testing::VirtualNetwork down, up;
-  subdevices::sim::SimBench bench(down.sink("sims"));
-  std::string error;
-  auto spec = subdevices::parse_device_spec("elobau-mfg:0x11:name=grip", error);
-  ASSERT_TRUE(spec && bench.add(*spec, error)) << error;
-  gateway::GatewayOptions opt;
-  opt.store_path = "";
-  gateway::Gateway gw(*loaded.config, up.sink("gateway"), down.sink("gateway"), opt);
-  down.attach("sims", bench);
+  subdevices::sim::SimBench bench{down.sink("sims")};
+  std::unique_ptr<gateway::Gateway> gw;
+  // Empty when set up; else what failed.
+  std::string error = set_up();
+
+ private:
+  std::string set_up() {
+    if (!loaded.ok()) return loaded.error_text();
+    std::string e;
+    auto spec = subdevices::parse_device_spec("elobau-mfg:0x11:name=grip", e);
+    if (!spec || !bench.add(*spec, e)) return e;
+    gateway::GatewayOptions opt;
+    opt.store_path = "";
+    gw = std::make_unique<gateway::Gateway>(*loaded.config, up.sink("gateway"), down.sink("gateway"), opt);
+    down.attach("sims", bench);
+    return {};
+  }
+};
+
+TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyTheLedsOfFesListingThem) {
+  GripCab cab;
+  ASSERT_EQ(cab.error, "");
+  auto& loaded = cab.loaded;
+  auto& down = cab.down;
+  auto& up = cab.up;
+  auto& bench = cab.bench;
+  gateway::Gateway& gw = *cab.gw;
   // The gateway sits on two buses: one driver per side is enough for frames; its timers run
   // from the downstream network's loop.
   struct Up {
@@ -234,18 +254,12 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
 // x read together make one sample (one per frame before: at 5,000 frames/s the publishing kept
 // the gateway so far behind that the grip's PDOs came in stale).
 TEST(GatewayPublishing, ChangesReadInOneWakeUpPublishEachFeOnceWithItsLatestValue) {
-  auto loaded = mapping::load_config_text(fixtures::mapping_file("publishing_grip.yaml"), "test.yaml",
-                                           gateway::driver_catalogue());
-  ASSERT_TRUE(loaded.ok()) << loaded.error_text();
-  oegw::testing::VirtualNetwork down, up;
-  subdevices::sim::SimBench bench(down.sink("sims"));
-  std::string error;
-  auto spec = subdevices::parse_device_spec("elobau-mfg:0x11:name=grip", error);
-  ASSERT_TRUE(spec && bench.add(*spec, error)) << error;
-  gateway::GatewayOptions opt;
-  opt.store_path = "";
-  gateway::Gateway gw(*loaded.config, up.sink("gateway"), down.sink("gateway"), opt);
-  down.attach("sims", bench);
+  GripCab cab;
+  ASSERT_EQ(cab.error, "");
+  auto& loaded = cab.loaded;
+  auto& down = cab.down;
+  auto& bench = cab.bench;
+  gateway::Gateway& gw = *cab.gw;
   struct Side {
     gateway::Gateway& gw;
     bool on_frame(const CanFrame& f, TimePoint t) { return gw.on_downstream_frame(f, t); }
