@@ -113,13 +113,40 @@ SubdeviceIdentity identity_of(const subdevices::NodeDiagnostics* d) {
 }
 }  // namespace
 
+namespace {
+// What a merge of two samples of one FE would lose: everything but the axes' positions.
+bool same_discrete(const JoystickSample& a, const JoystickSample& b) {
+  return a.h.status == b.h.status && a.buttons == b.buttons && a.memory == b.memory;
+}
+bool same_discrete(const PedalSample& a, const PedalSample& b) { return a.h.status == b.h.status && a.memory == b.memory; }
+bool same_discrete(const WheelSample& a, const WheelSample& b) { return a.h.status == b.h.status; }
+bool same_discrete(const EncoderSample& a, const EncoderSample& b) { return a.h.status == b.h.status; }
+bool same_discrete(const ButtonClusterSample& a, const ButtonClusterSample& b) {
+  return a.h.status == b.h.status && a.switches == b.switches;
+}
+}  // namespace
+
 void GatewayPublishing::publish_fe(mapping::FeId fe) {
   if (!active()) return;
+  std::optional<Sample> s = sample_of(fe);
+  if (!s) return;
   if (loop_ == nullptr) {
-    publish_now(fe);
+    send(*s);
     return;
   }
-  if (std::find(changed_.begin(), changed_.end(), fe) == changed_.end()) changed_.push_back(fe);
+  auto it = std::find_if(changed_.begin(), changed_.end(), [fe](const auto& c) { return c.first == fe; });
+  if (it == changed_.end()) {
+    changed_.emplace_back(fe, std::move(*s));
+  } else {
+    const bool mergeable = std::visit(
+        [&s](const auto& waiting) {
+          using T = std::decay_t<decltype(waiting)>;
+          return same_discrete(waiting, std::get<T>(*s));
+        },
+        it->second);
+    if (!mergeable) send(it->second);
+    it->second = std::move(*s);
+  }
   if (flush_posted_) return;
   flush_posted_ = true;
   loop_->post([this, alive = std::weak_ptr<bool>(alive_)] {
@@ -128,41 +155,42 @@ void GatewayPublishing::publish_fe(mapping::FeId fe) {
 }
 
 void GatewayPublishing::flush() {
+  // (A flush the loop never ran, e.g. its batch dropped by a throwing callback, is caught up
+  // by the next tick(), which flushes first.)
   flush_posted_ = false;
-  // publish_now() cannot add to the list (it reads the model only); swap for clarity anyway.
-  std::vector<mapping::FeId> fes;
-  fes.swap(changed_);
-  for (const mapping::FeId fe : fes) publish_now(fe);
-  fes.clear();
-  changed_.swap(fes);  // keep the capacity: no allocation per wake-up
+  for (const auto& [fe, s] : changed_) send(s);
+  changed_.clear();  // keeps the capacity: no allocation per wake-up
 }
 
-void GatewayPublishing::publish_now(mapping::FeId fe) {
+void GatewayPublishing::send(const Sample& s) {
+  const std::int64_t now = now_us();
+  std::visit([this, now](const auto& sample) { schedule_.update(sample, now); }, s);
+}
+
+std::optional<GatewayPublishing::Sample> GatewayPublishing::sample_of(mapping::FeId fe) const {
   // The typed state, as the translators wrote it: no field names, no allocation.
   const FeModel& m = gw_.model();
-  const std::int64_t now = now_us();
   switch (fe.kind) {
     case mk::FeKind::Joystick:
       if (const auto* st = m.get<JoystickState>(fe))
-        schedule_.update(JoystickSample{header_of(fe, *st), st->x, st->y, st->z, st->buttons, st->memory}, now);
+        return JoystickSample{header_of(fe, *st), st->x, st->y, st->z, st->buttons, st->memory};
       break;
     case mk::FeKind::FootPedal:
-      if (const auto* st = m.get<PedalState>(fe))
-        schedule_.update(PedalSample{header_of(fe, *st), st->position, st->memory}, now);
+      if (const auto* st = m.get<PedalState>(fe)) return PedalSample{header_of(fe, *st), st->position, st->memory};
       break;
     case mk::FeKind::Wheel:
-      if (const auto* st = m.get<WheelState>(fe)) schedule_.update(WheelSample{header_of(fe, *st), st->position}, now);
+      if (const auto* st = m.get<WheelState>(fe)) return WheelSample{header_of(fe, *st), st->position};
       break;
     case mk::FeKind::Encoder:
-      if (const auto* st = m.get<EncoderState>(fe)) schedule_.update(EncoderSample{header_of(fe, *st), st->position}, now);
+      if (const auto* st = m.get<EncoderState>(fe)) return EncoderSample{header_of(fe, *st), st->position};
       break;
     case mk::FeKind::ButtonCluster:
-      if (const auto* st = m.get<ButtonClusterState>(fe))
-        schedule_.update(ButtonClusterSample{header_of(fe, *st), st->switches}, now);
+      if (const auto* st = m.get<ButtonClusterState>(fe)) return ButtonClusterSample{header_of(fe, *st), st->switches};
       break;
     case mk::FeKind::IndicatorCluster:
     case mk::FeKind::Display: break;  // outputs: commanded, not published
   }
+  return std::nullopt;
 }
 
 void GatewayPublishing::publish_status() {
@@ -200,6 +228,9 @@ void GatewayPublishing::run_on(canopen::EventLoop& loop, std::function<void()> r
 
 void GatewayPublishing::tick() {
   if (!active()) return;
+  // Changes waiting for this wake-up's flush go first: the timer runs before the flush, and a
+  // republish of the older value must not follow the decision that replaced it.
+  if (!changed_.empty()) flush();
   schedule_.tick(now_us());
   publish_status();
 }

@@ -6,6 +6,9 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
+#include <utility>
+#include <variant>
 #include <vector>
 
 #include "canopen/io/event_loop.hpp"
@@ -62,11 +65,14 @@ class GatewayPublishing {
   [[nodiscard]] std::uint64_t published() const { return schedule_.published(); }
 
   // The sample of one FE as the gateway holds it now (also used by tests). Once run_on() has
-  // given it a loop, a change is published at the end of the loop's wake-up (a posted flush), at
-  // most once per FE: the frames one wake-up reads (a backlog of hundreds when the gateway has
-  // fallen behind) publish each FE's latest value once, not one sample per frame, with no delay
-  // beyond the wake-up itself (issue 17: at 5,000 grip frames/s, every one a change, publishing
-  // each on DDS and LCM kept the gateway so far behind that the grip's PDOs came in stale).
+  // given it a loop, a change is published at the end of the loop's wake-up (a posted flush,
+  // after the wake-up's timers, before its CAN sends), and the axes' changes one wake-up reads
+  // merge into one sample per FE with the latest values: a backlog of hundreds of frames (a
+  // gateway that has fallen behind) publishes each moving axis once, not once per frame
+  // (issue 17: at 5,000 grip frames/s, every one a change, publishing each on DDS and LCM kept the
+  // gateway so far behind that the grip's PDOs came in stale). Discrete changes are never
+  // merged away: a sample whose status, buttons, switches or memory bits differ from the one
+  // waiting goes out first, so a press and release read together both reach the reader.
   void publish_fe(mapping::FeId fe);
 
   // Runs on `loop`: each transport's fd is polled for commands and tick() every period; after
@@ -74,13 +80,16 @@ class GatewayPublishing {
   void run_on(canopen::EventLoop& loop, std::function<void()> rearm);
 
  private:
+  using Sample = std::variant<JoystickSample, PedalSample, WheelSample, EncoderSample, ButtonClusterSample>;
   [[nodiscard]] std::int64_t now_us() const;
-  void publish_now(mapping::FeId fe);
+  [[nodiscard]] std::optional<Sample> sample_of(mapping::FeId fe) const;
+  void send(const Sample& s);
   void flush();
   void publish_status();
 
   canopen::EventLoop* loop_ = nullptr;  // set by run_on(): changes coalesce per wake-up
-  std::vector<mapping::FeId> changed_;  // FEs changed in this wake-up, in order of change
+  // The FEs changed in this wake-up, in order of change, each with its latest sample.
+  std::vector<std::pair<mapping::FeId, Sample>> changed_;
   bool flush_posted_ = false;
   std::shared_ptr<bool> alive_ = std::make_shared<bool>(true);  // a posted flush outliving us does nothing
 

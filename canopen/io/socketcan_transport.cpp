@@ -72,7 +72,7 @@ bool set_rx_buffer(int fd, std::size_t bytes) {
   (void)::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &half, sizeof half);
   int got = 0;
   socklen_t len = sizeof got;
-  return ::getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &got, &len) != 0 || got < 0 || static_cast<std::size_t>(got) < bytes;
+  return ::getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &got, &len) != 0 || got < 2 * half;
 }
 
 // At most this many frames wait for end_batch(): one sendmmsg() each (a wake-up that sends more,

@@ -270,7 +270,8 @@ TEST(GatewayPublishing, ChangesReadInOneWakeUpPublishEachFeOnceWithItsLatestValu
   App app;
   ASSERT_NE(app.lcm, nullptr);
   lcm_subscribe(app.lcm, "OEGW_JOYSTICK_1", &App::on_joystick, &app);
-  gateway::GatewayPublishing pub(gw, loaded.config->publish, [&down] { return down.now(); });
+  Duration skew{0};  // the publisher's clock ahead of the bus (for the tick below)
+  gateway::GatewayPublishing pub(gw, loaded.config->publish, [&down, &skew] { return down.now() + skew; });
   pub.run_on(down.loop(), [] {});
   (void)gw.start(down.now());
   bench.start(down.now());
@@ -295,6 +296,28 @@ TEST(GatewayPublishing, ChangesReadInOneWakeUpPublishEachFeOnceWithItsLatestValu
   probe(CanFrame(0x191, {20, 0, 0, 0, 0, 0, 0, 0}));
   down.run_for(1ms);
   EXPECT_EQ(pub.published() - before, 2u);
+  // A press and release of button 1 (TPDO #0 byte 5, bit 0) read in one wake-up: both go out,
+  // the press first; only axes merge.
+  probe(CanFrame(0x191, {20, 0, 0, 0, 0, 0x01, 0, 0}));
+  probe(CanFrame(0x191, {20, 0, 0, 0, 0, 0x00, 0, 0}));
+  down.run_for(1ms);
+  EXPECT_EQ(pub.published() - before, 4u) << "a press and a release: two samples";
+  std::vector<int> buttons;
+  while (wait_readable(lcm_get_fileno(app.lcm), 50)) {
+    lcm_handle(app.lcm);
+    if (app.last && (buttons.empty() || buttons.back() != app.last->buttons)) buttons.push_back(app.last->buttons);
+  }
+  EXPECT_EQ(buttons, (std::vector<int>{0, 1, 0}));
+  // The period's tick in the same wake-up as a change (in real time the timers run before the
+  // posted flush): the change goes out first, never after a republish of the value it replaced.
+  skew = 1s;  // every FE due for its republish
+  ASSERT_TRUE(gw.on_downstream_frame(CanFrame(0x191, {40, 0, 0, 0, 0, 0, 0, 0}), down.now()));
+  pub.tick();
+  app.last.reset();
+  ASSERT_TRUE(wait_readable(lcm_get_fileno(app.lcm), 500));
+  lcm_handle(app.lcm);
+  ASSERT_TRUE(app.last.has_value());
+  EXPECT_EQ(app.last->x, 13107) << "the first sample after the tick: the change (40 %), not the old 20 %";
 }
 
 }  // namespace
