@@ -129,7 +129,7 @@ for arch in "${arches[@]}"; do
       case $b in *oegw_bench_publish) continue ;; esac  # two processes and a network: native tier only
       echo "== $arch (qemu-user, emulated): $(basename "$b")"
       case $b in
-        *oegw_bench_rss) "$b" ;;
+        *oegw_bench_rss | *oegw_bench_cab_timing) "$b" ;;  # not Google Benchmarks (as test-all.sh)
         *) "$b" --benchmark_min_time=0.2 ;;
       esac
     done
