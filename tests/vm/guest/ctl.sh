@@ -6,7 +6,8 @@
 # grip's TPDO1 COB-ID (1800h:01: the gateway configured it and its FEs use the grip) with
 # 0800 0021h, exiting 1 at that ERROR (--exit). candump on vcan1, an independent peer, judges the
 # frames: the values `oegw ctl` printed are those the grip's SDO answers carried, and no request
-# for 1800h ever reached the bus. LSS (CiA 305) through the daemon: cansend takes the button
+# for 1800h ever reached the bus. Interactive, on a pseudo-terminal (ctl_pty.py types the lines):
+# a prompt per command, `!!`, `history`, a refused `!N`, Ctrl-D. LSS (CiA 305) through the daemon: cansend takes the button
 # cluster's node-ID away (as scan.sh does); `oegw ctl` identifies it as non-configured, finds its
 # LSS address with `_lss_fastscan`, gives it 31h again with `lss_set_node`, stores (the cluster
 # simulator's LSS store file), switches to waiting, and the gateway boots it as its cluster again;
@@ -69,6 +70,19 @@ printf '%s\n' '[9] 2 5 r 0x1000 0 u32' '[10] 2 17 r 0x1018 2 u32' | "$oegw" ctl 
 rc=$?
 ((rc == 0)) && grep -qE '^\[9\] ERROR: 06090011 ' /tmp/ctl3.out && grep -qE '^\[10\] 0x[0-9A-F]{8}$' /tmp/ctl3.out &&
   pass "without --exit: [9] ERROR: 06090011, [10] answered, exit 0" || fail "without --exit (exit $rc): $(cat /tmp/ctl3.out)"
+
+# ---- Interactive (a pty, as at a terminal): a prompt per command, `!!` runs the last line again,
+# `history` lists the lines run, `!N` of a line not in it is an error; Ctrl-D ends it, exit 0.
+"$PY" "$here/ctl_pty.py" "$oegw" '[30] 2 17 r 0x1018 1 u32' '!!' 'history' '!9' >/tmp/ctl4.out 2>&1
+rc=$?
+sed 's/^/    ctl (pty): /' /tmp/ctl4.out
+((rc == 0)) && pass "oegw ctl on a terminal: exit 0 at Ctrl-D" || fail "oegw ctl on a terminal: exit $rc"
+n=$(grep -c "^\[30\] 0x$vendor\$" /tmp/ctl4.out)
+((n == 2)) && pass "interactive: [30] answered twice (the line and its !!)" || fail "interactive: $n answers [30] 0x$vendor"
+grep -qE '^ +1  \[30\] 2 17 r 0x1018 1 u32$' /tmp/ctl4.out && grep -qE '^ +2  \[30\] 2 17 r 0x1018 1 u32$' /tmp/ctl4.out &&
+  pass "interactive: history lists both lines" || fail "interactive: no history list"
+grep -qF 'oegw ctl: no line 9 in the history' /tmp/ctl4.out && pass "interactive: !9 refused" || fail "interactive: !9 not refused"
+[[ $(grep -c '> ' /tmp/ctl4.out) -ge 5 ]] && pass "interactive: a prompt before each line" || fail "interactive: prompts missing"
 
 # ---- LSS: the cluster (button_cluster.eds 1018h: vendor A5Ah, product 402h, revision 00010002h,
 # serial 0) loses its node-ID by cansend: switch state selective, configure node-ID FFh, waiting,
