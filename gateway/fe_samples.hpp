@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <variant>
 #include <vector>
 
 namespace oegw::gateway {
@@ -101,6 +102,9 @@ struct DisplayCommand {
   std::uint8_t instance = 1;
   std::array<std::int16_t, 12> parameters{};
 };
+
+// Any one FE's sample: what the publishing schedule and the change coalescing keep per FE.
+using FeSample = std::variant<JoystickSample, PedalSample, WheelSample, EncoderSample, ButtonClusterSample>;
 
 // One transport (DDS or LCM). Publishing never blocks the gateway's loop for long; a transport
 // that cannot keep up drops samples (keep-last) rather than queueing without bound.

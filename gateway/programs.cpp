@@ -1,9 +1,9 @@
 #include "gateway/programs.hpp"
 
-#include <array>
 #include <grp.h>
 
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>

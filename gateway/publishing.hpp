@@ -80,7 +80,7 @@ class GatewayPublishing {
   void run_on(canopen::EventLoop& loop, std::function<void()> rearm);
 
  private:
-  using Sample = std::variant<JoystickSample, PedalSample, WheelSample, EncoderSample, ButtonClusterSample>;
+  using Sample = FeSample;
   [[nodiscard]] std::int64_t now_us() const;
   [[nodiscard]] std::optional<Sample> sample_of(mapping::FeId fe) const;
   void send(const Sample& s);

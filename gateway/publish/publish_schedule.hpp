@@ -40,7 +40,7 @@ class PublishSchedule {
   [[nodiscard]] std::uint64_t published() const { return published_; }
 
  private:
-  using Sample = std::variant<JoystickSample, PedalSample, WheelSample, EncoderSample, ButtonClusterSample>;
+  using Sample = FeSample;
   struct Entry {
     Sample last;
     std::int64_t last_sent_us = 0;
