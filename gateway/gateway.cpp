@@ -379,6 +379,7 @@ bool Gateway::on_downstream_frame(const canopen::CanFrame& frame, TimePoint now)
   oe_->end_batch(now);
   end_outputs(now);
   publish_changes();
+  if (on_downstream_frame_seen) on_downstream_frame_seen(frame, now);
   return used;
 }
 

@@ -152,6 +152,12 @@ class Gateway {
   void log_control(const std::string& line) { log("control: " + line); }
   std::function<void(canopen::NodeId)> on_downstream_boot_up;
   std::function<void(const canopen::EmcyMessage&)> on_downstream_emcy;
+  // The downstream bus for a commissioning tool's own traffic (`oegw scan` through the daemon,
+  // gateway/control/scan_service.hpp): a frame sent as the gateway sends its own, and every
+  // frame received, after the gateway has handled it. Only for node-IDs that are no sub-device
+  // and for LSS on the network manager's master (their SDO channels are the gateway's clients').
+  void send_downstream(const canopen::CanFrame& frame) { master_.sink()(frame); }
+  std::function<void(const canopen::CanFrame&, canopen::TimePoint)> on_downstream_frame_seen;
   [[nodiscard]] const std::map<std::string, std::string>& faults() const { return faults_; }
 
   // The EMCYs received from one node: the last one, when it arrived (the gateway's clock), how

@@ -109,8 +109,14 @@ int main(int argc, char** argv) {
 
   oegw::gateway::ScanOptions scan;
   auto* scan_cmd = app.add_subcommand(
-      "scan", "Find every node on the downstream bus (before the gateway runs) and write a draft mapping file");
-  scan_cmd->add_option("-i,--interface", scan.interface, "SocketCAN interface of the sub-devices' bus")->required();
+      "scan", "Find every node on the downstream bus (before the gateway runs, or through it) and write a draft mapping file");
+  scan_cmd->add_option("-i,--interface", scan.interface,
+                       "SocketCAN interface of the sub-devices' bus (default: the running gateway's)");
+  bool via_daemon = false, via_direct = false;
+  auto* scan_daemon = scan_cmd->add_flag("--daemon", via_daemon, "Scan through the running gateway only (its control socket)");
+  scan_cmd->add_flag("--direct", via_direct, "Scan the interface itself, without asking a running gateway")->excludes(scan_daemon);
+  scan_cmd->add_option("--socket", scan.socket, "Control socket (default: the mapping file's control.socket, else /run/oegw/oegw.sock)");
+  scan_cmd->add_option("--config", scan.config, "Mapping file whose control.socket to ask");
   scan_cmd->add_option("-o,--output", scan.output, "Draft mapping file to write (default: standard output)");
   auto* scan_upstream =
       scan_cmd->add_option("--upstream", scan.upstream, "The draft's upstream interface (default can0; can1 when -i is can0)");
@@ -126,6 +132,10 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1.0, 10000.0));
   scan_cmd->add_flag("!--no-lss", scan.lss, "Skip LSS (nodes without node-ID)");
   scan_cmd->add_flag("!--quiet,!-q", scan.progress, "No progress lines on standard error");
+  scan_cmd->footer(
+      "Without --direct it asks the running gateway first (--socket/--config, else the default socket): when one runs "
+      "on the interface (or -i is not given), the scan goes through it: its sub-devices are reported as it knows them "
+      "(never probed: their SDO channels are its own) and the other node-IDs are probed beside it.");
 
   oegw::gateway::StatusOptions status;
   auto* status_cmd = app.add_subcommand("status", "Ask the running `oegw run` what it sees (its control socket)");
@@ -150,6 +160,8 @@ int main(int argc, char** argv) {
                   "  [seq] [net] lss_switch_glob 0|1 | lss_switch_sel <vendor> <product> <revision> <serial>\n"
                   "  [seq] [net] lss_set_node ID | lss_conf_bitrate 0 INDEX | lss_activate_bitrate MS | lss_store\n"
                   "  [seq] [net] lss_inquire_addr [0..3] | lss_get_node | lss_ident_nonconf | _lss_fastscan [MS]\n"
+                  "  [seq] [net] _lss_fastscan <vendor> <mask> <product> <mask> <revision> <mask> <serial> <mask>\n"
+                  "  [seq] [net] lss_identity|_lss_slowscan <vendor> <product> <rev lo> <rev hi> <serial lo> <serial hi>\n"
                   "  types: b u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os d; interactive: history, !!, !N\n");
 
   try {
@@ -172,6 +184,15 @@ int main(int argc, char** argv) {
   if (*ctl_cmd) return oegw::gateway::run_ctl(ctl);
   if (*signals_cmd) return oegw::gateway::run_signals(signals);
   if (*scan_cmd) {
+    scan.via = via_daemon ? oegw::gateway::ScanOptions::Via::Daemon
+               : via_direct ? oegw::gateway::ScanOptions::Via::Direct
+                              : oegw::gateway::ScanOptions::Via::Auto;
+    if (scan.via == oegw::gateway::ScanOptions::Via::Direct && scan.interface.empty()) {
+      std::fprintf(stderr, "--direct: -i IF names the bus to scan\n");
+      return exit_code::kUsage;
+    }
+    scan.upstream_given = static_cast<bool>(*scan_upstream);
+    scan.bitrate_given = scan_cmd->count("--bitrate") > 0;
     // The draft's two buses must differ (oegw check refuses one interface for both).
     if (!*scan_upstream && scan.interface == scan.upstream) scan.upstream = "can1";
     if (scan.upstream == scan.interface) {

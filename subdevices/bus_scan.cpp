@@ -36,13 +36,29 @@ std::optional<canopen::NmtState> nmt_state(std::uint8_t byte) {
   }
 }
 
+// A shared master's callback after the scanner ended (or while its destructor cancels).
+bool gone(const std::weak_ptr<bool>& alive) {
+  const auto a = alive.lock();
+  return !a || !*a;
+}
+
 }  // namespace
 
 BusScanner::BusScanner(FrameSink sink, ScanConfig config)
-    : sink_(std::move(sink)), cfg_(config), lss_(sink_, config.lss_timeout) {
+    : sink_(std::move(sink)), cfg_(config), own_lss_(sink_, config.lss_timeout) {
   cfg_.first = std::clamp<std::uint8_t>(cfg_.first, 1, 127);
   cfg_.last = std::clamp<std::uint8_t>(cfg_.last, cfg_.first, 127);
   cfg_.parallel = std::clamp<std::size_t>(cfg_.parallel, 1, 127);
+}
+
+BusScanner::BusScanner(FrameSink sink, ScanConfig config, std::function<SharedLss()> shared_lss)
+    : BusScanner(std::move(sink), std::move(config)) {
+  shared_lss_ = std::move(shared_lss);
+}
+
+BusScanner::~BusScanner() {
+  *alive_ = false;
+  if (fastscan_mine_ && fastscan_->running()) fastscan_->cancel("the scan ended");
 }
 
 ScannedNode& BusScanner::node(std::uint8_t id) {
@@ -54,7 +70,8 @@ ScannedNode& BusScanner::node(std::uint8_t id) {
 void BusScanner::start(TimePoint now) {
   start_ = now_ = now;
   phase_ = Phase::Probing;
-  for (unsigned id = cfg_.first; id <= cfg_.last; ++id) pending_.push_back(static_cast<std::uint8_t>(id));
+  for (unsigned id = cfg_.first; id <= cfg_.last; ++id)
+    if (!cfg_.skip.count(static_cast<std::uint8_t>(id))) pending_.push_back(static_cast<std::uint8_t>(id));
   total_ = pending_.size();
   while (active_.size() < cfg_.parallel && !pending_.empty()) {
     const std::uint8_t id = pending_.front();
@@ -151,7 +168,8 @@ bool BusScanner::on_frame(const CanFrame& f, TimePoint now) {
     advance(now);
     return true;
   }
-  if (phase_ == Phase::Lss && lss_.on_frame(f, now)) {
+  // (a shared master has its frames from its owner, before this)
+  if (phase_ == Phase::Lss && !lss_shared_ && lss_->on_frame(f, now)) {
     advance(now);
     return true;
   }
@@ -183,7 +201,7 @@ void BusScanner::advance(TimePoint now) {
     }
     if (active_.empty() && pending_.empty()) after_probing(now);
   }
-  if (phase_ == Phase::Lss) lss_.advance(now);
+  if (phase_ == Phase::Lss) lss_->advance(now);
   if (phase_ == Phase::Listening && now >= start_ + cfg_.listen) phase_ = Phase::Done;
 }
 
@@ -197,7 +215,7 @@ std::optional<TimePoint> BusScanner::next_deadline() const {
       }
       return d;
     }
-    case Phase::Lss: return lss_.next_deadline();
+    case Phase::Lss: return lss_->next_deadline();
     case Phase::Listening: return std::max(start_ + cfg_.listen, now_);
     default: return std::nullopt;
   }
@@ -208,32 +226,59 @@ void BusScanner::after_probing(TimePoint now) {
     phase_ = Phase::Listening;
     return;
   }
+  std::optional<Duration> step_timeout;
+  if (shared_lss_) {
+    const SharedLss shared = shared_lss_();
+    std::string why_not = shared.why_not;
+    if ((shared.master == nullptr || shared.fastscan == nullptr) && why_not.empty()) why_not = "no LSS master";
+    if (why_not.empty() && shared.fastscan->running()) why_not = "another client's fastscan is running";
+    if (!why_not.empty()) {
+      lss_result_.lss_note = "LSS skipped: " + why_not;
+      phase_ = Phase::Listening;
+      return;
+    }
+    lss_ = shared.master;
+    fastscan_ = shared.fastscan;
+    lss_shared_ = true;
+    step_timeout = cfg_.lss_timeout;  // the shared master's own time-out is its owner's
+  }
   phase_ = Phase::Lss;
   report(true);
-  lss_.identify_non_configured(now, [this](const canopen::LssMaster::Result& r) {
+  // Callbacks of a shared master may come after this scanner is gone; they take the master's time
+  // (its owner fed it the answer, before this scanner saw the frame).
+  const std::weak_ptr<bool> alive = alive_;
+  lss_->identify_non_configured(now, [this, alive, step_timeout](const canopen::LssMaster::Result& r) {
+    if (gone(alive)) return;
     if (r.status != canopen::LssMaster::Status::Ok) {
-      lss_ended(now_);
+      lss_ended(lss_->now());
       return;
     }
     lss_result_.unconfigured = true;
-    fastscan_.start(now_, [this](const canopen::LssFastscan::Result& f) {
-      if (!f.address) {
-        lss_result_.lss_note = f.note;
-        lss_ended(now_);
-        return;
-      }
-      lss_result_.unconfigured_address = f.address;
-      // The last step selected it (LSS configuration mode): back to waiting, node-ID unchanged.
-      lss_.switch_state_global(canopen::lss::Mode::Waiting, now_, [this](const canopen::LssMaster::Result&) {
-        lss_ended(now_);
-      });
-    });
+    fastscan_mine_ = true;
+    fastscan_->start(
+        lss_->now(),
+        [this, alive](const canopen::LssFastscan::Result& f) {
+          if (gone(alive)) return;
+          fastscan_mine_ = false;
+          if (!f.address) {
+            lss_result_.lss_note = f.note;
+            lss_ended(lss_->now());
+            return;
+          }
+          lss_result_.unconfigured_address = f.address;
+          // The last step selected it (LSS configuration mode): back to waiting, node-ID unchanged.
+          lss_->switch_state_global(canopen::lss::Mode::Waiting, lss_->now(), [this, alive](const canopen::LssMaster::Result&) {
+            if (!gone(alive)) lss_ended(lss_->now());
+          });
+        },
+        step_timeout);
   });
 }
 
 void BusScanner::lss_ended(TimePoint now) {
   phase_ = Phase::Listening;
   if (now >= start_ + cfg_.listen) phase_ = Phase::Done;
+  if (lss_shared_ && on_wake) on_wake();
 }
 
 ScanResult BusScanner::result() const {

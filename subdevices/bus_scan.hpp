@@ -17,6 +17,12 @@
 //  * ends when all that is done and `listen` has passed since start() (heartbeats of nodes that
 //    answer no SDO come at their producer period).
 // Nothing is written to any node: the scan changes nothing on the bus.
+//
+// Beside a running gateway (`oegw scan` through its control socket, gateway/control/
+// scan_service.hpp) two things differ: the node-IDs of its sub-devices are not probed (their SDO
+// channels are the gateway's own clients': CiA 301 §7.2.4.1, one client per server channel at a
+// time), and the LSS master is the gateway's (SharedLss), which it feeds with the bus's frames
+// and whose own commissioning comes first.
 #pragma once
 
 #include <cstddef>
@@ -25,6 +31,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -52,6 +59,16 @@ struct ScanConfig {
   Duration lss_timeout = std::chrono::milliseconds(25);   // per LSS step (fastscan has up to 132)
   std::uint8_t first = 1;      // node-IDs probed: first..last (1..127)
   std::uint8_t last = 127;
+  // Node-IDs not probed by SDO (a running gateway's sub-devices, see above); still heard.
+  std::set<std::uint8_t> skip;
+};
+
+// Another owner's LSS master and fastscan, which that owner feeds with the frames and advances
+// (the running gateway's network manager). Both null: LSS is not possible now (`why_not`).
+struct SharedLss {
+  canopen::LssMaster* master = nullptr;
+  canopen::LssFastscan* fastscan = nullptr;
+  std::string why_not;  // set: LSS is not possible now (e.g. another client's scan runs)
 };
 
 struct ScannedNode {
@@ -64,6 +81,10 @@ struct ScannedNode {
   std::optional<std::uint16_t> producer_heartbeat_ms;  // 1017h as read
   std::optional<Duration> heartbeat_period;            // the shortest gap between two heartbeats heard
   FamilyMatch family;
+  // Through a running gateway: the sub-device of the mapping file at this node-ID (its name,
+  // which the draft keeps) and the state the gateway holds it in ("operational", "missing").
+  std::string configured_as;
+  std::string gateway_state;
 };
 
 struct ScanResult {
@@ -85,6 +106,9 @@ struct ScanProgress {
 class BusScanner {
  public:
   BusScanner(FrameSink sink, ScanConfig config);
+  // LSS on another owner's master (asked when the LSS part starts, see above).
+  BusScanner(FrameSink sink, ScanConfig config, std::function<SharedLss()> shared_lss);
+  ~BusScanner();  // cancels a fastscan of its own on a shared master
   BusScanner(const BusScanner&) = delete;
   BusScanner& operator=(const BusScanner&) = delete;
 
@@ -98,6 +122,9 @@ class BusScanner {
 
   // After every node-ID probed, and when the LSS part starts.
   std::function<void(const ScanProgress&)> on_progress;
+  // When the LSS part ended inside a shared master's callback (its owner's call, not this
+  // scanner's): next_deadline() and done() may have changed.
+  std::function<void()> on_wake;
 
  private:
   enum class Phase : std::uint8_t { Idle, Probing, Lss, Listening, Done };
@@ -123,9 +150,16 @@ class BusScanner {
   std::map<std::uint8_t, TimePoint> last_heartbeat_;
   std::size_t probed_ = 0, total_ = 0;
   bool ended_ = false;  // a probe ended inside a callback: refill after it returns
-  canopen::LssMaster lss_;
+  canopen::LssMaster own_lss_;
+  canopen::LssFastscan own_fastscan_{own_lss_};
+  std::function<SharedLss()> shared_lss_;
+  canopen::LssMaster* lss_ = &own_lss_;  // the shared master's once the LSS part runs on it
+  canopen::LssFastscan* fastscan_ = &own_fastscan_;
+  bool lss_shared_ = false;
+  bool fastscan_mine_ = false;  // a fastscan of this scan runs on the shared master
+  // A shared master may answer after this scanner is gone: its callbacks check this first.
+  std::shared_ptr<bool> alive_ = std::make_shared<bool>(true);
   ScanResult lss_result_;
-  canopen::LssFastscan fastscan_{lss_};
 };
 
 }  // namespace oegw::subdevices

@@ -297,7 +297,7 @@ void NetworkManager::add_identity_steps(Managed& m) {
   const ExpectedIdentity drv = m.driver->expected_identity();
   const ExpectedIdentity& cfg = m.settings.identity;
   using Kind = Step::Kind;
-  m.steps.push_back({Kind::Read, 0x1000, 0, {}, "device type", expect_u32(0x1000, 0, pick(cfg.device_type, drv.device_type))});
+  m.steps.push_back({Kind::Read, 0x1000, 0, {}, "device type", expect_u32(0x1000, 0, pick(cfg.device_type, drv.device_type), &m.diag.device_type)});
   const std::optional<std::uint32_t> ident[4] = {pick(cfg.vendor_id, drv.vendor_id), pick(cfg.product_code, drv.product_code),
                                                  pick(cfg.revision, drv.revision), pick(cfg.serial, drv.serial)};
   std::optional<std::uint32_t>* keep[4] = {&m.diag.vendor_id, &m.diag.product_code, &m.diag.revision, &m.diag.serial};
@@ -519,7 +519,12 @@ void NetworkManager::commission(std::optional<canopen::lss::Address> address, No
   using canopen::LssMaster;
   now_ = now;
   // The gateway's own LSS work comes first: a client's fastscan ends here (its answer says why).
+  // A client's scan it interrupts may have selected its slave with the step already on the wire:
+  // everyone back to waiting first, so that only the gateway's own target is configured.
+  const bool interrupted = client_scan_running();
   fastscan_.cancel("interrupted: the gateway is commissioning a device by LSS itself");
+  slowscan_.cancel("interrupted: the gateway is commissioning a device by LSS itself");
+  if (interrupted) lss_.switch_state_global(canopen::lss::Mode::Waiting, now);
   ++own_lss_;
   auto failed = std::make_shared<bool>(false);
   auto step = [failed, done](const char* what) {

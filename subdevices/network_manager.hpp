@@ -39,6 +39,7 @@
 
 #include "canopen/305/lss_fastscan.hpp"
 #include "canopen/305/lss_master.hpp"
+#include "canopen/305/lss_slowscan.hpp"
 #include "canopen/master.hpp"
 #include "subdevices/driver.hpp"
 
@@ -62,6 +63,7 @@ struct NodeSettings {
 // 100Ah VISIBLE_STRINGs, 1001h error register), read during configuration and kept until the
 // next boot. A value the node does not have (the read was aborted) is nullopt.
 struct NodeDiagnostics {
+  std::optional<std::uint32_t> device_type;  // 1000h
   std::optional<std::uint32_t> vendor_id, product_code, revision, serial;  // 1018h:01..04
   std::optional<std::string> device_name;       // 1008h
   std::optional<std::string> hardware_version;  // 1009h
@@ -145,10 +147,14 @@ class NetworkManager {
   // LSS for `oegw ctl`'s CiA 309-3 lss_* commands (gateway/control/ctl_service.hpp), on the same
   // LSS master. The gateway's own LSS work (commission()) comes first: while it runs, client_lss()
   // is nullptr and the command is refused; when it starts, a client's fastscan still running ends
-  // (LssFastscan::Outcome::Cancelled) and sends no further step. A single client request already
+  // (LssFastscan::Outcome::Cancelled, a slowscan likewise) and sends no further step. A single client request already
   // queued or on the wire ends first (it lasts at most the LSS time-out); commission() follows it.
   [[nodiscard]] canopen::LssMaster* client_lss() { return own_lss_ != 0 ? nullptr : &lss_; }
   [[nodiscard]] canopen::LssFastscan* client_fastscan() { return own_lss_ != 0 ? nullptr : &fastscan_; }
+  [[nodiscard]] canopen::LssSlowscan* client_slowscan() { return own_lss_ != 0 ? nullptr : &slowscan_; }
+  // A client's fastscan or slowscan runs: each ends with a slave selected, so only one at a time
+  // (two selected slaves would take the same node-ID).
+  [[nodiscard]] bool client_scan_running() const { return fastscan_.running() || slowscan_.running(); }
   // True while commission() runs.
   [[nodiscard]] bool own_lss_busy() const { return own_lss_ != 0; }
 
@@ -244,6 +250,7 @@ class NetworkManager {
   Timing timing_;
   canopen::LssMaster lss_;
   canopen::LssFastscan fastscan_{lss_};  // `_lss_fastscan` of oegw ctl
+  canopen::LssSlowscan slowscan_{lss_};  // `_lss_slowscan` of oegw ctl
   unsigned own_lss_ = 0;                 // commission() operations running
   std::vector<std::unique_ptr<Managed>> nodes_;
   std::map<std::uint32_t, Managed*> by_cob_;  // consumed TPDO COB-ID -> node

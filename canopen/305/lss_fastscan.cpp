@@ -4,22 +4,15 @@ namespace oegw::canopen {
 
 using Status = LssMaster::Status;
 
-LssMaster::Callback LssFastscan::guard(std::function<void(const LssMaster::Result&)> f) {
-  return [this, gen = generation_, f = std::move(f)](const LssMaster::Result& r) {
-    if (gen != generation_ || !done_) return;
-    f(r);
-  };
-}
-
-void LssFastscan::start(TimePoint now, Callback done, std::optional<Duration> step_timeout) {
-  if (running()) cancel("a new fastscan started");
-  ++generation_;
-  done_ = std::move(done);
+void LssFastscan::start(TimePoint now, Callback done, std::optional<Duration> step_timeout, Known known) {
+  begin(std::move(done), "a new fastscan started");
   timeout_ = step_timeout;
   sub_ = 0;
   bit_ = 31;
   retry_ = false;
-  for (auto& v : value_) v = 0;
+  known_ = known;
+  const std::uint32_t parts[4] = {known.value.vendor, known.value.product, known.value.revision, known.value.serial};
+  for (std::size_t i = 0; i < 4; ++i) value_[i] = parts[i] & known.mask[i];
   master_.fastscan(0, lss::cs::kFastscanReset, 0, 0, now,
                    guard([this](const LssMaster::Result& reset) {
                      if (reset.status != Status::Ok) {
@@ -33,19 +26,8 @@ void LssFastscan::start(TimePoint now, Callback done, std::optional<Duration> st
                    timeout_);
 }
 
-void LssFastscan::cancel(const std::string& why) {
-  if (!running()) return;
-  ++generation_;
-  finish({Outcome::Cancelled, std::nullopt, why});
-}
-
-void LssFastscan::finish(Result r) {
-  Callback cb = std::move(done_);
-  done_ = nullptr;
-  if (cb) cb(r);
-}
-
 void LssFastscan::step(TimePoint now) {
+  while (bit_ >= 1 && (known_.mask[sub_] >> bit_ & 1u) != 0) --bit_;  // known: value_ has it
   if (bit_ >= 1) {
     const auto bit = static_cast<std::uint8_t>(bit_);
     master_.fastscan(value_[sub_], bit, sub_, sub_, now, guard([this, bit](const LssMaster::Result& r) {
@@ -59,6 +41,14 @@ void LssFastscan::step(TimePoint now) {
   const auto next = static_cast<std::uint8_t>(sub_ < 3 ? sub_ + 1 : 0);
   master_.fastscan(value_[sub_], 0, sub_, next, now, guard([this](const LssMaster::Result& r) {
                      if (r.status != Status::Ok) {
+                       if ((known_.mask[sub_] & 1u) != 0) {  // bit 0 known: not tried the other way
+                         static const char* const part[4] = {"vendor-ID", "product code", "revision number",
+                                                             "serial number"};
+                         finish({Outcome::Lost, std::nullopt,
+                                 std::string("LSS fastscan: no node without node-ID has the known bits of the ") +
+                                     part[sub_]});
+                         return;
+                       }
                        if (retry_) {
                          finish({Outcome::Lost, std::nullopt,
                                  "LSS fastscan lost the node (no answer for either value of bit 0)"});

@@ -5,13 +5,14 @@
 // leaves it selected for `lss_set_node`, as CANopenNode's and lely's gateways do).
 //
 // The steps: a reset step (BitChecked 80h) that every slave without node-ID answers; then, for
-// each part of the address (vendor, product, revision, serial), bits 31..1 are decided by asking
+// each part of the address (vendor, product, revision, serial), bits 31..1 not known in advance (Known) are decided by asking
 // whether any node has the bit 0 (silence: it is 1), and bit 0 is confirmed with LSSNext set to
 // the next part, which moves only the nodes that match the whole part on (a silent confirmation
 // is tried once more with bit 0 set). At most 1 + 4 × 32 + 4 steps, each lasting the step
 // time-out.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <optional>
@@ -19,54 +20,43 @@
 
 #include "canopen/305/lss.hpp"
 #include "canopen/305/lss_master.hpp"
+#include "canopen/305/lss_scan_run.hpp"
 #include "canopen/types.hpp"
 
 namespace oegw::canopen {
 
-class LssFastscan {
- public:
-  enum class Outcome : std::uint8_t {
-    Found,      // `address` read; that slave is in LSS configuration mode
-    NoAnswer,   // nobody answered the reset step: no slave without node-ID (or no fastscan support)
-    Lost,       // the node answered the reset step but was lost on the way
-    Cancelled,  // cancel() was called
-  };
-  struct Result {
-    Outcome outcome = Outcome::NoAnswer;
-    std::optional<lss::Address> address;
-    std::string note;  // why no address, in words
-  };
-  using Callback = std::function<void(const Result&)>;
+// Bits of the address the caller already knows (lely's `_lss_fastscan` with values and masks):
+// a bit set in `mask` is taken from `value` without asking. Fastscan compares the bits
+// BitChecked..31 of a part, so a known bit is simply not asked: the steps after it compare it
+// (a node that differs falls silent), and bit 0's confirmation checks the whole part. A known
+// bit 0 is confirmed once, not tried the other way.
+struct LssFastscanKnown {
+  lss::Address value{};
+  std::array<std::uint32_t, 4> mask{};  // vendor, product, revision, serial
+};
 
+// NoAnswer: nobody answered the reset step (no slave without node-ID, or no fastscan support).
+class LssFastscan : public LssScanRun {
+ public:
   // Steps that fastscan() runs at most (for a caller's overall wait).
   static constexpr unsigned kMaxSteps = 1 + 4 * 32 + 4;
 
-  explicit LssFastscan(LssMaster& master) : master_(master) {}
-  LssFastscan(const LssFastscan&) = delete;
-  LssFastscan& operator=(const LssFastscan&) = delete;
+  explicit LssFastscan(LssMaster& master) : LssScanRun(master) {}
 
+  using Known = LssFastscanKnown;
   // Starts a scan; `step_timeout` empty: the LssMaster's own time-out. A scan still running is
   // cancelled first. `done` is called once.
-  void start(TimePoint now, Callback done, std::optional<Duration> step_timeout = std::nullopt);
-  // Ends a running scan: `done` gets Cancelled with `why`; the step on the wire (if any) ends
-  // without effect, no further step is sent.
-  void cancel(const std::string& why);
-  [[nodiscard]] bool running() const { return static_cast<bool>(done_); }
+  void start(TimePoint now, Callback done, std::optional<Duration> step_timeout = std::nullopt, Known known = {});
 
  private:
   void step(TimePoint now);
-  void finish(Result r);
-  // The LssMaster callback of a step of this scan; ignored once the scan has ended.
-  LssMaster::Callback guard(std::function<void(const LssMaster::Result&)> f);
 
-  LssMaster& master_;
-  Callback done_;
   std::optional<Duration> timeout_;
-  std::uint64_t generation_ = 0;
   std::uint8_t sub_ = 0;  // the part of the address (0..3)
   int bit_ = 31;          // the next bit to decide
   bool retry_ = false;
   std::uint32_t value_[4] = {};
+  Known known_{};
 };
 
 }  // namespace oegw::canopen

@@ -79,14 +79,18 @@ void LssMaster::inquire(Inquiry what, TimePoint now, Callback cb) {
   enqueue({{frame(c)}, c, false, false, std::move(cb)}, now);
 }
 
-void LssMaster::identify_remote_slave(const lss::AddressRange& r, TimePoint now, Callback cb) {
+void LssMaster::identify_remote_slave(const lss::AddressRange& r, TimePoint now, Callback cb,
+                                      std::optional<Duration> whole_window) {
   enqueue({{frame(kIdentifyVendor, r.vendor), frame(kIdentifyProduct, r.product),
             frame(kIdentifyRevisionLow, r.revision_low), frame(kIdentifyRevisionHigh, r.revision_high),
             frame(kIdentifySerialLow, r.serial_low), frame(kIdentifySerialHigh, r.serial_high)},
            kIdentifySlaveResponse,
            false,
            true,
-           std::move(cb)},
+           std::move(cb),
+           whole_window.has_value(),
+           false,
+           whole_window},
           now);
 }
 

@@ -47,7 +47,11 @@ class LssMaster {
   void activate_bit_timing(std::uint16_t switch_delay_ms, TimePoint now, Callback cb = {});
   void store_configuration(TimePoint now, Callback cb = {});
   void inquire(Inquiry what, TimePoint now, Callback cb = {});
-  void identify_remote_slave(const lss::AddressRange& range, TimePoint now, Callback cb = {});
+  // Every slave in the range answers (4Fh). `whole_window` (LSS slowscan, lss_slowscan.hpp):
+  // like a fastscan step, the request lasts the whole time-out, so that a second slave's late
+  // answer is not taken for the next request's; else it ends at the first answer.
+  void identify_remote_slave(const lss::AddressRange& range, TimePoint now, Callback cb = {},
+                             std::optional<Duration> whole_window = std::nullopt);
   void identify_non_configured(TimePoint now, Callback cb = {});
   // One step of LSS fastscan (CiA 305 §8.4.4, cs 51h): every slave without node-ID whose address
   // matches answers (4Fh), so the step always lasts the whole timeout and then completes Ok if
@@ -66,6 +70,7 @@ class LssMaster {
   [[nodiscard]] TimePoint now() const { return now_; }
 
   [[nodiscard]] bool idle() const { return !active_ && queue_.empty(); }
+  [[nodiscard]] Duration timeout() const { return timeout_; }
   [[nodiscard]] std::size_t pending() const { return queue_.size() + (active_ ? 1 : 0); }
 
  private:

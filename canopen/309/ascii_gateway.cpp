@@ -162,7 +162,9 @@ bool is_lss(Command c) {
     case Command::LssInquireAddress:
     case Command::LssGetNode:
     case Command::LssIdentNonConfigured:
-    case Command::LssFastscan: return true;
+    case Command::LssFastscan:
+    case Command::LssIdentity:
+    case Command::LssSlowscan: return true;
     default: return false;
   }
 }
@@ -283,7 +285,7 @@ namespace {
 
 constexpr std::string_view kLssCommands =
     "lss_switch_glob, lss_switch_sel, lss_set_node, lss_conf_bitrate, lss_activate_bitrate, lss_store, "
-    "lss_inquire_addr, lss_get_node, lss_ident_nonconf, _lss_fastscan";
+    "lss_inquire_addr, lss_get_node, lss_identity, lss_ident_nonconf, _lss_fastscan, _lss_slowscan";
 
 Parsed error(GatewayError e, std::string message, std::optional<std::uint32_t> seq) {
   Parsed p;
@@ -413,7 +415,13 @@ Parsed parse(std::string_view line, const Defaults& defaults) {
                   "lss_inquire_addr [<part: 0..3 or 0x5A..0x5D (vendor, product, revision, serial)>]"},
                  {"lss_get_node", Command::LssGetNode, "lss_get_node"},
                  {"lss_ident_nonconf", Command::LssIdentNonConfigured, "lss_ident_nonconf"},
-                 {"_lss_fastscan", Command::LssFastscan, "_lss_fastscan [<step time-out in ms, 1..65535>]"}};
+                 {"_lss_fastscan", Command::LssFastscan,
+                  "_lss_fastscan [<step time-out in ms, 1..65535>], or lely's _lss_fastscan <vendor-ID> <mask> <product "
+                  "code> <mask> <revision> <mask> <serial> <mask> (a mask's 1 bits are known)"},
+                 {"lss_identity", Command::LssIdentity,
+                  "lss_identity <vendor-ID> <product code> <revision low> <revision high> <serial low> <serial high>"},
+                 {"_lss_slowscan", Command::LssSlowscan,
+                  "_lss_slowscan <vendor-ID> <product code> <revision low> <revision high> <serial low> <serial high>"}};
     const auto* row = std::find_if(std::begin(table), std::end(table), [&](const auto& t) { return name == t.word; });
     if (row == std::end(table))
       return error(GatewayError::RequestNotSupported,
@@ -481,12 +489,32 @@ Parsed parse(std::string_view line, const Defaults& defaults) {
       }
       case Command::LssFastscan: {
         if (a.empty()) return p;
-        if (a.size() != 1)
-          return error(GatewayError::Syntax,
-                       fmt::format("expected {} (lely's form with values and masks is not supported)", row->usage), seq);
+        if (a.size() == 8) {  // lely's form: value and mask of each part
+          std::array<std::uint32_t, 4> mask{};
+          for (std::size_t i = 0; i < 8; ++i) {
+            const auto v = u32(i, 0, 0xFFFFFFFF, "LSS address part");
+            if (!v) return error(GatewayError::Syntax, fmt::format("'{}' is no 32-bit number; expected {}", a[i].text, row->usage), seq);
+            (i % 2 == 0 ? r.address[i / 2] : mask[i / 2]) = *v;
+          }
+          r.known_mask = mask;
+          return p;
+        }
+        if (a.size() != 1) return bad(row->usage);
         const auto v = u32(0, 1, 0xFFFF, "time-out");
         if (!v) return bad(row->usage);
         r.value = *v;
+        return p;
+      }
+      case Command::LssIdentity:
+      case Command::LssSlowscan: {
+        if (a.size() != 6) return bad(row->usage);
+        for (std::size_t i = 0; i < 6; ++i) {
+          const auto v = u32(i, 0, 0xFFFFFFFF, "LSS address part");
+          if (!v) return error(GatewayError::Syntax, fmt::format("'{}' is no 32-bit number; expected {}", a[i].text, row->usage), seq);
+          r.range[i] = *v;
+        }
+        if (r.range[2] > r.range[3] || r.range[4] > r.range[5])
+          return error(GatewayError::Syntax, "a range's low end above its high end (revision low..high, serial low..high)", seq);
         return p;
       }
       default:

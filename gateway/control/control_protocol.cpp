@@ -1,6 +1,9 @@
 #include "gateway/control/control_protocol.hpp"
 
 #include <memory>
+#include <stdexcept>
+
+#include <fmt/format.h>
 
 namespace oegw::gateway {
 
@@ -92,6 +95,18 @@ void ControlProtocol::answer(std::string_view line, Reply reply) const {
       reply(control_error("failed", name + ": " + e.what()));
     }
   }
+}
+
+std::uint64_t request_field(const nlohmann::json& r, const char* key, std::uint64_t lo, std::uint64_t hi) {
+  const auto it = r.find(key);
+  if (it == r.end() || !it->is_number_unsigned() || it->get<std::uint64_t>() < lo || it->get<std::uint64_t>() > hi)
+    throw std::invalid_argument(fmt::format("\"{}\": expected an integer {}..{}", key, lo, hi));
+  return it->get<std::uint64_t>();
+}
+
+std::uint64_t request_field_or(const nlohmann::json& r, const char* key, std::uint64_t lo, std::uint64_t hi,
+                               std::uint64_t fallback) {
+  return r.contains(key) ? request_field(r, key, lo, hi) : fallback;
 }
 
 }  // namespace oegw::gateway

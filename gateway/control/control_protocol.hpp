@@ -44,6 +44,14 @@ class ControlProtocol {
   std::map<std::string, AsyncCommand, std::less<>> commands_;
 };
 
+// A request's unsigned integer field in [lo, hi]; std::invalid_argument naming the field (the
+// protocol answers it as `failed`) when absent or out of range. request_field_or: `fallback`
+// when absent.
+[[nodiscard]] std::uint64_t request_field(const nlohmann::json& request, const char* key, std::uint64_t lo,
+                                          std::uint64_t hi);
+[[nodiscard]] std::uint64_t request_field_or(const nlohmann::json& request, const char* key, std::uint64_t lo,
+                                             std::uint64_t hi, std::uint64_t fallback);
+
 // {"protocol": 1, "ok": false, "error": {"code": code, "message": message}} as a line.
 [[nodiscard]] std::string control_error(std::string_view code, const std::string& message);
 // A value's bytes as the protocol carries them (`oegw ctl`'s sdo_read/sdo_write "data"):

@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 
 #include "canopen/305/lss_fastscan.hpp"
+#include "canopen/305/lss_slowscan.hpp"
 #include "gateway/control/control_protocol.hpp"
 #include "gateway/control/status_command.hpp"
 
@@ -68,6 +69,15 @@ json lss_request(const ascii::Request& r) {
     case Command::LssFastscan:
       j["service"] = "fastscan";
       if (r.value != 0) j["timeout_ms"] = r.value;
+      if (r.known_mask) {
+        j["known"] = r.address;
+        j["mask"] = *r.known_mask;
+      }
+      break;
+    case Command::LssIdentity:
+    case Command::LssSlowscan:
+      j["service"] = r.command == Command::LssIdentity ? "identify_remote" : "slowscan";
+      j["range"] = r.range;
       break;
     default: break;
   }
@@ -207,6 +217,8 @@ CtlSession::Outcome CtlSession::execute(std::string_view line) {
           // A fastscan is up to LssFastscan::kMaxSteps steps of the step time-out each.
           const std::uint32_t step_ms = r.value != 0 ? r.value : kDefaultLssStepMs;
           timeout = std::max(timeout, std::chrono::milliseconds(canopen::LssFastscan::kMaxSteps * step_ms + 2000));
+        } else if (r.command == Command::LssSlowscan) {
+          timeout = std::max(timeout, std::chrono::milliseconds(canopen::LssSlowscan::kMaxSteps * kDefaultLssStepMs + 2000));
         }
         break;
       }

@@ -1,6 +1,7 @@
 #include "gateway/control/ctl_service.hpp"
 
 #include <algorithm>
+#include <array>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -20,15 +21,6 @@ struct CtlService::Transfer {
 
 namespace {
 
-// A request's unsigned integer field in [lo, hi] (std::invalid_argument: a `failed` answer
-// naming the field).
-std::uint64_t field(const json& r, const char* key, std::uint64_t lo, std::uint64_t hi) {
-  const auto it = r.find(key);
-  if (it == r.end() || !it->is_number_unsigned() || it->get<std::uint64_t>() < lo || it->get<std::uint64_t>() > hi)
-    throw std::invalid_argument(fmt::format("\"{}\": expected an integer {}..{}", key, lo, hi));
-  return it->get<std::uint64_t>();
-}
-
 std::vector<std::uint8_t> from_hex(const json& r) {
   const auto it = r.find("data");
   if (it == r.end() || !it->is_string()) throw std::invalid_argument("\"data\": expected the value's bytes in hex");
@@ -37,6 +29,21 @@ std::vector<std::uint8_t> from_hex(const json& r) {
   if (!bytes || bytes->empty()) throw std::invalid_argument("\"data\": " + (bytes ? std::string("at least one byte") : why));
   return *bytes;
 }
+
+// A request's array of N 32-bit numbers (std::invalid_argument naming the field and `what`).
+template <std::size_t N>
+std::array<std::uint32_t, N> u32_list(const json& r, const char* key, const char* what) {
+  const auto it = r.find(key);
+  std::array<std::uint32_t, N> v{};
+  const auto bad = [&] { return std::invalid_argument(fmt::format("\"{}\": expected [{}], integers 0..4294967295", key, what)); };
+  if (it == r.end() || !it->is_array() || it->size() != N) throw bad();
+  for (std::size_t i = 0; i < N; ++i) {
+    if (!(*it)[i].is_number_unsigned() || (*it)[i].get<std::uint64_t>() > 0xFFFFFFFF) throw bad();
+    v[i] = (*it)[i].get<std::uint32_t>();
+  }
+  return v;
+}
+constexpr const char* kAddressParts = "vendor, product, revision, serial";
 
 // A CiA 309-3 internal error (canopen/309/ascii_gateway.hpp: 100 not supported, 102 internal
 // state, 106 unsupported net, 107 unsupported node) with the gateway's reason.
@@ -77,6 +84,7 @@ CtlService::CtlService(canopen::EventLoop& loop, Gateway& gw, const mapping::Con
 CtlService::~CtlService() {
   *alive_ = false;
   if (auto* fs = gw_.downstream().client_fastscan(); fs != nullptr && fastscan_client_) fs->cancel("the control service ended");
+  if (auto* ss = gw_.downstream().client_slowscan(); ss != nullptr && slowscan_client_) ss->cancel("the control service ended");
   gw_.on_downstream_boot_up = nullptr;
   gw_.on_downstream_emcy = nullptr;
   for (const auto& t : transfers_) {
@@ -95,7 +103,7 @@ void CtlService::record(json event) {
 json CtlService::events(const json& r) const {
   const std::uint64_t last = next_event_ - 1;
   if (!r.contains("after")) return json{{"events", json::array()}, {"last", last}, {"lost", 0}};
-  const std::uint64_t after = field(r, "after", 0, ~std::uint64_t{0});
+  const std::uint64_t after = request_field(r, "after", 0, ~std::uint64_t{0});
   json list = json::array();
   for (const auto& e : events_)
     if (e["seq"].get<std::uint64_t>() > after) list.push_back(e);
@@ -112,12 +120,13 @@ json CtlService::info() const {
               {"serial", od.get<std::uint32_t>(0x1018, 4)},
               {"gateway_class", 3},  // CiA 309-1 class 3: SDO, NMT master services
               {"upstream_network", config_.upstream.network_id},
-              {"downstream_network", config_.downstream.network_id}};
+              {"downstream_network", config_.downstream.network_id},
+              {"downstream_interface", config_.downstream.interface}};  // `oegw scan` (scan_service.hpp)
 }
 
 json CtlService::nmt(const json& r) {
-  const auto net = field(r, "network", 1, 127);
-  const auto node = field(r, "node", 1, 127);
+  const auto net = request_field(r, "network", 1, 127);
+  const auto node = request_field(r, "node", 1, 127);
   const auto it = r.find("service");
   if (it == r.end() || !it->is_string())
     throw std::invalid_argument("\"service\": expected start, stop, preop, reset_node or reset_comm");
@@ -158,7 +167,7 @@ json lss_failure(const canopen::LssMaster::Result& r, const char* what, int refu
 void CtlService::lss(const json& r, ControlProtocol::Done done) {
   using Status = canopen::LssMaster::Status;
   using canopen::LssMaster;
-  const auto net = field(r, "network", 1, 127);
+  const auto net = request_field(r, "network", 1, 127);
   const auto it = r.find("service");
   if (it == r.end() || !it->is_string())
     throw std::invalid_argument(
@@ -189,22 +198,14 @@ void CtlService::lss(const json& r, ControlProtocol::Done done) {
   };
   gw_.log_control(fmt::format("LSS {} on network {}", s, net));
   if (s == "switch_global") {
-    const auto mode = field(r, "mode", 0, 1);
+    const auto mode = request_field(r, "mode", 0, 1);
     master->switch_state_global(mode == 1 ? canopen::lss::Mode::Configuration : canopen::lss::Mode::Waiting, now,
                                 ok_or("switch state global", 102));
   } else if (s == "switch_selective") {
-    const auto a = r.find("address");
-    if (a == r.end() || !a->is_array() || a->size() != 4)
-      throw std::invalid_argument("\"address\": expected [vendor, product, revision, serial]");
-    std::uint32_t v[4];
-    for (std::size_t i = 0; i < 4; ++i) {
-      if (!(*a)[i].is_number_unsigned() || (*a)[i].get<std::uint64_t>() > 0xFFFFFFFF)
-        throw std::invalid_argument("\"address\": expected four integers 0..4294967295");
-      v[i] = (*a)[i].get<std::uint32_t>();
-    }
+    const auto v = u32_list<4>(r, "address", kAddressParts);
     master->switch_state_selective({v[0], v[1], v[2], v[3]}, now, ok_or("switch state selective", 102));
   } else if (s == "set_node") {
-    const auto node = field(r, "node", 1, 255);
+    const auto node = request_field(r, "node", 1, 255);
     if (node > 127 && node != 255) throw std::invalid_argument("\"node\": expected 1..127, or 255 (none)");
     // A node-ID a configured sub-device uses while it is on the bus would collide at the next
     // reset communication: refused while the network manager has proof of it (starting after
@@ -223,12 +224,12 @@ void CtlService::lss(const json& r, ControlProtocol::Done done) {
     }
     master->configure_node_id(canopen::NodeId{static_cast<std::uint8_t>(node)}, now, ok_or("configure node-ID", 502));
   } else if (s == "conf_bitrate") {
-    const auto index = static_cast<std::uint8_t>(field(r, "table_index", 0, 255));
+    const auto index = static_cast<std::uint8_t>(request_field(r, "table_index", 0, 255));
     if (!canopen::lss::standard_bit_rate_kbit(index))
       return done(gateway_error(503, fmt::format("table index {} is not in the CiA 305 table", index)));
     master->configure_bit_timing(index, now, ok_or("configure bit timing", 503));
   } else if (s == "activate_bitrate") {
-    const auto delay = static_cast<std::uint16_t>(field(r, "delay_ms", 0, 0xFFFF));
+    const auto delay = static_cast<std::uint16_t>(request_field(r, "delay_ms", 0, 0xFFFF));
     master->activate_bit_timing(delay, now, ok_or("activate bit timing", 102));
   } else if (s == "store") {
     master->store_configuration(now, ok_or("store configuration", 504, 505));
@@ -240,7 +241,7 @@ void CtlService::lss(const json& r, ControlProtocol::Done done) {
     static constexpr LssMaster::Inquiry kParts[] = {LssMaster::Inquiry::Vendor, LssMaster::Inquiry::Product,
                                                    LssMaster::Inquiry::Revision, LssMaster::Inquiry::Serial};
     if (r.contains("part")) {
-      const auto part = field(r, "part", 0, 3);
+      const auto part = request_field(r, "part", 0, 3);
       master->inquire(kParts[part], now, [answer](const LssMaster::Result& res) {
         answer(res.status == Status::Ok ? json{{"value", res.value}} : lss_failure(res, "inquire identity", 102));
       });
@@ -269,9 +270,15 @@ void CtlService::lss(const json& r, ControlProtocol::Done done) {
     });
   } else if (s == "fastscan") {
     auto* fastscan = network.client_fastscan();
-    if (fastscan->running()) return done(gateway_error(102, "a fastscan of another client is running"));
+    if (network.client_scan_running()) return done(gateway_error(102, "a fastscan or slowscan of another client is running"));
     std::optional<canopen::Duration> step;
-    if (r.contains("timeout_ms")) step = std::chrono::milliseconds(field(r, "timeout_ms", 1, 0xFFFF));
+    if (r.contains("timeout_ms")) step = std::chrono::milliseconds(request_field(r, "timeout_ms", 1, 0xFFFF));
+    canopen::LssFastscan::Known known;
+    if (r.contains("known") || r.contains("mask")) {
+      const auto value = u32_list<4>(r, "known", kAddressParts);
+      known.value = {value[0], value[1], value[2], value[3]};
+      known.mask = u32_list<4>(r, "mask", kAddressParts);
+    }
     fastscan_client_ = true;
     fastscan->start(
         now,
@@ -282,7 +289,29 @@ void CtlService::lss(const json& r, ControlProtocol::Done done) {
             return answer(json{{"address", {f.address->vendor, f.address->product, f.address->revision, f.address->serial}}});
           answer(gateway_error(f.outcome == canopen::LssFastscan::Outcome::Cancelled ? 102 : 103, f.note));
         },
-        step);
+        step, known);
+  } else if (s == "identify_remote" || s == "slowscan") {
+    const auto v = u32_list<6>(r, "range", "vendor, product, revision low, high, serial low, high");
+    const canopen::lss::AddressRange range{v[0], v[1], v[2], v[3], v[4], v[5]};
+    if (s == "identify_remote") {
+      master->identify_remote_slave(range, now, [answer](const LssMaster::Result& res) {
+        answer(res.status == Status::Ok
+                   ? json::object()
+                   : gateway_error(103, "no LSS slave in the range answered identify remote slave"));
+      });
+    } else {
+      auto* slowscan = network.client_slowscan();
+      if (network.client_scan_running())
+        return done(gateway_error(102, "a fastscan or slowscan of another client is running"));
+      slowscan_client_ = true;
+      slowscan->start(range, now, [this, alive, answer](const canopen::LssSlowscan::Result& f) {
+        if (alive.expired()) return;
+        slowscan_client_ = false;
+        if (f.address)
+          return answer(json{{"address", {f.address->vendor, f.address->product, f.address->revision, f.address->serial}}});
+        answer(gateway_error(f.outcome == canopen::LssSlowscan::Outcome::Cancelled ? 102 : 103, f.note));
+      });
+    }
   } else {
     throw std::invalid_argument("\"service\": '" + s + "' is no LSS service of this gateway");
   }
@@ -290,11 +319,11 @@ void CtlService::lss(const json& r, ControlProtocol::Done done) {
 }
 
 void CtlService::sdo(const json& r, bool write, ControlProtocol::Done done) {
-  const auto net = field(r, "network", 1, 127);
-  const auto node = field(r, "node", 1, 127);
-  const auto index = static_cast<std::uint16_t>(field(r, "index", 0, 0xFFFF));
-  const auto sub = static_cast<std::uint8_t>(field(r, "sub", 0, 0xFF));
-  const std::uint64_t timeout_ms = r.contains("timeout_ms") ? field(r, "timeout_ms", 1, kMaxTimeoutMs) : 0;
+  const auto net = request_field(r, "network", 1, 127);
+  const auto node = request_field(r, "node", 1, 127);
+  const auto index = static_cast<std::uint16_t>(request_field(r, "index", 0, 0xFFFF));
+  const auto sub = static_cast<std::uint8_t>(request_field(r, "sub", 0, 0xFF));
+  const std::uint64_t timeout_ms = r.contains("timeout_ms") ? request_field(r, "timeout_ms", 1, kMaxTimeoutMs) : 0;
   const std::vector<std::uint8_t> data = write ? from_hex(r) : std::vector<std::uint8_t>{};
   const auto answer = [](SdoAbortCode code, const std::vector<std::uint8_t>& bytes, bool with_data) {
     json j{{"abort", static_cast<std::uint32_t>(code)}};

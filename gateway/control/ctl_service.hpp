@@ -66,6 +66,7 @@ class CtlService {
   // Cleared by the destructor: LSS answers that come later are dropped.
   std::shared_ptr<bool> alive_ = std::make_shared<bool>(true);
   bool fastscan_client_ = false;  // the network manager's fastscan runs for this service
+  bool slowscan_client_ = false;  // its slowscan likewise
   std::deque<nlohmann::json> events_;
   std::uint64_t next_event_ = 1;
 };

@@ -16,7 +16,8 @@ GatewayControl::GatewayControl(canopen::EventLoop& loop, Gateway& gw, const mapp
     if (down != nullptr) at.downstream_bus = &down->counters();
     return nlohmann::json{{"status", status_report(gw, config, at)}};
   });
-  ctl_ = std::make_unique<CtlService>(loop, gw, config, protocol_, std::move(rearm));
+  ctl_ = std::make_unique<CtlService>(loop, gw, config, protocol_, rearm);
+  scan_ = std::make_unique<ScanService>(loop, gw, config, protocol_, std::move(rearm));
   ControlSocketSettings settings = control_settings(config.control, file);
   settings.log = [](const std::string& line) { spdlog::info("{}", line); };
   settings.warn = [](const std::string& line) { spdlog::warn("{}", line); };

@@ -1,6 +1,7 @@
 // The control socket of `oegw run` (PROTOCOL.md): the server on the gateway's event loop and the
 // commands it answers on the running Gateway: `status` (`oegw status`) and `oegw ctl`'s
-// (sdo_read, sdo_write, nmt, info, events: gateway/control/ctl_service.hpp).
+// (sdo_read, sdo_write, nmt, info, events: gateway/control/ctl_service.hpp) and `oegw scan`'s
+// (scan: gateway/control/scan_service.hpp).
 #pragma once
 
 #include <functional>
@@ -11,6 +12,7 @@
 #include "gateway/control/control_protocol.hpp"
 #include "gateway/control/control_server.hpp"
 #include "gateway/control/ctl_service.hpp"
+#include "gateway/control/scan_service.hpp"
 #include "gateway/gateway.hpp"
 #include "mapping/config.hpp"
 
@@ -29,6 +31,7 @@ class GatewayControl {
  private:
   ControlProtocol protocol_;
   std::unique_ptr<CtlService> ctl_;  // destroyed after the server: its answers then go nowhere
+  std::unique_ptr<ScanService> scan_;
   std::unique_ptr<ControlServer> server_;
 };
 

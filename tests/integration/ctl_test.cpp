@@ -333,6 +333,15 @@ TEST_F(Ctl, LssGivesANodeWithoutNodeIdItsNodeIdFrameByFrame) {
   EXPECT_EQ(final_request->second, last);
   for (const auto& [id, data] : fs) EXPECT_TRUE(data[0] == 0x51 || data[0] == 0x4F) << fmt::format("{:02X}", data[0]);
   EXPECT_EQ(run("[11] lss_get_node"), "[11] 255");  // selected, and without node-ID
+  // lely's fastscan with values and masks: vendor and product known, so only the revision's and the
+  // serial's bits are asked (1 reset + 4 confirmations + 2 × 31 bits + a retry per part ending in 1).
+  EXPECT_EQ(run("[31] lss_switch_glob 0"), "[31] OK");
+  EXPECT_EQ(run(fmt::format("[32] _lss_fastscan {} 0xFFFFFFFF {} 0xFFFFFFFF 0 0 0 0", a[0], a[1])),
+            fmt::format("[32] 0x{:08X} 0x{:08X} 0x{:08X} 0x{:08X}", a[0], a[1], a[2], a[3]));
+  std::size_t steps = 0;
+  for (const auto& [id, data] : lss_frames()) steps += id == 0x7E5 && data[0] == 0x51 ? 1 : 0;
+  EXPECT_EQ(steps, 1u + 4 + 2 * 31 + (a[2] & 1u) + (a[3] & 1u));
+  EXPECT_EQ(run("[33] lss_get_node"), "[33] 255");  // selected again
   // Its node-ID again: the gateway holds the pedal missing, so the mapping file's 30h may be given,
   // also while it retries it (configuring: asking its identity, unanswered).
   for (int i = 0; i < 10000 && rig_->gw().downstream().state("pedal") != sd::NodeState::Configuring; ++i)
@@ -359,6 +368,36 @@ TEST_F(Ctl, LssGivesANodeWithoutNodeIdItsNodeIdFrameByFrame) {
             "[17] ERROR: 103 (Time-out: no answer to LSS fastscan (CiA 305 §8.4.4): no node without node-ID, or it does "
             "not support fastscan)");
   EXPECT_EQ(lss_frames(), (Frames{{0x7E5, F{0x51, 0, 0, 0, 0, 0x80, 0, 0}}}));
+}
+
+// lely's `lss_identity` and `_lss_slowscan` (its gateway test session's [15] and [11]), frame by
+// frame: identify remote slave 46h..4Bh answered 4Fh by the slaves in the range; slowscan halves
+// the revision, then the serial range, and selects what it found (40h..43h, answered 44h).
+TEST_F(Ctl, LelysIdentityAndSlowscan) {
+  const std::uint32_t a[4] = {sim_u32("pedal", 0x1018, 1), sim_u32("pedal", 0x1018, 2), sim_u32("pedal", 0x1018, 3),
+                              sim_u32("pedal", 0x1018, 4)};
+  EXPECT_EQ(run("[1] set network 2"), "[1] OK");
+  EXPECT_EQ(run(fmt::format("[2] lss_identity {} {} 0 0xFFFFFFFF 0 0xFFFFFFFF", a[0], a[1])), "[2] OK");
+  const Frames id = frames_since({0x7E5, 0x7E4});
+  ASSERT_EQ(id.size(), 7u);
+  EXPECT_EQ(id[0].second[0], 0x46);
+  EXPECT_EQ(id[5].second[0], 0x4B);
+  EXPECT_EQ(id[6], (Frames::value_type{0x7E4, {0x4F, 0, 0, 0, 0, 0, 0, 0}}));
+  EXPECT_EQ(run("[3] lss_identity 0x360 0 0 0 0 0"),
+            "[3] ERROR: 103 (Time-out: no LSS slave in the range answered identify remote slave)");
+  EXPECT_EQ(run(fmt::format("[4] _lss_slowscan {} {} 0 0xFFFFFFFF 0 0xFFFFFFFF", a[0], a[1])),
+            fmt::format("[4] 0x{:08X} 0x{:08X} 0x{:08X} 0x{:08X}", a[0], a[1], a[2], a[3]));
+  std::size_t identify = 0, selective = 0;
+  for (const auto& [cob, data] : frames_since({0x7E5})) {
+    identify += data[0] == 0x46 ? 1 : 0;
+    selective += data[0] == 0x40 ? 1 : 0;
+  }
+  EXPECT_EQ(identify, 1u + 32 + 32);
+  EXPECT_EQ(selective, 1u);
+  EXPECT_EQ(run("[5] lss_get_node"), "[5] 48");  // the pedal, selected (its node-ID kept)
+  EXPECT_EQ(run("[6] lss_switch_glob 0"), "[6] OK");
+  EXPECT_EQ(run("[7] _lss_slowscan 0x360 0 0 0 0 0"),
+            "[7] ERROR: 103 (Time-out: no LSS slave in the range answered identify remote slave (CiA 305 §8.4.3.6))");
 }
 
 TEST_F(Ctl, LssRefusals) {
@@ -418,6 +457,33 @@ TEST_F(Ctl, TheGatewaysOwnLssWorkInterruptsAFastscan) {
   std::size_t fastscans = 0;
   for (const auto& [id, data] : frames_since({0x7E5})) fastscans += data[0] == 0x51;
   EXPECT_EQ(fastscans, 0u);
+  // Its first frame sends every slave back to waiting (the fastscan's step on the wire may have
+  // selected one, which would take the node-ID too), then it selects its own target.
+  const Frames lss = frames_since({0x7E5});
+  ASSERT_GE(lss.size(), 2u);
+  EXPECT_EQ(lss[0].second, (std::vector<std::uint8_t>{0x04, 0, 0, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(lss[1].second[0], 0x40);  // switch state selective, vendor-ID
+}
+
+TEST_F(Ctl, OneClientLssScanAtATime) {
+  // A slowscan and a fastscan each end with a slave selected: while one runs the other is refused.
+  std::optional<std::string> first;
+  protocol_.answer(R"({"protocol": 1, "command": "lss", "network": 2, "service": "fastscan", "timeout_ms": 50})",
+                   [&first](std::string a) { first = std::move(a); });
+  rig_->run_for(10ms);
+  const std::string slow = protocol_.answer(
+      R"({"protocol": 1, "command": "lss", "network": 2, "service": "slowscan", "range": [1, 2, 0, 9, 0, 9]})");
+  EXPECT_NE(slow.find(R"("gateway_error":102)"), std::string::npos) << slow;
+  EXPECT_NE(slow.find("a fastscan or slowscan of another client is running"), std::string::npos) << slow;
+  rig_->run_for(200ms);
+  ASSERT_TRUE(first);  // nobody without node-ID: the fastscan ends
+  std::optional<std::string> second;
+  protocol_.answer(R"({"protocol": 1, "command": "lss", "network": 2, "service": "slowscan", "range": [1, 2, 0, 9, 0, 9]})",
+                   [&second](std::string a) { second = std::move(a); });
+  rig_->run_for(10ms);
+  const std::string fast =
+      protocol_.answer(R"({"protocol": 1, "command": "lss", "network": 2, "service": "fastscan", "timeout_ms": 50})");
+  EXPECT_NE(fast.find("a fastscan or slowscan of another client is running"), std::string::npos) << fast;
 }
 
 }  // namespace

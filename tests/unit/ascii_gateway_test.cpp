@@ -169,7 +169,7 @@ TEST(AsciiGateway, BadLinesGetExactErrors) {
             "[18] ERROR: 100 (Request not supported: no command 'fly'; this gateway has r[ead], w[rite], start, stop, "
             "preop[erational], reset node, reset comm[unication], set network, set node, set sdo_timeout, info version, "
             "lss_switch_glob, lss_switch_sel, lss_set_node, lss_conf_bitrate, lss_activate_bitrate, lss_store, "
-            "lss_inquire_addr, lss_get_node, lss_ident_nonconf, _lss_fastscan)");
+            "lss_inquire_addr, lss_get_node, lss_identity, lss_ident_nonconf, _lss_fastscan, _lss_slowscan)");
   EXPECT_EQ(refused("[19] 2 0 start"), "[19] ERROR: 100 (Request not supported: node 0 (all nodes): name each node)");
   EXPECT_EQ(refused("[20] set network 0"), "[20] ERROR: 101 (Syntax error: network 0 is out of range (1..127))");
   EXPECT_EQ(refused("[21] set sdo_timeout 0", Defaults{2, {}}),
@@ -222,6 +222,21 @@ TEST(AsciiGateway, LssCommands) {
   EXPECT_EQ(fs.value, 0u);  // the gateway's step time-out
   EXPECT_EQ(ok("[16] 2 _lss_fastscan 200").value, 200u);
   EXPECT_EQ(ok("[17] LSS_STORE", d).command, Command::LssStore);  // commands are case-insensitive
+  // lely-core's gateway test session (its [11], [13], [15]): slowscan, fastscan with known bits,
+  // identify remote slave.
+  const Request slow = ok("[11] _lss_slowscan 0x360 0 0 0 0 0", d);
+  EXPECT_EQ(slow.command, Command::LssSlowscan);
+  EXPECT_EQ(slow.range, (std::array<std::uint32_t, 6>{0x360, 0, 0, 0, 0, 0}));
+  const Request known = ok("[13] _lss_fastscan 0 0xffff0000 0 0xffffffff 0 0xffffffff 0 0xffffffff", d);
+  EXPECT_EQ(known.command, Command::LssFastscan);
+  EXPECT_EQ(known.address, (std::array<std::uint32_t, 4>{0, 0, 0, 0}));
+  EXPECT_EQ(known.known_mask, (std::array<std::uint32_t, 4>{0xFFFF0000, 0xFFFFFFFF, 0xFFFFFFFF, 0xFFFFFFFF}));
+  EXPECT_EQ(fs.known_mask, std::nullopt);
+  const Request ident = ok("[15] lss_identity 0x360 0 0 0 0 0", d);
+  EXPECT_EQ(ident.command, Command::LssIdentity);
+  EXPECT_EQ(ok("[18] 2 lss_identity 0xA5A 0x402 0 0xFFFFFFFF 0 4294967295").range,
+            (std::array<std::uint32_t, 6>{0xA5A, 0x402, 0, 0xFFFFFFFF, 0, 0xFFFFFFFF}));
+  for (const auto c : {Command::LssIdentity, Command::LssSlowscan}) EXPECT_TRUE(is_lss(c));
   for (const auto c : {Command::LssSwitchGlobal, Command::LssFastscan, Command::LssStore}) EXPECT_TRUE(is_lss(c));
   for (const auto c : {Command::Read, Command::Start, Command::InfoVersion}) EXPECT_FALSE(is_lss(c));
 }
@@ -259,15 +274,23 @@ TEST(AsciiGateway, LssCommandsWithBadArguments) {
             "[16] ERROR: 101 (Syntax error: expected lss_inquire_addr [<part: 0..3 or 0x5A..0x5D (vendor, product, "
             "revision, serial)>])");
   EXPECT_EQ(refused("[17] lss_get_node 1", d), "[17] ERROR: 101 (Syntax error: expected lss_get_node)");
-  EXPECT_EQ(refused("[18] _lss_fastscan 0", d),
-            "[18] ERROR: 101 (Syntax error: expected _lss_fastscan [<step time-out in ms, 1..65535>])");
-  EXPECT_EQ(refused("[19] _lss_fastscan 0 0xffff0000 0 0xffffffff 0 0xffffffff 0 0xffffffff", d),
-            "[19] ERROR: 101 (Syntax error: expected _lss_fastscan [<step time-out in ms, 1..65535>] (lely's form "
-            "with values and masks is not supported))");
+  const std::string fastscan_usage =
+      "expected _lss_fastscan [<step time-out in ms, 1..65535>], or lely's _lss_fastscan <vendor-ID> <mask> <product "
+      "code> <mask> <revision> <mask> <serial> <mask> (a mask's 1 bits are known))";
+  EXPECT_EQ(refused("[18] _lss_fastscan 0", d), "[18] ERROR: 101 (Syntax error: " + fastscan_usage);
+  EXPECT_EQ(refused("[19] _lss_fastscan 0 0xffff0000 0 0xffffffff 0 0xffffffff 0", d),
+            "[19] ERROR: 101 (Syntax error: " + fastscan_usage);
   EXPECT_EQ(refused("[20] lss_allnodes", d),
             "[20] ERROR: 100 (Request not supported: no command 'lss_allnodes'; this gateway's LSS commands are "
             "lss_switch_glob, lss_switch_sel, lss_set_node, lss_conf_bitrate, lss_activate_bitrate, lss_store, "
-            "lss_inquire_addr, lss_get_node, lss_ident_nonconf, _lss_fastscan)");
+            "lss_inquire_addr, lss_get_node, lss_identity, lss_ident_nonconf, _lss_fastscan, _lss_slowscan)");
+  EXPECT_EQ(refused("[23] lss_identity 0x360 0 0 0 0", d),
+            "[23] ERROR: 101 (Syntax error: expected lss_identity <vendor-ID> <product code> <revision low> <revision "
+            "high> <serial low> <serial high>)");
+  EXPECT_EQ(refused("[24] _lss_slowscan 0x360 0 5 4 0 0", d),
+            "[24] ERROR: 101 (Syntax error: a range's low end above its high end (revision low..high, serial low..high))");
+  EXPECT_EQ(refused("[25] _lss_fastscan 0 0 0 0 0 0 0 0x1FFFFFFFF", d),
+            "[25] ERROR: 101 (Syntax error: '0x1FFFFFFFF' is no 32-bit number; " + fastscan_usage);
   EXPECT_EQ(answer_error(21, GatewayError::LssNodeIdNotSupported, "configure node-ID refused with LSS error code 1"),
             "[21] ERROR: 502 (LSS node-ID not supported: configure node-ID refused with LSS error code 1)");
   EXPECT_EQ(answer_error(22, GatewayError::LssMediaError), "[22] ERROR: 505 (LSS command failed because of media error)");

@@ -3,6 +3,7 @@
 // §6.3 store configuration) and the elobau manual (000_499d7da4c768c72f, §7 "Baud rate /
 // Node-ID": default node-ID 0x11, default 250 kbit/s, LSS-configurable).
 #include "canopen/305/lss_fastscan.hpp"
+#include "canopen/305/lss_slowscan.hpp"
 #include "canopen/305/lss_master.hpp"
 #include "canopen/305/lss_slave.hpp"
 
@@ -421,6 +422,7 @@ struct FastscanBench {
                    },
                    std::chrono::milliseconds(10)};
   LssFastscan fastscan{master};
+  LssSlowscan slowscan{master};
   void add(const lss::Address& a, NodeId id) {
     slaves.push_back(std::make_unique<LssSlave>(a, id, 3, [this](const CanFrame& f) {
       wire.push_back(f);
@@ -504,6 +506,78 @@ TEST(LssFastscanTest, CancelEndsItAndSendsNoFurtherStep) {
   EXPECT_EQ(got.size(), 1u);
   EXPECT_EQ(b.count(0x51), 1u);
   EXPECT_TRUE(b.master.idle());
+}
+
+// lely's `_lss_fastscan` with values and masks (its test session: "0 0xffff0000 0 0xffffffff ..."):
+// known bits are not asked. Vendor 182h with its upper 16 bits known (0): bits 15..1 asked, bit 0
+// confirmed; product, revision and serial wholly known: only their confirmations.
+TEST(LssFastscanTest, KnownBitsAreNotAsked) {
+  FastscanBench b;
+  b.add(kNovotechnik, NodeId::unconfigured_id());
+  std::optional<LssFastscan::Result> got;
+  LssFastscan::Known known{{0, kNovotechnik.product, kNovotechnik.revision, kNovotechnik.serial},
+                           {0xFFFF0000, 0xFFFFFFFF, 0xFFFFFFFF, 0xFFFFFFFF}};
+  b.fastscan.start(b.now, [&](const LssFastscan::Result& r) { got = r; }, std::nullopt, known);
+  b.run();
+  ASSERT_TRUE(got);
+  EXPECT_EQ(got->outcome, LssFastscan::Outcome::Found) << got->note;
+  EXPECT_EQ(got->address, kNovotechnik);
+  EXPECT_EQ(b.count(0x51), 1u + 15 + 1 + 3);
+  EXPECT_EQ(b.slaves[0]->mode(), lss::Mode::Configuration);
+  // The product's confirmation: the whole known value, BitChecked 0, LSSSub 1, LSSNext 2.
+  EXPECT_NE(std::find(b.wire.begin(), b.wire.end(), m({0x51, 0xE0, 0x0B, 0, 0, 0, 1, 2})), b.wire.end());
+}
+
+TEST(LssFastscanTest, KnownBitsNobodyHasEndWithoutAddress) {
+  FastscanBench b;
+  b.add(kNovotechnik, NodeId::unconfigured_id());
+  std::optional<LssFastscan::Result> got;
+  LssFastscan::Known known{{0, 0, 0, 0x0BAD}, {0, 0, 0, 0xFFFFFFFF}};  // a serial it does not have
+  b.fastscan.start(b.now, [&](const LssFastscan::Result& r) { got = r; }, std::nullopt, known);
+  b.run();
+  ASSERT_TRUE(got);
+  EXPECT_EQ(got->outcome, LssFastscan::Outcome::Lost);
+  EXPECT_EQ(got->note, "LSS fastscan: no node without node-ID has the known bits of the serial number");
+  EXPECT_EQ(b.slaves[0]->mode(), lss::Mode::Waiting);
+}
+
+// lely's `_lss_slowscan`: identify remote slave (46h..4Bh) over halves of the revision, then the
+// serial range, the lower half first; then switch state selective (40h..43h, answered 44h).
+// Two slaves in the range (a node-ID does not matter): the lower address is found and selected.
+TEST(LssSlowscanTest, FindsTheLowerAddressInTheRangeAndSelectsIt) {
+  FastscanBench b;
+  const lss::Address high{0x182, 0x0BE0, 0x00010003, 0x12345678}, low{0x182, 0x0BE0, 0x00010003, 0x1};
+  b.add(high, NodeId::unconfigured_id());
+  b.add(low, NodeId{0x11});
+  std::optional<LssSlowscan::Result> got;
+  b.slowscan.start({0x182, 0x0BE0, 0, 0xFFFFFFFF, 0, 0xFFFFFFFF}, b.now, [&](const LssSlowscan::Result& r) { got = r; });
+  // The first step: the whole range (CiA 305 §8.4.3.6: vendor, product, revision low/high, serial low/high).
+  ASSERT_GE(b.wire.size(), 6u);
+  EXPECT_EQ(b.wire[0], m({0x46, 0x82, 0x01, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(b.wire[3], m({0x49, 0xFF, 0xFF, 0xFF, 0xFF, 0, 0, 0}));
+  b.run();
+  ASSERT_TRUE(got);
+  EXPECT_EQ(got->outcome, LssSlowscan::Outcome::Found) << got->note;
+  EXPECT_EQ(got->address, low);
+  EXPECT_EQ(b.slaves[1]->mode(), lss::Mode::Configuration);
+  EXPECT_EQ(b.slaves[0]->mode(), lss::Mode::Waiting);
+  EXPECT_EQ(b.count(0x46), 1u + 32 + 32);
+  EXPECT_EQ(b.count(0x40), 1u);
+  EXPECT_LE(b.count(0x46) + b.count(0x40), std::size_t{LssSlowscan::kMaxSteps});
+  // Every identify step lasted its whole time-out (10 ms): a late answer is not the next step's.
+  EXPECT_GE(b.now, at_ms(65 * 10));
+}
+
+TEST(LssSlowscanTest, NobodyInTheRangeNoAnswerAfterOneStep) {
+  FastscanBench b;
+  b.add(kNovotechnik, NodeId::unconfigured_id());
+  std::optional<LssSlowscan::Result> got;
+  b.slowscan.start({0x360, 0, 0, 0, 0, 0}, b.now, [&](const LssSlowscan::Result& r) { got = r; });
+  b.run();
+  ASSERT_TRUE(got);
+  EXPECT_EQ(got->outcome, LssSlowscan::Outcome::NoAnswer);
+  EXPECT_EQ(b.count(0x46), 1u);
+  EXPECT_EQ(b.count(0x40), 0u);
 }
 
 }  // namespace
