@@ -129,14 +129,17 @@ void BusScanner::probe_ended(std::uint8_t id) {
   ended_ = true;
 }
 
-void BusScanner::report(bool lss) {
-  if (!on_progress) return;
+ScanProgress BusScanner::progress() const {
   ScanProgress p;
   p.probed = probed_;
   p.total = total_;
   for (const auto& [id, n] : nodes_) p.found += (n.answered_sdo || n.heard) ? 1 : 0;
-  p.lss = lss;
-  on_progress(p);
+  p.lss = lss_began_;
+  return p;
+}
+
+void BusScanner::report() {
+  if (on_progress) on_progress(progress());
 }
 
 bool BusScanner::on_frame(const CanFrame& f, TimePoint now) {
@@ -191,7 +194,7 @@ void BusScanner::advance(TimePoint now) {
         }
         it = active_.erase(it);
         ++probed_;
-        report(false);
+        report();
       }
       while (active_.size() < cfg_.parallel && !pending_.empty()) {
         const std::uint8_t id = pending_.front();
@@ -243,7 +246,8 @@ void BusScanner::after_probing(TimePoint now) {
     step_timeout = cfg_.lss_timeout;  // the shared master's own time-out is its owner's
   }
   phase_ = Phase::Lss;
-  report(true);
+  lss_began_ = true;
+  report();
   // Callbacks of a shared master may come after this scanner is gone; they take the master's time
   // (its owner fed it the answer, before this scanner saw the frame).
   const std::weak_ptr<bool> alive = alive_;

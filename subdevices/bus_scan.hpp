@@ -100,7 +100,7 @@ struct ScanProgress {
   std::size_t probed = 0;  // node-IDs whose probing ended
   std::size_t total = 0;
   std::size_t found = 0;   // nodes found so far (answered or heard)
-  bool lss = false;        // the LSS part is running
+  bool lss = false;        // the LSS part has started
 };
 
 class BusScanner {
@@ -120,7 +120,9 @@ class BusScanner {
   // The nodes found (complete once done()).
   [[nodiscard]] ScanResult result() const;
 
-  // After every node-ID probed, and when the LSS part starts.
+  // How far it is (total: the node-IDs to probe, known from start()).
+  [[nodiscard]] ScanProgress progress() const;
+  // progress() after every node-ID probed, and when the LSS part starts.
   std::function<void(const ScanProgress&)> on_progress;
   // When the LSS part ended inside a shared master's callback (its owner's call, not this
   // scanner's): next_deadline() and done() may have changed.
@@ -137,7 +139,7 @@ class BusScanner {
   void probe_ended(std::uint8_t node);
   void after_probing(TimePoint now);
   void lss_ended(TimePoint now);
-  void report(bool lss);
+  void report();
   ScannedNode& node(std::uint8_t id);
 
   FrameSink sink_;
@@ -149,6 +151,7 @@ class BusScanner {
   std::map<std::uint8_t, ScannedNode> nodes_;
   std::map<std::uint8_t, TimePoint> last_heartbeat_;
   std::size_t probed_ = 0, total_ = 0;
+  bool lss_began_ = false;  // the LSS part started (it stays so in progress())
   bool ended_ = false;  // a probe ended inside a callback: refill after it returns
   canopen::LssMaster own_lss_;
   canopen::LssFastscan own_fastscan_{own_lss_};

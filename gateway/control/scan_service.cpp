@@ -12,21 +12,12 @@ namespace sd = subdevices;
 
 namespace {
 
+// The inverse of canopen::to_string(NmtState).
 std::optional<canopen::NmtState> state_from(const std::string& s) {
-  if (s == "operational") return canopen::NmtState::Operational;
-  if (s == "pre-operational") return canopen::NmtState::PreOperational;
-  if (s == "stopped") return canopen::NmtState::Stopped;
-  if (s == "initialisation") return canopen::NmtState::Initialisation;
+  using canopen::NmtState;
+  for (const NmtState n : {NmtState::Initialisation, NmtState::Stopped, NmtState::Operational, NmtState::PreOperational})
+    if (canopen::to_string(n) == s) return n;
   return std::nullopt;
-}
-
-const char* state_name(canopen::NmtState s) {
-  switch (s) {
-    case canopen::NmtState::Operational: return "operational";
-    case canopen::NmtState::PreOperational: return "pre-operational";
-    case canopen::NmtState::Stopped: return "stopped";
-    default: return "initialisation";
-  }
 }
 
 template <class T>
@@ -67,7 +58,7 @@ json scan_result_json(const sd::ScanResult& r) {
            {"booted", n.booted},
            {"family", n.family.family},
            {"family_reason", n.family.reason}};
-    if (n.state) j["state"] = state_name(*n.state);
+    if (n.state) j["state"] = canopen::to_string(*n.state);
     put(j, "device_type", n.identity.device_type);
     put(j, "vendor_id", n.identity.vendor_id);
     put(j, "product_code", n.identity.product_code);
@@ -175,15 +166,12 @@ json ScanService::start(const json& r) {
         else if (network.client_scan_running()) s.why_not = "an `oegw ctl` fastscan or slowscan is running";
         return s;
       });
-  progress_ = {};
   result_.reset();
-  scanner_->on_progress = [this](const sd::ScanProgress& p) { progress_ = p; };
   scanner_->on_wake = [this] { settle(); };
   ++id_;
   gw_.log_control(fmt::format("scan {}: probing the node-IDs of no sub-device ({} skipped){}", id_, cfg.skip.size(),
                               cfg.lss ? ", then LSS" : ""));
   scanner_->start(loop_.now());
-  progress_.total = 127 - cfg.skip.size();
   driver_ = std::make_unique<canopen::ServiceDriver>(
       loop_, [this] { return scanner_->next_deadline(); },
       [this](canopen::TimePoint now) {
@@ -235,7 +223,7 @@ json ScanService::status(const json& r) const {
   if (id != id_)
     return json{{"gateway_error", 102}, {"message", id_ == 0 ? std::string("no scan was started")
                                                              : fmt::format("scan {} is not the last one ({})", id, id_)}};
-  json s{{"id", id_}, {"running", !result_}, {"progress", progress_json(progress_)}};
+  json s{{"id", id_}, {"running", !result_}, {"progress", progress_json(scanner_->progress())}};
   if (result_) {
     s["result"] = *result_;
     s["downstream"] = json{{"interface", config_.downstream.interface}, {"bitrate", config_.downstream.bitrate}};

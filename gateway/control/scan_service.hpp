@@ -62,7 +62,6 @@ class ScanService {
   std::unique_ptr<subdevices::BusScanner> scanner_;
   std::unique_ptr<canopen::ServiceDriver> driver_;
   std::uint64_t id_ = 0;  // the current (or last) scan; 0: none yet
-  subdevices::ScanProgress progress_;
   std::optional<nlohmann::json> result_;  // the last scan's, once done
 };
 
