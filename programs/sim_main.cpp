@@ -13,11 +13,12 @@ int main(int argc, char** argv) {
   app.add_flag("--commands", o.commands,
                "Read commands from standard input: '<device> <signal> <value>', '<device> silent on|off', "
                "'<device> heartbeat on|off', '<device> pdo on|off' (TPDOs stop; heartbeat and SDO go on), "
+               "'<device> bootup on|off' (off: its boot-ups are lost), "
                "'<device> reboot', '<device> cable_break <axis 1..4> on|off' (MCB-402: EMCY 3120h), "
                "'<device> fault measurement|overflow|underflow|hardware|clear' (Novotechnik §9.1)");
   app.add_option("devices", o.devices,
                  "family:node[:key=value,...], e.g. elobau-mfg:0x11 mcb402:0x03 "
-                 "cia401:0x30:eds=subdevices/eds/generic_pedal.eds (options: name, heartbeat_ms, store, eds; mcb402 "
+                 "cia401:0x30:eds=subdevices/eds/generic_pedal.eds (options: name, heartbeat_ms, store, bootup=off (its boot-ups lost), eds; mcb402 "
                  "wiring=1/2/3/4/5/7/6, the bit of TPDO1 byte 2 each button BP1..BP7 sets, default the "
                  "document's table as printed)")
       ->required();

@@ -93,7 +93,11 @@ NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
     // WaitingBootUp: the gateway sent NMT reset communication / reset node (begin_boot) and
     // this is its answer (CiA 301 §7.2.8.3.2.1: a node in reset sends its boot-up). Any other
     // boot-up the device did of itself (or another master did to it): a reboot seen.
-    const bool answers_reset = m->state == NodeState::WaitingBootUp;
+    // Configuring or later with the boot-up still owed: the reset's boot-up, queued behind the
+    // node's answer to the probe (Managed::boot_up_owed).
+    const bool late_answer = m->state != NodeState::WaitingBootUp && m->boot_up_owed;
+    const bool answers_reset = m->state == NodeState::WaitingBootUp || late_answer;
+    m->boot_up_owed = false;
     if (answers_reset) {
       ++counters_.gateway_resets;
       ++m->counted.gateway_resets;
@@ -107,8 +111,11 @@ NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
     // It just booted: its dictionary is at power-on values. The reason says which boot-up this
     // is, so a second one (e.g. the power-on boot-up crossing the gateway's reset on the bus,
     // then the reset's own) reads as what it is, not as the same step twice.
+    m->reset_node_sent = false;
     configure(*m, now_,
-              answers_reset                          ? "boot-up seen: checking identity and configuring"
+              late_answer ? "boot-up answering the reset after the node's SDO answer (or a reboot meanwhile, which looks "
+                            "the same): configuring from the start"
+              : answers_reset                        ? "boot-up seen: checking identity and configuring"
               : was_live                             ? "boot-up while operational (the node rebooted): configuring again"
               : m->state == NodeState::Configuring ||
                       m->state == NodeState::Starting ? "boot-up again during its configuration (the node reset): "
@@ -257,14 +264,41 @@ void NetworkManager::begin_boot(Managed& m, TimePoint now) {
   } else {
     master_.nmt().reset_communication(m.settings.node);
   }
+  m.boot_up_owed = true;
   m.deadline = now + timing_.boot_wait;
+  m.probe_gap = timing_.boot_probe_first;
+  m.probe_at.reset();
+  if (timing_.boot_probe_first.count() > 0 && timing_.boot_probe_first < timing_.boot_wait)
+    m.probe_at = now + timing_.boot_probe_first;
   set_state(m, NodeState::WaitingBootUp,
             m.reset_node_sent ? "NMT reset node sent (to clear the error it reported)" : "NMT reset communication sent", now);
 }
 
+void NetworkManager::probe(Managed& m) {
+  m.probe_at.reset();
+  const std::uint64_t gen = m.generation;
+  Managed* mp = &m;
+  canopen::SdoClient& sdo = master_.sdo(m.settings.node);
+  const Duration timeout = std::min(timing_.boot_probe_timeout, sdo.config().timeout);
+  (void)sdo.upload_within(0x1000, 0, timeout, [this, mp, gen](SdoAbortCode code, std::vector<std::uint8_t>) {
+    if (mp->generation != gen || mp->state != NodeState::WaitingBootUp) return;  // the boot-up came
+    if (code == SdoAbortCode::Timeout) {
+      // Not answered (still resetting, or absent): the next probe after twice the gap, while
+      // the wait runs; a late answer to this one is read by the next read of 1000h as its own.
+      mp->probe_gap *= 2;
+      if (mp->deadline && now_ + mp->probe_gap < *mp->deadline) mp->probe_at = now_ + mp->probe_gap;
+      return;
+    }
+    // An answer, even an abort: its SDO server runs, so it has left its reset (CiA 301
+    // §7.3.2.2.1). The identity check decides the rest.
+    configure(*mp, now_,
+              "no boot-up seen, but the node answered 1000h (it is past its reset): checking identity and configuring");
+  });
+}
+
 void NetworkManager::configure(Managed& m, TimePoint now, const std::string& why) {
   ++m.generation;
-  m.reset_node_sent = false;
+  m.probe_at.reset();
   m.deadline.reset();
   m.held.clear();
   m.driver->set_alive_since(std::nullopt);
@@ -480,6 +514,10 @@ void NetworkManager::finish(Managed& m, TimePoint now) {
 
 void NetworkManager::go_live(Managed& m, const std::string& evidence, TimePoint now) {
   m.deadline.reset();
+  // Proof of life: a heartbeat goes out on the boot-up's COB-ID after it, so no boot-up of the
+  // last reset is still queued in the node (with heartbeat_ms 0 the first PDO, after its whole
+  // configuration: long past).
+  m.boot_up_owed = false;
   m.backoff = Duration{0};
   // One output batch for what the driver re-sends (a rebooted device forgot its outputs) and
   // what the state's observers set: the device gets the current state once.
@@ -501,6 +539,7 @@ void NetworkManager::go_live(Managed& m, const std::string& evidence, TimePoint 
 
 void NetworkManager::fail(Managed& m, NodeState s, const std::string& why, TimePoint now) {
   ++m.generation;
+  m.probe_at.reset();
   m.held.clear();
   m.driver->set_alive_since(std::nullopt);
   m.backoff = m.backoff == Duration{0} ? timing_.retry_first : std::min(m.backoff * 2, timing_.retry_max);
@@ -621,6 +660,7 @@ void NetworkManager::advance(TimePoint now) {
         continue;
       }
     }
+    if (m.state == NodeState::WaitingBootUp && m.probe_at && *m.probe_at <= now && !configuring_any()) probe(m);
     if (!m.deadline || *m.deadline > now) continue;
     m.deadline.reset();
     switch (m.state) {
@@ -643,11 +683,17 @@ void NetworkManager::advance(TimePoint now) {
   }
 }
 
+bool NetworkManager::configuring_any() const {
+  return std::any_of(nodes_.begin(), nodes_.end(), [](const auto& m) { return m->state == NodeState::Configuring; });
+}
+
 std::optional<TimePoint> NetworkManager::next_deadline() const {
   std::optional<TimePoint> best = master_.next_deadline();
+  const bool configuring = configuring_any();  // probes wait (configuring_any())
   if (const auto t = lss_.next_deadline(); t && (!best || *t < *best)) best = t;
   for (const auto& m : nodes_) {
     if (m->deadline && (!best || *m->deadline < *best)) best = m->deadline;
+    if (m->probe_at && (!best || *m->probe_at < *best) && !configuring) best = m->probe_at;
     if (m->state != NodeState::Operational) continue;
     if (const auto t = m->driver->next_deadline(); t && (!best || *t < *best)) best = t;
   }

@@ -1,6 +1,11 @@
 // The downstream network manager: the gateway as NMT master of the cab's sub-devices (CiA 302
 // concepts, bus.yml vocabulary). For each configured node it
-//   1. resets communication and waits for the boot-up (or finds the node already there),
+//   1. resets communication and waits for the boot-up (or finds the node already there): a
+//      boot-up that does not come (lost on the bus, a device that sends none) is not waited
+//      out: 1000h is read from NetworkTiming::boot_probe_first on, at doubling gaps (CiA
+//      302-2's boot-slave process reads the device type of a node whatever it has seen of
+//      it), and the node's answer — SDO is served in pre-operational and operational only,
+//      never during its reset (CiA 301 §7.3.2.2.1) — starts the configuration at once,
 //   2. sends NMT enter pre-operational to the node: a node that starts itself (Novotechnik
 //      1F80h bit 3, elobau 5000h) is operational right after its boot-up, or already when the
 //      gateway first sees it, and refuses remapping and store while operational,
@@ -110,6 +115,13 @@ struct NodeCounters {
 
 struct NetworkTiming {
   Duration boot_wait = std::chrono::seconds(2);    // boot-up wait after reset communication
+  // The boot-up probe (header, step 1): the first read of 1000h this long after the reset,
+  // each awaited boot_probe_timeout (at most the SDO client's own time-out), the next after
+  // twice the previous gap, while boot_wait runs, each when no other node is being configured
+  // (NetworkManager::configuring_any()). A device that boots in time never sees one.
+  // 0: no probes (boot_wait is waited out).
+  Duration boot_probe_first = std::chrono::milliseconds(100);
+  Duration boot_probe_timeout = std::chrono::milliseconds(100);
   Duration retry_first = std::chrono::seconds(1);  // back-off starts here ...
   Duration retry_max = std::chrono::seconds(30);   // ... doubles up to here
 };
@@ -217,6 +229,15 @@ class NetworkManager {
     bool started_once = false;
     bool reset_node_next = false;  // reset_application_next(): begin_boot() sends reset node
     bool reset_node_sent = false;  // the boot-up awaited answers a reset node
+    // The boot-up answering the gateway's last reset is still owed: set by begin_boot(),
+    // cleared by a boot-up and by proof of life. A node that answered the boot-up probe (or
+    // the read after boot_wait) is configured while it is owed: the device may have queued
+    // its boot-up behind its SDO answer, which wins arbitration with its lower CAN-ID. Such a
+    // boot-up is counted as the reset's answer — and the configuration still starts over, since
+    // a reboot during it would look no different on the bus.
+    bool boot_up_owed = false;
+    std::optional<TimePoint> probe_at;  // WaitingBootUp: the next boot-up probe
+    Duration probe_gap{0};              // ... and the gap after it
     std::vector<Step> steps;
     std::size_t next_step = 0;
     InputCounters reported;  // what on_bad_input has already said
@@ -229,6 +250,12 @@ class NetworkManager {
   const Managed* find(std::string_view name) const;
   void set_state(Managed& m, NodeState s, const std::string& why, TimePoint now);
   void begin_boot(Managed& m, TimePoint now);   // reset communication, wait for boot-up
+  void probe(Managed& m);                       // WaitingBootUp: read 1000h (header, step 1)
+  // A node is being configured. The boot-up probe waits meanwhile: the configuration's SDO
+  // frames (600h/580h + node-ID) win arbitration over every boot-up (700h + node-ID), so on a
+  // busy bus a boot-up is late, not lost, and a probe answered before it would cost the node a
+  // second configuration (Managed::boot_up_owed).
+  [[nodiscard]] bool configuring_any() const;
   // Identity, boot reads, writes, start; `why` is the Configuring state's reason.
   void configure(Managed& m, TimePoint now, const std::string& why = "boot-up seen: checking identity and configuring");
   void add_identity_steps(Managed& m);          // 1000h, 1018h:01..04 (checked and kept)

@@ -37,6 +37,12 @@ SdoClient::Ticket SdoClient::upload(std::uint16_t index, std::uint8_t sub, Callb
   return ticket;
 }
 
+SdoClient::Ticket SdoClient::upload_within(std::uint16_t index, std::uint8_t sub, Duration timeout, Callback callback) {
+  const Ticket ticket = next_ticket();
+  queue_.push_back(Request{true, index, sub, {}, std::move(callback), SdoTransfer::Auto, ticket, timeout});
+  return ticket;
+}
+
 SdoClient::Ticket SdoClient::download(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data,
                                       Callback callback, SdoTransfer mode) {
   const Ticket ticket = next_ticket();
@@ -87,7 +93,7 @@ bool SdoClient::on_frame(const CanFrame& frame, TimePoint now) {
   now_ = now;
   if (!frame.rtr && state_ != State::Idle) {
     handle(frame);
-    deadline_ = now + cfg_.timeout;
+    deadline_ = now + step_timeout();
   }
   pump();
   return true;
@@ -131,7 +137,7 @@ void SdoClient::start(TimePoint now) {
     queue_.erase(queue_.begin(), queue_.begin() + static_cast<std::ptrdiff_t>(queue_head_));
     queue_head_ = 0;
   }
-  deadline_ = now + cfg_.timeout;
+  deadline_ = now + step_timeout();
   buffer_.clear();
   pos_ = 0;
   toggle_ = false;

@@ -71,6 +71,11 @@ class SdoClient {
   SdoClient(FrameSink sink, NodeId server) : SdoClient(std::move(sink), SdoClientConfig::for_node(server)) {}
 
   Ticket upload(std::uint16_t index, std::uint8_t sub, Callback callback, SdoTransfer mode = SdoTransfer::Auto);
+  // As upload(), but this request's answer is awaited `timeout` (each step of it) instead of
+  // SdoClientConfig::timeout: a probe that must not hold the channel as long as a real
+  // transfer may (the network manager's boot-up probe). A late answer after its abort is the
+  // caller's to expect: the next request to the same object reads it as its own.
+  Ticket upload_within(std::uint16_t index, std::uint8_t sub, Duration timeout, Callback callback);
   Ticket download(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data, Callback callback,
                   SdoTransfer mode = SdoTransfer::Auto);
 
@@ -123,6 +128,7 @@ class SdoClient {
     Callback callback;
     SdoTransfer mode = SdoTransfer::Auto;
     Ticket ticket = 0;
+    std::optional<Duration> timeout;  // upload_within(); else SdoClientConfig::timeout
   };
   struct Done {
     Callback callback;
@@ -151,6 +157,7 @@ class SdoClient {
   void send(std::initializer_list<std::uint8_t> bytes);
   void pump();
   Ticket next_ticket();
+  [[nodiscard]] Duration step_timeout() const { return current_.timeout.value_or(cfg_.timeout); }
 
   FrameSink sink_;
   SdoClientConfig cfg_;

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <sstream>
 
 #include "subdevices/sim/mcb402_sim.hpp"
@@ -13,11 +14,17 @@ namespace oegw::subdevices::sim {
 bool SimBench::add(const DeviceSpec& spec, std::string& error) {
   DeviceSpec sim_spec = spec;
   std::string name = spec.name();
-  std::erase_if(sim_spec.options.values, [&name](const auto& kv) {
-    if (kv.first != "name") return false;
-    name = kv.second;
+  std::optional<std::string> bootup;  // bootup=on|off: the device's boot-ups sent / lost
+  std::erase_if(sim_spec.options.values, [&name, &bootup](const auto& kv) {
+    if (kv.first == "name") name = kv.second;
+    else if (kv.first == "bootup") bootup = kv.second;
+    else return false;
     return true;
   });
+  if (bootup && *bootup != "on" && *bootup != "off") {
+    error = spec.name() + ": bootup '" + *bootup + "' is not on or off";
+    return false;
+  }
   for (const auto& e : devices_) {
     if (e.name == name) {
       error = "device name '" + name + "' used twice";
@@ -41,6 +48,7 @@ bool SimBench::add(const DeviceSpec& spec, std::string& error) {
   auto driver = make_driver(spec.family, spec.node, {}, driver_spec.options, error);
   if (!driver) return false;
   sim->set_sdo_latency(sdo_latency_);
+  sim->set_boot_up_lost(bootup == "off");
   devices_.push_back({name, std::move(sim), driver->signals()});
   return true;
 }
@@ -121,10 +129,11 @@ std::string SimBench::command(std::string_view line, TimePoint now) {
     d->reboot(now);
     return "ok " + name + " rebooted";
   }
-  if (what == "silent" || what == "heartbeat" || what == "pdo") {
+  if (what == "silent" || what == "heartbeat" || what == "pdo" || what == "bootup") {
     if (value != "on" && value != "off") return "error: " + what + " takes on or off";
     if (what == "silent") d->set_silent(value == "on");
     else if (what == "heartbeat") d->set_heartbeat_stopped(value == "off");
+    else if (what == "bootup") d->set_boot_up_lost(value == "off");
     else d->set_pdo_stopped(value == "off");
     return "ok " + name + " " + what + " " + value;
   }

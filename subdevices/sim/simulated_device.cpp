@@ -23,9 +23,9 @@ void SimulatedDevice::reboot(TimePoint now) {
 void SimulatedDevice::send(const CanFrame& frame) {
   if (silent_) return;
   // CiA 301 §7.2.8.3.2: heartbeat 700h + node-ID; the boot-up (state 00h) still goes out.
-  if (heartbeat_stopped_ && frame.id == canopen::cob::kHeartbeat + node_->node_id().value() && frame.dlc == 1 &&
-      frame.data[0] != 0)
-    return;
+  const bool on_heartbeat_cob = frame.id == canopen::cob::kHeartbeat + node_->node_id().value() && frame.dlc == 1;
+  if (heartbeat_stopped_ && on_heartbeat_cob && frame.data[0] != 0) return;
+  if (boot_up_lost_ && on_heartbeat_cob && frame.data[0] == 0) return;
   if (pdo_stopped_ && is_tpdo(frame)) return;
   if (sdo_latency_.count() > 0 && is_sdo_answer(frame)) {
     delayed_.emplace_back(now_ + sdo_latency_, frame);

@@ -43,6 +43,11 @@ class SimulatedDevice {
   [[nodiscard]] bool silent() const { return silent_; }
   // The heartbeat stops while everything else goes on (a firmware fault).
   void set_heartbeat_stopped(bool stopped) { heartbeat_stopped_ = stopped; }
+  // Its boot-ups (700h + node-ID, state 00h) never reach the bus while the heartbeat, SDO and
+  // the rest go on: a boot-up lost (sent while the transceiver was not yet up, or dropped by
+  // the master's receive queue), as a master must expect (CiA 302-2 boot-slave process).
+  void set_boot_up_lost(bool lost) { boot_up_lost_ = lost; }
+  [[nodiscard]] bool boot_up_lost() const { return boot_up_lost_; }
   // The TPDOs stop while the heartbeat, SDO, EMCY and NMT go on (e.g. a sensor task that hangs
   // while the communication task lives). A TPDO is a frame whose identifier is the COB-ID
   // (sub-index 01h) of a valid TPDO communication parameter 1800h..19FFh (CiA 301 §7.2.2) as
@@ -100,6 +105,7 @@ class SimulatedDevice {
   FrameSink sink_;
   bool silent_ = false;
   bool heartbeat_stopped_ = false;
+  bool boot_up_lost_ = false;
   bool pdo_stopped_ = false;
   std::unique_ptr<canopen::ObjectDictionary> od_;
   std::unique_ptr<canopen::Node> node_;

@@ -202,11 +202,84 @@ TEST_F(NetworkManagerTest, MissingNodeIsRetriedWithDoublingBackOff) {
   EXPECT_EQ(gaps[0], 2s + 100ms + 1s);
   EXPECT_EQ(gaps[1], 2s + 100ms + 2s);
   EXPECT_EQ(gaps[2], 2s + 100ms + 4s);
+  // Within each wait the boot-up probe read 1000h at +100 ms, then after gaps of 200, 400 and
+  // 800 ms from each time-out (+400, +900, +1800 ms), and the wait's end read it once more.
+  std::vector<Duration> reads;
+  for (const auto& r : net_.bus().log())
+    if (r.time >= resets[0] && r.time < resets[1] && r.frame == CanFrame(0x611, {0x40, 0x00, 0x10, 0, 0, 0, 0, 0}))
+      reads.push_back(std::chrono::duration_cast<Duration>(r.time - resets[0]));
+  EXPECT_EQ(reads, (std::vector<Duration>{100ms, 400ms, 900ms, 1800ms, 2s}));
   // The node appears: the next attempt brings it up.
   Device dev(net_);
   (void)dev.node->start(net_.now());
   net_.run_for(20s);
   EXPECT_EQ(manager_->state("grip"), NodeState::Operational);
+}
+
+// Issue 17: a boot-up that never arrives (lost on the bus) is not waited out for boot_wait
+// (2 s): the probe reads 1000h 100 ms after the reset, the node's answer starts its
+// configuration, and it is operational at its first heartbeat after that.
+TEST_F(NetworkManagerTest, ALostBootUpIsNotWaitedOutTheProbeFindsTheNode) {
+  Device dev(net_);
+  (void)dev.node->start(net_.now());
+  net_.settle();
+  net_.bus().drop_next(1, [](const CanFrame& f) { return f.id == 0x711 && f.dlc == 1 && f.data[0] == 0x00; });
+  const TimePoint t0 = net_.now();
+  start();
+  net_.run_for(99ms);
+  EXPECT_EQ(manager_->state("grip"), NodeState::WaitingBootUp);
+  EXPECT_EQ(net_.bus().dropped_frames(), 1u) << "the boot-up answering the reset was lost";
+  net_.run_for(1ms);
+  EXPECT_EQ(reasons_.at(1),
+            "no boot-up seen, but the node answered 1000h (it is past its reset): checking identity and configuring");
+  ASSERT_NE(manager_->state("grip"), NodeState::WaitingBootUp);
+  net_.run_for(150ms);
+  ASSERT_EQ(manager_->state("grip"), NodeState::Operational);
+  EXPECT_LT(net_.now() - t0, 2s);
+  EXPECT_EQ(manager_->node_counters("grip").reboots_seen, 0u);
+  EXPECT_EQ(manager_->node_counters("grip").gateway_resets, 0u) << "no boot-up was seen";
+  EXPECT_EQ(dev.od.get<std::uint16_t>(0x1017, 0), 100) << "configured";
+}
+
+// The probe's answer overtook the boot-up (queued in the device behind it: 591h wins
+// arbitration over 711h). The boot-up then comes during the configuration: it is the reset's
+// answer, not a reboot of the device — counted so, no application reset reported — and the
+// configuration starts over, as it must for a reboot, which would look the same. Once the node
+// has proved itself alive, a boot-up is a reboot again.
+TEST_F(NetworkManagerTest, ABootUpBehindTheProbesAnswerIsTheResetsAnswer) {
+  Device dev(net_);
+  (void)dev.node->start(net_.now());
+  net_.settle();
+  int application_resets = 0;
+  manager_->on_application_reset = [&](const std::string&) { ++application_resets; };
+  net_.bus().drop_next(1, [](const CanFrame& f) { return f.id == 0x711 && f.dlc == 1 && f.data[0] == 0x00; });
+  // The queued boot-up goes out while the gateway reads 1018h:01, the configuration under way.
+  bool injected = false;
+  net_.bus().set_tap([&](const BusRecord& r) {
+    if (!injected && r.frame == CanFrame(0x611, {0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0})) {
+      injected = true;
+      (void)net_.bus().inject(CanFrame(0x711, {0x00}), "device");
+    }
+  });
+  start();
+  net_.run_for(101ms);
+  ASSERT_TRUE(injected);
+  const auto said = [this](const std::string& why) { return std::count(reasons_.begin(), reasons_.end(), why); };
+  EXPECT_EQ(said("boot-up answering the reset after the node's SDO answer (or a reboot meanwhile, which looks the "
+                 "same): configuring from the start"),
+            1);
+  NodeCounters c = manager_->node_counters("grip");
+  EXPECT_EQ(c.gateway_resets, 1u);
+  EXPECT_EQ(c.reboots_seen, 0u);
+  EXPECT_EQ(application_resets, 0) << "a reset communication keeps the device's errors";
+  net_.run_for(300ms);
+  ASSERT_EQ(manager_->state("grip"), NodeState::Operational);
+  dev.node->nmt().reset(false, net_.now());  // now a reboot of its own
+  net_.run_for(1ms);
+  c = manager_->node_counters("grip");
+  EXPECT_EQ(c.reboots_seen, 1u);
+  EXPECT_EQ(c.gateway_resets, 1u);
+  EXPECT_EQ(application_resets, 1);
 }
 
 TEST_F(NetworkManagerTest, HeartbeatLossMarksInputsOfflineAndTheReturningNodeIsRestarted) {

@@ -224,6 +224,21 @@ TEST_F(SdoClientTest, TimeoutAbortsReportsAndStartsTheNext) {
   EXPECT_EQ(client->next_deadline(), t + 2s);
 }
 
+// upload_within(): that request alone is awaited its own time-out; the next one the client's.
+TEST_F(SdoClientTest, UploadWithinHasItsOwnTimeout) {
+  client->upload_within(0x1000, 0, 100ms, record());
+  client->upload(0x1001, 0, record());
+  go();
+  out.clear();
+  client->advance(t + 99ms);
+  EXPECT_TRUE(out.empty());
+  client->advance(t + 100ms);
+  EXPECT_EQ(out, (std::vector<CanFrame>{abort_frame(kReq, 0x1000, 0, SdoAbortCode::Timeout),
+                                        CanFrame(kReq, {0x40, 0x01, 0x10, 0x00, 0, 0, 0, 0})}));
+  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::Timeout)}));
+  EXPECT_EQ(client->next_deadline(), t + 100ms + 1s) << "the next request: SdoClientConfig::timeout";
+}
+
 TEST_F(SdoClientTest, EachServerFrameRearmsTheTimeout) {
   cfg.timeout = 100ms;
   make();

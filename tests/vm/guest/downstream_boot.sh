@@ -1,6 +1,7 @@
 #!/bin/bash
 # Guest test: the downstream side on a real SocketCAN bus. `oegw-sim` (a separate process)
-# simulates an elobau MFG grip (11h) and an MCB-402 (03h) on vcan1; `oegw master` boots them
+# simulates an elobau MFG grip (11h), an MCB-402 (03h) and a Novotechnik encoder (40h) whose
+# boot-ups are lost on vcan1; `oegw master` boots them
 # with the network manager and the drivers; candump (can-utils) records the bus, and the boot
 # sequence of each node is checked frame by frame: NMT reset communication, boot-up, identity
 # reads, configuration writes (1017h first), NMT start. Then the grip's inputs reach the driver.
@@ -13,12 +14,15 @@ oegw=$1
 sim=$2
 
 start_candump vcan1 /tmp/down.dump || fail "candump did not start"
-"$sim" -i vcan1 --motion elobau-mfg:0x11 mcb402:0x03 >/tmp/sim.log 2>&1 &
+# The Novotechnik at 40h never sends a boot-up (bootup=off: lost): the master must find it by
+# its answer to 1000h (the boot-up probe), not wait out the 2 s boot-up wait.
+"$sim" -i vcan1 --motion elobau-mfg:0x11 mcb402:0x03 novotechnik-406:0x40:bootup=off >/tmp/sim.log 2>&1 &
 sim_pid=$!
 wait_receivers vcan1 2 || fail "oegw-sim did not bind vcan1"
-timeout 60 "$oegw" master -i vcan1 --until-operational 30 elobau-mfg:0x11 mcb402:0x03:button_bits=1/2/3/4/5/7/6 >/tmp/master.log 2>&1
+timeout 60 "$oegw" master -i vcan1 --until-operational 30 elobau-mfg:0x11 mcb402:0x03:button_bits=1/2/3/4/5/7/6 \
+  novotechnik-406:0x40 >/tmp/master.log 2>&1
 rc=$?
-((rc == 0)) && pass "oegw master: both nodes operational" || fail "oegw master exit $rc"
+((rc == 0)) && pass "oegw master: the three nodes operational" || fail "oegw master exit $rc"
 # Let the inputs flow for a moment, watched by a second master run that only prints signals.
 timeout 3 "$oegw" master -i vcan1 elobau-mfg:0x11 >/tmp/signals.log 2>&1
 kill -TERM "$sim_pid"; wait "$sim_pid"
@@ -40,6 +44,35 @@ if "$PY" "$here/in_order.py" /tmp/down.dump \
   pass "MCB-402: NMT reset, boot-up, 1000h = 01070191h, vendor 58h, 1017h, event timer 1801h:05, NMT start, TPDO2"
 else
   fail "MCB-402 boot sequence"
+fi
+echo "== Novotechnik 40h, its boot-up lost"
+if "$PY" "$here/in_order.py" /tmp/down.dump \
+    '000#8240' '640#4000100000000000' '5C0#43001000.*' '000#8040' '640#4000100000000000' '5C0#43001000.*' \
+    '640#2B17100064000000' '5C0#6017100000000000' '000#0140' '740#05'; then
+  pass "encoder: NMT reset, no boot-up, 1000h probe answered, pre-operational, configured, NMT start, heartbeat"
+else
+  fail "encoder boot sequence with its boot-up lost"
+fi
+# On the wire alone: no boot-up of 40h at all, and the probe well before the 2 s wait's end
+# (100 ms after the reset once the other nodes are configured; 1 s is the margin for the VM).
+if "$PY" - /tmp/down.dump <<'PY'
+import re, sys
+frames = []
+for line in open(sys.argv[1]):
+    m = re.match(r"\((\d+\.\d+)\) \S+ (\S+)", line)
+    if m:
+        frames.append((float(m.group(1)), m.group(2)))
+if any(f == "740#00" for _, f in frames):
+    sys.exit("a boot-up 740#00 is on the wire: the simulator's option did not take")
+reset = next(t for t, f in frames if f == "000#8240")
+probe = next(t for t, f in frames if f == "640#4000100000000000" and t > reset)
+print(f"  probe {1000 * (probe - reset):.1f} ms after the reset")
+sys.exit(0 if probe - reset < 1.0 else f"the probe came {probe - reset:.3f} s after the reset")
+PY
+then
+  pass "encoder: its 1000h probed within 1 s of the reset, no boot-up on the wire"
+else
+  fail "encoder: probe timing"
 fi
 if grep -q '^signal elobau-mfg@11h\.x = -\?[0-9]* (valid)' /tmp/signals.log; then
   pass "grip x axis reaches the driver as a valid signal"
