@@ -1,5 +1,7 @@
 #include "gateway/bus_load.hpp"
 
+#include <algorithm>
+#include <initializer_list>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -27,10 +29,29 @@ double BusLoad::percent() const { return bit_rate == 0 ? 0 : 100.0 * bits_per_se
 
 namespace {
 
+// A stream whose data varies (a PDO): every frame at its worst-case length.
 void add(BusLoad& load, std::string what, std::uint32_t cob_id, std::uint8_t length, double period_ms) {
   if (period_ms <= 0) return;
   load.periodic.push_back(
       BusStream{std::move(what), cob_id, length, 1000.0 / period_ms, canopen::frame_bits_worst_case(length)});
+}
+
+// A stream whose frames are known bit for bit: its exact length (the longest of `variants`).
+void add_exact(BusLoad& load, std::string what, std::uint32_t cob_id, std::initializer_list<canopen::CanFrame> variants,
+               double period_ms) {
+  if (period_ms <= 0) return;
+  std::uint32_t bits = 0;
+  for (const auto& f : variants) bits = std::max(bits, canopen::frame_bits(f));
+  load.periodic.push_back(BusStream{std::move(what), cob_id, variants.begin()->dlc, 1000.0 / period_ms, bits, true});
+}
+
+// A heartbeat (CiA 301 §7.2.8.3.2.2: 1 byte, the NMT state): operational in the steady state, but
+// counted at the longest of operational, pre-operational and stopped, so the figure stays an upper
+// bound whatever state the host or the gateway leaves the node in.
+void add_heartbeat(BusLoad& load, std::string what, std::uint32_t cob_id, double period_ms) {
+  const auto id = static_cast<std::uint16_t>(cob_id);
+  add_exact(load, std::move(what), cob_id,
+            {canopen::CanFrame(id, {0x05}), canopen::CanFrame(id, {0x7F}), canopen::CanFrame(id, {0x04})}, period_ms);
 }
 
 std::string inhibit_bound(std::uint16_t inhibit_100us) {
@@ -41,8 +62,8 @@ std::string inhibit_bound(std::uint16_t inhibit_100us) {
 void add_subdevice(BusLoad& load, const mapping::Config& cfg, const mapping::SubdeviceConfig& s) {
   const canopen::NodeId node = s.node();
   if (s.heartbeat_ms != 0)
-    add(load, fmt::format("{} heartbeat {:03X}h, every {} ms", s.name, 0x700 + node.value(), s.heartbeat_ms),
-        0x700u + node.value(), 1, s.heartbeat_ms);
+    add_heartbeat(load, fmt::format("{} heartbeat {:03X}h, every {} ms", s.name, 0x700 + node.value(), s.heartbeat_ms),
+                  0x700u + node.value(), s.heartbeat_ms);
   std::string error;
   auto driver = sd::make_driver(s.driver, node, {}, s.options, error);
   if (!driver) throw std::runtime_error(s.where.str() + ": " + error);
@@ -74,13 +95,14 @@ BusLoadPrediction predict_bus_load(const mapping::Config& cfg) {
   p.downstream.bit_rate = cfg.downstream.bitrate;
   p.upstream.bit_rate = cfg.upstream.bitrate;
   if (cfg.downstream.sync_period_ms != 0)
-    add(p.downstream, fmt::format("SYNC 080h, every {} ms", cfg.downstream.sync_period_ms), 0x080, 0,
-        cfg.downstream.sync_period_ms);
+    add_exact(p.downstream, fmt::format("SYNC 080h, every {} ms", cfg.downstream.sync_period_ms), 0x080,
+              {canopen::CanFrame(0x080, std::initializer_list<std::uint8_t>{})}, cfg.downstream.sync_period_ms);
   for (const auto& s : cfg.subdevices) add_subdevice(p.downstream, cfg, s);
   p.downstream.on_change.push_back("the gateway's RPDOs to the sub-devices' outputs: on command");
   if (cfg.upstream.heartbeat_ms != 0)
-    add(p.upstream, fmt::format("gateway heartbeat {:03X}h, every {} ms", 0x700 + cfg.upstream.node_id, cfg.upstream.heartbeat_ms),
-        0x700u + cfg.upstream.node_id, 1, cfg.upstream.heartbeat_ms);
+    add_heartbeat(p.upstream,
+                  fmt::format("gateway heartbeat {:03X}h, every {} ms", 0x700 + cfg.upstream.node_id, cfg.upstream.heartbeat_ms),
+                  0x700u + cfg.upstream.node_id, cfg.upstream.heartbeat_ms);
   p.upstream.on_change.push_back(
       "the gateway's TPDOs (CiA 852 clause 12): disabled at power-on; once the host enables them, on change of "
       "their FE fields (event timer and inhibit time as the host writes them, 0 by default)");
@@ -88,7 +110,7 @@ BusLoadPrediction predict_bus_load(const mapping::Config& cfg) {
 }
 
 std::string describe_bus_load(const BusLoad& load, const std::string& name) {
-  std::string out = fmt::format("  {} {} bit/s: {:.1f} % steady state ({:.1f} frames/s, {:.0f} bit/s worst-case stuffing)\n",
+  std::string out = fmt::format("  {} {} bit/s: {:.1f} % steady state ({:.1f} frames/s, {:.0f} bit/s; PDOs at worst-case stuffing)\n",
                                 name, load.bit_rate, load.percent(), load.frames_per_second(), load.bits_per_second());
   for (const auto& s : load.periodic)
     out += fmt::format("    {:<58} {:7.1f}/s x {:3} bits = {:5.2f} %\n", s.what, s.per_second, s.bits,

@@ -10,9 +10,11 @@
 //   upstream    the gateway's heartbeat every upstream.heartbeat_ms. The CiA 852 default PDOs
 //               are all disabled at power-on (§12.1, event timer 0): once the host enables them
 //               they go on change only.
-// Each frame counts with its worst-case length (canopen/frame_bits.hpp: the most stuff bits its
-// data length allows, intermission included), so the prediction is an upper bound of the
-// steady state. What goes on change (a PDO without event timer, a moved input's extra PDOs, the
+// A frame whose bits are known counts with its exact length (canopen/frame_bits.hpp: its stuff
+// bits, its CRC, intermission included): SYNC, and a heartbeat at the longest of its three states
+// (05h, 7Fh, 04h). A PDO, whose data varies, counts with its worst-case length (the most stuff
+// bits its data length allows). So the prediction is an upper bound of the steady state, and
+// tight where nothing varies (the upstream bus carries only the gateway's heartbeat). What goes on change (a PDO without event timer, a moved input's extra PDOs, the
 // gateway's RPDOs to the devices' outputs, EMCYs, SDO) is listed, with the most an inhibit time
 // allows where there is one, but not counted. The publish period paces DDS/LCM, not CAN. The
 // host's own frames (its heartbeat, its RPDOs) are not in the file either.
@@ -37,7 +39,8 @@ struct BusStream {
   std::uint32_t cob_id = 0;
   std::uint8_t length = 0;  // data bytes
   double per_second = 0;
-  std::uint32_t bits = 0;   // its worst-case length on the wire
+  std::uint32_t bits = 0;   // its length on the wire: exact, else the worst case
+  bool exact = false;       // its frames are known bit for bit (SYNC, heartbeat)
   [[nodiscard]] double bits_per_second() const { return per_second * bits; }
 };
 

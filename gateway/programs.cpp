@@ -231,7 +231,7 @@ int run_check(const std::string& file) {
   // What the configuration puts on each bus with the inputs held still (gateway/bus_load.hpp).
   BusLoadPrediction load = predict_bus_load(*cfg);
   load.upstream.bit_rate = up_rate.bitrate;  // the rate oegw run uses (an LSS-stored one wins)
-  std::printf("\nbus load (steady state: periodic frames at their worst-case length; warning above %.0f %%):\n%s%s",
+  std::printf("\nbus load (steady state: periodic frames, PDOs at their worst-case length; warning above %.0f %%):\n%s%s",
               kBusLoadWarnPercent, describe_bus_load(load.upstream, "upstream").c_str(),
               describe_bus_load(load.downstream, "downstream").c_str());
   const auto pdos = cia852::default_pdos(fes, node);

@@ -299,6 +299,7 @@ void NetworkManager::probe(Managed& m) {
 void NetworkManager::configure(Managed& m, TimePoint now, const std::string& why) {
   ++m.generation;
   m.probe_at.reset();
+  m.held_since.reset();
   m.deadline.reset();
   m.held.clear();
   m.driver->set_alive_since(std::nullopt);
@@ -490,6 +491,7 @@ Duration NetworkManager::proof_deadline(const Managed& m) const {
 }
 
 void NetworkManager::finish(Managed& m, TimePoint now) {
+  m.state = NodeState::Idle;  // not among the nodes configuring_any() counts while it decides
   route(m);  // what the driver consumes may depend on what it read at boot
   // The event timers actually written decide the PDOs' freshness deadlines.
   std::vector<SdoWrite> writes;
@@ -500,6 +502,24 @@ void NetworkManager::finish(Managed& m, TimePoint now) {
     fail(m, NodeState::Refused, why, now);
     return;
   }
+  if (booting_any()) {
+    // Held (header, step 7): the other nodes' configuration keeps the bus busy with SDO frames,
+    // which win arbitration over every heartbeat; started now, this node's heartbeats could
+    // miss its consumer time behind them. A node still waiting for its boot-up is about to be
+    // configured (its boot-up may be late behind those very frames).
+    if (!m.held_since) m.held_since = now;
+    m.deadline = *m.held_since + timing_.start_hold_max;
+    set_state(m, NodeState::Configuring,
+              "configured; NMT start held while other nodes are being configured (their SDO frames would delay its "
+              "heartbeat)",
+              now);
+    return;
+  }
+  start_node(m, now);
+}
+
+void NetworkManager::start_node(Managed& m, TimePoint now) {
+  m.held_since.reset();
   if (m.settings.heartbeat_ms != 0) (void)master_.monitor_heartbeat(m.settings.node, consumer_ms(m));
   master_.nmt().start(m.settings.node);
   m.started_once = true;
@@ -540,6 +560,7 @@ void NetworkManager::go_live(Managed& m, const std::string& evidence, TimePoint 
 void NetworkManager::fail(Managed& m, NodeState s, const std::string& why, TimePoint now) {
   ++m.generation;
   m.probe_at.reset();
+  m.held_since.reset();
   m.held.clear();
   m.driver->set_alive_since(std::nullopt);
   m.backoff = m.backoff == Duration{0} ? timing_.retry_first : std::min(m.backoff * 2, timing_.retry_max);
@@ -661,6 +682,10 @@ void NetworkManager::advance(TimePoint now) {
       }
     }
     if (m.state == NodeState::WaitingBootUp && m.probe_at && *m.probe_at <= now && !configuring_any()) probe(m);
+    if (m.state == NodeState::Configuring && m.held_since && !booting_any()) {
+      start_node(m, now);
+      continue;
+    }
     if (!m.deadline || *m.deadline > now) continue;
     m.deadline.reset();
     switch (m.state) {
@@ -676,6 +701,9 @@ void NetworkManager::advance(TimePoint now) {
              now);
         break;
       }
+      case NodeState::Configuring:
+        if (m.held_since) start_node(m, now);  // held long enough (NetworkTiming::start_hold_max)
+        break;
       case NodeState::Missing:
       case NodeState::Refused: begin_boot(m, now); break;
       default: break;
@@ -684,16 +712,27 @@ void NetworkManager::advance(TimePoint now) {
 }
 
 bool NetworkManager::configuring_any() const {
-  return std::any_of(nodes_.begin(), nodes_.end(), [](const auto& m) { return m->state == NodeState::Configuring; });
+  return std::any_of(nodes_.begin(), nodes_.end(),
+                     [](const auto& m) { return m->state == NodeState::Configuring && !m->held_since; });
+}
+
+bool NetworkManager::booting_any() const {
+  return configuring_any() ||
+         std::any_of(nodes_.begin(), nodes_.end(), [this](const auto& m) {
+           // A node whose probe went unanswered is likely absent: it holds no one.
+           return m->state == NodeState::WaitingBootUp && m->probe_gap <= timing_.boot_probe_first;
+         });
 }
 
 std::optional<TimePoint> NetworkManager::next_deadline() const {
   std::optional<TimePoint> best = master_.next_deadline();
   const bool configuring = configuring_any();  // probes wait (configuring_any())
+  const bool booting = booting_any();          // held starts wait (booting_any())
   if (const auto t = lss_.next_deadline(); t && (!best || *t < *best)) best = t;
   for (const auto& m : nodes_) {
     if (m->deadline && (!best || *m->deadline < *best)) best = m->deadline;
     if (m->probe_at && (!best || *m->probe_at < *best) && !configuring) best = m->probe_at;
+    if (m->held_since && !booting) best = now_;  // its start is due
     if (m->state != NodeState::Operational) continue;
     if (const auto t = m->driver->next_deadline(); t && (!best || *t < *best)) best = t;
   }

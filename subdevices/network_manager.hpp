@@ -20,7 +20,13 @@
 //   6. refuses the node when a TPDO it uses is synchronous (transmission type 0..240) and the
 //      master produces no SYNC (MasterConfig::sync_period 0): those PDOs would never come;
 //      with SYNC, a type n TPDO's freshness deadline is kMissedPeriods × n × the SYNC period,
-//   7. starts heartbeat monitoring and sends NMT start (state `starting`),
+//   7. starts heartbeat monitoring and sends NMT start (state `starting`) — once no other node
+//      is being configured or waits for its boot-up (or after NetworkTiming::start_hold_max),
+//      so the whole boot's configurations come first and the starts together: their SDO frames (580h/600h
+//      + node-ID) win arbitration over every heartbeat (700h + node-ID), so a boot that keeps
+//      the bus busy with configurations (many nodes, a slow bus) would delay the heartbeats of
+//      the nodes already started past their consumer time, and each node lost would be booted
+//      again: a cascade. Held, the node stays `configuring` (its reason says so),
 //   8. waits for proof of life: the first heartbeat reporting operational after the NMT start
 //      (with heartbeat_ms 0: the first PDO), within the consumer time counted from the NMT
 //      start; only then is the node operational and its driver told it is online. CiA 301's
@@ -122,6 +128,9 @@ struct NetworkTiming {
   // 0: no probes (boot_wait is waited out).
   Duration boot_probe_first = std::chrono::milliseconds(100);
   Duration boot_probe_timeout = std::chrono::milliseconds(100);
+  // The longest a configured node's NMT start is held while other nodes are being configured
+  // (header, step 7): one node that keeps rebooting does not hold the others for ever.
+  Duration start_hold_max = std::chrono::seconds(2);
   Duration retry_first = std::chrono::seconds(1);  // back-off starts here ...
   Duration retry_max = std::chrono::seconds(30);   // ... doubles up to here
 };
@@ -237,6 +246,7 @@ class NetworkManager {
     // a reboot during it would look no different on the bus.
     bool boot_up_owed = false;
     std::optional<TimePoint> probe_at;  // WaitingBootUp: the next boot-up probe
+    std::optional<TimePoint> held_since;  // Configuring: configured, its NMT start held (step 7)
     Duration probe_gap{0};              // ... and the gap after it
     std::vector<Step> steps;
     std::size_t next_step = 0;
@@ -256,6 +266,10 @@ class NetworkManager {
   // busy bus a boot-up is late, not lost, and a probe answered before it would cost the node a
   // second configuration (Managed::boot_up_owed).
   [[nodiscard]] bool configuring_any() const;
+  // configuring_any(), or a node waits for its boot-up (its configuration is next) and has
+  // left no boot-up probe unanswered (else it is likely absent): a configured node's NMT start
+  // is held meanwhile (header, step 7).
+  [[nodiscard]] bool booting_any() const;
   // Identity, boot reads, writes, start; `why` is the Configuring state's reason.
   void configure(Managed& m, TimePoint now, const std::string& why = "boot-up seen: checking identity and configuring");
   void add_identity_steps(Managed& m);          // 1000h, 1018h:01..04 (checked and kept)
@@ -266,7 +280,8 @@ class NetworkManager {
   void count_frame(const CanFrame& frame);  // NodeCounters::frames of its sender
   void report_bad_input(Managed& m);
   void report_once(std::uint64_t& seen, std::uint64_t now_count, const std::string& name, const char* what);  // (re)builds the COB-ID routing of a node's TPDOs
-  void finish(Managed& m, TimePoint now);                           // NMT start: Starting
+  void finish(Managed& m, TimePoint now);                           // configured: start, or hold the start
+  void start_node(Managed& m, TimePoint now);                       // NMT start: Starting
   void go_live(Managed& m, const std::string& evidence, TimePoint now);  // proof of life seen
   [[nodiscard]] Duration proof_deadline(const Managed& m) const;
   void fail(Managed& m, NodeState s, const std::string& why, TimePoint now);

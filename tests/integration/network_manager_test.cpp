@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <optional>
 
 #include "canopen/node.hpp"
 #include "virtual_network.hpp"
@@ -280,6 +281,39 @@ TEST_F(NetworkManagerTest, ABootUpBehindTheProbesAnswerIsTheResetsAnswer) {
   EXPECT_EQ(c.reboots_seen, 1u);
   EXPECT_EQ(c.gateway_resets, 1u);
   EXPECT_EQ(application_resets, 1);
+}
+
+// Issue 17 (the full set at 250 kbit/s did not boot): a configured node's NMT start is held
+// while another node waits for its boot-up or is being configured — their SDO frames would
+// delay its heartbeats past the consumer time — but not for a node that left a probe
+// unanswered (likely absent): here 12h, absent, whose probe (at +100 ms) times out at +200 ms.
+TEST_F(NetworkManagerTest, TheStartWaitsForTheOtherNodesBootButNotForAnAbsentOne) {
+  auto other = std::make_unique<ByteDriver>(NodeId{0x12}, net_.sink("gateway"));
+  ASSERT_TRUE(manager_->add(NodeSettings{.name = "absent", .node = NodeId{0x12}, .heartbeat_ms = 100}, std::move(other)));
+  Device dev(net_);
+  (void)dev.node->start(net_.now());
+  net_.settle();
+  std::optional<TimePoint> started, probe_timed_out;
+  net_.bus().set_tap([&](const BusRecord& r) {
+    if (r.frame == CanFrame(0x000, {0x01, 0x11})) started = r.time;
+    if (r.frame.id == 0x612 && r.frame.data[0] == 0x80) probe_timed_out = r.time;  // the probe's abort
+  });
+  const TimePoint t0 = net_.now();
+  start();
+  net_.run_for(50ms);
+  EXPECT_EQ(manager_->state("grip"), NodeState::Configuring);
+  EXPECT_EQ(reasons_.back(),
+            "configured; NMT start held while other nodes are being configured (their SDO frames would delay its "
+            "heartbeat)");
+  EXPECT_FALSE(started);
+  net_.run_for(200ms);
+  ASSERT_TRUE(started) << "held for ever";
+  ASSERT_TRUE(probe_timed_out);
+  EXPECT_EQ(*probe_timed_out - t0, 200ms);
+  EXPECT_EQ(*started, *probe_timed_out) << "released when the absent node's probe went unanswered";
+  net_.run_for(200ms);
+  EXPECT_EQ(manager_->state("grip"), NodeState::Operational);
+  EXPECT_EQ(manager_->state("absent"), NodeState::WaitingBootUp);
 }
 
 TEST_F(NetworkManagerTest, HeartbeatLossMarksInputsOfflineAndTheReturningNodeIsRestarted) {
