@@ -265,11 +265,11 @@ void NetworkManager::begin_boot(Managed& m, TimePoint now) {
     master_.nmt().reset_communication(m.settings.node);
   }
   m.boot_up_owed = true;
+  m.held_since.reset();
   m.deadline = now + timing_.boot_wait;
   m.probe_gap = timing_.boot_probe_first;
   m.probe_at.reset();
-  if (timing_.boot_probe_first.count() > 0 && timing_.boot_probe_first < timing_.boot_wait)
-    m.probe_at = now + timing_.boot_probe_first;
+  if (probes_on()) m.probe_at = now + timing_.boot_probe_first;
   set_state(m, NodeState::WaitingBootUp,
             m.reset_node_sent ? "NMT reset node sent (to clear the error it reported)" : "NMT reset communication sent", now);
 }
@@ -719,8 +719,9 @@ bool NetworkManager::configuring_any() const {
 bool NetworkManager::booting_any() const {
   return configuring_any() ||
          std::any_of(nodes_.begin(), nodes_.end(), [this](const auto& m) {
-           // A node whose probe went unanswered is likely absent: it holds no one.
-           return m->state == NodeState::WaitingBootUp && m->probe_gap <= timing_.boot_probe_first;
+           // A node whose probe went unanswered is likely absent: it holds no one; nor, with
+           // no probes (NetworkTiming), one that would be waited out for boot_wait.
+           return m->state == NodeState::WaitingBootUp && probes_on() && m->probe_gap <= timing_.boot_probe_first;
          });
 }
 
@@ -732,7 +733,7 @@ std::optional<TimePoint> NetworkManager::next_deadline() const {
   for (const auto& m : nodes_) {
     if (m->deadline && (!best || *m->deadline < *best)) best = m->deadline;
     if (m->probe_at && (!best || *m->probe_at < *best) && !configuring) best = m->probe_at;
-    if (m->held_since && !booting) best = now_;  // its start is due
+    if (m->state == NodeState::Configuring && m->held_since && !booting) best = now_;  // its start is due
     if (m->state != NodeState::Operational) continue;
     if (const auto t = m->driver->next_deadline(); t && (!best || *t < *best)) best = t;
   }

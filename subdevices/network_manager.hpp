@@ -246,8 +246,8 @@ class NetworkManager {
     // a reboot during it would look no different on the bus.
     bool boot_up_owed = false;
     std::optional<TimePoint> probe_at;  // WaitingBootUp: the next boot-up probe
-    std::optional<TimePoint> held_since;  // Configuring: configured, its NMT start held (step 7)
     Duration probe_gap{0};              // ... and the gap after it
+    std::optional<TimePoint> held_since;  // Configuring: configured, its NMT start held (step 7)
     std::vector<Step> steps;
     std::size_t next_step = 0;
     InputCounters reported;  // what on_bad_input has already said
@@ -270,6 +270,9 @@ class NetworkManager {
   // left no boot-up probe unanswered (else it is likely absent): a configured node's NMT start
   // is held meanwhile (header, step 7).
   [[nodiscard]] bool booting_any() const;
+  [[nodiscard]] bool probes_on() const {
+    return timing_.boot_probe_first.count() > 0 && timing_.boot_probe_first < timing_.boot_wait;
+  }
   // Identity, boot reads, writes, start; `why` is the Configuring state's reason.
   void configure(Managed& m, TimePoint now, const std::string& why = "boot-up seen: checking identity and configuring");
   void add_identity_steps(Managed& m);          // 1000h, 1018h:01..04 (checked and kept)

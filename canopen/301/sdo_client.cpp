@@ -92,8 +92,12 @@ bool SdoClient::on_frame(const CanFrame& frame, TimePoint now) {
   if (!matches(cfg_.response_cob, frame)) return false;
   now_ = now;
   if (!frame.rtr && state_ != State::Idle) {
-    handle(frame);
-    deadline_ = now + step_timeout();
+    if (stale(frame)) {
+      ++stale_answers_;  // an earlier request's late answer: not this one's, which is still awaited
+    } else {
+      handle(frame);
+      deadline_ = now + step_timeout();
+    }
   }
   pump();
   return true;
@@ -184,6 +188,18 @@ void SdoClient::start(TimePoint now) {
   std::array<std::uint8_t, 8> out{0x21, lo, hi, sub};
   put_u32(out.data() + 4, static_cast<std::uint32_t>(size_));
   send(out);
+}
+
+bool SdoClient::stale(const CanFrame& f) const {
+  // Only an initiate answer (or an abort) names its object; a segment names none.
+  const bool initiate = state_ == State::UploadInitiate || state_ == State::DownloadInitiate ||
+                        state_ == State::BlockDownloadInitiate || state_ == State::BlockUploadInitiate;
+  if (!initiate || f.dlc != 8) return false;
+  const std::uint8_t scs = f.data[0] >> 5;
+  // Upload (2), download (3), block download (5), block upload (6) initiate answers and aborts
+  // (4) carry the request's multiplexor (CiA 301 §7.2.4.3.3 ff., §7.2.4.3.17).
+  if (scs != 2 && scs != 3 && scs != 4 && scs != 5 && scs != 6) return false;
+  return !mux_matches(f.data.data());
 }
 
 bool SdoClient::mux_matches(const std::uint8_t* d) const {

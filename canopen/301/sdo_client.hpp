@@ -74,7 +74,8 @@ class SdoClient {
   // As upload(), but this request's answer is awaited `timeout` (each step of it) instead of
   // SdoClientConfig::timeout: a probe that must not hold the channel as long as a real
   // transfer may (the network manager's boot-up probe). A late answer after its abort is the
-  // caller's to expect: the next request to the same object reads it as its own.
+  // caller's to expect: the next request to the same object reads it as its own, a request to
+  // another object drops it (stale_answers()).
   Ticket upload_within(std::uint16_t index, std::uint8_t sub, Duration timeout, Callback callback);
   Ticket download(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data, Callback callback,
                   SdoTransfer mode = SdoTransfer::Auto);
@@ -101,6 +102,14 @@ class SdoClient {
   // after this returns unless called from a callback. False (nothing done) if the ticket is
   // unknown or its transfer has finished.
   bool cancel(Ticket ticket, SdoAbortCode code);
+
+  // Answers dropped as stale: while a request waits for its initiate answer, a frame naming
+  // another object (index/sub-index) is an earlier request's late answer — one that timed out
+  // or was cancelled, answered after its abort. CiA 301 SDO frames carry no transaction
+  // number; the multiplexor the server echoes is all that tells them apart. Taking it for this
+  // request's answer, or aborting this request over it, would put every later answer one request
+  // off; it is dropped, and this request's own answer (or time-out) ends it.
+  [[nodiscard]] std::uint64_t stale_answers() const { return stale_answers_; }
 
   [[nodiscard]] bool busy() const { return state_ != State::Idle; }
   [[nodiscard]] std::size_t queued() const { return queue_.size() - queue_head_; }
@@ -150,6 +159,7 @@ class SdoClient {
   void send_download_segment();
   void send_download_sub_block();
   [[nodiscard]] bool mux_matches(const std::uint8_t* d) const;
+  [[nodiscard]] bool stale(const CanFrame& f) const;  // see stale_answers()
 
   void finish(SdoAbortCode code);
   void abort(SdoAbortCode code);  // sends the abort frame, then finish(code)
@@ -186,6 +196,7 @@ class SdoClient {
   std::size_t done_head_ = 0;
   bool pumping_ = false;
   Ticket last_ticket_ = 0;
+  std::uint64_t stale_answers_ = 0;
 };
 
 }  // namespace oegw::canopen

@@ -316,6 +316,39 @@ TEST_F(NetworkManagerTest, TheStartWaitsForTheOtherNodesBootButNotForAnAbsentOne
   EXPECT_EQ(manager_->state("absent"), NodeState::WaitingBootUp);
 }
 
+// A probe that timed out is answered late (the device queued it during its reset), after the
+// boot-up started the configuration: its answer is taken for the configuration's own 1000h
+// read (same object, same value), and that read's real answer, arriving while 1018h:01 is
+// asked, is dropped as stale (SdoClient::stale_answers) — it was taken for the 1018h:01 answer
+// and the node refused (abort 08000000h) before.
+TEST_F(NetworkManagerTest, ALateAnswerToATimedOutProbeDoesNotShiftTheConfiguration) {
+  Device dev(net_);
+  (void)dev.node->start(net_.now());
+  net_.settle();
+  // Its boot-up lost; the probe (+100 ms) reaches it still resetting: no answer, the probe
+  // times out at +200 ms (one drop_next for both: it holds one rule at a time).
+  net_.bus().drop_next(2, [](const CanFrame& f) {
+    return (f.id == 0x711 && f.dlc == 1 && f.data[0] == 0x00) || (f.id == 0x591 && f.data[1] == 0x00 && f.data[2] == 0x10);
+  });
+  start();
+  net_.run_for(250ms);
+  ASSERT_EQ(manager_->state("grip"), NodeState::WaitingBootUp) << ::testing::PrintToString(reasons_);
+  // Its boot-up now, and the late answer to the probe while the configuration reads 1000h.
+  bool injected = false;
+  net_.bus().set_tap([&](const BusRecord& r) {
+    if (!injected && r.frame == CanFrame(0x611, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0})) {
+      injected = true;
+      (void)net_.bus().inject(CanFrame(0x591, {0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}), "device");
+    }
+  });
+  net_.sink("device")(CanFrame(0x711, {0x00}));
+  net_.run_for(300ms);
+  ASSERT_TRUE(injected);
+  EXPECT_EQ(manager_->state("grip"), NodeState::Operational) << reasons_.back();
+  EXPECT_EQ(std::count(states_.begin(), states_.end(), NodeState::Refused), 0);
+  EXPECT_EQ(master_->sdo(kNode).stale_answers(), 1u);
+}
+
 TEST_F(NetworkManagerTest, HeartbeatLossMarksInputsOfflineAndTheReturningNodeIsRestarted) {
   Device dev(net_);
   (void)dev.node->start(net_.now());

@@ -291,12 +291,26 @@ TEST_F(SdoClientTest, ProtocolErrorsFromTheServer) {
   client->upload(0x1008, 0, record());
   go();
   EXPECT_EQ(srv({0x43, 0x08, 0x10, 0x00}), aborted(0x1008, 0, SdoAbortCode::UnknownCommandSpecifier));
-  // Answer for another object.
+  EXPECT_EQ(results.size(), 2u);
+  EXPECT_EQ(results[1], failed(SdoAbortCode::UnknownCommandSpecifier));
+}
+
+// An answer naming another object while a request awaits its initiate answer is an earlier
+// request's late answer (e.g. after its time-out): dropped and counted, the time-out not
+// re-armed, and the request's own answer completes it — not one request off, not aborted.
+TEST_F(SdoClientTest, AnAnswerForAnotherObjectIsStaleAndDropped) {
+  cfg.timeout = 100ms;
+  make();
   client->upload(0x1008, 0, record());
   go();
-  EXPECT_EQ(srv({0x43, 0x09, 0x10, 0x00, 1, 2, 3, 4}), aborted(0x1008, 0, SdoAbortCode::GeneralError));
-  EXPECT_EQ(results.size(), 3u);
-  EXPECT_EQ(results[1], failed(SdoAbortCode::UnknownCommandSpecifier));
+  t += 50ms;
+  EXPECT_EQ(srv({0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}), none()) << "1000h's late answer";
+  EXPECT_EQ(srv(abort_frame(kResp, 0x1001, 0, SdoAbortCode::Timeout)), none()) << "a late abort of 1001h";
+  EXPECT_TRUE(results.empty());
+  EXPECT_EQ(client->stale_answers(), 2u);
+  EXPECT_EQ(client->next_deadline(), t - 50ms + 100ms) << "not re-armed by a stale answer";
+  EXPECT_EQ(srv({0x4F, 0x08, 0x10, 0x00, 0x41, 0, 0, 0}), none());
+  EXPECT_EQ(results, (std::vector<Result>{ok({0x41})}));
 }
 
 TEST_F(SdoClientTest, FramesWhileIdleOrOnOtherIdsAreIgnored) {
