@@ -51,10 +51,27 @@ int run_sim(const SimOptions& options) {
   }
   port = open_bus(options.interface);
   if (!port) return 2;
+  // The port's acceptance filter, as a real device's controller has one: the data frames on the
+  // devices' own TPDO COB-IDs are dropped by the kernel (one producer per COB-ID: such a frame is
+  // never for them). So a test that sends a device's PDOs in its stead (vm_latency's probe, the
+  // grip's TPDO #0 while `grip pdo off`) does not wake this process for each of them, a cost a
+  // real device would not put on the gateway's CPU. Set again whenever a frame a device took or
+  // a command may have changed a TPDO's COB-ID (an SDO write to 1800h..19FFh, NMT reset, reboot).
+  std::vector<CobId> filtered;
+  const auto refilter = [&] {
+    auto ids = bench.tpdo_cob_ids();
+    if (ids == filtered) return;
+    try {
+      port->set_filters(all_but_data_frames_on(ids), true);
+      filtered = std::move(ids);
+    } catch (const CanOpenError& e) {
+      spdlog::warn("interface: {} (every frame is read)", e.what());
+    }
+  };
   EventLoop loop;
   ServiceDriver driver(loop, bench);
   port->set_receiver([&](const CanFrame& f, TimePoint t) {
-    bench.on_frame(f, t);
+    if (bench.on_frame(f, t)) refilter();
     driver.rearm();
   });
   watch_transport(loop, *port);
@@ -80,11 +97,13 @@ int run_sim(const SimOptions& options) {
         if (!line.empty()) std::printf("%s\n", bench.command(line, loop.now()).c_str());
         std::fflush(stdout);
       }
+      refilter();
       driver.rearm();
     });
   }
   loop.handle_signals({SIGINT, SIGTERM});
   bench.start(loop.now());
+  refilter();
   driver.rearm();
   std::string names;
   for (const auto& n : bench.names()) names += " " + n;

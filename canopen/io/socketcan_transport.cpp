@@ -61,6 +61,23 @@ void set_option(int fd, int level, int option, const T* value, std::size_t size,
   }
 }
 
+// SocketCanOptions::filters and join_filters on socket `fd`; nullopt: every frame (CAN_RAW's own
+// default, one filter with mask 0).
+void apply_filters(int fd, const std::optional<std::vector<CanFilter>>& filters, bool join,
+                   const std::string& interface) {
+  std::vector<::can_filter> k;
+  if (filters) {
+    k.reserve(filters->size());
+    for (const CanFilter& f : *filters) k.push_back(socketcan::to_kernel(f));
+  } else {
+    k.push_back(::can_filter{0, 0});
+  }
+  const int on = join && filters ? 1 : 0;
+  set_option(fd, SOL_CAN_RAW, CAN_RAW_JOIN_FILTERS, &on, sizeof on, "CAN_RAW_JOIN_FILTERS", interface);
+  set_option(fd, SOL_CAN_RAW, CAN_RAW_FILTER, k.data(), k.size() * sizeof(::can_filter), "CAN_RAW_FILTER",
+             interface);
+}
+
 // SocketCanOptions::rx_buffer_bytes: SO_RCVBUFFORCE (CAP_NET_ADMIN: past net.core.rmem_max),
 // else SO_RCVBUF (capped at rmem_max). Both take half the kernel's figure: the kernel doubles
 // the value for its sk_buff overhead (socket(7)). Never fatal: the default buffer still works,
@@ -179,8 +196,8 @@ std::vector<BusEvent> decode_error_frame(const ::can_frame& k) {
   ::can_filter k{};
   const canid_t id_mask = filter.extended ? CAN_EFF_MASK : CAN_SFF_MASK;
   k.can_id = (filter.id & id_mask) | (filter.extended ? CAN_EFF_FLAG : 0U);
-  // Always compare the frame format, never the RTR bit: data and remote frames both match.
-  k.can_mask = (filter.mask & id_mask) | CAN_EFF_FLAG;
+  // Always compare the frame format; the RTR bit (clear: a data frame) only for data_only.
+  k.can_mask = (filter.mask & id_mask) | CAN_EFF_FLAG | (filter.data_only ? CAN_RTR_FLAG : 0U);
   if (filter.invert) k.can_id |= CAN_INV_FILTER;
   return k;
 }
@@ -203,6 +220,17 @@ std::optional<TimePoint> StampMapper::map(const timespec& stamp, TimePoint now) 
 
 }  // namespace socketcan
 
+std::optional<std::vector<CanFilter>> all_but_data_frames_on(const std::vector<CobId>& cob_ids) {
+  if (cob_ids.empty()) return std::nullopt;
+  std::vector<CanFilter> filters;
+  filters.reserve(cob_ids.size());
+  for (const CobId cob : cob_ids) {
+    filters.push_back(CanFilter{.id = cob.can_id(), .mask = 0x1FFFFFFFu, .extended = cob.extended(), .invert = true,
+                                .data_only = true});
+  }
+  return filters;
+}
+
 // ---- the transport ------------------------------------------------------------------------
 
 std::unique_ptr<SocketCanTransport> SocketCanTransport::open(const std::string& interface, SocketCanOptions options) {
@@ -222,13 +250,7 @@ std::unique_ptr<SocketCanTransport> SocketCanTransport::open(const std::string& 
   }
   const int index = check_can_interface(interface);
 
-  if (options.filters) {
-    std::vector<::can_filter> k;
-    k.reserve(options.filters->size());
-    for (const CanFilter& f : *options.filters) k.push_back(socketcan::to_kernel(f));
-    set_option(s.get(), SOL_CAN_RAW, CAN_RAW_FILTER, k.data(), k.size() * sizeof(::can_filter), "CAN_RAW_FILTER",
-               interface);
-  }
+  if (options.filters) apply_filters(s.get(), options.filters, options.join_filters, interface);
   const can_err_mask_t err_mask = options.error_mask & CAN_ERR_MASK;
   set_option(s.get(), SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &err_mask, sizeof err_mask, "CAN_RAW_ERR_FILTER", interface);
   const int loopback = options.loopback ? 1 : 0;
@@ -258,6 +280,10 @@ std::unique_ptr<SocketCanTransport> SocketCanTransport::open(const std::string& 
       new SocketCanTransport(s.release(), interface, index, std::max<std::size_t>(options.max_batch, 1)));
   t->rx_buffer_capped_ = capped;
   return t;
+}
+
+void SocketCanTransport::set_filters(const std::optional<std::vector<CanFilter>>& filters, bool join) {
+  apply_filters(fd_, filters, join, interface_);
 }
 
 std::size_t SocketCanTransport::rx_buffer_bytes() const {

@@ -38,14 +38,20 @@
 namespace oegw::canopen {
 
 // One receive filter: a frame matches if (frame id & mask) == (id & mask) and its format
-// (11/29-bit) is that of `extended`. Data and remote frames both match. `invert` matches
-// everything else. Several filters are OR-ed.
+// (11/29-bit) is that of `extended`. Data and remote frames both match, unless `data_only`:
+// then remote frames never do. `invert` matches everything else. Several filters are OR-ed, or
+// AND-ed with SocketCanOptions::join_filters (so inverted filters exclude several identifiers).
 struct CanFilter {
   std::uint32_t id = 0;
   std::uint32_t mask = 0;
   bool extended = false;
   bool invert = false;
+  bool data_only = false;
 };
+
+// Filters that pass every frame but the data frames on `cob_ids` (remote frames on them still
+// pass): for SocketCanOptions::join_filters = true. An empty list gives nullopt (every frame).
+[[nodiscard]] std::optional<std::vector<CanFilter>> all_but_data_frames_on(const std::vector<CobId>& cob_ids);
 
 // The error classes received by default: controller state, bus-off, restarts, TX timeouts,
 // protocol/transceiver errors and missing ACKs. Not lost arbitration nor bus errors, which can
@@ -57,6 +63,8 @@ inline constexpr std::uint32_t kDefaultCanErrorMask = CAN_ERR_TX_TIMEOUT | CAN_E
 struct SocketCanOptions {
   // nullopt: receive every frame. An empty list: receive no data frames (error frames only).
   std::optional<std::vector<CanFilter>> filters;
+  // CAN_RAW_JOIN_FILTERS (Linux 4.1): a frame must match every filter rather than one of them.
+  bool join_filters = false;
   std::uint32_t error_mask = kDefaultCanErrorMask;  // CAN_ERR_* classes; 0 = no error frames
   bool loopback = true;                               // CAN_RAW_LOOPBACK
   bool receive_own = false;                           // CAN_RAW_RECV_OWN_MSGS
@@ -179,6 +187,9 @@ class SocketCanTransport final : public CanTransport {
   // accounting: sk_buff overhead included), and whether it is less than SocketCanOptions asked.
   [[nodiscard]] std::size_t rx_buffer_bytes() const;
   [[nodiscard]] bool rx_buffer_capped() const { return rx_buffer_capped_; }
+  // Replaces the receive filters while open (as SocketCanOptions::filters and join_filters);
+  // frames already queued stay. Throws CanOpenError(SystemError) if the kernel refuses them.
+  void set_filters(const std::optional<std::vector<CanFilter>>& filters, bool join);
 
  private:
   SocketCanTransport(int fd, std::string interface, int index, std::size_t max_batch);

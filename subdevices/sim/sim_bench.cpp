@@ -1,5 +1,6 @@
 #include "subdevices/sim/sim_bench.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <optional>
@@ -66,6 +67,17 @@ bool SimBench::on_frame(const CanFrame& frame, TimePoint now) {
   bool used = false;
   for (auto& e : devices_) used = e.sim->on_frame(frame, now) || used;  // NMT/SYNC reach every node
   return used;
+}
+
+std::vector<canopen::CobId> SimBench::tpdo_cob_ids() const {
+  std::vector<canopen::CobId> ids;
+  for (const auto& e : devices_) {
+    const auto own = e.sim->tpdo_cob_ids();
+    ids.insert(ids.end(), own.begin(), own.end());
+  }
+  std::sort(ids.begin(), ids.end(), [](canopen::CobId a, canopen::CobId b) { return a.raw() < b.raw(); });
+  ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
+  return ids;
 }
 
 void SimBench::advance(TimePoint now) {

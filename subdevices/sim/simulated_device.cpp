@@ -1,5 +1,7 @@
 #include "subdevices/sim/simulated_device.hpp"
 
+#include <algorithm>
+
 namespace oegw::subdevices::sim {
 
 void SimulatedDevice::build(std::unique_ptr<canopen::ObjectDictionary> od, const canopen::NodeConfig& config) {
@@ -50,17 +52,25 @@ void SimulatedDevice::release_answers(TimePoint now) {
   }
 }
 
-bool SimulatedDevice::is_tpdo(const CanFrame& frame) const {
+std::vector<canopen::CobId> SimulatedDevice::tpdo_cob_ids() const {
   // CiA 301 §7.5.2.35: TPDO communication parameters at 1800h..19FFh, COB-ID in sub-index 01h
   // (bit 31 set: the PDO does not exist / is not valid; bit 29: 29-bit identifier).
+  std::vector<canopen::CobId> ids;
   const auto& objects = od_->objects();
   for (auto it = objects.lower_bound(0x1800); it != objects.end() && it->first <= 0x19FF; ++it) {
     const canopen::SubObject* s = od_->find(it->first, 1);
     if (s == nullptr || s->value.size() < 4) continue;
     const canopen::CobId cob{od_->get<std::uint32_t>(it->first, 1)};
-    if (cob.valid() && cob.extended() == frame.extended && cob.can_id() == frame.id) return true;
+    if (cob.valid()) ids.push_back(cob);
   }
-  return false;
+  return ids;
+}
+
+bool SimulatedDevice::is_tpdo(const CanFrame& frame) const {
+  const auto ids = tpdo_cob_ids();
+  return std::any_of(ids.begin(), ids.end(), [&](canopen::CobId cob) {
+    return cob.extended() == frame.extended && cob.can_id() == frame.id;
+  });
 }
 
 bool SimulatedDevice::on_frame(const CanFrame& frame, TimePoint now) {

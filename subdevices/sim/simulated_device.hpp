@@ -10,6 +10,7 @@
 #include <optional>
 #include <cstdint>
 #include <string_view>
+#include <vector>
 
 #include "canopen/301/object_dictionary.hpp"
 #include "canopen/node.hpp"
@@ -69,6 +70,11 @@ class SimulatedDevice {
   // device's are; a silent device's pending answers are not sent.
   void set_sdo_latency(canopen::Duration latency) { sdo_latency_ = latency; }
   [[nodiscard]] canopen::Duration sdo_latency() const { return sdo_latency_; }
+
+  // The COB-IDs of its valid TPDOs (1800h..19FFh sub-index 01h, CiA 301 §7.5.2.35) as the
+  // dictionary holds them now: the identifiers only this device may send (CiA 301 §7.3.x: one
+  // producer per COB-ID), so a data frame on one of them is never meant for it.
+  [[nodiscard]] std::vector<canopen::CobId> tpdo_cob_ids() const;
 
   // Sans-I/O entry points, as canopen::Node's.
   bool on_frame(const CanFrame& frame, TimePoint now);

@@ -4,6 +4,8 @@
 // the manager reads back over SDO at boot (boot reads in rounds) after it was remapped.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include "canopen/master.hpp"
 #include "subdevices/device_spec.hpp"
 #include "subdevices/network_manager.hpp"
@@ -151,6 +153,28 @@ TEST_F(DownstreamNetwork, ARemappedGenericNodeIsDecodedFromItsActualMapping) {
   (void)bench_.command("pedal analog[1] -777", net_.now());
   net_.run_for(200ms);
   EXPECT_EQ(value("pedal", "analog[1]"), -777);
+}
+
+// oegw-sim filters out the data frames on these COB-IDs (its port's acceptance filter), so the
+// list must follow the dictionaries: a TPDO made invalid leaves it, a new COB-ID enters it, each
+// once and in order.
+TEST_F(DownstreamNetwork, TheBenchsTpdoCobIdsFollowTheDictionaries) {
+  bench_.start(net_.now());
+  const auto has = [&](std::uint32_t raw) {
+    const auto ids = bench_.tpdo_cob_ids();
+    return std::find(ids.begin(), ids.end(), CobId{raw}) != ids.end();
+  };
+  EXPECT_TRUE(has(0x191));  // the grip's TPDO #0 (elobau §14.1)
+  EXPECT_TRUE(has(0x1B0));  // the pedal's TPDO1, 180h + 30h
+  auto& od = bench_.device("pedal")->od();
+  ASSERT_EQ(od.set<std::uint32_t>(0x1800, 1, 0x800001B0u, Origin::Sdo), SdoAbortCode::None);
+  EXPECT_FALSE(has(0x1B0));
+  ASSERT_EQ(od.set<std::uint32_t>(0x1800, 1, 0x1B5u, Origin::Sdo), SdoAbortCode::None);
+  EXPECT_TRUE(has(0x1B5));
+  const auto ids = bench_.tpdo_cob_ids();
+  EXPECT_TRUE(std::is_sorted(ids.begin(), ids.end(), [](CobId a, CobId b) { return a.raw() < b.raw(); }));
+  EXPECT_EQ(std::adjacent_find(ids.begin(), ids.end()), ids.end());
+  for (const CobId cob : ids) EXPECT_TRUE(cob.valid()) << std::hex << cob.raw();
 }
 
 }  // namespace

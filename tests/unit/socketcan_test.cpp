@@ -126,6 +126,33 @@ TEST(SocketCanFilter, ComparesFrameFormatButNotRtr) {
   EXPECT_EQ(inv.can_id, 0x700u | CAN_INV_FILTER);
 }
 
+// oegw-sim's acceptance filter (join_filters): every frame passes but a data frame on one of the
+// COB-IDs; a remote frame on it and the other format's frame with the same number still pass.
+TEST(SocketCanFilter, AllButDataFramesOnExcludesExactlyThoseDataFrames) {
+  EXPECT_FALSE(all_but_data_frames_on({}));  // nothing to exclude: every frame
+  const auto filters = all_but_data_frames_on({CobId{0x191}, CobId{0x20000291}});
+  ASSERT_TRUE(filters);
+  ASSERT_EQ(filters->size(), 2u);
+  // The kernel's rule (net/can/af_can.c): a filter matches when (id & mask) == (can_id & mask),
+  // an inverted one when it does not; with CAN_RAW_JOIN_FILTERS a frame must match them all.
+  const auto passes = [&](canid_t id) {
+    for (const CanFilter& f : *filters) {
+      const ::can_filter k = socketcan::to_kernel(f);
+      const bool equal = (id & k.can_mask) == (k.can_id & ~CAN_INV_FILTER & k.can_mask);
+      if (equal == ((k.can_id & CAN_INV_FILTER) != 0)) return false;
+    }
+    return true;
+  };
+  EXPECT_FALSE(passes(0x191));
+  EXPECT_TRUE(passes(0x191 | CAN_RTR_FLAG));  // a remote request for the TPDO still reaches it
+  EXPECT_TRUE(passes(0x191 | CAN_EFF_FLAG));
+  EXPECT_TRUE(passes(0x192));
+  EXPECT_FALSE(passes(0x291 | CAN_EFF_FLAG));
+  EXPECT_TRUE(passes(0x291));
+  EXPECT_TRUE(passes(0x000));
+  EXPECT_TRUE(passes(0x611));
+}
+
 // ---- error frames -------------------------------------------------------------------------
 
 struct ErrorCase {

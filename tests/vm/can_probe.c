@@ -19,6 +19,15 @@
  *   stdout: "samples N answered A missed M median_us X p99_us Y ...".
  *   Exit 0; 3 if nothing was answered (warm-up or measurement); 1 on a socket error.
  *
+ * can_probe paths SAMPLES GAP_US WARMUP_S LOG_PREFIX NAME:IN_IF:IN_ID:OUT_IF:OUT_ID:EXPECT ...
+ *   The same for up to 16 paths at once, each on its own interfaces, measured in turn: each cycle
+ *   takes one sample of every path in a fresh random order (seeded: the same order every run),
+ *   with the pause after each sample. So a swing of the machine's own timing — a TCG guest slows
+ *   down by half whenever its host is busy — falls on every path alike rather than on whichever
+ *   was being measured at the time, and the ratios between them stay steady. Warm-up path by
+ *   path first; a path with 25 misses in a row is left out of the cycles that follow. Each path's
+ *   samples go to LOG_PREFIX.NAME; stdout: one line per path, "NAME samples N ...".
+ *
  * can_probe pace IF ID RATE SECONDS
  *   Sends RATE frames/s with CAN-ID ID on IF for SECONDS (the same alternating x), on an absolute
  *   schedule: each wake-up sends every frame due by then (at most 256) in one sendmmsg, so a late
@@ -126,77 +135,160 @@ static int send_stimulus(int tx, canid_t id, unsigned i, int64_t* stamp) {
   }
 }
 
+/* One measured path: where its stimulus goes, where its translation comes from, what it got. */
+struct path {
+  char name[32];
+  canid_t in_id, out_id;
+  char expect;
+  int tx, rx;
+  unsigned i; /* its stimulus count: each path sees its own alternating x */
+  FILE* log;
+  double* lat;
+  int answered, missed, misses_in_a_row;
+};
+
+/* "NAME:IN_IF:IN_ID:OUT_IF:OUT_ID:EXPECT" -> *p, its sockets open and its samples' log `log_file`
+ * ("PREFIX.NAME" when log_file is a prefix, `log_is_prefix`). 0 = ok, 2 = bad spec, 1 = error. */
+static int open_path(struct path* p, const char* spec, const char* log_file, int log_is_prefix, int samples) {
+  char in_if[IFNAMSIZ], out_if[IFNAMSIZ], expect[8];
+  unsigned in_id, out_id;
+  memset(p, 0, sizeof *p);
+  if (sscanf(spec, "%31[^:]:%15[^:]:%i:%15[^:]:%i:%7s", p->name, in_if, (int*)&in_id, out_if, (int*)&out_id,
+             expect) != 6)
+    return 2;
+  p->in_id = in_id;
+  p->out_id = out_id;
+  p->expect = strcmp(expect, "copy") == 0 ? 'c' : strcmp(expect, "cia852") == 0 ? 'n' : 0;
+  if (!p->expect) return 2;
+  char file[512];
+  snprintf(file, sizeof file, log_is_prefix ? "%s.%s" : "%s", log_file, p->name);
+  p->log = fopen(file, "w");
+  p->lat = calloc((size_t)samples, sizeof *p->lat);
+  p->tx = open_can(in_if, in_id, 1, 1, 1);
+  p->rx = open_can(out_if, out_id, 1, 0, 1);
+  return p->log && p->lat && p->tx >= 0 && p->rx >= 0 ? 0 : 1;
+}
+
+/* Until five answers in a row (a frame every 50 ms), at most warmup_s. 0 = warm, 3 = none, 1 = error. */
+static int warm_up(struct path* p, int warmup_s) {
+  int64_t end = mono_ns() + (int64_t)warmup_s * 1000000000, t_in, t_out;
+  struct can_frame got;
+  for (int run = 0; run < 5;) {
+    if (mono_ns() > end) return 3;
+    struct can_frame sent = stimulus(p->in_id, p->i);
+    if (send_stimulus(p->tx, p->in_id, p->i++, &t_in) < 0) return 1;
+    run = wait_answer(p->rx, &sent, p->expect, &got, &t_out, 50) == 1 ? run + 1 : 0;
+  }
+  return 0;
+}
+
+/* One sample of p: the stimulus and its answer's latency. 0 = answered, 3 = missed, 1 = error. */
+static int sample(struct path* p) {
+  int64_t t_in, t_out;
+  struct can_frame got, sent = stimulus(p->in_id, p->i);
+  if (send_stimulus(p->tx, p->in_id, p->i++, &t_in) < 0) return 1;
+  char in_hex[17], out_hex[17];
+  hex(&sent, in_hex);
+  if (wait_answer(p->rx, &sent, p->expect, &got, &t_out, 200) != 1) {
+    fprintf(p->log, "%s - miss\n", in_hex);
+    ++p->missed;
+    ++p->misses_in_a_row;
+    return 3;
+  }
+  p->lat[p->answered] = (double)(t_out - t_in) / 1000.0;
+  hex(&got, out_hex);
+  fprintf(p->log, "%s %s %.1f\n", in_hex, out_hex, p->lat[p->answered]);
+  ++p->answered;
+  p->misses_in_a_row = 0;
+  return 0;
+}
+
+static void report_path(struct path* p, int samples) {
+  if (strcmp(p->name, "-") != 0) printf("%s ", p->name); /* `paths`: which one */
+  if (p->answered == 0) {
+    printf("samples %d answered 0 missed %d\n", samples, p->missed);
+    return;
+  }
+  qsort(p->lat, (size_t)p->answered, sizeof *p->lat, cmp_double);
+  /* Nearest rank. */
+  int p50 = (p->answered * 50 + 99) / 100 - 1, p99 = (p->answered * 99 + 99) / 100 - 1;
+  printf("samples %d answered %d missed %d%s median_us %.1f p99_us %.1f min_us %.1f max_us %.1f\n", samples, p->answered, p->missed, p->misses_in_a_row >= 25 ? " (stopped: 25 misses in a row)" : "",
+         p->lat[p50], p->lat[p99], p->lat[0], p->lat[p->answered - 1]);
+}
+
+/* The paths measured sample by sample in turn (a fresh random order each cycle), so whatever the
+ * machine does meanwhile — a host's load on a TCG guest swings its timing between seconds — falls
+ * on every path alike instead of on whichever was measured then. */
+static int measure(struct path* paths, int n, int samples, long gap_us, int warmup_s) {
+  for (int k = 0; k < n; ++k) {
+    int r = warm_up(&paths[k], warmup_s);
+    if (r == 1) return 1;
+    if (r == 3) {
+      printf("%s samples 0 answered 0 missed 0: no answer on 0x%X within %d s of warm-up\n", paths[k].name,
+             paths[k].out_id, warmup_s);
+      return 3;
+    }
+  }
+  srand(1);
+  int order[16];
+  for (int cycle = 0; cycle < samples; ++cycle) {
+    for (int k = 0; k < n; ++k) order[k] = k;
+    for (int k = n - 1; k > 0; --k) { /* Fisher-Yates */
+      int j = rand() % (k + 1), t = order[k];
+      order[k] = order[j];
+      order[j] = t;
+    }
+    for (int k = 0; k < n; ++k) {
+      struct path* p = &paths[order[k]];
+      if (p->misses_in_a_row >= 25) continue; /* 5 s without an answer: stopped */
+      int r = sample(p);
+      if (r == 1) return 1;
+      if (r == 3) continue; /* at once: the next frame within the 300 ms a gateway allows between PDOs */
+      long pause = gap_us + (gap_us > 0 ? rand() % gap_us : 0);
+      struct timespec ts = {.tv_sec = pause / 1000000, .tv_nsec = (pause % 1000000) * 1000};
+      nanosleep(&ts, NULL);
+    }
+  }
+  int rc = 0;
+  for (int k = 0; k < n; ++k) {
+    fclose(paths[k].log);
+    report_path(&paths[k], samples);
+    if (paths[k].answered == 0) rc = 3;
+  }
+  return rc;
+}
+
 static int latency(int argc, char** argv) {
   if (argc < 9) return 2;
-  canid_t in_id = (canid_t)strtoul(argv[3], NULL, 0), out_id = (canid_t)strtoul(argv[5], NULL, 0);
-  char expect = strcmp(argv[6], "copy") == 0 ? 'c' : strcmp(argv[6], "cia852") == 0 ? 'n' : 0;
+  char spec[256];
+  snprintf(spec, sizeof spec, "-:%s:%s:%s:%s:%s", argv[2], argv[3], argv[4], argv[5], argv[6]);
   int samples = atoi(argv[7]);
-  long gap_us = argc > 9 ? atol(argv[9]) : 2000;
-  int warmup_s = argc > 10 ? atoi(argv[10]) : 30;
-  if (!expect) return 2;
-  FILE* log = fopen(argv[8], "w");
-  int tx = open_can(argv[2], in_id, 1, 1, 1), rx = open_can(argv[4], out_id, 1, 0, 1);
-  if (!log || tx < 0 || rx < 0 || samples <= 0) {
+  struct path p;
+  int r = samples > 0 ? open_path(&p, spec, argv[8], 0, samples) : 2;
+  if (r == 2) return 2;
+  if (r != 0) {
     perror("can_probe: setup");
     return 1;
   }
-  unsigned i = 0;
-  int64_t t_in, t_out;
-  struct can_frame got;
-  /* Warm-up: five answers in a row. */
-  int64_t warm_end = mono_ns() + (int64_t)warmup_s * 1000000000;
-  int run = 0;
-  while (run < 5) {
-    if (mono_ns() > warm_end) {
-      printf("samples 0 answered 0 missed 0: no answer on %s 0x%X within %d s of warm-up\n", argv[4], out_id, warmup_s);
-      return 3;
-    }
-    struct can_frame sent = stimulus(in_id, i);
-    if (send_stimulus(tx, in_id, i++, &t_in) < 0) {
-      perror("can_probe: send");
+  return measure(&p, 1, samples, argc > 9 ? atol(argv[9]) : 2000, argc > 10 ? atoi(argv[10]) : 30);
+}
+
+static int paths(int argc, char** argv) {
+  if (argc < 7 || argc - 6 > 16) return 2;
+  int samples = atoi(argv[2]), warmup_s = atoi(argv[4]);
+  long gap_us = atol(argv[3]);
+  struct path ps[16];
+  int n = argc - 6;
+  if (samples <= 0) return 2;
+  for (int k = 0; k < n; ++k) {
+    int r = open_path(&ps[k], argv[6 + k], argv[5], 1, samples);
+    if (r == 2) return 2;
+    if (r != 0) {
+      perror("can_probe: setup");
       return 1;
     }
-    run = wait_answer(rx, &sent, expect, &got, &t_out, 50) == 1 ? run + 1 : 0;
   }
-  srand(1);
-  double* lat = calloc((size_t)samples, sizeof *lat);
-  int answered = 0, missed = 0, misses_in_a_row = 0;
-  for (int k = 0; k < samples && misses_in_a_row < 25; ++k) {
-    struct can_frame sent = stimulus(in_id, i);
-    if (send_stimulus(tx, in_id, i++, &t_in) < 0) {
-      perror("can_probe: send");
-      return 1;
-    }
-    char in_hex[17], out_hex[17];
-    hex(&sent, in_hex);
-    if (wait_answer(rx, &sent, expect, &got, &t_out, 200) == 1) {
-      lat[answered] = (double)(t_out - t_in) / 1000.0;
-      hex(&got, out_hex);
-      fprintf(log, "%s %s %.1f\n", in_hex, out_hex, lat[answered]);
-      ++answered;
-      misses_in_a_row = 0;
-    } else {
-      fprintf(log, "%s - miss\n", in_hex);
-      ++missed;
-      ++misses_in_a_row;
-      continue; /* at once: the next frame within the 300 ms a gateway allows between PDOs */
-    }
-    long pause = gap_us + (gap_us > 0 ? rand() % gap_us : 0);
-    struct timespec ts = {.tv_sec = pause / 1000000, .tv_nsec = (pause % 1000000) * 1000};
-    nanosleep(&ts, NULL);
-  }
-  fclose(log);
-  if (answered == 0) {
-    printf("samples %d answered 0 missed %d\n", samples, missed);
-    return 3;
-  }
-  qsort(lat, (size_t)answered, sizeof *lat, cmp_double);
-  /* Nearest rank. */
-  int p50 = (answered * 50 + 99) / 100 - 1, p99 = (answered * 99 + 99) / 100 - 1;
-  printf("samples %d answered %d missed %d%s median_us %.1f p99_us %.1f min_us %.1f max_us %.1f\n", samples, answered,
-         missed, misses_in_a_row >= 25 ? " (stopped: 25 misses in a row)" : "", lat[p50], lat[p99], lat[0],
-         lat[answered - 1]);
-  return 0;
+  return measure(ps, n, samples, gap_us, warmup_s);
 }
 
 static int pace(int argc, char** argv) {
@@ -250,11 +342,13 @@ static int pace(int argc, char** argv) {
 int main(int argc, char** argv) {
   int rc = 2;
   if (argc > 1 && strcmp(argv[1], "latency") == 0) rc = latency(argc, argv);
+  if (argc > 1 && strcmp(argv[1], "paths") == 0) rc = paths(argc, argv);
   if (argc > 1 && strcmp(argv[1], "pace") == 0) rc = pace(argc, argv);
   if (rc == 2)
     fprintf(stderr,
             "usage: %s latency IN_IF IN_ID OUT_IF OUT_ID copy|cia852 SAMPLES LOG [GAP_US] [WARMUP_S]\n"
+            "       %s paths SAMPLES GAP_US WARMUP_S LOG_PREFIX NAME:IN_IF:IN_ID:OUT_IF:OUT_ID:copy|cia852 ...\n"
             "       %s pace IF ID RATE SECONDS\n",
-            argv[0], argv[0]);
+            argv[0], argv[0], argv[0]);
   return rc;
 }

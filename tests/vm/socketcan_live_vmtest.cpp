@@ -53,6 +53,35 @@ TEST(SocketCanLive, RoundTripFiltersTimestampsAndNoOwnEcho) {
   EXPECT_EQ(b->counters().rx_frames, 2u);
 }
 
+// oegw-sim's acceptance filter on a real socket: set while open, the kernel drops the data frames
+// on the excluded COB-IDs and still delivers their remote frames and everything else; set back
+// to nullopt, every frame comes again.
+TEST(SocketCanLive, FiltersReplacedWhileOpenWithJoinedExclusions) {
+  const char* env = std::getenv("OEGW_VCAN");
+  const std::string ifname = env ? env : "vcan0";
+  auto reader = SocketCanTransport::open(ifname);
+  auto sender = SocketCanTransport::open(ifname);
+  EventLoop loop;
+  watch_transport(loop, *reader);
+  std::vector<std::string> seen;
+  reader->set_receiver([&](const CanFrame& f, TimePoint) { seen.push_back(f.to_string()); });
+  const auto send_all_and_read = [&] {
+    seen.clear();
+    ASSERT_TRUE(sender->send(CanFrame{0x191, {0x01}}).ok());
+    ASSERT_TRUE(sender->send(CanFrame::remote(0x191, 0)).ok());
+    ASSERT_TRUE(sender->send(CanFrame{0x291, {0x02}}).ok());
+    ASSERT_TRUE(sender->send(CanFrame{0x192, {0x03}}).ok());
+    ASSERT_TRUE(sender->send(CanFrame{0x701, {0x05}}).ok());  // the last: all before it are in
+    for (int i = 0; i < 50 && (seen.empty() || seen.back() != "701#05"); ++i) loop.run_once(20ms);
+  };
+  reader->set_filters(all_but_data_frames_on({CobId{0x191}, CobId{0x291}}), true);
+  send_all_and_read();
+  EXPECT_THAT(seen, ::testing::ElementsAre("191#R", "192#03", "701#05"));
+  reader->set_filters(std::nullopt, false);
+  send_all_and_read();
+  EXPECT_THAT(seen, ::testing::ElementsAre("191#01", "191#R", "291#02", "192#03", "701#05"));
+}
+
 // Issue 17: a reader held off while a 1 Mbit/s bus runs full loses nothing for half a second.
 // 3,000 frames (~0.4 s of such a bus) arrive while the reader does not read; with the kernel's
 // default receive buffer (~200 frames) the kernel drops most of them (SO_RXQ_OVFL), with the

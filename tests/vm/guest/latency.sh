@@ -4,16 +4,23 @@
 # not forward at all (or oegw run does not end cleanly).
 #
 # 1. Latency, side by side in one boot: `oegw run` (tests/fixtures/vm_syscalls.yaml: one elobau grip
-#    on joystick.1, nothing published), the floor (can_floor: a blocking read on vcan1 and write on
-#    vcan0, nothing else) and a python3-can translator (latency_translator.py; python `canopen` is
-#    not installable here) each translate the grip's TPDO #0 (191h on vcan1) to the host's TPDO 1
-#    (1A0h on vcan0; the floor forwards 191h unchanged). One measurer for all (can_probe latency):
-#    ping-pong, one frame in flight, latency = the kernel timestamps of the frame in and the
-#    translation out. The grip itself is `oegw-sim --commands` with its TPDOs off (`grip pdo off`:
-#    heartbeat and SDO go on, the gateway boots it as usual), so every grip PDO on the wire is the
-#    probe's. ROUNDS rounds, each path once per round in a rotating order, each translator started
-#    afresh; medians and p99 per round and over all rounds, and the ratios to the floor.
-#    The python translator's frames are checked byte for byte against the gateway's.
+#    on joystick.1, nothing published) translating the grip's TPDO #0 (191h on vcan1) to the
+#    host's TPDO 1 (1A0h on vcan0), the floor (can_floor: a blocking read on vcan2 and write on
+#    vcan3, nothing else; 191h forwarded unchanged) and a python3-can translator
+#    (latency_translator.py, vcan4 -> vcan5; python `canopen` is not installable here) — each on
+#    its own interfaces, so none wakes for another's frames. The grip itself is `oegw-sim
+#    --commands` with its TPDOs off (`grip pdo off`: heartbeat and SDO go on, the gateway boots it
+#    as usual), so every grip PDO on the wire is the probe's. One measurer for all (can_probe
+#    paths): ping-pong, one frame in flight, latency = the kernel timestamps of the frame in and
+#    the translation out, the paths sampled in turn (a random order each cycle) so the guest's
+#    swings of speed fall on all of them alike. A fourth path, the floor as an event loop
+#    (`can_floor ... loop`, vcan6 -> vcan7: epoll_wait, a clock reading, recvmmsg, sendmmsg),
+#    splits oegw's cost above the floor into its system calls and its own work. oegw-sim drops the
+#    probe's frames on its grip's TPDO COB-ID in the kernel (its acceptance filter): before, the
+#    simulator woke for each and that cost fell on whichever path shared its bus. ROUNDS rounds of SAMPLES per path, every
+#    translator started afresh each round; medians and p99 per round and over all rounds, and the
+#    ratios to the floor. The python translator's frames are checked byte for byte against the
+#    gateway's.
 # 2. CPU at full load: can_probe pace sends the grip's TPDO #0 at RATE frames/s (8000: a 1 Mbit/s
 #    bus at its physical maximum), every frame a change, to `oegw run` with nothing published
 #    (vm_syscalls.yaml) for FLOOR_WINDOW_S, to `oegw run` with publishing on
@@ -35,7 +42,7 @@ src=$3
 probe=$4
 floor=$5
 rounds=${6:-4}
-samples=${7:-250}
+samples=${7:-1000}
 window=${8:-60}
 rate=${9:-8000}
 floor_window=${10:-20}
@@ -80,40 +87,51 @@ stop_gateway() {
   local rc=$?
   ((rc == 0)) || fail "oegw run exit $rc after SIGTERM: $(tail -5 /tmp/gateway.log)"
 }
-# start_translator CMD...: in the background (pid in tr_pid) until it listens on vcan1.
+# start_translator IF CMD...: in the background (pid in tr_pid) until it listens on IF.
 start_translator() {
-  local before
-  before=$(can_receivers vcan1)
+  local before dev=$1
+  shift
+  before=$(can_receivers "$dev")
   "$@" >>/tmp/translator.log 2>&1 &
   tr_pid=$!
-  wait_receivers vcan1 $((before + 1)) 60 || fail "$1 did not bind vcan1: $(tail -3 /tmp/translator.log)"
+  wait_receivers "$dev" $((before + 1)) 60 || fail "$1 did not bind $dev: $(tail -3 /tmp/translator.log)"
 }
 stop_translator() { kill -TERM "$tr_pid" 2>/dev/null; wait "$tr_pid" 2>/dev/null; }
 
-# probe PATH ROUND OUT_ID EXPECT [SAMPLES]: the latency probe, its samples in /tmp/lat.PATH.ROUND.
+# probe NAME OUT_ID EXPECT SAMPLES: the latency probe on the gateway alone (part 2's check that it
+# translates), its samples in /tmp/lat.NAME.
 probe() {
   local out rc
-  out=$("$probe" latency vcan1 0x191 vcan0 "$3" "$4" "${5:-$samples}" "/tmp/lat.$1.$2")
+  out=$("$probe" latency vcan1 0x191 vcan0 "$2" "$3" "$4" "/tmp/lat.$1")
   rc=$?
-  report "  round $2 $(printf '%-6s' "$1") $out"
-  ((rc == 0)) || fail "$1 did not forward (round $2, probe exit $rc)"
+  report "  $(printf '%-6s' "$1") $out"
+  ((rc == 0)) || fail "$1 did not forward (probe exit $rc)"
 }
 
-run_path() {  # PATH ROUND
-  case $1 in
-    oegw) start_gateway "$dir/can/oegw.yaml" && probe oegw "$2" 0x1A0 cia852; stop_gateway ;;
-    floor) start_translator "$floor" vcan1 vcan0 0x191 && probe floor "$2" 0x191 copy; stop_translator ;;
-    python) start_translator "$PY" "$here/latency_translator.py" vcan1 vcan0 && probe python "$2" 0x1A0 cia852
-            stop_translator ;;
-  esac
-}
-
+# Each path on its own pair of interfaces, so no translator wakes for another's frames: the
+# gateway vcan1 -> vcan0 (its grip and host), the floor vcan2 -> vcan3, python vcan4 -> vcan5,
+# the floor as an event loop (can_floor ... loop) vcan6 -> vcan7.
+for d in vcan2 vcan3 vcan4 vcan5 vcan6 vcan7; do
+  ip link add dev $d type vcan && ip link set $d up || { fail "ip link add $d type vcan"; exit 1; }
+done
 report "vm_latency: the SocketCAN path in a TCG VM (qemu, 1 vCPU), kernel $(uname -r)"
-report "1. latency, grip TPDO 191h on vcan1 -> translation on vcan0, kernel timestamps, one frame in flight,"
-report "   $rounds rounds x $samples samples per path (can_probe latency; µs)"
-paths=(oegw floor python)
+report "1. latency, grip TPDO 191h -> its translation, kernel timestamps, one frame in flight, the three"
+report "   paths side by side and sampled in turn (can_probe paths), $rounds rounds x $samples samples per"
+report "   path, every translator started afresh each round (µs)"
 for ((r = 1; r <= rounds; r++)); do
-  for ((k = 0; k < 3; k++)); do run_path "${paths[(k + r - 1) % 3]}" "$r"; done
+  start_translator vcan2 "$floor" vcan2 vcan3 0x191 && floor_pid=$tr_pid
+  start_translator vcan4 "$PY" "$here/latency_translator.py" vcan4 vcan5 && python_pid=$tr_pid
+  start_translator vcan6 "$floor" vcan6 vcan7 0x191 loop && loop_pid=$tr_pid
+  start_gateway "$dir/can/oegw.yaml"
+  out=$("$probe" paths "$samples" 2000 30 "/tmp/lat.$r" oegw:vcan1:0x191:vcan0:0x1A0:cia852 \
+    floor:vcan2:0x191:vcan3:0x191:copy python:vcan4:0x191:vcan5:0x1A0:cia852 floor-loop:vcan6:0x191:vcan7:0x191:copy)
+  rc=$?
+  while read -r line; do report "  round $r $line"; done <<<"$out"
+  ((rc == 0)) || fail "a path did not forward (round $r, probe exit $rc)"
+  stop_gateway
+  tr_pid=$floor_pid stop_translator
+  tr_pid=$python_pid stop_translator
+  tr_pid=$loop_pid stop_translator
 done
 
 # percentile P FILE...: nearest rank over the answered samples of the files.
@@ -124,25 +142,29 @@ percentile() {
     awk -v p="$p" '{ v[NR] = $1 } END { if (!NR) { print "-"; exit } i = int((NR * p + 99) / 100); print v[i < 1 ? 1 : i] }'
 }
 ratio() { awk -v a="$1" -v b="$2" 'BEGIN { if (a == "-" || b == "-" || b == 0) print "-"; else printf "%.2f", a / b }'; }
-fmed=$(percentile 50 /tmp/lat.floor.[0-9]*)
-fp99=$(percentile 99 /tmp/lat.floor.[0-9]*)
+report "   each round's ratio of oegw to the floor (median, p99):$(for ((r = 1; r <= rounds; r++)); do
+  printf ' %s×/%s×' "$(ratio "$(percentile 50 /tmp/lat.$r.oegw)" "$(percentile 50 /tmp/lat.$r.floor)")" \
+    "$(ratio "$(percentile 99 /tmp/lat.$r.oegw)" "$(percentile 99 /tmp/lat.$r.floor)")"
+done)"
+fmed=$(percentile 50 /tmp/lat.[0-9]*.floor)
+fp99=$(percentile 99 /tmp/lat.[0-9]*.floor)
 report "   over all rounds (µs)       median      p99   ratio to the floor (median, p99)   answered"
-for p in oegw floor python; do
-  med=$(percentile 50 /tmp/lat.$p.[0-9]*)
-  p99=$(percentile 99 /tmp/lat.$p.[0-9]*)
-  n=$(cat /tmp/lat.$p.[0-9]* | awk '$3 != "miss"' | wc -l)
+for p in oegw floor python floor-loop; do
+  med=$(percentile 50 /tmp/lat.[0-9]*.$p)
+  p99=$(percentile 99 /tmp/lat.[0-9]*.$p)
+  n=$(cat /tmp/lat.[0-9]*.$p | awk '$3 != "miss"' | wc -l)
   report "$(printf '   %-24s %9s %9s   %6s× %6s×   %30s' "$p" "$med" "$p99" "$(ratio "$med" "$fmed")" "$(ratio "$p99" "$fp99")" "$n/$((rounds * samples))")"
 done
 # The python translator does what the gateway does: the same output for every input both saw.
-cat /tmp/lat.oegw.[0-9]* >/tmp/lat.oegw.all
-cat /tmp/lat.python.[0-9]* >/tmp/lat.python.all
+cat /tmp/lat.[0-9]*.oegw >/tmp/lat.oegw.all
+cat /tmp/lat.[0-9]*.python >/tmp/lat.python.all
 same=$(awk 'FNR == 1 { f++ } f == 1 && $3 != "miss" { o[$1] = $2; next } $3 != "miss" && ($1 in o) { n++; if (o[$1] != $2) { bad++; if (bad < 4) print "  " $1 ": oegw " o[$1] ", python " $2 > "/tmp/lat.diff" } }
   END { print n + 0, bad + 0 }' /tmp/lat.oegw.all /tmp/lat.python.all)
 read -r n bad <<<"$same"
 ((n > 0 && bad == 0)) && pass "the python translator's TPDO 1 equals the gateway's for all $n inputs both answered" ||
   fail "the python translator differs from the gateway for $bad of $n inputs: $(cat /tmp/lat.diff 2>/dev/null)"
-floor_bad=$(cat /tmp/lat.floor.[0-9]* | awk '$3 != "miss" && $1 != $2' | wc -l)
-((floor_bad == 0)) && pass "the floor forwarded every frame unchanged" || fail "$floor_bad frames changed by the floor"
+floor_bad=$(cat /tmp/lat.[0-9]*.floor /tmp/lat.[0-9]*.floor-loop | awk '$3 != "miss" && $1 != $2' | wc -l)
+((floor_bad == 0)) && pass "the floor (both kinds) forwarded every frame unchanged" || fail "$floor_bad frames changed by the floor"
 
 # grip_status: "FRAMES RESETS DROPPED FAULT" of the grip (DROPPED: vcan1's frames the kernel dropped) as `oegw status --json` shows them (control on).
 grip_status() {
@@ -201,15 +223,15 @@ cpu_window() {
 
 report "2. CPU at full load: grip TPDO 191h at $rate frames/s on vcan1, every frame a change (can_probe pace)"
 start_gateway "$dir/can/oegw.yaml"
-probe oegw-can 0 0x1A0 cia852 50
+probe oegw-can 0x1A0 cia852 50
 cpu_window "oegw run, nothing published" "$gw_pid" "$floor_window"
 stop_gateway
 start_gateway "$dir/publish/oegw.yaml"
-probe oegw-publishing 0 0x1A0 cia852 50
+probe oegw-publishing 0x1A0 cia852 50
 gw_status=$(grip_status)
 cpu_window "oegw run, publishing on" "$gw_pid" "$window" status
 stop_gateway
-start_translator "$floor" vcan1 vcan0 0x191
+start_translator vcan1 "$floor" vcan1 vcan0 0x191
 cpu_window floor "$tr_pid" "$floor_window"
 stop_translator
 
