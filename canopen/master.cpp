@@ -18,6 +18,7 @@ Master::Master(ObjectDictionary& od, FrameSink sink, MasterConfig config)
       emcy_(od_, [this](const EmcyMessage& m, TimePoint t) {
         if (on_emcy) on_emcy(m, t);
       }) {
+  sdo_pacer_ = SdoPacer(cfg_.sdo_request_gap);
   if (cfg_.sync_period.count() > 0) {
     const auto us = std::chrono::duration_cast<std::chrono::microseconds>(cfg_.sync_period).count();
     sync_ = std::make_unique<SyncService>(
@@ -41,6 +42,7 @@ SdoClient& Master::sdo(NodeId server) {
     SdoClientConfig c = SdoClientConfig::for_node(server);
     c.timeout = cfg_.sdo_timeout;
     slot = std::make_unique<SdoClient>([this](const CanFrame& f) { sink_(f); }, c);
+    if (sdo_pacer_.paced()) slot->set_pacer(&sdo_pacer_);
   }
   return *slot;
 }

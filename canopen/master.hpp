@@ -26,6 +26,9 @@ struct MasterConfig {
   Duration sdo_timeout = std::chrono::seconds(1);
   // SYNC produced on 080h every this often (1006h, whole µs); 0: the master produces no SYNC.
   Duration sync_period{0};
+  // The least time between the starts of two SDO requests of this master's clients, whichever
+  // nodes they go to (canopen/301/sdo_pacer.hpp: SdoPacer::gap_for); 0: not paced.
+  Duration sdo_request_gap{0};
 };
 
 class Master {
@@ -40,6 +43,8 @@ class Master {
   [[nodiscard]] const FrameSink& sink() const { return sink_; }
   // The SDO client toward `server` (created on first use, default COB-IDs of CiA 301 §7.3.5).
   [[nodiscard]] SdoClient& sdo(NodeId server);
+  // The pacer every client of sdo() shares (MasterConfig::sdo_request_gap).
+  [[nodiscard]] const SdoPacer& sdo_pacer() const { return sdo_pacer_; }
 
   // Watches `node`'s heartbeat with the given consumer time (writes a 1016h entry). Returns the
   // SDO abort code of that write (e.g. 0x06040043 if the node is already watched differently).
@@ -70,6 +75,7 @@ class Master {
   HeartbeatConsumer hb_;
   EmcyConsumer emcy_;
   std::map<std::uint8_t, std::unique_ptr<SdoClient>> sdo_;
+  SdoPacer sdo_pacer_;
   std::unique_ptr<SyncService> sync_;  // only with a SYNC period
 };
 

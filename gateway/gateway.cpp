@@ -55,7 +55,7 @@ std::uint8_t heartbeat_entries(const mapping::Config& c) {
 Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, canopen::FrameSink downstream,
                  GatewayOptions options)
     : config_(config),
-      master_(master_od_, downstream, canopen::MasterConfig{.heartbeat_entries = heartbeat_entries(config), .sdo_timeout = options.sdo_timeout.value_or(std::chrono::milliseconds(config.downstream.sdo_timeout_ms)), .sync_period = std::chrono::milliseconds(config.downstream.sync_period_ms)}),
+      master_(master_od_, downstream, canopen::MasterConfig{.heartbeat_entries = heartbeat_entries(config), .sdo_timeout = options.sdo_timeout.value_or(std::chrono::milliseconds(config.downstream.sdo_timeout_ms)), .sync_period = std::chrono::milliseconds(config.downstream.sync_period_ms), .sdo_request_gap = canopen::SdoPacer::gap_for(config.downstream.bitrate, options.sdo_bus_share)}),
       network_(master_, options.timing),
       remote_sdo_(std::make_unique<RemoteSdo>(config_, master_, network_, now_,
                                               [this] { return oe_->node().node_id(); })),

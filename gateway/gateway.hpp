@@ -61,6 +61,12 @@ struct GatewayOptions {
   // Overrides downstream.sdo_timeout_ms (tests).
   std::optional<canopen::Duration> sdo_timeout;
   subdevices::NetworkTiming timing{};
+  // The share of the downstream bus the gateway's own SDO traffic (configuration, remote SDO,
+  // scans) may take, its requests paced accordingly at the mapping file's downstream.bitrate
+  // (canopen/301/sdo_pacer.hpp); 0: not paced (the instant virtual buses of tests, which have no
+  // time on the wire to share).
+  double sdo_bus_share = kDefaultSdoBusShare;
+  static constexpr double kDefaultSdoBusShare = 0.85;
 };
 
 class Gateway {

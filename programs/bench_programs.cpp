@@ -55,23 +55,28 @@ int run_sim(const SimOptions& options) {
   // devices' own TPDO COB-IDs are dropped by the kernel (one producer per COB-ID: such a frame is
   // never for them). So a test that sends a device's PDOs in its stead (vm_latency's probe, the
   // grip's TPDO #0 while `grip pdo off`) does not wake this process for each of them, a cost a
-  // real device would not put on the gateway's CPU. Set again whenever a frame a device took or
-  // a command may have changed a TPDO's COB-ID (an SDO write to 1800h..19FFh, NMT reset, reboot).
+  // real device would not put on the gateway's CPU. Set again whenever a frame that can change a
+  // TPDO's COB-ID was taken (NMT, an SDO request, LSS) and after every command (reboot); a
+  // refusal is reported once.
   std::vector<CobId> filtered;
   const auto refilter = [&] {
     auto ids = bench.tpdo_cob_ids();
     if (ids == filtered) return;
     try {
       port->set_filters(all_but_data_frames_on(ids), true);
-      filtered = std::move(ids);
     } catch (const CanOpenError& e) {
-      spdlog::warn("interface: {} (every frame is read)", e.what());
+      spdlog::warn("interface: {} (no acceptance filter: frames on the devices' own TPDO COB-IDs are read too)", e.what());
     }
+    filtered = std::move(ids);
+  };
+  // NMT (000h), an SDO request (600h..67Fh, CiA 301 §7.3.5) or LSS (7E5h).
+  const auto may_change_cob_ids = [](const CanFrame& f) {
+    return !f.extended && (f.id == 0x000 || f.id == 0x7E5 || (f.id >= 0x600 && f.id <= 0x67F));
   };
   EventLoop loop;
   ServiceDriver driver(loop, bench);
   port->set_receiver([&](const CanFrame& f, TimePoint t) {
-    if (bench.on_frame(f, t)) refilter();
+    if (bench.on_frame(f, t) && may_change_cob_ids(f)) refilter();
     driver.rearm();
   });
   watch_transport(loop, *port);

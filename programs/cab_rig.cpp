@@ -74,6 +74,9 @@ void CabRig::connect_gateway() {
   gw_.reset();
   GatewayOptions opt = options_.gateway;
   opt.store_path = options_.store;
+  // The instant buses have no time on the wire to share: the gateway's SDO is not paced there
+  // (GatewayOptions::sdo_bus_share), so the phases the safety matrix aims at stay where they are.
+  if (!options_.timed_buses) opt.sdo_bus_share = 0;
   gw_ = std::make_unique<Gateway>(config_, through(from_gateway_up, gw_up_->sink()),
                                   through(from_gateway_down, gw_down_->sink()), opt);
   if (on_gateway) on_gateway(*gw_);

@@ -29,7 +29,7 @@ struct CabRigOptions {
   std::filesystem::path store;  // the gateway's 1010h store (replaces upstream.store)
   canopen::Duration host_sdo_timeout = std::chrono::milliseconds(500);
   std::uint8_t host_heartbeat_entries = 2;
-  GatewayOptions gateway{};  // its store_path is set from `store`
+  GatewayOptions gateway{};  // its store_path is set from `store`; sdo_bus_share 0 unless timed_buses
   // Options of the simulated devices by sub-device name (subdevices/sim/sim_registry.hpp, e.g.
   // {"left_grip", {{{"wiring", "0/1/2/3/4/5/6"}}}}: an MCB-402 wired otherwise than the
   // document's table). The mapping file's driver options never reach a simulator, only a

@@ -78,7 +78,8 @@ bool SdoClient::cancel(Ticket ticket, SdoAbortCode code) {
 
 std::optional<TimePoint> SdoClient::next_deadline() const {
   if (state_ != State::Idle) return deadline_;
-  if (queued() != 0) return now_;  // a queued request is waiting to start: due now
+  // A queued request is waiting to start: due now, or when the pacer has a slot.
+  if (queued() != 0) return pacer_ != nullptr ? std::max(now_, pacer_->next_free()) : now_;
   return std::nullopt;
 }
 
@@ -425,7 +426,7 @@ void SdoClient::pump() {
         done_head_ = 0;
       }
       if (d.callback) d.callback(d.code, std::move(d.data));
-    } else if (state_ == State::Idle && queued() != 0) {
+    } else if (state_ == State::Idle && queued() != 0 && (pacer_ == nullptr || pacer_->try_start(now_))) {
       start(now_);
     } else {
       break;

@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "canopen/301/sdo_block.hpp"
+#include "canopen/301/sdo_pacer.hpp"
 #include "canopen/can_frame.hpp"
 #include "canopen/types.hpp"
 
@@ -110,6 +111,12 @@ class SdoClient {
   // request's answer, or aborting this request over it, would put every later answer one request
   // off; it is dropped, and this request's own answer (or time-out) ends it.
   [[nodiscard]] std::uint64_t stale_answers() const { return stale_answers_; }
+
+  // The pacer this client shares with the other clients on its bus (canopen/301/sdo_pacer.hpp),
+  // or nullptr (the default): a queued request then starts when the client is idle and the
+  // pacer has a slot free; next_deadline() reports that slot. Only a request's start is paced:
+  // the segments of a transfer follow their answers.
+  void set_pacer(SdoPacer* pacer) { pacer_ = pacer; }
 
   [[nodiscard]] bool busy() const { return state_ != State::Idle; }
   [[nodiscard]] std::size_t queued() const { return queue_.size() - queue_head_; }
@@ -197,6 +204,7 @@ class SdoClient {
   bool pumping_ = false;
   Ticket last_ticket_ = 0;
   std::uint64_t stale_answers_ = 0;
+  SdoPacer* pacer_ = nullptr;
 };
 
 }  // namespace oegw::canopen

@@ -64,6 +64,9 @@ struct SocketCanOptions {
   // nullopt: receive every frame. An empty list: receive no data frames (error frames only).
   std::optional<std::vector<CanFilter>> filters;
   // CAN_RAW_JOIN_FILTERS (Linux 4.1): a frame must match every filter rather than one of them.
+  // Error frames then stop coming once there are two filters or more (net/can/raw.c counts the
+  // error mask as one more receiver, which an error frame alone matches): for a reader that does
+  // not need them (oegw-sim's acceptance filter).
   bool join_filters = false;
   std::uint32_t error_mask = kDefaultCanErrorMask;  // CAN_ERR_* classes; 0 = no error frames
   bool loopback = true;                               // CAN_RAW_LOOPBACK

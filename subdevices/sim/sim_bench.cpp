@@ -70,11 +70,15 @@ bool SimBench::on_frame(const CanFrame& frame, TimePoint now) {
 }
 
 std::vector<canopen::CobId> SimBench::tpdo_cob_ids() const {
-  std::vector<canopen::CobId> ids;
+  std::vector<canopen::CobId> ids, consumed;
   for (const auto& e : devices_) {
     const auto own = e.sim->tpdo_cob_ids();
     ids.insert(ids.end(), own.begin(), own.end());
+    const auto rx = e.sim->rpdo_cob_ids();
+    consumed.insert(consumed.end(), rx.begin(), rx.end());
   }
+  // A PDO may have several consumers: one that another device of the bench listens to stays in.
+  std::erase_if(ids, [&](canopen::CobId id) { return std::find(consumed.begin(), consumed.end(), id) != consumed.end(); });
   std::sort(ids.begin(), ids.end(), [](canopen::CobId a, canopen::CobId b) { return a.raw() < b.raw(); });
   ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
   return ids;

@@ -56,8 +56,9 @@ class SimBench {
   [[nodiscard]] std::size_t size() const { return devices_.size(); }
   [[nodiscard]] SimulatedDevice* device(std::string_view name);
   [[nodiscard]] std::vector<std::string> names() const;
-  // Every device's TPDO COB-IDs (SimulatedDevice::tpdo_cob_ids), ascending by raw value, each
-  // once: what a bus port may filter out, as a real device's acceptance filter would.
+  // Every device's TPDO COB-IDs (SimulatedDevice::tpdo_cob_ids) that no device's RPDO listens
+  // to, ascending by raw value, each once: what a bus port may filter out, as a real device's
+  // acceptance filter would.
   [[nodiscard]] std::vector<canopen::CobId> tpdo_cob_ids() const;
 
  private:

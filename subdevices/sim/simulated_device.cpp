@@ -53,11 +53,21 @@ void SimulatedDevice::release_answers(TimePoint now) {
 }
 
 std::vector<canopen::CobId> SimulatedDevice::tpdo_cob_ids() const {
-  // CiA 301 §7.5.2.35: TPDO communication parameters at 1800h..19FFh, COB-ID in sub-index 01h
-  // (bit 31 set: the PDO does not exist / is not valid; bit 29: 29-bit identifier).
+  // CiA 301 §7.5.2.35: TPDO communication parameters at 1800h..19FFh.
+  return pdo_cob_ids(0x1800, 0x19FF);
+}
+
+std::vector<canopen::CobId> SimulatedDevice::rpdo_cob_ids() const {
+  // CiA 301 §7.5.2.33: RPDO communication parameters at 1400h..15FFh.
+  return pdo_cob_ids(0x1400, 0x15FF);
+}
+
+std::vector<canopen::CobId> SimulatedDevice::pdo_cob_ids(std::uint16_t first, std::uint16_t last) const {
+  // The COB-ID in sub-index 01h (bit 31 set: the PDO does not exist / is not valid; bit 29:
+  // 29-bit identifier).
   std::vector<canopen::CobId> ids;
   const auto& objects = od_->objects();
-  for (auto it = objects.lower_bound(0x1800); it != objects.end() && it->first <= 0x19FF; ++it) {
+  for (auto it = objects.lower_bound(first); it != objects.end() && it->first <= last; ++it) {
     const canopen::SubObject* s = od_->find(it->first, 1);
     if (s == nullptr || s->value.size() < 4) continue;
     const canopen::CobId cob{od_->get<std::uint32_t>(it->first, 1)};

@@ -72,9 +72,12 @@ class SimulatedDevice {
   [[nodiscard]] canopen::Duration sdo_latency() const { return sdo_latency_; }
 
   // The COB-IDs of its valid TPDOs (1800h..19FFh sub-index 01h, CiA 301 §7.5.2.35) as the
-  // dictionary holds them now: the identifiers only this device may send (CiA 301 §7.3.x: one
-  // producer per COB-ID), so a data frame on one of them is never meant for it.
+  // dictionary holds them now: the identifiers only this device may send (a PDO has exactly one
+  // producer, CiA 301), so a data frame on one of them is not meant for it, unless an RPDO of a
+  // device beside it listens there (SimBench::tpdo_cob_ids leaves those out).
   [[nodiscard]] std::vector<canopen::CobId> tpdo_cob_ids() const;
+  // The COB-IDs of its valid RPDOs (1400h..15FFh sub-index 01h).
+  [[nodiscard]] std::vector<canopen::CobId> rpdo_cob_ids() const;
 
   // Sans-I/O entry points, as canopen::Node's.
   bool on_frame(const CanFrame& frame, TimePoint now);
@@ -106,6 +109,8 @@ class SimulatedDevice {
   [[nodiscard]] bool is_sdo_answer(const CanFrame& frame) const;
   void release_answers(TimePoint now);  // the delayed SDO answers due by `now`
   [[nodiscard]] bool is_tpdo(const CanFrame& frame) const;
+  // The valid COB-IDs in sub-index 01h of the PDO communication parameters first..last.
+  [[nodiscard]] std::vector<canopen::CobId> pdo_cob_ids(std::uint16_t first, std::uint16_t last) const;
   bool refused_in_state(const CanFrame& frame);  // answered refuse_download()'s abort
 
   FrameSink sink_;

@@ -24,6 +24,8 @@
 //          boot (inputs held still), for both buses of both cabs at their files' bit rates.
 //
 // --sdo-latency-us N sets the simulators' SDO latency (default 1000, sim::kTypicalSdoLatency);
+// --sdo-share S the share of the bus the gateway's SDO requests are paced to
+// (GatewayOptions::sdo_bus_share, default 0.85; 0: not paced);
 // --trace prints the gateway's log lines of each boot with their simulated times.
 #include <cstdio>
 #include <cstdlib>
@@ -56,6 +58,7 @@ using oegw::canopen::TimePoint;
 double ms(Duration d) { return static_cast<double>(d.count()) / 1000.0; }
 
 bool g_trace = false;
+double g_sdo_share = oegw::gateway::GatewayOptions::kDefaultSdoBusShare;
 
 oegw::mapping::Config load_file(const std::string& path) {
   auto r = oegw::mapping::load_config(path, oegw::gateway::driver_catalogue());
@@ -89,6 +92,7 @@ BootFigures boot(oegw::mapping::Config cfg, std::uint32_t bit_rate, Duration lat
   oegw::canopen::EventLoop loop{clock};
   oegw::gateway::CabRig rig(cfg, loop,
                             oegw::gateway::CabRigOptions{.store = "/nonexistent-oegw-bench/upstream.store",
+                                                         .gateway = {.sdo_bus_share = g_sdo_share},
                                                          .timed_buses = true, .device_sdo_latency = latency});
   if (g_trace)
     rig.on_gateway = [&loop](oegw::gateway::Gateway& gw) {
@@ -224,21 +228,6 @@ void print_load(const char* name, const oegw::mapping::Config& cfg, const LoadFi
   row("downstream", cfg.downstream.bitrate, f.predicted.downstream.percent(), f.measured_down);
 }
 
-// full_fe_set.yaml at 250 kbit/s on both buses, its Novotechnik encoders' TPDO1 event timer
-// 50 ms instead of the driver's 10 ms.
-std::string full_set_for_250k() {
-  std::string y = oegw::bench::yaml_full_set();
-  const auto replace = [&y](const std::string& from, const std::string& to) {
-    for (std::size_t at = y.find(from); at != std::string::npos; at = y.find(from, at + to.size())) y.replace(at, from.size(), to);
-  };
-  replace("bitrate: 1000000", "bitrate: 250000");
-  for (char n = '0'; n <= '7'; ++n)
-    replace(std::string("driver: novotechnik-406, node_id: 0x4") + n + ", heartbeat_ms: 100 }",
-            std::string("driver: novotechnik-406, node_id: 0x4") + n + ", heartbeat_ms: 100, options: { event_timer_ms: 50 } }");
-  if (y.find("event_timer_ms: 50") == std::string::npos) throw std::runtime_error("full_fe_set.yaml: no encoder line to change");
-  return y;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -248,15 +237,18 @@ int main(int argc, char** argv) {
       g_trace = true;
     } else if (std::strcmp(argv[i], "--sdo-latency-us") == 0 && i + 1 < argc) {
       latency = Duration{std::atoll(argv[++i])};
+    } else if (std::strcmp(argv[i], "--sdo-share") == 0 && i + 1 < argc) {
+      g_sdo_share = std::atof(argv[++i]);
     } else {
-      std::fprintf(stderr, "usage: %s [--sdo-latency-us N] [--trace]\n", argv[0]);
+      std::fprintf(stderr, "usage: %s [--sdo-latency-us N] [--sdo-share S] [--trace]\n", argv[0]);
       return 2;
     }
   }
   try {
     const auto demo = load_file(std::string(OEGW_SOURCE_DIR) + "/config/demo.yaml");
     const auto full = oegw::bench::load_or_throw(oegw::bench::yaml_full_set(), "full_fe_set.yaml");
-    std::printf("timed virtual bus, simulated clock; device SDO latency %.3f ms\n", ms(latency));
+    std::printf("timed virtual bus, simulated clock; device SDO latency %.3f ms; the gateway's SDO paced to %.0f %% of the bus\n",
+                ms(latency), 100.0 * g_sdo_share);
     print_boot("demo", boot(demo, 250'000, latency), demo.subdevices.size());
     {
       // A lost boot-up is not waited out (NetworkTiming::boot_wait, 2 s): the boot-up probe
@@ -269,7 +261,7 @@ int main(int argc, char** argv) {
     // full_fe_set.yaml is laid out for 1 Mbit/s: at 250 kbit/s its steady state would be 80 % of
     // the bus (`oegw check` warns above 70 %), its encoders' 10 ms event timers alone 32 %. The
     // same 48 sub-devices laid out for 250 kbit/s: the encoders at 50 ms (54 % predicted).
-    const auto full250 = oegw::bench::load_or_throw(full_set_for_250k(), "full_fe_set.yaml, encoders at 50 ms, 250 kbit/s");
+    const auto full250 = oegw::bench::load_or_throw(oegw::fixtures::full_fe_set_at_250k(), "full_fe_set.yaml, encoders at 50 ms, 250 kbit/s");
     print_boot("full-set", boot(full250, 250'000, latency), full250.subdevices.size());
     std::printf("at 1000000 bit/s (full_fe_set.yaml as it is):\n");
     print_boot("full-set", boot(full, 1'000'000, latency), full.subdevices.size());

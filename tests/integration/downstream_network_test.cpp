@@ -175,6 +175,36 @@ TEST_F(DownstreamNetwork, TheBenchsTpdoCobIdsFollowTheDictionaries) {
   EXPECT_TRUE(std::is_sorted(ids.begin(), ids.end(), [](CobId a, CobId b) { return a.raw() < b.raw(); }));
   EXPECT_EQ(std::adjacent_find(ids.begin(), ids.end()), ids.end());
   for (const CobId cob : ids) EXPECT_TRUE(cob.valid()) << std::hex << cob.raw();
+  // A PDO may have several consumers: with the grip's RPDO listening to the pedal's TPDO, that
+  // TPDO's frames are not filtered out
+  // (the elobau grip's RPDO COB-IDs are read-only to SDO: set as its firmware would).
+  auto& grip = bench_.device("grip")->od();
+  ASSERT_EQ(grip.set<std::uint32_t>(0x1400, 1, 0x800001B5u, Origin::Local), SdoAbortCode::None);
+  ASSERT_EQ(grip.set<std::uint32_t>(0x1400, 1, 0x1B5u, Origin::Local), SdoAbortCode::None);
+  EXPECT_FALSE(has(0x1B5));
+}
+
+// MasterConfig::sdo_request_gap paces the requests of every SDO client the master hands out
+// (Master::sdo), whichever node they go to: four nodes asked at once go out a gap apart.
+TEST(MasterSdoPacing, EveryClientOfTheMasterSharesItsPacer) {
+  const TimePoint t0{std::chrono::seconds(20)};
+  ObjectDictionary od;
+  std::vector<std::pair<TimePoint, CanFrame>> sent;
+  TimePoint now = t0;
+  Master master(od, [&](const CanFrame& f) { sent.emplace_back(now, f); },
+                MasterConfig{.sdo_request_gap = 3ms});
+  EXPECT_EQ(master.sdo_pacer().gap(), 3ms);
+  for (std::uint8_t n = 1; n <= 4; ++n) master.sdo(NodeId{n}).upload(0x1000, 0, [](SdoAbortCode, std::vector<std::uint8_t>) {});
+  for (int i = 0; i < 20 && master.next_deadline(); ++i) {
+    now = std::max(now, *master.next_deadline());
+    if (now > t0 + 20ms) break;
+    master.advance(now);
+  }
+  ASSERT_EQ(sent.size(), 4u);
+  for (std::size_t i = 0; i < sent.size(); ++i) {
+    EXPECT_EQ(sent[i].first, t0 + 3ms * static_cast<int>(i)) << sent[i].second.to_string();
+    EXPECT_EQ(sent[i].second.id & 0x780u, 0x600u);
+  }
 }
 
 }  // namespace

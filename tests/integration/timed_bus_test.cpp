@@ -166,4 +166,61 @@ TEST(TimedCab, APowerOnBootUpCrossingTheResetDoesNotCostARefusal) {
       << "the crossing this test is about did not happen:\n" << all;
 }
 
+// Invariant: the gateway's SDO traffic — whose COB-IDs (580h/600h + node) win arbitration over
+// every heartbeat and boot-up (700h + node) — never costs a node its heartbeat, however fast the
+// devices answer: the full FE set at 250 kbit/s (about half the bus in steady state) boots, and
+// a sub-device rebooting alone is configured again while the rest of the cab runs without
+// another node lost. One node of each family is rebooted in turn, the highest node-ID among
+// them (cluster8, 757h: the heartbeat that loses every arbitration) last; the devices answer
+// SDO after 1 ms, 250 us and at once (back-to-back SDO, the worst case for the others). A
+// monitor checks every other node every millisecond and fails at the first one not
+// operational. Without the SDO pacing (GatewayOptions::sdo_bus_share 0) the cab did not boot
+// with devices answering within 750 us: the configurations' SDO starved the boot-ups, probes
+// went unanswered, nodes were started while others were still being configured, and their
+// first heartbeats came too late — a cascade of losses.
+class TimedFullSet : public ::testing::TestWithParam<Duration> {};
+
+TEST_P(TimedFullSet, TheCabBootsAndALoneRebootAtHalfLoadCostsNoOtherNodeItsHeartbeat) {
+  const auto r = mapping::load_config_text(fixtures::full_fe_set_at_250k(), "full_fe_set.yaml at 250 kbit/s",
+                                           gateway::driver_catalogue());
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  SimulatedClock clock{kStart};
+  EventLoop loop{clock};
+  gateway::CabRig rig(*r.config, loop,
+                      gateway::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .timed_buses = true,
+                                             .device_sdo_latency = GetParam()});
+  rig.build();
+  rig.power_on();
+  rig.run_for(4s);
+  auto& down = rig.gw().downstream();
+  const auto names = down.names();
+  ASSERT_EQ(names.size(), 48u);
+  for (const auto& n : names) ASSERT_EQ(down.state(n), subdevices::NodeState::Operational) << n << " did not boot";
+  for (const std::string rebooted : {"grip1", "pedal1", "enc1", "cluster8"}) {
+    ASSERT_EQ(rig.command(rebooted + " reboot").rfind("ok", 0), 0u);
+    const TimePoint at = loop.now();
+    bool went = false, back = false;  // the gateway saw the reboot, and configured the node again
+    for (int step = 0; step < 2000; ++step) {  // 2 s, a monitor every millisecond
+      rig.run_for(1ms);
+      for (const auto& n : names) {
+        if (n == rebooted) continue;
+        ASSERT_EQ(down.state(n), subdevices::NodeState::Operational)
+            << n << " left operational " << std::chrono::duration_cast<std::chrono::milliseconds>(loop.now() - at).count() << " ms after " << rebooted << " rebooted";
+      }
+      const bool op = down.state(rebooted) == subdevices::NodeState::Operational;
+      went = went || !op;
+      back = back || (went && op);
+    }
+    EXPECT_TRUE(went) << "the gateway did not notice " << rebooted << "'s reboot";
+    EXPECT_TRUE(back) << rebooted << " was not operational again within 2 s";
+    ASSERT_EQ(down.state(rebooted), subdevices::NodeState::Operational) << rebooted;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(DeviceLatency, TimedFullSet,
+                         ::testing::Values(subdevices::sim::kTypicalSdoLatency, Duration{250}, Duration{0}),
+                         [](const ::testing::TestParamInfo<Duration>& p) {
+                           return p.param == Duration{0} ? std::string("AtOnce") : "After" + std::to_string(p.param.count()) + "us";
+                         });
+
 }  // namespace

@@ -77,6 +77,57 @@ TEST_F(SdoClientTest, RequestStartsOnAdvanceAndNextDeadlineSaysSo) {
   EXPECT_TRUE(client->busy());
 }
 
+// SDO pacing (canopen/301/sdo_pacer.hpp). The gap from the bit rate, worked out by hand: an
+// 8-byte standard data frame is 98 stuffable bits (SOF, 11-bit ID, RTR, IDE, r0, DLC 4, 64
+// data bits, CRC 15), at worst one stuff bit after every 4 of them but the first: 24; then CRC
+// delimiter, ACK slot and delimiter, EOF 7 and the intermission 3: 135 bits. A request and its
+// answer: 270 bits.
+TEST(SdoPacer, TheGapKeepsRequestAndAnswerWithinTheShare) {
+  EXPECT_EQ(SdoPacer::gap_for(250'000, 0.5), Duration{2160});   // 270 bits at 4 us, twice
+  EXPECT_EQ(SdoPacer::gap_for(1'000'000, 1.0), Duration{270});
+  EXPECT_EQ(SdoPacer::gap_for(125'000, 0.85), Duration{2542});  // 2160 / 0.85, rounded up
+  EXPECT_EQ(SdoPacer::gap_for(250'000, 0.0), Duration{0});
+  EXPECT_EQ(SdoPacer::gap_for(0, 0.5), Duration{0});
+  EXPECT_FALSE(SdoPacer{}.paced());
+}
+
+// Two clients on one pacer (a master's clients toward two nodes), their servers answering at
+// once: the second request starts one gap after the first, not when the first is answered, and
+// next_deadline() names that time; a segment within a transfer is not held back.
+TEST(SdoPacer, ClientsSharingAPacerStartTheirRequestsAGapApart) {
+  const TimePoint t0{std::chrono::seconds(50)};
+  SdoPacer pacer{2ms};
+  std::vector<CanFrame> out;
+  SdoClient a([&](const CanFrame& f) { out.push_back(f); }, NodeId{5});
+  SdoClient b([&](const CanFrame& f) { out.push_back(f); }, NodeId{6});
+  a.set_pacer(&pacer);
+  b.set_pacer(&pacer);
+  int done = 0;
+  const auto count = [&done](SdoAbortCode c, std::vector<std::uint8_t>) { done += c == SdoAbortCode::None; };
+  a.upload(0x1000, 0, count);
+  a.upload(0x1018, 1, count);
+  b.upload(0x1000, 0, count);
+  a.advance(t0);
+  b.advance(t0);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(out[0].id, 0x605u);
+  EXPECT_EQ(b.next_deadline(), t0 + 2ms) << "b's request waits for the pacer's next slot";
+  // a's answer at once: its next request is paced too.
+  ASSERT_TRUE(a.on_frame(CanFrame(0x585, {0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}), t0 + 300us));
+  EXPECT_EQ(out.size(), 1u);
+  EXPECT_EQ(a.next_deadline(), t0 + 2ms);
+  b.advance(t0 + 2ms);
+  a.advance(t0 + 2ms);  // b took the slot: a waits another gap
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_EQ(out[1].id, 0x606u);
+  EXPECT_EQ(a.next_deadline(), t0 + 4ms);
+  a.advance(t0 + 4ms);
+  ASSERT_EQ(out.size(), 3u);
+  EXPECT_EQ(out[2].id, 0x605u);
+  EXPECT_EQ(out[2].data[1], 0x18);
+  EXPECT_EQ(done, 1);
+}
+
 // Novotechnik §7.2: 0x40 read command answered with 0x43 (4 bytes).
 TEST_F(SdoClientTest, ExpeditedUpload) {
   client->upload(0x1000, 0, record());

@@ -115,13 +115,16 @@ for d in vcan2 vcan3 vcan4 vcan5 vcan6 vcan7; do
   ip link add dev $d type vcan && ip link set $d up || { fail "ip link add $d type vcan"; exit 1; }
 done
 report "vm_latency: the SocketCAN path in a TCG VM (qemu, 1 vCPU), kernel $(uname -r)"
-report "1. latency, grip TPDO 191h -> its translation, kernel timestamps, one frame in flight, the three"
+report "1. latency, grip TPDO 191h -> its translation, kernel timestamps, one frame in flight, the four"
 report "   paths side by side and sampled in turn (can_probe paths), $rounds rounds x $samples samples per"
 report "   path, every translator started afresh each round (µs)"
 for ((r = 1; r <= rounds; r++)); do
-  start_translator vcan2 "$floor" vcan2 vcan3 0x191 && floor_pid=$tr_pid
-  start_translator vcan4 "$PY" "$here/latency_translator.py" vcan4 vcan5 && python_pid=$tr_pid
-  start_translator vcan6 "$floor" vcan6 vcan7 0x191 loop && loop_pid=$tr_pid
+  start_translator vcan2 "$floor" vcan2 vcan3 0x191
+  floor_pid=$tr_pid
+  start_translator vcan4 "$PY" "$here/latency_translator.py" vcan4 vcan5
+  python_pid=$tr_pid
+  start_translator vcan6 "$floor" vcan6 vcan7 0x191 loop
+  loop_pid=$tr_pid
   start_gateway "$dir/can/oegw.yaml"
   out=$("$probe" paths "$samples" 2000 30 "/tmp/lat.$r" oegw:vcan1:0x191:vcan0:0x1A0:cia852 \
     floor:vcan2:0x191:vcan3:0x191:copy python:vcan4:0x191:vcan5:0x1A0:cia852 floor-loop:vcan6:0x191:vcan7:0x191:copy)
