@@ -1,7 +1,5 @@
 #include "subdevices/sim/simulated_device.hpp"
 
-#include <algorithm>
-
 namespace oegw::subdevices::sim {
 
 void SimulatedDevice::build(std::unique_ptr<canopen::ObjectDictionary> od, const canopen::NodeConfig& config) {
@@ -52,6 +50,25 @@ void SimulatedDevice::release_answers(TimePoint now) {
   }
 }
 
+namespace {
+
+// Calls fn(cob) for each valid COB-ID in sub-index 01h of the PDO communication parameters
+// first..last (bit 31 set: the PDO does not exist / is not valid; bit 29: 29-bit identifier),
+// until fn returns true; returns whether it did. No allocation: is_tpdo() runs per frame sent.
+template <class Fn>
+bool any_pdo_cob_id(const canopen::ObjectDictionary& od, std::uint16_t first, std::uint16_t last, Fn fn) {
+  const auto& objects = od.objects();
+  for (auto it = objects.lower_bound(first); it != objects.end() && it->first <= last; ++it) {
+    const canopen::SubObject* s = od.find(it->first, 1);
+    if (s == nullptr || s->value.size() < 4) continue;
+    const canopen::CobId cob{od.get<std::uint32_t>(it->first, 1)};
+    if (cob.valid() && fn(cob)) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 std::vector<canopen::CobId> SimulatedDevice::tpdo_cob_ids() const {
   // CiA 301 §7.5.2.35: TPDO communication parameters at 1800h..19FFh.
   return pdo_cob_ids(0x1800, 0x19FF);
@@ -63,22 +80,16 @@ std::vector<canopen::CobId> SimulatedDevice::rpdo_cob_ids() const {
 }
 
 std::vector<canopen::CobId> SimulatedDevice::pdo_cob_ids(std::uint16_t first, std::uint16_t last) const {
-  // The COB-ID in sub-index 01h (bit 31 set: the PDO does not exist / is not valid; bit 29:
-  // 29-bit identifier).
   std::vector<canopen::CobId> ids;
-  const auto& objects = od_->objects();
-  for (auto it = objects.lower_bound(first); it != objects.end() && it->first <= last; ++it) {
-    const canopen::SubObject* s = od_->find(it->first, 1);
-    if (s == nullptr || s->value.size() < 4) continue;
-    const canopen::CobId cob{od_->get<std::uint32_t>(it->first, 1)};
-    if (cob.valid()) ids.push_back(cob);
-  }
+  any_pdo_cob_id(*od_, first, last, [&ids](canopen::CobId cob) {
+    ids.push_back(cob);
+    return false;
+  });
   return ids;
 }
 
 bool SimulatedDevice::is_tpdo(const CanFrame& frame) const {
-  const auto ids = tpdo_cob_ids();
-  return std::any_of(ids.begin(), ids.end(), [&](canopen::CobId cob) {
+  return any_pdo_cob_id(*od_, 0x1800, 0x19FF, [&frame](canopen::CobId cob) {
     return cob.extended() == frame.extended && cob.can_id() == frame.id;
   });
 }

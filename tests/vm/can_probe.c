@@ -162,7 +162,10 @@ static int open_path(struct path* p, const char* spec, const char* log_file, int
   p->expect = strcmp(expect, "copy") == 0 ? 'c' : strcmp(expect, "cia852") == 0 ? 'n' : 0;
   if (!p->expect) return 2;
   char file[512];
-  snprintf(file, sizeof file, log_is_prefix ? "%s.%s" : "%s", log_file, p->name);
+  if (log_is_prefix)
+    snprintf(file, sizeof file, "%s.%s", log_file, p->name);
+  else
+    snprintf(file, sizeof file, "%s", log_file);
   p->log = fopen(file, "w");
   p->lat = calloc((size_t)samples, sizeof *p->lat);
   p->tx = open_can(in_if, in_id, 1, 1, 1);
