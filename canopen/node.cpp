@@ -80,6 +80,11 @@ Node::Node(ObjectDictionary& od, NodeConfig config, FrameSink sink)
   nmt_.on_state_change([this](NmtState s) { handle_state(s); });
   sync_.set_handler([this](std::uint8_t counter, TimePoint now) { pdo_.on_sync(counter, now); });
   sync_.on_length_error = [this](std::uint16_t code) { emcy_.raise(code, 0x10, now_); };
+  // 8240h is over with the next SYNC of the length 1019h asks (CiA 301 §7.2.5, §7.5.2.41): the
+  // error was that SYNC's length, and this one has the right one.
+  sync_.on_length_ok = [this] {
+    if (emcy_.active(SyncService::kEmcyUnexpectedSyncLength)) emcy_.clear(SyncService::kEmcyUnexpectedSyncLength, now_);
+  };
   // CiA 301 §7.2.7.1: an RPDO of the wrong length is reported with EMCY 8210h (or 8220h).
   pdo_.on_length_error = [this](std::uint16_t, std::uint16_t code) { emcy_.raise(code, 0x10, now_); };
   // The length error is over once an RPDO of the right length has been processed.
@@ -115,8 +120,12 @@ void Node::communication_error(TimePoint now) {
 void Node::on_bus_event(BusEvent event, TimePoint now) {
   now_ = now;
   switch (event) {
-    case BusEvent::ErrorPassive: emcy_.raise(0x8120, 0x10, now); break;
+    case BusEvent::ErrorPassive:
+      error_passive_ = true;
+      emcy_.raise(0x8120, 0x10, now);
+      break;
     case BusEvent::ErrorActive:
+      error_passive_ = false;
       if (emcy_.active(0x8120)) emcy_.clear(0x8120, now);
       break;
     case BusEvent::BusOff:
@@ -126,6 +135,7 @@ void Node::on_bus_event(BusEvent event, TimePoint now) {
     case BusEvent::Restarted:
       if (bus_off_) {
         bus_off_ = false;
+        error_passive_ = false;
         if (emcy_.active(0x8120)) emcy_.clear(0x8120, now);
         emcy_.raise(0x8140, 0x10, now);  // "recovered from bus off": an event, reported once
         emcy_.clear(0x8140, now);
@@ -226,11 +236,10 @@ SdoAbortCode Node::check_sdo_channel_write(std::uint16_t index, std::uint8_t sub
   // CiA 301 §7.5.2.33: the identifier may change only while the COB-ID is not valid (bit 31 = 1).
   if (cur.valid() && next.valid() && (cur.raw() & 0x3FFFFFFFu) != (next.raw() & 0x3FFFFFFFu))
     return SdoAbortCode::InvalidValue;
+  if (!next.well_formed()) return SdoAbortCode::InvalidValue;
   if (!next.valid()) return SdoAbortCode::None;
-  // CiA 301 §7.3.5: a restricted CAN-ID is not for a configurable COB-ID; an 11-bit COB-ID has
-  // nothing in bits 11..28.
-  if (!next.extended() && (cob::restricted(next.can_id()) || (next.raw() & 0x1FFFF800u) != 0))
-    return SdoAbortCode::InvalidValue;
+  // CiA 301 §7.3.5: a restricted CAN-ID is not for a configurable COB-ID.
+  if (!next.extended() && cob::restricted(next.can_id())) return SdoAbortCode::InvalidValue;
   if (cob_in_use(next, index, sub)) return SdoAbortCode::InvalidValue;
   return SdoAbortCode::None;
 }
@@ -371,15 +380,20 @@ void Node::handle_reset(bool communication_only, TimePoint now) {
   if (communication_only) {
     od_.reset_to_defaults(0x1000, 0x1FFF);
   } else {
+    // Reset node restarts the application (CiA 301 §7.3.2.2.1): its errors with it. What still
+    // holds is raised again once pre-operational (handle_state: the store, the controller's
+    // error-passive state; the application's own, e.g. the gateway's sub-device faults).
+    emcy_.restart();
     od_.reset_to_defaults(0x0000, 0xFFFF);
   }
   if (store_) {
     const ParameterStore::LoadResult r = communication_only ? store_->load(0x1000, 0x1FFF) : store_->load();
     store_refused_ = !r.ok;  // EMCY in initialisation would be held back: applied in handle_state
   }
-  // The EMCY producer keeps its active errors across a reset, while the reset has just put 1001h
-  // back to 0: 1001h follows the producer again, so the error register never says "no error"
-  // while errors are active (CiA 301 §7.5.2.2).
+  // A reset communication leaves the application's active errors (CiA 301 §7.3.2.2.1: only the
+  // communication parameters restart), while it has just put 1001h back to 0: 1001h follows the
+  // producer again, so the error register never says "no error" while errors are active
+  // (§7.5.2.2).
   emcy_.reapply_register();
   // CiA 305: the pending node-ID becomes the active one, FFh included (the node stays in
   // initialisation then, see NmtSlave, and answers "identify non-configured remote slave").
@@ -409,6 +423,8 @@ void Node::handle_state(NmtState s) {
     apply_store_result(*store_refused_);
     store_refused_.reset();
   }
+  // After a reset node the controller is still error passive: 8120h again (the EMCY restarted).
+  if (s == NmtState::PreOperational && error_passive_ && !emcy_.active(0x8120)) emcy_.raise(0x8120, 0x10, now_);
   if (s == NmtState::Initialisation) {
     hb_producer_.stop();
   } else if (!hb_producer_.running()) {

@@ -8,7 +8,10 @@
 //  * NMT state gates the services: SDO and EMCY in pre-operational and operational, PDOs only in
 //    operational, heartbeat and NMT/LSS in every state.
 //  * Reset communication restores 1000h–1FFFh to defaults, then re-applies the stored values;
-//    reset node does the same for the whole dictionary. A node-ID configured by LSS becomes
+//    reset node does the same for the whole dictionary. Reset node also restarts the EMCY
+//    producer (no active error, 1001h 0, nothing sent: EmcyProducer::restart); what still holds
+//    is raised again once pre-operational: EMCY 6000h for a store the reset refused again, 8120h
+//    while the controller is error passive. Reset communication keeps the active errors. A node-ID configured by LSS becomes
 //    active here: every COB-ID default of the form "function code + node-ID" follows it.
 //  * LSS "store configuration" persists node-ID and bit timing beside the parameter file
 //    (canopen/305/lss_store.hpp); at power-on both are applied (bit_timing_index() is then the
@@ -26,10 +29,11 @@
 //    without a way to answer would change the dictionary unconfirmed). Writes of sub 1/2 (SDO;
 //    the application's own Local writes are not checked):
 //      - bits 0..29 may change only while bit 31 is set (0609 0030h otherwise), as for PDOs;
-//      - a valid COB-ID on a restricted CAN-ID (cob::restricted), an 11-bit one with bits 11..28
-//        set, or one the device already uses is refused with 0609 0030h. "In use": 1005h SYNC,
-//        1012h TIME (when consumed or produced), and the valid entries of 1014h EMCY, 1028h EMCY
-//        consumer, 1200h..12FFh sub 1/2, 1400h..15FFh sub 1 and 1800h..19FFh sub 1;
+//      - an 11-bit COB-ID with bits 11..28 set (valid or not: CobId::well_formed), a valid one on
+//        a restricted CAN-ID (cob::restricted) or one the device already uses is refused with
+//        0609 0030h. "In use": 1005h SYNC, 1012h TIME (when consumed or produced), and the
+//        valid entries of 1014h EMCY, 1028h EMCY consumer, 1200h..12FFh sub 1/2, 1400h..15FFh
+//        sub 1 and 1800h..19FFh sub 1;
 //      - a change takes effect at once and drops a transfer in progress on that channel; a write
 //        that arrives through that very channel takes effect after its confirmation was sent (so
 //        disabling a channel through itself is confirmed on it).
@@ -130,6 +134,9 @@ class Node {
   [[nodiscard]] std::size_t sdo_server_count() const { return 1 + extra_sdo_.size(); }
   // Channel 0 = 1200h (the default server), k = 1200h + k; out of range throws std::out_of_range.
   [[nodiscard]] SdoServer& sdo_server(std::size_t channel);
+  [[nodiscard]] const SdoServer& sdo_server(std::size_t channel) const {
+    return const_cast<Node*>(this)->sdo_server(channel);
+  }
 
   // Called on every NMT state change, after the Node has applied it.
   std::function<void(NmtState)> on_state_change;
@@ -176,6 +183,7 @@ class Node {
   std::optional<TimePoint> bt_resume_at_;
   std::uint8_t bt_next_ = 0;
   bool bus_off_ = false;
+  bool error_passive_ = false;  // the controller's last word: error passive (8120h), not yet active again
   // The node-ID the "function code + node-ID" COB-ID defaults are built on: the last valid
   // active node-ID (the node-ID itself may be FFh, unconfigured, meanwhile).
   NodeId cob_base_;

@@ -21,7 +21,8 @@ set(CPACK_DEBIAN_PACKAGE_MAINTAINER "${OEGW_PACKAGE_MAINTAINER}")
 set(CPACK_DEBIAN_PACKAGE_SECTION electronics)
 set(CPACK_DEBIAN_PACKAGE_PRIORITY optional)
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
-set(CPACK_DEBIAN_PACKAGE_SUGGESTS "can-utils")
+# can-utils reads the recordings (log2asc, canplayer); libjs-chart.js draws `oegw replay --plot`.
+set(CPACK_DEBIAN_PACKAGE_SUGGESTS "can-utils, libjs-chart.js")
 set(CPACK_DEBIAN_COMPRESSION_TYPE xz)
 # Debian's control Description: CPack puts the summary line first and indents this long text.
 set(CPACK_DEBIAN_PACKAGE_DESCRIPTION "oegw runs on an operator cab's controller between two CAN buses. Towards the

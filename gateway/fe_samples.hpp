@@ -126,4 +126,20 @@ class Publisher {
   virtual void poll() {}
 };
 
+// A Publisher that hands every sample, whatever its type, to Derived::forward(sample): a fan-out
+// to several transports, a transport that may be down (gateway/publisher_link.hpp).
+template <class Derived>
+class ForwardingPublisher : public Publisher {
+ public:
+  void publish(const JoystickSample& s) override { self().forward(s); }
+  void publish(const PedalSample& s) override { self().forward(s); }
+  void publish(const WheelSample& s) override { self().forward(s); }
+  void publish(const EncoderSample& s) override { self().forward(s); }
+  void publish(const ButtonClusterSample& s) override { self().forward(s); }
+  void publish(const GatewayStatus& s) override { self().forward(s); }
+
+ private:
+  Derived& self() { return static_cast<Derived&>(*this); }
+};
+
 }  // namespace oegw::gateway

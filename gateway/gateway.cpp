@@ -54,22 +54,41 @@ std::uint8_t heartbeat_entries(const mapping::Config& c) {
 
 Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, canopen::FrameSink downstream,
                  GatewayOptions options)
-    : config_(config),
-      master_(master_od_, downstream, canopen::MasterConfig{.heartbeat_entries = heartbeat_entries(config), .sdo_timeout = options.sdo_timeout.value_or(std::chrono::milliseconds(config.downstream.sdo_timeout_ms)), .sync_period = std::chrono::milliseconds(config.downstream.sync_period_ms), .sdo_request_gap = canopen::SdoPacer::gap_for(config.downstream.bitrate, options.sdo_bus_share)}),
+    : Gateway(config, nullptr, std::move(upstream), std::move(downstream), options) {}
+
+Gateway::Gateway(const mapping::Config& config, HandedOver upstream, canopen::FrameSink downstream,
+                 GatewayOptions options)
+    : Gateway(config, std::move(upstream.device), {}, std::move(downstream), options) {}
+
+Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed_over, canopen::FrameSink upstream,
+                 canopen::FrameSink downstream, const GatewayOptions& options)
+    : tap_(options.tap),
+      downstream_out_(tapped(Bus::Down, std::move(downstream))),
+      config_(config),
+      master_(master_od_, downstream_out_, canopen::MasterConfig{.heartbeat_entries = heartbeat_entries(config), .sdo_timeout = options.sdo_timeout.value_or(std::chrono::milliseconds(config.downstream.sdo_timeout_ms)), .sync_period = std::chrono::milliseconds(config.downstream.sync_period_ms), .sdo_request_gap = canopen::SdoPacer::gap_for(config.downstream.bitrate, options.sdo_bus_share)}),
       network_(master_, options.timing),
       remote_sdo_(std::make_unique<RemoteSdo>(config_, master_, network_, now_,
                                               [this] { return oe_->node().node_id(); })),
-      oe_(std::make_unique<OeDevice>(device_config(config_, options.store_path), std::move(upstream))),
+      oe_(handed_over ? std::move(handed_over)
+                      : std::make_unique<OeDevice>(device_config(config_, options.store_path), std::move(upstream))),
       model_(oe_->config().fes) {
   // Every SDO server channel of the device reaches the sub-devices (remote SDO); a channel the
   // mapping file binds to a sub-device goes nowhere else (gateway/remote_sdo.hpp).
   remote_sdo_->on_log = [this](const std::string& line) { log(line); };
+  // What the upstream device sends, to the tap (a handed-over device's too: release_upstream()
+  // takes this hook away with it).
+  oe_->on_sent([this](const canopen::CanFrame& f) {
+    if (tap_ != nullptr) tap_->sent(*this, Bus::Up, f);
+  });
   canopen::Node& device = oe_->node();
   for (std::size_t k = 0; k < device.sdo_server_count(); ++k) {
     canopen::SdoServer& server = device.sdo_server(k);
     server.set_remote(remote_sdo_.get());
     if (k >= 1 && k <= config_.upstream.sdo_servers.size() && !config_.upstream.sdo_servers[k - 1].subdevice.empty())
       server.bind(remote_sdo_->target_of(config_.upstream.sdo_servers[k - 1].subdevice));
+    server.on_redirect = [this, k](const auto& before, const auto& after, canopen::SdoServer::RedirectChange why) {
+      log_redirect(k, before, after, why);
+    };
   }
   // The CiA 852 device mirrors every changed input slot into its dictionary at once.
   model_.on_slot_change([this](mapping::FeId fe, FeSlot slot, std::int64_t v) {
@@ -80,7 +99,7 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
   arbiter_->drive = [this](mapping::FeId fe, FieldRef ref, std::int64_t v) { on_output(fe, ref, v); };
   for (const auto& sc : config_.subdevices) {
     std::string error;
-    auto driver = sd::make_driver(sc.driver, sc.node(), downstream, sc.options, error);
+    auto driver = sd::make_driver(sc.driver, sc.node(), downstream_out_, sc.options, error);
     if (!driver) throw std::runtime_error(sc.where.str() + ": " + error);  // load_config checked it
     sd::NodeSettings ns = sc.node_settings();
     sd::Driver* d = driver.get();
@@ -132,6 +151,7 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     // driver holds one is booted again by reset node: reset, it reports the error again if it
     // persists, and the gateway does not wait for a clear code that may have been lost.
     s.why = std::string(sd::to_string(st)) + " (" + why + ")";
+    if (tap_ != nullptr) tap_->node_state(name, st, why);
     log(name + ": " + s.why);
     if (s.operational && !was) {
       // Output values commanded meanwhile reach the device now, all in one frame per RPDO.
@@ -149,19 +169,29 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
     if (st == sd::NodeState::Missing || st == sd::NodeState::Refused || (was && !s.operational)) s.failed = true;
     if (s.operational) s.failed = false;
     if (s.failed || s.operational) update_fault(s, why);
+    if (reloading_) settle_reload();
   };
   network_.on_emcy = [this](const std::string& name, const canopen::EmcyMessage& e, const sd::DecodedEmcy& d) {
     auto it = subs_.find(name);
     if (it == subs_.end()) return;
     it->second.emcy = EmcyRecord{e, now_, it->second.emcy.count + 1};
+    if (tap_ != nullptr) tap_->subdevice_emcy(name, e);
     log(name + ": EMCY " + fmt::format("{:04X}h", e.code) + " " + d.text);
     // Remote EMCY: upstream first, then the 7000h the fault policy may raise for it below.
     const mapping::EmcyForwarding fwd = config_.downstream.emcy_forwarding;
     if (fwd == mapping::EmcyForwarding::All || (fwd == mapping::EmcyForwarding::Faults && (e.code == 0 || d.error)))
       (void)oe_->forward_subdevice_emcy(e, now_);
     // What the EMCY faults or clears is the driver's (d.affected, Driver::faulted): a warning
-    // (81xxh, elobau 0002h) faults nothing, a clear code ends only what it clears.
+    // (81xxh) faults nothing, a clear code ends only what it clears.
     update_fault(it->second, fmt::format("EMCY {:04X}h {}", e.code, d.text));
+  };
+  // A fault the device ended without an EMCY, shown by the object its driver polls while the
+  // fault lasts (the MCB-402's 1001h after a cable break, subdevices/README.md).
+  network_.on_fault_evidence = [this](const std::string& name, const std::string& what) {
+    auto it = subs_.find(name);
+    if (it == subs_.end()) return;
+    log(name + ": " + what);
+    update_fault(it->second, what);
   };
   // A sub-device's EMCY reaches the host before the 7000h it causes: its driver's decoding
   // (inside the network manager's EMCY handler) already moves signals and so the fault policy,
@@ -202,7 +232,20 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
   };
 }
 
+canopen::FrameSink Gateway::tapped(Bus bus, canopen::FrameSink sink) {
+  return [this, bus, sink = std::move(sink)](const canopen::CanFrame& f) {
+    if (tap_ != nullptr) tap_->sent(*this, bus, f);
+    sink(f);
+  };
+}
+
+void Gateway::send_downstream(const canopen::CanFrame& frame) {
+  if (tap_ != nullptr) tap_->control("send_downstream", now_);
+  master_.sink()(frame);
+}
+
 canopen::ParameterStore::LoadResult Gateway::start(TimePoint now) {
+  if (tap_ != nullptr) tap_->started(now);
   now_ = now;
   auto r = oe_->start(now);
   arbiter_->start(now);
@@ -217,7 +260,46 @@ canopen::ParameterStore::LoadResult Gateway::start(TimePoint now) {
 }
 
 void Gateway::log(const std::string& line) {
+  if (tap_ != nullptr) tap_->logged(line);
   if (on_log) on_log(line);
+}
+
+std::vector<Gateway::SdoRedirect> Gateway::sdo_redirects() const {
+  std::vector<SdoRedirect> out;
+  const canopen::Node& device = oe_->node();
+  for (std::size_t k = 0; k < device.sdo_server_count(); ++k) {
+    const canopen::SdoServer& server = device.sdo_server(k);
+    if (!server.redirect()) continue;
+    out.push_back({static_cast<std::uint16_t>(0x1200 + k), server.rx_cob_id(), server.tx_cob_id(), *server.redirect(),
+                   remote_sdo_->subdevice_at(server.redirect()->target)});
+  }
+  return out;
+}
+
+void Gateway::log_redirect(std::size_t channel, const std::optional<canopen::SdoServer::Redirect>& before,
+                           const std::optional<canopen::SdoServer::Redirect>& after,
+                           canopen::SdoServer::RedirectChange why) {
+  using Change = canopen::SdoServer::RedirectChange;
+  const canopen::SdoServer& server = oe_->node().sdo_server(channel);
+  const std::string head = fmt::format("remote SDO: SDO server {:04X}h ({:03X}h/{:03X}h)", 0x1200 + channel,
+                                       server.rx_cob_id().can_id(), server.tx_cob_id().can_id());
+  if (after) {
+    const auto& r = after->request;
+    log(fmt::format("{} redirected to {} by the network indication {:02X}: every client on {:03X}h now reaches {}, not "
+                    "the gateway, until a network indication names the gateway (network {}, node {:02X}h, or network 0, "
+                    "node 0) or the gateway is reset or stopped (NMT){}",
+                    head, remote_sdo_->describe(after->target), fmt::join(r, " "), server.rx_cob_id().can_id(),
+                    remote_sdo_->subdevice_at(after->target), config_.upstream.network_id, oe_->node().node_id().value(),
+                    before ? "; it reached " + remote_sdo_->describe(before->target) + " before" : ""));
+    return;
+  }
+  const char* cause = why == Change::Indication ? "a network indication named the gateway"
+                      : why == Change::Reset    ? "NMT reset or stop of the gateway"
+                      : why == Change::CobIds   ? "its COB-IDs changed"
+                                                : "the channel was reconfigured";
+  const double seconds = std::chrono::duration<double>(now_ - before->since).count();
+  log(fmt::format("{} reaches the gateway's own dictionary again ({}): its redirect to {} lasted {:.1f} s", head, cause,
+                  remote_sdo_->describe(before->target), seconds));
 }
 
 void Gateway::feed(Binding& b, const Sub& s, const sd::SignalValue& v, bool decided_now) {
@@ -254,6 +336,7 @@ void Gateway::on_signal(Sub& s, std::size_t index, const sd::SignalValue& v) {
 void Gateway::publish_changes() {
   // Also without a consumer: the marks are cleared.
   model_.for_each_changed([this](mapping::FeId fe) {
+    if (tap_ != nullptr) tap_->fe_changed(*this, fe);
     if (on_fe_change) on_fe_change(fe);
   });
 }
@@ -307,10 +390,12 @@ void Gateway::update_fault(Sub& s, std::string_view evidence) {
   s.cause = cause;
   if (!reason.empty() && !was) {
     faults_[name] = reason;
+    if (tap_ != nullptr) tap_->fault(name, true, reason);
     fault_emcy(s, true);
     log(name + ": fault (" + reason + "): its inputs are at their fault values, EMCY 7000h sent upstream");
   } else if (reason.empty() && was) {
     faults_.erase(name);
+    if (tap_ != nullptr) tap_->fault(name, false, evidence);
     fault_emcy(s, false);
     log(name + ": fault cleared (" + std::string(evidence) + ")");
   } else if (!reason.empty()) {
@@ -358,11 +443,15 @@ void Gateway::end_outputs(TimePoint now) {
 }
 
 bool Gateway::on_upstream_frame(const canopen::CanFrame& frame, TimePoint now) {
+  if (tap_ != nullptr) tap_->received(Bus::Up, frame, now);
   now_ = now;
   // One host command (an SDO download, an RPDO, the error values of a heartbeat loss) reaches
   // each sub-device as one frame per RPDO, never as the states in between.
   begin_outputs();
   const bool used = oe_->on_frame(frame, now);
+  // An NMT reset node restarted the EMCY producer (canopen/node.hpp): a downstream interface
+  // still down is raised again.
+  if (downstream_down_ && !oe_->node().emcy().active(kEmcyHardware)) oe_->node().emcy().raise(kEmcyHardware, 0x00, now);
   arbiter_->hold_error_values(now);
   end_outputs(now);
   publish_changes();
@@ -370,8 +459,10 @@ bool Gateway::on_upstream_frame(const canopen::CanFrame& frame, TimePoint now) {
 }
 
 bool Gateway::on_downstream_frame(const canopen::CanFrame& frame, TimePoint now) {
+  if (tap_ != nullptr) tap_->received(Bus::Down, frame, now);
   now_ = now;
   // A frame received: the downstream interface works again.
+  downstream_down_ = false;
   if (oe_->node().emcy().active(kEmcyHardware)) oe_->node().emcy().clear(kEmcyHardware, now);
   oe_->begin_batch();  // one upstream TPDO per downstream frame, whatever it changed
   begin_outputs();     // the TPDOs end_batch() sends can notice a host heartbeat loss
@@ -384,6 +475,7 @@ bool Gateway::on_downstream_frame(const canopen::CanFrame& frame, TimePoint now)
 }
 
 void Gateway::on_upstream_bus_event(canopen::BusEvent event, TimePoint now) {
+  if (tap_ != nullptr) tap_->bus_event(Bus::Up, event, now);
   now_ = now;
   begin_outputs();
   oe_->node().on_bus_event(event, now);
@@ -392,13 +484,16 @@ void Gateway::on_upstream_bus_event(canopen::BusEvent event, TimePoint now) {
 }
 
 void Gateway::on_downstream_bus_event(canopen::BusEvent event, TimePoint now) {
+  if (tap_ != nullptr) tap_->bus_event(Bus::Down, event, now);
   now_ = now;
   if (event != canopen::BusEvent::InterfaceDown) return;
+  downstream_down_ = true;
   auto& emcy = oe_->node().emcy();
   if (!emcy.active(kEmcyHardware)) emcy.raise(kEmcyHardware, 0x00, now);
 }
 
 void Gateway::advance(TimePoint now) {
+  if (tap_ != nullptr) tap_->advanced(now);
   now_ = now;
   begin_outputs();
   oe_->advance(now);
@@ -421,17 +516,25 @@ std::optional<TimePoint> Gateway::next_deadline() const {
 }
 
 std::vector<Gateway::FieldState> Gateway::fields(mapping::FeId fe) const {
+  std::vector<FieldSample> samples;
+  field_samples(fe, samples);
   std::vector<FieldState> out;
+  std::size_t k = 0;
   for (const auto& b : bindings_) {
     if (!(b.fe == fe)) continue;
-    FieldState f;
-    f.name = b.field->field.name;
-    f.value = model_.read(fe, b.ref);
-    f.status = b.translator ? b.status : SignalStatus::Valid;
-    f.interlocked = b.translator && b.translator->interlocked() && b.status == SignalStatus::Valid;
-    out.push_back(f);
+    const FieldSample& f = samples[k++];
+    out.push_back(FieldState{b.field->field.name, f.value, f.status, f.interlocked});
   }
   return out;
+}
+
+void Gateway::field_samples(mapping::FeId fe, std::vector<FieldSample>& out) const {
+  out.clear();
+  for (const auto& b : bindings_) {
+    if (!(b.fe == fe)) continue;
+    out.push_back(FieldSample{model_.read(fe, b.ref), b.translator ? b.status : SignalStatus::Valid,
+                              b.translator && b.translator->interlocked() && b.status == SignalStatus::Valid});
+  }
 }
 
 void Gateway::count_refused(Sub* s) {
@@ -471,11 +574,19 @@ canopen::SdoAbortCode Gateway::host_subdevice_command(std::uint32_t value) {
   }
   log("host: 3000h sub-device command " + std::string(command) + " to " + s->config->name);
   // subdevice_command() counts its own refusals.
-  return subdevice_command(s->config->name, command, now_) ? canopen::SdoAbortCode::None
+  return run_subdevice_command(s->config->name, command, now_) ? canopen::SdoAbortCode::None
                                                            : canopen::SdoAbortCode::CannotTransferDeviceState;
 }
 
 bool Gateway::subdevice_command(const std::string& name, std::string_view command, TimePoint now) {
+  if (tap_ == nullptr) return run_subdevice_command(name, command, now);
+  tap_->subdevice_command(name, command, now);
+  const bool taken = run_subdevice_command(name, command, now);
+  tap_->command_outcome(taken, {});
+  return taken;
+}
+
+bool Gateway::run_subdevice_command(const std::string& name, std::string_view command, TimePoint now) {
   now_ = now;
   const auto it = subs_.find(name);
   if (it == subs_.end()) {
@@ -522,30 +633,43 @@ FeStatus Gateway::status(mapping::FeId fe) const { return model_.has(fe) ? model
 
 bool Gateway::command_indicators(std::uint8_t instance, std::uint64_t bits, TimePoint now,
                                  mapping::CommandSource source) {
+  if (tap_ != nullptr) tap_->indicators(instance, bits, source, now);
   now_ = now;
   begin_outputs();  // all 64 bits of the command: one frame per RPDO of each sub-device
   const bool taken = arbiter_->command_indicators(instance, bits, source, now);
   end_outputs(now);
   publish_changes();
+  if (tap_ != nullptr) tap_->command_outcome(taken, {});
   return taken;
 }
 
 bool Gateway::command_display(std::uint8_t instance, const std::array<std::int16_t, 12>& parameters, TimePoint now,
                               mapping::CommandSource source) {
+  if (tap_ != nullptr) tap_->display(instance, parameters, source, now);
   now_ = now;
   begin_outputs();
   const bool taken = arbiter_->command_display(instance, parameters, source, now);
   end_outputs(now);
   publish_changes();
+  if (tap_ != nullptr) tap_->command_outcome(taken, {});
   return taken;
 }
 
 RemoteSdo& Gateway::remote_sdo(TimePoint now) {
+  if (tap_ != nullptr) tap_->control("remote_sdo", now);
   now_ = now;
   return *remote_sdo_;
 }
 
 std::string Gateway::downstream_nmt(canopen::NodeId node, canopen::NmtCommand cs, TimePoint now) {
+  if (tap_ == nullptr) return run_downstream_nmt(node, cs, now);
+  tap_->downstream_nmt(node, cs, now);
+  std::string why = run_downstream_nmt(node, cs, now);
+  tap_->command_outcome(why.empty(), why);
+  return why;
+}
+
+std::string Gateway::run_downstream_nmt(canopen::NodeId node, canopen::NmtCommand cs, TimePoint now) {
   now_ = now;
   const Sub* s = nullptr;
   for (const auto& [name, sub] : subs_)
@@ -566,6 +690,96 @@ std::string Gateway::downstream_nmt(canopen::NodeId node, canopen::NmtCommand cs
                   s != nullptr ? " (" + s->config->name + ")" : std::string(" (no sub-device of the mapping file)")));
   master_.nmt().send(cs, node);
   return {};
+}
+
+// ------------------------------------------------------------------ reload (gateway/reload.hpp)
+
+void Gateway::hand_over(const mapping::Config& next, TimePoint now) {
+  now_ = now;
+  begin_outputs();  // the error values: one frame per RPDO of each operational sub-device
+  oe_->apply_error_values(std::nullopt, now);
+  end_outputs(now);
+  for (const auto& sc : config_.subdevices) {
+    const bool kept = std::any_of(next.subdevices.begin(), next.subdevices.end(),
+                                  [&sc](const mapping::SubdeviceConfig& n) { return n.node_id == sc.node_id; });
+    if (kept) continue;
+    master_.nmt().enter_pre_operational(sc.node());
+    log(fmt::format("{}: no longer in the mapping file: NMT enter pre-operational sent to node {:02X}h", sc.name,
+                    sc.node_id));
+  }
+  publish_changes();
+}
+
+std::unique_ptr<OeDevice> Gateway::release_upstream() {
+  command_hook_ = {};
+  canopen::Node& device = oe_->node();
+  for (std::size_t k = 0; k < device.sdo_server_count(); ++k) {
+    device.sdo_server(k).set_remote(nullptr);  // cancels a remote transfer with this RemoteSdo
+    device.sdo_server(k).bind(std::nullopt);
+    device.sdo_server(k).on_redirect = {};     // a redirect ended above is logged by this gateway
+  }
+  oe_->on_emcy({});
+  oe_->on_sent({});
+  oe_->on_output({});
+  oe_->on_host_write({});
+  return std::move(oe_);
+}
+
+void Gateway::resume(TimePoint now) {
+  now_ = now;
+  begin_outputs();
+  oe_->begin_batch();  // the inputs' fault values: one TPDO per PDO
+  arbiter_->start(now);
+  for (auto& b : bindings_)
+    if (b.translator) (void)model_.write(b.fe, b.ref, b.translator->value(), now);
+  for (const auto& fe : model_.fes()) {
+    model_.stamp(fe, now);
+    // The device's dictionary still holds the old gateway's inputs, and a fault value equal to
+    // the fresh model's 0 changed no slot above: every input slot is mirrored.
+    if (!mapping::is_input(fe.kind)) continue;
+    for (std::size_t k = 0; k < kFeSlots; ++k)
+      oe_->mirror_input(fe, static_cast<FeSlot>(k), model_.slot_value(fe, static_cast<FeSlot>(k)), now);
+  }
+  oe_->announce_outputs();  // into the FE model and the output bindings (sent at each node's start)
+  oe_->end_batch(now);
+  end_outputs(now);
+  // Faults of the device's 7000h: kept for a sub-device this file keeps, ended for the others.
+  const std::map<std::uint8_t, std::string> faulty = oe_->faulty_subdevices();
+  for (const auto& [node, name] : faulty) {
+    const auto it = subs_.find(name);
+    if (it == subs_.end() || it->second.config->node_id != node) {
+      oe_->clear_subdevice_fault(canopen::NodeId{node}, now);
+      log(fmt::format("{}: fault ended: node {:02X}h is no longer this sub-device of the mapping file", name, node));
+      continue;
+    }
+    Sub& s = it->second;
+    s.failed = true;
+    s.why = "faulty before the reload";
+    s.cause = Cause{Cause::Kind::State, 0, SignalStatus::Offline};
+    faults_[name] = s.why;
+  }
+  auto& emcy = oe_->node().emcy();
+  if (!emcy.active(kEmcyReload)) emcy.raise(kEmcyReload, 0x00, now);
+  reloading_ = true;
+  log(fmt::format("reload: every input at its fault value, every output at its error value, EMCY {:04X}h; booting "
+                  "the {} sub-devices again",
+                  kEmcyReload, subs_.size()));
+  network_.start(now);
+  settle_reload();
+  publish_changes();
+}
+
+void Gateway::settle_reload() {
+  for (const auto& [name, s] : subs_)
+    if (!s.operational && !s.failed) return;
+  reloading_ = false;
+  auto& emcy = oe_->node().emcy();
+  emcy.clear(kEmcyReload, now_);
+  // Other errors still active (a faulty sub-device's 7000h): the producer stays silent, so the
+  // end is reported as a sub-device's recovery among others is, EMCY 0000h with the remaining
+  // error register (OeDevice::clear_subdevice_fault).
+  if (emcy.active_count() != 0) (void)emcy.report(canopen::EmcyProducer::kErrorReset, {}, 0, now_);
+  log(fmt::format("reload: every sub-device operational or reported faulty: EMCY {:04X}h cleared", kEmcyReload));
 }
 
 }  // namespace oegw::gateway

@@ -45,6 +45,7 @@
 #include "gateway/command_arbiter.hpp"
 #include "gateway/fe_model.hpp"
 #include "gateway/fe_samples.hpp"
+#include "gateway/gateway_tap.hpp"
 #include "gateway/oe_device.hpp"
 #include "gateway/remote_sdo.hpp"
 #include "mapping/config.hpp"
@@ -67,17 +68,50 @@ struct GatewayOptions {
   // time on the wire to share).
   double sdo_bus_share = kDefaultSdoBusShare;
   static constexpr double kDefaultSdoBusShare = 0.85;
+  // The black box (gateway/gateway_tap.hpp), told everything from the construction on; it must
+  // outlive the gateway.
+  GatewayTap* tap = nullptr;
 };
 
 class Gateway {
  public:
   Gateway(const mapping::Config& config, canopen::FrameSink upstream, canopen::FrameSink downstream,
           GatewayOptions options = {});
+  // A reload (gateway/reload.hpp): a gateway for `config` around the upstream device another
+  // gateway handed over (release_upstream()), with the same FE set; resume() starts it.
+  struct HandedOver {
+    explicit HandedOver(std::unique_ptr<OeDevice> d) : device(std::move(d)) {}
+    std::unique_ptr<OeDevice> device;
+  };
+  Gateway(const mapping::Config& config, HandedOver upstream, canopen::FrameSink downstream,
+          GatewayOptions options = {});
   Gateway(const Gateway&) = delete;
   Gateway& operator=(const Gateway&) = delete;
 
   // Powers the upstream device on (boot-up) and starts booting the sub-devices.
   canopen::ParameterStore::LoadResult start(canopen::TimePoint now);
+
+  // The reload's handover (gateway/reload.hpp has the rules). hand_over(), on the gateway being
+  // replaced: every output at its CiA 401 error value (6206h/6207h, 6443h/6444h), reaching its
+  // sub-device while that is still operational, and NMT enter pre-operational to each
+  // sub-device `next` no longer configures (its PDOs stop: nothing consumes them). Then
+  // release_upstream() detaches the upstream device (its SDO servers' remote target dropped, a
+  // host's remote transfer in flight with it); only destruction may follow.
+  void hand_over(const mapping::Config& next, canopen::TimePoint now);
+  [[nodiscard]] std::unique_ptr<OeDevice> release_upstream();
+  // Instead of start(), on a gateway built around a handed-over device, whose NMT state,
+  // heartbeat and dictionary go on: every input at its fault value (one TPDO per PDO when
+  // operational), the outputs as the device holds them (their error values until the next
+  // command), then EMCY kEmcyReload, then the sub-devices are booted again, all of them. A
+  // sub-device faulty before (7000h active for its node) stays faulty until its own evidence
+  // when this file keeps it (same name and node-ID); else its fault ends, logged.
+  void resume(canopen::TimePoint now);
+  // CiA 301 Table 21 "data set" (a 6xxx device software code, allowed beside CiA 852 Table 37 by
+  // its clause 14): the configuration is being replaced. Held from resume() until every
+  // sub-device of the new file is operational or faulty (then its own 7000h tells), register
+  // bit 0 (generic: CiA 301 §7.5.2.2 has no bit for software).
+  static constexpr std::uint16_t kEmcyReload = 0x6300;
+  [[nodiscard]] bool reloading() const { return reloading_; }
 
   bool on_upstream_frame(const canopen::CanFrame& frame, canopen::TimePoint now);
   bool on_downstream_frame(const canopen::CanFrame& frame, canopen::TimePoint now);
@@ -100,6 +134,15 @@ class Gateway {
     bool interlocked = false;
   };
   [[nodiscard]] std::vector<FieldState> fields(mapping::FeId fe) const;
+  // The same without the names, in the same order, into `out` (the black box reads them at
+  // every change of the FE: no allocation once `out` has grown).
+  struct FieldSample {
+    std::int64_t value = 0;
+    subdevices::SignalStatus status = subdevices::SignalStatus::Offline;
+    bool interlocked = false;
+    friend bool operator==(const FieldSample&, const FieldSample&) = default;
+  };
+  void field_samples(mapping::FeId fe, std::vector<FieldSample>& out) const;
   [[nodiscard]] FeStatus status(mapping::FeId fe) const;
   [[nodiscard]] const std::vector<mapping::FeId>& fes() const { return model_.fes(); }  // in FE order
 
@@ -141,6 +184,16 @@ class Gateway {
   [[nodiscard]] const subdevices::NetworkManager& downstream() const { return network_; }
   // Remote SDO: the host's transfers to sub-devices (gateway/remote_sdo.hpp).
   [[nodiscard]] const RemoteSdo& remote_sdo() const { return *remote_sdo_; }
+  // An SDO server channel a network indication has redirected to a sub-device (README
+  // "Reaching sub-devices from the host"): every client of that channel reaches the sub-device,
+  // not the gateway, until it ends. Logged when it begins and ends; `oegw status` lists them.
+  struct SdoRedirect {
+    std::uint16_t server = 0;             // the channel's object, 1200h + channel
+    canopen::CobId request, response;     // its COB-IDs (client -> server, server -> client)
+    canopen::SdoServer::Redirect redirect;
+    std::string subdevice;                // the configured sub-device named
+  };
+  [[nodiscard]] std::vector<SdoRedirect> sdo_redirects() const;
   // The same RemoteSdo for the control socket's transfers (`oegw ctl`, gateway/control/
   // ctl_service.hpp): one mechanism, one policy for the host's and the commissioning tool's SDO.
   // `now` is the entry point's time (the gateway's clock of the call, as for a frame).
@@ -162,7 +215,7 @@ class Gateway {
   // gateway/control/scan_service.hpp): a frame sent as the gateway sends its own, and every
   // frame received, after the gateway has handled it. Only for node-IDs that are no sub-device
   // and for LSS on the network manager's master (their SDO channels are the gateway's clients').
-  void send_downstream(const canopen::CanFrame& frame) { master_.sink()(frame); }
+  void send_downstream(const canopen::CanFrame& frame);
   std::function<void(const canopen::CanFrame&, canopen::TimePoint)> on_downstream_frame_seen;
   [[nodiscard]] const std::map<std::string, std::string>& faults() const { return faults_; }
 
@@ -183,6 +236,14 @@ class Gateway {
   std::function<void(mapping::FeId)> on_fe_change;
   // Log lines ("right_grip: missing (heartbeat lost)"), for journald.
   std::function<void(const std::string&)> on_log;
+
+  // The observer of every input, output and decision (gateway/gateway_tap.hpp: the black box);
+  // nullptr: none. It must outlive the gateway or be removed first.
+  void set_tap(GatewayTap* tap) { tap_ = tap; }
+  // A control-socket request line reaching the running gateway (told to the tap only).
+  void control_request(std::string_view line, canopen::TimePoint now) {
+    if (tap_ != nullptr) tap_->control(line, now);
+  }
 
  private:
   struct Sub;
@@ -233,6 +294,10 @@ class Gateway {
     std::uint64_t refused_commands = 0;  // 3000h / subdevice_command() for it, refused
   };
 
+  Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed_over, canopen::FrameSink upstream,
+          canopen::FrameSink downstream, const GatewayOptions& options);
+  // resume(): ends kEmcyReload once every sub-device is operational or faulty.
+  void settle_reload();
   void on_signal(Sub& s, std::size_t index, const subdevices::SignalValue& v);
   void on_output(mapping::FeId fe, FieldRef ref, std::int64_t value);
   void drive(Binding& b, Sub& s, std::int64_t value);
@@ -251,7 +316,16 @@ class Gateway {
   // The FEs the call changed, to the publishers (on_fe_change).
   void publish_changes();
   void log(const std::string& line);
+  // The log line of a change of SDO server channel `channel`'s redirect.
+  void log_redirect(std::size_t channel, const std::optional<canopen::SdoServer::Redirect>& before,
+                    const std::optional<canopen::SdoServer::Redirect>& after,
+                    canopen::SdoServer::RedirectChange why);
 
+  GatewayTap* tap_;
+  // The downstream sink the gateway was given, behind the tap (every frame it sends downstream
+  // passes here; the upstream device's frames reach the tap through OeDevice::on_sent).
+  canopen::FrameSink tapped(Bus bus, canopen::FrameSink sink);
+  canopen::FrameSink downstream_out_;
   mapping::Config config_;
   canopen::ObjectDictionary master_od_;
   canopen::Master master_;
@@ -260,11 +334,16 @@ class Gateway {
   std::unique_ptr<OeDevice> oe_;
   canopen::Subscription command_hook_;  // 3000h's write hook (after oe_: removed before it)
   canopen::SdoAbortCode host_subdevice_command(std::uint32_t value);
+  // subdevice_command() and downstream_nmt() without telling the tap (the host's 3000h path is
+  // told as its upstream frame).
+  bool run_subdevice_command(const std::string& name, std::string_view command, canopen::TimePoint now);
+  std::string run_downstream_nmt(canopen::NodeId node, canopen::NmtCommand cs, canopen::TimePoint now);
   // Counts a refused 3000h / subdevice_command() (`s`: the sub-device it was for, or nullptr).
   void count_refused(Sub* s);
   std::uint64_t subdevice_commands_refused_ = 0;  // 3000h / subdevice_command() refusals, all
   FeModel model_;
   canopen::TimePoint now_{};
+  bool downstream_down_ = false;  // BusEvent::InterfaceDown, no downstream frame since (EMCY 5000h)
   std::unique_ptr<CommandArbiter> arbiter_;
   std::map<std::string, Sub> subs_;
   unsigned output_depth_ = 0;
@@ -274,6 +353,7 @@ class Gateway {
   std::vector<OutputGroup> output_groups_;
   std::map<std::string, std::string> faults_;  // sub-device -> reason
   std::map<std::uint8_t, EmcyRecord> upstream_emcys_;  // upstream node-ID -> its EMCYs (1028h)
+  bool reloading_ = false;                                       // kEmcyReload held (resume())
   bool decoding_emcy_ = false;                                   // inside a sub-device's EMCY
   std::vector<std::pair<Sub*, bool>> held_fault_emcys_;          // fault_emcy calls meanwhile
 };

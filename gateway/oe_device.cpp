@@ -53,7 +53,10 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
           if (on_emcy_) on_emcy_(m, t);
         });
   }
-  node_ = std::make_unique<canopen::Node>(od_, nc, sink_);
+  node_ = std::make_unique<canopen::Node>(od_, nc, [this](const canopen::CanFrame& f) {
+    if (sent_) sent_(f);
+    sink_(f);
+  });
   for (const auto& [key, refs] : outputs_) {
     const canopen::SubObject* s = od_.find(static_cast<std::uint16_t>(key >> 8), static_cast<std::uint8_t>(key));
     output_shadow_[key] = s ? entry_value(*s) : 0;
@@ -296,15 +299,26 @@ canopen::EmcyManufacturerField subdevice_msef(canopen::NodeId node, std::string_
 // After every boot-up (an NMT reset node or communication from the host): the inputs get their
 // current values back — the reset restored 6000h/6401h/6120h to their defaults although the
 // operator still holds the stick — without a TPDO (pre-operational), and each sub-device still
-// faulty is reported again with EMCY 7000h (the producer kept the error active across the
-// reset), so a host that reset us after its own restart learns of it.
+// faulty is reported again with EMCY 7000h, so a host that reset us after its own restart learns
+// of it. A reset communication left 7000h active (each fault is an event EMCY again); a reset
+// node restarted the EMCY producer (Node: no error active, 1001h 0), and a fault the gateway
+// still holds is its evidence now — its inputs stay at their fault values until their own
+// evidence clears it — so 7000h is raised anew (1001h bit 0, 1003h), then one EMCY per further
+// faulty sub-device.
 void OeDevice::after_reset() {
   for (const auto& [key, bytes] : input_shadow_) {
     canopen::SubObject* so = od_.find(static_cast<std::uint16_t>(key >> 8), static_cast<std::uint8_t>(key));
     if (so != nullptr && so->value.size() == bytes.size()) so->value = bytes;
   }
-  for (const auto& [node, name] : faults_)
-    (void)node_->emcy().report(kEmcyAdditionalModules, subdevice_msef(canopen::NodeId{node}, name), node, now_);
+  auto& emcy = node_->emcy();
+  for (const auto& [node, name] : faults_) {
+    const auto msef = subdevice_msef(canopen::NodeId{node}, name);
+    if (!emcy.active(kEmcyAdditionalModules)) {
+      emcy.raise(kEmcyAdditionalModules, 0x00, msef, now_, node);
+    } else {
+      (void)emcy.report(kEmcyAdditionalModules, msef, node, now_);
+    }
+  }
 }
 
 void OeDevice::handle_od_change(std::uint16_t index, std::uint8_t sub) {
@@ -333,6 +347,14 @@ void OeDevice::report_outputs(std::uint16_t index, std::uint8_t sub, std::int64_
       const auto b = (now_value >> r.bit) & 1;
       if (b != ((old_value >> r.bit) & 1)) on_output_(r.fe, r.ref, b);
     }
+  }
+}
+
+void OeDevice::announce_outputs() {
+  if (!on_output_) return;
+  for (const auto& [key, refs] : outputs_) {
+    const std::int64_t v = output_shadow_[key];
+    for (const OutputRef& r : refs) on_output_(r.fe, r.ref, r.bit == 0xFF ? v : (v >> r.bit) & 1);
   }
 }
 
@@ -383,7 +405,8 @@ void OeDevice::clear_subdevice_fault(canopen::NodeId node, TimePoint now) {
   const auto msef = subdevice_msef(node, it->second);
   faults_.erase(it);
   if (faults_.empty()) {
-    node_->emcy().clear(kEmcyAdditionalModules, now);
+    // The last faulty sub-device recovered: the error reset names it as every other recovery does.
+    node_->emcy().clear(kEmcyAdditionalModules, now, msef);
     // With another error still active (EMCY 8130h: the host's heartbeat lost) the producer stays
     // silent (CiA 301 §7.2.7.2 allows it): the recovery is reported as for a sub-device among
     // others, EMCY 0000h naming it with the remaining error register.

@@ -130,6 +130,9 @@ class OeDevice {
   // the error values, an NMT reset or 1011h restore putting defaults back).
   using OutputCallback = std::function<void(mapping::FeId, FieldRef, std::int64_t value)>;
   void on_output(OutputCallback cb) { on_output_ = std::move(cb); }
+  // Every output field's current value through on_output, changed or not (a gateway taking the
+  // device over at a reload: its FE model and output bindings start from what the host sees).
+  void announce_outputs();
 
   // A host write (SDO download or RPDO entry) of an output FE, before it commits: return true to
   // take it. Refused: an SDO download is aborted with 0800 0021h ("cannot be transferred because
@@ -156,6 +159,8 @@ class OeDevice {
 
   // EMCY messages of other nodes (1028h, present when outputs exist).
   void on_emcy(canopen::EmcyHandler cb) { on_emcy_ = std::move(cb); }
+  // Every frame the device sends, before it goes to its sink (the black box, gateway_tap.hpp).
+  void on_sent(std::function<void(const canopen::CanFrame&)> cb) { sent_ = std::move(cb); }
 
   // LSS activate bit timing, at the switch: the upstream interface must now run at `bit_per_s`.
   using BitRateSwitch = std::function<void(std::uint32_t bit_per_s)>;
@@ -193,6 +198,7 @@ class OeDevice {
   [[nodiscard]] bool analog_interrupt_enabled() const;
 
   OeDeviceConfig cfg_;
+  std::function<void(const canopen::CanFrame&)> sent_;
   canopen::FrameSink sink_;
   canopen::ObjectDictionary od_;
   std::unique_ptr<canopen::EmcyConsumer> emcy_consumer_;

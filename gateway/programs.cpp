@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <stdexcept>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -19,9 +20,14 @@
 #include "canopen/io/socketcan_transport.hpp"
 #include "gateway/bus_load.hpp"
 #include "gateway/control/gateway_control.hpp"
+#include "gateway/control/status_report.hpp"
+#include "gateway/daemon_log.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/publish/dds_publisher.hpp"
+#include "gateway/publish/lcm_url.hpp"
 #include "gateway/publishing.hpp"
+#include "gateway/record/recording_service.hpp"
+#include "gateway/reload.hpp"
 #include "gateway/runtime_config.hpp"
 #include "gateway/service_notify.hpp"
 #include "mapping/deployment.hpp"
@@ -37,7 +43,8 @@ namespace {
 // mapping/deployment.hpp lists (the demo's `interface: virtual` among them); `eds` does not.
 enum class Use : std::uint8_t { Eds, Cab };
 
-std::optional<mapping::Config> load(const std::string& file, Use use) {
+// The file as `use` takes it: the loader's errors, then (Cab) the cab settings'.
+mapping::LoadResult read_file(const std::string& file, Use use) {
   auto r = mapping::load_config(file, driver_catalogue());
   if (r.ok() && use == Use::Cab) {
     r.errors = mapping::deployment_errors(*r.config);
@@ -47,6 +54,11 @@ std::optional<mapping::Config> load(const std::string& file, Use use) {
     });
     if (!r.errors.empty()) r.config.reset();
   }
+  return r;
+}
+
+std::optional<mapping::Config> load(const std::string& file, Use use) {
+  auto r = read_file(file, use);
   if (!r.ok()) {
     std::fprintf(stderr, "%s", r.error_text().c_str());
     if (!r.error_text().empty() && r.error_text().back() != '\n') std::fprintf(stderr, "\n");
@@ -173,6 +185,109 @@ void print_control(const mapping::ControlConfig& c) {
               made.c_str(), who.c_str());
 }
 
+// What SIGHUP replaces or re-attaches in `oegw run` (README "Reloading the mapping file").
+struct Running {
+  const std::string& file;
+  mapping::Config& config;  // the control socket's services read it: replaced in place
+  std::unique_ptr<Gateway>& gw;
+  FrameSink downstream;
+  GatewayPublishing& publishing;
+  GatewayControl* control;  // null: control.enabled false
+  record::RecordingService& recording;  // the black box: the new gateway is tapped too
+  ServiceDriver& driver;
+  ServiceNotify& notify;
+  EventLoop& loop;
+  int& exit_status;  // set when a reload fails after the hand-over (below)
+};
+
+
+// What systemd's STATUS= says of `oegw run`: the gateway's states and each publishing transport
+// that is down (README "systemd").
+ServiceState running_state(Gateway& gw, const GatewayPublishing& publishing) {
+  ServiceState state = service_state(gw);
+  state.degraded = publishing.degraded();
+  return state;
+}
+
+// SIGHUP: the file read and checked as at a start (`oegw check`'s errors, the cab settings
+// included) and against the running one (gateway/reload.hpp reload_refusals); every error
+// logged, nothing changed. Else the gateway replaced around the same upstream device
+// (reload_gateway), the control socket and publishing re-attached. systemd is told RELOADING=1
+// first and READY=1 at the end, whatever the outcome: the gateway runs either way.
+void reload(Running& r, TimePoint now) {
+  r.notify.reloading(now);
+  spdlog::info("{}: reloading (SIGHUP)", r.file);
+  auto read = read_file(r.file, Use::Cab);
+  std::vector<mapping::Diagnostic> errors = std::move(read.errors);
+  if (read.ok()) errors = reload_refusals(r.config, *read.config);
+  if (read.ok() && errors.empty()) errors = reload_driver_refusals(*read.config);
+  if (!errors.empty()) {
+    for (const auto& e : errors) spdlog::error("{}", e.str());
+    const std::string note =
+        fmt::format("last reload refused: {} error{} (journal)", errors.size(), errors.size() == 1 ? "" : "s");
+    spdlog::error("{}: reload refused, {} error{}; the gateway runs on as before", r.file, errors.size(),
+                  errors.size() == 1 ? "" : "s");
+    r.notify.reloaded(note, running_state(*r.gw, r.publishing));
+    return;
+  }
+  if (r.control != nullptr) r.control->detach();
+  r.publishing.detach();
+  r.recording.reloading(now, r.file);
+  try {
+    GatewayOptions options;
+    options.tap = r.recording.tap();
+    r.gw = reload_gateway(std::move(r.gw), *read.config, r.downstream, options, now);
+  } catch (const std::exception& e) {
+    // After the hand-over the old gateway is gone: a gateway that cannot be built now (checked
+    // just before: only a file changing in between gets here) stops the daemon with a reason,
+    // and systemd's Restart= starts it afresh, rather than running half-configured.
+    spdlog::critical("{}: reload failed after the hand-over: {}; stopping (a restart starts afresh)", r.file,
+                     e.what());
+    r.exit_status = exit_code::kCannotStart;
+    r.notify.stopping();
+    r.loop.stop();
+    return;
+  }
+  r.config = std::move(*read.config);
+  if (r.control != nullptr) r.control->attach(*r.gw, r.config);
+  r.publishing.attach(*r.gw);
+  r.driver.rearm();
+  spdlog::info("{}: reloaded: {} sub-devices on {}", r.file, r.config.subdevices.size(), r.config.downstream.interface);
+  r.notify.reloaded("", running_state(*r.gw, r.publishing));
+}
+
+// `oegw check`: what `oegw run` will record (mapping file `record`, README "Recording and replay").
+void print_record(const mapping::RecordConfig& r) {
+  if (!r.enabled) {
+    std::printf("record: off (record.enabled false): no black box\n");
+    return;
+  }
+  std::printf("record: both buses' frames (candump log) and the gateway's decisions into %s, a ring of at most %u MiB "
+              "and %u s in %u segments (%.1f MiB or %.0f s each), %u KiB queued at most; SIGUSR1 or `oegw record keep` "
+              "keeps the window in %s/kept/\n",
+              r.dir.c_str(), r.max_mib, r.span_s, r.segments, static_cast<double>(r.max_mib) / r.segments,
+              static_cast<double>(r.span_s) / r.segments, r.queue_kib, r.dir.c_str());
+}
+
+// Publishing for `oegw run` (README "Publishing degrades, the gateway runs"): a setting that
+// cannot work refuses the start (false, logged with the file); a transport the machine cannot
+// carry now is left down, logged once, reported, and opened again from the loop.
+bool start_publishing(Gateway& gw, const mapping::Config& cfg, const std::string& file, EventLoop& loop,
+                      ServiceDriver& driver, std::unique_ptr<GatewayPublishing>& out) {
+  const auto log = [](bool up, const std::string& text) {
+    if (up) spdlog::info("publishing: {}", text);
+    else spdlog::warn("publishing: {}", text);
+  };
+  try {
+    out = std::make_unique<GatewayPublishing>(gw, cfg.publish, [&loop] { return loop.now(); }, PublisherFactories{}, log);
+  } catch (const PublishConfigError& e) {
+    spdlog::error("{}: {}", file, e.what());
+    return false;
+  }
+  out->run_on(loop, [&driver] { driver.rearm(); });
+  return true;
+}
+
 }  // namespace
 
 int run_check(const std::string& file) {
@@ -198,6 +313,15 @@ int run_check(const std::string& file) {
     std::printf("warning: %s\n", w.str().c_str());
     warned = true;
   }
+  // This machine as it is now (README "LCM route"): oegw run would start without LCM.
+  if (const auto& lcm = cfg->publish.lcm; lcm.enabled)
+    if (const auto problem = lcm_route_problem(lcm.url)) {
+      const std::string& net = cfg->publish.dds.network;
+      std::printf("warning: publish.lcm.url: this machine has %s: oegw run would start without LCM and publish once a "
+                  "route exists; add one: %s (README \"LCM route\" has the systemd-networkd file that keeps it)\n",
+                  problem->c_str(), lcm_route_command(lcm.url, net == "loopback" ? "" : net).c_str());
+      warned = true;
+    }
   if (warned) std::printf("\n");
   std::printf("upstream: network %u, node-ID %02Xh on %s, 1000h device type = %08Xh (CiA 852 Table 8)\n",
               cfg->upstream.network_id, node.value(), cfg->upstream.interface.c_str(),
@@ -257,6 +381,7 @@ int run_check(const std::string& file) {
                             : "off",
               p.lcm.enabled ? fmt::format("{}, channels {}*", p.lcm.url, p.lcm.channel_prefix).c_str() : "off");
   print_control(cfg->control);
+  print_record(cfg->record);
   bool outputs = false;
   for (const auto& fe : cfg->functional_elements) {
     if (fe.input()) continue;
@@ -292,7 +417,12 @@ int run_eds(const std::string& file, const std::string& out) {
 }
 
 int run_gateway(const std::string& file) {
-  const auto cfg = load(file, Use::Cab);
+  const DaemonLog log;  // lines through a bounded queue: the loop never waits for the journal
+  // Blocked from the start (SIGHUP's default action ends the process): served once the loop
+  // runs, by the handler set below; one that comes while the start fails is discarded.
+  EventLoop loop;
+  loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1});
+  auto cfg = load(file, Use::Cab);
   if (!cfg) return exit_code::kBadFile;
   // The bit rates first (README "Bit rate"): a refused one starts nothing.
   const auto link = netlink_can_link();
@@ -315,22 +445,26 @@ int run_gateway(const std::string& file) {
     spdlog::error("{}: downstream.interface: {}", file, e.what());
     return exit_code::kCannotStart;
   }
-  EventLoop loop;
-  Gateway gw(*cfg, up->sink(), down->sink());
-  gw.on_log = [](const std::string& line) { spdlog::info("{}", line); };
-  ServiceDriver driver(loop, gw);
+  // The black box (mapping file `record`): it taps every gateway from its construction on.
+  record::RecordingService recording(loop, *cfg, file);
+  // Replaced at each reload (SIGHUP): everything below reaches it through this pointer.
+  GatewayOptions options;
+  options.tap = recording.tap();
+  auto gw = std::make_unique<Gateway>(*cfg, up->sink(), down->sink(), options);
+  gw->on_log = [](const std::string& line) { spdlog::info("{}", line); };
+  ServiceDriver driver(loop, [&gw] { return gw->next_deadline(); }, [&gw](TimePoint now) { gw->advance(now); });
   up->set_receiver([&](const CanFrame& f, TimePoint t) {
-    gw.on_upstream_frame(f, t);
+    gw->on_upstream_frame(f, t);
     driver.rearm();
   });
   down->set_receiver([&](const CanFrame& f, TimePoint t) {
-    gw.on_downstream_frame(f, t);
+    gw->on_downstream_frame(f, t);
     driver.rearm();
   });
   // LSS activate bit timing (CiA 305): the node is silent; at the switch the interface is set to
   // the new rate (down, bit rate, up). Its socket then reports the interface going down once.
   bool switched = false;
-  gw.upstream().on_bit_rate_switch([&](std::uint32_t rate) {
+  gw->upstream().on_bit_rate_switch([&](std::uint32_t rate) {
     const std::string& name = cfg->upstream.interface;
     const BitRateOutcome r = apply_bit_rate(*link, name, rate);
     if (!r.ok()) {
@@ -357,12 +491,12 @@ int run_gateway(const std::string& file) {
       return;
     }
     spdlog::warn("upstream {}: {}", cfg->upstream.interface, to_string(e));
-    gw.on_upstream_bus_event(e, loop.now());
+    gw->on_upstream_bus_event(e, loop.now());
     driver.rearm();
   });
   down->set_event_handler([&](BusEvent e) {
     spdlog::warn("downstream {}: {}", cfg->downstream.interface, to_string(e));
-    gw.on_downstream_bus_event(e, loop.now());
+    gw->on_downstream_bus_event(e, loop.now());
     driver.rearm();
   });
   watch_transport(loop, *up);
@@ -393,38 +527,51 @@ int run_gateway(const std::string& file) {
     }
   });
   std::unique_ptr<GatewayPublishing> publishing;
-  try {
-    publishing = std::make_unique<GatewayPublishing>(gw, cfg->publish, [&loop] { return loop.now(); });
-  } catch (const PublishConfigError& e) {
-    spdlog::error("{}: {}", file, e.what());
-    return exit_code::kCannotStart;
-  }
-  publishing->run_on(loop, [&driver] { driver.rearm(); });
+  if (!start_publishing(*gw, *cfg, file, loop, driver, publishing)) return exit_code::kCannotStart;
   // systemd (gateway/service_notify.hpp): READY=1, STATUS=, WATCHDOG=1 from this loop, STOPPING=1.
   SystemdNotifier systemd;
   ServiceNotify notify(systemd, systemd_watchdog_timeout());
   std::unique_ptr<GatewayControl> control;  // `oegw status`, `oegw ctl` (gateway/control/PROTOCOL.md)
   try {
-    if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, gw, *cfg, file, [&driver] { driver.rearm(); }, up.get(), down.get());
+    if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, *gw, *cfg, file, [&driver] { driver.rearm(); }, up.get(), down.get());
   } catch (const ControlError& e) {
     spdlog::error("{}", e.what());
     return exit_code::kCannotStart;
   }
-  loop.handle_signals({SIGINT, SIGTERM}, [&](int sig) {
+  if (control) {
+    control->add_status_field("publishing", [&publishing] { return publishing_status(publishing->transports()); });
+    control->add_status_field("record", [&recording] { return recording.status(); });
+    control->add_command("record_keep", [&recording](const nlohmann::json&, ControlProtocol::Done done) {
+      if (!recording.recording()) throw std::runtime_error(recording.off_reason());
+      recording.keep([done](const std::string& folder, std::size_t segments, const std::string& error) {
+        if (error.empty()) done(nlohmann::json{{"kept", folder}, {"segments", segments}});
+        else done(nlohmann::json{{"kept", nullptr}, {"error", error}});
+      });
+    });
+  }
+  int exit_status = 0;
+  Running running{file, *cfg, gw, down->sink(), *publishing, control.get(), recording, driver, notify, loop, exit_status};
+  // SIGUSR1 keeps the recording's window (README "Recording and replay").
+  loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1}, [&](int sig) {
+    if (sig == SIGHUP) return reload(running, loop.now());
+    if (sig == SIGUSR1) return recording.keep_logged("SIGUSR1");
     spdlog::info("signal {}: stopping", sig);
     notify.stopping();
     loop.stop();
   });
-  const auto stored = gw.start(loop.now());
-  if (!stored.ok) spdlog::warn("upstream store {} refused ({}); running on defaults", cfg->upstream.store, stored.error);
+  // A store that cannot be taken (canopen/301/storage.hpp): the device runs on defaults, EMCY
+  // 6000h tells the host.
+  const auto stored = gw->start(loop.now());
+  if (!stored.ok)
+    spdlog::error("upstream store refused: {}; running on defaults, EMCY 6000h sent upstream", stored.error);
   driver.rearm();
   spdlog::info("oegw: node {:02X}h on {}, {} sub-devices on {}", cfg->upstream.node_id, cfg->upstream.interface,
                cfg->subdevices.size(), cfg->downstream.interface);
-  const auto report = [&] { notify.update(loop.now(), service_state(gw)); };
+  const auto report = [&] { notify.update(loop.now(), running_state(*gw, *publishing)); };
   report();  // both buses open, the device started: READY=1 once it is pre-operational
   loop.call_every(loop.now() + notify.poll_period(), notify.poll_period(), report);
   loop.run();
-  return 0;
+  return exit_status;
 }
 
 }  // namespace oegw::gateway

@@ -26,9 +26,8 @@ std::vector<mapping::Diagnostic> dds_security_errors(const mapping::Config& c) {
   return out;
 }
 
-GatewayPublishing::GatewayPublishing(Gateway& gateway, const mapping::PublishConfig& config,
-                                     std::function<canopen::TimePoint()> clock)
-    : gw_(gateway), clock_(std::move(clock)), schedule_(fan_, std::int64_t{config.period_ms} * 1000) {
+PublisherFactories real_publishers(const mapping::PublishConfig& config) {
+  PublisherFactories f;
   if (config.dds.enabled) {
     DdsSettings s;
     s.domain = config.dds.domain;
@@ -36,36 +35,88 @@ GatewayPublishing::GatewayPublishing(Gateway& gateway, const mapping::PublishCon
     s.network = config.dds.network;
     if (config.dds.security) s.security = dds_security_settings(*config.dds.security);
     s.period_us = std::int64_t{config.period_ms} * 1000;
-    dds_ = std::make_unique<DdsPublisher>(s);
-    fan_.add(dds_.get());
+    f.dds = [s] { return std::make_unique<DdsPublisher>(s); };
   }
   if (config.lcm.enabled) {
-    lcm_ = std::make_unique<LcmPublisher>(LcmSettings{config.lcm.url, config.lcm.channel_prefix});
-    fan_.add(lcm_.get());
+    const LcmSettings s{config.lcm.url, config.lcm.channel_prefix};
+    f.lcm = [s] { return std::make_unique<LcmPublisher>(s); };
   }
-  auto take_commands = [this](Publisher* p, mk::CommandSource source) {
-    if (p == nullptr) return;
-    p->on_indicator_command = [this, source](const IndicatorCommand& c) {
-      (void)gw_.command_indicators(c.instance, c.indicators, clock_(), source);
+  return f;
+}
+
+GatewayPublishing::GatewayPublishing(Gateway& gateway, const mapping::PublishConfig& config,
+                                     std::function<canopen::TimePoint()> clock, PublisherFactories factories,
+                                     PublisherLink::Log log)
+    : gw_(&gateway), clock_(std::move(clock)), schedule_(fan_, std::int64_t{config.period_ms} * 1000) {
+  const PublisherFactories real = real_publishers(config);
+  const auto add = [&](const char* name, bool enabled, PublisherLink::Factory given, PublisherLink::Factory own,
+                       mk::CommandSource source) {
+    if (!enabled) return;
+    auto link = std::make_unique<PublisherLink>(name, given ? std::move(given) : std::move(own));
+    link->on_log = log;
+    link->on_indicator_command = [this, source](const IndicatorCommand& c) {
+      (void)gw_->command_indicators(c.instance, c.indicators, clock_(), source);
     };
-    p->on_display_command = [this, source](const DisplayCommand& c) {
-      (void)gw_.command_display(c.instance, c.parameters, clock_(), source);
+    link->on_display_command = [this, source](const DisplayCommand& c) {
+      (void)gw_->command_display(c.instance, c.parameters, clock_(), source);
     };
+    link->open(clock_());  // PublishConfigError: refused, nothing left open
+    fan_.add(link.get());
+    links_.push_back(std::move(link));
   };
-  take_commands(dds_.get(), mk::CommandSource::Dds);
-  take_commands(lcm_.get(), mk::CommandSource::Lcm);
+  add("dds", config.dds.enabled, std::move(factories.dds), real.dds, mk::CommandSource::Dds);
+  add("lcm", config.lcm.enabled, std::move(factories.lcm), real.lcm, mk::CommandSource::Lcm);
+  attach(gateway);
+}
+
+void GatewayPublishing::attach(Gateway& gw) {
+  gw_ = &gw;
   if (!active()) return;
-  auto previous = std::move(gw_.on_fe_change);
-  gw_.on_fe_change = [this, previous](mapping::FeId fe) {
+  auto previous = std::move(gw_->on_fe_change);
+  gw_->on_fe_change = [this, previous](mapping::FeId fe) {
     if (previous) previous(fe);
     publish_fe(fe);
   };
-  for (const auto& fe : gw_.fes()) publish_fe(fe);
+  for (const auto& fe : gw_->fes()) publish_fe(fe);
   publish_status();
 }
 
+void GatewayPublishing::detach() {
+  if (!active()) return;
+  if (!changed_.empty()) flush();  // the old gateway's last changes
+  gw_->on_fe_change = nullptr;
+}
+
+std::vector<Publisher*> GatewayPublishing::publishers() const {
+  std::vector<Publisher*> out;
+  for (const auto& l : links_)
+    if (l->transport() != nullptr) out.push_back(l->transport());
+  return out;
+}
+
+std::vector<TransportState> GatewayPublishing::transports() const {
+  std::vector<TransportState> out;
+  const canopen::TimePoint now = clock_();
+  for (const auto& l : links_) {
+    TransportState t{l->name(), l->up(), l->reason(), l->failures(), {}, {}};
+    if (!l->up()) {
+      t.down_for = now - l->down_since();
+      if (const auto next = l->next_attempt()) t.next_attempt_in = std::max(canopen::Duration{0}, *next - now);
+    }
+    out.push_back(std::move(t));
+  }
+  return out;
+}
+
+std::vector<std::string> GatewayPublishing::degraded() const {
+  std::vector<std::string> out;
+  for (const auto& l : links_)
+    if (!l->up()) out.push_back(l->name() + " down: " + l->reason());
+  return out;
+}
+
 GatewayPublishing::~GatewayPublishing() {
-  if (active()) gw_.on_fe_change = nullptr;
+  if (active() && gw_ != nullptr) gw_->on_fe_change = nullptr;
 }
 
 std::int64_t GatewayPublishing::now_us() const {
@@ -169,7 +220,7 @@ void GatewayPublishing::send(const Sample& s) {
 
 std::optional<GatewayPublishing::Sample> GatewayPublishing::sample_of(mapping::FeId fe) const {
   // The typed state, as the translators wrote it: no field names, no allocation.
-  const FeModel& m = gw_.model();
+  const FeModel& m = gw_->model();
   switch (fe.kind) {
     case mk::FeKind::Joystick:
       if (const auto* st = m.get<JoystickState>(fe))
@@ -197,29 +248,27 @@ void GatewayPublishing::publish_status() {
   GatewayStatus st;
   st.timestamp_us = now_us();
   st.seq = ++status_seq_;
-  st.upstream_state = std::string(canopen::to_string(gw_.upstream().node().state()));
-  for (const auto& name : gw_.downstream().names()) {
+  st.upstream_state = std::string(canopen::to_string(gw_->upstream().node().state()));
+  for (const auto& name : gw_->downstream().names()) {
     std::uint8_t node = 0;
-    if (auto* d = gw_.downstream().driver(name)) node = d->node().value();
-    const Gateway::EmcyRecord e = gw_.subdevice_emcy(name);
-    st.subdevices.push_back({name, node, std::string(subdevices::to_string(gw_.downstream().state(name))),
-                             emcy_sample(e), e.count, identity_of(gw_.downstream().diagnostics(name))});
+    if (auto* d = gw_->downstream().driver(name)) node = d->node().value();
+    const Gateway::EmcyRecord e = gw_->subdevice_emcy(name);
+    st.subdevices.push_back({name, node, std::string(subdevices::to_string(gw_->downstream().state(name))),
+                             emcy_sample(e), e.count, identity_of(gw_->downstream().diagnostics(name))});
   }
-  if (!gw_.faults().empty()) st.active_emcys.push_back(OeDevice::kEmcyAdditionalModules);
-  st.refused_commands = gw_.refused_commands();
-  for (const auto& [node, e] : gw_.upstream_emcys()) st.upstream_emcys.push_back({node, emcy_sample(e), e.count});
+  if (!gw_->faults().empty()) st.active_emcys.push_back(OeDevice::kEmcyAdditionalModules);
+  if (gw_->reloading()) st.active_emcys.push_back(Gateway::kEmcyReload);
+  st.refused_commands = gw_->refused_commands();
+  for (const auto& [node, e] : gw_->upstream_emcys()) st.upstream_emcys.push_back({node, emcy_sample(e), e.count});
   fan_.publish(st);
 }
 
-void GatewayPublishing::run_on(canopen::EventLoop& loop, std::function<void()> rearm) {
+void GatewayPublishing::run_on(canopen::EventLoop& loop, std::function<void()> rearm, PublisherLink::Attempts attempts) {
   if (!active()) return;
   loop_ = &loop;
-  for (Publisher* p : publishers())
-    if (p->fd() >= 0)
-      loop.watch(p->fd(), canopen::io_events::kReadable, [p, rearm](std::uint32_t) {
-        p->poll();
-        rearm();
-      });
+  // A transport that comes up gets the status at once; every FE follows within a period (the
+  // schedule republishes each one whose last sample is a period old).
+  for (auto& l : links_) l->run_on(loop, attempts, rearm, [this] { publish_status(); });
   loop.call_every(loop.now(), std::chrono::microseconds(period_us()), [this, rearm] {
     tick();
     rearm();

@@ -16,26 +16,22 @@
 #include "gateway/gateway.hpp"
 #include "gateway/publish/dds_security.hpp"
 #include "gateway/publish/publish_schedule.hpp"
+#include "gateway/publisher_link.hpp"
 #include "mapping/config.hpp"
 
 namespace oegw::gateway {
 
 // Hands every sample to each transport.
-class FanOut final : public Publisher {
+class FanOut final : public ForwardingPublisher<FanOut> {
  public:
   void add(Publisher* p) { outs_.push_back(p); }
   [[nodiscard]] bool empty() const { return outs_.empty(); }
   [[nodiscard]] const std::vector<Publisher*>& outputs() const { return outs_; }
-  void publish(const JoystickSample& s) override { each(s); }
-  void publish(const PedalSample& s) override { each(s); }
-  void publish(const WheelSample& s) override { each(s); }
-  void publish(const EncoderSample& s) override { each(s); }
-  void publish(const ButtonClusterSample& s) override { each(s); }
-  void publish(const GatewayStatus& s) override { each(s); }
 
  private:
+  friend class ForwardingPublisher<FanOut>;
   template <class S>
-  void each(const S& s) {
+  void forward(const S& s) {
     for (auto* p : outs_) p->publish(s);
   }
   std::vector<Publisher*> outs_;
@@ -47,18 +43,48 @@ class FanOut final : public Publisher {
 // mapping file: `oegw check` and `oegw run` refuse the file with them, before anything starts.
 [[nodiscard]] std::vector<mapping::Diagnostic> dds_security_errors(const mapping::Config& c);
 
+// How each transport is opened: the real DDS and LCM publishers for `config`, or a test's fakes.
+// A factory owns what it uses (an attempt may run in a thread of its own).
+struct PublisherFactories {
+  PublisherLink::Factory dds, lcm;
+};
+[[nodiscard]] PublisherFactories real_publishers(const mapping::PublishConfig& config);
+
+// One transport's state for `oegw status` and systemd's STATUS= (README "Publishing degrades").
+struct TransportState {
+  std::string name;    // "dds", "lcm"
+  bool up = false;
+  std::string reason;  // why it is down
+  std::uint32_t failures = 0;            // attempts failed since it was last up
+  canopen::Duration down_for{};          // how long it has been down
+  std::optional<canopen::Duration> next_attempt_in;  // while down
+};
+
 class GatewayPublishing {
  public:
   // Opens the transports `config` enables; throws PublishConfigError naming the setting that
-  // cannot be applied (nothing is left open then). `clock` gives the loop's time.
-  GatewayPublishing(Gateway& gateway, const mapping::PublishConfig& config, std::function<canopen::TimePoint()> clock);
+  // cannot be applied (nothing is left open then). A transport the machine cannot carry now
+  // (PublishUnavailable) is left down, reported and opened again once run_on() has given a loop
+  // (gateway/publisher_link.hpp). `clock` gives the loop's time.
+  GatewayPublishing(Gateway& gateway, const mapping::PublishConfig& config, std::function<canopen::TimePoint()> clock,
+                    PublisherFactories factories = {}, PublisherLink::Log log = {});
   ~GatewayPublishing();
   GatewayPublishing(const GatewayPublishing&) = delete;
   GatewayPublishing& operator=(const GatewayPublishing&) = delete;
 
   [[nodiscard]] bool active() const { return !fan_.empty(); }
-  // The transports, for the loop to watch fd() and call poll() (commands in).
-  [[nodiscard]] const std::vector<Publisher*>& publishers() const { return fan_.outputs(); }
+  // A reload (gateway/reload.hpp): detach() while the old gateway still runs (its changes still
+  // waiting are published), attach() publishes the new one's FEs at once (their fault values
+  // while its sub-devices boot) and its status. The transports stay: readers keep their writers.
+  void detach();
+  void attach(Gateway& gw);
+  // The transports that are up, for a caller without a loop to watch fd() and call poll()
+  // (commands in); run_on() watches them itself.
+  [[nodiscard]] std::vector<Publisher*> publishers() const;
+  // Each configured transport, up or down.
+  [[nodiscard]] std::vector<TransportState> transports() const;
+  // "lcm down: <reason>" for each transport down (systemd's STATUS=); empty when all are up.
+  [[nodiscard]] std::vector<std::string> degraded() const;
   // Republishes what is due and the gateway status; call every period (or at next_due()).
   void tick();
   [[nodiscard]] std::int64_t period_us() const { return schedule_.period_us(); }
@@ -77,7 +103,10 @@ class GatewayPublishing {
 
   // Runs on `loop`: each transport's fd is polled for commands and tick() every period; after
   // each, `rearm` (the gateway's ServiceDriver::rearm: a command may move a watchdog deadline).
-  void run_on(canopen::EventLoop& loop, std::function<void()> rearm);
+  // A transport that is down is opened again from the loop (`attempts`: in a thread of its own,
+  // or inline for a test on a simulated clock).
+  void run_on(canopen::EventLoop& loop, std::function<void()> rearm,
+              PublisherLink::Attempts attempts = PublisherLink::Attempts::InThread);
 
  private:
   using Sample = FeSample;
@@ -93,10 +122,9 @@ class GatewayPublishing {
   bool flush_posted_ = false;
   std::shared_ptr<bool> alive_ = std::make_shared<bool>(true);  // a posted flush outliving us does nothing
 
-  Gateway& gw_;
+  Gateway* gw_;
   std::function<canopen::TimePoint()> clock_;
-  std::unique_ptr<Publisher> dds_;
-  std::unique_ptr<Publisher> lcm_;
+  std::vector<std::unique_ptr<PublisherLink>> links_;  // dds, then lcm (those enabled)
   FanOut fan_;
   PublishSchedule schedule_;
   std::uint32_t status_seq_ = 0;

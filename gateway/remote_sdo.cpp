@@ -17,14 +17,23 @@ std::string abort_text(SdoAbortCode code) {
   return fmt::format("{:04X} {:04X}h ({})", v >> 16, v & 0xFFFF, canopen::to_string(code));
 }
 
-// What the gateway configures on every sub-device and relies on (CiA 301 §7.5.2): the PDO
-// communication and mapping parameters, SYNC 1005h, the EMCY COB-ID 1014h (the fault policy and
-// remote EMCY listen on 80h + node-ID), the heartbeat consumer/producer 1016h/1017h, the error
-// behaviour 1029h (what the node does on an error decides its proof of life), store and restore
-// 1010h/1011h, NMT startup 1F80h.
+// What re-wires or re-flashes a sub-device, or changes what the gateway configured on it and
+// relies on (CiA 301 §7.5.2, CiA 302-3):
+//  * every COB-ID object: SYNC 1005h, TIME 1012h, EMCY 1014h (the fault policy and remote EMCY
+//    listen on 80h + node-ID), the EMCY consumer's COB-IDs 1028h, the SDO server and client
+//    parameters 1200h–12FFh (an SDO answer moved onto another device's TPDO COB-ID would be taken
+//    for that device's inputs), the PDO communication and mapping parameters 1400h–1BFFh, and
+//    100Eh "COB-ID guard" of DS 301 v3 devices (the MCB-402 document lists it rw: its heartbeat
+//    and boot-up COB-ID);
+//  * the heartbeat consumer/producer 1016h/1017h, the error behaviour 1029h (what the node does
+//    on an error decides its proof of life), store and restore 1010h/1011h;
+//  * program download and control 1F50h–1F57h (CiA 302-3: a new firmware, the application
+//    stopped or started behind the gateway's back) and NMT startup 1F80h.
 bool communication_protected(std::uint16_t index) {
-  return (index >= 0x1400 && index <= 0x1BFF) || index == 0x1005 || index == 0x1010 || index == 0x1011 ||
-         index == 0x1014 || index == 0x1016 || index == 0x1017 || index == 0x1029 || index == 0x1F80;
+  return index == 0x1005 || index == 0x100E || index == 0x1010 || index == 0x1011 || index == 0x1012 ||
+         index == 0x1014 || index == 0x1016 || index == 0x1017 || index == 0x1028 || index == 0x1029 ||
+         (index >= 0x1200 && index <= 0x12FF) || (index >= 0x1400 && index <= 0x1BFF) ||
+         (index >= 0x1F50 && index <= 0x1F57) || index == 0x1F80;
 }
 
 }  // namespace
@@ -51,6 +60,16 @@ SdoTarget RemoteSdo::target_of(const std::string& name) const {
   for (const auto& s : config_.subdevices)
     if (s.name == name) return {config_.downstream.network_id, s.node_id};
   return {};
+}
+
+std::string RemoteSdo::subdevice_at(const SdoTarget& target) const {
+  const mapping::SubdeviceConfig* s = find(target);
+  return s == nullptr ? std::string() : s->name;
+}
+
+std::string RemoteSdo::describe(const SdoTarget& target) const {
+  const std::string name = subdevice_at(target);
+  return fmt::format("{}(network {}, node {:02X}h)", name.empty() ? "" : name + " ", target.network, target.node);
 }
 
 SdoAbortCode RemoteSdo::select(const SdoTarget& target, Selection& selection) {

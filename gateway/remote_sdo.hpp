@@ -20,16 +20,24 @@
 //    own abort code is passed on unchanged. A second request on the same server channel while
 //    one is in flight: 060A 0023h (canopen/301/sdo_server.hpp).
 //  * Writes (CiA 852 leaves the policy open): reads are always allowed. A write is refused with
-//    0800 0021h ("local control": the gateway controls that object) when it would change what the
-//    gateway configured and relies on — the PDO communication and mapping parameters 1400h–1BFFh,
-//    SYNC 1005h, EMCY 1014h, the heartbeat objects 1016h/1017h, error behaviour 1029h, store 1010h
-//    and restore 1011h, NMT startup 1F80h, every object (all its sub-indexes) the driver or the
-//    mapping file's `sdo` list writes at boot, and what the driver names (Driver::protects: node-ID
-//    and bit rate by SDO — elobau 5999h, Novotechnik 2000h/2001h —, the outputs the gateway drives,
-//    the objects its decoding depends on) — while functional elements of the mapping file are fed
-//    by or drive that sub-device. Other writes (an elobau parameter, ...) are carried out. The
-//    gateway does not reconfigure a node behind the host's back: refusing keeps the FE
-//    translation exact and is visible to the host at once.
+//    0800 0021h ("data cannot be transferred or stored to the application because of local
+//    control", CiA 301 Table 22: the gateway controls that object) when it would re-wire or
+//    re-flash the node or change what the gateway configured and relies on — every COB-ID
+//    object (SYNC 1005h, 100Eh COB-ID guard of DS 301 v3 devices, TIME 1012h, EMCY 1014h, the
+//    EMCY consumer 1028h, the SDO server and client parameters 1200h–12FFh, the PDO communication
+//    and mapping parameters 1400h–1BFFh), the heartbeat objects 1016h/1017h, error behaviour
+//    1029h, store 1010h and restore 1011h, program download and control 1F50h–1F57h (CiA 302-3),
+//    NMT startup 1F80h, every object (all its sub-indexes) the driver or the mapping file's `sdo`
+//    list writes at boot, and what the driver names (Driver::protects: node-ID and bit rate by
+//    SDO — elobau 5999h, Novotechnik 2000h/2001h —, the elobau's auto NMT start 5000h, the
+//    outputs the gateway drives, the objects its decoding depends on) — while functional
+//    elements of the mapping file are fed by or drive that sub-device. Other writes (an elobau
+//    parameter, ...) are carried out. The gateway does not reconfigure a node behind the host's
+//    back: refusing keeps the FE translation exact and is visible to the host at once.
+//  * A network indication redirects its channel until another names the gateway or the gateway
+//    is reset or stopped: meanwhile every client of that channel reaches the sub-device. The
+//    Gateway logs each redirect and its end, and `oegw status` lists those in force
+//    (Gateway::sdo_redirects).
 #pragma once
 
 #include <cstdint>
@@ -66,6 +74,10 @@ class RemoteSdo final : public canopen::SdoRemote {
 
   // The target a channel bound to sub-device `name` has (the mapping file checked the name).
   [[nodiscard]] canopen::SdoTarget target_of(const std::string& name) const;
+  // The configured sub-device a target names ("" for none).
+  [[nodiscard]] std::string subdevice_at(const canopen::SdoTarget& target) const;
+  // "right_grip (network 2, node 11h)", for the log.
+  [[nodiscard]] std::string describe(const canopen::SdoTarget& target) const;
   // True for a write the policy refuses (see the header).
   [[nodiscard]] bool write_refused(const mapping::SubdeviceConfig& sub, std::uint16_t index, std::uint8_t sub_index);
   [[nodiscard]] const RemoteSdoCounters& counters() const { return counters_; }

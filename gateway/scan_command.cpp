@@ -18,6 +18,7 @@
 #include "gateway/control/scan_service.hpp"
 #include "gateway/control/status_command.hpp"
 #include "gateway/programs.hpp"
+#include "gateway/run_on_bus.hpp"
 #include "gateway/signals_command.hpp"
 #include "subdevices/driver_options.hpp"
 
@@ -95,21 +96,6 @@ std::string describe(const sd::ScannedNode& n) {
 
 // Text wrapped into comment lines of at most 100 columns, each starting with `prefix`.
 std::string comment(const std::string& prefix, const std::string& text) { return wrap_words(text, 100, prefix, prefix); }
-
-// A listing value as YAML: "0/1/2" (a command line's list) -> "[0, 1, 2]".
-std::string yaml_value(std::string v) {
-  if (v.find('/') == std::string::npos) return v;
-  std::string out = "[";
-  std::size_t pos = 0;
-  while (true) {
-    const auto slash = v.find('/', pos);
-    out += v.substr(pos, slash - pos);
-    if (slash == std::string::npos) break;
-    out += ", ";
-    pos = slash + 1;
-  }
-  return out + "]";
-}
 
 // FE instances handed out so far, per kind, so that uncommenting every suggestion of every node
 // gives each FE once.
@@ -247,8 +233,10 @@ std::string draft_mapping(const sd::ScanResult& scan, const DraftSettings& setti
       identity += std::string(identity.empty() ? "" : ", ") + "product_code: 0x" + hex(*n.identity.product_code, 8);
     if (!identity.empty())
       entry.push_back("  identity: { " + identity + " }  # checked at boot; revision and serial may be added");
-    // Required options: the listing value as a marked placeholder; a required option without
-    // one (cia401's EDS) leaves the entry commented out, since no value could pass `check`.
+    // Required options: a commissioning choice (a listing value exists: the driver's signals do
+    // not depend on it) is the placeholder TODO, which `oegw check` refuses with how to find the
+    // value (subdevices/driver_options.hpp kPlaceholder); a required option the signals depend on
+    // (cia401's EDS) leaves the entry commented out.
     std::vector<std::string> options;
     std::string missing;
     if (info) {
@@ -260,9 +248,8 @@ std::string draft_mapping(const sd::ScanResult& scan, const DraftSettings& setti
           continue;
         }
         options.push_back("    # TODO required, a commissioning choice: " + std::string(o.description) + ".");
-        options.push_back("    # The value below is only a placeholder (what `oegw signals` lists with):");
-        options.push_back("    " + std::string(o.name) + ": " + yaml_value(std::string(o.listing_value)) +
-                          "  # TODO placeholder");
+        options.push_back("    " + std::string(o.name) + ": " + std::string(sd::kPlaceholder) +
+                          "  # `oegw check` refuses this until a value is written, and says how to find it");
       }
     }
     if (!options.empty()) {
@@ -407,13 +394,8 @@ int report(const sd::ScanResult& result, const DraftSettings& settings, const st
 
 int scan_direct(const ScanOptions& o) {
   using namespace canopen;
-  std::unique_ptr<SocketCanTransport> port;
-  try {
-    port = SocketCanTransport::open(o.interface, SocketCanOptions{});
-  } catch (const CanOpenError& e) {
-    spdlog::error("interface: {}", e.what());
-    return exit_code::kCannotStart;
-  }
+  auto port = open_tool_interface(o.interface);
+  if (!port) return exit_code::kCannotStart;
   const auto ms = [](double v) {
     return std::chrono::duration_cast<Duration>(std::chrono::duration<double, std::milli>(v));
   };
@@ -427,24 +409,8 @@ int scan_direct(const ScanOptions& o) {
   sd::BusScanner scanner([bus](const CanFrame& f) { (void)bus->send(f); }, cfg);
   ProgressLines progress(o.progress);
   scanner.on_progress = [&progress](const sd::ScanProgress& p) { progress(p); };
-  EventLoop loop;
-  // Ends the loop when the scan is done (after a timer or a frame) or on a signal.
-  ServiceDriver driver(
-      loop, [&scanner] { return scanner.next_deadline(); },
-      [&](TimePoint now) {
-        scanner.advance(now);
-        if (scanner.done()) loop.stop();
-      });
-  port->set_receiver([&](const CanFrame& f, TimePoint t) {
-    scanner.on_frame(f, t);
-    if (scanner.done()) loop.stop();
-    driver.rearm();
-  });
-  watch_transport(loop, *port);
-  loop.handle_signals({SIGINT, SIGTERM});
-  scanner.start(loop.now());
-  driver.rearm();
-  loop.run();
+  // Until the scan is done (after a timer or a frame) or a signal.
+  run_on_bus(*port, scanner);
   progress.end();
   if (!scanner.done()) {
     spdlog::error("scan interrupted: no draft written");

@@ -38,7 +38,9 @@ std::string status_line(const ServiceState& s) {
   }
   std::string out = fmt::format("upstream {}, node {:02X}h; {}/{} sub-devices operational", canopen::to_string(s.upstream),
                                 s.node_id, up, s.subdevices.size());
-  return others.empty() ? out : out + "; " + others;
+  if (!others.empty()) out += "; " + others;
+  for (const auto& d : s.degraded) out += "; " + d;
+  return out;
 }
 
 ServiceState service_state(Gateway& gw) {
@@ -65,15 +67,32 @@ void ServiceNotify::update(TimePoint now, const ServiceState& state) {
     ready_ = true;
     out_.notify("READY=1");
   }
-  if (const std::string line = status_line(state); line != status_) {
-    status_ = line;
-    out_.notify("STATUS=" + line);
-  }
+  send_status(state);
   if (!ping_every_) return;
   if (!next_ping_ || now >= *next_ping_) {
     out_.notify("WATCHDOG=1");
     // From now, not from the missed due time: a late loop pings once, not a burst.
     next_ping_ = now + *ping_every_;
+  }
+}
+
+void ServiceNotify::reloading(TimePoint monotonic) {
+  if (stopping_) return;
+  const auto us = std::chrono::duration_cast<std::chrono::microseconds>(monotonic.time_since_epoch()).count();
+  out_.notify(fmt::format("RELOADING=1\nMONOTONIC_USEC={}", us));
+}
+
+void ServiceNotify::reloaded(const std::string& note, const ServiceState& state) {
+  if (stopping_) return;
+  note_ = note;
+  out_.notify("READY=1");
+  send_status(state);
+}
+
+void ServiceNotify::send_status(const ServiceState& state) {
+  if (const std::string line = status_line(state) + (note_.empty() ? "" : "; " + note_); line != status_) {
+    status_ = line;
+    out_.notify("STATUS=" + line);
   }
 }
 

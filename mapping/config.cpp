@@ -121,14 +121,15 @@ namespace {
 // The file's top level: every section, each parsed by its own reader (sections/), then the
 // checks across sections.
 void read_file(YamlReader& r, const YAML::Node& root, const SignalCatalogue& catalogue, Config& cfg) {
-  const std::string top = "a map with upstream, downstream, publish, control, subdevices, functional_elements";
+  const std::string top = "a map with upstream, downstream, publish, control, record, subdevices, functional_elements";
   if (!root.IsMap()) {
     r.error(root.IsNull() ? Location{r.file(), 1, 1} : r.loc(root),
             "found " + node_kind(root) + " at the top; expected " + top);
     return;
   }
   const auto es =
-      r.entries(root, "the file", {"upstream", "downstream", "publish", "control", "subdevices", "functional_elements"}, top);
+      r.entries(root, "the file", {"upstream", "downstream", "publish", "control", "record", "subdevices", "functional_elements"},
+                top);
   if (const auto* e = r.find(es, "upstream"))
     sections::read_upstream(r, *e, cfg.upstream);
   else
@@ -139,6 +140,7 @@ void read_file(YamlReader& r, const YAML::Node& root, const SignalCatalogue& cat
     r.missing(root, "downstream", "the file", "a downstream section");
   if (const auto* e = r.find(es, "publish")) sections::read_publish(r, *e, cfg.publish);
   if (const auto* e = r.find(es, "control")) sections::read_control(r, *e, cfg.control);
+  if (const auto* e = r.find(es, "record")) sections::read_record(r, *e, cfg.record);
   if (const auto* e = r.find(es, "subdevices"))
     sections::read_subdevices(r, *e, catalogue, cfg.subdevices);
   else

@@ -172,6 +172,22 @@ struct ControlConfig {
 // The longest socket path a sockaddr_un takes (108 bytes with its NUL, Linux unix(7)).
 inline constexpr std::size_t kMaxControlSocketPath = 107;
 
+// The black box (README "Recording and replay"): `oegw run` records both buses' frames and its
+// decisions into a ring of segment files in `dir`, at most `max_mib` MiB and `span_s` seconds,
+// closed in `segments` parts (a segment at max/segments bytes or span/segments seconds), through
+// an in-memory queue of `queue_kib` KiB (what does not fit is dropped and counted). Off unless
+// `enabled`.
+struct RecordConfig {
+  bool enabled = false;
+  std::string dir = "/var/lib/oegw/record";  // a relative path is taken from the file's folder
+  std::uint32_t max_mib = 256;
+  std::uint32_t span_s = 600;
+  std::uint32_t segments = 10;
+  std::uint32_t queue_kib = 4096;
+  Location where;      // the section, when written
+  Location dir_where;  // the `dir` value, when written
+};
+
 struct SdoWriteConfig {
   std::uint16_t index = 0;
   std::uint8_t sub_index = 0;
@@ -259,6 +275,7 @@ struct Config {
   DownstreamConfig downstream;
   PublishConfig publish;
   ControlConfig control;
+  RecordConfig record;
   std::vector<SubdeviceConfig> subdevices;                   // in file order
   std::vector<FunctionalElementConfig> functional_elements;  // sorted by FeId
   [[nodiscard]] const SubdeviceConfig* find_subdevice(std::string_view name) const;

@@ -1,9 +1,11 @@
 #include "mapping/deployment.hpp"
 
 #include <grp.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <filesystem>
+#include <cstdio>
 #include <string>
 
 #include "canopen/io/interface_name.hpp"
@@ -34,15 +36,62 @@ void check_interface(const Bus& b, std::vector<Diagnostic>& out) {
                                 "; expected a network interface name of 1..15 bytes without '/', ':' or white space"});
 }
 
+std::string store_setting(const UpstreamConfig& u) {
+  return "upstream.store " + u.store + (u.store_where.line != 0 ? "" : " (the default)");
+}
+
 void check_store(const UpstreamConfig& u, std::vector<Diagnostic>& out) {
+  if (u.store.empty()) return;
   const std::filesystem::path folder = std::filesystem::path(u.store).parent_path();
   std::error_code ec;
+  // The store is read without following a link and replaced by rename (canopen/301/storage.hpp):
+  // a link there would be refused at every start, the device running on defaults.
+  if (std::filesystem::is_symlink(u.store, ec)) {
+    out.push_back({at(u.store_where, u.where),
+                   store_setting(u) + " is a symbolic link (to " + std::filesystem::read_symlink(u.store, ec).string() +
+                       "); expected a plain file or none: the gateway never follows a link there; name the file "
+                       "itself"});
+    return;
+  }
   if (folder.empty() || std::filesystem::is_directory(folder, ec)) return;
-  const bool written = u.store_where.line != 0;
   out.push_back({at(u.store_where, u.where),
-                 "upstream.store " + u.store + (written ? "" : " (the default)") + ": its folder " + folder.string() +
+                 store_setting(u) + ": its folder " + folder.string() +
                      " does not exist; expected a file in an existing folder (the unit's StateDirectory=oegw makes "
                      "/var/lib/oegw)"});
+}
+
+// A store folder every user may write: anyone on the machine can put a store file there before
+// the gateway's first save (its parameters are loaded at the next start: PDO mappings, COB-IDs,
+// output error values) or a link (the device then runs on defaults). It still runs: a warning.
+void check_store_folder(const UpstreamConfig& u, std::vector<Diagnostic>& out) {
+  if (u.store.empty()) return;
+  std::filesystem::path folder = std::filesystem::path(u.store).parent_path();
+  if (folder.empty()) folder = ".";
+  struct stat st {};
+  if (::stat(folder.c_str(), &st) != 0 || !S_ISDIR(st.st_mode) || (st.st_mode & S_IWOTH) == 0) return;
+  char mode[8];
+  std::snprintf(mode, sizeof mode, "%04o", static_cast<unsigned>(st.st_mode & 07777));
+  out.push_back({at(u.store_where, u.where),
+                 store_setting(u) + ": its folder " + folder.string() + " is writable by every user (mode " + mode +
+                     "): anyone on this machine can place the parameters the gateway loads at start; keep the store "
+                     "in a folder only the daemon's user writes (the unit's StateDirectory=oegw makes /var/lib/oegw, "
+                     "mode 0755)"});
+}
+
+// The black box's folder (README "Recording and replay"): `oegw run` makes it when missing; a
+// file at its path, or a path under a file, cannot be a folder.
+void check_record(const RecordConfig& r, std::vector<Diagnostic>& out) {
+  if (!r.enabled) return;
+  std::error_code ec;
+  std::filesystem::path p = r.dir;
+  const std::string what = "record.dir " + r.dir + (r.dir_where.line != 0 ? "" : " (the default)");
+  for (; !p.empty() && p != p.root_path(); p = p.parent_path()) {
+    if (!std::filesystem::exists(p, ec)) continue;
+    if (std::filesystem::is_directory(p, ec)) return;
+    out.push_back({at(r.dir_where, r.where),
+                   what + ": " + p.string() + " is a file, not a folder; expected a folder oegw run may make or write"});
+    return;
+  }
 }
 
 // What `oegw run` refuses of the control socket on this machine (gateway/control/
@@ -119,6 +168,7 @@ std::vector<Diagnostic> deployment_errors(const Config& c) {
                                    "); expected two CAN interfaces: the host's bus and the sub-devices' bus"});
   check_store(c.upstream, out);
   check_control(c.control, out);
+  check_record(c.record, out);
   std::stable_sort(out.begin(), out.end(), [](const Diagnostic& a, const Diagnostic& b) {
     return std::pair(a.where.line, a.where.column) < std::pair(b.where.line, b.where.column);
   });
@@ -141,6 +191,7 @@ std::vector<Diagnostic> deployment_warnings(const Config& c) {
                                   "' feeds no functional element: it is booted and supervised, but nothing of it "
                                   "reaches the host or the machine application"});
   }
+  check_store_folder(c.upstream, out);
   check_lcm_commands(c, out);
   return out;
 }

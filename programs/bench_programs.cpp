@@ -144,6 +144,7 @@ int run_master(const MasterOptions& options) {
       d->on_change = [d, name](std::size_t i, const sd::SignalValue& v) {
         std::printf("signal %s.%s = %lld (%s)\n", name.c_str(), d->signals()[i].name.c_str(),
                     static_cast<long long>(v.value), std::string(sd::to_string(v.status)).c_str());
+        std::fflush(stdout);  // a line as it happens, as the node lines: a watcher reads it at once
       };
     }
     sd::NodeSettings settings;

@@ -2,6 +2,8 @@
 
 #include <stdexcept>
 
+#include "gateway/reload.hpp"
+
 namespace oegw::gateway {
 
 using canopen::CanFrame;
@@ -67,18 +69,22 @@ void CabRig::build_devices() {
   });
 }
 
-void CabRig::connect_gateway() {
-  gw_up_->set_receiver({});
-  gw_down_->set_receiver({});
-  gw_drv_.reset();
-  gw_.reset();
+GatewayOptions CabRig::gateway_options() const {
   GatewayOptions opt = options_.gateway;
   opt.store_path = options_.store;
   // The instant buses have no time on the wire to share: the gateway's SDO is not paced there
   // (GatewayOptions::sdo_bus_share), so the phases the safety matrix aims at stay where they are.
   if (!options_.timed_buses) opt.sdo_bus_share = 0;
+  return opt;
+}
+
+void CabRig::connect_gateway() {
+  gw_up_->set_receiver({});
+  gw_down_->set_receiver({});
+  gw_drv_.reset();
+  gw_.reset();
   gw_ = std::make_unique<Gateway>(config_, through(from_gateway_up, gw_up_->sink()),
-                                  through(from_gateway_down, gw_down_->sink()), opt);
+                                  through(from_gateway_down, gw_down_->sink()), gateway_options());
   if (on_gateway) on_gateway(*gw_);
   gw_drv_ = std::make_unique<canopen::ServiceDriver>(loop_, *gw_);
   gw_down_->set_receiver([this](const CanFrame& f, TimePoint t) {
@@ -90,6 +96,18 @@ void CabRig::connect_gateway() {
     gw_->on_upstream_frame(f, t);
     gw_drv_->rearm();
   });
+}
+
+std::vector<mapping::Diagnostic> CabRig::reload(const mapping::Config& next) {
+  auto refused = reload_refusals(config_, next);
+  if (!refused.empty()) return refused;
+  config_ = next;
+  gw_drv_.reset();  // it holds the old gateway
+  gw_ = reload_gateway(std::move(gw_), config_, through(from_gateway_down, gw_down_->sink()), gateway_options(),
+                       loop_.now());
+  if (on_gateway) on_gateway(*gw_);
+  gw_drv_ = std::make_unique<canopen::ServiceDriver>(loop_, *gw_);
+  return {};
 }
 
 void CabRig::build() {

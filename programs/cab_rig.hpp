@@ -15,6 +15,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <vector>
 
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
@@ -69,6 +70,10 @@ class CabRig {
   // A gateway on the mapping file and the store, attached to both buses. Called again: a
   // restart (the old gateway is detached and destroyed first, the store kept).
   void connect_gateway();
+  // A reload of the mapping file (gateway/reload.hpp): `next`'s settings a reload cannot apply,
+  // nothing changed then; else (empty) the gateway replaced by one of `next` around the same
+  // upstream device (on_gateway is called with it). The simulators stay: the cab is the same.
+  std::vector<mapping::Diagnostic> reload(const mapping::Config& next);
   // build_devices() and connect_gateway().
   void build();
   // Destroys the simulators and the host: what remains is the gateway (memory figures).
@@ -98,6 +103,8 @@ class CabRig {
   [[nodiscard]] canopen::ServiceDriver& gateway_driver() { return *gw_drv_; }
 
  private:
+  // options_.gateway with the rig's store and SDO pacing.
+  [[nodiscard]] GatewayOptions gateway_options() const;
   // `sink` behind the interceptor member `consumed` (read at each frame, so it may be set later).
   canopen::FrameSink through(const Interceptor& consumed, canopen::FrameSink sink);
 

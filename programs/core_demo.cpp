@@ -150,7 +150,7 @@ int run_demo(const DemoOptions& options) {
       dds = std::make_unique<DdsPublisher>(ds);
       fan.add(dds.get());
       say("publishing joystick.1 on DDS: topic oegw/joystick, domain 0, partition oegw-demo, loopback only");
-    } catch (const PublishConfigError& e) {
+    } catch (const PublishError& e) {  // a bad setting, or the machine's state (no route for LCM)
       fail(e.what());
     }
     try {
@@ -159,7 +159,7 @@ int run_demo(const DemoOptions& options) {
       lcm = std::make_unique<LcmPublisher>(ls);
       fan.add(lcm.get());
       say("publishing joystick.1 on LCM: channel OEGW_DEMO_JOYSTICK_1, udpm://224.0.0.1:7667?ttl=0");
-    } catch (const PublishConfigError& e) {
+    } catch (const PublishError& e) {  // a bad setting, or the machine's state (no route for LCM)
       fail(e.what());
     }
   }

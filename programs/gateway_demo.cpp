@@ -172,8 +172,15 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   auto loop_ptr = options.fast ? std::make_unique<EventLoop>(sim_clock) : std::make_unique<EventLoop>();
   EventLoop& loop = *loop_ptr;
   bool done = false;
-  // The simulated cab: the devices of demo.yaml downstream, the gateway, a host upstream.
-  CabRig rig(cfg, loop, CabRigOptions{.store = dir / "upstream.store"});
+  // The simulated cab: the devices of demo.yaml downstream, the gateway, a host upstream. Its
+  // MCB-402 boards are wired as the file's button_bits say (a simulator is otherwise wired by the
+  // table's other reading, subdevices/README.md "Corners": a board is wired as it is, the file
+  // must say so).
+  CabRigOptions rig_options{.store = dir / "upstream.store"};
+  for (const auto& sc : cfg.subdevices)
+    if (const auto bits = sc.options.get("button_bits"); sc.driver == "mcb402" && bits)
+      rig_options.simulator_options[sc.name].values.emplace_back("wiring", *bits);
+  CabRig rig(cfg, loop, rig_options);
   const TimePoint t0 = loop.now();
   if (options.frames) {
     rig.up().set_tap([&](const BusRecord& r) { std::printf("%s\n", candump_line(loop.now() - t0, "up", r.frame).c_str()); });
@@ -248,6 +255,10 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
                       publish.dds.domain, publish.dds.partition, publish.dds.network,
                       publish.dds.security ? ", DDS Security with " + options.dds_security : std::string(),
                       publish.lcm.channel_prefix, publish.lcm.url));
+      // The machine cannot carry one now (an offline computer has no multicast route for LCM):
+      // the demo runs without it and it is opened again as `oegw run` does.
+      for (const auto& t : publishing->transports())
+        if (!t.up) say(t.name + " not publishing yet: " + t.reason + "; opened again until it works");
     } catch (const PublishConfigError& e) {
       // A set asked for and refused: no demo without it (it would publish in the clear).
       if (publish.dds.security) {
@@ -255,8 +266,8 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
         std::filesystem::remove_all(dir);
         return exit_code::kCannotStart;
       }
-      // The demo goes on without it (an offline machine has no multicast route for LCM); `oegw
-      // run` refuses to start instead.
+      // A setting that cannot work: the demo goes on without publishing; `oegw run` refuses to
+      // start instead.
       say(std::string("not publishing: ") + e.what());
     }
   }

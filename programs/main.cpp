@@ -7,9 +7,11 @@
 #include <utility>
 #include <vector>
 
+#include "gateway/button_bits_command.hpp"
 #include "gateway/control/ctl_command.hpp"
 #include "gateway/control/status_command.hpp"
 #include "gateway/programs.hpp"
+#include "gateway/record/replay_command.hpp"
 #include "gateway/scan_command.hpp"
 #include "gateway/signals_command.hpp"
 #include "programs/version.hpp"
@@ -106,6 +108,15 @@ int main(int argc, char** argv) {
                           "A driver option key=value, as in the mapping file (e.g. detent=clamp); repeatable");
   signals_cmd->add_option("--eds", signals.eds, "cia401: the EDS file whose signals to list");
   signals_cmd->add_flag("--markdown", signals.markdown, "Markdown tables, as in subdevices/README.md");
+  // Commissioning an MCB-402: its button wiring read off the board (subdevices/README.md).
+  bool find_button_bits = false;
+  oegw::gateway::FindButtonBitsOptions find_bits;
+  signals_cmd->add_flag("--find-button-bits", find_button_bits,
+                        "mcb402: watch the board's TPDO1 on -i IF, ask for BP1..BP7 in turn and print its button_bits line");
+  signals_cmd->add_option("-i,--interface", find_bits.interface, "--find-button-bits: the sub-devices' CAN interface");
+  signals_cmd->add_option("--node", find_bits.node, "--find-button-bits: the board's node-ID (default 3)")->check(CLI::Range(1, 127));
+  signals_cmd->add_option("--timeout", find_bits.timeout_s, "--find-button-bits: seconds to wait for each press (default 60)")
+      ->check(CLI::Range(1.0, 3600.0));
 
   oegw::gateway::ScanOptions scan;
   auto* scan_cmd = app.add_subcommand(
@@ -164,6 +175,32 @@ int main(int argc, char** argv) {
                   "  [seq] [net] lss_identity|_lss_slowscan <vendor> <product> <rev lo> <rev hi> <serial lo> <serial hi>\n"
                   "  types: b u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os d; interactive: history, !!, !N\n");
 
+  oegw::gateway::record::ReplayCommandOptions replay;
+  auto* replay_cmd = app.add_subcommand(
+      "replay", "Re-run the gateway on a recording (or a candump log) and compare its frames and decisions");
+  replay_cmd->add_option("recording", replay.recording,
+                         "A recording folder (record.dir, or a kept window), one of its segment files, or a candump log")
+      ->required();
+  replay_cmd->add_option("--config", replay.config, "The mapping file the gateway ran with")->required();
+  replay_cmd->add_option("--from", replay.from, "Timeline from: seconds from the recording's start (12.5) or a time of day (14:03:12)");
+  replay_cmd->add_option("--to", replay.to, "Timeline to (as --from)");
+  replay_cmd->add_option("--fe", replay.fe, "Timeline of one FE only (joystick.1)");
+  replay_cmd->add_option("--subdevice", replay.subdevice, "Timeline of one sub-device only (right_grip)");
+  replay_cmd->add_flag("--frames", replay.frames, "Print the frames in the timeline too");
+  replay_cmd->add_flag("--logs", replay.logs, "Print the gateway's log lines in the timeline too");
+  replay_cmd->add_flag("-q,--quiet", replay.quiet, "No timeline: the comparison's result only");
+  replay_cmd->add_option("--plot", replay.plot, "Draw the timeline: FILE.html (a self-contained page, Chart.js) or FILE.svg (a static picture)");
+
+  oegw::gateway::StatusOptions keep;
+  keep.timeout_s = 10.0;
+  auto* record_cmd = app.add_subcommand("record", "The running gateway's recording (the black box)");
+  record_cmd->require_subcommand(1);
+  auto* keep_cmd = record_cmd->add_subcommand("keep", "Keep the recording's window now (kept/<time>/ in record.dir)");
+  keep_cmd->add_option("--socket", keep.socket, "Control socket (default: the mapping file's control.socket, else /run/oegw/oegw.sock)");
+  keep_cmd->add_option("--config", keep.config, "Mapping file whose control.socket to ask");
+  keep_cmd->add_flag("--json", keep.json, "Print the daemon's JSON answer");
+  keep_cmd->add_option("--timeout", keep.timeout_s, "Seconds to wait for the answer (default 10)")->check(CLI::Range(0.1, 120.0));
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -181,7 +218,16 @@ int main(int argc, char** argv) {
   if (*eds_cmd) return oegw::gateway::run_eds(config_file, eds_out);
   if (*run_cmd) return oegw::gateway::run_gateway(config_file);
   if (*status_cmd) return oegw::gateway::run_status(status);
+  if (*replay_cmd) return oegw::gateway::record::run_replay(replay);
+  if (*keep_cmd) return oegw::gateway::record::run_record_keep(keep);
   if (*ctl_cmd) return oegw::gateway::run_ctl(ctl);
+  if (*signals_cmd && find_button_bits) {
+    if (signals.driver != "mcb402" || find_bits.interface.empty()) {
+      std::fprintf(stderr, "--find-button-bits: expected `oegw signals mcb402 --find-button-bits -i IF [--node N]`\n");
+      return exit_code::kUsage;
+    }
+    return oegw::gateway::run_find_button_bits(find_bits);
+  }
   if (*signals_cmd) return oegw::gateway::run_signals(signals);
   if (*scan_cmd) {
     scan.via = via_daemon ? oegw::gateway::ScanOptions::Via::Daemon

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Installs, from Debian's packages, whatever the build, the demo and the test tiers need and this
 # machine lacks. Idempotent: with everything present it only checks (dpkg -s) and exits.
+# --tests (scripts/test-all.sh, command 2) also installs what only the test tiers need beyond
+# that: chromium, which loads `oegw replay --plot`'s page headless.
 # Why each package is there: see README.md, "Dependencies".
 set -euo pipefail
 
@@ -11,10 +13,14 @@ PACKAGES=(
   libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libsocketcan-dev
   # the control socket's JSON (oegw status)
   nlohmann-json3-dev
+  # Chart.js 3.9, inlined into the page `oegw replay --plot` writes (README "Recording and replay")
+  libjs-chart.js
   # test tiers
   libgtest-dev libgmock-dev libbenchmark-dev clang
   # independent CAN peers and the SocketCAN-in-a-VM tier
   can-utils python3-can qemu-system-x86 busybox-static kmod cpio iproute2
+  # make: node-gyp builds the node-canopen peer's native addons (tests/vm/node_peer) with it
+  make
   # publishing to the machine application: Cyclone DDS (C library + CMake package) and idlc,
   # which generates the DDS types from gateway/publish/oegw.idl at build time
   cyclonedds-dev cyclonedds-tools
@@ -45,6 +51,20 @@ PACKAGES=(
   # fresh roots (arch-test: how mmdebstrap checks that a foreign root can run here)
   crossbuild-essential-arm64 crossbuild-essential-armhf qemu-user-static mmdebstrap arch-test
 )
+
+# node-canopen, the VM tier's independent CANopen host (tests/vm/node_peer: its npm packages are
+# installed from the lockfile by CTest's vm_node_peer_install, not here): Debian's nodejs and npm,
+# and libnode-dev for Node's headers (/usr/include/node), which the addons compile against. A
+# node that is already there with npm and its headers (e.g. a nodejs package from elsewhere, which
+# conflicts with Debian's npm) is used as it is.
+if ! command -v node >/dev/null || ! command -v npm >/dev/null || [ ! -r /usr/include/node/node.h ]; then
+  PACKAGES+=(nodejs npm libnode-dev)
+fi
+
+# Command 2's test tiers only: headless chromium loads the replay's plot (tests/tools/plot_chromium_check.sh).
+if [[ ${1:-} == --tests ]]; then
+  PACKAGES+=(chromium)
+fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -5,13 +5,15 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-./scripts/install-deps.sh
+./scripts/install-deps.sh --tests
 BUILD=${OEGW_BUILD_DIR:-build}
 cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
 cmake --build "$BUILD"
 
 # Tiers 1, 2 and 3 (the VM tier is labelled `vm`) and the Debian package installed into a fresh
-# debootstrap root (label `deploy`, tests/deploy) through CTest.
+# debootstrap root (label `deploy`, tests/deploy) through CTest. The VM tier's node-canopen host
+# comes from npm: CTest's vm_node_peer_install runs `npm ci` on tests/vm/node_peer's lockfile into
+# the build tree first (the registry only; nodejs, npm and libnode-dev from install-deps.sh).
 ctest --test-dir "$BUILD" --output-on-failure --timeout 900 -j2
 
 # Fuzzing smoke runs: the SDO server under libFuzzer + ASan/UBSan (clang), a short bounded run.

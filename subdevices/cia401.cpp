@@ -435,6 +435,7 @@ const std::vector<OptionSpec>& cia401_options() {
        .missing = "cia401: option 'eds' (path of the node's EDS file) is required",
        .description = "the node's EDS (CiA 306): its 6000h, 6120h, 6401h, 6200h, 6411h sub-indices are the "
                       "signals; a relative path is taken from the mapping file's folder"},
+      freshness_floor_option("200"),
   };
   return table;
 }
@@ -442,9 +443,14 @@ const std::vector<OptionSpec>& cia401_options() {
 std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const DriverOptions& options,
                                            std::string& error) {
   std::optional<std::string> path;
+  std::int64_t floor_ms = 0;
   if (!parse_options("cia401", cia401_options(), options,
-                     [&path](const OptionValue& v, std::string& /*error*/) {
-                       path = v.text;
+                     [&path, &floor_ms](const OptionValue& v, std::string& /*error*/) {
+                       if (v.spec->name == kFreshnessFloorOption) {
+                         floor_ms = v.number;
+                       } else {
+                         path = v.text;
+                       }
                        return true;
                      },
                      error))
@@ -468,7 +474,9 @@ std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const Dr
             (problems.size() > 1 ? " (and " + std::to_string(problems.size() - 1) + " more)" : "");
     return nullptr;
   }
-  return std::make_unique<Cia401Driver>(node, std::move(sink), std::move(*file));
+  auto d = std::make_unique<Cia401Driver>(node, std::move(sink), std::move(*file));
+  apply_freshness_floor(*d, floor_ms);
+  return d;
 }
 
 }  // namespace oegw::subdevices

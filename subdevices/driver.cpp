@@ -112,6 +112,7 @@ void Driver::set_carriers(std::vector<Carrier> carriers) {
 
 void Driver::apply_boot_writes(const std::vector<SdoWrite>& writes) {
   refresh_carriers();
+  boot_writes_made(writes);
   for (const SdoWrite& w : writes) {
     for (Carrier& c : carriers_) {
       if (w.index != c.comm_index || w.data.empty()) continue;
@@ -144,6 +145,11 @@ std::vector<Driver::TpdoTraffic> Driver::expected_tpdos(const std::vector<SdoWri
 
 void Driver::set_pdo_timeout(Duration timeout) {
   pdo_timeout_ = timeout;
+  rebuild_deadlines();
+}
+
+void Driver::set_freshness_floor(Duration floor) {
+  freshness_floor_ = floor;
   rebuild_deadlines();
 }
 
@@ -229,6 +235,7 @@ void Driver::rebuild_deadlines() {
       d = std::chrono::milliseconds(c.event_timer_ms) * kMissedPeriods;
     if (d.count() == 0 && c.transmission_type >= 1 && c.transmission_type <= 240)
       d = sync_period_ * c.transmission_type * kMissedPeriods;
+    if (pdo_timeout_.count() == 0 && d.count() != 0) d = std::max(d, freshness_floor_);
     add(c.cob_id, d, c.required, c.signals);
   }
   // A driver that declares no carriers: pdo_timeout_ms covers every input, refreshed by any PDO.

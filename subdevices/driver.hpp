@@ -49,8 +49,8 @@ struct DecodedEmcy {
   std::uint16_t code = 0;
   std::string text;              // "elobau 4001h 0x0021: X axis signal 1 out of range"
   // The EMCY reports an error (forwarded upstream under emcy_forwarding: faults). false for a
-  // clear code (0000h, Novotechnik 5051h "valid position"), a warning (81xxh CAN communication,
-  // elobau 0002h "set until first parameter saving") and an undecodable code.
+  // clear code (0000h, Novotechnik 5051h "valid position"), a warning (81xxh CAN communication)
+  // and an undecodable code.
   bool error = true;
   // The signals this EMCY puts in Error: as a rule faulted (Driver::faulted) until the driver's
   // clear evidence; the driver's header says where not (a Novotechnik position warning, which
@@ -100,6 +100,35 @@ class Driver {
     return false;
   }
 
+  // A write of configuration() the node refused (`code`): the driver may give another write in
+  // its stead (a device without the object the document's default names: the Novotechnik's
+  // 6020h, mapped as 6004h instead), which the network manager makes in its place; nullopt refuses
+  // the node, as any refused write does.
+  [[nodiscard]] virtual std::optional<SdoWrite> instead_of_refused(const SdoWrite& /*write*/,
+                                                                    canopen::SdoAbortCode /*code*/) {
+    return std::nullopt;
+  }
+  // A driver that needs the node restarted once its configuration is written (the elobau grip
+  // after saving its parameters, "Restart the joystick after saving procedure") says so here,
+  // asked after the writes: the network manager then sends NMT reset node and boots it again.
+  [[nodiscard]] virtual bool restart_after_configuration() const { return false; }
+
+  // An object whose read-back is a fault's only clear evidence while the node runs (the
+  // MCB-402's 1001h after a cable break its board never resets by EMCY): while fault_poll()
+  // names one, the network manager reads it every `period` while the node is operational and
+  // hands the answer (or nothing, on an abort) to on_fault_poll(). on_fault_poll_sent() is called
+  // as the request goes out: a driver ignores an answer to a request sent before a fault it
+  // latched since (the EMCY may overtake the answer on the bus).
+  struct FaultPoll {
+    std::uint16_t index = 0;
+    std::uint8_t sub = 0;
+    Duration period{0};
+  };
+  [[nodiscard]] virtual std::optional<FaultPoll> fault_poll() const { return std::nullopt; }
+  virtual void on_fault_poll_sent() {}
+  // Returns what the answer showed, for the log ("" = nothing to report).
+  virtual std::string on_fault_poll(std::span<const std::uint8_t> /*data*/, TimePoint /*now*/) { return {}; }
+
   // Device commands an integrator may give (Gateway::subdevice_command), by name: the SDO
   // writes each one is (empty: no such command). E.g. the Novotechnik "position_error_reset".
   [[nodiscard]] virtual std::vector<std::string> commands() const { return {}; }
@@ -140,6 +169,14 @@ class Driver {
   // there replace the driver's defaults.
   void apply_boot_writes(const std::vector<SdoWrite>& writes);
   void set_pdo_timeout(Duration timeout);  // 0: the deadlines derived from the event timers
+  // The floor of a derived deadline (README "Fault policy"): kMissedPeriods × T, or the SYNC
+  // product, is raised to at least this, so that a controller whose scheduling stalls for less
+  // than the floor minus one period (a loaded cab controller, a TCG guest: ~130 ms seen) raises
+  // no stale fault, while a device whose PDOs stop is still caught within the floor. Each family
+  // has its default (the option freshness_floor_ms, freshness_floor_option()); 0: no floor.
+  // pdo_timeout_ms, written by the user, is taken as it is.
+  void set_freshness_floor(Duration floor);
+  [[nodiscard]] Duration freshness_floor() const { return freshness_floor_; }
   // SYNC: a TPDO of transmission type n = 1..240 is sent after every n-th SYNC (CiA 301
   // §7.5.2.35), so with the SYNC period P it is Stale once kMissedPeriods × n × P pass without
   // it. 0: no SYNC is produced (such a TPDO then has no derived deadline).
@@ -241,6 +278,10 @@ class Driver {
   // Called by apply_boot_writes() first: a driver that learns its PDO layout at boot (the
   // generic CiA 401 node) declares its carriers here.
   virtual void refresh_carriers() {}
+  // Called by apply_boot_writes() with every write made (its configuration() and the mapping
+  // file's `sdo` list): a driver whose boot reads a write may override takes the written value
+  // (the elobau's fitted buttons 2100h:01h/02h).
+  virtual void boot_writes_made(const std::vector<SdoWrite>& /*writes*/) {}
 
   InputCounters counters_;
 
@@ -272,6 +313,7 @@ class Driver {
   unsigned output_batch_ = 0;
   std::vector<Carrier> carriers_;
   Duration pdo_timeout_{0};
+  Duration freshness_floor_{0};
   Duration sync_period_{0};
   std::optional<TimePoint> alive_since_;
   std::vector<Duration> deadline_;          // by signal: the shortest of its PDOs'; 0 = none

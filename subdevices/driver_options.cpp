@@ -105,9 +105,28 @@ bool parse_options(std::string_view family, const std::vector<OptionSpec>& table
     return false;
   }
   for (const auto& [key, text] : given.values)
-    for (const OptionSpec& s : table)
-      if (s.name == key && !one(s, text)) return false;
+    for (const OptionSpec& s : table) {
+      if (s.name != key) continue;
+      if (s.required && text == kPlaceholder) {
+        error = f + ": option " + std::string(s.name) + " is still the draft's placeholder " + std::string(kPlaceholder) +
+                "; " + (s.missing.empty() ? std::string(s.description) : std::string(s.missing));
+        return false;
+      }
+      if (!one(s, text)) return false;
+    }
   return true;
 }
+
+OptionSpec freshness_floor_option(std::string_view default_ms) {
+  return OptionSpec{
+      .name = kFreshnessFloorOption, .type = OptionSpec::Type::Integer, .ranges = {{0, 600000}}, .unit = "ms",
+      .default_value = default_ms,
+      .description = "floor of the PDO freshness deadlines derived from the event timers (3 periods): a deadline "
+                     "is at least this, so a controller stall shorter than the floor less one period is no "
+                     "stale fault; 0: no floor; pdo_timeout_ms replaces both (subdevices/README.md "
+                     "\"Freshness floors\")"};
+}
+
+void apply_freshness_floor(Driver& driver, std::int64_t ms) { driver.set_freshness_floor(std::chrono::milliseconds(ms)); }
 
 }  // namespace oegw::subdevices

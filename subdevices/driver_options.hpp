@@ -82,6 +82,17 @@ struct DriverInfo {
 // "elobau-mfg, mcb402, novotechnik-406, cia401"
 [[nodiscard]] std::string driver_names();
 
+// The option every family lists for Driver::set_freshness_floor (README "Fault policy": the
+// floor of the derived freshness deadlines), `default_ms` the family's default. Each factory
+// applies it with apply_freshness_floor().
+[[nodiscard]] OptionSpec freshness_floor_option(std::string_view default_ms);
+inline constexpr std::string_view kFreshnessFloorOption = "freshness_floor_ms";
+void apply_freshness_floor(Driver& driver, std::int64_t ms);
+
+// The draft's placeholder for a required option (`oegw scan`): parse_options refuses it with the
+// option's `missing` text, which says how to find the value.
+inline constexpr std::string_view kPlaceholder = "TODO";
+
 // The tables (in each family's file).
 const std::vector<OptionSpec>& elobau_mfg_options();
 const std::vector<OptionSpec>& mcb402_options();

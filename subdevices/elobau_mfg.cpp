@@ -153,7 +153,23 @@ std::vector<SdoWrite> ElobauMfgDriver::configuration() const {
   }
   w.push_back(write_u8(0x2100, 0x09, 0, "buttons error value 0 (released)"));
   w.push_back(write_u8(0x2100, 0x0A, 0, "buttons not-available value 0 (released)"));
+  // A never-saved grip with `parameter_checksum: save`: §8 "write "save" (0x65766173) into the
+  // object 0x1010.1", last, so that what is saved is this configuration; the restart follows
+  // (restart_after_configuration()).
+  if (saving_) {
+    SdoWrite save{0x1010, 1, {0x73, 0x61, 0x76, 0x65}, "store parameters \"save\" (4001h read 0002h: never saved)"};
+    w.push_back(std::move(save));
+  }
   return w;
+}
+
+void ElobauMfgDriver::boot_writes_made(const std::vector<SdoWrite>& writes) {
+  // The mapping file's `sdo` list may configure the buttons the grip has (2100h:01h/02h, PARA).
+  for (const SdoWrite& w : writes) {
+    if (w.index != 0x2100 || w.data.size() != 1) continue;
+    if (w.sub == 0x01) fitted_ = static_cast<std::uint16_t>((fitted_ & 0xFF00) | w.data[0]);
+    if (w.sub == 0x02) fitted_ = static_cast<std::uint16_t>((fitted_ & 0x00FF) | (w.data[0] << 8));
+  }
 }
 
 std::vector<std::uint32_t> ElobauMfgDriver::consumed_cob_ids() const {
@@ -271,6 +287,8 @@ void ElobauMfgDriver::publish_buttons(TimePoint now) {
   auto one = [&](std::size_t index, std::size_t bit, bool err) {
     if (err) {
       update(index, 0, SignalStatus::Error, now);
+    } else if (buttons_ && ((fitted_ >> bit) & 1u) == 0) {
+      update(index, 0, SignalStatus::NotAvailable, now);  // 2100h:01h/02h: the grip has no such button
     } else if (buttons_) {
       update(index, (*buttons_ >> bit) & 1u, SignalStatus::Valid, now);
     } else if (value(index).status == SignalStatus::Error) {
@@ -282,6 +300,9 @@ void ElobauMfgDriver::publish_buttons(TimePoint now) {
 }
 
 void ElobauMfgDriver::publish_all(TimePoint now) {
+  // Not online (booting, lost): the inputs stay Offline, whatever an EMCY latched meanwhile; the
+  // latches show as Error with the first PDO after on_online().
+  if (!online_) return;
   for (std::size_t a = 0; a < kAxes; ++a) publish_axis(a, now);
   publish_buttons(now);
 }
@@ -311,6 +332,11 @@ DecodedEmcy ElobauMfgDriver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
     }
     case 0x1000: break;  // §12.4: generic error = manufacturer specific (4001h)
     default:
+      if ((emcy.code & 0xFF00) == 0x8100) {  // §12.4 "0x81xx: Communication": a warning as the three above
+        d.error = false;
+        d.text = "elobau EMCY " + hex4(emcy.code) + ": CAN communication (warning)";
+        return d;
+      }
       ++counters_.unknown_emcy;
       d.error = false;
       d.text = "elobau EMCY " + hex4(emcy.code) + ": unknown code (ignored)";
@@ -327,11 +353,13 @@ DecodedEmcy ElobauMfgDriver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
     return d;
   }
   d.text = "elobau 4001h " + hex4(m) + ": " + name;
+  // Table 6: 0002h at power-on is the never-saved grip; 4001h holds one code, so a later error at
+  // boot hides it from the read-back: its EMCY counts as the read-back would.
+  if (m == 0x0002 && !online_) unsaved_at_boot_ = true;
   d.affected = apply_manufacturer_code(m, now);
   d.error = !d.affected.empty();
   if (m == 0x0002)
-    d.text += opt_.checksum_faults ? " (parameter_checksum: fault: the saved parameters are corrupt)"
-                                       : " (warning: also set until the parameters are first saved, faults nothing)";
+    d.text += " (never saved, or corrupt: every input faulted until 4001h is read back at the next boot)";
   return d;
 }
 
@@ -359,15 +387,9 @@ std::vector<std::size_t> ElobauMfgDriver::apply_manufacturer_code(std::uint16_t 
   } else if (m == 0x0070) {
     led_emcy_ = true;
     for (std::size_t l = 0; l < kLeds; ++l) affected.push_back(kFirstLed + l);
-  } else if (m == 0x0002 && opt_.checksum_faults) {
-    global_emcy_ = true;  // the grip's parameters were saved: 0002h means they are corrupt
-    for (std::size_t i = 0; i < kFirstLed; ++i) affected.push_back(i);
-  } else if (m == 0x0002) {
-    // Table 6 0002h "Parameter Checksum Error CRC32. This error is also set until first
-    // parameter saving process": sent at every power-on of a grip whose parameters were never
-    // saved, so it tells nothing about the values; and every parameter the gateway relies on is
-    // written at every boot (configuration()). A warning: reported, faults nothing.
-  } else if (m == 0x0000 || m == 0x0001 || m == 0x0005) {  // the whole device is in doubt
+  } else if (m == 0x0000 || m == 0x0001 || m == 0x0002 || m == 0x0005) {
+    // The whole device is in doubt. 0002h: at power-on a grip never saved (the read-back at boot
+    // decides, on_boot_read), at run time corrupt parameters.
     global_emcy_ = true;
     for (std::size_t i = 0; i < kFirstLed; ++i) affected.push_back(i);
   }
@@ -403,12 +425,26 @@ void ElobauMfgDriver::clear_faults() {
 }
 
 std::vector<std::pair<std::uint16_t, std::uint8_t>> ElobauMfgDriver::boot_reads() const {
-  if (error_code_read_) return {};
-  return {{0x4001, 0}};
+  std::vector<std::pair<std::uint16_t, std::uint8_t>> reads;
+  if (!error_code_read_) reads.emplace_back(0x4001, 0);
+  if ((fitted_read_ & 0x01) == 0) reads.emplace_back(0x2100, 0x01);
+  if ((fitted_read_ & 0x02) == 0) reads.emplace_back(0x2100, 0x02);
+  return reads;
 }
 
 bool ElobauMfgDriver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
-                                   std::string& /*error*/) {
+                                   std::string& error) {
+  if (index == 0x2100 && (sub == 0x01 || sub == 0x02)) {
+    fitted_read_ |= sub;  // sub 1 -> bit 0, sub 2 -> bit 1
+    if (data.size() != 1) {
+      error = "2100h sub " + std::to_string(sub) + " (buttons fitted, UNSIGNED8) answered " + std::to_string(data.size()) +
+              " bytes: which buttons the grip has is unknown";
+      return false;
+    }
+    fitted_ = sub == 0x01 ? static_cast<std::uint16_t>((fitted_ & 0xFF00) | data[0])
+                          : static_cast<std::uint16_t>((fitted_ & 0x00FF) | (data[0] << 8));
+    return true;
+  }
   if (index != 0x4001 || sub != 0) return true;
   error_code_read_ = true;
   // Table 14 4001h "Error Code", 0: no error. No error: every fault latched before is over (the
@@ -416,6 +452,30 @@ bool ElobauMfgDriver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::s
   // faults what its EMCY would, beside what is latched (4001h holds one code only).
   if (data.size() != 2) return true;  // 4001h is UNSIGNED16: another length is no evidence, the faults stay
   const auto m = static_cast<std::uint16_t>(data[0] | (data[1] << 8));
+  if (m == 0x0002 || unsaved_at_boot_) {
+    // Never saved, or corrupt (Table 6): see the header. Saved once and restarted, still 0002h:
+    // corrupt.
+    if (opt_.save_unsaved && !save_tried_) {
+      saving_ = true;
+      save_tried_ = true;
+      global_emcy_ = true;
+      sync_faults(std::nullopt);
+      return true;
+    }
+    const std::string seen =
+        m == 0x0002 ? "4001h reads 0002h" : "EMCY 1000h with 4001h 0002h came at boot (4001h now reads " + hex4(m) + ")";
+    error = save_tried_
+                ? seen + " still, after 1010h:01 \"save\" and a restart (Table 6 parameter checksum error): the "
+                         "grip's parameter memory is corrupt; replace the grip"
+                : seen + " (Table 6 \"Parameter Checksum Error ... also set until first parameter saving process\"): "
+                         "the grip's parameters were never saved (or are corrupt), and while 0002h stands the end of "
+                         "any other error cannot be seen (4001h holds one code, no 0000h comes); commission it once: "
+                         "with the grip pre-operational write 1010h:01 = 65766173h (\"save\", oegw ctl: w 0x1010 1 "
+                         "u32 0x65766173) and power-cycle it, or set option parameter_checksum: save to let the "
+                         "gateway do it at boot (subdevices/README.md \"elobau\")";
+    return false;
+  }
+  save_tried_ = false;
   if (m == 0) {
     clear_faults();
   } else if (manufacturer_error_name(m) != nullptr) {
@@ -423,7 +483,7 @@ bool ElobauMfgDriver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::s
     if (m >= 0x0010 && m <= 0x0052 && (m & 0x0F) <= 2) latch_axis((m >> 4) - 1);
     if (m >= 0x0061 && m <= 0x006B) button_emcy_[m - 0x0061] = true;
     if (m == 0x0070) led_emcy_ = true;
-    if (m == 0x0000 || m == 0x0001 || m == 0x0005 || (m == 0x0002 && opt_.checksum_faults)) global_emcy_ = true;
+    if (m == 0x0000 || m == 0x0001 || m == 0x0005) global_emcy_ = true;
     sync_faults(std::nullopt);
   }
   return true;
@@ -431,6 +491,7 @@ bool ElobauMfgDriver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::s
 
 bool ElobauMfgDriver::on_boot_read_abort(std::uint16_t index, std::uint8_t /*sub*/, canopen::SdoAbortCode /*code*/) {
   if (index == 0x4001) error_code_read_ = true;  // no evidence either way: the faults stay
+  // 2100h refused (Table 14 lists it): which buttons the grip has is unknown, the node is refused.
   return index == 0x4001;
 }
 
@@ -474,6 +535,7 @@ void ElobauMfgDriver::reset_state() {
 }
 
 void ElobauMfgDriver::on_online(TimePoint now) {
+  online_ = true;
   reset_state();
   leds_sent_ = false;
   leds_dirty_ = false;
@@ -488,6 +550,7 @@ void ElobauMfgDriver::on_online(TimePoint now) {
 }
 
 void ElobauMfgDriver::on_offline(TimePoint now) {
+  online_ = false;
   Driver::on_offline(now);
   reset_state();
   leds_sent_ = false;
@@ -515,10 +578,12 @@ const std::vector<OptionSpec>& elobau_mfg_options() {
        .note = "(the document's 5 ms coding cycle)",
        .description = "TPDO #0 / #1 event timers written at boot (1800h:05, 1801h:05); a TPDO missing for 3 "
                       "cycles makes its signals Stale"},
-      {.name = "parameter_checksum", .type = T::Choice, .choices = {"warning", "fault"}, .default_value = "warning",
-       .note = "(warning: grips whose parameters were never saved; fault: saved at commissioning)",
-       .description = "EMCY 0002h parameter checksum: warning faults nothing (a grip whose parameters were never "
-                      "saved sends it at every power-on); fault faults every input, like 0001h"},
+      {.name = "parameter_checksum", .type = T::Choice, .choices = {"refuse", "save"}, .default_value = "refuse",
+       .note = "(refuse: commission the grip by hand; save: the gateway saves it once)",
+       .description = "a grip whose 4001h reads 0002h at boot (parameters never saved, Table 6): refuse: the node "
+                      "is refused, the reason says how to save it; save: the gateway writes 1010h:01 \"save\" and "
+                      "restarts it once (refused if 0002h stays: corrupt). At run time 0002h faults every input"},
+      freshness_floor_option("200"),
   };
   return table;
 }
@@ -533,7 +598,8 @@ std::unique_ptr<Driver> make_elobau_mfg_driver(NodeId node, FrameSink sink, cons
                                   if (name == "detent") o.clamp_detent = v.text == "clamp";
                                   if (name == "channel2_timeout_ms") o.channel2_timeout_ms = static_cast<std::uint32_t>(v.number);
                                   if (name == "cycle_ms") o.cycle_ms = static_cast<std::uint16_t>(v.number);
-                                  if (name == "parameter_checksum") o.checksum_faults = v.text == "fault";
+                                  if (name == "parameter_checksum") o.save_unsaved = v.text == "save";
+                                  if (name == kFreshnessFloorOption) o.freshness_floor_ms = static_cast<std::uint32_t>(v.number);
                                   return true;
                                 },
                                 error);
@@ -546,7 +612,9 @@ std::unique_ptr<Driver> make_elobau_mfg_driver(NodeId node, FrameSink sink, cons
     error = "elobau-mfg: node-ID " + std::to_string(node.value()) + " is not 1..127";
     return nullptr;
   }
-  return std::make_unique<ElobauMfgDriver>(node, std::move(sink), o);
+  auto d = std::make_unique<ElobauMfgDriver>(node, std::move(sink), o);
+  apply_freshness_floor(*d, o.freshness_floor_ms);
+  return d;
 }
 
 }  // namespace oegw::subdevices

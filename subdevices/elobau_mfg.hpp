@@ -56,15 +56,35 @@
 //     error value 2100h:09h is 0, which a PDO cannot tell from "released");
 //   0000h (no manufacturer code), 0001h, 0005h -> every input until the error reset;
 //   0070h (LED message timeout) -> leds[*] (status Error) until the error reset;
-//   0002h (parameter checksum, "also set until first parameter saving process") -> nothing: a
-//     warning, sent at every power-on of a grip whose parameters were never saved (§8: save
-//     them), and every parameter the gateway relies on is written at each boot;
+//   0002h (parameter checksum, "also set until first parameter saving process") -> every input
+//     until the read-back at the next boot decides (below): at run time it can only mean corrupt
+//     parameters;
 //   0003h/0004h ("not used") and other codes -> counters().unknown_emcy, ignored.
 //   8110h/8120h/8140h (CAN overrun / error passive / recovered from bus-off, byte 3 = bus-off
 //   count): warnings (error = false), they invalidate no value the device sends.
 // Read-back at every (re)start (boot_reads()): 4001h "Error Code" (Table 14, 0: no error). 0
 // clears every fault latched before (a grip that rebooted or recovered unseen); a Table 6 code
 // faults what its EMCY would. Going offline and coming back keep the faults meanwhile.
+//
+// A never-saved grip (4001h = 0002h at boot, Table 6 "also set until first parameter saving
+// process"): 4001h holds one code and the document sends no 0000h while an error lasts (§12.4),
+// so while 0002h stands no other error could be seen to end: a latch the grip cannot clear, or
+// (ignoring it) a grip whose errors pass unseen. Neither is taken: with `parameter_checksum:
+// refuse` (the default) the node is refused at boot with the commissioning step in the reason;
+// with `parameter_checksum: save` the driver writes 1010h:01 "save" (65766173h, §8) at the end of
+// its configuration and asks for the restart §8 requires ("Restart the joystick after saving
+// procedure", restart_after_configuration()); if 4001h still reads 0002h after that, the grip's
+// parameter memory is corrupt and it is refused.
+//
+// Buttons the grip has: 2100h:01h / 02h "Configuration 8_1 / 16_9" (Table 14, 0: button not
+// available; default 63 = buttons 1..6), read at every boot (or as the mapping file's `sdo` list
+// writes them): a button the grip does not have is NotAvailable, never "valid, released" (its bit
+// in TPDO #0 is the not-available value 2100h:0Ah, 0 as written here, §15.2).
+//
+// TPDOs (Table 14 18xxh:02 = 254, "transmission event is manufacturer specific, i.e. event
+// timer"): a grip may send them on change and on its timer, or on its timer only. Both work; on
+// the timer alone a change reaches the gateway up to cycle_ms late and a press shorter than
+// cycle_ms may not be seen: such a grip wants a short cycle_ms (subdevices/README.md "elobau").
 //
 // Outputs: set_output(leds[i]) sends RPDO #0 carrying the whole remembered LED state (LEDs never
 // commanded as 11 "no change", spare positions 11). The device applies the last command it got
@@ -102,11 +122,10 @@ struct ElobauMfgOptions {
   std::uint32_t channel2_timeout_ms = 0;
   std::uint16_t cycle_ms = 100;
   // Table 6 0002h "Parameter Checksum Error CRC32. This error is also set until first parameter
-  // saving process": false (option `parameter_checksum: warning`, the default) reports it and
-  // faults nothing, since a grip whose parameters were never saved sends it at every power-on;
-  // true (`parameter_checksum: fault`, for grips whose parameters were saved at commissioning,
-  // where 0002h can only mean corrupt parameters) faults every input like 0001h.
-  bool checksum_faults = false;
+  // saving process", read back at boot: false (`parameter_checksum: refuse`, the default) refuses
+  // the node; true (`parameter_checksum: save`) saves the grip's parameters once and restarts it.
+  bool save_unsaved = false;
+  std::uint32_t freshness_floor_ms = 200;  // Driver::set_freshness_floor
 };
 
 class ElobauMfgDriver final : public Driver {
@@ -136,17 +155,27 @@ class ElobauMfgDriver final : public Driver {
   [[nodiscard]] ExpectedIdentity expected_identity() const override;
   [[nodiscard]] std::vector<SdoWrite> configuration() const override;
   // 5999h "LSS": bit rate (sub 1), node-ID (sub 2) and their store (sub 3) by SDO (document §7);
-  // 2200h the LEDs the gateway drives (its output signals).
+  // 5000h "Auto NMT Start" (Annex A: the grip's own NMT startup, as 1F80h); 2200h the LEDs the
+  // gateway drives (its output signals).
   [[nodiscard]] bool protects(std::uint16_t index, std::uint8_t /*sub*/) const override {
-    return index == 0x5999 || index == 0x2200;
+    return index == 0x5999 || index == 0x5000 || index == 0x2200;
   }
-  // 4001h "Error Code" (Table 14), read back at every (re)start: it decides the faults.
-  void begin_boot() override { error_code_read_ = false; }
+  // 4001h "Error Code" (Table 14), read back at every (re)start: it decides the faults; 2100h:01h
+  // and 02h: the buttons the grip has.
+  void begin_boot() override {
+    error_code_read_ = false;
+    fitted_read_ = 0;
+    saving_ = false;
+    unsaved_at_boot_ = false;
+  }
   [[nodiscard]] std::vector<std::pair<std::uint16_t, std::uint8_t>> boot_reads() const override;
   bool on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
                     std::string& error) override;
   bool on_boot_read_abort(std::uint16_t index, std::uint8_t sub, canopen::SdoAbortCode code) override;
   void on_application_reset(TimePoint /*now*/) override {}  // the 4001h read-back decides
+  [[nodiscard]] bool restart_after_configuration() const override { return saving_; }
+  // The buttons the grip has (bit n-1 = button n), as read or written at the last boot.
+  [[nodiscard]] std::uint16_t fitted_buttons() const { return fitted_; }
   bool on_frame(const CanFrame& frame, TimePoint now) override;
   DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) override;
   [[nodiscard]] std::vector<std::uint32_t> consumed_cob_ids() const override;
@@ -163,6 +192,7 @@ class ElobauMfgDriver final : public Driver {
 
  private:
   void flush_outputs(TimePoint now) override;
+  void boot_writes_made(const std::vector<SdoWrite>& writes) override;
   struct Axis {
     std::optional<std::int8_t> ch1;
     std::optional<std::int8_t> ch2;
@@ -194,7 +224,13 @@ class ElobauMfgDriver final : public Driver {
   std::array<bool, kButtons> button_emcy_{};
   bool global_emcy_ = false;
   bool led_emcy_ = false;
+  bool online_ = false;           // between on_online() and on_offline()
   bool error_code_read_ = false;  // 4001h read in this boot
+  std::uint8_t fitted_read_ = 0;  // bit 0: 2100h:01h answered, bit 1: 2100h:02h
+  std::uint16_t fitted_ = 0x003F;  // 2100h:01h/02h; the document's default until read
+  bool saving_ = false;           // this boot's configuration saves the parameters (save_unsaved)
+  bool unsaved_at_boot_ = false;  // an EMCY 0002h came between boot-up and operational
+  bool save_tried_ = false;       // a save was written and the grip restarted since 0002h was read
   bool channel2_late_ = false;
   std::optional<TimePoint> ch2_reference_;  // last TPDO #1, or the first TPDO #0 before one
   std::array<std::optional<std::uint8_t>, kLeds> leds_{};  // commanded 2-bit codes
@@ -203,7 +239,7 @@ class ElobauMfgDriver final : public Driver {
 };
 
 // Factory (families.hpp). Options: channel_tolerance, detent, channel2_timeout_ms, cycle_ms,
-// parameter_checksum (warning | fault, ElobauMfgOptions::checksum_faults).
+// parameter_checksum (refuse | save, ElobauMfgOptions::save_unsaved), freshness_floor_ms.
 std::unique_ptr<Driver> make_elobau_mfg_driver(NodeId node, FrameSink sink, const DriverOptions& options,
                                                std::string& error);
 

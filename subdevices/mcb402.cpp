@@ -1,6 +1,7 @@
 #include "subdevices/mcb402.hpp"
 
 #include <charconv>
+#include <cstdio>
 #include <string_view>
 
 #include "subdevices/driver_options.hpp"
@@ -30,6 +31,12 @@ std::vector<SignalInfo> make_signals() {
     s.push_back(SignalInfo{.name = "leds[" + std::to_string(i) + "]", .kind = SignalKind::Output, .min = 0,
                            .max = 1, .neutral = 0, .unit = "bool"});
   return s;
+}
+
+std::string hex4(std::uint16_t v) {
+  char b[8];
+  std::snprintf(b, sizeof b, "%04X", v);
+  return b;
 }
 
 std::vector<std::uint8_t> le(std::uint32_t v, std::size_t n) {
@@ -86,9 +93,11 @@ const std::vector<OptionSpec>& mcb402_options() {
                       "stay off the bus"},
       {.name = "button_bits", .type = T::Text, .syntax = "7 distinct bit numbers 0..7",
        .required = true, .missing = kButtonBitsMissing, .listing_value = "0/1/2/3/4/5/6",
-       .description = "the bit of 6000h:03 (byte 2 of TPDO1) that each push button BP1..BP7 sets, e.g. "
-                      "[1, 2, 3, 4, 5, 7, 6] (',' in a YAML list, '/' on a command line); no default: the "
-                      "document's bit table is damaged, so a wrong order would report the wrong button"},
+       .description = "the bit of 6000h:03 (byte 2 of TPDO1) that each push button BP1..BP7 sets, seven numbers "
+                      "(',' in a YAML list, '/' on a command line); no default: the document's bit table is damaged "
+                      "and permits two readings, so a wrong order would report the wrong button; "
+                      "`oegw signals mcb402 --find-button-bits` reads it off the board"},
+      freshness_floor_option("200"),
   };
   return table;
 }
@@ -105,12 +114,13 @@ std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, 
                                     const auto bits = parse_button_bits(v.text);
                                     if (!bits) {
                                       err = "mcb402: button_bits must be 7 distinct bit numbers 0..7 of 6000h:03 for "
-                                            "BP1..BP7, separated by ',' or '/' (e.g. [1, 2, 3, 4, 5, 7, 6]), got '" +
-                                            v.text + "'";
+                                            "BP1..BP7, separated by ',' or '/' (as `oegw signals mcb402 --find-button-bits` "
+                                            "prints them), got '" + v.text + "'";
                                       return false;
                                     }
                                     o.button_bits = *bits;
                                   }
+                                  if (name == kFreshnessFloorOption) o.freshness_floor_ms = static_cast<std::uint32_t>(v.number);
                                   return true;
                                 },
                                 error);
@@ -126,7 +136,9 @@ std::unique_ptr<Driver> make_mcb402_driver(NodeId node, FrameSink sink, const Dr
   }
   auto o = parse_mcb402_options(options, error);
   if (!o) return nullptr;
-  return std::make_unique<Mcb402Driver>(node, std::move(sink), *o);
+  auto d = std::make_unique<Mcb402Driver>(node, std::move(sink), *o);
+  apply_freshness_floor(*d, o->freshness_floor_ms);
+  return d;
 }
 
 Mcb402Driver::Mcb402Driver(NodeId node, FrameSink sink, Mcb402Options options)
@@ -239,15 +251,41 @@ bool Mcb402Driver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::span
   if (data.size() != 1) return true;  // 1001h is UNSIGNED8: another length is no evidence, the faults stay
   const std::uint8_t reg = data[0];
   // [CO4013 Index 1001]: bit 7 "Device Error" — the cable break's 81h ([CO4013 "Emergency
-  // Messages"] "20 31 81 ..."). Clear: no device error, whatever was latched before (a board
-  // repaired and rebooted). Set: the latched axes stay broken; none latched (the EMCY went
-  // before the gateway listened): which axis is unknown, so all four.
-  if ((reg & 0x80) == 0) {
-    clear_faults();
+  // Messages"] "20 31 81 ..."). Clear: no device error, whatever cable break was latched before
+  // (a board repaired and rebooted); an undocumented error ends only when no bit but the
+  // communication warning's (11h) is left. Set: the latched axes stay broken; none latched (the
+  // EMCY went before the gateway listened): which axis is unknown, so all four.
+  if ((reg & kDeviceErrorBit) == 0) {
+    if ((reg & ~kCommunicationOnly) == 0) unknown_fault_ = false;
+    set_broken(0, std::nullopt);
+    if (!unknown_fault_) clear_faults();
     return true;
   }
   if (!any_fault()) set_broken(0x0F, std::nullopt);
   return true;
+}
+
+std::optional<Driver::FaultPoll> Mcb402Driver::fault_poll() const {
+  if (broken_ == 0 && !unknown_fault_) return std::nullopt;
+  return FaultPoll{0x1001, 0, kErrorRegisterPoll};
+}
+
+std::string Mcb402Driver::on_fault_poll(std::span<const std::uint8_t> data, TimePoint /*now*/) {
+  // A request sent before the last latch may be answered with the register of before it; 1001h
+  // is UNSIGNED8, another length is no evidence.
+  if (poll_epoch_sent_ != latch_epoch_ || data.size() != 1) return {};
+  const std::uint8_t reg = data[0];
+  const bool break_over = broken_ != 0 && (reg & kDeviceErrorBit) == 0;
+  const bool unknown_over = unknown_fault_ && (reg & ~kCommunicationOnly) == 0;
+  if (!break_over && !unknown_over) return {};
+  if (unknown_over) unknown_fault_ = false;
+  if (break_over) set_broken(0, std::nullopt);
+  if (!unknown_fault_ && broken_ == 0) clear_faults();
+  // As after 0000h: the inputs stay at neutral until their next PDO brings a fresh value.
+  char b[96];
+  std::snprintf(b, sizeof b, "1001h read %02Xh: %s", reg,
+                break_over ? "no device error, the cable break is over" : "no error but communication left");
+  return b;
 }
 
 bool Mcb402Driver::on_boot_read_abort(std::uint16_t index, std::uint8_t /*sub*/, canopen::SdoAbortCode /*code*/) {
@@ -268,6 +306,7 @@ DecodedEmcy Mcb402Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
       return d;
     }
     case kEmcyCableBreak: {
+      ++latch_epoch_;
       // [CO4013 "Emergency Messages"] "20 31 81 00 8x 00 00 00": byte 4 (msef[1]) = 8xh.
       const std::uint8_t b = emcy.msef[1];
       std::uint8_t axes = static_cast<std::uint8_t>(b & 0x0F);
@@ -287,31 +326,32 @@ DecodedEmcy Mcb402Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
         if ((axes & (1u << a)) != 0) d.affected.push_back(a);
       return d;
     }
-    case kEmcyCanWarning:
-    case kEmcyLifeGuarding:
-    case kEmcyBusOffRecovered: {
-      // CAN communication warnings ([CO4013 "Emergency Messages"]): the values the board sends
-      // stay good. 8100h also comes at every power-on ([MCB §4] "083 00 81 11 0").
-      d.error = false;
-      d.text = emcy.code == kEmcyCanWarning     ? "MCB-402 8100h: CAN bus in error warning state (warning)"
-               : emcy.code == kEmcyLifeGuarding ? "MCB-402 8130h: life guarding error (warning)"
-                                                : "MCB-402 8140h: return from CAN bus off (warning)";
-      return d;
-    }
-    default: {
-      ++counters_.unknown_emcy;
-      // An error code the document does not list: what it affects is unknown, so every input
-      // is faulted until the error reset 0000h or a read-back of 1001h without a device error.
-      d.text = "MCB-402: undocumented EMCY code, every input faulted";
-      unknown_fault_ = true;
-      for (std::size_t i = 0; i < signals_.size(); ++i) {
-        if (signals_[i].output()) continue;
-        set_fault(i, now);
-        d.affected.push_back(i);
-      }
-      return d;
-    }
+    default: break;
   }
+  if ((emcy.code & 0xFF00) == 0x8100) {
+    // CiA 301 Table 26 81xxh "communication" warnings ([CO4013 "Emergency Messages"] lists 8100h,
+    // 8130h, 8140h): the values the board sends stay good. 8100h also comes at every power-on
+    // ([MCB §4] "083 00 81 11 0").
+    d.error = false;
+    d.text = emcy.code == kEmcyCanWarning     ? "MCB-402 8100h: CAN bus in error warning state (warning)"
+             : emcy.code == kEmcyLifeGuarding ? "MCB-402 8130h: life guarding error (warning)"
+             : emcy.code == kEmcyBusOffRecovered
+                 ? "MCB-402 8140h: return from CAN bus off (warning)"
+                 : "MCB-402 " + hex4(emcy.code) + "h: CAN communication (CiA 301 81xxh, warning)";
+    return d;
+  }
+  ++latch_epoch_;
+  ++counters_.unknown_emcy;
+  // An error code the document does not list: what it affects is unknown, so every input is
+  // faulted until the error reset 0000h or 1001h showing no error but communication.
+  d.text = "MCB-402 " + hex4(emcy.code) + "h: undocumented EMCY code, every input faulted";
+  unknown_fault_ = true;
+  for (std::size_t i = 0; i < signals_.size(); ++i) {
+    if (signals_[i].output()) continue;
+    set_fault(i, now);
+    d.affected.push_back(i);
+  }
+  return d;
 }
 
 void Mcb402Driver::send_outputs() {

@@ -45,10 +45,22 @@
 //     repeat the EMCY); a read-back with bit 7 set keeps it too (all four axes if none was
 //     latched: which one is unknown). A 3120h whose byte 4 is not 8xh with x != 0 is counted
 //     (unknown_emcy) and faults all four axes.
-//   Warnings, faulting nothing (error = false): 8100h CAN error warning (also sent at every
-//     power-on, [MCB §4] "083 00 81 11 0"), 8130h life guarding, 8140h return from bus off.
+//   Warnings, faulting nothing (error = false): every 81xxh, CiA 301 Table 26 "communication" —
+//     the document's 8100h CAN error warning (also sent at every power-on, [MCB §4] "083 00 81 11
+//     0"), 8130h life guarding ("30 81 11"), 8140h return from bus off ("40 81 11"), and any
+//     other 81xxh a CO4013 may send (8110h overrun, 8120h error passive): as the elobau and CiA 401
+//     drivers treat them (subdevices/README.md "81xxh").
 //   Any other code: counted (unknown_emcy) and, being an error the document does not explain,
-//     faults every input until 0000h or a 1001h read-back without bit 7.
+//     faults every input until 0000h or a 1001h read-back showing no error but communication.
+//
+// A board that never sends the 0000h (the document lists none, [CO4013 "Emergency Messages"]):
+//   while a cable break or an undocumented error is latched, fault_poll() has the network manager
+//   read 1001h every kErrorRegisterPoll while the node is operational. [CO4013 Index 1001]: bit 7
+//   "Device Error" — the cable break's 81h — clear ends the cable break; no bit but bit 0 "generic"
+//   and bit 4 "communication" (the power-on warning's 11h, which a board may keep) ends an
+//   undocumented error. An answer to a request sent before a fault latched since is ignored (the
+//   EMCY may overtake the answer). So a mended cable clears within one poll period plus an SDO
+//   round trip, whether or not the board sends 0000h.
 //
 // Boot configuration (configuration()), in this order:
 //   1800h:02 = FFh, 1800h:05 = button_timer_ms  TPDO1 event driven + periodic refresh
@@ -100,10 +112,17 @@ using ButtonBits = std::array<std::uint8_t, kButtons>;
 // What parse_mcb402_options() says when `button_bits` is missing: the setting and the
 // commissioning step that fills it.
 inline constexpr std::string_view kButtonBitsMissing =
-    "mcb402: option button_bits is required (no default: the document's bit table is damaged): the bit of "
-    "6000h:03 - byte 2 of TPDO1, COB-ID 180h + node-ID - that each push button BP1..BP7 sets, e.g. "
-    "options: { button_bits: [1, 2, 3, 4, 5, 7, 6] }; commissioning: start the board, press BP1..BP7 one at a "
-    "time and note the bit of that byte that goes to 1 (subdevices/README.md \"MCB-402 button bits\")";
+    "mcb402: option button_bits is required (no default: the document's bit table is damaged and permits two "
+    "readings): the bit of 6000h:03 - byte 2 of TPDO1, COB-ID 180h + node-ID - that each push button BP1..BP7 "
+    "sets, as options: { button_bits: [b1, b2, b3, b4, b5, b6, b7] }; read it off the board: `oegw signals mcb402 "
+    "--find-button-bits -i IF --node N` asks you to press BP1..BP7 one at a time and prints the line "
+    "(subdevices/README.md \"MCB-402 button bits\")";
+// How often 1001h is read while a fault waits for it (fault_poll()).
+inline constexpr std::chrono::milliseconds kErrorRegisterPoll{250};
+// [CO4013 Index 1001]: bit 7 device error; bits 0 (generic) and 4 (communication) alone are the
+// CAN warnings' register (11h in "083 00 81 11").
+inline constexpr std::uint8_t kDeviceErrorBit = 0x80;
+inline constexpr std::uint8_t kCommunicationOnly = 0x11;
 // Signal indices.
 inline constexpr std::size_t kFirstButton = kAxes;
 inline constexpr std::size_t kFirstLed = kAxes + kButtons;
@@ -114,6 +133,7 @@ struct Mcb402Options {
   std::uint16_t button_timer_ms = 100;
   std::uint16_t can_restart_ms = 1000;
   mcb402::ButtonBits button_bits{};  // required: parse_mcb402_options() refuses options without it
+  std::uint32_t freshness_floor_ms = 200;  // Driver::set_freshness_floor
 };
 
 class Mcb402Driver final : public Driver {
@@ -135,6 +155,10 @@ class Mcb402Driver final : public Driver {
                     std::string& error) override;
   bool on_boot_read_abort(std::uint16_t index, std::uint8_t sub, canopen::SdoAbortCode code) override;
   void on_application_reset(TimePoint /*now*/) override {}  // the 1001h read-back decides
+  // 1001h every mcb402::kErrorRegisterPoll while a cable break or an undocumented error is latched.
+  [[nodiscard]] std::optional<FaultPoll> fault_poll() const override;
+  void on_fault_poll_sent() override { poll_epoch_sent_ = latch_epoch_; }
+  std::string on_fault_poll(std::span<const std::uint8_t> data, TimePoint now) override;
   bool on_frame(const CanFrame& frame, TimePoint now) override;
   DecodedEmcy on_emcy(const EmcyMessage& emcy, TimePoint now) override;
   [[nodiscard]] std::vector<std::uint32_t> consumed_cob_ids() const override;
@@ -158,6 +182,10 @@ class Mcb402Driver final : public Driver {
   std::vector<SignalInfo> signals_;
   std::uint8_t broken_ = 0;
   bool unknown_fault_ = false;  // an undocumented error EMCY faults every input
+  // Counts every latch an EMCY sets; a poll answer counts only when nothing latched since its
+  // request went out.
+  std::uint64_t latch_epoch_ = 0;
+  std::uint64_t poll_epoch_sent_ = ~std::uint64_t{0};
   bool error_register_read_ = false;  // 1001h read in this boot
   std::uint8_t outputs_ = 0;  // 6200h:01 as last commanded
   bool outputs_pending_ = false;  // set_output() inside an output batch: RPDO1 not sent yet

@@ -130,6 +130,10 @@ NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
   };
   master_.on_heartbeat = [this](NodeId n, canopen::NmtState s) {
     Managed* m = find(n);
+    if (m != nullptr) {
+      m->last_heartbeat = now_;
+      release_held_steps();
+    }
     // Only a heartbeat in operational proves the start took effect; one in another state may
     // have been on its way before the node saw the NMT start: the deadline decides.
     if (m != nullptr && m->state == NodeState::Starting && s == canopen::NmtState::Operational)
@@ -252,6 +256,8 @@ void NetworkManager::reset_application_next(std::string_view name) {
 
 void NetworkManager::begin_boot(Managed& m, TimePoint now) {
   ++m.generation;
+  m.step_held = false;
+  m.last_heartbeat.reset();
   // A transfer in flight runs to its end on the wire (its requester is answered at once; the
   // network manager's own callback is ignored: generation): aborting it
   // would let the node's late answer pass for the answer to the next boot's first request
@@ -298,6 +304,7 @@ void NetworkManager::probe(Managed& m) {
 
 void NetworkManager::configure(Managed& m, TimePoint now, const std::string& why) {
   ++m.generation;
+  m.step_held = false;
   m.probe_at.reset();
   m.held_since.reset();
   m.deadline.reset();
@@ -311,6 +318,7 @@ void NetworkManager::configure(Managed& m, TimePoint now, const std::string& why
   // node handles it before the SDO request queued behind it on the bus.
   master_.nmt().enter_pre_operational(m.settings.node);
   m.diag = {};
+  m.error_register_answer.clear();
   m.steps.clear();
   m.next_step = 0;
   using Kind = Step::Kind;
@@ -357,9 +365,15 @@ void NetworkManager::add_diagnostic_steps(Managed& m) {
     m.steps.push_back(std::move(st));
   }
   std::optional<std::uint8_t>* reg = &m.diag.error_register;
-  Step st{Kind::Read, 0x1001, 0, {}, "error register", [reg](const std::vector<std::uint8_t>& d) -> std::string {
-            if (d.size() != 1) return obj(0x1001, 0) + " answered " + std::to_string(d.size()) + " bytes, expected 1";
+  std::vector<std::uint8_t>* answer = &m.error_register_answer;
+  // CiA 301 §7.5.2.2: 1001h is UNSIGNED8; a device document may give it otherwise (the
+  // Novotechnik's §4.1 "1001 Error register Unsigned16"): 1 or 2 bytes are taken, the CiA 301
+  // bits are the low byte (little endian, CiA 301 §7.1.2); the driver gets the answer as it came.
+  Step st{Kind::Read, 0x1001, 0, {}, "error register", [reg, answer](const std::vector<std::uint8_t>& d) -> std::string {
+            if (d.size() != 1 && d.size() != 2)
+              return obj(0x1001, 0) + " answered " + std::to_string(d.size()) + " bytes, expected 1 (or 2)";
             *reg = d[0];
+            *answer = d;
             return {};
           }};
   st.optional = true;
@@ -398,8 +412,7 @@ void NetworkManager::run_step(Managed& m) {
     // and decides what its refusal means.
     if (m.diag.error_register) {
       std::string error;
-      const std::vector<std::uint8_t> reg{*m.diag.error_register};
-      if (!m.driver->on_boot_read(0x1001, 0, reg, error)) {
+      if (!m.driver->on_boot_read(0x1001, 0, m.error_register_answer, error)) {
         fail(m, NodeState::Refused, obj(0x1001, 0) + ": " + error, now_);
         return;
       }
@@ -409,7 +422,10 @@ void NetworkManager::run_step(Managed& m) {
   }
   if (m.steps[m.next_step].kind == Step::Kind::DriverWrites) {
     std::vector<Step> writes;
-    for (const SdoWrite& w : m.driver->configuration()) writes.push_back({Step::Kind::Write, w.index, w.sub, w.data, w.what, {}});
+    for (const SdoWrite& w : m.driver->configuration()) {
+      writes.push_back({Step::Kind::Write, w.index, w.sub, w.data, w.what, {}});
+      writes.back().driver_write = true;
+    }
     const auto at = m.steps.begin() + static_cast<std::ptrdiff_t>(m.next_step);
     m.steps.insert(m.steps.erase(at), writes.begin(), writes.end());
     run_step(m);
@@ -439,6 +455,10 @@ void NetworkManager::run_step(Managed& m) {
     }
     m.steps.insert(m.steps.begin() + static_cast<std::ptrdiff_t>(m.next_step), round.begin(), round.end());
   }
+  if (late_heartbeat()) {
+    m.step_held = true;  // released by the heartbeat, or by advance() when its consumer time ran out
+    return;
+  }
   const Step& step = m.steps[m.next_step];
   const std::uint64_t gen = m.generation;
   Managed* mp = &m;
@@ -460,6 +480,18 @@ void NetworkManager::run_step(Managed& m) {
       ++mp->next_step;  // the driver can do without this object
       run_step(*mp);
       return;
+    }
+    if (code != SdoAbortCode::None && st.driver_write) {
+      if (auto instead = mp->driver->instead_of_refused(SdoWrite{st.index, st.sub, st.data, st.what}, code)) {
+        Step& again = mp->steps[mp->next_step];
+        again.index = instead->index;
+        again.sub = instead->sub;
+        again.data = instead->data;
+        again.what = instead->what;
+        again.driver_write = false;  // one alternative: refused too, the node is refused
+        run_step(*mp);
+        return;
+      }
     }
     if (code != SdoAbortCode::None) {
       fail(*mp, NodeState::Refused, where + ": abort " + hex32(static_cast<std::uint32_t>(code)) + " " +
@@ -500,6 +532,12 @@ void NetworkManager::finish(Managed& m, TimePoint now) {
   m.driver->apply_boot_writes(writes);
   if (const std::string why = sync_refusal(m); !why.empty()) {
     fail(m, NodeState::Refused, why, now);
+    return;
+  }
+  if (m.driver->restart_after_configuration()) {
+    // Header, step 5: written, the node restarts (NMT reset node) and is booted again.
+    m.reset_node_next = true;
+    begin_boot(m, now);
     return;
   }
   if (booting_any()) {
@@ -544,6 +582,8 @@ void NetworkManager::go_live(Managed& m, const std::string& evidence, TimePoint 
   m.driver->begin_outputs();
   m.driver->on_online(now);
   m.driver->set_alive_since(now);  // from now on a PDO that never comes is overdue too
+  m.poll_at.reset();
+  m.poll_pending = false;
   // PDOs the node sent after the NMT start, before its proof of life: the last of each, as
   // received (a node sending on change only may send nothing else for a long time).
   std::vector<std::pair<CanFrame, TimePoint>> held;
@@ -559,6 +599,8 @@ void NetworkManager::go_live(Managed& m, const std::string& evidence, TimePoint 
 
 void NetworkManager::fail(Managed& m, NodeState s, const std::string& why, TimePoint now) {
   ++m.generation;
+  m.step_held = false;
+  m.last_heartbeat.reset();
   m.probe_at.reset();
   m.held_since.reset();
   m.held.clear();
@@ -670,10 +712,12 @@ void NetworkManager::advance(TimePoint now) {
   now_ = now;
   master_.advance(now);
   lss_.advance(now);
+  release_held_steps();
   for (auto& mp : nodes_) {
     Managed& m = *mp;
     if (m.state == NodeState::Operational) {
       m.driver->advance(now);  // overdue PDOs: Stale
+      poll_faults(m, now);
       // Without a heartbeat the PDOs are the only proof of life: all of them overdue, the node
       // is lost (stopped by another master, unplugged) and booted again like any lost node.
       if (m.settings.heartbeat_ms == 0 && m.driver->all_stale()) {
@@ -711,6 +755,53 @@ void NetworkManager::advance(TimePoint now) {
   }
 }
 
+std::optional<TimePoint> NetworkManager::late_heartbeat() const {
+  std::optional<TimePoint> until;
+  for (const auto& m : nodes_) {
+    if (m->state != NodeState::Operational || m->settings.heartbeat_ms == 0 || !m->last_heartbeat) continue;
+    const Duration period = std::chrono::milliseconds(m->settings.heartbeat_ms);
+    const Duration consumer = std::chrono::milliseconds(consumer_ms(*m));
+    if (consumer <= period) continue;
+    const TimePoint late = *m->last_heartbeat + period + (consumer - period) / 3;
+    const TimePoint lost_at = *m->last_heartbeat + consumer;
+    if (now_ > late && now_ < lost_at && (!until || lost_at < *until)) until = lost_at;
+  }
+  return until;
+}
+
+void NetworkManager::release_held_steps() {
+  if (late_heartbeat()) return;
+  for (auto& m : nodes_) {
+    if (!m->step_held) continue;
+    m->step_held = false;
+    if (m->state == NodeState::Configuring && !m->held_since) run_step(*m);
+  }
+}
+
+void NetworkManager::poll_faults(Managed& m, TimePoint now) {
+  const auto poll = m.driver->fault_poll();
+  if (!poll) {
+    m.poll_at.reset();  // the next fault starts a full period after it
+    return;
+  }
+  if (m.poll_pending) return;
+  if (!m.poll_at) m.poll_at = now + poll->period;
+  if (now < *m.poll_at) return;
+  m.poll_pending = true;
+  const std::uint64_t gen = m.generation;
+  Managed* mp = &m;
+  m.driver->on_fault_poll_sent();
+  master_.sdo(m.settings.node).upload(poll->index, poll->sub, [this, mp, gen, period = poll->period](
+                                                                 SdoAbortCode code, std::vector<std::uint8_t> data) {
+    if (mp->generation != gen) return;  // rebooted meanwhile: a new life, a new poll
+    mp->poll_pending = false;
+    mp->poll_at = now_ + period;
+    if (mp->state != NodeState::Operational || code != SdoAbortCode::None) return;  // no evidence
+    const std::string what = mp->driver->on_fault_poll(data, now_);
+    if (!what.empty() && on_fault_evidence) on_fault_evidence(mp->settings.name, what);
+  });
+}
+
 bool NetworkManager::configuring_any() const {
   return std::any_of(nodes_.begin(), nodes_.end(),
                      [](const auto& m) { return m->state == NodeState::Configuring && !m->held_since; });
@@ -727,6 +818,8 @@ bool NetworkManager::booting_any() const {
 
 std::optional<TimePoint> NetworkManager::next_deadline() const {
   std::optional<TimePoint> best = master_.next_deadline();
+  if (std::any_of(nodes_.begin(), nodes_.end(), [](const auto& m) { return m->step_held; }))
+    if (const auto until = late_heartbeat(); until && (!best || *until < *best)) best = until;
   const bool configuring = configuring_any();  // probes wait (configuring_any())
   const bool booting = booting_any();          // held starts wait (booting_any())
   if (const auto t = lss_.next_deadline(); t && (!best || *t < *best)) best = t;
@@ -736,6 +829,10 @@ std::optional<TimePoint> NetworkManager::next_deadline() const {
     if (m->state == NodeState::Configuring && m->held_since && !booting) best = now_;  // its start is due
     if (m->state != NodeState::Operational) continue;
     if (const auto t = m->driver->next_deadline(); t && (!best || *t < *best)) best = t;
+    if (m->driver->fault_poll() && !m->poll_pending) {
+      const TimePoint t = m->poll_at.value_or(now_);
+      if (!best || t < *best) best = t;
+    }
   }
   return best;
 }

@@ -16,7 +16,10 @@
 //      reported once per boot (on_diagnostics),
 //   4. runs the driver's boot reads (e.g. a generic node's actual PDO mapping),
 //   5. writes the producer heartbeat (1017h), the driver's configuration and the configured
-//      `sdo` list, in that order,
+//      `sdo` list, in that order (each request held while another node's heartbeat is late:
+//      late_heartbeat()); a driver that must have the node restarted then
+//      (Driver::restart_after_configuration: the elobau grip after saving its parameters) gets
+//      NMT reset node and the boot starts over,
 //   6. refuses the node when a TPDO it uses is synchronous (transmission type 0..240) and the
 //      master produces no SYNC (MasterConfig::sync_period 0): those PDOs would never come;
 //      with SYNC, a type n TPDO's freshness deadline is kMissedPeriods × n × the SYNC period,
@@ -37,7 +40,9 @@
 // Then it watches: a heartbeat timeout, a node leaving operational, or no proof of life in
 // time marks its inputs offline and starts the boot again; a boot-up seen at any time (the
 // device rebooted) reconfigures and restarts it; a missing node is retried with back-off (1 s
-// doubling to 30 s). Inputs whose PDOs are overdue become Stale (Driver::advance). A node
+// doubling to 30 s). Inputs whose PDOs are overdue become Stale (Driver::advance); an object
+// whose read-back is a fault's only clear evidence is read while the fault lasts
+// (Driver::fault_poll). A node
 // marked mandatory keeps fault() true until it is operational. Sans I/O: frames and time in.
 #pragma once
 
@@ -211,6 +216,9 @@ class NetworkManager {
   void reset_application_next(std::string_view name);
   // EMCYs of configured nodes, decoded by their driver.
   std::function<void(const std::string& name, const EmcyMessage&, const DecodedEmcy&)> on_emcy;
+  // A driver's fault poll (Driver::fault_poll) answered with evidence it took (`what`, e.g.
+  // "1001h read 00h: no device error, the cable break is over"): its faults may have ended.
+  std::function<void(const std::string& name, const std::string& what)> on_fault_evidence;
 
  private:
   struct Step {
@@ -226,6 +234,7 @@ class NetworkManager {
     // For reads: checks the answer; returns an error text, or empty when fine.
     std::function<std::string(const std::vector<std::uint8_t>&)> check;
     bool driver_read = false;  // a read the driver asked for: aborts go to on_boot_read_abort
+    bool driver_write = false;  // a write of the driver's configuration(): aborts go to instead_of_refused
     bool optional = false;     // an abort means "not present": on to the next step
   };
   struct Managed {
@@ -253,7 +262,18 @@ class NetworkManager {
     InputCounters reported;  // what on_bad_input has already said
     std::vector<std::pair<CanFrame, TimePoint>> held;  // Starting: last PDO per COB-ID, for go_live
     NodeDiagnostics diag;  // read at the last boot
+    // 1001h as the node answered it (1 byte, CiA 301; 2 bytes, the Novotechnik's UNSIGNED16),
+    // handed to the driver as it came.
+    std::vector<std::uint8_t> error_register_answer;
     NodeCounters counted;
+    // Operational: the next read of the driver's fault poll (Driver::fault_poll), and whether
+    // one is on the wire.
+    std::optional<TimePoint> poll_at;
+    bool poll_pending = false;
+    // Its last heartbeat (any state), for the heartbeat guard (late_heartbeat()).
+    std::optional<TimePoint> last_heartbeat;
+    // Configuring: its next step waits for a late heartbeat of another node (late_heartbeat()).
+    bool step_held = false;
   };
 
   Managed* find(NodeId node);
@@ -288,6 +308,17 @@ class NetworkManager {
   void go_live(Managed& m, const std::string& evidence, TimePoint now);  // proof of life seen
   [[nodiscard]] Duration proof_deadline(const Managed& m) const;
   void fail(Managed& m, NodeState s, const std::string& why, TimePoint now);
+  void poll_faults(Managed& m, TimePoint now);  // Operational: the driver's fault poll when due
+  // The heartbeat guard (header, step 5): an operational node whose heartbeat is later than its
+  // period plus a third of its consumer margin (consumer time − period) holds every
+  // configuration's next SDO request until that heartbeat arrives or the node's consumer time has
+  // run out. Returns when the hold ends at the latest (the earliest such consumer deadline), or
+  // nullopt when no heartbeat is late. The configurations' SDO frames (580h/600h + node) win
+  // arbitration over every heartbeat, and the periodic PDOs take what the pacing leaves: a long
+  // configuration (a sub-device rebooted while the rest of a loaded cab runs) would otherwise
+  // keep the lowest-priority heartbeat off the bus past its consumer time.
+  [[nodiscard]] std::optional<TimePoint> late_heartbeat() const;
+  void release_held_steps();  // the guard let go: the held configurations go on
   void lost(Managed& m, const std::string& why, TimePoint now);
   [[nodiscard]] std::uint16_t consumer_ms(const Managed& m) const;
 

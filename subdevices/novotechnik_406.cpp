@@ -82,15 +82,16 @@ Novotechnik406Driver::Novotechnik406Driver(NodeId node, FrameSink sink, Novotech
           {"position", SignalKind::Position, kInt32Min, kInt32Max, 0, "counts"},
           {"speed", SignalKind::Speed, kInt16Min, kInt16Max, 0, "0.1 deg/s"},
           {"cams", SignalKind::Digital, 0, 15, 0, "bits"},
-          {"work_area", SignalKind::Digital, 0, 255, 0, "bits"},
+          {"work_area", SignalKind::Digital, 0, 7, 0, "bits"},
       } {
   init(node, std::move(sink), signals_.size());
-  // TPDO1 carries position and speed (§4.1), every event_timer_ms in type 254 (§8.2); in type
-  // 255 at least as often; SYNC types (1..240) have no event-timer deadline.
+  // TPDO1 carries position, speed, CAM and work-area state (configuration()), every
+  // event_timer_ms in type 254 (§8.2); in type 255 at least as often; SYNC types (1..240) have no
+  // event-timer deadline.
   set_carriers({Carrier{.cob_id = canopen::cob::kTpdo1 + node.value(), .comm_index = 0x1800,
                         .event_timer_ms = options_.event_timer_ms,
-                        .transmission_type = options_.transmission_type, .signals = {kPosition, kSpeed},
-                        .length = 6}});  // §4.1 default mapping: 60200120h position + 60300110h speed
+                        .transmission_type = options_.transmission_type,
+                        .signals = {kPosition, kSpeed, kCams, kWorkArea}, .length = kTpdo1Length}});
 }
 
 bool Novotechnik406Driver::is_error_position(std::int32_t position) {
@@ -117,11 +118,15 @@ std::vector<SdoWrite> Novotechnik406Driver::configuration() const {
   w.push_back({0x1800, 3, le(0, 2), "TPDO1 inhibit time 0"});
   w.push_back({0x1800, 5, le(options_.event_timer_ms, 2),
                "TPDO1 event timer " + std::to_string(options_.event_timer_ms) + " ms"});
-  // §8.2 steps 2..4 with the §4.1 default entries.
+  // §8.2 steps 2..4: position (6020h:01 as the §4.1 default, 6004h where the sensor has no
+  // 6020h), speed, and the §8.2 mappable CAM and work-area states.
   w.push_back({0x1A00, 0, le(0, 1), "TPDO1 mapping: clear"});
-  w.push_back({0x1A00, 1, le(0x60200120u, 4), "TPDO1 mapping 1: position value channel 1, 32 bit"});
+  w.push_back(has_6020h_ ? SdoWrite{0x1A00, 1, le(0x60200120u, 4), "TPDO1 mapping 1: position value channel 1 (6020h:01), 32 bit"}
+                         : SdoWrite{0x1A00, 1, le(0x60040020u, 4), "TPDO1 mapping 1: position value (6004h, the sensor refused 6020h), 32 bit"});
   w.push_back({0x1A00, 2, le(0x60300110u, 4), "TPDO1 mapping 2: speed value channel 1, 16 bit"});
-  w.push_back({0x1A00, 0, le(2, 1), "TPDO1 mapping: 2 entries"});
+  w.push_back({0x1A00, 3, le(0x63000108u, 4), "TPDO1 mapping 3: CAM state channel 1, 8 bit"});
+  w.push_back({0x1A00, 4, le(0x64000108u, 4), "TPDO1 mapping 4: work area state channel 1, 8 bit"});
+  w.push_back({0x1A00, 0, le(4, 1), "TPDO1 mapping: 4 entries"});
   // §8.2 step 5: re-activate.
   w.push_back({0x1800, 1, le(0x40000000u | cob, 4), "TPDO1 COB-ID: enable"});
   // §4.1 1029h "Error Behaviour" (0: change to pre-operational, the default; 1: no change of
@@ -131,6 +136,9 @@ std::vector<SdoWrite> Novotechnik406Driver::configuration() const {
   // would see it leave operational, reboot it and report it Offline, losing the error itself.
   // Sub 1 "communication error" = 0, written as the default it is: a sensor that lost the bus
   // stops in pre-operational, and the network manager restarts it once it is back.
+  // §4.3 2104h "EMCY behaviour" 0 = all events active: a stored 1..3 would silence the info
+  // ("valid position" clears), warnings and errors this driver latches on (Hard errors rise anyway).
+  w.push_back({0x2104, 0, le(0, 1), "EMCY behaviour: all events active"});
   w.push_back({0x1029, 1, le(0, 1), "error behaviour on a communication error: pre-operational"});
   w.push_back({0x1029, 2, le(1, 1), "error behaviour on a measurement error: stay operational"});
   // §8.1 TPDO2 (280h + ID) is synchronous by default (1801h:02 = 1): with a downstream SYNC it
@@ -143,8 +151,7 @@ std::vector<SdoWrite> Novotechnik406Driver::configuration() const {
 std::vector<std::uint32_t> Novotechnik406Driver::consumed_cob_ids() const { return {0x180u + node().value()}; }
 
 void Novotechnik406Driver::fault_position(TimePoint now) {
-  update(kPosition, signals_[kPosition].neutral, SignalStatus::Error, now);
-  update(kSpeed, signals_[kSpeed].neutral, SignalStatus::Error, now);
+  for (const std::size_t i : {kPosition, kSpeed, kCams, kWorkArea}) update(i, signals_[i].neutral, SignalStatus::Error, now);
 }
 
 bool Novotechnik406Driver::on_frame(const CanFrame& frame, TimePoint now) {
@@ -164,14 +171,17 @@ bool Novotechnik406Driver::on_frame(const CanFrame& frame, TimePoint now) {
   if (is_error_position(position)) {
     last_marker_ = raw;
     fault_position(now);
-  } else {
-    last_marker_.reset();
-    update(kPosition, position, SignalStatus::Valid, now);
-    update(kSpeed, speed, SignalStatus::Valid, now);
+    return true;
   }
-  // Cam and work-area states come only by EMCY: known to be unknown once the node talks.
-  for (const std::size_t i : {kCams, kWorkArea})
-    if (value(i).status == SignalStatus::Offline) update(i, signals_[i].neutral, SignalStatus::NotAvailable, now);
+  last_marker_.reset();
+  update(kPosition, position, SignalStatus::Valid, now);
+  update(kSpeed, speed, SignalStatus::Valid, now);
+  // 6300h:01 bits 0..3 = CAM 1..4 (§4.2: four CAMs); 6400h:01 bits 0..2 (§5.7.1). Other bits set:
+  // not the objects' coding, Error.
+  const std::uint8_t cams = d[6];
+  const std::uint8_t area = d[7];
+  update(kCams, cams > 0x0F ? 0 : cams, cams > 0x0F ? SignalStatus::Error : SignalStatus::Valid, now);
+  update(kWorkArea, area > 0x07 ? 0 : area, area > 0x07 ? SignalStatus::Error : SignalStatus::Valid, now);
   return true;
 }
 
@@ -194,7 +204,7 @@ DecodedEmcy Novotechnik406Driver::on_emcy(const EmcyMessage& emcy, TimePoint now
     case novotechnik::EmcyEffect::None: break;
     case novotechnik::EmcyEffect::PositionError: {
       out.error = true;
-      out.affected = {kPosition, kSpeed};
+      out.affected = {kPosition, kSpeed, kCams, kWorkArea};
       const std::uint8_t latch = latch_of(emcy.code);
       set_latches(latch, latch, now);
       break;
@@ -203,7 +213,7 @@ DecodedEmcy Novotechnik406Driver::on_emcy(const EmcyMessage& emcy, TimePoint now
       // The marker comes in TPDO1 as long as the warning lasts (§9.1): Error now, but no latch
       // (Driver::faulted): the next ordinary position ends it.
       out.error = true;
-      out.affected = {kPosition, kSpeed};
+      out.affected = {kPosition, kSpeed, kCams, kWorkArea};
       fault_position(now);
       break;
     case novotechnik::EmcyEffect::Clear:
@@ -217,31 +227,23 @@ DecodedEmcy Novotechnik406Driver::on_emcy(const EmcyMessage& emcy, TimePoint now
       }
       // The error is gone; the value itself comes with the next TPDO1. Until then the signals
       // keep the neutral value but are no longer in Error (NotAvailable: nothing vouched for).
-      for (const std::size_t i : {kPosition, kSpeed})
+      for (const std::size_t i : {kPosition, kSpeed, kCams, kWorkArea})
         if (value(i).status == SignalStatus::Error) update(i, signals_[i].neutral, SignalStatus::NotAvailable, now);
       break;
     }
     case novotechnik::EmcyEffect::Cams: {
-      // Byte 4: changed CAM bits, byte 7: CAM state bits (CAM 1..4 = bits 0..3, 6300h coding).
-      const std::uint8_t changed = emcy.msef[1];
-      const std::uint8_t state = emcy.msef[4];
-      if (state > 0x0F || changed > 0x0F) {
-        ++counters_.unknown_emcy;
-        out.text += " (bad CAM bits, ignored)";
-        break;
-      }
+      // Byte 4: changed CAM bits, byte 7: CAM state bits. Text only: `cams` comes in TPDO1.
       char tail[48];
-      std::snprintf(tail, sizeof tail, ", changed 0x%X, state 0x%X", changed, state);
+      std::snprintf(tail, sizeof tail, ", changed 0x%X, state 0x%X", emcy.msef[1], emcy.msef[4]);
       out.text += tail;
-      update(kCams, state, SignalStatus::Valid, now);
       break;
     }
     case novotechnik::EmcyEffect::WorkArea: {
-      const std::uint8_t state = emcy.msef[4];
-      char tail[32];
-      std::snprintf(tail, sizeof tail, ", state 0x%02X", state);
+      // Byte 7: "coded according to 0x6400" or 0 valid / 1 underflow / 2 overflow (§9.1 gives
+      // both). Text only: `work_area` comes in TPDO1 as 6400h:01 itself.
+      char tail[40];
+      std::snprintf(tail, sizeof tail, ", byte 7 = %02Xh", emcy.msef[4]);
       out.text += tail;
-      update(kWorkArea, state, SignalStatus::Valid, now);
       break;
     }
   }
@@ -258,7 +260,7 @@ std::uint8_t Novotechnik406Driver::latch_of(std::uint16_t code) {
 
 void Novotechnik406Driver::set_latches(std::uint8_t mask, std::uint8_t set, std::optional<TimePoint> now) {
   latches_ = static_cast<std::uint8_t>((latches_ & ~mask) | (set & mask));
-  for (const std::size_t i : {kPosition, kSpeed}) {
+  for (const std::size_t i : {kPosition, kSpeed, kCams, kWorkArea}) {
     if (latches_ != 0) {
       set_fault(i);
     } else {
@@ -273,6 +275,14 @@ std::vector<std::pair<std::uint16_t, std::uint8_t>> Novotechnik406Driver::boot_r
   if ((reads_done_ & kReadAlarms) == 0) reads.emplace_back(0x6503, 0);
   if ((reads_done_ & kReadWarnings) == 0) reads.emplace_back(0x6505, 0);
   return reads;
+}
+
+std::optional<SdoWrite> Novotechnik406Driver::instead_of_refused(const SdoWrite& write, canopen::SdoAbortCode /*code*/) {
+  if (write.index != 0x1A00 || write.sub != 1 || !has_6020h_) return std::nullopt;
+  // §4.1's default entry names 6020h:01, which §4.2's object list lacks: a sensor without it maps
+  // 6004h "Position value channel 1" (§8.2's mappable objects). Kept for the later boots.
+  has_6020h_ = false;
+  return SdoWrite{0x1A00, 1, le(0x60040020u, 4), "TPDO1 mapping 1: position value (6004h, the sensor refused 6020h), 32 bit"};
 }
 
 bool Novotechnik406Driver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
@@ -323,6 +333,7 @@ const std::vector<OptionSpec>& novotechnik_406_options() {
       {.name = "product_code", .type = T::Text, .syntax = "0x0BD5, 0x0BB9, 0x0BBC, 0x0BC5 or 0x0BE0",
        .description = "1018h:02 checked at boot: 0x0BD5 MZ1-2200, 0x0BB9 MC1-2800, 0x0BBC MB1-3600 (section 4.1; "
                       "0x0BC5, 0x0BE0 from the LSS example); unset: only the vendor-ID 0182h is checked"},
+      freshness_floor_option("200"),
   };
   return table;
 }
@@ -346,6 +357,7 @@ std::unique_ptr<Driver> make_novotechnik_406_driver(NodeId node, FrameSink sink,
                                     }
                                     o.product_code = static_cast<std::uint32_t>(*p);
                                   }
+                                  if (name == kFreshnessFloorOption) o.freshness_floor_ms = static_cast<std::uint32_t>(v.number);
                                   return true;
                                 },
                                 error);
@@ -354,7 +366,9 @@ std::unique_ptr<Driver> make_novotechnik_406_driver(NodeId node, FrameSink sink,
     error = "novotechnik-406: node-ID must be 1..127";
     return nullptr;
   }
-  return std::make_unique<Novotechnik406Driver>(node, std::move(sink), o);
+  auto d = std::make_unique<Novotechnik406Driver>(node, std::move(sink), o);
+  apply_freshness_floor(*d, o.freshness_floor_ms);
+  return d;
 }
 
 }  // namespace oegw::subdevices

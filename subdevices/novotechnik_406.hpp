@@ -2,22 +2,31 @@
 // Source: the Novotechnik "CANopen" sensor protocol document ("the document"; CiA 301 v4.2,
 // CiA 406 v3.2, CiA 305 LSS; sections cited as §n).
 //
-// TPDO1 (COB-ID 180h + node-ID, §3.1; default mapping §4.1 1A00h), 6 bytes, little endian:
-//   bytes 0..3  position value, INTEGER32 (1A00h:01 = 60200120h, channel 1 of 6004h, §4.2)
-//   bytes 4..5  speed value channel 1, INTEGER16 (1A00h:02 = 60300110h, 6030h:01)
-// configuration() rewrites that mapping with the §8.2 procedure (disable COB-ID, sub 0 = 0,
-// entries, sub 0 = 2, enable) so that a custom mapping saved in the sensor cannot be misread.
+// TPDO1 (COB-ID 180h + node-ID, §3.1), as configuration() maps it with the §8.2 procedure
+// (disable COB-ID, sub 0 = 0, entries, sub 0 = 4, enable), 8 bytes, little endian:
+//   bytes 0..3  position value, INTEGER32: 6020h:01 (the §4.1 default mapping 60200120h) when the
+//               sensor has it, else 6004h (§4.2 "Position value channel 1", §8.2's mappable list;
+//               §4.2 lists no 6020h): a sensor that refuses the 60200120h entry gets 60040020h in its
+//               stead (instead_of_refused(); position_object())
+//   bytes 4..5  speed value channel 1, INTEGER16 (60300110h, 6030h:01)
+//   byte  6     CAM state channel 1 (63000108h, 6300h:01, §8.2 mappable)
+//   byte  7     work area state channel 1 (64000108h, 6400h:01, §8.2 mappable, §5.7.1 bits)
+// so that a custom mapping saved in the sensor cannot be misread, and the CAM and work-area
+// states come as the objects themselves: the EMCYs 9080h/9090h that also report them are
+// suppressed by a stored 2104h >= 2 (§4.3) and 9090h's byte 7 has two codings in §9.1 ("coded
+// according to 0x6400" and "0: Valid, 1: underflow, 2: overflow"); they are decoded to text only.
 //
 // Signals (index: name, kind, unit, range, neutral):
 //   0 position   Position  counts (steps, 6001h per revolution; 6002h total)  INT32 range, neutral 0
 //   1 speed      Speed     0.1 deg/s (§3.4 "Resolution speed 0,1°/s")        INT16 range, neutral 0
 //   2 cams       Digital   bits  CAM state channel 1 (6300h:01, bit n-1 = CAM n), 0..15, neutral 0
-//   3 work_area  Digital   bits  work-area state byte of EMCY 9090h (6400h coding), 0..255, neutral 0
+//   3 work_area  Digital   bits  work area state channel 1 (6400h:01: bit 0 out of range, bit 1
+//                               overflow, bit 2 underflow), 0..7, neutral 0
 // "Neutral" of an absolute encoder: there is no "not operated" position. 0 is the fault value the
 // driver reports with Error/Offline: the encoder zero point after the preset (6003h), NOT a safe
 // state — a consumer must act on the status, never on the value 0. Speed 0 = standstill, the value
-// the sensor itself sends on a process error (§9). cams/work_area are only reported by the EMCYs
-// 9080h/9090h (§9.1; the default TPDO1 does not carry them): NotAvailable until the first one.
+// the sensor itself sends on a process error (§9). The CAM and work-area states are computed from
+// the position: while the position is an error, they are Error too.
 //
 // Error positions (§9.1 EMCY table, §10.1 bits 12/13/20/21, §10.2):
 //   7FFFFFFCh  measurement error, unknown error, device hardware / ASIC / software fault
@@ -25,8 +34,9 @@
 //   80000008h  position underflow "Out of range (-)" (error 5051h/1/2 or warning 5051h/2/2)
 //   any other value in 7FFFFFF0h..7FFFFFFFh or 80000000h..8000000Fh: reserved marker band, Error
 //   (a 44-turn 16-bit encoder, 650Ah:03 = 2BFFFFh, cannot reach it).
-// Each puts position AND speed into Error with the neutral value (the sensor sets speed to 0 on
-// a process error, §9, so its speed is not a measurement either). The next ordinary position
+// Each puts position, speed, cams and work_area into Error with the neutral value (the sensor
+// sets speed to 0 on a process error, §9, so its speed is not a measurement either; the CAM and
+// work-area states derive from the position). The next ordinary position
 // clears it. last_error_position() tells which marker was seen. Not treated as a marker: the
 // "0x7FF0" of §9's prose, which lies inside the measuring range (0..2BFFFFh) and contradicts the
 // §9.1 table; flagging it would fault a valid position of 32752 counts.
@@ -46,13 +56,16 @@
 // 13 the position errors and bit 1 the device faults, 6505h "Warnings" (§10.3) bit 4 the supply
 // voltage fault; a refused read or one of the wrong length is no evidence (the latch stays). The
 // warnings 5051h/2/1 and 5051h/2/2 put the signals in Error without a latch (the marker comes
-// in TPDO1 while they last); 9080h updates `cams` (byte 7 state, byte 4 changed bits), 9090h
-// updates `work_area` (byte 7); other warnings, info and CAN-controller EMCYs are decoded to
-// text only (error = false). A code the table lacks is counted (counters().unknown_emcy) and
-// ignored.
+// in TPDO1 while they last); 9080h, 9090h, other warnings, info and CAN-controller EMCYs (81xxh,
+// CiA 301 "communication", warnings as in every family) are decoded to text only (error =
+// false). A code the table lacks is counted (counters().unknown_emcy) and ignored.
 //
-// Boot: configuration() also writes 1029h:01 = 0 and 1029h:02 = 1 (see there: a measurement
-// error keeps the sensor operational).
+// Boot: configuration() also writes 2104h "EMCY behaviour" = 0 "all events active" (§4.3: 1..3
+// suppress info, warnings, errors and the value is stored by 1010h, §11: a sensor may come with
+// the error EMCYs this driver latches on, and the "valid position" that ends them, silenced),
+// 1029h:01 = 0 and 1029h:02 = 1 (see there: a measurement error keeps the sensor operational).
+// The error register 1001h is UNSIGNED16 in §4.1 (CiA 301: UNSIGNED8): the network manager reads
+// either; this driver decides nothing by it.
 //
 // Options (the table novotechnik_406_options() in novotechnik_406.cpp is what the factory parses
 // and `oegw signals` lists):
@@ -108,6 +121,7 @@ struct Novotechnik406Options {
   std::uint16_t event_timer_ms = 10;
   std::uint8_t transmission_type = 254;
   std::optional<std::uint32_t> product_code;
+  std::uint32_t freshness_floor_ms = 200;  // Driver::set_freshness_floor
 };
 
 class Novotechnik406Driver final : public Driver {
@@ -116,7 +130,7 @@ class Novotechnik406Driver final : public Driver {
   static constexpr std::size_t kSpeed = 1;
   static constexpr std::size_t kCams = 2;
   static constexpr std::size_t kWorkArea = 3;
-  static constexpr std::uint8_t kTpdo1Length = 6;
+  static constexpr std::uint8_t kTpdo1Length = 8;
 
   Novotechnik406Driver(NodeId node, FrameSink sink, Novotechnik406Options options);
 
@@ -133,6 +147,8 @@ class Novotechnik406Driver final : public Driver {
   // 6503h "Alarms" (§10.2) and 6505h "Warnings" (§10.3), read back at every (re)start: they
   // decide the faults they show.
   void begin_boot() override { reads_done_ = 0; }
+  // 1A00h:01 = 60200120h refused (no 6020h): 60040020h, 6004h "Position value", in its stead.
+  [[nodiscard]] std::optional<SdoWrite> instead_of_refused(const SdoWrite& write, canopen::SdoAbortCode code) override;
   [[nodiscard]] std::vector<std::pair<std::uint16_t, std::uint8_t>> boot_reads() const override;
   bool on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
                     std::string& error) override;
@@ -152,6 +168,8 @@ class Novotechnik406Driver final : public Driver {
   // The error marker of the most recent TPDO1 that carried one (nullopt after a good position).
   [[nodiscard]] std::optional<std::uint32_t> last_error_position() const { return last_marker_; }
   [[nodiscard]] const Novotechnik406Options& options() const { return options_; }
+  // The position object TPDO1 maps: 6020h (sub 1) unless the sensor refused it, then 6004h.
+  [[nodiscard]] std::uint16_t position_object() const { return has_6020h_ ? 0x6020 : 0x6004; }
 
   // True if `position` is one of the document's error markers (or in the reserved band).
   [[nodiscard]] static bool is_error_position(std::int32_t position);
@@ -177,6 +195,7 @@ class Novotechnik406Driver final : public Driver {
   std::optional<std::uint32_t> last_marker_;
   std::uint8_t reads_done_ = 0;  // kReadAlarms | kReadWarnings of this boot
   std::uint8_t latches_ = 0;     // Latch bits
+  bool has_6020h_ = true;        // false once the sensor refused 1A00h:01 = 60200120h
 };
 
 }  // namespace oegw::subdevices

@@ -15,8 +15,8 @@ std::span<const DriverInfo> drivers() {
       {"novotechnik-406", "Novotechnik MZ1-2200 / MC1-2800 / MB1-3600 sensor, CiA 406 encoder profile",
        novotechnik_406_options(),
        "an absolute encoder has no \"not operated\" position: position's neutral 0 is the value it reports "
-       "while Error or Offline, not a safe state (act on the status); cams and work_area come from the EMCYs "
-       "9080h/9090h only, NotAvailable until the first"},
+       "while Error or Offline, not a safe state (act on the status); cams and work_area are 6300h:01 and "
+       "6400h:01, mapped into TPDO1 at boot"},
       {"cia401", "Generic CiA 401 I/O node (pedals, button clusters, indicator panels) described by its EDS",
        cia401_options(),
        "they come from the node's EDS file (option eds): in[k] per 6000h sub-index (Digital 0..255), "

@@ -46,6 +46,7 @@ EmcyProducer::EmcyProducer(ObjectDictionary& od, FrameSink sink, NodeId node, Em
     const CobId next{get_u32(b.data())};
     if (cur.valid() && next.valid() && (cur.raw() & 0x3FFFFFFFu) != (next.raw() & 0x3FFFFFFFu))
       return SdoAbortCode::InvalidValue;
+    if (!next.well_formed()) return SdoAbortCode::InvalidValue;  // bits 11..28 of an 11-bit COB-ID
     return SdoAbortCode::None;
   });
   subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
@@ -129,14 +130,21 @@ bool EmcyProducer::report(std::uint16_t code, const EmcyManufacturerField& msef,
   return emit(code, msef, now, relayed);
 }
 
-bool EmcyProducer::clear(std::uint16_t code, TimePoint now) {
+void EmcyProducer::restart() {
+  active_.clear();
+  queue_.clear();
+  last_sent_.reset();
+  update_register();
+}
+
+bool EmcyProducer::clear(std::uint16_t code, TimePoint now, const EmcyManufacturerField& reset_msef) {
   auto it = std::find_if(active_.begin(), active_.end(), [code](const ActiveError& e) { return e.code == code; });
   if (it == active_.end()) return false;
   active_.erase(it);
   update_register();
   // CiA 301 §7.2.7.2: when the last error is gone the producer sends "error reset" (0000h). With
   // errors remaining it may stay silent, which it does.
-  if (active_.empty()) (void)emit(kErrorReset, {}, now);
+  if (active_.empty()) (void)emit(kErrorReset, reset_msef, now);
   return true;
 }
 
@@ -168,6 +176,11 @@ EmcyConsumer::EmcyConsumer(ObjectDictionary& od, EmcyHandler handler, std::uint8
       s.value = s.default_value;
     }
   }
+  // The consumed COB-IDs: an 11-bit one with bits 11..28 set is refused (CobId::well_formed).
+  subs_ += od_.find(kEmcyConsumer)->add_write_hook([](Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin o) {
+    if (o == Origin::Local || sub == 0 || b.size() != 4) return SdoAbortCode::None;
+    return CobId{get_u32(b.data())}.well_formed() ? SdoAbortCode::None : SdoAbortCode::InvalidValue;
+  });
   subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t, Origin) {
     if (index == kEmcyConsumer) rebuild();
   });

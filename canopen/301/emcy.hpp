@@ -76,12 +76,18 @@ class EmcyProducer {
   // (that one counted in dropped()): another node's flood never drops the device's own errors.
   bool report(std::uint16_t code, const EmcyManufacturerField& msef, std::uint16_t info, TimePoint now,
               bool relayed = false);
-  // The error is gone: updates 1001h; when no error remains, sends the error-reset EMCY (0000h).
-  // Returns false if the code was not active.
-  bool clear(std::uint16_t code, TimePoint now);
-  // Rewrites 1001h from the active errors (after a reset restored the dictionary's defaults:
-  // a reset does not make an active error go away).
+  // The error is gone: updates 1001h; when no error remains, sends the error-reset EMCY (0000h)
+  // with `reset_msef` as its manufacturer-specific error code field (CiA 301 §7.2.7.1: its
+  // content is the manufacturer's; e.g. which part of the device recovered). Returns false if the
+  // code was not active.
+  bool clear(std::uint16_t code, TimePoint now, const EmcyManufacturerField& reset_msef = {});
+  // Rewrites 1001h from the active errors (after a reset communication restored the
+  // dictionary's defaults: it does not make an active error go away).
   void reapply_register() { update_register(); }
+  // NMT reset node (CiA 301 §7.3.2.2.1: the application restarts with its power-on values): no
+  // error is active any more, 1001h is 0 and the EMCYs waiting for the inhibit time are dropped;
+  // nothing is sent. An error whose cause persists is raised again by whoever sees it.
+  void restart();
 
   [[nodiscard]] bool active(std::uint16_t code) const;
   [[nodiscard]] std::size_t active_count() const { return active_.size(); }

@@ -359,7 +359,9 @@ SdoAbortCode PdoService::check_comm_write(bool transmit, std::uint16_t n, std::u
       // CiA 301 §7.5.2.35/37: bits 0..29 may not change while the PDO exists (bit 31 = 0).
       if (cur.valid() && next.valid() && (cur.raw() & 0x3FFFFFFFu) != (next.raw() & 0x3FFFFFFFu))
         return SdoAbortCode::InvalidValue;
-      // A restricted CAN-ID (cob::restricted) is refused with 0609 0030h.
+      // An 11-bit COB-ID with bits 11..28 set (CobId::well_formed) or a restricted CAN-ID
+      // (cob::restricted) is refused with 0609 0030h.
+      if (!next.well_formed()) return SdoAbortCode::InvalidValue;
       if (next.valid() && !next.extended() && cob::restricted(next.can_id())) return SdoAbortCode::InvalidValue;
       return SdoAbortCode::None;
     }

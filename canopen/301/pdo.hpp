@@ -9,6 +9,9 @@
 //      node, holding Rpdo and Tpdo objects (reach them with rpdo(n)/tpdo(n)). It installs write
 //      hooks that enforce the CiA 301 rules (COB-ID, transmission type, mapping procedure) and an
 //      OD observer that applies each committed change and detects changes of mapped TPDO data.
+//      A COB-ID (sub 1) is refused with 0609 0030h when bits 0..29 change while the PDO exists,
+//      when it is an 11-bit COB-ID with any of bits 11..28 set (§7.5.2.35/37: they are 0 with
+//      bit 29 = 0; CobId::well_formed) or a valid one on a restricted CAN-ID (cob::restricted).
 //
 // Transmission types (CiA 301 §7.5.2.35/37; MCB-402 "Description of transmission type"):
 //   0        TPDO: sent at the next SYNC if its data changed or request() was called.

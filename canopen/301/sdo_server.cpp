@@ -46,32 +46,46 @@ SdoServer::SdoServer(ObjectDictionary& od, FrameSink sink, NodeId node, Duration
 SdoServer::~SdoServer() { cancel_remote(SdoAbortCode::GeneralError); }
 
 void SdoServer::set_cob_ids(CobId rx, CobId tx) {
+  const bool changed = rx != rx_ || tx != tx_;
   rx_ = rx;
   tx_ = tx;
-  reset();
+  cancel_remote(SdoAbortCode::GeneralError);
+  drop();
+  set_redirect(std::nullopt, changed ? RedirectChange::CobIds : RedirectChange::Reset);
 }
 
 void SdoServer::reset() {
   cancel_remote(SdoAbortCode::GeneralError);
   drop();
-  selected_.reset();
+  set_redirect(std::nullopt, RedirectChange::Reset);
 }
 
 void SdoServer::set_remote(SdoRemote* remote) {
   cancel_remote(SdoAbortCode::GeneralError);
   drop();
-  selected_.reset();
+  set_redirect(std::nullopt, RedirectChange::Reconfigured);
   remote_ = remote;
 }
 
 void SdoServer::bind(std::optional<SdoTarget> target) {
   cancel_remote(SdoAbortCode::GeneralError);
   drop();
-  selected_.reset();
+  set_redirect(std::nullopt, RedirectChange::Reconfigured);
   bound_ = target;
 }
 
-std::optional<SdoTarget> SdoServer::target() const { return bound_ ? bound_ : selected_; }
+std::optional<SdoTarget> SdoServer::target() const {
+  if (bound_) return bound_;
+  if (selected_) return selected_->target;
+  return std::nullopt;
+}
+
+void SdoServer::set_redirect(std::optional<Redirect> next, RedirectChange why) {
+  if (!selected_ && !next) return;
+  std::optional<Redirect> before = std::move(selected_);
+  selected_ = std::move(next);
+  if (on_redirect) on_redirect(before, selected_, why);
+}
 
 void SdoServer::set_block_size(std::uint8_t blksize) {
   block_size_ = std::clamp<std::uint8_t>(blksize, 1, kMaxBlockSize);
@@ -428,9 +442,9 @@ void SdoServer::network_indication(const std::uint8_t* d) {
   if (const SdoAbortCode c = remote_->select(target, selection); c != SdoAbortCode::None)
     return abort(get_u16(d + 1), d[3], c);
   if (selection == SdoRemote::Selection::Remote) {
-    selected_ = target;
+    set_redirect(Redirect{target, now_, {d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7]}}, RedirectChange::Indication);
   } else {
-    selected_.reset();
+    set_redirect(std::nullopt, RedirectChange::Indication);
   }
   send({0xE0, d[1], d[2], d[3], d[4], d[5], d[6], d[7]});
 }

@@ -50,7 +50,10 @@
 //    "due now" until advance() arms it.
 //  * The target stays for every transfer until another network indication names one (a refused
 //    indication keeps the old target), the COB-IDs change or reset() (NMT reset communication):
-//    then the own dictionary is the target again. reset(), set_cob_ids(), bind() and
+//    then the own dictionary is the target again. redirect() tells the target a network
+//    indication named, since when and by which request; on_redirect reports each change (a
+//    redirect names a sub-device on a channel any client may use: a second client on it reads
+//    that node believing it reads this server). reset(), set_cob_ids(), bind() and
 //    set_remote() cancel a pending remote transfer with 0x08000000 and send nothing (as a
 //    local transfer is dropped silently). A bound channel keeps its target across reset() and
 //    refuses network indications with 0x08000021; bound without an SdoRemote it refuses every
@@ -64,6 +67,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <initializer_list>
 #include <optional>
 #include <vector>
@@ -115,6 +119,24 @@ class SdoServer {
   void bind(std::optional<SdoTarget> target);
   // The node the channel's transfers go to; nullopt: the own dictionary.
   [[nodiscard]] std::optional<SdoTarget> target() const;
+
+  // The redirect an accepted network indication made (not a bind()): the target it named, when
+  // (the `now` of its frame) and the request's eight bytes (CAN carries no sender: the request
+  // is what names it).
+  struct Redirect {
+    SdoTarget target;
+    TimePoint since{};
+    std::array<std::uint8_t, 8> request{};
+  };
+  // What changed a redirect: a network indication (one began, named another node or the same
+  // node again, or named the server itself and ended it), reset() (NMT reset communication,
+  // reset node, entering stopped), set_cob_ids() with other COB-IDs, bind()/set_remote().
+  enum class RedirectChange : std::uint8_t { Indication, Reset, CobIds, Reconfigured };
+  [[nodiscard]] const std::optional<Redirect>& redirect() const { return selected_; }
+  // Called after every change of redirect(): `before` and `after` (either may be empty, not
+  // both). Not called when there was none and none follows.
+  std::function<void(const std::optional<Redirect>& before, const std::optional<Redirect>& after, RedirectChange why)>
+      on_redirect;
   // Sub-block size offered to a block-download client (1..127; default 127).
   void set_block_size(std::uint8_t blksize);
 
@@ -165,6 +187,8 @@ class SdoServer {
   void on_remote_done(std::uint32_t generation, SdoAbortCode code, std::vector<std::uint8_t> data);
   void frame_while_waiting(const CanFrame& f);
   void cancel_remote(SdoAbortCode why);  // a pending remote transfer, if any; state -> Idle
+  // selected_ becomes `next`; on_redirect is told when there was one or is one now.
+  void set_redirect(std::optional<Redirect> next, RedirectChange why);
   // Validates the size announced by an initiate download request against the object.
   [[nodiscard]] SdoAbortCode check_announced_size(std::uint32_t size) const;
   // The code for "more data than fits" during a segmented/block download.
@@ -205,7 +229,7 @@ class SdoServer {
   // Remote mode.
   SdoRemote* remote_ = nullptr;
   std::optional<SdoTarget> bound_;     // bind()
-  std::optional<SdoTarget> selected_;  // the last accepted network indication
+  std::optional<Redirect> selected_;   // the last accepted network indication naming a node
   bool routed_ = false;                // the transfer in progress goes to the remote
   RemoteStep step_ = RemoteStep::Upload;
   BlockUploadRequest block_upload_;

@@ -1,6 +1,7 @@
 #include "canopen/301/storage.hpp"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <array>
@@ -18,7 +19,13 @@ constexpr std::uint16_t kStoreIndex = 0x1010;
 constexpr std::uint16_t kRestoreIndex = 0x1011;
 constexpr const char* kMagic = "OEGW-OD-STORE 1\n";
 
-bool excluded(std::uint16_t index) { return index == kStoreIndex || index == kRestoreIndex; }
+constexpr std::uint16_t kErrorHistory = 0x1003;
+
+// 1010h/1011h: commands, reading 1 again after each accepted signature.
+bool signature_object(std::uint16_t index) { return index == kStoreIndex || index == kRestoreIndex; }
+// Never stored nor loaded: the commands, and the error history (CiA 301 §7.5.2.5: the errors
+// that occurred; a stored count would come back after a reset without its entries).
+bool excluded(std::uint16_t index) { return signature_object(index) || index == kErrorHistory; }
 
 int hex_digit(char c) {
   if (c >= '0' && c <= '9') return c - '0';
@@ -185,7 +192,7 @@ ParameterStore::ParameterStore(ObjectDictionary& od, std::filesystem::path file)
   }
   // After an accepted signature the entry reads 1 again ("on command").
   subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
-    if (sub == 0 || !excluded(index)) return;
+    if (sub == 0 || !signature_object(index)) return;
     if (SubObject* s = od_.find(index, sub)) s->value = encode<std::uint32_t>(1);
   });
 }
@@ -205,31 +212,79 @@ std::pair<std::uint16_t, std::uint16_t> ParameterStore::range(Group g) {
   return {0x0000, 0xFFFF};
 }
 
-std::optional<ParameterStore::Entries> ParameterStore::read_file(bool& corrupt, std::string& error) const {
-  corrupt = false;
-  std::ifstream in(file_, std::ios::binary);
-  if (!in) return std::nullopt;
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  auto entries = parse(ss.str(), error);
-  if (!entries) corrupt = true;
-  return entries;
+PlainFile read_plain_file(const std::filesystem::path& file) {
+  PlainFile r;
+  const int fd = ::open(file.c_str(), O_RDONLY | O_NOFOLLOW | O_CLOEXEC | O_NONBLOCK);
+  if (fd < 0) {
+    if (errno == ENOENT) return r;
+    r.state = PlainFile::State::Refused;
+    r.error = errno == ELOOP ? "is a symbolic link (never followed: the store is a plain file the gateway replaces)"
+                             : errno_text("cannot be opened");
+    return r;
+  }
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || !S_ISREG(st.st_mode)) {
+    r.state = PlainFile::State::Refused;
+    r.error = "is not a regular file";
+    ::close(fd);
+    return r;
+  }
+  char buf[4096];
+  while (true) {
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      r.state = PlainFile::State::Refused;
+      r.error = errno_text("cannot be read");
+      r.text.clear();
+      ::close(fd);
+      return r;
+    }
+    if (n == 0) break;
+    r.text.append(buf, static_cast<std::size_t>(n));
+  }
+  ::close(fd);
+  r.state = PlainFile::State::Read;
+  return r;
+}
+
+ParameterStore::Stored ParameterStore::read_file() const {
+  Stored out;
+  PlainFile f = read_plain_file(file_);
+  if (f.state == PlainFile::State::Absent) return out;
+  out.present = true;
+  if (f.state == PlainFile::State::Refused) {
+    out.link = f.error.rfind("is a symbolic link", 0) == 0;
+    out.error = std::move(f.error);
+    return out;
+  }
+  out.entries = parse(f.text, out.error);
+  return out;
+}
+
+SdoAbortCode ParameterStore::refuse_on(const Stored& stored, Group group, const char* what) {
+  if (!stored.present || stored.entries) return SdoAbortCode::None;
+  if (group == Group::All && !stored.link) return SdoAbortCode::None;  // replaces the whole file
+  last_error_ = file_.string() + ": " + stored.error + "; " + what +
+                (stored.link ? " refused"
+                             : " of one group refused: the other groups are stored there and cannot be read (sub 1, "
+                               "all groups, replaces the file)");
+  return SdoAbortCode::HardwareError;
 }
 
 ParameterStore::LoadResult ParameterStore::load(std::uint16_t first, std::uint16_t last) {
   LoadResult r;
-  bool corrupt = false;
-  auto entries = read_file(corrupt, r.error);
-  if (corrupt) {
+  Stored stored = read_file();
+  if (stored.present && !stored.entries) {
     r.file_present = true;
-    r.error = file_.string() + ": " + r.error + "; stored parameters ignored";
+    r.error = file_.string() + ": " + stored.error + "; stored parameters ignored";
     last_error_ = r.error;
     return r;
   }
   r.ok = true;
-  if (!entries) return r;
+  if (!stored.present) return r;
   r.file_present = true;
-  for (const auto& [key, value] : *entries) {
+  for (const auto& [key, value] : *stored.entries) {
     if (key.first < first || key.first > last) continue;
     SubObject* s = od_.find(key.first, key.second);
     const std::size_t n = s == nullptr ? 0 : fixed_size(s->type);
@@ -245,9 +300,9 @@ ParameterStore::LoadResult ParameterStore::load(std::uint16_t first, std::uint16
 }
 
 SdoAbortCode ParameterStore::save(Group group) {
-  bool corrupt = false;
-  std::string error;
-  Entries entries = read_file(corrupt, error).value_or(Entries{});  // a corrupt file is replaced
+  const Stored stored = read_file();
+  if (const SdoAbortCode refused = refuse_on(stored, group, "save"); refused != SdoAbortCode::None) return refused;
+  Entries entries = stored.entries.value_or(Entries{});  // sub 1 over a refused file replaces it
   const auto [first, last] = range(group);  // plain copies below: clang 14 cannot capture bindings
   const std::uint16_t lo = first, hi = last;
   std::erase_if(entries, [lo, hi](const auto& e) { return e.first.first >= lo && e.first.first <= hi; });
@@ -263,22 +318,33 @@ SdoAbortCode ParameterStore::save(Group group) {
 }
 
 SdoAbortCode ParameterStore::restore_defaults(Group group) {
-  bool corrupt = false;
-  std::string error;
-  auto entries = read_file(corrupt, error);
-  if (!entries && !corrupt) return SdoAbortCode::None;  // nothing stored: defaults already
-  if (group == Group::All || corrupt) return remove_atomically() ? SdoAbortCode::None : SdoAbortCode::HardwareError;
+  Stored stored = read_file();
+  if (const SdoAbortCode refused = refuse_on(stored, group, "restore"); refused != SdoAbortCode::None) return refused;
+  if (!stored.present) return SdoAbortCode::None;  // nothing stored: defaults already
+  if (group == Group::All) return remove_atomically() ? SdoAbortCode::None : SdoAbortCode::HardwareError;
   const auto [first, last] = range(group);
   const std::uint16_t lo = first, hi = last;
-  std::erase_if(*entries, [lo, hi](const auto& e) { return e.first.first >= lo && e.first.first <= hi; });
-  return write_atomically(serialize(*entries)) ? SdoAbortCode::None : SdoAbortCode::HardwareError;
+  std::erase_if(*stored.entries, [lo, hi](const auto& e) { return e.first.first >= lo && e.first.first <= hi; });
+  return write_atomically(serialize(*stored.entries)) ? SdoAbortCode::None : SdoAbortCode::HardwareError;
 }
 
 bool write_file_atomically(const std::filesystem::path& file, const std::string& text, std::string& error) {
+  struct stat st {};
+  if (::lstat(file.c_str(), &st) == 0 && S_ISLNK(st.st_mode)) {
+    error = file.string() + " is a symbolic link: not replaced (the store is a plain file)";
+    return false;
+  }
   const std::filesystem::path tmp = file.string() + ".tmp";
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  constexpr int kCreate = O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC;
+  int fd = ::open(tmp.c_str(), kCreate, 0644);
+  if (fd < 0 && errno == EEXIST) {
+    // Left by a crash between its creation and the rename, or planted: removed (a link is
+    // removed, never followed), then created afresh. Created again meanwhile: refused below.
+    (void)::unlink(tmp.c_str());
+    fd = ::open(tmp.c_str(), kCreate, 0644);
+  }
   if (fd < 0) {
-    error = errno_text("open temp file");
+    error = errno_text("create temp file") + " (" + tmp.string() + ")";
     return false;
   }
   std::size_t done = 0;

@@ -6,18 +6,32 @@
 // "the device saves / restores parameters on command" (it never saves autonomously).
 //
 // Writing "save" (65766173h, bytes 73 61 76 65) to 1010h sub n writes the current values of the
-// selected *writable* sub-objects (rw, wo, rwr, rww; never 1010h/1011h themselves) to the store
-// file; entries of the other groups already in the file are kept. Any other value is refused
-// with 08000020h; a file-system failure is reported as 06060000h (hardware error).
+// selected *writable* sub-objects (rw, wo, rwr, rww; never 1010h/1011h themselves, never the
+// error history 1003h, which CiA 301 §7.5.2.5 makes a record of what happened, not a parameter)
+// to the store file; entries of the other groups already in the file are kept (a save of one
+// group merges with what is stored). Any other value is refused with 08000020h; a file-system
+// failure is reported as 06060000h (hardware error).
 //
 // Writing "load" (64616F6Ch) to 1011h sub n makes the defaults come back at the next reset
 // (CiA 301: restored values are valid after reset node / reset communication): the stored
 // values of that group are dropped from the file (the file is deleted for sub 1), atomically;
 // nothing in the dictionary changes until the owner resets. Other values -> 08000020h.
 //
-// Durability: the file is replaced atomically — written to "<file>.tmp", fsync'd, renamed over
-// "<file>", then the directory is fsync'd. Power loss at any point leaves either the previous or
-// the new file; a stale "<file>.tmp" is never read.
+// Fails safe: a store file that is there but cannot be taken — unreadable (permissions, an I/O
+// error, not a regular file), corrupt (see the format below) or a symbolic link (never followed:
+// the file is replaced by rename, and a link there is somebody else's) — is "refused":
+//  * load() applies nothing and says why (the owner runs on defaults and reports it: the Node
+//    raises EMCY 6000h);
+//  * a save or restore of one group (sub 2, 3) is refused with 06060000h and changes nothing:
+//    it would keep the other groups, which cannot be read, so it would drop them. Sub 1 (all
+//    groups) replaces, or deletes, the refused file: it drops nothing it does not write;
+//  * a symbolic link is refused by every operation, sub 1 too (06060000h).
+//
+// Durability: the file is replaced atomically — written to "<file>.tmp" (created with
+// O_CREAT|O_EXCL|O_NOFOLLOW, mode 0644: a link or file planted there is never written through;
+// a stale one, left by a crash, is removed and the creation tried once more), fsync'd, renamed
+// over "<file>", then the directory is fsync'd. Power loss at any point leaves either the
+// previous or the new file; a stale "<file>.tmp" is never read.
 //
 // File format (text, version 1):
 //     OEGW-OD-STORE 1
@@ -48,9 +62,20 @@
 namespace oegw::canopen {
 
 // Replaces `file` with `text` so that a power loss at any moment leaves either the old or the
-// new content: write a temporary file beside it, fsync, rename over `file`, fsync the directory.
-// On failure returns false with `error` set and leaves `file` as it was.
+// new content: write "<file>.tmp" beside it (O_CREAT|O_EXCL|O_NOFOLLOW; a stale one is removed
+// first), fsync, rename over `file`, fsync the directory. On failure returns false with `error`
+// set and leaves `file` as it was. A symbolic link at `file` is refused (it would be replaced by
+// a plain file, silently cutting the link).
 bool write_file_atomically(const std::filesystem::path& file, const std::string& text, std::string& error);
+
+// Reads a whole file without following a symbolic link at its last component (O_NOFOLLOW).
+struct PlainFile {
+  enum class State : std::uint8_t { Absent, Read, Refused };
+  State state = State::Absent;
+  std::string text;   // Read: the content
+  std::string error;  // Refused: why ("is a symbolic link", "Permission denied", ...)
+};
+[[nodiscard]] PlainFile read_plain_file(const std::filesystem::path& file);
 
 class ParameterStore {
  public:
@@ -59,7 +84,7 @@ class ParameterStore {
   static constexpr std::uint32_t kLoadSignature = 0x64616F6C;  // "load", little endian
 
   struct LoadResult {
-    bool ok = false;            // false: refused (see error), nothing changed
+    bool ok = false;            // false: refused (see error: unreadable, corrupt, a link), nothing changed
     bool file_present = false;  // false: no stored file; defaults stay (ok = true)
     std::size_t applied = 0;
     std::size_t skipped = 0;
@@ -93,8 +118,16 @@ class ParameterStore {
 
  private:
   static std::pair<std::uint16_t, std::uint16_t> range(Group g);
-  // Reads the current file: nullopt if absent; `corrupt` set if present but refused.
-  std::optional<Entries> read_file(bool& corrupt, std::string& error) const;
+  // The file as it is now: absent, intact (entries), or refused (why).
+  struct Stored {
+    bool present = false;
+    std::optional<Entries> entries;  // nullopt while present: refused
+    std::string error;
+    bool link = false;  // refused because it is a symbolic link
+  };
+  [[nodiscard]] Stored read_file() const;
+  // A save or restore of `group` on a refused file: 0606 0000h with last_error_ set, or None.
+  SdoAbortCode refuse_on(const Stored& stored, Group group, const char* what);
   bool write_atomically(const std::string& text);
   bool remove_atomically();
 

@@ -23,6 +23,7 @@ SyncService::SyncService(ObjectDictionary& od, FrameSink sink, SyncConfig config
     const CobId next{get_u32(b.data())};
     if (cur.bit30() && next.bit30() && (cur.raw() & 0x3FFFFFFFu) != (next.raw() & 0x3FFFFFFFu))
       return SdoAbortCode::InvalidValue;
+    if (!next.well_formed()) return SdoAbortCode::InvalidValue;  // bits 11..28 of an 11-bit COB-ID
     return SdoAbortCode::None;
   });
   // CiA 301 §7.5.2.41: 1019h is 0 or 2..240, and may only be written while 1006h is 0
@@ -65,7 +66,11 @@ bool SyncService::on_frame(const CanFrame& frame, TimePoint now) {
   if (frame.rtr || frame.id != cob.can_id() || frame.extended != cob.extended()) return false;
   if (cob.bit30()) return false;  // we are the producer: a foreign SYNC on our ID is not ours to consume
   const bool counter_expected = od_.get<std::uint8_t>(0x1019, 0) != 0;
-  if (frame.dlc != (counter_expected ? 1 : 0) && on_length_error) on_length_error(kEmcyUnexpectedSyncLength);
+  if (frame.dlc != (counter_expected ? 1 : 0)) {
+    if (on_length_error) on_length_error(kEmcyUnexpectedSyncLength);
+  } else if (on_length_ok) {
+    on_length_ok();
+  }
   deliver(frame.dlc >= 1 ? frame.data[0] : 0, now);
   return true;
 }

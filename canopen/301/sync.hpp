@@ -46,6 +46,8 @@ class SyncService {
   // The SYNC is still delivered, with the counter byte when there is one (0 otherwise).
   static constexpr std::uint16_t kEmcyUnexpectedSyncLength = 0x8240;
   std::function<void(std::uint16_t emcy_code)> on_length_error;
+  // A consumed SYNC whose length does match 1019h (the Node clears 8240h with it).
+  std::function<void()> on_length_ok;
 
   // Re-reads 1005h/1006h/1019h (after reset_to_defaults or a parameter load, which bypass the
   // OD observers).

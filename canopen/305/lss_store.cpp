@@ -1,6 +1,5 @@
 #include "canopen/305/lss_store.hpp"
 
-#include <fstream>
 #include <sstream>
 
 #include "canopen/301/storage.hpp"
@@ -15,8 +14,9 @@ std::filesystem::path lss_store_path(const std::filesystem::path& store) {
 
 std::optional<LssStored> read_lss_store(const std::filesystem::path& store) {
   if (store.empty()) return std::nullopt;
-  std::ifstream in(lss_store_path(store));
-  if (!in) return std::nullopt;
+  const PlainFile file = read_plain_file(lss_store_path(store));  // a link there is not followed
+  if (file.state != PlainFile::State::Read) return std::nullopt;
+  std::istringstream in(file.text);
   int node = -1;
   int bt = -1;
   std::string line;

@@ -25,8 +25,8 @@ struct LssStored {
 
 // <store>.lss for the parameter file `store`.
 [[nodiscard]] std::filesystem::path lss_store_path(const std::filesystem::path& store);
-// nullopt: no file, or a half-written or foreign one (node-ID outside 1..127, bit timing outside
-// 0..9): the configured defaults stay.
+// nullopt: no file, a symbolic link (not followed), or a half-written or foreign one (node-ID
+// outside 1..127, bit timing outside 0..9): the configured defaults stay.
 [[nodiscard]] std::optional<LssStored> read_lss_store(const std::filesystem::path& store);
 // Written atomically (write_file_atomically); false with `error` set on failure.
 bool write_lss_store(const std::filesystem::path& store, const LssStored& stored, std::string& error);

@@ -173,11 +173,23 @@ bool EventLoop::unwatch(WatchId id) {
   return true;
 }
 
+bool EventLoop::modify(WatchId id, std::uint32_t events) {
+  const auto it = watchers_.find(id);
+  if (it == watchers_.end()) return false;
+  epoll_event ev{};
+  ev.events = events;
+  ev.data.u64 = id;
+  if (::epoll_ctl(epoll_fd_, EPOLL_CTL_MOD, it->second.fd, &ev) != 0) throw_errno("epoll_ctl(EPOLL_CTL_MOD)");
+  return true;
+}
+
 void EventLoop::bracket_wakeups(WatchId id, Callback begin, Callback end) {
   brackets_.push_back(Bracket{id, std::move(begin), std::move(end)});
 }
 
 void EventLoop::post(Callback fn) { posted_.push_back(std::move(fn)); }
+
+void EventLoop::defer(Callback fn) { deferred_.push_back(std::move(fn)); }
 
 std::size_t EventLoop::run_posted() {
   // Only what was posted before this call: callbacks posting again do not starve descriptors.
@@ -227,7 +239,7 @@ void EventLoop::on_signalfd() {
 std::size_t EventLoop::run_once(std::optional<Duration> timeout) {
   arm_timerfd();
   int timeout_ms = -1;
-  if (!posted_.empty()) {
+  if (!posted_.empty() || !deferred_.empty()) {
     timeout_ms = 0;
   } else if (timeout) {
     const auto ms = (*timeout + std::chrono::microseconds(999)) / std::chrono::milliseconds(1);  // round up
@@ -275,6 +287,13 @@ std::size_t EventLoop::run_once(std::optional<Duration> timeout) {
   }
   ran += run_due_timers();
   ran += run_posted();
+  if (!deferred_.empty()) {
+    // One slice; the buses' descriptors are polled again before the next.
+    Callback slice = std::move(deferred_.front());
+    deferred_.pop_front();
+    slice();
+    ++ran;
+  }
   return ran;
 }
 

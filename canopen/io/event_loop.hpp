@@ -13,6 +13,12 @@
 // Callbacks may add/cancel timers, add/remove watchers and post from inside callbacks. Timers
 // due at the same time fire in the order they were armed.
 //
+// Work that is not a bus's is cut into slices (defer()): run_once() runs at most one deferred
+// slice per wake-up, after that wake-up's descriptors, timers and posted callbacks, and while a
+// slice waits the next epoll_wait does not block. So a descriptor that becomes ready while
+// slices queue up (a CAN socket) is served after at most one slice, whatever the backlog of
+// slices (README "CAN first").
+//
 // Driving a "sans I/O" CANopen service:
 //
 //   EventLoop loop;
@@ -92,6 +98,9 @@ class EventLoop {
   // watched, or not pollable). The loop does not own the fd; unwatch() before closing it.
   WatchId watch(int fd, std::uint32_t events, FdCallback fn);
   bool unwatch(WatchId id);
+  // Changes what watch `id` waits for (io_events bits; 0: only errors and hang-ups, which epoll
+  // always reports). One epoll_ctl(EPOLL_CTL_MOD); false if there is no such watch.
+  bool modify(WatchId id, std::uint32_t events);
 
   // Brackets every real-time wake-up while watch `id` exists: `begin` after epoll_wait returns,
   // before any callback; `end` after the wake-up's dispatch, also when a callback throws.
@@ -100,6 +109,13 @@ class EventLoop {
 
   // Runs `fn` on the loop soon: in the current/next run_once(), or in advance_to().
   void post(Callback fn);
+  // Queues `fn` as one slice of work that is not a bus's (see the top of this file): slices run
+  // in the order they were deferred, at most one per run_once(), after everything else that
+  // wake-up dispatches; run_once() does not block while one waits. A slice with more to do
+  // defers its continuation (it then queues behind the others: round robin). advance_to() runs
+  // none (it polls no descriptors either).
+  void defer(Callback fn);
+  [[nodiscard]] std::size_t deferred() const { return deferred_.size(); }
 
   // Blocks `signals` for the calling thread (call before starting other threads so they inherit
   // the mask) and receives them through a signalfd: `on_signal(signo)`, or stop() if none is
@@ -116,7 +132,7 @@ class EventLoop {
 
   // One iteration: waits up to `timeout` (nullopt = until something happens; 0 = poll) for
   // descriptors and, in real time, for the next timer; then dispatches ready descriptors, due
-  // timers and posted callbacks. Returns the number of callbacks run.
+  // timers, posted callbacks and one deferred slice. Returns the number of callbacks run.
   std::size_t run_once(std::optional<Duration> timeout);
 
   // Deterministic mode only (throws std::logic_error in real time, or if `t` is in the past):
@@ -169,6 +185,7 @@ class EventLoop {
   std::vector<Bracket> brackets_;
   WatchId next_watch_id_ = 2;  // 1 is the timerfd
   std::deque<Callback> posted_;
+  std::deque<Callback> deferred_;
   bool stop_ = false;
 };
 

@@ -55,13 +55,22 @@ AskResult ask_daemon(const std::string& socket_path, const std::string& request_
   std::memcpy(a.sun_path, socket_path.c_str(), socket_path.size());
   const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
   if (fd < 0) return {AskStatus::Failed, std::string("socket(AF_UNIX): ") + std::strerror(errno)};
+  // The daemon accepts one connection per wake-up and at most its 8 at once; the others wait in
+  // its listen queue, and when that is full connect() waits for room: SO_SNDTIMEO bounds that
+  // wait (unix(7)), so `timeout` covers the connect too.
+  const auto whole = std::chrono::duration_cast<std::chrono::microseconds>(timeout).count();
+  const timeval tv{static_cast<time_t>(whole / 1'000'000), static_cast<suseconds_t>(whole % 1'000'000)};
+  (void)::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
   if (::connect(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0) {
     const int e = errno;
     ::close(fd);
+    if (e == EAGAIN || e == EINPROGRESS)
+      return {AskStatus::Timeout, "no answer from " + socket_path + " within " + std::to_string(timeout.count()) +
+                                      " ms (its listen queue stayed full)"};
     return connect_failed(socket_path, e);
   }
   const std::string out = request_line + "\n";
-  const auto deadline = std::chrono::steady_clock::now() + timeout;
   std::size_t sent = 0;
   std::string in;
   AskResult r{AskStatus::Timeout, "no answer from " + socket_path + " within " + std::to_string(timeout.count()) + " ms"};

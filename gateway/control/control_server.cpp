@@ -104,7 +104,7 @@ ControlServer::ControlServer(canopen::EventLoop& loop, ControlSocketSettings set
   if (rc != 0) failure = "cannot bind " + p + ": " + err(bind_errno);
   else if (settings_.group && (::chown(p.c_str(), static_cast<uid_t>(-1), *settings_.group) != 0 || ::chmod(p.c_str(), 0660) != 0))
     failure = "cannot give " + p + " to group " + std::to_string(*settings_.group) + ": " + err(errno);
-  else if (::listen(fd_, 16) != 0)
+  else if (::listen(fd_, SOMAXCONN) != 0)  // connections beyond max_clients wait here
     failure = "cannot listen on " + p + ": " + err(errno);
   struct stat st{};
   if (failure.empty() && ::stat(p.c_str(), &st) == 0) {
@@ -116,12 +116,13 @@ ControlServer::ControlServer(canopen::EventLoop& loop, ControlSocketSettings set
     ::close(fd_);
     throw ControlError(s.where + ": control.socket: " + failure);
   }
-  watch_ = loop_.watch(fd_, ev::kReadable, [this](std::uint32_t) { accept_clients(); });
+  watch_ = loop_.watch(fd_, ev::kReadable, [this](std::uint32_t) { on_listen(); });
 }
 
 ControlServer::~ControlServer() {
   *alive_ = false;
   while (!clients_.empty()) close_client(clients_.begin()->first, false);
+  if (listen_again_ != 0) loop_.cancel(listen_again_);
   loop_.unwatch(watch_);
   ::close(fd_);
   // Only our own socket: a later daemon may have replaced a file we were told was stale.
@@ -167,7 +168,7 @@ ControlServer::Peer ControlServer::check_peer(int fd) const {
     return p;
   }
   p.uid = cred.uid;
-  p.who = "uid " + std::to_string(cred.uid) + " (" + user_name(cred.uid) + "), pid " + std::to_string(cred.pid);
+  p.pid = cred.pid;
   if (cred.uid == 0 || cred.uid == ::geteuid()) return p;
   if (!settings_.group) {
     p.why = "not root: without control.group the gateway answers root only";
@@ -184,177 +185,288 @@ ControlServer::Peer ControlServer::check_peer(int fd) const {
 }
 
 void ControlServer::refuse(int fd, const Peer& p) {
-  const std::string answer = control_error("permission_denied", "refused " + p.who + ": " + p.why) + "\n";
+  // The user name only here: a name service lookup is no cost an allowed client makes.
+  const std::string who = p.uid == static_cast<uid_t>(-1)
+                              ? std::string("a client")
+                              : "uid " + std::to_string(p.uid) + " (" + user_name(p.uid) + "), pid " + std::to_string(p.pid);
+  const std::string answer = control_error("permission_denied", "refused " + who + ": " + p.why) + "\n";
   (void)!::send(fd, answer.data(), answer.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
   ::close(fd);
   ++refused_;
   const std::uint64_t n = ++refused_by_uid_[p.uid];
   const auto& out = settings_.warn ? settings_.warn : settings_.log;
   if (out && (n == 1 || n % 100 == 0))
-    out("control: refused " + p.who + ": " + p.why +
-        (n == 1 ? "" : " (" + std::to_string(n) + " refusals of this uid so far)"));
+    out("control: refused " + who + ": " + p.why + (n == 1 ? "" : " (" + std::to_string(n) + " refusals of this uid so far)"));
 }
 
-void ControlServer::accept_clients() {
-  for (;;) {
-    const int fd = ::accept4(fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
-    if (fd < 0) return;  // EAGAIN: all taken; anything else: the next readable tries again
-    if (const Peer p = check_peer(fd); !p.why.empty()) {
-      refuse(fd, p);
-      continue;
-    }
-    if (clients_.size() >= settings_.limits.max_clients) {
-      const std::string busy = control_error("busy", "the gateway serves " + std::to_string(clients_.size()) +
-                                                         " clients already; try again") + "\n";
-      (void)!::send(fd, busy.data(), busy.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
-      ::close(fd);
-      ++dropped_;
-      continue;
-    }
-    const std::uint64_t id = next_id_++;
-    Client& c = clients_[id];
-    c.fd = fd;
-    c.watch = loop_.watch(fd, ev::kReadable, [this, id](std::uint32_t e) { on_client(id, e); });
-    arm(id, c, settings_.limits.idle_timeout);
+std::size_t ControlServer::buffered() const {
+  std::size_t n = 0;
+  for (const auto& [id, c] : clients_) {
+    n += c.in.size() + c.out.size();
+    for (const auto& s : c.slots) n += s ? s->size() : 0;
   }
+  return n;
 }
 
-void ControlServer::on_client(std::uint64_t id, std::uint32_t events) {
+// One connection per wake-up (the listen socket stays readable while more wait, so the buses
+// are served between two accepts). With every slot taken, one waiting connection takes the slot
+// of the client idle the longest, if one is idle; else the listen socket is left alone until a
+// slot frees (the connections wait in the kernel's queue, which costs the daemon nothing).
+void ControlServer::on_listen() {
+  std::optional<Id> room;
+  if (clients_.size() >= settings_.limits.max_clients) {
+    room = idle_longest();
+    if (!room) return listen_for_more(false);
+  }
+  const int fd = ::accept4(fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
+  if (fd < 0) return;  // EAGAIN: it went away; anything else: the next readable tries again
+  if (const Peer p = check_peer(fd); !p.why.empty()) return refuse(fd, p);
+  if (room) evict(*room);
+  const Id id = next_id_++;
+  Client& c = clients_[id];
+  c.fd = fd;
+  c.last_request = loop_.now();
+  c.watch = loop_.watch(fd, ev::kReadable, [this, id](std::uint32_t e) { on_client(id, e); });
+  // A request sent with the connect (as `oegw status` does) is read at once: a client with a
+  // request in hand is never the one closed to make room.
+  if (!read_some(c)) return close_client(id, false);
+  settle(id, c);
+}
+
+void ControlServer::listen_for_more(bool on) {
+  if (on == listening_) return;
+  listening_ = on;
+  loop_.modify(watch_, on ? ev::kReadable : 0u);
+  if (listen_again_ != 0) loop_.cancel(listen_again_);
+  listen_again_ = 0;
+  // Off: a client becomes idle enough by the clock alone; look again then.
+  if (!on)
+    listen_again_ = loop_.call_after(settings_.limits.evict_after, [this] {
+      listen_again_ = 0;
+      listen_for_more(true);
+    });
+}
+
+// A client without a request in progress: none to handle, none owed, no answer waiting to be
+// taken (bytes of an unfinished line do not count), and, if it asked before, none for
+// evict_after. The one whose last request (or connect) is the oldest.
+std::optional<ControlServer::Id> ControlServer::idle_longest() const {
+  std::optional<Id> best;
+  canopen::TimePoint oldest{};
+  const canopen::TimePoint now = loop_.now();
+  for (const auto& [id, c] : clients_) {
+    if (c.runnable || c.closing || !c.slots.empty() || !c.out.empty() || front(c) != Front::Partial) continue;
+    if (c.asked && now - c.last_request < settings_.limits.evict_after) continue;
+    if (!best || c.last_request < oldest) {
+      best = id;
+      oldest = c.last_request;
+    }
+  }
+  return best;
+}
+
+void ControlServer::evict(Id id) {
+  Client& c = clients_.at(id);
+  const auto idle_ms = std::chrono::duration_cast<std::chrono::milliseconds>(loop_.now() - c.last_request).count();
+  const std::string line = control_error("evicted", "closed to make room for a waiting client: all " +
+                                                        std::to_string(settings_.limits.max_clients) +
+                                                        " connections were taken and this one had no request for " +
+                                                        std::to_string(idle_ms) + " ms") + "\n";
+  (void)!::send(c.fd, line.data(), line.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+  ++evicted_;
+  close_client(id, true);
+}
+
+void ControlServer::on_client(Id id, std::uint32_t events) {
   const auto it = clients_.find(id);
   if (it == clients_.end()) return;
   Client& c = it->second;
-  const bool ok = ((events & (ev::kReadable | ev::kHangup | ev::kError)) == 0 || c.closing || read_requests(id, c)) &&
-                  ((events & ev::kWritable) == 0 || flush(c));
-  settle(id, c, ok);
+  // Hang-up: the client closed its socket entirely; no answer can reach it any more.
+  if ((events & (ev::kHangup | ev::kError)) != 0) return close_client(id, false);
+  if ((events & ev::kReadable) != 0 && !read_some(c)) return close_client(id, false);
+  if ((events & ev::kWritable) != 0 && !flush(c)) return close_client(id, false);
+  settle(id, c);
 }
 
-void ControlServer::settle(std::uint64_t id, Client& c, bool ok) {
-  if (!ok) return close_client(id, false);
-  if (c.closing && c.out.empty() && c.slots.empty()) return close_client(id, false);
-  if (c.out.size() > settings_.limits.max_pending) return close_client(id, true);
-  rewatch(id, c);
+bool ControlServer::read_some(Client& c) {
+  const std::size_t room = settings_.limits.max_request + 1 - std::min(c.in.size(), settings_.limits.max_request + 1);
+  if (room == 0 || c.eof || c.closing) return true;
+  char buf[8192];
+  const ssize_t n = ::recv(c.fd, buf, std::min(room, sizeof buf), MSG_DONTWAIT);
+  if (n == 0) {
+    c.eof = true;  // the client is done sending: answer what it asked, then close
+    return true;
+  }
+  if (n < 0) return errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR;
+  c.in.append(buf, static_cast<std::size_t>(n));
+  return true;
+}
+
+ControlServer::Front ControlServer::front(const Client& c) const {
+  const std::size_t nl = c.in.find('\n');
+  if (nl == std::string::npos) return c.in.size() > settings_.limits.max_request ? Front::TooLong : Front::Partial;
+  return nl > settings_.limits.max_request ? Front::TooLong : Front::Complete;
+}
+
+void ControlServer::run_slice() {
+  slice_deferred_ = false;
+  while (!run_queue_.empty()) {
+    const Id id = run_queue_.front();
+    run_queue_.pop_front();
+    const auto it = clients_.find(id);
+    if (it == clients_.end()) continue;  // closed meanwhile
+    Client& c = it->second;
+    c.runnable = false;
+    handle_one(id, c);
+    if (!flush(c)) {
+      close_client(id, false);
+    } else {
+      settle(id, c);  // queues it again, behind the others, if it has more
+    }
+    break;  // one request per slice: the buses come next
+  }
+  if (!run_queue_.empty() && !slice_deferred_) {
+    slice_deferred_ = true;
+    loop_.defer([this, alive = std::weak_ptr<bool>(alive_)] {
+      if (const auto a = alive.lock(); a && *a) run_slice();
+    });
+  }
+}
+
+void ControlServer::handle_one(Id id, Client& c) {
+  const Front f = front(c);
+  if (f == Front::Partial) return;
+  const std::uint64_t slot = c.first_slot + c.slots.size();
+  c.slots.emplace_back();
+  c.last_request = loop_.now();
+  c.asked = true;
+  if (f == Front::TooLong) {
+    c.slots.back() = control_error("request_too_long",
+                                   "a request line is at most " + std::to_string(settings_.limits.max_request) + " bytes");
+    c.in.clear();
+    c.closing = true;
+    return deliver(c);
+  }
+  const std::size_t nl = c.in.find('\n');
+  std::string_view line(c.in.data(), nl);
+  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  const auto waiting = static_cast<std::size_t>(
+      std::count_if(c.slots.begin(), c.slots.end(), [](const auto& a) { return !a.has_value(); }));
+  if (waiting > settings_.limits.max_waiting) {
+    c.slots.back() = control_error("busy", std::to_string(settings_.limits.max_waiting) +
+                                               " requests of this connection wait for their answers already");
+  } else {
+    c.handling = true;  // an answer given at once is taken below, not flushed from inside
+    ++handled_;
+    handler_(line, [this, id, slot, alive = std::weak_ptr<bool>(alive_)](std::string answer) {
+      if (const auto a = alive.lock(); a && *a) on_answer(id, slot, std::move(answer));
+    });
+    c.handling = false;
+  }
+  c.in.erase(0, nl + 1);
+  deliver(c);
 }
 
 void ControlServer::deliver(Client& c) {
+  const canopen::TimePoint now = loop_.now();
+  if (!c.slots.empty() && c.slots.front()) c.last_request = now;  // an owed answer came: idle from here
   while (!c.slots.empty() && c.slots.front()) {
-    c.out += *c.slots.front() + "\n";
+    c.out += *c.slots.front();
+    c.out += '\n';
+    c.queued_bytes += c.slots.front()->size() + 1;
+    c.unsent.emplace_back(c.queued_bytes, now);
     c.slots.pop_front();
     ++c.first_slot;
     ++answered_;
   }
 }
 
-void ControlServer::on_answer(std::uint64_t id, std::uint64_t slot, std::string line) {
+void ControlServer::on_answer(Id id, std::uint64_t slot, std::string line) {
   const auto it = clients_.find(id);
   if (it == clients_.end()) return;  // the client went away meanwhile
   Client& c = it->second;
   if (slot < c.first_slot || slot - c.first_slot >= c.slots.size()) return;
   c.slots[slot - c.first_slot] = std::move(line);
+  if (c.handling) return;  // the slice delivers and flushes
   deliver(c);
-  if (!c.reading) settle(id, c, flush(c));
-}
-
-bool ControlServer::read_requests(std::uint64_t id, Client& c) {
-  char buf[4096];
-  for (;;) {
-    const ssize_t n = ::recv(c.fd, buf, sizeof buf, MSG_DONTWAIT);
-    if (n == 0) {
-      c.closing = true;  // the client is done sending: answer what it asked, then close
-      break;
-    }
-    if (n < 0) {
-      if (errno == EAGAIN || errno == EWOULDBLOCK) break;
-      if (errno == EINTR) continue;
-      return false;
-    }
-    c.in.append(buf, static_cast<std::size_t>(n));
-    for (std::size_t nl; (nl = c.in.find('\n')) != std::string::npos;) {
-      std::string_view line(c.in.data(), nl);
-      if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-      if (nl > settings_.limits.max_request) break;
-      const std::uint64_t slot = c.first_slot + c.slots.size();
-      c.slots.emplace_back();
-      const auto waiting = static_cast<std::size_t>(
-          std::count_if(c.slots.begin(), c.slots.end(), [](const auto& a) { return !a.has_value(); }));
-      if (waiting > settings_.limits.max_waiting) {
-        c.slots.back() = control_error("busy", std::to_string(settings_.limits.max_waiting) +
-                                                   " requests of this connection wait for their answers already");
-      } else {
-        c.reading = true;  // an answer given at once is taken below, not flushed from inside
-        handler_(line, [this, id, slot, alive = std::weak_ptr<bool>(alive_)](std::string answer) {
-          if (const auto a = alive.lock(); a && *a) on_answer(id, slot, std::move(answer));
-        });
-        c.reading = false;
-      }
-      deliver(c);
-      c.in.erase(0, nl + 1);
-    }
-    if (c.in.size() > settings_.limits.max_request) {
-      c.out += control_error("request_too_long", "a request line is at most " +
-                                                     std::to_string(settings_.limits.max_request) + " bytes") + "\n";
-      c.in.clear();
-      c.closing = true;
-      break;
-    }
-  }
-  return flush(c);
+  if (!flush(c)) return close_client(id, false);
+  settle(id, c);
 }
 
 bool ControlServer::flush(Client& c) {
   while (!c.out.empty()) {
     const ssize_t n = ::send(c.fd, c.out.data(), c.out.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
     if (n < 0) {
-      if (errno == EAGAIN || errno == EWOULDBLOCK) return true;
+      if (errno == EAGAIN || errno == EWOULDBLOCK) break;
       if (errno == EINTR) continue;
       return false;  // EPIPE: the client went away
     }
     c.out.erase(0, static_cast<std::size_t>(n));
+    c.sent_bytes += static_cast<std::uint64_t>(n);
   }
+  while (!c.unsent.empty() && c.unsent.front().first <= c.sent_bytes) c.unsent.pop_front();
   return true;
 }
 
-void ControlServer::rewatch(std::uint64_t id, Client& c) {
-  // Readable while the client may send (not after its EOF: that would wake the loop for ever),
-  // writable while an answer waits.
-  const std::uint32_t want = (c.closing ? 0u : ev::kReadable) | (c.out.empty() ? 0u : ev::kWritable);
+void ControlServer::settle(Id id, Client& c) {
+  const ControlLimits& lim = settings_.limits;
+  const Front f = front(c);
+  const bool owed = !c.slots.empty();
+  if (c.closing && c.out.empty() && !owed) return close_client(id, false);
+  if (c.eof && c.out.empty() && !owed && f != Front::Complete) return close_client(id, false);
+  // Requests to handle: queued for a slice while its answers not taken stay below the bound.
+  const bool can_run = f != Front::Partial && !c.closing && c.out.size() < lim.max_unsent;
+  if (can_run && !c.runnable) {
+    c.runnable = true;
+    run_queue_.push_back(id);
+    if (!slice_deferred_) {
+      slice_deferred_ = true;
+      loop_.defer([this, alive = std::weak_ptr<bool>(alive_)] {
+        if (const auto a = alive.lock(); a && *a) run_slice();
+      });
+    }
+  }
+  // Read while there is room for a request (again once half of it is free: one recv per
+  // request of a pipelining client would cost a wake-up each) and the answers are taken.
+  const std::size_t room_from = (c.events & ev::kReadable) != 0 ? lim.max_request + 1 : lim.max_request / 2 + 1;
+  const bool read = !c.eof && !c.closing && c.in.size() < room_from && c.out.size() < lim.max_unsent;
+  const std::uint32_t want = (read ? ev::kReadable : 0u) | (c.out.empty() ? 0u : ev::kWritable);
   if (want != c.events) {
-    loop_.unwatch(c.watch);
-    c.watch = loop_.watch(c.fd, want, [this, id](std::uint32_t e) { on_client(id, e); });
+    loop_.modify(c.watch, want);
     c.events = want;
   }
-  // An answer waiting: the client has write_timeout to take all of it; then idle_timeout again.
-  const bool waiting = !c.out.empty();
-  if (!waiting && !c.slots.empty()) {
-    // The gateway owes an answer (an SDO transfer): no idle time-out meanwhile, the command's
-    // own time-out bounds the wait.
+  // The one deadline that applies: the oldest answer not taken must be taken within
+  // write_timeout; with requests to handle or answers owed none (the command's own time-out
+  // bounds an owed answer); else idle_timeout from the last complete request.
+  std::optional<canopen::TimePoint> deadline;
+  if (!c.unsent.empty())
+    deadline = c.unsent.front().second + lim.write_timeout;
+  else if (!c.runnable && !owed)
+    deadline = c.last_request + lim.idle_timeout;
+  if (deadline != c.deadline) {
     if (c.timer != 0) loop_.cancel(c.timer);
     c.timer = 0;
-    c.waiting = false;
-    return;
+    c.deadline = deadline;
+    if (deadline)
+      c.timer = loop_.call_at(*deadline, [this, id] {
+        if (auto it = clients_.find(id); it != clients_.end()) {
+          it->second.timer = 0;
+          close_client(id, true);
+        }
+      });
   }
-  if (waiting != c.waiting || !waiting) arm(id, c, waiting ? settings_.limits.write_timeout : settings_.limits.idle_timeout);
-  c.waiting = waiting;
 }
 
-void ControlServer::arm(std::uint64_t id, Client& c, canopen::Duration d) {
-  if (c.timer != 0) loop_.cancel(c.timer);
-  c.timer = loop_.call_after(d, [this, id] {
-    if (auto it = clients_.find(id); it != clients_.end()) {
-      it->second.timer = 0;
-      close_client(id, true);
-    }
-  });
-}
-
-void ControlServer::close_client(std::uint64_t id, bool dropped) {
+void ControlServer::close_client(Id id, bool dropped) {
   const auto it = clients_.find(id);
   if (it == clients_.end()) return;
   Client& c = it->second;
   loop_.unwatch(c.watch);
   if (c.timer != 0) loop_.cancel(c.timer);
   ::close(c.fd);
-  clients_.erase(it);
+  clients_.erase(it);  // a run_queue_ entry of it is skipped
   if (dropped) ++dropped_;
+  listen_for_more(true);
 }
 
 }  // namespace oegw::gateway

@@ -15,11 +15,19 @@
 //    flood the journal). The file's mode is the first door (the kernel refuses connect() without
 //    write permission on it); this is the second, for a mode widened by hand, an fd passed on,
 //    a folder of the wrong owner.
-//  * Bounds (ControlLimits): the request line's length (longer: an error answer, then the
-//    connection is closed), the number of clients (one more: a "busy" answer, closed), the
-//    bytes of answers waiting for one client, and two deadlines: a client silent for
-//    idle_timeout, or one that has not taken its whole answer within write_timeout, is dropped.
-//    Reads and writes are non-blocking; a client that does not read costs the loop nothing.
+//  * Bounds (ControlLimits), so that no client can hold a CAN frame back or grow the daemon
+//    (README "CAN first"). Requests are handled in the event loop's deferred slices
+//    (EventLoop::defer): one request per slice, the clients in turn, so a bus frame waits for at
+//    most one request's work. A client's socket is read at most once per wake-up and only while
+//    its unread requests fit in max_request + 1 bytes and its answers not taken stay below
+//    max_unsent: what it sends beyond stays in the kernel's socket buffer. A request line longer
+//    than max_request gets an error answer, then the connection is closed. At most max_clients
+//    connections are served; more wait in the listen queue (the kernel's, SOMAXCONN deep; one is
+//    accepted per wake-up) until a slot frees, and while one waits, a client that holds a slot
+//    without a request in progress (the one idle the longest) is closed to make room: a slow
+//    client cannot keep `oegw status` out. Deadlines: idle_timeout from the last complete
+//    request (or the connect; bytes that complete none do not count), write_timeout for the
+//    oldest answer the client has not taken. Reads and writes never block.
 #pragma once
 
 #include <sys/types.h>
@@ -46,12 +54,15 @@ class ControlError : public std::runtime_error {
 };
 
 struct ControlLimits {
-  std::size_t max_request = 4096;       // bytes of one request line
-  std::size_t max_clients = 8;          // connections served at once
-  std::size_t max_waiting = 16;         // requests of one connection waiting for their answers
-  std::size_t max_pending = 1u << 20;   // bytes of answers queued for one client
-  canopen::Duration idle_timeout = std::chrono::seconds(30);
-  canopen::Duration write_timeout = std::chrono::seconds(2);
+  std::size_t max_request = 4096;     // bytes of one request line
+  std::size_t max_clients = 8;        // connections served at once; more wait in the listen queue
+  std::size_t max_waiting = 16;       // requests of one connection waiting for their answers
+  std::size_t max_unsent = 64u << 10;  // bytes of answers not taken beyond which a client's requests wait
+  canopen::Duration idle_timeout = std::chrono::seconds(30);  // from the last complete request
+  canopen::Duration write_timeout = std::chrono::seconds(2);  // for the oldest answer not taken
+  // A client that has asked before gives its slot to a waiting connection only after this long
+  // without a request (one that never asked, at once): `oegw ctl` between two lines keeps it.
+  canopen::Duration evict_after = std::chrono::seconds(1);
 };
 
 struct ControlSocketSettings {
@@ -86,42 +97,65 @@ class ControlServer {
   ControlServer& operator=(const ControlServer&) = delete;
 
   [[nodiscard]] std::size_t clients() const { return clients_.size(); }
-  [[nodiscard]] std::uint64_t dropped() const { return dropped_; }  // clients dropped by a bound
+  // Clients closed by a bound: idle, write time-out, made room for a waiting one (evicted).
+  [[nodiscard]] std::uint64_t dropped() const { return dropped_; }
+  [[nodiscard]] std::uint64_t evicted() const { return evicted_; }  // of those, to make room
   [[nodiscard]] std::uint64_t answered() const { return answered_; }
+  [[nodiscard]] std::uint64_t handled() const { return handled_; }  // requests given to the handler
   [[nodiscard]] std::uint64_t refused() const { return refused_; }  // peers not allowed (above)
+  // Bytes held for the clients now: requests read and not handled, answers not taken. At most
+  // max_clients x (max_request + 1 + max_unsent + the answers of max_waiting + 1 requests).
+  [[nodiscard]] std::size_t buffered() const;
 
  private:
+  using Id = std::uint64_t;
   struct Client {
     int fd = -1;
     canopen::EventLoop::WatchId watch = 0;
-    std::uint32_t events = canopen::io_events::kReadable;  // what `watch` watches
-    bool waiting = false;  // an answer waits for the client (write_timeout runs)
-    canopen::EventLoop::TimerId timer = 0;
-    std::string in, out;
-    bool closing = false;  // close once `out` is written (EOF seen, or the request too long)
+    std::uint32_t events = canopen::io_events::kReadable;  // what `watch` waits for
+    std::string in;   // bytes read and not handled: at most max_request + 1
+    std::string out;  // answers not taken yet
+    // When each answer in `out` was queued, by the stream offset it ends at: the oldest one's
+    // age is what write_timeout bounds.
+    std::deque<std::pair<std::uint64_t, canopen::TimePoint>> unsent;
+    std::uint64_t queued_bytes = 0, sent_bytes = 0;
     // Answers in request order: slot `first_slot` is the oldest request not answered yet.
     std::deque<std::optional<std::string>> slots;
     std::uint64_t first_slot = 0;
-    bool reading = false;  // inside read_requests (an answer given at once is flushed there)
+    // The last complete request taken or answer given (or the connect): idle_timeout counts from
+    // it; bytes that complete no request do not move it.
+    canopen::TimePoint last_request{};
+    canopen::EventLoop::TimerId timer = 0;
+    std::optional<canopen::TimePoint> deadline;  // what `timer` is armed for
+    bool asked = false;     // it completed a request once
+    bool eof = false;       // the client shut its sending side: answer what it asked, then close
+    bool closing = false;   // its request was too long: close once that answer is taken
+    bool runnable = false;  // in run_queue_
+    bool handling = false;  // inside the handler: an answer given at once is flushed by the slice
   };
+  enum class Front : std::uint8_t { Partial, Complete, TooLong };  // the first line of `in`
 
-  void accept_clients();
+  void on_listen();
   struct Peer {
     uid_t uid = static_cast<uid_t>(-1);
-    std::string who = "a client";  // "uid 1001 (anna), pid 4242"
-    std::string why;               // empty: may ask; else why not (its answer and the log)
+    pid_t pid = 0;
+    std::string why;  // empty: may ask; else why not (its answer and the log)
   };
   [[nodiscard]] Peer check_peer(int fd) const;
   void refuse(int fd, const Peer& p);
-  void on_client(std::uint64_t id, std::uint32_t events);
-  bool read_requests(std::uint64_t id, Client& c);  // false: drop the client
-  bool flush(Client& c);          // false: drop the client
-  void rewatch(std::uint64_t id, Client& c);
-  void arm(std::uint64_t id, Client& c, canopen::Duration d);
-  void close_client(std::uint64_t id, bool dropped);
-  void on_answer(std::uint64_t id, std::uint64_t slot, std::string line);
+  [[nodiscard]] std::optional<Id> idle_longest() const;  // a client to close for a waiting one
+  void evict(Id id);
+  void on_client(Id id, std::uint32_t events);
+  bool read_some(Client& c);  // one recv; false: drop the client
+  [[nodiscard]] Front front(const Client& c) const;
+  void run_slice();
+  void handle_one(Id id, Client& c);
+  bool flush(Client& c);  // false: drop the client
+  void settle(Id id, Client& c);  // after any change: close, re-watch, queue, re-arm
+  void close_client(Id id, bool dropped);
+  void on_answer(Id id, std::uint64_t slot, std::string line);
   void deliver(Client& c);  // the answers now due, in order, to `out`
-  void settle(std::uint64_t id, Client& c, bool ok);  // after reading or writing: close, drop or rewatch
+  void listen_for_more(bool on);
 
   canopen::EventLoop& loop_;
   ControlSocketSettings settings_;
@@ -131,10 +165,16 @@ class ControlServer {
   dev_t dev_ = 0;
   ino_t ino_ = 0;
   canopen::EventLoop::WatchId watch_ = 0;
-  std::map<std::uint64_t, Client> clients_;
-  std::uint64_t next_id_ = 1;
+  bool listening_ = true;  // the listen socket is watched (off while every slot is busy)
+  canopen::EventLoop::TimerId listen_again_ = 0;  // while off: when a client may have become idle
+  std::map<Id, Client> clients_;
+  std::deque<Id> run_queue_;  // clients with a request to handle, in turn
+  bool slice_deferred_ = false;
+  Id next_id_ = 1;
   std::uint64_t dropped_ = 0;
+  std::uint64_t evicted_ = 0;
   std::uint64_t answered_ = 0;
+  std::uint64_t handled_ = 0;
   std::uint64_t refused_ = 0;
   std::map<uid_t, std::uint64_t> refused_by_uid_;
 };

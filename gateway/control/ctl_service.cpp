@@ -60,18 +60,22 @@ json unknown_network(const mapping::Config& c, std::uint64_t net) {
 
 CtlService::CtlService(canopen::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
                        std::function<void()> rearm)
-    : loop_(loop), gw_(gw), config_(config), rearm_(std::move(rearm)) {
+    : loop_(loop), gw_(&gw), config_(&config), rearm_(std::move(rearm)) {
   protocol.add_async("sdo_read", [this](const json& r, ControlProtocol::Done done) { sdo(r, false, std::move(done)); });
   protocol.add_async("sdo_write", [this](const json& r, ControlProtocol::Done done) { sdo(r, true, std::move(done)); });
   protocol.add("nmt", [this](const json& r) { return nmt(r); });
   protocol.add_async("lss", [this](const json& r, ControlProtocol::Done done) { lss(r, std::move(done)); });
   protocol.add("info", [this](const json&) { return info(); });
   protocol.add("events", [this](const json& r) { return events(r); });
-  const std::uint8_t down = config_.downstream.network_id;
-  gw_.on_downstream_boot_up = [this, down](canopen::NodeId n) {
+  hook();
+}
+
+void CtlService::hook() {
+  const std::uint8_t down = config_->downstream.network_id;
+  gw_->on_downstream_boot_up = [this, down](canopen::NodeId n) {
     record(json{{"network", down}, {"node", n.value()}, {"kind", "boot_up"}});
   };
-  gw_.on_downstream_emcy = [this, down](const canopen::EmcyMessage& e) {
+  gw_->on_downstream_emcy = [this, down](const canopen::EmcyMessage& e) {
     record(json{{"network", down},
                 {"node", e.node.value()},
                 {"kind", "emcy"},
@@ -83,15 +87,32 @@ CtlService::CtlService(canopen::EventLoop& loop, Gateway& gw, const mapping::Con
 
 CtlService::~CtlService() {
   *alive_ = false;
-  if (auto* fs = gw_.downstream().client_fastscan(); fs != nullptr && fastscan_client_) fs->cancel("the control service ended");
-  if (auto* ss = gw_.downstream().client_slowscan(); ss != nullptr && slowscan_client_) ss->cancel("the control service ended");
-  gw_.on_downstream_boot_up = nullptr;
-  gw_.on_downstream_emcy = nullptr;
-  for (const auto& t : transfers_) {
+  unhook("the control service ended", std::nullopt);
+}
+
+void CtlService::unhook(const char* why, std::optional<SdoAbortCode> answer_transfers) {
+  if (auto* fs = gw_->downstream().client_fastscan(); fs != nullptr && fastscan_client_) fs->cancel(why);
+  if (auto* ss = gw_->downstream().client_slowscan(); ss != nullptr && slowscan_client_) ss->cancel(why);
+  gw_->on_downstream_boot_up = nullptr;
+  gw_->on_downstream_emcy = nullptr;
+  for (const auto& t : std::vector<std::shared_ptr<Transfer>>(transfers_)) {
     if (t->timer != 0) loop_.cancel(t->timer);
     t->finished = true;
-    gw_.remote_sdo(loop_.now()).cancel(t->ticket, SdoAbortCode::GeneralError);
+    gw_->remote_sdo(loop_.now()).cancel(t->ticket, SdoAbortCode::GeneralError);
+    if (answer_transfers) t->done(json{{"abort", static_cast<std::uint32_t>(*answer_transfers)}});
   }
+  transfers_.clear();
+}
+
+void CtlService::detach() {
+  // As RemoteSdo answers a transfer the gateway takes back: 0800 0022h (present device state).
+  unhook("the gateway reloads its mapping file", SdoAbortCode::CannotTransferDeviceState);
+}
+
+void CtlService::attach(Gateway& gw, const mapping::Config& config) {
+  gw_ = &gw;
+  config_ = &config;
+  hook();
 }
 
 void CtlService::record(json event) {
@@ -113,15 +134,15 @@ json CtlService::events(const json& r) const {
 }
 
 json CtlService::info() const {
-  const auto& od = const_cast<Gateway&>(gw_).upstream().od();
+  const auto& od = gw_->upstream().od();
   return json{{"vendor_id", od.get<std::uint32_t>(0x1018, 1)},
               {"product_code", od.get<std::uint32_t>(0x1018, 2)},
               {"revision", od.get<std::uint32_t>(0x1018, 3)},
               {"serial", od.get<std::uint32_t>(0x1018, 4)},
               {"gateway_class", 3},  // CiA 309-1 class 3: SDO, NMT master services
-              {"upstream_network", config_.upstream.network_id},
-              {"downstream_network", config_.downstream.network_id},
-              {"downstream_interface", config_.downstream.interface}};  // `oegw scan` (scan_service.hpp)
+              {"upstream_network", config_->upstream.network_id},
+              {"downstream_network", config_->downstream.network_id},
+              {"downstream_interface", config_->downstream.interface}};  // `oegw scan` (scan_service.hpp)
 }
 
 json CtlService::nmt(const json& r) {
@@ -138,11 +159,11 @@ json CtlService::nmt(const json& r) {
   else if (s == "reset_node") cs = canopen::NmtCommand::ResetNode;
   else if (s == "reset_comm") cs = canopen::NmtCommand::ResetCommunication;
   else throw std::invalid_argument("\"service\": '" + s + "' is none of start, stop, preop, reset_node, reset_comm");
-  if (net == config_.upstream.network_id)
+  if (net == config_->upstream.network_id)
     return gateway_error(100, fmt::format("network {} is the host's bus: the gateway's own NMT state is its NMT master's", net));
-  if (net != config_.downstream.network_id)
-    return unknown_network(config_, net);
-  const std::string why = gw_.downstream_nmt(canopen::NodeId{static_cast<std::uint8_t>(node)}, cs, loop_.now());
+  if (net != config_->downstream.network_id)
+    return unknown_network(*config_, net);
+  const std::string why = gw_->downstream_nmt(canopen::NodeId{static_cast<std::uint8_t>(node)}, cs, loop_.now());
   if (rearm_) rearm_();
   if (!why.empty()) return gateway_error(102, why);
   return json::object();
@@ -174,13 +195,13 @@ void CtlService::lss(const json& r, ControlProtocol::Done done) {
         "\"service\": expected switch_global, switch_selective, set_node, conf_bitrate, activate_bitrate, store, "
         "inquire_address, inquire_node, identify_non_configured or fastscan");
   const std::string s = it->get<std::string>();
-  if (net == config_.upstream.network_id)
+  if (net == config_->upstream.network_id)
     return done(gateway_error(100, fmt::format("network {} is the host's bus: LSS is served on the downstream network {} "
                                                "only (the gateway is no LSS master upstream)",
-                                               net, config_.downstream.network_id)));
-  if (net != config_.downstream.network_id)
-    return done(unknown_network(config_, net));
-  auto& network = gw_.downstream();
+                                               net, config_->downstream.network_id)));
+  if (net != config_->downstream.network_id)
+    return done(unknown_network(*config_, net));
+  auto& network = gw_->downstream();
   LssMaster* master = network.client_lss();
   if (master == nullptr)
     return done(gateway_error(102, "the gateway is commissioning a device by LSS itself; try again when it is done"));
@@ -196,7 +217,7 @@ void CtlService::lss(const json& r, ControlProtocol::Done done) {
       answer(res.status == Status::Ok ? json::object() : lss_failure(res, what, refused_code, second_code));
     };
   };
-  gw_.log_control(fmt::format("LSS {} on network {}", s, net));
+  gw_->log_control(fmt::format("LSS {} on network {}", s, net));
   if (s == "switch_global") {
     const auto mode = request_field(r, "mode", 0, 1);
     master->switch_state_global(mode == 1 ? canopen::lss::Mode::Configuration : canopen::lss::Mode::Waiting, now,
@@ -213,7 +234,7 @@ void CtlService::lss(const json& r, ControlProtocol::Done done) {
     // through missing, waiting for boot-up and configuring (asking its identity, unanswered):
     // its node-ID may be given — that is how a replacement device gets the node-ID the mapping
     // file expects.
-    for (const auto& sub : config_.subdevices) {
+    for (const auto& sub : config_->subdevices) {
       if (sub.node_id != node) continue;
       const auto st = network.state(sub.name);
       if (st == subdevices::NodeState::Operational || st == subdevices::NodeState::Starting ||
@@ -331,14 +352,14 @@ void CtlService::sdo(const json& r, bool write, ControlProtocol::Done done) {
     return j;
   };
 
-  if (net == config_.upstream.network_id) {
+  if (net == config_->upstream.network_id) {
     // The gateway's own dictionary, as its SDO server reads and writes it.
-    const std::uint8_t self = gw_.upstream().node().node_id().value();
+    const std::uint8_t self = gw_->upstream().node().node_id().value();
     if (node != self)
       return done(gateway_error(107, fmt::format("network {} is the host's bus: only the gateway itself, node {}, is "
                                                  "reached there",
                                                  net, self)));
-    auto& od = gw_.upstream().od();
+    auto& od = gw_->upstream().od();
     if (write) {
       const SdoAbortCode code = od.write(index, sub, data, canopen::Origin::Sdo);
       if (rearm_) rearm_();
@@ -348,8 +369,8 @@ void CtlService::sdo(const json& r, bool write, ControlProtocol::Done done) {
     const SdoAbortCode code = od.read(index, sub, out, canopen::Origin::Sdo);
     return done(answer(code, out, true));
   }
-  if (net != config_.downstream.network_id)
-    return done(unknown_network(config_, net));
+  if (net != config_->downstream.network_id)
+    return done(unknown_network(*config_, net));
 
   // A sub-device: the host's remote SDO path (RemoteSdo), with its policy.
   auto t = std::make_shared<Transfer>();
@@ -367,8 +388,8 @@ void CtlService::sdo(const json& r, bool write, ControlProtocol::Done done) {
   auto finish = [complete, answer, weak, write](SdoAbortCode code, std::vector<std::uint8_t> bytes) {
     if (const auto tr = weak.lock()) complete(tr, answer(code, bytes, !write));
   };
-  const canopen::SdoTarget target{config_.downstream.network_id, static_cast<std::uint8_t>(node)};
-  RemoteSdo& remote = gw_.remote_sdo(loop_.now());
+  const canopen::SdoTarget target{config_->downstream.network_id, static_cast<std::uint8_t>(node)};
+  RemoteSdo& remote = gw_->remote_sdo(loop_.now());
   t->ticket = write ? remote.download(target, index, sub, data, true, std::move(finish))
                     : remote.upload(target, index, sub, std::move(finish));
   if (!t->finished && timeout_ms != 0) {
@@ -377,7 +398,7 @@ void CtlService::sdo(const json& r, bool write, ControlProtocol::Done done) {
       if (!tr || tr->finished) return;
       tr->timer = 0;
       tr->finished = true;  // cancel() calls no done; answer here
-      gw_.remote_sdo(loop_.now()).cancel(tr->ticket, SdoAbortCode::Timeout);
+      gw_->remote_sdo(loop_.now()).cancel(tr->ticket, SdoAbortCode::Timeout);
       tr->finished = false;
       complete(tr, answer(SdoAbortCode::Timeout, {}, false));
       if (rearm_) rearm_();

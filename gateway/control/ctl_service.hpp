@@ -25,6 +25,7 @@
 #include <cstdint>
 #include <deque>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -49,6 +50,14 @@ class CtlService {
   CtlService(const CtlService&) = delete;
   CtlService& operator=(const CtlService&) = delete;
 
+  // A reload (gateway/reload.hpp), while the old gateway still runs: a client's SDO transfer in
+  // flight is answered 0800 0022h (as RemoteSdo answers a transfer the gateway takes back), its
+  // fastscan or slowscan ends (102); an LSS request in flight goes with the old network manager
+  // unanswered (the client's time-out ends it). attach(): serves the new gateway; the events
+  // and their numbering go on.
+  void detach();
+  void attach(Gateway& gw, const mapping::Config& config);
+
  private:
   struct Transfer;
   void sdo(const nlohmann::json& request, bool write, ControlProtocol::Done done);
@@ -57,10 +66,14 @@ class CtlService {
   nlohmann::json info() const;
   nlohmann::json events(const nlohmann::json& request) const;
   void record(nlohmann::json event);
+  // The gateway's event hooks (boot-ups, EMCYs), and their end: transfers cancelled, answered
+  // with `answer_transfers` when given.
+  void hook();
+  void unhook(const char* why, std::optional<canopen::SdoAbortCode> answer_transfers);
 
   canopen::EventLoop& loop_;
-  Gateway& gw_;
-  const mapping::Config& config_;
+  Gateway* gw_;
+  const mapping::Config* config_;
   std::function<void()> rearm_;
   std::vector<std::shared_ptr<Transfer>> transfers_;
   // Cleared by the destructor: LSS answers that come later are dropped.

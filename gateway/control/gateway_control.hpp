@@ -7,6 +7,8 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "canopen/io/event_loop.hpp"
 #include "gateway/control/control_protocol.hpp"
@@ -28,7 +30,26 @@ class GatewayControl {
                  std::function<void()> rearm = {}, const canopen::CanTransport* up = nullptr,
                  const canopen::CanTransport* down = nullptr);
 
+  // A reload (gateway/reload.hpp): detach() while the old gateway still runs (what its clients
+  // had running on it ends: CtlService::detach, ScanService::detach), attach() with the new one
+  // and its configuration (which then outlive this, or the next attach). The socket and its
+  // connections stay: `oegw status` is answered through a reload.
+  void detach();
+  void attach(Gateway& gw, const mapping::Config& config);
+
+  // A command of another part of the daemon (the black box's `record_keep`), and a field it
+  // adds to the `status` answer (`record`), built when asked.
+  void add_command(std::string name, ControlProtocol::AsyncCommand command) {
+    protocol_.add_async(std::move(name), std::move(command));
+  }
+  void add_status_field(std::string name, std::function<nlohmann::json()> field) {
+    status_fields_.emplace_back(std::move(name), std::move(field));
+  }
+
  private:
+  std::vector<std::pair<std::string, std::function<nlohmann::json()>>> status_fields_;
+  Gateway* gw_;
+  const mapping::Config* config_;
   ControlProtocol protocol_;
   std::unique_ptr<CtlService> ctl_;  // destroyed after the server: its answers then go nowhere
   std::unique_ptr<ScanService> scan_;

@@ -118,7 +118,7 @@ std::optional<sd::ScanResult> scan_result_from_json(const json& j, std::string& 
 
 ScanService::ScanService(canopen::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
                          std::function<void()> rearm)
-    : loop_(loop), gw_(gw), config_(config), rearm_(std::move(rearm)) {
+    : loop_(loop), gw_(&gw), config_(&config), rearm_(std::move(rearm)) {
   protocol.add("scan", [this](const json& r) {
     const auto it = r.find("action");
     const std::string action = it != r.end() && it->is_string() ? it->get<std::string>() : "";
@@ -126,9 +126,13 @@ ScanService::ScanService(canopen::EventLoop& loop, Gateway& gw, const mapping::C
     if (action == "status") return status(r);
     throw std::invalid_argument("\"action\": expected start or status");
   });
-  // Installed once, for the service's life: the scan in progress (if any) sees every frame after
-  // the gateway has handled it.
-  gw_.on_downstream_frame_seen = [this](const canopen::CanFrame& f, canopen::TimePoint now) {
+  hook();
+}
+
+void ScanService::hook() {
+  // Installed for the service's life (and the gateway's): the scan in progress (if any) sees
+  // every frame after the gateway has handled it.
+  gw_->on_downstream_frame_seen = [this](const canopen::CanFrame& f, canopen::TimePoint now) {
     if (!scanner_ || scanner_->done()) return;
     scanner_->on_frame(f, now);
     settle();
@@ -136,9 +140,24 @@ ScanService::ScanService(canopen::EventLoop& loop, Gateway& gw, const mapping::C
 }
 
 ScanService::~ScanService() {
-  gw_.on_downstream_frame_seen = nullptr;
+  gw_->on_downstream_frame_seen = nullptr;
   driver_.reset();
   scanner_.reset();
+}
+
+void ScanService::detach() {
+  gw_->on_downstream_frame_seen = nullptr;
+  if (!scanner_ || scanner_->done()) return;  // a result stays readable
+  ended_ = id_;
+  gw_->log_control(fmt::format("scan {}: ended by a reload of the mapping file", id_));
+  driver_.reset();
+  scanner_.reset();  // its fastscan on the old network manager's master cancelled
+}
+
+void ScanService::attach(Gateway& gw, const mapping::Config& config) {
+  gw_ = &gw;
+  config_ = &config;
+  hook();
 }
 
 json ScanService::start(const json& r) {
@@ -154,12 +173,12 @@ json ScanService::start(const json& r) {
     if (!it->is_boolean()) throw std::invalid_argument("\"lss\": expected true or false");
     cfg.lss = it->get<bool>();
   }
-  for (const mapping::SubdeviceConfig& s : config_.subdevices) cfg.skip.insert(s.node_id);
+  for (const mapping::SubdeviceConfig& s : config_->subdevices) cfg.skip.insert(s.node_id);
   driver_.reset();  // (the last scan's: it has no deadline left)
   scanner_ = std::make_unique<sd::BusScanner>(
-      [this](const canopen::CanFrame& f) { gw_.send_downstream(f); }, cfg, [this] {
+      [this](const canopen::CanFrame& f) { gw_->send_downstream(f); }, cfg, [this] {
         sd::SharedLss s;
-        auto& network = gw_.downstream();
+        auto& network = gw_->downstream();
         s.master = network.client_lss();
         s.fastscan = network.client_fastscan();
         if (network.own_lss_busy()) s.why_not = "the gateway's own LSS commissioning is running";
@@ -169,7 +188,7 @@ json ScanService::start(const json& r) {
   result_.reset();
   scanner_->on_wake = [this] { settle(); };
   ++id_;
-  gw_.log_control(fmt::format("scan {}: probing the node-IDs of no sub-device ({} skipped){}", id_, cfg.skip.size(),
+  gw_->log_control(fmt::format("scan {}: probing the node-IDs of no sub-device ({} skipped){}", id_, cfg.skip.size(),
                               cfg.lss ? ", then LSS" : ""));
   scanner_->start(loop_.now());
   driver_ = std::make_unique<canopen::ServiceDriver>(
@@ -187,15 +206,15 @@ void ScanService::settle() {
   if (scanner_->done() && !result_) {
     const sd::ScanResult r = with_subdevices(scanner_->result());
     result_ = scan_result_json(r);
-    gw_.log_control(fmt::format("scan {}: done, {} node(s) found", id_, r.nodes.size()));
+    gw_->log_control(fmt::format("scan {}: done, {} node(s) found", id_, r.nodes.size()));
   }
   if (driver_) driver_->rearm();  // (not yet made while start() runs)
   if (rearm_) rearm_();
 }
 
 sd::ScanResult ScanService::with_subdevices(sd::ScanResult r) const {
-  const auto& network = gw_.downstream();
-  for (const mapping::SubdeviceConfig& s : config_.subdevices) {
+  const auto& network = gw_->downstream();
+  for (const mapping::SubdeviceConfig& s : config_->subdevices) {
     auto it = std::find_if(r.nodes.begin(), r.nodes.end(), [&](const sd::ScannedNode& n) { return n.node.value() == s.node_id; });
     if (it == r.nodes.end()) {
       sd::ScannedNode n;
@@ -220,16 +239,19 @@ sd::ScanResult ScanService::with_subdevices(sd::ScanResult r) const {
 
 json ScanService::status(const json& r) const {
   const auto id = request_field(r, "id", 1, UINT64_MAX);
+  if (id == id_ && ended_ == id_)
+    return json{{"gateway_error", 102},
+                {"message", fmt::format("scan {} ended: the gateway reloaded its mapping file; start it again", id)}};
   if (id != id_)
     return json{{"gateway_error", 102}, {"message", id_ == 0 ? std::string("no scan was started")
                                                              : fmt::format("scan {} is not the last one ({})", id, id_)}};
   json s{{"id", id_}, {"running", !result_}, {"progress", progress_json(scanner_->progress())}};
   if (result_) {
     s["result"] = *result_;
-    s["downstream"] = json{{"interface", config_.downstream.interface}, {"bitrate", config_.downstream.bitrate}};
-    s["upstream"] = json{{"interface", config_.upstream.interface},
-                         {"bitrate", config_.upstream.bitrate},
-                         {"store", config_.upstream.store}};
+    s["downstream"] = json{{"interface", config_->downstream.interface}, {"bitrate", config_->downstream.bitrate}};
+    s["upstream"] = json{{"interface", config_->upstream.interface},
+                         {"bitrate", config_->upstream.bitrate},
+                         {"store", config_->upstream.store}};
   }
   return json{{"scan", std::move(s)}};
 }

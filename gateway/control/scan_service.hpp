@@ -48,7 +48,13 @@ class ScanService {
   ScanService(const ScanService&) = delete;
   ScanService& operator=(const ScanService&) = delete;
 
+  // A reload (gateway/reload.hpp), while the old gateway still runs: a scan still running ends
+  // (its status then says so, 102). attach(): serves the new gateway.
+  void detach();
+  void attach(Gateway& gw, const mapping::Config& config);
+
  private:
+  void hook();
   nlohmann::json start(const nlohmann::json& request);
   nlohmann::json status(const nlohmann::json& request) const;
   // After the scanner acted: its result once done, the timers re-armed.
@@ -56,12 +62,13 @@ class ScanService {
   [[nodiscard]] subdevices::ScanResult with_subdevices(subdevices::ScanResult r) const;
 
   canopen::EventLoop& loop_;
-  Gateway& gw_;
-  const mapping::Config& config_;
+  Gateway* gw_;
+  const mapping::Config* config_;
   std::function<void()> rearm_;
   std::unique_ptr<subdevices::BusScanner> scanner_;
   std::unique_ptr<canopen::ServiceDriver> driver_;
   std::uint64_t id_ = 0;  // the current (or last) scan; 0: none yet
+  std::uint64_t ended_ = 0;  // a scan a reload ended (detach)
   std::optional<nlohmann::json> result_;  // the last scan's, once done
 };
 

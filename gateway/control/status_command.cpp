@@ -1,5 +1,7 @@
 #include "gateway/control/status_command.hpp"
 
+#include "gateway/record/recording_service.hpp"
+
 #include <cstdio>
 #include <sstream>
 
@@ -51,6 +53,14 @@ void wrap(std::string& out, const std::string& first, const std::vector<std::str
     line += w;
   }
   out += line + "\n";
+}
+
+// A line's words (split at its spaces), for wrap().
+std::vector<std::string> split_words(const std::string& line) {
+  std::vector<std::string> out;
+  std::istringstream in(line);
+  for (std::string w; in >> w;) out.push_back(w);
+  return out;
 }
 
 // name, node, driver, state, frames, bad, reboots, resets, refused (88 columns).
@@ -124,25 +134,52 @@ std::string status_table(const json& st) {
   out += fmt::format("upstream:   {}, network {}, node-ID {}, {}, active EMCYs: {}\n", up["interface"].get<std::string>(),
                      up["network_id"].get<int>(), hex(up["node_id"], 2), up["nmt_state"].get<std::string>(),
                      active.empty() ? "none" : active);
+  // Each SDO server channel a network indication redirected (absent from an older daemon).
+  for (const auto& r : up.value("sdo_redirects", json::array())) {
+    std::string request;
+    for (const auto& b : r["indication"]) request += fmt::format("{:02X} ", b.get<unsigned>());
+    const std::string sub = r["subdevice"].get<std::string>();
+    wrap(out, "", split_words(fmt::format("remote SDO: SDO server {} ({}/{}) redirected to {} (network {}, node {}) for {} by "
+                                    "the network indication {}: a client on {} reaches {}, not the gateway",
+                                    hex(r["sdo_server"], 4), hex(r["request_cob_id"], 3), hex(r["response_cob_id"], 3),
+                                    sub, r["network_id"].get<int>(), hex(r["node_id"], 2),
+                                    seconds(r["age_ms"].get<std::int64_t>()), request.substr(0, request.size() - 1),
+                                    hex(r["request_cob_id"], 3), sub)),
+         4);
+  }
   const json& dc = down["counters"];
   out += fmt::format("downstream: {}, network {}, PDOs of unknown nodes {}, EMCYs of unknown nodes {}\n",
                      down["interface"].get<std::string>(), down["network_id"].get<int>(),
                      dc["unknown_pdo"].get<std::uint64_t>(), dc["unknown_emcy"].get<std::uint64_t>());
+  // Publishing (`oegw run` only): each transport up, or down with why (README "Publishing
+  // degrades, the gateway runs").
+  if (st.contains("publishing")) {
+    std::string line;
+    for (const auto& t : st["publishing"]) {
+      line += (line.empty() ? "" : "; ") + t["transport"].get<std::string>() + " " + t["state"].get<std::string>();
+      if (t["state"] == "up") continue;
+      line += ": " + t["reason"].get<std::string>();
+      const auto failed = t["failed_attempts"].get<std::uint64_t>();
+      line += fmt::format(" ({} failed attempt{}, {})", failed, failed == 1 ? "" : "s",
+                          t["next_attempt_ms"].is_null()
+                              ? std::string("one running")
+                              : "next in " + seconds(t["next_attempt_ms"].get<std::int64_t>()));
+    }
+    out += "publishing: " + (line.empty() ? std::string("off") : line) + "\n";
+  }
   // Frames the kernel dropped before the gateway read them: shown only when there are any.
   for (const auto& [side, j] : {std::pair<const char*, const json*>{"upstream", &up}, {"downstream", &down}})
     if (j->contains("bus") && (*j)["bus"].value("rx_dropped", std::uint64_t{0}) != 0)
       out += fmt::format("{}: {} frames read, {} dropped by the kernel before the gateway read them\n", side,
                          (*j)["bus"]["rx_frames"].get<std::uint64_t>(), (*j)["bus"]["rx_dropped"].get<std::uint64_t>());
+  if (st.contains("record")) out += record::record_status_line(st["record"]);
   out += "\n" + fmt::format(kSubdeviceRow, "sub-device", "node", "driver", "state", "frames", "bad", "reboots", "resets",
                             "refused");
   for (const auto& s : st["subdevices"]) subdevice_rows(out, s);
   out += fmt::format("\n{:<15} {:<14} {}\n", "FE", "status", "fields (value, status if not valid)");
   for (const auto& fe : st["functional_elements"]) fe_rows(out, fe);
-  std::vector<std::string> words;  // wrapped at its spaces, like the FE rows
-  std::istringstream line(refused_line(st));
-  for (std::string w; line >> w;) words.push_back(w);
   out += "\n";
-  wrap(out, "", words, 4);
+  wrap(out, "", split_words(refused_line(st)), 4);
   return out;
 }
 

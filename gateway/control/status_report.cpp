@@ -96,12 +96,29 @@ json upstream_json(const Gateway& gw, const mapping::Config& c, canopen::TimePoi
   for (const auto& [node, e] : gw.upstream_emcys()) consumed.push_back(json{{"node_id", node}, {"last_emcy", emcy_json(e, now)}});
   json active = json::array();
   if (!gw.faults().empty()) active.push_back(OeDevice::kEmcyAdditionalModules);
+  if (gw.reloading()) active.push_back(Gateway::kEmcyReload);
+  // SDO server channels a network indication redirected to a sub-device: a client on one
+  // reaches the sub-device, not the gateway (README "Reaching sub-devices from the host").
+  json redirects = json::array();
+  for (const auto& r : gw.sdo_redirects()) {
+    json request = json::array();
+    for (const std::uint8_t b : r.redirect.request) request.push_back(b);
+    redirects.push_back(json{{"sdo_server", r.server},
+                             {"request_cob_id", r.request.can_id()},
+                             {"response_cob_id", r.response.can_id()},
+                             {"network_id", r.redirect.target.network},
+                             {"node_id", r.redirect.target.node},
+                             {"subdevice", r.subdevice},
+                             {"age_ms", ms_between(r.redirect.since, now)},
+                             {"indication", request}});
+  }
   return json{{"interface", c.upstream.interface},
               {"network_id", c.upstream.network_id},
               {"node_id", c.upstream.node_id},
               {"nmt_state", std::string(canopen::to_string(gw.upstream().node().state()))},
               {"active_emcys", active},
-              {"consumed_emcys", consumed}};
+              {"consumed_emcys", consumed},
+              {"sdo_redirects", redirects}};
 }
 
 }  // namespace
@@ -125,6 +142,23 @@ json bus_json(const canopen::TransportCounters& c) {
               {"tx_dropped", c.tx_dropped}, {"error_frames", c.error_frames}, {"errors", c.errors}};
 }
 }  // namespace
+
+json publishing_status(const std::vector<TransportState>& transports) {
+  json out = json::array();
+  for (const TransportState& t : transports) {
+    json j{{"transport", t.name}, {"state", t.up ? "up" : "down"}};
+    if (!t.up) {
+      j["reason"] = t.reason;
+      j["failed_attempts"] = t.failures;
+      j["down_ms"] = std::chrono::duration_cast<std::chrono::milliseconds>(t.down_for).count();
+      j["next_attempt_ms"] = t.next_attempt_in
+                                 ? json(std::chrono::duration_cast<std::chrono::milliseconds>(*t.next_attempt_in).count())
+                                 : json(nullptr);  // null: an attempt is running
+    }
+    out.push_back(std::move(j));
+  }
+  return out;
+}
 
 json status_report(const Gateway& gw, const mapping::Config& config, const StatusContext& at) {
   json subs = json::array();

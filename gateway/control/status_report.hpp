@@ -10,6 +10,7 @@
 #include "canopen/io/can_transport.hpp"
 #include "canopen/types.hpp"
 #include "gateway/gateway.hpp"
+#include "gateway/publishing.hpp"
 #include "mapping/config.hpp"
 
 namespace oegw::gateway {
@@ -26,6 +27,10 @@ struct StatusContext {
 // The `status` object: upstream, downstream, subdevices, functional_elements, commands
 // (PROTOCOL.md lists every field). `config` is the mapping file the gateway runs.
 [[nodiscard]] nlohmann::json status_report(const Gateway& gw, const mapping::Config& config, const StatusContext& at);
+
+// The `publishing` array of `oegw run`'s status (PROTOCOL.md): each transport the mapping file
+// enables, up, or down with why and when it is tried again; empty with publishing off.
+[[nodiscard]] nlohmann::json publishing_status(const std::vector<TransportState>& transports);
 
 // A sub-device's state in one word: "operational", "faulty" (operational, but the fault
 // policy holds its inputs), "booting" (boot-up awaited, configuring, starting), "missing",

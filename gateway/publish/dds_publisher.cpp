@@ -1,5 +1,6 @@
 #include "gateway/publish/dds_publisher.hpp"
 
+#include <net/if.h>
 #include <sys/eventfd.h>
 #include <unistd.h>
 
@@ -68,6 +69,7 @@ struct DdsPublisher::Impl {
   dds_entity_t joystick = 0, pedal = 0, wheel = 0, encoder = 0, buttons = 0, status = 0;  // writers
   dds_entity_t indicators = 0, display = 0;                                                 // readers
   int event_fd = -1;
+  bool display_first = false;  // poll(): which topic is looked at first (they take turns)
 
   static void on_data(dds_entity_t /*reader*/, void* arg) {
     const std::uint64_t one = 1;
@@ -96,6 +98,11 @@ DdsPublisher::DdsPublisher(const DdsSettings& s) : impl_(std::make_unique<Impl>(
       throw PublishConfigError("publish.dds.security: needs publish.dds.network loopback or an interface (with \"\" "
                                "CYCLONEDDS_URI configures the domain)");
   }
+  // An interface that is not there (yet: a cab network brought up after the daemon) is the
+  // machine's state, not a wrong setting: reported as such, and opened again later.
+  if (!s.network.empty() && s.network != "loopback" && ::if_nametoindex(s.network.c_str()) == 0)
+    throw PublishUnavailable("publish.dds.network: interface " + s.network + " is not on this machine (" +
+                             std::strerror(errno) + ")");
   const std::string xml = dds_config_xml(s.network, s.security);
   CycloneErrors errors;
   if (!xml.empty()) {
@@ -248,40 +255,41 @@ void DdsPublisher::publish(const GatewayStatus& s) {
 
 int DdsPublisher::fd() const { return impl_->event_fd; }
 
+namespace {
+// Takes one sample of `reader` (keep-last 1 per instance: at most one per commanded instance
+// waits) and hands its data to `use`; false when none was there.
+template <class Sample, class Use>
+bool take_one(dds_entity_t reader, Use&& use) {
+  void* ptr = nullptr;
+  dds_sample_info_t info{};
+  if (dds_take(reader, &ptr, &info, 1, 1) <= 0) return false;
+  if (info.valid_data) use(*static_cast<const Sample*>(ptr));
+  dds_return_loan(reader, &ptr, 1);
+  return true;
+}
+}  // namespace
+
 void DdsPublisher::poll() {
+  // One command per call (README "CAN first"): a command taken signals the eventfd again, so
+  // the loop comes back for the next one after the buses had their turn. The two topics take
+  // turns.
   std::uint64_t n = 0;
   [[maybe_unused]] auto r = ::read(impl_->event_fd, &n, sizeof n);  // EAGAIN: nothing signalled; take anyway
-  constexpr int kBatch = 8;
-  {
-    std::array<void*, kBatch> ptrs{};
-    std::array<dds_sample_info_t, kBatch> infos{};
-    int got = 0;
-    while ((got = dds_take(impl_->indicators, ptrs.data(), infos.data(), kBatch, kBatch)) > 0) {
-      for (int i = 0; i < got; ++i) {
-        if (!infos[static_cast<std::size_t>(i)].valid_data) continue;
-        const auto* m = static_cast<const oegw_IndicatorCommand*>(ptrs[static_cast<std::size_t>(i)]);
-        if (on_indicator_command) on_indicator_command(IndicatorCommand{m->instance, m->indicators});
-      }
-      dds_return_loan(impl_->indicators, ptrs.data(), got);
-      ptrs.fill(nullptr);
-    }
-  }
-  {
-    std::array<void*, kBatch> ptrs{};
-    std::array<dds_sample_info_t, kBatch> infos{};
-    int got = 0;
-    while ((got = dds_take(impl_->display, ptrs.data(), infos.data(), kBatch, kBatch)) > 0) {
-      for (int i = 0; i < got; ++i) {
-        if (!infos[static_cast<std::size_t>(i)].valid_data) continue;
-        const auto* m = static_cast<const oegw_DisplayCommand*>(ptrs[static_cast<std::size_t>(i)]);
-        DisplayCommand c{m->instance, {}};
-        for (std::size_t k = 0; k < c.parameters.size(); ++k) c.parameters[k] = m->parameters[k];
-        if (on_display_command) on_display_command(c);
-      }
-      dds_return_loan(impl_->display, ptrs.data(), got);
-      ptrs.fill(nullptr);
-    }
-  }
+  const auto indicators = [this] {
+    return take_one<oegw_IndicatorCommand>(impl_->indicators, [this](const oegw_IndicatorCommand& m) {
+      if (on_indicator_command) on_indicator_command(IndicatorCommand{m.instance, m.indicators});
+    });
+  };
+  const auto display = [this] {
+    return take_one<oegw_DisplayCommand>(impl_->display, [this](const oegw_DisplayCommand& m) {
+      DisplayCommand c{m.instance, {}};
+      for (std::size_t k = 0; k < c.parameters.size(); ++k) c.parameters[k] = m.parameters[k];
+      if (on_display_command) on_display_command(c);
+    });
+  };
+  impl_->display_first = !impl_->display_first;
+  const bool took = impl_->display_first ? (display() || indicators()) : (indicators() || display());
+  if (took) Impl::on_data(0, impl_.get());
 }
 
 std::uint32_t DdsPublisher::joystick_readers() const {

@@ -18,6 +18,7 @@
 
 #include "gateway/fe_samples.hpp"
 #include "gateway/publish/dds_security.hpp"
+#include "gateway/publish/publish_errors.hpp"
 
 namespace oegw::gateway {
 
@@ -39,15 +40,12 @@ struct DdsSettings {
 // `security` when given. Empty for "".
 std::string dds_config_xml(const std::string& network, const std::optional<DdsSecuritySettings>& security = {});
 
-// A setting that cannot be applied. what() names it: "publish.dds.domain: cannot create domain 7: ...".
-class PublishConfigError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 class DdsPublisher final : public Publisher {
  public:
-  explicit DdsPublisher(const DdsSettings& settings);  // throws PublishConfigError
+  // Throws PublishConfigError for a setting Cyclone DDS refuses, PublishUnavailable when the
+  // interface publish.dds.network names is not on this machine (yet).
+  explicit DdsPublisher(const DdsSettings& settings);
   ~DdsPublisher() override;
   DdsPublisher(const DdsPublisher&) = delete;
   DdsPublisher& operator=(const DdsPublisher&) = delete;

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <memory>
@@ -48,6 +49,20 @@ std::string unreadable(const std::string& path) {
   if (!S_ISREG(st.st_mode)) return "not a regular file";
   if (::access(path.c_str(), R_OK) != 0) return std::strerror(errno);
   return "";
+}
+
+// Why a private key's mode is too open, or "": SECURITY.md asks 0600 — readable by its owner
+// (the daemon's user) only. Any group or other bit refuses it, as ssh refuses such a key: whoever
+// reads the key is the gateway to every DDS peer until its certificate is revoked.
+std::string key_mode_problem(const std::string& path) {
+  struct stat st{};
+  if (::stat(path.c_str(), &st) != 0) return "";  // unreadable() has said why
+  const auto mode = static_cast<unsigned>(st.st_mode & 07777);
+  if ((mode & 0077) == 0) return "";
+  char octal[8];
+  std::snprintf(octal, sizeof octal, "%04o", mode);
+  return std::string("mode ") + octal + " lets " + ((mode & 0007) != 0 ? "every user" : "its group") +
+         " read or change the private key; expected 0600, owner the daemon's user: chmod 0600 " + path;
 }
 
 BioPtr open_file(const std::string& path) { return BioPtr(BIO_new_file(path.c_str(), "r")); }
@@ -156,6 +171,7 @@ std::vector<DdsSecurityProblem> check_dds_security(const DdsSecuritySettings& s)
       problem(kCertificate, v + "; expected the gateway's certificate from publish.dds.security.identity_ca, valid now");
   }
   if (readable[kPrivateKey]) {
+    if (const std::string m = key_mode_problem(s.path[kPrivateKey]); !m.empty()) problem(kPrivateKey, m);
     BioPtr b = open_file(s.path[kPrivateKey]);
     KeyPtr key(b ? PEM_read_bio_PrivateKey(b.get(), nullptr, no_password, nullptr) : nullptr);
     if (!key)

@@ -7,6 +7,7 @@
 #include <regex>
 #include <vector>
 
+#include "gateway/publish/lcm_url.hpp"
 #include "oegw/button_cluster_t.hpp"
 #include "oegw/display_command_t.hpp"
 #include "oegw/emcy_t.hpp"
@@ -77,10 +78,19 @@ LcmPublisher::LcmPublisher(const LcmSettings& s) : impl_(std::make_unique<Impl>(
   if (s.channel_prefix.empty() || s.channel_prefix.find_first_of(".*?[]()|^$\\ ") != std::string::npos)
     throw PublishConfigError("publish.lcm.channel_prefix: \"" + s.channel_prefix +
                              "\" must be non-empty, without spaces or regex characters");
+  // No route for the group (a controller whose only interface is lo): the machine's state, not
+  // the URL's; lcm_create() would fail on it after a page on stderr. Reported, opened later.
+  if (const auto problem = lcm_route_problem(s.url))
+    throw PublishUnavailable("publish.lcm.url: \"" + s.url + "\": " + *problem + " — add one: " +
+                             lcm_route_command(s.url, ""));
   impl_->lcm = lcm_create(s.url.c_str());
-  if (impl_->lcm == nullptr)
+  if (impl_->lcm == nullptr) {
+    // A tcpq:// server not (yet) listening is the machine's state too.
+    if (s.url.rfind("tcpq://", 0) == 0)
+      throw PublishUnavailable("publish.lcm.url: cannot open \"" + s.url + "\" (is its LCM server running?)");
     throw PublishConfigError("publish.lcm.url: cannot open \"" + s.url +
                              "\" (unknown provider, bad address or option, or the socket could not be set up)");
+  }
   impl_->owner = this;
   for (std::size_t c = 0; c < kChannels; ++c)
     for (std::size_t n = 0; n < 17; ++n) impl_->channels[c][n] = prefix_ + kChannelNames[c] + std::to_string(n);
@@ -90,7 +100,11 @@ LcmPublisher::LcmPublisher(const LcmSettings& s) : impl_(std::make_unique<Impl>(
   const std::string pattern = prefix_ + "(INDICATORS|DISPLAY)_[0-9]+";
   if (lcm_subscribe(impl_->lcm, pattern.c_str(), &Impl::on_message, impl_.get()) == nullptr) {
     lcm_destroy(impl_->lcm);
-    throw PublishConfigError("publish.lcm.url: cannot subscribe to the command channels on \"" + s.url + "\"");
+    impl_->lcm = nullptr;
+    // udpm: liblcm's self-test did not see its own message (a firewall dropping multicast), or
+    // its receive socket could not join the group: the machine's state.
+    throw PublishUnavailable("publish.lcm.url: cannot subscribe to the command channels on \"" + s.url +
+                             "\" (liblcm's self-test failed: check the multicast route and the firewall)");
   }
 }
 
@@ -191,9 +205,9 @@ void LcmPublisher::publish(const GatewayStatus& s) {
 int LcmPublisher::fd() const { return lcm_get_fileno(impl_->lcm); }
 
 void LcmPublisher::poll() {
-  // Bounded: at most 64 messages per call so a flood cannot starve the gateway's loop.
-  for (int i = 0; i < 64 && lcm_handle_timeout(impl_->lcm, 0) > 0; ++i) {
-  }
+  // One message per call (README "CAN first"): liblcm's notify pipe stays readable while more
+  // wait (lcm_udpm.c writes it again), so the loop comes back after the buses had their turn.
+  (void)lcm_handle_timeout(impl_->lcm, 0);
 }
 
 }  // namespace oegw::gateway

@@ -24,7 +24,10 @@ struct LcmSettings {
 
 class LcmPublisher final : public Publisher {
  public:
-  explicit LcmPublisher(const LcmSettings& settings);  // throws PublishConfigError
+  // Throws PublishConfigError for a URL or prefix that cannot work, PublishUnavailable when the
+  // machine cannot carry it now (no route for the group, liblcm's self-test failed, a tcpq://
+  // server not listening).
+  explicit LcmPublisher(const LcmSettings& settings);
   ~LcmPublisher() override;
   LcmPublisher(const LcmPublisher&) = delete;
   LcmPublisher& operator=(const LcmPublisher&) = delete;

@@ -1,6 +1,13 @@
 #include "gateway/publish/lcm_url.hpp"
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <array>
+#include <cerrno>
+#include <cstring>
 
 namespace oegw::gateway {
 
@@ -125,6 +132,35 @@ std::optional<std::string> lcm_reaches_beyond_host(std::string_view url) {
            " is joined on the interface the routing table picks and announced there by IGMP: a device on that "
            "network may send to it (only 224.0.0.1 with ttl=0 is announced nowhere)";
   return std::nullopt;
+}
+
+std::optional<std::uint32_t> udpm_group(std::string_view url) {
+  constexpr std::string_view kUdpm = "udpm://";
+  if (url.substr(0, kUdpm.size()) != kUdpm) return std::nullopt;
+  const auto host = url_host(url, kUdpm.size());
+  return parse_inet_aton(host.empty() ? std::string_view("239.255.76.67") : host);
+}
+
+std::optional<std::string> lcm_route_problem(std::string_view url) {
+  const auto group = udpm_group(url);
+  if (!group) return std::nullopt;
+  const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return std::string("cannot open a UDP socket (") + std::strerror(errno) + ")";
+  sockaddr_in to{};
+  to.sin_family = AF_INET;
+  to.sin_addr.s_addr = htonl(*group);
+  to.sin_port = htons(7667);  // the route does not depend on the port
+  const int rc = ::connect(fd, reinterpret_cast<const sockaddr*>(&to), sizeof to);
+  const int e = errno;
+  ::close(fd);
+  if (rc == 0) return std::nullopt;
+  return "no route to " + dotted_quad(*group) + " (" + std::strerror(e) + ")";
+}
+
+std::string lcm_route_command(std::string_view url, std::string_view device) {
+  const std::string_view ttl = last_option(url, "ttl").value_or("0");
+  if (ttl == "0") return "ip route add 224.0.0.0/4 dev lo";
+  return "ip route add 224.0.0.0/4 dev " + (device.empty() ? std::string("<the cab network's interface>") : std::string(device));
 }
 
 std::optional<LinkLocalSend> link_local_send(std::string_view url) {

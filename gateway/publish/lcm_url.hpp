@@ -1,6 +1,6 @@
 // What an LCM URL (publish.lcm.url) reaches, read the way liblcm reads it: the one rule the
-// mapping file applies to it. Standard library only, so that the mapping file's checks need no
-// liblcm.
+// mapping file applies to it, and whether this machine can route its group. Standard library and
+// libc only, so that the mapping file's checks and `oegw check` need no liblcm.
 //
 // The groups 224.0.0.0/24 reach every host of the link (RFC 5771 §4, "Local Network Control
 // Block"). The gateway's host-local default udpm://224.0.0.1:7667?ttl=0 uses 224.0.0.1 because
@@ -41,6 +41,22 @@ struct LinkLocalSend {
 // "a.b.c" (c 16 bits), "a.b" (b 24 bits), "a" (32 bits), each part decimal, 0-octal or 0x-hex,
 // the text ending at a NUL or an ASCII white space. Host byte order.
 [[nodiscard]] std::optional<std::uint32_t> parse_inet_aton(std::string_view text);
+
+// The group of a udpm:// URL as liblcm reads it (239.255.76.67 when the URL names none), or
+// nullopt for another provider or a group inet_aton(3) refuses.
+[[nodiscard]] std::optional<std::uint32_t> udpm_group(std::string_view url);
+
+// Why this machine cannot send to the udpm:// URL's group now, or nullopt when it can (or the URL
+// is no udpm://): liblcm's own first test in lcm_create(), a UDP connect() to the group, which
+// fails without a route for it (a controller whose only interface is lo: "Network is
+// unreachable"); lcm_create() then gives up with a page on stderr. The text: "no route to
+// 224.0.0.1 (Network is unreachable)".
+[[nodiscard]] std::optional<std::string> lcm_route_problem(std::string_view url);
+
+// The command that routes the udpm:// URL's multicast: `ip route add 224.0.0.0/4 dev lo` for a
+// ttl=0 URL (its samples never leave the host), else `... dev DEVICE` (`device`, or
+// "<the cab network's interface>" when empty).
+[[nodiscard]] std::string lcm_route_command(std::string_view url, std::string_view device);
 
 // "224.0.0.1" for 0xE0000001.
 [[nodiscard]] std::string dotted_quad(std::uint32_t address);

@@ -18,6 +18,7 @@ void read_downstream(YamlReader& r, const MapEntry& section, DownstreamConfig& o
 void check_sync(YamlReader& r, const Config& config);
 void read_publish(YamlReader& r, const MapEntry& section, PublishConfig& out);        // publish.cpp
 void read_control(YamlReader& r, const MapEntry& section, ControlConfig& out);        // control.cpp
+void read_record(YamlReader& r, const MapEntry& section, RecordConfig& out);          // record.cpp
 // subdevices.cpp; the signals of each come from `catalogue`.
 void read_subdevices(YamlReader& r, const MapEntry& section, const SignalCatalogue& catalogue,
                      std::vector<SubdeviceConfig>& out);

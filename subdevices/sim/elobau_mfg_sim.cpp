@@ -4,6 +4,7 @@
 #include "subdevices/sim/signal_names.hpp"
 
 #include <algorithm>
+#include <cstdlib>
 #include <string>
 
 namespace oegw::subdevices::sim {
@@ -65,7 +66,7 @@ std::optional<std::size_t> ElobauMfgSim::axis_index(std::string_view name) {
 }
 
 ElobauMfgSim::ElobauMfgSim(FrameSink sink, ElobauMfgSimConfig config)
-    : SimulatedDevice(std::move(sink)), parameters_saved_(config.parameters_saved) {
+    : SimulatedDevice(std::move(sink)), parameters_saved_(config.parameters_saved), tpdo_on_change_(config.tpdo_on_change) {
   auto od = std::make_unique<ObjectDictionary>();
   build_od(*od, config);
   canopen::NodeConfig nc;
@@ -106,9 +107,20 @@ ElobauMfgSim::ElobauMfgSim(FrameSink sink, ElobauMfgSimConfig config)
     return SdoAbortCode::None;
   });
   // After every reset the dictionary holds defaults: put the inputs back (the device keeps
-  // reading its sensors).
+  // reading its sensors). A restart (power-on, reset node, reset communication) re-checks the
+  // parameters: never saved, 0002h is set again (Table 6 "until first parameter saving process");
+  // saved since, it is over.
   node().on_state_change = [this](NmtState s) {
-    if (s == NmtState::PreOperational) publish();
+    if (s != NmtState::PreOperational || last_state_ != NmtState::Initialisation) {
+      last_state_ = s;
+      if (s == NmtState::PreOperational) publish();
+      return;
+    }
+    last_state_ = s;
+    publish();
+    if (parameters_saved_ && errors_.erase(0x0002) != 0) publish();
+    refresh_error_code();
+    if (!parameters_saved_) raise_error(0x0002, node().nmt().last_transition());
   };
   publish();
 }
@@ -240,7 +252,7 @@ void ElobauMfgSim::publish() {
       } else if (faults_[a][ch] == Fault::Error || (substitute && errors_.contains(static_cast<std::uint16_t>(base + ch)))) {
         out = err;
       }
-      (void)d.set<std::int8_t>(idx, static_cast<std::uint8_t>(0x20 + ch), static_cast<std::int8_t>(out));
+      put(idx, static_cast<std::uint8_t>(0x20 + ch), static_cast<std::uint8_t>(static_cast<std::int8_t>(out)));
       // Raw ADC value (mV) by Table 10, roughly: 2500 mV at 0 %, 4400/600 mV at ±100 %.
       (void)d.set<std::uint16_t>(idx, static_cast<std::uint8_t>(0x02 + ch),
                                  static_cast<std::uint16_t>(std::clamp(2500 + physical_[a] * 19, 0, 5000)));
@@ -262,8 +274,20 @@ void ElobauMfgSim::publish() {
   }
   (void)d.set<std::uint8_t>(kButtons, 0x03, static_cast<std::uint8_t>(buttons_));
   (void)d.set<std::uint8_t>(kButtons, 0x04, static_cast<std::uint8_t>(buttons_ >> 8));
-  (void)d.set<std::uint8_t>(kButtons, 0x10, static_cast<std::uint8_t>(out));
-  (void)d.set<std::uint8_t>(kButtons, 0x11, static_cast<std::uint8_t>(out >> 8));
+  put(kButtons, 0x10, static_cast<std::uint8_t>(out));
+  put(kButtons, 0x11, static_cast<std::uint8_t>(out >> 8));
+}
+
+void ElobauMfgSim::put(std::uint16_t index, std::uint8_t sub, std::uint8_t raw) {
+  if (tpdo_on_change_) {
+    (void)od().set<std::uint8_t>(index, sub, raw);  // an application event: the TPDO goes out
+  } else if (canopen::SubObject* s = od().find(index, sub)) {
+    s->value = {raw};  // sampled by the event timer only
+  }
+}
+
+void ElobauMfgSim::refresh_error_code() {
+  (void)od().set<std::uint16_t>(kErrorCode, 0, errors_.empty() ? std::uint16_t{0} : *errors_.rbegin());
 }
 
 void ElobauMfgSim::apply_led_byte(std::uint8_t sub, std::uint8_t byte) {
@@ -301,6 +325,43 @@ bool ElobauMfgSim::move_axis(std::string_view axis, int percent, int channel2_of
   offset2_[*a] = channel2_offset;
   publish();
   return true;
+}
+
+std::optional<int> ElobauMfgSim::apply_voltage(std::string_view axis, int millivolts) {
+  const auto a = axis_index(axis);
+  if (!a) return std::nullopt;
+  const auto idx = static_cast<std::uint16_t>(kAxis + *a);
+  std::array<int, 10> x{}, y{};
+  for (std::uint8_t p = 0; p < 10; ++p) {
+    x[p] = od().get<std::uint16_t>(idx, static_cast<std::uint8_t>(0x06 + 2 * p));
+    y[p] = od().get<std::int8_t>(idx, static_cast<std::uint8_t>(0x07 + 2 * p));
+  }
+  const bool out_of_range = millivolts < x[0] || millivolts > x[9];
+  faults_[*a] = {out_of_range ? Fault::Error : Fault::None, out_of_range ? Fault::Error : Fault::None};
+  if (out_of_range) {
+    publish();
+    return std::nullopt;
+  }
+  int percent = y[9];
+  for (std::size_t p = 0; p + 1 < 10; ++p) {
+    if (millivolts < x[p] || millivolts > x[p + 1]) continue;
+    const bool to_detent = std::abs(y[p + 1]) > 100 && std::abs(y[p]) <= 100;    // e.g. X8 -> X9
+    const bool from_detent = std::abs(y[p]) > 100 && std::abs(y[p + 1]) <= 100;  // e.g. X2 -> X3
+    if (to_detent) {
+      percent = millivolts >= x[p + 1] ? y[p + 1] : y[p];  // the jump at X9
+    } else if (from_detent) {
+      percent = millivolts <= x[p] ? y[p] : y[p + 1];      // the jump at X2
+    } else if (x[p + 1] == x[p]) {
+      percent = y[p];
+    } else {
+      percent = y[p] + (y[p + 1] - y[p]) * (millivolts - x[p]) / (x[p + 1] - x[p]);
+    }
+    break;
+  }
+  physical_[*a] = percent;
+  offset2_[*a] = 0;
+  publish();
+  return percent;
 }
 
 bool ElobauMfgSim::inject(std::string_view axis, Fault fault, int channel) {
@@ -383,14 +444,14 @@ void ElobauMfgSim::start(TimePoint now) {
   leds_.fill(0);
   arm_zero_rule();
   publish();
-  SimulatedDevice::start(now);
-  if (!parameters_saved_) raise_error(0x0002, now);  // Table 6: until the first saving
+  last_state_ = NmtState::Initialisation;
+  SimulatedDevice::start(now);  // 0002h, until the first saving: on_state_change
   if (od().get<std::uint8_t>(kAutoStart, 0) == 1) node().nmt().enter(NmtState::Operational, now);
 }
 
 void ElobauMfgSim::reboot(TimePoint now) {
+  last_state_ = NmtState::Initialisation;
   SimulatedDevice::reboot(now);
-  if (!parameters_saved_) raise_error(0x0002, now);
   if (od().get<std::uint8_t>(kAutoStart, 0) == 1) node().nmt().enter(NmtState::Operational, now);
 }
 

@@ -12,8 +12,11 @@
 //     5001h, 5999h. 1010h/1011h exist when a store path is given. Extra objects the Node adds
 //     (1001h, 1003h, 1015h, 1029h, 1010h:02/03) are not in the document.
 //   * TPDO #0 (180h+id, Table 7) and TPDO #1 (280h+id, Table 8): transmission type 254, event
-//     timer 100 ms, sent when entering Operational, on every change of their data, and cyclically.
-//     The 5 ms coding cycle is not modelled: a change is visible at the next advance().
+//     timer 100 ms, sent when entering Operational and cyclically; Table 14's "transmission event
+//     is manufacturer specific, i.e. event timer" leaves open whether a change is an event too:
+//     the corner `tpdo` (change: on every change of their data as well, the default; timer: on the
+//     event timer only). The 5 ms coding cycle is not modelled: a change is visible at the next
+//     advance().
 //   * Channel availability 20xxh:01h (0 none, 1 signal 1, 2 signal 2, 3 both): a missing channel
 //     carries the not-available value 1Ch. Buttons not enabled in 2100h:01h/02h carry 2100h:0Ah.
 //   * RPDO #0 (200h+id, Table 9) -> LED states by Table 13 (11 = no change honoured); a LED is
@@ -30,7 +33,11 @@
 //   * 5999h (§7): :01 baud rate (20, 50, 125, 250, 500, 800, 1000 only), :02 node-ID (becomes
 //     active at the next reset communication, like LSS), :03 "save" = 1010h:01 "save".
 //   * 5000h = 1: operational by itself after power-on.
-//   * Parameter checksum error 0002h until the parameters were first saved (config flag).
+//   * Parameter checksum error 0002h until the parameters were first saved (config flag; corner
+//     `saved`): raised at every power-on and reset node while unsaved; a 1010h:01 / 5999h:03
+//     "save" ends it at the next restart (§8 "Restart the joystick after saving procedure").
+//     4001h shows the highest active code (Table 14 holds one code; which one, the document does
+//     not say) and is kept across resets.
 //   Not modelled: the 5 ms coding cycle, filter/debounce, the transformation from raw voltages
 //   (axes are moved in percent), button timeout monitoring 2100h:08h (raise_error(61h..6Bh)
 //   scripts it), the LED message timeout ("function not implemented"), 599Ah.
@@ -59,6 +66,8 @@ struct ElobauMfgSimConfig {
   // Table 6 0002h "is also set until first parameter saving process": false = a grip whose
   // parameters were never saved raises it at every power-on until 1010h:01 (or 5999h:03) "save".
   bool parameters_saved = true;
+  // TPDO #0/#1 also on every change (true), or on the event timer only (false; oegw-sim tpdo=timer).
+  bool tpdo_on_change = true;
 };
 
 class ElobauMfgSim : public SimulatedDevice {
@@ -80,6 +89,14 @@ class ElobauMfgSim : public SimulatedDevice {
   // Axes by signal name: "x", "y", "wheel_a", "wheel_b", "wheel_c". `percent` is the physical
   // deflection (-110..110); channel 2 reads percent + offset (a mismatch). False for a bad name.
   bool move_axis(std::string_view axis, int percent, int channel2_offset = 0);
+  // The axis at an input voltage (0..5000 mV, §15.1 "Input value range (X): 0...5V"), through its
+  // transformation function 20xxh:06h..19h (X1..X10 in mV, Y1..Y10 in %, Tables 10/11):
+  // linear between neighbouring points, except that the step to a detent (±100 % to ±110 %,
+  // §15.1.2 "The detent function is a jump from 100% to 110%"; "X2 and X9 are used for detent
+  // detection") jumps at X9 / X2; below X1 or above X10 the signal is out of range ("X1 and X10
+  // are also used for error detection"): the error value 1Bh. Both channels. Returns the percent
+  // sent (or nullopt for out of range).
+  std::optional<int> apply_voltage(std::string_view axis, int millivolts);
   // Forces an axis channel to the error value (126 by default) or the not-available value.
   // channel: 1, 2, or 0 = both.
   bool inject(std::string_view axis, Fault fault, int channel = 0);
@@ -120,6 +137,10 @@ class ElobauMfgSim : public SimulatedDevice {
   void apply_led_byte(std::uint8_t sub, std::uint8_t byte);
   void send_emcy(std::uint16_t code, std::uint16_t manufacturer, TimePoint now);
   void arm_zero_rule();
+  // Writes a TPDO-mapped value: as an application event (tpdo_on_change) or silently (the event
+  // timer sends it).
+  void put(std::uint16_t index, std::uint8_t sub, std::uint8_t raw);
+  void refresh_error_code();  // 4001h = the highest active code, 0 for none
 
   std::array<int, 5> physical_{};
   std::array<int, 5> offset2_{};
@@ -130,6 +151,8 @@ class ElobauMfgSim : public SimulatedDevice {
   std::set<std::uint16_t> errors_;
   std::uint16_t bus_off_count_ = 0;
   bool parameters_saved_ = true;
+  bool tpdo_on_change_ = true;
+  canopen::NmtState last_state_ = canopen::NmtState::Initialisation;
   canopen::Subscriptions subs_;  // last: released before the dictionary goes
 };
 

@@ -156,8 +156,10 @@ Mcb402Sim::Mcb402Sim(FrameSink sink, Mcb402SimConfig config) : SimulatedDevice(s
     auto* status = od().find(0x1002, 0);
     const std::uint32_t v = s == canopen::NmtState::Operational ? 0x80000000u : 0u;
     status->value = encode<std::uint32_t>(v);
-    // After a reset the dictionary holds its defaults: the pins are read again.
+    // After a reset the dictionary holds its defaults: the pins are read again, and 1001h shows
+    // what is still active (a reset does not mend a cable).
     refresh_inputs(true);
+    refresh_error_register();
   };
   subs_ += od().add_observer([this](std::uint16_t index, std::uint8_t, Origin origin) {
     if (origin == Origin::Sdo && (index == 0x6002 || index == 0x6431)) refresh_inputs(true);
@@ -254,13 +256,44 @@ void Mcb402Sim::cable_break(std::size_t axis, bool broken, TimePoint now) {
   broken_ = static_cast<std::uint8_t>(broken ? (broken_ | bit) : (broken_ & ~bit));
   refresh_inputs(true);
   if (broken_ == before) return;
-  auto& emcy = node().emcy();
-  if (emcy.active(co4013::kEmcyCableBreak)) emcy.clear(co4013::kEmcyCableBreak, now);
-  // "20 31 81 00 8x 00 00 00": 1001h = generic + device error (bit 7); byte 4 = 80h | axes.
-  if (broken_ != 0)
-    emcy.raise(co4013::kEmcyCableBreak, 0x80,
-               canopen::EmcyManufacturerField{0x00, static_cast<std::uint8_t>(0x80 | broken_), 0, 0, 0}, now);
+  refresh_error_register();
+  // "20 31 81 00 8x 00 00 00": 1001h in byte 2, byte 4 = 80h | the broken axes (ORed). The last
+  // one mended: the error reset, or nothing (clear_with_error_reset).
+  if (broken_ != 0) {
+    send_emcy(co4013::kEmcyCableBreak, static_cast<std::uint8_t>(0x80 | broken_));
+  } else if (cfg_.clear_with_error_reset) {
+    send_emcy(0x0000, 0x00);
+  }
   node().advance(now);
+}
+
+std::uint8_t Mcb402Sim::error_register() const { return dict_->get<std::uint8_t>(0x1001, 0); }
+
+void Mcb402Sim::refresh_error_register() {
+  std::uint8_t reg = broken_ != 0 ? co4013::kRegisterDeviceError : 0x00;
+  if (communication_bits_) reg |= co4013::kRegisterCommunication;
+  if (canopen::SubObject* s = od().find(0x1001, 0)) s->value = {reg};
+}
+
+void Mcb402Sim::send_emcy(std::uint16_t code, std::uint8_t byte4) {
+  // [CO4013 "Emergency Messages"]: "EMY-Code | 1001 | 0 | CO4011-Code"; the ID is fixed to
+  // 80h + node-ID. Sent in pre-operational and operational (CiA 301 §7.2.7).
+  const canopen::NmtState st = node().state();
+  if (st != canopen::NmtState::PreOperational && st != canopen::NmtState::Operational) return;
+  out()(CanFrame(canopen::cob::kEmcy + cfg_.node_id.value(),
+                 {static_cast<std::uint8_t>(code), static_cast<std::uint8_t>(code >> 8), error_register(), 0x00, byte4,
+                  0x00, 0x00, 0x00}));
+}
+
+void Mcb402Sim::send_can_warning(std::uint16_t code, TimePoint /*now*/) {
+  // "00 81 11", "30 81 11", "40 81 11": byte 2 = 1001h with bits 0 and 4 as the frame is sent;
+  // afterwards 1001h keeps them or not (keep_communication_bits: the document shows no reset).
+  const std::uint8_t kept = error_register();
+  if (canopen::SubObject* s = od().find(0x1001, 0))
+    s->value = {static_cast<std::uint8_t>(kept | co4013::kRegisterCommunication)};
+  send_emcy(code, 0x00);
+  communication_bits_ = communication_bits_ || cfg_.keep_communication_bits;
+  refresh_error_register();
 }
 
 std::uint8_t Mcb402Sim::leds() const {
@@ -275,25 +308,25 @@ std::uint8_t Mcb402Sim::leds() const {
   return static_cast<std::uint8_t>(v & 0x0F);
 }
 
-void Mcb402Sim::on_power_cycle(TimePoint /*now*/) { device_error_ = false; }
+void Mcb402Sim::on_power_cycle(TimePoint /*now*/) {
+  device_error_ = false;
+  communication_bits_ = false;
+}
 
+// [MCB §4] "At the power on, MCB402 writes on the bus: 703 00 ... 083 00 81 11 0": the [CO4013
+// "Emergency Messages"] "CAN Bus in Error Warning state" frame 00 81 11 00 00 00 00 00 (1001h =
+// 11h, generic + communication). A board that comes up with a broken cable shows it in 1001h
+// (bit 7) without repeating the 3120h.
 void Mcb402Sim::start(TimePoint now) {
   SimulatedDevice::start(now);
-  send_power_on_warning();
+  refresh_error_register();
+  send_can_warning(co4013::kEmcyCanWarning, now);
 }
 
 void Mcb402Sim::reboot(TimePoint now) {
   SimulatedDevice::reboot(now);
-  send_power_on_warning();
-}
-
-void Mcb402Sim::send_power_on_warning() {
-  // [MCB §4] "At the power on, MCB402 writes on the bus: 703 00 ... 083 00 81 11 0": the
-  // [CO4013 "Emergency Messages"] "CAN Bus in Error Warning state" frame 00 81 11 00 00 00 00 00
-  // (1001h = 11h, generic + communication), sent as an event: the document shows no error reset
-  // after it, so 1001h and the active errors stay as they are.
-  const std::uint8_t id = cfg_.node_id.value();
-  out()(CanFrame(canopen::cob::kEmcy + id, {0x00, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00}));
+  refresh_error_register();
+  send_can_warning(co4013::kEmcyCanWarning, now);
 }
 
 }  // namespace oegw::subdevices::sim

@@ -23,14 +23,24 @@
 //   event timer 1801h:05 only ([MCB §4]: "we now set the timer events so that the MCB402 sends at
 //   regular intervals the value of the axis")
 //
-// Faults: cable_break(axis) raises EMCY 3120h "20 31 81 00 8x 00 00 00" (x = the OR of the broken
-// axes; the broken axis reads -32768, a floating wiper pulled to 0 V — the document does not say);
-// mending the last one clears it (error-reset EMCY 0000h). A change of the broken set while one
-// is active is sent as 0000h followed by the new 3120h (the core producer sends each code once).
-// device_error() forces the outputs as 6206h/6207h say (bus off, life guarding in the document).
-// A power cycle keeps what is broken (the board detects it again: 1001h bit 7 stays set, no EMCY
-// is repeated); a cable mended while the board is off (silent) shows as 1001h = 0 after it.
-// Power-on: EMCY 8100h after the boot-up (start(), reboot()), as the [MCB §4] trace.
+// Faults: cable_break(axis) sends EMCY 3120h "20 31 81 00 8x 00 00 00" (x = the OR of the broken
+// axes, [CO4013 "Emergency Messages"] "the bitmap ... combined with a logical or"; the broken
+// axis reads -32768, a floating wiper pulled to 0 V — the document does not say) and sets 1001h
+// bit 7 "device error" and bit 0 "generic" ([CO4013 Index 1001]). A change of the broken set
+// while one is active sends 3120h with the new set. Mending the last one clears bit 7 and, as the
+// corner `clear_after_break` says, sends the error reset 0000h (ErrorReset) or nothing (None: the
+// document's EMCY list has no reset, only 1001h shows it). device_error() forces the outputs as
+// 6206h/6207h say (bus off, life guarding in the document). A power cycle keeps what is broken
+// (the board detects it again: 1001h bit 7 stays set, no EMCY is repeated); a cable mended while
+// the board is off (silent) shows as bit 7 clear after it.
+// Power-on: EMCY 8100h after the boot-up (start(), reboot()), "00 81 11 ..." as the [MCB §4]
+// trace, byte 2 = 1001h with bits 0 and 4 ("generic", "CAN bus or communication error"); whether
+// 1001h keeps those bits afterwards the document does not say (corner `power_on_1001h`: 11h
+// held, or 00h). life_guarding() and bus_off_recovered() send the document's "30 81 11 ..." and
+// "40 81 11 ..." the same way.
+//
+// Corners (Mcb402SimConfig, oegw-sim options): wiring=, clear_after_break=0000h|none,
+// power_on_1001h=11h|00h (subdevices/README.md "Corners").
 #pragma once
 
 #include <array>
@@ -57,7 +67,18 @@ inline constexpr std::size_t kButtons = 7;                 // BP1..BP7 [MCB §4]
 // says otherwise (the table is damaged: a real board may differ, which is why the driver
 // takes the order from the mapping file only).
 using ButtonBits = std::array<std::uint8_t, kButtons>;
+// The table's two readings: its seven entries under the eight columns' left end (bit 7 = BP6,
+// bit 6 = BP7, bits 5..1 = BP5..BP1, bit 0 unused) or right end (bit 6 = BP6, bit 5 = BP7, bits
+// 4..0 = BP5..BP1, bit 7 unused). The simulated board is wired by the right-end reading unless
+// told otherwise: every example file carries the left-end one, so a test that pairs the two
+// without saying how its board is wired reports the wrong buttons.
 inline constexpr ButtonBits kPrintedTableBits{1, 2, 3, 4, 5, 7, 6};
+inline constexpr ButtonBits kRightAlignedBits{0, 1, 2, 3, 4, 6, 5};
+inline constexpr std::uint16_t kEmcyCanWarning = 0x8100;     // "00 81 11"
+inline constexpr std::uint16_t kEmcyLifeGuarding = 0x8130;   // "30 81 11"
+inline constexpr std::uint16_t kEmcyBusOffReturn = 0x8140;   // "40 81 11"
+inline constexpr std::uint8_t kRegisterDeviceError = 0x81;   // the cable break's byte 2
+inline constexpr std::uint8_t kRegisterCommunication = 0x11; // the CAN frames' byte 2
 // "1/2/3/4/5/7/6" or "1,2,3,4,5,7,6" -> the wiring of BP1..BP7; nullopt unless 7 distinct bits 0..7.
 std::optional<ButtonBits> parse_wiring(std::string_view text);
 }  // namespace co4013
@@ -67,8 +88,14 @@ struct Mcb402SimConfig {
   std::uint16_t kbaud = 250;  // 20, 50, 125, 250 or 500 [MCB §1]
   std::uint32_t revision = 1;
   std::uint16_t heartbeat_ms = 0;  // 1017h default (document: 0)
-  co4013::ButtonBits button_bits = co4013::kPrintedTableBits;  // oegw-sim option wiring=
+  co4013::ButtonBits button_bits = co4013::kRightAlignedBits;  // oegw-sim option wiring=
   std::filesystem::path store_path;  // empty: no 1010h/1011h
+  // Mending the last broken cable sends 0000h (true) or nothing, 1001h alone showing it (false;
+  // oegw-sim clear_after_break=none).
+  bool clear_with_error_reset = true;
+  // 1001h after the power-on warning (and the other CAN warnings): 11h kept, as the frame's byte 2
+  // (true; oegw-sim power_on_1001h=11h) or back to 00h (false).
+  bool keep_communication_bits = false;
 
   // [MCB §3] CN3 jumpers. Address pins 14,12,10,8,6,4,2 (bit 6 .. bit 0 of `address_pins`) and
   // bit-rate pins 20,18,16 (bit 2 .. bit 0 of `baud_pins`), 1 = open (pulled up), 0 = jumper:
@@ -108,6 +135,12 @@ class Mcb402Sim final : public SimulatedDevice {
   void cable_break(std::size_t axis, bool broken, TimePoint now);
   // A device error (bus off, life guarding) forcing the outputs per 6206h/6207h.
   void device_error(bool active) { device_error_ = active; }
+  // The controller's CAN warnings as [CO4013 "Emergency Messages"] lists them: "30 81 11 ..."
+  // (the master's guarding stopped) and "40 81 11 ..." (back from bus off).
+  void life_guarding(TimePoint now) { send_can_warning(co4013::kEmcyLifeGuarding, now); }
+  void bus_off_recovered(TimePoint now) { send_can_warning(co4013::kEmcyBusOffReturn, now); }
+  // 1001h as the board holds it now.
+  [[nodiscard]] std::uint8_t error_register() const;
 
   // What the output pins drive: bit i = OUT i LED lit (pin low), after 6202h polarity and the
   // error mode. led(n) for n = 1..4.
@@ -125,13 +158,17 @@ class Mcb402Sim final : public SimulatedDevice {
   [[nodiscard]] bool digital_interrupt(std::uint8_t before, std::uint8_t after, std::uint8_t sub) const;
   [[nodiscard]] bool analogue_interrupt(std::size_t axis, std::int16_t before, std::int16_t after) const;
   void on_power_cycle(TimePoint now) override;
-  void send_power_on_warning();
+  void send_can_warning(std::uint16_t code, TimePoint now);
+  // 1001h from what is active (the broken axes, the kept communication bits).
+  void refresh_error_register();
+  void send_emcy(std::uint16_t code, std::uint8_t byte4);
 
   Mcb402SimConfig cfg_;
   std::uint8_t pins_ = 0xFF;  // IN7..IN0 pin levels: pulled up
   std::array<std::int16_t, co4013::kAxes> axes_{};
   std::uint8_t broken_ = 0;
   bool device_error_ = false;
+  bool communication_bits_ = false;  // a CAN warning was sent and keep_communication_bits
   const canopen::ObjectDictionary* dict_ = nullptr;  // od(), for the const accessors
   canopen::Subscriptions subs_;  // declared last: released before the dictionary goes
 };

@@ -1,6 +1,12 @@
 #include "subdevices/sim/novotechnik_406_sim.hpp"
 
+#include <algorithm>
+#include <fstream>
 #include <memory>
+#include <sstream>
+
+#include "canopen/301/storage.hpp"
+#include "canopen/305/lss_store.hpp"
 
 #include "canopen/301/pdo.hpp"
 
@@ -78,6 +84,12 @@ Novotechnik406Sim::Novotechnik406Sim(FrameSink sink, Novotechnik406SimConfig con
     o->add_sub(std::move(s));
     if (canopen::SubObject* s0 = o->find(0)) s0->value = s0->default_value = {2};
   }
+  // §4.1 "1001 Error register Unsigned16": the corner error_register_size=2 replaces the core's
+  // UNSIGNED8 (the EMCY producer writes it width-aware, little endian: the CiA 301 bits low).
+  if (cfg_.error_register_bytes == 2) {
+    (void)this->od().remove(0x1001);
+    this->od().add_var(0x1001, "Error register", DataType::Unsigned16, Access::ReadOnly, encode<std::uint16_t>(0));
+  }
   install_hooks();
   install_startup_rule();
 }
@@ -107,7 +119,7 @@ void Novotechnik406Sim::build_od(ObjectDictionary& od) {
   od.find(0x2010, 2)->high = std::uint64_t{8};
   od.add_var(0x2100, "Position error reset", DataType::Boolean, Access::WriteOnly, {0});
   od.add_var(0x2101, "Power management", DataType::Boolean, Access::WriteOnly, {0});
-  od.add_var(0x2104, "EMCY behaviour", DataType::Unsigned8, Access::ReadWrite, {0});
+  od.add_var(0x2104, "EMCY behaviour", DataType::Unsigned8, Access::ReadWrite, {cfg_.emcy_behaviour});
   od.find(0x2104, 0)->high = std::uint64_t{3};
 
   // §4.2 device profile.
@@ -124,8 +136,9 @@ void Novotechnik406Sim::build_od(ObjectDictionary& od) {
   od.add_var(0x6003, "Preset value", DataType::Unsigned32, Access::ReadWrite, encode<std::uint32_t>(0));
   od.add_var(0x6004, "Position value", DataType::Integer32, Access::ReadOnly, encode<std::int32_t>(0), true);
   od.add_var(0x600C, "Position raw value", DataType::Unsigned32, Access::ReadOnly, encode<std::uint32_t>(0), true);
-  od.add_array(0x6020, "Position value channel", DataType::Integer32, Access::ReadOnly, 1, encode<std::int32_t>(0),
-               true);
+  if (cfg_.has_6020h)
+    od.add_array(0x6020, "Position value channel", DataType::Integer32, Access::ReadOnly, 1, encode<std::int32_t>(0),
+                 true);
   od.add_array(0x6030, "Speed value", DataType::Integer16, Access::ReadOnly, 1, encode<std::int16_t>(0), true);
   od.add_array(0x6031, "Speed parameter", DataType::Unsigned8, Access::ReadWrite, 1, {2});
   od.add_record_member(0x6031, 2, "Speed integration time", DataType::Unsigned16, Access::ReadWrite,
@@ -170,8 +183,9 @@ void Novotechnik406Sim::build_od(ObjectDictionary& od) {
   od.add_var(0x650D, "Absolute accuracy", DataType::Unsigned8, Access::ReadOnly, {0x10});
   od.add_var(0x650E, "Device capability", DataType::Unsigned16, Access::ReadOnly, encode<std::uint16_t>(0x0003));
 
-  // §4.1 TPDOs: default mapping 60200120h (position ch. 1) + 60300110h (speed ch. 1).
-  const std::vector<std::uint32_t> mapping = {0x60200120, 0x60300110};
+  // §4.1 TPDOs: default mapping 60200120h (position ch. 1) + 60300110h (speed ch. 1); without
+  // 6020h (§4.2's list has none) the position object 6004h, 32 bit.
+  const std::vector<std::uint32_t> mapping = {cfg_.has_6020h ? 0x60200120u : 0x60040020u, 0x60300110};
   canopen::install_tpdo(od, 1,
                         canopen::PdoParameters{.cob_id = 0x40000000u | (0x180u + id),
                                                .transmission_type = 0xFE,
@@ -287,7 +301,7 @@ void Novotechnik406Sim::publish(TimePoint now) {
   }
   // Direct assignment: no "change" event, so type 254 keeps to its event timer.
   set_raw(d, 0x6004, 0, raw);
-  set_raw(d, 0x6020, 1, raw);
+  set_raw(d, 0x6020, 1, raw);  // nothing when the corner has no 6020h
   set_raw(d, 0x600C, 0, raw);
   set_raw(d, 0x6030, 1, static_cast<std::uint16_t>(speed));
   if (canopen::Tpdo* t = node().pdo().tpdo(1); t != nullptr && t->transmission_type() == 0xFF && t->active())
@@ -427,7 +441,13 @@ void Novotechnik406Sim::update_cams_and_work_area(TimePoint now) {
   const std::uint8_t old_area = d.get<std::uint8_t>(0x6400, 1);
   if (area != old_area) {
     set_raw(d, 0x6400, 1, area);
-    send_emcy(0x9090, 1, 0, {0, 0, 0, area}, now, "Warn");
+    // §9.1 9090h: "State is coded according to 0x6400", or the row's list "0: Valid Work Area,
+    // 1: WorkArea underflow, 2: WorkArea overflow" (which has no code for "out of range" alone).
+    const std::uint8_t coded = cfg_.work_area_bits ? area
+                               : (area & 0x04) != 0 ? std::uint8_t{1}
+                               : (area & 0x02) != 0 ? std::uint8_t{2}
+                                                    : std::uint8_t{0};
+    send_emcy(0x9090, 1, 0, {0, 0, 0, coded}, now, "Warn");
   }
 }
 
@@ -472,6 +492,138 @@ canopen::SdoAbortCode Novotechnik406Sim::refuse_download(std::uint16_t index, st
                                                          NmtState state) const {
   if (state != NmtState::Operational) return SdoAbortCode::None;
   if (index == 0x1A00 || index == 0x1A01 || index == 0x1010) return SdoAbortCode::CannotTransferDeviceState;
+  return SdoAbortCode::None;
+}
+
+namespace {
+
+using ParameterKey = canopen::ParameterStore::Key;
+constexpr std::uint32_t kSave = 0x65766173;  // "save"
+constexpr std::uint32_t kLoad = 0x64616F6C;  // "load"
+constexpr std::uint32_t kKill = 0x6C6C696B;  // "kill", §11
+
+// §11's table, by column: the objects "save" stores in group 2 (communication) and 3
+// (application); group 1 (all) is both; group 4 (user data) is node-ID 2000h and bit rate 2001h.
+// COB-ID SYNC (1005h) has a row without any mark: in no group. The condition-monitoring settings
+// (230Ah, 233Ah, 235Ah, 236Ah) are not simulated.
+bool in_group(std::uint8_t group, std::uint16_t index) {
+  static constexpr std::uint16_t kCommunication[] = {0x100C, 0x100D, 0x1017, 0x1029, 0x1800, 0x1801,
+                                                     0x1A00, 0x1A01, 0x1F80, 0x2010, 0x2104};
+  const bool comm = std::find(std::begin(kCommunication), std::end(kCommunication), index) != std::end(kCommunication);
+  const bool app = (index >= 0x6000 && index <= 0x6003) || index == 0x6301 || index == 0x6302 ||
+                   (index >= 0x6310 && index <= 0x6333) || index == 0x6401 || index == 0x6402;
+  switch (group) {
+    case 1: return comm || app;
+    case 2: return comm;
+    case 3: return app;
+    default: return false;
+  }
+}
+
+}  // namespace
+
+std::optional<canopen::SdoAbortCode> Novotechnik406Sim::handle_download(std::uint16_t index, std::uint8_t sub,
+                                                                        std::span<const std::uint8_t> data) {
+  if ((index != 0x1010 && index != 0x1011) || sub == 0) return std::nullopt;
+  if (data.size() != 4) return SdoAbortCode::CannotTransfer;
+  const std::uint32_t v = u32(data);
+  if (index == 0x1010 && sub == 5) return v == kSave ? SdoAbortCode::None : SdoAbortCode::CannotTransfer;
+  if (sub > 4) return SdoAbortCode::SubIndexDoesNotExist;
+  if (index == 0x1010 && v == kSave) return save_group(sub);
+  if (index == 0x1010 && v == kKill) return forget_group(sub, true);
+  if (index == 0x1011 && v == kLoad) return cfg_.load_restores_defaults ? forget_group(sub, false) : load_group(sub);
+  return SdoAbortCode::CannotTransfer;  // §7.3 0800 0020h: a wrong signature
+}
+
+canopen::SdoAbortCode Novotechnik406Sim::save_group(std::uint8_t group) {
+  if (cfg_.store_path.empty()) return SdoAbortCode::HardwareError;  // §7.3 0606 0000h access error
+  std::string error;
+  if (group == 4) {
+    // §7.1: 2000h / 2001h become effective "after a communication restart or a power up".
+    std::uint8_t bt = 3;
+    switch (od().get<std::uint16_t>(0x2001, 0)) {
+      case 1000: bt = 0; break;
+      case 800: bt = 1; break;
+      case 500: bt = 2; break;
+      case 125: bt = 4; break;
+      case 50: bt = 6; break;
+      default: break;
+    }
+    const canopen::LssStored stored{NodeId{od().get<std::uint8_t>(0x2000, 0)}, bt};
+    return canopen::write_lss_store(cfg_.store_path, stored, error) ? SdoAbortCode::None : SdoAbortCode::HardwareError;
+  }
+  canopen::ParameterStore::Entries entries;
+  if (std::ifstream in(cfg_.store_path); in) {
+    std::ostringstream text;
+    text << in.rdbuf();
+    if (auto parsed = canopen::ParameterStore::parse(text.str(), error)) entries = std::move(*parsed);
+  }
+  for (const auto& [index, obj] : od().objects()) {
+    if (!in_group(group, index)) continue;
+    for (const auto& [si, so] : obj.subs()) {
+      // Sub-index 0 of an ARRAY or RECORD is its count; a VAR's value is sub-index 0.
+      if ((si == 0 && obj.subs().size() > 1) || !canopen::writable(so.access)) continue;
+      // §11: "save all" sets the TPDO COB-IDs to their default values ("D").
+      const bool as_default = group == 1 && (index == 0x1800 || index == 0x1801) && si == 1;
+      entries[{index, si}] = as_default ? so.default_value : so.value;
+    }
+  }
+  return canopen::write_file_atomically(cfg_.store_path, canopen::ParameterStore::serialize(entries), error)
+             ? SdoAbortCode::None
+             : SdoAbortCode::HardwareError;
+}
+
+canopen::SdoAbortCode Novotechnik406Sim::forget_group(std::uint8_t group, bool defaults_now) {
+  if (cfg_.store_path.empty()) return SdoAbortCode::HardwareError;
+  std::string error;
+  if (group == 4 || group == 1) {
+    // User data: the LSS-like store goes (group 1 "all" too: the kill "deletes data in the
+    // non-volatile memory"); the factory node-ID and bit rate are "retained" (§11).
+    std::error_code ec;
+    std::filesystem::remove(canopen::lss_store_path(cfg_.store_path), ec);
+    if (group == 4) {
+      // The factory node-ID at the next reset (a stored one was made active by the last start).
+      node().nmt().set_pending_node_id(cfg_.node_id);
+      if (defaults_now) {
+        set_raw(od(), 0x2000, 0, cfg_.node_id.value());
+        set_raw(od(), 0x2001, 0, cfg_.bit_rate_kbit);
+      }
+      return SdoAbortCode::None;
+    }
+  }
+  canopen::ParameterStore::Entries entries;
+  if (std::ifstream in(cfg_.store_path); in) {
+    std::ostringstream text;
+    text << in.rdbuf();
+    if (auto parsed = canopen::ParameterStore::parse(text.str(), error)) entries = std::move(*parsed);
+  }
+  std::erase_if(entries, [group](const auto& e) { return in_group(group, e.first.first); });
+  if (!canopen::write_file_atomically(cfg_.store_path, canopen::ParameterStore::serialize(entries), error))
+    return SdoAbortCode::HardwareError;
+  if (defaults_now) {
+    std::vector<std::pair<ParameterKey, std::vector<std::uint8_t>>> back;
+    for (const auto& [index, obj] : od().objects()) {
+      if (!in_group(group, index)) continue;
+      for (const auto& [si, so] : obj.subs())
+        if ((si != 0 || obj.subs().size() == 1) && canopen::writable(so.access) && so.value != so.default_value)
+          back.push_back({{index, si}, so.default_value});
+    }
+    for (const auto& [key, value] : back) (void)od().write(key.first, key.second, value, Origin::Local);
+  }
+  return SdoAbortCode::None;
+}
+
+canopen::SdoAbortCode Novotechnik406Sim::load_group(std::uint8_t group) {
+  if (cfg_.store_path.empty()) return SdoAbortCode::HardwareError;
+  std::string error;
+  std::ifstream in(cfg_.store_path);
+  if (!in) return SdoAbortCode::None;  // nothing stored: nothing to load
+  std::ostringstream text;
+  text << in.rdbuf();
+  const auto entries = canopen::ParameterStore::parse(text.str(), error);
+  if (!entries) return SdoAbortCode::HardwareError;
+  for (const auto& [key, value] : *entries)
+    if (in_group(group, key.first)) (void)od().write(key.first, key.second, value, Origin::Local);
   return SdoAbortCode::None;
 }
 

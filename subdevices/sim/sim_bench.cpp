@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <numbers>
 #include <optional>
 #include <sstream>
 
+#include "subdevices/sim/elobau_mfg_sim.hpp"
 #include "subdevices/sim/mcb402_sim.hpp"
 #include "subdevices/sim/novotechnik_406_sim.hpp"
 #include "subdevices/sim/sim_registry.hpp"
@@ -32,11 +34,10 @@ bool SimBench::add(const DeviceSpec& spec, std::string& error) {
       return false;
     }
   }
-  // The simulator takes only its own options; the driver (for the signal list) the family's.
+  // The simulator takes its own options; the driver (for the signal list) only the EDS of a
+  // generic node (its signals come from it).
   DeviceSpec driver_spec = sim_spec;
-  std::erase_if(driver_spec.options.values, [](const auto& kv) {
-    return kv.first == "heartbeat_ms" || kv.first == "store" || kv.first == "wiring";
-  });
+  std::erase_if(driver_spec.options.values, [](const auto& kv) { return kv.first != "eds"; });
   auto sim = make_simulator(sim_spec, sink_, error);
   if (!sim) return false;
   // The MCB-402 driver requires the button bit order; its signal names do not depend on it, and
@@ -130,6 +131,27 @@ std::vector<std::string> SimBench::names() const {
   return out;
 }
 
+namespace {
+
+struct NumberAndState {
+  long number;
+  bool on;
+};
+
+// The "<number> on|off" of a command ("left_grip cable_break 1 on", "grip error 0x61 off"): `value`
+// (decimal or 0x hex) within lo..hi, then the state read from `in`; nullopt otherwise.
+std::optional<NumberAndState> number_and_state(const std::string& value, std::istream& in, long lo, long hi) {
+  std::string state;
+  in >> state;
+  char* end = nullptr;
+  const long number = std::strtol(value.c_str(), &end, 0);
+  if (value.empty() || *end != '\0' || number < lo || number > hi || (state != "on" && state != "off"))
+    return std::nullopt;
+  return NumberAndState{number, state == "on"};
+}
+
+}  // namespace
+
 std::string SimBench::command(std::string_view line, TimePoint now) {
   std::istringstream in{std::string(line)};
   std::string name, what, value;
@@ -156,14 +178,35 @@ std::string SimBench::command(std::string_view line, TimePoint now) {
   if (what == "cable_break") {
     // MCB-402 only: axis 1..4 cable broken / mended (EMCY 3120h and its error reset).
     auto* mcb = dynamic_cast<Mcb402Sim*>(d);
-    std::string state;
-    in >> state;
-    const long axis = std::strtol(value.c_str(), nullptr, 10);
     if (mcb == nullptr) return "error: " + name + " is no MCB-402: cable_break is an MCB-402 fault";
-    if (axis < 1 || axis > 4 || (state != "on" && state != "off"))
-      return "error: expected <device> cable_break <axis 1..4> on|off";
-    mcb->cable_break(static_cast<std::size_t>(axis), state == "on", now);
-    return "ok " + name + " cable_break " + value + " " + state;
+    const auto axis = number_and_state(value, in, 1, 4);
+    if (!axis) return "error: expected <device> cable_break <axis 1..4> on|off";
+    mcb->cable_break(static_cast<std::size_t>(axis->number), axis->on, now);
+    return "ok " + name + " cable_break " + value + (axis->on ? " on" : " off");
+  }
+  if (what == "bus_off" || what == "life_guarding") {
+    // The documents' CAN warnings: elobau §12.4 8140h (with the zero-position rule, §4); MCB-402
+    // "40 81 11 ..." / "30 81 11 ..." ([CO4013 "Emergency Messages"]).
+    if (auto* mcb = dynamic_cast<Mcb402Sim*>(d)) {
+      if (what == "bus_off") mcb->bus_off_recovered(now);
+      else mcb->life_guarding(now);
+      return "ok " + name + " " + what;
+    }
+    if (auto* grip = dynamic_cast<ElobauMfgSim*>(d); grip && what == "bus_off") {
+      grip->bus_off(now);
+      return "ok " + name + " bus_off";
+    }
+    return "error: " + what + " is an MCB-402 (bus_off, life_guarding) or elobau (bus_off) command";
+  }
+  if (what == "error") {
+    // elobau only: a Table 6 manufacturer error (4001h) raised or cleared, e.g. "grip error 0x61 on".
+    auto* grip = dynamic_cast<ElobauMfgSim*>(d);
+    if (grip == nullptr) return "error: " + name + " is no elobau grip: error is an elobau command";
+    const auto code = number_and_state(value, in, 1, 0xFFFF);
+    if (!code) return "error: expected <device> error <4001h code, e.g. 0x61> on|off";
+    if (code->on) grip->raise_error(static_cast<std::uint16_t>(code->number), now);
+    else grip->clear_error(static_cast<std::uint16_t>(code->number), now);
+    return "ok " + name + " error " + value + (code->on ? " on" : " off");
   }
   if (what == "fault") {
     // Novotechnik only: a §9.1 position fault, or its clearing (measurement / hardware faults:

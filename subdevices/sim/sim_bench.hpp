@@ -8,6 +8,9 @@
 //   <device> pdo on|off           TPDOs stop / resume (heartbeat, SDO, EMCY go on)
 //   <device> reboot               power cycle
 //   <device> cable_break N on|off MCB-402: axis N (1..4) cable broken / mended (EMCY 3120h)
+//   <device> bus_off              MCB-402 "40 81 11 ...", elobau 8140h (a bus off recovered)
+//   <device> life_guarding        MCB-402 "30 81 11 ..."
+//   <device> error CODE on|off    elobau: Table 6 manufacturer error CODE (e.g. 0x61) raised / cleared
 //   <device> fault KIND           Novotechnik: measurement|overflow|underflow|hardware (§9.1
 //                                 EMCY and marker position) or clear (out of range: 2100h only)
 // Device names are the spec's "name=" option, else family@node ("elobau-mfg@11h").

@@ -97,11 +97,11 @@ bool SimulatedDevice::is_tpdo(const CanFrame& frame) const {
 bool SimulatedDevice::on_frame(const CanFrame& frame, TimePoint now) {
   now_ = now;
   if (silent_) return false;
-  if (refused_in_state(frame)) return true;
+  if (intercepted(frame)) return true;
   return node_->on_frame(frame, now);
 }
 
-bool SimulatedDevice::refused_in_state(const CanFrame& frame) {
+bool SimulatedDevice::intercepted(const CanFrame& frame) {
   const canopen::NmtState state = node_->state();
   // SDO is served in pre-operational and operational only (CiA 301 §7.3.2.2.1, Table 47).
   if (state != canopen::NmtState::PreOperational && state != canopen::NmtState::Operational) return false;
@@ -114,16 +114,26 @@ bool SimulatedDevice::refused_in_state(const CanFrame& frame) {
   if (ccs != 1 && !(ccs == 6 && (frame.data[0] & 0x01) == 0)) return false;
   const auto index = static_cast<std::uint16_t>(frame.data[1] | (frame.data[2] << 8));
   const std::uint8_t sub = frame.data[3];
-  const canopen::SdoAbortCode code = refuse_download(index, sub, state);
-  if (code == canopen::SdoAbortCode::None) return false;
+  canopen::SdoAbortCode code = refuse_download(index, sub, state);
+  if (code == canopen::SdoAbortCode::None) {
+    // Expedited (e = 1): bytes 4..7, of which 4 - n when the size is indicated (s = 1).
+    const bool expedited = ccs == 1 && (frame.data[0] & 0x02) != 0;
+    if (!expedited) return false;
+    const std::size_t n = (frame.data[0] & 0x01) != 0 ? 4u - ((frame.data[0] >> 2) & 0x03) : 4u;
+    const auto handled = handle_download(index, sub, std::span<const std::uint8_t>(&frame.data[4], n));
+    if (!handled) return false;
+    code = *handled;
+  }
   const canopen::CobId tx{od_->get<std::uint32_t>(0x1200, 2)};
-  CanFrame abort;
-  abort.id = tx.can_id();
-  abort.dlc = 8;
+  CanFrame answer;
+  answer.id = tx.can_id();
+  answer.dlc = 8;
   const auto c = static_cast<std::uint32_t>(code);
-  abort.data = {0x80, frame.data[1], frame.data[2], sub, static_cast<std::uint8_t>(c), static_cast<std::uint8_t>(c >> 8),
-                static_cast<std::uint8_t>(c >> 16), static_cast<std::uint8_t>(c >> 24)};
-  send(abort);
+  // 60h = initiate download response; 80h = abort with the code in bytes 4..7.
+  answer.data = {static_cast<std::uint8_t>(code == canopen::SdoAbortCode::None ? 0x60 : 0x80), frame.data[1],
+                 frame.data[2], sub, static_cast<std::uint8_t>(c), static_cast<std::uint8_t>(c >> 8),
+                 static_cast<std::uint8_t>(c >> 16), static_cast<std::uint8_t>(c >> 24)};
+  send(answer);
   return true;
 }
 

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <deque>
+#include <span>
 #include <memory>
 #include <optional>
 #include <cstdint>
@@ -103,6 +104,15 @@ class SimulatedDevice {
                                                               canopen::NmtState /*state*/) const {
     return canopen::SdoAbortCode::None;
   }
+  // An expedited SDO download the device handles itself, outside the dictionary (e.g. a
+  // manufacturer's store groups and signatures on 1010h): nullopt passes it on to the dictionary;
+  // None answers the download as done (CiA 301 §7.2.4.3.3 initiate download response), any
+  // other code aborts it. Asked after refuse_download().
+  [[nodiscard]] virtual std::optional<canopen::SdoAbortCode> handle_download(std::uint16_t /*index*/,
+                                                                             std::uint8_t /*sub*/,
+                                                                             std::span<const std::uint8_t> /*data*/) {
+    return std::nullopt;
+  }
 
  private:
   void send(const CanFrame& frame);
@@ -111,7 +121,7 @@ class SimulatedDevice {
   [[nodiscard]] bool is_tpdo(const CanFrame& frame) const;
   // The valid COB-IDs in sub-index 01h of the PDO communication parameters first..last.
   [[nodiscard]] std::vector<canopen::CobId> pdo_cob_ids(std::uint16_t first, std::uint16_t last) const;
-  bool refused_in_state(const CanFrame& frame);  // answered refuse_download()'s abort
+  bool intercepted(const CanFrame& frame);  // answered refuse_download() or handle_download()
 
   FrameSink sink_;
   bool silent_ = false;

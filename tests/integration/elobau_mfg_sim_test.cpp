@@ -52,19 +52,28 @@ class ElobauOnBus : public ::testing::Test {
   void boot() {
     sim_->start(net_.now());
     net_.settle();
+    boot_reads();
     host_->nmt().start(kGrip);  // the network manager reports the node online as it starts it
     drv_->on_online(net_.now());
     net_.run_for(5ms);
     ASSERT_EQ(sim_->node().state(), NmtState::Operational);
   }
+  // The driver's read-backs at boot (4001h, the buttons fitted 2100h:01h/02h), as the network
+  // manager runs them; false (and `error`) when the driver refuses the node.
+  bool boot_reads(std::string* error = nullptr) {
+    drv_->begin_boot();
+    std::string why;
+    for (auto reads = drv_->boot_reads(); !reads.empty(); reads = drv_->boot_reads())
+      for (const auto& [index, sub] : reads)
+        if (!drv_->on_boot_read(index, sub, upload(index, sub), why)) {
+          if (error) *error = why;
+          return false;
+        }
+    return true;
+  }
   const SignalValue& val(std::string_view name) const { return drv_->value(*drv_->find_signal(name)); }
   std::size_t idx(std::string_view name) const { return *drv_->find_signal(name); }
-  std::vector<CanFrame> frames(std::uint32_t id) {
-    std::vector<CanFrame> out;
-    for (const auto& r : net_.bus().log())
-      if (r.frame.id == id) out.push_back(r.frame);
-    return out;
-  }
+  std::vector<CanFrame> frames(std::uint32_t id) { return net_.logged(id); }
   SdoAbortCode download(std::uint16_t index, std::uint8_t sub, Bytes data) {
     SdoAbortCode code = SdoAbortCode::GeneralError;
     bool done = false;
@@ -146,7 +155,8 @@ TEST_F(ElobauOnBus, ButtonsNotFittedCarryTheNotAvailableValue) {
   sim_->press(9);  // 2100h:02h default 0: buttons 9..16 not available -> 2100h:0Ah = 0
   sim_->press(6);  // 2100h:01h default 63: buttons 1..6
   net_.run_for(10ms);
-  EXPECT_EQ(val("buttons[9]").value, 0);
+  EXPECT_EQ(frames(0x191).back().data[6], 0x00) << "the not-available value 2100h:0Ah";
+  EXPECT_EQ(val("buttons[9]").status, SignalStatus::NotAvailable) << "read back from 2100h:02h at boot";
   EXPECT_EQ(val("buttons[6]").value, 1);
   sim_->release(6);
   net_.run_for(10ms);
@@ -493,41 +503,101 @@ class ElobauNeverSaved : public ElobauOnBus {
 };
 
 // Table 6 0002h: "This error is also set until first parameter saving process." — sent at every
-// power-on of a grip whose parameters were never saved: a warning the driver reports but that
-// faults nothing (the gateway writes what it relies on at every boot), also in 4001h read back.
+// power-on of a grip whose parameters were never saved: every input in doubt, and read back at
+// boot the driver refuses the grip (parameter_checksum: refuse), saying how to save it. Saved
+// (§7: 5999h:03, or 1010h:01) and restarted, it runs.
 TEST_F(ElobauNeverSaved, ParameterChecksumErrorUntilFirstSave) {
   sim_->start(net_.now());
   net_.run_for(5ms);
   ASSERT_EQ(emcys_.size(), 1u);
   EXPECT_EQ(emcys_[0].text.rfind("elobau 4001h 0002h: Parameter Checksum Error", 0), 0u) << emcys_[0].text;
-  EXPECT_FALSE(emcys_[0].error);
-  EXPECT_TRUE(emcys_[0].affected.empty());
-  drv_->begin_boot();
-  ASSERT_EQ(drv_->boot_reads().size(), 1u);
+  EXPECT_TRUE(emcys_[0].error);
+  EXPECT_EQ(emcys_[0].affected.size(), ElobauMfgDriver::kFirstLed);
   std::string error;
-  ASSERT_TRUE(drv_->on_boot_read(0x4001, 0, encode<std::uint16_t>(0x0002), error));
-  EXPECT_FALSE(drv_->any_fault());
-  host_->nmt().start(kGrip);
-  drv_->on_online(net_.now());
-  net_.run_for(300ms);
-  EXPECT_EQ(val("x").status, SignalStatus::Valid) << "a never-saved grip is a healthy grip";
-  EXPECT_EQ(val("buttons[1]").status, SignalStatus::Valid);
+  EXPECT_FALSE(boot_reads(&error));
+  EXPECT_NE(error.find("4001h reads 0002h"), std::string::npos) << error;
+  EXPECT_EQ(upload(0x4001, 0), encode<std::uint16_t>(0x0002));
   // §7: 5999h:03 "save" saves all parameters (incl. LSS); §8: restart the joystick afterwards.
   // Saved in pre-operational: the simulator refuses a store while operational (0800 0022h, the
   // CiA 301 answer taken where the document is silent; subdevices/README.md).
-  host_->nmt().enter_pre_operational(kGrip);
-  net_.settle();
   EXPECT_EQ(download(0x5999, 3, encode<std::uint32_t>(0x65766173)), SdoAbortCode::None);
   EXPECT_TRUE(std::filesystem::exists(dir() / "params.txt"));
   drv_->on_offline(net_.now());
   emcys_.clear();
   sim_->reboot(net_.now());
   net_.settle();
+  ASSERT_TRUE(boot_reads(&error)) << error;
+  EXPECT_FALSE(drv_->any_fault()) << "4001h = 0 after the restart";
   host_->nmt().start(kGrip);
   drv_->on_online(net_.now());
   net_.run_for(300ms);
   EXPECT_TRUE(emcys_.empty());
   EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(val("buttons[1]").status, SignalStatus::Valid);
+}
+
+}  // namespace
+
+namespace {
+
+// §8 "To save all parameters (objects with marking PARA) except LSS parameters, write "save"
+// (0x65766173) into the object 0x1010.1"; §9 "To restore all parameters to factory settings write
+// "load" (0x64616F6C) into the object 0x1011.1". The SDO frames (CiA 301 expedited download,
+// little endian: "save" = 73 61 76 65, "load" = 6C 6F 61 64) and the grip's answers.
+TEST_F(ElobauNeverSaved, SaveAndLoadSignaturesOfSections8And9) {
+  sim_->start(net_.now());
+  net_.settle();
+  auto send = net_.sink("probe");
+  auto answer = [&](Bytes req) {
+    net_.bus().clear_log();
+    send(CanFrame(0x611, std::span<const std::uint8_t>(req)));
+    net_.run_for(5ms);
+    const auto f = frames(0x591);
+    return f.empty() ? CanFrame{} : f.back();
+  };
+  EXPECT_EQ(answer({0x2B, 0x17, 0x10, 0x00, 0xF4, 0x01, 0, 0}).data[0], 0x60);  // 1017h = 500 ms, PARA
+  EXPECT_EQ(answer({0x23, 0x10, 0x10, 0x01, 0x73, 0x61, 0x76, 0x65}), CanFrame(0x591, {0x60, 0x10, 0x10, 0x01, 0, 0, 0, 0}));
+  sim_->reboot(net_.now());
+  net_.settle();
+  EXPECT_EQ(upload(0x1017, 0), encode<std::uint16_t>(500)) << "saved";
+  EXPECT_EQ(upload(0x4001, 0), encode<std::uint16_t>(0)) << "0002h ended by the first saving";
+  EXPECT_EQ(answer({0x23, 0x11, 0x10, 0x01, 0x6C, 0x6F, 0x61, 0x64}), CanFrame(0x591, {0x60, 0x11, 0x10, 0x01, 0, 0, 0, 0}));
+  sim_->reboot(net_.now());
+  net_.settle();
+  EXPECT_EQ(upload(0x1017, 0), encode<std::uint16_t>(0)) << "factory settings";
+}
+
+// §15.1.2 Table 11 "Transformation function example with detent": X1..X10 = 0,2 1,0 1,3 1,3 2,3
+// 2,7 3,7 3,7 4,0 4,8 V, Y1..Y10 = -110 -110 -100 -100 0 0 100 100 110 110 %; "The detent function
+// is a jump from 100% to 110%", "X2 and X9 are used for detent detection", "X1 and X10 are also
+// used for error detection". Written into 2000h (X axis), the grip sends the table's values, and
+// the driver reports the detent as ±110 (detent: pass) — or ±100 (clamp).
+TEST_F(ElobauOnBus, Table11DetentCurve) {
+  boot();
+  const std::uint16_t x[10] = {200, 1000, 1300, 1300, 2300, 2700, 3700, 3700, 4000, 4800};
+  const std::int8_t y[10] = {-110, -110, -100, -100, 0, 0, 100, 100, 110, 110};
+  for (std::uint8_t p = 0; p < 10; ++p) {
+    ASSERT_EQ(download(0x2000, static_cast<std::uint8_t>(0x06 + 2 * p), encode<std::uint16_t>(x[p])), SdoAbortCode::None);
+    ASSERT_EQ(download(0x2000, static_cast<std::uint8_t>(0x07 + 2 * p), encode<std::int8_t>(y[p])), SdoAbortCode::None);
+  }
+  struct Point {
+    int mv;
+    int percent;  // sent; 126: the error value (out of range)
+  };
+  for (const Point& pt : {Point{200, -110}, Point{600, -110}, Point{1000, -110}, Point{1150, -100}, Point{1300, -100},
+                          Point{1800, -50}, Point{2300, 0}, Point{2500, 0}, Point{2700, 0}, Point{3200, 50},
+                          Point{3700, 100}, Point{3850, 100}, Point{4000, 110}, Point{4800, 110}, Point{100, 126},
+                          Point{4900, 126}}) {
+    (void)sim_->apply_voltage("x", pt.mv);
+    net_.run_for(110ms);
+    EXPECT_EQ(sim_->transmitted("x", 1), pt.percent) << pt.mv << " mV";
+    EXPECT_EQ(frames(0x191).back().data[0], static_cast<std::uint8_t>(static_cast<std::int8_t>(pt.percent))) << pt.mv;
+    if (pt.percent == 126) {
+      EXPECT_EQ(val("x").status, SignalStatus::Error) << pt.mv << " mV: out of range";
+    } else {
+      EXPECT_EQ(val("x").value, pt.percent) << pt.mv << " mV";
+    }
+  }
 }
 
 }  // namespace

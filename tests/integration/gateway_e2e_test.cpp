@@ -6,6 +6,7 @@
 // promises (oe_device.hpp: PDO numbers and byte layouts) and every fault of the fault policy
 // (gateway.hpp) as FE values, FE status and upstream EMCY. Nothing sleeps: time only moves
 // when a test advances the loop.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -81,6 +82,7 @@ class GatewayE2E : public ::testing::Test {
   void build(const std::string& right_grip_extra = "", const std::function<std::string(std::string)>& edit = {}) {
     std::string yaml = mapping_yaml(right_grip_extra);
     if (edit) yaml = edit(yaml);
+    yaml_ = yaml;
     auto loaded = oegw::mapping::load_config_text(yaml, "e2e.yaml", gw::driver_catalogue());
     ASSERT_TRUE(loaded.ok()) << loaded.error_text();
     config_ = std::move(*loaded.config);
@@ -133,6 +135,15 @@ class GatewayE2E : public ::testing::Test {
   // A gateway process on the mapping file and store_, attached to both buses (a restart calls
   // this again: the old gateway is detached and destroyed first).
   void connect_gateway() { rig_->connect_gateway(); }
+  // A reload (gateway/reload.hpp) of the built file as `edit` changes it: the settings refused
+  // (nothing changed then), or none, the gateway replaced (gw_ follows it through on_gateway).
+  std::vector<std::string> reload(const std::function<std::string(std::string)>& edit) {
+    auto loaded = oegw::mapping::load_config_text(edit(yaml_), "e2e.yaml", gw::driver_catalogue());
+    if (!loaded.ok()) return {"not loaded: " + loaded.error_text()};
+    std::vector<std::string> refused;
+    for (const auto& d : rig_->reload(*loaded.config)) refused.push_back(d.str());
+    return refused;
+  }
   void TearDown() override {
     rig_.reset();
     if (!store_.empty()) std::filesystem::remove(store_);
@@ -265,11 +276,14 @@ class GatewayE2E : public ::testing::Test {
   }
 
   oegw::mapping::Config config_;
+  std::string yaml_;  // the built file's text
   SimulatedClock clock_;
   EventLoop loop_{clock_};
   TimePoint t0_{};
-  // Options of the simulated devices by name (e.g. the MCB-402's wiring), set before build().
-  std::map<std::string, sd::DriverOptions> sim_options_;
+  // Options of the simulated devices by name, set before build(): the MCB-402 wired as
+  // demo_cab.yaml's button_bits say (the document's table as printed; a simulator is otherwise
+  // wired by the table's other reading, subdevices/README.md "Corners").
+  std::map<std::string, sd::DriverOptions> sim_options_{{"left_grip", sd::DriverOptions{{{"wiring", "1/2/3/4/5/7/6"}}}}};
   std::filesystem::path store_;
   std::unique_ptr<gw::CabRig> rig_;  // the demo's harness (programs/cab_rig.hpp)
   // Into rig_: the simulators, the host, its port, the current gateway (connect_gateway).
@@ -381,7 +395,8 @@ TEST_F(GatewayE2E, Joystick2FromMcb402WithInvertedY) {
 
 // The MCB-402 button bit order is the mapping file's (demo_cab.yaml: the document's table as
 // printed, BP6 = bit 7, BP7 = bit 6), and the simulated board's wiring its own: wired the same,
-// BP6 arrives as buttons[6].
+// BP6 arrives as buttons[6]; wired by the simulator's default (the table's other reading), it
+// would not.
 TEST_F(GatewayE2E, Mcb402ButtonsAsTheMappingFilesBitOrderWhenTheBoardIsWiredSo) {
   build();
   boot_and_start();
@@ -780,6 +795,44 @@ TEST_F(GatewayE2E, HostResetNodeKeepsInputsAndFaultsTrue) {
   EXPECT_EQ(e[0].msef[0], 0x03);
   EXPECT_EQ(decode_unsigned(*sdo_read(0x1001, 0)) & 0x01, 0x01u);
   EXPECT_EQ(gw_->status(kJoy2), FeStatus::Offline);
+}
+
+// NMT reset node restarts the application and its errors with it (CiA 301 §7.3.2.2.1): an
+// error whose cause is gone does not survive it — 8240h for a SYNC of the wrong length, 1001h
+// bit 4 — and one whose cause persists is raised anew once pre-operational: the MCB-402 still
+// lost, EMCY 7000h with 1001h = 01h (generic) as its own error, not an event with the old
+// register. A reset communication keeps the active errors (only the communication restarts).
+TEST_F(GatewayE2E, HostResetNodeEndsTheErrorsAndRaisesWhatPersistsAnew) {
+  build();
+  boot_and_start();
+  cmd("left_grip heartbeat off");
+  run_for(400ms);
+  ASSERT_EQ(emcys(0x7000).size(), 1u);
+  (void)host_port_->send(CanFrame(0x080, {0x07}));  // SYNC with a counter, 1019h = 0: wrong length
+  run_for(10ms);
+  ASSERT_EQ(emcys(0x8240).size(), 1u) << dump();
+  EXPECT_EQ(emcys(0x8240)[0].error_register, 0x11) << "generic and communication";
+  host_->nmt().reset_communication(kGw);
+  run_for(500ms);
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1001, 0)), 0x11u) << "reset communication keeps 8240h and 7000h";
+  emcys_.clear();
+  upstream_.clear();
+  host_->nmt().reset_node(kGw);
+  run_for(500ms);
+  // The boot-up, then 7000h naming the MCB-402 as a new error: register 01h.
+  std::vector<std::string> seen;
+  for (const auto& r : upstream_)
+    if (r.frame.id == 0x720 || r.frame.id == 0x0A0) seen.push_back(r.frame.to_string());
+  ASSERT_GE(seen.size(), 2u) << dump();
+  EXPECT_EQ(seen[0], "720#00");
+  EXPECT_EQ(seen[1].substr(0, 12), "0A0#00700103") << "7000h, 1001h = 01h, node 03h\n" << dump();
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1001, 0)), 0x01u) << "8240h did not survive the reset node";
+  EXPECT_EQ(gw_->status(kJoy2), FeStatus::Offline);
+  // The MCB-402 back: the last error goes, 0000h, 1001h 0.
+  cmd("left_grip heartbeat on");
+  run_for(5s);
+  EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_EQ(decode_unsigned(*sdo_read(0x1001, 0)), 0x00u);
 }
 
 // Upstream bus-off and recovery (the controller restarted): EMCY 8140h, 1029h:01 = 0 takes the
@@ -1396,6 +1449,164 @@ TEST_F(GatewayE2E, PdosThatStopWhileTheHeartbeatGoesOnMakeTheJoystickStale) {
   cmd("right_grip x 40");
   run_for(300ms);
   EXPECT_EQ(i16(*last(kTpdo1), 0), 13107);
+}
+
+// ---- Reloading the mapping file (gateway/reload.hpp) --------------------------------------------
+
+std::string replaced(std::string yaml, const std::string& from, const std::string& to) {
+  const auto at = yaml.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) yaml.replace(at, from.size(), to);
+  return yaml;
+}
+
+// The largest gap between two of the gateway's heartbeats (700h + node-ID) on the host's bus.
+Duration largest_heartbeat_gap(const std::vector<BusRecord>& up) {
+  Duration most{0};
+  std::optional<TimePoint> last;
+  for (const auto& r : up) {
+    if (r.frame.id != 0x700u + kGw.value()) continue;
+    if (last) most = std::max(most, r.time - *last);
+    last = r.time;
+  }
+  return most;
+}
+
+// A valid file under traffic: the upstream device goes on (no boot-up, still operational, its
+// heartbeat every 1017h), every input at its fault value and every output at its error value
+// in between, EMCY 6300h until the sub-devices, all booted again, are operational; then the new
+// file's translation applies, after the stick has been seen at neutral as at a start.
+TEST_F(GatewayE2E, AValidReloadKeepsTheUpstreamDeviceAndAppliesTheFileAsAStartDoes) {
+  build();
+  boot_and_start();
+  ASSERT_EQ(sdo_write(0x6207, 0x09, {0x0A}), SdoAbortCode::None);  // indicators.2's error value: OUT1, OUT3
+  ASSERT_EQ(sdo_write(0x6200, 0x09, {0x05}), SdoAbortCode::None);
+  cmd("right_grip x 50");
+  run_for(300ms);
+  ASSERT_EQ(i16(*last(kTpdo1), 0), 16384);
+  ASSERT_EQ(mcb_leds(), "1010");
+  const std::size_t up_at = upstream_.size();
+  const std::size_t down_at = downstream_.size();
+  pdos_.clear();
+  emcys_.clear();
+  const TimePoint reloaded = loop_.now();
+  ASSERT_THAT(reload([](std::string y) {
+                return replaced(y, "x: { signal: right_grip.x, deadband: 2 }",
+                                "x: { signal: right_grip.x, deadband: 2, invert: true }");
+              }),
+              ::testing::IsEmpty());
+  run_for(1ms);
+  // In between: the fault value in TPDO 1, the error value at the MCB-402 — sent before its NMT
+  // reset communication —, EMCY 6300h (register bit 0), and no boot-up: the device goes on.
+  ASSERT_TRUE(last(kTpdo1)) << dump();
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 0);
+  EXPECT_EQ(mcb_leds(), "0101");
+  std::optional<std::size_t> leds_at, reset_at;
+  for (std::size_t i = down_at; i < downstream_.size(); ++i) {
+    const CanFrame& f = downstream_[i].frame;
+    if (!leds_at && f.id == 0x203 && f.data[0] == 0x0A) leds_at = i;
+    if (!reset_at && f.id == 0x000 && f.data[0] == 0x82 && f.data[1] == 0x03) reset_at = i;
+  }
+  ASSERT_TRUE(leds_at && reset_at) << dump();
+  EXPECT_LT(*leds_at, *reset_at);
+  ASSERT_EQ(emcys(0x6300).size(), 1u) << dump();
+  EXPECT_EQ(emcys(0x6300)[0].error_register, 0x01);
+  EXPECT_EQ(gw_->upstream().node().state(), NmtState::Operational);
+  EXPECT_TRUE(gw_->reloading());
+  run_for(3s);
+  ASSERT_TRUE(all_operational()) << log_;
+  EXPECT_FALSE(gw_->reloading());
+  ASSERT_FALSE(emcys(0x0000).empty()) << "6300h ends with the error reset\n" << dump();
+  EXPECT_EQ(gw_->upstream().od().get<std::uint8_t>(0x1001, 0), 0u);
+  EXPECT_EQ(mcb_leds(), "0101") << "the error value until the next command";
+  for (std::size_t i = up_at; i < upstream_.size(); ++i)
+    EXPECT_FALSE(upstream_[i].frame.id == 0x720 && upstream_[i].frame.data[0] == 0x00) << "a boot-up";
+  EXPECT_LE(largest_heartbeat_gap(upstream_), 100ms);
+  EXPECT_GT(upstream_.back().time - reloaded, 2s);
+  // The new file: x inverted, once the stick has been seen at neutral.
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 0) << "held at neutral";
+  cmd("right_grip x 0");
+  run_for(300ms);
+  cmd("right_grip x 50");
+  run_for(300ms);
+  EXPECT_EQ(i16(*last(kTpdo1), 0), -16384);
+  ASSERT_EQ(sdo_write(0x6200, 0x09, {0x05}), SdoAbortCode::None);
+  run_for(50ms);
+  EXPECT_EQ(mcb_leds(), "1010");
+}
+
+// A file that would change the upstream device (here its node-ID and its FE set) is refused as
+// a whole, each setting at its place: nothing changes on either bus.
+TEST_F(GatewayE2E, AReloadThatWouldChangeTheUpstreamDeviceIsRefusedAndChangesNothing) {
+  build();
+  boot_and_start();
+  cmd("right_grip x 50");
+  run_for(300ms);
+  ASSERT_EQ(i16(*last(kTpdo1), 0), 16384);
+  const Gateway* before = gw_;
+  const std::size_t down_at = downstream_.size();
+  pdos_.clear();
+  const auto refused = reload([](std::string y) {
+    y = replaced(y, "node_id: 0x20", "node_id: 0x21");
+    y = replaced(y, "downstream: { interface: virtual, bitrate: 250000 }",
+                 "downstream: { interface: virtual, bitrate: 500000 }");
+    return y + "  display.1: { \"parameter[1]\": \"cluster.aout[1]\" }\n";
+  });
+  ASSERT_EQ(refused.size(), 3u) << ::testing::PrintToString(refused);
+  EXPECT_THAT(refused[0], ::testing::StartsWith("e2e.yaml:1:"));
+  EXPECT_THAT(refused[0], ::testing::HasSubstr("upstream.node_id changed from 20h to 21h"));
+  EXPECT_THAT(refused[0], ::testing::EndsWith("a reload cannot apply it, a restart can (systemctl restart oegw)"));
+  EXPECT_THAT(refused[1], ::testing::StartsWith("e2e.yaml:7:"));
+  EXPECT_THAT(refused[1], ::testing::HasSubstr("downstream.bitrate changed from 250000 to 500000"));
+  EXPECT_THAT(refused[2], ::testing::HasSubstr("display.1 is new: it adds to the upstream device's dictionary"));
+  EXPECT_EQ(gw_, before);
+  cmd("right_grip x 40");  // live, neither held at neutral nor inverted: the same gateway
+  run_for(300ms);
+  ASSERT_TRUE(last(kTpdo1)) << dump();
+  EXPECT_EQ(i16(*last(kTpdo1), 0), 13107);
+  EXPECT_TRUE(emcys_.empty()) << dump();
+  for (std::size_t i = down_at; i < downstream_.size(); ++i)
+    EXPECT_NE(downstream_[i].frame.id, 0x000u) << "an NMT command: " << downstream_[i].to_string();
+}
+
+// A sub-device faulty before the reload stays faulty after it until its own evidence (its 7000h
+// is not cleared by the reload, nor does it hold 6300h up); one the file no longer has is put in
+// pre-operational and no longer watched.
+TEST_F(GatewayE2E, AReloadKeepsAFaultUntilItsEvidenceAndReleasesADroppedSubDevice) {
+  const std::string spare = "  spare:\n    driver: cia401\n    node_id: 0x32\n    options: { eds: " +
+                            std::string(OEGW_SOURCE_DIR) + "/subdevices/eds/button_cluster.eds }\n";
+  build("", [&spare](std::string y) { return replaced(y, "functional_elements:\n", spare + "functional_elements:\n"); });
+  boot_and_start();
+  ASSERT_EQ(gw_->downstream().state("spare"), sd::NodeState::Operational) << log_;
+  cmd("right_grip heartbeat off");
+  run_for(400ms);
+  ASSERT_EQ(emcys(0x7000).size(), 1u) << dump();
+  emcys_.clear();
+  const std::size_t down_at = downstream_.size();
+  ASSERT_THAT(reload([&spare](std::string y) { return replaced(y, spare, ""); }), ::testing::IsEmpty());
+  run_for(3s);
+  bool preop = false;
+  for (std::size_t i = down_at; i < downstream_.size(); ++i) {
+    const CanFrame& f = downstream_[i].frame;
+    preop = preop || (f.id == 0x000 && f.data[0] == 0x80 && f.data[1] == 0x32);
+    EXPECT_FALSE(f.id == 0x000 && f.data[0] != 0x80 && f.data[1] == 0x32) << downstream_[i].to_string();
+  }
+  EXPECT_TRUE(preop) << dump();
+  EXPECT_EQ(bench_->device("spare")->node().state(), NmtState::PreOperational);
+  EXPECT_EQ(gw_->downstream().state("spare"), sd::NodeState::Idle);
+  EXPECT_FALSE(gw_->reloading()) << "right_grip is faulty: it does not hold the reload's end up\n" << log_;
+  EXPECT_EQ(gw_->faults().count("right_grip"), 1u) << log_;
+  EXPECT_TRUE(gw_->upstream().node().emcy().active(0x7000));
+  // The reload's end, 7000h still active: EMCY 0000h with the remaining register, naming nobody.
+  ASSERT_EQ(emcys(0x0000).size(), 1u) << dump();
+  EXPECT_EQ(emcys(0x0000)[0].error_register, 0x01);
+  EXPECT_EQ(emcys(0x0000)[0].msef[0], 0x00) << "right_grip cleared without evidence";
+  cmd("right_grip heartbeat on");
+  run_for(40s);
+  ASSERT_EQ(gw_->downstream().state("right_grip"), sd::NodeState::Operational) << log_;
+  EXPECT_EQ(emcys(0x0000).size(), 2u) << dump();
+  EXPECT_NE(log_.find("right_grip: fault cleared ("), std::string::npos) << log_;
+  EXPECT_FALSE(gw_->upstream().node().emcy().active(0x7000));
 }
 
 }  // namespace

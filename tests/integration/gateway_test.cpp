@@ -90,6 +90,24 @@ TEST(Gateway, DownstreamInterfaceDownRaisesEmcy5000hUntilAFrameArrives) {
   EXPECT_EQ(canopen::get_u16(&up.last.data[0]), 0x0000u);
 }
 
+// An NMT reset node of the gateway restarts its EMCY producer (canopen/node.hpp): the downstream
+// interface still down is raised again after the boot-up — not left out of 1001h as though it
+// worked.
+TEST(Gateway, ADownstreamInterfaceStillDownIsRaisedAgainAfterAResetNode) {
+  auto rig = booted(bench::yaml_one_grip());
+  rig->detach();
+  auto& up = rig->upstream();
+  rig->gw().on_downstream_bus_event(canopen::BusEvent::InterfaceDown, rig->now());
+  ASSERT_TRUE(rig->gw().upstream().node().emcy().active(0x5000));
+  const auto before = up.frames;
+  (void)rig->gw().on_upstream_frame(canopen::CanFrame(0x000, {0x81, 0x20}), rig->now());
+  EXPECT_EQ(up.frames, before + 2) << "the boot-up, then 5000h";
+  EXPECT_EQ(up.last.id, 0xA0u);
+  EXPECT_EQ(canopen::get_u16(&up.last.data[0]), 0x5000u);
+  EXPECT_EQ(up.last.data[2], 0x01);
+  EXPECT_TRUE(rig->gw().upstream().node().emcy().active(0x5000));
+}
+
 TEST(Gateway, OneSignalFeedingSeveralFesReportsEachOnceInFeOrder) {
   auto rig = booted(fixtures::mapping_file("one_signal_several_fes.yaml"));
   rig->detach();

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -43,10 +44,10 @@ class Mcb402OnBus : public ::testing::Test {
                                                                                .sdo_timeout = 500ms});
     net_.attach("host", *host_);
     std::string error;
-    // The bit order commissioned for this board: the simulator's default wiring (the document's
-    // table as printed), given explicitly as a mapping file must.
+    // The bit order commissioned for this board: the simulator's default wiring (the table's
+    // right-end reading, subdevices/README.md "Corners"), given explicitly as a mapping file must.
     driver_ = oegw::subdevices::make_mcb402_driver(kNode, net_.sink("host"),
-                                                   DriverOptions{{{"button_bits", "1,2,3,4,5,7,6"}}}, error);
+                                                   DriverOptions{{{"button_bits", "0,1,2,3,4,6,5"}}}, error);
     EXPECT_NE(driver_, nullptr) << error;
     const auto cobs = driver_->consumed_cob_ids();
     host_->on_other_frame = [this, cobs](const CanFrame& f, TimePoint now) {
@@ -99,12 +100,7 @@ class Mcb402OnBus : public ::testing::Test {
     driver_->on_online(net_.now());
     net_.settle();
   }
-  std::vector<CanFrame> frames(std::uint32_t id) {
-    std::vector<CanFrame> out;
-    for (const auto& r : net_.bus().log())
-      if (r.frame.id == id) out.push_back(r.frame);
-    return out;
-  }
+  std::vector<CanFrame> frames(std::uint32_t id) { return net_.logged(id); }
   const oegw::subdevices::SignalValue& v(std::size_t i) const { return driver_->value(i); }
 
   oegw::testing::VirtualNetwork net_;
@@ -465,6 +461,103 @@ TEST(Mcb402Jumpers, AddressAndBitRateFromTheCn3Table) {
   EXPECT_EQ(sim.node().node_id(), NodeId{1});
   EXPECT_EQ(sim.bit_timing_index(), 2);
   EXPECT_EQ(sim.node().bit_timing_index(), 2);
+}
+
+}  // namespace
+
+namespace {
+
+// A board with its store, and a probe that sends raw frames and collects the board's answers.
+class Mcb402Frames : public ::testing::Test {
+ protected:
+  Mcb402Frames() {
+    dir_ = std::filesystem::temp_directory_path() / ("oegw-mcb-" + std::to_string(::getpid()) + "-" +
+                                                     ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::create_directories(dir_);
+    cfg_.store_path = dir_ / "params.txt";
+  }
+  ~Mcb402Frames() override { std::filesystem::remove_all(dir_); }
+  void power_on() {
+    sim_ = std::make_unique<Mcb402Sim>(net_.sink("sim"), cfg_);
+    net_.attach("sim", *sim_);
+    net_.bus().set_logging(true);
+    sim_->start(net_.now());
+    net_.settle();
+  }
+  std::vector<CanFrame> exchange(std::uint32_t id, Bytes bytes, std::uint32_t reply) {
+    return net_.exchange("probe", CanFrame(id, std::span<const std::uint8_t>(bytes)), reply);
+  }
+  std::vector<CanFrame> frames(std::uint32_t id) { return net_.logged(id); }
+  std::filesystem::path dir_;
+  Mcb402SimConfig cfg_;
+  oegw::testing::VirtualNetwork net_;
+  std::unique_ptr<Mcb402Sim> sim_;
+};
+
+using Frames = std::vector<CanFrame>;
+
+// [CO4013 Index 1010/1011]: the signature in bytes 4..7 ("save" = 65h 76h 61h 73h MSB first:
+// 73 61 76 65; "load" = 6C 6F 61 64); "By read access to object 1010h Subindex 1, the device
+// responds with SDO data 00000001h"; a wrong signature: "Abort code: 0800 002x h" (0800 0020h);
+// "Writing to this object is only allowed in preoperational mode".
+TEST_F(Mcb402Frames, StoreAndRestoreSignaturesAndTheWrongSignatureAbort) {
+  power_on();
+  EXPECT_EQ(exchange(0x603, {0x40, 0x10, 0x10, 0x01, 0, 0, 0, 0}, 0x583),
+            Frames{CanFrame(0x583, {0x43, 0x10, 0x10, 0x01, 0x01, 0x00, 0x00, 0x00})});
+  EXPECT_EQ(exchange(0x603, {0x40, 0x11, 0x10, 0x01, 0, 0, 0, 0}, 0x583),
+            Frames{CanFrame(0x583, {0x43, 0x11, 0x10, 0x01, 0x01, 0x00, 0x00, 0x00})});
+  EXPECT_EQ(exchange(0x603, {0x23, 0x10, 0x10, 0x01, 0x73, 0x61, 0x76, 0x65}, 0x583),
+            Frames{CanFrame(0x583, {0x60, 0x10, 0x10, 0x01, 0, 0, 0, 0})});
+  EXPECT_TRUE(std::filesystem::exists(cfg_.store_path));
+  EXPECT_EQ(exchange(0x603, {0x23, 0x10, 0x10, 0x01, 0x65, 0x76, 0x61, 0x73}, 0x583),  // the letters reversed
+            Frames{CanFrame(0x583, {0x80, 0x10, 0x10, 0x01, 0x20, 0x00, 0x00, 0x08})});
+  EXPECT_EQ(exchange(0x603, {0x23, 0x11, 0x10, 0x01, 0x6C, 0x6F, 0x61, 0x64}, 0x583),
+            Frames{CanFrame(0x583, {0x60, 0x11, 0x10, 0x01, 0, 0, 0, 0})});
+  EXPECT_EQ(exchange(0x603, {0x23, 0x11, 0x10, 0x01, 0x73, 0x61, 0x76, 0x65}, 0x583),
+            Frames{CanFrame(0x583, {0x80, 0x11, 0x10, 0x01, 0x20, 0x00, 0x00, 0x08})});
+  (void)exchange(0x000, {0x01, 0x03}, 0x583);  // operational: "otherwise ... SDO abort telegrams"
+  EXPECT_EQ(exchange(0x603, {0x23, 0x10, 0x10, 0x01, 0x73, 0x61, 0x76, 0x65}, 0x583),
+            Frames{CanFrame(0x583, {0x80, 0x10, 0x10, 0x01, 0x22, 0x00, 0x00, 0x08})});
+}
+
+// [CO4013 "Emergency Messages"]: "Life-Guarding Error 30 81 11 00 00 00 00 00", "CAN Bus in Error
+// Warning state 00 81 11 00 ...", "Return from Bus OFF 40 81 11 00 ...", and the cable break
+// "20 31 81 00 8x 00 00 00" — as the simulated board sends them, 1001h in byte 2.
+TEST_F(Mcb402Frames, TheDocumentsEmergencyFrames) {
+  power_on();
+  EXPECT_EQ(frames(0x083), Frames{CanFrame(0x083, {0x00, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00})}) << "power-on";
+  (void)exchange(0x000, {0x01, 0x03}, 0x083);
+  net_.bus().clear_log();
+  sim_->life_guarding(net_.now());
+  sim_->bus_off_recovered(net_.now());
+  sim_->cable_break(2, true, net_.now());
+  net_.settle();
+  EXPECT_EQ(frames(0x083), (Frames{CanFrame(0x083, {0x30, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00}),
+                                   CanFrame(0x083, {0x40, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00}),
+                                   CanFrame(0x083, {0x20, 0x31, 0x81, 0x00, 0x82, 0x00, 0x00, 0x00})}));
+  EXPECT_EQ(sim_->error_register(), 0x81) << "the CAN warnings' bits not kept (power_on_1001h=00h)";
+}
+
+// The corners of what the document leaves open: the mend sends 0000h or nothing
+// (clear_after_break), 1001h keeps the CAN warnings' 11h or not (power_on_1001h).
+TEST_F(Mcb402Frames, MendWithoutErrorResetAndAKept11h) {
+  cfg_.clear_with_error_reset = false;
+  cfg_.keep_communication_bits = true;
+  power_on();
+  EXPECT_EQ(sim_->error_register(), 0x11);
+  (void)exchange(0x000, {0x01, 0x03}, 0x083);
+  net_.bus().clear_log();
+  sim_->cable_break(1, true, net_.now());
+  net_.settle();
+  EXPECT_EQ(frames(0x083), Frames{CanFrame(0x083, {0x20, 0x31, 0x91, 0x00, 0x81, 0x00, 0x00, 0x00})});
+  EXPECT_EQ(sim_->error_register(), 0x91);
+  net_.bus().clear_log();
+  sim_->cable_break(1, false, net_.now());
+  net_.settle();
+  EXPECT_TRUE(frames(0x083).empty()) << "no error reset";
+  EXPECT_EQ(sim_->error_register(), 0x11) << "1001h shows the mend";
+  EXPECT_EQ(exchange(0x603, {0x40, 0x01, 0x10, 0x00, 0, 0, 0, 0}, 0x583),
+            Frames{CanFrame(0x583, {0x4F, 0x01, 0x10, 0x00, 0x11, 0x00, 0x00, 0x00})});
 }
 
 }  // namespace

@@ -60,17 +60,9 @@ class NovotechnikSim : public ::testing::Test {
   }
   // Sends one raw frame from the probe and returns the frames on `reply_id` that followed.
   std::vector<CanFrame> exchange(std::uint32_t id, Bytes bytes, std::uint32_t reply_id) {
-    net_.bus().clear_log();
-    probe_(CanFrame(id, std::span<const std::uint8_t>(bytes)));
-    net_.run_for(5ms);
-    return frames(reply_id);
+    return net_.exchange("probe", CanFrame(id, std::span<const std::uint8_t>(bytes)), reply_id);
   }
-  std::vector<CanFrame> frames(std::uint32_t id) {
-    std::vector<CanFrame> out;
-    for (const auto& r : net_.bus().log())
-      if (r.frame.id == id) out.push_back(r.frame);
-    return out;
-  }
+  std::vector<CanFrame> frames(std::uint32_t id) { return net_.logged(id); }
   CanFrame sdo(Bytes req) {
     const auto r = exchange(0x600 + kNode.value(), std::move(req), 0x580 + kNode.value());
     EXPECT_EQ(r.size(), 1u);
@@ -222,7 +214,8 @@ TEST_F(NovotechnikSim, DriverConfiguresAndReadsPositionAndSpeedOnTheEventTimer) 
   const auto tpdos = frames(0x1FF);
   // Event timer 10 ms (driver default, type 254): entering operational sends once, then every 10 ms.
   ASSERT_GE(tpdos.size(), 2u);
-  EXPECT_EQ(tpdos.back(), CanFrame(0x1FF, {0x45, 0x23, 0x01, 0x00, 0x6A, 0xFF}));
+  // Position, speed, then (as the driver maps them, §8.2) CAM state and work area state.
+  EXPECT_EQ(tpdos.back(), CanFrame(0x1FF, {0x45, 0x23, 0x01, 0x00, 0x6A, 0xFF, 0x00, 0x00}));
   EXPECT_EQ(pos().value, 0x12345);
   EXPECT_EQ(pos().status, SignalStatus::Valid);
   EXPECT_EQ(spd().value, -150);
@@ -319,8 +312,9 @@ TEST_F(NovotechnikSim, EmcyDecodeAndSuppression) {
   EXPECT_EQ(pos().status, SignalStatus::Error);
 }
 
-// §5.6 CAMs -> EMCY 9080h; §5.7 work area -> EMCY 9090h.
-TEST_F(NovotechnikSim, CamAndWorkAreaEmcysFeedTheirSignals) {
+// §5.6 CAMs -> 6300h and EMCY 9080h; §5.7 work area -> 6400h and EMCY 9090h. The driver maps
+// 6300h:01 and 6400h:01 into TPDO1: the signals come from there, the EMCYs are reported.
+TEST_F(NovotechnikSim, CamAndWorkAreaStatesComeInTpdo1AndAsEmcys) {
   boot();
   ASSERT_EQ(download(0x6310, 1, encode<std::int32_t>(1000)), SdoAbortCode::None);
   ASSERT_EQ(download(0x6320, 1, encode<std::int32_t>(2000)), SdoAbortCode::None);
@@ -329,15 +323,16 @@ TEST_F(NovotechnikSim, CamAndWorkAreaEmcysFeedTheirSignals) {
   configure_and_start();
   sim_->set_position(500, net_.now());
   net_.run_for(20ms);
-  EXPECT_EQ(driver_->value(Novotechnik406Driver::kCams).status, SignalStatus::NotAvailable);
+  EXPECT_EQ(driver_->value(Novotechnik406Driver::kCams).status, SignalStatus::Valid);
+  EXPECT_EQ(driver_->value(Novotechnik406Driver::kCams).value, 0);
   sim_->set_position(1500, net_.now());
-  net_.run_for(1ms);
+  net_.run_for(11ms);  // the next TPDO1 (event timer 10 ms)
   EXPECT_EQ(driver_->value(Novotechnik406Driver::kCams).value, 1);
   EXPECT_EQ(driver_->value(Novotechnik406Driver::kCams).status, SignalStatus::Valid);
   ASSERT_FALSE(frames(0xFF).empty());
   EXPECT_EQ(frames(0xFF).back(), CanFrame(0xFF, {0x80, 0x90, 0x01, 0x00, 0x01, 0x00, 0x00, 0x01}));
   sim_->set_position(60000, net_.now());  // above the work area high limit: bit 1
-  net_.run_for(1ms);
+  net_.run_for(11ms);
   EXPECT_EQ(driver_->value(Novotechnik406Driver::kWorkArea).value, 0x02);
   EXPECT_EQ(driver_->value(Novotechnik406Driver::kCams).value, 0);
   EXPECT_EQ(pos().status, SignalStatus::Valid);
@@ -395,6 +390,159 @@ TEST_F(NovotechnikSim, BitRateObjectAcceptsDocumentedRatesOnly) {
   EXPECT_EQ(download(0x2001, 0, encode<std::uint16_t>(500)), SdoAbortCode::None);
   EXPECT_EQ(download(0x2001, 0, encode<std::uint16_t>(300)), SdoAbortCode::InvalidValue);
   EXPECT_EQ(download(0x2000, 0, {0x00}), SdoAbortCode::ValueTooLow);  // node-ID range 1..127
+}
+
+}  // namespace
+
+namespace {
+
+// §11 "Deletion and Restoration to Default via SDO Object 0x1010": the signature "kill"
+// (0x6C6C696B) on 1010h sub 1..4 deletes that group's stored data and restores its defaults.
+// §7.1's frame layout: 23 10 10 01 6B 69 6C 6C -> 60 10 10 01.
+TEST_F(NovotechnikSim, KillSignatureDeletesTheStoredGroupAndRestoresDefaults) {
+  boot();
+  ASSERT_EQ(download(0x1017, 0, encode<std::uint16_t>(250)), SdoAbortCode::None);  // §11: communication group
+  ASSERT_EQ(download(0x6003, 0, encode<std::uint32_t>(1234)), SdoAbortCode::None);  // application group
+  EXPECT_EQ(sdo({0x23, 0x10, 0x10, 0x01, 0x73, 0x61, 0x76, 0x65}), CanFrame(0x5FF, {0x60, 0x10, 0x10, 0x01, 0, 0, 0, 0}));
+  sim_->reboot(net_.now());
+  net_.settle();
+  EXPECT_EQ(sim_->od().get<std::uint16_t>(0x1017, 0), 250) << "saved and loaded at power-on";
+  EXPECT_EQ(sim_->od().get<std::uint32_t>(0x6003, 0), 1234u);
+  // "kill" on sub 2: the communication group only.
+  EXPECT_EQ(sdo({0x23, 0x10, 0x10, 0x02, 0x6B, 0x69, 0x6C, 0x6C}), CanFrame(0x5FF, {0x60, 0x10, 0x10, 0x02, 0, 0, 0, 0}));
+  EXPECT_EQ(sim_->od().get<std::uint16_t>(0x1017, 0), 0) << "its default, at once";
+  sim_->reboot(net_.now());
+  net_.settle();
+  EXPECT_EQ(sim_->od().get<std::uint16_t>(0x1017, 0), 0) << "deleted from the store";
+  EXPECT_EQ(sim_->od().get<std::uint32_t>(0x6003, 0), 1234u) << "the application group kept";
+  // A wrong signature: §7.3 0800 0020h.
+  EXPECT_EQ(sdo({0x23, 0x10, 0x10, 0x01, 0x6B, 0x69, 0x6C, 0x6D}),
+            CanFrame(0x5FF, {0x80, 0x10, 0x10, 0x01, 0x20, 0x00, 0x00, 0x08}));
+}
+
+// §7.1 "NODE-ID: Using writing to object 0x2000, non-volatile storage has to be done by writing
+// the "save" signature (0x65766173) on object 0x1010/4. These changes will become effective after
+// a communication restart or a power up." The document's frames: 2F 00 20 00 40 -> 60 00 20 00.
+TEST_F(NovotechnikSim, NodeIdBySdoStoredBy1010h4IsActiveAfterAPowerUp) {
+  boot();
+  EXPECT_EQ(sdo({0x2F, 0x00, 0x20, 0x00, 0x40, 0x00, 0x00, 0x00}), CanFrame(0x5FF, {0x60, 0x00, 0x20, 0x00, 0, 0, 0, 0}));
+  EXPECT_EQ(sdo({0x23, 0x10, 0x10, 0x04, 0x73, 0x61, 0x76, 0x65}), CanFrame(0x5FF, {0x60, 0x10, 0x10, 0x04, 0, 0, 0, 0}));
+  net_.bus().clear_log();
+  sim_->reboot(net_.now());
+  net_.settle();
+  EXPECT_EQ(frames(0x740), std::vector<CanFrame>{CanFrame(0x740, {0x00})}) << "boot-up at the stored node-ID 40h";
+  EXPECT_TRUE(frames(0x77F).empty());
+  // 1011h:04 "load": the user data back to the factory's (§4.1 "Restore user data parameters").
+  const auto r = exchange(0x640, {0x23, 0x11, 0x10, 0x04, 0x6C, 0x6F, 0x61, 0x64}, 0x5C0);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0], CanFrame(0x5C0, {0x60, 0x11, 0x10, 0x04, 0, 0, 0, 0}));
+  net_.bus().clear_log();
+  sim_->reboot(net_.now());
+  net_.settle();
+  EXPECT_EQ(frames(0x77F), std::vector<CanFrame>{CanFrame(0x77F, {0x00})}) << "the factory node-ID 7Fh again";
+}
+
+// §4.1 1011h:02 "Restore communication default parameters", :03 "application": each restores its
+// §11 column only (CiA 301: the defaults come at the next reset).
+TEST_F(NovotechnikSim, RestoreSubIndices2And3RestoreTheirGroupOnly) {
+  boot();
+  ASSERT_EQ(download(0x1017, 0, encode<std::uint16_t>(300)), SdoAbortCode::None);
+  ASSERT_EQ(download(0x2104, 0, {0x02}), SdoAbortCode::None);                       // §11 "EMCY Behaviour": communication
+  ASSERT_EQ(download(0x6003, 0, encode<std::uint32_t>(77)), SdoAbortCode::None);
+  ASSERT_EQ(download(0x6401, 1, encode<std::int32_t>(-5)), SdoAbortCode::None);     // "Work Area Low Limit": application
+  EXPECT_EQ(sdo({0x23, 0x10, 0x10, 0x01, 0x73, 0x61, 0x76, 0x65}).data[0], 0x60);
+  EXPECT_EQ(sdo({0x23, 0x11, 0x10, 0x02, 0x6C, 0x6F, 0x61, 0x64}), CanFrame(0x5FF, {0x60, 0x11, 0x10, 0x02, 0, 0, 0, 0}));
+  EXPECT_EQ(sim_->od().get<std::uint16_t>(0x1017, 0), 300) << "restored at the next reset, not at once";
+  sim_->reboot(net_.now());
+  net_.settle();
+  EXPECT_EQ(sim_->od().get<std::uint16_t>(0x1017, 0), 0);
+  EXPECT_EQ(sim_->od().get<std::uint8_t>(0x2104, 0), 0);
+  EXPECT_EQ(sim_->od().get<std::uint32_t>(0x6003, 0), 77u);
+  EXPECT_EQ(sim_->od().get<std::int32_t>(0x6401, 1), -5);
+  EXPECT_EQ(sdo({0x23, 0x11, 0x10, 0x03, 0x6C, 0x6F, 0x61, 0x64}).data[0], 0x60);
+  sim_->reboot(net_.now());
+  net_.settle();
+  EXPECT_EQ(sim_->od().get<std::uint32_t>(0x6003, 0), 0u);
+  EXPECT_EQ(sim_->od().get<std::int32_t>(0x6401, 1), 0);
+  // A wrong signature, and a sub-index beyond 1011h's four: §7.3 0800 0020h, 0609 0011h.
+  EXPECT_EQ(sdo({0x23, 0x11, 0x10, 0x01, 0x73, 0x61, 0x76, 0x65}),
+            CanFrame(0x5FF, {0x80, 0x11, 0x10, 0x01, 0x20, 0x00, 0x00, 0x08}));
+  EXPECT_EQ(sdo({0x23, 0x11, 0x10, 0x05, 0x6C, 0x6F, 0x61, 0x64}),
+            CanFrame(0x5FF, {0x80, 0x11, 0x10, 0x05, 0x11, 0x00, 0x09, 0x06}));
+}
+
+// §11 "Load via SDO Object 0x1011 ... will upload data from the non-volatile memory" (the other
+// reading of 1011h "load", corner load=stored): the stored values come back at once.
+TEST(NovotechnikSimCorners, LoadReadingStoredBringsTheStoredValuesAtOnce) {
+  oegw::testing::VirtualNetwork net;
+  const auto dir = std::filesystem::temp_directory_path() / ("oegw-novo-load-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  Novotechnik406SimConfig cfg;
+  cfg.store_path = dir / "params.txt";
+  cfg.load_restores_defaults = false;
+  Novotechnik406Sim sim(net.sink("sim"), cfg);
+  net.attach("sim", sim);
+  sim.start(net.now());
+  net.settle();
+  (void)sim.od().set<std::uint32_t>(0x6003, 0, 55);
+  sim.node().nmt().enter(NmtState::PreOperational, net.now());
+  auto send = net.sink("probe");
+  send(CanFrame(0x67F, {0x23, 0x10, 0x10, 0x03, 0x73, 0x61, 0x76, 0x65}));
+  net.run_for(5ms);
+  (void)sim.od().set<std::uint32_t>(0x6003, 0, 99);
+  send(CanFrame(0x67F, {0x23, 0x11, 0x10, 0x03, 0x6C, 0x6F, 0x61, 0x64}));
+  net.run_for(5ms);
+  EXPECT_EQ(sim.od().get<std::uint32_t>(0x6003, 0), 55u);
+  std::filesystem::remove_all(dir);
+}
+
+// §7.3 "SDO Abort": the frame "0x580+Node-ID 8 Tx 0x80 Index Sub-index Abort code" for the codes
+// the sensor gives, as it sends them (those the simulator produces by the document's rules) and
+// as the gateway's SDO client reads them (every code of the list).
+TEST_F(NovotechnikSim, AbortCodesOfSection73) {
+  boot();
+  // 0x06090011 "subindex does not exist": 1018h:05.
+  EXPECT_EQ(sdo({0x40, 0x18, 0x10, 0x05, 0, 0, 0, 0}), CanFrame(0x5FF, {0x80, 0x18, 0x10, 0x05, 0x11, 0x00, 0x09, 0x06}));
+  // 0x06010001 "object is write only": 2100h "Position Error Reset", Bool W.
+  EXPECT_EQ(sdo({0x40, 0x00, 0x21, 0x00, 0, 0, 0, 0}), CanFrame(0x5FF, {0x80, 0x00, 0x21, 0x00, 0x01, 0x00, 0x01, 0x06}));
+  // 0x06060000 "access error": a store that cannot be written (a sensor without its memory).
+  {
+    oegw::testing::VirtualNetwork net;
+    Novotechnik406Sim bare(net.sink("sim"), Novotechnik406SimConfig{});  // no store file
+    net.attach("sim", bare);
+    net.bus().set_logging(true);
+    bare.start(net.now());
+    net.settle();
+    EXPECT_EQ(net.exchange("probe", CanFrame(0x67F, {0x23, 0x10, 0x10, 0x01, 0x73, 0x61, 0x76, 0x65}), 0x5FF),
+              std::vector<CanFrame>{CanFrame(0x5FF, {0x80, 0x10, 0x10, 0x01, 0x00, 0x00, 0x06, 0x06})});
+  }
+  // Every code of the list, read from its frame by the gateway's SDO client.
+  struct Code {
+    std::uint32_t raw;
+    SdoAbortCode code;
+  };
+  for (const Code& c : {Code{0x06090011, SdoAbortCode::SubIndexDoesNotExist}, Code{0x06090030, SdoAbortCode::InvalidValue},
+                        Code{0x06020000, SdoAbortCode::ObjectDoesNotExist}, Code{0x06010001, SdoAbortCode::ReadOfWriteOnly},
+                        Code{0x06010002, SdoAbortCode::WriteOfReadOnly}, Code{0x06060000, SdoAbortCode::HardwareError},
+                        Code{0x08000020, SdoAbortCode::CannotTransfer}, Code{0x08000000, SdoAbortCode::GeneralError},
+                        Code{0x08000022, SdoAbortCode::CannotTransferDeviceState}}) {
+    // The sensor's answer is the abort frame of §7.3 (sent by the probe; the simulator is silent).
+    sim_->set_silent(true);
+    SdoAbortCode got = SdoAbortCode::None;
+    bool done = false;
+    host_->sdo(kNode).upload(0x2002, 0, [&](SdoAbortCode code, Bytes) {
+      got = code;
+      done = true;
+    });
+    net_.run_for(1ms);
+    probe_(CanFrame(0x5FF, {0x80, 0x02, 0x20, 0x00, static_cast<std::uint8_t>(c.raw), static_cast<std::uint8_t>(c.raw >> 8),
+                            static_cast<std::uint8_t>(c.raw >> 16), static_cast<std::uint8_t>(c.raw >> 24)}));
+    net_.run_for(5ms);
+    sim_->set_silent(false);
+    EXPECT_TRUE(done) << std::hex << c.raw;
+    EXPECT_EQ(got, c.code) << std::hex << c.raw;
+    EXPECT_EQ(static_cast<std::uint32_t>(got), c.raw);
+  }
 }
 
 }  // namespace

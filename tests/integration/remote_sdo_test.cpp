@@ -20,6 +20,8 @@
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
+#include "gateway/control/status_command.hpp"
+#include "gateway/control/status_report.hpp"
 #include "gateway/gateway.hpp"
 #include "programs/cab_rig.hpp"
 #include "subdevices/sim/mcb402_sim.hpp"
@@ -391,6 +393,116 @@ TEST_F(RemoteSdo, NodeIdBitRateAndEmcyCobIdOfSubdevicesInUseAreRefused) {
   mcb.cable_break(2, true, loop_.now());
   run_for(500ms);
   EXPECT_FALSE(rig_->gw().faults().empty()) << "the cable break went unseen\n" << log_;
+}
+
+// Each object that re-wires or re-flashes a sub-device whose inputs FEs use, written by the host
+// as one expedited download frame through a network indication: answered at once with the abort
+// frame 0800 0021h naming that object, and not one SDO request reaches the cab's bus. TIME 1012h,
+// the SDO server and client parameters 1200h..12FFh (an SDO answer moved onto another device's
+// TPDO COB-ID would be taken for its inputs), the EMCY consumer 1028h, program download and
+// control 1F50h..1F57h (CiA 302-3), NMT startup 1F80h; the MCB-402's 100Eh "COB-ID guard" (its
+// document's object list: rw); the elobau's 5000h "Auto NMT Start" (document 000, Annex A).
+TEST_F(RemoteSdo, EveryObjectThatRewiresOrReflashesASubdeviceInUseIsRefusedAtFrameLevel) {
+  struct Write {
+    std::uint8_t node;
+    std::uint16_t index;
+    std::uint8_t sub;
+  };
+  const std::vector<Write> writes = {
+      {kGrip, 0x1012, 0x00}, {kGrip, 0x1200, 0x01}, {kGrip, 0x1200, 0x02}, {kGrip, 0x1201, 0x01},
+      {kGrip, 0x1280, 0x01}, {kGrip, 0x1280, 0x02}, {kGrip, 0x12FF, 0x03}, {kGrip, 0x1028, 0x01},
+      {kGrip, 0x1F50, 0x01}, {kGrip, 0x1F51, 0x01}, {kGrip, 0x1F52, 0x01}, {kGrip, 0x1F53, 0x01},
+      {kGrip, 0x1F54, 0x01}, {kGrip, 0x1F55, 0x01}, {kGrip, 0x1F56, 0x01}, {kGrip, 0x1F57, 0x01},
+      {kGrip, 0x1F80, 0x00}, {kGrip, 0x5000, 0x00}, {kLeft, 0x100E, 0x00}, {kLeft, 0x1200, 0x02},
+      {kKnob, 0x1F51, 0x01}, {kPedal, 0x1280, 0x01}, {kCluster, 0x1012, 0x00}};
+  for (const Write& w : writes) {
+    select(kDown, w.node);
+    const std::size_t up0 = up_.size(), down0 = down_.size();
+    const auto lo = static_cast<std::uint8_t>(w.index), hi = static_cast<std::uint8_t>(w.index >> 8);
+    // 23h: expedited download of 4 bytes, e.g. an SDO server COB-ID of 191h (the grip's TPDO #0).
+    (void)rig_->host_port().send(CanFrame(kDefaultRx, {0x23, lo, hi, w.sub, 0x91, 0x01, 0x00, 0x00}));
+    run_for(20ms);
+    std::vector<CanFrame> answers;
+    for (std::size_t i = up0; i < up_.size(); ++i)
+      if (up_[i].id == kDefaultTx) answers.push_back(up_[i]);
+    ASSERT_EQ(answers.size(), 1u) << fmt::format("{:02X}h {:04X}h:{:02X}", w.node, w.index, w.sub);
+    EXPECT_EQ(answers[0].data, (std::array<std::uint8_t, 8>{0x80, lo, hi, w.sub, 0x21, 0x00, 0x00, 0x08}))
+        << fmt::format("{:02X}h {:04X}h:{:02X}: {}", w.node, w.index, w.sub, answers[0].to_string());
+    for (std::size_t i = down0; i < down_.size(); ++i)
+      EXPECT_FALSE(down_[i].id >= 0x600 && down_[i].id <= 0x67F)
+          << fmt::format("{:02X}h {:04X}h:{:02X}: {} reached the cab's bus", w.node, w.index, w.sub, down_[i].to_string());
+  }
+  EXPECT_EQ(rig_->gw().remote_sdo().counters().refused, writes.size());
+  EXPECT_EQ(rig_->gw().remote_sdo().counters().transfers, 0u);
+  // Reads of the same objects stay allowed: the grip's SDO server COB-IDs.
+  select(kDown, kGrip);
+  const Result r = read(host(), 0x1200, 2);
+  ASSERT_EQ(r.code, SdoAbortCode::None) << log_;
+  EXPECT_EQ(get_u32(r.data.data()), 0x580u + kGrip);
+}
+
+// A network indication's redirect is logged when it begins and ends and listed by `oegw status`
+// (status_report, and the table) while in force: which SDO server channel, which network and
+// node, since when, by which request. It ends when a network indication names the gateway and
+// when the gateway is reset (NMT reset communication).
+TEST_F(RemoteSdo, ARedirectIsShownInTheLogAndStatusUntilItEnds) {
+  const TimePoint started = loop_.now();
+  const auto redirects = [&] {
+    return gw::status_report(rig_->gw(), config_, {loop_.now(), started})["upstream"]["sdo_redirects"];
+  };
+  EXPECT_TRUE(redirects().empty());
+  log_.clear();
+  select(kDown, kGrip);
+  EXPECT_NE(log_.find("remote SDO: SDO server 1200h (620h/5A0h) redirected to right_grip (network 2, node 11h) by the "
+                      "network indication E0 00 00 00 02 11 00 00: every client on 620h now reaches right_grip, not the "
+                      "gateway, until a network indication names the gateway (network 1, node 20h, or network 0, node "
+                      "0) or the gateway is reset or stopped (NMT)"),
+            std::string::npos)
+      << log_;
+  run_for(1500ms);
+  nlohmann::json r = redirects();
+  ASSERT_EQ(r.size(), 1u) << r.dump();
+  EXPECT_EQ(r[0]["sdo_server"], 0x1200);
+  EXPECT_EQ(r[0]["request_cob_id"], kDefaultRx);
+  EXPECT_EQ(r[0]["response_cob_id"], kDefaultTx);
+  EXPECT_EQ(r[0]["network_id"], kDown);
+  EXPECT_EQ(r[0]["node_id"], kGrip);
+  EXPECT_EQ(r[0]["subdevice"], "right_grip");
+  EXPECT_GE(r[0]["age_ms"].get<std::int64_t>(), 1500);
+  EXPECT_LT(r[0]["age_ms"].get<std::int64_t>(), 1510);
+  EXPECT_EQ(r[0]["indication"], nlohmann::json::array({0xE0, 0, 0, 0, kDown, kGrip, 0, 0}));
+  // The table names it too, wrapped to 100 columns (read here with its wrapped lines joined).
+  std::string table = gw::status_table(gw::status_report(rig_->gw(), config_, {loop_.now(), started}));
+  for (std::size_t at = 0; (at = table.find("\n    ", at)) != std::string::npos;) table.replace(at, 5, " ");
+  const std::string line = "remote SDO: SDO server 1200h (620h/5A0h) redirected to right_grip (network 2, node 11h) "
+                           "for 1.5 s by the network indication E0 00 00 00 02 11 00 00: a client on 620h reaches "
+                           "right_grip, not the gateway\n";
+  EXPECT_NE(table.find(line), std::string::npos) << table;
+  // The bound channel is configured, not redirected: not listed. The free one, redirected too.
+  ASSERT_TRUE(indicate(kDown, kKnob, kFreeRx, kFreeTx).has_value());
+  r = redirects();
+  ASSERT_EQ(r.size(), 2u) << r.dump();
+  EXPECT_EQ(r[1]["sdo_server"], 0x1202);
+  EXPECT_EQ(r[1]["subdevice"], "seat_knob");
+  // Naming the gateway ends the first.
+  log_.clear();
+  select(kUp, kGw.value());
+  EXPECT_NE(log_.find("remote SDO: SDO server 1200h (620h/5A0h) reaches the gateway's own dictionary again (a network "
+                      "indication named the gateway): its redirect to right_grip (network 2, node 11h) lasted 1.5 s"),
+            std::string::npos)
+      << log_;
+  r = redirects();
+  ASSERT_EQ(r.size(), 1u) << r.dump();
+  EXPECT_EQ(r[0]["sdo_server"], 0x1202);
+  // NMT reset communication of the gateway ends the other.
+  log_.clear();
+  (void)rig_->host_port().send(CanFrame(0x000, {0x82, kGw.value()}));
+  run_for(100ms);
+  EXPECT_NE(log_.find("remote SDO: SDO server 1202h (691h/6B1h) reaches the gateway's own dictionary again (NMT reset "
+                      "or stop of the gateway): its redirect to seat_knob (network 2, node 7Fh) lasted"),
+            std::string::npos)
+      << log_;
+  EXPECT_TRUE(redirects().empty());
 }
 
 TEST_F(RemoteSdo, AnExpeditedDownloadWithoutSizeIsRelayedAsOne) {

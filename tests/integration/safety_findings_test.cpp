@@ -118,8 +118,8 @@ TEST_F(SafetyFindings, ANodeThatNeverSendsAPdoAfterStartIsStaleAndReported) {
   b.dev_drop_tpdos = true;
   b.power_device();
   ASSERT_TRUE(b.run_until([&] { return b.node_state() == sd::NodeState::Operational; }, 3s)) << b.log();
-  b.run_for(150ms + 10ms);
-  EXPECT_TRUE(b.mon().emcy_active_at(0x30, b.now())) << "no PDO for 160 ms since it went live\n" << b.log();
+  b.run_for(200ms + 10ms);  // the deadline: 3 x 50 ms raised to the family's 200 ms floor
+  EXPECT_TRUE(b.mon().emcy_active_at(0x30, b.now())) << "no PDO for 210 ms since it went live\n" << b.log();
   EXPECT_EQ(b.status(), FeStatus::Stale);
   EXPECT_EQ(b.mon().violations(), 0u);
 }
@@ -236,7 +236,10 @@ TEST_F(SafetyFindings, ARecoveryWhileTheHostHeartbeatIsLostIsReportedUpstream) {
 // last one): the FE shows a live position from a PDO the contract counts as stale. Expected: a
 // kept PDO older than its deadline at the proof of life is not applied (stale).
 TEST_F(SafetyFindings, AKeptPdoOlderThanItsDeadlineIsNotAppliedAtTheProofOfLife) {
-  b_ = std::make_unique<Bench>(FamilyId::Novotechnik);
+  // Without the family's freshness floor (200 ms), so that the deadline is the 30 ms the finding had.
+  Corner no_floor = corners(FamilyId::Novotechnik).front();
+  no_floor.driver.emplace_back("freshness_floor_ms", "0");
+  b_ = std::make_unique<Bench>(FamilyId::Novotechnik, Monitor::Options{}, no_floor);
   Bench& b = *b_;
   b.build();
   b.start_gateway();

@@ -62,6 +62,55 @@ inline const char* name(FamilyId f) {
 inline constexpr FamilyId kFamilies[] = {FamilyId::Elobau, FamilyId::Mcb402, FamilyId::Novotechnik,
                                          FamilyId::Cia401Pedal, FamilyId::Cia401Cluster};
 
+// A corner of a family's document (subdevices/README.md "Corners"): a reading the document
+// permits, as its simulator's options, and what the mapping file then says (the driver options
+// commissioning finds: the MCB-402's button bits, the elobau's save). The matrix and the random
+// scenarios run every family at each of its corners; together they hold every value of every
+// simulator option of the family at least once.
+struct Corner {
+  std::string name;  // "Doc": the document's first reading (the simulator's defaults)
+  std::vector<std::pair<std::string, std::string>> sim;
+  std::vector<std::pair<std::string, std::string>> driver;
+  bool sim_store = false;  // the simulator keeps a parameter store (1010h "save" works)
+  // Periods of the device's TPDO until a channel mismatch is reported: an elobau grip sending on
+  // its timer only shows the disagreeing TPDO #1 and the TPDO #0 that confirms it a cycle apart.
+  int mismatch_periods = 1;
+};
+inline std::vector<Corner> corners(FamilyId id) {
+  switch (id) {
+    case FamilyId::Elobau:
+      return {{"Doc", {{"tpdo", "change"}, {"saved", "yes"}, {"buttons", "63"}}, {}, false},
+              {"Opposite",
+               {{"tpdo", "timer"}, {"saved", "no"}, {"buttons", "255"}},
+               {{"parameter_checksum", "save"}},
+               true,
+               2}};
+    case FamilyId::Mcb402:
+      return {{"Doc",
+               {{"wiring", "1/2/3/4/5/7/6"}, {"clear_after_break", "0000h"}, {"power_on_1001h", "00h"}},
+               {{"button_bits", "1,2,3,4,5,7,6"}},
+               false},
+              {"Opposite",
+               {{"wiring", "0/1/2/3/4/6/5"}, {"clear_after_break", "none"}, {"power_on_1001h", "11h"}},
+               {{"button_bits", "0,1,2,3,4,6,5"}},
+               false}};
+    case FamilyId::Novotechnik:
+      return {{"Doc",
+               {{"error_register_size", "1"}, {"emcy_behaviour", "0"}, {"has_6020h", "yes"}, {"work_area_emcy", "bits"}},
+               {},
+               false},
+              {"Opposite",
+               {{"error_register_size", "2"}, {"emcy_behaviour", "3"}, {"has_6020h", "no"}, {"work_area_emcy", "enum"}},
+               {},
+               false},
+              {"Emcy1", {{"emcy_behaviour", "1"}, {"has_6020h", "no"}}, {}, false},
+              {"Emcy2", {{"emcy_behaviour", "2"}, {"error_register_size", "2"}}, {}, false}};
+    case FamilyId::Cia401Pedal:
+    case FamilyId::Cia401Cluster: return {{"Doc", {}, {}, false}};  // CiA 401 / CiA 306: no device document
+  }
+  return {};
+}
+
 // What a family looks like to the test: the mapping file, the tables the monitor gets, and how to
 // move its input.
 struct Family {
@@ -116,13 +165,14 @@ inline Family make_family(FamilyId id) {
       f.pdo_deadline_max = 300ms;
       NodeKnowledge n{"grip", 0x11, 150ms, {{0x191, 300ms}, {0x291, 300ms}}};
       UpFe fe{f.fe, f.up_cob, {{"x", 0, 2, -1, 0, 0x11, 0x191}, {"y", 2, 2, -1, 0, 0x11, 0x191}}};
-      bits(fe, "buttons", 8, 7, 0x11, 0x191);
+      bits(fe, "buttons", 6, 7, 0x11, 0x191);  // 2100h:01h default 63: the grip has buttons 1..6
       f.knowledge = {kGwNode, {n}, {fe}, {{*f.out, 0x11, 0x211, {{0, 0, 2}, {0, 2, 2}}}}};
       break;
     }
     case FamilyId::Mcb402: {
       // MCB-402: TPDO1 183h buttons (button_timer_ms 100 -> 300 ms), TPDO2 283h axes
-      // (event_timer_ms 20 -> 60 ms); RPDO1 203h byte 0 bits 0..3 = OUT0..3.
+      // (event_timer_ms 20 -> 60 ms, raised to the family's 200 ms freshness floor); RPDO1 203h
+      // byte 0 bits 0..3 = OUT0..3.
       f.yaml = fixtures::mapping_file("safety_mcb402.yaml");
       f.dut = "grip";
       f.node = 0x03;
@@ -136,9 +186,9 @@ inline Family make_family(FamilyId id) {
       f.out = FeId{FeKind::IndicatorCluster, 1};
       f.out_mask = 0x0F;
       f.pdo_period = 20ms;
-      f.pdo_deadline = 60ms;
+      f.pdo_deadline = 200ms;
       f.pdo_deadline_max = 300ms;
-      NodeKnowledge n{"grip", 0x03, 150ms, {{0x183, 300ms}, {0x283, 60ms}}};
+      NodeKnowledge n{"grip", 0x03, 150ms, {{0x183, 300ms}, {0x283, 200ms}}};
       UpFe fe{f.fe, f.up_cob,
               {{"x", 0, 2, -1, 0, 0x03, 0x283}, {"y", 2, 2, -1, 0, 0x03, 0x283}, {"z", 4, 2, -1, 0, 0x03, 0x283}}};
       bits(fe, "buttons", 7, 7, 0x03, 0x183);
@@ -146,7 +196,8 @@ inline Family make_family(FamilyId id) {
       break;
     }
     case FamilyId::Novotechnik: {
-      // Novotechnik CiA 406: TPDO1 1FFh position (event_timer_ms 10 -> 30 ms). Encoder 1 = TPDO 28.
+      // Novotechnik CiA 406: TPDO1 1FFh position (event_timer_ms 10 -> 30 ms, raised to the family's
+      // 200 ms freshness floor). Encoder 1 = TPDO 28.
       f.yaml = fixtures::mapping_file("safety_novotechnik_406.yaml");
       f.dut = "knob";
       f.node = 0x7F;
@@ -157,16 +208,17 @@ inline Family make_family(FamilyId id) {
       f.up_comm = 0x181B;
       f.up_cob = 0x2C0;
       f.pdo_period = 10ms;
-      f.pdo_deadline = 30ms;
-      f.pdo_deadline_max = 30ms;
-      NodeKnowledge n{"knob", 0x7F, 150ms, {{0x1FF, 30ms}}};
+      f.pdo_deadline = 200ms;
+      f.pdo_deadline_max = 200ms;
+      NodeKnowledge n{"knob", 0x7F, 150ms, {{0x1FF, 200ms}}};
       UpFe fe{f.fe, f.up_cob, {{"position", 0, 4, -1, 0, 0x7F, 0x1FF}}};
       f.knowledge = {kGwNode, {n}, {fe}, {}};
       break;
     }
     case FamilyId::Cia401Pedal: {
-      // generic_pedal.eds: TPDO1 1B0h = 6401h:01, 6401h:02, 6000h:01, event timer 50 -> 150 ms.
-      // Pedal 1 = TPDO 20 (1813h): memory byte, then position INTEGER16.
+      // generic_pedal.eds: TPDO1 1B0h = 6401h:01, 6401h:02, 6000h:01, event timer 50 -> 150 ms,
+      // raised to the family's 200 ms freshness floor. Pedal 1 = TPDO 20 (1813h): memory byte,
+      // then position INTEGER16.
       f.yaml = fixtures::mapping_file("safety_cia401_pedal.yaml");
       f.dut = "pedal";
       f.node = 0x30;
@@ -178,9 +230,9 @@ inline Family make_family(FamilyId id) {
       f.up_comm = 0x1813;
       f.up_cob = 0x2B0;
       f.pdo_period = 50ms;
-      f.pdo_deadline = 150ms;
-      f.pdo_deadline_max = 150ms;
-      NodeKnowledge n{"pedal", 0x30, 150ms, {{0x1B0, 150ms}}};
+      f.pdo_deadline = 200ms;
+      f.pdo_deadline_max = 200ms;
+      NodeKnowledge n{"pedal", 0x30, 150ms, {{0x1B0, 200ms}}};
       UpFe fe{f.fe, f.up_cob, {{"position", 1, 2, -1, 0, 0x30, 0x1B0}}};
       f.knowledge = {kGwNode, {n}, {fe}, {}};
       break;
@@ -213,13 +265,19 @@ inline Family make_family(FamilyId id) {
 
 class Bench {
  public:
-  explicit Bench(FamilyId id, Monitor::Options mo = {}) : fam_(make_family(id)), mon_(fam_.knowledge, mo) {}
+  // `corner`: the family's document reading to run at (corners(); default its first, "Doc").
+  explicit Bench(FamilyId id, Monitor::Options mo = {}, std::optional<Corner> corner = std::nullopt)
+      : fam_(make_family(id)), corner_(corner ? std::move(*corner) : corners(id).front()), mon_(fam_.knowledge, mo) {}
   Bench(const Bench&) = delete;
   Bench& operator=(const Bench&) = delete;
   ~Bench() {
     other_.reset();
     rig_.reset();
-    if (!store_.empty()) std::filesystem::remove(store_);
+    for (const auto& p : {store_, sim_store_})
+      if (!p.empty()) {
+        std::filesystem::remove(p);
+        std::filesystem::remove(std::filesystem::path(p.string() + ".lss"));
+      }
   }
 
   // Builds everything; the device stays unpowered (silent) until power_device().
@@ -230,9 +288,23 @@ class Bench {
     store_ = std::filesystem::path(::testing::TempDir()) /
              fmt::format("safety_{}_{}_{}.store", ::getpid(), name(fam_.id), reinterpret_cast<std::uintptr_t>(this));
     std::filesystem::remove(store_);
+    // The corner: the driver options the mapping file says at it (replacing the file's), the
+    // simulator's options (and its store, for a grip the gateway saves).
+    auto& opts = config_.subdevices.front().options.values;
+    for (const auto& [key, value] : corner_.driver) {
+      std::erase_if(opts, [&key](const auto& kv) { return kv.first == key; });
+      opts.emplace_back(key, value);
+    }
+    subdevices::DriverOptions sim_options{corner_.sim};
+    if (corner_.sim_store) {
+      sim_store_ = std::filesystem::path(store_.string() + ".device");
+      std::filesystem::remove(sim_store_);
+      sim_options.values.emplace_back("store", sim_store_.string());
+    }
     // The cab of programs/cab_rig.hpp (the demo's and the e2e tests' harness), with this bench's
     // fault switches in its wiring and another master's port on the downstream bus.
-    rig_ = std::make_unique<gateway::CabRig>(config_, loop_, gateway::CabRigOptions{.store = store_});
+    rig_ = std::make_unique<gateway::CabRig>(
+        config_, loop_, gateway::CabRigOptions{.store = store_, .simulator_options = {{fam_.dut, sim_options}}});
     other_ = rig_->down().attach("other");
     rig_->from_devices = [this](const CanFrame& f) { return device_dropped(f); };
     rig_->to_devices = [this](const CanFrame&) { return dev_drop_all; };
@@ -481,7 +553,7 @@ class Bench {
           dev()->set_silent(false);
         }
         break;
-      case FamilyId::Mcb402:
+      case FamilyId::Mcb402: as<sim::Mcb402Sim>().bus_off_recovered(now); break;  // "40 81 11 ..."
       case FamilyId::Cia401Pedal:
       case FamilyId::Cia401Cluster:
         (void)dev()->node().emcy().raise(0x8140, 0x11, now);
@@ -494,6 +566,7 @@ class Bench {
 
   // ---- Accessors ----
   [[nodiscard]] const Family& fam() const { return fam_; }
+  [[nodiscard]] const Corner& corner() const { return corner_; }
   Monitor& mon() { return mon_; }
   gateway::Gateway& gw() { return *gw_; }
   EventLoop& loop() { return loop_; }
@@ -569,12 +642,14 @@ class Bench {
   }
 
   Family fam_;
+  Corner corner_;
   Monitor mon_;
   mapping::Config config_;
   SimulatedClock clock_;
   EventLoop loop_{clock_};
   TimePoint t0_{};
   std::filesystem::path store_;
+  std::filesystem::path sim_store_;  // the simulator's parameter store (Corner::sim_store)
   std::unique_ptr<gateway::CabRig> rig_;
   std::unique_ptr<VirtualPort> other_;  // another master on the downstream bus
   // Into rig_:

@@ -112,6 +112,7 @@ const char* phase_name(Phase p) {
 
 struct Cell {
   FamilyId family;
+  std::size_t corner;  // corners(family)[corner]
   Fault fault;
   Phase phase;
 };
@@ -132,18 +133,21 @@ bool applies(FamilyId fam, Fault f, Phase p) {
   }
 }
 
+// Every family at each of its corners (safety_harness.hpp corners()).
 std::vector<Cell> all_cells() {
   std::vector<Cell> out;
   for (FamilyId fam : kFamilies)
-    for (int f = 0; f <= static_cast<int>(Fault::BusOff); ++f)
-      for (int p = 0; p <= static_cast<int>(Phase::Recovering); ++p)
-        if (applies(fam, static_cast<Fault>(f), static_cast<Phase>(p)))
-          out.push_back({fam, static_cast<Fault>(f), static_cast<Phase>(p)});
+    for (std::size_t c = 0; c < corners(fam).size(); ++c)
+      for (int f = 0; f <= static_cast<int>(Fault::BusOff); ++f)
+        for (int p = 0; p <= static_cast<int>(Phase::Recovering); ++p)
+          if (applies(fam, static_cast<Fault>(f), static_cast<Phase>(p)))
+            out.push_back({fam, c, static_cast<Fault>(f), static_cast<Phase>(p)});
   return out;
 }
 
 std::string cell_name(const ::testing::TestParamInfo<Cell>& i) {
-  return std::string(name(i.param.family)) + "_" + fault_name(i.param.fault) + "_" + phase_name(i.param.phase);
+  return std::string(name(i.param.family)) + "_" + corners(i.param.family)[i.param.corner].name + "_" +
+         fault_name(i.param.fault) + "_" + phase_name(i.param.phase);
 }
 
 // What a cell expects.
@@ -163,7 +167,7 @@ constexpr Duration kSdoTimeout = 1000ms;  // GatewayOptions::sdo_timeout (defaul
 constexpr Duration kBootWait = 2000ms;    // NetworkTiming::boot_wait (default)
 constexpr Duration kOutage = 500ms;       // interface down / bus-off
 
-Expect expect(const Family& fam, Fault f, Phase p) {
+Expect expect(const Family& fam, const Corner& corner, Fault f, Phase p) {
   Expect e;
   const Duration w = p == Phase::Waiting ? kPowerDelay : Duration{0};
   const std::set<FeStatus> lost{FeStatus::Offline, FeStatus::Stale};
@@ -202,7 +206,8 @@ Expect expect(const Family& fam, Fault f, Phase p) {
     case Fault::NotAvailable:
     case Fault::ChannelMismatch: {
       const FeStatus s = f == Fault::NotAvailable ? FeStatus::NotAvailable : FeStatus::Error;
-      e.by = p == Phase::Operational ? fam.pdo_period + kGrace : w + kConsumer + kGrace;
+      const int periods = f == Fault::ChannelMismatch ? corner.mismatch_periods : 1;
+      e.by = p == Phase::Operational ? periods * fam.pdo_period + kGrace : w + kConsumer + kGrace;
       e.status = before_op ? std::set<FeStatus>{s, FeStatus::Offline} : std::set<FeStatus>{s};
       e.primary_only = fam.id == FamilyId::Elobau;
       break;
@@ -245,11 +250,11 @@ std::string statuses(const std::set<FeStatus>& s) {
 class SafetyMatrix : public ::testing::TestWithParam<Cell> {
  protected:
   void SetUp() override {
-    b_ = std::make_unique<Bench>(GetParam().family);
+    b_ = std::make_unique<Bench>(GetParam().family, Monitor::Options{}, corners(GetParam().family)[GetParam().corner]);
     b_->build();
     b_->set_context([this] {
-      return std::string("cell ") + name(GetParam().family) + "/" + fault_name(GetParam().fault) + "/" +
-             phase_name(GetParam().phase) + "\n" + b_->tail(25);
+      return std::string("cell ") + name(GetParam().family) + "/" + b_->corner().name + "/" +
+             fault_name(GetParam().fault) + "/" + phase_name(GetParam().phase) + "\n" + b_->tail(25);
     });
   }
   // OEGW_SAFETY_LOG=1: every cell prints its gateway log (what a passing cell went through).
@@ -322,7 +327,7 @@ TEST_P(SafetyMatrix, Cell) {
   const Cell c = GetParam();
   Bench& x = b();
   const Family& fam = x.fam();
-  const Expect e = expect(fam, c.fault, c.phase);
+  const Expect e = expect(fam, x.corner(), c.fault, c.phase);
   x.start_gateway();
   if (fam.out) {
     x.error_values(0x01, 0x01);  // indicator 1 is the error lamp

@@ -8,7 +8,8 @@
 // CI runs kStepsCi steps per seed, kSeedsCi seeds per family. A failing run prints the family,
 // seed and step; replay it with
 //   OEGW_SAFETY_SEED=<seed> [OEGW_SAFETY_FAMILY=<Elobau|Mcb402|Novotechnik406|Cia401Pedal|
-//   Cia401Cluster>] [OEGW_SAFETY_STEPS=<n>] [OEGW_SAFETY_TRACE=1] ./safety_random_test
+//   Cia401Cluster>] [OEGW_SAFETY_CORNER=<Doc|Opposite|...>] [OEGW_SAFETY_STEPS=<n>] [OEGW_SAFETY_TRACE=1]
+//   ./safety_random_test
 // (OEGW_SAFETY_TRACE adds the last frames of both buses to each report).
 #include <gtest/gtest.h>
 
@@ -69,8 +70,10 @@ struct Runner {
     if (recent.size() > 60) recent.pop_front();
   }
   std::string context() const {
-    std::string s = fmt::format("family {} seed {} step {}; replay: OEGW_SAFETY_SEED={} OEGW_SAFETY_FAMILY={}\nlast actions:\n",
-                                name(b.fam().id), seed, step, seed, name(b.fam().id));
+    std::string s = fmt::format(
+        "family {} corner {} seed {} step {}; replay: OEGW_SAFETY_SEED={} OEGW_SAFETY_FAMILY={} OEGW_SAFETY_CORNER={}\n"
+        "last actions:\n",
+        name(b.fam().id), b.corner().name, seed, step, seed, name(b.fam().id), b.corner().name);
     for (const auto& r : recent) s += "  " + r + "\n";
     return s + "gateway log:\n" + b.tail(20);
   }
@@ -291,19 +294,34 @@ std::optional<std::uint64_t> env_u64(const char* n) {
   return std::strtoull(v, nullptr, 0);
 }
 
-class SafetyRandom : public ::testing::TestWithParam<FamilyId> {};
+// A family at one of its corners (safety_harness.hpp corners()).
+struct FamilyCorner {
+  FamilyId family;
+  std::size_t corner;
+};
+std::vector<FamilyCorner> all_corners() {
+  std::vector<FamilyCorner> out;
+  for (FamilyId fam : kFamilies)
+    for (std::size_t c = 0; c < corners(fam).size(); ++c) out.push_back({fam, c});
+  return out;
+}
+
+class SafetyRandom : public ::testing::TestWithParam<FamilyCorner> {};
 
 TEST_P(SafetyRandom, SeededFaultSequencesKeepTheInvariants) {
-  const FamilyId fam = GetParam();
+  const FamilyId fam = GetParam().family;
+  const Corner corner = corners(fam)[GetParam().corner];
   if (const char* only = std::getenv("OEGW_SAFETY_FAMILY"); only && *only && std::string(only) != name(fam))
     GTEST_SKIP() << "OEGW_SAFETY_FAMILY=" << only;
+  if (const char* only = std::getenv("OEGW_SAFETY_CORNER"); only && *only && std::string(only) != corner.name)
+    GTEST_SKIP() << "OEGW_SAFETY_CORNER=" << only;
   std::vector<std::uint64_t> seeds(std::begin(kSeedsCi), std::end(kSeedsCi));
   if (auto s = env_u64("OEGW_SAFETY_SEED")) seeds = {*s};
   const std::size_t steps = env_u64("OEGW_SAFETY_STEPS").value_or(kStepsCi);
   for (const std::uint64_t seed : seeds) {
     Monitor::Options mo;
     mo.max_reports = 3;
-    Bench b(fam, mo);
+    Bench b(fam, mo, corner);
     b.build();
     Runner run(b, seed * 1000003u + static_cast<std::uint64_t>(fam));
     run.seed = seed;
@@ -324,10 +342,11 @@ TEST_P(SafetyRandom, SeededFaultSequencesKeepTheInvariants) {
     stepping = true;
     for (run.step = 0; run.step < steps && !first_bad; ++run.step) run.run_step();
     if (first_bad) {
-      ADD_FAILURE() << "family " << name(fam) << " seed " << seed << ": first violation "
+      ADD_FAILURE() << "family " << name(fam) << " corner " << corner.name << " seed " << seed << ": first violation "
                     << (*first_bad == steps ? std::string("at the first boot, before any step")
                                             : "at step " + std::to_string(*first_bad))
-                    << ": " << first_line << "\nreplay with OEGW_SAFETY_SEED=" << seed << " OEGW_SAFETY_FAMILY=" << name(fam);
+                    << ": " << first_line << "\nreplay with OEGW_SAFETY_SEED=" << seed << " OEGW_SAFETY_FAMILY=" << name(fam)
+                    << " OEGW_SAFETY_CORNER=" << corner.name;
       continue;
     }
     // Everything removed: the device must come back (the gateway's back-off is at most 30 s).
@@ -343,8 +362,10 @@ TEST_P(SafetyRandom, SeededFaultSequencesKeepTheInvariants) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Families, SafetyRandom, ::testing::ValuesIn(kFamilies),
-                         [](const ::testing::TestParamInfo<FamilyId>& i) { return std::string(name(i.param)); });
+INSTANTIATE_TEST_SUITE_P(Families, SafetyRandom, ::testing::ValuesIn(all_corners()),
+                         [](const ::testing::TestParamInfo<FamilyCorner>& i) {
+                           return std::string(name(i.param.family)) + "_" + corners(i.param.family)[i.param.corner].name;
+                         });
 
 }  // namespace
 }  // namespace oegw::testing::safety

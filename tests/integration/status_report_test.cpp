@@ -166,6 +166,28 @@ TEST_F(StatusReport, BusCountersOfBothInterfacesAndTheKernelsDropsInTheTable) {
       << gw::status_table(r);
 }
 
+// The publishing transports as `oegw run` has them: each up, or down with why and when it is
+// tried again, in the report and as the table's `publishing:` line.
+TEST_F(StatusReport, PublishingTransportsUpOrDownWithTheReason) {
+  EXPECT_FALSE(report().contains("publishing")) << "`oegw run` adds it (GatewayControl::add_status_field)";
+  json r = report();
+  r["publishing"] = gw::publishing_status({});
+  EXPECT_NE(gw::status_table(r).find("\npublishing: off\n"), std::string::npos);
+  r["publishing"] = gw::publishing_status({{"dds", true, "", 0, {}, {}},
+                                           {"lcm", false, "no route to 224.0.0.1 (Network is unreachable)", 3, 7s, 4s}});
+  EXPECT_EQ(r["publishing"][0], (json{{"transport", "dds"}, {"state", "up"}}));
+  EXPECT_EQ(r["publishing"][1], (json{{"transport", "lcm"},
+                                       {"state", "down"},
+                                       {"reason", "no route to 224.0.0.1 (Network is unreachable)"},
+                                       {"failed_attempts", 3},
+                                       {"down_ms", 7000},
+                                       {"next_attempt_ms", 4000}}));
+  EXPECT_NE(gw::status_table(r).find("\npublishing: dds up; lcm down: no route to 224.0.0.1 (Network is unreachable) (3 "
+                                     "failed attempts, next in 4.0 s)\n"),
+            std::string::npos)
+      << gw::status_table(r);
+}
+
 // Refused commands per output FE (LCM, the host's SDO) and per sub-device (3000h): in the
 // report, in the sub-device's row and in the table's last line; the totals count also what
 // names no FE or sub-device of the file.

@@ -3,10 +3,12 @@
 // length at the bit rate, never two on the wire at once. All on a simulated clock: no sleeps.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <map>
 #include <string>
 #include <vector>
 
+#include "canopen/301/sdo_pacer.hpp"
 #include "canopen/frame_bits.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
@@ -164,6 +166,62 @@ TEST(TimedCab, APowerOnBootUpCrossingTheResetDoesNotCostARefusal) {
   EXPECT_EQ(all.find("refused"), std::string::npos) << all;
   EXPECT_NE(all.find("boot-up again during its configuration"), std::string::npos)
       << "the crossing this test is about did not happen:\n" << all;
+}
+
+// The SDO pacing (canopen/301/sdo_pacer.hpp) judged exactly, on simulated time: the demo cab on
+// timed buses at 250 kbit/s, devices answering SDO at once (the worst case: without pacing the
+// next request follows each answer), boots, then two devices reboot and are configured again.
+// Every SDO initiate request the gateway sends downstream (ccs 1 and 2, block 5/6 with cs 0: a
+// transfer's segments follow their answers and are not paced) is stamped as it leaves the
+// gateway; consecutive ones are at least SdoPacer::gap_for(250 kbit/s, 0.85) = 1,271 us apart
+// (two 8-byte frames at their worst-case stuffing, 135 bits each, on 85 % of the bus), and the
+// pacing is what holds them: the shortest gap is that gap exactly. Without pacing
+// (sdo_bus_share 0) the same cab sends requests microseconds apart. (The VM tier checks only what
+// timing cannot break: tests/vm/guest/gateway.sh.)
+std::vector<TimePoint> sdo_request_starts(double sdo_bus_share) {
+  SimulatedClock clock{kStart};
+  EventLoop loop{clock};
+  gateway::GatewayOptions gw;
+  gw.sdo_bus_share = sdo_bus_share;
+  gateway::CabRig rig(demo_config(), loop,
+                      gateway::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .gateway = gw,
+                                             .timed_buses = true, .device_sdo_latency = Duration{0}});
+  std::vector<TimePoint> starts;
+  rig.from_gateway_down = [&](const CanFrame& f) {
+    if (f.id < 0x600 || f.id > 0x67F || f.dlc < 1) return false;
+    const std::uint8_t b = f.data[0], ccs = b >> 5;
+    if (ccs == 1 || ccs == 2 || (ccs == 5 && (b & 0x03) == 0) || (ccs == 6 && (b & 0x01) == 0)) starts.push_back(loop.now());
+    return false;  // the frame goes on
+  };
+  rig.build();
+  rig.power_on();
+  rig.run_for(3s);
+  for (const char* rebooted : {"right_grip", "seat_knob"}) {
+    EXPECT_EQ(rig.command(std::string(rebooted) + " reboot").rfind("ok", 0), 0u);
+    rig.run_for(3s);
+  }
+  for (const auto& n : rig.gw().downstream().names())
+    EXPECT_EQ(rig.gw().downstream().state(n), subdevices::NodeState::Operational) << n;
+  return starts;
+}
+
+TEST(TimedCab, TheGatewayStartsItsDownstreamSdoRequestsAtLeastThePacingGapApart) {
+  const Duration gap = SdoPacer::gap_for(250'000, gateway::GatewayOptions::kDefaultSdoBusShare);
+  ASSERT_EQ(gap, 1271us) << "270 bits / (250,000 bit/s x 0.85)";
+  const std::vector<TimePoint> paced = sdo_request_starts(gateway::GatewayOptions::kDefaultSdoBusShare);
+  ASSERT_GE(paced.size(), 50u) << "the boot and the two reboots configure five devices";
+  Duration shortest = Duration::max();
+  for (std::size_t i = 1; i < paced.size(); ++i) {
+    EXPECT_GE(paced[i] - paced[i - 1], gap) << "request " << i;
+    shortest = std::min(shortest, paced[i] - paced[i - 1]);
+  }
+  EXPECT_EQ(shortest, gap) << "the pacing, not the devices, set the pace";
+
+  const std::vector<TimePoint> unpaced = sdo_request_starts(0.0);
+  ASSERT_GE(unpaced.size(), 50u);
+  std::size_t close = 0;
+  for (std::size_t i = 1; i < unpaced.size(); ++i) close += unpaced[i] - unpaced[i - 1] < gap ? 1 : 0;
+  EXPECT_GT(close, unpaced.size() / 2) << "without pacing most requests follow each other sooner than the gap";
 }
 
 // Invariant: the gateway's SDO traffic — whose COB-IDs (580h/600h + node) win arbitration over

@@ -5,6 +5,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
@@ -52,6 +53,21 @@ class VirtualNetwork {
   void run_for(Duration d) {
     settle();
     loop_.advance_by(d);
+  }
+  // The frames with `id` in the bus's log (bus().set_logging(true)).
+  [[nodiscard]] std::vector<CanFrame> logged(std::uint32_t id) {
+    std::vector<CanFrame> out;
+    for (const auto& r : bus_.log())
+      if (r.frame.id == id) out.push_back(r.frame);
+    return out;
+  }
+  // One raw frame from participant `from`, then `wait`: the frames with `reply_id` that followed.
+  std::vector<CanFrame> exchange(const std::string& from, const CanFrame& frame, std::uint32_t reply_id,
+                                 Duration wait = std::chrono::milliseconds(5)) {
+    bus_.clear_log();
+    sink(from)(frame);
+    run_for(wait);
+    return logged(reply_id);
   }
   [[nodiscard]] TimePoint now() const { return clock_.now(); }
   VirtualBus& bus() { return bus_; }

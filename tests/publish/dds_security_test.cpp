@@ -317,6 +317,38 @@ TEST_F(DdsSecurity, ATamperedPermissionsDocumentAndWrongFilesAreRefusedAtStartNa
       << errors[0].str();
 }
 
+// SECURITY.md asks the private key at mode 0600: a key its group or every user may read is
+// refused by `oegw check` and `oegw run` (dds_security_errors) and by the publisher, naming the
+// setting, the mode and the command that mends it; 0600 and 0400 are taken.
+TEST_F(DdsSecurity, APrivateKeyOthersMayReadIsRefusedNamingItsModeAndTheChmod) {
+  const fs::path key = set_dir() / "open.key";
+  for (const auto& [mode, who] : std::vector<std::pair<fs::perms, std::string>>{
+           {fs::perms(0644), "0644 lets every user"}, {fs::perms(0666), "0666 lets every user"},
+           {fs::perms(0640), "0640 lets its group"}, {fs::perms(0600), ""}, {fs::perms(0400), ""}}) {
+    fs::remove(key);
+    fs::copy_file(set_dir() / "gateway.key", key);
+    fs::permissions(key, mode, fs::perm_options::replace);
+    auto loaded = load("open.yaml", mapping_text("permissions.p7s", "open.key"));
+    ASSERT_TRUE(loaded.ok()) << loaded.error_text();
+    const auto errors = gateway::dds_security_errors(*loaded.config);
+    if (who.empty()) {
+      EXPECT_TRUE(errors.empty()) << errors.front().str();
+      continue;
+    }
+    ASSERT_EQ(errors.size(), 1u) << who;
+    EXPECT_EQ(errors[0].str(), (set_dir() / "open.yaml").string() + ":11:20: publish.dds.security.private_key " +
+                                   key.string() + ": mode " + who +
+                                   " read or change the private key; expected 0600, owner the daemon's user: chmod 0600 " +
+                                   key.string());
+    gateway::DdsSettings s;
+    s.partition = kPartition;
+    s.network = "loopback";
+    s.security = gateway::dds_security_settings(*loaded.config->publish.dds.security);
+    EXPECT_THROW(gateway::DdsPublisher refused(s), gateway::PublishConfigError) << who;
+  }
+  fs::remove(key);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {

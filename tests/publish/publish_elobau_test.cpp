@@ -1,9 +1,9 @@
 // End to end on the virtual bus (simulated clock): the simulated elobau grip booted and watched by
 // the network manager with the real driver; joystick.1 = {x: grip.x, y: grip.y, buttons:
-// grip.buttons[1..8]} published through the schedule to DDS and LCM at once, read by the example
-// subscribers in two other processes — every sample checked on both, through the grip's heartbeat
-// stopping (status offline, neutral values). Then indicator commands over DDS and over LCM light
-// the grip's LEDs (indicators.1 = grip.leds[1..4]).
+// grip.buttons[1..6] (the grip's 2100h:01h default 63)} published through the schedule to DDS and
+// LCM at once, read by the example subscribers in two other processes — every sample checked on
+// both, through the grip's heartbeat stopping (status offline, neutral values). Then indicator
+// commands over DDS and over LCM light the grip's LEDs (indicators.1 = grip.leds[1..4]).
 //
 // The FE feed here is a stand-in for the mapping layer (not in this branch): it takes the raw
 // driver values (the grip's percent) without scaling.
@@ -102,7 +102,7 @@ class GripToDdsAndLcm : public ::testing::Test {
     j.y = static_cast<std::int16_t>(y.value);
     auto worst = std::max(x.status, y.status);
     TimePoint ts = std::max(x.timestamp, y.timestamp);
-    for (int b = 1; b <= 8; ++b) {
+    for (int b = 1; b <= 6; ++b) {
       const auto& v = grip_->value(*grip_->find_signal("buttons[" + std::to_string(b) + "]"));
       if (v.value != 0) j.buttons = static_cast<std::uint8_t>(j.buttons | (1u << (b - 1)));
       worst = std::max(worst, v.status);

@@ -105,7 +105,7 @@ TEST(Cia401, FactoryOptionsAndEdsErrors) {
   EXPECT_EQ(make_cia401_driver(kNode, {}, DriverOptions{}, error), nullptr);
   EXPECT_EQ(error, "cia401: option 'eds' (path of the node's EDS file) is required");
   EXPECT_EQ(make_cia401_driver(kNode, {}, DriverOptions{{{"eds", kPedal}, {"edz", "x"}}}, error), nullptr);
-  EXPECT_EQ(error, "cia401: unknown option 'edz' (expected eds)");
+  EXPECT_EQ(error, "cia401: unknown option 'edz' (expected eds, freshness_floor_ms)");
   EXPECT_EQ(make_cia401_driver(kNode, {}, DriverOptions{{{"eds", "/nonexistent/x.eds"}}}, error), nullptr);
   EXPECT_EQ(error.rfind("cia401: /nonexistent/x.eds: cannot open:", 0), 0u) << error;
   const auto bad = std::filesystem::temp_directory_path() / ("oegw-cia401-bad-" + std::to_string(::getpid()) + ".eds");

@@ -106,7 +106,9 @@ TEST(DriverOptionTables, ChoicesDefaultsAndRequiredAreWhatTheFactoryDoes) {
     }
   std::string error;
   EXPECT_EQ(make_driver("novotechnik-406", kNode, {}, DriverOptions{{{"colour", "red"}}}, error), nullptr);
-  EXPECT_EQ(error, "novotechnik-406: unknown option 'colour' (expected event_timer_ms, transmission_type, product_code)");
+  EXPECT_EQ(error,
+            "novotechnik-406: unknown option 'colour' (expected event_timer_ms, transmission_type, product_code, "
+            "freshness_floor_ms)");
 }
 
 // The defaults the table lists are the ones a driver built without options has.
@@ -132,6 +134,38 @@ TEST(DriverOptionTables, ListedDefaultsAreTheDriversDefaults) {
   ASSERT_NE(e, nullptr) << error;
   EXPECT_EQ(e->signals()[0].max, 110) << "detent pass by default";
   EXPECT_EQ(e->freshness(0), std::chrono::milliseconds(300)) << "cycle_ms 100 by default: 3 x 100 ms";
+}
+
+}  // namespace
+}  // namespace oegw::subdevices
+
+namespace oegw::subdevices {
+namespace {
+
+// The draft's placeholder of a required commissioning choice (`oegw scan` writes TODO) is refused
+// with the option's own text: how to find the value.
+TEST(DriverOptionTables, ThePlaceholderOfARequiredOptionIsRefusedWithHowToFindIt) {
+  std::string error;
+  EXPECT_EQ(make_driver("mcb402", NodeId{3}, {}, DriverOptions{{{"button_bits", "TODO"}}}, error), nullptr);
+  EXPECT_NE(error.find("mcb402: option button_bits is still the draft's placeholder TODO"), std::string::npos) << error;
+  EXPECT_NE(error.find("press BP1..BP7 one at a time"), std::string::npos) << error;
+  EXPECT_NE(error.find("oegw signals mcb402 --find-button-bits"), std::string::npos) << error;
+  // An option that is not required takes TODO as any other text (and refuses it as such).
+  EXPECT_EQ(make_driver("elobau-mfg", NodeId{0x11}, {}, DriverOptions{{{"detent", "TODO"}}}, error), nullptr);
+  EXPECT_EQ(error.find("placeholder"), std::string::npos) << error;
+}
+
+// Every family lists its freshness floor (200 ms), the same option name.
+TEST(DriverOptionTables, EveryFamilyHasAFreshnessFloorOption) {
+  for (const DriverInfo& info : drivers()) {
+    bool found = false;
+    for (const OptionSpec& s : info.options)
+      if (s.name == kFreshnessFloorOption) {
+        found = true;
+        EXPECT_EQ(s.default_value, "200") << info.family;
+      }
+    EXPECT_TRUE(found) << info.family;
+  }
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <vector>
 
 #include "subdevices/families.hpp"
@@ -65,6 +66,11 @@ TEST_F(ElobauDriverTest, SignalListNamesUnitsAndRanges) {
 }
 
 TEST_F(ElobauDriverTest, Tpdo0DecodesAxesAsSignedPercentAndButtonBits) {
+  // A grip with all 16 buttons (2100h:01h/02h = FFh, read back at boot).
+  std::string error;
+  drv->begin_boot();
+  ASSERT_TRUE(drv->on_boot_read(0x2100, 0x01, std::vector<std::uint8_t>{0xFF}, error));
+  ASSERT_TRUE(drv->on_boot_read(0x2100, 0x02, std::vector<std::uint8_t>{0xFF}, error));
   // Table 7 + Table 12: X = -50 % (CEh), Y = +100 % (64h), A = 0, B = -110 (92h, detent),
   // C = +110 (6Eh), buttons 1 and 3 pressed (05h), button 12 (presence) pressed (08h), FFh.
   EXPECT_TRUE(tpdo0({0xCE, 0x64, 0x00, 0x92, 0x6E, 0x05, 0x08, 0xFF}));
@@ -88,6 +94,7 @@ TEST(ElobauDriverOptions, ClampReportsDetentAsHundred) {
   std::string err;
   auto d = make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"detent", "clamp"}}}, err);
   ASSERT_TRUE(d) << err;
+  d->on_online(TimePoint{});  // PDOs count once the node is operational
   // §15.1.2: the detent is the jump 100 % -> 110 %; "clamp" reports it as 100 %.
   d->on_frame(CanFrame(0x191, {0x6E, 0x92, 0x64, 0x00, 0x00, 0x00, 0x00, 0xFF}), TimePoint{});
   EXPECT_EQ(d->value(0).value, 100);
@@ -174,6 +181,7 @@ TEST(ElobauDriverOptions, ToleranceOptionIsHonoured) {
   std::string err;
   auto d = make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"channel_tolerance", "10"}}}, err);
   ASSERT_TRUE(d);
+  d->on_online(TimePoint{});  // PDOs count once the node is operational
   d->on_frame(CanFrame(0x191, {0x32, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF}), TimePoint{});
   d->on_frame(CanFrame(0x291, {0x3C, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF}), TimePoint{});
   EXPECT_EQ(d->value(0).status, SignalStatus::Valid);  // 50 vs 60: exactly 10
@@ -332,64 +340,122 @@ TEST_F(ElobauDriverTest, EmcyButtonTimeoutLatchesUntilErrorReset) {
 }
 
 // Table 6 0002h "Parameter Checksum Error CRC32. This error is also set until first parameter
-// saving process": sent at every power-on of a never-saved grip, a warning that faults nothing.
-TEST_F(ElobauDriverTest, EmcyParameterChecksum0002hIsAWarningThatFaultsNothing) {
+// saving process": by EMCY every input is in doubt until the 4001h read-back at the next boot
+// decides (a never-saved grip sends it at power-on; at run time it means corrupt parameters).
+TEST_F(ElobauDriverTest, EmcyParameterChecksum0002hFaultsEveryInputUntilTheReadBack) {
   tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
   auto d = emcy(0x1000, {0x02, 0x00, 0xFF, 0xFF, 0xFF});
   EXPECT_EQ(d.text.rfind("elobau 4001h 0002h: Parameter Checksum Error", 0), 0u) << d.text;
-  EXPECT_FALSE(d.error);
-  EXPECT_TRUE(d.affected.empty());
-  EXPECT_FALSE(drv->any_fault());
-  EXPECT_EQ(val("x").status, SignalStatus::Valid);
-  EXPECT_EQ(val("x").value, 10);
-  EXPECT_EQ(val("buttons[1]").value, 1);
-  // The CAN communication warnings of §12.4 neither.
-  for (const std::uint16_t code : {0x8110, 0x8120, 0x8140}) {
+  EXPECT_TRUE(d.error);
+  EXPECT_EQ(d.affected.size(), ElobauMfgDriver::kFirstLed) << "every input";
+  EXPECT_EQ(val("x").status, SignalStatus::Error);
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  EXPECT_EQ(val("buttons[1]").status, SignalStatus::Error) << "a PDO is no evidence";
+  std::string error;
+  drv->begin_boot();
+  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x00, 0x00}, error));
+  EXPECT_FALSE(drv->any_fault()) << "4001h = 0 at the next boot ends it";
+  // The CAN communication warnings of §12.4 ("0x81xx: Communication") fault nothing, also the
+  // 81xxh codes the document does not list.
+  for (const std::uint16_t code : {0x8110, 0x8120, 0x8140, 0x8130, 0x81FF}) {
     d = emcy(code, {0x01, 0x00, 0xFF, 0xFF, 0xFF});
     EXPECT_FALSE(d.error) << code;
     EXPECT_TRUE(d.affected.empty()) << code;
   }
   EXPECT_FALSE(drv->any_fault());
-  EXPECT_EQ(val("x").status, SignalStatus::Valid);
 }
 
-// `parameter_checksum: fault` (grips saved at commissioning): 0002h can then only mean corrupt
-// parameters, and faults every input like 0001h, by EMCY and by the 4001h read-back at boot.
-class ElobauChecksumFaultTest : public ElobauDriverTest {
- protected:
-  ElobauChecksumFaultTest() : ElobauDriverTest(DriverOptions{{{"parameter_checksum", "fault"}}}) {}
-};
-TEST_F(ElobauChecksumFaultTest, Emcy0002hFaultsEveryInputWhenParametersWereSaved) {
-  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
-  auto d = emcy(0x1000, {0x02, 0x00, 0xFF, 0xFF, 0xFF});
-  EXPECT_TRUE(d.error);
-  EXPECT_NE(d.text.find("corrupt"), std::string::npos) << d.text;
-  EXPECT_EQ(d.affected.size(), ElobauMfgDriver::kFirstLed) << "every input";
-  EXPECT_EQ(val("x").status, SignalStatus::Error);
-  EXPECT_EQ(val("x").value, 0);
-  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
-  EXPECT_EQ(val("buttons[1]").status, SignalStatus::Error) << "a PDO is no evidence";
-  // The 4001h read-back at the next boot: 0002h keeps it, 0 ends it.
+// A never-saved grip (4001h = 0002h read back at boot): with 4001h holding one code and no 0000h
+// while an error lasts (§12.4), no other error could be seen to end. parameter_checksum: refuse
+// (the default) refuses the node, the reason saying how to commission it.
+TEST_F(ElobauDriverTest, NeverSavedGripIsRefusedAtBootWithTheCommissioningStep) {
   std::string error;
   drv->begin_boot();
-  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x02, 0x00}, error));
-  EXPECT_TRUE(drv->faulted(idx("x")));
+  EXPECT_FALSE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x02, 0x00}, error));
+  EXPECT_NE(error.find("4001h reads 0002h"), std::string::npos) << error;
+  EXPECT_NE(error.find("w 0x1010 1 u32 0x65766173"), std::string::npos) << error;
+  EXPECT_NE(error.find("parameter_checksum: save"), std::string::npos) << error;
+  EXPECT_FALSE(drv->restart_after_configuration());
+}
+
+// Table 14: 4001h holds one code. An error raised at boot after the never-saved 0002h hides it
+// from the read-back; the 0002h EMCY seen between boot-up and operational counts instead.
+TEST_F(ElobauDriverTest, NeverSavedGripIsRefusedWhenALaterErrorHidesItFrom4001h) {
+  std::string error;
+  drv->on_offline(t);
+  drv->begin_boot();
+  (void)emcy(0x1000, {0x02, 0x00, 0xFF, 0xFF, 0xFF});  // Table 5: 4001h = 0002h, at power-on
+  (void)emcy(0x1000, {0x01, 0x00, 0xFF, 0xFF, 0xFF});  // then 0001h: 4001h now reads 0001h
+  EXPECT_FALSE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x01, 0x00}, error));
+  EXPECT_NE(error.find("4001h 0002h came at boot (4001h now reads 0001h)"), std::string::npos) << error;
+  EXPECT_NE(error.find("w 0x1010 1 u32 0x65766173"), std::string::npos) << error;
+}
+
+// parameter_checksum: save: §8 "write "save" (0x65766173) into the object 0x1010.1. Restart the
+// joystick after saving procedure" — the save ends the configuration, the restart follows; 0002h
+// still read after that is a corrupt memory, refused.
+class ElobauSaveTest : public ElobauDriverTest {
+ protected:
+  ElobauSaveTest() : ElobauDriverTest(DriverOptions{{{"parameter_checksum", "save"}}}) {}
+};
+TEST_F(ElobauSaveTest, NeverSavedGripIsSavedOnceAndRestarted) {
+  std::string error;
+  drv->begin_boot();
+  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x02, 0x00}, error)) << error;
+  const auto w = drv->configuration();
+  ASSERT_FALSE(w.empty());
+  EXPECT_EQ(w.back().index, 0x1010);
+  EXPECT_EQ(w.back().sub, 1);
+  EXPECT_EQ(w.back().data, (std::vector<std::uint8_t>{0x73, 0x61, 0x76, 0x65})) << "\"save\", §8";
+  EXPECT_TRUE(drv->restart_after_configuration());
+  EXPECT_TRUE(drv->any_fault()) << "until the restarted grip reads 4001h = 0";
+  // Restarted: the next boot configures without a save.
+  drv->begin_boot();
+  EXPECT_FALSE(drv->restart_after_configuration());
+  EXPECT_FALSE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x02, 0x00}, error)) << "0002h after the save";
+  EXPECT_NE(error.find("corrupt"), std::string::npos) << error;
   drv->begin_boot();
   ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x00, 0x00}, error));
   EXPECT_FALSE(drv->any_fault());
-  // Read back at a boot without any EMCY seen: faulted too.
-  drv->begin_boot();
-  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x02, 0x00}, error));
-  EXPECT_TRUE(drv->faulted(idx("y")));
+  EXPECT_NE(drv->configuration().back().index, 0x1010);
 }
 
-TEST(ElobauOptions, ParameterChecksumTakesWarningOrFault) {
+TEST(ElobauOptions, ParameterChecksumTakesRefuseOrSave) {
   std::string err;
-  EXPECT_EQ(make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"parameter_checksum", "ignore"}}}, err), nullptr);
-  EXPECT_NE(err.find("parameter_checksum 'ignore' must be 'warning'"), std::string::npos) << err;
-  auto d = make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"parameter_checksum", "warning"}}}, err);
+  EXPECT_EQ(make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"parameter_checksum", "warning"}}}, err), nullptr);
+  EXPECT_NE(err.find("parameter_checksum 'warning' must be 'refuse' or 'save'"), std::string::npos) << err;
+  auto d = make_elobau_mfg_driver(kNode, {}, DriverOptions{{{"parameter_checksum", "save"}}}, err);
   ASSERT_NE(d, nullptr) << err;
-  EXPECT_FALSE(static_cast<ElobauMfgDriver&>(*d).options().checksum_faults);
+  EXPECT_TRUE(static_cast<ElobauMfgDriver&>(*d).options().save_unsaved);
+}
+
+// 2100h:01h/02h "Configuration 8_1 / 16_9" (0: button not available; default 63): a button the
+// grip does not have is NotAvailable, whatever its TPDO bit (the not-available value 2100h:0Ah);
+// the mapping file's sdo list writing 2100h:01h is taken too.
+TEST_F(ElobauDriverTest, ButtonsTheGripDoesNotHaveAreNotAvailable) {
+  std::string error;
+  drv->begin_boot();
+  const auto reads = drv->boot_reads();
+  EXPECT_NE(std::find(reads.begin(), reads.end(), std::pair<std::uint16_t, std::uint8_t>{0x2100, 0x01}), reads.end());
+  EXPECT_NE(std::find(reads.begin(), reads.end(), std::pair<std::uint16_t, std::uint8_t>{0x2100, 0x02}), reads.end());
+  ASSERT_TRUE(drv->on_boot_read(0x2100, 0x01, std::vector<std::uint8_t>{63}, error));
+  ASSERT_TRUE(drv->on_boot_read(0x2100, 0x02, std::vector<std::uint8_t>{0x00}, error));
+  tpdo0({0x00, 0x00, 0x00, 0x00, 0x00, 0x21, 0x00, 0xFF});
+  EXPECT_EQ(val("buttons[1]").status, SignalStatus::Valid);
+  EXPECT_EQ(val("buttons[6]").value, 1);
+  EXPECT_EQ(val("buttons[7]").status, SignalStatus::NotAvailable);
+  EXPECT_EQ(val("buttons[16]").status, SignalStatus::NotAvailable);
+  EXPECT_EQ(val("presence").status, SignalStatus::NotAvailable) << "button 12";
+  drv->apply_boot_writes({SdoWrite{0x2100, 0x01, {0xFF}, {}}, SdoWrite{0x2100, 0x02, {0x08}, {}}});
+  tpdo0({0x00, 0x00, 0x00, 0x00, 0x00, 0x80, 0x08, 0xFF});
+  EXPECT_EQ(val("buttons[8]").status, SignalStatus::Valid);
+  EXPECT_EQ(val("buttons[8]").value, 1);
+  EXPECT_EQ(val("presence").value, 1);
+  EXPECT_EQ(val("buttons[9]").status, SignalStatus::NotAvailable);
+  // An answer of the wrong length tells nothing: the node is refused.
+  drv->begin_boot();
+  EXPECT_FALSE(drv->on_boot_read(0x2100, 0x01, std::vector<std::uint8_t>{0x3F, 0x00}, error));
+  EXPECT_FALSE(drv->on_boot_read_abort(0x2100, 0x01, canopen::SdoAbortCode::ObjectDoesNotExist));
 }
 
 // 0001h "Application Program Checksum Error": the whole device is in doubt.
@@ -554,11 +620,13 @@ TEST_F(ElobauDriverTest, ReadBackOf4001hAtBootDecidesTheLatchedFaults) {
   EXPECT_TRUE(drv->faulted(idx("buttons[3]"))) << "the read-back decides, not the boot-up";
   drv->begin_boot();
   const auto reads = drv->boot_reads();
-  ASSERT_EQ(reads.size(), 1u);
+  ASSERT_EQ(reads.size(), 3u);
   EXPECT_EQ(reads[0], (std::pair<std::uint16_t, std::uint8_t>{0x4001, 0}));
   std::string error;
   // Still the button timeout: kept.
   ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x63, 0x00}, error));
+  ASSERT_TRUE(drv->on_boot_read(0x2100, 0x01, std::vector<std::uint8_t>{63}, error));
+  ASSERT_TRUE(drv->on_boot_read(0x2100, 0x02, std::vector<std::uint8_t>{0}, error));
   EXPECT_TRUE(drv->boot_reads().empty());
   EXPECT_TRUE(drv->faulted(idx("buttons[3]")));
   // Next start: no error any more.
@@ -574,12 +642,11 @@ TEST_F(ElobauDriverTest, ReadBackOf4001hAtBootDecidesTheLatchedFaults) {
   ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x20, 0x00}, error));
   EXPECT_TRUE(drv->faulted(idx("y")));
   EXPECT_FALSE(drv->faulted(idx("x")));
-  // The unsaved-parameters code read back: nothing.
+  // The unsaved-parameters code read back: the node is refused (parameter_checksum: refuse).
   drv->begin_boot();
   ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x00, 0x00}, error));
   drv->begin_boot();
-  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x02, 0x00}, error));
-  EXPECT_FALSE(drv->any_fault());
+  EXPECT_FALSE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x02, 0x00}, error));
 }
 
 // An axis EMCY is cleared by a good channel pair received after it, never by the channel-1

@@ -6,6 +6,7 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -202,6 +203,56 @@ TEST(EventLoop, AWatcherRemovedByAnEarlierCallbackInTheSameBatchDoesNotRun) {
   ASSERT_EQ(::write(p2.w, "b", 1), 1);
   loop.run_once(0us);
   EXPECT_EQ(runs, 1);
+}
+
+// Work that is not a bus's runs in deferred slices, one per wake-up: a descriptor that is
+// ready the whole time (a CAN socket with a backlog) is served between every two slices, and the
+// slices of several sources take turns.
+TEST(EventLoop, DeferredSlicesRunOnePerWakeUpAfterTheDescriptors) {
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  Pipe bus;
+  ASSERT_EQ(::write(bus.w, "f", 1), 1);  // never read: readable at every wake-up
+  std::string order;
+  loop.watch(bus.r, io_events::kReadable, [&](std::uint32_t) { order += 'B'; });
+  int a_left = 3, b_left = 2;
+  std::function<void()> a = [&] {
+    order += 'a';
+    if (--a_left > 0) loop.defer(a);
+  };
+  std::function<void()> b = [&] {
+    order += 'b';
+    if (--b_left > 0) loop.defer(b);
+  };
+  loop.defer(a);
+  loop.defer(b);
+  EXPECT_EQ(loop.deferred(), 2u);
+  for (int i = 0; i < 7; ++i) loop.run_once(0us);
+  EXPECT_EQ(order, "BaBbBaBbBaBB") << "one slice per wake-up, after the descriptor; a and b in turn";
+  EXPECT_EQ(loop.deferred(), 0u);
+}
+
+TEST(EventLoop, RunOnceDoesNotBlockWhileASliceWaits) {
+  EventLoop loop;
+  int slices = 0;
+  loop.defer([&] { ++slices; });
+  EXPECT_EQ(loop.run_once(std::nullopt), 1u) << "would block for ever if it waited";
+  EXPECT_EQ(slices, 1);
+}
+
+TEST(EventLoop, ModifyChangesWhatAWatchWaitsFor) {
+  EventLoop loop;
+  Pipe p;
+  int runs = 0;
+  const auto id = loop.watch(p.r, io_events::kReadable, [&](std::uint32_t) { ++runs; });
+  ASSERT_EQ(::write(p.w, "x", 1), 1);
+  EXPECT_TRUE(loop.modify(id, 0));
+  loop.run_once(0us);
+  EXPECT_EQ(runs, 0) << "readable, but not waited for";
+  EXPECT_TRUE(loop.modify(id, io_events::kReadable));
+  loop.run_once(0us);
+  EXPECT_EQ(runs, 1);
+  EXPECT_FALSE(loop.modify(id + 100, io_events::kReadable));
 }
 
 TEST(EventLoop, RealTimerFiresViaTimerfdAndRunStopsFromACallback) {

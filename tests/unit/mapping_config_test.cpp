@@ -154,18 +154,19 @@ TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
   EXPECT_THAT(fes, ElementsAre("joystick.1", "joystick.2", "pedal.1", "encoder.1", "wheel.1", "buttons.1",
                                "indicators.1", "indicators.2"));
   const auto& j1 = c.functional_elements[0];
-  // Dictionary order (profiles/cia852/fe_table.hpp): buttons[1..8] before x, y.
-  ASSERT_EQ(j1.fields.size(), 10u);
+  // Dictionary order (profiles/cia852/fe_table.hpp): buttons[1..6] (the grip's, 2100h:01h
+  // default 63) before x, y.
+  ASSERT_EQ(j1.fields.size(), 8u);
   EXPECT_EQ(j1.fields[0].field.name, "buttons[1]");
   EXPECT_EQ(j1.fields[0].signal, "buttons[1]");
   EXPECT_EQ(j1.fields[0].field.index, 0x6000);
   EXPECT_EQ(j1.fields[0].field.sub, 2);
-  EXPECT_EQ(j1.fields[8].field.name, "x");
-  EXPECT_EQ(j1.fields[8].subdevice, "right_grip");
-  EXPECT_EQ(j1.fields[8].options.deadband, 2);
-  EXPECT_EQ(j1.fields[8].field.index, 0x6401);
-  EXPECT_EQ(j1.fields[8].field.sub, 1);
-  EXPECT_EQ(j1.fields[8].input_params().scale, 32767.0 / 100.0);  // percent: 100 % = full scale
+  EXPECT_EQ(j1.fields[6].field.name, "x");
+  EXPECT_EQ(j1.fields[6].subdevice, "right_grip");
+  EXPECT_EQ(j1.fields[6].options.deadband, 2);
+  EXPECT_EQ(j1.fields[6].field.index, 0x6401);
+  EXPECT_EQ(j1.fields[6].field.sub, 1);
+  EXPECT_EQ(j1.fields[6].input_params().scale, 32767.0 / 100.0);  // percent: 100 % = full scale
   const auto& j2 = c.functional_elements[1];
   ASSERT_EQ(j2.fields.size(), 10u);  // 7 buttons + x, y, z
   EXPECT_TRUE(j2.fields[8].options.invert);
@@ -315,7 +316,7 @@ TEST(MappingConfig, YamlSyntaxErrorCarriesItsMarkAndAHintForBracketsInFlowMaps) 
 TEST(MappingConfig, EmptyFileAndMissingSections) {
   EXPECT_THAT(errors(load("")),
               ElementsAre("t.yaml:1:1: found nothing at the top; expected a map with upstream, downstream, publish, control, "
-                          "subdevices, functional_elements"));
+                          "record, subdevices, functional_elements"));
   EXPECT_THAT(errors(load("upstream: { interface: can0 }\n")),
               ElementsAre("t.yaml:1:1: no 'downstream' in the file; expected a downstream section",
                           "t.yaml:1:1: no 'subdevices' in the file; expected a subdevices section",
@@ -336,8 +337,8 @@ functional_elements:
   EXPECT_THAT(errors(r), ElementsAre(
       "t.yaml:1:37: unknown key 'vendor' in upstream identity; expected one of vendor_id, product_code, revision, "
       "serial",
-      "t.yaml:3:1: unknown key 'publsh' in the file; expected one of upstream, downstream, publish, control, subdevices, "
-      "functional_elements (did you mean 'publish'?)",
+      "t.yaml:3:1: unknown key 'publsh' in the file; expected one of upstream, downstream, publish, control, record, "
+      "subdevices, functional_elements (did you mean 'publish'?)",
       "t.yaml:5:36: unknown key 'hearbeat_ms' in sub-device 'a'; expected one of driver, node_id, heartbeat_ms, "
       "heartbeat_timeout_ms, pdo_timeout_ms, mandatory, identity, sdo, options (did you mean 'heartbeat_ms'?)",
       "t.yaml:5:53: unknown key 'colour' in sub-device 'a'; expected one of driver, node_id, heartbeat_ms, "
@@ -1550,6 +1551,44 @@ TEST(MappingConfig, ControlSectionErrorsNameTheSetting) {
                           "e.g. /run/oegw/oegw.sock"));
   EXPECT_THAT(errors(load("control: /run/oegw.sock\n" + kWhole)),
               ElementsAre("t.yaml:1:10: found '/run/oegw.sock' for control; expected a map with enabled, socket, group"));
+}
+
+// ---- record: the black box (README "Recording and replay") ---------------------------------
+
+TEST(MappingConfig, RecordIsOffWithoutTheSection) {
+  const auto r = load(kWhole);
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  EXPECT_FALSE(r.config->record.enabled);
+  EXPECT_EQ(r.config->record.dir, "/var/lib/oegw/record");
+  EXPECT_EQ(r.config->record.max_mib, 256u);
+  EXPECT_EQ(r.config->record.span_s, 600u);
+}
+
+TEST(MappingConfig, RecordSectionReadWithItsFolderFromTheFilesFolder) {
+  const auto r = load_config_text("record: { enabled: true, dir: rec/, max_mib: 32, span_s: 120, segments: 4, "
+                                  "queue_kib: 1024 }\n" + kWhole,
+                                  "/etc/oegw/t.yaml", fake_catalogue, std::filesystem::path("/etc/oegw"));
+  ASSERT_TRUE(r.ok()) << r.error_text();
+  const RecordConfig& c = r.config->record;
+  EXPECT_TRUE(c.enabled);
+  EXPECT_EQ(c.dir, "/etc/oegw/rec");
+  EXPECT_EQ(c.dir_where.str(), "/etc/oegw/t.yaml:1:31");
+  EXPECT_EQ(c.max_mib, 32u);
+  EXPECT_EQ(c.span_s, 120u);
+  EXPECT_EQ(c.segments, 4u);
+  EXPECT_EQ(c.queue_kib, 1024u);
+}
+
+TEST(MappingConfig, RecordSectionErrorsNameTheSetting) {
+  EXPECT_THAT(errors(load("record: { enabled: maybe, max_mib: 0, span_s: 5, segments: 1, queue_kib: 32, size: 3 }\n" +
+                          kWhole)),
+              ElementsAre("t.yaml:1:20: found 'maybe' for record enabled; expected true or false",
+                          "t.yaml:1:36: record max_mib 0 is out of range; expected 1..1048576",
+                          "t.yaml:1:47: record span_s 5 is out of range; expected 10..604800",
+                          "t.yaml:1:60: record segments 1 is out of range; expected 2..1000",
+                          "t.yaml:1:74: record queue_kib 32 is out of range; expected 64..262144",
+                          "t.yaml:1:78: unknown key 'size' in record; expected one of enabled, dir, max_mib, span_s, "
+                          "segments, queue_kib"));
 }
 
 }  // namespace

@@ -6,6 +6,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -16,7 +21,7 @@ Config cab() {
   Config c;
   c.upstream.interface = "can0";
   c.upstream.interface_where = {"cab.yaml", 2, 14};
-  c.upstream.store = "/tmp/up.store";
+  c.upstream.store = "/var/lib/up.store";  // a folder only root writes (not /tmp: warned)
   c.upstream.where = {"cab.yaml", 1, 1};
   c.downstream.interface = "can1";
   c.downstream.interface_where = {"cab.yaml", 5, 14};
@@ -99,6 +104,70 @@ TEST(Deployment, AStoreWhoseFolderDoesNotExistIsRefusedAtItsSettingOrItsSection)
   EXPECT_EQ(e[0].rfind("cab.yaml:1:1: upstream.store /nonexistent/oegw/up.store (the default)", 0), 0u) << e[0];
   c.upstream.store = "up.store";  // in the working directory: a folder that is there
   EXPECT_TRUE(errors(c).empty());
+}
+
+// The black box's folder (README "Recording and replay"): oegw run makes a missing one; a path
+// through a file cannot be made. Not checked while recording is off.
+TEST(Deployment, ARecordFolderUnderAFileIsRefusedAtItsSetting) {
+  char tmpl[] = "/tmp/oegw-deploy-record-XXXXXX";
+  const std::filesystem::path dir = ::mkdtemp(tmpl);
+  std::ofstream(dir / "plain") << "x";
+  Config c = cab();
+  c.record.dir = (dir / "plain" / "record").string();
+  c.record.dir_where = {"cab.yaml", 12, 25};
+  c.record.where = {"cab.yaml", 12, 1};
+  EXPECT_TRUE(errors(c).empty()) << "recording is off";
+  c.record.enabled = true;
+  EXPECT_THAT(errors(c), ::testing::ElementsAre("cab.yaml:12:25: record.dir " + c.record.dir + ": " +
+                                                (dir / "plain").string() +
+                                                " is a file, not a folder; expected a folder oegw run may make or write"));
+  c.record.dir = (dir / "not" / "yet").string();  // made by oegw run
+  EXPECT_TRUE(errors(c).empty());
+  std::filesystem::remove_all(dir);
+}
+
+// The store is never read through a link nor replaced over one (canopen/301/storage.hpp): a
+// link there would leave the device on defaults at every start. Refused at the setting.
+TEST(Deployment, ASymlinkedStoreIsRefusedAtItsSetting) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("oegw-deploy-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  ::chmod(dir.c_str(), 0755);
+  std::filesystem::create_symlink(dir / "elsewhere.store", dir / "up.store");
+  Config c = cab();
+  c.upstream.store = (dir / "up.store").string();
+  c.upstream.store_where = {"cab.yaml", 3, 10};
+  const auto e = errors(c);
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(e.size(), 1u);
+  EXPECT_EQ(e[0], "cab.yaml:3:10: upstream.store " + (dir / "up.store").string() + " is a symbolic link (to " +
+                      (dir / "elsewhere.store").string() +
+                      "); expected a plain file or none: the gateway never follows a link there; name the file itself");
+}
+
+// A folder every user may write (/tmp, mode 1777 — the sticky bit stops nobody from placing a
+// store file or its .lss there first): the gateway runs, `oegw check` warns at the setting.
+TEST(Deployment, WarnsOnAStoreFolderEveryUserMayWrite) {
+  Config c = cab();
+  EXPECT_TRUE(deployment_warnings(c).empty());
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("oegw-deploy-w-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  ::chmod(dir.c_str(), 0777);
+  c.upstream.store = (dir / "up.store").string();
+  c.upstream.store_where = {"cab.yaml", 3, 10};
+  std::vector<std::string> w;
+  for (const auto& d : deployment_warnings(c)) w.push_back(d.str());
+  const bool runs = errors(c).empty();
+  ::chmod(dir.c_str(), 0755);
+  const auto none = deployment_warnings(c).empty();
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(w[0].rfind("cab.yaml:3:10: upstream.store " + (dir / "up.store").string() + ": its folder " + dir.string() +
+                           " is writable by every user (mode 0777): anyone on this machine can place the parameters",
+                       0),
+            0u)
+      << w[0];
+  EXPECT_TRUE(none);
+  EXPECT_TRUE(runs);
 }
 
 TEST(Deployment, TheControlSocketRunWouldRefuseOnThisMachine) {

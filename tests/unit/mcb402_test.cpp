@@ -315,6 +315,74 @@ TEST_F(Mcb402Test, CommunicationWarningEmcysFaultNothing) {
   EXPECT_EQ(v(button(1)).value, 1);
 }
 
+// CiA 301 Table 26 81xxh "communication": the codes the document does not list (8110h overrun,
+// 8120h error passive) are warnings like its own three, as the elobau and CiA 401 drivers take
+// them; neither counted as unknown nor faulting.
+TEST_F(Mcb402Test, Every81xxhIsACommunicationWarning) {
+  ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0})));
+  for (const std::uint8_t lo : {0x10, 0x20, 0x50, 0xFF}) {
+    emcy(CanFrame(0x83, {lo, 0x81, 0x11, 0x00, 0x00, 0x00, 0x00, 0x00}));
+    EXPECT_FALSE(decoded_.back().error) << int(lo);
+    EXPECT_TRUE(decoded_.back().affected.empty()) << int(lo);
+  }
+  EXPECT_EQ(driver_->counters().unknown_emcy, 0u);
+  EXPECT_FALSE(driver_->any_fault());
+  EXPECT_EQ(v(kX).status, SignalStatus::Valid);
+}
+
+// The document shows no error reset after a cable break ([CO4013 "Emergency Messages"]): while
+// one is latched, the driver has 1001h read (fault_poll, every 250 ms); bit 7 "device error"
+// clear ends it. An answer to a request sent before a newer break is no evidence of its end.
+TEST_F(Mcb402Test, CableBreakEndsOnA1001hReadWithoutTheDeviceError) {
+  EXPECT_FALSE(driver_->fault_poll()) << "nothing to poll without a fault";
+  ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0})));
+  emcy(CanFrame(0x83, {0x20, 0x31, 0x81, 0x00, 0x81, 0x00, 0x00, 0x00}), 1);
+  const auto poll = driver_->fault_poll();
+  ASSERT_TRUE(poll);
+  EXPECT_EQ(poll->index, 0x1001);
+  EXPECT_EQ(poll->sub, 0);
+  EXPECT_EQ(poll->period, 250ms);
+  driver_->on_fault_poll_sent();
+  EXPECT_EQ(driver_->on_fault_poll(std::vector<std::uint8_t>{0x81}, at(2)), "") << "still broken";
+  EXPECT_TRUE(driver_->faulted(kX));
+  // A request out, then a break of Y: its answer (00h, of before Y broke?) is no evidence.
+  driver_->on_fault_poll_sent();
+  emcy(CanFrame(0x83, {0x20, 0x31, 0x81, 0x00, 0x83, 0x00, 0x00, 0x00}), 3);
+  EXPECT_EQ(driver_->on_fault_poll(std::vector<std::uint8_t>{0x00}, at(4)), "");
+  EXPECT_TRUE(driver_->faulted(kY));
+  // Two bytes: 1001h is UNSIGNED8 here, no evidence.
+  driver_->on_fault_poll_sent();
+  EXPECT_EQ(driver_->on_fault_poll(std::vector<std::uint8_t>{0x00, 0x00}, at(5)), "");
+  EXPECT_TRUE(driver_->faulted(kX));
+  // The board keeps the power-on warning's 11h (generic + communication): no device error.
+  driver_->on_fault_poll_sent();
+  const std::string said = driver_->on_fault_poll(std::vector<std::uint8_t>{0x11}, at(6));
+  EXPECT_NE(said.find("1001h read 11h: no device error"), std::string::npos) << said;
+  EXPECT_FALSE(driver_->any_fault());
+  EXPECT_FALSE(driver_->fault_poll());
+  ASSERT_TRUE(frame(CanFrame(0x283, {1, 0, 2, 0, 3, 0, 4, 0}), 7));
+  EXPECT_EQ(v(kX).status, SignalStatus::Valid);
+}
+
+// An undocumented error code ends on a 1001h that shows no error but communication (bits 0 and 4):
+// bit 7 clear alone is not enough (the code may have set another bit).
+TEST_F(Mcb402Test, UndocumentedErrorEndsOnA1001hWithNothingButCommunication) {
+  emcy(CanFrame(0x83, {0x00, 0x50, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00}), 1);
+  ASSERT_TRUE(driver_->fault_poll());
+  driver_->on_fault_poll_sent();
+  EXPECT_EQ(driver_->on_fault_poll(std::vector<std::uint8_t>{0x03}, at(2)), "");
+  EXPECT_TRUE(driver_->any_fault());
+  driver_->on_fault_poll_sent();
+  EXPECT_NE(driver_->on_fault_poll(std::vector<std::uint8_t>{0x11}, at(3)), "");
+  EXPECT_FALSE(driver_->any_fault());
+  // At boot the same: 1001h = 03h keeps it.
+  emcy(CanFrame(0x83, {0x00, 0x50, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00}), 4);
+  std::string error;
+  driver_->begin_boot();
+  ASSERT_TRUE(driver_->on_boot_read(0x1001, 0, std::vector<std::uint8_t>{0x03}, error));
+  EXPECT_TRUE(driver_->any_fault());
+}
+
 // A code the document does not list: what it affects is unknown, so every input is faulted
 // until the error reset 0000h.
 TEST_F(Mcb402Test, UnknownErrorEmcyIsCountedAndFaultsEveryInputUntilTheErrorReset) {

@@ -21,6 +21,11 @@ constexpr NodeId kId{0x20};
 
 Bytes bytes(const CanFrame& f) { return Bytes(f.data.begin(), f.data.begin() + f.dlc); }
 
+std::string read_text(const std::filesystem::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
 class NodeTest : public ::testing::Test {
  protected:
   NodeTest() {
@@ -65,6 +70,13 @@ class NodeTest : public ::testing::Test {
     return c;
   }
   std::filesystem::path store_path() const { return dir_ / "params.txt"; }
+  // The store file's entries (none, and a failure, when it does not parse).
+  ParameterStore::Entries stored_entries() const {
+    std::string error;
+    auto entries = ParameterStore::parse(read_text(store_path()), error);
+    EXPECT_TRUE(entries) << error;
+    return entries.value_or(ParameterStore::Entries{});
+  }
 
   void make(NodeConfig c) {
     node.reset();
@@ -735,10 +747,12 @@ TEST_F(NodeTest, CorruptParameterFileIsReportedAndNodeRunsOnDefaults) {
   at(t0 + 100ms);  // heartbeat on the default period
   ASSERT_EQ(out.size(), 1u);
   EXPECT_EQ(bytes(out[0]), Bytes{0x7F});
-  // And the same on reset node; the error stays active, not sent again.
+  // And the same on reset node, which restarts the errors (CiA 301 §7.3.2.2.1): the store it
+  // loads again is still corrupt, so 6000h is raised anew after the boot-up.
   auto r2 = nmt(0x81, 0);
-  ASSERT_EQ(r2.size(), 1u);
+  ASSERT_EQ(r2.size(), 2u);
   EXPECT_EQ(r2[0].id, 0x720u);
+  EXPECT_EQ(bytes(r2[1]), (Bytes{0x00, 0x60, 0x01, 0, 0, 0, 0, 0}));
   EXPECT_TRUE(node->emcy().active(0x6000));
   EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x01u);
   EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100u);
@@ -751,6 +765,245 @@ TEST_F(NodeTest, CorruptParameterFileIsReportedAndNodeRunsOnDefaults) {
   EXPECT_EQ(r2[1].id, 0xA0u);
   EXPECT_EQ(bytes(r2[1]), (Bytes{0x00, 0x00, 0x00, 0, 0, 0, 0, 0}));
   EXPECT_FALSE(node->emcy().active(0x6000));
+}
+
+// ------------------------------------------------------------------ a store that fails safe
+
+// The SDO abort frame for `code` on index:sub (CiA 301 §7.2.4.3.17).
+Bytes abort_frame(std::uint16_t index, std::uint8_t sub, std::uint32_t code) {
+  Bytes b{0x80, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8), sub};
+  const Bytes c = encode<std::uint32_t>(code);
+  b.insert(b.end(), c.begin(), c.end());
+  return b;
+}
+
+// An unreadable store (here: a folder where the file should be; as another user it is
+// "Permission denied", storage_test) is no "no store": the node boots on defaults, EMCY 6000h
+// (CiA 852 Table 37 "generic software error"; CiA 301 §7.5.2.2: 1001h bit 0, generic, as no
+// other bit names software) goes up, and a save of one group, which would keep the unreadable
+// others by rewriting the file with its own group only, is refused with 0606 0000h.
+TEST_F(NodeTest, UnreadableStoreRunsOnDefaultsWithEmcy6000AndRefusesAPartialSave) {
+  std::filesystem::create_directory(store_path());
+  make();
+  const auto r = start();
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("is not a regular file"), std::string::npos) << r.error;
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_EQ(out[0].id, 0x720u);
+  EXPECT_EQ(out[1].id, 0xA0u);
+  EXPECT_EQ(bytes(out[1]), (Bytes{0x00, 0x60, 0x01, 0, 0, 0, 0, 0}));
+  for (const std::uint8_t sub : {2, 3}) {
+    const auto w = sdo_write(0x1010, sub, u32(ParameterStore::kSaveSignature));
+    ASSERT_EQ(w.size(), 1u);
+    EXPECT_EQ(bytes(w[0]), abort_frame(0x1010, sub, 0x06060000)) << int(sub);
+    const auto l = sdo_write(0x1011, sub, u32(ParameterStore::kLoadSignature));
+    ASSERT_EQ(l.size(), 1u);
+    EXPECT_EQ(bytes(l[0]), abort_frame(0x1011, sub, 0x06060000)) << int(sub);
+  }
+  EXPECT_TRUE(std::filesystem::is_directory(store_path()));
+}
+
+// A corrupt store likewise: a partial save would write a file of its own group only, erasing
+// the others the host saved (and that a repair could still recover); 1010h:01 replaces it.
+TEST_F(NodeTest, CorruptStoreRefusesAPartialSaveAndSaveAllReplacesIt) {
+  std::string text = ParameterStore::serialize({{{0x1017, 0}, {0x2C, 0x01}}, {{0x6200, 1}, {0x09}}});
+  text[text.find("6200 01 09") + 9] = '8';
+  std::ofstream(store_path(), std::ios::binary) << text;
+  make();
+  start();
+  const auto w = sdo_write(0x1010, 2, u32(ParameterStore::kSaveSignature));
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(bytes(w[0]), abort_frame(0x1010, 2, 0x06060000));
+  EXPECT_EQ(read_text(store_path()), text);  // untouched
+  sdo_ok(0x1017, 0, u16(300));
+  sdo_ok(0x1010, 1, u32(ParameterStore::kSaveSignature));
+  const auto stored = stored_entries();
+  EXPECT_EQ(stored.at({0x1017, 0}), u16(300));
+}
+
+// A readable store: a save of one group merges with what is stored (CiA 301 §7.5.2.13: sub 2
+// saves the communication parameters, leaving the application ones as they were stored).
+TEST_F(NodeTest, PartialSaveMergesWithTheStoredGroups) {
+  make();
+  start();
+  sdo_ok(0x1017, 0, u16(300));
+  sdo_ok(0x6200, 1, {9});
+  sdo_ok(0x1010, 1, u32(ParameterStore::kSaveSignature));
+  sdo_ok(0x1017, 0, u16(400));
+  sdo_ok(0x6200, 1, {5});  // not saved: sub 2 below is the communication group only
+  sdo_ok(0x1010, 2, u32(ParameterStore::kSaveSignature));
+  const auto stored = stored_entries();
+  EXPECT_EQ(stored.at({0x1017, 0}), u16(400));
+  EXPECT_EQ(stored.at({0x6200, 1}), Bytes{9});
+}
+
+// 1003h is the history of errors that occurred (CiA 301 §7.5.2.5), not a parameter: a save
+// never stores it, and a reset never brings back a count without its entries.
+TEST_F(NodeTest, SaveNeverStoresTheErrorHistory) {
+  make();
+  start();
+  ASSERT_TRUE(node->emcy().raise(0x5000, 0x00, now));
+  ASSERT_EQ(od.get<std::uint8_t>(0x1003, 0), 1u);
+  sdo_ok(0x1010, 1, u32(ParameterStore::kSaveSignature));
+  const auto stored = stored_entries();
+  for (const auto& [key, value] : stored) EXPECT_NE(key.first, 0x1003) << "1003h:" << int(key.second);
+  // A store written before this rule, holding 1003h:00 = 1: not loaded either.
+  std::ofstream(store_path(), std::ios::binary) << ParameterStore::serialize({{{0x1003, 0}, {0x01}}});
+  ASSERT_TRUE(node->emcy().clear(0x5000, now));
+  sdo_ok(0x1003, 0, {0});  // history cleared by the host
+  nmt(0x81, 0);            // reset node: defaults, then the store
+  EXPECT_EQ(od.get<std::uint8_t>(0x1003, 0), 0u);
+  const auto r = sdo_read(0x1003, 0);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x4F, 0x03, 0x10, 0x00, 0x00, 0, 0, 0}));
+}
+
+// The temporary file is created, never opened through whatever is there: a link planted at
+// "<store>.tmp" is removed, not written through (its target stays as it was), and a stale
+// temporary file of a crash is replaced.
+TEST_F(NodeTest, SaveNeverWritesThroughALinkAtTheTemporaryFile) {
+  const auto victim = dir_ / "victim";
+  std::ofstream(victim) << "precious\n";
+  const auto tmp = std::filesystem::path(store_path().string() + ".tmp");
+  std::filesystem::create_symlink(victim, tmp);
+  make();
+  start();
+  sdo_ok(0x1017, 0, u16(300));
+  sdo_ok(0x1010, 1, u32(ParameterStore::kSaveSignature));
+  EXPECT_EQ(read_text(victim), "precious\n");
+  EXPECT_FALSE(std::filesystem::exists(std::filesystem::symlink_status(tmp)));
+  EXPECT_TRUE(std::filesystem::is_regular_file(std::filesystem::symlink_status(store_path())));
+  std::ofstream(tmp) << "half-written by a crash";
+  sdo_ok(0x1017, 0, u16(400));
+  sdo_ok(0x1010, 2, u32(ParameterStore::kSaveSignature));
+  const auto stored = stored_entries();
+  EXPECT_EQ(stored.at({0x1017, 0}), u16(400));
+  EXPECT_FALSE(std::filesystem::exists(tmp));
+}
+
+// A symbolic link at the store's own path is never followed: not read at start (EMCY 6000h,
+// defaults), not replaced by a save of any group (0606 0000h), its target untouched.
+TEST_F(NodeTest, SymlinkedStoreIsRefusedByEveryOperation) {
+  const auto target = dir_ / "elsewhere.store";
+  const std::string text = ParameterStore::serialize({{{0x1017, 0}, {0x2C, 0x01}}});
+  std::ofstream(target, std::ios::binary) << text;
+  std::filesystem::create_symlink(target, store_path());
+  make();
+  const auto r = start();
+  EXPECT_FALSE(r.ok);
+  EXPECT_NE(r.error.find("symbolic link"), std::string::npos) << r.error;
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_EQ(bytes(out[1]), (Bytes{0x00, 0x60, 0x01, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100u);  // the default, not the link's 300
+  for (const std::uint8_t sub : {1, 2, 3}) {
+    const auto w = sdo_write(0x1010, sub, u32(ParameterStore::kSaveSignature));
+    ASSERT_EQ(w.size(), 1u);
+    EXPECT_EQ(bytes(w[0]), abort_frame(0x1010, sub, 0x06060000)) << int(sub);
+  }
+  const auto l = sdo_write(0x1011, 1, u32(ParameterStore::kLoadSignature));
+  ASSERT_EQ(l.size(), 1u);
+  EXPECT_EQ(bytes(l[0]), abort_frame(0x1011, 1, 0x06060000));
+  EXPECT_TRUE(std::filesystem::is_symlink(store_path()));
+  EXPECT_EQ(read_text(target), text);
+}
+
+// ------------------------------------------------------------------ COB-IDs of 11-bit frames
+
+// CiA 301 §7.5.2.35 (and every COB-ID entry): with bit 29 = 0 bits 11..28 are 0. A write with any
+// of them set is refused with 0609 0030h and changes nothing — never cut to its 11 bits: the PDO
+// COB-IDs (RPDO 1400h:01, TPDO 1800h:01), SYNC 1005h, EMCY 1014h, the EMCY consumer 1028h, an
+// additional SDO server's 1201h:01 (which refused it already); a 29-bit one (bit 29) is taken.
+TEST_F(NodeTest, ACobIdOfAnElevenBitFrameWithBitsElevenToTwentyEightSetIsRefused) {
+  NodeConfig c = config();
+  c.sdo_servers = {SdoServerChannel{.request = 0x80000000u | 0x640, .response = 0x80000000u | 0x5C0}};
+  make(c);
+  EmcyConsumer consumer(od, [](const EmcyMessage&, TimePoint) {}, 4);
+  start();
+  struct Entry {
+    std::uint16_t index;
+    std::uint8_t sub;
+    std::uint32_t value;  // the 11-bit CAN-ID with bit 11, 20 or 28 set besides
+  };
+  for (const Entry& e : {Entry{0x1400, 1, 0x800008A0u}, Entry{0x1800, 1, 0x800101A0u}, Entry{0x1005, 0, 0x00000880u},
+                         Entry{0x1014, 0, 0x900000A0u}, Entry{0x1028, 1, 0x00100081u}, Entry{0x1201, 1, 0x80000E40u}}) {
+    const std::uint32_t before = od.get<std::uint32_t>(e.index, e.sub);
+    const auto r = sdo_write(e.index, e.sub, u32(e.value));
+    ASSERT_EQ(r.size(), 1u) << std::hex << e.index;
+    EXPECT_EQ(bytes(r[0]), (Bytes{0x80, static_cast<std::uint8_t>(e.index), static_cast<std::uint8_t>(e.index >> 8),
+                                  e.sub, 0x30, 0x00, 0x09, 0x06}))
+        << std::hex << e.index << ":" << int(e.sub) << " = " << e.value;
+    EXPECT_EQ(od.get<std::uint32_t>(e.index, e.sub), before) << std::hex << e.index;
+  }
+  // Bit 29: a 29-bit CAN-ID, whose bits 11..28 belong to it.
+  sdo_ok(0x1400, 1, u32(0x80000000u | 0x20000000u | 0x12345));
+  EXPECT_EQ(CobId{od.get<std::uint32_t>(0x1400, 1)}.can_id(), 0x12345u);
+  sdo_ok(0x1028, 1, u32(0x20000000u | 0x1ABCD));
+}
+
+// ------------------------------------------------------------------ SYNC length, resets
+
+// CiA 301 §7.2.5 / Table 26: a SYNC of the wrong length (1019h = 0: no counter) raises 8240h
+// (1001h bit 4); it is over with the next SYNC of the right length: EMCY 0000h, 1001h 0.
+TEST_F(NodeTest, Emcy8240hEndsWithTheNextSyncOfTheRightLength) {
+  make();
+  start();
+  auto r = rx(0x080, {0x05});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x40, 0x82, 0x11, 0, 0, 0, 0, 0}));
+  EXPECT_TRUE(rx(0x080, {0x06}).empty()) << "still the same error";
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x11u);
+  r = rx(CanFrame(0x080, std::span<const std::uint8_t>{}));
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0xA0u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x00, 0x00, 0x00, 0, 0, 0, 0, 0}));
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x00u);
+  EXPECT_FALSE(node->emcy().active(0x8240));
+  // With 1019h = 5 the SYNC carries a counter: one without is wrong, one with it right.
+  sdo_ok(0x1019, 0, {5});
+  r = rx(CanFrame(0x080, std::span<const std::uint8_t>{}));
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x40, 0x82, 0x11, 0, 0, 0, 0, 0}));
+  r = rx(0x080, {0x01});
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x00, 0x00, 0x00, 0, 0, 0, 0, 0}));
+}
+
+// CiA 301 §7.3.2.2.1: reset node restarts the application with its power-on values, and the
+// errors with it: nothing active, 1001h 0, no EMCY but what still holds — the controller still
+// error passive raises 8120h anew. Reset communication keeps the active errors.
+TEST_F(NodeTest, ResetNodeEndsTheActiveErrorsResetCommunicationKeepsThem) {
+  make();
+  start();
+  (void)rx(0x080, {0x05});  // 8240h
+  ASSERT_TRUE(node->emcy().active(0x8240));
+  auto r = nmt(0x82, 0);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(r[0].id, 0x720u);
+  EXPECT_TRUE(node->emcy().active(0x8240));
+  EXPECT_EQ(od.get<std::uint8_t>(0x1001, 0), 0x11u);
+  r = nmt(0x81, 0);
+  ASSERT_EQ(r.size(), 1u) << "the boot-up only: no EMCY";
+  EXPECT_EQ(bytes(r[0]), Bytes{0x00});
+  EXPECT_EQ(node->emcy().active_count(), 0u);
+  r = sdo_read(0x1001, 0);
+  ASSERT_EQ(r.size(), 1u);
+  EXPECT_EQ(bytes(r[0]), (Bytes{0x4F, 0x01, 0x10, 0x00, 0x00, 0, 0, 0}));
+  EXPECT_TRUE(rx(CanFrame(0x080, std::span<const std::uint8_t>{})).empty()) << "no error to end: no 0000h";
+  // The controller error passive (8120h): still so after a reset node, so raised again.
+  out.clear();
+  node->on_bus_event(BusEvent::ErrorPassive, now);
+  node->advance(now);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(bytes(out[0]), (Bytes{0x20, 0x81, 0x11, 0, 0, 0, 0, 0}));
+  r = nmt(0x81, 0);
+  ASSERT_EQ(r.size(), 2u);
+  EXPECT_EQ(bytes(r[0]), Bytes{0x00});
+  EXPECT_EQ(bytes(r[1]), (Bytes{0x20, 0x81, 0x11, 0, 0, 0, 0, 0}));
+  out.clear();
+  node->on_bus_event(BusEvent::ErrorActive, now);
+  node->advance(now);
+  ASSERT_EQ(out.size(), 1u);
+  EXPECT_EQ(bytes(out[0]), (Bytes{0x00, 0x00, 0x00, 0, 0, 0, 0, 0}));
 }
 
 // ------------------------------------------------------------------ SYNC producer

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <chrono>
 #include <vector>
 
@@ -13,6 +15,7 @@ using namespace oegw::subdevices;
 using namespace std::chrono_literals;
 using oegw::canopen::CanFrame;
 using oegw::canopen::EmcyMessage;
+using oegw::canopen::SdoAbortCode;
 using oegw::canopen::NodeId;
 using oegw::canopen::TimePoint;
 
@@ -27,7 +30,14 @@ class Novotechnik406Test : public ::testing::Test {
     driver_.on_change = [this](std::size_t i, const SignalValue& v) { changes_.emplace_back(i, v); };
   }
   TimePoint t(int ms) const { return TimePoint{} + std::chrono::milliseconds(ms); }
+  // TPDO1 as configuration() maps it: position, speed, CAM state, work area state. Six bytes
+  // (position and speed) are sent with CAM and work area 00h.
   bool pdo(std::initializer_list<std::uint8_t> bytes, int ms = 1) {
+    std::vector<std::uint8_t> b(bytes);
+    if (b.size() == 6) b.insert(b.end(), {0x00, 0x00});
+    return driver_.on_frame(CanFrame(kTpdo1, b), t(ms));
+  }
+  bool raw_pdo(std::initializer_list<std::uint8_t> bytes, int ms = 1) {
     return driver_.on_frame(CanFrame(kTpdo1, bytes), t(ms));
   }
   DecodedEmcy emcy(std::uint16_t code, std::uint8_t reg, std::uint8_t b3, std::uint8_t b4 = 0, std::uint8_t b7 = 0,
@@ -65,7 +75,7 @@ TEST_F(Novotechnik406Test, SignalListNamesUnitsAndRanges) {
 
 // §4.1 1A00h: entry 1 = 60200120h (position, 32 bit), entry 2 = 60300110h (speed, 16 bit),
 // little endian (CiA 301): position 0x00012345 = 74565, speed 0xFF38 = -200 (-20.0 °/s).
-TEST_F(Novotechnik406Test, Tpdo1DefaultLayoutPositionThenSpeed) {
+TEST_F(Novotechnik406Test, Tpdo1LayoutPositionThenSpeed) {
   EXPECT_TRUE(pdo({0x45, 0x23, 0x01, 0x00, 0x38, 0xFF}, 5));
   EXPECT_EQ(pos().value, 74565);
   EXPECT_EQ(pos().status, SignalStatus::Valid);
@@ -81,10 +91,22 @@ TEST_F(Novotechnik406Test, Tpdo1DefaultLayoutPositionThenSpeed) {
   EXPECT_EQ(spd().value, -32768);
 }
 
-TEST_F(Novotechnik406Test, CamsAndWorkAreaNotAvailableUntilTheirEmcy) {
-  ASSERT_TRUE(pdo({1, 0, 0, 0, 0, 0}));
-  EXPECT_EQ(driver_.value(Novotechnik406Driver::kCams).status, SignalStatus::NotAvailable);
-  EXPECT_EQ(driver_.value(Novotechnik406Driver::kWorkArea).status, SignalStatus::NotAvailable);
+// Bytes 6 and 7: 6300h:01 CAM state (bits 0..3 = CAM 1..4) and 6400h:01 work area state (§5.7.1:
+// bit 0 out of range, bit 1 overflow, bit 2 underflow), as the objects code them; a bit beyond is
+// not their coding (Error).
+TEST_F(Novotechnik406Test, CamsAndWorkAreaComeInTpdo1) {
+  ASSERT_TRUE(raw_pdo({1, 0, 0, 0, 0, 0, 0x05, 0x04}));
+  EXPECT_EQ(driver_.value(Novotechnik406Driver::kCams).value, 5);
+  EXPECT_EQ(driver_.value(Novotechnik406Driver::kCams).status, SignalStatus::Valid);
+  EXPECT_EQ(driver_.value(Novotechnik406Driver::kWorkArea).value, 4);
+  EXPECT_EQ(driver_.value(Novotechnik406Driver::kWorkArea).status, SignalStatus::Valid);
+  ASSERT_TRUE(raw_pdo({1, 0, 0, 0, 0, 0, 0x10, 0x08}));
+  EXPECT_EQ(driver_.value(Novotechnik406Driver::kCams).status, SignalStatus::Error);
+  EXPECT_EQ(driver_.value(Novotechnik406Driver::kWorkArea).status, SignalStatus::Error);
+  // A marker position: the states derived from it are in doubt too.
+  ASSERT_TRUE(raw_pdo({0xFC, 0xFF, 0xFF, 0x7F, 0, 0, 0x01, 0x00}));
+  EXPECT_EQ(driver_.value(Novotechnik406Driver::kCams).status, SignalStatus::Error);
+  EXPECT_EQ(driver_.value(Novotechnik406Driver::kWorkArea).status, SignalStatus::Error);
 }
 
 // §9.1: 5051h/1/0 measurement error "position value 0x7FFFFFFC"; §9 "speed value is set to 0x0000".
@@ -97,7 +119,7 @@ TEST_F(Novotechnik406Test, FaultMarker7FFFFFFCIsErrorWithNeutralAndRecovers) {
   EXPECT_EQ(spd().status, SignalStatus::Error);
   EXPECT_EQ(spd().value, 0);
   EXPECT_EQ(driver_.last_error_position(), 0x7FFFFFFCu);
-  EXPECT_EQ(changes_.size(), 2u);  // on_change fired for both
+  EXPECT_EQ(changes_.size(), 4u);  // on_change fired for all four (cams and work area derive from the position)
   ASSERT_TRUE(pdo({0x11, 0x00, 0x00, 0x00, 0x06, 0x00}, 3));
   EXPECT_EQ(pos().status, SignalStatus::Valid);
   EXPECT_EQ(pos().value, 0x11);
@@ -137,8 +159,8 @@ TEST_F(Novotechnik406Test, ReservedMarkerBandIsErrorButNeighboursAreNot) {
 
 TEST_F(Novotechnik406Test, WrongLengthAndForeignCobAreCountedAndIgnored) {
   ASSERT_TRUE(pdo({0x10, 0, 0, 0, 0, 0}));
-  EXPECT_TRUE(pdo({0x20, 0, 0, 0, 0}));  // 5 bytes: ours, but wrong length
-  EXPECT_TRUE(pdo({0x20, 0, 0, 0, 0, 0, 0, 0}));
+  EXPECT_TRUE(raw_pdo({0x20, 0, 0, 0, 0}));  // 5 bytes: ours, but wrong length
+  EXPECT_TRUE(raw_pdo({0x20, 0, 0, 0, 0, 0}));  // the §4.1 default mapping's 6: not what configuration() maps
   EXPECT_EQ(driver_.counters().wrong_length, 2u);
   EXPECT_EQ(pos().value, 0x10);
   EXPECT_FALSE(driver_.on_frame(CanFrame(0x280 + 0x7F, {0x30, 0, 0, 0, 0, 0}), t(3)));  // TPDO2: not consumed
@@ -172,7 +194,7 @@ TEST_F(Novotechnik406Test, EmcyTableDecodesEveryRow) {
     EXPECT_NE(d.text.find(r.needle), std::string::npos) << d.text;
     EXPECT_EQ(d.error, r.error) << d.text;
     EXPECT_EQ(d.code, r.code);
-    if (r.error) EXPECT_EQ(d.affected, (std::vector<std::size_t>{0, 1})) << d.text;
+    if (r.error) EXPECT_EQ(d.affected, (std::vector<std::size_t>{0, 1, 2, 3})) << d.text;
     else EXPECT_TRUE(d.affected.empty()) << d.text;
   }
   EXPECT_EQ(driver_.counters().unknown_emcy, 0u);
@@ -230,23 +252,20 @@ TEST_F(Novotechnik406Test, UnknownEmcyCountedAndIgnored) {
   EXPECT_EQ(pos().status, SignalStatus::Valid);
 }
 
-// §9.1 9080h: "Byte 4: bits of changed CAM channel 1-4, Byte 7: status bits of CAM channel 1-4".
-TEST_F(Novotechnik406Test, CamEmcyUpdatesCamsFromByte7) {
-  const DecodedEmcy d = emcy(0x9080, 1, 0, /*b4 changed*/ 0x02, /*b7 state*/ 0x03);
+// §9.1 9080h "Byte 4: bits of changed CAM channel 1-4, Byte 7: status bits" and 9090h "state:
+// status bits in Byte 7" (coded "according to 0x6400", or "0: Valid, 1: underflow, 2: overflow":
+// the document gives both) are decoded to text only: `cams` and `work_area` come in TPDO1.
+TEST_F(Novotechnik406Test, CamAndWorkAreaEmcysAreTextOnly) {
+  ASSERT_TRUE(raw_pdo({1, 0, 0, 0, 0, 0, 0x01, 0x00}));
+  DecodedEmcy d = emcy(0x9080, 1, 0, /*b4 changed*/ 0x02, /*b7 state*/ 0x03);
   EXPECT_FALSE(d.error);
-  EXPECT_EQ(driver_.value(Novotechnik406Driver::kCams).value, 3);
-  EXPECT_EQ(driver_.value(Novotechnik406Driver::kCams).status, SignalStatus::Valid);
-  EXPECT_NE(d.text.find("changed 0x2"), std::string::npos) << d.text;
-  (void)emcy(0x9080, 1, 0, 0x01, 0x42);  // bit 6: no CAM 7 exists -> counted, ignored
-  EXPECT_EQ(driver_.value(Novotechnik406Driver::kCams).value, 3);
-  EXPECT_EQ(driver_.counters().unknown_emcy, 1u);
-}
-
-// §9.1 9090h: "state: status bits in Byte 7".
-TEST_F(Novotechnik406Test, WorkAreaEmcyUpdatesWorkAreaFromByte7) {
-  (void)emcy(0x9090, 1, 0, 0, 0x02);
-  EXPECT_EQ(driver_.value(Novotechnik406Driver::kWorkArea).value, 2);
-  EXPECT_EQ(driver_.value(Novotechnik406Driver::kWorkArea).status, SignalStatus::Valid);
+  EXPECT_NE(d.text.find("changed 0x2, state 0x3"), std::string::npos) << d.text;
+  EXPECT_EQ(driver_.value(Novotechnik406Driver::kCams).value, 1) << "the EMCY does not overwrite 6300h";
+  d = emcy(0x9090, 1, 0, 0, 0x01);
+  EXPECT_FALSE(d.error);
+  EXPECT_NE(d.text.find("byte 7 = 01h"), std::string::npos) << d.text;
+  EXPECT_EQ(driver_.value(Novotechnik406Driver::kWorkArea).value, 0);
+  EXPECT_EQ(driver_.counters().unknown_emcy, 0u);
 }
 
 TEST_F(Novotechnik406Test, OfflineMarksEverythingOfflineWithNeutral) {
@@ -274,8 +293,8 @@ TEST_F(Novotechnik406Test, ConfigurationFollowsTheMappingProcedure) {
   std::string error;
   auto d = make_novotechnik_406_driver(kNode, {}, DriverOptions{{{"event_timer_ms", "50"}}}, error);
   ASSERT_NE(d, nullptr) << error;
-  const auto w = d->configuration();
-  ASSERT_EQ(w.size(), 12u);
+  auto w = d->configuration();
+  ASSERT_EQ(w.size(), 15u);
   auto is = [](const SdoWrite& s, std::uint16_t idx, std::uint8_t sub, std::vector<std::uint8_t> data) {
     return s.index == idx && s.sub == sub && s.data == data;
   };
@@ -284,16 +303,45 @@ TEST_F(Novotechnik406Test, ConfigurationFollowsTheMappingProcedure) {
   EXPECT_TRUE(is(w[2], 0x1800, 3, {0x00, 0x00}));
   EXPECT_TRUE(is(w[3], 0x1800, 5, {0x32, 0x00}));              // 50 ms
   EXPECT_TRUE(is(w[4], 0x1A00, 0, {0x00}));                    // step 2
-  // Step 3, the document's frames: 23 00 1A 01 20 01 20 60 and 23 00 1A 02 10 01 30 60.
+  // Step 3, the document's frames: 23 00 1A 01 20 01 20 60 and 23 00 1A 02 10 01 30 60; then the
+  // §8.2 mappable CAM state (6300h/1) and work area (6400h/1), 8 bit each.
   EXPECT_TRUE(is(w[5], 0x1A00, 1, {0x20, 0x01, 0x20, 0x60}));
   EXPECT_TRUE(is(w[6], 0x1A00, 2, {0x10, 0x01, 0x30, 0x60}));
-  EXPECT_TRUE(is(w[7], 0x1A00, 0, {0x02}));                    // step 4
-  EXPECT_TRUE(is(w[8], 0x1800, 1, {0xFF, 0x01, 0x00, 0x40}));  // step 5: 40000xxxh
+  EXPECT_TRUE(is(w[7], 0x1A00, 3, {0x08, 0x01, 0x00, 0x63}));
+  EXPECT_TRUE(is(w[8], 0x1A00, 4, {0x08, 0x01, 0x00, 0x64}));
+  EXPECT_TRUE(is(w[9], 0x1A00, 0, {0x04}));                    // step 4
+  EXPECT_TRUE(is(w[10], 0x1800, 1, {0xFF, 0x01, 0x00, 0x40}));  // step 5: 40000xxxh
+  // §4.3 2104h "EMCY behaviour" 0: all events active, whatever the sensor stored.
+  EXPECT_TRUE(is(w[11], 0x2104, 0, {0x00}));
   // §4.1 1029h "Error Behaviour": communication error 0 (pre-operational), measurement error
   // 1 "no change of NMT-mode" (the sensor stays operational and reports the error).
-  EXPECT_TRUE(is(w[9], 0x1029, 1, {0x00}));
-  EXPECT_TRUE(is(w[10], 0x1029, 2, {0x01}));
-  EXPECT_TRUE(is(w[11], 0x1801, 1, {0xFF, 0x02, 0x00, 0xC0}));  // TPDO2 (unused) off: C00002FFh
+  EXPECT_TRUE(is(w[12], 0x1029, 1, {0x00}));
+  EXPECT_TRUE(is(w[13], 0x1029, 2, {0x01}));
+  EXPECT_TRUE(is(w[14], 0x1801, 1, {0xFF, 0x02, 0x00, 0xC0}));  // TPDO2 (unused) off: C00002FFh
+  // A sensor without 6020h (§4.2 lists none) refuses the entry 60200120h: 6004h "Position value
+  // channel 1", §8.2's first mappable object, in its stead (once; then refused: no alternative).
+  const auto instead = d->instead_of_refused(w[5], SdoAbortCode::ObjectDoesNotExist);
+  ASSERT_TRUE(instead);
+  EXPECT_TRUE(is(*instead, 0x1A00, 1, {0x20, 0x00, 0x04, 0x60}));
+  EXPECT_FALSE(d->instead_of_refused(*instead, SdoAbortCode::ObjectDoesNotExist));
+  EXPECT_FALSE(d->instead_of_refused(w[6], SdoAbortCode::ObjectDoesNotExist)) << "another refused write refuses the node";
+  EXPECT_TRUE(is(d->configuration()[5], 0x1A00, 1, {0x20, 0x00, 0x04, 0x60})) << "kept for the next boots";
+}
+
+// Each family's freshness floor (subdevices/README.md "Freshness floors"): 3 x the 10 ms event
+// timer is raised to 200 ms, overridable (0: none); pdo_timeout_ms is taken as written.
+TEST(Novotechnik406Freshness, DerivedDeadlineHasAFloor) {
+  std::string error;
+  auto d = make_novotechnik_406_driver(kNode, {}, {}, error);
+  ASSERT_NE(d, nullptr) << error;
+  EXPECT_EQ(d->freshness(Novotechnik406Driver::kPosition), std::chrono::milliseconds(200));
+  d = make_novotechnik_406_driver(kNode, {}, DriverOptions{{{"freshness_floor_ms", "0"}}}, error);
+  EXPECT_EQ(d->freshness(Novotechnik406Driver::kPosition), std::chrono::milliseconds(30));
+  d = make_novotechnik_406_driver(kNode, {}, DriverOptions{{{"event_timer_ms", "100"}}}, error);
+  EXPECT_EQ(d->freshness(Novotechnik406Driver::kPosition), std::chrono::milliseconds(300)) << "above the floor";
+  d = make_novotechnik_406_driver(kNode, {}, {}, error);
+  d->set_pdo_timeout(std::chrono::milliseconds(50));
+  EXPECT_EQ(d->freshness(Novotechnik406Driver::kPosition), std::chrono::milliseconds(50)) << "pdo_timeout_ms as written";
 }
 
 // Faults latched by an error EMCY: a good TPDO1 does not end them, the clear code does; going

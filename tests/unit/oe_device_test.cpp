@@ -567,9 +567,8 @@ TEST_F(OeDeviceTest, SubdeviceFaultEmcy) {
   dev->clear_subdevice_fault(NodeId{0x12}, now);
   e = frames_with_id(0xA0);
   ASSERT_EQ(e.size(), 1u);
-  EXPECT_EQ(e[0].data[0], 0);
-  EXPECT_EQ(e[0].data[1], 0);
-  EXPECT_EQ(e[0].data[2], 0);  // error register clear
+  // The last one: the error register clear, the recovered node named as before.
+  EXPECT_EQ(bytes(e[0]), (Bytes{0x00, 0x00, 0x00, 0x12, 'p', 'e', 'd', 'a'}));
   EXPECT_TRUE(dev->faulty_subdevices().empty());
 }
 

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <optional>
+#include <tuple>
 #include <string>
 #include <utility>
 
@@ -257,6 +258,69 @@ TEST_F(SdoRemoteTest, SetCobIdsEndsTheTarget) {
   select_node20();
   server.set_cob_ids(CobId(0x604), CobId(0x584));
   EXPECT_EQ(server.target(), std::nullopt);
+}
+
+// redirect(): the target a network indication named, when and by which request; on_redirect
+// tells each change with its cause. A bound channel is never a redirect.
+TEST_F(SdoRemoteTest, TheRedirectRecordsTargetTimeAndRequestAndEachChangeIsReported) {
+  using Change = SdoServer::RedirectChange;
+  struct Seen {
+    std::optional<SdoTarget> before, after;
+    Change why;
+  };
+  std::vector<Seen> seen;
+  server.on_redirect = [&](const auto& before, const auto& after, Change why) {
+    seen.push_back({before ? std::optional(before->target) : std::nullopt,
+                    after ? std::optional(after->target) : std::nullopt, why});
+  };
+  EXPECT_EQ(server.redirect(), std::nullopt);
+  rx({0xE0, 0, 0, 0, 2, 0x20, 0, 0});
+  ASSERT_TRUE(server.redirect().has_value());
+  EXPECT_EQ(server.redirect()->target, kNode20);
+  EXPECT_EQ(server.redirect()->since, t);
+  EXPECT_EQ(server.redirect()->request, (std::array<std::uint8_t, 8>{0xE0, 0, 0, 0, 2, 0x20, 0, 0}));
+  // Another node, later: a change, with its own time and request.
+  t += 2s;
+  rx({0xE1, 0, 0, 0, 2, 0x21, 0, 0});
+  EXPECT_EQ(server.redirect()->since, t);
+  EXPECT_EQ(server.redirect()->request[0], 0xE1);
+  // A refused indication changes nothing and reports nothing.
+  remote.select_code = SdoAbortCode::ObjectDoesNotExist;
+  rx({0xE0, 0, 0, 0, 9, 0x21, 0, 0});
+  remote.select_code = SdoAbortCode::None;
+  // Naming the server itself ends it; a second end is no change.
+  remote.select_as = SdoRemote::Selection::Local;
+  rx({0xE0, 0, 0, 0, 0, 0, 0, 0});
+  rx({0xE0, 0, 0, 0, 0, 0, 0, 0});
+  EXPECT_EQ(server.redirect(), std::nullopt);
+  remote.select_as = SdoRemote::Selection::Remote;
+  // Ended by reset(), by other COB-IDs, and by the same COB-IDs set again (a reset).
+  rx({0xE0, 0, 0, 0, 2, 0x20, 0, 0});
+  server.reset();
+  rx({0xE0, 0, 0, 0, 2, 0x20, 0, 0});
+  server.set_cob_ids(CobId(kRx), CobId(kTx));
+  rx({0xE0, 0, 0, 0, 2, 0x20, 0, 0});
+  server.set_cob_ids(CobId(0x604), CobId(0x584));
+  // Binding is configuration: it ends a redirect, and the bound target is none.
+  server.set_cob_ids(CobId(kRx), CobId(kTx));
+  rx({0xE0, 0, 0, 0, 2, 0x20, 0, 0});
+  server.bind(kNode20);
+  EXPECT_EQ(server.redirect(), std::nullopt);
+  EXPECT_EQ(server.target(), kNode20);
+  const SdoTarget n21{2, 0x21};
+  const std::vector<std::tuple<std::optional<SdoTarget>, std::optional<SdoTarget>, Change>> want = {
+      {std::nullopt, kNode20, Change::Indication}, {kNode20, n21, Change::Indication},
+      {n21, std::nullopt, Change::Indication},     {std::nullopt, kNode20, Change::Indication},
+      {kNode20, std::nullopt, Change::Reset},      {std::nullopt, kNode20, Change::Indication},
+      {kNode20, std::nullopt, Change::Reset},      {std::nullopt, kNode20, Change::Indication},
+      {kNode20, std::nullopt, Change::CobIds},     {std::nullopt, kNode20, Change::Indication},
+      {kNode20, std::nullopt, Change::Reconfigured}};
+  ASSERT_EQ(seen.size(), want.size());
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    EXPECT_EQ(seen[i].before, std::get<0>(want[i])) << i;
+    EXPECT_EQ(seen[i].after, std::get<1>(want[i])) << i;
+    EXPECT_EQ(seen[i].why, std::get<2>(want[i])) << i;
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -39,6 +39,15 @@ TEST(ServiceStatus, NamesTheUpstreamStateAndTheSubDevicesThatAreNotOperational) 
             "upstream operational, node 20h; 1/2 sub-devices operational; pedal refused");
 }
 
+// A publishing transport the machine cannot carry now runs degraded (README "Publishing
+// degrades, the gateway runs"): named after the sub-devices.
+TEST(ServiceStatus, NamesAPublishingTransportThatIsDown) {
+  ServiceState st = cab(NmtState::Operational, NodeState::Operational, NodeState::Missing);
+  st.degraded = {"lcm down: no route to 224.0.0.1 (Network is unreachable)"};
+  EXPECT_EQ(status_line(st), "upstream operational, node 20h; 1/2 sub-devices operational; pedal missing; lcm down: no "
+                             "route to 224.0.0.1 (Network is unreachable)");
+}
+
 TEST(ServiceNotify, ReadyOnceTheUpstreamDeviceIsPastInitialisationAndOnlyOnce) {
   Recorder r;
   ServiceNotify n(r, std::nullopt);
@@ -49,6 +58,32 @@ TEST(ServiceNotify, ReadyOnceTheUpstreamDeviceIsPastInitialisationAndOnlyOnce) {
   n.update(t + 2s, cab(NmtState::Operational, NodeState::Idle, NodeState::Idle));
   EXPECT_EQ(r.count("READY=1"), 1);
   EXPECT_TRUE(n.ready());
+}
+
+// A reload (SIGHUP): RELOADING=1 with MONOTONIC_USEC= in one message (sd_notify(3); systemd 252
+// ignores the field, 253's Type=notify-reload needs it), then READY=1 and the STATUS= line with
+// the reload's note, which every later STATUS= keeps.
+TEST(ServiceNotify, ReloadingThenReadyWithTheReloadsNoteInStatus) {
+  Recorder r;
+  ServiceNotify n(r, std::nullopt);
+  const canopen::TimePoint t{std::chrono::seconds(12)};
+  const auto up = cab(NmtState::Operational, NodeState::Operational, NodeState::Operational);
+  n.update(t, up);
+  r.sent.clear();
+  n.reloading(t + 1500us);
+  n.reloaded("last reload refused: 2 errors (journal)", up);
+  EXPECT_THAT(r.sent, ElementsAre("RELOADING=1\nMONOTONIC_USEC=12001500", "READY=1",
+                                  "STATUS=upstream operational, node 20h; 2/2 sub-devices operational; last reload "
+                                  "refused: 2 errors (journal)"));
+  r.sent.clear();
+  n.update(t + 2s, cab(NmtState::Operational, NodeState::Missing, NodeState::Operational));
+  EXPECT_THAT(r.sent, ElementsAre("STATUS=upstream operational, node 20h; 1/2 sub-devices operational; grip missing; "
+                                  "last reload refused: 2 errors (journal)"));
+  r.sent.clear();
+  n.reloading(t + 3s);
+  n.reloaded("", up);  // applied: the note goes
+  EXPECT_THAT(r.sent, ElementsAre("RELOADING=1\nMONOTONIC_USEC=15000000", "READY=1",
+                                  "STATUS=upstream operational, node 20h; 2/2 sub-devices operational"));
 }
 
 TEST(ServiceNotify, StatusIsSentWhenItChangesNotOnEveryUpdate) {

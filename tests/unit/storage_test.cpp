@@ -11,6 +11,9 @@
 
 #include <gtest/gtest.h>
 #include <stdlib.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <sstream>
@@ -301,7 +304,34 @@ TEST_F(StorageFixture, UnwritableDirectoryReportsHardwareError) {
   ParameterStore s(other, dir.path() / "missing-subdir" / "od.store");
   EXPECT_EQ(other.set<std::uint32_t>(0x1010, 1, ParameterStore::kSaveSignature, Origin::Sdo),
             SdoAbortCode::HardwareError);
-  EXPECT_NE(s.last_error().find("open temp file"), std::string::npos);
+  EXPECT_NE(s.last_error().find("create temp file"), std::string::npos) << s.last_error();
+}
+
+// The daemon as another user than the store's (or a store at mode 000 without CAP_DAC_OVERRIDE):
+// "Permission denied" is a refused store, not an absent one — nothing loaded, the reason said,
+// and a save of one group refused (it would rewrite the file with that group only). Checked in
+// a child that becomes user nobody (65534): root reads any file.
+TEST_F(StorageFixture, UnreadableStoreIsRefusedNotTakenAsAbsent) {
+  ASSERT_EQ(store->save(ParameterStore::Group::All), SdoAbortCode::None);
+  ASSERT_EQ(::chmod(file.c_str(), 0), 0);
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    if (::setgid(65534) != 0 || ::setuid(65534) != 0) ::_exit(10);
+    ObjectDictionary other;
+    build(other);
+    ParameterStore s(other, file);
+    const auto r = s.load();
+    if (r.ok || !r.file_present || r.error.find("Permission denied") == std::string::npos) ::_exit(11);
+    if (s.save(ParameterStore::Group::Communication) != SdoAbortCode::HardwareError) ::_exit(12);
+    if (s.last_error().find("of one group refused") == std::string::npos) ::_exit(13);
+    if (s.restore_defaults(ParameterStore::Group::Application) != SdoAbortCode::HardwareError) ::_exit(14);
+    ::_exit(0);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0) << "10: cannot become nobody (run as root); 11: load; 12, 13: save; 14: restore";
 }
 
 // The owner's reset path: NMT tells it which reset; it restores the defaults of the range, then

@@ -123,7 +123,12 @@ done
 addr='vendor 0x00000A5A, product 0x00000402, revision 0x00010002, serial 0x00000000'
 sed 's/^# //' /tmp/scan_draft.yaml | tr '\n' ' ' | grep -q "fastscan read its address: $addr" &&
   pass "draft: the cluster's LSS address (fastscan on the gateway's LSS master)" || fail "draft lacks the cluster's LSS address"
-"$oegw" check /tmp/scan_draft.yaml >/tmp/check2.out 2>&1 && pass "oegw check accepts the draft" ||
+# Refused at the MCB-402's placeholder (no draft passes on a guess), accepted with it written.
+"$oegw" check /tmp/scan_draft.yaml >/tmp/check2.out 2>&1
+(($? == 1)) && grep -q "button_bits is still the draft's placeholder TODO" /tmp/check2.out &&
+  pass "oegw check refuses the draft at button_bits: TODO" || fail "oegw check of the draft: $(head -5 /tmp/check2.out)"
+sed -i 's/button_bits: TODO .*/button_bits: [1, 2, 3, 4, 5, 7, 6]/' /tmp/scan_draft.yaml
+"$oegw" check /tmp/scan_draft.yaml >/tmp/check2.out 2>&1 && pass "oegw check accepts the draft with button_bits written" ||
   fail "oegw check refuses the draft: $(head -5 /tmp/check2.out)"
 sleep 0.5  # (candump writes what it received)
 # (the cluster at 31h is left out: the gateway itself asks the missing node's 1000h at each retry)

@@ -23,8 +23,16 @@ timeout 60 "$oegw" master -i vcan1 --until-operational 30 elobau-mfg:0x11 mcb402
   novotechnik-406:0x40 >/tmp/master.log 2>&1
 rc=$?
 ((rc == 0)) && pass "oegw master: the three nodes operational" || fail "oegw master exit $rc"
-# Let the inputs flow for a moment, watched by a second master run that only prints signals.
-timeout 3 "$oegw" master -i vcan1 elobau-mfg:0x11 >/tmp/signals.log 2>&1
+# Let the inputs flow, watched by a second master run that only prints signals: it boots the grip
+# again (reset, boot-up, configuration), which a stalled TCG guest may stretch to seconds, so it
+# runs until the grip's x has reached it as a valid signal (30 s at the most), not for a fixed time.
+"$oegw" master -i vcan1 elobau-mfg:0x11 >/tmp/signals.log 2>&1 &
+signals_pid=$!
+for ((i = 0; i < 600; i++)); do
+  grep -q '^signal elobau-mfg@11h\.x = -\?[0-9]* (valid)' /tmp/signals.log && break
+  sleep 0.05
+done
+kill -TERM "$signals_pid"; wait "$signals_pid"
 kill -TERM "$sim_pid"; wait "$sim_pid"
 stop_candump
 sed 's/^/    master: /' /tmp/master.log | head -40
@@ -53,8 +61,11 @@ if "$PY" "$here/in_order.py" /tmp/down.dump \
 else
   fail "encoder boot sequence with its boot-up lost"
 fi
-# On the wire alone: no boot-up of 40h at all, and the probe well before the 2 s wait's end
-# (100 ms after the reset once the other nodes are configured; 1 s is the margin for the VM).
+# No boot-up of 40h on the wire at all, and the master found the node by the probe's answer (its
+# log names why it configured the node), not by the 2 s wait's end. When the probe goes out (100 ms
+# after the reset once the other nodes are configured) is judged on simulated time
+# (network_manager_test: ALostBootUpIsNotWaitedOutTheProbeFindsTheNode): a stall of this TCG
+# guest would move it on the wire. Printed here as a figure.
 if "$PY" - /tmp/down.dump <<'PY'
 import re, sys
 frames = []
@@ -66,13 +77,18 @@ if any(f == "740#00" for _, f in frames):
     sys.exit("a boot-up 740#00 is on the wire: the simulator's option did not take")
 reset = next(t for t, f in frames if f == "000#8240")
 probe = next(t for t, f in frames if f == "640#4000100000000000" and t > reset)
-print(f"  probe {1000 * (probe - reset):.1f} ms after the reset")
-sys.exit(0 if probe - reset < 1.0 else f"the probe came {probe - reset:.3f} s after the reset")
+print(f"  probe {1000 * (probe - reset):.1f} ms after the reset (a figure)")
 PY
 then
-  pass "encoder: its 1000h probed within 1 s of the reset, no boot-up on the wire"
+  pass "encoder: no boot-up on the wire"
 else
-  fail "encoder: probe timing"
+  fail "encoder: a boot-up on the wire, or no probe"
+fi
+probe_line=$(grep -E '^node [^ ]*40h?: configuring \(no boot-up seen, but the node answered 1000h' /tmp/master.log | head -1)
+if [[ -n $probe_line ]]; then
+  pass "encoder found by the boot-up probe: $probe_line"
+else
+  fail "encoder not found by the probe: $(grep -E '^node ' /tmp/master.log | grep -i 40 | head -5)"
 fi
 if grep -q '^signal elobau-mfg@11h\.x = -\?[0-9]* (valid)' /tmp/signals.log; then
   pass "grip x axis reaches the driver as a valid signal"

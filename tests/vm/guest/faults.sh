@@ -10,8 +10,8 @@
 #   2 a real fault: cable break on X (EMCY 3120h) -> EMCY 7000h naming 03h; mended (0000h) ->
 #     the gateway's error reset.
 #   3 stale PDOs: the board's TPDOs stop while its heartbeat goes on -> EMCY 7000h naming 03h
-#     within the deadline (3 x its 20 ms event timer, plus a TCG guest's margin); TPDOs back ->
-#     cleared.
+#     (the deadline, 3 x its 20 ms event timer, is judged on simulated time; here only that it
+#     comes, its delay printed); TPDOs back -> cleared.
 #   4 its own reboot while in use: the board sends a boot-up (703#00) while operational -> EMCY
 #     7000h naming 03h before the gateway has configured it again (a rebooted board's inputs are in
 #     doubt until it is operational again); operational again -> the gateway's error reset.
@@ -25,22 +25,9 @@ sim=$2
 src=$3
 dir=/run/oegw-faults
 
-prepare_gateway_run vm_gateway.yaml "$src" "$dir" "$oegw"
-rc=$?
-((rc == 0)) || { fail "oegw check exit $rc: $(cat /tmp/check.out)"; exit 1; }
-
-start_candump vcan0 /tmp/up.dump || fail "candump vcan0 did not start"
-up_candump=$candump_pid
-start_candump vcan1 /tmp/down.dump || fail "candump vcan1 did not start"
-down_candump=$candump_pid
-
 # The gateway first: it is waiting for the boot-ups when the devices power on, so it receives
 # what the MCB-402 sends right after its own.
-receivers=$(can_receivers vcan1)
-"$oegw" run "$dir/oegw.yaml" >/tmp/gateway.log 2>&1 &
-gw_pid=$!
-wait_receivers vcan1 $((receivers + 1)) 20 || fail "the gateway did not bind vcan1"
-echo "gateway started after $(elapsed) s"
+run_recorded vm_gateway.yaml "$src" "$dir" "$oegw"
 mkfifo /tmp/mcb.cmd
 exec 3<>/tmp/mcb.cmd
 "$sim" -i vcan1 --commands mcb402:0x03:name=left_grip <&3 >/tmp/sim-mcb.log 2>&1 &
@@ -50,17 +37,6 @@ mcb_pid=$!
   "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" </dev/null >/tmp/sim-others.log 2>&1 &
 others_pid=$!
 
-# wait_for FILE PATTERN TIMEOUT_S: until a line of FILE matches the extended regex PATTERN.
-wait_for() {
-  local i
-  for ((i = 0; i < $3 * 20; i++)); do
-    grep -Eq "$2" "$1" 2>/dev/null && return 0
-    sleep 0.05
-  done
-  return 1
-}
-# count FILE PATTERN: matching lines.
-count() { grep -Ec "$2" "$1" 2>/dev/null; }
 fault03='vcan0 0A0#00700103'      # EMCY 7000h "additional modules" naming node 03h
 reset='vcan0 0A0#0000'            # the gateway's error reset (naming a node, or its last one)
 
@@ -113,15 +89,17 @@ sleep 1
 start=$(date +%s.%N)
 echo "left_grip pdo off" >&3
 ok=0
-for ((i = 0; i < 60; i++)); do
+# At most 200 polls (10 s and more): the deadline itself (3 x 20 ms) is judged on simulated time
+# (safety_findings_test); here only that the fault comes, whatever a stall of the guest costs.
+for ((i = 0; i < 200; i++)); do
   (($(count /tmp/up.dump "$fault03") > faults_before)) && { ok=1; break; }
   sleep 0.05
 done
 took=$(awk -v a="$start" -v b="$(date +%s.%N)" 'BEGIN { printf "%.2f", b - a }')
 if ((ok)); then
-  pass "scenario 3: TPDOs stopped -> EMCY 7000h naming 03h after ${took} s (deadline 60 ms + margin)"
+  pass "scenario 3: TPDOs stopped -> EMCY 7000h naming 03h after ${took} s (deadline 60 ms; a figure)"
 else
-  fail "scenario 3: no EMCY 7000h naming 03h within 3 s of the TPDOs stopping"
+  fail "scenario 3: no EMCY 7000h naming 03h within 200 polls (${took} s) of the TPDOs stopping"
 fi
 grep -q 'left_grip: fault (.*stale' /tmp/gateway.log && pass "scenario 3: the gateway names the stale PDO" \
   || fail "scenario 3: no stale fault in the gateway log"
@@ -171,16 +149,10 @@ else
   fail "scenario 4: the simulator did not take the reboot command: $(tail -3 /tmp/sim-mcb.log)"
 fi
 
-kill -TERM "$gw_pid"
-wait "$gw_pid"
-rc=$?
-((rc == 0)) || fail "oegw run exit $rc after SIGTERM"
+end_recorded
 kill -TERM "$mcb_pid" "$others_pid" 2>/dev/null
 wait "$mcb_pid" "$others_pid" 2>/dev/null
 exec 3>&-
-stop_candump  # vcan1's
-candump_pid=$up_candump
-stop_candump
 
 echo "== gateway log (journald format: level: message)"
 grep -v 'debug:' /tmp/gateway.log | sed 's/^/    /' | head -120

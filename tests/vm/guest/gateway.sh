@@ -179,27 +179,20 @@ echo "candump vcan0: $n TPDO1 frames, $(wc -l </tmp/up.dump) frames in all"
 if grep -qE '^vcan0 (711|703|730|77F|731)#' <<<"$got"; then fail "downstream heartbeats on vcan0"; else pass "vcan0 carries no sub-device frames"; fi
 if grep -qE '^vcan1 711#05' <<<"$(frames /tmp/down.dump)"; then pass "candump vcan1: grip operational (711#05)"; else fail "no 711#05 on vcan1"; fi
 # SDO pacing (canopen/301/sdo_pacer.hpp): the gateway starts its SDO requests downstream at
-# least a gap apart, so that a request and its answer — two 8-byte frames of at most 135 bits
-# each (worst-case stuffing) — take at most 85 % of the 250 kbit/s bus: 270 bits / (250,000 bit/s
-# x 0.85) = 1,271 us. The simulators answer at once, so without pacing the next request follows
-# the answer and the boot's parallel configurations put requests microseconds apart. Judged on
-# candump's stamps of the initiate requests (600h..67Fh; ccs 1 download, 2 upload, 5/6 block
-# with cs 0: a transfer's segments follow their answers and are not paced). A stamp is the send,
-# a little after the start the gateway paces from, and that delay varies (single gaps of 467 us
-# were seen in the TCG guest): so over every 10 consecutive gaps, which pacing makes at least
-# 12,710 us, with one send delay of up to 1 ms allowed: at least 11,710 us. Seen: 14,117 us
-# paced, 4,114 us without (4d41eca).
-read -r n_req min_span <<<"$(awk 'function hex(s,  i, v) { v = 0; for (i = 1; i <= length(s); i++) v = v * 16 + index("0123456789ABCDEF", toupper(substr(s, i, 1))) - 1; return v }
-  { id = substr($3, 1, index($3, "#") - 1); d = substr($3, index($3, "#") + 1)
-  v = hex(id); if (length(id) != 3 || v < 1536 || v > 1663 || length(d) < 2) next  # 600h..67Fh
-  b = hex(substr(d, 1, 2)); c = int(b / 32)
-  if (!(c == 1 || c == 2 || (c == 5 && b % 4 == 0) || (c == 6 && b % 2 == 0))) next
-  t[++n] = substr($1, 2, length($1) - 2) + 0 }
-  END { m = -1; for (i = 11; i <= n; i++) { s = (t[i] - t[i - 10]) * 1e6; if (m < 0 || s < m) m = s }
-        printf "%d %.0f\n", n, m }' /tmp/down.dump)"
-echo "candump vcan1: $n_req SDO initiate requests; the shortest 10 consecutive gaps span $min_span us"
-if ((n_req >= 50 && min_span >= 11710)); then pass "SDO requests paced: $n_req, every 10 gaps span >= $min_span us (10 x 1,271 us)"
-else fail "SDO requests not paced: $n_req, 10 consecutive gaps in $min_span us (expected >= 11,710 us)"; fi
+# least a gap apart (1,271 us at 250 kbit/s), judged exactly on simulated time (timed_bus_test:
+# TheGatewayStartsItsDownstreamSdoRequestsAtLeastThePacingGapApart). A candump stamp in this TCG
+# guest is the write, which may lag its pacing decision by a stall (a check of 10 gaps >= 11,710 us
+# failed so on a loaded host), so one gap on the wire may be short; two consecutive gaps are short
+# only when the gateway lagged while paced decisions piled up (a request started on an answer is
+# paced by that answer's reception time: after a lag of the gateway, requests decided a gap
+# apart by those times leave in one wake-up). Judged here: such triples are rare, not the rule
+# (sdo_pacing.py): at most 1 per 100 requests. Seen: paced 0 (3 runs) and 1 in 289 (stress-ng
+# beside the VM: 3 requests within 501 us after a 7 ms lag); with the pacing off
+# (sdo_request_gap 0) 25 in 259, down to 33 us.
+read -r n_req short span2 span10 <<<"$("$PY" "$here/sdo_pacing.py" /tmp/down.dump 1271)"
+echo "candump vcan1: $n_req SDO initiate requests; 3 consecutive within less than 1,271 us: $short (the shortest 2 gaps: $span2 us); the shortest 10 gaps span $span10 us (a figure: not judged here)"
+if ((n_req >= 50 && short * 100 <= n_req)); then pass "SDO requests paced: $n_req, 3 consecutive within less than one pacing gap $short times (at most 1 in 100)"
+else fail "SDO requests not paced: $n_req, $short times 3 consecutive requests within less than 1,271 us ($span2 us)"; fi
 # The gateway's log (journald: "level: message", no timestamps) names the lost grip.
 for line in 'info: right_grip: operational (first heartbeat in operational after NMT start)' 'info: right_grip: missing (heartbeat lost)'; do
   if grep -qxF "$line" /tmp/gateway.log; then pass "log: $line"; else fail "log lacks: $line"; fi

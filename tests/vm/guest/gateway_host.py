@@ -42,7 +42,7 @@ def main():
     global T0
     channel, ready, expected = sys.argv[1], sys.argv[2], int(sys.argv[3], 16)
     T0 = time.monotonic()
-    with Peer(channel, timeout=3.0) as p:
+    with Peer(channel, timeout=10.0) as p:  # SDO answers: 10 s, a TCG guest stalls for seconds at times
         open(ready, "w").close()
         check(p.wait_heartbeat(NODE, state=0x00, timeout=60) == 0, "gateway boot-up 720#00")
         log("boot-up")
@@ -55,7 +55,7 @@ def main():
         p.sdo_download(NODE, 0x6423, 0, b"\x01")
         check(p.sdo_upload(NODE, 0x6423, 0) == b"\x01", "6423h TRUE")
         p.nmt("start", NODE)
-        check(p.wait_heartbeat(NODE, state=0x05, timeout=5) == 0x05, "operational after NMT start")
+        check(p.wait_heartbeat(NODE, state=0x05, timeout=10) == 0x05, "operational after NMT start")
         log("started")
         # The grip sweeps x (sine, 4 s): TPDO1 x must take many values once it is operational
         # downstream (the gateway boots its sub-devices meanwhile).

@@ -65,3 +65,60 @@ stop_candump() {
 
 # frames FILE: the "IFACE ID#DATA" part of candump -L lines.
 frames() { awk '{ print $2, $3 }' "$1"; }
+
+# stop_gateway PID: SIGTERM to an `oegw run`, which must exit 0 (a PASS or FAIL line).
+stop_gateway() {
+  kill -TERM "$1"
+  wait "$1"
+  local rc=$?
+  ((rc == 0)) && pass "SIGTERM: oegw run exit 0" || fail "SIGTERM: oegw run exit $rc"
+}
+
+# run_recorded FIXTURE SRC RUN_DIR OEGW: the start the candump-judged scenarios share (vm_faults,
+# vm_corners): `oegw check` of tests/fixtures/FIXTURE (the script ends with a FAIL when it is
+# refused), candump -L of vcan0 into /tmp/up.dump and of vcan1 into /tmp/down.dump (pids in
+# $up_candump, $down_candump), then `oegw run` into /tmp/gateway.log ($gw_pid) once it has bound vcan1.
+run_recorded() {
+  prepare_gateway_run "$@" || { fail "oegw check exit $?: $(cat /tmp/check.out)"; exit 1; }
+  local bus pids=()
+  for bus in vcan0:up vcan1:down; do
+    start_candump "${bus%%:*}" "/tmp/${bus##*:}.dump" || fail "candump ${bus%%:*} did not start"
+    pids+=("$candump_pid")
+  done
+  up_candump=${pids[0]} down_candump=${pids[1]}
+  local bound
+  bound=$(can_receivers vcan1)
+  "$4" run "$3/oegw.yaml" >/tmp/gateway.log 2>&1 &
+  gw_pid=$!
+  wait_receivers vcan1 $((bound + 1)) 20 || fail "the gateway did not bind vcan1"
+  echo "gateway started after $(elapsed) s"
+}
+
+# end_recorded: stop_gateway of run_recorded's `oegw run`, then both candumps stopped.
+end_recorded() {
+  stop_gateway "$gw_pid"
+  for candump_pid in "$down_candump" "$up_candump"; do stop_candump; done
+}
+
+# wait_for FILE PATTERN TIMEOUT_S: until a line of FILE matches the extended regex PATTERN.
+wait_for() {
+  local i
+  for ((i = 0; i < $3 * 20; i++)); do
+    grep -Eq "$2" "$1" 2>/dev/null && return 0
+    sleep 0.05
+  done
+  return 1
+}
+
+# count FILE PATTERN: its lines matching the extended regex PATTERN.
+count() { grep -Ec "$2" "$1" 2>/dev/null; }
+
+# wait_more FILE PATTERN BEFORE TIMEOUT_S: until FILE has more than BEFORE lines matching PATTERN.
+wait_more() {
+  local i
+  for ((i = 0; i < $4 * 20; i++)); do
+    (($(count "$1" "$2") > $3)) && return 0
+    sleep 0.05
+  done
+  return 1
+}

@@ -97,14 +97,14 @@ class PeerTest(unittest.TestCase):
         self.node = FakeNode({(0x1000, 0): struct.pack("<I", 0x191), (0x1001, 0): b"\x00",
                               (0x1008, 0): b"oegw test device name"})
         self.node.start()
-        self.peer = pp.Peer(CHANNEL, 1.0, INTERFACE)
+        self.peer = pp.Peer(CHANNEL, 10.0, INTERFACE)  # waits end with the answer; a TCG guest stalls at times
 
     def tearDown(self):
         self.peer.close()
         self.node.stop.set()
         self.node.join()
 
-    def wait_seen(self, n, timeout=3.0):
+    def wait_seen(self, n, timeout=10.0):
         """Let the fake node receive at least n frames, then stop it."""
         deadline = time.monotonic() + timeout
         while len(self.node.seen) < n and time.monotonic() < deadline:
@@ -165,7 +165,7 @@ class PeerTest(unittest.TestCase):
             for s in (0x00, 0x7F, 0x05):
                 self.node.send(0x700 + NODE, [s])
         threading.Timer(0.1, beat).start()
-        self.assertEqual(self.peer.wait_heartbeat(NODE, 0x05, timeout=3), 0x05)
+        self.assertEqual(self.peer.wait_heartbeat(NODE, 0x05, timeout=10), 0x05)
         with self.assertRaises(pp.Timeout):
             self.peer.wait_heartbeat(NODE, 0x04, timeout=0.2)
 

@@ -49,7 +49,7 @@ def abort_code(fn):
 
 def main():
     ready, fifo = sys.argv[1], sys.argv[2]
-    with Peer("vcan0", timeout=3.0) as p:
+    with Peer("vcan0", timeout=10.0) as p:  # 10 s: a TCG guest stalls for seconds at times
         open(ready, "w").close()
         p.wait_heartbeat(GW, state=0x00, timeout=90)
         print("gateway boot-up seen", flush=True)

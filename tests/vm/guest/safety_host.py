@@ -8,7 +8,10 @@ One process for every scenario (each python3-can start costs seconds in the VM).
          heartbeats and PDOs): to see what the gateway sends the devices and to inject, once,
          the MCB-402 heartbeat of scenario 2.
 A thread per bus records every frame with its kernel timestamp; scenarios wait on conditions with
-deadlines (the VM is slow: TCG), never on fixed sleeps alone. The grip (`oegw-sim --commands`)
+deadlines (the VM is slow: TCG), never on fixed sleeps alone. A wait for what must come is 10 s
+or more (it ends when it comes; a TCG guest stalls for seconds at times); no check bounds a delay
+in wall time: the deadlines are judged on simulated time, here by their order or counted in the
+grip's heartbeats. The grip (`oegw-sim --commands`)
 is driven by writing lines ("right_grip x 50", "right_grip heartbeat off", ...) to a FIFO.
 
 Each scenario prints its checks ("  ok: ..." / "  NOT OK: ...") and one verdict line,
@@ -115,9 +118,9 @@ def emcy_7000_naming(node):
 
 def reset_indexes(frames, node):
     """Indexes (into `frames`, the vcan0 record) of the EMCY error resets that end node's sub-device
-    fault. The gateway names the node in a 0000h while other faults remain, and sends the generic
-    0000h with an empty manufacturer field as the last error goes (CiA 301 §7.2.7.2): a generic
-    reset counts for node only if node's EMCY 7000h was the active fault (the EMCY stream is
+    fault. The gateway names the node in every such 0000h (the last one too); a generic 0000h
+    (empty manufacturer field, as other CiA 301 §7.2.7.2 producers send) is still taken: it
+    counts for node only if node's EMCY 7000h was the active fault (the EMCY stream is
     replayed from the start, so that another device's fault and its clearing do not count)."""
     active = set()
     out = []
@@ -171,6 +174,7 @@ class Host:
         self.windows = open(windows_file, "w", buffering=1)
         self.hb_on = threading.Event()
         self.hb_last = None
+        self.hb_sent = []        # time.time() of every heartbeat sent
         self.hb_thread = threading.Thread(target=self._heartbeat, name="heartbeat", daemon=True)
         self.hb_thread.start()
         self.results = []
@@ -188,6 +192,7 @@ class Host:
                 continue
             self.send_up(0x700 + HOST, [0x05])
             self.hb_last = time.time()
+            self.hb_sent.append(self.hb_last)
             nxt = max(nxt + 0.1, time.monotonic())
             time.sleep(max(nxt - time.monotonic(), 0))
 
@@ -195,7 +200,7 @@ class Host:
         for attempt in range(2):  # one retry: a TCG hiccup is not what these tests are about
             m = self.up.mark()
             self.send_up(0x600 + GW, req)
-            r = self.up.wait(is_id(0x580 + GW), 3.0, m)
+            r = self.up.wait(is_id(0x580 + GW), 10.0, m)
             if r is not None:
                 d = r[1][2].ljust(8, b"\0")
                 if d[0] == 0x80:
@@ -274,7 +279,7 @@ class Host:
         r = self.up.wait(lambda f: f[1] == TPDO1 and joy(f) is not None and pred(joy(f)[0]), timeout, start)
         return r
 
-    def follows(self, percent, timeout=5.0):
+    def follows(self, percent, timeout=10.0):
         """Moves the stick to `percent` and waits for joystick 1 x to follow (same sign, over half)."""
         m = self.up.mark()
         self.grip(f"x {percent}")
@@ -332,7 +337,7 @@ def setup(h):
     h.download(0x1804, 1, struct.pack("<I", TPDO5))
     h.download(0x6423, 0, b"\x01")
     h.send_up(0x000, [0x01, GW])
-    if h.up.wait(lambda f: f[1] == 0x700 + GW and f[2] == b"\x05", 5) is None:
+    if h.up.wait(lambda f: f[1] == 0x700 + GW and f[2] == b"\x05", 10) is None:
         raise SdoError("the gateway did not report operational after NMT start")
     log("gateway operational")
 
@@ -397,7 +402,7 @@ def scenario_outputs_atomic(h):
         m = h.down.mark()
         t_from = time.time()
         h.download(0x6200, 1, bytes([new]))
-        got = h.down.wait(lambda f: f[1] == MCB_RPDO1 and f[2] == bytes([new]), 3.0, m)
+        got = h.down.wait(lambda f: f[1] == MCB_RPDO1 and f[2] == bytes([new]), 10.0, m)
         time.sleep(0.7)  # anything that follows the wanted frame
         t_to = time.time()
         frames = [fmt_frame(f) for f in h.down.since(m, is_id(MCB_RPDO1))]
@@ -416,13 +421,13 @@ def scenario_heartbeat_never_returns(h):
         return None
     m = h.up.mark()
     h.grip("x 0")
-    h.check(h.wait_x1(lambda x: x == 0, 5, m) is not None, "joystick 1 x back at 0")
+    h.check(h.wait_x1(lambda x: x == 0, 10, m) is not None, "joystick 1 x back at 0")
     # The heartbeat stops (everything else goes on).
     i0 = h.up.mark()
     d0 = h.down.mark()
     t_off = time.time()
     h.grip("heartbeat off")
-    r = h.up.wait(emcy_7000_naming(GRIP), 5, i0)
+    r = h.up.wait(emcy_7000_naming(GRIP), 10, i0)
     h.check(r is not None, "EMCY 7000h naming 11h after the heartbeat stopped"
             + (f" ({fmt_frame(r[1])}, {1000 * (r[1][0] - t_off):.0f} ms after the command)" if r else ""))
     h.check(h.x1() == 0, "joystick 1 x at neutral (6401h:01 = 0)")
@@ -467,16 +472,28 @@ def scenario_pdos_stop(h):
     # The last TPDO the grip sent (its TPDO #0 180h+11h carries x): the deadline runs from there.
     last = h.down.since(0, lambda f: f[1] in (0x180 + GRIP, 0x280 + GRIP))
     t_last = last[-1][0] if last else time.time()
-    bound = 0.3 + 0.5  # 3 x 100 ms, plus margin for a TCG guest
-    r = h.wait_x1(lambda x: x == 0, 3.0, i0)
-    e = h.up.wait(emcy_7000_naming(GRIP), 3.0, i0)
+    # The deadline (3 x the grip's 100 ms cycle) is judged exactly on simulated time
+    # (safety_findings_test: ElobauTpdo1HasTheContractsFreshnessDeadline). Here its clock is the
+    # grip's own heartbeat (711#05 every 100 ms, another process, never sent in a burst after a
+    # stall): at most HEARTBEATS of them between its last PDO and the fault. A stall of the whole
+    # TCG guest holds both back alike, where wall time would count it against the gateway; a
+    # gateway that misses the deadline fails by the heartbeats it lets pass (one that never
+    # notices, by the wait's 10 s).
+    heartbeats = 8  # the 3 of the deadline, 5 of margin for the guest's uneven pace
+    r = h.wait_x1(lambda x: x == 0, 10.0, i0)
+    e = h.up.wait(emcy_7000_naming(GRIP), 10.0, i0)
     dx = (r[1][0] - t_last) if r else None
     de = (e[1][0] - t_last) if e else None
-    h.check(r is not None and dx <= bound,
-            "joystick 1 x neutral in a TPDO1 within 300 ms + 500 ms of the grip's last PDO"
-            + (f" ({1000 * dx:.0f} ms)" if r else ": none within 3 s"))
-    h.check(e is not None and de <= bound, "EMCY 7000h naming 11h within 800 ms of the last PDO"
-            + (f" ({1000 * de:.0f} ms)" if e else ": none within 3 s"))
+
+    def beats(t):
+        return len(h.down.since(d0, lambda f: f[1] == 0x700 + GRIP and f[2] == b"\x05" and t_last < f[0] < t))
+
+    h.check(r is not None and beats(r[1][0]) <= heartbeats,
+            f"joystick 1 x neutral in a TPDO1 within {heartbeats} grip heartbeats of its last PDO"
+            + (f" ({beats(r[1][0])}; {1000 * dx:.0f} ms)" if r else ": none within 10 s"))
+    h.check(e is not None and beats(e[1][0]) <= heartbeats,
+            f"EMCY 7000h naming 11h within {heartbeats} grip heartbeats of its last PDO"
+            + (f" ({beats(e[1][0])}; {1000 * de:.0f} ms)" if e else ": none within 10 s"))
     time.sleep(1.0)
     # The simulator's side: heartbeat went on, PDOs did not.
     pdos = h.down.since(d0, lambda f: f[1] in (0x180 + GRIP, 0x280 + GRIP) and f[0] > t_last)
@@ -487,9 +504,9 @@ def scenario_pdos_stop(h):
     h.grip("x 0")
     i1 = h.up.mark()
     h.grip("pdo on")
-    r = h.wait_reset(GRIP, 5, i1)
+    r = h.wait_reset(GRIP, 10, i1)
     h.check(r is not None, "`pdo on` with the stick at 0 clears the fault (EMCY 0000h)"
-            + (f": {fmt_frame(r)}" if r else ": none within 5 s"))
+            + (f": {fmt_frame(r)}" if r else ": none within 10 s"))
     f, x = h.follows(30)
     h.check(f is not None, f"joystick 1 follows +30 % again (x = {x})")
     return (f"x neutral {1000 * dx:.0f} ms, EMCY {1000 * de:.0f} ms after the last PDO"
@@ -503,11 +520,11 @@ def scenario_reboot_deflected(h):
     i0 = h.up.mark()
     d0 = h.down.mark()
     h.grip("reboot")
-    r = h.down.wait(lambda f: f[1] == 0x700 + GRIP and f[2] == b"\x00", 5, d0)
+    r = h.down.wait(lambda f: f[1] == 0x700 + GRIP and f[2] == b"\x00", 10, d0)
     h.check(r is not None, "the grip rebooted (711#00)")
     start = h.down.wait(lambda f: f[1] == 0x000 and f[2] == bytes([0x01, GRIP]), 15, r[0] if r else d0)
     h.check(start is not None, "the gateway restarted it (000#0111)")
-    pdo = h.down.wait(is_id(0x180 + GRIP), 5, start[0] if start else d0)
+    pdo = h.down.wait(is_id(0x180 + GRIP), 10, start[0] if start else d0)
     # elobau §4: after power on, a deflected axis is sent as zero until it has been at zero.
     h.check(pdo is not None and pdo[1][2][0] == 0,
             f"(simulator, elobau §4) after power-on the grip sends x = 0 while deflected: "
@@ -519,9 +536,20 @@ def scenario_reboot_deflected(h):
         h.check(c is not None, "the reboot's fault clears (EMCY 0000h) once the grip is back")
     ok, desc = h.neutral_for(2.5, i0, "rebooted with the stick at +50 %")
     h.check(ok, desc)
-    h.grip("x 0")
-    time.sleep(0.5)
-    f, x = h.follows(40)
+    # A stalled guest may lose the grip again here (no heartbeat within its consumer time): the
+    # gateway resets it, and with the stick at +40 % the grip then sends x = 0 until it has been at
+    # zero (elobau §4) — rightly neutral. Only then is the step tried again (up to three times);
+    # x staying neutral without such a reset is a failure.
+    for attempt in range(1, 4):
+        d1 = h.down.mark()
+        h.grip("x 0")
+        time.sleep(0.5)
+        f, x = h.follows(40)
+        reset = h.down.since(d1, lambda fr: (fr[1] == 0x000 and fr[2][1:2] == bytes([GRIP]))
+                             or (fr[1] == 0x700 + GRIP and fr[2] == b"\x00"))
+        if f is not None or not reset:
+            break
+        log(f"attempt {attempt}: the grip was reset meanwhile ({fmt_frame(reset[0])}): the stick again")
     h.check(f is not None, f"once the stick was at 0, joystick 1 follows +40 % (x = {x})")
     return "EMCY 7000h on the reboot: " + ("yes" if e else "no")
 
@@ -534,42 +562,55 @@ def host_heartbeat_round(h, n):
     # 00h then 09h: 09h goes out whatever the dictionary kept through a previous loss.
     h.download(0x6200, 1, b"\x00")
     h.download(0x6200, 1, b"\x09")
-    h.check(h.down.wait(lambda f: f[1] == MCB_RPDO1 and f[2] == b"\x09", 3, m) is not None,
-            f"loss {n}: indicators at 09h (203#09)")
+    set09 = h.down.wait(lambda f: f[1] == MCB_RPDO1 and f[2] == b"\x09", 10, m)
+    h.check(set09 is not None, f"loss {n}: indicators at 09h (203#09)")
+    # candump's window opens with 203#09 (its kernel timestamp), not at the host's last heartbeat:
+    # a stalled host thread may send its heartbeat late before hb_on is cleared, and the gateway
+    # then (rightly) sends the error values before that "last" heartbeat. 0.5 ms after it, so
+    # that 203#09 itself is outside at any rounding (the loss is begun 1.2 s later).
+    t_from = (set09[1][0] if set09 else time.time()) + 0.0005
     time.sleep(1.2)
     i0 = h.up.mark()
     d0 = h.down.mark()
     pre = h.up.since(i_round, lambda f: emcy(f) is not None and emcy(f)[0] == 0x8130)
-    h.check(not pre, f"loss {n}: no EMCY 8130h while the host's heartbeat runs")
+    # An EMCY 8130h the host earned: its heartbeat thread stalled (no heartbeat sent for the
+    # consumer time, 500 ms, before the EMCY) — a loaded TCG guest does that; the gateway is right.
+    def silent_before(f):  # how long the host had sent no heartbeat when frame f came
+        return f[0] - max([t for t in h.hb_sent if t < f[0]], default=0.0)
+    earned = [f for f in pre if silent_before(f) >= 0.5]
+    if earned:
+        log(f"loss {n}: EMCY 8130h after a stall of the host's own heartbeat (none sent for "
+            f"{1000 * silent_before(earned[0]):.0f} ms): not counted")
+    h.check(len(pre) == len(earned), f"loss {n}: no EMCY 8130h while the host's heartbeat runs")
     h.hb_on.clear()
     time.sleep(0.15)
     t_stop = h.hb_last
-    e = h.up.wait(lambda f: emcy(f) is not None and emcy(f)[0] == 0x8130, 5, i0)
+    e = h.up.wait(lambda f: emcy(f) is not None and emcy(f)[0] == 0x8130, 10, i0)
     h.check(e is not None, f"loss {n}: EMCY 8130h after the host's heartbeat stopped"
             + (f" ({1000 * (e[1][0] - t_stop):.0f} ms after its last heartbeat; consumer time 500 ms)" if e
-               else ": none within 5 s"))
-    first = h.down.wait(lambda f: f[1] == MCB_RPDO1, 5, d0)
+               else ": none within 10 s"))
+    first = h.down.wait(lambda f: f[1] == MCB_RPDO1, 10, d0)
     time.sleep(1.0)
     t_to = time.time()
     frames = h.down.since(d0, is_id(MCB_RPDO1))
     h.check([f[2] for f in frames] == [b"\x06"],
             f"loss {n}: the error values reach the MCB-402 as one frame: {[fmt_frame(f) for f in frames]}, "
             "expected ['203#06']")
-    h.window(f"host_heartbeat_loss_{n}", t_stop, t_to, ["203#06"])
+    h.window(f"host_heartbeat_loss_{n}", t_from, t_to, ["203#06"])
     delay = None
     if e and first:
-        # A figure, not a timed assertion: the deterministic check of "in the same call" is the
-        # simulated-clock test on the lead's side; here only a generous bound.
+        # A figure, not a timed assertion: "in the same call as the EMCY" is judged on simulated
+        # time (safety_outputs_test); a stall of the TCG guest between the two writes would be
+        # counted against the gateway by any bound in wall time.
         delay = 1000 * (first[1][0] - e[1][0])
         log(f"loss {n}: EMCY 8130h -> {fmt_frame(first[1])}: {delay:.1f} ms")
-        h.check(delay <= 250, f"loss {n}: error values {delay:.1f} ms after EMCY 8130h (bound 250 ms)")
     # The host comes back, and starts the gateway again: on the heartbeat-consumer time-out it
     # went pre-operational (1029h:01 = 00h, CiA 301 §7.2.8.3.2.3), as a real host would find it.
     h.hb_on.set()
     time.sleep(0.3)
     m = h.up.mark()
     h.send_up(0x000, [0x01, GW])
-    h.check(h.up.wait(lambda f: f[1] == 0x700 + GW and f[2] == b"\x05", 3, m) is not None,
+    h.check(h.up.wait(lambda f: f[1] == 0x700 + GW and f[2] == b"\x05", 10, m) is not None,
             f"loss {n}: heartbeat back and NMT start: the gateway reports operational (720#05)")
     time.sleep(0.3)
     return delay

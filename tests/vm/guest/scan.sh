@@ -5,7 +5,10 @@
 # switch state selective to its 1018h address, configure node-ID FFh, waiting, NMT reset
 # communication), so it is a node without node-ID. `oegw scan -i vcan1` as a process must find the
 # four nodes by SDO, name their families, read the cluster's LSS address by fastscan, show its
-# progress, write nothing to any node (candump), and write a draft that `oegw check` accepts.
+# progress, write nothing to any node (candump), and write a draft that `oegw check` refuses at the
+# MCB-402's button_bits placeholder; `oegw signals mcb402 --find-button-bits` then reads the wiring
+# off the board while a scripted user presses the buttons it asks for (the simulator's command pipe),
+# and the draft with the line it prints is accepted.
 # Args: OEGW OEGW_SIM SRC
 set -uo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
@@ -16,8 +19,10 @@ sim=$2
 eds=$3/subdevices/eds
 
 start_candump vcan1 /tmp/scan.dump || fail "candump did not start"
-"$sim" -i vcan1 elobau-mfg:0x11 mcb402:0x03 novotechnik-406:0x7F "cia401:0x30:eds=$eds/generic_pedal.eds" \
-  "cia401:0x31:eds=$eds/button_cluster.eds" >/tmp/sim.log 2>&1 &
+mkfifo /tmp/sim.cmd
+exec 3<>/tmp/sim.cmd
+"$sim" -i vcan1 --commands elobau-mfg:0x11 mcb402:0x03:name=board novotechnik-406:0x7F \
+  "cia401:0x30:eds=$eds/generic_pedal.eds" "cia401:0x31:eds=$eds/button_cluster.eds" <&3 >/tmp/sim.log 2>&1 &
 sim_pid=$!
 wait_receivers vcan1 2 || fail "oegw-sim did not bind vcan1"
 for _ in $(seq 100); do grep -q ' 731#00$' /tmp/scan.dump && break; sleep 0.1; done
@@ -49,8 +54,8 @@ grep -Eq '^probing node 16/127, found [0-9]+$' /tmp/scan.err && pass "progress w
 for entry in '  elobau_mfg_11:' '  mcb402_03:' '  novotechnik_406_7f:' '  # cia401_30:'; do
   grep -qxF -- "$entry" /tmp/draft.yaml && pass "draft has '$entry'" || fail "draft lacks '$entry'"
 done
-grep -q 'button_bits: \[0, 1, 2, 3, 4, 5, 6\]  # TODO placeholder' /tmp/draft.yaml &&
-  pass "MCB-402 button_bits is a marked placeholder" || fail "no button_bits placeholder"
+grep -q 'button_bits: TODO  # `oegw check` refuses this' /tmp/draft.yaml &&
+  pass "MCB-402 button_bits is the placeholder TODO" || fail "no button_bits placeholder"
 addr='vendor 0x00000A5A, product 0x00000402, revision 0x00010002, serial 0x00000000'
 # (the draft's comment is wrapped: joined again before the search)
 sed 's/^# //' /tmp/draft.yaml | tr '\n' ' ' | grep -q "fastscan read its address: $addr" &&
@@ -58,9 +63,13 @@ sed 's/^# //' /tmp/draft.yaml | tr '\n' ' ' | grep -q "fastscan read its address
   fail "draft lacks the LSS address"
 grep -q 'interface: vcan0' /tmp/draft.yaml && grep -q 'interface: vcan1' /tmp/draft.yaml &&
   pass "draft interfaces from the command line" || fail "draft interfaces"
+# No draft passes `oegw check` on a guess: refused at the placeholder, saying how to find the
+# value; with a value written, accepted.
 "$oegw" check /tmp/draft.yaml >/tmp/check.out 2>&1
 rc=$?
-((rc == 0)) && pass "oegw check accepts the draft" || fail "oegw check exit $rc: $(cat /tmp/check.out)"
+((rc == 1)) && grep -q "button_bits is still the draft's placeholder TODO.*--find-button-bits" /tmp/check.out &&
+  pass "oegw check refuses the draft at button_bits: TODO, naming --find-button-bits" ||
+  fail "oegw check exit $rc: $(cat /tmp/check.out)"
 
 # Nothing written: the scan's SDO requests are uploads (40h) and aborts (80h) only; its LSS
 # frames identify and fastscan, and one switch back to waiting.
@@ -71,6 +80,45 @@ bad=$(awk '$2 ~ /^7E5#/ { b = substr($2, 5, 2); if (b != "4C" && b != "51" && b 
 [[ -z $bad ]] && pass "LSS: identify, fastscan, switch to waiting only" || fail "other LSS frames: $bad"
 grep -q '7E5#51' /tmp/scan.frames && pass "fastscan frames on the bus" || fail "no fastscan frame"
 
+# The value read off the board: `oegw signals mcb402 --find-button-bits` on vcan1 asks for BP1..BP7
+# in turn; the simulated user (the board's command pipe) presses and releases each button asked for.
+# The board is still pre-operational (the scan started nothing): the aid hears no TPDO1 and sends
+# NMT start 000#0103. The line it prints is the board's wiring (the simulator's default, the
+# table's right-end reading), and the draft with that line is accepted by `oegw check`.
+mark=$(wc -l </tmp/scan.dump)
+coproc finder { timeout 120 "$oegw" signals mcb402 --find-button-bits -i vcan1 --node 3 --timeout 30 2>&1; }
+finder_pid=$finder_PID
+exec 4<&"${finder[0]}"
+found=""
+while IFS= read -r line <&4; do
+  echo "    finder: $line"
+  if [[ $line =~ ^press\ and\ hold\ BP([1-7]) ]]; then
+    echo "board buttons[${BASH_REMATCH[1]}] 1" >&3
+  elif [[ $line =~ ^BP([1-7])\ sets\ bit ]]; then
+    echo "board buttons[${BASH_REMATCH[1]}] 0" >&3
+  elif [[ $line =~ ^button_bits:\ \[.*\]$ ]]; then
+    found=$line
+  fi
+done
+wait "$finder_pid"
+rc=$?
+exec 4<&-
+((rc == 0)) && pass "oegw signals mcb402 --find-button-bits exit 0" || fail "--find-button-bits exit $rc"
+[[ $found == 'button_bits: [0, 1, 2, 3, 4, 6, 5]' ]] && pass "the aid read the board's wiring: $found" ||
+  fail "the aid printed '$found', the board is wired [0, 1, 2, 3, 4, 6, 5]"
+tail -n +"$((mark + 1))" /tmp/scan.dump | frames /dev/stdin >/tmp/finder.frames
+grep -q '^vcan1 000#0103$' /tmp/finder.frames && pass "the aid started the silent board (000#0103)" ||
+  fail "no NMT start of the board by the aid"
+# candump: each button's press seen on the wire as one bit of TPDO1 byte 2 (183#xxxxcc...).
+presses=$(awk '$2 ~ /^183#/ { print substr($2, 9, 2) }' /tmp/finder.frames | sort -u | tr '\n' ' ')
+[[ $presses == *01* && $presses == *40* && $presses == *20* ]] &&
+  pass "TPDO1 byte 2 values on the wire: $presses" || fail "TPDO1 byte 2 values on the wire: $presses"
+sed -i "s/button_bits: TODO .*/${found:-button_bits: TODO}/" /tmp/draft.yaml
+"$oegw" check /tmp/draft.yaml >/tmp/check.out 2>&1
+rc=$?
+((rc == 0)) && pass "oegw check accepts the draft with the aid's button_bits line" ||
+  fail "oegw check exit $rc: $(cat /tmp/check.out)"
+
 # The cluster kept no node-ID (the scan assigns none): it still answers identify non-configured.
 mark=$(wc -l </tmp/scan.dump)
 cansend vcan1 7E5#4C00000000000000
@@ -80,6 +128,7 @@ tail -n +"$((mark + 1))" /tmp/scan.dump | grep -q '7E4#5000000000000000' && pass
 
 kill -TERM "$sim_pid"
 wait "$sim_pid"
+exec 3>&-
 stop_candump
 echo "$passes passed, $fails failed"
 ((fails == 0))

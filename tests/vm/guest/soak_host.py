@@ -23,7 +23,7 @@ def main():
     channel, ready, expected, seconds, windows = sys.argv[1], sys.argv[2], int(sys.argv[3], 16), float(sys.argv[4]), sys.argv[5]
     failures = 0
     counts = {"sdo": 0, "nmt": 0}
-    with Peer(channel, timeout=3.0) as p, open(windows, "w") as w:
+    with Peer(channel, timeout=10.0) as p, open(windows, "w") as w:  # 10 s: a TCG guest stalls for seconds at times
         open(ready, "w").close()
         if p.wait_heartbeat(NODE, state=0x00, timeout=60) != 0:
             print("FAIL: no boot-up", flush=True)

@@ -18,7 +18,7 @@ NODE = 0x20
 
 def main():
     channel, ready = sys.argv[1], sys.argv[2]
-    with Peer(channel, timeout=3.0) as p:
+    with Peer(channel, timeout=10.0) as p:  # SDO answers: 10 s, a TCG guest stalls for seconds at times
         if p.wait_heartbeat(NODE, state=0x7F, timeout=60) != 0x7F:
             print("FAIL: the gateway is not pre-operational", flush=True)
             return 1

@@ -6,7 +6,8 @@
 # (upstream vcan0, downstream vcan1) with the five simulated devices in one oegw-sim process:
 # READY=1 once the upstream device is pre-operational; STATUS= lines (the first naming devices not
 # yet up, then "5/5 sub-devices operational"), each sent once, not repeated; WATCHDOG=1 every half
-# of the time-out (the median gap 4.5..6.5 s: 5 s, polled each second) and never a time-out apart;
+# of the time-out (the median gap 4.5..6.5 s: 5 s, polled each second) and never a time-out of
+# the guest's running time apart (a stall of the whole guest excepted: notify_listen.py's ticks);
 # SIGTERM: STOPPING=1, exit 0. Then the
 # same without NOTIFY_SOCKET: nothing to send to, the gateway runs and stops as before.
 # This checks the wire (timing systemd's own view does not show); the unit under a real systemd
@@ -32,7 +33,7 @@ receivers=$(can_receivers vcan1)
 sim_pid=$!
 wait_receivers vcan1 $((receivers + 1)) 20 || fail "the simulator did not bind vcan1"
 
-"$PY" "$here/notify_listen.py" "$dir/notify.sock" /tmp/notify.log /tmp/notify.ready 120 &
+"$PY" "$here/notify_listen.py" "$dir/notify.sock" /tmp/notify.log /tmp/notify.ready 120 /tmp/notify.ticks &
 listen_pid=$!
 for ((i = 0; i < 200; i++)); do [[ -e /tmp/notify.ready ]] && break; sleep 0.05; done
 [[ -e /tmp/notify.ready ]] || fail "notify socket not bound"
@@ -81,8 +82,20 @@ median=$(awk '{ g[NR] = $1 } END { printf "%.2f", NR ? g[int((NR + 1) / 2)] : 0 
 ((np >= 4)) && pass "WATCHDOG=1 $np times" || fail "WATCHDOG=1 only $np times"
 awk -v m="$median" 'BEGIN { exit !(m >= 4.5 && m <= 6.5) }' && pass "WATCHDOG=1 every half time-out (median gap $median s)" ||
   fail "WATCHDOG=1 median gap $median s, expected about 5 s (half of WATCHDOG_USEC)"
-awk -v g="$gap" 'BEGIN { exit !(g < 10.0) }' && pass "WATCHDOG=1 never a time-out apart (largest gap $gap s)" ||
-  fail "WATCHDOG=1 gap $gap s: systemd would have restarted it"
+# The time-out is judged on the guest's running time between two pings: the part of the gap
+# notify_listen.py's own wake-ups (every 100 ms while the guest runs) cover with gaps of at most
+# 0.4 s. A stall of the whole TCG guest (seconds at times) is no silence of the gateway; a loop
+# that stops pinging while the guest runs fails by the length of its stop. The exact cadence is
+# judged on simulated time (service_notify_test: TheEventLoopPingsTheWatchdogAtHalfItsTimeOut).
+running=$(awk 'NR == FNR { tick[++n] = $1; next } $2 == "WATCHDOG=1" { if (p != "") { r = 0; last = p
+    for (i = 1; i <= n; i++) if (tick[i] > p && tick[i] < $1) { if (tick[i] - last <= 0.4) r += tick[i] - last; last = tick[i] }
+    if ($1 - last <= 0.4) r += $1 - last
+    if (r > m) { m = r; g = $1 - p } } p = $1 }
+  END { printf "%.3f %.3f", m, g }' /tmp/notify.ticks /tmp/notify.log)
+read -r run_max run_gap <<<"$running"
+echo "WATCHDOG=1 gaps: largest $gap s of wall time; largest running time between two pings $run_max s (of a $run_gap s gap)"
+awk -v g="$run_max" 'BEGIN { exit !(g < 10.0) }' && pass "WATCHDOG=1 never a time-out of the guest's running time apart (largest $run_max s)" ||
+  fail "WATCHDOG=1: $run_max s of running time without a ping: systemd would have restarted it"
 last=$(tail -1 <<<"$msgs")
 [[ $last == STOPPING=1 ]] && pass "STOPPING=1 last" || fail "last message: $last"
 

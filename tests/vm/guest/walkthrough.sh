@@ -100,7 +100,9 @@ mount -t overlay overlay -o lowerdir=/var/lib,upperdir=/run/varlib/upper,workdir
 # ---- The cab.
 eds=$src/subdevices/eds
 receivers=$(can_receivers vcan1)
-"$sim" -i vcan1 elobau-mfg:0x11 mcb402:0x03 "cia401:0x30:eds=$eds/generic_pedal.eds" novotechnik-406:0x7F \
+# The MCB-402 wired as the README says this cab's board is ("[1, 2, 3, 4, 5, 7, 6]"; a simulated
+# board is otherwise wired by the table's other reading).
+"$sim" -i vcan1 elobau-mfg:0x11 mcb402:0x03:wiring=1/2/3/4/5/7/6 "cia401:0x30:eds=$eds/generic_pedal.eds" novotechnik-406:0x7F \
   >/tmp/sim.log 2>&1 &
 sim_pid=$!
 wait_receivers vcan1 $((receivers + 1)) 20 || fail "oegw-sim did not bind vcan1"

@@ -1,0 +1,62 @@
+// The black box in `oegw run` (README "Recording and replay"): the mapping file's `record`
+// section made into a Recorder (its writer thread) and a GatewayRecorder on the running Gateway;
+// the window kept on request (the control socket's `record_keep`, SIGUSR1); its state for
+// `oegw status`. A folder that cannot be used costs the recording, never the buses: the gateway
+// runs without it and `oegw status` says why.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "canopen/io/event_loop.hpp"
+#include "gateway/gateway.hpp"
+#include "gateway/record/gateway_recorder.hpp"
+#include "gateway/record/recorder.hpp"
+#include "mapping/config.hpp"
+
+namespace oegw::gateway::record {
+
+// The Recorder's settings for a mapping file's `record` section (`file`: the mapping file, copied
+// into the recording with the upstream store).
+[[nodiscard]] RecorderSettings recorder_settings(const mapping::Config& config, const std::string& file);
+
+class RecordingService {
+ public:
+  // Records when config.record.enabled: give tap() to each gateway (GatewayOptions::tap) from
+  // its construction on. `loop` outlives it; it outlives the gateways it taps.
+  RecordingService(canopen::EventLoop& loop, const mapping::Config& config, const std::string& file);
+  ~RecordingService();
+  RecordingService(const RecordingService&) = delete;
+  RecordingService& operator=(const RecordingService&) = delete;
+
+  [[nodiscard]] bool recording() const { return recorder_ != nullptr; }
+  // The gateways' tap; nullptr when not recording.
+  [[nodiscard]] GatewayTap* tap() { return tap_.get(); }
+  // The mapping file reloaded (SIGHUP): noted in the recording, where a replay stops comparing.
+  void reloading(canopen::TimePoint now, const std::string& file);
+  // Why it does not record: "recording is off (record.enabled …)", or the folder's refusal.
+  [[nodiscard]] std::string off_reason() const;
+  // Keeps the window now; `done(kept folder or empty, error)` on the loop once the links exist.
+  using Done = std::function<void(const std::string& folder, std::size_t segments, const std::string& error)>;
+  void keep(Done done);
+  // The `record` object of `oegw status` (gateway/control/PROTOCOL.md).
+  [[nodiscard]] nlohmann::json status() const;
+  // One line for the log at a keep asked by a signal.
+  void keep_logged(const std::string& why);
+
+ private:
+  canopen::EventLoop& loop_;
+  mapping::RecordConfig config_;  // as at the start: a reload does not change the recording
+  std::string error_;  // why it does not record (the folder refused at start)
+  std::unique_ptr<Recorder> recorder_;
+  std::unique_ptr<GatewayRecorder> tap_;
+  canopen::EventLoop::WatchId watch_ = 0;
+};
+
+// `oegw status`'s line for the `record` object: "recording: on, /var/lib/oegw/record, 12 segments,
+// 3.2 MiB, 5 min 12 s; dropped 0, lost 0; kept 1 window (…)"; "recording: off (record.enabled)".
+[[nodiscard]] std::string record_status_line(const nlohmann::json& record);
+
+}  // namespace oegw::gateway::record

@@ -1,0 +1,337 @@
+// The black box end to end (README "Recording and replay"): the simulated cab of the demo on the
+// virtual buses, its gateway recorded by the Recorder into real files through an incident —
+// the grip's cable pulled, an MCB-402 cable break (EMCY 3120h), the host's heartbeat lost, the
+// grip rebooted — then replayed from those files by a new gateway on the simulated clock.
+// Nothing sleeps: the cab runs on a simulated clock, the Recorder's writer is waited for with
+// flush().
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "canopen/io/clock.hpp"
+#include "canopen/io/event_loop.hpp"
+#include "gateway/record/gateway_recorder.hpp"
+#include "gateway/record/plot.hpp"
+#include "gateway/record/recorder.hpp"
+#include "gateway/record/replay.hpp"
+#include "programs/cab_rig.hpp"
+#include "tests/fixtures/fixtures.hpp"
+
+namespace oegw::gateway::record {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+using canopen::CanFrame;
+
+constexpr canopen::NodeId kGw{0x20};
+
+class Blackbox : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    char tmpl[] = "/tmp/oegw-blackbox-test-XXXXXX";
+    dir_ = ::mkdtemp(tmpl);
+    auto loaded = mapping::load_config_text(fixtures::mapping_file("demo_cab.yaml"), "demo_cab.yaml", driver_catalogue());
+    ASSERT_TRUE(loaded.ok()) << loaded.error_text();
+    config_ = std::move(*loaded.config);
+    RecorderSettings s;
+    s.dir = dir_ / "record";
+    s.run = "20261205T140312Z";
+    s.up_iface = "can0";
+    s.down_iface = "can1";
+    s.max_bytes = 4u << 20;
+    s.segments = 40;  // 100 KiB a segment: the incident fills several
+    s.wall_offset_us = [] { return std::int64_t{1'764'900'000'000'000}; };
+    // The rig's instant buses: its gateway's SDO is not paced (CabRigOptions), and the replay
+    // must know it; on the timed buses it is, as in oegw run.
+    s.header = {timed_ ? "meta gateway sdo_bus_share=0.85" : "meta gateway sdo_bus_share=0"};
+    recorder_ = std::make_unique<Recorder>(s);
+    rig_ = std::make_unique<CabRig>(config_, loop_,
+                                    CabRigOptions{.store = dir_ / "upstream.store", .timed_buses = timed_});
+    tap_ = std::make_unique<GatewayRecorder>(*recorder_);
+    rig_->on_gateway = [this](Gateway& g) {
+      gw_ = &g;
+      g.set_tap(tap_.get());
+    };
+    rig_->from_devices = [this](const CanFrame& f) { return pulled_ && (f.id & 0x7F) == 0x11; };
+    rig_->build();
+  }
+  void TearDown() override {
+    rig_.reset();
+    tap_.reset();
+    recorder_.reset();
+    std::error_code ec;
+    fs::remove_all(dir_, ec);
+  }
+
+  void cmd(const std::string& line) {
+    const std::string r = rig_->command(line);
+    ASSERT_EQ(r.rfind("ok", 0), 0u) << line << ": " << r;
+  }
+  void sdo_write(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) {
+    bool done = false;
+    rig_->host().sdo(kGw).download(index, sub, std::move(data), [&](canopen::SdoAbortCode c, std::vector<std::uint8_t>) {
+      EXPECT_EQ(c, canopen::SdoAbortCode::None);
+      done = true;
+    });
+    for (int i = 0; i < 100 && !done; ++i) rig_->run_for(10ms);
+    ASSERT_TRUE(done);
+  }
+  // Moves the cab's inputs for `d`, in steps of 20 ms (SimBench::move: sine sweeps).
+  void sweep(canopen::Duration d) {
+    for (auto end = loop_.now() + d; loop_.now() < end;) {
+      rig_->devices().move(loop_.now());
+      rig_->run_for(20ms);
+    }
+  }
+
+  // The recorded incident; the recording is complete when it returns.
+  void incident() {
+    rig_->power_on();
+    rig_->run_for(3s);
+    sdo_write(0x1800, 1, {0xA0, 0x01, 0x00, 0x00});  // TPDO 1 on 1A0h
+    sdo_write(0x6423, 0, {1});
+    // The host's heartbeat (701h, 100 ms), consumed by the gateway (1016h:01, 250 ms).
+    loop_.call_every(loop_.now(), 100ms, [this] {
+      if (host_alive_) (void)rig_->host_port().send(CanFrame(0x701, {0x05}));
+    });
+    sdo_write(0x1016, 1, {0xFA, 0x00, 0x01, 0x00});
+    rig_->host().nmt().start(kGw);
+    sweep(1s);
+    // The machine application's commands (DDS, LCM: the one an FE does not take is refused), a
+    // sub-device command and an NMT command from the control socket: inputs replayed as recorded.
+    (void)gw_->command_indicators(2, 0x05, loop_.now(), mapping::CommandSource::Dds);
+    (void)gw_->command_indicators(2, 0x0A, loop_.now(), mapping::CommandSource::Lcm);
+    (void)gw_->subdevice_command("seat_knob", "position_error_reset", loop_.now());
+    (void)gw_->downstream_nmt(canopen::NodeId{0x30}, canopen::NmtCommand::EnterPreOperational, loop_.now());
+    rig_->rearm();
+    sweep(1s);
+    pulled_ = true;  // the right grip's cable
+    sweep(1500ms);
+    pulled_ = false;
+    sweep(3s);
+    cmd("left_grip cable_break 2 on");
+    sweep(500ms);
+    cmd("left_grip cable_break 2 off");
+    sweep(1s);
+    host_alive_ = false;
+    sweep(600ms);
+    host_alive_ = true;
+    sweep(1s);
+    cmd("right_grip reboot");
+    sweep(4s);
+    gw_->set_tap(nullptr);
+    recorder_->flush();
+  }
+
+  std::vector<RunReport> replay_all(std::ostream* timeline = nullptr, PlotData* plot = nullptr,
+                                    const fs::path& where = {}) {
+    std::string error;
+    const auto runs = find_runs(where.empty() ? dir_ / "record" : where, error);
+    EXPECT_TRUE(runs) << error;
+    if (!runs) return {};
+    ReplayOptions o;
+    o.timeline = timeline;
+    o.plot = plot;
+    o.gateway.sdo_bus_share = 0.85;  // the recording's meta line must win over this
+    return replay(*runs, config_, o);
+  }
+
+  fs::path dir_;
+  mapping::Config config_;
+  canopen::SimulatedClock clock_;
+  canopen::EventLoop loop_{clock_};
+  std::unique_ptr<Recorder> recorder_;
+  std::unique_ptr<CabRig> rig_;
+  std::unique_ptr<GatewayRecorder> tap_;
+  Gateway* gw_ = nullptr;
+  bool pulled_ = false, host_alive_ = true;
+  bool timed_ = false;  // the timed virtual buses (frames take their time on the wire)
+};
+
+// The same cab on the timed buses: the frames of the recording take their real time on the
+// wire, as a candump of a real bus shows them.
+class BlackboxTimed : public Blackbox {
+ protected:
+  BlackboxTimed() { timed_ = true; }
+};
+
+TEST_F(Blackbox, TheReplayOfAnIncidentMakesTheSameFramesAndDecisions) {
+  incident();
+  std::ostringstream timeline;
+  const auto reports = replay_all(&timeline);
+  ASSERT_EQ(reports.size(), 1u);
+  const RunReport& r = reports[0];
+  EXPECT_TRUE(r.exact);
+  EXPECT_FALSE(r.divergence) << r.divergence->when << "\nafter " << r.divergence->after << "\nrecorded "
+                             << r.divergence->recorded << "\nreplayed " << r.divergence->replayed;
+  EXPECT_EQ(r.stopped, "");
+  EXPECT_TRUE(r.notes.empty()) << r.notes.front();
+  EXPECT_GT(r.frames_in, 2000u);
+  EXPECT_GT(r.compared, 2000u);
+  EXPECT_GT(recorder_->status().segments, 2u) << "the incident spans several segments";
+  // The incident is on the timeline: the cable pull, the EMCY, the host's heartbeat, the reboot.
+  const std::string t = timeline.str();
+  for (const char* expected :
+       {"fault right_grip raised", "fault right_grip cleared", "emcy left_grip 3120", "emcy_sent 8130",
+        "node right_grip missing", "fe joystick.1 offline", "indicators 2 0000000000000005 dds\n",
+        "indicators 2 000000000000000A lcm\n", "outcome refused", "subdevice_command seat_knob position_error_reset",
+        "nmt 30 80", "node pedal missing"})
+    EXPECT_NE(t.find(expected), std::string::npos) << expected << " not on the timeline";
+}
+
+// Control-socket requests: `status` changes nothing and the comparison goes on past it; a
+// session that reaches into the gateway (an `oegw ctl` remote SDO) is recorded, not replayed:
+// the comparison ends there, with the reason.
+TEST_F(Blackbox, AStatusRequestIsComparedPastAControlSessionEndsTheComparison) {
+  rig_->power_on();
+  rig_->run_for(3s);
+  gw_->control_request(R"({"protocol": 1, "command": "status"})", loop_.now());
+  rig_->run_for(1s);
+  (void)gw_->remote_sdo(loop_.now());
+  rig_->run_for(1s);
+  gw_->set_tap(nullptr);
+  recorder_->flush();
+  const auto reports = replay_all();
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_FALSE(reports[0].divergence);
+  EXPECT_NE(reports[0].stopped.find("a control-socket session reached into the gateway (remote_sdo)"), std::string::npos)
+      << reports[0].stopped;
+  EXPECT_GT(reports[0].compared, 100u) << "compared up to the session, past the status request";
+}
+
+TEST_F(Blackbox, AnEditedFrameDivergesAtThatFrame) {
+  incident();
+  // The 500th TPDO of the right grip, its x changed.
+  std::string error;
+  const auto runs = find_runs(dir_ / "record", error);
+  ASSERT_TRUE(runs) << error;
+  int seen = 0;
+  std::string edited_where;
+  for (const auto& seg : runs->front().segments) {
+    std::ifstream in(seg.log);
+    std::vector<std::string> lines;
+    for (std::string l; std::getline(in, l);) lines.push_back(l);
+    for (std::size_t i = 0; i < lines.size() && edited_where.empty(); ++i) {
+      if (lines[i].find(" can1 191#") == std::string::npos || ++seen < 500) continue;
+      const auto hash = lines[i].find('#');
+      lines[i][hash + 2] = lines[i][hash + 2] == '7' ? '1' : '7';  // x's high nibble of its first byte
+      edited_where = fmt::format("{}:{}", seg.log.string(), i + 1);
+    }
+    if (edited_where.empty()) continue;
+    std::ofstream out(seg.log, std::ios::trunc);
+    for (const auto& l : lines) out << l << '\n';
+    break;
+  }
+  ASSERT_FALSE(edited_where.empty());
+  const auto reports = replay_all();
+  ASSERT_EQ(reports.size(), 1u);
+  ASSERT_TRUE(reports[0].divergence) << "the edited frame went unnoticed";
+  EXPECT_NE(reports[0].divergence->after.find(edited_where), std::string::npos)
+      << "diverged after " << reports[0].divergence->after << ", edited " << edited_where;
+  EXPECT_NE(reports[0].divergence->replayed, reports[0].divergence->recorded);
+}
+
+TEST_F(Blackbox, ARecordingWithoutItsStartReplaysOnAFreshGatewayAndSaysSo) {
+  incident();
+  fs::remove(dir_ / "record" / "20261205T140312Z-000000.log");
+  fs::remove(dir_ / "record" / "20261205T140312Z-000000.events");
+  std::ostringstream timeline;
+  const auto reports = replay_all(&timeline);
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_FALSE(reports[0].exact);
+  EXPECT_FALSE(reports[0].divergence);
+  ASSERT_FALSE(reports[0].notes.empty());
+  EXPECT_NE(reports[0].notes.front().find("does not reach back to the gateway's start"), std::string::npos)
+      << reports[0].notes.front();
+  EXPECT_GT(reports[0].decisions, 0u);
+}
+
+TEST_F(BlackboxTimed, TheReplayOnTimedBusesIsExactToo) {
+  incident();
+  const auto reports = replay_all();
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_TRUE(reports[0].exact);
+  EXPECT_FALSE(reports[0].divergence) << reports[0].divergence->when << "\nafter " << reports[0].divergence->after
+                                      << "\nrecorded " << reports[0].divergence->recorded << "\nreplayed "
+                                      << reports[0].divergence->replayed;
+  EXPECT_EQ(reports[0].stopped, "");
+}
+
+TEST_F(BlackboxTimed, APlainCandumpLogOfTheDownstreamBusShowsWhatTheMappingFileMakesOfIt) {
+  incident();
+  // candump -l of can1: the recording's downstream lines without their direction marks.
+  std::string error;
+  const auto runs = find_runs(dir_ / "record", error);
+  ASSERT_TRUE(runs) << error;
+  const fs::path plain = dir_ / "candump-can1.log";
+  {
+    std::ofstream out(plain);
+    for (const auto& seg : runs->front().segments) {
+      std::ifstream in(seg.log);
+      for (std::string l; std::getline(in, l);)
+        if (l.find(" can1 ") != std::string::npos) out << l.substr(0, l.size() - 2) << '\n';
+    }
+  }
+  std::ostringstream timeline;
+  const auto reports = replay_all(&timeline, nullptr, plain);
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_FALSE(reports[0].exact);
+  EXPECT_GT(reports[0].frames_in, 1000u);
+  const std::string t = timeline.str();
+  // The gateway's own requests are not fed back (the predefined connection set), the devices'
+  // answers and PDOs are: the cab boots and the cable pull is seen.
+  EXPECT_NE(t.find("node right_grip operational"), std::string::npos) << t.substr(0, 3000);
+  EXPECT_NE(t.find("fault right_grip raised"), std::string::npos);
+}
+
+TEST_F(Blackbox, ThePlotHoldsEachFieldTheBandsAndTheMarkers) {
+  incident();
+  PlotData plot;
+  const auto reports = replay_all(nullptr, &plot);
+  ASSERT_EQ(reports.size(), 1u);
+  const auto names = plot.series_names();
+  for (const char* expected : {"joystick.1.x", "joystick.1.y", "joystick.2.x", "node right_grip", "node left_grip"})
+    EXPECT_NE(std::find(names.begin(), names.end(), expected), names.end()) << expected;
+  EXPECT_GT(plot.bands(), 1u);
+  EXPECT_GT(plot.markers(), 5u);
+  // The SVG: every series a titled polyline, the fault bands and the EMCY markers drawn.
+  std::string svg_error;
+  ASSERT_TRUE(plot.write_svg(dir_ / "plot.svg", "incident <&>", svg_error)) << svg_error;
+  std::ifstream svg_in(dir_ / "plot.svg");
+  std::stringstream svg;
+  svg << svg_in.rdbuf();
+  const std::string text = svg.str();
+  EXPECT_EQ(text.rfind("<?xml", 0), 0u);
+  EXPECT_NE(text.find("<title>incident &lt;&amp;&gt;</title>"), std::string::npos) << "the title escaped";
+  for (const char* expected : {"<title>joystick.1.x (", "<title>joystick.2.x (", "<title>right_grip (",
+                               "<title>sub-devices (node state)</title>"})
+    EXPECT_NE(text.find(expected), std::string::npos) << expected;
+  const auto count = [&](std::string_view what) {
+    std::size_t n = 0;
+    for (std::size_t at = 0; (at = text.find(what, at)) != std::string::npos; at += what.size()) ++n;
+    return n;
+  };
+  EXPECT_EQ(count("<polyline class=\"series\""), names.size()) << "one line per series";
+  EXPECT_GE(count("<rect class=\"band\""), plot.bands());
+  EXPECT_GT(count("<line class=\"marker\" "), 0u);
+  EXPECT_EQ(text.find("(0 points)"), std::string::npos);
+  if (!fs::exists(std::string(kChartJs))) GTEST_SKIP() << kChartJs << " missing (libjs-chart.js)";
+  std::string error;
+  ASSERT_TRUE(plot.write_html(dir_ / "plot.html", "incident", error)) << error;
+  std::ifstream in(dir_ / "plot.html");
+  std::stringstream html;
+  html << in.rdbuf();
+  EXPECT_NE(html.str().find("Chart.js v3.9.1"), std::string::npos) << "the library is inside the page";
+  EXPECT_EQ(html.str().find("<script src="), std::string::npos) << "nothing is fetched";
+  EXPECT_NE(html.str().find("\"joystick.1.x\""), std::string::npos);
+}
+
+}  // namespace
+}  // namespace oegw::gateway::record

@@ -1,0 +1,326 @@
+// The black box's writer (gateway/record/recorder.hpp) and reader (recording_reader.hpp): the
+// ring of segments, what a stalled or full disk costs (the recording, counted and told, never
+// the caller), keeping a window, and reading back what a crash left.
+#include "gateway/record/recorder.hpp"
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <condition_variable>
+#include <fstream>
+#include <sstream>
+#include <mutex>
+
+#include <gtest/gtest.h>
+
+#include "gateway/record/recording_reader.hpp"
+#include "tests/fixtures/temp_dir.hpp"
+
+namespace oegw::gateway::record {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+constexpr std::int64_t kOffset = 1'700'000'000'000'000;  // wall = loop time + this
+
+canopen::TimePoint at_ms(std::int64_t ms) { return canopen::TimePoint{std::chrono::milliseconds(ms)}; }
+
+struct TempDir : fixtures::TempDir {
+  TempDir() : fixtures::TempDir("oegw-recorder-test") {}
+};
+
+RecorderSettings settings(const fs::path& dir, std::string run = "R1") {
+  RecorderSettings s;
+  s.dir = dir;
+  s.run = std::move(run);
+  s.up_iface = "can0";
+  s.down_iface = "can1";
+  s.write_period = 1ms;
+  s.wall_offset_us = [] { return kOffset; };
+  return s;
+}
+
+std::vector<Entry> read_run(const fs::path& dir, std::vector<std::string>* problems = nullptr) {
+  std::string error;
+  const auto runs = find_runs(dir, error);
+  EXPECT_TRUE(runs) << error;
+  std::vector<Entry> out;
+  if (!runs) return out;
+  for (const auto& r : *runs)
+    for (const auto& s : r.segments) {
+      auto read = read_segment(s);
+      if (problems) problems->insert(problems->end(), read.problems.begin(), read.problems.end());
+      else EXPECT_TRUE(read.problems.empty()) << read.problems.front();
+      for (auto& e : read.entries) out.push_back(std::move(e));
+    }
+  return out;
+}
+
+std::size_t count_files(const fs::path& dir, const std::string& ext) {
+  std::size_t n = 0;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().extension() == ext) ++n;
+  return n;
+}
+
+TEST(Recorder, FramesAndEventsReadBackInOneOrderWithTheLoopTimes) {
+  TempDir tmp;
+  {
+    Recorder r(settings(tmp.path));
+    r.event(at_ms(1000), "start");
+    r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1, 2}), at_ms(1001));
+    r.event(at_ms(1001), "fe joystick.1 valid x=3");
+    r.frame(Side::Up, Direction::Tx, canopen::CanFrame(0x1A0, {3}), at_ms(1001));
+    r.event(at_ms(1050), "tick");
+    r.flush();
+    EXPECT_EQ(r.status().frames, 2u);
+  }
+  const auto e = read_run(tmp.path);
+  std::vector<std::string> seen;
+  for (const auto& x : e) {
+    if (x.kind == Entry::Kind::Frame)
+      seen.push_back(std::string(x.direction == Direction::Rx ? "R " : "T ") + x.iface + " " + x.frame.to_string() + " @" +
+                     std::to_string(x.t.time_since_epoch().count()));
+    else if (x.text.rfind("segment", 0) != 0)
+      seen.push_back(x.text + " @" + std::to_string(x.t.time_since_epoch().count()));
+  }
+  EXPECT_EQ(seen, (std::vector<std::string>{"start @1000000", "R can1 191#0102 @1001000", "fe joystick.1 valid x=3 @1001000",
+                                            "T can0 1A0#03 @1001000", "tick @1050000"}));
+  // The .log file is candump's log, wall time = loop time + the segment's offset.
+  std::ifstream log(tmp.path / "R1-000000.log");
+  std::string first;
+  std::getline(log, first);
+  EXPECT_EQ(first, "(1700000001.001000) can1 191#0102 R");
+}
+
+TEST(Recorder, TheRingKeepsItsSizeCapClosingSegmentsAndDroppingTheOldest) {
+  TempDir tmp;
+  RecorderSettings s = settings(tmp.path);
+  s.max_bytes = 64 * 1024;
+  s.segments = 4;  // a segment closes at 16 KiB
+  Recorder r(s);
+  for (int i = 0; i < 5000; ++i)  // ~37 bytes a line: ~180 KiB in all
+    r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1, 2, 3, 4}), at_ms(i));
+  r.flush();
+  const RecorderStatus st = r.status();
+  EXPECT_LE(st.bytes, s.max_bytes);
+  EXPECT_GE(st.segments, 3u);
+  EXPECT_FALSE(fs::exists(tmp.path / "R1-000000.log")) << "the oldest segment stays";
+  EXPECT_EQ(count_files(tmp.path, ".log"), st.segments);
+  // What is left is the newest part, whole and in order.
+  const auto e = read_run(tmp.path);
+  std::int64_t last = -1;
+  std::size_t frames = 0;
+  for (const auto& x : e) {
+    if (x.kind != Entry::Kind::Frame) continue;
+    EXPECT_GT(x.t.time_since_epoch().count(), last);
+    last = x.t.time_since_epoch().count();
+    ++frames;
+  }
+  EXPECT_EQ(last, 4999 * 1000);
+  EXPECT_GT(frames, 1000u);
+  EXPECT_LT(frames, 5000u);
+}
+
+TEST(Recorder, TheRingKeepsItsTimeSpan) {
+  TempDir tmp;
+  RecorderSettings s = settings(tmp.path);
+  s.span = 10s;
+  s.segments = 10;  // a segment closes after 1 s
+  Recorder r(s);
+  for (int i = 0; i <= 300; ++i) r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x711, {5}), at_ms(i * 100));
+  r.flush();
+  const auto e = read_run(tmp.path);
+  ASSERT_FALSE(e.empty());
+  std::int64_t first = -1;
+  for (const auto& x : e)
+    if (x.kind == Entry::Kind::Frame) {
+      first = x.t.time_since_epoch().count();
+      break;
+    }
+  // The newest line is at 30 s: what stays reaches back at most the span and one segment more.
+  EXPECT_GE(first, (30'000 - 11'000) * 1000);
+  EXPECT_LE(first, (30'000 - 9'000) * 1000);
+}
+
+TEST(Recorder, AStalledDiskCostsRecordsNotTheCallerAndTheGapIsTold) {
+  TempDir tmp;
+  RecorderSettings s = settings(tmp.path);
+  s.queue_bytes = 4096;  // 128 frame records
+  std::mutex m;
+  std::condition_variable cv;
+  bool stalled = false, release = false;
+  s.write_fn = [&](int fd, const void* p, std::size_t n) -> ssize_t {
+    std::unique_lock lk(m);
+    if (!release) {
+      stalled = true;
+      cv.notify_all();
+      cv.wait(lk, [&] { return release; });
+    }
+    return ::write(fd, p, n);
+  };
+  Recorder r(s);
+  r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {0}), at_ms(0));
+  {
+    std::unique_lock lk(m);
+    cv.wait(lk, [&] { return stalled; });  // the writer is inside write(), held
+  }
+  for (int i = 1; i <= 1000; ++i) r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1}), at_ms(i));
+  const RecorderStatus held = r.status();
+  EXPECT_LE(held.queued_bytes, s.queue_bytes) << "memory stays bounded while the disk is stalled";
+  EXPECT_GT(held.dropped_frames, 800u);
+  {
+    std::lock_guard lk(m);
+    release = true;
+  }
+  cv.notify_all();
+  r.flush();  // the queue drained: the next record fits, and the gap is told before it
+  r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {2}), at_ms(2000));
+  r.flush();
+  const RecorderStatus after = r.status();
+  EXPECT_EQ(after.frames + after.dropped_frames, 1002u);
+  bool gap = false;
+  for (const auto& x : read_run(tmp.path))
+    if (x.kind == Entry::Kind::Event && x.text.rfind("gap frames=", 0) == 0) {
+      gap = true;
+      EXPECT_NE(x.text.find("gap frames=" + std::to_string(after.dropped_frames) + " events=0"), std::string::npos)
+          << x.text;
+    }
+  EXPECT_TRUE(gap) << [&] {
+    std::ifstream in(tmp.path / "R1-000000.events");
+    std::stringstream t;
+    t << in.rdbuf();
+    return t.str();
+  }();
+}
+
+TEST(Recorder, AFullDiskLosesTheBatchKeepsEveryFileReadableAndRecovers) {
+  TempDir tmp;
+  RecorderSettings s = settings(tmp.path);
+  std::atomic<bool> full{false};
+  s.write_fn = [&](int fd, const void* p, std::size_t n) -> ssize_t {
+    if (full) {
+      // Half the batch reaches the disk before it is full: the file is cut back.
+      const ssize_t half = ::write(fd, p, n / 2);
+      (void)half;
+      errno = ENOSPC;
+      return -1;
+    }
+    return ::write(fd, p, n);
+  };
+  Recorder r(s);
+  r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1}), at_ms(0));
+  r.flush();
+  full = true;
+  for (int i = 1; i <= 10; ++i) r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {2}), at_ms(i));
+  r.flush();
+  RecorderStatus st = r.status();
+  EXPECT_EQ(st.lost_frames, 10u);
+  EXPECT_NE(st.last_error.find("No space left on device"), std::string::npos) << st.last_error;
+  full = false;
+  r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {3}), at_ms(20));
+  r.flush();
+  std::vector<std::string> frames, gaps;
+  for (const auto& x : read_run(tmp.path)) {
+    if (x.kind == Entry::Kind::Frame) frames.push_back(x.frame.to_string());
+    else if (x.text.rfind("gap", 0) == 0) gaps.push_back(x.text);
+  }
+  EXPECT_EQ(frames, (std::vector<std::string>{"191#01", "191#03"}));
+  ASSERT_EQ(gaps.size(), 1u);
+  EXPECT_NE(gaps[0].find("gap frames=10 events=0 (write failed: No space left on device)"), std::string::npos) << gaps[0];
+}
+
+TEST(Recorder, KeepLinksTheWindowOutOfTheRingsReach) {
+  TempDir tmp;
+  RecorderSettings s = settings(tmp.path);
+  s.max_bytes = 64 * 1024;
+  s.segments = 4;
+  Recorder r(s);
+  for (int i = 0; i < 300; ++i) r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1}), at_ms(i));
+  std::optional<KeptWindow> kept;
+  std::string error = "not called";
+  r.keep([&](std::optional<KeptWindow> k, std::string e) {
+    kept = std::move(k);
+    error = std::move(e);
+  });
+  r.flush();
+  r.dispatch();
+  ASSERT_TRUE(kept) << error;
+  EXPECT_EQ(error, "");
+  EXPECT_EQ(kept->path.parent_path(), tmp.path / "kept");
+  ASSERT_EQ(kept->segments, 1u);
+  struct stat a{}, b{};
+  ASSERT_EQ(::stat((kept->path / "R1-000000.log").c_str(), &a), 0);
+  ASSERT_EQ(::stat((tmp.path / "R1-000000.log").c_str(), &b), 0);
+  EXPECT_EQ(a.st_ino, b.st_ino) << "a hard link, not a copy";
+  // The ring goes on in a new segment and drops the kept one; the kept window stays whole.
+  for (int i = 300; i < 8000; ++i) r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {2}), at_ms(i));
+  r.flush();
+  EXPECT_FALSE(fs::exists(tmp.path / "R1-000000.log"));
+  std::size_t frames = 0;
+  for (const auto& x : read_run(kept->path))
+    if (x.kind == Entry::Kind::Frame) ++frames;
+  EXPECT_EQ(frames, 300u);
+  ASSERT_EQ(r.status().kept.size(), 1u);
+  EXPECT_EQ(r.status().kept[0].path, kept->path);
+}
+
+TEST(Recorder, ARestartCountsTheEarlierRunsSegmentsInTheRing) {
+  TempDir tmp;
+  RecorderSettings s = settings(tmp.path, "A");
+  s.max_bytes = 64 * 1024;
+  s.segments = 4;
+  {
+    Recorder r(s);
+    for (int i = 0; i < 1500; ++i) r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1, 2, 3, 4}), at_ms(i));
+  }
+  s.run = "B";
+  Recorder r(s);
+  for (int i = 0; i < 1500; ++i) r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1, 2, 3, 4}), at_ms(i));
+  r.flush();
+  std::uint64_t total = 0;
+  for (const auto& e : fs::directory_iterator(tmp.path))
+    if (e.is_regular_file()) total += e.file_size();
+  EXPECT_LE(total, s.max_bytes);
+  EXPECT_FALSE(fs::exists(tmp.path / "A-000000.log"));
+  EXPECT_TRUE(fs::exists(tmp.path / "B-000000.log"));
+}
+
+TEST(RecordingReader, ATornLastLineIsSkippedAndReported) {
+  TempDir tmp;
+  {
+    Recorder r(settings(tmp.path));
+    for (int i = 0; i < 3; ++i) r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1}), at_ms(i));
+    r.event(at_ms(3), "tick");
+  }
+  // The power went while a line was being written.
+  std::ofstream(tmp.path / "R1-000000.log", std::ios::app) << "(1700000000.004000) can1 19";
+  std::ofstream(tmp.path / "R1-000000.events", std::ios::app) << "(1700000000.004000) @3 fe joy";
+  std::vector<std::string> problems;
+  const auto e = read_run(tmp.path, &problems);
+  std::size_t frames = 0, ticks = 0;
+  for (const auto& x : e) {
+    if (x.kind == Entry::Kind::Frame) ++frames;
+    else if (x.text == "tick") ++ticks;
+  }
+  EXPECT_EQ(frames, 3u);
+  EXPECT_EQ(ticks, 1u);
+  ASSERT_EQ(problems.size(), 2u);
+  for (const auto& p : problems) EXPECT_NE(p.find("torn last line"), std::string::npos) << p;
+  EXPECT_NE(problems[0].find("R1-000000.events:"), std::string::npos) << problems[0];
+}
+
+TEST(RecordingReader, AFolderWithoutARecordingIsRefusedWithWhatWasExpected) {
+  TempDir tmp;
+  std::string error;
+  EXPECT_FALSE(find_runs(tmp.path, error));
+  EXPECT_NE(error.find("no recording in it"), std::string::npos) << error;
+  EXPECT_FALSE(find_runs(tmp.path / "nope", error));
+  EXPECT_NE(error.find("no such file or folder"), std::string::npos) << error;
+}
+
+}  // namespace
+}  // namespace oegw::gateway::record

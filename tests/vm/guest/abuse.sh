@@ -1,0 +1,259 @@
+#!/bin/bash
+# Guest test (vm_abuse): CAN first, outside in (README "CAN first: what the event loop does beside
+# the buses"). `oegw run` with tests/fixtures/vm_abuse.yaml (five sub-devices in one `oegw-sim
+# --motion` process on vcan1, LCM on, upstream heartbeat 1017h = 8000 ms) while clients of its
+# control socket and the machine's network misbehave, one scenario after the other in one boot:
+#   f  no multicast route with LCM on: the gateway starts without it (the guest has only lo; the
+#      route is taken away before the start), runs, reports `lcm down` (oegw status, STATUS=, the
+#      log once); the route added, LCM samples flow (lcm-logger) without a restart
+#   a  one client pipelines 20,000 status requests on one connection, reading the answers, for
+#      at most 120 s (a status answer is ~270 us of work natively, ms in the guest: what is answered
+#      in that time is a figure; the bounds below are the judgement)
+#   b  one client writes requests and never reads
+#   c  8 slow clients: a byte of a request every 3 s, never a whole one
+#   d  200 clients at once, each asking once, beside 8 slow ones
+#   (e  SIGHUP with a valid and an invalid file: the reload's scenario, added with it below)
+# Judged throughout, from outside: the gateway's upstream heartbeats on vcan0 (candump's kernel
+# times) never more than 1.5 x 1017h apart, in each scenario's window (abuse_check.py); no EMCY
+# 7000h upstream and no NMT reset on vcan1 (no sub-device left operational); no frame the kernel
+# dropped before the gateway read it (oegw status --json, both buses); resident memory below
+# twice its value at the start; a separate client asking for the status every 2 s answered
+# within STATUS_BOUND_S every time (connect to answer: the daemon's time, not a program's start
+# in a loaded guest), and `oegw status` itself answered after each scenario; each client's own
+# outcome. Figures are printed; the files are kept in $OEGW_VM_OUT.
+# A scenario is one function plus one line in `scenarios` below; a fourth argument "a b" runs a
+# subset (without f the route is there from the start).
+# Args: OEGW OEGW_SIM SOURCE_DIR [SCENARIOS]
+set -uo pipefail
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
+# shellcheck source=lib.sh
+. "$here/lib.sh"
+oegw=$1 sim=$2 src=$3
+dir=/run/oegw-abuse sock=/run/oegw/oegw.sock
+node=20                 # the gateway's upstream node-ID (hex), vm_abuse.yaml
+heartbeat_ms=8000       # its 1017h, vm_abuse.yaml
+witnesses="11 03 30 7F 31"  # the sub-devices: their heartbeats show a stall of the whole guest
+STATUS_BOUND_S=30       # the separate status client, connect to answer: generous, as it may wait
+                        # behind the 200 clients of scenario d queued first in the listen queue
+                        # (5 s in a loaded guest, 10.6 s with three guests on two host cores;
+                        # elsewhere under 2 s); the bug leaves it unanswered (its 60 s time-out)
+lcm_url="udpm://224.0.0.1:7667?ttl=0"
+client() { "$PY" "$here/abuse_client.py" "$sock" "$@"; }
+now() { date +%s.%N; }
+windows=/tmp/abuse.windows
+
+scenarios=(f a b c d)
+# (e) SIGHUP with a valid and an invalid mapping file goes here, as scenario_e and an `e` above.
+[[ -n ${4:-} ]] && read -r -a scenarios <<<"$4"
+with_f=0
+for s in "${scenarios[@]}"; do [[ $s == f ]] && with_f=1; done
+
+# ---- the scenarios ------------------------------------------------------------------------
+
+scenario_f() {  # no multicast route with LCM on; the gateway was started without one
+  if "$PY" "$here/status_wait.py" "$oegw" /tmp/abuse-f.json 20 \
+    '[t for t in s["publishing"] if t["transport"] == "lcm" and t["state"] == "down" and "no route to 224.0.0.1" in t["reason"]]'; then
+    pass "f: oegw run started without a multicast route and runs; oegw status --json: lcm down, no route to 224.0.0.1"
+  else
+    fail "f: oegw status --json does not show lcm down: $(head -c 1500 /tmp/abuse-f.json)"
+  fi
+  "$oegw" status >/tmp/abuse-f.txt 2>&1
+  grep -q '^publishing: lcm down: .*no route to 224.0.0.1' /tmp/abuse-f.txt && pass "f: oegw status: $(grep '^publishing:' /tmp/abuse-f.txt)" ||
+    fail "f: no 'publishing: lcm down' line in: $(cat /tmp/abuse-f.txt)"
+  grep -q 'STATUS=.*; lcm down: .*no route to 224.0.0.1' /tmp/abuse-notify.log && pass "f: systemd STATUS= names lcm down" ||
+    fail "f: no STATUS= with lcm down: $(grep STATUS= /tmp/abuse-notify.log | tail -3)"
+  ip route add 224.0.0.0/4 dev lo
+  echo "    f: route added at $(elapsed s)"
+  if "$PY" "$here/status_wait.py" "$oegw" /tmp/abuse-f.json 30 \
+    '[t for t in s["publishing"] if t["transport"] == "lcm" and t["state"] == "up"]'; then
+    pass "f: lcm up once the route is there (no restart: pid $gw_pid still the gateway)"
+  else
+    fail "f: lcm not up within 30 s of the route: $(head -c 1500 /tmp/abuse-f.json)"
+  fi
+  lcm-logger --lcm-url="$lcm_url" -f /tmp/abuse.lcmlog >/tmp/abuse-logger.out 2>&1 &
+  local logger=$!
+  sleep 3
+  kill -INT "$logger" 2>/dev/null
+  wait "$logger" 2>/dev/null
+  local status_n joy_n
+  status_n=$(grep -a -o 'OEGW_STATUS' /tmp/abuse.lcmlog 2>/dev/null | wc -l)
+  joy_n=$(grep -a -o 'OEGW_JOYSTICK_1' /tmp/abuse.lcmlog 2>/dev/null | wc -l)
+  ((status_n > 0 && joy_n > 0)) && pass "f: lcm-logger recorded $status_n OEGW_STATUS and $joy_n OEGW_JOYSTICK_1 samples in 3 s" ||
+    fail "f: lcm-logger recorded $status_n OEGW_STATUS, $joy_n OEGW_JOYSTICK_1 samples: $(cat /tmp/abuse-logger.out)"
+  local downs ups
+  downs=$(grep -c 'publishing: lcm down:' /tmp/abuse-gateway.log)
+  ups=$(grep -c 'publishing: lcm up again after' /tmp/abuse-gateway.log)
+  ((downs == 1 && ups == 1)) && pass "f: the log says lcm down once and up once" ||
+    fail "f: the log says lcm down $downs times, up $ups times"
+}
+
+scenario_a() {  # 20,000 status requests pipelined on one connection
+  client pipeline 20000 120 >/tmp/abuse-a.out 2>&1
+  echo "    a: $(cat /tmp/abuse-a.out)"
+  # Served throughout, never closed: it reads its answers.
+  grep -qE '^answered ([0-9]{3,}) of 20000 ' /tmp/abuse-a.out && pass "a: the pipelining client was served ($(cat /tmp/abuse-a.out))" ||
+    fail "a: $(cat /tmp/abuse-a.out)"
+}
+
+scenario_b() {  # a client that writes and never reads
+  client noread 20 >/tmp/abuse-b.out 2>&1
+  echo "    b: $(cat /tmp/abuse-b.out)"
+  grep -q '^closed after ' /tmp/abuse-b.out && pass "b: the client that never reads was closed ($(cat /tmp/abuse-b.out))" ||
+    fail "b: $(cat /tmp/abuse-b.out)"
+}
+
+scenario_c() {  # 8 slow clients
+  client slow 8 40 3 >/tmp/abuse-c.out 2>&1
+  echo "    c: $(cat /tmp/abuse-c.out)"
+  grep -q '^closed 8 of 8 ' /tmp/abuse-c.out && pass "c: every slow client was closed ($(cat /tmp/abuse-c.out))" ||
+    fail "c: $(cat /tmp/abuse-c.out)"
+}
+
+scenario_d() {  # 200 clients at once beside 8 slow ones
+  client slow 8 40 3 >/tmp/abuse-d-slow.out 2>&1 &
+  local slow_pid=$!
+  sleep 4  # the slow ones hold the slots first
+  client burst 200 60 >/tmp/abuse-d.out 2>&1
+  wait "$slow_pid"
+  echo "    d: $(cat /tmp/abuse-d.out); slow beside: $(cat /tmp/abuse-d-slow.out)"
+  grep -q '^answered 200 of 200 ' /tmp/abuse-d.out && pass "d: all 200 clients at once answered" || fail "d: $(cat /tmp/abuse-d.out)"
+}
+
+# ---- the run ------------------------------------------------------------------------------
+
+prepare_gateway_run vm_abuse.yaml "$src" "$dir" "$oegw"
+rc=$?
+((rc == 0)) && pass "oegw check: valid" || fail "oegw check exit $rc: $(cat /tmp/check.out)"
+ip route del 224.0.0.0/4 dev lo 2>/dev/null  # a lo-only controller: the tier adds none, a test may have
+if ((with_f)); then
+  grep -q 'warning: publish.lcm.url: this machine has no route to 224.0.0.1 (Network is unreachable).*add one: ip route add 224.0.0.0/4 dev lo' /tmp/check.out &&
+    pass "oegw check warns: no route for the LCM group, and how to add one" || fail "oegw check: no route warning in: $(cat /tmp/check.out)"
+else
+  ip route add 224.0.0.0/4 dev lo
+fi
+
+start_candump vcan0 /tmp/abuse-up.dump || fail "candump vcan0 did not start"
+up_candump=$candump_pid
+start_candump vcan1 /tmp/abuse-down.dump || fail "candump vcan1 did not start"
+down_candump=$candump_pid
+receivers=$(can_receivers vcan1)
+"$sim" -i vcan1 --motion elobau-mfg:0x11:name=right_grip mcb402:0x03:name=left_grip,wiring=1/2/3/4/5/7/6 \
+  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
+  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" >/tmp/abuse-sim.log 2>&1 &
+sim_pid=$!
+wait_receivers vcan1 $((receivers + 1)) 20 || fail "the simulators did not bind vcan1"
+"$PY" "$here/notify_listen.py" /run/abuse-notify.sock /tmp/abuse-notify.log /tmp/abuse-notify.ready 3600 &
+notify_pid=$!
+for ((i = 0; i < 200; i++)); do [[ -e /tmp/abuse-notify.ready ]] && break; sleep 0.05; done
+NOTIFY_SOCKET=/run/abuse-notify.sock "$oegw" run "$dir/oegw.yaml" >/tmp/abuse-gateway.log 2>&1 &
+gw_pid=$!
+all_up='len(s["subdevices"]) == 5 and all(d["state"] == "operational" and d["fault"] is None for d in s["subdevices"])'
+if "$PY" "$here/status_wait.py" "$oegw" /tmp/abuse-ready.json 120 "$all_up"; then
+  pass "oegw run: every sub-device operational after $(elapsed s)"
+else
+  fail "oegw run: not every sub-device operational: $(head -c 2000 /tmp/abuse-ready.json); log: $(tail -5 /tmp/abuse-gateway.log)"
+fi
+sleep 3  # settled: the first judged heartbeats
+run_start=$(now)
+rss() { awk '/^VmRSS:/ { print $2 }' "/proc/$gw_pid/status" 2>/dev/null; }
+rss_start=$(rss)
+echo "gateway pid $gw_pid, resident ${rss_start} kB at $(elapsed s)"
+
+# Beside every scenario: resident memory, and a separate client asking for the status.
+(while kill -0 "$gw_pid" 2>/dev/null; do echo "$(now) $(rss)"; sleep 1; done) >/tmp/abuse.rss &
+rss_pid=$!
+client probe /tmp/abuse.status 2 &
+prober_pid=$!
+
+: >"$windows"
+for s in "${scenarios[@]}"; do
+  echo "scenario $s at $(elapsed s)"
+  a=$(now)
+  "scenario_$s"
+  echo "$s $a $(now)" >>"$windows"
+  kill -0 "$gw_pid" 2>/dev/null || { fail "$s: oegw run is gone"; break; }
+  b=$(now)
+  "$oegw" status --timeout 30 >/tmp/abuse-status-$s.txt 2>&1 && pass "$s: oegw status answered after it ($(awk -v a="$b" -v b="$(now)" 'BEGIN { printf "%.1f", b - a }') s, the program's start included)" ||
+    fail "$s: oegw status after it: $(cat /tmp/abuse-status-$s.txt)"
+  sleep 2
+done
+run_end=$(now)
+kill "$rss_pid" "$prober_pid" 2>/dev/null
+wait "$rss_pid" "$prober_pid" 2>/dev/null
+sleep 1
+
+# ---- judged throughout --------------------------------------------------------------------
+
+# The wire: heartbeat gaps per scenario, EMCY 7000h, NMT resets.
+{ echo "all $run_start $run_end"; cat "$windows"; } >/tmp/abuse.windows.all
+# shellcheck disable=SC2086
+"$PY" "$here/abuse_check.py" /tmp/abuse-up.dump /tmp/abuse-down.dump /tmp/abuse.windows.all "$node" "$heartbeat_ms" $witnesses >/tmp/abuse-check.out 2>&1
+rc=$?
+sed 's/^/    wire: /' /tmp/abuse-check.out
+((rc == 0)) && pass "the wire: every heartbeat within 1.5 x 1017h, no EMCY 7000h, no NMT reset of a sub-device" ||
+  fail "the wire: see above"
+
+# Resident memory.
+rss_max=$(awk '$2 > m { m = $2 } END { print m + 0 }' /tmp/abuse.rss)
+echo "    resident memory: ${rss_start} kB at the start, at most ${rss_max} kB"
+((rss_max < 2 * rss_start)) && pass "resident memory below twice its start (${rss_start} -> max ${rss_max} kB)" ||
+  fail "resident memory ${rss_max} kB, twice the start is $((2 * rss_start)) kB"
+
+# The separate status client: answered each time, and how long each took, per scenario.
+"$PY" - /tmp/abuse.status /tmp/abuse.windows.all "$STATUS_BOUND_S" <<'EOF'
+import sys
+rows = [l.split() for l in open(sys.argv[1]) if len(l.split()) == 3]
+rows = [(float(a), float(b), int(r)) for a, b, r in rows]
+bound = float(sys.argv[3])
+bad = 0
+for line in open(sys.argv[2]):
+    name, start, end = line.split()
+    inside = [(b - a, r) for a, b, r in rows if float(start) <= a <= float(end)]
+    if not inside:
+        print(f"    status {name}: none asked"); continue
+    worst = max(t for t, _ in inside)
+    failed = [r for _, r in inside if r != 1]
+    print(f"    status {name}: {len(inside)} asked, longest {worst:.2f} s, {len(failed)} not answered")
+    bad += len(failed) + sum(1 for t, _ in inside if t > bound)
+sys.exit(1 if bad else 0)
+EOF
+(($? == 0)) && pass "the separate status client answered every time within ${STATUS_BOUND_S} s" ||
+  fail "the separate status client: not answered, or slower than ${STATUS_BOUND_S} s (above)"
+
+# The kernel's drops, and every sub-device still operational.
+if "$oegw" status --json --timeout 30 >/tmp/abuse-end.json 2>&1; then
+  "$PY" - /tmp/abuse-ready.json /tmp/abuse-end.json <<'EOF' &&
+import json, sys
+before = {d["name"]: d for d in json.load(open(sys.argv[1]))["status"]["subdevices"]}
+s = json.load(open(sys.argv[2]))["status"]
+up, down = s["upstream"]["bus"], s["downstream"]["bus"]
+print("    kernel drops: upstream %d of %d frames read, downstream %d of %d" %
+      (up["rx_dropped"], up["rx_frames"], down["rx_dropped"], down["rx_frames"]))
+ok = up["rx_dropped"] == 0 and down["rx_dropped"] == 0
+for d in s["subdevices"]:
+    b = before[d["name"]]["counters"]
+    c = d["counters"]
+    again = c["gateway_resets"] - b["gateway_resets"] + c["reboots_seen"] - b["reboots_seen"]
+    print("    %s: %s, booted again %d times during the run" % (d["name"], d["state"], again))
+    ok = ok and d["state"] == "operational" and again == 0
+sys.exit(0 if ok else 1)
+EOF
+    pass "no frame dropped by the kernel; every sub-device operational, none booted again" ||
+    fail "kernel drops or a sub-device lost: $(head -c 2000 /tmp/abuse-end.json)"
+else
+  fail "oegw status --json at the end: $(cat /tmp/abuse-end.json)"
+fi
+
+# ---- the end ------------------------------------------------------------------------------
+kill -TERM "$gw_pid"
+wait "$gw_pid"
+rc=$?
+((rc == 0)) && pass "SIGTERM: oegw run exit 0" || fail "SIGTERM: oegw run exit $rc; $(tail -5 /tmp/abuse-gateway.log)"
+kill "$sim_pid" "$notify_pid" 2>/dev/null
+wait "$sim_pid" "$notify_pid" 2>/dev/null
+candump_pid=$up_candump stop_candump
+candump_pid=$down_candump stop_candump
+grep -E 'warn|error' /tmp/abuse-gateway.log | sort | uniq -c | sort -rn | head -8 | sed 's/^/    log: /'
+[[ -d ${OEGW_VM_OUT:-} ]] && cp /tmp/abuse[.-]* "$OEGW_VM_OUT/" 2>/dev/null  # for a look after the run
+echo "abuse: $passes passed, $fails failed, $(elapsed s)"
+((fails == 0))
