@@ -12,7 +12,8 @@
 #   b  one client writes requests and never reads
 #   c  8 slow clients: a byte of a request every 3 s, never a whole one
 #   d  200 clients at once, each asking once, beside 8 slow ones
-#   (e  SIGHUP with a valid and an invalid file: the reload's scenario, added with it below)
+#   e  SIGHUP with an invalid file (refused, nothing changes), then with a valid one (applied: the
+#      sub-devices booted once more, as at a start; the only window where NMT resets are expected)
 # Judged throughout, from outside: the gateway's upstream heartbeats on vcan0 (candump's kernel
 # times) never more than 1.5 x 1017h apart, in each scenario's window (abuse_check.py); no EMCY
 # 7000h upstream and no NMT reset on vcan1 (no sub-device left operational); no frame the kernel
@@ -42,8 +43,7 @@ client() { "$PY" "$here/abuse_client.py" "$sock" "$@"; }
 now() { date +%s.%N; }
 windows=/tmp/abuse.windows
 
-scenarios=(f a b c d)
-# (e) SIGHUP with a valid and an invalid mapping file goes here, as scenario_e and an `e` above.
+scenarios=(f a b c d e)  # e last: the reload's new gateway starts its counters afresh
 [[ -n ${4:-} ]] && read -r -a scenarios <<<"$4"
 with_f=0
 for s in "${scenarios[@]}"; do [[ $s == f ]] && with_f=1; done
@@ -117,6 +117,49 @@ scenario_d() {  # 200 clients at once beside 8 slow ones
   wait "$slow_pid"
   echo "    d: $(cat /tmp/abuse-d.out); slow beside: $(cat /tmp/abuse-d-slow.out)"
   grep -q '^answered 200 of 200 ' /tmp/abuse-d.out && pass "d: all 200 clients at once answered" || fail "d: $(cat /tmp/abuse-d.out)"
+}
+
+# hup PATTERN: SIGHUP, then wait (30 s at most) for one more log line matching PATTERN.
+hup() {
+  local before i
+  before=$(grep -c -- "$1" /tmp/abuse-gateway.log)
+  kill -HUP "$gw_pid"
+  for ((i = 0; i < 600; i++)); do
+    (($(grep -c -- "$1" /tmp/abuse-gateway.log) > before)) && return 0
+    sleep 0.05
+  done
+  return 1
+}
+
+scenario_e() {  # SIGHUP with an invalid file, then with a valid one
+  cp "$dir/oegw.yaml" /tmp/abuse-e.orig
+  # Invalid: an upstream node-ID out of range and a negative deadband (two errors, both logged).
+  sed -i -e 's/^  node_id: 0x20$/  node_id: 0x80/' -e '0,/deadband: 2 }/s//deadband: -3 }/' "$dir/oegw.yaml"
+  if hup 'reload refused'; then
+    grep -q 'reload refused, 2 errors; the gateway runs on as before' /tmp/abuse-gateway.log &&
+      pass "e: the invalid file refused, 2 errors, the gateway runs on" ||
+      fail "e: refused, but not with 2 errors: $(grep -E 'error' /tmp/abuse-gateway.log | tail -3)"
+  else
+    fail "e: no 'reload refused' for the invalid file: $(tail -3 /tmp/abuse-gateway.log)"
+  fi
+  sleep 2
+  # Valid: the file as it was but one deadband; applied as a start (the sub-devices booted again).
+  sed -e '0,/deadband: 2 }/s//deadband: 3 }/' /tmp/abuse-e.orig >"$dir/oegw.yaml"
+  local a
+  a=$(now)
+  if hup ': reloaded: '; then
+    pass "e: the valid file reloaded"
+  else
+    fail "e: no 'reloaded' for the valid file: $(tail -3 /tmp/abuse-gateway.log)"
+  fi
+  if "$PY" "$here/status_wait.py" "$oegw" /tmp/abuse-ready.json 120 "$all_up and 0x6300 not in s[\"upstream\"][\"active_emcys\"]"; then
+    pass "e: every sub-device operational again after the reload, 6300h no longer active"
+  else
+    fail "e: not every sub-device back after the reload: $(head -c 2000 /tmp/abuse-ready.json)"
+  fi
+  # The valid reload's window: NMT resets and their EMCYs belong to it (abuse_check.py: "reboot").
+  echo "e.reboot $a $(now)" >>"$windows"
+  cp /tmp/abuse-e.orig "$dir/oegw.yaml"
 }
 
 # ---- the run ------------------------------------------------------------------------------
