@@ -52,7 +52,7 @@ dds_entity_t dds_options_participant(const char* prog, struct dds_options* o);
  * created for the network configuration. Deleting the participant alone leaves that domain (an
  * explicit dds_create_domain outlives its participants) and its threads running into exit(),
  * where OpenSSL's cleanup frees its locks while a receive thread still decrypts a DDS Security
- * message: a SIGSEGV seen under qemu-user, where that thread is slow (issue 18). */
+ * message: a SIGSEGV seen under qemu-user, where that thread is slow. */
 void dds_options_close(struct dds_options* o, dds_entity_t participant);
 dds_entity_t dds_options_subscriber(const char* prog, dds_entity_t participant, const struct dds_options* o);
 dds_entity_t dds_options_publisher(const char* prog, dds_entity_t participant, const struct dds_options* o);

@@ -1,5 +1,5 @@
-// The steady-state load a mapping file implies on each bus, as `oegw check` prints it (issue 17;
-// README "Performance", mapping/README.md "oegw check"). Steady state means the inputs held
+// The steady-state load a mapping file implies on each bus, as `oegw check` prints it (README
+// "Performance", mapping/README.md "oegw check"). Steady state means the inputs held
 // still: what is then on the buses is periodic, and fixed by the configuration:
 //   downstream  SYNC (080h, 0 bytes) every sync_period_ms; each sub-device's heartbeat (700h +
 //               node-ID, 1 byte) every heartbeat_ms; each TPDO of each sub-device as its boot

@@ -95,7 +95,7 @@ class GatewayPublishing {
   // after the wake-up's timers, before its CAN sends), and the axes' changes one wake-up reads
   // merge into one sample per FE with the latest values: a backlog of hundreds of frames (a
   // gateway that has fallen behind) publishes each moving axis once, not once per frame
-  // (issue 17: at 5,000 grip frames/s, every one a change, publishing each on DDS and LCM kept the
+  // (at 5,000 grip frames/s, every one a change, publishing each on DDS and LCM kept the
   // gateway so far behind that the grip's PDOs came in stale). Discrete changes are never
   // merged away: a sample whose status, buttons, switches or memory bits differ from the one
   // waiting goes out first, so a press and release read together both reach the reader.

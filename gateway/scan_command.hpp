@@ -1,4 +1,4 @@
-// `oegw scan -i IF` (issue 16 item 2): finds every node on the downstream bus — before the gateway
+// `oegw scan -i IF`: finds every node on the downstream bus — before the gateway
 // runs, or through the running gateway's control socket (gateway/control/scan_service.hpp), which
 // probes only what is no sub-device of its own and reports those from what it read at their boot — (subdevices/bus_scan.hpp: boot-ups, heartbeats, SDO reads of 1000h/1018h/1017h, LSS) and
 // writes a draft mapping file: one `subdevices` entry per node whose driver it can name, each

@@ -1,6 +1,6 @@
 // `oegw signals [DRIVER]`: every driver's signals and options, read from the drivers themselves
 // (their signals() and their option tables, subdevices/driver_options.hpp), so that the mapping
-// file's author learns them before writing it, not from `oegw check`'s errors (issue 16 item 3).
+// file's author learns them before writing it, not from `oegw check`'s errors.
 // subdevices/README.md carries the --markdown output of all drivers between marker comments;
 // a test keeps the two equal (scripts/signals_readme.sh).
 #pragma once

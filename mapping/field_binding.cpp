@@ -57,8 +57,8 @@ std::string accepted_kinds(const FeField& f, bool input) {
   return "a Position or Analog signal";
 }
 
-// Where a signal of this kind could go instead (`oegw check`'s hint after a kind mismatch, issue
-// 16 item 3): every FE kind with a field that fits it, e.g. "a Position signal fits encoder.N
+// Where a signal of this kind could go instead (`oegw check`'s hint after a kind mismatch):
+// every FE kind with a field that fits it, e.g. "a Position signal fits encoder.N
 // position". Read from the FE table with fits() itself, so the hint cannot name a field that
 // would be refused too.
 std::string kind_hint(const SignalInfo& s, std::string_view kind_text) {

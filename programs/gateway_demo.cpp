@@ -399,9 +399,9 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     loop.stop();
   });
   // The script's times count from here, once the setup is done: publishing with DDS Security
-  // takes its participant's authentication set-up first, 3 s on an emulated arm64 (issue 18's
-  // cross tier; a slow cab controller alike), which counted from t0 fired the first steps at once
-  // ("operational within 2.5 s" failed at 3.01 s). The log's times stay since start.
+  // takes its participant's authentication set-up first, 3 s on an emulated arm64
+  // (scripts/cross-build.sh; a slow cab controller alike), which counted from t0 fired the first
+  // steps at once ("operational within 2.5 s" failed at 3.01 s). The log's times stay since start.
   const TimePoint script_start = loop.now();
   for (auto& [d, fn] : steps) loop.call_at(script_start + d, fn);
   if (options.fast) {

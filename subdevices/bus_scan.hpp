@@ -1,4 +1,4 @@
-// The downstream bus scan of `oegw scan` (issue 16 item 2), sans I/O like every service of the
+// The downstream bus scan of `oegw scan`, sans I/O like every service of the
 // protocol core: frames and time in, frames out (canopen/README.md), so that a test drives it on
 // a simulated clock and `oegw scan` on a SocketCAN interface.
 //

@@ -1,6 +1,6 @@
 // The options of each driver as one table per family: the factory parses the mapping file's
 // `options` against it (names, ranges, choices, defaults) and `oegw signals` lists it, so the
-// listing cannot say other than what parsing does (issue 16 item 3).
+// listing cannot say other than what parsing does.
 #pragma once
 
 #include <cstdint>

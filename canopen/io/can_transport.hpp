@@ -77,7 +77,7 @@ class CanTransport {
   // Sending in batches: between begin_batch() and end_batch() a transport may hold the frames
   // send() takes and put them on the bus together at end_batch() (SocketCanTransport: one
   // sendmmsg() for all). watch_transport brackets each event-loop wake-up with them, so what one
-  // wake-up sends costs one system call, not one per frame (issue 17). A held frame is Ok for
+  // wake-up sends costs one system call, not one per frame. A held frame is Ok for
   // send(); what end_batch() cannot send is counted (tx_dropped, errors) as send() would have.
   virtual void begin_batch() {}
   virtual void end_batch() {}

@@ -24,7 +24,7 @@ class SteadyClock final : public Clock {
 // The event loop's real-time clock: CLOCK_MONOTONIC, read once per wake-up. Between hold() and
 // release() now() returns the reading hold() took, so every callback of one wake-up (the frame's
 // receiver, the timers due, the services they drive) sees the same instant and a translated frame
-// costs one clock read, not one per caller (issue 17: the clock_gettime calls per frame). Outside a
+// costs one clock read, not one per caller. Outside a
 // hold it reads the clock.
 class WakeClock final : public Clock {
  public:

@@ -15,7 +15,7 @@
 //   offset is sampled again, and the time of reading is used if that does not explain it.
 // * Reading: recvmmsg(), up to 64 frames per call, and no clock reading of its own when the
 //   event loop's clock is set (watch_transport): per wake-up one read, not one per frame plus
-//   the EAGAIN that ends it (issue 17).
+//   the EAGAIN that ends it.
 // * SO_RXQ_OVFL: frames the kernel dropped because we read too slowly -> counters().rx_dropped.
 //
 // Opening failures throw CanOpenError (one policy for every open problem), whose what() names the
@@ -72,13 +72,13 @@ struct SocketCanOptions {
   bool loopback = true;                               // CAN_RAW_LOOPBACK
   bool receive_own = false;                           // CAN_RAW_RECV_OWN_MSGS
   std::size_t max_batch = kDefaultMaxBatch;  // frames read per poll_readable() call
-  // (4,096 was tried, issue 17: in the TCG guest the gateway then read fewer than half as many
+  // (4,096 was tried: in the TCG guest the gateway then read fewer than half as many
   // frames a second at 6,000 frames/s in as with 256.)
   static constexpr std::size_t kDefaultMaxBatch = 256;
   // The socket's receive buffer (SO_RCVBUF), 0: the kernel's default. The default (212,992 bytes,
   // net.core.rmem_default) holds only ~200 frames (each costs its sk_buff, ~1 KB): 25 ms of a
   // 1 Mbit/s bus. A reader the scheduler holds off longer loses frames, heartbeats among them
-  // (issue 17: at 6,000 frames/s in the TCG guest the kernel dropped 56 % of the grip's frames
+  // (at 6,000 frames/s in the TCG guest the kernel dropped 56 % of the grip's frames
   // before the gateway read them; 3-11 % with this buffer). The default here, 4 MiB as the
   // kernel counts it, holds ~4,000 frames: half a second of a full 1 Mbit/s bus. It trades lost
   // frames for late ones; a frame read late keeps its kernel stamp, from which the freshness
@@ -138,7 +138,7 @@ namespace socketcan {
 
 // Maps CLOCK_REALTIME kernel receive stamps (SO_TIMESTAMPNS) to monotonic TimePoints through the
 // offset realtime - monotonic, sampled at most every kResample instead of reading both clocks for
-// every frame (issue 17: two clock_gettime calls per frame). Between samples NTP's slew (at most
+// every frame (two clock_gettime calls per frame). Between samples NTP's slew (at most
 // 500 ppm) moves the true offset by 50 us at most. A stamp the offset cannot explain — more than
 // kAhead after `now` or more than kMaxAge before it — means the realtime clock was stepped: map()
 // returns nullopt, the caller samples again and retries, then falls back to `now`. A stamp up to
@@ -178,7 +178,7 @@ class SocketCanTransport final : public CanTransport {
   ~SocketCanTransport() override;
 
   SendResult send(const CanFrame& frame) override;
-  // Between them send() holds valid frames; end_batch() sends them with sendmmsg() (issue 17).
+  // Between them send() holds valid frames; end_batch() sends them with sendmmsg().
   void begin_batch() override { batching_ = true; }
   void end_batch() override;
   [[nodiscard]] int fd() const override { return fd_; }

@@ -1,7 +1,7 @@
 // The control socket's protocol (gateway/control/PROTOCOL.md): one request per line, a JSON
 // object {"command": "status"} (optionally "protocol": 1), one JSON line in answer, in order, on
 // a connection that may carry several. Every answer has "protocol" and "ok"; a refusal has
-// "error": {"code", "message"}. New commands (`oegw ctl`'s, issue 16) are added by name; a
+// "error": {"code", "message"}. New commands (`oegw ctl`'s) are added by name; a
 // command grows by new fields, never by changing the meaning of one (then "protocol" goes up).
 #pragma once
 

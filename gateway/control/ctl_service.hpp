@@ -1,4 +1,4 @@
-// The control socket's commands for `oegw ctl` (issue 16; PROTOCOL.md "`oegw ctl`'s commands"):
+// The control socket's commands for `oegw ctl` (PROTOCOL.md "`oegw ctl`'s commands"):
 // SDO reads and writes, NMT, the gateway's identity and the event lines, on the running Gateway.
 // The CiA 309-3 text is the client's (canopen/309/ascii_gateway.hpp); here are its effects.
 //

@@ -1,4 +1,4 @@
-// `oegw scan` through the running gateway (issue 16 item 2): the control socket's `scan` command
+// `oegw scan` through the running gateway: the control socket's `scan` command
 // runs the bus scan (subdevices/bus_scan.hpp) on the downstream bus beside the gateway, so a cab
 // in service can be scanned without stopping it (a node added, a node-ID forgotten).
 //

@@ -1,6 +1,6 @@
-// Issue 9, "every deadline acts in bounded time, whichever path notices it": the host's heartbeat
-// stops while the downstream bus carries a frame load; how late do the outputs take their CiA 401
-// error values (6206h/6207h) after the consumer deadline?
+// The requirement "every deadline acts in bounded time, whichever path notices it": the host's
+// heartbeat stops while the downstream bus carries a frame load; how late do the outputs take
+// their CiA 401 error values (6206h/6207h) after the consumer deadline?
 //
 // The gateway (one elobau grip on joystick.1, an MCB-402 whose LEDs are indicators.1) is booted
 // by gateway_rig.hpp, then cut from the buses and driven here as an event loop would drive it on

@@ -1,5 +1,5 @@
 #!/bin/bash
-# The Debian package, installed the way a cab controller gets it (issue 15 item 1): build the .deb
+# The Debian package, installed the way a cab controller gets it: build the .deb
 # from a built tree, make a fresh Debian 12 root, `apt-get install` the .deb there (apt takes every
 # dependency from the Debian mirror, so a missing Depends fails here), and run the installed
 # programs inside the root with chroot, where the build tree does not exist.

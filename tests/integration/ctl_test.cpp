@@ -1,4 +1,4 @@
-// `oegw ctl` against a Gateway with simulators on the virtual buses (issue 16): the CiA 309-3
+// `oegw ctl` against a Gateway with simulators on the virtual buses: the CiA 309-3
 // session (gateway/control/ctl_command.hpp) asks the control protocol with the ctl commands
 // (ctl_service.hpp) in process — the same JSON lines the socket carries — and the downstream
 // frames each command causes are judged frame by frame. Expected values come from the

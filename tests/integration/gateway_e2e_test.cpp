@@ -1290,7 +1290,7 @@ TEST(GatewayE2EBadMapping, ErrorsCarryFileLineColumnAndNoGatewayIsBuilt) {
 
 namespace {
 
-// ---- Proof of life and atomic outputs (issue 9) -------------------------------------------------
+// ---- Proof of life and atomic outputs -----------------------------------------------------------
 
 // Frames the gateway sent downstream on `id` since `from` (an index into downstream_), as text.
 std::vector<std::string> frames_to(const std::vector<BusRecord>& records, std::size_t from, std::uint32_t id) {

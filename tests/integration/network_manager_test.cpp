@@ -217,7 +217,7 @@ TEST_F(NetworkManagerTest, MissingNodeIsRetriedWithDoublingBackOff) {
   EXPECT_EQ(manager_->state("grip"), NodeState::Operational);
 }
 
-// Issue 17: a boot-up that never arrives (lost on the bus) is not waited out for boot_wait
+// A boot-up that never arrives (lost on the bus) is not waited out for boot_wait
 // (2 s): the probe reads 1000h 100 ms after the reset, the node's answer starts its
 // configuration, and it is operational at its first heartbeat after that.
 TEST_F(NetworkManagerTest, ALostBootUpIsNotWaitedOutTheProbeFindsTheNode) {
@@ -283,9 +283,9 @@ TEST_F(NetworkManagerTest, ABootUpBehindTheProbesAnswerIsTheResetsAnswer) {
   EXPECT_EQ(application_resets, 1);
 }
 
-// Issue 17 (the full set at 250 kbit/s did not boot): a configured node's NMT start is held
-// while another node waits for its boot-up or is being configured — their SDO frames would
-// delay its heartbeats past the consumer time — but not for a node that left a probe
+// A configured node's NMT start is held while another node waits for its boot-up or is being
+// configured — their SDO frames would delay its heartbeats past the consumer time (without the
+// hold the full set at 250 kbit/s did not boot) — but not for a node that left a probe
 // unanswered (likely absent): here 12h, absent, whose probe (at +100 ms) times out at +200 ms.
 TEST_F(NetworkManagerTest, TheStartWaitsForTheOtherNodesBootButNotForAnAbsentOne) {
   auto other = std::make_unique<ByteDriver>(NodeId{0x12}, net_.sink("gateway"));

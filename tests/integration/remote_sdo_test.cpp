@@ -1,4 +1,4 @@
-// Remote SDO through the gateway on the virtual buses (issue 11): the simulated cab of
+// Remote SDO through the gateway on the virtual buses: the simulated cab of
 // programs/cab_rig.hpp on tests/fixtures/demo_cab.yaml plus two additional SDO server channels
 // (1201h on 690h/6B0h bound to left_grip, 1202h on 691h/6B1h unbound). The host's SDO clients
 // (the rig's on the default channel 620h/5A0h, a second host's on the extra channels) reach every

@@ -1,4 +1,4 @@
-// Tier 2: gateway defects the safety matrix and the random scenarios found after the issue 9
+// Tier 2: gateway defects the safety matrix and the random scenarios found after the safety
 // fixes (main 1e501f5), each as one deterministic test of the behaviour a safety-minded
 // integrator expects, with the invariant monitor on (safety_monitor.hpp). Where the matrix cell
 // or random seed that found it is known, it is named.

@@ -1,4 +1,4 @@
-// Tier 2, the fault matrix of issue 9: for every device family, each fault in each phase of the
+// Tier 2, the safety fault matrix: for every device family, each fault in each phase of the
 // sub-device's life, on the virtual buses with a simulated clock, with the invariant monitor on
 // (safety_monitor.hpp). Each cell asserts the FE's value and status, the EMCY 7000h naming the
 // node upstream, and WHEN (a bound in simulated time from the injection), then the recovery: the

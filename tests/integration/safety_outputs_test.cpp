@@ -1,5 +1,6 @@
-// Tier 2, issue 9 findings 3 and 4 for every family with outputs (elobau LEDs, MCB-402 OUT0..3,
-// the CiA 401 cluster's output byte), with the invariant monitor on (safety_monitor.hpp):
+// Tier 2, findings 3 and 4 (gateway_e2e_test.cpp) for every family with outputs (elobau LEDs,
+// MCB-402 OUT0..3, the CiA 401 cluster's output byte), with the invariant monitor on
+// (safety_monitor.hpp):
 //   * one command that changes several outputs of one sub-device reaches it as ONE frame per RPDO
 //     of that device, carrying the commanded state (never 203#01 on the way from 00h to 05h);
 //   * the CiA 401 error values (6206h/6207h) at a host heartbeat loss: one frame, in the same

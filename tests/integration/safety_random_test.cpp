@@ -1,4 +1,4 @@
-// Tier 2, issue 9: seeded random scenarios for every family, with the invariant monitor on
+// Tier 2, safety: seeded random scenarios for every family, with the invariant monitor on
 // (safety_monitor.hpp). Each step is one action — operator motion, a fault injected or removed
 // (the matrix's faults, some armed to hit an exact protocol moment: the NMT start, the 2nd SDO of
 // the configuration), an output command by SDO or RPDO, the host's heartbeat lost or back —

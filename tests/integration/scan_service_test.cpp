@@ -1,4 +1,4 @@
-// `oegw scan` through the running gateway (issue 16 item 2; gateway/control/scan_service.hpp):
+// `oegw scan` through the running gateway (gateway/control/scan_service.hpp):
 // the control protocol's `scan` command on a Gateway with the demo cab's simulators, one more
 // simulator at a node-ID the mapping file does not configure, and (in one test) the button
 // cluster's node-ID taken away by LSS frames sent by hand. Judged on the downstream bus and on

@@ -1,4 +1,4 @@
-// Time on the wire (issue 17 item 3): the simulators' SDO latency on the timed virtual bus, and
+// Time on the wire: the simulators' SDO latency on the timed virtual bus, and
 // the simulated cab (programs/cab_rig.hpp) booting on timed buses - every frame taking its real
 // length at the bit rate, never two on the wire at once. All on a simulated clock: no sleeps.
 #include <gtest/gtest.h>

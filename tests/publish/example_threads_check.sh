@@ -1,8 +1,8 @@
 #!/bin/sh
 # The DDS examples end DDS before they exit (examples/dds_options.h, dds_options_close): every
 # thread Cyclone DDS started for the program has ended itself before the program's exit_group, so
-# exit()'s cleanup never runs beside a DDS thread still at work. Issue 18: the examples deleted
-# their participant only; the domain dds_create_domain had made for the loopback/interface
+# exit()'s cleanup never runs beside a DDS thread still at work. Until they did, the examples
+# deleted their participant only; the domain dds_create_domain had made for the loopback/interface
 # configuration outlived it, its receive thread went on decrypting DDS Security messages while
 # exit() ran OpenSSL's cleanup (OPENSSL_cleanup frees its locks), and that thread died of SIGSEGV
 # in CRYPTO_THREAD_read_lock. Natively the window is too short to hit; under qemu-user it was hit

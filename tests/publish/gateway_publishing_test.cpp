@@ -249,7 +249,7 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
   EXPECT_EQ(u.count, 1);
 }
 
-// Issue 17: what one wake-up of the loop reads (a backlog, when the gateway has fallen behind)
+// What one wake-up of the loop reads (a backlog, when the gateway has fallen behind)
 // is published once per FE, with the latest value, at the end of that wake-up: nine changes of
 // x read together make one sample (one per frame before: at 5,000 frames/s the publishing kept
 // the gateway so far behind that the grip's PDOs came in stale).

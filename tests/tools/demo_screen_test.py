@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""`oegw demo`'s live table as a terminal shows it (issue 16 item 4), judged on the screen alone.
+"""`oegw demo`'s live table as a terminal shows it, judged on the screen alone.
 
 tmux (Debian's) runs `oegw demo` in a detached pane of COLS x ROWS; the test reads the visible
 screen with `tmux capture-pane -p` five times a second until the demo has exited, and fails if any

@@ -1,7 +1,7 @@
 // The mapping file: parsing, validation with file:line:column diagnostics (all at once), and
-// the resulting Config. Requirements: issue 4 "The mapping file" (validation refuses before
+// the resulting Config. Requirements (mapping/README.md): validation refuses before
 // anything starts, with file:line:column, what was found and what was expected; all errors at
-// once) and mapping/README.md. Signals come from a fake catalogue
+// once. Signals come from a fake catalogue
 // (the drivers are written elsewhere): elobau-mfg, mcb402, novotechnik-406, cia401.
 #include "mapping/config.hpp"
 
@@ -400,7 +400,7 @@ TEST(MappingConfig, SignalOfAnUnknownSubDeviceOrNotProvidedByTheDriver) {
       "subdevice.signal[a..b] or subdevice.signal.bitN"));
 }
 
-// Each kind mismatch also says where that signal kind would fit (issue 16 item 3): the FE kinds
+// Each kind mismatch also says where that signal kind would fit: the FE kinds
 // whose fields take it, read from the FE table, e.g. a Novotechnik position into a wheel.
 TEST(MappingConfig, TypesThatDoNotFit) {
   const auto r = load(kHead + R"(  joystick.1:

@@ -1,8 +1,8 @@
 // Signal -> functional-element value and FE value -> output signal (mapping/translate.hpp).
-// Requirements: issue 4 "Translation" (elobau S8 percent, MCB-402 INTEGER16 scaled to INTEGER16
+// Requirements: translation (elobau S8 percent, MCB-402 INTEGER16 scaled to INTEGER16
 // with a documented full-scale convention and ±110 % detent; deadband, invert, clamp; buttons to
-// bits; encoder INTEGER32/UNSIGNED32 to 6120h; indicator/display writes to outputs) and "Fault
-// policy" (fault value, neutral by default; neutral interlock until the axis is seen inside its
+// bits; encoder INTEGER32/UNSIGNED32 to 6120h; indicator/display writes to outputs) and fault
+// policy (fault value, neutral by default; neutral interlock until the axis is seen inside its
 // deadband). Conventions: mapping/README.md "Translation".
 #include "mapping/translate.hpp"
 

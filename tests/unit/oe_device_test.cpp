@@ -497,7 +497,7 @@ TEST_F(OeDeviceTest, HostHeartbeatLostAppliesErrorValues) {
   EXPECT_TRUE(dev->node().emcy().active(0x8130));
 }
 
-// Issue 9 finding 3: the TPDOs a downstream frame sends (end_batch) advance the Node, and that
+// The TPDOs a downstream frame sends (end_batch) advance the Node, and that
 // call can be the one that notices the host's heartbeat time-out. The error values must follow in
 // that same call, not at the next timer wake-up (which can be a heartbeat period later).
 TEST_F(OeDeviceTest, HostHeartbeatLossNoticedWhileSendingInputTpdosAppliesTheErrorValuesAtOnce) {

@@ -1,10 +1,10 @@
-/* The floor of the SocketCAN path oegw run translates on (issue 17 item 2, vm_latency): a minimal
+/* The floor of the SocketCAN path oegw run translates on (vm_latency): a minimal
  * blocking forwarder. It reads one frame from IN_IF (only CAN-ID ID, filtered by the kernel) and
  * writes it unchanged to OUT_IF, nothing else: one read and one write per frame, no event loop,
  * no clock, no translation. Whatever a translator does on top of this is its own cost.
  *
- * With `loop` it forwards the way an event loop must instead (oegw's system path, issue 17 item
- * 1, without its work): epoll_wait, one clock reading, every pending frame in one recvmmsg with
+ * With `loop` it forwards the way an event loop must instead (oegw's system path, without its
+ * work): epoll_wait, one clock reading, every pending frame in one recvmmsg with
  * its kernel timestamp, all of them out in one sendmmsg. The difference between the two is what
  * the event loop's system calls cost; what `oegw run` adds on top of `loop` is its own work.
  *

@@ -1,4 +1,4 @@
-/* The measurer of vm_latency (issue 17 items 2 and 6), the same for every translator it measures.
+/* The measurer of vm_latency, the same for every translator it measures.
  *
  * can_probe latency IN_IF IN_ID OUT_IF OUT_ID EXPECT SAMPLES LOG [GAP_US] [WARMUP_S]
  *   Ping-pong: sends a frame with CAN-ID IN_ID on IN_IF (the grip's TPDO #0 as an elobau grip

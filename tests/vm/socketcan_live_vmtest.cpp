@@ -82,7 +82,7 @@ TEST(SocketCanLive, FiltersReplacedWhileOpenWithJoinedExclusions) {
   EXPECT_THAT(seen, ::testing::ElementsAre("191#01", "191#R", "291#02", "192#03", "701#05"));
 }
 
-// Issue 17: a reader held off while a 1 Mbit/s bus runs full loses nothing for half a second.
+// A reader held off while a 1 Mbit/s bus runs full loses nothing for half a second.
 // 3,000 frames (~0.4 s of such a bus) arrive while the reader does not read; with the kernel's
 // default receive buffer (~200 frames) the kernel drops most of them (SO_RXQ_OVFL), with the
 // transport's default (SocketCanOptions::rx_buffer_bytes) all arrive, in order. The test runs

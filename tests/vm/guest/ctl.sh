@@ -1,5 +1,5 @@
 #!/bin/bash
-# Guest test (vm_ctl, issue 16 item 1): `oegw ctl` outside in. `oegw run` with
+# Guest test (vm_ctl): `oegw ctl` outside in. `oegw run` with
 # tests/fixtures/vm_gateway.yaml (downstream vcan1, its control socket at the default path), the
 # cab devices as `oegw-sim` processes on vcan1; `oegw ctl` is a third process that reads 1018h:01
 # of the elobau grip, writes an elobau parameter (5001h) and reads it back, and is refused the
@@ -100,7 +100,7 @@ else
   fail "the cluster stayed operational after losing its node-ID"
 fi
 
-# ---- `oegw scan` through the running gateway (issue 16 item 2): no -i, so it asks the control
+# ---- `oegw scan` through the running gateway: no -i, so it asks the control
 # socket. The gateway's sub-devices are reported as it knows them and never probed (their SDO
 # channels are its own clients'), the encoder at 40h that the mapping file does not name is found
 # by SDO, and the cluster's LSS address is read by fastscan on the gateway's own LSS master.

@@ -1,5 +1,5 @@
 #!/bin/bash
-# Guest test (vm_faults): the life of a sub-device fault outside in, on real SocketCAN (issue 13).
+# Guest test (vm_faults): the life of a sub-device fault outside in, on real SocketCAN.
 # `oegw run` (tests/fixtures/vm_gateway.yaml: upstream vcan0, downstream vcan1) starts first; then
 # the `oegw-sim` processes power on: the MCB-402 03h alone with --commands read from a FIFO, the
 # other devices with --motion. Judged on candump's recordings of both buses (the upstream EMCYs of

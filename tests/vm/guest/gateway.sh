@@ -62,7 +62,7 @@ echo "host finished after $(elapsed) s"
 sed 's/^/    host: /' /tmp/host.log
 ((host_rc == 0)) && pass "python3-can host: every check" || fail "python3-can host exit $host_rc"
 
-# ---- `oegw status` (issue 15 item 4): the control socket at its default path, /run/oegw/oegw.sock.
+# ---- `oegw status`: the control socket at its default path, /run/oegw/oegw.sock.
 # The grip is gone: shown missing (or booting: the gateway retries it). The simulators start again
 # (the MCB-402 sends its power-on EMCY 8100h, MCB §4, which the gateway now sees), then every
 # sub-device is shown operational with its identity; then the process of the MCB-402 and the

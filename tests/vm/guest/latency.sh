@@ -1,5 +1,5 @@
 #!/bin/bash
-# Guest test vm_latency (issue 17 items 2 and 6): the figures of the real SocketCAN path, printed
+# Guest test vm_latency: the figures of the real SocketCAN path, printed
 # and never asserted against time (a slow machine must not fail it); it fails only if a path does
 # not forward at all (or oegw run does not end cleanly).
 #

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The python translator of vm_latency (issue 17 item 2), on python3-can.
+"""The python translator of vm_latency, on python3-can.
 
 The issue names a python `canopen` translator; python `canopen` is not installable here (no
 Debian package, PyPI unreachable), and for this path it would only wrap the same python3-can bus:

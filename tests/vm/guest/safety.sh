@@ -1,5 +1,5 @@
 #!/bin/bash
-# Guest test (vm_safety): the safety findings of issue 9, outside in, on real SocketCAN. The built
+# Guest test (vm_safety): the safety findings, outside in, on real SocketCAN. The built
 # `oegw run` sits between vcan0 (the host: safety_host.py on python3-can, which also watches
 # vcan1 and injects one frame there) and vcan1 (`oegw-sim` processes: the elobau grip 11h alone
 # with --commands read from a FIFO the host writes, the MCB-402 03h, a CiA 401 pedal and a

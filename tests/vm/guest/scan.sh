@@ -1,5 +1,5 @@
 #!/bin/bash
-# Guest test: `oegw scan` outside in (issue 16 item 2). `oegw-sim` simulates a cab of every
+# Guest test: `oegw scan` outside in. `oegw-sim` simulates a cab of every
 # family on vcan1 (elobau grip 11h, MCB-402 03h, Novotechnik encoder 7Fh, CiA 401 pedal 30h and
 # button cluster 31h); cansend (can-utils) takes the cluster's node-ID away by LSS (CiA 305:
 # switch state selective to its 1018h address, configure node-ID FFh, waiting, NMT reset

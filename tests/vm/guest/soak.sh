@@ -1,5 +1,5 @@
 #!/bin/bash
-# Guest test: a bounded soak of `oegw run` (issue 14). config/demo.yaml's cab (vm_gateway.yaml) as
+# Guest test: a bounded soak of `oegw run`. config/demo.yaml's cab (vm_gateway.yaml) as
 # `oegw-sim --motion` processes on vcan1, every device sending; a python3-can host on vcan0
 # (soak_host.py) keeping SDO and NMT traffic going for SECONDS and checking every answer; the
 # grip's simulator killed every 25 s and restarted 4 s later (a sub-device reboot); cangen (can-

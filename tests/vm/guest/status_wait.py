@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Waits until `oegw status --json` shows what a guest test expects (vm_gateway, issue 15 item 4).
+"""Waits until `oegw status --json` shows what a guest test expects (vm_gateway).
 
     status_wait.py OEGW OUT TIMEOUT_S EXPR
 

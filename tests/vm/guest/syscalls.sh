@@ -1,5 +1,5 @@
 #!/bin/bash
-# Guest test: the system calls `oegw run` makes per translated frame (issue 17), counted from
+# Guest test: the system calls `oegw run` makes per translated frame, counted from
 # outside by strace (Debian's, through the read-only host root). One elobau grip (`oegw-sim
 # --motion`, its axes sweeping: a TPDO per change, 2 ms inhibit) on vcan1; the gateway on
 # vcan0/vcan1 set up by a python3-can host (syscalls_host.py: TPDO1 event-driven, NMT start);

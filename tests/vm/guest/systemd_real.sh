@@ -1,6 +1,6 @@
 #!/bin/bash
 # Guest test (run-in-vm.sh --systemd: systemd is PID 1): the project's real unit,
-# config/oegw.service, under the host's real systemd (Debian 12's), issue 15 item 3 outside in.
+# config/oegw.service, under the host's real systemd (Debian 12's), outside in.
 # `cmake --install BUILD --prefix /usr` puts oegw, oegw-sim, the unit and the EDS files where the
 # package puts them (the guest's root is an overlay: nothing reaches the host); /etc/oegw/oegw.yaml
 # is tests/fixtures/vm_gateway.yaml (upstream vcan0, downstream vcan1, the store in /var/lib/oegw,

@@ -1,5 +1,5 @@
 #!/bin/bash
-# Guest test (vm_walkthrough, issue 16): README.md "Commissioning a new cab", run as written.
+# Guest test (vm_walkthrough): README.md "Commissioning a new cab", run as written.
 # The commands are EXTRACTED from README.md, so the walk-through cannot drift from what is tested:
 #
 #   * the section is README.md's `## Commissioning a new cab`, up to the next `## ` heading;
