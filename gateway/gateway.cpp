@@ -714,7 +714,10 @@ std::unique_ptr<OeDevice> Gateway::release_upstream() {
   command_hook_ = {};
   canopen::Node& device = oe_->node();
   for (std::size_t k = 0; k < device.sdo_server_count(); ++k) {
-    device.sdo_server(k).set_remote(nullptr);  // cancels a remote transfer with this RemoteSdo
+    // A transfer in progress ends with this gateway: its client is told at once (0800 0022h,
+    // the device's state: a reload), not left to its own time-out.
+    device.sdo_server(k).abort_in_progress(canopen::SdoAbortCode::CannotTransferDeviceState);
+    device.sdo_server(k).set_remote(nullptr);
     device.sdo_server(k).bind(std::nullopt);
     device.sdo_server(k).on_redirect = {};     // a redirect ended above is logged by this gateway
   }

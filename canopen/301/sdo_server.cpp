@@ -60,6 +60,13 @@ void SdoServer::reset() {
   set_redirect(std::nullopt, RedirectChange::Reset);
 }
 
+void SdoServer::abort_in_progress(SdoAbortCode code) {
+  if (state_ == State::Idle) return;
+  cancel_remote(code);
+  abort_transfer(code);
+  flush();
+}
+
 void SdoServer::set_remote(SdoRemote* remote) {
   cancel_remote(SdoAbortCode::GeneralError);
   drop();

@@ -119,6 +119,11 @@ class SdoServer {
   void bind(std::optional<SdoTarget> target);
   // The node the channel's transfers go to; nullopt: the own dictionary.
   [[nodiscard]] std::optional<SdoTarget> target() const;
+  // Ends a transfer in progress with an abort to its client (either side may abort at any time,
+  // CiA 301 §7.2.4.3.17), a remote one cancelled toward its node with the same code; idle: nothing.
+  // For a change of the server's owner (the gateway replaced at a reload) that would otherwise
+  // drop the transfer silently and leave the client to its own time-out.
+  void abort_in_progress(SdoAbortCode code);
 
   // The redirect an accepted network indication made (not a bind()): the target it named, when
   // (the `now` of its frame) and the request's eight bytes (CAN carries no sender: the request

@@ -379,6 +379,29 @@ TEST_F(RemoteSdo, TheGatewayTakingANodeBackEndsATransferInFlight) {
   EXPECT_EQ(rig_->gw().downstream().state("right_grip"), sd::NodeState::Operational) << log_;
 }
 
+// A reload replaces the gateway around the same upstream device: the transfers in progress on
+// its SDO servers end with the old gateway, each client told at once (0800 0022h) on its own
+// channel rather than left to its time-out — a bound channel's and a network indication's.
+TEST_F(RemoteSdo, AReloadEndsTheTransfersInFlightWithAnAbortToTheirClients) {
+  select(kDown, kGrip);
+  drop_to_devices_ = [](const CanFrame& f) { return f.id == 0x600u + kGrip || f.id == 0x600u + kLeft; };
+  Result on_default, on_bound;
+  host().upload(0x1018, 1, into(on_default));
+  bound_->upload(0x1018, 1, into(on_bound));
+  run_for(10ms);
+  ASSERT_FALSE(on_default.done);
+  ASSERT_FALSE(on_bound.done);
+  drop_to_devices_ = nullptr;
+  ASSERT_TRUE(rig_->reload(config_).empty()) << "the same file: valid";
+  run_for(10ms);
+  ASSERT_TRUE(on_default.done) << "the host still waits on the default channel\n" << log_;
+  EXPECT_EQ(on_default.code, SdoAbortCode::CannotTransferDeviceState);
+  ASSERT_TRUE(on_bound.done) << "the host still waits on the bound channel\n" << log_;
+  EXPECT_EQ(on_bound.code, SdoAbortCode::CannotTransferDeviceState);
+  run_for(3s);
+  EXPECT_EQ(read(*bound_, 0x1018, 1).code, SdoAbortCode::None) << "the bound channel serves again\n" << log_;
+}
+
 TEST_F(RemoteSdo, NodeIdBitRateAndEmcyCobIdOfSubdevicesInUseAreRefused) {
   select(kDown, kKnob);  // Novotechnik document §4.3, §7.1: 2000h node-ID, 2001h bit rate by SDO
   EXPECT_EQ(write(host(), 0x2000, 0, {0x40}).code, SdoAbortCode::CannotTransferLocalControl);

@@ -138,6 +138,22 @@ TEST_F(SdoServerTest, SegmentedUpload) {
   EXPECT_FALSE(server.busy());
 }
 
+// A change of the server's owner ends a transfer in progress with an abort naming its object
+// (CiA 301 §7.2.4.3.17); an idle server sends nothing, and the next transfer starts afresh.
+TEST_F(SdoServerTest, AbortInProgressTellsTheClientAndLeavesAnIdleServerSilent) {
+  out.clear();
+  server.abort_in_progress(SdoAbortCode::CannotTransferDeviceState);
+  EXPECT_EQ(out, none());
+  rx({0x40, 0x08, 0x10, 0x00, 0, 0, 0, 0});
+  rx({0x60, 0, 0, 0, 0, 0, 0, 0});
+  ASSERT_TRUE(server.busy());
+  out.clear();
+  server.abort_in_progress(SdoAbortCode::CannotTransferDeviceState);
+  EXPECT_EQ(out, aborted(0x1008, 0, SdoAbortCode::CannotTransferDeviceState));
+  EXPECT_FALSE(server.busy());
+  EXPECT_EQ(rx({0x40, 0x08, 0x10, 0x00, 0, 0, 0, 0}), tx({0x41, 0x08, 0x10, 0x00, 16, 0, 0, 0}));
+}
+
 TEST_F(SdoServerTest, SegmentedUploadOfEmptyValue) {
   EXPECT_EQ(rx({0x40, 0x00, 0x21, 0x00, 0, 0, 0, 0}), tx({0x41, 0x00, 0x21, 0x00, 0, 0, 0, 0}));
   EXPECT_EQ(rx({0x60, 0, 0, 0, 0, 0, 0, 0}), tx({0x0F, 0, 0, 0, 0, 0, 0, 0}));  // n = 7, c = 1
