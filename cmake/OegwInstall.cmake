@@ -41,8 +41,8 @@ install(FILES ${OEGW_SAMPLE_EDS} DESTINATION ${CMAKE_INSTALL_DATADIR}/oegw/eds)
 install(FILES README.md DESTINATION ${CMAKE_INSTALL_DOCDIR})
 # Debian Policy §12.5: every package's copyright file at /usr/share/doc/<package>/copyright.
 install(FILES packaging/debian/copyright DESTINATION ${CMAKE_INSTALL_DOCDIR})
-install(FILES mapping/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR}/mapping)
-install(FILES subdevices/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR}/subdevices)
+install(FILES docs/reference/mapping-file.md DESTINATION ${CMAKE_INSTALL_DOCDIR}/mapping RENAME README.md)
+install(FILES docs/design/device-documents.md DESTINATION ${CMAKE_INSTALL_DOCDIR}/subdevices RENAME README.md)
 
 # The generated files: cmake/install_generated.cmake runs inside the install step and reads the
 # sources then, so an edited unit or sample needs no reconfigure.

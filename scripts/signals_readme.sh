@@ -1,12 +1,12 @@
 #!/bin/sh
-# The table of every driver's signals and options in subdevices/README.md is `oegw signals
+# The table of every driver's signals and options in docs/design/device-documents.md is `oegw signals
 # --markdown`, between the marker comments below. Without --update: exit 1 (and the diff) when
 # the README's copy differs from what the program prints (CTest: signals_readme). With --update:
 # rewrite the README's copy.
 #   scripts/signals_readme.sh build/programs/oegw [--update]
 set -u
 oegw=$1 mode=${2:-check}
-readme=$(dirname "$0")/../subdevices/README.md
+readme=$(dirname "$0")/../docs/design/device-documents.md
 begin='<!-- oegw signals --markdown: begin (generated: scripts/signals_readme.sh OEGW --update) -->'
 end='<!-- oegw signals --markdown: end -->'
 tmp=$(mktemp -d) || exit 1
@@ -25,8 +25,8 @@ if [ "$mode" = "--update" ]; then
   exit 0
 fi
 if diff -u "$tmp/readme" "$tmp/generated"; then
-  echo "PASS: subdevices/README.md has what oegw signals --markdown prints"
+  echo "PASS: docs/design/device-documents.md has what oegw signals --markdown prints"
   exit 0
 fi
-echo "FAIL: subdevices/README.md differs from oegw signals --markdown; regenerate: scripts/signals_readme.sh build/programs/oegw --update"
+echo "FAIL: docs/design/device-documents.md differs from oegw signals --markdown; regenerate: scripts/signals_readme.sh build/programs/oegw --update"
 exit 1
