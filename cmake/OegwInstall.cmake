@@ -1,14 +1,17 @@
 # What `cmake --install` and the Debian package (cmake/OegwPackage.cmake) put where: FHS places
-# below the install prefix (README "Deploying on a cab controller", "Installing").
+# below the install prefix (docs/guides/install.md#installing).
 #
 #   bin/oegw, bin/oegw-sim                 the daemon and the bench simulator
 #   lib/oegw/examples/                      the example programs of examples/ (not on PATH: their
 #                                           generic names, dds_subscriber..., are not commands of
-#                                           the product; README says why)
+#                                           the product; docs/guides/install.md#installing says why)
 #   lib/systemd/system/oegw.service         config/oegw.service, its program paths for this prefix
 #   share/oegw/eds/*.eds                    the sample EDS files (subdevices/eds)
 #   share/oegw/examples/*.yaml              the sample mapping files, EDS paths made absolute
-#   share/doc/oegw/                         README.md, mapping/README.md, subdevices/README.md,
+#   share/doc/oegw/                         README.md, docs/**.md (the documentation's Markdown: its
+#                                           links are relative, so they work there too),
+#                                           mapping/README.md and subdevices/README.md (the
+#                                           programs' messages name them; they point into docs/),
 #                                           copyright (packaging/debian/copyright, DEP-5)
 #   <sysconfdir>/oegw/oegw.yaml             config/cab.yaml as the default configuration (/etc for
 #                                           the prefix /usr); an existing one is kept
@@ -41,8 +44,9 @@ install(FILES ${OEGW_SAMPLE_EDS} DESTINATION ${CMAKE_INSTALL_DATADIR}/oegw/eds)
 install(FILES README.md DESTINATION ${CMAKE_INSTALL_DOCDIR})
 # Debian Policy §12.5: every package's copyright file at /usr/share/doc/<package>/copyright.
 install(FILES packaging/debian/copyright DESTINATION ${CMAKE_INSTALL_DOCDIR})
-install(FILES docs/reference/mapping-file.md DESTINATION ${CMAKE_INSTALL_DOCDIR}/mapping RENAME README.md)
-install(FILES docs/design/device-documents.md DESTINATION ${CMAKE_INSTALL_DOCDIR}/subdevices RENAME README.md)
+install(DIRECTORY docs/ DESTINATION ${CMAKE_INSTALL_DOCDIR}/docs FILES_MATCHING PATTERN "*.md")
+install(FILES mapping/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR}/mapping)
+install(FILES subdevices/README.md DESTINATION ${CMAKE_INSTALL_DOCDIR}/subdevices)
 
 # The generated files: cmake/install_generated.cmake runs inside the install step and reads the
 # sources then, so an edited unit or sample needs no reconfigure.

@@ -131,7 +131,9 @@ for f in /usr/bin/oegw /usr/bin/oegw-sim /usr/lib/systemd/system/oegw.service /e
          /usr/share/oegw/eds/generic_pedal.eds /usr/share/oegw/eds/button_cluster.eds \
          /usr/share/oegw/examples/cab.yaml /usr/share/oegw/examples/demo.yaml \
          /usr/share/doc/oegw/README.md /usr/share/doc/oegw/mapping/README.md \
-         /usr/share/doc/oegw/subdevices/README.md /usr/share/doc/oegw/copyright /var/lib/oegw; do
+         /usr/share/doc/oegw/subdevices/README.md /usr/share/doc/oegw/docs/index.md \
+         /usr/share/doc/oegw/docs/guides/install.md /usr/share/doc/oegw/docs/reference/mapping-file.md \
+         /usr/share/doc/oegw/copyright /var/lib/oegw; do
   grep -qx -- "$f" <<<"$owned" || die "dpkg -L oegw does not list $f"
 done
 note "ok: dpkg -L oegw lists the programs, the unit, the EDS files, the samples and the docs"

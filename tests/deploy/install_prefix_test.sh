@@ -1,7 +1,8 @@
 #!/bin/bash
 # `cmake --install` with a prefix other than the package's /usr: the unit, the default
 # configuration and the sample mapping files name this prefix's paths (written at install time,
-# cmake/install_generated.cmake), the layout is the README's, and `oegw check` accepts the
+# cmake/install_generated.cmake), the layout is docs/guides/install.md#installing's (the
+# documentation's Markdown pages, every one of docs/, among it), and `oegw check` accepts the
 # installed configuration from another folder, the source tree out of reach of its paths.
 # Then a second install keeps an edited configuration.
 #
@@ -22,6 +23,18 @@ for f in bin/oegw bin/oegw-sim lib/oegw/examples/dds_subscriber lib/oegw/example
          share/doc/oegw/copyright; do
   [[ -e $r/$f ]] || die "$prefix/$f not installed"
 done
+# Every page of docs/, at its place below share/doc/oegw/docs (the pages link each other
+# relatively, and mapping/README.md and subdevices/README.md point to ../docs/...).
+src_docs=$(dirname "$0")/../../docs
+pages=0
+while IFS= read -r -d '' page; do
+  rel=${page#"$src_docs"/}
+  [[ -f $r/share/doc/oegw/docs/$rel ]] || die "$prefix/share/doc/oegw/docs/$rel not installed"
+  pages=$((pages + 1))
+done < <(find "$src_docs" -name '*.md' -print0)
+((pages >= 20)) || die "only $pages pages found in $src_docs"
+[[ -f $r/share/doc/oegw/$(sed -n 's#.*(\.\./\(docs/reference/mapping-file\.md\)).*#\1#p' "$r/share/doc/oegw/mapping/README.md") ]] ||
+  die "the installed mapping/README.md does not link ../docs/reference/mapping-file.md, installed beside it"
 # GNUInstallDirs' rule for /opt/<x>: the configuration in /etc/opt/<x>, the state in /var/opt/<x>.
 conf=$dest/etc/opt/oegw/oegw/oegw.yaml
 [[ -f $conf ]] || die "no default configuration at /etc/opt/oegw/oegw/oegw.yaml"

@@ -1,11 +1,12 @@
 #!/bin/bash
-# Guest test (vm_walkthrough): README.md "Commissioning a new cab", run as written.
-# The commands are EXTRACTED from README.md, so the walk-through cannot drift from what is tested:
+# Guest test (vm_walkthrough): docs/guides/commission.md, "Commissioning a new cab", run as written.
+# The commands are EXTRACTED from that page, so the walk-through cannot drift from what is tested:
 #
-#   * the section is README.md's `## Commissioning a new cab`, up to the next `## ` heading;
+#   * the walk-through is the page's `# Commissioning a new cab`, up to its first `## ` heading
+#     (docs/developer/docs-site.md#what-the-tests-hold);
 #   * in its ```sh fenced blocks, a line starting with `$ ` is a command (a line ending in `\`
 #     continues it on the next line); the lines after a command, up to the next `$ ` line or the
-#     end of the block, are what the README says it prints (an excerpt: `...` stands for lines
+#     end of the block, are what the page says it prints (an excerpt: `...` stands for lines
 #     left out); every other line of the section is prose.
 #
 # The commands run in that order, each as a bash script in one working folder (/tmp/cab), with these
@@ -19,17 +20,17 @@
 #   5. `/usr/share/oegw/eds` → SOURCE_DIR/subdevices/eds (the package installs that folder there);
 #   6. `oegw` is the build tree's (first on PATH); /var/lib/oegw, which the package makes, is made
 #      under a writable overlay of /var/lib (the guest's root is read-only);
-#   7. `oegw run` is started in the background (the README runs it in a second terminal); the next
+#   7. `oegw run` is started in the background (the page runs it in a second terminal); the next
 #      command waits until `oegw status --json` shows every sub-device operational;
 #   8. right after `oegw scan`, the draft's sub-device heartbeats (`heartbeat_ms: 100`, consumer
 #      time 150 ms) get the margins of the other VM tests' files (tests/fixtures/vm_gateway.yaml):
 #      `heartbeat_ms: 200` and `heartbeat_timeout_ms: 600` below it, on the commented-out entry's
 #      line too. A TCG guest on a busy host stalls for more than 150 ms at times, and every
-#      sub-device is then lost at once (seen: all four `missing`, 6 resets in 15 s). The README's
+#      sub-device is then lost at once (seen: all four `missing`, 6 resets in 15 s). The page's
 #      excerpts are what the draft's own 100 ms gives (the bus load of `oegw check`).
 #
-# The file editing step is the `sed -i` lines the README shows: they run as extracted.
-# A command that exits non-zero fails the test. Key lines must be in the README's excerpt of a
+# The file editing step is the `sed -i` lines the page shows: they run as extracted.
+# A command that exits non-zero fails the test. Key lines must be in the page's excerpt of a
 # command AND in what the command printed (`expect` below): the scan names each node's family,
 # the draft is written, `oegw check` says valid, `oegw status` shows each sub-device operational,
 # `oegw ctl` reads the elobau grip's vendor-ID 000000B4h (document 000, 1018h sub 1 "Vendor ID",
@@ -47,14 +48,15 @@ here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 oegw=$1
 sim=$2
 src=$3
-readme=$src/README.md
+page=$src/docs/guides/commission.md
 work=/tmp/walk
 cab=/tmp/cab
 mkdir -p "$work/bin" "$cab"
 
-# ---- Extract: commands to $work/cmd.N, the README's excerpt of each to $work/shown.N.
+# ---- Extract: commands to $work/cmd.N, the page's excerpt of each to $work/shown.N.
 awk -v dir="$work" '
-  /^## / { in_section = ($0 == "## Commissioning a new cab"); next }
+  $0 == "# Commissioning a new cab" { in_section = 1; next }
+  /^## / { in_section = 0; next }
   !in_section { next }
   /^```sh$/ { in_block = 1; next }
   /^```$/ { in_block = 0; cont = 0; next }
@@ -63,15 +65,16 @@ awk -v dir="$work" '
   /^\$ / { n++; print substr($0, 3) > (dir "/cmd." n); printf "" > (dir "/shown." n); cont = /\\$/; next }
   n { print > (dir "/shown." n) }
   END { print n + 0 > (dir "/count") }
-' "$readme"
+' "$page"
 count=$(cat "$work/count")
-((count >= 8)) && pass "README: $count commands under \"Commissioning a new cab\"" ||
-  { fail "README: only $count commands extracted"; exit 1; }
+((count >= 8)) && pass "docs/guides/commission.md: $count commands under \"Commissioning a new cab\"" ||
+  { fail "docs/guides/commission.md: only $count commands extracted"; exit 1; }
 
-# The README's excerpts get the commands' interface names (substitution 2), to compare with outputs.
+# The page's excerpts get the commands' interface names (substitution 2), to compare with outputs.
 sed -i -E 's/\bcan([01])\b/vcan\1/g' "$work"/shown.*
 
-# The command whose README text matches ERE $1 (the first), as its number (bash alone: no process).
+# The command whose text on the page matches ERE $1 (the first), as its number (bash alone: no
+# process).
 cmd_index() {
   local i text
   for ((i = 1; i <= count; i++)); do
@@ -100,7 +103,7 @@ mount -t overlay overlay -o lowerdir=/var/lib,upperdir=/run/varlib/upper,workdir
 # ---- The cab.
 eds=$src/subdevices/eds
 receivers=$(can_receivers vcan1)
-# The MCB-402 wired as the README says this cab's board is ("[1, 2, 3, 4, 5, 7, 6]"; a simulated
+# The MCB-402 wired as the page says this cab's board is ("[1, 2, 3, 4, 5, 7, 6]"; a simulated
 # board is otherwise wired by the table's other reading).
 "$sim" -i vcan1 elobau-mfg:0x11 mcb402:0x03:wiring=1/2/3/4/5/7/6 "cia401:0x30:eds=$eds/generic_pedal.eds" novotechnik-406:0x7F \
   >/tmp/sim.log 2>&1 &
@@ -138,14 +141,14 @@ for ((i = 1; i <= count; i++)); do
   fi
 done
 
-# ---- Key lines: in the README's excerpt of command I and in its output. (Few processes: each
+# ---- Key lines: in the page's excerpt of command I and in its output. (Few processes: each
 # costs a TCG guest some 0.1 s.)
 expect() {
   local i=$1 got
   if [[ -z $i ]]; then
-    fail "README has no command for: $3"
+    fail "the page has no command for: $3"
   elif ! grep -qE -- "$2" "$work/shown.$i"; then
-    fail "README's excerpt of [$i] lacks /$2/ ($3)"
+    fail "the page's excerpt of [$i] lacks /$2/ ($3)"
   elif ! got=$(grep -m1 -E -- "$2" "$work/out.$i"); then
     fail "[$i] printed no line /$2/ ($3)"
   else
@@ -185,7 +188,7 @@ if [[ -n $gw_pid && -n $run ]]; then
   rc=$?
   ((rc == 0)) && pass "oegw run: SIGTERM, exit 0" || fail "oegw run exit $rc: $(tail -5 "$work/out.$run")"
 else
-  fail "the README runs no oegw run"
+  fail "the page runs no oegw run"
 fi
 kill -TERM "$sim_pid" 2>/dev/null
 wait "$sim_pid" 2>/dev/null
