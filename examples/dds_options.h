@@ -1,7 +1,8 @@
 /* What every DDS example takes on its command line — --domain, --partition, --network — and the
  * participant they describe. The network configuration goes with the domain, as in the gateway
- * (README "Network"): "loopback" (the default) keeps everything on this host, an interface name
- * selects the cab network, "default" leaves Cyclone's own configuration (CYCLONEDDS_URI) alone. */
+ * (docs/guides/dds-lcm.md#network): "loopback" (the default) keeps everything on this host, an
+ * interface name selects the cab network, "default" leaves Cyclone's own configuration
+ * (CYCLONEDDS_URI) alone. */
 #ifndef OEGW_DDS_OPTIONS_H
 #define OEGW_DDS_OPTIONS_H
 
@@ -9,7 +10,7 @@
 
 #include "dds/dds.h"
 
-/* DDS Security (README "Securing DDS"): the application's six files, as the gateway's
+/* DDS Security (docs/guides/secure-dds.md): the application's six files, as the gateway's
  * publish.dds.security names them; all or none. */
 enum { DDS_SECURITY_FILES = 6 };
 

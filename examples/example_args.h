@@ -11,7 +11,7 @@
 extern "C" {
 #endif
 
-/* Exit statuses shared by the examples (README "The examples"). */
+/* Exit statuses shared by the examples (docs/guides/dds-lcm.md#the-examples). */
 enum {
   EXAMPLE_EXIT_OK = 0,
   EXAMPLE_EXIT_SETUP = 1,   /* the transport could not be opened */

@@ -1,6 +1,7 @@
 // Text for every message oegw publishes or takes on LCM, shared by lcm_subscriber, lcm_log_decode
-// and lcm_status. The type of a message follows from its channel's name (README "LCM channels"):
-// <prefix>JOYSTICK_n, PEDAL_n, WHEEL_n, ENCODER_n, BUTTONS_n, INDICATORS_n, DISPLAY_n, STATUS.
+// and lcm_status. The type of a message follows from its channel's name
+// (docs/guides/dds-lcm.md#lcm-channels): <prefix>JOYSTICK_n, PEDAL_n, WHEEL_n, ENCODER_n,
+// BUTTONS_n, INDICATORS_n, DISPLAY_n, STATUS.
 #pragma once
 
 #include <cstdint>

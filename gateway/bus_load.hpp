@@ -1,6 +1,7 @@
-// The steady-state load a mapping file implies on each bus, as `oegw check` prints it (README
-// "Performance", mapping/README.md "oegw check"). Steady state means the inputs held
-// still: what is then on the buses is periodic, and fixed by the configuration:
+// The steady-state load a mapping file implies on each bus, as `oegw check` prints it
+// (docs/reference/mapping-file.md#bus-load-oegw-check; measured: docs/developer/performance.md).
+// Steady state means the inputs held still: what is then on the buses is periodic, and fixed by the
+// configuration:
 //   downstream  SYNC (080h, 0 bytes) every sync_period_ms; each sub-device's heartbeat (700h +
 //               node-ID, 1 byte) every heartbeat_ms; each TPDO of each sub-device as its boot
 //               configures it (Driver::expected_tpdos: the driver's configuration() and the

@@ -1,7 +1,8 @@
-// The log of `oegw run` without a cost to the buses (README "CAN first"): while a DaemonLog
-// lives, spdlog's default logger hands each line to a bounded queue that a thread of its own
-// writes out (to the same sinks, in the same format); the event loop never waits for journald or
-// a terminal that does not read. A full queue drops its oldest line (spdlog's overrun_oldest),
+// The log of `oegw run` without a cost to the buses
+// (docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses): while a DaemonLog
+// lives, spdlog's default logger hands each line to a bounded queue that a thread of its own writes
+// out (to the same sinks, in the same format); the event loop never waits for journald or a
+// terminal that does not read. A full queue drops its oldest line (spdlog's overrun_oldest),
 // counted in dropped(). The thread blocks every signal (the loop takes SIGTERM through its
 // signalfd, which a thread that did not block it would get instead).
 #pragma once

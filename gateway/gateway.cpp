@@ -186,7 +186,8 @@ Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed
     update_fault(it->second, fmt::format("EMCY {:04X}h {}", e.code, d.text));
   };
   // A fault the device ended without an EMCY, shown by the object its driver polls while the
-  // fault lasts (the MCB-402's 1001h after a cable break, subdevices/README.md).
+  // fault lasts (the MCB-402's 1001h after a cable break,
+  // docs/design/device-documents.md#mcb-402-mcb402-document-003-co4013-emergency-messages).
   network_.on_fault_evidence = [this](const std::string& name, const std::string& what) {
     auto it = subs_.find(name);
     if (it == subs_.end()) return;

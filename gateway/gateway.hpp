@@ -2,30 +2,32 @@
 // manager and drivers downstream, and between them the mapping file's bindings with their
 // translators and the fault policy. Sans I/O: frames and time come in on two sides.
 //
-// Data path (ARCHITECTURE.md): driver → translator (a binding's FieldTranslator) → FeModel →
-// CiA 852 device (mirrored into the dictionary at once) | DDS | LCM (on_fe_change, once per FE
-// at the end of each entry point); commands → CommandArbiter → outputs (the output bindings).
+// Data path (docs/design/architecture.md#the-data-path-one-direction): driver → translator (a
+// binding's FieldTranslator) → FeModel → CiA 852 device (mirrored into the dictionary at once) |
+// DDS | LCM (on_fe_change, once per FE at the end of each entry point); commands → CommandArbiter →
+// outputs (the output bindings).
 //
-// Fault policy (README "Fault policy": a lost input never keeps the machine moving):
+// Fault policy (docs/design/fault-policy.md: a lost input never keeps the machine moving):
 //  * a sub-device that is lost (heartbeat timeout, no heartbeat in operational after NMT start,
 //    refused at boot, never seen), reports an error EMCY, sends error / not-available codes for a
 //    bound signal, or whose PDOs are overdue (Stale, Driver::advance): every FE field it feeds
 //    takes its fault value at once (the translators see the non-Valid status), and EMCY 7000h
 //    ("additional modules", CiA 852 Table 37) goes upstream naming it; when evidence shows the
 //    cause gone (the network manager's proof of life, a fresh PDO, the error reset) the
-//    error-reset EMCY follows and the log names the evidence (README "Fault policy");
+//    error-reset EMCY follows and the log names the evidence (docs/design/fault-policy.md);
 //  * outputs: every entry point (upstream frame, timer, DDS/LCM command, a node coming back)
 //    runs in an output batch, so one command reaches each sub-device as one frame per RPDO;
 //  * neutral interlock: after that, each axis stays at neutral until it has been seen inside
 //    its deadband (mapping/translate.hpp).
-//  * EMCY faults are the drivers' (Driver::faulted, subdevices/README.md "Faults"): each driver
-//    says which signals an EMCY faults and what clears them (its clear code, its error state
-//    read back at every start); a warning faults nothing and ends nothing. A faulted bound
-//    input is at its fault value before the EMCY goes up; while the driver holds any fault the
-//    node is faulty (7000h) and every input of it is held at its fault value. The gateway keeps
-//    no EMCY state of its own.
+//  * EMCY faults are the drivers' (Driver::faulted,
+//    docs/design/device-documents.md#faults-what-sets-them-what-clears-them): each driver says
+//    which signals an EMCY faults and what clears them (its clear code, its error state read back
+//    at every start); a warning faults nothing and ends nothing. A faulted bound input is at its
+//    fault value before the EMCY goes up; while the driver holds any fault the node is faulty
+//    (7000h) and every input of it is held at its fault value. The gateway keeps no EMCY state of
+//    its own.
 //
-// EMCYs (README "Fault policy", gateway/oe_device.hpp for the frames):
+// EMCYs (docs/design/fault-policy.md, gateway/oe_device.hpp for the frames):
 //  * every EMCY a configured sub-device sends is counted and kept (subdevice_emcy) and, as the
 //    mapping file's downstream.emcy_forwarding says (all, faults, none), passed upstream as an
 //    EMCY of the gateway (remote EMCY, OeDevice::forward_subdevice_emcy), before the EMCY 7000h
@@ -184,8 +186,8 @@ class Gateway {
   [[nodiscard]] const subdevices::NetworkManager& downstream() const { return network_; }
   // Remote SDO: the host's transfers to sub-devices (gateway/remote_sdo.hpp).
   [[nodiscard]] const RemoteSdo& remote_sdo() const { return *remote_sdo_; }
-  // An SDO server channel a network indication has redirected to a sub-device (README
-  // "Reaching sub-devices from the host"): every client of that channel reaches the sub-device,
+  // An SDO server channel a network indication has redirected to a sub-device
+  // (docs/guides/remote-sdo.md): every client of that channel reaches the sub-device,
   // not the gateway, until it ends. Logged when it begins and ends; `oegw status` lists them.
   struct SdoRedirect {
     std::uint16_t server = 0;             // the channel's object, 1200h + channel

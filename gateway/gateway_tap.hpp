@@ -1,5 +1,5 @@
-// What crosses the Gateway's boundary, call by call: the black box (gateway/record/, README
-// "Recording and replay") listens here. The gateway is sans I/O, so every decision it makes is
+// What crosses the Gateway's boundary, call by call: the black box (gateway/record/,
+// docs/guides/black-box.md) listens here. The gateway is sans I/O, so every decision it makes is
 // a function of these inputs in this order; the outputs and decisions follow each input, inside
 // the call that caused them. A tap only watches: it cannot change what the gateway does.
 //
@@ -43,9 +43,9 @@ class GatewayTap {
                        mapping::CommandSource, canopen::TimePoint /*now*/) {}
   virtual void subdevice_command(const std::string& /*name*/, std::string_view /*command*/, canopen::TimePoint) {}
   virtual void downstream_nmt(canopen::NodeId, canopen::NmtCommand, canopen::TimePoint /*now*/) {}
-  // A control-socket request (gateway/control/PROTOCOL.md, the JSON line as received) and the
-  // parts of the gateway a commissioning session reaches directly (`what`: "remote_sdo",
-  // "send_downstream"): recorded, not replayed (README "Recording and replay").
+  // A control-socket request (docs/reference/control-protocol.md, the JSON line as received) and
+  // the parts of the gateway a commissioning session reaches directly (`what`: "remote_sdo",
+  // "send_downstream"): recorded, not replayed (docs/guides/black-box.md).
   virtual void control(std::string_view /*what*/, canopen::TimePoint /*now*/) {}
 
   // ---- Outputs and decisions ----
@@ -56,7 +56,7 @@ class GatewayTap {
   virtual void command_outcome(bool /*taken*/, std::string_view /*why*/) {}
   virtual void node_state(const std::string& /*name*/, subdevices::NodeState, const std::string& /*why*/) {}
   // The fault policy raised (`raised`) or cleared a sub-device's fault: the reason, or the
-  // evidence that cleared it (README "Fault policy").
+  // evidence that cleared it (docs/design/fault-policy.md).
   virtual void fault(const std::string& /*name*/, bool /*raised*/, std::string_view /*text*/) {}
   virtual void subdevice_emcy(const std::string& /*name*/, const canopen::EmcyMessage&) {}
   // An FE's value or status changed (once per FE at the end of the call, as on_fe_change).

@@ -5,9 +5,9 @@
 //
 // Decisions on CiA 852 where the text is open or inconsistent (this list is their record; those
 // on PDOs — which exist, their layouts, the instances not configured, 6423h and the TPDOs — are
-// in README.md "CiA 852 decisions"):
+// in docs/design/cia852-decisions.md):
 //  * 6423h FALSE: an axis change (6401h) updates the dictionary without a TPDO event; TPDOs sent
-//    for another reason carry it (README "CiA 852 decisions").
+//    for another reason carry it (docs/design/cia852-decisions.md).
 //  * §8.6 EMCY 0080h: raised with error register 01h (generic only: §11.3 forbids the
 //    profile-specific bit) each time the node enters operational with 6423h FALSE and 6423h
 //    exists; it stays active while operational and FALSE, and is cleared (error reset) when the
@@ -52,7 +52,7 @@
 //    stores their current values, whoever wrote them.
 //  * Host heartbeat loss: reported by the Node's heartbeat consumer (Node::on_heartbeat_timeout,
 //    after its EMCY 8130h), on whichever path notices it, or called directly by the gateway.
-//  * Bit rate (README "Bit rate"): LSS configure bit timing takes the rates of
+//  * Bit rate (docs/guides/commission.md#bit-rate): LSS configure bit timing takes the rates of
 //    OeDeviceConfig::supported_bit_timings, which the EDS lists (gateway/runtime_config.hpp
 //    upstream_bit_timings: one list); LSS activate bit timing calls on_bit_rate_switch at the
 //    switch (canopen/node.hpp: silent for the switch delay, switch, silent again), where the

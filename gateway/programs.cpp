@@ -166,8 +166,9 @@ void print_downstream_boot(const mapping::Config& cfg) {
   }
 }
 
-// `oegw check`: the control socket `oegw run` will serve (mapping file `control`, PROTOCOL.md);
-// what run would refuse there deployment_errors() has refused already.
+// `oegw check`: the control socket `oegw run` will serve (mapping file `control`,
+// docs/reference/control-protocol.md); what run would refuse there deployment_errors() has refused
+// already.
 void print_control(const mapping::ControlConfig& c) {
   if (!c.enabled) {
     std::printf("control: off (control.enabled false): no socket, oegw status cannot ask this gateway\n");
@@ -185,7 +186,8 @@ void print_control(const mapping::ControlConfig& c) {
               made.c_str(), who.c_str());
 }
 
-// What SIGHUP replaces or re-attaches in `oegw run` (README "Reloading the mapping file").
+// What SIGHUP replaces or re-attaches in `oegw run`
+// (docs/guides/install.md#reloading-the-mapping-file).
 struct Running {
   const std::string& file;
   mapping::Config& config;  // the control socket's services read it: replaced in place
@@ -202,7 +204,7 @@ struct Running {
 
 
 // What systemd's STATUS= says of `oegw run`: the gateway's states and each publishing transport
-// that is down (README "systemd").
+// that is down (docs/guides/install.md#systemd).
 ServiceState running_state(Gateway& gw, const GatewayPublishing& publishing) {
   ServiceState state = service_state(gw);
   state.degraded = publishing.degraded();
@@ -256,7 +258,7 @@ void reload(Running& r, TimePoint now) {
   r.notify.reloaded("", running_state(*r.gw, r.publishing));
 }
 
-// `oegw check`: what `oegw run` will record (mapping file `record`, README "Recording and replay").
+// `oegw check`: what `oegw run` will record (mapping file `record`, docs/guides/black-box.md).
 void print_record(const mapping::RecordConfig& r) {
   if (!r.enabled) {
     std::printf("record: off (record.enabled false): no black box\n");
@@ -269,9 +271,9 @@ void print_record(const mapping::RecordConfig& r) {
               static_cast<double>(r.span_s) / r.segments, r.queue_kib, r.dir.c_str());
 }
 
-// Publishing for `oegw run` (README "Publishing degrades, the gateway runs"): a setting that
-// cannot work refuses the start (false, logged with the file); a transport the machine cannot
-// carry now is left down, logged once, reported, and opened again from the loop.
+// Publishing for `oegw run` (docs/guides/dds-lcm.md#publishing-degrades-the-gateway-runs): a
+// setting that cannot work refuses the start (false, logged with the file); a transport the machine
+// cannot carry now is left down, logged once, reported, and opened again from the loop.
 bool start_publishing(Gateway& gw, const mapping::Config& cfg, const std::string& file, EventLoop& loop,
                       ServiceDriver& driver, std::unique_ptr<GatewayPublishing>& out) {
   const auto log = [](bool up, const std::string& text) {
@@ -297,7 +299,8 @@ int run_check(const std::string& file) {
   const auto& fes = device->config().fes;
   const NodeId node{cfg->upstream.node_id};
   std::printf("%s: valid\n\n", file.c_str());
-  // Valid, but departing from CiA 852 / CiA 305 (mapping/README.md).
+  // Valid, but departing from CiA 852 / CiA 305
+  // (docs/reference/mapping-file.md#upstreamheartbeat_ms-and-upstreamidentityserial).
   bool warned = false;
   if (cfg->upstream.heartbeat_ms == 0) {
     std::printf("warning: upstream.heartbeat_ms is 0: no heartbeat at power-on; CiA 852 §8.3 says the heartbeat "
@@ -313,7 +316,7 @@ int run_check(const std::string& file) {
     std::printf("warning: %s\n", w.str().c_str());
     warned = true;
   }
-  // This machine as it is now (README "LCM route"): oegw run would start without LCM.
+  // This machine as it is now (docs/guides/install.md#lcm-route): oegw run would start without LCM.
   if (const auto& lcm = cfg->publish.lcm; lcm.enabled)
     if (const auto problem = lcm_route_problem(lcm.url)) {
       const std::string& net = cfg->publish.dds.network;
@@ -341,7 +344,7 @@ int run_check(const std::string& file) {
   print_downstream_boot(*cfg);
   for (const auto& s : cfg->subdevices)
     std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id, s.mandatory ? "  mandatory" : "");
-  // What `oegw run` does with the bit rates on this machine (README "Bit rate").
+  // What `oegw run` does with the bit rates on this machine (docs/guides/commission.md#bit-rate).
   const auto link = netlink_can_link();
   const UpstreamBitRate up_rate = upstream_bit_rate(*cfg);
   std::printf("\nbit rates (oegw run sets them at start):\n");
@@ -424,7 +427,7 @@ int run_gateway(const std::string& file) {
   loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1});
   auto cfg = load(file, Use::Cab);
   if (!cfg) return exit_code::kBadFile;
-  // The bit rates first (README "Bit rate"): a refused one starts nothing.
+  // The bit rates first (docs/guides/commission.md#bit-rate): a refused one starts nothing.
   const auto link = netlink_can_link();
   const UpstreamBitRate up_rate = upstream_bit_rate(*cfg);
   if (!up_rate.note.empty()) spdlog::info("upstream: {}", up_rate.note);
@@ -531,7 +534,7 @@ int run_gateway(const std::string& file) {
   // systemd (gateway/service_notify.hpp): READY=1, STATUS=, WATCHDOG=1 from this loop, STOPPING=1.
   SystemdNotifier systemd;
   ServiceNotify notify(systemd, systemd_watchdog_timeout());
-  std::unique_ptr<GatewayControl> control;  // `oegw status`, `oegw ctl` (gateway/control/PROTOCOL.md)
+  std::unique_ptr<GatewayControl> control;  // `oegw status`, `oegw ctl` (docs/reference/control-protocol.md)
   try {
     if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, *gw, *cfg, file, [&driver] { driver.rearm(); }, up.get(), down.get());
   } catch (const ControlError& e) {
@@ -551,7 +554,7 @@ int run_gateway(const std::string& file) {
   }
   int exit_status = 0;
   Running running{file, *cfg, gw, down->sink(), *publishing, control.get(), recording, driver, notify, loop, exit_status};
-  // SIGUSR1 keeps the recording's window (README "Recording and replay").
+  // SIGUSR1 keeps the recording's window (docs/guides/black-box.md).
   loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1}, [&](int sig) {
     if (sig == SIGHUP) return reload(running, loop.now());
     if (sig == SIGUSR1) return recording.keep_logged("SIGUSR1");

@@ -5,8 +5,8 @@
 
 namespace oegw::gateway {
 
-// The exit codes of every oegw command (README "Exit codes"; the unit's RestartPreventExitStatus=
-// names kBadFile: a bad file does not get better by restarting).
+// The exit codes of every oegw command (docs/reference/exit-codes.md; the unit's
+// RestartPreventExitStatus= names kBadFile: a bad file does not get better by restarting).
 namespace exit_code {
 inline constexpr int kOk = 0;
 inline constexpr int kBadFile = 1;      // the mapping file is refused (check, eds, run); demo: a step failed

@@ -1,17 +1,18 @@
-// One publishing transport (DDS or LCM) that may be down (README "Publishing degrades, the
-// gateway runs"). While the machine cannot carry it (PublishUnavailable: no route for the LCM
-// group, the DDS interface missing) the gateway runs without it: its samples are dropped
-// (nothing queues) and it is opened again with back-off — 1 s after the first failure, then 2,
-// 4, 8 s, then every 10 s — until it opens; then samples flow again (the publish schedule
-// republishes every FE each period) and its commands are taken again. Reported: up(), reason(),
-// and on_log once when it goes down and once when it comes back.
+// One publishing transport (DDS or LCM) that may be down
+// (docs/guides/dds-lcm.md#publishing-degrades-the-gateway-runs). While the machine cannot carry it
+// (PublishUnavailable: no route for the LCM group, the DDS interface missing) the gateway runs
+// without it: its samples are dropped (nothing queues) and it is opened again with back-off — 1 s
+// after the first failure, then 2, 4, 8 s, then every 10 s — until it opens; then samples flow
+// again (the publish schedule republishes every FE each period) and its commands are taken again.
+// Reported: up(), reason(), and on_log once when it goes down and once when it comes back.
 //
 // When the loop runs, each attempt runs in a thread of its own and its outcome is taken on the
 // loop (an eventfd): opening can block (liblcm's self-test waits up to 10 s for its own message
 // when a firewall drops it; Cyclone DDS creates its domain), and a retry must never hold a bus
-// frame back (README "CAN first"). The thread has the loop thread's signal mask (the signals
-// the loop takes stay blocked in it and in the threads the transport starts). Attempts::Inline
-// runs them on the loop instead: tests, on a simulated clock.
+// frame back (docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses). The
+// thread has the loop thread's signal mask (the signals the loop takes stay blocked in it and in
+// the threads the transport starts). Attempts::Inline runs them on the loop instead: tests, on a
+// simulated clock.
 #pragma once
 
 #include <cstdint>

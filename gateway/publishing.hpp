@@ -1,7 +1,8 @@
 // The gateway's functional elements on DDS and/or LCM (the mapping file's `publish:`): every
 // input FE is published on change and at least every period (gateway/publish/publish_schedule),
 // with the gateway status; indicator and display commands come back into the gateway from the
-// sources each FE takes (mapping file `sources`; among them the last writer wins — see README).
+// sources each FE takes (mapping file `sources`; among them the last writer wins —
+// docs/guides/dds-lcm.md#who-commands-the-indicators-and-displays).
 #pragma once
 
 #include <functional>
@@ -50,7 +51,8 @@ struct PublisherFactories {
 };
 [[nodiscard]] PublisherFactories real_publishers(const mapping::PublishConfig& config);
 
-// One transport's state for `oegw status` and systemd's STATUS= (README "Publishing degrades").
+// One transport's state for `oegw status` and systemd's STATUS=
+// (docs/guides/dds-lcm.md#publishing-degrades-the-gateway-runs).
 struct TransportState {
   std::string name;    // "dds", "lcm"
   bool up = false;

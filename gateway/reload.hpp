@@ -1,8 +1,8 @@
-// A reload of the mapping file (SIGHUP to `oegw run`, `systemctl reload oegw`; README "Reloading
-// the mapping file"): what it may change, and the step that applies it. Sans I/O: a Gateway in,
-// a Gateway out, frames on the buses the gateways were given.
+// A reload of the mapping file (SIGHUP to `oegw run`, `systemctl reload oegw`;
+// docs/guides/install.md#reloading-the-mapping-file): what it may change, and the step that applies
+// it. Sans I/O: a Gateway in, a Gateway out, frames on the buses the gateways were given.
 //
-// Rules (the decisions are README's):
+// Rules (the decisions are docs/guides/install.md#reloading-the-mapping-file's):
 //  * The upstream device goes on. Its NMT state, heartbeat, node-ID, the PDO and other settings
 //    the host wrote, its active EMCYs: a reload changes none of them, so the host sees no boot-up
 //    and its heartbeat consumer no gap. Hence a file that would change the device — its node-ID,

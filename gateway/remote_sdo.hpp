@@ -5,7 +5,7 @@
 // the gateway's downstream SDO client of that node (the one the network manager boots it with, so
 // the two never talk to the node at once) and the answer carried back.
 //
-// Decisions (README "Reaching sub-devices from the host" has the table for users):
+// Decisions (docs/guides/remote-sdo.md has the table for users):
 //  * Networks: the upstream network ID names the gateway's own bus — only the gateway itself is
 //    reached there (its node-ID, or network 0 / node 0: the own dictionary); the downstream
 //    network ID names the sub-devices. Abort codes of a refused network indication: an unknown

@@ -102,7 +102,8 @@ canopen::EdsInfo eds_info(const mapping::Config& c, std::string file_name) {
                         c.downstream.network_id)
           : std::string("the gateway's own dictionary")));
   }
-  // Where a host built from CiA 852's printed PDO tables would differ (README "CiA 852 decisions").
+  // Where a host built from CiA 852's printed PDO tables would differ
+  // (docs/design/cia852-decisions.md).
   std::vector<mapping::FeId> fes;
   for (const auto& fe : c.functional_elements) fes.push_back(fe.id);
   for (auto& line : cia852::pdo_eds_comments(fes)) info.comments.push_back(std::move(line));

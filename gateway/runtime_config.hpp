@@ -26,7 +26,7 @@ namespace oegw::gateway {
 
 // The rate the upstream interface is set to at start. An LSS-stored bit timing (CiA 305 store
 // configuration, <upstream.store>.lss) wins over upstream.bitrate: it is what the host configured
-// last, and the host's other nodes were switched with it (README "Bit rate").
+// last, and the host's other nodes were switched with it (docs/guides/commission.md#bit-rate).
 struct UpstreamBitRate {
   std::uint32_t bitrate = 0;  // bit/s
   bool lss_stored = false;    // from the LSS store

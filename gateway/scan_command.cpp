@@ -122,7 +122,8 @@ std::optional<int> bit_count(const sd::SignalInfo& s) {
 // The suggested FE lines of one node (without the comment mark): its joystick axes and buttons,
 // other axes as wheels, analogue values as pedals, positions as encoders, the rest of the
 // one-bit and bit-packed inputs as a button cluster, one-bit outputs as indicators and other
-// outputs as display parameters (the field table of mapping/README.md).
+// outputs as display parameters (the field table of
+// docs/reference/mapping-file.md#functional_elements-kindinstance-field-signal-required-may-be-empty).
 std::vector<std::string> fe_lines(const std::string& name, const std::vector<sd::SignalInfo>& signals,
                                   FeCounters& fe) {
   using K = sd::SignalKind;

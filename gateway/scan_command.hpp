@@ -4,7 +4,7 @@
 // writes a draft mapping file: one `subdevices` entry per node whose driver it can name, each
 // driver's required options as marked placeholders, and commented-out functional-element lines
 // for the node's signals (from the drivers themselves, as `oegw signals` lists them). The draft
-// passes `oegw check` as it is written; mapping/README.md "Drafting the file: oegw scan".
+// passes `oegw check` as it is written; docs/reference/mapping-file.md#drafting-the-file-oegw-scan.
 #pragma once
 
 #include <cstdint>

@@ -6,7 +6,7 @@
 //               loop that is stuck stops pinging and systemd restarts the daemon
 //   RELOADING=1 at SIGHUP, with MONOTONIC_USEC= (systemd 253's Type=notify-reload pairs reload
 //               cycles by it; Debian 12's systemd 252 ignores it), then READY=1 once the reload is
-//               over, applied or refused (README "Reloading the mapping file")
+//               over, applied or refused (docs/guides/install.md#reloading-the-mapping-file)
 //   STOPPING=1  at SIGTERM/SIGINT
 // Without NOTIFY_SOCKET (not started by systemd) nothing is sent and nothing fails.
 //

@@ -1,5 +1,5 @@
-// The mapping file: the engineer's one configuration file (mapping/README.md documents every
-// key). load_config() parses (yaml-cpp) and validates; it returns either a complete Config or
+// The mapping file: the engineer's one configuration file (docs/reference/mapping-file.md documents
+// every key). load_config() parses (yaml-cpp) and validates; it returns either a complete Config or
 // every error found, each as "file:line:column: what was found; expected what" (1-based).
 // Nothing is half-built: a Config exists only when there is no error.
 //
@@ -72,7 +72,9 @@ struct UpstreamConfig {
   std::uint32_t bitrate = 250000;
   UpstreamIdentity identity;
   // 1017h producer heartbeat time at power-on. CiA 852 §8.3: heartbeat "shall be used", so the
-  // default is 100 ms (mapping/README.md); 0 (off) only when written, and `oegw check` warns.
+  // default is 100 ms
+  // (docs/reference/mapping-file.md#upstreamheartbeat_ms-and-upstreamidentityserial); 0 (off) only
+  // when written, and `oegw check` warns.
   std::uint16_t heartbeat_ms = 100;
   std::string store = "/var/lib/oegw/upstream.store";  // 1010h/1011h store
   // The network ID of the host's bus (CiA 302-7 multi-level networking: the number the host uses
@@ -117,9 +119,10 @@ struct DownstreamConfig {
   Location interface_where;   // the `interface` value, when written
 };
 
-// OMG DDS Security 1.1 for the gateway's participant (publish.dds.security; README "Securing
-// DDS"): the builtin plugins of Cyclone DDS, configured with the domain. Every file is required;
-// a relative path is taken from the mapping file's folder (README "Paths").
+// OMG DDS Security 1.1 for the gateway's participant (publish.dds.security;
+// docs/guides/secure-dds.md): the builtin plugins of Cyclone DDS, configured with the domain. Every
+// file is required; a relative path is taken from the mapping file's folder
+// (docs/reference/mapping-file.md#paths).
 struct DdsSecurityConfig {
   enum File : std::size_t { IdentityCa, Certificate, PrivateKey, PermissionsCa, Governance, Permissions, kFiles };
   // The keys in the mapping file, and the settings' names in messages (publish.dds.security.<key>).
@@ -157,7 +160,7 @@ struct PublishConfig {
 };
 
 // The local control socket `oegw run` serves (`oegw status`, later `oegw ctl`; the protocol:
-// gateway/control/PROTOCOL.md). A Unix stream socket only: nothing listens on a network.
+// docs/reference/control-protocol.md). A Unix stream socket only: nothing listens on a network.
 inline constexpr std::string_view kDefaultControlSocket = "/run/oegw/oegw.sock";
 struct ControlConfig {
   bool enabled = true;
@@ -172,7 +175,7 @@ struct ControlConfig {
 // The longest socket path a sockaddr_un takes (108 bytes with its NUL, Linux unix(7)).
 inline constexpr std::size_t kMaxControlSocketPath = 107;
 
-// The black box (README "Recording and replay"): `oegw run` records both buses' frames and its
+// The black box (docs/guides/black-box.md): `oegw run` records both buses' frames and its
 // decisions into a ring of segment files in `dir`, at most `max_mib` MiB and `span_s` seconds,
 // closed in `segments` parts (a segment at max/segments bytes or span/segments seconds), through
 // an in-memory queue of `queue_kib` KiB (what does not fit is dropped and counted). Off unless
@@ -244,10 +247,11 @@ struct FieldBinding {
 // sources it takes (`sources: [canopen, dds, lcm]` in the mapping file; canopen and dds when
 // absent); among them the last write wins. LCM only when listed: liblcm neither authenticates
 // nor names a message's sender, so whoever reaches the LCM port could light the cab's lamps
-// (SECURITY.md); a mapping file opts in, and `oegw check` warns when that URL reaches beyond
-// this host (mapping/deployment.hpp). A write from a source not listed changes nothing: over
-// CANopen an SDO download is aborted with 0800 0021h (CiA 301 Table 22, "local control") and
-// the FE's bytes in an RPDO are ignored; over DDS/LCM the command is dropped and logged.
+// (docs/design/threat-model.md); a mapping file opts in, and `oegw check` warns when that URL
+// reaches beyond this host (mapping/deployment.hpp). A write from a source not listed changes
+// nothing: over CANopen an SDO download is aborted with 0800 0021h (CiA 301 Table 22, "local
+// control") and the FE's bytes in an RPDO are ignored; over DDS/LCM the command is dropped and
+// logged.
 enum class CommandSource : std::uint8_t { Canopen = 1, Dds = 2, Lcm = 4 };
 using CommandSources = std::uint8_t;  // a set of CommandSource bits
 inline constexpr CommandSources kAllCommandSources = 7;

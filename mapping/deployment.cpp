@@ -78,7 +78,7 @@ void check_store_folder(const UpstreamConfig& u, std::vector<Diagnostic>& out) {
                      "mode 0755)"});
 }
 
-// The black box's folder (README "Recording and replay"): `oegw run` makes it when missing; a
+// The black box's folder (docs/guides/black-box.md): `oegw run` makes it when missing; a
 // file at its path, or a path under a file, cannot be a folder.
 void check_record(const RecordConfig& r, std::vector<Diagnostic>& out) {
   if (!r.enabled) return;
@@ -134,8 +134,8 @@ void check_control(const ControlConfig& c, std::vector<Diagnostic>& out) {
 
 // LCM commands are opt-in (`sources` listing lcm, config.hpp): liblcm authenticates nothing and
 // does not name a message's sender, so an FE taking LCM commands on a URL others can send to is
-// commanded by whoever is on that network (SECURITY.md). Warned, not refused: a cab network may
-// be closed by other means (a firewall, a cable of its own).
+// commanded by whoever is on that network (docs/design/threat-model.md). Warned, not refused: a cab
+// network may be closed by other means (a firewall, a cable of its own).
 void check_lcm_commands(const Config& c, std::vector<Diagnostic>& out) {
   const auto& lcm = c.publish.lcm;
   if (!lcm.enabled) return;

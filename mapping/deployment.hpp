@@ -2,7 +2,7 @@
 // settings of a gateway on a real cab controller. The embedded demo and the tests load the same
 // files through load_config() with the in-process bus (`interface: virtual`), so these checks
 // are apart from the loader: only the two commands that face a cab apply them
-// (mapping/README.md "Checked before a run").
+// (docs/reference/mapping-file.md#checked-before-a-run).
 #pragma once
 
 #include <vector>

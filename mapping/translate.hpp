@@ -2,7 +2,7 @@
 // Pure functions plus one small stateful FieldTranslator per FE field (the neutral interlock).
 // No I/O, no clock: the caller feeds SignalValues as the drivers report them.
 //
-// Conventions (mapping/README.md "Translation"):
+// Conventions (docs/reference/mapping-file.md#translation-translatehpp):
 //  * Input pipeline, in this order: invert (mirror about the signal's neutral) -> deadband (in
 //    signal units: |v - neutral| <= deadband gives neutral) -> scale (round to nearest) ->
 //    offset -> clamp (in FE units).

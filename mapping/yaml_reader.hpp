@@ -70,10 +70,11 @@ template <typename Range>
 
 // ---- Parsing the text ------------------------------------------------------------------------
 
-// The limits of a mapping file (mapping/README.md, "Limits"). A mapping file for the largest cab
-// CANopen allows (127 sub-devices, every FE) is far inside each; beyond them the file is refused
-// before yaml-cpp reads it (nesting, text) or before anything else reads it (the tree), so a
-// hostile or broken file costs neither memory nor stack.
+// The limits of a mapping file
+// (docs/reference/mapping-file.md#the-file-itself-limits-text-one-document). A mapping file for the
+// largest cab CANopen allows (127 sub-devices, every FE) is far inside each; beyond them the file
+// is refused before yaml-cpp reads it (nesting, text) or before anything else reads it (the tree),
+// so a hostile or broken file costs neither memory nor stack.
 struct YamlLimits {
   static constexpr std::size_t kFileBytes = 1024 * 1024;  // the whole file
   static constexpr int kFlowNesting = 32;                  // [ ] and { } inside each other
@@ -107,7 +108,7 @@ struct MapEntry {
 class YamlReader {
  public:
   // `base`: the folder a relative path in the file is taken from (the mapping file's own folder,
-  // mapping/README.md "Paths"); none: paths stay as written (text that is in no folder).
+  // docs/reference/mapping-file.md#paths); none: paths stay as written (text that is in no folder).
   explicit YamlReader(std::string file, std::optional<std::filesystem::path> base = std::nullopt)
       : file_(std::move(file)), base_(std::move(base)) {}
 

@@ -1,7 +1,7 @@
-// The protocol core's demo device and built-in host, used by `oegw demo` (on the virtual bus)
-// and `oegw device` (on a SocketCAN interface). Until the CiA 852 device exists (the OE issue),
-// this is what the gateway program runs: a CiA 301 device with a small CiA 401-style I/O
-// dictionary whose inputs move like a joystick being swept.
+// The protocol core's demo device and built-in host, used by `oegw core-demo` (on the virtual
+// bus) and `oegw device` (on a SocketCAN interface): the protocol core alone, without the CiA 852
+// device that `oegw demo` runs — a CiA 301 device with a small CiA 401-style I/O dictionary whose
+// inputs move like a joystick being swept.
 #pragma once
 
 #include <filesystem>
@@ -39,7 +39,7 @@ struct DemoOptions {
   // Publish the joystick as joystick.1 on DDS (loopback-only Cyclone configuration, partition
   // "oegw-demo") and LCM (udpm://224.0.0.1:7667?ttl=0, OEGW_DEMO_*), and take indicators.1 commands back into
   // the device's output 6200h:01. Off by default: this is the protocol core's demo; `oegw demo`
-  // is the one that publishes (README, "Watching the gateway from DDS and LCM").
+  // is the one that publishes (docs/guides/dds-lcm.md).
   bool publish = false;
 };
 

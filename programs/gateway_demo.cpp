@@ -155,7 +155,7 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   }
   const std::filesystem::path dir = dir_c;
   // The source tree's layout: demo.yaml names its EDS files from its own folder config/
-  // (mapping/README.md "Paths"), so they go to subdevices/eds/ beside it.
+  // (docs/reference/mapping-file.md#paths), so they go to subdevices/eds/ beside it.
   std::filesystem::create_directories(dir / "subdevices/eds");
   std::ofstream(dir / "subdevices/eds/generic_pedal.eds") << demo_files::kPedalEds;
   std::ofstream(dir / "subdevices/eds/button_cluster.eds") << demo_files::kClusterEds;
@@ -174,8 +174,9 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   bool done = false;
   // The simulated cab: the devices of demo.yaml downstream, the gateway, a host upstream. Its
   // MCB-402 boards are wired as the file's button_bits say (a simulator is otherwise wired by the
-  // table's other reading, subdevices/README.md "Corners": a board is wired as it is, the file
-  // must say so).
+  // table's other reading,
+  // docs/design/device-documents.md#corners-every-reading-a-document-permits: a board is wired as
+  // it is, the file must say so).
   CabRigOptions rig_options{.store = dir / "upstream.store"};
   for (const auto& sc : cfg.subdevices)
     if (const auto bits = sc.options.get("button_bits"); sc.driver == "mcb402" && bits)

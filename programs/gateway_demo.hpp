@@ -11,7 +11,7 @@ struct GatewayDemoOptions {
   bool fast = false;      // simulated clock: deterministic, as fast as the machine goes
   bool publish = true;    // publish as demo.yaml says (DDS loopback, LCM ttl=0); commands come back
   // A folder made by scripts/make-dds-security.sh (--partition oegw-demo): DDS Security for the
-  // demo's participant with the set's gateway identity (README "Securing DDS"); "" = none.
+  // demo's participant with the set's gateway identity (docs/guides/secure-dds.md); "" = none.
   std::string dds_security;
 };
 // The embedded demo: gateway + simulated cab devices + a built-in host, on the virtual bus.

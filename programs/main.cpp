@@ -108,7 +108,8 @@ int main(int argc, char** argv) {
                           "A driver option key=value, as in the mapping file (e.g. detent=clamp); repeatable");
   signals_cmd->add_option("--eds", signals.eds, "cia401: the EDS file whose signals to list");
   signals_cmd->add_flag("--markdown", signals.markdown, "Markdown tables, as in subdevices/README.md");
-  // Commissioning an MCB-402: its button wiring read off the board (subdevices/README.md).
+  // Commissioning an MCB-402: its button wiring read off the board
+  // (docs/design/device-documents.md#mcb-402-button-bits-a-required-commissioning-choice).
   bool find_button_bits = false;
   oegw::gateway::FindButtonBitsOptions find_bits;
   signals_cmd->add_flag("--find-button-bits", find_button_bits,

@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 64;  // as oegw: a usage error is 64 (README "Exit codes")
+    return app.exit(e) == 0 ? 0 : 64;  // as oegw: a usage error is 64 (docs/reference/exit-codes.md)
   }
   spdlog::set_pattern("%^%l%$: %v");
   return oegw::gateway::run_sim(o);

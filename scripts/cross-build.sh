@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Cross-builds oegw for a cab controller and runs its tests under qemu-user (README "Building for
-# the cab controller").
+# Cross-builds oegw for a cab controller and runs its tests under qemu-user
+# (docs/guides/build-and-package.md#building-for-the-cab-controller).
 #
 #   scripts/cross-build.sh [options] arm64|armhf|all
 #

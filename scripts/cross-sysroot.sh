@@ -3,7 +3,8 @@
 # Debian 12 library packages, unpacked by mmdebstrap --variant=extract (no maintainer script runs,
 # so no emulation is needed and it takes seconds). A sysroot rather than multiarch packages on
 # this machine: liblcm-dev, liblcm1 and libyaml-cpp-dev are not Multi-Arch: same, so their arm64
-# and amd64 versions cannot be installed side by side. README "Building for the cab controller".
+# and amd64 versions cannot be installed side by side.
+# docs/guides/build-and-package.md#building-for-the-cab-controller.
 #
 #   scripts/cross-sysroot.sh arm64|armhf    prints the sysroot's path (last line)
 #
@@ -30,7 +31,7 @@ root=$cache/sysroot-$arch
 
 # The target's -dev packages of scripts/install-deps.sh (the build's libraries and the test tiers'
 # gtest/gmock/benchmark), with the C and C++ runtimes the cross compilers link against. Why each
-# library is there: README "Dependencies".
+# library is there: docs/developer/dependencies.md.
 PACKAGES=(
   libc6-dev libstdc++-12-dev
   libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libsocketcan-dev nlohmann-json3-dev

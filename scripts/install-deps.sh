@@ -3,7 +3,7 @@
 # machine lacks. Idempotent: with everything present it only checks (dpkg -s) and exits.
 # --tests (scripts/test-all.sh, command 2) also installs what only the test tiers need beyond
 # that: chromium, which loads `oegw replay --plot`'s page headless.
-# Why each package is there: see README.md, "Dependencies".
+# Why each package is there: see docs/developer/dependencies.md.
 set -euo pipefail
 
 PACKAGES=(
@@ -13,7 +13,7 @@ PACKAGES=(
   libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libsocketcan-dev
   # the control socket's JSON (oegw status)
   nlohmann-json3-dev
-  # Chart.js 3.9, inlined into the page `oegw replay --plot` writes (README "Recording and replay")
+  # Chart.js 3.9, inlined into the page `oegw replay --plot` writes (docs/guides/black-box.md)
   libjs-chart.js
   # test tiers
   libgtest-dev libgmock-dev libbenchmark-dev clang

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Builds the Debian package oegw_<version>_<arch>.deb (README "Deploying on a cab controller",
-# "Installing"): the programs stripped (no debug information), /etc/oegw/oegw.yaml a conffile,
-# Depends from dpkg-shlibdeps.
+# Builds the Debian package oegw_<version>_<arch>.deb 
+# (docs/guides/build-and-package.md#building-the-debian-package): the programs stripped (no debug
+# information), /etc/oegw/oegw.yaml a conffile, Depends from dpkg-shlibdeps.
 #
 #   scripts/package.sh                 a release build of its own in build-pkg (-O2, no tests;
 #                                      OEGW_PKG_BUILD_DIR overrides the folder), then the package

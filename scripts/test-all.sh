@@ -73,6 +73,6 @@ cat "$BUILD/tests/vm/vm_latency.out/figures.txt" 2>/dev/null || echo "(no figure
 
 # The cab controller's processors: the unit and integration tests cross-built for arm64 and armhf
 # and run under qemu-user, and each architecture's Debian package with its Depends checked
-# (README "Building for the cab controller"; build-arm64, build-armhf, the sysroots cached in
-# /var/cache/oegw-cross).
+# (docs/guides/build-and-package.md#building-for-the-cab-controller; build-arm64, build-armhf, the
+# sysroots cached in /var/cache/oegw-cross).
 ./scripts/cross-build.sh all

@@ -1,6 +1,6 @@
 // The downstream bus scan of `oegw scan`, sans I/O like every service of the
-// protocol core: frames and time in, frames out (canopen/README.md), so that a test drives it on
-// a simulated clock and `oegw scan` on a SocketCAN interface.
+// protocol core: frames and time in, frames out (docs/design/protocol-core.md), so that a test
+// drives it on a simulated clock and `oegw scan` on a SocketCAN interface.
 //
 // What it does, from start():
 //  * listens the whole time for boot-ups and heartbeats (700h + node-ID, CiA 301 §7.2.8.3.2):

@@ -157,7 +157,7 @@ class Driver {
   void begin_outputs() { ++output_batch_; }
   void end_outputs(TimePoint now);
 
-  // Freshness of the values (README "Fault policy: proof of life, deadlines, evidence"). A signal carried by a TPDO the device
+  // Freshness of the values (docs/design/fault-policy.md). A signal carried by a TPDO the device
   // sends periodically (event timer T, transmission type 254/255, CiA 301 §7.5.2.35) is Stale
   // once kMissedPeriods × T pass without that PDO: the node may still send its heartbeat, but
   // the value is no longer evidence. The mapping file's pdo_timeout_ms replaces the derived
@@ -169,7 +169,7 @@ class Driver {
   // there replace the driver's defaults.
   void apply_boot_writes(const std::vector<SdoWrite>& writes);
   void set_pdo_timeout(Duration timeout);  // 0: the deadlines derived from the event timers
-  // The floor of a derived deadline (README "Fault policy"): kMissedPeriods × T, or the SYNC
+  // The floor of a derived deadline (docs/design/fault-policy.md): kMissedPeriods × T, or the SYNC
   // product, is raised to at least this, so that a controller whose scheduling stalls for less
   // than the floor minus one period (a loaded cab controller, a TCG guest: ~130 ms seen) raises
   // no stale fault, while a device whose PDOs stop is still caught within the floor. Each family
@@ -204,13 +204,13 @@ class Driver {
   [[nodiscard]] bool all_stale() const;
   [[nodiscard]] std::optional<TimePoint> next_deadline() const;
 
-  // Faults (README "Faults: what sets them, what clears them"). The device's own reports of an
-  // error (an EMCY, or its error state read back at boot) fault signals: a faulted input is
-  // Error with its neutral value whatever its PDOs carry (an output keeps its value, status
-  // Error), until the driver clears the fault on the device's evidence — its documented clear
-  // code, or its error state read back at every (re)start (boot_reads()). Going offline and
-  // coming back change nothing (Offline shows meanwhile): only evidence does. The gateway
-  // holds no fault state of its own besides this (gateway/gateway.hpp).
+  // Faults (docs/design/device-documents.md#faults-what-sets-them-what-clears-them). The device's
+  // own reports of an error (an EMCY, or its error state read back at boot) fault signals: a
+  // faulted input is Error with its neutral value whatever its PDOs carry (an output keeps its
+  // value, status Error), until the driver clears the fault on the device's evidence — its
+  // documented clear code, or its error state read back at every (re)start (boot_reads()). Going
+  // offline and coming back change nothing (Offline shows meanwhile): only evidence does. The
+  // gateway holds no fault state of its own besides this (gateway/gateway.hpp).
   [[nodiscard]] bool faulted(std::size_t index) const { return index < faults_.size() && faults_[index]; }
   [[nodiscard]] bool any_fault() const { return fault_count_ != 0; }
   // The node booted on its own or answered NMT reset node (its error state is that of a fresh
@@ -333,7 +333,8 @@ struct DriverOptions {
   [[nodiscard]] std::optional<std::string> get(std::string_view key) const;
 };
 // The options that name a file (cia401 `eds`): the mapping loader takes a relative one from the
-// mapping file's folder (mapping/README.md "Paths"), so a driver always sees the path to open.
+// mapping file's folder (docs/reference/mapping-file.md#paths), so a driver always sees the path to
+// open.
 [[nodiscard]] constexpr bool is_file_option(std::string_view key) { return key == "eds"; }
 std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink,
                                     const DriverOptions& options, std::string& error);

@@ -82,7 +82,7 @@ struct DriverInfo {
 // "elobau-mfg, mcb402, novotechnik-406, cia401"
 [[nodiscard]] std::string driver_names();
 
-// The option every family lists for Driver::set_freshness_floor (README "Fault policy": the
+// The option every family lists for Driver::set_freshness_floor (docs/design/fault-policy.md: the
 // floor of the derived freshness deadlines), `default_ms` the family's default. Each factory
 // applies it with apply_freshness_floor().
 [[nodiscard]] OptionSpec freshness_floor_option(std::string_view default_ms);

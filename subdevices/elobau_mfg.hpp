@@ -84,7 +84,8 @@
 // TPDOs (Table 14 18xxh:02 = 254, "transmission event is manufacturer specific, i.e. event
 // timer"): a grip may send them on change and on its timer, or on its timer only. Both work; on
 // the timer alone a change reaches the gateway up to cycle_ms late and a press shorter than
-// cycle_ms may not be seen: such a grip wants a short cycle_ms (subdevices/README.md "elobau").
+// cycle_ms may not be seen: such a grip wants a short cycle_ms
+// (docs/design/device-documents.md#elobau-mfg-elobau-mfg-document-000-12).
 //
 // Outputs: set_output(leds[i]) sends RPDO #0 carrying the whole remembered LED state (LEDs never
 // commanded as 11 "no change", spare positions 11). The device applies the last command it got

@@ -27,8 +27,9 @@
 //     extracted table is damaged (7 entries under 8 columns, BP6/BP7 in unexpected order; read
 //     as written: bit 7 = BP6, bit 6 = BP7, bits 5..1 = BP5..BP1, bit 0 unused). The driver
 //     therefore has no bit order of its own: the option `button_bits` is required, a
-//     commissioning choice the integrator reads off the board (subdevices/README.md "MCB-402
-//     button bits": press BP1..BP7 one at a time, note the bit of byte 2 of TPDO1 that is set).
+//     commissioning choice the integrator reads off the board
+//     (docs/design/device-documents.md#mcb-402-button-bits-a-required-commissioning-choice: press
+//     BP1..BP7 one at a time, note the bit of byte 2 of TPDO1 that is set).
 //   TPDO2 0x280+id, 8 bytes: X, Y, Z, T as INTEGER16 little endian ("the word for X axis is
 //     0xbbaa"); 2.5 V = 0x0000, 5 V = 0x7FFF, 0 V = 0x8000 [MCB §4].
 //   RPDO1 0x200+id, 1 byte: 6200h:01, bits 0..3 = OUT0..OUT3 ([CO4013 "Operation mode 4"]); the
@@ -49,7 +50,7 @@
 //     the document's 8100h CAN error warning (also sent at every power-on, [MCB §4] "083 00 81 11
 //     0"), 8130h life guarding ("30 81 11"), 8140h return from bus off ("40 81 11"), and any
 //     other 81xxh a CO4013 may send (8110h overrun, 8120h error passive): as the elobau and CiA 401
-//     drivers treat them (subdevices/README.md "81xxh").
+//     drivers treat them (docs/design/device-documents.md#faults-what-sets-them-what-clears-them).
 //   Any other code: counted (unknown_emcy) and, being an error the document does not explain,
 //     faults every input until 0000h or a 1001h read-back showing no error but communication.
 //

@@ -16,7 +16,7 @@ namespace oegw::subdevices {
 using canopen::Duration;
 using canopen::TimePoint;
 
-// Every input carries one of these (README "Fault policy").
+// Every input carries one of these (docs/design/fault-policy.md).
 enum class SignalStatus : std::uint8_t {
   Valid,         // a fresh value the device vouches for
   Error,         // the device reported an error for this signal (error code, EMCY, mismatch)

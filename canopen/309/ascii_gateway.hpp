@@ -13,12 +13,12 @@
 //    lo> <impl hi>.<impl lo>", and an unsigned value printed as 0x with two digits per byte
 //    (its example "[5] 0x00000360" for 1018h:01 u32).
 //  * CANopenNode's CO_gateway_ascii.h ("CiA 309-3 DS v3.0.0"): the index and sub-index as two
-//    tokens (`r[ead] <index> <subindex> <datatype>`, which the issue asks for; lely's
-//    multiplexer form is not taken), '#' comments, and the internal error codes (100 request not
-//    supported, 101 syntax error, 102 internal state, 103 time-out, 104 no default net, 105 no
+//    tokens (`r[ead] <index> <subindex> <datatype>`, the form `oegw ctl` is required to take;
+//    lely's multiplexer form is not taken), '#' comments, and the internal error codes (100 request
+//    not supported, 101 syntax error, 102 internal state, 103 time-out, 104 no default net, 105 no
 //    default node, 106 unsupported net, 107 unsupported node).
 // Where the two differ (lely prints "ERROR: 06020000 (...)", CANopenNode "ERROR:0x06020000 #..."),
-// lely's form is taken: the issue names coctl.
+// lely's form is taken: `oegw ctl` is required to answer as coctl does.
 //
 // Choices of this project: the sequence "[n]" may be left out (the caller numbers the command
 // then); r/w need a node 1..127, NMT commands a node 1..127 (0, "all nodes", is not supported:

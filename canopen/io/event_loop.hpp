@@ -17,7 +17,7 @@
 // slice per wake-up, after that wake-up's descriptors, timers and posted callbacks, and while a
 // slice waits the next epoll_wait does not block. So a descriptor that becomes ready while
 // slices queue up (a CAN socket) is served after at most one slice, whatever the backlog of
-// slices (README "CAN first").
+// slices (docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses).
 //
 // Driving a "sans I/O" CANopen service:
 //

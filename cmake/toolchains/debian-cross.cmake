@@ -6,7 +6,7 @@
 #   OEGW_CROSS_PROCESSOR CMAKE_SYSTEM_PROCESSOR
 #   OEGW_CROSS_QEMU      qemu-user program that runs the target's binaries here (qemu-user-static)
 # The sysroot: -DOEGW_SYSROOT=..., else $OEGW_SYSROOT, else /var/cache/oegw-cross/sysroot-<arch>.
-# README "Building for the cab controller".
+# docs/guides/build-and-package.md#building-for-the-cab-controller.
 set(CMAKE_SYSTEM_NAME Linux)
 set(CMAKE_SYSTEM_PROCESSOR ${OEGW_CROSS_PROCESSOR})
 

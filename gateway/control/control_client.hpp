@@ -1,4 +1,4 @@
-// The client side of the control socket (gateway/control/PROTOCOL.md): one request line, one
+// The client side of the control socket (docs/reference/control-protocol.md): one request line, one
 // answer line, within a time-out. Used by `oegw status` (and later `oegw ctl`).
 #pragma once
 

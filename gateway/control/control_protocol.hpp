@@ -1,4 +1,4 @@
-// The control socket's protocol (gateway/control/PROTOCOL.md): one request per line, a JSON
+// The control socket's protocol (docs/reference/control-protocol.md): one request per line, a JSON
 // object {"command": "status"} (optionally "protocol": 1), one JSON line in answer, in order, on
 // a connection that may carry several. Every answer has "protocol" and "ok"; a refusal has
 // "error": {"code", "message"}. New commands (`oegw ctl`'s) are added by name; a

@@ -1,4 +1,4 @@
-// The local control socket of `oegw run` (gateway/control/PROTOCOL.md): a Unix stream socket
+// The local control socket of `oegw run` (docs/reference/control-protocol.md): a Unix stream socket
 // (AF_UNIX only: nothing on a network), served from the gateway's event loop without ever
 // blocking it.
 //  * The socket file: mode 0600 (its owner, root), or 0660 with the configured group (chown);
@@ -16,18 +16,19 @@
 //    write permission on it); this is the second, for a mode widened by hand, an fd passed on,
 //    a folder of the wrong owner.
 //  * Bounds (ControlLimits), so that no client can hold a CAN frame back or grow the daemon
-//    (README "CAN first"). Requests are handled in the event loop's deferred slices
-//    (EventLoop::defer): one request per slice, the clients in turn, so a bus frame waits for at
-//    most one request's work. A client's socket is read at most once per wake-up and only while
-//    its unread requests fit in max_request + 1 bytes and its answers not taken stay below
-//    max_unsent: what it sends beyond stays in the kernel's socket buffer. A request line longer
-//    than max_request gets an error answer, then the connection is closed. At most max_clients
-//    connections are served; more wait in the listen queue (the kernel's, SOMAXCONN deep; one is
-//    accepted per wake-up) until a slot frees, and while one waits, a client that holds a slot
-//    without a request in progress (the one idle the longest) is closed to make room: a slow
-//    client cannot keep `oegw status` out. Deadlines: idle_timeout from the last complete
-//    request (or the connect; bytes that complete none do not count), write_timeout for the
-//    oldest answer the client has not taken. Reads and writes never block.
+//    (docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses). Requests are
+//    handled in the event loop's deferred slices (EventLoop::defer): one request per slice, the
+//    clients in turn, so a bus frame waits for at most one request's work. A client's socket is
+//    read at most once per wake-up and only while its unread requests fit in max_request + 1 bytes
+//    and its answers not taken stay below max_unsent: what it sends beyond stays in the kernel's
+//    socket buffer. A request line longer than max_request gets an error answer, then the
+//    connection is closed. At most max_clients connections are served; more wait in the listen
+//    queue (the kernel's, SOMAXCONN deep; one is accepted per wake-up) until a slot frees, and
+//    while one waits, a client that holds a slot without a request in progress (the one idle the
+//    longest) is closed to make room: a slow client cannot keep `oegw status` out. Deadlines:
+//    idle_timeout from the last complete request (or the connect; bytes that complete none do not
+//    count), write_timeout for the oldest answer the client has not taken. Reads and writes never
+//    block.
 #pragma once
 
 #include <sys/types.h>

@@ -35,7 +35,8 @@ const char* nmt_service(Command c) {
   }
 }
 
-// The control request of a CiA 309-3 LSS command (PROTOCOL.md "`oegw ctl`'s commands": lss).
+// The control request of a CiA 309-3 LSS command
+// (docs/reference/control-protocol.md#oegw-ctls-commands: lss).
 json lss_request(const ascii::Request& r) {
   json j{{"command", "lss"}, {"network", r.network}};
   switch (r.command) {
@@ -265,7 +266,8 @@ namespace {
 
 // The minimal history of an interactive session: `history` lists it, `!!` runs the last line
 // again, `!N` line N. Not GNU readline (GPL-3, while oegw is Apache-2.0) and not libedit (its
-// development package is no build dependency of oegw): README "oegw ctl" says so.
+// development package is no build dependency of oegw):
+// docs/guides/commission.md#commissioning-oegw-ctl says so.
 class History {
  public:
   // The line to run for `in` (itself, or the line a `!` names); false with `error` set when a

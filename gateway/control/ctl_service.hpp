@@ -1,6 +1,7 @@
-// The control socket's commands for `oegw ctl` (PROTOCOL.md "`oegw ctl`'s commands"):
-// SDO reads and writes, NMT, the gateway's identity and the event lines, on the running Gateway.
-// The CiA 309-3 text is the client's (canopen/309/ascii_gateway.hpp); here are its effects.
+// The control socket's commands for `oegw ctl`
+// (docs/reference/control-protocol.md#oegw-ctls-commands): SDO reads and writes, NMT, the gateway's
+// identity and the event lines, on the running Gateway. The CiA 309-3 text is the client's
+// (canopen/309/ascii_gateway.hpp); here are its effects.
 //
 //  * Networks are the mapping file's: upstream.network_id names the gateway's own dictionary
 //    (only the gateway's node-ID is reached there), downstream.network_id the sub-devices.

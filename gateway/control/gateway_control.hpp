@@ -1,7 +1,7 @@
-// The control socket of `oegw run` (PROTOCOL.md): the server on the gateway's event loop and the
-// commands it answers on the running Gateway: `status` (`oegw status`) and `oegw ctl`'s
-// (sdo_read, sdo_write, nmt, info, events: gateway/control/ctl_service.hpp) and `oegw scan`'s
-// (scan: gateway/control/scan_service.hpp).
+// The control socket of `oegw run` (docs/reference/control-protocol.md): the server on the
+// gateway's event loop and the commands it answers on the running Gateway: `status` (`oegw status`)
+// and `oegw ctl`'s (sdo_read, sdo_write, nmt, info, events: gateway/control/ctl_service.hpp) and
+// `oegw scan`'s (scan: gateway/control/scan_service.hpp).
 #pragma once
 
 #include <functional>

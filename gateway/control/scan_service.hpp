@@ -10,11 +10,11 @@
 //    manager's master (NetworkManager::client_lss), the one `oegw ctl` uses: the gateway's own
 //    commissioning comes first (then LSS is skipped, and said so), and a fastscan it interrupts
 //    ends without an address.
-//  * Requests (PROTOCOL.md "scan"): {"command": "scan", "action": "start", settings...} answers
-//    {"scan": {"id": N}} at once, or refuses (CiA 309-3 error 102) while a scan runs;
-//    {"command": "scan", "action": "status", "id": N} answers its progress and, once done, its
-//    result with the gateway's interfaces for the draft. The last result is kept until the next
-//    start; a status of another id is refused, naming the current one.
+//  * Requests (docs/reference/control-protocol.md#scan): {"command": "scan", "action": "start",
+//    settings...} answers {"scan": {"id": N}} at once, or refuses (CiA 309-3 error 102) while a
+//    scan runs; {"command": "scan", "action": "status", "id": N} answers its progress and, once
+//    done, its result with the gateway's interfaces for the draft. The last result is kept until
+//    the next start; a status of another id is refused, naming the current one.
 #pragma once
 
 #include <cstdint>

@@ -151,8 +151,8 @@ std::string status_table(const json& st) {
   out += fmt::format("downstream: {}, network {}, PDOs of unknown nodes {}, EMCYs of unknown nodes {}\n",
                      down["interface"].get<std::string>(), down["network_id"].get<int>(),
                      dc["unknown_pdo"].get<std::uint64_t>(), dc["unknown_emcy"].get<std::uint64_t>());
-  // Publishing (`oegw run` only): each transport up, or down with why (README "Publishing
-  // degrades, the gateway runs").
+  // Publishing (`oegw run` only): each transport up, or down with why
+  // (docs/guides/dds-lcm.md#publishing-degrades-the-gateway-runs).
   if (st.contains("publishing")) {
     std::string line;
     for (const auto& t : st["publishing"]) {

@@ -17,7 +17,7 @@ struct StatusOptions {
   double timeout_s = 2.0;
 };
 
-// Exit codes of `oegw status` (README "Asking the running gateway").
+// Exit codes of `oegw status` (docs/guides/install.md#asking-the-running-gateway-oegw-status).
 inline constexpr int kStatusOk = 0;
 inline constexpr int kStatusFailed = 1;         // a bad answer, an error answer, an unreadable --config
 inline constexpr int kStatusNoDaemon = 3;       // no socket, or nobody listening

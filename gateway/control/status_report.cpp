@@ -98,7 +98,7 @@ json upstream_json(const Gateway& gw, const mapping::Config& c, canopen::TimePoi
   if (!gw.faults().empty()) active.push_back(OeDevice::kEmcyAdditionalModules);
   if (gw.reloading()) active.push_back(Gateway::kEmcyReload);
   // SDO server channels a network indication redirected to a sub-device: a client on one
-  // reaches the sub-device, not the gateway (README "Reaching sub-devices from the host").
+  // reaches the sub-device, not the gateway (docs/guides/remote-sdo.md).
   json redirects = json::array();
   for (const auto& r : gw.sdo_redirects()) {
     json request = json::array();

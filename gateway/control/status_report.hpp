@@ -1,4 +1,4 @@
-// The answer to the control socket's `status` command (gateway/control/PROTOCOL.md, "status"):
+// The answer to the control socket's `status` command (docs/reference/control-protocol.md#status):
 // what the running gateway sees, built only from the Gateway's public API, so that a test drives
 // a Gateway on the virtual bus and reads the same report `oegw status` prints.
 #pragma once
@@ -25,11 +25,13 @@ struct StatusContext {
 };
 
 // The `status` object: upstream, downstream, subdevices, functional_elements, commands
-// (PROTOCOL.md lists every field). `config` is the mapping file the gateway runs.
+// (docs/reference/control-protocol.md#status lists every field). `config` is the mapping file the
+// gateway runs.
 [[nodiscard]] nlohmann::json status_report(const Gateway& gw, const mapping::Config& config, const StatusContext& at);
 
-// The `publishing` array of `oegw run`'s status (PROTOCOL.md): each transport the mapping file
-// enables, up, or down with why and when it is tried again; empty with publishing off.
+// The `publishing` array of `oegw run`'s status (docs/reference/control-protocol.md#status): each
+// transport the mapping file enables, up, or down with why and when it is tried again; empty with
+// publishing off.
 [[nodiscard]] nlohmann::json publishing_status(const std::vector<TransportState>& transports);
 
 // A sub-device's state in one word: "operational", "faulty" (operational, but the fault

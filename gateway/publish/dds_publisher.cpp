@@ -20,8 +20,8 @@ std::string dds_config_xml(const std::string& network, const std::optional<DdsSe
   if (network.empty()) return {};
   const std::string sec = security ? dds_security_xml(*security) : "";
   if (network == "loopback") {
-    // Test and demo traffic stays on this host (README "Network"): checked to send nothing on eth0
-    // (tests/publish/demo_stays_on_host.sh).
+    // Test and demo traffic stays on this host (docs/guides/dds-lcm.md#network): checked to send
+    // nothing on eth0 (tests/publish/demo_stays_on_host.sh).
     return "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"lo\"/></Interfaces>"
            "<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex>"
            "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery>" +
@@ -270,9 +270,10 @@ bool take_one(dds_entity_t reader, Use&& use) {
 }  // namespace
 
 void DdsPublisher::poll() {
-  // One command per call (README "CAN first"): a command taken signals the eventfd again, so
-  // the loop comes back for the next one after the buses had their turn. The two topics take
-  // turns.
+  // One command per call
+  // (docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses): a command taken
+  // signals the eventfd again, so the loop comes back for the next one after the buses had their
+  // turn. The two topics take turns.
   std::uint64_t n = 0;
   [[maybe_unused]] auto r = ::read(impl_->event_fd, &n, sizeof n);  // EAGAIN: nothing signalled; take anyway
   const auto indicators = [this] {

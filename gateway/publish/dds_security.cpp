@@ -51,9 +51,9 @@ std::string unreadable(const std::string& path) {
   return "";
 }
 
-// Why a private key's mode is too open, or "": SECURITY.md asks 0600 — readable by its owner
-// (the daemon's user) only. Any group or other bit refuses it, as ssh refuses such a key: whoever
-// reads the key is the gateway to every DDS peer until its certificate is revoked.
+// Why a private key's mode is too open, or "": docs/design/threat-model.md asks 0600 — readable by
+// its owner (the daemon's user) only. Any group or other bit refuses it, as ssh refuses such a key:
+// whoever reads the key is the gateway to every DDS peer until its certificate is revoked.
 std::string key_mode_problem(const std::string& path) {
   struct stat st{};
   if (::stat(path.c_str(), &st) != 0) return "";  // unreadable() has said why

@@ -1,6 +1,6 @@
 // DDS Security (OMG DDS Security 1.1) for the gateway's participant: the six files of
 // publish.dds.security, checked with OpenSSL before Cyclone DDS is given them, and the
-// <Security> part of the domain's configuration that names them (README "Securing DDS").
+// <Security> part of the domain's configuration that names them (docs/guides/secure-dds.md).
 //
 // Why check them here when Cyclone's builtin plugins check them too: Cyclone says what is wrong
 // only in its log and returns "Error" for the participant, without naming the file; a cab's

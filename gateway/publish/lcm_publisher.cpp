@@ -205,8 +205,10 @@ void LcmPublisher::publish(const GatewayStatus& s) {
 int LcmPublisher::fd() const { return lcm_get_fileno(impl_->lcm); }
 
 void LcmPublisher::poll() {
-  // One message per call (README "CAN first"): liblcm's notify pipe stays readable while more
-  // wait (lcm_udpm.c writes it again), so the loop comes back after the buses had their turn.
+  // One message per call
+  // (docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses): liblcm's notify
+  // pipe stays readable while more wait (lcm_udpm.c writes it again), so the loop comes back after
+  // the buses had their turn.
   (void)lcm_handle_timeout(impl_->lcm, 0);
 }
 

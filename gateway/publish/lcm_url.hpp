@@ -34,7 +34,8 @@ struct LinkLocalSend {
 // announces that by IGMP, RFC 3376 §5, inviting senders of the network); tcpq:// to a host other
 // than the loopback (127.0.0.0/8, localhost); memq:// (in the process) and file:// (a log) do
 // not. Anything else is not known to stay here. What it does not cover: 224.0.0.1:7667 is
-// received on every interface, ttl=0 or not (a firewall closes that; SECURITY.md).
+// received on every interface, ttl=0 or not (a firewall closes that;
+// docs/design/threat-model.md).
 [[nodiscard]] std::optional<std::string> lcm_reaches_beyond_host(std::string_view url);
 
 // An IPv4 address in the forms inet_aton(3) accepts (liblcm parses the group with it): "a.b.c.d",

@@ -1,5 +1,5 @@
 // Why a publishing transport (DDS, LCM) cannot be opened: the configuration, or the machine as
-// it is now (README "Publishing degrades, the gateway runs").
+// it is now (docs/guides/dds-lcm.md#publishing-degrades-the-gateway-runs).
 #pragma once
 
 #include <stdexcept>

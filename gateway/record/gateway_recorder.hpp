@@ -1,10 +1,10 @@
-// The black box's view of one Gateway (README "Recording and replay"): the Gateway's tap
+// The black box's view of one Gateway (docs/guides/black-box.md): the Gateway's tap
 // (gateway/gateway_tap.hpp) turned into records — every frame in and out, and one line of text
 // per other input and per decision — for a RecordSink: the recorder's files in `oegw run`, the
 // comparison in `oegw replay`. Both use this one class, so a replay that makes the same
 // decisions writes the same lines.
 //
-// The event lines (README "Recording and replay", "The .events lines"):
+// The event lines (docs/guides/black-box.md#the-files):
 //   inputs   start | tick | bus up|down EVENT | indicators N BITS SOURCE |
 //            display N P1,..,P12 SOURCE | subdevice_command NAME COMMAND | nmt NODE CS |
 //            control WHAT

@@ -1,4 +1,4 @@
-// `oegw replay … --plot FILE.html|FILE.svg` (README "Recording and replay", "Pictures"): the
+// `oegw replay … --plot FILE.html|FILE.svg` (docs/guides/black-box.md#pictures): the
 // replayed timeline — each FE's fields over time with its fault and stale bands, EMCY markers,
 // the sub-devices' node states, the commands. The page is drawn by Chart.js 3.9 (Debian's
 // libjs-chart.js), whose script is put into the page itself: it opens without a network and

@@ -1,4 +1,4 @@
-// The black box's files (README "Recording and replay" documents both formats line by line).
+// The black box's files (docs/guides/black-box.md documents both formats line by line).
 //
 // A segment is two files written side by side:
 //  * `<run>-<seq>.log`: every CAN frame the gateway received or sent, in candump's log format

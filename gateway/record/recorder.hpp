@@ -1,4 +1,4 @@
-// The black box's writer (README "Recording and replay"): a ring of segment files in one
+// The black box's writer (docs/guides/black-box.md): a ring of segment files in one
 // folder, written by a thread of its own, so that the event loop never waits for a disk.
 //
 //  * The loop hands over records (frames with their time and direction, event lines) into a

@@ -1,4 +1,4 @@
-// Reading a black-box recording back (README "Recording and replay"): a recording folder (the
+// Reading a black-box recording back (docs/guides/black-box.md): a recording folder (the
 // ring, or a kept window: segments of one or more runs of `oegw run`), one segment's file, or a
 // plain candump log (`oegw demo --frames`, `candump -l`: frames only, no decisions).
 //

@@ -1,4 +1,4 @@
-// The black box in `oegw run` (README "Recording and replay"): the mapping file's `record`
+// The black box in `oegw run` (docs/guides/black-box.md): the mapping file's `record`
 // section made into a Recorder (its writer thread) and a GatewayRecorder on the running Gateway;
 // the window kept on request (the control socket's `record_keep`, SIGUSR1); its state for
 // `oegw status`. A folder that cannot be used costs the recording, never the buses: the gateway
@@ -41,7 +41,8 @@ class RecordingService {
   // Keeps the window now; `done(kept folder or empty, error)` on the loop once the links exist.
   using Done = std::function<void(const std::string& folder, std::size_t segments, const std::string& error)>;
   void keep(Done done);
-  // The `record` object of `oegw status` (gateway/control/PROTOCOL.md).
+  // The `record` object of `oegw status`
+  // (docs/reference/control-protocol.md#record_keep-and-the-record-object-of-status).
   [[nodiscard]] nlohmann::json status() const;
   // One line for the log at a keep asked by a signal.
   void keep_logged(const std::string& why);

@@ -30,7 +30,7 @@ bool is_input(std::string_view kind) {
 }
 bool is_skipped(std::string_view kind) { return kind == "segment" || kind == "meta"; }
 
-// A control request that changes nothing in the gateway (README "Recording and replay").
+// A control request that changes nothing in the gateway (docs/guides/black-box.md).
 bool read_only_control(std::string_view text) {
   const auto json_text = text.substr(text.find(' ') + 1);
   const auto j = nlohmann::json::parse(json_text, nullptr, false);

@@ -1,4 +1,4 @@
-// `oegw replay` (README "Recording and replay"): the gateway re-run on the simulated clock from a
+// `oegw replay` (docs/guides/black-box.md): the gateway re-run on the simulated clock from a
 // recording's inputs.
 //
 //  * Exact (a recording that holds its run's `start`): every input is fed to a new Gateway of the

@@ -1,4 +1,4 @@
-// `oegw replay` and `oegw record keep` (README "Recording and replay").
+// `oegw replay` and `oegw record keep` (docs/guides/black-box.md).
 #pragma once
 
 #include <string>

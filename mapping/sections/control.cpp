@@ -1,7 +1,8 @@
-// The `control` section: the local control socket of `oegw run` (gateway/control/PROTOCOL.md).
-// Only the form is checked here: whether the group exists, or the socket's folder, is a fact of
-// the machine, which `oegw check` and `oegw run` ask (mapping/deployment.cpp), naming the setting
-// at its file:line:column; the demo and the tests load files without them.
+// The `control` section: the local control socket of `oegw run`
+// (docs/reference/control-protocol.md). Only the form is checked here: whether the group exists, or
+// the socket's folder, is a fact of the machine, which `oegw check` and `oegw run` ask
+// (mapping/deployment.cpp), naming the setting at its file:line:column; the demo and the tests load
+// files without them.
 #include "mapping/sections/sections.hpp"
 
 namespace oegw::mapping::sections {

@@ -1,6 +1,7 @@
-// The `record` section: the black box of `oegw run` (README "Recording and replay"; every key in
-// mapping/README.md "record"). Only the form is checked here; whether the folder can be made is
-// a fact of the machine, which `oegw check` asks (mapping/deployment.cpp).
+// The `record` section: the black box of `oegw run` (docs/guides/black-box.md; every key in
+// docs/reference/mapping-file.md#record-the-black-box-optional-off-unless-enabled). Only the form
+// is checked here; whether the folder can be made is a fact of the machine, which `oegw check` asks
+// (mapping/deployment.cpp).
 #include "mapping/sections/sections.hpp"
 
 namespace oegw::mapping::sections {

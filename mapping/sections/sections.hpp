@@ -1,7 +1,7 @@
-// The parsers of the mapping file's top-level sections (mapping/README.md documents each key).
-// Each reads its section through a YamlReader, which collects the errors, and fills its part of
-// the Config; load_config() (config.cpp) calls them in this order, since the functional elements
-// refer to the sub-devices.
+// The parsers of the mapping file's top-level sections (docs/reference/mapping-file.md documents
+// each key). Each reads its section through a YamlReader, which collects the errors, and fills its
+// part of the Config; load_config() (config.cpp) calls them in this order, since the functional
+// elements refer to the sub-devices.
 #pragma once
 
 #include "mapping/config.hpp"

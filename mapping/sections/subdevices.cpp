@@ -97,7 +97,8 @@ void read_options(YamlReader& r, const MapEntry& e, const std::string& what, Sub
                            "'; expected a single value or a list of single values");
       continue;
     }
-    // A file the driver opens is taken from the mapping file's folder (mapping/README.md "Paths").
+    // A file the driver opens is taken from the mapping file's folder
+    // (docs/reference/mapping-file.md#paths).
     s.options.values.emplace_back(x.name, subdevices::is_file_option(x.name) ? r.path(value) : value);
     s.option_where.emplace_back(x.name, r.loc(x.value));
   }

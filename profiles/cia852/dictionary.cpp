@@ -124,7 +124,7 @@ canopen::NodeConfig build_dictionary(const DeviceConfig& cfg, ObjectDictionary& 
   // 6200h byte takes its 6207h value on a device error (the MCB-402's CiA 401 implementation
   // documents the same, default FFh). Table 6 gives one mode per entry ("error mode 1-to-8"), and
   // 01h as a mask would leave indicators 2..8 of each byte lit when the host is lost; FFh is
-  // "error mode on" for all eight (README "CiA 852 decisions").
+  // "error mode on" for all eight (docs/design/cia852-decisions.md).
   add_sparse_array(od, kErrorModeOutput8, DataType::Unsigned8, Access::ReadWrite, ind, {0xFF}, false,
                    namer(kWriteOutput8));
   add_sparse_array(od, kErrorValueOutput8, DataType::Unsigned8, Access::ReadWrite, ind, {0x00}, false,

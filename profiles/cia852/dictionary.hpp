@@ -32,7 +32,7 @@
 //  * 1000h per Table 8 (device_type.hpp), 1016h (host heartbeat consumer, one entry) when an
 //    output FE exists (§8.3, Annex A), everything else of CiA 301 from canopen::Node.
 //  * PDOs of clause 12 (pdo_defaults.hpp): every mapping sub 0 is rw, every communication
-//    record's sub 0 const (Tables 10, 14, ...); README.md "CiA 852 decisions".
+//    record's sub 0 const (Tables 10, 14, ...); docs/design/cia852-decisions.md.
 #pragma once
 
 #include <cstdint>
@@ -61,7 +61,8 @@ inline constexpr canopen::lss::BitTimings kMandatoryBitTimings = (1u << 0) | (1u
 
 // The gateway's own manufacturer-specific object (CiA 301 2000h–5FFFh): a host's command to one
 // sub-device, UNSIGNED32 = command code << 8 | the sub-device's node-ID (gateway/gateway.hpp,
-// README "Commands to a sub-device"). Exists when DeviceConfig::subdevice_commands.
+// docs/guides/remote-sdo.md#commands-to-a-sub-device-3000h). Exists when
+// DeviceConfig::subdevice_commands.
 inline constexpr std::uint16_t kSubdeviceCommand = 0x3000;
 
 struct DeviceConfig {

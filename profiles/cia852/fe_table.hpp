@@ -4,7 +4,7 @@
 // from it; the mapping file names FE fields by it. Pure data, no I/O.
 //
 // Where clause 9's tables do not add up (Tables 5, 6, 7: push-button cluster 8, indicator cluster
-// 8, display sub-indices), one rule per kind is used: README.md "CiA 852 decisions".
+// 8, display sub-indices), one rule per kind is used: docs/design/cia852-decisions.md.
 #pragma once
 
 #include <cstdint>

@@ -89,7 +89,7 @@ std::vector<Layout> clause12_layouts(FeKind k) {
       break;
     case FeKind::Display:
       // §12.2.13/§12.2.14, Table 36: display 1 on RPDO 2, 4, 12; display d on RPDO 13+3(d−2) …
-      // 15+3(d−2); RPDO 34 does not exist (README "CiA 852 decisions").
+      // 15+3(d−2); RPDO 34 does not exist (docs/design/cia852-decisions.md).
       for (unsigned d = 1; d <= 8; ++d) {
         const unsigned numbers[3] = {d == 1 ? 2u : 13 + 3 * (d - 2), d == 1 ? 4u : 14 + 3 * (d - 2),
                                      d == 1 ? 12u : 15 + 3 * (d - 2)};

@@ -21,7 +21,7 @@
 // 8000 0000h (Tables 14, 18, 22, 26, 30, 34; §12.2.2) — the host assigns them.
 //
 // Where clause 12 is open or contradicts itself (PDO numbers and indexes, RPDO 34, the damaged
-// tables): README.md "CiA 852 decisions", one row per decision; pdo_eds_comments() gives the EDS
+// tables): docs/design/cia852-decisions.md, one row per decision; pdo_eds_comments() gives the EDS
 // its [Comments] line where a host built from the printed tables would differ.
 #pragma once
 
@@ -48,7 +48,7 @@ struct DefaultPdo {
 [[nodiscard]] std::vector<FeId> pdo_instances(const std::vector<FeId>& fes);
 
 // CiA 306 [Comments] lines for the EDS of a device with these FEs: one for each decision of
-// README "CiA 852 decisions" where a host built from clause 9/12's printed tables would expect
+// docs/design/cia852-decisions.md where a host built from clause 9/12's printed tables would expect
 // another index, sub-index or length than this device has, and one per supported kind naming
 // its instances that are not configured (their entries read 0 and never change).
 [[nodiscard]] std::vector<std::string> pdo_eds_comments(const std::vector<FeId>& fes);

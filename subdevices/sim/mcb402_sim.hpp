@@ -40,7 +40,8 @@
 // "40 81 11 ..." the same way.
 //
 // Corners (Mcb402SimConfig, oegw-sim options): wiring=, clear_after_break=0000h|none,
-// power_on_1001h=11h|00h (subdevices/README.md "Corners").
+// power_on_1001h=11h|00h
+// (docs/design/device-documents.md#corners-every-reading-a-document-permits).
 #pragma once
 
 #include <array>

@@ -61,7 +61,8 @@ struct Novotechnik406SimConfig {
   std::uint16_t bit_rate_kbit = 250;    // 2001h; CiA 305 table index 3
   std::uint16_t heartbeat_ms = 0;       // 1017h default: disabled
   std::filesystem::path store_path;     // empty: 1010h/1011h refuse, LSS store answers error 2
-  // Corners (subdevices/README.md "Corners"; oegw-sim options in parentheses):
+  // Corners (docs/design/device-documents.md#corners-every-reading-a-document-permits; oegw-sim
+  // options in parentheses):
   std::uint8_t error_register_bytes = 1;  // 1001h 1 byte, CiA 301 (error_register_size=1), or 2, §4.1
   std::uint8_t emcy_behaviour = 0;        // 2104h at power-on, as stored (emcy_behaviour=0..3)
   bool has_6020h = true;                  // 6020h:01 present (has_6020h=yes|no)

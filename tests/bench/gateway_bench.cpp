@@ -1,4 +1,4 @@
-// The gateway's hot path (targets: tests/bench/README.md): a downstream PDO received → the
+// The gateway's hot path (targets: docs/developer/benchmarks.md): a downstream PDO received → the
 // upstream TPDO queued. The Gateway is built from YAML text, booted for real against the
 // simulators on a virtual bus under a simulated clock and configured by a host controller
 // (gateway_rig.hpp); then it is cut from the buses and fed elobau TPDO #0 frames (181h-based,

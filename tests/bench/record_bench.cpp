@@ -1,4 +1,4 @@
-// The black box's costs (README "Recording and replay", figures in README "Performance"):
+// The black box's costs (docs/guides/black-box.md, figures in docs/developer/performance.md):
 //  * BM_RecordingCpu: CPU per translated frame at 8,000 frames/s (a 1 Mbit/s bus at its most),
 //    recording off and on: the process's CPU time (every thread: the writer's too, getrusage)
 //    over the frames fed, paced in bursts of 8 each millisecond, as the event loop sees a busy

@@ -1,4 +1,4 @@
-// Remote SDO through the gateway (issue target: p99 under 20 µs): what the gateway adds to a
+// Remote SDO through the gateway (the target: p99 under 20 µs): what the gateway adds to a
 // remote expedited upload. The gateway of gateway_rig.hpp (one elobau grip, node 11h) is booted
 // for real, the host names the grip with an SDO network indication on the default channel
 // (620h), then the gateway is cut from the buses and fed, per sample:

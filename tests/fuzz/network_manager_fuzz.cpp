@@ -122,7 +122,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const NodeId node{kNodes[i]};
     std::unique_ptr<subdevices::Driver> d;
     if (i == 0) d = subdevices::make_elobau_mfg_driver(node, sink, {}, error);
-    if (i == 1)  // the bit order is a commissioning choice (subdevices/README.md, "MCB-402 button bits")
+    if (i == 1)  // the bit order is a commissioning choice (docs/guides/commission.md#commissioning-choices)
       d = subdevices::make_mcb402_driver(node, sink, subdevices::DriverOptions{{{"button_bits", "1,2,3,4,5,7,6"}}},
                                          error);
     if (i == 2) d = subdevices::make_novotechnik_406_driver(node, sink, {}, error);

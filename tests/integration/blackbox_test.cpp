@@ -1,4 +1,4 @@
-// The black box end to end (README "Recording and replay"): the simulated cab of the demo on the
+// The black box end to end (docs/guides/black-box.md): the simulated cab of the demo on the
 // virtual buses, its gateway recorded by the Recorder into real files through an incident —
 // the grip's cable pulled, an MCB-402 cable break (EMCY 3120h), the host's heartbeat lost, the
 // grip rebooted — then replayed from those files by a new gateway on the simulated clock.

@@ -1,8 +1,9 @@
-// The drivers at every corner of their documents (subdevices/README.md "Corners"): where a
-// device document is ambiguous, silent or self-contradictory, each reading it permits is a
-// simulator option, and the gateway must work against each (or refuse it at boot, saying how to
-// commission the device). One sub-device behind the gateway on the virtual buses with a simulated
-// clock (programs/cab_rig.hpp), the simulator at the corner under test.
+// The drivers at every corner of their documents
+// (docs/design/device-documents.md#corners-every-reading-a-document-permits): where a device
+// document is ambiguous, silent or self-contradictory, each reading it permits is a simulator
+// option, and the gateway must work against each (or refuse it at boot, saying how to commission
+// the device). One sub-device behind the gateway on the virtual buses with a simulated clock
+// (programs/cab_rig.hpp), the simulator at the corner under test.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -315,7 +316,8 @@ std::string grip_yaml(const std::string& options, const std::string& buttons = "
 
 // Table 14 18xxh:02 = 254 "transmission event is manufacturer specific, i.e. event timer": a grip
 // that sends only on its timer works; a change arrives within one cycle, and with cycle_ms 20
-// (the recommendation for such a grip, subdevices/README.md) within 20 ms.
+// (the recommendation for such a grip,
+// docs/design/device-documents.md#elobau-mfg-elobau-mfg-document-000-12) within 20 ms.
 TEST_F(Corners, ElobauGripSendingOnItsTimerOnlyWorks) {
   for (const auto& [cycle, bound] : {std::pair<std::string, Duration>{"100", 100ms}, std::pair<std::string, Duration>{"20", 20ms}}) {
     SCOPED_TRACE("cycle_ms " + cycle);

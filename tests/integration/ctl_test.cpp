@@ -221,7 +221,7 @@ TEST_F(Ctl, NmtAndTheBootUpEvent) {
   // The gateway boots it again (its reboot seen) and it is operational once more.
   EXPECT_EQ(rig_->gw().downstream().state("pedal"), sd::NodeState::Operational) << log_;
   // Stop of a sub-device in use is carried out, and the gateway sees it lost: its FEs at their
-  // fault values (README "Fault policy"), as with any NMT master's stop.
+  // fault values (docs/design/fault-policy.md), as with any NMT master's stop.
   EXPECT_EQ(run("[5] 2 17 stop"), "[5] OK");
   const Frames stop = frames_since({0x000});
   ASSERT_FALSE(stop.empty());

@@ -519,7 +519,8 @@ TEST_F(ElobauNeverSaved, ParameterChecksumErrorUntilFirstSave) {
   EXPECT_EQ(upload(0x4001, 0), encode<std::uint16_t>(0x0002));
   // §7: 5999h:03 "save" saves all parameters (incl. LSS); §8: restart the joystick afterwards.
   // Saved in pre-operational: the simulator refuses a store while operational (0800 0022h, the
-  // CiA 301 answer taken where the document is silent; subdevices/README.md).
+  // CiA 301 answer taken where the document is silent;
+  // docs/design/device-documents.md#boot-pre-operational-sync-identity-diagnostics-network_managerhpp).
   EXPECT_EQ(download(0x5999, 3, encode<std::uint32_t>(0x65766173)), SdoAbortCode::None);
   EXPECT_TRUE(std::filesystem::exists(dir() / "params.txt"));
   drv_->on_offline(net_.now());

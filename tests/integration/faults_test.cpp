@@ -1,8 +1,8 @@
 // The life of a sub-device fault on the virtual buses (programs/cab_rig.hpp, the demo cab of
 // tests/fixtures/demo_cab.yaml, a simulated clock), as each family's document says its device
-// behaves (subdevices/README.md "Faults"): what the device reports at power-on is no fault, a
-// fault is the driver's until the device's own evidence clears it, and the gateway holds none of
-// its own.
+// behaves (docs/design/device-documents.md#faults-what-sets-them-what-clears-them): what the device
+// reports at power-on is no fault, a fault is the driver's until the device's own evidence clears
+// it, and the gateway holds none of its own.
 #include <gtest/gtest.h>
 
 #include <map>

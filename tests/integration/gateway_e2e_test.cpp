@@ -282,7 +282,8 @@ class GatewayE2E : public ::testing::Test {
   TimePoint t0_{};
   // Options of the simulated devices by name, set before build(): the MCB-402 wired as
   // demo_cab.yaml's button_bits say (the document's table as printed; a simulator is otherwise
-  // wired by the table's other reading, subdevices/README.md "Corners").
+  // wired by the table's other reading,
+  // docs/design/device-documents.md#corners-every-reading-a-document-permits).
   std::map<std::string, sd::DriverOptions> sim_options_{{"left_grip", sd::DriverOptions{{{"wiring", "1/2/3/4/5/7/6"}}}}};
   std::filesystem::path store_;
   std::unique_ptr<gw::CabRig> rig_;  // the demo's harness (programs/cab_rig.hpp)
@@ -411,7 +412,9 @@ TEST_F(GatewayE2E, Mcb402ButtonsAsTheMappingFilesBitOrderWhenTheBoardIsWiredSo) 
 
 // A board wired otherwise (BP6 on bit 6, BP7 on bit 7) than the mapping file's choice: the
 // gateway reports the wrong button. Nothing on the bus can tell, which is why the bit order is a
-// commissioning step (README "MCB-402 button bits") and not a default.
+// commissioning step
+// (docs/design/device-documents.md#mcb-402-button-bits-a-required-commissioning-choice) and not a
+// default.
 TEST_F(GatewayE2E, Mcb402ButtonBitOrderOtherThanTheBoardsReportsTheWrongButton) {
   sim_options_["left_grip"] = sd::DriverOptions{{{"wiring", "1/2/3/4/5/6/7"}}};
   build();

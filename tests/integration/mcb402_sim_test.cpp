@@ -45,7 +45,8 @@ class Mcb402OnBus : public ::testing::Test {
     net_.attach("host", *host_);
     std::string error;
     // The bit order commissioned for this board: the simulator's default wiring (the table's
-    // right-end reading, subdevices/README.md "Corners"), given explicitly as a mapping file must.
+    // right-end reading, docs/design/device-documents.md#corners-every-reading-a-document-permits),
+    // given explicitly as a mapping file must.
     driver_ = oegw::subdevices::make_mcb402_driver(kNode, net_.sink("host"),
                                                    DriverOptions{{{"button_bits", "0,1,2,3,4,6,5"}}}, error);
     EXPECT_NE(driver_, nullptr) << error;

@@ -1,9 +1,10 @@
-// Publishing degrades, the gateway runs (README "Publishing degrades, the gateway runs";
-// gateway/publisher_link.hpp): a transport the machine cannot carry at start leaves the gateway
-// running, is reported and logged once, is opened again with back-off, and once it opens its
-// samples flow and its commands are taken — without a restart. The transports are fakes whose
-// factory fails as often as the test says, on a simulated clock (Attempts::Inline); one test
-// runs an attempt in its thread and shows the loop going on meanwhile.
+// Publishing degrades, the gateway runs
+// (docs/guides/dds-lcm.md#publishing-degrades-the-gateway-runs; gateway/publisher_link.hpp): a
+// transport the machine cannot carry at start leaves the gateway running, is reported and logged
+// once, is opened again with back-off, and once it opens its samples flow and its commands are
+// taken — without a restart. The transports are fakes whose factory fails as often as the test
+// says, on a simulated clock (Attempts::Inline); one test runs an attempt in its thread and shows
+// the loop going on meanwhile.
 #include <gtest/gtest.h>
 
 #include <future>

@@ -62,10 +62,11 @@ inline const char* name(FamilyId f) {
 inline constexpr FamilyId kFamilies[] = {FamilyId::Elobau, FamilyId::Mcb402, FamilyId::Novotechnik,
                                          FamilyId::Cia401Pedal, FamilyId::Cia401Cluster};
 
-// A corner of a family's document (subdevices/README.md "Corners"): a reading the document
-// permits, as its simulator's options, and what the mapping file then says (the driver options
-// commissioning finds: the MCB-402's button bits, the elobau's save). The matrix and the random
-// scenarios run every family at each of its corners; together they hold every value of every
+// A corner of a family's document
+// (docs/design/device-documents.md#corners-every-reading-a-document-permits): a reading the
+// document permits, as its simulator's options, and what the mapping file then says (the driver
+// options commissioning finds: the MCB-402's button bits, the elobau's save). The matrix and the
+// random scenarios run every family at each of its corners; together they hold every value of every
 // simulator option of the family at least once.
 struct Corner {
   std::string name;  // "Doc": the document's first reading (the simulator's defaults)

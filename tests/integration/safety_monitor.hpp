@@ -1,4 +1,4 @@
-// An invariant monitor for the gateway's safety behaviour (README "Fault policy"), for
+// An invariant monitor for the gateway's safety behaviour (docs/design/fault-policy.md), for
 // tier-2 tests on the virtual buses with a simulated clock.
 //
 // It keeps its own account of every sub-device's proof of life from the downstream frames the

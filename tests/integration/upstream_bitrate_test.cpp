@@ -1,7 +1,7 @@
-// The upstream bit rate from the mapping file to the device (README "Bit rate"): LSS configure
-// bit timing takes exactly the rates the EDS lists (one list, gateway::upstream_bit_timings), LSS
-// activate bit timing reports the new rate in bit/s at the switch, and an LSS-stored rate wins
-// over upstream.bitrate at the next start.
+// The upstream bit rate from the mapping file to the device (docs/guides/commission.md#bit-rate):
+// LSS configure bit timing takes exactly the rates the EDS lists (one list,
+// gateway::upstream_bit_timings), LSS activate bit timing reports the new rate in bit/s at the
+// switch, and an LSS-stored rate wins over upstream.bitrate at the next start.
 #include <gtest/gtest.h>
 #include <unistd.h>
 

@@ -1,7 +1,7 @@
-// DDS Security (publish.dds.security, README "Securing DDS") end to end, on loopback in a private
-// network namespace: the gateway (a simulated elobau grip booted on the virtual bus, its LEDs on
-// indicators.1, `sources: [dds]`) with the gateway's identity, and the example programs in other
-// processes with the identities scripts/make-dds-security.sh makes in a temporary folder:
+// DDS Security (publish.dds.security, docs/guides/secure-dds.md) end to end, on loopback in a
+// private network namespace: the gateway (a simulated elobau grip booted on the virtual bus, its
+// LEDs on indicators.1, `sources: [dds]`) with the gateway's identity, and the example programs in
+// other processes with the identities scripts/make-dds-security.sh makes in a temporary folder:
 //  * the application (app.pem) reads joystick.1 and its indicator command lights the LEDs;
 //  * a participant without security sees no operator input and its command never arrives;
 //  * the read-only participant (monitor.pem) reads the joystick, and may not even create the
@@ -317,9 +317,9 @@ TEST_F(DdsSecurity, ATamperedPermissionsDocumentAndWrongFilesAreRefusedAtStartNa
       << errors[0].str();
 }
 
-// SECURITY.md asks the private key at mode 0600: a key its group or every user may read is
-// refused by `oegw check` and `oegw run` (dds_security_errors) and by the publisher, naming the
-// setting, the mode and the command that mends it; 0600 and 0400 are taken.
+// docs/design/threat-model.md asks the private key at mode 0600: a key its group or every user may
+// read is refused by `oegw check` and `oegw run` (dds_security_errors) and by the publisher, naming
+// the setting, the mode and the command that mends it; 0600 and 0400 are taken.
 TEST_F(DdsSecurity, APrivateKeyOthersMayReadIsRefusedNamingItsModeAndTheChmod) {
   const fs::path key = set_dir() / "open.key";
   for (const auto& [mode, who] : std::vector<std::pair<fs::perms, std::string>>{

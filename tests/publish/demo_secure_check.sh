@@ -1,6 +1,6 @@
 #!/bin/sh
-# `oegw demo --dds-security DIR` (README "Securing DDS"): the demo's participant with the gateway's
-# identity of a set scripts/make-dds-security.sh makes here; the example subscriber as the
+# `oegw demo --dds-security DIR` (docs/guides/secure-dds.md): the demo's participant with the
+# gateway's identity of a set scripts/make-dds-security.sh makes here; the example subscriber as the
 # application reads the demo's joystick, a subscriber without security at the same time reads
 # nothing; a set whose permissions were changed after signing stops the demo (exit 2) naming
 # the setting, before it runs. Run inside in_private_net.sh.

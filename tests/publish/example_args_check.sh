@@ -1,8 +1,8 @@
 #!/bin/sh
-# The examples' command lines (examples/, README "The examples"): --help prints the usage on stdout
-# and exits 0; an unknown option, an option without its value, a value out of range or an
-# unexpected argument each says precisely what is wrong, then the usage, on stderr, and exits 2
-# before anything is opened. One program per run:
+# The examples' command lines (examples/, docs/guides/dds-lcm.md#the-examples): --help prints the
+# usage on stdout and exits 0; an unknown option, an option without its value, a value out of range
+# or an unexpected argument each says precisely what is wrong, then the usage, on stderr, and exits
+# 2 before anything is opened. One program per run:
 #   example_args_check.sh PROGRAM
 set -u
 prog=$1

@@ -108,7 +108,8 @@ case $mode in
     $command display 3 --set 12=-7 >>"$dir/command.out" 2>&1 || fail "the display command failed"
     wait $d || fail "the demo failed"
     kill -INT $g; wait $g
-    # As README says: without a prefix (OEGW_, which the demo's OEGW_DEMO_ channels start with).
+    # As docs/guides/dds-lcm.md#recording-with-lcm-logger says: without a prefix (OEGW_, which the
+    # demo's OEGW_DEMO_ channels start with).
     "$ex/lcm_log_decode" "$dir/session.lcmlog" >"$dir/decode.out" 2>"$dir/decode.err" || fail "lcm_log_decode exited $?"
     summary=$(tail -1 "$dir/decode.out")
     echo "lcm_log_decode: $summary"

@@ -98,7 +98,7 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
     std::optional<TimePoint> next_deadline() const { return std::nullopt; }
   } up_side{gw};
   // The reception time of every frame the grip sends, as the bus delivered it (µs): what a
-  // sample's timestamp_us must be (README "Publishing": the source time, not the publish time).
+  // sample's timestamp_us must be (docs/guides/dds-lcm.md: the source time, not the publish time).
   std::set<std::int64_t> grip_frames_us;
   struct Down {
     gateway::Gateway& gw;

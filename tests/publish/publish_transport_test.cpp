@@ -257,8 +257,10 @@ TEST(DdsPublisher, CommandsSentOverDdsReachTheCallbacks) {
     const oegw_IndicatorCommand more{instance, 1};
     ASSERT_EQ(dds_write(wi, &more), 0);
   }
-  // One command per poll (README "CAN first"); the fd is signalled again while more wait, so a
-  // loop that polls only when it is readable still takes every one.
+  // One command per poll
+  // (docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses); the fd is
+  // signalled again while more wait, so a loop that polls only when it is readable still takes
+  // every one.
   std::size_t most_per_poll = 0;
   ASSERT_TRUE(wait_for([&] {
     pollfd p{dds.fd(), POLLIN, 0};
@@ -425,7 +427,9 @@ TEST(LcmPublisher, CommandsSentOverLcmReachTheCallbacks) {
   send(s.channel_prefix + "INDICATORS_4", ic);
   send(s.channel_prefix + "DISPLAY_8", dc);
   send(s.channel_prefix + "JOYSTICK_1", dc);  // not a command channel: ignored
-  // One message per poll (README "CAN first"); liblcm's fd stays readable while more wait.
+  // One message per poll
+  // (docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses); liblcm's fd
+  // stays readable while more wait.
   std::size_t most_per_poll = 0;
   ASSERT_TRUE(wait_for([&] {
     pollfd p{lcm.fd(), POLLIN, 0};
@@ -446,7 +450,8 @@ TEST(LcmPublisher, CommandsSentOverLcmReachTheCallbacks) {
 }
 
 // What a publisher's constructor throws: a bad setting (PublishConfigError), or with `unavailable`
-// set what the machine cannot carry now (PublishUnavailable; README "Publishing degrades").
+// set what the machine cannot carry now (PublishUnavailable;
+// docs/guides/dds-lcm.md#publishing-degrades-the-gateway-runs).
 std::string error_of(const std::function<void()>& f, bool* unavailable = nullptr) {
   try {
     f();

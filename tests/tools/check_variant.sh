@@ -2,7 +2,7 @@
 # `oegw check` run from `/` on a copy of a mapping file of the source tree, changed by a sed
 # script: the copy sits at the same place in a scratch tree whose subdevices/ is the source's,
 # so the file's relative EDS paths hold only if they are taken from its own folder
-# (mapping/README.md "Paths"), never from the working directory.
+# (docs/reference/mapping-file.md#paths), never from the working directory.
 #   check_variant.sh OEGW SOURCE_DIR FILE SED STATUS TEXT
 # FILE is relative to SOURCE_DIR; passes when the exit status is STATUS and the output has TEXT
 # (a fixed string; "-" for none). The output is printed; a failure says FAIL:.

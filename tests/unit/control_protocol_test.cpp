@@ -1,4 +1,4 @@
-// The control socket's protocol (gateway/control/PROTOCOL.md): request parsing, the answer's
+// The control socket's protocol (docs/reference/control-protocol.md): request parsing, the answer's
 // envelope, every error code, and the JSON text itself (escaping, numbers, bytes that are not
 // UTF-8), read back by nlohmann's parser and checked as text.
 #include "gateway/control/control_protocol.hpp"

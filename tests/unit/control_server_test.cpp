@@ -319,10 +319,11 @@ TEST_F(ControlServerTest, LaterAnswersGoOutInRequestOrder) {
   ::close(fd2);
 }
 
-// The budget (README "CAN first"): 20,000 requests pipelined on one connection are handled one
-// per wake-up, in the loop's deferred slices, and a bus descriptor that is ready the whole time
-// is served between every two of them: a bus frame waits for at most one request's work. The
-// daemon's buffers stay within their bounds throughout. Counted, not timed.
+// The budget (docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses): 20,000
+// requests pipelined on one connection are handled one per wake-up, in the loop's deferred slices,
+// and a bus descriptor that is ready the whole time is served between every two of them: a bus
+// frame waits for at most one request's work. The daemon's buffers stay within their bounds
+// throughout. Counted, not timed.
 TEST_F(ControlServerTest, PipelinedRequestsAreHandledOnePerWakeUpWithTheBusServedBetween) {
   int handled = 0;
   answer_ = [&handled](std::string_view line) {

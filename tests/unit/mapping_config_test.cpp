@@ -1,5 +1,5 @@
 // The mapping file: parsing, validation with file:line:column diagnostics (all at once), and
-// the resulting Config. Requirements (mapping/README.md): validation refuses before
+// the resulting Config. Requirements (docs/reference/mapping-file.md): validation refuses before
 // anything starts, with file:line:column, what was found and what was expected; all errors at
 // once. Signals come from a fake catalogue
 // (the drivers are written elsewhere): elobau-mfg, mcb402, novotechnik-406, cia401.
@@ -108,7 +108,8 @@ TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
   EXPECT_EQ(c.upstream.identity.revision, 0x00010000u);
   EXPECT_EQ(c.upstream.heartbeat_ms, 100);
   EXPECT_EQ(c.downstream.interface, "virtual");
-  // The demo publishes on both, host-local (README "Network": test and demo traffic stays on this host).
+  // The demo publishes on both, host-local (docs/guides/dds-lcm.md#network: test and demo traffic
+  // stays on this host).
   EXPECT_TRUE(c.publish.dds.enabled);
   EXPECT_EQ(c.publish.dds.network, "loopback");
   EXPECT_TRUE(c.publish.lcm.enabled);
@@ -1452,7 +1453,7 @@ TEST(MappingConfig, RevisionMatchIsMajorOrExact) {
       << bad[0];
 }
 
-// ---- Paths: taken from the mapping file's folder (mapping/README.md "Paths") ------------------
+// ---- Paths: taken from the mapping file's folder (docs/reference/mapping-file.md#paths) ----
 
 // A file naming its EDS file `eds` and its store `store`, as written.
 std::string with_paths(const std::string& eds, const std::string& store) {
@@ -1511,7 +1512,7 @@ TEST(MappingPaths, AFileOnDiskTakesItsPathsFromItsOwnFolderNotTheWorkingDirector
   std::filesystem::remove_all(dir);
 }
 
-// ---- control: the local control socket (gateway/control/PROTOCOL.md) -----------------------
+// ---- control: the local control socket (docs/reference/control-protocol.md) ----------------
 
 const std::string kWhole = kHead + "  joystick.1: { x: right_grip.x }\n";
 
@@ -1553,7 +1554,7 @@ TEST(MappingConfig, ControlSectionErrorsNameTheSetting) {
               ElementsAre("t.yaml:1:10: found '/run/oegw.sock' for control; expected a map with enabled, socket, group"));
 }
 
-// ---- record: the black box (README "Recording and replay") ---------------------------------
+// ---- record: the black box (docs/guides/black-box.md) ---------------------------------
 
 TEST(MappingConfig, RecordIsOffWithoutTheSection) {
   const auto r = load(kWhole);

@@ -106,7 +106,7 @@ TEST(Deployment, AStoreWhoseFolderDoesNotExistIsRefusedAtItsSettingOrItsSection)
   EXPECT_TRUE(errors(c).empty());
 }
 
-// The black box's folder (README "Recording and replay"): oegw run makes a missing one; a path
+// The black box's folder (docs/guides/black-box.md): oegw run makes a missing one; a path
 // through a file cannot be made. Not checked while recording is off.
 TEST(Deployment, ARecordFolderUnderAFileIsRefusedAtItsSetting) {
   char tmpl[] = "/tmp/oegw-deploy-record-XXXXXX";

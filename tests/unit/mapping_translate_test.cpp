@@ -3,7 +3,7 @@
 // with a documented full-scale convention and ±110 % detent; deadband, invert, clamp; buttons to
 // bits; encoder INTEGER32/UNSIGNED32 to 6120h; indicator/display writes to outputs) and fault
 // policy (fault value, neutral by default; neutral interlock until the axis is seen inside its
-// deadband). Conventions: mapping/README.md "Translation".
+// deadband). Conventions: docs/reference/mapping-file.md#translation-translatehpp.
 #include "mapping/translate.hpp"
 
 #include <gtest/gtest.h>

@@ -328,7 +328,7 @@ TEST_F(Novotechnik406Test, ConfigurationFollowsTheMappingProcedure) {
   EXPECT_TRUE(is(d->configuration()[5], 0x1A00, 1, {0x20, 0x00, 0x04, 0x60})) << "kept for the next boots";
 }
 
-// Each family's freshness floor (subdevices/README.md "Freshness floors"): 3 x the 10 ms event
+// Each family's freshness floor (docs/reference/drivers.md#freshness-floors): 3 x the 10 ms event
 // timer is raised to 200 ms, overridable (0: none); pdo_timeout_ms is taken as written.
 TEST(Novotechnik406Freshness, DerivedDeadlineHasAFloor) {
   std::string error;

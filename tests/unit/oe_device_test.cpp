@@ -139,7 +139,7 @@ TEST_F(OeDeviceTest, DeviceTypeObjectHoldsTheComputedValue) {
 
 // CiA 852 clause 12 categories ("Mandatory, if joystick supported (see 1000h)"): the objects and
 // PDOs of the configured FE kinds — every instance of the kind the default PDOs map, the
-// unconfigured ones at 0 (README "CiA 852 decisions") — and nothing of the other kinds.
+// unconfigured ones at 0 (docs/design/cia852-decisions.md) — and nothing of the other kinds.
 TEST_F(OeDeviceTest, ObjectsAndPdosOfTheConfiguredKinds) {
   make({joystick(2), indicators(1)});
   // 6000h: the memory and button bytes of joysticks 1..16 (subs 1..20h); joystick 2's are 3, 4.
@@ -168,7 +168,7 @@ TEST_F(OeDeviceTest, ObjectsAndPdosOfTheConfiguredKinds) {
   EXPECT_EQ(od().find(0x6443), nullptr);
   EXPECT_EQ(od().find(0x6444), nullptr);
   // Indicators: 6200h rw mappable for clusters 1..8 (01h..40h); 6206h default FFh (every line;
-  // README "CiA 852 decisions": Table 6 prints 01h), 6207h default 0 (Table 6), for the
+  // docs/design/cia852-decisions.md: Table 6 prints 01h), 6207h default 0 (Table 6), for the
   // configured cluster 1 only.
   for (std::uint8_t s = 1; s <= 8; ++s) {
     ASSERT_NE(od().find(0x6200, s), nullptr);

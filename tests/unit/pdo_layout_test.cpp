@@ -5,7 +5,7 @@
 // instance appears at its table's byte position in the TPDO frame (for RPDOs: an RPDO's bytes at
 // that position reach the configured instance only). The table is written here from the document,
 // not taken from profiles/cia852/pdo_defaults; where the document contradicts itself, it follows
-// README "CiA 852 decisions" (TPDO n at 1800h + n − 1, Table 5/6/7 ranges, RPDO 34 absent).
+// docs/design/cia852-decisions.md (TPDO n at 1800h + n − 1, Table 5/6/7 ranges, RPDO 34 absent).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -393,7 +393,7 @@ TEST(PdoLayout, OnlyJoystick2HasTpdo1WithTheTablesMapping) {
 }
 
 // The entries of an instance that is not configured read their documented value by SDO (0, see
-// README "CiA 852 decisions"), input entries are read-only, output entries refuse a host write
+// docs/design/cia852-decisions.md), input entries are read-only, output entries refuse a host write
 // (0800 0020h) and ignore their bytes in an RPDO.
 TEST(PdoLayout, UnconfiguredInstancesReadTheirNeutralValueAndNeverChange) {
   Device d({fe(FeKind::FootPedal, 2), fe(FeKind::Wheel, 3), fe(FeKind::Encoder, 2), fe(FeKind::IndicatorCluster, 2),
@@ -425,7 +425,7 @@ TEST(PdoLayout, UnconfiguredInstancesReadTheirNeutralValueAndNeverChange) {
 }
 
 // The EDS (`oegw eds`) lists the PDOs and entries the device has and says where a host built from
-// the printed tables would differ ([Comments], README "CiA 852 decisions").
+// the printed tables would differ ([Comments], docs/design/cia852-decisions.md).
 TEST(PdoLayout, TheEdsCommentsWhereThePrintedTablesDiffer) {
   auto r = mapping::load_config_text(
       "upstream: { interface: virtual, node_id: 0x20 }\n"

@@ -1,5 +1,6 @@
-// The black box's line formats (gateway/record/record_format.hpp, README "Recording and
-// replay"): candump's log format for the frames, "(seconds.micros) @N TEXT" for the rest.
+// The black box's line formats (gateway/record/record_format.hpp,
+// docs/guides/black-box.md#the-files): candump's log format for the frames, "(seconds.micros) @N
+// TEXT" for the rest.
 #include "gateway/record/record_format.hpp"
 
 #include <gtest/gtest.h>

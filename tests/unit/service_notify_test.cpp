@@ -39,8 +39,8 @@ TEST(ServiceStatus, NamesTheUpstreamStateAndTheSubDevicesThatAreNotOperational) 
             "upstream operational, node 20h; 1/2 sub-devices operational; pedal refused");
 }
 
-// A publishing transport the machine cannot carry now runs degraded (README "Publishing
-// degrades, the gateway runs"): named after the sub-devices.
+// A publishing transport the machine cannot carry now runs degraded
+// (docs/guides/dds-lcm.md#publishing-degrades-the-gateway-runs): named after the sub-devices.
 TEST(ServiceStatus, NamesAPublishingTransportThatIsDown) {
   ServiceState st = cab(NmtState::Operational, NodeState::Operational, NodeState::Missing);
   st.degraded = {"lcm down: no route to 224.0.0.1 (Network is unreachable)"};

@@ -2,7 +2,7 @@
 # Prepare the "real SocketCAN in a VM" test tier: fetch a Debian kernel
 # (without installing it on the host), and build a small initramfs that loads
 # the virtio/9p and CAN modules, mounts the host root read-only over 9p and
-# chroots into it to run a test script (see tests/vm/README.md).
+# chroots into it to run a test script (see docs/developer/vm-tier.md).
 #
 # Usage: tests/vm/prepare.sh [cache_dir]
 #   cache_dir defaults to $OEGW_VM_CACHE or ${XDG_CACHE_HOME:-$HOME/.cache}/oegw-vm

@@ -1,8 +1,9 @@
 #!/bin/bash
-# Guest test (vm_abuse): CAN first, outside in (README "CAN first: what the event loop does beside
-# the buses"). `oegw run` with tests/fixtures/vm_abuse.yaml (five sub-devices in one `oegw-sim
-# --motion` process on vcan1, LCM on, upstream heartbeat 1017h = 8000 ms) while clients of its
-# control socket and the machine's network misbehave, one scenario after the other in one boot:
+# Guest test (vm_abuse): CAN first, outside in
+# (docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses). `oegw run` with
+# tests/fixtures/vm_abuse.yaml (five sub-devices in one `oegw-sim --motion` process on vcan1, LCM
+# on, upstream heartbeat 1017h = 8000 ms) while clients of its control socket and the machine's
+# network misbehave, one scenario after the other in one boot:
 #   f  no multicast route with LCM on: the gateway starts without it (the guest has only lo; the
 #      route is taken away before the start), runs, reports `lcm down` (oegw status, STATUS=, the
 #      log once); the route added, LCM samples flow (lcm-logger) without a restart

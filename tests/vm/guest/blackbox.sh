@@ -1,5 +1,5 @@
 #!/bin/bash
-# Guest test (vm_blackbox): the black box outside in (README "Recording and replay"). `oegw run`
+# Guest test (vm_blackbox): the black box outside in (docs/guides/black-box.md). `oegw run`
 # records tests/fixtures/vm_gateway.yaml's cab (its `record` section added) through a scripted
 # incident on real SocketCAN — the grip's cable pulled (`right_grip silent on`), an MCB-402 cable
 # break (EMCY 3120h), the host's heartbeat lost (EMCY 8130h), the grip rebooted — and is killed

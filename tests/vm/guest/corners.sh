@@ -1,6 +1,7 @@
 #!/bin/bash
 # Guest test (vm_corners): a cab of `oegw-sim` devices at the corners of their documents opposite to
-# the simulators' defaults (subdevices/README.md "Corners"), under `oegw run`
+# the simulators' defaults
+# (docs/design/device-documents.md#corners-every-reading-a-document-permits), under `oegw run`
 # (tests/fixtures/vm_corners.yaml), judged on candump's recordings of both buses:
 #   elobau grip 11h   tpdo=timer (TPDOs on the event timer only), saved=no (4001h 0002h: never
 #                     saved; the file lets the gateway save it), buttons=255 (2100h:01h)

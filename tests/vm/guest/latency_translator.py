@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """The python translator of vm_latency, on python3-can.
 
-The issue names a python `canopen` translator; python `canopen` is not installable here (no
+The comparison asks for a python `canopen` translator; python `canopen` is not installable here (no
 Debian package, PyPI unreachable), and for this path it would only wrap the same python3-can bus:
 it decodes a TPDO with its own PDO map and hands the host's TPDO to python3-can to send. This one
 does the translation `oegw run` does for tests/fixtures/vm_syscalls.yaml, by hand:

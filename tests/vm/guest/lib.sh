@@ -14,8 +14,9 @@ pass() { echo "PASS: $*"; passes=$((passes + 1)); }
 fail() { echo "FAIL: $*"; fails=$((fails + 1)); }
 
 # mapping_fixture NAME SRC RUN_DIR: the mapping file tests/fixtures/NAME of source tree SRC on
-# stdout, its placeholders filled (tests/fixtures/README.md): @EDS_DIR@ = SRC/subdevices/eds,
-# @RUN_DIR@ = RUN_DIR. The guest reads the source tree through the read-only host root.
+# stdout, its placeholders filled (docs/developer/fixtures.md#placeholders): @EDS_DIR@ =
+# SRC/subdevices/eds, @RUN_DIR@ = RUN_DIR. The guest reads the source tree through the read-only
+# host root.
 mapping_fixture() {
   [[ -r $2/tests/fixtures/$1 ]] || return 1
   sed -e "s|@EDS_DIR@|$2/subdevices/eds|g" -e "s|@RUN_DIR@|$3|g" "$2/tests/fixtures/$1"

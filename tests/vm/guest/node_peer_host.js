@@ -15,8 +15,9 @@
  * Prints one PASS/FAIL line per check; the exit status is the number of failures (at most 100).
  *
  * node-canopen's quirks (worked around here; oegw is not changed to suit them). Where it and oegw
- * disagree on the wire, CiA 301 decides (tests/vm/README.md "vm_node_peer: node-canopen against
- * oegw" keeps the list): so far only Q4, where oegw is right.
+ * disagree on the wire, CiA 301 decides
+ * (docs/developer/vm-tier.md#vm_node_peer-node-canopen-against-oegw keeps the list): so far only
+ * Q4, where oegw is right.
  *  Q1 Eds.load does not evaluate $NODEID (CiA 306 v1.3 lets a DefaultValue say "$NODEID+0x180",
  *     as `oegw eds` writes the COB-IDs): the text is substituted before loading (substituteNodeId).
  *  Q2 a DataObject's subIndex is read back from its key as hex, but the key is written in decimal
@@ -450,8 +451,9 @@ async function uploadStringEachWay(h, where, index, want, opts = {}) {
 // lands in (CiA 852 clause 9: Table 1 joystick n 6000h:2n-1 memory, 6000h:2n buttons, 6401h:3n-2..3n
 // x, y, z; Table 2 pedal n 6000h:20h+n memory, 6401h:30h+n; Table 3 encoder n 6120h:80h+n;
 // Table 4 wheel n 6401h:40h+n; Table 5 button cluster n 6000h:31h+8(n-1).., eight switches a
-// byte) and how a signal value becomes that object's value (mapping/README.md "Translation":
-// invert, deadband, scale with halves away from zero, clamp; a percent signal has 100 % = 32767).
+// byte) and how a signal value becomes that object's value
+// (docs/reference/mapping-file.md#translation-translatehpp: invert, deadband, scale with halves
+// away from zero, clamp; a percent signal has 100 % = 32767).
 const at = {
   buttons: (n) => [0x6000, 2 * n],
   axis: (n, a) => [0x6401, 3 * (n - 1) + 1 + a],
@@ -476,7 +478,7 @@ const conv = {
 // An elobau grip as oegw-sim makes it has buttons 1..6 fitted (2100h:01h = 3Fh, the document's
 // default): buttons 7 and 8 are NotAvailable, so the cabs map and press only 1..6. The MCB-402 is
 // wired as vm_node_peer.yaml's button_bits say (the simulator's default is the table's other
-// reading, subdevices/README.md "Corners").
+// reading, docs/design/device-documents.md#corners-every-reading-a-document-permits).
 const kinds = {
   grip: {
     spec: (name, node) => `elobau-mfg:${node}:name=${name}`,
@@ -550,8 +552,8 @@ const cabs = {
 };
 
 // Value set k (0, 1; null: every signal at 0, no button pressed): the oegw-sim commands and the
-// object values they must give (every mapped object not fed by a field reads 0: README "CiA 852
-// decisions", Tables 1–7, entries of unconfigured instances).
+// object values they must give (every mapped object not fed by a field reads 0:
+// docs/design/cia852-decisions.md, Tables 1–7, entries of unconfigured instances).
 function valueSet(c, k) {
   const lines = [];
   const signal = {};
@@ -690,7 +692,8 @@ class Run {
     const missing = this.host.tpdos.filter((t) => !this.up.since(from, (f) => f.id === t.cobId).length).map((t) => t.n);
     check(missing.length === 0, `${c.name}: all ${n} TPDOs sent once on entering operational (CiA 852 §12.1)${missing.length ? '; missing TPDO ' + missing.join(', ') : ''}`);
     // The devices held at neutral until the gateway has seen every one of them there (neutral
-    // interlock, README "Fault policy"): their PDOs run at 100 ms at most (oegw check's bus load).
+    // interlock, docs/design/fault-policy.md): their PDOs run at 100 ms at most (oegw check's bus
+    // load).
     await sleep(1000);
     const neutral = valueSet(c, null);
     for (const k of [0, 1, null]) {
@@ -731,7 +734,7 @@ class Run {
 const recovered = (node) => (e) => e.code === 0x0000 && e.info[0] === node;
 const codeText = (c) => (c === null ? 'success' : typeof c === 'number' ? hex(c) : c);
 
-// Network indication (README "Reaching sub-devices from the host"; canopen/301/sdo_remote.hpp):
+// Network indication (docs/guides/remote-sdo.md; canopen/301/sdo_remote.hpp):
 // E0 00 00 00 <network> <node> 00 00 on a channel's request COB-ID, echoed on its response one.
 // node-canopen has no command for it: raw frames.
 async function indicate(up, tx, rx, net, node) {
@@ -765,9 +768,10 @@ async function partSdo(run) {
   await h.download(0x6200, 0x09, Buffer.from([0x05]));
   check((await h.upload(0x6200, 0x09)).readUInt8(0) === 0x05, 'default channel: 6200h:09h (indicators.2) = 05h, read back');
 
-  // The gateway's own dictionary refuses, each with its documented code (README "Commissioning:
-  // oegw ctl": read-only 0601 0002h, a wrong length 0607 0012h/0013h; CiA 852 decisions: an
-  // unconfigured indicator 0800 0020h; CiA 301 §7.2.4.3.17 for a missing object/sub-index).
+  // The gateway's own dictionary refuses, each with its documented code
+  // (docs/guides/commission.md#commissioning-oegw-ctl: read-only 0601 0002h, a wrong length 0607
+  // 0012h/0013h; CiA 852 decisions: an unconfigured indicator 0800 0020h; CiA 301 §7.2.4.3.17 for a
+  // missing object/sub-index).
   const cases = [
     ['write of 1000h (const)', () => h.download(0x1000, 0, u32b(0)), 0x06010002],
     ['segmented write of 1008h (const, 24 bytes)', () => h.download(0x1008, 0, Buffer.from('not the name, not at all')), 0x06010002],
@@ -914,7 +918,7 @@ async function partHeartbeat(run) {
   since = Date.now();
   check((await h.waitHeartbeat(0x05, 10000, since)) !== null, 'and its heartbeat back (05h) after SIGCONT');
   // A gateway stopped longer than its sub-devices' consumer time has lost them when it reads their
-  // late heartbeats (README "Fault policy"); they come back, every error with them.
+  // late heartbeats (docs/design/fault-policy.md); they come back, every error with them.
   await sleep(2000);
   check((await until(() => h.lastRegister() === 0, 20000)) !== null, `every error of the gateway cleared again (its last EMCY's register ${hex(h.lastRegister(), 2)})`);
 }
@@ -965,7 +969,7 @@ async function partNmt(run) {
   const grip = async (x) => run.sim.commands([`right_grip x ${x}`]);
 
   // The stick to neutral first: after any fault the gateway holds an axis at neutral until it has
-  // seen it there (README "Fault policy"); the grip's PDOs come every 100 ms.
+  // seen it there (docs/design/fault-policy.md); the grip's PDOs come every 100 ms.
   let since = Date.now();
   let from = up.mark();
   let f = null;

@@ -108,7 +108,8 @@ kill "$sim_pid" 2>/dev/null
 kill -INT "$up_candump" "$down_candump" 2>/dev/null
 wait "$up_candump" "$down_candump" 2>/dev/null
 
-# Kept for a post-mortem: OEGW_VM_OUT is the run's folder on the host (tests/vm/README.md).
+# Kept for a post-mortem: OEGW_VM_OUT is the run's folder on the host
+# (docs/developer/vm-tier.md#run-in-vmsh-exit-status-and-environment).
 [[ -n ${OEGW_VM_OUT:-} ]] && cp /tmp/up.dump /tmp/down.dump /tmp/gateway.log "$OEGW_VM_OUT/" 2>/dev/null
 "$PY" "$here/reload_check.py" /tmp/up.dump /tmp/down.dump "$heartbeat_ms" >/tmp/check.txt 2>&1
 cat /tmp/check.txt

@@ -4,7 +4,7 @@
 a frame 7FF#0n sent on both buses (n = 1 valid reload, 2 invalid file, 3 a setting that needs a
 restart, 4 before SIGTERM). One PASS/FAIL line per check; exit 1 if any failed.
 
-Checks (gateway/reload.hpp, README "Reloading the mapping file"):
+Checks (gateway/reload.hpp, docs/guides/install.md#reloading-the-mapping-file):
   * the gateway's heartbeat (720h) never gaps more than 1.5 x 1017h, and it booted once (one
     720#00): the upstream device goes on through every reload;
   * valid reload (1..2): EMCY 6300h (register bit 0) raised, then its error reset; the MCB-402's

@@ -1,7 +1,7 @@
 #!/bin/bash
 # Guest test (vm_starts): `oegw run` with the cab of tests/fixtures/vm_corners.yaml (freshness
 # deadlines left to the drivers: 3 x each event timer raised to the family's 200 ms floor,
-# subdevices/README.md "Freshness floors") started COUNT times, each with a fresh `oegw-sim` cab
+# docs/reference/drivers.md#freshness-floors) started COUNT times, each with a fresh `oegw-sim` cab
 # under --motion, until every sub-device is operational (`oegw status --json`), then left running
 # HOLD_S seconds and stopped with SIGTERM. Figures, one line per start: the seconds to every
 # sub-device operational, the stale faults of its log ("<name>: fault (<signal> stale ...") and

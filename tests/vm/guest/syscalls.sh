@@ -11,11 +11,11 @@
 # recvmmsg/sendmmsg, 3.82 before (main a260833: recvmsg twice per frame, the second for its
 # EAGAIN). At most 1.1 reads (recvmsg + recvmmsg) per frame read: 1.04 now, 1.99 before.
 # The clock: the guest's clocksource is the HPET (run-in-vm.sh), which the vDSO cannot read, so
-# every clock_gettime is a system call here, as on the issue's VM (3 per frame before). At most
-# one per wake-up (epoll_wait), beside the fixed cost of mapping the kernel's receive stamps
-# (StampMapper: CLOCK_REALTIME and CLOCK_MONOTONIC every 100 ms on each of the two interfaces,
-# at most 40 a second whatever the frame rate): measured 0.86 per wake-up after that allowance, 1.17
-# without it.
+# every clock_gettime is a system call here, as on the VM the budget was set on (3 per frame
+# before). At most one per wake-up (epoll_wait), beside the fixed cost of mapping the kernel's
+# receive stamps (StampMapper: CLOCK_REALTIME and CLOCK_MONOTONIC every 100 ms on each of the
+# two interfaces, at most 40 a second whatever the frame rate): measured 0.86 per wake-up after
+# that allowance, 1.17 without it.
 # Args: OEGW OEGW_SIM SOURCE_DIR [WINDOW_S] [BUDGET]
 set -uo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)

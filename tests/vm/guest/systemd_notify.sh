@@ -11,7 +11,7 @@
 # SIGTERM: STOPPING=1, exit 0. Then the
 # same without NOTIFY_SOCKET: nothing to send to, the gateway runs and stops as before.
 # This checks the wire (timing systemd's own view does not show); the unit under a real systemd
-# as PID 1 is vm_systemd_real (guest/systemd_real.sh, tests/vm/README.md "systemd").
+# as PID 1 is vm_systemd_real (guest/systemd_real.sh, docs/developer/vm-tier.md#systemd).
 # Args: OEGW OEGW_SIM SOURCE_DIR
 set -uo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)

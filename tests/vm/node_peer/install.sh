@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
-# Installs the VM tier's node-canopen host (tests/vm/README.md, vm_node_peer) into DEST from the
-# committed lockfile: `npm ci`, packages from the npm registry only. The two native addons
-# (socketcan, and canopen's node-crc) are compiled by the pinned node-gyp against the headers of
-# the node that will run them, /usr/include/node (`--nodedir=/usr`: Debian's libnode-dev, or a
-# nodejs package that ships its headers), so nothing is downloaded beside the registry's tarballs.
-# Idempotent: an install of this package.json and lockfile for this node in DEST is kept.
-# Usage: install.sh DEST   (CTest: vm_node_peer_install, DEST = build/tests/vm/node_peer)
+# Installs the VM tier's node-canopen host
+# (docs/developer/vm-tier.md#vm_node_peer-node-canopen-against-oegw) into DEST from the committed
+# lockfile: `npm ci`, packages from the npm registry only. The two native addons (socketcan, and
+# canopen's node-crc) are compiled by the pinned node-gyp against the headers of the node that will
+# run them, /usr/include/node (`--nodedir=/usr`: Debian's libnode-dev, or a nodejs package that
+# ships its headers), so nothing is downloaded beside the registry's tarballs. Idempotent: an
+# install of this package.json and lockfile for this node in DEST is kept. Usage: install.sh DEST
+# (CTest: vm_node_peer_install, DEST = build/tests/vm/node_peer)
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 dest=${1:?usage: install.sh DEST}
