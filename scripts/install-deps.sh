@@ -2,7 +2,8 @@
 # Installs, from Debian's packages, whatever the build, the demo and the test tiers need and this
 # machine lacks. Idempotent: with everything present it only checks (dpkg -s) and exits.
 # --tests (scripts/test-all.sh, command 2) also installs what only the test tiers need beyond
-# that: chromium, which loads `oegw replay --plot`'s page headless.
+# that: chromium, which loads `oegw replay --plot`'s page headless, and mkdocs, which builds the
+# documentation site (CTest docs_site).
 # Why each package is there: see docs/developer/dependencies.md.
 set -euo pipefail
 
@@ -61,9 +62,10 @@ if ! command -v node >/dev/null || ! command -v npm >/dev/null || [ ! -r /usr/in
   PACKAGES+=(nodejs npm libnode-dev)
 fi
 
-# Command 2's test tiers only: headless chromium loads the replay's plot (tests/tools/plot_chromium_check.sh).
+# Command 2's test tiers only: headless chromium loads the replay's plot (tests/tools/plot_chromium_check.sh);
+# mkdocs (1.4.2 on Debian 12) builds docs/ as a site, strictly (docs/developer/docs-site.md).
 if [[ ${1:-} == --tests ]]; then
-  PACKAGES+=(chromium)
+  PACKAGES+=(chromium mkdocs)
 fi
 
 missing=()
