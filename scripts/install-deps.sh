@@ -2,14 +2,18 @@
 # Installs, from Debian's packages, whatever the build, the demo and the test tiers need and this
 # machine lacks. Idempotent: with everything present it only checks (dpkg -s) and exits.
 # --tests (scripts/test-all.sh, command 2) also installs what only the test tiers need beyond
-# that: chromium, which loads `oegw replay --plot`'s page headless, and mkdocs, which builds the
-# documentation site (CTest docs_site).
+# that: chromium, which loads `oegw replay --plot`'s page headless, mkdocs, which builds the
+# documentation site (CTest docs_site), and man-db, whose `man -l` renders the manual pages
+# (CTest man_pages).
 # Why each package is there: see docs/developer/dependencies.md.
 set -euo pipefail
 
 PACKAGES=(
   # build (ccache: fresh clones and the cross builds compile unchanged sources from its cache)
   g++ cmake ninja-build pkg-config ccache
+  # the manual pages oegw(1) (help2man, from the --help texts) and oegw.yaml(5) (lowdown, from
+  # docs/reference/mapping-file.md), made at build time (cmake/OegwMan.cmake)
+  help2man lowdown
   # libraries (libsocketcan-dev: setting the CAN interfaces' bit rate over netlink)
   libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libsocketcan-dev
   # the control socket's JSON (oegw status)
@@ -63,9 +67,10 @@ if ! command -v node >/dev/null || ! command -v npm >/dev/null || [ ! -r /usr/in
 fi
 
 # Command 2's test tiers only: headless chromium loads the replay's plot (tests/tools/plot_chromium_check.sh);
-# mkdocs (1.4.2 on Debian 12) builds docs/ as a site, strictly (docs/developer/docs-site.md).
+# mkdocs (1.4.2 on Debian 12) builds docs/ as a site, strictly (docs/developer/docs-site.md); man-db's
+# `man -l` renders the manual pages.
 if [[ ${1:-} == --tests ]]; then
-  PACKAGES+=(chromium mkdocs)
+  PACKAGES+=(chromium mkdocs man-db)
 fi
 
 missing=()

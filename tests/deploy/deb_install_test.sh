@@ -133,10 +133,11 @@ for f in /usr/bin/oegw /usr/bin/oegw-sim /usr/lib/systemd/system/oegw.service /e
          /usr/share/doc/oegw/README.md /usr/share/doc/oegw/mapping/README.md \
          /usr/share/doc/oegw/subdevices/README.md /usr/share/doc/oegw/docs/index.md \
          /usr/share/doc/oegw/docs/guides/install.md /usr/share/doc/oegw/docs/reference/mapping-file.md \
-         /usr/share/doc/oegw/copyright /var/lib/oegw; do
+         /usr/share/doc/oegw/copyright /usr/share/man/man1/oegw.1.gz /usr/share/man/man5/oegw.yaml.5.gz \
+         /usr/share/bash-completion/completions/oegw /var/lib/oegw; do
   grep -qx -- "$f" <<<"$owned" || die "dpkg -L oegw does not list $f"
 done
-note "ok: dpkg -L oegw lists the programs, the unit, the EDS files, the samples and the docs"
+note "ok: dpkg -L oegw lists the programs, the unit, the EDS files, the samples, the docs, the manual pages and the completion"
 # Debian Policy §12.5: /usr/share/doc/oegw/copyright, machine-readable (DEP-5) as Debian's reader
 # (python3-debian, strict) takes it: Files: * under Apache-2.0, the licence text the pointer
 # names present in the root (base-files), Upstream-Contact the package's Maintainer.

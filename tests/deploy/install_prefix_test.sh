@@ -20,7 +20,8 @@ for f in bin/oegw bin/oegw-sim lib/oegw/examples/dds_subscriber lib/oegw/example
          lib/oegw/examples/lcm_log_decode lib/systemd/system/oegw.service share/oegw/eds/generic_pedal.eds \
          share/oegw/eds/button_cluster.eds share/oegw/examples/cab.yaml share/oegw/examples/demo.yaml \
          share/doc/oegw/README.md share/doc/oegw/mapping/README.md share/doc/oegw/subdevices/README.md \
-         share/doc/oegw/copyright; do
+         share/doc/oegw/copyright share/man/man1/oegw.1.gz share/man/man5/oegw.yaml.5.gz \
+         share/bash-completion/completions/oegw; do
   [[ -e $r/$f ]] || die "$prefix/$f not installed"
 done
 # Every page of docs/, at its place below share/doc/oegw/docs (the pages link each other
