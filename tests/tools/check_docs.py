@@ -30,8 +30,9 @@ so are this file and its test (check_docs_test.py), which name citations that mu
 import html
 import os
 import re
-import subprocess
 import sys
+
+from tree_files import tree_files
 import unicodedata
 
 FENCE = re.compile(r"^ {0,3}(`{3,}|~{3,})")
@@ -114,32 +115,6 @@ def anchors_of(text):
             seen[slug] = 0
         anchors.add(slug)
     return anchors
-
-
-def git_files(root):
-    if not os.path.exists(os.path.join(root, ".git")):
-        return None
-    try:
-        p = subprocess.run(["git", "-C", root, "ls-files", "-z", "--cached", "--others",
-                            "--exclude-standard"], capture_output=True)
-    except OSError:
-        return None
-    if p.returncode != 0:
-        return None
-    return sorted(f for f in p.stdout.decode("utf-8", "replace").split("\0")
-                  if f and os.path.isfile(os.path.join(root, f)))
-
-
-def walked_files(root):
-    out = []
-    for top, dirs, files in os.walk(root):
-        rel_top = os.path.relpath(top, root)
-        at_top = rel_top == "."
-        dirs[:] = sorted(d for d in dirs if d not in {".git", "__pycache__"} and
-                         not (at_top and (d.startswith("build") or d == ".cache")))
-        for f in sorted(files):
-            out.append(os.path.normpath(os.path.join(rel_top, f)).replace(os.sep, "/"))
-    return out
 
 
 class Checker:
@@ -240,9 +215,7 @@ def main(argv):
     if not os.path.isdir(os.path.join(root, "docs")):
         print("check_docs: %s has no docs/ folder" % root, file=sys.stderr)
         return 2
-    files = git_files(root)
-    if files is None:
-        files = walked_files(root)
+    files = tree_files(root)
     checker = Checker(root)
     links = citations = 0
     for rel in files:

@@ -17,8 +17,9 @@ wraps between the word and the number.
 """
 import os
 import re
-import subprocess
 import sys
+
+from tree_files import tree_files
 
 CITATION = re.compile(r"\bissues? ?#?[0-9]+", re.IGNORECASE)
 # A line that ends in the word, and the next line's text (after its comment leader) that starts
@@ -27,33 +28,6 @@ WORD_AT_END = re.compile(r"\bissues?\s*#?\s*$", re.IGNORECASE)
 NUMBER_AT_START = re.compile(r"^\s*(?://+|/\*+|\*+|#+|--|;+|>+)?\s*#?[0-9]")
 
 SELF = os.path.abspath(__file__)
-
-
-def git_files(root):
-    """The files git lists below root, or None when root is no checkout (or git is missing)."""
-    if not os.path.exists(os.path.join(root, ".git")):
-        return None
-    try:
-        p = subprocess.run(["git", "-C", root, "ls-files", "-z", "--cached", "--others",
-                            "--exclude-standard"], capture_output=True)
-    except OSError:
-        return None
-    if p.returncode != 0:
-        return None
-    return sorted(f for f in p.stdout.decode("utf-8", "replace").split("\0") if f)
-
-
-def walked_files(root):
-    out = []
-    for top, dirs, files in os.walk(root):
-        rel_top = os.path.relpath(top, root)
-        # The build trees and caches at the top (.gitignore), .git and Python's caches anywhere.
-        at_top = rel_top == "."
-        dirs[:] = sorted(d for d in dirs if d not in {".git", "__pycache__"} and
-                         not (at_top and (d.startswith("build") or d == ".cache")))
-        for f in sorted(files):
-            out.append(os.path.normpath(os.path.join(rel_top, f)).replace(os.sep, "/"))
-    return out
 
 
 def citations(root, rel):
@@ -80,9 +54,7 @@ def main(argv):
         print(__doc__, file=sys.stderr)
         return 2
     root = os.path.abspath(argv[1] if len(argv) == 2 else os.getcwd())
-    files = git_files(root)
-    if files is None:
-        files = walked_files(root)
+    files = tree_files(root)
     found = []
     for rel in files:
         found += citations(root, rel)
