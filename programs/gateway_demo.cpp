@@ -395,7 +395,6 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     check(std::count(emcys.begin(), emcys.end(), 0x0000) > 0, "the host got the error-reset EMCY");
     check(gw.status({mapping::FeKind::Joystick, 1}) == FeStatus::Valid, "joystick.1 valid and following again");
     loop.cancel(view_timer);
-    view(true);  // the last table stays on the screen, below the log
     done = true;
     loop.stop();
   });
@@ -411,6 +410,9 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     loop.handle_signals({SIGINT, SIGTERM});
     loop.run();
   }
+  // The last table stays on the screen, below the log. Drawn here, once the loop has returned:
+  // frames handled in the same wake-up as the last step still log, and would land below it.
+  view(true);
   std::filesystem::remove_all(dir);
   if (publishing) std::printf("published: %llu FE samples\n", static_cast<unsigned long long>(publishing->published()));
   std::printf("\n%s\n", failures == 0 ? "demo complete: every step as expected" : "demo: SOME STEPS FAILED");
