@@ -1,7 +1,9 @@
 // The abstract CAN transport that feeds the "sans I/O" services: frames out through send(),
 // frames in through a receiver callback, bus-state changes through an event callback.
 //
-// Implementations: SocketCanTransport (Linux CAN_RAW) and VirtualBus ports (in-process).
+// Implementations: SocketCanTransport (Linux CAN_RAW), SeqpacketCanTransport (an AF_UNIX
+// socketpair carrying CAN_RAW's frames, where the kernel has no AF_CAN) and VirtualBus ports
+// (in-process).
 #pragma once
 
 #include <cstdint>

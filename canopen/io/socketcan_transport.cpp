@@ -283,32 +283,58 @@ std::unique_ptr<SocketCanTransport> SocketCanTransport::open(const std::string& 
 }
 
 void SocketCanTransport::set_filters(const std::optional<std::vector<CanFilter>>& filters, bool join) {
-  apply_filters(fd_, filters, join, interface_);
+  apply_filters(fd(), filters, join, interface_);
 }
 
 std::size_t SocketCanTransport::rx_buffer_bytes() const {
   int v = 0;
   socklen_t len = sizeof v;
-  if (::getsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &v, &len) != 0 || v < 0) return 0;
+  if (::getsockopt(fd(), SOL_SOCKET, SO_RCVBUF, &v, &len) != 0 || v < 0) return 0;
   return static_cast<std::size_t>(v);
 }
 
 std::unique_ptr<SocketCanTransport> SocketCanTransport::adopt(int fd, std::string interface, std::size_t max_batch) {
   if (fd < 0) throw std::invalid_argument("SocketCanTransport::adopt: invalid file descriptor");
+  prepare_adopted(fd);
+  return std::unique_ptr<SocketCanTransport>(
+      new SocketCanTransport(fd, std::move(interface), 0, std::max<std::size_t>(max_batch, 1)));
+}
+
+SocketCanTransport::SocketCanTransport(int fd, std::string interface, int index, std::size_t max_batch)
+    : CanFrameSocket(fd, max_batch), interface_(std::move(interface)), index_(index) {}
+
+// ---- the I/O both sockets share -----------------------------------------------------------
+
+CanFrameSocket::~CanFrameSocket() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+CanFrameSocket::CanFrameSocket(int fd, std::size_t max_batch) : fd_(fd), max_batch_(std::max<std::size_t>(max_batch, 1)) {
+  // One recvmmsg() takes up to 64 frames (a full classical frame is 16 bytes): with max_batch
+  // above that, poll_readable() reads again only while the previous call filled every slot.
+  const std::size_t n = std::min<std::size_t>(max_batch_, 64);
+  slots_.resize(n);
+  headers_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    Slot& s = slots_[i];
+    s.iov = iovec{&s.frame, sizeof s.frame};
+    msghdr& h = headers_[i].msg_hdr;
+    h = msghdr{};
+    h.msg_iov = &s.iov;
+    h.msg_iovlen = 1;
+    h.msg_control = s.control;
+  }
+}
+
+void CanFrameSocket::prepare_adopted(int fd) {
   const int flags = ::fcntl(fd, F_GETFL);
   if (flags >= 0) ::fcntl(fd, F_SETFL, flags | O_NONBLOCK);
   const int on = 1;
   (void)::setsockopt(fd, SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on);
   (void)::setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on);
-  return std::unique_ptr<SocketCanTransport>(
-      new SocketCanTransport(fd, std::move(interface), 0, std::max<std::size_t>(max_batch, 1)));
 }
 
-SocketCanTransport::~SocketCanTransport() {
-  if (fd_ >= 0) ::close(fd_);
-}
-
-SendResult SocketCanTransport::send(const CanFrame& frame) {
+SendResult CanFrameSocket::send(const CanFrame& frame) {
   if (!is_valid_frame(frame)) {
     ++counters_.errors;
     return {SendStatus::InvalidFrame, 0};
@@ -334,32 +360,14 @@ SendResult SocketCanTransport::send(const CanFrame& frame) {
   return {SendStatus::Error, e};
 }
 
-SocketCanTransport::SocketCanTransport(int fd, std::string interface, int index, std::size_t max_batch)
-    : fd_(fd), interface_(std::move(interface)), index_(index), max_batch_(max_batch) {
-  // One recvmmsg() takes up to 64 frames (a full classical frame is 16 bytes): with max_batch
-  // above that, poll_readable() reads again only while the previous call filled every slot.
-  const std::size_t n = std::min<std::size_t>(max_batch_, 64);
-  slots_.resize(n);
-  headers_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    Slot& s = slots_[i];
-    s.iov = iovec{&s.frame, sizeof s.frame};
-    msghdr& h = headers_[i].msg_hdr;
-    h = msghdr{};
-    h.msg_iov = &s.iov;
-    h.msg_iovlen = 1;
-    h.msg_control = s.control;
-  }
-}
-
-void SocketCanTransport::end_batch() {
+void CanFrameSocket::end_batch() {
   batching_ = false;
   send_held();
 }
 
 // The held frames in order, in one sendmmsg() (more only if the kernel takes part of them, or
 // after kMaxHeld). A full TX queue drops the rest, as send() would have dropped each.
-void SocketCanTransport::send_held() {
+void CanFrameSocket::send_held() {
   const std::size_t n = held_.size();
   if (n == 0) return;
   held_iov_.resize(n);
@@ -390,7 +398,7 @@ void SocketCanTransport::send_held() {
   held_.clear();
 }
 
-void SocketCanTransport::sample_clocks() {
+void CanFrameSocket::sample_clocks() {
   timespec real_now{};
   timespec mono_now{};
   ::clock_gettime(CLOCK_REALTIME, &real_now);
@@ -398,7 +406,7 @@ void SocketCanTransport::sample_clocks() {
   stamps_.sample(real_now, time_point_from_monotonic(mono_now.tv_sec, mono_now.tv_nsec));
 }
 
-int SocketCanTransport::read_batch() {
+int CanFrameSocket::read_batch() {
   for (auto& h : headers_) {
     h.msg_hdr.msg_controllen = sizeof(Slot::control);  // the kernel overwrites it with what it wrote
     h.msg_hdr.msg_flags = 0;
@@ -416,10 +424,17 @@ int SocketCanTransport::read_batch() {
   }
 }
 
+void CanFrameSocket::end_of_stream() {
+  ended_ = true;
+  ++counters_.errors;
+  deliver_event(BusEvent::InterfaceDown);
+}
+
 // Everything pending, in as few system calls as the kernel allows: one recvmmsg() per 64 frames
 // (it returns what is queued, so a short batch needs no further call to see EAGAIN), no clock
 // reading per frame (the loop's wake-up time and StampMapper's sampled offset).
-void SocketCanTransport::poll_readable() {
+void CanFrameSocket::poll_readable() {
+  if (ended_) return;
   const TimePoint now = clock_ != nullptr ? clock_->now() : SteadyClock().now();
   if (stamps_.needs_sample(now)) sample_clocks();
   bool resampled = false;
@@ -431,7 +446,13 @@ void SocketCanTransport::poll_readable() {
     for (int i = 0; i < n; ++i) {
       const Slot& slot = slots_[static_cast<std::size_t>(i)];
       msghdr& msg = headers_[static_cast<std::size_t>(i)].msg_hdr;
-      if (headers_[static_cast<std::size_t>(i)].msg_len != sizeof(::can_frame)) {  // CAN FD/XL are not enabled
+      const unsigned len = headers_[static_cast<std::size_t>(i)].msg_len;
+      if (len == 0) {  // the end of the stream: nothing after it is a frame
+        end_of_stream();
+        return;
+      }
+      // CAN FD/XL are not enabled; a longer datagram arrives cut to a frame's size (MSG_TRUNC).
+      if (len != sizeof(::can_frame) || (msg.msg_flags & MSG_TRUNC) != 0) {
         ++counters_.errors;
         continue;
       }

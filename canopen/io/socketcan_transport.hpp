@@ -160,7 +160,66 @@ class StampMapper {
 };
 }  // namespace socketcan
 
-class SocketCanTransport final : public CanTransport {
+// The I/O of a socket that carries one struct can_frame per datagram, CAN_RAW's format: what
+// SocketCanTransport (CAN_RAW) and SeqpacketCanTransport (canopen/io/seqpacket_transport.hpp, an
+// AF_UNIX socketpair standing in for a bus where the kernel has no AF_CAN) share, so that both
+// read, stamp and batch alike:
+// * send() never blocks: a full TX queue (ENOBUFS/EAGAIN) drops the frame, counts it in
+//   counters().tx_dropped and returns SendStatus::QueueFull. Between begin_batch() and
+//   end_batch() it holds valid frames; end_batch() sends them with sendmmsg().
+// * poll_readable(): recvmmsg(), up to 64 frames per call, up to max_batch per call of its own;
+//   each frame stamped with its kernel receive time (SO_TIMESTAMPNS, StampMapper), else with
+//   the loop's `now`; error frames (CAN_ERR_FLAG) decoded into BusEvents; SO_RXQ_OVFL's count
+//   into counters().rx_dropped. A datagram that is not one struct can_frame (shorter, or cut:
+//   MSG_TRUNC) is counted in counters().errors and not delivered.
+// * A datagram of no bytes ends the stream: what a SOCK_SEQPACKET socket reads once its peer
+//   closed (CAN_RAW never delivers one). Reported once as BusEvent::InterfaceDown (and one
+//   counters().errors); nothing is read after it. The descriptor then stays readable: whoever
+//   watches it must unwatch it.
+class CanFrameSocket : public CanTransport {
+ public:
+  ~CanFrameSocket() override;  // closes the socket
+
+  SendResult send(const CanFrame& frame) override;
+  void begin_batch() override { batching_ = true; }
+  void end_batch() override;
+  [[nodiscard]] int fd() const override { return fd_; }
+  void poll_readable() override;
+
+ protected:
+  // Takes ownership of `fd` (non-blocking; the subclass sets its options).
+  CanFrameSocket(int fd, std::size_t max_batch);
+  // For a socket made elsewhere: non-blocking, SO_TIMESTAMPNS and SO_RXQ_OVFL on where the
+  // socket takes them (qemu-user refuses SO_TIMESTAMPNS: frames are then stamped when read).
+  static void prepare_adopted(int fd);
+
+ private:
+  // Reads up to the batch size in one recvmmsg(); returns how many it read, -1 to stop.
+  int read_batch();
+  void sample_clocks();
+  void send_held();
+  void end_of_stream();
+
+  // recvmmsg() buffers: one frame and its control data (timestamp, drop count) per slot.
+  struct Slot {
+    ::can_frame frame;
+    iovec iov;
+    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(std::uint32_t))];
+  };
+
+  int fd_;
+  std::size_t max_batch_;
+  std::vector<Slot> slots_;
+  std::vector<::mmsghdr> headers_;
+  socketcan::StampMapper stamps_;
+  bool batching_ = false;
+  bool ended_ = false;  // a zero-length datagram was read: the peer is gone
+  std::vector<::can_frame> held_;  // frames send() took during a batch
+  std::vector<iovec> held_iov_;
+  std::vector<::mmsghdr> held_headers_;
+};
+
+class SocketCanTransport final : public CanFrameSocket {
  public:
   // Throws CanOpenError, with messages such as:
   //   "kernel has no CAN support (socket(PF_CAN): Address family not supported by protocol)"
@@ -175,14 +234,6 @@ class SocketCanTransport final : public CanTransport {
   // CAN_RAW options are left as the socket has them. Throws std::invalid_argument for fd < 0.
   [[nodiscard]] static std::unique_ptr<SocketCanTransport> adopt(int fd, std::string interface,
                                                                  std::size_t max_batch = SocketCanOptions::kDefaultMaxBatch);
-  ~SocketCanTransport() override;
-
-  SendResult send(const CanFrame& frame) override;
-  // Between them send() holds valid frames; end_batch() sends them with sendmmsg().
-  void begin_batch() override { batching_ = true; }
-  void end_batch() override;
-  [[nodiscard]] int fd() const override { return fd_; }
-  void poll_readable() override;
 
   [[nodiscard]] const std::string& interface() const { return interface_; }
   [[nodiscard]] int interface_index() const { return index_; }  // 0 when adopted
@@ -196,30 +247,10 @@ class SocketCanTransport final : public CanTransport {
 
  private:
   SocketCanTransport(int fd, std::string interface, int index, std::size_t max_batch);
-  // Reads up to the batch size in one recvmmsg(); returns how many it read, -1 to stop.
-  int read_batch();
-  void sample_clocks();
-  void send_held();
 
-  // recvmmsg() buffers: one frame and its control data (timestamp, drop count) per slot.
-  struct Slot {
-    ::can_frame frame;
-    iovec iov;
-    alignas(cmsghdr) char control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(std::uint32_t))];
-  };
-
-  int fd_;
   std::string interface_;
   int index_;
-  std::size_t max_batch_;
-  std::vector<Slot> slots_;
-  std::vector<::mmsghdr> headers_;
-  socketcan::StampMapper stamps_;
-  bool batching_ = false;
   bool rx_buffer_capped_ = false;
-  std::vector<::can_frame> held_;  // frames send() took during a batch
-  std::vector<iovec> held_iov_;
-  std::vector<::mmsghdr> held_headers_;
 };
 
 }  // namespace oegw::canopen
