@@ -29,6 +29,7 @@
 #include "gateway/record/recording_service.hpp"
 #include "gateway/reload.hpp"
 #include "gateway/runtime_config.hpp"
+#include "gateway/serve_gateway.hpp"
 #include "gateway/service_notify.hpp"
 #include "mapping/deployment.hpp"
 #include "profiles/cia852/pdo_defaults.hpp"
@@ -422,7 +423,7 @@ int run_eds(const std::string& file, const std::string& out) {
 int run_gateway(const std::string& file) {
   const DaemonLog log;  // lines through a bounded queue: the loop never waits for the journal
   // Blocked from the start (SIGHUP's default action ends the process): served once the loop
-  // runs, by the handler set below; one that comes while the start fails is discarded.
+  // runs, by the handler serve_gateway sets; one that comes while the start fails is discarded.
   EventLoop loop;
   loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1});
   auto cfg = load(file, Use::Cab);
@@ -448,6 +449,36 @@ int run_gateway(const std::string& file) {
     spdlog::error("{}: downstream.interface: {}", file, e.what());
     return exit_code::kCannotStart;
   }
+  GatewayBuses buses{*up, *down};
+  const std::string& up_name = cfg->upstream.interface;
+  buses.set_upstream_bit_rate = [&link, &up_name](std::uint32_t rate) { return apply_bit_rate(*link, up_name, rate); };
+  // The receive buffers (SocketCanOptions::rx_buffer_bytes): what the kernel granted.
+  buses.watching = [&up, &down] {
+    for (const auto& [bus, side] : {std::pair{up.get(), "upstream"}, std::pair{down.get(), "downstream"}})
+      if (bus->rx_buffer_capped())
+        spdlog::warn("{} {}: receive buffer {} kB, less than the {} kB asked (no CAP_NET_ADMIN: net.core.rmem_max "
+                     "caps it); frames are lost if the gateway is held off longer",
+                     side, bus->interface(), bus->rx_buffer_bytes() / 1024,
+                     SocketCanOptions::kDefaultRxBufferBytes / 1024);
+  };
+  return serve_gateway(file, *cfg, loop, buses);
+}
+
+int serve_gateway(const std::string& file, mapping::Config& config, EventLoop& loop, const GatewayBuses& buses) {
+  mapping::Config* const cfg = &config;
+  CanTransport* const up = &buses.up;
+  CanTransport* const down = &buses.down;
+  // The buses outlive what their callbacks reach (the gateway, its driver): cut them on the way out.
+  struct Unhook {
+    CanTransport* up;
+    CanTransport* down;
+    ~Unhook() {
+      for (CanTransport* t : {up, down}) {
+        t->set_receiver({});
+        t->set_event_handler({});
+      }
+    }
+  } unhook{up, down};
   // The black box (mapping file `record`): it taps every gateway from its construction on.
   record::RecordingService recording(loop, *cfg, file);
   // Replaced at each reload (SIGHUP): everything below reaches it through this pointer.
@@ -469,7 +500,10 @@ int run_gateway(const std::string& file) {
   bool switched = false;
   gw->upstream().on_bit_rate_switch([&](std::uint32_t rate) {
     const std::string& name = cfg->upstream.interface;
-    const BitRateOutcome r = apply_bit_rate(*link, name, rate);
+    // Without a bit timing to set (a transport that is not a CAN controller): as a virtual CAN
+    // interface's.
+    const BitRateOutcome r = buses.set_upstream_bit_rate ? buses.set_upstream_bit_rate(rate)
+                                                         : BitRateOutcome{.action = BitRateAction::NoBitTiming};
     if (!r.ok()) {
       spdlog::error("LSS activate bit timing: {}; {} stays at {} bit/s", r.message, name, r.before);
       return;
@@ -504,28 +538,24 @@ int run_gateway(const std::string& file) {
   });
   watch_transport(loop, *up);
   watch_transport(loop, *down);
-  // The receive buffers (SocketCanOptions::rx_buffer_bytes), and once a second the frames the
-  // kernel dropped because the gateway read them too late: each a reason a heartbeat or PDO may
-  // seem lost (the fault policy then acts on it; this says why).
+  if (buses.watching) buses.watching();
+  // Once a second the frames the kernel dropped because the gateway read them too late: each a
+  // reason a heartbeat or PDO may seem lost (the fault policy then acts on it; this says why).
   struct Watched {
-    const SocketCanTransport* bus;
+    const CanTransport* bus;
     const char* side;
+    std::string interface;
     std::uint64_t dropped = 0;
   };
-  std::array<Watched, 2> watched{Watched{up.get(), "upstream"}, Watched{down.get(), "downstream"}};
-  for (const Watched& w : watched)
-    if (w.bus->rx_buffer_capped())
-      spdlog::warn("{} {}: receive buffer {} kB, less than the {} kB asked (no CAP_NET_ADMIN: net.core.rmem_max "
-                   "caps it); frames are lost if the gateway is held off longer",
-                   w.side, w.bus->interface(), w.bus->rx_buffer_bytes() / 1024,
-                   SocketCanOptions::kDefaultRxBufferBytes / 1024);
+  std::array<Watched, 2> watched{Watched{up, "upstream", cfg->upstream.interface},
+                                 Watched{down, "downstream", cfg->downstream.interface}};
   loop.call_every(loop.now(), std::chrono::seconds(1), [&watched] {
     for (Watched& w : watched) {
       const std::uint64_t now_dropped = w.bus->counters().rx_dropped;
       if (now_dropped > w.dropped)
         spdlog::warn("{} {}: the kernel dropped {} received frames in the last second (the gateway read them too "
                      "late; {} since the start)",
-                     w.side, w.bus->interface(), now_dropped - w.dropped, now_dropped);
+                     w.side, w.interface, now_dropped - w.dropped, now_dropped);
       w.dropped = now_dropped;
     }
   });
@@ -536,7 +566,7 @@ int run_gateway(const std::string& file) {
   ServiceNotify notify(systemd, systemd_watchdog_timeout());
   std::unique_ptr<GatewayControl> control;  // `oegw status`, `oegw ctl` (docs/reference/control-protocol.md)
   try {
-    if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, *gw, *cfg, file, [&driver] { driver.rearm(); }, up.get(), down.get());
+    if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, *gw, *cfg, file, [&driver] { driver.rearm(); }, up, down);
   } catch (const ControlError& e) {
     spdlog::error("{}", e.what());
     return exit_code::kCannotStart;

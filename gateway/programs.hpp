@@ -19,6 +19,8 @@ int run_check(const std::string& file);
 // Writes the EDS of the upstream device FILE configures to `out` ("-" = standard output).
 int run_eds(const std::string& file, const std::string& out);
 // The daemon: upstream and downstream on the SocketCAN interfaces FILE names, until SIGTERM.
+// FILE loaded and checked, the bit rates set, both interfaces opened, then serve_gateway()
+// (gateway/serve_gateway.hpp).
 int run_gateway(const std::string& file);
 
 }  // namespace oegw::gateway

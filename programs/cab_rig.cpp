@@ -9,6 +9,20 @@ namespace oegw::gateway {
 using canopen::CanFrame;
 using canopen::TimePoint;
 
+void add_cab_simulators(subdevices::sim::SimBench& bench, const mapping::Config& config,
+                        const std::map<std::string, subdevices::DriverOptions>& simulator_options) {
+  for (const auto& s : config.subdevices) {
+    subdevices::DeviceSpec spec{s.driver, s.node(), {}};
+    for (const auto& [key, value] : s.options.values)
+      if (key == "eds") spec.options.values.emplace_back(key, value);
+    if (const auto it = simulator_options.find(s.name); it != simulator_options.end())
+      for (const auto& kv : it->second.values) spec.options.values.push_back(kv);
+    spec.options.values.emplace_back("name", s.name);
+    std::string error;
+    if (!bench.add(spec, error)) throw std::runtime_error("simulator " + s.name + ": " + error);
+  }
+}
+
 CabRig::CabRig(const mapping::Config& config, canopen::EventLoop& loop, CabRigOptions options)
     : config_(config), loop_(loop), options_(std::move(options)) {
   if (options_.timed_buses) {
@@ -43,16 +57,7 @@ void CabRig::build_devices() {
   bench_ = std::make_unique<subdevices::sim::SimBench>(through(from_devices, sims_port_->sink()));
   bench_->set_sdo_latency(options_.device_sdo_latency.value_or(
       options_.timed_buses ? subdevices::sim::kTypicalSdoLatency : canopen::Duration{0}));
-  for (const auto& s : config_.subdevices) {
-    subdevices::DeviceSpec spec{s.driver, s.node(), {}};
-    for (const auto& [key, value] : s.options.values)
-      if (key == "eds") spec.options.values.emplace_back(key, value);
-    if (const auto it = options_.simulator_options.find(s.name); it != options_.simulator_options.end())
-      for (const auto& kv : it->second.values) spec.options.values.push_back(kv);
-    spec.options.values.emplace_back("name", s.name);
-    std::string error;
-    if (!bench_->add(spec, error)) throw std::runtime_error("simulator " + s.name + ": " + error);
-  }
+  add_cab_simulators(*bench_, config_, options_.simulator_options);
   host_ = std::make_unique<canopen::Master>(
       host_od_, host_port_->sink(),
       canopen::MasterConfig{.heartbeat_entries = options_.host_heartbeat_entries, .sdo_timeout = options_.host_sdo_timeout});

@@ -45,6 +45,14 @@ struct CabRigOptions {
   std::optional<canopen::Duration> device_sdo_latency{};
 };
 
+// The simulators of `config`'s sub-devices added to `bench`, each named as in the file, with
+// its `eds` option (a cia401 node's device and description are one file) and the options
+// `simulator_options` gives it (CabRigOptions::simulator_options). Throws std::runtime_error
+// naming a sub-device whose simulator cannot be built. CabRig::build_devices, and the benchmark
+// of the whole path (tests/bench/bench_path.cpp), whose simulators run on a socketpair.
+void add_cab_simulators(subdevices::sim::SimBench& bench, const mapping::Config& config,
+                        const std::map<std::string, subdevices::DriverOptions>& simulator_options = {});
+
 class CabRig {
  public:
   // `loop` runs everything (a simulated clock in tests and `oegw demo --fast`).

@@ -1,0 +1,37 @@
+// `oegw run` once its buses are open (gateway/programs.cpp: run_gateway opens the SocketCAN
+// interfaces, then calls serve_gateway), so that the same serving runs on any CanTransport: the
+// benchmark of the whole path (tests/bench/bench_path.cpp) runs it on socketpairs where the
+// kernel has no AF_CAN.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+
+#include "canopen/io/can_bitrate.hpp"
+#include "canopen/io/can_transport.hpp"
+#include "canopen/io/event_loop.hpp"
+#include "mapping/config.hpp"
+
+namespace oegw::gateway {
+
+// The buses serve_gateway() runs on, and what only a CAN controller has.
+struct GatewayBuses {
+  canopen::CanTransport& up;
+  canopen::CanTransport& down;
+  // LSS activate bit timing (CiA 305): sets the upstream interface to `rate` (run_gateway:
+  // apply_bit_rate). Unset: the transport has no bit timing, as a virtual CAN interface.
+  std::function<canopen::BitRateOutcome(std::uint32_t rate)> set_upstream_bit_rate;
+  // Called once both buses are watched, before publishing starts (run_gateway: warns of a
+  // receive buffer smaller than asked).
+  std::function<void()> watching;
+};
+
+// The gateway of `config` (read from `file`, which names it in the log and which SIGHUP reloads)
+// on `buses`, with the black box, publishing, the control socket and systemd's notifications as
+// `config` sets them, on `loop` (a real-time loop of the calling thread) until SIGINT or SIGTERM;
+// SIGUSR1 keeps the recording. Returns the exit status (exit_code in gateway/programs.hpp). The
+// buses' receivers and event handlers are cleared on return.
+int serve_gateway(const std::string& file, mapping::Config& config, canopen::EventLoop& loop, const GatewayBuses& buses);
+
+}  // namespace oegw::gateway
