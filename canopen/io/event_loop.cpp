@@ -192,6 +192,9 @@ void EventLoop::post(Callback fn) { posted_.push_back(std::move(fn)); }
 void EventLoop::defer(Callback fn) { deferred_.push_back(std::move(fn)); }
 
 std::size_t EventLoop::run_posted() {
+  // Most wake-ups (a bus's frames) post nothing: then no batch is built (an empty std::deque
+  // allocates its map and a first block).
+  if (posted_.empty()) return 0;
   // Only what was posted before this call: callbacks posting again do not starve descriptors.
   std::deque<Callback> batch;
   batch.swap(posted_);

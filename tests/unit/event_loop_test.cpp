@@ -6,11 +6,27 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <cstdlib>
 #include <functional>
+#include <new>
 #include <string>
 #include <vector>
 
 #include "canopen/io/virtual_bus.hpp"
+
+// Counts heap allocations (AWakeUpOfABusAllocatesNothing): the replaceable operator new
+// ([replacement.functions]) counts, then allocates as the library's own does. Not inlined, so
+// GCC does not see free() meet operator new's result.
+namespace {
+std::size_t g_allocations = 0;
+}  // namespace
+[[gnu::noinline]] void* operator new(std::size_t n) {
+  ++g_allocations;
+  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
+  throw std::bad_alloc();
+}
+[[gnu::noinline]] void operator delete(void* p) noexcept { std::free(p); }
+[[gnu::noinline]] void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 using namespace oegw::canopen;
 using namespace std::chrono_literals;
@@ -180,6 +196,28 @@ TEST(EventLoop, FdWatcherRunsWhenAPipeBecomesReadable) {
   ASSERT_EQ(::write(p.w, "x", 1), 1);
   EXPECT_EQ(loop.run_once(0us), 0u) << "unwatched: callback must not run";
   EXPECT_EQ(got, "hi");
+}
+
+// The wake-up of a bus, nothing posted: no allocation. At 8,000 frames/s every allocation per
+// wake-up is thousands of malloc/free pairs a second (oegw_bench_path counted 2 per wake-up of
+// `oegw run`: the empty batch of posted callbacks, a std::deque, built every time).
+TEST(EventLoop, AWakeUpOfABusAllocatesNothing) {
+  EventLoop loop;
+  Pipe p;
+  int woken = 0;
+  loop.watch(p.r, io_events::kReadable, [&](std::uint32_t) {
+    char c;
+    while (::read(p.r, &c, 1) == 1) {
+    }
+    ++woken;
+  });
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_EQ(::write(p.w, "x", 1), 1);
+    const std::size_t before = g_allocations;
+    EXPECT_EQ(loop.run_once(1s), 1u);
+    EXPECT_EQ(g_allocations - before, 0u) << "wake-up " << i;
+  }
+  EXPECT_EQ(woken, 3);
 }
 
 TEST(EventLoop, WatchingTheSameFdTwiceThrows) {
