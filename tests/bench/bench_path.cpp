@@ -577,10 +577,21 @@ class Cab {
       canopen::EventLoop loop;
       loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1});
       serving_ = true;
-      exit_status_ = gateway::serve_gateway(name_ + ".yaml", config_, loop, gateway::GatewayBuses{*gw_up_, *gw_down_});
+      try {
+        exit_status_ = gateway::serve_gateway(name_ + ".yaml", config_, loop, gateway::GatewayBuses{*gw_up_, *gw_down_});
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "%s: serve_gateway: %s\n", name_.c_str(), e.what());
+        exit_status_ = 1;
+      }
       serving_ = false;
     });
-    devices_thread_ = std::thread([this] { run_devices(); });
+    devices_thread_ = std::thread([this] {
+      try {
+        run_devices();
+      } catch (const std::exception& e) {  // e.g. a simulator that cannot be built: the cab never gets ready
+        std::fprintf(stderr, "%s: simulators: %s\n", name_.c_str(), e.what());
+      }
+    });
   }
 
   void stop() {
