@@ -233,6 +233,20 @@ bool Parser::tokenize(std::string_view text) {
   std::size_t pos = 0;
   Section* current = nullptr;
   if (text.substr(0, 3) == "\xEF\xBB\xBF") pos = 3;  // UTF-8 byte-order mark
+  // CiA 306 writes the EDS as an INI text file: a control byte (a NUL, an escape, ...) means
+  // a binary file given for an EDS, said in one short line rather than as the escaped bytes of
+  // its first "line". Tab, line ends, form feed and the DOS end-of-file mark 1Ah are text; bytes
+  // 80h..FFh are too (vendors write their names in Windows-1252).
+  for (std::size_t i = pos; i < text.size(); ++i) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    if ((c < 0x20 && c != '\t' && c != '\n' && c != '\r' && c != '\v' && c != '\f' && c != 0x1A) || c == 0x7F) {
+      static constexpr char kHex[] = "0123456789ABCDEF";
+      const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(i), '\n');
+      return fail(static_cast<int>(line), std::string("not a text file (byte 0x") + kHex[c >> 4] + kHex[c & 0xF] +
+                                              " at offset " + std::to_string(i) +
+                                              "); expected an EDS, a text file (CiA 306)");
+    }
+  }
   while (pos < text.size()) {
     std::size_t end = text.find('\n', pos);
     if (end == std::string_view::npos) end = text.size();

@@ -265,7 +265,15 @@ TEST(Eds, MalformedFilesGiveFileLineAndWhatWasExpected) {
     EXPECT_EQ(error.rfind(c.expected, 0), 0u) << "got:      " << error << "\nexpected: " << c.expected;
   }
   EXPECT_EQ(parse_error(""), "t.eds:0: expected a [MandatoryObjects] section (the file lists no objects)");
-  EXPECT_EQ(parse_error(std::string("[A]\nk=v\n\x01\x02\xff\n")).rfind("t.eds:3: expected 'key=value'", 0), 0u);
+  // Control bytes are no text: a binary file given for an EDS is said to be one, at its first
+  // such byte, in one short line (its escaped bytes were quoted before).
+  EXPECT_EQ(parse_error(std::string("[A]\nk=v\n\x01\x02\xff\n")),
+            "t.eds:3: not a text file (byte 0x01 at offset 8); expected an EDS, a text file (CiA 306)");
+  std::string elf("\x7F" "ELF\x02\x01\x01", 7);
+  elf += std::string(200, '\0');
+  EXPECT_EQ(parse_error(elf), "t.eds:1: not a text file (byte 0x7F at offset 0); expected an EDS, a text file (CiA 306)");
+  // Tab, CR LF, the DOS end-of-file mark and Windows-1252 letters are text.
+  EXPECT_EQ(parse_error("[FileInfo]\r\nFileName=p\xE9" "dale.eds\t\r\n\x1A").find("not a text file"), std::string::npos);
 }
 
 TEST(Eds, UnreadableFileIsReported) {
