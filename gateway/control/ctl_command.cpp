@@ -158,12 +158,13 @@ std::string CtlSession::answer_of(std::uint32_t seq, const ascii::Request& r, co
   }
   if (r.command == Command::InfoVersion) {
     error = false;
-    const auto rev = a.value("revision", 0u);
-    // lely gw_txt.c's layout: vendor, product, revision hi.lo, serial, gateway class,
-    // protocol hi.lo (CiA 309-3 3.0, as CANopenNode names the version it implements),
-    // implementation hi.lo (oegw's).
-    return fmt::format("[{}] {} {} {}.{} {} {} 3.0 {}", seq, a.value("vendor_id", 0u), a.value("product_code", 0u),
-                       rev >> 16, rev & 0xFFFF, a.value("serial", 0u), a.value("gateway_class", 3), major_minor(version_));
+    // lely gw_txt.c's order: vendor, product, revision, serial, gateway class, protocol hi.lo
+    // (CiA 309-3 3.0, as CANopenNode names the version it implements), implementation hi.lo
+    // (oegw's). The four 1018h values as `r 0x1018 N u32` prints them (ascii::format: 0x and
+    // eight upper-case hex digits), so the two answers compare as text.
+    const auto u32 = [&a](const char* key) { return fmt::format("0x{:08X}", a.value(key, 0u)); };
+    return fmt::format("[{}] {} {} {} {} {} 3.0 {}", seq, u32("vendor_id"), u32("product_code"), u32("revision"),
+                       u32("serial"), a.value("gateway_class", 3), major_minor(version_));
   }
   error = false;
   return ascii::answer_ok(seq);

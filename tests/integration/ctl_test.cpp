@@ -202,9 +202,12 @@ TEST_F(Ctl, TheGatewaysOwnDictionaryUpstream) {
   // Nothing of this reached the sub-devices' bus.
   EXPECT_EQ(frames_since({0x600 + 0x20, 0x580 + 0x20}), Frames{});
   const std::string info = run("[7] info version");
-  EXPECT_EQ(info, fmt::format("[7] {} {} {}.{} {} 3 3.0 0.1", od.get<std::uint32_t>(0x1018, 1), od.get<std::uint32_t>(0x1018, 2),
-                              od.get<std::uint32_t>(0x1018, 3) >> 16, od.get<std::uint32_t>(0x1018, 3) & 0xFFFF,
+  // The 1018h values as `r` prints a u32: the same text for the same object either way.
+  EXPECT_EQ(info, fmt::format("[7] 0x{:08X} 0x{:08X} 0x{:08X} 0x{:08X} 3 3.0 0.1", od.get<std::uint32_t>(0x1018, 1),
+                              od.get<std::uint32_t>(0x1018, 2), od.get<std::uint32_t>(0x1018, 3),
                               od.get<std::uint32_t>(0x1018, 4)));
+  for (std::uint8_t sub = 1; sub <= 4; ++sub)
+    EXPECT_NE(info.find(run(fmt::format("[8] 1 32 r 0x1018 {} u32", sub)).substr(4)), std::string::npos) << +sub;
 }
 
 TEST_F(Ctl, NmtAndTheBootUpEvent) {

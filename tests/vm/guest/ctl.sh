@@ -55,7 +55,8 @@ vendor=$(sed -n 's/^\[3\] 0x\([0-9A-F]\{8\}\)$/\1/p' /tmp/ctl1.out)
 [[ -n $vendor ]] && pass "1018h:01 = 0x$vendor" || fail "no [3] 0x........ answer"
 grep -qxF '[4] OK' /tmp/ctl1.out && pass "write 5001h: [4] OK" || fail "write 5001h not OK"
 grep -qxF '[5] 0x001E' /tmp/ctl1.out && pass "5001h read back: [5] 0x001E" || fail "5001h not read back as 0x001E"
-grep -qE '^\[6\] [0-9]+ 2130 1\.0 1 3 3\.0 [0-9]+\.[0-9]+$' /tmp/ctl1.out && pass "info version: the gateway's 1018h (852h, rev 1.0, serial 1)" ||
+grep -qE '^\[6\] 0x[0-9A-F]{8} 0x00000852 0x00010000 0x00000001 3 3\.0 [0-9]+\.[0-9]+$' /tmp/ctl1.out &&
+  pass "info version: the gateway's 1018h as r prints it (852h, rev 00010000h, serial 1)" ||
   fail "info version answer"
 
 # ---- Refused: the grip's TPDO1 COB-ID; --exit ends at that ERROR with exit 1, the next line unrun.

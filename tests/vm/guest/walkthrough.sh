@@ -178,7 +178,7 @@ for row in 'mcb402_03 +03h mcb402' 'elobau_mfg_11 +11h elobau-mfg' 'cia401_30 +3
 done
 expect "$ctl" '^\[1\] 0x000000B4$' "ctl: elobau 1018h:01 = 000000B4h (document 000)"
 # The gateway's 1018h: the draft sets no vendor/product (0), the serial is the walk-through's edit.
-expect "$ctl" '^\[2\] 0 0 0\.0 1 3 3\.0 [0-9]+\.[0-9]+$' "ctl: info version, serial 1 as edited"
+expect "$ctl" '^\[2\] 0x00000000 0x00000000 0x00000000 0x00000001 3 3\.0 [0-9]+\.[0-9]+$' "ctl: info version, serial 1 as edited"
 
 # ---- The gateway stops as a service would be stopped.
 if [[ -n $gw_pid && -n $run ]]; then
