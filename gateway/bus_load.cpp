@@ -116,11 +116,14 @@ std::string describe_bus_load(const BusLoad& load, const std::string& name) {
     out += fmt::format("    {:<58} {:7.1f}/s x {:3} bits = {:5.2f} %\n", s.what, s.per_second, s.bits,
                        load.bit_rate == 0 ? 0.0 : 100.0 * s.bits_per_second() / load.bit_rate);
   for (const auto& c : load.on_change) out += "    not counted: " + c + "\n";
-  if (load.percent() > kBusLoadWarnPercent)
-    out += fmt::format("warning: the {} bus is {:.1f} % loaded in the steady state, above {:.0f} %: too little room for "
-                       "change-driven frames, boot SDO traffic and retransmissions (lower the rates or raise {}.bitrate)\n",
-                       name, load.percent(), kBusLoadWarnPercent, name);
-  return out;
+  return out + bus_load_warning(load, name);
+}
+
+std::string bus_load_warning(const BusLoad& load, const std::string& name) {
+  if (load.percent() <= kBusLoadWarnPercent) return "";
+  return fmt::format("warning: the {} bus is {:.1f} % loaded in the steady state, above {:.0f} %: too little room for "
+                     "change-driven frames, boot SDO traffic and retransmissions (lower the rates or raise {}.bitrate)\n",
+                     name, load.percent(), kBusLoadWarnPercent, name);
 }
 
 }  // namespace oegw::gateway

@@ -65,5 +65,8 @@ struct BusLoadPrediction {
 // `oegw check`'s lines for one bus: "downstream 250000 bit/s: 12.3 % (123.0 frames/s, ...)",
 // then one line per stream and per change-driven frame; `warning: ...` above the threshold.
 [[nodiscard]] std::string describe_bus_load(const BusLoad& load, const std::string& name);
+// The `warning: ...` line of describe_bus_load() alone ("" at or below the threshold): what
+// `oegw check --quiet` prints of the bus load.
+[[nodiscard]] std::string bus_load_warning(const BusLoad& load, const std::string& name);
 
 }  // namespace oegw::gateway

@@ -143,6 +143,18 @@ std::string pdo_place(const std::vector<cia852::DefaultPdo>& pdos, const mapping
   return "not in a default PDO";
 }
 
+// What the EDS reader accepted of a sub-device's EDS with a warning (CiA 306 does not allow it,
+// vendors' tools write it): "io: file.eds:174: warning: ..." each.
+std::vector<std::string> eds_warnings(const mapping::SubdeviceConfig& s) {
+  std::vector<std::string> out;
+  if (const auto eds = s.options.get("eds")) {
+    std::string error;
+    if (const auto f = canopen::eds::load(*eds, error))
+      for (const auto& w : f->warnings) out.push_back(s.name + ": " + w);
+  }
+  return out;
+}
+
 // `oegw check`: the downstream SYNC and what the network manager reads at every boot of a
 // sub-device (subdevices/network_manager.hpp).
 void print_downstream_boot(const mapping::Config& cfg) {
@@ -157,13 +169,7 @@ void print_downstream_boot(const mapping::Config& cfg) {
               "version, 1001h error register (absent = not present); logged once per boot, in the gateway status\n");
   for (const auto& s : cfg.subdevices) {
     if (s.exact_revision) std::printf("  %s: revision compared exactly\n", s.name.c_str());
-    // What the EDS reader accepted with a warning (CiA 306 does not allow it, vendors' tools
-    // write it).
-    if (const auto eds = s.options.get("eds")) {
-      std::string error;
-      if (const auto f = canopen::eds::load(*eds, error))
-        for (const auto& w : f->warnings) std::printf("  %s: %s\n", s.name.c_str(), w.c_str());
-    }
+    for (const auto& w : eds_warnings(s)) std::printf("  %s\n", w.c_str());
   }
 }
 
@@ -293,13 +299,13 @@ bool start_publishing(Gateway& gw, const mapping::Config& cfg, const std::string
 
 }  // namespace
 
-int run_check(const std::string& file) {
+int run_check(const std::string& file, bool quiet) {
   const auto cfg = load(file, Use::Cab);
   if (!cfg) return exit_code::kBadFile;
   const auto device = eds_device(*cfg);  // the dictionary `oegw run` builds
   const auto& fes = device->config().fes;
   const NodeId node{cfg->upstream.node_id};
-  std::printf("%s: valid\n\n", file.c_str());
+  std::printf("%s: valid\n%s", file.c_str(), quiet ? "" : "\n");
   // Valid, but departing from CiA 852 / CiA 305
   // (docs/reference/mapping-file.md#upstreamheartbeat_ms-and-upstreamidentityserial).
   bool warned = false;
@@ -326,6 +332,16 @@ int run_check(const std::string& file) {
                   problem->c_str(), lcm_route_command(lcm.url, net == "loopback" ? "" : net).c_str());
       warned = true;
     }
+  if (quiet) {
+    // The warnings the full listing has inside its sections: the EDS reader's, the bus load's.
+    for (const auto& s : cfg->subdevices)
+      for (const auto& w : eds_warnings(s)) std::printf("%s\n", w.c_str());
+    BusLoadPrediction load = predict_bus_load(*cfg);
+    load.upstream.bit_rate = upstream_bit_rate(*cfg).bitrate;
+    std::printf("%s%s", bus_load_warning(load.upstream, "upstream").c_str(),
+                bus_load_warning(load.downstream, "downstream").c_str());
+    return exit_code::kOk;
+  }
   if (warned) std::printf("\n");
   std::printf("upstream: network %u, node-ID %02Xh on %s, 1000h device type = %08Xh (CiA 852 Table 8)\n",
               cfg->upstream.network_id, node.value(), cfg->upstream.interface.c_str(),

@@ -15,7 +15,9 @@ inline constexpr int kUsage = 64;       // the command line is refused (EX_USAGE
 }  // namespace exit_code
 
 // Validates FILE and prints the upstream layout; 0 if valid, 1 with every error otherwise.
-int run_check(const std::string& file);
+// `quiet` (`oegw check --quiet`): of a valid file only "FILE: valid" and the warnings, for scripts
+// and commissioning logs; errors and exit codes as without it.
+int run_check(const std::string& file, bool quiet = false);
 // Writes the EDS of the upstream device FILE configures to `out` ("-" = standard output).
 int run_eds(const std::string& file, const std::string& out);
 // The daemon: upstream and downstream on the SocketCAN interfaces FILE names, until SIGTERM.
