@@ -16,9 +16,9 @@ namespace sd = oegw::subdevices;
 
 mapping::SignalCatalogue driver_catalogue() {
   return [](std::string_view family, const sd::DriverOptions& options,
-            std::string& error) -> std::optional<std::vector<sd::SignalInfo>> {
+            sd::OptionRefusals& refusals) -> std::optional<std::vector<sd::SignalInfo>> {
     // A driver on node 1 with no bus: only its signal list is wanted.
-    auto driver = sd::make_driver(family, canopen::NodeId{1}, {}, options, error);
+    auto driver = sd::make_driver(family, canopen::NodeId{1}, {}, options, refusals);
     if (!driver) return std::nullopt;
     return driver->signals();
   };

@@ -20,6 +20,7 @@
 #include "mapping/fe_names.hpp"
 #include "mapping/translate.hpp"
 #include "subdevices/driver.hpp"
+#include "subdevices/driver_options.hpp"
 #include "subdevices/network_manager.hpp"
 #include "subdevices/signal.hpp"
 
@@ -40,10 +41,11 @@ struct Diagnostic {
   [[nodiscard]] std::string str() const;  // "file:line:column: message"
 };
 
-// Returns the signals a driver family provides with these options, or nullopt and an error
-// (unknown family, options the family refuses).
+// Returns the signals a driver family provides with these options, or nullopt and every refusal
+// (unknown family, options the family refuses), each naming its option where it is about one
+// (subdevices/driver_options.hpp), so that each is reported at that option's value.
 using SignalCatalogue = std::function<std::optional<std::vector<subdevices::SignalInfo>>(
-    std::string_view family, const subdevices::DriverOptions& options, std::string& error)>;
+    std::string_view family, const subdevices::DriverOptions& options, subdevices::OptionRefusals& refusals)>;
 
 struct UpstreamIdentity {  // 1018h sub-indices 1..4
   std::uint32_t vendor_id = 0;

@@ -1,6 +1,7 @@
 #include "subdevices/cia401.hpp"
 
 #include <algorithm>
+#include <filesystem>
 
 #include "canopen/306/eds_check.hpp"
 #include "profiles/cia401/objects.hpp"
@@ -441,7 +442,7 @@ const std::vector<OptionSpec>& cia401_options() {
 }
 
 std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const DriverOptions& options,
-                                           std::string& error) {
+                                           OptionRefusals& refusals) {
   std::optional<std::string> path;
   std::int64_t floor_ms = 0;
   if (!parse_options("cia401", cia401_options(), options,
@@ -453,30 +454,44 @@ std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const Dr
                        }
                        return true;
                      },
-                     error))
+                     refusals))
     return nullptr;
   if (!node.valid()) {
-    error = "cia401: node-ID " + std::to_string(node.value()) + " is not 1..127";
+    refusals.push_back({"", "cia401: node-ID " + std::to_string(node.value()) + " is not 1..127"});
     return nullptr;
   }
   if (!path || path->empty()) {
-    error = "cia401: option 'eds' (path of the node's EDS file) is required";
+    refusals.push_back({"eds", "cia401: option 'eds' (path of the node's EDS file) is required"});
+    return nullptr;
+  }
+  // A path to nothing is the commonest slip (a typo, a folder not copied to the cab): said as
+  // that, with the path as the driver was given it.
+  std::error_code ec;
+  if (!std::filesystem::exists(*path, ec) && !ec) {
+    refusals.push_back({"eds", "cia401: EDS file " + *path + " does not exist"});
     return nullptr;
   }
   std::string why;
   auto file = canopen::eds::load(*path, why);
   if (!file) {
-    error = "cia401: " + why;
+    refusals.push_back({"eds", "cia401: " + why});
     return nullptr;
   }
   if (const auto problems = canopen::eds::check_pdo_mappings(*file); !problems.empty()) {
-    error = "cia401: " + problems.front() +
-            (problems.size() > 1 ? " (and " + std::to_string(problems.size() - 1) + " more)" : "");
+    refusals.push_back({"eds", "cia401: " + problems.front() +
+                                   (problems.size() > 1 ? " (and " + std::to_string(problems.size() - 1) + " more)" : "")});
     return nullptr;
   }
   auto d = std::make_unique<Cia401Driver>(node, std::move(sink), std::move(*file));
   apply_freshness_floor(*d, floor_ms);
   return d;
+}
+
+std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const DriverOptions& options,
+                                           std::string& error) {
+  return with_error_text(error, [&](OptionRefusals& refusals) {
+    return make_cia401_driver(node, std::move(sink), options, refusals);
+  });
 }
 
 }  // namespace oegw::subdevices

@@ -57,64 +57,75 @@ std::string OptionSpec::type_text() const {
   return {};
 }
 
+std::string refusal_text(const OptionRefusals& refusals) {
+  std::string out;
+  for (const OptionRefusal& r : refusals) out += (out.empty() ? "" : "\n") + r.message;
+  return out;
+}
+
 bool parse_options(std::string_view family, const std::vector<OptionSpec>& table, const DriverOptions& given,
                    const std::function<bool(const OptionValue&, std::string& error)>& apply,
-                   std::string& error) {
+                   OptionRefusals& refusals) {
   const std::string f(family);
-  auto one = [&](const OptionSpec& spec, const std::string& text) {
+  const std::size_t before = refusals.size();
+  auto refuse = [&](std::string_view option, std::string message) {
+    refusals.push_back({std::string(option), std::move(message)});
+  };
+  // One value against its spec, then to `apply`; a refusal is recorded against `option` ("" for
+  // a default, which no one wrote).
+  auto one = [&](const OptionSpec& spec, const std::string& text, std::string_view option) {
     std::int64_t number = 0;
     if (spec.type == OptionSpec::Type::Integer) {
       const auto v = parse_option_integer(text);
       bool in = false;
       for (const auto& [lo, hi] : spec.ranges) in = in || (v && *v >= lo && *v <= hi);
       if (!in) {
-        error = f + ": " + std::string(spec.name) + " '" + text + "' is not an " + spec.type_text() +
-                (spec.note.empty() ? "" : " " + std::string(spec.note));
-        return false;
+        refuse(option, f + ": " + std::string(spec.name) + " '" + text + "' is not an " + spec.type_text() +
+                           (spec.note.empty() ? "" : " " + std::string(spec.note)));
+        return;
       }
       number = *v;
     } else if (spec.type == OptionSpec::Type::Choice) {
       bool in = false;
       for (const auto c : spec.choices) in = in || c == text;
       if (!in) {
-        error = f + ": " + std::string(spec.name) + " '" + text + "' must be " + spec.type_text() +
-                (spec.note.empty() ? "" : " " + std::string(spec.note));
-        return false;
+        refuse(option, f + ": " + std::string(spec.name) + " '" + text + "' must be " + spec.type_text() +
+                           (spec.note.empty() ? "" : " " + std::string(spec.note)));
+        return;
       }
     }
-    return apply(OptionValue{&spec, text, number}, error);
+    std::string error;
+    if (!apply(OptionValue{&spec, text, number}, error)) refuse(option, error);
   };
   for (const auto& [key, text] : given.values) {
     bool known = false;
     for (const OptionSpec& s : table) known = known || s.name == key;
-    if (!known) {
-      error = f + ": unknown option '" + key + "' (expected " + names(table) + ")";
-      return false;
-    }
+    if (!known) refuse(key, f + ": unknown option '" + key + "' (expected " + names(table) + ")");
   }
   for (const OptionSpec& s : table) {
     if (s.default_value.empty()) continue;
-    if (!one(s, std::string(s.default_value))) return false;
+    one(s, std::string(s.default_value), "");
   }
   for (const OptionSpec& s : table) {
     bool present = false;
     for (const auto& [key, text] : given.values) present = present || key == s.name;
     if (present || !s.required) continue;
-    error = s.missing.empty() ? f + ": option '" + std::string(s.name) + "' (" + std::string(s.description) + ") is required"
-                              : std::string(s.missing);
-    return false;
+    refuse("", s.missing.empty()
+                   ? f + ": option '" + std::string(s.name) + "' (" + std::string(s.description) + ") is required"
+                   : std::string(s.missing));
   }
   for (const auto& [key, text] : given.values)
     for (const OptionSpec& s : table) {
       if (s.name != key) continue;
       if (s.required && text == kPlaceholder) {
-        error = f + ": option " + std::string(s.name) + " is still the draft's placeholder " + std::string(kPlaceholder) +
-                "; " + (s.missing.empty() ? std::string(s.description) : std::string(s.missing));
-        return false;
+        refuse(key, f + ": option " + std::string(s.name) + " is still the draft's placeholder " +
+                        std::string(kPlaceholder) + "; " +
+                        (s.missing.empty() ? std::string(s.description) : std::string(s.missing)));
+        continue;
       }
-      if (!one(s, text)) return false;
+      one(s, text, key);
     }
-  return true;
+  return refusals.size() == before;
 }
 
 OptionSpec freshness_floor_option(std::string_view default_ms) {

@@ -59,14 +59,41 @@ struct OptionValue {
   std::int64_t number;
 };
 
+// One refusal of a driver's options: the option it is about (as the options name it; "" when it
+// is about no single written option: the family, the node-ID, two options that disagree) and
+// what is wrong, "<family>: ...".
+struct OptionRefusal {
+  std::string option;
+  std::string message;
+};
+using OptionRefusals = std::vector<OptionRefusal>;
+// The messages, one a line: what a factory's `std::string& error` holds.
+[[nodiscard]] std::string refusal_text(const OptionRefusals& refusals);
+
 // Checks `given` against `table` (every name known, an Integer in range, a Choice one of its
 // choices, every required one present) and hands each value to `apply`: the
 // table's defaults first, then the written values in order. `apply` stores it in the driver's
 // options, or returns false with `error` set for a value only the driver can judge (a Text).
-// Refusals are "<family>: ..." and name the option.
+// Every refusal is collected, not only the first (a mapping file with two wrong options gets
+// both at once, as every other mistake of the file); false when there is any. Refusals are
+// "<family>: ..." and name the option.
 bool parse_options(std::string_view family, const std::vector<OptionSpec>& table, const DriverOptions& given,
                    const std::function<bool(const OptionValue&, std::string& error)>& apply,
-                   std::string& error);
+                   OptionRefusals& refusals);
+
+// make_driver() with every refusal of the options apart (the `std::string& error` form has their
+// messages, one a line): the mapping file reports each at its option's value.
+std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink,
+                                    const DriverOptions& options, OptionRefusals& refusals);
+// A factory's `std::string& error` form from its OptionRefusals form: `make(refusals)`, and on
+// refusal the messages, one a line.
+template <typename Make>
+std::unique_ptr<Driver> with_error_text(std::string& error, Make&& make) {
+  OptionRefusals refusals;
+  auto driver = make(refusals);
+  if (!driver) error = refusal_text(refusals);
+  return driver;
+}
 
 // What `oegw signals` shows of one family (registry.cpp): its option table and how to build a
 // driver to read its signals from.

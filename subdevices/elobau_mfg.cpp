@@ -589,7 +589,7 @@ const std::vector<OptionSpec>& elobau_mfg_options() {
 }
 
 std::unique_ptr<Driver> make_elobau_mfg_driver(NodeId node, FrameSink sink, const DriverOptions& options,
-                                               std::string& error) {
+                                               OptionRefusals& refusals) {
   ElobauMfgOptions o;
   const bool ok = parse_options("elobau-mfg", elobau_mfg_options(), options,
                                 [&o](const OptionValue& v, std::string& /*error*/) {
@@ -602,19 +602,27 @@ std::unique_ptr<Driver> make_elobau_mfg_driver(NodeId node, FrameSink sink, cons
                                   if (name == kFreshnessFloorOption) o.freshness_floor_ms = static_cast<std::uint32_t>(v.number);
                                   return true;
                                 },
-                                error);
+                                refusals);
   if (!ok) return nullptr;
   if (o.channel2_timeout_ms != 0 && o.channel2_timeout_ms <= o.cycle_ms) {
-    error = "elobau-mfg: channel2_timeout_ms must exceed cycle_ms (" + std::to_string(o.cycle_ms) + " ms)";
+    refusals.push_back({options.get("channel2_timeout_ms") ? "channel2_timeout_ms" : "cycle_ms",
+                        "elobau-mfg: channel2_timeout_ms must exceed cycle_ms (" + std::to_string(o.cycle_ms) + " ms)"});
     return nullptr;
   }
   if (!node.valid()) {
-    error = "elobau-mfg: node-ID " + std::to_string(node.value()) + " is not 1..127";
+    refusals.push_back({"", "elobau-mfg: node-ID " + std::to_string(node.value()) + " is not 1..127"});
     return nullptr;
   }
   auto d = std::make_unique<ElobauMfgDriver>(node, std::move(sink), o);
   apply_freshness_floor(*d, o.freshness_floor_ms);
   return d;
+}
+
+std::unique_ptr<Driver> make_elobau_mfg_driver(NodeId node, FrameSink sink, const DriverOptions& options,
+                                               std::string& error) {
+  return with_error_text(error, [&](OptionRefusals& refusals) {
+    return make_elobau_mfg_driver(node, std::move(sink), options, refusals);
+  });
 }
 
 }  // namespace oegw::subdevices

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "subdevices/driver.hpp"
+#include "subdevices/driver_options.hpp"
 
 namespace oegw::subdevices {
 
@@ -16,5 +17,15 @@ std::unique_ptr<Driver> make_novotechnik_406_driver(NodeId node, FrameSink sink,
                                                     std::string& error);  // novotechnik_406.cpp
 std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const DriverOptions& options,
                                            std::string& error);      // cia401.cpp
+
+// The same, with every refusal of the options apart (driver_options.hpp).
+std::unique_ptr<Driver> make_elobau_mfg_driver(NodeId node, FrameSink sink, const DriverOptions& options,
+                                               OptionRefusals& refusals);
+std::unique_ptr<Driver> make_mcb402_driver(NodeId node, FrameSink sink, const DriverOptions& options,
+                                           OptionRefusals& refusals);
+std::unique_ptr<Driver> make_novotechnik_406_driver(NodeId node, FrameSink sink, const DriverOptions& options,
+                                                    OptionRefusals& refusals);
+std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const DriverOptions& options,
+                                           OptionRefusals& refusals);
 
 }  // namespace oegw::subdevices

@@ -1,5 +1,6 @@
 #include "subdevices/mcb402.hpp"
 
+#include <array>
 #include <charconv>
 #include <cstdio>
 #include <string_view>
@@ -55,25 +56,46 @@ std::optional<unsigned long> parse_number(std::string_view text, unsigned long m
 
 }  // namespace
 
-std::optional<ButtonBits> parse_button_bits(std::string_view text) {
+std::optional<ButtonBits> parse_button_bits(std::string_view text, std::string& why) {
   ButtonBits bits{};
   std::size_t n = 0;
-  unsigned seen = 0;
+  // Where each bit was given (1-based, 0: not yet): a repeated bit names both positions.
+  std::array<std::size_t, 8> at{};
   const char separator = text.find('/') != std::string_view::npos ? '/' : ',';
   while (true) {
     const auto end = text.find(separator);
     std::string_view item = text.substr(0, end);
     while (!item.empty() && item.front() == ' ') item.remove_prefix(1);
     while (!item.empty() && item.back() == ' ') item.remove_suffix(1);
+    ++n;
     const auto v = parse_number(item, 7);
-    if (!v || n == kButtons || (seen & (1u << *v)) != 0) return std::nullopt;
-    seen |= 1u << *v;
-    bits[n++] = static_cast<std::uint8_t>(*v);
+    if (!v) {
+      why = "'" + std::string(item) + "' at position " + std::to_string(n) +
+            (n <= kButtons ? " (BP" + std::to_string(n) + ")" : std::string()) + " is not a bit number 0..7";
+      return std::nullopt;
+    }
+    if (n <= kButtons) {  // beyond the seventh only counted: the count is what is wrong then
+      if (at[*v] != 0) {
+        why = "bit " + std::to_string(*v) + " is given twice, at positions " + std::to_string(at[*v]) + " and " +
+              std::to_string(n) + " (BP" + std::to_string(at[*v]) + " and BP" + std::to_string(n) + ")";
+        return std::nullopt;
+      }
+      at[*v] = n;
+      bits[n - 1] = static_cast<std::uint8_t>(*v);
+    }
     if (end == std::string_view::npos) break;
     text.remove_prefix(end + 1);
   }
-  if (n != kButtons) return std::nullopt;
+  if (n != kButtons) {
+    why = std::to_string(n) + " number" + (n == 1 ? "" : "s") + " for " + std::to_string(kButtons) + " push buttons";
+    return std::nullopt;
+  }
   return bits;
+}
+
+std::optional<ButtonBits> parse_button_bits(std::string_view text) {
+  std::string why;
+  return parse_button_bits(text, why);
 }
 
 const std::vector<OptionSpec>& mcb402_options() {
@@ -102,7 +124,7 @@ const std::vector<OptionSpec>& mcb402_options() {
   return table;
 }
 
-std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, std::string& error) {
+std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, OptionRefusals& refusals) {
   Mcb402Options o;
   const bool ok = parse_options("mcb402", mcb402_options(), options,
                                 [&o](const OptionValue& v, std::string& err) {
@@ -111,11 +133,13 @@ std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, 
                                   if (name == "button_timer_ms") o.button_timer_ms = static_cast<std::uint16_t>(v.number);
                                   if (name == "can_restart_ms") o.can_restart_ms = static_cast<std::uint16_t>(v.number);
                                   if (name == "button_bits") {
-                                    const auto bits = parse_button_bits(v.text);
+                                    std::string why;
+                                    const auto bits = parse_button_bits(v.text, why);
                                     if (!bits) {
-                                      err = "mcb402: button_bits must be 7 distinct bit numbers 0..7 of 6000h:03 for "
-                                            "BP1..BP7, separated by ',' or '/' (as `oegw signals mcb402 --find-button-bits` "
-                                            "prints them), got '" + v.text + "'";
+                                      err = "mcb402: button_bits '" + v.text + "': " + why +
+                                            "; expected 7 distinct bit numbers 0..7 of 6000h:03 for BP1..BP7, "
+                                            "separated by ',' or '/' (as `oegw signals mcb402 --find-button-bits` "
+                                            "prints them)";
                                       return false;
                                     }
                                     o.button_bits = *bits;
@@ -123,22 +147,29 @@ std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, 
                                   if (name == kFreshnessFloorOption) o.freshness_floor_ms = static_cast<std::uint32_t>(v.number);
                                   return true;
                                 },
-                                error);
+                                refusals);
   if (!ok) return std::nullopt;
   return o;
 }
 
 std::unique_ptr<Driver> make_mcb402_driver(NodeId node, FrameSink sink, const DriverOptions& options,
-                                           std::string& error) {
+                                           OptionRefusals& refusals) {
   if (!node.valid()) {
-    error = "mcb402: node-ID must be 1..127 (jumpers CN3)";
+    refusals.push_back({"", "mcb402: node-ID must be 1..127 (jumpers CN3)"});
     return nullptr;
   }
-  auto o = parse_mcb402_options(options, error);
+  auto o = parse_mcb402_options(options, refusals);
   if (!o) return nullptr;
   auto d = std::make_unique<Mcb402Driver>(node, std::move(sink), *o);
   apply_freshness_floor(*d, o->freshness_floor_ms);
   return d;
+}
+
+std::unique_ptr<Driver> make_mcb402_driver(NodeId node, FrameSink sink, const DriverOptions& options,
+                                           std::string& error) {
+  return with_error_text(error, [&](OptionRefusals& refusals) {
+    return make_mcb402_driver(node, std::move(sink), options, refusals);
+  });
 }
 
 Mcb402Driver::Mcb402Driver(NodeId node, FrameSink sink, Mcb402Options options)

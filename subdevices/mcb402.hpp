@@ -93,6 +93,7 @@
 #include <vector>
 
 #include "subdevices/driver.hpp"
+#include "subdevices/driver_options.hpp"
 
 namespace oegw::subdevices {
 
@@ -192,11 +193,13 @@ class Mcb402Driver final : public Driver {
   bool outputs_pending_ = false;  // set_output() inside an output batch: RPDO1 not sent yet
 };
 
-// Parses `options` (event_timer_ms, button_timer_ms, can_restart_ms, button_bits); nullopt +
-// `error` if one is bad or button_bits is missing.
-std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, std::string& error);
+// Parses `options` (event_timer_ms, button_timer_ms, can_restart_ms, button_bits); nullopt and
+// every refusal if one is bad or button_bits is missing.
+std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, OptionRefusals& refusals);
 // "1,2,3,4,5,7,6" or "1/2/3/4/5/7/6" (spaces around the numbers allowed) -> the bits of BP1..BP7;
-// nullopt unless 7 distinct bit numbers 0..7.
+// nullopt unless 7 distinct bit numbers 0..7, and then `why` names what is wrong: the number that
+// is no bit 0..7, a bit given twice with both positions (BP3 and BP4), or how many there are.
+std::optional<mcb402::ButtonBits> parse_button_bits(std::string_view text, std::string& why);
 std::optional<mcb402::ButtonBits> parse_button_bits(std::string_view text);
 
 }  // namespace oegw::subdevices

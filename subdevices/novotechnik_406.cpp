@@ -339,7 +339,7 @@ const std::vector<OptionSpec>& novotechnik_406_options() {
 }
 
 std::unique_ptr<Driver> make_novotechnik_406_driver(NodeId node, FrameSink sink, const DriverOptions& options,
-                                                    std::string& error) {
+                                                    OptionRefusals& refusals) {
   Novotechnik406Options o;
   const bool ok = parse_options("novotechnik-406", novotechnik_406_options(), options,
                                 [&o](const OptionValue& v, std::string& err) {
@@ -360,15 +360,22 @@ std::unique_ptr<Driver> make_novotechnik_406_driver(NodeId node, FrameSink sink,
                                   if (name == kFreshnessFloorOption) o.freshness_floor_ms = static_cast<std::uint32_t>(v.number);
                                   return true;
                                 },
-                                error);
+                                refusals);
   if (!ok) return nullptr;
   if (node.value() < 1 || node.value() > 127) {
-    error = "novotechnik-406: node-ID must be 1..127";
+    refusals.push_back({"", "novotechnik-406: node-ID must be 1..127"});
     return nullptr;
   }
   auto d = std::make_unique<Novotechnik406Driver>(node, std::move(sink), o);
   apply_freshness_floor(*d, o.freshness_floor_ms);
   return d;
+}
+
+std::unique_ptr<Driver> make_novotechnik_406_driver(NodeId node, FrameSink sink, const DriverOptions& options,
+                                                    std::string& error) {
+  return with_error_text(error, [&](OptionRefusals& refusals) {
+    return make_novotechnik_406_driver(node, std::move(sink), options, refusals);
+  });
 }
 
 }  // namespace oegw::subdevices

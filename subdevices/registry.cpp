@@ -40,13 +40,20 @@ std::string driver_names() {
 }
 
 std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink,
-                                    const DriverOptions& options, std::string& error) {
-  if (family == "elobau-mfg") return make_elobau_mfg_driver(node, std::move(sink), options, error);
-  if (family == "mcb402") return make_mcb402_driver(node, std::move(sink), options, error);
-  if (family == "novotechnik-406") return make_novotechnik_406_driver(node, std::move(sink), options, error);
-  if (family == "cia401") return make_cia401_driver(node, std::move(sink), options, error);
-  error = "unknown driver '" + std::string(family) + "' (expected one of: " + driver_names() + ")";
+                                    const DriverOptions& options, OptionRefusals& refusals) {
+  if (family == "elobau-mfg") return make_elobau_mfg_driver(node, std::move(sink), options, refusals);
+  if (family == "mcb402") return make_mcb402_driver(node, std::move(sink), options, refusals);
+  if (family == "novotechnik-406") return make_novotechnik_406_driver(node, std::move(sink), options, refusals);
+  if (family == "cia401") return make_cia401_driver(node, std::move(sink), options, refusals);
+  refusals.push_back({"", "unknown driver '" + std::string(family) + "' (expected one of: " + driver_names() + ")"});
   return nullptr;
+}
+
+std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink,
+                                    const DriverOptions& options, std::string& error) {
+  return with_error_text(error, [&](OptionRefusals& refusals) {
+    return make_driver(family, node, std::move(sink), options, refusals);
+  });
 }
 
 }  // namespace oegw::subdevices

@@ -4,19 +4,19 @@
 #include <span>
 #include <array>
 #include <cctype>
+#include <filesystem>
 #include <map>
 #include <utility>
 
 #include "mapping/sections/cob_ids.hpp"
 #include "mapping/sections/sections.hpp"
+#include "subdevices/driver_options.hpp"
 
 namespace oegw::mapping::sections {
 
 namespace {
 
 using canopen::DataType;
-
-constexpr std::array<std::string_view, 4> kFamilies = {"elobau-mfg", "mcb402", "novotechnik-406", "cia401"};
 
 const std::vector<std::string_view> kSubdeviceKeys = {
     "driver", "node_id", "heartbeat_ms", "heartbeat_timeout_ms", "pdo_timeout_ms", "mandatory", "identity", "sdo",
@@ -173,21 +173,54 @@ void read_sdo_list(YamlReader& r, const MapEntry& l, SubdeviceConfig& s) {
     if (auto w = read_sdo_write(r, item)) s.sdo.push_back(*w);
 }
 
-// The driver's signals from the catalogue; an unknown driver or options it refuses are errors.
+// The families' names, as the driver registry has them (subdevices/registry.cpp).
+std::vector<std::string_view> family_names() {
+  std::vector<std::string_view> names;
+  for (const auto& d : subdevices::drivers()) names.push_back(d.family);
+  return names;
+}
+
+// One refusal of the driver's options, at the option's value when it is about one that is written
+// (else at `options`, or at the driver without them), with the expected clause the driver's
+// message lacks. A file option (an `eds:`) naming no file gets how a path is taken instead
+// (docs/reference/mapping-file.md#paths), and, written with a leading '~', that no shell expands it.
+void report_refusal(YamlReader& r, const MapEntry& drv, const std::vector<MapEntry>& ks, const std::string& what,
+                    const SubdeviceConfig& s, const subdevices::OptionRefusal& refusal) {
+  const auto* o = r.find(ks, "options");
+  Location at = o ? r.loc(o->key) : r.loc(drv.value);
+  std::string written;
+  for (const auto& [name, where] : s.option_where)
+    if (!refusal.option.empty() && name == refusal.option) at = where;
+  if (o && o->value.IsMap() && !refusal.option.empty())
+    if (const auto v = o->value[refusal.option]; v && v.IsScalar()) written = v.Scalar();
+  const std::string opened = subdevices::is_file_option(refusal.option) ? s.options.get(refusal.option).value_or("") : "";
+  std::error_code ec;
+  const bool absent = !opened.empty() && !std::filesystem::exists(opened, ec) && !ec;
+  std::string msg = "driver " + s.driver + " refused " + what + ": " + refusal.message;
+  if (absent && !written.empty() && written.front() == '~')
+    msg += " ('" + written + "' was written: '~' is not expanded, no shell reads the mapping file)";
+  if (refusal.message.find("; expected") == std::string::npos)
+    msg += absent ? "; expected the path of an existing file, absolute or relative to the mapping file's folder"
+                  : "; expected options the " + s.driver + " driver accepts";
+  r.error(at, msg);
+}
+
+// The driver's signals from the catalogue; an unknown driver or options it refuses are errors,
+// every refused option its own (at its value).
 void read_signals(YamlReader& r, const SignalCatalogue& catalogue, const MapEntry& drv, const std::vector<MapEntry>& ks,
                   const std::string& what, SubdeviceConfig& s) {
-  std::string err;
-  if (!catalogue) err = "no signal catalogue";
-  auto sig = catalogue ? catalogue(s.driver, s.options, err) : std::nullopt;
+  subdevices::OptionRefusals refusals;
+  if (!catalogue) refusals.push_back({"", "no signal catalogue"});
+  auto sig = catalogue ? catalogue(s.driver, s.options, refusals) : std::nullopt;
+  const auto families = family_names();
   if (sig) {
     s.signals = std::move(*sig);
-  } else if (std::find(kFamilies.begin(), kFamilies.end(), s.driver) == kFamilies.end()) {
-    r.error(drv.value, "unknown driver '" + s.driver + "'; expected one of " + join(kFamilies) +
-                           did_you_mean(s.driver, kFamilies));
+  } else if (std::find(families.begin(), families.end(), s.driver) == families.end()) {
+    r.error(drv.value, "unknown driver '" + s.driver + "'; expected one of " + join(families) +
+                           did_you_mean(s.driver, families));
   } else {
-    const auto* o = r.find(ks, "options");
-    r.error(o ? o->key : drv.value, "driver " + s.driver + " refused " + what + ": " + err + "; expected options the " +
-                                        s.driver + " driver accepts");
+    if (refusals.empty()) refusals.push_back({"", "no reason given"});
+    for (const auto& refusal : refusals) report_refusal(r, drv, ks, what, s, refusal);
   }
 }
 
@@ -210,7 +243,7 @@ void read_subdevice(YamlReader& r, const MapEntry& e, const std::vector<MapEntry
   if (drv) {
     if (auto d = r.string(*drv, "driver")) s.driver = *d;
   } else {
-    r.missing(e.value, "driver", what, "one of " + join(kFamilies));
+    r.missing(e.value, "driver", what, "one of " + join(family_names()));
   }
   if (r.find(ks, "node_id"))
     r.set_int(ks, "node_id", "node_id", 1, 127, s.node_id, false);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "subdevices/driver.hpp"
+#include "subdevices/driver_options.hpp"
 
 namespace oegw::fuzz {
 
@@ -17,8 +18,8 @@ inline void check(bool ok) {
 
 inline std::optional<std::vector<subdevices::SignalInfo>> catalogue(std::string_view family,
                                                                     const subdevices::DriverOptions& options,
-                                                                    std::string& error) {
-  auto driver = subdevices::make_driver(family, canopen::NodeId{1}, {}, options, error);
+                                                                    subdevices::OptionRefusals& refusals) {
+  auto driver = subdevices::make_driver(family, canopen::NodeId{1}, {}, options, refusals);
   if (!driver) return std::nullopt;
   return driver->signals();
 }

@@ -155,6 +155,39 @@ TEST(DriverOptionTables, ThePlaceholderOfARequiredOptionIsRefusedWithHowToFindIt
   EXPECT_EQ(error.find("placeholder"), std::string::npos) << error;
 }
 
+// Every refusal of one set of options, each naming its option: a mapping file with three wrong
+// options of one grip hears of all three at once (the first only, before).
+TEST(DriverOptionTables, EveryRefusalIsCollectedWithItsOption) {
+  OptionRefusals refusals;
+  EXPECT_EQ(make_driver("elobau-mfg", kNode, {},
+                        DriverOptions{{{"channel_tolerance", "200"}, {"detent", "round"}, {"colour", "red"}}}, refusals),
+            nullptr);
+  ASSERT_EQ(refusals.size(), 3u);
+  EXPECT_EQ(refusals[0].option, "colour");
+  EXPECT_EQ(refusals[1].option, "channel_tolerance");
+  EXPECT_EQ(refusals[1].message, "elobau-mfg: channel_tolerance '200' is not an integer 0..100 (percent)");
+  EXPECT_EQ(refusals[2].option, "detent");
+  EXPECT_EQ(refusals[2].message, "elobau-mfg: detent 'round' must be 'pass' or 'clamp'");
+  // The text form: the same messages, one a line.
+  std::string error;
+  EXPECT_EQ(make_driver("elobau-mfg", kNode, {}, DriverOptions{{{"channel_tolerance", "200"}, {"detent", "round"}}},
+                        error),
+            nullptr);
+  EXPECT_EQ(error, "elobau-mfg: channel_tolerance '200' is not an integer 0..100 (percent)\n"
+                   "elobau-mfg: detent 'round' must be 'pass' or 'clamp'");
+  // A missing required option is about no written one; an EDS that cannot be read is about eds.
+  refusals.clear();
+  EXPECT_EQ(make_driver("mcb402", kNode, {}, DriverOptions{{{"event_timer_ms", "0"}}}, refusals), nullptr);
+  ASSERT_EQ(refusals.size(), 2u);
+  EXPECT_EQ(refusals[0].option, "");
+  EXPECT_EQ(refusals[1].option, "event_timer_ms");
+  refusals.clear();
+  EXPECT_EQ(make_driver("cia401", kNode, {}, DriverOptions{{{"eds", "/nonexistent/pedal.eds"}}}, refusals), nullptr);
+  ASSERT_EQ(refusals.size(), 1u);
+  EXPECT_EQ(refusals[0].option, "eds");
+  EXPECT_EQ(refusals[0].message, "cia401: EDS file /nonexistent/pedal.eds does not exist");
+}
+
 // Every family lists its freshness floor (200 ms), the same option name.
 TEST(DriverOptionTables, EveryFamilyHasAFreshnessFloorOption) {
   for (const DriverInfo& info : drivers()) {

@@ -33,9 +33,9 @@ void add_range(std::vector<SignalInfo>& out, const std::string& base, int n, Sig
 }
 
 // Options each fake family accepts: elobau-mfg "tolerance", mcb402 "button_bits", cia401 "eds"
-// (required).
+// (required). Every option it does not know is refused, each naming its option.
 std::optional<std::vector<SignalInfo>> fake_catalogue(std::string_view family, const DriverOptions& options,
-                                                       std::string& error) {
+                                                       subdevices::OptionRefusals& refusals) {
   std::vector<std::string> allowed;
   std::vector<SignalInfo> s;
   if (family == "elobau-mfg") {
@@ -53,23 +53,18 @@ std::optional<std::vector<SignalInfo>> fake_catalogue(std::string_view family, c
     s.push_back({"speed", SignalKind::Speed, -32768, 32767, 0, "counts/s"});
   } else if (family == "cia401") {
     allowed = {"eds"};
-    if (!options.get("eds")) {
-      error = "option 'eds' missing";
-      return std::nullopt;
-    }
+    if (!options.get("eds")) refusals.push_back({"", "option 'eds' missing"});
     add_range(s, "in", 8, SignalKind::Digital, 0, 255, "bits");  // one signal per input byte
     add_range(s, "analog", 4, SignalKind::Analog, -32768, 32767, "raw16");
     add_range(s, "out", 8, SignalKind::Output, 0, 255, "bits");  // one signal per output byte
     add_range(s, "aout", 4, SignalKind::Output, -32768, 32767, "raw16");
   } else {
-    error = "no such family";
+    refusals.push_back({"", "no such family"});
     return std::nullopt;
   }
   for (const auto& [k, v] : options.values)
-    if (std::find(allowed.begin(), allowed.end(), k) == allowed.end()) {
-      error = "unknown option '" + k + "'";
-      return std::nullopt;
-    }
+    if (std::find(allowed.begin(), allowed.end(), k) == allowed.end()) refusals.push_back({k, "unknown option '" + k + "'"});
+  if (!refusals.empty()) return std::nullopt;
   return s;
 }
 
@@ -656,10 +651,10 @@ functional_elements:
       "cia401 (did you mean 'mcb402'?)",
       "t.yaml:5:16: driver cia401 refused sub-device 'b': option 'eds' missing; expected options the cia401 driver "
       "accepts",
-      "t.yaml:6:40: driver elobau-mfg refused sub-device 'c': unknown option 'colour'; expected options the "
+      "t.yaml:6:59: driver elobau-mfg refused sub-device 'c': unknown option 'colour'; expected options the "
       "elobau-mfg driver accepts",
       "t.yaml:7:6: no 'driver' in sub-device 'd'; expected one of elobau-mfg, mcb402, novotechnik-406, cia401"));
-  // Signals of a refused driver are not reported again.
+  // Signals of a refused driver are not reported again; an option refused is reported at its value.
 }
 
 TEST(MappingConfig, SdoWritesAreTypedAndRangeChecked) {

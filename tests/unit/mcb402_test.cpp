@@ -520,6 +520,23 @@ TEST_F(Mcb402Test, ConfigurationWritesTheCanRestartTime) {
   EXPECT_NE(error.find("can_restart_ms"), std::string::npos);
 }
 
+// What is wrong with a button_bits value is named: the bit given twice with both positions, a
+// number that is no bit, the count.
+TEST(Mcb402ButtonBits, ARefusalNamesWhatIsWrong) {
+  std::string why;
+  EXPECT_FALSE(parse_button_bits("1,2,3,3,4,5,6", why));
+  EXPECT_EQ(why, "bit 3 is given twice, at positions 3 and 4 (BP3 and BP4)");
+  EXPECT_FALSE(parse_button_bits("6/1/2/3/4/5/6", why));
+  EXPECT_EQ(why, "bit 6 is given twice, at positions 1 and 7 (BP1 and BP7)");
+  EXPECT_FALSE(parse_button_bits("1,2,3,4,5,6,8", why));
+  EXPECT_EQ(why, "'8' at position 7 (BP7) is not a bit number 0..7");
+  EXPECT_FALSE(parse_button_bits("1,2,3,4,5,6", why));
+  EXPECT_EQ(why, "6 numbers for 7 push buttons");
+  EXPECT_FALSE(parse_button_bits("0,1,2,3,4,5,6,7", why));
+  EXPECT_EQ(why, "8 numbers for 7 push buttons");
+  EXPECT_EQ(parse_button_bits(" 1, 2,3,4,5,7,6", why), (mcb402::ButtonBits{1, 2, 3, 4, 5, 7, 6}));
+}
+
 TEST_F(Mcb402Test, OptionsAreCheckedAndUnknownOnesRefused) {
   std::string error;
   auto sink = [](const CanFrame&) {};
@@ -557,7 +574,7 @@ TEST_F(Mcb402Test, ButtonBitsAreARequiredCommissioningChoice) {
   EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "50"}}}, error), nullptr);
   EXPECT_EQ(error, mcb402::kButtonBitsMissing);
   EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", ""}}}, error), nullptr);
-  EXPECT_NE(error.find("got ''"), std::string::npos);
+  EXPECT_NE(error.find("button_bits '': '' at position 1 (BP1) is not a bit number 0..7"), std::string::npos) << error;
   EXPECT_NE(make_mcb402_driver(kNode, sink, {{{"button_bits", "6, 5, 4, 3, 2, 1, 0"}}}, error), nullptr) << error;
 }
 
