@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "gateway/programs.hpp"
+#include "mapping/yaml_reader.hpp"
 #include "subdevices/driver.hpp"
 #include "subdevices/driver_options.hpp"
 
@@ -206,8 +207,10 @@ std::string signals_listing(const SignalsOptions& o, std::string& error) {
 
 int run_signals(const SignalsOptions& o) {
   if (!o.driver.empty() && !sd::find_driver_info(o.driver)) {
-    std::fprintf(stderr, "oegw signals: unknown driver '%s'; expected one of %s\n", o.driver.c_str(),
-                 sd::driver_names().c_str());
+    std::vector<std::string_view> families;
+    for (const sd::DriverInfo& d : sd::drivers()) families.push_back(d.family);
+    std::fprintf(stderr, "oegw signals: unknown driver '%s'; expected one of %s%s\n", o.driver.c_str(),
+                 sd::driver_names().c_str(), mapping::did_you_mean(o.driver, families).c_str());
     return exit_code::kUsage;
   }
   if (o.driver.empty() && (!o.options.empty() || !o.eds.empty())) {

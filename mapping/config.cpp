@@ -127,30 +127,43 @@ void read_file(YamlReader& r, const YAML::Node& root, const SignalCatalogue& cat
             "found " + node_kind(root) + " at the top; expected " + top);
     return;
   }
-  const auto es =
-      r.entries(root, "the file", {"upstream", "downstream", "publish", "control", "record", "subdevices", "functional_elements"},
-                top);
+  const std::vector<std::string_view> names = {"upstream", "downstream", "publish", "control", "record",
+                                               "subdevices", "functional_elements"};
+  const auto es = r.entries(root, "the file", names, top);
+  // A section written under a misspelt name ("subdevice:", "sub_devices:") is reported at that
+  // key, with the name (entries() above); it is not reported missing as well.
+  auto missing = [&](std::string_view key, std::string_view expected) {
+    for (auto it = root.begin(); it != root.end(); ++it)
+      if (it->first.IsScalar() && std::find(names.begin(), names.end(), it->first.Scalar()) == names.end() &&
+          near_miss(it->first.Scalar(), names) == std::string(key))
+        return;
+    r.missing(root, key, "the file", expected);
+  };
   if (const auto* e = r.find(es, "upstream"))
     sections::read_upstream(r, *e, cfg.upstream);
   else
-    r.missing(root, "upstream", "the file", "an upstream section with at least node_id");
+    missing("upstream", "an upstream section with at least node_id");
   if (const auto* e = r.find(es, "downstream"))
     sections::read_downstream(r, *e, cfg.downstream);
   else
-    r.missing(root, "downstream", "the file", "a downstream section");
+    missing("downstream", "a downstream section");
   if (const auto* e = r.find(es, "publish")) sections::read_publish(r, *e, cfg.publish);
   if (const auto* e = r.find(es, "control")) sections::read_control(r, *e, cfg.control);
   if (const auto* e = r.find(es, "record")) sections::read_record(r, *e, cfg.record);
-  if (const auto* e = r.find(es, "subdevices"))
-    sections::read_subdevices(r, *e, catalogue, cfg.subdevices);
+  // Without a readable subdevices section every sub-device an FE names would be "unknown": that
+  // one mistake is reported once, where it is, and the names are not checked.
+  const auto* subdevices = r.find(es, "subdevices");
+  const bool subdevices_read = subdevices != nullptr && subdevices->value.IsMap();
+  if (subdevices)
+    sections::read_subdevices(r, *subdevices, catalogue, cfg.subdevices);
   else
-    r.missing(root, "subdevices", "the file", "a subdevices section");
+    missing("subdevices", "a subdevices section");
   if (const auto* e = r.find(es, "functional_elements"))
-    sections::read_functional_elements(r, *e, cfg);
+    sections::read_functional_elements(r, *e, cfg, subdevices_read);
   else
-    r.missing(root, "functional_elements", "the file", "a functional_elements section");
+    missing("functional_elements", "a functional_elements section");
   sections::check_command_sources_reachable(r, cfg);
-  sections::check_sdo_servers(r, cfg);
+  sections::check_sdo_servers(r, cfg, subdevices_read);
   sections::check_sync(r, cfg);
   // CiA 302-7: a network ID names one network; the two buses need two.
   if (cfg.upstream.network_id == cfg.downstream.network_id) {

@@ -143,6 +143,7 @@ struct DdsConfig {
   // "" (Cyclone's own configuration, CYCLONEDDS_URI).
   std::string network = "loopback";
   std::optional<DdsSecurityConfig> security;  // absent: no DDS Security
+  Location where;                             // the `dds` section, when written
   Location network_where;                     // the `network` value, when written
 };
 struct LcmConfig {

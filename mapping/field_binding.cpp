@@ -183,6 +183,7 @@ struct SignalValue {
   YAML::Node node;
   FieldOptions options;
   bool options_ok = true;
+  YAML::Node scale, offset;  // the values of those options when written, else undefined
 };
 
 // The signal named by the value.
@@ -218,9 +219,10 @@ std::optional<unsigned> split_bit(std::string& signal) {
 
 class FieldEntry {
  public:
-  FieldEntry(YamlReader& r, const std::vector<SubdeviceConfig>& subdevices, const MapEntry& e,
+  FieldEntry(YamlReader& r, const std::vector<SubdeviceConfig>& subdevices, bool subdevices_read, const MapEntry& e,
              FunctionalElementConfig& fe)
-      : r_(r), subdevices_(subdevices), e_(e), fe_(fe), fe_name_(mapping::fe_name(fe.id)), input_(fe.input()) {}
+      : r_(r), subdevices_(subdevices), subdevices_read_(subdevices_read), e_(e), fe_(fe),
+        fe_name_(mapping::fe_name(fe.id)), input_(fe.input()) {}
 
   // Binds the entry; `fed` and `outputs_fed` record every field fed and every output driven.
   void bind(std::map<std::string, Location>& fed,
@@ -276,6 +278,8 @@ class FieldEntry {
       }
       v.node = s->value;
       v.options_ok = read_options(r_, os, option_range(key.first, input_), v.options);
+      if (const auto* x = r_.find(os, "scale")) v.scale = x->value;
+      if (const auto* x = r_.find(os, "offset")) v.offset = x->value;
     }
     if (!v.node.IsScalar()) {
       r_.error(v.node, "found " + node_kind(v.node) + " for " + what() +
@@ -306,6 +310,7 @@ class FieldEntry {
   const SubdeviceConfig* subdevice(const SignalRef& sig, const YAML::Node& node) {
     for (const auto& d : subdevices_)
       if (d.name == sig.device) return &d;
+    if (!subdevices_read_) return nullptr;  // the missing or broken section is the one error
     std::vector<std::string> names;  // a refused name (reported where it stands) is no suggestion
     for (const auto& d : subdevices_)
       if (valid_subdevice_name(d.name)) names.push_back(d.name);
@@ -397,6 +402,34 @@ class FieldEntry {
     return n;
   }
 
+  // An indicator bit driving a whole output signal sends two values, off and on, through
+  // value x scale + offset (translate.hpp); one beyond the output's range would be clamped to a
+  // value the file never meant (an elobau LED code 3 on a signal of 0..2), so the scale or offset
+  // that puts it there is refused. A `clamp` written with them is the file's explicit wish.
+  bool output_values_fit(const FeField& field, const Source& src, const SignalValue& value, const std::string& full) {
+    const bool scale = value.scale.IsScalar(), offset = value.offset.IsScalar();
+    if (input_ || field.bit == 0xFF || src.bit != 0xFF || (!scale && !offset)) return true;
+    OutputParams p = resolve_output(*src.info, field, value.options);
+    if (!value.options.clamp) {
+      p.clamp_min = std::numeric_limits<std::int64_t>::min() / 2;
+      p.clamp_max = std::numeric_limits<std::int64_t>::max() / 2;
+    }
+    const auto range = std::to_string(src.info->min) + ".." + std::to_string(src.info->max);
+    for (const std::int64_t bit : {1, 0}) {
+      const std::int64_t out = translate_output(p, bit);
+      if (out >= src.info->min && out <= src.info->max) continue;
+      const YAML::Node& at = scale ? value.scale : value.offset;
+      std::string options;
+      if (scale) options = "scale " + value.scale.Scalar();
+      if (offset) options += (options.empty() ? "" : ", ") + std::string("offset ") + value.offset.Scalar();
+      r_.error(at, options + " gives " + fe_name_ + " " + field.name + " " + (bit != 0 ? "on" : "off") + " as " +
+                       std::to_string(out) + ", beyond the range " + range + " of output signal '" + full +
+                       "'; expected off and on inside " + range);
+      return false;
+    }
+    return true;
+  }
+
   // One binding per field; stops at the first error of the entry.
   void bind_each(const NameRange& fields, const SignalRef& sig, const Sources& sources, const SignalValue& value,
                  std::map<std::string, Location>& fed,
@@ -430,6 +463,7 @@ class FieldEntry {
         }
       }
       if (!value.options_ok) continue;
+      if (!output_values_fit(*field, src, value, full)) return;
       FieldBinding b;
       b.field = *field;
       b.subdevice = sig.device;
@@ -444,6 +478,7 @@ class FieldEntry {
 
   YamlReader& r_;
   const std::vector<SubdeviceConfig>& subdevices_;
+  const bool subdevices_read_;
   const MapEntry& e_;
   FunctionalElementConfig& fe_;
   const std::string fe_name_;
@@ -453,7 +488,7 @@ class FieldEntry {
 }  // namespace
 
 void FieldBinder::bind(const MapEntry& e, FunctionalElementConfig& fe) {
-  FieldEntry(r_, subdevices_, e, fe).bind(fed_, outputs_fed_);
+  FieldEntry(r_, subdevices_, subdevices_read_, e, fe).bind(fed_, outputs_fed_);
 }
 
 }  // namespace oegw::mapping

@@ -36,7 +36,10 @@ struct NameRange {
 // far, so that a field fed twice or an output driven twice is found across entries and FEs.
 class FieldBinder {
  public:
-  FieldBinder(YamlReader& r, const std::vector<SubdeviceConfig>& subdevices) : r_(r), subdevices_(subdevices) {}
+  // `subdevices_read`: false when the subdevices section is missing or no map (reported there);
+  // then a signal's sub-device is not reported unknown, once per field.
+  FieldBinder(YamlReader& r, const std::vector<SubdeviceConfig>& subdevices, bool subdevices_read = true)
+      : r_(r), subdevices_(subdevices), subdevices_read_(subdevices_read) {}
 
   // Appends to fe.fields the bindings of entry `e` (not "sources" / "command_timeout_ms").
   void bind(const MapEntry& e, FunctionalElementConfig& fe);
@@ -44,6 +47,7 @@ class FieldBinder {
  private:
   YamlReader& r_;
   const std::vector<SubdeviceConfig>& subdevices_;
+  bool subdevices_read_;
   std::map<std::string, Location> fed_;                                  // "fe\nfield" -> where
   std::map<std::pair<std::string, std::string>, Location> outputs_fed_;  // (subdevice, signal)
 };

@@ -6,6 +6,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <limits>
@@ -26,22 +27,42 @@ namespace oegw::mapping {
 // Levenshtein distance (insertions, deletions, substitutions of one character each).
 [[nodiscard]] std::size_t edit_distance(std::string_view a, std::string_view b);
 
-// " (did you mean 'x'?)" for a near miss among `candidates`, else "".
+// `s` in lower case (ASCII): names compared whatever case they were typed in.
+[[nodiscard]] std::string lower_case(std::string_view s);
+
+// The candidate `found` is a near miss of, or nullopt (also when `found` is one of them). The one
+// helper for every name the user types (keys, driver families, FE kinds, signals, `oegw signals
+// DRIVER`): compared without regard to case ("MCB402", "Elobau-MFG"), by edit distance (at most 2
+// edits, or a third of the name), and a name written without its suffix after '-' or '_' counts
+// as one edit ("novotechnik" for novotechnik-406, "elobau" for elobau-mfg).
 template <typename Range>
-[[nodiscard]] std::string did_you_mean(std::string_view found, const Range& candidates) {
+[[nodiscard]] std::optional<std::string> near_miss(std::string_view found, const Range& candidates) {
+  const std::string f = lower_case(found);
   std::size_t best = std::numeric_limits<std::size_t>::max();
   std::string best_name;
   for (const auto& c : candidates) {
     const std::string_view cv(c);
-    const auto d = edit_distance(found, cv);
+    if (cv == found) return std::nullopt;
+    const std::string lc = lower_case(cv);
+    std::size_t d = edit_distance(f, lc);
+    if (f.size() >= 3 && lc.size() > f.size() && lc.compare(0, f.size(), f) == 0 &&
+        (lc[f.size()] == '-' || lc[f.size()] == '_'))
+      d = std::min<std::size_t>(d, 1);
     if (d < best) {
       best = d;
       best_name = std::string(cv);
     }
   }
-  if (best_name.empty() || best == 0) return "";
-  if ((best <= 2 && best < found.size()) || best * 3 <= found.size()) return " (did you mean '" + best_name + "'?)";
-  return "";
+  if (best_name.empty()) return std::nullopt;
+  if (best == 0 || (best <= 2 && best < found.size()) || best * 3 <= found.size()) return best_name;
+  return std::nullopt;
+}
+
+// " (did you mean 'x'?)" for a near miss among `candidates`, else "".
+template <typename Range>
+[[nodiscard]] std::string did_you_mean(std::string_view found, const Range& candidates) {
+  const auto m = near_miss(found, candidates);
+  return m ? " (did you mean '" + *m + "'?)" : std::string();
 }
 
 // "a, b, c".

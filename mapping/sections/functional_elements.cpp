@@ -3,6 +3,7 @@
 // (`sources`) and their command watchdog (`command_timeout_ms`).
 #include <algorithm>
 #include <map>
+#include <tuple>
 
 #include "mapping/field_binding.hpp"
 #include "mapping/sections/sections.hpp"
@@ -136,9 +137,9 @@ void sort_fields(FunctionalElementConfig& fe) {
 
 }  // namespace
 
-void read_functional_elements(YamlReader& r, const MapEntry& sec, Config& cfg) {
+void read_functional_elements(YamlReader& r, const MapEntry& sec, Config& cfg, bool subdevices_read) {
   const auto es = r.entries(sec.value, "functional_elements", {}, "a map of kind.instance -> {field: signal, ...}");
-  FieldBinder binder(r, cfg.subdevices);
+  FieldBinder binder(r, cfg.subdevices, subdevices_read);
   std::map<std::string, Location> seen;  // canonical name: "joystick.01" is "joystick.1"
   for (const auto& e : es) {
     const auto id = read_fe_id(r, e);
@@ -162,22 +163,42 @@ void read_functional_elements(YamlReader& r, const MapEntry& sec, Config& cfg) {
             [](const auto& a, const auto& b) { return a.id < b.id; });
 }
 
-// An output FE whose only sources are transports the publish section leaves off could never be
-// commanded: refused here rather than found out in the cab.
+// A source the FE lists whose transport the publish section leaves off can never deliver a
+// command: refused here rather than found out in the cab. When no listed source can, that is
+// the one error; otherwise each dead source is, naming the setting that would bring it alive.
 void check_command_sources_reachable(YamlReader& r, const Config& cfg) {
   const auto& p = cfg.publish;
+  // Why a transport is off: a section written with `enabled: false`, or no section at all.
+  const auto off = [](std::string_view name, bool written) {
+    return written ? "publish." + std::string(name) + ".enabled is false"
+                   : "the file has no publish." + std::string(name) + " section (publish." + std::string(name) +
+                         ".enabled is false)";
+  };
   for (const auto& fe : cfg.functional_elements) {
-    if (fe.input() || fe.accepts(CommandSource::Canopen)) continue;
+    if (fe.input()) continue;
+    const bool dds_dead = fe.accepts(CommandSource::Dds) && !p.dds.enabled;
+    const bool lcm_dead = fe.accepts(CommandSource::Lcm) && !p.lcm.enabled;
     const bool dds = fe.accepts(CommandSource::Dds) && p.dds.enabled;
     const bool lcm = fe.accepts(CommandSource::Lcm) && p.lcm.enabled;
-    if (dds || lcm) continue;
-    const char* expected = fe.accepts(CommandSource::Dds) && fe.accepts(CommandSource::Lcm)
-                               ? "publish.dds or publish.lcm"
-                           : fe.accepts(CommandSource::Dds) ? "publish.dds"
-                                                            : "publish.lcm";
-    r.error(fe.sources_where, fe_name(fe.id) + " takes commands only from " + describe_sources(fe.sources) +
-                                  ", which the publish section does not enable; expected " + expected +
-                                  " enabled, or canopen among the sources");
+    if (!fe.accepts(CommandSource::Canopen) && !dds && !lcm) {
+      const char* expected = fe.accepts(CommandSource::Dds) && fe.accepts(CommandSource::Lcm)
+                                 ? "publish.dds.enabled or publish.lcm.enabled true"
+                             : fe.accepts(CommandSource::Dds) ? "publish.dds.enabled true"
+                                                              : "publish.lcm.enabled true";
+      r.error(fe.sources_where, fe_name(fe.id) + " takes commands only from " + describe_sources(fe.sources) +
+                                    ", which the publish section does not enable; expected " + expected +
+                                    ", or canopen among the sources");
+      continue;
+    }
+    // Sources not written are the default (canopen, dds), not the file's choice: DDS among them
+    // serves when it is enabled, and a file without DDS is not told about it.
+    if (fe.sources_where.line == 0) continue;
+    for (const auto& [dead, name, transport, written] :
+         {std::tuple{dds_dead, "dds", "DDS", p.dds.where.line != 0}, std::tuple{lcm_dead, "lcm", "LCM", p.lcm.where.line != 0}})
+      if (dead)
+        r.error(fe.sources_where, fe_name(fe.id) + " sources list " + name + ", but " + off(name, written) + ": no " +
+                                      transport + " command can reach it; expected publish." + name +
+                                      ".enabled true, or " + name + " off the sources");
   }
 }
 

@@ -34,6 +34,7 @@ void read_dds_security(YamlReader& r, const MapEntry& e, DdsSecurityConfig& sec)
 // A section written is enabled unless it says `enabled: false`.
 void read_dds(YamlReader& r, const MapEntry& e, DdsConfig& d) {
   d.enabled = true;
+  d.where = r.loc(e.key);
   const auto ds = r.entries(e.value, "publish dds", {"enabled", "domain", "partition", "network", "security"},
                             "a map with enabled, domain, partition, network, security");
   if (const auto* x = r.find(ds, "enabled"))

@@ -11,7 +11,9 @@ namespace oegw::mapping::sections {
 
 void read_upstream(YamlReader& r, const MapEntry& section, UpstreamConfig& out);      // upstream.cpp
 // upstream.cpp: upstream.sdo_servers against the sub-devices and the gateway's own COB-IDs.
-void check_sdo_servers(YamlReader& r, const Config& config);
+// `subdevices_read`: false when the subdevices section is missing or no map (reported there):
+// then a sub-device name is not reported unknown.
+void check_sdo_servers(YamlReader& r, const Config& config, bool subdevices_read = true);
 void read_downstream(YamlReader& r, const MapEntry& section, DownstreamConfig& out);  // downstream.cpp
 // A sub-device configured with a synchronous transmission type (option transmission_type, or an
 // sdo write of 1800h..19FFh:02, 0..240) needs downstream.sync_period_ms (downstream.cpp).
@@ -22,8 +24,10 @@ void read_record(YamlReader& r, const MapEntry& section, RecordConfig& out);    
 // subdevices.cpp; the signals of each come from `catalogue`.
 void read_subdevices(YamlReader& r, const MapEntry& section, const SignalCatalogue& catalogue,
                      std::vector<SubdeviceConfig>& out);
-// functional_elements.cpp; the fields' signals are looked up in `config.subdevices`.
-void read_functional_elements(YamlReader& r, const MapEntry& section, Config& config);
+// functional_elements.cpp; the fields' signals are looked up in `config.subdevices`. With
+// `subdevices_read` false (the subdevices section missing or no map, reported there) a signal's
+// sub-device is not reported unknown: one mistake, one error, not one per field.
+void read_functional_elements(YamlReader& r, const MapEntry& section, Config& config, bool subdevices_read = true);
 // functional_elements.cpp: an output FE whose only sources the publish section leaves off.
 void check_command_sources_reachable(YamlReader& r, const Config& config);
 

@@ -170,7 +170,7 @@ std::vector<UpstreamCob> gateway_cobs(const Config& c) {
 
 }  // namespace
 
-void check_sdo_servers(YamlReader& r, const Config& c) {
+void check_sdo_servers(YamlReader& r, const Config& c, bool subdevices_read) {
   std::vector<std::string> names;
   for (const auto& d : c.subdevices) names.push_back(d.name);
   std::vector<UpstreamCob> used = gateway_cobs(c);
@@ -178,7 +178,7 @@ void check_sdo_servers(YamlReader& r, const Config& c) {
   for (std::size_t k = 1; k <= c.upstream.sdo_servers.size(); ++k) {
     const SdoServerConfig& s = c.upstream.sdo_servers[k - 1];
     const std::string server = "SDO server " + sdo_server_index(k);
-    if (!s.subdevice.empty() && c.find_subdevice(s.subdevice) == nullptr)
+    if (subdevices_read && !s.subdevice.empty() && c.find_subdevice(s.subdevice) == nullptr)
       r.error(s.subdevice_where, "unknown sub-device '" + s.subdevice + "' for " + server + "; expected one of " +
                                      (names.empty() ? std::string("the sub-devices section's names") : join(names)) +
                                      did_you_mean(s.subdevice, names));

@@ -1008,7 +1008,9 @@ std::string with_sources(std::string yaml) {
   auto put = [&yaml](const std::string& after, const std::string& line) { insert_after(yaml, after, line); };
   put("  indicators.1:\n", "    sources: [dds]\n");
   put("  indicators.2:\n", "    sources: [canopen, lcm]\n");
-  put("downstream: { interface: virtual, bitrate: 250000 }\n", "publish: { dds: { enabled: true } }\n");
+  // Both transports on: a source listed whose transport is off is refused
+  // (docs/reference/mapping-file.md#functional_elements-kindinstance-field-signal-required-may-be-empty). CabRig runs no publisher; the tests hand the commands to the gateway.
+  put("downstream: { interface: virtual, bitrate: 250000 }\n", "publish: { dds: { enabled: true }, lcm: { enabled: true } }\n");
   return yaml;
 }
 

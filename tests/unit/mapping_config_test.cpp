@@ -19,6 +19,8 @@
 #include <string>
 #include <vector>
 
+#include "mapping/yaml_reader.hpp"
+
 namespace oegw::mapping {
 namespace {
 
@@ -332,7 +334,7 @@ functional_elements:
 )");
   EXPECT_THAT(errors(r), ElementsAre(
       "t.yaml:1:37: unknown key 'vendor' in upstream identity; expected one of vendor_id, product_code, revision, "
-      "serial",
+      "serial (did you mean 'vendor_id'?)",
       "t.yaml:3:1: unknown key 'publsh' in the file; expected one of upstream, downstream, publish, control, record, "
       "subdevices, functional_elements (did you mean 'publish'?)",
       "t.yaml:5:36: unknown key 'hearbeat_ms' in sub-device 'a'; expected one of driver, node_id, heartbeat_ms, "
@@ -387,7 +389,8 @@ TEST(MappingConfig, SignalOfAnUnknownSubDeviceOrNotProvidedByTheDriver) {
     z: left_grip
 )");
   EXPECT_THAT(errors(r), ElementsAre(
-      "t.yaml:10:8: unknown sub-device 'left' in signal 'left.x'; expected one of right_grip, left_grip, knob, cluster",
+      "t.yaml:10:8: unknown sub-device 'left' in signal 'left.x'; expected one of right_grip, left_grip, knob, cluster "
+      "(did you mean 'left_grip'?)",
       "t.yaml:11:8: sub-device 'left_grip' (mcb402) has no signal 'w'; expected one of x, y, z, t, buttons[1..7], "
       "leds[1..4]",
       "t.yaml:12:20: sub-device 'left_grip' (mcb402) has no signal 'buttons[8]'; expected one of x, y, z, t, "
@@ -945,7 +948,7 @@ functional_elements:
                           "t.yaml:12:14: found [] for indicators.2 sources; expected a list of canopen, "
                           "dds, lcm, e.g. sources: [canopen, dds]",
                           "t.yaml:15:14: indicators.3 takes commands only from lcm, which the publish section does "
-                          "not enable; expected publish.lcm enabled, or canopen among the sources",
+                          "not enable; expected publish.lcm.enabled true, or canopen among the sources",
                           "t.yaml:18:5: indicators.4 has only 'sources' and no fields; expected at least one field "
                           "fed by a signal",
                           "t.yaml:20:5: joystick.1 is an input; 'sources' applies to indicators and display "
@@ -1283,6 +1286,134 @@ TEST(MappingConfig, AnUnknownDriverIsReportedOnce) {
   ASSERT_FALSE(e.empty());
   EXPECT_EQ(e[0], "t.yaml:4:25: unknown driver 'elobau-mgf'; expected one of elobau-mfg, mcb402, novotechnik-406, "
                   "cia401 (did you mean 'elobau-mfg'?)");
+}
+
+// A driver family written in another case, with '-' where the name has none, or without its
+// suffix is named: the did-you-mean ignores case and takes a name's first part.
+TEST(MappingConfig, AFamilyWrittenNearlyRightIsNamed) {
+  const auto r = load(R"(upstream: { node_id: 1 }
+downstream: { interface: can1 }
+subdevices:
+  a: { driver: MCB402, node_id: 2 }
+  b: { driver: mcb-402, node_id: 3 }
+  c: { driver: novotechnik, node_id: 4 }
+  d: { driver: Elobau, node_id: 5 }
+  e: { driver: CiA401, node_id: 6 }
+  f: { driver: elobau_mfg, node_id: 7 }
+  g: { driver: joystick, node_id: 8 }
+functional_elements: {}
+)");
+  const std::string families = "expected one of elobau-mfg, mcb402, novotechnik-406, cia401";
+  EXPECT_THAT(errors(r), ElementsAre("t.yaml:4:16: unknown driver 'MCB402'; " + families + " (did you mean 'mcb402'?)",
+                                     "t.yaml:5:16: unknown driver 'mcb-402'; " + families + " (did you mean 'mcb402'?)",
+                                     "t.yaml:6:16: unknown driver 'novotechnik'; " + families +
+                                         " (did you mean 'novotechnik-406'?)",
+                                     "t.yaml:7:16: unknown driver 'Elobau'; " + families + " (did you mean 'elobau-mfg'?)",
+                                     "t.yaml:8:16: unknown driver 'CiA401'; " + families + " (did you mean 'cia401'?)",
+                                     "t.yaml:9:16: unknown driver 'elobau_mfg'; " + families +
+                                         " (did you mean 'elobau-mfg'?)",
+                                     "t.yaml:10:16: unknown driver 'joystick'; " + families));
+}
+
+TEST(MappingConfig, NearMissComparesWithoutCaseAndTakesANamesFirstPart) {
+  const std::vector<std::string_view> names = {"elobau-mfg", "mcb402", "novotechnik-406", "cia401"};
+  EXPECT_EQ(near_miss("MCB402", names), "mcb402");
+  EXPECT_EQ(near_miss("Novotechnik", names), "novotechnik-406");
+  EXPECT_EQ(near_miss("mcb402", names), std::nullopt) << "a name of the list is no near miss";
+  EXPECT_EQ(near_miss("mcb", names), std::nullopt) << "three letters of six are no near miss";
+  EXPECT_EQ(near_miss("elo", names), std::nullopt) << "a first part is the whole part before '-'";
+  EXPECT_EQ(did_you_mean("sub_devices", std::vector<std::string_view>{"subdevices", "functional_elements"}),
+            " (did you mean 'subdevices'?)");
+}
+
+// A misspelt subdevices key was ten errors: the key, the missing section, and every FE naming a
+// sub-device. It is one, at the key, naming the section it stands for.
+TEST(MappingConfig, AMisspeltSubdevicesKeyIsOneErrorNotACascade) {
+  const std::string fes = R"(functional_elements:
+  joystick.1: { x: grip.x, y: grip.y, buttons: "grip.buttons[1..8]" }
+  joystick.2: { x: base.x, y: base.y, z: base.z }
+  indicators.1: { "indicator[1..2]": "grip.leds[1..2]", "indicator[3]": "base.leds[1]" }
+)";
+  const std::string devices = R"(
+  grip: { driver: elobau-mfg, node_id: 0x11 }
+  base: { driver: mcb402, node_id: 0x03 }
+)";
+  const std::string head = "upstream: { node_id: 1 }\ndownstream: { interface: can1 }\n";
+  for (const std::string key : {"subdevice", "sub_devices", "Subdevices", "subdevics"})
+    EXPECT_THAT(errors(load(head + key + ":" + devices + fes)),
+                ElementsAre("t.yaml:3:1: unknown key '" + key + "' in the file; expected one of upstream, downstream, "
+                            "publish, control, record, subdevices, functional_elements (did you mean 'subdevices'?)"))
+        << key;
+  // Missing, or no map: that one error, not one per sub-device named.
+  EXPECT_THAT(errors(load(head + fes)),
+              ElementsAre("t.yaml:1:1: no 'subdevices' in the file; expected a subdevices section"));
+  EXPECT_THAT(errors(load(head + "subdevices: [grip, base]\n" + fes)),
+              ElementsAre("t.yaml:3:13: found [grip, base] for subdevices; expected a map of sub-device name -> "
+                          "{driver, node_id, ...}"));
+  // A section that is there still has every unknown name reported.
+  EXPECT_THAT(errors(load(head + "subdevices:\n  grip: { driver: elobau-mfg, node_id: 0x11 }\n" + fes)),
+              ElementsAre("t.yaml:7:20: unknown sub-device 'base' in signal 'base.x'; expected one of grip",
+                          "t.yaml:7:31: unknown sub-device 'base' in signal 'base.y'; expected one of grip",
+                          "t.yaml:7:42: unknown sub-device 'base' in signal 'base.z'; expected one of grip",
+                          "t.yaml:8:73: unknown sub-device 'base' in signal 'base.leds[1]'; expected one of grip"));
+}
+
+// An elobau LED takes the codes 0..2 (off / on / blink): an indicator bit's scale or offset that
+// drives it beyond is refused at that option, with the range; one that fits, or an explicit
+// clamp, is not.
+TEST(MappingConfig, AnIndicatorsScaleBeyondItsOutputsRangeIsRefused) {
+  const auto r = load(kHead + R"(  indicators.1:
+    indicator[1]: { signal: "right_grip.leds[1]", scale: 3 }
+    indicator[2]: { signal: "right_grip.leds[2]", offset: -1 }
+    indicator[3..4]: { signal: "right_grip.leds[3..4]", scale: 2, offset: 1 }
+    indicator[5]: { signal: "right_grip.leds[5]", scale: 2 }
+    indicator[6]: { signal: "right_grip.leds[6]", scale: 3, clamp: [0, 2] }
+    indicator[7]: { signal: "right_grip.leds[7]", scale: 2, invert: true }
+)");
+  EXPECT_THAT(errors(r),
+              ElementsAre("t.yaml:10:58: scale 3 gives indicators.1 indicator[1] on as 3, beyond the range 0..2 of "
+                          "output signal 'right_grip.leds[1]'; expected off and on inside 0..2",
+                          "t.yaml:11:59: offset -1 gives indicators.1 indicator[2] off as -1, beyond the range 0..2 of "
+                          "output signal 'right_grip.leds[2]'; expected off and on inside 0..2",
+                          "t.yaml:12:64: scale 2, offset 1 gives indicators.1 indicator[3] on as 3, beyond the range "
+                          "0..2 of output signal 'right_grip.leds[3]'; expected off and on inside 0..2"));
+  const auto ok = load(kHead + R"(  indicators.1:
+    indicator[5]: { signal: "right_grip.leds[5]", scale: 2 }
+    indicator[6]: { signal: "right_grip.leds[6]", scale: 3, clamp: [0, 2] }
+)");
+  ASSERT_TRUE(ok.ok()) << ok.error_text();
+}
+
+// A source an output FE lists whose transport is off can never deliver a command: an error
+// naming the setting, whether or not another source can.
+TEST(MappingConfig, AListedSourceWhoseTransportIsOffIsRefused) {
+  const std::string head = R"(upstream: { interface: can0, node_id: 0x20 }
+downstream: { interface: can1 }
+subdevices:
+  grip: { driver: elobau-mfg, node_id: 0x11 }
+)";
+  const std::string fes = R"(functional_elements:
+  indicators.1:
+    sources: [canopen, lcm]
+    indicator[1..2]: grip.leds[1..2]
+  indicators.2:
+    sources: [canopen, dds]
+    indicator[1..2]: grip.leds[3..4]
+  indicators.3:
+    indicator[1..2]: grip.leds[5..6]
+)";
+  EXPECT_THAT(errors(load(head + fes)),
+              ElementsAre("t.yaml:7:14: indicators.1 sources list lcm, but the file has no publish.lcm section "
+                          "(publish.lcm.enabled is false): no LCM command can reach it; expected publish.lcm.enabled "
+                          "true, or lcm off the sources",
+                          "t.yaml:10:14: indicators.2 sources list dds, but the file has no publish.dds section "
+                          "(publish.dds.enabled is false): no DDS command can reach it; expected publish.dds.enabled "
+                          "true, or dds off the sources"));
+  EXPECT_THAT(errors(load(head + "publish: { lcm: { enabled: false }, dds: { enabled: true } }\n" + fes)),
+              ElementsAre("t.yaml:8:14: indicators.1 sources list lcm, but publish.lcm.enabled is false: no LCM "
+                          "command can reach it; expected publish.lcm.enabled true, or lcm off the sources"));
+  const auto ok = load(head + "publish: { lcm: {}, dds: {} }\n" + fes);
+  EXPECT_TRUE(ok.ok()) << ok.error_text();
 }
 
 TEST(MappingConfig, ARefusedSubdeviceNameIsNoSuggestion) {
