@@ -23,6 +23,14 @@ void add_cab_simulators(subdevices::sim::SimBench& bench, const mapping::Config&
   }
 }
 
+std::map<std::string, subdevices::DriverOptions> simulators_as_wired(const mapping::Config& config) {
+  std::map<std::string, subdevices::DriverOptions> out;
+  for (const auto& sc : config.subdevices)
+    if (const auto bits = sc.options.get("button_bits"); sc.driver == "mcb402" && bits)
+      out[sc.name].values.emplace_back("wiring", *bits);
+  return out;
+}
+
 CabRig::CabRig(const mapping::Config& config, canopen::EventLoop& loop, CabRigOptions options)
     : config_(config), loop_(loop), options_(std::move(options)) {
   if (options_.timed_buses) {

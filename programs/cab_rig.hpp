@@ -53,6 +53,12 @@ struct CabRigOptions {
 void add_cab_simulators(subdevices::sim::SimBench& bench, const mapping::Config& config,
                         const std::map<std::string, subdevices::DriverOptions>& simulator_options = {});
 
+// The simulators' options the file itself implies: an MCB-402 board wired as its `button_bits`
+// says (a simulator is otherwise wired by the document table's other reading,
+// docs/design/device-documents.md#corners-every-reading-a-document-permits: a board is wired as
+// it is, the file must say so). `oegw demo` and `oegw sim` run the file's cab so.
+[[nodiscard]] std::map<std::string, subdevices::DriverOptions> simulators_as_wired(const mapping::Config& config);
+
 class CabRig {
  public:
   // `loop` runs everything (a simulated clock in tests and `oegw demo --fast`).

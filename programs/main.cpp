@@ -18,6 +18,7 @@
 #include "programs/bench_programs.hpp"
 #include "programs/core_demo.hpp"
 #include "programs/gateway_demo.hpp"
+#include "programs/gateway_sim.hpp"
 
 namespace {
 
@@ -52,6 +53,24 @@ int main(int argc, char** argv) {
                        "the gateway's identity; watch with the examples' --identity-ca ... options")
       ->type_name("DIR")
       ->check(CLI::ExistingDirectory);
+
+  oegw::gateway::GatewaySimOptions sim;
+  auto* sim_cmd = app.add_subcommand(
+      "sim", "Your own mapping file on a simulated cab: its sub-devices simulated, a built-in host, the live table");
+  sim_cmd->add_option("file", sim.file, "The mapping file (its interfaces are not used: the buses are in-process)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  sim_cmd->add_option("--seconds", sim.seconds, "How long (default: until ^C; with --fast: the script's end + 1 s, or 10 s)")
+      ->check(CLI::Range(0.0, 86400.0));
+  sim_cmd->add_flag("--fast", sim.fast, "Run on a simulated clock, as fast as possible (deterministic; for CI)");
+  sim_cmd->add_flag("--motion,!--no-motion", sim.motion, "The operator moves every input from the start (the default)");
+  sim_cmd->add_flag("--publish,!--no-publish", sim.publish, "Publish as the file's publish section says (the default)");
+  sim_cmd->add_flag("--frames", sim.frames, "Print every CAN frame of both buses in candump's log format");
+  sim_cmd->add_option("--script", sim.script, "Commands at times: lines of SECONDS COMMAND (docs/guides/simulate.md)")
+      ->type_name("FILE")
+      ->check(CLI::ExistingFile);
+  sim_cmd->add_option("--vcan", sim.vcan, "Both buses also on these SocketCAN interfaces, for candump and other hosts")
+      ->type_name("UP,DOWN");
 
   oegw::gateway::DemoOptions core_demo;
   auto* core_cmd = app.add_subcommand("core-demo", "The protocol core's demo: one CiA 301 device and a host");
@@ -257,6 +276,7 @@ int main(int argc, char** argv) {
     device.motion = !no_motion;
     return oegw::gateway::run_device(device);
   }
+  if (*sim_cmd) return oegw::gateway::run_gateway_sim(sim);
   if (*core_cmd) return oegw::gateway::run_demo(core_demo);
   return oegw::gateway::run_gateway_demo(demo);
 }

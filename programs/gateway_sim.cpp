@@ -1,0 +1,604 @@
+// `oegw sim FILE` (gateway_sim.hpp): the user's mapping file on a simulated cab.
+#include "programs/gateway_sim.hpp"
+
+#include <sys/epoll.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <sstream>
+
+#include <fmt/format.h>
+
+#include "canopen/io/event_loop.hpp"
+#include "canopen/io/socketcan_transport.hpp"
+#include "canopen/io/virtual_bus.hpp"
+#include "gateway/control/gateway_control.hpp"
+#include "gateway/gateway.hpp"
+#include "gateway/programs.hpp"
+#include "gateway/publish/dds_publisher.hpp"
+#include "gateway/publishing.hpp"
+#include "profiles/cia852/pdo_defaults.hpp"
+#include "programs/cab_rig.hpp"
+#include "programs/live_view.hpp"
+#include "subdevices/sim/sim_bench.hpp"
+
+namespace oegw::gateway {
+
+using namespace canopen;
+using namespace std::chrono_literals;
+namespace sd = oegw::subdevices;
+
+namespace {
+
+// One line of the script: when, what, and where it was written (for the errors of a command the
+// simulators refuse when it runs).
+struct SimStep {
+  Duration at{};
+  std::string command;
+  std::size_t line = 0;
+  std::size_t column = 0;
+};
+
+// The FE status words of the table (live_view.cpp fe_line), which `expect` takes.
+constexpr std::pair<std::string_view, FeStatus> kStatusWords[] = {
+    {"valid", FeStatus::Valid}, {"error", FeStatus::Error},   {"n/a", FeStatus::NotAvailable},
+    {"stale", FeStatus::Stale}, {"offline", FeStatus::Offline}};
+
+std::vector<std::string> words_of(const std::string& s) {
+  std::istringstream in(s);
+  std::vector<std::string> w;
+  for (std::string x; in >> x;) w.push_back(x);
+  return w;
+}
+
+// "6200:01" or "0x6200:0x01" (hex either way, as oegw ctl's objects are written): index, sub.
+std::optional<std::pair<std::uint16_t, std::uint8_t>> parse_object(const std::string& s) {
+  const auto colon = s.find(':');
+  if (colon == std::string::npos) return std::nullopt;
+  char* end = nullptr;
+  const std::string i = s.substr(0, colon), k = s.substr(colon + 1);
+  const unsigned long index = std::strtoul(i.c_str(), &end, 16);
+  if (i.empty() || *end != '\0' || index == 0 || index > 0xFFFF) return std::nullopt;
+  const unsigned long sub = std::strtoul(k.c_str(), &end, 16);
+  if (k.empty() || *end != '\0' || sub > 0xFF) return std::nullopt;
+  return std::pair{static_cast<std::uint16_t>(index), static_cast<std::uint8_t>(sub)};
+}
+
+// "FF 01" or "FF01": 1..8 bytes, as candump writes them.
+std::optional<std::vector<std::uint8_t>> parse_bytes(const std::vector<std::string>& w, std::size_t from) {
+  std::string hex;
+  for (std::size_t i = from; i < w.size(); ++i) hex += w[i];
+  if (hex.empty() || hex.size() % 2 != 0 || hex.size() > 16) return std::nullopt;
+  std::vector<std::uint8_t> out;
+  for (std::size_t i = 0; i < hex.size(); i += 2) {
+    char* end = nullptr;
+    const std::string b = hex.substr(i, 2);
+    const unsigned long v = std::strtoul(b.c_str(), &end, 16);
+    if (*end != '\0') return std::nullopt;
+    out.push_back(static_cast<std::uint8_t>(v));
+  }
+  return out;
+}
+
+// The words the script and standard input take beside the simulators' own
+// (subdevices/sim/sim_bench.hpp SimBench::command); "" when `w` is one of them and well formed,
+// else what was expected. `fes`: the FE names of the file.
+std::string check_own_command(const std::vector<std::string>& w, const std::vector<std::string>& fes,
+                              const std::map<std::uint16_t, std::uint32_t>& rpdos) {
+  if (w[0] == "motion") return w.size() == 2 && (w[1] == "on" || w[1] == "off") ? "" : "motion on|off";
+  if (w[0] == "say" || w[0] == "stop") return w[0] == "stop" && w.size() != 1 ? "stop, alone" : "";
+  if (w[0] == "expect") {
+    if (w.size() != 3) return "expect <FE> valid|held|error|n/a|stale|offline";
+    if (std::find(fes.begin(), fes.end(), w[1]) == fes.end()) {
+      std::string known;
+      for (const auto& f : fes) known += (known.empty() ? "" : ", ") + f;
+      return "an FE of the file (" + known + ")";
+    }
+    const bool word = w[2] == "held" || std::any_of(std::begin(kStatusWords), std::end(kStatusWords),
+                                                    [&](const auto& s) { return s.first == w[2]; });
+    return word ? "" : "a status: valid, held, error, n/a, stale or offline";
+  }
+  if (w[0] == "host") {
+    static const char* const kUsage =
+        "host nmt start|stop|preop|reset|reset_comm, host read IDX:SUB, host write IDX:SUB BYTES or host rpdo N BYTES";
+    if (w.size() == 3 && w[1] == "nmt") {
+      for (const char* v : {"start", "stop", "preop", "reset", "reset_comm"})
+        if (w[2] == v) return "";
+      return kUsage;
+    }
+    if (w.size() == 3 && w[1] == "read") return parse_object(w[2]) ? "" : "host read IDX:SUB (hex, e.g. 6401:01)";
+    if (w.size() >= 4 && w[1] == "write")
+      return parse_object(w[2]) && parse_bytes(w, 3) ? "" : "host write IDX:SUB BYTES (hex, e.g. 6200:01 FF)";
+    if (w.size() >= 4 && w[1] == "rpdo") {
+      char* end = nullptr;
+      const unsigned long n = std::strtoul(w[2].c_str(), &end, 10);
+      if (*end != '\0' || !rpdos.contains(static_cast<std::uint16_t>(n))) {
+        std::string known;
+        for (const auto& [k, v] : rpdos) known += (known.empty() ? "" : ", ") + std::to_string(k);
+        return "host rpdo N BYTES with an RPDO of this gateway (" + (known.empty() ? std::string("none") : known) + ")";
+      }
+      return parse_bytes(w, 3) ? "" : "host rpdo N BYTES (1..8 hex bytes)";
+    }
+    return kUsage;
+  }
+  return "?";  // not one of ours: the simulators'
+}
+
+// The COB-IDs the built-in host gives the gateway's PDOs (CiA 852 §12.1: all disabled but TPDO 1's
+// mapping; the host assigns them): TPDO 1 keeps 180h + node-ID, every other one the next free
+// identifier from 190h on, skipping the gateway's predefined connection set and its SDO servers'.
+std::map<std::pair<bool, std::uint16_t>, std::uint32_t> assign_pdo_cob_ids(const mapping::Config& cfg,
+                                                                            const std::vector<mapping::FeId>& fes) {
+  const std::uint32_t node = cfg.upstream.node_id;
+  std::vector<std::uint32_t> taken{0x80 + node, 0x580 + node, 0x600 + node, 0x700 + node};
+  for (std::uint32_t base : {0x180u, 0x200u, 0x280u, 0x300u, 0x380u, 0x400u, 0x480u, 0x500u}) taken.push_back(base + node);
+  for (const auto& s : cfg.upstream.sdo_servers) {
+    if (s.request) taken.push_back(*s.request);
+    if (s.response) taken.push_back(*s.response);
+  }
+  std::map<std::pair<bool, std::uint16_t>, std::uint32_t> out;
+  std::uint32_t next = 0x190;
+  for (const auto& p : cia852::default_pdos(fes, NodeId{cfg.upstream.node_id})) {
+    if (p.transmit && p.number == 1) {
+      out[{true, 1}] = 0x180 + node;
+      continue;
+    }
+    while (std::find(taken.begin(), taken.end(), next) != taken.end()) ++next;
+    if (next > 0x57F) break;  // 1000 identifiers: more PDOs than clause 12 has
+    out[{p.transmit, p.number}] = next++;
+  }
+  return out;
+}
+
+// Reads the script: "SECONDS COMMAND" per line, `#` starts a comment. Errors as the mapping
+// file's: "FILE:LINE:COLUMN: found ...; expected ...", every one.
+std::vector<SimStep> read_script(const std::string& path, std::vector<std::pair<std::size_t, std::string>>& errors) {
+  std::ifstream in(path);
+  if (!in) {
+    errors.emplace_back(0, fmt::format("{}: cannot be read ({})", path, std::strerror(errno)));
+    return {};
+  }
+  std::vector<SimStep> steps;
+  std::string text;
+  for (std::size_t n = 1; std::getline(in, text); ++n) {
+    if (const auto hash = text.find('#'); hash != std::string::npos) text.resize(hash);
+    const auto first = text.find_first_not_of(" \t\r");
+    if (first == std::string::npos) continue;
+    const auto time_end = text.find_first_of(" \t", first);
+    std::string time = text.substr(first, time_end == std::string::npos ? std::string::npos : time_end - first);
+    if (!time.empty() && time.back() == 's') time.pop_back();
+    char* end = nullptr;
+    const double s = std::strtod(time.c_str(), &end);
+    if (time.empty() || *end != '\0' || !std::isfinite(s) || s < 0 || s > 86400) {
+      errors.emplace_back(n, fmt::format("{}:{}:{}: found '{}'; expected the time in seconds from the start (0..86400, e.g. 2.5)",
+                                   path, n, first + 1, text.substr(first, time_end - first)));
+      continue;
+    }
+    const auto cmd = time_end == std::string::npos ? std::string::npos : text.find_first_not_of(" \t", time_end);
+    if (cmd == std::string::npos) {
+      errors.emplace_back(n, fmt::format("{}:{}:{}: found nothing after the time; expected a command", path, n, text.size() + 1));
+      continue;
+    }
+    std::string command = text.substr(cmd);
+    while (!command.empty() && (command.back() == ' ' || command.back() == '\t' || command.back() == '\r')) command.pop_back();
+    steps.push_back({std::chrono::duration_cast<Duration>(std::chrono::duration<double>(s)), command, n, cmd + 1});
+  }
+  // Steps at one time run in the order written.
+  std::stable_sort(steps.begin(), steps.end(), [](const SimStep& a, const SimStep& b) { return a.at < b.at; });
+  return steps;
+}
+
+// A SocketCAN interface joined to one of the in-process buses: every frame on the bus goes out on
+// the interface, every frame received there comes onto the bus (the kernel does not echo a
+// socket's own frames back to it).
+struct VcanBridge {
+  std::unique_ptr<SocketCanTransport> can;
+  std::unique_ptr<VirtualPort> port;
+  EventLoop::WatchId watch = 0;
+};
+
+}  // namespace
+
+int run_gateway_sim(const GatewaySimOptions& options) {
+  auto loaded = mapping::load_config(options.file, driver_catalogue());
+  if (!loaded.ok()) {
+    std::fprintf(stderr, "%s", loaded.error_text().c_str());
+    return exit_code::kBadFile;
+  }
+  mapping::Config cfg = *loaded.config;
+
+  // The sim's own files (the 1010h store, the control socket) go into a private folder: the
+  // file's upstream.store and control.socket are the cab controller's, never touched here.
+  char tmpl[] = "/tmp/oegw-sim-XXXXXX";
+  const char* dir_c = ::mkdtemp(tmpl);
+  if (dir_c == nullptr) {
+    std::perror("oegw sim: mkdtemp");
+    return exit_code::kCannotStart;
+  }
+  const std::filesystem::path dir = dir_c;
+  struct RemoveDir {
+    std::filesystem::path p;
+    ~RemoveDir() {
+      std::error_code ec;
+      std::filesystem::remove_all(p, ec);
+    }
+  } remove_dir{dir};
+
+  SimulatedClock sim_clock;
+  auto loop_ptr = options.fast ? std::make_unique<EventLoop>(sim_clock) : std::make_unique<EventLoop>();
+  EventLoop& loop = *loop_ptr;
+  CabRigOptions rig_options{.store = dir / "upstream.store"};
+  rig_options.simulator_options = simulators_as_wired(cfg);
+  CabRig rig(cfg, loop, rig_options);
+  try {
+    rig.build_devices();
+  } catch (const std::runtime_error& e) {
+    std::fprintf(stderr, "oegw sim: %s\n", e.what());
+    return exit_code::kBadFile;
+  }
+
+  // The script, every line checked before anything starts: our own words here, the simulators'
+  // on a bench of their own (SimBench::command on simulators nobody listens to).
+  std::vector<std::string> fe_names;
+  for (const auto& fe : cfg.functional_elements) fe_names.push_back(mapping::fe_name(fe.id));
+  std::vector<mapping::FeId> fe_ids;
+  for (const auto& fe : cfg.functional_elements) fe_ids.push_back(fe.id);
+  const auto cob_ids = assign_pdo_cob_ids(cfg, fe_ids);
+  std::map<std::uint16_t, std::uint32_t> rpdos;
+  for (const auto& [key, cob] : cob_ids)
+    if (!key.first) rpdos[key.second] = cob;
+  std::vector<SimStep> steps;
+  if (!options.script.empty()) {
+    std::vector<std::pair<std::size_t, std::string>> errors;  // by line
+    steps = read_script(options.script, errors);
+    sd::sim::SimBench dry([](const CanFrame&) {});
+    add_cab_simulators(dry, cfg, rig_options.simulator_options);
+    for (const auto& s : steps) {
+      const auto w = words_of(s.command);
+      const std::string own = check_own_command(w, fe_names, rpdos);
+      if (own.empty()) continue;
+      if (own != "?") {
+        errors.emplace_back(s.line, fmt::format("{}:{}:{}: found '{}'; expected {}", options.script, s.line, s.column, s.command, own));
+        continue;
+      }
+      const std::string answer = dry.command(s.command, TimePoint{});
+      if (answer.rfind("error: ", 0) == 0)
+        errors.emplace_back(s.line, fmt::format("{}:{}:{}: found '{}'; {}", options.script, s.line, s.column, s.command,
+                                                answer.substr(7)));
+    }
+    if (!errors.empty()) {
+      std::stable_sort(errors.begin(), errors.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+      for (const auto& [line, e] : errors) std::fprintf(stderr, "%s\n", e.c_str());
+      std::fprintf(stderr, "oegw sim: %zu error(s) in %s; nothing started\n", errors.size(), options.script.c_str());
+      return exit_code::kBadFile;
+    }
+  }
+
+  // --vcan: both buses on SocketCAN as well.
+  std::vector<VcanBridge> bridges;
+  if (!options.vcan.empty()) {
+    const auto comma = options.vcan.find(',');
+    const std::string names[2] = {options.vcan.substr(0, comma),
+                                  comma == std::string::npos ? std::string() : options.vcan.substr(comma + 1)};
+    if (names[0].empty() || names[1].empty() || names[0] == names[1]) {
+      std::fprintf(stderr, "oegw sim: --vcan %s: expected two interfaces UP,DOWN (e.g. vcan0,vcan1)\n", options.vcan.c_str());
+      return exit_code::kUsage;
+    }
+    VirtualBus* buses[2] = {&rig.up(), &rig.down()};
+    for (int i = 0; i < 2; ++i) {
+      VcanBridge b;
+      try {
+        b.can = SocketCanTransport::open(names[i]);
+      } catch (const CanOpenError& e) {
+        std::fprintf(stderr, "oegw sim: --vcan %s: %s\n", i == 0 ? "UP" : "DOWN", e.what());
+        return exit_code::kCannotStart;
+      }
+      b.port = buses[i]->attach(names[i]);
+      bridges.push_back(std::move(b));
+    }
+    for (auto& b : bridges) {
+      b.port->set_receiver([can = b.can.get()](const CanFrame& f, TimePoint) { (void)can->send(f); });
+      b.can->set_receiver([port = b.port.get(), &rig](const CanFrame& f, TimePoint) {
+        (void)port->send(f);
+        rig.rearm();
+      });
+    }
+  }
+
+  rig.connect_gateway();
+  Gateway& gw = rig.gw();
+  Master& host = rig.host();
+  sd::sim::SimBench& bench = rig.devices();
+  const NodeId gateway_node{cfg.upstream.node_id};
+  const TimePoint t0 = loop.now();
+  if (options.frames) {
+    rig.up().set_tap([&](const BusRecord& r) { std::printf("%s\n", candump_line(loop.now() - t0, "up", r.frame).c_str()); });
+    rig.down().set_tap([&](const BusRecord& r) { std::printf("%s\n", candump_line(loop.now() - t0, "down", r.frame).c_str()); });
+  }
+  const bool tty = ::isatty(STDOUT_FILENO) != 0 && !options.frames && !options.fast;
+  LiveScreen screen(tty);
+  auto say = [&](const std::string& s) {
+    screen.log(fmt::format("[{:6.2f} s] {}", std::chrono::duration<double>(loop.now() - t0).count(), s));
+  };
+  int failures = 0;
+  gw.on_log = [&](const std::string& line) { say("gateway: " + line); };
+
+  // The host's view: TPDOs per COB-ID, EMCYs, the gateway's heartbeat.
+  std::map<std::uint32_t, std::uint64_t> tpdos;
+  std::uint64_t emcys = 0;
+  std::uint16_t last_emcy = 0;
+  std::map<std::uint32_t, std::uint16_t> tpdo_number;
+  for (const auto& [key, cob] : cob_ids)
+    if (key.first) tpdo_number[cob] = key.second;
+  host.on_other_frame = [&](const CanFrame& f, TimePoint) {
+    if (tpdo_number.contains(f.id)) ++tpdos[f.id];
+  };
+  host.on_emcy = [&](const EmcyMessage& m, TimePoint) {
+    ++emcys;
+    last_emcy = m.code;
+    say(fmt::format("host: EMCY {:04X}h from the gateway{}", m.code,
+                    m.code == 0x7000 ? fmt::format(" (sub-device {:02X}h failed)", m.msef[0])
+                    : m.code == 0    ? " (error reset)"
+                                     : ""));
+  };
+  host.on_heartbeat_timeout = [&](NodeId) { say("host: the gateway's heartbeat timed out"); };
+
+  // Publishing as the file says (--no-publish: none); a setting that cannot work leaves the
+  // sim without it (oegw run refuses to start instead).
+  std::unique_ptr<GatewayPublishing> publishing;
+  if (options.publish && (cfg.publish.dds.enabled || cfg.publish.lcm.enabled)) {
+    try {
+      publishing = std::make_unique<GatewayPublishing>(gw, cfg.publish, [&loop] { return loop.now(); });
+      say(fmt::format("publishing: DDS {} (domain {}, partition {}), LCM {} (channels {}*)",
+                      cfg.publish.dds.enabled ? "on" : "off", cfg.publish.dds.domain, cfg.publish.dds.partition,
+                      cfg.publish.lcm.enabled ? "on" : "off", cfg.publish.lcm.channel_prefix));
+      for (const auto& t : publishing->transports())
+        if (!t.up) say(t.name + " not publishing yet: " + t.reason + "; opened again until it works");
+      publishing->run_on(loop, [&rig] { rig.rearm(); });
+    } catch (const PublishConfigError& e) {
+      say(std::string("not publishing: ") + e.what());
+      publishing.reset();
+    }
+  }
+
+  // The control socket on a private path (oegw status, oegw ctl), in real time only.
+  std::unique_ptr<GatewayControl> control;
+  mapping::Config control_cfg = cfg;
+  if (!options.fast) {
+    control_cfg.control.enabled = true;
+    control_cfg.control.socket = (dir / "control.sock").string();
+    control_cfg.control.group.clear();
+    try {
+      control = std::make_unique<GatewayControl>(loop, gw, control_cfg, options.file, [&rig] { rig.rearm(); });
+    } catch (const std::exception& e) {
+      say(std::string("no control socket: ") + e.what());
+    }
+  }
+  for (auto& b : bridges) b.watch = watch_transport(loop, *b.can);
+
+  std::printf("oegw sim: %s on a simulated cab, gateway node %02Xh\n", options.file.c_str(), cfg.upstream.node_id);
+  std::string devices;
+  for (const auto& s : cfg.subdevices) devices += fmt::format(" {} ({} {:02X}h)", s.name, s.driver, s.node().value());
+  std::printf("  downstream:%s\n", devices.empty() ? " no sub-devices" : devices.c_str());
+  std::printf("  upstream:   the built-in host enables the gateway's PDOs (TPDO 1 on %03Xh) and starts it\n",
+              0x180 + cfg.upstream.node_id);
+  if (!bridges.empty())
+    std::printf("  on SocketCAN too: upstream %s, downstream %s (candump -L %s,%s ...)\n", bridges[0].can->interface().c_str(),
+                bridges[1].can->interface().c_str(), bridges[0].can->interface().c_str(), bridges[1].can->interface().c_str());
+  if (control) std::printf("  control:    oegw status --socket %s (oegw ctl alike)\n", control_cfg.control.socket.c_str());
+  std::printf("\n");
+  std::fflush(stdout);
+
+  auto view = [&](bool keep) {
+    auto rows = gateway_rows(gw, screen.size().first - 1);
+    std::uint64_t n = 0;
+    for (const auto& [cob, count] : tpdos) n += count;
+    rows.push_back(fmt::format("  host: {} TPDOs on {} COB-IDs, {} EMCYs{}", n, tpdos.size(), emcys,
+                               emcys ? fmt::format(" (last {:04X}h)", last_emcy) : std::string()));
+    screen.draw(std::move(rows), keep);
+  };
+
+  // The operator's hands rest until every sub-device is operational (at most 3 s): a gateway
+  // holds an axis at neutral until it has seen it there (the zero-position rule), so a cab
+  // that boots with its sticks deflected shows `held`, which is right but not the first thing to see.
+  bool moving = false;
+  EventLoop::TimerId hands_timer = 0;
+  if (options.motion)
+    hands_timer = loop.call_every(t0 + 10ms, 10ms, [&] {
+      bool all = true;
+      for (const auto& n : gw.downstream().names()) all = all && gw.downstream().state(n) == sd::NodeState::Operational;
+      if (!all && loop.now() - t0 < 3s) return;
+      loop.cancel(hands_timer);
+      moving = true;
+      say("the operator moves every input");
+    });
+  loop.call_every(loop.now(), 20ms, [&] {
+    if (!moving) return;
+    bench.move(loop.now());
+    rig.rearm();
+  });
+
+  // The host: the PDOs' COB-IDs (CiA 852 §12.1), 6423h TRUE where the gateway has analogue
+  // inputs (CiA 401: else they raise no event), then NMT start. Each write after the last's answer.
+  const auto sdo_text = [](std::uint16_t index, std::uint8_t sub, SdoAbortCode c) {
+    return fmt::format("{:04X}h:{:02X}: abort {:08X}h ({})", index, sub, static_cast<std::uint32_t>(c), to_string(c));
+  };
+  struct Write {
+    std::uint16_t index;
+    std::uint8_t sub;
+    std::vector<std::uint8_t> data;
+    bool optional;  // an object the gateway may not have
+  };
+  auto writes = std::make_shared<std::vector<Write>>();
+  for (const auto& [key, cob] : cob_ids)
+    writes->push_back({static_cast<std::uint16_t>((key.first ? 0x1800 : 0x1400) + key.second - 1), 1,
+                       encode<std::uint32_t>(cob), false});
+  writes->push_back({0x6423, 0, {1}, true});
+  auto configure = std::make_shared<std::function<void(std::size_t)>>();
+  *configure = [&, writes, configure](std::size_t i) {
+    if (i == writes->size()) {
+      host.nmt().start(gateway_node);
+      say(fmt::format("host: {} PDOs enabled, NMT start to node {:02X}h", cob_ids.size(), cfg.upstream.node_id));
+      rig.rearm();
+      return;
+    }
+    const Write& w = (*writes)[i];
+    host.sdo(gateway_node).download(w.index, w.sub, w.data, [&, i, configure, writes](SdoAbortCode c, std::vector<std::uint8_t>) {
+      const Write& done = (*writes)[i];
+      if (c != SdoAbortCode::None && !(done.optional && c == SdoAbortCode::ObjectDoesNotExist))
+        say("host: SDO write " + sdo_text(done.index, done.sub, c));
+      (*configure)(i + 1);
+    });
+    rig.rearm();
+  };
+
+  // What a command does, from the script or typed on standard input; false when it failed.
+  bool stop_now = false;
+  auto run_command = [&](const std::string& command) -> bool {
+    const auto w = words_of(command);
+    if (w.empty()) return true;
+    const std::string own = check_own_command(w, fe_names, rpdos);
+    if (own != "?" && !own.empty()) {
+      say("error: '" + command + "': expected " + own);
+      return false;
+    }
+    if (own == "?") {
+      const std::string answer = bench.command(command, loop.now());
+      rig.rearm();
+      say(answer);
+      return answer.rfind("error: ", 0) != 0;
+    }
+    if (w[0] == "motion") {
+      if (hands_timer != 0) loop.cancel(hands_timer);
+      moving = w[1] == "on";
+      say(std::string("the operator ") + (moving ? "moves the inputs" : "lets go of the inputs"));
+    } else if (w[0] == "say") {
+      say(command.substr(command.find("say") + 4));
+    } else if (w[0] == "stop") {
+      stop_now = true;
+      loop.stop();
+    } else if (w[0] == "expect") {
+      const auto fe = std::find_if(gw.fes().begin(), gw.fes().end(), [&](const auto& id) { return mapping::fe_name(id) == w[1]; });
+      if (fe == gw.fes().end()) {
+        say("FAILED: expect " + w[1] + ": the gateway has no such FE");
+        return false;
+      }
+      const auto fields = gw.fields(*fe);
+      const FeStatus status = gw.status(*fe);
+      const bool held = status == FeStatus::Valid &&
+                        std::any_of(fields.begin(), fields.end(), [](const auto& f) { return f.interlocked; });
+      std::string is = held ? "held" : "";
+      if (is.empty())
+        for (const auto& [name, s] : kStatusWords)
+          if (s == status) is = name;
+      const bool ok = is == w[2] || (w[2] == "valid" && is == "held");
+      say(ok ? fmt::format("ok: {} {}", w[1], is) : fmt::format("FAILED: expected {} {}, it is {}", w[1], w[2], is));
+      return ok;
+    } else if (w[0] == "host") {
+      if (w[1] == "nmt") {
+        const NmtCommand cs = w[2] == "start" ? NmtCommand::Start
+                              : w[2] == "stop" ? NmtCommand::Stop
+                              : w[2] == "preop" ? NmtCommand::EnterPreOperational
+                              : w[2] == "reset" ? NmtCommand::ResetNode
+                                                : NmtCommand::ResetCommunication;
+        host.nmt().send(cs, gateway_node);
+        say("host: NMT " + w[2] + " to the gateway");
+      } else if (w[1] == "read" || w[1] == "write") {
+        const auto [index, sub] = *parse_object(w[2]);
+        auto done = [&, index, sub, what = w[1]](SdoAbortCode c, std::vector<std::uint8_t> data) {
+          if (c != SdoAbortCode::None) return say("host: SDO " + what + " " + sdo_text(index, sub, c));
+          std::string hex;
+          for (auto b : data) hex += fmt::format(" {:02X}", b);
+          say(fmt::format("host: SDO {} {:04X}h:{:02X}: ok{}", what, index, sub, hex));
+        };
+        if (w[1] == "read") host.sdo(gateway_node).upload(index, sub, done);
+        else host.sdo(gateway_node).download(index, sub, *parse_bytes(w, 3), done);
+      } else {
+        const auto bytes = *parse_bytes(w, 3);
+        CanFrame f(rpdos.at(static_cast<std::uint16_t>(std::stoul(w[2]))), bytes);
+        (void)rig.host_port().send(f);
+        say("host: RPDO " + w[2] + " " + f.to_string());
+      }
+      rig.rearm();
+    }
+    return true;
+  };
+
+  TimePoint end_at = TimePoint::max();
+  const auto last_step = steps.empty() ? Duration{0} : steps.back().at;
+  if (options.seconds > 0) end_at = t0 + std::chrono::duration_cast<Duration>(std::chrono::duration<double>(options.seconds));
+  else if (options.fast) end_at = t0 + last_step + (steps.empty() ? Duration{10s} : Duration{1s});
+
+  loop.call_at(t0, [&] {
+    rig.power_on();
+    if (cfg.upstream.heartbeat_ms > 0)
+      (void)host.monitor_heartbeat(gateway_node, static_cast<std::uint16_t>(std::min(3 * cfg.upstream.heartbeat_ms, 65535)));
+    (*configure)(0);
+  });
+  for (const auto& s : steps)
+    loop.call_at(t0 + s.at, [&, s] {
+      if (!run_command(s.command)) ++failures;
+    });
+  EventLoop::TimerId view_timer = 0;
+  if (!options.fast) view_timer = loop.call_every(t0 + 1s, tty ? 100ms : 1s, [&] { view(false); });
+  if (end_at != TimePoint::max()) loop.call_at(end_at, [&] { loop.stop(); });
+
+  // Commands typed on standard input (real time): one a line, as the script's without the time.
+  std::string typed;
+  EventLoop::WatchId stdin_watch = 0;
+  struct stat in_stat {};
+  // epoll takes a terminal, a pipe or a socket; a regular file or /dev/null it refuses (EPERM):
+  // nothing is typed there.
+  const bool typed_input = ::fstat(STDIN_FILENO, &in_stat) == 0 &&
+                           (S_ISCHR(in_stat.st_mode) || S_ISFIFO(in_stat.st_mode) || S_ISSOCK(in_stat.st_mode)) &&
+                           ::isatty(STDIN_FILENO) + S_ISFIFO(in_stat.st_mode) + S_ISSOCK(in_stat.st_mode) > 0;
+  if (!options.fast && typed_input) {
+    stdin_watch = loop.watch(STDIN_FILENO, EPOLLIN, [&](std::uint32_t) {
+      char buf[512];
+      const ssize_t n = ::read(STDIN_FILENO, buf, sizeof buf);
+      if (n <= 0) {
+        loop.unwatch(stdin_watch);
+        stdin_watch = 0;
+        return;
+      }
+      typed.append(buf, static_cast<std::size_t>(n));
+      for (auto nl = typed.find('\n'); nl != std::string::npos; nl = typed.find('\n')) {
+        const std::string line = typed.substr(0, nl);
+        typed.erase(0, nl + 1);
+        if (!run_command(line)) ++failures;
+      }
+    });
+  }
+
+  if (options.fast) {
+    while (!loop.stop_requested() && loop.now() < end_at) loop.advance_by(5ms);
+  } else {
+    loop.handle_signals({SIGINT, SIGTERM});
+    loop.run();
+  }
+  if (view_timer != 0) loop.cancel(view_timer);
+  if (stdin_watch != 0) loop.unwatch(stdin_watch);
+  for (auto& b : bridges)
+    if (b.watch != 0) loop.unwatch(b.watch);
+  // The last table stays on the screen, below the log.
+  view(true);
+  std::uint64_t n = 0;
+  for (const auto& [cob, count] : tpdos) n += count;
+  std::printf("\noegw sim: %.1f s%s, %llu TPDOs and %llu EMCYs at the host; %s\n",
+              std::chrono::duration<double>(loop.now() - t0).count(), options.fast ? " simulated" : "",
+              static_cast<unsigned long long>(n), static_cast<unsigned long long>(emcys),
+              failures == 0 ? "every command and expectation as written"
+                            : fmt::format("{} command(s) or expectation(s) FAILED", failures).c_str());
+  (void)stop_now;
+  return failures == 0 ? exit_code::kOk : exit_code::kBadFile;
+}
+
+}  // namespace oegw::gateway
