@@ -110,7 +110,13 @@ void SimBench::move(TimePoint now) {
         const double phase = 2 * std::numbers::pi * t / 4.0 + 0.7 * static_cast<double>(axis++);
         const double span = std::min<double>(static_cast<double>(s.max - s.neutral), static_cast<double>(s.neutral - s.min));
         const double amplitude = s.kind == SignalKind::Position ? 1000.0 : 0.8 * span;
-        (void)e.sim->set_input(s.name, s.neutral + std::llround(amplitude * std::sin(phase)), now);
+        // A position (an encoder's count) turns about a point 2000 counts above its neutral: a
+        // knob that swings through zero would cross the sensor's lower work-area limit and its
+        // minimum every two seconds (Novotechnik §5.7.1: an EMCY 9090h each time), which a
+        // hand turning a knob does not do.
+        const double centre = s.kind == SignalKind::Position ? 2000.0 : 0.0;
+        const long long v = s.neutral + std::llround(centre + amplitude * std::sin(phase));
+        (void)e.sim->set_input(s.name, std::clamp<long long>(v, s.min, s.max), now);
       } else if (s.kind == SignalKind::Button && buttons > 0) {
         const auto pressed = static_cast<std::size_t>(t) % buttons;
         (void)e.sim->set_input(s.name, button++ == pressed ? 1 : 0, now);
