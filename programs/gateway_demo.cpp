@@ -10,6 +10,7 @@
 
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <string_view>
 
 #include <fmt/format.h>
@@ -22,6 +23,7 @@
 #include "gateway/publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
 #include "programs/demo_files.hpp"
+#include "programs/live_view.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 
 namespace oegw::gateway {
@@ -33,115 +35,6 @@ namespace sd = oegw::subdevices;
 namespace {
 
 constexpr NodeId kGateway{0x20};
-
-// One line per FE: "joystick.1  valid     x=+12000 y=-300 buttons=10000000"; "held" where an
-// axis is valid but held at neutral until it has been seen at zero (the elobau zero-position rule).
-std::string fe_line(const Gateway& gw, mapping::FeId fe) {
-  static const char* const kStatus[] = {"valid", "ERROR", "n/a", "stale", "OFFLINE"};
-  const auto fields = gw.fields(fe);
-  const bool held = std::any_of(fields.begin(), fields.end(), [](const auto& f) { return f.interlocked; });
-  const FeStatus status = gw.status(fe);
-  std::string out = fmt::format("  {:<13} {:<8}", mapping::fe_name(fe),
-                                held && status == FeStatus::Valid ? "held" : kStatus[static_cast<int>(status)]);
-  std::string bits_name, bits;
-  for (const auto& f : fields) {
-    const auto bracket = f.name.find('[');
-    if (bracket != std::string::npos) {
-      const std::string base = f.name.substr(0, bracket);
-      if (base != bits_name && !bits_name.empty()) out += fmt::format(" {}={}", bits_name, bits), bits.clear();
-      bits_name = base;
-      bits += f.value ? '1' : '0';
-      continue;
-    }
-    out += fmt::format(" {}={:+6d}{}", f.name, f.value, f.interlocked ? "(held)" : "");
-  }
-  if (!bits_name.empty()) out += fmt::format(" {}={}", bits_name, bits);
-  return out;
-}
-
-// "  sub-devices: a=operational b=starting ..." wrapped at `width` columns, continuation rows
-// indented under the first name.
-std::vector<std::string> wrapped(const std::string& head, const std::vector<std::string>& items, std::size_t width) {
-  std::vector<std::string> rows{head};
-  const std::string indent(head.size(), ' ');
-  for (const auto& item : items) {
-    if (rows.back().size() + 1 + item.size() > width && rows.back().size() > indent.size()) rows.push_back(indent);
-    rows.back() += " " + item;
-  }
-  return rows;
-}
-
-// The live table at the bottom of the terminal with the log above it (no curses). Every table row
-// is cut to the terminal's width, so each takes exactly one row of the screen and "cursor up by
-// the rows drawn" finds the table's top again at any size; a log line erases the table (cursor
-// up, CSI J), is printed — wrapping as it likes, scrolling the screen — and the table is drawn
-// again below it. So the screen holds one table, never copies of it. Without a terminal (a pipe,
-// --fast, --frames) log lines and tables are printed one after the other.
-class LiveScreen {
- public:
-  explicit LiveScreen(bool tty) : tty_(tty) {}
-
-  // The terminal's columns and rows (80x24 if it does not say).
-  [[nodiscard]] std::pair<std::size_t, std::size_t> size() const {
-    winsize ws{};
-    if (!tty_ || ::ioctl(STDOUT_FILENO, TIOCGWINSZ, &ws) != 0 || ws.ws_col == 0) return {80, 24};
-    return {ws.ws_col, ws.ws_row == 0 ? 24 : ws.ws_row};
-  }
-
-  void log(const std::string& line) {
-    erase();
-    std::printf("%s\n", line.c_str());
-    paint();
-  }
-
-  // Replaces the table; `keep`: leave it on the screen as it is, later output below it.
-  void draw(std::vector<std::string> rows, bool keep) {
-    erase();
-    rows_ = std::move(rows);
-    paint();
-    if (keep || !tty_) {
-      rows_.clear();
-      drawn_ = 0;
-    }
-  }
-
- private:
-  void erase() {
-    if (tty_ && drawn_ > 0) std::printf("\x1b[%zuA\r\x1b[J", drawn_);
-    drawn_ = 0;
-  }
-  void paint() {
-    if (rows_.empty()) {
-      std::fflush(stdout);
-      return;
-    }
-    const auto [cols, lines] = size();
-    // One column spare: a row of exactly `cols` leaves some terminals in their pending-wrap state.
-    const std::size_t width = cols > 1 ? cols - 1 : 1;
-    // At most the screen's height less one row, so the log keeps a line and the top stays found.
-    const std::size_t max_rows = lines > 1 ? lines - 1 : 1;
-    std::size_t n = 0;
-    for (std::size_t i = 0; i < rows_.size() && n < max_rows; ++i, ++n) {
-      std::string r = rows_[i];
-      if (n + 1 == max_rows && i + 1 < rows_.size()) r = fmt::format("  ... {} more rows (a taller terminal shows them)", rows_.size() - i);
-      if (tty_ && r.size() > width) r = r.substr(0, width - 1) + "~";
-      std::printf("%s\n", r.c_str());
-    }
-    drawn_ = tty_ ? n : 0;
-    std::fflush(stdout);
-  }
-
-  bool tty_;
-  std::vector<std::string> rows_;
-  std::size_t drawn_ = 0;
-};
-
-// --frames: candump's log format (candump -L), "(seconds.micros) interface id#data", which
-// canplayer replays: `canplayer -I FILE vcan0=up vcan1=down`. The time is the demo's, from 0.
-std::string candump_line(Duration since_start, const char* interface, const CanFrame& f) {
-  const auto us = since_start.count();
-  return fmt::format("({:010}.{:06}) {} {}", us / 1'000'000, us % 1'000'000, interface, f.to_string());
-}
 
 }  // namespace
 
@@ -172,15 +65,10 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   auto loop_ptr = options.fast ? std::make_unique<EventLoop>(sim_clock) : std::make_unique<EventLoop>();
   EventLoop& loop = *loop_ptr;
   bool done = false;
-  // The simulated cab: the devices of demo.yaml downstream, the gateway, a host upstream. Its
-  // MCB-402 boards are wired as the file's button_bits say (a simulator is otherwise wired by the
-  // table's other reading,
-  // docs/design/device-documents.md#corners-every-reading-a-document-permits: a board is wired as
-  // it is, the file must say so).
+  // The simulated cab: the devices of demo.yaml downstream (its MCB-402 wired as the file's
+  // button_bits say), the gateway, a host upstream.
   CabRigOptions rig_options{.store = dir / "upstream.store"};
-  for (const auto& sc : cfg.subdevices)
-    if (const auto bits = sc.options.get("button_bits"); sc.driver == "mcb402" && bits)
-      rig_options.simulator_options[sc.name].values.emplace_back("wiring", *bits);
+  rig_options.simulator_options = simulators_as_wired(cfg);
   CabRig rig(cfg, loop, rig_options);
   const TimePoint t0 = loop.now();
   if (options.frames) {
@@ -222,7 +110,17 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
       x_max = std::max(x_max, host_x);
     }
   };
+  // What the screen shows must be what the story caused: a fault of another FE, or of the
+  // pulled grip's FEs outside the window from the pull until it is back, fails the demo (a
+  // loaded machine that misses heartbeats shows `stale` and EMCY 7000h; the demo must say so).
+  bool grip_pulled = false;
+  std::vector<std::string> spurious;
+  auto spurious_fault = [&](const std::string& what) {
+    if (spurious.size() < 5) say("FAILED: a fault the story did not cause: " + what);
+    spurious.push_back(what);
+  };
   host.on_emcy = [&](const EmcyMessage& m, TimePoint) {
+    if (m.code == 0x7000 && !grip_pulled) spurious_fault(fmt::format("EMCY 7000h naming sub-device {:02X}h", m.msef[0]));
     emcys.push_back(m.code);
     say(fmt::format("host: EMCY from the gateway: {:04X}h {}", m.code,
                     m.code == 0x7000 ? fmt::format("(additional modules: sub-device {:02X}h failed)", m.msef[0])
@@ -289,11 +187,7 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     rig.rearm();
   };
   auto view = [&](bool final_frame) {
-    std::vector<std::string> lines;
-    for (const auto& fe : gw.fes()) lines.push_back(fe_line(gw, fe));
-    std::vector<std::string> nodes;
-    for (const auto& n : gw.downstream().names()) nodes.push_back(fmt::format("{}={}", n, sd::to_string(gw.downstream().state(n))));
-    for (auto& r : wrapped("  sub-devices:", nodes, screen.size().first - 1)) lines.push_back(std::move(r));
+    std::vector<std::string> lines = gateway_rows(gw, screen.size().first - 1);
     lines.push_back(fmt::format("  host: {} TPDO1 frames, joystick.1 x as the host reads it = {:+6d}", tpdos, host_x));
     screen.draw(std::move(lines), final_frame);
   };
@@ -314,6 +208,20 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
       for (const auto& n : gw.downstream().names()) all = all && gw.downstream().state(n) == sd::NodeState::Operational;
       if (!all) return;
       all_up = true;
+      // From here every FE is valid or not available, but the grip's while it is pulled.
+      std::map<std::string, FeStatus> last;
+      loop.call_every(loop.now() + 10ms, 10ms, [&, last]() mutable {
+        for (const auto& fe : gw.fes()) {
+          const std::string name = mapping::fe_name(fe);
+          const FeStatus st = gw.status(fe);
+          const bool fault = st == FeStatus::Stale || st == FeStatus::Error || st == FeStatus::Offline;
+          const bool grips = name == "joystick.1" || name == "wheel.1";  // demo.yaml: right_grip's
+          if (fault && !(grip_pulled && grips) && last[name] != st)
+            spurious_fault(fmt::format("{} {} at {:.2f} s", name, st == FeStatus::Stale ? "stale" : st == FeStatus::Error ? "error" : "offline",
+                                       std::chrono::duration<double>(loop.now() - t0).count()));
+          last[name] = st;
+        }
+      });
       loop.cancel(up_watch);
       check(true, "every sub-device configured and operational");
     });
@@ -348,7 +256,13 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     (void)host_port->send(CanFrame(0x225, {0x05, 0, 0, 0, 0, 0, 0, 0}));  // RPDO 5 maps 6200h:09..10h
     // indicators.1 lists `sources: [dds, lcm]` in demo.yaml: the host may not drive its lamps.
     say("host: SDO write 6200h:01 = FFh (indicators.1, the cluster's lamps, driven by the machine application)");
-    host.sdo(kGateway).download(0x6200, 0x01, {0xFF}, [&](SdoAbortCode c, std::vector<std::uint8_t>) {
+    // The lamps as they are before the write: the machine application may drive them meanwhile
+    // (the DDS/LCM command examples), so the check is "unchanged by the write", not "off".
+    auto* lamps = bench.device("cluster");
+    const std::optional<std::int64_t> lamps_before = lamps ? lamps->output("out[1]") : std::nullopt;
+    host.sdo(kGateway).download(0x6200, 0x01, {0xFF}, [&, lamps, lamps_before](SdoAbortCode c, std::vector<std::uint8_t>) {
+      check(lamps && lamps_before && lamps->output("out[1]") == lamps_before,
+            fmt::format("the button cluster's lamps unchanged by the refused write ({:02X}h)", lamps_before.value_or(0)));
       check(c == SdoAbortCode::CannotTransferLocalControl,
             fmt::format("the gateway refused it: abort {:08X}h ({}); only the machine application's DDS/LCM "
                         "commands drive those lamps",
@@ -360,9 +274,8 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     auto* mcb = bench.device("left_grip");
     check(mcb && mcb->output("leds[1]") == 1 && mcb->output("leds[2]") == 0 && mcb->output("leds[3]") == 1,
           "MCB-402 LEDs 1 and 3 lit, 2 off");
-    auto* cluster = bench.device("cluster");
-    check(cluster && cluster->output("out[1]") == 0, "the button cluster's lamps unchanged by the refused write");
     say("the right grip's cable is pulled");
+    grip_pulled = true;
     (void)bench.command("right_grip silent on", loop.now());
   });
   at(4500ms + live, [&] {
@@ -394,6 +307,10 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   at(9000ms + live, [&] {
     check(std::count(emcys.begin(), emcys.end(), 0x0000) > 0, "the host got the error-reset EMCY");
     check(gw.status({mapping::FeKind::Joystick, 1}) == FeStatus::Valid, "joystick.1 valid and following again");
+    grip_pulled = false;
+    check(spurious.empty(), spurious.empty() ? std::string("no fault the story did not cause")
+                                             : fmt::format("{} fault(s) the story did not cause, the first: {}",
+                                                           spurious.size(), spurious.front()));
     loop.cancel(view_timer);
     done = true;
     loop.stop();
