@@ -40,36 +40,69 @@ using namespace canopen;
 
 namespace {
 
-// Which commands load the file: `check` and `run` face a cab controller and also refuse what
-// mapping/deployment.hpp lists (the demo's `interface: virtual` among them); `eds` does not.
-enum class Use : std::uint8_t { Eds, Cab };
+// Which commands load the file, and what they ask of it: `eds` the loader's checks only; `oegw
+// check` (File) the cab settings of the file too (mapping/deployment.hpp, the demo's `interface:
+// virtual` among them), this machine's findings printed apart, not refused: the file may be
+// checked on another computer than the one it is for; `oegw check --here`, `oegw run` and its
+// reloads (Here) refuse this machine's findings as well.
+enum class Use : std::uint8_t { Eds, File, Here };
 
-// The file as `use` takes it: the loader's errors, then (Cab) the cab settings'.
-mapping::LoadResult read_file(const std::string& file, Use use) {
-  auto r = mapping::load_config(file, driver_catalogue());
-  if (r.ok() && use == Use::Cab) {
-    r.errors = mapping::deployment_errors(*r.config);
-    for (auto& e : dds_security_errors(*r.config)) r.errors.push_back(std::move(e));
-    std::stable_sort(r.errors.begin(), r.errors.end(), [](const mapping::Diagnostic& a, const mapping::Diagnostic& b) {
-      return std::pair(a.where.line, a.where.column) < std::pair(b.where.line, b.where.column);
-    });
-    if (!r.errors.empty()) r.config.reset();
-  }
-  return r;
+// What `oegw run` refuses of this machine as it is now (mapping::machine_errors, and
+// publish.dds.security's files as this machine has them), in the file's order.
+std::vector<mapping::Diagnostic> machine_refusals(const mapping::Config& c) {
+  std::vector<mapping::Diagnostic> out = mapping::machine_errors(c);
+  for (auto& e : dds_security_errors(c)) out.push_back(std::move(e));
+  mapping::sort_by_place(out);
+  return out;
 }
 
-std::optional<mapping::Config> load(const std::string& file, Use use) {
-  auto r = read_file(file, use);
+struct FileRead {
+  mapping::LoadResult loaded;  // errors: the loader's, then the file's cab settings' (and, Here, this machine's)
+  std::vector<mapping::Diagnostic> on_this_machine;  // File: what Here would refuse of this machine
+};
+
+// The file as `use` takes it. The machine is asked only of a file the loader took.
+FileRead read_file(const std::string& file, Use use) {
+  FileRead f{mapping::load_config(file, driver_catalogue()), {}};
+  mapping::LoadResult& r = f.loaded;
+  if (!r.ok() || use == Use::Eds) return f;
+  r.errors = mapping::deployment_errors(*r.config);
+  std::vector<mapping::Diagnostic> machine = machine_refusals(*r.config);
+  if (use == Use::Here) {
+    for (auto& e : machine) r.errors.push_back(std::move(e));
+    mapping::sort_by_place(r.errors);
+  } else {
+    f.on_this_machine = std::move(machine);
+  }
+  if (!r.errors.empty()) r.config.reset();
+  return f;
+}
+
+// `oegw check` without --here: what this machine lacks for the file, each as a warning
+// (file:line:column, the setting's name) under a heading saying who refuses it.
+void print_on_this_machine(std::FILE* to, const std::vector<mapping::Diagnostic>& refused) {
+  if (refused.empty()) return;
+  std::fprintf(to, "on this machine (oegw check --here, and oegw run, refuse these):\n");
+  for (const auto& d : refused) std::fprintf(to, "warning: %s\n", d.str().c_str());
+}
+
+// The file for `use`, or nullopt with every error printed (and, for `oegw check`, this machine's
+// findings in their section). `on_this_machine`, when given, receives them of a file taken.
+std::optional<mapping::Config> load(const std::string& file, Use use,
+                                    std::vector<mapping::Diagnostic>* on_this_machine = nullptr) {
+  FileRead f = read_file(file, use);
+  const mapping::LoadResult& r = f.loaded;
   if (!r.ok()) {
     std::fprintf(stderr, "%s", r.error_text().c_str());
     if (!r.error_text().empty() && r.error_text().back() != '\n') std::fprintf(stderr, "\n");
+    print_on_this_machine(stderr, f.on_this_machine);
     std::fprintf(stderr, "%s: %zu error%s; nothing was started\n", file.c_str(), r.errors.size(),
                  r.errors.size() == 1 ? "" : "s");
     return std::nullopt;
   }
-  return std::move(r.config);
+  if (on_this_machine != nullptr) *on_this_machine = std::move(f.on_this_machine);
+  return std::move(f.loaded.config);
 }
-
 
 // "125, 250, 500, 1000 kbit/s": the table-0 rates of `rates`, fastest last.
 std::string rate_list(lss::BitTimings rates) {
@@ -174,8 +207,8 @@ void print_downstream_boot(const mapping::Config& cfg) {
 }
 
 // `oegw check`: the control socket `oegw run` will serve (mapping file `control`,
-// docs/reference/control-protocol.md); what run would refuse there deployment_errors() has refused
-// already.
+// docs/reference/control-protocol.md); what run would refuse there is among this machine's
+// findings (mapping::machine_errors) already.
 void print_control(const mapping::ControlConfig& c) {
   if (!c.enabled) {
     std::printf("control: off (control.enabled false): no socket, oegw status cannot ask this gateway\n");
@@ -226,7 +259,7 @@ ServiceState running_state(Gateway& gw, const GatewayPublishing& publishing) {
 void reload(Running& r, TimePoint now) {
   r.notify.reloading(now);
   spdlog::info("{}: reloading (SIGHUP)", r.file);
-  auto read = read_file(r.file, Use::Cab);
+  mapping::LoadResult read = read_file(r.file, Use::Here).loaded;
   std::vector<mapping::Diagnostic> errors = std::move(read.errors);
   if (read.ok()) errors = reload_refusals(r.config, *read.config);
   if (read.ok() && errors.empty()) errors = reload_driver_refusals(*read.config);
@@ -299,8 +332,9 @@ bool start_publishing(Gateway& gw, const mapping::Config& cfg, const std::string
 
 }  // namespace
 
-int run_check(const std::string& file, bool quiet) {
-  const auto cfg = load(file, Use::Cab);
+int run_check(const std::string& file, bool quiet, bool here) {
+  std::vector<mapping::Diagnostic> refused_here;  // without --here: what run refuses of this machine
+  const auto cfg = load(file, here ? Use::Here : Use::File, &refused_here);
   if (!cfg) return exit_code::kBadFile;
   const auto device = eds_device(*cfg);  // the dictionary `oegw run` builds
   const auto& fes = device->config().fes;
@@ -323,15 +357,27 @@ int run_check(const std::string& file, bool quiet) {
     std::printf("warning: %s\n", w.str().c_str());
     warned = true;
   }
-  // This machine as it is now (docs/guides/install.md#lcm-route): oegw run would start without LCM.
+  // This machine as it is now: apart from the file's findings (mapping/deployment.hpp).
+  print_on_this_machine(stdout, refused_here);
+  warned = warned || !refused_here.empty();
+  std::vector<mapping::Diagnostic> machine_warned = mapping::machine_warnings(*cfg);
+  // No route for LCM's group (docs/guides/install.md#lcm-route): oegw run would start without LCM.
   if (const auto& lcm = cfg->publish.lcm; lcm.enabled)
     if (const auto problem = lcm_route_problem(lcm.url)) {
       const std::string& net = cfg->publish.dds.network;
-      std::printf("warning: publish.lcm.url: this machine has %s: oegw run would start without LCM and publish once a "
-                  "route exists; add one: %s (README \"LCM route\" has the systemd-networkd file that keeps it)\n",
-                  problem->c_str(), lcm_route_command(lcm.url, net == "loopback" ? "" : net).c_str());
-      warned = true;
+      machine_warned.push_back(
+          {lcm.url_where.line != 0 ? lcm.url_where : lcm.where,
+           "publish.lcm.url " + lcm.url + (lcm.url_where.line != 0 ? "" : " (the default)") + ": this machine has " +
+               *problem + ": oegw run would start without LCM and publish once a route exists; add one: " +
+               lcm_route_command(lcm.url, net == "loopback" ? "" : net) +
+               " (README \"LCM route\" has the systemd-networkd file that keeps it)"});
     }
+  if (!machine_warned.empty()) {
+    mapping::sort_by_place(machine_warned);
+    std::printf("on this machine (oegw run starts all the same):\n");
+    for (const auto& w : machine_warned) std::printf("warning: %s\n", w.str().c_str());
+    warned = true;
+  }
   if (quiet) {
     // The warnings the full listing has inside its sections: the EDS reader's, the bus load's.
     for (const auto& s : cfg->subdevices)
@@ -442,7 +488,7 @@ int run_gateway(const std::string& file) {
   // runs, by the handler serve_gateway sets; one that comes while the start fails is discarded.
   EventLoop loop;
   loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1});
-  auto cfg = load(file, Use::Cab);
+  auto cfg = load(file, Use::Here);
   if (!cfg) return exit_code::kBadFile;
   // The bit rates first (docs/guides/commission.md#bit-rate): a refused one starts nothing.
   const auto link = netlink_can_link();

@@ -166,12 +166,16 @@ std::vector<Diagnostic> deployment_errors(const Config& c) {
     out.push_back({down.where, "downstream.interface " + down.name + " is upstream.interface too (" +
                                    up.where.line_column() +
                                    "); expected two CAN interfaces: the host's bus and the sub-devices' bus"});
+  sort_by_place(out);
+  return out;
+}
+
+std::vector<Diagnostic> machine_errors(const Config& c) {
+  std::vector<Diagnostic> out;
   check_store(c.upstream, out);
   check_control(c.control, out);
   check_record(c.record, out);
-  std::stable_sort(out.begin(), out.end(), [](const Diagnostic& a, const Diagnostic& b) {
-    return std::pair(a.where.line, a.where.column) < std::pair(b.where.line, b.where.column);
-  });
+  sort_by_place(out);
   return out;
 }
 
@@ -191,9 +195,20 @@ std::vector<Diagnostic> deployment_warnings(const Config& c) {
                                   "' feeds no functional element: it is booted and supervised, but nothing of it "
                                   "reaches the host or the machine application"});
   }
-  check_store_folder(c.upstream, out);
   check_lcm_commands(c, out);
   return out;
+}
+
+std::vector<Diagnostic> machine_warnings(const Config& c) {
+  std::vector<Diagnostic> out;
+  check_store_folder(c.upstream, out);
+  return out;
+}
+
+void sort_by_place(std::vector<Diagnostic>& d) {
+  std::stable_sort(d.begin(), d.end(), [](const Diagnostic& a, const Diagnostic& b) {
+    return std::pair(a.where.line, a.where.column) < std::pair(b.where.line, b.where.column);
+  });
 }
 
 }  // namespace oegw::mapping

@@ -110,6 +110,10 @@ int main(int argc, char** argv) {
   bool check_quiet = false;
   check_cmd->add_flag("-q,--quiet", check_quiet,
                       "Of a valid file print only 'FILE: valid' and the warnings (errors and exit codes as without it)");
+  bool check_here = false;
+  check_cmd->add_flag("--here", check_here,
+                      "Check on the machine the file is for: refuse what this machine lacks for it (a missing store "
+                      "folder, control.group, ...) as oegw run does; without it those are warnings");
   std::string eds_out = "-";
   auto* eds_cmd = app.add_subcommand("eds", "Write the EDS of the upstream device a mapping file configures");
   eds_cmd->add_option("file", config_file, "Mapping file (YAML)")->required();
@@ -237,7 +241,7 @@ int main(int argc, char** argv) {
     if (name == log_level) spdlog::set_level(level);
 
   if (*master_cmd) return oegw::gateway::run_master(master);
-  if (*check_cmd) return oegw::gateway::run_check(config_file, check_quiet);
+  if (*check_cmd) return oegw::gateway::run_check(config_file, check_quiet, check_here);
   if (*eds_cmd) return oegw::gateway::run_eds(config_file, eds_out);
   if (*run_cmd) return oegw::gateway::run_gateway(config_file);
   if (*status_cmd) return oegw::gateway::run_status(status);

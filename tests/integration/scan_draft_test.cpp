@@ -4,6 +4,8 @@
 // line uncommented.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -49,11 +51,11 @@ class ScanDraft : public ::testing::Test {
     return scanner.result();
   }
 
-  // `oegw check` on `text`, written to a file of its own.
-  int check(const std::string& text, const std::string& name) {
+  // `oegw check` (`here`: `oegw check --here`) on `text`, written to a file of its own.
+  int check(const std::string& text, const std::string& name, bool here = false) {
     const auto file = dir_ / name;
     std::ofstream(file) << text;
-    return gateway::run_check(file.string());
+    return gateway::run_check(file.string(), false, here);
   }
   // The draft's settings: its upstream store in this test's folder (the default's folder,
   // /var/lib/oegw, is made by the package, not here).
@@ -130,6 +132,52 @@ TEST_F(ScanDraft, NoNodeGivesADraftWithoutSubdevicesThatStillPassesCheck) {
   const std::string draft = gateway::draft_mapping(r, settings());
   EXPECT_NE(draft.find("subdevices: {}"), std::string::npos);
   EXPECT_EQ(check(draft, "empty.yaml"), 0) << draft;
+}
+
+// A draft made on one computer for another (an integrator's laptop without the cab's store
+// folder): the file is right, so `oegw check` passes it, warning of the folder among this
+// machine's findings at the store's place; `oegw check --here` refuses it there, as oegw run would.
+TEST_F(ScanDraft, ADraftWhoseStoreFolderThisMachineLacksPassesCheckAndCheckHereRefusesIt) {
+  add("elobau-mfg:0x11");
+  const sd::ScanResult r = scan();
+  ASSERT_EQ(r.nodes.size(), 1u);
+  gateway::DraftSettings s = settings();
+  const std::filesystem::path missing = dir_ / "not-made";  // no folder of that name exists
+  s.store = (missing / "upstream.store").string();
+  const std::string draft = gateway::draft_mapping(r, s);
+  // The store's place in the draft: its line, the column of its value.
+  const std::string key = "  store: ";
+  const auto at = draft.find("\n" + key);
+  ASSERT_NE(at, std::string::npos) << draft;
+  const auto line = 2 + std::count(draft.begin(), draft.begin() + static_cast<std::ptrdiff_t>(at), '\n');
+  const std::string file = (dir_ / "draft.yaml").string();
+  const std::string place = file + ":" + std::to_string(line) + ":" + std::to_string(key.size() + 1) + ": ";
+  const std::string finding = place + "upstream.store " + s.store + ": its folder " + missing.string() +
+                              " does not exist; expected a file in an existing folder";
+
+  ::testing::internal::CaptureStdout();
+  ::testing::internal::CaptureStderr();
+  const int plain = check(draft, "draft.yaml");
+  std::fflush(stdout);
+  const std::string out = ::testing::internal::GetCapturedStdout();
+  const std::string err = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(plain, 0) << draft << out << err;
+  EXPECT_NE(out.find("on this machine (oegw check --here, and oegw run, refuse these):\nwarning: " + finding),
+            std::string::npos)
+      << out;
+
+  ::testing::internal::CaptureStdout();
+  ::testing::internal::CaptureStderr();
+  const int here = check(draft, "draft.yaml", true);
+  std::fflush(stdout);
+  const std::string here_out = ::testing::internal::GetCapturedStdout();
+  const std::string here_err = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(here, 1) << here_out << here_err;
+  EXPECT_EQ(here_err.rfind(finding, 0), 0u) << here_err;
+  EXPECT_NE(here_err.find(file + ": 1 error; nothing was started"), std::string::npos) << here_err;
+
+  std::filesystem::create_directories(missing);  // the folder made: nothing left to refuse
+  EXPECT_EQ(check(draft, "draft.yaml", true), 0) << draft;
 }
 
 }  // namespace

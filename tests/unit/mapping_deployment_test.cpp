@@ -1,6 +1,7 @@
 // The checks `oegw check` and `oegw run` add to the loader's (mapping/deployment.hpp), on Configs
-// built here; the built program's messages are tested outside in (tests/CMakeLists.txt
-// oegw_check_cab_*).
+// built here: the file's (deployment_errors, refused everywhere) apart from this machine's
+// (machine_errors: `oegw check` warns, `oegw check --here` and `oegw run` refuse); the built
+// program's messages are tested outside in (tests/CMakeLists.txt oegw_check_cab_*).
 #include "mapping/deployment.hpp"
 
 #include <gmock/gmock.h>
@@ -37,15 +38,34 @@ Config cab() {
   return c;
 }
 
-std::vector<std::string> errors(const Config& c) {
+std::vector<std::string> strs(const std::vector<Diagnostic>& d) {
   std::vector<std::string> out;
-  for (const auto& d : deployment_errors(c)) out.push_back(d.str());
+  for (const auto& x : d) out.push_back(x.str());
   return out;
+}
+// The file's errors.
+std::vector<std::string> errors(const Config& c) { return strs(deployment_errors(c)); }
+// This machine's, after asserting that none of them is among the file's: a file is right or
+// wrong whichever computer checks it.
+std::vector<std::string> here(const Config& c) {
+  EXPECT_TRUE(deployment_errors(c).empty()) << deployment_errors(c).front().str();
+  return strs(machine_errors(c));
 }
 
 TEST(Deployment, ACabFileHasNothingToRefuseOrWarnAbout) {
   EXPECT_TRUE(deployment_errors(cab()).empty());
+  EXPECT_TRUE(machine_errors(cab()).empty());
   EXPECT_TRUE(deployment_warnings(cab()).empty());
+  EXPECT_TRUE(machine_warnings(cab()).empty());
+}
+
+// The file's mistakes are never this machine's: machine_errors() does not repeat them.
+TEST(Deployment, TheFilesMistakesAreNotThisMachines) {
+  Config c = cab();
+  c.upstream.interface = "virtual";
+  c.downstream.interface = "can/1";
+  EXPECT_EQ(errors(c).size(), 2u);
+  EXPECT_TRUE(machine_errors(c).empty());
 }
 
 TEST(Deployment, InterfaceNamesTheKernelRefuses) {
@@ -87,11 +107,11 @@ TEST(Deployment, OneInterfaceForBothBusesIsRefusedAtTheDownstreamOne) {
                                                 "the sub-devices' bus"});
 }
 
-TEST(Deployment, AStoreWhoseFolderDoesNotExistIsRefusedAtItsSettingOrItsSection) {
+TEST(Deployment, AStoreWhoseFolderDoesNotExistIsThisMachinesAtItsSettingOrItsSection) {
   Config c = cab();
   c.upstream.store = "/nonexistent/oegw/up.store";
   c.upstream.store_where = {"cab.yaml", 3, 10};
-  auto e = errors(c);
+  auto e = here(c);
   ASSERT_EQ(e.size(), 1u);
   EXPECT_EQ(e[0].rfind("cab.yaml:3:10: upstream.store /nonexistent/oegw/up.store: its folder /nonexistent/oegw does "
                        "not exist",
@@ -99,16 +119,16 @@ TEST(Deployment, AStoreWhoseFolderDoesNotExistIsRefusedAtItsSettingOrItsSection)
             0u)
       << e[0];
   c.upstream.store_where = {};  // the default, not written: at the upstream section
-  e = errors(c);
+  e = here(c);
   ASSERT_EQ(e.size(), 1u);
   EXPECT_EQ(e[0].rfind("cab.yaml:1:1: upstream.store /nonexistent/oegw/up.store (the default)", 0), 0u) << e[0];
   c.upstream.store = "up.store";  // in the working directory: a folder that is there
-  EXPECT_TRUE(errors(c).empty());
+  EXPECT_TRUE(here(c).empty());
 }
 
 // The black box's folder (docs/guides/black-box.md): oegw run makes a missing one; a path
 // through a file cannot be made. Not checked while recording is off.
-TEST(Deployment, ARecordFolderUnderAFileIsRefusedAtItsSetting) {
+TEST(Deployment, ARecordFolderUnderAFileIsThisMachinesAtItsSetting) {
   char tmpl[] = "/tmp/oegw-deploy-record-XXXXXX";
   const std::filesystem::path dir = ::mkdtemp(tmpl);
   std::ofstream(dir / "plain") << "x";
@@ -116,19 +136,19 @@ TEST(Deployment, ARecordFolderUnderAFileIsRefusedAtItsSetting) {
   c.record.dir = (dir / "plain" / "record").string();
   c.record.dir_where = {"cab.yaml", 12, 25};
   c.record.where = {"cab.yaml", 12, 1};
-  EXPECT_TRUE(errors(c).empty()) << "recording is off";
+  EXPECT_TRUE(here(c).empty()) << "recording is off";
   c.record.enabled = true;
-  EXPECT_THAT(errors(c), ::testing::ElementsAre("cab.yaml:12:25: record.dir " + c.record.dir + ": " +
+  EXPECT_THAT(here(c), ::testing::ElementsAre("cab.yaml:12:25: record.dir " + c.record.dir + ": " +
                                                 (dir / "plain").string() +
                                                 " is a file, not a folder; expected a folder oegw run may make or write"));
   c.record.dir = (dir / "not" / "yet").string();  // made by oegw run
-  EXPECT_TRUE(errors(c).empty());
+  EXPECT_TRUE(here(c).empty());
   std::filesystem::remove_all(dir);
 }
 
 // The store is never read through a link nor replaced over one (canopen/301/storage.hpp): a
 // link there would leave the device on defaults at every start. Refused at the setting.
-TEST(Deployment, ASymlinkedStoreIsRefusedAtItsSetting) {
+TEST(Deployment, ASymlinkedStoreIsThisMachinesAtItsSetting) {
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("oegw-deploy-" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   ::chmod(dir.c_str(), 0755);
@@ -136,7 +156,7 @@ TEST(Deployment, ASymlinkedStoreIsRefusedAtItsSetting) {
   Config c = cab();
   c.upstream.store = (dir / "up.store").string();
   c.upstream.store_where = {"cab.yaml", 3, 10};
-  const auto e = errors(c);
+  const auto e = here(c);
   std::filesystem::remove_all(dir);
   ASSERT_EQ(e.size(), 1u);
   EXPECT_EQ(e[0], "cab.yaml:3:10: upstream.store " + (dir / "up.store").string() + " is a symbolic link (to " +
@@ -148,17 +168,17 @@ TEST(Deployment, ASymlinkedStoreIsRefusedAtItsSetting) {
 // store file or its .lss there first): the gateway runs, `oegw check` warns at the setting.
 TEST(Deployment, WarnsOnAStoreFolderEveryUserMayWrite) {
   Config c = cab();
-  EXPECT_TRUE(deployment_warnings(c).empty());
+  EXPECT_TRUE(machine_warnings(c).empty());
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("oegw-deploy-w-" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   ::chmod(dir.c_str(), 0777);
   c.upstream.store = (dir / "up.store").string();
   c.upstream.store_where = {"cab.yaml", 3, 10};
-  std::vector<std::string> w;
-  for (const auto& d : deployment_warnings(c)) w.push_back(d.str());
-  const bool runs = errors(c).empty();
+  const std::vector<std::string> w = strs(machine_warnings(c));
+  const bool file_silent = deployment_warnings(c).empty();  // a fact of this machine, not of the file
+  const bool runs = errors(c).empty() && machine_errors(c).empty();
   ::chmod(dir.c_str(), 0755);
-  const auto none = deployment_warnings(c).empty();
+  const auto none = machine_warnings(c).empty();
   std::filesystem::remove_all(dir);
   ASSERT_EQ(w.size(), 1u);
   EXPECT_EQ(w[0].rfind("cab.yaml:3:10: upstream.store " + (dir / "up.store").string() + ": its folder " + dir.string() +
@@ -167,6 +187,7 @@ TEST(Deployment, WarnsOnAStoreFolderEveryUserMayWrite) {
             0u)
       << w[0];
   EXPECT_TRUE(none);
+  EXPECT_TRUE(file_silent);
   EXPECT_TRUE(runs);
 }
 
@@ -174,17 +195,17 @@ TEST(Deployment, TheControlSocketRunWouldRefuseOnThisMachine) {
   Config c = cab();
   c.control.where = {"cab.yaml", 12, 1};
   c.control.socket = "/tmp/oegw-deployment-test.sock";  // /tmp exists: fine
-  EXPECT_TRUE(errors(c).empty());
+  EXPECT_TRUE(here(c).empty());
   c.control.socket = "/tmp/oegw-deployment-test-no-such-dir/oegw.sock";  // its folder made by run
-  EXPECT_TRUE(errors(c).empty());
+  EXPECT_TRUE(here(c).empty());
   c.control.group = "root";
-  EXPECT_TRUE(errors(c).empty());
+  EXPECT_TRUE(here(c).empty());
   c.control.group = "oegw_no_such_group_x";
   c.control.group_where = {"cab.yaml", 12, 40};
   c.control.socket = "/nonexistent-oegw/run/oegw.sock";
   c.control.socket_where = {"cab.yaml", 12, 20};
   // In the file's order: the socket (column 20), then the group (column 40).
-  EXPECT_THAT(errors(c),
+  EXPECT_THAT(here(c),
               ::testing::ElementsAre(
                   ::testing::StartsWith("cab.yaml:12:20: control.socket /nonexistent-oegw/run/oegw.sock: its folder "
                                         "/nonexistent-oegw/run does not exist, nor does /nonexistent-oegw (oegw run "
@@ -194,7 +215,7 @@ TEST(Deployment, TheControlSocketRunWouldRefuseOnThisMachine) {
   // One socket path each: the only error (or "" when there is none, or several).
   const auto only = [&c](const char* socket) {
     c.control.socket = socket;
-    const auto all = errors(c);
+    const auto all = here(c);
     return all.size() == 1 ? all[0] : std::string();
   };
   EXPECT_EQ(only("/etc/hostname"),  // a plain file: run does not take it
@@ -205,7 +226,7 @@ TEST(Deployment, TheControlSocketRunWouldRefuseOnThisMachine) {
   EXPECT_EQ(only("/nonexistent-oegw/run/oegw.sock").rfind("cab.yaml:12:1: control.socket /nonexistent-oegw/run/oegw.sock (the default): ", 0), 0u);
   c.control.enabled = false;  // no socket: nothing to refuse
   c.control.group = "oegw_no_such_group_x";
-  EXPECT_TRUE(errors(c).empty());
+  EXPECT_TRUE(here(c).empty());
 }
 
 TEST(Deployment, WarnsOnAMandatorySubDeviceWithoutHeartbeatAndOnOneNoFeUses) {

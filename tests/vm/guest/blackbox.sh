@@ -30,7 +30,7 @@ prepare_gateway_run vm_gateway.yaml "$src" "$dir" "$oegw"
 cat >>"$dir/oegw.yaml" <<EOF
 record: { enabled: true, dir: $rec, max_mib: 64, span_s: 600, segments: 8 }
 EOF
-"$oegw" check "$dir/oegw.yaml" >/tmp/check.out 2>&1 || { fail "oegw check: $(cat /tmp/check.out)"; exit 1; }
+"$oegw" check --here "$dir/oegw.yaml" >/tmp/check.out 2>&1 || { fail "oegw check: $(cat /tmp/check.out)"; exit 1; }
 grep -q "^record: both buses' frames" /tmp/check.out && pass "oegw check prints what it records" ||
   fail "oegw check: no record line"
 

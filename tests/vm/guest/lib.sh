@@ -24,11 +24,12 @@ mapping_fixture() {
 
 # prepare_gateway_run FIXTURE SRC RUN_DIR OEGW: the start the `oegw run` scenarios share — the
 # run folder, the mapping file tests/fixtures/FIXTURE as RUN_DIR/oegw.yaml (the script ends with
-# a FAIL when it is missing), and `oegw check` on it into /tmp/check.out; returns check's status.
+# a FAIL when it is missing), and `oegw check --here` on it (this machine is the one it runs on)
+# into /tmp/check.out; returns check's status.
 prepare_gateway_run() {
   mkdir -p "$3"
   mapping_fixture "$1" "$2" "$3" >"$3/oegw.yaml" || { fail "cannot read tests/fixtures/$1"; exit 1; }
-  "$4" check "$3/oegw.yaml" >/tmp/check.out 2>&1
+  "$4" check --here "$3/oegw.yaml" >/tmp/check.out 2>&1
 }
 
 # Number of raw CAN receivers (sockets) bound to device $1.

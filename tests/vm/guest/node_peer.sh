@@ -40,7 +40,7 @@ mapping_fixture full_fe_set.yaml "$src" "$dir" | sed -e '0,/interface: virtual/s
   -e 's/heartbeat_ms: 100\([ ,]\)/heartbeat_ms: 200, heartbeat_timeout_ms: 1000\1/' \
   -e '/button_cluster/!s/heartbeat_timeout_ms: 1000/&, pdo_timeout_ms: 1000/' >"$dir/full.yaml"
 for cab in demo joystick2 pedal2 full; do
-  if "$oegw" check "$dir/$cab.yaml" >"$dir/$cab.check" 2>&1; then pass "oegw check $cab.yaml: valid"; else
+  if "$oegw" check --here "$dir/$cab.yaml" >"$dir/$cab.check" 2>&1; then pass "oegw check $cab.yaml: valid"; else
     fail "oegw check $cab.yaml: $(head -5 "$dir/$cab.check")"
   fi
   if "$oegw" eds "$dir/$cab.yaml" -o "$dir/$cab.eds" >/dev/null 2>&1; then

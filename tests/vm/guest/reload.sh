@@ -23,7 +23,7 @@ heartbeat_ms=2000
 
 prepare_gateway_run vm_gateway.yaml "$src" "$dir" "$oegw"
 sed -i "0,/^  heartbeat_ms: 200\$/s//  heartbeat_ms: $heartbeat_ms/" "$dir/oegw.yaml"
-"$oegw" check "$dir/oegw.yaml" >/tmp/check.out 2>&1 && grep -q "^  heartbeat_ms: $heartbeat_ms\$" "$dir/oegw.yaml" &&
+"$oegw" check --here "$dir/oegw.yaml" >/tmp/check.out 2>&1 && grep -q "^  heartbeat_ms: $heartbeat_ms\$" "$dir/oegw.yaml" &&
   pass "oegw check: valid, upstream heartbeat $heartbeat_ms ms" || fail "oegw check: $(cat /tmp/check.out)"
 cp "$dir/oegw.yaml" /tmp/oegw.yaml.orig
 

@@ -20,7 +20,7 @@ dir=/run/oegw-remote
 prepare_gateway_run vm_gateway.yaml "$src" "$dir" "$oegw"
 # The bound channel goes under `upstream:` (after its store line), then the file is checked again.
 sed -i 's|^  store: .*|&\n  sdo_servers:\n    - { subdevice: left_grip, request: 0x690, response: 0x6B0 }|' "$dir/oegw.yaml"
-"$oegw" check "$dir/oegw.yaml" >/tmp/check.out 2>&1
+"$oegw" check --here "$dir/oegw.yaml" >/tmp/check.out 2>&1
 rc=$?
 ((rc == 0)) && pass "oegw check: valid with the bound SDO channel" || { fail "oegw check exit $rc: $(cat /tmp/check.out)"; exit 1; }
 if grep -q '1201h.*690h.*6B0h.*left_grip' /tmp/check.out; then pass "oegw check prints SDO server 1201h"; else fail "oegw check does not print 1201h: $(cat /tmp/check.out)"; fi

@@ -69,7 +69,7 @@ mkdir -p /etc/oegw /etc/systemd/system/oegw.service.d
 mapping_fixture vm_gateway.yaml "$src" /var/lib/oegw | sed "s|$src/subdevices/eds|/usr/share/oegw/eds|g" >/etc/oegw/oegw.yaml
 printf '[Service]\nWatchdogSec=10s\n' >/etc/systemd/system/oegw.service.d/vm-watchdog.conf
 systemctl daemon-reload
-/usr/bin/oegw check /etc/oegw/oegw.yaml >/tmp/check.out 2>&1 && pass "oegw check /etc/oegw/oegw.yaml: valid" ||
+/usr/bin/oegw check --here /etc/oegw/oegw.yaml >/tmp/check.out 2>&1 && pass "oegw check --here /etc/oegw/oegw.yaml: valid" ||
   fail "oegw check: $(tail -3 /tmp/check.out)"
 
 # --- start: Type=notify, READY=1 ----------------------------------------------------------------
