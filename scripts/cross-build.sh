@@ -54,7 +54,7 @@ qemu_of() { case $1 in arm64) echo aarch64 ;; armhf) echo arm ;; esac; }
 # --- 1. this machine's tools -------------------------------------------------------------------------
 # install-deps.sh: the native build's packages, crossbuild-essential-arm64/-armhf, qemu-user-static,
 # mmdebstrap, arch-test.
-./scripts/install-deps.sh
+./scripts/install-deps.sh --tests
 
 # binfmt_misc: the kernel starts a target ELF file through qemu-<cpu>-static. qemu-user-static's
 # own registration needs systemd-binfmt or binfmt-support running, which a container or CI

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# Installs, from Debian's packages, whatever the build, the demo and the test tiers need and this
-# machine lacks. Idempotent: with everything present it only checks (dpkg -s) and exits.
-# --tests (scripts/test-all.sh, command 2) also installs what only the test tiers need beyond
-# that: chromium, which loads `oegw replay --plot`'s page headless, mkdocs, which builds the
-# documentation site (CTest docs_site), and man-db, whose `man -l` renders the manual pages
-# (CTest man_pages).
+# Installs, from Debian's packages, whatever the programs need and this machine lacks: what command
+# 1 builds (the programs, their manual pages) and runs (`oegw demo`). Idempotent: with everything
+# present it only checks (dpkg -s) and exits.
+# --tests (scripts/test-all.sh, command 2; scripts/cross-build.sh) also installs what only the test
+# tiers need: GoogleTest and Google Benchmark, clang (the fuzzers), the independent CAN peers and
+# the SocketCAN-in-a-VM tier, the packaging and cross-build tools, node-canopen's node, chromium
+# (the replay plot, headless), mkdocs (the documentation site) and man-db (`man -l`).
 # Why each package is there: see docs/developer/dependencies.md.
 set -euo pipefail
 
@@ -20,12 +21,6 @@ PACKAGES=(
   nlohmann-json3-dev
   # Chart.js 3.9, inlined into the page `oegw replay --plot` writes (docs/guides/black-box.md)
   libjs-chart.js
-  # test tiers
-  libgtest-dev libgmock-dev libbenchmark-dev clang
-  # independent CAN peers and the SocketCAN-in-a-VM tier
-  can-utils python3-can qemu-system-x86 busybox-static kmod cpio iproute2
-  # make: node-gyp builds the node-canopen peer's native addons (tests/vm/node_peer) with it
-  make
   # publishing to the machine application: Cyclone DDS (C library + CMake package) and idlc,
   # which generates the DDS types from gateway/publish/oegw.idl at build time
   cyclonedds-dev cyclonedds-tools
@@ -36,15 +31,25 @@ PACKAGES=(
   # recorded-session test; libglib2.0-dev because liblcm-dev's lcm.pc requires glib-2.0 and
   # gthread-2.0 .pc files that liblcm-dev does not pull in (pkg-config lcm fails without them)
   liblcm-dev liblcm-bin libglib2.0-dev
+  # libsystemd: sd_notify / sd_watchdog_enabled for the unit's Type=notify and watchdog (oegw run
+  # sends nothing without NOTIFY_SOCKET: systemd is not needed to run it)
+  libsystemd-dev
+)
+
+# The test tiers only (--tests).
+TEST_PACKAGES=(
+  # unit and integration tests, benchmarks, the fuzzers (libFuzzer: clang)
+  libgtest-dev libgmock-dev libbenchmark-dev clang
+  # independent CAN peers and the SocketCAN-in-a-VM tier
+  can-utils python3-can qemu-system-x86 busybox-static kmod cpio iproute2
+  # make: node-gyp builds the node-canopen peer's native addons (tests/vm/node_peer) with it
+  make
   # strace: the VM tier counts the system calls `oegw run` makes per translated frame
   strace
   # tmux: the demo's live table is judged on the screen a terminal shows (capture-pane)
   tmux
   # tcpdump: an independent check that the demo's DDS/LCM traffic never leaves the host
   tcpdump
-  # libsystemd: sd_notify / sd_watchdog_enabled for the unit's Type=notify and watchdog (oegw run
-  # sends nothing without NOTIFY_SOCKET: systemd is not needed to run it)
-  libsystemd-dev
   # systemd-analyze verify: the unit file's test (systemd need not run)
   systemd
   # the Debian package: dpkg-shlibdeps (dpkg-dev) computes its Depends; the deploy test installs it
@@ -62,15 +67,16 @@ PACKAGES=(
 # and libnode-dev for Node's headers (/usr/include/node), which the addons compile against. A
 # node that is already there with npm and its headers (e.g. a nodejs package from elsewhere, which
 # conflicts with Debian's npm) is used as it is.
+NODE_PACKAGES=()
 if ! command -v node >/dev/null || ! command -v npm >/dev/null || [ ! -r /usr/include/node/node.h ]; then
-  PACKAGES+=(nodejs npm libnode-dev)
+  NODE_PACKAGES=(nodejs npm libnode-dev)
 fi
 
 # Command 2's test tiers only: headless chromium loads the replay's plot (tests/tools/plot_chromium_check.sh);
 # mkdocs (1.4.2 on Debian 12) builds docs/ as a site, strictly (docs/developer/docs-site.md); man-db's
 # `man -l` renders the manual pages.
 if [[ ${1:-} == --tests ]]; then
-  PACKAGES+=(chromium mkdocs man-db)
+  PACKAGES+=("${TEST_PACKAGES[@]}" "${NODE_PACKAGES[@]}" chromium mkdocs man-db)
 fi
 
 missing=()

@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 
 ./scripts/install-deps.sh --tests
 BUILD=${OEGW_BUILD_DIR:-build}
-cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo >/dev/null
+cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DOEGW_BUILD_TESTS=ON >/dev/null
 cmake --build "$BUILD"
 
 # Tiers 1, 2 and 3 (the VM tier is labelled `vm`) and the Debian package installed into a fresh
