@@ -87,7 +87,19 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
     say(std::string(ok ? "ok: " : "FAILED: ") + what);
   };
 
-  rig.on_gateway = [&](Gateway& g) { g.on_log = [&](const std::string& line) { say("gateway: " + line); }; };
+  // The sub-devices' boot steps (waiting for boot-up, configuring, starting, their identity) are
+  // the table's `sub-devices:` row; in the log they pushed the introduction off an 80x24 screen
+  // within a second. `oegw sim` and `oegw run` log them all.
+  auto boot_step = [](const std::string& line) {
+    for (const char* step : {": waiting for boot-up", ": configuring (", ": starting (", ": boot diagnostics:"})
+      if (line.find(step) != std::string::npos) return true;
+    return false;
+  };
+  rig.on_gateway = [&, boot_step](Gateway& g) {
+    g.on_log = [&, boot_step](const std::string& line) {
+      if (!boot_step(line)) say("gateway: " + line);
+    };
+  };
   try {
     rig.build();
   } catch (const std::runtime_error& e) {
@@ -128,11 +140,13 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   };
 
   std::printf(
-      "oegw demo: the CiA 852 gateway between a simulated cab and a built-in host controller\n"
-      "  downstream: elobau grip 11h, MCB-402 03h, pedal 30h, Novotechnik encoder 7Fh, button cluster 31h\n"
-      "  upstream:   the gateway is node 20h; the host configures its PDOs and reads the joysticks\n"
-      "  mapping:    config/demo.yaml, on the in-process bus `virtual`; naming can0/can1 instead, `oegw check`\n"
-      "              prints its layout and `oegw run` runs it on a cab controller\n\n");
+      // Every line within 79 columns: an 80x24 terminal shows it unwrapped.
+      "oegw demo: the CiA 852 gateway between a simulated cab and a built-in host\n"
+      "  downstream: elobau grip 11h, MCB-402 03h, pedal 30h, Novotechnik encoder 7Fh,\n"
+      "              button cluster 31h\n"
+      "  upstream:   the gateway is node 20h; a host configures its PDOs, reads them\n"
+      "  mapping:    config/demo.yaml on the in-process bus; `oegw sim FILE` runs your\n"
+      "              own file so, `oegw run FILE` on a cab controller\n\n");
 
   // Every FE on DDS (loopback only) and LCM (ttl=0, 224.0.0.1), as a machine application sees
   // it: the embedded demo.yaml's publish section (--no-publish turns it off).

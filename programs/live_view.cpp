@@ -63,9 +63,37 @@ std::pair<std::size_t, std::size_t> LiveScreen::size() const {
   return {ws.ws_col, ws.ws_row == 0 ? 24 : ws.ws_row};
 }
 
+std::vector<std::string> wrap_words(const std::string& line, std::size_t width) {
+  if (width < 8 || line.size() <= width) return {line};
+  const auto stamp = line.find("] ");
+  const std::size_t indent = line.starts_with("[") && stamp != std::string::npos && stamp + 2 <= width / 2 ? stamp + 2 : 2;
+  std::vector<std::string> rows;
+  std::size_t pos = 0;
+  while (pos < line.size()) {
+    const std::size_t lead = rows.empty() ? 0 : indent;
+    const std::size_t room = width - lead;
+    if (line.size() - pos <= room) {
+      rows.push_back(std::string(lead, ' ') + line.substr(pos));
+      break;
+    }
+    std::size_t cut = line.rfind(' ', pos + room);
+    if (cut == std::string::npos || cut <= pos) cut = pos + room;  // one word longer than a row
+    rows.push_back(std::string(lead, ' ') + line.substr(pos, cut - pos));
+    pos = cut;
+    while (pos < line.size() && line[pos] == ' ') ++pos;
+  }
+  return rows;
+}
+
 void LiveScreen::log(const std::string& line) {
   erase();
-  std::printf("%s\n", line.c_str());
+  if (tty_) {
+    // One column spare, as the table's rows (paint()).
+    const auto cols = size().first;
+    for (const auto& row : wrap_words(line, cols > 1 ? cols - 1 : 1)) std::printf("%s\n", row.c_str());
+  } else {
+    std::printf("%s\n", line.c_str());
+  }
   paint();
 }
 

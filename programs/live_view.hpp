@@ -25,6 +25,11 @@ namespace oegw::gateway {
 // The table rows of `gw`: one per FE, then its sub-devices' states wrapped at `width`.
 [[nodiscard]] std::vector<std::string> gateway_rows(const Gateway& gw, std::size_t width);
 
+// `line` cut into rows of at most `width` columns at spaces, each row after the first indented
+// under the text after the line's "[ 12.34 s] " stamp (or by two columns without one); a word
+// longer than a row is cut. A terminal wraps a long log line mid-word, which reads as garbage.
+[[nodiscard]] std::vector<std::string> wrap_words(const std::string& line, std::size_t width);
+
 // The live table at the bottom of the terminal with the log above it (no curses). Every table row
 // is cut to the terminal's width, so each takes exactly one row of the screen and "cursor up by
 // the rows drawn" finds the table's top again at any size; a log line erases the table (cursor

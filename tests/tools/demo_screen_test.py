@@ -4,8 +4,8 @@
 tmux (Debian's) runs `oegw demo` in a detached pane of COLS x ROWS; the test reads the visible
 screen with `tmux capture-pane -p` five times a second until the demo has exited, and fails if any
 screen shows the table twice (two `joystick.1` rows or two `sub-devices:` rows: copies left behind
-by a redraw), a log line below the table (the log goes above it), or a table row wider than the
-pane (a row that wrapped). At the end the demo must have said "demo complete" and exited 0, and
+by a redraw), a log line below the table (the log goes above it), a table row wider than the
+pane, or a row filling all its columns (a line the terminal wrapped, mid-word). At the end the demo must have said "demo complete" and exited 0, and
 the table must have been seen on at least three screens (so the test saw it redrawn).
 Args: OEGW COLS ROWS
 """
@@ -37,6 +37,10 @@ def judge(screen, cols):
     for r in rows:
         if len(r) > cols:
             problems.append(f"a row of {len(r)} columns in a {cols}-column pane")
+        elif len(r) == cols:
+            # The demo keeps one column spare and breaks its log lines at spaces: a full row is
+            # one the terminal wrapped, mid-word.
+            problems.append(f"a row the terminal wrapped (all {cols} columns used): {r!r}")
     return problems
 
 
