@@ -102,6 +102,15 @@ void CtlService::unhook(const char* why, std::optional<SdoAbortCode> answer_tran
     if (answer_transfers) t->done(json{{"abort", static_cast<std::uint32_t>(*answer_transfers)}});
   }
   transfers_.clear();
+  if (answer_transfers) {
+    for (const auto& p : std::vector<std::shared_ptr<ControlProtocol::Done>>(lss_pending_)) {
+      if (!*p) continue;
+      auto d = std::move(*p);
+      *p = nullptr;
+      d(gateway_error(102, std::string(why) + ": the LSS request ended unanswered; send it again"));
+    }
+  }
+  lss_pending_.clear();
 }
 
 void CtlService::detach() {
@@ -185,8 +194,19 @@ json lss_failure(const canopen::LssMaster::Result& r, const char* what, int refu
 
 }  // namespace
 
-void CtlService::lss(const json& r, ControlProtocol::Done done) {
+void CtlService::lss(const json& r, ControlProtocol::Done first_done) {
   using Status = canopen::LssMaster::Status;
+  // One answer per request, whoever gives it first: the LSS master's result, or a reload
+  // (unhook) that ends the gateway whose master would have given it.
+  std::erase_if(lss_pending_, [](const auto& p) { return !*p; });
+  auto pending = std::make_shared<ControlProtocol::Done>(std::move(first_done));
+  lss_pending_.push_back(pending);
+  auto done = [pending](json j) {
+    if (!*pending) return;
+    auto d = std::move(*pending);
+    *pending = nullptr;
+    d(std::move(j));
+  };
   using canopen::LssMaster;
   const auto net = request_field(r, "network", 1, 127);
   const auto it = r.find("service");

@@ -79,6 +79,9 @@ class CtlService {
   std::vector<std::shared_ptr<Transfer>> transfers_;
   // Cleared by the destructor: LSS answers that come later are dropped.
   std::shared_ptr<bool> alive_ = std::make_shared<bool>(true);
+  // The answers of the LSS requests in flight (emptied once given): a reload answers those the
+  // old gateway's LSS master never will (it goes with the gateway), 102.
+  std::vector<std::shared_ptr<ControlProtocol::Done>> lss_pending_;
   bool fastscan_client_ = false;  // the network manager's fastscan runs for this service
   bool slowscan_client_ = false;  // its slowscan likewise
   std::deque<nlohmann::json> events_;

@@ -490,3 +490,28 @@ TEST_F(Ctl, OneClientLssScanAtATime) {
 }
 
 }  // namespace
+
+// A reload replaces the gateway whose LSS master would answer an lss_* request (CtlService::detach
+// while the old gateway still runs): the request in flight is answered 102 then, once, instead of
+// never (its client would wait out its own time-out, and then not know what happened).
+TEST_F(Ctl, AReloadAnswersAnLssRequestInFlightOnce) {
+  std::vector<std::string> answers;
+  // Configure node-ID with nobody in LSS configuration mode: no slave answers before the LSS
+  // time-out, so the request is in flight.
+  protocol_.answer(R"({"command":"lss","network":2,"service":"set_node","node":5})",
+                   [&](std::string a) { answers.push_back(std::move(a)); });
+  rig_->run_for(5ms);
+  ASSERT_EQ(answers, std::vector<std::string>{});
+  service_->detach();
+  ASSERT_EQ(answers.size(), 1u);
+  EXPECT_NE(answers[0].find("\"gateway_error\":102"), std::string::npos) << answers[0];
+  EXPECT_NE(answers[0].find("the gateway reloads its mapping file: the LSS request ended unanswered"), std::string::npos)
+      << answers[0];
+  // The old master's time-out that follows answers nothing a second time.
+  service_->attach(rig_->gw(), config_);
+  rig_->run_for(2s);
+  EXPECT_EQ(answers.size(), 1u);
+  // And the service goes on: the next request is answered as usual.
+  EXPECT_EQ(run("[1] 2 lss_set_node 5"),
+            "[1] ERROR: 103 (Time-out: no LSS slave answered configure node-ID (none in LSS configuration mode?))");
+}
