@@ -71,16 +71,11 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   rig_options.simulator_options = simulators_as_wired(cfg);
   CabRig rig(cfg, loop, rig_options);
   const TimePoint t0 = loop.now();
-  if (options.frames) {
-    rig.up().set_tap([&](const BusRecord& r) { std::printf("%s\n", candump_line(loop.now() - t0, "up", r.frame).c_str()); });
-    rig.down().set_tap([&](const BusRecord& r) { std::printf("%s\n", candump_line(loop.now() - t0, "down", r.frame).c_str()); });
-  }
+  if (options.frames) print_frames_of(rig, t0);
 
   const bool tty = ::isatty(STDOUT_FILENO) != 0 && !options.frames && !options.fast;
   LiveScreen screen(tty);
-  auto say = [&](const std::string& s) {
-    screen.log(fmt::format("[{:6.2f} s] {}", std::chrono::duration<double>(loop.now() - t0).count(), s));
-  };
+  auto say = [&](const std::string& s) { screen.log(stamped(loop.now() - t0, s)); };
   int failures = 0;
   auto check = [&](bool ok, const std::string& what) {
     if (!ok) ++failures;

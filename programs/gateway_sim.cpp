@@ -319,15 +319,10 @@ int run_gateway_sim(const GatewaySimOptions& options) {
   sd::sim::SimBench& bench = rig.devices();
   const NodeId gateway_node{cfg.upstream.node_id};
   const TimePoint t0 = loop.now();
-  if (options.frames) {
-    rig.up().set_tap([&](const BusRecord& r) { std::printf("%s\n", candump_line(loop.now() - t0, "up", r.frame).c_str()); });
-    rig.down().set_tap([&](const BusRecord& r) { std::printf("%s\n", candump_line(loop.now() - t0, "down", r.frame).c_str()); });
-  }
+  if (options.frames) print_frames_of(rig, t0);
   const bool tty = ::isatty(STDOUT_FILENO) != 0 && !options.frames && !options.fast;
   LiveScreen screen(tty);
-  auto say = [&](const std::string& s) {
-    screen.log(fmt::format("[{:6.2f} s] {}", std::chrono::duration<double>(loop.now() - t0).count(), s));
-  };
+  auto say = [&](const std::string& s) { screen.log(stamped(loop.now() - t0, s)); };
   int failures = 0;
   gw.on_log = [&](const std::string& line) { say("gateway: " + line); };
 

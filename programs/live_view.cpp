@@ -133,6 +133,17 @@ void LiveScreen::paint() {
   std::fflush(stdout);
 }
 
+std::string stamped(Duration since_start, const std::string& text) {
+  return fmt::format("[{:6.2f} s] {}", std::chrono::duration<double>(since_start).count(), text);
+}
+
+void print_frames_of(CabRig& rig, TimePoint t0) {
+  for (auto [bus, name] : {std::pair{&rig.up(), "up"}, std::pair{&rig.down(), "down"}})
+    bus->set_tap([&rig, t0, name](const BusRecord& r) {
+      std::printf("%s\n", candump_line(rig.now() - t0, name, r.frame).c_str());
+    });
+}
+
 std::string candump_line(Duration since_start, const char* interface, const CanFrame& f) {
   const auto us = since_start.count();
   return fmt::format("({:010}.{:06}) {} {}", us / 1'000'000, us % 1'000'000, interface, f.to_string());

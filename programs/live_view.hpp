@@ -10,6 +10,7 @@
 #include "canopen/can_frame.hpp"
 #include "canopen/types.hpp"
 #include "gateway/gateway.hpp"
+#include "programs/cab_rig.hpp"
 
 namespace oegw::gateway {
 
@@ -54,6 +55,13 @@ class LiveScreen {
   std::vector<std::string> rows_;
   std::size_t drawn_ = 0;
 };
+
+// A log line as the demo and the sim print it: "[ 12.34 s] text", the time since their start.
+[[nodiscard]] std::string stamped(canopen::Duration since_start, const std::string& text);
+
+// --frames: every frame of the rig's two buses printed as it passes, in candump_line()'s format
+// ("up", "down"), timed from `t0`.
+void print_frames_of(CabRig& rig, canopen::TimePoint t0);
 
 // candump's log format (candump -L), "(seconds.micros) interface id#data", which canplayer
 // replays: `canplayer -I FILE vcan0=up vcan1=down`. The time counts from the program's start.
