@@ -389,6 +389,7 @@ void Node::handle_reset(bool communication_only, TimePoint now) {
   if (store_) {
     const ParameterStore::LoadResult r = communication_only ? store_->load(0x1000, 0x1FFF) : store_->load();
     store_refused_ = !r.ok;  // EMCY in initialisation would be held back: applied in handle_state
+    if (on_store_reload) on_store_reload(r, communication_only);
   }
   // A reset communication leaves the application's active errors (CiA 301 §7.3.2.2.1: only the
   // communication parameters restart), while it has just put 1001h back to 0: 1001h follows the

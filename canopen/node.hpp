@@ -142,6 +142,10 @@ class Node {
   std::function<void(NmtState)> on_state_change;
   // The heartbeat consumer timed out (after EMCY 8130h was raised), on whichever path noticed it.
   std::function<void(NodeId)> on_heartbeat_timeout;
+  // The parameter store read again at an NMT reset (reset node: all of it; reset communication:
+  // 1000h-1FFFh), with its result; a refused one is EMCY 6000h once pre-operational. The
+  // power-on's is start()'s return.
+  std::function<void(const ParameterStore::LoadResult&, bool communication_only)> on_store_reload;
   // LSS activate bit timing, at the switch (after the first switch delay): the transport must
   // now switch to the bit rate of table-0 index `table_index`.
   std::function<void(std::uint8_t table_index)> on_bit_timing_switch;

@@ -81,6 +81,13 @@ Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed
     if (tap_ != nullptr) tap_->sent(*this, Bus::Up, f);
   });
   canopen::Node& device = oe_->node();
+  // A store refused at a reset is as one refused at power-on (programs.cpp logs that one): the
+  // device runs on defaults and the host gets EMCY 6000h; the log says which and why.
+  device.on_store_reload = [this](const canopen::ParameterStore::LoadResult& r, bool communication_only) {
+    if (!r.ok)
+      log(fmt::format("upstream store refused at NMT reset {}: {}; running on defaults, EMCY 6000h sent upstream",
+                      communication_only ? "communication" : "node", r.error));
+  };
   for (std::size_t k = 0; k < device.sdo_server_count(); ++k) {
     canopen::SdoServer& server = device.sdo_server(k);
     server.set_remote(remote_sdo_.get());

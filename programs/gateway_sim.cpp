@@ -10,6 +10,7 @@
 #include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <optional>
@@ -456,7 +457,6 @@ int run_gateway_sim(const GatewaySimOptions& options) {
   };
 
   // What a command does, from the script or typed on standard input; false when it failed.
-  bool stop_now = false;
   auto run_command = [&](const std::string& command) -> bool {
     const auto w = words_of(command);
     if (w.empty()) return true;
@@ -478,7 +478,6 @@ int run_gateway_sim(const GatewaySimOptions& options) {
     } else if (w[0] == "say") {
       say(command.substr(command.find("say") + 4));
     } else if (w[0] == "stop") {
-      stop_now = true;
       loop.stop();
     } else if (w[0] == "expect") {
       const auto fe = std::find_if(gw.fes().begin(), gw.fes().end(), [&](const auto& id) { return mapping::fe_name(id) == w[1]; });
@@ -592,7 +591,6 @@ int run_gateway_sim(const GatewaySimOptions& options) {
               static_cast<unsigned long long>(n), static_cast<unsigned long long>(emcys),
               failures == 0 ? "every command and expectation as written"
                             : fmt::format("{} command(s) or expectation(s) FAILED", failures).c_str());
-  (void)stop_now;
   return failures == 0 ? exit_code::kOk : exit_code::kBadFile;
 }
 

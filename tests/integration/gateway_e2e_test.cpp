@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <array>
 #include <filesystem>
+#include <fstream>
 #include <functional>
 #include <map>
 #include <string>
@@ -836,6 +837,27 @@ TEST_F(GatewayE2E, HostResetNodeEndsTheErrorsAndRaisesWhatPersistsAnew) {
   run_for(5s);
   EXPECT_EQ(emcys(0x0000).size(), 1u) << dump();
   EXPECT_EQ(decode_unsigned(*sdo_read(0x1001, 0)), 0x00u);
+}
+
+// A store the gateway cannot read when the host resets it (a reset node reads it again, CiA 301
+// 1010h/1011h) is refused as at power-on: defaults, EMCY 6000h once pre-operational, and the log
+// says so and why (the power-on's refusal is logged by oegw run; a reset's was silent).
+TEST_F(GatewayE2E, AStoreRefusedAtAResetNodeIsLoggedAndSentAsEmcy6000h) {
+  build();
+  boot_and_start();
+  std::ofstream(store_) << "not a parameter store\n";
+  emcys_.clear();
+  log_.clear();
+  host_->nmt().reset_node(kGw);
+  run_for(500ms);
+  EXPECT_EQ(emcys(0x6000).size(), 1u) << dump();
+  EXPECT_NE(log_.find("upstream store refused at NMT reset node: "), std::string::npos) << log_;
+  EXPECT_NE(log_.find("running on defaults, EMCY 6000h sent upstream"), std::string::npos) << log_;
+  // A reset communication reads its part again: refused again, said again.
+  log_.clear();
+  host_->nmt().reset_communication(kGw);
+  run_for(500ms);
+  EXPECT_NE(log_.find("upstream store refused at NMT reset communication: "), std::string::npos) << log_;
 }
 
 // Upstream bus-off and recovery (the controller restarted): EMCY 8140h, 1029h:01 = 0 takes the
