@@ -147,3 +147,17 @@ dds_entity_t dds_options_subscriber(const char* prog, dds_entity_t participant, 
 dds_entity_t dds_options_publisher(const char* prog, dds_entity_t participant, const struct dds_options* o) {
   return in_partition(prog, participant, o, 1);
 }
+
+void dds_options_nothing_received(const char* prog, const struct dds_options* o, const char* topic, double seconds) {
+  char when[64];
+  if (seconds > 0) snprintf(when, sizeof when, "within %g s", seconds);
+  else snprintf(when, sizeof when, "before it was stopped");
+  fprintf(stderr, "%s: nothing on %s %s (domain %u, partition %s, network %s)\n", prog, topic, when, o->domain,
+          o->partition, o->network);
+  if (strcmp(o->partition, "oegw-demo") != 0)
+    fprintf(stderr, "%s: the demo publishes partition oegw-demo: --partition oegw-demo; a gateway its publish.dds.partition "
+                    "(default oegw), publish.dds.domain and publish.dds.network\n", prog);
+  else
+    fprintf(stderr, "%s: is `oegw demo` running (on this computer: --network loopback)? A gateway publishes its "
+                    "publish.dds.partition (default oegw): --partition oegw\n", prog);
+}

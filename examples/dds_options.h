@@ -57,5 +57,11 @@ dds_entity_t dds_options_participant(const char* prog, struct dds_options* o);
 void dds_options_close(struct dds_options* o, dds_entity_t participant);
 dds_entity_t dds_options_subscriber(const char* prog, dds_entity_t participant, const struct dds_options* o);
 dds_entity_t dds_options_publisher(const char* prog, dds_entity_t participant, const struct dds_options* o);
+/* Said on stderr by a reader whose SECONDS (0: stopped by a signal) passed with nothing from
+ * TOPIC: what it waited for (topic, domain, partition, network), then the likeliest cause.
+ * `oegw demo` publishes under its own partition, oegw-demo, a gateway under its
+ * publish.dds.partition (default oegw), so a reader left at the default hears nothing from the
+ * demo (docs/guides/dds-lcm.md#the-demo). */
+void dds_options_nothing_received(const char* prog, const struct dds_options* o, const char* topic, double seconds);
 
 #endif

@@ -194,6 +194,6 @@ int main(int argc, char** argv) {
     if (n > 0) dds_return_loan(reader, samples, n);
   }
   dds_options_close(&o.dds, pp);
-  if (!seen.any) fprintf(stderr, "%s: no status on oegw/status in domain %u, partition %s\n", prog, o.dds.domain, o.dds.partition);
+  if (!seen.any) dds_options_nothing_received(prog, &o.dds, "oegw/status", o.timeout_s);
   return seen.any ? EXAMPLE_EXIT_OK : EXAMPLE_EXIT_INCOMPLETE;
 }

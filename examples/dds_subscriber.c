@@ -6,7 +6,8 @@
  *   joystick instance=1 status=valid seq=7 ts_us=123 x=100 y=-5 z=0 buttons=0x01 memory=0x00 rx_us=130
  * (rx_us: CLOCK_MONOTONIC microseconds when the sample was taken, comparable with ts_us on this host).
  * Exits 0 after N samples (or at the timeout when no --count is given), 3 when the timeout comes
- * first, 2 for a command line it refuses, 1 when DDS cannot be opened.
+ * first, 2 for a command line it refuses, 1 when DDS cannot be opened. A timeout with nothing
+ * received says on stderr what it waited for and the likely cause (dds_options_nothing_received).
  * The default network is "loopback": the same loopback-only configuration the gateway applies in
  * tests and the demo, so nothing leaves the host (dds_options.h).
  */
@@ -119,5 +120,8 @@ int main(int argc, char** argv) {
     fflush(stdout);
   }
   dds_options_close(&o.dds, pp);
+  if (received == 0) dds_options_nothing_received(prog, &o.dds, "oegw/joystick", o.timeout_s);
+  else if (o.count >= 0 && received < o.count)
+    fprintf(stderr, "%s: %ld of the %ld samples within %g s\n", prog, received, o.count, o.timeout_s);
   return (o.count >= 0 && received < o.count) ? EXAMPLE_EXIT_INCOMPLETE : EXAMPLE_EXIT_OK;
 }

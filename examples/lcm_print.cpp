@@ -165,4 +165,16 @@ std::string identity_text(const oegw::subdevice_identity_t& id) {
   return out;
 }
 
+void say_nothing_received(const char* prog, const std::string& channels, const char* url, double seconds,
+                          const std::string& demo_option) {
+  const std::string when = seconds > 0 ? format("within %g s", seconds) : std::string("before it was stopped");
+  std::fprintf(stderr, "%s: nothing on the channels matching %s %s (URL %s)\n", prog, channels.c_str(), when.c_str(), url);
+  if (!demo_option.empty())
+    std::fprintf(stderr, "%s: the demo publishes channels OEGW_DEMO_*: %s; a gateway its publish.lcm.channel_prefix "
+                         "(default OEGW_) on its publish.lcm.url\n", prog, demo_option.c_str());
+  else
+    std::fprintf(stderr, "%s: is `oegw demo` running on this computer? A gateway publishes its publish.lcm.channel_prefix "
+                         "(default OEGW_) on its publish.lcm.url\n", prog);
+}
+
 }  // namespace oegw_examples

@@ -30,4 +30,13 @@ std::string emcy_text(const oegw::emcy_t& e);
 // or " identity=none".
 std::string identity_text(const oegw::subdevice_identity_t& id);
 
+// Said on stderr by a reader whose SECONDS (0: stopped by a signal) passed with nothing on the
+// channels matching CHANNELS (a regular expression) at URL: what it waited for, then the likeliest
+// cause. `oegw demo` publishes under its own prefix, OEGW_DEMO_, a gateway under its
+// publish.lcm.channel_prefix (default OEGW_), so a reader left at the default hears nothing from
+// the demo (docs/guides/dds-lcm.md#the-demo). DEMO_OPTION is the option that reads the demo's
+// channels (e.g. "--prefix OEGW_DEMO_"), empty when CHANNELS already are the demo's.
+void say_nothing_received(const char* prog, const std::string& channels, const char* url, double seconds,
+                          const std::string& demo_option);
+
 }  // namespace oegw_examples

@@ -175,6 +175,8 @@ int main(int argc, char** argv) {
     if (select(fd + 1, &fds, nullptr, nullptr, &tv) > 0) lcm_handle(lcm);
   }
   lcm_destroy(lcm);
-  if (!r.seen.any) std::fprintf(stderr, "%s: no status on %sSTATUS (%s)\n", example_prog(argv[0]), o.prefix, o.url);
+  if (!r.seen.any)
+    oegw_examples::say_nothing_received(example_prog(argv[0]), channel + "STATUS", o.url, o.timeout_s,
+                                        std::string(o.prefix) == "OEGW_DEMO_" ? "" : "--prefix OEGW_DEMO_");
   return r.seen.any ? EXAMPLE_EXIT_OK : EXAMPLE_EXIT_INCOMPLETE;
 }

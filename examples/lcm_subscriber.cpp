@@ -9,7 +9,8 @@
 // (rx_us: CLOCK_MONOTONIC microseconds at reception, comparable with ts_us on this host). A message
 // that does not decode is said on stderr. Exits 0 after N messages (or at the timeout when no
 // --count is given), 3 when the timeout comes first, 2 for a command line it refuses, 1 when the
-// URL cannot be opened.
+// URL cannot be opened. A timeout with nothing received says on stderr what it waited for and the
+// likely cause (say_nothing_received).
 #include <getopt.h>
 #include <lcm/lcm.h>
 #include <sys/select.h>
@@ -107,5 +108,16 @@ int main(int argc, char** argv) {
     if (select(fd + 1, &fds, nullptr, nullptr, &tv) > 0) lcm_handle(lcm);
   }
   lcm_destroy(lcm);
+  const char* prog = example_prog(argv[0]);
+  if (received == 0) {
+    // The demo's channels for the ones asked for: its prefix OEGW_DEMO_ where a gateway's OEGW_ is.
+    const std::string channel = o.channel;
+    std::string demo;
+    if (channel.rfind("OEGW_DEMO_", 0) != 0)
+      demo = "--channel '" + (channel.rfind("OEGW_", 0) == 0 ? "OEGW_DEMO_" + channel.substr(5) : "OEGW_DEMO_.*") + "'";
+    oegw_examples::say_nothing_received(prog, channel, o.url, o.timeout_s, demo);
+  } else if (o.count >= 0 && received < o.count) {
+    std::fprintf(stderr, "%s: %ld of the %ld messages within %g s\n", prog, received, o.count, o.timeout_s);
+  }
   return (o.count >= 0 && received < o.count) ? EXAMPLE_EXIT_INCOMPLETE : EXAMPLE_EXIT_OK;
 }
