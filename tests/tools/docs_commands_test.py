@@ -25,9 +25,11 @@ Usage: docs_commands_test.py SOURCE_DIR BUILD_DIR LCM_LOGGER [--list]
 Prints one `ok:` / `FAILED:` line per judgement and ends with "N passed, N failed".
 """
 import ast
+import atexit
 import glob
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -123,6 +125,7 @@ def short(cmd):
 
 class Bg:
     """A page's line started in the background (`&` at its end, a second terminal, Ctrl-C to stop)."""
+    started = []  # every one, ended at exit if still running
 
     def __init__(self, cmd, name, cwd=WORK):
         self.cmd, self.out = cmd, os.path.join(WORK, name + ".out")
@@ -132,6 +135,7 @@ class Bg:
         # Its own process group, as a terminal's job: Ctrl-C (SIGINT) reaches the program itself.
         self.p = subprocess.Popen(["bash", "-c", "exec " + line], cwd=cwd, stdout=open(self.out, "w"),
                                   stderr=subprocess.STDOUT, start_new_session=True)
+        Bg.started.append(self)
 
     def text(self):
         with open(self.out, encoding="utf-8", errors="replace") as f:
@@ -167,7 +171,8 @@ def run(cmd, timeout=60, cwd=WORK):
                            stderr=subprocess.STDOUT, timeout=timeout, text=True, errors="replace")
         return r.returncode, r.stdout
     except subprocess.TimeoutExpired as e:
-        return None, (e.stdout or b"").decode(errors="replace") if isinstance(e.stdout, bytes) else (e.stdout or "")
+        out = e.stdout or ""
+        return None, out.decode(errors="replace") if isinstance(out, bytes) else out
 
 
 def expect_run(page, cmd, rc_want=0, lines=(), timeout=60, cwd=WORK, count=None):
@@ -260,7 +265,12 @@ def dds_lcm_logger(page, cmds):
     """"Recording with lcm-logger": the logger (Ctrl-C to stop) records a demo; the decoder reads
     it; the player replays it to a subscriber."""
     logger = Bg(command(cmds, "lcm-logger"), "logger")
-    time.sleep(0.5)  # the logger's socket joined before the demo starts (no timing logic: a head start)
+    # Recording once it has opened its file (it has joined the group before that).
+    log = os.path.join(WORK, "session.lcmlog")
+    end = time.monotonic() + 10
+    while not os.path.exists(log) and logger.p.poll() is None and time.monotonic() < end:
+        time.sleep(0.05)
+    judge(os.path.exists(log), f"{page}: `{short(logger.cmd)}` opened session.lcmlog", logger.text()[-300:])
     # The session to record: the demo, as the section before runs it.
     rc, out = run(f"{BUILD}/programs/oegw demo --seconds 1", timeout=90)
     judge(rc == 0, f"{page}: a demo recorded (oegw demo --seconds 1 exits 0)",
@@ -473,5 +483,14 @@ def main():
     return 1 if failed else 0
 
 
+def cleanup():
+    for b in Bg.started:
+        if b.p.poll() is None:
+            os.killpg(b.p.pid, signal.SIGKILL)
+            b.p.wait()
+    shutil.rmtree(WORK, ignore_errors=True)
+
+
 if __name__ == "__main__":
+    atexit.register(cleanup)
     sys.exit(main())
