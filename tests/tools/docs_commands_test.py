@@ -403,6 +403,13 @@ BLOCKS = {
         (HERE, secure_dds_make),
     ("docs/developer/docs-site.md", "mkdocs build --strict --site-dir build/site"): (HERE, docs_site),
     ("docs/developer/docs-site.md", "man -l build/man/oegw.1.gz"): (HERE, man_pages),
+    # docs/guides/simulate.md: its cab file and fault script, run by their own test.
+    ("docs/guides/simulate.md", "oegw sim cab.yaml"): ("test", "oegw_sim_guide (tests/tools/sim_guide_test.py)"),
+    ("docs/guides/simulate.md", "oegw sim cab.yaml --fast --script faults.txt"):
+        ("test", "oegw_sim_guide (tests/tools/sim_guide_test.py)"),
+    ("docs/guides/simulate.md", "sudo modprobe vcan"):
+        ("not run", "creates vcan interfaces as root; vm_sim_vcan runs the block's `oegw sim cab.yaml --vcan vcan0,vcan1` "
+                    "on the VM's vcan0/vcan1 with candump, cansend, oegw status and oegw ctl attached"),
     # Not run: what each needs.
     ("docs/guides/secure-dds.md", "d=/etc/oegw/dds; sec=\"--identity-ca $d/ca.pem --certificate $d/app.pem --private-key $d/app.key \\"):
         ("not run", "a gateway (oegw run, CAN) publishing partition oegw with DDS Security on the cab network's eth1 "
@@ -432,14 +439,14 @@ BLOCKS = {
         ("not run", "a benchmark (figures)"),
     ("docs/developer/performance.md", "cmake --build build -j2 --target oegw oegw-sim can_probe can_floor"):
         ("not run", "the VM latency run (qemu, 4-20 minutes)"),
-    ("docs/index.md", "./scripts/install-deps.sh && cmake -S . -B build -G Ninja && cmake --build build && ./build/programs/oegw demo"):
-        ("not run", "installs packages as root and builds the whole tree (the demo at its end: oegw_demo_screen_*)"),
+    ("docs/index.md", "./scripts/install-deps.sh && cmake -S . -B build -G Ninja -DOEGW_BUILD_TESTS=OFF && cmake --build build && ./build/programs/oegw demo"):
+        ("not run", "installs packages as root and builds the programs (the demo at its end: oegw_demo_screen_*)"),
     ("docs/index.md", "./scripts/test-all.sh"): ("not run", "every test tier: what CI's .ci/run calls"),
-    ("README.md", "./scripts/install-deps.sh && cmake -S . -B build -G Ninja && cmake --build build && ./build/programs/oegw demo"):
-        ("not run", "installs packages as root and builds the whole tree (the demo at its end: oegw_demo_screen_*)"),
+    ("README.md", "./scripts/install-deps.sh && cmake -S . -B build -G Ninja -DOEGW_BUILD_TESTS=OFF && cmake --build build && ./build/programs/oegw demo"):
+        ("not run", "installs packages as root and builds the programs (the demo at its end: oegw_demo_screen_*)"),
     ("README.md", "./scripts/test-all.sh"): ("not run", "every test tier: what CI's .ci/run calls"),
-    ("CONTRIBUTING.md", "./scripts/install-deps.sh && cmake -S . -B build -G Ninja && cmake --build build && ./build/programs/oegw demo"):
-        ("not run", "installs packages as root and builds the whole tree (the demo at its end: oegw_demo_screen_*); "
+    ("CONTRIBUTING.md", "./scripts/install-deps.sh && cmake -S . -B build -G Ninja -DOEGW_BUILD_TESTS=OFF && cmake --build build && ./build/programs/oegw demo"):
+        ("not run", "installs packages as root and builds the programs (the demo at its end: oegw_demo_screen_*); "
                     "then every test tier (scripts/test-all.sh, what CI's .ci/run calls)"),
 }
 
