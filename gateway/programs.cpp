@@ -370,7 +370,7 @@ int run_check(const std::string& file, bool quiet, bool here) {
            "publish.lcm.url " + lcm.url + (lcm.url_where.line != 0 ? "" : " (the default)") + ": this machine has " +
                *problem + ": oegw run would start without LCM and publish once a route exists; add one: " +
                lcm_route_command(lcm.url, net == "loopback" ? "" : net) +
-               " (README \"LCM route\" has the systemd-networkd file that keeps it)"});
+               " (docs/guides/install.md#lcm-route has the systemd-networkd file that keeps it)"});
     }
   if (!machine_warned.empty()) {
     mapping::sort_by_place(machine_warned);

@@ -284,9 +284,9 @@ std::string draft_mapping(const sd::ScanResult& scan, const DraftSettings& setti
   std::string out;
   if (settings.through_gateway)
     out += "# DRAFT mapping file written by `oegw scan` through the gateway running on " + settings.downstream +
-           "\n# (its sub-devices keep their names; their options are in its mapping file; format: mapping/README.md).\n";
+           "\n# (its sub-devices keep their names; their options are in its mapping file; format: docs/reference/mapping-file.md).\n";
   else
-    out += "# DRAFT mapping file written by `oegw scan -i " + settings.downstream + "` (format: mapping/README.md).\n";
+    out += "# DRAFT mapping file written by `oegw scan -i " + settings.downstream + "` (format: docs/reference/mapping-file.md).\n";
   out += "# Found " + std::to_string(scan.nodes.size()) + " node(s), " + std::to_string(named) +
          " with a driver entry. Review every TODO, then `oegw check FILE`.\n";
   out += "# Each driver's signals and options: `oegw signals DRIVER`.\n";
@@ -317,7 +317,7 @@ std::string draft_mapping(const sd::ScanResult& scan, const DraftSettings& setti
   out += "  bitrate: " + std::to_string(settings.bitrate) + "  # the scan does not measure it (oegw scan --bitrate)\n";
   out += "\nsubdevices:" + std::string(named == 0 ? " {}" : "") + "\n" + subs;
   out += "\n# Suggested functional elements for the signals of each node (uncomment what the cab uses;\n";
-  out += "# the FE kinds and fields: mapping/README.md \"functional_elements\").\n";
+  out += "# the FE kinds and fields: docs/reference/mapping-file.md#functional_elements-kindinstance-field-signal-required-may-be-empty).\n";
   out += "functional_elements: {}  # TODO remove the {} when you uncomment FE lines below\n" + fes;
   return out;
 }

@@ -194,7 +194,7 @@ LoadResult load_config_text(std::string_view text, std::string_view file, const 
     read_file(r, parsed.root, catalogue, cfg);
   } catch (const YAML::Exception& e) {  // not expected: every access is type-checked first
     r.error(Location{r.file(), e.mark.is_null() ? 1 : e.mark.line + 1, e.mark.is_null() ? 1 : e.mark.column + 1},
-            "unreadable YAML: " + e.msg + "; expected the layout mapping/README.md describes");
+            "unreadable YAML: " + e.msg + "; expected the layout docs/reference/mapping-file.md describes");
   }
   if (r.has_errors())
     result.errors = r.take_errors();

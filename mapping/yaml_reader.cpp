@@ -175,7 +175,7 @@ std::string byte_hex(unsigned char b) {
   return std::string("0x") + kDigits[b >> 4] + kDigits[b & 0xF];
 }
 
-std::string limit_text(std::size_t limit) { return std::to_string(limit) + " (mapping/README.md, \"Limits\")"; }
+std::string limit_text(std::size_t limit) { return std::to_string(limit) + " (docs/reference/mapping-file.md#the-file-itself-limits-text-one-document)"; }
 
 // YAML is UTF-8 text (YAML 1.2 §5.1, §5.2): no NUL or other C0 control character besides tab,
 // line feed and carriage return, no DEL, no broken or overlong sequence.

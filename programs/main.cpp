@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("oegw ") + oegw::programs::kVersion + " (git " +
                                         oegw::programs::kGitRevision + ")");
   app.footer("Exit codes: 0 done; 1 bad mapping file (or a demo step / master wait failed, or options a driver refuses in signals, or no node found by scan); 2 cannot start "
-             "(CAN interface, bit rate, publishing); 64 usage error (README \"Exit codes\").");
+             "(CAN interface, bit rate, publishing); 64 usage error (docs/reference/exit-codes.md).");
 
   oegw::gateway::GatewayDemoOptions demo;
   auto* demo_cmd = app.add_subcommand("demo", "The embedded demo: gateway, simulated cab devices and a host (default)");
@@ -101,7 +101,7 @@ int main(int argc, char** argv) {
   master_cmd
       ->add_option("devices", master.devices,
                    "family:node[:key=value,...], as for oegw-sim, with the driver's options (mcb402 requires "
-                   "button_bits=1/2/3/4/5/7/6, or its board's order: subdevices/README.md)")
+                   "button_bits=1/2/3/4/5/7/6, or its board's order: docs/design/device-documents.md#mcb-402-button-bits-a-required-commissioning-choice)")
       ->required();
 
   std::string config_file;
@@ -133,7 +133,7 @@ int main(int argc, char** argv) {
   signals_cmd->add_option("-o,--option", signals.options,
                           "A driver option key=value, as in the mapping file (e.g. detent=clamp); repeatable");
   signals_cmd->add_option("--eds", signals.eds, "cia401: the EDS file whose signals to list");
-  signals_cmd->add_flag("--markdown", signals.markdown, "Markdown tables, as in subdevices/README.md");
+  signals_cmd->add_flag("--markdown", signals.markdown, "Markdown tables, as in docs/reference/drivers.md");
   // Commissioning an MCB-402: its button wiring read off the board
   // (docs/design/device-documents.md#mcb-402-button-bits-a-required-commissioning-choice).
   bool find_button_bits = false;
@@ -191,7 +191,7 @@ int main(int argc, char** argv) {
   ctl_cmd->add_flag("-e,--exit", ctl.exit_on_error, "Exit 1 at the first ERROR answer (scripts)");
   ctl_cmd->add_option("--timeout", ctl.timeout_s, "Seconds to wait for one answer (at least the SDO time-out + 2 s)")
       ->check(CLI::Range(0.1, 120.0));
-  ctl_cmd->footer("Commands, one a line on standard input (gateway/control/PROTOCOL.md, README \"oegw ctl\"):\n"
+  ctl_cmd->footer("Commands, one a line on standard input (docs/reference/control-protocol.md, docs/guides/commission.md):\n"
                   "  [seq] [[net] node] r[ead] <index> <sub> <type>      [seq] [[net] node] w[rite] <index> <sub> <type> <value>\n"
                   "  [seq] [[net] node] start|stop|preop|reset node|reset comm\n"
                   "  [seq] set network N | [net] set node N | [net] set sdo_timeout MS | info version\n"

@@ -21,7 +21,7 @@ int main(int argc, char** argv) {
   app.add_option("devices", o.devices,
                  "family:node[:key=value,...], e.g. elobau-mfg:0x11 mcb402:0x03 "
                  "cia401:0x30:eds=subdevices/eds/generic_pedal.eds (options: name, heartbeat_ms, store, bootup=off (its boot-ups lost), eds; "
-                 "the corners of each document (subdevices/README.md \"Corners\"): mcb402 wiring=1/2/3/4/5/7/6 (the bit of "
+                 "the corners of each document (docs/design/device-documents.md#corners-every-reading-a-document-permits): mcb402 wiring=1/2/3/4/5/7/6 (the bit of "
                  "TPDO1 byte 2 each button BP1..BP7 sets; default the table's right-end reading 0/1/2/3/4/6/5), "
                  "clear_after_break=0000h|none, power_on_1001h=00h|11h; elobau-mfg tpdo=change|timer, saved=yes|no, "
                  "buttons=63 (2100h:01h), buttons_9_16=0; novotechnik-406 error_register_size=1|2, emcy_behaviour=0..3, "

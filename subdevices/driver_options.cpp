@@ -134,8 +134,8 @@ OptionSpec freshness_floor_option(std::string_view default_ms) {
       .default_value = default_ms,
       .description = "floor of the PDO freshness deadlines derived from the event timers (3 periods): a deadline "
                      "is at least this, so a controller stall shorter than the floor less one period is no "
-                     "stale fault; 0: no floor; pdo_timeout_ms replaces both (subdevices/README.md "
-                     "\"Freshness floors\")"};
+                     "stale fault; 0: no floor; pdo_timeout_ms replaces both ("
+                     "docs/reference/drivers.md#freshness-floors)"};
 }
 
 void apply_freshness_floor(Driver& driver, std::int64_t ms) { driver.set_freshness_floor(std::chrono::milliseconds(ms)); }

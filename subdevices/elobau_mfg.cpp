@@ -472,7 +472,7 @@ bool ElobauMfgDriver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::s
                          "any other error cannot be seen (4001h holds one code, no 0000h comes); commission it once: "
                          "with the grip pre-operational write 1010h:01 = 65766173h (\"save\", oegw ctl: w 0x1010 1 "
                          "u32 0x65766173) and power-cycle it, or set option parameter_checksum: save to let the "
-                         "gateway do it at boot (subdevices/README.md \"elobau\")";
+                         "gateway do it at boot (docs/design/device-documents.md#elobau-mfg-elobau-mfg-document-000-12)";
     return false;
   }
   save_tried_ = false;

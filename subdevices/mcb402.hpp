@@ -118,7 +118,7 @@ inline constexpr std::string_view kButtonBitsMissing =
     "readings): the bit of 6000h:03 - byte 2 of TPDO1, COB-ID 180h + node-ID - that each push button BP1..BP7 "
     "sets, as options: { button_bits: [b1, b2, b3, b4, b5, b6, b7] }; read it off the board: `oegw signals mcb402 "
     "--find-button-bits -i IF --node N` asks you to press BP1..BP7 one at a time and prints the line "
-    "(subdevices/README.md \"MCB-402 button bits\")";
+    "(docs/design/device-documents.md#mcb-402-button-bits-a-required-commissioning-choice)";
 // How often 1001h is read while a fault waits for it (fault_poll()).
 inline constexpr std::chrono::milliseconds kErrorRegisterPoll{250};
 // [CO4013 Index 1001]: bit 7 device error; bits 0 (generic) and 4 (communication) alone are the

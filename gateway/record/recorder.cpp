@@ -334,8 +334,8 @@ void Recorder::open_segment(std::int64_t t_us) {
   ring_.push_back(Segment{name, settings_.run, 0, wall, wall});
   open_ = o;
   events_buf_ += fmt::format("# oegw recording, format {}: {}.log holds the frames (candump log), this file the other "
-                             "inputs and the decisions as (seconds.micros) @frames-before TEXT; README \"Recording and "
-                             "replay\"\n",
+                             "inputs and the decisions as (seconds.micros) @frames-before TEXT; docs/guides/black-box.md#the-files"
+                             "\n",
                              kFormatVersion, name);
   append_event_prefix(events_buf_, wall, 0);
   events_buf_ += fmt::format("segment run={} seq={} offset_us={} up={} down={}\n", settings_.run, next_seq_ - 1,

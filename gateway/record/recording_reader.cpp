@@ -97,8 +97,8 @@ std::optional<std::vector<Run>> find_runs(const fs::path& where, std::string& er
       runs.push_back(std::move(r));
     }
     if (runs.empty()) {
-      error = where.string() + ": no recording in it (expected <run>-<seq>.events and .log files, README \"Recording "
-                               "and replay\")";
+      error = where.string() + ": no recording in it (expected <run>-<seq>.events and .log files, docs/guides/black-box.md#the-files"
+                               ")";
       return std::nullopt;
     }
     return runs;

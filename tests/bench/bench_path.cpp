@@ -98,6 +98,7 @@
 #include "programs/cab_rig.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/bench/gateway_rig.hpp"
+#include "tests/fixtures/kernel_frame.hpp"
 
 namespace {
 
@@ -126,19 +127,12 @@ void sleep_until_ns(std::int64_t t) {
   }
 }
 
-::can_frame make_frame(canid_t id, std::initializer_list<std::uint8_t> data) {
-  ::can_frame k;
-  std::memset(&k, 0, sizeof k);
-  k.can_id = id;
-  k.len = static_cast<std::uint8_t>(data.size());
-  std::copy(data.begin(), data.end(), k.data);
-  return k;
-}
+using oegw::fixtures::kernel_frame;
 
 // The i-th stimulus: the grip's TPDO #0 with x (byte 0, S8 %) alternating 0 and 10..99 %, as
 // tests/vm/can_probe.c's, so that every frame changes the translation.
 ::can_frame stimulus(unsigned i) {
-  ::can_frame f = make_frame(kGripTpdo0, {0, 0, 0, 0, 0, 0, 0, 0});
+  ::can_frame f = kernel_frame(kGripTpdo0, {0, 0, 0, 0, 0, 0, 0, 0});
   f.data[0] = (i & 1) != 0 ? static_cast<std::uint8_t>(10 + (i / 2) % 90) : 0;
   return f;
 }
@@ -159,7 +153,7 @@ bool is_answer(const ::can_frame& got, const ::can_frame& sent) {
 
 // The floors' translation: TPDO 1 with x and y (bytes 0-3), the rest 0.
 ::can_frame translate(const ::can_frame& in) {
-  ::can_frame out = make_frame(kJoystickTpdo1, {0, 0, 0, 0, 0, 0, 0, 0});
+  ::can_frame out = kernel_frame(kJoystickTpdo1, {0, 0, 0, 0, 0, 0, 0, 0});
   const std::int16_t x = joystick_axis(static_cast<std::int8_t>(in.data[0]));
   const std::int16_t y = joystick_axis(static_cast<std::int8_t>(in.data[1]));
   out.data[0] = static_cast<std::uint8_t>(x & 0xFF);
@@ -612,7 +606,7 @@ class Cab {
   bool configure_host(std::string& why) {
     if (!sdo_download(0x1800, 1, {0xA0, 0x01, 0x00, 0x00}, why)) return false;
     if (!sdo_download(0x6423, 0, {0x01}, why)) return false;
-    return send_frame(host_, make_frame(0x000, {0x01, kGatewayNode}));
+    return send_frame(host_, kernel_frame(0x000, {0x01, kGatewayNode}));
   }
 
   [[nodiscard]] bool devices_operational() const { return operational_; }
@@ -661,7 +655,7 @@ class Cab {
   // An expedited SDO download to the gateway (CiA 301 §7.2.4.3.3), answered within 1 s; three tries.
   bool sdo_download(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data, std::string& why) {
     const auto n = static_cast<std::uint8_t>(data.size());
-    ::can_frame req = make_frame(0x600 + kGatewayNode, {0, 0, 0, 0, 0, 0, 0, 0});
+    ::can_frame req = kernel_frame(0x600 + kGatewayNode, {0, 0, 0, 0, 0, 0, 0, 0});
     req.data[0] = static_cast<std::uint8_t>(0x23 | ((4 - n) << 2));
     req.data[1] = static_cast<std::uint8_t>(index & 0xFF);
     req.data[2] = static_cast<std::uint8_t>(index >> 8);

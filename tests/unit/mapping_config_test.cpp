@@ -1467,19 +1467,19 @@ TEST(MappingConfig, LimitsAreNamedBeforeAnythingIsRead) {
   const std::string deep = "upstream: " + std::string(1000000, '[');
   EXPECT_EQ(errors(load(deep)),
             (std::vector<std::string>{"t.yaml:1:43: [ ] and { } nested deeper than 32 levels; expected at most 32 "
-                                      "(mapping/README.md, \"Limits\")"}));
+                                      "(docs/reference/mapping-file.md#the-file-itself-limits-text-one-document)"}));
   // Brackets inside quotes and comments are text.
   EXPECT_TRUE(load(kHead + "  joystick.1: { x: right_grip.x }  # [[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[[\n").ok());
   // Lists nested on one line ("- - - -") are as deep as they are wide.
   std::string dashes;
   for (int i = 0; i < 100; ++i) dashes += "- ";
   EXPECT_THAT(errors(load("subdevices:\n  " + dashes + "x\n")),
-              ::testing::ElementsAre("t.yaml:2:1: indentation of 202 columns; expected at most 128 (mapping/README.md, "
-                                     "\"Limits\")"));
+              ::testing::ElementsAre("t.yaml:2:1: indentation of 202 columns; expected at most 128 "
+                                     "(docs/reference/mapping-file.md#the-file-itself-limits-text-one-document)"));
   // A 5000-byte value.
   EXPECT_THAT(errors(load("upstream: { interface: " + std::string(5000, 'c') + " }\n")),
-              ::testing::ElementsAre("t.yaml:1:24: a value of 5000 bytes; expected at most 4096 (mapping/README.md, "
-                                     "\"Limits\")"));
+              ::testing::ElementsAre("t.yaml:1:24: a value of 5000 bytes; expected at most 4096 "
+                                     "(docs/reference/mapping-file.md#the-file-itself-limits-text-one-document)"));
   // Aliases that expand to 10^9 values.
   std::string laughs = "a0: &a0 [x, x, x, x, x, x, x, x, x, x]\n";
   for (int i = 1; i <= 9; ++i) {
@@ -1493,7 +1493,7 @@ TEST(MappingConfig, LimitsAreNamedBeforeAnythingIsRead) {
   // The text itself.
   EXPECT_THAT(errors(load(std::string(1024 * 1024 + 1, '#'))),
               ::testing::ElementsAre("t.yaml:1:1: a text of 1048577 bytes; expected at most 1048576 "
-                                     "(mapping/README.md, \"Limits\")"));
+                                     "(docs/reference/mapping-file.md#the-file-itself-limits-text-one-document)"));
 }
 
 TEST(MappingConfig, AtMost127Subdevices) {

@@ -17,6 +17,7 @@
 
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
+#include "tests/fixtures/kernel_frame.hpp"
 
 using namespace oegw::canopen;
 using namespace std::chrono_literals;
@@ -24,14 +25,7 @@ using ::testing::ElementsAre;
 
 namespace {
 
-::can_frame kframe(canid_t id, std::initializer_list<std::uint8_t> data) {
-  ::can_frame k;
-  std::memset(&k, 0, sizeof k);
-  k.can_id = id;
-  k.len = static_cast<std::uint8_t>(data.size());
-  std::copy(data.begin(), data.end(), k.data);
-  return k;
-}
+using oegw::fixtures::kernel_frame;
 
 // One end a transport, the other a raw descriptor (a prober's).
 struct RawPeer {
@@ -85,12 +79,12 @@ TEST(SeqpacketCanTransport, ADatagramThatIsNotOneFrameIsCountedNotDelivered) {
   s.transport->set_receiver([&](const CanFrame& f, TimePoint) { got.push_back(f.to_string()); });
   const char shorter[5] = {1, 2, 3, 4, 5};
   ASSERT_EQ(::send(s.peer, shorter, sizeof shorter, 0), 5);
-  s.inject(kframe(0x100, {1}));
+  s.inject(kernel_frame(0x100, {1}));
   char longer[sizeof(::can_frame) + 4] = {};
-  const ::can_frame k = kframe(0x181, {7});
+  const ::can_frame k = kernel_frame(0x181, {7});
   std::memcpy(longer, &k, sizeof k);
   ASSERT_EQ(::send(s.peer, longer, sizeof longer, 0), static_cast<ssize_t>(sizeof longer));
-  s.inject(kframe(0x101, {2}));
+  s.inject(kernel_frame(0x101, {2}));
   s.transport->poll_readable();
   EXPECT_THAT(got, ElementsAre("100#01", "101#02"));
   EXPECT_EQ(s.transport->counters().errors, 2u);
@@ -102,7 +96,7 @@ TEST(SeqpacketCanTransport, ErrorFramesFromThePeerAreBusEvents) {
   int frames = 0;
   s.transport->set_receiver([&](const CanFrame&, TimePoint) { ++frames; });
   s.transport->set_event_handler([&](BusEvent e) { events.push_back(e); });
-  s.inject(kframe(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0}));
+  s.inject(kernel_frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0}));
   s.transport->poll_readable();
   EXPECT_THAT(events, ElementsAre(BusEvent::BusOff));
   EXPECT_EQ(frames, 0);
@@ -116,7 +110,7 @@ TEST(SeqpacketCanTransport, APeerThatClosesIsReportedOnceAsInterfaceDown) {
   std::vector<BusEvent> events;
   s.transport->set_receiver([&](const CanFrame& f, TimePoint) { got.push_back(f.to_string()); });
   s.transport->set_event_handler([&](BusEvent e) { events.push_back(e); });
-  s.inject(kframe(0x181, {1}));
+  s.inject(kernel_frame(0x181, {1}));
   ::close(s.peer);
   s.peer = -1;
   s.transport->poll_readable();
@@ -160,7 +154,7 @@ TEST(SeqpacketCanTransport, TheLoopBatchesWhatAWakeUpSends) {
     ::ioctl(s.peer, FIONREAD, &pending_during_dispatch);
   });
   ASSERT_NE(watch_transport(loop, *s.transport), 0u);
-  s.inject(kframe(0x100, {}));
+  s.inject(kernel_frame(0x100, {}));
   loop.run_once(1s);
   EXPECT_EQ(pending_during_dispatch, 0) << "held until the wake-up ends";
   ::can_frame k;

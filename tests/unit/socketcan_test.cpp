@@ -14,6 +14,7 @@
 
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
+#include "tests/fixtures/kernel_frame.hpp"
 
 using namespace oegw::canopen;
 using namespace std::chrono_literals;
@@ -22,14 +23,7 @@ using ::testing::IsEmpty;
 
 namespace {
 
-::can_frame kframe(canid_t id, std::initializer_list<std::uint8_t> data) {
-  ::can_frame k;
-  std::memset(&k, 0, sizeof k);
-  k.can_id = id;
-  k.len = static_cast<std::uint8_t>(data.size());
-  std::copy(data.begin(), data.end(), k.data);
-  return k;
-}
+using oegw::fixtures::kernel_frame;
 
 // ---- frame conversion ---------------------------------------------------------------------
 
@@ -78,7 +72,7 @@ TEST(SocketCanConversion, RemoteFramesCarryDlcButNoData) {
   EXPECT_EQ(k.can_id, 0x701u | CAN_RTR_FLAG);
   EXPECT_EQ(k.len, 1);
   EXPECT_EQ(k.data[0], 0);
-  ::can_frame in = kframe(0x1ABCDEF0 | CAN_EFF_FLAG | CAN_RTR_FLAG, {});
+  ::can_frame in = kernel_frame(0x1ABCDEF0 | CAN_EFF_FLAG | CAN_RTR_FLAG, {});
   in.len = 4;
   in.data[0] = 0x99;  // garbage in an RTR frame is ignored
   const auto back = socketcan::from_kernel(in);
@@ -92,14 +86,14 @@ TEST(SocketCanConversion, RemoteFramesCarryDlcButNoData) {
 }
 
 TEST(SocketCanConversion, ErrorFramesAreNotDataFrames) {
-  const ::can_frame err = kframe(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0});
+  const ::can_frame err = kernel_frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0});
   EXPECT_TRUE(socketcan::is_error_frame(err));
   EXPECT_FALSE(socketcan::from_kernel(err).has_value());
-  EXPECT_FALSE(socketcan::is_error_frame(kframe(0x7FF, {})));
+  EXPECT_FALSE(socketcan::is_error_frame(kernel_frame(0x7FF, {})));
 }
 
 TEST(SocketCanConversion, OversizedKernelLengthIsClampedTo8) {
-  ::can_frame k = kframe(0x100, {1, 2, 3, 4, 5, 6, 7, 8});
+  ::can_frame k = kernel_frame(0x100, {1, 2, 3, 4, 5, 6, 7, 8});
   k.len = 15;
   const auto back = socketcan::from_kernel(k);
   ASSERT_TRUE(back);
@@ -108,7 +102,7 @@ TEST(SocketCanConversion, OversizedKernelLengthIsClampedTo8) {
 
 TEST(SocketCanConversion, StandardIdBitsAboveElevenAreNotInterpretedForSff) {
   // The kernel never delivers this, but the conversion must not turn stray bits into an id.
-  const auto back = socketcan::from_kernel(kframe(0x0000F123, {}));
+  const auto back = socketcan::from_kernel(kernel_frame(0x0000F123, {}));
   ASSERT_TRUE(back);
   EXPECT_EQ(back->id, 0x123u);
   EXPECT_FALSE(back->extended);
@@ -166,7 +160,7 @@ class SocketCanErrorDecoding : public ::testing::TestWithParam<ErrorCase> {};
 
 TEST_P(SocketCanErrorDecoding, MapsErrorClassesToBusEvents) {
   const ErrorCase& c = GetParam();
-  ::can_frame k = kframe(CAN_ERR_FLAG | c.classes, {0, c.ctrl, 0, 0, 0, 0, 0, 0});
+  ::can_frame k = kernel_frame(CAN_ERR_FLAG | c.classes, {0, c.ctrl, 0, 0, 0, 0, 0, 0});
   EXPECT_EQ(socketcan::decode_error_frame(k), c.expected);
 }
 
@@ -199,12 +193,12 @@ INSTANTIATE_TEST_SUITE_P(
     [](const ::testing::TestParamInfo<ErrorCase>& p) { return std::string(p.param.name); });
 
 TEST(SocketCanErrorDecodingMisc, DataFrameDecodesToNoEvents) {
-  EXPECT_THAT(socketcan::decode_error_frame(kframe(CAN_ERR_BUSOFF, {0, 0})), IsEmpty())
+  EXPECT_THAT(socketcan::decode_error_frame(kernel_frame(CAN_ERR_BUSOFF, {0, 0})), IsEmpty())
       << "without CAN_ERR_FLAG the id is just an id";
 }
 
 TEST(SocketCanErrorDecodingMisc, ShortErrorFrameDoesNotReadPastLen) {
-  ::can_frame k = kframe(CAN_ERR_FLAG | CAN_ERR_CRTL | CAN_ERR_BUSOFF, {});
+  ::can_frame k = kernel_frame(CAN_ERR_FLAG | CAN_ERR_CRTL | CAN_ERR_BUSOFF, {});
   k.data[1] = CAN_ERR_CRTL_TX_PASSIVE;  // beyond len: must be ignored
   EXPECT_THAT(socketcan::decode_error_frame(k), ElementsAre(BusEvent::BusOff));
 }
@@ -340,10 +334,10 @@ TEST(SocketCanTransportIo, ReceivesFramesWithKernelTimestampsAndEventsSeparately
   s.transport->set_event_handler([&](BusEvent e) { events.push_back(e); });
   SteadyClock clock;
   const TimePoint before = clock.now();
-  s.inject(kframe(0x181, {0x01, 0x02}));
-  s.inject(kframe(CAN_ERR_FLAG | CAN_ERR_CRTL, {0, CAN_ERR_CRTL_TX_PASSIVE, 0, 0, 0, 0, 0, 0}));
-  s.inject(kframe(0x18FF0001 | CAN_EFF_FLAG, {0xFF}));
-  s.inject(kframe(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0}));
+  s.inject(kernel_frame(0x181, {0x01, 0x02}));
+  s.inject(kernel_frame(CAN_ERR_FLAG | CAN_ERR_CRTL, {0, CAN_ERR_CRTL_TX_PASSIVE, 0, 0, 0, 0, 0, 0}));
+  s.inject(kernel_frame(0x18FF0001 | CAN_EFF_FLAG, {0xFF}));
+  s.inject(kernel_frame(CAN_ERR_FLAG | CAN_ERR_BUSOFF, {0, 0, 0, 0, 0, 0, 0, 0}));
   s.transport->poll_readable();
   const TimePoint after = clock.now();
   ASSERT_EQ(frames.size(), 2u);
@@ -367,7 +361,7 @@ TEST(SocketCanTransportIo, ABacklogKeepsItsArrivalTimesNotTheReadTime) {
   EventLoop idle;  // nothing watched: run_once(timeout) just waits the timeout out
   SteadyClock clock;
   const TimePoint sent = clock.now();
-  s.inject(kframe(0x181, {}));
+  s.inject(kernel_frame(0x181, {}));
   idle.run_once(30ms);
   const TimePoint read_start = clock.now();
   ASSERT_GE(read_start - sent, 30ms);
@@ -383,7 +377,7 @@ TEST(SocketCanTransportIo, SkipsDatagramsOfTheWrongSizeAndCountsThem) {
   s.transport->set_receiver([&](const CanFrame&, TimePoint) { ++frames; });
   const char junk[5] = {1, 2, 3, 4, 5};
   ASSERT_EQ(::send(s.peer, junk, sizeof junk, 0), 5);
-  s.inject(kframe(0x100, {}));
+  s.inject(kernel_frame(0x100, {}));
   s.transport->poll_readable();
   EXPECT_EQ(frames, 1);
   EXPECT_EQ(s.transport->counters().errors, 1u);
@@ -393,7 +387,7 @@ TEST(SocketCanTransportIo, ReadsAtMostMaxBatchFramesPerPoll) {
   FakeCanSocket s(2);
   int frames = 0;
   s.transport->set_receiver([&](const CanFrame&, TimePoint) { ++frames; });
-  for (int i = 0; i < 3; ++i) s.inject(kframe(0x100, {}));
+  for (int i = 0; i < 3; ++i) s.inject(kernel_frame(0x100, {}));
   s.transport->poll_readable();
   EXPECT_EQ(frames, 2);
   s.transport->poll_readable();
@@ -409,7 +403,7 @@ TEST(SocketCanTransportIo, ABacklogBeyondOneBatchArrivesInOrder) {
     ids.push_back(f.id);
     stamps.push_back(t);
   });
-  for (std::uint32_t i = 0; i < 200; ++i) s.inject(kframe(0x100 + i, {}));
+  for (std::uint32_t i = 0; i < 200; ++i) s.inject(kernel_frame(0x100 + i, {}));
   s.transport->poll_readable();
   ASSERT_EQ(ids.size(), 200u);
   for (std::uint32_t i = 0; i < 200; ++i) EXPECT_EQ(ids[i], 0x100 + i);
@@ -426,7 +420,7 @@ TEST(SocketCanTransportIo, StampsAreNeverAfterTheLoopsNow) {
   std::vector<std::pair<TimePoint, TimePoint>> got;  // (stamp, loop.now() in the receiver)
   s.transport->set_receiver([&](const CanFrame&, TimePoint t) { got.emplace_back(t, loop.now()); });
   (void)watch_transport(loop, *s.transport);
-  for (int i = 0; i < 5; ++i) s.inject(kframe(0x181, {}));
+  for (int i = 0; i < 5; ++i) s.inject(kernel_frame(0x181, {}));
   loop.run_once(1s);
   ASSERT_EQ(got.size(), 5u);
   for (const auto& [stamp, now] : got) {
@@ -492,7 +486,7 @@ TEST(SocketCanTransportIo, TheLoopBatchesWhatAWakeUpSends) {
     seen_by_peer_during_dispatch = static_cast<std::size_t>(pending);
   });
   const EventLoop::WatchId id = watch_transport(loop, *s.transport);
-  s.inject(kframe(0x100, {}));
+  s.inject(kernel_frame(0x100, {}));
   loop.run_once(1s);
   EXPECT_EQ(seen_by_peer_during_dispatch, 0u);
   ::can_frame k;
@@ -504,7 +498,7 @@ TEST(SocketCanTransportIo, TheLoopBatchesWhatAWakeUpSends) {
     (void)s.transport->send(CanFrame{0x300, {}});
     loop.unwatch(id);
   });
-  s.inject(kframe(0x100, {}));
+  s.inject(kernel_frame(0x100, {}));
   loop.run_once(1s);
   ASSERT_EQ(::recv(s.peer, &k, sizeof k, MSG_DONTWAIT), static_cast<ssize_t>(sizeof k)) << "sent at the unwatch";
   EXPECT_EQ(k.can_id, 0x300u);
@@ -541,7 +535,7 @@ TEST(SocketCanTransportIo, EventLoopPollsTheTransportWhenReadable) {
   s.transport->set_receiver([&](const CanFrame& f, TimePoint) { got.push_back(f.to_string()); });
   EXPECT_NE(watch_transport(loop, *s.transport), 0u);
   EXPECT_EQ(loop.run_once(0us), 0u);
-  s.inject(kframe(0x701, {0x7F}));
+  s.inject(kernel_frame(0x701, {0x7F}));
   loop.run_once(1s);
   EXPECT_THAT(got, ElementsAre("701#7F"));
 }
