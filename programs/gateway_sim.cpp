@@ -249,9 +249,11 @@ int run_gateway_sim(const GatewaySimOptions& options) {
   // The script, every line checked before anything starts: our own words here, the simulators'
   // on a bench of their own (SimBench::command on simulators nobody listens to).
   std::vector<std::string> fe_names;
-  for (const auto& fe : cfg.functional_elements) fe_names.push_back(mapping::fe_name(fe.id));
   std::vector<mapping::FeId> fe_ids;
-  for (const auto& fe : cfg.functional_elements) fe_ids.push_back(fe.id);
+  for (const auto& fe : cfg.functional_elements) {
+    fe_ids.push_back(fe.id);
+    fe_names.push_back(mapping::fe_name(fe.id));
+  }
   const auto cob_ids = assign_pdo_cob_ids(cfg, fe_ids);
   std::map<std::uint16_t, std::uint32_t> rpdos;
   for (const auto& [key, cob] : cob_ids)
@@ -331,6 +333,11 @@ int run_gateway_sim(const GatewaySimOptions& options) {
   std::map<std::uint32_t, std::uint64_t> tpdos;
   std::uint64_t emcys = 0;
   std::uint16_t last_emcy = 0;
+  auto tpdo_count = [&tpdos] {
+    std::uint64_t n = 0;
+    for (const auto& [cob, count] : tpdos) n += count;
+    return n;
+  };
   std::map<std::uint32_t, std::uint16_t> tpdo_number;
   for (const auto& [key, cob] : cob_ids)
     if (key.first) tpdo_number[cob] = key.second;
@@ -395,9 +402,7 @@ int run_gateway_sim(const GatewaySimOptions& options) {
 
   auto view = [&](bool keep) {
     auto rows = gateway_rows(gw, screen.size().first - 1);
-    std::uint64_t n = 0;
-    for (const auto& [cob, count] : tpdos) n += count;
-    rows.push_back(fmt::format("  host: {} TPDOs on {} COB-IDs, {} EMCYs{}", n, tpdos.size(), emcys,
+    rows.push_back(fmt::format("  host: {} TPDOs on {} COB-IDs, {} EMCYs{}", tpdo_count(), tpdos.size(), emcys,
                                emcys ? fmt::format(" (last {:04X}h)", last_emcy) : std::string()));
     screen.draw(std::move(rows), keep);
   };
@@ -551,9 +556,8 @@ int run_gateway_sim(const GatewaySimOptions& options) {
   struct stat in_stat {};
   // epoll takes a terminal, a pipe or a socket; a regular file or /dev/null it refuses (EPERM):
   // nothing is typed there.
-  const bool typed_input = ::fstat(STDIN_FILENO, &in_stat) == 0 &&
-                           (S_ISCHR(in_stat.st_mode) || S_ISFIFO(in_stat.st_mode) || S_ISSOCK(in_stat.st_mode)) &&
-                           ::isatty(STDIN_FILENO) + S_ISFIFO(in_stat.st_mode) + S_ISSOCK(in_stat.st_mode) > 0;
+  const bool typed_input = ::isatty(STDIN_FILENO) != 0 || (::fstat(STDIN_FILENO, &in_stat) == 0 &&
+                                                             (S_ISFIFO(in_stat.st_mode) || S_ISSOCK(in_stat.st_mode)));
   if (!options.fast && typed_input) {
     stdin_watch = loop.watch(STDIN_FILENO, EPOLLIN, [&](std::uint32_t) {
       char buf[512];
@@ -584,8 +588,7 @@ int run_gateway_sim(const GatewaySimOptions& options) {
     if (b.watch != 0) loop.unwatch(b.watch);
   // The last table stays on the screen, below the log.
   view(true);
-  std::uint64_t n = 0;
-  for (const auto& [cob, count] : tpdos) n += count;
+  const std::uint64_t n = tpdo_count();
   std::printf("\noegw sim: %.1f s%s, %llu TPDOs and %llu EMCYs at the host; %s\n",
               std::chrono::duration<double>(loop.now() - t0).count(), options.fast ? " simulated" : "",
               static_cast<unsigned long long>(n), static_cast<unsigned long long>(emcys),

@@ -49,6 +49,15 @@ constexpr const char* kAddressParts = "vendor, product, revision, serial";
 // state, 106 unsupported net, 107 unsupported node) with the gateway's reason.
 json gateway_error(int code, std::string message) { return json{{"gateway_error", code}, {"message", std::move(message)}}; }
 
+// Gives a request's answer unless it was given already (CtlService::lss_pending_): the LSS
+// master's result and a reload's 102 may both come, the client gets the first.
+void answer_once(ControlProtocol::Done& pending, json j) {
+  if (!pending) return;
+  auto d = std::move(pending);
+  pending = nullptr;
+  d(std::move(j));
+}
+
 // CiA 309-3 error 106 (unsupported network) for a network number that is neither of the mapping file's.
 json unknown_network(const mapping::Config& c, std::uint64_t net) {
   return gateway_error(106, fmt::format("network {}: this gateway has {} (upstream, its own dictionary) and {} "
@@ -103,12 +112,8 @@ void CtlService::unhook(const char* why, std::optional<SdoAbortCode> answer_tran
   }
   transfers_.clear();
   if (answer_transfers) {
-    for (const auto& p : std::vector<std::shared_ptr<ControlProtocol::Done>>(lss_pending_)) {
-      if (!*p) continue;
-      auto d = std::move(*p);
-      *p = nullptr;
-      d(gateway_error(102, std::string(why) + ": the LSS request ended unanswered; send it again"));
-    }
+    for (const auto& p : std::vector<std::shared_ptr<ControlProtocol::Done>>(lss_pending_))
+      answer_once(*p, gateway_error(102, std::string(why) + ": the LSS request ended unanswered; send it again"));
   }
   lss_pending_.clear();
 }
@@ -201,12 +206,7 @@ void CtlService::lss(const json& r, ControlProtocol::Done first_done) {
   std::erase_if(lss_pending_, [](const auto& p) { return !*p; });
   auto pending = std::make_shared<ControlProtocol::Done>(std::move(first_done));
   lss_pending_.push_back(pending);
-  auto done = [pending](json j) {
-    if (!*pending) return;
-    auto d = std::move(*pending);
-    *pending = nullptr;
-    d(std::move(j));
-  };
+  auto done = [pending](json j) { answer_once(*pending, std::move(j)); };
   using canopen::LssMaster;
   const auto net = request_field(r, "network", 1, 127);
   const auto it = r.find("service");
