@@ -86,6 +86,35 @@ TEST(ServiceNotify, ReloadingThenReadyWithTheReloadsNoteInStatus) {
                                   "STATUS=upstream operational, node 20h; 2/2 sub-devices operational"));
 }
 
+// A reload does not hide what runs degraded: the READY=1 that ends it is followed by a STATUS=
+// naming a publishing transport still down beside the reload's note, and the line changes again
+// when the transport comes up (docs/guides/dds-lcm.md#publishing-degrades-the-gateway-runs).
+TEST(ServiceNotify, AfterAReloadStatusStillNamesAPublishingTransportThatIsDown) {
+  Recorder r;
+  ServiceNotify n(r, std::nullopt);
+  const canopen::TimePoint t{std::chrono::seconds(3)};
+  auto lcm_down = cab(NmtState::Operational, NodeState::Operational, NodeState::Operational);
+  lcm_down.degraded = {"lcm down: no route to 224.0.0.1 (Network is unreachable)"};
+  n.update(t, lcm_down);
+  r.sent.clear();
+  n.reloading(t + 1s);
+  n.reloaded("last reload refused: 1 error (journal)", lcm_down);
+  EXPECT_THAT(r.sent, ElementsAre("RELOADING=1\nMONOTONIC_USEC=4000000", "READY=1",
+                                  "STATUS=upstream operational, node 20h; 2/2 sub-devices operational; lcm down: no "
+                                  "route to 224.0.0.1 (Network is unreachable); last reload refused: 1 error (journal)"));
+  r.sent.clear();
+  n.reloading(t + 2s);
+  n.reloaded("", lcm_down);  // applied: the note goes, the transport is still down
+  EXPECT_THAT(r.sent, ElementsAre("RELOADING=1\nMONOTONIC_USEC=5000000", "READY=1",
+                                  "STATUS=upstream operational, node 20h; 2/2 sub-devices operational; lcm down: no "
+                                  "route to 224.0.0.1 (Network is unreachable)"));
+  r.sent.clear();
+  auto lcm_up = lcm_down;
+  lcm_up.degraded.clear();
+  n.update(t + 3s, lcm_up);
+  EXPECT_THAT(r.sent, ElementsAre("STATUS=upstream operational, node 20h; 2/2 sub-devices operational"));
+}
+
 TEST(ServiceNotify, StatusIsSentWhenItChangesNotOnEveryUpdate) {
   Recorder r;
   ServiceNotify n(r, std::nullopt);

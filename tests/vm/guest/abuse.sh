@@ -63,6 +63,26 @@ scenario_f() {  # no multicast route with LCM on; the gateway was started withou
     fail "f: no 'publishing: lcm down' line in: $(cat /tmp/abuse-f.txt)"
   grep -q 'STATUS=.*; lcm down: .*no route to 224.0.0.1' /tmp/abuse-notify.log && pass "f: systemd STATUS= names lcm down" ||
     fail "f: no STATUS= with lcm down: $(grep STATUS= /tmp/abuse-notify.log | tail -3)"
+  # A reload while LCM is down (refused here: a reload that applies reboots the sub-devices, which
+  # is e's window): the STATUS= after its READY=1 still names lcm down, beside the reload's note.
+  cp "$dir/oegw.yaml" /tmp/abuse-f.orig
+  sed -i 's/^  node_id: 0x20$/  node_id: 0x80/' "$dir/oegw.yaml"
+  local mark
+  mark=$(wc -l </tmp/abuse-notify.log)
+  if hup 'reload refused'; then
+    local st i
+    for ((i = 0; i < 100; i++)); do
+      st=$(tail -n +"$((mark + 1))" /tmp/abuse-notify.log | grep -A100 'RELOADING=1' | grep 'STATUS=' | tail -1)
+      [[ -n $st ]] && break
+      sleep 0.05
+    done
+    [[ $st == *'; lcm down: '*'no route to 224.0.0.1'*'; last reload refused: 1 error (journal)'* ]] &&
+      pass "f: after a refused reload, STATUS= still names lcm down: ${st#* }" ||
+      fail "f: STATUS= after the reload: '${st:-none}'"
+  else
+    fail "f: no 'reload refused' for the invalid file: $(tail -3 /tmp/abuse-gateway.log)"
+  fi
+  cp /tmp/abuse-f.orig "$dir/oegw.yaml"
   ip route add 224.0.0.0/4 dev lo
   echo "    f: route added at $(elapsed s)"
   if "$PY" "$here/status_wait.py" "$oegw" /tmp/abuse-f.json 30 \
