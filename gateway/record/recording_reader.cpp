@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <map>
 
 #include <fmt/format.h>
@@ -37,28 +38,20 @@ bool unreadable(std::vector<std::string>& problems, const std::function<std::str
   return true;
 }
 
-struct Lines {
-  std::vector<std::string> lines;
-  bool last_unterminated = false;
-};
-
-std::optional<Lines> read_lines(const fs::path& p) {
+// Calls `fn(line, number, last, unterminated)` for each line of `p` as it is read (a replay reads
+// millions of lines: none is kept once parsed); false when the file cannot be opened. `last`: no
+// line follows; `unterminated`: the line ends the file without its newline (cut mid-write).
+bool for_each_line(const fs::path& p, const std::function<void(const std::string&, std::size_t, bool, bool)>& fn) {
   std::ifstream in(p, std::ios::binary);
-  if (!in) return std::nullopt;
-  Lines out;
+  if (!in) return false;
   std::string line;
-  while (std::getline(in, line)) out.lines.push_back(line);
-  // getline drops the last newline: a file not ending in one has a line cut short.
-  in.clear();
-  in.seekg(0, std::ios::end);
-  const auto size = static_cast<std::streamoff>(in.tellg());
-  if (size > 0) {
-    in.seekg(size - 1);
-    char c = 0;
-    in.get(c);
-    out.last_unterminated = c != '\n';
+  std::size_t n = 0;
+  while (std::getline(in, line)) {
+    const bool unterminated = in.eof();  // getline stopped at the end of the file, not at a '\n'
+    const bool last = unterminated || in.peek() == std::ifstream::traits_type::eof();
+    fn(line, ++n, last, unterminated);
   }
-  return out;
+  return true;
 }
 
 }  // namespace
@@ -121,102 +114,105 @@ std::optional<std::vector<Run>> find_runs(const fs::path& where, std::string& er
   return runs;
 }
 
-SegmentRead read_segment(const Segment& s) {
-  SegmentRead out;
-  std::vector<Entry> frames, events;
+SegmentReader::SegmentReader(const Segment& s) : s_(&s) {
+  SegmentRead& out = head_;
+  std::vector<Entry>& events = events_;
   // The events first: the segment line gives the offset and the interfaces.
   if (!s.events.empty()) {
-    const auto lines = read_lines(s.events);
-    if (!lines) {
-      out.problems.push_back(s.events.string() + ": cannot be read");
-    } else {
-      for (std::size_t i = 0; i < lines->lines.size(); ++i) {
-        const std::string& l = lines->lines[i];
-        if (l.empty() || l[0] == '#') continue;
-        std::string error;
-        auto e = parse_event_line(l, error);
-        const auto where = [&] { return fmt::format("{}:{}", s.events.string(), i + 1); };
-        if (unreadable(out.problems, where, e.has_value(), i + 1 == lines->lines.size(), lines->last_unterminated,
-                       error))
-          continue;
-        if (e->text.rfind("segment ", 0) == 0) {
-          const auto field = [&](std::string_view key) -> std::string {
-            const std::string k = " " + std::string(key) + "=";
-            const auto p = e->text.find(k);
-            if (p == std::string::npos) return {};
-            const auto end = e->text.find(' ', p + k.size());
-            return e->text.substr(p + k.size(), end == std::string::npos ? std::string::npos : end - p - k.size());
-          };
-          out.up_iface = field("up");
-          out.down_iface = field("down");
-          try {
-            out.offset_us = std::stoll(field("offset_us"));
-          } catch (const std::exception&) {
-            out.problems.push_back(where() + ": segment line without offset_us");
-          }
+    const bool read = for_each_line(s.events, [&](const std::string& l, std::size_t n, bool last, bool unterminated) {
+      if (l.empty() || l[0] == '#') return;
+      std::string error;
+      auto e = parse_event_line(l, error);
+      const auto where = [&] { return fmt::format("{}:{}", s.events.string(), n); };
+      if (unreadable(out.problems, where, e.has_value(), last, unterminated, error)) return;
+      if (e->text.rfind("segment ", 0) == 0) {
+        const auto field = [&](std::string_view key) -> std::string {
+          const std::string k = " " + std::string(key) + "=";
+          const auto p = e->text.find(k);
+          if (p == std::string::npos) return {};
+          const auto end = e->text.find(' ', p + k.size());
+          return e->text.substr(p + k.size(), end == std::string::npos ? std::string::npos : end - p - k.size());
+        };
+        out.up_iface = field("up");
+        out.down_iface = field("down");
+        try {
+          out.offset_us = std::stoll(field("offset_us"));
+        } catch (const std::exception&) {
+          out.problems.push_back(where() + ": segment line without offset_us");
         }
-        Entry en;
-        en.kind = Entry::Kind::Event;
-        en.wall_us = e->wall_us;
-        en.frame.dlc = 0;
-        en.text = std::move(e->text);
-        en.file = &s.events;
-        en.line = i + 1;
-        // The pos rides in frame.id until the merge below.
-        en.frame.id = static_cast<std::uint32_t>(std::min<std::uint64_t>(e->pos, 0xFFFFFFFFu));
-        events.push_back(std::move(en));
       }
-    }
+      Entry en;
+      en.kind = Entry::Kind::Event;
+      en.wall_us = e->wall_us;
+      en.text = std::move(e->text);
+      en.file = &s.events;
+      en.line = n;
+      // The pos rides in frame.id until the merge below.
+      en.frame.id = static_cast<std::uint32_t>(std::min<std::uint64_t>(e->pos, 0xFFFFFFFFu));
+      events.push_back(std::move(en));
+    });
+    if (!read) out.problems.push_back(s.events.string() + ": cannot be read");
   }
-  if (!s.log.empty()) {
-    const auto lines = read_lines(s.log);
-    if (!lines) {
-      out.problems.push_back(s.log.string() + ": cannot be read");
-    } else {
-      std::size_t others = 0;
-      std::string first_other;
-      for (std::size_t i = 0; i < lines->lines.size(); ++i) {
-        const std::string& l = lines->lines[i];
-        if (l.empty() || l[0] == '#') continue;
-        const auto where = [&] { return fmt::format("{}:{}", s.log.string(), i + 1); };
-        // A plain log may hold other text (`oegw demo --frames` prints its steps between the
-        // frames): only lines that start as candump's do are frames.
-        if (s.events.empty() && l[0] != '(') {
-          if (others++ == 0) first_other = where();
-          continue;
-        }
-        std::string error;
-        auto f = parse_frame_line(l, error);
-        if (unreadable(out.problems, where, f.has_value(), i + 1 == lines->lines.size(), lines->last_unterminated,
-                       error))
-          continue;
-        Entry en;
-        en.kind = Entry::Kind::Frame;
-        en.wall_us = f->wall_us;
-        en.iface = std::move(f->iface);
-        en.direction = f->direction;
-        en.frame = f->frame;
-        en.file = &s.log;
-        en.line = i + 1;
-        frames.push_back(std::move(en));
-      }
-      if (others != 0)
-        out.problems.push_back(fmt::format("{} line(s) that are no candump frames skipped (the first: {})", others,
-                                           first_other));
-    }
-  }
-  for (auto& e : frames) e.t = canopen::TimePoint{canopen::Duration{e.wall_us - out.offset_us}};
-  for (auto& e : events) e.t = canopen::TimePoint{canopen::Duration{e.wall_us - out.offset_us}};
-  // Merge: an event @N comes before frame line N (0-based) of the segment.
-  out.entries.reserve(frames.size() + events.size());
+}
+
+void SegmentReader::each(const std::function<void(Entry&)>& fn) {
+  const Segment& s = *s_;
+  SegmentRead& out = head_;
+  std::vector<Entry>& events = events_;
+  const auto at = [&](std::int64_t wall_us) { return canopen::TimePoint{canopen::Duration{wall_us - out.offset_us}}; };
+  // Merged as the frames are read: an event @N comes before frame line N (0-based) of the segment.
   std::size_t ei = 0;
-  for (std::size_t k = 0; k < frames.size(); ++k) {
-    while (ei < events.size() && events[ei].frame.id <= k) out.entries.push_back(std::move(events[ei++]));
-    out.entries.push_back(std::move(frames[k]));
+  std::size_t frames = 0;
+  const auto events_before = [&](std::size_t k) {
+    for (; ei < events.size() && events[ei].frame.id <= k; ++ei) {
+      Entry& e = events[ei];
+      e.t = at(e.wall_us);
+      e.frame = canopen::CanFrame{};
+      fn(e);
+    }
+  };
+  if (!s.log.empty()) {
+    std::size_t others = 0;
+    std::string first_other;
+    const bool read = for_each_line(s.log, [&](const std::string& l, std::size_t n, bool last, bool unterminated) {
+      if (l.empty() || l[0] == '#') return;
+      const auto where = [&] { return fmt::format("{}:{}", s.log.string(), n); };
+      // A plain log may hold other text (`oegw demo --frames` prints its steps between the
+      // frames): only lines that start as candump's do are frames.
+      if (s.events.empty() && l[0] != '(') {
+        if (others++ == 0) first_other = where();
+        return;
+      }
+      std::string error;
+      auto f = parse_frame_line(l, error);
+      if (unreadable(out.problems, where, f.has_value(), last, unterminated, error)) return;
+      events_before(frames++);
+      Entry en;
+      en.kind = Entry::Kind::Frame;
+      en.wall_us = f->wall_us;
+      en.t = at(f->wall_us);
+      en.iface = std::move(f->iface);
+      en.direction = f->direction;
+      en.frame = f->frame;
+      en.file = &s.log;
+      en.line = n;
+      fn(en);
+    });
+    if (!read) out.problems.push_back(s.log.string() + ": cannot be read");
+    if (others != 0)
+      out.problems.push_back(fmt::format("{} line(s) that are no candump frames skipped (the first: {})", others,
+                                         first_other));
   }
-  while (ei < events.size()) out.entries.push_back(std::move(events[ei++]));
-  for (auto& e : out.entries)
-    if (e.kind == Entry::Kind::Event) e.frame = canopen::CanFrame{};
+  events_before(std::numeric_limits<std::size_t>::max());
+  events_.clear();
+}
+
+SegmentRead read_segment(const Segment& s) {
+  SegmentReader reader(s);
+  std::vector<Entry> entries;
+  reader.each([&](Entry& e) { entries.push_back(std::move(e)); });
+  SegmentRead out = reader.head();
+  out.entries = std::move(entries);
   return out;
 }
 

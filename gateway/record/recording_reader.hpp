@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -63,5 +64,24 @@ struct SegmentRead {
 };
 // Reads one segment. A file that cannot be opened is a problem, not an exception.
 [[nodiscard]] SegmentRead read_segment(const Segment& s);
+
+// One segment as a replay walks it: the events file at once (the segment's decisions, a small
+// part), the frames file line by line as each() hands them over, merged (a 10-minute recording of
+// a full cab holds millions of frames: none is kept once handed over). head(): the interfaces, the
+// offset and the problems (the frames file's once each() has returned); its `entries` stay empty.
+class SegmentReader {
+ public:
+  explicit SegmentReader(const Segment& s);  // `s` outlives the reader
+  [[nodiscard]] const SegmentRead& head() const { return head_; }
+  // The events, in order, before each() (their frame.id holds the frame line each precedes).
+  [[nodiscard]] const std::vector<Entry>& events() const { return events_; }
+  // Each entry once, in order: each event before the frame line its @N names.
+  void each(const std::function<void(Entry&)>& fn);
+
+ private:
+  const Segment* s_;
+  SegmentRead head_;
+  std::vector<Entry> events_;
+};
 
 }  // namespace oegw::gateway::record

@@ -260,9 +260,12 @@ class RunReplay {
                                             "come from the difference",
                                             config_.file, run_.mapping_copy.string()));
     }
+    // The first segment, read once: what it begins with decides how the run is replayed.
+    std::optional<SegmentReader> first;
+    if (!run_.segments.empty()) first.emplace(run_.segments.front());
     // The recorded gateway options (its `meta gateway` line) go first.
-    if (const auto bus_share = recorded_bus_share()) opt.sdo_bus_share = *bus_share;
-    exact_ = !run_.plain() && starts_with_start();
+    if (const auto bus_share = recorded_bus_share(first)) opt.sdo_bus_share = *bus_share;
+    exact_ = !run_.plain() && first && starts_with_start(*first);
     // A fresh gateway's own requests go nowhere, their answers come as the log has them: paced,
     // a request would go out after the answer the log holds for it.
     if (!exact_) opt.sdo_bus_share = 0;
@@ -275,17 +278,22 @@ class RunReplay {
                               "ring): a fresh gateway replays its frames, nothing is compared");
     capture_.observe = [this](const Produced& p, canopen::TimePoint t) { produced(p, t); };
     for (const Segment& s : run_.segments) {
-      SegmentRead r = read_segment(s);
-      for (auto& p : r.problems) report_.notes.push_back(std::move(p));
-      if (!r.up_iface.empty()) {
-        up_ = r.up_iface;
-        down_ = r.down_iface;
+      std::optional<SegmentReader> next;
+      SegmentReader& r = first ? *first : next.emplace(s);
+      if (!r.head().up_iface.empty()) {
+        up_ = r.head().up_iface;
+        down_ = r.head().down_iface;
       }
-      offset_ = r.offset_us;
-      for (const Entry& e : r.entries) {
+      offset_ = r.head().offset_us;
+      const auto& problems = r.head().problems;
+      const std::size_t told = problems.size();  // the events file's; the frames file's come with each()
+      for (std::size_t i = 0; i < told; ++i) report_.notes.push_back(problems[i]);
+      r.each([this](const Entry& e) {
         if (exact_) exact(e);
         else fresh(e);
-      }
+      });
+      for (std::size_t i = told; i < problems.size(); ++i) report_.notes.push_back(problems[i]);
+      first.reset();
     }
     if (exact_ && comparing() && !capture_.q.empty())
       report_.notes.push_back(fmt::format("the recording ends inside the gateway's last call: {} output(s) of the replay "
@@ -300,10 +308,9 @@ class RunReplay {
  private:
   [[nodiscard]] bool comparing() const { return !report_.divergence && report_.stopped.empty(); }
 
-  std::optional<double> recorded_bus_share() {
-    if (run_.plain()) return std::nullopt;
-    const SegmentRead r = read_segment(run_.segments.front());
-    for (const Entry& e : r.entries) {
+  std::optional<double> recorded_bus_share(const std::optional<SegmentReader>& first) const {
+    if (run_.plain() || !first) return std::nullopt;
+    for (const Entry& e : first->events()) {
       if (e.kind != Entry::Kind::Event) continue;
       const auto p = e.text.find("meta gateway ");
       if (p != 0) continue;
@@ -313,10 +320,10 @@ class RunReplay {
     return std::nullopt;
   }
 
-  bool starts_with_start() {
-    const SegmentRead r = read_segment(run_.segments.front());
-    for (const Entry& e : r.entries) {
-      if (e.kind == Entry::Kind::Frame) return false;
+  // Read from the events alone: one @N past 0 comes after a frame.
+  static bool starts_with_start(const SegmentReader& first) {
+    for (const Entry& e : first.events()) {
+      if (e.frame.id != 0) return false;
       const auto k = first_word(e.text);
       if (k == "start") return true;
       if (!is_skipped(k)) return false;
