@@ -16,9 +16,12 @@
 //                elobau grip (node 11h) simulated downstream (subdevices/sim, a thread with its
 //                own event loop on the downstream socketpair, the grip's own TPDOs off);
 //  * oegw_full   the same on full_fe_set.yaml: 48 simulated sub-devices, their heartbeats and
-//                PDOs the background; the grip grip1 feeds joystick.1.
-// The control socket, publishing and the black box are off: the CAN path alone (as
-// tests/fixtures/vm_syscalls.yaml). The host's part (1800h:01 = 1A0h, 6423h TRUE, NMT start) is
+//                PDOs the background; the grip grip1 feeds joystick.1;
+//  * oegw_rec    oegw_grip with the black box on (the mapping file's `record` defaults, into the
+//                bench's temporary folder): its CPU counts the writer thread ("oegw-record") too,
+//                so oegw_rec/oegw_grip is recording's price on the whole path.
+// The control socket and publishing are off, and the black box but in oegw_rec: the CAN path
+// alone (as tests/fixtures/vm_syscalls.yaml). The host's part (1800h:01 = 1A0h, 6423h TRUE, NMT start) is
 // sent by hand on the upstream socketpair, as vm_latency's cansend does. The sub-devices'
 // heartbeat consumer time is 1 s instead of 1.5 x 100 ms: the simulators share the machine, and
 // one held off by 50 ms would otherwise be reset as lost; the gateway's fault EMCYs seen during
@@ -54,7 +57,7 @@
 // Exit 0; 1 if a path does not forward (25 misses in a row, or no answer in warm-up) or a cab
 // does not boot; 64 for a bad command line.
 //
-//   oegw_bench_path [--rounds N] [--samples N] [--rates R,R] [--cpu-seconds S] [--cabs grip,full]
+//   oegw_bench_path [--rounds N] [--samples N] [--rates R,R] [--cpu-seconds S] [--cabs grip,full,rec]
 //                   [--no-perf] [--perf-events E,E] [--pin] [--seed N] [--verbose]
 #include <fcntl.h>
 #include <poll.h>
@@ -335,6 +338,9 @@ struct Path {
   bool perf_ok = false;
   std::string perf_note;
   std::uint64_t faults = 0;  // the gateway's fault EMCYs seen (is_fault_emcy)
+  // A thread of the process whose CPU time is the path's too (its name, /proc/self/task/*/comm):
+  // the black box's writer ("oegw-record") for the cab that records.
+  std::string helper_thread;
 };
 
 // Never blocks: a forwarder that stops reading must not stop the prober (the blocking floor
@@ -424,6 +430,27 @@ std::int64_t thread_cpu_ns(pthread_t t) {
   clockid_t id;
   if (::pthread_getcpuclockid(t, &id) != 0) return 0;
   return clock_ns(id);
+}
+
+// The CPU time of every thread of this process named `comm`: the kernel's per-thread CPU clock
+// of a thread id, as glibc's pthread_getcpuclockid makes it for its own threads
+// (MAKE_THREAD_CPUCLOCK(tid, CPUCLOCK_SCHED): ~tid << 3 | 4 | 2).
+std::int64_t named_threads_cpu_ns(const std::string& comm) {
+  std::int64_t sum = 0;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator("/proc/self/task", ec)) {
+    std::ifstream f(e.path() / "comm");
+    std::string name;
+    if (!std::getline(f, name) || name != comm) continue;
+    const auto tid = static_cast<clockid_t>(std::strtol(e.path().filename().c_str(), nullptr, 10));
+    sum += clock_ns(static_cast<clockid_t>((~tid) * 8) | 6);
+  }
+  return sum;
+}
+
+// The path's CPU time: its forwarder thread and its helper thread, if it has one.
+std::int64_t path_cpu_ns(const Path& p) {
+  return thread_cpu_ns(p.thread) + (p.helper_thread.empty() ? 0 : named_threads_cpu_ns(p.helper_thread));
 }
 
 // `perf stat -t TID` on the kernel's system call tracepoints, counting only between enable() and
@@ -533,11 +560,14 @@ class SyscallCounter {
 
 class Cab {
  public:
-  Cab(std::string name, mapping::Config config, const std::filesystem::path& store)
+  // `record`: the black box on, into that folder (the mapping file's record section's defaults).
+  Cab(std::string name, mapping::Config config, const std::filesystem::path& store,
+      const std::filesystem::path& record = {})
       : name_(std::move(name)), config_(std::move(config)) {
     config_.upstream.store = store.string();
     config_.control.enabled = false;  // the CAN path alone (tests/fixtures/vm_syscalls.yaml)
-    config_.record.enabled = false;
+    config_.record.enabled = !record.empty();
+    if (!record.empty()) config_.record.dir = record.string();
     config_.publish.dds.enabled = false;
     config_.publish.lcm.enabled = false;
     // The simulators share this machine with the paths measured: a heartbeat held off by more
@@ -613,6 +643,7 @@ class Cab {
   [[nodiscard]] int device_count() const { return device_count_; }
   [[nodiscard]] int exit_status() const { return exit_status_; }
   [[nodiscard]] const std::string& name() const { return name_; }
+  [[nodiscard]] bool records() const { return config_.record.enabled; }
   [[nodiscard]] int host_fd() const { return host_; }
   [[nodiscard]] int stimuli_fd() const { return stimuli_; }
   [[nodiscard]] pid_t gateway_tid() const { return tid_; }
@@ -718,7 +749,7 @@ struct Options {
   int samples = 2000;
   std::vector<int> rates{1000, 8000};
   double cpu_seconds = 1.0;
-  bool grip = true, full = true;
+  bool grip = true, full = true, rec = true;
   bool perf = true;
   bool pin = false;          // the prober on CPU 0, every forwarder on CPU 1
   std::string perf_events;  // more events for the perf windows, printed per frame
@@ -843,20 +874,20 @@ void measure_cpu(std::vector<Path*>& paths, const Options& o, std::mt19937& rng)
       }
       // Idle: only what keeps the gateways fresh (this one included: 10 frames/s).
       const std::int64_t idle_from = mono_ns();
-      const std::int64_t idle_cpu = thread_cpu_ns(p->thread);
+      const std::int64_t idle_cpu = path_cpu_ns(*p);
       while (mono_ns() - idle_from < static_cast<std::int64_t>(o.cpu_seconds * 0.5e9)) {
         keep_fresh(paths, nullptr);
         (void)drain(p->rx);
         sleep_until_ns(mono_ns() + 10'000'000);
       }
-      p->idle_cpu_ns += static_cast<double>(thread_cpu_ns(p->thread) - idle_cpu);
+      p->idle_cpu_ns += static_cast<double>(path_cpu_ns(*p) - idle_cpu);
       p->idle_s += static_cast<double>(mono_ns() - idle_from) / 1e9;
       // CPU at the full rate.
       std::uint64_t answers = 0;
       const auto ticks0 = thread_user_system_ticks(p->tid);
-      const std::int64_t cpu0 = thread_cpu_ns(p->thread);
+      const std::int64_t cpu0 = path_cpu_ns(*p);
       const std::uint64_t frames = pace(paths, *p, kRate, o.cpu_seconds, answers);
-      p->cpu_ns += static_cast<double>(thread_cpu_ns(p->thread) - cpu0);
+      p->cpu_ns += static_cast<double>(path_cpu_ns(*p) - cpu0);
       const auto ticks1 = thread_user_system_ticks(p->tid);
       p->user_ticks += ticks1.first - ticks0.first;
       p->system_ticks += ticks1.second - ticks0.second;
@@ -912,6 +943,14 @@ void print_latency(const std::vector<Path*>& paths, int rate, const Options& o) 
                   p999 <= 1.5 ? "met" : "NOT met");
     }
   }
+  // The black box's price on the path: the same cab recording and not.
+  if (r.contains("oegw_rec") && r.contains("oegw_grip")) {
+    const auto& a = r["oegw_rec"]->lat;
+    const auto& b = r["oegw_grip"]->lat;
+    std::printf("  oegw_rec/oegw_grip (recording on/off): median %.2f, p99 %.2f, p99.9 %.2f\n",
+                percentile(a, 50) / percentile(b, 50), percentile(a, 99) / percentile(b, 99),
+                percentile(a, 99.9) / percentile(b, 99.9));
+  }
 }
 
 void print_cpu(const std::vector<Path*>& paths, const Options& o) {
@@ -966,6 +1005,12 @@ void print_cpu(const std::vector<Path*>& paths, const Options& o) {
       std::printf("\n");
     }
   }
+  // The black box's price (its writer thread counted with the loop's): target <= 1.2 x off.
+  if (cpu.contains("oegw_rec") && cpu.contains("oegw_grip")) {
+    const double ratio = cpu["oegw_rec"] / cpu["oegw_grip"], ratio_net = net["oegw_rec"] / net["oegw_grip"];
+    std::printf("  oegw_rec/oegw_grip (recording on/off): CPU per frame %.2f, net of idle %.2f (target <= 1.2: %s)\n",
+                ratio, ratio_net, ratio <= 1.2 ? "met" : "NOT met");
+  }
 }
 
 }  // namespace
@@ -983,6 +1028,7 @@ int main(int argc, char** argv) {
       const std::string c = argv[++i];
       o.grip = c.find("grip") != std::string::npos;
       o.full = c.find("full") != std::string::npos;
+      o.rec = c.find("rec") != std::string::npos;
     } else if (a == "--no-perf") o.perf = false;
     else if (a == "--perf-events" && more) o.perf_events = argv[++i];
     else if (a == "--pin") o.pin = true;
@@ -990,7 +1036,7 @@ int main(int argc, char** argv) {
     else if (a == "--verbose") o.verbose = true;
     else {
       std::fprintf(stderr,
-                   "usage: %s [--rounds N] [--samples N] [--rates R,R] [--cpu-seconds S] [--cabs grip,full] [--no-perf] "
+                   "usage: %s [--rounds N] [--samples N] [--rates R,R] [--cpu-seconds S] [--cabs grip,full,rec] [--no-perf] "
                    "[--perf-events E,E] [--pin] [--seed N] [--verbose]\n",
                    argv[0]);
       return 64;
@@ -1054,6 +1100,10 @@ int main(int argc, char** argv) {
       if (o.full)
         cabs.push_back(std::make_unique<Cab>("oegw_full", bench::load_or_throw(bench::yaml_full_set(), "full_fe_set.yaml"),
                                              std::filesystem::path(dir) / "full.store"));
+      if (o.rec)
+        cabs.push_back(std::make_unique<Cab>("oegw_rec", bench::load_or_throw(bench::yaml_one_grip(), "one_grip.yaml"),
+                                             std::filesystem::path(dir) / "rec.store",
+                                             std::filesystem::path(dir) / "record"));
     } catch (const std::exception& e) {
       std::fprintf(stderr, "oegw_bench_path: %s\n", e.what());
       status = 1;
@@ -1076,6 +1126,13 @@ int main(int argc, char** argv) {
       p->tid = cab->gateway_tid();
       p->thread = cab->gateway_thread();
       p->has_thread = true;
+      if (cab->records()) {
+        p->helper_thread = "oegw-record";
+        if (named_threads_cpu_ns(p->helper_thread) <= 0) {  // the writer's CPU would be missed
+          why = "no thread named oegw-record (the black box's writer) to count";
+          ok = false;
+        }
+      }
       if (ok && !warm_up(*p, 30)) {
         why = "no answer to the grip's TPDO within 30 s";
         ok = false;
