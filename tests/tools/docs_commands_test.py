@@ -420,7 +420,8 @@ BLOCKS = {
         ("not run", "a CAN bus with an MCB-402 and a person pressing its buttons; then an editor, the installed "
                     "/etc/oegw/oegw.yaml (deb_install_test runs `oegw check` on it), systemctl and journalctl"),
     ("docs/guides/install.md", "ip route add 224.0.0.0/4 dev lo"):
-        ("not run", "changes the host's routing table as root (tests/publish/in_private_net.sh adds the same route in a namespace)"),
+        ("test", "vm_abuse (tests/vm/guest/abuse.sh, scenario f: the guest starts without the route, then runs this "
+                 "command, and LCM comes up without a restart)"),
     ("docs/guides/build-and-package.md", "./scripts/package.sh"):
         ("not run", "a release build of its own and a package install as root (deb_install_test, label deploy)"),
     ("docs/guides/build-and-package.md", "./scripts/cross-build.sh all"):
