@@ -15,10 +15,13 @@
 //    frame also builds the joystick sample from the FE model and publishes it on both transports;
 //    "allocs/frame" then counts the whole input path including publishing (liblcm and Cyclone DDS
 //    included).
+//  * BM_StatusReport/<variant>: one `oegw status` answer built and serialised, the event loop's
+//    work per status request between two bus frames; "bytes": the answer's size.
 // Figures only; nothing asserts on time.
 #include "tests/bench/bench_support.hpp"
 #include "tests/bench/gateway_rig.hpp"
 
+#include "gateway/control/status_report.hpp"
 #include "gateway/publishing.hpp"
 
 #include <algorithm>
@@ -150,5 +153,24 @@ void BM_ThroughputPublishing(benchmark::State& state) {
                                                                   static_cast<double>(state.iterations());
 }
 BENCHMARK(BM_ThroughputPublishing);
+
+// `oegw status`'s answer (gateway/control/status_report.hpp), built and serialised as the control
+// socket sends it: the event loop does this work between two bus frames, once per status request
+// (docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses). Variants as above.
+void BM_StatusReport(benchmark::State& state) {
+  const int variant = static_cast<int>(state.range(0));
+  const mapping::Config cfg = bench::load_or_throw(variant == 0 ? bench::yaml_one_grip() : bench::yaml_full_set(),
+                                                   variant == 0 ? "one_grip.yaml" : "full_set.yaml");
+  auto rig = make_rig(variant);
+  const gateway::StatusContext at{rig->now(), {}};
+  std::size_t bytes = 0;
+  for (auto _ : state) {
+    const std::string text = gateway::status_report(rig->gw(), cfg, at).dump();
+    bytes = text.size();
+    benchmark::DoNotOptimize(text.data());
+  }
+  state.counters["bytes"] = static_cast<double>(bytes);
+}
+BENCHMARK(BM_StatusReport)->Arg(0)->Arg(1)->ArgName("full_set")->Unit(benchmark::kMicrosecond);
 
 }  // namespace
