@@ -72,6 +72,23 @@ Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed
       oe_(handed_over ? std::move(handed_over)
                       : std::make_unique<OeDevice>(device_config(config_, options.store_path), std::move(upstream))),
       model_(oe_->config().fes) {
+  connect_upstream_device();
+  // The CiA 852 device mirrors every changed input slot into its dictionary at once.
+  model_.on_slot_change([this](mapping::FeId fe, FeSlot slot, std::int64_t v) {
+    if (mapping::is_input(fe.kind)) oe_->mirror_input(fe, slot, v, now_);
+  });
+  arbiter_ = std::make_unique<CommandArbiter>(config_, *oe_, model_, now_);
+  arbiter_->log = [this](const std::string& line) { log(line); };
+  arbiter_->drive = [this](mapping::FeId fe, FieldRef ref, std::int64_t v) { on_output(fe, ref, v); };
+  add_subdevices();
+  bind_functional_elements();
+  hook_network();
+  hook_master();
+  hook_upstream_device();
+}
+
+// The upstream device's hooks: log, tap, store reloads and its SDO server channels.
+void Gateway::connect_upstream_device() {
   // Every SDO server channel of the device reaches the sub-devices (remote SDO); a channel the
   // mapping file binds to a sub-device goes nowhere else (gateway/remote_sdo.hpp).
   remote_sdo_->on_log = [this](const std::string& line) { log(line); };
@@ -97,13 +114,10 @@ Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed
       log_redirect(k, before, after, why);
     };
   }
-  // The CiA 852 device mirrors every changed input slot into its dictionary at once.
-  model_.on_slot_change([this](mapping::FeId fe, FeSlot slot, std::int64_t v) {
-    if (mapping::is_input(fe.kind)) oe_->mirror_input(fe, slot, v, now_);
-  });
-  arbiter_ = std::make_unique<CommandArbiter>(config_, *oe_, model_, now_);
-  arbiter_->log = [this](const std::string& line) { log(line); };
-  arbiter_->drive = [this](mapping::FeId fe, FieldRef ref, std::int64_t v) { on_output(fe, ref, v); };
+}
+
+// A driver per sub-device of the mapping file, in the network manager, with its entry in subs_.
+void Gateway::add_subdevices() {
   for (const auto& sc : config_.subdevices) {
     std::string error;
     auto driver = sd::make_driver(sc.driver, sc.node(), downstream_out_, sc.options, error);
@@ -119,6 +133,10 @@ Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed
     d->on_change = [this, sp = &s](std::size_t i, const sd::SignalValue& v) { on_signal(*sp, i, v); };
     batched_.reserve(config_.subdevices.size());  // no allocation in an output batch
   }
+}
+
+// A binding per field of each functional element, indexed by FE, sub-device and signal.
+void Gateway::bind_functional_elements() {
   for (const auto& fe : config_.functional_elements) {
     std::size_t group = 0;
     if (fe.input()) {
@@ -147,60 +165,85 @@ Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed
       bindings_.push_back(std::move(b));
     }
   }
+}
+
+// The network manager's reports, to the named handlers below.
+void Gateway::hook_network() {
   network_.on_node_state = [this](const std::string& name, sd::NodeState st, const std::string& why) {
-    auto it = subs_.find(name);
-    if (it == subs_.end()) return;
-    Sub& s = it->second;
-    const bool was = s.operational;
-    s.operational = st == sd::NodeState::Operational;
-    // A fault the driver holds (Driver::faulted) lasts until the device's evidence: its clear
-    // code, or its error state read back at the next start (boot_reads). A node lost while its
-    // driver holds one is booted again by reset node: reset, it reports the error again if it
-    // persists, and the gateway does not wait for a clear code that may have been lost.
-    s.why = std::string(sd::to_string(st)) + " (" + why + ")";
-    if (tap_ != nullptr) tap_->node_state(name, st, why);
-    log(name + ": " + s.why);
-    if (s.operational && !was) {
-      // Output values commanded meanwhile reach the device now, all in one frame per RPDO.
-      begin_outputs();
-      for (const std::size_t bi : s.outputs) drive(bindings_[bi], s, model_.read(bindings_[bi].fe, bindings_[bi].ref));
-      end_outputs(now_);
-    }
-    // Only a node that failed (not one still booting for the first time) is a fault; only the
-    // proof of life the network manager names (`why`) makes it operational again.
-    if ((st == sd::NodeState::Missing || st == sd::NodeState::Refused) && s.driver->any_fault())
-      network_.reset_application_next(name);
-    // A node that leaves operational for any reason (lost, refused, or its own boot-up: a reboot
-    // while in use) has failed until it is operational again: its inputs are in doubt and the
-    // host is told now, not when (or if) a reboot loop ever settles.
-    if (st == sd::NodeState::Missing || st == sd::NodeState::Refused || (was && !s.operational)) s.failed = true;
-    if (s.operational) s.failed = false;
-    if (s.failed || s.operational) update_fault(s, why);
-    if (reloading_) settle_reload();
+    on_node_state(name, st, why);
   };
   network_.on_emcy = [this](const std::string& name, const canopen::EmcyMessage& e, const sd::DecodedEmcy& d) {
-    auto it = subs_.find(name);
-    if (it == subs_.end()) return;
-    it->second.emcy = EmcyRecord{e, now_, it->second.emcy.count + 1};
-    if (tap_ != nullptr) tap_->subdevice_emcy(name, e);
-    log(name + ": EMCY " + fmt::format("{:04X}h", e.code) + " " + d.text);
-    // Remote EMCY: upstream first, then the 7000h the fault policy may raise for it below.
-    const mapping::EmcyForwarding fwd = config_.downstream.emcy_forwarding;
-    if (fwd == mapping::EmcyForwarding::All || (fwd == mapping::EmcyForwarding::Faults && (e.code == 0 || d.error)))
-      (void)oe_->forward_subdevice_emcy(e, now_);
-    // What the EMCY faults or clears is the driver's (d.affected, Driver::faulted): a warning
-    // (81xxh) faults nothing, a clear code ends only what it clears.
-    update_fault(it->second, fmt::format("EMCY {:04X}h {}", e.code, d.text));
+    on_subdevice_emcy(name, e, d);
   };
-  // A fault the device ended without an EMCY, shown by the object its driver polls while the
-  // fault lasts (the MCB-402's 1001h after a cable break,
-  // docs/design/device-documents.md#mcb-402-mcb402-document-003-co4013-emergency-messages).
-  network_.on_fault_evidence = [this](const std::string& name, const std::string& what) {
-    auto it = subs_.find(name);
-    if (it == subs_.end()) return;
-    log(name + ": " + what);
-    update_fault(it->second, what);
+  network_.on_fault_evidence = [this](const std::string& name, const std::string& what) { on_fault_evidence(name, what); };
+  network_.on_application_reset = [this](const std::string& name) {
+    if (auto it = subs_.find(name); it != subs_.end()) it->second.driver->on_application_reset(now_);
   };
+  network_.on_bad_input = [this](const std::string& what) { log(what); };
+  network_.on_diagnostics = [this](const std::string& name, const subdevices::NodeDiagnostics& d) {
+    log(name + ": boot diagnostics: " + d.describe());
+  };
+}
+
+void Gateway::on_node_state(const std::string& name, sd::NodeState st, const std::string& why) {
+  auto it = subs_.find(name);
+  if (it == subs_.end()) return;
+  Sub& s = it->second;
+  const bool was = s.operational;
+  s.operational = st == sd::NodeState::Operational;
+  // A fault the driver holds (Driver::faulted) lasts until the device's evidence: its clear
+  // code, or its error state read back at the next start (boot_reads). A node lost while its
+  // driver holds one is booted again by reset node: reset, it reports the error again if it
+  // persists, and the gateway does not wait for a clear code that may have been lost.
+  s.why = std::string(sd::to_string(st)) + " (" + why + ")";
+  if (tap_ != nullptr) tap_->node_state(name, st, why);
+  log(name + ": " + s.why);
+  if (s.operational && !was) {
+    // Output values commanded meanwhile reach the device now, all in one frame per RPDO.
+    begin_outputs();
+    for (const std::size_t bi : s.outputs) drive(bindings_[bi], s, model_.read(bindings_[bi].fe, bindings_[bi].ref));
+    end_outputs(now_);
+  }
+  // Only a node that failed (not one still booting for the first time) is a fault; only the
+  // proof of life the network manager names (`why`) makes it operational again.
+  if ((st == sd::NodeState::Missing || st == sd::NodeState::Refused) && s.driver->any_fault())
+    network_.reset_application_next(name);
+  // A node that leaves operational for any reason (lost, refused, or its own boot-up: a reboot
+  // while in use) has failed until it is operational again: its inputs are in doubt and the
+  // host is told now, not when (or if) a reboot loop ever settles.
+  if (st == sd::NodeState::Missing || st == sd::NodeState::Refused || (was && !s.operational)) s.failed = true;
+  if (s.operational) s.failed = false;
+  if (s.failed || s.operational) update_fault(s, why);
+  if (reloading_) settle_reload();
+}
+
+void Gateway::on_subdevice_emcy(const std::string& name, const canopen::EmcyMessage& e, const sd::DecodedEmcy& d) {
+  auto it = subs_.find(name);
+  if (it == subs_.end()) return;
+  it->second.emcy = EmcyRecord{e, now_, it->second.emcy.count + 1};
+  if (tap_ != nullptr) tap_->subdevice_emcy(name, e);
+  log(name + ": EMCY " + fmt::format("{:04X}h", e.code) + " " + d.text);
+  // Remote EMCY: upstream first, then the 7000h the fault policy may raise for it below.
+  const mapping::EmcyForwarding fwd = config_.downstream.emcy_forwarding;
+  if (fwd == mapping::EmcyForwarding::All || (fwd == mapping::EmcyForwarding::Faults && (e.code == 0 || d.error)))
+    (void)oe_->forward_subdevice_emcy(e, now_);
+  // What the EMCY faults or clears is the driver's (d.affected, Driver::faulted): a warning
+  // (81xxh) faults nothing, a clear code ends only what it clears.
+  update_fault(it->second, fmt::format("EMCY {:04X}h {}", e.code, d.text));
+}
+
+// A fault the device ended without an EMCY, shown by the object its driver polls while the
+// fault lasts (the MCB-402's 1001h after a cable break,
+// docs/design/device-documents.md#mcb-402-mcb402-document-003-co4013-emergency-messages).
+void Gateway::on_fault_evidence(const std::string& name, const std::string& what) {
+  auto it = subs_.find(name);
+  if (it == subs_.end()) return;
+  log(name + ": " + what);
+  update_fault(it->second, what);
+}
+
+// The downstream master's EMCYs and boot-ups: the network manager's handlers first, then the gateway's.
+void Gateway::hook_master() {
   // A sub-device's EMCY reaches the host before the 7000h it causes: its driver's decoding
   // (inside the network manager's EMCY handler) already moves signals and so the fault policy,
   // whose fault EMCYs wait (fault_emcy) until network_.on_emcy above has forwarded it.
@@ -217,7 +260,10 @@ Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed
     if (manage) manage(n);
     if (on_downstream_boot_up) on_downstream_boot_up(n);
   };
-  // 1028h: EMCYs of other upstream nodes, logged and kept for the status.
+}
+
+// The upstream device's 3000h writes and the EMCYs of the other upstream nodes.
+void Gateway::hook_upstream_device() {
   if (auto* cmd = oe_->od().find(cia852::kSubdeviceCommand))
     command_hook_ = cmd->add_write_hook([this](canopen::Object&, std::uint8_t, std::span<const std::uint8_t> b,
                                                canopen::Origin) {
@@ -225,19 +271,15 @@ Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed
       for (std::size_t i = 0; i < b.size() && i < 4; ++i) v |= static_cast<std::uint32_t>(b[i]) << (8 * i);
       return host_subdevice_command(v);
     });
-  oe_->on_emcy([this](const canopen::EmcyMessage& m, TimePoint t) {
-    EmcyRecord& r = upstream_emcys_[m.node.value()];
-    r = EmcyRecord{m, t, r.count + 1};
-    log(fmt::format("upstream EMCY from node {:02X}h: {:04X}h register {:02X}h, manufacturer bytes {:02X}", m.node.value(),
-                    m.code, m.error_register, fmt::join(m.msef, " ")));
-  });
-  network_.on_application_reset = [this](const std::string& name) {
-    if (auto it = subs_.find(name); it != subs_.end()) it->second.driver->on_application_reset(now_);
-  };
-  network_.on_bad_input = [this](const std::string& what) { log(what); };
-  network_.on_diagnostics = [this](const std::string& name, const subdevices::NodeDiagnostics& d) {
-    log(name + ": boot diagnostics: " + d.describe());
-  };
+  // 1028h: EMCYs of other upstream nodes, logged and kept for the status.
+  oe_->on_emcy([this](const canopen::EmcyMessage& m, TimePoint t) { on_upstream_emcy(m, t); });
+}
+
+void Gateway::on_upstream_emcy(const canopen::EmcyMessage& m, TimePoint t) {
+  EmcyRecord& r = upstream_emcys_[m.node.value()];
+  r = EmcyRecord{m, t, r.count + 1};
+  log(fmt::format("upstream EMCY from node {:02X}h: {:04X}h register {:02X}h, manufacturer bytes {:02X}", m.node.value(),
+                  m.code, m.error_register, fmt::join(m.msef, " ")));
 }
 
 canopen::FrameSink Gateway::tapped(Bus bus, canopen::FrameSink sink) {

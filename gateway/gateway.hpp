@@ -298,6 +298,18 @@ class Gateway {
 
   Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed_over, canopen::FrameSink upstream,
           canopen::FrameSink downstream, const GatewayOptions& options);
+  // The constructor's steps, in this order.
+  void connect_upstream_device();
+  void add_subdevices();
+  void bind_functional_elements();
+  void hook_network();
+  void hook_master();
+  void hook_upstream_device();
+  // The network manager's and the upstream device's reports.
+  void on_node_state(const std::string& name, subdevices::NodeState st, const std::string& why);
+  void on_subdevice_emcy(const std::string& name, const canopen::EmcyMessage& e, const subdevices::DecodedEmcy& d);
+  void on_fault_evidence(const std::string& name, const std::string& what);
+  void on_upstream_emcy(const canopen::EmcyMessage& m, canopen::TimePoint t);
   // resume(): ends kEmcyReload once every sub-device is operational or faulty.
   void settle_reload();
   void on_signal(Sub& s, std::size_t index, const subdevices::SignalValue& v);

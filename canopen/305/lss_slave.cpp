@@ -41,157 +41,159 @@ bool LssSlave::on_frame(const CanFrame& frame, TimePoint /*now*/) {
   const bool config = mode_ == lss::Mode::Configuration;
 
   switch (cmd) {
-    case kSwitchStateGlobal:
-      if (frame.data[1] == 0) switch_mode(lss::Mode::Waiting);
-      else if (frame.data[1] == 1) switch_mode(lss::Mode::Configuration);
-      else ++stats_.unknown;
-      return true;
-
+    case kSwitchStateGlobal: on_switch_state_global(frame.data[1]); return true;
     case kSwitchSelectiveVendor:
     case kSwitchSelectiveProduct:
     case kSwitchSelectiveRevision:
-    case kSwitchSelectiveSerial: {
-      if (config) return true;  // only a waiting slave takes part
-      const std::uint32_t expect[4] = {address_.vendor, address_.product, address_.revision, address_.serial};
-      const int step = cmd - kSwitchSelectiveVendor;
-      // A vendor frame always (re)starts the sequence; the others must come in order.
-      const bool in_order = cmd == kSwitchSelectiveVendor || selective_next_ == cmd;
-      if (!in_order || u32 != expect[step]) {
-        selective_next_ = 0;
-        return true;
-      }
-      if (cmd == kSwitchSelectiveSerial) {
-        switch_mode(lss::Mode::Configuration);
-        reply(kSwitchSelectiveResponse);
-      } else {
-        selective_next_ = static_cast<std::uint8_t>(cmd + 1);
-      }
+    case kSwitchSelectiveSerial:
+      if (!config) on_switch_selective(cmd, u32);  // only a waiting slave takes part
       return true;
-    }
-
-    case kConfigureNodeId: {
+    // The configuration and inquire services: in Configuration only, else unknown (CiA 305).
+    case kConfigureNodeId:
       if (!config) break;
-      const NodeId id{frame.data[1]};
-      if (!id.valid() && !id.unconfigured()) {
-        reply(kConfigureNodeId, 1);
-        return true;
-      }
-      pending_node_id_ = id;
-      reply(kConfigureNodeId, 0);
-      if (cb_.on_pending_node_id) cb_.on_pending_node_id(id);
+      on_configure_node_id(frame.data[1]);
       return true;
-    }
-
-    case kConfigureBitTiming: {
+    case kConfigureBitTiming:
       if (!config) break;
-      const std::uint8_t table = frame.data[1];
-      const std::uint8_t index = frame.data[2];
-      const bool ok = table == 0 && lss::standard_bit_rate_kbit(index).has_value() && index < 16 &&
-                      ((supported_bit_timings_ >> index) & 1u) != 0;
-      if (!ok) {
-        reply(kConfigureBitTiming, 1);
-        return true;
-      }
-      pending_bit_timing_ = index;
-      reply(kConfigureBitTiming, 0);
-      if (cb_.on_pending_bit_timing) cb_.on_pending_bit_timing(index);
+      on_configure_bit_timing(frame.data[1], frame.data[2]);
       return true;
-    }
-
     case kActivateBitTiming:
       if (!config) break;
       if (cb_.on_activate_bit_timing)
         cb_.on_activate_bit_timing(pending_bit_timing_, std::chrono::milliseconds(get_u16(&frame.data[1])));
       return true;
-
-    case kStoreConfiguration: {
+    case kStoreConfiguration:
       if (!config) break;
-      const std::uint8_t err = cb_.on_store ? cb_.on_store(pending_node_id_, pending_bit_timing_) : 1;
-      reply(kStoreConfiguration, err);
+      reply(kStoreConfiguration, cb_.on_store ? cb_.on_store(pending_node_id_, pending_bit_timing_) : 1);
       return true;
-    }
-
     case kInquireVendor:
     case kInquireProduct:
     case kInquireRevision:
-    case kInquireSerial: {
-      if (!config) break;
-      const std::uint32_t v[4] = {address_.vendor, address_.product, address_.revision, address_.serial};
-      reply_u32(cmd, v[cmd - kInquireVendor]);
-      return true;
-    }
+    case kInquireSerial:
     case kInquireNodeId:
       if (!config) break;
-      reply(kInquireNodeId, active_node_id_.value());
+      on_inquire(cmd);
       return true;
-
     case kIdentifyVendor:
     case kIdentifyProduct:
     case kIdentifyRevisionLow:
     case kIdentifyRevisionHigh:
     case kIdentifySerialLow:
-    case kIdentifySerialHigh: {
-      if (cmd != kIdentifyVendor && identify_next_ != cmd) {
-        identify_next_ = 0;
-        return true;
-      }
-      switch (cmd) {
-        case kIdentifyVendor: identify_.vendor = u32; break;
-        case kIdentifyProduct: identify_.product = u32; break;
-        case kIdentifyRevisionLow: identify_.revision_low = u32; break;
-        case kIdentifyRevisionHigh: identify_.revision_high = u32; break;
-        case kIdentifySerialLow: identify_.serial_low = u32; break;
-        default: identify_.serial_high = u32; break;
-      }
-      if (cmd != kIdentifySerialHigh) {
-        identify_next_ = static_cast<std::uint8_t>(cmd + 1);
-        return true;
-      }
-      identify_next_ = 0;
-      const lss::AddressRange& r = identify_;
-      if (address_.vendor == r.vendor && address_.product == r.product && address_.revision >= r.revision_low &&
-          address_.revision <= r.revision_high && address_.serial >= r.serial_low &&
-          address_.serial <= r.serial_high) {
-        reply(kIdentifySlaveResponse);
-      }
-      return true;
-    }
-
-    case kFastscan: {
-      // CiA 305 §8.4.4: only a waiting slave without node-ID takes part. BitChecked 80h restarts
-      // at the vendor-ID and is answered; otherwise the slave answers when it is at LSSSub and the
-      // bits BitChecked..31 of that part of its address equal IDNumber's, and then goes on at
-      // LSSNext. A complete match (bit 0) whose LSSNext goes back (LSSNext < LSSSub) ends the
-      // scan: the slave is selected, i.e. in configuration mode.
-      if (config || !active_node_id_.unconfigured() || !pending_node_id_.unconfigured()) return true;
-      const std::uint8_t bit = frame.data[5], sub = frame.data[6], next = frame.data[7];
-      if (sub > 3 || next > 3 || (bit > 31 && bit != kFastscanReset)) {
-        ++stats_.malformed;
-        return true;
-      }
-      if (bit == kFastscanReset) {
-        fastscan_pos_ = 0;
-        reply(kIdentifySlaveResponse);
-        return true;
-      }
-      if (fastscan_pos_ != sub) return true;
-      const std::uint32_t part[4] = {address_.vendor, address_.product, address_.revision, address_.serial};
-      const std::uint32_t mask = 0xFFFFFFFFu << bit;
-      if (((part[sub] ^ u32) & mask) != 0) return true;
-      fastscan_pos_ = next;
-      reply(kIdentifySlaveResponse);
-      if (bit == 0 && next < sub) switch_mode(lss::Mode::Configuration);
-      return true;
-    }
-
+    case kIdentifySerialHigh: on_identify(cmd, u32); return true;
+    case kFastscan: on_fastscan(frame); return true;
     case kIdentifyNonConfigured:
       if (active_node_id_.unconfigured() && pending_node_id_.unconfigured()) reply(kIdentifyNonConfiguredResponse);
       return true;
-
     default: break;
   }
   ++stats_.unknown;
   return true;
+}
+
+void LssSlave::on_switch_state_global(std::uint8_t mode) {
+  if (mode == 0) switch_mode(lss::Mode::Waiting);
+  else if (mode == 1) switch_mode(lss::Mode::Configuration);
+  else ++stats_.unknown;
+}
+
+void LssSlave::on_switch_selective(std::uint8_t cmd, std::uint32_t value) {
+  const std::uint32_t expect[4] = {address_.vendor, address_.product, address_.revision, address_.serial};
+  const int step = cmd - kSwitchSelectiveVendor;
+  // A vendor frame always (re)starts the sequence; the others must come in order.
+  const bool in_order = cmd == kSwitchSelectiveVendor || selective_next_ == cmd;
+  if (!in_order || value != expect[step]) {
+    selective_next_ = 0;
+    return;
+  }
+  if (cmd == kSwitchSelectiveSerial) {
+    switch_mode(lss::Mode::Configuration);
+    reply(kSwitchSelectiveResponse);
+  } else {
+    selective_next_ = static_cast<std::uint8_t>(cmd + 1);
+  }
+}
+
+void LssSlave::on_configure_node_id(std::uint8_t value) {
+  const NodeId id{value};
+  if (!id.valid() && !id.unconfigured()) {
+    reply(kConfigureNodeId, 1);
+    return;
+  }
+  pending_node_id_ = id;
+  reply(kConfigureNodeId, 0);
+  if (cb_.on_pending_node_id) cb_.on_pending_node_id(id);
+}
+
+void LssSlave::on_configure_bit_timing(std::uint8_t table, std::uint8_t index) {
+  const bool ok = table == 0 && lss::standard_bit_rate_kbit(index).has_value() && index < 16 &&
+                  ((supported_bit_timings_ >> index) & 1u) != 0;
+  if (!ok) {
+    reply(kConfigureBitTiming, 1);
+    return;
+  }
+  pending_bit_timing_ = index;
+  reply(kConfigureBitTiming, 0);
+  if (cb_.on_pending_bit_timing) cb_.on_pending_bit_timing(index);
+}
+
+void LssSlave::on_inquire(std::uint8_t cmd) {
+  if (cmd == kInquireNodeId) {
+    reply(kInquireNodeId, active_node_id_.value());
+    return;
+  }
+  const std::uint32_t v[4] = {address_.vendor, address_.product, address_.revision, address_.serial};
+  reply_u32(cmd, v[cmd - kInquireVendor]);
+}
+
+void LssSlave::on_identify(std::uint8_t cmd, std::uint32_t value) {
+  if (cmd != kIdentifyVendor && identify_next_ != cmd) {
+    identify_next_ = 0;
+    return;
+  }
+  switch (cmd) {
+    case kIdentifyVendor: identify_.vendor = value; break;
+    case kIdentifyProduct: identify_.product = value; break;
+    case kIdentifyRevisionLow: identify_.revision_low = value; break;
+    case kIdentifyRevisionHigh: identify_.revision_high = value; break;
+    case kIdentifySerialLow: identify_.serial_low = value; break;
+    default: identify_.serial_high = value; break;
+  }
+  if (cmd != kIdentifySerialHigh) {
+    identify_next_ = static_cast<std::uint8_t>(cmd + 1);
+    return;
+  }
+  identify_next_ = 0;
+  const lss::AddressRange& r = identify_;
+  if (address_.vendor == r.vendor && address_.product == r.product && address_.revision >= r.revision_low &&
+      address_.revision <= r.revision_high && address_.serial >= r.serial_low && address_.serial <= r.serial_high) {
+    reply(kIdentifySlaveResponse);
+  }
+}
+
+void LssSlave::on_fastscan(const CanFrame& frame) {
+  // CiA 305 §8.4.4: only a waiting slave without node-ID takes part. BitChecked 80h restarts
+  // at the vendor-ID and is answered; otherwise the slave answers when it is at LSSSub and the
+  // bits BitChecked..31 of that part of its address equal IDNumber's, and then goes on at
+  // LSSNext. A complete match (bit 0) whose LSSNext goes back (LSSNext < LSSSub) ends the
+  // scan: the slave is selected, i.e. in configuration mode.
+  if (mode_ == lss::Mode::Configuration || !active_node_id_.unconfigured() || !pending_node_id_.unconfigured()) return;
+  const std::uint8_t bit = frame.data[5], sub = frame.data[6], next = frame.data[7];
+  if (sub > 3 || next > 3 || (bit > 31 && bit != kFastscanReset)) {
+    ++stats_.malformed;
+    return;
+  }
+  if (bit == kFastscanReset) {
+    fastscan_pos_ = 0;
+    reply(kIdentifySlaveResponse);
+    return;
+  }
+  if (fastscan_pos_ != sub) return;
+  const std::uint32_t part[4] = {address_.vendor, address_.product, address_.revision, address_.serial};
+  const std::uint32_t mask = 0xFFFFFFFFu << bit;
+  if (((part[sub] ^ get_u32(&frame.data[1])) & mask) != 0) return;
+  fastscan_pos_ = next;
+  reply(kIdentifySlaveResponse);
+  if (bit == 0 && next < sub) switch_mode(lss::Mode::Configuration);
 }
 
 }  // namespace oegw::canopen

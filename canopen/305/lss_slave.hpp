@@ -74,6 +74,14 @@ class LssSlave {
   void reply(std::uint8_t cs, std::uint8_t b1 = 0, std::uint8_t b2 = 0);
   void reply_u32(std::uint8_t cs, std::uint32_t v);
   void switch_mode(lss::Mode m);
+  // A handler per command specifier (CiA 305), called by on_frame in the modes that take it.
+  void on_switch_state_global(std::uint8_t mode);
+  void on_switch_selective(std::uint8_t cmd, std::uint32_t value);
+  void on_configure_node_id(std::uint8_t value);
+  void on_configure_bit_timing(std::uint8_t table, std::uint8_t index);
+  void on_inquire(std::uint8_t cmd);
+  void on_identify(std::uint8_t cmd, std::uint32_t value);
+  void on_fastscan(const CanFrame& frame);
 
   lss::Address address_;
   NodeId active_node_id_;

@@ -296,6 +296,387 @@ Parsed error(GatewayError e, std::string message, std::optional<std::uint32_t> s
   return p;
 }
 
+
+// One command line after its sequence and [[net] node] numbers: a handler per command word, each
+// filling in the request (CiA 309-3 command forms, see the header) or answering what was wrong.
+class LineParser {
+ public:
+  LineParser(const Defaults& defaults, std::optional<std::uint32_t> seq, std::vector<std::uint64_t> prefix,
+             const Token& command, std::vector<Token> args)
+      : defaults_(defaults), seq_(seq), prefix_(std::move(prefix)), cmd_(lower(command.text)), as_written_(command.text),
+        args_(std::move(args)) {
+    p_.kind = Parsed::Kind::Ok;
+    p_.request.sequence = seq;
+  }
+  Parsed run();
+
+ private:
+  struct CommandRow {
+    const char* word;
+    Parsed (LineParser::*handle)();
+  };
+  struct LssRow {
+    const char* word;
+    Command command;
+    const char* usage;
+    Parsed (LineParser::*handle)(const char* usage);
+  };
+  static const CommandRow kCommands[];
+  static const LssRow kLss[];
+
+  Parsed fail(GatewayError e, std::string message) const { return error(e, std::move(message), seq_); }
+  std::optional<Parsed> network_level(const char* what);
+  std::optional<Parsed> node_level();
+  std::optional<Parsed> index_sub();
+
+  Parsed read();
+  Parsed write();
+  Parsed nmt();
+  Parsed set();
+  Parsed info();
+  Parsed lss();
+
+  std::optional<std::uint32_t> lss_u32(std::size_t i, std::uint64_t lo, std::uint64_t hi, const char* what) const;
+  Parsed lss_bad(const char* usage) const { return fail(GatewayError::Syntax, fmt::format("expected {}", usage)); }
+  Parsed lss_not_32_bit(std::size_t i, const char* usage) const {
+    return fail(GatewayError::Syntax, fmt::format("'{}' is no 32-bit number; expected {}", args_[i].text, usage));
+  }
+  Parsed lss_no_args(const char* usage);
+  Parsed lss_switch_global(const char* usage);
+  Parsed lss_switch_selective(const char* usage);
+  Parsed lss_set_node(const char* usage);
+  Parsed lss_conf_bitrate(const char* usage);
+  Parsed lss_activate_bitrate(const char* usage);
+  Parsed lss_inquire_address(const char* usage);
+  Parsed lss_fastscan(const char* usage);
+  Parsed lss_range(const char* usage);
+
+  const Defaults& defaults_;
+  std::optional<std::uint32_t> seq_;
+  std::vector<std::uint64_t> prefix_;
+  std::string cmd_;         // the command word, lower case
+  std::string as_written_;  // the command word as the line has it (for the messages)
+  std::vector<Token> args_;
+  Parsed p_;
+};
+
+const LineParser::CommandRow LineParser::kCommands[] = {
+    {"r", &LineParser::read},      {"read", &LineParser::read},  {"w", &LineParser::write},
+    {"write", &LineParser::write}, {"start", &LineParser::nmt},  {"stop", &LineParser::nmt},
+    {"preop", &LineParser::nmt},   {"preoperational", &LineParser::nmt}, {"reset", &LineParser::nmt},
+    {"set", &LineParser::set},     {"info", &LineParser::info}};
+
+// CiA 309-3 LSS commands: `[net] lss_...`, the network only (CANopenNode's and lely's syntax).
+const LineParser::LssRow LineParser::kLss[] = {
+    {"lss_switch_glob", Command::LssSwitchGlobal, "lss_switch_glob 0|1 (0 waiting, 1 configuration)",
+     &LineParser::lss_switch_global},
+    {"lss_switch_sel", Command::LssSwitchSelective, "lss_switch_sel <vendor-ID> <product code> <revision> <serial>",
+     &LineParser::lss_switch_selective},
+    {"lss_set_node", Command::LssSetNode, "lss_set_node <node-ID 1..127, or 255: none>", &LineParser::lss_set_node},
+    {"lss_conf_bitrate", Command::LssConfBitrate,
+     "lss_conf_bitrate 0 <table index: 0 1000, 1 800, 2 500, 3 250, 4 125, 6 50, 7 20, 8 10 kbit/s>",
+     &LineParser::lss_conf_bitrate},
+    {"lss_activate_bitrate", Command::LssActivateBitrate, "lss_activate_bitrate <switch delay in ms, 0..65535>",
+     &LineParser::lss_activate_bitrate},
+    {"lss_store", Command::LssStore, "lss_store", &LineParser::lss_no_args},
+    {"lss_inquire_addr", Command::LssInquireAddress,
+     "lss_inquire_addr [<part: 0..3 or 0x5A..0x5D (vendor, product, revision, serial)>]",
+     &LineParser::lss_inquire_address},
+    {"lss_get_node", Command::LssGetNode, "lss_get_node", &LineParser::lss_no_args},
+    {"lss_ident_nonconf", Command::LssIdentNonConfigured, "lss_ident_nonconf", &LineParser::lss_no_args},
+    {"_lss_fastscan", Command::LssFastscan,
+     "_lss_fastscan [<step time-out in ms, 1..65535>], or lely's _lss_fastscan <vendor-ID> <mask> <product "
+     "code> <mask> <revision> <mask> <serial> <mask> (a mask's 1 bits are known)",
+     &LineParser::lss_fastscan},
+    {"lss_identity", Command::LssIdentity,
+     "lss_identity <vendor-ID> <product code> <revision low> <revision high> <serial low> <serial high>",
+     &LineParser::lss_range},
+    {"_lss_slowscan", Command::LssSlowscan,
+     "_lss_slowscan <vendor-ID> <product code> <revision low> <revision high> <serial low> <serial high>",
+     &LineParser::lss_range}};
+
+Parsed LineParser::run() {
+  const auto* row = std::find_if(std::begin(kCommands), std::end(kCommands), [&](const CommandRow& c) { return cmd_ == c.word; });
+  if (row != std::end(kCommands)) return (this->*row->handle)();
+  if (cmd_.starts_with("lss_") || cmd_.starts_with("_lss_")) return lss();
+  return fail(GatewayError::RequestNotSupported,
+              fmt::format("no command '{}'; this gateway has r[ead], w[rite], start, stop, preop[erational], reset node, "
+                          "reset comm[unication], set network, set node, set sdo_timeout, info version, {}",
+                          as_written_, kLssCommands));
+}
+
+// The network of a network-level command ([net] set node, [net] set sdo_timeout).
+std::optional<Parsed> LineParser::network_level(const char* what) {
+  if (prefix_.size() > 1) return fail(GatewayError::Syntax, fmt::format("'{}' takes a network number only, not a node", what));
+  if (prefix_.size() == 1) {
+    if (prefix_[0] < 1 || prefix_[0] > 127) return fail(GatewayError::UnsupportedNet, fmt::format("network {} (1..127)", prefix_[0]));
+    p_.request.network = static_cast<std::uint16_t>(prefix_[0]);
+  } else if (defaults_.network) {
+    p_.request.network = *defaults_.network;
+  } else {
+    return fail(GatewayError::NoDefaultNet, "give the network before the command or `set network N` first");
+  }
+  return std::nullopt;
+}
+
+// The network and node of a node-level command ([[net] node] r/w/NMT).
+std::optional<Parsed> LineParser::node_level() {
+  std::optional<std::uint64_t> net, node;
+  if (prefix_.size() == 2) {
+    net = prefix_[0];
+    node = prefix_[1];
+  } else if (prefix_.size() == 1) {
+    node = prefix_[0];
+  }
+  if (!net && defaults_.network) net = *defaults_.network;
+  if (!node && defaults_.node) node = *defaults_.node;
+  if (!net) return fail(GatewayError::NoDefaultNet, "give the network and node before the command or `set network N` first");
+  if (!node) return fail(GatewayError::NoDefaultNode, "give the node before the command or `set node N` first");
+  if (*net < 1 || *net > 127) return fail(GatewayError::UnsupportedNet, fmt::format("network {} (1..127)", *net));
+  if (*node < 1 || *node > 127) return fail(GatewayError::UnsupportedNode, fmt::format("node {} (1..127)", *node));
+  p_.request.network = static_cast<std::uint16_t>(*net);
+  p_.request.node = static_cast<std::uint8_t>(*node);
+  return std::nullopt;
+}
+
+// <index> <sub-index> <data type>, the first three arguments of r and w.
+std::optional<Parsed> LineParser::index_sub() {
+  std::string e;
+  const auto index = parse_unsigned(args_[0].text, 0, 0xFFFF, "index", e);
+  if (!index) return fail(GatewayError::Syntax, e);
+  const auto sub = parse_unsigned(args_[1].text, 0, 0xFF, "sub-index", e);
+  if (!sub) return fail(GatewayError::Syntax, e);
+  p_.request.index = static_cast<std::uint16_t>(*index);
+  p_.request.sub = static_cast<std::uint8_t>(*sub);
+  const auto type = parse_type(args_[2].text);
+  if (!type) return fail(GatewayError::Syntax, fmt::format("'{}' is no data type; one of {}", args_[2].text, type_names()));
+  p_.request.type = *type;
+  return std::nullopt;
+}
+
+Parsed LineParser::read() {
+  p_.request.command = Command::Read;
+  if (auto e = node_level()) return *e;
+  if (args_.size() != 3) return fail(GatewayError::Syntax, "expected r[ead] <index> <sub-index> <data type>");
+  if (auto e = index_sub()) return *e;
+  return p_;
+}
+
+Parsed LineParser::write() {
+  Request& r = p_.request;
+  r.command = Command::Write;
+  if (auto e = node_level()) return *e;
+  if (args_.size() < 4) return fail(GatewayError::Syntax, "expected w[rite] <index> <sub-index> <data type> <value>");
+  if (auto e = index_sub()) return *e;
+  std::string value;
+  if (r.type == DataType::VS && args_[3].quoted) {
+    if (args_.size() != 4) return fail(GatewayError::Syntax, "text after the quoted vs value");
+    value = args_[3].text;
+  } else if (r.type == DataType::VS) {
+    // Unquoted words are one string, joined by single spaces; quote it to keep spaces.
+    for (std::size_t i = 3; i < args_.size(); ++i) {
+      if (args_[i].quoted) return fail(GatewayError::Syntax, "a vs value is one quoted string or unquoted words");
+      value += (i == 3 ? "" : " ") + args_[i].text;
+    }
+  } else {
+    if (args_.size() != 4)
+      return fail(GatewayError::Syntax, fmt::format("a {} value is one token; text follows '{}'", to_string(r.type), args_[3].text));
+    value = args_[3].text;
+  }
+  std::string e;
+  auto data = encode(r.type, value, e);
+  if (!data) return fail(GatewayError::Syntax, e);
+  r.data = std::move(*data);
+  return p_;
+}
+
+// start, stop, preop[erational], reset node, reset comm[unication].
+Parsed LineParser::nmt() {
+  const struct {
+    const char* word;
+    const char* second;  // nullptr: none
+    Command command;
+  } nmt[] = {{"start", nullptr, Command::Start},
+             {"stop", nullptr, Command::Stop},
+             {"preop", nullptr, Command::PreOperational},
+             {"preoperational", nullptr, Command::PreOperational},
+             {"reset", "node", Command::ResetNode},
+             {"reset", "comm", Command::ResetCommunication},
+             {"reset", "communication", Command::ResetCommunication}};
+  for (const auto& n : nmt) {
+    if (cmd_ != n.word) continue;
+    if (n.second != nullptr && (args_.empty() || lower(args_[0].text) != n.second)) continue;
+    p_.request.command = n.command;
+    if (!prefix_.empty() && prefix_.back() == 0) return fail(GatewayError::RequestNotSupported, "node 0 (all nodes): name each node");
+    if (auto e = node_level()) return *e;
+    if (args_.size() != (n.second != nullptr ? 1u : 0u)) return fail(GatewayError::Syntax, fmt::format("text after '{}'", cmd_));
+    return p_;
+  }
+  return fail(GatewayError::Syntax, "expected `reset node` or `reset comm[unication]`");
+}
+
+// set network|node|sdo_timeout <value>.
+Parsed LineParser::set() {
+  Request& r = p_.request;
+  if (args_.empty()) return fail(GatewayError::Syntax, "expected set network|node|sdo_timeout <value>");
+  const std::string what = lower(args_[0].text);
+  if (args_.size() != 2) return fail(GatewayError::Syntax, fmt::format("expected set {} <value>", what));
+  std::string e;
+  if (what == "network") {
+    r.command = Command::SetNetwork;
+    if (!prefix_.empty()) return fail(GatewayError::Syntax, "`set network` takes no network or node before it");
+    const auto v = parse_unsigned(args_[1].text, 1, 127, "network", e);
+    if (!v) return fail(GatewayError::Syntax, e);
+    r.value = static_cast<std::uint32_t>(*v);
+    return p_;
+  }
+  if (what == "node") {
+    r.command = Command::SetNode;
+    if (auto err = network_level("set node")) return *err;
+    const auto v = parse_unsigned(args_[1].text, 1, 127, "node", e);
+    if (!v) return fail(GatewayError::Syntax, e);
+    r.value = static_cast<std::uint32_t>(*v);
+    return p_;
+  }
+  if (what == "sdo_timeout") {
+    r.command = Command::SetSdoTimeout;
+    if (auto err = network_level("set sdo_timeout")) return *err;
+    const auto v = parse_unsigned(args_[1].text, 1, 0xFFFF, "SDO time-out in ms", e);
+    if (!v) return fail(GatewayError::Syntax, e);
+    r.value = static_cast<std::uint32_t>(*v);
+    return p_;
+  }
+  return fail(GatewayError::RequestNotSupported, fmt::format("`set {}`; this gateway has set network, set node, set sdo_timeout", what));
+}
+
+Parsed LineParser::info() {
+  p_.request.command = Command::InfoVersion;
+  if (args_.size() != 1 || lower(args_[0].text) != "version")
+    return fail(GatewayError::RequestNotSupported, "`info` has `info version` only");
+  if (!prefix_.empty()) return fail(GatewayError::Syntax, "`info version` takes no network or node before it");
+  return p_;
+}
+
+Parsed LineParser::lss() {
+  const auto* row = std::find_if(std::begin(kLss), std::end(kLss), [&](const LssRow& t) { return cmd_ == t.word; });
+  if (row == std::end(kLss))
+    return fail(GatewayError::RequestNotSupported,
+                fmt::format("no command '{}'; this gateway's LSS commands are {}", as_written_, kLssCommands));
+  p_.request.command = row->command;
+  if (auto e = network_level(row->word)) return *e;
+  return (this->*row->handle)(row->usage);
+}
+
+std::optional<std::uint32_t> LineParser::lss_u32(std::size_t i, std::uint64_t lo, std::uint64_t hi, const char* what) const {
+  std::string e;
+  const auto v = parse_unsigned(args_[i].text, lo, hi, what, e);
+  if (!v) return std::nullopt;
+  return static_cast<std::uint32_t>(*v);
+}
+
+// lss_store, lss_get_node, lss_ident_nonconf.
+Parsed LineParser::lss_no_args(const char* usage) {
+  if (!args_.empty()) return lss_bad(usage);
+  return p_;
+}
+
+Parsed LineParser::lss_switch_global(const char* usage) {
+  if (args_.size() != 1) return lss_bad(usage);
+  const auto v = lss_u32(0, 0, 1, "mode");
+  if (!v) return lss_bad(usage);
+  p_.request.value = *v;
+  return p_;
+}
+
+Parsed LineParser::lss_switch_selective(const char* usage) {
+  if (args_.size() != 4) return lss_bad(usage);
+  for (std::size_t i = 0; i < 4; ++i) {
+    const auto v = lss_u32(i, 0, 0xFFFFFFFF, "LSS address part");
+    if (!v) return lss_not_32_bit(i, usage);
+    p_.request.address[i] = *v;
+  }
+  return p_;
+}
+
+Parsed LineParser::lss_set_node(const char* usage) {
+  if (args_.size() != 1) return lss_bad(usage);
+  const auto v = lss_u32(0, 1, 255, "node-ID");
+  if (!v || (*v > 127 && *v != 255)) return fail(GatewayError::Syntax, fmt::format("node-ID '{}': 1..127, or 255 (none)", args_[0].text));
+  p_.request.value = *v;
+  return p_;
+}
+
+Parsed LineParser::lss_conf_bitrate(const char* usage) {
+  if (args_.size() != 2) return lss_bad(usage);
+  const auto table_selector = lss_u32(0, 0, 0xFF, "table selector");
+  if (!table_selector) return lss_bad(usage);
+  if (*table_selector != 0)
+    return fail(GatewayError::LssBitRateNotSupported,
+                fmt::format("table selector {}: only 0, the CiA 305 standard table", *table_selector));
+  const auto index = lss_u32(1, 0, 0xFF, "table index");
+  if (!index) return lss_bad(usage);
+  if (!lss::standard_bit_rate_kbit(static_cast<std::uint8_t>(*index)))
+    return fail(GatewayError::LssBitRateNotSupported,
+                fmt::format("table index {} is not in the CiA 305 table (0 1000, 1 800, 2 500, 3 250, 4 125, "
+                            "6 50, 7 20, 8 10 kbit/s)",
+                            *index));
+  p_.request.value = *index;
+  return p_;
+}
+
+Parsed LineParser::lss_activate_bitrate(const char* usage) {
+  if (args_.size() != 1) return lss_bad(usage);
+  const auto v = lss_u32(0, 0, 0xFFFF, "switch delay");
+  if (!v) return lss_bad(usage);
+  p_.request.value = *v;
+  return p_;
+}
+
+Parsed LineParser::lss_inquire_address(const char* usage) {
+  if (args_.empty()) return p_;
+  if (args_.size() != 1) return lss_bad(usage);
+  const auto v = lss_u32(0, 0, 0xFF, "part");
+  if (v && *v <= 3) p_.request.lss_part = static_cast<std::uint8_t>(*v);
+  else if (v && *v >= lss::cs::kInquireVendor && *v <= lss::cs::kInquireSerial)
+    p_.request.lss_part = static_cast<std::uint8_t>(*v - lss::cs::kInquireVendor);
+  else return lss_bad(usage);
+  return p_;
+}
+
+Parsed LineParser::lss_fastscan(const char* usage) {
+  Request& r = p_.request;
+  if (args_.empty()) return p_;
+  if (args_.size() == 8) {  // lely's form: value and mask of each part
+    std::array<std::uint32_t, 4> mask{};
+    for (std::size_t i = 0; i < 8; ++i) {
+      const auto v = lss_u32(i, 0, 0xFFFFFFFF, "LSS address part");
+      if (!v) return lss_not_32_bit(i, usage);
+      (i % 2 == 0 ? r.address[i / 2] : mask[i / 2]) = *v;
+    }
+    r.known_mask = mask;
+    return p_;
+  }
+  if (args_.size() != 1) return lss_bad(usage);
+  const auto v = lss_u32(0, 1, 0xFFFF, "time-out");
+  if (!v) return lss_bad(usage);
+  r.value = *v;
+  return p_;
+}
+
+// lss_identity, _lss_slowscan: vendor, product, revision low..high, serial low..high.
+Parsed LineParser::lss_range(const char* usage) {
+  Request& r = p_.request;
+  if (args_.size() != 6) return lss_bad(usage);
+  for (std::size_t i = 0; i < 6; ++i) {
+    const auto v = lss_u32(i, 0, 0xFFFFFFFF, "LSS address part");
+    if (!v) return lss_not_32_bit(i, usage);
+    r.range[i] = *v;
+  }
+  if (r.range[2] > r.range[3] || r.range[4] > r.range[5])
+    return fail(GatewayError::Syntax, "a range's low end above its high end (revision low..high, serial low..high)");
+  return p_;
+}
+
 }  // namespace
 
 Parsed parse(std::string_view line, const Defaults& defaults) {
@@ -333,294 +714,9 @@ Parsed parse(std::string_view line, const Defaults& defaults) {
     prefix.push_back(n->magnitude);
   }
   if (k == tokens.size()) return error(GatewayError::Syntax, "no command after the network and node numbers", seq);
-  const std::string cmd = lower(tokens[k].text);
-  const std::vector<Token> args(tokens.begin() + static_cast<std::ptrdiff_t>(k) + 1, tokens.end());
-
-  Parsed p;
-  p.kind = Parsed::Kind::Ok;
-  Request& r = p.request;
-  r.sequence = seq;
-
-  // The network of a network-level command ([net] set node, [net] set sdo_timeout).
-  const auto network_level = [&](const char* what) -> std::optional<Parsed> {
-    if (prefix.size() > 1) return error(GatewayError::Syntax, fmt::format("'{}' takes a network number only, not a node", what), seq);
-    if (prefix.size() == 1) {
-      if (prefix[0] < 1 || prefix[0] > 127) return error(GatewayError::UnsupportedNet, fmt::format("network {} (1..127)", prefix[0]), seq);
-      r.network = static_cast<std::uint16_t>(prefix[0]);
-    } else if (defaults.network) {
-      r.network = *defaults.network;
-    } else {
-      return error(GatewayError::NoDefaultNet, "give the network before the command or `set network N` first", seq);
-    }
-    return std::nullopt;
-  };
-  // The network and node of a node-level command ([[net] node] r/w/NMT).
-  const auto node_level = [&]() -> std::optional<Parsed> {
-    std::optional<std::uint64_t> net, node;
-    if (prefix.size() == 2) {
-      net = prefix[0];
-      node = prefix[1];
-    } else if (prefix.size() == 1) {
-      node = prefix[0];
-    }
-    if (!net && defaults.network) net = *defaults.network;
-    if (!node && defaults.node) node = *defaults.node;
-    if (!net) return error(GatewayError::NoDefaultNet, "give the network and node before the command or `set network N` first", seq);
-    if (!node) return error(GatewayError::NoDefaultNode, "give the node before the command or `set node N` first", seq);
-    if (*net < 1 || *net > 127) return error(GatewayError::UnsupportedNet, fmt::format("network {} (1..127)", *net), seq);
-    if (*node < 1 || *node > 127) return error(GatewayError::UnsupportedNode, fmt::format("node {} (1..127)", *node), seq);
-    r.network = static_cast<std::uint16_t>(*net);
-    r.node = static_cast<std::uint8_t>(*node);
-    return std::nullopt;
-  };
-  const auto arg_count = [&](std::size_t n, const char* usage) -> std::optional<Parsed> {
-    if (args.size() != n) return error(GatewayError::Syntax, fmt::format("expected {}", usage), seq);
-    return std::nullopt;
-  };
-  const auto index_sub = [&]() -> std::optional<Parsed> {
-    std::string e;
-    const auto index = parse_unsigned(args[0].text, 0, 0xFFFF, "index", e);
-    if (!index) return error(GatewayError::Syntax, e, seq);
-    const auto sub = parse_unsigned(args[1].text, 0, 0xFF, "sub-index", e);
-    if (!sub) return error(GatewayError::Syntax, e, seq);
-    r.index = static_cast<std::uint16_t>(*index);
-    r.sub = static_cast<std::uint8_t>(*sub);
-    const auto type = parse_type(args[2].text);
-    if (!type) return error(GatewayError::Syntax, fmt::format("'{}' is no data type; one of {}", args[2].text, type_names()), seq);
-    r.type = *type;
-    return std::nullopt;
-  };
-
-  // CiA 309-3 LSS commands: `[net] lss_...`, the network only (CANopenNode's and lely's syntax).
-  const auto parse_lss = [&](const std::string& name, const std::string& as_written, const std::vector<Token>& a) -> Parsed {
-    const auto u32 = [&](std::size_t i, std::uint64_t lo, std::uint64_t hi, const char* what) -> std::optional<std::uint32_t> {
-      std::string e;
-      const auto v = parse_unsigned(a[i].text, lo, hi, what, e);
-      if (!v) return std::nullopt;
-      return static_cast<std::uint32_t>(*v);
-    };
-    const auto bad = [&](const char* usage) { return error(GatewayError::Syntax, fmt::format("expected {}", usage), seq); };
-    const struct {
-      const char* word;
-      Command command;
-      const char* usage;
-    } table[] = {{"lss_switch_glob", Command::LssSwitchGlobal, "lss_switch_glob 0|1 (0 waiting, 1 configuration)"},
-                 {"lss_switch_sel", Command::LssSwitchSelective, "lss_switch_sel <vendor-ID> <product code> <revision> <serial>"},
-                 {"lss_set_node", Command::LssSetNode, "lss_set_node <node-ID 1..127, or 255: none>"},
-                 {"lss_conf_bitrate", Command::LssConfBitrate,
-                  "lss_conf_bitrate 0 <table index: 0 1000, 1 800, 2 500, 3 250, 4 125, 6 50, 7 20, 8 10 kbit/s>"},
-                 {"lss_activate_bitrate", Command::LssActivateBitrate, "lss_activate_bitrate <switch delay in ms, 0..65535>"},
-                 {"lss_store", Command::LssStore, "lss_store"},
-                 {"lss_inquire_addr", Command::LssInquireAddress,
-                  "lss_inquire_addr [<part: 0..3 or 0x5A..0x5D (vendor, product, revision, serial)>]"},
-                 {"lss_get_node", Command::LssGetNode, "lss_get_node"},
-                 {"lss_ident_nonconf", Command::LssIdentNonConfigured, "lss_ident_nonconf"},
-                 {"_lss_fastscan", Command::LssFastscan,
-                  "_lss_fastscan [<step time-out in ms, 1..65535>], or lely's _lss_fastscan <vendor-ID> <mask> <product "
-                  "code> <mask> <revision> <mask> <serial> <mask> (a mask's 1 bits are known)"},
-                 {"lss_identity", Command::LssIdentity,
-                  "lss_identity <vendor-ID> <product code> <revision low> <revision high> <serial low> <serial high>"},
-                 {"_lss_slowscan", Command::LssSlowscan,
-                  "_lss_slowscan <vendor-ID> <product code> <revision low> <revision high> <serial low> <serial high>"}};
-    const auto* row = std::find_if(std::begin(table), std::end(table), [&](const auto& t) { return name == t.word; });
-    if (row == std::end(table))
-      return error(GatewayError::RequestNotSupported,
-                   fmt::format("no command '{}'; this gateway's LSS commands are {}", as_written, kLssCommands), seq);
-    r.command = row->command;
-    if (auto e = network_level(row->word)) return *e;
-    switch (r.command) {
-      case Command::LssSwitchGlobal: {
-        if (a.size() != 1) return bad(row->usage);
-        const auto v = u32(0, 0, 1, "mode");
-        if (!v) return bad(row->usage);
-        r.value = *v;
-        return p;
-      }
-      case Command::LssSwitchSelective:
-        if (a.size() != 4) return bad(row->usage);
-        for (std::size_t i = 0; i < 4; ++i) {
-          const auto v = u32(i, 0, 0xFFFFFFFF, "LSS address part");
-          if (!v) return error(GatewayError::Syntax, fmt::format("'{}' is no 32-bit number; expected {}", a[i].text, row->usage), seq);
-          r.address[i] = *v;
-        }
-        return p;
-      case Command::LssSetNode: {
-        if (a.size() != 1) return bad(row->usage);
-        const auto v = u32(0, 1, 255, "node-ID");
-        if (!v || (*v > 127 && *v != 255))
-          return error(GatewayError::Syntax, fmt::format("node-ID '{}': 1..127, or 255 (none)", a[0].text), seq);
-        r.value = *v;
-        return p;
-      }
-      case Command::LssConfBitrate: {
-        if (a.size() != 2) return bad(row->usage);
-        const auto table_selector = u32(0, 0, 0xFF, "table selector");
-        if (!table_selector) return bad(row->usage);
-        if (*table_selector != 0)
-          return error(GatewayError::LssBitRateNotSupported,
-                       fmt::format("table selector {}: only 0, the CiA 305 standard table", *table_selector), seq);
-        const auto index = u32(1, 0, 0xFF, "table index");
-        if (!index) return bad(row->usage);
-        if (!lss::standard_bit_rate_kbit(static_cast<std::uint8_t>(*index)))
-          return error(GatewayError::LssBitRateNotSupported,
-                       fmt::format("table index {} is not in the CiA 305 table (0 1000, 1 800, 2 500, 3 250, 4 125, "
-                                   "6 50, 7 20, 8 10 kbit/s)",
-                                   *index),
-                       seq);
-        r.value = *index;
-        return p;
-      }
-      case Command::LssActivateBitrate: {
-        if (a.size() != 1) return bad(row->usage);
-        const auto v = u32(0, 0, 0xFFFF, "switch delay");
-        if (!v) return bad(row->usage);
-        r.value = *v;
-        return p;
-      }
-      case Command::LssInquireAddress: {
-        if (a.empty()) return p;
-        if (a.size() != 1) return bad(row->usage);
-        const auto v = u32(0, 0, 0xFF, "part");
-        if (v && *v <= 3) r.lss_part = static_cast<std::uint8_t>(*v);
-        else if (v && *v >= lss::cs::kInquireVendor && *v <= lss::cs::kInquireSerial)
-          r.lss_part = static_cast<std::uint8_t>(*v - lss::cs::kInquireVendor);
-        else return bad(row->usage);
-        return p;
-      }
-      case Command::LssFastscan: {
-        if (a.empty()) return p;
-        if (a.size() == 8) {  // lely's form: value and mask of each part
-          std::array<std::uint32_t, 4> mask{};
-          for (std::size_t i = 0; i < 8; ++i) {
-            const auto v = u32(i, 0, 0xFFFFFFFF, "LSS address part");
-            if (!v) return error(GatewayError::Syntax, fmt::format("'{}' is no 32-bit number; expected {}", a[i].text, row->usage), seq);
-            (i % 2 == 0 ? r.address[i / 2] : mask[i / 2]) = *v;
-          }
-          r.known_mask = mask;
-          return p;
-        }
-        if (a.size() != 1) return bad(row->usage);
-        const auto v = u32(0, 1, 0xFFFF, "time-out");
-        if (!v) return bad(row->usage);
-        r.value = *v;
-        return p;
-      }
-      case Command::LssIdentity:
-      case Command::LssSlowscan: {
-        if (a.size() != 6) return bad(row->usage);
-        for (std::size_t i = 0; i < 6; ++i) {
-          const auto v = u32(i, 0, 0xFFFFFFFF, "LSS address part");
-          if (!v) return error(GatewayError::Syntax, fmt::format("'{}' is no 32-bit number; expected {}", a[i].text, row->usage), seq);
-          r.range[i] = *v;
-        }
-        if (r.range[2] > r.range[3] || r.range[4] > r.range[5])
-          return error(GatewayError::Syntax, "a range's low end above its high end (revision low..high, serial low..high)", seq);
-        return p;
-      }
-      default:
-        if (!a.empty()) return bad(row->usage);
-        return p;
-    }
-  };
-
-  if (cmd == "r" || cmd == "read") {
-    r.command = Command::Read;
-    if (auto e = node_level()) return *e;
-    if (auto e = arg_count(3, "r[ead] <index> <sub-index> <data type>")) return *e;
-    if (auto e = index_sub()) return *e;
-    return p;
-  }
-  if (cmd == "w" || cmd == "write") {
-    r.command = Command::Write;
-    if (auto e = node_level()) return *e;
-    if (args.size() < 4) return error(GatewayError::Syntax, "expected w[rite] <index> <sub-index> <data type> <value>", seq);
-    if (auto e = index_sub()) return *e;
-    std::string value;
-    if (r.type == DataType::VS && args[3].quoted) {
-      if (args.size() != 4) return error(GatewayError::Syntax, "text after the quoted vs value", seq);
-      value = args[3].text;
-    } else if (r.type == DataType::VS) {
-      // Unquoted words are one string, joined by single spaces; quote it to keep spaces.
-      for (std::size_t i = 3; i < args.size(); ++i) {
-        if (args[i].quoted) return error(GatewayError::Syntax, "a vs value is one quoted string or unquoted words", seq);
-        value += (i == 3 ? "" : " ") + args[i].text;
-      }
-    } else {
-      if (args.size() != 4) return error(GatewayError::Syntax, fmt::format("a {} value is one token; text follows '{}'", to_string(r.type), args[3].text), seq);
-      value = args[3].text;
-    }
-    std::string e;
-    auto data = encode(r.type, value, e);
-    if (!data) return error(GatewayError::Syntax, e, seq);
-    r.data = std::move(*data);
-    return p;
-  }
-  const struct {
-    const char* word;
-    const char* second;  // nullptr: none
-    Command command;
-  } nmt[] = {{"start", nullptr, Command::Start},
-             {"stop", nullptr, Command::Stop},
-             {"preop", nullptr, Command::PreOperational},
-             {"preoperational", nullptr, Command::PreOperational},
-             {"reset", "node", Command::ResetNode},
-             {"reset", "comm", Command::ResetCommunication},
-             {"reset", "communication", Command::ResetCommunication}};
-  for (const auto& n : nmt) {
-    if (cmd != n.word) continue;
-    if (n.second != nullptr && (args.empty() || lower(args[0].text) != n.second)) continue;
-    r.command = n.command;
-    if (!prefix.empty() && prefix.back() == 0)
-      return error(GatewayError::RequestNotSupported, "node 0 (all nodes): name each node", seq);
-    if (auto e = node_level()) return *e;
-    if (args.size() != (n.second != nullptr ? 1u : 0u)) return error(GatewayError::Syntax, fmt::format("text after '{}'", cmd), seq);
-    return p;
-  }
-  if (cmd == "reset") return error(GatewayError::Syntax, "expected `reset node` or `reset comm[unication]`", seq);
-  if (cmd == "set") {
-    if (args.empty()) return error(GatewayError::Syntax, "expected set network|node|sdo_timeout <value>", seq);
-    const std::string what = lower(args[0].text);
-    if (args.size() != 2) return error(GatewayError::Syntax, fmt::format("expected set {} <value>", what), seq);
-    std::string e;
-    if (what == "network") {
-      r.command = Command::SetNetwork;
-      if (!prefix.empty()) return error(GatewayError::Syntax, "`set network` takes no network or node before it", seq);
-      const auto v = parse_unsigned(args[1].text, 1, 127, "network", e);
-      if (!v) return error(GatewayError::Syntax, e, seq);
-      r.value = static_cast<std::uint32_t>(*v);
-      return p;
-    }
-    if (what == "node") {
-      r.command = Command::SetNode;
-      if (auto err = network_level("set node")) return *err;
-      const auto v = parse_unsigned(args[1].text, 1, 127, "node", e);
-      if (!v) return error(GatewayError::Syntax, e, seq);
-      r.value = static_cast<std::uint32_t>(*v);
-      return p;
-    }
-    if (what == "sdo_timeout") {
-      r.command = Command::SetSdoTimeout;
-      if (auto err = network_level("set sdo_timeout")) return *err;
-      const auto v = parse_unsigned(args[1].text, 1, 0xFFFF, "SDO time-out in ms", e);
-      if (!v) return error(GatewayError::Syntax, e, seq);
-      r.value = static_cast<std::uint32_t>(*v);
-      return p;
-    }
-    return error(GatewayError::RequestNotSupported, fmt::format("`set {}`; this gateway has set network, set node, set sdo_timeout", what), seq);
-  }
-  if (cmd == "info") {
-    r.command = Command::InfoVersion;
-    if (args.size() != 1 || lower(args[0].text) != "version")
-      return error(GatewayError::RequestNotSupported, "`info` has `info version` only", seq);
-    if (!prefix.empty()) return error(GatewayError::Syntax, "`info version` takes no network or node before it", seq);
-    return p;
-  }
-  if (cmd.starts_with("lss_") || cmd.starts_with("_lss_")) return parse_lss(cmd, tokens[k].text, args);
-  return error(GatewayError::RequestNotSupported,
-               fmt::format("no command '{}'; this gateway has r[ead], w[rite], start, stop, preop[erational], reset node, "
-                           "reset comm[unication], set network, set node, set sdo_timeout, info version, {}",
-                           tokens[k].text, kLssCommands),
-               seq);
+  return LineParser(defaults, seq, std::move(prefix), tokens[k],
+                    std::vector<Token>(tokens.begin() + static_cast<std::ptrdiff_t>(k) + 1, tokens.end()))
+      .run();
 }
 
 std::string answer_ok(std::uint32_t seq) { return fmt::format("[{}] OK", seq); }

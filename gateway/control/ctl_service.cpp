@@ -199,15 +199,32 @@ json lss_failure(const canopen::LssMaster::Result& r, const char* what, int refu
 
 }  // namespace
 
+// One `lss` request on its way to the LSS master: what its sub-command's handler needs.
+struct CtlService::LssCall {
+  const json& request;
+  subdevices::NetworkManager& network;
+  canopen::LssMaster& master;
+  canopen::TimePoint now;
+  std::weak_ptr<bool> alive;
+  std::function<void(json)> done;    // answers now (a refusal before the master is asked)
+  std::function<void(json)> answer;  // answers unless the service is ending (its destructor cancels a fastscan) or gone
+
+  // The master's result as the answer: {} when done, else the CiA 309-3 error (lss_failure).
+  [[nodiscard]] canopen::LssMaster::Callback ok_or(const char* what, int refused_code, int second_code = 0) const {
+    return [answer = answer, what, refused_code, second_code](const canopen::LssMaster::Result& res) {
+      answer(res.status == canopen::LssMaster::Status::Ok ? json::object()
+                                                          : lss_failure(res, what, refused_code, second_code));
+    };
+  }
+};
+
 void CtlService::lss(const json& r, ControlProtocol::Done first_done) {
-  using Status = canopen::LssMaster::Status;
   // One answer per request, whoever gives it first: the LSS master's result, or a reload
   // (unhook) that ends the gateway whose master would have given it.
   std::erase_if(lss_pending_, [](const auto& p) { return !*p; });
   auto pending = std::make_shared<ControlProtocol::Done>(std::move(first_done));
   lss_pending_.push_back(pending);
   auto done = [pending](json j) { answer_once(*pending, std::move(j)); };
-  using canopen::LssMaster;
   const auto net = request_field(r, "network", 1, 127);
   const auto it = r.find("service");
   if (it == r.end() || !it->is_string())
@@ -222,141 +239,203 @@ void CtlService::lss(const json& r, ControlProtocol::Done first_done) {
   if (net != config_->downstream.network_id)
     return done(unknown_network(*config_, net));
   auto& network = gw_->downstream();
-  LssMaster* master = network.client_lss();
+  canopen::LssMaster* master = network.client_lss();
   if (master == nullptr)
     return done(gateway_error(102, "the gateway is commissioning a device by LSS itself; try again when it is done"));
-  const canopen::TimePoint now = loop_.now();
   const std::weak_ptr<bool> alive = alive_;
-  // Answers, unless the service is ending (its destructor cancels a fastscan) or gone.
-  auto answer = [alive, done](json j) {
-    if (const auto a = alive.lock(); !a || !*a) return;
-    done(std::move(j));
-  };
-  auto ok_or = [answer](const char* what, int refused_code, int second_code = 0) {
-    return [answer, what, refused_code, second_code](const LssMaster::Result& res) {
-      answer(res.status == Status::Ok ? json::object() : lss_failure(res, what, refused_code, second_code));
-    };
-  };
+  const LssCall call{r, network, *master, loop_.now(), alive, done, [alive, done](json j) {
+                       if (const auto a = alive.lock(); !a || !*a) return;
+                       done(std::move(j));
+                     }};
   gw_->log_control(fmt::format("LSS {} on network {}", s, net));
-  if (s == "switch_global") {
-    const auto mode = request_field(r, "mode", 0, 1);
-    master->switch_state_global(mode == 1 ? canopen::lss::Mode::Configuration : canopen::lss::Mode::Waiting, now,
-                                ok_or("switch state global", 102));
-  } else if (s == "switch_selective") {
-    const auto v = u32_list<4>(r, "address", kAddressParts);
-    master->switch_state_selective({v[0], v[1], v[2], v[3]}, now, ok_or("switch state selective", 102));
-  } else if (s == "set_node") {
-    const auto node = request_field(r, "node", 1, 255);
-    if (node > 127 && node != 255) throw std::invalid_argument("\"node\": expected 1..127, or 255 (none)");
-    // A node-ID a configured sub-device uses while it is on the bus would collide at the next
-    // reset communication: refused while the network manager has proof of it (starting after
-    // its configuration, operational, or refused for what it answered). A missing node cycles
-    // through missing, waiting for boot-up and configuring (asking its identity, unanswered):
-    // its node-ID may be given — that is how a replacement device gets the node-ID the mapping
-    // file expects.
-    for (const auto& sub : config_->subdevices) {
-      if (sub.node_id != node) continue;
-      const auto st = network.state(sub.name);
-      if (st == subdevices::NodeState::Operational || st == subdevices::NodeState::Starting ||
-          st == subdevices::NodeState::Refused)
-        return done(gateway_error(102, fmt::format("node-ID {} is {}'s, which is on the bus ({}); only a sub-device the "
-                                                   "gateway holds missing gives its node-ID away",
-                                                   node, sub.name, subdevices::to_string(st))));
+  // A handler per sub-command; each answers true when it asked the master (the loop is rearmed).
+  static const struct {
+    const char* service;
+    bool (CtlService::*handle)(const LssCall&);
+  } kServices[] = {{"switch_global", &CtlService::lss_switch_global},
+                   {"switch_selective", &CtlService::lss_switch_selective},
+                   {"set_node", &CtlService::lss_set_node},
+                   {"conf_bitrate", &CtlService::lss_conf_bitrate},
+                   {"activate_bitrate", &CtlService::lss_activate_bitrate},
+                   {"store", &CtlService::lss_store},
+                   {"inquire_node", &CtlService::lss_inquire_node},
+                   {"inquire_address", &CtlService::lss_inquire_address},
+                   {"identify_non_configured", &CtlService::lss_identify_non_configured},
+                   {"fastscan", &CtlService::lss_fastscan},
+                   {"identify_remote", &CtlService::lss_identify_remote},
+                   {"slowscan", &CtlService::lss_slowscan}};
+  const auto* row = std::find_if(std::begin(kServices), std::end(kServices), [&](const auto& e) { return s == e.service; });
+  if (row == std::end(kServices)) throw std::invalid_argument("\"service\": '" + s + "' is no LSS service of this gateway");
+  if ((this->*row->handle)(call) && rearm_) rearm_();
+}
+
+bool CtlService::lss_switch_global(const LssCall& c) {
+  const auto mode = request_field(c.request, "mode", 0, 1);
+  c.master.switch_state_global(mode == 1 ? canopen::lss::Mode::Configuration : canopen::lss::Mode::Waiting, c.now,
+                               c.ok_or("switch state global", 102));
+  return true;
+}
+
+bool CtlService::lss_switch_selective(const LssCall& c) {
+  const auto v = u32_list<4>(c.request, "address", kAddressParts);
+  c.master.switch_state_selective({v[0], v[1], v[2], v[3]}, c.now, c.ok_or("switch state selective", 102));
+  return true;
+}
+
+bool CtlService::lss_set_node(const LssCall& c) {
+  const auto node = request_field(c.request, "node", 1, 255);
+  if (node > 127 && node != 255) throw std::invalid_argument("\"node\": expected 1..127, or 255 (none)");
+  // A node-ID a configured sub-device uses while it is on the bus would collide at the next
+  // reset communication: refused while the network manager has proof of it (starting after
+  // its configuration, operational, or refused for what it answered). A missing node cycles
+  // through missing, waiting for boot-up and configuring (asking its identity, unanswered):
+  // its node-ID may be given — that is how a replacement device gets the node-ID the mapping
+  // file expects.
+  for (const auto& sub : config_->subdevices) {
+    if (sub.node_id != node) continue;
+    const auto st = c.network.state(sub.name);
+    if (st == subdevices::NodeState::Operational || st == subdevices::NodeState::Starting ||
+        st == subdevices::NodeState::Refused) {
+      c.done(gateway_error(102, fmt::format("node-ID {} is {}'s, which is on the bus ({}); only a sub-device the "
+                                            "gateway holds missing gives its node-ID away",
+                                            node, sub.name, subdevices::to_string(st))));
+      return false;
     }
-    master->configure_node_id(canopen::NodeId{static_cast<std::uint8_t>(node)}, now, ok_or("configure node-ID", 502));
-  } else if (s == "conf_bitrate") {
-    const auto index = static_cast<std::uint8_t>(request_field(r, "table_index", 0, 255));
-    if (!canopen::lss::standard_bit_rate_kbit(index))
-      return done(gateway_error(503, fmt::format("table index {} is not in the CiA 305 table", index)));
-    master->configure_bit_timing(index, now, ok_or("configure bit timing", 503));
-  } else if (s == "activate_bitrate") {
-    const auto delay = static_cast<std::uint16_t>(request_field(r, "delay_ms", 0, 0xFFFF));
-    master->activate_bit_timing(delay, now, ok_or("activate bit timing", 102));
-  } else if (s == "store") {
-    master->store_configuration(now, ok_or("store configuration", 504, 505));
-  } else if (s == "inquire_node") {
-    master->inquire(LssMaster::Inquiry::NodeId, now, [answer](const LssMaster::Result& res) {
-      answer(res.status == Status::Ok ? json{{"node", res.value}} : lss_failure(res, "inquire node-ID", 102));
+  }
+  c.master.configure_node_id(canopen::NodeId{static_cast<std::uint8_t>(node)}, c.now, c.ok_or("configure node-ID", 502));
+  return true;
+}
+
+bool CtlService::lss_conf_bitrate(const LssCall& c) {
+  const auto index = static_cast<std::uint8_t>(request_field(c.request, "table_index", 0, 255));
+  if (!canopen::lss::standard_bit_rate_kbit(index)) {
+    c.done(gateway_error(503, fmt::format("table index {} is not in the CiA 305 table", index)));
+    return false;
+  }
+  c.master.configure_bit_timing(index, c.now, c.ok_or("configure bit timing", 503));
+  return true;
+}
+
+bool CtlService::lss_activate_bitrate(const LssCall& c) {
+  const auto delay = static_cast<std::uint16_t>(request_field(c.request, "delay_ms", 0, 0xFFFF));
+  c.master.activate_bit_timing(delay, c.now, c.ok_or("activate bit timing", 102));
+  return true;
+}
+
+bool CtlService::lss_store(const LssCall& c) {
+  c.master.store_configuration(c.now, c.ok_or("store configuration", 504, 505));
+  return true;
+}
+
+bool CtlService::lss_inquire_node(const LssCall& c) {
+  c.master.inquire(canopen::LssMaster::Inquiry::NodeId, c.now, [answer = c.answer](const canopen::LssMaster::Result& res) {
+    answer(res.status == canopen::LssMaster::Status::Ok ? json{{"node", res.value}}
+                                                        : lss_failure(res, "inquire node-ID", 102));
+  });
+  return true;
+}
+
+bool CtlService::lss_inquire_address(const LssCall& c) {
+  using canopen::LssMaster;
+  using Status = LssMaster::Status;
+  static constexpr LssMaster::Inquiry kParts[] = {LssMaster::Inquiry::Vendor, LssMaster::Inquiry::Product,
+                                                 LssMaster::Inquiry::Revision, LssMaster::Inquiry::Serial};
+  if (c.request.contains("part")) {
+    const auto part = request_field(c.request, "part", 0, 3);
+    c.master.inquire(kParts[part], c.now, [answer = c.answer](const LssMaster::Result& res) {
+      answer(res.status == Status::Ok ? json{{"value", res.value}} : lss_failure(res, "inquire identity", 102));
     });
-  } else if (s == "inquire_address") {
-    static constexpr LssMaster::Inquiry kParts[] = {LssMaster::Inquiry::Vendor, LssMaster::Inquiry::Product,
-                                                   LssMaster::Inquiry::Revision, LssMaster::Inquiry::Serial};
-    if (r.contains("part")) {
-      const auto part = request_field(r, "part", 0, 3);
-      master->inquire(kParts[part], now, [answer](const LssMaster::Result& res) {
-        answer(res.status == Status::Ok ? json{{"value", res.value}} : lss_failure(res, "inquire identity", 102));
-      });
-    } else {
-      // The four inquiries queued at once (CiA 305 5Ah..5Dh); answered after the last, or at the
-      // first that fails.
-      auto got = std::make_shared<std::vector<std::uint32_t>>();
-      auto failed = std::make_shared<bool>(false);
-      for (const auto part : kParts) {
-        master->inquire(part, now, [answer, got, failed](const LssMaster::Result& res) {
-          if (*failed) return;
-          if (res.status != Status::Ok) {
-            *failed = true;
-            return answer(lss_failure(res, "inquire identity", 102));
-          }
-          got->push_back(res.value);
-          if (got->size() == 4) answer(json{{"address", *got}});
-        });
+    return true;
+  }
+  // The four inquiries queued at once (CiA 305 5Ah..5Dh); answered after the last, or at the
+  // first that fails.
+  auto got = std::make_shared<std::vector<std::uint32_t>>();
+  auto failed = std::make_shared<bool>(false);
+  for (const auto part : kParts) {
+    c.master.inquire(part, c.now, [answer = c.answer, got, failed](const LssMaster::Result& res) {
+      if (*failed) return;
+      if (res.status != Status::Ok) {
+        *failed = true;
+        return answer(lss_failure(res, "inquire identity", 102));
       }
-    }
-  } else if (s == "identify_non_configured") {
-    master->identify_non_configured(now, [answer](const LssMaster::Result& res) {
-      answer(res.status == Status::Ok
-                 ? json::object()
-                 : gateway_error(103, "no LSS slave without node-ID answered identify non-configured remote slave"));
+      got->push_back(res.value);
+      if (got->size() == 4) answer(json{{"address", *got}});
     });
-  } else if (s == "fastscan") {
-    auto* fastscan = network.client_fastscan();
-    if (network.client_scan_running()) return done(gateway_error(102, "a fastscan or slowscan of another client is running"));
-    std::optional<canopen::Duration> step;
-    if (r.contains("timeout_ms")) step = std::chrono::milliseconds(request_field(r, "timeout_ms", 1, 0xFFFF));
-    canopen::LssFastscan::Known known;
-    if (r.contains("known") || r.contains("mask")) {
-      const auto value = u32_list<4>(r, "known", kAddressParts);
-      known.value = {value[0], value[1], value[2], value[3]};
-      known.mask = u32_list<4>(r, "mask", kAddressParts);
-    }
-    fastscan_client_ = true;
-    fastscan->start(
-        now,
-        [this, alive, answer](const canopen::LssFastscan::Result& f) {
-          if (alive.expired()) return;
-          fastscan_client_ = false;  // (the destructor is still running when it cancels)
-          if (f.address)
-            return answer(json{{"address", {f.address->vendor, f.address->product, f.address->revision, f.address->serial}}});
-          answer(gateway_error(f.outcome == canopen::LssFastscan::Outcome::Cancelled ? 102 : 103, f.note));
-        },
-        step, known);
-  } else if (s == "identify_remote" || s == "slowscan") {
-    const auto v = u32_list<6>(r, "range", "vendor, product, revision low, high, serial low, high");
-    const canopen::lss::AddressRange range{v[0], v[1], v[2], v[3], v[4], v[5]};
-    if (s == "identify_remote") {
-      master->identify_remote_slave(range, now, [answer](const LssMaster::Result& res) {
-        answer(res.status == Status::Ok
-                   ? json::object()
-                   : gateway_error(103, "no LSS slave in the range answered identify remote slave"));
-      });
-    } else {
-      auto* slowscan = network.client_slowscan();
-      if (network.client_scan_running())
-        return done(gateway_error(102, "a fastscan or slowscan of another client is running"));
-      slowscan_client_ = true;
-      slowscan->start(range, now, [this, alive, answer](const canopen::LssSlowscan::Result& f) {
+  }
+  return true;
+}
+
+bool CtlService::lss_identify_non_configured(const LssCall& c) {
+  c.master.identify_non_configured(c.now, [answer = c.answer](const canopen::LssMaster::Result& res) {
+    answer(res.status == canopen::LssMaster::Status::Ok
+               ? json::object()
+               : gateway_error(103, "no LSS slave without node-ID answered identify non-configured remote slave"));
+  });
+  return true;
+}
+
+bool CtlService::lss_fastscan(const LssCall& c) {
+  const json& r = c.request;
+  auto* fastscan = c.network.client_fastscan();
+  if (c.network.client_scan_running()) {
+    c.done(gateway_error(102, "a fastscan or slowscan of another client is running"));
+    return false;
+  }
+  std::optional<canopen::Duration> step;
+  if (r.contains("timeout_ms")) step = std::chrono::milliseconds(request_field(r, "timeout_ms", 1, 0xFFFF));
+  canopen::LssFastscan::Known known;
+  if (r.contains("known") || r.contains("mask")) {
+    const auto value = u32_list<4>(r, "known", kAddressParts);
+    known.value = {value[0], value[1], value[2], value[3]};
+    known.mask = u32_list<4>(r, "mask", kAddressParts);
+  }
+  fastscan_client_ = true;
+  fastscan->start(
+      c.now,
+      [this, alive = c.alive, answer = c.answer](const canopen::LssFastscan::Result& f) {
         if (alive.expired()) return;
-        slowscan_client_ = false;
+        fastscan_client_ = false;  // (the destructor is still running when it cancels)
         if (f.address)
           return answer(json{{"address", {f.address->vendor, f.address->product, f.address->revision, f.address->serial}}});
-        answer(gateway_error(f.outcome == canopen::LssSlowscan::Outcome::Cancelled ? 102 : 103, f.note));
-      });
-    }
-  } else {
-    throw std::invalid_argument("\"service\": '" + s + "' is no LSS service of this gateway");
+        answer(gateway_error(f.outcome == canopen::LssFastscan::Outcome::Cancelled ? 102 : 103, f.note));
+      },
+      step, known);
+  return true;
+}
+
+namespace {
+// identify_remote's and slowscan's range (CiA 305 46h..4Bh).
+canopen::lss::AddressRange lss_range(const json& r) {
+  const auto v = u32_list<6>(r, "range", "vendor, product, revision low, high, serial low, high");
+  return canopen::lss::AddressRange{v[0], v[1], v[2], v[3], v[4], v[5]};
+}
+}  // namespace
+
+bool CtlService::lss_identify_remote(const LssCall& c) {
+  c.master.identify_remote_slave(lss_range(c.request), c.now, [answer = c.answer](const canopen::LssMaster::Result& res) {
+    answer(res.status == canopen::LssMaster::Status::Ok
+               ? json::object()
+               : gateway_error(103, "no LSS slave in the range answered identify remote slave"));
+  });
+  return true;
+}
+
+bool CtlService::lss_slowscan(const LssCall& c) {
+  const auto range = lss_range(c.request);
+  auto* slowscan = c.network.client_slowscan();
+  if (c.network.client_scan_running()) {
+    c.done(gateway_error(102, "a fastscan or slowscan of another client is running"));
+    return false;
   }
-  if (rearm_) rearm_();
+  slowscan_client_ = true;
+  slowscan->start(range, c.now, [this, alive = c.alive, answer = c.answer](const canopen::LssSlowscan::Result& f) {
+    if (alive.expired()) return;
+    slowscan_client_ = false;
+    if (f.address)
+      return answer(json{{"address", {f.address->vendor, f.address->product, f.address->revision, f.address->serial}}});
+    answer(gateway_error(f.outcome == canopen::LssSlowscan::Outcome::Cancelled ? 102 : 103, f.note));
+  });
+  return true;
 }
 
 void CtlService::sdo(const json& r, bool write, ControlProtocol::Done done) {

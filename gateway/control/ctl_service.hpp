@@ -64,6 +64,21 @@ class CtlService {
   void sdo(const nlohmann::json& request, bool write, ControlProtocol::Done done);
   nlohmann::json nmt(const nlohmann::json& request);
   void lss(const nlohmann::json& request, ControlProtocol::Done done);
+  // A handler per LSS sub-command (CiA 309-3 lss_*, CiA 305 services): true when it asked the
+  // LSS master, false when it answered at once.
+  struct LssCall;
+  bool lss_switch_global(const LssCall& call);
+  bool lss_switch_selective(const LssCall& call);
+  bool lss_set_node(const LssCall& call);
+  bool lss_conf_bitrate(const LssCall& call);
+  bool lss_activate_bitrate(const LssCall& call);
+  bool lss_store(const LssCall& call);
+  bool lss_inquire_node(const LssCall& call);
+  bool lss_inquire_address(const LssCall& call);
+  bool lss_identify_non_configured(const LssCall& call);
+  bool lss_fastscan(const LssCall& call);
+  bool lss_identify_remote(const LssCall& call);
+  bool lss_slowscan(const LssCall& call);
   nlohmann::json info() const;
   nlohmann::json events(const nlohmann::json& request) const;
   void record(nlohmann::json event);

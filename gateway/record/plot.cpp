@@ -163,60 +163,11 @@ std::vector<std::pair<double, double>> PlotData::drawn(const std::vector<Point>&
   return thin(p, max_points);
 }
 
-bool PlotData::write_html(const std::filesystem::path& out, const std::string& title, std::string& error,
-                          const std::filesystem::path& chart_js, std::size_t max_points) const {
-  std::ifstream js(chart_js, std::ios::binary);
-  if (!js) {
-    error = fmt::format("{}: cannot be read: the plot draws with Chart.js from Debian's libjs-chart.js (apt-get install "
-                        "libjs-chart.js)",
-                        chart_js.string());
-    return false;
-  }
-  std::stringstream script;
-  script << js.rdbuf();
-  using nlohmann::json;
-  json data;
-  data["title"] = title;
-  data["t0"] = t0_;
-  data["end"] = last_;
-  json fes = json::array();
-  for (const auto& [fe, fields] : fields_) {
-    json series = json::array();
-    for (const auto& [field, pts] : fields) {
-      json xy = json::array();
-      for (const auto& [x, y] : drawn(pts, max_points)) xy.push_back(json::array({x, y}));
-      series.push_back(json{{"name", fe + "." + field}, {"points", xy}});
-    }
-    fes.push_back(json{{"fe", fe}, {"series", series}});
-  }
-  data["fes"] = fes;
-  json bands = json::array();
-  for (const PlacedBand& b : placed_bands())
-    bands.push_back(json{{"fe", b.fe}, {"on", b.on}, {"what", b.what}, {"from", b.from}, {"to", b.to}});
-  data["bands"] = bands;
-  json nodes = json::array();
-  for (const auto& [sub, pts] : nodes_) {
-    json xy = json::array();
-    for (const auto& p : pts) xy.push_back(json::array({p.t, p.v}));
-    if (!pts.empty()) xy.push_back(json::array({last_, pts.back().v}));
-    nodes.push_back(json{{"name", sub}, {"points", xy}});
-  }
-  data["nodes"] = nodes;
-  json markers = json::array();
-  for (const Marker& m : markers_) markers.push_back(json{{"t", m.t}, {"kind", m.kind}, {"text", m.text}});
-  data["markers"] = markers;
+namespace {
 
-  // "</script>" inside the data would end the script element: JSON allows "<\/".
-  std::string data_text = data.dump();
-  for (std::size_t p = 0; (p = data_text.find("</", p)) != std::string::npos; p += 3) data_text.replace(p, 2, "<\\/");
-
-  std::ostringstream f;
-  std::string escaped;
-  for (const char c : title) escaped += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : std::string(1, c);
-  f << R"html(<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8"><title>)html"
-    << escaped << R"html(</title>
-<style>
+// The page around Chart.js and the data: its style, its body, and the script that draws the
+// charts from the data (bands and markers by a small plugin: Chart.js 3 has no annotations).
+constexpr std::string_view kPageStyle = R"html(<style>
 body { font-family: sans-serif; margin: 1em; background: #fff; }
 h1 { font-size: 1.2em; } h2 { font-size: 1em; margin: 1.2em 0 0.2em; }
 .chart { position: relative; height: 220px; width: 100%; }
@@ -224,8 +175,8 @@ h1 { font-size: 1.2em; } h2 { font-size: 1em; margin: 1.2em 0 0.2em; }
 table { border-collapse: collapse; font-size: 0.85em; } td { padding: 1px 8px; border-bottom: 1px solid #eee; }
 </style>
 <script>
-)html" << script.str()
-    << R"html(
+)html";
+constexpr std::string_view kPageBody = R"html(
 </script>
 </head><body>
 <h1 id="title"></h1>
@@ -233,8 +184,8 @@ table { border-collapse: collapse; font-size: 0.85em; } td { padding: 1px 8px; b
 <div id="charts"></div>
 <h2>Events</h2><table id="events"></table>
 <pre id="check"></pre>
-<script id="oegw-data" type="application/json">)html"
-    << data_text << R"html(</script>
+<script id="oegw-data" type="application/json">)html";
+constexpr std::string_view kPageScript = R"html(</script>
 <script>
 (function () {
   const data = JSON.parse(document.getElementById('oegw-data').textContent);
@@ -306,6 +257,67 @@ table { border-collapse: collapse; font-size: 0.85em; } td { padding: 1px 8px; b
 </script>
 </body></html>
 )html";
+
+}  // namespace
+
+std::string PlotData::html_data(const std::string& title, std::size_t max_points) const {
+  using nlohmann::json;
+  json data;
+  data["title"] = title;
+  data["t0"] = t0_;
+  data["end"] = last_;
+  json fes = json::array();
+  for (const auto& [fe, fields] : fields_) {
+    json series = json::array();
+    for (const auto& [field, pts] : fields) {
+      json xy = json::array();
+      for (const auto& [x, y] : drawn(pts, max_points)) xy.push_back(json::array({x, y}));
+      series.push_back(json{{"name", fe + "." + field}, {"points", xy}});
+    }
+    fes.push_back(json{{"fe", fe}, {"series", series}});
+  }
+  data["fes"] = fes;
+  json bands = json::array();
+  for (const PlacedBand& b : placed_bands())
+    bands.push_back(json{{"fe", b.fe}, {"on", b.on}, {"what", b.what}, {"from", b.from}, {"to", b.to}});
+  data["bands"] = bands;
+  json nodes = json::array();
+  for (const auto& [sub, pts] : nodes_) {
+    json xy = json::array();
+    for (const auto& p : pts) xy.push_back(json::array({p.t, p.v}));
+    if (!pts.empty()) xy.push_back(json::array({last_, pts.back().v}));
+    nodes.push_back(json{{"name", sub}, {"points", xy}});
+  }
+  data["nodes"] = nodes;
+  json markers = json::array();
+  for (const Marker& m : markers_) markers.push_back(json{{"t", m.t}, {"kind", m.kind}, {"text", m.text}});
+  data["markers"] = markers;
+
+  // "</script>" inside the data would end the script element: JSON allows "<\/".
+  std::string data_text = data.dump();
+  for (std::size_t p = 0; (p = data_text.find("</", p)) != std::string::npos; p += 3) data_text.replace(p, 2, "<\\/");
+  return data_text;
+}
+
+bool PlotData::write_html(const std::filesystem::path& out, const std::string& title, std::string& error,
+                          const std::filesystem::path& chart_js, std::size_t max_points) const {
+  std::ifstream js(chart_js, std::ios::binary);
+  if (!js) {
+    error = fmt::format("{}: cannot be read: the plot draws with Chart.js from Debian's libjs-chart.js (apt-get install "
+                        "libjs-chart.js)",
+                        chart_js.string());
+    return false;
+  }
+  std::stringstream script;
+  script << js.rdbuf();
+  const std::string data_text = html_data(title, max_points);
+
+  std::ostringstream f;
+  std::string escaped;
+  for (const char c : title) escaped += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : std::string(1, c);
+  f << R"html(<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>)html"
+    << escaped << "</title>\n" << kPageStyle << script.str() << kPageBody << data_text << kPageScript;
   return write_plot_file(out, f.str(), error);
 }
 

@@ -74,6 +74,12 @@ class PlotData {
   // Each field's points held to the end and thinned.
   [[nodiscard]] std::vector<std::pair<double, double>> drawn(const std::vector<Point>& pts,
                                                              std::size_t max_points) const;
+  // write_html's data: the series, bands, nodes and markers as JSON, safe inside a script element.
+  [[nodiscard]] std::string html_data(const std::string& title, std::size_t max_points) const;
+  // write_svg's charts (one per FE, then the sub-devices') and the drawing of one at `top`.
+  struct SvgChart;
+  [[nodiscard]] std::vector<SvgChart> svg_charts(std::size_t max_points) const;
+  [[nodiscard]] std::string svg_chart(const SvgChart& c, double top, double end) const;
   [[nodiscard]] double seconds(std::int64_t wall_us);
   void close_band(std::map<std::string, std::pair<std::string, double>>& open, const std::string& key, double t,
                   const std::string& fe);
