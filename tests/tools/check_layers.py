@@ -26,8 +26,9 @@ LAYERS = {
     "subdevices": "drivers",         # oegw_drivers
     "subdevices/sim": "sim",         # oegw_sim
     "mapping": "mapping",            # oegw_mapping
-    "gateway/publish": "publish",    # oegw_publish
+    "publish": "publish",            # oegw_publish, oegw_lcm_url
     "gateway": "gateway",            # oegw_gateway: the daemon's library
+    "rig": "rig",                    # oegw_rig: the simulated cab
     "programs": "programs",          # oegw_programs and the executables
     "examples": "examples",          # the example subscribers: generated types only
     "tests": "tests",
@@ -44,9 +45,10 @@ RANK = {
     "publish": 3,
     "mapping": 4,
     "gateway": 5,
-    "programs": 6,
-    "examples": 6,
-    "tests": 7,
+    "rig": 6,
+    "programs": 7,
+    "examples": 7,
+    "tests": 8,
 }
 
 MAY = {
@@ -61,7 +63,10 @@ MAY = {
     "mapping": {"canopen", "cia401", "cia852", "drivers"},
     # The daemon runs no simulator.
     "gateway": {"canopen", "canopen/io", "cia401", "cia852", "drivers", "mapping", "publish"},
-    "programs": {"canopen", "canopen/io", "cia401", "cia852", "drivers", "sim", "mapping", "publish", "gateway"},
+    # The simulated cab: the daemon's library between simulators and a host, on virtual buses.
+    "rig": {"canopen", "canopen/io", "cia401", "cia852", "drivers", "sim", "mapping", "gateway"},
+    "programs": {"canopen", "canopen/io", "cia401", "cia852", "drivers", "sim", "mapping", "publish", "gateway",
+                 "rig"},
     "examples": set(),
     "tests": set(RANK) - {"tests"},
 }
@@ -74,18 +79,20 @@ ALLOWED = {
     # family's driver (its sweep moves every signal the driver knows, by name).
     ("subdevices/sim/sim_bench.hpp", "subdevices/device_spec.hpp"),
     ("subdevices/sim/sim_registry.hpp", "subdevices/device_spec.hpp"),
-    # The publishers publish the FE samples (header-only types of the gateway's FE model).
-    ("gateway/publish", "gateway/fe_samples.hpp"),
+    # The publishers publish the FE samples: header-only types of the gateway's FE model and the
+    # Publisher interface the gateway drives (namespace oegw::gateway, used by the FE model, the
+    # command arbiter and the daemon's commands alike; it stays with them).
+    ("publish", "gateway/fe_samples.hpp"),
     # The rule for publish.lcm.url (224.0.0.0/24, ttl=0) lives beside the LCM publisher; the
-    # mapping file applies it at load time (gateway/publish/lcm_url.hpp: standard library only,
+    # mapping file applies it at load time (publish/lcm_url.hpp: standard library only,
     # its own library oegw_lcm_url, no liblcm).
-    ("mapping/sections/publish.cpp", "gateway/publish/lcm_url.hpp"),
+    ("mapping/sections/publish.cpp", "publish/lcm_url.hpp"),
     # The kernel's rule for an interface name lives beside the transport that opens the interface;
     # `oegw check` refuses the names the transport would (canopen/io/interface_name.hpp: header-only,
     # standard library only, no socket).
     ("mapping/deployment.cpp", "canopen/io/interface_name.hpp"),
     # ... and `oegw check` warns with it when LCM commands reach beyond the host.
-    ("mapping/deployment.cpp", "gateway/publish/lcm_url.hpp"),
+    ("mapping/deployment.cpp", "publish/lcm_url.hpp"),
 }
 
 SOURCE_SUFFIXES = (".cpp", ".hpp", ".h", ".c", ".cpp.in", ".hpp.in", ".inl")
