@@ -1,5 +1,5 @@
 /* The command line of the command publishers (dds_command, lcm_command): which output FE and what
- * it is set to, checked against what the gateway takes (gateway/publish/oegw.idl IndicatorCommand,
+ * it is set to, checked against what the gateway takes (publish/oegw.idl IndicatorCommand,
  * DisplayCommand; docs/reference/mapping-file.md: indicators.1..8 with indicator[1..64],
  * display.1..8 with parameter[1..12], INTEGER16). A command carries the whole FE: the indicators it
  * does not light are off, the parameters it does not set are 0 (the gateway's "last write wins").

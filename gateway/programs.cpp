@@ -23,8 +23,8 @@
 #include "gateway/control/status_report.hpp"
 #include "gateway/daemon_log.hpp"
 #include "gateway/gateway.hpp"
-#include "gateway/publish/dds_publisher.hpp"
-#include "gateway/publish/lcm_url.hpp"
+#include "publish/dds_publisher.hpp"
+#include "publish/lcm_url.hpp"
 #include "gateway/publishing.hpp"
 #include "gateway/record/recording_service.hpp"
 #include "gateway/reload.hpp"
@@ -322,7 +322,7 @@ bool start_publishing(Gateway& gw, const mapping::Config& cfg, const std::string
   };
   try {
     out = std::make_unique<GatewayPublishing>(gw, cfg.publish, [&loop] { return loop.now(); }, PublisherFactories{}, log);
-  } catch (const PublishConfigError& e) {
+  } catch (const publish::PublishConfigError& e) {
     spdlog::error("{}: {}", file, e.what());
     return false;
   }
@@ -363,13 +363,13 @@ int run_check(const std::string& file, bool quiet, bool here) {
   std::vector<mapping::Diagnostic> machine_warned = mapping::machine_warnings(*cfg);
   // No route for LCM's group (docs/guides/install.md#lcm-route): oegw run would start without LCM.
   if (const auto& lcm = cfg->publish.lcm; lcm.enabled)
-    if (const auto problem = lcm_route_problem(lcm.url)) {
+    if (const auto problem = publish::lcm_route_problem(lcm.url)) {
       const std::string& net = cfg->publish.dds.network;
       machine_warned.push_back(
           {lcm.url_where.line != 0 ? lcm.url_where : lcm.where,
            "publish.lcm.url " + lcm.url + (lcm.url_where.line != 0 ? "" : " (the default)") + ": this machine has " +
                *problem + ": oegw run would start without LCM and publish once a route exists; add one: " +
-               lcm_route_command(lcm.url, net == "loopback" ? "" : net) +
+               publish::lcm_route_command(lcm.url, net == "loopback" ? "" : net) +
                " (docs/guides/install.md#lcm-route has the systemd-networkd file that keeps it)"});
     }
   if (!machine_warned.empty()) {

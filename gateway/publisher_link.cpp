@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <mutex>
 
-#include "gateway/publish/publish_errors.hpp"
+#include "publish/publish_errors.hpp"
 
 namespace oegw::gateway {
 
@@ -43,7 +43,7 @@ canopen::Duration PublisherLink::backoff(std::uint32_t failures) {
 void PublisherLink::open(canopen::TimePoint now) {
   try {
     became_up(factory_());
-  } catch (const PublishUnavailable& e) {
+  } catch (const publish::PublishUnavailable& e) {
     down_since_ = now;
     outcome(nullptr, e.what());
   }

@@ -2,17 +2,17 @@
 
 #include <algorithm>
 
-#include "gateway/publish/dds_publisher.hpp"
-#include "gateway/publish/lcm_publisher.hpp"
+#include "publish/dds_publisher.hpp"
+#include "publish/lcm_publisher.hpp"
 
 namespace oegw::gateway {
 
 namespace mk = oegw::mapping;
 
-static_assert(std::size_t{kDdsSecurityFiles} == std::size_t{mapping::DdsSecurityConfig::kFiles}, "one list of publish.dds.security's files");
+static_assert(std::size_t{publish::kDdsSecurityFiles} == std::size_t{mapping::DdsSecurityConfig::kFiles}, "one list of publish.dds.security's files");
 
-DdsSecuritySettings dds_security_settings(const mapping::DdsSecurityConfig& c) {
-  DdsSecuritySettings s;
+publish::DdsSecuritySettings dds_security_settings(const mapping::DdsSecurityConfig& c) {
+  publish::DdsSecuritySettings s;
   s.path = c.path;
   return s;
 }
@@ -21,25 +21,25 @@ std::vector<mapping::Diagnostic> dds_security_errors(const mapping::Config& c) {
   std::vector<mapping::Diagnostic> out;
   if (!c.publish.dds.enabled || !c.publish.dds.security) return out;
   const auto& sec = *c.publish.dds.security;
-  for (const auto& p : check_dds_security(dds_security_settings(sec)))
-    out.push_back({sec.where[p.file].line != 0 ? sec.where[p.file] : sec.section, dds_security_setting(p.file) + " " + p.text});
+  for (const auto& p : publish::check_dds_security(dds_security_settings(sec)))
+    out.push_back({sec.where[p.file].line != 0 ? sec.where[p.file] : sec.section, publish::dds_security_setting(p.file) + " " + p.text});
   return out;
 }
 
 PublisherFactories real_publishers(const mapping::PublishConfig& config) {
   PublisherFactories f;
   if (config.dds.enabled) {
-    DdsSettings s;
+    publish::DdsSettings s;
     s.domain = config.dds.domain;
     s.partition = config.dds.partition;
     s.network = config.dds.network;
     if (config.dds.security) s.security = dds_security_settings(*config.dds.security);
     s.period_us = std::int64_t{config.period_ms} * 1000;
-    f.dds = [s] { return std::make_unique<DdsPublisher>(s); };
+    f.dds = [s] { return std::make_unique<publish::DdsPublisher>(s); };
   }
   if (config.lcm.enabled) {
-    const LcmSettings s{config.lcm.url, config.lcm.channel_prefix};
-    f.lcm = [s] { return std::make_unique<LcmPublisher>(s); };
+    const publish::LcmSettings s{config.lcm.url, config.lcm.channel_prefix};
+    f.lcm = [s] { return std::make_unique<publish::LcmPublisher>(s); };
   }
   return f;
 }

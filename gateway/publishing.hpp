@@ -1,5 +1,5 @@
 // The gateway's functional elements on DDS and/or LCM (the mapping file's `publish:`): every
-// input FE is published on change and at least every period (gateway/publish/publish_schedule),
+// input FE is published on change and at least every period (publish/publish_schedule),
 // with the gateway status; indicator and display commands come back into the gateway from the
 // sources each FE takes (mapping file `sources`; among them the last writer wins —
 // docs/guides/dds-lcm.md#who-commands-the-indicators-and-displays).
@@ -15,8 +15,8 @@
 #include "canopen/io/event_loop.hpp"
 #include "gateway/fe_samples.hpp"
 #include "gateway/gateway.hpp"
-#include "gateway/publish/dds_security.hpp"
-#include "gateway/publish/publish_schedule.hpp"
+#include "publish/dds_security.hpp"
+#include "publish/publish_schedule.hpp"
 #include "gateway/publisher_link.hpp"
 #include "mapping/config.hpp"
 
@@ -39,7 +39,7 @@ class FanOut final : public ForwardingPublisher<FanOut> {
 };
 
 // publish.dds.security as the DDS publisher takes it (the paths resolved by the loader).
-[[nodiscard]] DdsSecuritySettings dds_security_settings(const mapping::DdsSecurityConfig& c);
+[[nodiscard]] publish::DdsSecuritySettings dds_security_settings(const mapping::DdsSecurityConfig& c);
 // Every problem of publish.dds.security's files (dds_security.hpp) at its setting's place in the
 // mapping file: `oegw check` and `oegw run` refuse the file with them, before anything starts.
 [[nodiscard]] std::vector<mapping::Diagnostic> dds_security_errors(const mapping::Config& c);
@@ -128,7 +128,7 @@ class GatewayPublishing {
   std::function<canopen::TimePoint()> clock_;
   std::vector<std::unique_ptr<PublisherLink>> links_;  // dds, then lcm (those enabled)
   FanOut fan_;
-  PublishSchedule schedule_;
+  publish::PublishSchedule schedule_;
   std::uint32_t status_seq_ = 0;
 };
 

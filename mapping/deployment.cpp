@@ -9,7 +9,7 @@
 #include <string>
 
 #include "canopen/io/interface_name.hpp"
-#include "gateway/publish/lcm_url.hpp"
+#include "publish/lcm_url.hpp"
 
 namespace oegw::mapping {
 
@@ -143,7 +143,7 @@ void check_lcm_commands(const Config& c, std::vector<Diagnostic>& out) {
   for (const auto& fe : c.functional_elements)
     if (!fe.input() && fe.accepts(CommandSource::Lcm)) fes += (fes.empty() ? "" : ", ") + fe_name(fe.id);
   if (fes.empty()) return;
-  const auto why = gateway::lcm_reaches_beyond_host(lcm.url);
+  const auto why = publish::lcm_reaches_beyond_host(lcm.url);
   if (!why) return;
   out.push_back({at(lcm.url_where, lcm.where),
                  "publish.lcm.url " + lcm.url + (lcm.url_where.line != 0 ? "" : " (the default)") +

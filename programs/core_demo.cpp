@@ -16,9 +16,9 @@
 #include "canopen/io/socketcan_transport.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
-#include "gateway/publish/dds_publisher.hpp"
-#include "gateway/publish/lcm_publisher.hpp"
-#include "gateway/publish/publish_schedule.hpp"
+#include "publish/dds_publisher.hpp"
+#include "publish/lcm_publisher.hpp"
+#include "publish/publish_schedule.hpp"
 #include "gateway/publishing.hpp"
 
 namespace oegw::gateway {
@@ -138,32 +138,32 @@ int run_demo(const DemoOptions& options) {
     say("FAILED: " + what);
   };
   // DDS / LCM (--publish): joystick.1 from TPDO1, on change and every 100 ms.
-  std::unique_ptr<DdsPublisher> dds;
-  std::unique_ptr<LcmPublisher> lcm;
+  std::unique_ptr<publish::DdsPublisher> dds;
+  std::unique_ptr<publish::LcmPublisher> lcm;
   FanOut fan;
   std::vector<EventLoop::WatchId> publisher_watches;
   if (options.publish) {
     try {
       // A demo's own names: never mixed with a real gateway's (partition oegw, OEGW_*).
-      DdsSettings ds;
+      publish::DdsSettings ds;
       ds.partition = "oegw-demo";
-      dds = std::make_unique<DdsPublisher>(ds);
+      dds = std::make_unique<publish::DdsPublisher>(ds);
       fan.add(dds.get());
       say("publishing joystick.1 on DDS: topic oegw/joystick, domain 0, partition oegw-demo, loopback only");
-    } catch (const PublishError& e) {  // a bad setting, or the machine's state (no route for LCM)
+    } catch (const publish::PublishError& e) {  // a bad setting, or the machine's state (no route for LCM)
       fail(e.what());
     }
     try {
-      LcmSettings ls;
+      publish::LcmSettings ls;
       ls.channel_prefix = "OEGW_DEMO_";
-      lcm = std::make_unique<LcmPublisher>(ls);
+      lcm = std::make_unique<publish::LcmPublisher>(ls);
       fan.add(lcm.get());
       say("publishing joystick.1 on LCM: channel OEGW_DEMO_JOYSTICK_1, udpm://224.0.0.1:7667?ttl=0");
-    } catch (const PublishError& e) {  // a bad setting, or the machine's state (no route for LCM)
+    } catch (const publish::PublishError& e) {  // a bad setting, or the machine's state (no route for LCM)
       fail(e.what());
     }
   }
-  PublishSchedule schedule(fan, 100'000);
+  publish::PublishSchedule schedule(fan, 100'000);
   const auto now_us = [&] { return std::chrono::duration_cast<Duration>(loop.now().time_since_epoch()).count(); };
   JoystickSample joystick;  // instance 1, offline until the first TPDO
   std::uint32_t status_seq = 0;

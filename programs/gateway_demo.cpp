@@ -17,10 +17,10 @@
 
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/programs.hpp"
-#include "gateway/publish/dds_publisher.hpp"
+#include "publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
 #include "programs/demo_files.hpp"
 #include "programs/live_view.hpp"
@@ -67,9 +67,9 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   bool done = false;
   // The simulated cab: the devices of demo.yaml downstream (its MCB-402 wired as the file's
   // button_bits say), the gateway, a host upstream.
-  CabRigOptions rig_options{.store = dir / "upstream.store"};
-  rig_options.simulator_options = simulators_as_wired(cfg);
-  CabRig rig(cfg, loop, rig_options);
+  rig::CabRigOptions rig_options{.store = dir / "upstream.store"};
+  rig_options.simulator_options = rig::simulators_as_wired(cfg);
+  rig::CabRig rig(cfg, loop, rig_options);
   const TimePoint t0 = loop.now();
   if (options.frames) print_frames_of(rig, t0);
 
@@ -167,7 +167,7 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
       // the demo runs without it and it is opened again as `oegw run` does.
       for (const auto& t : publishing->transports())
         if (!t.up) say(t.name + " not publishing yet: " + t.reason + "; opened again until it works");
-    } catch (const PublishConfigError& e) {
+    } catch (const publish::PublishConfigError& e) {
       // A set asked for and refused: no demo without it (it would publish in the clear).
       if (publish.dds.security) {
         std::fprintf(stderr, "oegw demo: --dds-security %s: %s\n", options.dds_security.c_str(), e.what());

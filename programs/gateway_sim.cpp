@@ -24,10 +24,10 @@
 #include "gateway/control/gateway_control.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/programs.hpp"
-#include "gateway/publish/dds_publisher.hpp"
+#include "publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
 #include "profiles/cia852/pdo_defaults.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "programs/live_view.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 
@@ -236,9 +236,9 @@ int run_gateway_sim(const GatewaySimOptions& options) {
   SimulatedClock sim_clock;
   auto loop_ptr = options.fast ? std::make_unique<EventLoop>(sim_clock) : std::make_unique<EventLoop>();
   EventLoop& loop = *loop_ptr;
-  CabRigOptions rig_options{.store = dir / "upstream.store"};
-  rig_options.simulator_options = simulators_as_wired(cfg);
-  CabRig rig(cfg, loop, rig_options);
+  rig::CabRigOptions rig_options{.store = dir / "upstream.store"};
+  rig_options.simulator_options = rig::simulators_as_wired(cfg);
+  rig::CabRig rig(cfg, loop, rig_options);
   try {
     rig.build_devices();
   } catch (const std::runtime_error& e) {
@@ -263,7 +263,7 @@ int run_gateway_sim(const GatewaySimOptions& options) {
     std::vector<std::pair<std::size_t, std::string>> errors;  // by line
     steps = read_script(options.script, errors);
     sd::sim::SimBench dry([](const CanFrame&) {});
-    add_cab_simulators(dry, cfg, rig_options.simulator_options);
+    rig::add_cab_simulators(dry, cfg, rig_options.simulator_options);
     for (const auto& s : steps) {
       const auto w = words_of(s.command);
       const std::string own = check_own_command(w, fe_names, rpdos);
@@ -366,7 +366,7 @@ int run_gateway_sim(const GatewaySimOptions& options) {
       for (const auto& t : publishing->transports())
         if (!t.up) say(t.name + " not publishing yet: " + t.reason + "; opened again until it works");
       publishing->run_on(loop, [&rig] { rig.rearm(); });
-    } catch (const PublishConfigError& e) {
+    } catch (const publish::PublishConfigError& e) {
       say(std::string("not publishing: ") + e.what());
       publishing.reset();
     }

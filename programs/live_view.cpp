@@ -137,7 +137,7 @@ std::string stamped(Duration since_start, const std::string& text) {
   return fmt::format("[{:6.2f} s] {}", std::chrono::duration<double>(since_start).count(), text);
 }
 
-void print_frames_of(CabRig& rig, TimePoint t0) {
+void print_frames_of(rig::CabRig& rig, TimePoint t0) {
   for (auto [bus, name] : {std::pair{&rig.up(), "up"}, std::pair{&rig.down(), "down"}})
     bus->set_tap([&rig, t0, name](const BusRecord& r) {
       std::printf("%s\n", candump_line(rig.now() - t0, name, r.frame).c_str());

@@ -10,7 +10,7 @@
 #include "canopen/can_frame.hpp"
 #include "canopen/types.hpp"
 #include "gateway/gateway.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 
 namespace oegw::gateway {
 
@@ -61,7 +61,7 @@ class LiveScreen {
 
 // --frames: every frame of the rig's two buses printed as it passes, in candump_line()'s format
 // ("up", "down"), timed from `t0`.
-void print_frames_of(CabRig& rig, canopen::TimePoint t0);
+void print_frames_of(rig::CabRig& rig, canopen::TimePoint t0);
 
 // candump's log format (candump -L), "(seconds.micros) interface id#data", which canplayer
 // replays: `canplayer -I FILE vcan0=up vcan1=down`. The time counts from the program's start.

@@ -22,12 +22,12 @@ PACKAGES=(
   # Chart.js 3.9, inlined into the page `oegw replay --plot` writes (docs/guides/black-box.md)
   libjs-chart.js
   # publishing to the machine application: Cyclone DDS (C library + CMake package) and idlc,
-  # which generates the DDS types from gateway/publish/oegw.idl at build time
+  # which generates the DDS types from publish/oegw.idl at build time
   cyclonedds-dev cyclonedds-tools
   # DDS Security: libssl-dev (publish.dds.security's certificates, key and signed documents
   # checked before Cyclone gets them), openssl (scripts/make-dds-security.sh makes a set)
   libssl-dev openssl
-  # LCM: the library and lcm-gen (types from gateway/publish/lcm/*.lcm), lcm-logger for the
+  # LCM: the library and lcm-gen (types from publish/lcm/*.lcm), lcm-logger for the
   # recorded-session test; libglib2.0-dev because liblcm-dev's lcm.pc requires glib-2.0 and
   # gthread-2.0 .pc files that liblcm-dev does not pull in (pkg-config lcm fails without them)
   liblcm-dev liblcm-bin libglib2.0-dev

@@ -1,5 +1,5 @@
 // The `publish` section: the FE samples on DDS and LCM, and the commands coming back.
-#include "gateway/publish/lcm_url.hpp"
+#include "publish/lcm_url.hpp"
 #include "mapping/sections/sections.hpp"
 
 namespace oegw::mapping::sections {
@@ -8,7 +8,7 @@ namespace {
 
 // `security: { identity_ca: …, certificate: …, private_key: …, permissions_ca: …, governance: …,
 // permissions: … }`: every file required, each from the file's folder (config.hpp). Whether the
-// files are what they must be is checked where OpenSSL is at hand (gateway/publish/dds_security.hpp:
+// files are what they must be is checked where OpenSSL is at hand (publish/dds_security.hpp:
 // `oegw check`, `oegw run` and the publisher at start).
 void read_dds_security(YamlReader& r, const MapEntry& e, DdsSecurityConfig& sec) {
   using S = DdsSecurityConfig;
@@ -49,10 +49,10 @@ void read_dds(YamlReader& r, const MapEntry& e, DdsConfig& d) {
   if (const auto* x = r.find(ds, "security")) read_dds_security(r, *x, d.security.emplace());
 }
 
-// The one rule for the URL (gateway/publish/lcm_url.hpp): no link-local group beyond this host.
+// The one rule for the URL (publish/lcm_url.hpp): no link-local group beyond this host.
 void check_lcm_url(YamlReader& r, const MapEntry& e) {
   const std::string url = e.value.Scalar();
-  const auto send = gateway::link_local_send(url);
+  const auto send = publish::link_local_send(url);
   if (!send) return;
   r.error(e.value, "publish lcm url '" + url + "' sends to the link-local group " + send->group + " with ttl '" +
                        send->ttl +

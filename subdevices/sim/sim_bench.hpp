@@ -26,7 +26,7 @@
 
 namespace oegw::subdevices::sim {
 
-// The SDO latency the simulators get on the timed bus (programs/cab_rig.hpp) unless told
+// The SDO latency the simulators get on the timed bus (rig/cab_rig.hpp) unless told
 // otherwise: the time from an SDO request on the bus to the device's answer. None of the
 // reference documents (/work/shared/reference: elobau MFG, MCB-402, Novotechnik, CiA 852)
 // states an SDO response time; what they state is their application cycles - the Novotechnik

@@ -98,7 +98,7 @@
 #include "canopen/io/seqpacket_transport.hpp"
 #include "gateway/daemon_log.hpp"
 #include "gateway/serve_gateway.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/bench/gateway_rig.hpp"
 #include "tests/fixtures/kernel_frame.hpp"
@@ -650,7 +650,7 @@ class Cab {
   [[nodiscard]] pthread_t gateway_thread() { return gateway_.native_handle(); }
 
  private:
-  // The sub-devices of the mapping file simulated (programs/cab_rig.hpp add_cab_simulators) on
+  // The sub-devices of the mapping file simulated (rig/cab_rig.hpp add_cab_simulators) on
   // their own loop, the grip's TPDOs off (the prober sends them: vm_latency's `grip pdo off`).
   // Their heartbeats say when every one is operational.
   void run_devices() {
@@ -665,7 +665,7 @@ class Cab {
       }
       (void)devices_->send(f);
     });
-    gateway::add_cab_simulators(bench, devices_config_);
+    oegw::rig::add_cab_simulators(bench, devices_config_);
     device_count_ = static_cast<int>(bench.size());
     canopen::ServiceDriver driver(loop, bench);
     devices_->set_receiver([&](const CanFrame& f, TimePoint t) {

@@ -43,7 +43,7 @@
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "gateway/bus_load.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/bench/gateway_rig.hpp"
 #include "tests/fixtures/fixtures.hpp"
@@ -90,8 +90,8 @@ BootFigures boot(oegw::mapping::Config cfg, std::uint32_t bit_rate, Duration lat
   cfg.downstream.bitrate = bit_rate;
   oegw::canopen::SimulatedClock clock{TimePoint{std::chrono::seconds(1)}};
   oegw::canopen::EventLoop loop{clock};
-  oegw::gateway::CabRig rig(cfg, loop,
-                            oegw::gateway::CabRigOptions{.store = "/nonexistent-oegw-bench/upstream.store",
+  oegw::rig::CabRig rig(cfg, loop,
+                            oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-bench/upstream.store",
                                                          .gateway = {.sdo_bus_share = g_sdo_share},
                                                          .timed_buses = true, .device_sdo_latency = latency});
   if (g_trace)
@@ -194,8 +194,8 @@ LoadFigures load(const oegw::mapping::Config& cfg) {
   f.predicted = oegw::gateway::predict_bus_load(cfg);
   oegw::canopen::SimulatedClock clock{TimePoint{std::chrono::seconds(1)}};
   oegw::canopen::EventLoop loop{clock};
-  oegw::gateway::CabRig rig(cfg, loop,
-                            oegw::gateway::CabRigOptions{.store = "/nonexistent-oegw-bench/upstream.store", .timed_buses = true});
+  oegw::rig::CabRig rig(cfg, loop,
+                            oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-bench/upstream.store", .timed_buses = true});
   rig.build();
   rig.power_on();
   rig.run_for(5s);  // booted, and the boot's SDO traffic long over

@@ -1,4 +1,4 @@
-// Shared by gateway_bench.cpp and gateway_rss.cpp: the simulated cab of programs/cab_rig.hpp (the
+// Shared by gateway_bench.cpp and gateway_rss.cpp: the simulated cab of rig/cab_rig.hpp (the
 // harness of the demo and the e2e tests) on a mapping file built from YAML text, booted for real,
 // with the host enabling TPDO 1 (joystick.1 on 1A0h), setting 6423h TRUE and starting the
 // gateway, as gateway_demo.cpp does; all on a SimulatedClock, so the boot is deterministic and
@@ -24,7 +24,7 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "gateway/gateway.hpp"
 #include "mapping/config.hpp"
 #include "subdevices/sim/sim_bench.hpp"
@@ -70,7 +70,7 @@ class GatewayRig {
 
   explicit GatewayRig(const mapping::Config& cfg)
       : rig_(cfg, loop_,
-             gateway::CabRigOptions{.store = std::filesystem::path("/nonexistent-oegw-bench") / "upstream.store"}) {
+             oegw::rig::CabRigOptions{.store = std::filesystem::path("/nonexistent-oegw-bench") / "upstream.store"}) {
     // Detached, the gateway's frames are recorded here instead of reaching the buses.
     rig_.from_gateway_up = [this](const canopen::CanFrame& f) {
       if (!detached_) return false;
@@ -164,7 +164,7 @@ class GatewayRig {
  private:
   canopen::SimulatedClock clock_;
   canopen::EventLoop loop_{clock_};
-  gateway::CabRig rig_;
+  oegw::rig::CabRig rig_;
   bool detached_ = false;
   UpstreamRecord rec_;
   std::uint64_t downstream_while_detached_ = 0;

@@ -188,7 +188,7 @@ void BM_ReplayFullCab10Min(benchmark::State& state) {
     s.header = {"meta gateway sdo_bus_share=0.85"};
     Recorder recorder(s);
     GatewayRecorder tap(recorder);
-    gateway::CabRig rig(cfg, loop, gateway::CabRigOptions{.store = dir.path / "upstream.store", .timed_buses = true});
+    oegw::rig::CabRig rig(cfg, loop, oegw::rig::CabRigOptions{.store = dir.path / "upstream.store", .timed_buses = true});
     rig.on_gateway = [&](gateway::Gateway& g) { g.set_tap(&tap); };
     rig.build();
     rig.power_on();

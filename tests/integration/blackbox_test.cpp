@@ -20,7 +20,7 @@
 #include "gateway/record/plot.hpp"
 #include "gateway/record/recorder.hpp"
 #include "gateway/record/replay.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "tests/fixtures/fixtures.hpp"
 
 namespace oegw::gateway::record {
@@ -52,8 +52,8 @@ class Blackbox : public ::testing::Test {
     // must know it; on the timed buses it is, as in oegw run.
     s.header = {timed_ ? "meta gateway sdo_bus_share=0.85" : "meta gateway sdo_bus_share=0"};
     recorder_ = std::make_unique<Recorder>(s);
-    rig_ = std::make_unique<CabRig>(config_, loop_,
-                                    CabRigOptions{.store = dir_ / "upstream.store", .timed_buses = timed_});
+    rig_ = std::make_unique<rig::CabRig>(config_, loop_,
+                                    rig::CabRigOptions{.store = dir_ / "upstream.store", .timed_buses = timed_});
     tap_ = std::make_unique<GatewayRecorder>(*recorder_);
     rig_->on_gateway = [this](Gateway& g) {
       gw_ = &g;
@@ -148,7 +148,7 @@ class Blackbox : public ::testing::Test {
   canopen::SimulatedClock clock_;
   canopen::EventLoop loop_{clock_};
   std::unique_ptr<Recorder> recorder_;
-  std::unique_ptr<CabRig> rig_;
+  std::unique_ptr<rig::CabRig> rig_;
   std::unique_ptr<GatewayRecorder> tap_;
   Gateway* gw_ = nullptr;
   bool pulled_ = false, host_alive_ = true;

@@ -3,7 +3,7 @@
 // document is ambiguous, silent or self-contradictory, each reading it permits is a simulator
 // option, and the gateway must work against each (or refuse it at boot, saying how to commission
 // the device). One sub-device behind the gateway on the virtual buses with a simulated clock
-// (programs/cab_rig.hpp), the simulator at the corner under test.
+// (rig/cab_rig.hpp), the simulator at the corner under test.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -17,7 +17,7 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "gateway/gateway.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/sim/elobau_mfg_sim.hpp"
 #include "subdevices/sim/mcb402_sim.hpp"
 #include "subdevices/sim/novotechnik_406_sim.hpp"
@@ -62,9 +62,9 @@ class Corners : public ::testing::Test {
     ASSERT_TRUE(loaded.ok()) << loaded.error_text();
     config_ = std::move(*loaded.config);
     dev_ = dev;
-    gw::CabRigOptions o;
+    oegw::rig::CabRigOptions o;
     o.simulator_options[dev] = std::move(corner);
-    rig_ = std::make_unique<gw::CabRig>(config_, loop_, o);
+    rig_ = std::make_unique<oegw::rig::CabRig>(config_, loop_, o);
     rig_->up().set_tap([this](const BusRecord& r) {
       if (r.frame.id == kGatewayEmcy) up_emcys_.push_back(r.frame);
     });
@@ -112,7 +112,7 @@ class Corners : public ::testing::Test {
   oegw::mapping::Config config_;
   SimulatedClock clock_;
   EventLoop loop_{clock_};
-  std::unique_ptr<gw::CabRig> rig_;
+  std::unique_ptr<oegw::rig::CabRig> rig_;
   std::string dev_;
   std::vector<CanFrame> up_emcys_;
   std::vector<BusRecord> down_;

@@ -23,7 +23,7 @@
 #include "gateway/control/ctl_command.hpp"
 #include "gateway/control/ctl_service.hpp"
 #include "gateway/gateway.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/sim/novotechnik_406_sim.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/fixtures/fixtures.hpp"
@@ -47,7 +47,7 @@ class Ctl : public ::testing::Test {
     config_ = std::move(*loaded.config);
     store_ = std::filesystem::path(::testing::TempDir()) / fmt::format("ctl_{}.store", ::getpid());
     std::filesystem::remove(store_);
-    rig_ = std::make_unique<gw::CabRig>(config_, loop_, gw::CabRigOptions{.store = store_});
+    rig_ = std::make_unique<oegw::rig::CabRig>(config_, loop_, oegw::rig::CabRigOptions{.store = store_});
     rig_->down().set_tap([this](const BusRecord& r) { down_.push_back(r.frame); });
     rig_->to_devices = [this](const CanFrame& f) { return drop_to_devices_ && drop_to_devices_(f); };
     rig_->to_gateway_down = [this](const CanFrame& f) { return drop_to_gateway_ && drop_to_gateway_(f); };
@@ -110,7 +110,7 @@ class Ctl : public ::testing::Test {
   EventLoop loop_{clock_};
   oegw::mapping::Config config_;
   std::filesystem::path store_;
-  std::unique_ptr<gw::CabRig> rig_;
+  std::unique_ptr<oegw::rig::CabRig> rig_;
   gw::ControlProtocol protocol_;
   std::unique_ptr<gw::CtlService> service_;
   std::unique_ptr<gw::CtlSession> session_;

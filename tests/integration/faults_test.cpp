@@ -1,4 +1,4 @@
-// The life of a sub-device fault on the virtual buses (programs/cab_rig.hpp, the demo cab of
+// The life of a sub-device fault on the virtual buses (rig/cab_rig.hpp, the demo cab of
 // tests/fixtures/demo_cab.yaml, a simulated clock), as each family's document says its device
 // behaves (docs/design/device-documents.md#faults-what-sets-them-what-clears-them): what the device
 // reports at power-on is no fault, a fault is the driver's until the device's own evidence clears
@@ -14,7 +14,7 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "gateway/gateway.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/novotechnik_406.hpp"
 #include "subdevices/sim/elobau_mfg_sim.hpp"
 #include "subdevices/sim/mcb402_sim.hpp"
@@ -39,7 +39,7 @@ class Faults : public ::testing::Test {
                                                   gw::driver_catalogue());
     ASSERT_TRUE(loaded.ok()) << loaded.error_text();
     config_ = std::move(*loaded.config);
-    rig_ = std::make_unique<gw::CabRig>(config_, loop_);
+    rig_ = std::make_unique<oegw::rig::CabRig>(config_, loop_);
     rig_->up().set_tap([this](const BusRecord& r) {
       if (r.frame.id == kGatewayEmcy) up_emcys_.push_back(r.frame);
     });
@@ -77,7 +77,7 @@ class Faults : public ::testing::Test {
   oegw::mapping::Config config_;
   SimulatedClock clock_;
   EventLoop loop_{clock_};
-  std::unique_ptr<gw::CabRig> rig_;
+  std::unique_ptr<oegw::rig::CabRig> rig_;
   std::vector<CanFrame> up_emcys_;
   std::string log_;
 };

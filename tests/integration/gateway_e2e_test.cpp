@@ -25,7 +25,7 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "gateway/gateway.hpp"
 #include "profiles/cia852/device_type.hpp"
 #include "subdevices/sim/elobau_mfg_sim.hpp"
@@ -90,8 +90,8 @@ class GatewayE2E : public ::testing::Test {
     store_ = std::filesystem::path(::testing::TempDir()) /
              fmt::format("gateway_e2e_{}_{}.store", ::getpid(), ::testing::UnitTest::GetInstance()->random_seed());
     std::filesystem::remove(store_);
-    rig_ = std::make_unique<gw::CabRig>(config_, loop_,
-                                        gw::CabRigOptions{.store = store_, .simulator_options = sim_options_});
+    rig_ = std::make_unique<oegw::rig::CabRig>(config_, loop_,
+                                        oegw::rig::CabRigOptions{.store = store_, .simulator_options = sim_options_});
     rig_->up().set_tap([this](const BusRecord& r) { upstream_.push_back(r); });
     rig_->down().set_tap([this](const BusRecord& r) {
       downstream_.push_back(r);
@@ -287,7 +287,7 @@ class GatewayE2E : public ::testing::Test {
   // docs/design/device-documents.md#corners-every-reading-a-document-permits).
   std::map<std::string, sd::DriverOptions> sim_options_{{"left_grip", sd::DriverOptions{{{"wiring", "1/2/3/4/5/7/6"}}}}};
   std::filesystem::path store_;
-  std::unique_ptr<gw::CabRig> rig_;  // the demo's harness (programs/cab_rig.hpp)
+  std::unique_ptr<oegw::rig::CabRig> rig_;  // the demo's harness (rig/cab_rig.hpp)
   // Into rig_: the simulators, the host, its port, the current gateway (connect_gateway).
   sd::sim::SimBench* bench_ = nullptr;
   Master* host_ = nullptr;

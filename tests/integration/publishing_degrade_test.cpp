@@ -15,7 +15,7 @@
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "gateway/gateway.hpp"
-#include "gateway/publish/publish_errors.hpp"
+#include "publish/publish_errors.hpp"
 #include "gateway/publishing.hpp"
 #include "tests/fixtures/fixtures.hpp"
 #include "virtual_network.hpp"
@@ -53,7 +53,7 @@ class PublishingDegrade : public ::testing::Test {
   static PublisherLink::Factory flaky(int failures, std::string why, int* attempts, int* samples,
                                       gateway::Publisher** opened = nullptr) {
     return [=]() -> std::unique_ptr<gateway::Publisher> {
-      if (++*attempts <= failures) throw gateway::PublishUnavailable(why);
+      if (++*attempts <= failures) throw publish::PublishUnavailable(why);
       auto t = std::make_unique<FakeTransport>(samples);
       if (opened != nullptr) *opened = t.get();
       return t;
@@ -145,13 +145,13 @@ TEST_F(PublishingDegrade, TheBackOffDoublesToTenSeconds) {
 TEST_F(PublishingDegrade, ABadSettingIsRefusedAtStart) {
   int dds_attempts = 0, dds_samples = 0;
   const PublisherLink::Factory bad = []() -> std::unique_ptr<gateway::Publisher> {
-    throw gateway::PublishConfigError("publish.lcm.url: \"239.255.76.67:7667\" does not parse");
+    throw publish::PublishConfigError("publish.lcm.url: \"239.255.76.67:7667\" does not parse");
   };
   try {
     gateway::GatewayPublishing pub(*gw_, loaded_.config->publish, [this] { return loop_.now(); },
                                    {flaky(0, "", &dds_attempts, &dds_samples), bad}, log());
     FAIL() << "started with a bad setting";
-  } catch (const gateway::PublishConfigError& e) {
+  } catch (const publish::PublishConfigError& e) {
     EXPECT_EQ(std::string(e.what()), "publish.lcm.url: \"239.255.76.67:7667\" does not parse");
   }
   EXPECT_TRUE(log_.empty());
@@ -166,7 +166,7 @@ TEST_F(PublishingDegrade, ARetryRunsBesideTheLoopNotInIt) {
   std::shared_future<void> released = release.get_future().share();
   int lcm_attempts = 0;
   const PublisherLink::Factory slow = [&lcm_attempts, &lcm_samples, released]() -> std::unique_ptr<gateway::Publisher> {
-    if (++lcm_attempts == 1) throw gateway::PublishUnavailable("no route");
+    if (++lcm_attempts == 1) throw publish::PublishUnavailable("no route");
     released.wait();  // opening blocks until the test lets it go
     return std::make_unique<FakeTransport>(&lcm_samples);
   };

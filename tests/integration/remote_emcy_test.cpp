@@ -1,4 +1,4 @@
-// Remote EMCY and the gateway's EMCY consumer, on the virtual buses (programs/cab_rig.hpp, the
+// Remote EMCY and the gateway's EMCY consumer, on the virtual buses (rig/cab_rig.hpp, the
 // demo cab of tests/fixtures/demo_cab.yaml, a simulated clock). Each simulator sends the EMCYs
 // its reference document gives; the host must receive each one as an EMCY of the gateway (node
 // 20h) carrying the sub-device's code, its error register, its node-ID and its manufacturer
@@ -19,7 +19,7 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "gateway/gateway.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/sim/cia401_sim.hpp"
 #include "subdevices/sim/elobau_mfg_sim.hpp"
 #include "subdevices/sim/mcb402_sim.hpp"
@@ -52,7 +52,7 @@ class RemoteEmcy : public ::testing::Test {
     auto loaded = oegw::mapping::load_config_text(yaml, "remote_emcy.yaml", gw::driver_catalogue());
     ASSERT_TRUE(loaded.ok()) << loaded.error_text();
     config_ = std::move(*loaded.config);
-    rig_ = std::make_unique<gw::CabRig>(config_, loop_);
+    rig_ = std::make_unique<oegw::rig::CabRig>(config_, loop_);
     rig_->up().set_tap([this](const BusRecord& r) {
       if (r.frame.id == kGatewayEmcy) up_emcys_.push_back(r);
     });
@@ -105,7 +105,7 @@ class RemoteEmcy : public ::testing::Test {
   oegw::mapping::Config config_;
   SimulatedClock clock_;
   EventLoop loop_{clock_};
-  std::unique_ptr<gw::CabRig> rig_;
+  std::unique_ptr<oegw::rig::CabRig> rig_;
   gw::Gateway* gw_ = nullptr;
   std::vector<BusRecord> up_emcys_;
   std::vector<BusRecord> down_emcys_;

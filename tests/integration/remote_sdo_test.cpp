@@ -1,5 +1,5 @@
 // Remote SDO through the gateway on the virtual buses: the simulated cab of
-// programs/cab_rig.hpp on tests/fixtures/demo_cab.yaml plus two additional SDO server channels
+// rig/cab_rig.hpp on tests/fixtures/demo_cab.yaml plus two additional SDO server channels
 // (1201h on 690h/6B0h bound to left_grip, 1202h on 691h/6B1h unbound). The host's SDO clients
 // (the rig's on the default channel 620h/5A0h, a second host's on the extra channels) reach every
 // sub-device; each expected value is read from the simulator's own dictionary (written from the
@@ -23,7 +23,7 @@
 #include "gateway/control/status_command.hpp"
 #include "gateway/control/status_report.hpp"
 #include "gateway/gateway.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/sim/mcb402_sim.hpp"
 #include "subdevices/sim/novotechnik_406_sim.hpp"
 #include "subdevices/sim/sim_bench.hpp"
@@ -75,8 +75,8 @@ class RemoteSdo : public ::testing::Test {
     config_ = std::move(*loaded.config);
     store_ = std::filesystem::path(::testing::TempDir()) / fmt::format("remote_sdo_{}.store", ::getpid());
     std::filesystem::remove(store_);
-    rig_ = std::make_unique<gw::CabRig>(
-        config_, loop_, gw::CabRigOptions{.store = store_, .host_sdo_timeout = host_timeout, .gateway = options});
+    rig_ = std::make_unique<oegw::rig::CabRig>(
+        config_, loop_, oegw::rig::CabRigOptions{.store = store_, .host_sdo_timeout = host_timeout, .gateway = options});
     rig_->up().set_tap([this](const BusRecord& r) { up_.push_back(r.frame); });
     rig_->down().set_tap([this](const BusRecord& r) { down_.push_back(r.frame); });
     rig_->to_devices = [this](const CanFrame& f) { return drop_to_devices_ && drop_to_devices_(f); };
@@ -179,7 +179,7 @@ class RemoteSdo : public ::testing::Test {
   EventLoop loop_{clock_};
   oegw::mapping::Config config_;
   std::filesystem::path store_;
-  std::unique_ptr<gw::CabRig> rig_;
+  std::unique_ptr<oegw::rig::CabRig> rig_;
   std::unique_ptr<VirtualPort> port2_;
   std::unique_ptr<SdoClient> bound_, free_;
   std::function<bool(const CanFrame&)> drop_to_devices_, drop_to_gateway_;

@@ -29,7 +29,7 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "gateway/gateway.hpp"
 #include "safety_monitor.hpp"
 #include "subdevices/sim/cia401_sim.hpp"
@@ -302,10 +302,10 @@ class Bench {
       std::filesystem::remove(sim_store_);
       sim_options.values.emplace_back("store", sim_store_.string());
     }
-    // The cab of programs/cab_rig.hpp (the demo's and the e2e tests' harness), with this bench's
+    // The cab of rig/cab_rig.hpp (the demo's and the e2e tests' harness), with this bench's
     // fault switches in its wiring and another master's port on the downstream bus.
-    rig_ = std::make_unique<gateway::CabRig>(
-        config_, loop_, gateway::CabRigOptions{.store = store_, .simulator_options = {{fam_.dut, sim_options}}});
+    rig_ = std::make_unique<oegw::rig::CabRig>(
+        config_, loop_, oegw::rig::CabRigOptions{.store = store_, .simulator_options = {{fam_.dut, sim_options}}});
     other_ = rig_->down().attach("other");
     rig_->from_devices = [this](const CanFrame& f) { return device_dropped(f); };
     rig_->to_devices = [this](const CanFrame&) { return dev_drop_all; };
@@ -651,7 +651,7 @@ class Bench {
   TimePoint t0_{};
   std::filesystem::path store_;
   std::filesystem::path sim_store_;  // the simulator's parameter store (Corner::sim_store)
-  std::unique_ptr<gateway::CabRig> rig_;
+  std::unique_ptr<oegw::rig::CabRig> rig_;
   std::unique_ptr<VirtualPort> other_;  // another master on the downstream bus
   // Into rig_:
   sim::SimBench* bench_ = nullptr;

@@ -26,7 +26,7 @@
 #include "gateway/gateway.hpp"
 #include "gateway/programs.hpp"
 #include "gateway/scan_command.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/device_spec.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/fixtures/fixtures.hpp"
@@ -51,7 +51,7 @@ class ScanThroughGateway : public ::testing::Test {
     ASSERT_TRUE(loaded.ok()) << loaded.error_text();
     config_ = std::move(*loaded.config);
     std::filesystem::create_directories(dir_);
-    rig_ = std::make_unique<gw::CabRig>(config_, loop_, gw::CabRigOptions{.store = dir_ / "gw.store"});
+    rig_ = std::make_unique<oegw::rig::CabRig>(config_, loop_, oegw::rig::CabRigOptions{.store = dir_ / "gw.store"});
     rig_->down().set_tap([this](const BusRecord& r) { down_.push_back(r.frame); });
     rig_->on_gateway = [this](gw::Gateway& g) { g.on_log = [this](const std::string& l) { log_ += l + "\n"; }; };
     rig_->build();
@@ -116,7 +116,7 @@ class ScanThroughGateway : public ::testing::Test {
   oegw::mapping::Config config_;
   const std::filesystem::path dir_ =
       std::filesystem::path(::testing::TempDir()) / fmt::format("oegw-scan-service-{}", ::getpid());
-  std::unique_ptr<gw::CabRig> rig_;
+  std::unique_ptr<oegw::rig::CabRig> rig_;
   gw::ControlProtocol protocol_;
   std::unique_ptr<gw::ScanService> service_;
   std::vector<CanFrame> down_;

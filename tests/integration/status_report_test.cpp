@@ -1,5 +1,5 @@
 // The control socket's `status` report (gateway/control/status_report.hpp) and `oegw status`'s
-// table on the simulated cab (programs/cab_rig.hpp: tests/fixtures/demo_cab.yaml's devices as
+// table on the simulated cab (rig/cab_rig.hpp: tests/fixtures/demo_cab.yaml's devices as
 // simulators on the virtual bus, a simulated clock): every sub-device operational with the
 // identity and firmware its simulator's dictionary holds, counters that move with the frames,
 // an MCB-402 cable break as its last EMCY, the device gone silent shown missing with that EMCY.
@@ -14,7 +14,7 @@
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "gateway/control/status_command.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/fixtures/fixtures.hpp"
 
@@ -39,7 +39,7 @@ class StatusReport : public ::testing::Test {
       if (fe.id == kLeds1) fe.sources = static_cast<oegw::mapping::CommandSources>(oegw::mapping::CommandSource::Dds);
     store_ = std::filesystem::path(::testing::TempDir()) / ("status_report_" + std::to_string(::getpid()) + ".store");
     std::filesystem::remove(store_);
-    rig_ = std::make_unique<gw::CabRig>(config_, loop_, gw::CabRigOptions{.store = store_});
+    rig_ = std::make_unique<oegw::rig::CabRig>(config_, loop_, oegw::rig::CabRigOptions{.store = store_});
     rig_->build();
     started_ = loop_.now();
     rig_->power_on();
@@ -75,7 +75,7 @@ class StatusReport : public ::testing::Test {
   EventLoop loop_;
   oegw::mapping::Config config_;
   std::filesystem::path store_;
-  std::unique_ptr<gw::CabRig> rig_;
+  std::unique_ptr<oegw::rig::CabRig> rig_;
   TimePoint started_{};
 };
 

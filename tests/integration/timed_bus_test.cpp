@@ -1,5 +1,5 @@
 // Time on the wire: the simulators' SDO latency on the timed virtual bus, and
-// the simulated cab (programs/cab_rig.hpp) booting on timed buses - every frame taking its real
+// the simulated cab (rig/cab_rig.hpp) booting on timed buses - every frame taking its real
 // length at the bit rate, never two on the wire at once. All on a simulated clock: no sleeps.
 #include <gtest/gtest.h>
 
@@ -13,7 +13,7 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "mapping/config.hpp"
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/device_spec.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/fixtures/fixtures.hpp"
@@ -118,8 +118,8 @@ mapping::Config demo_config() {
 TEST(TimedCab, TheDemoCabBootsOnTimedBusesAndNoTwoFramesOverlap) {
   SimulatedClock clock{kStart};
   EventLoop loop{clock};
-  gateway::CabRig rig(demo_config(), loop,
-                      gateway::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .timed_buses = true});
+  oegw::rig::CabRig rig(demo_config(), loop,
+                      oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .timed_buses = true});
   rig.build();
   ASSERT_TRUE(rig.down().timed());
   EXPECT_EQ(rig.devices().device("right_grip")->sdo_latency(), subdevices::sim::kTypicalSdoLatency);
@@ -152,8 +152,8 @@ TEST(TimedCab, APowerOnBootUpCrossingTheResetDoesNotCostARefusal) {
   // refused, a second boot one back-off (1 s) later. Now the read in flight is let finish.
   SimulatedClock clock{kStart};
   EventLoop loop{clock};
-  gateway::CabRig rig(demo_config(), loop,
-                      gateway::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .timed_buses = true});
+  oegw::rig::CabRig rig(demo_config(), loop,
+                      oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .timed_buses = true});
   std::vector<std::string> log;
   rig.on_gateway = [&log](gateway::Gateway& gw) { gw.on_log = [&log](const std::string& l) { log.push_back(l); }; };
   rig.build();
@@ -183,8 +183,8 @@ std::vector<TimePoint> sdo_request_starts(double sdo_bus_share) {
   EventLoop loop{clock};
   gateway::GatewayOptions gw;
   gw.sdo_bus_share = sdo_bus_share;
-  gateway::CabRig rig(demo_config(), loop,
-                      gateway::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .gateway = gw,
+  oegw::rig::CabRig rig(demo_config(), loop,
+                      oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .gateway = gw,
                                              .timed_buses = true, .device_sdo_latency = Duration{0}});
   std::vector<TimePoint> starts;
   rig.from_gateway_down = [&](const CanFrame& f) {
@@ -244,8 +244,8 @@ TEST_P(TimedFullSet, TheCabBootsAndALoneRebootAtHalfLoadCostsNoOtherNodeItsHeart
   ASSERT_TRUE(r.ok()) << r.error_text();
   SimulatedClock clock{kStart};
   EventLoop loop{clock};
-  gateway::CabRig rig(*r.config, loop,
-                      gateway::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .timed_buses = true,
+  oegw::rig::CabRig rig(*r.config, loop,
+                      oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .timed_buses = true,
                                              .device_sdo_latency = GetParam()});
   rig.build();
   rig.power_on();

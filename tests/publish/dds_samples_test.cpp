@@ -1,7 +1,7 @@
-// gateway/publish/dds_samples.hpp: the samples handed to Cyclone DDS carry the FE values in their
+// publish/dds_samples.hpp: the samples handed to Cyclone DDS carry the FE values in their
 // fields and zero in every other byte. Cyclone copies a CDR-compatible type's bytes onto the wire,
 // padding included; each test fills storage that held 0xAA bytes, as a reused stack frame would.
-#include "gateway/publish/dds_samples.hpp"
+#include "publish/dds_samples.hpp"
 
 #include <gtest/gtest.h>
 
@@ -23,7 +23,7 @@ std::vector<unsigned char> filled(const Sample& s) {
   alignas(Dds) unsigned char storage[sizeof(Dds)];
   std::memset(storage, 0xAA, sizeof storage);
   auto* m = new (storage) Dds;  // default-initialised: the 0xAA bytes stay
-  dds_samples::fill(s, *m);
+  publish::dds_samples::fill(s, *m);
   return {storage, storage + sizeof storage};
 }
 
@@ -76,7 +76,7 @@ TEST(DdsSamples, AJoystickCarriesItsValuesAndZeroPadding) {
   const auto bytes = filled<oegw_Joystick>(s);
   const auto m = as<oegw_Joystick>(bytes);
   EXPECT_EQ(m.instance, 3);
-  EXPECT_EQ(m.status, dds_samples::status(FeStatus::Error));
+  EXPECT_EQ(m.status, publish::dds_samples::status(FeStatus::Error));
   EXPECT_EQ(m.timestamp_us, 0x0102030405060708);
   EXPECT_EQ(m.seq, 77u);
   EXPECT_EQ(m.x, -32768);

@@ -26,7 +26,7 @@
 
 #include "../integration/virtual_network.hpp"
 #include "gateway/gateway.hpp"
-#include "gateway/publish/dds_publisher.hpp"
+#include "publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/publish/child_process.hpp"
@@ -265,12 +265,12 @@ TEST_F(DdsSecurity, ATamperedPermissionsDocumentAndWrongFilesAreRefusedAtStartNa
             0u)
       << errors[0].str();
   try {
-    gateway::DdsSettings s;
+    publish::DdsSettings s;
     s.partition = kPartition;
     s.security = gateway::dds_security_settings(*loaded.config->publish.dds.security);
-    gateway::DdsPublisher refused(s);
+    publish::DdsPublisher refused(s);
     ADD_FAILURE() << "a tampered permissions document was taken";
-  } catch (const gateway::PublishConfigError& e) {
+  } catch (const publish::PublishConfigError& e) {
     EXPECT_EQ(std::string(e.what()).rfind("publish.dds.security.permissions " + (set_dir() / "tampered.p7s").string() +
                                          ": is not signed by publish.dds.security.permissions_ca",
                                      0),
@@ -340,11 +340,11 @@ TEST_F(DdsSecurity, APrivateKeyOthersMayReadIsRefusedNamingItsModeAndTheChmod) {
                                    key.string() + ": mode " + who +
                                    " read or change the private key; expected 0600, owner the daemon's user: chmod 0600 " +
                                    key.string());
-    gateway::DdsSettings s;
+    publish::DdsSettings s;
     s.partition = kPartition;
     s.network = "loopback";
     s.security = gateway::dds_security_settings(*loaded.config->publish.dds.security);
-    EXPECT_THROW(gateway::DdsPublisher refused(s), gateway::PublishConfigError) << who;
+    EXPECT_THROW(publish::DdsPublisher refused(s), publish::PublishConfigError) << who;
   }
   fs::remove(key);
 }

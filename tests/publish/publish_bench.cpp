@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
-#include "gateway/publish/dds_publisher.hpp"
-#include "gateway/publish/lcm_publisher.hpp"
+#include "publish/dds_publisher.hpp"
+#include "publish/lcm_publisher.hpp"
 #include "tests/publish/child_process.hpp"
 #include "tests/publish/private_network.hpp"
 
@@ -97,7 +97,7 @@ int main(int argc, char** argv) {
 
   const std::string sets = "/tmp/oegw-bench-dds-security-" + tag;
   for (const char* protection : {"", "sign", "encrypt"}) {
-    oegw::gateway::DdsSettings s;
+    oegw::publish::DdsSettings s;
     s.partition = "oegw-bench-" + tag;
     std::vector<std::string> sub_argv{OEGW_DDS_SUBSCRIBER, "--count", total, "--timeout", "120", "--partition", s.partition};
     if (*protection != 0) {
@@ -105,7 +105,7 @@ int main(int argc, char** argv) {
       const std::string make = std::string(OEGW_MAKE_DDS_SECURITY) + " --protection " + protection + " --partition " +
                                s.partition + " " + dir + " >/dev/null";
       if (std::system(make.c_str()) != 0) return 1;
-      oegw::gateway::DdsSecuritySettings sec;
+      oegw::publish::DdsSecuritySettings sec;
       sec.path = {dir + "/ca.pem",          dir + "/gateway.pem",    dir + "/gateway.key",
                   dir + "/ca.pem",          dir + "/governance.p7s", dir + "/permissions.p7s"};
       s.security = sec;
@@ -116,7 +116,7 @@ int main(int argc, char** argv) {
         sub_argv.push_back(dir + "/" + file);
       }
     }
-    oegw::gateway::DdsPublisher dds(s);
+    oegw::publish::DdsPublisher dds(s);
     oegw::test::ChildProcess sub(sub_argv);
     if (sub.read_line(10s) != "ready") return 1;
     // A secure reader matches only after the handshake (authentication, then the keys).
@@ -127,9 +127,9 @@ int main(int argc, char** argv) {
   }
   (void)!std::system(("rm -rf " + sets).c_str());
   {
-    oegw::gateway::LcmSettings s;
+    oegw::publish::LcmSettings s;
     s.channel_prefix = "B" + tag + "_";
-    oegw::gateway::LcmPublisher lcm(s);
+    oegw::publish::LcmPublisher lcm(s);
     oegw::test::ChildProcess sub({OEGW_LCM_SUBSCRIBER, "--count", total, "--timeout", "120", "--channel",
                                   s.channel_prefix + "JOYSTICK_[0-9]+"});
     if (sub.read_line(10s) != "ready") return 1;

@@ -19,9 +19,9 @@
 
 #include "canopen/master.hpp"
 #include "dds/dds.h"
-#include "gateway/publish/dds_publisher.hpp"
-#include "gateway/publish/lcm_publisher.hpp"
-#include "gateway/publish/publish_schedule.hpp"
+#include "publish/dds_publisher.hpp"
+#include "publish/lcm_publisher.hpp"
+#include "publish/publish_schedule.hpp"
 #include "oegw.h"
 #include "dds_command_writer.hpp"
 #include "tests/publish/subscriber_lines.hpp"
@@ -47,12 +47,12 @@ std::int64_t us(TimePoint t) { return t.time_since_epoch().count(); }
 // Publishes to DDS and LCM, then waits until both subscribers printed the sample (they keep the
 // last sample per instance: one in flight at a time) and checks it.
 struct BothTransports : Publisher {
-  DdsPublisher& dds;
-  LcmPublisher& lcm;
+  publish::DdsPublisher& dds;
+  publish::LcmPublisher& lcm;
   test::ChildProcess& dds_sub;
   test::ChildProcess& lcm_sub;
   std::vector<JoystickSample> sent;
-  BothTransports(DdsPublisher& d, LcmPublisher& l, test::ChildProcess& ds, test::ChildProcess& ls)
+  BothTransports(publish::DdsPublisher& d, publish::LcmPublisher& l, test::ChildProcess& ds, test::ChildProcess& ls)
       : dds(d), lcm(l), dds_sub(ds), lcm_sub(ls) {}
   void publish(const JoystickSample& s) override {
     sent.push_back(s);
@@ -113,7 +113,7 @@ class GripToDdsAndLcm : public ::testing::Test {
     return j;
   }
   // Runs the simulated time in 10 ms steps, feeding and ticking the schedule.
-  void run(PublishSchedule& sched, Duration d) {
+  void run(publish::PublishSchedule& sched, Duration d) {
     const TimePoint end = net_.now() + d;
     while (net_.now() < end) {
       net_.run_for(10ms);
@@ -138,13 +138,13 @@ class GripToDdsAndLcm : public ::testing::Test {
 };
 
 TEST_F(GripToDdsAndLcm, SubscribersSeeTheJoystickMoveAndGoOfflineWhenItsHeartbeatStops) {
-  DdsSettings ds;
+  publish::DdsSettings ds;
   ds.partition = "oegw-e2e-" + tag_;
   ds.period_us = 100'000;
-  DdsPublisher dds(ds);
-  LcmSettings ls;
+  publish::DdsPublisher dds(ds);
+  publish::LcmSettings ls;
   ls.channel_prefix = "E" + tag_ + "_";
-  LcmPublisher lcm(ls);
+  publish::LcmPublisher lcm(ls);
   test::ChildProcess dds_sub({OEGW_DDS_SUBSCRIBER, "--timeout", "60", "--partition", ds.partition});
   test::ChildProcess lcm_sub(
       {OEGW_LCM_SUBSCRIBER, "--timeout", "60", "--channel", ls.channel_prefix + "JOYSTICK_[0-9]+"});
@@ -155,7 +155,7 @@ TEST_F(GripToDdsAndLcm, SubscribersSeeTheJoystickMoveAndGoOfflineWhenItsHeartbea
   ASSERT_GE(dds.joystick_readers(), 1u);
 
   BothTransports both(dds, lcm, dds_sub, lcm_sub);
-  PublishSchedule sched(both, ds.period_us);
+  publish::PublishSchedule sched(both, ds.period_us);
   bench_.start(net_.now());
   network_.start(net_.now());
   run(sched, 3s);
@@ -188,12 +188,12 @@ TEST_F(GripToDdsAndLcm, SubscribersSeeTheJoystickMoveAndGoOfflineWhenItsHeartbea
 }
 
 TEST_F(GripToDdsAndLcm, IndicatorCommandsOverDdsAndLcmLightTheGripsLeds) {
-  DdsSettings ds;
+  publish::DdsSettings ds;
   ds.partition = "oegw-e2e-cmd-" + tag_;
-  DdsPublisher dds(ds);
-  LcmSettings ls;
+  publish::DdsPublisher dds(ds);
+  publish::LcmSettings ls;
   ls.channel_prefix = "F" + tag_ + "_";
-  LcmPublisher lcm(ls);
+  publish::LcmPublisher lcm(ls);
   // indicators.1 = grip.leds[1..4]; one rule when two write: the last command wins.
   const auto apply = [this](const IndicatorCommand& c) {
     if (c.instance != 1) return;

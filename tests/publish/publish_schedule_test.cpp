@@ -1,5 +1,5 @@
 // The publishing schedule with a simulated clock: on change, periodic while still, seq numbers.
-#include "gateway/publish/publish_schedule.hpp"
+#include "publish/publish_schedule.hpp"
 
 #include <gtest/gtest.h>
 
@@ -33,7 +33,7 @@ JoystickSample joy(std::uint8_t inst, std::int16_t x, FeStatus st = FeStatus::Va
 
 TEST(PublishSchedule, FirstValueIsPublishedAtOnceWithSeqOne) {
   Recorder r;
-  PublishSchedule sched(r, 100'000);
+  publish::PublishSchedule sched(r, 100'000);
   sched.update(joy(1, 10, FeStatus::Valid, 5), 1000);
   ASSERT_EQ(r.joy.size(), 1u);
   EXPECT_EQ(r.joy[0].h.seq, 1u);
@@ -44,7 +44,7 @@ TEST(PublishSchedule, FirstValueIsPublishedAtOnceWithSeqOne) {
 
 TEST(PublishSchedule, SameValuesAreNotRepublishedBeforeThePeriod) {
   Recorder r;
-  PublishSchedule sched(r, 100'000);
+  publish::PublishSchedule sched(r, 100'000);
   sched.update(joy(1, 10), 0);
   sched.update(joy(1, 10, FeStatus::Valid, 50), 50'000);  // a new frame, same value: no change
   sched.tick(99'999);
@@ -53,7 +53,7 @@ TEST(PublishSchedule, SameValuesAreNotRepublishedBeforeThePeriod) {
 
 TEST(PublishSchedule, AChangeIsPublishedImmediatelyAndRestartsThePeriod) {
   Recorder r;
-  PublishSchedule sched(r, 100'000);
+  publish::PublishSchedule sched(r, 100'000);
   sched.update(joy(1, 10), 0);
   sched.update(joy(1, 11), 30'000);
   ASSERT_EQ(r.joy.size(), 2u);
@@ -70,7 +70,7 @@ TEST(PublishSchedule, AChangeIsPublishedImmediatelyAndRestartsThePeriod) {
 
 TEST(PublishSchedule, AStillJoystickKeepsComingWithRisingSeqAndItsSourceTimestamp) {
   Recorder r;
-  PublishSchedule sched(r, 100'000);
+  publish::PublishSchedule sched(r, 100'000);
   sched.update(joy(2, -7, FeStatus::Valid, 42), 0);
   for (std::int64_t t = 100'000; t <= 1'000'000; t += 100'000) sched.tick(t);
   ASSERT_EQ(r.joy.size(), 11u);
@@ -83,7 +83,7 @@ TEST(PublishSchedule, AStillJoystickKeepsComingWithRisingSeqAndItsSourceTimestam
 
 TEST(PublishSchedule, AStatusChangeIsAChange) {
   Recorder r;
-  PublishSchedule sched(r, 100'000);
+  publish::PublishSchedule sched(r, 100'000);
   sched.update(joy(1, 0), 0);
   sched.update(joy(1, 0, FeStatus::Offline), 10);
   ASSERT_EQ(r.joy.size(), 2u);
@@ -92,7 +92,7 @@ TEST(PublishSchedule, AStatusChangeIsAChange) {
 
 TEST(PublishSchedule, InstancesAndKindsHaveTheirOwnSeqAndPeriod) {
   Recorder r;
-  PublishSchedule sched(r, 100'000);
+  publish::PublishSchedule sched(r, 100'000);
   sched.update(joy(1, 1), 0);
   sched.update(joy(2, 1), 50'000);
   PedalSample p;
@@ -126,7 +126,7 @@ TEST(PublishSchedule, InstancesAndKindsHaveTheirOwnSeqAndPeriod) {
 
 TEST(PublishSchedule, NothingKnownNothingDue) {
   Recorder r;
-  PublishSchedule sched(r, 1000);
+  publish::PublishSchedule sched(r, 1000);
   EXPECT_FALSE(sched.next_due().has_value());
   sched.tick(1'000'000);
   EXPECT_TRUE(r.joy.empty());
@@ -134,7 +134,7 @@ TEST(PublishSchedule, NothingKnownNothingDue) {
 
 TEST(PublishSchedule, PeriodMustBePositive) {
   Recorder r;
-  EXPECT_THROW(PublishSchedule(r, 0), std::invalid_argument);
+  EXPECT_THROW(publish::PublishSchedule(r, 0), std::invalid_argument);
 }
 
 }  // namespace

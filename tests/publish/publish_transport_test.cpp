@@ -18,10 +18,10 @@
 #include <vector>
 
 #include "dds/dds.h"
-#include "gateway/publish/dds_publisher.hpp"
-#include "gateway/publish/lcm_publisher.hpp"
-#include "gateway/publish/lcm_url.hpp"
-#include "gateway/publish/publish_schedule.hpp"
+#include "publish/dds_publisher.hpp"
+#include "publish/lcm_publisher.hpp"
+#include "publish/lcm_url.hpp"
+#include "publish/publish_schedule.hpp"
 #include "oegw.h"
 #include "oegw/display_command_t.hpp"
 #include "oegw/indicator_command_t.hpp"
@@ -55,7 +55,7 @@ struct Tee : Publisher {
 
 // A joystick moving, standing still for a period, losing a button, then its device going quiet
 // (stale) and offline: drives `sched` with a simulated clock; `after_each` runs after every step.
-void move_joystick(PublishSchedule& sched, const std::function<void()>& after_each) {
+void move_joystick(publish::PublishSchedule& sched, const std::function<void()>& after_each) {
   std::int64_t t = 1'000'000;
   JoystickSample s;
   s.h.instance = 3;
@@ -97,15 +97,15 @@ bool wait_for(const std::function<bool()>& ready, std::chrono::milliseconds limi
 }
 
 TEST(DdsPublisher, ASubscriberInAnotherProcessReceivesExactlyWhatIsPublished) {
-  DdsSettings s;
+  publish::DdsSettings s;
   s.partition = unique("oegw-test-");
-  DdsPublisher dds(s);
+  publish::DdsPublisher dds(s);
   ChildProcess sub({OEGW_DDS_SUBSCRIBER, "--count", "11", "--timeout", "30", "--partition", s.partition});
   ASSERT_EQ(sub.read_line(10s), "ready");
   ASSERT_TRUE(wait_for([&] { return dds.joystick_readers() >= 1; })) << "the subscriber was not discovered";
 
   Tee tee(dds);
-  PublishSchedule sched(tee, 100'000);
+  publish::PublishSchedule sched(tee, 100'000);
   std::size_t checked = 0;
   move_joystick(sched, [&] {
     // One sample per step; the reader keeps the last one per instance, so take each before the next.
@@ -122,15 +122,15 @@ TEST(DdsPublisher, ASubscriberInAnotherProcessReceivesExactlyWhatIsPublished) {
 }
 
 TEST(LcmPublisher, ASubscriberInAnotherProcessReceivesExactlyWhatIsPublished) {
-  LcmSettings s;
+  publish::LcmSettings s;
   s.channel_prefix = unique("T") + "_";
-  LcmPublisher lcm(s);
+  publish::LcmPublisher lcm(s);
   ChildProcess sub({OEGW_LCM_SUBSCRIBER, "--count", "11", "--timeout", "30", "--channel",
                     s.channel_prefix + "JOYSTICK_[0-9]+"});
   ASSERT_EQ(sub.read_line(10s), "ready");
 
   Tee tee(lcm);
-  PublishSchedule sched(tee, 100'000);
+  publish::PublishSchedule sched(tee, 100'000);
   std::size_t checked = 0;
   move_joystick(sched, [&] {
     for (; checked < tee.joy.size(); ++checked) {
@@ -147,9 +147,9 @@ TEST(LcmPublisher, ASubscriberInAnotherProcessReceivesExactlyWhatIsPublished) {
 TEST(LcmPublisher, LcmLoggerRecordsASessionThatDecodesWithTheProjectsTypes) {
   const std::string file = ::testing::TempDir() + unique("oegw-session-") + ".lcmlog";
   std::remove(file.c_str());
-  LcmSettings s;
+  publish::LcmSettings s;
   s.channel_prefix = unique("L") + "_";
-  LcmPublisher lcm(s);
+  publish::LcmPublisher lcm(s);
   // (Debian's lcm-logger 1.3.1 lists -l but only takes the long form --lcm-url=.)
   ChildProcess logger({OEGW_LCM_LOGGER, "-q", "-f", "--flush-interval=10", "--lcm-url=" + s.url,
                        "--channel=" + s.channel_prefix + ".*", file});
@@ -163,7 +163,7 @@ TEST(LcmPublisher, LcmLoggerRecordsASessionThatDecodesWithTheProjectsTypes) {
   })) << "lcm-logger did not record";
 
   Tee tee(lcm);
-  PublishSchedule sched(tee, 100'000);
+  publish::PublishSchedule sched(tee, 100'000);
   move_joystick(sched, [] {});
   GatewayStatus gs;
   gs.seq = 1;
@@ -217,9 +217,9 @@ TEST(LcmPublisher, LcmLoggerRecordsASessionThatDecodesWithTheProjectsTypes) {
 }
 
 TEST(DdsPublisher, CommandsSentOverDdsReachTheCallbacks) {
-  DdsSettings s;
+  publish::DdsSettings s;
   s.partition = unique("oegw-cmd-");
-  DdsPublisher dds(s);
+  publish::DdsPublisher dds(s);
   std::vector<IndicatorCommand> ind;
   std::vector<DisplayCommand> disp;
   dds.on_indicator_command = [&](const IndicatorCommand& c) { ind.push_back(c); };
@@ -283,7 +283,7 @@ TEST(DdsPublisher, CommandsSentOverDdsReachTheCallbacks) {
 // domain and partition.
 struct DdsApp {
   dds_entity_t pp = 0, sub = 0;
-  explicit DdsApp(const DdsSettings& s) {
+  explicit DdsApp(const publish::DdsSettings& s) {
     pp = dds_create_participant(s.domain, nullptr, nullptr);
     dds_qos_t* pq = dds_create_qos();
     dds_qset_partition1(pq, s.partition.c_str());
@@ -296,10 +296,10 @@ struct DdsApp {
 };
 
 TEST(DdsPublisher, AReaderAskingForThePeriodAsDeadlineSeesTheJoystickStop) {
-  DdsSettings s;
+  publish::DdsSettings s;
   s.partition = unique("oegw-deadline-");
   s.period_us = 20'000;
-  DdsPublisher dds(s);
+  publish::DdsPublisher dds(s);
   DdsApp app(s);
   const dds_entity_t t = dds_create_topic(app.pp, &oegw_Joystick_desc, "oegw/joystick", nullptr, nullptr);
   dds_qos_t* q = dds_create_qos();
@@ -330,9 +330,9 @@ TEST(DdsPublisher, AReaderAskingForThePeriodAsDeadlineSeesTheJoystickStop) {
 }
 
 TEST(DdsPublisher, ALateReaderGetsTheLastGatewayStatus) {
-  DdsSettings s;
+  publish::DdsSettings s;
   s.partition = unique("oegw-status-");
-  DdsPublisher dds(s);
+  publish::DdsPublisher dds(s);
   GatewayStatus gs;
   gs.timestamp_us = 123;
   gs.seq = 7;
@@ -403,9 +403,9 @@ TEST(DdsPublisher, ALateReaderGetsTheLastGatewayStatus) {
 }
 
 TEST(LcmPublisher, CommandsSentOverLcmReachTheCallbacks) {
-  LcmSettings s;
+  publish::LcmSettings s;
   s.channel_prefix = unique("C") + "_";
-  LcmPublisher lcm(s);
+  publish::LcmPublisher lcm(s);
   std::vector<IndicatorCommand> ind;
   std::vector<DisplayCommand> disp;
   lcm.on_indicator_command = [&](const IndicatorCommand& c) { ind.push_back(c); };
@@ -455,11 +455,11 @@ TEST(LcmPublisher, CommandsSentOverLcmReachTheCallbacks) {
 std::string error_of(const std::function<void()>& f, bool* unavailable = nullptr) {
   try {
     f();
-  } catch (const PublishUnavailable& e) {
+  } catch (const publish::PublishUnavailable& e) {
     std::fprintf(stderr, "unavailable: %s\n", e.what());
     if (unavailable != nullptr) *unavailable = true;
     return e.what();
-  } catch (const PublishConfigError& e) {
+  } catch (const publish::PublishConfigError& e) {
     std::fprintf(stderr, "refused: %s\n", e.what());
     return e.what();
   }
@@ -467,9 +467,9 @@ std::string error_of(const std::function<void()>& f, bool* unavailable = nullptr
 }
 
 TEST(PublishSettings, ADdsDomainThatCannotBeCreatedIsNamed) {
-  DdsSettings s;
+  publish::DdsSettings s;
   s.domain = 300;  // beyond Cyclone's 0..230
-  const std::string e = error_of([&] { DdsPublisher p(s); });
+  const std::string e = error_of([&] { publish::DdsPublisher p(s); });
   EXPECT_EQ(e.rfind("publish.dds.domain: cannot create domain 300: ", 0), 0u) << e;
   EXPECT_NE(e.find("out of range"), std::string::npos) << e;  // Cyclone's reason, from its log
 }
@@ -477,26 +477,26 @@ TEST(PublishSettings, ADdsDomainThatCannotBeCreatedIsNamed) {
 // An interface that is not there (yet) is the machine's state, not the setting's: oegw run starts
 // without DDS and opens it when the interface appears.
 TEST(PublishSettings, AMissingDdsInterfaceIsUnavailableAndNamed) {
-  DdsSettings s;
+  publish::DdsSettings s;
   s.domain = 3;
   s.network = "oegwnope0";
   bool unavailable = false;
-  const std::string e = error_of([&] { DdsPublisher p(s); }, &unavailable);
+  const std::string e = error_of([&] { publish::DdsPublisher p(s); }, &unavailable);
   EXPECT_TRUE(unavailable) << e;
   EXPECT_EQ(e.rfind("publish.dds.network: interface oegwnope0 is not on this machine (", 0), 0u) << e;
 }
 
 TEST(PublishSettings, AnLcmUrlThatDoesNotParseIsNamed) {
-  LcmSettings s;
+  publish::LcmSettings s;
   s.url = "239.255.76.67:7667";
-  const std::string e = error_of([&] { LcmPublisher p(s); });
+  const std::string e = error_of([&] { publish::LcmPublisher p(s); });
   EXPECT_EQ(e.rfind("publish.lcm.url: \"239.255.76.67:7667\" does not parse", 0), 0u) << e;
 }
 
 TEST(PublishSettings, AnLcmUrlThatCannotBeOpenedIsNamed) {
-  LcmSettings s;
+  publish::LcmSettings s;
   s.url = "nosuchprovider://239.255.76.67:7667?ttl=0";
-  const std::string e = error_of([&] { LcmPublisher p(s); });
+  const std::string e = error_of([&] { publish::LcmPublisher p(s); });
   EXPECT_EQ(e.rfind("publish.lcm.url: cannot open \"nosuchprovider://", 0), 0u) << e;
 }
 
@@ -510,29 +510,29 @@ TEST(PublishSettings, AnLcmGroupWithoutARouteIsUnavailableAndNamesTheCommand) {
   struct Restore {
     ~Restore() { EXPECT_EQ(std::system("ip route add 224.0.0.0/4 dev lo"), 0); }
   } restore;
-  LcmSettings s;  // udpm://224.0.0.1:7667?ttl=0
+  publish::LcmSettings s;  // udpm://224.0.0.1:7667?ttl=0
   bool unavailable = false;
-  const std::string e = error_of([&] { LcmPublisher p(s); }, &unavailable);
+  const std::string e = error_of([&] { publish::LcmPublisher p(s); }, &unavailable);
   EXPECT_TRUE(unavailable) << e;
   EXPECT_EQ(e, "publish.lcm.url: \"udpm://224.0.0.1:7667?ttl=0\": no route to 224.0.0.1 (Network is unreachable) — add "
                "one: ip route add 224.0.0.0/4 dev lo");
-  EXPECT_EQ(lcm_route_problem(s.url), "no route to 224.0.0.1 (Network is unreachable)");
+  EXPECT_EQ(publish::lcm_route_problem(s.url), "no route to 224.0.0.1 (Network is unreachable)");
 }
 
 TEST(PublishSettings, ABadLcmChannelPrefixIsNamed) {
-  LcmSettings s;
+  publish::LcmSettings s;
   s.channel_prefix = "OEGW .*";
-  const std::string e = error_of([&] { LcmPublisher p(s); });
+  const std::string e = error_of([&] { publish::LcmPublisher p(s); });
   EXPECT_EQ(e.rfind("publish.lcm.channel_prefix: ", 0), 0u) << e;
 }
 
 TEST(PublishSettings, TheLoopbackDdsConfigurationKeepsTrafficOnThisHost) {
-  const std::string xml = dds_config_xml("loopback");
+  const std::string xml = publish::dds_config_xml("loopback");
   EXPECT_NE(xml.find("<NetworkInterface name=\"lo\"/>"), std::string::npos);
   EXPECT_NE(xml.find("<AllowMulticast>false</AllowMulticast>"), std::string::npos);
   EXPECT_NE(xml.find("<Peer address=\"127.0.0.1\"/>"), std::string::npos);
-  EXPECT_EQ(LcmSettings{}.url, "udpm://224.0.0.1:7667?ttl=0");
-  EXPECT_EQ(DdsSettings{}.network, "loopback");
+  EXPECT_EQ(publish::LcmSettings{}.url, "udpm://224.0.0.1:7667?ttl=0");
+  EXPECT_EQ(publish::DdsSettings{}.network, "loopback");
 }
 
 }  // namespace

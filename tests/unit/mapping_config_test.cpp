@@ -844,7 +844,7 @@ functional_elements: {}
 }
 
 // publish.dds.security: six file paths, all required, relative ones from the file's folder. What
-// the files hold is checked elsewhere (gateway/publish/dds_security.hpp; tests/publish/dds_security_test.cpp).
+// the files hold is checked elsewhere (publish/dds_security.hpp; tests/publish/dds_security_test.cpp).
 TEST(MappingConfig, DdsSecurityTakesSixFilesFromTheFilesFolder) {
   const std::string head = R"(upstream: { interface: can0, node_id: 0x20 }
 downstream: { interface: can1 }

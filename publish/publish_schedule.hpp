@@ -13,22 +13,22 @@
 
 #include "gateway/fe_samples.hpp"
 
-namespace oegw::gateway {
+namespace oegw::publish {
 
 enum class FeKind : std::uint8_t { Joystick, Pedal, Wheel, Encoder, ButtonCluster };
 
 class PublishSchedule {
  public:
   // period_us > 0: the longest time between two samples of one FE instance.
-  PublishSchedule(Publisher& out, std::int64_t period_us);
+  PublishSchedule(gateway::Publisher& out, std::int64_t period_us);
 
   // The FE's current value (status and source timestamp included; seq is ignored). Published
   // now if it differs from the last published one (values or status) or the FE is new.
-  void update(const JoystickSample& s, std::int64_t now_us);
-  void update(const PedalSample& s, std::int64_t now_us);
-  void update(const WheelSample& s, std::int64_t now_us);
-  void update(const EncoderSample& s, std::int64_t now_us);
-  void update(const ButtonClusterSample& s, std::int64_t now_us);
+  void update(const gateway::JoystickSample& s, std::int64_t now_us);
+  void update(const gateway::PedalSample& s, std::int64_t now_us);
+  void update(const gateway::WheelSample& s, std::int64_t now_us);
+  void update(const gateway::EncoderSample& s, std::int64_t now_us);
+  void update(const gateway::ButtonClusterSample& s, std::int64_t now_us);
 
   // Republishes (new seq, same values and source timestamp) every FE whose last sample is
   // `period` old or older.
@@ -40,7 +40,7 @@ class PublishSchedule {
   [[nodiscard]] std::uint64_t published() const { return published_; }
 
  private:
-  using Sample = FeSample;
+  using Sample = gateway::FeSample;
   struct Entry {
     Sample last;
     std::int64_t last_sent_us = 0;
@@ -49,10 +49,10 @@ class PublishSchedule {
   void update_impl(FeKind kind, const S& s, std::int64_t now_us);
   void send(Entry& e, std::int64_t now_us);
 
-  Publisher& out_;
+  gateway::Publisher& out_;
   std::int64_t period_us_;
   std::map<std::pair<FeKind, std::uint8_t>, Entry> entries_;
   std::uint64_t published_ = 0;
 };
 
-}  // namespace oegw::gateway
+}  // namespace oegw::publish

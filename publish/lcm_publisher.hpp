@@ -1,4 +1,4 @@
-// The FE samples on LCM (liblcm C API, types from gateway/publish/lcm/*.lcm), commands back.
+// The FE samples on LCM (liblcm C API, types from publish/lcm/*.lcm), commands back.
 //
 // Channels (prefix configurable, default "OEGW_"), one per FE instance n:
 //   OEGW_JOYSTICK_n  OEGW_PEDAL_n  OEGW_WHEEL_n  OEGW_ENCODER_n  OEGW_BUTTONS_n   FE samples out
@@ -12,9 +12,9 @@
 #include <string>
 
 #include "gateway/fe_samples.hpp"
-#include "gateway/publish/dds_publisher.hpp"  // PublishConfigError
+#include "publish/dds_publisher.hpp"  // PublishConfigError
 
-namespace oegw::gateway {
+namespace oegw::publish {
 
 struct LcmSettings {
   // publish.lcm.url. ttl=0: multicast that never leaves the host (tests, demo).
@@ -22,7 +22,7 @@ struct LcmSettings {
   std::string channel_prefix = "OEGW_";  // publish.lcm.channel_prefix
 };
 
-class LcmPublisher final : public Publisher {
+class LcmPublisher final : public gateway::Publisher {
  public:
   // Throws PublishConfigError for a URL or prefix that cannot work, PublishUnavailable when the
   // machine cannot carry it now (no route for the group, liblcm's self-test failed, a tcpq://
@@ -32,12 +32,12 @@ class LcmPublisher final : public Publisher {
   LcmPublisher(const LcmPublisher&) = delete;
   LcmPublisher& operator=(const LcmPublisher&) = delete;
 
-  void publish(const JoystickSample&) override;
-  void publish(const PedalSample&) override;
-  void publish(const WheelSample&) override;
-  void publish(const EncoderSample&) override;
-  void publish(const ButtonClusterSample&) override;
-  void publish(const GatewayStatus&) override;
+  void publish(const gateway::JoystickSample&) override;
+  void publish(const gateway::PedalSample&) override;
+  void publish(const gateway::WheelSample&) override;
+  void publish(const gateway::EncoderSample&) override;
+  void publish(const gateway::ButtonClusterSample&) override;
+  void publish(const gateway::GatewayStatus&) override;
 
   // lcm_get_fileno(); poll() handles whatever is readable without blocking.
   [[nodiscard]] int fd() const override;
@@ -51,4 +51,4 @@ class LcmPublisher final : public Publisher {
   std::string prefix_;
 };
 
-}  // namespace oegw::gateway
+}  // namespace oegw::publish

@@ -1,27 +1,27 @@
-#include "gateway/publish/publish_schedule.hpp"
+#include "publish/publish_schedule.hpp"
 
 #include <stdexcept>
 
-namespace oegw::gateway {
+namespace oegw::publish {
 
 namespace {
 // Same published content: status and values. seq and the source timestamp do not count — a new
 // frame with the same values is not a change.
-bool same(const SampleHeader& a, const SampleHeader& b) { return a.status == b.status; }
-bool same(const JoystickSample& a, const JoystickSample& b) {
+bool same(const gateway::SampleHeader& a, const gateway::SampleHeader& b) { return a.status == b.status; }
+bool same(const gateway::JoystickSample& a, const gateway::JoystickSample& b) {
   return same(a.h, b.h) && a.x == b.x && a.y == b.y && a.z == b.z && a.buttons == b.buttons && a.memory == b.memory;
 }
-bool same(const PedalSample& a, const PedalSample& b) {
+bool same(const gateway::PedalSample& a, const gateway::PedalSample& b) {
   return same(a.h, b.h) && a.position == b.position && a.memory == b.memory;
 }
-bool same(const WheelSample& a, const WheelSample& b) { return same(a.h, b.h) && a.position == b.position; }
-bool same(const EncoderSample& a, const EncoderSample& b) { return same(a.h, b.h) && a.position == b.position; }
-bool same(const ButtonClusterSample& a, const ButtonClusterSample& b) {
+bool same(const gateway::WheelSample& a, const gateway::WheelSample& b) { return same(a.h, b.h) && a.position == b.position; }
+bool same(const gateway::EncoderSample& a, const gateway::EncoderSample& b) { return same(a.h, b.h) && a.position == b.position; }
+bool same(const gateway::ButtonClusterSample& a, const gateway::ButtonClusterSample& b) {
   return same(a.h, b.h) && a.switches == b.switches;
 }
 }  // namespace
 
-PublishSchedule::PublishSchedule(Publisher& out, std::int64_t period_us) : out_(out), period_us_(period_us) {
+PublishSchedule::PublishSchedule(gateway::Publisher& out, std::int64_t period_us) : out_(out), period_us_(period_us) {
   if (period_us <= 0) throw std::invalid_argument("publish period must be > 0");
 }
 
@@ -54,11 +54,11 @@ void PublishSchedule::send(Entry& e, std::int64_t now_us) {
       e.last);
 }
 
-void PublishSchedule::update(const JoystickSample& s, std::int64_t now_us) { update_impl(FeKind::Joystick, s, now_us); }
-void PublishSchedule::update(const PedalSample& s, std::int64_t now_us) { update_impl(FeKind::Pedal, s, now_us); }
-void PublishSchedule::update(const WheelSample& s, std::int64_t now_us) { update_impl(FeKind::Wheel, s, now_us); }
-void PublishSchedule::update(const EncoderSample& s, std::int64_t now_us) { update_impl(FeKind::Encoder, s, now_us); }
-void PublishSchedule::update(const ButtonClusterSample& s, std::int64_t now_us) {
+void PublishSchedule::update(const gateway::JoystickSample& s, std::int64_t now_us) { update_impl(FeKind::Joystick, s, now_us); }
+void PublishSchedule::update(const gateway::PedalSample& s, std::int64_t now_us) { update_impl(FeKind::Pedal, s, now_us); }
+void PublishSchedule::update(const gateway::WheelSample& s, std::int64_t now_us) { update_impl(FeKind::Wheel, s, now_us); }
+void PublishSchedule::update(const gateway::EncoderSample& s, std::int64_t now_us) { update_impl(FeKind::Encoder, s, now_us); }
+void PublishSchedule::update(const gateway::ButtonClusterSample& s, std::int64_t now_us) {
   update_impl(FeKind::ButtonCluster, s, now_us);
 }
 
@@ -77,4 +77,4 @@ std::optional<std::int64_t> PublishSchedule::next_due() const {
   return due;
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::publish

@@ -1,6 +1,6 @@
 // The FE samples on DDS (Cyclone DDS C API), commands back from DDS.
 //
-// Topics (type from gateway/publish/oegw.idl, prefix configurable, default "oegw/"):
+// Topics (type from publish/oegw.idl, prefix configurable, default "oegw/"):
 //   oegw/joystick  oegw/pedal  oegw/wheel  oegw/encoder  oegw/buttons   FE samples, keyed by instance
 //   oegw/status                                                       gateway status (transient-local)
 //   oegw/indicators  oegw/display                                     commands in, keyed by instance
@@ -17,10 +17,10 @@
 #include <string>
 
 #include "gateway/fe_samples.hpp"
-#include "gateway/publish/dds_security.hpp"
-#include "gateway/publish/publish_errors.hpp"
+#include "publish/dds_security.hpp"
+#include "publish/publish_errors.hpp"
 
-namespace oegw::gateway {
+namespace oegw::publish {
 
 struct DdsSettings {
   std::uint32_t domain = 0;       // publish.dds.domain
@@ -41,7 +41,7 @@ struct DdsSettings {
 std::string dds_config_xml(const std::string& network, const std::optional<DdsSecuritySettings>& security = {});
 
 
-class DdsPublisher final : public Publisher {
+class DdsPublisher final : public gateway::Publisher {
  public:
   // Throws PublishConfigError for a setting Cyclone DDS refuses, PublishUnavailable when the
   // interface publish.dds.network names is not on this machine (yet).
@@ -50,12 +50,12 @@ class DdsPublisher final : public Publisher {
   DdsPublisher(const DdsPublisher&) = delete;
   DdsPublisher& operator=(const DdsPublisher&) = delete;
 
-  void publish(const JoystickSample&) override;
-  void publish(const PedalSample&) override;
-  void publish(const WheelSample&) override;
-  void publish(const EncoderSample&) override;
-  void publish(const ButtonClusterSample&) override;
-  void publish(const GatewayStatus&) override;
+  void publish(const gateway::JoystickSample&) override;
+  void publish(const gateway::PedalSample&) override;
+  void publish(const gateway::WheelSample&) override;
+  void publish(const gateway::EncoderSample&) override;
+  void publish(const gateway::ButtonClusterSample&) override;
+  void publish(const gateway::GatewayStatus&) override;
 
   // Readable when a command arrived (an eventfd a Cyclone listener signals); poll() takes the
   // commands and calls on_indicator_command / on_display_command in the caller's thread.
@@ -70,4 +70,4 @@ class DdsPublisher final : public Publisher {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace oegw::gateway
+}  // namespace oegw::publish

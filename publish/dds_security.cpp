@@ -1,4 +1,4 @@
-#include "gateway/publish/dds_security.hpp"
+#include "publish/dds_security.hpp"
 
 #include <openssl/asn1.h>
 #include <openssl/bio.h>
@@ -17,7 +17,7 @@
 #include <memory>
 #include <optional>
 
-namespace oegw::gateway {
+namespace oegw::publish {
 
 namespace {
 
@@ -200,4 +200,4 @@ std::string dds_security_xml(const DdsSecuritySettings& s) {
          "</Permissions></AccessControl></Security>";
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::publish

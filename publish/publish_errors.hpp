@@ -4,7 +4,7 @@
 
 #include <stdexcept>
 
-namespace oegw::gateway {
+namespace oegw::publish {
 
 class PublishError : public std::runtime_error {
  public:
@@ -27,4 +27,4 @@ class PublishUnavailable : public PublishError {
   using PublishError::PublishError;
 };
 
-}  // namespace oegw::gateway
+}  // namespace oegw::publish

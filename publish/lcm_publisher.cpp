@@ -1,4 +1,4 @@
-#include "gateway/publish/lcm_publisher.hpp"
+#include "publish/lcm_publisher.hpp"
 
 #include <lcm/lcm.h>
 
@@ -7,7 +7,7 @@
 #include <regex>
 #include <vector>
 
-#include "gateway/publish/lcm_url.hpp"
+#include "publish/lcm_url.hpp"
 #include "oegw/button_cluster_t.hpp"
 #include "oegw/display_command_t.hpp"
 #include "oegw/emcy_t.hpp"
@@ -20,10 +20,10 @@
 #include "oegw/upstream_emcy_t.hpp"
 #include "oegw/wheel_t.hpp"
 
-namespace oegw::gateway {
+namespace oegw::publish {
 
 namespace {
-std::int8_t status_of(FeStatus s) { return static_cast<std::int8_t>(s); }
+std::int8_t status_of(gateway::FeStatus s) { return static_cast<std::int8_t>(s); }
 
 // The FE channels, "<prefix>JOYSTICK_<n>" …, for instances 1..16: built once, so a sample
 // costs no string building.
@@ -57,11 +57,11 @@ struct LcmPublisher::Impl {
       if (m.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) < 0) return;
       if (self->owner->on_indicator_command)
         self->owner->on_indicator_command(
-            IndicatorCommand{static_cast<std::uint8_t>(m.instance), static_cast<std::uint64_t>(m.indicators)});
+            gateway::IndicatorCommand{static_cast<std::uint8_t>(m.instance), static_cast<std::uint64_t>(m.indicators)});
     } else if (ch.rfind(self->display_prefix, 0) == 0) {
       oegw::display_command_t m;
       if (m.decode(rbuf->data, 0, static_cast<int>(rbuf->data_size)) < 0) return;
-      DisplayCommand c{static_cast<std::uint8_t>(m.instance), {}};
+      gateway::DisplayCommand c{static_cast<std::uint8_t>(m.instance), {}};
       for (std::size_t k = 0; k < c.parameters.size(); ++k) c.parameters[k] = m.parameters[k];
       if (self->owner->on_display_command) self->owner->on_display_command(c);
     }
@@ -114,14 +114,14 @@ LcmPublisher::~LcmPublisher() {
 
 // The fields every FE message starts with (oegw/*.lcm).
 template <class M>
-void set_header(M& m, const SampleHeader& h) {
+void set_header(M& m, const gateway::SampleHeader& h) {
   m.instance = static_cast<std::int8_t>(h.instance);
   m.status = status_of(h.status);
   m.timestamp_us = h.timestamp_us;
   m.seq = static_cast<std::int32_t>(h.seq);
 }
 
-void LcmPublisher::publish(const JoystickSample& s) {
+void LcmPublisher::publish(const gateway::JoystickSample& s) {
   oegw::joystick_t m;
   set_header(m, s.h);
   m.x = s.x;
@@ -131,37 +131,37 @@ void LcmPublisher::publish(const JoystickSample& s) {
   m.memory = s.memory;
   impl_->send(impl_->channel(kJoystick, s.h.instance), m);
 }
-void LcmPublisher::publish(const PedalSample& s) {
+void LcmPublisher::publish(const gateway::PedalSample& s) {
   oegw::pedal_t m;
   set_header(m, s.h);
   m.position = static_cast<std::int32_t>(s.position);  // the 32 bits of UNSIGNED32 (LCM has no unsigned type)
   m.memory = s.memory;
   impl_->send(impl_->channel(kPedal, s.h.instance), m);
 }
-void LcmPublisher::publish(const WheelSample& s) {
+void LcmPublisher::publish(const gateway::WheelSample& s) {
   oegw::wheel_t m;
   set_header(m, s.h);
   m.position = s.position;
   impl_->send(impl_->channel(kWheel, s.h.instance), m);
 }
-void LcmPublisher::publish(const EncoderSample& s) {
+void LcmPublisher::publish(const gateway::EncoderSample& s) {
   oegw::encoder_t m;
   set_header(m, s.h);
   m.position = s.position;
   impl_->send(impl_->channel(kEncoder, s.h.instance), m);
 }
-void LcmPublisher::publish(const ButtonClusterSample& s) {
+void LcmPublisher::publish(const gateway::ButtonClusterSample& s) {
   oegw::button_cluster_t m;
   set_header(m, s.h);
   m.switches = static_cast<std::int64_t>(s.switches);
   impl_->send(impl_->channel(kButtons, s.h.instance), m);
 }
-void LcmPublisher::publish(const GatewayStatus& s) {
+void LcmPublisher::publish(const gateway::GatewayStatus& s) {
   oegw::gateway_status_t m;
   m.timestamp_us = s.timestamp_us;
   m.seq = static_cast<std::int32_t>(s.seq);
   m.upstream_state = s.upstream_state;
-  auto emcy = [](const EmcySample& e) {
+  auto emcy = [](const gateway::EmcySample& e) {
     oegw::emcy_t out;
     out.code = static_cast<std::int16_t>(e.code);
     out.error_register = e.error_register;
@@ -212,4 +212,4 @@ void LcmPublisher::poll() {
   (void)lcm_handle_timeout(impl_->lcm, 0);
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::publish

@@ -1,4 +1,4 @@
-#include "gateway/publish/lcm_url.hpp"
+#include "publish/lcm_url.hpp"
 
 #include <arpa/inet.h>
 #include <netinet/in.h>
@@ -9,7 +9,7 @@
 #include <cerrno>
 #include <cstring>
 
-namespace oegw::gateway {
+namespace oegw::publish {
 
 namespace {
 
@@ -186,4 +186,4 @@ std::optional<LinkLocalSend> link_local_send(std::string_view url) {
   return LinkLocalSend{dotted_quad(*group), std::string(ttl)};
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::publish

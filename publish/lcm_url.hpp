@@ -14,7 +14,7 @@
 #include <string>
 #include <string_view>
 
-namespace oegw::gateway {
+namespace oegw::publish {
 
 // A udpm:// URL that sends to a link-local group with a ttl other than 0.
 struct LinkLocalSend {
@@ -62,4 +62,4 @@ struct LinkLocalSend {
 // "224.0.0.1" for 0xE0000001.
 [[nodiscard]] std::string dotted_quad(std::uint32_t address);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::publish

@@ -24,13 +24,13 @@
 #include "mapping/config.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 
-namespace oegw::gateway {
+namespace oegw::rig {
 
 struct CabRigOptions {
   std::filesystem::path store;  // the gateway's 1010h store (replaces upstream.store)
   canopen::Duration host_sdo_timeout = std::chrono::milliseconds(500);
   std::uint8_t host_heartbeat_entries = 2;
-  GatewayOptions gateway{};  // its store_path is set from `store`; sdo_bus_share 0 unless timed_buses
+  gateway::GatewayOptions gateway{};  // its store_path is set from `store`; sdo_bus_share 0 unless timed_buses
   // Options of the simulated devices by sub-device name (subdevices/sim/sim_registry.hpp, e.g.
   // {"left_grip", {{{"wiring", "0/1/2/3/4/5/6"}}}}: an MCB-402 wired otherwise than the
   // document's table). The mapping file's driver options never reach a simulator, only a
@@ -76,7 +76,7 @@ class CabRig {
   Interceptor to_devices;         // a frame the simulators would receive
   Interceptor to_gateway_down;    // a frame the gateway would receive downstream
   // Called with each gateway connect_gateway() makes, before it is attached (on_log, ...).
-  std::function<void(Gateway&)> on_gateway;
+  std::function<void(gateway::Gateway&)> on_gateway;
 
   // The simulators (one per sub-device of the mapping file, named as there) and the host.
   // Throws std::runtime_error naming a sub-device whose simulator cannot be built.
@@ -103,8 +103,8 @@ class CabRig {
   // A text command to the simulators (SimBench::command), e.g. "grip x 50".
   std::string command(const std::string& line);
 
-  [[nodiscard]] Gateway& gw() { return *gw_; }
-  [[nodiscard]] const Gateway& gw() const { return *gw_; }
+  [[nodiscard]] gateway::Gateway& gw() { return *gw_; }
+  [[nodiscard]] const gateway::Gateway& gw() const { return *gw_; }
   [[nodiscard]] canopen::Master& host() { return *host_; }
   [[nodiscard]] subdevices::sim::SimBench& devices() { return *bench_; }
   [[nodiscard]] canopen::VirtualBus& up() { return up_; }
@@ -118,7 +118,7 @@ class CabRig {
 
  private:
   // options_.gateway with the rig's store and SDO pacing.
-  [[nodiscard]] GatewayOptions gateway_options() const;
+  [[nodiscard]] gateway::GatewayOptions gateway_options() const;
   // `sink` behind the interceptor member `consumed` (read at each frame, so it may be set later).
   canopen::FrameSink through(const Interceptor& consumed, canopen::FrameSink sink);
 
@@ -128,10 +128,10 @@ class CabRig {
   canopen::VirtualBus up_, down_;
   std::unique_ptr<canopen::VirtualPort> gw_up_, host_port_, gw_down_, sims_port_;
   std::unique_ptr<subdevices::sim::SimBench> bench_;
-  std::unique_ptr<Gateway> gw_;
+  std::unique_ptr<gateway::Gateway> gw_;
   canopen::ObjectDictionary host_od_;
   std::unique_ptr<canopen::Master> host_;
   std::unique_ptr<canopen::ServiceDriver> bench_drv_, gw_drv_, host_drv_;
 };
 
-}  // namespace oegw::gateway
+}  // namespace oegw::rig

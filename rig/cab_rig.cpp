@@ -1,10 +1,10 @@
-#include "programs/cab_rig.hpp"
+#include "rig/cab_rig.hpp"
 
 #include <stdexcept>
 
 #include "gateway/reload.hpp"
 
-namespace oegw::gateway {
+namespace oegw::rig {
 
 using canopen::CanFrame;
 using canopen::TimePoint;
@@ -82,8 +82,8 @@ void CabRig::build_devices() {
   });
 }
 
-GatewayOptions CabRig::gateway_options() const {
-  GatewayOptions opt = options_.gateway;
+gateway::GatewayOptions CabRig::gateway_options() const {
+  gateway::GatewayOptions opt = options_.gateway;
   opt.store_path = options_.store;
   // The instant buses have no time on the wire to share: the gateway's SDO is not paced there
   // (GatewayOptions::sdo_bus_share), so the phases the safety matrix aims at stay where they are.
@@ -96,8 +96,8 @@ void CabRig::connect_gateway() {
   gw_down_->set_receiver({});
   gw_drv_.reset();
   gw_.reset();
-  gw_ = std::make_unique<Gateway>(config_, through(from_gateway_up, gw_up_->sink()),
-                                  through(from_gateway_down, gw_down_->sink()), gateway_options());
+  gw_ = std::make_unique<gateway::Gateway>(config_, through(from_gateway_up, gw_up_->sink()),
+                                           through(from_gateway_down, gw_down_->sink()), gateway_options());
   if (on_gateway) on_gateway(*gw_);
   gw_drv_ = std::make_unique<canopen::ServiceDriver>(loop_, *gw_);
   gw_down_->set_receiver([this](const CanFrame& f, TimePoint t) {
@@ -112,12 +112,12 @@ void CabRig::connect_gateway() {
 }
 
 std::vector<mapping::Diagnostic> CabRig::reload(const mapping::Config& next) {
-  auto refused = reload_refusals(config_, next);
+  auto refused = gateway::reload_refusals(config_, next);
   if (!refused.empty()) return refused;
   config_ = next;
   gw_drv_.reset();  // it holds the old gateway
-  gw_ = reload_gateway(std::move(gw_), config_, through(from_gateway_down, gw_down_->sink()), gateway_options(),
-                       loop_.now());
+  gw_ = gateway::reload_gateway(std::move(gw_), config_, through(from_gateway_down, gw_down_->sink()),
+                                gateway_options(), loop_.now());
   if (on_gateway) on_gateway(*gw_);
   gw_drv_ = std::make_unique<canopen::ServiceDriver>(loop_, *gw_);
   return {};
@@ -161,4 +161,4 @@ std::string CabRig::command(const std::string& line) {
   return r;
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::rig

@@ -17,7 +17,7 @@
 #include <string_view>
 #include <vector>
 
-namespace oegw::gateway {
+namespace oegw::publish {
 
 // In the order of mapping::DdsSecurityConfig::File.
 enum DdsSecurityFile : std::size_t {
@@ -50,4 +50,4 @@ struct DdsSecurityProblem {
 // <Security>…</Security> for a Cyclone DDS <Domain>, the files as file: URIs (XML-escaped).
 [[nodiscard]] std::string dds_security_xml(const DdsSecuritySettings& s);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::publish

@@ -15,7 +15,7 @@
 #include "gateway/fe_samples.hpp"
 #include "oegw.h"
 
-namespace oegw::gateway::dds_samples {
+namespace oegw::publish::dds_samples {
 
 template <class T>
 void zero(T& m) {
@@ -23,17 +23,17 @@ void zero(T& m) {
   std::memset(&m, 0, sizeof m);
 }
 
-inline oegw_FeStatus status(FeStatus s) { return static_cast<oegw_FeStatus>(static_cast<int>(s)); }
+inline oegw_FeStatus status(gateway::FeStatus s) { return static_cast<oegw_FeStatus>(static_cast<int>(s)); }
 
 template <class T>
-void header(const SampleHeader& h, T& m) {
+void header(const gateway::SampleHeader& h, T& m) {
   m.instance = h.instance;
   m.status = status(h.status);
   m.timestamp_us = h.timestamp_us;
   m.seq = h.seq;
 }
 
-inline void fill(const JoystickSample& s, oegw_Joystick& m) {
+inline void fill(const gateway::JoystickSample& s, oegw_Joystick& m) {
   zero(m);
   header(s.h, m);
   m.x = s.x;
@@ -42,28 +42,28 @@ inline void fill(const JoystickSample& s, oegw_Joystick& m) {
   m.buttons = s.buttons;
   m.memory = s.memory;
 }
-inline void fill(const PedalSample& s, oegw_Pedal& m) {
+inline void fill(const gateway::PedalSample& s, oegw_Pedal& m) {
   zero(m);
   header(s.h, m);
   m.position = s.position;
   m.memory = s.memory;
 }
-inline void fill(const WheelSample& s, oegw_Wheel& m) {
+inline void fill(const gateway::WheelSample& s, oegw_Wheel& m) {
   zero(m);
   header(s.h, m);
   m.position = s.position;
 }
-inline void fill(const EncoderSample& s, oegw_Encoder& m) {
+inline void fill(const gateway::EncoderSample& s, oegw_Encoder& m) {
   zero(m);
   header(s.h, m);
   m.position = static_cast<std::int32_t>(s.position);  // 6120h UNSIGNED32's 32 bits in a DDS `long`
 }
-inline void fill(const ButtonClusterSample& s, oegw_ButtonCluster& m) {
+inline void fill(const gateway::ButtonClusterSample& s, oegw_ButtonCluster& m) {
   zero(m);
   header(s.h, m);
   m.switches = s.switches;
 }
-inline void fill(const EmcySample& e, oegw_Emcy& m) {
+inline void fill(const gateway::EmcySample& e, oegw_Emcy& m) {
   zero(m);
   m.code = e.code;
   m.error_register = e.error_register;
@@ -71,4 +71,4 @@ inline void fill(const EmcySample& e, oegw_Emcy& m) {
   m.timestamp_us = e.timestamp_us;
 }
 
-}  // namespace oegw::gateway::dds_samples
+}  // namespace oegw::publish::dds_samples

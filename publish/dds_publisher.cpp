@@ -1,4 +1,4 @@
-#include "gateway/publish/dds_publisher.hpp"
+#include "publish/dds_publisher.hpp"
 
 #include <net/if.h>
 #include <sys/eventfd.h>
@@ -11,10 +11,10 @@
 #include <vector>
 
 #include "dds/dds.h"
-#include "gateway/publish/dds_samples.hpp"
+#include "publish/dds_samples.hpp"
 #include "oegw.h"
 
-namespace oegw::gateway {
+namespace oegw::publish {
 
 std::string dds_config_xml(const std::string& network, const std::optional<DdsSecuritySettings>& security) {
   if (network.empty()) return {};
@@ -185,16 +185,16 @@ static void write(dds_entity_t writer, const Sample& s) {
   dds_samples::fill(s, m);
   dds_write(writer, &m);
 }
-void DdsPublisher::publish(const JoystickSample& s) { write<JoystickSample, oegw_Joystick>(impl_->joystick, s); }
-void DdsPublisher::publish(const PedalSample& s) { write<PedalSample, oegw_Pedal>(impl_->pedal, s); }
-void DdsPublisher::publish(const WheelSample& s) { write<WheelSample, oegw_Wheel>(impl_->wheel, s); }
-void DdsPublisher::publish(const EncoderSample& s) { write<EncoderSample, oegw_Encoder>(impl_->encoder, s); }
-void DdsPublisher::publish(const ButtonClusterSample& s) {
-  write<ButtonClusterSample, oegw_ButtonCluster>(impl_->buttons, s);
+void DdsPublisher::publish(const gateway::JoystickSample& s) { write<gateway::JoystickSample, oegw_Joystick>(impl_->joystick, s); }
+void DdsPublisher::publish(const gateway::PedalSample& s) { write<gateway::PedalSample, oegw_Pedal>(impl_->pedal, s); }
+void DdsPublisher::publish(const gateway::WheelSample& s) { write<gateway::WheelSample, oegw_Wheel>(impl_->wheel, s); }
+void DdsPublisher::publish(const gateway::EncoderSample& s) { write<gateway::EncoderSample, oegw_Encoder>(impl_->encoder, s); }
+void DdsPublisher::publish(const gateway::ButtonClusterSample& s) {
+  write<gateway::ButtonClusterSample, oegw_ButtonCluster>(impl_->buttons, s);
 }
-void DdsPublisher::publish(const GatewayStatus& s) {
+void DdsPublisher::publish(const gateway::GatewayStatus& s) {
   // dds_write serialises; the sample only borrows these buffers.
-  auto emcy = [](const EmcySample& e) {
+  auto emcy = [](const gateway::EmcySample& e) {
     oegw_Emcy m;
     dds_samples::fill(e, m);
     return m;
@@ -214,7 +214,7 @@ void DdsPublisher::publish(const GatewayStatus& s) {
     x.state = const_cast<char*>(d.state.c_str());
     x.last_emcy = emcy(d.last_emcy);
     x.emcy_count = d.emcy_count;
-    const SubdeviceIdentity& i = d.identity;
+    const gateway::SubdeviceIdentity& i = d.identity;
     x.identity.vendor_id = i.vendor_id;
     x.identity.product_code = i.product_code;
     x.identity.revision = i.revision;
@@ -278,12 +278,12 @@ void DdsPublisher::poll() {
   [[maybe_unused]] auto r = ::read(impl_->event_fd, &n, sizeof n);  // EAGAIN: nothing signalled; take anyway
   const auto indicators = [this] {
     return take_one<oegw_IndicatorCommand>(impl_->indicators, [this](const oegw_IndicatorCommand& m) {
-      if (on_indicator_command) on_indicator_command(IndicatorCommand{m.instance, m.indicators});
+      if (on_indicator_command) on_indicator_command(gateway::IndicatorCommand{m.instance, m.indicators});
     });
   };
   const auto display = [this] {
     return take_one<oegw_DisplayCommand>(impl_->display, [this](const oegw_DisplayCommand& m) {
-      DisplayCommand c{m.instance, {}};
+      gateway::DisplayCommand c{m.instance, {}};
       for (std::size_t k = 0; k < c.parameters.size(); ++k) c.parameters[k] = m.parameters[k];
       if (on_display_command) on_display_command(c);
     });
@@ -299,4 +299,4 @@ std::uint32_t DdsPublisher::joystick_readers() const {
   return st.current_count;
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::publish
