@@ -21,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include "canopen/309/ascii_gateway.hpp"
+#include "cli/exit_codes.hpp"
 #include "gateway/control/control_client.hpp"
 
 namespace oegw::gateway {
@@ -34,8 +35,8 @@ struct CtlOptions {
 };
 
 // Exit codes besides those of `oegw status` (3 no daemon, 4 permission, 5 time-out).
-inline constexpr int kCtlOk = 0;
-inline constexpr int kCtlError = 1;  // --exit: an ERROR answer; or a failed answer of the daemon
+inline constexpr int kCtlOk = cli::exit_code::kOk;
+inline constexpr int kCtlError = cli::exit_code::kBadFile;  // --exit: an ERROR answer; or a failed answer of the daemon
 // The daemon's LSS step time-out when `_lss_fastscan` names none (CANopenNode's default too).
 inline constexpr std::uint32_t kDefaultLssStepMs = 100;
 

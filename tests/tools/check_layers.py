@@ -28,6 +28,7 @@ LAYERS = {
     "mapping": "mapping",            # oegw_mapping
     "gateway/publish": "publish",    # oegw_publish
     "gateway": "gateway",            # oegw_gateway: the daemon's library
+    "cli": "cli",                    # oegw_cli: the commands' front-ends (register_<cmd>)
     "programs": "programs",          # oegw_programs and the executables
     "examples": "examples",          # the example subscribers: generated types only
     "tests": "tests",
@@ -44,9 +45,10 @@ RANK = {
     "publish": 3,
     "mapping": 4,
     "gateway": 5,
-    "programs": 6,
-    "examples": 6,
-    "tests": 7,
+    "cli": 6,
+    "programs": 7,
+    "examples": 7,
+    "tests": 8,
 }
 
 MAY = {
@@ -61,7 +63,9 @@ MAY = {
     "mapping": {"canopen", "cia401", "cia852", "drivers"},
     # The daemon runs no simulator.
     "gateway": {"canopen", "canopen/io", "cia401", "cia852", "drivers", "mapping", "publish"},
-    "programs": {"canopen", "canopen/io", "cia401", "cia852", "drivers", "sim", "mapping", "publish", "gateway"},
+    # The front-ends parse the command line and call the daemon's library; they run no simulator either.
+    "cli": {"canopen", "canopen/io", "cia401", "cia852", "drivers", "mapping", "publish", "gateway"},
+    "programs": {"canopen", "canopen/io", "cia401", "cia852", "drivers", "sim", "mapping", "publish", "gateway", "cli"},
     "examples": set(),
     "tests": set(RANK) - {"tests"},
 }
@@ -86,6 +90,9 @@ ALLOWED = {
     ("mapping/deployment.cpp", "canopen/io/interface_name.hpp"),
     # ... and `oegw check` warns with it when LCM commands reach beyond the host.
     ("mapping/deployment.cpp", "gateway/publish/lcm_url.hpp"),
+    # The exit codes of every command are one table (cli/exit_codes.hpp, constants only): the
+    # daemon exits with them and the control socket's client commands return them.
+    ("gateway", "cli/exit_codes.hpp"),
 }
 
 SOURCE_SUFFIXES = (".cpp", ".hpp", ".h", ".c", ".cpp.in", ".hpp.in", ".inl")
