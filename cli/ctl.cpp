@@ -4,7 +4,7 @@
 
 #include "cli/app.hpp"
 #include "cli/version.hpp"
-#include "gateway/control/ctl_command.hpp"
+#include "cli/ctl_command.hpp"
 
 namespace oegw::cli {
 

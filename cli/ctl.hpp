@@ -1,4 +1,4 @@
-// `oegw ctl`: CiA 309-3 ASCII commands into the running gateway (gateway/control/ctl_command.hpp).
+// `oegw ctl`: CiA 309-3 ASCII commands into the running gateway (cli/ctl_command.hpp).
 #pragma once
 
 #include <CLI/CLI.hpp>

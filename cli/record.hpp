@@ -1,4 +1,4 @@
-// `oegw record keep`: keeps the running gateway's recording window (gateway/record/replay_command.hpp).
+// `oegw record keep`: keeps the running gateway's recording window (cli/replay_command.hpp).
 #pragma once
 
 #include <CLI/CLI.hpp>

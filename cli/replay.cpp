@@ -3,7 +3,7 @@
 #include <memory>
 
 #include "cli/app.hpp"
-#include "gateway/record/replay_command.hpp"
+#include "cli/replay_command.hpp"
 
 namespace oegw::cli {
 

@@ -1,4 +1,4 @@
-// `oegw replay`: the gateway re-run on a recording (gateway/record/replay_command.hpp).
+// `oegw replay`: the gateway re-run on a recording (cli/replay_command.hpp).
 #pragma once
 
 #include <CLI/CLI.hpp>

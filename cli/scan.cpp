@@ -5,7 +5,7 @@
 
 #include "cli/app.hpp"
 #include "cli/exit_codes.hpp"
-#include "gateway/scan_command.hpp"
+#include "cli/scan_command.hpp"
 
 namespace oegw::cli {
 

@@ -1,4 +1,4 @@
-// `oegw scan`: every node on the downstream bus and a draft mapping file (gateway/scan_command.hpp).
+// `oegw scan`: every node on the downstream bus and a draft mapping file (cli/scan_command.hpp).
 #pragma once
 
 #include <CLI/CLI.hpp>

@@ -5,8 +5,8 @@
 
 #include "cli/app.hpp"
 #include "cli/exit_codes.hpp"
-#include "gateway/button_bits_command.hpp"
-#include "gateway/signals_command.hpp"
+#include "cli/button_bits_command.hpp"
+#include "cli/signals_command.hpp"
 
 namespace oegw::cli {
 

@@ -3,7 +3,7 @@
 #include <memory>
 
 #include "cli/app.hpp"
-#include "gateway/control/status_command.hpp"
+#include "cli/status_command.hpp"
 
 namespace oegw::cli {
 

@@ -1,4 +1,4 @@
-// `oegw status`: what the running gateway sees, over its control socket (gateway/control/status_command.hpp).
+// `oegw status`: what the running gateway sees, over its control socket (cli/status_command.hpp).
 #pragma once
 
 #include <CLI/CLI.hpp>

@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli/exit_codes.hpp"
-#include "gateway/control/control_client.hpp"
+#include "cli/control_client.hpp"
 
 namespace oegw::gateway {
 
