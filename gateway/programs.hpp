@@ -3,16 +3,12 @@
 
 #include <string>
 
+#include "cli/exit_codes.hpp"
+
 namespace oegw::gateway {
 
-// The exit codes of every oegw command (docs/reference/exit-codes.md; the unit's
-// RestartPreventExitStatus= names kBadFile: a bad file does not get better by restarting).
-namespace exit_code {
-inline constexpr int kOk = 0;
-inline constexpr int kBadFile = 1;      // the mapping file is refused (check, eds, run); demo: a step failed
-inline constexpr int kCannotStart = 2;  // a CAN interface, its bit rate or publishing cannot be set up
-inline constexpr int kUsage = 64;       // the command line is refused (EX_USAGE)
-}  // namespace exit_code
+// The exit codes of every oegw command: one table, cli/exit_codes.hpp (the daemon exits with them).
+namespace exit_code = cli::exit_code;
 
 // Validates FILE and prints the upstream layout; 0 if valid, 1 with every error otherwise.
 // What this machine lacks for it (mapping/deployment.hpp machine_errors, publish.dds.security's

@@ -30,9 +30,17 @@ trap 'rm -rf "$tmp"' EXIT
 } >"$tmp/oegw"
 chmod +x "$tmp/oegw"
 
-# The sub-commands, as `oegw --help` lists them ("Subcommands:" then "  name  text").
+# The sub-commands of a --help text, as CLI11 lists them: under each group's heading ("Commands:",
+# "Bench and test tools:", or "Subcommands:" when they have no group), "  name  text", until a blank
+# line; the headings "Options:" and "Positionals:" are no group of commands.
+commands_of() {
+  awk '/^[A-Z][^:]*:$/ { in_group = ($0 != "Options:" && $0 != "Positionals:"); next }
+       /^$/ { in_group = 0 }
+       in_group && /^  [a-z][a-z0-9-]* / { sub(/^  /, ""); sub(/ .*/, ""); print }' "$1"
+}
+
 "$tmp/oegw" --help >"$tmp/help" || die "oegw --help failed"
-sed -n '/^Subcommands:/,/^$/s/^  \([a-z][a-z0-9-]*\) .*/\1/p' "$tmp/help" >"$tmp/commands"
+commands_of "$tmp/help" >"$tmp/commands"
 [ -s "$tmp/commands" ] || die "oegw --help lists no sub-commands"
 
 # roff-safe text: a backslash doubled, a line starting with . or ' protected.
@@ -83,7 +91,7 @@ gzip -9n <"$tmp/oegw.yaml.5" >"$out/oegw.yaml.5.gz"
   echo '  case $cmd in'
   printf '    "") opts="%s" ;;\n' "$(tr '\n' ' ' <"$tmp/commands")--help --version"
   while read -r cmd; do
-    subs=$(sed -n '/^Subcommands:/,/^$/s/^  \([a-z][a-z0-9-]*\) .*/\1/p' "$tmp/help.$cmd" | tr '\n' ' ')
+    subs=$(commands_of "$tmp/help.$cmd" | tr '\n' ' ')
     [ -z "$subs" ] || printf '    %s) subs="%s" ;;\n' "$cmd" "${subs% }" >>"$tmp/subs"
     opts=$(grep -o -- '^ *-[-a-zA-Z0-9]*\(,[ ]*-[-a-zA-Z0-9]*\)*' "$tmp/help.$cmd" | tr ',' '\n' |
            sed 's/^ *//' | grep -- '^-' | sort -u | tr '\n' ' ')

@@ -5,7 +5,7 @@
 // "when pressed, the corresponding bit is set to 1"), asks the user to press and hold BP1..BP7 in
 // turn, takes the one bit of byte 2 each press sets and, when all seven are known, gives the
 // `button_bits` line for the mapping file. Sans I/O (frames and time in, frames and prompts out):
-// `oegw signals mcb402 --find-button-bits` runs it on a CAN interface (gateway/button_bits_command.hpp).
+// `oegw signals mcb402 --find-button-bits` runs it on a CAN interface (cli/button_bits_command.hpp).
 //
 // The board: if no TPDO1 is heard within `start_after` (a board alone on the bench stays
 // pre-operational), the finder sends NMT start node ([MCB §4] "Write on bus: 000 01 03") once. A

@@ -1,5 +1,5 @@
 // `oegw ctl` against a Gateway with simulators on the virtual buses: the CiA 309-3
-// session (gateway/control/ctl_command.hpp) asks the control protocol with the ctl commands
+// session (cli/ctl_command.hpp) asks the control protocol with the ctl commands
 // (ctl_service.hpp) in process — the same JSON lines the socket carries — and the downstream
 // frames each command causes are judged frame by frame. Expected values come from the
 // simulators' dictionaries (written from the manufacturers' documents), never from the gateway.
@@ -20,7 +20,7 @@
 #include "canopen/305/lss.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "gateway/control/control_protocol.hpp"
-#include "gateway/control/ctl_command.hpp"
+#include "cli/ctl_command.hpp"
 #include "gateway/control/ctl_service.hpp"
 #include "gateway/gateway.hpp"
 #include "rig/cab_rig.hpp"

@@ -20,7 +20,7 @@
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
-#include "gateway/control/status_command.hpp"
+#include "cli/status_command.hpp"
 #include "gateway/control/status_report.hpp"
 #include "gateway/gateway.hpp"
 #include "rig/cab_rig.hpp"

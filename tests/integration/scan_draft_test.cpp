@@ -13,7 +13,7 @@
 #include <unistd.h>
 
 #include "gateway/programs.hpp"
-#include "gateway/scan_command.hpp"
+#include "cli/scan_command.hpp"
 #include "subdevices/bus_scan.hpp"
 #include "subdevices/device_spec.hpp"
 #include "subdevices/sim/sim_registry.hpp"

@@ -25,7 +25,7 @@
 #include "gateway/control/scan_service.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/programs.hpp"
-#include "gateway/scan_command.hpp"
+#include "cli/scan_command.hpp"
 #include "rig/cab_rig.hpp"
 #include "subdevices/device_spec.hpp"
 #include "subdevices/sim/sim_bench.hpp"

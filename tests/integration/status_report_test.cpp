@@ -13,7 +13,7 @@
 
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
-#include "gateway/control/status_command.hpp"
+#include "cli/status_command.hpp"
 #include "rig/cab_rig.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/fixtures/fixtures.hpp"

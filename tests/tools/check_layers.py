@@ -35,6 +35,7 @@ LAYERS = {
     "publish": "publish",            # oegw_publish, oegw_lcm_url
     "gateway": "gateway",            # oegw_gateway: the daemon's library
     "rig": "rig",                    # oegw_rig: the simulated cab
+    "cli": "cli",                    # oegw_cli: the commands' front-ends (register_<cmd>)
     "programs": "programs",          # oegw_programs and the executables
     "examples": "examples",          # the example subscribers: generated types only
     "tests": "tests",
@@ -52,6 +53,7 @@ RANK = {
     "mapping": 4,
     "gateway": 5,
     "rig": 6,
+    "cli": 6,
     "programs": 7,
     "examples": 7,
     "tests": 8,
@@ -71,8 +73,10 @@ MAY = {
     "gateway": {"canopen", "canopen/io", "cia401", "cia852", "drivers", "mapping", "publish"},
     # The simulated cab: the daemon's library between simulators and a host, on virtual buses.
     "rig": {"canopen", "canopen/io", "cia401", "cia852", "drivers", "sim", "mapping", "gateway"},
+    # The front-ends parse the command line and call the daemon's library; they run no simulator either.
+    "cli": {"canopen", "canopen/io", "cia401", "cia852", "drivers", "mapping", "publish", "gateway"},
     "programs": {"canopen", "canopen/io", "cia401", "cia852", "drivers", "sim", "mapping", "publish", "gateway",
-                 "rig"},
+                 "rig", "cli"},
     "examples": set(),
     "tests": set(RANK) - {"tests"},
 }
@@ -99,6 +103,9 @@ ALLOWED = {
     ("mapping/deployment.cpp", "canopen/io/interface_name.hpp"),
     # ... and `oegw check` warns with it when LCM commands reach beyond the host.
     ("mapping/deployment.cpp", "publish/lcm_url.hpp"),
+    # The exit codes of every command are one table (cli/exit_codes.hpp, constants only): the
+    # daemon exits with them and the control socket's client commands return them.
+    ("gateway", "cli/exit_codes.hpp"),
 }
 
 # folder -> the namespace its files declare (the longest prefix applies; tests and examples

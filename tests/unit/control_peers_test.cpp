@@ -22,7 +22,7 @@
 #include <vector>
 
 #include "gateway/control/control_server.hpp"
-#include "gateway/control/status_command.hpp"
+#include "cli/status_command.hpp"
 
 using namespace oegw::canopen;
 using namespace oegw::gateway;

@@ -16,7 +16,7 @@
 #include <fstream>
 
 #include "canopen/io/clock.hpp"
-#include "gateway/control/control_client.hpp"
+#include "cli/control_client.hpp"
 
 using namespace oegw::canopen;
 using namespace oegw::gateway;

@@ -1,5 +1,6 @@
-// The client side of the control socket (docs/reference/control-protocol.md): one request line, one
-// answer line, within a time-out. Used by `oegw status` (and later `oegw ctl`).
+// The client side of the control socket (docs/reference/control-protocol.md; the server:
+// gateway/control/control_server.hpp): one request line, one answer line, within a time-out. Used
+// by `oegw status`, `oegw ctl`, `oegw record keep` and `oegw scan` through the gateway.
 #pragma once
 
 #include <chrono>

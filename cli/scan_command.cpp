@@ -1,4 +1,4 @@
-#include "gateway/scan_command.hpp"
+#include "cli/scan_command.hpp"
 
 #include <spdlog/spdlog.h>
 #include <unistd.h>
@@ -13,13 +13,13 @@
 
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/socketcan_transport.hpp"
-#include "gateway/control/control_client.hpp"
+#include "cli/control_client.hpp"
 #include "gateway/control/control_protocol.hpp"
 #include "gateway/control/scan_service.hpp"
-#include "gateway/control/status_command.hpp"
+#include "cli/status_command.hpp"
 #include "gateway/programs.hpp"
 #include "gateway/run_on_bus.hpp"
-#include "gateway/signals_command.hpp"
+#include "cli/signals_command.hpp"
 #include "subdevices/driver_options.hpp"
 
 namespace oegw::gateway {

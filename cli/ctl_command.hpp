@@ -1,8 +1,9 @@
 // `oegw ctl`: a CiA 309-3 ASCII command line into both buses of the running `oegw run`, over its
-// control socket (docs/reference/control-protocol.md; the daemon's side is ctl_service.hpp, the CiA
-// 309-3 text canopen/309/ascii_gateway.hpp). Commands from standard input, one a line: interactive
-// on a terminal (a prompt, the event lines as they come, a history: `history`, `!!`, `!N`),
-// scripted otherwise. With --exit the first ERROR answer ends it with exit code 1.
+// control socket (docs/reference/control-protocol.md; the daemon's side is
+// gateway/control/ctl_service.hpp, the CiA 309-3 text canopen/309/ascii_gateway.hpp). Commands
+// from standard input, one a line: interactive on a terminal (a prompt, the event lines as they
+// come, a history: `history`, `!!`, `!N`), scripted otherwise. With --exit the first ERROR answer
+// ends it with exit code 1.
 //
 // The session state is the client's, as in lely's coctl: the default network and node
 // (`set network`, `set node`), the SDO time-out per network (`set sdo_timeout`), the sequence
@@ -21,7 +22,8 @@
 #include <nlohmann/json.hpp>
 
 #include "canopen/309/ascii_gateway.hpp"
-#include "gateway/control/control_client.hpp"
+#include "cli/exit_codes.hpp"
+#include "cli/control_client.hpp"
 
 namespace oegw::gateway {
 
@@ -34,8 +36,8 @@ struct CtlOptions {
 };
 
 // Exit codes besides those of `oegw status` (3 no daemon, 4 permission, 5 time-out).
-inline constexpr int kCtlOk = 0;
-inline constexpr int kCtlError = 1;  // --exit: an ERROR answer; or a failed answer of the daemon
+inline constexpr int kCtlOk = cli::exit_code::kOk;
+inline constexpr int kCtlError = cli::exit_code::kBadFile;  // --exit: an ERROR answer; or a failed answer of the daemon
 // The daemon's LSS step time-out when `_lss_fastscan` names none (CANopenNode's default too).
 inline constexpr std::uint32_t kDefaultLssStepMs = 100;
 

@@ -6,7 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "gateway/control/control_client.hpp"
+#include "cli/exit_codes.hpp"
+#include "cli/control_client.hpp"
 
 namespace oegw::gateway {
 
@@ -17,12 +18,13 @@ struct StatusOptions {
   double timeout_s = 2.0;
 };
 
-// Exit codes of `oegw status` (docs/guides/install.md#asking-the-running-gateway-oegw-status).
-inline constexpr int kStatusOk = 0;
-inline constexpr int kStatusFailed = 1;         // a bad answer, an error answer, an unreadable --config
-inline constexpr int kStatusNoDaemon = 3;       // no socket, or nobody listening
-inline constexpr int kStatusPermission = 4;     // the socket's group keeps this user out
-inline constexpr int kStatusTimeout = 5;        // no answer in --timeout
+// Exit codes of `oegw status` (docs/guides/install.md#asking-the-running-gateway-oegw-status), from
+// the one table of every command (cli/exit_codes.hpp).
+inline constexpr int kStatusOk = cli::exit_code::kOk;
+inline constexpr int kStatusFailed = cli::exit_code::kBadFile;        // a bad answer, an error answer, an unreadable --config
+inline constexpr int kStatusNoDaemon = cli::exit_code::kNoDaemon;     // no socket, or nobody listening
+inline constexpr int kStatusPermission = cli::exit_code::kPermission; // the socket's group keeps this user out
+inline constexpr int kStatusTimeout = cli::exit_code::kTimeout;       // no answer in --timeout
 
 int run_status(const StatusOptions& options);
 

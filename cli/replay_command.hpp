@@ -3,7 +3,7 @@
 
 #include <string>
 
-#include "gateway/control/status_command.hpp"
+#include "cli/status_command.hpp"
 
 namespace oegw::gateway::record {
 

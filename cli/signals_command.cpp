@@ -1,4 +1,4 @@
-#include "gateway/signals_command.hpp"
+#include "cli/signals_command.hpp"
 
 #include <algorithm>
 #include <cstdio>

@@ -1,4 +1,4 @@
-#include "gateway/record/replay_command.hpp"
+#include "cli/replay_command.hpp"
 
 #include <cstdio>
 #include <ctime>

@@ -1,4 +1,4 @@
-#include "gateway/control/status_command.hpp"
+#include "cli/status_command.hpp"
 
 #include "gateway/record/recording_service.hpp"
 
@@ -8,7 +8,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
-#include "gateway/control/control_client.hpp"
+#include "cli/control_client.hpp"
 #include "gateway/control/control_protocol.hpp"
 #include "gateway/gateway.hpp"
 

@@ -1,4 +1,4 @@
-#include "gateway/control/ctl_command.hpp"
+#include "cli/ctl_command.hpp"
 
 #include <poll.h>
 #include <unistd.h>
@@ -13,7 +13,7 @@
 #include "canopen/305/lss_fastscan.hpp"
 #include "canopen/305/lss_slowscan.hpp"
 #include "gateway/control/control_protocol.hpp"
-#include "gateway/control/status_command.hpp"
+#include "cli/status_command.hpp"
 
 namespace oegw::gateway {
 

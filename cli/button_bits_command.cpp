@@ -1,4 +1,4 @@
-#include "gateway/button_bits_command.hpp"
+#include "cli/button_bits_command.hpp"
 
 #include <cstdio>
 #include <memory>

@@ -1,4 +1,4 @@
-#include "gateway/control/control_client.hpp"
+#include "cli/control_client.hpp"
 
 #include <grp.h>
 #include <poll.h>
