@@ -1,6 +1,7 @@
 # Helpers for guest scripts of the VM tier (source it; bash).
 # shellcheck shell=bash
 
+# shellcheck disable=SC2034  # used by the scripts that source this file
 PY=/usr/bin/python3   # python3-can lives here; a python3 on PATH may lack it
 
 fails=0
