@@ -89,7 +89,7 @@ for arch in "${arches[@]}"; do
   # ccache, when installed, comes from CMakeLists.txt (OEGW_CCACHE).
   cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
         -DCMAKE_TOOLCHAIN_FILE="$PWD/cmake/toolchains/$triplet.cmake" -DOEGW_SYSROOT="$sysroot" \
-        -DOEGW_VM_TESTS=OFF -DOEGW_BUILD_BENCH=$([[ $bench -eq 1 ]] && echo ON || echo OFF) \
+        -DOEGW_VM_TESTS=OFF -DOEGW_BUILD_BENCH="$([[ $bench -eq 1 ]] && echo ON || echo OFF)" \
         >/dev/null
   t=$SECONDS
   cmake --build "$build" -j "${OEGW_CROSS_JOBS:-2}"

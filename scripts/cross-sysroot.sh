@@ -20,8 +20,7 @@ set -euo pipefail
 
 arch=${1:?usage: cross-sysroot.sh arm64|armhf}
 case $arch in
-  arm64) triplet=aarch64-linux-gnu ;;
-  armhf) triplet=arm-linux-gnueabihf ;;
+  arm64 | armhf) ;;
   *) echo "cross-sysroot: unknown architecture '$arch' (arm64 or armhf)" >&2; exit 2 ;;
 esac
 cache=${OEGW_CROSS_CACHE:-/var/cache/oegw-cross}
@@ -80,7 +79,7 @@ for deb in "$fresh"/var/cache/apt/archives/*.deb; do
   [[ $(dpkg-deb -f "$deb" Multi-Arch) == same ]] && name=$pkg:$(dpkg-deb -f "$deb" Architecture)
   { dpkg-deb -f "$deb"; echo "Status: install ok installed"; echo; } >>"$admin/status"
   dpkg-deb --fsys-tarfile "$deb" | tar -t | sed -e 's|^\./|/|' -e 's|/$||' -e '/^\/*$/d' -e "s|^|$root|" >"$admin/info/$name.list"
-  rm -rf "$ctl"/*
+  rm -rf "${ctl:?}"/*
   dpkg-deb -e "$deb" "$ctl"
   for f in symbols shlibs; do
     [[ -f $ctl/$f ]] && cp "$ctl/$f" "$admin/info/$name.$f"

@@ -48,6 +48,8 @@ TEST_PACKAGES=(
   strace
   # tmux: the demo's live table is judged on the screen a terminal shows (capture-pane)
   tmux
+  # the tree's lint (CTest label lint, scripts/check.sh): shell scripts, Python, function lengths
+  shellcheck pyflakes3 universal-ctags
   # tcpdump: an independent check that the demo's DDS/LCM traffic never leaves the host
   tcpdump
   # systemd-analyze verify: the unit file's test (systemd need not run)

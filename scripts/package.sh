@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Builds the Debian package oegw_<version>_<arch>.deb 
+# Builds the Debian package oegw_<version>_<arch>.deb
 # (docs/guides/build-and-package.md#building-the-debian-package): the programs stripped (no debug
 # information), /etc/oegw/oegw.yaml a conffile, Depends from dpkg-shlibdeps.
 #

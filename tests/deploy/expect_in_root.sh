@@ -1,3 +1,6 @@
+# shellcheck shell=bash
+# $src and $root are the sourcing script's.
+# shellcheck disable=SC2154
 # Sourced by the deploy tests (deb_install_test.sh, cross_install_test.sh): runs an installed
 # program inside the fresh root $root with chroot, in a network namespace of its own
 # (tests/publish/in_private_net.sh: the demo's DDS/LCM traffic meets no other test's subscribers

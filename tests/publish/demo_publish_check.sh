@@ -8,7 +8,7 @@ set -eu
 oegw=$1 dds_sub=$2 lcm_sub=$3 decode=${4:-} logger=${5:-}
 url='udpm://224.0.0.1:7667?ttl=0'
 dir=$(mktemp -d)
-d= l= g= one=
+d='' l='' g='' one=''
 trap 'kill $d $l $g $one 2>/dev/null || true; rm -rf "$dir"' EXIT
 # The demo's own names (config/demo.yaml): partition oegw-demo, channels OEGW_DEMO_*.
 "$dds_sub" --timeout 60 --partition oegw-demo > "$dir/dds.out" & d=$!

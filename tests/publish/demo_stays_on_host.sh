@@ -28,6 +28,8 @@ down=oegwd$rnd    # the namespace's end: its default route
 dir=$(mktemp -d)
 pids=""
 made_ns=0
+# Called by the traps below.
+# shellcheck disable=SC2317
 cleanup() {
   for p in $pids; do kill "$p" 2>/dev/null || true; done
   if [ "$made_ns" -eq 1 ]; then

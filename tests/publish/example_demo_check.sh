@@ -19,7 +19,8 @@ mode=$1 transport=$2 oegw=$3 ex=$4 logger=${5:-}
 url='udpm://224.0.0.1:7667?ttl=0'
 dir=$(mktemp -d)
 pids=""
-trap 'for p in $pids; do kill $p 2>/dev/null; done; rm -rf "$dir"' EXIT
+# shellcheck disable=SC2154  # p is the trap's own loop variable
+trap 'for p in $pids; do kill "$p" 2>/dev/null; done; rm -rf "$dir"' EXIT
 rc=0
 fail() { rc=1; echo "FAILED: $*" >&2; }
 # wait_for FILE TEXT SECONDS: until FILE has a line with TEXT (fixed), or fails.
@@ -63,7 +64,7 @@ case $mode in
     "$oegw" demo --seconds 1 >"$dir/demo.out" 2>&1 || fail "the demo failed"
     kill -TERM $s; wait $s || fail "the status printer exited $?"
     if [ "$transport" = lcm ]; then
-      wait $l || fail "lcm_subscriber --channel OEGW_DEMO_STATUS exited $? ($(cat "$dir/sub.err"))"
+      wait "$l" || fail "lcm_subscriber --channel OEGW_DEMO_STATUS exited $? ($(cat "$dir/sub.err"))"
       has "$dir/sub.out" '^status seq=[0-9]+ upstream=[a-z-]+ subdevices=5 .* rx_us=[0-9]+$' "lcm_subscriber on the status channel"
       has "$dir/sub.out" '^  subdevice cluster node=31h state=' "lcm_subscriber's sub-device lines"
     fi

@@ -26,10 +26,12 @@ expect() {
   [ "$(cat "$dir/out")" = ready ] || ok=0
   i=0
   while [ $i -lt $n ]; do
-    i=$((i + 1)); eval "t=\$want_$i"
+    i=$((i + 1)); t=''; eval "t=\$want_$i"
     grep -qF -- "$t" "$dir/err" || { ok=0; echo "  missing on stderr: $t" >&2; }
   done
   if [ $ok -eq 1 ]; then
+    # The command line after the program: dash strips $1 off "$*", the words joined.
+    # shellcheck disable=SC3058
     echo "ok: $(basename "$1") ${*#"$1"} -> $rc; $(head -1 "$dir/err")"
   else
     fails=$((fails + 1))

@@ -286,7 +286,7 @@ def dds_lcm_logger(page, cmds):
     m = re.search(r" joystick=(\d+)", summary)
     judge(m is not None and int(m.group(1)) > 0, f"{page}: lcm_log_decode counts the joystick samples", summary)
     # The replay "to the subscribers": one listens while the player plays the session back.
-    sub = Bg(f"build/examples/lcm_subscriber --count 5 --timeout 60 --channel 'OEGW_DEMO_JOYSTICK_[0-9]+'",
+    sub = Bg("build/examples/lcm_subscriber --count 5 --timeout 60 --channel 'OEGW_DEMO_JOYSTICK_[0-9]+'",
              "replayed")
     judge(sub.wait_for(r"^ready$", 10), f"{page}: a subscriber for the replay ready")
     expect_run(page, command(cmds, "lcm-logplayer"), 0, [], timeout=90)

@@ -171,6 +171,8 @@ echo "oegw-vm: job exit status \$rc"
 sync
 EOT
   say "switching root to systemd (uptime $(cut -d' ' -f1 /proc/uptime)s)"
+  # fail speaks only if exec cannot start switch_root.
+  # shellcheck disable=SC2093
   exec switch_root $r /lib/systemd/systemd --unit=oegw-vmtest.target
   fail "switch_root to /lib/systemd/systemd"
 }
@@ -178,8 +180,11 @@ EOT
 # The chroot's /lib/modules is the host's and lacks this kernel: CAN modules
 # are already loaded from the initramfs, so nothing needs modprobe later.
 ENV="PATH=/usr/local/bin:/usr/bin:/bin:/usr/local/sbin:/usr/sbin:/sbin HOME=/tmp LANG=C.UTF-8 TERM=dumb OEGW_VM=1 OEGW_VM_OUT=/run/oegw-out"
+# $ENV is split into its VAR=value words on purpose (env -i takes each); $r and $ip have no blanks.
 ip=/bin/ip; [ -x $r/sbin/ip ] && ip=/sbin/ip; [ -x $r/usr/sbin/ip ] && ip=/usr/sbin/ip
+# shellcheck disable=SC2086
 chroot $r /usr/bin/env -i $ENV $ip link set lo up || fail "ip link set lo up"
+# shellcheck disable=SC2086
 for d in vcan0 vcan1; do
   chroot $r /usr/bin/env -i $ENV $ip link add dev $d type vcan || fail "ip link add $d type vcan"
   chroot $r /usr/bin/env -i $ENV $ip link set $d up || fail "ip link set $d up"
@@ -197,6 +202,7 @@ say "ready: running job (uptime $(cut -d' ' -f1 /proc/uptime)s)"
 mkfifo /joblog
 tee /out/output.log </joblog &
 teepid=$!
+# shellcheck disable=SC2086  # $ENV: its words, as above
 chroot $r /usr/bin/env -i $ENV /bin/bash /run/oegw-out/job.sh </dev/null >/joblog 2>&1
 rc=$?
 for p in /proc/[0-9]*; do

@@ -119,6 +119,8 @@ qemu=(qemu-system-x86_64
   -virtfs "local,path=$out,mount_tag=out,security_model=none,multidevs=remap"
 )
 # Emulated SJA1000 controllers (kvaser_pci), all on one emulated bus cb0.
+# The commas are qemu's own syntax (one argument each), not array separators.
+# shellcheck disable=SC2054
 if ((kvaser > 0)); then
   qemu+=(-object can-bus,id=cb0)
   for ((i = 0; i < kvaser; i++)); do qemu+=(-device kvaser_pci,canbus=cb0); done

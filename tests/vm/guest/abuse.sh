@@ -237,8 +237,8 @@ for s in "${scenarios[@]}"; do
   echo "$s $a $(now)" >>"$windows"
   kill -0 "$gw_pid" 2>/dev/null || { fail "$s: oegw run is gone"; break; }
   b=$(now)
-  "$oegw" status --timeout 30 >/tmp/abuse-status-$s.txt 2>&1 && pass "$s: oegw status answered after it ($(awk -v a="$b" -v b="$(now)" 'BEGIN { printf "%.1f", b - a }') s, the program's start included)" ||
-    fail "$s: oegw status after it: $(cat /tmp/abuse-status-$s.txt)"
+  "$oegw" status --timeout 30 >"/tmp/abuse-status-$s.txt" 2>&1 && pass "$s: oegw status answered after it ($(awk -v a="$b" -v b="$(now)" 'BEGIN { printf "%.1f", b - a }') s, the program's start included)" ||
+    fail "$s: oegw status after it: $(cat "/tmp/abuse-status-$s.txt")"
   sleep 2
 done
 run_end=$(now)
@@ -281,6 +281,8 @@ for line in open(sys.argv[2]):
     bad += len(failed) + sum(1 for t, _ in inside if t > bound)
 sys.exit(1 if bad else 0)
 EOF
+# $? is the python program's above (its script a here-document).
+# shellcheck disable=SC2181
 (($? == 0)) && pass "the separate status client answered every time within ${STATUS_BOUND_S} s" ||
   fail "the separate status client: not answered, or slower than ${STATUS_BOUND_S} s (above)"
 

@@ -18,18 +18,11 @@ values meanwhile, are printed there and expected).
 """
 import sys
 
+from candump_log import read_frames
+
 
 def frames(path):
-    out = []
-    with open(path) as f:
-        for line in f:
-            parts = line.split()
-            if len(parts) < 3 or not parts[0].startswith("("):
-                continue
-            t = float(parts[0].strip("()"))
-            cob, _, data = parts[2].partition("#")
-            out.append((t, int(cob, 16), data.upper()))
-    return out
+    return [(t, cob, data) for t, _, cob, data in read_frames(path)]
 
 
 def longest_gap(times, start, end):

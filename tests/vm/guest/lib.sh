@@ -1,6 +1,7 @@
 # Helpers for guest scripts of the VM tier (source it; bash).
 # shellcheck shell=bash
 
+# shellcheck disable=SC2034  # used by the scripts that source this file
 PY=/usr/bin/python3   # python3-can lives here; a python3 on PATH may lack it
 
 fails=0
@@ -94,6 +95,29 @@ run_recorded() {
   gw_pid=$!
   wait_receivers vcan1 $((bound + 1)) 20 || fail "the gateway did not bind vcan1"
   echo "gateway started after $(elapsed) s"
+}
+
+# start_gateway_scenario OEGW RUN_DIR N SIM SIM_ARGS...: the start the `oegw run` scenarios with
+# an `oegw-sim` cab share, after prepare_gateway_run: SIM (oegw-sim) with SIM_ARGS on vcan1 into
+# /tmp/sim.log ($sim_pid) until it has bound vcan1, then `oegw run RUN_DIR/oegw.yaml` into
+# /tmp/gateway.log ($gw_pid), then `oegw status` (status_wait.py, /tmp/status.json) until N
+# sub-devices are operational: a PASS or FAIL line; returns 1 when they did not come up.
+start_gateway_scenario() {
+  local oegw=$1 run_dir=$2 n=$3 sim=$4 receivers
+  shift 4
+  receivers=$(can_receivers vcan1)
+  "$sim" -i vcan1 "$@" >/tmp/sim.log 2>&1 &
+  sim_pid=$!
+  wait_receivers vcan1 $((receivers + 1)) 20 || fail "oegw-sim did not bind vcan1"
+  "$oegw" run "$run_dir/oegw.yaml" >/tmp/gateway.log 2>&1 &
+  gw_pid=$!
+  local all_up="len(s[\"subdevices\"]) == $n and all(d[\"network_state\"] == \"operational\" for d in s[\"subdevices\"])"
+  if "$PY" "$(dirname "${BASH_SOURCE[0]}")/status_wait.py" "$oegw" /tmp/status.json 120 "$all_up"; then
+    pass "every sub-device operational after $(elapsed) s"
+  else
+    fail "sub-devices not operational: $(head -c 2000 /tmp/status.json)"
+    return 1
+  fi
 }
 
 # end_recorded: stop_gateway of run_recorded's `oegw run`, then both candumps stopped.

@@ -16,6 +16,7 @@ expect_rc() {
   local out rc
   out=$("$@" 2>&1)
   rc=$?
+  # shellcheck disable=SC2001  # every line indented, not one substitution
   echo "$out" | sed 's/^/    /'
   if ((rc == want)); then pass "$what (exit $rc)"; else fail "$what: exit $rc, want $want"; fi
   last_out=$out

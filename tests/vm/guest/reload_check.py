@@ -17,6 +17,8 @@ Checks (gateway/reload.hpp, docs/guides/install.md#reloading-the-mapping-file):
 """
 import sys
 
+from candump_log import read_frames
+
 fails = 0
 
 
@@ -28,15 +30,7 @@ def check(ok, text):
 
 
 def read(path):
-    out = []
-    with open(path) as f:
-        for line in f:
-            parts = line.split()
-            if len(parts) < 3 or "#" not in parts[2]:
-                continue
-            cob, data = parts[2].split("#", 1)
-            out.append((float(parts[0].strip("()")), int(cob, 16), data.upper()))
-    return out
+    return [(t, cob, data) for t, _, cob, data in read_frames(path)]
 
 
 def markers(frames):

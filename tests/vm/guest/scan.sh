@@ -87,6 +87,7 @@ grep -q '7E5#51' /tmp/scan.frames && pass "fastscan frames on the bus" || fail "
 # table's right-end reading), and the draft with that line is accepted by `oegw check`.
 mark=$(wc -l </tmp/scan.dump)
 coproc finder { timeout 120 "$oegw" signals mcb402 --find-button-bits -i vcan1 --node 3 --timeout 30 2>&1; }
+# shellcheck disable=SC2154  # coproc sets finder_PID
 finder_pid=$finder_PID
 exec 4<&"${finder[0]}"
 found=""

@@ -19,6 +19,8 @@ sub-devices' bus and prints "REQUESTS SHORT SPAN2_US SPAN10_US":
 """
 import sys
 
+from candump_log import read_frames
+
 
 def is_request(can_id, data):
     if not 0x600 <= can_id <= 0x67F or len(data) < 2:
@@ -30,14 +32,7 @@ def is_request(can_id, data):
 
 def main():
     gap_us = float(sys.argv[2]) if len(sys.argv) > 2 else 1271
-    t = []
-    with open(sys.argv[1]) as f:
-        for line in f:
-            p = line.split()
-            if len(p) == 3 and "#" in p[2]:
-                can_id, data = p[2].split("#", 1)
-                if is_request(int(can_id, 16), data):
-                    t.append(float(p[0].strip("()")))
+    t = [stamp for stamp, _, can_id, data in read_frames(sys.argv[1]) if is_request(can_id, data)]
 
     def spans(n):
         return [(t[k] - t[k - n]) * 1e6 for k in range(n, len(t))]

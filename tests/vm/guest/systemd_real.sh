@@ -29,7 +29,7 @@ here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 . "$here/lib.sh"
 build=$1
 src=$2
-export SYSTEMD_PAGER= SYSTEMD_COLORS=0
+export SYSTEMD_PAGER='' SYSTEMD_COLORS=0
 
 prop() { systemctl show oegw -p "$1" --value; }
 # wait_until TIMEOUT_S COMMAND...: polls (each systemctl call takes a while under TCG) until the
@@ -175,7 +175,8 @@ reload_once() {
     grep -A100 "(RELOADING=1" /tmp/reload.log | grep -q "Got notification message from PID $pid (READY=1)" &&
     pass "$1: RELOADING=1 (MONOTONIC_USEC=) then READY=1 from main PID $pid" ||
     { fail "$1: no RELOADING=1 then READY=1 from $pid in systemd's log"; sed 's/^/  | /' /tmp/reload.log | head -20; }
-  local now="$(prop ActiveState)/$(prop SubState) MainPID=$(prop MainPID) NRestarts=$(prop NRestarts)"
+  local now
+  now="$(prop ActiveState)/$(prop SubState) MainPID=$(prop MainPID) NRestarts=$(prop NRestarts)"
   [[ $now == "active/running MainPID=$pid NRestarts=$n0" ]] && pass "$1: $now" || fail "$1: $now"
 }
 sed -i 's/deadband: 300, invert: true/deadband: 200, invert: true/' /etc/oegw/oegw.yaml
