@@ -446,6 +446,9 @@ BLOCKS = {
     ("README.md", "./scripts/install-deps.sh && cmake -S . -B build -G Ninja -DOEGW_BUILD_TESTS=OFF && cmake --build build && ./build/programs/oegw demo"):
         ("not run", "installs packages as root and builds the programs (the demo at its end: oegw_demo_screen_*)"),
     ("README.md", "./scripts/test-all.sh"): ("not run", "every test tier: what CI's .ci/run calls"),
+    ("CONTRIBUTING.md", "cmake --preset dev"):
+        ("test", "presets_check (tests/tools/presets_check.py: cmake accepts CMakePresets.json, and each "
+                 "test preset selects what the page says on this build tree's test list)"),
     ("CONTRIBUTING.md", "./scripts/install-deps.sh && cmake -S . -B build -G Ninja -DOEGW_BUILD_TESTS=OFF && cmake --build build && ./build/programs/oegw demo"):
         ("not run", "installs packages as root and builds the programs (the demo at its end: oegw_demo_screen_*); "
                     "then every test tier (scripts/test-all.sh, what CI's .ci/run calls)"),
