@@ -11,6 +11,7 @@ namespace oegw::gateway {
 
 int run_find_button_bits(const FindButtonBitsOptions& o) {
   using namespace canopen;
+  using namespace canopen::io;
   auto port = open_tool_interface(o.interface);
   if (!port) return exit_code::kCannotStart;
   SocketCanTransport* bus = port.get();

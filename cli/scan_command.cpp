@@ -395,6 +395,7 @@ int report(const sd::ScanResult& result, const DraftSettings& settings, const st
 
 int scan_direct(const ScanOptions& o) {
   using namespace canopen;
+  using namespace canopen::io;
   auto port = open_tool_interface(o.interface);
   if (!port) return exit_code::kCannotStart;
   const auto ms = [](double v) {

@@ -38,6 +38,8 @@ namespace oegw::gateway {
 
 using namespace canopen;
 
+
+using namespace canopen::io;
 namespace {
 
 // Which commands load the file, and what they ask of it: `eds` the loader's checks only; `oegw

@@ -49,14 +49,14 @@ void PublisherLink::open(canopen::TimePoint now) {
   }
 }
 
-void PublisherLink::run_on(canopen::EventLoop& loop, Attempts attempts, std::function<void()> after_poll,
+void PublisherLink::run_on(canopen::io::EventLoop& loop, Attempts attempts, std::function<void()> after_poll,
                            std::function<void()> on_up) {
   loop_ = &loop;
   attempts_ = attempts;
   after_poll_ = std::move(after_poll);
   on_up_ = std::move(on_up);
   if (transport_ && transport_->fd() >= 0)
-    transport_watch_ = loop.watch(transport_->fd(), canopen::io_events::kReadable, [this](std::uint32_t) {
+    transport_watch_ = loop.watch(transport_->fd(), canopen::io::events::kReadable, [this](std::uint32_t) {
       transport_->poll();
       if (after_poll_) after_poll_();
     });
@@ -80,7 +80,7 @@ void PublisherLink::attempt() {
   a->event_fd = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
   if (a->event_fd < 0) return outcome(nullptr, "cannot start an attempt (eventfd)");
   attempt_ = a;
-  attempt_watch_ = loop_->watch(a->event_fd, canopen::io_events::kReadable, [this](std::uint32_t) { take_thread_outcome(); });
+  attempt_watch_ = loop_->watch(a->event_fd, canopen::io::events::kReadable, [this](std::uint32_t) { take_thread_outcome(); });
   thread_ = std::thread([a, factory = factory_] {
     std::unique_ptr<Publisher> opened;
     std::string failure;
@@ -149,7 +149,7 @@ void PublisherLink::became_up(std::unique_ptr<Publisher> opened) {
     if (on_display_command) on_display_command(c);
   };
   if (loop_ != nullptr && transport_->fd() >= 0)
-    transport_watch_ = loop_->watch(transport_->fd(), canopen::io_events::kReadable, [this](std::uint32_t) {
+    transport_watch_ = loop_->watch(transport_->fd(), canopen::io::events::kReadable, [this](std::uint32_t) {
       transport_->poll();
       if (after_poll_) after_poll_();
     });

@@ -47,7 +47,7 @@ class PublisherLink final : public ForwardingPublisher<PublisherLink> {
   void open(canopen::TimePoint now);
   // From now on on `loop`: the transport's fd is watched (poll(), then `after_poll`), and while
   // down the link is retried. `on_up` runs on the loop each time it opens after being down.
-  void run_on(canopen::EventLoop& loop, Attempts attempts, std::function<void()> after_poll,
+  void run_on(canopen::io::EventLoop& loop, Attempts attempts, std::function<void()> after_poll,
               std::function<void()> on_up);
 
   [[nodiscard]] const std::string& name() const { return name_; }  // "dds", "lcm"
@@ -83,13 +83,13 @@ class PublisherLink final : public ForwardingPublisher<PublisherLink> {
   std::uint32_t failures_ = 0;
   canopen::TimePoint down_since_{};
   std::optional<canopen::TimePoint> next_attempt_;
-  canopen::EventLoop* loop_ = nullptr;
+  canopen::io::EventLoop* loop_ = nullptr;
   Attempts attempts_ = Attempts::InThread;
   std::function<void()> after_poll_, on_up_;
-  canopen::EventLoop::WatchId transport_watch_ = 0;
-  canopen::EventLoop::TimerId retry_timer_ = 0;
+  canopen::io::EventLoop::WatchId transport_watch_ = 0;
+  canopen::io::EventLoop::TimerId retry_timer_ = 0;
   std::shared_ptr<Attempt> attempt_;
-  canopen::EventLoop::WatchId attempt_watch_ = 0;
+  canopen::io::EventLoop::WatchId attempt_watch_ = 0;
   std::thread thread_;
 };
 

@@ -263,7 +263,7 @@ void GatewayPublishing::publish_status() {
   fan_.publish(st);
 }
 
-void GatewayPublishing::run_on(canopen::EventLoop& loop, std::function<void()> rearm, PublisherLink::Attempts attempts) {
+void GatewayPublishing::run_on(canopen::io::EventLoop& loop, std::function<void()> rearm, PublisherLink::Attempts attempts) {
   if (!active()) return;
   loop_ = &loop;
   // A transport that comes up gets the status at once; every FE follows within a period (the

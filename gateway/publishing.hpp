@@ -107,7 +107,7 @@ class GatewayPublishing {
   // each, `rearm` (the gateway's ServiceDriver::rearm: a command may move a watchdog deadline).
   // A transport that is down is opened again from the loop (`attempts`: in a thread of its own,
   // or inline for a test on a simulated clock).
-  void run_on(canopen::EventLoop& loop, std::function<void()> rearm,
+  void run_on(canopen::io::EventLoop& loop, std::function<void()> rearm,
               PublisherLink::Attempts attempts = PublisherLink::Attempts::InThread);
 
  private:
@@ -118,7 +118,7 @@ class GatewayPublishing {
   void flush();
   void publish_status();
 
-  canopen::EventLoop* loop_ = nullptr;  // set by run_on(): changes coalesce per wake-up
+  canopen::io::EventLoop* loop_ = nullptr;  // set by run_on(): changes coalesce per wake-up
   // The FEs changed in this wake-up, in order of change, each with its latest sample.
   std::vector<std::pair<mapping::FeId, Sample>> changed_;
   bool flush_posted_ = false;

@@ -15,10 +15,10 @@
 namespace oegw::gateway {
 
 // The interface, or nullptr with the reason logged.
-inline std::unique_ptr<canopen::SocketCanTransport> open_tool_interface(const std::string& interface) {
+inline std::unique_ptr<canopen::io::SocketCanTransport> open_tool_interface(const std::string& interface) {
   try {
-    return canopen::SocketCanTransport::open(interface, canopen::SocketCanOptions{});
-  } catch (const canopen::CanOpenError& e) {
+    return canopen::io::SocketCanTransport::open(interface, canopen::io::SocketCanOptions{});
+  } catch (const canopen::io::CanOpenError& e) {
     spdlog::error("interface: {}", e.what());
     return nullptr;
   }
@@ -27,8 +27,9 @@ inline std::unique_ptr<canopen::SocketCanTransport> open_tool_interface(const st
 // Runs `service` on `port` until its done() (after a timer or a frame) or SIGINT/SIGTERM: its
 // start(now), every frame to on_frame(frame, now), its next_deadline() / advance(now).
 template <class Service>
-void run_on_bus(canopen::SocketCanTransport& port, Service& service) {
+void run_on_bus(canopen::io::SocketCanTransport& port, Service& service) {
   using namespace canopen;
+  using namespace canopen::io;
   EventLoop loop;
   ServiceDriver driver(
       loop, [&service] { return service.next_deadline(); },

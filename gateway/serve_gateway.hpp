@@ -17,11 +17,11 @@ namespace oegw::gateway {
 
 // The buses serve_gateway() runs on, and what only a CAN controller has.
 struct GatewayBuses {
-  canopen::CanTransport& up;
-  canopen::CanTransport& down;
+  canopen::io::CanTransport& up;
+  canopen::io::CanTransport& down;
   // LSS activate bit timing (CiA 305): sets the upstream interface to `rate` (run_gateway:
   // apply_bit_rate). Unset: the transport has no bit timing, as a virtual CAN interface.
-  std::function<canopen::BitRateOutcome(std::uint32_t rate)> set_upstream_bit_rate;
+  std::function<canopen::io::BitRateOutcome(std::uint32_t rate)> set_upstream_bit_rate;
   // Called once both buses are watched, before publishing starts (run_gateway: warns of a
   // receive buffer smaller than asked).
   std::function<void()> watching;
@@ -32,6 +32,6 @@ struct GatewayBuses {
 // `config` sets them, on `loop` (a real-time loop of the calling thread) until SIGINT or SIGTERM;
 // SIGUSR1 keeps the recording. Returns the exit status (exit_code in gateway/programs.hpp). The
 // buses' receivers and event handlers are cleared on return.
-int serve_gateway(const std::string& file, mapping::Config& config, canopen::EventLoop& loop, const GatewayBuses& buses);
+int serve_gateway(const std::string& file, mapping::Config& config, canopen::io::EventLoop& loop, const GatewayBuses& buses);
 
 }  // namespace oegw::gateway

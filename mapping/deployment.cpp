@@ -31,7 +31,7 @@ void check_interface(const Bus& b, std::vector<Diagnostic>& out) {
                                 "interface (can0, can1, vcan0, ...)"});
     return;
   }
-  if (const std::string why = canopen::interface_name_problem(b.name); !why.empty())
+  if (const std::string why = canopen::io::interface_name_problem(b.name); !why.empty())
     out.push_back({b.where, std::string(b.setting) + " '" + b.name + "' " + why +
                                 "; expected a network interface name of 1..15 bytes without '/', ':' or white space"});
 }

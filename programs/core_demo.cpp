@@ -24,6 +24,8 @@
 namespace oegw::gateway {
 
 using namespace canopen;
+
+using namespace canopen::io;
 using namespace std::chrono_literals;
 
 namespace {
@@ -318,7 +320,7 @@ int run_demo(const DemoOptions& options) {
     for (Publisher* p : {static_cast<Publisher*>(dds.get()), static_cast<Publisher*>(lcm.get())}) {
       if (p == nullptr || p->fd() < 0) continue;
       p->on_indicator_command = on_indicators;
-      publisher_watches.push_back(loop.watch(p->fd(), io_events::kReadable, [p](std::uint32_t) { p->poll(); }));
+      publisher_watches.push_back(loop.watch(p->fd(), events::kReadable, [p](std::uint32_t) { p->poll(); }));
     }
   }
   script.then([&](Script::Next next) {

@@ -29,6 +29,8 @@
 namespace oegw::gateway {
 
 using namespace canopen;
+
+using namespace canopen::io;
 using namespace std::chrono_literals;
 namespace sd = oegw::subdevices;
 

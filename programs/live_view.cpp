@@ -12,6 +12,8 @@
 namespace oegw::gateway {
 
 using namespace canopen;
+
+using namespace canopen::io;
 namespace sd = oegw::subdevices;
 
 std::string fe_line(const Gateway& gw, mapping::FeId fe) {

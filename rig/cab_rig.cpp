@@ -31,7 +31,7 @@ std::map<std::string, subdevices::DriverOptions> simulators_as_wired(const mappi
   return out;
 }
 
-CabRig::CabRig(const mapping::Config& config, canopen::EventLoop& loop, CabRigOptions options)
+CabRig::CabRig(const mapping::Config& config, canopen::io::EventLoop& loop, CabRigOptions options)
     : config_(config), loop_(loop), options_(std::move(options)) {
   if (options_.timed_buses) {
     up_.run_timed_on(loop_, config_.upstream.bitrate);
@@ -69,8 +69,8 @@ void CabRig::build_devices() {
   host_ = std::make_unique<canopen::Master>(
       host_od_, host_port_->sink(),
       canopen::MasterConfig{.heartbeat_entries = options_.host_heartbeat_entries, .sdo_timeout = options_.host_sdo_timeout});
-  bench_drv_ = std::make_unique<canopen::ServiceDriver>(loop_, *bench_);
-  host_drv_ = std::make_unique<canopen::ServiceDriver>(loop_, *host_);
+  bench_drv_ = std::make_unique<canopen::io::ServiceDriver>(loop_, *bench_);
+  host_drv_ = std::make_unique<canopen::io::ServiceDriver>(loop_, *host_);
   sims_port_->set_receiver([this](const CanFrame& f, TimePoint t) {
     if (to_devices && to_devices(f)) return;
     bench_->on_frame(f, t);
@@ -99,7 +99,7 @@ void CabRig::connect_gateway() {
   gw_ = std::make_unique<gateway::Gateway>(config_, through(from_gateway_up, gw_up_->sink()),
                                            through(from_gateway_down, gw_down_->sink()), gateway_options());
   if (on_gateway) on_gateway(*gw_);
-  gw_drv_ = std::make_unique<canopen::ServiceDriver>(loop_, *gw_);
+  gw_drv_ = std::make_unique<canopen::io::ServiceDriver>(loop_, *gw_);
   gw_down_->set_receiver([this](const CanFrame& f, TimePoint t) {
     if (to_gateway_down && to_gateway_down(f)) return;
     gw_->on_downstream_frame(f, t);
@@ -119,7 +119,7 @@ std::vector<mapping::Diagnostic> CabRig::reload(const mapping::Config& next) {
   gw_ = gateway::reload_gateway(std::move(gw_), config_, through(from_gateway_down, gw_down_->sink()),
                                 gateway_options(), loop_.now());
   if (on_gateway) on_gateway(*gw_);
-  gw_drv_ = std::make_unique<canopen::ServiceDriver>(loop_, *gw_);
+  gw_drv_ = std::make_unique<canopen::io::ServiceDriver>(loop_, *gw_);
   return {};
 }
 

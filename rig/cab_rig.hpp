@@ -62,7 +62,7 @@ void add_cab_simulators(subdevices::sim::SimBench& bench, const mapping::Config&
 class CabRig {
  public:
   // `loop` runs everything (a simulated clock in tests and `oegw demo --fast`).
-  CabRig(const mapping::Config& config, canopen::EventLoop& loop, CabRigOptions options = {});
+  CabRig(const mapping::Config& config, canopen::io::EventLoop& loop, CabRigOptions options = {});
   ~CabRig();
   CabRig(const CabRig&) = delete;
   CabRig& operator=(const CabRig&) = delete;
@@ -107,14 +107,14 @@ class CabRig {
   [[nodiscard]] const gateway::Gateway& gw() const { return *gw_; }
   [[nodiscard]] canopen::Master& host() { return *host_; }
   [[nodiscard]] subdevices::sim::SimBench& devices() { return *bench_; }
-  [[nodiscard]] canopen::VirtualBus& up() { return up_; }
-  [[nodiscard]] canopen::VirtualBus& down() { return down_; }
-  [[nodiscard]] canopen::VirtualPort& host_port() { return *host_port_; }
-  [[nodiscard]] canopen::VirtualPort& devices_port() { return *sims_port_; }
-  [[nodiscard]] canopen::EventLoop& loop() { return loop_; }
+  [[nodiscard]] canopen::io::VirtualBus& up() { return up_; }
+  [[nodiscard]] canopen::io::VirtualBus& down() { return down_; }
+  [[nodiscard]] canopen::io::VirtualPort& host_port() { return *host_port_; }
+  [[nodiscard]] canopen::io::VirtualPort& devices_port() { return *sims_port_; }
+  [[nodiscard]] canopen::io::EventLoop& loop() { return loop_; }
   [[nodiscard]] canopen::TimePoint now() const { return loop_.now(); }
   [[nodiscard]] const mapping::Config& config() const { return config_; }
-  [[nodiscard]] canopen::ServiceDriver& gateway_driver() { return *gw_drv_; }
+  [[nodiscard]] canopen::io::ServiceDriver& gateway_driver() { return *gw_drv_; }
 
  private:
   // options_.gateway with the rig's store and SDO pacing.
@@ -123,15 +123,15 @@ class CabRig {
   canopen::FrameSink through(const Interceptor& consumed, canopen::FrameSink sink);
 
   mapping::Config config_;
-  canopen::EventLoop& loop_;
+  canopen::io::EventLoop& loop_;
   CabRigOptions options_;
-  canopen::VirtualBus up_, down_;
-  std::unique_ptr<canopen::VirtualPort> gw_up_, host_port_, gw_down_, sims_port_;
+  canopen::io::VirtualBus up_, down_;
+  std::unique_ptr<canopen::io::VirtualPort> gw_up_, host_port_, gw_down_, sims_port_;
   std::unique_ptr<subdevices::sim::SimBench> bench_;
   std::unique_ptr<gateway::Gateway> gw_;
   canopen::ObjectDictionary host_od_;
   std::unique_ptr<canopen::Master> host_;
-  std::unique_ptr<canopen::ServiceDriver> bench_drv_, gw_drv_, host_drv_;
+  std::unique_ptr<canopen::io::ServiceDriver> bench_drv_, gw_drv_, host_drv_;
 };
 
 }  // namespace oegw::rig

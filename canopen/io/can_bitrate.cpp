@@ -22,7 +22,7 @@
 #pragma GCC diagnostic ignored "-Wold-style-cast"
 #pragma GCC diagnostic ignored "-Wcast-align"
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 namespace {
 
@@ -188,4 +188,4 @@ BitRateOutcome apply_bit_rate(CanLink& link, const std::string& interface, std::
   return out;
 }
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

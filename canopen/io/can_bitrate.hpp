@@ -21,7 +21,7 @@
 #include <memory>
 #include <string>
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 // What the kernel says about one interface's CAN link.
 struct CanLinkState {
@@ -67,4 +67,4 @@ struct BitRateOutcome {
 [[nodiscard]] BitRateOutcome plan_bit_rate(CanLink& link, const std::string& interface, std::uint32_t bitrate);
 [[nodiscard]] BitRateOutcome apply_bit_rate(CanLink& link, const std::string& interface, std::uint32_t bitrate);
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

@@ -1,6 +1,6 @@
 #include "canopen/io/can_transport.hpp"
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 std::string_view to_string(SendStatus status) {
   switch (status) {
@@ -28,4 +28,4 @@ void CanTransport::deliver_event(BusEvent event) {
   if (event_handler_) event_handler_(event);
 }
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

@@ -15,7 +15,7 @@
 #include "canopen/io/clock.hpp"
 #include "canopen/types.hpp"
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 // What send() did with a frame. Only InvalidFrame is a caller bug; the others are conditions of
 // the bus/driver that a CANopen stack must survive (they are counted, never thrown).
@@ -101,4 +101,4 @@ class CanTransport {
   EventHandler event_handler_;
 };
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

@@ -4,7 +4,7 @@
 
 #include <stdexcept>
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 TimePoint time_point_from_monotonic(long long seconds, long long nanoseconds) {
   return TimePoint{Duration{seconds * 1'000'000LL + nanoseconds / 1'000LL}};
@@ -27,4 +27,4 @@ void SimulatedClock::advance(Duration d) {
   now_ += d;
 }
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

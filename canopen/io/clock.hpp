@@ -6,7 +6,7 @@
 
 #include "canopen/types.hpp"
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 class Clock {
  public:
@@ -55,4 +55,4 @@ class SimulatedClock final : public Clock {
 // truncating to microseconds.
 [[nodiscard]] TimePoint time_point_from_monotonic(long long seconds, long long nanoseconds);
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

@@ -10,10 +10,10 @@
 #include <stdexcept>
 #include <system_error>
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
-static_assert(io_events::kReadable == EPOLLIN && io_events::kWritable == EPOLLOUT &&
-              io_events::kError == EPOLLERR && io_events::kHangup == EPOLLHUP);
+static_assert(events::kReadable == EPOLLIN && events::kWritable == EPOLLOUT &&
+              events::kError == EPOLLERR && events::kHangup == EPOLLHUP);
 
 namespace {
 
@@ -222,7 +222,7 @@ void EventLoop::handle_signals(std::initializer_list<int> signals, SignalCallbac
   on_signal_ = std::move(on_signal);
   if (signal_fd_ < 0) {
     signal_fd_ = fd;
-    signal_watch_ = watch(signal_fd_, io_events::kReadable, [this](std::uint32_t) { on_signalfd(); });
+    signal_watch_ = watch(signal_fd_, events::kReadable, [this](std::uint32_t) { on_signalfd(); });
   }
 }
 
@@ -353,9 +353,9 @@ EventLoop::WatchId watch_transport(EventLoop& loop, CanTransport& transport) {
   if (fd < 0) return 0;
   transport.set_clock(&loop.clock());
   const EventLoop::WatchId id =
-      loop.watch(fd, io_events::kReadable, [&transport](std::uint32_t) { transport.poll_readable(); });
+      loop.watch(fd, events::kReadable, [&transport](std::uint32_t) { transport.poll_readable(); });
   loop.bracket_wakeups(id, [&transport] { transport.begin_batch(); }, [&transport] { transport.end_batch(); });
   return id;
 }
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

@@ -52,15 +52,15 @@
 #include "canopen/io/clock.hpp"
 #include "canopen/types.hpp"
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 // Event bits for fd watchers (the same values as EPOLLIN, EPOLLOUT, EPOLLERR, EPOLLHUP).
-namespace io_events {
+namespace events {
 inline constexpr std::uint32_t kReadable = 0x001;
 inline constexpr std::uint32_t kWritable = 0x004;
 inline constexpr std::uint32_t kError = 0x008;
 inline constexpr std::uint32_t kHangup = 0x010;
-}  // namespace io_events
+}  // namespace events
 
 class EventLoop {
  public:
@@ -246,4 +246,4 @@ class ServiceDriver {
 // has no descriptor. unwatch() the id before the transport goes.
 EventLoop::WatchId watch_transport(EventLoop& loop, CanTransport& transport);
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

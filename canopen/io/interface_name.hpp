@@ -8,7 +8,7 @@
 #include <string>
 #include <string_view>
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 inline constexpr std::size_t kMaxInterfaceName = 15;  // IFNAMSIZ - 1
 
@@ -25,4 +25,4 @@ inline constexpr std::size_t kMaxInterfaceName = 15;  // IFNAMSIZ - 1
   return "";
 }
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

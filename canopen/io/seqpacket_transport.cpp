@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <system_error>
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 void SeqpacketCanTransport::make_socketpair(int (&fds)[2]) {
   if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, fds) != 0)
@@ -29,4 +29,4 @@ SeqpacketCanTransport::Pair SeqpacketCanTransport::pair(std::size_t max_batch) {
   return p;
 }
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

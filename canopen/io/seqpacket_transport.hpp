@@ -21,7 +21,7 @@
 
 #include "canopen/io/socketcan_transport.hpp"
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 class SeqpacketCanTransport final : public CanFrameSocket {
  public:
@@ -43,4 +43,4 @@ class SeqpacketCanTransport final : public CanFrameSocket {
   SeqpacketCanTransport(int fd, std::size_t max_batch) : CanFrameSocket(fd, max_batch) {}
 };
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

@@ -17,7 +17,7 @@
 
 #include "canopen/io/clock.hpp"
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 namespace {
 
@@ -485,4 +485,4 @@ void CanFrameSocket::poll_readable() {
   }
 }
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

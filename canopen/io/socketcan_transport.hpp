@@ -35,7 +35,7 @@
 
 #include "canopen/io/can_transport.hpp"
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 // One receive filter: a frame matches if (frame id & mask) == (id & mask) and its format
 // (11/29-bit) is that of `extended`. Data and remote frames both match, unless `data_only`:
@@ -253,4 +253,4 @@ class SocketCanTransport final : public CanFrameSocket {
   bool rx_buffer_capped_ = false;
 };
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

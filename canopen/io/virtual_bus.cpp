@@ -5,7 +5,7 @@
 #include "canopen/frame_bits.hpp"
 #include "canopen/io/event_loop.hpp"
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 std::string BusRecord::to_string() const { return sender + ": " + frame.to_string(); }
 
@@ -139,9 +139,9 @@ void VirtualBus::run_on(EventLoop& loop) {
   if (pending() != 0) (*post_delivery)();
 }
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 void VirtualBus::run_timed_on(EventLoop& loop, std::uint32_t bit_rate) {
   if (bit_rate == 0) throw std::invalid_argument("VirtualBus::run_timed_on: bit rate 0");
@@ -182,4 +182,4 @@ void VirtualBus::arbitrate() {
   });
 }
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

@@ -45,7 +45,7 @@
 #include "canopen/io/can_transport.hpp"
 #include "canopen/io/event_loop.hpp"
 
-namespace oegw::canopen {
+namespace oegw::canopen::io {
 
 class EventLoop;
 class VirtualBus;
@@ -191,4 +191,4 @@ class VirtualBus {
   Stats stats_;
 };
 
-}  // namespace oegw::canopen
+}  // namespace oegw::canopen::io

@@ -18,7 +18,7 @@
 
 namespace oegw::gateway {
 
-namespace ev = canopen::io_events;
+namespace ev = canopen::io::events;
 
 namespace {
 
@@ -82,11 +82,11 @@ ControlSocketSettings control_settings(const mapping::ControlConfig& c, const st
                      "root's only, mode 0600)");
 }
 
-ControlServer::ControlServer(canopen::EventLoop& loop, ControlSocketSettings settings, Handler handler)
+ControlServer::ControlServer(canopen::io::EventLoop& loop, ControlSocketSettings settings, Handler handler)
     : ControlServer(loop, std::move(settings),
                     AsyncHandler([h = std::move(handler)](std::string_view line, Reply reply) { reply(h(line)); })) {}
 
-ControlServer::ControlServer(canopen::EventLoop& loop, ControlSocketSettings settings, AsyncHandler handler)
+ControlServer::ControlServer(canopen::io::EventLoop& loop, ControlSocketSettings settings, AsyncHandler handler)
     : loop_(loop), settings_(std::move(settings)), handler_(std::move(handler)) {
   const std::string& p = settings_.path;
   const ControlSocketSettings& s = settings_;

@@ -91,8 +91,8 @@ class ControlServer {
   using AsyncHandler = std::function<void(std::string_view line, Reply reply)>;
 
   // Binds and listens; throws ControlError (see above) and changes nothing on the way out.
-  ControlServer(canopen::EventLoop& loop, ControlSocketSettings settings, Handler handler);
-  ControlServer(canopen::EventLoop& loop, ControlSocketSettings settings, AsyncHandler handler);
+  ControlServer(canopen::io::EventLoop& loop, ControlSocketSettings settings, Handler handler);
+  ControlServer(canopen::io::EventLoop& loop, ControlSocketSettings settings, AsyncHandler handler);
   ~ControlServer();
   ControlServer(const ControlServer&) = delete;
   ControlServer& operator=(const ControlServer&) = delete;
@@ -112,8 +112,8 @@ class ControlServer {
   using Id = std::uint64_t;
   struct Client {
     int fd = -1;
-    canopen::EventLoop::WatchId watch = 0;
-    std::uint32_t events = canopen::io_events::kReadable;  // what `watch` waits for
+    canopen::io::EventLoop::WatchId watch = 0;
+    std::uint32_t events = canopen::io::events::kReadable;  // what `watch` waits for
     std::string in;   // bytes read and not handled: at most max_request + 1
     std::string out;  // answers not taken yet
     // When each answer in `out` was queued, by the stream offset it ends at: the oldest one's
@@ -126,7 +126,7 @@ class ControlServer {
     // The last complete request taken or answer given (or the connect): idle_timeout counts from
     // it; bytes that complete no request do not move it.
     canopen::TimePoint last_request{};
-    canopen::EventLoop::TimerId timer = 0;
+    canopen::io::EventLoop::TimerId timer = 0;
     std::optional<canopen::TimePoint> deadline;  // what `timer` is armed for
     bool asked = false;     // it completed a request once
     bool eof = false;       // the client shut its sending side: answer what it asked, then close
@@ -158,16 +158,16 @@ class ControlServer {
   void deliver(Client& c);  // the answers now due, in order, to `out`
   void listen_for_more(bool on);
 
-  canopen::EventLoop& loop_;
+  canopen::io::EventLoop& loop_;
   ControlSocketSettings settings_;
   AsyncHandler handler_;
   std::shared_ptr<bool> alive_ = std::make_shared<bool>(true);  // answers arriving after the end go nowhere
   int fd_ = -1;
   dev_t dev_ = 0;
   ino_t ino_ = 0;
-  canopen::EventLoop::WatchId watch_ = 0;
+  canopen::io::EventLoop::WatchId watch_ = 0;
   bool listening_ = true;  // the listen socket is watched (off while every slot is busy)
-  canopen::EventLoop::TimerId listen_again_ = 0;  // while off: when a client may have become idle
+  canopen::io::EventLoop::TimerId listen_again_ = 0;  // while off: when a client may have become idle
   std::map<Id, Client> clients_;
   std::deque<Id> run_queue_;  // clients with a request to handle, in turn
   bool slice_deferred_ = false;

@@ -14,7 +14,7 @@ using nlohmann::json;
 // One SDO transfer of a client: its RemoteSdo ticket, its time-out, its answer (once).
 struct CtlService::Transfer {
   RemoteSdo::Ticket ticket = 0;
-  canopen::EventLoop::TimerId timer = 0;
+  canopen::io::EventLoop::TimerId timer = 0;
   ControlProtocol::Done done;
   bool finished = false;
 };
@@ -67,7 +67,7 @@ json unknown_network(const mapping::Config& c, std::uint64_t net) {
 
 }  // namespace
 
-CtlService::CtlService(canopen::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
+CtlService::CtlService(canopen::io::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
                        std::function<void()> rearm)
     : loop_(loop), gw_(&gw), config_(&config), rearm_(std::move(rearm)) {
   protocol.add_async("sdo_read", [this](const json& r, ControlProtocol::Done done) { sdo(r, false, std::move(done)); });

@@ -45,7 +45,7 @@ class CtlService {
 
   // Adds sdo_read, sdo_write, nmt, info and events to `protocol`. `rearm`: called after a
   // command has acted on the gateway (its next deadline may have changed).
-  CtlService(canopen::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
+  CtlService(canopen::io::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
              std::function<void()> rearm);
   ~CtlService();  // cancels the transfers still running
   CtlService(const CtlService&) = delete;
@@ -87,7 +87,7 @@ class CtlService {
   void hook();
   void unhook(const char* why, std::optional<canopen::SdoAbortCode> answer_transfers);
 
-  canopen::EventLoop& loop_;
+  canopen::io::EventLoop& loop_;
   Gateway* gw_;
   const mapping::Config* config_;
   std::function<void()> rearm_;

@@ -26,9 +26,9 @@ class GatewayControl {
   // group this machine lacks, a live daemon's socket, ...). `gw` and `config` outlive it.
   // `rearm`: called after a command acted on the gateway (its next deadline may have changed).
   // `up`, `down`: the interfaces' transports, for the counters of `status` (may be null).
-  GatewayControl(canopen::EventLoop& loop, Gateway& gw, const mapping::Config& config, const std::string& file,
-                 std::function<void()> rearm = {}, const canopen::CanTransport* up = nullptr,
-                 const canopen::CanTransport* down = nullptr);
+  GatewayControl(canopen::io::EventLoop& loop, Gateway& gw, const mapping::Config& config, const std::string& file,
+                 std::function<void()> rearm = {}, const canopen::io::CanTransport* up = nullptr,
+                 const canopen::io::CanTransport* down = nullptr);
 
   // A reload (gateway/reload.hpp): detach() while the old gateway still runs (what its clients
   // had running on it ends: CtlService::detach, ScanService::detach), attach() with the new one

@@ -116,7 +116,7 @@ std::optional<sd::ScanResult> scan_result_from_json(const json& j, std::string& 
   }
 }
 
-ScanService::ScanService(canopen::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
+ScanService::ScanService(canopen::io::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
                          std::function<void()> rearm)
     : loop_(loop), gw_(&gw), config_(&config), rearm_(std::move(rearm)) {
   protocol.add("scan", [this](const json& r) {
@@ -191,7 +191,7 @@ json ScanService::start(const json& r) {
   gw_->log_control(fmt::format("scan {}: probing the node-IDs of no sub-device ({} skipped){}", id_, cfg.skip.size(),
                               cfg.lss ? ", then LSS" : ""));
   scanner_->start(loop_.now());
-  driver_ = std::make_unique<canopen::ServiceDriver>(
+  driver_ = std::make_unique<canopen::io::ServiceDriver>(
       loop_, [this] { return scanner_->next_deadline(); },
       [this](canopen::TimePoint now) {
         if (scanner_->done()) return;

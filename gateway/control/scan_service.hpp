@@ -42,7 +42,7 @@ class ScanService {
  public:
   // Adds `scan` to `protocol`. `gw` and `config` outlive it. `rearm`: called after the scan
   // acted (its LSS requests on the network manager's master move the gateway's next deadline).
-  ScanService(canopen::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
+  ScanService(canopen::io::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
               std::function<void()> rearm);
   ~ScanService();  // a scan still running ends (its fastscan on the shared master is cancelled)
   ScanService(const ScanService&) = delete;
@@ -61,12 +61,12 @@ class ScanService {
   void settle();
   [[nodiscard]] subdevices::ScanResult with_subdevices(subdevices::ScanResult r) const;
 
-  canopen::EventLoop& loop_;
+  canopen::io::EventLoop& loop_;
   Gateway* gw_;
   const mapping::Config* config_;
   std::function<void()> rearm_;
   std::unique_ptr<subdevices::BusScanner> scanner_;
-  std::unique_ptr<canopen::ServiceDriver> driver_;
+  std::unique_ptr<canopen::io::ServiceDriver> driver_;
   std::uint64_t id_ = 0;  // the current (or last) scan; 0: none yet
   std::uint64_t ended_ = 0;  // a scan a reload ended (detach)
   std::optional<nlohmann::json> result_;  // the last scan's, once done

@@ -137,7 +137,7 @@ std::string subdevice_summary(sd::NodeState state, bool faulty) {
 }
 
 namespace {
-json bus_json(const canopen::TransportCounters& c) {
+json bus_json(const canopen::io::TransportCounters& c) {
   return json{{"rx_frames", c.rx_frames}, {"tx_frames", c.tx_frames},       {"rx_dropped", c.rx_dropped},
               {"tx_dropped", c.tx_dropped}, {"error_frames", c.error_frames}, {"errors", c.errors}};
 }

@@ -20,8 +20,8 @@ struct StatusContext {
   canopen::TimePoint started{};  // when the gateway started
   // The two interfaces' counters (frames, and the frames the kernel dropped before the gateway
   // read them: SO_RXQ_OVFL), when the caller has the transports; absent: no "bus" object.
-  const canopen::TransportCounters* upstream_bus = nullptr;
-  const canopen::TransportCounters* downstream_bus = nullptr;
+  const canopen::io::TransportCounters* upstream_bus = nullptr;
+  const canopen::io::TransportCounters* downstream_bus = nullptr;
 };
 
 // The `status` object: upstream, downstream, subdevices, functional_elements, commands

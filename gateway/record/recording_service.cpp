@@ -28,7 +28,7 @@ RecorderSettings recorder_settings(const mapping::Config& c, const std::string& 
   return s;
 }
 
-RecordingService::RecordingService(canopen::EventLoop& loop, const mapping::Config& config, const std::string& file)
+RecordingService::RecordingService(canopen::io::EventLoop& loop, const mapping::Config& config, const std::string& file)
     : loop_(loop), config_(config.record) {
   if (!config.record.enabled) return;
   try {
@@ -40,7 +40,7 @@ RecordingService::RecordingService(canopen::EventLoop& loop, const mapping::Conf
     return;
   }
   tap_ = std::make_unique<GatewayRecorder>(*recorder_);
-  watch_ = loop_.watch(recorder_->event_fd(), canopen::io_events::kReadable,
+  watch_ = loop_.watch(recorder_->event_fd(), canopen::io::events::kReadable,
                        [this](std::uint32_t) { recorder_->dispatch(); });
   spdlog::info("record: {} (at most {} MiB, {} s, run {})", config.record.dir, config.record.max_mib,
                config.record.span_s, recorder_->status().run);

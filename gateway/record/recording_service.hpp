@@ -26,7 +26,7 @@ class RecordingService {
  public:
   // Records when config.record.enabled: give tap() to each gateway (GatewayOptions::tap) from
   // its construction on. `loop` outlives it; it outlives the gateways it taps.
-  RecordingService(canopen::EventLoop& loop, const mapping::Config& config, const std::string& file);
+  RecordingService(canopen::io::EventLoop& loop, const mapping::Config& config, const std::string& file);
   ~RecordingService();
   RecordingService(const RecordingService&) = delete;
   RecordingService& operator=(const RecordingService&) = delete;
@@ -48,12 +48,12 @@ class RecordingService {
   void keep_logged(const std::string& why);
 
  private:
-  canopen::EventLoop& loop_;
+  canopen::io::EventLoop& loop_;
   mapping::RecordConfig config_;  // as at the start: a reload does not change the recording
   std::string error_;  // why it does not record (the folder refused at start)
   std::unique_ptr<Recorder> recorder_;
   std::unique_ptr<GatewayRecorder> tap_;
-  canopen::EventLoop::WatchId watch_ = 0;
+  canopen::io::EventLoop::WatchId watch_ = 0;
 };
 
 // `oegw status`'s line for the `record` object: "recording: on, /var/lib/oegw/record, 12 segments,

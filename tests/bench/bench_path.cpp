@@ -579,11 +579,11 @@ class Cab {
     grip_ = config_.functional_elements.front().fields.front().subdevice;
     devices_config_ = config_;  // the simulators' thread reads its own copy
     int up[2], down[2];
-    canopen::SeqpacketCanTransport::make_socketpair(up);
-    canopen::SeqpacketCanTransport::make_socketpair(down);
-    gw_up_ = canopen::SeqpacketCanTransport::adopt(up[0]);
-    gw_down_ = canopen::SeqpacketCanTransport::adopt(down[0]);
-    devices_ = canopen::SeqpacketCanTransport::adopt(down[1]);
+    canopen::io::SeqpacketCanTransport::make_socketpair(up);
+    canopen::io::SeqpacketCanTransport::make_socketpair(down);
+    gw_up_ = canopen::io::SeqpacketCanTransport::adopt(up[0]);
+    gw_down_ = canopen::io::SeqpacketCanTransport::adopt(down[0]);
+    devices_ = canopen::io::SeqpacketCanTransport::adopt(down[1]);
     host_ = up[1];  // the prober's: blocking, stamped
     set_timestamps(host_);
     stimuli_ = ::dup(down[1]);  // the prober's stimuli go where the devices' frames go
@@ -598,7 +598,7 @@ class Cab {
   void start() {
     gateway_ = std::thread([this] {
       tid_ = this_tid();
-      canopen::EventLoop loop;
+      canopen::io::EventLoop loop;
       loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1});
       serving_ = true;
       try {
@@ -654,7 +654,7 @@ class Cab {
   // their own loop, the grip's TPDOs off (the prober sends them: vm_latency's `grip pdo off`).
   // Their heartbeats say when every one is operational.
   void run_devices() {
-    canopen::EventLoop loop;
+    canopen::io::EventLoop loop;
     std::map<std::uint32_t, std::uint8_t> states;
     subdevices::sim::SimBench bench([&](const CanFrame& f) {
       if (!f.extended && f.id > 0x700 && f.id <= 0x77F && f.dlc == 1) {
@@ -667,13 +667,13 @@ class Cab {
     });
     oegw::rig::add_cab_simulators(bench, devices_config_);
     device_count_ = static_cast<int>(bench.size());
-    canopen::ServiceDriver driver(loop, bench);
+    canopen::io::ServiceDriver driver(loop, bench);
     devices_->set_receiver([&](const CanFrame& f, TimePoint t) {
       bench.on_frame(f, t);
       driver.rearm();
     });
-    const auto watch = canopen::watch_transport(loop, *devices_);
-    loop.watch(stop_devices_, canopen::io_events::kReadable, [&](std::uint32_t) { loop.stop(); });
+    const auto watch = canopen::io::watch_transport(loop, *devices_);
+    loop.watch(stop_devices_, canopen::io::events::kReadable, [&](std::uint32_t) { loop.stop(); });
     bench.start(loop.now());
     const std::string reply = bench.command(grip_ + " pdo off", loop.now());
     if (reply.rfind("ok", 0) != 0) std::fprintf(stderr, "%s: '%s pdo off': %s\n", name_.c_str(), grip_.c_str(), reply.c_str());
@@ -718,7 +718,7 @@ class Cab {
   mapping::Config config_;  // the gateway thread's
   mapping::Config devices_config_;
   std::string grip_;
-  std::unique_ptr<canopen::SeqpacketCanTransport> gw_up_, gw_down_, devices_;
+  std::unique_ptr<canopen::io::SeqpacketCanTransport> gw_up_, gw_down_, devices_;
   int host_ = -1, stimuli_ = -1, stop_devices_ = -1;
   std::thread gateway_, devices_thread_;
   std::atomic<pid_t> tid_{0};
@@ -1071,8 +1071,8 @@ int main(int argc, char** argv) {
     std::vector<int> floor_fds;
     auto add_floor = [&](const char* name, void (*fn)(int, int)) {
       int in[2], out[2];
-      canopen::SeqpacketCanTransport::make_socketpair(in);
-      canopen::SeqpacketCanTransport::make_socketpair(out);
+      canopen::io::SeqpacketCanTransport::make_socketpair(in);
+      canopen::io::SeqpacketCanTransport::make_socketpair(out);
       set_timestamps(in[0]);  // the forwarder's input: stamped, as a CAN socket's
       set_timestamps(out[1]);
       auto p = std::make_unique<Path>();

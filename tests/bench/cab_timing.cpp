@@ -88,8 +88,8 @@ BootFigures boot(oegw::mapping::Config cfg, std::uint32_t bit_rate, Duration lat
                  std::optional<unsigned> lose_boot_ups_of = std::nullopt) {
   cfg.upstream.bitrate = bit_rate;
   cfg.downstream.bitrate = bit_rate;
-  oegw::canopen::SimulatedClock clock{TimePoint{std::chrono::seconds(1)}};
-  oegw::canopen::EventLoop loop{clock};
+  oegw::canopen::io::SimulatedClock clock{TimePoint{std::chrono::seconds(1)}};
+  oegw::canopen::io::EventLoop loop{clock};
   oegw::rig::CabRig rig(cfg, loop,
                             oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-bench/upstream.store",
                                                          .gateway = {.sdo_bus_share = g_sdo_share},
@@ -109,14 +109,14 @@ BootFigures boot(oegw::mapping::Config cfg, std::uint32_t bit_rate, Duration lat
   std::map<unsigned, TimePoint> started, proof_sent;  // NMT start received / first op heartbeat sent
   std::optional<TimePoint> upstream_ready;
   const std::uint32_t gw_boot = 0x700u + cfg.upstream.node_id;
-  rig.down().set_tap([&](const oegw::canopen::BusRecord& r) {
+  rig.down().set_tap([&](const oegw::canopen::io::BusRecord& r) {
     down.push_back({r.time, r.frame});
     if (r.frame.id == 0 && r.frame.dlc == 2 && r.frame.data[0] == 0x01) {
       for (const auto& s : cfg.subdevices)
         if (r.frame.data[1] == 0 || r.frame.data[1] == s.node_id) started[s.node_id] = r.time;
     }
   });
-  rig.up().set_tap([&](const oegw::canopen::BusRecord& r) {
+  rig.up().set_tap([&](const oegw::canopen::io::BusRecord& r) {
     if (!upstream_ready && r.frame.id == gw_boot && r.frame.dlc == 1 && r.frame.data[0] == 0) upstream_ready = r.time;
   });
   rig.from_devices = [&](const CanFrame& f) {
@@ -192,8 +192,8 @@ struct LoadFigures {
 LoadFigures load(const oegw::mapping::Config& cfg) {
   LoadFigures f;
   f.predicted = oegw::gateway::predict_bus_load(cfg);
-  oegw::canopen::SimulatedClock clock{TimePoint{std::chrono::seconds(1)}};
-  oegw::canopen::EventLoop loop{clock};
+  oegw::canopen::io::SimulatedClock clock{TimePoint{std::chrono::seconds(1)}};
+  oegw::canopen::io::EventLoop loop{clock};
   oegw::rig::CabRig rig(cfg, loop,
                             oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-bench/upstream.store", .timed_buses = true});
   rig.build();

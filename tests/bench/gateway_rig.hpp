@@ -162,8 +162,8 @@ class GatewayRig {
   [[nodiscard]] std::uint64_t host_tpdo1() const { return host_tpdo1_; }
 
  private:
-  canopen::SimulatedClock clock_;
-  canopen::EventLoop loop_{clock_};
+  canopen::io::SimulatedClock clock_;
+  canopen::io::EventLoop loop_{clock_};
   oegw::rig::CabRig rig_;
   bool detached_ = false;
   UpstreamRecord rec_;

@@ -31,6 +31,8 @@
 #include "canopen/node.hpp"
 
 using namespace oegw::canopen;
+
+using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 using oegw::bench::AllocCounter;
 

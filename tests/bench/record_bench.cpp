@@ -178,8 +178,8 @@ void BM_ReplayFullCab10Min(benchmark::State& state) {
   TempDir dir;
   std::uint64_t recorded = 0;
   {
-    canopen::SimulatedClock clock;
-    canopen::EventLoop loop(clock);
+    canopen::io::SimulatedClock clock;
+    canopen::io::EventLoop loop(clock);
     RecorderSettings s;
     s.dir = dir.path;
     s.max_bytes = 4ull << 30;

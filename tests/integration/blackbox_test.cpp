@@ -145,8 +145,8 @@ class Blackbox : public ::testing::Test {
 
   fs::path dir_;
   mapping::Config config_;
-  canopen::SimulatedClock clock_;
-  canopen::EventLoop loop_{clock_};
+  canopen::io::SimulatedClock clock_;
+  canopen::io::EventLoop loop_{clock_};
   std::unique_ptr<Recorder> recorder_;
   std::unique_ptr<rig::CabRig> rig_;
   std::unique_ptr<GatewayRecorder> tap_;

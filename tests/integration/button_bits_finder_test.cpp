@@ -15,6 +15,8 @@
 #include "subdevices/sim/mcb402_sim.hpp"
 
 using namespace oegw::canopen;
+
+using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 namespace sd = oegw::subdevices;
 namespace sim = oegw::subdevices::sim;

@@ -22,6 +22,7 @@
 
 using namespace oegw;
 using namespace oegw::canopen;
+using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 using gateway::PublisherLink;
 

@@ -42,6 +42,8 @@
 namespace oegw::testing::safety {
 
 using namespace oegw::canopen;
+
+using namespace oegw::canopen::io;
 using gateway::FeStatus;
 using mapping::FeKind;
 namespace sd = oegw::subdevices;

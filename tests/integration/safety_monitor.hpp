@@ -54,7 +54,7 @@
 
 namespace oegw::testing::safety {
 
-using canopen::BusRecord;
+using canopen::io::BusRecord;
 using canopen::CanFrame;
 using canopen::Duration;
 using canopen::TimePoint;

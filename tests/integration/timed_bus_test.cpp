@@ -20,6 +20,7 @@
 
 using namespace oegw;
 using namespace oegw::canopen;
+using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 
 namespace {

@@ -15,6 +15,8 @@ namespace oegw::testing {
 
 using namespace oegw::canopen;
 
+
+using namespace oegw::canopen::io;
 class VirtualNetwork {
  public:
   VirtualNetwork() : loop_(clock_) { bus_.run_on(loop_); }

@@ -12,6 +12,8 @@
 
 using namespace oegw::canopen;
 
+
+using namespace oegw::canopen::io;
 namespace {
 
 // A kernel with interfaces and their link state; records every change asked for and refuses,

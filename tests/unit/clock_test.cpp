@@ -6,6 +6,8 @@
 #include <chrono>
 
 using namespace oegw::canopen;
+
+using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 
 namespace {

@@ -25,6 +25,8 @@
 #include "cli/status_command.hpp"
 
 using namespace oegw::canopen;
+
+using namespace oegw::canopen::io;
 using namespace oegw::gateway;
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;

@@ -19,6 +19,8 @@
 #include "cli/control_client.hpp"
 
 using namespace oegw::canopen;
+
+using namespace oegw::canopen::io;
 using namespace oegw::gateway;
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
@@ -338,7 +340,7 @@ TEST_F(ControlServerTest, PipelinedRequestsAreHandledOnePerWakeUpWithTheBusServe
   int bus_turns = 0;
   int handled_at_last_turn = 0;
   int most_between_turns = 0;
-  loop_.watch(bus_pipe[0], io_events::kReadable, [&](std::uint32_t) {
+  loop_.watch(bus_pipe[0], events::kReadable, [&](std::uint32_t) {
     ++bus_turns;
     most_between_turns = std::max(most_between_turns, handled - handled_at_last_turn);
     handled_at_last_turn = handled;

@@ -29,6 +29,8 @@ std::size_t g_allocations = 0;
 [[gnu::noinline]] void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 using namespace oegw::canopen;
+
+using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 using ::testing::ElementsAre;
 using ::testing::IsEmpty;
@@ -181,8 +183,8 @@ TEST(EventLoop, FdWatcherRunsWhenAPipeBecomesReadable) {
   EventLoop loop;
   Pipe p;
   std::string got;
-  auto id = loop.watch(p.r, io_events::kReadable, [&](std::uint32_t ev) {
-    EXPECT_TRUE(ev & io_events::kReadable);
+  auto id = loop.watch(p.r, events::kReadable, [&](std::uint32_t ev) {
+    EXPECT_TRUE(ev & events::kReadable);
     char buf[16];
     const auto n = ::read(p.r, buf, sizeof buf);
     if (n > 0) got.append(buf, static_cast<std::size_t>(n));
@@ -205,7 +207,7 @@ TEST(EventLoop, AWakeUpOfABusAllocatesNothing) {
   EventLoop loop;
   Pipe p;
   int woken = 0;
-  loop.watch(p.r, io_events::kReadable, [&](std::uint32_t) {
+  loop.watch(p.r, events::kReadable, [&](std::uint32_t) {
     char c;
     while (::read(p.r, &c, 1) == 1) {
     }
@@ -223,8 +225,8 @@ TEST(EventLoop, AWakeUpOfABusAllocatesNothing) {
 TEST(EventLoop, WatchingTheSameFdTwiceThrows) {
   EventLoop loop;
   Pipe p;
-  loop.watch(p.r, io_events::kReadable, [](std::uint32_t) {});
-  EXPECT_THROW(loop.watch(p.r, io_events::kReadable, [](std::uint32_t) {}), std::system_error);
+  loop.watch(p.r, events::kReadable, [](std::uint32_t) {});
+  EXPECT_THROW(loop.watch(p.r, events::kReadable, [](std::uint32_t) {}), std::system_error);
 }
 
 TEST(EventLoop, AWatcherRemovedByAnEarlierCallbackInTheSameBatchDoesNotRun) {
@@ -235,8 +237,8 @@ TEST(EventLoop, AWatcherRemovedByAnEarlierCallbackInTheSameBatchDoesNotRun) {
   EventLoop::WatchId w1 = 0;
   EventLoop::WatchId w2 = 0;
   // Whichever runs first removes the other.
-  w1 = loop.watch(p1.r, io_events::kReadable, [&](std::uint32_t) { ++runs; loop.unwatch(w2); loop.unwatch(w1); });
-  w2 = loop.watch(p2.r, io_events::kReadable, [&](std::uint32_t) { ++runs; loop.unwatch(w1); loop.unwatch(w2); });
+  w1 = loop.watch(p1.r, events::kReadable, [&](std::uint32_t) { ++runs; loop.unwatch(w2); loop.unwatch(w1); });
+  w2 = loop.watch(p2.r, events::kReadable, [&](std::uint32_t) { ++runs; loop.unwatch(w1); loop.unwatch(w2); });
   ASSERT_EQ(::write(p1.w, "a", 1), 1);
   ASSERT_EQ(::write(p2.w, "b", 1), 1);
   loop.run_once(0us);
@@ -252,7 +254,7 @@ TEST(EventLoop, DeferredSlicesRunOnePerWakeUpAfterTheDescriptors) {
   Pipe bus;
   ASSERT_EQ(::write(bus.w, "f", 1), 1);  // never read: readable at every wake-up
   std::string order;
-  loop.watch(bus.r, io_events::kReadable, [&](std::uint32_t) { order += 'B'; });
+  loop.watch(bus.r, events::kReadable, [&](std::uint32_t) { order += 'B'; });
   int a_left = 3, b_left = 2;
   std::function<void()> a = [&] {
     order += 'a';
@@ -282,15 +284,15 @@ TEST(EventLoop, ModifyChangesWhatAWatchWaitsFor) {
   EventLoop loop;
   Pipe p;
   int runs = 0;
-  const auto id = loop.watch(p.r, io_events::kReadable, [&](std::uint32_t) { ++runs; });
+  const auto id = loop.watch(p.r, events::kReadable, [&](std::uint32_t) { ++runs; });
   ASSERT_EQ(::write(p.w, "x", 1), 1);
   EXPECT_TRUE(loop.modify(id, 0));
   loop.run_once(0us);
   EXPECT_EQ(runs, 0) << "readable, but not waited for";
-  EXPECT_TRUE(loop.modify(id, io_events::kReadable));
+  EXPECT_TRUE(loop.modify(id, events::kReadable));
   loop.run_once(0us);
   EXPECT_EQ(runs, 1);
-  EXPECT_FALSE(loop.modify(id + 100, io_events::kReadable));
+  EXPECT_FALSE(loop.modify(id + 100, events::kReadable));
 }
 
 TEST(EventLoop, RealTimerFiresViaTimerfdAndRunStopsFromACallback) {

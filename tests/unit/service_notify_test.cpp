@@ -143,8 +143,8 @@ TEST(ServiceNotify, WithoutAWatchdogNoWatchdogMessageAndAPollEverySecond) {
 
 // systemd's WatchdogSec=5s: WATCHDOG_USEC=5000000, a ping every 2.5 s (sd_watchdog_enabled(3)).
 TEST(ServiceNotify, TheEventLoopPingsTheWatchdogAtHalfItsTimeOut) {
-  canopen::SimulatedClock clock;
-  canopen::EventLoop loop(clock);
+  canopen::io::SimulatedClock clock;
+  canopen::io::EventLoop loop(clock);
   Recorder r;
   ServiceNotify n(r, canopen::Duration(5s));
   EXPECT_EQ(n.poll_period(), canopen::Duration(1s));  // the STATUS line follows within a second

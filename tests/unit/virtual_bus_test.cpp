@@ -10,6 +10,8 @@
 #include "canopen/io/event_loop.hpp"
 
 using namespace oegw::canopen;
+
+using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 using ::testing::ElementsAre;
 using ::testing::IsEmpty;
