@@ -133,7 +133,7 @@ int run_record_keep(const StatusOptions& o) {
   if (!ok) return kStatusFailed;
   const auto timeout = std::chrono::milliseconds(static_cast<std::int64_t>(o.timeout_s * 1000.0));
   const AskResult r =
-      ask_daemon(path, json_line(nlohmann::json{{"protocol", kControlProtocol}, {"command", "record_keep"}}), timeout);
+      ask_daemon(path, control::json_line(nlohmann::json{{"protocol", control::kControlProtocol}, {"command", "record_keep"}}), timeout);
   if (r.status != AskStatus::Ok) {
     std::fprintf(stderr, "oegw record keep: %s\n", r.text.c_str());
     return ask_exit_code(r.status);

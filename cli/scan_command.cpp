@@ -428,7 +428,7 @@ int scan_direct(const ScanOptions& o) {
 // One request to the gateway: its answer, or nullopt after an error on standard error (`code`
 // the exit code). A refusal of the control protocol or a CiA 309-3 error of the command count.
 std::optional<nlohmann::json> ask(const std::string& socket, const nlohmann::json& request, int& code) {
-  const AskResult a = ask_daemon(socket, json_line(request), std::chrono::seconds(5));
+  const AskResult a = ask_daemon(socket, control::json_line(request), std::chrono::seconds(5));
   if (a.status != AskStatus::Ok) {
     spdlog::error("{}", a.text);
     code = ask_exit_code(a.status);
@@ -498,7 +498,7 @@ int scan_through_gateway(const ScanOptions& o, const std::string& socket, const 
   }
   progress.end();
   std::string why;
-  const auto result = scan_result_from_json(scan.value("result", json::object()), why);
+  const auto result = control::scan_result_from_json(scan.value("result", json::object()), why);
   if (!result) {
     spdlog::error("the gateway's scan result cannot be read: {}", why);
     return kStatusFailed;

@@ -212,7 +212,7 @@ int run_status(const StatusOptions& o) {
   const std::string path = control_socket_of(o.socket, o.config, "oegw status", ok);
   if (!ok) return kStatusFailed;
   const auto timeout = std::chrono::milliseconds(static_cast<std::int64_t>(o.timeout_s * 1000.0));
-  const AskResult r = ask_daemon(path, json_line(json{{"protocol", kControlProtocol}, {"command", "status"}}), timeout);
+  const AskResult r = ask_daemon(path, control::json_line(json{{"protocol", control::kControlProtocol}, {"command", "status"}}), timeout);
   if (r.status != AskStatus::Ok) {
     std::fprintf(stderr, "oegw status: %s\n", r.text.c_str());
     return ask_exit_code(r.status);

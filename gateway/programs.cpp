@@ -38,7 +38,6 @@ namespace oegw::gateway {
 
 using namespace canopen;
 
-
 using namespace canopen::io;
 namespace {
 
@@ -236,7 +235,7 @@ struct Running {
   std::unique_ptr<Gateway>& gw;
   FrameSink downstream;
   GatewayPublishing& publishing;
-  GatewayControl* control;  // null: control.enabled false
+  control::GatewayControl* control;  // null: control.enabled false
   record::RecordingService& recording;  // the black box: the new gateway is tapped too
   ServiceDriver& driver;
   ServiceNotify& notify;
@@ -628,17 +627,17 @@ int serve_gateway(const std::string& file, mapping::Config& config, EventLoop& l
   // systemd (gateway/service_notify.hpp): READY=1, STATUS=, WATCHDOG=1 from this loop, STOPPING=1.
   SystemdNotifier systemd;
   ServiceNotify notify(systemd, systemd_watchdog_timeout());
-  std::unique_ptr<GatewayControl> control;  // `oegw status`, `oegw ctl` (docs/reference/control-protocol.md)
+  std::unique_ptr<control::GatewayControl> control;  // `oegw status`, `oegw ctl` (docs/reference/control-protocol.md)
   try {
-    if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, *gw, *cfg, file, [&driver] { driver.rearm(); }, up, down);
-  } catch (const ControlError& e) {
+    if (cfg->control.enabled) control = std::make_unique<control::GatewayControl>(loop, *gw, *cfg, file, [&driver] { driver.rearm(); }, up, down);
+  } catch (const control::ControlError& e) {
     spdlog::error("{}", e.what());
     return exit_code::kCannotStart;
   }
   if (control) {
-    control->add_status_field("publishing", [&publishing] { return publishing_status(publishing->transports()); });
+    control->add_status_field("publishing", [&publishing] { return control::publishing_status(publishing->transports()); });
     control->add_status_field("record", [&recording] { return recording.status(); });
-    control->add_command("record_keep", [&recording](const nlohmann::json&, ControlProtocol::Done done) {
+    control->add_command("record_keep", [&recording](const nlohmann::json&, control::ControlProtocol::Done done) {
       if (!recording.recording()) throw std::runtime_error(recording.off_reason());
       recording.keep([done](const std::string& folder, std::size_t segments, const std::string& error) {
         if (error.empty()) done(nlohmann::json{{"kept", folder}, {"segments", segments}});

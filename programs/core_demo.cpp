@@ -24,7 +24,6 @@
 namespace oegw::gateway {
 
 using namespace canopen;
-
 using namespace canopen::io;
 using namespace std::chrono_literals;
 

@@ -29,7 +29,6 @@
 namespace oegw::gateway {
 
 using namespace canopen;
-
 using namespace canopen::io;
 using namespace std::chrono_literals;
 namespace sd = oegw::subdevices;

@@ -34,7 +34,6 @@
 namespace oegw::gateway {
 
 using namespace canopen;
-
 using namespace canopen::io;
 using namespace std::chrono_literals;
 namespace sd = oegw::subdevices;
@@ -375,14 +374,14 @@ int run_gateway_sim(const GatewaySimOptions& options) {
   }
 
   // The control socket on a private path (oegw status, oegw ctl), in real time only.
-  std::unique_ptr<GatewayControl> control;
+  std::unique_ptr<control::GatewayControl> control;
   mapping::Config control_cfg = cfg;
   if (!options.fast) {
     control_cfg.control.enabled = true;
     control_cfg.control.socket = (dir / "control.sock").string();
     control_cfg.control.group.clear();
     try {
-      control = std::make_unique<GatewayControl>(loop, gw, control_cfg, options.file, [&rig] { rig.rearm(); });
+      control = std::make_unique<control::GatewayControl>(loop, gw, control_cfg, options.file, [&rig] { rig.rearm(); });
     } catch (const std::exception& e) {
       say(std::string("no control socket: ") + e.what());
     }

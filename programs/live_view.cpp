@@ -12,7 +12,6 @@
 namespace oegw::gateway {
 
 using namespace canopen;
-
 using namespace canopen::io;
 namespace sd = oegw::subdevices;
 

@@ -5,7 +5,7 @@
 
 #include <fmt/format.h>
 
-namespace oegw::gateway {
+namespace oegw::gateway::control {
 
 using nlohmann::json;
 
@@ -109,4 +109,4 @@ std::uint64_t request_field_or(const nlohmann::json& r, const char* key, std::ui
   return r.contains(key) ? request_field(r, key, lo, hi) : fallback;
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::gateway::control

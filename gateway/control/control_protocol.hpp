@@ -15,7 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
-namespace oegw::gateway {
+namespace oegw::gateway::control {
 
 inline constexpr int kControlProtocol = 1;
 
@@ -62,4 +62,4 @@ class ControlProtocol {
 // become U+FFFD.
 [[nodiscard]] std::string json_line(const nlohmann::json& j);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::gateway::control

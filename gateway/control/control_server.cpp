@@ -16,7 +16,7 @@
 
 #include "gateway/control/control_protocol.hpp"
 
-namespace oegw::gateway {
+namespace oegw::gateway::control {
 
 namespace ev = canopen::io::events;
 
@@ -469,4 +469,4 @@ void ControlServer::close_client(Id id, bool dropped) {
   listen_for_more(true);
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::gateway::control

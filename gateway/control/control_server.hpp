@@ -46,7 +46,7 @@
 #include "canopen/io/event_loop.hpp"
 #include "mapping/config.hpp"
 
-namespace oegw::gateway {
+namespace oegw::gateway::control {
 
 // A socket that cannot be served; what() names the setting ("control.socket: ...").
 class ControlError : public std::runtime_error {
@@ -180,4 +180,4 @@ class ControlServer {
   std::map<uid_t, std::uint64_t> refused_by_uid_;
 };
 
-}  // namespace oegw::gateway
+}  // namespace oegw::gateway::control

@@ -6,7 +6,7 @@
 
 #include <fmt/format.h>
 
-namespace oegw::gateway {
+namespace oegw::gateway::control {
 
 using canopen::SdoAbortCode;
 using nlohmann::json;
@@ -506,4 +506,4 @@ void CtlService::sdo(const json& r, bool write, ControlProtocol::Done done) {
   if (rearm_) rearm_();
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::gateway::control

@@ -36,7 +36,7 @@
 #include "gateway/gateway.hpp"
 #include "mapping/config.hpp"
 
-namespace oegw::gateway {
+namespace oegw::gateway::control {
 
 class CtlService {
  public:
@@ -103,4 +103,4 @@ class CtlService {
   std::uint64_t next_event_ = 1;
 };
 
-}  // namespace oegw::gateway
+}  // namespace oegw::gateway::control

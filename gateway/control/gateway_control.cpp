@@ -4,7 +4,7 @@
 
 #include "gateway/control/status_report.hpp"
 
-namespace oegw::gateway {
+namespace oegw::gateway::control {
 
 GatewayControl::GatewayControl(canopen::io::EventLoop& loop, Gateway& gw, const mapping::Config& config,
                                const std::string& file, std::function<void()> rearm, const canopen::io::CanTransport* up,
@@ -45,4 +45,4 @@ void GatewayControl::attach(Gateway& gw, const mapping::Config& config) {
   scan_->attach(gw, config);
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::gateway::control

@@ -18,7 +18,7 @@
 #include "gateway/gateway.hpp"
 #include "mapping/config.hpp"
 
-namespace oegw::gateway {
+namespace oegw::gateway::control {
 
 class GatewayControl {
  public:
@@ -56,4 +56,4 @@ class GatewayControl {
   std::unique_ptr<ControlServer> server_;
 };
 
-}  // namespace oegw::gateway
+}  // namespace oegw::gateway::control

@@ -5,7 +5,7 @@
 
 #include <fmt/format.h>
 
-namespace oegw::gateway {
+namespace oegw::gateway::control {
 
 using nlohmann::json;
 namespace sd = subdevices;
@@ -256,4 +256,4 @@ json ScanService::status(const json& r) const {
   return json{{"scan", std::move(s)}};
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::gateway::control

@@ -31,7 +31,7 @@
 #include "mapping/config.hpp"
 #include "subdevices/bus_scan.hpp"
 
-namespace oegw::gateway {
+namespace oegw::gateway::control {
 
 // A scan's result as the protocol carries it, and back (the client writes the draft from it).
 // from: nullopt and `error` for an answer that is not one.
@@ -72,4 +72,4 @@ class ScanService {
   std::optional<nlohmann::json> result_;  // the last scan's, once done
 };
 
-}  // namespace oegw::gateway
+}  // namespace oegw::gateway::control

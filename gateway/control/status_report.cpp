@@ -2,7 +2,7 @@
 
 #include <chrono>
 
-namespace oegw::gateway {
+namespace oegw::gateway::control {
 
 using nlohmann::json;
 namespace sd = subdevices;
@@ -184,4 +184,4 @@ json status_report(const Gateway& gw, const mapping::Config& config, const Statu
   return report;
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::gateway::control

@@ -13,7 +13,7 @@
 #include "gateway/publishing.hpp"
 #include "mapping/config.hpp"
 
-namespace oegw::gateway {
+namespace oegw::gateway::control {
 
 struct StatusContext {
   canopen::TimePoint now{};      // the gateway's clock now (ages are counted from it)
@@ -39,4 +39,4 @@ struct StatusContext {
 // "refused", "idle".
 [[nodiscard]] std::string subdevice_summary(subdevices::NodeState state, bool faulty);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::gateway::control

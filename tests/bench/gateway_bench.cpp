@@ -162,10 +162,10 @@ void BM_StatusReport(benchmark::State& state) {
   const mapping::Config cfg = bench::load_or_throw(variant == 0 ? bench::yaml_one_grip() : bench::yaml_full_set(),
                                                    variant == 0 ? "one_grip.yaml" : "full_set.yaml");
   auto rig = make_rig(variant);
-  const gateway::StatusContext at{rig->now(), {}};
+  const gateway::control::StatusContext at{rig->now(), {}};
   std::size_t bytes = 0;
   for (auto _ : state) {
-    const std::string text = gateway::status_report(rig->gw(), cfg, at).dump();
+    const std::string text = gateway::control::status_report(rig->gw(), cfg, at).dump();
     bytes = text.size();
     benchmark::DoNotOptimize(text.data());
   }

@@ -26,7 +26,6 @@
 #include "canopen/node.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 using oegw::bench::AllocCounter;

@@ -15,7 +15,6 @@
 #include "subdevices/sim/mcb402_sim.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 namespace sd = oegw::subdevices;

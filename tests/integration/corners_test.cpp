@@ -23,7 +23,6 @@
 #include "subdevices/sim/novotechnik_406_sim.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 namespace gw = oegw::gateway;

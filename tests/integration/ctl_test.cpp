@@ -29,7 +29,6 @@
 #include "tests/fixtures/fixtures.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 namespace gw = oegw::gateway;
@@ -59,7 +58,7 @@ class Ctl : public ::testing::Test {
     rig_->run_for(3s);
     for (const auto& n : rig_->gw().downstream().names())
       ASSERT_EQ(rig_->gw().downstream().state(n), sd::NodeState::Operational) << n << "\n" << log_;
-    service_ = std::make_unique<gw::CtlService>(loop_, rig_->gw(), config_, protocol_, [this] { rig_->rearm(); });
+    service_ = std::make_unique<gw::control::CtlService>(loop_, rig_->gw(), config_, protocol_, [this] { rig_->rearm(); });
     // The session asks the protocol as the socket would, and the loop runs until the answer.
     session_ = std::make_unique<gw::CtlSession>(
         [this](const std::string& line, std::chrono::milliseconds timeout) {
@@ -113,8 +112,8 @@ class Ctl : public ::testing::Test {
   oegw::mapping::Config config_;
   std::filesystem::path store_;
   std::unique_ptr<oegw::rig::CabRig> rig_;
-  gw::ControlProtocol protocol_;
-  std::unique_ptr<gw::CtlService> service_;
+  gw::control::ControlProtocol protocol_;
+  std::unique_ptr<gw::control::CtlService> service_;
   std::unique_ptr<gw::CtlSession> session_;
   std::function<bool(const CanFrame&)> drop_to_devices_, drop_to_gateway_;
   std::vector<CanFrame> down_;

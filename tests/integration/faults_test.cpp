@@ -22,7 +22,6 @@
 #include "tests/fixtures/fixtures.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 namespace gw = oegw::gateway;

@@ -34,7 +34,6 @@
 #include "tests/fixtures/fixtures.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 using oegw::gateway::FeStatus;

@@ -16,7 +16,6 @@
 #include "virtual_network.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace oegw::subdevices;
 using namespace std::chrono_literals;

@@ -27,7 +27,6 @@
 #include "tests/fixtures/fixtures.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 namespace gw = oegw::gateway;

@@ -42,7 +42,6 @@
 namespace oegw::testing::safety {
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using gateway::FeStatus;
 using mapping::FeKind;

@@ -32,7 +32,6 @@
 #include "tests/fixtures/fixtures.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 namespace gw = oegw::gateway;
@@ -64,7 +63,7 @@ class ScanThroughGateway : public ::testing::Test {
     rig_->power_on();
     rig_->run_for(3s);
     all_operational();
-    service_ = std::make_unique<gw::ScanService>(loop_, rig_->gw(), config_, protocol_, [this] { rig_->rearm(); });
+    service_ = std::make_unique<gw::control::ScanService>(loop_, rig_->gw(), config_, protocol_, [this] { rig_->rearm(); });
   }
   void TearDown() override {
     service_.reset();
@@ -78,7 +77,7 @@ class ScanThroughGateway : public ::testing::Test {
   }
   json ask(const json& request) {
     std::optional<std::string> answer;
-    protocol_.answer(gw::json_line(request), [&answer](std::string a) { answer = std::move(a); });
+    protocol_.answer(gw::control::json_line(request), [&answer](std::string a) { answer = std::move(a); });
     EXPECT_TRUE(answer);
     return json::parse(answer.value_or("{}"));
   }
@@ -100,7 +99,7 @@ class ScanThroughGateway : public ::testing::Test {
   }
   sd::ScanResult result_of(const json& status) {
     std::string why;
-    auto r = gw::scan_result_from_json(status.at("result"), why);
+    auto r = gw::control::scan_result_from_json(status.at("result"), why);
     EXPECT_TRUE(r) << why;
     return r.value_or(sd::ScanResult{});
   }
@@ -119,8 +118,8 @@ class ScanThroughGateway : public ::testing::Test {
   const std::filesystem::path dir_ =
       std::filesystem::path(::testing::TempDir()) / fmt::format("oegw-scan-service-{}", ::getpid());
   std::unique_ptr<oegw::rig::CabRig> rig_;
-  gw::ControlProtocol protocol_;
-  std::unique_ptr<gw::ScanService> service_;
+  gw::control::ControlProtocol protocol_;
+  std::unique_ptr<gw::control::ScanService> service_;
   std::vector<CanFrame> down_;
   std::string log_;
 };
@@ -253,7 +252,7 @@ TEST(ScanResultJson, RoundTripsAndNamesWhatIsMissing) {
   r.unconfigured = true;
   r.unconfigured_address = lss::Address{1, 2, 3, 4};
   std::string why;
-  const auto back = gw::scan_result_from_json(gw::scan_result_json(r), why);
+  const auto back = gw::control::scan_result_from_json(gw::control::scan_result_json(r), why);
   ASSERT_TRUE(back) << why;
   ASSERT_EQ(back->nodes.size(), 1u);
   const auto& m = back->nodes[0];
@@ -264,9 +263,9 @@ TEST(ScanResultJson, RoundTripsAndNamesWhatIsMissing) {
   EXPECT_EQ(m.heartbeat_period, std::optional<Duration>(99ms));
   EXPECT_EQ(m.configured_as, "right_grip");
   EXPECT_EQ(back->unconfigured_address, r.unconfigured_address);
-  json broken = gw::scan_result_json(r);
+  json broken = gw::control::scan_result_json(r);
   broken["nodes"][0].erase("family");
-  EXPECT_FALSE(gw::scan_result_from_json(broken, why));
+  EXPECT_FALSE(gw::control::scan_result_from_json(broken, why));
   EXPECT_NE(why.find("family"), std::string::npos) << why;
 }
 

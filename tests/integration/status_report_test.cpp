@@ -19,7 +19,6 @@
 #include "tests/fixtures/fixtures.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 namespace gw = oegw::gateway;
@@ -49,7 +48,7 @@ class StatusReport : public ::testing::Test {
   }
   ~StatusReport() override { std::filesystem::remove(store_); }
 
-  json report() const { return gw::status_report(rig_->gw(), config_, {loop_.now(), started_}); }
+  json report() const { return gw::control::status_report(rig_->gw(), config_, {loop_.now(), started_}); }
   static const json& sub(const json& r, const std::string& name) {
     for (const auto& s : r["subdevices"])
       if (s["name"] == name) return s;
@@ -154,14 +153,14 @@ TEST_F(StatusReport, BusCountersOfBothInterfacesAndTheKernelsDropsInTheTable) {
   EXPECT_FALSE(report()["upstream"].contains("bus")) << "no transports given: no bus object";
   const TransportCounters up{.rx_frames = 7, .tx_frames = 9, .tx_dropped = 1, .rx_dropped = 0, .error_frames = 2, .errors = 3};
   TransportCounters down{.rx_frames = 1200, .tx_frames = 40, .tx_dropped = 0, .rx_dropped = 0, .error_frames = 0, .errors = 0};
-  gw::StatusContext at{loop_.now(), started_, &up, &down};
-  json r = gw::status_report(rig_->gw(), config_, at);
+  gw::control::StatusContext at{loop_.now(), started_, &up, &down};
+  json r = gw::control::status_report(rig_->gw(), config_, at);
   EXPECT_EQ(r["upstream"]["bus"],
             (json{{"rx_frames", 7}, {"tx_frames", 9}, {"rx_dropped", 0}, {"tx_dropped", 1}, {"error_frames", 2}, {"errors", 3}}));
   EXPECT_EQ(r["downstream"]["bus"]["rx_frames"], 1200);
   EXPECT_EQ(gw::status_table(r).find("dropped by the kernel"), std::string::npos) << "nothing dropped: no line";
   down.rx_dropped = 345;
-  r = gw::status_report(rig_->gw(), config_, at);
+  r = gw::control::status_report(rig_->gw(), config_, at);
   EXPECT_EQ(r["downstream"]["bus"]["rx_dropped"], 345);
   EXPECT_NE(gw::status_table(r).find("\ndownstream: 1200 frames read, 345 dropped by the kernel before the gateway read them\n"),
             std::string::npos)
@@ -173,9 +172,9 @@ TEST_F(StatusReport, BusCountersOfBothInterfacesAndTheKernelsDropsInTheTable) {
 TEST_F(StatusReport, PublishingTransportsUpOrDownWithTheReason) {
   EXPECT_FALSE(report().contains("publishing")) << "`oegw run` adds it (GatewayControl::add_status_field)";
   json r = report();
-  r["publishing"] = gw::publishing_status({});
+  r["publishing"] = gw::control::publishing_status({});
   EXPECT_NE(gw::status_table(r).find("\npublishing: off\n"), std::string::npos);
-  r["publishing"] = gw::publishing_status({{"dds", true, "", 0, {}, {}},
+  r["publishing"] = gw::control::publishing_status({{"dds", true, "", 0, {}, {}},
                                            {"lcm", false, "no route to 224.0.0.1 (Network is unreachable)", 3, 7s, 4s}});
   EXPECT_EQ(r["publishing"][0], (json{{"transport", "dds"}, {"state", "up"}}));
   EXPECT_EQ(r["publishing"][1], (json{{"transport", "lcm"},

@@ -12,7 +12,6 @@
 #include "virtual_network.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 using Bytes = std::vector<std::uint8_t>;

@@ -12,7 +12,6 @@
 
 using namespace oegw::canopen;
 
-
 using namespace oegw::canopen::io;
 namespace {
 

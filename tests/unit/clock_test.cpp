@@ -6,7 +6,6 @@
 #include <chrono>
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 

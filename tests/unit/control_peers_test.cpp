@@ -25,9 +25,9 @@
 #include "cli/status_command.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace oegw::gateway;
+using namespace oegw::gateway::control;
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 

@@ -9,6 +9,7 @@
 #include <limits>
 
 using namespace oegw::gateway;
+using namespace oegw::gateway::control;
 using nlohmann::json;
 
 namespace {

@@ -29,7 +29,6 @@ std::size_t g_allocations = 0;
 [[gnu::noinline]] void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 using ::testing::ElementsAre;

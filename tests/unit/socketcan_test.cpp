@@ -17,7 +17,6 @@
 #include "tests/fixtures/kernel_frame.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 using ::testing::ElementsAre;

@@ -10,7 +10,6 @@
 #include "canopen/io/event_loop.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 using ::testing::ElementsAre;

@@ -12,7 +12,6 @@
 #include "canopen/io/socketcan_transport.hpp"
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 using namespace std::chrono_literals;
 using ::testing::IsEmpty;
