@@ -7,12 +7,12 @@
 #include "gateway/run_on_bus.hpp"
 #include "subdevices/mcb402_commissioning.hpp"
 
-namespace oegw::gateway {
+namespace oegw::cli {
 
 int run_find_button_bits(const FindButtonBitsOptions& o) {
   using namespace canopen;
   using namespace canopen::io;
-  auto port = open_tool_interface(o.interface);
+  auto port = gateway::open_tool_interface(o.interface);
   if (!port) return exit_code::kCannotStart;
   SocketCanTransport* bus = port.get();
   subdevices::ButtonBitsFinder::Options fo;
@@ -23,7 +23,7 @@ int run_find_button_bits(const FindButtonBitsOptions& o) {
     std::printf("%s\n", line.c_str());
     std::fflush(stdout);
   });
-  run_on_bus(*port, finder);
+  gateway::run_on_bus(*port, finder);
   if (!finder.result()) {
     if (finder.error().empty()) std::fprintf(stderr, "interrupted: no button_bits found\n");
     return exit_code::kBadFile;
@@ -35,4 +35,4 @@ int run_find_button_bits(const FindButtonBitsOptions& o) {
   return exit_code::kOk;
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::cli

@@ -6,7 +6,7 @@
 
 #include <string>
 
-namespace oegw::gateway {
+namespace oegw::cli {
 
 struct FindButtonBitsOptions {
   std::string interface;  // the sub-devices' bus (e.g. can1)
@@ -18,4 +18,4 @@ struct FindButtonBitsOptions {
 // in time, or the loop was interrupted; 2: the interface cannot be opened.
 int run_find_button_bits(const FindButtonBitsOptions& options);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::cli

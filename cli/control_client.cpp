@@ -12,7 +12,7 @@
 #include <cstdio>
 #include <cstring>
 
-namespace oegw::gateway {
+namespace oegw::cli {
 
 namespace {
 
@@ -100,4 +100,4 @@ AskResult ask_daemon(const std::string& socket_path, const std::string& request_
   return r;
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::cli

@@ -6,7 +6,7 @@
 #include <chrono>
 #include <string>
 
-namespace oegw::gateway {
+namespace oegw::cli {
 
 enum class AskStatus {
   Ok,                // `text` is the answer line
@@ -24,4 +24,4 @@ struct AskResult {
 [[nodiscard]] AskResult ask_daemon(const std::string& socket, const std::string& request_line,
                                    std::chrono::milliseconds timeout);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::cli

@@ -9,7 +9,7 @@
 namespace oegw::cli {
 
 void register_ctl(CLI::App& app) {
-  auto o = std::make_shared<gateway::CtlOptions>();
+  auto o = std::make_shared<cli::CtlOptions>();
   o->version = kVersion;
   auto* cmd = app.add_subcommand("ctl",
                                  "CiA 309-3 ASCII commands (read, write, NMT, LSS, info version, events) into the "
@@ -31,7 +31,7 @@ void register_ctl(CLI::App& app) {
               "  [seq] [net] _lss_fastscan <vendor> <mask> <product> <mask> <revision> <mask> <serial> <mask>\n"
               "  [seq] [net] lss_identity|_lss_slowscan <vendor> <product> <rev lo> <rev hi> <serial lo> <serial hi>\n"
               "  types: b u8 u16 u32 u64 i8 i16 i32 i64 r32 r64 vs os d; interactive: history, !!, !N\n");
-  cmd->callback([o] { finish(gateway::run_ctl(*o)); });
+  cmd->callback([o] { finish(cli::run_ctl(*o)); });
 }
 
 }  // namespace oegw::cli

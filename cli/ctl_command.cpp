@@ -15,7 +15,7 @@
 #include "gateway/control/control_protocol.hpp"
 #include "cli/status_command.hpp"
 
-namespace oegw::gateway {
+namespace oegw::cli {
 
 using nlohmann::json;
 namespace ascii = canopen::ascii;
@@ -101,8 +101,8 @@ CtlSession::CtlSession(Ask ask, std::string version, std::chrono::milliseconds a
 CtlSession::Outcome CtlSession::ask(const json& request, std::chrono::milliseconds timeout, json& answer) {
   Outcome o;
   json r = request;
-  r["protocol"] = control::kControlProtocol;
-  const AskResult a = ask_(control::json_line(r), timeout);
+  r["protocol"] = gateway::control::kControlProtocol;
+  const AskResult a = ask_(gateway::control::json_line(r), timeout);
   if (a.status != AskStatus::Ok) {
     o.fatal = ask_exit_code(a.status);
     o.why = a.text;
@@ -138,7 +138,7 @@ std::string CtlSession::answer_of(std::uint32_t seq, const ascii::Request& r, co
     return ascii::answer_abort(seq, static_cast<canopen::SdoAbortCode>(a["abort"].get<std::uint32_t>()));
   if (r.command == Command::Read) {
     std::string why;
-    const auto bytes = control::bytes_from_hex(a.value("data", ""), why);
+    const auto bytes = gateway::control::bytes_from_hex(a.value("data", ""), why);
     const auto text = bytes ? ascii::format(r.type, *bytes) : std::nullopt;
     // A value whose length does not fit the type: lely's gateway answers the same code.
     if (!text) return ascii::answer_abort(seq, canopen::SdoAbortCode::LengthMismatch);
@@ -205,7 +205,7 @@ CtlSession::Outcome CtlSession::execute(std::string_view line) {
                  {"node", r.node},
                  {"index", r.index},
                  {"sub", r.sub}};
-      if (r.command == Command::Write) request["data"] = control::bytes_to_hex(r.data);
+      if (r.command == Command::Write) request["data"] = gateway::control::bytes_to_hex(r.data);
       if (const auto it = sdo_timeout_ms_.find(r.network); it != sdo_timeout_ms_.end()) {
         request["timeout_ms"] = it->second;
         timeout = std::max(timeout, std::chrono::milliseconds(it->second + 2000));
@@ -393,4 +393,4 @@ int run_ctl(const CtlOptions& o) {
   }
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::cli

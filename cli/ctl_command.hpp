@@ -25,7 +25,7 @@
 #include "cli/exit_codes.hpp"
 #include "cli/control_client.hpp"
 
-namespace oegw::gateway {
+namespace oegw::cli {
 
 struct CtlOptions {
   std::string socket;  // empty: from `config`, else mapping::kDefaultControlSocket
@@ -72,4 +72,4 @@ class CtlSession {
 
 int run_ctl(const CtlOptions& options);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::cli

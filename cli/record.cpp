@@ -9,7 +9,7 @@
 namespace oegw::cli {
 
 void register_record(CLI::App& app) {
-  auto o = std::make_shared<gateway::StatusOptions>();
+  auto o = std::make_shared<cli::StatusOptions>();
   o->timeout_s = 10.0;
   auto* cmd = app.add_subcommand("record", "The running gateway's recording (the black box)")->group(kBlackBoxGroup);
   cmd->require_subcommand(1);
@@ -21,7 +21,7 @@ void register_record(CLI::App& app) {
   keep->add_flag("--json", o->json, "Print the daemon's JSON answer");
   keep->add_option("--timeout", o->timeout_s, "Seconds to wait for the answer (default 10)")
       ->check(CLI::Range(0.1, 120.0));
-  keep->callback([o] { finish(gateway::record::run_record_keep(*o)); });
+  keep->callback([o] { finish(cli::run_record_keep(*o)); });
 }
 
 }  // namespace oegw::cli

@@ -8,7 +8,7 @@
 namespace oegw::cli {
 
 void register_replay(CLI::App& app) {
-  auto o = std::make_shared<gateway::record::ReplayCommandOptions>();
+  auto o = std::make_shared<cli::ReplayCommandOptions>();
   auto* cmd = app.add_subcommand(
                      "replay", "Re-run the gateway on a recording (or a candump log) and compare its frames and decisions")
                   ->group(kBlackBoxGroup);
@@ -26,7 +26,7 @@ void register_replay(CLI::App& app) {
   cmd->add_flag("-q,--quiet", o->quiet, "No timeline: the comparison's result only");
   cmd->add_option("--plot", o->plot,
                   "Draw the timeline: FILE.html (a self-contained page, Chart.js) or FILE.svg (a static picture)");
-  cmd->callback([o] { finish(gateway::record::run_replay(*o)); });
+  cmd->callback([o] { finish(cli::run_replay(*o)); });
 }
 
 }  // namespace oegw::cli

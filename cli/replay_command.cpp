@@ -12,7 +12,10 @@
 #include "gateway/record/plot.hpp"
 #include "gateway/record/replay.hpp"
 
-namespace oegw::gateway::record {
+namespace oegw::cli {
+
+// The command line of the black box's reader and replay (gateway/record), which this file only calls.
+using namespace gateway::record;
 
 namespace {
 
@@ -50,19 +53,19 @@ int run_replay(const ReplayCommandOptions& o) {
                  o.plot.c_str());
     return exit_code::kUsage;
   }
-  auto loaded = mapping::load_config(o.config, driver_catalogue());
+  auto loaded = mapping::load_config(o.config, gateway::driver_catalogue());
   if (!loaded.ok()) {
     std::fprintf(stderr, "%s\n%s: the mapping file is refused; nothing replayed\n", loaded.error_text().c_str(),
                  o.config.c_str());
     return exit_code::kBadFile;
   }
   std::string error;
-  const auto runs = find_runs(o.recording, error);
+  const auto runs = gateway::record::find_runs(o.recording, error);
   if (!runs) {
     std::fprintf(stderr, "oegw replay: %s\n", error.c_str());
     return exit_code::kCannotStart;
   }
-  ReplayOptions ro;
+  gateway::record::ReplayOptions ro;
   ro.timeline = o.quiet ? nullptr : &std::cout;
   ro.frames = o.frames;
   ro.logs = o.logs;
@@ -85,11 +88,11 @@ int run_replay(const ReplayCommandOptions& o) {
       }
     }
   }
-  PlotData plot;
+  gateway::record::PlotData plot;
   if (!o.plot.empty()) ro.plot = &plot;
-  std::vector<RunReport> reports;
+  std::vector<gateway::record::RunReport> reports;
   try {
-    reports = replay(*runs, *loaded.config, ro);
+    reports = gateway::record::replay(*runs, *loaded.config, ro);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "oegw replay: %s\n", e.what());
     return exit_code::kCannotStart;
@@ -133,7 +136,7 @@ int run_record_keep(const StatusOptions& o) {
   if (!ok) return kStatusFailed;
   const auto timeout = std::chrono::milliseconds(static_cast<std::int64_t>(o.timeout_s * 1000.0));
   const AskResult r =
-      ask_daemon(path, control::json_line(nlohmann::json{{"protocol", control::kControlProtocol}, {"command", "record_keep"}}), timeout);
+      ask_daemon(path, gateway::control::json_line(nlohmann::json{{"protocol", gateway::control::kControlProtocol}, {"command", "record_keep"}}), timeout);
   if (r.status != AskStatus::Ok) {
     std::fprintf(stderr, "oegw record keep: %s\n", r.text.c_str());
     return ask_exit_code(r.status);
@@ -157,4 +160,4 @@ int run_record_keep(const StatusOptions& o) {
   return kStatusOk;
 }
 
-}  // namespace oegw::gateway::record
+}  // namespace oegw::cli

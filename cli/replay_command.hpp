@@ -5,7 +5,7 @@
 
 #include "cli/status_command.hpp"
 
-namespace oegw::gateway::record {
+namespace oegw::cli {
 
 struct ReplayCommandOptions {
   std::string recording;  // a folder, a segment file, or a plain candump log
@@ -25,4 +25,4 @@ int run_replay(const ReplayCommandOptions& options);
 // could not (recording off, a link refused), 3/4/5 as `oegw status`.
 int run_record_keep(const StatusOptions& options);
 
-}  // namespace oegw::gateway::record
+}  // namespace oegw::cli

@@ -11,7 +11,7 @@ namespace oegw::cli {
 
 void register_scan(CLI::App& app) {
   struct Options {
-    gateway::ScanOptions scan;
+    cli::ScanOptions scan;
     bool via_daemon = false, via_direct = false;
   };
   auto o = std::make_shared<Options>();
@@ -48,7 +48,7 @@ void register_scan(CLI::App& app) {
       "(never probed: their SDO channels are its own) and the other node-IDs are probed beside it.");
   cmd->callback([o, upstream, bitrate] {
     auto& s = o->scan;
-    using Via = gateway::ScanOptions::Via;
+    using Via = cli::ScanOptions::Via;
     s.via = o->via_daemon ? Via::Daemon : o->via_direct ? Via::Direct : Via::Auto;
     if (s.via == Via::Direct && s.interface.empty()) {
       std::fprintf(stderr, "--direct: -i IF names the bus to scan\n");
@@ -62,7 +62,7 @@ void register_scan(CLI::App& app) {
       std::fprintf(stderr, "--upstream %s is the interface scanned; expected the host's bus\n", s.upstream.c_str());
       finish(exit_code::kUsage);
     }
-    finish(gateway::run_scan(s));
+    finish(cli::run_scan(s));
   });
 }
 

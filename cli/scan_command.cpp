@@ -22,7 +22,7 @@
 #include "cli/signals_command.hpp"
 #include "subdevices/driver_options.hpp"
 
-namespace oegw::gateway {
+namespace oegw::cli {
 
 namespace {
 
@@ -396,7 +396,7 @@ int report(const sd::ScanResult& result, const DraftSettings& settings, const st
 int scan_direct(const ScanOptions& o) {
   using namespace canopen;
   using namespace canopen::io;
-  auto port = open_tool_interface(o.interface);
+  auto port = gateway::open_tool_interface(o.interface);
   if (!port) return exit_code::kCannotStart;
   const auto ms = [](double v) {
     return std::chrono::duration_cast<Duration>(std::chrono::duration<double, std::milli>(v));
@@ -412,7 +412,7 @@ int scan_direct(const ScanOptions& o) {
   ProgressLines progress(o.progress);
   scanner.on_progress = [&progress](const sd::ScanProgress& p) { progress(p); };
   // Until the scan is done (after a timer or a frame) or a signal.
-  run_on_bus(*port, scanner);
+  gateway::run_on_bus(*port, scanner);
   progress.end();
   if (!scanner.done()) {
     spdlog::error("scan interrupted: no draft written");
@@ -428,7 +428,7 @@ int scan_direct(const ScanOptions& o) {
 // One request to the gateway: its answer, or nullopt after an error on standard error (`code`
 // the exit code). A refusal of the control protocol or a CiA 309-3 error of the command count.
 std::optional<nlohmann::json> ask(const std::string& socket, const nlohmann::json& request, int& code) {
-  const AskResult a = ask_daemon(socket, control::json_line(request), std::chrono::seconds(5));
+  const AskResult a = ask_daemon(socket, gateway::control::json_line(request), std::chrono::seconds(5));
   if (a.status != AskStatus::Ok) {
     spdlog::error("{}", a.text);
     code = ask_exit_code(a.status);
@@ -498,7 +498,7 @@ int scan_through_gateway(const ScanOptions& o, const std::string& socket, const 
   }
   progress.end();
   std::string why;
-  const auto result = control::scan_result_from_json(scan.value("result", json::object()), why);
+  const auto result = gateway::control::scan_result_from_json(scan.value("result", json::object()), why);
   if (!result) {
     spdlog::error("the gateway's scan result cannot be read: {}", why);
     return kStatusFailed;
@@ -562,4 +562,4 @@ int run_scan(const ScanOptions& o) {
   }
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::cli

@@ -12,7 +12,7 @@
 
 #include "subdevices/bus_scan.hpp"
 
-namespace oegw::gateway {
+namespace oegw::cli {
 
 struct ScanOptions {
   // Where the scan runs: Auto asks the control socket first and scans through the gateway when
@@ -58,4 +58,4 @@ struct DraftSettings {
 // 5 no answer) when asking it failed.
 int run_scan(const ScanOptions& options);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::cli

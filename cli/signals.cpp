@@ -12,11 +12,11 @@ namespace oegw::cli {
 
 void register_signals(CLI::App& app) {
   struct Options {
-    gateway::SignalsOptions signals;
+    cli::SignalsOptions signals;
     // Commissioning an MCB-402: its button wiring read off the board
     // (docs/design/device-documents.md#mcb-402-button-bits-a-required-commissioning-choice).
     bool find_button_bits = false;
-    gateway::FindButtonBitsOptions find_bits;
+    cli::FindButtonBitsOptions find_bits;
   };
   auto o = std::make_shared<Options>();
   auto* cmd = app.add_subcommand(
@@ -36,12 +36,12 @@ void register_signals(CLI::App& app) {
   cmd->add_option("--timeout", o->find_bits.timeout_s, "--find-button-bits: seconds to wait for each press (default 60)")
       ->check(CLI::Range(1.0, 3600.0));
   cmd->callback([o] {
-    if (!o->find_button_bits) finish(gateway::run_signals(o->signals));
+    if (!o->find_button_bits) finish(cli::run_signals(o->signals));
     if (o->signals.driver != "mcb402" || o->find_bits.interface.empty()) {
       std::fprintf(stderr, "--find-button-bits: expected `oegw signals mcb402 --find-button-bits -i IF [--node N]`\n");
       finish(exit_code::kUsage);
     }
-    finish(gateway::run_find_button_bits(o->find_bits));
+    finish(cli::run_find_button_bits(o->find_bits));
   });
 }
 

@@ -8,7 +8,7 @@
 #include "subdevices/driver.hpp"
 #include "subdevices/driver_options.hpp"
 
-namespace oegw::gateway {
+namespace oegw::cli {
 
 namespace {
 
@@ -232,4 +232,4 @@ int run_signals(const SignalsOptions& o) {
   return exit_code::kOk;
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::cli

@@ -11,7 +11,7 @@
 
 #include "subdevices/driver_options.hpp"
 
-namespace oegw::gateway {
+namespace oegw::cli {
 
 struct SignalsOptions {
   std::string driver;                // empty: every driver
@@ -40,4 +40,4 @@ int run_signals(const SignalsOptions& options);
                                                                                 subdevices::DriverOptions given,
                                                                                 std::string& error);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::cli

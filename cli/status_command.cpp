@@ -12,7 +12,7 @@
 #include "gateway/control/control_protocol.hpp"
 #include "gateway/gateway.hpp"
 
-namespace oegw::gateway {
+namespace oegw::cli {
 
 using nlohmann::json;
 
@@ -172,7 +172,7 @@ std::string status_table(const json& st) {
     if (j->contains("bus") && (*j)["bus"].value("rx_dropped", std::uint64_t{0}) != 0)
       out += fmt::format("{}: {} frames read, {} dropped by the kernel before the gateway read them\n", side,
                          (*j)["bus"]["rx_frames"].get<std::uint64_t>(), (*j)["bus"]["rx_dropped"].get<std::uint64_t>());
-  if (st.contains("record")) out += record::record_status_line(st["record"]);
+  if (st.contains("record")) out += gateway::record::record_status_line(st["record"]);
   out += "\n" + fmt::format(kSubdeviceRow, "sub-device", "node", "driver", "state", "frames", "bad", "reboots", "resets",
                             "refused");
   for (const auto& s : st["subdevices"]) subdevice_rows(out, s);
@@ -187,7 +187,7 @@ std::string control_socket_of(const std::string& socket, const std::string& conf
   ok = true;
   if (!socket.empty()) return socket;
   if (config.empty()) return std::string(mapping::kDefaultControlSocket);
-  auto r = mapping::load_config(config, driver_catalogue());
+  auto r = mapping::load_config(config, gateway::driver_catalogue());
   if (!r.ok()) {
     std::fprintf(stderr, "%s\n%s: %s unreadable; give --socket instead\n", r.error_text().c_str(), program, config.c_str());
     ok = false;
@@ -212,7 +212,7 @@ int run_status(const StatusOptions& o) {
   const std::string path = control_socket_of(o.socket, o.config, "oegw status", ok);
   if (!ok) return kStatusFailed;
   const auto timeout = std::chrono::milliseconds(static_cast<std::int64_t>(o.timeout_s * 1000.0));
-  const AskResult r = ask_daemon(path, control::json_line(json{{"protocol", control::kControlProtocol}, {"command", "status"}}), timeout);
+  const AskResult r = ask_daemon(path, gateway::control::json_line(json{{"protocol", gateway::control::kControlProtocol}, {"command", "status"}}), timeout);
   if (r.status != AskStatus::Ok) {
     std::fprintf(stderr, "oegw status: %s\n", r.text.c_str());
     return ask_exit_code(r.status);
@@ -243,4 +243,4 @@ int run_status(const StatusOptions& o) {
   return kStatusOk;
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::cli

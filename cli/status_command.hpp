@@ -9,7 +9,7 @@
 #include "cli/exit_codes.hpp"
 #include "cli/control_client.hpp"
 
-namespace oegw::gateway {
+namespace oegw::cli {
 
 struct StatusOptions {
   std::string socket;       // empty: from `config`, else mapping::kDefaultControlSocket
@@ -38,4 +38,4 @@ int run_status(const StatusOptions& options);
 // The table for a `status` object (the answer's "status"), lines of at most 100 columns.
 [[nodiscard]] std::string status_table(const nlohmann::json& status);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::cli

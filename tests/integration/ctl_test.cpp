@@ -60,12 +60,12 @@ class Ctl : public ::testing::Test {
       ASSERT_EQ(rig_->gw().downstream().state(n), sd::NodeState::Operational) << n << "\n" << log_;
     service_ = std::make_unique<gw::control::CtlService>(loop_, rig_->gw(), config_, protocol_, [this] { rig_->rearm(); });
     // The session asks the protocol as the socket would, and the loop runs until the answer.
-    session_ = std::make_unique<gw::CtlSession>(
+    session_ = std::make_unique<oegw::cli::CtlSession>(
         [this](const std::string& line, std::chrono::milliseconds timeout) {
           std::optional<std::string> answer;
           protocol_.answer(line, [&answer](std::string a) { answer = std::move(a); });
           for (std::int64_t i = 0; i < timeout.count() && !answer; ++i) rig_->run_for(1ms);
-          return answer ? gw::AskResult{gw::AskStatus::Ok, *answer} : gw::AskResult{gw::AskStatus::Timeout, "no answer"};
+          return answer ? oegw::cli::AskResult{oegw::cli::AskStatus::Ok, *answer} : oegw::cli::AskResult{oegw::cli::AskStatus::Timeout, "no answer"};
         },
         "0.1.0", 10s);
     ASSERT_EQ(session_->poll_events().lines, std::vector<std::string>{});
@@ -114,7 +114,7 @@ class Ctl : public ::testing::Test {
   std::unique_ptr<oegw::rig::CabRig> rig_;
   gw::control::ControlProtocol protocol_;
   std::unique_ptr<gw::control::CtlService> service_;
-  std::unique_ptr<gw::CtlSession> session_;
+  std::unique_ptr<oegw::cli::CtlSession> session_;
   std::function<bool(const CanFrame&)> drop_to_devices_, drop_to_gateway_;
   std::vector<CanFrame> down_;
   std::size_t mark_ = 0;

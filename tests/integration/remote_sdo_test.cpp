@@ -496,7 +496,7 @@ TEST_F(RemoteSdo, ARedirectIsShownInTheLogAndStatusUntilItEnds) {
   EXPECT_LT(r[0]["age_ms"].get<std::int64_t>(), 1510);
   EXPECT_EQ(r[0]["indication"], nlohmann::json::array({0xE0, 0, 0, 0, kDown, kGrip, 0, 0}));
   // The table names it too, wrapped to 100 columns (read here with its wrapped lines joined).
-  std::string table = gw::status_table(gw::control::status_report(rig_->gw(), config_, {loop_.now(), started}));
+  std::string table = oegw::cli::status_table(gw::control::status_report(rig_->gw(), config_, {loop_.now(), started}));
   for (std::size_t at = 0; (at = table.find("\n    ", at)) != std::string::npos;) table.replace(at, 5, " ");
   const std::string line = "remote SDO: SDO server 1200h (620h/5A0h) redirected to right_grip (network 2, node 11h) "
                            "for 1.5 s by the network indication E0 00 00 00 02 11 00 00: a client on 620h reaches "

@@ -163,7 +163,7 @@ TEST_F(ScanThroughGateway, ProbesOnlyOtherNodeIdsAndReportsItsSubdevicesByName) 
 
   // The draft keeps the mapping file's names and, its placeholders filled (no draft passes
   // `oegw check` on a guess: the MCB-402's button_bits is TODO), passes `oegw check`.
-  const std::string draft = gw::draft_mapping(r, {.downstream = "can1",
+  const std::string draft = oegw::cli::draft_mapping(r, {.downstream = "can1",
                                                   .upstream = "can0",
                                                   .bitrate = 250000,
                                                   .store = (dir_ / "draft.store").string(),

@@ -158,13 +158,13 @@ TEST_F(StatusReport, BusCountersOfBothInterfacesAndTheKernelsDropsInTheTable) {
   EXPECT_EQ(r["upstream"]["bus"],
             (json{{"rx_frames", 7}, {"tx_frames", 9}, {"rx_dropped", 0}, {"tx_dropped", 1}, {"error_frames", 2}, {"errors", 3}}));
   EXPECT_EQ(r["downstream"]["bus"]["rx_frames"], 1200);
-  EXPECT_EQ(gw::status_table(r).find("dropped by the kernel"), std::string::npos) << "nothing dropped: no line";
+  EXPECT_EQ(oegw::cli::status_table(r).find("dropped by the kernel"), std::string::npos) << "nothing dropped: no line";
   down.rx_dropped = 345;
   r = gw::control::status_report(rig_->gw(), config_, at);
   EXPECT_EQ(r["downstream"]["bus"]["rx_dropped"], 345);
-  EXPECT_NE(gw::status_table(r).find("\ndownstream: 1200 frames read, 345 dropped by the kernel before the gateway read them\n"),
+  EXPECT_NE(oegw::cli::status_table(r).find("\ndownstream: 1200 frames read, 345 dropped by the kernel before the gateway read them\n"),
             std::string::npos)
-      << gw::status_table(r);
+      << oegw::cli::status_table(r);
 }
 
 // The publishing transports as `oegw run` has them: each up, or down with why and when it is
@@ -173,7 +173,7 @@ TEST_F(StatusReport, PublishingTransportsUpOrDownWithTheReason) {
   EXPECT_FALSE(report().contains("publishing")) << "`oegw run` adds it (GatewayControl::add_status_field)";
   json r = report();
   r["publishing"] = gw::control::publishing_status({});
-  EXPECT_NE(gw::status_table(r).find("\npublishing: off\n"), std::string::npos);
+  EXPECT_NE(oegw::cli::status_table(r).find("\npublishing: off\n"), std::string::npos);
   r["publishing"] = gw::control::publishing_status({{"dds", true, "", 0, {}, {}},
                                            {"lcm", false, "no route to 224.0.0.1 (Network is unreachable)", 3, 7s, 4s}});
   EXPECT_EQ(r["publishing"][0], (json{{"transport", "dds"}, {"state", "up"}}));
@@ -183,10 +183,10 @@ TEST_F(StatusReport, PublishingTransportsUpOrDownWithTheReason) {
                                        {"failed_attempts", 3},
                                        {"down_ms", 7000},
                                        {"next_attempt_ms", 4000}}));
-  EXPECT_NE(gw::status_table(r).find("\npublishing: dds up; lcm down: no route to 224.0.0.1 (Network is unreachable) (3 "
+  EXPECT_NE(oegw::cli::status_table(r).find("\npublishing: dds up; lcm down: no route to 224.0.0.1 (Network is unreachable) (3 "
                                      "failed attempts, next in 4.0 s)\n"),
             std::string::npos)
-      << gw::status_table(r);
+      << oegw::cli::status_table(r);
 }
 
 // Refused commands per output FE (LCM, the host's SDO) and per sub-device (3000h): in the
@@ -211,7 +211,7 @@ TEST_F(StatusReport, RefusedCommandsAreCountedPerFeAndPerSubdevice) {
   EXPECT_EQ(sub(r, "left_grip")["counters"]["refused_commands"], 1);
   EXPECT_EQ(sub(r, "seat_knob")["counters"]["refused_commands"], 0);
   EXPECT_EQ(r["commands"]["subdevice_refused"], 3);
-  const std::string table = gw::status_table(r);
+  const std::string table = oegw::cli::status_table(r);
   EXPECT_NE(table.find("\ncommands refused: 3 to FEs (indicators.1 2), 3 to sub-devices (right_grip 1, left_grip 1)\n"),
             std::string::npos)
       << table;
@@ -243,7 +243,7 @@ TEST_F(StatusReport, ALostDeviceIsMissingWithItsLastEmcy) {
   EXPECT_GE(s["last_emcy"]["age_ms"].get<std::int64_t>(), 500);
 
   // `oegw status`'s table of the same report: 100 columns at most, the grip's row says it.
-  const std::string table = gw::status_table(r);
+  const std::string table = oegw::cli::status_table(r);
   std::istringstream lines(table);
   std::vector<std::string> rows;
   for (std::string line; std::getline(lines, line);) {

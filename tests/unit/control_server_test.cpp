@@ -21,6 +21,7 @@
 using namespace oegw::canopen;
 using namespace oegw::canopen::io;
 using namespace oegw::gateway;
+using namespace oegw::cli;
 using namespace oegw::gateway::control;
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
