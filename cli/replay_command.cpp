@@ -72,11 +72,8 @@ int run_replay(const ReplayCommandOptions& o) {
   ro.fe = o.fe;
   ro.subdevice = o.subdevice;
   if (!o.from.empty() || !o.to.empty()) {
-    std::int64_t first = 0;
-    for (const Entry& e : read_segment(runs->front().segments.front()).entries) {
-      first = e.wall_us;
-      break;
-    }
+    // The first entry's time, the origin of "12.5"; the replay reads the segment itself.
+    const std::int64_t first = SegmentReader(runs->front().segments.front()).first_wall_us().value_or(0);
     for (const auto& [text, out] : {std::pair{&o.from, &ro.from_us}, std::pair{&o.to, &ro.to_us}}) {
       if (text->empty()) continue;
       *out = parse_when(*text, first);

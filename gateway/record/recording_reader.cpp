@@ -155,6 +155,20 @@ SegmentReader::SegmentReader(const Segment& s) : s_(&s) {
   }
 }
 
+std::optional<std::int64_t> SegmentReader::first_wall_us() const {
+  if (!events_.empty() && events_.front().frame.id == 0) return events_.front().wall_us;  // an event @0
+  std::ifstream in(s_->log, std::ios::binary);
+  std::string line;
+  std::string error;
+  while (std::getline(in, line)) {
+    // As each() reads them: comments are skipped, and a plain log's other text is not a frame.
+    if (line.empty() || line[0] == '#' || (s_->events.empty() && line[0] != '(')) continue;
+    if (const auto f = parse_frame_line(line, error)) return f->wall_us;
+  }
+  if (!events_.empty()) return events_.front().wall_us;
+  return std::nullopt;
+}
+
 void SegmentReader::each(const std::function<void(Entry&)>& fn) {
   const Segment& s = *s_;
   SegmentRead& out = head_;

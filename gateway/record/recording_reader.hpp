@@ -77,6 +77,9 @@ class SegmentReader {
   [[nodiscard]] const std::vector<Entry>& events() const { return events_; }
   // Each entry once, in order: each event before the frame line its @N names.
   void each(const std::function<void(Entry&)>& fn);
+  // The wall time of the entry each() would hand over first, reading the frames file only up to
+  // its first frame (a time origin without reading the segment); nullopt for an empty segment.
+  [[nodiscard]] std::optional<std::int64_t> first_wall_us() const;
 
  private:
   const Segment* s_;

@@ -25,6 +25,14 @@ grep -q 'Chart.js v3.9.1' "$out/plot.html" || { echo "FAIL: Chart.js is not insi
 if grep -q '<script src=' "$out/plot.html"; then echo "FAIL: the page fetches a script"; exit 1; fi
 echo "PASS: timeline ($(wc -l <"$dir/timeline.txt") lines) and $out/plot.html ($(wc -c <"$out/plot.html") bytes)"
 
+# A window (--from/--to in seconds from the log's first frame): only its lines, and some.
+"$oegw" replay "$dir/demo.txt" --config "$src/config/demo.yaml" --from 1 --to 2 >"$dir/window.txt" 2>"$dir/summary.txt" || {
+  echo "FAIL: oegw replay --from 1 --to 2 exited $?"; cat "$dir/summary.txt"; exit 1; }
+awk '{ t = substr($2, 2) + 0; if (t < 1 || t > 2) { print "FAIL: outside the window 1-2 s: " $0; bad = 1 } }
+     END { if (NR == 0) { print "FAIL: nothing in the window 1-2 s"; bad = 1 } exit bad }' "$dir/window.txt" || exit 1
+[ "$(wc -l <"$dir/window.txt")" -lt "$(wc -l <"$dir/timeline.txt")" ] || { echo "FAIL: the window is the whole timeline"; exit 1; }
+echo "PASS: --from 1 --to 2: $(wc -l <"$dir/window.txt") lines, each within the window"
+
 # The same timeline as a static picture, read back by an XML reader, then drawn by chromium.
 "$oegw" replay "$dir/demo.txt" --config "$src/config/demo.yaml" -q --plot "$out/plot.svg" 2>"$dir/summary.txt" || {
   echo "FAIL: oegw replay --plot .svg exited $?"; cat "$dir/summary.txt"; exit 1; }

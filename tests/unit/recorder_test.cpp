@@ -313,6 +313,42 @@ TEST(RecordingReader, ATornLastLineIsSkippedAndReported) {
   EXPECT_NE(problems[0].find("R1-000000.events:"), std::string::npos) << problems[0];
 }
 
+// `oegw replay --from 12.5` counts from the first entry's time without reading the segment: the
+// same time read_segment's first entry has, for a recording that starts with an event or a frame
+// and for a plain log with other text before its frames.
+TEST(RecordingReader, TheFirstWallTimeIsTheFirstEntrysWithoutReadingTheSegment) {
+  const auto first_of = [](const fs::path& dir) {
+    std::string error;
+    const auto runs = find_runs(dir, error);
+    EXPECT_TRUE(runs) << error;
+    const Segment& s = runs->front().segments.front();
+    const auto all = read_segment(s).entries;
+    EXPECT_FALSE(all.empty());
+    EXPECT_EQ(SegmentReader(s).first_wall_us(), all.front().wall_us);
+    return SegmentReader(s).first_wall_us();
+  };
+  TempDir events_first, frame_first, plain, empty;
+  {
+    Recorder r(settings(events_first.path));
+    r.event(at_ms(1000), "start");
+    r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1}), at_ms(1001));
+  }
+  {
+    Recorder r(settings(frame_first.path));
+    r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1}), at_ms(1001));
+    r.event(at_ms(1002), "tick");
+  }
+  EXPECT_NE(first_of(events_first.path), std::nullopt);
+  EXPECT_NE(first_of(frame_first.path), std::nullopt);
+  std::ofstream(plain.path / "cab.log") << "# oegw demo --frames\nstep 1: boot\n(1700000003.250000) can1 191#01\n";
+  EXPECT_EQ(first_of(plain.path / "cab.log"), 1700000003250000);
+  std::ofstream(empty.path / "cab.log") << "step 1: boot\n";
+  std::string error;
+  const auto runs = find_runs(empty.path / "cab.log", error);
+  ASSERT_TRUE(runs) << error;
+  EXPECT_EQ(SegmentReader(runs->front().segments.front()).first_wall_us(), std::nullopt);
+}
+
 TEST(RecordingReader, AFolderWithoutARecordingIsRefusedWithWhatWasExpected) {
   TempDir tmp;
   std::string error;
