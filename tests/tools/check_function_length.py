@@ -30,7 +30,6 @@ SUFFIXES = (".cpp", ".hpp", ".cc", ".h", ".c")
 # the length it had then. Remove an entry when its function is split to LIMIT lines or fewer.
 KNOWN = {
     "gateway/programs.cpp": {"serve_gateway": 142, "run_check": 131},
-    "programs/gateway_demo.cpp": {"run_gateway_demo": 306},
 }
 
 LAMBDA_NAME = re.compile(r"(\w+)\s*=\s*\[")
