@@ -330,6 +330,215 @@ bool start_publishing(Gateway& gw, const mapping::Config& cfg, const std::string
   return true;
 }
 
+// The buses outlive what their callbacks reach (the gateway, its driver): cut them on the way out.
+struct Unhook {
+  CanTransport* up;
+  CanTransport* down;
+  ~Unhook() {
+    for (CanTransport* t : {up, down}) {
+      t->set_receiver({});
+      t->set_event_handler({});
+    }
+  }
+};
+
+// One bus whose kernel drops are logged (Daemon::watch_kernel_drops).
+struct Watched {
+  const CanTransport* bus;
+  const char* side;
+  std::string interface;
+  std::uint64_t dropped = 0;
+};
+
+GatewayOptions tapped_by(record::RecordingService& recording) {
+  GatewayOptions options;
+  options.tap = recording.tap();
+  return options;
+}
+
+std::unique_ptr<Gateway> logging_gateway(const mapping::Config& cfg, CanTransport& up, CanTransport& down,
+                                         const GatewayOptions& options) {
+  auto gw = std::make_unique<Gateway>(cfg, up.sink(), down.sink(), options);
+  gw->on_log = [](const std::string& line) { spdlog::info("{}", line); };
+  return gw;
+}
+
+// `oegw run` on its open buses (serve_gateway): the state its steps share, one method per step in
+// the order run() takes them. Members in the order they are made, so they go in reverse.
+class Daemon {
+ public:
+  Daemon(const std::string& f, mapping::Config& config, EventLoop& l, const GatewayBuses& b)
+      : file(f), cfg(&config), loop(l), buses(b), up(&b.up), down(&b.down), unhook{up, down},
+        // The black box (mapping file `record`): it taps every gateway from its construction on.
+        recording(l, config, f), options(tapped_by(recording)), gw(logging_gateway(config, *up, *down, options)),
+        driver(l, [this] { return gw->next_deadline(); }, [this](TimePoint now) { gw->advance(now); }) {}
+
+  int run() {
+    take_frames();
+    follow_bit_rate_switches();
+    take_bus_events();
+    watch_kernel_drops();
+    if (!start_publishing(*gw, *cfg, file, loop, driver, publishing)) return exit_code::kCannotStart;
+    // systemd (gateway/service_notify.hpp): READY=1, STATUS=, WATCHDOG=1 from this loop, STOPPING=1.
+    systemd.emplace();
+    notify.emplace(*systemd, systemd_watchdog_timeout());
+    if (!open_control()) return exit_code::kCannotStart;
+    handle_signals();
+    start();
+    loop.run();
+    return exit_status;
+  }
+
+ private:
+  void take_frames() {
+    up->set_receiver([this](const CanFrame& f, TimePoint t) {
+      gw->on_upstream_frame(f, t);
+      driver.rearm();
+    });
+    down->set_receiver([this](const CanFrame& f, TimePoint t) {
+      gw->on_downstream_frame(f, t);
+      driver.rearm();
+    });
+  }
+
+  // LSS activate bit timing (CiA 305): the node is silent; at the switch the interface is set to
+  // the new rate (down, bit rate, up). Its socket then reports the interface going down once.
+  void follow_bit_rate_switches() {
+    gw->upstream().on_bit_rate_switch([this](std::uint32_t rate) { bit_rate_switch(rate); });
+  }
+
+  void bit_rate_switch(std::uint32_t rate) {
+    const std::string& name = cfg->upstream.interface;
+    // Without a bit timing to set (a transport that is not a CAN controller): as a virtual CAN
+    // interface's.
+    const BitRateOutcome r = buses.set_upstream_bit_rate ? buses.set_upstream_bit_rate(rate)
+                                                         : BitRateOutcome{.action = BitRateAction::NoBitTiming};
+    if (!r.ok()) {
+      spdlog::error("LSS activate bit timing: {}; {} stays at {} bit/s", r.message, name, r.before);
+      return;
+    }
+    switch (r.action) {
+      case BitRateAction::Set:
+        switched = true;
+        spdlog::info("LSS activate bit timing: {} switched from {} to {} bit/s", name, r.before, rate);
+        break;
+      case BitRateAction::Keep: spdlog::info("LSS activate bit timing: {} is at {} bit/s already", name, rate); break;
+      case BitRateAction::NoBitTiming:
+        spdlog::info("LSS activate bit timing: {} has no bit timing (virtual CAN): {} bit/s not applicable; the node "
+                     "stays on the bus",
+                     name, rate);
+        break;
+      case BitRateAction::Missing: spdlog::error("LSS activate bit timing: {} is gone", name); break;
+    }
+  }
+
+  void take_bus_events() {
+    up->set_event_handler([this](BusEvent e) {
+      if (e == BusEvent::InterfaceDown && switched) {
+        switched = false;  // the restart of the bit-rate switch
+        return;
+      }
+      spdlog::warn("upstream {}: {}", cfg->upstream.interface, to_string(e));
+      gw->on_upstream_bus_event(e, loop.now());
+      driver.rearm();
+    });
+    down->set_event_handler([this](BusEvent e) {
+      spdlog::warn("downstream {}: {}", cfg->downstream.interface, to_string(e));
+      gw->on_downstream_bus_event(e, loop.now());
+      driver.rearm();
+    });
+    watch_transport(loop, *up);
+    watch_transport(loop, *down);
+    if (buses.watching) buses.watching();
+  }
+
+  // Once a second the frames the kernel dropped because the gateway read them too late: each a
+  // reason a heartbeat or PDO may seem lost (the fault policy then acts on it; this says why).
+  void watch_kernel_drops() {
+    watched = {Watched{up, "upstream", cfg->upstream.interface}, Watched{down, "downstream", cfg->downstream.interface}};
+    loop.call_every(loop.now(), std::chrono::seconds(1), [this] {
+      for (Watched& w : watched) {
+        const std::uint64_t now_dropped = w.bus->counters().rx_dropped;
+        if (now_dropped > w.dropped)
+          spdlog::warn("{} {}: the kernel dropped {} received frames in the last second (the gateway read them too "
+                       "late; {} since the start)",
+                       w.side, w.interface, now_dropped - w.dropped, now_dropped);
+        w.dropped = now_dropped;
+      }
+    });
+  }
+
+  // `oegw status`, `oegw ctl` (docs/reference/control-protocol.md); false when it cannot be opened.
+  bool open_control() {
+    try {
+      if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, *gw, *cfg, file, [this] { driver.rearm(); }, up, down);
+    } catch (const ControlError& e) {
+      spdlog::error("{}", e.what());
+      return false;
+    }
+    if (!control) return true;
+    control->add_status_field("publishing", [this] { return publishing_status(publishing->transports()); });
+    control->add_status_field("record", [this] { return recording.status(); });
+    control->add_command("record_keep", [this](const nlohmann::json&, ControlProtocol::Done done) {
+      if (!recording.recording()) throw std::runtime_error(recording.off_reason());
+      recording.keep([done](const std::string& folder, std::size_t segments, const std::string& error) {
+        if (error.empty()) done(nlohmann::json{{"kept", folder}, {"segments", segments}});
+        else done(nlohmann::json{{"kept", nullptr}, {"error", error}});
+      });
+    });
+    return true;
+  }
+
+  void handle_signals() {
+    running.emplace(Running{file, *cfg, gw, down->sink(), *publishing, control.get(), recording, driver, *notify, loop,
+                            exit_status});
+    // SIGUSR1 keeps the recording's window (docs/guides/black-box.md).
+    loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1}, [this](int sig) {
+      if (sig == SIGHUP) return reload(*running, loop.now());
+      if (sig == SIGUSR1) return recording.keep_logged("SIGUSR1");
+      spdlog::info("signal {}: stopping", sig);
+      notify->stopping();
+      loop.stop();
+    });
+  }
+
+  void start() {
+    // A store that cannot be taken (canopen/301/storage.hpp): the device runs on defaults, EMCY
+    // 6000h tells the host.
+    const auto stored = gw->start(loop.now());
+    if (!stored.ok)
+      spdlog::error("upstream store refused: {}; running on defaults, EMCY 6000h sent upstream", stored.error);
+    driver.rearm();
+    spdlog::info("oegw: node {:02X}h on {}, {} sub-devices on {}", cfg->upstream.node_id, cfg->upstream.interface,
+                 cfg->subdevices.size(), cfg->downstream.interface);
+    report();  // both buses open, the device started: READY=1 once it is pre-operational
+    loop.call_every(loop.now() + notify->poll_period(), notify->poll_period(), [this] { report(); });
+  }
+
+  void report() { notify->update(loop.now(), running_state(*gw, *publishing)); }
+
+  const std::string& file;
+  mapping::Config* const cfg;
+  EventLoop& loop;
+  const GatewayBuses& buses;
+  CanTransport* const up;
+  CanTransport* const down;
+  Unhook unhook;
+  record::RecordingService recording;
+  GatewayOptions options;
+  // Replaced at each reload (SIGHUP): everything below reaches it through this pointer.
+  std::unique_ptr<Gateway> gw;
+  ServiceDriver driver;
+  bool switched = false;
+  std::array<Watched, 2> watched{};
+  std::unique_ptr<GatewayPublishing> publishing;
+  std::optional<SystemdNotifier> systemd;
+  std::optional<ServiceNotify> notify;
+  std::unique_ptr<GatewayControl> control;
+  int exit_status = 0;
+  std::optional<Running> running;
+};
+
 }  // namespace
 
 int run_check(const std::string& file, bool quiet, bool here) {
@@ -527,146 +736,8 @@ int run_gateway(const std::string& file) {
 }
 
 int serve_gateway(const std::string& file, mapping::Config& config, EventLoop& loop, const GatewayBuses& buses) {
-  mapping::Config* const cfg = &config;
-  CanTransport* const up = &buses.up;
-  CanTransport* const down = &buses.down;
-  // The buses outlive what their callbacks reach (the gateway, its driver): cut them on the way out.
-  struct Unhook {
-    CanTransport* up;
-    CanTransport* down;
-    ~Unhook() {
-      for (CanTransport* t : {up, down}) {
-        t->set_receiver({});
-        t->set_event_handler({});
-      }
-    }
-  } unhook{up, down};
-  // The black box (mapping file `record`): it taps every gateway from its construction on.
-  record::RecordingService recording(loop, *cfg, file);
-  // Replaced at each reload (SIGHUP): everything below reaches it through this pointer.
-  GatewayOptions options;
-  options.tap = recording.tap();
-  auto gw = std::make_unique<Gateway>(*cfg, up->sink(), down->sink(), options);
-  gw->on_log = [](const std::string& line) { spdlog::info("{}", line); };
-  ServiceDriver driver(loop, [&gw] { return gw->next_deadline(); }, [&gw](TimePoint now) { gw->advance(now); });
-  up->set_receiver([&](const CanFrame& f, TimePoint t) {
-    gw->on_upstream_frame(f, t);
-    driver.rearm();
-  });
-  down->set_receiver([&](const CanFrame& f, TimePoint t) {
-    gw->on_downstream_frame(f, t);
-    driver.rearm();
-  });
-  // LSS activate bit timing (CiA 305): the node is silent; at the switch the interface is set to
-  // the new rate (down, bit rate, up). Its socket then reports the interface going down once.
-  bool switched = false;
-  gw->upstream().on_bit_rate_switch([&](std::uint32_t rate) {
-    const std::string& name = cfg->upstream.interface;
-    // Without a bit timing to set (a transport that is not a CAN controller): as a virtual CAN
-    // interface's.
-    const BitRateOutcome r = buses.set_upstream_bit_rate ? buses.set_upstream_bit_rate(rate)
-                                                         : BitRateOutcome{.action = BitRateAction::NoBitTiming};
-    if (!r.ok()) {
-      spdlog::error("LSS activate bit timing: {}; {} stays at {} bit/s", r.message, name, r.before);
-      return;
-    }
-    switch (r.action) {
-      case BitRateAction::Set:
-        switched = true;
-        spdlog::info("LSS activate bit timing: {} switched from {} to {} bit/s", name, r.before, rate);
-        break;
-      case BitRateAction::Keep: spdlog::info("LSS activate bit timing: {} is at {} bit/s already", name, rate); break;
-      case BitRateAction::NoBitTiming:
-        spdlog::info("LSS activate bit timing: {} has no bit timing (virtual CAN): {} bit/s not applicable; the node "
-                     "stays on the bus",
-                     name, rate);
-        break;
-      case BitRateAction::Missing: spdlog::error("LSS activate bit timing: {} is gone", name); break;
-    }
-  });
-  up->set_event_handler([&](BusEvent e) {
-    if (e == BusEvent::InterfaceDown && switched) {
-      switched = false;  // the restart of the bit-rate switch
-      return;
-    }
-    spdlog::warn("upstream {}: {}", cfg->upstream.interface, to_string(e));
-    gw->on_upstream_bus_event(e, loop.now());
-    driver.rearm();
-  });
-  down->set_event_handler([&](BusEvent e) {
-    spdlog::warn("downstream {}: {}", cfg->downstream.interface, to_string(e));
-    gw->on_downstream_bus_event(e, loop.now());
-    driver.rearm();
-  });
-  watch_transport(loop, *up);
-  watch_transport(loop, *down);
-  if (buses.watching) buses.watching();
-  // Once a second the frames the kernel dropped because the gateway read them too late: each a
-  // reason a heartbeat or PDO may seem lost (the fault policy then acts on it; this says why).
-  struct Watched {
-    const CanTransport* bus;
-    const char* side;
-    std::string interface;
-    std::uint64_t dropped = 0;
-  };
-  std::array<Watched, 2> watched{Watched{up, "upstream", cfg->upstream.interface},
-                                 Watched{down, "downstream", cfg->downstream.interface}};
-  loop.call_every(loop.now(), std::chrono::seconds(1), [&watched] {
-    for (Watched& w : watched) {
-      const std::uint64_t now_dropped = w.bus->counters().rx_dropped;
-      if (now_dropped > w.dropped)
-        spdlog::warn("{} {}: the kernel dropped {} received frames in the last second (the gateway read them too "
-                     "late; {} since the start)",
-                     w.side, w.interface, now_dropped - w.dropped, now_dropped);
-      w.dropped = now_dropped;
-    }
-  });
-  std::unique_ptr<GatewayPublishing> publishing;
-  if (!start_publishing(*gw, *cfg, file, loop, driver, publishing)) return exit_code::kCannotStart;
-  // systemd (gateway/service_notify.hpp): READY=1, STATUS=, WATCHDOG=1 from this loop, STOPPING=1.
-  SystemdNotifier systemd;
-  ServiceNotify notify(systemd, systemd_watchdog_timeout());
-  std::unique_ptr<GatewayControl> control;  // `oegw status`, `oegw ctl` (docs/reference/control-protocol.md)
-  try {
-    if (cfg->control.enabled) control = std::make_unique<GatewayControl>(loop, *gw, *cfg, file, [&driver] { driver.rearm(); }, up, down);
-  } catch (const ControlError& e) {
-    spdlog::error("{}", e.what());
-    return exit_code::kCannotStart;
-  }
-  if (control) {
-    control->add_status_field("publishing", [&publishing] { return publishing_status(publishing->transports()); });
-    control->add_status_field("record", [&recording] { return recording.status(); });
-    control->add_command("record_keep", [&recording](const nlohmann::json&, ControlProtocol::Done done) {
-      if (!recording.recording()) throw std::runtime_error(recording.off_reason());
-      recording.keep([done](const std::string& folder, std::size_t segments, const std::string& error) {
-        if (error.empty()) done(nlohmann::json{{"kept", folder}, {"segments", segments}});
-        else done(nlohmann::json{{"kept", nullptr}, {"error", error}});
-      });
-    });
-  }
-  int exit_status = 0;
-  Running running{file, *cfg, gw, down->sink(), *publishing, control.get(), recording, driver, notify, loop, exit_status};
-  // SIGUSR1 keeps the recording's window (docs/guides/black-box.md).
-  loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1}, [&](int sig) {
-    if (sig == SIGHUP) return reload(running, loop.now());
-    if (sig == SIGUSR1) return recording.keep_logged("SIGUSR1");
-    spdlog::info("signal {}: stopping", sig);
-    notify.stopping();
-    loop.stop();
-  });
-  // A store that cannot be taken (canopen/301/storage.hpp): the device runs on defaults, EMCY
-  // 6000h tells the host.
-  const auto stored = gw->start(loop.now());
-  if (!stored.ok)
-    spdlog::error("upstream store refused: {}; running on defaults, EMCY 6000h sent upstream", stored.error);
-  driver.rearm();
-  spdlog::info("oegw: node {:02X}h on {}, {} sub-devices on {}", cfg->upstream.node_id, cfg->upstream.interface,
-               cfg->subdevices.size(), cfg->downstream.interface);
-  const auto report = [&] { notify.update(loop.now(), running_state(*gw, *publishing)); };
-  report();  // both buses open, the device started: READY=1 once it is pre-operational
-  loop.call_every(loop.now() + notify.poll_period(), notify.poll_period(), report);
-  loop.run();
-  return exit_status;
+  Daemon daemon(file, config, loop, buses);
+  return daemon.run();
 }
 
 }  // namespace oegw::gateway
