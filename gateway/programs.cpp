@@ -330,6 +330,147 @@ bool start_publishing(Gateway& gw, const mapping::Config& cfg, const std::string
   return true;
 }
 
+// `oegw check`: the warnings of a valid file, departing from CiA 852 / CiA 305, then this
+// machine's apart; whether there was any.
+bool print_warnings(const mapping::Config& cfg, const std::vector<mapping::Diagnostic>& refused_here) {
+  // Valid, but departing from CiA 852 / CiA 305
+  // (docs/reference/mapping-file.md#upstreamheartbeat_ms-and-upstreamidentityserial).
+  bool warned = false;
+  if (cfg.upstream.heartbeat_ms == 0) {
+    std::printf("warning: upstream.heartbeat_ms is 0: no heartbeat at power-on; CiA 852 §8.3 says the heartbeat "
+                "producer shall be used (default 100 ms)\n");
+    warned = true;
+  }
+  if (cfg.upstream.identity.serial == 0) {
+    std::printf("warning: upstream.identity.serial is 0 (1018h:04): two gateways of one product then share an LSS "
+                "address and cannot be told apart by LSS switch state selective; give each its own serial\n");
+    warned = true;
+  }
+  for (const auto& w : mapping::deployment_warnings(cfg)) {
+    std::printf("warning: %s\n", w.str().c_str());
+    warned = true;
+  }
+  // This machine as it is now: apart from the file's findings (mapping/deployment.hpp).
+  print_on_this_machine(stdout, refused_here);
+  warned = warned || !refused_here.empty();
+  std::vector<mapping::Diagnostic> machine_warned = mapping::machine_warnings(cfg);
+  // No route for LCM's group (docs/guides/install.md#lcm-route): oegw run would start without LCM.
+  if (const auto& lcm = cfg.publish.lcm; lcm.enabled)
+    if (const auto problem = publish::lcm_route_problem(lcm.url)) {
+      const std::string& net = cfg.publish.dds.network;
+      machine_warned.push_back(
+          {lcm.url_where.line != 0 ? lcm.url_where : lcm.where,
+           "publish.lcm.url " + lcm.url + (lcm.url_where.line != 0 ? "" : " (the default)") + ": this machine has " +
+               *problem + ": oegw run would start without LCM and publish once a route exists; add one: " +
+               publish::lcm_route_command(lcm.url, net == "loopback" ? "" : net) +
+               " (docs/guides/install.md#lcm-route has the systemd-networkd file that keeps it)"});
+    }
+  if (!machine_warned.empty()) {
+    mapping::sort_by_place(machine_warned);
+    std::printf("on this machine (oegw run starts all the same):\n");
+    for (const auto& w : machine_warned) std::printf("warning: %s\n", w.str().c_str());
+    warned = true;
+  }
+  return warned;
+}
+
+// `oegw check --quiet`: the warnings the full listing has inside its sections: the EDS reader's,
+// the bus load's.
+void print_section_warnings(const mapping::Config& cfg) {
+  for (const auto& s : cfg.subdevices)
+    for (const auto& w : eds_warnings(s)) std::printf("%s\n", w.c_str());
+  BusLoadPrediction load = predict_bus_load(cfg);
+  load.upstream.bit_rate = upstream_bit_rate(cfg).bitrate;
+  std::printf("%s%s", bus_load_warning(load.upstream, "upstream").c_str(),
+              bus_load_warning(load.downstream, "downstream").c_str());
+}
+
+// `oegw check`: both buses, their bit rates and their load.
+void print_buses(const mapping::Config& cfg, OeDevice& device) {
+  const NodeId node{cfg.upstream.node_id};
+  std::printf("upstream: network %u, node-ID %02Xh on %s, 1000h device type = %08Xh (CiA 852 Table 8)\n",
+              cfg.upstream.network_id, node.value(), cfg.upstream.interface.c_str(),
+              device.od().get<std::uint32_t>(0x1000, 0));
+  // 1201h..: the additional SDO server channels (upstream.sdo_servers).
+  for (std::size_t k = 1; k <= cfg.upstream.sdo_servers.size(); ++k) {
+    const auto& s = cfg.upstream.sdo_servers[k - 1];
+    const std::string cobs = s.enabled() ? fmt::format("request {:03X}h, response {:03X}h", *s.request, *s.response)
+                                         : std::string("disabled until the host sets its COB-IDs");
+    const std::string target =
+        s.subdevice.empty() ? std::string("the gateway's own dictionary") : "bound to " + s.subdevice;
+    std::printf("  SDO server %04Xh: %s, %s\n", static_cast<unsigned>(0x1200 + k), cobs.c_str(), target.c_str());
+  }
+  std::printf("downstream: network %u, %s, sub-device EMCYs forwarded upstream: %s, SDO time-out %u ms\n",
+              cfg.downstream.network_id, cfg.downstream.interface.c_str(),
+              std::string(mapping::to_string(cfg.downstream.emcy_forwarding)).c_str(), cfg.downstream.sdo_timeout_ms);
+  print_downstream_boot(cfg);
+  for (const auto& s : cfg.subdevices)
+    std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id, s.mandatory ? "  mandatory" : "");
+  // What `oegw run` does with the bit rates on this machine (docs/guides/commission.md#bit-rate).
+  const auto link = netlink_can_link();
+  const UpstreamBitRate up_rate = upstream_bit_rate(cfg);
+  std::printf("\nbit rates (oegw run sets them at start):\n");
+  std::printf("  upstream %u bit/s (%s): %s\n", up_rate.bitrate,
+              up_rate.lss_stored ? fmt::format("LSS-stored, upstream.bitrate is {}", cfg.upstream.bitrate).c_str()
+                                 : "upstream.bitrate",
+              bit_rate_plan(*link, cfg.upstream.interface, up_rate.bitrate).c_str());
+  std::printf("  downstream %u bit/s (downstream.bitrate): %s\n", cfg.downstream.bitrate,
+              bit_rate_plan(*link, cfg.downstream.interface, cfg.downstream.bitrate).c_str());
+  std::printf("  LSS configure bit timing and the EDS: %s\n", rate_list(device.config().supported_bit_timings).c_str());
+  // What the configuration puts on each bus with the inputs held still (gateway/bus_load.hpp).
+  BusLoadPrediction load = predict_bus_load(cfg);
+  load.upstream.bit_rate = up_rate.bitrate;  // the rate oegw run uses (an LSS-stored one wins)
+  std::printf("\nbus load (steady state: periodic frames, PDOs at their worst-case length; warning above %.0f %%):\n%s%s",
+              kBusLoadWarnPercent, describe_bus_load(load.upstream, "upstream").c_str(),
+              describe_bus_load(load.downstream, "downstream").c_str());
+}
+
+// `oegw check`: each FE's fields, where they come from and in which PDO.
+void print_fes(const mapping::Config& cfg, const OeDevice& device) {
+  const auto pdos = cia852::default_pdos(device.config().fes, NodeId{cfg.upstream.node_id});
+  std::printf("\nfunctional elements (field <- signal: object, PDO):\n");
+  for (const auto& fe : cfg.functional_elements) {
+    for (const auto& b : fe.fields) {
+      const std::string arrow = fe.input() ? "<-" : "->";
+      const std::string signal = b.subdevice + "." + b.signal + (b.signal_bit != 0xFF ? fmt::format(".bit{}", b.signal_bit) : "");
+      const std::string obj = fmt::format("{:04X}h:{:02X}{}", b.field.index, b.field.sub,
+                                          b.field.bit == 0xFF ? "" : fmt::format(" bit {}", b.field.bit));
+      std::printf("  %-13s %-14s %s %-24s %-16s %s\n", mapping::fe_name(fe.id).c_str(), b.field.name.c_str(), arrow.c_str(),
+                  signal.c_str(), obj.c_str(), pdo_place(pdos, b.field).c_str());
+    }
+  }
+}
+
+// `oegw check`: the mapping file's `publish`.
+void print_publish(const mapping::PublishConfig& p) {
+  std::printf("\npublish: every %u ms; DDS %s; LCM %s\n", p.period_ms,
+              p.dds.enabled ? fmt::format("domain {}, partition {}, network {}{}", p.dds.domain, p.dds.partition,
+                                          p.dds.network.empty() ? "(CYCLONEDDS_URI)" : p.dds.network,
+                                          p.dds.security ? ", DDS Security (identity " +
+                                                               p.dds.security->path[mapping::DdsSecurityConfig::Certificate] + ")"
+                                                         : std::string())
+                                  .c_str()
+                            : "off",
+              p.lcm.enabled ? fmt::format("{}, channels {}*", p.lcm.url, p.lcm.channel_prefix).c_str() : "off");
+}
+
+// `oegw check`: where each output FE takes its commands from.
+void print_commands_in(const mapping::Config& cfg) {
+  bool outputs = false;
+  for (const auto& fe : cfg.functional_elements) {
+    if (fe.input()) continue;
+    if (!outputs) std::printf("commands in (sources of each output FE; among them the last write wins):\n");
+    outputs = true;
+    std::printf("  %-13s %s%s%s\n", mapping::fe_name(fe.id).c_str(), mapping::describe_sources(fe.sources).c_str(),
+                fe.accepts(mapping::CommandSource::Canopen)
+                    ? ""
+                    : "  (host: SDO download aborted 0800 0021h, its RPDO bytes ignored)",
+                fe.command_timeout_ms == 0
+                    ? ""
+                    : fmt::format("  error values after {} ms without a command", fe.command_timeout_ms).c_str());
+  }
+}
+
 // The buses outlive what their callbacks reach (the gateway, its driver): cut them on the way out.
 struct Unhook {
   CanTransport* up;
@@ -546,130 +687,19 @@ int run_check(const std::string& file, bool quiet, bool here) {
   const auto cfg = load(file, here ? Use::Here : Use::File, &refused_here);
   if (!cfg) return exit_code::kBadFile;
   const auto device = eds_device(*cfg);  // the dictionary `oegw run` builds
-  const auto& fes = device->config().fes;
-  const NodeId node{cfg->upstream.node_id};
   std::printf("%s: valid\n%s", file.c_str(), quiet ? "" : "\n");
-  // Valid, but departing from CiA 852 / CiA 305
-  // (docs/reference/mapping-file.md#upstreamheartbeat_ms-and-upstreamidentityserial).
-  bool warned = false;
-  if (cfg->upstream.heartbeat_ms == 0) {
-    std::printf("warning: upstream.heartbeat_ms is 0: no heartbeat at power-on; CiA 852 §8.3 says the heartbeat "
-                "producer shall be used (default 100 ms)\n");
-    warned = true;
-  }
-  if (cfg->upstream.identity.serial == 0) {
-    std::printf("warning: upstream.identity.serial is 0 (1018h:04): two gateways of one product then share an LSS "
-                "address and cannot be told apart by LSS switch state selective; give each its own serial\n");
-    warned = true;
-  }
-  for (const auto& w : mapping::deployment_warnings(*cfg)) {
-    std::printf("warning: %s\n", w.str().c_str());
-    warned = true;
-  }
-  // This machine as it is now: apart from the file's findings (mapping/deployment.hpp).
-  print_on_this_machine(stdout, refused_here);
-  warned = warned || !refused_here.empty();
-  std::vector<mapping::Diagnostic> machine_warned = mapping::machine_warnings(*cfg);
-  // No route for LCM's group (docs/guides/install.md#lcm-route): oegw run would start without LCM.
-  if (const auto& lcm = cfg->publish.lcm; lcm.enabled)
-    if (const auto problem = publish::lcm_route_problem(lcm.url)) {
-      const std::string& net = cfg->publish.dds.network;
-      machine_warned.push_back(
-          {lcm.url_where.line != 0 ? lcm.url_where : lcm.where,
-           "publish.lcm.url " + lcm.url + (lcm.url_where.line != 0 ? "" : " (the default)") + ": this machine has " +
-               *problem + ": oegw run would start without LCM and publish once a route exists; add one: " +
-               publish::lcm_route_command(lcm.url, net == "loopback" ? "" : net) +
-               " (docs/guides/install.md#lcm-route has the systemd-networkd file that keeps it)"});
-    }
-  if (!machine_warned.empty()) {
-    mapping::sort_by_place(machine_warned);
-    std::printf("on this machine (oegw run starts all the same):\n");
-    for (const auto& w : machine_warned) std::printf("warning: %s\n", w.str().c_str());
-    warned = true;
-  }
+  const bool warned = print_warnings(*cfg, refused_here);
   if (quiet) {
-    // The warnings the full listing has inside its sections: the EDS reader's, the bus load's.
-    for (const auto& s : cfg->subdevices)
-      for (const auto& w : eds_warnings(s)) std::printf("%s\n", w.c_str());
-    BusLoadPrediction load = predict_bus_load(*cfg);
-    load.upstream.bit_rate = upstream_bit_rate(*cfg).bitrate;
-    std::printf("%s%s", bus_load_warning(load.upstream, "upstream").c_str(),
-                bus_load_warning(load.downstream, "downstream").c_str());
+    print_section_warnings(*cfg);
     return exit_code::kOk;
   }
   if (warned) std::printf("\n");
-  std::printf("upstream: network %u, node-ID %02Xh on %s, 1000h device type = %08Xh (CiA 852 Table 8)\n",
-              cfg->upstream.network_id, node.value(), cfg->upstream.interface.c_str(),
-              device->od().get<std::uint32_t>(0x1000, 0));
-  // 1201h..: the additional SDO server channels (upstream.sdo_servers).
-  for (std::size_t k = 1; k <= cfg->upstream.sdo_servers.size(); ++k) {
-    const auto& s = cfg->upstream.sdo_servers[k - 1];
-    const std::string cobs = s.enabled() ? fmt::format("request {:03X}h, response {:03X}h", *s.request, *s.response)
-                                         : std::string("disabled until the host sets its COB-IDs");
-    const std::string target =
-        s.subdevice.empty() ? std::string("the gateway's own dictionary") : "bound to " + s.subdevice;
-    std::printf("  SDO server %04Xh: %s, %s\n", static_cast<unsigned>(0x1200 + k), cobs.c_str(), target.c_str());
-  }
-  std::printf("downstream: network %u, %s, sub-device EMCYs forwarded upstream: %s, SDO time-out %u ms\n",
-              cfg->downstream.network_id, cfg->downstream.interface.c_str(),
-              std::string(mapping::to_string(cfg->downstream.emcy_forwarding)).c_str(), cfg->downstream.sdo_timeout_ms);
-  print_downstream_boot(*cfg);
-  for (const auto& s : cfg->subdevices)
-    std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id, s.mandatory ? "  mandatory" : "");
-  // What `oegw run` does with the bit rates on this machine (docs/guides/commission.md#bit-rate).
-  const auto link = netlink_can_link();
-  const UpstreamBitRate up_rate = upstream_bit_rate(*cfg);
-  std::printf("\nbit rates (oegw run sets them at start):\n");
-  std::printf("  upstream %u bit/s (%s): %s\n", up_rate.bitrate,
-              up_rate.lss_stored ? fmt::format("LSS-stored, upstream.bitrate is {}", cfg->upstream.bitrate).c_str()
-                                 : "upstream.bitrate",
-              bit_rate_plan(*link, cfg->upstream.interface, up_rate.bitrate).c_str());
-  std::printf("  downstream %u bit/s (downstream.bitrate): %s\n", cfg->downstream.bitrate,
-              bit_rate_plan(*link, cfg->downstream.interface, cfg->downstream.bitrate).c_str());
-  std::printf("  LSS configure bit timing and the EDS: %s\n", rate_list(device->config().supported_bit_timings).c_str());
-  // What the configuration puts on each bus with the inputs held still (gateway/bus_load.hpp).
-  BusLoadPrediction load = predict_bus_load(*cfg);
-  load.upstream.bit_rate = up_rate.bitrate;  // the rate oegw run uses (an LSS-stored one wins)
-  std::printf("\nbus load (steady state: periodic frames, PDOs at their worst-case length; warning above %.0f %%):\n%s%s",
-              kBusLoadWarnPercent, describe_bus_load(load.upstream, "upstream").c_str(),
-              describe_bus_load(load.downstream, "downstream").c_str());
-  const auto pdos = cia852::default_pdos(fes, node);
-  std::printf("\nfunctional elements (field <- signal: object, PDO):\n");
-  for (const auto& fe : cfg->functional_elements) {
-    for (const auto& b : fe.fields) {
-      const std::string arrow = fe.input() ? "<-" : "->";
-      const std::string signal = b.subdevice + "." + b.signal + (b.signal_bit != 0xFF ? fmt::format(".bit{}", b.signal_bit) : "");
-      const std::string obj = fmt::format("{:04X}h:{:02X}{}", b.field.index, b.field.sub,
-                                          b.field.bit == 0xFF ? "" : fmt::format(" bit {}", b.field.bit));
-      std::printf("  %-13s %-14s %s %-24s %-16s %s\n", mapping::fe_name(fe.id).c_str(), b.field.name.c_str(), arrow.c_str(),
-                  signal.c_str(), obj.c_str(), pdo_place(pdos, b.field).c_str());
-    }
-  }
-  const auto& p = cfg->publish;
-  std::printf("\npublish: every %u ms; DDS %s; LCM %s\n", p.period_ms,
-              p.dds.enabled ? fmt::format("domain {}, partition {}, network {}{}", p.dds.domain, p.dds.partition,
-                                          p.dds.network.empty() ? "(CYCLONEDDS_URI)" : p.dds.network,
-                                          p.dds.security ? ", DDS Security (identity " +
-                                                               p.dds.security->path[mapping::DdsSecurityConfig::Certificate] + ")"
-                                                         : std::string())
-                                  .c_str()
-                            : "off",
-              p.lcm.enabled ? fmt::format("{}, channels {}*", p.lcm.url, p.lcm.channel_prefix).c_str() : "off");
+  print_buses(*cfg, *device);
+  print_fes(*cfg, *device);
+  print_publish(cfg->publish);
   print_control(cfg->control);
   print_record(cfg->record);
-  bool outputs = false;
-  for (const auto& fe : cfg->functional_elements) {
-    if (fe.input()) continue;
-    if (!outputs) std::printf("commands in (sources of each output FE; among them the last write wins):\n");
-    outputs = true;
-    std::printf("  %-13s %s%s%s\n", mapping::fe_name(fe.id).c_str(), mapping::describe_sources(fe.sources).c_str(),
-                fe.accepts(mapping::CommandSource::Canopen)
-                    ? ""
-                    : "  (host: SDO download aborted 0800 0021h, its RPDO bytes ignored)",
-                fe.command_timeout_ms == 0
-                    ? ""
-                    : fmt::format("  error values after {} ms without a command", fe.command_timeout_ms).c_str());
-  }
+  print_commands_in(*cfg);
   return 0;
 }
 

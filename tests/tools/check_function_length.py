@@ -29,7 +29,6 @@ SUFFIXES = (".cpp", ".hpp", ".cc", ".h", ".c")
 # {path: {function: lines}}: the functions over LIMIT lines when this check came, each at most
 # the length it had then. Remove an entry when its function is split to LIMIT lines or fewer.
 KNOWN = {
-    "gateway/programs.cpp": {"run_check": 131},
 }
 
 LAMBDA_NAME = re.compile(r"(\w+)\s*=\s*\[")
