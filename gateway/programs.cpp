@@ -37,8 +37,8 @@
 namespace oegw::gateway {
 
 using namespace canopen;
-
 using namespace canopen::io;
+
 namespace {
 
 // Which commands load the file, and what they ask of it: `eds` the loader's checks only; `oegw
@@ -331,41 +331,34 @@ bool start_publishing(Gateway& gw, const mapping::Config& cfg, const std::string
   return true;
 }
 
-}  // namespace
-
-int run_check(const std::string& file, bool quiet, bool here) {
-  std::vector<mapping::Diagnostic> refused_here;  // without --here: what run refuses of this machine
-  const auto cfg = load(file, here ? Use::Here : Use::File, &refused_here);
-  if (!cfg) return exit_code::kBadFile;
-  const auto device = eds_device(*cfg);  // the dictionary `oegw run` builds
-  const auto& fes = device->config().fes;
-  const NodeId node{cfg->upstream.node_id};
-  std::printf("%s: valid\n%s", file.c_str(), quiet ? "" : "\n");
+// `oegw check`: the warnings of a valid file, departing from CiA 852 / CiA 305, then this
+// machine's apart; whether there was any.
+bool print_warnings(const mapping::Config& cfg, const std::vector<mapping::Diagnostic>& refused_here) {
   // Valid, but departing from CiA 852 / CiA 305
   // (docs/reference/mapping-file.md#upstreamheartbeat_ms-and-upstreamidentityserial).
   bool warned = false;
-  if (cfg->upstream.heartbeat_ms == 0) {
+  if (cfg.upstream.heartbeat_ms == 0) {
     std::printf("warning: upstream.heartbeat_ms is 0: no heartbeat at power-on; CiA 852 §8.3 says the heartbeat "
                 "producer shall be used (default 100 ms)\n");
     warned = true;
   }
-  if (cfg->upstream.identity.serial == 0) {
+  if (cfg.upstream.identity.serial == 0) {
     std::printf("warning: upstream.identity.serial is 0 (1018h:04): two gateways of one product then share an LSS "
                 "address and cannot be told apart by LSS switch state selective; give each its own serial\n");
     warned = true;
   }
-  for (const auto& w : mapping::deployment_warnings(*cfg)) {
+  for (const auto& w : mapping::deployment_warnings(cfg)) {
     std::printf("warning: %s\n", w.str().c_str());
     warned = true;
   }
   // This machine as it is now: apart from the file's findings (mapping/deployment.hpp).
   print_on_this_machine(stdout, refused_here);
   warned = warned || !refused_here.empty();
-  std::vector<mapping::Diagnostic> machine_warned = mapping::machine_warnings(*cfg);
+  std::vector<mapping::Diagnostic> machine_warned = mapping::machine_warnings(cfg);
   // No route for LCM's group (docs/guides/install.md#lcm-route): oegw run would start without LCM.
-  if (const auto& lcm = cfg->publish.lcm; lcm.enabled)
+  if (const auto& lcm = cfg.publish.lcm; lcm.enabled)
     if (const auto problem = publish::lcm_route_problem(lcm.url)) {
-      const std::string& net = cfg->publish.dds.network;
+      const std::string& net = cfg.publish.dds.network;
       machine_warned.push_back(
           {lcm.url_where.line != 0 ? lcm.url_where : lcm.where,
            "publish.lcm.url " + lcm.url + (lcm.url_where.line != 0 ? "" : " (the default)") + ": this machine has " +
@@ -379,23 +372,29 @@ int run_check(const std::string& file, bool quiet, bool here) {
     for (const auto& w : machine_warned) std::printf("warning: %s\n", w.str().c_str());
     warned = true;
   }
-  if (quiet) {
-    // The warnings the full listing has inside its sections: the EDS reader's, the bus load's.
-    for (const auto& s : cfg->subdevices)
-      for (const auto& w : eds_warnings(s)) std::printf("%s\n", w.c_str());
-    BusLoadPrediction load = predict_bus_load(*cfg);
-    load.upstream.bit_rate = upstream_bit_rate(*cfg).bitrate;
-    std::printf("%s%s", bus_load_warning(load.upstream, "upstream").c_str(),
-                bus_load_warning(load.downstream, "downstream").c_str());
-    return exit_code::kOk;
-  }
-  if (warned) std::printf("\n");
+  return warned;
+}
+
+// `oegw check --quiet`: the warnings the full listing has inside its sections: the EDS reader's,
+// the bus load's.
+void print_section_warnings(const mapping::Config& cfg) {
+  for (const auto& s : cfg.subdevices)
+    for (const auto& w : eds_warnings(s)) std::printf("%s\n", w.c_str());
+  BusLoadPrediction load = predict_bus_load(cfg);
+  load.upstream.bit_rate = upstream_bit_rate(cfg).bitrate;
+  std::printf("%s%s", bus_load_warning(load.upstream, "upstream").c_str(),
+              bus_load_warning(load.downstream, "downstream").c_str());
+}
+
+// `oegw check`: both buses, their bit rates and their load.
+void print_buses(const mapping::Config& cfg, OeDevice& device) {
+  const NodeId node{cfg.upstream.node_id};
   std::printf("upstream: network %u, node-ID %02Xh on %s, 1000h device type = %08Xh (CiA 852 Table 8)\n",
-              cfg->upstream.network_id, node.value(), cfg->upstream.interface.c_str(),
-              device->od().get<std::uint32_t>(0x1000, 0));
+              cfg.upstream.network_id, node.value(), cfg.upstream.interface.c_str(),
+              device.od().get<std::uint32_t>(0x1000, 0));
   // 1201h..: the additional SDO server channels (upstream.sdo_servers).
-  for (std::size_t k = 1; k <= cfg->upstream.sdo_servers.size(); ++k) {
-    const auto& s = cfg->upstream.sdo_servers[k - 1];
+  for (std::size_t k = 1; k <= cfg.upstream.sdo_servers.size(); ++k) {
+    const auto& s = cfg.upstream.sdo_servers[k - 1];
     const std::string cobs = s.enabled() ? fmt::format("request {:03X}h, response {:03X}h", *s.request, *s.response)
                                          : std::string("disabled until the host sets its COB-IDs");
     const std::string target =
@@ -403,31 +402,35 @@ int run_check(const std::string& file, bool quiet, bool here) {
     std::printf("  SDO server %04Xh: %s, %s\n", static_cast<unsigned>(0x1200 + k), cobs.c_str(), target.c_str());
   }
   std::printf("downstream: network %u, %s, sub-device EMCYs forwarded upstream: %s, SDO time-out %u ms\n",
-              cfg->downstream.network_id, cfg->downstream.interface.c_str(),
-              std::string(mapping::to_string(cfg->downstream.emcy_forwarding)).c_str(), cfg->downstream.sdo_timeout_ms);
-  print_downstream_boot(*cfg);
-  for (const auto& s : cfg->subdevices)
+              cfg.downstream.network_id, cfg.downstream.interface.c_str(),
+              std::string(mapping::to_string(cfg.downstream.emcy_forwarding)).c_str(), cfg.downstream.sdo_timeout_ms);
+  print_downstream_boot(cfg);
+  for (const auto& s : cfg.subdevices)
     std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id, s.mandatory ? "  mandatory" : "");
   // What `oegw run` does with the bit rates on this machine (docs/guides/commission.md#bit-rate).
   const auto link = netlink_can_link();
-  const UpstreamBitRate up_rate = upstream_bit_rate(*cfg);
+  const UpstreamBitRate up_rate = upstream_bit_rate(cfg);
   std::printf("\nbit rates (oegw run sets them at start):\n");
   std::printf("  upstream %u bit/s (%s): %s\n", up_rate.bitrate,
-              up_rate.lss_stored ? fmt::format("LSS-stored, upstream.bitrate is {}", cfg->upstream.bitrate).c_str()
+              up_rate.lss_stored ? fmt::format("LSS-stored, upstream.bitrate is {}", cfg.upstream.bitrate).c_str()
                                  : "upstream.bitrate",
-              bit_rate_plan(*link, cfg->upstream.interface, up_rate.bitrate).c_str());
-  std::printf("  downstream %u bit/s (downstream.bitrate): %s\n", cfg->downstream.bitrate,
-              bit_rate_plan(*link, cfg->downstream.interface, cfg->downstream.bitrate).c_str());
-  std::printf("  LSS configure bit timing and the EDS: %s\n", rate_list(device->config().supported_bit_timings).c_str());
+              bit_rate_plan(*link, cfg.upstream.interface, up_rate.bitrate).c_str());
+  std::printf("  downstream %u bit/s (downstream.bitrate): %s\n", cfg.downstream.bitrate,
+              bit_rate_plan(*link, cfg.downstream.interface, cfg.downstream.bitrate).c_str());
+  std::printf("  LSS configure bit timing and the EDS: %s\n", rate_list(device.config().supported_bit_timings).c_str());
   // What the configuration puts on each bus with the inputs held still (gateway/bus_load.hpp).
-  BusLoadPrediction load = predict_bus_load(*cfg);
+  BusLoadPrediction load = predict_bus_load(cfg);
   load.upstream.bit_rate = up_rate.bitrate;  // the rate oegw run uses (an LSS-stored one wins)
   std::printf("\nbus load (steady state: periodic frames, PDOs at their worst-case length; warning above %.0f %%):\n%s%s",
               kBusLoadWarnPercent, describe_bus_load(load.upstream, "upstream").c_str(),
               describe_bus_load(load.downstream, "downstream").c_str());
-  const auto pdos = cia852::default_pdos(fes, node);
+}
+
+// `oegw check`: each FE's fields, where they come from and in which PDO.
+void print_fes(const mapping::Config& cfg, const OeDevice& device) {
+  const auto pdos = cia852::default_pdos(device.config().fes, NodeId{cfg.upstream.node_id});
   std::printf("\nfunctional elements (field <- signal: object, PDO):\n");
-  for (const auto& fe : cfg->functional_elements) {
+  for (const auto& fe : cfg.functional_elements) {
     for (const auto& b : fe.fields) {
       const std::string arrow = fe.input() ? "<-" : "->";
       const std::string signal = b.subdevice + "." + b.signal + (b.signal_bit != 0xFF ? fmt::format(".bit{}", b.signal_bit) : "");
@@ -437,7 +440,10 @@ int run_check(const std::string& file, bool quiet, bool here) {
                   signal.c_str(), obj.c_str(), pdo_place(pdos, b.field).c_str());
     }
   }
-  const auto& p = cfg->publish;
+}
+
+// `oegw check`: the mapping file's `publish`.
+void print_publish(const mapping::PublishConfig& p) {
   std::printf("\npublish: every %u ms; DDS %s; LCM %s\n", p.period_ms,
               p.dds.enabled ? fmt::format("domain {}, partition {}, network {}{}", p.dds.domain, p.dds.partition,
                                           p.dds.network.empty() ? "(CYCLONEDDS_URI)" : p.dds.network,
@@ -447,10 +453,12 @@ int run_check(const std::string& file, bool quiet, bool here) {
                                   .c_str()
                             : "off",
               p.lcm.enabled ? fmt::format("{}, channels {}*", p.lcm.url, p.lcm.channel_prefix).c_str() : "off");
-  print_control(cfg->control);
-  print_record(cfg->record);
+}
+
+// `oegw check`: where each output FE takes its commands from.
+void print_commands_in(const mapping::Config& cfg) {
   bool outputs = false;
-  for (const auto& fe : cfg->functional_elements) {
+  for (const auto& fe : cfg.functional_elements) {
     if (fe.input()) continue;
     if (!outputs) std::printf("commands in (sources of each output FE; among them the last write wins):\n");
     outputs = true;
@@ -462,6 +470,237 @@ int run_check(const std::string& file, bool quiet, bool here) {
                     ? ""
                     : fmt::format("  error values after {} ms without a command", fe.command_timeout_ms).c_str());
   }
+}
+
+// The buses outlive what their callbacks reach (the gateway, its driver): cut them on the way out.
+struct Unhook {
+  CanTransport* up;
+  CanTransport* down;
+  ~Unhook() {
+    for (CanTransport* t : {up, down}) {
+      t->set_receiver({});
+      t->set_event_handler({});
+    }
+  }
+};
+
+// One bus whose kernel drops are logged (Daemon::watch_kernel_drops).
+struct Watched {
+  const CanTransport* bus;
+  const char* side;
+  std::string interface;
+  std::uint64_t dropped = 0;
+};
+
+GatewayOptions tapped_by(record::RecordingService& recording) {
+  GatewayOptions options;
+  options.tap = recording.tap();
+  return options;
+}
+
+std::unique_ptr<Gateway> logging_gateway(const mapping::Config& cfg, CanTransport& up, CanTransport& down,
+                                         const GatewayOptions& options) {
+  auto gw = std::make_unique<Gateway>(cfg, up.sink(), down.sink(), options);
+  gw->on_log = [](const std::string& line) { spdlog::info("{}", line); };
+  return gw;
+}
+
+// `oegw run` on its open buses (serve_gateway): the state its steps share, one method per step in
+// the order run() takes them. Members in the order they are made, so they go in reverse.
+class Daemon {
+ public:
+  Daemon(const std::string& f, mapping::Config& config, EventLoop& l, const GatewayBuses& b)
+      : file(f), cfg(&config), loop(l), buses(b), up(&b.up), down(&b.down), unhook{up, down},
+        // The black box (mapping file `record`): it taps every gateway from its construction on.
+        recording(l, config, f), options(tapped_by(recording)), gw(logging_gateway(config, *up, *down, options)),
+        driver(l, [this] { return gw->next_deadline(); }, [this](TimePoint now) { gw->advance(now); }) {}
+
+  int run() {
+    take_frames();
+    follow_bit_rate_switches();
+    take_bus_events();
+    watch_kernel_drops();
+    if (!start_publishing(*gw, *cfg, file, loop, driver, publishing)) return exit_code::kCannotStart;
+    // systemd (gateway/service_notify.hpp): READY=1, STATUS=, WATCHDOG=1 from this loop, STOPPING=1.
+    systemd.emplace();
+    notify.emplace(*systemd, systemd_watchdog_timeout());
+    if (!open_control()) return exit_code::kCannotStart;
+    handle_signals();
+    start();
+    loop.run();
+    return exit_status;
+  }
+
+ private:
+  void take_frames() {
+    up->set_receiver([this](const CanFrame& f, TimePoint t) {
+      gw->on_upstream_frame(f, t);
+      driver.rearm();
+    });
+    down->set_receiver([this](const CanFrame& f, TimePoint t) {
+      gw->on_downstream_frame(f, t);
+      driver.rearm();
+    });
+  }
+
+  // LSS activate bit timing (CiA 305): the node is silent; at the switch the interface is set to
+  // the new rate (down, bit rate, up). Its socket then reports the interface going down once.
+  void follow_bit_rate_switches() {
+    gw->upstream().on_bit_rate_switch([this](std::uint32_t rate) { bit_rate_switch(rate); });
+  }
+
+  void bit_rate_switch(std::uint32_t rate) {
+    const std::string& name = cfg->upstream.interface;
+    // Without a bit timing to set (a transport that is not a CAN controller): as a virtual CAN
+    // interface's.
+    const BitRateOutcome r = buses.set_upstream_bit_rate ? buses.set_upstream_bit_rate(rate)
+                                                         : BitRateOutcome{.action = BitRateAction::NoBitTiming};
+    if (!r.ok()) {
+      spdlog::error("LSS activate bit timing: {}; {} stays at {} bit/s", r.message, name, r.before);
+      return;
+    }
+    switch (r.action) {
+      case BitRateAction::Set:
+        switched = true;
+        spdlog::info("LSS activate bit timing: {} switched from {} to {} bit/s", name, r.before, rate);
+        break;
+      case BitRateAction::Keep: spdlog::info("LSS activate bit timing: {} is at {} bit/s already", name, rate); break;
+      case BitRateAction::NoBitTiming:
+        spdlog::info("LSS activate bit timing: {} has no bit timing (virtual CAN): {} bit/s not applicable; the node "
+                     "stays on the bus",
+                     name, rate);
+        break;
+      case BitRateAction::Missing: spdlog::error("LSS activate bit timing: {} is gone", name); break;
+    }
+  }
+
+  void take_bus_events() {
+    up->set_event_handler([this](BusEvent e) {
+      if (e == BusEvent::InterfaceDown && switched) {
+        switched = false;  // the restart of the bit-rate switch
+        return;
+      }
+      spdlog::warn("upstream {}: {}", cfg->upstream.interface, to_string(e));
+      gw->on_upstream_bus_event(e, loop.now());
+      driver.rearm();
+    });
+    down->set_event_handler([this](BusEvent e) {
+      spdlog::warn("downstream {}: {}", cfg->downstream.interface, to_string(e));
+      gw->on_downstream_bus_event(e, loop.now());
+      driver.rearm();
+    });
+    watch_transport(loop, *up);
+    watch_transport(loop, *down);
+    if (buses.watching) buses.watching();
+  }
+
+  // Once a second the frames the kernel dropped because the gateway read them too late: each a
+  // reason a heartbeat or PDO may seem lost (the fault policy then acts on it; this says why).
+  void watch_kernel_drops() {
+    watched = {Watched{up, "upstream", cfg->upstream.interface}, Watched{down, "downstream", cfg->downstream.interface}};
+    loop.call_every(loop.now(), std::chrono::seconds(1), [this] {
+      for (Watched& w : watched) {
+        const std::uint64_t now_dropped = w.bus->counters().rx_dropped;
+        if (now_dropped > w.dropped)
+          spdlog::warn("{} {}: the kernel dropped {} received frames in the last second (the gateway read them too "
+                       "late; {} since the start)",
+                       w.side, w.interface, now_dropped - w.dropped, now_dropped);
+        w.dropped = now_dropped;
+      }
+    });
+  }
+
+  // `oegw status`, `oegw ctl` (docs/reference/control-protocol.md); false when it cannot be opened.
+  bool open_control() {
+    try {
+      if (cfg->control.enabled) control = std::make_unique<control::GatewayControl>(loop, *gw, *cfg, file, [this] { driver.rearm(); }, up, down);
+    } catch (const control::ControlError& e) {
+      spdlog::error("{}", e.what());
+      return false;
+    }
+    if (!control) return true;
+    control->add_status_field("publishing", [this] { return control::publishing_status(publishing->transports()); });
+    control->add_status_field("record", [this] { return recording.status(); });
+    control->add_command("record_keep", [this](const nlohmann::json&, control::ControlProtocol::Done done) {
+      if (!recording.recording()) throw std::runtime_error(recording.off_reason());
+      recording.keep([done](const std::string& folder, std::size_t segments, const std::string& error) {
+        if (error.empty()) done(nlohmann::json{{"kept", folder}, {"segments", segments}});
+        else done(nlohmann::json{{"kept", nullptr}, {"error", error}});
+      });
+    });
+    return true;
+  }
+
+  void handle_signals() {
+    running.emplace(Running{file, *cfg, gw, down->sink(), *publishing, control.get(), recording, driver, *notify, loop,
+                            exit_status});
+    // SIGUSR1 keeps the recording's window (docs/guides/black-box.md).
+    loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1}, [this](int sig) {
+      if (sig == SIGHUP) return reload(*running, loop.now());
+      if (sig == SIGUSR1) return recording.keep_logged("SIGUSR1");
+      spdlog::info("signal {}: stopping", sig);
+      notify->stopping();
+      loop.stop();
+    });
+  }
+
+  void start() {
+    // A store that cannot be taken (canopen/301/storage.hpp): the device runs on defaults, EMCY
+    // 6000h tells the host.
+    const auto stored = gw->start(loop.now());
+    if (!stored.ok)
+      spdlog::error("upstream store refused: {}; running on defaults, EMCY 6000h sent upstream", stored.error);
+    driver.rearm();
+    spdlog::info("oegw: node {:02X}h on {}, {} sub-devices on {}", cfg->upstream.node_id, cfg->upstream.interface,
+                 cfg->subdevices.size(), cfg->downstream.interface);
+    report();  // both buses open, the device started: READY=1 once it is pre-operational
+    loop.call_every(loop.now() + notify->poll_period(), notify->poll_period(), [this] { report(); });
+  }
+
+  void report() { notify->update(loop.now(), running_state(*gw, *publishing)); }
+
+  const std::string& file;
+  mapping::Config* const cfg;
+  EventLoop& loop;
+  const GatewayBuses& buses;
+  CanTransport* const up;
+  CanTransport* const down;
+  Unhook unhook;
+  record::RecordingService recording;
+  GatewayOptions options;
+  // Replaced at each reload (SIGHUP): everything below reaches it through this pointer.
+  std::unique_ptr<Gateway> gw;
+  ServiceDriver driver;
+  bool switched = false;
+  std::array<Watched, 2> watched{};
+  std::unique_ptr<GatewayPublishing> publishing;
+  std::optional<SystemdNotifier> systemd;
+  std::optional<ServiceNotify> notify;
+  std::unique_ptr<control::GatewayControl> control;
+  int exit_status = 0;
+  std::optional<Running> running;
+};
+
+}  // namespace
+
+int run_check(const std::string& file, bool quiet, bool here) {
+  std::vector<mapping::Diagnostic> refused_here;  // without --here: what run refuses of this machine
+  const auto cfg = load(file, here ? Use::Here : Use::File, &refused_here);
+  if (!cfg) return exit_code::kBadFile;
+  const auto device = eds_device(*cfg);  // the dictionary `oegw run` builds
+  std::printf("%s: valid\n%s", file.c_str(), quiet ? "" : "\n");
+  const bool warned = print_warnings(*cfg, refused_here);
+  if (quiet) {
+    print_section_warnings(*cfg);
+    return exit_code::kOk;
+  }
+  if (warned) std::printf("\n");
+  print_buses(*cfg, *device);
+  print_fes(*cfg, *device);
+  print_publish(cfg->publish);
+  print_control(cfg->control);
+  print_record(cfg->record);
+  print_commands_in(*cfg);
   return 0;
 }
 
@@ -528,146 +767,8 @@ int run_gateway(const std::string& file) {
 }
 
 int serve_gateway(const std::string& file, mapping::Config& config, EventLoop& loop, const GatewayBuses& buses) {
-  mapping::Config* const cfg = &config;
-  CanTransport* const up = &buses.up;
-  CanTransport* const down = &buses.down;
-  // The buses outlive what their callbacks reach (the gateway, its driver): cut them on the way out.
-  struct Unhook {
-    CanTransport* up;
-    CanTransport* down;
-    ~Unhook() {
-      for (CanTransport* t : {up, down}) {
-        t->set_receiver({});
-        t->set_event_handler({});
-      }
-    }
-  } unhook{up, down};
-  // The black box (mapping file `record`): it taps every gateway from its construction on.
-  record::RecordingService recording(loop, *cfg, file);
-  // Replaced at each reload (SIGHUP): everything below reaches it through this pointer.
-  GatewayOptions options;
-  options.tap = recording.tap();
-  auto gw = std::make_unique<Gateway>(*cfg, up->sink(), down->sink(), options);
-  gw->on_log = [](const std::string& line) { spdlog::info("{}", line); };
-  ServiceDriver driver(loop, [&gw] { return gw->next_deadline(); }, [&gw](TimePoint now) { gw->advance(now); });
-  up->set_receiver([&](const CanFrame& f, TimePoint t) {
-    gw->on_upstream_frame(f, t);
-    driver.rearm();
-  });
-  down->set_receiver([&](const CanFrame& f, TimePoint t) {
-    gw->on_downstream_frame(f, t);
-    driver.rearm();
-  });
-  // LSS activate bit timing (CiA 305): the node is silent; at the switch the interface is set to
-  // the new rate (down, bit rate, up). Its socket then reports the interface going down once.
-  bool switched = false;
-  gw->upstream().on_bit_rate_switch([&](std::uint32_t rate) {
-    const std::string& name = cfg->upstream.interface;
-    // Without a bit timing to set (a transport that is not a CAN controller): as a virtual CAN
-    // interface's.
-    const BitRateOutcome r = buses.set_upstream_bit_rate ? buses.set_upstream_bit_rate(rate)
-                                                         : BitRateOutcome{.action = BitRateAction::NoBitTiming};
-    if (!r.ok()) {
-      spdlog::error("LSS activate bit timing: {}; {} stays at {} bit/s", r.message, name, r.before);
-      return;
-    }
-    switch (r.action) {
-      case BitRateAction::Set:
-        switched = true;
-        spdlog::info("LSS activate bit timing: {} switched from {} to {} bit/s", name, r.before, rate);
-        break;
-      case BitRateAction::Keep: spdlog::info("LSS activate bit timing: {} is at {} bit/s already", name, rate); break;
-      case BitRateAction::NoBitTiming:
-        spdlog::info("LSS activate bit timing: {} has no bit timing (virtual CAN): {} bit/s not applicable; the node "
-                     "stays on the bus",
-                     name, rate);
-        break;
-      case BitRateAction::Missing: spdlog::error("LSS activate bit timing: {} is gone", name); break;
-    }
-  });
-  up->set_event_handler([&](BusEvent e) {
-    if (e == BusEvent::InterfaceDown && switched) {
-      switched = false;  // the restart of the bit-rate switch
-      return;
-    }
-    spdlog::warn("upstream {}: {}", cfg->upstream.interface, to_string(e));
-    gw->on_upstream_bus_event(e, loop.now());
-    driver.rearm();
-  });
-  down->set_event_handler([&](BusEvent e) {
-    spdlog::warn("downstream {}: {}", cfg->downstream.interface, to_string(e));
-    gw->on_downstream_bus_event(e, loop.now());
-    driver.rearm();
-  });
-  watch_transport(loop, *up);
-  watch_transport(loop, *down);
-  if (buses.watching) buses.watching();
-  // Once a second the frames the kernel dropped because the gateway read them too late: each a
-  // reason a heartbeat or PDO may seem lost (the fault policy then acts on it; this says why).
-  struct Watched {
-    const CanTransport* bus;
-    const char* side;
-    std::string interface;
-    std::uint64_t dropped = 0;
-  };
-  std::array<Watched, 2> watched{Watched{up, "upstream", cfg->upstream.interface},
-                                 Watched{down, "downstream", cfg->downstream.interface}};
-  loop.call_every(loop.now(), std::chrono::seconds(1), [&watched] {
-    for (Watched& w : watched) {
-      const std::uint64_t now_dropped = w.bus->counters().rx_dropped;
-      if (now_dropped > w.dropped)
-        spdlog::warn("{} {}: the kernel dropped {} received frames in the last second (the gateway read them too "
-                     "late; {} since the start)",
-                     w.side, w.interface, now_dropped - w.dropped, now_dropped);
-      w.dropped = now_dropped;
-    }
-  });
-  std::unique_ptr<GatewayPublishing> publishing;
-  if (!start_publishing(*gw, *cfg, file, loop, driver, publishing)) return exit_code::kCannotStart;
-  // systemd (gateway/service_notify.hpp): READY=1, STATUS=, WATCHDOG=1 from this loop, STOPPING=1.
-  SystemdNotifier systemd;
-  ServiceNotify notify(systemd, systemd_watchdog_timeout());
-  std::unique_ptr<control::GatewayControl> control;  // `oegw status`, `oegw ctl` (docs/reference/control-protocol.md)
-  try {
-    if (cfg->control.enabled) control = std::make_unique<control::GatewayControl>(loop, *gw, *cfg, file, [&driver] { driver.rearm(); }, up, down);
-  } catch (const control::ControlError& e) {
-    spdlog::error("{}", e.what());
-    return exit_code::kCannotStart;
-  }
-  if (control) {
-    control->add_status_field("publishing", [&publishing] { return control::publishing_status(publishing->transports()); });
-    control->add_status_field("record", [&recording] { return recording.status(); });
-    control->add_command("record_keep", [&recording](const nlohmann::json&, control::ControlProtocol::Done done) {
-      if (!recording.recording()) throw std::runtime_error(recording.off_reason());
-      recording.keep([done](const std::string& folder, std::size_t segments, const std::string& error) {
-        if (error.empty()) done(nlohmann::json{{"kept", folder}, {"segments", segments}});
-        else done(nlohmann::json{{"kept", nullptr}, {"error", error}});
-      });
-    });
-  }
-  int exit_status = 0;
-  Running running{file, *cfg, gw, down->sink(), *publishing, control.get(), recording, driver, notify, loop, exit_status};
-  // SIGUSR1 keeps the recording's window (docs/guides/black-box.md).
-  loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1}, [&](int sig) {
-    if (sig == SIGHUP) return reload(running, loop.now());
-    if (sig == SIGUSR1) return recording.keep_logged("SIGUSR1");
-    spdlog::info("signal {}: stopping", sig);
-    notify.stopping();
-    loop.stop();
-  });
-  // A store that cannot be taken (canopen/301/storage.hpp): the device runs on defaults, EMCY
-  // 6000h tells the host.
-  const auto stored = gw->start(loop.now());
-  if (!stored.ok)
-    spdlog::error("upstream store refused: {}; running on defaults, EMCY 6000h sent upstream", stored.error);
-  driver.rearm();
-  spdlog::info("oegw: node {:02X}h on {}, {} sub-devices on {}", cfg->upstream.node_id, cfg->upstream.interface,
-               cfg->subdevices.size(), cfg->downstream.interface);
-  const auto report = [&] { notify.update(loop.now(), running_state(*gw, *publishing)); };
-  report();  // both buses open, the device started: READY=1 once it is pre-operational
-  loop.call_every(loop.now() + notify.poll_period(), notify.poll_period(), report);
-  loop.run();
-  return exit_status;
+  Daemon daemon(file, config, loop, buses);
+  return daemon.run();
 }
 
 }  // namespace oegw::gateway

@@ -207,166 +207,172 @@ struct VcanBridge {
   EventLoop::WatchId watch = 0;
 };
 
-}  // namespace
+// "6200h:01: abort 06020000h (...)": an SDO the host's write or read got refused.
+std::string sdo_text(std::uint16_t index, std::uint8_t sub, SdoAbortCode c) {
+  return fmt::format("{:04X}h:{:02X}: abort {:08X}h ({})", index, sub, static_cast<std::uint32_t>(c), to_string(c));
+}
 
-int run_gateway_sim(const GatewaySimOptions& options) {
-  auto loaded = mapping::load_config(options.file, driver_catalogue());
-  if (!loaded.ok()) {
-    std::fprintf(stderr, "%s", loaded.error_text().c_str());
-    return exit_code::kBadFile;
-  }
-  mapping::Config cfg = *loaded.config;
+// One SDO write of the host's configuration (SimSession::configure).
+struct HostWrite {
+  std::uint16_t index;
+  std::uint8_t sub;
+  std::vector<std::uint8_t> data;
+  bool optional;  // an object the gateway may not have
+};
 
-  // The sim's own files (the 1010h store, the control socket) go into a private folder: the
-  // file's upstream.store and control.socket are the cab controller's, never touched here.
-  char tmpl[] = "/tmp/oegw-sim-XXXXXX";
-  const char* dir_c = ::mkdtemp(tmpl);
-  if (dir_c == nullptr) {
-    std::perror("oegw sim: mkdtemp");
-    return exit_code::kCannotStart;
-  }
-  const std::filesystem::path dir = dir_c;
-  struct RemoveDir {
-    std::filesystem::path p;
-    ~RemoveDir() {
-      std::error_code ec;
-      std::filesystem::remove_all(p, ec);
-    }
-  } remove_dir{dir};
-
-  SimulatedClock sim_clock;
-  auto loop_ptr = options.fast ? std::make_unique<EventLoop>(sim_clock) : std::make_unique<EventLoop>();
-  EventLoop& loop = *loop_ptr;
-  rig::CabRigOptions rig_options{.store = dir / "upstream.store"};
-  rig_options.simulator_options = rig::simulators_as_wired(cfg);
-  rig::CabRig rig(cfg, loop, rig_options);
-  try {
-    rig.build_devices();
-  } catch (const std::runtime_error& e) {
-    std::fprintf(stderr, "oegw sim: %s\n", e.what());
-    return exit_code::kBadFile;
-  }
-
-  // The script, every line checked before anything starts: our own words here, the simulators'
-  // on a bench of their own (SimBench::command on simulators nobody listens to).
+// What the file and the script give the run, all checked before anything starts.
+struct SimPlan {
   std::vector<std::string> fe_names;
+  std::map<std::pair<bool, std::uint16_t>, std::uint32_t> cob_ids;  // assign_pdo_cob_ids
+  std::map<std::uint16_t, std::uint32_t> rpdos;                     // RPDO number: COB-ID
+  std::vector<SimStep> steps;
+};
+
+// The private folder of the sim's own files (the 1010h store, the control socket), removed at
+// the end: the file's upstream.store and control.socket are the cab controller's, never touched here.
+struct RemoveDir {
+  std::filesystem::path p;
+  ~RemoveDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(p, ec);
+  }
+};
+
+// The script, every line checked before anything starts: our own words here, the simulators'
+// on a bench of their own (SimBench::command on simulators nobody listens to). An exit code when
+// the script has errors (each printed).
+std::optional<int> plan_script(const GatewaySimOptions& options, const mapping::Config& cfg,
+                               const rig::CabRigOptions& rig_options, SimPlan& plan) {
   std::vector<mapping::FeId> fe_ids;
   for (const auto& fe : cfg.functional_elements) {
     fe_ids.push_back(fe.id);
-    fe_names.push_back(mapping::fe_name(fe.id));
+    plan.fe_names.push_back(mapping::fe_name(fe.id));
   }
-  const auto cob_ids = assign_pdo_cob_ids(cfg, fe_ids);
-  std::map<std::uint16_t, std::uint32_t> rpdos;
-  for (const auto& [key, cob] : cob_ids)
-    if (!key.first) rpdos[key.second] = cob;
-  std::vector<SimStep> steps;
-  if (!options.script.empty()) {
-    std::vector<std::pair<std::size_t, std::string>> errors;  // by line
-    steps = read_script(options.script, errors);
-    sd::sim::SimBench dry([](const CanFrame&) {});
-    rig::add_cab_simulators(dry, cfg, rig_options.simulator_options);
-    for (const auto& s : steps) {
-      const auto w = words_of(s.command);
-      const std::string own = check_own_command(w, fe_names, rpdos);
-      if (own.empty()) continue;
-      if (own != "?") {
-        errors.emplace_back(s.line, fmt::format("{}:{}:{}: found '{}'; expected {}", options.script, s.line, s.column, s.command, own));
-        continue;
-      }
-      const std::string answer = dry.command(s.command, TimePoint{});
-      if (answer.rfind("error: ", 0) == 0)
-        errors.emplace_back(s.line, fmt::format("{}:{}:{}: found '{}'; {}", options.script, s.line, s.column, s.command,
-                                                answer.substr(7)));
+  plan.cob_ids = assign_pdo_cob_ids(cfg, fe_ids);
+  for (const auto& [key, cob] : plan.cob_ids)
+    if (!key.first) plan.rpdos[key.second] = cob;
+  if (options.script.empty()) return std::nullopt;
+  std::vector<std::pair<std::size_t, std::string>> errors;  // by line
+  plan.steps = read_script(options.script, errors);
+  sd::sim::SimBench dry([](const CanFrame&) {});
+  rig::add_cab_simulators(dry, cfg, rig_options.simulator_options);
+  for (const auto& s : plan.steps) {
+    const auto w = words_of(s.command);
+    const std::string own = check_own_command(w, plan.fe_names, plan.rpdos);
+    if (own.empty()) continue;
+    if (own != "?") {
+      errors.emplace_back(s.line, fmt::format("{}:{}:{}: found '{}'; expected {}", options.script, s.line, s.column, s.command, own));
+      continue;
     }
-    if (!errors.empty()) {
-      std::stable_sort(errors.begin(), errors.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-      for (const auto& [line, e] : errors) std::fprintf(stderr, "%s\n", e.c_str());
-      std::fprintf(stderr, "oegw sim: %zu error(s) in %s; nothing started\n", errors.size(), options.script.c_str());
-      return exit_code::kBadFile;
+    const std::string answer = dry.command(s.command, TimePoint{});
+    if (answer.rfind("error: ", 0) == 0)
+      errors.emplace_back(s.line, fmt::format("{}:{}:{}: found '{}'; {}", options.script, s.line, s.column, s.command,
+                                              answer.substr(7)));
+  }
+  if (errors.empty()) return std::nullopt;
+  std::stable_sort(errors.begin(), errors.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (const auto& [line, e] : errors) std::fprintf(stderr, "%s\n", e.c_str());
+  std::fprintf(stderr, "oegw sim: %zu error(s) in %s; nothing started\n", errors.size(), options.script.c_str());
+  return exit_code::kBadFile;
+}
+
+// --vcan: both buses on SocketCAN as well. An exit code when it cannot be.
+std::optional<int> open_vcan(const std::string& vcan, rig::CabRig& rig, std::vector<VcanBridge>& bridges) {
+  if (vcan.empty()) return std::nullopt;
+  const auto comma = vcan.find(',');
+  const std::string names[2] = {vcan.substr(0, comma), comma == std::string::npos ? std::string() : vcan.substr(comma + 1)};
+  if (names[0].empty() || names[1].empty() || names[0] == names[1]) {
+    std::fprintf(stderr, "oegw sim: --vcan %s: expected two interfaces UP,DOWN (e.g. vcan0,vcan1)\n", vcan.c_str());
+    return exit_code::kUsage;
+  }
+  VirtualBus* buses[2] = {&rig.up(), &rig.down()};
+  for (int i = 0; i < 2; ++i) {
+    VcanBridge b;
+    try {
+      b.can = SocketCanTransport::open(names[i]);
+    } catch (const CanOpenError& e) {
+      std::fprintf(stderr, "oegw sim: --vcan %s: %s\n", i == 0 ? "UP" : "DOWN", e.what());
+      return exit_code::kCannotStart;
     }
+    b.port = buses[i]->attach(names[i]);
+    bridges.push_back(std::move(b));
+  }
+  for (auto& b : bridges) {
+    b.port->set_receiver([can = b.can.get()](const CanFrame& f, TimePoint) { (void)can->send(f); });
+    b.can->set_receiver([port = b.port.get(), &rig](const CanFrame& f, TimePoint) {
+      (void)port->send(f);
+      rig.rearm();
+    });
+  }
+  return std::nullopt;
+}
+
+// The sim from the gateway's connection on: the state its steps share, one method per step in
+// the order run() takes them. Members in the order they are made, so they go in reverse.
+class SimSession {
+ public:
+  SimSession(const GatewaySimOptions& o, const mapping::Config& c, const std::filesystem::path& d, EventLoop& l,
+             rig::CabRig& r, const SimPlan& p, std::vector<VcanBridge>& b)
+      : options(o), cfg(c), dir(d), loop(l), rig(r), plan(p), bridges(b), gw(r.gw()), host(r.host()),
+        bench(r.devices()), gateway_node(c.upstream.node_id), t0(l.now()) {
+    if (options.frames) print_frames_of(rig, t0);
+    tty = ::isatty(STDOUT_FILENO) != 0 && !options.frames && !options.fast;
+    screen = LiveScreen(tty);
+    gw.on_log = [this](const std::string& line) { say("gateway: " + line); };
   }
 
-  // --vcan: both buses on SocketCAN as well.
-  std::vector<VcanBridge> bridges;
-  if (!options.vcan.empty()) {
-    const auto comma = options.vcan.find(',');
-    const std::string names[2] = {options.vcan.substr(0, comma),
-                                  comma == std::string::npos ? std::string() : options.vcan.substr(comma + 1)};
-    if (names[0].empty() || names[1].empty() || names[0] == names[1]) {
-      std::fprintf(stderr, "oegw sim: --vcan %s: expected two interfaces UP,DOWN (e.g. vcan0,vcan1)\n", options.vcan.c_str());
-      return exit_code::kUsage;
-    }
-    VirtualBus* buses[2] = {&rig.up(), &rig.down()};
-    for (int i = 0; i < 2; ++i) {
-      VcanBridge b;
-      try {
-        b.can = SocketCanTransport::open(names[i]);
-      } catch (const CanOpenError& e) {
-        std::fprintf(stderr, "oegw sim: --vcan %s: %s\n", i == 0 ? "UP" : "DOWN", e.what());
-        return exit_code::kCannotStart;
-      }
-      b.port = buses[i]->attach(names[i]);
-      bridges.push_back(std::move(b));
-    }
-    for (auto& b : bridges) {
-      b.port->set_receiver([can = b.can.get()](const CanFrame& f, TimePoint) { (void)can->send(f); });
-      b.can->set_receiver([port = b.port.get(), &rig](const CanFrame& f, TimePoint) {
-        (void)port->send(f);
-        rig.rearm();
-      });
-    }
+  int run() {
+    watch_host();
+    start_publishing();
+    open_control();
+    for (auto& b : bridges) b.watch = watch_transport(loop, *b.can);
+    print_banner();
+    let_the_operator_move();
+    plan_host_writes();
+    schedule();
+    take_typed_commands();
+    return run_loop_and_report();
   }
 
-  rig.connect_gateway();
-  Gateway& gw = rig.gw();
-  Master& host = rig.host();
-  sd::sim::SimBench& bench = rig.devices();
-  const NodeId gateway_node{cfg.upstream.node_id};
-  const TimePoint t0 = loop.now();
-  if (options.frames) print_frames_of(rig, t0);
-  const bool tty = ::isatty(STDOUT_FILENO) != 0 && !options.frames && !options.fast;
-  LiveScreen screen(tty);
-  auto say = [&](const std::string& s) { screen.log(stamped(loop.now() - t0, s)); };
-  int failures = 0;
-  gw.on_log = [&](const std::string& line) { say("gateway: " + line); };
+ private:
+  void say(const std::string& s) { screen.log(stamped(loop.now() - t0, s)); }
 
-  // The host's view: TPDOs per COB-ID, EMCYs, the gateway's heartbeat.
-  std::map<std::uint32_t, std::uint64_t> tpdos;
-  std::uint64_t emcys = 0;
-  std::uint16_t last_emcy = 0;
-  auto tpdo_count = [&tpdos] {
+  std::uint64_t tpdo_count() const {
     std::uint64_t n = 0;
     for (const auto& [cob, count] : tpdos) n += count;
     return n;
-  };
-  std::map<std::uint32_t, std::uint16_t> tpdo_number;
-  for (const auto& [key, cob] : cob_ids)
-    if (key.first) tpdo_number[cob] = key.second;
-  host.on_other_frame = [&](const CanFrame& f, TimePoint) {
-    if (tpdo_number.contains(f.id)) ++tpdos[f.id];
-  };
-  host.on_emcy = [&](const EmcyMessage& m, TimePoint) {
-    ++emcys;
-    last_emcy = m.code;
-    say(fmt::format("host: EMCY {:04X}h from the gateway{}", m.code,
-                    m.code == 0x7000 ? fmt::format(" (sub-device {:02X}h failed)", m.msef[0])
-                    : m.code == 0    ? " (error reset)"
-                                     : ""));
-  };
-  host.on_heartbeat_timeout = [&](NodeId) { say("host: the gateway's heartbeat timed out"); };
+  }
+
+  // The host's view: TPDOs per COB-ID, EMCYs, the gateway's heartbeat.
+  void watch_host() {
+    for (const auto& [key, cob] : plan.cob_ids)
+      if (key.first) tpdo_number[cob] = key.second;
+    host.on_other_frame = [this](const CanFrame& f, TimePoint) {
+      if (tpdo_number.contains(f.id)) ++tpdos[f.id];
+    };
+    host.on_emcy = [this](const EmcyMessage& m, TimePoint) {
+      ++emcys;
+      last_emcy = m.code;
+      say(fmt::format("host: EMCY {:04X}h from the gateway{}", m.code,
+                      m.code == 0x7000 ? fmt::format(" (sub-device {:02X}h failed)", m.msef[0])
+                      : m.code == 0    ? " (error reset)"
+                                       : ""));
+    };
+    host.on_heartbeat_timeout = [this](NodeId) { say("host: the gateway's heartbeat timed out"); };
+  }
 
   // Publishing as the file says (--no-publish: none); a setting that cannot work leaves the
   // sim without it (oegw run refuses to start instead).
-  std::unique_ptr<GatewayPublishing> publishing;
-  if (options.publish && (cfg.publish.dds.enabled || cfg.publish.lcm.enabled)) {
+  void start_publishing() {
+    if (!options.publish || !(cfg.publish.dds.enabled || cfg.publish.lcm.enabled)) return;
     try {
-      publishing = std::make_unique<GatewayPublishing>(gw, cfg.publish, [&loop] { return loop.now(); });
+      publishing = std::make_unique<GatewayPublishing>(gw, cfg.publish, [this] { return loop.now(); });
       say(fmt::format("publishing: DDS {} (domain {}, partition {}), LCM {} (channels {}*)",
                       cfg.publish.dds.enabled ? "on" : "off", cfg.publish.dds.domain, cfg.publish.dds.partition,
                       cfg.publish.lcm.enabled ? "on" : "off", cfg.publish.lcm.channel_prefix));
       for (const auto& t : publishing->transports())
         if (!t.up) say(t.name + " not publishing yet: " + t.reason + "; opened again until it works");
-      publishing->run_on(loop, [&rig] { rig.rearm(); });
+      publishing->run_on(loop, [this] { rig.rearm(); });
     } catch (const publish::PublishConfigError& e) {
       say(std::string("not publishing: ") + e.what());
       publishing.reset();
@@ -374,99 +380,92 @@ int run_gateway_sim(const GatewaySimOptions& options) {
   }
 
   // The control socket on a private path (oegw status, oegw ctl), in real time only.
-  std::unique_ptr<control::GatewayControl> control;
-  mapping::Config control_cfg = cfg;
-  if (!options.fast) {
+  void open_control() {
+    control_cfg = cfg;
+    if (options.fast) return;
     control_cfg.control.enabled = true;
     control_cfg.control.socket = (dir / "control.sock").string();
     control_cfg.control.group.clear();
     try {
-      control = std::make_unique<control::GatewayControl>(loop, gw, control_cfg, options.file, [&rig] { rig.rearm(); });
+      control = std::make_unique<control::GatewayControl>(loop, gw, control_cfg, options.file, [this] { rig.rearm(); });
     } catch (const std::exception& e) {
       say(std::string("no control socket: ") + e.what());
     }
   }
-  for (auto& b : bridges) b.watch = watch_transport(loop, *b.can);
 
-  std::printf("oegw sim: %s on a simulated cab, gateway node %02Xh\n", options.file.c_str(), cfg.upstream.node_id);
-  std::string devices;
-  for (const auto& s : cfg.subdevices) devices += fmt::format(" {} ({} {:02X}h)", s.name, s.driver, s.node().value());
-  std::printf("  downstream:%s\n", devices.empty() ? " no sub-devices" : devices.c_str());
-  std::printf("  upstream:   the built-in host enables the gateway's PDOs (TPDO 1 on %03Xh) and starts it\n",
-              0x180 + cfg.upstream.node_id);
-  if (!bridges.empty())
-    std::printf("  on SocketCAN too: upstream %s, downstream %s (candump -L %s,%s ...)\n", bridges[0].can->interface().c_str(),
-                bridges[1].can->interface().c_str(), bridges[0].can->interface().c_str(), bridges[1].can->interface().c_str());
-  if (control) std::printf("  control:    oegw status --socket %s (oegw ctl alike)\n", control_cfg.control.socket.c_str());
-  std::printf("\n");
-  std::fflush(stdout);
+  void print_banner() const {
+    std::printf("oegw sim: %s on a simulated cab, gateway node %02Xh\n", options.file.c_str(), cfg.upstream.node_id);
+    std::string devices;
+    for (const auto& s : cfg.subdevices) devices += fmt::format(" {} ({} {:02X}h)", s.name, s.driver, s.node().value());
+    std::printf("  downstream:%s\n", devices.empty() ? " no sub-devices" : devices.c_str());
+    std::printf("  upstream:   the built-in host enables the gateway's PDOs (TPDO 1 on %03Xh) and starts it\n",
+                0x180 + cfg.upstream.node_id);
+    if (!bridges.empty())
+      std::printf("  on SocketCAN too: upstream %s, downstream %s (candump -L %s,%s ...)\n", bridges[0].can->interface().c_str(),
+                  bridges[1].can->interface().c_str(), bridges[0].can->interface().c_str(), bridges[1].can->interface().c_str());
+    if (control) std::printf("  control:    oegw status --socket %s (oegw ctl alike)\n", control_cfg.control.socket.c_str());
+    std::printf("\n");
+    std::fflush(stdout);
+  }
 
-  auto view = [&](bool keep) {
+  void view(bool keep) {
     auto rows = gateway_rows(gw, screen.size().first - 1);
     rows.push_back(fmt::format("  host: {} TPDOs on {} COB-IDs, {} EMCYs{}", tpdo_count(), tpdos.size(), emcys,
                                emcys ? fmt::format(" (last {:04X}h)", last_emcy) : std::string()));
     screen.draw(std::move(rows), keep);
-  };
+  }
 
   // The operator's hands rest until every sub-device is operational (at most 3 s): a gateway
   // holds an axis at neutral until it has seen it there (the zero-position rule), so a cab
   // that boots with its sticks deflected shows `held`, which is right but not the first thing to see.
-  bool moving = false;
-  EventLoop::TimerId hands_timer = 0;
-  if (options.motion)
-    hands_timer = loop.call_every(t0 + 10ms, 10ms, [&] {
-      bool all = true;
-      for (const auto& n : gw.downstream().names()) all = all && gw.downstream().state(n) == sd::NodeState::Operational;
-      if (!all && loop.now() - t0 < 3s) return;
-      loop.cancel(hands_timer);
-      moving = true;
-      say("the operator moves every input");
+  void let_the_operator_move() {
+    if (options.motion)
+      hands_timer = loop.call_every(t0 + 10ms, 10ms, [this] {
+        bool all = true;
+        for (const auto& n : gw.downstream().names()) all = all && gw.downstream().state(n) == sd::NodeState::Operational;
+        if (!all && loop.now() - t0 < 3s) return;
+        loop.cancel(hands_timer);
+        moving = true;
+        say("the operator moves every input");
+      });
+    loop.call_every(loop.now(), 20ms, [this] {
+      if (!moving) return;
+      bench.move(loop.now());
+      rig.rearm();
     });
-  loop.call_every(loop.now(), 20ms, [&] {
-    if (!moving) return;
-    bench.move(loop.now());
-    rig.rearm();
-  });
+  }
 
   // The host: the PDOs' COB-IDs (CiA 852 §12.1), 6423h TRUE where the gateway has analogue
   // inputs (CiA 401: else they raise no event), then NMT start. Each write after the last's answer.
-  const auto sdo_text = [](std::uint16_t index, std::uint8_t sub, SdoAbortCode c) {
-    return fmt::format("{:04X}h:{:02X}: abort {:08X}h ({})", index, sub, static_cast<std::uint32_t>(c), to_string(c));
-  };
-  struct Write {
-    std::uint16_t index;
-    std::uint8_t sub;
-    std::vector<std::uint8_t> data;
-    bool optional;  // an object the gateway may not have
-  };
-  auto writes = std::make_shared<std::vector<Write>>();
-  for (const auto& [key, cob] : cob_ids)
-    writes->push_back({static_cast<std::uint16_t>((key.first ? 0x1800 : 0x1400) + key.second - 1), 1,
-                       encode<std::uint32_t>(cob), false});
-  writes->push_back({0x6423, 0, {1}, true});
-  auto configure = std::make_shared<std::function<void(std::size_t)>>();
-  *configure = [&, writes, configure](std::size_t i) {
-    if (i == writes->size()) {
+  void plan_host_writes() {
+    for (const auto& [key, cob] : plan.cob_ids)
+      writes.push_back({static_cast<std::uint16_t>((key.first ? 0x1800 : 0x1400) + key.second - 1), 1,
+                        encode<std::uint32_t>(cob), false});
+    writes.push_back({0x6423, 0, {1}, true});
+  }
+
+  void configure(std::size_t i) {
+    if (i == writes.size()) {
       host.nmt().start(gateway_node);
-      say(fmt::format("host: {} PDOs enabled, NMT start to node {:02X}h", cob_ids.size(), cfg.upstream.node_id));
+      say(fmt::format("host: {} PDOs enabled, NMT start to node {:02X}h", plan.cob_ids.size(), cfg.upstream.node_id));
       rig.rearm();
       return;
     }
-    const Write& w = (*writes)[i];
-    host.sdo(gateway_node).download(w.index, w.sub, w.data, [&, i, configure, writes](SdoAbortCode c, std::vector<std::uint8_t>) {
-      const Write& done = (*writes)[i];
+    const HostWrite& w = writes[i];
+    host.sdo(gateway_node).download(w.index, w.sub, w.data, [this, i](SdoAbortCode c, std::vector<std::uint8_t>) {
+      const HostWrite& done = writes[i];
       if (c != SdoAbortCode::None && !(done.optional && c == SdoAbortCode::ObjectDoesNotExist))
         say("host: SDO write " + sdo_text(done.index, done.sub, c));
-      (*configure)(i + 1);
+      configure(i + 1);
     });
     rig.rearm();
-  };
+  }
 
   // What a command does, from the script or typed on standard input; false when it failed.
-  auto run_command = [&](const std::string& command) -> bool {
+  bool run_command(const std::string& command) {
     const auto w = words_of(command);
     if (w.empty()) return true;
-    const std::string own = check_own_command(w, fe_names, rpdos);
+    const std::string own = check_own_command(w, plan.fe_names, plan.rpdos);
     if (own != "?" && !own.empty()) {
       say("error: '" + command + "': expected " + own);
       return false;
@@ -486,81 +485,92 @@ int run_gateway_sim(const GatewaySimOptions& options) {
     } else if (w[0] == "stop") {
       loop.stop();
     } else if (w[0] == "expect") {
-      const auto fe = std::find_if(gw.fes().begin(), gw.fes().end(), [&](const auto& id) { return mapping::fe_name(id) == w[1]; });
-      if (fe == gw.fes().end()) {
-        say("FAILED: expect " + w[1] + ": the gateway has no such FE");
-        return false;
-      }
-      const auto fields = gw.fields(*fe);
-      const FeStatus status = gw.status(*fe);
-      const bool held = status == FeStatus::Valid &&
-                        std::any_of(fields.begin(), fields.end(), [](const auto& f) { return f.interlocked; });
-      std::string is = held ? "held" : "";
-      if (is.empty())
-        for (const auto& [name, s] : kStatusWords)
-          if (s == status) is = name;
-      const bool ok = is == w[2] || (w[2] == "valid" && is == "held");
-      say(ok ? fmt::format("ok: {} {}", w[1], is) : fmt::format("FAILED: expected {} {}, it is {}", w[1], w[2], is));
-      return ok;
+      return expect(w);
     } else if (w[0] == "host") {
-      if (w[1] == "nmt") {
-        const NmtCommand cs = w[2] == "start" ? NmtCommand::Start
-                              : w[2] == "stop" ? NmtCommand::Stop
-                              : w[2] == "preop" ? NmtCommand::EnterPreOperational
-                              : w[2] == "reset" ? NmtCommand::ResetNode
-                                                : NmtCommand::ResetCommunication;
-        host.nmt().send(cs, gateway_node);
-        say("host: NMT " + w[2] + " to the gateway");
-      } else if (w[1] == "read" || w[1] == "write") {
-        const auto [index, sub] = *parse_object(w[2]);
-        auto done = [&, index, sub, what = w[1]](SdoAbortCode c, std::vector<std::uint8_t> data) {
-          if (c != SdoAbortCode::None) return say("host: SDO " + what + " " + sdo_text(index, sub, c));
-          std::string hex;
-          for (auto b : data) hex += fmt::format(" {:02X}", b);
-          say(fmt::format("host: SDO {} {:04X}h:{:02X}: ok{}", what, index, sub, hex));
-        };
-        if (w[1] == "read") host.sdo(gateway_node).upload(index, sub, done);
-        else host.sdo(gateway_node).download(index, sub, *parse_bytes(w, 3), done);
-      } else {
-        const auto bytes = *parse_bytes(w, 3);
-        CanFrame f(rpdos.at(static_cast<std::uint16_t>(std::stoul(w[2]))), bytes);
-        (void)rig.host_port().send(f);
-        say("host: RPDO " + w[2] + " " + f.to_string());
-      }
-      rig.rearm();
+      host_command(w);
     }
     return true;
-  };
+  }
 
-  TimePoint end_at = TimePoint::max();
-  const auto last_step = steps.empty() ? Duration{0} : steps.back().at;
-  if (options.seconds > 0) end_at = t0 + std::chrono::duration_cast<Duration>(std::chrono::duration<double>(options.seconds));
-  else if (options.fast) end_at = t0 + last_step + (steps.empty() ? Duration{10s} : Duration{1s});
+  // `expect FE STATUS`: whether the gateway shows the FE so.
+  bool expect(const std::vector<std::string>& w) {
+    const auto fe = std::find_if(gw.fes().begin(), gw.fes().end(), [&](const auto& id) { return mapping::fe_name(id) == w[1]; });
+    if (fe == gw.fes().end()) {
+      say("FAILED: expect " + w[1] + ": the gateway has no such FE");
+      return false;
+    }
+    const auto fields = gw.fields(*fe);
+    const FeStatus status = gw.status(*fe);
+    const bool held = status == FeStatus::Valid &&
+                      std::any_of(fields.begin(), fields.end(), [](const auto& f) { return f.interlocked; });
+    std::string is = held ? "held" : "";
+    if (is.empty())
+      for (const auto& [name, s] : kStatusWords)
+        if (s == status) is = name;
+    const bool ok = is == w[2] || (w[2] == "valid" && is == "held");
+    say(ok ? fmt::format("ok: {} {}", w[1], is) : fmt::format("FAILED: expected {} {}, it is {}", w[1], w[2], is));
+    return ok;
+  }
 
-  loop.call_at(t0, [&] {
-    rig.power_on();
-    if (cfg.upstream.heartbeat_ms > 0)
-      (void)host.monitor_heartbeat(gateway_node, static_cast<std::uint16_t>(std::min(3 * cfg.upstream.heartbeat_ms, 65535)));
-    (*configure)(0);
-  });
-  for (const auto& s : steps)
-    loop.call_at(t0 + s.at, [&, s] {
-      if (!run_command(s.command)) ++failures;
+  // `host nmt|read|write|rpdo ...`: the built-in host does it.
+  void host_command(const std::vector<std::string>& w) {
+    if (w[1] == "nmt") {
+      const NmtCommand cs = w[2] == "start" ? NmtCommand::Start
+                            : w[2] == "stop" ? NmtCommand::Stop
+                            : w[2] == "preop" ? NmtCommand::EnterPreOperational
+                            : w[2] == "reset" ? NmtCommand::ResetNode
+                                              : NmtCommand::ResetCommunication;
+      host.nmt().send(cs, gateway_node);
+      say("host: NMT " + w[2] + " to the gateway");
+    } else if (w[1] == "read" || w[1] == "write") {
+      const auto [index, sub] = *parse_object(w[2]);
+      auto done = [this, index, sub, what = w[1]](SdoAbortCode c, std::vector<std::uint8_t> data) {
+        if (c != SdoAbortCode::None) return say("host: SDO " + what + " " + sdo_text(index, sub, c));
+        std::string hex;
+        for (auto b : data) hex += fmt::format(" {:02X}", b);
+        say(fmt::format("host: SDO {} {:04X}h:{:02X}: ok{}", what, index, sub, hex));
+      };
+      if (w[1] == "read") host.sdo(gateway_node).upload(index, sub, done);
+      else host.sdo(gateway_node).download(index, sub, *parse_bytes(w, 3), done);
+    } else {
+      const auto bytes = *parse_bytes(w, 3);
+      CanFrame f(plan.rpdos.at(static_cast<std::uint16_t>(std::stoul(w[2]))), bytes);
+      (void)rig.host_port().send(f);
+      say("host: RPDO " + w[2] + " " + f.to_string());
+    }
+    rig.rearm();
+  }
+
+  // Power on, the script's steps, the table, the end.
+  void schedule() {
+    const auto& steps = plan.steps;
+    const auto last_step = steps.empty() ? Duration{0} : steps.back().at;
+    if (options.seconds > 0) end_at = t0 + std::chrono::duration_cast<Duration>(std::chrono::duration<double>(options.seconds));
+    else if (options.fast) end_at = t0 + last_step + (steps.empty() ? Duration{10s} : Duration{1s});
+
+    loop.call_at(t0, [this] {
+      rig.power_on();
+      if (cfg.upstream.heartbeat_ms > 0)
+        (void)host.monitor_heartbeat(gateway_node, static_cast<std::uint16_t>(std::min(3 * cfg.upstream.heartbeat_ms, 65535)));
+      configure(0);
     });
-  EventLoop::TimerId view_timer = 0;
-  if (!options.fast) view_timer = loop.call_every(t0 + 1s, tty ? 100ms : 1s, [&] { view(false); });
-  if (end_at != TimePoint::max()) loop.call_at(end_at, [&] { loop.stop(); });
+    for (const auto& s : steps)
+      loop.call_at(t0 + s.at, [this, s] {
+        if (!run_command(s.command)) ++failures;
+      });
+    if (!options.fast) view_timer = loop.call_every(t0 + 1s, tty ? 100ms : 1s, [this] { view(false); });
+    if (end_at != TimePoint::max()) loop.call_at(end_at, [this] { loop.stop(); });
+  }
 
   // Commands typed on standard input (real time): one a line, as the script's without the time.
-  std::string typed;
-  EventLoop::WatchId stdin_watch = 0;
-  struct stat in_stat {};
-  // epoll takes a terminal, a pipe or a socket; a regular file or /dev/null it refuses (EPERM):
-  // nothing is typed there.
-  const bool typed_input = ::isatty(STDIN_FILENO) != 0 || (::fstat(STDIN_FILENO, &in_stat) == 0 &&
-                                                             (S_ISFIFO(in_stat.st_mode) || S_ISSOCK(in_stat.st_mode)));
-  if (!options.fast && typed_input) {
-    stdin_watch = loop.watch(STDIN_FILENO, EPOLLIN, [&](std::uint32_t) {
+  void take_typed_commands() {
+    struct stat in_stat {};
+    // epoll takes a terminal, a pipe or a socket; a regular file or /dev/null it refuses (EPERM):
+    // nothing is typed there.
+    const bool typed_input = ::isatty(STDIN_FILENO) != 0 || (::fstat(STDIN_FILENO, &in_stat) == 0 &&
+                                                               (S_ISFIFO(in_stat.st_mode) || S_ISSOCK(in_stat.st_mode)));
+    if (options.fast || !typed_input) return;
+    stdin_watch = loop.watch(STDIN_FILENO, EPOLLIN, [this](std::uint32_t) {
       char buf[512];
       const ssize_t n = ::read(STDIN_FILENO, buf, sizeof buf);
       if (n <= 0) {
@@ -577,25 +587,99 @@ int run_gateway_sim(const GatewaySimOptions& options) {
     });
   }
 
-  if (options.fast) {
-    while (!loop.stop_requested() && loop.now() < end_at) loop.advance_by(5ms);
-  } else {
-    loop.handle_signals({SIGINT, SIGTERM});
-    loop.run();
+  int run_loop_and_report() {
+    if (options.fast) {
+      while (!loop.stop_requested() && loop.now() < end_at) loop.advance_by(5ms);
+    } else {
+      loop.handle_signals({SIGINT, SIGTERM});
+      loop.run();
+    }
+    if (view_timer != 0) loop.cancel(view_timer);
+    if (stdin_watch != 0) loop.unwatch(stdin_watch);
+    for (auto& b : bridges)
+      if (b.watch != 0) loop.unwatch(b.watch);
+    // The last table stays on the screen, below the log.
+    view(true);
+    const std::uint64_t n = tpdo_count();
+    std::printf("\noegw sim: %.1f s%s, %llu TPDOs and %llu EMCYs at the host; %s\n",
+                std::chrono::duration<double>(loop.now() - t0).count(), options.fast ? " simulated" : "",
+                static_cast<unsigned long long>(n), static_cast<unsigned long long>(emcys),
+                failures == 0 ? "every command and expectation as written"
+                              : fmt::format("{} command(s) or expectation(s) FAILED", failures).c_str());
+    return failures == 0 ? exit_code::kOk : exit_code::kBadFile;
   }
-  if (view_timer != 0) loop.cancel(view_timer);
-  if (stdin_watch != 0) loop.unwatch(stdin_watch);
-  for (auto& b : bridges)
-    if (b.watch != 0) loop.unwatch(b.watch);
-  // The last table stays on the screen, below the log.
-  view(true);
-  const std::uint64_t n = tpdo_count();
-  std::printf("\noegw sim: %.1f s%s, %llu TPDOs and %llu EMCYs at the host; %s\n",
-              std::chrono::duration<double>(loop.now() - t0).count(), options.fast ? " simulated" : "",
-              static_cast<unsigned long long>(n), static_cast<unsigned long long>(emcys),
-              failures == 0 ? "every command and expectation as written"
-                            : fmt::format("{} command(s) or expectation(s) FAILED", failures).c_str());
-  return failures == 0 ? exit_code::kOk : exit_code::kBadFile;
+
+  const GatewaySimOptions& options;
+  const mapping::Config& cfg;
+  const std::filesystem::path& dir;
+  EventLoop& loop;
+  rig::CabRig& rig;
+  const SimPlan& plan;
+  std::vector<VcanBridge>& bridges;
+  Gateway& gw;
+  Master& host;
+  sd::sim::SimBench& bench;
+  const NodeId gateway_node;
+  const TimePoint t0;
+  bool tty = false;
+  LiveScreen screen{false};
+  int failures = 0;
+  std::map<std::uint32_t, std::uint64_t> tpdos;  // the host's TPDOs per COB-ID
+  std::uint64_t emcys = 0;
+  std::uint16_t last_emcy = 0;
+  std::map<std::uint32_t, std::uint16_t> tpdo_number;
+  std::unique_ptr<GatewayPublishing> publishing;
+  std::unique_ptr<control::GatewayControl> control;
+  mapping::Config control_cfg;
+  bool moving = false;
+  EventLoop::TimerId hands_timer = 0;
+  std::vector<HostWrite> writes;
+  TimePoint end_at = TimePoint::max();
+  EventLoop::TimerId view_timer = 0;
+  std::string typed;
+  EventLoop::WatchId stdin_watch = 0;
+};
+
+}  // namespace
+
+int run_gateway_sim(const GatewaySimOptions& options) {
+  auto loaded = mapping::load_config(options.file, driver_catalogue());
+  if (!loaded.ok()) {
+    std::fprintf(stderr, "%s", loaded.error_text().c_str());
+    return exit_code::kBadFile;
+  }
+  mapping::Config cfg = *loaded.config;
+
+  char tmpl[] = "/tmp/oegw-sim-XXXXXX";
+  const char* dir_c = ::mkdtemp(tmpl);
+  if (dir_c == nullptr) {
+    std::perror("oegw sim: mkdtemp");
+    return exit_code::kCannotStart;
+  }
+  const std::filesystem::path dir = dir_c;
+  RemoveDir remove_dir{dir};
+
+  SimulatedClock sim_clock;
+  auto loop_ptr = options.fast ? std::make_unique<EventLoop>(sim_clock) : std::make_unique<EventLoop>();
+  EventLoop& loop = *loop_ptr;
+  rig::CabRigOptions rig_options{.store = dir / "upstream.store"};
+  rig_options.simulator_options = rig::simulators_as_wired(cfg);
+  rig::CabRig rig(cfg, loop, rig_options);
+  try {
+    rig.build_devices();
+  } catch (const std::runtime_error& e) {
+    std::fprintf(stderr, "oegw sim: %s\n", e.what());
+    return exit_code::kBadFile;
+  }
+
+  SimPlan plan;
+  if (auto refused = plan_script(options, cfg, rig_options, plan)) return *refused;
+  std::vector<VcanBridge> bridges;
+  if (auto refused = open_vcan(options.vcan, rig, bridges)) return *refused;
+
+  rig.connect_gateway();
+  SimSession session(options, cfg, dir, loop, rig, plan, bridges);
+  return session.run();
 }
 
 }  // namespace oegw::gateway

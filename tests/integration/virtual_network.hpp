@@ -14,7 +14,6 @@
 namespace oegw::testing {
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 class VirtualNetwork {
  public:

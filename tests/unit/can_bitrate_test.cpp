@@ -11,7 +11,6 @@
 #include <vector>
 
 using namespace oegw::canopen;
-
 using namespace oegw::canopen::io;
 namespace {
 
