@@ -16,7 +16,7 @@
 #include "subdevices/network_manager.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 
-namespace oegw::gateway {
+namespace oegw::programs {
 
 using namespace canopen;
 using namespace canopen::io;
@@ -190,4 +190,4 @@ int run_master(const MasterOptions& options) {
   return rc;
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::programs

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-namespace oegw::gateway {
+namespace oegw::programs {
 
 struct SimOptions {
   std::string interface;
@@ -25,4 +25,4 @@ struct MasterOptions {
 };
 int run_master(const MasterOptions& options);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::programs

@@ -21,7 +21,9 @@
 #include "publish/publish_schedule.hpp"
 #include "gateway/publishing.hpp"
 
-namespace oegw::gateway {
+namespace oegw::programs {
+
+using namespace gateway;  // the programs compose the daemon's library
 
 using namespace canopen;
 using namespace canopen::io;
@@ -179,7 +181,7 @@ class CoreDemo {
 
   void publish_status(const char* device_state) {
     if (fan.empty()) return;
-    GatewayStatus st;
+    gateway::GatewayStatus st;
     st.timestamp_us = now_us();
     st.seq = ++status_seq;
     st.upstream_state = "demo";
@@ -332,7 +334,7 @@ class CoreDemo {
       say(fmt::format("indicators.1 command {:02X}h -> RPDO1 220h#{:02X}", byte, byte));
       (void)host_port->send(CanFrame(0x220, {byte}));
     };
-    for (Publisher* p : {static_cast<Publisher*>(dds.get()), static_cast<Publisher*>(lcm.get())}) {
+    for (gateway::Publisher* p : {static_cast<Publisher*>(dds.get()), static_cast<Publisher*>(lcm.get())}) {
       if (p == nullptr || p->fd() < 0) continue;
       p->on_indicator_command = on_indicators;
       publisher_watches.push_back(loop.watch(p->fd(), events::kReadable, [p](std::uint32_t) { p->poll(); }));
@@ -516,4 +518,4 @@ int run_device(const DeviceOptions& options) {
   return 0;
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::programs

@@ -9,7 +9,7 @@
 
 #include "canopen/node.hpp"
 
-namespace oegw::gateway {
+namespace oegw::programs {
 
 using canopen::FrameSink;
 using canopen::NodeId;
@@ -59,4 +59,4 @@ struct DeviceOptions {
 // an interface that cannot be opened is reported precisely and gives 2.
 int run_device(const DeviceOptions& options);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::programs

@@ -8,7 +8,7 @@
 namespace oegw::programs {
 
 void register_demo(CLI::App& app) {
-  auto o = std::make_shared<gateway::GatewayDemoOptions>();
+  auto o = std::make_shared<GatewayDemoOptions>();
   auto* cmd =
       app.add_subcommand("demo", "The embedded demo: gateway, simulated cab devices and a host (default)")->group(cli::kDailyGroup);
   cmd->add_option("--seconds", o->seconds, "How long the operator moves the joysticks")->check(CLI::Range(0.0, 3600.0));
@@ -23,10 +23,10 @@ void register_demo(CLI::App& app) {
                   "the gateway's identity; watch with the examples' --identity-ca ... options")
       ->type_name("DIR")
       ->check(CLI::ExistingDirectory);
-  cmd->callback([o] { cli::finish(gateway::run_gateway_demo(*o)); });
+  cmd->callback([o] { cli::finish(run_gateway_demo(*o)); });
   // No command is the demo with its defaults: the app's own callback runs only when no command's
   // callback ended the run (cli::finish) before it.
-  app.callback([o] { cli::finish(gateway::run_gateway_demo(*o)); });
+  app.callback([o] { cli::finish(run_gateway_demo(*o)); });
 }
 
 }  // namespace oegw::programs

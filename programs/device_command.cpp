@@ -11,7 +11,7 @@ namespace oegw::programs {
 
 void register_device(CLI::App& app) {
   struct Options {
-    gateway::DeviceOptions device;
+    DeviceOptions device;
     int node_id = 0x20;
     bool no_motion = false;
     std::string store;
@@ -28,7 +28,7 @@ void register_device(CLI::App& app) {
     o->device.node_id = canopen::NodeId{static_cast<std::uint8_t>(o->node_id)};
     o->device.store_path = o->store;
     o->device.motion = !o->no_motion;
-    cli::finish(gateway::run_device(o->device));
+    cli::finish(run_device(o->device));
   });
 }
 

@@ -26,7 +26,9 @@
 #include "programs/live_view.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 
-namespace oegw::gateway {
+namespace oegw::programs {
+
+using namespace gateway;  // the programs compose the daemon's library
 
 using namespace canopen;
 using namespace canopen::io;
@@ -184,7 +186,7 @@ class GatewayDemo {
     const mapping::PublishConfig& publish = publish_config;
     if (!options.publish || !(publish.dds.enabled || publish.lcm.enabled)) return std::nullopt;
     try {
-      publishing = std::make_unique<GatewayPublishing>(*gw, publish, [this] { return loop.now(); });
+      publishing = std::make_unique<gateway::GatewayPublishing>(*gw, publish, [this] { return loop.now(); });
       say(fmt::format("publishing every FE on DDS (topics oegw/*, domain {}, partition {}, network {}{}) and LCM "
                       "(channels {}*, {}); indicators.1 takes its commands from there",
                       publish.dds.domain, publish.dds.partition, publish.dds.network,
@@ -241,7 +243,7 @@ class GatewayDemo {
 
   // From here every FE is valid or not available, but the grip's while it is pulled.
   void watch_for_spurious_faults() {
-    std::map<std::string, FeStatus> last;
+    std::map<std::string, gateway::FeStatus> last;
     loop.call_every(loop.now() + 10ms, 10ms, [this, last]() mutable {
       for (const auto& fe : gw->fes()) {
         const std::string name = mapping::fe_name(fe);
@@ -392,7 +394,7 @@ class GatewayDemo {
   std::vector<std::uint16_t> emcys;
   bool grip_pulled = false;
   std::vector<std::string> spurious;
-  std::unique_ptr<GatewayPublishing> publishing;
+  std::unique_ptr<gateway::GatewayPublishing> publishing;
   mapping::PublishConfig publish_config;
   bool moving = false;
   std::vector<std::pair<Duration, std::function<void()>>> steps;
@@ -408,7 +410,7 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   const auto folder = make_demo_folder();
   if (!folder) return 1;
   const std::filesystem::path& dir = *folder;
-  auto loaded = mapping::load_config_text(demo_files::kDemoYaml, "config/demo.yaml", driver_catalogue(), dir / "config");
+  auto loaded = mapping::load_config_text(demo_files::kDemoYaml, "config/demo.yaml", gateway::driver_catalogue(), dir / "config");
   if (!loaded.ok()) {
     std::fprintf(stderr, "%s", loaded.error_text().c_str());
     std::filesystem::remove_all(dir);
@@ -421,4 +423,4 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   return demo.run();
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::programs

@@ -3,7 +3,7 @@
 
 #include <string>
 
-namespace oegw::gateway {
+namespace oegw::programs {
 
 struct GatewayDemoOptions {
   double seconds = 6.0;  // how long the operator moves the joysticks before the faults
@@ -17,4 +17,4 @@ struct GatewayDemoOptions {
 // The embedded demo: gateway + simulated cab devices + a built-in host, on the virtual bus.
 int run_gateway_demo(const GatewayDemoOptions& options);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::programs

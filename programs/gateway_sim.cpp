@@ -31,7 +31,9 @@
 #include "programs/live_view.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 
-namespace oegw::gateway {
+namespace oegw::programs {
+
+using namespace gateway;  // the programs compose the daemon's library
 
 using namespace canopen;
 using namespace canopen::io;
@@ -50,7 +52,7 @@ struct SimStep {
 };
 
 // The FE status words of the table (live_view.cpp fe_line), which `expect` takes.
-constexpr std::pair<std::string_view, FeStatus> kStatusWords[] = {
+constexpr std::pair<std::string_view, gateway::FeStatus> kStatusWords[] = {
     {"valid", FeStatus::Valid}, {"error", FeStatus::Error},   {"n/a", FeStatus::NotAvailable},
     {"stale", FeStatus::Stale}, {"offline", FeStatus::Offline}};
 
@@ -366,7 +368,7 @@ class SimSession {
   void start_publishing() {
     if (!options.publish || !(cfg.publish.dds.enabled || cfg.publish.lcm.enabled)) return;
     try {
-      publishing = std::make_unique<GatewayPublishing>(gw, cfg.publish, [this] { return loop.now(); });
+      publishing = std::make_unique<gateway::GatewayPublishing>(gw, cfg.publish, [this] { return loop.now(); });
       say(fmt::format("publishing: DDS {} (domain {}, partition {}), LCM {} (channels {}*)",
                       cfg.publish.dds.enabled ? "on" : "off", cfg.publish.dds.domain, cfg.publish.dds.partition,
                       cfg.publish.lcm.enabled ? "on" : "off", cfg.publish.lcm.channel_prefix));
@@ -628,8 +630,8 @@ class SimSession {
   std::uint64_t emcys = 0;
   std::uint16_t last_emcy = 0;
   std::map<std::uint32_t, std::uint16_t> tpdo_number;
-  std::unique_ptr<GatewayPublishing> publishing;
-  std::unique_ptr<control::GatewayControl> control;
+  std::unique_ptr<gateway::GatewayPublishing> publishing;
+  std::unique_ptr<gateway::control::GatewayControl> control;
   mapping::Config control_cfg;
   bool moving = false;
   EventLoop::TimerId hands_timer = 0;
@@ -643,7 +645,7 @@ class SimSession {
 }  // namespace
 
 int run_gateway_sim(const GatewaySimOptions& options) {
-  auto loaded = mapping::load_config(options.file, driver_catalogue());
+  auto loaded = mapping::load_config(options.file, gateway::driver_catalogue());
   if (!loaded.ok()) {
     std::fprintf(stderr, "%s", loaded.error_text().c_str());
     return exit_code::kBadFile;
@@ -682,4 +684,4 @@ int run_gateway_sim(const GatewaySimOptions& options) {
   return session.run();
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::programs

@@ -10,7 +10,7 @@
 
 #include <string>
 
-namespace oegw::gateway {
+namespace oegw::programs {
 
 struct GatewaySimOptions {
   std::string file;       // the mapping file
@@ -28,4 +28,4 @@ struct GatewaySimOptions {
 // failed; 2 cannot start (a --vcan interface missing or not CAN).
 int run_gateway_sim(const GatewaySimOptions& options);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::programs

@@ -9,7 +9,9 @@
 
 #include <fmt/format.h>
 
-namespace oegw::gateway {
+namespace oegw::programs {
+
+using namespace gateway;  // the programs compose the daemon's library
 
 using namespace canopen;
 using namespace canopen::io;
@@ -150,4 +152,4 @@ std::string candump_line(Duration since_start, const char* interface, const CanF
   return fmt::format("({:010}.{:06}) {} {}", us / 1'000'000, us % 1'000'000, interface, f.to_string());
 }
 
-}  // namespace oegw::gateway
+}  // namespace oegw::programs

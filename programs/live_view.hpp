@@ -12,11 +12,11 @@
 #include "gateway/gateway.hpp"
 #include "rig/cab_rig.hpp"
 
-namespace oegw::gateway {
+namespace oegw::programs {
 
 // One line per FE: "joystick.1  valid     x=+12000 y=-300 buttons=10000000"; "held" where an
 // axis is valid but held at neutral until it has been seen at zero (the elobau zero-position rule).
-[[nodiscard]] std::string fe_line(const Gateway& gw, mapping::FeId fe);
+[[nodiscard]] std::string fe_line(const gateway::Gateway& gw, mapping::FeId fe);
 
 // "  sub-devices: a=operational b=starting ..." wrapped at `width` columns, continuation rows
 // indented under the first name.
@@ -24,7 +24,7 @@ namespace oegw::gateway {
                                                std::size_t width);
 
 // The table rows of `gw`: one per FE, then its sub-devices' states wrapped at `width`.
-[[nodiscard]] std::vector<std::string> gateway_rows(const Gateway& gw, std::size_t width);
+[[nodiscard]] std::vector<std::string> gateway_rows(const gateway::Gateway& gw, std::size_t width);
 
 // `line` cut into rows of at most `width` columns at spaces, each row after the first indented
 // under the text after the line's "[ 12.34 s] " stamp (or by two columns without one); a word
@@ -68,4 +68,4 @@ void print_frames_of(rig::CabRig& rig, canopen::TimePoint t0);
 [[nodiscard]] std::string candump_line(canopen::Duration since_start, const char* interface,
                                        const canopen::CanFrame& f);
 
-}  // namespace oegw::gateway
+}  // namespace oegw::programs

@@ -8,7 +8,7 @@
 namespace oegw::programs {
 
 void register_master(CLI::App& app) {
-  auto o = std::make_shared<gateway::MasterOptions>();
+  auto o = std::make_shared<MasterOptions>();
   auto* cmd =
       app.add_subcommand("master", "Run the downstream network manager with drivers on a SocketCAN interface")
           ->group(cli::kToolsGroup);
@@ -22,7 +22,7 @@ void register_master(CLI::App& app) {
                   "button_bits=1/2/3/4/5/7/6, or its board's order: "
                   "docs/design/device-documents.md#mcb-402-button-bits-a-required-commissioning-choice)")
       ->required();
-  cmd->callback([o] { cli::finish(gateway::run_master(*o)); });
+  cmd->callback([o] { cli::finish(run_master(*o)); });
 }
 
 }  // namespace oegw::programs

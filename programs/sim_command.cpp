@@ -8,7 +8,7 @@
 namespace oegw::programs {
 
 void register_sim(CLI::App& app) {
-  auto o = std::make_shared<gateway::GatewaySimOptions>();
+  auto o = std::make_shared<GatewaySimOptions>();
   auto* cmd = app.add_subcommand("sim",
                                  "Your own mapping file on a simulated cab: its sub-devices simulated, a built-in "
                                  "host, the live table")
@@ -27,7 +27,7 @@ void register_sim(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--vcan", o->vcan, "Both buses also on these SocketCAN interfaces, for candump and other hosts")
       ->type_name("UP,DOWN");
-  cmd->callback([o] { cli::finish(gateway::run_gateway_sim(*o)); });
+  cmd->callback([o] { cli::finish(run_gateway_sim(*o)); });
 }
 
 }  // namespace oegw::programs

@@ -7,7 +7,7 @@
 
 int main(int argc, char** argv) {
   CLI::App app{"oegw-sim — simulated cab devices on a SocketCAN interface"};
-  oegw::gateway::SimOptions o;
+  oegw::programs::SimOptions o;
   app.add_option("-i,--interface", o.interface, "SocketCAN interface")->required();
   app.add_flag("--motion", o.motion, "Sweep every axis and press the buttons in turn");
   app.add_flag("--commands", o.commands,
@@ -33,5 +33,5 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 64;  // as oegw: a usage error is 64 (docs/reference/exit-codes.md)
   }
   spdlog::set_pattern("%^%l%$: %v");
-  return oegw::gateway::run_sim(o);
+  return oegw::programs::run_sim(o);
 }

@@ -16,8 +16,7 @@ the layers it may include (CMakeLists.txt in each folder).
 
 A file's namespace is that of the longest folder prefix in NAMESPACES. Each named namespace a file
 opens outside its folder's namespace must be that namespace, below it, or on the way to it
-(`namespace oegw {` then `namespace canopen {`); inside it, helper namespaces are free. Folders
-in PENDING are reported as warnings, without failing.
+(`namespace oegw {` then `namespace canopen {`); inside it, helper namespaces are free.
 """
 import os
 import re
@@ -130,10 +129,6 @@ NAMESPACES = {
 # Other libraries' namespaces, where a file may forward-declare their types or specialize their
 # templates (spdlog::logger in gateway/daemon_log.hpp, std::hash, fmt::formatter).
 FOREIGN = {"std", "fmt", "spdlog", "nlohmann"}
-
-# Folders whose namespaces are being renamed: reported as warnings, not failures (removed when
-# their files are renamed).
-PENDING = {"programs"}
 
 SOURCE_SUFFIXES = (".cpp", ".hpp", ".h", ".c", ".cpp.in", ".hpp.in", ".inl")
 INCLUDE = re.compile(r'^\s*#\s*include\s*"([^"]+)"')
@@ -249,8 +244,8 @@ def namespace_problems(path, text, expected):
 
 
 def check_namespaces(root):
-    """(problems, warnings): lines `file:line: message`; warnings are of the PENDING folders."""
-    problems, warnings = [], []
+    """Lines `file:line: message`."""
+    problems = []
     for src in sources(root):
         folder = longest_prefix(src, NAMESPACES)
         if folder is None:
@@ -258,8 +253,8 @@ def check_namespaces(root):
         with open(os.path.join(root, src), encoding="utf-8", errors="replace") as f:
             text = f.read()
         for line, message in namespace_problems(folder, text, NAMESPACES[folder]):
-            (warnings if folder in PENDING else problems).append("%s:%d: %s" % (src, line, message))
-    return problems, warnings
+            problems.append("%s:%d: %s" % (src, line, message))
+    return problems
 
 
 def reason(src_layer, inc_layer):
@@ -298,11 +293,9 @@ def main(argv):
     root = os.path.abspath(root)
     table = os.path.relpath(__file__, root) if os.path.abspath(__file__).startswith(root) else __file__
     problems = check(root)
-    ns_problems, ns_warnings = check_namespaces(root)
+    ns_problems = check_namespaces(root)
     for p in problems + ns_problems:
         print(p)
-    for w in ns_warnings:
-        print("warning (pending rename): " + w)
     if problems:
         print("%d undeclared include%s across layers (the table: %s)" %
               (len(problems), "" if len(problems) == 1 else "s", table))
@@ -311,8 +304,7 @@ def main(argv):
               (len(ns_problems), "" if len(ns_problems) == 1 else "s", table))
     if problems or ns_problems:
         return 1
-    print("layers: every include is declared, every namespace is its folder's%s" %
-          (" (%d pending)" % len(ns_warnings) if ns_warnings else ""))
+    print("layers: every include is declared, every namespace is its folder's")
     return 0
 
 

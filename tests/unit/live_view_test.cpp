@@ -12,13 +12,13 @@ using ::testing::ElementsAre;
 using ::testing::SizeIs;
 
 TEST(WrapWords, AShortLineIsOneRow) {
-  EXPECT_THAT(wrap_words("[  1.00 s] ok", 79), ElementsAre("[  1.00 s] ok"));
+  EXPECT_THAT(programs::wrap_words("[  1.00 s] ok", 79), ElementsAre("[  1.00 s] ok"));
 }
 
 TEST(WrapWords, ALongLineBreaksAtSpacesUnderTheStampsText) {
   const std::string line =
       "[ 10.08 s] gateway: seat_knob: EMCY 9090h novotechnik 9090h/1/0 (Warn): work area state changed, byte 7 = 05h";
-  const auto rows = wrap_words(line, 79);
+  const auto rows = programs::wrap_words(line, 79);
   EXPECT_THAT(rows, ElementsAre("[ 10.08 s] gateway: seat_knob: EMCY 9090h novotechnik 9090h/1/0 (Warn): work",
                                 "           area state changed, byte 7 = 05h"));
 }
@@ -26,7 +26,7 @@ TEST(WrapWords, ALongLineBreaksAtSpacesUnderTheStampsText) {
 TEST(WrapWords, EveryRowFitsAndNoWordIsCut) {
   std::string line = "[  0.00 s]";
   for (int i = 0; i < 60; ++i) line += " word" + std::to_string(i);
-  const auto rows = wrap_words(line, 40);
+  const auto rows = programs::wrap_words(line, 40);
   std::string joined;
   for (const auto& r : rows) {
     EXPECT_LE(r.size(), 40u) << r;
@@ -36,7 +36,7 @@ TEST(WrapWords, EveryRowFitsAndNoWordIsCut) {
 }
 
 TEST(WrapWords, AWordLongerThanARowIsCutRatherThanOverflowing) {
-  const auto rows = wrap_words("[  0.00 s] " + std::string(50, 'x'), 30);
+  const auto rows = programs::wrap_words("[  0.00 s] " + std::string(50, 'x'), 30);
   std::string word;
   for (const auto& r : rows) {
     EXPECT_LE(r.size(), 30u) << r;
@@ -48,7 +48,7 @@ TEST(WrapWords, AWordLongerThanARowIsCutRatherThanOverflowing) {
 }
 
 TEST(WrapWords, WithoutAStampContinuationRowsAreIndentedByTwo) {
-  EXPECT_THAT(wrap_words("aaaa bbbb cccc dddd eeee", 10), ElementsAre("aaaa bbbb", "  cccc", "  dddd", "  eeee"));
+  EXPECT_THAT(programs::wrap_words("aaaa bbbb cccc dddd eeee", 10), ElementsAre("aaaa bbbb", "  cccc", "  dddd", "  eeee"));
 }
 
 }  // namespace
