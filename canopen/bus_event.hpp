@@ -18,11 +18,11 @@ enum class BusEvent : std::uint8_t {
   TxTimeout,           // the driver gave up transmitting a frame
   ControllerOverflow,  // RX or TX buffer overflow in the controller: frames were lost
   LostArbitration,
-  ProtocolError,       // form/stuff/bit/CRC error
+  ProtocolError,  // form/stuff/bit/CRC error
   TransceiverError,
-  NoAck,               // transmitted frame was not acknowledged: nobody else on the bus?
+  NoAck,  // transmitted frame was not acknowledged: nobody else on the bus?
   BusError,
-  InterfaceDown,       // the network interface went down (ENETDOWN)
+  InterfaceDown,  // the network interface went down (ENETDOWN)
 };
 
 [[nodiscard]] std::string_view to_string(BusEvent event);

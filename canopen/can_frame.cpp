@@ -9,8 +9,7 @@ CanFrame::CanFrame(std::uint32_t can_id, std::initializer_list<std::uint8_t> byt
     : CanFrame(can_id, std::span<const std::uint8_t>(bytes.begin(), bytes.size())) {}
 
 CanFrame::CanFrame(std::uint32_t can_id, std::span<const std::uint8_t> bytes)
-    : id(can_id), dlc(static_cast<std::uint8_t>(std::min<std::size_t>(bytes.size(), 8))),
-      extended(can_id > 0x7FF) {
+    : id(can_id), dlc(static_cast<std::uint8_t>(std::min<std::size_t>(bytes.size(), 8))), extended(can_id > 0x7FF) {
   std::copy_n(bytes.begin(), dlc, data.begin());
 }
 
@@ -30,8 +29,7 @@ bool operator==(const CanFrame& a, const CanFrame& b) {
 
 std::string CanFrame::to_string() const {
   char buf[64];
-  int n = extended ? std::snprintf(buf, sizeof buf, "%08X#", id)
-                   : std::snprintf(buf, sizeof buf, "%03X#", id);
+  int n = extended ? std::snprintf(buf, sizeof buf, "%08X#", id) : std::snprintf(buf, sizeof buf, "%03X#", id);
   std::string s(buf, static_cast<std::size_t>(n));
   if (rtr) {
     s += 'R';
@@ -60,7 +58,8 @@ std::string_view to_string(SdoAbortCode code) {
     case SdoAbortCode::WriteOfReadOnly: return "attempt to write a read only object";
     case SdoAbortCode::ObjectDoesNotExist: return "object does not exist in the object dictionary";
     case SdoAbortCode::CannotBeMapped: return "object cannot be mapped to the PDO";
-    case SdoAbortCode::MappingExceedsPdoLength: return "number and length of objects to be mapped would exceed PDO length";
+    case SdoAbortCode::MappingExceedsPdoLength:
+      return "number and length of objects to be mapped would exceed PDO length";
     case SdoAbortCode::ParameterIncompatibility: return "general parameter incompatibility";
     case SdoAbortCode::InternalIncompatibility: return "general internal incompatibility in the device";
     case SdoAbortCode::HardwareError: return "access failed due to a hardware error";
@@ -75,9 +74,12 @@ std::string_view to_string(SdoAbortCode code) {
     case SdoAbortCode::ResourceNotAvailable: return "resource not available: SDO connection";
     case SdoAbortCode::GeneralError: return "general error";
     case SdoAbortCode::CannotTransfer: return "data cannot be transferred or stored to the application";
-    case SdoAbortCode::CannotTransferLocalControl: return "data cannot be transferred or stored because of local control";
-    case SdoAbortCode::CannotTransferDeviceState: return "data cannot be transferred or stored because of the present device state";
-    case SdoAbortCode::NoObjectDictionary: return "object dictionary dynamic generation fails or no object dictionary is present";
+    case SdoAbortCode::CannotTransferLocalControl:
+      return "data cannot be transferred or stored because of local control";
+    case SdoAbortCode::CannotTransferDeviceState:
+      return "data cannot be transferred or stored because of the present device state";
+    case SdoAbortCode::NoObjectDictionary:
+      return "object dictionary dynamic generation fails or no object dictionary is present";
     case SdoAbortCode::NoDataAvailable: return "no data available";
   }
   return "unknown abort code";

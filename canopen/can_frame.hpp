@@ -13,10 +13,10 @@
 namespace oegw::canopen {
 
 struct CanFrame {
-  std::uint32_t id = 0;     // 11-bit, or 29-bit when `extended`
-  std::uint8_t dlc = 0;     // 0..8
-  bool rtr = false;         // remote transmission request
-  bool extended = false;    // 29-bit identifier
+  std::uint32_t id = 0;   // 11-bit, or 29-bit when `extended`
+  std::uint8_t dlc = 0;   // 0..8
+  bool rtr = false;       // remote transmission request
+  bool extended = false;  // 29-bit identifier
   std::array<std::uint8_t, 8> data{};
 
   CanFrame() = default;
@@ -35,9 +35,7 @@ struct CanFrame {
 using FrameSink = std::function<void(const CanFrame&)>;
 
 // Little-endian helpers: CANopen is little endian on the wire (CiA 301 §7.1.2).
-inline std::uint16_t get_u16(const std::uint8_t* p) {
-  return static_cast<std::uint16_t>(p[0] | (p[1] << 8));
-}
+inline std::uint16_t get_u16(const std::uint8_t* p) { return static_cast<std::uint16_t>(p[0] | (p[1] << 8)); }
 inline std::uint32_t get_u32(const std::uint8_t* p) {
   return static_cast<std::uint32_t>(p[0]) | (static_cast<std::uint32_t>(p[1]) << 8) |
          (static_cast<std::uint32_t>(p[2]) << 16) | (static_cast<std::uint32_t>(p[3]) << 24);

@@ -58,22 +58,25 @@ Node::Node(ObjectDictionary& od, NodeConfig config, FrameSink sink)
       nmt_(cfg_.node_id, [this](const CanFrame& f) { emit(f); }),
       hb_producer_(od_, cfg_.node_id, [this](const CanFrame& f) { emit(f); }),
       hb_consumer_(od_),
-      emcy_(od_, [this](const CanFrame& f) { send(f); }, cfg_.node_id, cfg_.emcy),
-      sync_(od_, [this](const CanFrame& f) { send(f); }, cfg_.sync),
+      emcy_(
+          od_, [this](const CanFrame& f) { send(f); }, cfg_.node_id, cfg_.emcy),
+      sync_(
+          od_, [this](const CanFrame& f) { send(f); }, cfg_.sync),
       pdo_(od_, [this](const CanFrame& f) { send(f); }),
-      sdo_(od_, [this](const CanFrame& f) { send(f); }, cfg_.node_id, cfg_.sdo_timeout),
-      lss_(cfg_.identity, cfg_.node_id, cfg_.bit_timing_index, [this](const CanFrame& f) { emit(f); },
-           LssSlave::Callbacks{
-               .on_pending_node_id = [this](NodeId id) { nmt_.set_pending_node_id(id); },
-               .on_pending_bit_timing = {},
-               .on_activate_bit_timing =
-                   [this](std::uint8_t index, Duration delay) { begin_bit_timing_switch(index, delay); },
-               .on_store = cfg_.store_path.empty()
-                               ? std::function<std::uint8_t(NodeId, std::uint8_t)>{}
-                               : [this](NodeId id, std::uint8_t bt) { return store_lss(id, bt); },
-               .on_start_nmt = [this]() { nmt_.reset(true, now_); },
-           },
-           cfg_.supported_bit_timings) {
+      sdo_(
+          od_, [this](const CanFrame& f) { send(f); }, cfg_.node_id, cfg_.sdo_timeout),
+      lss_(
+          cfg_.identity, cfg_.node_id, cfg_.bit_timing_index, [this](const CanFrame& f) { emit(f); },
+          LssSlave::Callbacks{
+              .on_pending_node_id = [this](NodeId id) { nmt_.set_pending_node_id(id); },
+              .on_pending_bit_timing = {},
+              .on_activate_bit_timing = [this](std::uint8_t index,
+                                               Duration delay) { begin_bit_timing_switch(index, delay); },
+              .on_store = cfg_.store_path.empty() ? std::function<std::uint8_t(NodeId, std::uint8_t)>{}
+                                                  : [this](NodeId id, std::uint8_t bt) { return store_lss(id, bt); },
+              .on_start_nmt = [this]() { nmt_.reset(true, now_); },
+          },
+          cfg_.supported_bit_timings) {
   (void)installed_;
   install_sdo_channels();
   nmt_.on_reset([this](bool communication_only) { handle_reset(communication_only, now_); });
@@ -150,10 +153,8 @@ void Node::on_bus_event(BusEvent event, TimePoint now) {
 }
 
 void Node::install_communication_objects() {
-  od_.add_var(kDeviceType, "Device type", DataType::Unsigned32, Access::Const,
-              encode<std::uint32_t>(cfg_.device_type));
-  od_.add_var(kDeviceName, "Manufacturer device name", DataType::VisibleString, Access::Const,
-              text(cfg_.device_name));
+  od_.add_var(kDeviceType, "Device type", DataType::Unsigned32, Access::Const, encode<std::uint32_t>(cfg_.device_type));
+  od_.add_var(kDeviceName, "Manufacturer device name", DataType::VisibleString, Access::Const, text(cfg_.device_name));
   od_.add_var(kHardwareVersion, "Manufacturer hardware version", DataType::VisibleString, Access::Const,
               text(cfg_.hardware_version));
   od_.add_var(kSoftwareVersion, "Manufacturer software version", DataType::VisibleString, Access::Const,
@@ -196,8 +197,8 @@ void Node::install_sdo_channel_objects() {
                           encode<std::uint32_t>(c.request));
     od_.add_record_member(index, 2, "COB-ID server to client (tx)", DataType::Unsigned32, Access::ReadWrite,
                           encode<std::uint32_t>(c.response));
-    SubObject& client = od_.add_record_member(index, 3, "Node-ID of the SDO client", DataType::Unsigned8,
-                                              Access::ReadWrite, {0});
+    SubObject& client =
+        od_.add_record_member(index, 3, "Node-ID of the SDO client", DataType::Unsigned8, Access::ReadWrite, {0});
     client.high = std::uint64_t{127};
   }
 }
@@ -205,9 +206,9 @@ void Node::install_sdo_channel_objects() {
 void Node::install_sdo_channels() {
   for (std::size_t k = 1; k <= cfg_.sdo_servers.size(); ++k) {
     const auto index = static_cast<std::uint16_t>(kSdoServer + k);
-    extra_sdo_.push_back(std::make_unique<SdoServer>(od_, [this](const CanFrame& f) { send(f); },
-                                                     CobId{CobId::kInvalidBit}, CobId{CobId::kInvalidBit},
-                                                     cfg_.sdo_timeout));
+    extra_sdo_.push_back(std::make_unique<SdoServer>(
+        od_, [this](const CanFrame& f) { send(f); }, CobId{CobId::kInvalidBit}, CobId{CobId::kInvalidBit},
+        cfg_.sdo_timeout));
     subs_ += od_.find(index)->add_write_hook(
         [this, index](Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin origin) {
           if (origin == Origin::Local) return SdoAbortCode::None;

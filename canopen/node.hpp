@@ -11,8 +11,8 @@
 //    reset node does the same for the whole dictionary. Reset node also restarts the EMCY
 //    producer (no active error, 1001h 0, nothing sent: EmcyProducer::restart); what still holds
 //    is raised again once pre-operational: EMCY 6000h for a store the reset refused again, 8120h
-//    while the controller is error passive. Reset communication keeps the active errors. A node-ID configured by LSS becomes
-//    active here: every COB-ID default of the form "function code + node-ID" follows it.
+//    while the controller is error passive. Reset communication keeps the active errors. A node-ID configured by LSS
+//    becomes active here: every COB-ID default of the form "function code + node-ID" follows it.
 //  * LSS "store configuration" persists node-ID and bit timing beside the parameter file
 //    (canopen/305/lss_store.hpp); at power-on both are applied (bit_timing_index() is then the
 //    stored one; the program sets the interface to it before the node starts).
@@ -79,17 +79,17 @@ struct SdoServerChannel {
 
 struct NodeConfig {
   NodeId node_id{0x20};
-  std::uint32_t device_type = 0;              // 1000h
-  std::string device_name = "oegw";           // 1008h
-  std::string hardware_version = "1";         // 1009h
-  std::string software_version = "0.1.0";     // 100Ah
-  lss::Address identity{};                    // 1018h:01..04, and the LSS address
-  std::uint16_t heartbeat_ms = 0;             // 1017h default
-  std::uint8_t heartbeat_consumers = 0;       // 1016h entries (0: no 1016h)
-  std::uint8_t bit_timing_index = 3;          // CiA 305 table 0: 3 = 250 kbit/s
+  std::uint32_t device_type = 0;           // 1000h
+  std::string device_name = "oegw";        // 1008h
+  std::string hardware_version = "1";      // 1009h
+  std::string software_version = "0.1.0";  // 100Ah
+  lss::Address identity{};                 // 1018h:01..04, and the LSS address
+  std::uint16_t heartbeat_ms = 0;          // 1017h default
+  std::uint8_t heartbeat_consumers = 0;    // 1016h entries (0: no 1016h)
+  std::uint8_t bit_timing_index = 3;       // CiA 305 table 0: 3 = 250 kbit/s
   // Bit i set = table-0 index i is a rate this device runs at (LSS configure bit timing).
   lss::BitTimings supported_bit_timings = lss::kAllStandardBitTimings;
-  std::filesystem::path store_path;           // empty: no 1010h/1011h, LSS store unsupported
+  std::filesystem::path store_path;  // empty: no 1010h/1011h, LSS store unsupported
   EmcyConfig emcy{};
   SyncConfig sync{};
   Duration sdo_timeout = std::chrono::seconds(1);

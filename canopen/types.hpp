@@ -46,9 +46,7 @@ class CobId {
   [[nodiscard]] constexpr bool valid() const { return (raw_ & kInvalidBit) == 0; }
   [[nodiscard]] constexpr bool bit30() const { return (raw_ & kBit30) != 0; }
   [[nodiscard]] constexpr bool extended() const { return (raw_ & kExtendedBit) != 0; }
-  [[nodiscard]] constexpr std::uint32_t can_id() const {
-    return extended() ? (raw_ & 0x1FFFFFFFu) : (raw_ & 0x7FFu);
-  }
+  [[nodiscard]] constexpr std::uint32_t can_id() const { return extended() ? (raw_ & 0x1FFFFFFFu) : (raw_ & 0x7FFu); }
   // CiA 301 §7.5.2.35 (and every COB-ID entry: 1005h, 1012h, 1014h, 1028h, 1200h.., 1400h..,
   // 1800h..): with bit 29 = 0 (an 11-bit CAN-ID) bits 11..28 are 0. A value with any of them set
   // names no frame; a write of one is refused with 0609 0030h (value range exceeded), never cut

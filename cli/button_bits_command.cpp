@@ -19,10 +19,12 @@ int run_find_button_bits(const FindButtonBitsOptions& o) {
   fo.node = NodeId{static_cast<std::uint8_t>(o.node)};
   fo.step_timeout = std::chrono::duration_cast<Duration>(std::chrono::duration<double>(o.timeout_s));
   // Each line as it comes (a user at a terminal, or a script answering the prompts).
-  subdevices::ButtonBitsFinder finder(fo, [bus](const CanFrame& f) { (void)bus->send(f); }, [](const std::string& line) {
-    std::printf("%s\n", line.c_str());
-    std::fflush(stdout);
-  });
+  subdevices::ButtonBitsFinder finder(
+      fo, [bus](const CanFrame& f) { (void)bus->send(f); },
+      [](const std::string& line) {
+        std::printf("%s\n", line.c_str());
+        std::fflush(stdout);
+      });
   gateway::run_on_bus(*port, finder);
   if (!finder.result()) {
     if (finder.error().empty()) std::fprintf(stderr, "interrupted: no button_bits found\n");

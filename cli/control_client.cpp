@@ -18,7 +18,7 @@ namespace {
 
 // "root:oegw, mode 0660" from the socket file, for the permission message.
 std::string owner_of(const std::string& path, std::string& group) {
-  struct stat st{};
+  struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return "";
   const passwd* u = ::getpwuid(st.st_uid);
   const struct group* g = ::getgrgid(st.st_gid);
@@ -30,7 +30,8 @@ std::string owner_of(const std::string& path, std::string& group) {
 
 AskResult connect_failed(const std::string& path, int e) {
   if (e == ENOENT)
-    return {AskStatus::NoDaemon, "no gateway is running: " + path + " does not exist (is `oegw run` started, with this control.socket?)"};
+    return {AskStatus::NoDaemon,
+            "no gateway is running: " + path + " does not exist (is `oegw run` started, with this control.socket?)"};
   if (e == ECONNREFUSED)
     return {AskStatus::NoDaemon, "no gateway is running: nobody listens on " + path + " (left by a run that ended)"};
   if (e == EACCES || e == EPERM) {
@@ -47,7 +48,8 @@ AskResult connect_failed(const std::string& path, int e) {
 
 }  // namespace
 
-AskResult ask_daemon(const std::string& socket_path, const std::string& request_line, std::chrono::milliseconds timeout) {
+AskResult ask_daemon(const std::string& socket_path, const std::string& request_line,
+                     std::chrono::milliseconds timeout) {
   sockaddr_un a{};
   a.sun_family = AF_UNIX;
   if (socket_path.empty() || socket_path.size() >= sizeof a.sun_path)
@@ -73,9 +75,11 @@ AskResult ask_daemon(const std::string& socket_path, const std::string& request_
   const std::string out = request_line + "\n";
   std::size_t sent = 0;
   std::string in;
-  AskResult r{AskStatus::Timeout, "no answer from " + socket_path + " within " + std::to_string(timeout.count()) + " ms"};
+  AskResult r{AskStatus::Timeout,
+              "no answer from " + socket_path + " within " + std::to_string(timeout.count()) + " ms"};
   while (true) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) break;
     pollfd p{fd, static_cast<short>(POLLIN | (sent < out.size() ? POLLOUT : 0)), 0};
     if (::poll(&p, 1, static_cast<int>(left.count())) <= 0) continue;

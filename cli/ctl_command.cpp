@@ -12,8 +12,8 @@
 
 #include "canopen/305/lss_fastscan.hpp"
 #include "canopen/305/lss_slowscan.hpp"
-#include "gateway/control/control_protocol.hpp"
 #include "cli/status_command.hpp"
+#include "gateway/control/control_protocol.hpp"
 
 namespace oegw::cli {
 
@@ -220,7 +220,8 @@ CtlSession::Outcome CtlSession::execute(std::string_view line) {
           const std::uint32_t step_ms = r.value != 0 ? r.value : kDefaultLssStepMs;
           timeout = std::max(timeout, std::chrono::milliseconds(canopen::LssFastscan::kMaxSteps * step_ms + 2000));
         } else if (r.command == Command::LssSlowscan) {
-          timeout = std::max(timeout, std::chrono::milliseconds(canopen::LssSlowscan::kMaxSteps * kDefaultLssStepMs + 2000));
+          timeout =
+              std::max(timeout, std::chrono::milliseconds(canopen::LssSlowscan::kMaxSteps * kDefaultLssStepMs + 2000));
         }
         break;
       }
@@ -255,7 +256,8 @@ CtlSession::Outcome CtlSession::poll_events() {
         const auto d = e.value("data", std::vector<unsigned>{});
         for (std::size_t i = 0; i < m.size() && i < d.size(); ++i) m[i] = static_cast<std::uint8_t>(d[i]);
         o.lines.push_back(ascii::emcy_event(static_cast<std::uint16_t>(net), static_cast<std::uint8_t>(node),
-                                            e.value("code", std::uint16_t{0}), e.value("error_register", std::uint8_t{0}), m));
+                                            e.value("code", std::uint16_t{0}),
+                                            e.value("error_register", std::uint8_t{0}), m));
       }
     }
   }
@@ -292,7 +294,8 @@ class History {
           return (error = "'" + in + "': !! or !N (a number `history` lists)", false);
         }
       }
-      if (n < first_ || n >= first_ + lines_.size()) return (error = "no line " + std::to_string(n) + " in the history", false);
+      if (n < first_ || n >= first_ + lines_.size())
+        return (error = "no line " + std::to_string(n) + " in the history", false);
       line = lines_[n - first_];
       out += line + "\n";
     }

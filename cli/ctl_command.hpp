@@ -22,8 +22,8 @@
 #include <nlohmann/json.hpp>
 
 #include "canopen/309/ascii_gateway.hpp"
-#include "cli/exit_codes.hpp"
 #include "cli/control_client.hpp"
+#include "cli/exit_codes.hpp"
 
 namespace oegw::cli {
 
@@ -59,7 +59,8 @@ class CtlSession {
 
  private:
   Outcome ask(const nlohmann::json& request, std::chrono::milliseconds timeout, nlohmann::json& answer);
-  std::string answer_of(std::uint32_t seq, const canopen::ascii::Request& r, const nlohmann::json& a, bool& error) const;
+  std::string answer_of(std::uint32_t seq, const canopen::ascii::Request& r, const nlohmann::json& a,
+                        bool& error) const;
 
   Ask ask_;
   std::string version_;

@@ -3,8 +3,8 @@
 #include <memory>
 
 #include "cli/app.hpp"
-#include "cli/status_command.hpp"
 #include "cli/replay_command.hpp"
+#include "cli/status_command.hpp"
 
 namespace oegw::cli {
 

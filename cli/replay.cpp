@@ -9,9 +9,10 @@ namespace oegw::cli {
 
 void register_replay(CLI::App& app) {
   auto o = std::make_shared<cli::ReplayCommandOptions>();
-  auto* cmd = app.add_subcommand(
-                     "replay", "Re-run the gateway on a recording (or a candump log) and compare its frames and decisions")
-                  ->group(kBlackBoxGroup);
+  auto* cmd =
+      app.add_subcommand("replay",
+                         "Re-run the gateway on a recording (or a candump log) and compare its frames and decisions")
+          ->group(kBlackBoxGroup);
   cmd->add_option("recording", o->recording,
                   "A recording folder (record.dir, or a kept window), one of its segment files, or a candump log")
       ->required();

@@ -78,8 +78,9 @@ int run_replay(const ReplayCommandOptions& o) {
       if (text->empty()) continue;
       *out = parse_when(*text, first);
       if (!*out) {
-        std::fprintf(stderr, "oegw replay: '%s': expected seconds from the recording's start (12.5) or a time of day "
-                             "(14:03:12)\n",
+        std::fprintf(stderr,
+                     "oegw replay: '%s': expected seconds from the recording's start (12.5) or a time of day "
+                     "(14:03:12)\n",
                      text->c_str());
         return exit_code::kUsage;
       }
@@ -99,16 +100,19 @@ int run_replay(const ReplayCommandOptions& o) {
   for (const RunReport& r : reports) {
     for (const auto& n : r.notes) std::fprintf(stderr, "note: %s\n", n.c_str());
     if (!r.exact) {
-      std::fprintf(stderr, "run %s: replayed on a fresh gateway: %llu inputs (%llu frames), %llu frames sent, %llu decisions; nothing compared\n",
-                   r.run.c_str(), static_cast<unsigned long long>(r.inputs), static_cast<unsigned long long>(r.frames_in),
-                   static_cast<unsigned long long>(r.frames_out), static_cast<unsigned long long>(r.decisions));
+      std::fprintf(stderr,
+                   "run %s: replayed on a fresh gateway: %llu inputs (%llu frames), %llu frames sent, %llu decisions; "
+                   "nothing compared\n",
+                   r.run.c_str(), static_cast<unsigned long long>(r.inputs),
+                   static_cast<unsigned long long>(r.frames_in), static_cast<unsigned long long>(r.frames_out),
+                   static_cast<unsigned long long>(r.decisions));
       continue;
     }
     if (r.divergence) {
       diverged = true;
-      std::fprintf(stderr, "run %s: DIVERGED at %s, after the input %s\n  recorded: %s\n  replayed: %s\n", r.run.c_str(),
-                   r.divergence->when.c_str(), r.divergence->after.c_str(), r.divergence->recorded.c_str(),
-                   r.divergence->replayed.c_str());
+      std::fprintf(stderr, "run %s: DIVERGED at %s, after the input %s\n  recorded: %s\n  replayed: %s\n",
+                   r.run.c_str(), r.divergence->when.c_str(), r.divergence->after.c_str(),
+                   r.divergence->recorded.c_str(), r.divergence->replayed.c_str());
       continue;
     }
     std::fprintf(stderr, "run %s: exact replay, %llu inputs (%llu frames), %llu outputs compared: no divergence%s%s\n",
@@ -133,7 +137,10 @@ int run_record_keep(const StatusOptions& o) {
   if (!ok) return kStatusFailed;
   const auto timeout = std::chrono::milliseconds(static_cast<std::int64_t>(o.timeout_s * 1000.0));
   const AskResult r =
-      ask_daemon(path, gateway::control::json_line(nlohmann::json{{"protocol", gateway::control::kControlProtocol}, {"command", "record_keep"}}), timeout);
+      ask_daemon(path,
+                 gateway::control::json_line(
+                     nlohmann::json{{"protocol", gateway::control::kControlProtocol}, {"command", "record_keep"}}),
+                 timeout);
   if (r.status != AskStatus::Ok) {
     std::fprintf(stderr, "oegw record keep: %s\n", r.text.c_str());
     return ask_exit_code(r.status);
@@ -148,7 +155,8 @@ int run_record_keep(const StatusOptions& o) {
     return kStatusFailed;
   }
   if (!answer.contains("kept") || !answer["kept"].is_string()) {
-    if (!o.json) std::fprintf(stderr, "oegw record keep: %s\n", answer.value("error", std::string("nothing kept")).c_str());
+    if (!o.json)
+      std::fprintf(stderr, "oegw record keep: %s\n", answer.value("error", std::string("nothing kept")).c_str());
     return kStatusFailed;
   }
   if (!o.json)

@@ -15,9 +15,12 @@ namespace {
 
 // `run --log-level`: spdlog's levels by the names an integrator types, most verbose first (the
 // order the refusal lists them in).
-const std::vector<std::pair<std::string, spdlog::level::level_enum>> kLogLevels = {
-    {"trace", spdlog::level::trace}, {"debug", spdlog::level::debug}, {"info", spdlog::level::info},
-    {"warn", spdlog::level::warn},   {"error", spdlog::level::err},   {"off", spdlog::level::off}};
+const std::vector<std::pair<std::string, spdlog::level::level_enum>> kLogLevels = {{"trace", spdlog::level::trace},
+                                                                                   {"debug", spdlog::level::debug},
+                                                                                   {"info", spdlog::level::info},
+                                                                                   {"warn", spdlog::level::warn},
+                                                                                   {"error", spdlog::level::err},
+                                                                                   {"off", spdlog::level::off}};
 
 }  // namespace
 

@@ -14,12 +14,12 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/socketcan_transport.hpp"
 #include "cli/control_client.hpp"
+#include "cli/signals_command.hpp"
+#include "cli/status_command.hpp"
 #include "gateway/control/control_protocol.hpp"
 #include "gateway/control/scan_service.hpp"
-#include "cli/status_command.hpp"
 #include "gateway/programs.hpp"
 #include "gateway/run_on_bus.hpp"
-#include "cli/signals_command.hpp"
 #include "subdevices/driver_options.hpp"
 
 namespace oegw::cli {
@@ -95,16 +95,17 @@ std::string describe(const sd::ScannedNode& n) {
 }
 
 // Text wrapped into comment lines of at most 100 columns, each starting with `prefix`.
-std::string comment(const std::string& prefix, const std::string& text) { return wrap_words(text, 100, prefix, prefix); }
+std::string comment(const std::string& prefix, const std::string& text) {
+  return wrap_words(text, 100, prefix, prefix);
+}
 
 // FE instances handed out so far, per kind, so that uncommenting every suggestion of every node
 // gives each FE once.
 struct FeCounters {
   std::map<std::string, int> next;
   std::optional<int> take(const std::string& kind) {
-    static const std::map<std::string, int> limit = {{"joystick", 16}, {"pedal", 16}, {"encoder", 8},
-                                                     {"wheel", 8},     {"buttons", 8}, {"indicators", 8},
-                                                     {"display", 8}};
+    static const std::map<std::string, int> limit = {{"joystick", 16}, {"pedal", 16},     {"encoder", 8}, {"wheel", 8},
+                                                     {"buttons", 8},   {"indicators", 8}, {"display", 8}};
     int& n = next[kind];
     if (n >= limit.at(kind)) return std::nullopt;
     return ++n;
@@ -124,8 +125,7 @@ std::optional<int> bit_count(const sd::SignalInfo& s) {
 // one-bit and bit-packed inputs as a button cluster, one-bit outputs as indicators and other
 // outputs as display parameters (the field table of
 // docs/reference/mapping-file.md#functional_elements-kindinstance-field-signal-required-may-be-empty).
-std::vector<std::string> fe_lines(const std::string& name, const std::vector<sd::SignalInfo>& signals,
-                                  FeCounters& fe) {
+std::vector<std::string> fe_lines(const std::string& name, const std::vector<sd::SignalInfo>& signals, FeCounters& fe) {
   using K = sd::SignalKind;
   std::vector<std::string> out;
   std::set<std::string> used;
@@ -177,7 +177,8 @@ std::vector<std::string> fe_lines(const std::string& name, const std::vector<sd:
                         ".." + std::to_string(s.max) + ", no switch field fits it here");
           break;
         }
-        const std::string range = n == 1 ? std::to_string(sw + 1) : std::to_string(sw + 1) + ".." + std::to_string(sw + n);
+        const std::string range =
+            n == 1 ? std::to_string(sw + 1) : std::to_string(sw + 1) + ".." + std::to_string(sw + n);
         switches.push_back("  switch[" + range + "]: " + sig(s.name));
         sw += n;
         break;
@@ -259,11 +260,13 @@ std::string draft_mapping(const sd::ScanResult& scan, const DraftSettings& setti
     }
     const bool active = info && missing.empty();
     if (!info) {
-      subs += comment("  # ", "TODO no driver fits this node; the entry below is left for reference (`oegw "
-                              "signals` lists the drivers; a CiA 401 node may be driven by cia401 with its EDS).");
+      subs += comment("  # ",
+                      "TODO no driver fits this node; the entry below is left for reference (`oegw "
+                      "signals` lists the drivers; a CiA 401 node may be driven by cia401 with its EDS).");
       entry[1] = "  driver: TODO";
     } else if (!active) {
-      subs += comment("  # ", "TODO " + n.family.family + " needs " + missing + ": uncomment the entry and fill it in " +
+      subs +=
+          comment("  # ", "TODO " + n.family.family + " needs " + missing + ": uncomment the entry and fill it in " +
                               "(`oegw signals " + n.family.family + " --eds FILE` lists the signals an EDS gives).");
     }
     for (const auto& line : entry) subs += (active ? "  " : "  # ") + line + "\n";
@@ -284,9 +287,11 @@ std::string draft_mapping(const sd::ScanResult& scan, const DraftSettings& setti
   std::string out;
   if (settings.through_gateway)
     out += "# DRAFT mapping file written by `oegw scan` through the gateway running on " + settings.downstream +
-           "\n# (its sub-devices keep their names; their options are in its mapping file; format: docs/reference/mapping-file.md).\n";
+           "\n# (its sub-devices keep their names; their options are in its mapping file; format: "
+           "docs/reference/mapping-file.md).\n";
   else
-    out += "# DRAFT mapping file written by `oegw scan -i " + settings.downstream + "` (format: docs/reference/mapping-file.md).\n";
+    out += "# DRAFT mapping file written by `oegw scan -i " + settings.downstream +
+           "` (format: docs/reference/mapping-file.md).\n";
   out += "# Found " + std::to_string(scan.nodes.size()) + " node(s), " + std::to_string(named) +
          " with a driver entry. Review every TODO, then `oegw check FILE`.\n";
   out += "# Each driver's signals and options: `oegw signals DRIVER`.\n";
@@ -302,9 +307,10 @@ std::string draft_mapping(const sd::ScanResult& scan, const DraftSettings& setti
     } else if (!scan.lss_note.empty()) {
       text += "; " + scan.lss_note;
     }
-    text += ". Give it a free node-ID with an LSS master (switch state selective to that address, configure node-ID, "
-            "store configuration, switch state global waiting) and scan again; further nodes without node-ID "
-            "show up only once this one has one.";
+    text +=
+        ". Give it a free node-ID with an LSS master (switch state selective to that address, configure node-ID, "
+        "store configuration, switch state global waiting) and scan again; further nodes without node-ID "
+        "show up only once this one has one.";
     out += comment("# ", text);
   }
   out += "\nupstream:                    # the gateway as a CiA 852 device on the host's bus\n";
@@ -317,7 +323,9 @@ std::string draft_mapping(const sd::ScanResult& scan, const DraftSettings& setti
   out += "  bitrate: " + std::to_string(settings.bitrate) + "  # the scan does not measure it (oegw scan --bitrate)\n";
   out += "\nsubdevices:" + std::string(named == 0 ? " {}" : "") + "\n" + subs;
   out += "\n# Suggested functional elements for the signals of each node (uncomment what the cab uses;\n";
-  out += "# the FE kinds and fields: docs/reference/mapping-file.md#functional_elements-kindinstance-field-signal-required-may-be-empty).\n";
+  out +=
+      "# the FE kinds and fields: "
+      "docs/reference/mapping-file.md#functional_elements-kindinstance-field-signal-required-may-be-empty).\n";
   out += "functional_elements: {}  # TODO remove the {} when you uncomment FE lines below\n" + fes;
   return out;
 }
@@ -421,8 +429,8 @@ int scan_direct(const ScanOptions& o) {
   if (port->counters().tx_dropped > 0)
     spdlog::warn("{} frame(s) dropped by a full TX queue: nodes may be missing; scan again with a smaller --parallel",
                  port->counters().tx_dropped);
-  return report(scanner.result(), {.downstream = o.interface, .upstream = o.upstream, .bitrate = o.bitrate, .store = o.store},
-                o.output);
+  return report(scanner.result(),
+                {.downstream = o.interface, .upstream = o.upstream, .bitrate = o.bitrate, .store = o.store}, o.output);
 }
 
 // One request to the gateway: its answer, or nullopt after an error on standard error (`code`
@@ -460,8 +468,10 @@ std::uint64_t whole_ms(double v) { return static_cast<std::uint64_t>(std::max(1.
 int scan_through_gateway(const ScanOptions& o, const std::string& socket, const std::string& downstream) {
   using nlohmann::json;
   int code = exit_code::kOk;
-  std::fprintf(stderr, "scanning %s through the running gateway (%s): its sub-devices as it knows them, the other node-IDs probed\n",
-               downstream.c_str(), socket.c_str());
+  std::fprintf(
+      stderr,
+      "scanning %s through the running gateway (%s): its sub-devices as it knows them, the other node-IDs probed\n",
+      downstream.c_str(), socket.c_str());
   const json start{{"command", "scan"},
                    {"action", "start"},
                    {"timeout_ms", whole_ms(o.timeout_ms)},
@@ -476,7 +486,8 @@ int scan_through_gateway(const ScanOptions& o, const std::string& socket, const 
   // The gateway's scan always ends (each step has its time-out); this bounds a gateway that
   // stopped answering its status.
   const double bound_ms = 127.0 / o.parallel * 7 * o.timeout_ms + o.listen_ms + 200 * o.lss_timeout_ms + 60000;
-  const auto give_up = std::chrono::steady_clock::now() + std::chrono::milliseconds(static_cast<std::int64_t>(bound_ms));
+  const auto give_up =
+      std::chrono::steady_clock::now() + std::chrono::milliseconds(static_cast<std::int64_t>(bound_ms));
   json scan;
   while (true) {
     // (polling a process over its socket for what it shows on screen: no timing logic)
@@ -529,9 +540,10 @@ int run_scan(const ScanOptions& o) {
     return scan_direct(o);
   }
   if (a.status == AskStatus::PermissionDenied && o.via == ScanOptions::Via::Auto) {
-    spdlog::error("{}. A gateway runs here and may be the master of {}: a scan beside it would collide with its SDO "
-                  "clients. Ask as root or a member of its control group, or give --direct if it drives another bus.",
-                  a.text, o.interface.empty() ? "the bus" : o.interface);
+    spdlog::error(
+        "{}. A gateway runs here and may be the master of {}: a scan beside it would collide with its SDO "
+        "clients. Ask as root or a member of its control group, or give --direct if it drives another bus.",
+        a.text, o.interface.empty() ? "the bus" : o.interface);
     return exit_code::kCannotStart;
   }
   if (a.status != AskStatus::Ok) {

@@ -1,10 +1,10 @@
 // `oegw scan -i IF`: finds every node on the downstream bus — before the gateway
 // runs, or through the running gateway's control socket (gateway/control/scan_service.hpp), which
-// probes only what is no sub-device of its own and reports those from what it read at their boot — (subdevices/bus_scan.hpp: boot-ups, heartbeats, SDO reads of 1000h/1018h/1017h, LSS) and
-// writes a draft mapping file: one `subdevices` entry per node whose driver it can name, each
-// driver's required options as marked placeholders, and commented-out functional-element lines
-// for the node's signals (from the drivers themselves, as `oegw signals` lists them). The draft
-// passes `oegw check` as it is written; docs/reference/mapping-file.md#drafting-the-file-oegw-scan.
+// probes only what is no sub-device of its own and reports those from what it read at their boot —
+// (subdevices/bus_scan.hpp: boot-ups, heartbeats, SDO reads of 1000h/1018h/1017h, LSS) and writes a draft mapping file:
+// one `subdevices` entry per node whose driver it can name, each driver's required options as marked placeholders, and
+// commented-out functional-element lines for the node's signals (from the drivers themselves, as `oegw signals` lists
+// them). The draft passes `oegw check` as it is written; docs/reference/mapping-file.md#drafting-the-file-oegw-scan.
 #pragma once
 
 #include <cstdint>
@@ -19,9 +19,9 @@ struct ScanOptions {
   // one runs on `interface` (or `interface` is empty), else on `interface` itself.
   enum class Via : std::uint8_t { Auto, Daemon, Direct };
   Via via = Via::Auto;
-  std::string socket;              // the control socket; empty: `config`'s, else the default
-  std::string config;              // a mapping file whose control.socket to ask
-  std::string interface;           // the downstream bus (empty: the running gateway's)
+  std::string socket;     // the control socket; empty: `config`'s, else the default
+  std::string config;     // a mapping file whose control.socket to ask
+  std::string interface;  // the downstream bus (empty: the running gateway's)
   // Given on the command line: through the gateway its own values are the draft's otherwise.
   bool upstream_given = false, bitrate_given = false;
   std::string output = "-";        // the draft; "-" standard output
@@ -33,7 +33,7 @@ struct ScanOptions {
   double lss_timeout_ms = 25;      // per LSS step
   unsigned parallel = 8;           // node-IDs probed at once
   bool lss = true;
-  bool progress = true;            // progress lines on standard error
+  bool progress = true;  // progress lines on standard error
 };
 
 // What the draft says about the command line that made it (its header and interface lines).
@@ -41,7 +41,7 @@ struct DraftSettings {
   std::string downstream = "can1";
   std::string upstream = "can0";
   std::uint32_t bitrate = 250000;
-  std::string store;  // upstream.store; empty: not written (the default /var/lib/oegw/upstream.store)
+  std::string store;             // upstream.store; empty: not written (the default /var/lib/oegw/upstream.store)
   bool through_gateway = false;  // scanned through the running gateway (the header says so)
 };
 

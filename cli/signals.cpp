@@ -4,8 +4,8 @@
 #include <memory>
 
 #include "cli/app.hpp"
-#include "cli/exit_codes.hpp"
 #include "cli/button_bits_command.hpp"
+#include "cli/exit_codes.hpp"
 #include "cli/signals_command.hpp"
 
 namespace oegw::cli {
@@ -19,10 +19,11 @@ void register_signals(CLI::App& app) {
     cli::FindButtonBitsOptions find_bits;
   };
   auto o = std::make_shared<Options>();
-  auto* cmd = app.add_subcommand(
-                     "signals",
-                     "Every driver's signals (name, direction, kind, range, unit, neutral) and options, from the drivers")
-                  ->group(kDailyGroup);
+  auto* cmd =
+      app.add_subcommand(
+             "signals",
+             "Every driver's signals (name, direction, kind, range, unit, neutral) and options, from the drivers")
+          ->group(kDailyGroup);
   cmd->add_option("driver", o->signals.driver, "One driver: elobau-mfg, mcb402, novotechnik-406, cia401");
   cmd->add_option("-o,--option", o->signals.options,
                   "A driver option key=value, as in the mapping file (e.g. detent=clamp); repeatable");
@@ -33,7 +34,8 @@ void register_signals(CLI::App& app) {
   cmd->add_option("-i,--interface", o->find_bits.interface, "--find-button-bits: the sub-devices' CAN interface");
   cmd->add_option("--node", o->find_bits.node, "--find-button-bits: the board's node-ID (default 3)")
       ->check(CLI::Range(1, 127));
-  cmd->add_option("--timeout", o->find_bits.timeout_s, "--find-button-bits: seconds to wait for each press (default 60)")
+  cmd->add_option("--timeout", o->find_bits.timeout_s,
+                  "--find-button-bits: seconds to wait for each press (default 60)")
       ->check(CLI::Range(1.0, 3600.0));
   cmd->callback([o] {
     if (!o->find_button_bits) finish(cli::run_signals(o->signals));

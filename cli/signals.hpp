@@ -1,4 +1,5 @@
-// `oegw signals [DRIVER]`: the drivers' signals and options, and an MCB-402's button wiring (cli/signals_command.hpp, cli/button_bits_command.hpp).
+// `oegw signals [DRIVER]`: the drivers' signals and options, and an MCB-402's button wiring (cli/signals_command.hpp,
+// cli/button_bits_command.hpp).
 #pragma once
 
 #include <CLI/CLI.hpp>

@@ -52,7 +52,8 @@ std::vector<Row> rows(const std::vector<sd::SignalInfo>& signals) {
       ++j;
     }
     Row r;
-    r.name = first >= 0 && last > first ? base + "[" + std::to_string(first) + ".." + std::to_string(last) + "]" : s.name;
+    r.name =
+        first >= 0 && last > first ? base + "[" + std::to_string(first) + ".." + std::to_string(last) + "]" : s.name;
     r.dir = s.output() ? "out" : "in";
     r.kind = std::string(sd::to_string(s.kind));
     r.range = std::to_string(s.min) + ".." + std::to_string(s.max);

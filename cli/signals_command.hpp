@@ -37,7 +37,7 @@ int run_signals(const SignalsOptions& options);
 // (cia401 without an EDS), nullopt with `error` when the driver refuses `given`. `oegw scan`'s
 // draft takes its FE lines from here too.
 [[nodiscard]] std::optional<std::vector<subdevices::SignalInfo>> listing_signals(const subdevices::DriverInfo& info,
-                                                                                subdevices::DriverOptions given,
-                                                                                std::string& error);
+                                                                                 subdevices::DriverOptions given,
+                                                                                 std::string& error);
 
 }  // namespace oegw::cli

@@ -82,7 +82,8 @@ std::string refused_line(const json& st) {
   };
   const json& c = st["commands"];
   return "commands refused: " +
-         group(count(c, "refused"), "FEs", who(st["functional_elements"], [](const json& fe) { return count(fe, "refused_commands"); })) +
+         group(count(c, "refused"), "FEs",
+               who(st["functional_elements"], [](const json& fe) { return count(fe, "refused_commands"); })) +
          ", " +
          group(count(c, "subdevice_refused"), "sub-devices",
                who(st["subdevices"], [](const json& d) { return count(d["counters"], "refused_commands"); }));
@@ -91,16 +92,18 @@ std::string refused_line(const json& st) {
 // One row per sub-device, then its last EMCY, identity and firmware, and why it is faulty.
 void subdevice_rows(std::string& out, const json& s) {
   const json& c = s["counters"];
-  out += fmt::format(kSubdeviceRow, s["name"].get<std::string>(), hex(s["node_id"], 2), s["driver"].get<std::string>(),
-                     s["state"].get<std::string>(), c["frames"].get<std::uint64_t>(), c["bad_frames"].get<std::uint64_t>(),
-                     c["reboots_seen"].get<std::uint64_t>(), count(c, "gateway_resets"), count(c, "refused_commands"));
+  out +=
+      fmt::format(kSubdeviceRow, s["name"].get<std::string>(), hex(s["node_id"], 2), s["driver"].get<std::string>(),
+                  s["state"].get<std::string>(), c["frames"].get<std::uint64_t>(), c["bad_frames"].get<std::uint64_t>(),
+                  c["reboots_seen"].get<std::uint64_t>(), count(c, "gateway_resets"), count(c, "refused_commands"));
   const json& id = s["identity"];
   wrap(out, "    ",
-       {"vendor " + hex(id["vendor_id"], 8), "product " + hex(id["product_code"], 8), "revision " + hex(id["revision"], 8),
-        "serial " + hex(id["serial"], 8)},
+       {"vendor " + hex(id["vendor_id"], 8), "product " + hex(id["product_code"], 8),
+        "revision " + hex(id["revision"], 8), "serial " + hex(id["serial"], 8)},
        6);
   wrap(out, "    ",
-       {"name " + text(s["device_name"]), "hardware " + text(s["hardware_version"]), "software " + text(s["software_version"])},
+       {"name " + text(s["device_name"]), "hardware " + text(s["hardware_version"]),
+        "software " + text(s["software_version"])},
        6);
   if (!s["last_emcy"].is_null()) wrap(out, "    ", {"last EMCY " + emcy_text(s["last_emcy"])}, 6);
   if (s["state"] != "operational" && s["network_state"] != s["state"])
@@ -131,20 +134,21 @@ std::string status_table(const json& st) {
   for (const auto& e : up["active_emcys"]) active += (active.empty() ? "" : ", ") + hex(e, 4);
   out += fmt::format("gateway: up {}, mapping file {}\n", seconds(st["uptime_ms"].get<std::int64_t>()),
                      st["mapping_file"].get<std::string>());
-  out += fmt::format("upstream:   {}, network {}, node-ID {}, {}, active EMCYs: {}\n", up["interface"].get<std::string>(),
-                     up["network_id"].get<int>(), hex(up["node_id"], 2), up["nmt_state"].get<std::string>(),
-                     active.empty() ? "none" : active);
+  out += fmt::format("upstream:   {}, network {}, node-ID {}, {}, active EMCYs: {}\n",
+                     up["interface"].get<std::string>(), up["network_id"].get<int>(), hex(up["node_id"], 2),
+                     up["nmt_state"].get<std::string>(), active.empty() ? "none" : active);
   // Each SDO server channel a network indication redirected (absent from an older daemon).
   for (const auto& r : up.value("sdo_redirects", json::array())) {
     std::string request;
     for (const auto& b : r["indication"]) request += fmt::format("{:02X} ", b.get<unsigned>());
     const std::string sub = r["subdevice"].get<std::string>();
-    wrap(out, "", split_words(fmt::format("remote SDO: SDO server {} ({}/{}) redirected to {} (network {}, node {}) for {} by "
-                                    "the network indication {}: a client on {} reaches {}, not the gateway",
-                                    hex(r["sdo_server"], 4), hex(r["request_cob_id"], 3), hex(r["response_cob_id"], 3),
-                                    sub, r["network_id"].get<int>(), hex(r["node_id"], 2),
-                                    seconds(r["age_ms"].get<std::int64_t>()), request.substr(0, request.size() - 1),
-                                    hex(r["request_cob_id"], 3), sub)),
+    wrap(out, "",
+         split_words(fmt::format("remote SDO: SDO server {} ({}/{}) redirected to {} (network {}, node {}) for {} by "
+                                 "the network indication {}: a client on {} reaches {}, not the gateway",
+                                 hex(r["sdo_server"], 4), hex(r["request_cob_id"], 3), hex(r["response_cob_id"], 3),
+                                 sub, r["network_id"].get<int>(), hex(r["node_id"], 2),
+                                 seconds(r["age_ms"].get<std::int64_t>()), request.substr(0, request.size() - 1),
+                                 hex(r["request_cob_id"], 3), sub)),
          4);
   }
   const json& dc = down["counters"];
@@ -160,10 +164,10 @@ std::string status_table(const json& st) {
       if (t["state"] == "up") continue;
       line += ": " + t["reason"].get<std::string>();
       const auto failed = t["failed_attempts"].get<std::uint64_t>();
-      line += fmt::format(" ({} failed attempt{}, {})", failed, failed == 1 ? "" : "s",
-                          t["next_attempt_ms"].is_null()
-                              ? std::string("one running")
-                              : "next in " + seconds(t["next_attempt_ms"].get<std::int64_t>()));
+      line +=
+          fmt::format(" ({} failed attempt{}, {})", failed, failed == 1 ? "" : "s",
+                      t["next_attempt_ms"].is_null() ? std::string("one running")
+                                                     : "next in " + seconds(t["next_attempt_ms"].get<std::int64_t>()));
     }
     out += "publishing: " + (line.empty() ? std::string("off") : line) + "\n";
   }
@@ -173,8 +177,8 @@ std::string status_table(const json& st) {
       out += fmt::format("{}: {} frames read, {} dropped by the kernel before the gateway read them\n", side,
                          (*j)["bus"]["rx_frames"].get<std::uint64_t>(), (*j)["bus"]["rx_dropped"].get<std::uint64_t>());
   if (st.contains("record")) out += gateway::record::record_status_line(st["record"]);
-  out += "\n" + fmt::format(kSubdeviceRow, "sub-device", "node", "driver", "state", "frames", "bad", "reboots", "resets",
-                            "refused");
+  out += "\n" + fmt::format(kSubdeviceRow, "sub-device", "node", "driver", "state", "frames", "bad", "reboots",
+                            "resets", "refused");
   for (const auto& s : st["subdevices"]) subdevice_rows(out, s);
   out += fmt::format("\n{:<15} {:<14} {}\n", "FE", "status", "fields (value, status if not valid)");
   for (const auto& fe : st["functional_elements"]) fe_rows(out, fe);
@@ -189,7 +193,8 @@ std::string control_socket_of(const std::string& socket, const std::string& conf
   if (config.empty()) return std::string(mapping::kDefaultControlSocket);
   auto r = mapping::load_config(config, gateway::driver_catalogue());
   if (!r.ok()) {
-    std::fprintf(stderr, "%s\n%s: %s unreadable; give --socket instead\n", r.error_text().c_str(), program, config.c_str());
+    std::fprintf(stderr, "%s\n%s: %s unreadable; give --socket instead\n", r.error_text().c_str(), program,
+                 config.c_str());
     ok = false;
     return {};
   }
@@ -212,7 +217,10 @@ int run_status(const StatusOptions& o) {
   const std::string path = control_socket_of(o.socket, o.config, "oegw status", ok);
   if (!ok) return kStatusFailed;
   const auto timeout = std::chrono::milliseconds(static_cast<std::int64_t>(o.timeout_s * 1000.0));
-  const AskResult r = ask_daemon(path, gateway::control::json_line(json{{"protocol", gateway::control::kControlProtocol}, {"command", "status"}}), timeout);
+  const AskResult r = ask_daemon(path,
+                                 gateway::control::json_line(
+                                     json{{"protocol", gateway::control::kControlProtocol}, {"command", "status"}}),
+                                 timeout);
   if (r.status != AskStatus::Ok) {
     std::fprintf(stderr, "oegw status: %s\n", r.text.c_str());
     return ask_exit_code(r.status);

@@ -6,14 +6,14 @@
 
 #include <nlohmann/json.hpp>
 
-#include "cli/exit_codes.hpp"
 #include "cli/control_client.hpp"
+#include "cli/exit_codes.hpp"
 
 namespace oegw::cli {
 
 struct StatusOptions {
-  std::string socket;       // empty: from `config`, else mapping::kDefaultControlSocket
-  std::string config;       // a mapping file whose control.socket to ask
+  std::string socket;  // empty: from `config`, else mapping::kDefaultControlSocket
+  std::string config;  // a mapping file whose control.socket to ask
   bool json = false;
   double timeout_s = 2.0;
 };
@@ -21,10 +21,10 @@ struct StatusOptions {
 // Exit codes of `oegw status` (docs/guides/install.md#asking-the-running-gateway-oegw-status), from
 // the one table of every command (cli/exit_codes.hpp).
 inline constexpr int kStatusOk = cli::exit_code::kOk;
-inline constexpr int kStatusFailed = cli::exit_code::kBadFile;        // a bad answer, an error answer, an unreadable --config
-inline constexpr int kStatusNoDaemon = cli::exit_code::kNoDaemon;     // no socket, or nobody listening
-inline constexpr int kStatusPermission = cli::exit_code::kPermission; // the socket's group keeps this user out
-inline constexpr int kStatusTimeout = cli::exit_code::kTimeout;       // no answer in --timeout
+inline constexpr int kStatusFailed = cli::exit_code::kBadFile;  // a bad answer, an error answer, an unreadable --config
+inline constexpr int kStatusNoDaemon = cli::exit_code::kNoDaemon;      // no socket, or nobody listening
+inline constexpr int kStatusPermission = cli::exit_code::kPermission;  // the socket's group keeps this user out
+inline constexpr int kStatusTimeout = cli::exit_code::kTimeout;        // no answer in --timeout
 
 int run_status(const StatusOptions& options);
 

@@ -69,7 +69,9 @@ int command_positional(const char* prog, int index, const char* arg, struct comm
   long instance = 0;
   switch (index) {
     case 0:
-      a->kind = strcmp(arg, "indicators") == 0 ? COMMAND_INDICATORS : strcmp(arg, "display") == 0 ? COMMAND_DISPLAY : COMMAND_NONE;
+      a->kind = strcmp(arg, "indicators") == 0 ? COMMAND_INDICATORS
+                : strcmp(arg, "display") == 0  ? COMMAND_DISPLAY
+                                               : COMMAND_NONE;
       if (a->kind == COMMAND_NONE) fprintf(stderr, "%s: '%s' is not indicators or display\n", prog, arg);
       return a->kind != COMMAND_NONE;
     case 1:
@@ -85,7 +87,8 @@ int command_positional(const char* prog, int index, const char* arg, struct comm
 int command_complete(const char* prog, const struct command_args* a) {
   const int indicators = a->kind == COMMAND_INDICATORS;
   if (a->kind == COMMAND_NONE) fprintf(stderr, "%s: no command: indicators or display\n", prog);
-  else if (a->instance == 0) fprintf(stderr, "%s: %s: no INSTANCE (1..8)\n", prog, indicators ? "indicators" : "display");
+  else if (a->instance == 0)
+    fprintf(stderr, "%s: %s: no INSTANCE (1..8)\n", prog, indicators ? "indicators" : "display");
   else if (indicators ? !a->have_on : !a->have_set)
     fprintf(stderr, "%s: %s needs %s\n", prog, indicators ? "indicators" : "display",
             indicators ? "--on LIST (the indicators to light; none: all off)" : "--set P=V,... (the parameters)");
@@ -105,5 +108,6 @@ void command_text(char* out, size_t size, const struct command_args* a) {
     return;
   }
   n = (size_t)snprintf(out, size, "display.%u parameters=", a->instance);
-  for (int i = 0; i < PARAMETERS && n < size; i++) n += (size_t)snprintf(out + n, size - n, "%s%d", i ? "," : "", a->parameters[i]);
+  for (int i = 0; i < PARAMETERS && n < size; i++)
+    n += (size_t)snprintf(out + n, size - n, "%s%d", i ? "," : "", a->parameters[i]);
 }

@@ -24,12 +24,13 @@ struct command_args {
 };
 
 /* The getopt_long entries: --on LIST ('o'), --set P=V,... ('s'). */
-#define COMMAND_LONG {"on", required_argument, NULL, 'o'}, {"set", required_argument, NULL, 's'}
+#define COMMAND_LONG \
+  {"on", required_argument, NULL, 'o'}, { "set", required_argument, NULL, 's' }
 #define COMMAND_USAGE "indicators INSTANCE --on LIST | display INSTANCE --set P=V[,P=V...]"
-#define COMMAND_HELP \
-  "  indicators INSTANCE --on LIST   light the indicators of LIST on indicators.INSTANCE (1..8),\n" \
+#define COMMAND_HELP                                                                                 \
+  "  indicators INSTANCE --on LIST   light the indicators of LIST on indicators.INSTANCE (1..8),\n"  \
   "                    every other one off; LIST: numbers 1..64 and ranges, e.g. 1,3,5-8, or none\n" \
-  "  display INSTANCE --set P=V,...  set display.INSTANCE's (1..8) parameters P (1..12) to V\n" \
+  "  display INSTANCE --set P=V,...  set display.INSTANCE's (1..8) parameters P (1..12) to V\n"      \
   "                    (-32768..32767), every other one to 0\n"
 
 /* --on / --set: 1 taken, 0 refused (said why), -1 not one of these. */

@@ -27,11 +27,13 @@ struct options {
 
 static void usage(FILE* to, const char* prog) {
   fprintf(to,
-          "usage: %s " COMMAND_USAGE "\n"
-          "       [--timeout SECONDS] " DDS_OPTIONS_USAGE "\n"
+          "usage: %s " COMMAND_USAGE
+          "\n"
+          "       [--timeout SECONDS] " DDS_OPTIONS_USAGE
+          "\n"
           "Sends one command to the gateway's indicators or display over DDS.\n" COMMAND_HELP
-          "  --timeout S       wait at most S seconds for the gateway's reader and its acknowledgement (default 5)\n"
-          DDS_OPTIONS_HELP "  --help            this text\n",
+          "  --timeout S       wait at most S seconds for the gateway's reader and its acknowledgement (default "
+          "5)\n" DDS_OPTIONS_HELP "  --help            this text\n",
           prog);
 }
 
@@ -48,8 +50,11 @@ static int positional(const char* prog, int index, const char* arg, void* ctx) {
   return command_positional(prog, index, arg, &((struct options*)ctx)->command);
 }
 
-static const struct option longs[] = {COMMAND_LONG, {"timeout", required_argument, NULL, 't'},
-                                      {"help", no_argument, NULL, 'h'}, DDS_OPTIONS_LONG, {NULL, 0, NULL, 0}};
+static const struct option longs[] = {COMMAND_LONG,
+                                      {"timeout", required_argument, NULL, 't'},
+                                      {"help", no_argument, NULL, 'h'},
+                                      DDS_OPTIONS_LONG,
+                                      {NULL, 0, NULL, 0}};
 
 /* Waits for the gateway's reader to be discovered: 1 when it was, before TIMEOUT. */
 static int wait_for_reader(dds_entity_t pp, dds_entity_t writer, dds_duration_t timeout) {
@@ -58,7 +63,8 @@ static int wait_for_reader(dds_entity_t pp, dds_entity_t writer, dds_duration_t 
   dds_waitset_attach(ws, writer, writer);
   const dds_time_t deadline = dds_time() + timeout;
   dds_publication_matched_status_t st = {0};
-  while (dds_get_publication_matched_status(writer, &st) == DDS_RETCODE_OK && st.current_count == 0 && dds_time() < deadline)
+  while (dds_get_publication_matched_status(writer, &st) == DDS_RETCODE_OK && st.current_count == 0 &&
+         dds_time() < deadline)
     dds_waitset_wait_until(ws, NULL, 0, deadline);
   dds_delete(ws);
   return st.current_count > 0;
@@ -109,8 +115,8 @@ int main(int argc, char** argv) {
   command_text(text, sizeof text, &o.command);
   int status = EXAMPLE_EXIT_INCOMPLETE;
   if (!wait_for_reader(pp, writer, timeout)) {
-    fprintf(stderr, "%s: no reader of %s (the gateway) in domain %u, partition %s within %g s: not sent\n", prog, topic_name,
-            o.dds.domain, o.dds.partition, o.timeout_s);
+    fprintf(stderr, "%s: no reader of %s (the gateway) in domain %u, partition %s within %g s: not sent\n", prog,
+            topic_name, o.dds.domain, o.dds.partition, o.timeout_s);
   } else if (dds_write(writer, o.command.kind == COMMAND_INDICATORS ? (const void*)&ind : (const void*)&disp) < 0 ||
              dds_wait_for_acks(writer, timeout) != DDS_RETCODE_OK) {
     fprintf(stderr, "%s: %s: not acknowledged within %g s\n", prog, text, o.timeout_s);

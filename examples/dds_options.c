@@ -57,8 +57,8 @@ int dds_options_take(const char* prog, int c, const char* value, struct dds_opti
 
 /* <Security> for the domain, the files as file: URIs (absolute: the domain may outlive a chdir). */
 static int security_xml(const char* prog, const struct dds_options* o, char* out, size_t size) {
-  static const char* const names[DDS_SECURITY_FILES] = {"--identity-ca", "--certificate", "--private-key",
-                                                        "--permissions-ca", "--governance", "--permissions"};
+  static const char* const names[DDS_SECURITY_FILES] = {"--identity-ca",    "--certificate", "--private-key",
+                                                        "--permissions-ca", "--governance",  "--permissions"};
   char path[DDS_SECURITY_FILES][PATH_MAX];
   int given = 0;
   for (int i = 0; i < DDS_SECURITY_FILES; i++) given += o->security[i] != NULL;
@@ -75,7 +75,8 @@ static int security_xml(const char* prog, const struct dds_options* o, char* out
     }
   }
   if (strcmp(o->network, "default") == 0) {
-    fprintf(stderr, "%s: DDS Security goes with the domain's configuration: give --network loopback or an interface\n", prog);
+    fprintf(stderr, "%s: DDS Security goes with the domain's configuration: give --network loopback or an interface\n",
+            prog);
     return 0;
   }
   const int n = snprintf(out, size,
@@ -100,16 +101,19 @@ dds_entity_t dds_options_participant(const char* prog, struct dds_options* o) {
     snprintf(xml, sizeof xml,
              "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"lo\"/></Interfaces>"
              "<AllowMulticast>false</AllowMulticast></General><Discovery><ParticipantIndex>auto</ParticipantIndex>"
-             "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery>%s</Domain></CycloneDDS>", security);
+             "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery>%s</Domain></CycloneDDS>",
+             security);
   } else if (strcmp(o->network, "default") != 0) {
     snprintf(xml, sizeof xml,
              "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface name=\"%s\"/></Interfaces>"
-             "</General>%s</Domain></CycloneDDS>", o->network, security);
+             "</General>%s</Domain></CycloneDDS>",
+             o->network, security);
   }
   if (xml[0] != 0) {
     const dds_entity_t d = dds_create_domain(o->domain, xml);
     if (d < 0) {
-      fprintf(stderr, "%s: cannot create DDS domain %u (network %s): %s\n", prog, o->domain, o->network, dds_strretcode(d));
+      fprintf(stderr, "%s: cannot create DDS domain %u (network %s): %s\n", prog, o->domain, o->network,
+              dds_strretcode(d));
       return d;
     }
     o->created_domain = d;
@@ -135,8 +139,9 @@ static dds_entity_t in_partition(const char* prog, dds_entity_t pp, const struct
   dds_qset_partition1(q, o->partition);
   const dds_entity_t e = publisher ? dds_create_publisher(pp, q, NULL) : dds_create_subscriber(pp, q, NULL);
   dds_delete_qos(q);
-  if (e < 0) fprintf(stderr, "%s: cannot create a DDS %s in partition %s: %s\n", prog, publisher ? "publisher" : "subscriber",
-                     o->partition, dds_strretcode(e));
+  if (e < 0)
+    fprintf(stderr, "%s: cannot create a DDS %s in partition %s: %s\n", prog, publisher ? "publisher" : "subscriber",
+            o->partition, dds_strretcode(e));
   return e;
 }
 
@@ -155,9 +160,13 @@ void dds_options_nothing_received(const char* prog, const struct dds_options* o,
   fprintf(stderr, "%s: nothing on %s %s (domain %u, partition %s, network %s)\n", prog, topic, when, o->domain,
           o->partition, o->network);
   if (strcmp(o->partition, "oegw-demo") != 0)
-    fprintf(stderr, "%s: the demo publishes partition oegw-demo: --partition oegw-demo; a gateway its publish.dds.partition "
-                    "(default oegw), publish.dds.domain and publish.dds.network\n", prog);
+    fprintf(stderr,
+            "%s: the demo publishes partition oegw-demo: --partition oegw-demo; a gateway its publish.dds.partition "
+            "(default oegw), publish.dds.domain and publish.dds.network\n",
+            prog);
   else
-    fprintf(stderr, "%s: is `oegw demo` running (on this computer: --network loopback)? A gateway publishes its "
-                    "publish.dds.partition (default oegw): --partition oegw\n", prog);
+    fprintf(stderr,
+            "%s: is `oegw demo` running (on this computer: --network loopback)? A gateway publishes its "
+            "publish.dds.partition (default oegw): --partition oegw\n",
+            prog);
 }

@@ -19,27 +19,29 @@ struct dds_options {
   const char* partition;
   const char* network;
   const char* security[DDS_SECURITY_FILES]; /* identity CA, certificate, key, permissions CA, governance, permissions */
-  dds_entity_t created_domain; /* the domain dds_options_participant created for the network (0: none) */
+  dds_entity_t created_domain;              /* the domain dds_options_participant created for the network (0: none) */
 };
 
-#define DDS_OPTIONS_DEFAULT {0, "oegw", "loopback", {0}, 0}
+#define DDS_OPTIONS_DEFAULT \
+  { 0, "oegw", "loopback", {0}, 0 }
 /* The getopt_long entries; the values are 'D', 'P', 'N' and 0x100 + the security file's index. */
-#define DDS_OPTIONS_LONG \
-  {"domain", required_argument, NULL, 'D'}, {"partition", required_argument, NULL, 'P'}, \
-  {"network", required_argument, NULL, 'N'}, {"identity-ca", required_argument, NULL, 0x100}, \
-  {"certificate", required_argument, NULL, 0x101}, {"private-key", required_argument, NULL, 0x102}, \
-  {"permissions-ca", required_argument, NULL, 0x103}, {"governance", required_argument, NULL, 0x104}, \
-  {"permissions", required_argument, NULL, 0x105}
-#define DDS_OPTIONS_USAGE \
+#define DDS_OPTIONS_LONG                                                                                    \
+  {"domain", required_argument, NULL, 'D'}, {"partition", required_argument, NULL, 'P'},                    \
+      {"network", required_argument, NULL, 'N'}, {"identity-ca", required_argument, NULL, 0x100},           \
+      {"certificate", required_argument, NULL, 0x101}, {"private-key", required_argument, NULL, 0x102},     \
+      {"permissions-ca", required_argument, NULL, 0x103}, {"governance", required_argument, NULL, 0x104}, { \
+    "permissions", required_argument, NULL, 0x105                                                           \
+  }
+#define DDS_OPTIONS_USAGE                                                  \
   "[--domain 0..232] [--partition P] [--network loopback|IFACE|default]\n" \
   "       [--identity-ca F --certificate F --private-key F --permissions-ca F --governance F --permissions F]"
-#define DDS_OPTIONS_HELP \
-  "  --domain D        DDS domain (default 0)\n" \
-  "  --partition P     the gateway's publish.dds.partition (default oegw; the demo's: oegw-demo)\n" \
+#define DDS_OPTIONS_HELP                                                                              \
+  "  --domain D        DDS domain (default 0)\n"                                                      \
+  "  --partition P     the gateway's publish.dds.partition (default oegw; the demo's: oegw-demo)\n"   \
   "  --network N       loopback (default: nothing leaves this host), an interface name, or default\n" \
-  "                    (Cyclone's own configuration, CYCLONEDDS_URI)\n" \
-  "  --identity-ca F, --certificate F, --private-key F, --permissions-ca F, --governance F,\n" \
-  "  --permissions F   DDS Security: this application's identity and the cab's documents, all six\n" \
+  "                    (Cyclone's own configuration, CYCLONEDDS_URI)\n"                               \
+  "  --identity-ca F, --certificate F, --private-key F, --permissions-ca F, --governance F,\n"        \
+  "  --permissions F   DDS Security: this application's identity and the cab's documents, all six\n"  \
   "                    (scripts/make-dds-security.sh makes them); not with --network default\n"
 
 /* Takes option C (one of the above) with its value: 1 taken, 0 refused (said why on stderr),

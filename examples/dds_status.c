@@ -32,7 +32,8 @@ struct options {
 
 static void usage(FILE* to, const char* prog) {
   fprintf(to,
-          "usage: %s [--timeout SECONDS] [--every] " DDS_OPTIONS_USAGE "\n"
+          "usage: %s [--timeout SECONDS] [--every] " DDS_OPTIONS_USAGE
+          "\n"
           "Prints the gateway's status (topic oegw/status) as it changes: sub-device states and identities,\n"
           "EMCYs, the gateway's active EMCYs, refused commands; one line each.\n"
           "  --timeout S       stop after S seconds (default: run until Ctrl-C)\n"
@@ -139,7 +140,8 @@ static void print_status(const oegw_GatewayStatus* st, int every) {
     printf("upstream_emcy node=%02Xh count=%llu%s\n", u->node_id, (unsigned long long)u->count, emcy);
   }
   if (!seen.any || strcmp(seen.active, active) != 0) printf("active_emcys %s\n", active);
-  if (!seen.any || seen.refused != st->refused_commands) printf("refused_commands %llu\n", (unsigned long long)st->refused_commands);
+  if (!seen.any || seen.refused != st->refused_commands)
+    printf("refused_commands %llu\n", (unsigned long long)st->refused_commands);
   snprintf(seen.upstream, sizeof seen.upstream, "%s", st->upstream_state);
   snprintf(seen.active, sizeof seen.active, "%s", active);
   seen.refused = st->refused_commands;

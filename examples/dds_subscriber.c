@@ -45,11 +45,11 @@ struct options {
 
 static void usage(FILE* to, const char* prog) {
   fprintf(to,
-          "usage: %s [--count N] [--timeout SECONDS] " DDS_OPTIONS_USAGE "\n"
+          "usage: %s [--count N] [--timeout SECONDS] " DDS_OPTIONS_USAGE
+          "\n"
           "Prints the gateway's joystick samples (topic oegw/joystick), one line each.\n"
           "  --count N         exit 0 after N samples (exit 3 if the timeout comes first)\n"
-          "  --timeout S       stop after S seconds (default 10)\n" DDS_OPTIONS_HELP
-          "  --help            this text\n",
+          "  --timeout S       stop after S seconds (default 10)\n" DDS_OPTIONS_HELP "  --help            this text\n",
           prog);
 }
 
@@ -111,9 +111,10 @@ int main(int argc, char** argv) {
     for (int i = 0; i < n && (o.count < 0 || received < o.count); i++) {
       if (!infos[i].valid_data) continue;
       const oegw_Joystick* j = (const oegw_Joystick*)samples[i];
-      printf("joystick instance=%u status=%s seq=%u ts_us=%lld x=%d y=%d z=%d buttons=0x%02x memory=0x%02x rx_us=%lld\n",
-             j->instance, status_name(j->status), (unsigned)j->seq, (long long)j->timestamp_us, j->x, j->y, j->z,
-             j->buttons, j->memory, rx);
+      printf(
+          "joystick instance=%u status=%s seq=%u ts_us=%lld x=%d y=%d z=%d buttons=0x%02x memory=0x%02x rx_us=%lld\n",
+          j->instance, status_name(j->status), (unsigned)j->seq, (long long)j->timestamp_us, j->x, j->y, j->z,
+          j->buttons, j->memory, rx);
       received++;
     }
     if (n > 0) dds_return_loan(reader, samples, n);

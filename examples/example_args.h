@@ -14,9 +14,9 @@ extern "C" {
 /* Exit statuses shared by the examples (docs/guides/dds-lcm.md#the-examples). */
 enum {
   EXAMPLE_EXIT_OK = 0,
-  EXAMPLE_EXIT_SETUP = 1,   /* the transport could not be opened */
-  EXAMPLE_EXIT_USAGE = 2,   /* the command line was refused */
-  EXAMPLE_EXIT_INCOMPLETE = 3  /* the timeout came before what was asked for, or a message did not decode */
+  EXAMPLE_EXIT_SETUP = 1,     /* the transport could not be opened */
+  EXAMPLE_EXIT_USAGE = 2,     /* the command line was refused */
+  EXAMPLE_EXIT_INCOMPLETE = 3 /* the timeout came before what was asked for, or a message did not decode */
 };
 
 /* TEXT (the value of OPTION) as a whole number in [min, max], decimal or 0x-hex, nothing after it.

@@ -30,7 +30,8 @@ struct Options {
 
 void usage(std::FILE* to, const char* prog) {
   std::fprintf(to,
-               "usage: %s " COMMAND_USAGE "\n"
+               "usage: %s " COMMAND_USAGE
+               "\n"
                "       [--url URL] [--prefix PREFIX]\n"
                "Sends one command to the gateway's indicators or display over LCM.\n" COMMAND_HELP
                "  --url URL         the gateway's publish.lcm.url (default udpm://224.0.0.1:7667?ttl=0)\n"
@@ -51,8 +52,11 @@ int positional(const char* prog, int index, const char* arg, void* ctx) {
   return command_positional(prog, index, arg, &static_cast<Options*>(ctx)->command);
 }
 
-const option longs[] = {COMMAND_LONG, {"url", required_argument, nullptr, 'u'}, {"prefix", required_argument, nullptr, 'p'},
-                        {"help", no_argument, nullptr, 'h'}, {nullptr, 0, nullptr, 0}};
+const option longs[] = {COMMAND_LONG,
+                        {"url", required_argument, nullptr, 'u'},
+                        {"prefix", required_argument, nullptr, 'p'},
+                        {"help", no_argument, nullptr, 'h'},
+                        {nullptr, 0, nullptr, 0}};
 
 // The channel and the encoded message of the command.
 std::pair<std::string, std::vector<std::uint8_t>> encode(const Options& o) {

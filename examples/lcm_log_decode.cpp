@@ -4,8 +4,8 @@
 //   lcm_log_decode FILE [CHANNEL_PREFIX]      (prefix default OEGW_; the demo's: OEGW_DEMO_)
 //   joystick instance=1 status=valid seq=7 ts_us=123 x=100 y=-5 z=0 buttons=0x01 memory=0x00
 //   status seq=3 upstream=operational subdevices=1 emcys=1 refused=0 active=7000h
-//     subdevice right_grip node=11h state=operational emcys=2 last=1000h reg=00h msef=21 00 ff ff ff ts_us=4100 vendor=...
-//     upstream_emcy node=05h emcys=1 last=8130h reg=11h msef=00 00 00 00 00 ts_us=5000
+//     subdevice right_grip node=11h state=operational emcys=2 last=1000h reg=00h msef=21 00 ff ff ff ts_us=4100
+//     vendor=... upstream_emcy node=05h emcys=1 last=8130h reg=11h msef=00 00 00 00 00 ts_us=5000
 //   decoded joystick=20 pedal=10 wheel=10 encoder=10 buttons=10 indicators=1 display=0 status=10 other=0 bad=0
 // "other": channels outside the prefix or not oegw's; "bad": messages on an oegw channel that do
 // not decode as its type (each also said on stderr). Exits 0, 3 when some were bad, 2 for a
@@ -37,7 +37,8 @@ struct Counts {
   long by_kind[static_cast<int>(ex::Kind::Unknown) + 1] = {};
   long bad = 0;
   void print() const {
-    static const char* const names[] = {"joystick", "pedal", "wheel", "encoder", "buttons", "indicators", "display", "status", "other"};
+    static const char* const names[] = {"joystick",   "pedal",   "wheel",  "encoder", "buttons",
+                                        "indicators", "display", "status", "other"};
     std::printf("decoded");
     for (int k = 0; k <= static_cast<int>(ex::Kind::Unknown); ++k) std::printf(" %s=%ld", names[k], by_kind[k]);
     std::printf(" bad=%ld\n", bad);
@@ -88,7 +89,8 @@ int main(int argc, char** argv) {
     return EXAMPLE_EXIT_SETUP;
   }
   Counts counts;
-  for (lcm_eventlog_event_t* ev = lcm_eventlog_read_next_event(log); ev != nullptr; ev = lcm_eventlog_read_next_event(log)) {
+  for (lcm_eventlog_event_t* ev = lcm_eventlog_read_next_event(log); ev != nullptr;
+       ev = lcm_eventlog_read_next_event(log)) {
     decode_one(*ev, prefix, counts);
     lcm_eventlog_free_event(ev);
   }

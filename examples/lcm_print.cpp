@@ -36,7 +36,8 @@ template <class Sample>
 std::string header(const char* kind, const Sample& s) {
   static const char* const names[] = {"valid", "error", "not_available", "stale", "offline"};
   return format("%s instance=%u status=%s seq=%u ts_us=%lld", kind, u8(s.instance),
-                s.status >= 0 && s.status <= 4 ? names[s.status] : "?", u32(s.seq), static_cast<long long>(s.timestamp_us));
+                s.status >= 0 && s.status <= 4 ? names[s.status] : "?", u32(s.seq),
+                static_cast<long long>(s.timestamp_us));
 }
 
 template <class T>
@@ -46,16 +47,19 @@ bool decode(T& out, const void* data, std::size_t size) {
 
 std::vector<std::string> status_lines(const oegw::gateway_status_t& s) {
   std::string active;
-  for (const auto code : s.active_emcys) active += format("%s%04Xh", active.empty() ? "" : ",", static_cast<unsigned>(static_cast<std::uint16_t>(code)));
-  std::vector<std::string> out{format("status seq=%u upstream=%s subdevices=%d emcys=%d refused=%lld active=%s", u32(s.seq),
-                                      s.upstream_state.c_str(), s.n_subdevices, s.n_active_emcys,
-                                      static_cast<long long>(s.refused_commands), active.empty() ? "none" : active.c_str())};
+  for (const auto code : s.active_emcys)
+    active += format("%s%04Xh", active.empty() ? "" : ",", static_cast<unsigned>(static_cast<std::uint16_t>(code)));
+  std::vector<std::string> out{format("status seq=%u upstream=%s subdevices=%d emcys=%d refused=%lld active=%s",
+                                      u32(s.seq), s.upstream_state.c_str(), s.n_subdevices, s.n_active_emcys,
+                                      static_cast<long long>(s.refused_commands),
+                                      active.empty() ? "none" : active.c_str())};
   for (const auto& d : s.subdevices)
-    out.push_back(format("  subdevice %s node=%02Xh state=%s emcys=%lld", d.name.c_str(), static_cast<unsigned>(d.node_id),
-                         d.state.c_str(), static_cast<long long>(d.emcy_count)) +
+    out.push_back(format("  subdevice %s node=%02Xh state=%s emcys=%lld", d.name.c_str(),
+                         static_cast<unsigned>(d.node_id), d.state.c_str(), static_cast<long long>(d.emcy_count)) +
                   emcy_text(d.last_emcy) + identity_text(d.identity));
   for (const auto& u : s.upstream_emcys)
-    out.push_back(format("  upstream_emcy node=%02Xh emcys=%lld", static_cast<unsigned>(u.node_id), static_cast<long long>(u.count)) +
+    out.push_back(format("  upstream_emcy node=%02Xh emcys=%lld", static_cast<unsigned>(u.node_id),
+                         static_cast<long long>(u.count)) +
                   emcy_text(u.last));
   return out;
 }
@@ -64,10 +68,10 @@ std::vector<std::string> status_lines(const oegw::gateway_status_t& s) {
 
 Kind kind_of(const std::string& channel) {
   static const std::regex numbered("(JOYSTICK|PEDAL|WHEEL|ENCODER|BUTTONS|INDICATORS|DISPLAY)_[0-9]+$");
-  static const std::pair<const char*, Kind> kinds[] = {
-      {"JOYSTICK", Kind::Joystick}, {"PEDAL", Kind::Pedal},           {"WHEEL", Kind::Wheel},
-      {"ENCODER", Kind::Encoder},   {"BUTTONS", Kind::Buttons},       {"INDICATORS", Kind::Indicators},
-      {"DISPLAY", Kind::Display}};
+  static const std::pair<const char*, Kind> kinds[] = {{"JOYSTICK", Kind::Joystick}, {"PEDAL", Kind::Pedal},
+                                                       {"WHEEL", Kind::Wheel},       {"ENCODER", Kind::Encoder},
+                                                       {"BUTTONS", Kind::Buttons},   {"INDICATORS", Kind::Indicators},
+                                                       {"DISPLAY", Kind::Display}};
   std::smatch m;
   if (std::regex_search(channel, m, numbered))
     for (const auto& [name, kind] : kinds)
@@ -124,7 +128,8 @@ std::vector<std::string> describe(Kind kind, const void* data, std::size_t size)
     case Kind::Indicators: {
       oegw::indicator_command_t c;
       if (!decode(c, data, size)) break;
-      return {format("indicators instance=%u indicators=0x%016" PRIx64, u8(c.instance), static_cast<std::uint64_t>(c.indicators))};
+      return {format("indicators instance=%u indicators=0x%016" PRIx64, u8(c.instance),
+                     static_cast<std::uint64_t>(c.indicators))};
     }
     case Kind::Display: {
       oegw::display_command_t c;
@@ -144,9 +149,10 @@ std::vector<std::string> describe(Kind kind, const void* data, std::size_t size)
 }
 
 std::string emcy_text(const oegw::emcy_t& e) {
-  return format(" last=%04Xh reg=%02Xh msef=%02x %02x %02x %02x %02x ts_us=%lld", static_cast<unsigned>(static_cast<std::uint16_t>(e.code)),
-                static_cast<unsigned>(e.error_register), static_cast<unsigned>(e.msef[0]), static_cast<unsigned>(e.msef[1]),
-                static_cast<unsigned>(e.msef[2]), static_cast<unsigned>(e.msef[3]), static_cast<unsigned>(e.msef[4]),
+  return format(" last=%04Xh reg=%02Xh msef=%02x %02x %02x %02x %02x ts_us=%lld",
+                static_cast<unsigned>(static_cast<std::uint16_t>(e.code)), static_cast<unsigned>(e.error_register),
+                static_cast<unsigned>(e.msef[0]), static_cast<unsigned>(e.msef[1]), static_cast<unsigned>(e.msef[2]),
+                static_cast<unsigned>(e.msef[3]), static_cast<unsigned>(e.msef[4]),
                 static_cast<long long>(e.timestamp_us));
 }
 
@@ -168,13 +174,18 @@ std::string identity_text(const oegw::subdevice_identity_t& id) {
 void say_nothing_received(const char* prog, const std::string& channels, const char* url, double seconds,
                           const std::string& demo_option) {
   const std::string when = seconds > 0 ? format("within %g s", seconds) : std::string("before it was stopped");
-  std::fprintf(stderr, "%s: nothing on the channels matching %s %s (URL %s)\n", prog, channels.c_str(), when.c_str(), url);
+  std::fprintf(stderr, "%s: nothing on the channels matching %s %s (URL %s)\n", prog, channels.c_str(), when.c_str(),
+               url);
   if (!demo_option.empty())
-    std::fprintf(stderr, "%s: the demo publishes channels OEGW_DEMO_*: %s; a gateway its publish.lcm.channel_prefix "
-                         "(default OEGW_) on its publish.lcm.url\n", prog, demo_option.c_str());
+    std::fprintf(stderr,
+                 "%s: the demo publishes channels OEGW_DEMO_*: %s; a gateway its publish.lcm.channel_prefix "
+                 "(default OEGW_) on its publish.lcm.url\n",
+                 prog, demo_option.c_str());
   else
-    std::fprintf(stderr, "%s: is `oegw demo` running on this computer? A gateway publishes its publish.lcm.channel_prefix "
-                         "(default OEGW_) on its publish.lcm.url\n", prog);
+    std::fprintf(stderr,
+                 "%s: is `oegw demo` running on this computer? A gateway publishes its publish.lcm.channel_prefix "
+                 "(default OEGW_) on its publish.lcm.url\n",
+                 prog);
 }
 
 }  // namespace oegw_examples

@@ -107,12 +107,13 @@ void print_status(const oegw::gateway_status_t& s, bool every, Seen& seen) {
   for (const auto& u : s.upstream_emcys) {
     auto& last = seen.upstream_emcys[u.node_id];
     if (last != u.count)
-      std::printf("upstream_emcy node=%02Xh count=%lld%s\n", static_cast<unsigned>(u.node_id), static_cast<long long>(u.count),
-                  ex::emcy_text(u.last).c_str());
+      std::printf("upstream_emcy node=%02Xh count=%lld%s\n", static_cast<unsigned>(u.node_id),
+                  static_cast<long long>(u.count), ex::emcy_text(u.last).c_str());
     last = u.count;
   }
   if (!seen.any || seen.active != active) std::printf("active_emcys %s\n", active.c_str());
-  if (!seen.any || seen.refused != s.refused_commands) std::printf("refused_commands %lld\n", static_cast<long long>(s.refused_commands));
+  if (!seen.any || seen.refused != s.refused_commands)
+    std::printf("refused_commands %lld\n", static_cast<long long>(s.refused_commands));
   seen.upstream = s.upstream_state;
   seen.active = active;
   seen.refused = s.refused_commands;
@@ -158,7 +159,8 @@ int main(int argc, char** argv) {
   Receiver r{o.every, {}};
   // The channel name exactly (lcm_subscribe takes a regular expression: the prefix is escaped).
   std::string channel;
-  for (const char* p = o.prefix; *p != 0; ++p) channel += std::string(std::isalnum(static_cast<unsigned char>(*p)) || *p == '_' ? "" : "\\") + *p;
+  for (const char* p = o.prefix; *p != 0; ++p)
+    channel += std::string(std::isalnum(static_cast<unsigned char>(*p)) || *p == '_' ? "" : "\\") + *p;
   lcm_subscribe(lcm, (channel + "STATUS").c_str(), &on_status, &r);
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);

@@ -81,7 +81,8 @@ void add_subdevice(BusLoad& load, const mapping::Config& cfg, const mapping::Sub
         add(load, fmt::format("{}, every {} SYNC", pdo, t.transmission_type), t.cob_id, t.length,
             double(t.transmission_type) * cfg.downstream.sync_period_ms);
       else
-        load.on_change.push_back(fmt::format("{}: synchronous type {} and no SYNC: never sent", pdo, t.transmission_type));
+        load.on_change.push_back(
+            fmt::format("{}: synchronous type {} and no SYNC: never sent", pdo, t.transmission_type));
     } else {
       load.on_change.push_back(fmt::format("{}: on change only ({})", pdo, inhibit_bound(t.inhibit_100us)));
     }
@@ -101,7 +102,8 @@ BusLoadPrediction predict_bus_load(const mapping::Config& cfg) {
   p.downstream.on_change.push_back("the gateway's RPDOs to the sub-devices' outputs: on command");
   if (cfg.upstream.heartbeat_ms != 0)
     add_heartbeat(p.upstream,
-                  fmt::format("gateway heartbeat {:03X}h, every {} ms", 0x700 + cfg.upstream.node_id, cfg.upstream.heartbeat_ms),
+                  fmt::format("gateway heartbeat {:03X}h, every {} ms", 0x700 + cfg.upstream.node_id,
+                              cfg.upstream.heartbeat_ms),
                   0x700u + cfg.upstream.node_id, cfg.upstream.heartbeat_ms);
   p.upstream.on_change.push_back(
       "the gateway's TPDOs (CiA 852 clause 12): disabled at power-on; once the host enables them, on change of "
@@ -110,8 +112,9 @@ BusLoadPrediction predict_bus_load(const mapping::Config& cfg) {
 }
 
 std::string describe_bus_load(const BusLoad& load, const std::string& name) {
-  std::string out = fmt::format("  {} {} bit/s: {:.1f} % steady state ({:.1f} frames/s, {:.0f} bit/s; PDOs at worst-case stuffing)\n",
-                                name, load.bit_rate, load.percent(), load.frames_per_second(), load.bits_per_second());
+  std::string out =
+      fmt::format("  {} {} bit/s: {:.1f} % steady state ({:.1f} frames/s, {:.0f} bit/s; PDOs at worst-case stuffing)\n",
+                  name, load.bit_rate, load.percent(), load.frames_per_second(), load.bits_per_second());
   for (const auto& s : load.periodic)
     out += fmt::format("    {:<58} {:7.1f}/s x {:3} bits = {:5.2f} %\n", s.what, s.per_second, s.bits,
                        load.bit_rate == 0 ? 0.0 : 100.0 * s.bits_per_second() / load.bit_rate);
@@ -121,9 +124,10 @@ std::string describe_bus_load(const BusLoad& load, const std::string& name) {
 
 std::string bus_load_warning(const BusLoad& load, const std::string& name) {
   if (load.percent() <= kBusLoadWarnPercent) return "";
-  return fmt::format("warning: the {} bus is {:.1f} % loaded in the steady state, above {:.0f} %: too little room for "
-                     "change-driven frames, boot SDO traffic and retransmissions (lower the rates or raise {}.bitrate)\n",
-                     name, load.percent(), kBusLoadWarnPercent, name);
+  return fmt::format(
+      "warning: the {} bus is {:.1f} % loaded in the steady state, above {:.0f} %: too little room for "
+      "change-driven frames, boot SDO traffic and retransmissions (lower the rates or raise {}.bitrate)\n",
+      name, load.percent(), kBusLoadWarnPercent, name);
 }
 
 }  // namespace oegw::gateway

@@ -15,13 +15,13 @@
 // bits, its CRC, intermission included): SYNC, and a heartbeat at the longest of its three states
 // (05h, 7Fh, 04h). A PDO, whose data varies, counts with its worst-case length (the most stuff
 // bits its data length allows). So the prediction is an upper bound of the steady state, and
-// tight where nothing varies (the upstream bus carries only the gateway's heartbeat). What goes on change (a PDO without event timer, a moved input's extra PDOs, the
-// gateway's RPDOs to the devices' outputs, EMCYs, SDO) is listed, with the most an inhibit time
-// allows where there is one, but not counted. The publish period paces DDS/LCM, not CAN. The
-// host's own frames (its heartbeat, its RPDOs) are not in the file either.
-// Above kBusLoadWarnPercent `oegw check` warns: a bus loaded more than that leaves too little
-// room for the change-driven frames, the boot's SDO traffic and an error frame's retransmission
-// (CiA's usual design rule keeps a CAN bus well below saturation; 70 % is this project's line).
+// tight where nothing varies (the upstream bus carries only the gateway's heartbeat). What goes on change (a PDO
+// without event timer, a moved input's extra PDOs, the gateway's RPDOs to the devices' outputs, EMCYs, SDO) is listed,
+// with the most an inhibit time allows where there is one, but not counted. The publish period paces DDS/LCM, not CAN.
+// The host's own frames (its heartbeat, its RPDOs) are not in the file either. Above kBusLoadWarnPercent `oegw check`
+// warns: a bus loaded more than that leaves too little room for the change-driven frames, the boot's SDO traffic and an
+// error frame's retransmission (CiA's usual design rule keeps a CAN bus well below saturation; 70 % is this project's
+// line).
 #pragma once
 
 #include <cstdint>
@@ -36,12 +36,12 @@ inline constexpr double kBusLoadWarnPercent = 70.0;
 
 // One periodic frame stream.
 struct BusStream {
-  std::string what;         // "right_grip TPDO 191h, 8 bytes, event timer 100 ms"
+  std::string what;  // "right_grip TPDO 191h, 8 bytes, event timer 100 ms"
   std::uint32_t cob_id = 0;
   std::uint8_t length = 0;  // data bytes
   double per_second = 0;
-  std::uint32_t bits = 0;   // its length on the wire: exact, else the worst case
-  bool exact = false;       // its frames are known bit for bit (SYNC, heartbeat)
+  std::uint32_t bits = 0;  // its length on the wire: exact, else the worst case
+  bool exact = false;      // its frames are known bit for bit (SYNC, heartbeat)
   [[nodiscard]] double bits_per_second() const { return per_second * bits; }
 };
 

@@ -14,8 +14,7 @@ bool takes(mapping::CommandSources sources, CommandSource s) {
 }
 }  // namespace
 
-CommandArbiter::CommandArbiter(const mapping::Config& config, OeDevice& device, FeModel& model,
-                               const TimePoint& clock)
+CommandArbiter::CommandArbiter(const mapping::Config& config, OeDevice& device, FeModel& model, const TimePoint& clock)
     : device_(device), model_(model), clock_(clock) {
   for (const auto& fe : config.functional_elements) {
     if (fe.input()) continue;
@@ -72,7 +71,8 @@ bool CommandArbiter::host_write(FeId fe, canopen::Origin origin) {
   }
   const bool rpdo = origin == canopen::Origin::Pdo;
   refuse(fe, rpdo ? "RPDO" : "SDO",
-         std::string(rpdo ? "the host's RPDO bytes for it ignored" : "the host's SDO write refused (abort 0800 0021h)") +
+         std::string(rpdo ? "the host's RPDO bytes for it ignored"
+                          : "the host's SDO write refused (abort 0800 0021h)") +
              ": its sources are " + mapping::describe_sources(o->sources));
   return false;
 }

@@ -14,9 +14,9 @@ DaemonLog::DaemonLog(std::size_t queue_lines) : previous_(spdlog::default_logger
     sigfillset(&all);
     ::pthread_sigmask(SIG_BLOCK, &all, nullptr);
   });
-  auto logger = std::make_shared<spdlog::async_logger>(previous_->name(), previous_->sinks().begin(),
-                                                       previous_->sinks().end(), pool_,
-                                                       spdlog::async_overflow_policy::overrun_oldest);
+  auto logger =
+      std::make_shared<spdlog::async_logger>(previous_->name(), previous_->sinks().begin(), previous_->sinks().end(),
+                                             pool_, spdlog::async_overflow_policy::overrun_oldest);
   logger->set_level(previous_->level());
   spdlog::set_default_logger(std::move(logger));
 }

@@ -61,7 +61,9 @@ bool write_slot(PedalState& s, FieldRef r, std::int64_t v) {
   if (r.slot == FeSlot::Position) return assign(s.position, v);
   return r.slot == FeSlot::Memory && r.bit == 0 && assign_bit(s.memory, 0, v);
 }
-bool write_slot(WheelState& s, FieldRef r, std::int64_t v) { return r.slot == FeSlot::Position && assign(s.position, v); }
+bool write_slot(WheelState& s, FieldRef r, std::int64_t v) {
+  return r.slot == FeSlot::Position && assign(s.position, v);
+}
 bool write_slot(EncoderState& s, FieldRef r, std::int64_t v) {
   return r.slot == FeSlot::Position && assign(s.position, v);
 }

@@ -87,8 +87,8 @@ struct DisplayState {
   FeHeader h;
   std::array<std::int16_t, 12> parameters{};
 };
-using FeState = std::variant<JoystickState, PedalState, WheelState, EncoderState, ButtonClusterState, IndicatorState,
-                             DisplayState>;
+using FeState =
+    std::variant<JoystickState, PedalState, WheelState, EncoderState, ButtonClusterState, IndicatorState, DisplayState>;
 
 class FeModel {
  public:

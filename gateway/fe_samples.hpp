@@ -16,7 +16,7 @@ namespace oegw::gateway {
 enum class FeStatus : std::uint8_t { Valid = 0, Error = 1, NotAvailable = 2, Stale = 3, Offline = 4 };
 
 struct SampleHeader {
-  std::uint8_t instance = 1;      // 1-based FE instance (CiA 852 §5.3)
+  std::uint8_t instance = 1;  // 1-based FE instance (CiA 852 §5.3)
   FeStatus status = FeStatus::Offline;
   std::int64_t timestamp_us = 0;  // source time: reception of the frame that carried the value (CLOCK_MONOTONIC µs)
   std::uint32_t seq = 0;          // per FE instance, +1 per published sample
@@ -72,8 +72,8 @@ struct SubdeviceIdentity {
 struct SubdeviceState {
   std::string name;
   std::uint8_t node_id = 0;
-  std::string state;  // "operational", "missing", ...
-  EmcySample last_emcy;         // the last EMCY it sent
+  std::string state;             // "operational", "missing", ...
+  EmcySample last_emcy;          // the last EMCY it sent
   std::uint64_t emcy_count = 0;  // EMCYs it sent since the gateway started
   SubdeviceIdentity identity;    // read at its last boot
 };
@@ -86,9 +86,9 @@ struct UpstreamEmcy {
 struct GatewayStatus {
   std::int64_t timestamp_us = 0;
   std::uint32_t seq = 0;
-  std::string upstream_state;           // upstream NMT state: "operational", ...
+  std::string upstream_state;  // upstream NMT state: "operational", ...
   std::vector<SubdeviceState> subdevices;
-  std::vector<std::uint16_t> active_emcys;  // codes the gateway has active upstream
+  std::vector<std::uint16_t> active_emcys;   // codes the gateway has active upstream
   std::uint64_t refused_commands = 0;        // Gateway::refused_commands()
   std::vector<UpstreamEmcy> upstream_emcys;  // per upstream node that sent one, by node-ID
 };

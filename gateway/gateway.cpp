@@ -65,10 +65,16 @@ Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed
     : tap_(options.tap),
       downstream_out_(tapped(Bus::Down, std::move(downstream))),
       config_(config),
-      master_(master_od_, downstream_out_, canopen::MasterConfig{.heartbeat_entries = heartbeat_entries(config), .sdo_timeout = options.sdo_timeout.value_or(std::chrono::milliseconds(config.downstream.sdo_timeout_ms)), .sync_period = std::chrono::milliseconds(config.downstream.sync_period_ms), .sdo_request_gap = canopen::SdoPacer::gap_for(config.downstream.bitrate, options.sdo_bus_share)}),
+      master_(master_od_, downstream_out_,
+              canopen::MasterConfig{.heartbeat_entries = heartbeat_entries(config),
+                                    .sdo_timeout = options.sdo_timeout.value_or(
+                                        std::chrono::milliseconds(config.downstream.sdo_timeout_ms)),
+                                    .sync_period = std::chrono::milliseconds(config.downstream.sync_period_ms),
+                                    .sdo_request_gap =
+                                        canopen::SdoPacer::gap_for(config.downstream.bitrate, options.sdo_bus_share)}),
       network_(master_, options.timing),
-      remote_sdo_(std::make_unique<RemoteSdo>(config_, master_, network_, now_,
-                                              [this] { return oe_->node().node_id(); })),
+      remote_sdo_(
+          std::make_unique<RemoteSdo>(config_, master_, network_, now_, [this] { return oe_->node().node_id(); })),
       oe_(handed_over ? std::move(handed_over)
                       : std::make_unique<OeDevice>(device_config(config_, options.store_path), std::move(upstream))),
       model_(oe_->config().fes) {
@@ -127,7 +133,14 @@ void Gateway::add_subdevices() {
     network_.add(std::move(ns), std::move(driver));
     const std::size_t n = d->signals().size();
     Sub& s = subs_[sc.name];
-    s = Sub{&sc, d, false, false, "not booted yet", std::vector<std::vector<std::size_t>>(n), {}, {},
+    s = Sub{&sc,
+            d,
+            false,
+            false,
+            "not booted yet",
+            std::vector<std::vector<std::size_t>>(n),
+            {},
+            {},
             std::vector<std::int64_t>(n, 0)};
     // The sub-device's entry is found once, here: no look-up by name per signal.
     d->on_change = [this, sp = &s](std::size_t i, const sd::SignalValue& v) { on_signal(*sp, i, v); };
@@ -175,7 +188,9 @@ void Gateway::hook_network() {
   network_.on_emcy = [this](const std::string& name, const canopen::EmcyMessage& e, const sd::DecodedEmcy& d) {
     on_subdevice_emcy(name, e, d);
   };
-  network_.on_fault_evidence = [this](const std::string& name, const std::string& what) { on_fault_evidence(name, what); };
+  network_.on_fault_evidence = [this](const std::string& name, const std::string& what) {
+    on_fault_evidence(name, what);
+  };
   network_.on_application_reset = [this](const std::string& name) {
     if (auto it = subs_.find(name); it != subs_.end()) it->second.driver->on_application_reset(now_);
   };
@@ -265,12 +280,12 @@ void Gateway::hook_master() {
 // The upstream device's 3000h writes and the EMCYs of the other upstream nodes.
 void Gateway::hook_upstream_device() {
   if (auto* cmd = oe_->od().find(cia852::kSubdeviceCommand))
-    command_hook_ = cmd->add_write_hook([this](canopen::Object&, std::uint8_t, std::span<const std::uint8_t> b,
-                                               canopen::Origin) {
-      std::uint32_t v = 0;
-      for (std::size_t i = 0; i < b.size() && i < 4; ++i) v |= static_cast<std::uint32_t>(b[i]) << (8 * i);
-      return host_subdevice_command(v);
-    });
+    command_hook_ =
+        cmd->add_write_hook([this](canopen::Object&, std::uint8_t, std::span<const std::uint8_t> b, canopen::Origin) {
+          std::uint32_t v = 0;
+          for (std::size_t i = 0; i < b.size() && i < 4; ++i) v |= static_cast<std::uint32_t>(b[i]) << (8 * i);
+          return host_subdevice_command(v);
+        });
   // 1028h: EMCYs of other upstream nodes, logged and kept for the status.
   oe_->on_emcy([this](const canopen::EmcyMessage& m, TimePoint t) { on_upstream_emcy(m, t); });
 }
@@ -278,8 +293,8 @@ void Gateway::hook_upstream_device() {
 void Gateway::on_upstream_emcy(const canopen::EmcyMessage& m, TimePoint t) {
   EmcyRecord& r = upstream_emcys_[m.node.value()];
   r = EmcyRecord{m, t, r.count + 1};
-  log(fmt::format("upstream EMCY from node {:02X}h: {:04X}h register {:02X}h, manufacturer bytes {:02X}", m.node.value(),
-                  m.code, m.error_register, fmt::join(m.msef, " ")));
+  log(fmt::format("upstream EMCY from node {:02X}h: {:04X}h register {:02X}h, manufacturer bytes {:02X}",
+                  m.node.value(), m.code, m.error_register, fmt::join(m.msef, " ")));
 }
 
 canopen::FrameSink Gateway::tapped(Bus bus, canopen::FrameSink sink) {
@@ -335,12 +350,13 @@ void Gateway::log_redirect(std::size_t channel, const std::optional<canopen::Sdo
                                        server.rx_cob_id().can_id(), server.tx_cob_id().can_id());
   if (after) {
     const auto& r = after->request;
-    log(fmt::format("{} redirected to {} by the network indication {:02X}: every client on {:03X}h now reaches {}, not "
-                    "the gateway, until a network indication names the gateway (network {}, node {:02X}h, or network 0, "
-                    "node 0) or the gateway is reset or stopped (NMT){}",
-                    head, remote_sdo_->describe(after->target), fmt::join(r, " "), server.rx_cob_id().can_id(),
-                    remote_sdo_->subdevice_at(after->target), config_.upstream.network_id, oe_->node().node_id().value(),
-                    before ? "; it reached " + remote_sdo_->describe(before->target) + " before" : ""));
+    log(fmt::format(
+        "{} redirected to {} by the network indication {:02X}: every client on {:03X}h now reaches {}, not "
+        "the gateway, until a network indication names the gateway (network {}, node {:02X}h, or network 0, "
+        "node 0) or the gateway is reset or stopped (NMT){}",
+        head, remote_sdo_->describe(after->target), fmt::join(r, " "), server.rx_cob_id().can_id(),
+        remote_sdo_->subdevice_at(after->target), config_.upstream.network_id, oe_->node().node_id().value(),
+        before ? "; it reached " + remote_sdo_->describe(before->target) + " before" : ""));
     return;
   }
   const char* cause = why == Change::Indication ? "a network indication named the gateway"
@@ -432,7 +448,8 @@ void Gateway::update_fault(Sub& s, std::string_view evidence) {
       const Binding& b = bindings_[cause.binding];
       reason = cause.status == SignalStatus::Stale
                    ? fmt::format("{} stale (no PDO for {} ms)", b.field->signal,
-                                 std::chrono::duration_cast<std::chrono::milliseconds>(s.driver->freshness(b.signal)).count())
+                                 std::chrono::duration_cast<std::chrono::milliseconds>(s.driver->freshness(b.signal))
+                                     .count())
                    : b.field->signal + " " + std::string(sd::to_string(cause.status));
       break;
     }
@@ -625,7 +642,7 @@ canopen::SdoAbortCode Gateway::host_subdevice_command(std::uint32_t value) {
   log("host: 3000h sub-device command " + std::string(command) + " to " + s->config->name);
   // subdevice_command() counts its own refusals.
   return run_subdevice_command(s->config->name, command, now_) ? canopen::SdoAbortCode::None
-                                                           : canopen::SdoAbortCode::CannotTransferDeviceState;
+                                                               : canopen::SdoAbortCode::CannotTransferDeviceState;
 }
 
 bool Gateway::subdevice_command(const std::string& name, std::string_view command, TimePoint now) {
@@ -650,8 +667,8 @@ bool Gateway::run_subdevice_command(const std::string& name, std::string_view co
     count_refused(&s);
     std::string known;
     for (const auto& c : s.driver->commands()) known += (known.empty() ? "" : ", ") + c;
-    log(name + ": no command '" + std::string(command) + "' (" + std::string(s.driver->family()) + " has: " +
-        (known.empty() ? "none" : known) + ")");
+    log(name + ": no command '" + std::string(command) + "' (" + std::string(s.driver->family()) +
+        " has: " + (known.empty() ? "none" : known) + ")");
     return false;
   }
   if (!s.operational) {
@@ -665,9 +682,9 @@ bool Gateway::run_subdevice_command(const std::string& name, std::string_view co
     master_.sdo(s.config->node())
         .download(w.index, w.sub, w.data,
                   [this, name, what = w.what](canopen::SdoAbortCode code, const std::vector<std::uint8_t>&) {
-                    log(name + ": " + what + (code == canopen::SdoAbortCode::None
-                                                  ? std::string(": done")
-                                                  : ": abort " + std::string(canopen::to_string(code))));
+                    log(name + ": " + what +
+                        (code == canopen::SdoAbortCode::None ? std::string(": done")
+                                                             : ": abort " + std::string(canopen::to_string(code))));
                   });
   }
   log(name + ": command " + std::string(command) + " sent");
@@ -769,7 +786,7 @@ std::unique_ptr<OeDevice> Gateway::release_upstream() {
     device.sdo_server(k).abort_in_progress(canopen::SdoAbortCode::CannotTransferDeviceState);
     device.sdo_server(k).set_remote(nullptr);
     device.sdo_server(k).bind(std::nullopt);
-    device.sdo_server(k).on_redirect = {};     // a redirect ended above is logged by this gateway
+    device.sdo_server(k).on_redirect = {};  // a redirect ended above is logged by this gateway
   }
   oe_->on_emcy({});
   oe_->on_sent({});
@@ -814,7 +831,8 @@ void Gateway::resume(TimePoint now) {
   auto& emcy = oe_->node().emcy();
   if (!emcy.active(kEmcyReload)) emcy.raise(kEmcyReload, 0x00, now);
   reloading_ = true;
-  log(fmt::format("reload: every input at its fault value, every output at its error value, EMCY {:04X}h; booting "
+  log(
+      fmt::format("reload: every input at its fault value, every output at its error value, EMCY {:04X}h; booting "
                   "the {} sub-devices again",
                   kEmcyReload, subs_.size()));
   network_.start(now);

@@ -190,10 +190,10 @@ class Gateway {
   // (docs/guides/remote-sdo.md): every client of that channel reaches the sub-device,
   // not the gateway, until it ends. Logged when it begins and ends; `oegw status` lists them.
   struct SdoRedirect {
-    std::uint16_t server = 0;             // the channel's object, 1200h + channel
-    canopen::CobId request, response;     // its COB-IDs (client -> server, server -> client)
+    std::uint16_t server = 0;          // the channel's object, 1200h + channel
+    canopen::CobId request, response;  // its COB-IDs (client -> server, server -> client)
     canopen::SdoServer::Redirect redirect;
-    std::string subdevice;                // the configured sub-device named
+    std::string subdevice;  // the configured sub-device named
   };
   [[nodiscard]] std::vector<SdoRedirect> sdo_redirects() const;
   // The same RemoteSdo for the control socket's transfers (`oegw ctl`, gateway/control/
@@ -252,11 +252,11 @@ class Gateway {
   struct Binding {
     mapping::FeId fe;
     const mapping::FieldBinding* field;
-    FieldRef ref;                                         // the FE model's field
+    FieldRef ref;                                        // the FE model's field
     std::optional<mapping::FieldTranslator> translator;  // inputs
-    mapping::OutputParams output;                         // outputs
-    std::size_t signal = 0;                               // index in the driver's signals
-    std::size_t group = 0;                                // inputs: index in groups_ (its FE)
+    mapping::OutputParams output;                        // outputs
+    std::size_t signal = 0;                              // index in the driver's signals
+    std::size_t group = 0;                               // inputs: index in groups_ (its FE)
     subdevices::SignalStatus status = subdevices::SignalStatus::Offline;
     Sub* sub = nullptr;  // its sub-device (no look-up by name on the way to an output)
   };
@@ -285,14 +285,14 @@ class Gateway {
     bool failed = false;  // missing, refused or rebooted since it was last operational (a fault)
     std::string why;
     std::vector<std::vector<std::size_t>> by_signal;  // driver signal index -> bindings_
-    std::vector<std::size_t> inputs;                   // its input bindings, in bindings_ order
-    std::vector<std::size_t> outputs;                  // its output bindings
-    std::vector<std::int64_t> output_values;           // per driver signal: the value last set
+    std::vector<std::size_t> inputs;                  // its input bindings, in bindings_ order
+    std::vector<std::size_t> outputs;                 // its output bindings
+    std::vector<std::int64_t> output_values;          // per driver signal: the value last set
     // The driver holds a fault (Driver::any_fault) while operational: every input of this node
     // is held at its fault value, also those the driver leaves Valid.
     bool forced = false;
-    Cause cause;  // the fault's cause (Kind::None: not faulty)
-    EmcyRecord emcy;  // the EMCYs it sent
+    Cause cause;                         // the fault's cause (Kind::None: not faulty)
+    EmcyRecord emcy;                     // the EMCYs it sent
     std::uint64_t refused_commands = 0;  // 3000h / subdevice_command() for it, refused
   };
 
@@ -332,8 +332,7 @@ class Gateway {
   void log(const std::string& line);
   // The log line of a change of SDO server channel `channel`'s redirect.
   void log_redirect(std::size_t channel, const std::optional<canopen::SdoServer::Redirect>& before,
-                    const std::optional<canopen::SdoServer::Redirect>& after,
-                    canopen::SdoServer::RedirectChange why);
+                    const std::optional<canopen::SdoServer::Redirect>& after, canopen::SdoServer::RedirectChange why);
 
   GatewayTap* tap_;
   // The downstream sink the gateway was given, behind the tap (every frame it sends downstream
@@ -365,11 +364,11 @@ class Gateway {
   std::vector<Binding> bindings_;
   std::vector<FeGroup> groups_;
   std::vector<OutputGroup> output_groups_;
-  std::map<std::string, std::string> faults_;  // sub-device -> reason
-  std::map<std::uint8_t, EmcyRecord> upstream_emcys_;  // upstream node-ID -> its EMCYs (1028h)
-  bool reloading_ = false;                                       // kEmcyReload held (resume())
-  bool decoding_emcy_ = false;                                   // inside a sub-device's EMCY
-  std::vector<std::pair<Sub*, bool>> held_fault_emcys_;          // fault_emcy calls meanwhile
+  std::map<std::string, std::string> faults_;            // sub-device -> reason
+  std::map<std::uint8_t, EmcyRecord> upstream_emcys_;    // upstream node-ID -> its EMCYs (1028h)
+  bool reloading_ = false;                               // kEmcyReload held (resume())
+  bool decoding_emcy_ = false;                           // inside a sub-device's EMCY
+  std::vector<std::pair<Sub*, bool>> held_fault_emcys_;  // fault_emcy calls meanwhile
 };
 
 }  // namespace oegw::gateway

@@ -48,10 +48,9 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
       so.default_value = canopen::encode<std::uint32_t>(v);
       so.value = so.default_value;
     }
-    emcy_consumer_ = std::make_unique<canopen::EmcyConsumer>(
-        od_, [this](const canopen::EmcyMessage& m, TimePoint t) {
-          if (on_emcy_) on_emcy_(m, t);
-        });
+    emcy_consumer_ = std::make_unique<canopen::EmcyConsumer>(od_, [this](const canopen::EmcyMessage& m, TimePoint t) {
+      if (on_emcy_) on_emcy_(m, t);
+    });
   }
   node_ = std::make_unique<canopen::Node>(od_, nc, [this](const canopen::CanFrame& f) {
     if (sent_) sent_(f);
@@ -77,22 +76,24 @@ OeDevice::OeDevice(OeDeviceConfig cfg, canopen::FrameSink sink) : cfg_(std::move
 
 void OeDevice::watch_host_commands() {
   if (outputs_.empty()) return;
-  for (const std::uint16_t index : {std::uint16_t{cia401::kWriteOutput8}, std::uint16_t{cia401::kWriteAnalogueOutput16}}) {
+  for (const std::uint16_t index :
+       {std::uint16_t{cia401::kWriteOutput8}, std::uint16_t{cia401::kWriteAnalogueOutput16}}) {
     canopen::Object* o = od_.find(index);
     if (o == nullptr) continue;
-    subs_ += o->add_write_hook([this](canopen::Object& obj, std::uint8_t sub, std::span<const std::uint8_t>,
-                                      Origin origin) {
-      if (origin == Origin::Local) return SdoAbortCode::None;
-      // outputs_: index << 8 | sub of every configured output entry -> its FE's fields. Any
-      // other entry belongs to an instance that is not configured (its default PDOs map it,
-      // profiles/cia852/dictionary.hpp): it keeps its neutral value, the write is refused
-      // (SDO abort 0800 0020h, the RPDO's byte ignored).
-      const auto it = outputs_.find(static_cast<std::uint32_t>(obj.index()) << 8 | sub);
-      if (it == outputs_.end() || it->second.empty()) return sub == 0 ? SdoAbortCode::None : SdoAbortCode::CannotTransfer;
-      const FeId fe = it->second.front().fe;
-      const bool take = on_host_write_ ? on_host_write_(fe, origin) : cfg_.host_may_not_command.count(fe) == 0;
-      return take ? SdoAbortCode::None : SdoAbortCode::CannotTransferLocalControl;
-    });
+    subs_ +=
+        o->add_write_hook([this](canopen::Object& obj, std::uint8_t sub, std::span<const std::uint8_t>, Origin origin) {
+          if (origin == Origin::Local) return SdoAbortCode::None;
+          // outputs_: index << 8 | sub of every configured output entry -> its FE's fields. Any
+          // other entry belongs to an instance that is not configured (its default PDOs map it,
+          // profiles/cia852/dictionary.hpp): it keeps its neutral value, the write is refused
+          // (SDO abort 0800 0020h, the RPDO's byte ignored).
+          const auto it = outputs_.find(static_cast<std::uint32_t>(obj.index()) << 8 | sub);
+          if (it == outputs_.end() || it->second.empty())
+            return sub == 0 ? SdoAbortCode::None : SdoAbortCode::CannotTransfer;
+          const FeId fe = it->second.front().fe;
+          const bool take = on_host_write_ ? on_host_write_(fe, origin) : cfg_.host_may_not_command.count(fe) == 0;
+          return take ? SdoAbortCode::None : SdoAbortCode::CannotTransferLocalControl;
+        });
   }
 }
 
@@ -150,8 +151,8 @@ bool OeDevice::set_input(FeId fe, const mapping::FeField& field, std::int64_t va
     raw = byte;
   } else {
     const std::size_t w = canopen::fixed_size(f->type);
-    const bool is_unsigned = f->type == DataType::Unsigned8 || f->type == DataType::Unsigned16 ||
-                             f->type == DataType::Unsigned32;
+    const bool is_unsigned =
+        f->type == DataType::Unsigned8 || f->type == DataType::Unsigned16 || f->type == DataType::Unsigned32;
     const std::int64_t lo = is_unsigned ? 0 : -(std::int64_t{1} << (8 * w - 1));
     const std::int64_t hi = is_unsigned ? (std::int64_t{1} << (8 * w)) - 1 : (std::int64_t{1} << (8 * w - 1)) - 1;
     if (value < lo || value > hi) return false;
@@ -166,7 +167,8 @@ bool OeDevice::write_input_entry(const InputEntry& e, std::int64_t raw) {
   if (s == nullptr) return false;
   // CiA 401 6423h FALSE: analogue inputs raise no event; the value is stored without telling
   // the PDO service (see the header), so only TPDOs sent for another reason carry it.
-  if (e.index == cia401::kReadAnalogueInput16 && od_.find(cia401::kAnalogueInputGlobalInterruptEnable) != nullptr && !analog_interrupt_enabled()) {
+  if (e.index == cia401::kReadAnalogueInput16 && od_.find(cia401::kAnalogueInputGlobalInterruptEnable) != nullptr &&
+      !analog_interrupt_enabled()) {
     // In place, little endian as encode_width() (no allocation: this runs for every axis change).
     const auto u = static_cast<std::uint64_t>(raw);
     for (std::size_t i = 0; i < s->value.size(); ++i) s->value[i] = static_cast<std::uint8_t>(i < 8 ? u >> (8 * i) : 0);
@@ -189,8 +191,9 @@ void OeDevice::index_inputs() {
       const bool bits = ref->bit != 0xFF;
       const InputEntry e{f.index, f.sub, static_cast<std::uint8_t>(bits ? (ref->bit / 8) * 8 : 0), bits};
       Span& span = input_index_[static_cast<std::size_t>(fe.kind)][fe.instance][static_cast<std::size_t>(ref->slot)];
-      const bool known = std::any_of(input_entries_.begin() + span.first, input_entries_.begin() + span.first + span.count,
-                                     [&](const InputEntry& x) { return x.index == e.index && x.sub == e.sub; });
+      const bool known =
+          std::any_of(input_entries_.begin() + span.first, input_entries_.begin() + span.first + span.count,
+                      [&](const InputEntry& x) { return x.index == e.index && x.sub == e.sub; });
       if (known) continue;
       if (span.count == 0) span.first = static_cast<std::uint16_t>(input_entries_.size());
       // fe_fields lists a slot's fields together, so its entries stay contiguous.
@@ -228,7 +231,8 @@ void OeDevice::write_indicators(FeId fe, std::uint64_t bits) {
     // The entry's eight indicators: bits 8k..8k+7 of the command (k = the first one's bit / 8).
     const auto sub = static_cast<std::uint8_t>(key);
     const auto byte = static_cast<std::uint8_t>(bits >> ((refs.front().ref.bit / 8) * 8));
-    if (od_.get<std::uint8_t>(cia401::kWriteOutput8, sub) != byte) (void)od_.set<std::uint8_t>(cia401::kWriteOutput8, sub, byte, Origin::Local);
+    if (od_.get<std::uint8_t>(cia401::kWriteOutput8, sub) != byte)
+      (void)od_.set<std::uint8_t>(cia401::kWriteOutput8, sub, byte, Origin::Local);
   }
 }
 
@@ -376,11 +380,13 @@ void OeDevice::apply_error_values(std::optional<FeId> only, TimePoint now) {
       const auto val = od_.get<std::uint8_t>(cia401::kErrorValueOutput8, s);
       const auto next = static_cast<std::uint8_t>((cur & ~mode) | (val & mode));
       if (next != cur) (void)od_.set<std::uint8_t>(cia401::kWriteOutput8, s, next, Origin::Local);
-    } else if (index == cia401::kWriteAnalogueOutput16 && od_.get<std::uint8_t>(cia401::kAnalogueOutputErrorMode, s) == 1) {
+    } else if (index == cia401::kWriteAnalogueOutput16 &&
+               od_.get<std::uint8_t>(cia401::kAnalogueOutputErrorMode, s) == 1) {
       // 6443h/6444h per channel.
       const std::int32_t ev = od_.get<std::int32_t>(cia401::kAnalogueOutputErrorValueInteger, s);
       const auto clamped = static_cast<std::int16_t>(std::clamp<std::int32_t>(ev, -32768, 32767));
-      if (clamped != od_.get<std::int16_t>(cia401::kWriteAnalogueOutput16, s)) (void)od_.set<std::int16_t>(cia401::kWriteAnalogueOutput16, s, clamped, Origin::Local);
+      if (clamped != od_.get<std::int16_t>(cia401::kWriteAnalogueOutput16, s))
+        (void)od_.set<std::int16_t>(cia401::kWriteAnalogueOutput16, s, clamped, Origin::Local);
     }
   }
 }
@@ -410,7 +416,8 @@ void OeDevice::clear_subdevice_fault(canopen::NodeId node, TimePoint now) {
     // With another error still active (EMCY 8130h: the host's heartbeat lost) the producer stays
     // silent (CiA 301 §7.2.7.2 allows it): the recovery is reported as for a sub-device among
     // others, EMCY 0000h naming it with the remaining error register.
-    if (node_->emcy().active_count() != 0) (void)node_->emcy().report(canopen::EmcyProducer::kErrorReset, msef, node.value(), now);
+    if (node_->emcy().active_count() != 0)
+      (void)node_->emcy().report(canopen::EmcyProducer::kErrorReset, msef, node.value(), now);
   } else {
     (void)node_->emcy().report(canopen::EmcyProducer::kErrorReset, msef, node.value(), now);
   }

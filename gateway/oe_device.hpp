@@ -216,9 +216,9 @@ class OeDevice {
   canopen::EmcyHandler on_emcy_;
   BitRateSwitch on_bit_rate_switch_;
   canopen::TimePoint now_{};
-  std::map<std::uint8_t, std::string> faults_;                   // node-ID -> name
-  std::map<std::uint32_t, std::vector<OutputRef>> outputs_;      // index << 8 | sub -> fields
-  std::map<std::uint32_t, std::int64_t> output_shadow_;          // last value of each output entry
+  std::map<std::uint8_t, std::string> faults_;               // node-ID -> name
+  std::map<std::uint32_t, std::vector<OutputRef>> outputs_;  // index << 8 | sub -> fields
+  std::map<std::uint32_t, std::int64_t> output_shadow_;      // last value of each output entry
   // Last bytes written by set_input per input entry (index << 8 | sub): an NMT reset node
   // restores the application objects to their defaults, but the inputs have not moved.
   std::map<std::uint32_t, std::vector<std::uint8_t>> input_shadow_;

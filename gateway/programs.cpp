@@ -23,8 +23,6 @@
 #include "gateway/control/status_report.hpp"
 #include "gateway/daemon_log.hpp"
 #include "gateway/gateway.hpp"
-#include "publish/dds_publisher.hpp"
-#include "publish/lcm_url.hpp"
 #include "gateway/publishing.hpp"
 #include "gateway/record/recording_service.hpp"
 #include "gateway/reload.hpp"
@@ -33,6 +31,8 @@
 #include "gateway/service_notify.hpp"
 #include "mapping/deployment.hpp"
 #include "profiles/cia852/pdo_defaults.hpp"
+#include "publish/dds_publisher.hpp"
+#include "publish/lcm_url.hpp"
 
 namespace oegw::gateway {
 
@@ -198,9 +198,10 @@ void print_downstream_boot(const mapping::Config& cfg) {
   } else {
     std::printf("  SYNC: none (sync_period_ms 0; synchronous transmission types refused)\n");
   }
-  std::printf("  read at every boot, in pre-operational (NMT 80h first): 1000h; 1018h:01..04 identity (revision: "
-              "major part unless revision_match exact); 1008h device name, 1009h hardware version, 100Ah software "
-              "version, 1001h error register (absent = not present); logged once per boot, in the gateway status\n");
+  std::printf(
+      "  read at every boot, in pre-operational (NMT 80h first): 1000h; 1018h:01..04 identity (revision: "
+      "major part unless revision_match exact); 1008h device name, 1009h hardware version, 100Ah software "
+      "version, 1001h error register (absent = not present); logged once per boot, in the gateway status\n");
   for (const auto& s : cfg.subdevices) {
     if (s.exact_revision) std::printf("  %s: revision compared exactly\n", s.name.c_str());
     for (const auto& w : eds_warnings(s)) std::printf("  %s\n", w.c_str());
@@ -217,7 +218,8 @@ void print_control(const mapping::ControlConfig& c) {
   }
   const std::filesystem::path folder = std::filesystem::path(c.socket).parent_path();
   std::error_code ec;
-  const std::string made = std::filesystem::is_directory(folder, ec) ? "" : ", its folder " + folder.string() + " made by oegw run";
+  const std::string made =
+      std::filesystem::is_directory(folder, ec) ? "" : ", its folder " + folder.string() + " made by oegw run";
   std::string who = "mode 0600: root only";
   if (!c.group.empty()) {
     const group* g = ::getgrnam(c.group.c_str());
@@ -235,14 +237,13 @@ struct Running {
   std::unique_ptr<Gateway>& gw;
   FrameSink downstream;
   GatewayPublishing& publishing;
-  control::GatewayControl* control;  // null: control.enabled false
+  control::GatewayControl* control;     // null: control.enabled false
   record::RecordingService& recording;  // the black box: the new gateway is tapped too
   ServiceDriver& driver;
   ServiceNotify& notify;
   EventLoop& loop;
   int& exit_status;  // set when a reload fails after the hand-over (below)
 };
-
 
 // What systemd's STATUS= says of `oegw run`: the gateway's states and each publishing transport
 // that is down (docs/guides/install.md#systemd).
@@ -284,8 +285,7 @@ void reload(Running& r, TimePoint now) {
     // After the hand-over the old gateway is gone: a gateway that cannot be built now (checked
     // just before: only a file changing in between gets here) stops the daemon with a reason,
     // and systemd's Restart= starts it afresh, rather than running half-configured.
-    spdlog::critical("{}: reload failed after the hand-over: {}; stopping (a restart starts afresh)", r.file,
-                     e.what());
+    spdlog::critical("{}: reload failed after the hand-over: {}; stopping (a restart starts afresh)", r.file, e.what());
     r.exit_status = exit_code::kCannotStart;
     r.notify.stopping();
     r.loop.stop();
@@ -305,11 +305,12 @@ void print_record(const mapping::RecordConfig& r) {
     std::printf("record: off (record.enabled false): no black box\n");
     return;
   }
-  std::printf("record: both buses' frames (candump log) and the gateway's decisions into %s, a ring of at most %u MiB "
-              "and %u s in %u segments (%.1f MiB or %.0f s each), %u KiB queued at most; SIGUSR1 or `oegw record keep` "
-              "keeps the window in %s/kept/\n",
-              r.dir.c_str(), r.max_mib, r.span_s, r.segments, static_cast<double>(r.max_mib) / r.segments,
-              static_cast<double>(r.span_s) / r.segments, r.queue_kib, r.dir.c_str());
+  std::printf(
+      "record: both buses' frames (candump log) and the gateway's decisions into %s, a ring of at most %u MiB "
+      "and %u s in %u segments (%.1f MiB or %.0f s each), %u KiB queued at most; SIGUSR1 or `oegw record keep` "
+      "keeps the window in %s/kept/\n",
+      r.dir.c_str(), r.max_mib, r.span_s, r.segments, static_cast<double>(r.max_mib) / r.segments,
+      static_cast<double>(r.span_s) / r.segments, r.queue_kib, r.dir.c_str());
 }
 
 // Publishing for `oegw run` (docs/guides/dds-lcm.md#publishing-degrades-the-gateway-runs): a
@@ -322,7 +323,8 @@ bool start_publishing(Gateway& gw, const mapping::Config& cfg, const std::string
     else spdlog::warn("publishing: {}", text);
   };
   try {
-    out = std::make_unique<GatewayPublishing>(gw, cfg.publish, [&loop] { return loop.now(); }, PublisherFactories{}, log);
+    out = std::make_unique<GatewayPublishing>(
+        gw, cfg.publish, [&loop] { return loop.now(); }, PublisherFactories{}, log);
   } catch (const publish::PublishConfigError& e) {
     spdlog::error("{}: {}", file, e.what());
     return false;
@@ -338,13 +340,15 @@ bool print_warnings(const mapping::Config& cfg, const std::vector<mapping::Diagn
   // (docs/reference/mapping-file.md#upstreamheartbeat_ms-and-upstreamidentityserial).
   bool warned = false;
   if (cfg.upstream.heartbeat_ms == 0) {
-    std::printf("warning: upstream.heartbeat_ms is 0: no heartbeat at power-on; CiA 852 §8.3 says the heartbeat "
-                "producer shall be used (default 100 ms)\n");
+    std::printf(
+        "warning: upstream.heartbeat_ms is 0: no heartbeat at power-on; CiA 852 §8.3 says the heartbeat "
+        "producer shall be used (default 100 ms)\n");
     warned = true;
   }
   if (cfg.upstream.identity.serial == 0) {
-    std::printf("warning: upstream.identity.serial is 0 (1018h:04): two gateways of one product then share an LSS "
-                "address and cannot be told apart by LSS switch state selective; give each its own serial\n");
+    std::printf(
+        "warning: upstream.identity.serial is 0 (1018h:04): two gateways of one product then share an LSS "
+        "address and cannot be told apart by LSS switch state selective; give each its own serial\n");
     warned = true;
   }
   for (const auto& w : mapping::deployment_warnings(cfg)) {
@@ -359,12 +363,12 @@ bool print_warnings(const mapping::Config& cfg, const std::vector<mapping::Diagn
   if (const auto& lcm = cfg.publish.lcm; lcm.enabled)
     if (const auto problem = publish::lcm_route_problem(lcm.url)) {
       const std::string& net = cfg.publish.dds.network;
-      machine_warned.push_back(
-          {lcm.url_where.line != 0 ? lcm.url_where : lcm.where,
-           "publish.lcm.url " + lcm.url + (lcm.url_where.line != 0 ? "" : " (the default)") + ": this machine has " +
-               *problem + ": oegw run would start without LCM and publish once a route exists; add one: " +
-               publish::lcm_route_command(lcm.url, net == "loopback" ? "" : net) +
-               " (docs/guides/install.md#lcm-route has the systemd-networkd file that keeps it)"});
+      machine_warned.push_back({lcm.url_where.line != 0 ? lcm.url_where : lcm.where,
+                                "publish.lcm.url " + lcm.url + (lcm.url_where.line != 0 ? "" : " (the default)") +
+                                    ": this machine has " + *problem +
+                                    ": oegw run would start without LCM and publish once a route exists; add one: " +
+                                    publish::lcm_route_command(lcm.url, net == "loopback" ? "" : net) +
+                                    " (docs/guides/install.md#lcm-route has the systemd-networkd file that keeps it)"});
     }
   if (!machine_warned.empty()) {
     mapping::sort_by_place(machine_warned);
@@ -406,7 +410,8 @@ void print_buses(const mapping::Config& cfg, OeDevice& device) {
               std::string(mapping::to_string(cfg.downstream.emcy_forwarding)).c_str(), cfg.downstream.sdo_timeout_ms);
   print_downstream_boot(cfg);
   for (const auto& s : cfg.subdevices)
-    std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id, s.mandatory ? "  mandatory" : "");
+    std::printf("  %-12s %-16s node %02Xh%s\n", s.name.c_str(), s.driver.c_str(), s.node_id,
+                s.mandatory ? "  mandatory" : "");
   // What `oegw run` does with the bit rates on this machine (docs/guides/commission.md#bit-rate).
   const auto link = netlink_can_link();
   const UpstreamBitRate up_rate = upstream_bit_rate(cfg);
@@ -421,9 +426,10 @@ void print_buses(const mapping::Config& cfg, OeDevice& device) {
   // What the configuration puts on each bus with the inputs held still (gateway/bus_load.hpp).
   BusLoadPrediction load = predict_bus_load(cfg);
   load.upstream.bit_rate = up_rate.bitrate;  // the rate oegw run uses (an LSS-stored one wins)
-  std::printf("\nbus load (steady state: periodic frames, PDOs at their worst-case length; warning above %.0f %%):\n%s%s",
-              kBusLoadWarnPercent, describe_bus_load(load.upstream, "upstream").c_str(),
-              describe_bus_load(load.downstream, "downstream").c_str());
+  std::printf(
+      "\nbus load (steady state: periodic frames, PDOs at their worst-case length; warning above %.0f %%):\n%s%s",
+      kBusLoadWarnPercent, describe_bus_load(load.upstream, "upstream").c_str(),
+      describe_bus_load(load.downstream, "downstream").c_str());
 }
 
 // `oegw check`: each FE's fields, where they come from and in which PDO.
@@ -433,11 +439,12 @@ void print_fes(const mapping::Config& cfg, const OeDevice& device) {
   for (const auto& fe : cfg.functional_elements) {
     for (const auto& b : fe.fields) {
       const std::string arrow = fe.input() ? "<-" : "->";
-      const std::string signal = b.subdevice + "." + b.signal + (b.signal_bit != 0xFF ? fmt::format(".bit{}", b.signal_bit) : "");
+      const std::string signal =
+          b.subdevice + "." + b.signal + (b.signal_bit != 0xFF ? fmt::format(".bit{}", b.signal_bit) : "");
       const std::string obj = fmt::format("{:04X}h:{:02X}{}", b.field.index, b.field.sub,
                                           b.field.bit == 0xFF ? "" : fmt::format(" bit {}", b.field.bit));
-      std::printf("  %-13s %-14s %s %-24s %-16s %s\n", mapping::fe_name(fe.id).c_str(), b.field.name.c_str(), arrow.c_str(),
-                  signal.c_str(), obj.c_str(), pdo_place(pdos, b.field).c_str());
+      std::printf("  %-13s %-14s %s %-24s %-16s %s\n", mapping::fe_name(fe.id).c_str(), b.field.name.c_str(),
+                  arrow.c_str(), signal.c_str(), obj.c_str(), pdo_place(pdos, b.field).c_str());
     }
   }
 }
@@ -445,13 +452,14 @@ void print_fes(const mapping::Config& cfg, const OeDevice& device) {
 // `oegw check`: the mapping file's `publish`.
 void print_publish(const mapping::PublishConfig& p) {
   std::printf("\npublish: every %u ms; DDS %s; LCM %s\n", p.period_ms,
-              p.dds.enabled ? fmt::format("domain {}, partition {}, network {}{}", p.dds.domain, p.dds.partition,
-                                          p.dds.network.empty() ? "(CYCLONEDDS_URI)" : p.dds.network,
-                                          p.dds.security ? ", DDS Security (identity " +
-                                                               p.dds.security->path[mapping::DdsSecurityConfig::Certificate] + ")"
-                                                         : std::string())
-                                  .c_str()
-                            : "off",
+              p.dds.enabled
+                  ? fmt::format("domain {}, partition {}, network {}{}", p.dds.domain, p.dds.partition,
+                                p.dds.network.empty() ? "(CYCLONEDDS_URI)" : p.dds.network,
+                                p.dds.security ? ", DDS Security (identity " +
+                                                     p.dds.security->path[mapping::DdsSecurityConfig::Certificate] + ")"
+                                               : std::string())
+                        .c_str()
+                  : "off",
               p.lcm.enabled ? fmt::format("{}, channels {}*", p.lcm.url, p.lcm.channel_prefix).c_str() : "off");
 }
 
@@ -510,10 +518,19 @@ std::unique_ptr<Gateway> logging_gateway(const mapping::Config& cfg, CanTranspor
 class Daemon {
  public:
   Daemon(const std::string& f, mapping::Config& config, EventLoop& l, const GatewayBuses& b)
-      : file(f), cfg(&config), loop(l), buses(b), up(&b.up), down(&b.down), unhook{up, down},
+      : file(f),
+        cfg(&config),
+        loop(l),
+        buses(b),
+        up(&b.up),
+        down(&b.down),
+        unhook{up, down},
         // The black box (mapping file `record`): it taps every gateway from its construction on.
-        recording(l, config, f), options(tapped_by(recording)), gw(logging_gateway(config, *up, *down, options)),
-        driver(l, [this] { return gw->next_deadline(); }, [this](TimePoint now) { gw->advance(now); }) {}
+        recording(l, config, f),
+        options(tapped_by(recording)),
+        gw(logging_gateway(config, *up, *down, options)),
+        driver(
+            l, [this] { return gw->next_deadline(); }, [this](TimePoint now) { gw->advance(now); }) {}
 
   int run() {
     take_frames();
@@ -566,9 +583,10 @@ class Daemon {
         break;
       case BitRateAction::Keep: spdlog::info("LSS activate bit timing: {} is at {} bit/s already", name, rate); break;
       case BitRateAction::NoBitTiming:
-        spdlog::info("LSS activate bit timing: {} has no bit timing (virtual CAN): {} bit/s not applicable; the node "
-                     "stays on the bus",
-                     name, rate);
+        spdlog::info(
+            "LSS activate bit timing: {} has no bit timing (virtual CAN): {} bit/s not applicable; the node "
+            "stays on the bus",
+            name, rate);
         break;
       case BitRateAction::Missing: spdlog::error("LSS activate bit timing: {} is gone", name); break;
     }
@@ -597,14 +615,16 @@ class Daemon {
   // Once a second the frames the kernel dropped because the gateway read them too late: each a
   // reason a heartbeat or PDO may seem lost (the fault policy then acts on it; this says why).
   void watch_kernel_drops() {
-    watched = {Watched{up, "upstream", cfg->upstream.interface}, Watched{down, "downstream", cfg->downstream.interface}};
+    watched = {Watched{up, "upstream", cfg->upstream.interface},
+               Watched{down, "downstream", cfg->downstream.interface}};
     loop.call_every(loop.now(), std::chrono::seconds(1), [this] {
       for (Watched& w : watched) {
         const std::uint64_t now_dropped = w.bus->counters().rx_dropped;
         if (now_dropped > w.dropped)
-          spdlog::warn("{} {}: the kernel dropped {} received frames in the last second (the gateway read them too "
-                       "late; {} since the start)",
-                       w.side, w.interface, now_dropped - w.dropped, now_dropped);
+          spdlog::warn(
+              "{} {}: the kernel dropped {} received frames in the last second (the gateway read them too "
+              "late; {} since the start)",
+              w.side, w.interface, now_dropped - w.dropped, now_dropped);
         w.dropped = now_dropped;
       }
     });
@@ -613,7 +633,9 @@ class Daemon {
   // `oegw status`, `oegw ctl` (docs/reference/control-protocol.md); false when it cannot be opened.
   bool open_control() {
     try {
-      if (cfg->control.enabled) control = std::make_unique<control::GatewayControl>(loop, *gw, *cfg, file, [this] { driver.rearm(); }, up, down);
+      if (cfg->control.enabled)
+        control = std::make_unique<control::GatewayControl>(
+            loop, *gw, *cfg, file, [this] { driver.rearm(); }, up, down);
     } catch (const control::ControlError& e) {
       spdlog::error("{}", e.what());
       return false;
@@ -758,10 +780,10 @@ int run_gateway(const std::string& file) {
   buses.watching = [&up, &down] {
     for (const auto& [bus, side] : {std::pair{up.get(), "upstream"}, std::pair{down.get(), "downstream"}})
       if (bus->rx_buffer_capped())
-        spdlog::warn("{} {}: receive buffer {} kB, less than the {} kB asked (no CAP_NET_ADMIN: net.core.rmem_max "
-                     "caps it); frames are lost if the gateway is held off longer",
-                     side, bus->interface(), bus->rx_buffer_bytes() / 1024,
-                     SocketCanOptions::kDefaultRxBufferBytes / 1024);
+        spdlog::warn(
+            "{} {}: receive buffer {} kB, less than the {} kB asked (no CAP_NET_ADMIN: net.core.rmem_max "
+            "caps it); frames are lost if the gateway is held off longer",
+            side, bus->interface(), bus->rx_buffer_bytes() / 1024, SocketCanOptions::kDefaultRxBufferBytes / 1024);
   };
   return serve_gateway(file, *cfg, loop, buses);
 }

@@ -22,7 +22,8 @@ struct PublisherLink::Attempt {
   }
 };
 
-PublisherLink::PublisherLink(std::string name, Factory factory) : name_(std::move(name)), factory_(std::move(factory)) {}
+PublisherLink::PublisherLink(std::string name, Factory factory)
+    : name_(std::move(name)), factory_(std::move(factory)) {}
 
 PublisherLink::~PublisherLink() {
   if (loop_ != nullptr) {
@@ -80,7 +81,8 @@ void PublisherLink::attempt() {
   a->event_fd = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
   if (a->event_fd < 0) return outcome(nullptr, "cannot start an attempt (eventfd)");
   attempt_ = a;
-  attempt_watch_ = loop_->watch(a->event_fd, canopen::io::events::kReadable, [this](std::uint32_t) { take_thread_outcome(); });
+  attempt_watch_ =
+      loop_->watch(a->event_fd, canopen::io::events::kReadable, [this](std::uint32_t) { take_thread_outcome(); });
   thread_ = std::thread([a, factory = factory_] {
     std::unique_ptr<Publisher> opened;
     std::string failure;
@@ -118,7 +120,8 @@ void PublisherLink::outcome(std::unique_ptr<Publisher> opened, const std::string
   if (opened) {
     const std::uint32_t failed = failures_;
     became_up(std::move(opened));
-    if (on_log) on_log(true, name_ + " up again after " + std::to_string(failed) + " failed attempt" + (failed == 1 ? "" : "s"));
+    if (on_log)
+      on_log(true, name_ + " up again after " + std::to_string(failed) + " failed attempt" + (failed == 1 ? "" : "s"));
     if (on_up_) on_up_();
     return;
   }

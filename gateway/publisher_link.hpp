@@ -53,8 +53,8 @@ class PublisherLink final : public ForwardingPublisher<PublisherLink> {
   [[nodiscard]] const std::string& name() const { return name_; }  // "dds", "lcm"
   [[nodiscard]] bool up() const { return transport_ != nullptr; }
   [[nodiscard]] Publisher* transport() const { return transport_.get(); }  // null while down
-  [[nodiscard]] const std::string& reason() const { return reason_; }  // why it is down ("" when up)
-  [[nodiscard]] std::uint32_t failures() const { return failures_; }    // attempts failed since it was up
+  [[nodiscard]] const std::string& reason() const { return reason_; }      // why it is down ("" when up)
+  [[nodiscard]] std::uint32_t failures() const { return failures_; }       // attempts failed since it was up
   [[nodiscard]] canopen::TimePoint down_since() const { return down_since_; }
   [[nodiscard]] std::optional<canopen::TimePoint> next_attempt() const { return next_attempt_; }
   [[nodiscard]] bool attempting() const { return attempt_ != nullptr; }  // one runs in its thread
@@ -71,7 +71,7 @@ class PublisherLink final : public ForwardingPublisher<PublisherLink> {
   void forward(const S& s) {
     if (transport_) transport_->publish(s);
   }
-  void attempt();                                       // at next_attempt_
+  void attempt();  // at next_attempt_
   void outcome(std::unique_ptr<Publisher> opened, const std::string& failure);
   void take_thread_outcome();
   void became_up(std::unique_ptr<Publisher> opened);

@@ -9,7 +9,8 @@ namespace oegw::gateway {
 
 namespace mk = oegw::mapping;
 
-static_assert(std::size_t{publish::kDdsSecurityFiles} == std::size_t{mapping::DdsSecurityConfig::kFiles}, "one list of publish.dds.security's files");
+static_assert(std::size_t{publish::kDdsSecurityFiles} == std::size_t{mapping::DdsSecurityConfig::kFiles},
+              "one list of publish.dds.security's files");
 
 publish::DdsSecuritySettings dds_security_settings(const mapping::DdsSecurityConfig& c) {
   publish::DdsSecuritySettings s;
@@ -22,7 +23,8 @@ std::vector<mapping::Diagnostic> dds_security_errors(const mapping::Config& c) {
   if (!c.publish.dds.enabled || !c.publish.dds.security) return out;
   const auto& sec = *c.publish.dds.security;
   for (const auto& p : publish::check_dds_security(dds_security_settings(sec)))
-    out.push_back({sec.where[p.file].line != 0 ? sec.where[p.file] : sec.section, publish::dds_security_setting(p.file) + " " + p.text});
+    out.push_back({sec.where[p.file].line != 0 ? sec.where[p.file] : sec.section,
+                   publish::dds_security_setting(p.file) + " " + p.text});
   return out;
 }
 
@@ -169,7 +171,9 @@ namespace {
 bool same_discrete(const JoystickSample& a, const JoystickSample& b) {
   return a.h.status == b.h.status && a.buttons == b.buttons && a.memory == b.memory;
 }
-bool same_discrete(const PedalSample& a, const PedalSample& b) { return a.h.status == b.h.status && a.memory == b.memory; }
+bool same_discrete(const PedalSample& a, const PedalSample& b) {
+  return a.h.status == b.h.status && a.memory == b.memory;
+}
 bool same_discrete(const WheelSample& a, const WheelSample& b) { return a.h.status == b.h.status; }
 bool same_discrete(const EncoderSample& a, const EncoderSample& b) { return a.h.status == b.h.status; }
 bool same_discrete(const ButtonClusterSample& a, const ButtonClusterSample& b) {
@@ -263,7 +267,8 @@ void GatewayPublishing::publish_status() {
   fan_.publish(st);
 }
 
-void GatewayPublishing::run_on(canopen::io::EventLoop& loop, std::function<void()> rearm, PublisherLink::Attempts attempts) {
+void GatewayPublishing::run_on(canopen::io::EventLoop& loop, std::function<void()> rearm,
+                               PublisherLink::Attempts attempts) {
   if (!active()) return;
   loop_ = &loop;
   // A transport that comes up gets the status at once; every FE follows within a period (the

@@ -15,10 +15,10 @@
 #include "canopen/io/event_loop.hpp"
 #include "gateway/fe_samples.hpp"
 #include "gateway/gateway.hpp"
-#include "publish/dds_security.hpp"
-#include "publish/publish_schedule.hpp"
 #include "gateway/publisher_link.hpp"
 #include "mapping/config.hpp"
+#include "publish/dds_security.hpp"
+#include "publish/publish_schedule.hpp"
 
 namespace oegw::gateway {
 
@@ -54,11 +54,11 @@ struct PublisherFactories {
 // One transport's state for `oegw status` and systemd's STATUS=
 // (docs/guides/dds-lcm.md#publishing-degrades-the-gateway-runs).
 struct TransportState {
-  std::string name;    // "dds", "lcm"
+  std::string name;  // "dds", "lcm"
   bool up = false;
-  std::string reason;  // why it is down
-  std::uint32_t failures = 0;            // attempts failed since it was last up
-  canopen::Duration down_for{};          // how long it has been down
+  std::string reason;                                // why it is down
+  std::uint32_t failures = 0;                        // attempts failed since it was last up
+  canopen::Duration down_for{};                      // how long it has been down
   std::optional<canopen::Duration> next_attempt_in;  // while down
 };
 

@@ -81,7 +81,8 @@ void upstream_refusals(const Config& a, const Config& b, Refusals& r) {
               "1017h is the host's to change (SDO), the file's at power-on");
   if (u.identity.vendor_id != v.identity.vendor_id || u.identity.product_code != v.identity.product_code ||
       u.identity.revision != v.identity.revision || u.identity.serial != v.identity.serial)
-    r.changed(section, "upstream.identity", identity_text(u.identity), identity_text(v.identity), "1018h is the LSS address");
+    r.changed(section, "upstream.identity", identity_text(u.identity), identity_text(v.identity),
+              "1018h is the LSS address");
   if (u.store != v.store) r.changed(place(b, {v.store_where, v.where}), "upstream.store", u.store, v.store, kDevice);
   const std::size_t n = std::max(u.sdo_servers.size(), v.sdo_servers.size());
   for (std::size_t k = 0; k < n; ++k) {
@@ -157,8 +158,8 @@ void program_refusals(const Config& a, const Config& b, Refusals& r) {
                         p.dds.partition == q.dds.partition && p.dds.network == q.dds.network &&
                         p.dds.security.has_value() == q.dds.security.has_value() &&
                         (!p.dds.security || p.dds.security->path == q.dds.security->path);
-  const bool lcm_same = p.lcm.enabled == q.lcm.enabled && p.lcm.url == q.lcm.url &&
-                        p.lcm.channel_prefix == q.lcm.channel_prefix;
+  const bool lcm_same =
+      p.lcm.enabled == q.lcm.enabled && p.lcm.url == q.lcm.url && p.lcm.channel_prefix == q.lcm.channel_prefix;
   std::string what;
   const auto add = [&what](bool changed, const char* part) {
     if (changed) what += (what.empty() ? "" : ", ") + std::string(part);
@@ -186,7 +187,8 @@ std::vector<mapping::Diagnostic> reload_driver_refusals(const Config& next) {
   std::vector<mapping::Diagnostic> out;
   for (const auto& sc : next.subdevices) {
     std::string error;
-    if (!subdevices::make_driver(sc.driver, sc.node(), [](const canopen::CanFrame&) {}, sc.options, error))
+    if (!subdevices::make_driver(
+            sc.driver, sc.node(), [](const canopen::CanFrame&) {}, sc.options, error))
       out.push_back({sc.where, error + "; the file changed while it was read: nothing of it is applied"});
   }
   return out;

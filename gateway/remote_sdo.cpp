@@ -80,7 +80,8 @@ SdoAbortCode RemoteSdo::select(const SdoTarget& target, Selection& selection) {
   }
   if (!own_network && target.network != config_.downstream.network_id) {
     ++counters_.refused;
-    log(fmt::format("remote SDO: network indication refused: network {} is neither the upstream ({}) nor the "
+    log(
+        fmt::format("remote SDO: network indication refused: network {} is neither the upstream ({}) nor the "
                     "downstream ({}) network",
                     target.network, config_.upstream.network_id, config_.downstream.network_id));
     return SdoAbortCode::ObjectDoesNotExist;
@@ -160,8 +161,9 @@ RemoteSdo::Ticket RemoteSdo::upload(const SdoTarget& target, std::uint16_t index
     return refuse(c, fmt::format("read of node {:02X}h {:04X}h:{:02X}", target.node, index, sub), sc, done);
   const Ticket t = track(target.node, std::move(done));
   canopen::SdoClient& client = master_.sdo(sc->node());
-  pending_.back().client_ticket = client.upload(
-      index, sub, [this, t](SdoAbortCode code, std::vector<std::uint8_t> data) { finish(t, code, std::move(data)); });
+  pending_.back().client_ticket =
+      client.upload(index, sub,
+                    [this, t](SdoAbortCode code, std::vector<std::uint8_t> data) { finish(t, code, std::move(data)); });
   client.advance(now_);  // starts it now, not at the next turn of the event loop
   return t;
 }
@@ -176,10 +178,10 @@ RemoteSdo::Ticket RemoteSdo::download(const SdoTarget& target, std::uint16_t ind
                   what + " (" + sc->name + ": the gateway configures this object and its FEs are in use)", sc, done);
   const Ticket t = track(target.node, std::move(done));
   canopen::SdoClient& client = master_.sdo(sc->node());
-  pending_.back().client_ticket =
-      client.download(index, sub, std::vector<std::uint8_t>(data.begin(), data.end()),
-                      [this, t](SdoAbortCode code, std::vector<std::uint8_t> out) { finish(t, code, std::move(out)); },
-                      size_indicated ? canopen::SdoTransfer::Auto : canopen::SdoTransfer::ExpeditedUnsized);
+  pending_.back().client_ticket = client.download(
+      index, sub, std::vector<std::uint8_t>(data.begin(), data.end()),
+      [this, t](SdoAbortCode code, std::vector<std::uint8_t> out) { finish(t, code, std::move(out)); },
+      size_indicated ? canopen::SdoTransfer::Auto : canopen::SdoTransfer::ExpeditedUnsized);
   client.advance(now_);
   return t;
 }

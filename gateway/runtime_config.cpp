@@ -23,17 +23,19 @@ UpstreamBitRate upstream_bit_rate(const mapping::Config& c) {
   const std::string file = canopen::lss_store_path(c.upstream.store).string();
   const auto kbit = canopen::lss::standard_bit_rate_kbit(stored->bit_timing);
   if (!kbit) {
-    r.note = fmt::format("the LSS-stored bit timing index {} ({}) is no CiA 305 table-0 rate: upstream.bitrate {} applies",
-                         stored->bit_timing, file, c.upstream.bitrate);
+    r.note =
+        fmt::format("the LSS-stored bit timing index {} ({}) is no CiA 305 table-0 rate: upstream.bitrate {} applies",
+                    stored->bit_timing, file, c.upstream.bitrate);
     return r;
   }
   r.bitrate = std::uint32_t{*kbit} * 1000u;
   r.lss_stored = true;
   r.note = r.bitrate == c.upstream.bitrate
                ? fmt::format("the LSS-stored bit rate {} bit/s ({}) is upstream.bitrate's", r.bitrate, file)
-               : fmt::format("the LSS-stored bit rate {} bit/s ({}) overrides upstream.bitrate {}: CiA 305 store "
-                             "configuration keeps the rate the host configured last",
-                             r.bitrate, file, c.upstream.bitrate);
+               : fmt::format(
+                     "the LSS-stored bit rate {} bit/s ({}) overrides upstream.bitrate {}: CiA 305 store "
+                     "configuration keeps the rate the host configured last",
+                     r.bitrate, file, c.upstream.bitrate);
   return r;
 }
 
@@ -47,9 +49,9 @@ OeDeviceConfig device_config(const mapping::Config& c, std::optional<std::filesy
   for (const auto& fe : c.functional_elements) {
     oe.fes.push_back(fe.id);
     // CiA 852 Table 8 distinguishes joysticks with buttons.
-    if (fe.id.kind == mapping::FeKind::Joystick &&
-        std::none_of(fe.fields.begin(), fe.fields.end(),
-                     [](const auto& f) { return f.field.name.rfind("buttons", 0) == 0; }))
+    if (fe.id.kind == mapping::FeKind::Joystick && std::none_of(fe.fields.begin(), fe.fields.end(), [](const auto& f) {
+          return f.field.name.rfind("buttons", 0) == 0;
+        }))
       oe.joysticks_without_buttons.insert(fe.id);
     if (!fe.input() && !fe.accepts(mapping::CommandSource::Canopen)) oe.host_may_not_command.insert(fe.id);
   }
@@ -94,13 +96,12 @@ canopen::EdsInfo eds_info(const mapping::Config& c, std::string file_name) {
   for (std::size_t k = 1; k <= c.upstream.sdo_servers.size(); ++k) {
     const auto& s = c.upstream.sdo_servers[k - 1];
     const mapping::SubdeviceConfig* d = s.subdevice.empty() ? nullptr : c.find_subdevice(s.subdevice);
-    info.comments.push_back(fmt::format(
-        "SDO server {:04X}h ({}): {}", 0x1200 + k,
-        s.enabled() ? fmt::format("COB-IDs {:03X}h/{:03X}h", *s.request, *s.response)
-                    : std::string("disabled until the host sets its COB-IDs"),
-        d ? fmt::format("bound to sub-device {} (node {:02X}h on network {})", d->name, d->node_id,
-                        c.downstream.network_id)
-          : std::string("the gateway's own dictionary")));
+    info.comments.push_back(fmt::format("SDO server {:04X}h ({}): {}", 0x1200 + k,
+                                        s.enabled() ? fmt::format("COB-IDs {:03X}h/{:03X}h", *s.request, *s.response)
+                                                    : std::string("disabled until the host sets its COB-IDs"),
+                                        d ? fmt::format("bound to sub-device {} (node {:02X}h on network {})", d->name,
+                                                        d->node_id, c.downstream.network_id)
+                                          : std::string("the gateway's own dictionary")));
   }
   // Where a host built from CiA 852's printed PDO tables would differ
   // (docs/design/cia852-decisions.md).

@@ -32,6 +32,7 @@ struct GatewayBuses {
 // `config` sets them, on `loop` (a real-time loop of the calling thread) until SIGINT or SIGTERM;
 // SIGUSR1 keeps the recording. Returns the exit status (exit_code in gateway/programs.hpp). The
 // buses' receivers and event handlers are cleared on return.
-int serve_gateway(const std::string& file, mapping::Config& config, canopen::io::EventLoop& loop, const GatewayBuses& buses);
+int serve_gateway(const std::string& file, mapping::Config& config, canopen::io::EventLoop& loop,
+                  const GatewayBuses& buses);
 
 }  // namespace oegw::gateway

@@ -36,8 +36,8 @@ std::string status_line(const ServiceState& s) {
     }
     others += fmt::format("{}{} {}", others.empty() ? "" : ", ", name, subdevices::to_string(state));
   }
-  std::string out = fmt::format("upstream {}, node {:02X}h; {}/{} sub-devices operational", canopen::to_string(s.upstream),
-                                s.node_id, up, s.subdevices.size());
+  std::string out = fmt::format("upstream {}, node {:02X}h; {}/{} sub-devices operational",
+                                canopen::to_string(s.upstream), s.node_id, up, s.subdevices.size());
   if (!others.empty()) out += "; " + others;
   for (const auto& d : s.degraded) out += "; " + d;
   return out;

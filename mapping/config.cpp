@@ -69,12 +69,9 @@ const FunctionalElementConfig* Config::find_fe(FeId id) const {
 
 std::string_view to_string(CommandSource s) {
   switch (s) {
-    case CommandSource::Canopen:
-      return "canopen";
-    case CommandSource::Dds:
-      return "dds";
-    case CommandSource::Lcm:
-      return "lcm";
+    case CommandSource::Canopen: return "canopen";
+    case CommandSource::Dds: return "dds";
+    case CommandSource::Lcm: return "lcm";
   }
   return "?";
 }
@@ -91,13 +88,10 @@ namespace {
 std::size_t type_size(DataType t) {
   switch (t) {
     case DataType::Integer8:
-    case DataType::Unsigned8:
-      return 1;
+    case DataType::Unsigned8: return 1;
     case DataType::Integer16:
-    case DataType::Unsigned16:
-      return 2;
-    default:
-      return 4;
+    case DataType::Unsigned16: return 2;
+    default: return 4;
   }
 }
 
@@ -127,7 +121,7 @@ void read_file(YamlReader& r, const YAML::Node& root, const SignalCatalogue& cat
             "found " + node_kind(root) + " at the top; expected " + top);
     return;
   }
-  const std::vector<std::string_view> names = {"upstream", "downstream", "publish", "control", "record",
+  const std::vector<std::string_view> names = {"upstream",   "downstream",         "publish", "control", "record",
                                                "subdevices", "functional_elements"};
   const auto es = r.entries(root, "the file", names, top);
   // A section written under a misspelt name ("subdevice:", "sub_devices:") is reported at that
@@ -139,14 +133,10 @@ void read_file(YamlReader& r, const YAML::Node& root, const SignalCatalogue& cat
         return;
     r.missing(root, key, "the file", expected);
   };
-  if (const auto* e = r.find(es, "upstream"))
-    sections::read_upstream(r, *e, cfg.upstream);
-  else
-    missing("upstream", "an upstream section with at least node_id");
-  if (const auto* e = r.find(es, "downstream"))
-    sections::read_downstream(r, *e, cfg.downstream);
-  else
-    missing("downstream", "a downstream section");
+  if (const auto* e = r.find(es, "upstream")) sections::read_upstream(r, *e, cfg.upstream);
+  else missing("upstream", "an upstream section with at least node_id");
+  if (const auto* e = r.find(es, "downstream")) sections::read_downstream(r, *e, cfg.downstream);
+  else missing("downstream", "a downstream section");
   if (const auto* e = r.find(es, "publish")) sections::read_publish(r, *e, cfg.publish);
   if (const auto* e = r.find(es, "control")) sections::read_control(r, *e, cfg.control);
   if (const auto* e = r.find(es, "record")) sections::read_record(r, *e, cfg.record);
@@ -154,23 +144,20 @@ void read_file(YamlReader& r, const YAML::Node& root, const SignalCatalogue& cat
   // one mistake is reported once, where it is, and the names are not checked.
   const auto* subdevices = r.find(es, "subdevices");
   const bool subdevices_read = subdevices != nullptr && subdevices->value.IsMap();
-  if (subdevices)
-    sections::read_subdevices(r, *subdevices, catalogue, cfg.subdevices);
-  else
-    missing("subdevices", "a subdevices section");
+  if (subdevices) sections::read_subdevices(r, *subdevices, catalogue, cfg.subdevices);
+  else missing("subdevices", "a subdevices section");
   if (const auto* e = r.find(es, "functional_elements"))
     sections::read_functional_elements(r, *e, cfg, subdevices_read);
-  else
-    missing("functional_elements", "a functional_elements section");
+  else missing("functional_elements", "a functional_elements section");
   sections::check_command_sources_reachable(r, cfg);
   sections::check_sdo_servers(r, cfg, subdevices_read);
   sections::check_sync(r, cfg);
   // CiA 302-7: a network ID names one network; the two buses need two.
   if (cfg.upstream.network_id == cfg.downstream.network_id) {
     const bool down_written = cfg.downstream.network_id_where.line != 0;
-    const Location at = down_written                               ? cfg.downstream.network_id_where
+    const Location at = down_written                              ? cfg.downstream.network_id_where
                         : cfg.upstream.network_id_where.line != 0 ? cfg.upstream.network_id_where
-                                                                   : cfg.downstream.where;
+                                                                  : cfg.downstream.where;
     r.error(at, std::string(down_written ? "downstream" : "upstream") + " network_id " +
                     std::to_string(cfg.upstream.network_id) +
                     " names both buses; expected two distinct network IDs 1..127 (defaults: upstream 1, downstream 2)");
@@ -196,10 +183,8 @@ LoadResult load_config_text(std::string_view text, std::string_view file, const 
     r.error(Location{r.file(), e.mark.is_null() ? 1 : e.mark.line + 1, e.mark.is_null() ? 1 : e.mark.column + 1},
             "unreadable YAML: " + e.msg + "; expected the layout docs/reference/mapping-file.md describes");
   }
-  if (r.has_errors())
-    result.errors = r.take_errors();
-  else
-    result.config = std::move(cfg);
+  if (r.has_errors()) result.errors = r.take_errors();
+  else result.config = std::move(cfg);
   return result;
 }
 

@@ -60,10 +60,10 @@ struct UpstreamIdentity {  // 1018h sub-indices 1..4
 // own dictionary. Without request/response the channel is disabled (COB-IDs 8000 0000h) until
 // the host writes 1200h+k:01/02.
 struct SdoServerConfig {
-  std::string subdevice;                   // the bound sub-device's name; empty: not bound
-  std::optional<std::uint32_t> request;    // COB-ID client -> server (1200h+k:01), 11-bit
-  std::optional<std::uint32_t> response;   // COB-ID server -> client (1200h+k:02), 11-bit
-  Location where;                          // the list entry
+  std::string subdevice;                                    // the bound sub-device's name; empty: not bound
+  std::optional<std::uint32_t> request;                     // COB-ID client -> server (1200h+k:01), 11-bit
+  std::optional<std::uint32_t> response;                    // COB-ID server -> client (1200h+k:02), 11-bit
+  Location where;                                           // the list entry
   Location subdevice_where, request_where, response_where;  // the values, when written
   [[nodiscard]] bool enabled() const { return request.has_value() && response.has_value(); }
 };
@@ -84,7 +84,7 @@ struct UpstreamConfig {
   std::uint8_t network_id = 1;
   std::vector<SdoServerConfig> sdo_servers;  // 1201h, 1202h, ... (at most 127)
   Location where;
-  Location network_id_where;  // the `network_id` value, when written
+  Location network_id_where;              // the `network_id` value, when written
   Location interface_where, store_where;  // the values, when written
 };
 
@@ -117,8 +117,8 @@ struct DownstreamConfig {
   std::uint16_t sync_period_ms = 0;
   Location where;
   Location sync_period_where;  // the `sync_period_ms` value, when written
-  Location network_id_where;  // the `network_id` value, when written
-  Location interface_where;   // the `interface` value, when written
+  Location network_id_where;   // the `network_id` value, when written
+  Location interface_where;    // the `interface` value, when written
 };
 
 // OMG DDS Security 1.1 for the gateway's participant (publish.dds.security;
@@ -223,7 +223,7 @@ struct SubdeviceConfig {
   std::vector<SdoWriteConfig> sdo;
   subdevices::DriverOptions options;
   std::vector<std::pair<std::string, Location>> option_where;  // each option's value, as written
-  std::vector<subdevices::SignalInfo> signals;  // from the catalogue
+  std::vector<subdevices::SignalInfo> signals;                 // from the catalogue
   Location where;
   [[nodiscard]] subdevices::NodeId node() const { return subdevices::NodeId{node_id}; }
   [[nodiscard]] const subdevices::SignalInfo* find_signal(std::string_view name) const;
@@ -258,13 +258,13 @@ struct FieldBinding {
 enum class CommandSource : std::uint8_t { Canopen = 1, Dds = 2, Lcm = 4 };
 using CommandSources = std::uint8_t;  // a set of CommandSource bits
 inline constexpr CommandSources kAllCommandSources = 7;
-inline constexpr CommandSources kDefaultCommandSources = 3;  // canopen, dds: LCM is opt-in
+inline constexpr CommandSources kDefaultCommandSources = 3;          // canopen, dds: LCM is opt-in
 [[nodiscard]] std::string_view to_string(CommandSource s);           // "canopen", "dds", "lcm"
 [[nodiscard]] std::string describe_sources(CommandSources sources);  // "canopen, dds"
 
 struct FunctionalElementConfig {
   FeId id;
-  std::vector<FieldBinding> fields;  // in the FE's dictionary order
+  std::vector<FieldBinding> fields;                 // in the FE's dictionary order
   CommandSources sources = kDefaultCommandSources;  // output FEs only
   // Output FEs: when no accepted command (from any listed source) arrives for this long, the
   // FE's outputs take their CiA 401 error values (6206h/6207h, 6443h/6444h) until the next

@@ -4,8 +4,8 @@
 #include <sys/stat.h>
 
 #include <algorithm>
-#include <filesystem>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 
 #include "canopen/io/interface_name.hpp"
@@ -88,8 +88,9 @@ void check_record(const RecordConfig& r, std::vector<Diagnostic>& out) {
   for (; !p.empty() && p != p.root_path(); p = p.parent_path()) {
     if (!std::filesystem::exists(p, ec)) continue;
     if (std::filesystem::is_directory(p, ec)) return;
-    out.push_back({at(r.dir_where, r.where),
-                   what + ": " + p.string() + " is a file, not a folder; expected a folder oegw run may make or write"});
+    out.push_back(
+        {at(r.dir_where, r.where),
+         what + ": " + p.string() + " is a file, not a folder; expected a folder oegw run may make or write"});
     return;
   }
 }
@@ -102,10 +103,10 @@ void check_record(const RecordConfig& r, std::vector<Diagnostic>& out) {
 void check_control(const ControlConfig& c, std::vector<Diagnostic>& out) {
   if (!c.enabled) return;
   if (!c.group.empty() && ::getgrnam(c.group.c_str()) == nullptr)
-    out.push_back({at(c.group_where, c.where),
-                   "control.group: no group '" + c.group + "' on this machine (getent group " + c.group +
-                       "); create it (groupadd --system " + c.group +
-                       ") or leave control.group out (the socket is then root's only, mode 0600)"});
+    out.push_back(
+        {at(c.group_where, c.where), "control.group: no group '" + c.group + "' on this machine (getent group " +
+                                         c.group + "); create it (groupadd --system " + c.group +
+                                         ") or leave control.group out (the socket is then root's only, mode 0600)"});
   namespace fs = std::filesystem;
   const fs::path socket(c.socket);
   const fs::path folder = socket.parent_path();
@@ -122,7 +123,8 @@ void check_control(const ControlConfig& c, std::vector<Diagnostic>& out) {
       out.push_back({where, what + ": its folder " + folder.string() + " does not exist, nor does " +
                                 folder.parent_path().string() +
                                 " (oegw run makes only the socket's own folder); expected a socket path whose "
-                                "folder or its parent exists, e.g. " + std::string(kDefaultControlSocket)});
+                                "folder or its parent exists, e.g. " +
+                                std::string(kDefaultControlSocket)});
     return;
   }
   const fs::file_status at_path = fs::symlink_status(socket, ec);

@@ -6,12 +6,12 @@
 
 namespace oegw::mapping {
 
-using cia852::FeField;
-using cia852::FeId;
-using cia852::FeKind;
 using cia852::fe_fields;
 using cia852::fe_kind_from_string;
 using cia852::fe_name;
+using cia852::FeField;
+using cia852::FeId;
+using cia852::FeKind;
 using cia852::find_fe_field;
 using cia852::is_input;
 using cia852::max_instances;

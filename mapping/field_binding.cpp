@@ -83,20 +83,13 @@ std::string kind_hint(const SignalInfo& s, std::string_view kind_text) {
 
 std::string kind_name(SignalKind k) {
   switch (k) {
-    case SignalKind::Axis:
-      return "an Axis";
-    case SignalKind::Button:
-      return "a Button";
-    case SignalKind::Position:
-      return "a Position";
-    case SignalKind::Speed:
-      return "a Speed";
-    case SignalKind::Digital:
-      return "a Digital";
-    case SignalKind::Analog:
-      return "an Analog";
-    case SignalKind::Output:
-      return "an Output";
+    case SignalKind::Axis: return "an Axis";
+    case SignalKind::Button: return "a Button";
+    case SignalKind::Position: return "a Position";
+    case SignalKind::Speed: return "a Speed";
+    case SignalKind::Digital: return "a Digital";
+    case SignalKind::Analog: return "an Analog";
+    case SignalKind::Output: return "an Output";
   }
   return "an unknown";
 }
@@ -151,20 +144,13 @@ bool assign(const std::optional<V>& v, T& out) {
 bool read_options(YamlReader& r, const std::vector<MapEntry>& os, ValueRange range, FieldOptions& o) {
   bool ok = true;
   for (const auto& e : os) {
-    if (e.name == "scale")
-      ok &= assign(r.real(e, "scale"), o.scale);
-    else if (e.name == "offset")
-      ok &= assign(r.integer(e, "offset", -2147483648LL, 2147483647LL), o.offset);
-    else if (e.name == "deadband")
-      ok &= assign(r.integer(e, "deadband", 0, 2147483647LL), o.deadband);
-    else if (e.name == "fault")
-      ok &= assign(r.integer(e, "fault", range.lo, range.hi), o.fault);
-    else if (e.name == "invert")
-      ok &= assign(r.boolean(e, "invert"), o.invert);
-    else if (e.name == "interlock")
-      ok &= assign(r.boolean(e, "interlock"), o.interlock);
-    else if (e.name == "clamp")
-      ok &= read_clamp(r, e, range, o);
+    if (e.name == "scale") ok &= assign(r.real(e, "scale"), o.scale);
+    else if (e.name == "offset") ok &= assign(r.integer(e, "offset", -2147483648LL, 2147483647LL), o.offset);
+    else if (e.name == "deadband") ok &= assign(r.integer(e, "deadband", 0, 2147483647LL), o.deadband);
+    else if (e.name == "fault") ok &= assign(r.integer(e, "fault", range.lo, range.hi), o.fault);
+    else if (e.name == "invert") ok &= assign(r.boolean(e, "invert"), o.invert);
+    else if (e.name == "interlock") ok &= assign(r.boolean(e, "interlock"), o.interlock);
+    else if (e.name == "clamp") ok &= read_clamp(r, e, range, o);
   }
   return ok;
 }
@@ -221,8 +207,13 @@ class FieldEntry {
  public:
   FieldEntry(YamlReader& r, const std::vector<SubdeviceConfig>& subdevices, bool subdevices_read, const MapEntry& e,
              FunctionalElementConfig& fe)
-      : r_(r), subdevices_(subdevices), subdevices_read_(subdevices_read), e_(e), fe_(fe),
-        fe_name_(mapping::fe_name(fe.id)), input_(fe.input()) {}
+      : r_(r),
+        subdevices_(subdevices),
+        subdevices_read_(subdevices_read),
+        e_(e),
+        fe_(fe),
+        fe_name_(mapping::fe_name(fe.id)),
+        input_(fe.input()) {}
 
   // Binds the entry; `fed` and `outputs_fed` record every field fed and every output driven.
   void bind(std::map<std::string, Location>& fed,
@@ -311,7 +302,7 @@ class FieldEntry {
     for (const auto& d : subdevices_)
       if (d.name == sig.device) return &d;
     if (!subdevices_read_) return nullptr;  // the missing or broken section is the one error
-    std::vector<std::string> names;  // a refused name (reported where it stands) is no suggestion
+    std::vector<std::string> names;         // a refused name (reported where it stands) is no suggestion
     for (const auto& d : subdevices_)
       if (valid_subdevice_name(d.name)) names.push_back(d.name);
     r_.error(node, "unknown sub-device '" + sig.device + "' in signal '" + sig.text + "'; expected one of " +

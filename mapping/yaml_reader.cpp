@@ -73,8 +73,7 @@ std::string quoted(const std::string& s) { return s.size() <= kQuoted ? s : s.su
 
 std::string node_kind(const YAML::Node& n) {
   switch (n.Type()) {
-    case YAML::NodeType::Map:
-      return "a map";
+    case YAML::NodeType::Map: return "a map";
     case YAML::NodeType::Sequence: {
       std::string out = "[";
       for (const auto& item : n) {
@@ -84,10 +83,8 @@ std::string node_kind(const YAML::Node& n) {
       }
       return out + "]";
     }
-    case YAML::NodeType::Scalar:
-      return "'" + quoted(n.Scalar()) + "'";
-    default:
-      return "nothing";
+    case YAML::NodeType::Scalar: return "'" + quoted(n.Scalar()) + "'";
+    default: return "nothing";
   }
 }
 
@@ -175,7 +172,9 @@ std::string byte_hex(unsigned char b) {
   return std::string("0x") + kDigits[b >> 4] + kDigits[b & 0xF];
 }
 
-std::string limit_text(std::size_t limit) { return std::to_string(limit) + " (docs/reference/mapping-file.md#the-file-itself-limits-text-one-document)"; }
+std::string limit_text(std::size_t limit) {
+  return std::to_string(limit) + " (docs/reference/mapping-file.md#the-file-itself-limits-text-one-document)";
+}
 
 // YAML is UTF-8 text (YAML 1.2 §5.1, §5.2): no NUL or other C0 control character besides tab,
 // line feed and carriage return, no DEL, no broken or overlong sequence.
@@ -228,8 +227,8 @@ std::optional<Diagnostic> check_layout(std::string_view text, const std::string&
       while (j < text.size() && (text[j] == ' ' || text[j] == '\t' || marker(j))) ++j;
       const bool content = j < text.size() && text[j] != '\n' && text[j] != '\r' && text[j] != '#';
       if (content && j - i > static_cast<std::size_t>(YamlLimits::kIndent))
-        return Diagnostic{at(file, text, i), "indentation of " + std::to_string(j - i) +
-                                                 " columns; expected at most " + limit_text(YamlLimits::kIndent)};
+        return Diagnostic{at(file, text, i), "indentation of " + std::to_string(j - i) + " columns; expected at most " +
+                                                 limit_text(YamlLimits::kIndent)};
     }
     if (c == '\n') {
       line_start = true;
@@ -242,10 +241,8 @@ std::optional<Diagnostic> check_layout(std::string_view text, const std::string&
       if (quote == '"' && c == '\\') {
         ++i;  // an escaped character
       } else if (c == quote) {
-        if (quote == '\'' && i + 1 < text.size() && text[i + 1] == '\'')
-          ++i;  // '' inside '...'
-        else
-          quote = 0;
+        if (quote == '\'' && i + 1 < text.size() && text[i + 1] == '\'') ++i;  // '' inside '...'
+        else quote = 0;
       }
       prev = c;
       continue;
@@ -358,8 +355,9 @@ class DocumentStart final : public YAML::EventHandler {
 ParsedYaml parse_yaml(std::string_view text, const std::string& file) {
   ParsedYaml out;
   if (text.size() > YamlLimits::kFileBytes) {
-    out.error = Diagnostic{{file, 1, 1}, "a text of " + std::to_string(text.size()) + " bytes; expected at most " +
-                                             limit_text(YamlLimits::kFileBytes)};
+    out.error = Diagnostic{{file, 1, 1},
+                           "a text of " + std::to_string(text.size()) + " bytes; expected at most " +
+                               limit_text(YamlLimits::kFileBytes)};
     return out;
   }
   if ((out.error = check_text(text, file)) || (out.error = check_layout(text, file))) return out;
@@ -457,8 +455,7 @@ std::vector<MapEntry> YamlReader::entries(const YAML::Node& map, std::string_vie
     std::vector<YAML::Node> sources;
     if (it->second.IsSequence())
       for (const auto& s : it->second) sources.push_back(s);
-    else
-      sources.push_back(it->second);
+    else sources.push_back(it->second);
     for (const auto& src : sources) {
       if (!src.IsMap()) {
         error(src, "found " + node_kind(src) + " for the merge key '<<' in " + std::string(what) +

@@ -98,11 +98,11 @@ template <typename Range>
 // so a hostile or broken file costs neither memory nor stack.
 struct YamlLimits {
   static constexpr std::size_t kFileBytes = 1024 * 1024;  // the whole file
-  static constexpr int kFlowNesting = 32;                  // [ ] and { } inside each other
-  static constexpr int kIndent = 128;                      // columns of indentation and "- " markers
-  static constexpr int kDepth = 32;                        // maps and lists inside each other
-  static constexpr std::size_t kScalarBytes = 4096;        // one value or key
-  static constexpr std::size_t kNodes = 200000;            // nodes, aliases counted where used
+  static constexpr int kFlowNesting = 32;                 // [ ] and { } inside each other
+  static constexpr int kIndent = 128;                     // columns of indentation and "- " markers
+  static constexpr int kDepth = 32;                       // maps and lists inside each other
+  static constexpr std::size_t kScalarBytes = 4096;       // one value or key
+  static constexpr std::size_t kNodes = 200000;           // nodes, aliases counted where used
 };
 
 struct ParsedYaml {

@@ -66,7 +66,8 @@ int run_sim(const SimOptions& options) {
     try {
       port->set_filters(all_but_data_frames_on(ids), true);
     } catch (const CanOpenError& e) {
-      spdlog::warn("interface: {} (no acceptance filter: frames on the devices' own TPDO COB-IDs are read too)", e.what());
+      spdlog::warn("interface: {} (no acceptance filter: frames on the devices' own TPDO COB-IDs are read too)",
+                   e.what());
     }
     filtered = std::move(ids);
   };
@@ -128,7 +129,8 @@ int run_master(const MasterOptions& options) {
   // One 1016h entry per device (at least the default 16): with fewer, the later devices' heartbeats
   // would go unwatched.
   Master master(od, sink,
-                MasterConfig{.heartbeat_entries = static_cast<std::uint8_t>(std::clamp<std::size_t>(options.devices.size(), 16, 127))});
+                MasterConfig{.heartbeat_entries =
+                                 static_cast<std::uint8_t>(std::clamp<std::size_t>(options.devices.size(), 16, 127))});
   sd::NetworkManager network(master);
   for (const auto& text : options.devices) {
     std::string error;
@@ -178,11 +180,12 @@ int run_master(const MasterOptions& options) {
   watch_transport(loop, *port);
   loop.handle_signals({SIGINT, SIGTERM});
   if (options.until_operational > 0) {
-    loop.call_after(std::chrono::duration_cast<Duration>(std::chrono::duration<double>(options.until_operational)), [&] {
-      spdlog::error("not every node operational after {} s", options.until_operational);
-      rc = 1;
-      loop.stop();
-    });
+    loop.call_after(std::chrono::duration_cast<Duration>(std::chrono::duration<double>(options.until_operational)),
+                    [&] {
+                      spdlog::error("not every node operational after {} s", options.until_operational);
+                      rc = 1;
+                      loop.stop();
+                    });
   }
   network.start(loop.now());
   driver.rearm();

@@ -16,10 +16,10 @@
 #include "canopen/io/socketcan_transport.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
+#include "gateway/publishing.hpp"
 #include "publish/dds_publisher.hpp"
 #include "publish/lcm_publisher.hpp"
 #include "publish/publish_schedule.hpp"
-#include "gateway/publishing.hpp"
 
 namespace oegw::programs {
 
@@ -39,8 +39,8 @@ std::int16_t full_scale(double v) { return static_cast<std::int16_t>(std::lround
 
 DemoDevice::DemoDevice(NodeId id, FrameSink sink, std::filesystem::path store_path, std::uint16_t heartbeat_ms) {
   od_.add_array(0x6000, "Read input 8-bit", DataType::Unsigned8, Access::ReadOnly, 2, {0}, true);
-  od_.add_array(0x6401, "Read analogue input 16-bit", DataType::Integer16, Access::ReadOnly, 2,
-                encode<std::int16_t>(0), true);
+  od_.add_array(0x6401, "Read analogue input 16-bit", DataType::Integer16, Access::ReadOnly, 2, encode<std::int16_t>(0),
+                true);
   od_.add_array(0x6200, "Write output 8-bit", DataType::Unsigned8, Access::ReadWrite, 1, {0}, true);
   install_tpdo(od_, 1,
                PdoParameters{.cob_id = cob::kTpdo1 + id.value(),
@@ -106,8 +106,7 @@ class CoreDemo {
     bus.set_tap([this](const BusRecord& r) {
       ++frames;
       if (r.frame.id == 0x720) last_heartbeat = r.time;
-      if (options.frames)
-        std::printf("            %-7s %s\n", r.sender.c_str(), r.frame.to_string().c_str());
+      if (options.frames) std::printf("            %-7s %s\n", r.sender.c_str(), r.frame.to_string().c_str());
     });
     dev_driver.bind_receiver(*dev_port, device.node());
     host_driver.bind_receiver(*host_port, host);
@@ -210,7 +209,8 @@ class CoreDemo {
       joystick.buttons = 0;
       if (!fan.empty()) schedule.update(joystick, now_us());
       publish_status("missing");
-      say(fmt::format("host: heartbeat of node 0x20 LOST ({:.0f} ms after its last heartbeat; consumer time 250 ms)\n"
+      say(
+          fmt::format("host: heartbeat of node 0x20 LOST ({:.0f} ms after its last heartbeat; consumer time 250 ms)\n"
                       "            -> the gateway will drive every input fed by such a node to neutral",
                       std::chrono::duration<double, std::milli>(loss_detected_after).count()));
     };
@@ -230,7 +230,8 @@ class CoreDemo {
     };
   }
 
-  Script::Step sdo_read(std::uint16_t index, std::uint8_t sub, std::function<void(const std::vector<std::uint8_t>&)> show,
+  Script::Step sdo_read(std::uint16_t index, std::uint8_t sub,
+                        std::function<void(const std::vector<std::uint8_t>&)> show,
                         SdoTransfer mode = SdoTransfer::Auto) {
     return [this, index, sub, show, mode](Script::Next next) {
       host.sdo(dev_id).upload(
@@ -250,16 +251,18 @@ class CoreDemo {
 
   Script::Step sdo_write(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data, const char* what) {
     return [this, index, sub, data, what](Script::Next next) {
-      host.sdo(dev_id).download(index, sub, data, [this, index, sub, data, what, next](SdoAbortCode c, std::vector<std::uint8_t>) {
-        const std::string line = fmt::format("SDO download {:04X}h:{:02X} = {:<9} {}", index, sub,
-                                             fmt::format("{:X}h", decode_unsigned(data)), what);
-        if (c != SdoAbortCode::None) {
-          fail(line + ": " + std::string(to_string(c)));
-        } else {
-          say(line);
-        }
-        next();
-      });
+      host.sdo(dev_id).download(index, sub, data,
+                                [this, index, sub, data, what, next](SdoAbortCode c, std::vector<std::uint8_t>) {
+                                  const std::string line =
+                                      fmt::format("SDO download {:04X}h:{:02X} = {:<9} {}", index, sub,
+                                                  fmt::format("{:X}h", decode_unsigned(data)), what);
+                                  if (c != SdoAbortCode::None) {
+                                    fail(line + ": " + std::string(to_string(c)));
+                                  } else {
+                                    say(line);
+                                  }
+                                  next();
+                                });
       host_driver.rearm();
     };
   }
@@ -291,7 +294,9 @@ class CoreDemo {
     }));
     script.then(sdo_read(
         0x100A, 0,
-        [this](const auto& d) { say("SDO upload 100Ah    software version = \"" + std::string(d.begin(), d.end()) + "\" (block, CRC)"); },
+        [this](const auto& d) {
+          say("SDO upload 100Ah    software version = \"" + std::string(d.begin(), d.end()) + "\" (block, CRC)");
+        },
         SdoTransfer::Block));
     script.then(sdo_write(0x1017, 0, encode<std::uint16_t>(100), "heartbeat every 100 ms"));
   }
@@ -313,13 +318,15 @@ class CoreDemo {
   void write_a_read_only_object() {
     script.then([this](Script::Next next) {
       // Refused on purpose: the answer is an abort code and nothing changes.
-      host.sdo(dev_id).download(0x1000, 0, encode<std::uint32_t>(0), [this, next](SdoAbortCode c, std::vector<std::uint8_t>) {
-        const std::string line = fmt::format("SDO download 1000h (read-only) refused with abort {:08X}h \"{}\", as it must be",
-                                             static_cast<unsigned>(c), to_string(c));
-        if (c != SdoAbortCode::WriteOfReadOnly) fail(line);
-        else say(line);
-        next();
-      });
+      host.sdo(dev_id)
+          .download(0x1000, 0, encode<std::uint32_t>(0), [this, next](SdoAbortCode c, std::vector<std::uint8_t>) {
+            const std::string line =
+                fmt::format("SDO download 1000h (read-only) refused with abort {:08X}h \"{}\", as it must be",
+                            static_cast<unsigned>(c), to_string(c));
+            if (c != SdoAbortCode::WriteOfReadOnly) fail(line);
+            else say(line);
+            next();
+          });
       host_driver.rearm();
     });
   }
@@ -355,11 +362,13 @@ class CoreDemo {
 
   void show_the_joystick() {
     script.then([this](Script::Next next) {
-      const auto end = loop.now() + std::chrono::duration_cast<Duration>(std::chrono::duration<double>(options.live_seconds));
+      const auto end =
+          loop.now() + std::chrono::duration_cast<Duration>(std::chrono::duration<double>(options.live_seconds));
       auto view = std::make_shared<std::function<void()>>();
       *view = [this, end, next, view] {
-        const std::string b = fmt::format("  joystick (TPDO1 1A0h)  x = {:+6.2f}  y = {:+6.2f}  button 1 = {:<8}  TPDOs so far: {}",
-                                          x / 32767.0, y / 32767.0, (buttons & 1) ? "pressed" : "released", tpdos);
+        const std::string b =
+            fmt::format("  joystick (TPDO1 1A0h)  x = {:+6.2f}  y = {:+6.2f}  button 1 = {:<8}  TPDOs so far: {}",
+                        x / 32767.0, y / 32767.0, (buttons & 1) ? "pressed" : "released", tpdos);
         if (tty) {
           std::printf("\r%s", b.c_str());
           std::fflush(stdout);
@@ -509,7 +518,8 @@ int run_device(const DeviceOptions& options) {
     loop.stop();
   });
   const auto loaded = device.node().start(loop.now());
-  if (!loaded.ok) spdlog::warn("parameter store {} refused ({}); running on defaults", options.store_path.string(), loaded.error);
+  if (!loaded.ok)
+    spdlog::warn("parameter store {} refused ({}); running on defaults", options.store_path.string(), loaded.error);
   driver.rearm();
   spdlog::info("oegw demo device: node 0x{:02X} on {}", device.node().node_id().value(), options.interface);
   loop.run();

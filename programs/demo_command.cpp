@@ -9,8 +9,8 @@ namespace oegw::programs {
 
 void register_demo(CLI::App& app) {
   auto o = std::make_shared<GatewayDemoOptions>();
-  auto* cmd =
-      app.add_subcommand("demo", "The embedded demo: gateway, simulated cab devices and a host (default)")->group(cli::kDailyGroup);
+  auto* cmd = app.add_subcommand("demo", "The embedded demo: gateway, simulated cab devices and a host (default)")
+                  ->group(cli::kDailyGroup);
   cmd->add_option("--seconds", o->seconds, "How long the operator moves the joysticks")->check(CLI::Range(0.0, 3600.0));
   cmd->add_flag("--frames", o->frames,
                 "Print every CAN frame of both buses in candump's log format (canplayer replays it)");

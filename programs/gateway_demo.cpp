@@ -17,13 +17,13 @@
 
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
-#include "rig/cab_rig.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/programs.hpp"
-#include "publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
 #include "programs/demo_files.hpp"
 #include "programs/live_view.hpp"
+#include "publish/dds_publisher.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 
 namespace oegw::programs {
@@ -162,11 +162,13 @@ class GatewayDemo {
       }
     };
     host->on_emcy = [this](const EmcyMessage& m, TimePoint) {
-      if (m.code == 0x7000 && !grip_pulled) spurious_fault(fmt::format("EMCY 7000h naming sub-device {:02X}h", m.msef[0]));
+      if (m.code == 0x7000 && !grip_pulled)
+        spurious_fault(fmt::format("EMCY 7000h naming sub-device {:02X}h", m.msef[0]));
       emcys.push_back(m.code);
       say(fmt::format("host: EMCY from the gateway: {:04X}h {}", m.code,
                       m.code == 0x7000 ? fmt::format("(additional modules: sub-device {:02X}h failed)", m.msef[0])
-                      : m.code == 0 ? "(error reset)" : ""));
+                      : m.code == 0    ? "(error reset)"
+                                       : ""));
     };
   }
 
@@ -179,15 +181,15 @@ class GatewayDemo {
       // The secure mode: the set's file names (scripts/make-dds-security.sh), the gateway's identity.
       auto& sec = publish_config.dds.security.emplace();
       const std::filesystem::path set = std::filesystem::absolute(options.dds_security);
-      sec.path = {(set / "ca.pem").string(),         (set / "gateway.pem").string(),
-                  (set / "gateway.key").string(),    (set / "ca.pem").string(),
-                  (set / "governance.p7s").string(), (set / "permissions.p7s").string()};
+      sec.path = {(set / "ca.pem").string(), (set / "gateway.pem").string(),    (set / "gateway.key").string(),
+                  (set / "ca.pem").string(), (set / "governance.p7s").string(), (set / "permissions.p7s").string()};
     }
     const mapping::PublishConfig& publish = publish_config;
     if (!options.publish || !(publish.dds.enabled || publish.lcm.enabled)) return std::nullopt;
     try {
       publishing = std::make_unique<gateway::GatewayPublishing>(*gw, publish, [this] { return loop.now(); });
-      say(fmt::format("publishing every FE on DDS (topics oegw/*, domain {}, partition {}, network {}{}) and LCM "
+      say(
+          fmt::format("publishing every FE on DDS (topics oegw/*, domain {}, partition {}, network {}{}) and LCM "
                       "(channels {}*, {}); indicators.1 takes its commands from there",
                       publish.dds.domain, publish.dds.partition, publish.dds.network,
                       publish.dds.security ? ", DDS Security with " + options.dds_security : std::string(),
@@ -232,7 +234,8 @@ class GatewayDemo {
     rig.rearm();
     up_watch = loop.call_every(loop.now() + 10ms, 10ms, [this] {
       bool all = true;
-      for (const auto& n : gw->downstream().names()) all = all && gw->downstream().state(n) == sd::NodeState::Operational;
+      for (const auto& n : gw->downstream().names())
+        all = all && gw->downstream().state(n) == sd::NodeState::Operational;
       if (!all) return;
       all_up = true;
       watch_for_spurious_faults();
@@ -251,7 +254,10 @@ class GatewayDemo {
         const bool fault = st == FeStatus::Stale || st == FeStatus::Error || st == FeStatus::Offline;
         const bool grips = name == "joystick.1" || name == "wheel.1";  // demo.yaml: right_grip's
         if (fault && !(grip_pulled && grips) && last[name] != st)
-          spurious_fault(fmt::format("{} {} at {:.2f} s", name, st == FeStatus::Stale ? "stale" : st == FeStatus::Error ? "error" : "offline",
+          spurious_fault(fmt::format("{} {} at {:.2f} s", name,
+                                     st == FeStatus::Stale   ? "stale"
+                                     : st == FeStatus::Error ? "error"
+                                                             : "offline",
                                      std::chrono::duration<double>(loop.now() - t0).count()));
         last[name] = st;
       }
@@ -282,7 +288,8 @@ class GatewayDemo {
     // the operator moved, and from here at each step.
     if (!tty) loop.cancel(view_timer);
     view(false);
-    check(tpdos > 0 && x_max - x_min > 20000, fmt::format("the host saw joystick 1 move in {} TPDOs (x from {} to {})", tpdos, x_min, x_max));
+    check(tpdos > 0 && x_max - x_min > 20000,
+          fmt::format("the host saw joystick 1 move in {} TPDOs (x from {} to {})", tpdos, x_min, x_max));
     say("host: RPDO 225h#0500000000000000 -> indicators.2 lamps 1 and 3 -> the MCB-402's LEDs");
     (void)host_port->send(CanFrame(0x225, {0x05, 0, 0, 0, 0, 0, 0, 0}));  // RPDO 5 maps 6200h:09..10h
     // indicators.1 lists `sources: [dds, lcm]` in demo.yaml: the host may not drive its lamps.
@@ -291,14 +298,16 @@ class GatewayDemo {
     // (the DDS/LCM command examples), so the check is "unchanged by the write", not "off".
     auto* lamps = bench->device("cluster");
     const std::optional<std::int64_t> lamps_before = lamps ? lamps->output("out[1]") : std::nullopt;
-    host->sdo(kGateway).download(0x6200, 0x01, {0xFF}, [this, lamps, lamps_before](SdoAbortCode c, std::vector<std::uint8_t>) {
-      check(lamps && lamps_before && lamps->output("out[1]") == lamps_before,
-            fmt::format("the button cluster's lamps unchanged by the refused write ({:02X}h)", lamps_before.value_or(0)));
-      check(c == SdoAbortCode::CannotTransferLocalControl,
-            fmt::format("the gateway refused it: abort {:08X}h ({}); only the machine application's DDS/LCM "
-                        "commands drive those lamps",
-                        static_cast<std::uint32_t>(c), to_string(c)));
-    });
+    host->sdo(kGateway)
+        .download(0x6200, 0x01, {0xFF}, [this, lamps, lamps_before](SdoAbortCode c, std::vector<std::uint8_t>) {
+          check(lamps && lamps_before && lamps->output("out[1]") == lamps_before,
+                fmt::format("the button cluster's lamps unchanged by the refused write ({:02X}h)",
+                            lamps_before.value_or(0)));
+          check(c == SdoAbortCode::CannotTransferLocalControl,
+                fmt::format("the gateway refused it: abort {:08X}h ({}); only the machine application's DDS/LCM "
+                            "commands drive those lamps",
+                            static_cast<std::uint32_t>(c), to_string(c)));
+        });
     rig.rearm();
   }
 
@@ -329,7 +338,8 @@ class GatewayDemo {
   void the_stick_goes_back_to_zero() {
     view(false);
     const auto x = gw->fields({mapping::FeKind::Joystick, 1});
-    check(gw->downstream().state("right_grip") == sd::NodeState::Operational, "the grip is back: reconfigured and started");
+    check(gw->downstream().state("right_grip") == sd::NodeState::Operational,
+          "the grip is back: reconfigured and started");
     check(!x.empty() && std::all_of(x.begin(), x.end(), [](const auto& s) { return s.name != "x" || s.value == 0; }),
           "joystick.1 x held at neutral although the stick reads 60 %: it has not been seen at zero yet");
     say("the operator lets the stick and the wheels go back to zero, then moves again");
@@ -369,7 +379,8 @@ class GatewayDemo {
     // frames handled in the same wake-up as the last step still log, and would land below it.
     view(true);
     std::filesystem::remove_all(dir);
-    if (publishing) std::printf("published: %llu FE samples\n", static_cast<unsigned long long>(publishing->published()));
+    if (publishing)
+      std::printf("published: %llu FE samples\n", static_cast<unsigned long long>(publishing->published()));
     std::printf("\n%s\n", failures == 0 ? "demo complete: every step as expected" : "demo: SOME STEPS FAILED");
     return failures == 0 ? 0 : 1;
   }
@@ -410,7 +421,8 @@ int run_gateway_demo(const GatewayDemoOptions& options) {
   const auto folder = make_demo_folder();
   if (!folder) return 1;
   const std::filesystem::path& dir = *folder;
-  auto loaded = mapping::load_config_text(demo_files::kDemoYaml, "config/demo.yaml", gateway::driver_catalogue(), dir / "config");
+  auto loaded =
+      mapping::load_config_text(demo_files::kDemoYaml, "config/demo.yaml", gateway::driver_catalogue(), dir / "config");
   if (!loaded.ok()) {
     std::fprintf(stderr, "%s", loaded.error_text().c_str());
     std::filesystem::remove_all(dir);

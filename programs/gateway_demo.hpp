@@ -7,9 +7,9 @@ namespace oegw::programs {
 
 struct GatewayDemoOptions {
   double seconds = 6.0;  // how long the operator moves the joysticks before the faults
-  bool frames = false;    // print every frame of both buses
-  bool fast = false;      // simulated clock: deterministic, as fast as the machine goes
-  bool publish = true;    // publish as demo.yaml says (DDS loopback, LCM ttl=0); commands come back
+  bool frames = false;   // print every frame of both buses
+  bool fast = false;     // simulated clock: deterministic, as fast as the machine goes
+  bool publish = true;   // publish as demo.yaml says (DDS loopback, LCM ttl=0); commands come back
   // A folder made by scripts/make-dds-security.sh (--partition oegw-demo): DDS Security for the
   // demo's participant with the set's gateway identity (docs/guides/secure-dds.md); "" = none.
   std::string dds_security;

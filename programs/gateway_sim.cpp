@@ -24,11 +24,11 @@
 #include "gateway/control/gateway_control.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/programs.hpp"
-#include "publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
 #include "profiles/cia852/pdo_defaults.hpp"
-#include "rig/cab_rig.hpp"
 #include "programs/live_view.hpp"
+#include "publish/dds_publisher.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 
 namespace oegw::programs {
@@ -52,9 +52,11 @@ struct SimStep {
 };
 
 // The FE status words of the table (live_view.cpp fe_line), which `expect` takes.
-constexpr std::pair<std::string_view, gateway::FeStatus> kStatusWords[] = {
-    {"valid", FeStatus::Valid}, {"error", FeStatus::Error},   {"n/a", FeStatus::NotAvailable},
-    {"stale", FeStatus::Stale}, {"offline", FeStatus::Offline}};
+constexpr std::pair<std::string_view, gateway::FeStatus> kStatusWords[] = {{"valid", FeStatus::Valid},
+                                                                           {"error", FeStatus::Error},
+                                                                           {"n/a", FeStatus::NotAvailable},
+                                                                           {"stale", FeStatus::Stale},
+                                                                           {"offline", FeStatus::Offline}};
 
 std::vector<std::string> words_of(const std::string& s) {
   std::istringstream in(s);
@@ -140,10 +142,11 @@ std::string check_own_command(const std::vector<std::string>& w, const std::vect
 // mapping; the host assigns them): TPDO 1 keeps 180h + node-ID, every other one the next free
 // identifier from 190h on, skipping the gateway's predefined connection set and its SDO servers'.
 std::map<std::pair<bool, std::uint16_t>, std::uint32_t> assign_pdo_cob_ids(const mapping::Config& cfg,
-                                                                            const std::vector<mapping::FeId>& fes) {
+                                                                           const std::vector<mapping::FeId>& fes) {
   const std::uint32_t node = cfg.upstream.node_id;
   std::vector<std::uint32_t> taken{0x80 + node, 0x580 + node, 0x600 + node, 0x700 + node};
-  for (std::uint32_t base : {0x180u, 0x200u, 0x280u, 0x300u, 0x380u, 0x400u, 0x480u, 0x500u}) taken.push_back(base + node);
+  for (std::uint32_t base : {0x180u, 0x200u, 0x280u, 0x300u, 0x380u, 0x400u, 0x480u, 0x500u})
+    taken.push_back(base + node);
   for (const auto& s : cfg.upstream.sdo_servers) {
     if (s.request) taken.push_back(*s.request);
     if (s.response) taken.push_back(*s.response);
@@ -182,17 +185,20 @@ std::vector<SimStep> read_script(const std::string& path, std::vector<std::pair<
     char* end = nullptr;
     const double s = std::strtod(time.c_str(), &end);
     if (time.empty() || *end != '\0' || !std::isfinite(s) || s < 0 || s > 86400) {
-      errors.emplace_back(n, fmt::format("{}:{}:{}: found '{}'; expected the time in seconds from the start (0..86400, e.g. 2.5)",
-                                   path, n, first + 1, text.substr(first, time_end - first)));
+      errors.emplace_back(
+          n, fmt::format("{}:{}:{}: found '{}'; expected the time in seconds from the start (0..86400, e.g. 2.5)", path,
+                         n, first + 1, text.substr(first, time_end - first)));
       continue;
     }
     const auto cmd = time_end == std::string::npos ? std::string::npos : text.find_first_not_of(" \t", time_end);
     if (cmd == std::string::npos) {
-      errors.emplace_back(n, fmt::format("{}:{}:{}: found nothing after the time; expected a command", path, n, text.size() + 1));
+      errors.emplace_back(n, fmt::format("{}:{}:{}: found nothing after the time; expected a command", path, n,
+                                         text.size() + 1));
       continue;
     }
     std::string command = text.substr(cmd);
-    while (!command.empty() && (command.back() == ' ' || command.back() == '\t' || command.back() == '\r')) command.pop_back();
+    while (!command.empty() && (command.back() == ' ' || command.back() == '\t' || command.back() == '\r'))
+      command.pop_back();
     steps.push_back({std::chrono::duration_cast<Duration>(std::chrono::duration<double>(s)), command, n, cmd + 1});
   }
   // Steps at one time run in the order written.
@@ -263,7 +269,8 @@ std::optional<int> plan_script(const GatewaySimOptions& options, const mapping::
     const std::string own = check_own_command(w, plan.fe_names, plan.rpdos);
     if (own.empty()) continue;
     if (own != "?") {
-      errors.emplace_back(s.line, fmt::format("{}:{}:{}: found '{}'; expected {}", options.script, s.line, s.column, s.command, own));
+      errors.emplace_back(s.line, fmt::format("{}:{}:{}: found '{}'; expected {}", options.script, s.line, s.column,
+                                              s.command, own));
       continue;
     }
     const std::string answer = dry.command(s.command, TimePoint{});
@@ -282,7 +289,8 @@ std::optional<int> plan_script(const GatewaySimOptions& options, const mapping::
 std::optional<int> open_vcan(const std::string& vcan, rig::CabRig& rig, std::vector<VcanBridge>& bridges) {
   if (vcan.empty()) return std::nullopt;
   const auto comma = vcan.find(',');
-  const std::string names[2] = {vcan.substr(0, comma), comma == std::string::npos ? std::string() : vcan.substr(comma + 1)};
+  const std::string names[2] = {vcan.substr(0, comma),
+                                comma == std::string::npos ? std::string() : vcan.substr(comma + 1)};
   if (names[0].empty() || names[1].empty() || names[0] == names[1]) {
     std::fprintf(stderr, "oegw sim: --vcan %s: expected two interfaces UP,DOWN (e.g. vcan0,vcan1)\n", vcan.c_str());
     return exit_code::kUsage;
@@ -315,8 +323,18 @@ class SimSession {
  public:
   SimSession(const GatewaySimOptions& o, const mapping::Config& c, const std::filesystem::path& d, EventLoop& l,
              rig::CabRig& r, const SimPlan& p, std::vector<VcanBridge>& b)
-      : options(o), cfg(c), dir(d), loop(l), rig(r), plan(p), bridges(b), gw(r.gw()), host(r.host()),
-        bench(r.devices()), gateway_node(c.upstream.node_id), t0(l.now()) {
+      : options(o),
+        cfg(c),
+        dir(d),
+        loop(l),
+        rig(r),
+        plan(p),
+        bridges(b),
+        gw(r.gw()),
+        host(r.host()),
+        bench(r.devices()),
+        gateway_node(c.upstream.node_id),
+        t0(l.now()) {
     if (options.frames) print_frames_of(rig, t0);
     tty = ::isatty(STDOUT_FILENO) != 0 && !options.frames && !options.fast;
     screen = LiveScreen(tty);
@@ -403,9 +421,11 @@ class SimSession {
     std::printf("  upstream:   the built-in host enables the gateway's PDOs (TPDO 1 on %03Xh) and starts it\n",
                 0x180 + cfg.upstream.node_id);
     if (!bridges.empty())
-      std::printf("  on SocketCAN too: upstream %s, downstream %s (candump -L %s,%s ...)\n", bridges[0].can->interface().c_str(),
-                  bridges[1].can->interface().c_str(), bridges[0].can->interface().c_str(), bridges[1].can->interface().c_str());
-    if (control) std::printf("  control:    oegw status --socket %s (oegw ctl alike)\n", control_cfg.control.socket.c_str());
+      std::printf("  on SocketCAN too: upstream %s, downstream %s (candump -L %s,%s ...)\n",
+                  bridges[0].can->interface().c_str(), bridges[1].can->interface().c_str(),
+                  bridges[0].can->interface().c_str(), bridges[1].can->interface().c_str());
+    if (control)
+      std::printf("  control:    oegw status --socket %s (oegw ctl alike)\n", control_cfg.control.socket.c_str());
     std::printf("\n");
     std::fflush(stdout);
   }
@@ -424,7 +444,8 @@ class SimSession {
     if (options.motion)
       hands_timer = loop.call_every(t0 + 10ms, 10ms, [this] {
         bool all = true;
-        for (const auto& n : gw.downstream().names()) all = all && gw.downstream().state(n) == sd::NodeState::Operational;
+        for (const auto& n : gw.downstream().names())
+          all = all && gw.downstream().state(n) == sd::NodeState::Operational;
         if (!all && loop.now() - t0 < 3s) return;
         loop.cancel(hands_timer);
         moving = true;
@@ -496,7 +517,8 @@ class SimSession {
 
   // `expect FE STATUS`: whether the gateway shows the FE so.
   bool expect(const std::vector<std::string>& w) {
-    const auto fe = std::find_if(gw.fes().begin(), gw.fes().end(), [&](const auto& id) { return mapping::fe_name(id) == w[1]; });
+    const auto fe =
+        std::find_if(gw.fes().begin(), gw.fes().end(), [&](const auto& id) { return mapping::fe_name(id) == w[1]; });
     if (fe == gw.fes().end()) {
       say("FAILED: expect " + w[1] + ": the gateway has no such FE");
       return false;
@@ -517,8 +539,8 @@ class SimSession {
   // `host nmt|read|write|rpdo ...`: the built-in host does it.
   void host_command(const std::vector<std::string>& w) {
     if (w[1] == "nmt") {
-      const NmtCommand cs = w[2] == "start" ? NmtCommand::Start
-                            : w[2] == "stop" ? NmtCommand::Stop
+      const NmtCommand cs = w[2] == "start"   ? NmtCommand::Start
+                            : w[2] == "stop"  ? NmtCommand::Stop
                             : w[2] == "preop" ? NmtCommand::EnterPreOperational
                             : w[2] == "reset" ? NmtCommand::ResetNode
                                               : NmtCommand::ResetCommunication;
@@ -547,13 +569,15 @@ class SimSession {
   void schedule() {
     const auto& steps = plan.steps;
     const auto last_step = steps.empty() ? Duration{0} : steps.back().at;
-    if (options.seconds > 0) end_at = t0 + std::chrono::duration_cast<Duration>(std::chrono::duration<double>(options.seconds));
+    if (options.seconds > 0)
+      end_at = t0 + std::chrono::duration_cast<Duration>(std::chrono::duration<double>(options.seconds));
     else if (options.fast) end_at = t0 + last_step + (steps.empty() ? Duration{10s} : Duration{1s});
 
     loop.call_at(t0, [this] {
       rig.power_on();
       if (cfg.upstream.heartbeat_ms > 0)
-        (void)host.monitor_heartbeat(gateway_node, static_cast<std::uint16_t>(std::min(3 * cfg.upstream.heartbeat_ms, 65535)));
+        (void)host.monitor_heartbeat(gateway_node,
+                                     static_cast<std::uint16_t>(std::min(3 * cfg.upstream.heartbeat_ms, 65535)));
       configure(0);
     });
     for (const auto& s : steps)
@@ -570,7 +594,7 @@ class SimSession {
     // epoll takes a terminal, a pipe or a socket; a regular file or /dev/null it refuses (EPERM):
     // nothing is typed there.
     const bool typed_input = ::isatty(STDIN_FILENO) != 0 || (::fstat(STDIN_FILENO, &in_stat) == 0 &&
-                                                               (S_ISFIFO(in_stat.st_mode) || S_ISSOCK(in_stat.st_mode)));
+                                                             (S_ISFIFO(in_stat.st_mode) || S_ISSOCK(in_stat.st_mode)));
     if (options.fast || !typed_input) return;
     stdin_watch = loop.watch(STDIN_FILENO, EPOLLIN, [this](std::uint32_t) {
       char buf[512];

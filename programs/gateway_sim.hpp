@@ -13,14 +13,14 @@
 namespace oegw::programs {
 
 struct GatewaySimOptions {
-  std::string file;       // the mapping file
-  double seconds = 0;     // how long; 0: until SIGINT/SIGTERM (--fast: until the script's end + 1 s)
-  bool fast = false;      // the simulated clock: deterministic, as fast as the machine goes
-  bool motion = true;     // the operator moves every input from the start (script: `motion off`)
-  bool publish = true;    // publish as the file's publish section says
-  bool frames = false;    // print every frame of both buses in candump's log format
-  std::string script;     // a file of "SECONDS COMMAND" lines; "" = none
-  std::string vcan;       // "UP,DOWN": both buses also on these SocketCAN interfaces; "" = none
+  std::string file;     // the mapping file
+  double seconds = 0;   // how long; 0: until SIGINT/SIGTERM (--fast: until the script's end + 1 s)
+  bool fast = false;    // the simulated clock: deterministic, as fast as the machine goes
+  bool motion = true;   // the operator moves every input from the start (script: `motion off`)
+  bool publish = true;  // publish as the file's publish section says
+  bool frames = false;  // print every frame of both buses in candump's log format
+  std::string script;   // a file of "SECONDS COMMAND" lines; "" = none
+  std::string vcan;     // "UP,DOWN": both buses also on these SocketCAN interfaces; "" = none
 };
 
 // Exit status (gateway/programs.hpp exit_code): 0 done, every `expect` met; 1 the mapping file

@@ -54,7 +54,8 @@ std::vector<std::string> gateway_rows(const Gateway& gw, std::size_t width) {
   std::vector<std::string> lines;
   for (const auto& fe : gw.fes()) lines.push_back(fe_line(gw, fe));
   std::vector<std::string> nodes;
-  for (const auto& n : gw.downstream().names()) nodes.push_back(fmt::format("{}={}", n, sd::to_string(gw.downstream().state(n))));
+  for (const auto& n : gw.downstream().names())
+    nodes.push_back(fmt::format("{}={}", n, sd::to_string(gw.downstream().state(n))));
   for (auto& r : wrapped("  sub-devices:", nodes, width)) lines.push_back(std::move(r));
   return lines;
 }
@@ -69,7 +70,8 @@ std::pair<std::size_t, std::size_t> LiveScreen::size() const {
 std::vector<std::string> wrap_words(const std::string& line, std::size_t width) {
   if (width < 8 || line.size() <= width) return {line};
   const auto stamp = line.find("] ");
-  const std::size_t indent = line.starts_with("[") && stamp != std::string::npos && stamp + 2 <= width / 2 ? stamp + 2 : 2;
+  const std::size_t indent =
+      line.starts_with("[") && stamp != std::string::npos && stamp + 2 <= width / 2 ? stamp + 2 : 2;
   std::vector<std::string> rows;
   std::size_t pos = 0;
   while (pos < line.size()) {
@@ -128,7 +130,8 @@ void LiveScreen::paint() {
   std::size_t n = 0;
   for (std::size_t i = 0; i < rows_.size() && n < max_rows; ++i, ++n) {
     std::string r = rows_[i];
-    if (n + 1 == max_rows && i + 1 < rows_.size()) r = fmt::format("  ... {} more rows (a taller terminal shows them)", rows_.size() - i);
+    if (n + 1 == max_rows && i + 1 < rows_.size())
+      r = fmt::format("  ... {} more rows (a taller terminal shows them)", rows_.size() - i);
     if (tty_ && r.size() > width) r = r.substr(0, width - 1) + "~";
     std::printf("%s\n", r.c_str());
   }

@@ -9,9 +9,8 @@ namespace oegw::programs {
 
 void register_master(CLI::App& app) {
   auto o = std::make_shared<MasterOptions>();
-  auto* cmd =
-      app.add_subcommand("master", "Run the downstream network manager with drivers on a SocketCAN interface")
-          ->group(cli::kToolsGroup);
+  auto* cmd = app.add_subcommand("master", "Run the downstream network manager with drivers on a SocketCAN interface")
+                  ->group(cli::kToolsGroup);
   cmd->add_option("-i,--interface", o->interface, "SocketCAN interface")->required();
   cmd->add_option("--heartbeat-ms", o->heartbeat_ms, "Producer heartbeat written to every node")
       ->check(CLI::Range(0, 65535));

@@ -1,7 +1,7 @@
 // oegw-sim — simulated sub-devices (elobau MFG, MCB-402, Novotechnik CiA 406, generic CiA 401)
 // on a SocketCAN interface, for bench-testing the gateway without hardware.
-#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include "programs/bench_programs.hpp"
 
@@ -18,14 +18,17 @@ int main(int argc, char** argv) {
                "'<device> bus_off' (MCB-402, elobau), '<device> life_guarding' (MCB-402), "
                "'<device> error <code> on|off' (elobau 4001h), "
                "'<device> fault measurement|overflow|underflow|hardware|clear' (Novotechnik §9.1)");
-  app.add_option("devices", o.devices,
-                 "family:node[:key=value,...], e.g. elobau-mfg:0x11 mcb402:0x03 "
-                 "cia401:0x30:eds=subdevices/eds/generic_pedal.eds (options: name, heartbeat_ms, store, bootup=off (its boot-ups lost), eds; "
-                 "the corners of each document (docs/design/device-documents.md#corners-every-reading-a-document-permits): mcb402 wiring=1/2/3/4/5/7/6 (the bit of "
-                 "TPDO1 byte 2 each button BP1..BP7 sets; default the table's right-end reading 0/1/2/3/4/6/5), "
-                 "clear_after_break=0000h|none, power_on_1001h=00h|11h; elobau-mfg tpdo=change|timer, saved=yes|no, "
-                 "buttons=63 (2100h:01h), buttons_9_16=0; novotechnik-406 error_register_size=1|2, emcy_behaviour=0..3, "
-                 "has_6020h=yes|no, work_area_emcy=bits|enum, load=defaults|stored)")
+  app.add_option(
+         "devices", o.devices,
+         "family:node[:key=value,...], e.g. elobau-mfg:0x11 mcb402:0x03 "
+         "cia401:0x30:eds=subdevices/eds/generic_pedal.eds (options: name, heartbeat_ms, store, bootup=off (its "
+         "boot-ups lost), eds; "
+         "the corners of each document (docs/design/device-documents.md#corners-every-reading-a-document-permits): "
+         "mcb402 wiring=1/2/3/4/5/7/6 (the bit of "
+         "TPDO1 byte 2 each button BP1..BP7 sets; default the table's right-end reading 0/1/2/3/4/6/5), "
+         "clear_after_break=0000h|none, power_on_1001h=00h|11h; elobau-mfg tpdo=change|timer, saved=yes|no, "
+         "buttons=63 (2100h:01h), buttons_9_16=0; novotechnik-406 error_register_size=1|2, emcy_behaviour=0..3, "
+         "has_6020h=yes|no, work_area_emcy=bits|enum, load=defaults|stored)")
       ->required();
   try {
     app.parse(argc, argv);

@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "dds/dds.h"
-#include "publish/dds_samples.hpp"
 #include "oegw.h"
+#include "publish/dds_samples.hpp"
 
 namespace oegw::publish {
 
@@ -67,7 +67,7 @@ struct DdsPublisher::Impl {
   dds_entity_t domain = 0;  // >0 when this publisher created the domain (with the raw config)
   dds_entity_t participant = 0;
   dds_entity_t joystick = 0, pedal = 0, wheel = 0, encoder = 0, buttons = 0, status = 0;  // writers
-  dds_entity_t indicators = 0, display = 0;                                                 // readers
+  dds_entity_t indicators = 0, display = 0;                                               // readers
   int event_fd = -1;
   bool display_first = false;  // poll(): which topic is looked at first (they take turns)
 
@@ -95,8 +95,9 @@ DdsPublisher::DdsPublisher(const DdsSettings& s) : impl_(std::make_unique<Impl>(
       throw PublishConfigError(text);
     }
     if (s.network.empty())
-      throw PublishConfigError("publish.dds.security: needs publish.dds.network loopback or an interface (with \"\" "
-                               "CYCLONEDDS_URI configures the domain)");
+      throw PublishConfigError(
+          "publish.dds.security: needs publish.dds.network loopback or an interface (with \"\" "
+          "CYCLONEDDS_URI configures the domain)");
   }
   // An interface that is not there (yet: a cab network brought up after the daemon) is the
   // machine's state, not a wrong setting: reported as such, and opened again later.
@@ -185,10 +186,14 @@ static void write(dds_entity_t writer, const Sample& s) {
   dds_samples::fill(s, m);
   dds_write(writer, &m);
 }
-void DdsPublisher::publish(const gateway::JoystickSample& s) { write<gateway::JoystickSample, oegw_Joystick>(impl_->joystick, s); }
+void DdsPublisher::publish(const gateway::JoystickSample& s) {
+  write<gateway::JoystickSample, oegw_Joystick>(impl_->joystick, s);
+}
 void DdsPublisher::publish(const gateway::PedalSample& s) { write<gateway::PedalSample, oegw_Pedal>(impl_->pedal, s); }
 void DdsPublisher::publish(const gateway::WheelSample& s) { write<gateway::WheelSample, oegw_Wheel>(impl_->wheel, s); }
-void DdsPublisher::publish(const gateway::EncoderSample& s) { write<gateway::EncoderSample, oegw_Encoder>(impl_->encoder, s); }
+void DdsPublisher::publish(const gateway::EncoderSample& s) {
+  write<gateway::EncoderSample, oegw_Encoder>(impl_->encoder, s);
+}
 void DdsPublisher::publish(const gateway::ButtonClusterSample& s) {
   write<gateway::ButtonClusterSample, oegw_ButtonCluster>(impl_->buttons, s);
 }

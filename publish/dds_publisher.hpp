@@ -23,7 +23,7 @@
 namespace oegw::publish {
 
 struct DdsSettings {
-  std::uint32_t domain = 0;       // publish.dds.domain
+  std::uint32_t domain = 0;        // publish.dds.domain
   std::string partition = "oegw";  // publish.dds.partition
   // publish.dds.network: "loopback" (tests, demo: nothing leaves the host), an interface name
   // (a deployment: the cab network), or "" (Cyclone's own configuration, CYCLONEDDS_URI).
@@ -39,7 +39,6 @@ struct DdsSettings {
 // multicast, unicast discovery to 127.0.0.1), or the named interface, with the <Security> of
 // `security` when given. Empty for "".
 std::string dds_config_xml(const std::string& network, const std::optional<DdsSecuritySettings>& security = {});
-
 
 class DdsPublisher final : public gateway::Publisher {
  public:

@@ -44,7 +44,7 @@ std::string openssl_reason() {
 
 // A regular file this process can read, else why not.
 std::string unreadable(const std::string& path) {
-  struct stat st{};
+  struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return std::strerror(errno);
   if (!S_ISREG(st.st_mode)) return "not a regular file";
   if (::access(path.c_str(), R_OK) != 0) return std::strerror(errno);
@@ -55,7 +55,7 @@ std::string unreadable(const std::string& path) {
 // its owner (the daemon's user) only. Any group or other bit refuses it, as ssh refuses such a key:
 // whoever reads the key is the gateway to every DDS peer until its certificate is revoked.
 std::string key_mode_problem(const std::string& path) {
-  struct stat st{};
+  struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return "";  // unreadable() has said why
   const auto mode = static_cast<unsigned>(st.st_mode & 07777);
   if ((mode & 0077) == 0) return "";
@@ -163,12 +163,14 @@ std::vector<DdsSecurityProblem> check_dds_security(const DdsSecuritySettings& s)
   std::string why;
   std::optional<X509Ptr> identity_ca, certificate, permissions_ca;
   if (readable[kIdentityCa] && !(identity_ca = read_certificate(s.path[kIdentityCa], why))) problem(kIdentityCa, why);
-  if (readable[kCertificate] && !(certificate = read_certificate(s.path[kCertificate], why))) problem(kCertificate, why);
+  if (readable[kCertificate] && !(certificate = read_certificate(s.path[kCertificate], why)))
+    problem(kCertificate, why);
   if (readable[kPermissionsCa] && !(permissions_ca = read_certificate(s.path[kPermissionsCa], why)))
     problem(kPermissionsCa, why);
   if (certificate && identity_ca) {
     if (const std::string v = verify_certificate(certificate->get(), identity_ca->get()); !v.empty())
-      problem(kCertificate, v + "; expected the gateway's certificate from publish.dds.security.identity_ca, valid now");
+      problem(kCertificate,
+              v + "; expected the gateway's certificate from publish.dds.security.identity_ca, valid now");
   }
   if (readable[kPrivateKey]) {
     if (const std::string m = key_mode_problem(s.path[kPrivateKey]); !m.empty()) problem(kPrivateKey, m);

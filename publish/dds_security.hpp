@@ -29,8 +29,9 @@ enum DdsSecurityFile : std::size_t {
   kPermissions,
   kDdsSecurityFiles
 };
-inline constexpr std::array<std::string_view, kDdsSecurityFiles> kDdsSecurityKeys = {
-    "identity_ca", "certificate", "private_key", "permissions_ca", "governance", "permissions"};
+inline constexpr std::array<std::string_view, kDdsSecurityFiles> kDdsSecurityKeys = {"identity_ca", "certificate",
+                                                                                     "private_key", "permissions_ca",
+                                                                                     "governance",  "permissions"};
 
 struct DdsSecuritySettings {
   std::array<std::string, kDdsSecurityFiles> path;  // absolute, or from the working directory

@@ -7,7 +7,6 @@
 #include <regex>
 #include <vector>
 
-#include "publish/lcm_url.hpp"
 #include "oegw/button_cluster_t.hpp"
 #include "oegw/display_command_t.hpp"
 #include "oegw/emcy_t.hpp"
@@ -19,6 +18,7 @@
 #include "oegw/subdevice_state_t.hpp"
 #include "oegw/upstream_emcy_t.hpp"
 #include "oegw/wheel_t.hpp"
+#include "publish/lcm_url.hpp"
 
 namespace oegw::publish {
 
@@ -39,7 +39,9 @@ struct LcmPublisher::Impl {
   std::vector<std::uint8_t> buf;  // reused: grows to the largest message once
 
   // Instances are 1..16 (CiA 852 §9.1; the FE model holds no other).
-  const std::string& channel(Channel c, std::uint8_t instance) const { return channels[c][instance < 17 ? instance : 0]; }
+  const std::string& channel(Channel c, std::uint8_t instance) const {
+    return channels[c][instance < 17 ? instance : 0];
+  }
 
   // Encodes into the reused buffer and publishes (no allocation for a size seen before).
   template <class M>
@@ -81,8 +83,8 @@ LcmPublisher::LcmPublisher(const LcmSettings& s) : impl_(std::make_unique<Impl>(
   // No route for the group (a controller whose only interface is lo): the machine's state, not
   // the URL's; lcm_create() would fail on it after a page on stderr. Reported, opened later.
   if (const auto problem = lcm_route_problem(s.url))
-    throw PublishUnavailable("publish.lcm.url: \"" + s.url + "\": " + *problem + " — add one: " +
-                             lcm_route_command(s.url, ""));
+    throw PublishUnavailable("publish.lcm.url: \"" + s.url + "\": " + *problem +
+                             " — add one: " + lcm_route_command(s.url, ""));
   impl_->lcm = lcm_create(s.url.c_str());
   if (impl_->lcm == nullptr) {
     // A tcpq:// server not (yet) listening is the machine's state too.

@@ -126,7 +126,8 @@ std::optional<std::string> lcm_reaches_beyond_host(std::string_view url) {
   const auto host = url_host(url, kUdpm.size());
   const auto group = parse_inet_aton(host.empty() ? std::string_view("239.255.76.67") : host);
   const std::string_view ttl = last_option(url, "ttl").value_or("0");
-  if (ttl != "0") return "its ttl " + std::string(ttl) + " makes it a network's group: every device there may send to it";
+  if (ttl != "0")
+    return "its ttl " + std::string(ttl) + " makes it a network's group: every device there may send to it";
   if (!group || *group != 0xE0000001u)
     return "its group " + (group ? dotted_quad(*group) : std::string(host)) +
            " is joined on the interface the routing table picks and announced there by IGMP: a device on that "
@@ -160,7 +161,8 @@ std::optional<std::string> lcm_route_problem(std::string_view url) {
 std::string lcm_route_command(std::string_view url, std::string_view device) {
   const std::string_view ttl = last_option(url, "ttl").value_or("0");
   if (ttl == "0") return "ip route add 224.0.0.0/4 dev lo";
-  return "ip route add 224.0.0.0/4 dev " + (device.empty() ? std::string("<the cab network's interface>") : std::string(device));
+  return "ip route add 224.0.0.0/4 dev " +
+         (device.empty() ? std::string("<the cab network's interface>") : std::string(device));
 }
 
 std::optional<LinkLocalSend> link_local_send(std::string_view url) {

@@ -14,8 +14,12 @@ bool same(const gateway::JoystickSample& a, const gateway::JoystickSample& b) {
 bool same(const gateway::PedalSample& a, const gateway::PedalSample& b) {
   return same(a.h, b.h) && a.position == b.position && a.memory == b.memory;
 }
-bool same(const gateway::WheelSample& a, const gateway::WheelSample& b) { return same(a.h, b.h) && a.position == b.position; }
-bool same(const gateway::EncoderSample& a, const gateway::EncoderSample& b) { return same(a.h, b.h) && a.position == b.position; }
+bool same(const gateway::WheelSample& a, const gateway::WheelSample& b) {
+  return same(a.h, b.h) && a.position == b.position;
+}
+bool same(const gateway::EncoderSample& a, const gateway::EncoderSample& b) {
+  return same(a.h, b.h) && a.position == b.position;
+}
 bool same(const gateway::ButtonClusterSample& a, const gateway::ButtonClusterSample& b) {
   return same(a.h, b.h) && a.switches == b.switches;
 }
@@ -54,10 +58,18 @@ void PublishSchedule::send(Entry& e, std::int64_t now_us) {
       e.last);
 }
 
-void PublishSchedule::update(const gateway::JoystickSample& s, std::int64_t now_us) { update_impl(FeKind::Joystick, s, now_us); }
-void PublishSchedule::update(const gateway::PedalSample& s, std::int64_t now_us) { update_impl(FeKind::Pedal, s, now_us); }
-void PublishSchedule::update(const gateway::WheelSample& s, std::int64_t now_us) { update_impl(FeKind::Wheel, s, now_us); }
-void PublishSchedule::update(const gateway::EncoderSample& s, std::int64_t now_us) { update_impl(FeKind::Encoder, s, now_us); }
+void PublishSchedule::update(const gateway::JoystickSample& s, std::int64_t now_us) {
+  update_impl(FeKind::Joystick, s, now_us);
+}
+void PublishSchedule::update(const gateway::PedalSample& s, std::int64_t now_us) {
+  update_impl(FeKind::Pedal, s, now_us);
+}
+void PublishSchedule::update(const gateway::WheelSample& s, std::int64_t now_us) {
+  update_impl(FeKind::Wheel, s, now_us);
+}
+void PublishSchedule::update(const gateway::EncoderSample& s, std::int64_t now_us) {
+  update_impl(FeKind::Encoder, s, now_us);
+}
 void PublishSchedule::update(const gateway::ButtonClusterSample& s, std::int64_t now_us) {
   update_impl(FeKind::ButtonCluster, s, now_us);
 }

@@ -66,9 +66,9 @@ void CabRig::build_devices() {
   bench_->set_sdo_latency(options_.device_sdo_latency.value_or(
       options_.timed_buses ? subdevices::sim::kTypicalSdoLatency : canopen::Duration{0}));
   add_cab_simulators(*bench_, config_, options_.simulator_options);
-  host_ = std::make_unique<canopen::Master>(
-      host_od_, host_port_->sink(),
-      canopen::MasterConfig{.heartbeat_entries = options_.host_heartbeat_entries, .sdo_timeout = options_.host_sdo_timeout});
+  host_ = std::make_unique<canopen::Master>(host_od_, host_port_->sink(),
+                                            canopen::MasterConfig{.heartbeat_entries = options_.host_heartbeat_entries,
+                                                                  .sdo_timeout = options_.host_sdo_timeout});
   bench_drv_ = std::make_unique<canopen::io::ServiceDriver>(loop_, *bench_);
   host_drv_ = std::make_unique<canopen::io::ServiceDriver>(loop_, *host_);
   sims_port_->set_receiver([this](const CanFrame& f, TimePoint t) {

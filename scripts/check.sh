@@ -1,23 +1,19 @@
 #!/usr/bin/env bash
-# The fast loop before a commit (CONTRIBUTING.md "Before a commit"): the tree checks, the lint,
+# The fast loop before a commit (CONTRIBUTING.md "Before a commit"): the tree checks, the format,
 # the build and tiers 1 and 2 (ctest -L 'unit|integration' -LE vm). Stops at the first step that
 # fails, naming it; prints each step's time.
-#   scripts/check.sh [--format] [--no-build]
-#     --format    also list the C++ files clang-format would change (scripts/format.sh --check);
-#                 report-only while the tree is not formatted yet: it never fails the run
+#   scripts/check.sh [--no-build]
 #     --no-build  the checks only: no build, no tests
 # The build tree is build/ (OEGW_BUILD_DIR), configured with `cmake --preset dev` when missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-format=0
 build=1
 for a in "$@"; do
   case $a in
-    --format) format=1 ;;
     --no-build) build=0 ;;
-    -h | --help) sed -n '2,9p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
-    *) echo "check.sh: unknown option '$a' (--format, --no-build)" >&2; exit 64 ;;
+    -h | --help) sed -n '2,7p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) echo "check.sh: unknown option '$a' (--no-build)" >&2; exit 64 ;;
   esac
 done
 BUILD=${OEGW_BUILD_DIR:-build}
@@ -40,10 +36,7 @@ step "no issue references (tests/tools/check_no_issue_refs.py)" python3 tests/to
 step "shellcheck (tests/tools/lint.py shell)" python3 tests/tools/lint.py . shell
 step "pyflakes3 (tests/tools/lint.py python)" python3 tests/tools/lint.py . python
 step "function length (tests/tools/check_function_length.py)" python3 tests/tools/check_function_length.py .
-if ((format == 1)); then
-  echo "== clang-format (report only)"
-  scripts/format.sh --check || echo "   (report only: the tree is formatted once, later)"
-fi
+step "clang-format (scripts/format.sh --check)" scripts/format.sh --check
 if ((build == 1)); then
   if [[ ! -f $BUILD/CMakeCache.txt ]]; then
     if [[ $BUILD == build ]]; then

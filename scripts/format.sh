@@ -39,13 +39,15 @@ if ((check == 0)); then
   printf '%s\0' "${files[@]}" | xargs -0 -r "$cf" -i --style=file
   exit 0
 fi
-differ=0
-for f in "${files[@]}"; do
-  if ! "$cf" --style=file --dry-run -Werror "$f" >/dev/null 2>&1; then
-    echo "$f"
-    differ=$((differ + 1))
-  fi
-done
+# A .clang-format clang-format cannot read would otherwise pass as "no difference".
+"$cf" --style=file --dump-config >/dev/null
+# One clang-format per batch of files (a process per file took 40 s over the tree): with
+# --dry-run -Werror it names each place it would change as "FILE:LINE:COL: error: ...".
+mapfile -t differing < <(printf '%s\0' "${files[@]}" |
+  xargs -0 -r -n 64 -P "$(nproc)" "$cf" --style=file --dry-run -Werror 2>&1 >/dev/null |
+  sed -n 's/^\(.*\):[0-9][0-9]*:[0-9][0-9]*: error: .*/\1/p' | sort -u)
+differ=${#differing[@]}
+if ((differ > 0)); then printf '%s\n' "${differing[@]}"; fi
 if ((differ > 0)); then
   echo "format.sh: ${differ} of ${#files[@]} files differ from .clang-format (scripts/format.sh formats them)" >&2
   exit 1

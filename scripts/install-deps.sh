@@ -50,6 +50,8 @@ TEST_PACKAGES=(
   tmux
   # the tree's lint (CTest label lint, scripts/check.sh): shell scripts, Python, function lengths
   shellcheck pyflakes3 universal-ctags
+  # clang-format: the C++ sources as .clang-format says (scripts/format.sh, CTest format_check)
+  clang-format-14
   # tcpdump: an independent check that the demo's DDS/LCM traffic never leaves the host
   tcpdump
   # systemd-analyze verify: the unit file's test (systemd need not run)

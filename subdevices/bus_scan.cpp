@@ -22,9 +22,7 @@ std::uint32_t le_value(const std::vector<std::uint8_t>& data) {
   return v;
 }
 
-bool is_heartbeat(const CanFrame& f) {
-  return !f.extended && !f.rtr && f.dlc == 1 && f.id >= 0x701 && f.id <= 0x77F;
-}
+bool is_heartbeat(const CanFrame& f) { return !f.extended && !f.rtr && f.dlc == 1 && f.id >= 0x701 && f.id <= 0x77F; }
 
 std::optional<canopen::NmtState> nmt_state(std::uint8_t byte) {
   switch (byte & 0x7F) {  // bit 7: the node-guarding toggle, 0 in a heartbeat
@@ -271,9 +269,10 @@ void BusScanner::after_probing(TimePoint now) {
           }
           lss_result_.unconfigured_address = f.address;
           // The last step selected it (LSS configuration mode): back to waiting, node-ID unchanged.
-          lss_->switch_state_global(canopen::lss::Mode::Waiting, lss_->now(), [this, alive](const canopen::LssMaster::Result&) {
-            if (!gone(alive)) lss_ended(lss_->now());
-          });
+          lss_->switch_state_global(canopen::lss::Mode::Waiting, lss_->now(),
+                                    [this, alive](const canopen::LssMaster::Result&) {
+                                      if (!gone(alive)) lss_ended(lss_->now());
+                                    });
         },
         step_timeout);
   });

@@ -53,11 +53,11 @@ using canopen::TimePoint;
 
 struct ScanConfig {
   Duration sdo_timeout = std::chrono::milliseconds(100);  // per SDO read
-  std::size_t parallel = 8;    // node-IDs probed at once (1..127); a real interface's TX queue is short
-  Duration listen = std::chrono::milliseconds(1000);       // the scan lasts at least this long
-  bool lss = true;             // identify non-configured + fastscan
-  Duration lss_timeout = std::chrono::milliseconds(25);   // per LSS step (fastscan has up to 132)
-  std::uint8_t first = 1;      // node-IDs probed: first..last (1..127)
+  std::size_t parallel = 8;  // node-IDs probed at once (1..127); a real interface's TX queue is short
+  Duration listen = std::chrono::milliseconds(1000);     // the scan lasts at least this long
+  bool lss = true;                                       // identify non-configured + fastscan
+  Duration lss_timeout = std::chrono::milliseconds(25);  // per LSS step (fastscan has up to 132)
+  std::uint8_t first = 1;                                // node-IDs probed: first..last (1..127)
   std::uint8_t last = 127;
   // Node-IDs not probed by SDO (a running gateway's sub-devices, see above); still heard.
   std::set<std::uint8_t> skip;
@@ -73,9 +73,9 @@ struct SharedLss {
 
 struct ScannedNode {
   NodeId node;
-  bool answered_sdo = false;     // at least one SDO answer (data or abort)
-  bool heard = false;            // a boot-up or heartbeat seen
-  bool booted = false;           // a boot-up seen during the scan
+  bool answered_sdo = false;               // at least one SDO answer (data or abort)
+  bool heard = false;                      // a boot-up or heartbeat seen
+  bool booted = false;                     // a boot-up seen during the scan
   std::optional<canopen::NmtState> state;  // the last heartbeat's state
   NodeIdentity identity;
   std::optional<std::uint16_t> producer_heartbeat_ms;  // 1017h as read
@@ -93,14 +93,14 @@ struct ScanResult {
   bool unconfigured = false;
   // The LSS address fastscan read (of one of them); absent when fastscan failed or was not run.
   std::optional<canopen::lss::Address> unconfigured_address;
-  std::string lss_note;            // why fastscan gave no address, for the report
+  std::string lss_note;  // why fastscan gave no address, for the report
 };
 
 struct ScanProgress {
   std::size_t probed = 0;  // node-IDs whose probing ended
   std::size_t total = 0;
-  std::size_t found = 0;   // nodes found so far (answered or heard)
-  bool lss = false;        // the LSS part has started
+  std::size_t found = 0;  // nodes found so far (answered or heard)
+  bool lss = false;       // the LSS part has started
 };
 
 class BusScanner {
@@ -152,7 +152,7 @@ class BusScanner {
   std::map<std::uint8_t, TimePoint> last_heartbeat_;
   std::size_t probed_ = 0, total_ = 0;
   bool lss_began_ = false;  // the LSS part started (it stays so in progress())
-  bool ended_ = false;  // a probe ended inside a callback: refill after it returns
+  bool ended_ = false;      // a probe ended inside a callback: refill after it returns
   canopen::LssMaster own_lss_;
   canopen::LssFastscan own_fastscan_{own_lss_};
   std::function<SharedLss()> shared_lss_;

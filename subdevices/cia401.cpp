@@ -200,7 +200,8 @@ std::vector<SdoRead> Cia401Driver::mapping_reads() const {
     }
     for (std::size_t i = 0; i < p.entries.size(); ++i)
       if (!p.entries[i])
-        reads.push_back({p.map_index(), static_cast<std::uint8_t>(i + 1), name + " mapping entry " + std::to_string(i + 1)});
+        reads.push_back(
+            {p.map_index(), static_cast<std::uint8_t>(i + 1), name + " mapping entry " + std::to_string(i + 1)});
     // The event timer the node actually uses (its stored value may not be the EDS's): the
     // freshness deadline of the inputs this TPDO carries (Driver::kMissedPeriods).
     if (p.transmit && !p.event_timer_done) reads.push_back({p.comm_index(), 5, name + " event timer"});
@@ -214,7 +215,8 @@ Cia401Driver::Pdo* Cia401Driver::find_pdo(std::uint16_t index) {
   return nullptr;
 }
 
-SdoAbortCode Cia401Driver::apply_mapping_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data) {
+SdoAbortCode Cia401Driver::apply_mapping_read(std::uint16_t index, std::uint8_t sub,
+                                              std::span<const std::uint8_t> data) {
   Pdo* p = find_pdo(index);
   if (p == nullptr) return SdoAbortCode::ObjectDoesNotExist;
   auto refuse = [p](SdoAbortCode c) {
@@ -300,7 +302,9 @@ std::vector<SdoWrite> Cia401Driver::configuration() const {
     if (t != 0 && t < 254) continue;  // cyclic synchronous: sent at the SYNC, changed or not
     for (const Entry& e : p.decoded)
       if ((e.raw >> 16) == 0x6401 && e.signal >= 0)
-        return {SdoWrite{0x6423, 0, {1},
+        return {SdoWrite{0x6423,
+                         0,
+                         {1},
                          "analogue input global interrupt enable (6423h) TRUE: TPDO" + std::to_string(p.number) +
                              " maps an analogue input and is sent on change"}};
   }
@@ -432,7 +436,10 @@ void Cia401Driver::flush_outputs(TimePoint /*now*/) {
 
 const std::vector<OptionSpec>& cia401_options() {
   static const std::vector<OptionSpec> table = {
-      {.name = "eds", .type = OptionSpec::Type::Text, .syntax = "path of the node's EDS file", .required = true,
+      {.name = "eds",
+       .type = OptionSpec::Type::Text,
+       .syntax = "path of the node's EDS file",
+       .required = true,
        .missing = "cia401: option 'eds' (path of the node's EDS file) is required",
        .description = "the node's EDS (CiA 306): its 6000h, 6120h, 6401h, 6200h, 6411h sub-indices are the "
                       "signals; a relative path is taken from the mapping file's folder"},
@@ -445,16 +452,17 @@ std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const Dr
                                            OptionRefusals& refusals) {
   std::optional<std::string> path;
   std::int64_t floor_ms = 0;
-  if (!parse_options("cia401", cia401_options(), options,
-                     [&path, &floor_ms](const OptionValue& v, std::string& /*error*/) {
-                       if (v.spec->name == kFreshnessFloorOption) {
-                         floor_ms = v.number;
-                       } else {
-                         path = v.text;
-                       }
-                       return true;
-                     },
-                     refusals))
+  if (!parse_options(
+          "cia401", cia401_options(), options,
+          [&path, &floor_ms](const OptionValue& v, std::string& /*error*/) {
+            if (v.spec->name == kFreshnessFloorOption) {
+              floor_ms = v.number;
+            } else {
+              path = v.text;
+            }
+            return true;
+          },
+          refusals))
     return nullptr;
   if (!node.valid()) {
     refusals.push_back({"", "cia401: node-ID " + std::to_string(node.value()) + " is not 1..127"});
@@ -478,8 +486,9 @@ std::unique_ptr<Driver> make_cia401_driver(NodeId node, FrameSink sink, const Dr
     return nullptr;
   }
   if (const auto problems = canopen::eds::check_pdo_mappings(*file); !problems.empty()) {
-    refusals.push_back({"eds", "cia401: " + problems.front() +
-                                   (problems.size() > 1 ? " (and " + std::to_string(problems.size() - 1) + " more)" : "")});
+    refusals.push_back(
+        {"eds", "cia401: " + problems.front() +
+                    (problems.size() > 1 ? " (and " + std::to_string(problems.size() - 1) + " more)" : "")});
     return nullptr;
   }
   auto d = std::make_unique<Cia401Driver>(node, std::move(sink), std::move(*file));

@@ -64,8 +64,8 @@
 // clears nothing: a node that rebooted may still be broken.
 // Identity: 1000h DefaultValue and [DeviceInfo] VendorNumber/ProductNumber/RevisionNumber.
 //
-// Factory option (the table cia401_options() in cia401.cpp): eds=<path> (required). Unknown options, or an EDS that cannot be read or
-// parsed, are an error carrying the parse message ("file:line: what was expected").
+// Factory option (the table cia401_options() in cia401.cpp): eds=<path> (required). Unknown options, or an EDS that
+// cannot be read or parsed, are an error carrying the parse message ("file:line: what was expected").
 #pragma once
 
 #include <array>
@@ -76,8 +76,8 @@
 #include <string>
 #include <vector>
 
-#include "subdevices/driver.hpp"
 #include "canopen/306/eds_reader.hpp"
+#include "subdevices/driver.hpp"
 
 namespace oegw::subdevices {
 
@@ -139,8 +139,8 @@ class Cia401Driver final : public Driver {
 
  private:
   struct Entry {
-    std::uint32_t raw = 0;   // index << 16 | sub << 8 | bits
-    int signal = -1;         // decoded/encoded signal, -1 = skipped
+    std::uint32_t raw = 0;  // index << 16 | sub << 8 | bits
+    int signal = -1;        // decoded/encoded signal, -1 = skipped
   };
   struct Pdo {
     bool transmit = false;
@@ -148,7 +148,7 @@ class Cia401Driver final : public Driver {
     std::optional<std::uint32_t> cob_id;
     std::optional<std::uint8_t> transmission_type;
     std::optional<std::uint16_t> event_timer;  // TPDO 18xxh:05 as read (none: absent)
-    bool event_timer_done = false;              // TPDO: read or refused
+    bool event_timer_done = false;             // TPDO: read or refused
     std::optional<std::uint8_t> count;
     std::vector<std::optional<std::uint32_t>> entries;
     bool failed = false;  // a read was aborted or refused: the PDO is not used
@@ -190,7 +190,7 @@ class Cia401Driver final : public Driver {
   std::vector<std::uint8_t> width_;                 // bits of each signal's object
   std::vector<std::int64_t> outputs_;               // remembered output values, by signal
   std::vector<Pdo> pdos_;
-  std::vector<std::size_t> pending_;                // RPDOs (pdos_ index) to send at flush_outputs()
+  std::vector<std::size_t> pending_;  // RPDOs (pdos_ index) to send at flush_outputs()
 };
 
 // Family factory (families.hpp): options "eds" = path to the node's EDS file.

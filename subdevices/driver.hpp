@@ -47,7 +47,7 @@ struct ExpectedIdentity {
 // A decoded EMCY, for logs and for the gateway's status message.
 struct DecodedEmcy {
   std::uint16_t code = 0;
-  std::string text;              // "elobau 4001h 0x0021: X axis signal 1 out of range"
+  std::string text;  // "elobau 4001h 0x0021: X axis signal 1 out of range"
   // The EMCY reports an error (forwarded upstream under emcy_forwarding: faults). false for a
   // clear code (0000h, Novotechnik 5051h "valid position"), a warning (81xxh CAN communication)
   // and an undecodable code.
@@ -105,7 +105,7 @@ class Driver {
   // 6020h, mapped as 6004h instead), which the network manager makes in its place; nullopt refuses
   // the node, as any refused write does.
   [[nodiscard]] virtual std::optional<SdoWrite> instead_of_refused(const SdoWrite& /*write*/,
-                                                                    canopen::SdoAbortCode /*code*/) {
+                                                                   canopen::SdoAbortCode /*code*/) {
     return std::nullopt;
   }
   // A driver that needs the node restarted once its configuration is written (the elobau grip
@@ -222,10 +222,10 @@ class Driver {
   // bus load (gateway/bus_load.hpp).
   struct TpdoTraffic {
     std::uint32_t cob_id = 0;
-    std::uint8_t length = 8;               // data bytes
-    std::uint16_t event_timer_ms = 0;      // 0: none
+    std::uint8_t length = 8;           // data bytes
+    std::uint16_t event_timer_ms = 0;  // 0: none
     std::uint8_t transmission_type = 0xFF;
-    std::uint16_t inhibit_100us = 0;       // 0: none
+    std::uint16_t inhibit_100us = 0;  // 0: none
   };
   // The TPDOs the device sends once `writes` (its configuration() and the mapping file's `sdo`
   // list, in that order) are made: its carriers, with the event timers (18xxh:05), transmission
@@ -260,7 +260,7 @@ class Driver {
 
   // One TPDO of the device and the input signals it carries (for freshness).
   struct Carrier {
-    std::uint32_t cob_id = 0;              // the CAN-ID it arrives on (pdo_received)
+    std::uint32_t cob_id = 0;  // the CAN-ID it arrives on (pdo_received)
     // false: a PDO the device may not send at all (the elobau's channel-2 TPDO #1, which a grip
     // may have disabled): watched only once it has been seen since the proof of life.
     bool required = true;
@@ -268,8 +268,8 @@ class Driver {
     std::uint16_t event_timer_ms = 0;      // 0: sent on change (or SYNC) only
     std::uint8_t transmission_type = 254;  // the event timer counts for 254/255 only
     std::vector<std::size_t> signals;
-    std::uint8_t length = 8;               // data bytes of the PDO (its mapping), for the bus load
-    std::uint16_t inhibit_100us = 0;       // 18xxh:03 as the device has it by default
+    std::uint8_t length = 8;          // data bytes of the PDO (its mapping), for the bus load
+    std::uint16_t inhibit_100us = 0;  // 18xxh:03 as the device has it by default
   };
   // Applies the writes to 18xxh:02/:03/:05 of `comm_index` (expected_tpdos()).
   static void apply_tpdo_writes(TpdoTraffic& t, std::uint16_t comm_index, const std::vector<SdoWrite>& writes);
@@ -316,7 +316,7 @@ class Driver {
   Duration freshness_floor_{0};
   Duration sync_period_{0};
   std::optional<TimePoint> alive_since_;
-  std::vector<Duration> deadline_;          // by signal: the shortest of its PDOs'; 0 = none
+  std::vector<Duration> deadline_;  // by signal: the shortest of its PDOs'; 0 = none
   std::vector<Watch> watches_;
   std::vector<std::uint32_t> watch_mask_;   // by signal: bit k = watches_[k] carries it
   std::optional<TimePoint> earliest_due_;   // the soonest Watch::due: before it nothing is overdue
@@ -336,7 +336,7 @@ struct DriverOptions {
 // mapping file's folder (docs/reference/mapping-file.md#paths), so a driver always sees the path to
 // open.
 [[nodiscard]] constexpr bool is_file_option(std::string_view key) { return key == "eds"; }
-std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink,
-                                    const DriverOptions& options, std::string& error);
+std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink, const DriverOptions& options,
+                                    std::string& error);
 
 }  // namespace oegw::subdevices

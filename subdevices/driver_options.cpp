@@ -64,8 +64,7 @@ std::string refusal_text(const OptionRefusals& refusals) {
 }
 
 bool parse_options(std::string_view family, const std::vector<OptionSpec>& table, const DriverOptions& given,
-                   const std::function<bool(const OptionValue&, std::string& error)>& apply,
-                   OptionRefusals& refusals) {
+                   const std::function<bool(const OptionValue&, std::string& error)>& apply, OptionRefusals& refusals) {
   const std::string f(family);
   const std::size_t before = refusals.size();
   auto refuse = [&](std::string_view option, std::string message) {
@@ -129,15 +128,20 @@ bool parse_options(std::string_view family, const std::vector<OptionSpec>& table
 }
 
 OptionSpec freshness_floor_option(std::string_view default_ms) {
-  return OptionSpec{
-      .name = kFreshnessFloorOption, .type = OptionSpec::Type::Integer, .ranges = {{0, 600000}}, .unit = "ms",
-      .default_value = default_ms,
-      .description = "floor of the PDO freshness deadlines derived from the event timers (3 periods): a deadline "
-                     "is at least this, so a controller stall shorter than the floor less one period is no "
-                     "stale fault; 0: no floor; pdo_timeout_ms replaces both ("
-                     "docs/reference/drivers.md#freshness-floors)"};
+  return OptionSpec{.name = kFreshnessFloorOption,
+                    .type = OptionSpec::Type::Integer,
+                    .ranges = {{0, 600000}},
+                    .unit = "ms",
+                    .default_value = default_ms,
+                    .description =
+                        "floor of the PDO freshness deadlines derived from the event timers (3 periods): a deadline "
+                        "is at least this, so a controller stall shorter than the floor less one period is no "
+                        "stale fault; 0: no floor; pdo_timeout_ms replaces both ("
+                        "docs/reference/drivers.md#freshness-floors)"};
 }
 
-void apply_freshness_floor(Driver& driver, std::int64_t ms) { driver.set_freshness_floor(std::chrono::milliseconds(ms)); }
+void apply_freshness_floor(Driver& driver, std::int64_t ms) {
+  driver.set_freshness_floor(std::chrono::milliseconds(ms));
+}
 
 }  // namespace oegw::subdevices

@@ -25,9 +25,9 @@ struct OptionSpec {
   std::string_view name;
   Type type = Type::Integer;
   std::vector<std::pair<std::int64_t, std::int64_t>> ranges;  // Integer: accepted [lo, hi] ranges
-  std::vector<std::string_view> choices;                       // Choice
-  std::string_view unit;      // "ms", "percent"; "" none
-  std::string_view syntax;    // Text: what it takes ("path of an EDS file"); others: derived
+  std::vector<std::string_view> choices;                      // Choice
+  std::string_view unit;                                      // "ms", "percent"; "" none
+  std::string_view syntax;  // Text: what it takes ("path of an EDS file"); others: derived
   // The value the parser applies before the written ones ("" = none: required, or unset).
   std::string_view default_value;
   bool required = false;
@@ -36,7 +36,7 @@ struct OptionSpec {
   // For `oegw signals` when a required option is missing: a value that builds a driver whose
   // signals are those of any valid value ("" = none: the signals depend on it, e.g. an EDS).
   std::string_view listing_value;
-  std::string_view note;      // appended to a refusal: "(the document's 5 ms coding cycle)"
+  std::string_view note;  // appended to a refusal: "(the document's 5 ms coding cycle)"
   std::string_view description;
   // A wrong value weakens a check the gateway makes on the operator's inputs (`oegw signals`
   // says so): the elobau channel cross-check, detent and channel-2 deadline.
@@ -78,13 +78,12 @@ using OptionRefusals = std::vector<OptionRefusal>;
 // both at once, as every other mistake of the file); false when there is any. Refusals are
 // "<family>: ..." and name the option.
 bool parse_options(std::string_view family, const std::vector<OptionSpec>& table, const DriverOptions& given,
-                   const std::function<bool(const OptionValue&, std::string& error)>& apply,
-                   OptionRefusals& refusals);
+                   const std::function<bool(const OptionValue&, std::string& error)>& apply, OptionRefusals& refusals);
 
 // make_driver() with every refusal of the options apart (the `std::string& error` form has their
 // messages, one a line): the mapping file reports each at its option's value.
-std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink,
-                                    const DriverOptions& options, OptionRefusals& refusals);
+std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink, const DriverOptions& options,
+                                    OptionRefusals& refusals);
 // A factory's `std::string& error` form from its OptionRefusals form: `make(refusals)`, and on
 // refusal the messages, one a line.
 template <typename Make>
@@ -98,8 +97,8 @@ std::unique_ptr<Driver> with_error_text(std::string& error, Make&& make) {
 // What `oegw signals` shows of one family (registry.cpp): its option table and how to build a
 // driver to read its signals from.
 struct DriverInfo {
-  std::string_view family;       // "elobau-mfg"
-  std::string_view device;       // "elobau MFG 34xG / 36xG joystick grip (elobau CANopen protocol v01.21)"
+  std::string_view family;  // "elobau-mfg"
+  std::string_view device;  // "elobau MFG 34xG / 36xG joystick grip (elobau CANopen protocol v01.21)"
   const std::vector<OptionSpec>& options;
   // How the signals depend on the options ("" = they do not), e.g. the elobau detent range.
   std::string_view signals_note;

@@ -12,9 +12,9 @@ namespace oegw::subdevices {
 
 namespace {
 
-constexpr std::uint32_t kTpdo0 = 0x180;  // §14.1
-constexpr std::uint32_t kTpdo1 = 0x280;  // §14.2
-constexpr std::uint32_t kRpdo0 = 0x200;  // §14.3
+constexpr std::uint32_t kTpdo0 = 0x180;       // §14.1
+constexpr std::uint32_t kTpdo1 = 0x280;       // §14.2
+constexpr std::uint32_t kRpdo0 = 0x200;       // §14.3
 constexpr std::uint16_t kAxisIndex = 0x2000;  // 2000h X .. 2004h wheel C (Table 14)
 
 constexpr std::array<const char*, ElobauMfgDriver::kAxes> kAxisNames = {"x", "y", "wheel_a", "wheel_b", "wheel_c"};
@@ -26,13 +26,22 @@ struct LedPos {
   std::uint8_t shift;
 };
 constexpr std::array<LedPos, ElobauMfgDriver::kLeds> kLedPos = {{
-    {0, 0}, {0, 2}, {0, 4}, {0, 6},  // button 1 LED 1/2, button 2 LED 1/2
-    {1, 0}, {1, 2}, {1, 4}, {1, 6},  // button 3 LED 1/2, button 4 LED 1/2
-    {2, 0}, {2, 2},                  // button 5 LED 1/2
-    {5, 0}, {5, 2},                  // wheel A LED 2-2 / 2-1 (alt. button 8 LED 1/2)
-    {6, 0}, {6, 2},                  // wheel B LED 2-2 / 2-1 (alt. button 9 LED 1/2)
-    {5, 4},                          // wheel A LED 1+3 (alt. button 10 LED 1)
-    {6, 4},                          // wheel B LED 1+3 (alt. button 10 LED 2)
+    {0, 0},
+    {0, 2},
+    {0, 4},
+    {0, 6},  // button 1 LED 1/2, button 2 LED 1/2
+    {1, 0},
+    {1, 2},
+    {1, 4},
+    {1, 6},  // button 3 LED 1/2, button 4 LED 1/2
+    {2, 0},
+    {2, 2},  // button 5 LED 1/2
+    {5, 0},
+    {5, 2},  // wheel A LED 2-2 / 2-1 (alt. button 8 LED 1/2)
+    {6, 0},
+    {6, 2},  // wheel B LED 2-2 / 2-1 (alt. button 9 LED 1/2)
+    {5, 4},  // wheel A LED 1+3 (alt. button 10 LED 1)
+    {6, 4},  // wheel B LED 1+3 (alt. button 10 LED 2)
 }};
 constexpr std::uint8_t kNoChange = 0b11;  // Table 13
 
@@ -93,27 +102,46 @@ SdoWrite write_u16(std::uint16_t index, std::uint8_t sub, std::uint16_t v, std::
 ElobauMfgDriver::ElobauMfgDriver(NodeId node, FrameSink sink, ElobauMfgOptions options) : opt_(options) {
   const std::int64_t lim = opt_.clamp_detent ? 100 : 110;
   for (const char* n : kAxisNames)
-    signals_.push_back(SignalInfo{.name = n, .kind = SignalKind::Axis, .min = -lim, .max = lim, .neutral = 0,
-                                  .unit = "percent"});
+    signals_.push_back(
+        SignalInfo{.name = n, .kind = SignalKind::Axis, .min = -lim, .max = lim, .neutral = 0, .unit = "percent"});
   for (std::size_t b = 1; b <= kButtons; ++b)
-    signals_.push_back(SignalInfo{.name = "buttons[" + std::to_string(b) + "]", .kind = SignalKind::Button,
-                                  .min = 0, .max = 1, .neutral = 0, .unit = "bits"});
+    signals_.push_back(SignalInfo{.name = "buttons[" + std::to_string(b) + "]",
+                                  .kind = SignalKind::Button,
+                                  .min = 0,
+                                  .max = 1,
+                                  .neutral = 0,
+                                  .unit = "bits"});
   signals_.push_back(
       SignalInfo{.name = "presence", .kind = SignalKind::Button, .min = 0, .max = 1, .neutral = 0, .unit = "bits"});
   for (std::size_t l = 1; l <= kLeds; ++l)
-    signals_.push_back(SignalInfo{.name = "leds[" + std::to_string(l) + "]", .kind = SignalKind::Output, .min = 0,
-                                  .max = 2, .neutral = 0, .unit = "led"});
+    signals_.push_back(SignalInfo{.name = "leds[" + std::to_string(l) + "]",
+                                  .kind = SignalKind::Output,
+                                  .min = 0,
+                                  .max = 2,
+                                  .neutral = 0,
+                                  .unit = "led"});
   init(node, std::move(sink), signals_.size());
   // TPDO #0 carries every axis's channel 1 and the buttons (§14.1), sent every cycle_ms (written
   // to 1800h:05 at boot) and on change; TPDO #1 only cross-checks (channel2_timeout_ms).
   // Both 8 bytes (§14.1, §14.2); TPDO #0 with the 2 ms inhibit time of Table 14.
-  Carrier tpdo0{.cob_id = kTpdo0 + node.value(), .required = true, .comm_index = 0x1800, .event_timer_ms = opt_.cycle_ms,
-                .transmission_type = 254, .signals = {}, .length = 8, .inhibit_100us = 20};
+  Carrier tpdo0{.cob_id = kTpdo0 + node.value(),
+                .required = true,
+                .comm_index = 0x1800,
+                .event_timer_ms = opt_.cycle_ms,
+                .transmission_type = 254,
+                .signals = {},
+                .length = 8,
+                .inhibit_100us = 20};
   for (std::size_t i = 0; i < kFirstLed; ++i) tpdo0.signals.push_back(i);
   // TPDO #1 (channel 2 of the axes, same cycle, 1801h:05): once seen, its loss leaves the axes
   // unchecked, a doubt like any overdue PDO; a grip with TPDO #1 disabled never sends it.
-  Carrier tpdo1{.cob_id = kTpdo1 + node.value(), .required = false, .comm_index = 0x1801, .event_timer_ms = opt_.cycle_ms,
-                .transmission_type = 254, .signals = {}, .length = 8};
+  Carrier tpdo1{.cob_id = kTpdo1 + node.value(),
+                .required = false,
+                .comm_index = 0x1801,
+                .event_timer_ms = opt_.cycle_ms,
+                .transmission_type = 254,
+                .signals = {},
+                .length = 8};
   for (std::size_t a = 0; a < kAxes; ++a) tpdo1.signals.push_back(kX + a);
   set_carriers({tpdo0, tpdo1});
 }
@@ -138,16 +166,18 @@ std::vector<SdoWrite> ElobauMfgDriver::configuration() const {
   std::vector<SdoWrite> w;
   // §14.1/14.2: both TPDOs cyclic with the same period, so every channel-1 frame has its
   // channel-2 partner (a stored configuration may have disabled the timers).
-  w.push_back(write_u16(0x1800, 5, opt_.cycle_ms, "TPDO #0 (channel 1) event timer " + std::to_string(opt_.cycle_ms) + " ms"));
-  w.push_back(write_u16(0x1801, 5, opt_.cycle_ms, "TPDO #1 (channel 2) event timer " + std::to_string(opt_.cycle_ms) + " ms"));
+  w.push_back(
+      write_u16(0x1800, 5, opt_.cycle_ms, "TPDO #0 (channel 1) event timer " + std::to_string(opt_.cycle_ms) + " ms"));
+  w.push_back(
+      write_u16(0x1801, 5, opt_.cycle_ms, "TPDO #1 (channel 2) event timer " + std::to_string(opt_.cycle_ms) + " ms"));
   // §12.2: 4000h = 1 keeps the grip operational and sends the error value of the failed signal
   // (per-signal errors instead of the whole node going pre-operational/stopped).
   w.push_back(write_u8(0x4000, 0, 1, "error behaviour: no state change, error values in the PDOs"));
   // The codes this driver decodes (defaults of 20xxh:1Bh/1Ch and 2100h:09h/0Ah, which are PARA).
   for (std::size_t a = 0; a < kAxes; ++a) {
     const auto idx = static_cast<std::uint16_t>(kAxisIndex + a);
-    w.push_back(write_u8(idx, 0x1B, static_cast<std::uint8_t>(kErrorValue),
-                         std::string(kAxisNames[a]) + " error value 126"));
+    w.push_back(
+        write_u8(idx, 0x1B, static_cast<std::uint8_t>(kErrorValue), std::string(kAxisNames[a]) + " error value 126"));
     w.push_back(write_u8(idx, 0x1C, static_cast<std::uint8_t>(kNotAvailableValue),
                          std::string(kAxisNames[a]) + " not-available value 127"));
   }
@@ -324,10 +354,10 @@ DecodedEmcy ElobauMfgDriver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
     case 0x8120:
     case 0x8140: {  // §12.4: communication warnings; the values the device sends stay valid
       d.error = false;
-      d.text = emcy.code == 0x8110   ? "elobau EMCY 8110h: CAN overrun (object lost)"
-               : emcy.code == 0x8120 ? "elobau EMCY 8120h: CAN in error passive mode"
-                                     : "elobau EMCY 8140h: recovered from bus off (count " +
-                                           std::to_string(emcy.msef[0]) + ")";
+      d.text = emcy.code == 0x8110 ? "elobau EMCY 8110h: CAN overrun (object lost)"
+               : emcy.code == 0x8120
+                   ? "elobau EMCY 8120h: CAN in error passive mode"
+                   : "elobau EMCY 8140h: recovered from bus off (count " + std::to_string(emcy.msef[0]) + ")";
       return d;
     }
     case 0x1000: break;  // §12.4: generic error = manufacturer specific (4001h)
@@ -437,8 +467,8 @@ bool ElobauMfgDriver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::s
   if (index == 0x2100 && (sub == 0x01 || sub == 0x02)) {
     fitted_read_ |= sub;  // sub 1 -> bit 0, sub 2 -> bit 1
     if (data.size() != 1) {
-      error = "2100h sub " + std::to_string(sub) + " (buttons fitted, UNSIGNED8) answered " + std::to_string(data.size()) +
-              " bytes: which buttons the grip has is unknown";
+      error = "2100h sub " + std::to_string(sub) + " (buttons fitted, UNSIGNED8) answered " +
+              std::to_string(data.size()) + " bytes: which buttons the grip has is unknown";
       return false;
     }
     fitted_ = sub == 0x01 ? static_cast<std::uint16_t>((fitted_ & 0xFF00) | data[0])
@@ -462,17 +492,19 @@ bool ElobauMfgDriver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::s
       sync_faults(std::nullopt);
       return true;
     }
-    const std::string seen =
-        m == 0x0002 ? "4001h reads 0002h" : "EMCY 1000h with 4001h 0002h came at boot (4001h now reads " + hex4(m) + ")";
+    const std::string seen = m == 0x0002 ? "4001h reads 0002h"
+                                         : "EMCY 1000h with 4001h 0002h came at boot (4001h now reads " + hex4(m) + ")";
     error = save_tried_
-                ? seen + " still, after 1010h:01 \"save\" and a restart (Table 6 parameter checksum error): the "
-                         "grip's parameter memory is corrupt; replace the grip"
-                : seen + " (Table 6 \"Parameter Checksum Error ... also set until first parameter saving process\"): "
-                         "the grip's parameters were never saved (or are corrupt), and while 0002h stands the end of "
-                         "any other error cannot be seen (4001h holds one code, no 0000h comes); commission it once: "
-                         "with the grip pre-operational write 1010h:01 = 65766173h (\"save\", oegw ctl: w 0x1010 1 "
-                         "u32 0x65766173) and power-cycle it, or set option parameter_checksum: save to let the "
-                         "gateway do it at boot (docs/design/device-documents.md#elobau-mfg-elobau-mfg-document-000-12)";
+                ? seen +
+                      " still, after 1010h:01 \"save\" and a restart (Table 6 parameter checksum error): the "
+                      "grip's parameter memory is corrupt; replace the grip"
+                : seen +
+                      " (Table 6 \"Parameter Checksum Error ... also set until first parameter saving process\"): "
+                      "the grip's parameters were never saved (or are corrupt), and while 0002h stands the end of "
+                      "any other error cannot be seen (4001h holds one code, no 0000h comes); commission it once: "
+                      "with the grip pre-operational write 1010h:01 = 65766173h (\"save\", oegw ctl: w 0x1010 1 "
+                      "u32 0x65766173) and power-cycle it, or set option parameter_checksum: save to let the "
+                      "gateway do it at boot (docs/design/device-documents.md#elobau-mfg-elobau-mfg-document-000-12)";
     return false;
   }
   save_tried_ = false;
@@ -559,26 +591,44 @@ void ElobauMfgDriver::on_offline(TimePoint now) {
 const std::vector<OptionSpec>& elobau_mfg_options() {
   using T = OptionSpec::Type;
   static const std::vector<OptionSpec> table = {
-      {.name = "channel_tolerance", .type = T::Integer, .ranges = {{0, 100}}, .unit = "percent", .default_value = "5",
+      {.name = "channel_tolerance",
+       .type = T::Integer,
+       .ranges = {{0, 100}},
+       .unit = "percent",
+       .default_value = "5",
        .description = "largest difference between an axis's channel 1 (TPDO #0) and its redundant channel 2 "
                       "(TPDO #1), both limited to +-100, before the axis is Error; a larger value lets a "
                       "drifting or miscalibrated sensor pass the cross-check",
        .safety = true},
-      {.name = "detent", .type = T::Choice, .choices = {"pass", "clamp"}, .default_value = "pass",
+      {.name = "detent",
+       .type = T::Choice,
+       .choices = {"pass", "clamp"},
+       .default_value = "pass",
        .description = "pass: the end-of-travel detent +-110 (section 15.1.2) is reported as it is, a press the "
                       "mapping may use; clamp: reported as +-100. Sets the axes' range, so what full deflection "
                       "means to the FE",
        .safety = true},
-      {.name = "channel2_timeout_ms", .type = T::Integer, .ranges = {{0, 600000}}, .unit = "ms", .default_value = "0",
+      {.name = "channel2_timeout_ms",
+       .type = T::Integer,
+       .ranges = {{0, 600000}},
+       .unit = "ms",
+       .default_value = "0",
        .description = "0: a grip that sends no channel 2 (TPDO #1 disabled) is no error, its axes stay Valid "
                       "unchecked; > 0: every axis is Error while the last channel 2 is older than this when "
                       "channel 1 arrives. Must exceed cycle_ms",
        .safety = true},
-      {.name = "cycle_ms", .type = T::Integer, .ranges = {{5, 65535}}, .unit = "ms", .default_value = "100",
+      {.name = "cycle_ms",
+       .type = T::Integer,
+       .ranges = {{5, 65535}},
+       .unit = "ms",
+       .default_value = "100",
        .note = "(the document's 5 ms coding cycle)",
        .description = "TPDO #0 / #1 event timers written at boot (1800h:05, 1801h:05); a TPDO missing for 3 "
                       "cycles makes its signals Stale"},
-      {.name = "parameter_checksum", .type = T::Choice, .choices = {"refuse", "save"}, .default_value = "refuse",
+      {.name = "parameter_checksum",
+       .type = T::Choice,
+       .choices = {"refuse", "save"},
+       .default_value = "refuse",
        .note = "(refuse: commission the grip by hand; save: the gateway saves it once)",
        .description = "a grip whose 4001h reads 0002h at boot (parameters never saved, Table 6): refuse: the node "
                       "is refused, the reason says how to save it; save: the gateway writes 1010h:01 \"save\" and "
@@ -591,22 +641,24 @@ const std::vector<OptionSpec>& elobau_mfg_options() {
 std::unique_ptr<Driver> make_elobau_mfg_driver(NodeId node, FrameSink sink, const DriverOptions& options,
                                                OptionRefusals& refusals) {
   ElobauMfgOptions o;
-  const bool ok = parse_options("elobau-mfg", elobau_mfg_options(), options,
-                                [&o](const OptionValue& v, std::string& /*error*/) {
-                                  const std::string_view name = v.spec->name;
-                                  if (name == "channel_tolerance") o.channel_tolerance = static_cast<int>(v.number);
-                                  if (name == "detent") o.clamp_detent = v.text == "clamp";
-                                  if (name == "channel2_timeout_ms") o.channel2_timeout_ms = static_cast<std::uint32_t>(v.number);
-                                  if (name == "cycle_ms") o.cycle_ms = static_cast<std::uint16_t>(v.number);
-                                  if (name == "parameter_checksum") o.save_unsaved = v.text == "save";
-                                  if (name == kFreshnessFloorOption) o.freshness_floor_ms = static_cast<std::uint32_t>(v.number);
-                                  return true;
-                                },
-                                refusals);
+  const bool ok = parse_options(
+      "elobau-mfg", elobau_mfg_options(), options,
+      [&o](const OptionValue& v, std::string& /*error*/) {
+        const std::string_view name = v.spec->name;
+        if (name == "channel_tolerance") o.channel_tolerance = static_cast<int>(v.number);
+        if (name == "detent") o.clamp_detent = v.text == "clamp";
+        if (name == "channel2_timeout_ms") o.channel2_timeout_ms = static_cast<std::uint32_t>(v.number);
+        if (name == "cycle_ms") o.cycle_ms = static_cast<std::uint16_t>(v.number);
+        if (name == "parameter_checksum") o.save_unsaved = v.text == "save";
+        if (name == kFreshnessFloorOption) o.freshness_floor_ms = static_cast<std::uint32_t>(v.number);
+        return true;
+      },
+      refusals);
   if (!ok) return nullptr;
   if (o.channel2_timeout_ms != 0 && o.channel2_timeout_ms <= o.cycle_ms) {
-    refusals.push_back({options.get("channel2_timeout_ms") ? "channel2_timeout_ms" : "cycle_ms",
-                        "elobau-mfg: channel2_timeout_ms must exceed cycle_ms (" + std::to_string(o.cycle_ms) + " ms)"});
+    refusals.push_back(
+        {options.get("channel2_timeout_ms") ? "channel2_timeout_ms" : "cycle_ms",
+         "elobau-mfg: channel2_timeout_ms must exceed cycle_ms (" + std::to_string(o.cycle_ms) + " ms)"});
     return nullptr;
   }
   if (!node.valid()) {

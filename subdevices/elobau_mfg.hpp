@@ -136,12 +136,12 @@ class ElobauMfgDriver final : public Driver {
   static constexpr std::size_t kLeds = 16;
   // Signal indices.
   static constexpr std::size_t kX = 0;
-  static constexpr std::size_t kFirstButton = kAxes;                  // buttons[1]
-  static constexpr std::size_t kPresence = kFirstButton + kButtons;   // 21
-  static constexpr std::size_t kFirstLed = kPresence + 1;             // leds[1] = 22
-  static constexpr std::size_t kSignalCount = kFirstLed + kLeds;      // 38
+  static constexpr std::size_t kFirstButton = kAxes;                 // buttons[1]
+  static constexpr std::size_t kPresence = kFirstButton + kButtons;  // 21
+  static constexpr std::size_t kFirstLed = kPresence + 1;            // leds[1] = 22
+  static constexpr std::size_t kSignalCount = kFirstLed + kLeds;     // 38
 
-  static constexpr std::int8_t kErrorValue = 126;        // 20xxh:1Bh default
+  static constexpr std::int8_t kErrorValue = 126;         // 20xxh:1Bh default
   static constexpr std::int8_t kNotAvailableValue = 127;  // 20xxh:1Ch default
 
   struct Stats {
@@ -199,7 +199,7 @@ class ElobauMfgDriver final : public Driver {
     std::optional<std::int8_t> ch2;
     bool mismatch = false;
     bool suspect = false;  // the last TPDO #1 disagreed: the next TPDO #0 decides
-    bool emcy = false;  // latched by an axis EMCY, cleared by a good pair or the error reset
+    bool emcy = false;     // latched by an axis EMCY, cleared by a good pair or the error reset
   };
   [[nodiscard]] bool channels_disagree(std::int8_t ch1, std::int8_t ch2) const;
   void latch_axis(std::size_t a);
@@ -225,15 +225,15 @@ class ElobauMfgDriver final : public Driver {
   std::array<bool, kButtons> button_emcy_{};
   bool global_emcy_ = false;
   bool led_emcy_ = false;
-  bool online_ = false;           // between on_online() and on_offline()
-  bool error_code_read_ = false;  // 4001h read in this boot
-  std::uint8_t fitted_read_ = 0;  // bit 0: 2100h:01h answered, bit 1: 2100h:02h
+  bool online_ = false;            // between on_online() and on_offline()
+  bool error_code_read_ = false;   // 4001h read in this boot
+  std::uint8_t fitted_read_ = 0;   // bit 0: 2100h:01h answered, bit 1: 2100h:02h
   std::uint16_t fitted_ = 0x003F;  // 2100h:01h/02h; the document's default until read
-  bool saving_ = false;           // this boot's configuration saves the parameters (save_unsaved)
-  bool unsaved_at_boot_ = false;  // an EMCY 0002h came between boot-up and operational
-  bool save_tried_ = false;       // a save was written and the grip restarted since 0002h was read
+  bool saving_ = false;            // this boot's configuration saves the parameters (save_unsaved)
+  bool unsaved_at_boot_ = false;   // an EMCY 0002h came between boot-up and operational
+  bool save_tried_ = false;        // a save was written and the grip restarted since 0002h was read
   bool channel2_late_ = false;
-  std::optional<TimePoint> ch2_reference_;  // last TPDO #1, or the first TPDO #0 before one
+  std::optional<TimePoint> ch2_reference_;                 // last TPDO #1, or the first TPDO #0 before one
   std::array<std::optional<std::uint8_t>, kLeds> leds_{};  // commanded 2-bit codes
   bool leds_sent_ = false;                                 // the state went out since online
   bool leds_dirty_ = false;                                // changed, not sent yet (output batch)

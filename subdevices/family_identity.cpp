@@ -48,8 +48,8 @@ FamilyMatch name_family(const NodeIdentity& id) {
     return m;
   }
   if (vendor == kNovotechnikVendor && type && device_profile(*type) == kEncoderProfile)
-    return {"novotechnik-406", "vendor " + hex8(*vendor) + " (Novotechnik), device type " + hex8(*type) +
-                                   " (CiA 406 encoder)"};
+    return {"novotechnik-406",
+            "vendor " + hex8(*vendor) + " (Novotechnik), device type " + hex8(*type) + " (CiA 406 encoder)"};
   if (type && device_profile(*type) == kIoProfile)
     return {"cia401", "device type " + hex8(*type) + " (CiA 401 I/O profile)"};
   std::string why = "no driver fits";

@@ -13,11 +13,11 @@ namespace oegw::subdevices {
 // What a node told about itself; each value absent when it was not read (no answer, an abort:
 // the MCB-402 has no 1018h:04).
 struct NodeIdentity {
-  std::optional<std::uint32_t> device_type;  // 1000h
-  std::optional<std::uint32_t> vendor_id;    // 1018h:01
-  std::optional<std::uint32_t> product_code; // 1018h:02
-  std::optional<std::uint32_t> revision;     // 1018h:03
-  std::optional<std::uint32_t> serial;       // 1018h:04
+  std::optional<std::uint32_t> device_type;   // 1000h
+  std::optional<std::uint32_t> vendor_id;     // 1018h:01
+  std::optional<std::uint32_t> product_code;  // 1018h:02
+  std::optional<std::uint32_t> revision;      // 1018h:03
+  std::optional<std::uint32_t> serial;        // 1018h:04
 };
 
 struct FamilyMatch {

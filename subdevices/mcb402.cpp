@@ -23,14 +23,22 @@ constexpr std::uint8_t kTpdo2Length = 8;  // 6401h:01..04
 std::vector<SignalInfo> make_signals() {
   std::vector<SignalInfo> s;
   for (const char* axis : {"x", "y", "z", "t"})
-    s.push_back(SignalInfo{.name = axis, .kind = SignalKind::Axis, .min = -32768, .max = 32767, .neutral = 0,
-                           .unit = "raw16"});
+    s.push_back(
+        SignalInfo{.name = axis, .kind = SignalKind::Axis, .min = -32768, .max = 32767, .neutral = 0, .unit = "raw16"});
   for (std::size_t i = 1; i <= kButtons; ++i)
-    s.push_back(SignalInfo{.name = "buttons[" + std::to_string(i) + "]", .kind = SignalKind::Button, .min = 0,
-                           .max = 1, .neutral = 0, .unit = "bool"});
+    s.push_back(SignalInfo{.name = "buttons[" + std::to_string(i) + "]",
+                           .kind = SignalKind::Button,
+                           .min = 0,
+                           .max = 1,
+                           .neutral = 0,
+                           .unit = "bool"});
   for (std::size_t i = 1; i <= kLeds; ++i)
-    s.push_back(SignalInfo{.name = "leds[" + std::to_string(i) + "]", .kind = SignalKind::Output, .min = 0,
-                           .max = 1, .neutral = 0, .unit = "bool"});
+    s.push_back(SignalInfo{.name = "leds[" + std::to_string(i) + "]",
+                           .kind = SignalKind::Output,
+                           .min = 0,
+                           .max = 1,
+                           .neutral = 0,
+                           .unit = "bool"});
   return s;
 }
 
@@ -101,20 +109,36 @@ std::optional<ButtonBits> parse_button_bits(std::string_view text) {
 const std::vector<OptionSpec>& mcb402_options() {
   using T = OptionSpec::Type;
   static const std::vector<OptionSpec> table = {
-      {.name = "event_timer_ms", .type = T::Integer, .ranges = {{1, 65535}}, .unit = "ms", .default_value = "20",
+      {.name = "event_timer_ms",
+       .type = T::Integer,
+       .ranges = {{1, 65535}},
+       .unit = "ms",
+       .default_value = "20",
        .note = "(1801h:05; 0 would leave the axes unsent)",
        .description = "TPDO2 (axes) event timer written at boot (1801h:05); the document gives no value and its "
                       "default 0 would send no periodic axes; axes missing for 3 periods are Stale"},
-      {.name = "button_timer_ms", .type = T::Integer, .ranges = {{0, 65535}}, .unit = "ms", .default_value = "100",
+      {.name = "button_timer_ms",
+       .type = T::Integer,
+       .ranges = {{0, 65535}},
+       .unit = "ms",
+       .default_value = "100",
        .note = "(1800h:05)",
        .description = "TPDO1 (buttons) event timer written at boot (1800h:05); 0: sent on change only (then no "
                       "deadline for the buttons)"},
-      {.name = "can_restart_ms", .type = T::Integer, .ranges = {{1, 65535}}, .unit = "ms", .default_value = "1000",
+      {.name = "can_restart_ms",
+       .type = T::Integer,
+       .ranges = {{1, 65535}},
+       .unit = "ms",
+       .default_value = "1000",
        .note = "(2180h; 0 would keep the board off the bus after a bus off)",
        .description = "CAN restart time after bus off written at boot (2180h); 0 is refused: the board would "
                       "stay off the bus"},
-      {.name = "button_bits", .type = T::Text, .syntax = "7 distinct bit numbers 0..7",
-       .required = true, .missing = kButtonBitsMissing, .listing_value = "0/1/2/3/4/5/6",
+      {.name = "button_bits",
+       .type = T::Text,
+       .syntax = "7 distinct bit numbers 0..7",
+       .required = true,
+       .missing = kButtonBitsMissing,
+       .listing_value = "0/1/2/3/4/5/6",
        .description = "the bit of 6000h:03 (byte 2 of TPDO1) that each push button BP1..BP7 sets, seven numbers "
                       "(',' in a YAML list, '/' on a command line); no default: the document's bit table is damaged "
                       "and permits two readings, so a wrong order would report the wrong button; "
@@ -126,28 +150,29 @@ const std::vector<OptionSpec>& mcb402_options() {
 
 std::optional<Mcb402Options> parse_mcb402_options(const DriverOptions& options, OptionRefusals& refusals) {
   Mcb402Options o;
-  const bool ok = parse_options("mcb402", mcb402_options(), options,
-                                [&o](const OptionValue& v, std::string& err) {
-                                  const std::string_view name = v.spec->name;
-                                  if (name == "event_timer_ms") o.event_timer_ms = static_cast<std::uint16_t>(v.number);
-                                  if (name == "button_timer_ms") o.button_timer_ms = static_cast<std::uint16_t>(v.number);
-                                  if (name == "can_restart_ms") o.can_restart_ms = static_cast<std::uint16_t>(v.number);
-                                  if (name == "button_bits") {
-                                    std::string why;
-                                    const auto bits = parse_button_bits(v.text, why);
-                                    if (!bits) {
-                                      err = "mcb402: button_bits '" + v.text + "': " + why +
-                                            "; expected 7 distinct bit numbers 0..7 of 6000h:03 for BP1..BP7, "
-                                            "separated by ',' or '/' (as `oegw signals mcb402 --find-button-bits` "
-                                            "prints them)";
-                                      return false;
-                                    }
-                                    o.button_bits = *bits;
-                                  }
-                                  if (name == kFreshnessFloorOption) o.freshness_floor_ms = static_cast<std::uint32_t>(v.number);
-                                  return true;
-                                },
-                                refusals);
+  const bool ok = parse_options(
+      "mcb402", mcb402_options(), options,
+      [&o](const OptionValue& v, std::string& err) {
+        const std::string_view name = v.spec->name;
+        if (name == "event_timer_ms") o.event_timer_ms = static_cast<std::uint16_t>(v.number);
+        if (name == "button_timer_ms") o.button_timer_ms = static_cast<std::uint16_t>(v.number);
+        if (name == "can_restart_ms") o.can_restart_ms = static_cast<std::uint16_t>(v.number);
+        if (name == "button_bits") {
+          std::string why;
+          const auto bits = parse_button_bits(v.text, why);
+          if (!bits) {
+            err = "mcb402: button_bits '" + v.text + "': " + why +
+                  "; expected 7 distinct bit numbers 0..7 of 6000h:03 for BP1..BP7, "
+                  "separated by ',' or '/' (as `oegw signals mcb402 --find-button-bits` "
+                  "prints them)";
+            return false;
+          }
+          o.button_bits = *bits;
+        }
+        if (name == kFreshnessFloorOption) o.freshness_floor_ms = static_cast<std::uint32_t>(v.number);
+        return true;
+      },
+      refusals);
   if (!ok) return std::nullopt;
   return o;
 }
@@ -176,20 +201,29 @@ Mcb402Driver::Mcb402Driver(NodeId node, FrameSink sink, Mcb402Options options)
     : options_(options), signals_(make_signals()) {
   init(node, std::move(sink), signals_.size());
   // TPDO1 (buttons) and TPDO2 (axes), type FFh with the event timers configuration() writes.
-  Carrier tpdo1{.cob_id = canopen::cob::kTpdo1 + node.value(), .comm_index = 0x1800,
-                .event_timer_ms = options_.button_timer_ms, .transmission_type = 0xFF, .signals = {},
+  Carrier tpdo1{.cob_id = canopen::cob::kTpdo1 + node.value(),
+                .comm_index = 0x1800,
+                .event_timer_ms = options_.button_timer_ms,
+                .transmission_type = 0xFF,
+                .signals = {},
                 .length = 4};  // 6000h:01..04 ("Operation mode 4" mapping)
   for (std::size_t i = 0; i < kButtons; ++i) tpdo1.signals.push_back(kFirstButton + i);
-  Carrier tpdo2{.cob_id = canopen::cob::kTpdo2 + node.value(), .comm_index = 0x1801,
-                .event_timer_ms = options_.event_timer_ms, .transmission_type = 0xFF, .signals = {},
+  Carrier tpdo2{.cob_id = canopen::cob::kTpdo2 + node.value(),
+                .comm_index = 0x1801,
+                .event_timer_ms = options_.event_timer_ms,
+                .transmission_type = 0xFF,
+                .signals = {},
                 .length = 8};  // 6401h:01..04, INTEGER16 each
   for (std::size_t a = 0; a < kAxes; ++a) tpdo2.signals.push_back(a);
   set_carriers({tpdo1, tpdo2});
 }
 
 ExpectedIdentity Mcb402Driver::expected_identity() const {
-  return ExpectedIdentity{.device_type = kDeviceType, .vendor_id = kVendorId, .product_code = kProductCode,
-                          .revision = std::nullopt, .serial = std::nullopt};
+  return ExpectedIdentity{.device_type = kDeviceType,
+                          .vendor_id = kVendorId,
+                          .product_code = kProductCode,
+                          .revision = std::nullopt,
+                          .serial = std::nullopt};
 }
 
 std::vector<SdoWrite> Mcb402Driver::configuration() const {
@@ -385,9 +419,7 @@ DecodedEmcy Mcb402Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
   return d;
 }
 
-void Mcb402Driver::send_outputs() {
-  send(CanFrame(kRpdo1 + node().value(), {outputs_}));
-}
+void Mcb402Driver::send_outputs() { send(CanFrame(kRpdo1 + node().value(), {outputs_})); }
 
 void Mcb402Driver::on_online(TimePoint now) {
   Driver::on_online(now);

@@ -134,7 +134,7 @@ struct Mcb402Options {
   std::uint16_t event_timer_ms = 20;
   std::uint16_t button_timer_ms = 100;
   std::uint16_t can_restart_ms = 1000;
-  mcb402::ButtonBits button_bits{};  // required: parse_mcb402_options() refuses options without it
+  mcb402::ButtonBits button_bits{};        // required: parse_mcb402_options() refuses options without it
   std::uint32_t freshness_floor_ms = 200;  // Driver::set_freshness_floor
 };
 
@@ -189,8 +189,8 @@ class Mcb402Driver final : public Driver {
   std::uint64_t latch_epoch_ = 0;
   std::uint64_t poll_epoch_sent_ = ~std::uint64_t{0};
   bool error_register_read_ = false;  // 1001h read in this boot
-  std::uint8_t outputs_ = 0;  // 6200h:01 as last commanded
-  bool outputs_pending_ = false;  // set_output() inside an output batch: RPDO1 not sent yet
+  std::uint8_t outputs_ = 0;          // 6200h:01 as last commanded
+  bool outputs_pending_ = false;      // set_output() inside an output batch: RPDO1 not sent yet
 };
 
 // Parses `options` (event_timer_ms, button_timer_ms, can_restart_ms, button_bits); nullopt and

@@ -18,7 +18,8 @@ std::string hex2(std::uint8_t v) {
 
 }  // namespace
 
-ButtonBitsFinder::ButtonBitsFinder(Options options, canopen::FrameSink send, std::function<void(const std::string&)> say)
+ButtonBitsFinder::ButtonBitsFinder(Options options, canopen::FrameSink send,
+                                   std::function<void(const std::string&)> say)
     : options_(options), send_(std::move(send)), say_(std::move(say)) {}
 
 void ButtonBitsFinder::start(canopen::TimePoint now) {
@@ -60,7 +61,8 @@ bool ButtonBitsFinder::on_frame(const canopen::CanFrame& frame, canopen::TimePoi
       // The first TPDO1, before any prompt: nothing is pressed.
       released_ = cc;
       if (cc != 0)
-        say_("released, byte 2 reads " + hex2(cc) + "h (6002h:03 inverts some inputs; the gateway writes 00h at boot): "
+        say_("released, byte 2 reads " + hex2(cc) +
+             "h (6002h:03 inverts some inputs; the gateway writes 00h at boot): "
              "presses are read against it");
       ask(now);
       return true;
@@ -84,7 +86,8 @@ bool ButtonBitsFinder::on_frame(const canopen::CanFrame& frame, canopen::TimePoi
       }
       bits_[button_ - 1] = bit;
       used_ |= 1u << bit;
-      say_("BP" + std::to_string(button_) + " sets bit " + std::to_string(bit) + " (byte 2 = " + hex2(cc) + "h); release it");
+      say_("BP" + std::to_string(button_) + " sets bit " + std::to_string(bit) + " (byte 2 = " + hex2(cc) +
+           "h); release it");
       state_ = State::Releasing;
       return true;
     }
@@ -104,7 +107,8 @@ void ButtonBitsFinder::advance(canopen::TimePoint now) {
         if (send_) send_(canopen::CanFrame(0x000, {0x01, options_.node.value()}));
         say_("no TPDO1 within " +
              std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(options_.start_after).count()) +
-             " ms: sent NMT start node " + hex2(options_.node.value()) + "h (000#01" + hex2(options_.node.value()) + ")");
+             " ms: sent NMT start node " + hex2(options_.node.value()) + "h (000#01" + hex2(options_.node.value()) +
+             ")");
         state_ = State::Started;
         deadline_ = now + options_.start_after;
       }

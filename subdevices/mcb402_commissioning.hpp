@@ -31,7 +31,7 @@ class ButtonBitsFinder {
  public:
   struct Options {
     canopen::NodeId node{0x03};
-    canopen::Duration start_after = std::chrono::seconds(1);   // no TPDO1 by then: NMT start (0: never)
+    canopen::Duration start_after = std::chrono::seconds(1);    // no TPDO1 by then: NMT start (0: never)
     canopen::Duration step_timeout = std::chrono::seconds(60);  // per button
   };
   // `send`: frames for the bus (the NMT start); `say`: one line for the user.
@@ -46,7 +46,9 @@ class ButtonBitsFinder {
   [[nodiscard]] const std::optional<mcb402::ButtonBits>& result() const { return result_; }
   [[nodiscard]] const std::string& error() const { return error_; }
   // Which button is asked for now (1..7), 0 when none.
-  [[nodiscard]] std::size_t asking() const { return state_ == State::Pressing || state_ == State::Releasing ? button_ : 0; }
+  [[nodiscard]] std::size_t asking() const {
+    return state_ == State::Pressing || state_ == State::Releasing ? button_ : 0;
+  }
 
   // "button_bits: [1, 2, 3, 4, 5, 7, 6]" and "button_bits=1/2/3/4/5/7/6".
   [[nodiscard]] static std::string yaml_line(const mcb402::ButtonBits& bits);
@@ -63,7 +65,7 @@ class ButtonBitsFinder {
   State state_ = State::Idle;
   std::size_t button_ = 0;  // 1..7
   std::uint8_t released_ = 0x00;
-  unsigned used_ = 0;       // bits taken by earlier buttons
+  unsigned used_ = 0;  // bits taken by earlier buttons
   mcb402::ButtonBits bits_{};
   std::optional<mcb402::ButtonBits> result_;
   std::string error_;

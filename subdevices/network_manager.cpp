@@ -38,17 +38,20 @@ std::string obj(std::uint16_t index, std::uint8_t sub) {
 // A check of a UNSIGNED32 answer against an expected value (CiA 302-2 identity check), in the
 // bits of `mask`; the value read is kept in `keep` when given.
 std::function<std::string(const std::vector<std::uint8_t>&)> expect_u32(std::uint16_t index, std::uint8_t sub,
-                                                                         std::optional<std::uint32_t> want,
-                                                                         std::optional<std::uint32_t>* keep = nullptr,
-                                                                         std::uint32_t mask = 0xFFFFFFFFu) {
+                                                                        std::optional<std::uint32_t> want,
+                                                                        std::optional<std::uint32_t>* keep = nullptr,
+                                                                        std::uint32_t mask = 0xFFFFFFFFu) {
   return [index, sub, want, keep, mask](const std::vector<std::uint8_t>& d) -> std::string {
     if (d.size() != 4) return obj(index, sub) + " answered " + std::to_string(d.size()) + " bytes, expected 4";
     const std::uint32_t got = canopen::get_u32(d.data());
     if (keep != nullptr) *keep = got;
     if (!want || (got & mask) == (*want & mask)) return {};
-    if (mask == 0xFFFFFFFFu) return obj(index, sub) + " is " + hex32(got) + ", the configuration expects " + hex32(*want);
+    if (mask == 0xFFFFFFFFu)
+      return obj(index, sub) + " is " + hex32(got) + ", the configuration expects " + hex32(*want);
     char b[160];
-    std::snprintf(b, sizeof b, "%s is %08Xh: major revision %04Xh, the configuration expects %04Xh (from %08Xh; the minor revision is not compared)",
+    std::snprintf(b, sizeof b,
+                  "%s is %08Xh: major revision %04Xh, the configuration expects %04Xh (from %08Xh; the minor revision "
+                  "is not compared)",
                   obj(index, sub).c_str(), got, got >> 16, *want >> 16, *want);
     return b;
   };
@@ -113,14 +116,15 @@ NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
     // then the reset's own) reads as what it is, not as the same step twice.
     m->reset_node_sent = false;
     configure(*m, now_,
-              late_answer ? "boot-up answering the reset after the node's SDO answer (or a reboot meanwhile, which looks "
-                            "the same): configuring from the start"
-              : answers_reset                        ? "boot-up seen: checking identity and configuring"
-              : was_live                             ? "boot-up while operational (the node rebooted): configuring again"
-              : m->state == NodeState::Configuring ||
-                      m->state == NodeState::Starting ? "boot-up again during its configuration (the node reset): "
-                                                        "configuring from the start"
-                                                      : "boot-up seen: checking identity and configuring");
+              late_answer
+                  ? "boot-up answering the reset after the node's SDO answer (or a reboot meanwhile, which looks "
+                    "the same): configuring from the start"
+              : answers_reset ? "boot-up seen: checking identity and configuring"
+              : was_live      ? "boot-up while operational (the node rebooted): configuring again"
+              : m->state == NodeState::Configuring || m->state == NodeState::Starting
+                  ? "boot-up again during its configuration (the node reset): "
+                    "configuring from the start"
+                  : "boot-up seen: checking identity and configuring");
     // The inputs go offline after the state says why (see fail()).
     if (was_live) m->driver->on_offline(now_);
   };
@@ -277,7 +281,8 @@ void NetworkManager::begin_boot(Managed& m, TimePoint now) {
   m.probe_at.reset();
   if (probes_on()) m.probe_at = now + timing_.boot_probe_first;
   set_state(m, NodeState::WaitingBootUp,
-            m.reset_node_sent ? "NMT reset node sent (to clear the error it reported)" : "NMT reset communication sent", now);
+            m.reset_node_sent ? "NMT reset node sent (to clear the error it reported)" : "NMT reset communication sent",
+            now);
 }
 
 void NetworkManager::probe(Managed& m) {
@@ -328,7 +333,8 @@ void NetworkManager::configure(Managed& m, TimePoint now, const std::string& why
   m.driver->begin_boot();
   m.steps.push_back({Kind::DriverReads, 0, 0, {}, "driver reads", {}});
   if (m.settings.heartbeat_ms != 0)
-    m.steps.push_back({Kind::Write, 0x1017, 0, canopen::encode<std::uint16_t>(m.settings.heartbeat_ms), "producer heartbeat", {}});
+    m.steps.push_back(
+        {Kind::Write, 0x1017, 0, canopen::encode<std::uint16_t>(m.settings.heartbeat_ms), "producer heartbeat", {}});
   m.steps.push_back({Kind::DriverWrites, 0, 0, {}, "driver configuration", {}});
   for (const SdoWrite& w : m.settings.sdo) m.steps.push_back({Kind::Write, w.index, w.sub, w.data, w.what, {}});
   set_state(m, NodeState::Configuring, why, now);
@@ -340,8 +346,14 @@ void NetworkManager::add_identity_steps(Managed& m) {
   const ExpectedIdentity drv = m.driver->expected_identity();
   const ExpectedIdentity& cfg = m.settings.identity;
   using Kind = Step::Kind;
-  m.steps.push_back({Kind::Read, 0x1000, 0, {}, "device type", expect_u32(0x1000, 0, pick(cfg.device_type, drv.device_type), &m.diag.device_type)});
-  const std::optional<std::uint32_t> ident[4] = {pick(cfg.vendor_id, drv.vendor_id), pick(cfg.product_code, drv.product_code),
+  m.steps.push_back({Kind::Read,
+                     0x1000,
+                     0,
+                     {},
+                     "device type",
+                     expect_u32(0x1000, 0, pick(cfg.device_type, drv.device_type), &m.diag.device_type)});
+  const std::optional<std::uint32_t> ident[4] = {pick(cfg.vendor_id, drv.vendor_id),
+                                                 pick(cfg.product_code, drv.product_code),
                                                  pick(cfg.revision, drv.revision), pick(cfg.serial, drv.serial)};
   std::optional<std::uint32_t>* keep[4] = {&m.diag.vendor_id, &m.diag.product_code, &m.diag.revision, &m.diag.serial};
   static const char* const names[4] = {"vendor-ID", "product code", "revision number", "serial number"};
@@ -355,8 +367,9 @@ void NetworkManager::add_identity_steps(Managed& m) {
 
 void NetworkManager::add_diagnostic_steps(Managed& m) {
   using Kind = Step::Kind;
-  const std::pair<std::uint16_t, std::optional<std::string>*> texts[] = {
-      {0x1008, &m.diag.device_name}, {0x1009, &m.diag.hardware_version}, {0x100A, &m.diag.software_version}};
+  const std::pair<std::uint16_t, std::optional<std::string>*> texts[] = {{0x1008, &m.diag.device_name},
+                                                                         {0x1009, &m.diag.hardware_version},
+                                                                         {0x100A, &m.diag.software_version}};
   static const char* const names[3] = {"manufacturer device name", "manufacturer hardware version",
                                        "manufacturer software version"};
   for (std::size_t i = 0; i < 3; ++i) {
@@ -369,7 +382,12 @@ void NetworkManager::add_diagnostic_steps(Managed& m) {
   // CiA 301 §7.5.2.2: 1001h is UNSIGNED8; a device document may give it otherwise (the
   // Novotechnik's §4.1 "1001 Error register Unsigned16"): 1 or 2 bytes are taken, the CiA 301
   // bits are the low byte (little endian, CiA 301 §7.1.2); the driver gets the answer as it came.
-  Step st{Kind::Read, 0x1001, 0, {}, "error register", [reg, answer](const std::vector<std::uint8_t>& d) -> std::string {
+  Step st{Kind::Read,
+          0x1001,
+          0,
+          {},
+          "error register",
+          [reg, answer](const std::vector<std::uint8_t>& d) -> std::string {
             if (d.size() != 1 && d.size() != 2)
               return obj(0x1001, 0) + " answered " + std::to_string(d.size()) + " bytes, expected 1 (or 2)";
             *reg = d[0];
@@ -465,8 +483,8 @@ void NetworkManager::run_step(Managed& m) {
   auto done = [this, mp, gen](SdoAbortCode code, std::vector<std::uint8_t> data) {
     if (mp->generation != gen || mp->state != NodeState::Configuring) return;  // overtaken
     const Step& st = mp->steps[mp->next_step];
-    const std::string where = std::string(st.kind == Step::Kind::Read ? "reading " : "writing ") + obj(st.index, st.sub) +
-                              (st.what.empty() ? "" : " (" + st.what + ")");
+    const std::string where = std::string(st.kind == Step::Kind::Read ? "reading " : "writing ") +
+                              obj(st.index, st.sub) + (st.what.empty() ? "" : " (" + st.what + ")");
     if (code == SdoAbortCode::Timeout) {
       fail(*mp, NodeState::Missing, where + ": no answer (SDO timeout)", now_);
       return;
@@ -494,8 +512,9 @@ void NetworkManager::run_step(Managed& m) {
       }
     }
     if (code != SdoAbortCode::None) {
-      fail(*mp, NodeState::Refused, where + ": abort " + hex32(static_cast<std::uint32_t>(code)) + " " +
-                                        std::string(canopen::to_string(code)), now_);
+      fail(*mp, NodeState::Refused,
+           where + ": abort " + hex32(static_cast<std::uint32_t>(code)) + " " + std::string(canopen::to_string(code)),
+           now_);
       return;
     }
     if (st.check) {
@@ -524,7 +543,7 @@ Duration NetworkManager::proof_deadline(const Managed& m) const {
 
 void NetworkManager::finish(Managed& m, TimePoint now) {
   m.state = NodeState::Idle;  // not among the nodes configuring_any() counts while it decides
-  route(m);  // what the driver consumes may depend on what it read at boot
+  route(m);                   // what the driver consumes may depend on what it read at boot
   // The event timers actually written decide the PDOs' freshness deadlines.
   std::vector<SdoWrite> writes;
   for (const Step& st : m.steps)
@@ -693,7 +712,8 @@ bool NetworkManager::on_frame(const CanFrame& frame, TimePoint now) {
   return false;
 }
 
-void NetworkManager::report_once(std::uint64_t& seen, std::uint64_t now_count, const std::string& name, const char* what) {
+void NetworkManager::report_once(std::uint64_t& seen, std::uint64_t now_count, const std::string& name,
+                                 const char* what) {
   // The line is built only when it is reported: this runs for every PDO (no allocation).
   if (seen == 0 && now_count > 0 && on_bad_input) on_bad_input(name + what);
   seen = now_count;
@@ -791,15 +811,16 @@ void NetworkManager::poll_faults(Managed& m, TimePoint now) {
   const std::uint64_t gen = m.generation;
   Managed* mp = &m;
   m.driver->on_fault_poll_sent();
-  master_.sdo(m.settings.node).upload(poll->index, poll->sub, [this, mp, gen, period = poll->period](
-                                                                 SdoAbortCode code, std::vector<std::uint8_t> data) {
-    if (mp->generation != gen) return;  // rebooted meanwhile: a new life, a new poll
-    mp->poll_pending = false;
-    mp->poll_at = now_ + period;
-    if (mp->state != NodeState::Operational || code != SdoAbortCode::None) return;  // no evidence
-    const std::string what = mp->driver->on_fault_poll(data, now_);
-    if (!what.empty() && on_fault_evidence) on_fault_evidence(mp->settings.name, what);
-  });
+  master_.sdo(m.settings.node)
+      .upload(poll->index, poll->sub,
+              [this, mp, gen, period = poll->period](SdoAbortCode code, std::vector<std::uint8_t> data) {
+                if (mp->generation != gen) return;  // rebooted meanwhile: a new life, a new poll
+                mp->poll_pending = false;
+                mp->poll_at = now_ + period;
+                if (mp->state != NodeState::Operational || code != SdoAbortCode::None) return;  // no evidence
+                const std::string what = mp->driver->on_fault_poll(data, now_);
+                if (!what.empty() && on_fault_evidence) on_fault_evidence(mp->settings.name, what);
+              });
 }
 
 bool NetworkManager::configuring_any() const {
@@ -808,8 +829,7 @@ bool NetworkManager::configuring_any() const {
 }
 
 bool NetworkManager::booting_any() const {
-  return configuring_any() ||
-         std::any_of(nodes_.begin(), nodes_.end(), [this](const auto& m) {
+  return configuring_any() || std::any_of(nodes_.begin(), nodes_.end(), [this](const auto& m) {
            // A node whose probe went unanswered is likely absent: it holds no one; nor, with
            // no probes (NetworkTiming), one that would be waited out for boot_wait.
            return m->state == NodeState::WaitingBootUp && probes_on() && m->probe_gap <= timing_.boot_probe_first;

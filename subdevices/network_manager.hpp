@@ -62,29 +62,29 @@
 namespace oegw::subdevices {
 
 struct NodeSettings {
-  std::string name;                        // "right_grip"
+  std::string name;  // "right_grip"
   NodeId node{};
   std::uint16_t heartbeat_ms = 100;        // written to the node's 1017h (0: not written, not watched)
   std::uint16_t heartbeat_timeout_ms = 0;  // consumer time; 0 = 1.5 × heartbeat_ms (CiA 302 practice)
   std::uint16_t pdo_timeout_ms = 0;        // freshness deadline of every PDO-carried input; 0 = derived
   bool mandatory = false;
-  ExpectedIdentity identity;               // checked besides the driver's own expectations
+  ExpectedIdentity identity;  // checked besides the driver's own expectations
   // 1018h:03: false compares only the major revision (upper 16 bits, CiA 301 §7.5.2.13: a
   // minor revision is a compatible firmware update); true compares all 32 bits.
   bool exact_revision = false;
-  std::vector<SdoWrite> sdo;               // written after the driver's configuration
+  std::vector<SdoWrite> sdo;  // written after the driver's configuration
 };
 
 // What a node said about itself at its last boot (CiA 301 §7.5.2: 1018h identity, 1008h/1009h/
 // 100Ah VISIBLE_STRINGs, 1001h error register), read during configuration and kept until the
 // next boot. A value the node does not have (the read was aborted) is nullopt.
 struct NodeDiagnostics {
-  std::optional<std::uint32_t> device_type;  // 1000h
+  std::optional<std::uint32_t> device_type;                                // 1000h
   std::optional<std::uint32_t> vendor_id, product_code, revision, serial;  // 1018h:01..04
-  std::optional<std::string> device_name;       // 1008h
-  std::optional<std::string> hardware_version;  // 1009h
-  std::optional<std::string> software_version;  // 100Ah
-  std::optional<std::uint8_t> error_register;   // 1001h
+  std::optional<std::string> device_name;                                  // 1008h
+  std::optional<std::string> hardware_version;                             // 1009h
+  std::optional<std::string> software_version;                             // 100Ah
+  std::optional<std::uint8_t> error_register;                              // 1001h
   // Longest string kept (longer ones are cut); non-printable characters become '?'.
   static constexpr std::size_t kMaxText = 32;
   // "vendor 000000B4h, product 00000001h, revision 00010003h, serial -, name \"JST\", hardware
@@ -125,7 +125,7 @@ struct NodeCounters {
 };
 
 struct NetworkTiming {
-  Duration boot_wait = std::chrono::seconds(2);    // boot-up wait after reset communication
+  Duration boot_wait = std::chrono::seconds(2);  // boot-up wait after reset communication
   // The boot-up probe (header, step 1): the first read of 1000h this long after the reset,
   // each awaited boot_probe_timeout (at most the SDO client's own time-out), the next after
   // twice the previous gap, while boot_wait runs, each when no other node is being configured
@@ -233,15 +233,15 @@ class NetworkManager {
     std::string what;
     // For reads: checks the answer; returns an error text, or empty when fine.
     std::function<std::string(const std::vector<std::uint8_t>&)> check;
-    bool driver_read = false;  // a read the driver asked for: aborts go to on_boot_read_abort
+    bool driver_read = false;   // a read the driver asked for: aborts go to on_boot_read_abort
     bool driver_write = false;  // a write of the driver's configuration(): aborts go to instead_of_refused
-    bool optional = false;     // an abort means "not present": on to the next step
+    bool optional = false;      // an abort means "not present": on to the next step
   };
   struct Managed {
     NodeSettings settings;
     std::unique_ptr<Driver> driver;
     NodeState state = NodeState::Idle;
-    std::uint64_t generation = 0;  // bumps on every (re)boot: stale SDO callbacks are ignored
+    std::uint64_t generation = 0;       // bumps on every (re)boot: stale SDO callbacks are ignored
     std::optional<TimePoint> deadline;  // boot-up wait end, or the next retry
     Duration backoff{0};
     bool started_once = false;
@@ -254,14 +254,14 @@ class NetworkManager {
     // boot-up is counted as the reset's answer — and the configuration still starts over, since
     // a reboot during it would look no different on the bus.
     bool boot_up_owed = false;
-    std::optional<TimePoint> probe_at;  // WaitingBootUp: the next boot-up probe
-    Duration probe_gap{0};              // ... and the gap after it
+    std::optional<TimePoint> probe_at;    // WaitingBootUp: the next boot-up probe
+    Duration probe_gap{0};                // ... and the gap after it
     std::optional<TimePoint> held_since;  // Configuring: configured, its NMT start held (step 7)
     std::vector<Step> steps;
     std::size_t next_step = 0;
-    InputCounters reported;  // what on_bad_input has already said
+    InputCounters reported;                            // what on_bad_input has already said
     std::vector<std::pair<CanFrame, TimePoint>> held;  // Starting: last PDO per COB-ID, for go_live
-    NodeDiagnostics diag;  // read at the last boot
+    NodeDiagnostics diag;                              // read at the last boot
     // 1001h as the node answered it (1 byte, CiA 301; 2 bytes, the Novotechnik's UNSIGNED16),
     // handed to the driver as it came.
     std::vector<std::uint8_t> error_register_answer;
@@ -279,8 +279,8 @@ class NetworkManager {
   Managed* find(NodeId node);
   const Managed* find(std::string_view name) const;
   void set_state(Managed& m, NodeState s, const std::string& why, TimePoint now);
-  void begin_boot(Managed& m, TimePoint now);   // reset communication, wait for boot-up
-  void probe(Managed& m);                       // WaitingBootUp: read 1000h (header, step 1)
+  void begin_boot(Managed& m, TimePoint now);  // reset communication, wait for boot-up
+  void probe(Managed& m);                      // WaitingBootUp: read 1000h (header, step 1)
   // A node is being configured. The boot-up probe waits meanwhile: the configuration's SDO
   // frames (600h/580h + node-ID) win arbitration over every boot-up (700h + node-ID), so on a
   // busy bus a boot-up is late, not lost, and a probe answered before it would cost the node a
@@ -295,16 +295,17 @@ class NetworkManager {
   }
   // Identity, boot reads, writes, start; `why` is the Configuring state's reason.
   void configure(Managed& m, TimePoint now, const std::string& why = "boot-up seen: checking identity and configuring");
-  void add_identity_steps(Managed& m);          // 1000h, 1018h:01..04 (checked and kept)
-  void add_diagnostic_steps(Managed& m);        // 1008h, 1009h, 100Ah, 1001h (kept)
+  void add_identity_steps(Managed& m);                             // 1000h, 1018h:01..04 (checked and kept)
+  void add_diagnostic_steps(Managed& m);                           // 1008h, 1009h, 100Ah, 1001h (kept)
   [[nodiscard]] std::string sync_refusal(const Managed& m) const;  // step 6; empty when fine
   void run_step(Managed& m);
   void route(Managed& m);
   void count_frame(const CanFrame& frame);  // NodeCounters::frames of its sender
   void report_bad_input(Managed& m);
-  void report_once(std::uint64_t& seen, std::uint64_t now_count, const std::string& name, const char* what);  // (re)builds the COB-ID routing of a node's TPDOs
-  void finish(Managed& m, TimePoint now);                           // configured: start, or hold the start
-  void start_node(Managed& m, TimePoint now);                       // NMT start: Starting
+  void report_once(std::uint64_t& seen, std::uint64_t now_count, const std::string& name,
+                   const char* what);          // (re)builds the COB-ID routing of a node's TPDOs
+  void finish(Managed& m, TimePoint now);      // configured: start, or hold the start
+  void start_node(Managed& m, TimePoint now);  // NMT start: Starting
   void go_live(Managed& m, const std::string& evidence, TimePoint now);  // proof of life seen
   [[nodiscard]] Duration proof_deadline(const Managed& m) const;
   void fail(Managed& m, NodeState s, const std::string& why, TimePoint now);

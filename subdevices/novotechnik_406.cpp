@@ -28,10 +28,10 @@ constexpr EmcyEntry kTable[] = {
     {0x5000, 2, 0, "Hard", "memory lost", E::PositionError},
     {0x5051, 0, 0, "Info", "valid position", E::ClearPosition},
     {0x5051, 1, 0, "Error", "measurement error, position value 0x7FFFFFFC", E::PositionError},
-    {0x5051, 1, 1, "Error",
-     "position overflow error \"Out of range (+)\", position value 0x7FFFFFF8, reset via 2100h", E::PositionError},
-    {0x5051, 1, 2, "Error",
-     "position underflow error \"Out of range (-)\", position value 0x80000008, reset via 2100h", E::PositionError},
+    {0x5051, 1, 1, "Error", "position overflow error \"Out of range (+)\", position value 0x7FFFFFF8, reset via 2100h",
+     E::PositionError},
+    {0x5051, 1, 2, "Error", "position underflow error \"Out of range (-)\", position value 0x80000008, reset via 2100h",
+     E::PositionError},
     {0x5051, 2, 1, "Warn", "position overflow warning, position value 0x7FFFFFF8", E::PositionWarning},
     {0x5051, 2, 2, "Warn", "position underflow warning, position value 0x80000008", E::PositionWarning},
     {0x6000, 1, 0, "Hard", "device software fault, position value 0x7FFFFFFC", E::PositionError},
@@ -88,10 +88,12 @@ Novotechnik406Driver::Novotechnik406Driver(NodeId node, FrameSink sink, Novotech
   // TPDO1 carries position, speed, CAM and work-area state (configuration()), every
   // event_timer_ms in type 254 (§8.2); in type 255 at least as often; SYNC types (1..240) have no
   // event-timer deadline.
-  set_carriers({Carrier{.cob_id = canopen::cob::kTpdo1 + node.value(), .comm_index = 0x1800,
+  set_carriers({Carrier{.cob_id = canopen::cob::kTpdo1 + node.value(),
+                        .comm_index = 0x1800,
                         .event_timer_ms = options_.event_timer_ms,
                         .transmission_type = options_.transmission_type,
-                        .signals = {kPosition, kSpeed, kCams, kWorkArea}, .length = kTpdo1Length}});
+                        .signals = {kPosition, kSpeed, kCams, kWorkArea},
+                        .length = kTpdo1Length}});
 }
 
 bool Novotechnik406Driver::is_error_position(std::int32_t position) {
@@ -121,8 +123,10 @@ std::vector<SdoWrite> Novotechnik406Driver::configuration() const {
   // §8.2 steps 2..4: position (6020h:01 as the §4.1 default, 6004h where the sensor has no
   // 6020h), speed, and the §8.2 mappable CAM and work-area states.
   w.push_back({0x1A00, 0, le(0, 1), "TPDO1 mapping: clear"});
-  w.push_back(has_6020h_ ? SdoWrite{0x1A00, 1, le(0x60200120u, 4), "TPDO1 mapping 1: position value channel 1 (6020h:01), 32 bit"}
-                         : SdoWrite{0x1A00, 1, le(0x60040020u, 4), "TPDO1 mapping 1: position value (6004h, the sensor refused 6020h), 32 bit"});
+  w.push_back(has_6020h_ ? SdoWrite{0x1A00, 1, le(0x60200120u, 4),
+                                    "TPDO1 mapping 1: position value channel 1 (6020h:01), 32 bit"}
+                         : SdoWrite{0x1A00, 1, le(0x60040020u, 4),
+                                    "TPDO1 mapping 1: position value (6004h, the sensor refused 6020h), 32 bit"});
   w.push_back({0x1A00, 2, le(0x60300110u, 4), "TPDO1 mapping 2: speed value channel 1, 16 bit"});
   w.push_back({0x1A00, 3, le(0x63000108u, 4), "TPDO1 mapping 3: CAM state channel 1, 8 bit"});
   w.push_back({0x1A00, 4, le(0x64000108u, 4), "TPDO1 mapping 4: work area state channel 1, 8 bit"});
@@ -151,7 +155,8 @@ std::vector<SdoWrite> Novotechnik406Driver::configuration() const {
 std::vector<std::uint32_t> Novotechnik406Driver::consumed_cob_ids() const { return {0x180u + node().value()}; }
 
 void Novotechnik406Driver::fault_position(TimePoint now) {
-  for (const std::size_t i : {kPosition, kSpeed, kCams, kWorkArea}) update(i, signals_[i].neutral, SignalStatus::Error, now);
+  for (const std::size_t i : {kPosition, kSpeed, kCams, kWorkArea})
+    update(i, signals_[i].neutral, SignalStatus::Error, now);
 }
 
 bool Novotechnik406Driver::on_frame(const CanFrame& frame, TimePoint now) {
@@ -277,12 +282,14 @@ std::vector<std::pair<std::uint16_t, std::uint8_t>> Novotechnik406Driver::boot_r
   return reads;
 }
 
-std::optional<SdoWrite> Novotechnik406Driver::instead_of_refused(const SdoWrite& write, canopen::SdoAbortCode /*code*/) {
+std::optional<SdoWrite> Novotechnik406Driver::instead_of_refused(const SdoWrite& write,
+                                                                 canopen::SdoAbortCode /*code*/) {
   if (write.index != 0x1A00 || write.sub != 1 || !has_6020h_) return std::nullopt;
   // §4.1's default entry names 6020h:01, which §4.2's object list lacks: a sensor without it maps
   // 6004h "Position value channel 1" (§8.2's mappable objects). Kept for the later boots.
   has_6020h_ = false;
-  return SdoWrite{0x1A00, 1, le(0x60040020u, 4), "TPDO1 mapping 1: position value (6004h, the sensor refused 6020h), 32 bit"};
+  return SdoWrite{0x1A00, 1, le(0x60040020u, 4),
+                  "TPDO1 mapping 1: position value (6004h, the sensor refused 6020h), 32 bit"};
 }
 
 bool Novotechnik406Driver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
@@ -322,15 +329,23 @@ std::vector<SdoWrite> Novotechnik406Driver::command(std::string_view name) const
 const std::vector<OptionSpec>& novotechnik_406_options() {
   using T = OptionSpec::Type;
   static const std::vector<OptionSpec> table = {
-      {.name = "event_timer_ms", .type = T::Integer, .ranges = {{1, 65535}}, .unit = "ms", .default_value = "10",
+      {.name = "event_timer_ms",
+       .type = T::Integer,
+       .ranges = {{1, 65535}},
+       .unit = "ms",
+       .default_value = "10",
        .note = "(0: section 8.2 says TPDO1 is then never sent in type 254)",
        .description = "TPDO1 event timer written at boot (1800h:05); position and speed missing for 3 periods "
                       "are Stale"},
-      {.name = "transmission_type", .type = T::Integer, .ranges = {{1, 240}, {254, 254}, {255, 255}},
+      {.name = "transmission_type",
+       .type = T::Integer,
+       .ranges = {{1, 240}, {254, 254}, {255, 255}},
        .default_value = "254",
        .description = "TPDO1 transmission type written at boot (1800h:02): 254 event timer, 255 measurement "
                       "cycle (1 ms), 1..240 every n-th SYNC (the SYNC period then sets the deadline)"},
-      {.name = "product_code", .type = T::Text, .syntax = "0x0BD5, 0x0BB9, 0x0BBC, 0x0BC5 or 0x0BE0",
+      {.name = "product_code",
+       .type = T::Text,
+       .syntax = "0x0BD5, 0x0BB9, 0x0BBC, 0x0BC5 or 0x0BE0",
        .description = "1018h:02 checked at boot: 0x0BD5 MZ1-2200, 0x0BB9 MC1-2800, 0x0BBC MB1-3600 (section 4.1; "
                       "0x0BC5, 0x0BE0 from the LSS example); unset: only the vendor-ID 0182h is checked"},
       freshness_floor_option("200"),
@@ -341,26 +356,27 @@ const std::vector<OptionSpec>& novotechnik_406_options() {
 std::unique_ptr<Driver> make_novotechnik_406_driver(NodeId node, FrameSink sink, const DriverOptions& options,
                                                     OptionRefusals& refusals) {
   Novotechnik406Options o;
-  const bool ok = parse_options("novotechnik-406", novotechnik_406_options(), options,
-                                [&o](const OptionValue& v, std::string& err) {
-                                  const std::string_view name = v.spec->name;
-                                  if (name == "event_timer_ms") o.event_timer_ms = static_cast<std::uint16_t>(v.number);
-                                  if (name == "transmission_type") o.transmission_type = static_cast<std::uint8_t>(v.number);
-                                  if (name == "product_code") {
-                                    const auto p = parse_option_integer(v.text);
-                                    bool known = false;
-                                    for (const std::uint32_t c : novotechnik::kProductCodes) known = known || (p && *p == c);
-                                    if (!known) {
-                                      err = "novotechnik-406: product_code must be one of " +
-                                            std::string(v.spec->syntax) + " (got '" + v.text + "')";
-                                      return false;
-                                    }
-                                    o.product_code = static_cast<std::uint32_t>(*p);
-                                  }
-                                  if (name == kFreshnessFloorOption) o.freshness_floor_ms = static_cast<std::uint32_t>(v.number);
-                                  return true;
-                                },
-                                refusals);
+  const bool ok = parse_options(
+      "novotechnik-406", novotechnik_406_options(), options,
+      [&o](const OptionValue& v, std::string& err) {
+        const std::string_view name = v.spec->name;
+        if (name == "event_timer_ms") o.event_timer_ms = static_cast<std::uint16_t>(v.number);
+        if (name == "transmission_type") o.transmission_type = static_cast<std::uint8_t>(v.number);
+        if (name == "product_code") {
+          const auto p = parse_option_integer(v.text);
+          bool known = false;
+          for (const std::uint32_t c : novotechnik::kProductCodes) known = known || (p && *p == c);
+          if (!known) {
+            err = "novotechnik-406: product_code must be one of " + std::string(v.spec->syntax) + " (got '" + v.text +
+                  "')";
+            return false;
+          }
+          o.product_code = static_cast<std::uint32_t>(*p);
+        }
+        if (name == kFreshnessFloorOption) o.freshness_floor_ms = static_cast<std::uint32_t>(v.number);
+        return true;
+      },
+      refusals);
   if (!ok) return nullptr;
   if (node.value() < 1 || node.value() > 127) {
     refusals.push_back({"", "novotechnik-406: node-ID must be 1..127"});

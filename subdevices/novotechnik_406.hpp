@@ -89,27 +89,27 @@
 namespace oegw::subdevices {
 
 namespace novotechnik {
-inline constexpr std::uint32_t kVendorId = 0x00000182;     // §4.1 1018h:01
-inline constexpr std::uint32_t kDeviceType = 0x00020196;   // §4.1 1000h: DS406 multi-sensor
-inline constexpr std::int32_t kErrorFault = 0x7FFFFFFC;    // §9.1
+inline constexpr std::uint32_t kVendorId = 0x00000182;      // §4.1 1018h:01
+inline constexpr std::uint32_t kDeviceType = 0x00020196;    // §4.1 1000h: DS406 multi-sensor
+inline constexpr std::int32_t kErrorFault = 0x7FFFFFFC;     // §9.1
 inline constexpr std::int32_t kErrorOverflow = 0x7FFFFFF8;  // §9.1 "Out of range (+)"
 inline constexpr std::int32_t kErrorUnderflow = static_cast<std::int32_t>(0x80000008u);  // "(-)"
 inline constexpr std::uint32_t kProductCodes[] = {0x0BD5, 0x0BB9, 0x0BBC, 0x0BC5, 0x0BE0};
 
 enum class EmcyEffect : std::uint8_t {
-  None,          // text only: warning, info, communication
-  PositionError, // position and speed faulted until the clear code of its cause (or the read-back)
+  None,             // text only: warning, info, communication
+  PositionError,    // position and speed faulted until the clear code of its cause (or the read-back)
   PositionWarning,  // position and speed Error now (the PDO carries the marker), not latched
-  Clear,         // 0000h error reset: every latch ends
-  ClearPosition, // 5051h/0/0 valid position: the position errors (5051h/1/x) end
-  Cams,          // 9080h
-  WorkArea,      // 9090h
+  Clear,            // 0000h error reset: every latch ends
+  ClearPosition,    // 5051h/0/0 valid position: the position errors (5051h/1/x) end
+  Cams,             // 9080h
+  WorkArea,         // 9090h
 };
 struct EmcyEntry {
   std::uint16_t code;
   std::uint8_t error_register;  // byte 2 as the table gives it
   std::uint8_t byte3;
-  const char* level;            // "Hard", "Error", "Warn", "Info", ""
+  const char* level;  // "Hard", "Error", "Warn", "Info", ""
   const char* text;
   EmcyEffect effect;
 };

@@ -10,8 +10,7 @@ std::span<const DriverInfo> drivers() {
   static const DriverInfo table[] = {
       {"elobau-mfg", "elobau MFG 34xG / 36xG multifunction joystick grip (elobau CANopen protocol v01.21)",
        elobau_mfg_options(), "the axes are -110..110 with detent: pass (the default), -100..100 with detent: clamp"},
-      {"mcb402", "MCB-402 joystick base board (CO4013A4): 4 axes, 7 push buttons, 4 LED outputs", mcb402_options(),
-       ""},
+      {"mcb402", "MCB-402 joystick base board (CO4013A4): 4 axes, 7 push buttons, 4 LED outputs", mcb402_options(), ""},
       {"novotechnik-406", "Novotechnik MZ1-2200 / MC1-2800 / MB1-3600 sensor, CiA 406 encoder profile",
        novotechnik_406_options(),
        "an absolute encoder has no \"not operated\" position: position's neutral 0 is the value it reports "
@@ -21,7 +20,8 @@ std::span<const DriverInfo> drivers() {
        cia401_options(),
        "they come from the node's EDS file (option eds): in[k] per 6000h sub-index (Digital 0..255), "
        "in32[k] per 6120h (Digital, 32 lines), analog[k] per 6401h (Analog -32768..32767), out[k] per 6200h "
-       "(Output 0..255), aout[k] per 6411h (Output -32768..32767), the outputs narrowed by the EDS's LowLimit/HighLimit; "
+       "(Output 0..255), aout[k] per 6411h (Output -32768..32767), the outputs narrowed by the EDS's "
+       "LowLimit/HighLimit; "
        "`oegw signals cia401 --eds FILE` lists those of one EDS"},
   };
   return table;
@@ -39,8 +39,8 @@ std::string driver_names() {
   return out;
 }
 
-std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink,
-                                    const DriverOptions& options, OptionRefusals& refusals) {
+std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink, const DriverOptions& options,
+                                    OptionRefusals& refusals) {
   if (family == "elobau-mfg") return make_elobau_mfg_driver(node, std::move(sink), options, refusals);
   if (family == "mcb402") return make_mcb402_driver(node, std::move(sink), options, refusals);
   if (family == "novotechnik-406") return make_novotechnik_406_driver(node, std::move(sink), options, refusals);
@@ -49,8 +49,8 @@ std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameS
   return nullptr;
 }
 
-std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink,
-                                    const DriverOptions& options, std::string& error) {
+std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameSink sink, const DriverOptions& options,
+                                    std::string& error) {
   return with_error_text(error, [&](OptionRefusals& refusals) {
     return make_driver(family, node, std::move(sink), options, refusals);
   });

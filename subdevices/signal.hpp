@@ -39,12 +39,12 @@ enum class SignalKind : std::uint8_t {
 [[nodiscard]] std::string_view to_string(SignalKind k);
 
 struct SignalInfo {
-  std::string name;        // "x", "wheel_a", "buttons[3]", "leds[1]" — unique per driver
+  std::string name;  // "x", "wheel_a", "buttons[3]", "leds[1]" — unique per driver
   SignalKind kind = SignalKind::Analog;
-  std::int64_t min = 0;    // the value range the driver reports (or accepts, for outputs)
+  std::int64_t min = 0;  // the value range the driver reports (or accepts, for outputs)
   std::int64_t max = 0;
   std::int64_t neutral = 0;  // the value meaning "not operated" (fault value by default)
-  std::string unit;        // "percent" (elobau S8), "raw16" (INTEGER16 full scale), "counts", "bits"
+  std::string unit;          // "percent" (elobau S8), "raw16" (INTEGER16 full scale), "counts", "bits"
   [[nodiscard]] bool output() const { return kind == SignalKind::Output; }
 };
 
@@ -58,10 +58,10 @@ struct SignalValue {
 // Counters for bad input: each malformed or unexpected frame is counted, logged once per kind
 // and ignored.
 struct InputCounters {
-  std::uint64_t wrong_length = 0;   // a PDO/EMCY whose DLC does not fit its layout
-  std::uint64_t unknown_cob = 0;    // a frame from this node on a COB-ID the driver does not use
-  std::uint64_t unknown_emcy = 0;   // an EMCY code the driver cannot decode
-  std::uint64_t mismatches = 0;     // redundant channels disagreeing (elobau channel 1/2)
+  std::uint64_t wrong_length = 0;  // a PDO/EMCY whose DLC does not fit its layout
+  std::uint64_t unknown_cob = 0;   // a frame from this node on a COB-ID the driver does not use
+  std::uint64_t unknown_emcy = 0;  // an EMCY code the driver cannot decode
+  std::uint64_t mismatches = 0;    // redundant channels disagreeing (elobau channel 1/2)
 };
 
 }  // namespace oegw::subdevices

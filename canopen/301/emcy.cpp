@@ -35,20 +35,22 @@ EmcyProducer::EmcyProducer(ObjectDictionary& od, FrameSink sink, NodeId node, Em
 
   // CiA 301 §7.5.2.13: only 0 may be written to 1003h:00 (clears the history), 0609 0030h
   // otherwise. The entries themselves are read-only to SDO.
-  subs_ += od_.find(kErrorField)->add_write_hook([](Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin o) {
-    if (o == Origin::Local || sub != 0) return SdoAbortCode::None;
-    return (b.size() == 1 && b[0] == 0) ? SdoAbortCode::None : SdoAbortCode::InvalidValue;
-  });
+  subs_ +=
+      od_.find(kErrorField)->add_write_hook([](Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin o) {
+        if (o == Origin::Local || sub != 0) return SdoAbortCode::None;
+        return (b.size() == 1 && b[0] == 0) ? SdoAbortCode::None : SdoAbortCode::InvalidValue;
+      });
   // CiA 301 §7.5.2.17: bits 0..29 of 1014h may not change while the EMCY is valid (bit 31 = 0).
-  subs_ += od_.find(kCobIdEmcy)->add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin o) {
-    if (o == Origin::Local || b.size() != 4) return SdoAbortCode::None;
-    const CobId cur{od_.get<std::uint32_t>(kCobIdEmcy, 0)};
-    const CobId next{get_u32(b.data())};
-    if (cur.valid() && next.valid() && (cur.raw() & 0x3FFFFFFFu) != (next.raw() & 0x3FFFFFFFu))
-      return SdoAbortCode::InvalidValue;
-    if (!next.well_formed()) return SdoAbortCode::InvalidValue;  // bits 11..28 of an 11-bit COB-ID
-    return SdoAbortCode::None;
-  });
+  subs_ +=
+      od_.find(kCobIdEmcy)->add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin o) {
+        if (o == Origin::Local || b.size() != 4) return SdoAbortCode::None;
+        const CobId cur{od_.get<std::uint32_t>(kCobIdEmcy, 0)};
+        const CobId next{get_u32(b.data())};
+        if (cur.valid() && next.valid() && (cur.raw() & 0x3FFFFFFFu) != (next.raw() & 0x3FFFFFFFu))
+          return SdoAbortCode::InvalidValue;
+        if (!next.well_formed()) return SdoAbortCode::InvalidValue;  // bits 11..28 of an 11-bit COB-ID
+        return SdoAbortCode::None;
+      });
   subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t sub, Origin) {
     if (index != kErrorField || sub != 0 || od_.get<std::uint8_t>(kErrorField, 0) != 0) return;
     Object* obj = od_.find(kErrorField);
@@ -57,9 +59,7 @@ EmcyProducer::EmcyProducer(ObjectDictionary& od, FrameSink sink, NodeId node, Em
   });
 }
 
-Duration EmcyProducer::inhibit() const {
-  return Duration{std::int64_t{od_.get<std::uint16_t>(kInhibitEmcy, 0)} * 100};
-}
+Duration EmcyProducer::inhibit() const { return Duration{std::int64_t{od_.get<std::uint16_t>(kInhibitEmcy, 0)} * 100}; }
 
 bool EmcyProducer::active(std::uint16_t code) const {
   return std::any_of(active_.begin(), active_.end(), [code](const ActiveError& e) { return e.code == code; });
@@ -177,10 +177,11 @@ EmcyConsumer::EmcyConsumer(ObjectDictionary& od, EmcyHandler handler, std::uint8
     }
   }
   // The consumed COB-IDs: an 11-bit one with bits 11..28 set is refused (CobId::well_formed).
-  subs_ += od_.find(kEmcyConsumer)->add_write_hook([](Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin o) {
-    if (o == Origin::Local || sub == 0 || b.size() != 4) return SdoAbortCode::None;
-    return CobId{get_u32(b.data())}.well_formed() ? SdoAbortCode::None : SdoAbortCode::InvalidValue;
-  });
+  subs_ +=
+      od_.find(kEmcyConsumer)->add_write_hook([](Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin o) {
+        if (o == Origin::Local || sub == 0 || b.size() != 4) return SdoAbortCode::None;
+        return CobId{get_u32(b.data())}.well_formed() ? SdoAbortCode::None : SdoAbortCode::InvalidValue;
+      });
   subs_ += od_.add_observer([this](std::uint16_t index, std::uint8_t, Origin) {
     if (index == kEmcyConsumer) rebuild();
   });

@@ -45,10 +45,10 @@ namespace oegw::canopen {
 using EmcyManufacturerField = std::array<std::uint8_t, 5>;
 
 struct EmcyConfig {
-  std::uint8_t history_size = 8;      // 1003h sub-indices 1..n (1..254)
+  std::uint8_t history_size = 8;                       // 1003h sub-indices 1..n (1..254)
   std::optional<std::uint32_t> cob_id = std::nullopt;  // default 80h + node-ID
-  std::uint16_t inhibit_time = 0;     // 100 µs units
-  std::size_t queue_limit = 16;       // EMCYs held back by the inhibit time; more are dropped
+  std::uint16_t inhibit_time = 0;                      // 100 µs units
+  std::size_t queue_limit = 16;                        // EMCYs held back by the inhibit time; more are dropped
 };
 
 class EmcyProducer {
@@ -65,7 +65,9 @@ class EmcyProducer {
   // error). Returns false, and sends nothing, if the code is already active.
   bool raise(std::uint16_t code, std::uint8_t register_bits, const EmcyManufacturerField& msef, TimePoint now,
              std::uint16_t info = 0);
-  bool raise(std::uint16_t code, std::uint8_t register_bits, TimePoint now) { return raise(code, register_bits, {}, now); }
+  bool raise(std::uint16_t code, std::uint8_t register_bits, TimePoint now) {
+    return raise(code, register_bits, {}, now);
+  }
   // An event EMCY: sent once (queued behind the inhibit time like any other), byte 2 = the
   // current 1001h, which it does not change; recorded in 1003h as code | info << 16 unless it is
   // the error reset 0000h. Returns false when it cannot go out: 1014h bit 31 set, or the inhibit

@@ -9,10 +9,10 @@
 // an entry with node-ID 0 or > 127 or time 0 is unused. Monitoring of a node starts at the first
 // heartbeat received from it; a timeout is reported exactly when `now` reaches last + time, once;
 // monitoring resumes with the next heartbeat. A heartbeat received at or after last + time
-// (advance() was not called in time) reports that timeout first, then resumes monitoring. A boot-up (state 00h) is reported with on_boot()
-// and, not being a heartbeat, suspends monitoring until the next heartbeat (the producer's first
-// heartbeat comes one of its periods after its boot-up). Two entries with the same node-ID and a
-// non-zero time are refused with 06040043h (parameter incompatibility).
+// (advance() was not called in time) reports that timeout first, then resumes monitoring. A boot-up (state 00h) is
+// reported with on_boot() and, not being a heartbeat, suspends monitoring until the next heartbeat (the producer's
+// first heartbeat comes one of its periods after its boot-up). Two entries with the same node-ID and a non-zero time
+// are refused with 06040043h (parameter incompatibility).
 //
 // ObjectDictionary::reset_to_defaults() does not notify observers: after a reset, the owner calls
 // reload() on both.
@@ -70,7 +70,7 @@ class HeartbeatProducer {
   bool running_ = false;
   Duration period_{0};
   TimePoint reference_{};  // last heartbeat sent, or the start
-  Subscriptions subs_;  // declared last: unregisters the OD callbacks first on destruction
+  Subscriptions subs_;     // declared last: unregisters the OD callbacks first on destruction
 };
 
 class HeartbeatConsumer {

@@ -33,10 +33,10 @@ class NmtSlave {
   using ResetCallback = std::function<void(bool communication_only)>;
 
   struct Stats {
-    std::uint64_t commands = 0;          // well-formed commands addressed to this node (or to all)
-    std::uint64_t malformed = 0;         // frames on 000h with DLC != 2 (or RTR)
-    std::uint64_t unknown_command = 0;   // DLC 2 but an unknown command specifier
-    std::uint64_t other_node = 0;        // well-formed, addressed to another node
+    std::uint64_t commands = 0;         // well-formed commands addressed to this node (or to all)
+    std::uint64_t malformed = 0;        // frames on 000h with DLC != 2 (or RTR)
+    std::uint64_t unknown_command = 0;  // DLC 2 but an unknown command specifier
+    std::uint64_t other_node = 0;       // well-formed, addressed to another node
   };
 
   NmtSlave(NodeId node_id, FrameSink sink);

@@ -111,8 +111,7 @@ std::string_view to_string(Access a) {
 
 bool readable(Access a) { return a != Access::WriteOnly; }
 bool writable(Access a) {
-  return a == Access::WriteOnly || a == Access::ReadWrite || a == Access::ReadWriteRead ||
-         a == Access::ReadWriteWrite;
+  return a == Access::WriteOnly || a == Access::ReadWrite || a == Access::ReadWriteRead || a == Access::ReadWriteWrite;
 }
 
 std::vector<std::uint8_t> encode_width(std::uint64_t v, std::size_t width) {
@@ -230,8 +229,7 @@ Object& ObjectDictionary::add_var(std::uint16_t index, std::string name, DataTyp
 }
 
 Object& ObjectDictionary::add_array(std::uint16_t index, std::string name, DataType type, Access access,
-                                    std::uint8_t count, std::vector<std::uint8_t> default_value,
-                                    bool pdo_mappable) {
+                                    std::uint8_t count, std::vector<std::uint8_t> default_value, bool pdo_mappable) {
   auto [it, inserted] = objects_.insert_or_assign(index, Object(index, name, ObjectCode::Array));
   (void)inserted;
   SubObject s0;
@@ -268,9 +266,9 @@ Object& ObjectDictionary::add_record(std::uint16_t index, std::string name) {
   return it->second;
 }
 
-SubObject& ObjectDictionary::add_record_member(std::uint16_t index, std::uint8_t sub, std::string name,
-                                               DataType type, Access access,
-                                               std::vector<std::uint8_t> default_value, bool pdo_mappable) {
+SubObject& ObjectDictionary::add_record_member(std::uint16_t index, std::uint8_t sub, std::string name, DataType type,
+                                               Access access, std::vector<std::uint8_t> default_value,
+                                               bool pdo_mappable) {
   Object* obj = find(index);
   if (obj == nullptr) obj = &add_record(index, "Record " + std::to_string(index));
   SubObject s;

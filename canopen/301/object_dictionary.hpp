@@ -163,8 +163,8 @@ class ObjectDictionary {
   // A RECORD with only sub-index 0; add the members with Object::add_sub (sub-index 0 is kept
   // equal to the highest sub-index by add_record_member).
   Object& add_record(std::uint16_t index, std::string name);
-  SubObject& add_record_member(std::uint16_t index, std::uint8_t sub, std::string name, DataType type,
-                               Access access, std::vector<std::uint8_t> default_value, bool pdo_mappable = false);
+  SubObject& add_record_member(std::uint16_t index, std::uint8_t sub, std::string name, DataType type, Access access,
+                               std::vector<std::uint8_t> default_value, bool pdo_mappable = false);
   // Removes an object (used when a profile object is conditional). Returns false if absent.
   bool remove(std::uint16_t index);
 

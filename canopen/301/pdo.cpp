@@ -63,8 +63,8 @@ void install_map(ObjectDictionary& od, bool transmit, std::uint16_t n, const Pdo
   const std::size_t cap = std::min<std::size_t>(64, std::max<std::size_t>(p.mapping_capacity, p.mapping.size()));
   for (std::size_t i = 1; i <= cap; ++i) {
     const std::uint32_t v = i <= p.mapping.size() ? p.mapping[i - 1] : 0;
-    od.add_record_member(idx, static_cast<std::uint8_t>(i), "Mapped object " + std::to_string(i),
-                         DataType::Unsigned32, Access::ReadWrite, encode<std::uint32_t>(v));
+    od.add_record_member(idx, static_cast<std::uint8_t>(i), "Mapped object " + std::to_string(i), DataType::Unsigned32,
+                         Access::ReadWrite, encode<std::uint32_t>(v));
   }
   // Sub-index 0 of a mapping record is the number of mapped objects, not the highest sub-index.
   SubObject* s0 = od.find(idx, 0);
@@ -339,13 +339,11 @@ Rpdo* PdoService::rpdo(std::uint16_t n) {
 
 void PdoService::install_hooks(bool transmit, std::uint16_t n) {
   subs_ += od_.find(comm_index(transmit, n))
-      ->add_write_hook([this, transmit, n](Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin) {
-        return check_comm_write(transmit, n, sub, b);
-      });
+               ->add_write_hook([this, transmit, n](Object&, std::uint8_t sub, std::span<const std::uint8_t> b,
+                                                    Origin) { return check_comm_write(transmit, n, sub, b); });
   subs_ += od_.find(map_index(transmit, n))
-      ->add_write_hook([this, transmit, n](Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin) {
-        return check_map_write(transmit, n, sub, b);
-      });
+               ->add_write_hook([this, transmit, n](Object&, std::uint8_t sub, std::span<const std::uint8_t> b,
+                                                    Origin) { return check_map_write(transmit, n, sub, b); });
 }
 
 SdoAbortCode PdoService::check_comm_write(bool transmit, std::uint16_t n, std::uint8_t sub,
@@ -368,7 +366,7 @@ SdoAbortCode PdoService::check_comm_write(bool transmit, std::uint16_t n, std::u
     case 2: {
       if (b.size() != 1) return SdoAbortCode::None;
       const std::uint8_t t = b[0];
-      if (t >= 241 && t <= 251) return SdoAbortCode::InvalidValue;       // reserved
+      if (t >= 241 && t <= 251) return SdoAbortCode::InvalidValue;                 // reserved
       if (!transmit && (t == 252 || t == 253)) return SdoAbortCode::InvalidValue;  // TPDO only
       return SdoAbortCode::None;
     }
@@ -435,7 +433,8 @@ SdoAbortCode PdoService::check_mapping(bool transmit, std::uint32_t entry, unsig
   // or only the sub-index is missing.
   const SubObject* s = od_.find(index, sub);
   if (s == nullptr) return SdoAbortCode::ObjectDoesNotExist;
-  const SdoAbortCode access = transmit ? od_.check_read(index, sub, Origin::Pdo) : od_.check_write(index, sub, Origin::Pdo);
+  const SdoAbortCode access =
+      transmit ? od_.check_read(index, sub, Origin::Pdo) : od_.check_write(index, sub, Origin::Pdo);
   if (access != SdoAbortCode::None) return SdoAbortCode::CannotBeMapped;
   const std::size_t size = fixed_size(s->type);
   if (size == 0 || size > 8) return SdoAbortCode::CannotBeMapped;
@@ -491,8 +490,8 @@ void PdoService::rebuild_tables() {
 void PdoService::on_od_change(std::uint16_t index, std::uint8_t sub) {
   if (index >= kRpdoComm && index < kTpdoMap + kMaxPdos) {
     const bool transmit = index >= kTpdoComm;
-    const std::uint16_t base = transmit ? (index >= kTpdoMap ? kTpdoMap : kTpdoComm)
-                                        : (index >= kRpdoMap ? kRpdoMap : kRpdoComm);
+    const std::uint16_t base =
+        transmit ? (index >= kTpdoMap ? kTpdoMap : kTpdoComm) : (index >= kRpdoMap ? kRpdoMap : kRpdoComm);
     const auto n = static_cast<std::uint16_t>(index - base + 1);
     if (transmit) {
       if (Tpdo* t = tpdo(n)) {
@@ -544,7 +543,7 @@ bool PdoService::on_frame(const CanFrame& frame, TimePoint now) {
 void PdoService::on_sync(std::uint8_t counter, TimePoint now) {
   if (now > last_now_) last_now_ = now;
   if (!operational_) return;
-  for (auto& r : rpdos_) r->on_sync();  // actuate outputs received before this SYNC
+  for (auto& r : rpdos_) r->on_sync();              // actuate outputs received before this SYNC
   for (auto& t : tpdos_) t->on_sync(counter, now);  // then sample inputs
 }
 

@@ -60,9 +60,9 @@ constexpr std::uint32_t pdo_map(std::uint16_t index, std::uint8_t sub, std::uint
 struct PdoParameters {
   std::uint32_t cob_id = CobId::kInvalidBit;
   std::uint8_t transmission_type = 0xFF;
-  std::uint16_t inhibit_time = 0;  // TPDO, 100 µs units
-  std::uint16_t event_timer = 0;   // ms
-  std::uint8_t sync_start = 0;     // TPDO
+  std::uint16_t inhibit_time = 0;      // TPDO, 100 µs units
+  std::uint16_t event_timer = 0;       // ms
+  std::uint8_t sync_start = 0;         // TPDO
   std::vector<std::uint32_t> mapping;  // sub-index 0 = mapping.size()
   std::uint8_t mapping_capacity = 8;   // mapping entries 1..capacity exist (1..64)
 };

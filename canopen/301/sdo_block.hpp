@@ -21,9 +21,9 @@ inline std::size_t round_up_segments(std::size_t n) {
 class SubBlockReceiver {
  public:
   enum class Outcome : std::uint8_t {
-    Ok,              // stored (or ignored as a repeat/out-of-order segment, to be re-sent)
-    BadSequence,     // sequence number 0 or above the block size: abort 0504 0003h
-    Overflow,        // more data than `capacity` allows: the caller picks the abort code
+    Ok,           // stored (or ignored as a repeat/out-of-order segment, to be re-sent)
+    BadSequence,  // sequence number 0 or above the block size: abort 0504 0003h
+    Overflow,     // more data than `capacity` allows: the caller picks the abort code
   };
   struct Result {
     Outcome outcome = Outcome::Ok;
@@ -126,9 +126,9 @@ class SubBlockSender {
 
  private:
   std::uint8_t blksize_ = 0;
-  std::size_t pos_ = 0;       // first byte not yet acknowledged
-  std::uint8_t sent_ = 0;     // segments in the sub-block just sent
-  bool last_ = false;         // it carried the last segment
+  std::size_t pos_ = 0;    // first byte not yet acknowledged
+  std::uint8_t sent_ = 0;  // segments in the sub-block just sent
+  bool last_ = false;      // it carried the last segment
 };
 
 }  // namespace oegw::canopen::sdo_block

@@ -153,8 +153,7 @@ void SdoClient::start(TimePoint now) {
   if (current_.upload) {
     if (current_.mode == SdoTransfer::Block) {
       state_ = State::BlockUploadInitiate;
-      send({static_cast<std::uint8_t>(0xA0 | (cfg_.crc ? 0x04 : 0x00)), lo, hi, sub, cfg_.block_size, cfg_.pst, 0,
-            0});
+      send({static_cast<std::uint8_t>(0xA0 | (cfg_.crc ? 0x04 : 0x00)), lo, hi, sub, cfg_.block_size, cfg_.pst, 0, 0});
     } else {
       state_ = State::UploadInitiate;
       send({0x40, lo, hi, sub, 0, 0, 0, 0});
@@ -179,7 +178,8 @@ void SdoClient::start(TimePoint now) {
     send(out);
     return;
   }
-  if ((current_.mode == SdoTransfer::Auto || current_.mode == SdoTransfer::ExpeditedUnsized) && size_ >= 1 && size_ <= 4) {
+  if ((current_.mode == SdoTransfer::Auto || current_.mode == SdoTransfer::ExpeditedUnsized) && size_ >= 1 &&
+      size_ <= 4) {
     std::array<std::uint8_t, 8> out{static_cast<std::uint8_t>(0x23 | ((4 - size_) << 2)), lo, hi, sub};
     std::copy(current_.data.begin(), current_.data.end(), out.begin() + 4);
     pos_ = size_;  // all data went with the initiate request
@@ -244,13 +244,11 @@ void SdoClient::handle(const CanFrame& f) {
       if ((cmd & 0xE1) == 0xC0) return on_block_upload_initiate(d);
       if (scs == 2) return on_upload_initiate(d);  // the server switched protocol (pst)
       break;
-    case State::BlockUploadSubBlock:
-      return on_block_upload_segment(d);
+    case State::BlockUploadSubBlock: return on_block_upload_segment(d);
     case State::BlockUploadEnd:
       if ((cmd & 0xE1) == 0xC1) return on_block_upload_end(d);
       break;
-    case State::Idle:
-      return;
+    case State::Idle: return;
   }
   abort(SdoAbortCode::UnknownCommandSpecifier);
 }
@@ -353,8 +351,7 @@ void SdoClient::on_block_upload_initiate(const std::uint8_t* d) {
 
 void SdoClient::on_block_upload_segment(const std::uint8_t* d) {
   const auto r = rx_block_.segment(d, buffer_, size_indicated_ ? size_ : cfg_.max_upload_size);
-  if (r.outcome == sdo_block::SubBlockReceiver::Outcome::BadSequence)
-    return abort(SdoAbortCode::InvalidSequenceNumber);
+  if (r.outcome == sdo_block::SubBlockReceiver::Outcome::BadSequence) return abort(SdoAbortCode::InvalidSequenceNumber);
   if (r.outcome == sdo_block::SubBlockReceiver::Outcome::Overflow)
     return abort(size_indicated_ ? SdoAbortCode::LengthMismatch : SdoAbortCode::OutOfMemory);
   if (!r.ack) return;

@@ -43,9 +43,9 @@ struct SdoClientConfig {
   Duration timeout = std::chrono::seconds(1);
   // Downloads of at least this many bytes use block transfer; 0 = only when a request asks.
   std::size_t block_threshold = 0;
-  std::uint8_t block_size = 127;  // sub-block size asked for in a block upload (1..127)
-  std::uint8_t pst = 0;           // block upload protocol switch threshold (0 = no switch)
-  bool crc = true;                // ask for the block-transfer CRC
+  std::uint8_t block_size = 127;           // sub-block size asked for in a block upload (1..127)
+  std::uint8_t pst = 0;                    // block upload protocol switch threshold (0 = no switch)
+  bool crc = true;                         // ask for the block-transfer CRC
   std::size_t max_upload_size = 1u << 20;  // larger uploads abort with 0x05040005
 
   // The default SDO channel of a server node (CiA 301 §7.3.5).
@@ -191,7 +191,7 @@ class SdoClient {
   std::size_t pos_ = 0;  // segmented download: next byte to send
   bool toggle_ = false;
   bool crc_ = false;
-  bool last_in_block_ = false;  // segmented download: the segment just sent was the last
+  bool last_in_block_ = false;            // segmented download: the segment just sent was the last
   sdo_block::SubBlockReceiver rx_block_;  // block upload: receiving side
   sdo_block::SubBlockSender tx_block_;    // block download: sending side
 

@@ -30,8 +30,8 @@ constexpr std::uint8_t kAbort = 0x80;
 
 bool is_initiate(std::uint8_t cmd) {
   const auto ccs = static_cast<std::uint8_t>(cmd >> 5);
-  return ccs == kCcsInitiateDownload || ccs == kCcsInitiateUpload ||
-         (ccs == kCcsBlockUpload && (cmd & 0x03) == 0) || (ccs == kCcsBlockDownload && (cmd & 0x01) == 0);
+  return ccs == kCcsInitiateDownload || ccs == kCcsInitiateUpload || (ccs == kCcsBlockUpload && (cmd & 0x03) == 0) ||
+         (ccs == kCcsBlockDownload && (cmd & 0x01) == 0);
 }
 
 }  // namespace
@@ -40,8 +40,7 @@ SdoServer::SdoServer(ObjectDictionary& od, FrameSink sink, CobId rx, CobId tx, D
     : od_(od), sink_(std::move(sink)), rx_(rx), tx_(tx), timeout_(timeout) {}
 
 SdoServer::SdoServer(ObjectDictionary& od, FrameSink sink, NodeId node, Duration timeout)
-    : SdoServer(od, std::move(sink), CobId(cob::kSdoRx + node.value()), CobId(cob::kSdoTx + node.value()),
-                timeout) {}
+    : SdoServer(od, std::move(sink), CobId(cob::kSdoRx + node.value()), CobId(cob::kSdoTx + node.value()), timeout) {}
 
 SdoServer::~SdoServer() { cancel_remote(SdoAbortCode::GeneralError); }
 
@@ -192,9 +191,7 @@ void SdoServer::handle(const CanFrame& f) {
     case State::BlockUploadEnd:
       if ((cmd & 0xE3) == 0xA1) return drop();  // transfer complete
       break;
-    case State::Idle:
-      abort(get_u16(d + 1), d[3], SdoAbortCode::UnknownCommandSpecifier);
-      return;
+    case State::Idle: abort(get_u16(d + 1), d[3], SdoAbortCode::UnknownCommandSpecifier); return;
     case State::BlockDownloadSubBlock:
     case State::RemoteWait:  // handled above
       break;
@@ -408,8 +405,9 @@ void SdoServer::respond_block_upload_initiate(BlockUploadRequest request) {
   tx_block_.start(request.blksize);
   size_ = buffer_.size();
   state_ = State::BlockUploadStart;
-  std::array<std::uint8_t, 8> out{0xC6, static_cast<std::uint8_t>(index_), static_cast<std::uint8_t>(index_ >> 8),
-                                  sub_, 0, 0, 0, 0};  // sc = 1, s = 1
+  std::array<std::uint8_t, 8>
+      out{0xC6, static_cast<std::uint8_t>(index_), static_cast<std::uint8_t>(index_ >> 8), sub_, 0, 0, 0,
+          0};  // sc = 1, s = 1
   put_u32(out.data() + 4, static_cast<std::uint32_t>(size_));
   send(out);
 }
@@ -433,8 +431,8 @@ void SdoServer::block_upload_ack(const std::uint8_t* d) {
 
 void SdoServer::abort(std::uint16_t index, std::uint8_t sub, SdoAbortCode code) {
   drop();
-  std::array<std::uint8_t, 8> out{kAbort, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8),
-                                  sub, 0, 0, 0, 0};
+  std::array<std::uint8_t, 8>
+      out{kAbort, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8), sub, 0, 0, 0, 0};
   put_u32(out.data() + 4, static_cast<std::uint32_t>(code));
   send(out);
 }
@@ -513,8 +511,8 @@ void SdoServer::on_remote_done(std::uint32_t generation, SdoAbortCode code, std:
         break;
       case RemoteStep::ExpeditedDownload:
         drop();
-        send({remote_response_, static_cast<std::uint8_t>(index_), static_cast<std::uint8_t>(index_ >> 8), sub_, 0,
-              0, 0, 0});
+        send({remote_response_, static_cast<std::uint8_t>(index_), static_cast<std::uint8_t>(index_ >> 8), sub_, 0, 0,
+              0, 0});
         break;
       case RemoteStep::LastSegment:
       case RemoteStep::BlockDownloadEnd:

@@ -220,11 +220,11 @@ class SdoServer {
   std::uint8_t sub_ = 0;
   std::vector<std::uint8_t> buffer_;
   bool size_indicated_ = false;
-  std::size_t size_ = 0;       // announced size (download) or value size (upload)
-  std::size_t capacity_ = 0;   // most bytes the download may carry
-  std::size_t pos_ = 0;        // segmented upload: next byte to send
+  std::size_t size_ = 0;      // announced size (download) or value size (upload)
+  std::size_t capacity_ = 0;  // most bytes the download may carry
+  std::size_t pos_ = 0;       // segmented upload: next byte to send
   bool toggle_ = false;
-  bool crc_ = false;           // block transfer: both sides use the CRC
+  bool crc_ = false;                      // block transfer: both sides use the CRC
   sdo_block::SubBlockReceiver rx_block_;  // block download: receiving side
   sdo_block::SubBlockSender tx_block_;    // block upload: sending side
 
@@ -233,18 +233,18 @@ class SdoServer {
 
   // Remote mode.
   SdoRemote* remote_ = nullptr;
-  std::optional<SdoTarget> bound_;     // bind()
-  std::optional<Redirect> selected_;   // the last accepted network indication naming a node
-  bool routed_ = false;                // the transfer in progress goes to the remote
+  std::optional<SdoTarget> bound_;    // bind()
+  std::optional<Redirect> selected_;  // the last accepted network indication naming a node
+  bool routed_ = false;               // the transfer in progress goes to the remote
   RemoteStep step_ = RemoteStep::Upload;
   BlockUploadRequest block_upload_;
-  std::uint8_t remote_response_ = 0;   // command byte of the answer a download's done sends
-  SdoRemote::Ticket ticket_ = 0;       // the pending remote transfer
+  std::uint8_t remote_response_ = 0;  // command byte of the answer a download's done sends
+  SdoRemote::Ticket ticket_ = 0;      // the pending remote transfer
   // Tells a done of the pending transfer from one of a transfer cancelled or replaced.
   std::uint32_t remote_generation_ = 0;
-  bool handling_ = false;              // inside on_frame(): it flushes and sets the deadline
-  bool arm_deadline_ = false;          // the remote answered: advance() starts the time-out
-  TimePoint now_{};                    // the last time given
+  bool handling_ = false;      // inside on_frame(): it flushes and sets the deadline
+  bool arm_deadline_ = false;  // the remote answered: advance() starts the time-out
+  TimePoint now_{};            // the last time given
 };
 
 }  // namespace oegw::canopen

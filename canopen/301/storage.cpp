@@ -303,7 +303,7 @@ SdoAbortCode ParameterStore::save(Group group) {
   const Stored stored = read_file();
   if (const SdoAbortCode refused = refuse_on(stored, group, "save"); refused != SdoAbortCode::None) return refused;
   Entries entries = stored.entries.value_or(Entries{});  // sub 1 over a refused file replaces it
-  const auto [first, last] = range(group);  // plain copies below: clang 14 cannot capture bindings
+  const auto [first, last] = range(group);               // plain copies below: clang 14 cannot capture bindings
   const std::uint16_t lo = first, hi = last;
   std::erase_if(entries, [lo, hi](const auto& e) { return e.first.first >= lo && e.first.first <= hi; });
   for (const auto& [index, obj] : od_.objects()) {

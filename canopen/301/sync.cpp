@@ -2,8 +2,7 @@
 
 namespace oegw::canopen {
 
-SyncService::SyncService(ObjectDictionary& od, FrameSink sink, SyncConfig config)
-    : od_(od), sink_(std::move(sink)) {
+SyncService::SyncService(ObjectDictionary& od, FrameSink sink, SyncConfig config) : od_(od), sink_(std::move(sink)) {
   if (od_.find(0x1005) == nullptr)
     od_.add_var(0x1005, "COB-ID SYNC", DataType::Unsigned32, Access::ReadWrite, encode<std::uint32_t>(config.cob_id));
   if (od_.find(0x1006) == nullptr)

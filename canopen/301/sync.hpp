@@ -76,7 +76,7 @@ class SyncService {
   std::optional<TimePoint> last_sync_;
   TimePoint last_now_{};
   std::uint8_t counter_ = 0;  // last counter sent by the producer
-  Subscriptions subs_;  // declared last: unregisters the OD callbacks first on destruction
+  Subscriptions subs_;        // declared last: unregisters the OD callbacks first on destruction
 };
 
 }  // namespace oegw::canopen

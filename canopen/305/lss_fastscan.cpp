@@ -13,8 +13,7 @@ void LssFastscan::start(TimePoint now, Callback done, std::optional<Duration> st
   known_ = known;
   const std::uint32_t parts[4] = {known.value.vendor, known.value.product, known.value.revision, known.value.serial};
   for (std::size_t i = 0; i < 4; ++i) value_[i] = parts[i] & known.mask[i];
-  master_.fastscan(0, lss::cs::kFastscanReset, 0, 0, now,
-                   guard([this](const LssMaster::Result& reset) {
+  master_.fastscan(0, lss::cs::kFastscanReset, 0, 0, now, guard([this](const LssMaster::Result& reset) {
                      if (reset.status != Status::Ok) {
                        finish({Outcome::NoAnswer, std::nullopt,
                                "no answer to LSS fastscan (CiA 305 §8.4.4): no node without node-ID, or it does not "
@@ -39,35 +38,33 @@ void LssFastscan::step(TimePoint now) {
     return;
   }
   const auto next = static_cast<std::uint8_t>(sub_ < 3 ? sub_ + 1 : 0);
-  master_.fastscan(value_[sub_], 0, sub_, next, now, guard([this](const LssMaster::Result& r) {
-                     if (r.status != Status::Ok) {
-                       if ((known_.mask[sub_] & 1u) != 0) {  // bit 0 known: not tried the other way
-                         static const char* const part[4] = {"vendor-ID", "product code", "revision number",
-                                                             "serial number"};
-                         finish({Outcome::Lost, std::nullopt,
-                                 std::string("LSS fastscan: no node without node-ID has the known bits of the ") +
-                                     part[sub_]});
-                         return;
-                       }
-                       if (retry_) {
-                         finish({Outcome::Lost, std::nullopt,
-                                 "LSS fastscan lost the node (no answer for either value of bit 0)"});
-                         return;
-                       }
-                       retry_ = true;
-                       value_[sub_] |= 1u;
-                       step(master_.now());
-                       return;
-                     }
-                     retry_ = false;
-                     if (++sub_ < 4) {
-                       bit_ = 31;
-                       step(master_.now());
-                       return;
-                     }
-                     finish({Outcome::Found, lss::Address{value_[0], value_[1], value_[2], value_[3]}, {}});
-                   }),
-                   timeout_);
+  master_.fastscan(
+      value_[sub_], 0, sub_, next, now, guard([this](const LssMaster::Result& r) {
+        if (r.status != Status::Ok) {
+          if ((known_.mask[sub_] & 1u) != 0) {  // bit 0 known: not tried the other way
+            static const char* const part[4] = {"vendor-ID", "product code", "revision number", "serial number"};
+            finish({Outcome::Lost, std::nullopt,
+                    std::string("LSS fastscan: no node without node-ID has the known bits of the ") + part[sub_]});
+            return;
+          }
+          if (retry_) {
+            finish({Outcome::Lost, std::nullopt, "LSS fastscan lost the node (no answer for either value of bit 0)"});
+            return;
+          }
+          retry_ = true;
+          value_[sub_] |= 1u;
+          step(master_.now());
+          return;
+        }
+        retry_ = false;
+        if (++sub_ < 4) {
+          bit_ = 31;
+          step(master_.now());
+          return;
+        }
+        finish({Outcome::Found, lss::Address{value_[0], value_[1], value_[2], value_[3]}, {}});
+      }),
+      timeout_);
 }
 
 }  // namespace oegw::canopen

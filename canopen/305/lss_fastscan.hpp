@@ -5,11 +5,10 @@
 // leaves it selected for `lss_set_node`, as CANopenNode's and lely's gateways do).
 //
 // The steps: a reset step (BitChecked 80h) that every slave without node-ID answers; then, for
-// each part of the address (vendor, product, revision, serial), bits 31..1 not known in advance (Known) are decided by asking
-// whether any node has the bit 0 (silence: it is 1), and bit 0 is confirmed with LSSNext set to
-// the next part, which moves only the nodes that match the whole part on (a silent confirmation
-// is tried once more with bit 0 set). At most 1 + 4 × 32 + 4 steps, each lasting the step
-// time-out.
+// each part of the address (vendor, product, revision, serial), bits 31..1 not known in advance (Known) are decided by
+// asking whether any node has the bit 0 (silence: it is 1), and bit 0 is confirmed with LSSNext set to the next part,
+// which moves only the nodes that match the whole part on (a silent confirmation is tried once more with bit 0 set). At
+// most 1 + 4 × 32 + 4 steps, each lasting the step time-out.
 #pragma once
 
 #include <array>

@@ -48,7 +48,10 @@ void LssMaster::switch_state_global(lss::Mode mode, TimePoint now, Callback cb) 
 void LssMaster::switch_state_selective(const lss::Address& a, TimePoint now, Callback cb) {
   enqueue({{frame(kSwitchSelectiveVendor, a.vendor), frame(kSwitchSelectiveProduct, a.product),
             frame(kSwitchSelectiveRevision, a.revision), frame(kSwitchSelectiveSerial, a.serial)},
-           kSwitchSelectiveResponse, false, false, std::move(cb)},
+           kSwitchSelectiveResponse,
+           false,
+           false,
+           std::move(cb)},
           now);
 }
 

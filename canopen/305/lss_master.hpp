@@ -58,8 +58,8 @@ class LssMaster {
   // any answer came, NoAnswer if none: a late second answer must not be taken for the next
   // step's. `bit_checked` 0..31, or lss::cs::kFastscanReset.
   // `timeout`: this step's own (default: the master's).
-  void fastscan(std::uint32_t id_number, std::uint8_t bit_checked, std::uint8_t sub, std::uint8_t next,
-                TimePoint now, Callback cb = {}, std::optional<Duration> timeout = std::nullopt);
+  void fastscan(std::uint32_t id_number, std::uint8_t bit_checked, std::uint8_t sub, std::uint8_t next, TimePoint now,
+                Callback cb = {}, std::optional<Duration> timeout = std::nullopt);
 
   // True for a frame on 7E4h (answers that match no pending request are dropped).
   bool on_frame(const CanFrame& frame, TimePoint now);
@@ -80,8 +80,8 @@ class LssMaster {
     bool has_error_code = false;
     bool silence_is_answer = false;
     Callback cb;
-    bool whole_window = false;  // fastscan: collect answers until the timeout
-    bool answered = false;      // whole_window: an answer came
+    bool whole_window = false;        // fastscan: collect answers until the timeout
+    bool answered = false;            // whole_window: an answer came
     std::optional<Duration> timeout;  // this request's own (fastscan)
   };
   static CanFrame frame(std::uint8_t cs, std::uint32_t value = 0);

@@ -6,8 +6,12 @@ using namespace lss::cs;
 
 LssSlave::LssSlave(lss::Address address, NodeId active_node_id, std::uint8_t bit_timing_index, FrameSink sink,
                    Callbacks callbacks, lss::BitTimings supported_bit_timings)
-    : address_(address), active_node_id_(active_node_id), pending_node_id_(active_node_id),
-      pending_bit_timing_(bit_timing_index), sink_(std::move(sink)), cb_(std::move(callbacks)),
+    : address_(address),
+      active_node_id_(active_node_id),
+      pending_node_id_(active_node_id),
+      pending_bit_timing_(bit_timing_index),
+      sink_(std::move(sink)),
+      cb_(std::move(callbacks)),
       supported_bit_timings_(supported_bit_timings) {}
 
 void LssSlave::reply(std::uint8_t cs, std::uint8_t b1, std::uint8_t b2) {

@@ -9,16 +9,17 @@ void LssSlowscan::start(const lss::AddressRange& range, TimePoint now, Callback 
   begin(std::move(done), "a new slowscan started");
   timeout_ = step_timeout.value_or(master_.timeout());
   range_ = range;
-  master_.identify_remote_slave(
-      range_, now, guard([this](const LssMaster::Result& r) {
-        if (r.status != Status::Ok) {
-          finish({Outcome::NoAnswer, std::nullopt,
-                  "no LSS slave in the range answered identify remote slave (CiA 305 §8.4.3.6)"});
-          return;
-        }
-        step(master_.now());
-      }),
-      timeout_);
+  master_
+      .identify_remote_slave(range_, now, guard([this](const LssMaster::Result& r) {
+                               if (r.status != Status::Ok) {
+                                 finish(
+                                     {Outcome::NoAnswer, std::nullopt,
+                                      "no LSS slave in the range answered identify remote slave (CiA 305 §8.4.3.6)"});
+                                 return;
+                               }
+                               step(master_.now());
+                             }),
+                             timeout_);
 }
 
 void LssSlowscan::step(TimePoint now) {

@@ -35,8 +35,8 @@ std::optional<LssStored> read_lss_store(const std::filesystem::path& store) {
 
 bool write_lss_store(const std::filesystem::path& store, const LssStored& stored, std::string& error) {
   std::ostringstream out;
-  out << "node_id=" << static_cast<int>(stored.node_id.value()) << "\nbit_timing=" << static_cast<int>(stored.bit_timing)
-      << "\n";
+  out << "node_id=" << static_cast<int>(stored.node_id.value())
+      << "\nbit_timing=" << static_cast<int>(stored.bit_timing) << "\n";
   return write_file_atomically(lss_store_path(store), out.str(), error);
 }
 

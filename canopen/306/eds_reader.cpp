@@ -111,13 +111,31 @@ bool parse_value_number(const std::string& text, Value& v) {
 
 bool is_known_type(std::uint64_t t) {
   switch (static_cast<DataType>(t)) {
-    case DataType::Boolean: case DataType::Integer8: case DataType::Integer16: case DataType::Integer32:
-    case DataType::Unsigned8: case DataType::Unsigned16: case DataType::Unsigned32: case DataType::Real32:
-    case DataType::VisibleString: case DataType::OctetString: case DataType::UnicodeString:
-    case DataType::TimeOfDay: case DataType::TimeDifference: case DataType::Domain: case DataType::Integer24:
-    case DataType::Real64: case DataType::Integer40: case DataType::Integer48: case DataType::Integer56:
-    case DataType::Integer64: case DataType::Unsigned24: case DataType::Unsigned40: case DataType::Unsigned48:
-    case DataType::Unsigned56: case DataType::Unsigned64: return t <= 0xFFFF;
+    case DataType::Boolean:
+    case DataType::Integer8:
+    case DataType::Integer16:
+    case DataType::Integer32:
+    case DataType::Unsigned8:
+    case DataType::Unsigned16:
+    case DataType::Unsigned32:
+    case DataType::Real32:
+    case DataType::VisibleString:
+    case DataType::OctetString:
+    case DataType::UnicodeString:
+    case DataType::TimeOfDay:
+    case DataType::TimeDifference:
+    case DataType::Domain:
+    case DataType::Integer24:
+    case DataType::Real64:
+    case DataType::Integer40:
+    case DataType::Integer48:
+    case DataType::Integer56:
+    case DataType::Integer64:
+    case DataType::Unsigned24:
+    case DataType::Unsigned40:
+    case DataType::Unsigned48:
+    case DataType::Unsigned56:
+    case DataType::Unsigned64: return t <= 0xFFFF;
   }
   return false;
 }
@@ -309,8 +327,8 @@ bool Parser::read_value(const Section& s, const Key& k, DataType type, std::opti
   if (canopen::is_real(type)) {
     double d = 0;
     if (!parse_real(k.value, d))
-      return fail(k.line, where + "expected a real number for " + std::string(to_string(type)) + ", got " +
-                              quote(k.value));
+      return fail(k.line,
+                  where + "expected a real number for " + std::string(to_string(type)) + ", got " + quote(k.value));
     out = Value{k.value, false, 0, false};
     return true;
   }
@@ -326,8 +344,8 @@ bool Parser::read_value(const Section& s, const Key& k, DataType type, std::opti
       (v.number >> (width * 8 - 1)) != 0)
     v.number |= ~std::uint64_t{0} << (width * 8);
   if (!fits(type, v.number))
-    return fail(k.line, where + "expected a value that fits " + std::string(to_string(type)) + ", got " +
-                            quote(k.value));
+    return fail(k.line,
+                where + "expected a value that fits " + std::string(to_string(type)) + ", got " + quote(k.value));
   out = v;
   return true;
 }
@@ -349,13 +367,14 @@ bool Parser::read_entry(const Section& s, SubEntry& e, bool var_in_object, bool 
   std::uint64_t t = static_cast<std::uint64_t>(DataType::Domain);
   if (dt == nullptr && !domain) return fail(s.line, where + "expected DataType=");
   if (dt != nullptr && (!parse_integer(dt->value, t) || !is_known_type(t)))
-    return fail(dt->line, where + "DataType: expected a CiA 301 data type number such as 0x0007, got " +
-                              quote(dt->value));
+    return fail(dt->line,
+                where + "DataType: expected a CiA 301 data type number such as 0x0007, got " + quote(dt->value));
   e.type = static_cast<DataType>(t);
   const Key* at = s.get("AccessType");
   if (at == nullptr) return fail(s.line, where + "expected AccessType=");
   auto acc = parse_access(at->value);
-  if (!acc) return fail(at->line, where + "AccessType: expected ro, wo, rw, rwr, rww or const, got " + quote(at->value));
+  if (!acc)
+    return fail(at->line, where + "AccessType: expected ro, wo, rw, rwr, rww or const, got " + quote(at->value));
   e.access = *acc;
   if (const Key* pm = s.get("PDOMapping"); pm != nullptr) {
     std::uint64_t v = 0;
@@ -383,8 +402,8 @@ bool Parser::read_entry(const Section& s, SubEntry& e, bool var_in_object, bool 
       return sgn ? static_cast<std::int64_t>(v) > static_cast<std::int64_t>(h.number) : v > h.number;
     };
     if ((e.low && !e.low->node_relative && below(*e.low)) || (e.high && !e.high->node_relative && above(*e.high)))
-      warn(s.get("DefaultValue")->line, where + "DefaultValue " + quote(e.default_value->text) +
-                                            " is outside LowLimit..HighLimit: kept as written");
+      warn(s.get("DefaultValue")->line,
+           where + "DefaultValue " + quote(e.default_value->text) + " is outside LowLimit..HighLimit: kept as written");
   }
   return true;
 }
@@ -405,8 +424,10 @@ bool Parser::read_object(File& file, std::uint16_t index, const std::string& lis
   std::uint64_t ot = 7;
   if (const Key* k = s.get("ObjectType"); k != nullptr) {
     if (!parse_integer(k->value, ot) || (ot != 2 && ot != 5 && ot != 6 && ot != 7 && ot != 8 && ot != 9))
-      return fail(k->line, where + "ObjectType: expected 0x7 (VAR), 0x8 (ARRAY), 0x9 (RECORD), 0x2 (DOMAIN), "
-                                   "0x5 (DEFTYPE) or 0x6 (DEFSTRUCT), got " + quote(k->value));
+      return fail(k->line, where +
+                               "ObjectType: expected 0x7 (VAR), 0x8 (ARRAY), 0x9 (RECORD), 0x2 (DOMAIN), "
+                               "0x5 (DEFTYPE) or 0x6 (DEFSTRUCT), got " +
+                               quote(k->value));
   }
   // CiA 306 Table 2: a DOMAIN or a DEFTYPE is held as a VAR, a DEFSTRUCT as a RECORD.
   if (ot == 2 || ot == 5 || ot == 6) o.object_type = static_cast<std::uint8_t>(ot);
@@ -478,7 +499,8 @@ bool Parser::read_compact(const Section& s, ObjectEntry& o, std::uint64_t count)
     if (names != nullptr)
       if (const Key* n = names->get(std::to_string(k)); n != nullptr && !n->value.empty()) e.name = n->value;
     if (values != nullptr)
-      if (const Key* v = values->get(std::to_string(k)); v != nullptr && !read_value(*values, *v, e.type, e.default_value, false))
+      if (const Key* v = values->get(std::to_string(k));
+          v != nullptr && !read_value(*values, *v, e.type, e.default_value, false))
         return false;
     o.subs.emplace(e.sub, std::move(e));
   }
@@ -506,8 +528,8 @@ bool Parser::read_lists(File& file) {
     for (std::uint64_t i = 1; i <= n; ++i) {
       const Key* k = s->get(std::to_string(i));
       if (k == nullptr)
-        return fail(so->line, where + "expected an entry " + std::to_string(i) + "=<index> (SupportedObjects=" +
-                                  std::to_string(n) + ")");
+        return fail(so->line, where + "expected an entry " + std::to_string(i) +
+                                  "=<index> (SupportedObjects=" + std::to_string(n) + ")");
       std::uint64_t index = 0;
       if (!parse_integer(k->value, index) || index == 0 || index > 0xFFFF)
         return fail(k->line, where + "expected an object index such as 0x1000, got " + quote(k->value));
@@ -692,7 +714,8 @@ std::optional<canopen::PdoParameters> pdo_defaults(const File& file, bool transm
   p.sync_start = static_cast<std::uint8_t>(file.default_number(ci, 6, node).value_or(0));
   const auto count = std::min<std::uint64_t>(file.default_number(mi, 0, node).value_or(0), 64);
   for (std::uint64_t i = 1; i <= count; ++i)
-    p.mapping.push_back(static_cast<std::uint32_t>(file.default_number(mi, static_cast<std::uint8_t>(i), node).value_or(0)));
+    p.mapping.push_back(
+        static_cast<std::uint32_t>(file.default_number(mi, static_cast<std::uint8_t>(i), node).value_or(0)));
   std::uint8_t highest = 0;
   for (const auto& [si, e] : map->subs) highest = std::max(highest, si);
   p.mapping_capacity = static_cast<std::uint8_t>(std::clamp<std::size_t>(std::max<std::size_t>(highest, count), 1, 64));

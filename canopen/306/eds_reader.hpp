@@ -67,10 +67,10 @@ struct Line {
 
 // A value as written, possibly node-relative: value + (node_relative ? node-ID : 0).
 struct Value {
-  std::string text;              // as written after trimming ("$NODEID+0x180", "0x10", "abc")
-  bool node_relative = false;    // $NODEID appears
-  std::uint64_t number = 0;      // the numeric part (two's complement for negative integers)
-  bool numeric = false;          // false for strings and empty values
+  std::string text;            // as written after trimming ("$NODEID+0x180", "0x10", "abc")
+  bool node_relative = false;  // $NODEID appears
+  std::uint64_t number = 0;    // the numeric part (two's complement for negative integers)
+  bool numeric = false;        // false for strings and empty values
   friend bool operator==(const Value& a, const Value& b) {
     return a.node_relative == b.node_relative && a.numeric == b.numeric &&
            (a.numeric ? a.number == b.number : a.text == b.text);
@@ -79,7 +79,7 @@ struct Value {
 
 struct SubEntry {
   std::uint8_t sub = 0;
-  std::string name;                 // ParameterName
+  std::string name;  // ParameterName
   canopen::DataType type = canopen::DataType::Unsigned8;
   canopen::Access access = canopen::Access::ReadOnly;
   std::optional<Value> default_value;
@@ -92,12 +92,12 @@ struct SubEntry {
 
 struct ObjectEntry {
   std::uint16_t index = 0;
-  std::string name;                         // ParameterName
+  std::string name;  // ParameterName
   canopen::ObjectCode code = canopen::ObjectCode::Var;
-  std::uint8_t sub_number = 0;              // SubNumber (ARRAY/RECORD), 0 for a VAR
-  std::map<std::uint8_t, SubEntry> subs;    // a VAR has exactly sub 0, with its own fields
-  std::string list;                         // "MandatoryObjects", "OptionalObjects", ...
-  std::uint8_t object_type = 0;             // ObjectType as written when not 7/8/9 (2, 5, 6); else 0
+  std::uint8_t sub_number = 0;            // SubNumber (ARRAY/RECORD), 0 for a VAR
+  std::map<std::uint8_t, SubEntry> subs;  // a VAR has exactly sub 0, with its own fields
+  std::string list;                       // "MandatoryObjects", "OptionalObjects", ...
+  std::uint8_t object_type = 0;           // ObjectType as written when not 7/8/9 (2, 5, 6); else 0
   Line line;
   friend bool operator==(const ObjectEntry&, const ObjectEntry&) = default;
   [[nodiscard]] const SubEntry* find(std::uint8_t sub) const {
@@ -107,10 +107,10 @@ struct ObjectEntry {
 };
 
 struct File {
-  std::string path;                                   // for messages
-  std::map<std::string, std::string> device_info;     // [DeviceInfo], keys as written
+  std::string path;                                // for messages
+  std::map<std::string, std::string> device_info;  // [DeviceInfo], keys as written
   std::map<std::uint16_t, ObjectEntry> objects;
-  std::vector<std::string> warnings;                  // "file:line: warning: ..." (not compared)
+  std::vector<std::string> warnings;  // "file:line: warning: ..." (not compared)
   friend bool operator==(const File& a, const File& b) {
     return a.device_info == b.device_info && a.objects == b.objects;
   }

@@ -32,8 +32,17 @@ bool node_relative_cob(std::uint16_t index, std::uint8_t sub) {
 // CiA 301 §7.3.3 Table 37: function codes of the pre-defined connection set.
 bool function_code(std::uint32_t base) {
   switch (base) {
-    case 0x080: case 0x180: case 0x200: case 0x280: case 0x300: case 0x380: case 0x400:
-    case 0x480: case 0x500: case 0x580: case 0x600: return true;
+    case 0x080:
+    case 0x180:
+    case 0x200:
+    case 0x280:
+    case 0x300:
+    case 0x380:
+    case 0x400:
+    case 0x480:
+    case 0x500:
+    case 0x580:
+    case 0x600: return true;
     default: return false;
   }
 }
@@ -119,9 +128,8 @@ std::string eds_text(const canopen::ObjectDictionary& od, const EdsInfo& info) {
     << "\nProductName=" << info.product_name << "\nProductNumber=" << hex(info.product, 8)
     << "\nRevisionNumber=" << hex(info.revision, 8) << "\nOrderCode=" << info.order_code
     << "\nBaudRate_10=" << info.baud_10 << "\nBaudRate_20=" << info.baud_20 << "\nBaudRate_50=" << info.baud_50
-    << "\nBaudRate_125=" << info.baud_125 << "\nBaudRate_250=" << info.baud_250
-    << "\nBaudRate_500=" << info.baud_500 << "\nBaudRate_800=" << info.baud_800
-    << "\nBaudRate_1000=" << info.baud_1000
+    << "\nBaudRate_125=" << info.baud_125 << "\nBaudRate_250=" << info.baud_250 << "\nBaudRate_500=" << info.baud_500
+    << "\nBaudRate_800=" << info.baud_800 << "\nBaudRate_1000=" << info.baud_1000
     << "\nSimpleBootUpMaster=0\nSimpleBootUpSlave=1\nGranularity=8\nDynamicChannelsSupported=0"
     << "\nGroupMessaging=0\nNrOfRXPDO=" << rx << "\nNrOfTXPDO=" << tx
     << "\nLSS_Supported=" << (info.lss_supported ? 1 : 0) << "\n\n";

@@ -47,7 +47,9 @@ std::string lower(std::string_view s) {
   return out;
 }
 
-bool is_signed(DataType t) { return t == DataType::I8 || t == DataType::I16 || t == DataType::I32 || t == DataType::I64; }
+bool is_signed(DataType t) {
+  return t == DataType::I8 || t == DataType::I16 || t == DataType::I32 || t == DataType::I64;
+}
 bool is_unsigned(DataType t) {
   return t == DataType::B || t == DataType::U8 || t == DataType::U16 || t == DataType::U32 || t == DataType::U64;
 }
@@ -296,14 +298,17 @@ Parsed error(GatewayError e, std::string message, std::optional<std::uint32_t> s
   return p;
 }
 
-
 // One command line after its sequence and [[net] node] numbers: a handler per command word, each
 // filling in the request (CiA 309-3 command forms, see the header) or answering what was wrong.
 class LineParser {
  public:
   LineParser(const Defaults& defaults, std::optional<std::uint32_t> seq, std::vector<std::uint64_t> prefix,
              const Token& command, std::vector<Token> args)
-      : defaults_(defaults), seq_(seq), prefix_(std::move(prefix)), cmd_(lower(command.text)), as_written_(command.text),
+      : defaults_(defaults),
+        seq_(seq),
+        prefix_(std::move(prefix)),
+        cmd_(lower(command.text)),
+        as_written_(command.text),
         args_(std::move(args)) {
     p_.kind = Parsed::Kind::Ok;
     p_.request.sequence = seq;
@@ -360,56 +365,60 @@ class LineParser {
   Parsed p_;
 };
 
-const LineParser::CommandRow LineParser::kCommands[] = {
-    {"r", &LineParser::read},      {"read", &LineParser::read},  {"w", &LineParser::write},
-    {"write", &LineParser::write}, {"start", &LineParser::nmt},  {"stop", &LineParser::nmt},
-    {"preop", &LineParser::nmt},   {"preoperational", &LineParser::nmt}, {"reset", &LineParser::nmt},
-    {"set", &LineParser::set},     {"info", &LineParser::info}};
+const LineParser::CommandRow LineParser::kCommands[] =
+    {{"r", &LineParser::read},      {"read", &LineParser::read},          {"w", &LineParser::write},
+     {"write", &LineParser::write}, {"start", &LineParser::nmt},          {"stop", &LineParser::nmt},
+     {"preop", &LineParser::nmt},   {"preoperational", &LineParser::nmt}, {"reset", &LineParser::nmt},
+     {"set", &LineParser::set},     {"info", &LineParser::info}};
 
 // CiA 309-3 LSS commands: `[net] lss_...`, the network only (CANopenNode's and lely's syntax).
-const LineParser::LssRow LineParser::kLss[] = {
-    {"lss_switch_glob", Command::LssSwitchGlobal, "lss_switch_glob 0|1 (0 waiting, 1 configuration)",
-     &LineParser::lss_switch_global},
-    {"lss_switch_sel", Command::LssSwitchSelective, "lss_switch_sel <vendor-ID> <product code> <revision> <serial>",
-     &LineParser::lss_switch_selective},
-    {"lss_set_node", Command::LssSetNode, "lss_set_node <node-ID 1..127, or 255: none>", &LineParser::lss_set_node},
-    {"lss_conf_bitrate", Command::LssConfBitrate,
-     "lss_conf_bitrate 0 <table index: 0 1000, 1 800, 2 500, 3 250, 4 125, 6 50, 7 20, 8 10 kbit/s>",
-     &LineParser::lss_conf_bitrate},
-    {"lss_activate_bitrate", Command::LssActivateBitrate, "lss_activate_bitrate <switch delay in ms, 0..65535>",
-     &LineParser::lss_activate_bitrate},
-    {"lss_store", Command::LssStore, "lss_store", &LineParser::lss_no_args},
-    {"lss_inquire_addr", Command::LssInquireAddress,
-     "lss_inquire_addr [<part: 0..3 or 0x5A..0x5D (vendor, product, revision, serial)>]",
-     &LineParser::lss_inquire_address},
-    {"lss_get_node", Command::LssGetNode, "lss_get_node", &LineParser::lss_no_args},
-    {"lss_ident_nonconf", Command::LssIdentNonConfigured, "lss_ident_nonconf", &LineParser::lss_no_args},
-    {"_lss_fastscan", Command::LssFastscan,
-     "_lss_fastscan [<step time-out in ms, 1..65535>], or lely's _lss_fastscan <vendor-ID> <mask> <product "
-     "code> <mask> <revision> <mask> <serial> <mask> (a mask's 1 bits are known)",
-     &LineParser::lss_fastscan},
-    {"lss_identity", Command::LssIdentity,
-     "lss_identity <vendor-ID> <product code> <revision low> <revision high> <serial low> <serial high>",
-     &LineParser::lss_range},
-    {"_lss_slowscan", Command::LssSlowscan,
-     "_lss_slowscan <vendor-ID> <product code> <revision low> <revision high> <serial low> <serial high>",
-     &LineParser::lss_range}};
+const LineParser::LssRow LineParser::kLss[] =
+    {{"lss_switch_glob", Command::LssSwitchGlobal, "lss_switch_glob 0|1 (0 waiting, 1 configuration)",
+      &LineParser::lss_switch_global},
+     {"lss_switch_sel", Command::LssSwitchSelective, "lss_switch_sel <vendor-ID> <product code> <revision> <serial>",
+      &LineParser::lss_switch_selective},
+     {"lss_set_node", Command::LssSetNode, "lss_set_node <node-ID 1..127, or 255: none>", &LineParser::lss_set_node},
+     {"lss_conf_bitrate", Command::LssConfBitrate,
+      "lss_conf_bitrate 0 <table index: 0 1000, 1 800, 2 500, 3 250, 4 125, 6 50, 7 20, 8 10 kbit/s>",
+      &LineParser::lss_conf_bitrate},
+     {"lss_activate_bitrate", Command::LssActivateBitrate, "lss_activate_bitrate <switch delay in ms, 0..65535>",
+      &LineParser::lss_activate_bitrate},
+     {"lss_store", Command::LssStore, "lss_store", &LineParser::lss_no_args},
+     {"lss_inquire_addr", Command::LssInquireAddress,
+      "lss_inquire_addr [<part: 0..3 or 0x5A..0x5D (vendor, product, revision, serial)>]",
+      &LineParser::lss_inquire_address},
+     {"lss_get_node", Command::LssGetNode, "lss_get_node", &LineParser::lss_no_args},
+     {"lss_ident_nonconf", Command::LssIdentNonConfigured, "lss_ident_nonconf", &LineParser::lss_no_args},
+     {"_lss_fastscan", Command::LssFastscan,
+      "_lss_fastscan [<step time-out in ms, 1..65535>], or lely's _lss_fastscan <vendor-ID> <mask> <product "
+      "code> <mask> <revision> <mask> <serial> <mask> (a mask's 1 bits are known)",
+      &LineParser::lss_fastscan},
+     {"lss_identity", Command::LssIdentity,
+      "lss_identity <vendor-ID> <product code> <revision low> <revision high> <serial low> <serial high>",
+      &LineParser::lss_range},
+     {"_lss_slowscan", Command::LssSlowscan,
+      "_lss_slowscan <vendor-ID> <product code> <revision low> <revision high> <serial low> <serial high>",
+      &LineParser::lss_range}};
 
 Parsed LineParser::run() {
-  const auto* row = std::find_if(std::begin(kCommands), std::end(kCommands), [&](const CommandRow& c) { return cmd_ == c.word; });
+  const auto* row =
+      std::find_if(std::begin(kCommands), std::end(kCommands), [&](const CommandRow& c) { return cmd_ == c.word; });
   if (row != std::end(kCommands)) return (this->*row->handle)();
   if (cmd_.starts_with("lss_") || cmd_.starts_with("_lss_")) return lss();
-  return fail(GatewayError::RequestNotSupported,
-              fmt::format("no command '{}'; this gateway has r[ead], w[rite], start, stop, preop[erational], reset node, "
-                          "reset comm[unication], set network, set node, set sdo_timeout, info version, {}",
-                          as_written_, kLssCommands));
+  return fail(
+      GatewayError::RequestNotSupported,
+      fmt::format("no command '{}'; this gateway has r[ead], w[rite], start, stop, preop[erational], reset node, "
+                  "reset comm[unication], set network, set node, set sdo_timeout, info version, {}",
+                  as_written_, kLssCommands));
 }
 
 // The network of a network-level command ([net] set node, [net] set sdo_timeout).
 std::optional<Parsed> LineParser::network_level(const char* what) {
-  if (prefix_.size() > 1) return fail(GatewayError::Syntax, fmt::format("'{}' takes a network number only, not a node", what));
+  if (prefix_.size() > 1)
+    return fail(GatewayError::Syntax, fmt::format("'{}' takes a network number only, not a node", what));
   if (prefix_.size() == 1) {
-    if (prefix_[0] < 1 || prefix_[0] > 127) return fail(GatewayError::UnsupportedNet, fmt::format("network {} (1..127)", prefix_[0]));
+    if (prefix_[0] < 1 || prefix_[0] > 127)
+      return fail(GatewayError::UnsupportedNet, fmt::format("network {} (1..127)", prefix_[0]));
     p_.request.network = static_cast<std::uint16_t>(prefix_[0]);
   } else if (defaults_.network) {
     p_.request.network = *defaults_.network;
@@ -430,7 +439,8 @@ std::optional<Parsed> LineParser::node_level() {
   }
   if (!net && defaults_.network) net = *defaults_.network;
   if (!node && defaults_.node) node = *defaults_.node;
-  if (!net) return fail(GatewayError::NoDefaultNet, "give the network and node before the command or `set network N` first");
+  if (!net)
+    return fail(GatewayError::NoDefaultNet, "give the network and node before the command or `set network N` first");
   if (!node) return fail(GatewayError::NoDefaultNode, "give the node before the command or `set node N` first");
   if (*net < 1 || *net > 127) return fail(GatewayError::UnsupportedNet, fmt::format("network {} (1..127)", *net));
   if (*node < 1 || *node > 127) return fail(GatewayError::UnsupportedNode, fmt::format("node {} (1..127)", *node));
@@ -449,7 +459,8 @@ std::optional<Parsed> LineParser::index_sub() {
   p_.request.index = static_cast<std::uint16_t>(*index);
   p_.request.sub = static_cast<std::uint8_t>(*sub);
   const auto type = parse_type(args_[2].text);
-  if (!type) return fail(GatewayError::Syntax, fmt::format("'{}' is no data type; one of {}", args_[2].text, type_names()));
+  if (!type)
+    return fail(GatewayError::Syntax, fmt::format("'{}' is no data type; one of {}", args_[2].text, type_names()));
   p_.request.type = *type;
   return std::nullopt;
 }
@@ -480,7 +491,8 @@ Parsed LineParser::write() {
     }
   } else {
     if (args_.size() != 4)
-      return fail(GatewayError::Syntax, fmt::format("a {} value is one token; text follows '{}'", to_string(r.type), args_[3].text));
+      return fail(GatewayError::Syntax,
+                  fmt::format("a {} value is one token; text follows '{}'", to_string(r.type), args_[3].text));
     value = args_[3].text;
   }
   std::string e;
@@ -507,9 +519,11 @@ Parsed LineParser::nmt() {
     if (cmd_ != n.word) continue;
     if (n.second != nullptr && (args_.empty() || lower(args_[0].text) != n.second)) continue;
     p_.request.command = n.command;
-    if (!prefix_.empty() && prefix_.back() == 0) return fail(GatewayError::RequestNotSupported, "node 0 (all nodes): name each node");
+    if (!prefix_.empty() && prefix_.back() == 0)
+      return fail(GatewayError::RequestNotSupported, "node 0 (all nodes): name each node");
     if (auto e = node_level()) return *e;
-    if (args_.size() != (n.second != nullptr ? 1u : 0u)) return fail(GatewayError::Syntax, fmt::format("text after '{}'", cmd_));
+    if (args_.size() != (n.second != nullptr ? 1u : 0u))
+      return fail(GatewayError::Syntax, fmt::format("text after '{}'", cmd_));
     return p_;
   }
   return fail(GatewayError::Syntax, "expected `reset node` or `reset comm[unication]`");
@@ -546,7 +560,8 @@ Parsed LineParser::set() {
     r.value = static_cast<std::uint32_t>(*v);
     return p_;
   }
-  return fail(GatewayError::RequestNotSupported, fmt::format("`set {}`; this gateway has set network, set node, set sdo_timeout", what));
+  return fail(GatewayError::RequestNotSupported,
+              fmt::format("`set {}`; this gateway has set network, set node, set sdo_timeout", what));
 }
 
 Parsed LineParser::info() {
@@ -567,7 +582,8 @@ Parsed LineParser::lss() {
   return (this->*row->handle)(row->usage);
 }
 
-std::optional<std::uint32_t> LineParser::lss_u32(std::size_t i, std::uint64_t lo, std::uint64_t hi, const char* what) const {
+std::optional<std::uint32_t> LineParser::lss_u32(std::size_t i, std::uint64_t lo, std::uint64_t hi,
+                                                 const char* what) const {
   std::string e;
   const auto v = parse_unsigned(args_[i].text, lo, hi, what, e);
   if (!v) return std::nullopt;
@@ -601,7 +617,8 @@ Parsed LineParser::lss_switch_selective(const char* usage) {
 Parsed LineParser::lss_set_node(const char* usage) {
   if (args_.size() != 1) return lss_bad(usage);
   const auto v = lss_u32(0, 1, 255, "node-ID");
-  if (!v || (*v > 127 && *v != 255)) return fail(GatewayError::Syntax, fmt::format("node-ID '{}': 1..127, or 255 (none)", args_[0].text));
+  if (!v || (*v > 127 && *v != 255))
+    return fail(GatewayError::Syntax, fmt::format("node-ID '{}': 1..127, or 255 (none)", args_[0].text));
   p_.request.value = *v;
   return p_;
 }
@@ -689,7 +706,8 @@ Parsed parse(std::string_view line, const Defaults& defaults) {
     while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
     if (i < line.size() && line[i] == '[') {
       const std::size_t close = line.find(']', i);
-      if (close == std::string_view::npos) return error(GatewayError::Syntax, "'[' opens a sequence number but no ']' closes it", {});
+      if (close == std::string_view::npos)
+        return error(GatewayError::Syntax, "'[' opens a sequence number but no ']' closes it", {});
       std::string e;
       const auto n = parse_unsigned(line.substr(i + 1, close - i - 1), 0, 0xFFFFFFFF, "sequence number", e);
       if (!n) return error(GatewayError::Syntax, e, {});
@@ -707,7 +725,8 @@ Parsed parse(std::string_view line, const Defaults& defaults) {
   std::vector<std::uint64_t> prefix;
   std::size_t k = 0;
   for (; k < tokens.size() && is_number_token(tokens[k]); ++k) {
-    if (prefix.size() == 2) return error(GatewayError::Syntax, "more than two numbers (network and node) before the command", seq);
+    if (prefix.size() == 2)
+      return error(GatewayError::Syntax, "more than two numbers (network and node) before the command", seq);
     const auto n = parse_number(tokens[k].text);
     if (!n || n->negative || n->magnitude > 0xFFFF)
       return error(GatewayError::Syntax, fmt::format("'{}' is no network or node number", tokens[k].text), seq);
@@ -725,13 +744,17 @@ std::string answer_abort(std::uint32_t seq, SdoAbortCode code) {
   return fmt::format("[{}] ERROR: {:08X} ({})", seq, static_cast<std::uint32_t>(code), to_string(code));
 }
 std::string answer_error(std::uint32_t seq, GatewayError e, const std::string& detail) {
-  return fmt::format("[{}] ERROR: {} ({}{}{})", seq, static_cast<int>(e), to_string(e), detail.empty() ? "" : ": ", detail);
+  return fmt::format("[{}] ERROR: {} ({}{}{})", seq, static_cast<int>(e), to_string(e), detail.empty() ? "" : ": ",
+                     detail);
 }
 
-std::string boot_up_event(std::uint16_t network, std::uint8_t node) { return fmt::format("{} {} BOOT_UP", network, node); }
+std::string boot_up_event(std::uint16_t network, std::uint8_t node) {
+  return fmt::format("{} {} BOOT_UP", network, node);
+}
 std::string emcy_event(std::uint16_t network, std::uint8_t node, std::uint16_t code, std::uint8_t error_register,
                        std::span<const std::uint8_t, 5> m) {
-  return fmt::format("{} {} EMCY {:04X} {:02X} {} {} {} {} {}", network, node, code, error_register, m[0], m[1], m[2], m[3], m[4]);
+  return fmt::format("{} {} EMCY {:04X} {:02X} {} {} {} {} {}", network, node, code, error_register, m[0], m[1], m[2],
+                     m[3], m[4]);
 }
 
 namespace {

@@ -80,19 +80,19 @@ enum class Command : std::uint8_t {
   SetSdoTimeout,
   InfoVersion,
   // CiA 309-3 LSS (CiA 305) commands, network-level: `[net] lss_...`.
-  LssSwitchGlobal,      // lss_switch_glob 0|1                     (value: the mode)
-  LssSwitchSelective,   // lss_switch_sel vendor product revision serial (address)
-  LssSetNode,           // lss_set_node 1..127|255                  (value: the node-ID)
-  LssConfBitrate,       // lss_conf_bitrate 0 index                 (value: the table index)
-  LssActivateBitrate,   // lss_activate_bitrate delay_ms            (value: the delay)
-  LssStore,             // lss_store
-  LssInquireAddress,    // lss_inquire_addr [0..3 | 0x5A..0x5D]     (lss_part: the part, none: all four)
-  LssGetNode,           // lss_get_node
+  LssSwitchGlobal,        // lss_switch_glob 0|1                     (value: the mode)
+  LssSwitchSelective,     // lss_switch_sel vendor product revision serial (address)
+  LssSetNode,             // lss_set_node 1..127|255                  (value: the node-ID)
+  LssConfBitrate,         // lss_conf_bitrate 0 index                 (value: the table index)
+  LssActivateBitrate,     // lss_activate_bitrate delay_ms            (value: the delay)
+  LssStore,               // lss_store
+  LssInquireAddress,      // lss_inquire_addr [0..3 | 0x5A..0x5D]     (lss_part: the part, none: all four)
+  LssGetNode,             // lss_get_node
   LssIdentNonConfigured,  // lss_ident_nonconf
-  LssFastscan,          // _lss_fastscan [timeout_ms]              (value: the step time-out, 0: default)
-                        // _lss_fastscan v vmask p pmask r rmask s smask (lely: address + known, mask)
-  LssIdentity,          // lss_identity vendor product rev_lo rev_hi serial_lo serial_hi   (range)
-  LssSlowscan,          // _lss_slowscan vendor product rev_lo rev_hi serial_lo serial_hi  (range, lely)
+  LssFastscan,            // _lss_fastscan [timeout_ms]              (value: the step time-out, 0: default)
+                          // _lss_fastscan v vmask p pmask r rmask s smask (lely: address + known, mask)
+  LssIdentity,            // lss_identity vendor product rev_lo rev_hi serial_lo serial_hi   (range)
+  LssSlowscan,            // _lss_slowscan vendor product rev_lo rev_hi serial_lo serial_hi  (range, lely)
 };
 [[nodiscard]] bool is_lss(Command c);
 
@@ -104,14 +104,14 @@ struct Request {
   std::uint16_t index = 0;
   std::uint8_t sub = 0;
   DataType type = DataType::U8;
-  std::vector<std::uint8_t> data;  // w: the value, little endian as CiA 301 sends it
-  std::uint32_t value = 0;         // set network / set node / set sdo_timeout / lss_* (see Command)
-  std::array<std::uint32_t, 4> address{};   // lss_switch_sel: vendor, product, revision, serial;
-                                            // _lss_fastscan's lely form: the known values
+  std::vector<std::uint8_t> data;          // w: the value, little endian as CiA 301 sends it
+  std::uint32_t value = 0;                 // set network / set node / set sdo_timeout / lss_* (see Command)
+  std::array<std::uint32_t, 4> address{};  // lss_switch_sel: vendor, product, revision, serial;
+                                           // _lss_fastscan's lely form: the known values
   std::optional<std::array<std::uint32_t, 4>> known_mask;  // _lss_fastscan's lely form: the masks
   // lss_identity, _lss_slowscan: vendor, product, revision low, high, serial low, high
   std::array<std::uint32_t, 6> range{};
-  std::optional<std::uint8_t> lss_part;     // lss_inquire_addr: 0 vendor .. 3 serial; none: all four
+  std::optional<std::uint8_t> lss_part;  // lss_inquire_addr: 0 vendor .. 3 serial; none: all four
 };
 
 // The defaults `set network` and `set node` gave (per session).

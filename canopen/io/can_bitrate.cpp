@@ -122,8 +122,7 @@ class NetlinkCanLink final : public CanLink {
         bool can = false;
         const rtattr* data = nullptr;
         for_each_attr(RTA_DATA(&a), RTA_PAYLOAD(&a), [&](const rtattr& li) {
-          if (li.rta_type == IFLA_INFO_KIND)
-            can = std::string_view(static_cast<const char*>(RTA_DATA(&li))) == "can";
+          if (li.rta_type == IFLA_INFO_KIND) can = std::string_view(static_cast<const char*>(RTA_DATA(&li))) == "can";
           if (li.rta_type == IFLA_INFO_DATA) data = &li;
         });
         state.has_bit_timing = can;

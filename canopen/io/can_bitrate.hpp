@@ -57,7 +57,7 @@ struct BitRateOutcome {
   BitRateAction action = BitRateAction::Keep;
   std::uint32_t before = 0;  // the rate the interface had (0: none)
   bool was_up = false;
-  int error = 0;             // errno of the step that failed; 0 = done
+  int error = 0;  // errno of the step that failed; 0 = done
   // Set when error != 0: "cannot set can0 to 250000 bit/s: Operation not permitted"
   // ("cannot query can0: ..." when the kernel could not be asked).
   std::string message;

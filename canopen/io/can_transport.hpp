@@ -20,11 +20,11 @@ namespace oegw::canopen::io {
 // What send() did with a frame. Only InvalidFrame is a caller bug; the others are conditions of
 // the bus/driver that a CANopen stack must survive (they are counted, never thrown).
 enum class SendStatus : std::uint8_t {
-  Ok,            // handed to the driver / put on the bus
-  QueueFull,     // ENOBUFS/EAGAIN: the TX queue is full, the frame was dropped
-  InterfaceDown, // ENETDOWN
-  InvalidFrame,  // dlc > 8, or an 11-bit frame with an id above 0x7FF, or id above 29 bits
-  Error,         // any other failure; see SendResult::error
+  Ok,             // handed to the driver / put on the bus
+  QueueFull,      // ENOBUFS/EAGAIN: the TX queue is full, the frame was dropped
+  InterfaceDown,  // ENETDOWN
+  InvalidFrame,   // dlc > 8, or an 11-bit frame with an id above 0x7FF, or id above 29 bits
+  Error,          // any other failure; see SendResult::error
 };
 
 [[nodiscard]] std::string_view to_string(SendStatus status);

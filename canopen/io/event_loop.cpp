@@ -12,16 +12,14 @@
 
 namespace oegw::canopen::io {
 
-static_assert(events::kReadable == EPOLLIN && events::kWritable == EPOLLOUT &&
-              events::kError == EPOLLERR && events::kHangup == EPOLLHUP);
+static_assert(events::kReadable == EPOLLIN && events::kWritable == EPOLLOUT && events::kError == EPOLLERR &&
+              events::kHangup == EPOLLHUP);
 
 namespace {
 
 constexpr std::uint64_t kTimerFdWatch = 1;
 
-[[noreturn]] void throw_errno(const char* what) {
-  throw std::system_error(errno, std::generic_category(), what);
-}
+[[noreturn]] void throw_errno(const char* what) { throw std::system_error(errno, std::generic_category(), what); }
 
 }  // namespace
 
@@ -354,7 +352,8 @@ EventLoop::WatchId watch_transport(EventLoop& loop, CanTransport& transport) {
   transport.set_clock(&loop.clock());
   const EventLoop::WatchId id =
       loop.watch(fd, events::kReadable, [&transport](std::uint32_t) { transport.poll_readable(); });
-  loop.bracket_wakeups(id, [&transport] { transport.begin_batch(); }, [&transport] { transport.end_batch(); });
+  loop.bracket_wakeups(
+      id, [&transport] { transport.begin_batch(); }, [&transport] { transport.end_batch(); });
   return id;
 }
 

@@ -200,10 +200,10 @@ class ServiceDriver {
   ServiceDriver(EventLoop& loop, DeadlineFn next_deadline, AdvanceFn advance);
 
   template <class Service>
-    requires requires(Service& s, TimePoint t) {
-      s.advance(t);
-      { s.next_deadline() } -> std::convertible_to<std::optional<TimePoint>>;
-    }
+  requires requires(Service& s, TimePoint t) {
+    s.advance(t);
+    { s.next_deadline() } -> std::convertible_to<std::optional<TimePoint>>;
+  }
   ServiceDriver(EventLoop& loop, Service& service)
       : ServiceDriver(
             loop, [&service] { return std::optional<TimePoint>(service.next_deadline()); },
@@ -222,7 +222,7 @@ class ServiceDriver {
   // The transport keeps a pointer to this driver: destroy the transport (or replace its
   // receiver) before the driver.
   template <class Service>
-    requires requires(Service& s, const CanFrame& f, TimePoint t) { s.on_frame(f, t); }
+  requires requires(Service& s, const CanFrame& f, TimePoint t) { s.on_frame(f, t); }
   void bind_receiver(CanTransport& transport, Service& service) {
     transport.set_receiver([this, &service](const CanFrame& frame, TimePoint timestamp) {
       service.on_frame(frame, timestamp);

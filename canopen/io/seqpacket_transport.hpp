@@ -33,8 +33,8 @@ class SeqpacketCanTransport final : public CanFrameSocket {
   // Takes ownership of one end of a SOCK_SEQPACKET socketpair (the other end may be read and
   // written as raw struct can_frame datagrams, e.g. by a benchmark's prober); made non-blocking,
   // SO_TIMESTAMPNS on where the socket takes it. Throws std::invalid_argument for fd < 0.
-  [[nodiscard]] static std::unique_ptr<SeqpacketCanTransport> adopt(int fd,
-                                                                    std::size_t max_batch = SocketCanOptions::kDefaultMaxBatch);
+  [[nodiscard]] static std::unique_ptr<SeqpacketCanTransport> adopt(
+      int fd, std::size_t max_batch = SocketCanOptions::kDefaultMaxBatch);
   // socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC): the two raw descriptors, for adopt().
   // Throws std::system_error.
   static void make_socketpair(int (&fds)[2]);

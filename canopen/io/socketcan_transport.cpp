@@ -74,8 +74,7 @@ void apply_filters(int fd, const std::optional<std::vector<CanFilter>>& filters,
   }
   const int on = join && filters ? 1 : 0;
   set_option(fd, SOL_CAN_RAW, CAN_RAW_JOIN_FILTERS, &on, sizeof on, "CAN_RAW_JOIN_FILTERS", interface);
-  set_option(fd, SOL_CAN_RAW, CAN_RAW_FILTER, k.data(), k.size() * sizeof(::can_filter), "CAN_RAW_FILTER",
-             interface);
+  set_option(fd, SOL_CAN_RAW, CAN_RAW_FILTER, k.data(), k.size() * sizeof(::can_filter), "CAN_RAW_FILTER", interface);
 }
 
 // SocketCanOptions::rx_buffer_bytes: SO_RCVBUFFORCE (CAP_NET_ADMIN: past net.core.rmem_max),
@@ -132,7 +131,8 @@ int check_can_interface(const std::string& name) {
     throw CanOpenError(CanOpenError::Reason::NoSuchInterface, ENODEV, "no such CAN interface '" + name + "'");
   }
   if (!info.is_can) {
-    throw CanOpenError(CanOpenError::Reason::NotCanInterface, ENODEV, "interface '" + name + "' is not a CAN interface");
+    throw CanOpenError(CanOpenError::Reason::NotCanInterface, ENODEV,
+                       "interface '" + name + "' is not a CAN interface");
   }
   if (!info.up) {
     throw CanOpenError(CanOpenError::Reason::InterfaceDown, ENETDOWN, "interface '" + name + "' is down");
@@ -225,7 +225,10 @@ std::optional<std::vector<CanFilter>> all_but_data_frames_on(const std::vector<C
   std::vector<CanFilter> filters;
   filters.reserve(cob_ids.size());
   for (const CobId cob : cob_ids) {
-    filters.push_back(CanFilter{.id = cob.can_id(), .mask = 0x1FFFFFFFu, .extended = cob.extended(), .invert = true,
+    filters.push_back(CanFilter{.id = cob.can_id(),
+                                .mask = 0x1FFFFFFFu,
+                                .extended = cob.extended(),
+                                .invert = true,
                                 .data_only = true});
   }
   return filters;
@@ -309,7 +312,8 @@ CanFrameSocket::~CanFrameSocket() {
   if (fd_ >= 0) ::close(fd_);
 }
 
-CanFrameSocket::CanFrameSocket(int fd, std::size_t max_batch) : fd_(fd), max_batch_(std::max<std::size_t>(max_batch, 1)) {
+CanFrameSocket::CanFrameSocket(int fd, std::size_t max_batch)
+    : fd_(fd), max_batch_(std::max<std::size_t>(max_batch, 1)) {
   // One recvmmsg() takes up to 64 frames (a full classical frame is 16 bytes): with max_batch
   // above that, poll_readable() reads again only while the previous call filled every slot.
   const std::size_t n = std::min<std::size_t>(max_batch_, 64);
@@ -380,7 +384,8 @@ void CanFrameSocket::send_held() {
   }
   std::size_t sent = 0;
   while (sent < n) {
-    const int r = ::sendmmsg(fd_, held_headers_.data() + sent, static_cast<unsigned>(n - sent), MSG_DONTWAIT | MSG_NOSIGNAL);
+    const int r =
+        ::sendmmsg(fd_, held_headers_.data() + sent, static_cast<unsigned>(n - sent), MSG_DONTWAIT | MSG_NOSIGNAL);
     if (r > 0) {
       sent += static_cast<std::size_t>(r);
       counters_.tx_frames += static_cast<std::uint64_t>(r);

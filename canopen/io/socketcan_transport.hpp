@@ -56,9 +56,8 @@ struct CanFilter {
 // The error classes received by default: controller state, bus-off, restarts, TX timeouts,
 // protocol/transceiver errors and missing ACKs. Not lost arbitration nor bus errors, which can
 // flood.
-inline constexpr std::uint32_t kDefaultCanErrorMask = CAN_ERR_TX_TIMEOUT | CAN_ERR_CRTL | CAN_ERR_PROT |
-                                                      CAN_ERR_TRX | CAN_ERR_ACK | CAN_ERR_BUSOFF |
-                                                      CAN_ERR_RESTARTED;
+inline constexpr std::uint32_t kDefaultCanErrorMask =
+    CAN_ERR_TX_TIMEOUT | CAN_ERR_CRTL | CAN_ERR_PROT | CAN_ERR_TRX | CAN_ERR_ACK | CAN_ERR_BUSOFF | CAN_ERR_RESTARTED;
 
 struct SocketCanOptions {
   // nullopt: receive every frame. An empty list: receive no data frames (error frames only).
@@ -69,9 +68,9 @@ struct SocketCanOptions {
   // not need them (oegw-sim's acceptance filter).
   bool join_filters = false;
   std::uint32_t error_mask = kDefaultCanErrorMask;  // CAN_ERR_* classes; 0 = no error frames
-  bool loopback = true;                               // CAN_RAW_LOOPBACK
-  bool receive_own = false;                           // CAN_RAW_RECV_OWN_MSGS
-  std::size_t max_batch = kDefaultMaxBatch;  // frames read per poll_readable() call
+  bool loopback = true;                             // CAN_RAW_LOOPBACK
+  bool receive_own = false;                         // CAN_RAW_RECV_OWN_MSGS
+  std::size_t max_batch = kDefaultMaxBatch;         // frames read per poll_readable() call
   // (4,096 was tried: in the TCG guest the gateway then read fewer than half as many
   // frames a second at 6,000 frames/s in as with 256.)
   static constexpr std::size_t kDefaultMaxBatch = 256;
@@ -92,12 +91,12 @@ struct SocketCanOptions {
 class CanOpenError : public std::runtime_error {
  public:
   enum class Reason {
-    NoKernelSupport,   // no PF_CAN (or no CAN_RAW) in this kernel
-    InvalidName,       // empty or too long for an interface name
+    NoKernelSupport,  // no PF_CAN (or no CAN_RAW) in this kernel
+    InvalidName,      // empty or too long for an interface name
     NoSuchInterface,
-    NotCanInterface,   // exists, but its hardware type is not ARPHRD_CAN
+    NotCanInterface,  // exists, but its hardware type is not ARPHRD_CAN
     InterfaceDown,
-    SystemError,       // anything else: see error()
+    SystemError,  // anything else: see error()
   };
   CanOpenError(Reason reason, int error, const std::string& message)
       : std::runtime_error(message), reason_(reason), error_(error) {}
@@ -213,7 +212,7 @@ class CanFrameSocket : public CanTransport {
   std::vector<::mmsghdr> headers_;
   socketcan::StampMapper stamps_;
   bool batching_ = false;
-  bool ended_ = false;  // a zero-length datagram was read: the peer is gone
+  bool ended_ = false;             // a zero-length datagram was read: the peer is gone
   std::vector<::can_frame> held_;  // frames send() took during a batch
   std::vector<iovec> held_iov_;
   std::vector<::mmsghdr> held_headers_;
@@ -232,8 +231,8 @@ class SocketCanTransport final : public CanFrameSocket {
   // helper or by systemd socket activation); `interface` is only used in messages. The fd is made
   // non-blocking and SO_TIMESTAMPNS/SO_RXQ_OVFL are enabled where the socket supports them; the
   // CAN_RAW options are left as the socket has them. Throws std::invalid_argument for fd < 0.
-  [[nodiscard]] static std::unique_ptr<SocketCanTransport> adopt(int fd, std::string interface,
-                                                                 std::size_t max_batch = SocketCanOptions::kDefaultMaxBatch);
+  [[nodiscard]] static std::unique_ptr<SocketCanTransport> adopt(
+      int fd, std::string interface, std::size_t max_batch = SocketCanOptions::kDefaultMaxBatch);
 
   [[nodiscard]] const std::string& interface() const { return interface_; }
   [[nodiscard]] int interface_index() const { return index_; }  // 0 when adopted

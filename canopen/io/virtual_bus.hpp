@@ -52,8 +52,8 @@ class VirtualBus;
 
 // One frame as it went over the virtual bus.
 struct BusRecord {
-  TimePoint time;       // the `now` given to deliver_all()
-  std::string sender;   // the port name (or the name given to inject())
+  TimePoint time;      // the `now` given to deliver_all()
+  std::string sender;  // the port name (or the name given to inject())
   CanFrame frame;
   // "master: 601#40001000"
   [[nodiscard]] std::string to_string() const;
@@ -185,7 +185,7 @@ class VirtualBus {
   EventLoop* timed_loop_ = nullptr;
   std::map<std::pair<std::uint64_t, std::uint64_t>, Pending> waiting_;
   std::uint64_t send_seq_ = 0;
-  bool on_wire_ = false;            // a frame (or its intermission) occupies the bus
+  bool on_wire_ = false;  // a frame (or its intermission) occupies the bus
   bool arbitration_posted_ = false;
   EventLoop::TimerId deliver_timer_ = 0, idle_timer_ = 0;
   Stats stats_;

@@ -27,7 +27,10 @@ std::optional<std::vector<std::uint8_t>> bytes_from_hex(std::string_view text, s
     return std::nullopt;
   }
   const auto digit = [](char c) {
-    return c >= '0' && c <= '9' ? c - '0' : c >= 'a' && c <= 'f' ? c - 'a' + 10 : c >= 'A' && c <= 'F' ? c - 'A' + 10 : -1;
+    return c >= '0' && c <= '9'   ? c - '0'
+           : c >= 'a' && c <= 'f' ? c - 'a' + 10
+           : c >= 'A' && c <= 'F' ? c - 'A' + 10
+                                  : -1;
   };
   std::vector<std::uint8_t> out;
   for (std::size_t i = 0; i < text.size(); i += 2) {
@@ -47,7 +50,9 @@ std::string control_error(std::string_view code, const std::string& message) {
 }
 
 void ControlProtocol::add(std::string name, Command command) {
-  commands_[std::move(name)] = [command = std::move(command)](const json& request, Done done) { done(command(request)); };
+  commands_[std::move(name)] = [command = std::move(command)](const json& request, Done done) {
+    done(command(request));
+  };
 }
 
 std::string ControlProtocol::answer(std::string_view line) const {
@@ -60,17 +65,20 @@ std::string ControlProtocol::answer(std::string_view line) const {
 void ControlProtocol::answer(std::string_view line, Reply reply) const {
   const json request = json::parse(line.begin(), line.end(), nullptr, /*allow_exceptions=*/false);
   if (request.is_discarded() || !request.is_object())
-    return reply(control_error("bad_request", "a request is one line of JSON, an object such as {\"command\": \"status\"}"));
+    return reply(
+        control_error("bad_request", "a request is one line of JSON, an object such as {\"command\": \"status\"}"));
   if (const auto p = request.find("protocol"); p != request.end()) {
     if (!p->is_number_integer() || p->get<std::int64_t>() < 1)
       return reply(control_error("bad_request", "\"protocol\" is a version number, e.g. 1"));
     if (p->get<std::int64_t>() > kControlProtocol)
-      return reply(control_error("unsupported_protocol", "this gateway speaks protocol " + std::to_string(kControlProtocol) +
-                                                             "; the request asks for " + std::to_string(p->get<std::int64_t>())));
+      return reply(control_error("unsupported_protocol",
+                                 "this gateway speaks protocol " + std::to_string(kControlProtocol) +
+                                     "; the request asks for " + std::to_string(p->get<std::int64_t>())));
   }
   const auto c = request.find("command");
   if (c == request.end() || !c->is_string())
-    return reply(control_error("bad_request", "no \"command\" in the request; expected e.g. {\"command\": \"status\"}"));
+    return reply(
+        control_error("bad_request", "no \"command\" in the request; expected e.g. {\"command\": \"status\"}"));
   const std::string name = c->get<std::string>();
   const auto it = commands_.find(name);
   if (it == commands_.end()) {

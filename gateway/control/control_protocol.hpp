@@ -5,8 +5,8 @@
 // command grows by new fields, never by changing the meaning of one (then "protocol" goes up).
 #pragma once
 
-#include <functional>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <string>

@@ -45,24 +45,27 @@ int probe(const std::string& path) {
 // What is at the path before we bind: nothing, a stale socket (removed), or a refusal.
 void clear_the_path(const ControlSocketSettings& s) {
   const std::string& p = s.path;
-  struct stat st{};
+  struct stat st {};
   if (::lstat(p.c_str(), &st) != 0) {
     if (errno != ENOENT) throw ControlError(s.where + ": control.socket: cannot use " + p + ": " + err(errno));
     const auto folder = std::filesystem::path(p).parent_path();
     if (::mkdir(folder.c_str(), 0755) != 0 && errno != EEXIST)
-      throw ControlError(s.where + ": control.socket: cannot create the folder " + folder.string() + " for " + p + ": " +
-                         err(errno));
+      throw ControlError(s.where + ": control.socket: cannot create the folder " + folder.string() + " for " + p +
+                         ": " + err(errno));
     return;
   }
   if (!S_ISSOCK(st.st_mode))
-    throw ControlError(s.where + ": control.socket: " + p + " exists and is not a socket; remove it or choose another control.socket");
+    throw ControlError(s.where + ": control.socket: " + p +
+                       " exists and is not a socket; remove it or choose another control.socket");
   const int e = probe(p);
   if (e == 0)
-    throw ControlError(s.where + ": control.socket: " + p + " is served by a running gateway (`oegw status --socket " + p +
-                       "` asks it); stop that one first, or give this gateway its own control.socket");
+    throw ControlError(s.where + ": control.socket: " + p + " is served by a running gateway (`oegw status --socket " +
+                       p + "` asks it); stop that one first, or give this gateway its own control.socket");
   if (e != ECONNREFUSED) throw ControlError(s.where + ": control.socket: cannot probe " + p + ": " + err(e));
-  if (::unlink(p.c_str()) != 0) throw ControlError(s.where + ": control.socket: cannot remove the stale " + p + ": " + err(errno));
-  if (s.log) s.log("control: removed the stale socket " + p + " (nobody listened on it: a run that ended without removing it)");
+  if (::unlink(p.c_str()) != 0)
+    throw ControlError(s.where + ": control.socket: cannot remove the stale " + p + ": " + err(errno));
+  if (s.log)
+    s.log("control: removed the stale socket " + p + " (nobody listened on it: a run that ended without removing it)");
 }
 
 }  // namespace
@@ -78,7 +81,8 @@ ControlSocketSettings control_settings(const mapping::ControlConfig& c, const st
   }
   const std::string where = c.group_where.line != 0 ? c.group_where.str() : file;
   throw ControlError(where + ": control.group: no group '" + c.group + "' on this machine (getent group " + c.group +
-                     "); create it (groupadd --system " + c.group + ") or leave control.group out (the socket is then "
+                     "); create it (groupadd --system " + c.group +
+                     ") or leave control.group out (the socket is then "
                      "root's only, mode 0600)");
 }
 
@@ -90,7 +94,8 @@ ControlServer::ControlServer(canopen::io::EventLoop& loop, ControlSocketSettings
     : loop_(loop), settings_(std::move(settings)), handler_(std::move(handler)) {
   const std::string& p = settings_.path;
   const ControlSocketSettings& s = settings_;
-  if (p.empty() || p.size() > mapping::kMaxControlSocketPath) throw ControlError(s.where + ": control.socket: '" + p + "' is no socket path");
+  if (p.empty() || p.size() > mapping::kMaxControlSocketPath)
+    throw ControlError(s.where + ": control.socket: '" + p + "' is no socket path");
   clear_the_path(settings_);
   fd_ = ::socket(AF_UNIX, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
   if (fd_ < 0) throw ControlError(s.where + ": control.socket: socket(AF_UNIX): " + err(errno));
@@ -102,11 +107,12 @@ ControlServer::ControlServer(canopen::io::EventLoop& loop, ControlSocketSettings
   ::umask(old);
   std::string failure;
   if (rc != 0) failure = "cannot bind " + p + ": " + err(bind_errno);
-  else if (settings_.group && (::chown(p.c_str(), static_cast<uid_t>(-1), *settings_.group) != 0 || ::chmod(p.c_str(), 0660) != 0))
+  else if (settings_.group &&
+           (::chown(p.c_str(), static_cast<uid_t>(-1), *settings_.group) != 0 || ::chmod(p.c_str(), 0660) != 0))
     failure = "cannot give " + p + " to group " + std::to_string(*settings_.group) + ": " + err(errno);
   else if (::listen(fd_, SOMAXCONN) != 0)  // connections beyond max_clients wait here
     failure = "cannot listen on " + p + ": " + err(errno);
-  struct stat st{};
+  struct stat st {};
   if (failure.empty() && ::stat(p.c_str(), &st) == 0) {
     dev_ = st.st_dev;
     ino_ = st.st_ino;
@@ -126,8 +132,9 @@ ControlServer::~ControlServer() {
   loop_.unwatch(watch_);
   ::close(fd_);
   // Only our own socket: a later daemon may have replaced a file we were told was stale.
-  struct stat st{};
-  if (::lstat(settings_.path.c_str(), &st) == 0 && st.st_dev == dev_ && st.st_ino == ino_) ::unlink(settings_.path.c_str());
+  struct stat st {};
+  if (::lstat(settings_.path.c_str(), &st) == 0 && st.st_dev == dev_ && st.st_ino == ino_)
+    ::unlink(settings_.path.c_str());
 }
 
 namespace {
@@ -177,8 +184,7 @@ ControlServer::Peer ControlServer::check_peer(int fd) const {
   const gid_t g = *settings_.group;
   if (cred.gid == g) return p;
   const auto groups = peer_groups(fd);
-  if (!groups)
-    p.why = "not root, and its groups cannot be read (SO_PEERGROUPS: " + err(errno) + ")";
+  if (!groups) p.why = "not root, and its groups cannot be read (SO_PEERGROUPS: " + err(errno) + ")";
   else if (std::find(groups->begin(), groups->end(), g) == groups->end())
     p.why = "not root and not in group " + group_name(g) + " (control.group)";
   return p;
@@ -186,9 +192,9 @@ ControlServer::Peer ControlServer::check_peer(int fd) const {
 
 void ControlServer::refuse(int fd, const Peer& p) {
   // The user name only here: a name service lookup is no cost an allowed client makes.
-  const std::string who = p.uid == static_cast<uid_t>(-1)
-                              ? std::string("a client")
-                              : "uid " + std::to_string(p.uid) + " (" + user_name(p.uid) + "), pid " + std::to_string(p.pid);
+  const std::string who = p.uid == static_cast<uid_t>(-1) ? std::string("a client")
+                                                          : "uid " + std::to_string(p.uid) + " (" + user_name(p.uid) +
+                                                                "), pid " + std::to_string(p.pid);
   const std::string answer = control_error("permission_denied", "refused " + who + ": " + p.why) + "\n";
   (void)!::send(fd, answer.data(), answer.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
   ::close(fd);
@@ -196,7 +202,8 @@ void ControlServer::refuse(int fd, const Peer& p) {
   const std::uint64_t n = ++refused_by_uid_[p.uid];
   const auto& out = settings_.warn ? settings_.warn : settings_.log;
   if (out && (n == 1 || n % 100 == 0))
-    out("control: refused " + who + ": " + p.why + (n == 1 ? "" : " (" + std::to_string(n) + " refusals of this uid so far)"));
+    out("control: refused " + who + ": " + p.why +
+        (n == 1 ? "" : " (" + std::to_string(n) + " refusals of this uid so far)"));
 }
 
 std::size_t ControlServer::buffered() const {
@@ -268,10 +275,11 @@ std::optional<ControlServer::Id> ControlServer::idle_longest() const {
 void ControlServer::evict(Id id) {
   Client& c = clients_.at(id);
   const auto idle_ms = std::chrono::duration_cast<std::chrono::milliseconds>(loop_.now() - c.last_request).count();
-  const std::string line = control_error("evicted", "closed to make room for a waiting client: all " +
-                                                        std::to_string(settings_.limits.max_clients) +
-                                                        " connections were taken and this one had no request for " +
-                                                        std::to_string(idle_ms) + " ms") + "\n";
+  const std::string line =
+      control_error("evicted",
+                    "closed to make room for a waiting client: all " + std::to_string(settings_.limits.max_clients) +
+                        " connections were taken and this one had no request for " + std::to_string(idle_ms) + " ms") +
+      "\n";
   (void)!::send(c.fd, line.data(), line.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
   ++evicted_;
   close_client(id, true);
@@ -341,8 +349,8 @@ void ControlServer::handle_one(Id id, Client& c) {
   c.last_request = loop_.now();
   c.asked = true;
   if (f == Front::TooLong) {
-    c.slots.back() = control_error("request_too_long",
-                                   "a request line is at most " + std::to_string(settings_.limits.max_request) + " bytes");
+    c.slots.back() = control_error("request_too_long", "a request line is at most " +
+                                                           std::to_string(settings_.limits.max_request) + " bytes");
     c.in.clear();
     c.closing = true;
     return deliver(c);
@@ -439,10 +447,8 @@ void ControlServer::settle(Id id, Client& c) {
   // write_timeout; with requests to handle or answers owed none (the command's own time-out
   // bounds an owed answer); else idle_timeout from the last complete request.
   std::optional<canopen::TimePoint> deadline;
-  if (!c.unsent.empty())
-    deadline = c.unsent.front().second + lim.write_timeout;
-  else if (!c.runnable && !owed)
-    deadline = c.last_request + lim.idle_timeout;
+  if (!c.unsent.empty()) deadline = c.unsent.front().second + lim.write_timeout;
+  else if (!c.runnable && !owed) deadline = c.last_request + lim.idle_timeout;
   if (deadline != c.deadline) {
     if (c.timer != 0) loop_.cancel(c.timer);
     c.timer = 0;

@@ -55,9 +55,9 @@ class ControlError : public std::runtime_error {
 };
 
 struct ControlLimits {
-  std::size_t max_request = 4096;     // bytes of one request line
-  std::size_t max_clients = 8;        // connections served at once; more wait in the listen queue
-  std::size_t max_waiting = 16;       // requests of one connection waiting for their answers
+  std::size_t max_request = 4096;      // bytes of one request line
+  std::size_t max_clients = 8;         // connections served at once; more wait in the listen queue
+  std::size_t max_waiting = 16;        // requests of one connection waiting for their answers
   std::size_t max_unsent = 64u << 10;  // bytes of answers not taken beyond which a client's requests wait
   canopen::Duration idle_timeout = std::chrono::seconds(30);  // from the last complete request
   canopen::Duration write_timeout = std::chrono::seconds(2);  // for the oldest answer not taken
@@ -71,7 +71,7 @@ struct ControlSocketSettings {
   std::string path;
   std::optional<gid_t> group;  // nullopt: mode 0600
   ControlLimits limits{};
-  std::function<void(const std::string&)> log;  // what it did to the file (stale socket removed)
+  std::function<void(const std::string&)> log;   // what it did to the file (stale socket removed)
   std::function<void(const std::string&)> warn;  // a client refused (see above); `log` when empty
 };
 
@@ -114,8 +114,8 @@ class ControlServer {
     int fd = -1;
     canopen::io::EventLoop::WatchId watch = 0;
     std::uint32_t events = canopen::io::events::kReadable;  // what `watch` waits for
-    std::string in;   // bytes read and not handled: at most max_request + 1
-    std::string out;  // answers not taken yet
+    std::string in;                                         // bytes read and not handled: at most max_request + 1
+    std::string out;                                        // answers not taken yet
     // When each answer in `out` was queued, by the stream offset it ends at: the oldest one's
     // age is what write_timeout bounds.
     std::deque<std::pair<std::uint64_t, canopen::TimePoint>> unsent;
@@ -128,11 +128,11 @@ class ControlServer {
     canopen::TimePoint last_request{};
     canopen::io::EventLoop::TimerId timer = 0;
     std::optional<canopen::TimePoint> deadline;  // what `timer` is armed for
-    bool asked = false;     // it completed a request once
-    bool eof = false;       // the client shut its sending side: answer what it asked, then close
-    bool closing = false;   // its request was too long: close once that answer is taken
-    bool runnable = false;  // in run_queue_
-    bool handling = false;  // inside the handler: an answer given at once is flushed by the slice
+    bool asked = false;                          // it completed a request once
+    bool eof = false;                            // the client shut its sending side: answer what it asked, then close
+    bool closing = false;                        // its request was too long: close once that answer is taken
+    bool runnable = false;                       // in run_queue_
+    bool handling = false;                       // inside the handler: an answer given at once is flushed by the slice
   };
   enum class Front : std::uint8_t { Partial, Complete, TooLong };  // the first line of `in`
 
@@ -151,7 +151,7 @@ class ControlServer {
   [[nodiscard]] Front front(const Client& c) const;
   void run_slice();
   void handle_one(Id id, Client& c);
-  bool flush(Client& c);  // false: drop the client
+  bool flush(Client& c);          // false: drop the client
   void settle(Id id, Client& c);  // after any change: close, re-watch, queue, re-arm
   void close_client(Id id, bool dropped);
   void on_answer(Id id, std::uint64_t slot, std::string line);
@@ -166,7 +166,7 @@ class ControlServer {
   dev_t dev_ = 0;
   ino_t ino_ = 0;
   canopen::io::EventLoop::WatchId watch_ = 0;
-  bool listening_ = true;  // the listen socket is watched (off while every slot is busy)
+  bool listening_ = true;                             // the listen socket is watched (off while every slot is busy)
   canopen::io::EventLoop::TimerId listen_again_ = 0;  // while off: when a client may have become idle
   std::map<Id, Client> clients_;
   std::deque<Id> run_queue_;  // clients with a request to handle, in turn

@@ -26,7 +26,8 @@ std::vector<std::uint8_t> from_hex(const json& r) {
   if (it == r.end() || !it->is_string()) throw std::invalid_argument("\"data\": expected the value's bytes in hex");
   std::string why;
   auto bytes = bytes_from_hex(it->get_ref<const std::string&>(), why);
-  if (!bytes || bytes->empty()) throw std::invalid_argument("\"data\": " + (bytes ? std::string("at least one byte") : why));
+  if (!bytes || bytes->empty())
+    throw std::invalid_argument("\"data\": " + (bytes ? std::string("at least one byte") : why));
   return *bytes;
 }
 
@@ -35,7 +36,9 @@ template <std::size_t N>
 std::array<std::uint32_t, N> u32_list(const json& r, const char* key, const char* what) {
   const auto it = r.find(key);
   std::array<std::uint32_t, N> v{};
-  const auto bad = [&] { return std::invalid_argument(fmt::format("\"{}\": expected [{}], integers 0..4294967295", key, what)); };
+  const auto bad = [&] {
+    return std::invalid_argument(fmt::format("\"{}\": expected [{}], integers 0..4294967295", key, what));
+  };
   if (it == r.end() || !it->is_array() || it->size() != N) throw bad();
   for (std::size_t i = 0; i < N; ++i) {
     if (!(*it)[i].is_number_unsigned() || (*it)[i].get<std::uint64_t>() > 0xFFFFFFFF) throw bad();
@@ -47,7 +50,9 @@ constexpr const char* kAddressParts = "vendor, product, revision, serial";
 
 // A CiA 309-3 internal error (canopen/309/ascii_gateway.hpp: 100 not supported, 102 internal
 // state, 106 unsupported net, 107 unsupported node) with the gateway's reason.
-json gateway_error(int code, std::string message) { return json{{"gateway_error", code}, {"message", std::move(message)}}; }
+json gateway_error(int code, std::string message) {
+  return json{{"gateway_error", code}, {"message", std::move(message)}};
+}
 
 // Gives a request's answer unless it was given already (CtlService::lss_pending_): the LSS
 // master's result and a reload's 102 may both come, the client gets the first.
@@ -67,8 +72,8 @@ json unknown_network(const mapping::Config& c, std::uint64_t net) {
 
 }  // namespace
 
-CtlService::CtlService(canopen::io::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
-                       std::function<void()> rearm)
+CtlService::CtlService(canopen::io::EventLoop& loop, Gateway& gw, const mapping::Config& config,
+                       ControlProtocol& protocol, std::function<void()> rearm)
     : loop_(loop), gw_(&gw), config_(&config), rearm_(std::move(rearm)) {
   protocol.add_async("sdo_read", [this](const json& r, ControlProtocol::Done done) { sdo(r, false, std::move(done)); });
   protocol.add_async("sdo_write", [this](const json& r, ControlProtocol::Done done) { sdo(r, true, std::move(done)); });
@@ -174,9 +179,10 @@ json CtlService::nmt(const json& r) {
   else if (s == "reset_comm") cs = canopen::NmtCommand::ResetCommunication;
   else throw std::invalid_argument("\"service\": '" + s + "' is none of start, stop, preop, reset_node, reset_comm");
   if (net == config_->upstream.network_id)
-    return gateway_error(100, fmt::format("network {} is the host's bus: the gateway's own NMT state is its NMT master's", net));
-  if (net != config_->downstream.network_id)
-    return unknown_network(*config_, net);
+    return gateway_error(100,
+                         fmt::format("network {} is the host's bus: the gateway's own NMT state is its NMT master's",
+                                     net));
+  if (net != config_->downstream.network_id) return unknown_network(*config_, net);
   const std::string why = gw_->downstream_nmt(canopen::NodeId{static_cast<std::uint8_t>(node)}, cs, loop_.now());
   if (rearm_) rearm_();
   if (!why.empty()) return gateway_error(102, why);
@@ -192,7 +198,8 @@ json lss_failure(const canopen::LssMaster::Result& r, const char* what, int refu
   if (r.status == Status::Timeout || r.status == Status::NoAnswer)
     return gateway_error(103, fmt::format("no LSS slave answered {} (none in LSS configuration mode?)", what));
   if (r.error == 0xFF)
-    return gateway_error(501, fmt::format("{} refused with the implementation-specific error {}", what, r.specific_error));
+    return gateway_error(501,
+                         fmt::format("{} refused with the implementation-specific error {}", what, r.specific_error));
   const int code = r.error == 2 && second_code != 0 ? second_code : refused_code;
   return gateway_error(code, fmt::format("{} refused with LSS error code {}", what, r.error));
 }
@@ -233,11 +240,11 @@ void CtlService::lss(const json& r, ControlProtocol::Done first_done) {
         "inquire_address, inquire_node, identify_non_configured or fastscan");
   const std::string s = it->get<std::string>();
   if (net == config_->upstream.network_id)
-    return done(gateway_error(100, fmt::format("network {} is the host's bus: LSS is served on the downstream network {} "
-                                               "only (the gateway is no LSS master upstream)",
-                                               net, config_->downstream.network_id)));
-  if (net != config_->downstream.network_id)
-    return done(unknown_network(*config_, net));
+    return done(
+        gateway_error(100, fmt::format("network {} is the host's bus: LSS is served on the downstream network {} "
+                                       "only (the gateway is no LSS master upstream)",
+                                       net, config_->downstream.network_id)));
+  if (net != config_->downstream.network_id) return done(unknown_network(*config_, net));
   auto& network = gw_->downstream();
   canopen::LssMaster* master = network.client_lss();
   if (master == nullptr)
@@ -264,8 +271,10 @@ void CtlService::lss(const json& r, ControlProtocol::Done first_done) {
                    {"fastscan", &CtlService::lss_fastscan},
                    {"identify_remote", &CtlService::lss_identify_remote},
                    {"slowscan", &CtlService::lss_slowscan}};
-  const auto* row = std::find_if(std::begin(kServices), std::end(kServices), [&](const auto& e) { return s == e.service; });
-  if (row == std::end(kServices)) throw std::invalid_argument("\"service\": '" + s + "' is no LSS service of this gateway");
+  const auto* row =
+      std::find_if(std::begin(kServices), std::end(kServices), [&](const auto& e) { return s == e.service; });
+  if (row == std::end(kServices))
+    throw std::invalid_argument("\"service\": '" + s + "' is no LSS service of this gateway");
   if ((this->*row->handle)(call) && rearm_) rearm_();
 }
 
@@ -302,7 +311,8 @@ bool CtlService::lss_set_node(const LssCall& c) {
       return false;
     }
   }
-  c.master.configure_node_id(canopen::NodeId{static_cast<std::uint8_t>(node)}, c.now, c.ok_or("configure node-ID", 502));
+  c.master.configure_node_id(canopen::NodeId{static_cast<std::uint8_t>(node)}, c.now,
+                             c.ok_or("configure node-ID", 502));
   return true;
 }
 
@@ -328,10 +338,11 @@ bool CtlService::lss_store(const LssCall& c) {
 }
 
 bool CtlService::lss_inquire_node(const LssCall& c) {
-  c.master.inquire(canopen::LssMaster::Inquiry::NodeId, c.now, [answer = c.answer](const canopen::LssMaster::Result& res) {
-    answer(res.status == canopen::LssMaster::Status::Ok ? json{{"node", res.value}}
-                                                        : lss_failure(res, "inquire node-ID", 102));
-  });
+  c.master.inquire(canopen::LssMaster::Inquiry::NodeId, c.now,
+                   [answer = c.answer](const canopen::LssMaster::Result& res) {
+                     answer(res.status == canopen::LssMaster::Status::Ok ? json{{"node", res.value}}
+                                                                         : lss_failure(res, "inquire node-ID", 102));
+                   });
   return true;
 }
 
@@ -339,7 +350,7 @@ bool CtlService::lss_inquire_address(const LssCall& c) {
   using canopen::LssMaster;
   using Status = LssMaster::Status;
   static constexpr LssMaster::Inquiry kParts[] = {LssMaster::Inquiry::Vendor, LssMaster::Inquiry::Product,
-                                                 LssMaster::Inquiry::Revision, LssMaster::Inquiry::Serial};
+                                                  LssMaster::Inquiry::Revision, LssMaster::Inquiry::Serial};
   if (c.request.contains("part")) {
     const auto part = request_field(c.request, "part", 0, 3);
     c.master.inquire(kParts[part], c.now, [answer = c.answer](const LssMaster::Result& res) {
@@ -396,7 +407,8 @@ bool CtlService::lss_fastscan(const LssCall& c) {
         if (alive.expired()) return;
         fastscan_client_ = false;  // (the destructor is still running when it cancels)
         if (f.address)
-          return answer(json{{"address", {f.address->vendor, f.address->product, f.address->revision, f.address->serial}}});
+          return answer(
+              json{{"address", {f.address->vendor, f.address->product, f.address->revision, f.address->serial}}});
         answer(gateway_error(f.outcome == canopen::LssFastscan::Outcome::Cancelled ? 102 : 103, f.note));
       },
       step, known);
@@ -412,11 +424,12 @@ canopen::lss::AddressRange lss_range(const json& r) {
 }  // namespace
 
 bool CtlService::lss_identify_remote(const LssCall& c) {
-  c.master.identify_remote_slave(lss_range(c.request), c.now, [answer = c.answer](const canopen::LssMaster::Result& res) {
-    answer(res.status == canopen::LssMaster::Status::Ok
-               ? json::object()
-               : gateway_error(103, "no LSS slave in the range answered identify remote slave"));
-  });
+  c.master
+      .identify_remote_slave(lss_range(c.request), c.now, [answer = c.answer](const canopen::LssMaster::Result& res) {
+        answer(res.status == canopen::LssMaster::Status::Ok
+                   ? json::object()
+                   : gateway_error(103, "no LSS slave in the range answered identify remote slave"));
+      });
   return true;
 }
 
@@ -468,8 +481,7 @@ void CtlService::sdo(const json& r, bool write, ControlProtocol::Done done) {
     const SdoAbortCode code = od.read(index, sub, out, canopen::Origin::Sdo);
     return done(answer(code, out, true));
   }
-  if (net != config_->downstream.network_id)
-    return done(unknown_network(*config_, net));
+  if (net != config_->downstream.network_id) return done(unknown_network(*config_, net));
 
   // A sub-device: the host's remote SDO path (RemoteSdo), with its policy.
   auto t = std::make_shared<Transfer>();

@@ -7,8 +7,8 @@
 namespace oegw::gateway::control {
 
 GatewayControl::GatewayControl(canopen::io::EventLoop& loop, Gateway& gw, const mapping::Config& config,
-                               const std::string& file, std::function<void()> rearm, const canopen::io::CanTransport* up,
-                               const canopen::io::CanTransport* down)
+                               const std::string& file, std::function<void()> rearm,
+                               const canopen::io::CanTransport* up, const canopen::io::CanTransport* down)
     : gw_(&gw), config_(&config) {
   const canopen::TimePoint started = loop.now();
   protocol_.add("status", [this, &loop, started, up, down](const nlohmann::json&) {

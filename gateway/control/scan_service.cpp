@@ -15,7 +15,8 @@ namespace {
 // The inverse of canopen::to_string(NmtState).
 std::optional<canopen::NmtState> state_from(const std::string& s) {
   using canopen::NmtState;
-  for (const NmtState n : {NmtState::Initialisation, NmtState::Stopped, NmtState::Operational, NmtState::PreOperational})
+  for (const NmtState n :
+       {NmtState::Initialisation, NmtState::Stopped, NmtState::Operational, NmtState::PreOperational})
     if (canopen::to_string(n) == s) return n;
   return std::nullopt;
 }
@@ -52,12 +53,8 @@ json progress_json(const sd::ScanProgress& p) {
 json scan_result_json(const sd::ScanResult& r) {
   json nodes = json::array();
   for (const sd::ScannedNode& n : r.nodes) {
-    json j{{"node", n.node.value()},
-           {"answered_sdo", n.answered_sdo},
-           {"heard", n.heard},
-           {"booted", n.booted},
-           {"family", n.family.family},
-           {"family_reason", n.family.reason}};
+    json j{{"node", n.node.value()}, {"answered_sdo", n.answered_sdo}, {"heard", n.heard},
+           {"booted", n.booted},     {"family", n.family.family},      {"family_reason", n.family.reason}};
     if (n.state) j["state"] = canopen::to_string(*n.state);
     put(j, "device_type", n.identity.device_type);
     put(j, "vendor_id", n.identity.vendor_id);
@@ -73,7 +70,8 @@ json scan_result_json(const sd::ScanResult& r) {
   }
   json out{{"nodes", std::move(nodes)}, {"unconfigured", r.unconfigured}, {"lss_note", r.lss_note}};
   if (const auto& a = r.unconfigured_address)
-    out["unconfigured_address"] = json{{"vendor", a->vendor}, {"product", a->product}, {"revision", a->revision}, {"serial", a->serial}};
+    out["unconfigured_address"] =
+        json{{"vendor", a->vendor}, {"product", a->product}, {"revision", a->revision}, {"serial", a->serial}};
   return out;
 }
 
@@ -99,7 +97,8 @@ std::optional<sd::ScanResult> scan_result_from_json(const json& j, std::string& 
       s.identity.revision = maybe<std::uint32_t>(n, "revision");
       s.identity.serial = maybe<std::uint32_t>(n, "serial");
       s.producer_heartbeat_ms = maybe<std::uint16_t>(n, "producer_heartbeat_ms");
-      if (const auto us = maybe<std::int64_t>(n, "heartbeat_period_us")) s.heartbeat_period = std::chrono::microseconds(*us);
+      if (const auto us = maybe<std::int64_t>(n, "heartbeat_period_us"))
+        s.heartbeat_period = std::chrono::microseconds(*us);
       s.configured_as = maybe<std::string>(n, "configured_as").value_or("");
       s.gateway_state = maybe<std::string>(n, "gateway_state").value_or("");
       r.nodes.push_back(std::move(s));
@@ -107,8 +106,9 @@ std::optional<sd::ScanResult> scan_result_from_json(const json& j, std::string& 
     r.unconfigured = need<bool>(j, "unconfigured");
     r.lss_note = need<std::string>(j, "lss_note");
     if (const auto a = maybe<json>(j, "unconfigured_address"))
-      r.unconfigured_address = canopen::lss::Address{need<std::uint32_t>(*a, "vendor"), need<std::uint32_t>(*a, "product"),
-                                                     need<std::uint32_t>(*a, "revision"), need<std::uint32_t>(*a, "serial")};
+      r.unconfigured_address =
+          canopen::lss::Address{need<std::uint32_t>(*a, "vendor"), need<std::uint32_t>(*a, "product"),
+                                need<std::uint32_t>(*a, "revision"), need<std::uint32_t>(*a, "serial")};
     return r;
   } catch (const std::invalid_argument& e) {
     error = e.what();
@@ -116,8 +116,8 @@ std::optional<sd::ScanResult> scan_result_from_json(const json& j, std::string& 
   }
 }
 
-ScanService::ScanService(canopen::io::EventLoop& loop, Gateway& gw, const mapping::Config& config, ControlProtocol& protocol,
-                         std::function<void()> rearm)
+ScanService::ScanService(canopen::io::EventLoop& loop, Gateway& gw, const mapping::Config& config,
+                         ControlProtocol& protocol, std::function<void()> rearm)
     : loop_(loop), gw_(&gw), config_(&config), rearm_(std::move(rearm)) {
   protocol.add("scan", [this](const json& r) {
     const auto it = r.find("action");
@@ -175,21 +175,23 @@ json ScanService::start(const json& r) {
   }
   for (const mapping::SubdeviceConfig& s : config_->subdevices) cfg.skip.insert(s.node_id);
   driver_.reset();  // (the last scan's: it has no deadline left)
-  scanner_ = std::make_unique<sd::BusScanner>(
-      [this](const canopen::CanFrame& f) { gw_->send_downstream(f); }, cfg, [this] {
-        sd::SharedLss s;
-        auto& network = gw_->downstream();
-        s.master = network.client_lss();
-        s.fastscan = network.client_fastscan();
-        if (network.own_lss_busy()) s.why_not = "the gateway's own LSS commissioning is running";
-        else if (network.client_scan_running()) s.why_not = "an `oegw ctl` fastscan or slowscan is running";
-        return s;
-      });
+  scanner_ = std::make_unique<sd::BusScanner>([this](const canopen::CanFrame& f) { gw_->send_downstream(f); }, cfg,
+                                              [this] {
+                                                sd::SharedLss s;
+                                                auto& network = gw_->downstream();
+                                                s.master = network.client_lss();
+                                                s.fastscan = network.client_fastscan();
+                                                if (network.own_lss_busy())
+                                                  s.why_not = "the gateway's own LSS commissioning is running";
+                                                else if (network.client_scan_running())
+                                                  s.why_not = "an `oegw ctl` fastscan or slowscan is running";
+                                                return s;
+                                              });
   result_.reset();
   scanner_->on_wake = [this] { settle(); };
   ++id_;
   gw_->log_control(fmt::format("scan {}: probing the node-IDs of no sub-device ({} skipped){}", id_, cfg.skip.size(),
-                              cfg.lss ? ", then LSS" : ""));
+                               cfg.lss ? ", then LSS" : ""));
   scanner_->start(loop_.now());
   driver_ = std::make_unique<canopen::io::ServiceDriver>(
       loop_, [this] { return scanner_->next_deadline(); },
@@ -215,12 +217,15 @@ void ScanService::settle() {
 sd::ScanResult ScanService::with_subdevices(sd::ScanResult r) const {
   const auto& network = gw_->downstream();
   for (const mapping::SubdeviceConfig& s : config_->subdevices) {
-    auto it = std::find_if(r.nodes.begin(), r.nodes.end(), [&](const sd::ScannedNode& n) { return n.node.value() == s.node_id; });
+    auto it = std::find_if(r.nodes.begin(), r.nodes.end(),
+                           [&](const sd::ScannedNode& n) { return n.node.value() == s.node_id; });
     if (it == r.nodes.end()) {
       sd::ScannedNode n;
       n.node = canopen::NodeId{s.node_id};
       it = r.nodes.insert(std::upper_bound(r.nodes.begin(), r.nodes.end(), n,
-                                           [](const sd::ScannedNode& a, const sd::ScannedNode& b) { return a.node.value() < b.node.value(); }),
+                                           [](const sd::ScannedNode& a, const sd::ScannedNode& b) {
+                                             return a.node.value() < b.node.value();
+                                           }),
                           std::move(n));
     }
     sd::ScannedNode& n = *it;
@@ -243,8 +248,9 @@ json ScanService::status(const json& r) const {
     return json{{"gateway_error", 102},
                 {"message", fmt::format("scan {} ended: the gateway reloaded its mapping file; start it again", id)}};
   if (id != id_)
-    return json{{"gateway_error", 102}, {"message", id_ == 0 ? std::string("no scan was started")
-                                                             : fmt::format("scan {} is not the last one ({})", id, id_)}};
+    return json{{"gateway_error", 102},
+                {"message", id_ == 0 ? std::string("no scan was started")
+                                     : fmt::format("scan {} is not the last one ({})", id, id_)}};
   json s{{"id", id_}, {"running", !result_}, {"progress", progress_json(scanner_->progress())}};
   if (result_) {
     s["result"] = *result_;

@@ -67,8 +67,8 @@ class ScanService {
   std::function<void()> rearm_;
   std::unique_ptr<subdevices::BusScanner> scanner_;
   std::unique_ptr<canopen::io::ServiceDriver> driver_;
-  std::uint64_t id_ = 0;  // the current (or last) scan; 0: none yet
-  std::uint64_t ended_ = 0;  // a scan a reload ended (detach)
+  std::uint64_t id_ = 0;                  // the current (or last) scan; 0: none yet
+  std::uint64_t ended_ = 0;               // a scan a reload ended (detach)
   std::optional<nlohmann::json> result_;  // the last scan's, once done
 };
 

@@ -93,7 +93,8 @@ json fe_json(const Gateway& gw, mapping::FeId fe) {
 
 json upstream_json(const Gateway& gw, const mapping::Config& c, canopen::TimePoint now) {
   json consumed = json::array();
-  for (const auto& [node, e] : gw.upstream_emcys()) consumed.push_back(json{{"node_id", node}, {"last_emcy", emcy_json(e, now)}});
+  for (const auto& [node, e] : gw.upstream_emcys())
+    consumed.push_back(json{{"node_id", node}, {"last_emcy", emcy_json(e, now)}});
   json active = json::array();
   if (!gw.faults().empty()) active.push_back(OeDevice::kEmcyAdditionalModules);
   if (gw.reloading()) active.push_back(Gateway::kEmcyReload);
@@ -138,7 +139,7 @@ std::string subdevice_summary(sd::NodeState state, bool faulty) {
 
 namespace {
 json bus_json(const canopen::io::TransportCounters& c) {
-  return json{{"rx_frames", c.rx_frames}, {"tx_frames", c.tx_frames},       {"rx_dropped", c.rx_dropped},
+  return json{{"rx_frames", c.rx_frames},   {"tx_frames", c.tx_frames},       {"rx_dropped", c.rx_dropped},
               {"tx_dropped", c.tx_dropped}, {"error_frames", c.error_frames}, {"errors", c.errors}};
 }
 }  // namespace
@@ -151,9 +152,9 @@ json publishing_status(const std::vector<TransportState>& transports) {
       j["reason"] = t.reason;
       j["failed_attempts"] = t.failures;
       j["down_ms"] = std::chrono::duration_cast<std::chrono::milliseconds>(t.down_for).count();
-      j["next_attempt_ms"] = t.next_attempt_in
-                                 ? json(std::chrono::duration_cast<std::chrono::milliseconds>(*t.next_attempt_in).count())
-                                 : json(nullptr);  // null: an attempt is running
+      j["next_attempt_ms"] =
+          t.next_attempt_in ? json(std::chrono::duration_cast<std::chrono::milliseconds>(*t.next_attempt_in).count())
+                            : json(nullptr);  // null: an attempt is running
     }
     out.push_back(std::move(j));
   }
@@ -177,8 +178,8 @@ json status_report(const Gateway& gw, const mapping::Config& config, const Statu
                                                     {"gateway_resets", n.gateway_resets}}}}},
               {"subdevices", subs},
               {"functional_elements", fes},
-              {"commands", json{{"refused", gw.refused_commands()},
-                                {"subdevice_refused", gw.subdevice_refused_commands()}}}};
+              {"commands",
+               json{{"refused", gw.refused_commands()}, {"subdevice_refused", gw.subdevice_refused_commands()}}}};
   if (at.upstream_bus != nullptr) report["upstream"]["bus"] = bus_json(*at.upstream_bus);
   if (at.downstream_bus != nullptr) report["downstream"]["bus"] = bus_json(*at.downstream_bus);
   return report;

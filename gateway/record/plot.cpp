@@ -80,8 +80,8 @@ void PlotData::begin_run(const std::string& name) {
   pending_run_ = name;
 }
 
-void PlotData::close_band(std::map<std::string, std::pair<std::string, double>>& open, const std::string& key,
-                          double t, const std::string& fe) {
+void PlotData::close_band(std::map<std::string, std::pair<std::string, double>>& open, const std::string& key, double t,
+                          const std::string& fe) {
   const auto it = open.find(key);
   if (it == open.end()) return;
   bands_.push_back(Band{fe, fe.empty() ? key : "", fe.empty() ? key + ": " + it->second.first : it->second.first,
@@ -303,9 +303,10 @@ bool PlotData::write_html(const std::filesystem::path& out, const std::string& t
                           const std::filesystem::path& chart_js, std::size_t max_points) const {
   std::ifstream js(chart_js, std::ios::binary);
   if (!js) {
-    error = fmt::format("{}: cannot be read: the plot draws with Chart.js from Debian's libjs-chart.js (apt-get install "
-                        "libjs-chart.js)",
-                        chart_js.string());
+    error = fmt::format(
+        "{}: cannot be read: the plot draws with Chart.js from Debian's libjs-chart.js (apt-get install "
+        "libjs-chart.js)",
+        chart_js.string());
     return false;
   }
   std::stringstream script;
@@ -317,7 +318,8 @@ bool PlotData::write_html(const std::filesystem::path& out, const std::string& t
   for (const char c : title) escaped += c == '<' ? "&lt;" : c == '>' ? "&gt;" : c == '&' ? "&amp;" : std::string(1, c);
   f << R"html(<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>)html"
-    << escaped << "</title>\n" << kPageStyle << script.str() << kPageBody << data_text << kPageScript;
+    << escaped << "</title>\n"
+    << kPageStyle << script.str() << kPageBody << data_text << kPageScript;
   return write_plot_file(out, f.str(), error);
 }
 

@@ -51,8 +51,8 @@ class PlotData {
     double t;  // seconds since the first line
     double v;
   };
-  struct Band {  // an FE not valid, or a sub-device faulty, from..to
-    std::string fe;  // the FE chart it belongs to ("" for a sub-device fault: on every FE it feeds)
+  struct Band {             // an FE not valid, or a sub-device faulty, from..to
+    std::string fe;         // the FE chart it belongs to ("" for a sub-device fault: on every FE it feeds)
     std::string subdevice;  // a sub-device fault's
     std::string what;
     double from, to;

@@ -160,31 +160,35 @@ std::string PlotData::svg_chart(const SvgChart& c, double top, double end) const
   const Axis ax = c.node_levels ? Axis{end, -1.5, 5.5} : value_axis(c.series, end);
   const double plot_top = top + 22;
   std::string svg;
-  svg += fmt::format("<g class=\"chart\">\n<title>{}</title>\n<text x=\"{:.0f}\" y=\"{:.1f}\" font-size=\"13\" "
-                     "font-weight=\"bold\">{}</text>\n",
-                     escaped(c.heading), kLeft, top + 14, escaped(c.heading));
-  svg += fmt::format("<rect x=\"{:.0f}\" y=\"{:.1f}\" width=\"{:.0f}\" height=\"{:.0f}\" fill=\"none\" "
-                     "stroke=\"#ccc\"/>\n",
-                     kLeft, plot_top, kPlotWidth, kPlotHeight);
+  svg += fmt::format(
+      "<g class=\"chart\">\n<title>{}</title>\n<text x=\"{:.0f}\" y=\"{:.1f}\" font-size=\"13\" "
+      "font-weight=\"bold\">{}</text>\n",
+      escaped(c.heading), kLeft, top + 14, escaped(c.heading));
+  svg += fmt::format(
+      "<rect x=\"{:.0f}\" y=\"{:.1f}\" width=\"{:.0f}\" height=\"{:.0f}\" fill=\"none\" "
+      "stroke=\"#ccc\"/>\n",
+      kLeft, plot_top, kPlotWidth, kPlotHeight);
   for (const PlacedBand& b : c.bands) {
     const double x0 = ax.x(b.from), x1 = ax.x(b.to);
-    svg += fmt::format("<rect class=\"band\" x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"{:.0f}\" "
-                       "fill=\"{}\"><title>{} {}..{}</title></rect>\n",
-                       x0, plot_top, std::max(x1 - x0, 1.0), kPlotHeight, band_fill(b.what), escaped(b.what),
-                       time_of_day(t0_, b.from), time_of_day(t0_, b.to));
+    svg += fmt::format(
+        "<rect class=\"band\" x=\"{:.1f}\" y=\"{:.1f}\" width=\"{:.1f}\" height=\"{:.0f}\" "
+        "fill=\"{}\"><title>{} {}..{}</title></rect>\n",
+        x0, plot_top, std::max(x1 - x0, 1.0), kPlotHeight, band_fill(b.what), escaped(b.what), time_of_day(t0_, b.from),
+        time_of_day(t0_, b.to));
   }
   // The y axis: its ends and middle, or the node states by name.
   if (c.node_levels) {
-    constexpr const char* kStates[] = {"refused", "missing", "idle", "waiting for boot-up", "configuring",
-                                       "starting", "operational"};
+    constexpr const char* kStates[] = {"refused",     "missing",  "idle",       "waiting for boot-up",
+                                       "configuring", "starting", "operational"};
     for (int level = -1; level <= 5; ++level)
-      svg += fmt::format("<text x=\"{:.0f}\" y=\"{:.1f}\" text-anchor=\"end\" fill=\"#555\" font-size=\"9\">{}"
-                         "</text>\n",
-                         kLeft - 4, ax.y(plot_top, level) + 3, kStates[level + 1]);
+      svg += fmt::format(
+          "<text x=\"{:.0f}\" y=\"{:.1f}\" text-anchor=\"end\" fill=\"#555\" font-size=\"9\">{}"
+          "</text>\n",
+          kLeft - 4, ax.y(plot_top, level) + 3, kStates[level + 1]);
   } else {
     for (const double v : {ax.lo, (ax.lo + ax.hi) / 2, ax.hi})
-      svg += fmt::format("<text x=\"{:.0f}\" y=\"{:.1f}\" text-anchor=\"end\" fill=\"#555\">{:.6g}</text>\n",
-                         kLeft - 4, ax.y(plot_top, v) + 4, v);
+      svg += fmt::format("<text x=\"{:.0f}\" y=\"{:.1f}\" text-anchor=\"end\" fill=\"#555\">{:.6g}</text>\n", kLeft - 4,
+                         ax.y(plot_top, v) + 4, v);
   }
   for (int i = 0; i <= 5; ++i) {
     const double t = end * i / 5;
@@ -200,21 +204,23 @@ std::string PlotData::svg_chart(const SvgChart& c, double top, double end) const
       if (i > 0) pts += fmt::format("{:.1f},{:.1f} ", x, ax.y(plot_top, s.points[i - 1].second));  // the step
       pts += fmt::format("{:.1f},{:.1f} ", x, y);
     }
-    svg += fmt::format("<polyline class=\"series\" fill=\"none\" stroke=\"{}\" stroke-width=\"1.5\" points=\"{}\">"
-                       "<title>{} ({} points)</title></polyline>\n",
-                       stroke, pts, escaped(s.name), s.points.size());
+    svg += fmt::format(
+        "<polyline class=\"series\" fill=\"none\" stroke=\"{}\" stroke-width=\"1.5\" points=\"{}\">"
+        "<title>{} ({} points)</title></polyline>\n",
+        stroke, pts, escaped(s.name), s.points.size());
     const double ly = plot_top + 10 + 14 * static_cast<double>(colour);
-    svg += fmt::format("<rect x=\"{:.0f}\" y=\"{:.1f}\" width=\"10\" height=\"3\" fill=\"{}\"/><text x=\"{:.0f}\" "
-                       "y=\"{:.1f}\">{}</text>\n",
-                       kLeft + kPlotWidth + 10, ly - 3, stroke, kLeft + kPlotWidth + 24, ly, escaped(s.name));
+    svg += fmt::format(
+        "<rect x=\"{:.0f}\" y=\"{:.1f}\" width=\"10\" height=\"3\" fill=\"{}\"/><text x=\"{:.0f}\" "
+        "y=\"{:.1f}\">{}</text>\n",
+        kLeft + kPlotWidth + 10, ly - 3, stroke, kLeft + kPlotWidth + 24, ly, escaped(s.name));
     ++colour;
   }
   for (const Marker& m : markers_)
     if (drawn_marker(m.kind))
-      svg += fmt::format("<line class=\"marker\" x1=\"{0:.1f}\" x2=\"{0:.1f}\" y1=\"{1:.1f}\" y2=\"{2:.1f}\" "
-                         "stroke=\"{3}\"><title>{4} {5}</title></line>\n",
-                         ax.x(m.t), plot_top, plot_top + kPlotHeight, marker_colour(m.kind), time_of_day(t0_, m.t),
-                         escaped(m.text));
+      svg += fmt::format(
+          "<line class=\"marker\" x1=\"{0:.1f}\" x2=\"{0:.1f}\" y1=\"{1:.1f}\" y2=\"{2:.1f}\" "
+          "stroke=\"{3}\"><title>{4} {5}</title></line>\n",
+          ax.x(m.t), plot_top, plot_top + kPlotHeight, marker_colour(m.kind), time_of_day(t0_, m.t), escaped(m.text));
   svg += "</g>\n";
   return svg;
 }

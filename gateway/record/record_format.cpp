@@ -105,7 +105,8 @@ std::optional<std::int64_t> parse_wall_time(std::string_view t) {
   if (f.empty() || f.size() > 9) return std::nullopt;
   if (auto r = std::from_chars(s.data(), s.data() + s.size(), sec); r.ec != std::errc{} || r.ptr != s.data() + s.size())
     return std::nullopt;
-  if (auto r = std::from_chars(f.data(), f.data() + f.size(), frac); r.ec != std::errc{} || r.ptr != f.data() + f.size())
+  if (auto r = std::from_chars(f.data(), f.data() + f.size(), frac);
+      r.ec != std::errc{} || r.ptr != f.data() + f.size())
     return std::nullopt;
   // Microseconds from however many fraction digits were written.
   std::size_t digits = f.size();
@@ -213,7 +214,8 @@ std::optional<EventLine> parse_event_line(std::string_view line, std::string& er
   EventLine out;
   out.wall_us = *t;
   const auto n = rest.substr(1, sp2 - 1);
-  if (auto r = std::from_chars(n.data(), n.data() + n.size(), out.pos); r.ec != std::errc{} || r.ptr != n.data() + n.size()) {
+  if (auto r = std::from_chars(n.data(), n.data() + n.size(), out.pos);
+      r.ec != std::errc{} || r.ptr != n.data() + n.size()) {
     error = "'" + std::string(n) + "' after @ is no count";
     return std::nullopt;
   }

@@ -54,9 +54,7 @@ std::int64_t steady_us() {
       .count();
 }
 
-std::int64_t timespec_us(const timespec& t) {
-  return static_cast<std::int64_t>(t.tv_sec) * 1000000 + t.tv_nsec / 1000;
-}
+std::int64_t timespec_us(const timespec& t) { return static_cast<std::int64_t>(t.tv_sec) * 1000000 + t.tv_nsec / 1000; }
 
 // "20261205T140312Z" for a wall time in µs.
 std::string utc_stamp(std::int64_t wall_us) { return wall_text(wall_us, "%Y%m%dT%H%M%SZ", true); }
@@ -87,8 +85,10 @@ std::uint64_t size_of(const fs::path& p) {
 Recorder::Recorder(RecorderSettings settings) : settings_(std::move(settings)) {
   if (settings_.segments == 0) settings_.segments = 1;
   segment_bytes_ = std::max<std::uint64_t>(settings_.max_bytes / settings_.segments, 4096);
-  segment_span_us_ = std::max<std::int64_t>(
-      std::chrono::duration_cast<std::chrono::microseconds>(settings_.span).count() / settings_.segments, 1000);
+  segment_span_us_ =
+      std::max<std::int64_t>(std::chrono::duration_cast<std::chrono::microseconds>(settings_.span).count() /
+                                 settings_.segments,
+                             1000);
   std::error_code ec;
   fs::create_directories(settings_.dir / "kept", ec);
   if (ec) throw RecordError(fmt::format("cannot make {}: {}", (settings_.dir / "kept").string(), ec.message()));
@@ -99,8 +99,8 @@ Recorder::Recorder(RecorderSettings settings) : settings_(std::move(settings)) {
   // A run started within the same second as an earlier one gets a letter.
   {
     const std::string base = settings_.run;
-    for (char c = 'b'; std::any_of(ring_.begin(), ring_.end(), [&](const Segment& s) { return s.run == settings_.run; });
-         ++c)
+    for (char c = 'b';
+         std::any_of(ring_.begin(), ring_.end(), [&](const Segment& s) { return s.run == settings_.run; }); ++c)
       settings_.run = base + c;
   }
   for (const auto& [name, source] : settings_.run_files) {
@@ -199,8 +199,7 @@ void Recorder::push(const void* head, std::size_t head_n, const void* body, std:
 }
 
 void Recorder::frame(Side side, Direction d, const canopen::CanFrame& f, canopen::TimePoint t) {
-  Head h{Kind::Frame,
-         static_cast<std::uint8_t>((side == Side::Down ? 1 : 0) | (d == Direction::Tx ? 2 : 0)),
+  Head h{Kind::Frame, static_cast<std::uint8_t>((side == Side::Down ? 1 : 0) | (d == Direction::Tx ? 2 : 0)),
          sizeof(FrameBody), 0, t.time_since_epoch().count()};
   FrameBody b{};
   b.id = f.id;
@@ -295,8 +294,9 @@ void Recorder::run_writer() {
     write_batch(back_);
     back_.clear();
     for (std::size_t k = 0; k < keeps; ++k) do_keep();
-    if (stopping || flush_target != 0 || steady_us() - last_sync_us_ >=
-                                             std::chrono::duration_cast<std::chrono::microseconds>(settings_.sync_period).count())
+    if (stopping || flush_target != 0 ||
+        steady_us() - last_sync_us_ >=
+            std::chrono::duration_cast<std::chrono::microseconds>(settings_.sync_period).count())
       sync();
     trim();
 
@@ -337,10 +337,11 @@ void Recorder::open_segment(std::int64_t t_us) {
   const std::int64_t wall = t_us + o.offset_us;
   ring_.push_back(Segment{name, settings_.run, 0, wall, wall});
   open_ = o;
-  events_buf_ += fmt::format("# oegw recording, format {}: {}.log holds the frames (candump log), this file the other "
-                             "inputs and the decisions as (seconds.micros) @frames-before TEXT; docs/guides/black-box.md#the-files"
-                             "\n",
-                             kFormatVersion, name);
+  events_buf_ += fmt::format(
+      "# oegw recording, format {}: {}.log holds the frames (candump log), this file the other "
+      "inputs and the decisions as (seconds.micros) @frames-before TEXT; docs/guides/black-box.md#the-files"
+      "\n",
+      kFormatVersion, name);
   append_event_prefix(events_buf_, wall, 0);
   events_buf_ += fmt::format("segment run={} seq={} offset_us={} up={} down={}\n", settings_.run, next_seq_ - 1,
                              o.offset_us, settings_.up_iface, settings_.down_iface);
@@ -504,7 +505,8 @@ void Recorder::trim() {
     total -= s.bytes;
     ::unlink((settings_.dir / (s.name + ".log")).c_str());
     ::unlink((settings_.dir / (s.name + ".events")).c_str());
-    if (s.run != settings_.run && std::none_of(ring_.begin(), ring_.end(), [&](const Segment& o) { return o.run == s.run; }))
+    if (s.run != settings_.run &&
+        std::none_of(ring_.begin(), ring_.end(), [&](const Segment& o) { return o.run == s.run; }))
       runs_gone.insert(s.run);
   }
   // The run files (mapping file, store) of a run none of whose segments is left.

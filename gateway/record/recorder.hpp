@@ -78,10 +78,10 @@ struct KeptWindow {
 struct RecorderStatus {
   std::filesystem::path dir;
   std::string run;
-  std::size_t segments = 0;   // in the ring, the current one included
-  std::uint64_t bytes = 0;    // their size
-  std::int64_t span_us = 0;   // from the oldest segment's first line to the newest line
-  std::uint64_t frames = 0, events = 0;        // written since the start
+  std::size_t segments = 0;                              // in the ring, the current one included
+  std::uint64_t bytes = 0;                               // their size
+  std::int64_t span_us = 0;                              // from the oldest segment's first line to the newest line
+  std::uint64_t frames = 0, events = 0;                  // written since the start
   std::uint64_t dropped_frames = 0, dropped_events = 0;  // the queue was full
   std::uint64_t lost_frames = 0, lost_events = 0;        // a write failed
   std::size_t queued_bytes = 0;
@@ -124,9 +124,9 @@ class Recorder final : public RecordSink {
   struct Open {  // the current segment
     int log_fd = -1, events_fd = -1;
     std::uint64_t log_size = 0, events_size = 0;  // written and whole
-    std::uint64_t frames = 0;                      // frame lines in it (the @N of the next event)
-    std::int64_t offset_us = 0;                    // wall = loop time + offset
-    std::int64_t first_t = 0;                      // loop time of its first record
+    std::uint64_t frames = 0;                     // frame lines in it (the @N of the next event)
+    std::int64_t offset_us = 0;                   // wall = loop time + offset
+    std::int64_t first_t = 0;                     // loop time of its first record
   };
 
   void push(const void* head, std::size_t head_n, const void* body, std::size_t body_n, bool frame);

@@ -32,9 +32,9 @@ void add_run_files(Run& r, const fs::path& dir) {
 bool unreadable(std::vector<std::string>& problems, const std::function<std::string()>& where, bool parsed, bool last,
                 bool unterminated, const std::string& error) {
   if (parsed && !(last && unterminated)) return false;
-  problems.push_back(where() + (last ? ": torn last line, skipped (the recording was cut mid-write): "
-                                   : ": bad line, skipped: ") +
-                     (parsed ? std::string("no newline at its end") : error));
+  problems.push_back(
+      where() + (last ? ": torn last line, skipped (the recording was cut mid-write): " : ": bad line, skipped: ") +
+      (parsed ? std::string("no newline at its end") : error));
   return true;
 }
 
@@ -56,7 +56,9 @@ bool for_each_line(const fs::path& p, const std::function<void(const std::string
 
 }  // namespace
 
-std::string Entry::where() const { return file == nullptr ? std::string("?") : fmt::format("{}:{}", file->string(), line); }
+std::string Entry::where() const {
+  return file == nullptr ? std::string("?") : fmt::format("{}:{}", file->string(), line);
+}
 
 std::string Entry::text_line() const {
   if (kind == Kind::Event) return text;
@@ -90,8 +92,9 @@ std::optional<std::vector<Run>> find_runs(const fs::path& where, std::string& er
       runs.push_back(std::move(r));
     }
     if (runs.empty()) {
-      error = where.string() + ": no recording in it (expected <run>-<seq>.events and .log files, docs/guides/black-box.md#the-files"
-                               ")";
+      error = where.string() +
+              ": no recording in it (expected <run>-<seq>.events and .log files, docs/guides/black-box.md#the-files"
+              ")";
       return std::nullopt;
     }
     return runs;
@@ -214,8 +217,8 @@ void SegmentReader::each(const std::function<void(Entry&)>& fn) {
     });
     if (!read) out.problems.push_back(s.log.string() + ": cannot be read");
     if (others != 0)
-      out.problems.push_back(fmt::format("{} line(s) that are no candump frames skipped (the first: {})", others,
-                                         first_other));
+      out.problems.push_back(
+          fmt::format("{} line(s) that are no candump frames skipped (the first: {})", others, first_other));
   }
   events_before(std::numeric_limits<std::size_t>::max());
   events_.clear();

@@ -57,7 +57,7 @@ struct Run {
 [[nodiscard]] std::optional<std::vector<Run>> find_runs(const std::filesystem::path& where, std::string& error);
 
 struct SegmentRead {
-  std::vector<Entry> entries;  // merged: each event before the frame line its @N names
+  std::vector<Entry> entries;         // merged: each event before the frame line its @N names
   std::vector<std::string> problems;  // "file:line: torn last line (…)", bad lines
   std::string up_iface, down_iface;   // from the `segment` line (empty in a plain log)
   std::int64_t offset_us = 0;

@@ -87,7 +87,8 @@ json RecordingService::status() const {
   }
   const RecorderStatus s = recorder_->status();
   json kept = json::array();
-  for (const auto& k : s.kept) kept.push_back(json{{"path", k.path.string()}, {"segments", k.segments}, {"bytes", k.bytes}});
+  for (const auto& k : s.kept)
+    kept.push_back(json{{"path", k.path.string()}, {"segments", k.segments}, {"bytes", k.bytes}});
   out.update(json{{"recording", true},
                   {"run", s.run},
                   {"segments", s.segments},

@@ -50,7 +50,7 @@ class RecordingService {
  private:
   canopen::io::EventLoop& loop_;
   mapping::RecordConfig config_;  // as at the start: a reload does not change the recording
-  std::string error_;  // why it does not record (the folder refused at start)
+  std::string error_;             // why it does not record (the folder refused at start)
   std::unique_ptr<Recorder> recorder_;
   std::unique_ptr<GatewayRecorder> tap_;
   canopen::io::EventLoop::WatchId watch_ = 0;

@@ -112,7 +112,8 @@ bool feed_event(Gateway& gw, std::string_view text, canopen::TimePoint t, std::s
   } else if (k == "nmt" && w.size() == 3) {
     const auto node = num(1, 16), cs = num(2, 16);
     if (!node || !cs) return error = "cannot read '" + std::string(text) + "'", false;
-    (void)gw.downstream_nmt(canopen::NodeId{static_cast<std::uint8_t>(*node)}, static_cast<canopen::NmtCommand>(*cs), t);
+    (void)gw.downstream_nmt(canopen::NodeId{static_cast<std::uint8_t>(*node)}, static_cast<canopen::NmtCommand>(*cs),
+                            t);
   } else {
     error = "cannot read input '" + std::string(text) + "'";
     return false;
@@ -256,9 +257,10 @@ class RunReplay {
       sa << a.rdbuf();
       sb << b.rdbuf();
       if (sa.str() != sb.str())
-        report_.notes.push_back(fmt::format("{}: the recording was made with another mapping file ({}): a divergence may "
-                                            "come from the difference",
-                                            config_.file, run_.mapping_copy.string()));
+        report_.notes.push_back(
+            fmt::format("{}: the recording was made with another mapping file ({}): a divergence may "
+                        "come from the difference",
+                        config_.file, run_.mapping_copy.string()));
     }
     // The first segment, read once: what it begins with decides how the run is replayed.
     std::optional<SegmentReader> first;
@@ -271,11 +273,13 @@ class RunReplay {
     if (!exact_) opt.sdo_bus_share = 0;
     rec_ = std::make_unique<GatewayRecorder>(capture_);
     opt.tap = rec_.get();
-    gw_ = std::make_unique<Gateway>(config_, [](const canopen::CanFrame&) {}, [](const canopen::CanFrame&) {}, opt);
+    gw_ = std::make_unique<Gateway>(
+        config_, [](const canopen::CanFrame&) {}, [](const canopen::CanFrame&) {}, opt);
     report_.exact = exact_;
     if (!exact_ && !run_.plain())
-      report_.notes.push_back("the recording does not reach back to the gateway's start (its first segments left the "
-                              "ring): a fresh gateway replays its frames, nothing is compared");
+      report_.notes.push_back(
+          "the recording does not reach back to the gateway's start (its first segments left the "
+          "ring): a fresh gateway replays its frames, nothing is compared");
     capture_.observe = [this](const Produced& p, canopen::TimePoint t) { produced(p, t); };
     for (const Segment& s : run_.segments) {
       std::optional<SegmentReader> next;
@@ -296,9 +300,10 @@ class RunReplay {
       first.reset();
     }
     if (exact_ && comparing() && !capture_.q.empty())
-      report_.notes.push_back(fmt::format("the recording ends inside the gateway's last call: {} output(s) of the replay "
-                                          "after its end not compared",
-                                          capture_.q.size()));
+      report_.notes.push_back(
+          fmt::format("the recording ends inside the gateway's last call: {} output(s) of the replay "
+                      "after its end not compared",
+                      capture_.q.size()));
     gw_.reset();
     rec_.reset();
     fs::remove_all(tmp_, ec);
@@ -340,8 +345,8 @@ class RunReplay {
       if (iface == lone_iface_) return Side::Down;
     }
     if (unknown_ifaces_.insert(iface).second)
-      report_.notes.push_back(fmt::format("frames on interface '{}' skipped: neither {} nor {} (the mapping file's)", iface,
-                                          config_.upstream.interface, config_.downstream.interface));
+      report_.notes.push_back(fmt::format("frames on interface '{}' skipped: neither {} nor {} (the mapping file's)",
+                                          iface, config_.upstream.interface, config_.downstream.interface));
     return std::nullopt;
   }
 
@@ -357,7 +362,8 @@ class RunReplay {
   }
   void show_frame(std::int64_t wall, Side side, Direction d, const canopen::CanFrame& f) {
     if (printer_.run_start_wall < 0) printer_.run_start_wall = wall;
-    if (o_.timeline != nullptr && printer_.wanted_frame(side, f)) printer_.line(wall, frame_text(d, iface_name(side), f));
+    if (o_.timeline != nullptr && printer_.wanted_frame(side, f))
+      printer_.line(wall, frame_text(d, iface_name(side), f));
   }
 
   // The replay's outputs: shown in fresh mode (in exact mode the recording's are shown).
@@ -523,7 +529,8 @@ class RunReplay {
 
 }  // namespace
 
-std::vector<RunReport> replay(const std::vector<Run>& runs, const mapping::Config& config, const ReplayOptions& options) {
+std::vector<RunReport> replay(const std::vector<Run>& runs, const mapping::Config& config,
+                              const ReplayOptions& options) {
   std::vector<RunReport> out;
   if (options.plot != nullptr)
     for (const auto& fe : config.functional_elements)

@@ -58,14 +58,14 @@ struct RunReport {
   bool exact = false;  // compared (a recording with its start)
   std::uint64_t inputs = 0, frames_in = 0, frames_out = 0, decisions = 0, compared = 0;
   std::optional<Divergence> divergence;
-  std::string stopped;   // why the comparison ended before the recording did (empty: it did not)
+  std::string stopped;             // why the comparison ended before the recording did (empty: it did not)
   std::vector<std::string> notes;  // torn lines, a different mapping file, the end mid-call…
 };
 
 // Replays every run of `runs` (oldest first, a new gateway each). Throws std::runtime_error for
 // a recording that names neither of the mapping file's interfaces.
 [[nodiscard]] std::vector<RunReport> replay(const std::vector<Run>& runs, const mapping::Config& config,
-                                           const ReplayOptions& options);
+                                            const ReplayOptions& options);
 
 // Plain logs: true for a frame the gateway would have sent itself on that side (its own COB-IDs
 // upstream: heartbeat 700h+ID, EMCY 80h+ID, SDO responses, its TPDOs, LSS 7E4h; downstream as

@@ -114,12 +114,9 @@ void read_fe_entries(YamlReader& r, const MapEntry& fe_entry, FieldBinder& binde
   const auto es = r.entries(fe_entry.value, fe_name, {}, "a map of field -> signal, e.g. { x: right_grip.x }");
   check_has_fields(r, fe_entry, es, fe_name);
   for (const auto& e : es) {
-    if (e.name == "sources")
-      read_command_sources(r, e, fe, fe_name);
-    else if (e.name == "command_timeout_ms")
-      read_command_timeout(r, e, fe, fe_name);
-    else
-      binder.bind(e, fe);
+    if (e.name == "sources") read_command_sources(r, e, fe, fe_name);
+    else if (e.name == "command_timeout_ms") read_command_timeout(r, e, fe, fe_name);
+    else binder.bind(e, fe);
   }
 }
 
@@ -193,8 +190,8 @@ void check_command_sources_reachable(YamlReader& r, const Config& cfg) {
     // Sources not written are the default (canopen, dds), not the file's choice: DDS among them
     // serves when it is enabled, and a file without DDS is not told about it.
     if (fe.sources_where.line == 0) continue;
-    for (const auto& [dead, name, transport, written] :
-         {std::tuple{dds_dead, "dds", "DDS", p.dds.where.line != 0}, std::tuple{lcm_dead, "lcm", "LCM", p.lcm.where.line != 0}})
+    for (const auto& [dead, name, transport, written] : {std::tuple{dds_dead, "dds", "DDS", p.dds.where.line != 0},
+                                                         std::tuple{lcm_dead, "lcm", "LCM", p.lcm.where.line != 0}})
       if (dead)
         r.error(fe.sources_where, fe_name(fe.id) + " sources list " + name + ", but " + off(name, written) + ": no " +
                                       transport + " command can reach it; expected publish." + name +

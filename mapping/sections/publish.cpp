@@ -1,6 +1,6 @@
 // The `publish` section: the FE samples on DDS and LCM, and the commands coming back.
-#include "publish/lcm_url.hpp"
 #include "mapping/sections/sections.hpp"
+#include "publish/lcm_url.hpp"
 
 namespace oegw::mapping::sections {
 

@@ -9,7 +9,7 @@
 
 namespace oegw::mapping::sections {
 
-void read_upstream(YamlReader& r, const MapEntry& section, UpstreamConfig& out);      // upstream.cpp
+void read_upstream(YamlReader& r, const MapEntry& section, UpstreamConfig& out);  // upstream.cpp
 // upstream.cpp: upstream.sdo_servers against the sub-devices and the gateway's own COB-IDs.
 // `subdevices_read`: false when the subdevices section is missing or no map (reported there):
 // then a sub-device name is not reported unknown.
@@ -18,9 +18,9 @@ void read_downstream(YamlReader& r, const MapEntry& section, DownstreamConfig& o
 // A sub-device configured with a synchronous transmission type (option transmission_type, or an
 // sdo write of 1800h..19FFh:02, 0..240) needs downstream.sync_period_ms (downstream.cpp).
 void check_sync(YamlReader& r, const Config& config);
-void read_publish(YamlReader& r, const MapEntry& section, PublishConfig& out);        // publish.cpp
-void read_control(YamlReader& r, const MapEntry& section, ControlConfig& out);        // control.cpp
-void read_record(YamlReader& r, const MapEntry& section, RecordConfig& out);          // record.cpp
+void read_publish(YamlReader& r, const MapEntry& section, PublishConfig& out);  // publish.cpp
+void read_control(YamlReader& r, const MapEntry& section, ControlConfig& out);  // control.cpp
+void read_record(YamlReader& r, const MapEntry& section, RecordConfig& out);    // record.cpp
 // subdevices.cpp; the signals of each come from `catalogue`.
 void read_subdevices(YamlReader& r, const MapEntry& section, const SignalCatalogue& catalogue,
                      std::vector<SubdeviceConfig>& out);

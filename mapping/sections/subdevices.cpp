@@ -1,11 +1,11 @@
 // The `subdevices` section: the nodes on the downstream bus, their drivers, supervision times,
 // identity checks, SDO writes at boot and driver options; their signals from the catalogue.
 #include <algorithm>
-#include <span>
 #include <array>
 #include <cctype>
 #include <filesystem>
 #include <map>
+#include <span>
 #include <utility>
 
 #include "mapping/sections/cob_ids.hpp"
@@ -18,9 +18,11 @@ namespace {
 
 using canopen::DataType;
 
-const std::vector<std::string_view> kSubdeviceKeys = {
-    "driver", "node_id", "heartbeat_ms", "heartbeat_timeout_ms", "pdo_timeout_ms", "mandatory", "identity", "sdo",
-    "options"};
+const std::vector<std::string_view> kSubdeviceKeys = {"driver",         "node_id",
+                                                      "heartbeat_ms",   "heartbeat_timeout_ms",
+                                                      "pdo_timeout_ms", "mandatory",
+                                                      "identity",       "sdo",
+                                                      "options"};
 
 // The types an `sdo` write may name, with their value ranges.
 struct DataTypeName {
@@ -64,8 +66,9 @@ void read_identity(YamlReader& r, const MapEntry& e, const std::string& what, Su
       if (*m == "exact" || *m == "major") {
         s.exact_revision = *m == "exact";
       } else {
-        r.error(x->value, "found '" + *m + "' for revision_match; expected major (the upper 16 bits of 1018h:03, "
-                          "the default) or exact");
+        r.error(x->value, "found '" + *m +
+                              "' for revision_match; expected major (the upper 16 bits of 1018h:03, "
+                              "the default) or exact");
       }
     }
   auto opt = [&](std::string_view k, std::optional<std::uint32_t>& out) {
@@ -139,16 +142,12 @@ std::optional<SdoWriteConfig> read_sdo_write(YamlReader& r, const YAML::Node& it
   const auto* ve = need("value", "the value to write");
   const auto* te = need("type", "one of u8, u16, u32, i8, i16, i32");
   if (ie) {
-    if (auto v = r.integer(*ie, "index", 0x1000, 0xFFFF, true))
-      w.index = static_cast<std::uint16_t>(*v);
-    else
-      good = false;
+    if (auto v = r.integer(*ie, "index", 0x1000, 0xFFFF, true)) w.index = static_cast<std::uint16_t>(*v);
+    else good = false;
   }
   if (se) {
-    if (auto v = r.integer(*se, "sub_index", 0, 255, true))
-      w.sub_index = static_cast<std::uint8_t>(*v);
-    else
-      good = false;
+    if (auto v = r.integer(*se, "sub_index", 0, 255, true)) w.sub_index = static_cast<std::uint8_t>(*v);
+    else good = false;
   }
   const DataTypeName* type = te ? sdo_type(r, *te) : nullptr;
   if (te && !type) good = false;
@@ -157,8 +156,7 @@ std::optional<SdoWriteConfig> read_sdo_write(YamlReader& r, const YAML::Node& it
     if (auto v = r.integer(*ve, std::string("value of type ") + std::string(type->name), type->min, type->max,
                            type->min == 0))
       w.value = *v;
-    else
-      good = false;
+    else good = false;
   }
   if (!good) return std::nullopt;
   return w;
@@ -193,7 +191,8 @@ void report_refusal(YamlReader& r, const MapEntry& drv, const std::vector<MapEnt
     if (!refusal.option.empty() && name == refusal.option) at = where;
   if (o && o->value.IsMap() && !refusal.option.empty())
     if (const auto v = o->value[refusal.option]; v && v.IsScalar()) written = v.Scalar();
-  const std::string opened = subdevices::is_file_option(refusal.option) ? s.options.get(refusal.option).value_or("") : "";
+  const std::string opened =
+      subdevices::is_file_option(refusal.option) ? s.options.get(refusal.option).value_or("") : "";
   std::error_code ec;
   const bool absent = !opened.empty() && !std::filesystem::exists(opened, ec) && !ec;
   std::string msg = "driver " + s.driver + " refused " + what + ": " + refusal.message;
@@ -216,8 +215,8 @@ void read_signals(YamlReader& r, const SignalCatalogue& catalogue, const MapEntr
   if (sig) {
     s.signals = std::move(*sig);
   } else if (std::find(families.begin(), families.end(), s.driver) == families.end()) {
-    r.error(drv.value, "unknown driver '" + s.driver + "'; expected one of " + join(families) +
-                           did_you_mean(s.driver, families));
+    r.error(drv.value,
+            "unknown driver '" + s.driver + "'; expected one of " + join(families) + did_you_mean(s.driver, families));
   } else {
     if (refusals.empty()) refusals.push_back({"", "no reason given"});
     for (const auto& refusal : refusals) report_refusal(r, drv, ks, what, s, refusal);
@@ -245,10 +244,8 @@ void read_subdevice(YamlReader& r, const MapEntry& e, const std::vector<MapEntry
   } else {
     r.missing(e.value, "driver", what, "one of " + join(family_names()));
   }
-  if (r.find(ks, "node_id"))
-    r.set_int(ks, "node_id", "node_id", 1, 127, s.node_id, false);
-  else
-    r.missing(e.value, "node_id", what, "its node-ID 1..127");
+  if (r.find(ks, "node_id")) r.set_int(ks, "node_id", "node_id", 1, 127, s.node_id, false);
+  else r.missing(e.value, "node_id", what, "its node-ID 1..127");
   read_supervision(r, ks, what, s);
   if (const auto* m = r.find(ks, "mandatory"))
     if (auto b = r.boolean(*m, "mandatory")) s.mandatory = *b;

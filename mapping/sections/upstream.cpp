@@ -47,8 +47,8 @@ std::string restricted_range(std::uint32_t id) {
 void read_sdo_server(YamlReader& r, const YAML::Node& item, std::size_t k, SdoServerConfig& s) {
   s.where = r.loc(item);
   const std::string what = "upstream sdo_servers entry " + std::to_string(k) + " (" + sdo_server_index(k) + ")";
-  const auto ks = r.entries(item, what, {"subdevice", "request", "response"},
-                            "a map with subdevice, request, response");
+  const auto ks =
+      r.entries(item, what, {"subdevice", "request", "response"}, "a map with subdevice, request, response");
   if (!item.IsMap()) return;
   if (const auto* e = r.find(ks, "subdevice")) {
     s.subdevice_where = r.loc(e->value);
@@ -81,8 +81,9 @@ void read_sdo_servers(YamlReader& r, const MapEntry& l, std::vector<SdoServerCon
   std::size_t k = 0;
   for (const auto& item : l.value) {
     if (++k > kMaxSdoServers) {
-      r.error(item, "sdo_servers entry " + std::to_string(k) + " is beyond 127Fh; expected at most 127 additional SDO "
-                    "server channels (1201h..127Fh)");
+      r.error(item, "sdo_servers entry " + std::to_string(k) +
+                        " is beyond 127Fh; expected at most 127 additional SDO "
+                        "server channels (1201h..127Fh)");
       return;
     }
     out.emplace_back();
@@ -113,10 +114,8 @@ void read_upstream(YamlReader& r, const MapEntry& sec, UpstreamConfig& u) {
     u.interface_where = r.loc(e->value);
     if (auto s = r.string(*e, "interface")) u.interface = *s;
   }
-  if (r.find(es, "node_id"))
-    r.set_int(es, "node_id", "node_id", 1, 127, u.node_id);
-  else
-    r.missing(sec.value, "node_id", "upstream", "the gateway's node-ID 1..127");
+  if (r.find(es, "node_id")) r.set_int(es, "node_id", "node_id", 1, 127, u.node_id);
+  else r.missing(sec.value, "node_id", "upstream", "the gateway's node-ID 1..127");
   r.bitrate(es, "bitrate", u.bitrate);
   r.set_int(es, "heartbeat_ms", "heartbeat_ms", 0, 65535, u.heartbeat_ms);
   if (const auto* e = r.find(es, "network_id")) u.network_id_where = r.loc(e->value);
@@ -154,8 +153,9 @@ std::vector<UpstreamCob> gateway_cobs(const Config& c) {
   const canopen::NodeId node{c.upstream.node_id};
   if (!node.valid()) return out;  // node_id is reported as such
   for (const auto& d : cob::predefined_connection_set(node))
-    out.push_back({d.cob_id, "the gateway's " + std::string(d.service) + " (" + hex_h(d.cob_id - node.value(), 3) +
-                                 " + node-ID " + hex_h(node.value(), 2) + ")",
+    out.push_back({d.cob_id,
+                   "the gateway's " + std::string(d.service) + " (" + hex_h(d.cob_id - node.value(), 3) +
+                       " + node-ID " + hex_h(node.value(), 2) + ")",
                    {}});
   out.push_back({cob::kSync, "the gateway's SYNC (1005h)", {}});
   out.push_back({cob::kTime, "TIME (100h, CiA 301 predefined connection set)", {}});
@@ -183,8 +183,8 @@ void check_sdo_servers(YamlReader& r, const Config& c, bool subdevices_read) {
                                      (names.empty() ? std::string("the sub-devices section's names") : join(names)) +
                                      did_you_mean(s.subdevice, names));
     if (!s.enabled()) continue;
-    for (const auto& [which, id, where] : {std::tuple{"request", *s.request, s.request_where},
-                                          std::tuple{"response", *s.response, s.response_where}}) {
+    for (const auto& [which, id, where] :
+         {std::tuple{"request", *s.request, s.request_where}, std::tuple{"response", *s.response, s.response_where}}) {
       const std::string what = std::string(which) + " COB-ID " + hex(id, 3) + " of " + server;
       if (cob::restricted(id)) {
         r.error(where, what + " is a CAN-ID CiA 301 restricts: " + restricted_range(id) +
@@ -198,8 +198,9 @@ void check_sdo_servers(YamlReader& r, const Config& c, bool subdevices_read) {
         continue;
       }
       const bool channel = static_cast<std::size_t>(clash - used.begin()) >= gateway_count;
-      r.error(where, what + (channel ? " is already used by " + clash->owner + " (" + clash->where.line_column() + ")"
-                                     : " clashes with " + clash->owner) +
+      r.error(where, what +
+                         (channel ? " is already used by " + clash->owner + " (" + clash->where.line_column() + ")"
+                                  : " clashes with " + clash->owner) +
                          "; expected a COB-ID no other object of the gateway uses");
     }
   }

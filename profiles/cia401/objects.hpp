@@ -23,8 +23,8 @@ inline constexpr std::uint16_t kReadAnalogueInput16 = 0x6401;  // Read analogue 
 // BOOLEAN; FALSE: an analogue input change raises no event (no TPDO is triggered by it).
 inline constexpr std::uint16_t kAnalogueInputGlobalInterruptEnable = 0x6423;
 // Analogue outputs.
-inline constexpr std::uint16_t kWriteAnalogueOutput16 = 0x6411;  // Write analogue output 16-bit, INTEGER16
-inline constexpr std::uint16_t kAnalogueOutputErrorMode = 0x6443;  // per channel: 1 = take the error value
+inline constexpr std::uint16_t kWriteAnalogueOutput16 = 0x6411;            // Write analogue output 16-bit, INTEGER16
+inline constexpr std::uint16_t kAnalogueOutputErrorMode = 0x6443;          // per channel: 1 = take the error value
 inline constexpr std::uint16_t kAnalogueOutputErrorValueInteger = 0x6444;  // INTEGER32 per channel
 
 // The object's name as CiA 401 gives it ("Read input 8-bit"); empty for an index not listed above.

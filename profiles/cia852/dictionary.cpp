@@ -60,7 +60,8 @@ std::map<std::uint32_t, std::string> entry_names(const std::vector<FeId>& instan
       const auto lbr = last.find('[');
       std::string name;
       if (names.size() == 1) {
-        name = br == std::string::npos ? first : first.substr(0, br) + " " + first.substr(br + 1, first.size() - br - 2);
+        name =
+            br == std::string::npos ? first : first.substr(0, br) + " " + first.substr(br + 1, first.size() - br - 2);
       } else if (first.rfind("memory", 0) == 0) {
         name = "memory";
       } else if (br == std::string::npos || lbr == std::string::npos) {
@@ -175,7 +176,8 @@ canopen::NodeConfig build_dictionary(const DeviceConfig& cfg, ObjectDictionary& 
     nc.heartbeat_consumers = 1;
     canopen::Object& hb = canopen::install_heartbeat_consumer_objects(od, 1);
     const auto v = canopen::encode<std::uint32_t>(
-        canopen::heartbeat_consumer_entry(canopen::NodeId{static_cast<std::uint8_t>(cfg.host_node)}, cfg.host_heartbeat_ms));
+        canopen::heartbeat_consumer_entry(canopen::NodeId{static_cast<std::uint8_t>(cfg.host_node)},
+                                          cfg.host_heartbeat_ms));
     hb.find(1)->default_value = v;
     hb.find(1)->value = v;
   }

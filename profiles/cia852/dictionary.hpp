@@ -72,9 +72,9 @@ struct DeviceConfig {
   std::string device_name = "oegw OE interface module";
   std::string hardware_version = "1";
   std::string software_version = "0.1.0";
-  std::uint16_t heartbeat_ms = 1000;     // 1017h default (mandatory, Annex A)
-  std::uint16_t host_node = 0;           // 1016h:01 default host node-ID (0: entry unused)
-  std::uint16_t host_heartbeat_ms = 0;   // 1016h:01 default consumer time
+  std::uint16_t heartbeat_ms = 1000;    // 1017h default (mandatory, Annex A)
+  std::uint16_t host_node = 0;          // 1016h:01 default host node-ID (0: entry unused)
+  std::uint16_t host_heartbeat_ms = 0;  // 1016h:01 default consumer time
   std::vector<FeId> fes;
   std::set<FeId> joysticks_without_buttons;  // affects 1000h only (Table 8)
   // Output FEs the host may not command (their mapping-file `sources` leave out canopen): an SDO
@@ -82,7 +82,7 @@ struct DeviceConfig {
   // because of local control", CiA 301 Table 22) and their bytes in an RPDO are ignored. Writes
   // of the gateway itself (Origin::Local: DDS/LCM commands, 6206h/6443h error values) pass.
   std::set<FeId> host_may_not_command;
-  std::filesystem::path store_path;      // empty: no 1010h/1011h
+  std::filesystem::path store_path;  // empty: no 1010h/1011h
   // CiA 305 table 0: the bit timing at power-on (3 = 250 kbit/s) and the rates the device runs at
   // (bit i = index i): LSS configure bit timing takes those, the EDS lists them (BaudRate_xxx).
   std::uint8_t bit_timing_index = 3;

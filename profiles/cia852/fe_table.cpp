@@ -28,9 +28,7 @@ std::optional<FeKind> fe_kind_from_string(std::string_view s) {
   return std::nullopt;
 }
 
-std::uint8_t max_instances(FeKind k) {
-  return (k == FeKind::Joystick || k == FeKind::FootPedal) ? 16 : 8;
-}
+std::uint8_t max_instances(FeKind k) { return (k == FeKind::Joystick || k == FeKind::FootPedal) ? 16 : 8; }
 
 bool is_input(FeKind k) { return k != FeKind::IndicatorCluster && k != FeKind::Display; }
 
@@ -55,9 +53,11 @@ std::vector<FeField> build_fields(FeId fe) {
       // CiA 852 Table 1 / Figure 5: memory function bits m-x, m-y, m-z.
       const char* const mem[3] = {"memory_x", "memory_y", "memory_z"};
       for (unsigned b = 0; b < 3; ++b) out.push_back({mem[b], kIn8, u8(2 * n - 1), u8(b), DataType::Unsigned8});
-      for (unsigned b = 0; b < 8; ++b) out.push_back({indexed("buttons", b + 1), kIn8, u8(2 * n), u8(b), DataType::Unsigned8});
+      for (unsigned b = 0; b < 8; ++b)
+        out.push_back({indexed("buttons", b + 1), kIn8, u8(2 * n), u8(b), DataType::Unsigned8});
       const char* const axes[3] = {"x", "y", "z"};
-      for (unsigned a = 0; a < 3; ++a) out.push_back({axes[a], kAnalogueIn16, u8(3 * n - 2 + a), 0xFF, DataType::Integer16});
+      for (unsigned a = 0; a < 3; ++a)
+        out.push_back({axes[a], kAnalogueIn16, u8(3 * n - 2 + a), 0xFF, DataType::Integer16});
       break;
     }
     case FeKind::FootPedal:
@@ -68,14 +68,17 @@ std::vector<FeField> build_fields(FeId fe) {
     case FeKind::Wheel: out.push_back({"position", kAnalogueIn16, u8(0x40 + n), 0xFF, DataType::Integer16}); break;
     case FeKind::ButtonCluster:
       for (unsigned i = 1; i <= 64; ++i)
-        out.push_back({indexed("switch", i), kIn8, u8(0x31 + 8 * (n - 1) + (i - 1) / 8), u8((i - 1) % 8), DataType::Unsigned8});
+        out.push_back(
+            {indexed("switch", i), kIn8, u8(0x31 + 8 * (n - 1) + (i - 1) / 8), u8((i - 1) % 8), DataType::Unsigned8});
       break;
     case FeKind::IndicatorCluster:
       for (unsigned i = 1; i <= 64; ++i)
-        out.push_back({indexed("indicator", i), kOut8, u8(0x01 + 8 * (n - 1) + (i - 1) / 8), u8((i - 1) % 8), DataType::Unsigned8});
+        out.push_back({indexed("indicator", i), kOut8, u8(0x01 + 8 * (n - 1) + (i - 1) / 8), u8((i - 1) % 8),
+                       DataType::Unsigned8});
       break;
     case FeKind::Display:
-      for (unsigned p = 1; p <= 12; ++p) out.push_back({indexed("parameter", p), kAnalogueOut16, u8(12 * (n - 1) + p), 0xFF, DataType::Integer16});
+      for (unsigned p = 1; p <= 12; ++p)
+        out.push_back({indexed("parameter", p), kAnalogueOut16, u8(12 * (n - 1) + p), 0xFF, DataType::Integer16});
       break;
   }
   return out;

@@ -40,10 +40,10 @@ struct FeId {
 
 // One FE field as the mapping file names it, and its place in the dictionary.
 struct FeField {
-  std::string name;                 // "x", "buttons[3]", "memory_x", "switch[17]", "indicator[5]", "parameter[2]"
-  std::uint16_t index = 0;          // 6000h, 6401h, 6120h, 6200h, 6411h
+  std::string name;         // "x", "buttons[3]", "memory_x", "switch[17]", "indicator[5]", "parameter[2]"
+  std::uint16_t index = 0;  // 6000h, 6401h, 6120h, 6200h, 6411h
   std::uint8_t sub = 0;
-  std::uint8_t bit = 0xFF;          // bit within the UNSIGNED8 for one-bit fields, 0xFF = whole value
+  std::uint8_t bit = 0xFF;  // bit within the UNSIGNED8 for one-bit fields, 0xFF = whole value
   canopen::DataType type = canopen::DataType::Unsigned8;  // of the whole OD entry
 };
 

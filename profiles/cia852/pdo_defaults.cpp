@@ -74,7 +74,8 @@ std::vector<Layout> clause12_layouts(FeKind k) {
       // §12.2.9/§12.2.10, Table 28: TPDO 34 + (n−1) push-button cluster n, eight bytes.
       for (unsigned n = 1; n <= 8; ++n) {
         Layout l{true, 33 + n, {}};
-        for (unsigned b = 0; b < 8; ++b) l.slots.push_back({{FeKind::ButtonCluster, u8(n)}, indexed("switch", 8 * b + 1)});
+        for (unsigned b = 0; b < 8; ++b)
+          l.slots.push_back({{FeKind::ButtonCluster, u8(n)}, indexed("switch", 8 * b + 1)});
         out.push_back(std::move(l));
       }
       break;
@@ -127,7 +128,8 @@ const char* objects_of(FeKind k) {
     case FeKind::Encoder: return "6120h position";
     case FeKind::Wheel: return "6401h position";
     case FeKind::ButtonCluster: return "6000h switches released";
-    case FeKind::IndicatorCluster: return "6200h indicators off; an SDO download is aborted with 08000020h, RPDO bytes are ignored";
+    case FeKind::IndicatorCluster:
+      return "6200h indicators off; an SDO download is aborted with 08000020h, RPDO bytes are ignored";
     case FeKind::Display: return "6411h parameters; an SDO download is aborted with 08000020h, RPDO bytes are ignored";
   }
   return "";
@@ -170,28 +172,36 @@ std::vector<DefaultPdo> default_pdos(const std::vector<FeId>& fes, canopen::Node
 std::vector<std::string> pdo_eds_comments(const std::vector<FeId>& fes) {
   std::vector<std::string> out;
   if (has_kind(fes, FeKind::Joystick))
-    out.push_back("CiA 852 Table 12: TPDO 1 and 5..19 always map z at sub 3 (6401h sub 3n), never FFFFh; a joystick "
-                  "with fewer axes reads z = 0");
+    out.push_back(
+        "CiA 852 Table 12: TPDO 1 and 5..19 always map z at sub 3 (6401h sub 3n), never FFFFh; a joystick "
+        "with fewer axes reads z = 0");
   if (has_kind(fes, FeKind::FootPedal))
-    out.push_back("CiA 852 Tables 13/15: TPDO 20..27 are at 1813h..181Ah / 1A13h..1A1Ah (CiA 301 numbering, "
-                  "TPDO n = 1800h + n - 1), not at 1814h/1A14h as printed");
+    out.push_back(
+        "CiA 852 Tables 13/15: TPDO 20..27 are at 1813h..181Ah / 1A13h..1A1Ah (CiA 301 numbering, "
+        "TPDO n = 1800h + n - 1), not at 1814h/1A14h as printed");
   if (has_kind(fes, FeKind::Encoder)) {
-    out.push_back("CiA 852 Tables 17/19: TPDO 28..31 are at 181Bh..181Eh / 1A1Bh..1A1Eh, not at 181Ch/1A1Ch as printed");
+    out.push_back(
+        "CiA 852 Tables 17/19: TPDO 28..31 are at 181Bh..181Eh / 1A1Bh..1A1Eh, not at 181Ch/1A1Ch as printed");
     out.push_back("CiA 852 Table 20: encoder entries are mapped 32 bits long (6120h sub 8nh length 20h)");
   }
   if (has_kind(fes, FeKind::Wheel))
-    out.push_back("CiA 852 Tables 21/23: TPDO 32, 33 are at 181Fh, 1820h / 1A1Fh, 1A20h, not at 1820h/1A20h as printed");
+    out.push_back(
+        "CiA 852 Tables 21/23: TPDO 32, 33 are at 181Fh, 1820h / 1A1Fh, 1A20h, not at 1820h/1A20h as printed");
   if (has_kind(fes, FeKind::ButtonCluster)) {
-    out.push_back("CiA 852 Tables 25/27: TPDO 34..41 are at 1821h..1828h / 1A21h..1A28h, not at 1822h/1A22h as printed");
-    out.push_back("CiA 852 Table 5: push-button cluster n is 6000h sub 31h+8(n-1)..38h+8(n-1); cluster 8 is 69h..70h "
-                  "(printed: 61h to 70h)");
+    out.push_back(
+        "CiA 852 Tables 25/27: TPDO 34..41 are at 1821h..1828h / 1A21h..1A28h, not at 1822h/1A22h as printed");
+    out.push_back(
+        "CiA 852 Table 5: push-button cluster n is 6000h sub 31h+8(n-1)..38h+8(n-1); cluster 8 is 69h..70h "
+        "(printed: 61h to 70h)");
   }
   if (has_kind(fes, FeKind::IndicatorCluster))
-    out.push_back("CiA 852 Table 6: indicator cluster n is 6200h sub 01h+8(n-1)..08h+8(n-1); cluster 8 is 39h..40h "
-                  "(printed: 31h to 40h)");
+    out.push_back(
+        "CiA 852 Table 6: indicator cluster n is 6200h sub 01h+8(n-1)..08h+8(n-1); cluster 8 is 39h..40h "
+        "(printed: 31h to 40h)");
   if (has_kind(fes, FeKind::Display)) {
-    out.push_back("CiA 852 Table 7: display n parameter p is 6411h sub 12(n-1)+p; display 8 is 55h..60h (printed: "
-                  "ABh to C0h)");
+    out.push_back(
+        "CiA 852 Table 7: display n parameter p is 6411h sub 12(n-1)+p; display 8 is 55h..60h (printed: "
+        "ABh to C0h)");
     out.push_back("CiA 852 12.2.14: displays 2..8 use RPDO 13..33, three each; RPDO 34 (1421h/1621h) does not exist");
   }
   if (has_kind(fes, FeKind::IndicatorCluster) || has_kind(fes, FeKind::Display))

@@ -83,7 +83,8 @@ bool Cia401Sim::set_input(std::string_view signal, std::int64_t value, TimePoint
   // CiA 401 6423h "analogue input global interrupt enable": while FALSE (its default) a new
   // analogue value triggers no event-driven TPDO; it goes out with the next timer or SYNC.
   if (const auto k = indexed_signal(signal, "analog"); k && *k >= 1 && *k <= 0xFE)
-    if (const canopen::SubObject* enable = od().find(0x6423, 0); enable != nullptr && canopen::decode_unsigned(enable->value) == 0) {
+    if (const canopen::SubObject* enable = od().find(0x6423, 0);
+        enable != nullptr && canopen::decode_unsigned(enable->value) == 0) {
       canopen::SubObject* s = od().find(0x6401, static_cast<std::uint8_t>(*k));
       if (s == nullptr || value < INT16_MIN || value > INT16_MAX) return false;
       s->value = canopen::encode<std::int16_t>(static_cast<std::int16_t>(value));  // no change event

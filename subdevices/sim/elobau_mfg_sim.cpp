@@ -38,22 +38,22 @@ struct Field {
   std::uint8_t led;
 };
 constexpr std::array<std::array<Field, 4>, 8> kTable9 = {{
-    {{{0, 1}, {2, 2}, {4, 3}, {6, 4}}},      // byte 0: button 1 LED 1/2, button 2 LED 1/2
-    {{{0, 5}, {2, 6}, {4, 7}, {6, 8}}},      // byte 1: button 3 LED 1/2, button 4 LED 1/2
-    {{{0, 9}, {2, 10}, {4, 0}, {6, 0}}},     // byte 2: button 5 LED 1/2, spare, spare
-    {{{0, 0}, {2, 0}, {4, 0}, {6, 0}}},      // byte 3: spare
-    {{{0, 0}, {2, 0}, {4, 0}, {6, 0}}},      // byte 4: spare
-    {{{0, 11}, {2, 12}, {4, 15}, {6, 0}}},   // byte 5: wheel A LED 2-2 (bit 10), 2-1 (11), 1+3 (14)
-    {{{0, 13}, {2, 14}, {4, 16}, {6, 0}}},   // byte 6: wheel B LED 2-2 (bit 12), 2-1 (13), 1+3 (15)
-    {{{0, 0}, {2, 0}, {4, 0}, {6, 0}}},      // byte 7: spare
+    {{{0, 1}, {2, 2}, {4, 3}, {6, 4}}},     // byte 0: button 1 LED 1/2, button 2 LED 1/2
+    {{{0, 5}, {2, 6}, {4, 7}, {6, 8}}},     // byte 1: button 3 LED 1/2, button 4 LED 1/2
+    {{{0, 9}, {2, 10}, {4, 0}, {6, 0}}},    // byte 2: button 5 LED 1/2, spare, spare
+    {{{0, 0}, {2, 0}, {4, 0}, {6, 0}}},     // byte 3: spare
+    {{{0, 0}, {2, 0}, {4, 0}, {6, 0}}},     // byte 4: spare
+    {{{0, 11}, {2, 12}, {4, 15}, {6, 0}}},  // byte 5: wheel A LED 2-2 (bit 10), 2-1 (11), 1+3 (14)
+    {{{0, 13}, {2, 14}, {4, 16}, {6, 0}}},  // byte 6: wheel B LED 2-2 (bit 12), 2-1 (13), 1+3 (15)
+    {{{0, 0}, {2, 0}, {4, 0}, {6, 0}}},     // byte 7: spare
 }};
 
 // Table 10: the default transformation, X (mV) / Y (%) pairs.
 constexpr std::array<std::uint16_t, 10> kX = {200, 600, 2300, 2700, 4400, 4800, 4800, 4800, 4800, 4800};
 constexpr std::array<std::int8_t, 10> kY = {-100, -100, 0, 0, 100, 100, 100, 100, 100, 100};
 
-void member(ObjectDictionary& od, std::uint16_t idx, std::uint8_t sub, const std::string& name, DataType t,
-            Access a, std::vector<std::uint8_t> def, bool mappable = false) {
+void member(ObjectDictionary& od, std::uint16_t idx, std::uint8_t sub, const std::string& name, DataType t, Access a,
+            std::vector<std::uint8_t> def, bool mappable = false) {
   od.add_record_member(idx, sub, name, t, a, std::move(def), mappable);
 }
 
@@ -66,7 +66,9 @@ std::optional<std::size_t> ElobauMfgSim::axis_index(std::string_view name) {
 }
 
 ElobauMfgSim::ElobauMfgSim(FrameSink sink, ElobauMfgSimConfig config)
-    : SimulatedDevice(std::move(sink)), parameters_saved_(config.parameters_saved), tpdo_on_change_(config.tpdo_on_change) {
+    : SimulatedDevice(std::move(sink)),
+      parameters_saved_(config.parameters_saved),
+      tpdo_on_change_(config.tpdo_on_change) {
   auto od = std::make_unique<ObjectDictionary>();
   build_od(*od, config);
   canopen::NodeConfig nc;
@@ -92,20 +94,20 @@ ElobauMfgSim::ElobauMfgSim(FrameSink sink, ElobauMfgSimConfig config)
     if (index == 0x1010 && sub == 1) parameters_saved_ = true;  // committed: the store accepted "save"
   });
   // 5999h: baud rate from the list of §16, "save" signature on :03.
-  subs_ += d.find(kLss)->add_write_hook([this](canopen::Object&, std::uint8_t sub, std::span<const std::uint8_t> b,
-                                              Origin) {
-    if (sub == 1 && b.size() == 2) {
-      const std::uint16_t v = canopen::get_u16(b.data());
-      static constexpr std::uint16_t kRates[] = {20, 50, 125, 250, 500, 800, 1000};
-      if (std::find(std::begin(kRates), std::end(kRates), v) == std::end(kRates)) return SdoAbortCode::InvalidValue;
-    }
-    if (sub == 3 && b.size() == 4) {
-      if (canopen::get_u32(b.data()) != kSave) return SdoAbortCode::CannotTransfer;
-      if (this->od().find(0x1010) == nullptr) return SdoAbortCode::CannotTransfer;
-      return this->od().write(0x1010, 1, encode<std::uint32_t>(kSave), Origin::Local);
-    }
-    return SdoAbortCode::None;
-  });
+  subs_ +=
+      d.find(kLss)->add_write_hook([this](canopen::Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin) {
+        if (sub == 1 && b.size() == 2) {
+          const std::uint16_t v = canopen::get_u16(b.data());
+          static constexpr std::uint16_t kRates[] = {20, 50, 125, 250, 500, 800, 1000};
+          if (std::find(std::begin(kRates), std::end(kRates), v) == std::end(kRates)) return SdoAbortCode::InvalidValue;
+        }
+        if (sub == 3 && b.size() == 4) {
+          if (canopen::get_u32(b.data()) != kSave) return SdoAbortCode::CannotTransfer;
+          if (this->od().find(0x1010) == nullptr) return SdoAbortCode::CannotTransfer;
+          return this->od().write(0x1010, 1, encode<std::uint32_t>(kSave), Origin::Local);
+        }
+        return SdoAbortCode::None;
+      });
   // After every reset the dictionary holds defaults: put the inputs back (the device keeps
   // reading its sensors). A restart (power-on, reset node, reset communication) re-checks the
   // parameters: never saved, 0002h is set again (Table 6 "until first parameter saving process");
@@ -141,8 +143,8 @@ void ElobauMfgSim::build_od(ObjectDictionary& od, const ElobauMfgSimConfig& c) {
     od.find(idx, 0x05)->high = std::uint64_t{5000};
     for (std::uint8_t p = 0; p < 10; ++p) {
       const auto sx = static_cast<std::uint8_t>(0x06 + 2 * p);
-      member(od, idx, sx, "Transformation Function X" + std::to_string(p + 1), DataType::Unsigned16,
-             Access::ReadWrite, encode<std::uint16_t>(kX[p]));
+      member(od, idx, sx, "Transformation Function X" + std::to_string(p + 1), DataType::Unsigned16, Access::ReadWrite,
+             encode<std::uint16_t>(kX[p]));
       od.find(idx, sx)->high = std::uint64_t{5000};
       member(od, idx, static_cast<std::uint8_t>(sx + 1), "Transformation Function Y" + std::to_string(p + 1),
              DataType::Integer8, Access::ReadWrite, encode<std::int8_t>(kY[p]));
@@ -175,8 +177,8 @@ void ElobauMfgSim::build_od(ObjectDictionary& od, const ElobauMfgSimConfig& c) {
   // LED commands 2200h (wo, mapped by RPDO #0). Sub 8 is a spare the RPDO maps: wo here.
   od.add_record(kLed, "LED Commands");
   for (std::uint8_t s = 1; s <= 8; ++s)
-    member(od, kLed, s, s == 8 ? "Spare" : "LED command " + std::to_string(s), DataType::Unsigned8,
-           Access::WriteOnly, {0}, true);
+    member(od, kLed, s, s == 8 ? "Spare" : "LED command " + std::to_string(s), DataType::Unsigned8, Access::WriteOnly,
+           {0}, true);
   member(od, kLed, 0x09, "Timeout", DataType::Unsigned8, Access::ReadWrite, {0});
   member(od, kLed, 0x0A, "LED Mask configuration", DataType::Unsigned16, Access::ReadWrite,
          encode<std::uint16_t>(0xFFFF));
@@ -189,8 +191,7 @@ void ElobauMfgSim::build_od(ObjectDictionary& od, const ElobauMfgSimConfig& c) {
   od.add_var(kErrorField, "Error Field", DataType::Unsigned8, Access::ReadOnly, {0xFF}, true);
   od.add_var(kAutoStart, "Auto NMT Start", DataType::Unsigned8, Access::ReadWrite, {0});
   od.find(kAutoStart, 0)->high = std::uint64_t{1};
-  od.add_var(kBusOffLimit, "Bus-Off Counter Limit", DataType::Unsigned16, Access::ReadWrite,
-             encode<std::uint16_t>(20));
+  od.add_var(kBusOffLimit, "Bus-Off Counter Limit", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(20));
   od.find(kBusOffLimit, 0)->high = std::uint64_t{10000};
   od.add_record(kLss, "LSS");
   member(od, kLss, 1, "Baud rate", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(250));
@@ -213,10 +214,16 @@ void ElobauMfgSim::build_od(ObjectDictionary& od, const ElobauMfgSimConfig& c) {
   for (std::uint16_t a = 0; a < 5; ++a) t1.push_back(pdo_map(static_cast<std::uint16_t>(kAxis + a), 0x21, 8));
   for (int i = 0; i < 3; ++i) t1.push_back(pdo_map(kErrorField, 0, 8));
   canopen::install_tpdo(od, 1,
-                        {.cob_id = 0x180u + id, .transmission_type = 254, .inhibit_time = 20, .event_timer = 100,
+                        {.cob_id = 0x180u + id,
+                         .transmission_type = 254,
+                         .inhibit_time = 20,
+                         .event_timer = 100,
                          .mapping = t0});
   canopen::install_tpdo(od, 2,
-                        {.cob_id = 0x280u + id, .transmission_type = 254, .inhibit_time = 20, .event_timer = 100,
+                        {.cob_id = 0x280u + id,
+                         .transmission_type = 254,
+                         .inhibit_time = 20,
+                         .event_timer = 100,
                          .mapping = t1});
   // Access and sub-indices as Table 14 lists them.
   auto* rc = od.find(0x1400);
@@ -249,7 +256,8 @@ void ElobauMfgSim::publish() {
       int out = std::clamp(ch == 0 ? v : v + offset2_[a], -128, 127);
       if ((cfg & (1u << ch)) == 0 || faults_[a][ch] == Fault::NotAvailable) {
         out = na;
-      } else if (faults_[a][ch] == Fault::Error || (substitute && errors_.contains(static_cast<std::uint16_t>(base + ch)))) {
+      } else if (faults_[a][ch] == Fault::Error ||
+                 (substitute && errors_.contains(static_cast<std::uint16_t>(base + ch)))) {
         out = err;
       }
       put(idx, static_cast<std::uint8_t>(0x20 + ch), static_cast<std::uint8_t>(static_cast<std::int8_t>(out)));
@@ -258,8 +266,8 @@ void ElobauMfgSim::publish() {
                                  static_cast<std::uint16_t>(std::clamp(2500 + physical_[a] * 19, 0, 5000)));
     }
   }
-  const std::uint16_t fitted = static_cast<std::uint16_t>(d.get<std::uint8_t>(kButtons, 1) |
-                                                          (d.get<std::uint8_t>(kButtons, 2) << 8));
+  const std::uint16_t fitted =
+      static_cast<std::uint16_t>(d.get<std::uint8_t>(kButtons, 1) | (d.get<std::uint8_t>(kButtons, 2) << 8));
   const bool err_value = d.get<std::uint8_t>(kButtons, 9) != 0;
   const bool na_value = d.get<std::uint8_t>(kButtons, 0x0A) != 0;
   std::uint16_t out = 0;
@@ -314,9 +322,7 @@ bool ElobauMfgSim::zero_locked(std::string_view axis) const {
   return a && zero_lock_[*a];
 }
 
-std::uint16_t ElobauMfgSim::baud_rate() {
-  return od().get<std::uint16_t>(kLss, 1);
-}
+std::uint16_t ElobauMfgSim::baud_rate() { return od().get<std::uint16_t>(kLss, 1); }
 
 bool ElobauMfgSim::move_axis(std::string_view axis, int percent, int channel2_offset) {
   const auto a = axis_index(axis);
@@ -350,7 +356,7 @@ std::optional<int> ElobauMfgSim::apply_voltage(std::string_view axis, int milliv
     if (to_detent) {
       percent = millivolts >= x[p + 1] ? y[p + 1] : y[p];  // the jump at X9
     } else if (from_detent) {
-      percent = millivolts <= x[p] ? y[p] : y[p + 1];      // the jump at X2
+      percent = millivolts <= x[p] ? y[p] : y[p + 1];  // the jump at X2
     } else if (x[p + 1] == x[p]) {
       percent = y[p];
     } else {

@@ -55,14 +55,14 @@
 namespace oegw::subdevices::sim {
 
 struct ElobauMfgSimConfig {
-  NodeId node_id{0x11};                           // §7 default
-  std::uint32_t product_code = 0x00010003;        // 1018h:02 default
-  std::uint32_t serial = 0;                       // 1018h:04
-  std::uint8_t buttons_1_8 = 63;                  // 2100h:01h default: buttons 1..6 fitted
-  std::uint8_t buttons_9_16 = 0;                  // 2100h:02h default: none
+  NodeId node_id{0x11};                                       // §7 default
+  std::uint32_t product_code = 0x00010003;                    // 1018h:02 default
+  std::uint32_t serial = 0;                                   // 1018h:04
+  std::uint8_t buttons_1_8 = 63;                              // 2100h:01h default: buttons 1..6 fitted
+  std::uint8_t buttons_9_16 = 0;                              // 2100h:02h default: none
   std::array<std::uint8_t, 5> axis_config = {3, 3, 3, 3, 3};  // 20xxh:01h default: both signals
-  std::uint16_t heartbeat_ms = 0;                 // 1017h default
-  std::filesystem::path store_path;               // empty: no 1010h/1011h
+  std::uint16_t heartbeat_ms = 0;                             // 1017h default
+  std::filesystem::path store_path;                           // empty: no 1010h/1011h
   // Table 6 0002h "is also set until first parameter saving process": false = a grip whose
   // parameters were never saved raises it at every power-on until 1010h:01 (or 5999h:03) "save".
   bool parameters_saved = true;

@@ -14,8 +14,8 @@ using canopen::DataType;
 using canopen::encode;
 using canopen::ObjectDictionary;
 using canopen::Origin;
-using canopen::PdoParameters;
 using canopen::pdo_map;
+using canopen::PdoParameters;
 
 std::vector<std::uint8_t> text(const std::string& s) { return {s.begin(), s.end()}; }
 
@@ -24,8 +24,8 @@ std::vector<std::uint8_t> text(const std::string& s) { return {s.begin(), s.end(
 std::unique_ptr<ObjectDictionary> build_od(const Mcb402SimConfig& cfg) {
   auto od = std::make_unique<ObjectDictionary>();
   const std::uint8_t id = cfg.node_id.value();
-  od->add_var(0x1002, "Manufacturer status register", DataType::Unsigned32, Access::ReadOnly,
-              encode<std::uint32_t>(0), true);
+  od->add_var(0x1002, "Manufacturer status register", DataType::Unsigned32, Access::ReadOnly, encode<std::uint32_t>(0),
+              true);
   od->add_var(0x100C, "Guard time", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(0));
   od->add_var(0x100D, "Life time factor", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(0));
   od->add_var(0x100E, "COB-ID guard", DataType::Unsigned32, Access::ReadWrite, encode<std::uint32_t>(0x700u + id));
@@ -47,8 +47,8 @@ std::unique_ptr<ObjectDictionary> build_od(const Mcb402SimConfig& cfg) {
   od->add_array(0x6202, "Polarity output 8 bit", DataType::Unsigned8, Access::ReadWrite, 1, {0});
   od->add_array(0x6206, "Error mode output 8 bit", DataType::Unsigned8, Access::ReadWrite, 1, {0xFF});
   od->add_array(0x6207, "Error value output 8 bit", DataType::Unsigned8, Access::ReadWrite, 1, {0});
-  od->add_array(0x6401, "Read analog input 16 bit", DataType::Integer16, Access::ReadOnly, 4,
-                encode<std::int16_t>(0), true);
+  od->add_array(0x6401, "Read analog input 16 bit", DataType::Integer16, Access::ReadOnly, 4, encode<std::int16_t>(0),
+                true);
   od->add_array(0x6421, "Analog input interrupt trigger", DataType::Unsigned8, Access::ReadWrite, 4, {7});
   od->add_var(0x6423, "Analog input global interrupt enable", DataType::Boolean, Access::ReadWrite, {0});
   const char* limits[] = {"Analog input upper limit", "Analog input lower limit", "Analog input interrupt delta",
@@ -68,8 +68,8 @@ std::unique_ptr<ObjectDictionary> build_od(const Mcb402SimConfig& cfg) {
                                       .transmission_type = 0xFF,
                                       .inhibit_time = 0,
                                       .event_timer = 0,
-                                      .mapping = {pdo_map(0x6000, 1, 8), pdo_map(0x6000, 2, 8),
-                                                  pdo_map(0x6000, 3, 8), pdo_map(0x6000, 4, 8)}});
+                                      .mapping = {pdo_map(0x6000, 1, 8), pdo_map(0x6000, 2, 8), pdo_map(0x6000, 3, 8),
+                                                  pdo_map(0x6000, 4, 8)}});
   canopen::install_tpdo(*od, 2,
                         PdoParameters{.cob_id = canopen::cob::kTpdo2 + id,
                                       .transmission_type = 0xFF,
@@ -136,8 +136,7 @@ Mcb402Sim::Mcb402Sim(FrameSink sink, Mcb402SimConfig config) : SimulatedDevice(s
   nc.device_type = co4013::kDeviceType;
   nc.device_name = "CO4013A";
   nc.hardware_version = "1.0";
-  nc.identity = {.vendor = co4013::kVendorId, .product = co4013::kProductCode, .revision = cfg_.revision,
-                 .serial = 0};
+  nc.identity = {.vendor = co4013::kVendorId, .product = co4013::kProductCode, .revision = cfg_.revision, .serial = 0};
   nc.heartbeat_ms = cfg_.heartbeat_ms;
   nc.bit_timing_index = bit_timing_for(cfg_.kbaud);
   nc.store_path = cfg_.store_path;
@@ -168,8 +167,7 @@ Mcb402Sim::Mcb402Sim(FrameSink sink, Mcb402SimConfig config) : SimulatedDevice(s
 
 std::uint8_t Mcb402Sim::bit_timing_index() const { return bit_timing_for(cfg_.kbaud); }
 
-void Mcb402Sim::write_input(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> bytes,
-                            bool notify) {
+void Mcb402Sim::write_input(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> bytes, bool notify) {
   if (notify) {
     (void)od().write(index, sub, bytes, Origin::Local);  // observers: the TPDO sees a change
   } else {

@@ -75,11 +75,11 @@ using ButtonBits = std::array<std::uint8_t, kButtons>;
 // without saying how its board is wired reports the wrong buttons.
 inline constexpr ButtonBits kPrintedTableBits{1, 2, 3, 4, 5, 7, 6};
 inline constexpr ButtonBits kRightAlignedBits{0, 1, 2, 3, 4, 6, 5};
-inline constexpr std::uint16_t kEmcyCanWarning = 0x8100;     // "00 81 11"
-inline constexpr std::uint16_t kEmcyLifeGuarding = 0x8130;   // "30 81 11"
-inline constexpr std::uint16_t kEmcyBusOffReturn = 0x8140;   // "40 81 11"
-inline constexpr std::uint8_t kRegisterDeviceError = 0x81;   // the cable break's byte 2
-inline constexpr std::uint8_t kRegisterCommunication = 0x11; // the CAN frames' byte 2
+inline constexpr std::uint16_t kEmcyCanWarning = 0x8100;      // "00 81 11"
+inline constexpr std::uint16_t kEmcyLifeGuarding = 0x8130;    // "30 81 11"
+inline constexpr std::uint16_t kEmcyBusOffReturn = 0x8140;    // "40 81 11"
+inline constexpr std::uint8_t kRegisterDeviceError = 0x81;    // the cable break's byte 2
+inline constexpr std::uint8_t kRegisterCommunication = 0x11;  // the CAN frames' byte 2
 // "1/2/3/4/5/7/6" or "1,2,3,4,5,7,6" -> the wiring of BP1..BP7; nullopt unless 7 distinct bits 0..7.
 std::optional<ButtonBits> parse_wiring(std::string_view text);
 }  // namespace co4013
@@ -88,9 +88,9 @@ struct Mcb402SimConfig {
   NodeId node_id{0x03};
   std::uint16_t kbaud = 250;  // 20, 50, 125, 250 or 500 [MCB §1]
   std::uint32_t revision = 1;
-  std::uint16_t heartbeat_ms = 0;  // 1017h default (document: 0)
+  std::uint16_t heartbeat_ms = 0;                              // 1017h default (document: 0)
   co4013::ButtonBits button_bits = co4013::kRightAlignedBits;  // oegw-sim option wiring=
-  std::filesystem::path store_path;  // empty: no 1010h/1011h
+  std::filesystem::path store_path;                            // empty: no 1010h/1011h
   // Mending the last broken cable sends 0000h (true) or nothing, 1001h alone showing it (false;
   // oegw-sim clear_after_break=none).
   bool clear_with_error_reset = true;
@@ -169,9 +169,9 @@ class Mcb402Sim final : public SimulatedDevice {
   std::array<std::int16_t, co4013::kAxes> axes_{};
   std::uint8_t broken_ = 0;
   bool device_error_ = false;
-  bool communication_bits_ = false;  // a CAN warning was sent and keep_communication_bits
+  bool communication_bits_ = false;                  // a CAN warning was sent and keep_communication_bits
   const canopen::ObjectDictionary* dict_ = nullptr;  // od(), for the const accessors
-  canopen::Subscriptions subs_;  // declared last: released before the dictionary goes
+  canopen::Subscriptions subs_;                      // declared last: released before the dictionary goes
 };
 
 }  // namespace oegw::subdevices::sim

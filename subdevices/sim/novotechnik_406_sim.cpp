@@ -59,8 +59,7 @@ Novotechnik406Sim::Novotechnik406Sim(FrameSink sink, Novotechnik406SimConfig con
   nc.device_name = "MC1-2832-A7F-614-511";
   nc.hardware_version = "400000000.00";
   nc.software_version = "V 1.03.0";
-  nc.identity = {.vendor = 0x00000182, .product = cfg_.product_code, .revision = cfg_.revision,
-                 .serial = cfg_.serial};
+  nc.identity = {.vendor = 0x00000182, .product = cfg_.product_code, .revision = cfg_.revision, .serial = cfg_.serial};
   nc.heartbeat_ms = cfg_.heartbeat_ms;
   switch (cfg_.bit_rate_kbit) {  // CiA 305 table 0, as §6.2 lists it
     case 1000: nc.bit_timing_index = 0; break;
@@ -110,7 +109,8 @@ void Novotechnik406Sim::build_od(ObjectDictionary& od) {
   od.add_var(0x2000, "Node-ID", DataType::Unsigned8, Access::ReadWrite, {id});
   od.find(0x2000, 0)->low = std::uint64_t{1};
   od.find(0x2000, 0)->high = std::uint64_t{127};
-  od.add_var(0x2001, "CAN bit rate", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(cfg_.bit_rate_kbit));
+  od.add_var(0x2001, "CAN bit rate", DataType::Unsigned16, Access::ReadWrite,
+             encode<std::uint16_t>(cfg_.bit_rate_kbit));
   od.add_var(0x2002, "Temperature", DataType::Integer16, Access::ReadOnly, encode<std::int16_t>(350), true);
   od.add_var(0x2003, "Supply voltage", DataType::Unsigned16, Access::ReadOnly, encode<std::uint16_t>(240), true);
   od.add_array(0x2010, "Filter position and speed", DataType::Unsigned8, Access::ReadWrite, 2, {0});
@@ -208,68 +208,75 @@ void Novotechnik406Sim::install_hooks() {
   ObjectDictionary& d = od();
   // §5.4/§5.5: writing 6001h/6002h only with scaling on (6000h bit 2 = 0); each updates the other.
   for (const std::uint16_t index : {std::uint16_t{0x6001}, std::uint16_t{0x6002}}) {
-    subs_ += d.find(index)->add_write_hook([this, index](canopen::Object&, std::uint8_t, std::span<const std::uint8_t> b,
-                                                         Origin origin) {
-      if (origin != Origin::Sdo) return SdoAbortCode::None;
-      if ((od().get<std::uint8_t>(0x6000, 0) & 0x04) != 0) return SdoAbortCode::CannotTransferDeviceState;
-      const std::uint32_t v = u32(b);
-      if (index == 0x6001) {
-        set_raw(od(), 0x6002, 0, static_cast<std::uint64_t>(v) * kRevolutions);
-        set_raw(od(), 0x6501, 0, v);
-      } else {
-        const std::uint32_t per_rev = v / kRevolutions;
-        if (per_rev == 0) return SdoAbortCode::InvalidValue;
-        set_raw(od(), 0x6001, 0, per_rev);
-        set_raw(od(), 0x6501, 0, per_rev);
-      }
-      return SdoAbortCode::None;
-    });
+    subs_ += d.find(index)->add_write_hook(
+        [this, index](canopen::Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin origin) {
+          if (origin != Origin::Sdo) return SdoAbortCode::None;
+          if ((od().get<std::uint8_t>(0x6000, 0) & 0x04) != 0) return SdoAbortCode::CannotTransferDeviceState;
+          const std::uint32_t v = u32(b);
+          if (index == 0x6001) {
+            set_raw(od(), 0x6002, 0, static_cast<std::uint64_t>(v) * kRevolutions);
+            set_raw(od(), 0x6501, 0, v);
+          } else {
+            const std::uint32_t per_rev = v / kRevolutions;
+            if (per_rev == 0) return SdoAbortCode::InvalidValue;
+            set_raw(od(), 0x6001, 0, per_rev);
+            set_raw(od(), 0x6501, 0, per_rev);
+          }
+          return SdoAbortCode::None;
+        });
   }
   // §4.2 6031h:02: "The following values are allowed: 1, 2, 3, 6, 12, 25 ms"; §5.2 couples it
   // with 2010h:02.
-  subs_ += d.find(0x6031)->add_write_hook([this](canopen::Object&, std::uint8_t sub, std::span<const std::uint8_t> b,
-                                                 Origin) {
-    if (sub != 2) return SdoAbortCode::None;
-    static constexpr std::pair<std::uint16_t, std::uint8_t> kTable[] = {{1, 3}, {2, 4}, {3, 5}, {6, 6}, {12, 7}, {25, 8}};
-    const auto v = static_cast<std::uint16_t>(u32(b));
-    for (const auto& [ms, filter] : kTable)
-      if (ms == v) {
-        set_raw(od(), 0x2010, 2, filter);
+  subs_ += d.find(0x6031)->add_write_hook(
+      [this](canopen::Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin) {
+        if (sub != 2) return SdoAbortCode::None;
+        static constexpr std::pair<std::uint16_t, std::uint8_t> kTable[] = {{1, 3}, {2, 4},  {3, 5},
+                                                                            {6, 6}, {12, 7}, {25, 8}};
+        const auto v = static_cast<std::uint16_t>(u32(b));
+        for (const auto& [ms, filter] : kTable)
+          if (ms == v) {
+            set_raw(od(), 0x2010, 2, filter);
+            return SdoAbortCode::None;
+          }
+        return SdoAbortCode::InvalidValue;
+      });
+  subs_ += d.find(0x2010)->add_write_hook(
+      [this](canopen::Object&, std::uint8_t sub, std::span<const std::uint8_t> b, Origin) {
+        if (sub != 2 || b.empty()) return SdoAbortCode::None;
+        static constexpr std::uint16_t kMs[] = {0, 0, 1, 1, 2, 3, 6, 12, 25};  // §5.2, filter 0..8
+        if (b[0] < std::size(kMs)) set_raw(od(), 0x6031, 2, kMs[b[0]]);
         return SdoAbortCode::None;
-      }
-    return SdoAbortCode::InvalidValue;
-  });
-  subs_ += d.find(0x2010)->add_write_hook([this](canopen::Object&, std::uint8_t sub, std::span<const std::uint8_t> b,
-                                                 Origin) {
-    if (sub != 2 || b.empty()) return SdoAbortCode::None;
-    static constexpr std::uint16_t kMs[] = {0, 0, 1, 1, 2, 3, 6, 12, 25};  // §5.2, filter 0..8
-    if (b[0] < std::size(kMs)) set_raw(od(), 0x6031, 2, kMs[b[0]]);
-    return SdoAbortCode::None;
-  });
+      });
   // §4.3 2000h: the new node-ID becomes effective after a communication restart (§7.1).
-  subs_ += d.find(0x2000)->add_write_hook([this](canopen::Object&, std::uint8_t, std::span<const std::uint8_t> b,
-                                                 Origin origin) {
-    if (origin == Origin::Sdo && !b.empty()) node().nmt().set_pending_node_id(NodeId{b[0]});
-    return SdoAbortCode::None;
-  });
+  subs_ += d.find(0x2000)->add_write_hook(
+      [this](canopen::Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin origin) {
+        if (origin == Origin::Sdo && !b.empty()) node().nmt().set_pending_node_id(NodeId{b[0]});
+        return SdoAbortCode::None;
+      });
   subs_ += d.find(0x2001)->add_write_hook([](canopen::Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
     switch (u32(b)) {
-      case 50: case 125: case 250: case 500: case 800: case 1000: return SdoAbortCode::None;
+      case 50:
+      case 125:
+      case 250:
+      case 500:
+      case 800:
+      case 1000: return SdoAbortCode::None;
       default: return SdoAbortCode::InvalidValue;
     }
   });
   // §4.3 2100h position error reset: clears "Out of range (+/-)" once the sensor is back in range.
-  subs_ += d.find(0x2100)->add_write_hook([this](canopen::Object&, std::uint8_t, std::span<const std::uint8_t>, Origin) {
-    if (fault_ == Fault::Overflow || fault_ == Fault::Underflow) {
-      const auto lo = od().get<std::int32_t>(0x650A, 2);
-      const auto hi = od().get<std::int32_t>(0x650A, 3);
-      if (position_ > lo && position_ < hi) {
-        fault_ = Fault::Measurement;  // lets clear_fault() run the common path
-        (void)clear_fault(now_);      // "an EMCY with 0x0000 (valid position) is sent"
-      }
-    }
-    return SdoAbortCode::None;
-  });
+  subs_ +=
+      d.find(0x2100)->add_write_hook([this](canopen::Object&, std::uint8_t, std::span<const std::uint8_t>, Origin) {
+        if (fault_ == Fault::Overflow || fault_ == Fault::Underflow) {
+          const auto lo = od().get<std::int32_t>(0x650A, 2);
+          const auto hi = od().get<std::int32_t>(0x650A, 3);
+          if (position_ > lo && position_ < hi) {
+            fault_ = Fault::Measurement;  // lets clear_fault() run the common path
+            (void)clear_fault(now_);      // "an EMCY with 0x0000 (valid position) is sent"
+          }
+        }
+        return SdoAbortCode::None;
+      });
 }
 
 void Novotechnik406Sim::apply_startup(TimePoint now) {
@@ -343,13 +350,13 @@ void Novotechnik406Sim::inject_fault(Fault fault, TimePoint now) {
     const char* level;
   };
   static constexpr Row kRows[] = {
-      {0x5051, 1, 0, kPosMarkerFault, 1u << 0, 0, 1u << 22, "Error"},           // Measurement
-      {0x5051, 1, 1, kPosMarkerOverflow, 1u << 13, 0, 1u << 12, "Error"},       // Overflow
-      {0x5051, 1, 2, kPosMarkerUnderflow, 1u << 12, 0, 1u << 13, "Error"},      // Underflow
-      {0x5051, 2, 1, kPosMarkerOverflow, 0, 1u << 13, 1u << 20, "Warn"},        // OverflowWarning
-      {0x5051, 2, 2, kPosMarkerUnderflow, 0, 1u << 12, 1u << 21, "Warn"},       // UnderflowWarning
-      {0x5000, 1, 0, kPosMarkerFault, 1u << 1, 0, 1u << 31, "Hard"},            // HardwareFault
-      {0x6000, 1, 0, kPosMarkerFault, 1u << 1, 0, 1u << 27, "Hard"},            // SoftwareFault
+      {0x5051, 1, 0, kPosMarkerFault, 1u << 0, 0, 1u << 22, "Error"},       // Measurement
+      {0x5051, 1, 1, kPosMarkerOverflow, 1u << 13, 0, 1u << 12, "Error"},   // Overflow
+      {0x5051, 1, 2, kPosMarkerUnderflow, 1u << 12, 0, 1u << 13, "Error"},  // Underflow
+      {0x5051, 2, 1, kPosMarkerOverflow, 0, 1u << 13, 1u << 20, "Warn"},    // OverflowWarning
+      {0x5051, 2, 2, kPosMarkerUnderflow, 0, 1u << 12, 1u << 21, "Warn"},   // UnderflowWarning
+      {0x5000, 1, 0, kPosMarkerFault, 1u << 1, 0, 1u << 31, "Hard"},        // HardwareFault
+      {0x6000, 1, 0, kPosMarkerFault, 1u << 1, 0, 1u << 27, "Hard"},        // SoftwareFault
   };
   const Row& r = kRows[static_cast<std::size_t>(fault)];
   fault_ = fault;
@@ -375,7 +382,7 @@ bool Novotechnik406Sim::clear_fault(TimePoint now) {
   now_ = now;
   if (!fault_) return false;
   if (*fault_ == Fault::Overflow || *fault_ == Fault::Underflow) return false;  // 2100h only
-  const bool position_error = *fault_ == Fault::Measurement;  // also Overflow/Underflow via 2100h
+  const bool position_error = *fault_ == Fault::Measurement;                    // also Overflow/Underflow via 2100h
   fault_.reset();
   forced_raw_.reset();
   set_raw(od(), 0x6503, 0, 0);
@@ -407,8 +414,14 @@ void Novotechnik406Sim::send_emcy(std::uint16_t code, std::uint8_t error_registe
   CanFrame f;
   f.id = cob & 0x7FF;
   f.dlc = 8;
-  f.data = {static_cast<std::uint8_t>(code), static_cast<std::uint8_t>(code >> 8), error_register, byte3,
-            bytes4to7[0], bytes4to7[1], bytes4to7[2], bytes4to7[3]};
+  f.data = {static_cast<std::uint8_t>(code),
+            static_cast<std::uint8_t>(code >> 8),
+            error_register,
+            byte3,
+            bytes4to7[0],
+            bytes4to7[1],
+            bytes4to7[2],
+            bytes4to7[3]};
   out()(f);
 }
 
@@ -443,7 +456,7 @@ void Novotechnik406Sim::update_cams_and_work_area(TimePoint now) {
     set_raw(d, 0x6400, 1, area);
     // §9.1 9090h: "State is coded according to 0x6400", or the row's list "0: Valid Work Area,
     // 1: WorkArea underflow, 2: WorkArea overflow" (which has no code for "out of range" alone).
-    const std::uint8_t coded = cfg_.work_area_bits ? area
+    const std::uint8_t coded = cfg_.work_area_bits  ? area
                                : (area & 0x04) != 0 ? std::uint8_t{1}
                                : (area & 0x02) != 0 ? std::uint8_t{2}
                                                     : std::uint8_t{0};

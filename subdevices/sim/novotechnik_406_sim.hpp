@@ -14,11 +14,11 @@
 //   6000h..6003h (6001h/6002h writable only with scaling on, 6000h bit 2 = 0, else 08000022h;
 //   each updates the other and 6501h), 6004h, 600Ch, 6020h:01 (the position object the default
 //   mapping 60200120h names; mirrors 6004h; absent in the corner has_6020h=no, where the default
-//   mapping is 60040020h: §4.2 lists no 6020h and §8.2 names 6004h mappable), 6030h:01, 6031h (6031h:02 limited to 1, 2, 3, 6,
-//   12, 25 ms, coupled to 2010h:02 by the §5.2 table), 6300h..6333h CAMs, 6400h..6402h work
-//   area, 6500h..650Eh; 2000h node-ID (active at the next reset communication), 2001h bit rate,
-//   2002h temperature, 2003h supply voltage, 2010h filters, 2100h position error reset, 2104h
-//   EMCY behaviour. Condition monitoring 2300h..236Bh is not simulated.
+//   mapping is 60040020h: §4.2 lists no 6020h and §8.2 names 6004h mappable), 6030h:01, 6031h (6031h:02 limited to 1,
+//   2, 3, 6, 12, 25 ms, coupled to 2010h:02 by the §5.2 table), 6300h..6333h CAMs, 6400h..6402h work area,
+//   6500h..650Eh; 2000h node-ID (active at the next reset communication), 2001h bit rate, 2002h temperature, 2003h
+//   supply voltage, 2010h filters, 2100h position error reset, 2104h EMCY behaviour. Condition monitoring 2300h..236Bh
+//   is not simulated.
 //
 // Timing: in type 254 TPDO1 goes out on its event timer only (§3.3 "Event Timer"; values are
 // updated without "change" events); in type 255 each set_position/set_speed is a measurement
@@ -67,7 +67,8 @@ struct Novotechnik406SimConfig {
   std::uint8_t emcy_behaviour = 0;        // 2104h at power-on, as stored (emcy_behaviour=0..3)
   bool has_6020h = true;                  // 6020h:01 present (has_6020h=yes|no)
   bool work_area_bits = true;             // 9090h byte 7: 6400h bits, or 0/1/2 (work_area_emcy=bits|enum)
-  bool load_restores_defaults = true;     // 1011h "load": defaults at the next reset, or the stored values now (load=defaults|stored)
+  bool load_restores_defaults =
+      true;  // 1011h "load": defaults at the next reset, or the stored values now (load=defaults|stored)
 };
 
 class Novotechnik406Sim : public SimulatedDevice {

@@ -79,7 +79,8 @@ std::vector<canopen::CobId> SimBench::tpdo_cob_ids() const {
     consumed.insert(consumed.end(), rx.begin(), rx.end());
   }
   // A PDO may have several consumers: one that another device of the bench listens to stays in.
-  std::erase_if(ids, [&](canopen::CobId id) { return std::find(consumed.begin(), consumed.end(), id) != consumed.end(); });
+  std::erase_if(ids,
+                [&](canopen::CobId id) { return std::find(consumed.begin(), consumed.end(), id) != consumed.end(); });
   std::sort(ids.begin(), ids.end(), [](canopen::CobId a, canopen::CobId b) { return a.raw() < b.raw(); });
   ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
   return ids;
@@ -108,7 +109,8 @@ void SimBench::move(TimePoint now) {
     for (const auto& s : e.signals) {
       if (s.kind == SignalKind::Axis || s.kind == SignalKind::Analog || s.kind == SignalKind::Position) {
         const double phase = 2 * std::numbers::pi * t / 4.0 + 0.7 * static_cast<double>(axis++);
-        const double span = std::min<double>(static_cast<double>(s.max - s.neutral), static_cast<double>(s.neutral - s.min));
+        const double span =
+            std::min<double>(static_cast<double>(s.max - s.neutral), static_cast<double>(s.neutral - s.min));
         const double amplitude = s.kind == SignalKind::Position ? 1000.0 : 0.8 * span;
         // A position (an encoder's count) turns about a point 2000 counts above its neutral: a
         // knob that swings through zero would cross the sensor's lower work-area limit and its
@@ -220,9 +222,10 @@ std::string SimBench::command(std::string_view line, TimePoint now) {
     auto* knob = dynamic_cast<Novotechnik406Sim*>(d);
     if (knob == nullptr) return "error: " + name + " is no Novotechnik sensor: fault is a Novotechnik fault";
     using F = Novotechnik406Sim::Fault;
-    static const std::pair<const char*, F> kFaults[] = {
-        {"measurement", F::Measurement}, {"overflow", F::Overflow}, {"underflow", F::Underflow},
-        {"hardware", F::HardwareFault}};
+    static const std::pair<const char*, F> kFaults[] = {{"measurement", F::Measurement},
+                                                        {"overflow", F::Overflow},
+                                                        {"underflow", F::Underflow},
+                                                        {"hardware", F::HardwareFault}};
     if (value == "clear") {
       return knob->clear_fault(now) ? "ok " + name + " fault cleared"
                                     : "error: " + name + " has no fault it can clear (out of range: write 2100h)";

@@ -30,7 +30,8 @@ std::optional<long> number(const std::string& text, long lo, long hi) {
 
 // An integer option lo..hi into `target`.
 template <class T>
-SimOption integer(std::string_view name, std::string_view family, std::string_view accepts, long lo, long hi, T& target) {
+SimOption integer(std::string_view name, std::string_view family, std::string_view accepts, long lo, long hi,
+                  T& target) {
   return {name, family, std::string(accepts), [lo, hi, &target](const std::string& v) {
             const auto n = number(v, lo, hi);
             if (n) target = static_cast<T>(*n);
@@ -73,7 +74,8 @@ std::unique_ptr<SimulatedDevice> make_simulator(const DeviceSpec& spec, FrameSin
       either("tpdo", "elobau-mfg", "change", "timer", elobau.tpdo_on_change),
       either("saved", "elobau-mfg", "yes", "no", elobau.parameters_saved),
       integer("buttons", "elobau-mfg", "2100h:01h, 0..255 (bit n-1: button n fitted)", 0, 255, elobau.buttons_1_8),
-      integer("buttons_9_16", "elobau-mfg", "2100h:02h, 0..255 (bit n-9: button n fitted)", 0, 255, elobau.buttons_9_16),
+      integer("buttons_9_16", "elobau-mfg", "2100h:02h, 0..255 (bit n-9: button n fitted)", 0, 255,
+              elobau.buttons_9_16),
       // Novotechnik corners (novotechnik_406_sim.hpp).
       integer("error_register_size", "novotechnik-406", "1 or 2 (bytes of 1001h)", 1, 2, knob.error_register_bytes),
       integer("emcy_behaviour", "novotechnik-406", "0..3 (2104h as stored)", 0, 3, knob.emcy_behaviour),

@@ -130,9 +130,14 @@ bool SimulatedDevice::intercepted(const CanFrame& frame) {
   answer.dlc = 8;
   const auto c = static_cast<std::uint32_t>(code);
   // 60h = initiate download response; 80h = abort with the code in bytes 4..7.
-  answer.data = {static_cast<std::uint8_t>(code == canopen::SdoAbortCode::None ? 0x60 : 0x80), frame.data[1],
-                 frame.data[2], sub, static_cast<std::uint8_t>(c), static_cast<std::uint8_t>(c >> 8),
-                 static_cast<std::uint8_t>(c >> 16), static_cast<std::uint8_t>(c >> 24)};
+  answer.data = {static_cast<std::uint8_t>(code == canopen::SdoAbortCode::None ? 0x60 : 0x80),
+                 frame.data[1],
+                 frame.data[2],
+                 sub,
+                 static_cast<std::uint8_t>(c),
+                 static_cast<std::uint8_t>(c >> 8),
+                 static_cast<std::uint8_t>(c >> 16),
+                 static_cast<std::uint8_t>(c >> 24)};
   send(answer);
   return true;
 }

@@ -5,11 +5,11 @@
 // inject an error code).
 #pragma once
 
+#include <cstdint>
 #include <deque>
-#include <span>
 #include <memory>
 #include <optional>
-#include <cstdint>
+#include <span>
 #include <string_view>
 #include <vector>
 

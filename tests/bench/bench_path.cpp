@@ -109,7 +109,7 @@ using namespace oegw;
 using canopen::CanFrame;
 using canopen::TimePoint;
 
-constexpr canid_t kGripTpdo0 = 0x191;   // elobau grip node 11h, TPDO #0
+constexpr canid_t kGripTpdo0 = 0x191;      // elobau grip node 11h, TPDO #0
 constexpr canid_t kJoystickTpdo1 = 0x1A0;  // CiA 852 TPDO 1 of the gateway (node 20h) as the host sets it
 constexpr std::uint8_t kGatewayNode = 0x20;
 constexpr int kMissesInARow = 25;  // a path that misses this many in a row is left out, and fails the run
@@ -318,7 +318,7 @@ struct Path {
   std::atomic<pid_t> tid{0};
   pthread_t thread{};
   bool has_thread = false;
-  unsigned i = 0;          // its stimulus count
+  unsigned i = 0;              // its stimulus count
   std::int64_t last_sent = 0;  // mono ns
   bool dead = false;
   int misses_in_a_row = 0;
@@ -458,11 +458,12 @@ std::int64_t path_cpu_ns(const Path& p) {
 // window of the bench's choosing.
 class SyscallCounter {
  public:
-  static constexpr const char* kEvents[] = {
-      "raw_syscalls:sys_enter",         "syscalls:sys_enter_epoll_wait",  "syscalls:sys_enter_epoll_pwait",
-      "syscalls:sys_enter_recvmmsg",    "syscalls:sys_enter_sendmmsg",    "syscalls:sys_enter_read",
-      "syscalls:sys_enter_write",       "syscalls:sys_enter_timerfd_settime", "syscalls:sys_enter_recvmsg",
-      "syscalls:sys_enter_sendto",      "syscalls:sys_enter_recvfrom"};
+  static constexpr const char* kEvents[] = {"raw_syscalls:sys_enter",         "syscalls:sys_enter_epoll_wait",
+                                            "syscalls:sys_enter_epoll_pwait", "syscalls:sys_enter_recvmmsg",
+                                            "syscalls:sys_enter_sendmmsg",    "syscalls:sys_enter_read",
+                                            "syscalls:sys_enter_write",       "syscalls:sys_enter_timerfd_settime",
+                                            "syscalls:sys_enter_recvmsg",     "syscalls:sys_enter_sendto",
+                                            "syscalls:sys_enter_recvfrom"};
 
   // nullptr with `why` when perf cannot be started.
   // `extra`: more perf events to count in the same windows (--perf-events), e.g. context-switches
@@ -483,8 +484,8 @@ class SyscallCounter {
     if (!extra.empty()) events += "," + extra;
     const std::string control = "fd:" + std::to_string(ctl[0]) + "," + std::to_string(ack[1]);
     const std::string tid_s = std::to_string(tid);
-    std::vector<std::string> args{"perf", "stat", "-x", ",", "-e", events, "-t", tid_s, "-D", "-1",
-                                  "--control", control, "-o", out_file};
+    std::vector<std::string> args{"perf", "stat", "-x", ",",         "-e",    events, "-t",
+                                  tid_s,  "-D",   "-1", "--control", control, "-o",   out_file};
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
@@ -542,7 +543,8 @@ class SyscallCounter {
   }
 
  private:
-  SyscallCounter(pid_t pid, int ctl, int ack, std::string out) : pid_(pid), ctl_(ctl), ack_(ack), out_file_(std::move(out)) {}
+  SyscallCounter(pid_t pid, int ctl, int ack, std::string out)
+      : pid_(pid), ctl_(ctl), ack_(ack), out_file_(std::move(out)) {}
   bool command(const char* what) {
     const std::string line = std::string(what) + "\n";
     if (::write(ctl_, line.data(), line.size()) != static_cast<ssize_t>(line.size())) return false;
@@ -602,7 +604,8 @@ class Cab {
       loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1});
       serving_ = true;
       try {
-        exit_status_ = gateway::serve_gateway(name_ + ".yaml", config_, loop, gateway::GatewayBuses{*gw_up_, *gw_down_});
+        exit_status_ =
+            gateway::serve_gateway(name_ + ".yaml", config_, loop, gateway::GatewayBuses{*gw_up_, *gw_down_});
       } catch (const std::exception& e) {
         std::fprintf(stderr, "%s: serve_gateway: %s\n", name_.c_str(), e.what());
         exit_status_ = 1;
@@ -676,7 +679,8 @@ class Cab {
     loop.watch(stop_devices_, canopen::io::events::kReadable, [&](std::uint32_t) { loop.stop(); });
     bench.start(loop.now());
     const std::string reply = bench.command(grip_ + " pdo off", loop.now());
-    if (reply.rfind("ok", 0) != 0) std::fprintf(stderr, "%s: '%s pdo off': %s\n", name_.c_str(), grip_.c_str(), reply.c_str());
+    if (reply.rfind("ok", 0) != 0)
+      std::fprintf(stderr, "%s: '%s pdo off': %s\n", name_.c_str(), grip_.c_str(), reply.c_str());
     driver.rearm();
     loop.run();
     loop.unwatch(watch);
@@ -733,7 +737,7 @@ class Cab {
 double percentile(std::vector<double> v, double p) {
   if (v.empty()) return NAN;
   std::sort(v.begin(), v.end());
-  const auto k = static_cast<std::size_t>(std::ceil(p / 100.0 * static_cast<double>(v.size()))) ;
+  const auto k = static_cast<std::size_t>(std::ceil(p / 100.0 * static_cast<double>(v.size())));
   return v[std::min(v.size() - 1, k == 0 ? 0 : k - 1)];
 }
 
@@ -751,7 +755,7 @@ struct Options {
   double cpu_seconds = 1.0;
   bool grip = true, full = true, rec = true;
   bool perf = true;
-  bool pin = false;          // the prober on CPU 0, every forwarder on CPU 1
+  bool pin = false;         // the prober on CPU 0, every forwarder on CPU 1
   std::string perf_events;  // more events for the perf windows, printed per frame
   unsigned seed = 1;
   bool verbose = false;
@@ -842,7 +846,8 @@ std::uint64_t pace(std::vector<Path*>& paths, Path& p, int rate, double seconds,
     }
     answers += drain(p.rx, kJoystickTpdo1, &p.faults);
     keep_fresh(paths, &p);
-    sleep_until_ns(std::max(start + static_cast<std::int64_t>(sent) * period, mono_ns() + (n > 0 && sent < due ? period : 0)));
+    sleep_until_ns(
+        std::max(start + static_cast<std::int64_t>(sent) * period, mono_ns() + (n > 0 && sent < due ? period : 0)));
   }
   sleep_until_ns(mono_ns() + 20'000'000);  // the last answers
   answers += drain(p.rx, kJoystickTpdo1, &p.faults);
@@ -938,8 +943,8 @@ void print_latency(const std::vector<Path*>& paths, int rate, const Options& o) 
       const auto& b = r[f]->lat;
       const double m = percentile(a, 50) / percentile(b, 50), p99 = percentile(a, 99) / percentile(b, 99),
                    p999 = percentile(a, 99.9) / percentile(b, 99.9);
-      std::printf("  %s/%s: median %.2f (target <= 1.1: %s), p99 %.2f (<= 1.2: %s), p99.9 %.2f (<= 1.5: %s)\n", g,
-                  f, m, m <= 1.1 ? "met" : "NOT met", p99, p99 <= 1.2 ? "met" : "NOT met", p999,
+      std::printf("  %s/%s: median %.2f (target <= 1.1: %s), p99 %.2f (<= 1.2: %s), p99.9 %.2f (<= 1.5: %s)\n", g, f, m,
+                  m <= 1.1 ? "met" : "NOT met", p99, p99 <= 1.2 ? "met" : "NOT met", p999,
                   p999 <= 1.5 ? "met" : "NOT met");
     }
   }
@@ -954,11 +959,12 @@ void print_latency(const std::vector<Path*>& paths, int rate, const Options& o) 
 }
 
 void print_cpu(const std::vector<Path*>& paths, const Options& o) {
-  std::printf("\nCPU and system calls at 8000 frames/s (%d rounds x %.1f s per path and measure; the forwarder's "
-              "thread):\n",
-              o.rounds, o.cpu_seconds);
-  std::printf("  %-11s %9s %9s %12s %7s %12s %11s %10s  %s\n", "path", "frames", "answered", "cpu_us/frame",
-              "user_%", "idle_cpu_%", "net_us/fr", "sys/frame",
+  std::printf(
+      "\nCPU and system calls at 8000 frames/s (%d rounds x %.1f s per path and measure; the forwarder's "
+      "thread):\n",
+      o.rounds, o.cpu_seconds);
+  std::printf("  %-11s %9s %9s %12s %7s %12s %11s %10s  %s\n", "path", "frames", "answered", "cpu_us/frame", "user_%",
+              "idle_cpu_%", "net_us/fr", "sys/frame",
               "per frame: epoll_wait recvmmsg sendmmsg timerfd_settime read write other");
   std::map<std::string, double> cpu, net, sys;
   for (const Path* p : paths) {
@@ -980,7 +986,8 @@ void print_cpu(const std::vector<Path*>& paths, const Options& o) {
       total = static_cast<double>(p->syscalls.at("raw_syscalls:sys_enter")) / f;
       const double epoll = get("epoll_wait") + get("epoll_pwait"), rx = get("recvmmsg"), tx = get("sendmmsg"),
                    tfd = get("timerfd_settime"), rd = get("read"), wr = get("write");
-      const double other = static_cast<double>(p->syscalls.at("raw_syscalls:sys_enter")) - epoll - rx - tx - tfd - rd - wr;
+      const double other =
+          static_cast<double>(p->syscalls.at("raw_syscalls:sys_enter")) - epoll - rx - tx - tfd - rd - wr;
       breakdown = fmt::format("{:.3f} {:.3f} {:.3f} {:.3f} {:.3f} {:.3f} {:.3f}", epoll / f, rx / f, tx / f, tfd / f,
                               rd / f, wr / f, other / f);
       for (const auto& [event, count] : p->syscalls)
@@ -989,7 +996,8 @@ void print_cpu(const std::vector<Path*>& paths, const Options& o) {
       sys[p->name] = total;
     }
     const std::uint64_t ticks = p->user_ticks + p->system_ticks;
-    const double user_share = ticks == 0 ? NAN : 100.0 * static_cast<double>(p->user_ticks) / static_cast<double>(ticks);
+    const double user_share =
+        ticks == 0 ? NAN : 100.0 * static_cast<double>(p->user_ticks) / static_cast<double>(ticks);
     std::printf("  %-11s %9llu %9llu %12.2f %7.0f %12.2f %11.2f %10.3f  %s\n", p->name.c_str(),
                 static_cast<unsigned long long>(p->cpu_frames), static_cast<unsigned long long>(p->cpu_answers), per,
                 user_share, idle_rate / 1e7, per_net, total, breakdown.c_str());
@@ -1001,7 +1009,8 @@ void print_cpu(const std::vector<Path*>& paths, const Options& o) {
       const double ratio = cpu[g] / cpu[f], ratio_net = net[g] / net[f];
       std::printf("  %s/%s: CPU per frame %.2f, net of idle %.2f (target <= 1.1: %s)", g, f, ratio, ratio_net,
                   ratio <= 1.1 ? "met" : "NOT met");
-      if (sys.contains(g)) std::printf("; system calls per frame %.3f (target <= 3: %s)", sys[g], sys[g] <= 3 ? "met" : "NOT met");
+      if (sys.contains(g))
+        std::printf("; system calls per frame %.3f (target <= 3: %s)", sys[g], sys[g] <= 3 ? "met" : "NOT met");
       std::printf("\n");
     }
   }
@@ -1035,10 +1044,11 @@ int main(int argc, char** argv) {
     else if (a == "--seed" && more) o.seed = static_cast<unsigned>(std::atoi(argv[++i]));
     else if (a == "--verbose") o.verbose = true;
     else {
-      std::fprintf(stderr,
-                   "usage: %s [--rounds N] [--samples N] [--rates R,R] [--cpu-seconds S] [--cabs grip,full,rec] [--no-perf] "
-                   "[--perf-events E,E] [--pin] [--seed N] [--verbose]\n",
-                   argv[0]);
+      std::fprintf(
+          stderr,
+          "usage: %s [--rounds N] [--samples N] [--rates R,R] [--cpu-seconds S] [--cabs grip,full,rec] [--no-perf] "
+          "[--perf-events E,E] [--pin] [--seed N] [--verbose]\n",
+          argv[0]);
       return 64;
     }
   }
@@ -1052,9 +1062,10 @@ int main(int argc, char** argv) {
   spdlog::set_level(o.verbose ? spdlog::level::info : spdlog::level::warn);
   ::prctl(PR_SET_TIMERSLACK, 1UL);  // the pacer's sleeps end on time (default slack: 50 us)
 
-  std::printf("oegw_bench_path: native; AF_UNIX SOCK_SEQPACKET socketpairs carrying struct can_frame; %u CPUs; "
-              "load average at start %s (a shared machine)\n",
-              std::thread::hardware_concurrency(), load_average().c_str());
+  std::printf(
+      "oegw_bench_path: native; AF_UNIX SOCK_SEQPACKET socketpairs carrying struct can_frame; %u CPUs; "
+      "load average at start %s (a shared machine)\n",
+      std::thread::hardware_concurrency(), load_average().c_str());
   std::fflush(stdout);
 
   char dir_template[] = "/tmp/oegw-bench-path.XXXXXX";
@@ -1098,7 +1109,8 @@ int main(int argc, char** argv) {
         cabs.push_back(std::make_unique<Cab>("oegw_grip", bench::load_or_throw(bench::yaml_one_grip(), "one_grip.yaml"),
                                              std::filesystem::path(dir) / "grip.store"));
       if (o.full)
-        cabs.push_back(std::make_unique<Cab>("oegw_full", bench::load_or_throw(bench::yaml_full_set(), "full_fe_set.yaml"),
+        cabs.push_back(std::make_unique<Cab>("oegw_full",
+                                             bench::load_or_throw(bench::yaml_full_set(), "full_fe_set.yaml"),
                                              std::filesystem::path(dir) / "full.store"));
       if (o.rec)
         cabs.push_back(std::make_unique<Cab>("oegw_rec", bench::load_or_throw(bench::yaml_one_grip(), "one_grip.yaml"),
@@ -1113,7 +1125,8 @@ int main(int argc, char** argv) {
       cab->start();
       std::string why;
       bool ok = cab->configure_host(why);
-      while (ok && !cab->devices_operational() && mono_ns() - t0 < 60'000'000'000) sleep_until_ns(mono_ns() + 10'000'000);
+      while (ok && !cab->devices_operational() && mono_ns() - t0 < 60'000'000'000)
+        sleep_until_ns(mono_ns() + 10'000'000);
       if (ok && !cab->devices_operational()) {
         why = "sub-devices not all operational after 60 s";
         ok = false;
@@ -1200,9 +1213,10 @@ int main(int argc, char** argv) {
         status = 1;
       }
     }
-    std::printf("\nsystem calls counted by perf stat on the forwarder's thread (tracepoints raw_syscalls:sys_enter and "
-                "syscalls:sys_enter_*), only while paced; load average at end %s\n",
-                load_average().c_str());
+    std::printf(
+        "\nsystem calls counted by perf stat on the forwarder's thread (tracepoints raw_syscalls:sys_enter and "
+        "syscalls:sys_enter_*), only while paced; load average at end %s\n",
+        load_average().c_str());
 
     for (auto& cab : cabs) {
       cab->stop();

@@ -20,8 +20,8 @@
 //          Once more for the demo cab with one sub-device's boot-ups lost: the boot-up probe
 //          (subdevices/network_manager.hpp, step 1) instead of the 2 s boot-up wait.
 //   load   the steady-state bus load `oegw check` predicts (gateway/bus_load.hpp: heartbeats and
-//          SYNC at their exact length, PDOs at worst-case stuffing) next to what the timed bus measures over 10 s of steady state after the
-//          boot (inputs held still), for both buses of both cabs at their files' bit rates.
+//          SYNC at their exact length, PDOs at worst-case stuffing) next to what the timed bus measures over 10 s of
+//          steady state after the boot (inputs held still), for both buses of both cabs at their files' bit rates.
 //
 // --sdo-latency-us N sets the simulators' SDO latency (default 1000, sim::kTypicalSdoLatency);
 // --sdo-share S the share of the bus the gateway's SDO requests are paced to
@@ -91,13 +91,16 @@ BootFigures boot(oegw::mapping::Config cfg, std::uint32_t bit_rate, Duration lat
   oegw::canopen::io::SimulatedClock clock{TimePoint{std::chrono::seconds(1)}};
   oegw::canopen::io::EventLoop loop{clock};
   oegw::rig::CabRig rig(cfg, loop,
-                            oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-bench/upstream.store",
-                                                         .gateway = {.sdo_bus_share = g_sdo_share},
-                                                         .timed_buses = true, .device_sdo_latency = latency});
+                        oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-bench/upstream.store",
+                                                 .gateway = {.sdo_bus_share = g_sdo_share},
+                                                 .timed_buses = true,
+                                                 .device_sdo_latency = latency});
   if (g_trace)
     rig.on_gateway = [&loop](oegw::gateway::Gateway& gw) {
       const TimePoint start = loop.now();
-      gw.on_log = [&loop, start](const std::string& line) { std::printf("  %9.3f ms  %s\n", ms(loop.now() - start), line.c_str()); };
+      gw.on_log = [&loop, start](const std::string& line) {
+        std::printf("  %9.3f ms  %s\n", ms(loop.now() - start), line.c_str());
+      };
     };
   rig.build();
   const TimePoint t0 = loop.now();
@@ -121,7 +124,8 @@ BootFigures boot(oegw::mapping::Config cfg, std::uint32_t bit_rate, Duration lat
   });
   rig.from_devices = [&](const CanFrame& f) {
     const unsigned node = f.id & 0x7F;
-    if ((f.id & 0x780) == 0x700 && f.dlc == 1 && f.data[0] == 0x05 && started.contains(node) && !proof_sent.contains(node))
+    if ((f.id & 0x780) == 0x700 && f.dlc == 1 && f.data[0] == 0x05 && started.contains(node) &&
+        !proof_sent.contains(node))
       proof_sent[node] = loop.now();
     return false;
   };
@@ -159,7 +163,8 @@ BootFigures boot(oegw::mapping::Config cfg, std::uint32_t bit_rate, Duration lat
     if (!node) continue;
     const unsigned fn = s.frame.id & 0x780;
     // Heartbeats count up to the node's proof of life; later ones are not the boot's.
-    if (fn == 0x700 && s.frame.data[0] == 0x05 && proof_sent.contains(*node) && s.at > proof_sent[*node] + 1ms) continue;
+    if (fn == 0x700 && s.frame.data[0] == 0x05 && proof_sent.contains(*node) && s.at > proof_sent[*node] + 1ms)
+      continue;
     const std::uint32_t bits = oegw::canopen::frame_bits(s.frame);
     ++b.frames;
     bus_bits += bits;
@@ -195,7 +200,8 @@ LoadFigures load(const oegw::mapping::Config& cfg) {
   oegw::canopen::io::SimulatedClock clock{TimePoint{std::chrono::seconds(1)}};
   oegw::canopen::io::EventLoop loop{clock};
   oegw::rig::CabRig rig(cfg, loop,
-                            oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-bench/upstream.store", .timed_buses = true});
+                        oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-bench/upstream.store",
+                                                 .timed_buses = true});
   rig.build();
   rig.power_on();
   rig.run_for(5s);  // booted, and the boot's SDO traffic long over
@@ -205,24 +211,28 @@ LoadFigures load(const oegw::mapping::Config& cfg) {
   const auto up0 = rig.up().stats().busy, down0 = rig.down().stats().busy;
   const Duration window = 10s;
   rig.run_for(window);
-  f.measured_up = 100.0 * static_cast<double>((rig.up().stats().busy - up0).count()) / static_cast<double>(window.count());
-  f.measured_down = 100.0 * static_cast<double>((rig.down().stats().busy - down0).count()) / static_cast<double>(window.count());
+  f.measured_up =
+      100.0 * static_cast<double>((rig.up().stats().busy - up0).count()) / static_cast<double>(window.count());
+  f.measured_down =
+      100.0 * static_cast<double>((rig.down().stats().busy - down0).count()) / static_cast<double>(window.count());
   return f;
 }
 
 void print_boot(const char* name, const BootFigures& b, std::size_t nodes) {
   const Duration bound = std::max(b.bus_bound, b.node_bound);
-  std::printf("boot %-10s %2zu sub-devices: %8.1f ms (all operational %.1f ms, upstream ready %.1f ms); bound %.1f ms "
-              "(bus %.1f ms: %zu frames, %zu SDO round trips; node %.1f ms: %s) -> %.2fx the bound\n",
-              name, nodes, ms(b.boot), ms(b.all_operational), ms(b.upstream_ready), ms(bound), ms(b.bus_bound), b.frames,
-              b.sdo_round_trips, ms(b.node_bound), b.slowest_node.c_str(), ms(b.boot) / ms(bound));
+  std::printf(
+      "boot %-10s %2zu sub-devices: %8.1f ms (all operational %.1f ms, upstream ready %.1f ms); bound %.1f ms "
+      "(bus %.1f ms: %zu frames, %zu SDO round trips; node %.1f ms: %s) -> %.2fx the bound\n",
+      name, nodes, ms(b.boot), ms(b.all_operational), ms(b.upstream_ready), ms(bound), ms(b.bus_bound), b.frames,
+      b.sdo_round_trips, ms(b.node_bound), b.slowest_node.c_str(), ms(b.boot) / ms(bound));
 }
 
 void print_load(const char* name, const oegw::mapping::Config& cfg, const LoadFigures& f) {
   const auto row = [name](const char* bus, std::uint32_t rate, double predicted, double measured) {
-    std::printf("load %-10s %-10s %7u bit/s: predicted %6.2f %% (PDOs at worst-case stuffing), measured %6.2f %% -> "
-                "prediction %+.1f %% of the measured\n",
-                name, bus, rate, predicted, measured, measured > 0 ? 100.0 * (predicted - measured) / measured : 0.0);
+    std::printf(
+        "load %-10s %-10s %7u bit/s: predicted %6.2f %% (PDOs at worst-case stuffing), measured %6.2f %% -> "
+        "prediction %+.1f %% of the measured\n",
+        name, bus, rate, predicted, measured, measured > 0 ? 100.0 * (predicted - measured) / measured : 0.0);
   };
   row("upstream", cfg.upstream.bitrate, f.predicted.upstream.percent(), f.measured_up);
   row("downstream", cfg.downstream.bitrate, f.predicted.downstream.percent(), f.measured_down);
@@ -247,8 +257,10 @@ int main(int argc, char** argv) {
   try {
     const auto demo = load_file(std::string(OEGW_SOURCE_DIR) + "/config/demo.yaml");
     const auto full = oegw::bench::load_or_throw(oegw::bench::yaml_full_set(), "full_fe_set.yaml");
-    std::printf("timed virtual bus, simulated clock; device SDO latency %.3f ms; the gateway's SDO paced to %.0f %% of the bus\n",
-                ms(latency), 100.0 * g_sdo_share);
+    std::printf(
+        "timed virtual bus, simulated clock; device SDO latency %.3f ms; the gateway's SDO paced to %.0f %% of the "
+        "bus\n",
+        ms(latency), 100.0 * g_sdo_share);
     print_boot("demo", boot(demo, 250'000, latency), demo.subdevices.size());
     {
       // A lost boot-up is not waited out (NetworkTiming::boot_wait, 2 s): the boot-up probe
@@ -261,7 +273,8 @@ int main(int argc, char** argv) {
     // full_fe_set.yaml is laid out for 1 Mbit/s: at 250 kbit/s its steady state would be 80 % of
     // the bus (`oegw check` warns above 70 %), its encoders' 10 ms event timers alone 32 %. The
     // same 48 sub-devices laid out for 250 kbit/s: the encoders at 50 ms (54 % predicted).
-    const auto full250 = oegw::bench::load_or_throw(oegw::fixtures::full_fe_set_at_250k(), "full_fe_set.yaml, encoders at 50 ms, 250 kbit/s");
+    const auto full250 = oegw::bench::load_or_throw(oegw::fixtures::full_fe_set_at_250k(),
+                                                    "full_fe_set.yaml, encoders at 50 ms, 250 kbit/s");
     print_boot("full-set", boot(full250, 250'000, latency), full250.subdevices.size());
     std::printf("at 1000000 bit/s (full_fe_set.yaml as it is):\n");
     print_boot("full-set", boot(full, 1'000'000, latency), full.subdevices.size());

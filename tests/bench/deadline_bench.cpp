@@ -6,8 +6,8 @@
 // by gateway_rig.hpp, then cut from the buses and driven here as an event loop would drive it on
 // a loaded host, on a simulated clock: downstream grip PDOs every `period` (the argument, in µs:
 // 1000 = 1,000 frames/s, 125 = 8,000 frames/s, about a full 1 Mbit/s bus, 20 = 50,000 frames/s),
-// the host heartbeat (701h) and the sub-devices' heartbeats every 100 ms (the host's stops), and the gateway's own timer served only
-// every `timer_late` (5 ms: a loop busy with frames that reaches its timers late). Per episode:
+// the host heartbeat (701h) and the sub-devices' heartbeats every 100 ms (the host's stops), and the gateway's own
+// timer served only every `timer_late` (5 ms: a loop busy with frames that reaches its timers late). Per episode:
 //  * lag_us: the error-value RPDO (203h) queued − the consumer deadline (last heartbeat + 250 ms);
 //  * frames_after: downstream frames handled after the deadline before that RPDO (0: the first
 //    frame after the deadline noticed it, as it must: the frame path that notices the time-out
@@ -72,7 +72,9 @@ void BM_HostHeartbeatLossUnderLoad(benchmark::State& state) {
     (void)gw.on_upstream_frame(CanFrame(0x701, {0x05}), now);
     const TimePoint stop = now + std::chrono::milliseconds(300);
     // Frames out of phase with the heartbeats (7 µs + a third of a period), as on a real bus.
-    TimePoint next_frame = now + std::chrono::microseconds(7) + period / 3, next_hb = now + std::chrono::milliseconds(100), next_timer = now + kTimerLate / 2 + std::chrono::microseconds(11);
+    TimePoint next_frame = now + std::chrono::microseconds(7) + period / 3,
+              next_hb = now + std::chrono::milliseconds(100),
+              next_timer = now + kTimerLate / 2 + std::chrono::microseconds(11);
     std::uint64_t frames_at_deadline = 0;
     bool past_deadline = false;
     while (!rpdo_at) {
@@ -106,7 +108,8 @@ void BM_HostHeartbeatLossUnderLoad(benchmark::State& state) {
       }
     }
     lag_ns.push_back(std::chrono::duration_cast<std::chrono::nanoseconds>(*rpdo_at - (last_hb + kConsumer)).count());
-    worst_after = std::max(worst_after, frames_at_rpdo - frames_at_deadline - (frames_at_rpdo > frames_at_deadline ? 1 : 0));
+    worst_after =
+        std::max(worst_after, frames_at_rpdo - frames_at_deadline - (frames_at_rpdo > frames_at_deadline ? 1 : 0));
     now += std::chrono::milliseconds(50);
   }
   std::sort(lag_ns.begin(), lag_ns.end());

@@ -37,9 +37,9 @@ using namespace oegw;
 using clock_type = std::chrono::steady_clock;
 
 std::unique_ptr<bench::GatewayRig> make_rig(int variant) {
-  const std::string yaml =
-      variant == 0 ? bench::yaml_one_grip() : bench::yaml_full_set();
-  auto rig = std::make_unique<bench::GatewayRig>(bench::load_or_throw(yaml, variant == 0 ? "one_grip.yaml" : "full_set.yaml"));
+  const std::string yaml = variant == 0 ? bench::yaml_one_grip() : bench::yaml_full_set();
+  auto rig =
+      std::make_unique<bench::GatewayRig>(bench::load_or_throw(yaml, variant == 0 ? "one_grip.yaml" : "full_set.yaml"));
   rig->build_gateway();
   rig->build_rest();
   rig->boot();
@@ -92,7 +92,13 @@ void BM_Latency(benchmark::State& state) {
   state.counters["allocs/frame"] = static_cast<double>(allocs) / static_cast<double>(kSamples);
   state.counters["downstream_sent"] = static_cast<double>(rig->downstream_while_detached());
 }
-BENCHMARK(BM_Latency)->Arg(0)->Arg(1)->ArgName("full_set")->Iterations(1)->UseManualTime()->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_Latency)
+    ->Arg(0)
+    ->Arg(1)
+    ->ArgName("full_set")
+    ->Iterations(1)
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond);
 
 // The measured loop: the two frames alternately into the gateway, heap allocations counted.
 void feed_frames(benchmark::State& state, gateway::Gateway& gw, const canopen::CanFrame (&frames)[2],
@@ -124,8 +130,8 @@ void BM_Throughput(benchmark::State& state) {
   const auto up0 = up.frames;
   feed_frames(state, gw, frames, now);
   state.counters["frames/s"] = benchmark::Counter(static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
-  state.counters["tpdo/frame"] = state.iterations() == 0 ? 0.0
-                                                         : static_cast<double>(up.frames - up0) / static_cast<double>(state.iterations());
+  state.counters["tpdo/frame"] =
+      state.iterations() == 0 ? 0.0 : static_cast<double>(up.frames - up0) / static_cast<double>(state.iterations());
 }
 BENCHMARK(BM_Throughput)->Arg(0)->Arg(1)->ArgName("full_set");
 

@@ -8,6 +8,7 @@
 // directly and the upstream sink only records (steady_clock) what the gateway queues.
 #pragma once
 
+#include <unistd.h>
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
@@ -16,7 +17,6 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
-#include <unistd.h>
 
 #include <fmt/format.h>
 
@@ -24,9 +24,9 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
-#include "rig/cab_rig.hpp"
 #include "gateway/gateway.hpp"
 #include "mapping/config.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/fixtures/fixtures.hpp"
 
@@ -109,15 +109,17 @@ class GatewayRig {
     auto& gw = rig_.gw();
     for (const auto& n : gw.downstream().names())
       if (gw.downstream().state(n) != subdevices::NodeState::Operational)
-        throw std::runtime_error("sub-device " + n + " not operational: " +
-                                 std::string(subdevices::to_string(gw.downstream().state(n))));
+        throw std::runtime_error("sub-device " + n +
+                                 " not operational: " + std::string(subdevices::to_string(gw.downstream().state(n))));
     int pending = 2;
     std::string failed;
     auto write = [&](std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) {
-      rig_.host().sdo(kGateway).download(index, sub, std::move(data), [&, index, sub](canopen::SdoAbortCode c, std::vector<std::uint8_t>) {
-        if (c != canopen::SdoAbortCode::None) failed += fmt::format(" {:04X}h:{:02X} aborted", index, sub);
-        --pending;
-      });
+      rig_.host().sdo(kGateway).download(index, sub, std::move(data),
+                                         [&, index, sub](canopen::SdoAbortCode c, std::vector<std::uint8_t>) {
+                                           if (c != canopen::SdoAbortCode::None)
+                                             failed += fmt::format(" {:04X}h:{:02X} aborted", index, sub);
+                                           --pending;
+                                         });
     };
     write(0x1800, 1, canopen::encode<std::uint32_t>(0x1A0));
     write(0x6423, 0, {1});

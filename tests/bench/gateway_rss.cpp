@@ -69,21 +69,23 @@ int main() {
     // VmHWM is the kernel's high-water mark, updated lazily: never below a VmRSS we saw.
     const long hwm = std::max({status_kib("VmHWM"), gw_rss, all_rss, after_rss});
 
-    std::printf("full FE set: %d joysticks, %d pedals, %d encoders, %d wheels, %d clusters on %d sub-devices "
-                "(%zu operational), %zu FEs\n",
-                bench::FullSetCounts::grips, bench::FullSetCounts::pedals, bench::FullSetCounts::encoders,
-                bench::FullSetCounts::wheels, bench::FullSetCounts::clusters, bench::FullSetCounts::nodes, operational,
-                rig.gw().fes().size());
+    std::printf(
+        "full FE set: %d joysticks, %d pedals, %d encoders, %d wheels, %d clusters on %d sub-devices "
+        "(%zu operational), %zu FEs\n",
+        bench::FullSetCounts::grips, bench::FullSetCounts::pedals, bench::FullSetCounts::encoders,
+        bench::FullSetCounts::wheels, bench::FullSetCounts::clusters, bench::FullSetCounts::nodes, operational,
+        rig.gw().fes().size());
     std::printf("heartbeat watch: cluster8 (node 57h, the 48th) silenced for 1 s -> %s\n",
                 std::string(subdevices::to_string(last_state)).c_str());
     std::printf("measured: VmRSS/VmHWM of this process (/proc/self/status); the simulators share it, see the phases\n");
     std::printf("rss_kib baseline=%ld gateway_only=%ld with_simulators=%ld gateway_after_boot=%ld hwm=%ld\n", base_rss,
                 gw_rss, all_rss, after_rss, hwm);
-    std::printf("heap_kib baseline=%ld gateway_only=%ld with_simulators=%ld gateway_after_boot=%ld\n", base_heap, gw_heap,
-                all_heap, after_heap);
-    std::printf("gateway share: rss %ld KiB over baseline before the simulators, %ld KiB after the boot; "
-                "heap %ld KiB / %ld KiB\n",
-                gw_rss - base_rss, after_rss - base_rss, gw_heap - base_heap, after_heap - base_heap);
+    std::printf("heap_kib baseline=%ld gateway_only=%ld with_simulators=%ld gateway_after_boot=%ld\n", base_heap,
+                gw_heap, all_heap, after_heap);
+    std::printf(
+        "gateway share: rss %ld KiB over baseline before the simulators, %ld KiB after the boot; "
+        "heap %ld KiB / %ld KiB\n",
+        gw_rss - base_rss, after_rss - base_rss, gw_heap - base_heap, after_heap - base_heap);
     return operational == static_cast<std::size_t>(bench::FullSetCounts::nodes) ? 0 : 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "oegw_bench_rss: %s\n", e.what());

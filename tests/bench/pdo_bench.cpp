@@ -117,7 +117,9 @@ bool outputs_hold(const ObjectDictionary& od, Layout l, const CanFrame& f) {
 
 std::uint64_t iterations(const benchmark::State& state) { return static_cast<std::uint64_t>(state.iterations()); }
 
-void frames_processed(benchmark::State& state) { state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations())); }
+void frames_processed(benchmark::State& state) {
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));
+}
 
 template <Layout L>
 void BM_TpdoEncode(benchmark::State& state) {

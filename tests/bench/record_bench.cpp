@@ -114,7 +114,13 @@ void BM_RecordingCpu(benchmark::State& state) {
     state.counters["dropped"] = static_cast<double>(st.dropped_frames + st.dropped_events);
   }
 }
-BENCHMARK(BM_RecordingCpu)->ArgName("recording")->Arg(0)->Arg(1)->Iterations(30)->UseRealTime()->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RecordingCpu)
+    ->ArgName("recording")
+    ->Arg(0)
+    ->Arg(1)
+    ->Iterations(30)
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
 
 void BM_RecordingThroughput(benchmark::State& state) {
   Rigged r(state.range(0) != 0);
@@ -188,7 +194,8 @@ void BM_ReplayFullCab10Min(benchmark::State& state) {
     s.header = {"meta gateway sdo_bus_share=0.85"};
     Recorder recorder(s);
     GatewayRecorder tap(recorder);
-    oegw::rig::CabRig rig(cfg, loop, oegw::rig::CabRigOptions{.store = dir.path / "upstream.store", .timed_buses = true});
+    oegw::rig::CabRig rig(cfg, loop,
+                          oegw::rig::CabRigOptions{.store = dir.path / "upstream.store", .timed_buses = true});
     rig.on_gateway = [&](gateway::Gateway& g) { g.set_tap(&tap); };
     rig.build();
     rig.power_on();

@@ -23,9 +23,9 @@ namespace {
 using namespace oegw;
 using clock_type = std::chrono::steady_clock;
 
-constexpr std::uint32_t kHostRequest = 0x620;   // 600h + the gateway's node-ID 20h
-constexpr std::uint32_t kGripRequest = 0x611;   // 600h + the grip's node-ID 11h
-constexpr std::uint32_t kGripAnswer = 0x591;    // 580h + 11h
+constexpr std::uint32_t kHostRequest = 0x620;  // 600h + the gateway's node-ID 20h
+constexpr std::uint32_t kGripRequest = 0x611;  // 600h + the grip's node-ID 11h
+constexpr std::uint32_t kGripAnswer = 0x591;   // 580h + 11h
 
 void BM_RemoteExpeditedUpload(benchmark::State& state) {
   bench::GatewayRig rig(bench::load_or_throw(bench::yaml_one_grip(), "one_grip.yaml"));
@@ -64,8 +64,7 @@ void BM_RemoteExpeditedUpload(benchmark::State& state) {
     const auto t2 = clock_type::now();
     (void)gw.on_downstream_frame(answer, now);
     if (up.frames != u0 + 1 || up.last.data[0] != 0x43) throw std::runtime_error("no answer to the host");
-    if (sample)
-      ns[i] = std::chrono::duration_cast<std::chrono::nanoseconds>((down_at - t0) + (up.at - t2)).count();
+    if (sample) ns[i] = std::chrono::duration_cast<std::chrono::nanoseconds>((down_at - t0) + (up.at - t2)).count();
   };
   for (auto _ : state) {
     try {

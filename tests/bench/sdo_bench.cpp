@@ -274,12 +274,12 @@ void BM_SdoDownloadExpedited_Percentiles(benchmark::State& state) {
 
 }  // namespace
 
-#define OEGW_SDO_BENCH(fn)                                                    \
-  BENCHMARK_TEMPLATE(fn, BusRig)->Unit(benchmark::kNanosecond);              \
-  BENCHMARK_TEMPLATE(fn, DirectRig)->Unit(benchmark::kNanosecond);           \
+#define OEGW_SDO_BENCH(fn)                                         \
+  BENCHMARK_TEMPLATE(fn, BusRig)->Unit(benchmark::kNanosecond);    \
+  BENCHMARK_TEMPLATE(fn, DirectRig)->Unit(benchmark::kNanosecond); \
   BENCHMARK_TEMPLATE(fn, BareRig)->Unit(benchmark::kNanosecond)
 
-#define OEGW_SDO_PERCENTILES(fn)                                                                  \
+#define OEGW_SDO_PERCENTILES(fn)                                                                   \
   BENCHMARK_TEMPLATE(fn, BusRig)->Unit(benchmark::kNanosecond)->Iterations(1)->UseManualTime();    \
   BENCHMARK_TEMPLATE(fn, DirectRig)->Unit(benchmark::kNanosecond)->Iterations(1)->UseManualTime(); \
   BENCHMARK_TEMPLATE(fn, BareRig)->Unit(benchmark::kNanosecond)->Iterations(1)->UseManualTime()

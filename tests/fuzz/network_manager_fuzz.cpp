@@ -32,10 +32,10 @@
 #include "tests/fuzz/fuzz_support.hpp"
 
 using namespace oegw;
-using fuzz::check;
 using canopen::CanFrame;
 using canopen::NodeId;
 using canopen::TimePoint;
+using fuzz::check;
 
 namespace {
 
@@ -97,8 +97,7 @@ bool answer(const CanFrame& req, const subdevices::Driver& driver, const std::ui
       for (int i = 0; i < 4; ++i) f.data[4 + i] = static_cast<std::uint8_t>(v >> (8 * i));
       return true;
     }
-    default:
-      return false;
+    default: return false;
   }
 }
 
@@ -127,9 +126,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                                          error);
     if (i == 2) d = subdevices::make_novotechnik_406_driver(node, sink, {}, error);
     if (i == 3)
-      d = subdevices::make_cia401_driver(
-          node, sink, subdevices::DriverOptions{{{"eds", std::string(OEGW_SOURCE_DIR) + "/subdevices/eds/generic_pedal.eds"}}},
-          error);
+      d = subdevices::make_cia401_driver(node, sink,
+                                         subdevices::DriverOptions{{{"eds", std::string(OEGW_SOURCE_DIR) +
+                                                                                "/subdevices/eds/generic_pedal.eds"}}},
+                                         error);
     check(d != nullptr);
     drivers.push_back(d.get());
     subdevices::NodeSettings s;
@@ -174,10 +174,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const std::uint8_t node = kNodes[c[0] % 4];
     static constexpr std::uint32_t kBase[8] = {0x700, 0x580, 0x080, 0x180, 0x280, 0x380, 0x480, 0x7E4};
     CanFrame f;
-    if (c[1] < 8)
-      f.id = c[1] == 7 ? 0x7E4 : kBase[c[1]] + node;
-    else
-      f.id = ((static_cast<std::uint32_t>(c[1]) << 3) | (c[4] & 0x07)) & 0x7FF;
+    if (c[1] < 8) f.id = c[1] == 7 ? 0x7E4 : kBase[c[1]] + node;
+    else f.id = ((static_cast<std::uint32_t>(c[1]) << 3) | (c[4] & 0x07)) & 0x7FF;
     f.dlc = static_cast<std::uint8_t>(c[3] % 9);
     f.rtr = c[3] >= 0xF0;
     for (std::size_t i = 0; i < 8; ++i) f.data[i] = c[4 + i];

@@ -25,10 +25,10 @@
 #include "tests/fuzz/fuzz_support.hpp"
 
 using namespace oegw;
-using fuzz::catalogue;
-using fuzz::check;
 using canopen::CanFrame;
 using canopen::TimePoint;
+using fuzz::catalogue;
+using fuzz::check;
 
 namespace {
 

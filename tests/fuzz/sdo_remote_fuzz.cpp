@@ -100,7 +100,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const Subscription obs = od.add_observer([&](std::uint16_t, std::uint8_t, Origin) { ++writes; });
   std::vector<CanFrame> out;
   FakeRemote remote;
-  SdoServer server(od, [&](const CanFrame& f) { out.push_back(f); }, NodeId{3});
+  SdoServer server(
+      od, [&](const CanFrame& f) { out.push_back(f); }, NodeId{3});
   server.set_remote(&remote);
   TimePoint now{std::chrono::seconds(1)};
   auto frames_ok = [&] {

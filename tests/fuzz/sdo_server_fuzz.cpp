@@ -33,8 +33,9 @@ void build(ObjectDictionary& od) {
   od.find(0x2101, 0)->max_size = 10;
   Object& even = od.add_var(0x2102, "Even", DataType::Domain, Access::ReadWrite, {});
   even.add_write_hook([](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
-    return b.size() % 2 == 0 ? SdoAbortCode::None : SdoAbortCode::InvalidValue;
-  }).detach();  // stateless: may live as long as the Object
+        return b.size() % 2 == 0 ? SdoAbortCode::None : SdoAbortCode::InvalidValue;
+      })
+      .detach();  // stateless: may live as long as the Object
 }
 
 }  // namespace
@@ -45,7 +46,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   int writes = 0;
   const Subscription obs = od.add_observer([&](std::uint16_t, std::uint8_t, Origin) { ++writes; });
   std::vector<CanFrame> out;
-  SdoServer server(od, [&](const CanFrame& f) { out.push_back(f); }, NodeId{3});
+  SdoServer server(
+      od, [&](const CanFrame& f) { out.push_back(f); }, NodeId{3});
   TimePoint now{std::chrono::seconds(1)};
 
   for (std::size_t off = 0; off + 9 <= size; off += 9) {
@@ -63,7 +65,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       const std::uint8_t a = out.back().data[0];
       check(a == 0x60 || (a & 0xEF) == 0x20 || a == 0xA1);
     }
-    if (server.busy()) check(server.next_deadline().has_value() && *server.next_deadline() <= now + SdoServer::kDefaultTimeout);
+    if (server.busy())
+      check(server.next_deadline().has_value() && *server.next_deadline() <= now + SdoServer::kDefaultTimeout);
     now += std::chrono::milliseconds((data[off] / 9) * 50);
     out.clear();
     server.advance(now);

@@ -37,7 +37,8 @@ class Blackbox : public ::testing::Test {
   void SetUp() override {
     char tmpl[] = "/tmp/oegw-blackbox-test-XXXXXX";
     dir_ = ::mkdtemp(tmpl);
-    auto loaded = mapping::load_config_text(fixtures::mapping_file("demo_cab.yaml"), "demo_cab.yaml", driver_catalogue());
+    auto loaded =
+        mapping::load_config_text(fixtures::mapping_file("demo_cab.yaml"), "demo_cab.yaml", driver_catalogue());
     ASSERT_TRUE(loaded.ok()) << loaded.error_text();
     config_ = std::move(*loaded.config);
     RecorderSettings s;
@@ -53,7 +54,7 @@ class Blackbox : public ::testing::Test {
     s.header = {timed_ ? "meta gateway sdo_bus_share=0.85" : "meta gateway sdo_bus_share=0"};
     recorder_ = std::make_unique<Recorder>(s);
     rig_ = std::make_unique<rig::CabRig>(config_, loop_,
-                                    rig::CabRigOptions{.store = dir_ / "upstream.store", .timed_buses = timed_});
+                                         rig::CabRigOptions{.store = dir_ / "upstream.store", .timed_buses = timed_});
     tap_ = std::make_unique<GatewayRecorder>(*recorder_);
     rig_->on_gateway = [this](Gateway& g) {
       gw_ = &g;
@@ -76,10 +77,11 @@ class Blackbox : public ::testing::Test {
   }
   void sdo_write(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) {
     bool done = false;
-    rig_->host().sdo(kGw).download(index, sub, std::move(data), [&](canopen::SdoAbortCode c, std::vector<std::uint8_t>) {
-      EXPECT_EQ(c, canopen::SdoAbortCode::None);
-      done = true;
-    });
+    rig_->host().sdo(kGw).download(index, sub, std::move(data),
+                                   [&](canopen::SdoAbortCode c, std::vector<std::uint8_t>) {
+                                     EXPECT_EQ(c, canopen::SdoAbortCode::None);
+                                     done = true;
+                                   });
     for (int i = 0; i < 100 && !done; ++i) rig_->run_for(10ms);
     ASSERT_TRUE(done);
   }
@@ -201,7 +203,8 @@ TEST_F(Blackbox, AStatusRequestIsComparedPastAControlSessionEndsTheComparison) {
   const auto reports = replay_all();
   ASSERT_EQ(reports.size(), 1u);
   EXPECT_FALSE(reports[0].divergence);
-  EXPECT_NE(reports[0].stopped.find("a control-socket session reached into the gateway (remote_sdo)"), std::string::npos)
+  EXPECT_NE(reports[0].stopped.find("a control-socket session reached into the gateway (remote_sdo)"),
+            std::string::npos)
       << reports[0].stopped;
   EXPECT_GT(reports[0].compared, 100u) << "compared up to the session, past the status request";
 }

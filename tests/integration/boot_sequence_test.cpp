@@ -37,7 +37,9 @@ class Boot : public ::testing::Test {
  protected:
   void make_gateway(Duration sync_period = Duration{0}) {
     master_ = std::make_unique<Master>(od_, net_.sink("gateway"),
-                                       MasterConfig{.heartbeat_entries = 8, .sdo_timeout = 200ms, .sync_period = sync_period});
+                                       MasterConfig{.heartbeat_entries = 8,
+                                                    .sdo_timeout = 200ms,
+                                                    .sync_period = sync_period});
     network_ = std::make_unique<NetworkManager>(*master_);
     net_.attach("gateway", *network_);
     network_->on_node_state = [this](const std::string& n, NodeState s, const std::string& why) {
@@ -60,9 +62,11 @@ class Boot : public ::testing::Test {
     return out;
   }
   // SDO download from a plain host client on the bus (not the network manager).
-  SdoAbortCode download(Master& host, NodeId node, std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) {
+  SdoAbortCode download(Master& host, NodeId node, std::uint16_t index, std::uint8_t sub,
+                        std::vector<std::uint8_t> data) {
     std::optional<SdoAbortCode> result;
-    host.sdo(node).download(index, sub, std::move(data), [&](SdoAbortCode c, std::vector<std::uint8_t>) { result = c; });
+    host.sdo(node).download(index, sub, std::move(data),
+                            [&](SdoAbortCode c, std::vector<std::uint8_t>) { result = c; });
     net_.run_for(50ms);
     return result.value_or(SdoAbortCode::Timeout);
   }
@@ -83,9 +87,11 @@ constexpr NodeId kGrip{0x11};
 std::unique_ptr<sim::Novotechnik406Sim> self_starting_knob(oegw::testing::VirtualNetwork& net,
                                                            const std::filesystem::path& store,
                                                            std::uint32_t revision = 0x00010003) {
-  auto knob = std::make_unique<sim::Novotechnik406Sim>(
-      net.sink("knob"), sim::Novotechnik406SimConfig{.node_id = kKnob, .revision = revision, .heartbeat_ms = 50,
-                                                     .store_path = store});
+  auto knob =
+      std::make_unique<sim::Novotechnik406Sim>(net.sink("knob"), sim::Novotechnik406SimConfig{.node_id = kKnob,
+                                                                                              .revision = revision,
+                                                                                              .heartbeat_ms = 50,
+                                                                                              .store_path = store});
   (void)knob->od().set<std::uint32_t>(0x1F80, 0, 0x08, Origin::Local);
   (void)knob->od().write(0x1010, 1, encode<std::uint32_t>(kSave), Origin::Local);
   return knob;
@@ -94,7 +100,8 @@ std::unique_ptr<sim::Novotechnik406Sim> self_starting_knob(oegw::testing::Virtua
 TEST_F(Boot, NovotechnikRefusesRemappingAndStoreWhileOperational) {
   // §8.2 "For changing of mapping, the sensor must be in pre-operational mode"; §11 storing "is
   // only admitted in the pre-operational status"; §7.3 abort 0x08000022 "wrong state".
-  sim::Novotechnik406Sim knob(net_.sink("knob"), sim::Novotechnik406SimConfig{.node_id = kKnob, .store_path = temp_store("refuse")});
+  sim::Novotechnik406Sim knob(net_.sink("knob"),
+                              sim::Novotechnik406SimConfig{.node_id = kKnob, .store_path = temp_store("refuse")});
   net_.attach("knob", knob);
   ObjectDictionary host_od;
   Master host(host_od, net_.sink("host"), MasterConfig{.heartbeat_entries = 2, .sdo_timeout = 100ms});
@@ -107,7 +114,8 @@ TEST_F(Boot, NovotechnikRefusesRemappingAndStoreWhileOperational) {
   net_.settle();
   ASSERT_EQ(knob.node().state(), NmtState::Operational);
   EXPECT_EQ(download(host, kKnob, 0x1A00, 0, {2}), SdoAbortCode::CannotTransferDeviceState);
-  EXPECT_EQ(download(host, kKnob, 0x1A00, 1, encode<std::uint32_t>(0x60200120)), SdoAbortCode::CannotTransferDeviceState);
+  EXPECT_EQ(download(host, kKnob, 0x1A00, 1, encode<std::uint32_t>(0x60200120)),
+            SdoAbortCode::CannotTransferDeviceState);
   EXPECT_EQ(download(host, kKnob, 0x1010, 1, encode<std::uint32_t>(kSave)), SdoAbortCode::CannotTransferDeviceState);
   EXPECT_EQ(download(host, kKnob, 0x1800, 5, encode<std::uint16_t>(10)), SdoAbortCode::None)
       << "other parameters stay writable";
@@ -121,7 +129,8 @@ TEST_F(Boot, McbAndElobauRefuseStoreWhileOperational) {
   // MCB-402 [CO4013 1010h/1011h] "only allowed in preoperational mode" (no code given: 0800
   // 0022h); elobau: the document is silent, the simulator takes CiA 301's 0800 0022h.
   sim::Mcb402Sim stick(net_.sink("stick"), sim::Mcb402SimConfig{.node_id = kStick, .store_path = temp_store("mcb")});
-  sim::ElobauMfgSim grip(net_.sink("grip"), sim::ElobauMfgSimConfig{.node_id = kGrip, .store_path = temp_store("elobau")});
+  sim::ElobauMfgSim grip(net_.sink("grip"),
+                         sim::ElobauMfgSimConfig{.node_id = kGrip, .store_path = temp_store("elobau")});
   net_.attach("stick", stick);
   net_.attach("grip", grip);
   ObjectDictionary host_od;
@@ -134,7 +143,8 @@ TEST_F(Boot, McbAndElobauRefuseStoreWhileOperational) {
   host.nmt().start(kGrip);
   net_.settle();
   EXPECT_EQ(download(host, kStick, 0x1010, 1, encode<std::uint32_t>(kSave)), SdoAbortCode::CannotTransferDeviceState);
-  EXPECT_EQ(download(host, kStick, 0x1011, 1, encode<std::uint32_t>(0x64616F6C)), SdoAbortCode::CannotTransferDeviceState);
+  EXPECT_EQ(download(host, kStick, 0x1011, 1, encode<std::uint32_t>(0x64616F6C)),
+            SdoAbortCode::CannotTransferDeviceState);
   EXPECT_EQ(download(host, kStick, 0x1801, 5, encode<std::uint16_t>(20)), SdoAbortCode::None)
       << "the CO4013 takes PDO parameters in operational";
   EXPECT_EQ(download(host, kGrip, 0x1010, 1, encode<std::uint32_t>(kSave)), SdoAbortCode::CannotTransferDeviceState);
@@ -165,9 +175,11 @@ TEST_F(Boot, ASelfStartingSensorIsPutInPreOperationalAndConfigured) {
   ASSERT_NE(boot, got.end());
   const auto preop = std::find(boot, got.end(), "gateway 000#807F");
   ASSERT_NE(preop, got.end()) << "no NMT enter pre-operational after the boot-up";
-  const auto first_sdo = std::find_if(boot, got.end(), [](const std::string& f) { return f.rfind("gateway 67F#", 0) == 0; });
+  const auto first_sdo =
+      std::find_if(boot, got.end(), [](const std::string& f) { return f.rfind("gateway 67F#", 0) == 0; });
   EXPECT_LT(preop - got.begin(), first_sdo - got.begin());
-  EXPECT_EQ(std::count_if(got.begin(), got.end(), [](const std::string& f) { return f.rfind("knob 5FF#80", 0) == 0; }), 0)
+  EXPECT_EQ(std::count_if(got.begin(), got.end(), [](const std::string& f) { return f.rfind("knob 5FF#80", 0) == 0; }),
+            0)
       << "no SDO abort";
   (void)knob->set_input("position", 4242, net_.now());
   net_.run_for(100ms);
@@ -199,7 +211,8 @@ TEST_F(Boot, ExactRevisionAndAnotherMajorRevisionAreRefused) {
   network_->start(net_.now());
   net_.run_for(1s);
   EXPECT_EQ(network_->state("knob"), NodeState::Refused) << log_;
-  EXPECT_NE(log_.find("1018h:03 is 00020003h: major revision 0002h, the configuration expects 0001h"), std::string::npos)
+  EXPECT_NE(log_.find("1018h:03 is 00020003h: major revision 0002h, the configuration expects 0001h"),
+            std::string::npos)
       << log_;
 
   oegw::testing::VirtualNetwork net2;
@@ -232,7 +245,8 @@ TEST_F(Boot, BootDiagnosticsAreReadKeptAndReportedOncePerBoot) {
   stick.start(net_.now());
   make_gateway();
   add("novotechnik-406", kKnob, NodeSettings{.name = "knob", .heartbeat_ms = 50});
-  add("mcb402", kStick, NodeSettings{.name = "stick", .heartbeat_ms = 50}, DriverOptions{{{"button_bits", "1,2,3,4,5,7,6"}}});
+  add("mcb402", kStick, NodeSettings{.name = "stick", .heartbeat_ms = 50},
+      DriverOptions{{{"button_bits", "1,2,3,4,5,7,6"}}});
   network_->start(net_.now());
   net_.run_for(2s);
   ASSERT_EQ(network_->state("knob"), NodeState::Operational) << log_;
@@ -281,8 +295,9 @@ TEST_F(Boot, SynchronousTpdoWithoutSyncIsRefusedWithTheReason) {
   network_->start(net_.now());
   net_.run_for(1s);
   EXPECT_EQ(network_->state("knob"), NodeState::Refused) << log_;
-  EXPECT_NE(log_.find("the TPDO of 1800h has a synchronous transmission type (0..240: sent only at a SYNC) and no SYNC is "
-                      "produced downstream (downstream.sync_period_ms not set)"),
+  EXPECT_NE(log_.find(
+                "the TPDO of 1800h has a synchronous transmission type (0..240: sent only at a SYNC) and no SYNC is "
+                "produced downstream (downstream.sync_period_ms not set)"),
             std::string::npos)
       << log_;
 }
@@ -309,7 +324,8 @@ TEST_F(Boot, SyncIsProducedAndASynchronousTpdoComesEveryNthSync) {
   EXPECT_EQ(d->value(pos).status, SignalStatus::Valid);
   const auto got = frames();
   const auto syncs = std::count(got.begin(), got.end(), "gateway 080#");
-  const auto tpdos = std::count_if(got.begin(), got.end(), [](const std::string& f) { return f.rfind("knob 1FF#", 0) == 0; });
+  const auto tpdos =
+      std::count_if(got.begin(), got.end(), [](const std::string& f) { return f.rfind("knob 1FF#", 0) == 0; });
   EXPECT_GE(syncs, 19);
   EXPECT_LE(syncs, 21);
   EXPECT_GE(tpdos, syncs / 2 - 1);
@@ -359,7 +375,8 @@ TEST_F(Boot, GenericNodeFromAVendorEdsBootsAndItsAnalogueInputsSendOnChange) {
 TEST_F(Boot, GenericSimulatorLacksTheStringsItsEdsLacks) {
   constexpr NodeId kPedal{0x30};
   std::string error;
-  auto pedal = sim::Cia401Sim::from_file(OEGW_SOURCE_DIR "/subdevices/eds/generic_pedal.eds", kPedal, net_.sink("p"), error);
+  auto pedal =
+      sim::Cia401Sim::from_file(OEGW_SOURCE_DIR "/subdevices/eds/generic_pedal.eds", kPedal, net_.sink("p"), error);
   ASSERT_TRUE(pedal) << error;
   EXPECT_EQ(pedal->od().find(0x1008), nullptr);
   EXPECT_EQ(pedal->od().find(0x100A), nullptr);

@@ -97,8 +97,8 @@ class FinderBench {
 // Both readings of [MCB §4]'s table and an arbitrary wiring, on a board left pre-operational
 // (the finder starts it: 000#0103) and on a running one.
 TEST(ButtonBitsFinder, ReadsTheWiringOffTheBoard) {
-  for (const auto& wiring : {sim::co4013::kPrintedTableBits, sim::co4013::kRightAlignedBits,
-                             sim::co4013::ButtonBits{7, 0, 6, 1, 5, 2, 4}}) {
+  for (const auto& wiring :
+       {sim::co4013::kPrintedTableBits, sim::co4013::kRightAlignedBits, sim::co4013::ButtonBits{7, 0, 6, 1, 5, 2, 4}}) {
     for (const bool started : {false, true}) {
       FinderBench b(wiring, started);
       b.run(300ms, 60s);
@@ -124,7 +124,8 @@ TEST(ButtonBitsFinder, TwoButtonsAtOnceAreAskedAgainAndNoPressTimesOut) {
   EXPECT_EQ(*b.finder().result(), sim::co4013::kRightAlignedBits);
   std::string said;
   for (const auto& l : b.lines) said += l + "\n";
-  EXPECT_NE(said.find("more than one bit changed; release every button and press BP3 alone"), std::string::npos) << said;
+  EXPECT_NE(said.find("more than one bit changed; release every button and press BP3 alone"), std::string::npos)
+      << said;
 
   FinderBench idle(sim::co4013::kRightAlignedBits, true);
   idle.finder().start(TimePoint{});

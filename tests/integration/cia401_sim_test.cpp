@@ -34,8 +34,8 @@ class Cia401Bus : public ::testing::Test {
     sim_ = oegw::subdevices::sim::Cia401Sim::from_file(eds_path, kNode, net_.sink("node"), error);
     ASSERT_TRUE(sim_) << error;
     net_.attach("node", *sim_);
-    host_ = std::make_unique<Master>(host_od_, net_.sink("host"), MasterConfig{.heartbeat_entries = 4,
-                                                                               .sdo_timeout = 200ms});
+    host_ = std::make_unique<Master>(host_od_, net_.sink("host"),
+                                     MasterConfig{.heartbeat_entries = 4, .sdo_timeout = 200ms});
     net_.attach("host", *host_);
     auto d = make_cia401_driver(kNode, net_.sink("host"), DriverOptions{{{"eds", eds_path}}}, error);
     ASSERT_TRUE(d) << error;

@@ -51,7 +51,8 @@ class Corners : public ::testing::Test {
   }
   // A store file for the simulator (1010h "save" works with one).
   std::string store(const std::string& name) {
-    stores_.push_back((std::filesystem::path(::testing::TempDir()) / fmt::format("corners_{}_{}", ::getpid(), name)).string());
+    stores_.push_back(
+        (std::filesystem::path(::testing::TempDir()) / fmt::format("corners_{}_{}", ::getpid(), name)).string());
     std::filesystem::remove(stores_.back());
     return stores_.back();
   }
@@ -70,12 +71,17 @@ class Corners : public ::testing::Test {
       if (r.frame.id == kGatewayEmcy) up_emcys_.push_back(r.frame);
     });
     rig_->down().set_tap([this](const BusRecord& r) { down_.push_back(r); });
-    rig_->on_gateway = [this](gw::Gateway& g) { g.on_log = [this](const std::string& l) { log_ += fmt::format("[{}] {}\n", ms(), l); }; };
+    rig_->on_gateway = [this](gw::Gateway& g) {
+      g.on_log = [this](const std::string& l) { log_ += fmt::format("[{}] {}\n", ms(), l); };
+    };
     rig_->build();
     rig_->power_on();
     rig_->run_for(3s);
   }
-  long ms() const { return static_cast<long>(std::chrono::duration_cast<std::chrono::milliseconds>(loop_.now().time_since_epoch()).count()); }
+  long ms() const {
+    return static_cast<long>(
+        std::chrono::duration_cast<std::chrono::milliseconds>(loop_.now().time_since_epoch()).count());
+  }
   sd::NodeState state() const { return rig_->gw().downstream().state(dev_); }
   sd::Driver& driver() { return *rig_->gw().downstream().driver(dev_); }
   sim::SimulatedDevice& device() { return *rig_->devices().device(dev_); }
@@ -185,7 +191,8 @@ TEST_F(Corners, NovotechnikWithout6020hMapsThePositionFrom6004h) {
     EXPECT_EQ(device().od().get<std::uint32_t>(0x1A00, 1), std::string(has) == "yes" ? 0x60200120u : 0x60040020u);
     as<sim::Novotechnik406Sim>().set_position(-777, loop_.now());
     rig_->run_for(50ms);
-    EXPECT_EQ(field(kEncoder, "position"), std::int64_t{static_cast<std::uint32_t>(-777)}) << log_;  // 6120h: UNSIGNED32
+    EXPECT_EQ(field(kEncoder, "position"), std::int64_t{static_cast<std::uint32_t>(-777)})
+        << log_;  // 6120h: UNSIGNED32
     EXPECT_EQ(rig_->gw().status(kEncoder), gw::FeStatus::Valid);
   }
 }
@@ -279,7 +286,8 @@ TEST_F(Corners, Mcb402Every81xxhIsAWarning) {
   auto& mcb = as<sim::Mcb402Sim>();
   mcb.life_guarding(loop_.now());
   mcb.bus_off_recovered(loop_.now());
-  for (const std::uint8_t code : {0x10, 0x20}) (void)rig_->devices_port().send(CanFrame(0x83, {code, 0x81, 0x11, 0, 0, 0, 0, 0}));
+  for (const std::uint8_t code : {0x10, 0x20})
+    (void)rig_->devices_port().send(CanFrame(0x83, {code, 0x81, 0x11, 0, 0, 0, 0, 0}));
   rig_->run_for(100ms);
   EXPECT_FALSE(driver().any_fault()) << log_;
   EXPECT_EQ(faults_named(0x03), 0u) << log_;
@@ -320,7 +328,8 @@ std::string grip_yaml(const std::string& options, const std::string& buttons = "
 // (the recommendation for such a grip,
 // docs/design/device-documents.md#elobau-mfg-elobau-mfg-document-000-12) within 20 ms.
 TEST_F(Corners, ElobauGripSendingOnItsTimerOnlyWorks) {
-  for (const auto& [cycle, bound] : {std::pair<std::string, Duration>{"100", 100ms}, std::pair<std::string, Duration>{"20", 20ms}}) {
+  for (const auto& [cycle, bound] :
+       {std::pair<std::string, Duration>{"100", 100ms}, std::pair<std::string, Duration>{"20", 20ms}}) {
     SCOPED_TRACE("cycle_ms " + cycle);
     log_.clear();
     build(grip_yaml("cycle_ms: " + cycle), "grip", {{{"tpdo", "timer"}}});
@@ -405,10 +414,11 @@ TEST_F(Corners, ElobauButtonsTheGripLacksAreNotAvailable) {
   rig_->run_for(300ms);
   EXPECT_EQ(signal("buttons[8]").status, sd::SignalStatus::Valid);
   EXPECT_EQ(field(kJoy1, "buttons[8]"), 1);
-  build("subdevices:\n  grip:\n    driver: elobau-mfg\n    node_id: 0x11\n    heartbeat_ms: 100\n    sdo:\n"
-        "      - { index: 0x2100, sub_index: 1, value: 0xFF, type: u8 }\n"
-        "functional_elements:\n  joystick.1:\n    buttons: grip.buttons[1..8]\n",
-        "grip", {});
+  build(
+      "subdevices:\n  grip:\n    driver: elobau-mfg\n    node_id: 0x11\n    heartbeat_ms: 100\n    sdo:\n"
+      "      - { index: 0x2100, sub_index: 1, value: 0xFF, type: u8 }\n"
+      "functional_elements:\n  joystick.1:\n    buttons: grip.buttons[1..8]\n",
+      "grip", {});
   (void)as<sim::ElobauMfgSim>().press(8);
   rig_->rearm();
   rig_->run_for(300ms);
@@ -427,7 +437,8 @@ TEST_F(Corners, FreshnessFloorRidesOutAStallButCatchesALostDevice) {
     std::uint32_t cob;
     FeId fe;
   };
-  for (const Case& c : {Case{kKnob, "knob", 0x1FF, kEncoder}, Case{mcb_yaml("0, 1, 2, 3, 4, 6, 5"), "grip", 0x283, kJoy1}}) {
+  for (const Case& c :
+       {Case{kKnob, "knob", 0x1FF, kEncoder}, Case{mcb_yaml("0, 1, 2, 3, 4, 6, 5"), "grip", 0x283, kJoy1}}) {
     SCOPED_TRACE(c.dev);
     up_emcys_.clear();
     build(c.yaml, c.dev, {});

@@ -15,12 +15,12 @@
 
 #include <fmt/format.h>
 
+#include "canopen/305/lss.hpp"
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
-#include "canopen/305/lss.hpp"
 #include "canopen/io/virtual_bus.hpp"
-#include "gateway/control/control_protocol.hpp"
 #include "cli/ctl_command.hpp"
+#include "gateway/control/control_protocol.hpp"
 #include "gateway/control/ctl_service.hpp"
 #include "gateway/gateway.hpp"
 #include "rig/cab_rig.hpp"
@@ -58,14 +58,16 @@ class Ctl : public ::testing::Test {
     rig_->run_for(3s);
     for (const auto& n : rig_->gw().downstream().names())
       ASSERT_EQ(rig_->gw().downstream().state(n), sd::NodeState::Operational) << n << "\n" << log_;
-    service_ = std::make_unique<gw::control::CtlService>(loop_, rig_->gw(), config_, protocol_, [this] { rig_->rearm(); });
+    service_ =
+        std::make_unique<gw::control::CtlService>(loop_, rig_->gw(), config_, protocol_, [this] { rig_->rearm(); });
     // The session asks the protocol as the socket would, and the loop runs until the answer.
     session_ = std::make_unique<oegw::cli::CtlSession>(
         [this](const std::string& line, std::chrono::milliseconds timeout) {
           std::optional<std::string> answer;
           protocol_.answer(line, [&answer](std::string a) { answer = std::move(a); });
           for (std::int64_t i = 0; i < timeout.count() && !answer; ++i) rig_->run_for(1ms);
-          return answer ? oegw::cli::AskResult{oegw::cli::AskStatus::Ok, *answer} : oegw::cli::AskResult{oegw::cli::AskStatus::Timeout, "no answer"};
+          return answer ? oegw::cli::AskResult{oegw::cli::AskStatus::Ok, *answer}
+                        : oegw::cli::AskResult{oegw::cli::AskStatus::Timeout, "no answer"};
         },
         "0.1.0", 10s);
     ASSERT_EQ(session_->poll_events().lines, std::vector<std::string>{});
@@ -96,7 +98,8 @@ class Ctl : public ::testing::Test {
     Frames out;
     for (std::size_t i = mark_; i < down_.size(); ++i)
       if (std::find(ids.begin(), ids.end(), down_[i].id) != ids.end())
-        out.emplace_back(down_[i].id, std::vector<std::uint8_t>(down_[i].data.begin(), down_[i].data.begin() + down_[i].dlc));
+        out.emplace_back(down_[i].id,
+                         std::vector<std::uint8_t>(down_[i].data.begin(), down_[i].data.begin() + down_[i].dlc));
     return out;
   }
   std::uint32_t sim_u32(const char* device, std::uint16_t index, std::uint8_t sub) {
@@ -131,8 +134,7 @@ TEST_F(Ctl, ReadsASubDevicesIdentityFrameByFrame) {
   // 40h 1018h:01 on 600h + 11h, answer 43h with the four bytes on 580h + 11h. Nothing else.
   std::vector<std::uint8_t> answer{0x43, 0x18, 0x10, 0x01};
   for (const auto b : le32(vendor)) answer.push_back(b);
-  EXPECT_EQ(frames_since({0x611, 0x591}),
-            (Frames{{0x611, {0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0}}, {0x591, answer}}));
+  EXPECT_EQ(frames_since({0x611, 0x591}), (Frames{{0x611, {0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0}}, {0x591, answer}}));
   // Net and node on the line, and a string (1008h, segmented upload) of the Novotechnik sensor.
   const auto name = rig_->devices().device("seat_knob")->od().find(0x1008)->find(0)->value;
   EXPECT_EQ(run("[4] 2 127 r 0x1008 0 vs"), "[4] \"" + std::string(name.begin(), name.end()) + "\"");
@@ -171,9 +173,10 @@ TEST_F(Ctl, NodesTheGatewayDoesNotServe) {
             "[2] ERROR: 106 (Unsupported net: network 9: this gateway has 1 (upstream, its own dictionary) and 2 "
             "(downstream, the sub-devices))");
   // The host's bus holds only the gateway itself.
-  EXPECT_EQ(run("[3] 1 5 r 0x1000 0 u32"),
-            "[3] ERROR: 107 (Unsupported node: network 1 is the host's bus: only the gateway itself, node 32, is reached "
-            "there)");
+  EXPECT_EQ(
+      run("[3] 1 5 r 0x1000 0 u32"),
+      "[3] ERROR: 107 (Unsupported node: network 1 is the host's bus: only the gateway itself, node 32, is reached "
+      "there)");
   // A sub-device whose heartbeat is lost: 0606 0000h, no request sent to it.
   drop_to_gateway_ = [](const CanFrame& f) { return (f.id & 0x7F) == kKnob; };
   until("seat_knob", sd::NodeState::Missing);
@@ -234,9 +237,10 @@ TEST_F(Ctl, NmtAndTheBootUpEvent) {
   EXPECT_NE(rig_->gw().downstream().state("right_grip"), sd::NodeState::Operational) << log_;
   EXPECT_EQ(rig_->gw().faults().count("right_grip"), 1u) << log_;
   // NMT to the gateway's own bus is the host's business.
-  EXPECT_EQ(run("[2] 1 32 stop"),
-            "[2] ERROR: 100 (Request not supported: network 1 is the host's bus: the gateway's own NMT state is its NMT "
-            "master's)");
+  EXPECT_EQ(
+      run("[2] 1 32 stop"),
+      "[2] ERROR: 100 (Request not supported: network 1 is the host's bus: the gateway's own NMT state is its NMT "
+      "master's)");
   EXPECT_EQ(frames_since({0x000}), Frames{});
   // Start of a node the gateway holds as missing: refused, it starts only what it booted.
   drop_to_gateway_ = [](const CanFrame& f) { return (f.id & 0x7F) == kKnob; };
@@ -269,7 +273,8 @@ TEST_F(Ctl, TheSdoTimeoutEndsATransferTheNodeDoesNotAnswer) {
   EXPECT_EQ(run("[1] 2 set sdo_timeout 50"), "[1] OK");
   drop_to_devices_ = [](const CanFrame& f) { return f.id == 0x611; };
   const TimePoint before = loop_.now();
-  EXPECT_EQ(run("[2] 2 17 r 0x1018 1 u32"), "[2] ERROR: 05040000 (" + std::string(to_string(SdoAbortCode::Timeout)) + ")");
+  EXPECT_EQ(run("[2] 2 17 r 0x1018 1 u32"),
+            "[2] ERROR: 05040000 (" + std::string(to_string(SdoAbortCode::Timeout)) + ")");
   EXPECT_LT(loop_.now() - before, 100ms);
   // The transfer was aborted on the bus (the node may have seen part of it) and the next one works.
   drop_to_devices_ = nullptr;
@@ -303,7 +308,8 @@ TEST_F(Ctl, LssGivesANodeWithoutNodeIdItsNodeIdFrameByFrame) {
   EXPECT_EQ(run("[3] lss_get_node"), "[3] 48");
   EXPECT_EQ(lss_frames(), (Frames{{0x7E5, u32(0x5E, 0)}, {0x7E4, u32(0x5E, kPedal)}}));
   // Inquire the LSS address (5Ah..5Dh), all four parts, and one.
-  EXPECT_EQ(run("[4] lss_inquire_addr"), fmt::format("[4] 0x{:08X} 0x{:08X} 0x{:08X} 0x{:08X}", a[0], a[1], a[2], a[3]));
+  EXPECT_EQ(run("[4] lss_inquire_addr"),
+            fmt::format("[4] 0x{:08X} 0x{:08X} 0x{:08X} 0x{:08X}", a[0], a[1], a[2], a[3]));
   EXPECT_EQ(lss_frames(), (Frames{{0x7E5, u32(0x5A, 0)},
                                   {0x7E4, u32(0x5A, a[0])},
                                   {0x7E5, u32(0x5B, 0)},
@@ -325,7 +331,8 @@ TEST_F(Ctl, LssGivesANodeWithoutNodeIdItsNodeIdFrameByFrame) {
   EXPECT_EQ(run("[9] lss_ident_nonconf"), "[9] OK");
   EXPECT_EQ(lss_frames(), (Frames{{0x7E5, F{0x4C, 0, 0, 0, 0, 0, 0, 0}}, {0x7E4, F{0x50, 0, 0, 0, 0, 0, 0, 0}}}));
   // Fastscan (51h, CiA 305 §8.4.4) with 10 ms steps finds its address and leaves it selected.
-  EXPECT_EQ(run("[10] _lss_fastscan 10"), fmt::format("[10] 0x{:08X} 0x{:08X} 0x{:08X} 0x{:08X}", a[0], a[1], a[2], a[3]));
+  EXPECT_EQ(run("[10] _lss_fastscan 10"),
+            fmt::format("[10] 0x{:08X} 0x{:08X} 0x{:08X} 0x{:08X}", a[0], a[1], a[2], a[3]));
   const Frames fs = lss_frames();
   ASSERT_GE(fs.size(), 2u);
   EXPECT_EQ(fs.front(), (Frames::value_type{0x7E5, F{0x51, 0, 0, 0, 0, 0x80, 0, 0}}));  // the reset step
@@ -368,9 +375,10 @@ TEST_F(Ctl, LssGivesANodeWithoutNodeIdItsNodeIdFrameByFrame) {
   // Nobody without node-ID is left: identify non-configured and fastscan answer time-outs.
   EXPECT_EQ(run("[16] lss_ident_nonconf"),
             "[16] ERROR: 103 (Time-out: no LSS slave without node-ID answered identify non-configured remote slave)");
-  EXPECT_EQ(run("[17] _lss_fastscan 10"),
-            "[17] ERROR: 103 (Time-out: no answer to LSS fastscan (CiA 305 §8.4.4): no node without node-ID, or it does "
-            "not support fastscan)");
+  EXPECT_EQ(
+      run("[17] _lss_fastscan 10"),
+      "[17] ERROR: 103 (Time-out: no answer to LSS fastscan (CiA 305 §8.4.4): no node without node-ID, or it does "
+      "not support fastscan)");
   EXPECT_EQ(lss_frames(), (Frames{{0x7E5, F{0x51, 0, 0, 0, 0, 0x80, 0, 0}}}));
 }
 
@@ -409,9 +417,10 @@ TEST_F(Ctl, LssRefusals) {
             "[1] ERROR: 503 (LSS bit-rate not supported: table index 5 is not in the CiA 305 table (0 1000, 1 800, 2 "
             "500, 3 250, 4 125, 6 50, 7 20, 8 10 kbit/s))");
   // The host's bus: the gateway is no LSS master there; an unknown network: 106.
-  EXPECT_EQ(run("[2] 1 lss_switch_glob 1"),
-            "[2] ERROR: 100 (Request not supported: network 1 is the host's bus: LSS is served on the downstream network "
-            "2 only (the gateway is no LSS master upstream))");
+  EXPECT_EQ(
+      run("[2] 1 lss_switch_glob 1"),
+      "[2] ERROR: 100 (Request not supported: network 1 is the host's bus: LSS is served on the downstream network "
+      "2 only (the gateway is no LSS master upstream))");
   EXPECT_EQ(run("[3] 9 lss_store"),
             "[3] ERROR: 106 (Unsupported net: network 9: this gateway has 1 (upstream, its own dictionary) and 2 "
             "(downstream, the sub-devices))");
@@ -455,7 +464,8 @@ TEST_F(Ctl, TheGatewaysOwnLssWorkInterruptsAFastscan) {
   rig_->rearm();
   ASSERT_TRUE(answer);
   EXPECT_NE(answer->find(R"("gateway_error":102)"), std::string::npos) << *answer;
-  EXPECT_NE(answer->find("interrupted: the gateway is commissioning a device by LSS itself"), std::string::npos) << *answer;
+  EXPECT_NE(answer->find("interrupted: the gateway is commissioning a device by LSS itself"), std::string::npos)
+      << *answer;
   mark_ = down_.size();
   rig_->run_for(500ms);
   std::size_t fastscans = 0;
@@ -482,8 +492,9 @@ TEST_F(Ctl, OneClientLssScanAtATime) {
   rig_->run_for(200ms);
   ASSERT_TRUE(first);  // nobody without node-ID: the fastscan ends
   std::optional<std::string> second;
-  protocol_.answer(R"({"protocol": 1, "command": "lss", "network": 2, "service": "slowscan", "range": [1, 2, 0, 9, 0, 9]})",
-                   [&second](std::string a) { second = std::move(a); });
+  protocol_
+      .answer(R"({"protocol": 1, "command": "lss", "network": 2, "service": "slowscan", "range": [1, 2, 0, 9, 0, 9]})",
+              [&second](std::string a) { second = std::move(a); });
   rig_->run_for(10ms);
   const std::string fast =
       protocol_.answer(R"({"protocol": 1, "command": "lss", "network": 2, "service": "fastscan", "timeout_ms": 50})");
@@ -506,7 +517,8 @@ TEST_F(Ctl, AReloadAnswersAnLssRequestInFlightOnce) {
   service_->detach();
   ASSERT_EQ(answers.size(), 1u);
   EXPECT_NE(answers[0].find("\"gateway_error\":102"), std::string::npos) << answers[0];
-  EXPECT_NE(answers[0].find("the gateway reloads its mapping file: the LSS request ended unanswered"), std::string::npos)
+  EXPECT_NE(answers[0].find("the gateway reloads its mapping file: the LSS request ended unanswered"),
+            std::string::npos)
       << answers[0];
   // The old master's time-out that follows answers nothing a second time.
   service_->attach(rig_->gw(), config_);

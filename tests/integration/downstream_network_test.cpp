@@ -191,10 +191,11 @@ TEST(MasterSdoPacing, EveryClientOfTheMasterSharesItsPacer) {
   ObjectDictionary od;
   std::vector<std::pair<TimePoint, CanFrame>> sent;
   TimePoint now = t0;
-  Master master(od, [&](const CanFrame& f) { sent.emplace_back(now, f); },
-                MasterConfig{.sdo_request_gap = 3ms});
+  Master master(
+      od, [&](const CanFrame& f) { sent.emplace_back(now, f); }, MasterConfig{.sdo_request_gap = 3ms});
   EXPECT_EQ(master.sdo_pacer().gap(), 3ms);
-  for (std::uint8_t n = 1; n <= 4; ++n) master.sdo(NodeId{n}).upload(0x1000, 0, [](SdoAbortCode, std::vector<std::uint8_t>) {});
+  for (std::uint8_t n = 1; n <= 4; ++n)
+    master.sdo(NodeId{n}).upload(0x1000, 0, [](SdoAbortCode, std::vector<std::uint8_t>) {});
   for (int i = 0; i < 20 && master.next_deadline(); ++i) {
     now = std::max(now, *master.next_deadline());
     if (now > t0 + 20ms) break;

@@ -143,8 +143,7 @@ TEST_F(ElobauOnBus, NothingBeforeOperational) {
 
 TEST_F(ElobauOnBus, DriverConfigurationIsAcceptedByTheGrip) {
   boot();
-  for (const auto& w : drv_->configuration())
-    EXPECT_EQ(download(w.index, w.sub, w.data), SdoAbortCode::None) << w.what;
+  for (const auto& w : drv_->configuration()) EXPECT_EQ(download(w.index, w.sub, w.data), SdoAbortCode::None) << w.what;
   EXPECT_EQ(upload(0x1018, 1), encode<std::uint32_t>(*drv_->expected_identity().vendor_id));
   EXPECT_EQ(upload(0x1000, 0), encode<std::uint32_t>(*drv_->expected_identity().device_type));
   EXPECT_EQ(download(0x1800, 2, {255}), SdoAbortCode::WriteOfReadOnly);  // Table 14: ro
@@ -226,7 +225,7 @@ TEST_F(ElobauOnBus, LedMaskHidesDisabledLeds) {
 TEST_F(ElobauOnBus, ErrorAndNotAvailableValues) {
   boot();
   sim_->move_axis("y", 30);
-  sim_->inject("y", ElobauMfgSim::Fault::Error);  // 20xxh:1Bh = 126
+  sim_->inject("y", ElobauMfgSim::Fault::Error);               // 20xxh:1Bh = 126
   sim_->inject("wheel_c", ElobauMfgSim::Fault::NotAvailable);  // 1Ch = 127
   net_.run_for(10ms);
   EXPECT_EQ(sim_->transmitted("y", 1), 126);
@@ -409,8 +408,8 @@ TEST_F(ElobauOnBus, NodeIdBySdoBecomesActiveAfterResetCommunication) {
 
 TEST_F(ElobauOnBus, DictionaryMatchesTable14) {
   boot();
-  EXPECT_EQ(upload(0x1014, 0), encode<std::uint32_t>(0x91));         // 80h + node-ID
-  EXPECT_EQ(upload(0x1018, 2), encode<std::uint32_t>(0x00010003));   // product code
+  EXPECT_EQ(upload(0x1014, 0), encode<std::uint32_t>(0x91));        // 80h + node-ID
+  EXPECT_EQ(upload(0x1018, 2), encode<std::uint32_t>(0x00010003));  // product code
   EXPECT_EQ(upload(0x1400, 1), encode<std::uint32_t>(0x211));
   EXPECT_EQ(upload(0x1400, 2), (Bytes{254}));
   EXPECT_EQ(upload(0x1600, 1), encode<std::uint32_t>(0x22000108));
@@ -424,8 +423,8 @@ TEST_F(ElobauOnBus, DictionaryMatchesTable14) {
   EXPECT_EQ(upload(0x1A00, 8), encode<std::uint32_t>(0x40020008));
   EXPECT_EQ(upload(0x1A01, 5), encode<std::uint32_t>(0x20042108));
   EXPECT_EQ(upload(0x2000, 0x01), (Bytes{3}));
-  EXPECT_EQ(upload(0x2003, 0x06), encode<std::uint16_t>(200));       // X1
-  EXPECT_EQ(upload(0x2003, 0x07), (Bytes{0x9C}));                    // Y1 = -100
+  EXPECT_EQ(upload(0x2003, 0x06), encode<std::uint16_t>(200));  // X1
+  EXPECT_EQ(upload(0x2003, 0x07), (Bytes{0x9C}));               // Y1 = -100
   EXPECT_EQ(upload(0x2004, 0x1B), (Bytes{126}));
   EXPECT_EQ(upload(0x2004, 0x1C), (Bytes{127}));
   EXPECT_EQ(upload(0x2100, 0x01), (Bytes{63}));
@@ -557,12 +556,14 @@ TEST_F(ElobauNeverSaved, SaveAndLoadSignaturesOfSections8And9) {
     return f.empty() ? CanFrame{} : f.back();
   };
   EXPECT_EQ(answer({0x2B, 0x17, 0x10, 0x00, 0xF4, 0x01, 0, 0}).data[0], 0x60);  // 1017h = 500 ms, PARA
-  EXPECT_EQ(answer({0x23, 0x10, 0x10, 0x01, 0x73, 0x61, 0x76, 0x65}), CanFrame(0x591, {0x60, 0x10, 0x10, 0x01, 0, 0, 0, 0}));
+  EXPECT_EQ(answer({0x23, 0x10, 0x10, 0x01, 0x73, 0x61, 0x76, 0x65}),
+            CanFrame(0x591, {0x60, 0x10, 0x10, 0x01, 0, 0, 0, 0}));
   sim_->reboot(net_.now());
   net_.settle();
   EXPECT_EQ(upload(0x1017, 0), encode<std::uint16_t>(500)) << "saved";
   EXPECT_EQ(upload(0x4001, 0), encode<std::uint16_t>(0)) << "0002h ended by the first saving";
-  EXPECT_EQ(answer({0x23, 0x11, 0x10, 0x01, 0x6C, 0x6F, 0x61, 0x64}), CanFrame(0x591, {0x60, 0x11, 0x10, 0x01, 0, 0, 0, 0}));
+  EXPECT_EQ(answer({0x23, 0x11, 0x10, 0x01, 0x6C, 0x6F, 0x61, 0x64}),
+            CanFrame(0x591, {0x60, 0x11, 0x10, 0x01, 0, 0, 0, 0}));
   sim_->reboot(net_.now());
   net_.settle();
   EXPECT_EQ(upload(0x1017, 0), encode<std::uint16_t>(0)) << "factory settings";
@@ -578,17 +579,18 @@ TEST_F(ElobauOnBus, Table11DetentCurve) {
   const std::uint16_t x[10] = {200, 1000, 1300, 1300, 2300, 2700, 3700, 3700, 4000, 4800};
   const std::int8_t y[10] = {-110, -110, -100, -100, 0, 0, 100, 100, 110, 110};
   for (std::uint8_t p = 0; p < 10; ++p) {
-    ASSERT_EQ(download(0x2000, static_cast<std::uint8_t>(0x06 + 2 * p), encode<std::uint16_t>(x[p])), SdoAbortCode::None);
+    ASSERT_EQ(download(0x2000, static_cast<std::uint8_t>(0x06 + 2 * p), encode<std::uint16_t>(x[p])),
+              SdoAbortCode::None);
     ASSERT_EQ(download(0x2000, static_cast<std::uint8_t>(0x07 + 2 * p), encode<std::int8_t>(y[p])), SdoAbortCode::None);
   }
   struct Point {
     int mv;
     int percent;  // sent; 126: the error value (out of range)
   };
-  for (const Point& pt : {Point{200, -110}, Point{600, -110}, Point{1000, -110}, Point{1150, -100}, Point{1300, -100},
-                          Point{1800, -50}, Point{2300, 0}, Point{2500, 0}, Point{2700, 0}, Point{3200, 50},
-                          Point{3700, 100}, Point{3850, 100}, Point{4000, 110}, Point{4800, 110}, Point{100, 126},
-                          Point{4900, 126}}) {
+  for (const Point& pt :
+       {Point{200, -110}, Point{600, -110}, Point{1000, -110}, Point{1150, -100}, Point{1300, -100}, Point{1800, -50},
+        Point{2300, 0}, Point{2500, 0}, Point{2700, 0}, Point{3200, 50}, Point{3700, 100}, Point{3850, 100},
+        Point{4000, 110}, Point{4800, 110}, Point{100, 126}, Point{4900, 126}}) {
     (void)sim_->apply_voltage("x", pt.mv);
     net_.run_for(110ms);
     EXPECT_EQ(sim_->transmitted("x", 1), pt.percent) << pt.mv << " mV";

@@ -25,9 +25,9 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
-#include "rig/cab_rig.hpp"
 #include "gateway/gateway.hpp"
 #include "profiles/cia852/device_type.hpp"
+#include "rig/cab_rig.hpp"
 #include "subdevices/sim/elobau_mfg_sim.hpp"
 #include "subdevices/sim/mcb402_sim.hpp"
 #include "subdevices/sim/sim_bench.hpp"
@@ -92,7 +92,8 @@ class GatewayE2E : public ::testing::Test {
              fmt::format("gateway_e2e_{}_{}.store", ::getpid(), ::testing::UnitTest::GetInstance()->random_seed());
     std::filesystem::remove(store_);
     rig_ = std::make_unique<oegw::rig::CabRig>(config_, loop_,
-                                        oegw::rig::CabRigOptions{.store = store_, .simulator_options = sim_options_});
+                                               oegw::rig::CabRigOptions{.store = store_,
+                                                                        .simulator_options = sim_options_});
     rig_->up().set_tap([this](const BusRecord& r) { upstream_.push_back(r); });
     rig_->down().set_tap([this](const BusRecord& r) {
       downstream_.push_back(r);
@@ -151,7 +152,9 @@ class GatewayE2E : public ::testing::Test {
     if (!store_.empty()) std::filesystem::remove(store_);
   }
 
-  long ms() const { return static_cast<long>(std::chrono::duration_cast<std::chrono::milliseconds>(loop_.now() - t0_).count()); }
+  long ms() const {
+    return static_cast<long>(std::chrono::duration_cast<std::chrono::milliseconds>(loop_.now() - t0_).count());
+  }
   void run_for(Duration d) { rig_->run_for(d); }
   std::string cmd(const std::string& line) {
     const std::string r = bench_->command(line, loop_.now());
@@ -286,7 +289,8 @@ class GatewayE2E : public ::testing::Test {
   // demo_cab.yaml's button_bits say (the document's table as printed; a simulator is otherwise
   // wired by the table's other reading,
   // docs/design/device-documents.md#corners-every-reading-a-document-permits).
-  std::map<std::string, sd::DriverOptions> sim_options_{{"left_grip", sd::DriverOptions{{{"wiring", "1/2/3/4/5/7/6"}}}}};
+  std::map<std::string, sd::DriverOptions> sim_options_{
+      {"left_grip", sd::DriverOptions{{{"wiring", "1/2/3/4/5/7/6"}}}}};
   std::filesystem::path store_;
   std::unique_ptr<oegw::rig::CabRig> rig_;  // the demo's harness (rig/cab_rig.hpp)
   // Into rig_: the simulators, the host, its port, the current gateway (connect_gateway).
@@ -785,9 +789,9 @@ TEST_F(GatewayE2E, HostResetNodeKeepsInputsAndFaultsTrue) {
   upstream_.clear();
   host_->nmt().reset_node(kGw);
   run_for(500ms);
-  EXPECT_TRUE(std::any_of(upstream_.begin(), upstream_.end(),
-                          [](const BusRecord& r) { return r.frame.to_string() == "720#00"; }))
-      << dump();
+  EXPECT_TRUE(std::any_of(upstream_.begin(), upstream_.end(), [](const BusRecord& r) {
+    return r.frame.to_string() == "720#00";
+  })) << dump();
   EXPECT_EQ(gw_->upstream().node().state(), NmtState::PreOperational);
   const auto x = sdo_read(0x6401, 1);
   ASSERT_TRUE(x.has_value());
@@ -1032,8 +1036,10 @@ std::string with_sources(std::string yaml) {
   put("  indicators.1:\n", "    sources: [dds]\n");
   put("  indicators.2:\n", "    sources: [canopen, lcm]\n");
   // Both transports on: a source listed whose transport is off is refused
-  // (docs/reference/mapping-file.md#functional_elements-kindinstance-field-signal-required-may-be-empty). CabRig runs no publisher; the tests hand the commands to the gateway.
-  put("downstream: { interface: virtual, bitrate: 250000 }\n", "publish: { dds: { enabled: true }, lcm: { enabled: true } }\n");
+  // (docs/reference/mapping-file.md#functional_elements-kindinstance-field-signal-required-may-be-empty). CabRig runs
+  // no publisher; the tests hand the commands to the gateway.
+  put("downstream: { interface: virtual, bitrate: 250000 }\n",
+      "publish: { dds: { enabled: true }, lcm: { enabled: true } }\n");
   return yaml;
 }
 
@@ -1296,7 +1302,8 @@ TEST(GatewayE2EBadMapping, ErrorsCarryFileLineColumnAndNoGatewayIsBuilt) {
   EXPECT_EQ(lines[0],
             "bad.yaml:6:3: unknown key 'heartbeat_msec' in upstream; expected one of interface, node_id, bitrate, "
             "identity, heartbeat_ms, store, network_id, sdo_servers (did you mean 'heartbeat_ms'?)");
-  EXPECT_EQ(lines[1].rfind("bad.yaml:28:18: sub-device 'right_grip' (elobau-mfg) has no signal 'why'; expected one of x, y,", 0),
+  EXPECT_EQ(lines[1].rfind(
+                "bad.yaml:28:18: sub-device 'right_grip' (elobau-mfg) has no signal 'why'; expected one of x, y,", 0),
             0u)
       << lines[1];
   EXPECT_EQ(lines[2].rfind("bad.yaml:38:3: instance 9 of 'encoder.9' is out of range; expected encoder.1..8", 0), 0u)
@@ -1342,7 +1349,8 @@ TEST_F(GatewayE2E, AHeartbeatThatNeverReturnsAfterTheResetKeepsTheFaultAndTheSti
   EXPECT_EQ(gw_->downstream().counters().reboots_seen, 0u) << "the gateway caused every boot-up\n" << log_;
   EXPECT_TRUE(emcys(0x0000).empty()) << "cleared without evidence\n" << dump();
   EXPECT_EQ(gw_->faults().count("right_grip"), 1u);
-  EXPECT_NE(log_.find("right_grip: missing (no heartbeat in operational within 150 ms of NMT start)"), std::string::npos)
+  EXPECT_NE(log_.find("right_grip: missing (no heartbeat in operational within 150 ms of NMT start)"),
+            std::string::npos)
       << log_;
   const std::size_t seen = pdos(kTpdo1).size();
   cmd("right_grip x 50");
@@ -1601,9 +1609,11 @@ TEST_F(GatewayE2E, AReloadThatWouldChangeTheUpstreamDeviceIsRefusedAndChangesNot
 // is not cleared by the reload, nor does it hold 6300h up); one the file no longer has is put in
 // pre-operational and no longer watched.
 TEST_F(GatewayE2E, AReloadKeepsAFaultUntilItsEvidenceAndReleasesADroppedSubDevice) {
-  const std::string spare = "  spare:\n    driver: cia401\n    node_id: 0x32\n    options: { eds: " +
-                            std::string(OEGW_SOURCE_DIR) + "/subdevices/eds/button_cluster.eds }\n";
-  build("", [&spare](std::string y) { return replaced(y, "functional_elements:\n", spare + "functional_elements:\n"); });
+  const std::string spare =
+      "  spare:\n    driver: cia401\n    node_id: 0x32\n    options: { eds: " + std::string(OEGW_SOURCE_DIR) +
+      "/subdevices/eds/button_cluster.eds }\n";
+  build("",
+        [&spare](std::string y) { return replaced(y, "functional_elements:\n", spare + "functional_elements:\n"); });
   boot_and_start();
   ASSERT_EQ(gw_->downstream().state("spare"), sd::NodeState::Operational) << log_;
   cmd("right_grip heartbeat off");

@@ -40,8 +40,8 @@ class Mcb402OnBus : public ::testing::Test {
   Mcb402OnBus() {
     sim_ = std::make_unique<Mcb402Sim>(net_.sink("mcb402"), Mcb402SimConfig{});
     net_.attach("mcb402", *sim_);
-    host_ = std::make_unique<Master>(host_od_, net_.sink("host"), MasterConfig{.heartbeat_entries = 4,
-                                                                               .sdo_timeout = 500ms});
+    host_ = std::make_unique<Master>(host_od_, net_.sink("host"),
+                                     MasterConfig{.heartbeat_entries = 4, .sdo_timeout = 500ms});
     net_.attach("host", *host_);
     std::string error;
     // The bit order commissioned for this board: the simulator's default wiring (the table's
@@ -405,7 +405,7 @@ TEST_F(Mcb402OnBus, DictionaryHoldsTheDocumentedObjects) {
   sim_->start(net_.now());
   net_.settle();
   EXPECT_EQ(upload_u32(0x1000, 0), 0x01070191u);  // [CO4013 Index 1000] CO4013A4
-  EXPECT_EQ(upload(0x1018, 0).second, Bytes{3});   // [CO4013 Index 1018] sub 0 = 3
+  EXPECT_EQ(upload(0x1018, 0).second, Bytes{3});  // [CO4013 Index 1018] sub 0 = 3
   EXPECT_EQ(upload(0x1018, 4).first, SdoAbortCode::SubIndexDoesNotExist);
   auto name = upload(0x1008, 0).second;
   EXPECT_EQ(std::string(name.begin(), name.end()), "CO4013A");
@@ -416,7 +416,7 @@ TEST_F(Mcb402OnBus, DictionaryHoldsTheDocumentedObjects) {
   EXPECT_EQ(upload_u32(0x1014, 0), 0x83u);  // [CO4013 Index 1014] 80h + node-ID
   EXPECT_EQ(upload_u32(0x1800, 1), 0x183u);
   EXPECT_EQ(upload_u32(0x1801, 1), 0x283u);
-  EXPECT_EQ(upload_u32(0x1400, 1), 0x203u);  // [CO4013 Index 1400] 200h + node-ID
+  EXPECT_EQ(upload_u32(0x1400, 1), 0x203u);            // [CO4013 Index 1400] 200h + node-ID
   EXPECT_EQ(upload(0x1801, 5).second, (Bytes{0, 0}));  // event time default 0
   EXPECT_EQ(upload(0x6423, 0).second, Bytes{0});       // analogue interrupt disabled
   EXPECT_EQ(upload(0x6005, 0).second, Bytes{1});       // digital interrupt enabled

@@ -6,8 +6,8 @@
 
 #include <gtest/gtest.h>
 
-#include <algorithm>
 #include <unistd.h>
+#include <algorithm>
 
 #include <filesystem>
 #include <optional>
@@ -63,8 +63,10 @@ class Device {
  public:
   Device(oegw::testing::VirtualNetwork& net, std::uint32_t vendor = 0x15A, std::filesystem::path store = {}) {
     od.add_array(0x6000, "Read input 8-bit", DataType::Unsigned8, Access::ReadOnly, 1, {0}, true);
-    install_tpdo(od, 1, PdoParameters{.cob_id = cob::kTpdo1 + kNode.value(), .transmission_type = 0xFF,
-                                      .mapping = {pdo_map(0x6000, 1, 8)}});
+    install_tpdo(od, 1,
+                 PdoParameters{.cob_id = cob::kTpdo1 + kNode.value(),
+                               .transmission_type = 0xFF,
+                               .mapping = {pdo_map(0x6000, 1, 8)}});
     NodeConfig cfg;
     cfg.node_id = kNode;
     cfg.device_type = 0x000F0191;
@@ -80,8 +82,8 @@ class Device {
 class NetworkManagerTest : public ::testing::Test {
  protected:
   NetworkManagerTest() {
-    master_ = std::make_unique<Master>(master_od_, net_.sink("gateway"), MasterConfig{.heartbeat_entries = 8,
-                                                                                     .sdo_timeout = 100ms});
+    master_ = std::make_unique<Master>(master_od_, net_.sink("gateway"),
+                                       MasterConfig{.heartbeat_entries = 8, .sdo_timeout = 100ms});
     manager_ = std::make_unique<NetworkManager>(*master_);
     net_.attach("gateway", *manager_);
     manager_->on_node_state = [this](const std::string&, NodeState s, const std::string& why) {
@@ -90,8 +92,13 @@ class NetworkManagerTest : public ::testing::Test {
     };
     auto drv = std::make_unique<ByteDriver>(kNode, net_.sink("gateway"));
     driver_ = drv.get();
-    NodeSettings settings{.name = "grip", .node = kNode, .heartbeat_ms = 100, .heartbeat_timeout_ms = 0,
-                          .mandatory = true, .identity = {.vendor_id = 0x15A}, .sdo = {}};
+    NodeSettings settings{.name = "grip",
+                          .node = kNode,
+                          .heartbeat_ms = 100,
+                          .heartbeat_timeout_ms = 0,
+                          .mandatory = true,
+                          .identity = {.vendor_id = 0x15A},
+                          .sdo = {}};
     settings.sdo.push_back(SdoWrite{0x1800, 2, {0xFE}, "TPDO1 type 254"});
     EXPECT_TRUE(manager_->add(settings, std::move(drv)));
     net_.bus().set_logging(true);
@@ -132,36 +139,36 @@ TEST_F(NetworkManagerTest, BootsTheNodeFrameByFrame) {
   EXPECT_EQ(reasons_.back(), "first heartbeat in operational after NMT start");
   EXPECT_FALSE(manager_->fault());
   const std::vector<std::string> want = {
-      "gateway 000#8211",                   // NMT reset communication
-      "device 711#00",                      // boot-up
-      "gateway 000#8011",                   // NMT enter pre-operational before configuring
-      "gateway 611#4000100000000000",       // read 1000h
-      "device 591#4300100091010F00",        //   000F0191h
-      "gateway 611#4018100100000000",       // read 1018h:01
-      "device 591#431810015A010000",        //   0000015Ah
-      "gateway 611#4018100200000000",       // read 1018h:02..04 (diagnostics)
+      "gateway 000#8211",              // NMT reset communication
+      "device 711#00",                 // boot-up
+      "gateway 000#8011",              // NMT enter pre-operational before configuring
+      "gateway 611#4000100000000000",  // read 1000h
+      "device 591#4300100091010F00",   //   000F0191h
+      "gateway 611#4018100100000000",  // read 1018h:01
+      "device 591#431810015A010000",   //   0000015Ah
+      "gateway 611#4018100200000000",  // read 1018h:02..04 (diagnostics)
       "device 591#4318100201000000",
       "gateway 611#4018100300000000",
       "device 591#4318100301000000",
       "gateway 611#4018100400000000",
       "device 591#4318100407000000",
-      "gateway 611#4008100000000000",       // read 1008h device name
-      "device 591#430810006F656777",        //   "oegw"
-      "gateway 611#4009100000000000",       // read 1009h hardware version
-      "device 591#4F09100031000000",        //   "1"
-      "gateway 611#400A100000000000",       // read 100Ah software version
-      "device 591#410A100005000000",        //   5 bytes, segmented
+      "gateway 611#4008100000000000",  // read 1008h device name
+      "device 591#430810006F656777",   //   "oegw"
+      "gateway 611#4009100000000000",  // read 1009h hardware version
+      "device 591#4F09100031000000",   //   "1"
+      "gateway 611#400A100000000000",  // read 100Ah software version
+      "device 591#410A100005000000",   //   5 bytes, segmented
       "gateway 611#6000000000000000",
-      "device 591#05302E312E300000",        //   "0.1.0"
-      "gateway 611#4001100000000000",       // read 1001h error register
-      "device 591#4F01100000000000",        //   00h
-      "gateway 611#2B17100064000000",       // 1017h = 100 ms
+      "device 591#05302E312E300000",   //   "0.1.0"
+      "gateway 611#4001100000000000",  // read 1001h error register
+      "device 591#4F01100000000000",   //   00h
+      "gateway 611#2B17100064000000",  // 1017h = 100 ms
       "device 591#6017100000000000",
-      "gateway 611#2B00180532000000",       // driver: 1800h:05 = 50 ms
+      "gateway 611#2B00180532000000",  // driver: 1800h:05 = 50 ms
       "device 591#6000180500000000",
-      "gateway 611#2F001802FE000000",       // configuration file: 1800h:02 = FEh
+      "gateway 611#2F001802FE000000",  // configuration file: 1800h:02 = FEh
       "device 591#6000180200000000",
-      "gateway 000#0111",                   // NMT start
+      "gateway 000#0111",  // NMT start
   };
   const auto got = frames();
   ASSERT_GE(got.size(), want.size());
@@ -200,7 +207,8 @@ TEST_F(NetworkManagerTest, MissingNodeIsRetriedWithDoublingBackOff) {
   // Boot wait 2 s, SDO timeout 100 ms, then back-off 1, 2, 4, 8 s between attempts.
   ASSERT_GE(resets.size(), 4u);
   std::vector<Duration> gaps;
-  for (std::size_t i = 1; i < resets.size(); ++i) gaps.push_back(std::chrono::duration_cast<Duration>(resets[i] - resets[i - 1]));
+  for (std::size_t i = 1; i < resets.size(); ++i)
+    gaps.push_back(std::chrono::duration_cast<Duration>(resets[i] - resets[i - 1]));
   EXPECT_EQ(gaps[0], 2s + 100ms + 1s);
   EXPECT_EQ(gaps[1], 2s + 100ms + 2s);
   EXPECT_EQ(gaps[2], 2s + 100ms + 4s);
@@ -290,7 +298,8 @@ TEST_F(NetworkManagerTest, ABootUpBehindTheProbesAnswerIsTheResetsAnswer) {
 // unanswered (likely absent): here 12h, absent, whose probe (at +100 ms) times out at +200 ms.
 TEST_F(NetworkManagerTest, TheStartWaitsForTheOtherNodesBootButNotForAnAbsentOne) {
   auto other = std::make_unique<ByteDriver>(NodeId{0x12}, net_.sink("gateway"));
-  ASSERT_TRUE(manager_->add(NodeSettings{.name = "absent", .node = NodeId{0x12}, .heartbeat_ms = 100}, std::move(other)));
+  ASSERT_TRUE(
+      manager_->add(NodeSettings{.name = "absent", .node = NodeId{0x12}, .heartbeat_ms = 100}, std::move(other)));
   Device dev(net_);
   (void)dev.node->start(net_.now());
   net_.settle();
@@ -329,7 +338,8 @@ TEST_F(NetworkManagerTest, ALateAnswerToATimedOutProbeDoesNotShiftTheConfigurati
   // Its boot-up lost; the probe (+100 ms) reaches it still resetting: no answer, the probe
   // times out at +200 ms (one drop_next for both: it holds one rule at a time).
   net_.bus().drop_next(2, [](const CanFrame& f) {
-    return (f.id == 0x711 && f.dlc == 1 && f.data[0] == 0x00) || (f.id == 0x591 && f.data[1] == 0x00 && f.data[2] == 0x10);
+    return (f.id == 0x711 && f.dlc == 1 && f.data[0] == 0x00) ||
+           (f.id == 0x591 && f.data[1] == 0x00 && f.data[2] == 0x10);
   });
   start();
   net_.run_for(250ms);
@@ -395,8 +405,8 @@ TEST_F(NetworkManagerTest, CountsEachNodesFramesAndReboots) {
   dev.node->emcy().raise(0x1000, 0x01, net_.now());
   net_.run_for(300ms);
   auto stranger = net_.sink("stranger");
-  stranger(CanFrame(0x712, {0x05}));  // another node's heartbeat
-  stranger(CanFrame(0x192, {0x01}));  // and its PDO
+  stranger(CanFrame(0x712, {0x05}));         // another node's heartbeat
+  stranger(CanFrame(0x192, {0x01}));         // and its PDO
   dev.node->nmt().reset(false, net_.now());  // the device reboots on its own
   net_.run_for(300ms);
   std::uint64_t from_device = 0;
@@ -482,18 +492,19 @@ TEST_F(NetworkManagerTest, BadInputIsCountedAndNeverPassedThrough) {
   net_.run_for(10ms);
   std::vector<std::string> logged;
   manager_->on_bad_input = [&](const std::string& what) { logged.push_back(what); };
-  net_.bus().inject(CanFrame(0x191, {0x01, 0x02}), "intruder");  // wrong length for this PDO
+  net_.bus().inject(CanFrame(0x191, {0x01, 0x02}), "intruder");        // wrong length for this PDO
   net_.bus().inject(CanFrame(0x191, {0x01, 0x02, 0x03}), "intruder");  // again: counted, not logged again
-  net_.bus().inject(CanFrame(0x1A5, {0x01}), "intruder");        // a node not configured
+  net_.bus().inject(CanFrame(0x1A5, {0x01}), "intruder");              // a node not configured
   net_.bus().inject(CanFrame(0x0A5, {0x00, 0x10, 0x01, 0, 0, 0, 0, 0}), "intruder");  // its EMCY
   net_.run_for(10ms);
   EXPECT_EQ(driver_->value(0).value, 9);
   EXPECT_EQ(driver_->counters().wrong_length, 2u);
   EXPECT_EQ(manager_->counters().unknown_pdo, 1u);
   EXPECT_EQ(manager_->counters().unknown_emcy, 1u);
-  EXPECT_EQ(logged, (std::vector<std::string>{"grip: PDO of the wrong length ignored (counted from now on)",
-                                              "PDO 1A5h from a node not in the configuration ignored (counted from now on)",
-                                              "EMCY from node 37, not in the configuration, ignored"}));
+  EXPECT_EQ(logged,
+            (std::vector<std::string>{"grip: PDO of the wrong length ignored (counted from now on)",
+                                      "PDO 1A5h from a node not in the configuration ignored (counted from now on)",
+                                      "EMCY from node 37, not in the configuration, ignored"}));
   // An EMCY from the configured node reaches its driver.
   dev.node->emcy().raise(0x1000, 0, net_.now());
   net_.run_for(10ms);
@@ -555,8 +566,14 @@ TEST(NetworkManagerProofOfLife, WithoutHeartbeatTheFirstPdoIsTheProofAndOverdueP
   };
   auto drv = std::make_unique<ByteDriver>(kNode, net.sink("gateway"));
   ByteDriver* driver = drv.get();
-  NodeSettings settings{.name = "grip", .node = kNode, .heartbeat_ms = 0, .heartbeat_timeout_ms = 0,
-                        .pdo_timeout_ms = 200, .mandatory = false, .identity = {}, .sdo = {}};
+  NodeSettings settings{.name = "grip",
+                        .node = kNode,
+                        .heartbeat_ms = 0,
+                        .heartbeat_timeout_ms = 0,
+                        .pdo_timeout_ms = 200,
+                        .mandatory = false,
+                        .identity = {},
+                        .sdo = {}};
   ASSERT_TRUE(manager.add(settings, std::move(drv)));
   Device dev(net);
   (void)dev.node->start(net.now());
@@ -591,10 +608,19 @@ TEST(NetworkManagerProofOfLife, WithoutHeartbeatTheFirstPdoIsTheProofAndOverdueP
 TEST(DriverFreshness, TheDeadlineFollowsTheEventTimerWrittenAtBoot) {
   struct Carried final : Driver {
     Carried() {
-      signals_ = {SignalInfo{"a", SignalKind::Analog, -100, 100, 0, "raw16"}, SignalInfo{"b", SignalKind::Button, 0, 1, 0, "bits"}};
+      signals_ = {SignalInfo{"a", SignalKind::Analog, -100, 100, 0, "raw16"},
+                  SignalInfo{"b", SignalKind::Button, 0, 1, 0, "bits"}};
       init(NodeId{5}, {}, signals_.size());
-      set_carriers({Carrier{.cob_id = 0x185, .comm_index = 0x1800, .event_timer_ms = 20, .transmission_type = 0xFE, .signals = {0}},
-                    Carrier{.cob_id = 0x285, .comm_index = 0x1801, .event_timer_ms = 0, .transmission_type = 0xFE, .signals = {1}}});
+      set_carriers({Carrier{.cob_id = 0x185,
+                            .comm_index = 0x1800,
+                            .event_timer_ms = 20,
+                            .transmission_type = 0xFE,
+                            .signals = {0}},
+                    Carrier{.cob_id = 0x285,
+                            .comm_index = 0x1801,
+                            .event_timer_ms = 0,
+                            .transmission_type = 0xFE,
+                            .signals = {1}}});
     }
     std::string_view family() const override { return "test"; }
     const std::vector<SignalInfo>& signals() const override { return signals_; }
@@ -607,7 +633,8 @@ TEST(DriverFreshness, TheDeadlineFollowsTheEventTimerWrittenAtBoot) {
   } d;
   EXPECT_EQ(d.freshness(0), 60ms);
   EXPECT_EQ(d.freshness(1), 0ms) << "sent on change only: no deadline";
-  d.apply_boot_writes({SdoWrite{0x1800, 5, encode<std::uint16_t>(20), "driver"}, SdoWrite{0x1800, 5, encode<std::uint16_t>(500), "file"}});
+  d.apply_boot_writes({SdoWrite{0x1800, 5, encode<std::uint16_t>(20), "driver"},
+                       SdoWrite{0x1800, 5, encode<std::uint16_t>(500), "file"}});
   EXPECT_EQ(d.freshness(0), 1500ms) << "the last write wins";
   d.apply_boot_writes({SdoWrite{0x1800, 2, {0x01}, "every SYNC"}});
   EXPECT_EQ(d.freshness(0), 0ms) << "a synchronous PDO has no event-timer deadline";

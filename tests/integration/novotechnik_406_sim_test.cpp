@@ -2,11 +2,11 @@
 // Document: the Novotechnik "CANopen" sensor protocol document (V02), §n.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <filesystem>
 #include <functional>
 #include <memory>
 #include <string>
-#include <unistd.h>
 #include <vector>
 
 #include "canopen/master.hpp"
@@ -29,9 +29,8 @@ constexpr NodeId kNode{0x7F};  // §3.1 default node-ID 127
 class NovotechnikSim : public ::testing::Test {
  protected:
   NovotechnikSim() {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("oegw-novo-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = std::filesystem::temp_directory_path() / ("oegw-novo-" + std::to_string(::getpid()) + "-" +
+                                                     ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
     Novotechnik406SimConfig cfg;
@@ -39,8 +38,8 @@ class NovotechnikSim : public ::testing::Test {
     sim_ = std::make_unique<Novotechnik406Sim>(net_.sink("sim"), cfg);
     net_.attach("sim", *sim_);
     probe_ = net_.sink("probe");
-    host_ = std::make_unique<Master>(host_od_, net_.sink("host"), MasterConfig{.heartbeat_entries = 2,
-                                                                               .sdo_timeout = 500ms});
+    host_ = std::make_unique<Master>(host_od_, net_.sink("host"),
+                                     MasterConfig{.heartbeat_entries = 2, .sdo_timeout = 500ms});
     net_.attach("host", *host_);
     driver_ = std::make_unique<Novotechnik406Driver>(kNode, net_.sink("driver"), Novotechnik406Options{});
     host_->on_other_frame = [this](const CanFrame& f, TimePoint now) {
@@ -106,16 +105,23 @@ TEST_F(NovotechnikSim, BootUpAndIdentityObjects) {
   boot();
   ASSERT_FALSE(frames(0x77F).empty());
   EXPECT_EQ(frames(0x77F)[0], CanFrame(0x77F, {0x00}));
-  EXPECT_EQ(sdo({0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}), CanFrame(0x5FF, {0x43, 0x00, 0x10, 0x00, 0x96, 0x01, 0x02, 0x00}));
-  EXPECT_EQ(sdo({0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0}), CanFrame(0x5FF, {0x43, 0x18, 0x10, 0x01, 0x82, 0x01, 0x00, 0x00}));
-  EXPECT_EQ(sdo({0x40, 0x18, 0x10, 0x02, 0, 0, 0, 0}), CanFrame(0x5FF, {0x43, 0x18, 0x10, 0x02, 0xE0, 0x0B, 0x00, 0x00}));
+  EXPECT_EQ(sdo({0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}),
+            CanFrame(0x5FF, {0x43, 0x00, 0x10, 0x00, 0x96, 0x01, 0x02, 0x00}));
+  EXPECT_EQ(sdo({0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0}),
+            CanFrame(0x5FF, {0x43, 0x18, 0x10, 0x01, 0x82, 0x01, 0x00, 0x00}));
+  EXPECT_EQ(sdo({0x40, 0x18, 0x10, 0x02, 0, 0, 0, 0}),
+            CanFrame(0x5FF, {0x43, 0x18, 0x10, 0x02, 0xE0, 0x0B, 0x00, 0x00}));
   // §4.1 1800h:01 default 40000180h + node-ID, 1800h:02 FEh, 1A00h:01 60200120h.
-  EXPECT_EQ(sdo({0x40, 0x00, 0x18, 0x01, 0, 0, 0, 0}), CanFrame(0x5FF, {0x43, 0x00, 0x18, 0x01, 0xFF, 0x01, 0x00, 0x40}));
+  EXPECT_EQ(sdo({0x40, 0x00, 0x18, 0x01, 0, 0, 0, 0}),
+            CanFrame(0x5FF, {0x43, 0x00, 0x18, 0x01, 0xFF, 0x01, 0x00, 0x40}));
   EXPECT_EQ(sdo({0x40, 0x00, 0x18, 0x02, 0, 0, 0, 0}), CanFrame(0x5FF, {0x4F, 0x00, 0x18, 0x02, 0xFE, 0, 0, 0}));
-  EXPECT_EQ(sdo({0x40, 0x00, 0x1A, 0x01, 0, 0, 0, 0}), CanFrame(0x5FF, {0x43, 0x00, 0x1A, 0x01, 0x20, 0x01, 0x20, 0x60}));
+  EXPECT_EQ(sdo({0x40, 0x00, 0x1A, 0x01, 0, 0, 0, 0}),
+            CanFrame(0x5FF, {0x43, 0x00, 0x1A, 0x01, 0x20, 0x01, 0x20, 0x60}));
   // §4.2 6002h default 002C0000h, 650Ah:03 002BFFFFh, 6504h C002h.
-  EXPECT_EQ(sdo({0x40, 0x02, 0x60, 0x00, 0, 0, 0, 0}), CanFrame(0x5FF, {0x43, 0x02, 0x60, 0x00, 0x00, 0x00, 0x2C, 0x00}));
-  EXPECT_EQ(sdo({0x40, 0x0A, 0x65, 0x03, 0, 0, 0, 0}), CanFrame(0x5FF, {0x43, 0x0A, 0x65, 0x03, 0xFF, 0xFF, 0x2B, 0x00}));
+  EXPECT_EQ(sdo({0x40, 0x02, 0x60, 0x00, 0, 0, 0, 0}),
+            CanFrame(0x5FF, {0x43, 0x02, 0x60, 0x00, 0x00, 0x00, 0x2C, 0x00}));
+  EXPECT_EQ(sdo({0x40, 0x0A, 0x65, 0x03, 0, 0, 0, 0}),
+            CanFrame(0x5FF, {0x43, 0x0A, 0x65, 0x03, 0xFF, 0xFF, 0x2B, 0x00}));
   EXPECT_EQ(sdo({0x40, 0x04, 0x65, 0x00, 0, 0, 0, 0}), CanFrame(0x5FF, {0x4B, 0x04, 0x65, 0x00, 0x02, 0xC0, 0, 0}));
 }
 
@@ -148,15 +154,17 @@ TEST_F(NovotechnikSim, DocumentMappingFramesAndAborts) {
   boot();
   EXPECT_EQ(sdo({0x23, 0x00, 0x18, 0x01, 0xFF, 0x01, 0x00, 0xC0}).data[0], 0x60);  // step 1: C00001FFh
   EXPECT_EQ(sdo({0x2F, 0x00, 0x1A, 0x00, 0x00, 0, 0, 0}).data[0], 0x60);           // step 2
-  EXPECT_EQ(sdo({0x23, 0x00, 0x1A, 0x01, 0x20, 0x01, 0x20, 0x60}),                  // step 3, mapping #1
+  EXPECT_EQ(sdo({0x23, 0x00, 0x1A, 0x01, 0x20, 0x01, 0x20, 0x60}),                 // step 3, mapping #1
             CanFrame(0x5FF, {0x60, 0x00, 0x1A, 0x01, 0, 0, 0, 0}));
-  EXPECT_EQ(sdo({0x23, 0x00, 0x1A, 0x02, 0x10, 0x01, 0x30, 0x60}),                  // mapping #2
+  EXPECT_EQ(sdo({0x23, 0x00, 0x1A, 0x02, 0x10, 0x01, 0x30, 0x60}),  // mapping #2
             CanFrame(0x5FF, {0x60, 0x00, 0x1A, 0x02, 0, 0, 0, 0}));
   EXPECT_EQ(sdo({0x2F, 0x00, 0x1A, 0x00, 0x02, 0, 0, 0}).data[0], 0x60);           // step 4
   EXPECT_EQ(sdo({0x23, 0x00, 0x18, 0x01, 0xFF, 0x01, 0x00, 0x40}).data[0], 0x60);  // step 5
   // §7.3: 06010002h "object is read only" (6004h), 06020000h "object does not exist".
-  EXPECT_EQ(sdo({0x23, 0x04, 0x60, 0x00, 1, 0, 0, 0}), CanFrame(0x5FF, {0x80, 0x04, 0x60, 0x00, 0x02, 0x00, 0x01, 0x06}));
-  EXPECT_EQ(sdo({0x40, 0x99, 0x60, 0x00, 0, 0, 0, 0}), CanFrame(0x5FF, {0x80, 0x99, 0x60, 0x00, 0x00, 0x00, 0x02, 0x06}));
+  EXPECT_EQ(sdo({0x23, 0x04, 0x60, 0x00, 1, 0, 0, 0}),
+            CanFrame(0x5FF, {0x80, 0x04, 0x60, 0x00, 0x02, 0x00, 0x01, 0x06}));
+  EXPECT_EQ(sdo({0x40, 0x99, 0x60, 0x00, 0, 0, 0, 0}),
+            CanFrame(0x5FF, {0x80, 0x99, 0x60, 0x00, 0x00, 0x00, 0x02, 0x06}));
   // §4.2 6031h:02 allows 1, 2, 3, 6, 12, 25 ms: 4 -> 06090030h "value exceeded"; 6 sets 2010h:02 = 6 (§5.2).
   EXPECT_EQ(sdo({0x2B, 0x31, 0x60, 0x02, 0x04, 0x00, 0, 0}).data[0], 0x80);
   EXPECT_EQ(sdo({0x2B, 0x31, 0x60, 0x02, 0x06, 0x00, 0, 0}).data[0], 0x60);
@@ -168,7 +176,8 @@ TEST_F(NovotechnikSim, DocumentMappingFramesAndAborts) {
   EXPECT_EQ(sdo({0x2F, 0x00, 0x60, 0x00, 0x00, 0, 0, 0}).data[0], 0x60);
   // Scaling on: 6001h = 1000h steps; "Changes of this object also changes object 0x6002" (x 44 turns).
   EXPECT_EQ(sdo({0x23, 0x01, 0x60, 0x00, 0x00, 0x10, 0x00, 0x00}).data[0], 0x60);
-  EXPECT_EQ(sdo({0x40, 0x02, 0x60, 0x00, 0, 0, 0, 0}), CanFrame(0x5FF, {0x43, 0x02, 0x60, 0x00, 0x00, 0xC0, 0x02, 0x00}));
+  EXPECT_EQ(sdo({0x40, 0x02, 0x60, 0x00, 0, 0, 0, 0}),
+            CanFrame(0x5FF, {0x43, 0x02, 0x60, 0x00, 0x00, 0xC0, 0x02, 0x00}));
   // §5.4 "The resolution can only be reduced": 10001h is too high.
   EXPECT_EQ(sdo({0x23, 0x01, 0x60, 0x00, 0x01, 0x00, 0x01, 0x00}).data[0], 0x80);
 }
@@ -369,8 +378,9 @@ TEST_F(NovotechnikSim, Tpdo2SynchronousOnEverySyncUntilTheDriverTurnsItOff) {
 // §4.1 1800h:02 = 255 "synchronous to measurement cycle": every new measurement is sent at once.
 TEST_F(NovotechnikSim, Type255SendsEachMeasurement) {
   std::string error;
-  auto d = make_novotechnik_406_driver(kNode, net_.sink("driver"),
-                                       DriverOptions{{{"transmission_type", "255"}, {"event_timer_ms", "1000"}}}, error);
+  auto d =
+      make_novotechnik_406_driver(kNode, net_.sink("driver"),
+                                  DriverOptions{{{"transmission_type", "255"}, {"event_timer_ms", "1000"}}}, error);
   ASSERT_NE(d, nullptr) << error;
   driver_.reset(static_cast<Novotechnik406Driver*>(d.release()));
   boot();
@@ -401,15 +411,17 @@ namespace {
 // §7.1's frame layout: 23 10 10 01 6B 69 6C 6C -> 60 10 10 01.
 TEST_F(NovotechnikSim, KillSignatureDeletesTheStoredGroupAndRestoresDefaults) {
   boot();
-  ASSERT_EQ(download(0x1017, 0, encode<std::uint16_t>(250)), SdoAbortCode::None);  // §11: communication group
+  ASSERT_EQ(download(0x1017, 0, encode<std::uint16_t>(250)), SdoAbortCode::None);   // §11: communication group
   ASSERT_EQ(download(0x6003, 0, encode<std::uint32_t>(1234)), SdoAbortCode::None);  // application group
-  EXPECT_EQ(sdo({0x23, 0x10, 0x10, 0x01, 0x73, 0x61, 0x76, 0x65}), CanFrame(0x5FF, {0x60, 0x10, 0x10, 0x01, 0, 0, 0, 0}));
+  EXPECT_EQ(sdo({0x23, 0x10, 0x10, 0x01, 0x73, 0x61, 0x76, 0x65}),
+            CanFrame(0x5FF, {0x60, 0x10, 0x10, 0x01, 0, 0, 0, 0}));
   sim_->reboot(net_.now());
   net_.settle();
   EXPECT_EQ(sim_->od().get<std::uint16_t>(0x1017, 0), 250) << "saved and loaded at power-on";
   EXPECT_EQ(sim_->od().get<std::uint32_t>(0x6003, 0), 1234u);
   // "kill" on sub 2: the communication group only.
-  EXPECT_EQ(sdo({0x23, 0x10, 0x10, 0x02, 0x6B, 0x69, 0x6C, 0x6C}), CanFrame(0x5FF, {0x60, 0x10, 0x10, 0x02, 0, 0, 0, 0}));
+  EXPECT_EQ(sdo({0x23, 0x10, 0x10, 0x02, 0x6B, 0x69, 0x6C, 0x6C}),
+            CanFrame(0x5FF, {0x60, 0x10, 0x10, 0x02, 0, 0, 0, 0}));
   EXPECT_EQ(sim_->od().get<std::uint16_t>(0x1017, 0), 0) << "its default, at once";
   sim_->reboot(net_.now());
   net_.settle();
@@ -425,8 +437,10 @@ TEST_F(NovotechnikSim, KillSignatureDeletesTheStoredGroupAndRestoresDefaults) {
 // a communication restart or a power up." The document's frames: 2F 00 20 00 40 -> 60 00 20 00.
 TEST_F(NovotechnikSim, NodeIdBySdoStoredBy1010h4IsActiveAfterAPowerUp) {
   boot();
-  EXPECT_EQ(sdo({0x2F, 0x00, 0x20, 0x00, 0x40, 0x00, 0x00, 0x00}), CanFrame(0x5FF, {0x60, 0x00, 0x20, 0x00, 0, 0, 0, 0}));
-  EXPECT_EQ(sdo({0x23, 0x10, 0x10, 0x04, 0x73, 0x61, 0x76, 0x65}), CanFrame(0x5FF, {0x60, 0x10, 0x10, 0x04, 0, 0, 0, 0}));
+  EXPECT_EQ(sdo({0x2F, 0x00, 0x20, 0x00, 0x40, 0x00, 0x00, 0x00}),
+            CanFrame(0x5FF, {0x60, 0x00, 0x20, 0x00, 0, 0, 0, 0}));
+  EXPECT_EQ(sdo({0x23, 0x10, 0x10, 0x04, 0x73, 0x61, 0x76, 0x65}),
+            CanFrame(0x5FF, {0x60, 0x10, 0x10, 0x04, 0, 0, 0, 0}));
   net_.bus().clear_log();
   sim_->reboot(net_.now());
   net_.settle();
@@ -447,11 +461,12 @@ TEST_F(NovotechnikSim, NodeIdBySdoStoredBy1010h4IsActiveAfterAPowerUp) {
 TEST_F(NovotechnikSim, RestoreSubIndices2And3RestoreTheirGroupOnly) {
   boot();
   ASSERT_EQ(download(0x1017, 0, encode<std::uint16_t>(300)), SdoAbortCode::None);
-  ASSERT_EQ(download(0x2104, 0, {0x02}), SdoAbortCode::None);                       // §11 "EMCY Behaviour": communication
+  ASSERT_EQ(download(0x2104, 0, {0x02}), SdoAbortCode::None);  // §11 "EMCY Behaviour": communication
   ASSERT_EQ(download(0x6003, 0, encode<std::uint32_t>(77)), SdoAbortCode::None);
-  ASSERT_EQ(download(0x6401, 1, encode<std::int32_t>(-5)), SdoAbortCode::None);     // "Work Area Low Limit": application
+  ASSERT_EQ(download(0x6401, 1, encode<std::int32_t>(-5)), SdoAbortCode::None);  // "Work Area Low Limit": application
   EXPECT_EQ(sdo({0x23, 0x10, 0x10, 0x01, 0x73, 0x61, 0x76, 0x65}).data[0], 0x60);
-  EXPECT_EQ(sdo({0x23, 0x11, 0x10, 0x02, 0x6C, 0x6F, 0x61, 0x64}), CanFrame(0x5FF, {0x60, 0x11, 0x10, 0x02, 0, 0, 0, 0}));
+  EXPECT_EQ(sdo({0x23, 0x11, 0x10, 0x02, 0x6C, 0x6F, 0x61, 0x64}),
+            CanFrame(0x5FF, {0x60, 0x11, 0x10, 0x02, 0, 0, 0, 0}));
   EXPECT_EQ(sim_->od().get<std::uint16_t>(0x1017, 0), 300) << "restored at the next reset, not at once";
   sim_->reboot(net_.now());
   net_.settle();
@@ -502,9 +517,11 @@ TEST(NovotechnikSimCorners, LoadReadingStoredBringsTheStoredValuesAtOnce) {
 TEST_F(NovotechnikSim, AbortCodesOfSection73) {
   boot();
   // 0x06090011 "subindex does not exist": 1018h:05.
-  EXPECT_EQ(sdo({0x40, 0x18, 0x10, 0x05, 0, 0, 0, 0}), CanFrame(0x5FF, {0x80, 0x18, 0x10, 0x05, 0x11, 0x00, 0x09, 0x06}));
+  EXPECT_EQ(sdo({0x40, 0x18, 0x10, 0x05, 0, 0, 0, 0}),
+            CanFrame(0x5FF, {0x80, 0x18, 0x10, 0x05, 0x11, 0x00, 0x09, 0x06}));
   // 0x06010001 "object is write only": 2100h "Position Error Reset", Bool W.
-  EXPECT_EQ(sdo({0x40, 0x00, 0x21, 0x00, 0, 0, 0, 0}), CanFrame(0x5FF, {0x80, 0x00, 0x21, 0x00, 0x01, 0x00, 0x01, 0x06}));
+  EXPECT_EQ(sdo({0x40, 0x00, 0x21, 0x00, 0, 0, 0, 0}),
+            CanFrame(0x5FF, {0x80, 0x00, 0x21, 0x00, 0x01, 0x00, 0x01, 0x06}));
   // 0x06060000 "access error": a store that cannot be written (a sensor without its memory).
   {
     oegw::testing::VirtualNetwork net;
@@ -521,11 +538,12 @@ TEST_F(NovotechnikSim, AbortCodesOfSection73) {
     std::uint32_t raw;
     SdoAbortCode code;
   };
-  for (const Code& c : {Code{0x06090011, SdoAbortCode::SubIndexDoesNotExist}, Code{0x06090030, SdoAbortCode::InvalidValue},
-                        Code{0x06020000, SdoAbortCode::ObjectDoesNotExist}, Code{0x06010001, SdoAbortCode::ReadOfWriteOnly},
-                        Code{0x06010002, SdoAbortCode::WriteOfReadOnly}, Code{0x06060000, SdoAbortCode::HardwareError},
-                        Code{0x08000020, SdoAbortCode::CannotTransfer}, Code{0x08000000, SdoAbortCode::GeneralError},
-                        Code{0x08000022, SdoAbortCode::CannotTransferDeviceState}}) {
+  for (const Code& c :
+       {Code{0x06090011, SdoAbortCode::SubIndexDoesNotExist}, Code{0x06090030, SdoAbortCode::InvalidValue},
+        Code{0x06020000, SdoAbortCode::ObjectDoesNotExist}, Code{0x06010001, SdoAbortCode::ReadOfWriteOnly},
+        Code{0x06010002, SdoAbortCode::WriteOfReadOnly}, Code{0x06060000, SdoAbortCode::HardwareError},
+        Code{0x08000020, SdoAbortCode::CannotTransfer}, Code{0x08000000, SdoAbortCode::GeneralError},
+        Code{0x08000022, SdoAbortCode::CannotTransferDeviceState}}) {
     // The sensor's answer is the abort frame of §7.3 (sent by the probe; the simulator is silent).
     sim_->set_silent(true);
     SdoAbortCode got = SdoAbortCode::None;
@@ -535,8 +553,9 @@ TEST_F(NovotechnikSim, AbortCodesOfSection73) {
       done = true;
     });
     net_.run_for(1ms);
-    probe_(CanFrame(0x5FF, {0x80, 0x02, 0x20, 0x00, static_cast<std::uint8_t>(c.raw), static_cast<std::uint8_t>(c.raw >> 8),
-                            static_cast<std::uint8_t>(c.raw >> 16), static_cast<std::uint8_t>(c.raw >> 24)}));
+    probe_(CanFrame(0x5FF,
+                    {0x80, 0x02, 0x20, 0x00, static_cast<std::uint8_t>(c.raw), static_cast<std::uint8_t>(c.raw >> 8),
+                     static_cast<std::uint8_t>(c.raw >> 16), static_cast<std::uint8_t>(c.raw >> 24)}));
     net_.run_for(5ms);
     sim_->set_silent(false);
     EXPECT_TRUE(done) << std::hex << c.raw;

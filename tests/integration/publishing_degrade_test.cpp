@@ -15,8 +15,8 @@
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "gateway/gateway.hpp"
-#include "publish/publish_errors.hpp"
 #include "gateway/publishing.hpp"
+#include "publish/publish_errors.hpp"
 #include "tests/fixtures/fixtures.hpp"
 #include "virtual_network.hpp"
 
@@ -77,10 +77,11 @@ TEST_F(PublishingDegrade, AnLcmWithoutRouteIsReportedRetriedWithBackOffAndFlowsO
   int dds_attempts = 0, dds_samples = 0, lcm_attempts = 0, lcm_samples = 0;
   gateway::Publisher* lcm = nullptr;
   const std::string why = "publish.lcm.url: no route to 224.0.0.1 (Network is unreachable)";
-  gateway::GatewayPublishing pub(*gw_, loaded_.config->publish, [this] { return loop_.now(); },
-                                 {flaky(0, "", &dds_attempts, &dds_samples), flaky(3, why, &lcm_attempts, &lcm_samples, &lcm)},
-                                 log());
-  pub.run_on(loop_, [] {}, PublisherLink::Attempts::Inline);
+  gateway::GatewayPublishing pub(
+      *gw_, loaded_.config->publish, [this] { return loop_.now(); },
+      {flaky(0, "", &dds_attempts, &dds_samples), flaky(3, why, &lcm_attempts, &lcm_samples, &lcm)}, log());
+  pub.run_on(
+      loop_, [] {}, PublisherLink::Attempts::Inline);
   // Running, DDS publishing, LCM down: reported, logged once.
   EXPECT_GT(dds_samples, 0);
   EXPECT_EQ(lcm_samples, 0);
@@ -149,8 +150,9 @@ TEST_F(PublishingDegrade, ABadSettingIsRefusedAtStart) {
     throw publish::PublishConfigError("publish.lcm.url: \"239.255.76.67:7667\" does not parse");
   };
   try {
-    gateway::GatewayPublishing pub(*gw_, loaded_.config->publish, [this] { return loop_.now(); },
-                                   {flaky(0, "", &dds_attempts, &dds_samples), bad}, log());
+    gateway::GatewayPublishing pub(
+        *gw_, loaded_.config->publish, [this] { return loop_.now(); }, {flaky(0, "", &dds_attempts, &dds_samples), bad},
+        log());
     FAIL() << "started with a bad setting";
   } catch (const publish::PublishConfigError& e) {
     EXPECT_EQ(std::string(e.what()), "publish.lcm.url: \"239.255.76.67:7667\" does not parse");
@@ -171,8 +173,9 @@ TEST_F(PublishingDegrade, ARetryRunsBesideTheLoopNotInIt) {
     released.wait();  // opening blocks until the test lets it go
     return std::make_unique<FakeTransport>(&lcm_samples);
   };
-  gateway::GatewayPublishing pub(*gw_, loaded_.config->publish, [this] { return loop_.now(); },
-                                 {flaky(0, "", &dds_attempts, &dds_samples), slow}, log());
+  gateway::GatewayPublishing pub(
+      *gw_, loaded_.config->publish, [this] { return loop_.now(); }, {flaky(0, "", &dds_attempts, &dds_samples), slow},
+      log());
   pub.run_on(loop_, [] {});  // Attempts::InThread
   int ticks = 0;
   loop_.call_every(loop_.now(), 10ms, [&ticks] { ++ticks; });

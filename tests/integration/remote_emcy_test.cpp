@@ -240,7 +240,8 @@ TEST_F(RemoteEmcy, NoneForwardsNothingButThe7000hStays) {
   EXPECT_EQ(bytes(up(0x7000)[0]), (Bytes{0x00, 0x70, 0x01, 0x03, 'l', 'e', 'f', 't'}));
   mcb().cable_break(2, false, now());
   rig_->run_for(300ms);
-  for (const auto& f : up(0x0000)) EXPECT_NE(bytes(f), (Bytes{0x00, 0x00, 0x01, 0x03, 0x00, 0x00, 0x00, 0x00})) << dump();
+  for (const auto& f : up(0x0000))
+    EXPECT_NE(bytes(f), (Bytes{0x00, 0x00, 0x01, 0x03, 0x00, 0x00, 0x00, 0x00})) << dump();
   EXPECT_EQ(gw_->subdevice_emcy("left_grip").count, before + 2u) << "counted all the same";
 }
 

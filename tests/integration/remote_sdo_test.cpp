@@ -76,23 +76,25 @@ class RemoteSdo : public ::testing::Test {
     config_ = std::move(*loaded.config);
     store_ = std::filesystem::path(::testing::TempDir()) / fmt::format("remote_sdo_{}.store", ::getpid());
     std::filesystem::remove(store_);
-    rig_ = std::make_unique<oegw::rig::CabRig>(
-        config_, loop_, oegw::rig::CabRigOptions{.store = store_, .host_sdo_timeout = host_timeout, .gateway = options});
+    rig_ = std::make_unique<oegw::rig::CabRig>(config_, loop_,
+                                               oegw::rig::CabRigOptions{.store = store_,
+                                                                        .host_sdo_timeout = host_timeout,
+                                                                        .gateway = options});
     rig_->up().set_tap([this](const BusRecord& r) { up_.push_back(r.frame); });
     rig_->down().set_tap([this](const BusRecord& r) { down_.push_back(r.frame); });
     rig_->to_devices = [this](const CanFrame& f) { return drop_to_devices_ && drop_to_devices_(f); };
     rig_->to_gateway_down = [this](const CanFrame& f) { return drop_to_gateway_ && drop_to_gateway_(f); };
-    rig_->on_gateway = [this](gw::Gateway& g) {
-      g.on_log = [this](const std::string& l) { log_ += l + "\n"; };
-    };
+    rig_->on_gateway = [this](gw::Gateway& g) { g.on_log = [this](const std::string& l) { log_ += l + "\n"; }; };
     rig_->build();
     // A second host tool on the extra channels: plain SDO clients, no network indication needed.
     port2_ = rig_->up().attach("host2");
     bound_ = std::make_unique<SdoClient>([this](const CanFrame& f) { (void)port2_->send(f); },
-                                         SdoClientConfig{.request_cob = CobId(kBoundRx), .response_cob = CobId(kBoundTx),
+                                         SdoClientConfig{.request_cob = CobId(kBoundRx),
+                                                         .response_cob = CobId(kBoundTx),
                                                          .timeout = host_timeout});
     free_ = std::make_unique<SdoClient>([this](const CanFrame& f) { (void)port2_->send(f); },
-                                        SdoClientConfig{.request_cob = CobId(kFreeRx), .response_cob = CobId(kFreeTx),
+                                        SdoClientConfig{.request_cob = CobId(kFreeRx),
+                                                        .response_cob = CobId(kFreeTx),
                                                         .timeout = host_timeout});
     port2_->set_receiver([this](const CanFrame& f, TimePoint t) {
       (void)bound_->on_frame(f, t);
@@ -189,8 +191,11 @@ class RemoteSdo : public ::testing::Test {
 };
 
 TEST_F(RemoteSdo, EveryFamilysIdentityThroughANetworkIndication) {
-  const std::pair<const char*, std::uint8_t> nodes[] = {
-      {"right_grip", kGrip}, {"left_grip", kLeft}, {"pedal", kPedal}, {"seat_knob", kKnob}, {"cluster", kCluster}};
+  const std::pair<const char*, std::uint8_t> nodes[] = {{"right_grip", kGrip},
+                                                        {"left_grip", kLeft},
+                                                        {"pedal", kPedal},
+                                                        {"seat_knob", kKnob},
+                                                        {"cluster", kCluster}};
   for (const auto& [name, node] : nodes) {
     select(kDown, node);
     for (std::uint8_t sub = 1; sub <= 2; ++sub) {
@@ -261,7 +266,7 @@ TEST_F(RemoteSdo, WritesOfWhatTheGatewayConfiguredAreRefused) {
   EXPECT_EQ(write(host(), 0x1017, 0, {0, 0}).code, SdoAbortCode::CannotTransferLocalControl);
   EXPECT_EQ(write(host(), 0x1010, 1, {'s', 'a', 'v', 'e'}).code, SdoAbortCode::CannotTransferLocalControl);
   EXPECT_EQ(write(host(), 0x2000, 0x1B, {0}).code, SdoAbortCode::CannotTransferLocalControl);  // driver config
-  EXPECT_EQ(write(host(), 0x5999, 2, {0x12}).code, SdoAbortCode::CannotTransferLocalControl);   // elobau LSS
+  EXPECT_EQ(write(host(), 0x5999, 2, {0x12}).code, SdoAbortCode::CannotTransferLocalControl);  // elobau LSS
   for (std::size_t i = before; i < down_.size(); ++i)
     EXPECT_NE(down_[i].id, 0x600u + kGrip) << "a refused write reached the grip";
   EXPECT_EQ(sim_u32("right_grip", 0x1800, 1), cob);
@@ -337,11 +342,13 @@ TEST_F(RemoteSdo, ASecondRequestWhileOneIsInFlight) {
   for (std::size_t i = up0; i < up_.size(); ++i)
     if (up_[i].id == kDefaultTx) answers.push_back(up_[i]);
   ASSERT_EQ(answers.size(), 1u);
-  EXPECT_EQ(answers[0].data, (std::array<std::uint8_t, 8>{0x80, 0x08, 0x10, 0x00, 0x23, 0x00, 0x0A, 0x06}));  // 060A 0023h
+  EXPECT_EQ(answers[0].data,
+            (std::array<std::uint8_t, 8>{0x80, 0x08, 0x10, 0x00, 0x23, 0x00, 0x0A, 0x06}));  // 060A 0023h
   // The first transfer was aborted on the cab's bus with the same code.
   bool aborted = false;
   for (std::size_t i = down0; i < down_.size(); ++i)
-    aborted |= down_[i].id == 0x600u + kGrip && down_[i].data == std::array<std::uint8_t, 8>{0x80, 0x18, 0x10, 0x01, 0x23, 0x00, 0x0A, 0x06};
+    aborted |= down_[i].id == 0x600u + kGrip &&
+               down_[i].data == std::array<std::uint8_t, 8>{0x80, 0x18, 0x10, 0x01, 0x23, 0x00, 0x0A, 0x06};
   EXPECT_TRUE(aborted);
 }
 
@@ -432,13 +439,14 @@ TEST_F(RemoteSdo, EveryObjectThatRewiresOrReflashesASubdeviceInUseIsRefusedAtFra
     std::uint16_t index;
     std::uint8_t sub;
   };
-  const std::vector<Write> writes = {
-      {kGrip, 0x1012, 0x00}, {kGrip, 0x1200, 0x01}, {kGrip, 0x1200, 0x02}, {kGrip, 0x1201, 0x01},
-      {kGrip, 0x1280, 0x01}, {kGrip, 0x1280, 0x02}, {kGrip, 0x12FF, 0x03}, {kGrip, 0x1028, 0x01},
-      {kGrip, 0x1F50, 0x01}, {kGrip, 0x1F51, 0x01}, {kGrip, 0x1F52, 0x01}, {kGrip, 0x1F53, 0x01},
-      {kGrip, 0x1F54, 0x01}, {kGrip, 0x1F55, 0x01}, {kGrip, 0x1F56, 0x01}, {kGrip, 0x1F57, 0x01},
-      {kGrip, 0x1F80, 0x00}, {kGrip, 0x5000, 0x00}, {kLeft, 0x100E, 0x00}, {kLeft, 0x1200, 0x02},
-      {kKnob, 0x1F51, 0x01}, {kPedal, 0x1280, 0x01}, {kCluster, 0x1012, 0x00}};
+  const std::vector<Write> writes = {{kGrip, 0x1012, 0x00},  {kGrip, 0x1200, 0x01},   {kGrip, 0x1200, 0x02},
+                                     {kGrip, 0x1201, 0x01},  {kGrip, 0x1280, 0x01},   {kGrip, 0x1280, 0x02},
+                                     {kGrip, 0x12FF, 0x03},  {kGrip, 0x1028, 0x01},   {kGrip, 0x1F50, 0x01},
+                                     {kGrip, 0x1F51, 0x01},  {kGrip, 0x1F52, 0x01},   {kGrip, 0x1F53, 0x01},
+                                     {kGrip, 0x1F54, 0x01},  {kGrip, 0x1F55, 0x01},   {kGrip, 0x1F56, 0x01},
+                                     {kGrip, 0x1F57, 0x01},  {kGrip, 0x1F80, 0x00},   {kGrip, 0x5000, 0x00},
+                                     {kLeft, 0x100E, 0x00},  {kLeft, 0x1200, 0x02},   {kKnob, 0x1F51, 0x01},
+                                     {kPedal, 0x1280, 0x01}, {kCluster, 0x1012, 0x00}};
   for (const Write& w : writes) {
     select(kDown, w.node);
     const std::size_t up0 = up_.size(), down0 = down_.size();
@@ -454,7 +462,8 @@ TEST_F(RemoteSdo, EveryObjectThatRewiresOrReflashesASubdeviceInUseIsRefusedAtFra
         << fmt::format("{:02X}h {:04X}h:{:02X}: {}", w.node, w.index, w.sub, answers[0].to_string());
     for (std::size_t i = down0; i < down_.size(); ++i)
       EXPECT_FALSE(down_[i].id >= 0x600 && down_[i].id <= 0x67F)
-          << fmt::format("{:02X}h {:04X}h:{:02X}: {} reached the cab's bus", w.node, w.index, w.sub, down_[i].to_string());
+          << fmt::format("{:02X}h {:04X}h:{:02X}: {} reached the cab's bus", w.node, w.index, w.sub,
+                         down_[i].to_string());
   }
   EXPECT_EQ(rig_->gw().remote_sdo().counters().refused, writes.size());
   EXPECT_EQ(rig_->gw().remote_sdo().counters().transfers, 0u);
@@ -477,10 +486,11 @@ TEST_F(RemoteSdo, ARedirectIsShownInTheLogAndStatusUntilItEnds) {
   EXPECT_TRUE(redirects().empty());
   log_.clear();
   select(kDown, kGrip);
-  EXPECT_NE(log_.find("remote SDO: SDO server 1200h (620h/5A0h) redirected to right_grip (network 2, node 11h) by the "
-                      "network indication E0 00 00 00 02 11 00 00: every client on 620h now reaches right_grip, not the "
-                      "gateway, until a network indication names the gateway (network 1, node 20h, or network 0, node "
-                      "0) or the gateway is reset or stopped (NMT)"),
+  EXPECT_NE(log_.find(
+                "remote SDO: SDO server 1200h (620h/5A0h) redirected to right_grip (network 2, node 11h) by the "
+                "network indication E0 00 00 00 02 11 00 00: every client on 620h now reaches right_grip, not the "
+                "gateway, until a network indication names the gateway (network 1, node 20h, or network 0, node "
+                "0) or the gateway is reset or stopped (NMT)"),
             std::string::npos)
       << log_;
   run_for(1500ms);
@@ -498,9 +508,10 @@ TEST_F(RemoteSdo, ARedirectIsShownInTheLogAndStatusUntilItEnds) {
   // The table names it too, wrapped to 100 columns (read here with its wrapped lines joined).
   std::string table = oegw::cli::status_table(gw::control::status_report(rig_->gw(), config_, {loop_.now(), started}));
   for (std::size_t at = 0; (at = table.find("\n    ", at)) != std::string::npos;) table.replace(at, 5, " ");
-  const std::string line = "remote SDO: SDO server 1200h (620h/5A0h) redirected to right_grip (network 2, node 11h) "
-                           "for 1.5 s by the network indication E0 00 00 00 02 11 00 00: a client on 620h reaches "
-                           "right_grip, not the gateway\n";
+  const std::string line =
+      "remote SDO: SDO server 1200h (620h/5A0h) redirected to right_grip (network 2, node 11h) "
+      "for 1.5 s by the network indication E0 00 00 00 02 11 00 00: a client on 620h reaches "
+      "right_grip, not the gateway\n";
   EXPECT_NE(table.find(line), std::string::npos) << table;
   // The bound channel is configured, not redirected: not listed. The free one, redirected too.
   ASSERT_TRUE(indicate(kDown, kKnob, kFreeRx, kFreeTx).has_value());

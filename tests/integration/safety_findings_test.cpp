@@ -21,7 +21,8 @@ class SafetyFindings : public ::testing::Test {
     b_->power_device();
     if (wait_valid) {
       const std::uint8_t node = b_->fam().node;
-      EXPECT_TRUE(b_->run_until([&] { return b_->status() == FeStatus::Valid && b_->mon().alive(node, b_->now()); }, 3s))
+      EXPECT_TRUE(
+          b_->run_until([&] { return b_->status() == FeStatus::Valid && b_->mon().alive(node, b_->now()); }, 3s))
           << b_->log();
     }
     return *b_;
@@ -48,7 +49,8 @@ TEST_F(SafetyFindings, AFaultyInputIsNotClearedByTheNodeRebooting) {
   b.dev()->reboot(reboot);
   b.run_for(20ms);
   EXPECT_TRUE(b.mon().emcy_active_at(0x11, b.now()))
-      << "EMCY 0000h naming the grip right at its boot-up, before any proof of life\n" << b.log();
+      << "EMCY 0000h naming the grip right at its boot-up, before any proof of life\n"
+      << b.log();
   EXPECT_EQ(b.log().find("fault cleared (fresh PDO)", b.log().find("configuring")), std::string::npos) << b.log();
   EXPECT_EQ(b.mon().violations(), 0u);
 }
@@ -244,9 +246,8 @@ TEST_F(SafetyFindings, AKeptPdoOlderThanItsDeadlineIsNotAppliedAtTheProofOfLife)
   b.build();
   b.start_gateway();
   b.deflect(true);
-  b.on_next(
-      [](const BusRecord& r) { return r.sender == "gateway" && r.frame.id == 0 && r.frame.data[0] == 0x01; },
-      [&b](TimePoint) { b.loop().call_after(55ms, [&b] { b.dev_drop_tpdos = true; }); });
+  b.on_next([](const BusRecord& r) { return r.sender == "gateway" && r.frame.id == 0 && r.frame.data[0] == 0x01; },
+            [&b](TimePoint) { b.loop().call_after(55ms, [&b] { b.dev_drop_tpdos = true; }); });
   b.power_device();
   ASSERT_TRUE(b.run_until([&] { return b.node_state() == sd::NodeState::Operational; }, 3s)) << b.log();
   EXPECT_EQ(b.field("position"), 0) << "a position from a PDO older than 30 ms shown live\n" << b.log();

@@ -29,8 +29,8 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
 #include "canopen/master.hpp"
-#include "rig/cab_rig.hpp"
 #include "gateway/gateway.hpp"
+#include "rig/cab_rig.hpp"
 #include "safety_monitor.hpp"
 #include "subdevices/sim/cia401_sim.hpp"
 #include "subdevices/sim/elobau_mfg_sim.hpp"
@@ -98,7 +98,10 @@ inline std::vector<Corner> corners(FamilyId id) {
                false}};
     case FamilyId::Novotechnik:
       return {{"Doc",
-               {{"error_register_size", "1"}, {"emcy_behaviour", "0"}, {"has_6020h", "yes"}, {"work_area_emcy", "bits"}},
+               {{"error_register_size", "1"},
+                {"emcy_behaviour", "0"},
+                {"has_6020h", "yes"},
+                {"work_area_emcy", "bits"}},
                {},
                false},
               {"Opposite",
@@ -117,20 +120,20 @@ inline std::vector<Corner> corners(FamilyId id) {
 // move its input.
 struct Family {
   FamilyId id;
-  std::string yaml;        // the mapping file (tests/fixtures/safety_<family>.yaml)
-  std::string dut;         // the sub-device's name
+  std::string yaml;  // the mapping file (tests/fixtures/safety_<family>.yaml)
+  std::string dut;   // the sub-device's name
   std::uint8_t node = 0;
-  FeId fe;                 // its input FE
-  std::string primary;     // the FE field the cells follow ("x", "position", "switch[1]")
-  std::int64_t live = 0;   // that field's FE value when deflect(true)
-  bool interlock = false;  // the primary field passes the neutral interlock
-  bool analog_fe = false;  // 6423h exists (joystick, pedal, wheel)
+  FeId fe;                         // its input FE
+  std::string primary;             // the FE field the cells follow ("x", "position", "switch[1]")
+  std::int64_t live = 0;           // that field's FE value when deflect(true)
+  bool interlock = false;          // the primary field passes the neutral interlock
+  bool analog_fe = false;          // 6423h exists (joystick, pedal, wheel)
   std::uint16_t up_comm = 0x1800;  // the FE's TPDO communication index upstream
   std::uint32_t up_cob = 0;
   std::optional<FeId> out;  // indicator FE on the device (RPDO 1 upstream = 220h)
   std::uint64_t out_mask = 0;
-  Duration pdo_period{0};    // the device's TPDO event timer (0: on change only)
-  Duration pdo_deadline{0};  // 3 x that: contract point 2
+  Duration pdo_period{0};        // the device's TPDO event timer (0: on change only)
+  Duration pdo_deadline{0};      // 3 x that: contract point 2
   Duration pdo_deadline_max{0};  // the longest deadline of the device's TPDOs (MCB-402: buttons 300 ms)
   Knowledge knowledge;
 };
@@ -191,7 +194,8 @@ inline Family make_family(FamilyId id) {
       f.pdo_deadline = 200ms;
       f.pdo_deadline_max = 300ms;
       NodeKnowledge n{"grip", 0x03, 150ms, {{0x183, 300ms}, {0x283, 200ms}}};
-      UpFe fe{f.fe, f.up_cob,
+      UpFe fe{f.fe,
+              f.up_cob,
               {{"x", 0, 2, -1, 0, 0x03, 0x283}, {"y", 2, 2, -1, 0, 0x03, 0x283}, {"z", 4, 2, -1, 0, 0x03, 0x283}}};
       bits(fe, "buttons", 7, 7, 0x03, 0x183);
       f.knowledge = {kGwNode, {n}, {fe}, {{*f.out, 0x03, 0x203, {{0, 0, 1}, {0, 1, 1}, {0, 2, 1}, {0, 3, 1}}}}};
@@ -305,8 +309,10 @@ class Bench {
     }
     // The cab of rig/cab_rig.hpp (the demo's and the e2e tests' harness), with this bench's
     // fault switches in its wiring and another master's port on the downstream bus.
-    rig_ = std::make_unique<oegw::rig::CabRig>(
-        config_, loop_, oegw::rig::CabRigOptions{.store = store_, .simulator_options = {{fam_.dut, sim_options}}});
+    rig_ =
+        std::make_unique<oegw::rig::CabRig>(config_, loop_,
+                                            oegw::rig::CabRigOptions{.store = store_,
+                                                                     .simulator_options = {{fam_.dut, sim_options}}});
     other_ = rig_->down().attach("other");
     rig_->from_devices = [this](const CanFrame& f) { return device_dropped(f); };
     rig_->to_devices = [this](const CanFrame&) { return dev_drop_all; };
@@ -356,7 +362,8 @@ class Bench {
       if (r.frame.id == 0x80u + kGwNode) up_emcys_.push_back(r);
     });
     mon_.context = [this] {
-      return (context_ ? context_() : std::string()) + (trace_ ? "\nframes:\n" + trace_tail(trace_lines_) : std::string());
+      return (context_ ? context_() : std::string()) +
+             (trace_ ? "\nframes:\n" + trace_tail(trace_lines_) : std::string());
     };
     if (const char* tr = std::getenv("OEGW_SAFETY_TRACE")) {
       trace_ = true;
@@ -479,9 +486,15 @@ class Bench {
         as<sim::Mcb402Sim>().move_axis(1, static_cast<std::int16_t>(level * 10000), now);
         as<sim::Mcb402Sim>().set_button(1, button, now);
         break;
-      case FamilyId::Novotechnik: as<sim::Novotechnik406Sim>().set_position(static_cast<std::int32_t>(level * 123456), now); break;
-      case FamilyId::Cia401Pedal: (void)dev()->set_input("analog[1]", static_cast<std::int64_t>(level * 20000), now); break;
-      case FamilyId::Cia401Cluster: (void)dev()->set_input("in[1]", level > 0.5 ? 5 : (level < -0.5 ? 2 : 0), now); break;
+      case FamilyId::Novotechnik:
+        as<sim::Novotechnik406Sim>().set_position(static_cast<std::int32_t>(level * 123456), now);
+        break;
+      case FamilyId::Cia401Pedal:
+        (void)dev()->set_input("analog[1]", static_cast<std::int64_t>(level * 20000), now);
+        break;
+      case FamilyId::Cia401Cluster:
+        (void)dev()->set_input("in[1]", level > 0.5 ? 5 : (level < -0.5 ? 2 : 0), now);
+        break;
     }
     rig_->rearm();
   }
@@ -622,10 +635,10 @@ class Bench {
   }
 
   // Fault switches of the wiring.
-  bool dev_drop_all = false;    // bus-off: nothing from/to the device
-  bool dev_drop_tpdos = false;  // its TPDOs are lost
+  bool dev_drop_all = false;                  // bus-off: nothing from/to the device
+  bool dev_drop_tpdos = false;                // its TPDOs are lost
   std::optional<std::uint32_t> dev_drop_cob;  // the device's frames on this COB-ID are lost
-  bool gw_link_down = false;    // the gateway's downstream interface is down
+  bool gw_link_down = false;                  // the gateway's downstream interface is down
   bool host_alive = true;
   TimePoint host_hb_first{};  // the host's heartbeats go at host_hb_first + k x 100 ms
 

@@ -152,17 +152,17 @@ std::string cell_name(const ::testing::TestParamInfo<Cell>& i) {
 
 // What a cell expects.
 struct Expect {
-  bool fault = true;               // EMCY 7000h naming the node, FE at fault values, by `by`
+  bool fault = true;                   // EMCY 7000h naming the node, FE at fault values, by `by`
   bool false_fault_forbidden = false;  // no EMCY 7000h naming the node at all after the injection
-  Duration by{0};                  // from the injection
-  std::set<FeStatus> status;       // the FE status at `by`
-  bool primary_only = false;       // only the primary field is affected (an axis error value)
+  Duration by{0};                      // from the injection
+  std::set<FeStatus> status;           // the FE status at `by`
+  bool primary_only = false;           // only the primary field is affected (an axis error value)
 };
 
 constexpr Duration kGrace = 5ms;  // the monitor's 2 ms plus the 1 ms steps of the cell
 constexpr Duration kConsumer = 150ms;
 constexpr Duration kHbPeriod = 100ms;
-constexpr Duration kPowerDelay = 200ms;  // Waiting: the device is powered this long after the fault
+constexpr Duration kPowerDelay = 200ms;   // Waiting: the device is powered this long after the fault
 constexpr Duration kSdoTimeout = 1000ms;  // GatewayOptions::sdo_timeout (default)
 constexpr Duration kBootWait = 2000ms;    // NetworkTiming::boot_wait (default)
 constexpr Duration kOutage = 500ms;       // interface down / bus-off
@@ -200,7 +200,8 @@ Expect expect(const Family& fam, const Corner& corner, Fault f, Phase p) {
       break;
     case Fault::ErrorEmcy:
       e.by = p == Phase::Operational || p == Phase::Recovering ? kGrace : kConsumer + kGrace;
-      e.status = before_op ? std::set<FeStatus>{FeStatus::Error, FeStatus::Offline} : std::set<FeStatus>{FeStatus::Error};
+      e.status =
+          before_op ? std::set<FeStatus>{FeStatus::Error, FeStatus::Offline} : std::set<FeStatus>{FeStatus::Error};
       break;
     case Fault::ErrorValue:
     case Fault::NotAvailable:
@@ -219,7 +220,7 @@ Expect expect(const Family& fam, const Corner& corner, Fault f, Phase p) {
         e.false_fault_forbidden = true;
         break;
       }
-      e.by = p == Phase::Operational ? kHbPeriod + kGrace
+      e.by = p == Phase::Operational   ? kHbPeriod + kGrace
              : p == Phase::Configuring ? kSdoTimeout + 100ms + kGrace  // a stopped node answers no SDO
                                        : kConsumer + kGrace;
       e.status = lost;
@@ -233,8 +234,7 @@ Expect expect(const Family& fam, const Corner& corner, Fault f, Phase p) {
         e.fault = false;
         break;
       }
-      e.by = p == Phase::Configuring ? kSdoTimeout + 100ms + kGrace
-                                       : kConsumer + kGrace;
+      e.by = p == Phase::Configuring ? kSdoTimeout + 100ms + kGrace : kConsumer + kGrace;
       e.status = lost;
       break;
   }
@@ -266,7 +266,8 @@ class SafetyMatrix : public ::testing::TestWithParam<Cell> {
   std::string dump() {
     const char* tr = std::getenv("OEGW_SAFETY_TRACE");
     return "gateway log:\n" + b_->tail(60) +
-           (tr ? "frames:\n" + b_->trace_tail(std::max<std::size_t>(60, std::strtoul(tr, nullptr, 10))) : std::string());
+           (tr ? "frames:\n" + b_->trace_tail(std::max<std::size_t>(60, std::strtoul(tr, nullptr, 10)))
+               : std::string());
   }
 
   void inject(Fault f, Phase p) {
@@ -396,15 +397,18 @@ TEST_P(SafetyMatrix, Cell) {
   if (e.fault) {
     x.run_until([&] { return x.now() >= inj + e.by; }, e.by + 1s);
     EXPECT_TRUE(x.mon().emcy_active_at(node, inj + e.by))
-        << "EMCY 7000h naming " << fam.dut << " not active " << std::chrono::duration_cast<std::chrono::milliseconds>(e.by).count()
-        << " ms after the fault (injected at t=" << inj_ms << " ms); " << x.mon().life(node, x.now()) << "\n" << dump();
+        << "EMCY 7000h naming " << fam.dut << " not active "
+        << std::chrono::duration_cast<std::chrono::milliseconds>(e.by).count()
+        << " ms after the fault (injected at t=" << inj_ms << " ms); " << x.mon().life(node, x.now()) << "\n"
+        << dump();
     if (e.primary_only) {
       EXPECT_EQ(x.field(fam.primary), 0) << dump();
     } else {
       EXPECT_TRUE(x.all_neutral()) << dump();
     }
-    EXPECT_TRUE(e.status.count(x.status())) << "status " << static_cast<int>(x.status()) << ", expected one of "
-                                             << statuses(e.status) << "\n" << dump();
+    EXPECT_TRUE(e.status.count(x.status()))
+        << "status " << static_cast<int>(x.status()) << ", expected one of " << statuses(e.status) << "\n"
+        << dump();
     const auto first = x.mon().first_emcy(node, true, inj);
     if (c.phase != Phase::Recovering && first) {
       EXPECT_LE(*first, inj + e.by) << "EMCY 7000h late";
@@ -434,14 +438,16 @@ TEST_P(SafetyMatrix, Cell) {
                          << ", node " << sd::to_string(x.node_state()) << ", " << x.mon().life(node, x.now()) << "\n"
                          << dump();
   if (e.false_fault_forbidden) {
-    EXPECT_EQ(x.mon().emcy_count(node, true, inj), 0u) << "a false fault: EMCY 7000h naming " << fam.dut << "\n" << dump();
+    EXPECT_EQ(x.mon().emcy_count(node, true, inj), 0u) << "a false fault: EMCY 7000h naming " << fam.dut << "\n"
+                                                       << dump();
   }
   if (x.mon().first_emcy(node, true, inj)) {
     EXPECT_TRUE(x.mon().first_emcy(node, false, inj)) << "the fault was never cleared upstream";
   }
   x.run_for(20ms);
   if (fam.interlock) {
-    EXPECT_EQ(x.field(fam.primary), 0) << "the input is still deflected: the neutral interlock must hold it\n" << dump();
+    EXPECT_EQ(x.field(fam.primary), 0) << "the input is still deflected: the neutral interlock must hold it\n"
+                                       << dump();
   }
   if (fam.out) x.command_outputs(0x01, /*by_rpdo=*/false);
   x.deflect(false);

@@ -54,10 +54,10 @@
 
 namespace oegw::testing::safety {
 
-using canopen::io::BusRecord;
 using canopen::CanFrame;
 using canopen::Duration;
 using canopen::TimePoint;
+using canopen::io::BusRecord;
 using mapping::FeId;
 using namespace std::chrono_literals;
 
@@ -120,10 +120,10 @@ struct Knowledge {
 class Monitor {
  public:
   struct Options {
-    Duration grace{2ms};              // processing grace: 1 ms + the 1 ms tick of the harness
-    Duration reboot_report{1000ms};   // a boot-up not followed by proof of life within this: EMCY due
-    std::size_t max_reports = 8;      // ADD_FAILUREs per test; later violations are only counted
-    bool inputs = true;               // invariants (1) and (2); false: outputs only (3)
+    Duration grace{2ms};             // processing grace: 1 ms + the 1 ms tick of the harness
+    Duration reboot_report{1000ms};  // a boot-up not followed by proof of life within this: EMCY due
+    std::size_t max_reports = 8;     // ADD_FAILUREs per test; later violations are only counted
+    bool inputs = true;              // invariants (1) and (2); false: outputs only (3)
   };
 
   Monitor(Knowledge k, Options o) : k_(std::move(k)), o_(o) {
@@ -190,9 +190,10 @@ class Monitor {
         if (p.cob == f.id && n.start && !from_gateway) n.pdo[p.cob] = t;
     // A sub-device's EMCY: the frame the gateway forwards for it, byte 2 (the gateway's 1001h)
     // aside.
-    if (!from_gateway && f.id > 0x80 && f.id < 0x100 && f.dlc == 8 && nodes_.count(static_cast<std::uint8_t>(f.id - 0x80)))
-      forwards_.push_back({f.data[0], f.data[1], 0, static_cast<std::uint8_t>(f.id - 0x80), f.data[2], f.data[3], f.data[4],
-                           f.data[5]});
+    if (!from_gateway && f.id > 0x80 && f.id < 0x100 && f.dlc == 8 &&
+        nodes_.count(static_cast<std::uint8_t>(f.id - 0x80)))
+      forwards_.push_back({f.data[0], f.data[1], 0, static_cast<std::uint8_t>(f.id - 0x80), f.data[2], f.data[3],
+                           f.data[4], f.data[5]});
     if (from_gateway) check_output(f, t);
     refresh(t);
   }
@@ -238,8 +239,8 @@ class Monitor {
         // (e.g. 8130h) was active too, the sub-device fault may have ended silently before (the
         // producer says nothing while errors remain): then it is wrong only for a node that is
         // past a deadline of the contract now.
-        const bool only_7000 = std::all_of(active_codes_.begin(), active_codes_.end(),
-                                           [](std::uint16_t c) { return c == 0x7000; });
+        const bool only_7000 =
+            std::all_of(active_codes_.begin(), active_codes_.end(), [](std::uint16_t c) { return c == 0x7000; });
         for (auto& [id, n] : nodes_) {
           if (!n.emcy) continue;
           if (only_7000) {
@@ -290,9 +291,10 @@ class Monitor {
         // knows it from its heartbeat; when it is operational again it must send the values.
         auto it = up_last_.find({ufe.cob, fld.name});
         if (gw_operational_ && it != up_last_.end() && it->second != fld.fault && !proven(fld, t))
-          violation(t, fmt::format("the last upstream TPDO still shows {} {} = {} without proof of life of node "
-                                   "{:02X}h: {}",
-                                   mapping::fe_name(ufe.fe), fld.name, it->second, fld.node, field_life_text(fld, t)),
+          violation(t,
+                    fmt::format("the last upstream TPDO still shows {} {} = {} without proof of life of node "
+                                "{:02X}h: {}",
+                                mapping::fe_name(ufe.fe), fld.name, it->second, fld.node, field_life_text(fld, t)),
                     /*once_key=*/"stuck " + mapping::fe_name(ufe.fe) + fld.name);
       }
     }
@@ -316,10 +318,11 @@ class Monitor {
       // a dead interface: the gateway did what it could.
       if (o.expect && o.last_attempt == *o.expect && o.last_attempt_time >= o.lost_at) o.expect.reset();
       if (o.expect && t > o.expect_by && o.last_sent != *o.expect && node_driven(o.k->node, t)) {
-        violation(t, fmt::format("host heartbeat lost: {} should show its error state {:02X}h on RPDO {:03X}h "
-                                 "by {}, the device got {}",
-                                 mapping::fe_name(o.k->fe), *o.expect, cob, at(o.expect_by),
-                                 o.last_sent ? fmt::format("{:02X}h", *o.last_sent) : std::string("nothing")),
+        violation(t,
+                  fmt::format("host heartbeat lost: {} should show its error state {:02X}h on RPDO {:03X}h "
+                              "by {}, the device got {}",
+                              mapping::fe_name(o.k->fe), *o.expect, cob, at(o.expect_by),
+                              o.last_sent ? fmt::format("{:02X}h", *o.last_sent) : std::string("nothing")),
                   {}, /*input=*/false);
         o.expect.reset();
       }
@@ -380,7 +383,7 @@ class Monitor {
     auto it = nodes_.find(node);
     if (it == nodes_.end()) return 0;
     return static_cast<std::size_t>(std::count_if(it->second.emcy_log.begin(), it->second.emcy_log.end(),
-                                                   [&](const auto& e) { return e.time >= from && e.raise == raise; }));
+                                                  [&](const auto& e) { return e.time >= from && e.raise == raise; }));
   }
   [[nodiscard]] std::optional<TimePoint> last_start(std::uint8_t node) const { return nodes_.at(node).start; }
   [[nodiscard]] std::string life(std::uint8_t node, TimePoint t) const { return life_text(nodes_.at(node), t); }
@@ -394,11 +397,11 @@ class Monitor {
   };
   struct NodeState {
     const NodeKnowledge* k = nullptr;
-    std::optional<TimePoint> start;      // the gateway's last NMT start to it (reset: none)
-    std::optional<TimePoint> op_hb;      // last 05h heartbeat after `start`
-    std::optional<TimePoint> first_op;   // first 05h heartbeat after `start` (the proof: live from here)
-    std::optional<TimePoint> bad_state;  // a heartbeat in another state after being operational
-    std::optional<TimePoint> bootup;     // its last boot-up
+    std::optional<TimePoint> start;          // the gateway's last NMT start to it (reset: none)
+    std::optional<TimePoint> op_hb;          // last 05h heartbeat after `start`
+    std::optional<TimePoint> first_op;       // first 05h heartbeat after `start` (the proof: live from here)
+    std::optional<TimePoint> bad_state;      // a heartbeat in another state after being operational
+    std::optional<TimePoint> bootup;         // its last boot-up
     std::map<std::uint32_t, TimePoint> pdo;  // arrival of each TPDO after `start`
     bool emcy = false;                       // 7000h naming it active upstream
     std::vector<EmcyEvent> emcy_log;
@@ -420,7 +423,9 @@ class Monitor {
     TimePoint last_attempt_time{};
   };
 
-  static long ms(Duration d) { return static_cast<long>(std::chrono::duration_cast<std::chrono::milliseconds>(d).count()); }
+  static long ms(Duration d) {
+    return static_cast<long>(std::chrono::duration_cast<std::chrono::milliseconds>(d).count());
+  }
 
   // The first 05h heartbeat after NMT start came within the consumer time (else the node is
   // `missing` by contract until the gateway starts it again).
@@ -478,7 +483,8 @@ class Monitor {
     if (!n.start) return std::nullopt;
     if (n.bad_state && t - *n.bad_state > g) return fmt::format("a heartbeat in another state at {}", at(*n.bad_state));
     if (!started_in_time(n) && t - *n.start > n.k->consumer + g)
-      return fmt::format("NMT start at {} and no heartbeat in operational within {} ms", at(*n.start), ms(n.k->consumer));
+      return fmt::format("NMT start at {} and no heartbeat in operational within {} ms", at(*n.start),
+                         ms(n.k->consumer));
     if (n.op_hb && t - *n.op_hb > n.k->consumer + g)
       return fmt::format("last heartbeat in operational at {} (consumer time {} ms)", at(*n.op_hb), ms(n.k->consumer));
     for (const auto& p : n.k->tpdos) {
@@ -492,8 +498,9 @@ class Monitor {
       const TimePoint from = it == n.pdo.end() ? *n.first_op : it->second;
       if (t - std::max(from + p.deadline, *n.first_op) > g)
         return fmt::format("TPDO {:03X}h {} (deadline {} ms)", p.cob,
-                           it == n.pdo.end() ? "not received since the first heartbeat in operational at " + at(*n.first_op)
-                                             : "last received at " + at(it->second),
+                           it == n.pdo.end()
+                               ? "not received since the first heartbeat in operational at " + at(*n.first_op)
+                               : "last received at " + at(it->second),
                            ms(p.deadline));
     }
     return std::nullopt;
@@ -509,19 +516,23 @@ class Monitor {
       const auto od = gw.upstream().get(ufe.fe, fld.name);
       for (const auto& s : fields)
         if (s.name == fld.name && od && *od != s.value)
-          violation(t, fmt::format("{}: {} {} = {} in the FE model but {} in the dictionary", what,
-                                   mapping::fe_name(ufe.fe), fld.name, s.value, *od),
+          violation(t,
+                    fmt::format("{}: {} {} = {} in the FE model but {} in the dictionary", what,
+                                mapping::fe_name(ufe.fe), fld.name, s.value, *od),
                     "dictionary " + mapping::fe_name(ufe.fe) + fld.name);
       if (od && *od != fld.fault && !proven(fld, t))
-        violation(t, fmt::format("{}: {} {} reads {} in the dictionary (fault value {}) without proof of life of node "
-                                 "{:02X}h: {}",
-                                 what, mapping::fe_name(ufe.fe), fld.name, *od, fld.fault, fld.node, field_life_text(fld, t)),
+        violation(t,
+                  fmt::format("{}: {} {} reads {} in the dictionary (fault value {}) without proof of life of node "
+                              "{:02X}h: {}",
+                              what, mapping::fe_name(ufe.fe), fld.name, *od, fld.fault, fld.node,
+                              field_life_text(fld, t)),
                   "dictionary " + mapping::fe_name(ufe.fe) + fld.name);
       for (const auto& s : fields) {
         if (s.name != fld.name || s.value == fld.fault || proven(fld, t)) continue;
-        violation(t, fmt::format("{}: {} {} = {} (fault value {}) without proof of life of node {:02X}h: {}", what,
-                                 mapping::fe_name(ufe.fe), fld.name, s.value, fld.fault, fld.node,
-                                 field_life_text(fld, t)),
+        violation(t,
+                  fmt::format("{}: {} {} = {} (fault value {}) without proof of life of node {:02X}h: {}", what,
+                              mapping::fe_name(ufe.fe), fld.name, s.value, fld.fault, fld.node,
+                              field_life_text(fld, t)),
                   "sample " + mapping::fe_name(ufe.fe) + fld.name);
       }
     }
@@ -529,8 +540,9 @@ class Monitor {
       const UpField* lost = nullptr;
       for (const auto& fld : ufe.fields)
         if (!proven(fld, t)) lost = &fld;
-      violation(t, fmt::format("{}: {} status valid while {} has no proof of life: {}", what,
-                               mapping::fe_name(ufe.fe), lost->name, field_life_text(*lost, t)),
+      violation(t,
+                fmt::format("{}: {} status valid while {} has no proof of life: {}", what, mapping::fe_name(ufe.fe),
+                            lost->name, field_life_text(*lost, t)),
                 "status " + mapping::fe_name(ufe.fe));
     }
   }
@@ -594,10 +606,11 @@ class Monitor {
     o.last_sent = state;
     const std::uint64_t allowed[] = {o.current, o.previous, error_state(o, o.current), error_state(o, o.previous)};
     if (std::find(std::begin(allowed), std::end(allowed), state) == std::end(allowed))
-      violation(t, fmt::format("RPDO {} to node {:02X}h carries {} = {:02X}h, which nobody commanded (commanded "
-                               "{:02X}h, before it {:02X}h; error mode {:02X}h value {:02X}h)",
-                               f.to_string(), o.k->node, mapping::fe_name(o.k->fe), state, o.current, o.previous,
-                               o.mode, o.value),
+      violation(t,
+                fmt::format("RPDO {} to node {:02X}h carries {} = {:02X}h, which nobody commanded (commanded "
+                            "{:02X}h, before it {:02X}h; error mode {:02X}h value {:02X}h)",
+                            f.to_string(), o.k->node, mapping::fe_name(o.k->fe), state, o.current, o.previous, o.mode,
+                            o.value),
                 {}, /*input=*/false);
     if (o.expect && state == *o.expect) o.expect.reset();
   }
@@ -630,7 +643,7 @@ class Monitor {
   std::vector<std::string> reports_;
   bool enabled_ = true;
   bool gw_operational_ = false;
-  std::set<std::uint16_t> active_codes_;  // EMCY codes the gateway has raised and not reset
+  std::set<std::uint16_t> active_codes_;               // EMCY codes the gateway has raised and not reset
   std::vector<std::array<std::uint8_t, 8>> forwards_;  // sub-device EMCYs the gateway will pass on
   TimePoint t0_{};
 };

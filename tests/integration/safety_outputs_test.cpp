@@ -69,8 +69,8 @@ TEST_P(SafetyOutputs, OneCommandChangingSeveralOutputsReachesTheDeviceAsOneFrame
     std::vector<CanFrame> got;
     for (std::size_t i = from; i < b.rpdos().size(); ++i)
       if (b.rpdos()[i].frame.id == cob) got.push_back(b.rpdos()[i].frame);
-    ASSERT_EQ(got.size(), 1u) << fmt::format("{:02X}h -> {:02X}h by {}: exactly one RPDO {:03X}h expected\n", state, cmd,
-                                             by_rpdo ? "RPDO" : "SDO", cob)
+    ASSERT_EQ(got.size(), 1u) << fmt::format("{:02X}h -> {:02X}h by {}: exactly one RPDO {:03X}h expected\n", state,
+                                             cmd, by_rpdo ? "RPDO" : "SDO", cob)
                               << frames_since(b, from);
     EXPECT_EQ(decode(f, got[0], state), cmd) << got[0].to_string();
     state = cmd;
@@ -92,8 +92,9 @@ void expect_error_state_with_the_emcy(Bench& b, std::size_t from, std::uint64_t 
     if (b.rpdos()[i].frame.id == cob) got.push_back(b.rpdos()[i]);
   ASSERT_EQ(got.size(), 1u) << "the error values as exactly one frame\n" << frames_since(b, from);
   EXPECT_EQ(decode(f, got[0].frame, before), 0x0Au & f.out_mask) << got[0].to_string();
-  EXPECT_LE(got[0].time - *emcy, 1ms) << fmt::format("error values {} ms after EMCY 8130h",
-                                                     std::chrono::duration_cast<std::chrono::milliseconds>(got[0].time - *emcy).count());
+  EXPECT_LE(got[0].time - *emcy, 1ms)
+      << fmt::format("error values {} ms after EMCY 8130h",
+                     std::chrono::duration_cast<std::chrono::milliseconds>(got[0].time - *emcy).count());
   EXPECT_GE(got[0].time, *emcy - 1ms) << "error values before the host was lost?";
 }
 

@@ -42,9 +42,9 @@ enum class Act {
   NmtReset,
   LinkDown,
   BusOff,
-  AtNmtStart,    // arms: a fault at the next NMT start
-  AtConfig,      // arms: a fault at the 2nd SDO request of the next configuration
-  StaleReport,   // a pre-operational heartbeat overtaken by the NMT start (armed)
+  AtNmtStart,   // arms: a fault at the next NMT start
+  AtConfig,     // arms: a fault at the 2nd SDO request of the next configuration
+  StaleReport,  // a pre-operational heartbeat overtaken by the NMT start (armed)
   Output,
   HostLost,
   HostBack,
@@ -214,8 +214,8 @@ struct Runner {
   }
 
   Act pick_fault() {
-    std::vector<Act> v{Act::HbStop, Act::HbNeverAfterReboot, Act::PdosStop, Act::Reboot, Act::ErrorEmcy,
-                       Act::NmtStop, Act::NmtPreOp, Act::NmtReset, Act::LinkDown, Act::BusOff};
+    std::vector<Act> v{Act::HbStop,  Act::HbNeverAfterReboot, Act::PdosStop, Act::Reboot,   Act::ErrorEmcy,
+                       Act::NmtStop, Act::NmtPreOp,           Act::NmtReset, Act::LinkDown, Act::BusOff};
     if (b.has_error_value()) v.push_back(Act::ErrorValue);
     if (b.has_not_available()) v.push_back(Act::NotAvailable);
     if (b.has_mismatch()) v.push_back(Act::Mismatch);
@@ -345,8 +345,8 @@ TEST_P(SafetyRandom, SeededFaultSequencesKeepTheInvariants) {
       ADD_FAILURE() << "family " << name(fam) << " corner " << corner.name << " seed " << seed << ": first violation "
                     << (*first_bad == steps ? std::string("at the first boot, before any step")
                                             : "at step " + std::to_string(*first_bad))
-                    << ": " << first_line << "\nreplay with OEGW_SAFETY_SEED=" << seed << " OEGW_SAFETY_FAMILY=" << name(fam)
-                    << " OEGW_SAFETY_CORNER=" << corner.name;
+                    << ": " << first_line << "\nreplay with OEGW_SAFETY_SEED=" << seed
+                    << " OEGW_SAFETY_FAMILY=" << name(fam) << " OEGW_SAFETY_CORNER=" << corner.name;
       continue;
     }
     // Everything removed: the device must come back (the gateway's back-off is at most 30 s).
@@ -357,14 +357,16 @@ TEST_P(SafetyRandom, SeededFaultSequencesKeepTheInvariants) {
     const bool back = b.run_until([&] { return b.status() == FeStatus::Valid && b.mon().alive(node, b.now()); }, 40s);
     EXPECT_TRUE(back) << "family " << name(fam) << " seed " << seed << ": the device did not come back within 40 s "
                       << "after every fault was removed; status " << static_cast<int>(b.status()) << ", "
-                      << b.mon().life(node, b.now()) << "\n" << run.context();
+                      << b.mon().life(node, b.now()) << "\n"
+                      << run.context();
     RecordProperty(std::string("sim_seconds_seed_") + std::to_string(seed), static_cast<int>(b.ms() / 1000));
   }
 }
 
 INSTANTIATE_TEST_SUITE_P(Families, SafetyRandom, ::testing::ValuesIn(all_corners()),
                          [](const ::testing::TestParamInfo<FamilyCorner>& i) {
-                           return std::string(name(i.param.family)) + "_" + corners(i.param.family)[i.param.corner].name;
+                           return std::string(name(i.param.family)) + "_" +
+                                  corners(i.param.family)[i.param.corner].name;
                          });
 
 }  // namespace

@@ -12,8 +12,8 @@
 
 #include <unistd.h>
 
-#include "gateway/programs.hpp"
 #include "cli/scan_command.hpp"
+#include "gateway/programs.hpp"
 #include "subdevices/bus_scan.hpp"
 #include "subdevices/device_spec.hpp"
 #include "subdevices/sim/sim_registry.hpp"
@@ -102,9 +102,11 @@ TEST_F(ScanDraft, FindsEveryFamilyNamesItAndTheDraftPassesCheck) {
     EXPECT_TRUE(n.answered_sdo) << int(n.node.value());
     families[n.node.value()] = n.family.family;
   }
-  EXPECT_EQ(families, (std::map<int, std::string>{
-                          {0x03, "mcb402"}, {0x11, "elobau-mfg"}, {0x12, "elobau-mfg"}, {0x30, "cia401"},
-                          {0x7F, "novotechnik-406"}}));
+  EXPECT_EQ(families, (std::map<int, std::string>{{0x03, "mcb402"},
+                                                  {0x11, "elobau-mfg"},
+                                                  {0x12, "elobau-mfg"},
+                                                  {0x30, "cia401"},
+                                                  {0x7F, "novotechnik-406"}}));
   EXPECT_FALSE(r.unconfigured);
 
   std::string draft = cli::draft_mapping(r, settings());
@@ -112,7 +114,8 @@ TEST_F(ScanDraft, FindsEveryFamilyNamesItAndTheDraftPassesCheck) {
   // is written (no draft passes check on a guess); cia401 needs its EDS: left out.
   EXPECT_NE(draft.find("button_bits: TODO  # `oegw check` refuses this"), std::string::npos) << draft;
   EXPECT_EQ(check(draft, "draft.yaml"), 1) << draft;
-  draft.replace(draft.find("button_bits: TODO"), std::string("button_bits: TODO").size(), "button_bits: [1, 2, 3, 4, 5, 7, 6]");
+  draft.replace(draft.find("button_bits: TODO"), std::string("button_bits: TODO").size(),
+                "button_bits: [1, 2, 3, 4, 5, 7, 6]");
   EXPECT_EQ(check(draft, "draft.yaml"), 0) << draft;
   EXPECT_NE(draft.find("  # cia401_30:"), std::string::npos) << draft;
   EXPECT_NE(draft.find("  elobau_mfg_11:\n    driver: elobau-mfg\n    node_id: 0x11\n"), std::string::npos) << draft;

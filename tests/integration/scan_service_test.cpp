@@ -21,11 +21,11 @@
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
+#include "cli/scan_command.hpp"
 #include "gateway/control/control_protocol.hpp"
 #include "gateway/control/scan_service.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/programs.hpp"
-#include "cli/scan_command.hpp"
 #include "rig/cab_rig.hpp"
 #include "subdevices/device_spec.hpp"
 #include "subdevices/sim/sim_bench.hpp"
@@ -63,7 +63,8 @@ class ScanThroughGateway : public ::testing::Test {
     rig_->power_on();
     rig_->run_for(3s);
     all_operational();
-    service_ = std::make_unique<gw::control::ScanService>(loop_, rig_->gw(), config_, protocol_, [this] { rig_->rearm(); });
+    service_ =
+        std::make_unique<gw::control::ScanService>(loop_, rig_->gw(), config_, protocol_, [this] { rig_->rearm(); });
   }
   void TearDown() override {
     service_.reset();
@@ -164,10 +165,10 @@ TEST_F(ScanThroughGateway, ProbesOnlyOtherNodeIdsAndReportsItsSubdevicesByName) 
   // The draft keeps the mapping file's names and, its placeholders filled (no draft passes
   // `oegw check` on a guess: the MCB-402's button_bits is TODO), passes `oegw check`.
   const std::string draft = oegw::cli::draft_mapping(r, {.downstream = "can1",
-                                                  .upstream = "can0",
-                                                  .bitrate = 250000,
-                                                  .store = (dir_ / "draft.store").string(),
-                                                  .through_gateway = true});
+                                                         .upstream = "can0",
+                                                         .bitrate = 250000,
+                                                         .store = (dir_ / "draft.store").string(),
+                                                         .through_gateway = true});
   for (const char* entry : {"\n  right_grip:\n", "\n  left_grip:\n", "\n  novotechnik_406_40:\n"})
     EXPECT_NE(draft.find(entry), std::string::npos) << entry << "\n" << draft;
   EXPECT_NE(draft.find("through the gateway running on"), std::string::npos);
@@ -187,10 +188,11 @@ TEST_F(ScanThroughGateway, FindsANodeWithoutNodeIdByTheGatewaysLssMaster) {
   // serial 0) loses its node-ID: switch state selective, configure node-ID FFh, waiting, NMT
   // reset communication (CiA 305 §8.4.2, §8.4.3.2; frames as tests/vm/guest/scan.sh sends them).
   auto tool = rig_->down().attach("tool");
-  for (const CanFrame& f : {CanFrame(0x7E5, {0x40, 0x5A, 0x0A, 0, 0, 0, 0, 0}), CanFrame(0x7E5, {0x41, 0x02, 0x04, 0, 0, 0, 0, 0}),
-                            CanFrame(0x7E5, {0x42, 0x02, 0x00, 0x01, 0, 0, 0, 0}), CanFrame(0x7E5, {0x43, 0, 0, 0, 0, 0, 0, 0}),
-                            CanFrame(0x7E5, {0x11, 0xFF, 0, 0, 0, 0, 0, 0}), CanFrame(0x7E5, {0x04, 0, 0, 0, 0, 0, 0, 0}),
-                            CanFrame(0x000, {0x82, 0x31})}) {
+  for (const CanFrame& f :
+       {CanFrame(0x7E5, {0x40, 0x5A, 0x0A, 0, 0, 0, 0, 0}), CanFrame(0x7E5, {0x41, 0x02, 0x04, 0, 0, 0, 0, 0}),
+        CanFrame(0x7E5, {0x42, 0x02, 0x00, 0x01, 0, 0, 0, 0}), CanFrame(0x7E5, {0x43, 0, 0, 0, 0, 0, 0, 0}),
+        CanFrame(0x7E5, {0x11, 0xFF, 0, 0, 0, 0, 0, 0}), CanFrame(0x7E5, {0x04, 0, 0, 0, 0, 0, 0, 0}),
+        CanFrame(0x000, {0x82, 0x31})}) {
     (void)tool->send(f);
     rig_->run_for(2ms);
   }
@@ -201,7 +203,8 @@ TEST_F(ScanThroughGateway, FindsANodeWithoutNodeIdByTheGatewaysLssMaster) {
   const json status = scan();
   std::string lss_frames;
   for (std::size_t i = lss_mark; i < down_.size(); ++i)
-    if (down_[i].id == 0x7E5 || down_[i].id == 0x7E4) lss_frames += fmt::format("{:03X}#{:02X}{:02X} ", down_[i].id, down_[i].data[0], down_[i].data[5]);
+    if (down_[i].id == 0x7E5 || down_[i].id == 0x7E4)
+      lss_frames += fmt::format("{:03X}#{:02X}{:02X} ", down_[i].id, down_[i].data[0], down_[i].data[5]);
   SCOPED_TRACE(lss_frames);
   ASSERT_TRUE(status.contains("result")) << status.dump();
   const sd::ScanResult r = result_of(status);

@@ -62,8 +62,9 @@ class StatusReport : public ::testing::Test {
   // An SDO download of the host to the gateway; its abort code.
   SdoAbortCode host_write(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) {
     std::optional<SdoAbortCode> got;
-    rig_->host().sdo(NodeId{0x20}).download(index, sub, std::move(data),
-                                            [&](SdoAbortCode c, std::vector<std::uint8_t>) { got = c; });
+    rig_->host()
+        .sdo(NodeId{0x20})
+        .download(index, sub, std::move(data), [&](SdoAbortCode c, std::vector<std::uint8_t>) { got = c; });
     rig_->rearm();
     for (int i = 0; i < 2000 && !got; ++i) rig_->run_for(1ms);
     return got.value_or(SdoAbortCode::Timeout);
@@ -140,7 +141,8 @@ TEST_F(StatusReport, CountersFollowTheFramesAndTheReboots) {
   rig_->run_for(5s);
   const json s = sub(report(), "right_grip");
   EXPECT_EQ(s["counters"]["reboots_seen"], 1);
-  EXPECT_EQ(s["counters"]["gateway_resets"], 1) << "its first boot answered the gateway's reset; the reboot was its own";
+  EXPECT_EQ(s["counters"]["gateway_resets"], 1)
+      << "its first boot answered the gateway's reset; the reboot was its own";
   EXPECT_EQ(s["state"], "operational");
   EXPECT_EQ(report()["downstream"]["counters"]["reboots_seen"], 1);
   EXPECT_EQ(sub(report(), "left_grip")["counters"]["reboots_seen"], 0);
@@ -151,18 +153,33 @@ TEST_F(StatusReport, CountersFollowTheFramesAndTheReboots) {
 // table's line for frames the kernel dropped only when there are any.
 TEST_F(StatusReport, BusCountersOfBothInterfacesAndTheKernelsDropsInTheTable) {
   EXPECT_FALSE(report()["upstream"].contains("bus")) << "no transports given: no bus object";
-  const TransportCounters up{.rx_frames = 7, .tx_frames = 9, .tx_dropped = 1, .rx_dropped = 0, .error_frames = 2, .errors = 3};
-  TransportCounters down{.rx_frames = 1200, .tx_frames = 40, .tx_dropped = 0, .rx_dropped = 0, .error_frames = 0, .errors = 0};
+  const TransportCounters up{.rx_frames = 7,
+                             .tx_frames = 9,
+                             .tx_dropped = 1,
+                             .rx_dropped = 0,
+                             .error_frames = 2,
+                             .errors = 3};
+  TransportCounters down{.rx_frames = 1200,
+                         .tx_frames = 40,
+                         .tx_dropped = 0,
+                         .rx_dropped = 0,
+                         .error_frames = 0,
+                         .errors = 0};
   gw::control::StatusContext at{loop_.now(), started_, &up, &down};
   json r = gw::control::status_report(rig_->gw(), config_, at);
-  EXPECT_EQ(r["upstream"]["bus"],
-            (json{{"rx_frames", 7}, {"tx_frames", 9}, {"rx_dropped", 0}, {"tx_dropped", 1}, {"error_frames", 2}, {"errors", 3}}));
+  EXPECT_EQ(r["upstream"]["bus"], (json{{"rx_frames", 7},
+                                        {"tx_frames", 9},
+                                        {"rx_dropped", 0},
+                                        {"tx_dropped", 1},
+                                        {"error_frames", 2},
+                                        {"errors", 3}}));
   EXPECT_EQ(r["downstream"]["bus"]["rx_frames"], 1200);
   EXPECT_EQ(oegw::cli::status_table(r).find("dropped by the kernel"), std::string::npos) << "nothing dropped: no line";
   down.rx_dropped = 345;
   r = gw::control::status_report(rig_->gw(), config_, at);
   EXPECT_EQ(r["downstream"]["bus"]["rx_dropped"], 345);
-  EXPECT_NE(oegw::cli::status_table(r).find("\ndownstream: 1200 frames read, 345 dropped by the kernel before the gateway read them\n"),
+  EXPECT_NE(oegw::cli::status_table(r).find(
+                "\ndownstream: 1200 frames read, 345 dropped by the kernel before the gateway read them\n"),
             std::string::npos)
       << oegw::cli::status_table(r);
 }
@@ -174,17 +191,18 @@ TEST_F(StatusReport, PublishingTransportsUpOrDownWithTheReason) {
   json r = report();
   r["publishing"] = gw::control::publishing_status({});
   EXPECT_NE(oegw::cli::status_table(r).find("\npublishing: off\n"), std::string::npos);
-  r["publishing"] = gw::control::publishing_status({{"dds", true, "", 0, {}, {}},
-                                           {"lcm", false, "no route to 224.0.0.1 (Network is unreachable)", 3, 7s, 4s}});
+  r["publishing"] = gw::control::publishing_status(
+      {{"dds", true, "", 0, {}, {}}, {"lcm", false, "no route to 224.0.0.1 (Network is unreachable)", 3, 7s, 4s}});
   EXPECT_EQ(r["publishing"][0], (json{{"transport", "dds"}, {"state", "up"}}));
   EXPECT_EQ(r["publishing"][1], (json{{"transport", "lcm"},
-                                       {"state", "down"},
-                                       {"reason", "no route to 224.0.0.1 (Network is unreachable)"},
-                                       {"failed_attempts", 3},
-                                       {"down_ms", 7000},
-                                       {"next_attempt_ms", 4000}}));
-  EXPECT_NE(oegw::cli::status_table(r).find("\npublishing: dds up; lcm down: no route to 224.0.0.1 (Network is unreachable) (3 "
-                                     "failed attempts, next in 4.0 s)\n"),
+                                      {"state", "down"},
+                                      {"reason", "no route to 224.0.0.1 (Network is unreachable)"},
+                                      {"failed_attempts", 3},
+                                      {"down_ms", 7000},
+                                      {"next_attempt_ms", 4000}}));
+  EXPECT_NE(oegw::cli::status_table(r).find(
+                "\npublishing: dds up; lcm down: no route to 224.0.0.1 (Network is unreachable) (3 "
+                "failed attempts, next in 4.0 s)\n"),
             std::string::npos)
       << oegw::cli::status_table(r);
 }
@@ -250,12 +268,14 @@ TEST_F(StatusReport, ALostDeviceIsMissingWithItsLastEmcy) {
     EXPECT_LE(line.size(), 100u) << line;
     rows.push_back(line);
   }
-  const auto row = std::find_if(rows.begin(), rows.end(), [](const std::string& l) { return l.rfind("left_grip ", 0) == 0; });
+  const auto row =
+      std::find_if(rows.begin(), rows.end(), [](const std::string& l) { return l.rfind("left_grip ", 0) == 0; });
   ASSERT_NE(row, rows.end()) << table;
   EXPECT_NE(row->find(" 03h mcb402 "), std::string::npos) << *row;
   EXPECT_NE(row->find(" missing "), std::string::npos) << *row;
   ASSERT_LT(row + 4, rows.end());
-  EXPECT_EQ(row[1], "    vendor 00000058h product 01040131h revision 00000001h serial -") << "MCB §1018h, as read at boot";
+  EXPECT_EQ(row[1], "    vendor 00000058h product 01040131h revision 00000001h serial -")
+      << "MCB §1018h, as read at boot";
   EXPECT_EQ(row[2].rfind("    name \"CO4013A\" hardware ", 0), 0u) << row[2];
   EXPECT_EQ(row[3].rfind("    last EMCY 3120h reg 81h data ", 0), 0u) << row[3];
   EXPECT_EQ(row[4], "    fault: missing (heartbeat lost)");

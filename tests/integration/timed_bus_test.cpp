@@ -108,7 +108,8 @@ TEST(SimulatorLatency, OtherFramesAreNotDelayedAndARebootLosesThePendingAnswer) 
 
 // The demo cab (tests/fixtures/demo_cab.yaml: config/demo.yaml's devices) at 250 kbit/s.
 mapping::Config demo_config() {
-  const auto r = mapping::load_config_text(fixtures::mapping_file("demo_cab.yaml"), "demo_cab.yaml", gateway::driver_catalogue());
+  const auto r =
+      mapping::load_config_text(fixtures::mapping_file("demo_cab.yaml"), "demo_cab.yaml", gateway::driver_catalogue());
   if (!r.ok()) throw std::runtime_error(r.error_text());
   mapping::Config c = *r.config;
   c.upstream.bitrate = 250'000;
@@ -120,7 +121,8 @@ TEST(TimedCab, TheDemoCabBootsOnTimedBusesAndNoTwoFramesOverlap) {
   SimulatedClock clock{kStart};
   EventLoop loop{clock};
   oegw::rig::CabRig rig(demo_config(), loop,
-                      oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .timed_buses = true});
+                        oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store",
+                                                 .timed_buses = true});
   rig.build();
   ASSERT_TRUE(rig.down().timed());
   EXPECT_EQ(rig.devices().device("right_grip")->sdo_latency(), subdevices::sim::kTypicalSdoLatency);
@@ -154,7 +156,8 @@ TEST(TimedCab, APowerOnBootUpCrossingTheResetDoesNotCostARefusal) {
   SimulatedClock clock{kStart};
   EventLoop loop{clock};
   oegw::rig::CabRig rig(demo_config(), loop,
-                      oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .timed_buses = true});
+                        oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store",
+                                                 .timed_buses = true});
   std::vector<std::string> log;
   rig.on_gateway = [&log](gateway::Gateway& gw) { gw.on_log = [&log](const std::string& l) { log.push_back(l); }; };
   rig.build();
@@ -166,7 +169,8 @@ TEST(TimedCab, APowerOnBootUpCrossingTheResetDoesNotCostARefusal) {
     EXPECT_EQ(rig.gw().downstream().state(n), subdevices::NodeState::Operational) << n << "\n" << all;
   EXPECT_EQ(all.find("refused"), std::string::npos) << all;
   EXPECT_NE(all.find("boot-up again during its configuration"), std::string::npos)
-      << "the crossing this test is about did not happen:\n" << all;
+      << "the crossing this test is about did not happen:\n"
+      << all;
 }
 
 // The SDO pacing (canopen/301/sdo_pacer.hpp) judged exactly, on simulated time: the demo cab on
@@ -185,13 +189,16 @@ std::vector<TimePoint> sdo_request_starts(double sdo_bus_share) {
   gateway::GatewayOptions gw;
   gw.sdo_bus_share = sdo_bus_share;
   oegw::rig::CabRig rig(demo_config(), loop,
-                      oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .gateway = gw,
-                                             .timed_buses = true, .device_sdo_latency = Duration{0}});
+                        oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store",
+                                                 .gateway = gw,
+                                                 .timed_buses = true,
+                                                 .device_sdo_latency = Duration{0}});
   std::vector<TimePoint> starts;
   rig.from_gateway_down = [&](const CanFrame& f) {
     if (f.id < 0x600 || f.id > 0x67F || f.dlc < 1) return false;
     const std::uint8_t b = f.data[0], ccs = b >> 5;
-    if (ccs == 1 || ccs == 2 || (ccs == 5 && (b & 0x03) == 0) || (ccs == 6 && (b & 0x01) == 0)) starts.push_back(loop.now());
+    if (ccs == 1 || ccs == 2 || (ccs == 5 && (b & 0x03) == 0) || (ccs == 6 && (b & 0x01) == 0))
+      starts.push_back(loop.now());
     return false;  // the frame goes on
   };
   rig.build();
@@ -246,8 +253,9 @@ TEST_P(TimedFullSet, TheCabBootsAndALoneRebootAtHalfLoadCostsNoOtherNodeItsHeart
   SimulatedClock clock{kStart};
   EventLoop loop{clock};
   oegw::rig::CabRig rig(*r.config, loop,
-                      oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store", .timed_buses = true,
-                                             .device_sdo_latency = GetParam()});
+                        oegw::rig::CabRigOptions{.store = "/nonexistent-oegw-test/upstream.store",
+                                                 .timed_buses = true,
+                                                 .device_sdo_latency = GetParam()});
   rig.build();
   rig.power_on();
   rig.run_for(4s);
@@ -258,13 +266,15 @@ TEST_P(TimedFullSet, TheCabBootsAndALoneRebootAtHalfLoadCostsNoOtherNodeItsHeart
   for (const std::string rebooted : {"grip1", "pedal1", "enc1", "cluster8"}) {
     ASSERT_EQ(rig.command(rebooted + " reboot").rfind("ok", 0), 0u);
     const TimePoint at = loop.now();
-    bool went = false, back = false;  // the gateway saw the reboot, and configured the node again
+    bool went = false, back = false;           // the gateway saw the reboot, and configured the node again
     for (int step = 0; step < 2000; ++step) {  // 2 s, a monitor every millisecond
       rig.run_for(1ms);
       for (const auto& n : names) {
         if (n == rebooted) continue;
         ASSERT_EQ(down.state(n), subdevices::NodeState::Operational)
-            << n << " left operational " << std::chrono::duration_cast<std::chrono::milliseconds>(loop.now() - at).count() << " ms after " << rebooted << " rebooted";
+            << n << " left operational "
+            << std::chrono::duration_cast<std::chrono::milliseconds>(loop.now() - at).count() << " ms after "
+            << rebooted << " rebooted";
       }
       const bool op = down.state(rebooted) == subdevices::NodeState::Operational;
       went = went || !op;
@@ -279,7 +289,8 @@ TEST_P(TimedFullSet, TheCabBootsAndALoneRebootAtHalfLoadCostsNoOtherNodeItsHeart
 INSTANTIATE_TEST_SUITE_P(DeviceLatency, TimedFullSet,
                          ::testing::Values(subdevices::sim::kTypicalSdoLatency, Duration{250}, Duration{0}),
                          [](const ::testing::TestParamInfo<Duration>& p) {
-                           return p.param == Duration{0} ? std::string("AtOnce") : "After" + std::to_string(p.param.count()) + "us";
+                           return p.param == Duration{0} ? std::string("AtOnce")
+                                                         : "After" + std::to_string(p.param.count()) + "us";
                          });
 
 }  // namespace

@@ -29,15 +29,15 @@ struct SdoResult {
 class TwoStacks : public ::testing::Test {
  protected:
   TwoStacks() {
-    store_dir_ = std::filesystem::temp_directory_path() /
-                 ("oegw-two-stacks-" + std::to_string(::getpid()) + "-" +
-                  ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    store_dir_ =
+        std::filesystem::temp_directory_path() / ("oegw-two-stacks-" + std::to_string(::getpid()) + "-" +
+                                                  ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::filesystem::remove_all(store_dir_);
     std::filesystem::create_directories(store_dir_);
     build_device_od();
     make_device();
-    host_ = std::make_unique<Master>(host_od_, net_.sink("host"), MasterConfig{.heartbeat_entries = 4,
-                                                                               .sdo_timeout = 500ms});
+    host_ = std::make_unique<Master>(host_od_, net_.sink("host"),
+                                     MasterConfig{.heartbeat_entries = 4, .sdo_timeout = 500ms});
     net_.attach("host", *host_);
     host_->on_boot = [this](NodeId n) { boots_.push_back(n); };
     host_->on_state = [this](NodeId n, NmtState s) {
@@ -54,7 +54,7 @@ class TwoStacks : public ::testing::Test {
   void build_device_od() {
     device_od_->add_array(0x6000, "Read input 8-bit", DataType::Unsigned8, Access::ReadOnly, 2, {0}, true);
     device_od_->add_array(0x6401, "Read analogue input 16-bit", DataType::Integer16, Access::ReadOnly, 2,
-                         encode<std::int16_t>(0), true);
+                          encode<std::int16_t>(0), true);
     device_od_->add_array(0x6200, "Write output 8-bit", DataType::Unsigned8, Access::ReadWrite, 1, {0}, true);
     device_od_->add_var(0x2000, "Blob", DataType::Domain, Access::ReadWrite, {});
     device_od_->find(0x2000, 0)->max_size = 4096;

@@ -131,9 +131,8 @@ TEST(UpstreamBitRate, ActivateBitTimingReportsTheNewRateInBitPerSecondAtTheSwitc
 class StoredRate : public ::testing::Test {
  protected:
   StoredRate() {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("oegw-bitrate-test-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = std::filesystem::temp_directory_path() / ("oegw-bitrate-test-" + std::to_string(::getpid()) + "-" +
+                                                     ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
   }
@@ -202,7 +201,8 @@ namespace {
 TEST(UpstreamBitRate, TheGatewaysHeartbeatGoesOnAfterAnActivate) {
   const mapping::Config c = load(file_for(250000));
   std::vector<CanFrame> up;
-  gateway::Gateway gw(c, [&](const CanFrame& f) { up.push_back(f); }, [](const CanFrame&) {});
+  gateway::Gateway gw(
+      c, [&](const CanFrame& f) { up.push_back(f); }, [](const CanFrame&) {});
   std::vector<std::uint32_t> switches;
   gw.upstream().on_bit_rate_switch([&](std::uint32_t r) { switches.push_back(r); });
   TimePoint now{std::chrono::seconds(5)};

@@ -9,9 +9,9 @@
 
 #include <fmt/format.h>
 
+#include "canopen/306/eds_reader.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/runtime_config.hpp"
-#include "canopen/306/eds_reader.hpp"
 #include "tests/fixtures/fixtures.hpp"
 
 namespace {
@@ -74,7 +74,8 @@ TEST(UpstreamEds, AJoystickWithButtonsSetsTheDigitalInputBit) {
                            "    x: { signal: grip.x }\n"
                            "    buttons[1]: grip.buttons[1]\n";
   expect_eds_equals_device(yaml);
-  const auto v = std::stoul(eds_value(gateway::upstream_eds(load(yaml), "oegw.eds"), "1000", "DefaultValue"), nullptr, 16);
+  const auto v =
+      std::stoul(eds_value(gateway::upstream_eds(load(yaml), "oegw.eds"), "1000", "DefaultValue"), nullptr, 16);
   EXPECT_NE(v & (1u << 16), 0u);
 }
 
@@ -92,7 +93,8 @@ TEST(UpstreamEds, OutputsTheHostMayNotCommandAreNamedAndTheDictionaryMatches) {
   const std::string eds = gateway::upstream_eds(load(yaml), "oegw.eds");
   EXPECT_NE(eds.find("indicators.1 (6200h sub 01h..08h) takes commands from dds only"), std::string::npos) << eds;
   EXPECT_EQ(eds.find("indicators.2 (6200h"), std::string::npos);
-  EXPECT_NE(eds.find("=network IDs: upstream (this device's bus) 1, downstream (its sub-devices) 2\n"), std::string::npos);
+  EXPECT_NE(eds.find("=network IDs: upstream (this device's bus) 1, downstream (its sub-devices) 2\n"),
+            std::string::npos);
 }
 
 TEST(UpstreamEds, TheDemoFileGivesTheDeviceItsOwnEds) {
@@ -175,8 +177,8 @@ struct Host {
   explicit Host(const mapping::Config& c) : node(c.upstream.node_id) {
     gateway::GatewayOptions o;
     o.store_path = std::filesystem::path("/nonexistent/oegw-eds-vs-device.store");
-    gw = std::make_unique<gateway::Gateway>(c, [this](const CanFrame& f) { up.push_back(f); },
-                                            [](const CanFrame&) {}, o);
+    gw = std::make_unique<gateway::Gateway>(
+        c, [this](const CanFrame& f) { up.push_back(f); }, [](const CanFrame&) {}, o);
     (void)gw->start(now);
   }
   std::optional<CanFrame> request(const Bytes& b) {

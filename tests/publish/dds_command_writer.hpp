@@ -25,9 +25,10 @@ struct DdsIndicatorWriter {
     dds_delete_qos(pq);
     dds_qos_t* q = dds_create_qos();
     dds_qset_reliability(q, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
-    const dds_entity_t w = dds_create_writer(
-        pub, dds_create_topic(participant, &oegw_IndicatorCommand_desc, "oegw/indicators", nullptr, nullptr), q,
-        nullptr);
+    const dds_entity_t w = dds_create_writer(pub,
+                                             dds_create_topic(participant, &oegw_IndicatorCommand_desc,
+                                                              "oegw/indicators", nullptr, nullptr),
+                                             q, nullptr);
     dds_delete_qos(q);
     if (w <= 0) return;
     dds_publication_matched_status_t ms{};

@@ -16,7 +16,8 @@ namespace {
 struct Span {
   std::size_t offset, size;
 };
-#define OEGW_FIELD(T, f) Span{offsetof(T, f), sizeof(T::f)}
+#define OEGW_FIELD(T, f) \
+  Span { offsetof(T, f), sizeof(T::f) }
 
 template <class Dds, class Sample>
 std::vector<unsigned char> filled(const Sample& s) {
@@ -145,8 +146,8 @@ TEST(DdsSamples, AnEmcyCarriesItsBytes) {
   EXPECT_EQ(m.msef[0], 0x11);
   EXPECT_EQ(m.msef[4], 0x55);
   EXPECT_EQ(m.timestamp_us, 42);
-  padding_zero(bytes, {OEGW_FIELD(oegw_Emcy, code), OEGW_FIELD(oegw_Emcy, error_register),
-                       OEGW_FIELD(oegw_Emcy, msef), OEGW_FIELD(oegw_Emcy, timestamp_us)});
+  padding_zero(bytes, {OEGW_FIELD(oegw_Emcy, code), OEGW_FIELD(oegw_Emcy, error_register), OEGW_FIELD(oegw_Emcy, msef),
+                       OEGW_FIELD(oegw_Emcy, timestamp_us)});
 }
 
 }  // namespace

@@ -26,8 +26,8 @@
 
 #include "../integration/virtual_network.hpp"
 #include "gateway/gateway.hpp"
-#include "publish/dds_publisher.hpp"
 #include "gateway/publishing.hpp"
+#include "publish/dds_publisher.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/publish/child_process.hpp"
 #include "tests/publish/private_network.hpp"
@@ -45,23 +45,31 @@ fs::path set_dir() { return fs::path(::testing::TempDir()) / ("oegw_dds_security
 
 // The gateway's mapping file, in the folder of the security set: its paths are relative.
 std::string mapping_text(const std::string& permissions = "permissions.p7s",
-                         const std::string& private_key = "gateway.key", const std::string& certificate = "gateway.pem") {
-  return std::string("upstream: { interface: virtual, node_id: 0x20 }\n"
-                     "downstream: { interface: virtual }\n"
-                     "publish:\n"
-                     "  period_ms: 50\n"
-                     "  dds:\n"
-                     "    partition: ") +
+                         const std::string& private_key = "gateway.key",
+                         const std::string& certificate = "gateway.pem") {
+  return std::string(
+             "upstream: { interface: virtual, node_id: 0x20 }\n"
+             "downstream: { interface: virtual }\n"
+             "publish:\n"
+             "  period_ms: 50\n"
+             "  dds:\n"
+             "    partition: ") +
          kPartition +
          "\n"
          "    network: loopback\n"
          "    security:\n"
          "      identity_ca: ca.pem\n"
-         "      certificate: " + certificate + "\n"
-         "      private_key: " + private_key + "\n"
+         "      certificate: " +
+         certificate +
+         "\n"
+         "      private_key: " +
+         private_key +
+         "\n"
          "      permissions_ca: ca.pem\n"
          "      governance: governance.p7s\n"
-         "      permissions: " + permissions + "\n"
+         "      permissions: " +
+         permissions +
+         "\n"
          "subdevices:\n"
          "  grip: { driver: elobau-mfg, node_id: 0x11, heartbeat_ms: 100 }\n"
          "functional_elements:\n"
@@ -82,9 +90,13 @@ std::vector<std::string> peer(const std::string& program, const std::string& ide
   std::vector<std::string> argv{program, "--partition", kPartition, "--network", "loopback"};
   if (!identity.empty()) {
     const std::string d = set_dir().string() + "/";
-    for (const auto& [opt, file] : std::vector<std::pair<std::string, std::string>>{
-             {"--identity-ca", "ca.pem"}, {"--certificate", identity + ".pem"}, {"--private-key", identity + ".key"},
-             {"--permissions-ca", "ca.pem"}, {"--governance", "governance.p7s"}, {"--permissions", "permissions.p7s"}}) {
+    for (const auto& [opt, file] :
+         std::vector<std::pair<std::string, std::string>>{{"--identity-ca", "ca.pem"},
+                                                          {"--certificate", identity + ".pem"},
+                                                          {"--private-key", identity + ".key"},
+                                                          {"--permissions-ca", "ca.pem"},
+                                                          {"--governance", "governance.p7s"},
+                                                          {"--permissions", "permissions.p7s"}}) {
       argv.push_back(opt);
       argv.push_back(d + file);
     }
@@ -97,8 +109,8 @@ class DdsSecurity : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     fs::remove_all(set_dir());
-    const std::string cmd = std::string(OEGW_MAKE_DDS_SECURITY) + " --partition " + kPartition + " " +
-                            set_dir().string() + " >/dev/null";
+    const std::string cmd =
+        std::string(OEGW_MAKE_DDS_SECURITY) + " --partition " + kPartition + " " + set_dir().string() + " >/dev/null";
     ASSERT_EQ(std::system(cmd.c_str()), 0) << cmd;
   }
   static void TearDownTestSuite() { fs::remove_all(set_dir()); }
@@ -251,15 +263,17 @@ TEST_F(DdsSecurity, ATamperedPermissionsDocumentAndWrongFilesAreRefusedAtStartNa
   ASSERT_NE(at, std::string::npos);
   const auto sub = p7s.find("<subscribe>", at);
   ASSERT_NE(sub, std::string::npos);
-  p7s.replace(sub, std::string("<subscribe>").size(), "<publish><topics><topic>oegw/indicators</topic></topics>"
-                                                      "<partitions><partition>*</partition></partitions></publish><subscribe>");
+  p7s.replace(sub, std::string("<subscribe>").size(),
+              "<publish><topics><topic>oegw/indicators</topic></topics>"
+              "<partitions><partition>*</partition></partitions></publish><subscribe>");
   std::ofstream(set_dir() / "tampered.p7s") << p7s;
   auto loaded = load("tampered.yaml", mapping_text("tampered.p7s"));
   ASSERT_TRUE(loaded.ok()) << loaded.error_text();
   auto errors = gateway::dds_security_errors(*loaded.config);
   ASSERT_EQ(errors.size(), 1u);
   const std::string file = (set_dir() / "tampered.yaml").string();
-  EXPECT_EQ(errors[0].str().rfind(file + ":14:20: publish.dds.security.permissions " + (set_dir() / "tampered.p7s").string() +
+  EXPECT_EQ(errors[0].str().rfind(file + ":14:20: publish.dds.security.permissions " +
+                                      (set_dir() / "tampered.p7s").string() +
                                       ": is not signed by publish.dds.security.permissions_ca",
                                   0),
             0u)
@@ -272,14 +286,16 @@ TEST_F(DdsSecurity, ATamperedPermissionsDocumentAndWrongFilesAreRefusedAtStartNa
     ADD_FAILURE() << "a tampered permissions document was taken";
   } catch (const publish::PublishConfigError& e) {
     EXPECT_EQ(std::string(e.what()).rfind("publish.dds.security.permissions " + (set_dir() / "tampered.p7s").string() +
-                                         ": is not signed by publish.dds.security.permissions_ca",
-                                     0),
+                                              ": is not signed by publish.dds.security.permissions_ca",
+                                          0),
               0u)
         << e.what();
   }
 
   // Another identity's key; a certificate of another CA; a missing file: each at its setting.
-  ASSERT_EQ(std::system((std::string(OEGW_MAKE_DDS_SECURITY) + " " + (set_dir() / "other").string() + " >/dev/null").c_str()), 0);
+  ASSERT_EQ(std::system(
+                (std::string(OEGW_MAKE_DDS_SECURITY) + " " + (set_dir() / "other").string() + " >/dev/null").c_str()),
+            0);
   loaded = load("wrong.yaml", mapping_text("missing.p7s", "app.key", "other/gateway.pem"));
   ASSERT_TRUE(loaded.ok()) << loaded.error_text();
   errors = gateway::dds_security_errors(*loaded.config);
@@ -302,7 +318,8 @@ TEST_F(DdsSecurity, ATamperedPermissionsDocumentAndWrongFilesAreRefusedAtStartNa
 
   // The gateway's certificate, issued by the CA but valid until yesterday (openssl's -days -1).
   const std::string d = set_dir().string();
-  ASSERT_EQ(std::system(("cd " + d + " && openssl req -new -key gateway.key -subj '/O=oegw cab/CN=oegw-gateway' | "
+  ASSERT_EQ(std::system(("cd " + d +
+                         " && openssl req -new -key gateway.key -subj '/O=oegw cab/CN=oegw-gateway' | "
                          "openssl x509 -req -CA ca.pem -CAkey ca.key -days -1 -out expired.pem 2>/dev/null")
                             .c_str()),
             0);
@@ -310,8 +327,8 @@ TEST_F(DdsSecurity, ATamperedPermissionsDocumentAndWrongFilesAreRefusedAtStartNa
   ASSERT_TRUE(loaded.ok()) << loaded.error_text();
   errors = gateway::dds_security_errors(*loaded.config);
   ASSERT_EQ(errors.size(), 1u);
-  EXPECT_EQ(errors[0].str().rfind((set_dir() / "expired.yaml").string() + ":10:20: publish.dds.security.certificate " + d +
-                                      "/expired.pem: certificate has expired (not after ",
+  EXPECT_EQ(errors[0].str().rfind((set_dir() / "expired.yaml").string() + ":10:20: publish.dds.security.certificate " +
+                                      d + "/expired.pem: certificate has expired (not after ",
                                   0),
             0u)
       << errors[0].str();
@@ -322,9 +339,12 @@ TEST_F(DdsSecurity, ATamperedPermissionsDocumentAndWrongFilesAreRefusedAtStartNa
 // the setting, the mode and the command that mends it; 0600 and 0400 are taken.
 TEST_F(DdsSecurity, APrivateKeyOthersMayReadIsRefusedNamingItsModeAndTheChmod) {
   const fs::path key = set_dir() / "open.key";
-  for (const auto& [mode, who] : std::vector<std::pair<fs::perms, std::string>>{
-           {fs::perms(0644), "0644 lets every user"}, {fs::perms(0666), "0666 lets every user"},
-           {fs::perms(0640), "0640 lets its group"}, {fs::perms(0600), ""}, {fs::perms(0400), ""}}) {
+  for (const auto& [mode, who] :
+       std::vector<std::pair<fs::perms, std::string>>{{fs::perms(0644), "0644 lets every user"},
+                                                      {fs::perms(0666), "0666 lets every user"},
+                                                      {fs::perms(0640), "0640 lets its group"},
+                                                      {fs::perms(0600), ""},
+                                                      {fs::perms(0400), ""}}) {
     fs::remove(key);
     fs::copy_file(set_dir() / "gateway.key", key);
     fs::permissions(key, mode, fs::perm_options::replace);
@@ -336,10 +356,11 @@ TEST_F(DdsSecurity, APrivateKeyOthersMayReadIsRefusedNamingItsModeAndTheChmod) {
       continue;
     }
     ASSERT_EQ(errors.size(), 1u) << who;
-    EXPECT_EQ(errors[0].str(), (set_dir() / "open.yaml").string() + ":11:20: publish.dds.security.private_key " +
-                                   key.string() + ": mode " + who +
-                                   " read or change the private key; expected 0600, owner the daemon's user: chmod 0600 " +
-                                   key.string());
+    EXPECT_EQ(errors[0].str(),
+              (set_dir() / "open.yaml").string() + ":11:20: publish.dds.security.private_key " + key.string() +
+                  ": mode " + who +
+                  " read or change the private key; expected 0600, owner the daemon's user: chmod 0600 " +
+                  key.string());
     publish::DdsSettings s;
     s.partition = kPartition;
     s.network = "loopback";

@@ -14,8 +14,9 @@
 #include <set>
 #include <vector>
 
-#include "gateway/gateway.hpp"
+#include "../integration/virtual_network.hpp"
 #include "dds_command_writer.hpp"
+#include "gateway/gateway.hpp"
 #include "gateway/publishing.hpp"
 #include "oegw/gateway_status_t.hpp"
 #include "oegw/indicator_command_t.hpp"
@@ -23,7 +24,6 @@
 #include "private_network.hpp"
 #include "subdevices/sim/elobau_mfg_sim.hpp"
 #include "subdevices/sim/sim_bench.hpp"
-#include "../integration/virtual_network.hpp"
 #include "tests/fixtures/fixtures.hpp"
 
 using namespace oegw;
@@ -31,7 +31,6 @@ using namespace oegw::canopen;
 using namespace std::chrono_literals;
 
 namespace {
-
 
 struct App {  // the machine application: its own LCM instance
   lcm_t* lcm = lcm_create("udpm://224.0.0.1:7667?ttl=0");
@@ -209,7 +208,8 @@ TEST(GatewayPublishing, JoystickGoesOutOnLcmAndCommandsOverLcmAndDdsLightOnlyThe
   // The grip's EMCY (elobau Table 5: 1000h, 4001h = 0021h "Y Axis, Signal 2, Out Of Range") and
   // one of upstream node 05h, which the gateway consumes (1028h: it has output FEs): the status
   // carries the grip's last EMCY with its reception time and count, and node 05h's.
-  const std::int64_t before_us = std::chrono::duration_cast<std::chrono::microseconds>(down.now().time_since_epoch()).count();
+  const std::int64_t before_us =
+      std::chrono::duration_cast<std::chrono::microseconds>(down.now().time_since_epoch()).count();
   dynamic_cast<subdevices::sim::ElobauMfgSim&>(*grip).raise_error(0x0021, down.now());
   down.run_for(50ms);
   auto host = up.sink("host");
@@ -284,7 +284,8 @@ TEST(GatewayPublishing, ChangesReadInOneWakeUpPublishEachFeOnceWithItsLatestValu
   down.run_for(5ms);
   while (wait_readable(lcm_get_fileno(app.lcm), 20)) lcm_handle(app.lcm);  // the boot's samples, read
   const std::uint64_t before = pub.published();
-  for (std::uint8_t v = 10; v <= 90; v = static_cast<std::uint8_t>(v + 10)) probe(CanFrame(0x191, {v, 0, 0, 0, 0, 0, 0, 0}));
+  for (std::uint8_t v = 10; v <= 90; v = static_cast<std::uint8_t>(v + 10))
+    probe(CanFrame(0x191, {v, 0, 0, 0, 0, 0, 0, 0}));
   down.run_for(1ms);  // one delivery of the nine, one wake-up; less than the 50 ms period
   EXPECT_EQ(pub.published() - before, 1u) << "nine changes read in one wake-up: one sample";
   for (int i = 0; i < 40 && !(app.last && app.last->x == 29490); ++i)

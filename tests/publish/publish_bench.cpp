@@ -76,10 +76,11 @@ void report(const char* name, Result r) {
   }
   std::sort(r.lat.begin(), r.lat.end());
   const auto pct = [&](double p) { return r.lat[static_cast<std::size_t>(p * static_cast<double>(r.lat.size() - 1))]; };
-  std::printf("%-13s publish -> subscriber callback (other process): n=%zu lost=%ld  p50=%lld us  p99=%lld us  "
-              "p99.9=%lld us  max=%lld us\n",
-              name, r.lat.size(), r.lost, static_cast<long long>(pct(0.5)), static_cast<long long>(pct(0.99)),
-              static_cast<long long>(pct(0.999)), static_cast<long long>(r.lat.back()));
+  std::printf(
+      "%-13s publish -> subscriber callback (other process): n=%zu lost=%ld  p50=%lld us  p99=%lld us  "
+      "p99.9=%lld us  max=%lld us\n",
+      name, r.lat.size(), r.lost, static_cast<long long>(pct(0.5)), static_cast<long long>(pct(0.99)),
+      static_cast<long long>(pct(0.999)), static_cast<long long>(r.lat.back()));
 }
 
 }  // namespace
@@ -99,19 +100,24 @@ int main(int argc, char** argv) {
   for (const char* protection : {"", "sign", "encrypt"}) {
     oegw::publish::DdsSettings s;
     s.partition = "oegw-bench-" + tag;
-    std::vector<std::string> sub_argv{OEGW_DDS_SUBSCRIBER, "--count", total, "--timeout", "120", "--partition", s.partition};
+    std::vector<std::string> sub_argv{OEGW_DDS_SUBSCRIBER, "--count",  total, "--timeout", "120",
+                                      "--partition",       s.partition};
     if (*protection != 0) {
       const std::string dir = sets + "/" + protection;
       const std::string make = std::string(OEGW_MAKE_DDS_SECURITY) + " --protection " + protection + " --partition " +
                                s.partition + " " + dir + " >/dev/null";
       if (std::system(make.c_str()) != 0) return 1;
       oegw::publish::DdsSecuritySettings sec;
-      sec.path = {dir + "/ca.pem",          dir + "/gateway.pem",    dir + "/gateway.key",
-                  dir + "/ca.pem",          dir + "/governance.p7s", dir + "/permissions.p7s"};
+      sec.path = {dir + "/ca.pem", dir + "/gateway.pem",    dir + "/gateway.key",
+                  dir + "/ca.pem", dir + "/governance.p7s", dir + "/permissions.p7s"};
       s.security = sec;
-      for (const auto& [opt, file] : std::vector<std::pair<std::string, std::string>>{
-               {"--identity-ca", "ca.pem"}, {"--certificate", "app.pem"}, {"--private-key", "app.key"},
-               {"--permissions-ca", "ca.pem"}, {"--governance", "governance.p7s"}, {"--permissions", "permissions.p7s"}}) {
+      for (const auto& [opt, file] :
+           std::vector<std::pair<std::string, std::string>>{{"--identity-ca", "ca.pem"},
+                                                            {"--certificate", "app.pem"},
+                                                            {"--private-key", "app.key"},
+                                                            {"--permissions-ca", "ca.pem"},
+                                                            {"--governance", "governance.p7s"},
+                                                            {"--permissions", "permissions.p7s"}}) {
         sub_argv.push_back(opt);
         sub_argv.push_back(dir + "/" + file);
       }
@@ -122,7 +128,8 @@ int main(int argc, char** argv) {
     // A secure reader matches only after the handshake (authentication, then the keys).
     const auto end = std::chrono::steady_clock::now() + 20s;
     while (dds.joystick_readers() == 0 && std::chrono::steady_clock::now() < end) oegw::test::ChildProcess::pause_ms(5);
-    const std::string name = *protection == 0 ? "DDS" : std::string("DDS ") + (protection[0] == 's' ? "signed" : "encrypted");
+    const std::string name =
+        *protection == 0 ? "DDS" : std::string("DDS ") + (protection[0] == 's' ? "signed" : "encrypted");
     report(name.c_str(), run(dds, sub, warmup, n));
   }
   (void)!std::system(("rm -rf " + sets).c_str());
@@ -130,8 +137,8 @@ int main(int argc, char** argv) {
     oegw::publish::LcmSettings s;
     s.channel_prefix = "B" + tag + "_";
     oegw::publish::LcmPublisher lcm(s);
-    oegw::test::ChildProcess sub({OEGW_LCM_SUBSCRIBER, "--count", total, "--timeout", "120", "--channel",
-                                  s.channel_prefix + "JOYSTICK_[0-9]+"});
+    oegw::test::ChildProcess sub(
+        {OEGW_LCM_SUBSCRIBER, "--count", total, "--timeout", "120", "--channel", s.channel_prefix + "JOYSTICK_[0-9]+"});
     if (sub.read_line(10s) != "ready") return 1;
     report("LCM", run(lcm, sub, warmup, n));
   }

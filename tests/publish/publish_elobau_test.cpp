@@ -19,19 +19,19 @@
 
 #include "canopen/master.hpp"
 #include "dds/dds.h"
+#include "dds_command_writer.hpp"
+#include "oegw.h"
+#include "oegw/indicator_command_t.hpp"
 #include "publish/dds_publisher.hpp"
 #include "publish/lcm_publisher.hpp"
 #include "publish/publish_schedule.hpp"
-#include "oegw.h"
-#include "dds_command_writer.hpp"
-#include "tests/publish/subscriber_lines.hpp"
-#include "oegw/indicator_command_t.hpp"
 #include "subdevices/device_spec.hpp"
 #include "subdevices/network_manager.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/integration/virtual_network.hpp"
 #include "tests/publish/child_process.hpp"
 #include "tests/publish/private_network.hpp"
+#include "tests/publish/subscriber_lines.hpp"
 
 using namespace oegw::canopen;
 using namespace oegw::subdevices;

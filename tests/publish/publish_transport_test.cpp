@@ -12,19 +12,19 @@
 #include <chrono>
 #include <cstdio>
 #include <fstream>
-#include <iterator>
 #include <functional>
+#include <iterator>
 #include <string>
 #include <vector>
 
 #include "dds/dds.h"
+#include "oegw.h"
+#include "oegw/display_command_t.hpp"
+#include "oegw/indicator_command_t.hpp"
 #include "publish/dds_publisher.hpp"
 #include "publish/lcm_publisher.hpp"
 #include "publish/lcm_url.hpp"
 #include "publish/publish_schedule.hpp"
-#include "oegw.h"
-#include "oegw/display_command_t.hpp"
-#include "oegw/indicator_command_t.hpp"
 #include "tests/publish/child_process.hpp"
 #include "tests/publish/private_network.hpp"
 #include "tests/publish/subscriber_lines.hpp"
@@ -125,8 +125,8 @@ TEST(LcmPublisher, ASubscriberInAnotherProcessReceivesExactlyWhatIsPublished) {
   publish::LcmSettings s;
   s.channel_prefix = unique("T") + "_";
   publish::LcmPublisher lcm(s);
-  ChildProcess sub({OEGW_LCM_SUBSCRIBER, "--count", "11", "--timeout", "30", "--channel",
-                    s.channel_prefix + "JOYSTICK_[0-9]+"});
+  ChildProcess sub(
+      {OEGW_LCM_SUBSCRIBER, "--count", "11", "--timeout", "30", "--channel", s.channel_prefix + "JOYSTICK_[0-9]+"});
   ASSERT_EQ(sub.read_line(10s), "ready");
 
   Tee tee(lcm);
@@ -198,16 +198,18 @@ TEST(LcmPublisher, LcmLoggerRecordsASessionThatDecodesWithTheProjectsTypes) {
   ASSERT_EQ(joy_lines.size(), tee.joy.size());
   for (std::size_t i = 0; i < joy_lines.size(); ++i) EXPECT_EQ(joy_lines[i], line_of(tee.joy[i]));
   // The status line, then one per sub-device and per upstream node (examples/lcm_log_decode.cpp).
-  const auto status =
-      std::find(lines.begin(), lines.end(), "status seq=1 upstream=operational subdevices=2 emcys=1 refused=2 active=8130h");
+  const auto status = std::find(lines.begin(), lines.end(),
+                                "status seq=1 upstream=operational subdevices=2 emcys=1 refused=2 active=8130h");
   ASSERT_NE(status, lines.end());
   ASSERT_GE(lines.end() - status, 4);
   // Each sub-device with what its `present` mask says it had at boot (and only that).
-  EXPECT_EQ(status[1],
-            "  subdevice right_grip node=11h state=operational emcys=2 last=1000h reg=00h msef=21 00 ff ff ff ts_us=4100"
-            " vendor=0000012Eh serial=00ABCDEFh name=\"MFG grip\" err=01h");
-  EXPECT_EQ(status[2],
-            "  subdevice pedal node=30h state=missing emcys=0 last=0000h reg=00h msef=00 00 00 00 00 ts_us=0 identity=none");
+  EXPECT_EQ(
+      status[1],
+      "  subdevice right_grip node=11h state=operational emcys=2 last=1000h reg=00h msef=21 00 ff ff ff ts_us=4100"
+      " vendor=0000012Eh serial=00ABCDEFh name=\"MFG grip\" err=01h");
+  EXPECT_EQ(
+      status[2],
+      "  subdevice pedal node=30h state=missing emcys=0 last=0000h reg=00h msef=00 00 00 00 00 ts_us=0 identity=none");
   EXPECT_EQ(status[3], "  upstream_emcy node=05h emcys=1 last=8130h reg=11h msef=01 02 03 04 05 ts_us=5000");
   // The summary (the joystick count includes the probes).
   const std::string rest = " pedal=0 wheel=0 encoder=0 buttons=0 indicators=0 display=0 status=1 other=0 bad=0";
@@ -270,7 +272,8 @@ TEST(DdsPublisher, CommandsSentOverDdsReachTheCallbacks) {
       most_per_poll = std::max(most_per_poll, ind.size() + disp.size() - before);
     }
     return ind.size() == 4 && !disp.empty();
-  })) << "commands not received (fd " << dds.fd() << "): " << ind.size() << " indicator commands";
+  })) << "commands not received (fd "
+      << dds.fd() << "): " << ind.size() << " indicator commands";
   EXPECT_EQ(most_per_poll, 1u);
   EXPECT_EQ(ind[0].instance, 2);
   EXPECT_EQ(ind[0].indicators, 0x8000000000000005ULL);
@@ -324,9 +327,8 @@ TEST(DdsPublisher, AReaderAskingForThePeriodAsDeadlineSeesTheJoystickStop) {
   }));
   // Nothing more is published: the reader is told the instance missed its deadline.
   dds_requested_deadline_missed_status_t st{};
-  ASSERT_TRUE(wait_for([&] {
-    return dds_get_requested_deadline_missed_status(r, &st) == 0 && st.total_count > 0;
-  })) << "no deadline-missed status";
+  ASSERT_TRUE(wait_for([&] { return dds_get_requested_deadline_missed_status(r, &st) == 0 && st.total_count > 0; }))
+      << "no deadline-missed status";
 }
 
 TEST(DdsPublisher, ALateReaderGetsTheLastGatewayStatus) {
@@ -386,7 +388,8 @@ TEST(DdsPublisher, ALateReaderGetsTheLastGatewayStatus) {
   EXPECT_EQ(mcb.identity.present, 0) << "nothing read yet";
   EXPECT_EQ(mcb.last_emcy.code, 0x3120);
   EXPECT_EQ(mcb.last_emcy.error_register, 0x81);
-  EXPECT_EQ(std::vector<std::uint8_t>(mcb.last_emcy.msef, mcb.last_emcy.msef + 5), (std::vector<std::uint8_t>{0, 0x82, 0, 0, 0}));
+  EXPECT_EQ(std::vector<std::uint8_t>(mcb.last_emcy.msef, mcb.last_emcy.msef + 5),
+            (std::vector<std::uint8_t>{0, 0x82, 0, 0, 0}));
   EXPECT_EQ(mcb.last_emcy.timestamp_us, 987654);
   EXPECT_EQ(mcb.emcy_count, 3u);
   ASSERT_EQ(m->upstream_emcys._length, 2u);
@@ -514,8 +517,9 @@ TEST(PublishSettings, AnLcmGroupWithoutARouteIsUnavailableAndNamesTheCommand) {
   bool unavailable = false;
   const std::string e = error_of([&] { publish::LcmPublisher p(s); }, &unavailable);
   EXPECT_TRUE(unavailable) << e;
-  EXPECT_EQ(e, "publish.lcm.url: \"udpm://224.0.0.1:7667?ttl=0\": no route to 224.0.0.1 (Network is unreachable) — add "
-               "one: ip route add 224.0.0.0/4 dev lo");
+  EXPECT_EQ(e,
+            "publish.lcm.url: \"udpm://224.0.0.1:7667?ttl=0\": no route to 224.0.0.1 (Network is unreachable) — add "
+            "one: ip route add 224.0.0.0/4 dev lo");
   EXPECT_EQ(publish::lcm_route_problem(s.url), "no route to 224.0.0.1 (Network is unreachable)");
 }
 

@@ -20,8 +20,8 @@ inline std::string line_of(const gateway::JoystickSample& j) {
   char b[256];
   std::snprintf(b, sizeof b,
                 "joystick instance=%u status=%s seq=%u ts_us=%lld x=%d y=%d z=%d buttons=0x%02x memory=0x%02x",
-                j.h.instance, status_name(j.h.status), j.h.seq, static_cast<long long>(j.h.timestamp_us), j.x, j.y,
-                j.z, j.buttons, j.memory);
+                j.h.instance, status_name(j.h.status), j.h.seq, static_cast<long long>(j.h.timestamp_us), j.x, j.y, j.z,
+                j.buttons, j.memory);
   return b;
 }
 inline std::string without_rx(const std::string& l) { return l.substr(0, l.find(" rx_us=")); }

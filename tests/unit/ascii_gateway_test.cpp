@@ -21,9 +21,7 @@ std::string refused(std::string_view line, const Defaults& d = {}) {
   EXPECT_EQ(p.kind, Parsed::Kind::Error) << line;
   return answer_error(p.request.sequence.value_or(0), p.error, p.message);
 }
-Bytes written(std::string_view type_and_value) {
-  return ok("[1] 1 5 w 0x2000 1 " + std::string(type_and_value)).data;
-}
+Bytes written(std::string_view type_and_value) { return ok("[1] 1 5 w 0x2000 1 " + std::string(type_and_value)).data; }
 
 TEST(AsciiGateway, ReadAsCoctlDocumentsIt) {
   // lely coctl.md's session: "[5] r 0x1018 0x01 u32" after `set network 1`, `set node 2`
@@ -65,7 +63,8 @@ TEST(AsciiGateway, EveryTypeWritten) {
   EXPECT_EQ(written("i64 -9223372036854775808"), (Bytes{0, 0, 0, 0, 0, 0, 0, 0x80}));
   EXPECT_EQ(written("r32 1.5"), (Bytes{0x00, 0x00, 0xC0, 0x3F}));
   EXPECT_EQ(written("r64 -2"), (Bytes{0, 0, 0, 0, 0, 0, 0, 0xC0}));
-  EXPECT_EQ(written("vs \"Hello, \"\"World\"\"!\""), (Bytes{'H', 'e', 'l', 'l', 'o', ',', ' ', '"', 'W', 'o', 'r', 'l', 'd', '"', '!'}));
+  EXPECT_EQ(written("vs \"Hello, \"\"World\"\"!\""),
+            (Bytes{'H', 'e', 'l', 'l', 'o', ',', ' ', '"', 'W', 'o', 'r', 'l', 'd', '"', '!'}));
   EXPECT_EQ(written("vs two words"), (Bytes{'t', 'w', 'o', ' ', 'w', 'o', 'r', 'd', 's'}));
   EXPECT_EQ(written("os AQID"), (Bytes{1, 2, 3}));
   EXPECT_EQ(written("d AAE="), (Bytes{0, 1}));
@@ -140,19 +139,27 @@ TEST(AsciiGateway, AnswersAndEvents) {
 }
 
 TEST(AsciiGateway, BadLinesGetExactErrors) {
-  EXPECT_EQ(refused("[1] r 0x1018 1 u32"), "[1] ERROR: 104 (No default net set: give the network and node before the command or `set network N` first)");
+  EXPECT_EQ(
+      refused("[1] r 0x1018 1 u32"),
+      "[1] ERROR: 104 (No default net set: give the network and node before the command or `set network N` first)");
   EXPECT_EQ(refused("[2] r 0x1018 1 u32", Defaults{2, {}}),
             "[2] ERROR: 105 (No default node set: give the node before the command or `set node N` first)");
   EXPECT_EQ(refused("[3] 2 200 r 0x1018 1 u32"), "[3] ERROR: 107 (Unsupported node: node 200 (1..127))");
   EXPECT_EQ(refused("[4] 300 5 r 0x1018 1 u32"), "[4] ERROR: 106 (Unsupported net: network 300 (1..127))");
   EXPECT_EQ(refused("[5] 2 5 r 0x1018 1 u9"),
-            "[5] ERROR: 101 (Syntax error: 'u9' is no data type; one of b, u8, u16, u32, u64, i8, i16, i32, i64, r32, r64, vs, os, d)");
-  EXPECT_EQ(refused("[6] 2 5 r 0x10000 1 u8"), "[6] ERROR: 101 (Syntax error: index 0x10000 is out of range (0..65535))");
-  EXPECT_EQ(refused("[7] 2 5 r 0x1018 256 u8"), "[7] ERROR: 101 (Syntax error: sub-index 256 is out of range (0..255))");
-  EXPECT_EQ(refused("[8] 2 5 r 0x1018 1"), "[8] ERROR: 101 (Syntax error: expected r[ead] <index> <sub-index> <data type>)");
+            "[5] ERROR: 101 (Syntax error: 'u9' is no data type; one of b, u8, u16, u32, u64, i8, i16, i32, i64, r32, "
+            "r64, vs, os, d)");
+  EXPECT_EQ(refused("[6] 2 5 r 0x10000 1 u8"),
+            "[6] ERROR: 101 (Syntax error: index 0x10000 is out of range (0..65535))");
+  EXPECT_EQ(refused("[7] 2 5 r 0x1018 256 u8"),
+            "[7] ERROR: 101 (Syntax error: sub-index 256 is out of range (0..255))");
+  EXPECT_EQ(refused("[8] 2 5 r 0x1018 1"),
+            "[8] ERROR: 101 (Syntax error: expected r[ead] <index> <sub-index> <data type>)");
   EXPECT_EQ(refused("[9] 2 5 w 0x2000 1 u8 256"), "[9] ERROR: 101 (Syntax error: 256 is out of range for u8 (0..255))");
-  EXPECT_EQ(refused("[10] 2 5 w 0x2000 1 i8 -129"), "[10] ERROR: 101 (Syntax error: -129 is out of range for i8 (-128..127))");
-  EXPECT_EQ(refused("[11] 2 5 w 0x2000 1 u16 -1"), "[11] ERROR: 101 (Syntax error: -1 is out of range for u16 (0..65535))");
+  EXPECT_EQ(refused("[10] 2 5 w 0x2000 1 i8 -129"),
+            "[10] ERROR: 101 (Syntax error: -129 is out of range for i8 (-128..127))");
+  EXPECT_EQ(refused("[11] 2 5 w 0x2000 1 u16 -1"),
+            "[11] ERROR: 101 (Syntax error: -1 is out of range for u16 (0..65535))");
   EXPECT_EQ(refused("[12] 2 5 w 0x2000 1 u32 12abc"),
             "[12] ERROR: 101 (Syntax error: '12abc' is no u32 value (a number such as 5, -5 or 0x1F))");
   EXPECT_EQ(refused("[13] 2 5 w 0x2000 1 r32 fast"),
@@ -160,28 +167,36 @@ TEST(AsciiGateway, BadLinesGetExactErrors) {
   EXPECT_EQ(refused("[14] 2 5 w 0x2000 1 r32 1e39"), "[14] ERROR: 101 (Syntax error: 1e39 is out of range for r32)");
   EXPECT_EQ(refused("[15] 2 5 w 0x2000 1 os AQ*D"),
             "[15] ERROR: 101 (Syntax error: 'AQ*D' is no MIME Base64 text (RFC 2045), as os values are written)");
-  EXPECT_EQ(refused("[16] 2 5 w 0x2000 1 vs \"open"), "[16] ERROR: 101 (Syntax error: a string opened with \" is not closed)");
-  EXPECT_EQ(refused("[28] 2 5 w 0x2000 1 vs \"a\" b"), "[28] ERROR: 101 (Syntax error: text after the quoted vs value)");
+  EXPECT_EQ(refused("[16] 2 5 w 0x2000 1 vs \"open"),
+            "[16] ERROR: 101 (Syntax error: a string opened with \" is not closed)");
+  EXPECT_EQ(refused("[28] 2 5 w 0x2000 1 vs \"a\" b"),
+            "[28] ERROR: 101 (Syntax error: text after the quoted vs value)");
   EXPECT_EQ(refused("[29] 2 5 w 0x2000 1 vs a \"b\""),
             "[29] ERROR: 101 (Syntax error: a vs value is one quoted string or unquoted words)");
-  EXPECT_EQ(refused("[17] 2 5 w 0x2000 1 u8 1 2"), "[17] ERROR: 101 (Syntax error: a u8 value is one token; text follows '1')");
-  EXPECT_EQ(refused("[18] 2 5 fly"),
-            "[18] ERROR: 100 (Request not supported: no command 'fly'; this gateway has r[ead], w[rite], start, stop, "
-            "preop[erational], reset node, reset comm[unication], set network, set node, set sdo_timeout, info version, "
-            "lss_switch_glob, lss_switch_sel, lss_set_node, lss_conf_bitrate, lss_activate_bitrate, lss_store, "
-            "lss_inquire_addr, lss_get_node, lss_identity, lss_ident_nonconf, _lss_fastscan, _lss_slowscan)");
+  EXPECT_EQ(refused("[17] 2 5 w 0x2000 1 u8 1 2"),
+            "[17] ERROR: 101 (Syntax error: a u8 value is one token; text follows '1')");
+  EXPECT_EQ(
+      refused("[18] 2 5 fly"),
+      "[18] ERROR: 100 (Request not supported: no command 'fly'; this gateway has r[ead], w[rite], start, stop, "
+      "preop[erational], reset node, reset comm[unication], set network, set node, set sdo_timeout, info version, "
+      "lss_switch_glob, lss_switch_sel, lss_set_node, lss_conf_bitrate, lss_activate_bitrate, lss_store, "
+      "lss_inquire_addr, lss_get_node, lss_identity, lss_ident_nonconf, _lss_fastscan, _lss_slowscan)");
   EXPECT_EQ(refused("[19] 2 0 start"), "[19] ERROR: 100 (Request not supported: node 0 (all nodes): name each node)");
   EXPECT_EQ(refused("[20] set network 0"), "[20] ERROR: 101 (Syntax error: network 0 is out of range (1..127))");
   EXPECT_EQ(refused("[21] set sdo_timeout 0", Defaults{2, {}}),
             "[21] ERROR: 101 (Syntax error: SDO time-out in ms 0 is out of range (1..65535))");
   EXPECT_EQ(refused("[22] set heartbeat 100"),
-            "[22] ERROR: 100 (Request not supported: `set heartbeat`; this gateway has set network, set node, set sdo_timeout)");
+            "[22] ERROR: 100 (Request not supported: `set heartbeat`; this gateway has set network, set node, set "
+            "sdo_timeout)");
   EXPECT_EQ(refused("[23] reset"), "[23] ERROR: 101 (Syntax error: expected `reset node` or `reset comm[unication]`)");
-  EXPECT_EQ(refused("[x] info version"), "[0] ERROR: 101 (Syntax error: 'x' is no sequence number (a number such as 5 or 0x1018))");
+  EXPECT_EQ(refused("[x] info version"),
+            "[0] ERROR: 101 (Syntax error: 'x' is no sequence number (a number such as 5 or 0x1018))");
   EXPECT_EQ(refused("[24"), "[0] ERROR: 101 (Syntax error: '[' opens a sequence number but no ']' closes it)");
   EXPECT_EQ(refused("[25]"), "[25] ERROR: 101 (Syntax error: a sequence number and no command)");
-  EXPECT_EQ(refused("[26] 1 2 3 r 0x1000 0 u32"), "[26] ERROR: 101 (Syntax error: more than two numbers (network and node) before the command)");
-  EXPECT_EQ(refused("[27] 2 info version"), "[27] ERROR: 101 (Syntax error: `info version` takes no network or node before it)");
+  EXPECT_EQ(refused("[26] 1 2 3 r 0x1000 0 u32"),
+            "[26] ERROR: 101 (Syntax error: more than two numbers (network and node) before the command)");
+  EXPECT_EQ(refused("[27] 2 info version"),
+            "[27] ERROR: 101 (Syntax error: `info version` takes no network or node before it)");
 }
 
 // The LSS commands as CANopenNode's CO_gateway_ascii.c help text and lely's coctl.md spell them
@@ -245,7 +260,8 @@ TEST(AsciiGateway, LssCommandsWithBadArguments) {
   const Defaults d{2, {}};
   EXPECT_EQ(refused("[1] lss_store"),
             "[1] ERROR: 104 (No default net set: give the network before the command or `set network N` first)");
-  EXPECT_EQ(refused("[2] 2 17 lss_store"), "[2] ERROR: 101 (Syntax error: 'lss_store' takes a network number only, not a node)");
+  EXPECT_EQ(refused("[2] 2 17 lss_store"),
+            "[2] ERROR: 101 (Syntax error: 'lss_store' takes a network number only, not a node)");
   EXPECT_EQ(refused("[3] 200 lss_store"), "[3] ERROR: 106 (Unsupported net: network 200 (1..127))");
   EXPECT_EQ(refused("[4] lss_switch_glob 2", d),
             "[4] ERROR: 101 (Syntax error: expected lss_switch_glob 0|1 (0 waiting, 1 configuration))");
@@ -258,7 +274,8 @@ TEST(AsciiGateway, LssCommandsWithBadArguments) {
             "<product code> <revision> <serial>)");
   EXPECT_EQ(refused("[8] lss_set_node 0", d), "[8] ERROR: 101 (Syntax error: node-ID '0': 1..127, or 255 (none))");
   EXPECT_EQ(refused("[9] lss_set_node 128", d), "[9] ERROR: 101 (Syntax error: node-ID '128': 1..127, or 255 (none))");
-  EXPECT_EQ(refused("[10] lss_set_node", d), "[10] ERROR: 101 (Syntax error: expected lss_set_node <node-ID 1..127, or 255: none>)");
+  EXPECT_EQ(refused("[10] lss_set_node", d),
+            "[10] ERROR: 101 (Syntax error: expected lss_set_node <node-ID 1..127, or 255: none>)");
   EXPECT_EQ(refused("[11] lss_conf_bitrate 3", d),
             "[11] ERROR: 101 (Syntax error: expected lss_conf_bitrate 0 <table index: 0 1000, 1 800, 2 500, 3 250, 4 "
             "125, 6 50, 7 20, 8 10 kbit/s>)");
@@ -287,13 +304,15 @@ TEST(AsciiGateway, LssCommandsWithBadArguments) {
   EXPECT_EQ(refused("[23] lss_identity 0x360 0 0 0 0", d),
             "[23] ERROR: 101 (Syntax error: expected lss_identity <vendor-ID> <product code> <revision low> <revision "
             "high> <serial low> <serial high>)");
-  EXPECT_EQ(refused("[24] _lss_slowscan 0x360 0 5 4 0 0", d),
-            "[24] ERROR: 101 (Syntax error: a range's low end above its high end (revision low..high, serial low..high))");
+  EXPECT_EQ(
+      refused("[24] _lss_slowscan 0x360 0 5 4 0 0", d),
+      "[24] ERROR: 101 (Syntax error: a range's low end above its high end (revision low..high, serial low..high))");
   EXPECT_EQ(refused("[25] _lss_fastscan 0 0 0 0 0 0 0 0x1FFFFFFFF", d),
             "[25] ERROR: 101 (Syntax error: '0x1FFFFFFFF' is no 32-bit number; " + fastscan_usage);
   EXPECT_EQ(answer_error(21, GatewayError::LssNodeIdNotSupported, "configure node-ID refused with LSS error code 1"),
             "[21] ERROR: 502 (LSS node-ID not supported: configure node-ID refused with LSS error code 1)");
-  EXPECT_EQ(answer_error(22, GatewayError::LssMediaError), "[22] ERROR: 505 (LSS command failed because of media error)");
+  EXPECT_EQ(answer_error(22, GatewayError::LssMediaError),
+            "[22] ERROR: 505 (LSS command failed because of media error)");
 }
 
 }  // namespace

@@ -41,10 +41,12 @@ TEST(BusLoad, OneElobauGripIsItsHeartbeatAndTwoTpdosEvery100Ms) {
   EXPECT_DOUBLE_EQ(p.upstream.bits_per_second(), 590.0);
   // TPDO #0's 2 ms inhibit time bounds its change-driven frames: listed, not counted.
   bool listed = false;
-  for (const auto& c : p.downstream.on_change) listed = listed || (c.find("191h") != std::string::npos && c.find("at most 500/s") != std::string::npos);
+  for (const auto& c : p.downstream.on_change)
+    listed = listed || (c.find("191h") != std::string::npos && c.find("at most 500/s") != std::string::npos);
   EXPECT_TRUE(listed);
   const std::string text = gateway::describe_bus_load(p.downstream, "downstream");
-  EXPECT_NE(text.find("downstream 1000000 bit/s: 0.3 % steady state (30.0 frames/s, 3280 bit/s"), std::string::npos) << text;
+  EXPECT_NE(text.find("downstream 1000000 bit/s: 0.3 % steady state (30.0 frames/s, 3280 bit/s"), std::string::npos)
+      << text;
   EXPECT_EQ(text.find("warning"), std::string::npos) << text;
 }
 
@@ -52,7 +54,9 @@ TEST(BusLoad, TheMappingFilesSdoWritesAndSyncCountAndAnOverloadedBusWarns) {
   std::string yaml = fixtures::mapping_file("one_grip.yaml");
   // 20 kbit/s, SYNC every 10 ms, the grip's cycle 20 ms, and TPDO #1 made synchronous (type 2:
   // every second SYNC) by the `sdo` list, which the boot writes after the driver's own.
-  yaml = fixtures::replace_all(yaml, "  bitrate: 1000000\nsubdevices:", "  bitrate: 20000\n  sync_period_ms: 10\nsubdevices:");
+  yaml =
+      fixtures::replace_all(yaml,
+                            "  bitrate: 1000000\nsubdevices:", "  bitrate: 20000\n  sync_period_ms: 10\nsubdevices:");
   yaml = fixtures::replace_all(yaml, "mandatory: true }",
                                "mandatory: true, options: { cycle_ms: 20 },\n"
                                "          sdo: [ { index: 0x1801, sub_index: 2, value: 2, type: u8 } ] }");
@@ -61,8 +65,7 @@ TEST(BusLoad, TheMappingFilesSdoWritesAndSyncCountAndAnOverloadedBusWarns) {
   // 2 x 10 ms) = 5,100 + 580 + 6,750 + 6,750 = 19,180 bit/s: 95.9 % of 20 kbit/s.
   EXPECT_DOUBLE_EQ(p.downstream.bits_per_second(), 19180.0);
   const std::string text = gateway::describe_bus_load(p.downstream, "downstream");
-  EXPECT_NE(text.find("warning: the downstream bus is 95.9 %"), std::string::npos)
-      << text;
+  EXPECT_NE(text.find("warning: the downstream bus is 95.9 %"), std::string::npos) << text;
   EXPECT_NE(text.find("grip1 TPDO 291h, 8 bytes, every 2 SYNC"), std::string::npos) << text;
 }
 

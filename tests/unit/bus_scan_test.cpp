@@ -56,9 +56,9 @@ struct Harness {
   explicit Harness(ScanConfig c) : cfg(c) {}
 
   void add_lss(const Address& a) {
-    lss.push_back(std::make_unique<canopen::LssSlave>(a, NodeId::unconfigured_id(), 3,
-                                                      [this](const CanFrame& f) { to_scanner.push_back(f); },
-                                                      canopen::LssSlave::Callbacks{}));
+    lss.push_back(std::make_unique<canopen::LssSlave>(
+        a, NodeId::unconfigured_id(), 3, [this](const CanFrame& f) { to_scanner.push_back(f); },
+        canopen::LssSlave::Callbacks{}));
   }
 
   void deliver() {
@@ -150,8 +150,13 @@ TEST(BusScan, ANodeThatAnswersIsReadAndFreesItsSlotAtOnce) {
   Harness h(quiet(1));
   h.cfg.first = 5;
   h.cfg.last = 7;
-  h.nodes.push_back({5, {{{0x1000, 0}, 0x00020196}, {{0x1018, 1}, 0x182}, {{0x1018, 2}, 0x0BB9},
-                         {{0x1018, 3}, 0x10003}, {{0x1018, 4}, 123456789}, {{0x1017, 0}, 50}}});
+  h.nodes.push_back({5,
+                     {{{0x1000, 0}, 0x00020196},
+                      {{0x1018, 1}, 0x182},
+                      {{0x1018, 2}, 0x0BB9},
+                      {{0x1018, 3}, 0x10003},
+                      {{0x1018, 4}, 123456789},
+                      {{0x1017, 0}, 50}}});
   ASSERT_TRUE(h.run());
   // Node 5 answered at once; 6 and 7 each waited for one time-out.
   EXPECT_EQ(h.now, TimePoint{} + 200ms);
@@ -173,8 +178,8 @@ TEST(BusScan, AnAbortLeavesOneValueUnknownAndTheReadGoesOn) {
   // CO4013A: 1018h sub-index 0 = 3, no serial number; 1017h absent here too.
   Harness h(quiet(8));
   h.cfg.last = 10;
-  h.nodes.push_back({3, {{{0x1000, 0}, 0x01070191}, {{0x1018, 1}, 0x58}, {{0x1018, 2}, 0x01040131},
-                         {{0x1018, 3}, 0x00010002}}});
+  h.nodes.push_back(
+      {3, {{{0x1000, 0}, 0x01070191}, {{0x1018, 1}, 0x58}, {{0x1018, 2}, 0x01040131}, {{0x1018, 3}, 0x00010002}}});
   ASSERT_TRUE(h.run());
   const ScanResult r = h.scanner->result();
   ASSERT_EQ(r.nodes.size(), 1u);
@@ -189,9 +194,8 @@ TEST(BusScan, ALaterTimeOutLeavesOneValueUnknownAndTheReadGoesOn) {
   // product (so no family from them), the later reads made.
   Harness h(quiet(1));
   h.cfg.first = h.cfg.last = 3;
-  h.nodes.push_back({3,
-                     {{{0x1000, 0}, 0x01070191}, {{0x1018, 3}, 0x00010002}, {{0x1017, 0}, 100}},
-                     {{0x1018, 1}, {0x1018, 2}}});
+  h.nodes.push_back(
+      {3, {{{0x1000, 0}, 0x01070191}, {{0x1018, 3}, 0x00010002}, {{0x1017, 0}, 100}}, {{0x1018, 1}, {0x1018, 2}}});
   ASSERT_TRUE(h.run());
   EXPECT_EQ(h.now, TimePoint{} + 200ms);  // two time-outs
   const ScanResult r = h.scanner->result();

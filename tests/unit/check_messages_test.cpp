@@ -31,7 +31,8 @@ mapping::LoadResult load(const std::string& text, std::optional<std::filesystem:
   return mapping::load_config_text(text, "c.yaml", gateway::driver_catalogue(), std::move(base));
 }
 
-const std::string kHead = "upstream: { interface: can0, node_id: 0x20 }\ndownstream: { interface: can1 }\nsubdevices:\n";
+const std::string kHead =
+    "upstream: { interface: can0, node_id: 0x20 }\ndownstream: { interface: can1 }\nsubdevices:\n";
 
 // A folder of its own for the files a test writes, removed after it.
 class Folder {
@@ -114,8 +115,9 @@ functional_elements:
 
 // A bit given twice in the MCB-402's button_bits names the bit and both positions.
 TEST(CheckMessages, ARepeatedButtonBitNamesTheBitAndBothPositions) {
-  const auto r = load(kHead + "  base: { driver: mcb402, node_id: 0x03, options: { button_bits: [1, 2, 3, 3, 4, 5, 6] } }\n"
-                              "functional_elements: {}\n");
+  const auto r = load(kHead +
+                      "  base: { driver: mcb402, node_id: 0x03, options: { button_bits: [1, 2, 3, 3, 4, 5, 6] } }\n"
+                      "functional_elements: {}\n");
   EXPECT_THAT(errors(r),
               ElementsAre("c.yaml:4:66: driver mcb402 refused sub-device 'base': mcb402: button_bits '1,2,3,3,4,5,6': "
                           "bit 3 is given twice, at positions 3 and 4 (BP3 and BP4); expected 7 distinct bit numbers "

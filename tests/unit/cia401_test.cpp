@@ -34,8 +34,8 @@ struct Fixture {
 
   explicit Fixture(const std::string& eds_path) {
     std::string error;
-    auto d = make_cia401_driver(kNode, [this](const CanFrame& f) { sent.push_back(f); },
-                                DriverOptions{{{"eds", eds_path}}}, error);
+    auto d = make_cia401_driver(
+        kNode, [this](const CanFrame& f) { sent.push_back(f); }, DriverOptions{{{"eds", eds_path}}}, error);
     EXPECT_TRUE(d) << error;
     drv.reset(static_cast<Cia401Driver*>(d.release()));
     drv->on_change = [this](std::size_t i, const SignalValue& v) { changes.emplace_back(i, v); };
@@ -117,8 +117,8 @@ TEST(Cia401, FactoryOptionsAndEdsErrors) {
     f << "[MandatoryObjects]\nSupportedObjects=1\n1=0x1000\n";
   }
   EXPECT_EQ(make_cia401_driver(kNode, {}, DriverOptions{{{"eds", bad.string()}}}, error), nullptr);
-  EXPECT_EQ(error, "cia401: " + bad.string() +
-                       ":3: expected a section [1000] for the object listed in [MandatoryObjects]");
+  EXPECT_EQ(error,
+            "cia401: " + bad.string() + ":3: expected a section [1000] for the object listed in [MandatoryObjects]");
   std::filesystem::remove(bad);
   auto ok = make_cia401_driver(kNode, {}, DriverOptions{{{"eds", kPedal}}}, error);
   ASSERT_NE(ok, nullptr);
@@ -334,7 +334,8 @@ TEST(Cia401, EmcyErrorsPutInputsInErrorUntilResetOrGoodValue) {
   EXPECT_EQ(f.val("in[1]"), 0);
   d = f.drv->on_emcy(EmcyMessage{kNode, 0x0000, 0x00, {}}, t0);
   EXPECT_FALSE(d.error);
-  EXPECT_EQ(f.status("analog[1]"), SignalStatus::Offline) << "no longer Error; no value until the next PDO (a PDO sent on change only is never overdue)";
+  EXPECT_EQ(f.status("analog[1]"), SignalStatus::Offline)
+      << "no longer Error; no value until the next PDO (a PDO sent on change only is never overdue)";
   EXPECT_EQ(f.val("analog[1]"), 0);
   ASSERT_TRUE(f.drv->on_frame(CanFrame(0x1A1, {0x10, 0x00, 0x20, 0x00, 0x01}), t0));
   EXPECT_EQ(f.status("analog[1]"), SignalStatus::Valid);
@@ -390,9 +391,9 @@ TEST(Cia401, ErrorRegisterReadBackAtEveryBootDecidesTheFaults) {
     Bytes answer;
     bool faulted;  // after the read-back, with the faults set before
   };
-  for (const Case& c : {Case{Bytes{0x01}, true}, Case{Bytes{0x80}, true}, Case{Bytes{0x00, 0x00}, true},
-                        Case{Bytes{}, true}, Case{Bytes{0x11}, false}, Case{Bytes{0x10}, false},
-                        Case{Bytes{0x00}, false}}) {
+  for (const Case& c :
+       {Case{Bytes{0x01}, true}, Case{Bytes{0x80}, true}, Case{Bytes{0x00, 0x00}, true}, Case{Bytes{}, true},
+        Case{Bytes{0x11}, false}, Case{Bytes{0x10}, false}, Case{Bytes{0x00}, false}}) {
     SCOPED_TRACE(testing::Message() << c.answer.size() << " bytes, first " << (c.answer.empty() ? -1 : c.answer[0]));
     (void)f.drv->on_emcy(EmcyMessage{kNode, 0x5000, 0x81, {}}, t0);
     ASSERT_TRUE(f.drv->any_fault());
@@ -429,8 +430,8 @@ TEST(Cia401, RandomMappingAnswersAndFramesStayWithinRanges) {
     seed = seed * 1664525u + 1013904223u;
     return seed >> 8;
   };
-  const std::uint32_t useful[] = {0x60000108, 0x60000208, 0x61200120, 0x64010110, 0x62000108, 0x64110110,
-                                  0x00050008, 0x60000110};
+  const std::uint32_t useful[] = {0x60000108, 0x60000208, 0x61200120, 0x64010110,
+                                  0x62000108, 0x64110110, 0x00050008, 0x60000110};
   for (int round = 0; round < 300; ++round) {
     f.drv->reset_mapping();
     for (int guard = 0; guard < 10 && !f.drv->mapping_complete(); ++guard) {

@@ -35,7 +35,8 @@ mapping::Config config() {
   b.sources = mapping::kAllCommandSources;  // written out: LCM is opt-in (mapping/config.hpp)
   mapping::FunctionalElementConfig d;
   d.id = kDisplay1;
-  d.sources = static_cast<mapping::CommandSources>(CommandSource::Canopen) | static_cast<mapping::CommandSources>(CommandSource::Lcm);
+  d.sources = static_cast<mapping::CommandSources>(CommandSource::Canopen) |
+              static_cast<mapping::CommandSources>(CommandSource::Lcm);
   c.functional_elements = {a, b, d};
   return c;
 }
@@ -138,7 +139,8 @@ TEST(CommandArbiter, ASilentCommanderGivesTheErrorValuesUntilTheNextCommand) {
   r.now += 1ms;
   r.arbiter.advance(r.now);
   EXPECT_EQ(r.leds(kLeds1), 0xF3u) << "indicators 1..4 take 6207h, 5..8 keep their value";
-  EXPECT_EQ(r.log.back(), "indicators.1: no command for 100 ms: outputs set to their error values until the next command");
+  EXPECT_EQ(r.log.back(),
+            "indicators.1: no command for 100 ms: outputs set to their error values until the next command");
   EXPECT_FALSE(r.arbiter.next_deadline()) << "indicators.2 and display.1 have no watchdog";
   // The host rewrites the error value meanwhile: the silent FE follows it.
   (void)r.device.od().set<std::uint8_t>(0x6207, 0x01, 0x00, canopen::Origin::Sdo);

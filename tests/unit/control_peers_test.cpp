@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
-#include "gateway/control/control_server.hpp"
 #include "cli/status_command.hpp"
+#include "gateway/control/control_server.hpp"
 
 using namespace oegw::canopen;
 using namespace oegw::canopen::io;
@@ -72,8 +72,9 @@ class ControlPeers : public ::testing::Test {
         EXPECT_EQ(std::system((std::string("groupadd --system ") + kGroup).c_str()), 0);
       }
       if (::getpwnam(kPeer) == nullptr) {
-        EXPECT_EQ(std::system((std::string("useradd --system --no-create-home --user-group --shell /usr/sbin/nologin ") +
-                               kPeer).c_str()),
+        EXPECT_EQ(std::system(
+                      (std::string("useradd --system --no-create-home --user-group --shell /usr/sbin/nologin ") + kPeer)
+                          .c_str()),
                   0);
       }
       ::close(lock);  // ends the lock
@@ -160,8 +161,10 @@ TEST_F(ControlPeers, TheSocketFileKeepsOutAUserNotInTheGroupAndLetsAMemberIn) {
   auto server = serve(group_);
   Outcome r = ask_as({peer_uid_, peer_gid_, {}});
   EXPECT_EQ(r.exit_code, kStatusPermission) << r.err;
-  EXPECT_NE(r.err.find("permission denied on " + path_ + " (root:" + kGroup + ", mode 0660): ask as root or as a member "
-                       "of group " + kGroup),
+  EXPECT_NE(r.err.find("permission denied on " + path_ + " (root:" + kGroup +
+                       ", mode 0660): ask as root or as a member "
+                       "of group " +
+                       kGroup),
             std::string::npos)
       << r.err;
   EXPECT_EQ(server->refused(), 0u) << "the kernel refused the connect(): the server never saw it";
@@ -204,7 +207,7 @@ TEST_F(ControlPeers, BehindAWidenedModeTheServerRefusesANonMemberWithTheReasonAn
 
 TEST_F(ControlPeers, WithoutAGroupOnlyRootIsAnswered) {
   auto server = serve(std::nullopt);
-  struct stat st{};
+  struct stat st {};
   ASSERT_EQ(::lstat(path_.c_str(), &st), 0);
   EXPECT_EQ(st.st_mode & 0777, 0600u);
   EXPECT_EQ(ask_as({peer_uid_, peer_gid_, {group_}}).exit_code, kStatusPermission) << "the file's mode";

@@ -86,7 +86,7 @@ class ControlServerTest : public ::testing::Test {
 
 TEST_F(ControlServerTest, AnswersEachRequestLineInOrderAndRemovesItsSocketAtTheEnd) {
   auto server = serve();
-  struct stat st{};
+  struct stat st {};
   ASSERT_EQ(::lstat(path_.c_str(), &st), 0);
   EXPECT_TRUE(S_ISSOCK(st.st_mode));
   EXPECT_EQ(st.st_mode & 0777, 0600u) << "without control.group: its owner's only";
@@ -112,7 +112,7 @@ TEST_F(ControlServerTest, TheGroupGetsTheSocketWithMode0660) {
   auto s = settings();
   s.group = ::getgid();  // a group this process may give its files to
   ControlServer server(loop_, s, [](std::string_view) { return std::string("x"); });
-  struct stat st{};
+  struct stat st {};
   ASSERT_EQ(::lstat(path_.c_str(), &st), 0);
   EXPECT_EQ(st.st_mode & 0777, 0660u);
   EXPECT_EQ(st.st_gid, ::getgid());
@@ -133,8 +133,9 @@ TEST_F(ControlServerTest, AStaleSocketIsReplacedAndALiveOneIsNeverTaken) {
     auto second = serve();
     FAIL() << "a second server took a live socket";
   } catch (const ControlError& e) {
-    EXPECT_EQ(std::string(e.what()), "test.yaml: control.socket: " + path_ + " is served by a running gateway (`oegw status --socket " +
-                                         path_ + "` asks it); stop that one first, or give this gateway its own control.socket");
+    EXPECT_EQ(std::string(e.what()),
+              "test.yaml: control.socket: " + path_ + " is served by a running gateway (`oegw status --socket " +
+                  path_ + "` asks it); stop that one first, or give this gateway its own control.socket");
   }
   const int fd = connect_client();  // the first still answers on its file
   send_text(fd, "still\n");
@@ -150,8 +151,9 @@ TEST_F(ControlServerTest, AFileThatIsNoSocketIsRefusedAndKept) {
         try {
           serve();
         } catch (const ControlError& e) {
-          EXPECT_EQ(std::string(e.what()), "test.yaml: control.socket: " + path_ +
-                                               " exists and is not a socket; remove it or choose another control.socket");
+          EXPECT_EQ(std::string(e.what()),
+                    "test.yaml: control.socket: " + path_ +
+                        " exists and is not a socket; remove it or choose another control.socket");
           throw;
         }
       },
@@ -266,12 +268,12 @@ TEST_F(ControlServerTest, ASilentClientIsDroppedAfterTheIdleTimeout) {
 // and more requests waiting than the bound are answered busy in their turn.
 TEST_F(ControlServerTest, LaterAnswersGoOutInRequestOrder) {
   std::vector<ControlServer::Reply> later;
-  auto server = std::make_unique<ControlServer>(
-      loop_, settings(ControlLimits{.max_waiting = 2, .idle_timeout = 30s}),
-      ControlServer::AsyncHandler([&later](std::string_view line, ControlServer::Reply reply) {
-        if (line == "now") return reply("at once");
-        later.push_back(std::move(reply));
-      }));
+  auto server = std::make_unique<ControlServer>(loop_, settings(ControlLimits{.max_waiting = 2, .idle_timeout = 30s}),
+                                                ControlServer::AsyncHandler(
+                                                    [&later](std::string_view line, ControlServer::Reply reply) {
+                                                      if (line == "now") return reply("at once");
+                                                      later.push_back(std::move(reply));
+                                                    }));
   const int fd = connect_client();
   send_text(fd, "slow\nnow\nslow\nnow\n");
   serve_io();

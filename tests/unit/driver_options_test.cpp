@@ -8,8 +8,8 @@
 
 #include <string>
 
-#include "subdevices/mcb402.hpp"
 #include "subdevices/elobau_mfg.hpp"
+#include "subdevices/mcb402.hpp"
 #include "subdevices/novotechnik_406.hpp"
 
 namespace oegw::subdevices {
@@ -160,7 +160,8 @@ TEST(DriverOptionTables, ThePlaceholderOfARequiredOptionIsRefusedWithHowToFindIt
 TEST(DriverOptionTables, EveryRefusalIsCollectedWithItsOption) {
   OptionRefusals refusals;
   EXPECT_EQ(make_driver("elobau-mfg", kNode, {},
-                        DriverOptions{{{"channel_tolerance", "200"}, {"detent", "round"}, {"colour", "red"}}}, refusals),
+                        DriverOptions{{{"channel_tolerance", "200"}, {"detent", "round"}, {"colour", "red"}}},
+                        refusals),
             nullptr);
   ASSERT_EQ(refusals.size(), 3u);
   EXPECT_EQ(refusals[0].option, "colour");
@@ -173,8 +174,9 @@ TEST(DriverOptionTables, EveryRefusalIsCollectedWithItsOption) {
   EXPECT_EQ(make_driver("elobau-mfg", kNode, {}, DriverOptions{{{"channel_tolerance", "200"}, {"detent", "round"}}},
                         error),
             nullptr);
-  EXPECT_EQ(error, "elobau-mfg: channel_tolerance '200' is not an integer 0..100 (percent)\n"
-                   "elobau-mfg: detent 'round' must be 'pass' or 'clamp'");
+  EXPECT_EQ(error,
+            "elobau-mfg: channel_tolerance '200' is not an integer 0..100 (percent)\n"
+            "elobau-mfg: detent 'round' must be 'pass' or 'clamp'");
   // A missing required option is about no written one; an EDS that cannot be read is about eds.
   refusals.clear();
   EXPECT_EQ(make_driver("mcb402", kNode, {}, DriverOptions{{{"event_timer_ms", "0"}}}, refusals), nullptr);

@@ -8,11 +8,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
-#include <unistd.h>
 
 #include "subdevices/families.hpp"
 
@@ -117,10 +117,11 @@ TEST(EdsCheck, TheCia401DriverRefusesAnInconsistentFile) {
   const auto path = std::filesystem::temp_directory_path() / ("oegw-edscheck-" + std::to_string(::getpid()) + ".eds");
   std::ofstream(path) << t;
   std::string error;
-  EXPECT_EQ(subdevices::make_cia401_driver(canopen::NodeId{0x30}, {}, subdevices::DriverOptions{{{"eds", path.string()}}},
-                                           error),
+  EXPECT_EQ(subdevices::make_cia401_driver(canopen::NodeId{0x30}, {},
+                                           subdevices::DriverOptions{{{"eds", path.string()}}}, error),
             nullptr);
-  EXPECT_THAT(error, ::testing::StartsWith("cia401: " + path.string() + ":245: 1A00h sub 2 default 64010208h maps "
+  EXPECT_THAT(error, ::testing::StartsWith("cia401: " + path.string() +
+                                           ":245: 1A00h sub 2 default 64010208h maps "
                                            "6401h:02 with 8 bits; expected 16"));
   std::filesystem::remove(path);
 }

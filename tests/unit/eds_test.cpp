@@ -42,33 +42,33 @@ File must_load(const std::filesystem::path& p) {
 
 // A minimal, valid EDS with one 8-bit input array; tests break one thing in it.
 constexpr const char* kMinimal =
-    "[DeviceInfo]\n"                 // 1
-    "VendorNumber=0x1234\n"          // 2
-    "[MandatoryObjects]\n"           // 3
-    "SupportedObjects=2\n"           // 4
-    "1=0x1000\n"                     // 5
-    "2=0x6000\n"                     // 6
-    "[1000]\n"                       // 7
-    "ParameterName=Device type\n"    // 8
-    "ObjectType=0x7\n"               // 9
-    "DataType=0x0007\n"              // 10
-    "AccessType=ro\n"                // 11
-    "DefaultValue=0x00010191\n"      // 12
-    "[6000]\n"                       // 13
+    "[DeviceInfo]\n"                    // 1
+    "VendorNumber=0x1234\n"             // 2
+    "[MandatoryObjects]\n"              // 3
+    "SupportedObjects=2\n"              // 4
+    "1=0x1000\n"                        // 5
+    "2=0x6000\n"                        // 6
+    "[1000]\n"                          // 7
+    "ParameterName=Device type\n"       // 8
+    "ObjectType=0x7\n"                  // 9
+    "DataType=0x0007\n"                 // 10
+    "AccessType=ro\n"                   // 11
+    "DefaultValue=0x00010191\n"         // 12
+    "[6000]\n"                          // 13
     "ParameterName=Read input 8-bit\n"  // 14
-    "ObjectType=0x8\n"               // 15
-    "SubNumber=2\n"                  // 16
-    "[6000sub0]\n"                   // 17
-    "ParameterName=Count\n"          // 18
-    "DataType=0x0005\n"              // 19
-    "AccessType=ro\n"                // 20
-    "DefaultValue=1\n"               // 21
-    "[6000sub1]\n"                   // 22
-    "ParameterName=Input 1\n"        // 23
-    "DataType=0x0005\n"              // 24
-    "AccessType=ro\n"                // 25
-    "DefaultValue=0\n"               // 26
-    "PDOMapping=1\n";                // 27
+    "ObjectType=0x8\n"                  // 15
+    "SubNumber=2\n"                     // 16
+    "[6000sub0]\n"                      // 17
+    "ParameterName=Count\n"             // 18
+    "DataType=0x0005\n"                 // 19
+    "AccessType=ro\n"                   // 20
+    "DefaultValue=1\n"                  // 21
+    "[6000sub1]\n"                      // 22
+    "ParameterName=Input 1\n"           // 23
+    "DataType=0x0005\n"                 // 24
+    "AccessType=ro\n"                   // 25
+    "DefaultValue=0\n"                  // 26
+    "PDOMapping=1\n";                   // 27
 
 std::string replace(std::string text, const std::string& from, const std::string& to) {
   const auto pos = text.find(from);
@@ -119,8 +119,10 @@ TEST(Eds, SamplePedalFile) {
 TEST(Eds, NumberFormatsAndNodeIdForms) {
   std::string text = replace(kMinimal, "DefaultValue=0x00010191", "DefaultValue=0x180+$NODEID");
   text = replace(text, "DefaultValue=1\n", "DefaultValue=010\n");  // octal 8
-  text = replace(text, "[6000sub1]\nParameterName=Input 1\nDataType=0x0005", "[6000sub1]\nParameterName=Input 1\nDataType=0x0003");
-  text = replace(text, "DefaultValue=0\nPDOMapping=1", "DefaultValue=-300\nLowLimit=-1000\nHighLimit=1000\nPDOMapping=1");
+  text = replace(text, "[6000sub1]\nParameterName=Input 1\nDataType=0x0005",
+                 "[6000sub1]\nParameterName=Input 1\nDataType=0x0003");
+  text =
+      replace(text, "DefaultValue=0\nPDOMapping=1", "DefaultValue=-300\nLowLimit=-1000\nHighLimit=1000\nPDOMapping=1");
   std::string error;
   auto f = parse(text, "t.eds", error);
   ASSERT_TRUE(f) << error;
@@ -252,13 +254,15 @@ TEST(Eds, MalformedFilesGiveFileLineAndWhatWasExpected) {
       {"ObjectType=0x8\n", "ObjectType=0x8\nCompactSubObj=300\n",
        "t.eds:16: [6000] CompactSubObj: expected the number of sub-objects 0..254, got '300'"},
       {"ParameterName=Input 1\n", "", "t.eds:22: [6000sub1] expected ParameterName="},
-      {"[6000sub1]\n", "[6000sub1]\nObjectType=0x9\n", "t.eds:23: [6000sub1] ObjectType: expected 0x7 (VAR) for a sub-object"},
+      {"[6000sub1]\n", "[6000sub1]\nObjectType=0x9\n",
+       "t.eds:23: [6000sub1] ObjectType: expected 0x7 (VAR) for a sub-object"},
       {"DefaultValue=0\nPDOMapping=1", "DefaultValue=0\nLowLimit=10\nHighLimit=5\nPDOMapping=1",
        "t.eds:28: [6000sub1] HighLimit: expected a value not below LowLimit"},
       {"[MandatoryObjects]\n", "[Objects]\n", "t.eds:27: expected a [MandatoryObjects] section"},
       {"[6000sub0]\n", "[6000sub0] [x]\n", "t.eds:17: expected one section name in"},
       {"[6000sub0]\n", "[]\n", "t.eds:17: expected a section name between '[' and ']'"},
-      {"[6000sub0]\n", "[6000sub00]\n[6000sub0]\n", "t.eds:18: section [6000sub0] names the same object as [6000sub00]"},
+      {"[6000sub0]\n", "[6000sub00]\n[6000sub0]\n",
+       "t.eds:18: section [6000sub0] names the same object as [6000sub00]"},
   };
   for (const auto& c : cases) {
     const std::string error = parse_error(replace(kMinimal, c.from, c.to));
@@ -269,11 +273,18 @@ TEST(Eds, MalformedFilesGiveFileLineAndWhatWasExpected) {
   // such byte, in one short line (its escaped bytes were quoted before).
   EXPECT_EQ(parse_error(std::string("[A]\nk=v\n\x01\x02\xff\n")),
             "t.eds:3: not a text file (byte 0x01 at offset 8); expected an EDS, a text file (CiA 306)");
-  std::string elf("\x7F" "ELF\x02\x01\x01", 7);
+  std::string
+      elf("\x7F"
+          "ELF\x02\x01\x01",
+          7);
   elf += std::string(200, '\0');
-  EXPECT_EQ(parse_error(elf), "t.eds:1: not a text file (byte 0x7F at offset 0); expected an EDS, a text file (CiA 306)");
+  EXPECT_EQ(parse_error(elf),
+            "t.eds:1: not a text file (byte 0x7F at offset 0); expected an EDS, a text file (CiA 306)");
   // Tab, CR LF, the DOS end-of-file mark and Windows-1252 letters are text.
-  EXPECT_EQ(parse_error("[FileInfo]\r\nFileName=p\xE9" "dale.eds\t\r\n\x1A").find("not a text file"), std::string::npos);
+  EXPECT_EQ(parse_error("[FileInfo]\r\nFileName=p\xE9"
+                        "dale.eds\t\r\n\x1A")
+                .find("not a text file"),
+            std::string::npos);
 }
 
 TEST(Eds, UnreadableFileIsReported) {
@@ -365,10 +376,11 @@ std::vector<std::string> cpp_summary(const File& f) {
 
 TEST(Eds, AgreesWithPythonConfigparser) {
   // python3 is part of every Debian machine this runs on (the VM tier needs it too): fail loudly if not.
-  ASSERT_TRUE(std::filesystem::exists("/usr/bin/python3")) << "no /usr/bin/python3: the independent EDS reader cannot run";
+  ASSERT_TRUE(std::filesystem::exists("/usr/bin/python3"))
+      << "no /usr/bin/python3: the independent EDS reader cannot run";
   for (const auto& path : {kPedal, kCluster}) {
-    const std::string cmd = "/usr/bin/python3 " + (kRoot / "tests/tools/eds_check.py").string() + " --summary " +
-                            path.string();
+    const std::string cmd =
+        "/usr/bin/python3 " + (kRoot / "tests/tools/eds_check.py").string() + " --summary " + path.string();
     FILE* p = ::popen(cmd.c_str(), "r");
     ASSERT_NE(p, nullptr);
     std::string out;
@@ -457,13 +469,15 @@ TEST(Eds, DuplicateKeyFirstWinsAndLimitsOnStringsAreIgnored) {
   ASSERT_TRUE(f) << error;
   EXPECT_EQ(f->default_number(0x1000, 0, NodeId{1}), 0x00010191u);
   ASSERT_EQ(f->warnings.size(), 1u);
-  EXPECT_EQ(f->warnings[0], "t.eds:13: warning: duplicate key 'defaultvalue' in [1000] ignored: the first, at line 12, counts");
+  EXPECT_EQ(f->warnings[0],
+            "t.eds:13: warning: duplicate key 'defaultvalue' in [1000] ignored: the first, at line 12, counts");
   const auto g = parse(replace(kMinimal, "DataType=0x0007\nAccessType=ro\nDefaultValue=0x00010191",
                                "DataType=0x0009\nAccessType=ro\nDefaultValue=abc\nLowLimit=1\nHighLimit="),
                        "t.eds", error);
   ASSERT_TRUE(g) << error;
   ASSERT_EQ(g->warnings.size(), 1u);
-  EXPECT_EQ(g->warnings[0], "t.eds:13: warning: [1000] LowLimit: a limit on a VISIBLE_STRING entry means nothing: ignored");
+  EXPECT_EQ(g->warnings[0],
+            "t.eds:13: warning: [1000] LowLimit: a limit on a VISIBLE_STRING entry means nothing: ignored");
 }
 
 }  // namespace

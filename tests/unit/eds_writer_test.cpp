@@ -17,8 +17,8 @@
 namespace oegw::gateway {
 namespace {
 
-using canopen::EdsInfo;
 using canopen::eds_text;
+using canopen::EdsInfo;
 using canopen::write_eds;
 using mapping::FeId;
 using mapping::FeKind;
@@ -53,9 +53,8 @@ OeDeviceConfig full_config() {
   OeDeviceConfig c;
   c.node_id = canopen::NodeId{0x20};
   c.identity = {.vendor = 0x00001234, .product = 0x852, .revision = 0x00010002, .serial = 9};
-  c.fes = {{FeKind::Joystick, 1}, {FeKind::Joystick, 2}, {FeKind::FootPedal, 1}, {FeKind::Encoder, 1},
-           {FeKind::Wheel, 1},    {FeKind::ButtonCluster, 1}, {FeKind::IndicatorCluster, 1},
-           {FeKind::Display, 1}};
+  c.fes = {{FeKind::Joystick, 1}, {FeKind::Joystick, 2},      {FeKind::FootPedal, 1},        {FeKind::Encoder, 1},
+           {FeKind::Wheel, 1},    {FeKind::ButtonCluster, 1}, {FeKind::IndicatorCluster, 1}, {FeKind::Display, 1}};
   c.host_node = 1;
   c.host_heartbeat_ms = 500;
   return c;
@@ -176,9 +175,9 @@ TEST_F(EdsWriterTest, ObjectSections) {
 TEST(EdsFile, WritesFullDevice) {
   OeDevice dev(full_config(), [](const canopen::CanFrame&) {});
   const char* env = std::getenv("OEGW_EDS_OUT");
-  const std::filesystem::path path = env != nullptr ? std::filesystem::path(env)
-                                                    : std::filesystem::temp_directory_path() /
-                                                          ("oegw-eds-" + std::to_string(::getpid()) + ".eds");
+  const std::filesystem::path path =
+      env != nullptr ? std::filesystem::path(env)
+                     : std::filesystem::temp_directory_path() / ("oegw-eds-" + std::to_string(::getpid()) + ".eds");
   std::string error;
   ASSERT_TRUE(write_eds(path, dev.od(), info_for(dev.config()), error)) << error;
   std::ifstream in(path);

@@ -22,7 +22,8 @@ class ElobauDriverTest : public ::testing::Test {
  protected:
   explicit ElobauDriverTest(DriverOptions opts = {}) {
     std::string err;
-    auto d = make_elobau_mfg_driver(kNode, [this](const CanFrame& f) { sent.push_back(f); }, opts, err);
+    auto d = make_elobau_mfg_driver(
+        kNode, [this](const CanFrame& f) { sent.push_back(f); }, opts, err);
     EXPECT_TRUE(d) << err;
     drv.reset(static_cast<ElobauMfgDriver*>(d.release()));
     drv->on_change = [this](std::size_t i, const SignalValue& v) { changes.emplace_back(i, v); };
@@ -312,8 +313,8 @@ TEST_F(ElobauDriverTest, EmcyAxisOutOfRangeIsDecodedAndPutsThatAxisInError) {
 
 TEST_F(ElobauDriverTest, EmcyEveryTable6AxisCodeHitsItsAxis) {
   tpdo0({0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xFF});
-  const std::pair<std::uint8_t, const char*> cases[] = {
-      {0x10, "x"}, {0x12, "x"}, {0x20, "y"}, {0x31, "wheel_a"}, {0x42, "wheel_b"}, {0x50, "wheel_c"}};
+  const std::pair<std::uint8_t, const char*> cases[] = {{0x10, "x"},       {0x12, "x"},       {0x20, "y"},
+                                                        {0x31, "wheel_a"}, {0x42, "wheel_b"}, {0x50, "wheel_c"}};
   for (const auto& [code, name] : cases) {
     auto d = emcy(0x1000, {code, 0x00, 0xFF, 0xFF, 0xFF});
     ASSERT_EQ(d.affected.size(), 1u) << int(code);
@@ -678,4 +679,3 @@ TEST_F(ElobauDriverTest, AReadBackOfTheWrongLengthLeavesTheFaults) {
 
 }  // namespace
 }  // namespace oegw::subdevices
-

@@ -297,7 +297,8 @@ TEST_F(EmcyFixture, ProducerToConsumerRoundTrip) {
   std::vector<EmcyMessage> got;
   EmcyConsumer c(od, [&](const EmcyMessage& m, TimePoint) { got.push_back(m); });
   ObjectDictionary dev;
-  EmcyProducer p(dev, [&](const CanFrame& f) { c.on_frame(f, t0); }, NodeId{0x2A});
+  EmcyProducer p(
+      dev, [&](const CanFrame& f) { c.on_frame(f, t0); }, NodeId{0x2A});
   p.raise(0xFF00, 0x80, {9, 8, 7, 6, 5}, t0);
   ASSERT_EQ(got.size(), 1u);
   EXPECT_EQ(got[0].node, NodeId{0x2A});

@@ -236,8 +236,16 @@ TEST(EventLoop, AWatcherRemovedByAnEarlierCallbackInTheSameBatchDoesNotRun) {
   EventLoop::WatchId w1 = 0;
   EventLoop::WatchId w2 = 0;
   // Whichever runs first removes the other.
-  w1 = loop.watch(p1.r, events::kReadable, [&](std::uint32_t) { ++runs; loop.unwatch(w2); loop.unwatch(w1); });
-  w2 = loop.watch(p2.r, events::kReadable, [&](std::uint32_t) { ++runs; loop.unwatch(w1); loop.unwatch(w2); });
+  w1 = loop.watch(p1.r, events::kReadable, [&](std::uint32_t) {
+    ++runs;
+    loop.unwatch(w2);
+    loop.unwatch(w1);
+  });
+  w2 = loop.watch(p2.r, events::kReadable, [&](std::uint32_t) {
+    ++runs;
+    loop.unwatch(w1);
+    loop.unwatch(w2);
+  });
   ASSERT_EQ(::write(p1.w, "a", 1), 1);
   ASSERT_EQ(::write(p2.w, "b", 1), 1);
   loop.run_once(0us);
@@ -457,7 +465,8 @@ TEST(ServiceDriver, IdleServiceArmsNothing) {
   SimulatedClock clock;
   EventLoop loop(clock);
   int advances = 0;
-  ServiceDriver driver(loop, [] { return std::optional<TimePoint>{}; }, [&](TimePoint) { ++advances; });
+  ServiceDriver driver(
+      loop, [] { return std::optional<TimePoint>{}; }, [&](TimePoint) { ++advances; });
   EXPECT_EQ(driver.armed_deadline(), std::nullopt);
   EXPECT_EQ(loop.next_timer(), std::nullopt);
   loop.advance_to(TimePoint{10s});

@@ -121,7 +121,8 @@ TEST(GatewayModel, StartStampsEveryFeAndAChangeMadeByAConsumerIsReportedToo) {
       "    indicator[1]: grip.leds[1]\n",
       "t.yaml", gateway::driver_catalogue());
   ASSERT_TRUE(r.ok()) << r.error_text();
-  gateway::Gateway gw(*r.config, [](const canopen::CanFrame&) {}, [](const canopen::CanFrame&) {});
+  gateway::Gateway gw(
+      *r.config, [](const canopen::CanFrame&) {}, [](const canopen::CanFrame&) {});
   std::vector<FeId> seen;
   bool commanded = false;
   gw.on_fe_change = [&](FeId fe) {

@@ -140,12 +140,13 @@ struct LssHarness {
   std::vector<CanFrame> sent;
   LssSlave slave;
   explicit LssHarness(NodeId id)
-      : slave(kAddr, id, 3, [this](const CanFrame& f) { sent.push_back(f); },
-              LssSlave::Callbacks{.on_pending_node_id = {},
-                                  .on_pending_bit_timing = {},
-                                  .on_activate_bit_timing = {},
-                                  .on_store = [](NodeId, std::uint8_t) { return std::uint8_t{0}; },
-                                  .on_start_nmt = {}}) {}
+      : slave(
+            kAddr, id, 3, [this](const CanFrame& f) { sent.push_back(f); },
+            LssSlave::Callbacks{.on_pending_node_id = {},
+                                .on_pending_bit_timing = {},
+                                .on_activate_bit_timing = {},
+                                .on_store = [](NodeId, std::uint8_t) { return std::uint8_t{0}; },
+                                .on_start_nmt = {}}) {}
 
   void feed_and_check(const CanFrame& f) {
     const lss::Mode before = slave.mode();
@@ -220,8 +221,8 @@ TEST(FrameShapes, LssRandomFramesFixedSeed) {
   LssHarness h(NodeId{0x11});
   std::mt19937 rng(305);
   std::uniform_int_distribution<int> byte(0, 255);
-  const std::uint8_t interesting[] = {0x04, 0x11, 0x13, 0x15, 0x17, 0x40, 0x41, 0x42, 0x43, 0x46,
-                                      0x4B, 0x4C, 0x5A, 0x5E, 0x51, 0x00, 0xFF};
+  const std::uint8_t interesting[] = {0x04, 0x11, 0x13, 0x15, 0x17, 0x40, 0x41, 0x42, 0x43,
+                                      0x46, 0x4B, 0x4C, 0x5A, 0x5E, 0x51, 0x00, 0xFF};
   for (int i = 0; i < 20000; ++i) {
     std::array<std::uint8_t, 8> d{};
     for (auto& b : d) b = static_cast<std::uint8_t>(byte(rng));

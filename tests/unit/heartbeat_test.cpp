@@ -157,7 +157,7 @@ TEST_F(ConsumerFixture, DuplicateNodeRefusedWith06040043) {
   ASSERT_EQ(set_entry(1, 0x11, 150), SdoAbortCode::None);
   EXPECT_EQ(set_entry(2, 0x11, 200), SdoAbortCode::ParameterIncompatibility);
   EXPECT_EQ(od.get<std::uint32_t>(0x1016, 2), 0u);
-  EXPECT_EQ(set_entry(2, 0x11, 0), SdoAbortCode::None);  // time 0: unused, allowed
+  EXPECT_EQ(set_entry(2, 0x11, 0), SdoAbortCode::None);    // time 0: unused, allowed
   EXPECT_EQ(set_entry(1, 0x11, 300), SdoAbortCode::None);  // rewriting the same entry
   EXPECT_EQ(set_entry(3, 0x12, 300), SdoAbortCode::None);
 }
@@ -182,7 +182,7 @@ TEST_F(ConsumerFixture, MalformedHeartbeatsIgnored) {
   hb(3, 0x05, 0);
   EXPECT_TRUE(hc->on_frame(CanFrame(0x703, {0x05, 0x00}), at_ms(50)));  // DLC 2
   EXPECT_TRUE(hc->on_frame(CanFrame(0x703, {}), at_ms(50)));
-  EXPECT_TRUE(hb(3, 0x33, 50));  // not a state
+  EXPECT_TRUE(hb(3, 0x33, 50));                                       // not a state
   EXPECT_FALSE(hc->on_frame(CanFrame::remote(0x703, 1), at_ms(50)));  // node guarding RTR
   EXPECT_EQ(hc->invalid_frames(), 3u);
   hc->advance(at_ms(100));

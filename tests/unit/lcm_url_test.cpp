@@ -40,7 +40,7 @@ TEST(LcmUrl, LinkLocalGroupWithATtlIsReportedWithTheGroupAndTheTtl) {
 // commands (mapping/deployment.cpp).
 TEST(LcmUrl, OnlyTheAllHostsGroupWithTtl0AndTheInProcessProvidersStayOnThisHost) {
   EXPECT_FALSE(publish::lcm_reaches_beyond_host("udpm://224.0.0.1:7667?ttl=0"));
-  EXPECT_FALSE(publish::lcm_reaches_beyond_host("udpm://224.0.0.1:7667"));  // no ttl: 0
+  EXPECT_FALSE(publish::lcm_reaches_beyond_host("udpm://224.0.0.1:7667"));               // no ttl: 0
   EXPECT_FALSE(publish::lcm_reaches_beyond_host("udpm://0xE0000001:7667?ttl=1&ttl=0"));  // the last ttl counts
   EXPECT_FALSE(publish::lcm_reaches_beyond_host("memq://"));
   EXPECT_FALSE(publish::lcm_reaches_beyond_host("file:///tmp/x.lcmlog?mode=r"));
@@ -52,7 +52,7 @@ TEST(LcmUrl, OnlyTheAllHostsGroupWithTtl0AndTheInProcessProvidersStayOnThisHost)
   EXPECT_NE(why->find("its ttl 1 makes it a network's group"), std::string::npos) << *why;
   why = publish::lcm_reaches_beyond_host("udpm://224.0.0.1:7667?ttl=");
   ASSERT_TRUE(why);
-  EXPECT_NE(why->find("its ttl  makes"), std::string::npos) << *why;  // only exactly "0" is 0
+  EXPECT_NE(why->find("its ttl  makes"), std::string::npos) << *why;          // only exactly "0" is 0
   why = publish::lcm_reaches_beyond_host("udpm://239.255.76.67:7667?ttl=0");  // ttl 0, but announced by IGMP
   ASSERT_TRUE(why);
   EXPECT_NE(why->find("its group 239.255.76.67 is joined on the interface the routing table picks"), std::string::npos)

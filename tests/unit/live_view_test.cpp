@@ -48,7 +48,8 @@ TEST(WrapWords, AWordLongerThanARowIsCutRatherThanOverflowing) {
 }
 
 TEST(WrapWords, WithoutAStampContinuationRowsAreIndentedByTwo) {
-  EXPECT_THAT(programs::wrap_words("aaaa bbbb cccc dddd eeee", 10), ElementsAre("aaaa bbbb", "  cccc", "  dddd", "  eeee"));
+  EXPECT_THAT(programs::wrap_words("aaaa bbbb cccc dddd eeee", 10),
+              ElementsAre("aaaa bbbb", "  cccc", "  dddd", "  eeee"));
 }
 
 }  // namespace

@@ -3,9 +3,9 @@
 // §6.3 store configuration) and the elobau manual (000_499d7da4c768c72f, §7 "Baud rate /
 // Node-ID": default node-ID 0x11, default 250 kbit/s, LSS-configurable).
 #include "canopen/305/lss_fastscan.hpp"
-#include "canopen/305/lss_slowscan.hpp"
 #include "canopen/305/lss_master.hpp"
 #include "canopen/305/lss_slave.hpp"
+#include "canopen/305/lss_slowscan.hpp"
 
 #include <gtest/gtest.h>
 
@@ -47,8 +47,8 @@ struct SlaveFixture : ::testing::Test {
         return store_result;
       };
     cb.on_start_nmt = [this] { ++nmt_starts; };
-    slave = std::make_unique<LssSlave>(kNovotechnik, id, 3, [this](const CanFrame& f) { sent.push_back(f); },
-                                       std::move(cb), supported);
+    slave = std::make_unique<LssSlave>(
+        kNovotechnik, id, 3, [this](const CanFrame& f) { sent.push_back(f); }, std::move(cb), supported);
   }
   void SetUp() override { make(NodeId{0x11}); }
   bool feed(const CanFrame& f) { return slave->on_frame(f, at_ms(0)); }
@@ -239,7 +239,7 @@ TEST_F(SlaveFixture, FastscanOnlyANodeWithoutNodeIdAnswers) {
   feed(m({0x51, 0, 0, 0, 0, 0x80, 0, 0}));  // in configuration mode: not part of fastscan
   EXPECT_EQ(sent.size(), 6u);
   feed(m({0x04, 0x00, 0, 0, 0, 0, 0, 0}));
-  EXPECT_EQ(nmt_starts, 0);  // back to waiting without a node-ID: NMT does not start
+  EXPECT_EQ(nmt_starts, 0);               // back to waiting without a node-ID: NMT does not start
   feed(m({0x51, 0, 0, 0, 0, 32, 0, 0}));  // BitChecked 32: out of range
   feed(m({0x51, 0, 0, 0, 0, 0, 4, 0}));   // LSSSub 4: out of range
   EXPECT_EQ(sent.size(), 6u);
@@ -266,7 +266,8 @@ TEST(LssWithNmt, NodeIdTakesEffectAtResetCommunication) {
   NmtSlave nmt(NodeId{0x11}, [&](const CanFrame& f) { bus.push_back(f); });
   LssSlave::Callbacks cb;
   cb.on_pending_node_id = [&](NodeId n) { nmt.set_pending_node_id(n); };
-  LssSlave lss_slave(kNovotechnik, NodeId{0x11}, 3, [&](const CanFrame& f) { bus.push_back(f); }, cb);
+  LssSlave lss_slave(
+      kNovotechnik, NodeId{0x11}, 3, [&](const CanFrame& f) { bus.push_back(f); }, cb);
   nmt.on_reset([&](bool) { lss_slave.set_active_node_id(nmt.pending_node_id()); });
   nmt.start(at_ms(0));
   lss_slave.on_frame(m({0x04, 0x01, 0, 0, 0, 0, 0, 0}), at_ms(1));
@@ -378,7 +379,8 @@ TEST(LssMasterSlave, ConfigureThroughBothEnds) {
     persisted = {n, i};
     return std::uint8_t{0};
   };
-  LssSlave slave(kNovotechnik, NodeId{0x7F}, 3, [&](const CanFrame& f) { to_master.push_back(f); }, cb);
+  LssSlave slave(
+      kNovotechnik, NodeId{0x7F}, 3, [&](const CanFrame& f) { to_master.push_back(f); }, cb);
   LssMaster master([&](const CanFrame& f) { slave.on_frame(f, at_ms(0)); });
   auto deliver = [&] {
     while (!to_master.empty()) {
@@ -440,9 +442,8 @@ struct FastscanBench {
     }
   }
   std::size_t count(std::uint8_t cs) const {
-    return static_cast<std::size_t>(std::count_if(wire.begin(), wire.end(), [cs](const CanFrame& f) {
-      return f.id == 0x7E5 && f.data[0] == cs;
-    }));
+    return static_cast<std::size_t>(
+        std::count_if(wire.begin(), wire.end(), [cs](const CanFrame& f) { return f.id == 0x7E5 && f.data[0] == cs; }));
   }
 };
 
@@ -483,7 +484,8 @@ TEST(LssFastscanTest, NoNodeWithoutNodeIdNoAnswerAfterOneStep) {
   FastscanBench b;
   b.add(kNovotechnik, NodeId{0x11});
   std::optional<LssFastscan::Result> got;
-  b.fastscan.start(b.now, [&](const LssFastscan::Result& r) { got = r; }, std::chrono::milliseconds(250));
+  b.fastscan.start(
+      b.now, [&](const LssFastscan::Result& r) { got = r; }, std::chrono::milliseconds(250));
   EXPECT_EQ(b.master.next_deadline(), at_ms(250));  // the step's own time-out
   b.run();
   ASSERT_TRUE(got);
@@ -517,7 +519,8 @@ TEST(LssFastscanTest, KnownBitsAreNotAsked) {
   std::optional<LssFastscan::Result> got;
   LssFastscan::Known known{{0, kNovotechnik.product, kNovotechnik.revision, kNovotechnik.serial},
                            {0xFFFF0000, 0xFFFFFFFF, 0xFFFFFFFF, 0xFFFFFFFF}};
-  b.fastscan.start(b.now, [&](const LssFastscan::Result& r) { got = r; }, std::nullopt, known);
+  b.fastscan.start(
+      b.now, [&](const LssFastscan::Result& r) { got = r; }, std::nullopt, known);
   b.run();
   ASSERT_TRUE(got);
   EXPECT_EQ(got->outcome, LssFastscan::Outcome::Found) << got->note;
@@ -533,7 +536,8 @@ TEST(LssFastscanTest, KnownBitsNobodyHasEndWithoutAddress) {
   b.add(kNovotechnik, NodeId::unconfigured_id());
   std::optional<LssFastscan::Result> got;
   LssFastscan::Known known{{0, 0, 0, 0x0BAD}, {0, 0, 0, 0xFFFFFFFF}};  // a serial it does not have
-  b.fastscan.start(b.now, [&](const LssFastscan::Result& r) { got = r; }, std::nullopt, known);
+  b.fastscan.start(
+      b.now, [&](const LssFastscan::Result& r) { got = r; }, std::nullopt, known);
   b.run();
   ASSERT_TRUE(got);
   EXPECT_EQ(got->outcome, LssFastscan::Outcome::Lost);
@@ -550,7 +554,8 @@ TEST(LssSlowscanTest, FindsTheLowerAddressInTheRangeAndSelectsIt) {
   b.add(high, NodeId::unconfigured_id());
   b.add(low, NodeId{0x11});
   std::optional<LssSlowscan::Result> got;
-  b.slowscan.start({0x182, 0x0BE0, 0, 0xFFFFFFFF, 0, 0xFFFFFFFF}, b.now, [&](const LssSlowscan::Result& r) { got = r; });
+  b.slowscan.start({0x182, 0x0BE0, 0, 0xFFFFFFFF, 0, 0xFFFFFFFF}, b.now,
+                   [&](const LssSlowscan::Result& r) { got = r; });
   // The first step: the whole range (CiA 305 §8.4.3.6: vendor, product, revision low/high, serial low/high).
   ASSERT_GE(b.wire.size(), 6u);
   EXPECT_EQ(b.wire[0], m({0x46, 0x82, 0x01, 0, 0, 0, 0, 0}));

@@ -37,12 +37,13 @@ void add_range(std::vector<SignalInfo>& out, const std::string& base, int n, Sig
 // Options each fake family accepts: elobau-mfg "tolerance", mcb402 "button_bits", cia401 "eds"
 // (required). Every option it does not know is refused, each naming its option.
 std::optional<std::vector<SignalInfo>> fake_catalogue(std::string_view family, const DriverOptions& options,
-                                                       subdevices::OptionRefusals& refusals) {
+                                                      subdevices::OptionRefusals& refusals) {
   std::vector<std::string> allowed;
   std::vector<SignalInfo> s;
   if (family == "elobau-mfg") {
     allowed = {"tolerance"};
-    for (const char* n : {"x", "y", "wheel_a", "wheel_b", "wheel_c"}) s.push_back({n, SignalKind::Axis, -110, 110, 0, "percent"});
+    for (const char* n : {"x", "y", "wheel_a", "wheel_b", "wheel_c"})
+      s.push_back({n, SignalKind::Axis, -110, 110, 0, "percent"});
     add_range(s, "buttons", 16, SignalKind::Button, 0, 1, "bits");
     add_range(s, "leds", 16, SignalKind::Output, 0, 2, "code");  // off / on / blink
   } else if (family == "mcb402") {
@@ -65,7 +66,8 @@ std::optional<std::vector<SignalInfo>> fake_catalogue(std::string_view family, c
     return std::nullopt;
   }
   for (const auto& [k, v] : options.values)
-    if (std::find(allowed.begin(), allowed.end(), k) == allowed.end()) refusals.push_back({k, "unknown option '" + k + "'"});
+    if (std::find(allowed.begin(), allowed.end(), k) == allowed.end())
+      refusals.push_back({k, "unknown option '" + k + "'"});
   if (!refusals.empty()) return std::nullopt;
   return s;
 }
@@ -90,7 +92,6 @@ std::vector<std::string> errors(const LoadResult& r) {
   for (const auto& e : r.errors) out.push_back(e.str());
   return out;
 }
-
 
 // ---- The files in config/ ------------------------------------------------------------------
 
@@ -122,9 +123,11 @@ TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
   ASSERT_EQ(c.subdevices.size(), 5u);
   std::vector<std::pair<std::string, int>> nodes;
   for (const auto& s : c.subdevices) nodes.emplace_back(s.name, s.node_id);
-  EXPECT_THAT(nodes, ElementsAre(std::pair<std::string, int>{"right_grip", 0x11}, std::pair<std::string, int>{"left_grip", 0x03},
-                                 std::pair<std::string, int>{"pedal", 0x30}, std::pair<std::string, int>{"seat_knob", 0x7F},
-                                 std::pair<std::string, int>{"cluster", 0x31}));
+  EXPECT_THAT(nodes,
+              ElementsAre(std::pair<std::string, int>{"right_grip", 0x11},
+                          std::pair<std::string, int>{"left_grip", 0x03}, std::pair<std::string, int>{"pedal", 0x30},
+                          std::pair<std::string, int>{"seat_knob", 0x7F},
+                          std::pair<std::string, int>{"cluster", 0x31}));
   const auto* grip = c.find_subdevice("right_grip");
   ASSERT_NE(grip, nullptr);
   EXPECT_TRUE(grip->mandatory);
@@ -147,8 +150,7 @@ TEST(MappingConfig, DemoFileLoadsIntoACompleteConfig) {
 
   // Sorted by FeId: joystick 1, 2, pedal 1, encoder 1, wheel 1, buttons 1, indicators 1, 2.
   std::vector<std::string> fes;
-  for (const auto& fe : c.functional_elements)
-    fes.push_back(fe_name(fe.id));
+  for (const auto& fe : c.functional_elements) fes.push_back(fe_name(fe.id));
   EXPECT_THAT(fes, ElementsAre("joystick.1", "joystick.2", "pedal.1", "encoder.1", "wheel.1", "buttons.1",
                                "indicators.1", "indicators.2"));
   const auto& j1 = c.functional_elements[0];
@@ -189,33 +191,44 @@ TEST(MappingConfig, BadExampleReportsEveryErrorAtOnceInFileOrder) {
   EXPECT_FALSE(r.ok());
   EXPECT_FALSE(r.config.has_value());  // nothing half-built
   const std::string f = path + ":";
-  EXPECT_THAT(errors(r), ElementsAre(
-      f + "2:39: node_id 0x80 is out of range; expected 1..127",
-      f + "2:45: unknown key 'bitrat' in upstream; expected one of interface, node_id, bitrate, identity, heartbeat_ms, "
-          "store, network_id, sdo_servers (did you mean 'bitrate'?)",
-      f + "3:41: bitrate 300000 is not a CiA 301 bit rate; expected one of 10000, 20000, 50000, 125000, 250000, 500000, "
-          "800000, 1000000",
-      f + "6:41: node_id 0x11 of 'left_grip' is already used by sub-device 'right_grip' (line 5, column 46), so all "
-          "their default COB-IDs clash; expected a node-ID of its own",
-      f + "7:55: COB-ID 0x191 of knob TPDO 1800h:01 clashes with right_grip TPDO1 (default); expected a COB-ID no other "
-          "node uses",
-      f + "9:3: instance 17 of 'joystick.17' is out of range; expected joystick.1..16 (CiA 852 clause 9)",
-      f + "10:3: unknown functional element kind 'joystik' in 'joystik.1'; expected one of joystick, pedal, encoder, "
-          "wheel, buttons, indicators, display (did you mean 'joystick'?)",
-      f + "12:8: signal 'right_grip.buttons[1]' is a Button signal; expected an Axis or Analog signal for joystick.1 x; "
-          "a Button signal fits joystick.N (memory_x, memory_y, memory_z, buttons[1..8]), pedal.N memory_x or "
-          "buttons.N switch[1..64]",
-      f + "13:5: joystick.1 has no field 'w'; expected one of memory_x, memory_y, memory_z, buttons[1..8], x, y, z",
-      f + "14:8: unknown sub-device 'rigth_grip' in signal 'rigth_grip.y'; expected one of right_grip, left_grip, knob "
-          "(did you mean 'right_grip'?)",
-      f + "15:8: sub-device 'right_grip' (elobau-mfg) has no signal 'q'; expected one of x, y, wheel_a, wheel_b, "
-          "wheel_c, buttons[1..16], leds[1..16]",
-      f + "17:5: joystick.1 buttons[2] is fed twice (first at line 16, column 5); expected each field fed by one signal",
-      f + "19:20: joystick.2 buttons[1..8] has 8 elements but 'left_grip.buttons[1..7]' has 7; expected ranges of "
-          "equal length",
-      f + "21:19: signal 'right_grip.x' is an Axis signal; expected an Output signal for indicators.1 indicator[1] (an "
-          "output functional element); an Axis signal fits joystick.N (x, y, z), pedal.N position or wheel.N "
-          "position"));
+  EXPECT_THAT(
+      errors(r),
+      ElementsAre(
+          f + "2:39: node_id 0x80 is out of range; expected 1..127",
+          f + "2:45: unknown key 'bitrat' in upstream; expected one of interface, node_id, bitrate, identity, "
+              "heartbeat_ms, "
+              "store, network_id, sdo_servers (did you mean 'bitrate'?)",
+          f + "3:41: bitrate 300000 is not a CiA 301 bit rate; expected one of 10000, 20000, 50000, 125000, 250000, "
+              "500000, "
+              "800000, 1000000",
+          f + "6:41: node_id 0x11 of 'left_grip' is already used by sub-device 'right_grip' (line 5, column 46), so "
+              "all "
+              "their default COB-IDs clash; expected a node-ID of its own",
+          f + "7:55: COB-ID 0x191 of knob TPDO 1800h:01 clashes with right_grip TPDO1 (default); expected a COB-ID no "
+              "other "
+              "node uses",
+          f + "9:3: instance 17 of 'joystick.17' is out of range; expected joystick.1..16 (CiA 852 clause 9)",
+          f + "10:3: unknown functional element kind 'joystik' in 'joystik.1'; expected one of joystick, pedal, "
+              "encoder, "
+              "wheel, buttons, indicators, display (did you mean 'joystick'?)",
+          f + "12:8: signal 'right_grip.buttons[1]' is a Button signal; expected an Axis or Analog signal for "
+              "joystick.1 x; "
+              "a Button signal fits joystick.N (memory_x, memory_y, memory_z, buttons[1..8]), pedal.N memory_x or "
+              "buttons.N switch[1..64]",
+          f + "13:5: joystick.1 has no field 'w'; expected one of memory_x, memory_y, memory_z, buttons[1..8], x, y, z",
+          f + "14:8: unknown sub-device 'rigth_grip' in signal 'rigth_grip.y'; expected one of right_grip, left_grip, "
+              "knob "
+              "(did you mean 'right_grip'?)",
+          f + "15:8: sub-device 'right_grip' (elobau-mfg) has no signal 'q'; expected one of x, y, wheel_a, wheel_b, "
+              "wheel_c, buttons[1..16], leds[1..16]",
+          f + "17:5: joystick.1 buttons[2] is fed twice (first at line 16, column 5); expected each field fed by one "
+              "signal",
+          f + "19:20: joystick.2 buttons[1..8] has 8 elements but 'left_grip.buttons[1..7]' has 7; expected ranges of "
+              "equal length",
+          f + "21:19: signal 'right_grip.x' is an Axis signal; expected an Output signal for indicators.1 indicator[1] "
+              "(an "
+              "output functional element); an Axis signal fits joystick.N (x, y, z), pedal.N position or wheel.N "
+              "position"));
 }
 
 // ---- One error at a time, inline -----------------------------------------------------------
@@ -295,15 +308,17 @@ TEST(MappingConfig, EmcyForwardingIsAllFaultsOrNone) {
   EXPECT_EQ(none.config->downstream.emcy_forwarding, oegw::mapping::EmcyForwarding::None);
   EXPECT_EQ(with(", emcy_forwarding: all").config->downstream.emcy_forwarding, oegw::mapping::EmcyForwarding::All);
   EXPECT_EQ(errors(with(", emcy_forwarding: errors")),
-            (std::vector<std::string>{"t.yaml:2:49: found 'errors' for emcy_forwarding; expected one of all, faults, none"}));
+            (std::vector<std::string>{
+                "t.yaml:2:49: found 'errors' for emcy_forwarding; expected one of all, faults, none"}));
   EXPECT_EQ(errors(with(", emcy_forwarding: [all]")),
             (std::vector<std::string>{"t.yaml:2:49: found [all] for emcy_forwarding; expected a text"}));
 }
 
 TEST(MappingConfig, YamlSyntaxErrorCarriesItsMarkAndAHintForBracketsInFlowMaps) {
   const auto r = load(kHead + "  joystick.1: { buttons: right_grip.buttons[1..8] }\n");
-  EXPECT_THAT(errors(r), ElementsAre("t.yaml:9:44: YAML syntax error: end of map flow not found; expected well-formed "
-                                     "YAML (inside { }, quote names with [ ], e.g. \"buttons[1..8]\", or use block style)"));
+  EXPECT_THAT(errors(r),
+              ElementsAre("t.yaml:9:44: YAML syntax error: end of map flow not found; expected well-formed "
+                          "YAML (inside { }, quote names with [ ], e.g. \"buttons[1..8]\", or use block style)"));
   // Quoted, the same line is fine.
   EXPECT_TRUE(load(kHead + "  joystick.1: { buttons: \"right_grip.buttons[1..8]\" }\n").ok());
   const auto r2 = load("upstream: { node_id: 1\n");
@@ -313,8 +328,9 @@ TEST(MappingConfig, YamlSyntaxErrorCarriesItsMarkAndAHintForBracketsInFlowMaps) 
 
 TEST(MappingConfig, EmptyFileAndMissingSections) {
   EXPECT_THAT(errors(load("")),
-              ElementsAre("t.yaml:1:1: found nothing at the top; expected a map with upstream, downstream, publish, control, "
-                          "record, subdevices, functional_elements"));
+              ElementsAre(
+                  "t.yaml:1:1: found nothing at the top; expected a map with upstream, downstream, publish, control, "
+                  "record, subdevices, functional_elements"));
   EXPECT_THAT(errors(load("upstream: { interface: can0 }\n")),
               ElementsAre("t.yaml:1:1: no 'downstream' in the file; expected a downstream section",
                           "t.yaml:1:1: no 'subdevices' in the file; expected a subdevices section",
@@ -332,17 +348,20 @@ functional_elements:
   joystick.1:
     x: { signal: a.x, deadbnd: 3 }
 )");
-  EXPECT_THAT(errors(r), ElementsAre(
-      "t.yaml:1:37: unknown key 'vendor' in upstream identity; expected one of vendor_id, product_code, revision, "
-      "serial (did you mean 'vendor_id'?)",
-      "t.yaml:3:1: unknown key 'publsh' in the file; expected one of upstream, downstream, publish, control, record, "
-      "subdevices, functional_elements (did you mean 'publish'?)",
-      "t.yaml:5:36: unknown key 'hearbeat_ms' in sub-device 'a'; expected one of driver, node_id, heartbeat_ms, "
-      "heartbeat_timeout_ms, pdo_timeout_ms, mandatory, identity, sdo, options (did you mean 'heartbeat_ms'?)",
-      "t.yaml:5:53: unknown key 'colour' in sub-device 'a'; expected one of driver, node_id, heartbeat_ms, "
-      "heartbeat_timeout_ms, pdo_timeout_ms, mandatory, identity, sdo, options",
-      "t.yaml:8:23: unknown key 'deadbnd' in joystick.1 x; expected one of signal, scale, offset, deadband, "
-      "invert, clamp, fault, interlock (did you mean 'deadband'?)"));
+  EXPECT_THAT(
+      errors(r),
+      ElementsAre(
+          "t.yaml:1:37: unknown key 'vendor' in upstream identity; expected one of vendor_id, product_code, revision, "
+          "serial (did you mean 'vendor_id'?)",
+          "t.yaml:3:1: unknown key 'publsh' in the file; expected one of upstream, downstream, publish, control, "
+          "record, "
+          "subdevices, functional_elements (did you mean 'publish'?)",
+          "t.yaml:5:36: unknown key 'hearbeat_ms' in sub-device 'a'; expected one of driver, node_id, heartbeat_ms, "
+          "heartbeat_timeout_ms, pdo_timeout_ms, mandatory, identity, sdo, options (did you mean 'heartbeat_ms'?)",
+          "t.yaml:5:53: unknown key 'colour' in sub-device 'a'; expected one of driver, node_id, heartbeat_ms, "
+          "heartbeat_timeout_ms, pdo_timeout_ms, mandatory, identity, sdo, options",
+          "t.yaml:8:23: unknown key 'deadbnd' in joystick.1 x; expected one of signal, scale, offset, deadband, "
+          "invert, clamp, fault, interlock (did you mean 'deadband'?)"));
 }
 
 TEST(MappingConfig, InstanceOutOfRangeKindUnknownAndNoInstance) {
@@ -354,14 +373,16 @@ TEST(MappingConfig, InstanceOutOfRangeKindUnknownAndNoInstance) {
   encoder: { position: knob.position }
   encoder.x: { position: knob.position }
 )");
-  EXPECT_THAT(errors(r), ElementsAre(
-      "t.yaml:9:3: instance 0 of 'joystick.0' is out of range; expected joystick.1..16 (CiA 852 clause 9)",
-      "t.yaml:10:3: instance 17 of 'pedal.17' is out of range; expected pedal.1..16 (CiA 852 clause 9)",
-      "t.yaml:11:3: instance 9 of 'buttons.9' is out of range; expected buttons.1..8 (CiA 852 clause 9)",
-      "t.yaml:13:3: unknown functional element kind 'whel' in 'whel.1'; expected one of joystick, pedal, encoder, "
-      "wheel, buttons, indicators, display (did you mean 'wheel'?)",
-      "t.yaml:14:3: functional element 'encoder' has no instance number; expected encoder.N with N 1..8",
-      "t.yaml:15:3: functional element 'encoder.x' has no instance number; expected encoder.N with N 1..8"));
+  EXPECT_THAT(
+      errors(r),
+      ElementsAre(
+          "t.yaml:9:3: instance 0 of 'joystick.0' is out of range; expected joystick.1..16 (CiA 852 clause 9)",
+          "t.yaml:10:3: instance 17 of 'pedal.17' is out of range; expected pedal.1..16 (CiA 852 clause 9)",
+          "t.yaml:11:3: instance 9 of 'buttons.9' is out of range; expected buttons.1..8 (CiA 852 clause 9)",
+          "t.yaml:13:3: unknown functional element kind 'whel' in 'whel.1'; expected one of joystick, pedal, encoder, "
+          "wheel, buttons, indicators, display (did you mean 'wheel'?)",
+          "t.yaml:14:3: functional element 'encoder' has no instance number; expected encoder.N with N 1..8",
+          "t.yaml:15:3: functional element 'encoder.x' has no instance number; expected encoder.N with N 1..8"));
 }
 
 TEST(MappingConfig, FieldTheElementDoesNotHave) {
@@ -371,14 +392,17 @@ TEST(MappingConfig, FieldTheElementDoesNotHave) {
     buttons[7..9]: right_grip.buttons[7..9]
     memroy_x: right_grip.buttons[1]
 )");
-  EXPECT_THAT(errors(r), ElementsAre(
-      "t.yaml:9:14: wheel.1 has no field 'x'; expected one of position",
-      "t.yaml:11:5: joystick.1 has no field 'buttons[9]'; expected one of memory_x, memory_y, memory_z, buttons[1..8], "
-      "x, y, z",
-      "t.yaml:12:5: joystick.1 has no field 'buttons[7..9]'; expected one of memory_x, memory_y, memory_z, "
-      "buttons[1..8], x, y, z",
-      "t.yaml:13:5: joystick.1 has no field 'memroy_x'; expected one of memory_x, memory_y, memory_z, buttons[1..8], "
-      "x, y, z (did you mean 'memory_x'?)"));
+  EXPECT_THAT(
+      errors(r),
+      ElementsAre("t.yaml:9:14: wheel.1 has no field 'x'; expected one of position",
+                  "t.yaml:11:5: joystick.1 has no field 'buttons[9]'; expected one of memory_x, memory_y, memory_z, "
+                  "buttons[1..8], "
+                  "x, y, z",
+                  "t.yaml:12:5: joystick.1 has no field 'buttons[7..9]'; expected one of memory_x, memory_y, memory_z, "
+                  "buttons[1..8], x, y, z",
+                  "t.yaml:13:5: joystick.1 has no field 'memroy_x'; expected one of memory_x, memory_y, memory_z, "
+                  "buttons[1..8], "
+                  "x, y, z (did you mean 'memory_x'?)"));
 }
 
 TEST(MappingConfig, SignalOfAnUnknownSubDeviceOrNotProvidedByTheDriver) {
@@ -388,15 +412,18 @@ TEST(MappingConfig, SignalOfAnUnknownSubDeviceOrNotProvidedByTheDriver) {
     buttons[1..8]: left_grip.buttons[1..8]
     z: left_grip
 )");
-  EXPECT_THAT(errors(r), ElementsAre(
-      "t.yaml:10:8: unknown sub-device 'left' in signal 'left.x'; expected one of right_grip, left_grip, knob, cluster "
-      "(did you mean 'left_grip'?)",
-      "t.yaml:11:8: sub-device 'left_grip' (mcb402) has no signal 'w'; expected one of x, y, z, t, buttons[1..7], "
-      "leds[1..4]",
-      "t.yaml:12:20: sub-device 'left_grip' (mcb402) has no signal 'buttons[8]'; expected one of x, y, z, t, "
-      "buttons[1..7], leds[1..4]",
-      "t.yaml:13:8: found 'left_grip' for joystick.1 z; expected a signal as subdevice.signal, "
-      "subdevice.signal[a..b] or subdevice.signal.bitN"));
+  EXPECT_THAT(
+      errors(r),
+      ElementsAre(
+          "t.yaml:10:8: unknown sub-device 'left' in signal 'left.x'; expected one of right_grip, left_grip, knob, "
+          "cluster "
+          "(did you mean 'left_grip'?)",
+          "t.yaml:11:8: sub-device 'left_grip' (mcb402) has no signal 'w'; expected one of x, y, z, t, buttons[1..7], "
+          "leds[1..4]",
+          "t.yaml:12:20: sub-device 'left_grip' (mcb402) has no signal 'buttons[8]'; expected one of x, y, z, t, "
+          "buttons[1..7], leds[1..4]",
+          "t.yaml:13:8: found 'left_grip' for joystick.1 z; expected a signal as subdevice.signal, "
+          "subdevice.signal[a..b] or subdevice.signal.bitN"));
 }
 
 // Each kind mismatch also says where that signal kind would fit: the FE kinds
@@ -417,25 +444,31 @@ TEST(MappingConfig, TypesThatDoNotFit) {
   wheel.1: { position: knob.position }
   encoder.2: { position: left_grip.z }
 )");
-  EXPECT_THAT(errors(r), ElementsAre(
-      "t.yaml:10:8: signal 'left_grip.buttons[1]' is a Button signal; expected an Axis or Analog signal for "
-      "joystick.1 x; a Button signal fits joystick.N (memory_x, memory_y, memory_z, buttons[1..8]), pedal.N memory_x "
-      "or buttons.N switch[1..64]",
-      "t.yaml:11:8: signal 'left_grip.leds[1]' is an Output signal; expected an Axis or Analog signal for joystick.1 y; "
-      "an Output signal fits indicators.N indicator[1..64] or display.N parameter[1..12]",
-      "t.yaml:12:17: signal 'left_grip.x' is an Axis signal; expected a Button or Digital signal for joystick.1 "
-      "buttons[1]; an Axis signal fits joystick.N (x, y, z), pedal.N position or wheel.N position",
-      "t.yaml:13:26: signal 'knob.speed' is a Speed signal; expected a Position or Analog signal for encoder.1 "
-      "position; no functional element field takes a Speed signal (CiA 852 clause 9)",
-      "t.yaml:15:22: signal 'cluster.in[1]' is a Digital signal; expected an Output signal for indicators.1 "
-      "indicator[1] (an output functional element); a Digital signal fits joystick.N (memory_x, memory_y, memory_z, "
-      "buttons[1..8]), pedal.N memory_x or buttons.N switch[1..64]",
-      "t.yaml:17:19: signal 'left_grip.y' is an Axis signal; expected an Output signal for display.1 parameter[1] (an "
-      "output functional element); an Axis signal fits joystick.N (x, y, z), pedal.N position or wheel.N position",
-      "t.yaml:21:24: signal 'knob.position' is a Position signal; expected an Axis or Analog signal for wheel.1 "
-      "position; a Position signal fits encoder.N position",
-      "t.yaml:22:26: signal 'left_grip.z' is an Axis signal; expected a Position or Analog signal for encoder.2 "
-      "position; an Axis signal fits joystick.N (x, y, z), pedal.N position or wheel.N position"));
+  EXPECT_THAT(
+      errors(r),
+      ElementsAre(
+          "t.yaml:10:8: signal 'left_grip.buttons[1]' is a Button signal; expected an Axis or Analog signal for "
+          "joystick.1 x; a Button signal fits joystick.N (memory_x, memory_y, memory_z, buttons[1..8]), pedal.N "
+          "memory_x "
+          "or buttons.N switch[1..64]",
+          "t.yaml:11:8: signal 'left_grip.leds[1]' is an Output signal; expected an Axis or Analog signal for "
+          "joystick.1 y; "
+          "an Output signal fits indicators.N indicator[1..64] or display.N parameter[1..12]",
+          "t.yaml:12:17: signal 'left_grip.x' is an Axis signal; expected a Button or Digital signal for joystick.1 "
+          "buttons[1]; an Axis signal fits joystick.N (x, y, z), pedal.N position or wheel.N position",
+          "t.yaml:13:26: signal 'knob.speed' is a Speed signal; expected a Position or Analog signal for encoder.1 "
+          "position; no functional element field takes a Speed signal (CiA 852 clause 9)",
+          "t.yaml:15:22: signal 'cluster.in[1]' is a Digital signal; expected an Output signal for indicators.1 "
+          "indicator[1] (an output functional element); a Digital signal fits joystick.N (memory_x, memory_y, "
+          "memory_z, "
+          "buttons[1..8]), pedal.N memory_x or buttons.N switch[1..64]",
+          "t.yaml:17:19: signal 'left_grip.y' is an Axis signal; expected an Output signal for display.1 parameter[1] "
+          "(an "
+          "output functional element); an Axis signal fits joystick.N (x, y, z), pedal.N position or wheel.N position",
+          "t.yaml:21:24: signal 'knob.position' is a Position signal; expected an Axis or Analog signal for wheel.1 "
+          "position; a Position signal fits encoder.N position",
+          "t.yaml:22:26: signal 'left_grip.z' is an Axis signal; expected a Position or Analog signal for encoder.2 "
+          "position; an Axis signal fits joystick.N (x, y, z), pedal.N position or wheel.N position"));
 }
 
 TEST(MappingConfig, NodeIdsOutOfRangeBadNumbersAndDuplicates) {
@@ -450,14 +483,16 @@ subdevices:
   f: { driver: mcb402, node_id: [1] }
 functional_elements: {}
 )");
-  EXPECT_THAT(errors(r), ElementsAre(
-      "t.yaml:1:22: node_id 0 is out of range; expected 1..127",
-      "t.yaml:4:33: node_id 128 is out of range; expected 1..127",
-      "t.yaml:5:33: node_id 'abc' is not a number; expected an integer 1..127 (decimal or 0x hex)",
-      "t.yaml:6:33: node_id -1 is out of range; expected 1..127",
-      "t.yaml:8:33: node_id 127 of 'e' is already used by sub-device 'd' (line 7, column 33), so all their default "
-      "COB-IDs clash; expected a node-ID of its own",
-      "t.yaml:9:33: found [1] for node_id; expected an integer 1..127"));
+  EXPECT_THAT(
+      errors(r),
+      ElementsAre(
+          "t.yaml:1:22: node_id 0 is out of range; expected 1..127",
+          "t.yaml:4:33: node_id 128 is out of range; expected 1..127",
+          "t.yaml:5:33: node_id 'abc' is not a number; expected an integer 1..127 (decimal or 0x hex)",
+          "t.yaml:6:33: node_id -1 is out of range; expected 1..127",
+          "t.yaml:8:33: node_id 127 of 'e' is already used by sub-device 'd' (line 7, column 33), so all their default "
+          "COB-IDs clash; expected a node-ID of its own",
+          "t.yaml:9:33: found [1] for node_id; expected an integer 1..127"));
 }
 
 TEST(MappingConfig, ExplicitCobIdsClashWithDefaultsAndEachOther) {
@@ -483,13 +518,16 @@ functional_elements: {}
   // a TPDO1 -> 0x183 = b's default TPDO1, which b keeps: clash. a TPDO2 and b RPDO3 both 0x3A0:
   // clash, reported once, at the later one. a RPDO1 -> 0x203 = b's default RPDO1, but bit 31 says
   // the PDO is off: no clash. a EMCY -> 0x705, b's heartbeat range: reserved.
-  EXPECT_THAT(errors(r), ElementsAre(
-      "t.yaml:8:9: COB-ID 0x183 of a TPDO 1800h:01 clashes with b TPDO1 (default); expected a COB-ID no other node "
-      "uses",
-      "t.yaml:11:9: COB-ID 0x705 of a EMCY 1014h:00 is reserved by CiA 301 (NMT, SYNC, TIME, SDO, heartbeat or LSS); "
-      "expected a PDO/EMCY COB-ID",
-      "t.yaml:16:9: COB-ID 0x3A0 of b RPDO 1402h:01 clashes with a TPDO 1801h:01; expected a COB-ID no other node "
-      "uses"));
+  EXPECT_THAT(
+      errors(r),
+      ElementsAre(
+          "t.yaml:8:9: COB-ID 0x183 of a TPDO 1800h:01 clashes with b TPDO1 (default); expected a COB-ID no other node "
+          "uses",
+          "t.yaml:11:9: COB-ID 0x705 of a EMCY 1014h:00 is reserved by CiA 301 (NMT, SYNC, TIME, SDO, heartbeat or "
+          "LSS); "
+          "expected a PDO/EMCY COB-ID",
+          "t.yaml:16:9: COB-ID 0x3A0 of b RPDO 1402h:01 clashes with a TPDO 1801h:01; expected a COB-ID no other node "
+          "uses"));
 }
 
 TEST(MappingConfig, ExplicitCobIdReplacesTheNodesOwnDefault) {
@@ -516,15 +554,18 @@ TEST(MappingConfig, FieldFedTwiceAndOutputDrivenTwice) {
     indicator[1..2]: left_grip.leds[1..2]
     indicator[3]: left_grip.leds[2]
 )");
-  EXPECT_THAT(errors(r), ElementsAre(
-      "t.yaml:11:5: joystick.1 buttons[8] is fed twice (first at line 10, column 5); expected each field fed by one "
-      "signal",
-      "t.yaml:12:3: functional element 'joystick.01' appears twice (first at line 9, column 3); expected each "
-      "functional element once",
-      "t.yaml:15:5: buttons.1 switch[3] is fed twice (first at line 14, column 5); expected each field fed by one "
-      "signal",
-      "t.yaml:18:19: output signal 'left_grip.leds[2]' is driven twice (first at line 17, column 5); expected each "
-      "output driven by one field"));
+  EXPECT_THAT(
+      errors(r),
+      ElementsAre(
+          "t.yaml:11:5: joystick.1 buttons[8] is fed twice (first at line 10, column 5); expected each field fed by "
+          "one "
+          "signal",
+          "t.yaml:12:3: functional element 'joystick.01' appears twice (first at line 9, column 3); expected each "
+          "functional element once",
+          "t.yaml:15:5: buttons.1 switch[3] is fed twice (first at line 14, column 5); expected each field fed by one "
+          "signal",
+          "t.yaml:18:19: output signal 'left_grip.leds[2]' is driven twice (first at line 17, column 5); expected each "
+          "output driven by one field"));
 }
 
 TEST(MappingConfig, DuplicateKeyInOneMap) {
@@ -567,16 +608,19 @@ TEST(MappingConfig, RangesExpandElementWiseAndLengthsMustAgree) {
   joystick.2:
     buttons: right_grip.buttons[1..9]
 )");
-  EXPECT_THAT(errors(bad), ElementsAre(
-      "t.yaml:10:20: joystick.1 buttons[1..3] has 3 elements but 'right_grip.buttons[1]' has 1; expected ranges of "
-      "equal length",
-      "t.yaml:11:8: joystick.1 x has 1 element but 'right_grip.buttons[1..2]' has 2; expected ranges of equal length",
-      "t.yaml:12:17: joystick.1 buttons[4] has 1 element but 'right_grip.buttons[2..3]' has 2; expected ranges of "
-      "equal length",
-      "t.yaml:14:13: found the single signal 'knob.position' for the field group buttons.1 switch; expected a "
-      "signal range such as knob.buttons[1..8], or a bit-packed signal",
-      "t.yaml:16:14: signal range 'right_grip.buttons[1..9]' has 9 elements but joystick.2 has buttons[1..8]; "
-      "expected at most 8 signals"));
+  EXPECT_THAT(
+      errors(bad),
+      ElementsAre(
+          "t.yaml:10:20: joystick.1 buttons[1..3] has 3 elements but 'right_grip.buttons[1]' has 1; expected ranges of "
+          "equal length",
+          "t.yaml:11:8: joystick.1 x has 1 element but 'right_grip.buttons[1..2]' has 2; expected ranges of equal "
+          "length",
+          "t.yaml:12:17: joystick.1 buttons[4] has 1 element but 'right_grip.buttons[2..3]' has 2; expected ranges of "
+          "equal length",
+          "t.yaml:14:13: found the single signal 'knob.position' for the field group buttons.1 switch; expected a "
+          "signal range such as knob.buttons[1..8], or a bit-packed signal",
+          "t.yaml:16:14: signal range 'right_grip.buttons[1..9]' has 9 elements but joystick.2 has buttons[1..8]; "
+          "expected at most 8 signals"));
 }
 
 TEST(MappingConfig, BitPackedSignalsFeedOneBitFieldsBitByBit) {
@@ -625,17 +669,22 @@ TEST(MappingConfig, BitPackedSignalsFeedOneBitFieldsBitByBit) {
   joystick.1:
     buttons: cluster.in[1..2]
 )");
-  EXPECT_THAT(errors(bad), ElementsAre(
-      "t.yaml:10:19: buttons.1 switch[1..4] has 4 elements but 'cluster.in[1]' has 8 bits; expected ranges of equal "
-      "length",
-      "t.yaml:11:16: found bit 8 of 'cluster.in[2]'; expected a bit 0..7",
-      "t.yaml:12:16: found bit 0 of 'left_grip.buttons[1]', which is not bit-packed; expected the signal without .bitN",
-      "t.yaml:13:16: found 'cluster.in[1..2].bit0' for buttons.1 switch[7]; expected a signal as subdevice.signal, "
-      "subdevice.signal[a..b] or subdevice.signal.bitN",
-      "t.yaml:16:19: output signal 'cluster.out[1] bit 3' is driven twice (first at line 15, column 5); expected "
-      "each output driven by one field",
-      "t.yaml:18:14: signal range 'cluster.in[1..2]' has 16 bits but joystick.1 has buttons[1..8]; expected at most 8 "
-      "signals"));
+  EXPECT_THAT(
+      errors(bad),
+      ElementsAre(
+          "t.yaml:10:19: buttons.1 switch[1..4] has 4 elements but 'cluster.in[1]' has 8 bits; expected ranges of "
+          "equal "
+          "length",
+          "t.yaml:11:16: found bit 8 of 'cluster.in[2]'; expected a bit 0..7",
+          "t.yaml:12:16: found bit 0 of 'left_grip.buttons[1]', which is not bit-packed; expected the signal without "
+          ".bitN",
+          "t.yaml:13:16: found 'cluster.in[1..2].bit0' for buttons.1 switch[7]; expected a signal as subdevice.signal, "
+          "subdevice.signal[a..b] or subdevice.signal.bitN",
+          "t.yaml:16:19: output signal 'cluster.out[1] bit 3' is driven twice (first at line 15, column 5); expected "
+          "each output driven by one field",
+          "t.yaml:18:14: signal range 'cluster.in[1..2]' has 16 bits but joystick.1 has buttons[1..8]; expected at "
+          "most 8 "
+          "signals"));
 }
 
 TEST(MappingConfig, DriversAndTheirOptionsAreCheckedByTheCatalogue) {
@@ -649,14 +698,16 @@ subdevices:
 functional_elements:
   joystick.1: { x: a.x, y: b.analog }
 )");
-  EXPECT_THAT(errors(r), ElementsAre(
-      "t.yaml:4:16: unknown driver 'mcb420'; expected one of elobau-mfg, mcb402, novotechnik-406, "
-      "cia401 (did you mean 'mcb402'?)",
-      "t.yaml:5:16: driver cia401 refused sub-device 'b': option 'eds' missing; expected options the cia401 driver "
-      "accepts",
-      "t.yaml:6:59: driver elobau-mfg refused sub-device 'c': unknown option 'colour'; expected options the "
-      "elobau-mfg driver accepts",
-      "t.yaml:7:6: no 'driver' in sub-device 'd'; expected one of elobau-mfg, mcb402, novotechnik-406, cia401"));
+  EXPECT_THAT(
+      errors(r),
+      ElementsAre(
+          "t.yaml:4:16: unknown driver 'mcb420'; expected one of elobau-mfg, mcb402, novotechnik-406, "
+          "cia401 (did you mean 'mcb402'?)",
+          "t.yaml:5:16: driver cia401 refused sub-device 'b': option 'eds' missing; expected options the cia401 driver "
+          "accepts",
+          "t.yaml:6:59: driver elobau-mfg refused sub-device 'c': unknown option 'colour'; expected options the "
+          "elobau-mfg driver accepts",
+          "t.yaml:7:6: no 'driver' in sub-device 'd'; expected one of elobau-mfg, mcb402, novotechnik-406, cia401"));
   // Signals of a refused driver are not reported again; an option refused is reported at its value.
 }
 
@@ -676,12 +727,11 @@ subdevices:
       - { index: 0x2002, sub_index: 0, value: -2, type: i16 }
 functional_elements: {}
 )");
-  EXPECT_THAT(errors(r), ElementsAre(
-      "t.yaml:8:47: value of type u16 70000 is out of range; expected 0x0..0xFFFF",
-      "t.yaml:9:47: value of type i8 -129 is out of range; expected -128..127",
-      "t.yaml:10:56: found 'uint8' for type; expected one of u8, u16, u32, i8, i16, i32",
-      "t.yaml:11:18: index 0x0FFF is out of range; expected 0x1000..0xFFFF",
-      "t.yaml:12:9: no 'sub_index' in an sdo write; expected a sub-index 0..255"));
+  EXPECT_THAT(errors(r), ElementsAre("t.yaml:8:47: value of type u16 70000 is out of range; expected 0x0..0xFFFF",
+                                     "t.yaml:9:47: value of type i8 -129 is out of range; expected -128..127",
+                                     "t.yaml:10:56: found 'uint8' for type; expected one of u8, u16, u32, i8, i16, i32",
+                                     "t.yaml:11:18: index 0x0FFF is out of range; expected 0x1000..0xFFFF",
+                                     "t.yaml:12:9: no 'sub_index' in an sdo write; expected a sub-index 0..255"));
   const auto ok = load(R"(upstream: { node_id: 1 }
 downstream: { interface: can1 }
 subdevices:
@@ -724,18 +774,22 @@ TEST(MappingConfig, LongFormOptionsAreParsedAndChecked) {
   encoder.1:
     position: { signal: knob.position, fault: 40000, clamp: [0, 40000] }
 )");
-  EXPECT_THAT(errors(bad), ElementsAre(
-      "t.yaml:10:39: found [5, -5] for clamp; expected [min, max] with integers -32768 <= min <= max <= 32767",
-      "t.yaml:10:55: found '0' for scale; expected a non-zero number",
-      "t.yaml:11:42: deadband -1 is out of range; expected 0..2147483647",
-      "t.yaml:11:54: found 'maybe' for invert; expected true or false",
-      "t.yaml:12:8: no 'signal' in joystick.1 z; expected the feeding signal, e.g. right_grip.x",
-      "t.yaml:14:51: unknown key 'deadband' in indicators.1 indicator[1]; expected one of signal, scale, offset, "
-      "invert, clamp",
-      "t.yaml:16:52: unknown key 'scale' in joystick.2 buttons[1]; expected one of signal, invert, fault, interlock",
-      "t.yaml:16:69: fault 2 is out of range; expected 0..1",
-      "t.yaml:17:39: fault 40000 is out of range; expected -32768..32767",
-      "t.yaml:17:53: found [-40000, 0] for clamp; expected [min, max] with integers -32768 <= min <= max <= 32767"));
+  EXPECT_THAT(
+      errors(bad),
+      ElementsAre(
+          "t.yaml:10:39: found [5, -5] for clamp; expected [min, max] with integers -32768 <= min <= max <= 32767",
+          "t.yaml:10:55: found '0' for scale; expected a non-zero number",
+          "t.yaml:11:42: deadband -1 is out of range; expected 0..2147483647",
+          "t.yaml:11:54: found 'maybe' for invert; expected true or false",
+          "t.yaml:12:8: no 'signal' in joystick.1 z; expected the feeding signal, e.g. right_grip.x",
+          "t.yaml:14:51: unknown key 'deadband' in indicators.1 indicator[1]; expected one of signal, scale, offset, "
+          "invert, clamp",
+          "t.yaml:16:52: unknown key 'scale' in joystick.2 buttons[1]; expected one of signal, invert, fault, "
+          "interlock",
+          "t.yaml:16:69: fault 2 is out of range; expected 0..1",
+          "t.yaml:17:39: fault 40000 is out of range; expected -32768..32767",
+          "t.yaml:17:53: found [-40000, 0] for clamp; expected [min, max] with integers -32768 <= min <= max <= "
+          "32767"));
   // An UNSIGNED32 field (6120h) takes what an INTEGER16 one refuses.
   EXPECT_EQ(bad.errors.size(), 10u);
 }
@@ -800,8 +854,9 @@ subdevices:
   b: { driver: mcb402, node_id: 3, heartbeat_ms: 0, pdo_timeout_ms: 200 }
 functional_elements: {}
 )");
-  EXPECT_THAT(errors(r), ElementsAre("t.yaml:4:50: heartbeat_ms 0 leaves sub-device 'a' without proof of life; expected "
-                                     "a heartbeat (heartbeat_ms > 0) or pdo_timeout_ms > 0"));
+  EXPECT_THAT(errors(r),
+              ElementsAre("t.yaml:4:50: heartbeat_ms 0 leaves sub-device 'a' without proof of life; expected "
+                          "a heartbeat (heartbeat_ms > 0) or pdo_timeout_ms > 0"));
   const auto ok = load(R"(upstream: { node_id: 1 }
 downstream: { interface: can1 }
 subdevices:
@@ -859,7 +914,8 @@ publish:
       permissions_ca: dds/ca.pem
       governance: ../shared/governance.p7s
       permissions: dds/permissions.p7s
-)" + tail, "/etc/oegw/oegw.yaml", fake_catalogue, std::filesystem::path("/etc/oegw"));
+)" + tail,
+                            "/etc/oegw/oegw.yaml", fake_catalogue, std::filesystem::path("/etc/oegw"));
   ASSERT_TRUE(r.ok()) << r.error_text();
   ASSERT_TRUE(r.config->publish.dds.security.has_value());
   const auto& sec = *r.config->publish.dds.security;
@@ -885,9 +941,10 @@ publish:
                           "certificate, private_key, permissions_ca, governance, permissions (file paths, from the "
                           "mapping file's folder)",
                           "t.yaml:7:20: found '' for certificate; expected a text",
-                          ::testing::StartsWith("t.yaml:11:7: unknown key 'permisions' in publish dds security; expected "
-                                                "one of identity_ca, certificate, private_key, permissions_ca, governance, "
-                                                "permissions (did you mean 'permissions'?)")));
+                          ::testing::StartsWith(
+                              "t.yaml:11:7: unknown key 'permisions' in publish dds security; expected "
+                              "one of identity_ca, certificate, private_key, permissions_ca, governance, "
+                              "permissions (did you mean 'permissions'?)")));
 }
 
 // Who may command an output FE (config.hpp CommandSource): canopen and dds by default (LCM is
@@ -992,8 +1049,10 @@ functional_elements:
 // with a ttl above 0 would reach every device on the cab network and is refused.
 TEST(MappingConfig, LcmLinkLocalGroupOnlyWithTtlZero) {
   auto with_url = [](const std::string& url) {
-    return load("upstream: { interface: can0, node_id: 0x20 }\ndownstream: { interface: can1 }\n"
-                "publish:\n  lcm: { url: \"" + url + "\" }\nsubdevices: {}\nfunctional_elements: {}\n");
+    return load(
+        "upstream: { interface: can0, node_id: 0x20 }\ndownstream: { interface: can1 }\n"
+        "publish:\n  lcm: { url: \"" +
+        url + "\" }\nsubdevices: {}\nfunctional_elements: {}\n");
   };
   EXPECT_EQ(LcmConfig{}.url, "udpm://224.0.0.1:7667?ttl=0");
   EXPECT_TRUE(with_url("udpm://224.0.0.1:7667?ttl=0").ok());
@@ -1007,9 +1066,8 @@ TEST(MappingConfig, LcmLinkLocalGroupOnlyWithTtlZero) {
                           "udpm://239.255.76.67:7667?ttl=1"));
   // Whatever liblcm would read as a ttl above 0, or as a 224.0.0.x address, never a crash.
   for (const char* url : {"udpm://224.0.0.1:7667?ttl=99999999999999999999", "udpm://224.0.0.1:7667?ttl=0x1",
-                          "udpm://224.0.0.1:7667?ttl=-1", "udpm://224.0.0.1:7667?ttl=1x",
-                          "udpm://224.0.1:7667?ttl=1", "udpm://0xE0000001:7667?ttl=1",
-                          "udpm://224.0.0.1:7667?ttl=0&ttl=1"}) {
+                          "udpm://224.0.0.1:7667?ttl=-1", "udpm://224.0.0.1:7667?ttl=1x", "udpm://224.0.1:7667?ttl=1",
+                          "udpm://0xE0000001:7667?ttl=1", "udpm://224.0.0.1:7667?ttl=0&ttl=1"}) {
     const auto r = with_url(url);
     ASSERT_EQ(r.errors.size(), 1u) << url;
     EXPECT_NE(r.errors[0].message.find("link-local group 224.0.0.1"), std::string::npos) << r.error_text();
@@ -1059,9 +1117,10 @@ functional_elements: {}
 
 TEST(MappingConfig, MissingFileIsAnErrorNotACrash) {
   const auto r = load_config("/nonexistent/oegw.yaml", fake_catalogue);
-  EXPECT_THAT(errors(r), ElementsAre("/nonexistent/oegw.yaml:1:1: cannot open: No such file or directory; expected a readable file"));
+  EXPECT_THAT(errors(r),
+              ElementsAre(
+                  "/nonexistent/oegw.yaml:1:1: cannot open: No such file or directory; expected a readable file"));
 }
-
 
 // ---- upstream.sdo_servers ------------------------------------------------------------------
 
@@ -1087,8 +1146,8 @@ functional_elements:
 
 // Entry k is 1200h + k: bound or not, with both COB-IDs or none (disabled until the host writes them).
 TEST(MappingConfig, SdoServersAreReadInOrder) {
-  const auto r = load(sdo_servers::file({"{ subdevice: right_grip, request: 0x690, response: 0x6B0 }", "{}",
-                                         "{ request: 1700, response: 0x6A5 }"}));
+  const auto r = load(sdo_servers::file(
+      {"{ subdevice: right_grip, request: 0x690, response: 0x6B0 }", "{}", "{ request: 1700, response: 0x6A5 }"}));
   ASSERT_TRUE(r.ok()) << r.error_text();
   const auto& s = r.config->upstream.sdo_servers;
   ASSERT_EQ(s.size(), 3u);
@@ -1142,12 +1201,14 @@ TEST(MappingConfig, SdoServerEntryErrors) {
 
 // Restricted CAN-IDs (CiA 301 §7.3.5), each named with its range.
 TEST(MappingConfig, SdoServerRestrictedCanIdsNameTheirRange) {
-  const auto r = load(sdo_servers::file({"{ request: 0x605, response: 0x585 }", "{ request: 0x000, response: 0x07F }",
-                                         "{ request: 0x101, response: 0x6E0 }", "{ request: 0x720, response: 0x7E5 }"}));
+  const auto r =
+      load(sdo_servers::file({"{ request: 0x605, response: 0x585 }", "{ request: 0x000, response: 0x07F }",
+                              "{ request: 0x101, response: 0x6E0 }", "{ request: 0x720, response: 0x7E5 }"}));
   EXPECT_THAT(
       errors(r),
       ElementsAre(
-          "t.yaml:4:18: request COB-ID 0x605 of SDO server 1201h is a CAN-ID CiA 301 restricts: 601h..67Fh (the default "
+          "t.yaml:4:18: request COB-ID 0x605 of SDO server 1201h is a CAN-ID CiA 301 restricts: 601h..67Fh (the "
+          "default "
           "SDO client->server identifiers); expected an 11-bit COB-ID outside 000h..07Fh, 101h..180h, 581h..5FFh, "
           "601h..67Fh, 6E0h..6FFh, 701h..7FFh",
           "t.yaml:4:35: response COB-ID 0x585 of SDO server 1201h is a CAN-ID CiA 301 restricts: 581h..5FFh (the "
@@ -1182,20 +1243,21 @@ TEST(MappingConfig, SdoServerCobIdsClash) {
                           "response (line 4, column 35); expected a COB-ID no other object of the gateway uses",
                           "t.yaml:6:35: response COB-ID 0x6D0 of SDO server 1203h is already used by SDO server 1203h "
                           "request (line 6, column 18); expected a COB-ID no other object of the gateway uses"));
-  EXPECT_THAT(errors(load(file({"{ request: 0x1A0, response: 0x0A0 }", "{ request: 0x080, response: 0x100 }",
-                                "{ request: 0x520, response: 0x2A0 }"}))),
-              ElementsAre("t.yaml:4:18: request COB-ID 0x1A0 of SDO server 1201h clashes with the gateway's TPDO1 (180h "
-                          "+ node-ID 20h); expected a COB-ID no other object of the gateway uses",
-                          "t.yaml:4:35: response COB-ID 0x0A0 of SDO server 1201h clashes with the gateway's EMCY (080h "
-                          "+ node-ID 20h); expected a COB-ID no other object of the gateway uses",
-                          "t.yaml:5:18: request COB-ID 0x080 of SDO server 1202h clashes with the gateway's SYNC "
-                          "(1005h); expected a COB-ID no other object of the gateway uses",
-                          "t.yaml:5:35: response COB-ID 0x100 of SDO server 1202h clashes with TIME (100h, CiA 301 "
-                          "predefined connection set); expected a COB-ID no other object of the gateway uses",
-                          "t.yaml:6:18: request COB-ID 0x520 of SDO server 1203h clashes with the gateway's RPDO4 "
-                          "(500h + node-ID 20h); expected a COB-ID no other object of the gateway uses",
-                          "t.yaml:6:35: response COB-ID 0x2A0 of SDO server 1203h clashes with the gateway's TPDO2 "
-                          "(280h + node-ID 20h); expected a COB-ID no other object of the gateway uses"));
+  EXPECT_THAT(
+      errors(load(file({"{ request: 0x1A0, response: 0x0A0 }", "{ request: 0x080, response: 0x100 }",
+                        "{ request: 0x520, response: 0x2A0 }"}))),
+      ElementsAre("t.yaml:4:18: request COB-ID 0x1A0 of SDO server 1201h clashes with the gateway's TPDO1 (180h "
+                  "+ node-ID 20h); expected a COB-ID no other object of the gateway uses",
+                  "t.yaml:4:35: response COB-ID 0x0A0 of SDO server 1201h clashes with the gateway's EMCY (080h "
+                  "+ node-ID 20h); expected a COB-ID no other object of the gateway uses",
+                  "t.yaml:5:18: request COB-ID 0x080 of SDO server 1202h clashes with the gateway's SYNC "
+                  "(1005h); expected a COB-ID no other object of the gateway uses",
+                  "t.yaml:5:35: response COB-ID 0x100 of SDO server 1202h clashes with TIME (100h, CiA 301 "
+                  "predefined connection set); expected a COB-ID no other object of the gateway uses",
+                  "t.yaml:6:18: request COB-ID 0x520 of SDO server 1203h clashes with the gateway's RPDO4 "
+                  "(500h + node-ID 20h); expected a COB-ID no other object of the gateway uses",
+                  "t.yaml:6:35: response COB-ID 0x2A0 of SDO server 1203h clashes with the gateway's TPDO2 "
+                  "(280h + node-ID 20h); expected a COB-ID no other object of the gateway uses"));
   // The other nodes' EMCYs only when the gateway consumes them (1028h, with output FEs).
   const std::vector<std::string> emcy{"{ request: 0x091, response: 0x0FF }"};
   EXPECT_TRUE(load(file(emcy)).ok());
@@ -1250,8 +1312,10 @@ TEST(MappingConfig, BytesThatAreNotUtf8TextAreRefusedAtTheirPosition) {
   EXPECT_EQ(with(3, "\x07"),  // inside a comment or not: a control character is no text
             (std::vector<std::string>{"t.yaml:1:4: byte 0x07 (a control character) is not text; expected a UTF-8 "
                                       "text file"}));
-  EXPECT_EQ(with(line2, "\x8F"), (std::vector<std::string>{"t.yaml:2:1: byte 0x8F is not UTF-8; expected a UTF-8 text file"}));
-  EXPECT_EQ(with(line2, "\xC0\xAF"), (std::vector<std::string>{"t.yaml:2:1: byte 0xC0 is not UTF-8; expected a UTF-8 text file"}));
+  EXPECT_EQ(with(line2, "\x8F"),
+            (std::vector<std::string>{"t.yaml:2:1: byte 0x8F is not UTF-8; expected a UTF-8 text file"}));
+  EXPECT_EQ(with(line2, "\xC0\xAF"),
+            (std::vector<std::string>{"t.yaml:2:1: byte 0xC0 is not UTF-8; expected a UTF-8 text file"}));
   // UTF-8 itself, and a byte-order mark, are text.
   EXPECT_TRUE(load("\xEF\xBB\xBF" + good + "# Fahrersitz links, Knopf \xC3\xA4\n").ok());
 }
@@ -1284,8 +1348,9 @@ TEST(MappingConfig, AnUnknownDriverIsReportedOnce) {
   t.replace(t.find("elobau-mfg"), 10, "elobau-mgf");
   const auto e = errors(load(t));
   ASSERT_FALSE(e.empty());
-  EXPECT_EQ(e[0], "t.yaml:4:25: unknown driver 'elobau-mgf'; expected one of elobau-mfg, mcb402, novotechnik-406, "
-                  "cia401 (did you mean 'elobau-mfg'?)");
+  EXPECT_EQ(e[0],
+            "t.yaml:4:25: unknown driver 'elobau-mgf'; expected one of elobau-mfg, mcb402, novotechnik-406, "
+            "cia401 (did you mean 'elobau-mfg'?)");
 }
 
 // A driver family written in another case, with '-' where the name has none, or without its
@@ -1304,15 +1369,15 @@ subdevices:
 functional_elements: {}
 )");
   const std::string families = "expected one of elobau-mfg, mcb402, novotechnik-406, cia401";
-  EXPECT_THAT(errors(r), ElementsAre("t.yaml:4:16: unknown driver 'MCB402'; " + families + " (did you mean 'mcb402'?)",
-                                     "t.yaml:5:16: unknown driver 'mcb-402'; " + families + " (did you mean 'mcb402'?)",
-                                     "t.yaml:6:16: unknown driver 'novotechnik'; " + families +
-                                         " (did you mean 'novotechnik-406'?)",
-                                     "t.yaml:7:16: unknown driver 'Elobau'; " + families + " (did you mean 'elobau-mfg'?)",
-                                     "t.yaml:8:16: unknown driver 'CiA401'; " + families + " (did you mean 'cia401'?)",
-                                     "t.yaml:9:16: unknown driver 'elobau_mfg'; " + families +
-                                         " (did you mean 'elobau-mfg'?)",
-                                     "t.yaml:10:16: unknown driver 'joystick'; " + families));
+  EXPECT_THAT(errors(r),
+              ElementsAre("t.yaml:4:16: unknown driver 'MCB402'; " + families + " (did you mean 'mcb402'?)",
+                          "t.yaml:5:16: unknown driver 'mcb-402'; " + families + " (did you mean 'mcb402'?)",
+                          "t.yaml:6:16: unknown driver 'novotechnik'; " + families +
+                              " (did you mean 'novotechnik-406'?)",
+                          "t.yaml:7:16: unknown driver 'Elobau'; " + families + " (did you mean 'elobau-mfg'?)",
+                          "t.yaml:8:16: unknown driver 'CiA401'; " + families + " (did you mean 'cia401'?)",
+                          "t.yaml:9:16: unknown driver 'elobau_mfg'; " + families + " (did you mean 'elobau-mfg'?)",
+                          "t.yaml:10:16: unknown driver 'joystick'; " + families));
 }
 
 TEST(MappingConfig, NearMissComparesWithoutCaseAndTakesANamesFirstPart) {
@@ -1341,7 +1406,8 @@ TEST(MappingConfig, AMisspeltSubdevicesKeyIsOneErrorNotACascade) {
   const std::string head = "upstream: { node_id: 1 }\ndownstream: { interface: can1 }\n";
   for (const std::string key : {"subdevice", "sub_devices", "Subdevices", "subdevics"})
     EXPECT_THAT(errors(load(head + key + ":" + devices + fes)),
-                ElementsAre("t.yaml:3:1: unknown key '" + key + "' in the file; expected one of upstream, downstream, "
+                ElementsAre("t.yaml:3:1: unknown key '" + key +
+                            "' in the file; expected one of upstream, downstream, "
                             "publish, control, record, subdevices, functional_elements (did you mean 'subdevices'?)"))
         << key;
   // Missing, or no map: that one error, not one per sub-device named.
@@ -1419,8 +1485,10 @@ subdevices:
 TEST(MappingConfig, ARefusedSubdeviceNameIsNoSuggestion) {
   std::string t = kHead + "  joystick.1: { x: right_gripp.x }\n";
   t.replace(t.find("right_grip:"), 10, "Right_grip");
-  for (const auto& e : errors(load(t))) EXPECT_THAT(e, ::testing::Not(::testing::HasSubstr("did you mean 'Right_grip'")));
-  EXPECT_THAT(errors(load(t)), ::testing::Contains(::testing::HasSubstr("sub-device name 'Right_grip' has characters")));
+  for (const auto& e : errors(load(t)))
+    EXPECT_THAT(e, ::testing::Not(::testing::HasSubstr("did you mean 'Right_grip'")));
+  EXPECT_THAT(errors(load(t)),
+              ::testing::Contains(::testing::HasSubstr("sub-device name 'Right_grip' has characters")));
 }
 
 TEST(MappingConfig, MergeKeysWriteTwinGrips) {
@@ -1459,7 +1527,8 @@ functional_elements:
   EXPECT_EQ(r2.config->find_subdevice("c")->heartbeat_ms, 200);
   EXPECT_TRUE(r2.config->find_subdevice("c")->mandatory);
   EXPECT_THAT(errors(load(R"(upstream: { interface: can0, node_id: 0x20, <<: 5 })")),
-              ::testing::Contains(::testing::HasSubstr("for the merge key '<<' in upstream; expected an alias of a map")));
+              ::testing::Contains(
+                  ::testing::HasSubstr("for the merge key '<<' in upstream; expected an alias of a map")));
 }
 
 TEST(MappingConfig, LimitsAreNamedBeforeAnythingIsRead) {
@@ -1500,7 +1569,8 @@ TEST(MappingConfig, AtMost127Subdevices) {
   auto file = [](int n) {
     std::string t = "upstream: { interface: can0, node_id: 0x20 }\ndownstream: { interface: can1 }\nsubdevices:\n";
     for (int i = 1; i <= n; ++i)
-      t += "  g" + std::to_string(i) + ": { driver: novotechnik-406, node_id: " + std::to_string(i > 127 ? 1 : i) + " }\n";
+      t += "  g" + std::to_string(i) + ": { driver: novotechnik-406, node_id: " + std::to_string(i > 127 ? 1 : i) +
+           " }\n";
     return t + "functional_elements:\n  encoder.1: { position: g1.position }\n";
   };
   EXPECT_TRUE(load(file(127)).ok()) << load(file(127)).error_text();
@@ -1511,8 +1581,10 @@ TEST(MappingConfig, AtMost127Subdevices) {
 
 TEST(MappingConfig, OnlyARegularFileIsRead) {
   const auto one = [](const std::string& path) { return errors(load_config(path, fake_catalogue)); };
-  EXPECT_EQ(one("/dev/zero"), (std::vector<std::string>{"/dev/zero:1:1: is a character device; expected a regular file"}));
-  EXPECT_EQ(one(source_dir()), (std::vector<std::string>{source_dir() + ":1:1: is a directory; expected a regular file"}));
+  EXPECT_EQ(one("/dev/zero"),
+            (std::vector<std::string>{"/dev/zero:1:1: is a character device; expected a regular file"}));
+  EXPECT_EQ(one(source_dir()),
+            (std::vector<std::string>{source_dir() + ":1:1: is a directory; expected a regular file"}));
   EXPECT_EQ(one("/nonexistent/x.yaml"),
             (std::vector<std::string>{"/nonexistent/x.yaml:1:1: cannot open: No such file or directory; expected a "
                                       "readable file"}));
@@ -1548,12 +1620,13 @@ TEST(MappingConfig, SyncPeriodIsInRangeAndNeededBySynchronousTypes) {
   EXPECT_EQ(set.config->downstream.sync_period_ms, 20);
   EXPECT_EQ(errors(with(", sync_period_ms: 10001", "")),
             (std::vector<std::string>{"t.yaml:2:48: sync_period_ms 10001 is out of range; expected 0..10000"}));
-  EXPECT_EQ(errors(with("", sync_tpdo)),
-            (std::vector<std::string>{
-                "t.yaml:6:58: sub-device 'knob' sdo write 1800h:02 (TPDO transmission type) 4 is a synchronous "
-                "transmission type (the PDO is sent only at a SYNC, CiA 301 §7.5.2.35) and downstream.sync_period_ms is "
-                "0, so no SYNC is produced; expected downstream.sync_period_ms 1..10000, or an asynchronous type (254, "
-                "255)"}));
+  EXPECT_EQ(
+      errors(with("", sync_tpdo)),
+      (std::vector<std::string>{
+          "t.yaml:6:58: sub-device 'knob' sdo write 1800h:02 (TPDO transmission type) 4 is a synchronous "
+          "transmission type (the PDO is sent only at a SYNC, CiA 301 §7.5.2.35) and downstream.sync_period_ms is "
+          "0, so no SYNC is produced; expected downstream.sync_period_ms 1..10000, or an asynchronous type (254, "
+          "255)"}));
   EXPECT_TRUE(with("", ", sdo: [ { index: 0x1800, sub_index: 2, value: 254, type: u8 } ]").ok());
 }
 
@@ -1574,8 +1647,10 @@ TEST(MappingConfig, RevisionMatchIsMajorOrExact) {
   EXPECT_TRUE(with(", revision_match: major").ok());
   const auto bad = errors(with(", revision_match: minor"));
   ASSERT_EQ(bad.size(), 1u);
-  EXPECT_NE(bad[0].find("found 'minor' for revision_match; expected major (the upper 16 bits of 1018h:03, the default) or exact"),
-            std::string::npos)
+  EXPECT_NE(
+      bad[0].find(
+          "found 'minor' for revision_match; expected major (the upper 16 bits of 1018h:03, the default) or exact"),
+      std::string::npos)
       << bad[0];
 }
 
@@ -1583,9 +1658,12 @@ TEST(MappingConfig, RevisionMatchIsMajorOrExact) {
 
 // A file naming its EDS file `eds` and its store `store`, as written.
 std::string with_paths(const std::string& eds, const std::string& store) {
-  return "upstream: { interface: can0, node_id: 0x20, store: '" + store + "' }\n"
+  return "upstream: { interface: can0, node_id: 0x20, store: '" + store +
+         "' }\n"
          "downstream: { interface: can1 }\n"
-         "subdevices:\n  io: { driver: cia401, node_id: 0x31, options: { eds: '" + eds + "' } }\n"
+         "subdevices:\n  io: { driver: cia401, node_id: 0x31, options: { eds: '" +
+         eds +
+         "' } }\n"
          "functional_elements:\n  pedal.1: { position: \"io.analog[1]\" }\n";
 }
 
@@ -1603,8 +1681,8 @@ TEST(MappingPaths, RelativePathsAreTakenFromTheBaseFolder) {
   EXPECT_EQ(p.eds, "/etc/oegw/pedal.eds");
   EXPECT_EQ(p.store, "/etc/oegw/state/up.store");
   // ".." leads out of the folder, and is folded: ../eds from /etc/oegw is /etc/eds.
-  EXPECT_EQ(paths_of(load_config_text(with_paths("../eds/p.eds", "/var/lib/oegw/u.store"), "cab.yaml",
-                                      fake_catalogue, std::filesystem::path("/etc/oegw")))
+  EXPECT_EQ(paths_of(load_config_text(with_paths("../eds/p.eds", "/var/lib/oegw/u.store"), "cab.yaml", fake_catalogue,
+                                      std::filesystem::path("/etc/oegw")))
                 .eds,
             "/etc/eds/p.eds");
 }
@@ -1677,7 +1755,8 @@ TEST(MappingConfig, ControlSectionErrorsNameTheSetting) {
               ElementsAre("t.yaml:1:20: control socket '/run/oegw/' names a folder; expected the socket file's path, "
                           "e.g. /run/oegw/oegw.sock"));
   EXPECT_THAT(errors(load("control: /run/oegw.sock\n" + kWhole)),
-              ElementsAre("t.yaml:1:10: found '/run/oegw.sock' for control; expected a map with enabled, socket, group"));
+              ElementsAre(
+                  "t.yaml:1:10: found '/run/oegw.sock' for control; expected a map with enabled, socket, group"));
 }
 
 // ---- record: the black box (docs/guides/black-box.md) ---------------------------------
@@ -1692,9 +1771,11 @@ TEST(MappingConfig, RecordIsOffWithoutTheSection) {
 }
 
 TEST(MappingConfig, RecordSectionReadWithItsFolderFromTheFilesFolder) {
-  const auto r = load_config_text("record: { enabled: true, dir: rec/, max_mib: 32, span_s: 120, segments: 4, "
-                                  "queue_kib: 1024 }\n" + kWhole,
-                                  "/etc/oegw/t.yaml", fake_catalogue, std::filesystem::path("/etc/oegw"));
+  const auto r = load_config_text(
+      "record: { enabled: true, dir: rec/, max_mib: 32, span_s: 120, segments: 4, "
+      "queue_kib: 1024 }\n" +
+          kWhole,
+      "/etc/oegw/t.yaml", fake_catalogue, std::filesystem::path("/etc/oegw"));
   ASSERT_TRUE(r.ok()) << r.error_text();
   const RecordConfig& c = r.config->record;
   EXPECT_TRUE(c.enabled);

@@ -69,13 +69,13 @@ TEST(Deployment, TheFilesMistakesAreNotThisMachines) {
 }
 
 TEST(Deployment, InterfaceNamesTheKernelRefuses) {
-  for (const auto& [name, why] : std::vector<std::pair<std::string, std::string>>{
-           {"", "'' is empty"},
-           {"can0123456789abc", "is 16 bytes long"},
-           {"can/0", "contains '/'"},
-           {"can0:1", "contains ':'"},
-           {"can\t0", "contains white space"},
-           {"..", "which the kernel refuses"}}) {
+  for (const auto& [name, why] :
+       std::vector<std::pair<std::string, std::string>>{{"", "'' is empty"},
+                                                        {"can0123456789abc", "is 16 bytes long"},
+                                                        {"can/0", "contains '/'"},
+                                                        {"can0:1", "contains ':'"},
+                                                        {"can\t0", "contains white space"},
+                                                        {"..", "which the kernel refuses"}}) {
     Config c = cab();
     c.upstream.interface = name;
     const auto e = errors(c);
@@ -94,8 +94,9 @@ TEST(Deployment, VirtualIsTheDemosBusAndBothBusesOnVirtualAreTwoErrorsNotThree) 
   c.downstream.interface = "virtual";
   const auto e = errors(c);
   ASSERT_EQ(e.size(), 2u);
-  EXPECT_EQ(e[0], "cab.yaml:2:14: upstream.interface: interface virtual is the embedded demo's bus: use oegw demo, "
-                  "or name a CAN interface (can0, can1, vcan0, ...)");
+  EXPECT_EQ(e[0],
+            "cab.yaml:2:14: upstream.interface: interface virtual is the embedded demo's bus: use oegw demo, "
+            "or name a CAN interface (can0, can1, vcan0, ...)");
   EXPECT_EQ(e[1].rfind("cab.yaml:5:14: downstream.interface: interface virtual", 0), 0u) << e[1];
 }
 
@@ -138,9 +139,9 @@ TEST(Deployment, ARecordFolderUnderAFileIsThisMachinesAtItsSetting) {
   c.record.where = {"cab.yaml", 12, 1};
   EXPECT_TRUE(here(c).empty()) << "recording is off";
   c.record.enabled = true;
-  EXPECT_THAT(here(c), ::testing::ElementsAre("cab.yaml:12:25: record.dir " + c.record.dir + ": " +
-                                                (dir / "plain").string() +
-                                                " is a file, not a folder; expected a folder oegw run may make or write"));
+  EXPECT_THAT(here(c),
+              ::testing::ElementsAre("cab.yaml:12:25: record.dir " + c.record.dir + ": " + (dir / "plain").string() +
+                                     " is a file, not a folder; expected a folder oegw run may make or write"));
   c.record.dir = (dir / "not" / "yet").string();  // made by oegw run
   EXPECT_TRUE(here(c).empty());
   std::filesystem::remove_all(dir);
@@ -149,7 +150,8 @@ TEST(Deployment, ARecordFolderUnderAFileIsThisMachinesAtItsSetting) {
 // The store is never read through a link nor replaced over one (canopen/301/storage.hpp): a
 // link there would leave the device on defaults at every start. Refused at the setting.
 TEST(Deployment, ASymlinkedStoreIsThisMachinesAtItsSetting) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("oegw-deploy-" + std::to_string(::getpid()));
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("oegw-deploy-" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   ::chmod(dir.c_str(), 0755);
   std::filesystem::create_symlink(dir / "elsewhere.store", dir / "up.store");
@@ -169,7 +171,8 @@ TEST(Deployment, ASymlinkedStoreIsThisMachinesAtItsSetting) {
 TEST(Deployment, WarnsOnAStoreFolderEveryUserMayWrite) {
   Config c = cab();
   EXPECT_TRUE(machine_warnings(c).empty());
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("oegw-deploy-w-" + std::to_string(::getpid()));
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("oegw-deploy-w-" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   ::chmod(dir.c_str(), 0777);
   c.upstream.store = (dir / "up.store").string();
@@ -210,7 +213,8 @@ TEST(Deployment, TheControlSocketRunWouldRefuseOnThisMachine) {
                   ::testing::StartsWith("cab.yaml:12:20: control.socket /nonexistent-oegw/run/oegw.sock: its folder "
                                         "/nonexistent-oegw/run does not exist, nor does /nonexistent-oegw (oegw run "
                                         "makes only the socket's own folder)"),
-                  ::testing::StartsWith("cab.yaml:12:40: control.group: no group 'oegw_no_such_group_x' on this machine")));
+                  ::testing::StartsWith(
+                      "cab.yaml:12:40: control.group: no group 'oegw_no_such_group_x' on this machine")));
   c.control.group.clear();
   // One socket path each: the only error (or "" when there is none, or several).
   const auto only = [&c](const char* socket) {
@@ -223,7 +227,9 @@ TEST(Deployment, TheControlSocketRunWouldRefuseOnThisMachine) {
             "would not replace it); remove it or choose another control.socket");
   EXPECT_NE(only("/etc/hostname/oegw.sock").find("/etc/hostname is not a folder"), std::string::npos);
   c.control.socket_where = {};  // the default's place: the section
-  EXPECT_EQ(only("/nonexistent-oegw/run/oegw.sock").rfind("cab.yaml:12:1: control.socket /nonexistent-oegw/run/oegw.sock (the default): ", 0), 0u);
+  EXPECT_EQ(only("/nonexistent-oegw/run/oegw.sock")
+                .rfind("cab.yaml:12:1: control.socket /nonexistent-oegw/run/oegw.sock (the default): ", 0),
+            0u);
   c.control.enabled = false;  // no socket: nothing to refuse
   c.control.group = "oegw_no_such_group_x";
   EXPECT_TRUE(here(c).empty());

@@ -18,8 +18,8 @@ using subdevices::SignalKind;
 using subdevices::SignalStatus;
 using subdevices::SignalValue;
 
-const SignalInfo kPercent{"x", SignalKind::Axis, -110, 110, 0, "percent"};        // elobau S8
-const SignalInfo kRaw16{"x", SignalKind::Axis, -32768, 32767, 0, "raw16"};        // MCB-402
+const SignalInfo kPercent{"x", SignalKind::Axis, -110, 110, 0, "percent"};  // elobau S8
+const SignalInfo kRaw16{"x", SignalKind::Axis, -32768, 32767, 0, "raw16"};  // MCB-402
 const SignalInfo kButton{"buttons[1]", SignalKind::Button, 0, 1, 0, "bits"};
 const SignalInfo kEncoder{"position", SignalKind::Position, -2147483648LL, 2147483647LL, 0, "counts"};
 const SignalInfo kEncoderU32{"position", SignalKind::Position, 0, 0xFFFFFFFFLL, 0, "counts"};
@@ -44,9 +44,9 @@ TEST(MappingTranslate, ElobauPercentIsFullScaleAt100AndTheDetentIsClamped) {
   EXPECT_EQ(translate_input(p, 0), 0);
   EXPECT_EQ(translate_input(p, 100), 32767);
   EXPECT_EQ(translate_input(p, -100), -32767);
-  EXPECT_EQ(translate_input(p, 50), 16384);   // 16383.5 rounds away from zero
-  EXPECT_EQ(translate_input(p, -1), -328);    // -327.67
-  EXPECT_EQ(translate_input(p, 110), 32767);  // detent: 36044 clamped to full scale
+  EXPECT_EQ(translate_input(p, 50), 16384);     // 16383.5 rounds away from zero
+  EXPECT_EQ(translate_input(p, -1), -328);      // -327.67
+  EXPECT_EQ(translate_input(p, 110), 32767);    // detent: 36044 clamped to full scale
   EXPECT_EQ(translate_input(p, -110), -32767);  // symmetric: never -32768
 }
 
@@ -71,7 +71,7 @@ TEST(MappingTranslate, EncoderUnsigned32PassesAndInteger32KeepsItsBitPattern) {
   EXPECT_EQ(translate_input(p, -2147483648LL), 0x80000000LL);
   EXPECT_EQ(translate_input(p, -1), 0xFFFFFFFFLL);
   EXPECT_EQ(translate_input(p, 70000), 70000);  // no INTEGER16 clamp on 6120h
-  EXPECT_FALSE(p.interlock);                     // an absolute position has no neutral to wait for
+  EXPECT_FALSE(p.interlock);                    // an absolute position has no neutral to wait for
   const auto u = resolve_input(kEncoderU32, encoder_position(), {});
   EXPECT_EQ(translate_input(u, 0xFFFFFFFFLL), 0xFFFFFFFFLL);
   EXPECT_EQ(translate_input(u, 0x80000000LL), 0x80000000LL);
@@ -87,7 +87,7 @@ TEST(MappingTranslate, ExplicitScaleOffsetAndClamp) {
   o.clamp = std::pair<std::int64_t, std::int64_t>(-5000, 8000);
   const auto p = resolve_input(kPercent, joystick_x(), o);
   EXPECT_EQ(translate_input(p, 10), 1050);
-  EXPECT_EQ(translate_input(p, 100), 8000);   // 10050 clamped
+  EXPECT_EQ(translate_input(p, 100), 8000);    // 10050 clamped
   EXPECT_EQ(translate_input(p, -100), -5000);  // -9950 clamped
   EXPECT_EQ(p.neutral, 50);                    // the neutral goes through offset too
   EXPECT_EQ(p.fault, 50);                      // fault value defaults to that neutral
@@ -158,11 +158,11 @@ TEST(MappingTranslate, BitPackedSignalsAreRecognisedByTheirRange) {
   EXPECT_EQ(bit_width({"in[1]", SignalKind::Digital, 0, 255, 0, "bits"}), 8u);
   EXPECT_EQ(bit_width({"in[1]", SignalKind::Digital, 0, 0xFFFF, 0, "bits"}), 16u);
   EXPECT_EQ(bit_width({"out[1]", SignalKind::Output, 0, 255, 0, "bits"}), 8u);
-  EXPECT_EQ(bit_width(kButton), 0u);                                                // 0..1: one value
-  EXPECT_EQ(bit_width(kLed), 0u);                                                   // LED codes 0..3
-  EXPECT_EQ(bit_width({"out[1]", SignalKind::Output, 0, 255, 0, "raw16"}), 0u);     // not "bits"
-  EXPECT_EQ(bit_width({"in[1]", SignalKind::Digital, 0, 100, 0, "bits"}), 0u);      // not 2^n - 1
-  EXPECT_EQ(bit_width({"a", SignalKind::Analog, 0, 255, 0, "bits"}), 0u);           // not Digital
+  EXPECT_EQ(bit_width(kButton), 0u);                                             // 0..1: one value
+  EXPECT_EQ(bit_width(kLed), 0u);                                                // LED codes 0..3
+  EXPECT_EQ(bit_width({"out[1]", SignalKind::Output, 0, 255, 0, "raw16"}), 0u);  // not "bits"
+  EXPECT_EQ(bit_width({"in[1]", SignalKind::Digital, 0, 100, 0, "bits"}), 0u);   // not 2^n - 1
+  EXPECT_EQ(bit_width({"a", SignalKind::Analog, 0, 255, 0, "bits"}), 0u);        // not Digital
 }
 
 TEST(MappingTranslate, OneBitOfAnInputByteFeedsAButton) {
@@ -193,8 +193,8 @@ TEST(MappingTranslate, StartsAtTheFaultValueAndInterlockedUntilSeenAtZero) {
   EXPECT_EQ(t.value(), 0);
   EXPECT_EQ(t.update(valid(50)), 0);  // booted deflected: held at neutral
   EXPECT_TRUE(t.interlocked());
-  EXPECT_EQ(t.update(valid(3)), 0);   // just outside the deadband: still held
-  EXPECT_EQ(t.update(valid(2)), 0);   // inside: released (and inside the deadband anyway)
+  EXPECT_EQ(t.update(valid(3)), 0);  // just outside the deadband: still held
+  EXPECT_EQ(t.update(valid(2)), 0);  // inside: released (and inside the deadband anyway)
   EXPECT_FALSE(t.interlocked());
   EXPECT_EQ(t.update(valid(50)), 16384);  // follows
 }
@@ -211,7 +211,7 @@ TEST(MappingTranslate, EveryNonValidStatusGivesTheFaultValueAndReArmsTheInterloc
     EXPECT_TRUE(t.interlocked());
     EXPECT_EQ(t.update(valid(100)), 0) << to_string(s);  // back, still deflected: neutral, not fault
     EXPECT_EQ(t.update(valid(-60)), 0);
-    EXPECT_EQ(t.update(valid(1)), 0);      // seen at zero
+    EXPECT_EQ(t.update(valid(1)), 0);         // seen at zero
     EXPECT_EQ(t.update(valid(-60)), -19660);  // -19660.2
   }
 }

@@ -34,7 +34,8 @@ class Mcb402Test : public ::testing::Test {
   void make(DriverOptions options) {
     if (!options.get("button_bits")) options.values.emplace_back("button_bits", "1,2,3,4,5,7,6");
     std::string error;
-    driver_ = make_mcb402_driver(kNode, [this](const CanFrame& f) { sent_.push_back(f); }, options, error);
+    driver_ = make_mcb402_driver(
+        kNode, [this](const CanFrame& f) { sent_.push_back(f); }, options, error);
     ASSERT_NE(driver_, nullptr) << error;
     driver_->on_change = [this](std::size_t i, const SignalValue&) { changes_.push_back(i); };
     emcy_ = std::make_unique<EmcyConsumer>(od_, [this](const oegw::canopen::EmcyMessage& m, TimePoint now) {
@@ -223,9 +224,9 @@ TEST_F(Mcb402Test, WrongLengthAndForeignFramesAreCountedAndIgnored) {
   ASSERT_TRUE(frame(CanFrame(0x283, {0x10, 0x00, 0x20, 0x00, 0x30, 0x00, 0x40, 0x00})));
   ASSERT_TRUE(frame(CanFrame(0x183, {0x00, 0x00, 0x02, 0x00})));
   changes_.clear();
-  EXPECT_TRUE(frame(CanFrame(0x283, {0xFF, 0x7F, 0xFF, 0x7F, 0xFF, 0x7F})));   // 6 bytes
-  EXPECT_TRUE(frame(CanFrame(0x183, {0x00, 0x00, 0xFE})));                     // 3 bytes
-  EXPECT_TRUE(frame(CanFrame(0x183, {0x00, 0x00, 0xFE, 0x00, 0x00})));         // 5 bytes
+  EXPECT_TRUE(frame(CanFrame(0x283, {0xFF, 0x7F, 0xFF, 0x7F, 0xFF, 0x7F})));  // 6 bytes
+  EXPECT_TRUE(frame(CanFrame(0x183, {0x00, 0x00, 0xFE})));                    // 3 bytes
+  EXPECT_TRUE(frame(CanFrame(0x183, {0x00, 0x00, 0xFE, 0x00, 0x00})));        // 5 bytes
   EXPECT_EQ(driver_->counters().wrong_length, 3u);
   EXPECT_FALSE(frame(CanFrame(0x184, {0x00, 0x00, 0xFE, 0x00})));  // another node
   EXPECT_FALSE(frame(CanFrame(0x203, {0x01})));                    // our own RPDO
@@ -516,7 +517,9 @@ TEST_F(Mcb402Test, ConfigurationWritesTheCanRestartTime) {
   make({{{"can_restart_ms", "250"}}});
   EXPECT_EQ(find(), (std::vector<std::uint8_t>{250, 0}));
   std::string error;
-  EXPECT_EQ(make_mcb402_driver(kNode, [](const CanFrame&) {}, {{{"can_restart_ms", "0"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(
+                kNode, [](const CanFrame&) {}, {{{"can_restart_ms", "0"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error),
+            nullptr);
   EXPECT_NE(error.find("can_restart_ms"), std::string::npos);
 }
 
@@ -540,21 +543,27 @@ TEST(Mcb402ButtonBits, ARefusalNamesWhatIsWrong) {
 TEST_F(Mcb402Test, OptionsAreCheckedAndUnknownOnesRefused) {
   std::string error;
   auto sink = [](const CanFrame&) {};
-  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "0"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "0"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error),
+            nullptr);
   EXPECT_NE(error.find("event_timer_ms"), std::string::npos);
-  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "65536"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error), nullptr);
-  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "2x"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error), nullptr);
-  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_timer_ms", "-1"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "65536"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error),
+            nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"event_timer_ms", "2x"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error),
+            nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_timer_ms", "-1"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error),
+            nullptr);
   EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", "1,2,3,4,5,6"}}}, error), nullptr);
   EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", "1,2,3,4,5,6,6"}}}, error), nullptr);
   EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", "1,2,3,4,5,6,8"}}}, error), nullptr);
   EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"button_bits", "0,1,2,3,4,5,6,7"}}}, error), nullptr);
-  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"heartbeat", "100"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error), nullptr);
+  EXPECT_EQ(make_mcb402_driver(kNode, sink, {{{"heartbeat", "100"}, {"button_bits", "1,2,3,4,5,7,6"}}}, error),
+            nullptr);
   EXPECT_NE(error.find("unknown option 'heartbeat'"), std::string::npos);
   EXPECT_EQ(make_mcb402_driver(NodeId{0}, sink, {}, error), nullptr);
-  auto d = make_mcb402_driver(kNode, sink,
-                              {{{"event_timer_ms", "65535"}, {"button_timer_ms", "0"}, {"button_bits", "1/2/3/4/5/7/6"}}},
-                              error);
+  auto d =
+      make_mcb402_driver(kNode, sink,
+                         {{{"event_timer_ms", "65535"}, {"button_timer_ms", "0"}, {"button_bits", "1/2/3/4/5/7/6"}}},
+                         error);
   ASSERT_NE(d, nullptr) << error;
   const auto& o = dynamic_cast<Mcb402Driver&>(*d).options();
   EXPECT_EQ(o.event_timer_ms, 65535);

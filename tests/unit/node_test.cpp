@@ -29,9 +29,8 @@ std::string read_text(const std::filesystem::path& p) {
 class NodeTest : public ::testing::Test {
  protected:
   NodeTest() {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("oegw-node-test-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = std::filesystem::temp_directory_path() / ("oegw-node-test-" + std::to_string(::getpid()) + "-" +
+                                                     ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
     build_od(od);
@@ -125,8 +124,8 @@ class NodeTest : public ::testing::Test {
     const auto r = sdo_write(index, sub, data, id);
     ASSERT_EQ(r.size(), 1u) << std::hex << index << ":" << int(sub);
     EXPECT_EQ(r[0].id, cob::kSdoTx + id.value());
-    EXPECT_EQ(bytes(r[0]), (Bytes{0x60, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8),
-                                  sub, 0, 0, 0, 0}))
+    EXPECT_EQ(bytes(r[0]),
+              (Bytes{0x60, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8), sub, 0, 0, 0, 0}))
         << std::hex << index << ":" << int(sub);
   }
   static Bytes u32(std::uint32_t v) { return encode<std::uint32_t>(v); }
@@ -409,8 +408,7 @@ TEST_F(NodeTest, LssConfiguresStoresAndActivatesNodeId) {
     EXPECT_EQ(text, "node_id=33\nbit_timing=3\n");
   }
   // Written atomically: no temporary left beside it.
-  for (const auto& e : std::filesystem::directory_iterator(dir_))
-    EXPECT_TRUE(e.path() == lss_file) << e.path();
+  for (const auto& e : std::filesystem::directory_iterator(dir_)) EXPECT_TRUE(e.path() == lss_file) << e.path();
   EXPECT_TRUE(lss({0x04, 0x00}).empty());  // back to waiting
   // Still 20h until reset communication (CiA 305: the new node-ID is pending).
   EXPECT_EQ(node->node_id(), kId);
@@ -511,8 +509,8 @@ TEST_F(NodeTest, LssActivateBitTimingIsSilentForTwiceTheSwitchDelayAndSwitchesIn
   EXPECT_EQ(node->next_deadline(), t0 + 100ms);  // the heartbeat's: it keeps its timing
   out.clear();
   // Everything the node would send while silent is dropped.
-  EXPECT_TRUE(lss({0x5E}).empty());                      // inquire node-ID: no answer
-  EXPECT_TRUE(node->emcy().raise(0x5000, 0x00, now));    // EMCY: not sent
+  EXPECT_TRUE(lss({0x5E}).empty());                    // inquire node-ID: no answer
+  EXPECT_TRUE(node->emcy().raise(0x5000, 0x00, now));  // EMCY: not sent
   for (int ms = 10; ms < 300; ms += 10) at(t0 + std::chrono::milliseconds(ms));
   EXPECT_TRUE(out.empty());
   EXPECT_TRUE(switches.empty());
@@ -584,9 +582,9 @@ TEST_F(NodeTest, LssNodeIdFfhLeavesTheNodeUnconfiguredAndSilentButForLss) {
   ASSERT_EQ(r.size(), 1u);
   EXPECT_EQ(r[0].id, 0x7E4u);
   EXPECT_EQ(bytes(r[0]), (Bytes{0x11, 0x00, 0, 0, 0, 0, 0, 0}));  // 7E4#11 00
-  EXPECT_TRUE(lss({0x04, 0x00}).empty());  // 7E5#04 00: waiting; the node stays at 20h (active)
+  EXPECT_TRUE(lss({0x04, 0x00}).empty());                         // 7E5#04 00: waiting; the node stays at 20h (active)
   EXPECT_EQ(node->state(), NmtState::PreOperational);
-  EXPECT_TRUE(nmt(0x82, 0x00).empty());    // 000#82 00: no boot-up
+  EXPECT_TRUE(nmt(0x82, 0x00).empty());  // 000#82 00: no boot-up
   EXPECT_EQ(node->state(), NmtState::Initialisation);
   EXPECT_TRUE(node->node_id().unconfigured());
   EXPECT_TRUE(node->lss().active_node_id().unconfigured());
@@ -917,7 +915,8 @@ TEST_F(NodeTest, ACobIdOfAnElevenBitFrameWithBitsElevenToTwentyEightSetIsRefused
   NodeConfig c = config();
   c.sdo_servers = {SdoServerChannel{.request = 0x80000000u | 0x640, .response = 0x80000000u | 0x5C0}};
   make(c);
-  EmcyConsumer consumer(od, [](const EmcyMessage&, TimePoint) {}, 4);
+  EmcyConsumer consumer(
+      od, [](const EmcyMessage&, TimePoint) {}, 4);
   start();
   struct Entry {
     std::uint16_t index;

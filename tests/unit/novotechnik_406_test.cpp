@@ -15,8 +15,8 @@ using namespace oegw::subdevices;
 using namespace std::chrono_literals;
 using oegw::canopen::CanFrame;
 using oegw::canopen::EmcyMessage;
-using oegw::canopen::SdoAbortCode;
 using oegw::canopen::NodeId;
+using oegw::canopen::SdoAbortCode;
 using oegw::canopen::TimePoint;
 
 namespace {
@@ -159,7 +159,7 @@ TEST_F(Novotechnik406Test, ReservedMarkerBandIsErrorButNeighboursAreNot) {
 
 TEST_F(Novotechnik406Test, WrongLengthAndForeignCobAreCountedAndIgnored) {
   ASSERT_TRUE(pdo({0x10, 0, 0, 0, 0, 0}));
-  EXPECT_TRUE(raw_pdo({0x20, 0, 0, 0, 0}));  // 5 bytes: ours, but wrong length
+  EXPECT_TRUE(raw_pdo({0x20, 0, 0, 0, 0}));     // 5 bytes: ours, but wrong length
   EXPECT_TRUE(raw_pdo({0x20, 0, 0, 0, 0, 0}));  // the §4.1 default mapping's 6: not what configuration() maps
   EXPECT_EQ(driver_.counters().wrong_length, 2u);
   EXPECT_EQ(pos().value, 0x10);
@@ -177,17 +177,28 @@ TEST_F(Novotechnik406Test, EmcyTableDecodesEveryRow) {
     bool error;
   };
   const Row rows[] = {
-      {0x1000, 1, 0, "unknown error", true},       {0x3100, 1, 0, "supply voltage fault", true},
-      {0x3100, 1, 1, "supply voltage overrun", false}, {0x3100, 1, 2, "supply voltage underrun", false},
-      {0x4210, 1, 1, "temperature overrun", false},   {0x4210, 1, 2, "temperature underrun", false},
-      {0x5000, 1, 0, "device hardware fault", true},  {0x5000, 0, 0, "life guarding", false},
-      {0x5000, 0, 1, "maintenance required", false},  {0x5000, 1, 2, "ASIC", true},
-      {0x5000, 2, 0, "memory lost", true},            {0x5051, 1, 0, "measurement error", true},
-      {0x5051, 1, 1, "Out of range (+)", true},       {0x5051, 1, 2, "Out of range (-)", true},
-      {0x5051, 2, 1, "overflow warning", true},       {0x5051, 2, 2, "underflow warning", true},
-      {0x6000, 1, 0, "software fault", true},         {0x6000, 2, 0, "insufficient event timer", false},
-      {0x8110, 1, 0, "CAN controller overflow", false}, {0x8110, 2, 0, "CAN buffer overflow", false},
-      {0x8120, 0, 0, "error passive", false},         {0x8140, 0, 0, "bus-off", false},
+      {0x1000, 1, 0, "unknown error", true},
+      {0x3100, 1, 0, "supply voltage fault", true},
+      {0x3100, 1, 1, "supply voltage overrun", false},
+      {0x3100, 1, 2, "supply voltage underrun", false},
+      {0x4210, 1, 1, "temperature overrun", false},
+      {0x4210, 1, 2, "temperature underrun", false},
+      {0x5000, 1, 0, "device hardware fault", true},
+      {0x5000, 0, 0, "life guarding", false},
+      {0x5000, 0, 1, "maintenance required", false},
+      {0x5000, 1, 2, "ASIC", true},
+      {0x5000, 2, 0, "memory lost", true},
+      {0x5051, 1, 0, "measurement error", true},
+      {0x5051, 1, 1, "Out of range (+)", true},
+      {0x5051, 1, 2, "Out of range (-)", true},
+      {0x5051, 2, 1, "overflow warning", true},
+      {0x5051, 2, 2, "underflow warning", true},
+      {0x6000, 1, 0, "software fault", true},
+      {0x6000, 2, 0, "insufficient event timer", false},
+      {0x8110, 1, 0, "CAN controller overflow", false},
+      {0x8110, 2, 0, "CAN buffer overflow", false},
+      {0x8120, 0, 0, "error passive", false},
+      {0x8140, 0, 0, "bus-off", false},
   };
   for (const Row& r : rows) {
     const DecodedEmcy d = emcy(r.code, r.reg, r.b3);
@@ -301,15 +312,15 @@ TEST_F(Novotechnik406Test, ConfigurationFollowsTheMappingProcedure) {
   EXPECT_TRUE(is(w[0], 0x1800, 1, {0xFF, 0x01, 0x00, 0xC0}));  // §8.2 step 1: C0000xxxh
   EXPECT_TRUE(is(w[1], 0x1800, 2, {0xFE}));                    // 254: event timer
   EXPECT_TRUE(is(w[2], 0x1800, 3, {0x00, 0x00}));
-  EXPECT_TRUE(is(w[3], 0x1800, 5, {0x32, 0x00}));              // 50 ms
-  EXPECT_TRUE(is(w[4], 0x1A00, 0, {0x00}));                    // step 2
+  EXPECT_TRUE(is(w[3], 0x1800, 5, {0x32, 0x00}));  // 50 ms
+  EXPECT_TRUE(is(w[4], 0x1A00, 0, {0x00}));        // step 2
   // Step 3, the document's frames: 23 00 1A 01 20 01 20 60 and 23 00 1A 02 10 01 30 60; then the
   // §8.2 mappable CAM state (6300h/1) and work area (6400h/1), 8 bit each.
   EXPECT_TRUE(is(w[5], 0x1A00, 1, {0x20, 0x01, 0x20, 0x60}));
   EXPECT_TRUE(is(w[6], 0x1A00, 2, {0x10, 0x01, 0x30, 0x60}));
   EXPECT_TRUE(is(w[7], 0x1A00, 3, {0x08, 0x01, 0x00, 0x63}));
   EXPECT_TRUE(is(w[8], 0x1A00, 4, {0x08, 0x01, 0x00, 0x64}));
-  EXPECT_TRUE(is(w[9], 0x1A00, 0, {0x04}));                    // step 4
+  EXPECT_TRUE(is(w[9], 0x1A00, 0, {0x04}));                     // step 4
   EXPECT_TRUE(is(w[10], 0x1800, 1, {0xFF, 0x01, 0x00, 0x40}));  // step 5: 40000xxxh
   // §4.3 2104h "EMCY behaviour" 0: all events active, whatever the sensor stored.
   EXPECT_TRUE(is(w[11], 0x2104, 0, {0x00}));
@@ -324,7 +335,8 @@ TEST_F(Novotechnik406Test, ConfigurationFollowsTheMappingProcedure) {
   ASSERT_TRUE(instead);
   EXPECT_TRUE(is(*instead, 0x1A00, 1, {0x20, 0x00, 0x04, 0x60}));
   EXPECT_FALSE(d->instead_of_refused(*instead, SdoAbortCode::ObjectDoesNotExist));
-  EXPECT_FALSE(d->instead_of_refused(w[6], SdoAbortCode::ObjectDoesNotExist)) << "another refused write refuses the node";
+  EXPECT_FALSE(d->instead_of_refused(w[6], SdoAbortCode::ObjectDoesNotExist))
+      << "another refused write refuses the node";
   EXPECT_TRUE(is(d->configuration()[5], 0x1A00, 1, {0x20, 0x00, 0x04, 0x60})) << "kept for the next boots";
 }
 
@@ -341,7 +353,8 @@ TEST(Novotechnik406Freshness, DerivedDeadlineHasAFloor) {
   EXPECT_EQ(d->freshness(Novotechnik406Driver::kPosition), std::chrono::milliseconds(300)) << "above the floor";
   d = make_novotechnik_406_driver(kNode, {}, {}, error);
   d->set_pdo_timeout(std::chrono::milliseconds(50));
-  EXPECT_EQ(d->freshness(Novotechnik406Driver::kPosition), std::chrono::milliseconds(50)) << "pdo_timeout_ms as written";
+  EXPECT_EQ(d->freshness(Novotechnik406Driver::kPosition), std::chrono::milliseconds(50))
+      << "pdo_timeout_ms as written";
 }
 
 // Faults latched by an error EMCY: a good TPDO1 does not end them, the clear code does; going
@@ -430,7 +443,8 @@ TEST_F(Novotechnik406Test, ValidPositionDoesNotEndDeviceOrSupplyFaults) {
     std::uint16_t code;
     std::uint8_t reg, b3;
   };
-  for (const Case c : {Case{0x5000, 2, 0}, Case{0x5000, 1, 0}, Case{0x6000, 1, 0}, Case{0x1000, 1, 0}, Case{0x3100, 1, 0}}) {
+  for (const Case c :
+       {Case{0x5000, 2, 0}, Case{0x5000, 1, 0}, Case{0x6000, 1, 0}, Case{0x1000, 1, 0}, Case{0x3100, 1, 0}}) {
     SCOPED_TRACE(testing::Message() << std::hex << c.code << "/" << int{c.reg} << "/" << int{c.b3});
     ASSERT_TRUE(pdo({0x10, 0, 0, 0, 0, 0}));
     ASSERT_TRUE(emcy(c.code, c.reg, c.b3).error);

@@ -84,8 +84,8 @@ TEST(ObjectDictionary, HookRefusalLeavesValueAndObserversUntouched) {
 
 TEST(ObjectDictionary, ArrayHasHighestSubIndexAndPdoRules) {
   ObjectDictionary od;
-  od.add_array(0x6401, "Read analogue input 16-bit", DataType::Integer16, Access::ReadOnly, 3,
-               encode<std::int16_t>(0), true);
+  od.add_array(0x6401, "Read analogue input 16-bit", DataType::Integer16, Access::ReadOnly, 3, encode<std::int16_t>(0),
+               true);
   EXPECT_EQ(od.get<std::uint8_t>(0x6401, 0), 3);
   EXPECT_EQ(od.find(0x6401, 3)->value.size(), 2u);
   EXPECT_EQ(od.check_read(0x6401, 2, Origin::Pdo), SdoAbortCode::None);
@@ -95,8 +95,7 @@ TEST(ObjectDictionary, ArrayHasHighestSubIndexAndPdoRules) {
 
 TEST(ObjectDictionary, StringsAndDomainsHaveVariableLength) {
   ObjectDictionary od;
-  od.add_var(0x1008, "Manufacturer device name", DataType::VisibleString, Access::Const,
-             {'o', 'e', 'g', 'w'});
+  od.add_var(0x1008, "Manufacturer device name", DataType::VisibleString, Access::Const, {'o', 'e', 'g', 'w'});
   od.add_var(0x2010, "Blob", DataType::Domain, Access::ReadWrite, {});
   od.find(0x2010, 0)->max_size = 1000;
   std::vector<std::uint8_t> big(1000, 0xAA);
@@ -165,9 +164,8 @@ TEST(ObjectDictionarySubscription, HandleMayOutliveDictionary) {
     ObjectDictionary od;
     obs = od.add_observer([](std::uint16_t, std::uint8_t, Origin) {});
     hook = od.add_var(0x2000, "A", DataType::Unsigned8, Access::ReadWrite, {0})
-               .add_write_hook([](Object&, std::uint8_t, std::span<const std::uint8_t>, Origin) {
-                 return SdoAbortCode::None;
-               });
+               .add_write_hook(
+                   [](Object&, std::uint8_t, std::span<const std::uint8_t>, Origin) { return SdoAbortCode::None; });
     EXPECT_TRUE(obs.active());
   }
   EXPECT_FALSE(obs.active());

@@ -186,8 +186,8 @@ TEST_F(OeDeviceTest, ObjectsAndPdosOfTheConfiguredKinds) {
   std::vector<std::uint16_t> pdo_objects;
   for (const auto& [i, o] : od().objects())
     if (i >= 0x1400 && i <= 0x1BFF) pdo_objects.push_back(i);
-  std::vector<std::uint16_t> want{0x1400, 0x1404, 0x1405, 0x1406, 0x1407, 0x1408, 0x1409, 0x140A,
-                                  0x1600, 0x1604, 0x1605, 0x1606, 0x1607, 0x1608, 0x1609, 0x160A, 0x1800};
+  std::vector<std::uint16_t> want{0x1400, 0x1404, 0x1405, 0x1406, 0x1407, 0x1408, 0x1409, 0x140A, 0x1600,
+                                  0x1604, 0x1605, 0x1606, 0x1607, 0x1608, 0x1609, 0x160A, 0x1800};
   for (std::uint16_t i = 0x1804; i <= 0x1812; ++i) want.push_back(i);
   want.push_back(0x1A00);
   for (std::uint16_t i = 0x1A04; i <= 0x1A12; ++i) want.push_back(i);
@@ -461,15 +461,15 @@ TEST_F(OeDeviceTest, HostHeartbeatLostAppliesErrorValues) {
   make({indicators(1), display(1)}, /*host_node=*/1, /*host_ms=*/100);
   EXPECT_EQ(u32(0x1016, 1), 0x00010064u);
   nmt(0x01);
-  sdo_ok(0x6200, 1, {0xFF});            // indicators 1..8 on; 6206h:01 = FFh (default) → all 8 react
-  sdo_ok(0x6207, 2, {0x0F});            // byte 2: error value 0Fh...
-  sdo_ok(0x6206, 2, {0xF0});            // ...for bits 4..7 only
+  sdo_ok(0x6200, 1, {0xFF});  // indicators 1..8 on; 6206h:01 = FFh (default) → all 8 react
+  sdo_ok(0x6207, 2, {0x0F});  // byte 2: error value 0Fh...
+  sdo_ok(0x6206, 2, {0xF0});  // ...for bits 4..7 only
   sdo_ok(0x6200, 2, {0x3C});
   sdo_ok(0x6411, 1, canopen::encode<std::int16_t>(500));
   sdo_ok(0x6444, 1, canopen::encode<std::int32_t>(-7));
   sdo_ok(0x6411, 2, canopen::encode<std::int16_t>(300));
-  sdo_ok(0x6443, 2, {0});               // parameter 2 keeps its value
-  rx(0x701, {0x05});                    // host heartbeat: monitoring starts
+  sdo_ok(0x6443, 2, {0});  // parameter 2 keeps its value
+  rx(0x701, {0x05});       // host heartbeat: monitoring starts
   outputs.clear();
   now += 50ms;
   dev->advance(now);
@@ -507,8 +507,8 @@ TEST_F(OeDeviceTest, HostHeartbeatLossNoticedWhileSendingInputTpdosAppliesTheErr
   sdo_ok(0x6200, 1, {0x01});  // indicator 1 on; 6206h:01 = FFh, 6207h:01 = 0: error value off
   rx(0x701, {0x05});          // host heartbeat: monitoring starts
   outputs.clear();
-  now += 150ms;               // past the consumer time, no timer call in between
-  dev->begin_batch();         // a downstream frame moves the joystick
+  now += 150ms;        // past the consumer time, no timer call in between
+  dev->begin_batch();  // a downstream frame moves the joystick
   ASSERT_TRUE(dev->set_input(joystick(1), "x", 1000, now));
   dev->end_batch(now);
   EXPECT_TRUE(dev->node().emcy().active(0x8130));
@@ -528,14 +528,15 @@ TEST_F(OeDeviceTest, AReturningHostHeartbeatClears8130hAndASecondLossAppliesTheE
   dev->advance(now);
   ASSERT_TRUE(dev->node().emcy().active(0x8130));
   ASSERT_EQ(u8(0x6200, 1), 0x00);
-  nmt(0x01);                                  // the host restarts us (1029h took us to pre-op)
-  const auto back = rx(0x701, {0x05});        // the host is back, still operational
+  nmt(0x01);                            // the host restarts us (1029h took us to pre-op)
+  const auto back = rx(0x701, {0x05});  // the host is back, still operational
   EXPECT_FALSE(dev->node().emcy().active(0x8130));
   bool reset_sent = false;
-  for (const auto& f : back) reset_sent = reset_sent || (f.id == 0x80 + kId.value() && f.data[0] == 0 && f.data[1] == 0);
+  for (const auto& f : back)
+    reset_sent = reset_sent || (f.id == 0x80 + kId.value() && f.data[0] == 0 && f.data[1] == 0);
   EXPECT_TRUE(reset_sent) << "EMCY error reset upstream";
   sdo_ok(0x6200, 1, {0x01});
-  now += 150ms;                               // lost again
+  now += 150ms;  // lost again
   dev->advance(now);
   EXPECT_TRUE(dev->node().emcy().active(0x8130));
   EXPECT_EQ(u8(0x6200, 1), 0x00) << "the error value again";

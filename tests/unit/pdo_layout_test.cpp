@@ -67,7 +67,8 @@ std::vector<DocPdo> doc_pdos(FeKind k) {
       // (3n−2 … 3n, 10h), 6000 memory (2n−1, 08h), 6000 buttons (2n, 08h).
       for (unsigned n = 1; n <= 16; ++n) {
         const FeId j = fe(k, n);
-        out.push_back({true, n == 1 ? 1u : n + 3,
+        out.push_back({true,
+                       n == 1 ? 1u : n + 3,
                        {{map(0x6401, 3 * n - 2, 0x10), j, "x", value16(n, 1)},
                         {map(0x6401, 3 * n - 1, 0x10), j, "y", value16(n, 2)},
                         {map(0x6401, 3 * n, 0x10), j, "z", value16(n, 3)},
@@ -111,8 +112,8 @@ std::vector<DocPdo> doc_pdos(FeKind k) {
       for (unsigned n = 1; n <= 8; ++n) {
         DocPdo p{true, 33 + n, {}};
         for (unsigned b = 0; b < 8; ++b)
-          p.entries.push_back({map(0x6000, 0x31 + 8 * (n - 1) + b, 0x08), fe(k, n), fmt::format("switch[{}]", 8 * b + 2),
-                               1, 0x02});
+          p.entries.push_back(
+              {map(0x6000, 0x31 + 8 * (n - 1) + b, 0x08), fe(k, n), fmt::format("switch[{}]", 8 * b + 2), 1, 0x02});
         out.push_back(std::move(p));
       }
       break;
@@ -148,7 +149,8 @@ std::vector<DocPdo> doc_pdos(FeKind k) {
 std::vector<std::vector<FeId>> groups() {
   std::vector<std::vector<FeId>> g;
   for (unsigned n = 1; n <= 16; ++n) g.push_back({fe(FeKind::Joystick, n)});
-  for (unsigned k2 = 0; k2 < 8; ++k2) g.push_back({fe(FeKind::FootPedal, 2 * k2 + 1), fe(FeKind::FootPedal, 2 * k2 + 2)});
+  for (unsigned k2 = 0; k2 < 8; ++k2)
+    g.push_back({fe(FeKind::FootPedal, 2 * k2 + 1), fe(FeKind::FootPedal, 2 * k2 + 2)});
   for (unsigned k2 = 0; k2 < 4; ++k2) g.push_back({fe(FeKind::Encoder, 2 * k2 + 1), fe(FeKind::Encoder, 2 * k2 + 2)});
   for (unsigned k2 = 0; k2 < 2; ++k2) {
     std::vector<FeId> w;
@@ -190,7 +192,8 @@ class Device {
   }
   // An expedited SDO upload: the bytes, empty on an abort.
   Bytes upload(std::uint16_t index, std::uint8_t sub) {
-    rx(0x600 + kId.value(), {0x40, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8), sub, 0, 0, 0, 0});
+    rx(0x600 + kId.value(),
+       {0x40, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8), sub, 0, 0, 0, 0});
     const auto r = frames(0x580 + kId.value());
     if (r.size() != 1 || (r[0].data[0] & 0xE3) != 0x43) return {};
     const std::size_t n = 4 - ((r[0].data[0] >> 2) & 3);
@@ -225,12 +228,15 @@ unsigned offset_of(const DocPdo& p, std::size_t i) {
 }
 unsigned length_of(const DocPdo& p) { return offset_of(p, p.entries.size()); }
 
-bool configured(const std::vector<FeId>& fes, const FeId& f) { return std::find(fes.begin(), fes.end(), f) != fes.end(); }
+bool configured(const std::vector<FeId>& fes, const FeId& f) {
+  return std::find(fes.begin(), fes.end(), f) != fes.end();
+}
 
 // The mapping and communication objects of every PDO of the kind, exactly as the tables print,
 // and no other PDO; every mapped entry exists, reads 0 by SDO when its instance is not
 // configured.
-void check_objects(Device& d, const std::vector<FeId>& subset, const std::vector<DocPdo>& pdos, const std::string& what) {
+void check_objects(Device& d, const std::vector<FeId>& subset, const std::vector<DocPdo>& pdos,
+                   const std::string& what) {
   std::set<std::uint16_t> expected;
   for (const DocPdo& p : pdos) {
     const auto comm = static_cast<std::uint16_t>((p.transmit ? 0x1800 : 0x1400) + p.number - 1);
@@ -266,7 +272,8 @@ void check_objects(Device& d, const std::vector<FeId>& subset, const std::vector
 
 // Each configured instance's value changes one at a time; each change sends the TPDO, whose bytes
 // at the table's position carry it. The frame's length is the table's.
-void check_tpdo_frames(Device& d, const std::vector<FeId>& subset, const std::vector<DocPdo>& pdos, const std::string& what) {
+void check_tpdo_frames(Device& d, const std::vector<FeId>& subset, const std::vector<DocPdo>& pdos,
+                       const std::string& what) {
   // CiA 401 6423h TRUE: analogue changes are events (6423h exists with analogue inputs only).
   if (d.od().find(0x6423) != nullptr) {
     ASSERT_EQ(d.download(0x6423, 0, {1}), 0u) << what;
@@ -302,7 +309,8 @@ void check_tpdo_frames(Device& d, const std::vector<FeId>& subset, const std::ve
 
 // An RPDO carrying a value in every entry: the configured instance's entries take them, the
 // entries of an instance not configured stay 0.
-void check_rpdo_frames(Device& d, const std::vector<FeId>& subset, const std::vector<DocPdo>& pdos, const std::string& what) {
+void check_rpdo_frames(Device& d, const std::vector<FeId>& subset, const std::vector<DocPdo>& pdos,
+                       const std::string& what) {
   for (const DocPdo& p : pdos) {
     const std::uint32_t cob = 0x200 + p.number;
     ASSERT_EQ(d.download(static_cast<std::uint16_t>(0x1400 + p.number - 1), 1, le(cob, 4)), 0u) << what;
@@ -398,12 +406,12 @@ TEST(PdoLayout, OnlyJoystick2HasTpdo1WithTheTablesMapping) {
 TEST(PdoLayout, UnconfiguredInstancesReadTheirNeutralValueAndNeverChange) {
   Device d({fe(FeKind::FootPedal, 2), fe(FeKind::Wheel, 3), fe(FeKind::Encoder, 2), fe(FeKind::IndicatorCluster, 2),
             fe(FeKind::Display, 1)});
-  EXPECT_EQ(d.upload(0x6000, 0x21), Bytes{0});          // pedal 1 memory: off
-  EXPECT_EQ(d.upload(0x6401, 0x31), (Bytes{0, 0}));     // pedal 1 position
-  EXPECT_EQ(d.upload(0x6401, 0x41), (Bytes{0, 0}));     // wheel 1
+  EXPECT_EQ(d.upload(0x6000, 0x21), Bytes{0});             // pedal 1 memory: off
+  EXPECT_EQ(d.upload(0x6401, 0x31), (Bytes{0, 0}));        // pedal 1 position
+  EXPECT_EQ(d.upload(0x6401, 0x41), (Bytes{0, 0}));        // wheel 1
   EXPECT_EQ(d.upload(0x6120, 0x81), (Bytes{0, 0, 0, 0}));  // encoder 1
-  EXPECT_EQ(d.upload(0x6200, 0x01), Bytes{0});          // indicator cluster 1: off
-  EXPECT_EQ(d.upload(0x6411, 0x0D), (Bytes{0, 0}));     // display 2 parameter 1
+  EXPECT_EQ(d.upload(0x6200, 0x01), Bytes{0});             // indicator cluster 1: off
+  EXPECT_EQ(d.upload(0x6411, 0x0D), (Bytes{0, 0}));        // display 2 parameter 1
   EXPECT_EQ(d.download(0x6401, 0x31, {1, 0}), static_cast<std::uint32_t>(SdoAbortCode::WriteOfReadOnly));
   EXPECT_EQ(d.download(0x6200, 0x01, {0xFF}), static_cast<std::uint32_t>(SdoAbortCode::CannotTransfer));
   EXPECT_EQ(d.download(0x6411, 0x0D, {1, 0}), static_cast<std::uint32_t>(SdoAbortCode::CannotTransfer));
@@ -431,7 +439,8 @@ TEST(PdoLayout, TheEdsCommentsWhereThePrintedTablesDiffer) {
       "upstream: { interface: virtual, node_id: 0x20 }\n"
       "downstream: { interface: virtual }\n"
       "subdevices:\n"
-      "  pedal: { driver: cia401, node_id: 0x30, options: { eds: " OEGW_SOURCE_DIR "/subdevices/eds/generic_pedal.eds } }\n"
+      "  pedal: { driver: cia401, node_id: 0x30, options: { eds: " OEGW_SOURCE_DIR
+      "/subdevices/eds/generic_pedal.eds } }\n"
       "functional_elements:\n"
       "  pedal.2: { position: \"pedal.analog[1]\" }\n",
       "test.yaml", driver_catalogue());

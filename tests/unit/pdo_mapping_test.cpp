@@ -28,8 +28,11 @@ class PdoMappingFixture : public ::testing::Test {
     od.add_var(0x2201, "Wide output", DataType::Unsigned32, Access::ReadWrite, {0, 0, 0, 0}, true);
     // Novotechnik §4.1: 1800/1 0x40000180 + node-ID, 1800/2 0xFE, 1A00 capacity 5, default
     // mapping 60200120h, 60300110h. Node-ID 1.
-    install_tpdo(od, 1, {.cob_id = 0x40000181, .transmission_type = 0xFE,
-                         .mapping = {0x60200120, 0x60300110}, .mapping_capacity = 5});
+    install_tpdo(od, 1,
+                 {.cob_id = 0x40000181,
+                  .transmission_type = 0xFE,
+                  .mapping = {0x60200120, 0x60300110},
+                  .mapping_capacity = 5});
     install_rpdo(od, 1, {.cob_id = 0x80000201, .transmission_type = 0xFF, .mapping = {0x22000008}});
   }
 
@@ -128,14 +131,14 @@ TEST_F(PdoMappingFixture, TooLongMappingAborts0642) {
   ASSERT_EQ(w32(0x1A00, 3, 0x60300110), SdoAbortCode::None);
   EXPECT_EQ(w8(0x1A00, 0, 3), SdoAbortCode::MappingExceedsPdoLength);  // 80 bits
   EXPECT_EQ(w8(0x1A00, 0, 6), SdoAbortCode::MappingExceedsPdoLength);  // only 5 entries exist
-  EXPECT_EQ(w8(0x1A00, 0, 2), SdoAbortCode::None);                      // exactly 64 bits
+  EXPECT_EQ(w8(0x1A00, 0, 2), SdoAbortCode::None);                     // exactly 64 bits
 }
 
 TEST_F(PdoMappingFixture, RpdoDummyMappingAllowed) {
   auto svc = make();
   ASSERT_EQ(w8(0x1600, 0, 0), SdoAbortCode::None);
-  ASSERT_EQ(w32(0x1600, 1, 0x00070020), SdoAbortCode::None);  // UNSIGNED32 dummy
-  ASSERT_EQ(w32(0x1600, 2, 0x22000008), SdoAbortCode::None);  // 2200h:00, 8 bits
+  ASSERT_EQ(w32(0x1600, 1, 0x00070020), SdoAbortCode::None);            // UNSIGNED32 dummy
+  ASSERT_EQ(w32(0x1600, 2, 0x22000008), SdoAbortCode::None);            // 2200h:00, 8 bits
   EXPECT_EQ(w32(0x1600, 3, 0x00070010), SdoAbortCode::CannotBeMapped);  // wrong dummy length
   ASSERT_EQ(w8(0x1600, 0, 2), SdoAbortCode::None);
   ASSERT_EQ(w32(0x1400, 1, 0x00000201), SdoAbortCode::None);
@@ -182,7 +185,8 @@ TEST_F(PdoMappingFixture, RestrictedCobIdsRefused) {
 
 TEST_F(PdoMappingFixture, TransmissionTypeRules) {
   auto svc = make();
-  for (unsigned t = 241; t <= 251; ++t) EXPECT_EQ(w8(0x1800, 2, static_cast<std::uint8_t>(t)), SdoAbortCode::InvalidValue);
+  for (unsigned t = 241; t <= 251; ++t)
+    EXPECT_EQ(w8(0x1800, 2, static_cast<std::uint8_t>(t)), SdoAbortCode::InvalidValue);
   EXPECT_EQ(w8(0x1800, 2, 252), SdoAbortCode::None);
   EXPECT_EQ(w8(0x1800, 2, 253), SdoAbortCode::None);
   EXPECT_EQ(w8(0x1800, 2, 240), SdoAbortCode::None);

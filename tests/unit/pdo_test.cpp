@@ -50,7 +50,9 @@ class PdoFixture : public ::testing::Test {
     return p;
   }
 
-  void set_input(std::uint8_t sub, std::uint8_t v) { ASSERT_EQ(od.set<std::uint8_t>(0x6000, sub, v), SdoAbortCode::None); }
+  void set_input(std::uint8_t sub, std::uint8_t v) {
+    ASSERT_EQ(od.set<std::uint8_t>(0x6000, sub, v), SdoAbortCode::None);
+  }
 };
 
 TEST_F(PdoFixture, InstallCreatesCommunicationAndMappingObjects) {
@@ -164,11 +166,12 @@ TEST_F(PdoFixture, InhibitTimeDelaysAndSendsLatestValue) {
 // duration in ms. The MCB402 returns now the values of axis each 0xbbaa ms : 283 aa bb cc dd ee
 // ff gg hh", axes X Y Z T signed 16-bit little endian ("The word for X axis is 0xbbaa").
 TEST_F(PdoFixture, Mcb402EventTimerExample) {
-  install_tpdo(od, 2, {.cob_id = 0x40000283,
-                       .transmission_type = 255,
-                       .mapping = {0x64010110, 0x64010210, 0x64010310, 0x64010410}});
+  install_tpdo(od, 2,
+               {.cob_id = 0x40000283,
+                .transmission_type = 255,
+                .mapping = {0x64010110, 0x64010210, 0x64010310, 0x64010410}});
   auto svc = make();
-  od.set<std::int16_t>(0x6401, 1, 0x7FFF);        // X pushed to 5 V
+  od.set<std::int16_t>(0x6401, 1, 0x7FFF);                // X pushed to 5 V
   od.set<std::int16_t>(0x6401, 2, std::int16_t{-32768});  // Y pulled to 0 V: 0x8000
   od.set<std::int16_t>(0x6401, 3, 0x1234);
   svc->set_operational(true, t0);  // "000 01 03" starts the node
@@ -453,8 +456,7 @@ TEST_F(PdoFixture, RpdoEventTimerIsDeadlineMonitoring) {
 
 TEST_F(PdoFixture, ManyPdosWithArbitraryCobIds) {
   // CiA 852 §12: up to 41 TPDOs and 34 RPDOs, COB-IDs beyond the pre-defined connection set.
-  for (std::uint16_t n = 1; n <= 34; ++n)
-    install_rpdo(od, n, {.cob_id = 0x300u + n, .mapping = {0x62000108}});
+  for (std::uint16_t n = 1; n <= 34; ++n) install_rpdo(od, n, {.cob_id = 0x300u + n, .mapping = {0x62000108}});
   auto svc = make();
   svc->set_operational(true, t0);
   EXPECT_TRUE(svc->on_frame(CanFrame(0x300 + 34, {0x34}), t0));
@@ -481,7 +483,8 @@ TEST_F(PdoFixture, WiredWithSyncProducerAndEmcy) {
   auto svc = make();
   SyncService sync(od, [this](const CanFrame& f) { sent.push_back(f); },
                    {.cob_id = 0x40000080, .period_us = 10'000, .counter_overflow = 4});
-  EmcyProducer emcy(od, [this](const CanFrame& f) { sent.push_back(f); }, NodeId{5});
+  EmcyProducer emcy(
+      od, [this](const CanFrame& f) { sent.push_back(f); }, NodeId{5});
   sync.set_handler([&](std::uint8_t counter, TimePoint now) { svc->on_sync(counter, now); });
   svc->on_length_error = [&](std::uint16_t, std::uint16_t code) { emcy.raise(code, 0x10, t0); };
   svc->set_operational(true, t0);

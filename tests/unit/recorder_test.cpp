@@ -10,8 +10,8 @@
 #include <cerrno>
 #include <condition_variable>
 #include <fstream>
-#include <sstream>
 #include <mutex>
+#include <sstream>
 
 #include <gtest/gtest.h>
 
@@ -82,13 +82,14 @@ TEST(Recorder, FramesAndEventsReadBackInOneOrderWithTheLoopTimes) {
   std::vector<std::string> seen;
   for (const auto& x : e) {
     if (x.kind == Entry::Kind::Frame)
-      seen.push_back(std::string(x.direction == Direction::Rx ? "R " : "T ") + x.iface + " " + x.frame.to_string() + " @" +
-                     std::to_string(x.t.time_since_epoch().count()));
+      seen.push_back(std::string(x.direction == Direction::Rx ? "R " : "T ") + x.iface + " " + x.frame.to_string() +
+                     " @" + std::to_string(x.t.time_since_epoch().count()));
     else if (x.text.rfind("segment", 0) != 0)
       seen.push_back(x.text + " @" + std::to_string(x.t.time_since_epoch().count()));
   }
-  EXPECT_EQ(seen, (std::vector<std::string>{"start @1000000", "R can1 191#0102 @1001000", "fe joystick.1 valid x=3 @1001000",
-                                            "T can0 1A0#03 @1001000", "tick @1050000"}));
+  EXPECT_EQ(seen,
+            (std::vector<std::string>{"start @1000000", "R can1 191#0102 @1001000", "fe joystick.1 valid x=3 @1001000",
+                                      "T can0 1A0#03 @1001000", "tick @1050000"}));
   // The .log file is candump's log, wall time = loop time + the segment's offset.
   std::ifstream log(tmp.path / "R1-000000.log");
   std::string first;
@@ -230,7 +231,8 @@ TEST(Recorder, AFullDiskLosesTheBatchKeepsEveryFileReadableAndRecovers) {
   }
   EXPECT_EQ(frames, (std::vector<std::string>{"191#01", "191#03"}));
   ASSERT_EQ(gaps.size(), 1u);
-  EXPECT_NE(gaps[0].find("gap frames=10 events=0 (write failed: No space left on device)"), std::string::npos) << gaps[0];
+  EXPECT_NE(gaps[0].find("gap frames=10 events=0 (write failed: No space left on device)"), std::string::npos)
+      << gaps[0];
 }
 
 TEST(Recorder, KeepLinksTheWindowOutOfTheRingsReach) {
@@ -252,7 +254,8 @@ TEST(Recorder, KeepLinksTheWindowOutOfTheRingsReach) {
   EXPECT_EQ(error, "");
   EXPECT_EQ(kept->path.parent_path(), tmp.path / "kept");
   ASSERT_EQ(kept->segments, 1u);
-  struct stat a{}, b{};
+  struct stat a {
+  }, b{};
   ASSERT_EQ(::stat((kept->path / "R1-000000.log").c_str(), &a), 0);
   ASSERT_EQ(::stat((tmp.path / "R1-000000.log").c_str(), &b), 0);
   EXPECT_EQ(a.st_ino, b.st_ino) << "a hard link, not a copy";

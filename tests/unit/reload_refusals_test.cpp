@@ -46,9 +46,10 @@ TEST_F(ReloadRefusals, WhatAStartWouldApplyIsNotRefused) {
   EXPECT_THAT(refusals("seat_knob:\n    driver: novotechnik-406\n    node_id: 0x7F",
                        "seat_knob:\n    driver: novotechnik-406\n    node_id: 0x7E"),
               IsEmpty());
-  EXPECT_THAT(refusals("downstream: { interface: virtual, bitrate: 250000 }",
-                       "downstream: { interface: virtual, bitrate: 250000, sdo_timeout_ms: 500, emcy_forwarding: faults }"),
-              IsEmpty());
+  EXPECT_THAT(
+      refusals("downstream: { interface: virtual, bitrate: 250000 }",
+               "downstream: { interface: virtual, bitrate: 250000, sdo_timeout_ms: 500, emcy_forwarding: faults }"),
+      IsEmpty());
 }
 
 TEST_F(ReloadRefusals, TheUpstreamDeviceIsRefusedAtItsSection) {
@@ -95,8 +96,8 @@ TEST_F(ReloadRefusals, AnEdsGoneSinceTheFileWasReadRefusesBeforeTheHandOver) {
   ASSERT_NE(::mkdtemp(templ.data()), nullptr);
   const std::filesystem::path eds = std::filesystem::path(templ) / "pedal.eds";
   std::filesystem::copy_file(std::string(OEGW_SOURCE_DIR) + "/subdevices/eds/generic_pedal.eds", eds);
-  const mapping::Config next = load(fixtures::replace_all(
-      base_, std::string(OEGW_SOURCE_DIR) + "/subdevices/eds/generic_pedal.eds", eds.string()));
+  const mapping::Config next = load(
+      fixtures::replace_all(base_, std::string(OEGW_SOURCE_DIR) + "/subdevices/eds/generic_pedal.eds", eds.string()));
   EXPECT_THAT(reload_driver_refusals(next), IsEmpty());
   std::filesystem::remove(eds);
   std::vector<std::string> r;

@@ -27,15 +27,13 @@ Bytes u32(std::uint32_t v) { return encode<std::uint32_t>(v); }
 class SdoChannelsTest : public ::testing::Test {
  protected:
   SdoChannelsTest() {
-    dir_ = std::filesystem::temp_directory_path() /
-           ("oegw-sdo-channels-test-" + std::to_string(::getpid()) + "-" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    dir_ = std::filesystem::temp_directory_path() / ("oegw-sdo-channels-test-" + std::to_string(::getpid()) + "-" +
+                                                     ::testing::UnitTest::GetInstance()->current_test_info()->name());
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
     od.add_var(0x2000, "Setting", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(7));
     // TPDO1 valid on 1A0h: a COB-ID the device uses.
-    install_tpdo(od, 1,
-                 PdoParameters{.cob_id = cob::kTpdo1 + kId.value(), .transmission_type = 0xFF, .mapping = {}});
+    install_tpdo(od, 1, PdoParameters{.cob_id = cob::kTpdo1 + kId.value(), .transmission_type = 0xFF, .mapping = {}});
   }
   ~SdoChannelsTest() override { std::filesystem::remove_all(dir_); }
 
@@ -227,7 +225,7 @@ TEST_F(SdoChannelsTest, IdentifierChangesOnlyWhileNotValid) {
   write_refused(0x1201, 1, 0x691, kInvalidValue);
   write_refused(0x1201, 2, 0x6B1, kInvalidValue);
   write_refused(0x1201, 1, CobId::kExtendedBit | 0x690, kInvalidValue);  // bit 29 too
-  write_ok(0x1201, 1, 0x690);  // the same value: no change
+  write_ok(0x1201, 1, 0x690);                                            // the same value: no change
   EXPECT_TRUE(answers(0x690, 0x6B0));
   write_ok(0x1201, 1, kInvalid | 0x690);
   EXPECT_TRUE(sdo_read(0x1000, 0, 0x690).empty());
@@ -244,17 +242,17 @@ TEST_F(SdoChannelsTest, IdentifierChangesOnlyWhileNotValid) {
 TEST_F(SdoChannelsTest, RestrictedAndUsedCobIdsAreRefused) {
   make();
   start();
-  for (const std::uint32_t id : {0x000u, 0x001u, 0x07Fu, 0x101u, 0x180u, 0x581u, 0x5FFu, 0x601u, 0x620u, 0x67Fu,
-                                 0x6E0u, 0x6FFu, 0x701u, 0x720u, 0x77Fu, 0x780u, 0x7E5u, 0x7FFu}) {
+  for (const std::uint32_t id : {0x000u, 0x001u, 0x07Fu, 0x101u, 0x180u, 0x581u, 0x5FFu, 0x601u, 0x620u, 0x67Fu, 0x6E0u,
+                                 0x6FFu, 0x701u, 0x720u, 0x77Fu, 0x780u, 0x7E5u, 0x7FFu}) {
     write_refused(0x1202, 1, id, kInvalidValue);
     write_refused(0x1202, 2, id, kInvalidValue);
   }
-  write_refused(0x1202, 1, 0x890, kInvalidValue);     // 11-bit frame with bit 11 set
-  write_refused(0x1202, 1, 0x690, kInvalidValue);     // 1201h:01
-  write_refused(0x1202, 2, 0x6B0, kInvalidValue);     // 1201h:02
-  write_refused(0x1202, 1, 0x1A0, kInvalidValue);     // TPDO1 (valid)
-  write_refused(0x1202, 1, 0x080, kInvalidValue);     // SYNC 1005h
-  write_refused(0x1202, 1, 0x0A0, kInvalidValue);     // EMCY 1014h
+  write_refused(0x1202, 1, 0x890, kInvalidValue);  // 11-bit frame with bit 11 set
+  write_refused(0x1202, 1, 0x690, kInvalidValue);  // 1201h:01
+  write_refused(0x1202, 2, 0x6B0, kInvalidValue);  // 1201h:02
+  write_refused(0x1202, 1, 0x1A0, kInvalidValue);  // TPDO1 (valid)
+  write_refused(0x1202, 1, 0x080, kInvalidValue);  // SYNC 1005h
+  write_refused(0x1202, 1, 0x0A0, kInvalidValue);  // EMCY 1014h
   EXPECT_EQ(od.get<std::uint32_t>(0x1202, 1), kInvalid);
   EXPECT_EQ(od.get<std::uint32_t>(0x1202, 2), kInvalid);
   // One channel's request and response may not share a COB-ID either.

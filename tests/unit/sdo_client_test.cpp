@@ -83,7 +83,7 @@ TEST_F(SdoClientTest, RequestStartsOnAdvanceAndNextDeadlineSaysSo) {
 // delimiter, ACK slot and delimiter, EOF 7 and the intermission 3: 135 bits. A request and its
 // answer: 270 bits.
 TEST(SdoPacer, TheGapKeepsRequestAndAnswerWithinTheShare) {
-  EXPECT_EQ(SdoPacer::gap_for(250'000, 0.5), Duration{2160});   // 270 bits at 4 us, twice
+  EXPECT_EQ(SdoPacer::gap_for(250'000, 0.5), Duration{2160});  // 270 bits at 4 us, twice
   EXPECT_EQ(SdoPacer::gap_for(1'000'000, 1.0), Duration{270});
   EXPECT_EQ(SdoPacer::gap_for(125'000, 0.85), Duration{2542});  // 2160 / 0.85, rounded up
   EXPECT_EQ(SdoPacer::gap_for(250'000, 0.0), Duration{0});
@@ -239,9 +239,9 @@ TEST_F(SdoClientTest, SegmentedUploadErrors) {
   client->upload(0x1008, 0, record());
   go();
   EXPECT_EQ(srv({0x41, 0x08, 0x10, 0x00, 0, 0, 0x20, 0}), aborted(0x1008, 0, SdoAbortCode::OutOfMemory));
-  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::ToggleBitNotAlternated),
-                                          failed(SdoAbortCode::LengthMismatch), failed(SdoAbortCode::LengthMismatch),
-                                          failed(SdoAbortCode::OutOfMemory)}));
+  EXPECT_EQ(results,
+            (std::vector<Result>{failed(SdoAbortCode::ToggleBitNotAlternated), failed(SdoAbortCode::LengthMismatch),
+                                 failed(SdoAbortCode::LengthMismatch), failed(SdoAbortCode::OutOfMemory)}));
 }
 
 TEST_F(SdoClientTest, ServerAbortIsReportedAndNotAnswered) {
@@ -404,8 +404,8 @@ TEST_F(SdoClientTest, ServerAbortWithReservedBitsAndShortAbort) {
   go();
   EXPECT_EQ(srv({0x81, 0x00, 0x10, 0x00, 0x00, 0x00, 0x02, 0x06}), req({0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}));
   EXPECT_EQ(srv({0x80, 0x00, 0x10}), none());  // short: code unknown, reported as general error
-  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::ObjectDoesNotExist),
-                                          failed(SdoAbortCode::GeneralError)}));
+  EXPECT_EQ(results,
+            (std::vector<Result>{failed(SdoAbortCode::ObjectDoesNotExist), failed(SdoAbortCode::GeneralError)}));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -415,11 +415,12 @@ TEST_F(SdoClientTest, BlockDownloadWithCrc) {
   const auto d = pattern(20);
   client->download(0x2100, 0, d, record(), SdoTransfer::Block);
   EXPECT_EQ(go(), req({0xC6, 0x00, 0x21, 0x00, 20, 0, 0, 0}));
-  EXPECT_EQ(srv({0xA4, 0x00, 0x21, 0x00, 127, 0, 0, 0}), (std::vector<CanFrame>{
-                                                             CanFrame(kReq, {0x01, d[0], d[1], d[2], d[3], d[4], d[5], d[6]}),
-                                                             CanFrame(kReq, {0x02, d[7], d[8], d[9], d[10], d[11], d[12], d[13]}),
-                                                             CanFrame(kReq, {0x83, d[14], d[15], d[16], d[17], d[18], d[19], 0}),
-                                                         }));
+  EXPECT_EQ(srv({0xA4, 0x00, 0x21, 0x00, 127, 0, 0, 0}),
+            (std::vector<CanFrame>{
+                CanFrame(kReq, {0x01, d[0], d[1], d[2], d[3], d[4], d[5], d[6]}),
+                CanFrame(kReq, {0x02, d[7], d[8], d[9], d[10], d[11], d[12], d[13]}),
+                CanFrame(kReq, {0x83, d[14], d[15], d[16], d[17], d[18], d[19], 0}),
+            }));
   const std::uint16_t crc = crc16_ccitt(d);
   EXPECT_EQ(srv({0xA2, 3, 127, 0, 0, 0, 0, 0}),
             req({0xC5, static_cast<std::uint8_t>(crc), static_cast<std::uint8_t>(crc >> 8), 0, 0, 0, 0, 0}));
@@ -435,10 +436,11 @@ TEST_F(SdoClientTest, BlockDownloadWithoutServerCrcRetransmitsAndFollowsBlockSiz
   client->download(0x2100, 0, d, record());
   EXPECT_EQ(go(), req({0xC6, 0x00, 0x21, 0x00, 15, 0, 0, 0}));
   // Server without CRC support, blksize 2.
-  EXPECT_EQ(srv({0xA0, 0x00, 0x21, 0x00, 2, 0, 0, 0}), (std::vector<CanFrame>{
-                                                           CanFrame(kReq, {0x01, d[0], d[1], d[2], d[3], d[4], d[5], d[6]}),
-                                                           CanFrame(kReq, {0x02, d[7], d[8], d[9], d[10], d[11], d[12], d[13]}),
-                                                       }));
+  EXPECT_EQ(srv({0xA0, 0x00, 0x21, 0x00, 2, 0, 0, 0}),
+            (std::vector<CanFrame>{
+                CanFrame(kReq, {0x01, d[0], d[1], d[2], d[3], d[4], d[5], d[6]}),
+                CanFrame(kReq, {0x02, d[7], d[8], d[9], d[10], d[11], d[12], d[13]}),
+            }));
   // Only segment 1 arrived: resend from segment 2, renumbered from 1.
   EXPECT_EQ(srv({0xA2, 1, 2, 0, 0, 0, 0, 0}), (std::vector<CanFrame>{
                                                   CanFrame(kReq, {0x01, d[7], d[8], d[9], d[10], d[11], d[12], d[13]}),
@@ -461,9 +463,9 @@ TEST_F(SdoClientTest, BlockDownloadBadServerAnswers) {
   go();
   srv({0xA4, 0x00, 0x21, 0x00, 127, 0, 0, 0});
   EXPECT_EQ(srv({0xA2, 3, 128, 0, 0, 0, 0, 0}), aborted(0x2100, 0, SdoAbortCode::InvalidBlockSize));
-  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::InvalidBlockSize),
-                                          failed(SdoAbortCode::InvalidSequenceNumber),
-                                          failed(SdoAbortCode::InvalidBlockSize)}));
+  EXPECT_EQ(results,
+            (std::vector<Result>{failed(SdoAbortCode::InvalidBlockSize), failed(SdoAbortCode::InvalidSequenceNumber),
+                                 failed(SdoAbortCode::InvalidBlockSize)}));
 }
 
 TEST_F(SdoClientTest, BlockUploadWithCrc) {
@@ -506,8 +508,8 @@ TEST_F(SdoClientTest, BlockUploadSequenceAndSizeErrors) {
   srv({0xC2, 0x08, 0x10, 0x00, 5, 0, 0, 0});
   srv({0x81, 1, 2, 3, 4, 5, 6, 7});
   EXPECT_EQ(srv({0xC1, 0, 0, 0, 0, 0, 0, 0}), aborted(0x1008, 0, SdoAbortCode::LengthMismatch));  // 7 != 5
-  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::InvalidSequenceNumber),
-                                          failed(SdoAbortCode::LengthMismatch)}));
+  EXPECT_EQ(results,
+            (std::vector<Result>{failed(SdoAbortCode::InvalidSequenceNumber), failed(SdoAbortCode::LengthMismatch)}));
 }
 
 TEST_F(SdoClientTest, BlockUploadProtocolSwitch) {
@@ -593,8 +595,9 @@ TEST_F(SdoClientTest, CancelQueuedLetsTheTransferInFlightEndSoItsLateAnswerCanno
   // second starts and its own answer is taken.
   EXPECT_EQ(srv({0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}), req({0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}));
   EXPECT_EQ(srv({0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}), none());
-  EXPECT_EQ(results, (std::vector<Result>{failed(SdoAbortCode::CannotTransferDeviceState),
-                                          failed(SdoAbortCode::CannotTransferDeviceState), ok({0x91, 0x01, 0x0F, 0x00})}));
+  EXPECT_EQ(results,
+            (std::vector<Result>{failed(SdoAbortCode::CannotTransferDeviceState),
+                                 failed(SdoAbortCode::CannotTransferDeviceState), ok({0x91, 0x01, 0x0F, 0x00})}));
   EXPECT_FALSE(client->busy());
   // Idle, it cancels what is queued and sends nothing.
   client->upload(0x1001, 0, record());

@@ -33,12 +33,13 @@ struct Pair {
   SdoClient client;
 
   explicit Pair(SdoClientConfig cfg = SdoClientConfig::for_node(NodeId{9}))
-      : server(dict.od,
-               [this](const CanFrame& f) {
-                 ++to_client;
-                 if (server_to_client(f)) client.on_frame(f, now);
-               },
-               NodeId{9}),
+      : server(
+            dict.od,
+            [this](const CanFrame& f) {
+              ++to_client;
+              if (server_to_client(f)) client.on_frame(f, now);
+            },
+            NodeId{9}),
         client(
             [this](const CanFrame& f) {
               ++to_server;
@@ -106,17 +107,18 @@ TEST_P(SdoPairSizes, DownloadThenUploadRoundTrips) {
 INSTANTIATE_TEST_SUITE_P(AllModes, SdoPairSizes,
                          ::testing::Combine(::testing::Values(SdoTransfer::Auto, SdoTransfer::Segmented,
                                                               SdoTransfer::Block),
-                                            ::testing::Values(0u, 1u, 4u, 5u, 7u, 8u, 889u),
-                                            ::testing::Values(true)),
+                                            ::testing::Values(0u, 1u, 4u, 5u, 7u, 8u, 889u), ::testing::Values(true)),
                          [](const auto& param_info) {
                            return std::string(mode_name(std::get<0>(param_info.param))) + "_" +
                                   std::to_string(std::get<1>(param_info.param)) + "bytes";
                          });
 
 INSTANTIATE_TEST_SUITE_P(BlockWithoutCrc, SdoPairSizes,
-                         ::testing::Combine(::testing::Values(SdoTransfer::Block),
-                                            ::testing::Values(0u, 7u, 889u), ::testing::Values(false)),
-                         [](const auto& param_info) { return std::to_string(std::get<1>(param_info.param)) + "bytes"; });
+                         ::testing::Combine(::testing::Values(SdoTransfer::Block), ::testing::Values(0u, 7u, 889u),
+                                            ::testing::Values(false)),
+                         [](const auto& param_info) {
+                           return std::to_string(std::get<1>(param_info.param)) + "bytes";
+                         });
 
 TEST(SdoPair, SmallServerBlockSizeSplitsIntoSubBlocks) {
   Pair p;
@@ -189,7 +191,7 @@ TEST(SdoPair, RefusedValuesComeBackAsTheirAbortCodeAndChangeNothing) {
     SCOPED_TRACE(mode_name(mode));
     Pair p;
     Result r1, r2, r3, r4, r5, r6;
-    p.client.download(0x2102, 0, pattern(5), p.into(r1), mode);                // hook: odd length
+    p.client.download(0x2102, 0, pattern(5), p.into(r1), mode);                   // hook: odd length
     p.client.download(0x2003, 0, encode<std::uint32_t>(1001), p.into(r2), mode);  // above high limit
     p.client.download(0x1000, 0, encode<std::uint32_t>(1), p.into(r3), mode);     // const
     p.client.download(0x2101, 0, pattern(11), p.into(r4), mode);                  // longer than max_size

@@ -5,8 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <optional>
-#include <tuple>
 #include <string>
+#include <tuple>
 #include <utility>
 
 #include "canopen/301/crc16.hpp"
@@ -308,13 +308,13 @@ TEST_F(SdoRemoteTest, TheRedirectRecordsTargetTimeAndRequestAndEachChangeIsRepor
   EXPECT_EQ(server.redirect(), std::nullopt);
   EXPECT_EQ(server.target(), kNode20);
   const SdoTarget n21{2, 0x21};
-  const std::vector<std::tuple<std::optional<SdoTarget>, std::optional<SdoTarget>, Change>> want = {
-      {std::nullopt, kNode20, Change::Indication}, {kNode20, n21, Change::Indication},
-      {n21, std::nullopt, Change::Indication},     {std::nullopt, kNode20, Change::Indication},
-      {kNode20, std::nullopt, Change::Reset},      {std::nullopt, kNode20, Change::Indication},
-      {kNode20, std::nullopt, Change::Reset},      {std::nullopt, kNode20, Change::Indication},
-      {kNode20, std::nullopt, Change::CobIds},     {std::nullopt, kNode20, Change::Indication},
-      {kNode20, std::nullopt, Change::Reconfigured}};
+  const std::vector<std::tuple<std::optional<SdoTarget>, std::optional<SdoTarget>, Change>> want =
+      {{std::nullopt, kNode20, Change::Indication},  {kNode20, n21, Change::Indication},
+       {n21, std::nullopt, Change::Indication},      {std::nullopt, kNode20, Change::Indication},
+       {kNode20, std::nullopt, Change::Reset},       {std::nullopt, kNode20, Change::Indication},
+       {kNode20, std::nullopt, Change::Reset},       {std::nullopt, kNode20, Change::Indication},
+       {kNode20, std::nullopt, Change::CobIds},      {std::nullopt, kNode20, Change::Indication},
+       {kNode20, std::nullopt, Change::Reconfigured}};
   ASSERT_EQ(seen.size(), want.size());
   for (std::size_t i = 0; i < want.size(); ++i) {
     EXPECT_EQ(seen[i].before, std::get<0>(want[i])) << i;
@@ -578,23 +578,20 @@ TEST_F(SdoRemoteTest, NewRequestWhileWaitingIsRefusedAndCancelsTheRemoteTransfer
   // Any other frame: aborted with the pending transfer's multiplexer.
   rx({0x2F, 0x00, 0x20, 0x00, 0x40, 0, 0, 0});
   EXPECT_EQ(rx({0x60, 0, 0, 0, 0, 0, 0, 0}), aborted(0x2000, 0, SdoAbortCode::ResourceNotAvailable));
-  EXPECT_EQ(remote.cancels.back(),
-            (FakeRemote::Cancel{remote.calls[1].ticket, SdoAbortCode::ResourceNotAvailable}));
+  EXPECT_EQ(remote.cancels.back(), (FakeRemote::Cancel{remote.calls[1].ticket, SdoAbortCode::ResourceNotAvailable}));
   // A network indication is a new request too (multiplexer 0); the target does not change.
   rx({0xC2, 0x00, 0x21, 0x00, 1, 0, 0, 0});  // block download of 1 byte, no CRC
   EXPECT_EQ(rx({0x81, 0x42, 0, 0, 0, 0, 0, 0}), tx({0xA2, 1, 127, 0, 0, 0, 0, 0}));
   EXPECT_EQ(rx({0xD9, 0, 0, 0, 0, 0, 0, 0}), none());  // end, n = 6
   ASSERT_EQ(remote.calls.size(), 3u);
   EXPECT_EQ(rx({0xE0, 0, 0, 0, 2, 0x21, 0, 0}), aborted(0, 0, SdoAbortCode::ResourceNotAvailable));
-  EXPECT_EQ(remote.cancels.back(),
-            (FakeRemote::Cancel{remote.calls[2].ticket, SdoAbortCode::ResourceNotAvailable}));
+  EXPECT_EQ(remote.cancels.back(), (FakeRemote::Cancel{remote.calls[2].ticket, SdoAbortCode::ResourceNotAvailable}));
   EXPECT_EQ(remote.selects.size(), 1u);
   EXPECT_EQ(server.target(), kNode20);
   // A short frame is a protocol error in every state: 0504 0001h, for the remote too.
   rx({0x40, 0x08, 0x10, 0x00, 0, 0, 0, 0});
   EXPECT_EQ(rx(CanFrame(kRx, {0x40, 0x00, 0x10})), aborted(0x1008, 0, SdoAbortCode::UnknownCommandSpecifier));
-  EXPECT_EQ(remote.cancels.back(),
-            (FakeRemote::Cancel{remote.calls[3].ticket, SdoAbortCode::UnknownCommandSpecifier}));
+  EXPECT_EQ(remote.cancels.back(), (FakeRemote::Cancel{remote.calls[3].ticket, SdoAbortCode::UnknownCommandSpecifier}));
   EXPECT_EQ(remote.cancels.size(), 4u);
 }
 
@@ -682,12 +679,13 @@ class SdoRemoteHostTest : public ::testing::Test {
   std::optional<SdoClient> host;
 
   void make() {
-    server.emplace(dict.od,
-                   [this](const CanFrame& f) {
-                     wire.push_back(f);
-                     host->on_frame(f, now);
-                   },
-                   NodeId{3});
+    server.emplace(
+        dict.od,
+        [this](const CanFrame& f) {
+          wire.push_back(f);
+          host->on_frame(f, now);
+        },
+        NodeId{3});
     host.emplace(
         [this](const CanFrame& f) {
           wire.push_back(f);
@@ -712,8 +710,19 @@ class SdoRemoteHostTest : public ::testing::Test {
     d.od.find(index, 0)->value = value;
     std::vector<CanFrame> w;
     std::optional<SdoClient> c;
-    SdoServer s(d.od, [&](const CanFrame& f) { w.push_back(f); c->on_frame(f, now); }, NodeId{3});
-    c.emplace([&](const CanFrame& f) { w.push_back(f); s.on_frame(f, now); }, cfg);
+    SdoServer s(
+        d.od,
+        [&](const CanFrame& f) {
+          w.push_back(f);
+          c->on_frame(f, now);
+        },
+        NodeId{3});
+    c.emplace(
+        [&](const CanFrame& f) {
+          w.push_back(f);
+          s.on_frame(f, now);
+        },
+        cfg);
     HostResult r;
     if (upload) {
       c->upload(index, 0, into(r), mode);

@@ -21,15 +21,17 @@ namespace {
 constexpr std::uint32_t kRx = 0x603;
 constexpr std::uint32_t kTx = 0x583;
 
-const std::set<std::uint32_t> kKnownCodes = {
-    0x05030000, 0x05040000, 0x05040001, 0x05040002, 0x05040003, 0x05040004, 0x05040005, 0x06010000,
-    0x06010001, 0x06010002, 0x06020000, 0x06070010, 0x06070012, 0x06070013, 0x06090011, 0x06090030,
-    0x06090031, 0x06090032, 0x08000020};
+const std::set<std::uint32_t> kKnownCodes = {0x05030000, 0x05040000, 0x05040001, 0x05040002, 0x05040003,
+                                             0x05040004, 0x05040005, 0x06010000, 0x06010001, 0x06010002,
+                                             0x06020000, 0x06070010, 0x06070012, 0x06070013, 0x06090011,
+                                             0x06090030, 0x06090031, 0x06090032, 0x08000020};
 
 // Objects that exist in the test dictionary, to aim random initiates at.
-const std::vector<std::pair<std::uint16_t, std::uint8_t>> kObjects = {
-    {0x1000, 0}, {0x1008, 0}, {0x1010, 1}, {0x1801, 5}, {0x2000, 0}, {0x2001, 0}, {0x2002, 0},
-    {0x2003, 0}, {0x2004, 0}, {0x2100, 0}, {0x2101, 0}, {0x2102, 0}, {0x1801, 7}, {0x3333, 0}};
+const std::vector<std::pair<std::uint16_t, std::uint8_t>> kObjects = {{0x1000, 0}, {0x1008, 0}, {0x1010, 1},
+                                                                      {0x1801, 5}, {0x2000, 0}, {0x2001, 0},
+                                                                      {0x2002, 0}, {0x2003, 0}, {0x2004, 0},
+                                                                      {0x2100, 0}, {0x2101, 0}, {0x2102, 0},
+                                                                      {0x1801, 7}, {0x3333, 0}};
 
 bool is_initiate(std::uint8_t cmd) {
   const int ccs = cmd >> 5;
@@ -177,8 +179,15 @@ TEST_F(SdoRobustness, EveryCommandByteEveryDlcFromIdle) {
 // Sets up each transfer state, then feeds each of the 256 command bytes (DLC 8) and checks the
 // state machine's answer.
 TEST_F(SdoRobustness, EveryCommandByteInEveryTransferState) {
-  enum class S { DownloadSegmented, UploadSegmented, BlockDownloadSubBlock, BlockDownloadEnd, BlockUploadStart,
-                 BlockUploadAck, BlockUploadEnd };
+  enum class S {
+    DownloadSegmented,
+    UploadSegmented,
+    BlockDownloadSubBlock,
+    BlockDownloadEnd,
+    BlockUploadStart,
+    BlockUploadAck,
+    BlockUploadEnd
+  };
   const auto enter = [&](S s) {
     dict.od.find(0x2100, 0)->value = pattern(16);
     switch (s) {
@@ -226,8 +235,8 @@ TEST_F(SdoRobustness, EveryCommandByteInEveryTransferState) {
           EXPECT_EQ(r, std::vector<CanFrame>{abort_frame(kTx, 0x2100, 0, SdoAbortCode::InvalidSequenceNumber)});
         } else if (last || seq == 127) {
           // Acknowledged up to the last in-sequence segment (this one if it is number 1).
-          EXPECT_EQ(r, std::vector<CanFrame>{CanFrame(kTx, {0xA2, static_cast<std::uint8_t>(seq == 1 ? 1 : 0), 127,
-                                                            0, 0, 0, 0, 0})});
+          EXPECT_EQ(r, std::vector<CanFrame>{
+                           CanFrame(kTx, {0xA2, static_cast<std::uint8_t>(seq == 1 ? 1 : 0), 127, 0, 0, 0, 0, 0})});
           EXPECT_TRUE(server.busy());
         } else {
           EXPECT_TRUE(r.empty());
@@ -253,15 +262,15 @@ TEST_F(SdoRobustness, EveryCommandByteInEveryTransferState) {
             if (ccs == 0) {
               valid = true;
               if (c & 0x10) {
-                EXPECT_EQ(r, std::vector<CanFrame>{
-                                 abort_frame(kTx, 0x2100, 0, SdoAbortCode::ToggleBitNotAlternated)});
+                EXPECT_EQ(r, std::vector<CanFrame>{abort_frame(kTx, 0x2100, 0, SdoAbortCode::ToggleBitNotAlternated)});
               } else {
                 EXPECT_EQ(r, std::vector<CanFrame>{CanFrame(kTx, {0x20, 0, 0, 0, 0, 0, 0, 0})});
                 EXPECT_EQ(server.busy(), (c & 1) == 0);
                 if (c & 1) {  // last segment: 7 - n bytes of the frame written
                   const std::size_t n = 7u - ((static_cast<unsigned>(c) >> 1) & 7u);
-                  EXPECT_EQ(dict.value(0x2100), (std::vector<std::uint8_t>(f.data.begin() + 1,
-                                                                           f.data.begin() + 1 + static_cast<std::ptrdiff_t>(n))));
+                  EXPECT_EQ(dict.value(0x2100),
+                            (std::vector<std::uint8_t>(f.data.begin() + 1,
+                                                       f.data.begin() + 1 + static_cast<std::ptrdiff_t>(n))));
                 }
               }
             }
@@ -270,8 +279,7 @@ TEST_F(SdoRobustness, EveryCommandByteInEveryTransferState) {
             if (ccs == 3) {
               valid = true;
               if (c & 0x10) {
-                EXPECT_EQ(r, std::vector<CanFrame>{
-                                 abort_frame(kTx, 0x1008, 0, SdoAbortCode::ToggleBitNotAlternated)});
+                EXPECT_EQ(r, std::vector<CanFrame>{abort_frame(kTx, 0x1008, 0, SdoAbortCode::ToggleBitNotAlternated)});
               } else {
                 EXPECT_EQ(r, std::vector<CanFrame>{CanFrame(kTx, {0x00, 'O', 'E', 'G', 'W', ' ', 't', 'e'})});
               }
@@ -310,8 +318,7 @@ TEST_F(SdoRobustness, EveryCommandByteInEveryTransferState) {
               EXPECT_FALSE(server.busy());
             }
             break;
-          case S::BlockDownloadSubBlock:
-            break;
+          case S::BlockDownloadSubBlock: break;
         }
         if (!valid) {
           EXPECT_EQ(r, std::vector<CanFrame>{unknown_here});
@@ -335,9 +342,9 @@ TEST_F(SdoRobustness, RandomStormsNeverStickBeyondTheTimeout) {
     SCOPED_TRACE(round);
     for (int i = 0; i < 60; ++i) {
       std::uint8_t cmd = static_cast<std::uint8_t>(rng());
-      const std::uint8_t plausible[] = {0x00, 0x10, 0x01, 0x11, 0x20, 0x21, 0x22, 0x23, 0x2F, 0x40, 0x60,
-                                        0x70, 0xA0, 0xA4, 0xA3, 0xA2, 0xA1, 0xC0, 0xC2, 0xC6, 0xC1, 0x01,
-                                        0x02, 0x03, 0x81, 0x82, 0x80};
+      const std::uint8_t plausible[] = {0x00, 0x10, 0x01, 0x11, 0x20, 0x21, 0x22, 0x23, 0x2F,
+                                        0x40, 0x60, 0x70, 0xA0, 0xA4, 0xA3, 0xA2, 0xA1, 0xC0,
+                                        0xC2, 0xC6, 0xC1, 0x01, 0x02, 0x03, 0x81, 0x82, 0x80};
       if (rng() % 4 != 0) cmd = plausible[rng() % sizeof plausible];
       const std::uint8_t dlc = rng() % 10 == 0 ? static_cast<std::uint8_t>(rng() % 8) : 8;
       const CanFrame f = random_frame(cmd, dlc, rng() % 2 == 0);
@@ -376,10 +383,12 @@ TEST_F(SdoRobustness, RandomStormsNeverStickBeyondTheTimeout) {
     std::vector<std::uint8_t> read_back;
     SdoClient pair([this](const CanFrame& f) { server.on_frame(f, t); }, SdoClientConfig::for_node(NodeId{3}));
     // The fixture's server sends to `out`; relay that to the client until quiet.
-    pair.download(0x2100, 0, data, [&](SdoAbortCode c, std::vector<std::uint8_t>) { down = c; },
-                  static_cast<SdoTransfer>(round % 3));
-    pair.upload(0x2100, 0, [&](SdoAbortCode, std::vector<std::uint8_t> d) { read_back = std::move(d); },
-                static_cast<SdoTransfer>((round + 1) % 3));
+    pair.download(
+        0x2100, 0, data, [&](SdoAbortCode c, std::vector<std::uint8_t>) { down = c; },
+        static_cast<SdoTransfer>(round % 3));
+    pair.upload(
+        0x2100, 0, [&](SdoAbortCode, std::vector<std::uint8_t> d) { read_back = std::move(d); },
+        static_cast<SdoTransfer>((round + 1) % 3));
     out.clear();
     pair.advance(t);
     for (int guard = 0; guard < 1000 && !out.empty(); ++guard) {

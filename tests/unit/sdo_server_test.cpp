@@ -67,8 +67,7 @@ TEST_F(SdoServerTest, NovotechnikSetNodeId) {
 // wrong signature on 1010h is refused (our hook answers 0x08000020, as the MCB-402 manual
 // §"1010h" describes) and nothing is stored.
 TEST_F(SdoServerTest, NovotechnikWrongSignatureIsRefused) {
-  EXPECT_EQ(rx({0x23, 0x10, 0x10, 0x01, 0x6B, 0x69, 0x6C, 0x6C}),
-            aborted(0x1010, 1, SdoAbortCode::CannotTransfer));
+  EXPECT_EQ(rx({0x23, 0x10, 0x10, 0x01, 0x6B, 0x69, 0x6C, 0x6C}), aborted(0x1010, 1, SdoAbortCode::CannotTransfer));
   EXPECT_EQ(dict.stores, 0);
   EXPECT_EQ(dict.value(0x1010, 1), encode<std::uint32_t>(1));
 }
@@ -171,7 +170,7 @@ TEST_F(SdoServerTest, SegmentedDownloadIsWrittenOnlyAtTheEnd) {
   const auto before = dict.value(0x2100);
   EXPECT_EQ(rx({0x21, 0x00, 0x21, 0x00, 10, 0, 0, 0}), tx({0x60, 0x00, 0x21, 0x00, 0, 0, 0, 0}));
   EXPECT_EQ(rx({0x00, 1, 2, 3, 4, 5, 6, 7}), tx({0x20, 0, 0, 0, 0, 0, 0, 0}));
-  EXPECT_EQ(dict.value(0x2100), before);  // not yet
+  EXPECT_EQ(dict.value(0x2100), before);                                         // not yet
   EXPECT_EQ(rx({0x19, 8, 9, 10, 0, 0, 0, 0}), tx({0x30, 0, 0, 0, 0, 0, 0, 0}));  // t=1, n=4, c=1
   EXPECT_EQ(dict.value(0x2100), (std::vector<std::uint8_t>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10}));
   EXPECT_FALSE(server.busy());
@@ -196,8 +195,7 @@ TEST_F(SdoServerTest, SegmentedDownloadAnnouncedSizeVersusObject) {
   EXPECT_EQ(rx({0x21, 0x01, 0x20, 0x00, 3, 0, 0, 0}), aborted(0x2001, 0, SdoAbortCode::LengthTooHigh));
   EXPECT_EQ(rx({0x21, 0x01, 0x20, 0x00, 1, 0, 0, 0}), aborted(0x2001, 0, SdoAbortCode::LengthTooLow));
   EXPECT_EQ(rx({0x21, 0x01, 0x21, 0x00, 11, 0, 0, 0}), aborted(0x2101, 0, SdoAbortCode::LengthTooHigh));
-  EXPECT_EQ(rx({0x21, 0x01, 0x21, 0x00, 0xFF, 0xFF, 0xFF, 0xFF}),
-            aborted(0x2101, 0, SdoAbortCode::LengthTooHigh));
+  EXPECT_EQ(rx({0x21, 0x01, 0x21, 0x00, 0xFF, 0xFF, 0xFF, 0xFF}), aborted(0x2101, 0, SdoAbortCode::LengthTooHigh));
   EXPECT_FALSE(server.busy());
 }
 
@@ -258,8 +256,7 @@ TEST_F(SdoServerTest, WrongCommandDuringTransferAbortsIt) {
 // CiA 301 §7.2.4.3: every SDO frame has 8 data bytes. A shorter one is answered 0x05040001.
 TEST_F(SdoServerTest, ShortFramesAreProtocolErrors) {
   EXPECT_EQ(rx({0x40, 0x00, 0x10, 0x00}), aborted(0x1000, 0, SdoAbortCode::UnknownCommandSpecifier));
-  EXPECT_EQ(rx({0x23, 0x10, 0x10, 0x01, 0x73, 0x61, 0x76}),
-            aborted(0x1010, 1, SdoAbortCode::UnknownCommandSpecifier));
+  EXPECT_EQ(rx({0x23, 0x10, 0x10, 0x01, 0x73, 0x61, 0x76}), aborted(0x1010, 1, SdoAbortCode::UnknownCommandSpecifier));
   EXPECT_EQ(dict.stores, 0);
   EXPECT_EQ(rx({0x40, 0x00}), aborted(0, 0, SdoAbortCode::UnknownCommandSpecifier));
   EXPECT_EQ(rx({}), aborted(0, 0, SdoAbortCode::UnknownCommandSpecifier));
@@ -328,7 +325,8 @@ TEST_F(SdoServerTest, TimeoutAbortsAndFreesTheServer) {
 }
 
 TEST_F(SdoServerTest, CustomTimeout) {
-  SdoServer fast(dict.od, [this](const CanFrame& f) { out.push_back(f); }, CobId(0x610), CobId(0x590), 50ms);
+  SdoServer fast(
+      dict.od, [this](const CanFrame& f) { out.push_back(f); }, CobId(0x610), CobId(0x590), 50ms);
   fast.on_frame(CanFrame(0x610, {0x40, 0x08, 0x10, 0x00, 0, 0, 0, 0}), t);
   EXPECT_EQ(fast.next_deadline(), t + 50ms);
   out.clear();
@@ -575,8 +573,9 @@ TEST_F(SdoServerTest, BlockUploadTimesOutWaitingForAck) {
 }
 
 TEST_F(SdoServerTest, ExtendedCobIds) {
-  SdoServer ext(dict.od, [this](const CanFrame& f) { out.push_back(f); }, CobId(0x20000603u | 0x10000),
-                CobId(0x20000583u | 0x10000));
+  SdoServer ext(
+      dict.od, [this](const CanFrame& f) { out.push_back(f); }, CobId(0x20000603u | 0x10000),
+      CobId(0x20000583u | 0x10000));
   out.clear();
   CanFrame base(0x603, {0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0});
   EXPECT_FALSE(ext.on_frame(base, t));  // 11-bit frame, 29-bit channel

@@ -53,26 +53,24 @@ struct TestDictionary {
     od.add_var(0x1000, "Device type", DataType::Unsigned32, Access::Const, encode<std::uint32_t>(0x00080196));
     od.add_var(0x1008, "Manufacturer device name", DataType::VisibleString, Access::Const,
                bytes_of("OEGW test device"));
-    Object& store = od.add_array(0x1010, "Store parameters", DataType::Unsigned32, Access::ReadWrite, 4,
-                                 encode<std::uint32_t>(1));
+    Object& store =
+        od.add_array(0x1010, "Store parameters", DataType::Unsigned32, Access::ReadWrite, 4, encode<std::uint32_t>(1));
     hooks += store.add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
       if (b.size() != 4 || get_u32(b.data()) != kSaveSignature) return SdoAbortCode::CannotTransfer;
       ++stores;
       return SdoAbortCode::None;
     });
-    Object& restore = od.add_array(0x1011, "Restore default parameters", DataType::Unsigned32, Access::ReadWrite,
-                                   4, encode<std::uint32_t>(1));
+    Object& restore = od.add_array(0x1011, "Restore default parameters", DataType::Unsigned32, Access::ReadWrite, 4,
+                                   encode<std::uint32_t>(1));
     hooks += restore.add_write_hook([this](Object&, std::uint8_t, std::span<const std::uint8_t> b, Origin) {
       if (b.size() != 4 || get_u32(b.data()) != kLoadSignature) return SdoAbortCode::CannotTransfer;
       ++restores;
       return SdoAbortCode::None;
     });
     od.add_record(0x1801, "TPDO2 communication parameter");
-    od.add_record_member(0x1801, 1, "COB-ID", DataType::Unsigned32, Access::ReadWrite,
-                         encode<std::uint32_t>(0x283));
+    od.add_record_member(0x1801, 1, "COB-ID", DataType::Unsigned32, Access::ReadWrite, encode<std::uint32_t>(0x283));
     od.add_record_member(0x1801, 2, "Transmission type", DataType::Unsigned8, Access::ReadWrite, {0xFF});
-    od.add_record_member(0x1801, 5, "Event timer", DataType::Unsigned16, Access::ReadWrite,
-                         encode<std::uint16_t>(0));
+    od.add_record_member(0x1801, 5, "Event timer", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(0));
     od.add_var(0x2000, "Node-ID", DataType::Unsigned8, Access::ReadWrite, {0x01});
     od.add_var(0x2001, "Word", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(0xBEEF));
     od.add_var(0x2002, "Triple", DataType::Unsigned24, Access::ReadWrite, {0x01, 0x02, 0x03});

@@ -44,8 +44,9 @@ TEST(ServiceStatus, NamesTheUpstreamStateAndTheSubDevicesThatAreNotOperational) 
 TEST(ServiceStatus, NamesAPublishingTransportThatIsDown) {
   ServiceState st = cab(NmtState::Operational, NodeState::Operational, NodeState::Missing);
   st.degraded = {"lcm down: no route to 224.0.0.1 (Network is unreachable)"};
-  EXPECT_EQ(status_line(st), "upstream operational, node 20h; 1/2 sub-devices operational; pedal missing; lcm down: no "
-                             "route to 224.0.0.1 (Network is unreachable)");
+  EXPECT_EQ(status_line(st),
+            "upstream operational, node 20h; 1/2 sub-devices operational; pedal missing; lcm down: no "
+            "route to 224.0.0.1 (Network is unreachable)");
 }
 
 TEST(ServiceNotify, ReadyOnceTheUpstreamDeviceIsPastInitialisationAndOnlyOnce) {
@@ -99,9 +100,10 @@ TEST(ServiceNotify, AfterAReloadStatusStillNamesAPublishingTransportThatIsDown) 
   r.sent.clear();
   n.reloading(t + 1s);
   n.reloaded("last reload refused: 1 error (journal)", lcm_down);
-  EXPECT_THAT(r.sent, ElementsAre("RELOADING=1\nMONOTONIC_USEC=4000000", "READY=1",
-                                  "STATUS=upstream operational, node 20h; 2/2 sub-devices operational; lcm down: no "
-                                  "route to 224.0.0.1 (Network is unreachable); last reload refused: 1 error (journal)"));
+  EXPECT_THAT(r.sent,
+              ElementsAre("RELOADING=1\nMONOTONIC_USEC=4000000", "READY=1",
+                          "STATUS=upstream operational, node 20h; 2/2 sub-devices operational; lcm down: no "
+                          "route to 224.0.0.1 (Network is unreachable); last reload refused: 1 error (journal)"));
   r.sent.clear();
   n.reloading(t + 2s);
   n.reloaded("", lcm_down);  // applied: the note goes, the transport is still down
@@ -137,7 +139,8 @@ TEST(ServiceNotify, WithoutAWatchdogNoWatchdogMessageAndAPollEverySecond) {
   Recorder r;
   ServiceNotify n(r, std::nullopt);
   EXPECT_EQ(n.poll_period(), canopen::Duration(1s));
-  for (int i = 0; i < 10; ++i) n.update(canopen::TimePoint{} + i * 1s, cab(NmtState::Operational, NodeState::Idle, NodeState::Idle));
+  for (int i = 0; i < 10; ++i)
+    n.update(canopen::TimePoint{} + i * 1s, cab(NmtState::Operational, NodeState::Idle, NodeState::Idle));
   EXPECT_EQ(r.count("WATCHDOG=1"), 0);
 }
 

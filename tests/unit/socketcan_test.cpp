@@ -180,16 +180,21 @@ INSTANTIATE_TEST_SUITE_P(
         ErrorCase{"TxOverflow", CAN_ERR_CRTL, CAN_ERR_CRTL_TX_OVERFLOW, {BusEvent::ControllerOverflow}},
         ErrorCase{"CrtlUnspecified", CAN_ERR_CRTL, 0, {}},
         ErrorCase{"CtrlBitsIgnoredWithoutCrtlClass", CAN_ERR_ACK, CAN_ERR_CRTL_TX_PASSIVE, {BusEvent::NoAck}},
-        ErrorCase{"WarningAndPassiveTogetherNoDuplicates", CAN_ERR_CRTL,
+        ErrorCase{"WarningAndPassiveTogetherNoDuplicates",
+                  CAN_ERR_CRTL,
                   CAN_ERR_CRTL_RX_WARNING | CAN_ERR_CRTL_TX_WARNING | CAN_ERR_CRTL_TX_PASSIVE,
                   {BusEvent::ErrorWarning, BusEvent::ErrorPassive}},
         ErrorCase{"Protocol", CAN_ERR_PROT, 0, {BusEvent::ProtocolError}},
         ErrorCase{"Transceiver", CAN_ERR_TRX, 0, {BusEvent::TransceiverError}},
         ErrorCase{"LostArbitration", CAN_ERR_LOSTARB, 0, {BusEvent::LostArbitration}},
         ErrorCase{"BusError", CAN_ERR_BUSERROR, 0, {BusEvent::BusError}},
-        ErrorCase{"BusOffAfterPassiveInOrder", CAN_ERR_BUSOFF | CAN_ERR_CRTL | CAN_ERR_TX_TIMEOUT,
-                  CAN_ERR_CRTL_TX_PASSIVE, {BusEvent::TxTimeout, BusEvent::ErrorPassive, BusEvent::BusOff}},
-        ErrorCase{"RestartedAndActive", CAN_ERR_RESTARTED | CAN_ERR_CRTL, CAN_ERR_CRTL_ACTIVE,
+        ErrorCase{"BusOffAfterPassiveInOrder",
+                  CAN_ERR_BUSOFF | CAN_ERR_CRTL | CAN_ERR_TX_TIMEOUT,
+                  CAN_ERR_CRTL_TX_PASSIVE,
+                  {BusEvent::TxTimeout, BusEvent::ErrorPassive, BusEvent::BusOff}},
+        ErrorCase{"RestartedAndActive",
+                  CAN_ERR_RESTARTED | CAN_ERR_CRTL,
+                  CAN_ERR_CRTL_ACTIVE,
                   {BusEvent::ErrorActive, BusEvent::Restarted}}),
     [](const ::testing::TestParamInfo<ErrorCase>& p) { return std::string(p.param.name); });
 
@@ -212,10 +217,10 @@ TEST(SocketCanTimestamp, SubtractsTheSampledOffset) {
   EXPECT_TRUE(m.needs_sample(TimePoint{10s}));
   EXPECT_FALSE(m.map(timespec{1'700'000'000, 0}, TimePoint{10s})) << "no offset yet";
   m.sample(timespec{1'700'000'000, 350'500'000}, TimePoint{10s});  // realtime 1.7e9 s + 350.5 ms = mono 10 s
-  const timespec stamp{1'700'000'000, 100'000'000};                 // 250.5 ms before
+  const timespec stamp{1'700'000'000, 100'000'000};                // 250.5 ms before
   EXPECT_EQ(m.map(stamp, TimePoint{10s}), TimePoint{10s - 250500us});
   EXPECT_EQ(m.map(stamp, TimePoint{10s + 50ms}), TimePoint{10s - 250500us}) << "the same stamp read later";
-  const timespec across_second{1'699'999'999, 950'000'000};         // 400.5 ms before, a second earlier
+  const timespec across_second{1'699'999'999, 950'000'000};  // 400.5 ms before, a second earlier
   EXPECT_EQ(m.map(across_second, TimePoint{10s}), TimePoint{10s - 400500us});
   EXPECT_FALSE(m.needs_sample(TimePoint{10s + 99ms}));
   EXPECT_TRUE(m.needs_sample(TimePoint{10s + 100ms})) << "re-sampled every 100 ms (NTP slew)";

@@ -244,10 +244,10 @@ TEST_F(StorageFixture, CorruptOrTruncatedFileRefusedAndNothingChanges) {
 TEST_F(StorageFixture, EntriesForUnknownOrChangedObjectsAreSkipped) {
   ParameterStore::Entries e;
   e[{0x1017, 0}] = {0x10, 0x00};
-  e[{0x3000, 0}] = {0x01};            // no such object
-  e[{0x2000, 0}] = {0x01, 0x02};      // UNSIGNED8 now: size changed
-  e[{0x2002, 0}] = {0x05, 0x00};      // read-only
-  e[{0x2100, 0}] = {'x', 'y', 'z'};   // strings may change length
+  e[{0x3000, 0}] = {0x01};           // no such object
+  e[{0x2000, 0}] = {0x01, 0x02};     // UNSIGNED8 now: size changed
+  e[{0x2002, 0}] = {0x05, 0x00};     // read-only
+  e[{0x2100, 0}] = {'x', 'y', 'z'};  // strings may change length
   spit(file, ParameterStore::serialize(e));
   const auto r = store->load();
   EXPECT_TRUE(r.ok) << r.error;
@@ -353,8 +353,8 @@ TEST_F(StorageFixture, NmtResetsApplyDefaultsThenStoredValues) {
   ASSERT_EQ(od.set<std::uint32_t>(0x1010, 1, ParameterStore::kSaveSignature, Origin::Sdo), SdoAbortCode::None);
   ASSERT_EQ(od.set<std::uint16_t>(0x1017, 0, 250, Origin::Sdo), SdoAbortCode::None);  // not saved
   ASSERT_EQ(od.set<std::uint32_t>(0x6003, 0, 77, Origin::Sdo), SdoAbortCode::None);   // not saved
-  nmt.on_frame(CanFrame(0, {0x82, 0x11}), TimePoint{});  // reset communication
-  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100);      // stored value, not the unsaved 250
+  nmt.on_frame(CanFrame(0, {0x82, 0x11}), TimePoint{});                               // reset communication
+  EXPECT_EQ(od.get<std::uint16_t>(0x1017, 0), 100);  // stored value, not the unsaved 250
   EXPECT_EQ(hb.period(), std::chrono::milliseconds(100));
   EXPECT_EQ(od.get<std::uint32_t>(0x6003, 0), 77u);      // application area untouched
   nmt.on_frame(CanFrame(0, {0x81, 0x00}), TimePoint{});  // reset node

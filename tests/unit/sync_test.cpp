@@ -16,7 +16,10 @@ struct SyncFixture : ::testing::Test {
   std::vector<std::uint8_t> counters;
   TimePoint t0{Duration{1'000'000}};
 
-  SyncService make(SyncConfig cfg = {}) { return SyncService(od, [this](const CanFrame& f) { sent.push_back(f); }, cfg); }
+  SyncService make(SyncConfig cfg = {}) {
+    return SyncService(
+        od, [this](const CanFrame& f) { sent.push_back(f); }, cfg);
+  }
 };
 
 TEST_F(SyncFixture, InstallsObjectsWithDefaults) {
@@ -39,7 +42,7 @@ TEST_F(SyncFixture, ConsumerDeliversSyncWithAndWithoutCounter) {
   });
   EXPECT_TRUE(s.on_frame(CanFrame(0x080, {}), t0));
   EXPECT_TRUE(s.on_frame(CanFrame(0x080, {0x05}), t0 + 10ms));
-  EXPECT_FALSE(s.on_frame(CanFrame(0x081, {}), t0 + 20ms));     // an EMCY, not a SYNC
+  EXPECT_FALSE(s.on_frame(CanFrame(0x081, {}), t0 + 20ms));  // an EMCY, not a SYNC
   EXPECT_FALSE(s.on_frame(CanFrame::remote(0x080, 0), t0 + 20ms));
   EXPECT_EQ(counters, (std::vector<std::uint8_t>{0, 5}));
   EXPECT_EQ(times.back(), t0 + 10ms);

@@ -21,9 +21,8 @@ namespace {
 struct Recorder {
   std::vector<std::string> seen;
   void listen(VirtualPort& port) {
-    port.set_receiver([this, name = port.name()](const CanFrame& f, TimePoint) {
-      seen.push_back(name + "<-" + f.to_string());
-    });
+    port.set_receiver(
+        [this, name = port.name()](const CanFrame& f, TimePoint) { seen.push_back(name + "<-" + f.to_string()); });
   }
 };
 
@@ -55,13 +54,13 @@ TEST(VirtualBus, KeepsGlobalSendOrderAcrossManyNodes) {
   std::vector<std::vector<std::uint32_t>> received(10);
   for (int i = 0; i < 10; ++i) {
     ports.push_back(bus.attach("n" + std::to_string(i)));
-    ports.back()->set_receiver([&received, i](const CanFrame& f, TimePoint) {
-      received[static_cast<std::size_t>(i)].push_back(f.id);
-    });
+    ports.back()->set_receiver(
+        [&received, i](const CanFrame& f, TimePoint) { received[static_cast<std::size_t>(i)].push_back(f.id); });
   }
   // Interleaved senders: 0x700+i from node i, twice round.
   for (int round = 0; round < 2; ++round) {
-    for (int i = 0; i < 10; ++i) ports[static_cast<std::size_t>(i)]->send(CanFrame{0x700u + static_cast<std::uint32_t>(i), {0x05}});
+    for (int i = 0; i < 10; ++i)
+      ports[static_cast<std::size_t>(i)]->send(CanFrame{0x700u + static_cast<std::uint32_t>(i), {0x05}});
   }
   EXPECT_EQ(bus.deliver_all(TimePoint{}), 20u);
   for (std::size_t i = 0; i < 10; ++i) {
@@ -124,7 +123,7 @@ TEST(VirtualBus, OwnEchoOnlyWhenAskedFor) {
   echo->send(CanFrame{0x1, {}});
   plain->send(CanFrame{0x2, {}});
   bus.deliver_all(TimePoint{});
-  EXPECT_EQ(echo_rx, 2);  // its own and plain's
+  EXPECT_EQ(echo_rx, 2);   // its own and plain's
   EXPECT_EQ(plain_rx, 1);  // only echo's
 }
 
@@ -390,7 +389,9 @@ struct TimedFixture {
     listener = bus.attach("listener");
     listener->set_receiver([this](const CanFrame& f, TimePoint t) { seen.emplace_back(f.to_string(), t); });
   }
-  [[nodiscard]] Duration since_start(std::size_t i) const { return seen.at(i).second - TimePoint{std::chrono::seconds(100)}; }
+  [[nodiscard]] Duration since_start(std::size_t i) const {
+    return seen.at(i).second - TimePoint{std::chrono::seconds(100)};
+  }
 };
 
 TEST(TimedVirtualBus, AFrameArrivesAfterItsLengthAtTheBitRate) {
@@ -415,7 +416,7 @@ TEST(TimedVirtualBus, FramesSentTogetherGoByPriorityLowestIdFirst) {
   auto a = t.bus.attach("a");
   auto b = t.bus.attach("b");
   // Sent in the reverse order of their priority, at one instant, from two nodes.
-  ASSERT_TRUE(a->send(CanFrame{0x701, {0x05}}).ok());  // 58 bits
+  ASSERT_TRUE(a->send(CanFrame{0x701, {0x05}}).ok());        // 58 bits
   ASSERT_TRUE(b->send(CanFrame{0x181, {0x12, 0x34}}).ok());  // 66 bits
   ASSERT_TRUE(a->send(CanFrame{0x000, {0x01, 0x00}}).ok());  // 68 bits
   t.loop.advance_by(10ms);
@@ -442,7 +443,9 @@ TEST(TimedVirtualBus, AFrameOnTheWireIsNotOvertakenButTheWaitingOnesAreReordered
   ASSERT_EQ(t.seen.size(), 3u);
   EXPECT_EQ(t.seen[0].first, "701#05");
   EXPECT_EQ(t.seen[1].first, "080#");
-  EXPECT_EQ(t.seen[2].first, "581#430010009101" "0F00");
+  EXPECT_EQ(t.seen[2].first,
+            "581#430010009101"
+            "0F00");
   EXPECT_EQ(t.since_start(0), 2us * 55);
   EXPECT_EQ(t.since_start(1), 2us * (58 + 48));
 }

@@ -154,18 +154,16 @@ static int open_path(struct path* p, const char* spec, const char* log_file, int
   char in_if[IFNAMSIZ], out_if[IFNAMSIZ], expect[8];
   unsigned in_id, out_id;
   memset(p, 0, sizeof *p);
-  if (sscanf(spec, "%31[^:]:%15[^:]:%i:%15[^:]:%i:%7s", p->name, in_if, (int*)&in_id, out_if, (int*)&out_id,
-             expect) != 6)
+  if (sscanf(spec, "%31[^:]:%15[^:]:%i:%15[^:]:%i:%7s", p->name, in_if, (int*)&in_id, out_if, (int*)&out_id, expect) !=
+      6)
     return 2;
   p->in_id = in_id;
   p->out_id = out_id;
   p->expect = strcmp(expect, "copy") == 0 ? 'c' : strcmp(expect, "cia852") == 0 ? 'n' : 0;
   if (!p->expect) return 2;
   char file[512];
-  if (log_is_prefix)
-    snprintf(file, sizeof file, "%s.%s", log_file, p->name);
-  else
-    snprintf(file, sizeof file, "%s", log_file);
+  if (log_is_prefix) snprintf(file, sizeof file, "%s.%s", log_file, p->name);
+  else snprintf(file, sizeof file, "%s", log_file);
   p->log = fopen(file, "w");
   p->lat = calloc((size_t)samples, sizeof *p->lat);
   p->tx = open_can(in_if, in_id, 1, 1, 1);
@@ -216,8 +214,9 @@ static void report_path(struct path* p, int samples) {
   qsort(p->lat, (size_t)p->answered, sizeof *p->lat, cmp_double);
   /* Nearest rank. */
   int p50 = (p->answered * 50 + 99) / 100 - 1, p99 = (p->answered * 99 + 99) / 100 - 1;
-  printf("samples %d answered %d missed %d%s median_us %.1f p99_us %.1f min_us %.1f max_us %.1f\n", samples, p->answered, p->missed, p->misses_in_a_row >= 25 ? " (stopped: 25 misses in a row)" : "",
-         p->lat[p50], p->lat[p99], p->lat[0], p->lat[p->answered - 1]);
+  printf("samples %d answered %d missed %d%s median_us %.1f p99_us %.1f min_us %.1f max_us %.1f\n", samples,
+         p->answered, p->missed, p->misses_in_a_row >= 25 ? " (stopped: 25 misses in a row)" : "", p->lat[p50],
+         p->lat[p99], p->lat[0], p->lat[p->answered - 1]);
 }
 
 /* The paths measured sample by sample in turn (a fresh random order each cycle), so whatever the
