@@ -257,6 +257,23 @@ def check_namespaces(root):
     return problems
 
 
+def check_unit_folders(root):
+    """Lines `file: message`: tests/unit's sub-folders mirror the source, so that a service's test
+    is found where the service is (tests/unit/canopen/301/ holds the tests of canopen/301/)."""
+    problems = []
+    unit = os.path.join(root, "tests", "unit")
+    for folder, _, names in sorted(os.walk(unit)):
+        rel = os.path.relpath(folder, unit).replace(os.sep, "/")
+        for name in sorted(n for n in names if n.endswith("_test.cpp")):
+            path = "tests/unit/%s" % name if rel == "." else "tests/unit/%s/%s" % (rel, name)
+            if rel == ".":
+                problems.append("%s: a unit test sits in the folder of what it tests "
+                                "(tests/unit/<source folder>/), not in tests/unit itself" % path)
+            elif not os.path.isdir(os.path.join(root, rel)):
+                problems.append("%s: tests/unit/%s mirrors no source folder (there is no %s/)" % (path, rel, rel))
+    return problems
+
+
 def reason(src_layer, inc_layer):
     if RANK[inc_layer] > RANK[src_layer]:
         return "layer %s is above %s" % (inc_layer, src_layer)
@@ -294,7 +311,8 @@ def main(argv):
     table = os.path.relpath(__file__, root) if os.path.abspath(__file__).startswith(root) else __file__
     problems = check(root)
     ns_problems = check_namespaces(root)
-    for p in problems + ns_problems:
+    unit_problems = check_unit_folders(root)
+    for p in problems + ns_problems + unit_problems:
         print(p)
     if problems:
         print("%d undeclared include%s across layers (the table: %s)" %
@@ -302,9 +320,14 @@ def main(argv):
     if ns_problems:
         print("%d namespace%s outside the folder's (the table: %s NAMESPACES)" %
               (len(ns_problems), "" if len(ns_problems) == 1 else "s", table))
-    if problems or ns_problems:
+    if unit_problems:
+        print("%d unit test%s outside the folder mirroring what %s test%s" %
+              (len(unit_problems), "" if len(unit_problems) == 1 else "s",
+               "it" if len(unit_problems) == 1 else "they", "s" if len(unit_problems) == 1 else ""))
+    if problems or ns_problems or unit_problems:
         return 1
-    print("layers: every include is declared, every namespace is its folder's")
+    print("layers: every include is declared, every namespace is its folder's, "
+          "every unit test in the folder mirroring its source")
     return 0
 
 

@@ -45,8 +45,8 @@ CLEAN = {
     "subdevices/device_spec.hpp": '#pragma once\n#include "subdevices/driver.hpp"\n',
     "subdevices/sim/sim_bench.hpp": '#pragma once\n#include "subdevices/device_spec.hpp"\n'
                                     "namespace oegw {\nnamespace subdevices::sim {\nstruct SimBench {};\n}\n}\n",
-    "tests/unit/x_test.cpp": '#include "subdevices/sim/sim_bench.hpp"\n#include "support.hpp"\n',
-    "tests/unit/support.hpp": "#pragma once\n",
+    "tests/unit/subdevices/sim/x_test.cpp": '#include "subdevices/sim/sim_bench.hpp"\n#include "support.hpp"\n',
+    "tests/unit/subdevices/sim/support.hpp": "#pragma once\n",
 }
 
 CASES = [
@@ -56,8 +56,14 @@ CASES = [
     ("subdevices/sim/mcb402_sim.hpp", '#pragma once\n#include "subdevices/driver.hpp"\n',
      "subdevices/sim/mcb402_sim.hpp:2: subdevices/sim may not include subdevices/driver.hpp "
      "(layer drivers is beside sim)"),
-    ("canopen/node.hpp", '#pragma once\n#  include "tests/unit/support.hpp"\n',
-     "canopen/node.hpp:2: canopen may not include tests/unit/support.hpp (layer tests is above canopen)"),
+    ("canopen/node.hpp", '#pragma once\n#  include "tests/unit/subdevices/sim/support.hpp"\n',
+     "canopen/node.hpp:2: canopen may not include tests/unit/subdevices/sim/support.hpp (layer tests is above canopen)"),
+    # A unit test outside the folder that mirrors what it tests.
+    ("tests/unit/y_test.cpp", "",
+     "tests/unit/y_test.cpp: a unit test sits in the folder of what it tests (tests/unit/<source folder>/), "
+     "not in tests/unit itself"),
+    ("tests/unit/widgets/y_test.cpp", "",
+     "tests/unit/widgets/y_test.cpp: tests/unit/widgets mirrors no source folder (there is no widgets/)"),
     # A namespace of another folder.
     ("subdevices/sim/sim_bench.hpp", '#pragma once\n\nnamespace oegw::subdevices {\nstruct SimBench {};\n}\n',
      "subdevices/sim/sim_bench.hpp:3: namespace oegw::subdevices is not in subdevices/sim's namespace "
