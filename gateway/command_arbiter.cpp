@@ -14,14 +14,15 @@ bool takes(mapping::CommandSources sources, CommandSource s) {
 }
 }  // namespace
 
-CommandArbiter::CommandArbiter(const mapping::Config& config, OeDevice& device, FeModel& model, const TimePoint& clock)
-    : device_(device), model_(model), clock_(clock) {
+CommandArbiter::CommandArbiter(const mapping::Config& config, OeDevice& device, FeModel& model)
+    : device_(device), model_(model) {
   for (const auto& fe : config.functional_elements) {
     if (fe.input()) continue;
     outputs_.push_back({fe.id, fe.sources, std::chrono::milliseconds(fe.command_timeout_ms)});
   }
-  device_.on_host_write([this](FeId fe, canopen::Origin origin) { return host_write(fe, origin); });
-  device_.on_output([this](FeId fe, FieldRef ref, std::int64_t value) { output_changed(fe, ref, value); });
+  device_.on_host_write([this](FeId fe, canopen::Origin origin, TimePoint now) { return host_write(fe, origin, now); });
+  device_.on_output(
+      [this](FeId fe, FieldRef ref, std::int64_t value, TimePoint now) { output_changed(fe, ref, value, now); });
 }
 
 CommandArbiter::Output* CommandArbiter::find(FeId fe) {
@@ -62,11 +63,11 @@ void CommandArbiter::refuse(FeId fe, std::string_view way, const std::string& wh
   if (refused_logged_.emplace(fe, std::string(way)).second) say(mapping::fe_name(fe) + ": " + why);
 }
 
-bool CommandArbiter::host_write(FeId fe, canopen::Origin origin) {
+bool CommandArbiter::host_write(FeId fe, canopen::Origin origin, TimePoint now) {
   Output* o = find(fe);
   if (o == nullptr) return true;  // not an FE of the mapping file: the dictionary decides
   if (takes(o->sources, CommandSource::Canopen)) {
-    seen(*o, clock_);
+    seen(*o, now);
     return true;
   }
   const bool rpdo = origin == canopen::Origin::Pdo;
@@ -95,7 +96,7 @@ bool CommandArbiter::command_indicators(std::uint8_t instance, std::uint64_t bit
                                         TimePoint now) {
   const FeId fe{mapping::FeKind::IndicatorCluster, instance};
   if (!take(fe, source, now)) return false;
-  device_.write_indicators(fe, bits);  // the changed bits come back as output_changed()
+  device_.write_indicators(fe, bits, now);  // the changed bits come back as output_changed()
   return true;
 }
 
@@ -103,12 +104,12 @@ bool CommandArbiter::command_display(std::uint8_t instance, const std::array<std
                                      CommandSource source, TimePoint now) {
   const FeId fe{mapping::FeKind::Display, instance};
   if (!take(fe, source, now)) return false;
-  device_.write_display(fe, parameters);
+  device_.write_display(fe, parameters, now);
   return true;
 }
 
-void CommandArbiter::output_changed(FeId fe, FieldRef ref, std::int64_t value) {
-  (void)model_.write(fe, ref, value, clock_);
+void CommandArbiter::output_changed(FeId fe, FieldRef ref, std::int64_t value, TimePoint now) {
+  (void)model_.write(fe, ref, value, now);
   if (drive) drive(fe, ref, value);
 }
 

@@ -38,8 +38,7 @@ namespace oegw::gateway {
 
 class CommandArbiter {
  public:
-  // `clock` is the gateway's current time (read when a host write arrives through the device).
-  CommandArbiter(const mapping::Config& config, OeDevice& device, FeModel& model, const canopen::TimePoint& clock);
+  CommandArbiter(const mapping::Config& config, OeDevice& device, FeModel& model);
   CommandArbiter(const CommandArbiter&) = delete;
   CommandArbiter& operator=(const CommandArbiter&) = delete;
 
@@ -79,8 +78,8 @@ class CommandArbiter {
     std::uint64_t refused = 0;  // its commands refused (refused(fe))
   };
   Output* find(mapping::FeId fe);
-  bool host_write(mapping::FeId fe, canopen::Origin origin);
-  void output_changed(mapping::FeId fe, FieldRef ref, std::int64_t value);
+  bool host_write(mapping::FeId fe, canopen::Origin origin, canopen::TimePoint now);
+  void output_changed(mapping::FeId fe, FieldRef ref, std::int64_t value, canopen::TimePoint now);
   bool take(mapping::FeId fe, mapping::CommandSource source, canopen::TimePoint now);
   void seen(Output& o, canopen::TimePoint now);
   void refuse(mapping::FeId fe, std::string_view way, const std::string& why);
@@ -88,7 +87,6 @@ class CommandArbiter {
 
   OeDevice& device_;
   FeModel& model_;
-  const canopen::TimePoint& clock_;
   std::vector<Output> outputs_;
   bool started_ = false;
   std::uint64_t refused_ = 0;

@@ -73,8 +73,7 @@ Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed
                                     .sdo_request_gap =
                                         canopen::SdoPacer::gap_for(config.downstream.bitrate, options.sdo_bus_share)}),
       network_(master_, options.timing),
-      remote_sdo_(
-          std::make_unique<RemoteSdo>(config_, master_, network_, now_, [this] { return oe_->node().node_id(); })),
+      remote_sdo_(std::make_unique<RemoteSdo>(config_, master_, network_, [this] { return oe_->node().node_id(); })),
       oe_(handed_over ? std::move(handed_over)
                       : std::make_unique<OeDevice>(device_config(config_, options.store_path), std::move(upstream))),
       model_(oe_->config().fes) {
@@ -83,7 +82,7 @@ Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed
   model_.on_slot_change([this](mapping::FeId fe, FeSlot slot, std::int64_t v) {
     if (mapping::is_input(fe.kind)) oe_->mirror_input(fe, slot, v, now_);
   });
-  arbiter_ = std::make_unique<CommandArbiter>(config_, *oe_, model_, now_);
+  arbiter_ = std::make_unique<CommandArbiter>(config_, *oe_, model_);
   arbiter_->log = [this](const std::string& line) { log(line); };
   arbiter_->drive = [this](mapping::FeId fe, FieldRef ref, std::int64_t v) { on_output(fe, ref, v); };
   add_subdevices();
@@ -810,7 +809,7 @@ void Gateway::resume(TimePoint now) {
     for (std::size_t k = 0; k < kFeSlots; ++k)
       oe_->mirror_input(fe, static_cast<FeSlot>(k), model_.slot_value(fe, static_cast<FeSlot>(k)), now);
   }
-  oe_->announce_outputs();  // into the FE model and the output bindings (sent at each node's start)
+  oe_->announce_outputs(now);  // into the FE model and the output bindings (sent at each node's start)
   oe_->end_batch(now);
   end_outputs(now);
   // Faults of the device's 7000h: kept for a sub-device this file keeps, ended for the others.

@@ -91,7 +91,8 @@ void OeDevice::watch_host_commands() {
           if (it == outputs_.end() || it->second.empty())
             return sub == 0 ? SdoAbortCode::None : SdoAbortCode::CannotTransfer;
           const FeId fe = it->second.front().fe;
-          const bool take = on_host_write_ ? on_host_write_(fe, origin) : cfg_.host_may_not_command.count(fe) == 0;
+          const bool take =
+              on_host_write_ ? on_host_write_(fe, origin, now_) : cfg_.host_may_not_command.count(fe) == 0;
           return take ? SdoAbortCode::None : SdoAbortCode::CannotTransferLocalControl;
         });
   }
@@ -225,7 +226,8 @@ void OeDevice::mirror_input(FeId fe, FeSlot slot, std::int64_t value, TimePoint 
   if (wrote && batch_depth_ == 0) step_node(now);
 }
 
-void OeDevice::write_indicators(FeId fe, std::uint64_t bits) {
+void OeDevice::write_indicators(FeId fe, std::uint64_t bits, TimePoint now) {
+  now_ = now;
   for (const auto& [key, refs] : outputs_) {
     if (refs.empty() || !(refs.front().fe == fe) || (key >> 8) != cia401::kWriteOutput8) continue;
     // The entry's eight indicators: bits 8k..8k+7 of the command (k = the first one's bit / 8).
@@ -236,7 +238,8 @@ void OeDevice::write_indicators(FeId fe, std::uint64_t bits) {
   }
 }
 
-void OeDevice::write_display(FeId fe, const std::array<std::int16_t, 12>& parameters) {
+void OeDevice::write_display(FeId fe, const std::array<std::int16_t, 12>& parameters, TimePoint now) {
+  now_ = now;
   for (const auto& [key, refs] : outputs_) {
     if (refs.empty() || !(refs.front().fe == fe) || (key >> 8) != cia401::kWriteAnalogueOutput16) continue;
     const auto sub = static_cast<std::uint8_t>(key);
@@ -346,19 +349,20 @@ void OeDevice::report_outputs(std::uint16_t index, std::uint8_t sub, std::int64_
   const std::int64_t now_value = output_shadow_[key];
   for (const OutputRef& r : outputs_[key]) {
     if (r.bit == 0xFF) {
-      if (now_value != old_value) on_output_(r.fe, r.ref, now_value);
+      if (now_value != old_value) on_output_(r.fe, r.ref, now_value, now_);
     } else {
       const auto b = (now_value >> r.bit) & 1;
-      if (b != ((old_value >> r.bit) & 1)) on_output_(r.fe, r.ref, b);
+      if (b != ((old_value >> r.bit) & 1)) on_output_(r.fe, r.ref, b, now_);
     }
   }
 }
 
-void OeDevice::announce_outputs() {
+void OeDevice::announce_outputs(TimePoint now) {
+  now_ = now;
   if (!on_output_) return;
   for (const auto& [key, refs] : outputs_) {
     const std::int64_t v = output_shadow_[key];
-    for (const OutputRef& r : refs) on_output_(r.fe, r.ref, r.bit == 0xFF ? v : (v >> r.bit) & 1);
+    for (const OutputRef& r : refs) on_output_(r.fe, r.ref, r.bit == 0xFF ? v : (v >> r.bit) & 1, now);
   }
 }
 

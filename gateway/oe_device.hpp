@@ -123,22 +123,23 @@ class OeDevice {
 
   // Output FEs written by the gateway itself (Origin::Local: DDS/LCM commands the command
   // arbiter accepted). Entries that change are reported through on_output, as a host write is.
-  void write_indicators(mapping::FeId fe, std::uint64_t bits);
-  void write_display(mapping::FeId fe, const std::array<std::int16_t, 12>& parameters);
+  void write_indicators(mapping::FeId fe, std::uint64_t bits, canopen::TimePoint now);
+  void write_display(mapping::FeId fe, const std::array<std::int16_t, 12>& parameters, canopen::TimePoint now);
 
   // Called for every output field whose value changed (an RPDO, an SDO download, a write above,
-  // the error values, an NMT reset or 1011h restore putting defaults back).
-  using OutputCallback = std::function<void(mapping::FeId, FieldRef, std::int64_t value)>;
+  // the error values, an NMT reset or 1011h restore putting defaults back), with the time of the
+  // call that changed it.
+  using OutputCallback = std::function<void(mapping::FeId, FieldRef, std::int64_t value, canopen::TimePoint now)>;
   void on_output(OutputCallback cb) { on_output_ = std::move(cb); }
   // Every output field's current value through on_output, changed or not (a gateway taking the
   // device over at a reload: its FE model and output bindings start from what the host sees).
-  void announce_outputs();
+  void announce_outputs(canopen::TimePoint now);
 
   // A host write (SDO download or RPDO entry) of an output FE, before it commits: return true to
   // take it. Refused: an SDO download is aborted with 0800 0021h ("cannot be transferred because
   // of local control", CiA 301 Table 22), the FE's bytes in an RPDO are ignored. Unset: the
-  // config's host_may_not_command decides.
-  using HostWriteCheck = std::function<bool(mapping::FeId, canopen::Origin)>;
+  // config's host_may_not_command decides. `now`: the time of the host's frame.
+  using HostWriteCheck = std::function<bool(mapping::FeId, canopen::Origin, canopen::TimePoint now)>;
   void on_host_write(HostWriteCheck cb) { on_host_write_ = std::move(cb); }
 
   // CiA 401 6206h/6207h and 6443h/6444h: outputs whose error mode is set take their error value.

@@ -8,6 +8,7 @@ namespace oegw::gateway {
 
 using canopen::SdoAbortCode;
 using canopen::SdoTarget;
+using canopen::TimePoint;
 namespace sd = oegw::subdevices;
 
 namespace {
@@ -39,8 +40,8 @@ bool communication_protected(std::uint16_t index) {
 }  // namespace
 
 RemoteSdo::RemoteSdo(const mapping::Config& config, canopen::Master& master, sd::NetworkManager& network,
-                     const canopen::TimePoint& now, std::function<canopen::NodeId()> self)
-    : config_(config), master_(master), network_(network), now_(now), self_(std::move(self)) {
+                     std::function<canopen::NodeId()> self)
+    : config_(config), master_(master), network_(network), self_(std::move(self)) {
   for (const auto& fe : config_.functional_elements)
     for (const auto& f : fe.fields) in_use_.insert(f.subdevice);
 }
@@ -155,7 +156,8 @@ void RemoteSdo::finish(Ticket ticket, SdoAbortCode code, std::vector<std::uint8_
   done(code, std::move(data));
 }
 
-RemoteSdo::Ticket RemoteSdo::upload(const SdoTarget& target, std::uint16_t index, std::uint8_t sub, Done done) {
+RemoteSdo::Ticket RemoteSdo::upload(const SdoTarget& target, std::uint16_t index, std::uint8_t sub, TimePoint now,
+                                    Done done) {
   const mapping::SubdeviceConfig* sc = nullptr;
   if (const SdoAbortCode c = check(target, sc); c != SdoAbortCode::None)
     return refuse(c, fmt::format("read of node {:02X}h {:04X}h:{:02X}", target.node, index, sub), sc, done);
@@ -164,12 +166,13 @@ RemoteSdo::Ticket RemoteSdo::upload(const SdoTarget& target, std::uint16_t index
   pending_.back().client_ticket =
       client.upload(index, sub,
                     [this, t](SdoAbortCode code, std::vector<std::uint8_t> data) { finish(t, code, std::move(data)); });
-  client.advance(now_);  // starts it now, not at the next turn of the event loop
+  client.advance(now);  // starts it now, not at the next turn of the event loop
   return t;
 }
 
 RemoteSdo::Ticket RemoteSdo::download(const SdoTarget& target, std::uint16_t index, std::uint8_t sub,
-                                      std::span<const std::uint8_t> data, bool size_indicated, Done done) {
+                                      std::span<const std::uint8_t> data, bool size_indicated, TimePoint now,
+                                      Done done) {
   const mapping::SubdeviceConfig* sc = nullptr;
   const std::string what = fmt::format("write of node {:02X}h {:04X}h:{:02X}", target.node, index, sub);
   if (const SdoAbortCode c = check(target, sc); c != SdoAbortCode::None) return refuse(c, what, sc, done);
@@ -182,7 +185,7 @@ RemoteSdo::Ticket RemoteSdo::download(const SdoTarget& target, std::uint16_t ind
       index, sub, std::vector<std::uint8_t>(data.begin(), data.end()),
       [this, t](SdoAbortCode code, std::vector<std::uint8_t> out) { finish(t, code, std::move(out)); },
       size_indicated ? canopen::SdoTransfer::Auto : canopen::SdoTransfer::ExpeditedUnsized);
-  client.advance(now_);
+  client.advance(now);
   return t;
 }
 

@@ -62,14 +62,15 @@ struct RemoteSdoCounters {
 
 class RemoteSdo final : public canopen::SdoRemote {
  public:
-  // `now` is the gateway's clock of the call in progress; `self` its current node-ID upstream.
+  // `self`: the gateway's current node-ID upstream.
   RemoteSdo(const mapping::Config& config, canopen::Master& master, subdevices::NetworkManager& network,
-            const canopen::TimePoint& now, std::function<canopen::NodeId()> self);
+            std::function<canopen::NodeId()> self);
 
   canopen::SdoAbortCode select(const canopen::SdoTarget& target, Selection& selection) override;
-  Ticket upload(const canopen::SdoTarget& target, std::uint16_t index, std::uint8_t sub, Done done) override;
+  Ticket upload(const canopen::SdoTarget& target, std::uint16_t index, std::uint8_t sub, canopen::TimePoint now,
+                Done done) override;
   Ticket download(const canopen::SdoTarget& target, std::uint16_t index, std::uint8_t sub,
-                  std::span<const std::uint8_t> data, bool size_indicated, Done done) override;
+                  std::span<const std::uint8_t> data, bool size_indicated, canopen::TimePoint now, Done done) override;
   void cancel(Ticket ticket, canopen::SdoAbortCode why) override;
 
   // The target a channel bound to sub-device `name` has (the mapping file checked the name).
@@ -109,7 +110,6 @@ class RemoteSdo final : public canopen::SdoRemote {
   const mapping::Config& config_;
   canopen::Master& master_;
   subdevices::NetworkManager& network_;
-  const canopen::TimePoint& now_;
   std::function<canopen::NodeId()> self_;
   std::set<std::string> in_use_;  // sub-devices the functional elements use
   std::vector<Pending> pending_;

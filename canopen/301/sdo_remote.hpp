@@ -69,10 +69,11 @@ class SdoRemote {
   // `data` (a download's whole value, at most SdoServer::kMaxRemoteDownload bytes) is valid only
   // during the call. `size_indicated` false: the client sent an expedited download without a
   // size (e = 1, s = 0, CiA 301 §7.2.4.3.3); `data` is its four bytes and the remote must send it
-  // the same way, for the remote server to take as many as its object has.
-  virtual Ticket upload(const SdoTarget& target, std::uint16_t index, std::uint8_t sub, Done done) = 0;
+  // the same way, for the remote server to take as many as its object has. `now` is the time of
+  // the server's frame that completed the request (the remote's own SDO time-outs run from it).
+  virtual Ticket upload(const SdoTarget& target, std::uint16_t index, std::uint8_t sub, TimePoint now, Done done) = 0;
   virtual Ticket download(const SdoTarget& target, std::uint16_t index, std::uint8_t sub,
-                          std::span<const std::uint8_t> data, bool size_indicated, Done done) = 0;
+                          std::span<const std::uint8_t> data, bool size_indicated, TimePoint now, Done done) = 0;
   // The server's client gave up on the transfer: `why` is the client's own abort code, or
   // 0x060A0023 (a new request while this one is in flight), 0x05040001 (a malformed frame),
   // 0x08000000 (the channel reset, its COB-IDs changed, rebound, or the server destroyed). The

@@ -472,7 +472,7 @@ void SdoServer::start_remote_upload(RemoteStep step) {
   state_ = State::RemoteWait;
   step_ = step;
   const std::uint32_t generation = ++remote_generation_;
-  const SdoRemote::Ticket ticket = remote_->upload(target, index_, sub_, remote_done(generation));
+  const SdoRemote::Ticket ticket = remote_->upload(target, index_, sub_, now_, remote_done(generation));
   if (state_ == State::RemoteWait && remote_generation_ == generation) ticket_ = ticket;
 }
 
@@ -483,7 +483,8 @@ void SdoServer::start_remote_download(RemoteStep step, std::uint8_t response) {
   remote_response_ = response;
   const std::uint32_t generation = ++remote_generation_;
   const bool unsized = step == RemoteStep::ExpeditedDownload && !size_indicated_;
-  const SdoRemote::Ticket ticket = remote_->download(target, index_, sub_, buffer_, !unsized, remote_done(generation));
+  const SdoRemote::Ticket ticket =
+      remote_->download(target, index_, sub_, buffer_, !unsized, now_, remote_done(generation));
   if (state_ == State::RemoteWait && remote_generation_ == generation) ticket_ = ticket;
 }
 

@@ -500,9 +500,10 @@ void CtlService::sdo(const json& r, bool write, ControlProtocol::Done done) {
     if (const auto tr = weak.lock()) complete(tr, answer(code, bytes, !write));
   };
   const canopen::SdoTarget target{config_->downstream.network_id, static_cast<std::uint8_t>(node)};
-  RemoteSdo& remote = gw_->remote_sdo(loop_.now());
-  t->ticket = write ? remote.download(target, index, sub, data, true, std::move(finish))
-                    : remote.upload(target, index, sub, std::move(finish));
+  const canopen::TimePoint now = loop_.now();
+  RemoteSdo& remote = gw_->remote_sdo(now);
+  t->ticket = write ? remote.download(target, index, sub, data, true, now, std::move(finish))
+                    : remote.upload(target, index, sub, now, std::move(finish));
   if (!t->finished && timeout_ms != 0) {
     t->timer = loop_.call_after(std::chrono::milliseconds(timeout_ms), [this, complete, answer, weak] {
       const auto tr = weak.lock();

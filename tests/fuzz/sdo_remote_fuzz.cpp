@@ -37,9 +37,11 @@ class FakeRemote final : public SdoRemote {
     selection = Selection::Remote;
     return SdoAbortCode::None;
   }
-  Ticket upload(const SdoTarget&, std::uint16_t, std::uint8_t, Done done) override { return start(std::move(done)); }
+  Ticket upload(const SdoTarget&, std::uint16_t, std::uint8_t, TimePoint, Done done) override {
+    return start(std::move(done));
+  }
   Ticket download(const SdoTarget&, std::uint16_t, std::uint8_t, std::span<const std::uint8_t> data,
-                  bool size_indicated, Done done) override {
+                  bool size_indicated, TimePoint, Done done) override {
     check(size_indicated || data.size() == 4);
     check(data.size() <= SdoServer::kMaxRemoteDownload);
     return start(std::move(done));

@@ -37,7 +37,7 @@ class OeDeviceHost : public ::testing::Test {
     c.fes = {kJoy, kWheel, kButtons, kLeds};
     gw_ = std::make_unique<OeDevice>(c, net_.sink("gw"));
     net_.attach("gw", *gw_);
-    gw_->on_output([this](FeId fe, oegw::gateway::FieldRef r, std::int64_t v) {
+    gw_->on_output([this](FeId fe, oegw::gateway::FieldRef r, std::int64_t v, oegw::canopen::TimePoint) {
       outputs_.emplace_back(fe, oegw::gateway::field_name(fe, r), v);
     });
     host_ = std::make_unique<Master>(host_od_, net_.sink("host"), MasterConfig{.heartbeat_entries = 4});

@@ -46,7 +46,7 @@ struct Rig {
   canopen::TimePoint now{};
   gateway::OeDevice device{gateway::device_config(cfg), [](const canopen::CanFrame&) {}};
   gateway::FeModel model{device.config().fes};
-  gateway::CommandArbiter arbiter{cfg, device, model, now};
+  gateway::CommandArbiter arbiter{cfg, device, model};
   std::vector<std::tuple<FeId, FieldRef, std::int64_t>> driven;
   std::vector<std::string> log;
   Rig() {
@@ -124,6 +124,17 @@ TEST(CommandArbiter, AHostWriteOfAnFeWithoutCanopenIsAbortedWithLocalControl) {
   // Display 1 takes the host: 6411h:01 applies.
   EXPECT_EQ(r.device.od().set<std::int16_t>(0x6411, 0x01, -300, canopen::Origin::Sdo), canopen::SdoAbortCode::None);
   EXPECT_EQ(r.model.get<gateway::DisplayState>(kDisplay1)->parameters[0], -300);
+}
+
+TEST(CommandArbiter, AHostWriteTakesTheTimeOfItsFrame) {
+  Rig r;
+  // The device's frames carry their own time; the arbiter keeps no clock of its own.
+  const canopen::TimePoint t = r.now + 7ms;
+  const std::uint32_t rx = 0x600 + r.device.node().node_id().value();
+  // SDO expedited download of 6411h:01 = -300 (FED4h, 2 bytes: 2Bh), CiA 301 §7.2.4.3.3.
+  ASSERT_TRUE(r.device.on_frame(canopen::CanFrame(rx, {0x2B, 0x11, 0x64, 0x01, 0xD4, 0xFE, 0, 0}), t));
+  EXPECT_EQ(r.model.get<gateway::DisplayState>(kDisplay1)->parameters[0], -300);
+  EXPECT_EQ(r.model.source_time(kDisplay1), t);
 }
 
 TEST(CommandArbiter, ASilentCommanderGivesTheErrorValuesUntilTheNextCommand) {

@@ -86,7 +86,7 @@ class OeDeviceTest : public ::testing::Test {
     c.host_node = host_node;
     c.host_heartbeat_ms = host_ms;
     dev = std::make_unique<OeDevice>(std::move(c), [this](const CanFrame& f) { out.push_back(f); });
-    dev->on_output([this](FeId fe, oegw::gateway::FieldRef r, std::int64_t v) {
+    dev->on_output([this](FeId fe, oegw::gateway::FieldRef r, std::int64_t v, oegw::canopen::TimePoint) {
       outputs.emplace_back(fe, oegw::gateway::field_name(fe, r), v);
     });
     dev->start(now);

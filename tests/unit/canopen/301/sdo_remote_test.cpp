@@ -40,6 +40,7 @@ class FakeRemote : public SdoRemote {
     std::uint16_t index = 0;
     std::uint8_t sub = 0;
     std::vector<std::uint8_t> data;  // download
+    TimePoint now;                   // the time the server passed on
     Ticket ticket = 0;
     Done done;
   };
@@ -62,12 +63,12 @@ class FakeRemote : public SdoRemote {
     selection = select_as;
     return select_code;
   }
-  Ticket upload(const SdoTarget& target, std::uint16_t index, std::uint8_t sub, Done done) override {
-    return start(Call{true, target, index, sub, {}, next_++, std::move(done)});
+  Ticket upload(const SdoTarget& target, std::uint16_t index, std::uint8_t sub, TimePoint now, Done done) override {
+    return start(Call{true, target, index, sub, {}, now, next_++, std::move(done)});
   }
   Ticket download(const SdoTarget& target, std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> data,
-                  bool /*size_indicated*/, Done done) override {
-    return start(Call{false, target, index, sub, {data.begin(), data.end()}, next_++, std::move(done)});
+                  bool /*size_indicated*/, TimePoint now, Done done) override {
+    return start(Call{false, target, index, sub, {data.begin(), data.end()}, now, next_++, std::move(done)});
   }
   void cancel(Ticket ticket, SdoAbortCode why) override { cancels.push_back({ticket, why}); }
 
@@ -335,6 +336,7 @@ TEST_F(SdoRemoteTest, ExpeditedUploadIsAnsweredWhenTheRemoteIsDone) {
   EXPECT_EQ(remote.calls[0].target, kNode20);
   EXPECT_EQ(remote.calls[0].index, 0x1000);
   EXPECT_EQ(remote.calls[0].sub, 0);
+  EXPECT_EQ(remote.calls[0].now, t);  // the remote's time-outs run from the request's frame
   // The answer goes out at once, outside on_frame/advance: the size from the data (2 bytes: 4Bh).
   EXPECT_EQ(answer(SdoAbortCode::None, {0x91, 0x01}), tx({0x4B, 0x00, 0x10, 0x00, 0x91, 0x01, 0, 0}));
   EXPECT_FALSE(server.busy());
@@ -442,9 +444,14 @@ TEST_F(SdoRemoteTest, SegmentedDownloadGoesToTheRemoteWithTheLastSegment) {
   EXPECT_EQ(rx({0x21, 0x00, 0x21, 0x00, 10, 0, 0, 0}), tx({0x60, 0x00, 0x21, 0x00, 0, 0, 0, 0}));
   EXPECT_EQ(rx({0x00, 1, 2, 3, 4, 5, 6, 7}), tx({0x20, 0, 0, 0, 0, 0, 0, 0}));
   EXPECT_TRUE(remote.calls.empty());
+  const TimePoint first = t;
+  t += std::chrono::milliseconds(40);
   EXPECT_EQ(rx({0x19, 8, 9, 10, 0, 0, 0, 0}), none());  // toggle 1, n = 4, c = 1
   ASSERT_EQ(remote.calls.size(), 1u);
   EXPECT_FALSE(remote.calls[0].upload);
+  // The transfer starts at the last segment's time, not the first's.
+  EXPECT_EQ(remote.calls[0].now, t);
+  EXPECT_NE(remote.calls[0].now, first);
   EXPECT_EQ(remote.calls[0].index, 0x2100);
   EXPECT_EQ(remote.calls[0].data, (std::vector<std::uint8_t>{1, 2, 3, 4, 5, 6, 7, 8, 9, 10}));
   EXPECT_EQ(answer(SdoAbortCode::None), tx({0x30, 0, 0, 0, 0, 0, 0, 0}));  // the last segment's toggle
