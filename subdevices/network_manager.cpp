@@ -21,73 +21,6 @@ std::string_view to_string(NodeState s) {
   return "unknown";
 }
 
-namespace {
-
-std::string hex32(std::uint32_t v) {
-  char b[16];
-  std::snprintf(b, sizeof b, "%08Xh", v);
-  return b;
-}
-
-std::string obj(std::uint16_t index, std::uint8_t sub) {
-  char b[16];
-  std::snprintf(b, sizeof b, "%04Xh:%02X", index, sub);
-  return b;
-}
-
-// A check of a UNSIGNED32 answer against an expected value (CiA 302-2 identity check), in the
-// bits of `mask`; the value read is kept in `keep` when given.
-std::function<std::string(const std::vector<std::uint8_t>&)> expect_u32(std::uint16_t index, std::uint8_t sub,
-                                                                        std::optional<std::uint32_t> want,
-                                                                        std::optional<std::uint32_t>* keep = nullptr,
-                                                                        std::uint32_t mask = 0xFFFFFFFFu) {
-  return [index, sub, want, keep, mask](const std::vector<std::uint8_t>& d) -> std::string {
-    if (d.size() != 4) return obj(index, sub) + " answered " + std::to_string(d.size()) + " bytes, expected 4";
-    const std::uint32_t got = canopen::get_u32(d.data());
-    if (keep != nullptr) *keep = got;
-    if (!want || (got & mask) == (*want & mask)) return {};
-    if (mask == 0xFFFFFFFFu)
-      return obj(index, sub) + " is " + hex32(got) + ", the configuration expects " + hex32(*want);
-    char b[160];
-    std::snprintf(b, sizeof b,
-                  "%s is %08Xh: major revision %04Xh, the configuration expects %04Xh (from %08Xh; the minor revision "
-                  "is not compared)",
-                  obj(index, sub).c_str(), got, got >> 16, *want >> 16, *want);
-    return b;
-  };
-}
-
-// A VISIBLE_STRING answer (CiA 301 §7.1.6.3), kept readable: up to the first NUL, at most
-// NodeDiagnostics::kMaxText characters, non-printable ones as '?'.
-std::function<std::string(const std::vector<std::uint8_t>&)> keep_text(std::optional<std::string>* keep) {
-  return [keep](const std::vector<std::uint8_t>& d) -> std::string {
-    std::string t;
-    for (const std::uint8_t c : d) {
-      if (c == 0 || t.size() == NodeDiagnostics::kMaxText) break;
-      t.push_back(c >= 0x20 && c < 0x7F ? static_cast<char>(c) : '?');
-    }
-    *keep = std::move(t);
-    return {};
-  };
-}
-
-std::string show(const std::optional<std::uint32_t>& v) { return v ? hex32(*v) : "-"; }
-std::string show(const std::optional<std::string>& v) { return v ? "\"" + *v + "\"" : "-"; }
-
-std::optional<std::uint32_t> pick(std::optional<std::uint32_t> configured, std::optional<std::uint32_t> driver) {
-  return configured ? configured : driver;
-}
-
-}  // namespace
-
-std::string NodeDiagnostics::describe() const {
-  char reg[8] = "-";
-  if (error_register) std::snprintf(reg, sizeof reg, "%02Xh", static_cast<unsigned>(*error_register));
-  return "vendor " + show(vendor_id) + ", product " + show(product_code) + ", revision " + show(revision) +
-         ", serial " + show(serial) + ", name " + show(device_name) + ", hardware " + show(hardware_version) +
-         ", software " + show(software_version) + ", error register " + reg;
-}
-
 NetworkManager::NetworkManager(canopen::Master& master, Timing timing)
     : master_(master), timing_(timing), lss_(master.sink()) {
   master_.on_boot = [this](NodeId n) {
@@ -322,85 +255,14 @@ void NetworkManager::configure(Managed& m, TimePoint now, const std::string& why
   // Pre-operational before any SDO (step 2 of the header). The NMT command is unconfirmed; the
   // node handles it before the SDO request queued behind it on the bus.
   master_.nmt().enter_pre_operational(m.settings.node);
-  m.diag = {};
-  m.error_register_answer.clear();
-  m.steps.clear();
-  m.next_step = 0;
-  using Kind = Step::Kind;
-  add_identity_steps(m);
-  add_diagnostic_steps(m);
-  m.steps.push_back({Kind::Diagnostics, 0, 0, {}, "diagnostics", {}});
-  m.driver->begin_boot();
-  m.steps.push_back({Kind::DriverReads, 0, 0, {}, "driver reads", {}});
-  if (m.settings.heartbeat_ms != 0)
-    m.steps.push_back(
-        {Kind::Write, 0x1017, 0, canopen::encode<std::uint16_t>(m.settings.heartbeat_ms), "producer heartbeat", {}});
-  m.steps.push_back({Kind::DriverWrites, 0, 0, {}, "driver configuration", {}});
-  for (const SdoWrite& w : m.settings.sdo) m.steps.push_back({Kind::Write, w.index, w.sub, w.data, w.what, {}});
+  m.boot.plan(m.settings, *m.driver);
   set_state(m, NodeState::Configuring, why, now);
   run_step(m);
 }
 
-void NetworkManager::add_identity_steps(Managed& m) {
-  // CiA 302-2 boot-up: device type and identity first.
-  const ExpectedIdentity drv = m.driver->expected_identity();
-  const ExpectedIdentity& cfg = m.settings.identity;
-  using Kind = Step::Kind;
-  m.steps.push_back({Kind::Read,
-                     0x1000,
-                     0,
-                     {},
-                     "device type",
-                     expect_u32(0x1000, 0, pick(cfg.device_type, drv.device_type), &m.diag.device_type)});
-  const std::optional<std::uint32_t> ident[4] = {pick(cfg.vendor_id, drv.vendor_id),
-                                                 pick(cfg.product_code, drv.product_code),
-                                                 pick(cfg.revision, drv.revision), pick(cfg.serial, drv.serial)};
-  std::optional<std::uint32_t>* keep[4] = {&m.diag.vendor_id, &m.diag.product_code, &m.diag.revision, &m.diag.serial};
-  static const char* const names[4] = {"vendor-ID", "product code", "revision number", "serial number"};
-  for (std::uint8_t sub = 1; sub <= 4; ++sub) {
-    const std::uint32_t mask = sub == 3 && !m.settings.exact_revision ? 0xFFFF0000u : 0xFFFFFFFFu;
-    Step st{Kind::Read, 0x1018, sub, {}, names[sub - 1], expect_u32(0x1018, sub, ident[sub - 1], keep[sub - 1], mask)};
-    st.optional = !ident[sub - 1];  // CiA 301 §7.5.2.13: only sub 1 is mandatory
-    m.steps.push_back(std::move(st));
-  }
-}
-
-void NetworkManager::add_diagnostic_steps(Managed& m) {
-  using Kind = Step::Kind;
-  const std::pair<std::uint16_t, std::optional<std::string>*> texts[] = {{0x1008, &m.diag.device_name},
-                                                                         {0x1009, &m.diag.hardware_version},
-                                                                         {0x100A, &m.diag.software_version}};
-  static const char* const names[3] = {"manufacturer device name", "manufacturer hardware version",
-                                       "manufacturer software version"};
-  for (std::size_t i = 0; i < 3; ++i) {
-    Step st{Kind::Read, texts[i].first, 0, {}, names[i], keep_text(texts[i].second)};
-    st.optional = true;
-    m.steps.push_back(std::move(st));
-  }
-  std::optional<std::uint8_t>* reg = &m.diag.error_register;
-  std::vector<std::uint8_t>* answer = &m.error_register_answer;
-  // CiA 301 §7.5.2.2: 1001h is UNSIGNED8; a device document may give it otherwise (the
-  // Novotechnik's §4.1 "1001 Error register Unsigned16"): 1 or 2 bytes are taken, the CiA 301
-  // bits are the low byte (little endian, CiA 301 §7.1.2); the driver gets the answer as it came.
-  Step st{Kind::Read,
-          0x1001,
-          0,
-          {},
-          "error register",
-          [reg, answer](const std::vector<std::uint8_t>& d) -> std::string {
-            if (d.size() != 1 && d.size() != 2)
-              return obj(0x1001, 0) + " answered " + std::to_string(d.size()) + " bytes, expected 1 (or 2)";
-            *reg = d[0];
-            *answer = d;
-            return {};
-          }};
-  st.optional = true;
-  m.steps.push_back(std::move(st));
-}
-
 const NodeDiagnostics* NetworkManager::diagnostics(std::string_view name) const {
   const Managed* m = find(name);
-  return m ? &m->diag : nullptr;
+  return m ? &m->boot.diagnostics() : nullptr;
 }
 
 std::string NetworkManager::sync_refusal(const Managed& m) const {
@@ -416,118 +278,38 @@ std::string NetworkManager::sync_refusal(const Managed& m) const {
 }
 
 void NetworkManager::run_step(Managed& m) {
-  if (m.next_step >= m.steps.size()) {
-    finish(m, now_);
-    return;
-  }
-  if (m.steps[m.next_step].kind == Step::Kind::Diagnostics) {
-    ++m.next_step;
-    const std::uint64_t gen = m.generation;
-    if (on_diagnostics) on_diagnostics(m.settings.name, m.diag);
-    if (m.generation != gen || m.state != NodeState::Configuring) return;
-    // 1001h is read once per boot, here: a driver whose faults it decides (Driver::boot_reads)
-    // takes this answer and does not read it again. Absent (refused): the driver reads it itself
-    // and decides what its refusal means.
-    if (m.diag.error_register) {
-      std::string error;
-      if (!m.driver->on_boot_read(0x1001, 0, m.error_register_answer, error)) {
-        fail(m, NodeState::Refused, obj(0x1001, 0) + ": " + error, now_);
-        return;
-      }
-    }
-    run_step(m);
-    return;
-  }
-  if (m.steps[m.next_step].kind == Step::Kind::DriverWrites) {
-    std::vector<Step> writes;
-    for (const SdoWrite& w : m.driver->configuration()) {
-      writes.push_back({Step::Kind::Write, w.index, w.sub, w.data, w.what, {}});
-      writes.back().driver_write = true;
-    }
-    const auto at = m.steps.begin() + static_cast<std::ptrdiff_t>(m.next_step);
-    m.steps.insert(m.steps.erase(at), writes.begin(), writes.end());
-    run_step(m);
-    return;
-  }
-  if (m.steps[m.next_step].kind == Step::Kind::DriverReads) {
-    // Ask the driver for its next round of reads; they run before this marker, which is asked
-    // again afterwards. No more reads: on to the writes.
-    auto reads = m.driver->boot_reads();
-    if (reads.empty()) {
-      ++m.next_step;
-      run_step(m);
+  for (;;) {
+    const NodeBoot::Next next = m.boot.advance();
+    if (next == NodeBoot::Next::Done) {
+      finish(m, now_);
       return;
     }
-    Driver* d = m.driver.get();
-    std::vector<Step> round;
-    for (const auto& [index, sub] : reads) {
-      const std::uint16_t i = index;
-      const std::uint8_t s = sub;
-      Step st{Step::Kind::Read, index, sub, {}, "driver read", [d, i, s](const std::vector<std::uint8_t>& data) {
-                std::string error;
-                if (!d->on_boot_read(i, s, data, error)) return obj(i, s) + ": " + error;
-                return std::string{};
-              }};
-      st.driver_read = true;
-      round.push_back(std::move(st));
+    if (next == NodeBoot::Next::Request) break;
+    const std::uint64_t gen = m.generation;
+    if (on_diagnostics) on_diagnostics(m.settings.name, m.boot.diagnostics());
+    if (m.generation != gen || m.state != NodeState::Configuring) return;  // the observer rebooted it
+    if (const std::string error = m.boot.check_error_register(); !error.empty()) {
+      fail(m, NodeState::Refused, error, now_);
+      return;
     }
-    m.steps.insert(m.steps.begin() + static_cast<std::ptrdiff_t>(m.next_step), round.begin(), round.end());
   }
   if (late_heartbeat()) {
     m.step_held = true;  // released by the heartbeat, or by advance() when its consumer time ran out
     return;
   }
-  const Step& step = m.steps[m.next_step];
+  const NodeBoot::Step& step = m.boot.current();
   const std::uint64_t gen = m.generation;
   Managed* mp = &m;
   auto done = [this, mp, gen](SdoAbortCode code, std::vector<std::uint8_t> data) {
     if (mp->generation != gen || mp->state != NodeState::Configuring) return;  // overtaken
-    const Step& st = mp->steps[mp->next_step];
-    const std::string where = std::string(st.kind == Step::Kind::Read ? "reading " : "writing ") +
-                              obj(st.index, st.sub) + (st.what.empty() ? "" : " (" + st.what + ")");
-    if (code == SdoAbortCode::Timeout) {
-      fail(*mp, NodeState::Missing, where + ": no answer (SDO timeout)", now_);
-      return;
+    const NodeBoot::Verdict v = mp->boot.on_answer(code, data);
+    switch (v.kind) {
+      case NodeBoot::Verdict::Kind::Continue: run_step(*mp); return;
+      case NodeBoot::Verdict::Kind::NoAnswer: fail(*mp, NodeState::Missing, v.why, now_); return;
+      case NodeBoot::Verdict::Kind::Refused: fail(*mp, NodeState::Refused, v.why, now_); return;
     }
-    if (code != SdoAbortCode::None && st.optional) {
-      ++mp->next_step;  // not present
-      run_step(*mp);
-      return;
-    }
-    if (code != SdoAbortCode::None && st.driver_read && mp->driver->on_boot_read_abort(st.index, st.sub, code)) {
-      ++mp->next_step;  // the driver can do without this object
-      run_step(*mp);
-      return;
-    }
-    if (code != SdoAbortCode::None && st.driver_write) {
-      if (auto instead = mp->driver->instead_of_refused(SdoWrite{st.index, st.sub, st.data, st.what}, code)) {
-        Step& again = mp->steps[mp->next_step];
-        again.index = instead->index;
-        again.sub = instead->sub;
-        again.data = instead->data;
-        again.what = instead->what;
-        again.driver_write = false;  // one alternative: refused too, the node is refused
-        run_step(*mp);
-        return;
-      }
-    }
-    if (code != SdoAbortCode::None) {
-      fail(*mp, NodeState::Refused,
-           where + ": abort " + hex32(static_cast<std::uint32_t>(code)) + " " + std::string(canopen::to_string(code)),
-           now_);
-      return;
-    }
-    if (st.check) {
-      const std::string error = st.check(data);
-      if (!error.empty()) {
-        fail(*mp, NodeState::Refused, error, now_);
-        return;
-      }
-    }
-    ++mp->next_step;
-    run_step(*mp);
   };
-  if (step.kind == Step::Kind::Read) {
+  if (step.kind == NodeBoot::Step::Kind::Read) {
     master_.sdo(m.settings.node).upload(step.index, step.sub, done);
   } else {
     master_.sdo(m.settings.node).download(step.index, step.sub, step.data, done);
@@ -545,10 +327,7 @@ void NetworkManager::finish(Managed& m, TimePoint now) {
   m.state = NodeState::Idle;  // not among the nodes configuring_any() counts while it decides
   route(m);                   // what the driver consumes may depend on what it read at boot
   // The event timers actually written decide the PDOs' freshness deadlines.
-  std::vector<SdoWrite> writes;
-  for (const Step& st : m.steps)
-    if (st.kind == Step::Kind::Write) writes.push_back({st.index, st.sub, st.data, {}});
-  m.driver->apply_boot_writes(writes);
+  m.driver->apply_boot_writes(m.boot.writes());
   if (const std::string why = sync_refusal(m); !why.empty()) {
     fail(m, NodeState::Refused, why, now);
     return;

@@ -58,39 +58,9 @@
 #include "canopen/305/lss_slowscan.hpp"
 #include "canopen/master.hpp"
 #include "subdevices/driver.hpp"
+#include "subdevices/node_boot.hpp"
 
 namespace oegw::subdevices {
-
-struct NodeSettings {
-  std::string name;  // "right_grip"
-  NodeId node{};
-  std::uint16_t heartbeat_ms = 100;        // written to the node's 1017h (0: not written, not watched)
-  std::uint16_t heartbeat_timeout_ms = 0;  // consumer time; 0 = 1.5 × heartbeat_ms (CiA 302 practice)
-  std::uint16_t pdo_timeout_ms = 0;        // freshness deadline of every PDO-carried input; 0 = derived
-  bool mandatory = false;
-  ExpectedIdentity identity;  // checked besides the driver's own expectations
-  // 1018h:03: false compares only the major revision (upper 16 bits, CiA 301 §7.5.2.13: a
-  // minor revision is a compatible firmware update); true compares all 32 bits.
-  bool exact_revision = false;
-  std::vector<SdoWrite> sdo;  // written after the driver's configuration
-};
-
-// What a node said about itself at its last boot (CiA 301 §7.5.2: 1018h identity, 1008h/1009h/
-// 100Ah VISIBLE_STRINGs, 1001h error register), read during configuration and kept until the
-// next boot. A value the node does not have (the read was aborted) is nullopt.
-struct NodeDiagnostics {
-  std::optional<std::uint32_t> device_type;                                // 1000h
-  std::optional<std::uint32_t> vendor_id, product_code, revision, serial;  // 1018h:01..04
-  std::optional<std::string> device_name;                                  // 1008h
-  std::optional<std::string> hardware_version;                             // 1009h
-  std::optional<std::string> software_version;                             // 100Ah
-  std::optional<std::uint8_t> error_register;                              // 1001h
-  // Longest string kept (longer ones are cut); non-printable characters become '?'.
-  static constexpr std::size_t kMaxText = 32;
-  // "vendor 000000B4h, product 00000001h, revision 00010003h, serial -, name \"JST\", hardware
-  // \"0.00\", software \"0.00\", error register 00h" (- for what is not present).
-  [[nodiscard]] std::string describe() const;
-};
 
 enum class NodeState : std::uint8_t {
   Idle,           // not started yet
@@ -221,22 +191,6 @@ class NetworkManager {
   std::function<void(const std::string& name, const std::string& what)> on_fault_evidence;
 
  private:
-  struct Step {
-    // DriverReads: ask the driver; Diagnostics: report what was read (on_diagnostics);
-    // DriverWrites: the driver's configuration(), asked after its boot reads (it may depend on
-    // what they found, e.g. the generic node's analogue inputs mapped).
-    enum class Kind : std::uint8_t { Read, Write, DriverReads, Diagnostics, DriverWrites };
-    Kind kind = Kind::Read;
-    std::uint16_t index = 0;
-    std::uint8_t sub = 0;
-    std::vector<std::uint8_t> data;
-    std::string what;
-    // For reads: checks the answer; returns an error text, or empty when fine.
-    std::function<std::string(const std::vector<std::uint8_t>&)> check;
-    bool driver_read = false;   // a read the driver asked for: aborts go to on_boot_read_abort
-    bool driver_write = false;  // a write of the driver's configuration(): aborts go to instead_of_refused
-    bool optional = false;      // an abort means "not present": on to the next step
-  };
   struct Managed {
     NodeSettings settings;
     std::unique_ptr<Driver> driver;
@@ -254,17 +208,12 @@ class NetworkManager {
     // boot-up is counted as the reset's answer — and the configuration still starts over, since
     // a reboot during it would look no different on the bus.
     bool boot_up_owed = false;
-    std::optional<TimePoint> probe_at;    // WaitingBootUp: the next boot-up probe
-    Duration probe_gap{0};                // ... and the gap after it
-    std::optional<TimePoint> held_since;  // Configuring: configured, its NMT start held (step 7)
-    std::vector<Step> steps;
-    std::size_t next_step = 0;
+    std::optional<TimePoint> probe_at;                 // WaitingBootUp: the next boot-up probe
+    Duration probe_gap{0};                             // ... and the gap after it
+    std::optional<TimePoint> held_since;               // Configuring: configured, its NMT start held (step 7)
+    NodeBoot boot;                                     // steps 3 to 5 of the header
     InputCounters reported;                            // what on_bad_input has already said
     std::vector<std::pair<CanFrame, TimePoint>> held;  // Starting: last PDO per COB-ID, for go_live
-    NodeDiagnostics diag;                              // read at the last boot
-    // 1001h as the node answered it (1 byte, CiA 301; 2 bytes, the Novotechnik's UNSIGNED16),
-    // handed to the driver as it came.
-    std::vector<std::uint8_t> error_register_answer;
     NodeCounters counted;
     // Operational: the next read of the driver's fault poll (Driver::fault_poll), and whether
     // one is on the wire.
@@ -295,8 +244,6 @@ class NetworkManager {
   }
   // Identity, boot reads, writes, start; `why` is the Configuring state's reason.
   void configure(Managed& m, TimePoint now, const std::string& why = "boot-up seen: checking identity and configuring");
-  void add_identity_steps(Managed& m);                             // 1000h, 1018h:01..04 (checked and kept)
-  void add_diagnostic_steps(Managed& m);                           // 1008h, 1009h, 100Ah, 1001h (kept)
   [[nodiscard]] std::string sync_refusal(const Managed& m) const;  // step 6; empty when fine
   void run_step(Managed& m);
   void route(Managed& m);
