@@ -5,6 +5,7 @@
 // one `subdevices` entry per node whose driver it can name, each driver's required options as marked placeholders, and
 // commented-out functional-element lines for the node's signals (from the drivers themselves, as `oegw signals` lists
 // them). The draft passes `oegw check` as it is written; docs/reference/mapping-file.md#drafting-the-file-oegw-scan.
+// The draft itself is written by mapping/draft.hpp; this is the command around it.
 #pragma once
 
 #include <cstdint>
@@ -35,18 +36,6 @@ struct ScanOptions {
   bool lss = true;
   bool progress = true;  // progress lines on standard error
 };
-
-// What the draft says about the command line that made it (its header and interface lines).
-struct DraftSettings {
-  std::string downstream = "can1";
-  std::string upstream = "can0";
-  std::uint32_t bitrate = 250000;
-  std::string store;             // upstream.store; empty: not written (the default /var/lib/oegw/upstream.store)
-  bool through_gateway = false;  // scanned through the running gateway (the header says so)
-};
-
-// The draft mapping file for what a scan found.
-[[nodiscard]] std::string draft_mapping(const subdevices::ScanResult& scan, const DraftSettings& settings);
 
 // A human summary of the scan, one line per node (for standard error).
 [[nodiscard]] std::string scan_summary(const subdevices::ScanResult& scan);

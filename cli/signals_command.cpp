@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "gateway/programs.hpp"
+#include "mapping/draft.hpp"
 #include "mapping/yaml_reader.hpp"
 #include "subdevices/driver.hpp"
 #include "subdevices/driver_options.hpp"
@@ -85,7 +86,7 @@ std::string what_it_does(const sd::OptionSpec& o) {
 
 // `text` in lines of at most 80 columns, the first indented `indent` spaces, the others `rest`.
 std::string wrap(const std::string& text, std::size_t indent, std::size_t rest) {
-  return wrap_words(text, 80, std::string(indent, ' '), std::string(rest, ' '));
+  return mapping::wrap_words(text, 80, std::string(indent, ' '), std::string(rest, ' '));
 }
 
 std::string pad(const std::string& s, std::size_t n) { return s.size() >= n ? s : s + std::string(n - s.size(), ' '); }
@@ -150,40 +151,6 @@ std::string describe(const sd::DriverInfo& info, const std::optional<std::vector
 
 }  // namespace
 
-std::string wrap_words(const std::string& text, std::size_t width, const std::string& first_prefix,
-                       const std::string& rest_prefix) {
-  std::string out, line = first_prefix;
-  std::size_t pos = 0;
-  bool first = true;
-  while (pos < text.size()) {
-    auto end = text.find(' ', pos);
-    if (end == std::string::npos) end = text.size();
-    const std::string word = text.substr(pos, end - pos);
-    pos = end + 1;
-    if (word.empty()) continue;
-    if (!first && line.size() + 1 + word.size() > width) {
-      out += line + "\n";
-      line = rest_prefix;
-      first = true;
-    }
-    line += (first ? "" : " ") + word;
-    first = false;
-  }
-  return out + line + "\n";
-}
-
-std::optional<std::vector<sd::SignalInfo>> listing_signals(const sd::DriverInfo& info, sd::DriverOptions given,
-                                                           std::string& error) {
-  for (const sd::OptionSpec& o : info.options) {
-    if (!o.required || given.get(o.name)) continue;
-    if (o.listing_value.empty()) return std::nullopt;
-    given.values.emplace_back(std::string(o.name), std::string(o.listing_value));
-  }
-  auto driver = sd::make_driver(info.family, canopen::NodeId{1}, {}, given, error);
-  if (!driver) return std::nullopt;
-  return driver->signals();
-}
-
 std::string signals_listing(const SignalsOptions& o, std::string& error) {
   sd::DriverOptions given;
   for (const std::string& kv : o.options) {
@@ -198,7 +165,7 @@ std::string signals_listing(const SignalsOptions& o, std::string& error) {
   std::string out;
   for (const sd::DriverInfo& info : sd::drivers()) {
     if (!o.driver.empty() && info.family != o.driver) continue;
-    const auto signals = listing_signals(info, given, error);
+    const auto signals = sd::listing_signals(info, given, error);
     if (!error.empty()) return {};
     if (!out.empty()) out += "\n";
     out += describe(info, signals, o.markdown);

@@ -27,17 +27,4 @@ int run_signals(const SignalsOptions& options);
 // The listing itself (what run_signals prints on success); `error` set and "" on a refusal.
 [[nodiscard]] std::string signals_listing(const SignalsOptions& options, std::string& error);
 
-// The words of `text` in lines of at most `width` columns, the first line starting with
-// `first_prefix`, the others with `rest_prefix` (a word longer than a line stands alone).
-[[nodiscard]] std::string wrap_words(const std::string& text, std::size_t width, const std::string& first_prefix,
-                                     const std::string& rest_prefix);
-
-// The signals of `info`'s driver built with `given`, each required option not given taking the
-// value its table names for listings (mcb402 button_bits); nullopt (no error) when one has none
-// (cia401 without an EDS), nullopt with `error` when the driver refuses `given`. `oegw scan`'s
-// draft takes its FE lines from here too.
-[[nodiscard]] std::optional<std::vector<subdevices::SignalInfo>> listing_signals(const subdevices::DriverInfo& info,
-                                                                                 subdevices::DriverOptions given,
-                                                                                 std::string& error);
-
 }  // namespace oegw::cli

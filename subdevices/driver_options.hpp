@@ -105,6 +105,13 @@ struct DriverInfo {
 };
 [[nodiscard]] std::span<const DriverInfo> drivers();
 [[nodiscard]] const DriverInfo* find_driver_info(std::string_view family);
+
+// The signals of `info`'s driver built with `given`, each required option not given taking the
+// value its table names for listings (mcb402 button_bits); nullopt (no error) when one has none
+// (cia401 without an EDS), nullopt with `error` when the driver refuses `given`. `oegw signals`
+// lists these, and `oegw scan`'s draft takes its FE lines from them.
+[[nodiscard]] std::optional<std::vector<SignalInfo>> listing_signals(const DriverInfo& info, DriverOptions given,
+                                                                     std::string& error);
 // "elobau-mfg, mcb402, novotechnik-406, cia401"
 [[nodiscard]] std::string driver_names();
 

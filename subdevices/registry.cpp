@@ -56,4 +56,16 @@ std::unique_ptr<Driver> make_driver(std::string_view family, NodeId node, FrameS
   });
 }
 
+std::optional<std::vector<SignalInfo>> listing_signals(const DriverInfo& info, DriverOptions given,
+                                                       std::string& error) {
+  for (const OptionSpec& o : info.options) {
+    if (!o.required || given.get(o.name)) continue;
+    if (o.listing_value.empty()) return std::nullopt;
+    given.values.emplace_back(std::string(o.name), std::string(o.listing_value));
+  }
+  auto driver = make_driver(info.family, NodeId{1}, {}, given, error);
+  if (!driver) return std::nullopt;
+  return driver->signals();
+}
+
 }  // namespace oegw::subdevices

@@ -12,8 +12,8 @@
 
 #include <unistd.h>
 
-#include "cli/scan_command.hpp"
 #include "gateway/programs.hpp"
+#include "mapping/draft.hpp"
 #include "subdevices/bus_scan.hpp"
 #include "subdevices/device_spec.hpp"
 #include "subdevices/sim/sim_registry.hpp"
@@ -59,7 +59,7 @@ class ScanDraft : public ::testing::Test {
   }
   // The draft's settings: its upstream store in this test's folder (the default's folder,
   // /var/lib/oegw, is made by the package, not here).
-  cli::DraftSettings settings() const {
+  mapping::DraftSettings settings() const {
     return {.downstream = "can1", .upstream = "can0", .bitrate = 250000, .store = (dir_ / "upstream.store").string()};
   }
   void SetUp() override { std::filesystem::create_directories(dir_); }
@@ -109,7 +109,7 @@ TEST_F(ScanDraft, FindsEveryFamilyNamesItAndTheDraftPassesCheck) {
                                                   {0x7F, "novotechnik-406"}}));
   EXPECT_FALSE(r.unconfigured);
 
-  std::string draft = cli::draft_mapping(r, settings());
+  std::string draft = mapping::draft_mapping(r, settings());
   // The required commissioning choice is the placeholder TODO, which check refuses until a value
   // is written (no draft passes check on a guess); cia401 needs its EDS: left out.
   EXPECT_NE(draft.find("button_bits: TODO  # `oegw check` refuses this"), std::string::npos) << draft;
@@ -132,7 +132,7 @@ TEST_F(ScanDraft, NoNodeGivesADraftWithoutSubdevicesThatStillPassesCheck) {
   cfg.parallel = 127;
   const sd::ScanResult r = scan(cfg);
   EXPECT_TRUE(r.nodes.empty());
-  const std::string draft = cli::draft_mapping(r, settings());
+  const std::string draft = mapping::draft_mapping(r, settings());
   EXPECT_NE(draft.find("subdevices: {}"), std::string::npos);
   EXPECT_EQ(check(draft, "empty.yaml"), 0) << draft;
 }
@@ -144,10 +144,10 @@ TEST_F(ScanDraft, ADraftWhoseStoreFolderThisMachineLacksPassesCheckAndCheckHereR
   add("elobau-mfg:0x11");
   const sd::ScanResult r = scan();
   ASSERT_EQ(r.nodes.size(), 1u);
-  cli::DraftSettings s = settings();
+  mapping::DraftSettings s = settings();
   const std::filesystem::path missing = dir_ / "not-made";  // no folder of that name exists
   s.store = (missing / "upstream.store").string();
-  const std::string draft = cli::draft_mapping(r, s);
+  const std::string draft = mapping::draft_mapping(r, s);
   // The store's place in the draft: its line, the column of its value.
   const std::string key = "  store: ";
   const auto at = draft.find("\n" + key);

@@ -21,11 +21,11 @@
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
-#include "cli/scan_command.hpp"
 #include "gateway/control/control_protocol.hpp"
 #include "gateway/control/scan_service.hpp"
 #include "gateway/gateway.hpp"
 #include "gateway/programs.hpp"
+#include "mapping/draft.hpp"
 #include "rig/cab_rig.hpp"
 #include "subdevices/device_spec.hpp"
 #include "subdevices/sim/sim_bench.hpp"
@@ -164,11 +164,11 @@ TEST_F(ScanThroughGateway, ProbesOnlyOtherNodeIdsAndReportsItsSubdevicesByName) 
 
   // The draft keeps the mapping file's names and, its placeholders filled (no draft passes
   // `oegw check` on a guess: the MCB-402's button_bits is TODO), passes `oegw check`.
-  const std::string draft = oegw::cli::draft_mapping(r, {.downstream = "can1",
-                                                         .upstream = "can0",
-                                                         .bitrate = 250000,
-                                                         .store = (dir_ / "draft.store").string(),
-                                                         .through_gateway = true});
+  const std::string draft = oegw::mapping::draft_mapping(r, {.downstream = "can1",
+                                                             .upstream = "can0",
+                                                             .bitrate = 250000,
+                                                             .store = (dir_ / "draft.store").string(),
+                                                             .through_gateway = true});
   for (const char* entry : {"\n  right_grip:\n", "\n  left_grip:\n", "\n  novotechnik_406_40:\n"})
     EXPECT_NE(draft.find(entry), std::string::npos) << entry << "\n" << draft;
   EXPECT_NE(draft.find("through the gateway running on"), std::string::npos);
