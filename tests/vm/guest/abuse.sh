@@ -200,17 +200,13 @@ start_candump vcan0 /tmp/abuse-up.dump || fail "candump vcan0 did not start"
 up_candump=$candump_pid
 start_candump vcan1 /tmp/abuse-down.dump || fail "candump vcan1 did not start"
 down_candump=$candump_pid
-receivers=$(can_receivers vcan1)
-"$sim" -i vcan1 --motion elobau-mfg:0x11:name=right_grip mcb402:0x03:name=left_grip,wiring=1/2/3/4/5/7/6 \
-  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
-  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" >/tmp/abuse-sim.log 2>&1 &
-sim_pid=$!
-wait_receivers vcan1 $((receivers + 1)) 20 || fail "the simulators did not bind vcan1"
+gateway_cab "$src"
+start_sim "$sim" /tmp/abuse-sim.log --motion "${devices[0]}" "${devices[1]},wiring=1/2/3/4/5/7/6" "${devices[@]:2}"
+wait_sims
 "$PY" "$here/notify_listen.py" /run/abuse-notify.sock /tmp/abuse-notify.log /tmp/abuse-notify.ready 3600 &
 notify_pid=$!
-for ((i = 0; i < 200; i++)); do [[ -e /tmp/abuse-notify.ready ]] && break; sleep 0.05; done
-NOTIFY_SOCKET=/run/abuse-notify.sock "$oegw" run "$dir/oegw.yaml" >/tmp/abuse-gateway.log 2>&1 &
-gw_pid=$!
+wait_file /tmp/abuse-notify.ready 10  # (what it records is judged at the end)
+NOTIFY_SOCKET=/run/abuse-notify.sock start_oegw_run "$oegw" "$dir/oegw.yaml" /tmp/abuse-gateway.log
 all_up='len(s["subdevices"]) == 5 and all(d["state"] == "operational" and d["fault"] is None for d in s["subdevices"])'
 if "$PY" "$here/status_wait.py" "$oegw" /tmp/abuse-ready.json 120 "$all_up"; then
   pass "oegw run: every sub-device operational after $(elapsed s)"

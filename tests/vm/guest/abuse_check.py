@@ -18,12 +18,7 @@ values meanwhile, are printed there and expected).
 """
 import sys
 
-from candump_log import read_frames
-
-
-def frames(path):
-    return [(t, cob, data) for t, _, cob, data in read_frames(path)]
-
+from hostlib import read_cobs
 
 def longest_gap(times, start, end):
     """The longest gap between two of `times` that overlaps start..end, and where it began."""
@@ -45,10 +40,10 @@ def main():
         for line in f:
             name, start, end = line.split()
             windows.append((name, float(start), float(end)))
-    up = frames(up_dump)
+    up = read_cobs(up_dump)
     beats = [t for t, cob, _ in up if cob == 0x700 + node]
     ok = True
-    down = frames(down_dump)
+    down = read_cobs(down_dump)
     witness_beats = {n: [t for t, cob, _ in down if cob == 0x700 + n] for n in witnesses}
     for name, start, end in windows:
         inside = [t for t in beats if start <= t <= end]

@@ -40,19 +40,14 @@ start_candump vcan1 /tmp/down.dump || fail "candump vcan1 did not start"
 
 mkfifo /tmp/cab.cmd
 exec 3<>/tmp/cab.cmd
-receivers=$(can_receivers vcan1)
-"$sim" -i vcan1 --commands elobau-mfg:0x11:name=right_grip mcb402:0x03:name=left_grip <&3 >/tmp/sim-cmd.log 2>&1 &
-cmd_pid=$!
-"$sim" -i vcan1 --motion "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" \
-  novotechnik-406:0x7F:name=seat_knob "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" \
-  </dev/null >/tmp/sim-motion.log 2>&1 &
-motion_pid=$!
-wait_receivers vcan1 $((receivers + 2)) 20 || fail "the simulators did not bind vcan1"
+gateway_cab "$src"
+start_sim "$sim" /tmp/sim-cmd.log --commands "${devices[@]:0:2}"
+cmd_pid=$sim_pid
+start_sim "$sim" /tmp/sim-motion.log --motion "${devices[@]:2}"
+motion_pid=$sim_pid
+wait_sims
 
-start_run() {  # the gateway on $dir/oegw.yaml; its pid in $gw_pid
-  "$oegw" run "$dir/oegw.yaml" >>/tmp/gateway.log 2>&1 &
-  gw_pid=$!
-}
+start_run() { start_oegw_run "$oegw" "$dir/oegw.yaml"; }  # the gateway on $dir/oegw.yaml; its pid in $gw_pid
 expect_status() {  # TIMEOUT_S PY_EXPR WHAT
   if "$PY" "$here/status_wait.py" "$oegw" /tmp/status.json "$1" "$2"; then pass "oegw status: $3"; else
     fail "oegw status: $3: $(head -c 1500 /tmp/status.json)"

@@ -19,10 +19,8 @@ start_device() {
 
 start_candump vcan0 /tmp/core.dump || fail "candump did not start"
 # The check script waits for the boot-up itself: start it first, then power the device on.
-"$PY" "$here/core_device_check.py" vcan0 /tmp/check.ready >/tmp/check.log 2>&1 &
-check_pid=$!
-for ((i = 0; i < 400; i++)); do [[ -e /tmp/check.ready ]] && break; sleep 0.05; done
-[[ -e /tmp/check.ready ]] || fail "python3-can host did not come up"
+start_host /tmp/check.log /tmp/check.ready 20 "$PY" "$here/core_device_check.py" vcan0 /tmp/check.ready
+check_pid=$host_pid
 start_device
 # The check script restarts the device once (power cycle) through a request file.
 for ((i = 0; i < 1200; i++)); do

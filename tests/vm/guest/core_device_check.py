@@ -6,23 +6,15 @@ answer. One process for the whole sequence: each python3-can start costs seconds
 Args: CHANNEL READY_FILE. Touches /tmp/check.power-cycle and waits for /tmp/check.powered when
 it needs the device restarted (core_device.sh does that).
 """
-import os
 import struct
 import sys
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from python_peer import Peer, SdoAbort  # noqa: E402
+import hostlib
+from hostlib import check, touch, u32, wait_file
+from python_peer import Peer, SdoAbort
 
 NODE = 0x20
-failures = 0
-
-
-def check(ok, what):
-    global failures
-    print(("PASS: " if ok else "FAIL: ") + what, flush=True)
-    if not ok:
-        failures += 1
 
 
 def expect_abort(fn, code, what):
@@ -32,15 +24,6 @@ def expect_abort(fn, code, what):
         check(e.code == code, f"{what}: abort {e.code:08X}h (want {code:08X}h)")
         return
     check(False, f"{what}: no abort (want {code:08X}h)")
-
-
-def wait_file(path, timeout):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if os.path.exists(path):
-            return True
-        time.sleep(0.05)
-    return False
 
 
 def lss(p, payload, answer_cs=None, timeout=10.0):
@@ -56,14 +39,14 @@ def main():
     channel, ready = sys.argv[1], sys.argv[2]
     # Every wait 10 s: each ends as soon as its frame comes; a TCG guest stalls for seconds at times.
     with Peer(channel, timeout=10.0) as p:
-        open(ready, "w").close()
+        touch(ready)
         # CiA 301 §7.2.8.3.2.1: boot-up is the heartbeat frame with state 0.
         check(p.wait_heartbeat(NODE, state=0x00, timeout=30) == 0, "boot-up 720#00")
         check(p.wait_heartbeat(NODE, timeout=10) == 0x7F, "heartbeat: pre-operational")
 
         check(p.sdo_upload(NODE, 0x1000, 0) == struct.pack("<I", 0x000F0191), "1000h device type 000F0191h")
         check(p.sdo_upload(NODE, 0x1008, 0) == b"oegw demo device", "1008h device name (segmented)")
-        ident = [struct.unpack("<I", p.sdo_upload(NODE, 0x1018, s))[0] for s in range(1, 5)]
+        ident = [u32(p.sdo_upload(NODE, 0x1018, s)) for s in range(1, 5)]
         check(ident == [0, 0x852, 0x10000, 1], f"1018h identity {ident}")
         p.sdo_download(NODE, 0x1017, 0, struct.pack("<H", 200))
         check(p.sdo_upload(NODE, 0x1017, 0) == struct.pack("<H", 200), "1017h written to 200 ms")
@@ -87,7 +70,7 @@ def main():
 
         # Novotechnik §7.1: "save" (73 61 76 65) to 1010h:01 stores the parameters atomically.
         p.sdo_download(NODE, 0x1010, 1, b"save")
-        open("/tmp/check.power-cycle", "w").close()
+        touch("/tmp/check.power-cycle")
         check(wait_file("/tmp/check.powered", 30), "device power-cycled")
         check(p.wait_heartbeat(NODE, state=0x00, timeout=30) == 0, "boot-up after power cycle")
         check(p.sdo_upload(NODE, 0x1017, 0) == struct.pack("<H", 200), "1017h = 200 survived the power cycle")
@@ -103,8 +86,8 @@ def main():
         check(p.wait_heartbeat(0x21, state=0x00, timeout=10) == 0, "boot-up as node 21h after reset communication")
         check(p.sdo_upload(0x21, 0x1000, 0) == struct.pack("<I", 0x000F0191), "SDO on 621h/5A1h")
         check(p.sdo_upload(0x21, 0x1800, 1) == struct.pack("<I", 0x1A1), "TPDO1 COB-ID followed the node-ID")
-    print(f"{failures} failures", flush=True)
-    return 1 if failures else 0
+    print(f"{hostlib.failures} failures", flush=True)
+    return 1 if hostlib.failures else 0
 
 
 if __name__ == "__main__":

@@ -36,12 +36,8 @@ dir=/run/oegw-corners
 run_recorded vm_corners.yaml "$src" "$dir" "$oegw"
 mkfifo /tmp/dev.cmd
 exec 3<>/tmp/dev.cmd
-"$sim" -i vcan1 --motion --commands \
-  "elobau-mfg:0x11:name=right_grip,tpdo=timer,saved=no,buttons=255,store=$dir/grip.store" \
-  "mcb402:0x03:name=left_grip,clear_after_break=none,power_on_1001h=11h" \
-  "novotechnik-406:0x7F:name=seat_knob,error_register_size=2,emcy_behaviour=3,has_6020h=no,work_area_emcy=enum" \
-  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" <&3 >/tmp/sim.log 2>&1 &
-sim_pid=$!
+corners_cab "$src"
+start_sim "$sim" /tmp/sim.log --motion --commands "${devices[0]},saved=no,store=$dir/grip.store" "${devices[@]:1}"
 
 # in_order FILE A B [C]: a line matching A, then a later one matching B (then C).
 in_order() {

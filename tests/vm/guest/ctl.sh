@@ -28,9 +28,8 @@ rc=$?
 ((rc == 0)) && pass "oegw check: valid" || fail "oegw check exit $rc: $(cat /tmp/check.out)"
 start_candump vcan1 /tmp/down.dump || fail "candump vcan1 did not start"
 rm -f /tmp/cluster.store /tmp/cluster.store.lss
-start_gateway_scenario "$oegw" "$dir" 5 "$sim" --motion elobau-mfg:0x11:name=right_grip mcb402:0x03:name=left_grip \
-  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
-  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds,store=/tmp/cluster.store" \
+gateway_cab "$src"
+start_gateway_scenario "$oegw" "$dir" 5 "$sim" --motion "${devices[@]:0:4}" "${devices[4]},store=/tmp/cluster.store" \
   novotechnik-406:0x40:name=spare
 
 # ---- Scripted: read the identity, write and read back an allowed object.

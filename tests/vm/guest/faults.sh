@@ -30,12 +30,11 @@ dir=/run/oegw-faults
 run_recorded vm_gateway.yaml "$src" "$dir" "$oegw"
 mkfifo /tmp/mcb.cmd
 exec 3<>/tmp/mcb.cmd
-"$sim" -i vcan1 --commands mcb402:0x03:name=left_grip <&3 >/tmp/sim-mcb.log 2>&1 &
-mcb_pid=$!
-"$sim" -i vcan1 --motion elobau-mfg:0x11:name=right_grip \
-  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
-  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" </dev/null >/tmp/sim-others.log 2>&1 &
-others_pid=$!
+gateway_cab "$src"
+start_sim "$sim" /tmp/sim-mcb.log --commands "${devices[1]}"
+mcb_pid=$sim_pid
+start_sim "$sim" /tmp/sim-others.log --motion "${devices[0]}" "${devices[@]:2}"
+others_pid=$sim_pid
 
 fault03='vcan0 0A0#00700103'      # EMCY 7000h "additional modules" naming node 03h
 reset='vcan0 0A0#0000'            # the gateway's error reset (naming a node, or its last one)

@@ -29,20 +29,18 @@ up_candump=$candump_pid
 start_candump vcan1 /tmp/down.dump || fail "candump vcan1 did not start"
 down_candump=$candump_pid
 # The host first (it waits for the boot-up), then the devices, then the gateway.
-"$PY" "$here/gateway_host.py" vcan0 /tmp/gw.host-ready "${dt:-0}" >/tmp/host.log 2>&1 &
-host_pid=$!
-for ((i = 0; i < 600; i++)); do [[ -e /tmp/gw.host-ready ]] && break; sleep 0.05; done
-[[ -e /tmp/gw.host-ready ]] && echo "host up after $(elapsed) s" || fail "python3-can host did not come up"
-receivers=$(can_receivers vcan1)
-"$sim" -i vcan1 --motion elobau-mfg:0x11:name=right_grip >/tmp/sim-grip.log 2>&1 &
-grip_pid=$!
-"$sim" -i vcan1 --motion mcb402:0x03:name=left_grip \
-  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
-  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" >/tmp/sim-others.log 2>&1 &
-others_pid=$!
-wait_receivers vcan1 $((receivers + 2)) 20 || fail "the simulators did not bind vcan1"
-"$oegw" run "$dir/oegw.yaml" >/tmp/gateway.log 2>&1 &
-gw_pid=$!
+start_host /tmp/host.log /tmp/gw.host-ready 30 "$PY" "$here/gateway_host.py" vcan0 /tmp/gw.host-ready "${dt:-0}"
+# start_cab SUFFIX: the grip in its own process (it is unplugged by killing it), the others in one.
+gateway_cab "$src"
+start_cab() {
+  start_sim "$sim" "/tmp/sim-grip$1.log" --motion "${devices[0]}"
+  grip_pid=$sim_pid
+  start_sim "$sim" "/tmp/sim-others$1.log" --motion "${devices[@]:1}"
+  others_pid=$sim_pid
+}
+start_cab ""
+wait_sims
+start_oegw_run "$oegw" "$dir/oegw.yaml"
 echo "gateway started after $(elapsed) s"
 
 # The host asks for the grip to be unplugged.
@@ -84,12 +82,7 @@ expect_status 20 'subs["right_grip"]["state"] in ("missing", "booting") and subs
   fail "control socket: $(stat -c '%a %U %G' "$sock")"
 kill -TERM "$others_pid" 2>/dev/null
 wait "$others_pid" 2>/dev/null
-"$sim" -i vcan1 --motion elobau-mfg:0x11:name=right_grip >/tmp/sim-grip2.log 2>&1 &
-grip_pid=$!
-"$sim" -i vcan1 --motion mcb402:0x03:name=left_grip \
-  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
-  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" >/tmp/sim-others2.log 2>&1 &
-others_pid=$!
+start_cab 2
 all_up='len(s["subdevices"]) == 5 and all(d["network_state"] == "operational" and d["state"] in ("operational", "faulty") for d in s["subdevices"])'
 expect_status 120 "$all_up"' and s["upstream"]["node_id"] == 0x20 and s["upstream"]["interface"] == "vcan0" and s["upstream"]["nmt_state"] == "operational"' \
   "every sub-device operational; upstream node-ID 20h on vcan0, operational"

@@ -9,27 +9,15 @@ waits for EMCY 7000h naming node 11h, after which joystick 1 must read neutral.
 One process for the whole sequence: each python3-can start costs seconds in the VM.
 Args: CHANNEL READY_FILE EXPECTED_1000H (hex)
 """
-import os
 import struct
 import sys
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from python_peer import Peer  # noqa: E402
+import hostlib
+from hostlib import check, log, touch, u32, wait_emcy
+from python_peer import Peer
 
 NODE = 0x20
-failures = 0
-
-
-def check(ok, what):
-    global failures
-    print(("PASS: " if ok else "FAIL: ") + what, flush=True)
-    if not ok:
-        failures += 1
-
-
-def log(what):
-    print(f"[{time.monotonic() - T0:6.2f} s] {what}", flush=True)
 
 
 def tpdo1(p, timeout):
@@ -39,17 +27,16 @@ def tpdo1(p, timeout):
 
 
 def main():
-    global T0
     channel, ready, expected = sys.argv[1], sys.argv[2], int(sys.argv[3], 16)
-    T0 = time.monotonic()
+    hostlib.clock_start()
     with Peer(channel, timeout=10.0) as p:  # SDO answers: 10 s, a TCG guest stalls for seconds at times
-        open(ready, "w").close()
+        touch(ready)
         check(p.wait_heartbeat(NODE, state=0x00, timeout=60) == 0, "gateway boot-up 720#00")
         log("boot-up")
-        dt = struct.unpack("<I", p.sdo_upload(NODE, 0x1000, 0))[0]
+        dt = u32(p.sdo_upload(NODE, 0x1000, 0))
         check(dt == expected, f"1000h = {dt:08X}h, as `oegw check` printed ({expected:08X}h)")
         # Clause 12: TPDO1 is 8000 0180h + node-ID by default (disabled).
-        cob = struct.unpack("<I", p.sdo_upload(NODE, 0x1800, 1))[0]
+        cob = u32(p.sdo_upload(NODE, 0x1800, 1))
         check(cob == 0x800001A0, f"TPDO1 COB-ID {cob:08X}h: disabled by default")
         p.sdo_download(NODE, 0x1800, 1, struct.pack("<I", 0x1A0))
         p.sdo_download(NODE, 0x6423, 0, b"\x01")
@@ -78,14 +65,7 @@ def main():
         # The grip's cable is pulled: gateway.sh kills its simulator.
         p.drain()
         open("/tmp/gw.kill-grip", "w").close()
-        emcy = None
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline:
-            msg = p.recv_id(0x80 + NODE, max(deadline - time.monotonic(), 0.01), "EMCY 7000h")
-            d = bytes(msg.data)
-            if len(d) == 8 and struct.unpack_from("<H", d)[0] == 0x7000 and d[3] == 0x11:  # not another node's
-                emcy = d
-                break
+        emcy = wait_emcy(p, NODE, lambda d: d[0:2] == b"\x00\x70" and d[3] == 0x11)  # not another node's
         check(emcy is not None and emcy[3] == 0x11 and emcy[2] & 0x01,
               f"EMCY 7000h naming sub-device 11h: {emcy.hex() if emcy else None}")
         log("EMCY 7000h")
@@ -102,8 +82,8 @@ def main():
             x = last[0]
         check(x == 0, f"joystick 1 x at its fault value after the loss: {x}")
         check(struct.unpack("<h", p.sdo_upload(NODE, 0x6401, 1))[0] == 0, "6401h:01 reads 0")
-    print(f"{failures} failures", flush=True)
-    return 1 if failures else 0
+    print(f"{hostlib.failures} failures", flush=True)
+    return 1 if hostlib.failures else 0
 
 
 if __name__ == "__main__":

@@ -31,9 +31,8 @@ start_candump vcan0 /tmp/up.dump || fail "candump vcan0 did not start"
 up_candump=$candump_pid
 start_candump vcan1 /tmp/down.dump || fail "candump vcan1 did not start"
 down_candump=$candump_pid
-start_gateway_scenario "$oegw" "$dir" 5 "$sim" --motion elobau-mfg:0x11:name=right_grip mcb402:0x03:name=left_grip \
-  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
-  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds"
+gateway_cab "$src"
+start_gateway_scenario "$oegw" "$dir" 5 "$sim" --motion "${devices[@]}"
 all_up='len(s["subdevices"]) == 5 and all(d["network_state"] == "operational" for d in s["subdevices"])'
 settled="$all_up and 0x6300 not in s[\"upstream\"][\"active_emcys\"]"
 

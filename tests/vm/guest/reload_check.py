@@ -17,21 +17,8 @@ Checks (gateway/reload.hpp, docs/guides/install.md#reloading-the-mapping-file):
 """
 import sys
 
-from candump_log import read_frames
-
-fails = 0
-
-
-def check(ok, text):
-    global fails
-    print(("PASS: " if ok else "FAIL: ") + text)
-    if not ok:
-        fails += 1
-
-
-def read(path):
-    return [(t, cob, data) for t, _, cob, data in read_frames(path)]
-
+import hostlib
+from hostlib import check, read_cobs
 
 def markers(frames):
     return {int(d[:2], 16): t for t, cob, d in frames if cob == 0x7FF and len(d) >= 2}
@@ -41,11 +28,11 @@ def between(frames, t0, t1):
     return [f for f in frames if t0 <= f[0] < t1]
 
 
-up, down = read(sys.argv[1]), read(sys.argv[2])
+up, down = read_cobs(sys.argv[1]), read_cobs(sys.argv[2])
 period = int(sys.argv[3]) / 1000.0
 mu, md = markers(up), markers(down)
 check(all(k in mu and k in md for k in (1, 2, 3, 4)), f"markers 7FF#01..04 on both buses (vcan0 {sorted(mu)}, vcan1 {sorted(md)})")
-if fails:
+if hostlib.failures:
     sys.exit(1)
 end = mu[4]
 
@@ -113,4 +100,4 @@ for n in (2, 3):
     moving = [d for t, cob, d in between(up, mu[n], mu[n + 1]) if cob == 0x1A0 and d[:8] != "00000000"]
     check(len(moving) >= 5, f"after marker {n}: TPDO 1 goes on moving ({len(moving)} frames)")
 
-sys.exit(1 if fails else 0)
+sys.exit(1 if hostlib.failures else 0)

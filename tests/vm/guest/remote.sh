@@ -32,27 +32,17 @@ start_candump vcan1 /tmp/down.dump || fail "candump vcan1 did not start"
 down_candump=$candump_pid
 mkfifo /tmp/left.cmd
 exec 3<>/tmp/left.cmd
-"$PY" "$here/remote_host.py" /tmp/remote.ready /tmp/left.cmd >/tmp/host.log 2>&1 &
-host_pid=$!
-for ((i = 0; i < 900; i++)); do [[ -e /tmp/remote.ready ]] && break; sleep 0.05; done
-[[ -e /tmp/remote.ready ]] && echo "host up after $(elapsed) s" || fail "python3-can host did not come up"
-receivers=$(can_receivers vcan1)
-"$sim" -i vcan1 --commands mcb402:0x03:name=left_grip <&3 >/tmp/sim-left.log 2>&1 &
-left_pid=$!
-"$sim" -i vcan1 --motion elobau-mfg:0x11:name=right_grip \
-  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
-  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" </dev/null >/tmp/sim-others.log 2>&1 &
-others_pid=$!
-wait_receivers vcan1 $((receivers + 2)) 20 || fail "the simulators did not bind vcan1"
-"$oegw" run "$dir/oegw.yaml" >/tmp/gateway.log 2>&1 &
-gw_pid=$!
+start_host /tmp/host.log /tmp/remote.ready 45 "$PY" "$here/remote_host.py" /tmp/remote.ready /tmp/left.cmd
+gateway_cab "$src"
+start_sim "$sim" /tmp/sim-left.log --commands "${devices[1]}"
+left_pid=$sim_pid
+start_sim "$sim" /tmp/sim-others.log --motion "${devices[0]}" "${devices[@]:2}"
+others_pid=$sim_pid
+wait_sims
+start_oegw_run "$oegw" "$dir/oegw.yaml"
 echo "gateway started after $(elapsed) s"
 
-tail -n +1 -f /tmp/host.log --pid "$host_pid" | sed -u 's/^/    host: /' &
-tail_pid=$!
-wait "$host_pid"
-host_rc=$?
-wait "$tail_pid" 2>/dev/null
+follow_host /tmp/host.log
 echo "host finished after $(elapsed) s"
 ((host_rc == 0)) && pass "python3-can host: every remote check" || fail "python3-can host: $host_rc failed"
 

@@ -13,26 +13,14 @@ import struct
 import sys
 import time
 
+import hostlib
+from hostlib import check, touch, u32, wait_emcy
 from python_peer import Peer, PeerError, SdoAbort, Timeout
 
 GW = 0x20
 UP_NET, DOWN_NET = 1, 2  # the mapping file's defaults (upstream.network_id, downstream.network_id)
 GRIP, LEFT, KNOB = 0x11, 0x03, 0x7F  # elobau grip, MCB-402, Novotechnik encoder
 BOUND = (0x690, 0x6B0)  # upstream.sdo_servers[0]: SDO server 1201h bound to left_grip (remote.sh)
-
-fails = 0
-
-
-def check(ok, what):
-    global fails
-    print(("PASS " if ok else "FAIL ") + what, flush=True)
-    if not ok:
-        fails += 1
-
-
-def u32(b):
-    return struct.unpack("<I", bytes(b).ljust(4, b"\0")[:4])[0]
-
 
 def hx(code):
     return "none" if code is None else f"{code:08X}h"
@@ -50,7 +38,7 @@ def abort_code(fn):
 def main():
     ready, fifo = sys.argv[1], sys.argv[2]
     with Peer("vcan0", timeout=10.0) as p:  # 10 s: a TCG guest stalls for seconds at times
-        open(ready, "w").close()
+        touch(ready)
         p.wait_heartbeat(GW, state=0x00, timeout=90)
         print("gateway boot-up seen", flush=True)
 
@@ -103,33 +91,19 @@ def main():
         p.drain()
         with open(fifo, "w") as f:
             f.write("left_grip cable_break 1 on\n")
-        got = wait_emcy(p, lambda d: d[0:2] == b"\x20\x31")
+        got = wait_emcy(p, GW, lambda d: d[0:2] == b"\x20\x31")
         check(got is not None and got[3:8] == bytes([LEFT, 0x81, 0x00, 0x81, 0x00]),
               f"EMCY 3120h of left_grip on vcan0: {got.hex() if got else None}")
         with open(fifo, "w") as f:
             f.write("left_grip cable_break 1 off\n")
-        got = wait_emcy(p, lambda d: d[0:2] == b"\x00\x00" and d[3] == LEFT)
+        got = wait_emcy(p, GW, lambda d: d[0:2] == b"\x00\x00" and d[3] == LEFT)
         check(got is not None, f"left_grip's error reset 0000h on vcan0: {got.hex() if got else None}")
-    return fails
-
-
-def wait_emcy(p, match, timeout=10.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            msg = p.recv_id(0x80 + GW, deadline - time.monotonic(), "the gateway's EMCY")
-        except Timeout:
-            return None
-        d = bytes(msg.data)
-        print(f"EMCY 0A0#{d.hex().upper()}", flush=True)
-        if len(d) == 8 and match(d):
-            return d
-    return None
+    return hostlib.failures
 
 
 if __name__ == "__main__":
     try:
         sys.exit(main())
     except (PeerError, OSError) as e:
-        print(f"FAIL {e}", flush=True)
-        sys.exit(fails + 1)
+        print(f"FAIL: {e}", flush=True)
+        sys.exit(hostlib.failures + 1)

@@ -36,28 +36,18 @@ mkfifo /tmp/grip.cmd
 exec 3<>/tmp/grip.cmd
 # The host first (it watches both buses from before the gateway starts), then the devices, then
 # the gateway.
-"$PY" "$here/safety_host.py" /tmp/safety.ready /tmp/grip.cmd /tmp/safety.windows >/tmp/host.log 2>&1 &
-host_pid=$!
-for ((i = 0; i < 900; i++)); do [[ -e /tmp/safety.ready ]] && break; sleep 0.05; done
-[[ -e /tmp/safety.ready ]] && echo "host up after $(elapsed) s" || fail "python3-can host did not come up"
-receivers=$(can_receivers vcan1)
-"$sim" -i vcan1 --commands elobau-mfg:0x11:name=right_grip <&3 >/tmp/sim-grip.log 2>&1 &
-grip_pid=$!
-"$sim" -i vcan1 --motion mcb402:0x03:name=left_grip \
-  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
-  </dev/null >/tmp/sim-others.log 2>&1 &
-others_pid=$!
-wait_receivers vcan1 $((receivers + 2)) 20 || fail "the simulators did not bind vcan1"
-"$oegw" run "$dir/oegw.yaml" >/tmp/gateway.log 2>&1 &
-gw_pid=$!
+start_host /tmp/host.log /tmp/safety.ready 45 "$PY" "$here/safety_host.py" /tmp/safety.ready /tmp/grip.cmd /tmp/safety.windows
+gateway_cab "$src"  # (vm_safety.yaml: without the cluster)
+start_sim "$sim" /tmp/sim-grip.log --commands "${devices[0]}"
+grip_pid=$sim_pid
+start_sim "$sim" /tmp/sim-others.log --motion "${devices[@]:1:3}"
+others_pid=$sim_pid
+wait_sims
+start_oegw_run "$oegw" "$dir/oegw.yaml"
 echo "gateway started after $(elapsed) s"
 
 # The host prints as it goes; its exit status is the number of failed scenarios.
-tail -n +1 -f /tmp/host.log --pid "$host_pid" | sed -u 's/^/    host: /' &
-tail_pid=$!
-wait "$host_pid"
-host_rc=$?
-wait "$tail_pid" 2>/dev/null
+follow_host /tmp/host.log
 echo "host finished after $(elapsed) s (exit $host_rc)"
 
 kill -TERM "$gw_pid"

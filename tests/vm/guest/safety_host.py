@@ -27,6 +27,9 @@ import time
 
 import can
 
+import hostlib
+from hostlib import log, touch
+
 GW = 0x20          # the gateway upstream
 HOST = 0x01        # the host's own node-ID (its heartbeat 701h, scenario 4)
 GRIP = 0x11        # elobau MFG, right_grip, joystick 1
@@ -35,14 +38,6 @@ EMCY = 0x80 + GW
 TPDO1 = 0x1A0      # joystick 1 (the host sets 1800h:01, as gateway_host.py does)
 TPDO5 = 0x2A0      # joystick 2 (1804h:01; disabled by default, CiA 852 Table 10)
 MCB_RPDO1 = 0x200 + MCB   # 6200h:01, the LEDs
-
-
-def now_s():
-    return time.monotonic() - T0
-
-
-def log(what):
-    print(f"[{now_s():7.2f} s] {what}", flush=True)
 
 
 class Recorder:
@@ -636,14 +631,13 @@ def scenario_host_heartbeat_again(h):
 
 
 def main():
-    global T0
     ready, grip_fifo, windows = sys.argv[1:4]
-    T0 = time.monotonic()
+    hostlib.clock_start()
     # Hand the GIL over sooner (default 5 ms): the injector thread must answer within a few ms.
     sys.setswitchinterval(0.0005)
     h = Host(grip_fifo, windows)
     race = BootRace(h)
-    open(ready, "w").close()
+    touch(ready)
     log("host ready: vcan0 and vcan1 recorded")
     try:
         setup(h)

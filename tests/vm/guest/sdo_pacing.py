@@ -19,7 +19,7 @@ sub-devices' bus and prints "REQUESTS SHORT SPAN2_US SPAN10_US":
 """
 import sys
 
-from candump_log import read_frames
+from hostlib import read_frames
 
 
 def is_request(can_id, data):

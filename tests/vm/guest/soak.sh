@@ -24,23 +24,18 @@ rc=$?
 dt=$(sed -n 's/.*1000h device type = \([0-9A-F]\{8\}\)h.*/\1/p' /tmp/check.out)
 
 start_candump vcan0 /tmp/soak-up.dump || fail "candump vcan0 did not start"
-"$PY" "$here/soak_host.py" vcan0 /tmp/soak.host-ready "${dt:-0}" "$seconds" /tmp/soak.windows >/tmp/soak-host.log 2>&1 &
-host_pid=$!
-for ((i = 0; i < 600; i++)); do [[ -e /tmp/soak.host-ready ]] && break; sleep 0.05; done
-[[ -e /tmp/soak.host-ready ]] || fail "python3-can host did not come up"
+start_host /tmp/soak-host.log /tmp/soak.host-ready 30 \
+  "$PY" "$here/soak_host.py" vcan0 /tmp/soak.host-ready "${dt:-0}" "$seconds" /tmp/soak.windows
+gateway_cab "$src"
 start_grip() {
-  "$sim" -i vcan1 --motion elobau-mfg:0x11:name=right_grip >>/tmp/soak-grip.log 2>&1 &
-  grip_pid=$!
+  start_sim "$sim" /tmp/soak-grip.log --motion "${devices[0]}"
+  grip_pid=$sim_pid
 }
-receivers=$(can_receivers vcan1)
 start_grip
-"$sim" -i vcan1 --motion mcb402:0x03:name=left_grip \
-  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
-  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" >/tmp/soak-others.log 2>&1 &
-others_pid=$!
-wait_receivers vcan1 $((receivers + 2)) 20 || fail "the simulators did not bind vcan1"
-"$oegw" run "$dir/oegw.yaml" >/tmp/soak-gateway.log 2>&1 &
-gw_pid=$!
+start_sim "$sim" /tmp/soak-others.log --motion "${devices[@]:1}"
+others_pid=$sim_pid
+wait_sims
+start_oegw_run "$oegw" "$dir/oegw.yaml" /tmp/soak-gateway.log
 start_time=$(date +%s.%N)
 # Random frames: an unconfigured node's TPDO1 downstream (counted, ignored), LSS-answer frames
 # upstream (the gateway is an LSS slave: it never takes 7E4h), random lengths and data.

@@ -8,13 +8,12 @@ checks every answer. It writes each NMT stop/start window (wall time, as candump
 frames) to WINDOWS, for soak_check.py: TPDO1 is not expected while the gateway is stopped.
 Args: CHANNEL READY_FILE EXPECTED_1000H(hex) SECONDS WINDOWS
 """
-import os
 import struct
 import sys
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from python_peer import Peer  # noqa: E402
+from hostlib import start_tpdo1, touch, u32
+from python_peer import Peer
 
 NODE = 0x20
 
@@ -24,23 +23,19 @@ def main():
     failures = 0
     counts = {"sdo": 0, "nmt": 0}
     with Peer(channel, timeout=10.0) as p, open(windows, "w") as w:  # 10 s: a TCG guest stalls for seconds at times
-        open(ready, "w").close()
+        touch(ready)
         if p.wait_heartbeat(NODE, state=0x00, timeout=60) != 0:
             print("FAIL: no boot-up", flush=True)
             return 1
-        p.sdo_download(NODE, 0x1800, 1, struct.pack("<I", 0x800001A0))
-        p.sdo_download(NODE, 0x1800, 5, struct.pack("<H", 50))  # event timer 50 ms
-        p.sdo_download(NODE, 0x1800, 1, struct.pack("<I", 0x1A0))
-        p.sdo_download(NODE, 0x6423, 0, b"\x01")
-        p.nmt("start", NODE)
+        start_tpdo1(p, NODE, 0x1A0, event_timer_ms=50)
         print(f"started {time.time():.3f}", flush=True)
         end = time.monotonic() + seconds
         n = 0
         while time.monotonic() < end:
             n += 1
             try:
-                dt = struct.unpack("<I", p.sdo_upload(NODE, 0x1000, 0))[0]
-                vendor = struct.unpack("<I", p.sdo_upload(NODE, 0x1018, 1))[0]
+                dt = u32(p.sdo_upload(NODE, 0x1000, 0))
+                vendor = u32(p.sdo_upload(NODE, 0x1018, 1))
                 x = struct.unpack("<h", p.sdo_upload(NODE, 0x6401, 1))[0]
                 p.sdo_download(NODE, 0x1017, 0, struct.pack("<H", 200))
                 hb = struct.unpack("<H", p.sdo_upload(NODE, 0x1017, 0))[0]

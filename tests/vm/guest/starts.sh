@@ -22,6 +22,7 @@ dir=/run/oegw-starts
 out=${OEGW_VM_OUT:-/tmp}
 
 prepare_gateway_run vm_corners.yaml "$src" "$dir" "$oegw" || { fail "oegw check: $(cat /tmp/check.out)"; exit 1; }
+corners_cab "$src"
 
 # stall_probe FILE: until killed, the longest gap in ms between two 10 ms waits so far, in FILE.
 stall_probe() {
@@ -45,20 +46,13 @@ stall_max=0
 report=""
 for ((i = 1; i <= count; i++)); do
   rm -f "$dir"/*.store "$dir"/*.store.lss
-  receivers=$(can_receivers vcan1)
   t=$(date +%s.%N)
   echo 0 >/tmp/stall.ms
   stall_probe /tmp/stall.ms &
   probe_pid=$!
-  "$oegw" run "$dir/oegw.yaml" >/tmp/gateway.log 2>&1 &
-  gw_pid=$!
-  wait_receivers vcan1 $((receivers + 1)) 20 || fail "start $i: the gateway did not bind vcan1"
-  "$sim" -i vcan1 --motion \
-    "elobau-mfg:0x11:name=right_grip,tpdo=timer,buttons=255" \
-    "mcb402:0x03:name=left_grip,clear_after_break=none,power_on_1001h=11h" \
-    "novotechnik-406:0x7F:name=seat_knob,error_register_size=2,emcy_behaviour=3,has_6020h=no,work_area_emcy=enum" \
-    "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" </dev/null >/tmp/sim.log 2>&1 &
-  sim_pid=$!
+  : >/tmp/gateway.log
+  start_oegw_run --bound "$oegw" "$dir/oegw.yaml" || fail "start $i: the gateway did not bind vcan1"
+  start_sim "$sim" /tmp/sim.log --motion "${devices[@]}"
   if "$PY" "$here/status_wait.py" "$oegw" /tmp/status.json 90 \
     'all(d["state"] == "operational" for d in s["subdevices"]) and len(s["subdevices"]) == 4'; then
     up=$(awk -v a="$t" -v b="$(date +%s.%N)" 'BEGIN { printf "%.1f", b - a }')

@@ -33,14 +33,11 @@ prepare_gateway_run vm_syscalls.yaml "$src" "$dir" "$oegw"
 rc=$?
 ((rc == 0)) && pass "oegw check: valid" || { fail "oegw check exit $rc: $(cat /tmp/check.out)"; exit 1; }
 
-receivers=$(can_receivers vcan1)
-"$sim" -i vcan1 --motion elobau-mfg:0x11:name=grip >/tmp/sim.log 2>&1 &
-sim_pid=$!
-wait_receivers vcan1 $((receivers + 1)) 20 || fail "the simulator did not bind vcan1"
+start_sim "$sim" /tmp/sim.log --motion elobau-mfg:0x11:name=grip
+wait_sims
 "$PY" "$here/syscalls_host.py" vcan0 /tmp/syscalls.ready >/tmp/host.log 2>&1 &
 host_pid=$!
-"$oegw" run "$dir/oegw.yaml" >/tmp/gateway.log 2>&1 &
-gw_pid=$!
+start_oegw_run "$oegw" "$dir/oegw.yaml"
 wait "$host_pid"
 host_rc=$?
 ((host_rc == 0)) && [[ -e /tmp/syscalls.ready ]] && pass "host: gateway set up and started" ||

@@ -6,12 +6,10 @@ a 1 s event timer, so that each change of the grip's axes is one upstream frame;
 It touches READY_FILE once the gateway answered everything and exits.
 Args: CHANNEL READY_FILE
 """
-import os
-import struct
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from python_peer import Peer  # noqa: E402
+from hostlib import start_tpdo1, touch
+from python_peer import Peer
 
 NODE = 0x20
 
@@ -22,12 +20,8 @@ def main():
         if p.wait_heartbeat(NODE, state=0x7F, timeout=60) != 0x7F:
             print("FAIL: the gateway is not pre-operational", flush=True)
             return 1
-        p.sdo_download(NODE, 0x1800, 1, struct.pack("<I", 0x800001A0))
-        p.sdo_download(NODE, 0x1800, 5, struct.pack("<H", 1000))
-        p.sdo_download(NODE, 0x1800, 1, struct.pack("<I", 0x1A0))
-        p.sdo_download(NODE, 0x6423, 0, b"\x01")
-        p.nmt("start", NODE)
-        open(ready, "w").close()
+        start_tpdo1(p, NODE, 0x1A0, event_timer_ms=1000)
+        touch(ready)
     return 0
 
 

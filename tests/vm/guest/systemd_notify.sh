@@ -26,20 +26,15 @@ prepare_gateway_run vm_gateway.yaml "$src" "$dir" "$oegw"
 rc=$?
 ((rc == 0)) && pass "oegw check: valid" || fail "oegw check exit $rc: $(cat /tmp/check.out)"
 
-receivers=$(can_receivers vcan1)
-"$sim" -i vcan1 elobau-mfg:0x11:name=right_grip mcb402:0x03:name=left_grip \
-  "cia401:0x30:name=pedal,eds=$src/subdevices/eds/generic_pedal.eds" novotechnik-406:0x7F:name=seat_knob \
-  "cia401:0x31:name=cluster,eds=$src/subdevices/eds/button_cluster.eds" >/tmp/sim.log 2>&1 &
-sim_pid=$!
-wait_receivers vcan1 $((receivers + 1)) 20 || fail "the simulator did not bind vcan1"
+gateway_cab "$src"
+start_sim "$sim" /tmp/sim.log "${devices[@]}"
+wait_sims
 
 "$PY" "$here/notify_listen.py" "$dir/notify.sock" /tmp/notify.log /tmp/notify.ready 120 /tmp/notify.ticks &
 listen_pid=$!
-for ((i = 0; i < 200; i++)); do [[ -e /tmp/notify.ready ]] && break; sleep 0.05; done
-[[ -e /tmp/notify.ready ]] || fail "notify socket not bound"
+wait_file /tmp/notify.ready 10 || fail "notify socket not bound"
 
-NOTIFY_SOCKET=$dir/notify.sock WATCHDOG_USEC=10000000 "$oegw" run "$dir/oegw.yaml" >/tmp/gateway.log 2>&1 &
-gw_pid=$!
+NOTIFY_SOCKET=$dir/notify.sock WATCHDOG_USEC=10000000 start_oegw_run "$oegw" "$dir/oegw.yaml"
 echo "gateway started after $(elapsed) s"
 
 # Until every sub-device is operational (at most 60 s on a slow TCG guest), then 16 s more of pings.
@@ -101,8 +96,7 @@ last=$(tail -1 <<<"$msgs")
 
 # Not started by systemd: no socket named, nothing sent, nothing fails. SIGTERM once it has
 # started (its "oegw: node 20h on vcan0" line): before, the handler is not installed yet.
-"$oegw" run "$dir/oegw.yaml" >/tmp/gateway2.log 2>&1 &
-gw_pid=$!
+start_oegw_run "$oegw" "$dir/oegw.yaml" /tmp/gateway2.log
 for ((i = 0; i < 1200; i++)); do
   grep -q '^info: oegw: node 20h on vcan0' /tmp/gateway2.log && break
   kill -0 "$gw_pid" 2>/dev/null || break
