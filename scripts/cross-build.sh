@@ -13,7 +13,8 @@
 #      cmake/toolchains/<triplet>.cmake
 #   4. the unit and integration tests under qemu-user: ctest without the labels vm (a kernel with
 #      SocketCAN in a VM), deploy (the amd64 package in an amd64 root), bench, fuzz and
-#      no-qemu-user (what qemu-user cannot emulate: tests/CMakeLists.txt, OEGW_NO_QEMU_USER)
+#      no-qemu-user (what qemu-user cannot emulate: tests/CMakeLists.txt, OEGW_NO_QEMU_USER); one
+#      CTest test per test program there (OEGW_TESTS_PER_EXECUTABLE), all its cases in one process
 #   5. the Debian package oegw_<version>_<arch>.deb from that tree (scripts/package.sh --from):
 #      its Architecture and its Depends (dpkg-shlibdeps against the sysroot) checked
 #
