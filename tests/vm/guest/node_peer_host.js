@@ -897,6 +897,12 @@ async function partHeartbeat(run) {
   h.device.eds.setHeartbeatProducerTime(0);
   const e = await h.waitEmcy((x) => x.code === 0x8130, 10000, since);
   check(e !== null && (e.register & 0x10) !== 0, `node-canopen's heartbeat stopped: the gateway's EMCY 8130h (host heartbeat lost), register ${e ? hex(e.register, 2) : '-'}, after ${e ? ((e.t - since) / 1000).toFixed(1) : '-'} s`);
+  // CiA 301 1029h:01 = 0 (its default): the communication error takes the gateway from
+  // operational to pre-operational. Waited for here, before the NMT start below: node-canopen
+  // reports a consumed heartbeat only when its state changes, so a start sent before the
+  // gateway's next heartbeat (its period is longer than this part's own steps) would leave no
+  // change to see.
+  check(await h.waitHeartbeat(0x7F, 5000, since), 'the communication error took the gateway to pre-operational (1029h:01 = 0)');
   since = Date.now();
   const from = up.mark();
   h.device.eds.setHeartbeatProducerTime(100);
