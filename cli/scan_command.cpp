@@ -12,7 +12,6 @@
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/socketcan_transport.hpp"
 #include "cli/control_client.hpp"
-#include "cli/signals_command.hpp"
 #include "cli/status_command.hpp"
 #include "gateway/control/control_protocol.hpp"
 #include "gateway/control/scan_service.hpp"

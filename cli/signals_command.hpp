@@ -5,7 +5,6 @@
 // a test keeps the two equal (scripts/signals_readme.sh).
 #pragma once
 
-#include <optional>
 #include <string>
 #include <vector>
 
