@@ -40,7 +40,9 @@
 // A PDO whose COB-ID has bit 31 set (not valid), or whose parameter read was aborted, is not used.
 // apply_mapping_read() returns SdoAbortCode::None when the value is taken; LengthMismatch for
 // data of the wrong size, SubIndexDoesNotExist for a read it did not ask for, ValueTooHigh for an
-// entry count above 64 — then that PDO is not used. Until the mapping is complete the driver
+// entry count above 64, InvalidValue for a valid COB-ID on a restricted CAN-ID (CiA 301 §7.3.5:
+// 000h NMT, 701h..77Fh heartbeats, the default SDO channels, ...) — then that PDO is not used
+// (and on_boot_read() refuses the node, naming the ID). Until the mapping is complete the driver
 // consumes no PDO (on_frame() counts unknown_cob) and set_output() sends nothing.
 //
 // Decoding: a TPDO frame is decoded with the mapping read back (bit offsets in mapping order,
@@ -74,6 +76,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "canopen/306/eds_reader.hpp"
@@ -181,6 +184,9 @@ class Cia401Driver final : public Driver {
   Pdo* find_pdo(std::uint16_t index);
   void on_error_register(std::span<const std::uint8_t> data);
   bool error_register_read_ = false;  // 1001h answered or refused in this boot
+  // The PDO (communication index) whose COB-ID read back was a restricted CAN-ID, and that ID:
+  // set by apply_mapping_read() for on_boot_read()'s message.
+  std::optional<std::pair<std::uint16_t, std::uint32_t>> restricted_;
   void build(Pdo& p);
   [[nodiscard]] int signal_for(std::uint32_t entry) const;
 

@@ -111,7 +111,9 @@ bool NetworkManager::add(NodeSettings settings, std::unique_ptr<Driver> driver) 
 
 void NetworkManager::route(Managed& m) {
   std::erase_if(by_cob_, [&m](const auto& e) { return e.second == &m; });
-  for (const std::uint32_t cob : m.driver->consumed_cob_ids()) by_cob_[cob] = &m;
+  // A COB-ID another node routes already stays its: the one added (or booted) first keeps it,
+  // the other is refused when its boot ends (cob_refusal).
+  for (const std::uint32_t cob : m.driver->consumed_cob_ids()) (void)by_cob_.try_emplace(cob, &m);
 }
 
 void NetworkManager::start(TimePoint now) {
@@ -277,6 +279,22 @@ std::string NetworkManager::sync_refusal(const Managed& m) const {
   return b;
 }
 
+std::string NetworkManager::cob_refusal(const Managed& m) const {
+  // CiA 301 §7.2.2: a PDO has one producer. Two nodes sending on one COB-ID (a device whose PDO
+  // was configured elsewhere, read back at boot) cannot be told apart: neither one's inputs
+  // could be trusted, and the node found so is refused (its FEs at their fault values) until
+  // it is configured otherwise.
+  for (const std::uint32_t cob : m.driver->consumed_cob_ids()) {
+    const auto it = by_cob_.find(cob);
+    if (it == by_cob_.end() || it->second == &m) continue;
+    char b[200];
+    std::snprintf(b, sizeof b, "its PDO COB-ID %03Xh is also %s's: the frames on it cannot be told apart",
+                  static_cast<unsigned>(cob & 0x1FFFFFFFu), it->second->settings.name.c_str());
+    return b;
+  }
+  return {};
+}
+
 void NetworkManager::run_step(Managed& m) {
   for (;;) {
     const NodeBoot::Next next = m.boot.advance();
@@ -325,7 +343,11 @@ Duration NetworkManager::proof_deadline(const Managed& m) const {
 
 void NetworkManager::finish(Managed& m, TimePoint now) {
   m.state = NodeState::Idle;  // not among the nodes configuring_any() counts while it decides
-  route(m);                   // what the driver consumes may depend on what it read at boot
+  if (const std::string why = cob_refusal(m); !why.empty()) {
+    fail(m, NodeState::Refused, why, now);
+    return;
+  }
+  route(m);  // what the driver consumes may depend on what it read at boot
   // The event timers actually written decide the PDOs' freshness deadlines.
   m.driver->apply_boot_writes(m.boot.writes());
   if (const std::string why = sync_refusal(m); !why.empty()) {

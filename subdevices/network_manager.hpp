@@ -245,6 +245,8 @@ class NetworkManager {
   // Identity, boot reads, writes, start; `why` is the Configuring state's reason.
   void configure(Managed& m, TimePoint now, const std::string& why = "boot-up seen: checking identity and configuring");
   [[nodiscard]] std::string sync_refusal(const Managed& m) const;  // step 6; empty when fine
+  // A PDO COB-ID the node's driver consumes that another node's already does; empty when none.
+  [[nodiscard]] std::string cob_refusal(const Managed& m) const;
   void run_step(Managed& m);
   void route(Managed& m);
   void count_frame(const CanFrame& frame);  // NodeCounters::frames of its sender

@@ -16,8 +16,9 @@
 // Invariants (trap on breach): every frame the master sends is a classic 11-bit frame of at most
 // 8 bytes; a node is Operational only after its proof of life arrived since the master's last
 // NMT command to it (a heartbeat reporting operational; the pedal, without heartbeat, a TPDO of
-// its own): never "healthy" on silence or on any other frame; its driver's input values are Valid only
-// while the node is Operational; the next deadline is never in the past after advance().
+// its own, on the COB-ID it reported at boot): never "healthy" on silence or on any other frame; its driver's input
+// values are Valid only while the node is Operational; the next deadline is never in the past after advance().
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
@@ -184,12 +185,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       if (req == last_request.end() || !answer(req->second, *drivers[c[0] % 4], c, f)) continue;
     }
     // Proof of life (network_manager.hpp step 8): a heartbeat reporting operational, or for the
-    // pedal (no heartbeat) one of its TPDOs. Nothing else counts.
+    // pedal (no heartbeat) one of its TPDOs: a frame on a COB-ID its driver consumes, which is
+    // whatever the node answered for 18xxh:01 at boot (not necessarily 180h + its node-ID).
+    // Nothing else counts.
     const std::uint8_t from = static_cast<std::uint8_t>(f.id & 0x7F);
-    const std::uint32_t fn = f.id & 0x780;
-    const bool tpdo = fn == 0x180 || fn == 0x280 || fn == 0x380 || fn == 0x480;
-    const bool proof = !f.rtr && (from == kNodes[3] ? tpdo : fn == 0x700 && f.dlc == 1 && f.data[0] == 0x05);
-    if (proof && heard_since_start.count(from) != 0) heard_since_start[from] = true;
+    const auto pedal_cobs = drivers[3]->consumed_cob_ids();
+    const bool pedal_pdo = std::find(pedal_cobs.begin(), pedal_cobs.end(), f.id) != pedal_cobs.end();
+    const bool heartbeat = (f.id & 0x780) == 0x700 && from != kNodes[3] && f.dlc == 1 && f.data[0] == 0x05;
+    if (!f.rtr && pedal_pdo && heard_since_start.count(kNodes[3]) != 0) heard_since_start[kNodes[3]] = true;
+    if (!f.rtr && heartbeat && heard_since_start.count(from) != 0) heard_since_start[from] = true;
     trace("RX", f);
     (void)network.on_frame(f, now);
     sent_ok();

@@ -10,6 +10,7 @@
 #include <algorithm>
 
 #include <filesystem>
+#include <map>
 #include <optional>
 
 #include "canopen/node.hpp"
@@ -27,7 +28,8 @@ constexpr NodeId kNode{0x11};
 // A minimal driver: one input byte from TPDO1 (6000h:01).
 class ByteDriver final : public Driver {
  public:
-  ByteDriver(NodeId node, FrameSink sink) {
+  // `cob`: the TPDO's COB-ID, 180h + node-ID unless given.
+  ByteDriver(NodeId node, FrameSink sink, std::uint32_t cob = 0) : cob_(cob != 0 ? cob : cob::kTpdo1 + node.value()) {
     signals_ = {SignalInfo{"in", SignalKind::Digital, 0, 255, 0, "bits"}};
     init(node, std::move(sink), signals_.size());
   }
@@ -38,7 +40,7 @@ class ByteDriver final : public Driver {
     return {SdoWrite{0x1800, 5, encode<std::uint16_t>(50), "TPDO1 event timer 50 ms"}};
   }
   bool on_frame(const CanFrame& f, TimePoint now) override {
-    if (f.id != cob::kTpdo1 + node().value()) return false;
+    if (f.id != cob_) return false;
     if (f.dlc != 1) {
       ++counters_.wrong_length;
       return false;
@@ -51,29 +53,32 @@ class ByteDriver final : public Driver {
     if (e.code != 0) update(0, 0, SignalStatus::Error, now);
     return {e.code, "test", e.code != 0, {}};
   }
-  std::vector<std::uint32_t> consumed_cob_ids() const override { return {cob::kTpdo1 + node().value()}; }
+  std::vector<std::uint32_t> consumed_cob_ids() const override { return {cob_}; }
   bool set_output(std::size_t, std::int64_t, TimePoint) override { return false; }
   std::vector<std::uint16_t> emcys;
 
  private:
   std::vector<SignalInfo> signals_;
+  std::uint32_t cob_;
 };
 
 class Device {
  public:
-  Device(oegw::testing::VirtualNetwork& net, std::uint32_t vendor = 0x15A, std::filesystem::path store = {}) {
+  Device(oegw::testing::VirtualNetwork& net, std::uint32_t vendor = 0x15A, std::filesystem::path store = {},
+         NodeId id = kNode) {
     od.add_array(0x6000, "Read input 8-bit", DataType::Unsigned8, Access::ReadOnly, 1, {0}, true);
     install_tpdo(od, 1,
                  PdoParameters{.cob_id = cob::kTpdo1 + kNode.value(),
                                .transmission_type = 0xFF,
                                .mapping = {pdo_map(0x6000, 1, 8)}});
     NodeConfig cfg;
-    cfg.node_id = kNode;
+    cfg.node_id = id;
     cfg.device_type = 0x000F0191;
     cfg.identity = {.vendor = vendor, .product = 1, .revision = 1, .serial = 7};
     cfg.store_path = std::move(store);  // LSS "store configuration" needs somewhere to store
-    node = std::make_unique<Node>(od, cfg, net.sink("device"));
-    net.attach("device", *node);
+    const std::string name = id == kNode ? "device" : "device " + std::to_string(id.value());
+    node = std::make_unique<Node>(od, cfg, net.sink(name));
+    net.attach(name, *node);
   }
   ObjectDictionary od;
   std::unique_ptr<Node> node;
@@ -601,6 +606,42 @@ TEST(NetworkManagerProofOfLife, WithoutHeartbeatTheFirstPdoIsTheProofAndOverdueP
   EXPECT_EQ(driver->value(0).status, SignalStatus::Offline) << "every PDO overdue: the node is lost";
   EXPECT_EQ(manager.state("grip"), NodeState::Missing);
   EXPECT_EQ(reasons.back(), "no PDO within its deadline (no heartbeat watched)");
+}
+
+// CiA 301 §7.2.2: a PDO has one producer. A second node whose TPDO is on the first one's COB-ID
+// (configured so elsewhere, read back at boot) is refused: its frames and the first one's could
+// not be told apart. The first stays operational, and its inputs keep coming from its frames.
+TEST(NetworkManagerCobIds, ASecondNodeOnAnotherNodesPdoCobIdIsRefused) {
+  oegw::testing::VirtualNetwork net;
+  ObjectDictionary master_od;
+  Master master(master_od, net.sink("gateway"), MasterConfig{.heartbeat_entries = 8, .sdo_timeout = 100ms});
+  NetworkManager manager(master);
+  net.attach("gateway", manager);
+  std::map<std::string, std::string> why;
+  manager.on_node_state = [&](const std::string& name, NodeState, const std::string& w) { why[name] = w; };
+  constexpr NodeId kCopy{0x12};
+  auto grip = std::make_unique<ByteDriver>(kNode, net.sink("gateway"));
+  ByteDriver* grip_driver = grip.get();
+  auto copy = std::make_unique<ByteDriver>(kCopy, net.sink("gateway"), cob::kTpdo1 + kNode.value());
+  NodeSettings settings{.name = "grip", .node = kNode, .heartbeat_ms = 100};
+  ASSERT_TRUE(manager.add(settings, std::move(grip)));
+  settings.name = "copy";
+  settings.node = kCopy;
+  ASSERT_TRUE(manager.add(settings, std::move(copy)));
+  Device first(net);
+  Device second(net, 0x15A, {}, kCopy);
+  (void)first.node->start(net.now());
+  (void)second.node->start(net.now());
+  net.settle();
+  manager.start(net.now());
+  net.run_for(500ms);
+  EXPECT_EQ(manager.state("grip"), NodeState::Operational) << why["grip"];
+  EXPECT_EQ(manager.state("copy"), NodeState::Refused) << why["copy"];
+  EXPECT_EQ(why["copy"], "its PDO COB-ID 191h is also grip's: the frames on it cannot be told apart");
+  (void)first.od.set<std::uint8_t>(0x6000, 1, 0x42);
+  net.run_for(20ms);
+  EXPECT_EQ(grip_driver->value(0).status, SignalStatus::Valid);
+  EXPECT_EQ(grip_driver->value(0).value, 0x42);
 }
 
 // Without pdo_timeout_ms a TPDO's deadline is 3 x the event timer actually written at boot: the

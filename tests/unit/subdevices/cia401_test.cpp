@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -202,6 +203,31 @@ TEST(Cia401, RefusedMappingValuesDisableThatPdo) {
   g.drv->apply_mapping_abort(0x1801, 1, SdoAbortCode::ObjectDoesNotExist);
   EXPECT_GT(g.read_mapping(), 0);
   EXPECT_EQ(g.drv->consumed_cob_ids(), (std::vector<std::uint32_t>{0x1A1}));
+}
+
+// CiA 301 §7.3.5: a PDO on a restricted CAN-ID is refused, naming the ID. An RPDO read back on
+// 000h would have the gateway send its outputs as NMT commands; a TPDO on 711h would read a
+// heartbeat as inputs.
+TEST(Cia401, APdoOnARestrictedCanIdIsRefused) {
+  for (const std::uint32_t id : {0x000u, 0x711u, 0x5A1u, 0x7E5u, 0x150u}) {
+    Fixture f(kCluster);
+    const std::uint16_t index = 0x1400;  // RPDO1: the outputs
+    std::string error;
+    EXPECT_FALSE(f.drv->on_boot_read(index, 1, canopen::encode<std::uint32_t>(id), error)) << std::hex << id;
+    char want[16];
+    std::snprintf(want, sizeof want, "COB-ID %03Xh", id);
+    EXPECT_NE(error.find(want), std::string::npos) << error;
+    EXPECT_NE(error.find("restricted CAN-ID (CiA 301 §7.3.5"), std::string::npos) << error;
+    f.read_mapping();
+    EXPECT_FALSE(f.drv->set_output(f.sig("out[2]"), 0x81, t0)) << "RPDO1 is not used";
+    EXPECT_TRUE(f.sent.empty());
+  }
+  // Not valid (bit 31), or an extended 29-bit one: not restricted.
+  Fixture g(kCluster);
+  std::string error;
+  EXPECT_TRUE(g.drv->on_boot_read(0x1400, 1, canopen::encode<std::uint32_t>(0x80000000u), error)) << error;
+  Fixture h(kPedal);
+  EXPECT_TRUE(h.drv->on_boot_read(0x1800, 1, canopen::encode<std::uint32_t>(0x20000711u), error)) << error;
 }
 
 // CiA 301 §7.5.2.35: transmission types 0..240 are synchronous.
