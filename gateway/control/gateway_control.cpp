@@ -17,6 +17,8 @@ GatewayControl::GatewayControl(canopen::io::EventLoop& loop, Gateway& gw, const 
     if (down != nullptr) at.downstream_bus = &down->counters();
     nlohmann::json report = status_report(*gw_, *config_, at);
     for (const auto& [name, field] : status_fields_) report[name] = field();
+    ++status_renders_;
+    status_rendering_ = true;  // the answer line is kept for reuse (below)
     return nlohmann::json{{"status", report}};
   });
   ctl_ = std::make_unique<CtlService>(loop, gw, config, protocol_, rearm);
@@ -24,12 +26,28 @@ GatewayControl::GatewayControl(canopen::io::EventLoop& loop, Gateway& gw, const 
   ControlSocketSettings settings = control_settings(config.control, file);
   settings.log = [](const std::string& line) { spdlog::info("{}", line); };
   settings.warn = [](const std::string& line) { spdlog::warn("{}", line); };
-  server_ = std::make_unique<ControlServer>(
-      loop, std::move(settings),
-      ControlServer::AsyncHandler([this, &loop](std::string_view line, ControlServer::Reply reply) {
-        gw_->control_request(line, loop.now());  // the black box notes it (gateway/gateway_tap.hpp)
-        protocol_.answer(line, std::move(reply));
-      }));
+  server_ =
+      std::make_unique<ControlServer>(loop, std::move(settings),
+                                      ControlServer::AsyncHandler([this, &loop](std::string_view line,
+                                                                                ControlServer::Reply reply) {
+                                        const canopen::TimePoint now = loop.now();
+                                        gw_->control_request(line,
+                                                             now);  // the black box notes it (gateway/gateway_tap.hpp)
+                                        if (last_status_ && last_status_->request == line &&
+                                            now - last_status_->at < kStatusReuse)
+                                          return reply(last_status_->line);
+                                        status_rendering_ = false;
+                                        protocol_.answer(line, [this, reply = std::move(reply),
+                                                                request = std::string(line), now](std::string answer) {
+                                          // Only a status answer given while its command runs is kept: an async
+                                          // command's later answer finds the flag down.
+                                          if (status_rendering_) last_status_ = StatusAnswer{request, now, answer};
+                                          reply(std::move(answer));
+                                        });
+                                        if (!status_rendering_)
+                                          last_status_.reset();  // any other request may change what status shows
+                                        status_rendering_ = false;
+                                      }));
   spdlog::info("control: {} (oegw status, oegw ctl)", config.control.socket);
 }
 
@@ -41,6 +59,7 @@ void GatewayControl::detach() {
 void GatewayControl::attach(Gateway& gw, const mapping::Config& config) {
   gw_ = &gw;
   config_ = &config;
+  last_status_.reset();  // it described the gateway before the reload
   ctl_->attach(gw, config);
   scan_->attach(gw, config);
 }

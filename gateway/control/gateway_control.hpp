@@ -4,8 +4,11 @@
 // `oegw scan`'s (scan: gateway/control/scan_service.hpp).
 #pragma once
 
+#include <chrono>
+#include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -46,7 +49,25 @@ class GatewayControl {
     status_fields_.emplace_back(std::move(name), std::move(field));
   }
 
+  // How long a `status` answer is given again, unchanged, to the same request line: many
+  // clients asking at once (a monitoring script per process, 200 `oegw status` in a loop) cost
+  // one render, which is milliseconds on a slow controller for a full cab
+  // (docs/reference/limits.md#the-control-socket). Any other request ends the reuse at once: a
+  // status after an `oegw ctl` command shows what the command did.
+  static constexpr canopen::Duration kStatusReuse = std::chrono::milliseconds(20);
+  // The renders of `status` so far (the rest of its answers were reused).
+  [[nodiscard]] std::uint64_t status_renders() const { return status_renders_; }
+
  private:
+  // The last `status` answer: its request line, when it was rendered, the answer line.
+  struct StatusAnswer {
+    std::string request;
+    canopen::TimePoint at{};
+    std::string line;
+  };
+  std::optional<StatusAnswer> last_status_;
+  bool status_rendering_ = false;  // true only while the status command runs (synchronously)
+  std::uint64_t status_renders_ = 0;
   std::vector<std::pair<std::string, std::function<nlohmann::json()>>> status_fields_;
   Gateway* gw_;
   const mapping::Config* config_;

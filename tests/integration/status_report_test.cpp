@@ -6,14 +6,21 @@
 #include "gateway/control/status_report.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/socket.h>
+#include <sys/un.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cstring>
+#include <filesystem>
+#include <memory>
 #include <optional>
 #include <sstream>
 
 #include "canopen/io/clock.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "cli/status_command.hpp"
+#include "gateway/control/gateway_control.hpp"
 #include "rig/cab_rig.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 #include "tests/fixtures/fixtures.hpp"
@@ -280,6 +287,104 @@ TEST_F(StatusReport, ALostDeviceIsMissingWithItsLastEmcy) {
   EXPECT_EQ(row[3].rfind("    last EMCY 3120h reg 81h data ", 0), 0u) << row[3];
   EXPECT_EQ(row[4], "    fault: missing (heartbeat lost)");
   EXPECT_NE(table.find("\njoystick.2      offline        buttons[1]=0(offline) "), std::string::npos) << table;
+}
+
+// `status` over the daemon's socket (gateway/control/gateway_control.hpp): many clients asking
+// at once share one render (it costs milliseconds on a slow controller for a full cab, and 200
+// clients queued in front of an operator's `oegw status` would make it wait for all of theirs),
+// and the answer is never older than GatewayControl::kStatusReuse nor than another request.
+class StatusOverTheSocket : public StatusReport {
+ protected:
+  StatusOverTheSocket() {
+    dir_ = std::filesystem::path(::testing::TempDir()) / ("status_socket_" + std::to_string(::getpid()));
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+    config_.control.enabled = true;
+    config_.control.socket = (dir_ / "oegw.sock").string();
+    config_.control.group.clear();
+    control_ = std::make_unique<gw::control::GatewayControl>(loop_, rig_->gw(), config_, "demo_cab.yaml",
+                                                             [this] { rig_->rearm(); });
+  }
+  ~StatusOverTheSocket() override {
+    for (const int fd : fds_) ::close(fd);
+    control_.reset();
+    std::filesystem::remove_all(dir_);
+  }
+  // A client that connects and sends `line`; its answer comes with answers().
+  int ask(const std::string& line) {
+    const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    sockaddr_un a{};
+    a.sun_family = AF_UNIX;
+    std::strncpy(a.sun_path, config_.control.socket.c_str(), sizeof a.sun_path - 1);
+    EXPECT_EQ(::connect(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a), 0) << std::strerror(errno);
+    EXPECT_EQ(::send(fd, line.data(), line.size(), MSG_NOSIGNAL), static_cast<ssize_t>(line.size()));
+    fds_.push_back(fd);
+    return fd;
+  }
+  // Serves the socket (the clock stands still) until each client has its answer line; each
+  // closes once it has it, as `oegw status` does (8 connections are served at once, the rest
+  // wait in the listen queue).
+  std::vector<std::string> answers(const std::vector<int>& fds) {
+    std::vector<std::string> got(fds.size());
+    std::vector<bool> done(fds.size(), false);
+    for (int round = 0; round < 20000; ++round) {
+      bool all = true;
+      for (std::size_t i = 0; i < fds.size(); ++i) {
+        if (done[i]) continue;
+        char buf[65536];
+        const ssize_t n = ::recv(fds[i], buf, sizeof buf, MSG_DONTWAIT);
+        if (n > 0) got[i].append(buf, static_cast<std::size_t>(n));
+        done[i] = !got[i].empty() && got[i].back() == '\n';
+        if (done[i]) {
+          ::close(fds[i]);
+          std::erase(fds_, fds[i]);
+        }
+        all = all && done[i];
+      }
+      if (all) break;
+      loop_.run_once(0ms);
+    }
+    return got;
+  }
+
+  std::filesystem::path dir_;
+  std::unique_ptr<gw::control::GatewayControl> control_;
+  std::vector<int> fds_;
+};
+
+TEST_F(StatusOverTheSocket, TwoHundredClientsAtOnceShareOneRender) {
+  const std::string request = "{\"command\": \"status\"}\n";
+  std::vector<int> fds;
+  for (int i = 0; i < 200; ++i) fds.push_back(ask(request));
+  const auto got = answers(fds);
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    ASSERT_FALSE(got[i].empty()) << "client " << i << " not answered";
+    EXPECT_EQ(got[i], got[0]) << "client " << i;
+  }
+  EXPECT_EQ(json::parse(got[0])["status"]["upstream"]["node_id"], 0x20);
+  EXPECT_EQ(control_->status_renders(), 1u) << "one render for all of them (the clock stood still)";
+}
+
+TEST_F(StatusOverTheSocket, AStatusAfterAnotherRequestOrOlderThanTheReuseIsRenderedAgain) {
+  const std::string request = "{\"command\": \"status\"}\n";
+  const auto first = answers({ask(request)});
+  EXPECT_EQ(control_->status_renders(), 1u);
+  (void)answers({ask(request)});
+  EXPECT_EQ(control_->status_renders(), 1u) << "the same instant: the same answer";
+  // Another command (here one the gateway does not have) may change what status shows.
+  const auto other = answers({ask("{\"command\": \"nope\"}\n")});
+  ASSERT_FALSE(other[0].empty());
+  (void)answers({ask(request)});
+  EXPECT_EQ(control_->status_renders(), 2u) << "rendered afresh after another request";
+  // Older than the reuse: rendered afresh, with its time.
+  rig_->run_for(gw::control::GatewayControl::kStatusReuse);
+  const auto later = answers({ask(request)});
+  EXPECT_EQ(control_->status_renders(), 3u);
+  EXPECT_GT(json::parse(later[0])["status"]["uptime_ms"].get<std::int64_t>(),
+            json::parse(first[0])["status"]["uptime_ms"].get<std::int64_t>());
+  // A different request line (the protocol field) is its own.
+  (void)answers({ask("{\"protocol\": 1, \"command\": \"status\"}\n")});
+  EXPECT_EQ(control_->status_renders(), 4u);
 }
 
 }  // namespace
