@@ -29,6 +29,10 @@
 #    thread), VmRSS at the window's start and end, the guest's own busy %. Frames in and out are
 #    the vcan interfaces' tx_packets counters (no candump beside: it would cost CPU itself); with
 #    publishing on also the grip's frames the gateway read and its resets of the grip (`oegw status`).
+# 3. The black box: the latency probe on `oegw run` with vm_syscalls.yaml, recording off and then
+#    on (its `record` section added, the ring on the guest's disk), SAMPLES each, and the CPU
+#    window of part 2 with recording on: the ratios on/off of CPU per frame (against part 2's
+#    "nothing published"), median and p99 latency; the ring must hold segment files after it.
 # The figures also go to $OEGW_VM_OUT/figures.txt (CTest keeps it in the build tree,
 # tests/vm/vm_latency.out/; scripts/test-all.sh prints it).
 # Args: OEGW OEGW_SIM SOURCE_DIR PROBE FLOOR [ROUNDS] [SAMPLES] [WINDOW_S] [RATE] [FLOOR_WINDOW_S]
@@ -43,7 +47,7 @@ probe=$4
 floor=$5
 rounds=${6:-4}
 samples=${7:-1000}
-window=${8:-60}
+window=${8:-40}
 rate=${9:-8000}
 floor_window=${10:-20}
 dir=/run/oegw-latency
@@ -55,6 +59,11 @@ prepare_gateway_run vm_syscalls.yaml "$src" "$dir/can" "$oegw" && pass "oegw che
   { fail "oegw check: $(cat /tmp/check.out)"; exit 1; }
 prepare_gateway_run vm_latency.yaml "$src" "$dir/publish" "$oegw" && pass "oegw check: vm_latency.yaml valid" ||
   { fail "oegw check: $(cat /tmp/check.out)"; exit 1; }
+# Part 3's gateway: vm_syscalls.yaml with the black box on (its ring on the guest's disk).
+prepare_gateway_run vm_syscalls.yaml "$src" "$dir/record" "$oegw" &&
+  echo "record: { enabled: true, dir: $dir/record/ring, max_mib: 64, span_s: 600, segments: 8 }" >>"$dir/record/oegw.yaml" &&
+  "$oegw" check --here "$dir/record/oegw.yaml" >/tmp/check.out 2>&1 && grep -q "^record: both buses' frames" /tmp/check.out &&
+  pass "oegw check: vm_syscalls.yaml with recording on valid" || { fail "oegw check (recording): $(cat /tmp/check.out)"; exit 1; }
 # DDS and LCM on the loopback: multicast routed to lo (the guest has no other interface).
 ip link set lo multicast on && ip route add 224.0.0.0/4 dev lo
 
@@ -183,6 +192,7 @@ ticks() { awk '{ print $14 + $15 }' "/proc/$1/stat"; }
 txp() { cat "/sys/class/net/$1/statistics/tx_packets"; }
 idle() { awk '/^cpu / { print $5 + $6, $2 + $3 + $4 + $5 + $6 + $7 + $8 + $9 }' /proc/stat; }
 rss() { awk '/^VmRSS/ { print $2 }' "/proc/$1/status"; }
+declare -A window_cpu window_out  # CPU % and frames/s out of each window, by name
 cpu_window() {
   local name=$1 pid=$2 secs=$3
   "$probe" pace vcan1 0x191 "$rate" $((secs + 4)) >"/tmp/pace.$name" 2>&1 &
@@ -210,6 +220,7 @@ cpu_window() {
     -v o="$((out1 - out0))" -v i0="$i0" -v i1="$i1" 'BEGIN { d = t1 - t0; split(i0, a, " "); split(i1, b, " ");
       printf "%.1f %.0f %.0f %.0f\n", 100 * c / hz / d, i / d, o / d, 100 * (1 - (b[1] - a[1]) / (b[2] - a[2])) }')
   read -r cpu fin fout busy <<<"$figures_line"
+  window_cpu[$name]=$cpu window_out[$name]=$fout
   report "$(printf '   %-8s %5s %% of one core over %s s at %s frames/s in, %s frames/s out (guest CPU %s %% busy); VmRSS %s kB at the start, %s kB at the end' \
     "$name" "$cpu" "$secs" "$fin" "$fout" "$busy" "$rss0" "$rss1")"
   report "            VmRSS (kB) every $step s:$trace"
@@ -237,6 +248,28 @@ stop_gateway
 start_translator vcan1 "$floor" vcan1 vcan0 0x191
 cpu_window floor "$tr_pid" "$floor_window"
 stop_translator
+
+report "3. the black box: recording on (record.enabled, the ring on the guest's disk) against off, one run"
+start_gateway "$dir/can/oegw.yaml"
+probe rec-off 0x1A0 cia852 "$samples"
+stop_gateway
+start_gateway "$dir/record/oegw.yaml"
+probe rec-on 0x1A0 cia852 "$samples"
+cpu_window "oegw run, recording on" "$gw_pid" "$floor_window"
+"$oegw" status >/tmp/record-status.txt 2>&1 || true
+stop_gateway
+# CPU per translated frame: the guest may not keep up at RATE (the kernel drops what the gateway
+# reads too late), so the windows' CPU % alone compare different amounts of work.
+per_frame() { awk -v c="$1" -v o="$2" 'BEGIN { if (o > 0) printf "%.3f", 1e4 * c / o; else print "-" }'; }
+on=$(per_frame "${window_cpu[oegw run, recording on]}" "${window_out[oegw run, recording on]}")
+off=$(per_frame "${window_cpu[oegw run, nothing published]}" "${window_out[oegw run, nothing published]}")
+report "   CPU per translated frame (µs of one core): recording on $on, off $off (part 2)"
+report "   recording on / off: CPU per frame $(ratio "$on" "$off")×, latency median $(ratio "$(percentile 50 /tmp/lat.rec-on)" "$(percentile 50 /tmp/lat.rec-off)")×, p99 $(ratio "$(percentile 99 /tmp/lat.rec-on)" "$(percentile 99 /tmp/lat.rec-off)")×"
+segments=$(find "$dir/record/ring" -maxdepth 1 -name '*.log' 2>/dev/null | wc -l)
+bytes=$(du -sk "$dir/record/ring" 2>/dev/null | awk '{ print $1 }')
+report "   the ring after the run: $segments segment files, ${bytes:-0} KiB"
+((segments > 0)) && pass "recording on: the ring holds the run ($segments segments, ${bytes:-0} KiB)" ||
+  fail "recording on: no segment in $dir/record/ring: $(ls -la "$dir/record/ring" 2>&1 | head -5)"
 
 cp /tmp/gateway.log /tmp/sim.log "${OEGW_VM_OUT:-/tmp}/" 2>/dev/null  # for a look afterwards
 echo "$passes passed, $fails failed"
