@@ -232,10 +232,7 @@ SdoAbortCode Cia401Driver::apply_mapping_read(std::uint16_t index, std::uint8_t 
       // unconfigured device's 0, say) would have the gateway send its outputs as NMT commands,
       // or read its heartbeats or SDO answers as inputs.
       const CobId c{u32(data)};
-      if (c.valid() && !c.extended() && canopen::cob::restricted(c.can_id())) {
-        restricted_ = {index, c.can_id()};
-        return refuse(SdoAbortCode::InvalidValue);
-      }
+      if (c.valid() && !c.extended() && canopen::cob::restricted(c.can_id())) return refuse(SdoAbortCode::InvalidValue);
       p->cob_id = u32(data);
     } else if (sub == 2) {
       if (data.size() != 1) return refuse(SdoAbortCode::LengthMismatch);
@@ -547,16 +544,15 @@ bool Cia401Driver::on_boot_read(std::uint16_t index, std::uint8_t sub, std::span
     on_error_register(data);
     return true;
   }
-  restricted_.reset();
   const canopen::SdoAbortCode code = apply_mapping_read(index, sub, data);
   if (code == canopen::SdoAbortCode::None) return true;
   error = std::string(canopen::to_string(code));
-  if (restricted_) {
+  if (code == canopen::SdoAbortCode::InvalidValue) {  // only a COB-ID on a restricted CAN-ID (header)
     char b[160];
     std::snprintf(b, sizeof b,
                   "the PDO's COB-ID %03Xh is a restricted CAN-ID (CiA 301 §7.3.5: NMT, SYNC/EMCY, SDO, heartbeat "
                   "and LSS identifiers)",
-                  static_cast<unsigned>(restricted_->second));
+                  static_cast<unsigned>(CobId{u32(data)}.can_id()));
     error = b;
   }
   return false;

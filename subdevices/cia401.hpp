@@ -76,7 +76,6 @@
 #include <optional>
 #include <span>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "canopen/306/eds_reader.hpp"
@@ -184,9 +183,6 @@ class Cia401Driver final : public Driver {
   Pdo* find_pdo(std::uint16_t index);
   void on_error_register(std::span<const std::uint8_t> data);
   bool error_register_read_ = false;  // 1001h answered or refused in this boot
-  // The PDO (communication index) whose COB-ID read back was a restricted CAN-ID, and that ID:
-  // set by apply_mapping_read() for on_boot_read()'s message.
-  std::optional<std::pair<std::uint16_t, std::uint32_t>> restricted_;
   void build(Pdo& p);
   [[nodiscard]] int signal_for(std::uint32_t entry) const;
 

@@ -289,7 +289,7 @@ std::string NetworkManager::cob_refusal(const Managed& m) const {
     if (it == by_cob_.end() || it->second == &m) continue;
     char b[200];
     std::snprintf(b, sizeof b, "its PDO COB-ID %03Xh is also %s's: the frames on it cannot be told apart",
-                  static_cast<unsigned>(cob & 0x1FFFFFFFu), it->second->settings.name.c_str());
+                  static_cast<unsigned>(canopen::CobId{cob}.can_id()), it->second->settings.name.c_str());
     return b;
   }
   return {};
