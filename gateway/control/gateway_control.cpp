@@ -18,7 +18,7 @@ GatewayControl::GatewayControl(canopen::io::EventLoop& loop, Gateway& gw, const 
     nlohmann::json report = status_report(*gw_, *config_, at);
     for (const auto& [name, field] : status_fields_) report[name] = field();
     ++status_renders_;
-    status_rendering_ = true;  // the answer line is kept for reuse (below)
+    status_rendering_ = true;  // the answer line is kept for reuse (answer())
     return nlohmann::json{{"status", report}};
   });
   ctl_ = std::make_unique<CtlService>(loop, gw, config, protocol_, rearm);
@@ -26,29 +26,27 @@ GatewayControl::GatewayControl(canopen::io::EventLoop& loop, Gateway& gw, const 
   ControlSocketSettings settings = control_settings(config.control, file);
   settings.log = [](const std::string& line) { spdlog::info("{}", line); };
   settings.warn = [](const std::string& line) { spdlog::warn("{}", line); };
-  server_ =
-      std::make_unique<ControlServer>(loop, std::move(settings),
-                                      ControlServer::AsyncHandler([this, &loop](std::string_view line,
-                                                                                ControlServer::Reply reply) {
-                                        const canopen::TimePoint now = loop.now();
-                                        gw_->control_request(line,
-                                                             now);  // the black box notes it (gateway/gateway_tap.hpp)
-                                        if (last_status_ && last_status_->request == line &&
-                                            now - last_status_->at < kStatusReuse)
-                                          return reply(last_status_->line);
-                                        status_rendering_ = false;
-                                        protocol_.answer(line, [this, reply = std::move(reply),
-                                                                request = std::string(line), now](std::string answer) {
-                                          // Only a status answer given while its command runs is kept: an async
-                                          // command's later answer finds the flag down.
-                                          if (status_rendering_) last_status_ = StatusAnswer{request, now, answer};
-                                          reply(std::move(answer));
-                                        });
-                                        if (!status_rendering_)
-                                          last_status_.reset();  // any other request may change what status shows
-                                        status_rendering_ = false;
-                                      }));
+  server_ = std::make_unique<ControlServer>(loop, std::move(settings),
+                                            ControlServer::AsyncHandler(
+                                                [this, &loop](std::string_view line, ControlServer::Reply reply) {
+                                                  answer(line, loop.now(), std::move(reply));
+                                                }));
   spdlog::info("control: {} (oegw status, oegw ctl)", config.control.socket);
+}
+
+void GatewayControl::answer(std::string_view line, canopen::TimePoint now, ControlServer::Reply reply) {
+  gw_->control_request(line, now);  // the black box notes it (gateway/gateway_tap.hpp)
+  if (last_status_ && last_status_->request == line && now - last_status_->at < kStatusReuse)
+    return reply(last_status_->line);
+  status_rendering_ = false;
+  protocol_.answer(line, [this, reply = std::move(reply), request = std::string(line), now](std::string answer) {
+    // Only a status answer given while its command runs is kept: an async command's later
+    // answer finds the flag down.
+    if (status_rendering_) last_status_ = StatusAnswer{request, now, answer};
+    reply(std::move(answer));
+  });
+  if (!status_rendering_) last_status_.reset();  // any other request may change what status shows
+  status_rendering_ = false;
 }
 
 void GatewayControl::detach() {

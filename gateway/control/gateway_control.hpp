@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -59,6 +60,9 @@ class GatewayControl {
   [[nodiscard]] std::uint64_t status_renders() const { return status_renders_; }
 
  private:
+  // One request line from the socket: noted for the black box, then answered (a status asked
+  // again within kStatusReuse from the last answer).
+  void answer(std::string_view line, canopen::TimePoint now, ControlServer::Reply reply);
   // The last `status` answer: its request line, when it was rendered, the answer line.
   struct StatusAnswer {
     std::string request;
