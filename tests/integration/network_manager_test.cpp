@@ -554,15 +554,24 @@ TEST_F(NetworkManagerTest, CommissionsADeviceFoundAtItsDefaultNodeIdByLss) {
 
 namespace {
 
+// The gateway's side of a downstream bus for a test of its own: the master and its network
+// manager on a virtual network, as NetworkManagerTest has them.
+struct Downstream {
+  Downstream() { net.attach("gateway", manager); }
+  oegw::testing::VirtualNetwork net;
+  ObjectDictionary master_od;
+  Master master{master_od, net.sink("gateway"), MasterConfig{.heartbeat_entries = 8, .sdo_timeout = 100ms}};
+  NetworkManager manager{master};
+};
+
 // A node without heartbeat (heartbeat_ms 0, pdo_timeout_ms set, as the mapping file requires):
 // after the NMT start its first PDO is the proof of life; once its PDOs stop (here: another
 // master stops it, which no heartbeat would tell), the input is Stale past pdo_timeout_ms.
 TEST(NetworkManagerProofOfLife, WithoutHeartbeatTheFirstPdoIsTheProofAndOverduePdosMakeTheInputStale) {
-  oegw::testing::VirtualNetwork net;
-  ObjectDictionary master_od;
-  Master master(master_od, net.sink("gateway"), MasterConfig{.heartbeat_entries = 8, .sdo_timeout = 100ms});
-  NetworkManager manager(master);
-  net.attach("gateway", manager);
+  Downstream d;
+  auto& net = d.net;
+  auto& master = d.master;
+  auto& manager = d.manager;
   std::vector<std::string> reasons;
   std::vector<NodeState> states;
   manager.on_node_state = [&](const std::string&, NodeState s, const std::string& why) {
@@ -612,11 +621,9 @@ TEST(NetworkManagerProofOfLife, WithoutHeartbeatTheFirstPdoIsTheProofAndOverdueP
 // (configured so elsewhere, read back at boot) is refused: its frames and the first one's could
 // not be told apart. The first stays operational, and its inputs keep coming from its frames.
 TEST(NetworkManagerCobIds, ASecondNodeOnAnotherNodesPdoCobIdIsRefused) {
-  oegw::testing::VirtualNetwork net;
-  ObjectDictionary master_od;
-  Master master(master_od, net.sink("gateway"), MasterConfig{.heartbeat_entries = 8, .sdo_timeout = 100ms});
-  NetworkManager manager(master);
-  net.attach("gateway", manager);
+  Downstream d;
+  auto& net = d.net;
+  auto& manager = d.manager;
   std::map<std::string, std::string> why;
   manager.on_node_state = [&](const std::string& name, NodeState, const std::string& w) { why[name] = w; };
   constexpr NodeId kCopy{0x12};
