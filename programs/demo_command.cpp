@@ -23,6 +23,8 @@ void register_demo(CLI::App& app) {
                   "the gateway's identity; watch with the examples' --identity-ca ... options")
       ->type_name("DIR")
       ->check(CLI::ExistingDirectory);
+  cmd->add_option("--vcan", o->vcan, "Both buses also on these SocketCAN interfaces, for candump and other hosts")
+      ->type_name("UP,DOWN");
   cmd->callback([o] { cli::finish(run_gateway_demo(*o)); });
   // No command is the demo with its defaults: the app's own callback runs only when no command's
   // callback ended the run (cli::finish) before it.

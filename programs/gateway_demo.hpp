@@ -13,6 +13,7 @@ struct GatewayDemoOptions {
   // A folder made by scripts/make-dds-security.sh (--partition oegw-demo): DDS Security for the
   // demo's participant with the set's gateway identity (docs/guides/secure-dds.md); "" = none.
   std::string dds_security;
+  std::string vcan;  // "UP,DOWN": both buses also on these SocketCAN interfaces (oegw sim --vcan); "" = none
 };
 // The embedded demo: gateway + simulated cab devices + a built-in host, on the virtual bus.
 int run_gateway_demo(const GatewayDemoOptions& options);

@@ -27,6 +27,7 @@
 #include "gateway/publishing.hpp"
 #include "profiles/cia852/pdo_defaults.hpp"
 #include "programs/live_view.hpp"
+#include "programs/sim_story.hpp"
 #include "publish/dds_publisher.hpp"
 #include "rig/cab_rig.hpp"
 #include "subdevices/sim/sim_bench.hpp"
@@ -322,7 +323,7 @@ std::optional<int> open_vcan(const std::string& vcan, rig::CabRig& rig, std::vec
 class SimSession {
  public:
   SimSession(const GatewaySimOptions& o, const mapping::Config& c, const std::filesystem::path& d, EventLoop& l,
-             rig::CabRig& r, const SimPlan& p, std::vector<VcanBridge>& b)
+             rig::CabRig& r, const SimPlan& p, std::vector<VcanBridge>& b, SimStory* s)
       : options(o),
         cfg(c),
         dir(d),
@@ -334,19 +335,23 @@ class SimSession {
         host(r.host()),
         bench(r.devices()),
         gateway_node(c.upstream.node_id),
-        t0(l.now()) {
+        t0(l.now()),
+        story(s) {
     if (options.frames) print_frames_of(rig, t0);
     tty = ::isatty(STDOUT_FILENO) != 0 && !options.frames && !options.fast;
     screen = LiveScreen(tty);
-    gw.on_log = [this](const std::string& line) { say("gateway: " + line); };
+    gw.on_log = [this](const std::string& line) {
+      if (story == nullptr || story->shows(line)) say("gateway: " + line);
+    };
   }
 
   int run() {
     watch_host();
-    start_publishing();
+    if (auto refused = start_publishing()) return *refused;
     open_control();
     for (auto& b : bridges) b.watch = watch_transport(loop, *b.can);
-    print_banner();
+    if (story != nullptr) story->banner(control ? control_cfg.control.socket : std::string());
+    else print_banner();
     let_the_operator_move();
     plan_host_writes();
     schedule();
@@ -369,8 +374,10 @@ class SimSession {
       if (key.first) tpdo_number[cob] = key.second;
     host.on_other_frame = [this](const CanFrame& f, TimePoint) {
       if (tpdo_number.contains(f.id)) ++tpdos[f.id];
+      if (story != nullptr) story->host_frame(f);
     };
     host.on_emcy = [this](const EmcyMessage& m, TimePoint) {
+      if (story != nullptr) story->host_emcy(m);
       ++emcys;
       last_emcy = m.code;
       say(fmt::format("host: EMCY {:04X}h from the gateway{}", m.code,
@@ -382,21 +389,49 @@ class SimSession {
   }
 
   // Publishing as the file says (--no-publish: none); a setting that cannot work leaves the
-  // sim without it (oegw run refuses to start instead).
-  void start_publishing() {
-    if (!options.publish || !(cfg.publish.dds.enabled || cfg.publish.lcm.enabled)) return;
-    try {
-      publishing = std::make_unique<gateway::GatewayPublishing>(gw, cfg.publish, [this] { return loop.now(); });
-      say(fmt::format("publishing: DDS {} (domain {}, partition {}), LCM {} (channels {}*)",
-                      cfg.publish.dds.enabled ? "on" : "off", cfg.publish.dds.domain, cfg.publish.dds.partition,
-                      cfg.publish.lcm.enabled ? "on" : "off", cfg.publish.lcm.channel_prefix));
-      for (const auto& t : publishing->transports())
-        if (!t.up) say(t.name + " not publishing yet: " + t.reason + "; opened again until it works");
-      publishing->run_on(loop, [this] { rig.rearm(); });
-    } catch (const publish::PublishConfigError& e) {
-      say(std::string("not publishing: ") + e.what());
-      publishing.reset();
+  // sim without it (oegw run refuses to start instead), but a DDS Security set asked for and
+  // refused stops it: it would publish in the clear. An exit code when it stops.
+  std::optional<int> start_publishing() {
+    publish_config = cfg.publish;
+    if (!options.dds_security.empty()) {
+      // The set's file names (scripts/make-dds-security.sh), the gateway's identity.
+      auto& sec = publish_config.dds.security.emplace();
+      const std::filesystem::path set = std::filesystem::absolute(options.dds_security);
+      sec.path = {(set / "ca.pem").string(), (set / "gateway.pem").string(),    (set / "gateway.key").string(),
+                  (set / "ca.pem").string(), (set / "governance.p7s").string(), (set / "permissions.p7s").string()};
     }
+    const mapping::PublishConfig& publish = publish_config;
+    if (!options.publish || !(publish.dds.enabled || publish.lcm.enabled)) return std::nullopt;
+    try {
+      publishing = std::make_unique<gateway::GatewayPublishing>(gw, publish, [this] { return loop.now(); });
+    } catch (const publish::PublishConfigError& e) {
+      if (publish.dds.security) {
+        std::fprintf(stderr, "oegw %s: --dds-security %s: %s\n", story ? "demo" : "sim", options.dds_security.c_str(),
+                     e.what());
+        return exit_code::kCannotStart;
+      }
+      say(std::string("not publishing: ") + e.what());
+      return std::nullopt;
+    }
+    std::string on;
+    if (publish.dds.enabled)
+      on = fmt::format("DDS (topics oegw/*, domain {}, partition {}, network {}{})", publish.dds.domain,
+                       publish.dds.partition, publish.dds.network,
+                       publish.dds.security ? ", DDS Security with " + options.dds_security : std::string());
+    if (publish.lcm.enabled)
+      on += fmt::format("{}LCM (channels {}*, {})", on.empty() ? "" : " and ", publish.lcm.channel_prefix,
+                        publish.lcm.url);
+    std::string commanded;
+    for (const auto& fe : cfg.functional_elements)
+      if (!fe.input() && (fe.accepts(mapping::CommandSource::Dds) || fe.accepts(mapping::CommandSource::Lcm)))
+        commanded += (commanded.empty() ? "" : ", ") + mapping::fe_name(fe.id);
+    say("publishing every FE on " + on + (commanded.empty() ? "" : "; " + commanded + " take commands from there"));
+    // The machine cannot carry one now (an offline computer has no multicast route for LCM): the
+    // sim runs without it and it is opened again as `oegw run` does.
+    for (const auto& t : publishing->transports())
+      if (!t.up) say(t.name + " not publishing yet: " + t.reason + "; opened again until it works");
+    publishing->run_on(loop, [this] { rig.rearm(); });
+    return std::nullopt;
   }
 
   // The control socket on a private path (oegw status, oegw ctl), in real time only.
@@ -432,8 +467,11 @@ class SimSession {
 
   void view(bool keep) {
     auto rows = gateway_rows(gw, screen.size().first - 1);
-    rows.push_back(fmt::format("  host: {} TPDOs on {} COB-IDs, {} EMCYs{}", tpdo_count(), tpdos.size(), emcys,
-                               emcys ? fmt::format(" (last {:04X}h)", last_emcy) : std::string()));
+    const std::string own = story != nullptr ? story->host_row() : std::string();
+    rows.push_back(!own.empty()
+                       ? own
+                       : fmt::format("  host: {} TPDOs on {} COB-IDs, {} EMCYs{}", tpdo_count(), tpdos.size(), emcys,
+                                     emcys ? fmt::format(" (last {:04X}h)", last_emcy) : std::string()));
     screen.draw(std::move(rows), keep);
   }
 
@@ -565,26 +603,32 @@ class SimSession {
     rig.rearm();
   }
 
-  // Power on, the script's steps, the table, the end.
+  // Power on, the script's steps, the table, the end. The script's times count from here, once
+  // the set-up is done: publishing with DDS Security authenticates its participant first (3 s on
+  // an emulated arm64, a slow cab controller alike), which counted from t0 would fire the first
+  // steps at once. The log's times stay since t0.
   void schedule() {
+    const TimePoint start = loop.now();
     const auto& steps = plan.steps;
     const auto last_step = steps.empty() ? Duration{0} : steps.back().at;
     if (options.seconds > 0)
-      end_at = t0 + std::chrono::duration_cast<Duration>(std::chrono::duration<double>(options.seconds));
-    else if (options.fast) end_at = t0 + last_step + (steps.empty() ? Duration{10s} : Duration{1s});
+      end_at = start + std::chrono::duration_cast<Duration>(std::chrono::duration<double>(options.seconds));
+    else if (options.fast && story == nullptr)
+      end_at = start + last_step + (steps.empty() ? Duration{10s} : Duration{1s});
 
-    loop.call_at(t0, [this] {
+    loop.call_at(start, [this] {
+      if (story != nullptr) story->begin(stage);
       rig.power_on();
       if (cfg.upstream.heartbeat_ms > 0)
         (void)host.monitor_heartbeat(gateway_node,
                                      static_cast<std::uint16_t>(std::min(3 * cfg.upstream.heartbeat_ms, 65535)));
-      configure(0);
+      if (story == nullptr || !story->host_waits()) configure(0);
     });
     for (const auto& s : steps)
-      loop.call_at(t0 + s.at, [this, s] {
+      loop.call_at(start + s.at, [this, s] {
         if (!run_command(s.command)) ++failures;
       });
-    if (!options.fast) view_timer = loop.call_every(t0 + 1s, tty ? 100ms : 1s, [this] { view(false); });
+    if (!options.fast) view_timer = loop.call_every(start + 1s, tty ? 100ms : 1s, [this] { view(false); });
     if (end_at != TimePoint::max()) loop.call_at(end_at, [this] { loop.stop(); });
   }
 
@@ -624,8 +668,10 @@ class SimSession {
     if (stdin_watch != 0) loop.unwatch(stdin_watch);
     for (auto& b : bridges)
       if (b.watch != 0) loop.unwatch(b.watch);
-    // The last table stays on the screen, below the log.
+    // The last table stays on the screen, below the log. Drawn here, once the loop has returned:
+    // frames handled in the same wake-up as the last step still log, and would land below it.
     view(true);
+    if (story != nullptr) return story->end(stage);
     const std::uint64_t n = tpdo_count();
     std::printf("\noegw sim: %.1f s%s, %llu TPDOs and %llu EMCYs at the host; %s\n",
                 std::chrono::duration<double>(loop.now() - t0).count(), options.fast ? " simulated" : "",
@@ -647,6 +693,15 @@ class SimSession {
   sd::sim::SimBench& bench;
   const NodeId gateway_node;
   const TimePoint t0;
+  SimStory* story;
+  SimStage stage{.loop = loop,
+                 .rig = rig,
+                 .cob_ids = plan.cob_ids,
+                 .say = [this](const std::string& line) { say(line); },
+                 .motion = [this](bool on) { moving = on; },
+                 .configure_host = [this] { configure(0); },
+                 .view = [this](bool keep) { view(keep); },
+                 .published = [this] { return publishing ? publishing->published() : std::uint64_t{0}; }};
   bool tty = false;
   LiveScreen screen{false};
   int failures = 0;
@@ -654,6 +709,7 @@ class SimSession {
   std::uint64_t emcys = 0;
   std::uint16_t last_emcy = 0;
   std::map<std::uint32_t, std::uint16_t> tpdo_number;
+  mapping::PublishConfig publish_config;
   std::unique_ptr<gateway::GatewayPublishing> publishing;
   std::unique_ptr<gateway::control::GatewayControl> control;
   mapping::Config control_cfg;
@@ -668,7 +724,7 @@ class SimSession {
 
 }  // namespace
 
-int run_gateway_sim(const GatewaySimOptions& options) {
+int run_gateway_sim(const GatewaySimOptions& options, SimStory* story) {
   auto loaded = mapping::load_config(options.file, gateway::driver_catalogue());
   if (!loaded.ok()) {
     std::fprintf(stderr, "%s", loaded.error_text().c_str());
@@ -704,7 +760,7 @@ int run_gateway_sim(const GatewaySimOptions& options) {
   if (auto refused = open_vcan(options.vcan, rig, bridges)) return *refused;
 
   rig.connect_gateway();
-  SimSession session(options, cfg, dir, loop, rig, plan, bridges);
+  SimSession session(options, cfg, dir, loop, rig, plan, bridges, story);
   return session.run();
 }
 

@@ -12,6 +12,8 @@
 
 namespace oegw::programs {
 
+class SimStory;
+
 struct GatewaySimOptions {
   std::string file;     // the mapping file
   double seconds = 0;   // how long; 0: until SIGINT/SIGTERM (--fast: until the script's end + 1 s)
@@ -21,11 +23,16 @@ struct GatewaySimOptions {
   bool frames = false;  // print every frame of both buses in candump's log format
   std::string script;   // a file of "SECONDS COMMAND" lines; "" = none
   std::string vcan;     // "UP,DOWN": both buses also on these SocketCAN interfaces; "" = none
+  // A folder made by scripts/make-dds-security.sh: DDS Security for the sim's participant with the
+  // set's gateway identity (docs/guides/secure-dds.md); a set the library refuses stops the run
+  // (exit 2: it would publish in the clear). "" = as the file says.
+  std::string dds_security;
 };
 
 // Exit status (gateway/programs.hpp exit_code): 0 done, every `expect` met; 1 the mapping file
 // or the script refused (every error printed, nothing started), or an `expect` or a command
-// failed; 2 cannot start (a --vcan interface missing or not CAN).
-int run_gateway_sim(const GatewaySimOptions& options);
+// failed; 2 cannot start (a --vcan interface missing or not CAN, a --dds-security set refused).
+// With a story (sim_story.hpp, `oegw demo`): its banner, steps, checks and summary, its exit status.
+int run_gateway_sim(const GatewaySimOptions& options, SimStory* story = nullptr);
 
 }  // namespace oegw::programs

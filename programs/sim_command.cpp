@@ -27,6 +27,11 @@ void register_sim(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--vcan", o->vcan, "Both buses also on these SocketCAN interfaces, for candump and other hosts")
       ->type_name("UP,DOWN");
+  cmd->add_option("--dds-security", o->dds_security,
+                  "DDS Security with the set in DIR (scripts/make-dds-security.sh --partition PARTITION DIR): "
+                  "the gateway's identity")
+      ->type_name("DIR")
+      ->check(CLI::ExistingDirectory);
   cmd->callback([o] { cli::finish(run_gateway_sim(*o)); });
 }
 

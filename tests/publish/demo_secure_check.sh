@@ -3,7 +3,7 @@
 # gateway's identity of a set scripts/make-dds-security.sh makes here; the example subscriber as the
 # application reads the demo's joystick, a subscriber without security at the same time reads
 # nothing; a set whose permissions were changed after signing stops the demo (exit 2) naming
-# the setting, before it runs. Run inside in_private_net.sh.
+# the setting, before it runs; `oegw sim --dds-security` alike. Run inside in_private_net.sh.
 #   demo_secure_check.sh OEGW DDS_SUBSCRIBER MAKE_DDS_SECURITY
 set -u
 oegw=$1 sub=$2 make=$3
@@ -44,3 +44,13 @@ rc=$?
 grep -q "publish.dds.security.permissions $s/permissions.p7s: is not signed by publish.dds.security.permissions_ca" \
   "$d/tampered.out" || fail "the refusal does not name publish.dds.security.permissions"
 echo "ok: a tampered permissions document stops the demo (exit 2): $(grep -o 'publish.dds.security.permissions [^(]*' "$d/tampered.out")"
+
+# `oegw sim --dds-security` (the demo is the sim with a story: the same code) refuses it alike,
+# with the user's own file (here config/demo.yaml, beside the script's source tree).
+src=$(cd "$(dirname "$0")/../.." && pwd)
+"$oegw" sim "$src/config/demo.yaml" --fast --seconds 1 --dds-security "$s" >"$d/sim-tampered.out" 2>&1
+rc=$?
+[ "$rc" -eq 2 ] || fail "oegw sim with a tampered permissions document: exit $rc, expected 2"
+grep -q "^oegw sim: --dds-security $s: publish.dds.security.permissions $s/permissions.p7s: is not signed" \
+  "$d/sim-tampered.out" || fail "oegw sim's refusal does not name --dds-security and the setting"
+echo "ok: oegw sim --dds-security with the tampered set: exit 2, nothing started"
