@@ -15,7 +15,9 @@ covered:
     host, systemd, a package install, a whole second build) — said, not faked.
 
 A block on a page that BLOCKS does not name fails the test (a new command must be classified), and
-so does a BLOCKS entry no page has any more (a moved command must be re-classified).
+so does a BLOCKS entry no page has any more (a moved command must be re-classified). Program code
+is held to the same rule: the one ```js block, docs/guides/remote-sdo.md's node-canopen recipe, is
+run by vm_remote (here it is parsed), and a ```python or other ```js block fails.
 
 The "here" blocks talk DDS on loopback and LCM on 224.0.0.1 with ttl=0: run this test inside
 tests/publish/in_private_net.sh, so that nothing else hears the demos it runs nor reaches them.
@@ -24,7 +26,6 @@ Usage: docs_commands_test.py SOURCE_DIR BUILD_DIR LCM_LOGGER [--list]
   --list  the classification only, nothing run
 Prints one `ok:` / `FAILED:` line per judgement and ends with "N passed, N failed".
 """
-import ast
 import atexit
 import glob
 import os
@@ -54,14 +55,19 @@ def judge(ok, what, detail=""):
 
 # ---- Extraction.
 
+def doc_pages():
+    """The pages whose blocks are accounted for, relative to the source tree."""
+    pages = sorted(glob.glob(os.path.join(SRC, "docs", "**", "*.md"), recursive=True))
+    pages += [os.path.join(SRC, "README.md"), os.path.join(SRC, "CONTRIBUTING.md")]
+    return [os.path.relpath(p, SRC) for p in pages]
+
+
 def blocks():
     """(page, line of the fence, [commands], heading) of every ```sh block, in page order; the
     heading is the last `# ` or `## ` line above it."""
-    pages = sorted(glob.glob(os.path.join(SRC, "docs", "**", "*.md"), recursive=True))
-    pages += [os.path.join(SRC, "README.md"), os.path.join(SRC, "CONTRIBUTING.md")]
     out = []
-    for path in pages:
-        page = os.path.relpath(path, SRC)
+    for page in doc_pages():
+        path = os.path.join(SRC, page)
         fence, cmds, cont, heading = None, [], False, ""
         with open(path, encoding="utf-8") as f:
             for n, line in enumerate(f, 1):
@@ -324,12 +330,12 @@ def man_pages(page, cmds):
             expect_run(page, path + " && complete -p oegw", 0, [r"^complete .* oegw$"], timeout=30, cwd=SRC)
 
 
-def python_blocks(page):
-    """The ```python blocks of PAGE: (line of the fence, text)."""
+def fenced_blocks(page, lang):
+    """The ```LANG blocks of PAGE: (line of the fence, text)."""
     out, fence, text = [], None, []
     with open(os.path.join(SRC, page), encoding="utf-8") as f:
         for n, line in enumerate(f, 1):
-            if fence is None and line.rstrip() == "```python":
+            if fence is None and line.rstrip() == "```" + lang:
                 fence, text = n, []
             elif fence is not None and line.rstrip() == "```":
                 out.append((fence, "".join(text)))
@@ -339,50 +345,31 @@ def python_blocks(page):
     return out
 
 
-def remote_sdo_recipe():
-    """docs/guides/remote-sdo.md's python `canopen` recipe for a bound SDO channel. Running it takes
-    python `canopen` (no Debian 12 package) and a gateway on CAN: vm_remote runs it where canopen is
-    installed. Here, without either, what made it fail as once written is checked in its text:
-    canopen's RemoteNode.add_sdo returns an SdoClient whose `network` it never sets (it only
-    subscribes the client's responses), so the recipe must give the channel its network before the
-    channel's first upload or download."""
+def remote_sdo_recipe(pages):
+    """docs/guides/remote-sdo.md's node-canopen recipe for a bound SDO channel: vm_remote extracts
+    and runs it against `oegw run` on vcan (a gateway on CAN is needed). Here: there is exactly one,
+    node parses it, and it names the channel the page binds (request 690h, response 6B0h, the
+    response as the upload's cobIdRx: node-canopen picks the client parameter by it). No page shows
+    program code nobody runs: a ```python or ```js block elsewhere fails (python `canopen`, which
+    the page once showed, cannot be installed on the build machines: no Debian 12 package)."""
     page = "docs/guides/remote-sdo.md"
-    recipes = [(n, t) for n, t in python_blocks(page) if ".add_sdo(" in t]
-    if not judge(len(recipes) == 1, f"{page}: one python canopen recipe with add_sdo", f"{len(recipes)} found"):
+    recipes = [(n, t) for n, t in fenced_blocks(page, "js") if "addSdoClientParameter(" in t]
+    if not judge(len(recipes) == 1, f"{page}: one node-canopen recipe with addSdoClientParameter",
+                 f"{len(recipes)} found"):
         return
     line, text = recipes[0]
-    try:
-        tree = ast.parse(text)
-    except SyntaxError as e:
-        judge(False, f"{page}:{line}: the recipe is python", str(e))
-        return
-    judge(True, f"{page}:{line}: the recipe is python")
-    channels = {}  # a name bound to add_sdo's result -> the line its network is set (None: never)
-    used = []  # (line, name) of every upload/download call
-    for node in sorted(ast.walk(tree), key=lambda n: (getattr(n, "lineno", 0), getattr(n, "col_offset", 0))):
-        if isinstance(node, ast.Assign) and isinstance(node.value, ast.Call) and \
-                isinstance(node.value.func, ast.Attribute) and node.value.func.attr == "add_sdo":
-            for t in node.targets:
-                if isinstance(t, ast.Name):
-                    channels[t.id] = None
-        elif isinstance(node, ast.Assign):
-            for t in node.targets:
-                if isinstance(t, ast.Attribute) and t.attr == "network" and isinstance(t.value, ast.Name) \
-                        and t.value.id in channels and channels[t.value.id] is None:
-                    channels[t.value.id] = node.lineno
-        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and \
-                node.func.attr in ("upload", "download") and isinstance(node.func.value, ast.Name):
-            used.append((node.lineno, node.func.value.id))
-    judge(bool(channels), f"{page}:{line}: the recipe keeps the channel add_sdo returns", text)
-    for at, name in used:
-        if name in channels:
-            set_at = channels[name]
-            judge(set_at is not None and set_at < at,
-                  f"{page}:{line}: `{name}.network = network` comes before the channel's first transfer (recipe line {at})",
-                  "canopen's add_sdo leaves the channel without its network: RuntimeError: No actual Network object was assigned")
-            break
-    else:
-        judge(False, f"{page}:{line}: the recipe uploads or downloads on the channel add_sdo returned", text)
+    with tempfile.NamedTemporaryFile("w", suffix=".js") as f:
+        f.write(text)
+        f.flush()
+        r = subprocess.run(["node", "--check", f.name], capture_output=True, text=True)
+    judge(r.returncode == 0, f"{page}:{line}: the recipe is JavaScript node parses", r.stderr.strip())
+    judge("addSdoClientParameter(0x20, 0x690, 0x6b0)" in text and "cobIdRx: 0x6b0" in text,
+          f"{page}:{line}: the recipe's SDO client is the page's bound channel 690h/6B0h of node 20h", text)
+    for other in pages:
+        for lang in ("python", "js"):
+            for n, _ in fenced_blocks(other, lang):
+                if (other, n) != (page, line):
+                    judge(False, f"{other}:{n}: a ```{lang} block no test runs", "run it from a test, or show it as text")
 
 
 HERE = "here"
@@ -480,7 +467,7 @@ def main():
             judge(False, f"{key[0]}: no block starts `{key[1]}` any more", "re-classify the page's blocks in BLOCKS")
     missing = [p for p in (f"{BUILD}/programs/oegw", f"{BUILD}/examples/dds_subscriber", f"{BUILD}/man/oegw.1.gz")
                if not os.path.exists(p)]
-    remote_sdo_recipe()
+    remote_sdo_recipe(doc_pages())
     if "--list" in sys.argv[4:]:
         for page, line, cmds, _runner in to_run:
             print(f"here: {page}:{line}: `{short(first_command(cmds))}` ({len(cmds)} commands)")

@@ -5,10 +5,10 @@
 # `oegw-sim` processes on vcan1 (the MCB-402 left_grip alone, taking commands from a FIFO the host
 # writes: its cable break raises EMCY 3120h); the host is remote_host.py on python3-can (vcan0):
 # network indications, reads and writes of sub-devices through the gateway, the bound channel, the
-# refusals and the forwarded EMCY; then docs/guides/remote-sdo.md's python `canopen` recipe,
-# extracted from the page, where python canopen is installed. candump's recordings judge the downstream side: the SDO frames
+# refusals and the forwarded EMCY; then docs/guides/remote-sdo.md's node-canopen recipe, extracted
+# from the page and run as written. candump's recordings judge the downstream side: the SDO frames
 # the host's requests caused on vcan1, and nothing of vcan1 on vcan0 but the forwarded EMCYs.
-# Args: OEGW OEGW_SIM SOURCE_DIR
+# Args: OEGW OEGW_SIM SOURCE_DIR NODE_MODULES (node-canopen's, vm_node_peer_install)
 set -uo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 # shellcheck source=lib.sh
@@ -16,6 +16,7 @@ here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
 oegw=$1
 sim=$2
 src=$3
+modules=$4
 dir=/run/oegw-remote
 
 prepare_gateway_run vm_gateway.yaml "$src" "$dir" "$oegw"
@@ -46,25 +47,22 @@ follow_host /tmp/host.log
 echo "host finished after $(elapsed) s"
 ((host_rc == 0)) && pass "python3-can host: every remote check" || fail "python3-can host: $host_rc failed"
 
-# docs/guides/remote-sdo.md's python `canopen` recipe for a bound channel, EXTRACTED from the page
-# (its ```python block) so that it cannot drift from what is run, and run as written with the
-# guest's upstream bus for can0. Here the channel is bound to left_grip (the MCB-402: vendor-ID
-# 58h) where the page binds right_grip. Python `canopen` is not a Debian 12 package: where it is
-# not installed the recipe is not run, and a SKIP line says so (neither a pass nor a failure).
+# docs/guides/remote-sdo.md's node-canopen recipe for a bound channel, EXTRACTED from the page
+# (its ```js block) so that it cannot drift from what is run, and run as written with the guest's
+# upstream bus for can0 and the pinned node-canopen (vm_node_peer_install) for `require`. Here
+# the channel is bound to left_grip (the MCB-402: vendor-ID 58h) where the page binds right_grip.
 page=$src/docs/guides/remote-sdo.md
-awk '/^```python$/ { b = 1; next } /^```$/ { b = 0 } b' "$page" | sed 's/channel="can0"/channel="vcan0"/' >/tmp/recipe.py
-if ! grep -q '^sdo = node.add_sdo(0x690, 0x6B0)' /tmp/recipe.py || ! grep -q 'channel="vcan0"' /tmp/recipe.py; then
-  fail "remote-sdo.md: no python canopen recipe for 690h/6B0h on can0 extracted: $(head -c 300 /tmp/recipe.py)"
-elif "$PY" -c 'import canopen' 2>/dev/null; then
-  timeout 60 "$PY" /tmp/recipe.py >/tmp/recipe.out 2>&1
+awk '/^```js$/ { b = 1; next } /^```$/ { b = 0 } b' "$page" | sed "s/createRawChannel('can0')/createRawChannel('vcan0')/" >/tmp/recipe.js
+if ! grep -q 'addSdoClientParameter(0x20, 0x690, 0x6b0)' /tmp/recipe.js || ! grep -q "createRawChannel('vcan0')" /tmp/recipe.js; then
+  fail "remote-sdo.md: no node-canopen recipe for 690h/6B0h on can0 extracted: $(head -c 300 /tmp/recipe.js)"
+else
+  NODE_PATH=$modules timeout 60 node /tmp/recipe.js >/tmp/recipe.out 2>&1
   rc=$?
   if ((rc == 0)) && grep -q '^vendor-ID 00000058h$' /tmp/recipe.out; then
-    pass "remote-sdo.md's python canopen recipe, as written: vendor-ID 00000058h on the bound channel"
+    pass "remote-sdo.md's node-canopen recipe, as written: vendor-ID 00000058h on the bound channel"
   else
-    fail "remote-sdo.md's python canopen recipe: exit $rc: $(tail -5 /tmp/recipe.out)"
+    fail "remote-sdo.md's node-canopen recipe: exit $rc: $(tail -5 /tmp/recipe.out)"
   fi
-else
-  echo "SKIP: python canopen is not installed here: remote-sdo.md's recipe not run"
 fi
 
 # can-utils, a second peer we did not write, as a plain SDO client on the bound channel: upload
