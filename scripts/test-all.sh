@@ -75,6 +75,10 @@ echo "== oegw_bench_path"
 # test's output only when it fails, so the figures the test kept in the build tree are shown here.
 echo "== vm_latency"
 cat "$BUILD/tests/vm/vm_latency.out/figures.txt" 2>/dev/null || echo "(no figures: vm_latency did not run)"
+# vm_abuse's figures (CAN first: the control clients' scenarios, the heartbeat's gaps, memory,
+# how long a separate `oegw status` waited in each scenario, the kernel's drops).
+echo "== vm_abuse"
+cat "$BUILD/tests/vm/vm_abuse.out/abuse.figures" 2>/dev/null || echo "(no figures: vm_abuse did not run)"
 
 # The cab controller's processors: the unit and integration tests cross-built for arm64 and armhf
 # and run under qemu-user, and each architecture's Debian package with its Depends checked
