@@ -347,11 +347,11 @@ class SimSession {
 
   int run() {
     watch_host();
-    if (auto refused = start_publishing()) return *refused;
     open_control();
     for (auto& b : bridges) b.watch = watch_transport(loop, *b.can);
     if (story != nullptr) story->banner(control ? control_cfg.control.socket : std::string());
     else print_banner();
+    if (auto refused = start_publishing()) return *refused;
     let_the_operator_move();
     plan_host_writes();
     schedule();
@@ -401,12 +401,17 @@ class SimSession {
                   (set / "ca.pem").string(), (set / "governance.p7s").string(), (set / "permissions.p7s").string()};
     }
     const mapping::PublishConfig& publish = publish_config;
+    if (!options.dds_security.empty() && !(options.publish && publish.dds.enabled))
+      say("--dds-security " + options.dds_security +
+          " not used: " + (options.publish ? "the file's publish.dds is off" : "--no-publish"));
     if (!options.publish || !(publish.dds.enabled || publish.lcm.enabled)) return std::nullopt;
     try {
       publishing = std::make_unique<gateway::GatewayPublishing>(gw, publish, [this] { return loop.now(); });
     } catch (const publish::PublishConfigError& e) {
       if (publish.dds.security) {
-        std::fprintf(stderr, "oegw %s: --dds-security %s: %s\n", story ? "demo" : "sim", options.dds_security.c_str(),
+        // What refused it names the setting (publish.dds.security.<file>); the option when it gave the set.
+        std::fprintf(stderr, "oegw %s: %s%s\n", story ? "demo" : "sim",
+                     options.dds_security.empty() ? "" : ("--dds-security " + options.dds_security + ": ").c_str(),
                      e.what());
         return exit_code::kCannotStart;
       }
@@ -422,10 +427,12 @@ class SimSession {
       on += fmt::format("{}LCM (channels {}*, {})", on.empty() ? "" : " and ", publish.lcm.channel_prefix,
                         publish.lcm.url);
     std::string commanded;
+    std::size_t n_commanded = 0;
     for (const auto& fe : cfg.functional_elements)
       if (!fe.input() && (fe.accepts(mapping::CommandSource::Dds) || fe.accepts(mapping::CommandSource::Lcm)))
-        commanded += (commanded.empty() ? "" : ", ") + mapping::fe_name(fe.id);
-    say("publishing every FE on " + on + (commanded.empty() ? "" : "; " + commanded + " take commands from there"));
+        commanded += (n_commanded++ == 0 ? "" : ", ") + mapping::fe_name(fe.id);
+    say("publishing every FE on " + on +
+        (commanded.empty() ? "" : "; " + commanded + (n_commanded == 1 ? " takes" : " take") + " commands from there"));
     // The machine cannot carry one now (an offline computer has no multicast route for LCM): the
     // sim runs without it and it is opened again as `oegw run` does.
     for (const auto& t : publishing->transports())
@@ -515,8 +522,10 @@ class SimSession {
     const HostWrite& w = writes[i];
     host.sdo(gateway_node).download(w.index, w.sub, w.data, [this, i](SdoAbortCode c, std::vector<std::uint8_t>) {
       const HostWrite& done = writes[i];
-      if (c != SdoAbortCode::None && !(done.optional && c == SdoAbortCode::ObjectDoesNotExist))
+      if (c != SdoAbortCode::None && !(done.optional && c == SdoAbortCode::ObjectDoesNotExist)) {
+        ++host_refusals;
         say("host: SDO write " + sdo_text(done.index, done.sub, c));
+      }
       configure(i + 1);
     });
     rig.rearm();
@@ -701,7 +710,18 @@ class SimSession {
                  .motion = [this](bool on) { moving = on; },
                  .configure_host = [this] { configure(0); },
                  .view = [this](bool keep) { view(keep); },
-                 .published = [this] { return publishing ? publishing->published() : std::uint64_t{0}; }};
+                 .steps_only =
+                     [this] {
+                       // In a pipe or a file the table every second would repeat itself from here.
+                       if (!tty && view_timer != 0) loop.cancel(view_timer);
+                       if (!tty) view_timer = 0;
+                     },
+                 .host_refusals = [this] { return host_refusals; },
+                 .published =
+                     [this] {
+                       return publishing ? std::optional<std::uint64_t>(publishing->published()) : std::nullopt;
+                     }};
+  int host_refusals = 0;  // the host's set-up writes the gateway refused
   bool tty = false;
   LiveScreen screen{false};
   int failures = 0;

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <utility>
 
@@ -29,7 +30,9 @@ struct SimStage {
   std::function<void(bool)> motion;             // the operator moves every input (true) or lets go
   std::function<void()> configure_host;         // the host's PDO set-up, then NMT start (SimStory::host_waits)
   std::function<void(bool)> view;               // the table drawn now (true: the last one, kept on screen)
-  std::function<std::uint64_t()> published;     // FE samples published so far (0: no publishing)
+  std::function<void()> steps_only;             // no table every second from now on when not on a terminal
+  std::function<int()> host_refusals;           // the host's set-up writes the gateway refused so far
+  std::function<std::optional<std::uint64_t>()> published;  // FE samples published so far; nullopt: not publishing
 };
 
 class SimStory {
