@@ -38,10 +38,11 @@ witnesses="11 03 30 7F 31"  # the sub-devices: their heartbeats show a stall of 
 STATUS_BOUND_S=30       # the separate status client, connect to answer: generous (a bound on time
                         # in a TCG guest is a flaky test), as it may wait behind the 200 clients of
                         # scenario d queued first in the listen queue. Since they share one status
-                        # render (GatewayControl::kStatusReuse): 0.03 s with d alone (the 200
-                        # answered in 0.4 s), 1.12 s in a whole run beside another guest (1.6 s),
-                        # hence RUN_SERIAL; before, 5 s in a loaded guest and 10.6 s with three
-                        # guests on two host cores. The bug leaves it unanswered (its 60 s time-out)
+                        # render (GatewayControl::kStatusReuse): 0.03 s with scenario d alone (the
+                        # 200 answered in 0.4 s); in a whole run 1.12 s beside another guest and
+                        # 1.65 s alone (the 200 in 1.8 s); before, 5 s in a loaded guest and 10.6 s
+                        # with three guests on two host cores. The bug leaves it unanswered (its
+                        # 60 s time-out)
 lcm_url="udpm://224.0.0.1:7667?ttl=0"
 client() { "$PY" "$here/abuse_client.py" "$sock" "$@"; }
 now() { date +%s.%N; }
