@@ -10,6 +10,8 @@
 #
 # Cached in $OEGW_CROSS_CACHE (default /var/cache/oegw-cross) as sysroot-<arch>; its recipe (the
 # package list, the suite, the sources) is kept beside it and a different recipe makes it anew.
+# When the security suite's index cannot be fetched for the architecture, the sysroot is made
+# from the suite and its updates alone, with a WARNING (below).
 # OEGW_CROSS_MIRROR overrides the mirror (default http://deb.debian.org/debian). Needs root.
 #
 # Beside the files: sysroot-<arch>/var/lib/oegw-shlibs, a dpkg administrative folder listing each
@@ -39,7 +41,14 @@ PACKAGES=(
 )
 sources=("deb $mirror $suite main" "deb $mirror $suite-updates main"
          "deb http://deb.debian.org/debian-security $suite-security main")
-recipe="extract $arch $suite ${PACKAGES[*]} | ${sources[*]} | shlibs-index 2"
+recipe_of() { echo "extract $arch $suite ${PACKAGES[*]} | $* | shlibs-index 2"; }
+recipe=$(recipe_of "${sources[@]}")
+# Without the security suite: the fallback when its index for this architecture cannot be fetched
+# (seen: a mirror serving an armhf Packages.xz of another size than its Release lists, for days).
+# Its libraries then lack the security updates, which the cross tier's compiling, linking and
+# testing does not depend on; every run tries the whole recipe first.
+base_sources=("${sources[@]:0:2}")
+base_recipe=$(recipe_of "${base_sources[@]}")
 
 [[ $(id -u) -eq 0 ]] || { echo "cross-sysroot: needs root (mmdebstrap, /var/cache)" >&2; exit 1; }
 command -v mmdebstrap >/dev/null || { echo "cross-sysroot: missing mmdebstrap (scripts/cross-build.sh installs it)" >&2; exit 1; }
@@ -55,13 +64,29 @@ fi
 
 t=$SECONDS
 echo "cross-sysroot: making the $arch sysroot in $root (mmdebstrap --variant=extract)" >&2
-rm -rf --one-file-system "$root" "$root.recipe"
 fresh=$root.tmp
-rm -rf --one-file-system "$fresh"
-# The .debs are kept (cleanup/apt/cache skipped) for the index below, then removed.
-mmdebstrap --quiet --variant=extract --arch="$arch" --include="$(IFS=,; echo "${PACKAGES[*]}")" \
-  --skip=cleanup/apt/cache "$suite" "$fresh" "${sources[@]}" >"$cache/mmdebstrap-$arch.log" 2>&1 ||
-  { tail -20 "$cache/mmdebstrap-$arch.log" >&2; echo "cross-sysroot: mmdebstrap failed (log: $cache/mmdebstrap-$arch.log)" >&2; exit 1; }
+# extract SOURCES...: the packages unpacked into $fresh; the .debs are kept (cleanup/apt/cache
+# skipped) for the index below, then removed. Its log: $cache/mmdebstrap-$arch.log.
+extract() {
+  rm -rf --one-file-system "$fresh"
+  mmdebstrap --quiet --variant=extract --arch="$arch" --include="$(IFS=,; echo "${PACKAGES[*]}")" \
+    --skip=cleanup/apt/cache "$suite" "$fresh" "$@" >"$cache/mmdebstrap-$arch.log" 2>&1
+}
+if ! extract "${sources[@]}"; then
+  tail -5 "$cache/mmdebstrap-$arch.log" >&2
+  echo "cross-sysroot: WARNING: mmdebstrap failed with $suite-security (log: $cache/mmdebstrap-$arch.log)" >&2
+  if [[ -f $root.recipe && $(cat "$root.recipe") == "$base_recipe" && -d $root/var/lib/oegw-shlibs ]]; then
+    echo "cross-sysroot: WARNING: the $arch sysroot without $suite-security (cached) is used: its libraries lack the security updates" >&2
+    rm -rf --one-file-system "$fresh"
+    echo "$root"
+    exit 0
+  fi
+  echo "cross-sysroot: WARNING: making the $arch sysroot from $suite and $suite-updates only: its libraries lack the security updates" >&2
+  extract "${base_sources[@]}" ||
+    { tail -20 "$cache/mmdebstrap-$arch.log" >&2; echo "cross-sysroot: mmdebstrap failed (log: $cache/mmdebstrap-$arch.log)" >&2; exit 1; }
+  recipe=$base_recipe
+fi
+rm -rf --one-file-system "$root" "$root.recipe"
 
 # The dpkg-shlibdeps index: what dpkg would have recorded, with the paths as they are on this
 # machine (under $root, where dpkg-shlibdeps -l finds the libraries).
