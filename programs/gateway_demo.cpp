@@ -7,7 +7,6 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <cstdlib>
 #include <fstream>
 #include <map>
 #include <string_view>
@@ -19,6 +18,7 @@
 #include "gateway/programs.hpp"
 #include "programs/demo_files.hpp"
 #include "programs/gateway_sim.hpp"
+#include "programs/private_folder.hpp"
 #include "programs/sim_story.hpp"
 #include "subdevices/sim/sim_bench.hpp"
 
@@ -42,33 +42,16 @@ bool boot_step(const std::string& line) {
   return false;
 }
 
-// The demo's files go into a private folder: nothing is left behind, nothing outside is read.
-// The source tree's layout: demo.yaml names its EDS files from its own folder config/
-// (docs/reference/mapping-file.md#paths), so they go to subdevices/eds/ beside it. std::nullopt
-// when it cannot be made (printed).
-std::optional<std::filesystem::path> make_demo_folder() {
-  char tmpl[] = "/tmp/oegw-demo-XXXXXX";
-  const char* dir_c = ::mkdtemp(tmpl);
-  if (dir_c == nullptr) {
-    std::perror("oegw demo: mkdtemp");
-    return std::nullopt;
-  }
-  const std::filesystem::path dir = dir_c;
+// The demo's files (its embedded demo.yaml and EDS files) go into a private folder: nothing
+// outside is read. The source tree's layout: demo.yaml names its EDS files from its own folder
+// config/ (docs/reference/mapping-file.md#paths), so they go to subdevices/eds/ beside it.
+void write_demo_files(const std::filesystem::path& dir) {
   std::filesystem::create_directories(dir / "subdevices/eds");
   std::filesystem::create_directories(dir / "config");
   std::ofstream(dir / "config/demo.yaml") << demo_files::kDemoYaml;
   std::ofstream(dir / "subdevices/eds/generic_pedal.eds") << demo_files::kPedalEds;
   std::ofstream(dir / "subdevices/eds/button_cluster.eds") << demo_files::kClusterEds;
-  return dir;
 }
-
-struct RemoveFolder {
-  std::filesystem::path p;
-  ~RemoveFolder() {
-    std::error_code ec;
-    std::filesystem::remove_all(p, ec);
-  }
-};
 
 // The demo's story on the sim: the state its steps share, one method per step in the order
 // begin() schedules them.
@@ -98,6 +81,7 @@ class DemoStory : public SimStory {
     loop = &s.loop;
     gw = &s.rig.gw();
     bench = &s.rig.devices();
+    tpdo1 = s.cob_ids.at({true, 1});
     t0 = loop->now();
     power_on();
     at(2500ms, [this] { the_host_starts_the_gateway(); });
@@ -112,7 +96,7 @@ class DemoStory : public SimStory {
   // The host reads joystick 1 from TPDO 1 (the sim's host keeps it on 180h + node-ID) and counts
   // the gateway's EMCYs.
   void host_frame(const CanFrame& f) override {
-    if (stage == nullptr || f.id != stage->cob_ids.at({true, 1}) || f.dlc < 4) return;
+    if (stage == nullptr || f.id != tpdo1 || f.dlc < 4) return;
     ++tpdos;
     host_x = static_cast<std::int16_t>(get_u16(&f.data[0]));
     x_min = std::min(x_min, host_x);
@@ -298,6 +282,7 @@ class DemoStory : public SimStory {
   EventLoop* loop = nullptr;
   Gateway* gw = nullptr;
   sd::sim::SimBench* bench = nullptr;
+  std::uint32_t tpdo1 = 0;  // the COB-ID the host gave TPDO 1
   TimePoint t0{};
   int failures = 0;
   bool done = false;
@@ -313,11 +298,11 @@ class DemoStory : public SimStory {
 }  // namespace
 
 int run_gateway_demo(const GatewayDemoOptions& options) {
-  const auto folder = make_demo_folder();
+  const auto folder = PrivateFolder::make("demo");
   if (!folder) return 1;
-  const RemoveFolder remove{*folder};
+  write_demo_files(folder->path());
   // The story's clock: --fast runs it on the simulated clock, as fast as the machine goes (tests).
-  GatewaySimOptions sim{.file = (*folder / "config/demo.yaml").string(),
+  GatewaySimOptions sim{.file = (folder->path() / "config/demo.yaml").string(),
                         .fast = options.fast,
                         .motion = false,  // the story moves the operator's hands
                         .publish = options.publish,

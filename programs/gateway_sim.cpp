@@ -27,6 +27,7 @@
 #include "gateway/publishing.hpp"
 #include "profiles/cia852/pdo_defaults.hpp"
 #include "programs/live_view.hpp"
+#include "programs/private_folder.hpp"
 #include "programs/sim_story.hpp"
 #include "publish/dds_publisher.hpp"
 #include "rig/cab_rig.hpp"
@@ -235,16 +236,6 @@ struct SimPlan {
   std::map<std::pair<bool, std::uint16_t>, std::uint32_t> cob_ids;  // assign_pdo_cob_ids
   std::map<std::uint16_t, std::uint32_t> rpdos;                     // RPDO number: COB-ID
   std::vector<SimStep> steps;
-};
-
-// The private folder of the sim's own files (the 1010h store, the control socket), removed at
-// the end: the file's upstream.store and control.socket are the cab controller's, never touched here.
-struct RemoveDir {
-  std::filesystem::path p;
-  ~RemoveDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(p, ec);
-  }
 };
 
 // The script, every line checked before anything starts: our own words here, the simulators'
@@ -713,8 +704,9 @@ class SimSession {
                  .steps_only =
                      [this] {
                        // In a pipe or a file the table every second would repeat itself from here.
-                       if (!tty && view_timer != 0) loop.cancel(view_timer);
-                       if (!tty) view_timer = 0;
+                       if (tty || view_timer == 0) return;
+                       loop.cancel(view_timer);
+                       view_timer = 0;
                      },
                  .host_refusals = [this] { return host_refusals; },
                  .published =
@@ -752,14 +744,11 @@ int run_gateway_sim(const GatewaySimOptions& options, SimStory* story) {
   }
   mapping::Config cfg = *loaded.config;
 
-  char tmpl[] = "/tmp/oegw-sim-XXXXXX";
-  const char* dir_c = ::mkdtemp(tmpl);
-  if (dir_c == nullptr) {
-    std::perror("oegw sim: mkdtemp");
-    return exit_code::kCannotStart;
-  }
-  const std::filesystem::path dir = dir_c;
-  RemoveDir remove_dir{dir};
+  // The sim's own files (the 1010h store, the control socket): the file's upstream.store and
+  // control.socket are the cab controller's, never touched here.
+  const auto folder = PrivateFolder::make("sim");
+  if (!folder) return exit_code::kCannotStart;
+  const std::filesystem::path& dir = folder->path();
 
   SimulatedClock sim_clock;
   auto loop_ptr = options.fast ? std::make_unique<EventLoop>(sim_clock) : std::make_unique<EventLoop>();
