@@ -140,13 +140,23 @@ scenario_c() {  # 8 slow clients
     fail "c: $(cat /tmp/abuse-c.out)"
 }
 
+# cpu_ticks PID: the process's CPU time so far (user + system, clock ticks); guest_ticks: the
+# guest's busy time (every CPU, every process). Where a scenario's time goes, as a figure.
+cpu_ticks() { awk '{ print $14 + $15 }' "/proc/$1/stat" 2>/dev/null || echo 0; }
+guest_ticks() { awk '/^cpu / { print $2 + $3 + $4 + $7 + $8 }' /proc/stat; }
+ticks_s() { awk -v t="$1" -v hz="$(getconf CLK_TCK)" 'BEGIN { printf "%.2f s", t / hz }'; }
+
 scenario_d() {  # 200 clients at once beside 8 slow ones
   client slow 8 40 3 >/tmp/abuse-d-slow.out 2>&1 &
   local slow_pid=$!
   sleep 4  # the slow ones hold the slots first
+  local gw0 sim0 all0 gw1 sim1 all1
+  gw0=$(cpu_ticks "$gw_pid") sim0=$(cpu_ticks "$sim_pid") all0=$(guest_ticks)
   client burst 200 60 >/tmp/abuse-d.out 2>&1
+  gw1=$(cpu_ticks "$gw_pid") sim1=$(cpu_ticks "$sim_pid") all1=$(guest_ticks)
   wait "$slow_pid"
   figure "    d: $(cat /tmp/abuse-d.out); slow beside: $(cat /tmp/abuse-d-slow.out)"
+  figure "    d: CPU meanwhile: oegw run $(ticks_s $((gw1 - gw0))), oegw-sim $(ticks_s $((sim1 - sim0))), the guest $(ticks_s $((all1 - all0))) (every process)"
   grep -q '^answered 200 of 200 ' /tmp/abuse-d.out && pass "d: all 200 clients at once answered" || fail "d: $(cat /tmp/abuse-d.out)"
 }
 

@@ -137,7 +137,8 @@ def burst(path, count, limit):
                     other += 1
                 sel.unregister(key.fileobj)
                 key.fileobj.close()
-    print(f"answered {answered} of {count} in {time.monotonic() - start:.1f} s ({len(conns)} connected, {other} other answers)")
+    print(f"answered {answered} of {count} in {time.monotonic() - start:.1f} s ({len(conns)} connected, "
+          f"{other} other answers; this client's CPU {time.process_time():.2f} s)")
 
 
 def probe(path, out, period):
