@@ -171,6 +171,16 @@ std::string status_table(const json& st) {
     }
     out += "publishing: " + (line.empty() ? std::string("off") : line) + "\n";
   }
+  // The control socket's clients and what its bounds did to them
+  // (docs/reference/limits.md#the-control-socket).
+  if (st.contains("control") && st["control"].is_object()) {
+    const json& c = st["control"];
+    const auto n = [&c](const char* key) { return c[key].get<std::uint64_t>(); };
+    out += fmt::format(
+        "control: {} of {} connections; {} answers, status rendered {} times; {} peers refused; {} "
+        "connections closed by a bound ({} to make room)\n",
+        n("clients"), n("max_clients"), n("answered"), n("status_renders"), n("refused"), n("dropped"), n("evicted"));
+  }
   // Frames the kernel dropped before the gateway read them: shown only when there are any.
   for (const auto& [side, j] : {std::pair<const char*, const json*>{"upstream", &up}, {"downstream", &down}})
     if (j->contains("bus") && (*j)["bus"].value("rx_dropped", std::uint64_t{0}) != 0)

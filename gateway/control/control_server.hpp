@@ -98,6 +98,7 @@ class ControlServer {
   ControlServer& operator=(const ControlServer&) = delete;
 
   [[nodiscard]] std::size_t clients() const { return clients_.size(); }
+  [[nodiscard]] const ControlLimits& limits() const { return settings_.limits; }
   // Clients closed by a bound: idle, write time-out, made room for a waiting one (evicted).
   [[nodiscard]] std::uint64_t dropped() const { return dropped_; }
   [[nodiscard]] std::uint64_t evicted() const { return evicted_; }  // of those, to make room

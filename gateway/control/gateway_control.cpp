@@ -18,6 +18,7 @@ GatewayControl::GatewayControl(canopen::io::EventLoop& loop, Gateway& gw, const 
     nlohmann::json report = status_report(*gw_, *config_, at);
     for (const auto& [name, field] : status_fields_) report[name] = field();
     ++status_renders_;
+    report["control"] = control_status();
     status_rendering_ = true;  // the answer line is kept for reuse (answer())
     return nlohmann::json{{"status", report}};
   });
@@ -47,6 +48,16 @@ void GatewayControl::answer(std::string_view line, canopen::TimePoint now, Contr
   });
   if (!status_rendering_) last_status_.reset();  // any other request may change what status shows
   status_rendering_ = false;
+}
+
+// The socket's own counters (docs/reference/control-protocol.md#status): what its clients cost
+// and what its bounds did to them, seen by the operator who asks.
+nlohmann::json GatewayControl::control_status() const {
+  if (!server_) return nullptr;
+  return nlohmann::json{{"clients", server_->clients()},     {"max_clients", server_->limits().max_clients},
+                        {"handled", server_->handled()},     {"answered", server_->answered()},
+                        {"status_renders", status_renders_}, {"refused", server_->refused()},
+                        {"dropped", server_->dropped()},     {"evicted", server_->evicted()}};
 }
 
 void GatewayControl::detach() {

@@ -69,6 +69,7 @@ class GatewayControl {
     canopen::TimePoint at{};
     std::string line;
   };
+  [[nodiscard]] nlohmann::json control_status() const;  // the `control` object of `status`
   std::optional<StatusAnswer> last_status_;
   bool status_rendering_ = false;  // true only while the status command runs (synchronously)
   std::uint64_t status_renders_ = 0;

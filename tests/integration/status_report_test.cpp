@@ -365,6 +365,39 @@ TEST_F(StatusOverTheSocket, TwoHundredClientsAtOnceShareOneRender) {
   EXPECT_EQ(control_->status_renders(), 1u) << "one render for all of them (the clock stood still)";
 }
 
+// The socket's own counters in the answer and as the table's `control:` line: the clients it
+// serves now, the answers and renders so far (the answer being rendered not yet counted).
+TEST_F(StatusOverTheSocket, TheAnswerCountsTheSocketsClientsAnswersAndRenders) {
+  const std::string request = "{\"command\": \"status\"}\n";
+  std::vector<int> fds;
+  for (int i = 0; i < 20; ++i) fds.push_back(ask(request));
+  const auto first = answers(fds);
+  EXPECT_EQ(json::parse(first[0])["status"]["control"], (json{{"clients", 1},
+                                                              {"max_clients", 8},
+                                                              {"handled", 1},
+                                                              {"answered", 0},
+                                                              {"status_renders", 1},
+                                                              {"refused", 0},
+                                                              {"dropped", 0},
+                                                              {"evicted", 0}}))
+      << "rendered for the first of them";
+  rig_->run_for(gw::control::GatewayControl::kStatusReuse);
+  const int idle = ask("");  // holds a slot without asking
+  const auto later = answers({ask(request)});
+  const json c = json::parse(later[0])["status"]["control"];
+  EXPECT_EQ(c["clients"], 2) << c;
+  EXPECT_EQ(c["handled"], 21) << c;
+  EXPECT_EQ(c["answered"], 20) << c;
+  EXPECT_EQ(c["status_renders"], 2) << c;
+  EXPECT_NE(oegw::cli::status_table(json::parse(later[0])["status"])
+                .find("\ncontrol: 2 of 8 connections; 20 answers, status rendered 2 times; 0 peers refused; 0 "
+                      "connections closed by a bound (0 to make room)\n"),
+            std::string::npos)
+      << oegw::cli::status_table(json::parse(later[0])["status"]);
+  ::close(idle);
+  std::erase(fds_, idle);
+}
+
 TEST_F(StatusOverTheSocket, AStatusAfterAnotherRequestOrOlderThanTheReuseIsRenderedAgain) {
   const std::string request = "{\"command\": \"status\"}\n";
   const auto first = answers({ask(request)});

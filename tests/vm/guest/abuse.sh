@@ -311,6 +311,10 @@ up, down = s["upstream"]["bus"], s["downstream"]["bus"]
 print("    kernel drops: upstream %d of %d frames read, downstream %d of %d" %
       (up["rx_dropped"], up["rx_frames"], down["rx_dropped"], down["rx_frames"]))
 ok = up["rx_dropped"] == 0 and down["rx_dropped"] == 0
+c = s["control"]
+print("    control socket over the run: %d requests handled, %d answers, %d status renders (the rest shared); "
+      "%d connections closed by a bound, %d of them to make room" %
+      (c["handled"], c["answered"], c["status_renders"], c["dropped"], c["evicted"]))
 for d in s["subdevices"]:
     b = before[d["name"]]["counters"]
     c = d["counters"]
