@@ -175,11 +175,15 @@ std::string status_table(const json& st) {
   // (docs/reference/limits.md#the-control-socket).
   if (st.contains("control") && st["control"].is_object()) {
     const json& c = st["control"];
-    const auto n = [&c](const char* key) { return c[key].get<std::uint64_t>(); };
-    out += fmt::format(
-        "control: {} of {} connections; {} answers, status rendered {} times; {} peers refused; {} "
-        "connections closed by a bound ({} to make room)\n",
-        n("clients"), n("max_clients"), n("answered"), n("status_renders"), n("refused"), n("dropped"), n("evicted"));
+    const auto n = [&c](const char* key) { return c.value(key, std::uint64_t{0}); };
+    wrap(out, "",
+         split_words(fmt::format("control: {} of {} connections; {} answers, {} status renders", n("clients"),
+                                 n("max_clients"), n("answered"), n("status_renders"))),
+         4);
+    wrap(out, "    ",
+         split_words(fmt::format("{} peers refused; {} connections closed by a bound ({} to make room)", n("refused"),
+                                 n("dropped"), n("evicted"))),
+         4);
   }
   // Frames the kernel dropped before the gateway read them: shown only when there are any.
   for (const auto& [side, j] : {std::pair<const char*, const json*>{"upstream", &up}, {"downstream", &down}})

@@ -91,6 +91,9 @@ struct RecorderStatus {
 
 class Recorder final : public RecordSink {
  public:
+  // How much nicer than the daemon the writer thread runs (run_writer()).
+  static constexpr int kWriterNiceAbove = 10;
+
   // Makes the folder (and kept/) if missing, copies the run files, starts the writer thread.
   // Throws RecordError when the folder cannot be made or written.
   explicit Recorder(RecorderSettings settings);

@@ -390,10 +390,12 @@ TEST_F(StatusOverTheSocket, TheAnswerCountsTheSocketsClientsAnswersAndRenders) {
   EXPECT_EQ(c["answered"], 20) << c;
   EXPECT_EQ(c["status_renders"], 2) << c;
   EXPECT_NE(oegw::cli::status_table(json::parse(later[0])["status"])
-                .find("\ncontrol: 2 of 8 connections; 20 answers, status rendered 2 times; 0 peers refused; 0 "
-                      "connections closed by a bound (0 to make room)\n"),
+                .find("\ncontrol: 2 of 8 connections; 20 answers, 2 status renders\n    0 peers refused; 0 connections "
+                      "closed by a bound (0 to make room)\n"),
             std::string::npos)
       << oegw::cli::status_table(json::parse(later[0])["status"]);
+  std::istringstream table(oegw::cli::status_table(json::parse(later[0])["status"]));
+  for (std::string line; std::getline(table, line);) EXPECT_LE(line.size(), 100u) << line;
   ::close(idle);
   std::erase(fds_, idle);
 }

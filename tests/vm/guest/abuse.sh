@@ -22,7 +22,9 @@
 # twice its value at the start; a separate client asking for the status every 2 s answered
 # within STATUS_BOUND_S every time (connect to answer: the daemon's time, not a program's start
 # in a loaded guest), and `oegw status` itself answered after each scenario; each client's own
-# outcome. Figures are printed; the files are kept in $OEGW_VM_OUT.
+# outcome. Figures are printed (also d's CPU time of the daemon, the simulator, the burst client
+# and the whole guest, and the control socket's own counters at the end); the files are kept in
+# $OEGW_VM_OUT.
 # A scenario is one function plus one line in `scenarios` below; a fourth argument "a b" runs a
 # subset (without f the route is there from the start).
 # Args: OEGW OEGW_SIM SOURCE_DIR [SCENARIOS]
