@@ -281,7 +281,7 @@ void Recorder::run_writer() {
   // CAN first: the writer's batches (text for 100 ms of frames, a write, an fdatasync) must not
   // hold the event loop off the CPU when a bus frame wakes it, least of all on a one-core
   // controller. A nice value kWriterNiceAbove the daemon's (per thread on Linux: setpriority
-  // with 0 names the calling thread) lets the loop preempt the writer at once; the writer keeps
+  // with 0 names the calling thread) lets the loop preempt the writer sooner; the writer keeps
   // a share of a busy CPU, and what it cannot write in time is dropped and counted, never waited
   // for. Raising one's own nice needs no privilege.
   errno = 0;
