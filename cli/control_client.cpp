@@ -57,9 +57,9 @@ AskResult ask_daemon(const std::string& socket_path, const std::string& request_
   std::memcpy(a.sun_path, socket_path.c_str(), socket_path.size());
   const int fd = ::socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
   if (fd < 0) return {AskStatus::Failed, std::string("socket(AF_UNIX): ") + std::strerror(errno)};
-  // The daemon accepts one connection per wake-up and at most its 8 at once; the others wait in
-  // its listen queue, and when that is full connect() waits for room: SO_SNDTIMEO bounds that
-  // wait (unix(7)), so `timeout` covers the connect too.
+  // The daemon serves at most its 8 connections at once; the others wait in its listen queue,
+  // and when that is full connect() waits for room: SO_SNDTIMEO bounds that wait (unix(7)), so
+  // `timeout` covers the connect too.
   const auto whole = std::chrono::duration_cast<std::chrono::microseconds>(timeout).count();
   const timeval tv{static_cast<time_t>(whole / 1'000'000), static_cast<suseconds_t>(whole % 1'000'000)};
   (void)::setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);

@@ -169,7 +169,7 @@ std::string status_table(const json& st) {
                       t["next_attempt_ms"].is_null() ? std::string("one running")
                                                      : "next in " + seconds(t["next_attempt_ms"].get<std::int64_t>()));
     }
-    out += "publishing: " + (line.empty() ? std::string("off") : line) + "\n";
+    wrap(out, "", split_words("publishing: " + (line.empty() ? std::string("off") : line)), 4);
   }
   // The control socket's clients and what its bounds did to them
   // (docs/reference/limits.md#the-control-socket).

@@ -215,29 +215,34 @@ std::size_t ControlServer::buffered() const {
   return n;
 }
 
-// One connection per wake-up (the listen socket stays readable while more wait, so the buses
-// are served between two accepts). With every slot taken, one waiting connection takes the slot
-// of the client idle the longest, if one is idle; else the listen socket is left alone until a
-// slot frees (the connections wait in the kernel's queue, which costs the daemon nothing).
+// The waiting connections while a slot is free, at most max_clients per wake-up: each costs an
+// accept, a credentials check and one read, so a wake-up's work stays bounded. With every slot
+// taken, one waiting connection per wake-up takes the slot of the client idle the longest, if one
+// is idle (never one accepted in this wake-up, which had no time to send); else the listen socket
+// is left alone until a slot frees (the connections wait in the kernel's queue, which costs the
+// daemon nothing). A peer refused ends the wake-up's accepting: a refusal looks up a user name.
 void ControlServer::on_listen() {
-  std::optional<Id> room;
-  if (clients_.size() >= settings_.limits.max_clients) {
-    room = idle_longest();
-    if (!room) return listen_for_more(false);
+  for (std::size_t accepted = 0; accepted < std::max<std::size_t>(settings_.limits.max_clients, 1); ++accepted) {
+    std::optional<Id> room;
+    if (clients_.size() >= settings_.limits.max_clients) {
+      if (accepted > 0) return;  // still readable: the next wake-up
+      room = idle_longest();
+      if (!room) return listen_for_more(false);
+    }
+    const int fd = ::accept4(fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
+    if (fd < 0) return;  // EAGAIN: none waits; anything else: the next readable tries again
+    if (const Peer p = check_peer(fd); !p.why.empty()) return refuse(fd, p);
+    if (room) evict(*room);
+    const Id id = next_id_++;
+    Client& c = clients_[id];
+    c.fd = fd;
+    c.last_request = loop_.now();
+    c.watch = loop_.watch(fd, ev::kReadable, [this, id](std::uint32_t e) { on_client(id, e); });
+    // A request sent with the connect (as `oegw status` does) is read at once: a client with a
+    // request in hand is never the one closed to make room.
+    if (!read_some(c)) close_client(id, false);
+    else settle(id, c);
   }
-  const int fd = ::accept4(fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
-  if (fd < 0) return;  // EAGAIN: it went away; anything else: the next readable tries again
-  if (const Peer p = check_peer(fd); !p.why.empty()) return refuse(fd, p);
-  if (room) evict(*room);
-  const Id id = next_id_++;
-  Client& c = clients_[id];
-  c.fd = fd;
-  c.last_request = loop_.now();
-  c.watch = loop_.watch(fd, ev::kReadable, [this, id](std::uint32_t e) { on_client(id, e); });
-  // A request sent with the connect (as `oegw status` does) is read at once: a client with a
-  // request in hand is never the one closed to make room.
-  if (!read_some(c)) return close_client(id, false);
-  settle(id, c);
 }
 
 void ControlServer::listen_for_more(bool on) {

@@ -23,12 +23,12 @@
 //    and its answers not taken stay below max_unsent: what it sends beyond stays in the kernel's
 //    socket buffer. A request line longer than max_request gets an error answer, then the
 //    connection is closed. At most max_clients connections are served; more wait in the listen
-//    queue (the kernel's, SOMAXCONN deep; one is accepted per wake-up) until a slot frees, and
-//    while one waits, a client that holds a slot without a request in progress (the one idle the
-//    longest) is closed to make room: a slow client cannot keep `oegw status` out. Deadlines:
-//    idle_timeout from the last complete request (or the connect; bytes that complete none do not
-//    count), write_timeout for the oldest answer the client has not taken. Reads and writes never
-//    block.
+//    queue (the kernel's, SOMAXCONN deep; at most max_clients are accepted per wake-up) until a
+//    slot frees, and while one waits, a client that holds a slot without a request in progress
+//    (the one idle the longest) is closed to make room: a slow client cannot keep `oegw status`
+//    out. Deadlines: idle_timeout from the last complete request (or the connect; bytes that
+//    complete none do not count), write_timeout for the oldest answer the client has not taken.
+//    Reads and writes never block.
 #pragma once
 
 #include <sys/types.h>

@@ -2,6 +2,11 @@
 
 #include <spdlog/spdlog.h>
 
+#include <time.h>
+
+#include <algorithm>
+#include <chrono>
+
 #include "gateway/control/status_report.hpp"
 
 namespace oegw::gateway::control {
@@ -10,6 +15,16 @@ GatewayControl::GatewayControl(canopen::io::EventLoop& loop, Gateway& gw, const 
                                const std::string& file, std::function<void()> rearm,
                                const canopen::io::CanTransport* up, const canopen::io::CanTransport* down)
     : gw_(&gw), config_(&config) {
+  if (loop.simulated()) {
+    cost_clock_ = [&loop] { return loop.now(); };
+  } else {
+    cost_clock_ = [] {
+      timespec t{};
+      ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+      return canopen::TimePoint(std::chrono::duration_cast<canopen::Duration>(std::chrono::seconds(t.tv_sec) +
+                                                                              std::chrono::nanoseconds(t.tv_nsec)));
+    };
+  }
   const canopen::TimePoint started = loop.now();
   protocol_.add("status", [this, &loop, started, up, down](const nlohmann::json&) {
     StatusContext at{loop.now(), started};
@@ -37,16 +52,21 @@ GatewayControl::GatewayControl(canopen::io::EventLoop& loop, Gateway& gw, const 
 
 void GatewayControl::answer(std::string_view line, canopen::TimePoint now, ControlServer::Reply reply) {
   gw_->control_request(line, now);  // the black box notes it (gateway/gateway_tap.hpp)
-  if (last_status_ && last_status_->request == line && now - last_status_->at < kStatusReuse)
+  if (last_status_ && last_status_->request == line && now - last_status_->at < last_status_->reuse)
     return reply(last_status_->line);
   status_rendering_ = false;
+  const canopen::TimePoint began = cost_clock_();
   protocol_.answer(line, [this, reply = std::move(reply), request = std::string(line), now](std::string answer) {
     // Only a status answer given while its command runs is kept: an async command's later
-    // answer finds the flag down.
+    // answer finds the flag down, and ends the reuse as it is given: what the command did
+    // shows in the next status.
     if (status_rendering_) last_status_ = StatusAnswer{request, now, answer};
+    else last_status_.reset();
     reply(std::move(answer));
   });
   if (!status_rendering_) last_status_.reset();  // any other request may change what status shows
+  else if (last_status_)
+    last_status_->reuse = std::clamp(kStatusReuseCost * (cost_clock_() - began), kStatusReuse, kStatusReuseMost);
   status_rendering_ = false;
 }
 

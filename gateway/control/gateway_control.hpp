@@ -51,28 +51,41 @@ class GatewayControl {
   }
 
   // How long a `status` answer is given again, unchanged, to the same request line: many
-  // clients asking at once (a monitoring script per process, 200 `oegw status` in a loop) cost
+  // clients asking at once (a monitoring script per process, 200 `oegw status` in a loop) share
   // one render, which is milliseconds on a slow controller for a full cab
-  // (docs/reference/limits.md#the-control-socket). Any other request ends the reuse at once: a
-  // status after an `oegw ctl` command shows what the command did.
+  // (docs/reference/limits.md#the-control-socket). For kStatusReuse, or for kStatusReuseCost
+  // times the CPU time the render itself took if that is longer (at most kStatusReuseMost): however
+  // many ask with the same line, their renders take at most a twentieth of the loop's time, on a
+  // fast machine or a slow one. Any other request, or an `oegw ctl` command's later answer, ends
+  // the reuse at once: a status after it shows what it did.
   static constexpr canopen::Duration kStatusReuse = std::chrono::milliseconds(20);
+  static constexpr int kStatusReuseCost = 20;
+  static constexpr canopen::Duration kStatusReuseMost = std::chrono::seconds(1);
+  // What a render's cost is measured on: the loop thread's CPU time (the loop's now() is its
+  // wake-up's instant, which does not move during a render; time preempted is no cost of the
+  // render); on a simulated loop its clock, so that a render takes no time. A test gives its own.
+  using CostClock = std::function<canopen::TimePoint()>;
+  void set_cost_clock(CostClock clock) { cost_clock_ = std::move(clock); }
   // The renders of `status` so far (the rest of its answers were reused).
   [[nodiscard]] std::uint64_t status_renders() const { return status_renders_; }
 
  private:
   // One request line from the socket: noted for the black box, then answered (a status asked
-  // again within kStatusReuse from the last answer).
+  // again while the last answer may be reused: above).
   void answer(std::string_view line, canopen::TimePoint now, ControlServer::Reply reply);
-  // The last `status` answer: its request line, when it was rendered, the answer line.
+  // The last `status` answer: its request line, when it was rendered, the answer line, and for
+  // how long it is given again.
   struct StatusAnswer {
     std::string request;
     canopen::TimePoint at{};
     std::string line;
+    canopen::Duration reuse = kStatusReuse;
   };
   [[nodiscard]] nlohmann::json control_status() const;  // the `control` object of `status`
   std::optional<StatusAnswer> last_status_;
   bool status_rendering_ = false;  // true only while the status command runs (synchronously)
   std::uint64_t status_renders_ = 0;
+  CostClock cost_clock_;
   std::vector<std::pair<std::string, std::function<nlohmann::json()>>> status_fields_;
   Gateway* gw_;
   const mapping::Config* config_;

@@ -208,10 +208,18 @@ TEST_F(StatusReport, PublishingTransportsUpOrDownWithTheReason) {
                                       {"down_ms", 7000},
                                       {"next_attempt_ms", 4000}}));
   EXPECT_NE(oegw::cli::status_table(r).find(
-                "\npublishing: dds up; lcm down: no route to 224.0.0.1 (Network is unreachable) (3 "
-                "failed attempts, next in 4.0 s)\n"),
+                "\npublishing: dds up; lcm down: no route to 224.0.0.1 (Network is unreachable) (3 failed attempts,\n"
+                "    next in 4.0 s)\n"),
             std::string::npos)
-      << oegw::cli::status_table(r);
+      << "wrapped at 100 columns, as every line of the table: " << oegw::cli::status_table(r);
+  // The reason as `oegw run` gives it (publish.lcm.url, the command that adds a route) is long.
+  r["publishing"] = gw::control::publishing_status(
+      {{"lcm", false,
+        "publish.lcm.url: \"udpm://224.0.0.1:7667?ttl=0\": no route to 224.0.0.1 (Network is unreachable) — add "
+        "one: ip route add 224.0.0.0/4 dev lo",
+        6, 30s, 7500ms}});
+  std::istringstream table(oegw::cli::status_table(r));
+  for (std::string l; std::getline(table, l);) EXPECT_LE(l.size(), 100u) << l;
 }
 
 // Refused commands per output FE (LCM, the host's SDO) and per sub-device (3000h): in the
@@ -292,7 +300,8 @@ TEST_F(StatusReport, ALostDeviceIsMissingWithItsLastEmcy) {
 // `status` over the daemon's socket (gateway/control/gateway_control.hpp): many clients asking
 // at once share one render (it costs milliseconds on a slow controller for a full cab, and 200
 // clients queued in front of an operator's `oegw status` would make it wait for all of theirs),
-// and the answer is never older than GatewayControl::kStatusReuse nor than another request.
+// and the answer is never older than the reuse window (GatewayControl::kStatusReuse, or 20 times
+// the render's own time) nor than another request.
 class StatusOverTheSocket : public StatusReport {
  protected:
   StatusOverTheSocket() {
@@ -372,7 +381,7 @@ TEST_F(StatusOverTheSocket, TheAnswerCountsTheSocketsClientsAnswersAndRenders) {
   std::vector<int> fds;
   for (int i = 0; i < 20; ++i) fds.push_back(ask(request));
   const auto first = answers(fds);
-  EXPECT_EQ(json::parse(first[0])["status"]["control"], (json{{"clients", 1},
+  EXPECT_EQ(json::parse(first[0])["status"]["control"], (json{{"clients", 8},
                                                               {"max_clients", 8},
                                                               {"handled", 1},
                                                               {"answered", 0},
@@ -380,7 +389,7 @@ TEST_F(StatusOverTheSocket, TheAnswerCountsTheSocketsClientsAnswersAndRenders) {
                                                               {"refused", 0},
                                                               {"dropped", 0},
                                                               {"evicted", 0}}))
-      << "rendered for the first of them";
+      << "rendered for the first of them, the 8 a slot was free for accepted in one wake-up";
   rig_->run_for(gw::control::GatewayControl::kStatusReuse);
   const int idle = ask("");  // holds a slot without asking
   const auto later = answers({ask(request)});
@@ -420,6 +429,57 @@ TEST_F(StatusOverTheSocket, AStatusAfterAnotherRequestOrOlderThanTheReuseIsRende
   // A different request line (the protocol field) is its own.
   (void)answers({ask("{\"protocol\": 1, \"command\": \"status\"}\n")});
   EXPECT_EQ(control_->status_renders(), 4u);
+}
+
+// A render that takes long (a slow controller) is shared for 20 times its own time, not only
+// for kStatusReuse, and for kStatusReuseMost at most: however many ask with the same line, their
+// renders take at most a twentieth of the loop.
+TEST_F(StatusOverTheSocket, ASlowRenderIsSharedForTwentyTimesItsOwnTime) {
+  TimePoint cost_now{};
+  Duration render_takes = 5ms;
+  control_->set_cost_clock([&cost_now] { return cost_now; });
+  control_->add_status_field("slow", [&cost_now, &render_takes] {
+    cost_now += render_takes;
+    return json(nullptr);
+  });
+  const std::string request = "{\"command\": \"status\"}\n";
+  (void)answers({ask(request)});
+  EXPECT_EQ(control_->status_renders(), 1u);
+  rig_->run_for(gw::control::GatewayControl::kStatusReuse);
+  (void)answers({ask(request)});
+  EXPECT_EQ(control_->status_renders(), 1u) << "a 5 ms render is given again for 100 ms";
+  rig_->run_for(79ms);
+  (void)answers({ask(request)});
+  EXPECT_EQ(control_->status_renders(), 1u) << "99 ms after it";
+  rig_->run_for(1ms);
+  render_takes = 200ms;  // 20 times that would be 4 s
+  (void)answers({ask(request)});
+  EXPECT_EQ(control_->status_renders(), 2u) << "100 ms after it: rendered afresh";
+  rig_->run_for(gw::control::GatewayControl::kStatusReuseMost - 1ms);
+  (void)answers({ask(request)});
+  EXPECT_EQ(control_->status_renders(), 2u);
+  rig_->run_for(1ms);
+  (void)answers({ask(request)});
+  EXPECT_EQ(control_->status_renders(), 3u) << "an answer is never given again after kStatusReuseMost";
+}
+
+// A command that answers later (an SDO transfer of `oegw ctl`) ends the reuse when it answers,
+// not only when it is asked: a status rendered while it ran shows the state before it.
+TEST_F(StatusOverTheSocket, ACommandAnsweringLaterEndsTheReuseWhenItAnswers) {
+  gw::control::ControlProtocol::Done later;
+  control_->add_command("later",
+                        [&later](const json&, gw::control::ControlProtocol::Done done) { later = std::move(done); });
+  const std::string request = "{\"command\": \"status\"}\n";
+  const int waiting = ask("{\"command\": \"later\"}\n");
+  for (int i = 0; i < 5 && !later; ++i) loop_.run_once(0ms);
+  ASSERT_TRUE(later) << "the command runs";
+  (void)answers({ask(request)});
+  EXPECT_EQ(control_->status_renders(), 1u);
+  later(json{{"done", true}});
+  const auto got = answers({waiting});
+  EXPECT_NE(got[0].find("\"done\":true"), std::string::npos) << got[0];
+  (void)answers({ask(request)});
+  EXPECT_EQ(control_->status_renders(), 2u) << "rendered afresh: the command has answered since";
 }
 
 }  // namespace

@@ -203,6 +203,28 @@ TEST_F(ControlServerTest, OneClientMoreThanTheBoundWaitsInTheListenQueueUntilASl
   for (const int fd : {b, c}) ::close(fd);
 }
 
+// Connections waiting at once are accepted in one wake-up while a slot is free, each with its
+// request read, not one per wake-up; the rest wait in the listen queue.
+TEST_F(ControlServerTest, ConnectionsWaitingAtOnceAreAcceptedInOneWakeUpWhileASlotIsFree) {
+  auto server = serve(ControlLimits{.max_clients = 4});
+  std::vector<int> fds;
+  for (int i = 0; i < 6; ++i) {
+    fds.push_back(connect_client());
+    send_text(fds.back(), "q" + std::to_string(i) + "\n");
+  }
+  loop_.run_once(0ms);
+  EXPECT_EQ(server->clients(), 4u) << "the four a slot was free for, in one wake-up";
+  serve_io(10);
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(received(fds[i]), "answer to q" + std::to_string(i) + "\n");
+  EXPECT_EQ(received(fds[4]), "") << "waits in the listen queue: every slot holds a client that asked just now";
+  for (int i = 0; i < 4; ++i) ::close(fds[i]);
+  serve_io(10);
+  EXPECT_EQ(received(fds[4]), "answer to q4\n");
+  EXPECT_EQ(received(fds[5]), "answer to q5\n");
+  EXPECT_EQ(server->evicted(), 0u);
+  for (int i = 4; i < 6; ++i) ::close(fds[i]);
+}
+
 TEST_F(ControlServerTest, AClientThatDoesNotReadIsDroppedWithoutBlockingTheLoop) {
   answer_ = [](std::string_view) { return std::string(4 * 1024 * 1024, 'x'); };  // more than socket buffers hold
   auto server = serve(ControlLimits{.write_timeout = 2s});
@@ -426,6 +448,26 @@ TEST_F(ControlServerTest, AWaitingClientTakesTheSlotOfAnIdleOne) {
   ::close(status);
   serve_io();
   EXPECT_EQ(server->clients(), 0u);
+}
+
+// With every slot taken, one waiting connection per wake-up takes an idle client's slot: a
+// wake-up's accepting never closes a client it accepted itself.
+TEST_F(ControlServerTest, OneIdleClientIsClosedPerWakeUpToMakeRoom) {
+  auto server = serve(ControlLimits{.max_clients = 2});
+  const int idle1 = connect_client(), idle2 = connect_client();  // they never ask
+  serve_io();
+  EXPECT_EQ(server->clients(), 2u);
+  const int a = connect_client(), b = connect_client();
+  send_text(a, "a\n");
+  send_text(b, "b\n");
+  loop_.run_once(0ms);
+  EXPECT_EQ(server->evicted(), 1u) << "one per wake-up";
+  loop_.run_once(0ms);
+  EXPECT_EQ(server->evicted(), 2u);
+  serve_io();
+  EXPECT_EQ(received(a), "answer to a\n");
+  EXPECT_EQ(received(b), "answer to b\n");
+  for (const int fd : {idle1, idle2, a, b}) ::close(fd);
 }
 
 TEST_F(ControlServerTest, AClientThatAskedKeepsItsSlotForEvictAfter) {
