@@ -5,8 +5,8 @@
 #include <time.h>
 
 #include <algorithm>
-#include <chrono>
 
+#include "canopen/io/clock.hpp"
 #include "gateway/control/status_report.hpp"
 
 namespace oegw::gateway::control {
@@ -21,8 +21,7 @@ GatewayControl::GatewayControl(canopen::io::EventLoop& loop, Gateway& gw, const 
     cost_clock_ = [] {
       timespec t{};
       ::clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
-      return canopen::TimePoint(std::chrono::duration_cast<canopen::Duration>(std::chrono::seconds(t.tv_sec) +
-                                                                              std::chrono::nanoseconds(t.tv_nsec)));
+      return canopen::io::time_point_from_monotonic(t.tv_sec, t.tv_nsec);
     };
   }
   const canopen::TimePoint started = loop.now();
@@ -56,17 +55,18 @@ void GatewayControl::answer(std::string_view line, canopen::TimePoint now, Contr
     return reply(last_status_->line);
   status_rendering_ = false;
   const canopen::TimePoint began = cost_clock_();
-  protocol_.answer(line, [this, reply = std::move(reply), request = std::string(line), now](std::string answer) {
-    // Only a status answer given while its command runs is kept: an async command's later
-    // answer finds the flag down, and ends the reuse as it is given: what the command did
-    // shows in the next status.
-    if (status_rendering_) last_status_ = StatusAnswer{request, now, answer};
+  protocol_.answer(line, [this, reply = std::move(reply), request = std::string(line), now, began](std::string answer) {
+    // Only a status answer given while its command runs is kept, with its render's cost (the
+    // answer line included): an async command's later answer finds the flag down, and ends the
+    // reuse as it is given: what the command did shows in the next status.
+    if (status_rendering_)
+      last_status_ =
+          StatusAnswer{request, now, answer,
+                       std::clamp(kStatusReuseCost * (cost_clock_() - began), kStatusReuse, kStatusReuseMost)};
     else last_status_.reset();
     reply(std::move(answer));
   });
   if (!status_rendering_) last_status_.reset();  // any other request may change what status shows
-  else if (last_status_)
-    last_status_->reuse = std::clamp(kStatusReuseCost * (cost_clock_() - began), kStatusReuse, kStatusReuseMost);
   status_rendering_ = false;
 }
 
