@@ -441,7 +441,10 @@ void ControlServer::settle(Id id, Client& c) {
   }
   // Read while there is room for a request (again once half of it is free: one recv per
   // request of a pipelining client would cost a wake-up each) and the answers are taken.
-  const std::size_t room_from = (c.events & ev::kReadable) != 0 ? lim.max_request + 1 : lim.max_request / 2 + 1;
+  // A line still partial is read on at once, whatever its length: only more bytes complete it
+  // or show it too long.
+  const std::size_t room_from =
+      (c.events & ev::kReadable) != 0 || f == Front::Partial ? lim.max_request + 1 : lim.max_request / 2 + 1;
   const bool read = !c.eof && !c.closing && c.in.size() < room_from && c.out.size() < lim.max_unsent;
   const std::uint32_t want = (read ? ev::kReadable : 0u) | (c.out.empty() ? 0u : ev::kWritable);
   if (want != c.events) {

@@ -184,6 +184,22 @@ TEST_F(ControlServerTest, ARequestLongerThanTheBoundIsAnsweredWithAnErrorAndClos
   ::close(fd);
 }
 
+// Short requests, then a line longer than the bound, sent at once: the first read ends inside the
+// long line, and once the short ones are handled what is left of it (more than half the bound) is
+// still read, found too long, answered and the connection closed, not left waiting for the idle
+// time-out.
+TEST_F(ControlServerTest, ALongLineAfterShortOnesIsStillReadAndFoundTooLong) {
+  auto server = serve();
+  const int fd = connect_client();
+  send_text(fd, "a\nb\n" + std::string(5000, 'x') + "\n");
+  serve_io(20);
+  const std::string got = received(fd);
+  EXPECT_EQ(got.rfind("answer to a\nanswer to b\n", 0), 0u) << got;
+  EXPECT_NE(got.find("\"code\":\"request_too_long\""), std::string::npos) << got;
+  EXPECT_EQ(server->clients(), 0u) << "closed (the client sees ECONNRESET: bytes it sent were left unread)";
+  ::close(fd);
+}
+
 TEST_F(ControlServerTest, OneClientMoreThanTheBoundWaitsInTheListenQueueUntilASlotFrees) {
   auto server = serve(ControlLimits{.max_clients = 2});
   const int a = connect_client(), b = connect_client();
