@@ -15,6 +15,7 @@
 
 #include "canopen/306/eds_reader.hpp"
 #include "canopen/306/eds_writer.hpp"
+#include "canopen/io/background_work.hpp"
 #include "canopen/io/can_bitrate.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/socketcan_transport.hpp"
@@ -229,6 +230,20 @@ void print_control(const mapping::ControlConfig& c) {
               made.c_str(), who.c_str());
 }
 
+// What a SIGHUP reload reads and checks beside the buses (a thread of its own, BackgroundWork):
+// the file as `oegw run` takes it, and the drivers it names built once (reload_driver_refusals).
+// What it is checked against, the running file, is the loop's: compared there (reload()).
+struct ReloadRead {
+  mapping::LoadResult read;
+  std::vector<mapping::Diagnostic> driver_errors;
+};
+
+ReloadRead read_for_reload(const std::string& file) {
+  ReloadRead out{read_file(file, Use::Here).loaded, {}};
+  if (out.read.ok()) out.driver_errors = reload_driver_refusals(*out.read.config);
+  return out;
+}
+
 // What SIGHUP replaces or re-attaches in `oegw run`
 // (docs/guides/install.md#reloading-the-mapping-file).
 struct Running {
@@ -243,6 +258,9 @@ struct Running {
   ServiceNotify& notify;
   EventLoop& loop;
   int& exit_status;  // set when a reload fails after the hand-over (below)
+  BackgroundWork<ReloadRead>& reading;
+  const ServeHooks& hooks;
+  bool again = false;  // a SIGHUP came while the file was being read: read it again after
 };
 
 // What systemd's STATUS= says of `oegw run`: the gateway's states and each publishing transport
@@ -253,18 +271,50 @@ ServiceState running_state(Gateway& gw, const GatewayPublishing& publishing) {
   return state;
 }
 
+bool apply_reload(Running& r, ReloadRead read, TimePoint now);
+
 // SIGHUP: the file read and checked as at a start (`oegw check`'s errors, the cab settings
 // included) and against the running one (gateway/reload.hpp reload_refusals); every error
 // logged, nothing changed. Else the gateway replaced around the same upstream device
 // (reload_gateway), the control socket and publishing re-attached. systemd is told RELOADING=1
 // first and READY=1 at the end, whatever the outcome: the gateway runs either way.
-void reload(Running& r, TimePoint now) {
-  r.notify.reloading(now);
+// The reading and checking (the file, its EDS files, the drivers built once: tens of
+// milliseconds for 48 sub-devices on a PC, far more on a slow controller or a slow file system)
+// runs beside the buses, which are served meanwhile; only the comparison with the running file
+// and the hand-over run on the loop. A SIGHUP while the file is being read reads it once more
+// after that reload.
+void reload(Running& r) {
+  if (r.reading.busy()) {
+    r.again = true;
+    spdlog::info("{}: SIGHUP while the file is read for a reload: it is read again after that one", r.file);
+    return;
+  }
+  r.notify.reloading(r.loop.now());
   spdlog::info("{}: reloading (SIGHUP)", r.file);
-  mapping::LoadResult read = read_file(r.file, Use::Here).loaded;
-  std::vector<mapping::Diagnostic> errors = std::move(read.errors);
-  if (read.ok()) errors = reload_refusals(r.config, *read.config);
-  if (read.ok() && errors.empty()) errors = reload_driver_refusals(*read.config);
+  r.reading.start(
+      r.loop,
+      [file = std::string(r.file), hook = r.hooks.reload_reading] {
+        if (hook) hook();
+        return read_for_reload(file);
+      },
+      [&r](std::optional<ReloadRead> read, const std::string& failure) {
+        if (!read) {  // the reading itself failed (out of memory): as a file refused
+          read.emplace();
+          read->read.errors.push_back({{r.file, 1, 1}, "cannot be read for the reload: " + failure});
+        }
+        const bool applied = apply_reload(r, std::move(*read), r.loop.now());
+        if (r.hooks.reload_done) r.hooks.reload_done(applied);
+        if (!r.again || r.exit_status != 0) return;
+        r.again = false;
+        reload(r);
+      });
+}
+
+// False if the file was refused (or the daemon stops: the hand-over failed).
+bool apply_reload(Running& r, ReloadRead read, TimePoint now) {
+  std::vector<mapping::Diagnostic> errors = std::move(read.read.errors);
+  if (read.read.ok()) errors = reload_refusals(r.config, *read.read.config);
+  if (read.read.ok() && errors.empty()) errors = std::move(read.driver_errors);
   if (!errors.empty()) {
     for (const auto& e : errors) spdlog::error("{}", e.str());
     const std::string note =
@@ -272,7 +322,7 @@ void reload(Running& r, TimePoint now) {
     spdlog::error("{}: reload refused, {} error{}; the gateway runs on as before", r.file, errors.size(),
                   errors.size() == 1 ? "" : "s");
     r.notify.reloaded(note, running_state(*r.gw, r.publishing));
-    return;
+    return false;
   }
   if (r.control != nullptr) r.control->detach();
   r.publishing.detach();
@@ -280,7 +330,7 @@ void reload(Running& r, TimePoint now) {
   try {
     GatewayOptions options;
     options.tap = r.recording.tap();
-    r.gw = reload_gateway(std::move(r.gw), *read.config, r.downstream, options, now);
+    r.gw = reload_gateway(std::move(r.gw), *read.read.config, r.downstream, options, now);
   } catch (const std::exception& e) {
     // After the hand-over the old gateway is gone: a gateway that cannot be built now (checked
     // just before: only a file changing in between gets here) stops the daemon with a reason,
@@ -289,14 +339,15 @@ void reload(Running& r, TimePoint now) {
     r.exit_status = exit_code::kCannotStart;
     r.notify.stopping();
     r.loop.stop();
-    return;
+    return false;
   }
-  r.config = std::move(*read.config);
+  r.config = std::move(*read.read.config);
   if (r.control != nullptr) r.control->attach(*r.gw, r.config);
   r.publishing.attach(*r.gw);
   r.driver.rearm();
   spdlog::info("{}: reloaded: {} sub-devices on {}", r.file, r.config.subdevices.size(), r.config.downstream.interface);
   r.notify.reloaded("", running_state(*r.gw, r.publishing));
+  return true;
 }
 
 // `oegw check`: what `oegw run` will record (mapping file `record`, docs/guides/black-box.md).
@@ -517,11 +568,12 @@ std::unique_ptr<Gateway> logging_gateway(const mapping::Config& cfg, CanTranspor
 // the order run() takes them. Members in the order they are made, so they go in reverse.
 class Daemon {
  public:
-  Daemon(const std::string& f, mapping::Config& config, EventLoop& l, const GatewayBuses& b)
+  Daemon(const std::string& f, mapping::Config& config, EventLoop& l, const GatewayBuses& b, const ServeHooks& h)
       : file(f),
         cfg(&config),
         loop(l),
         buses(b),
+        hooks(h),
         up(&b.up),
         down(&b.down),
         unhook{up, down},
@@ -655,10 +707,10 @@ class Daemon {
 
   void handle_signals() {
     running.emplace(Running{file, *cfg, gw, down->sink(), *publishing, control.get(), recording, driver, *notify, loop,
-                            exit_status});
+                            exit_status, reading, hooks});
     // SIGUSR1 keeps the recording's window (docs/guides/black-box.md).
     loop.handle_signals({SIGINT, SIGTERM, SIGHUP, SIGUSR1}, [this](int sig) {
-      if (sig == SIGHUP) return reload(*running, loop.now());
+      if (sig == SIGHUP) return reload(*running);
       if (sig == SIGUSR1) return recording.keep_logged("SIGUSR1");
       spdlog::info("signal {}: stopping", sig);
       notify->stopping();
@@ -685,6 +737,7 @@ class Daemon {
   mapping::Config* const cfg;
   EventLoop& loop;
   const GatewayBuses& buses;
+  const ServeHooks& hooks;
   CanTransport* const up;
   CanTransport* const down;
   Unhook unhook;
@@ -700,7 +753,9 @@ class Daemon {
   std::optional<ServiceNotify> notify;
   std::unique_ptr<control::GatewayControl> control;
   int exit_status = 0;
+  // Destroyed before `running`, which its outcome would reach: a read still running is dropped.
   std::optional<Running> running;
+  BackgroundWork<ReloadRead> reading;
 };
 
 }  // namespace
@@ -788,8 +843,9 @@ int run_gateway(const std::string& file) {
   return serve_gateway(file, *cfg, loop, buses);
 }
 
-int serve_gateway(const std::string& file, mapping::Config& config, EventLoop& loop, const GatewayBuses& buses) {
-  Daemon daemon(file, config, loop, buses);
+int serve_gateway(const std::string& file, mapping::Config& config, EventLoop& loop, const GatewayBuses& buses,
+                  const ServeHooks& hooks) {
+  Daemon daemon(file, config, loop, buses, hooks);
   return daemon.run();
 }
 

@@ -1,26 +1,10 @@
 #include "gateway/publisher_link.hpp"
 
-#include <sys/eventfd.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <mutex>
 
 #include "publish/publish_errors.hpp"
 
 namespace oegw::gateway {
-
-// What an attempt's thread hands back. Shared: a link destroyed while its thread still opens
-// (liblcm's self-test) leaves this to the thread, which then drops what it opened.
-struct PublisherLink::Attempt {
-  std::mutex m;
-  std::unique_ptr<Publisher> opened;
-  std::string failure;
-  int event_fd = -1;  // written once the outcome is there
-  ~Attempt() {
-    if (event_fd >= 0) ::close(event_fd);
-  }
-};
 
 PublisherLink::PublisherLink(std::string name, Factory factory)
     : name_(std::move(name)), factory_(std::move(factory)) {}
@@ -28,12 +12,10 @@ PublisherLink::PublisherLink(std::string name, Factory factory)
 PublisherLink::~PublisherLink() {
   if (loop_ != nullptr) {
     if (transport_watch_ != 0) loop_->unwatch(transport_watch_);
-    if (attempt_watch_ != 0) loop_->unwatch(attempt_watch_);
     if (retry_timer_ != 0) loop_->cancel(retry_timer_);
   }
   // An attempt still opening is not waited for (it may take liblcm's 10 s): its thread ends on
-  // its own and drops what it opened.
-  if (thread_.joinable()) thread_.detach();
+  // its own and drops what it opened (BackgroundWork).
 }
 
 canopen::Duration PublisherLink::backoff(std::uint32_t failures) {
@@ -77,43 +59,11 @@ void PublisherLink::attempt() {
     }
     return outcome(std::move(opened), failure);
   }
-  auto a = std::make_shared<Attempt>();
-  a->event_fd = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
-  if (a->event_fd < 0) return outcome(nullptr, "cannot start an attempt (eventfd)");
-  attempt_ = a;
-  attempt_watch_ =
-      loop_->watch(a->event_fd, canopen::io::events::kReadable, [this](std::uint32_t) { take_thread_outcome(); });
-  thread_ = std::thread([a, factory = factory_] {
-    std::unique_ptr<Publisher> opened;
-    std::string failure;
-    try {
-      opened = factory();
-    } catch (const std::exception& e) {
-      failure = e.what();
-    } catch (...) {
-      failure = "unknown error";
-    }
-    std::lock_guard lock(a->m);
-    a->opened = std::move(opened);
-    a->failure = failure.empty() && !a->opened ? "no transport" : failure;
-    const std::uint64_t one = 1;
-    [[maybe_unused]] auto n = ::write(a->event_fd, &one, sizeof one);
-  });
-}
-
-void PublisherLink::take_thread_outcome() {
-  loop_->unwatch(attempt_watch_);
-  attempt_watch_ = 0;
-  thread_.join();  // it has handed its outcome over: it ends now
-  std::unique_ptr<Publisher> opened;
-  std::string failure;
-  {
-    std::lock_guard lock(attempt_->m);
-    opened = std::move(attempt_->opened);
-    failure = attempt_->failure;
-  }
-  attempt_.reset();
-  outcome(std::move(opened), failure);
+  attempt_.start(*loop_, factory_,
+                 [this](std::optional<std::unique_ptr<Publisher>> opened, const std::string& failure) {
+                   std::unique_ptr<Publisher> p = opened ? std::move(*opened) : nullptr;
+                   outcome(std::move(p), failure.empty() && !p ? "no transport" : failure);
+                 });
 }
 
 void PublisherLink::outcome(std::unique_ptr<Publisher> opened, const std::string& failure) {

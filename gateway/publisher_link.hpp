@@ -7,7 +7,7 @@
 // Reported: up(), reason(), and on_log once when it goes down and once when it comes back.
 //
 // When the loop runs, each attempt runs in a thread of its own and its outcome is taken on the
-// loop (an eventfd): opening can block (liblcm's self-test waits up to 10 s for its own message
+// loop (canopen/io/background_work.hpp): opening can block (liblcm's self-test waits up to 10 s for its own message
 // when a firewall drops it; Cyclone DDS creates its domain), and a retry must never hold a bus
 // frame back (docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses). The
 // thread has the loop thread's signal mask (the signals the loop takes stay blocked in it and in
@@ -20,8 +20,8 @@
 #include <memory>
 #include <optional>
 #include <string>
-#include <thread>
 
+#include "canopen/io/background_work.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "gateway/fe_samples.hpp"
 
@@ -57,7 +57,7 @@ class PublisherLink final : public ForwardingPublisher<PublisherLink> {
   [[nodiscard]] std::uint32_t failures() const { return failures_; }       // attempts failed since it was up
   [[nodiscard]] canopen::TimePoint down_since() const { return down_since_; }
   [[nodiscard]] std::optional<canopen::TimePoint> next_attempt() const { return next_attempt_; }
-  [[nodiscard]] bool attempting() const { return attempt_ != nullptr; }  // one runs in its thread
+  [[nodiscard]] bool attempting() const { return attempt_.busy(); }  // one runs in its thread
   // The wait before the next attempt after `failures` failed ones: 1 s, 2, 4, 8, then 10 s.
   [[nodiscard]] static canopen::Duration backoff(std::uint32_t failures);
 
@@ -65,7 +65,6 @@ class PublisherLink final : public ForwardingPublisher<PublisherLink> {
 
  private:
   friend class ForwardingPublisher<PublisherLink>;
-  struct Attempt;  // shared with the thread of an attempt
   // Every sample: to the transport while it is up; dropped while it is down.
   template <class S>
   void forward(const S& s) {
@@ -73,7 +72,6 @@ class PublisherLink final : public ForwardingPublisher<PublisherLink> {
   }
   void attempt();  // at next_attempt_
   void outcome(std::unique_ptr<Publisher> opened, const std::string& failure);
-  void take_thread_outcome();
   void became_up(std::unique_ptr<Publisher> opened);
 
   std::string name_;
@@ -88,9 +86,7 @@ class PublisherLink final : public ForwardingPublisher<PublisherLink> {
   std::function<void()> after_poll_, on_up_;
   canopen::io::EventLoop::WatchId transport_watch_ = 0;
   canopen::io::EventLoop::TimerId retry_timer_ = 0;
-  std::shared_ptr<Attempt> attempt_;
-  canopen::io::EventLoop::WatchId attempt_watch_ = 0;
-  std::thread thread_;
+  canopen::io::BackgroundWork<std::unique_ptr<Publisher>> attempt_;  // the attempt in its thread
 };
 
 }  // namespace oegw::gateway

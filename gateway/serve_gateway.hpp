@@ -27,12 +27,20 @@ struct GatewayBuses {
   std::function<void()> watching;
 };
 
+// What a test may do within serve_gateway (tests/integration/serve_gateway_test.cpp).
+struct ServeHooks {
+  // Called in the thread that reads the file for a SIGHUP reload, before it reads.
+  std::function<void()> reload_reading;
+  // Called on the loop once a reload's outcome is known: true if the file was applied.
+  std::function<void(bool applied)> reload_done;
+};
+
 // The gateway of `config` (read from `file`, which names it in the log and which SIGHUP reloads)
 // on `buses`, with the black box, publishing, the control socket and systemd's notifications as
 // `config` sets them, on `loop` (a real-time loop of the calling thread) until SIGINT or SIGTERM;
 // SIGUSR1 keeps the recording. Returns the exit status (exit_code in gateway/programs.hpp). The
 // buses' receivers and event handlers are cleared on return.
 int serve_gateway(const std::string& file, mapping::Config& config, canopen::io::EventLoop& loop,
-                  const GatewayBuses& buses);
+                  const GatewayBuses& buses, const ServeHooks& hooks = {});
 
 }  // namespace oegw::gateway

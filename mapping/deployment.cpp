@@ -1,5 +1,6 @@
 #include "mapping/deployment.hpp"
 
+#include <errno.h>
 #include <grp.h>
 #include <sys/stat.h>
 
@@ -7,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "canopen/io/interface_name.hpp"
 #include "publish/lcm_url.hpp"
@@ -100,9 +102,23 @@ void check_record(const RecordConfig& r, std::vector<Diagnostic>& out) {
 // cannot make (it makes the last one only, mode 0755, as /run/oegw below /run); something at
 // the path that is no socket. A socket a running gateway serves is not refused here: `oegw
 // check` of the running daemon's own file must pass (run says it at start).
+// getgrnam_r, not getgrnam: a SIGHUP reload checks its file in a thread beside the event loop,
+// which looks groups up too (the control socket), and getgrnam's result lives in one buffer of the
+// process.
+bool group_exists(const std::string& name) {
+  std::vector<char> buf(1024);
+  for (;;) {
+    group g{};
+    group* found = nullptr;
+    const int e = ::getgrnam_r(name.c_str(), &g, buf.data(), buf.size(), &found);
+    if (e != ERANGE || buf.size() >= (std::size_t{1} << 20)) return e == 0 && found != nullptr;
+    buf.resize(buf.size() * 2);
+  }
+}
+
 void check_control(const ControlConfig& c, std::vector<Diagnostic>& out) {
   if (!c.enabled) return;
-  if (!c.group.empty() && ::getgrnam(c.group.c_str()) == nullptr)
+  if (!c.group.empty() && !group_exists(c.group))
     out.push_back(
         {at(c.group_where, c.where), "control.group: no group '" + c.group + "' on this machine (getent group " +
                                          c.group + "); create it (groupadd --system " + c.group +

@@ -17,16 +17,24 @@
 //    included).
 //  * BM_StatusReport/<variant>: one `oegw status` answer built and serialised, the event loop's
 //    work per status request between two bus frames; "bytes": the answer's size.
+//  * BM_ReloadRead/<variant> and BM_ReloadHandOver/<variant>: a SIGHUP reload's two parts
+//    (gateway/programs.cpp reload): what runs beside the buses in a thread of its own, and what
+//    runs in the event loop.
 // Figures only; nothing asserts on time.
 #include "tests/bench/bench_support.hpp"
 #include "tests/bench/gateway_rig.hpp"
 
 #include "gateway/control/status_report.hpp"
 #include "gateway/publishing.hpp"
+#include "gateway/reload.hpp"
+#include "mapping/deployment.hpp"
+
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <filesystem>
 #include <memory>
 #include <stdexcept>
 #include <vector>
@@ -178,5 +186,51 @@ void BM_StatusReport(benchmark::State& state) {
   state.counters["bytes"] = static_cast<double>(bytes);
 }
 BENCHMARK(BM_StatusReport)->Arg(0)->Arg(1)->ArgName("full_set")->Unit(benchmark::kMicrosecond);
+
+const char* variant_name(int variant) { return variant == 0 ? "one_grip.yaml" : "full_set.yaml"; }
+const std::string& variant_yaml(int variant) {
+  static const std::string grip = bench::yaml_one_grip();
+  static const std::string full = bench::yaml_full_set();
+  return variant == 0 ? grip : full;
+}
+
+// A reload's reading beside the buses: the file parsed and checked as `oegw run` takes it (the
+// loader's and the cab settings' checks; from memory here, no disk) and the drivers it names built
+// once (reload_driver_refusals).
+void BM_ReloadRead(benchmark::State& state) {
+  const int variant = static_cast<int>(state.range(0));
+  for (auto _ : state) {
+    auto r = mapping::load_config_text(variant_yaml(variant), variant_name(variant), gateway::driver_catalogue());
+    if (!r.ok()) throw std::runtime_error(r.error_text());
+    const auto errors = mapping::deployment_errors(*r.config);
+    const auto refused = gateway::reload_driver_refusals(*r.config);
+    benchmark::DoNotOptimize(errors.size() + refused.size());
+  }
+}
+BENCHMARK(BM_ReloadRead)->Arg(0)->Arg(1)->ArgName("full_set")->Unit(benchmark::kMillisecond);
+
+// A reload's part in the event loop: the new file compared with the running one (reload_refusals)
+// and the gateway handed over (reload_gateway: the old one's outputs at their error values, a new
+// one built around the same upstream device and resumed). Each iteration hands the last one over.
+void BM_ReloadHandOver(benchmark::State& state) {
+  const int variant = static_cast<int>(state.range(0));
+  const std::filesystem::path store =
+      std::filesystem::temp_directory_path() / ("oegw-bench-reload-" + std::to_string(::getpid()) + ".store");
+  mapping::Config cfg = bench::load_or_throw(variant_yaml(variant), variant_name(variant));
+  cfg.upstream.store = store.string();
+  const mapping::Config next = cfg;
+  const canopen::FrameSink nowhere = [](const canopen::CanFrame&) {};
+  auto gw = std::make_unique<gateway::Gateway>(cfg, nowhere, nowhere);
+  canopen::TimePoint now{};
+  (void)gw->start(now);
+  for (auto _ : state) {
+    now += std::chrono::milliseconds(100);
+    if (!gateway::reload_refusals(cfg, next).empty()) throw std::runtime_error("the same file refused");
+    gw = gateway::reload_gateway(std::move(gw), next, nowhere, {}, now);
+  }
+  gw.reset();
+  std::filesystem::remove(store);
+}
+BENCHMARK(BM_ReloadHandOver)->Arg(0)->Arg(1)->ArgName("full_set")->Unit(benchmark::kMillisecond);
 
 }  // namespace

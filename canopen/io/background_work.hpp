@@ -1,0 +1,140 @@
+// Work beside the buses that may take long or block (reading and checking a file, opening a
+// transport) run in a thread of its own, its result taken on the event loop through an eventfd,
+// so that the loop serves its buses meanwhile
+// (docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses).
+//
+//   BackgroundWork<Parsed> parsing;
+//   parsing.start(loop, [path] { return parse(path); },                      // in its thread
+//                 [](std::optional<Parsed> p, const std::string& failure) {  // on the loop
+//                   ...
+//                 });
+//
+// One piece of work at a time. The thread is started with the caller's signal mask: the signals
+// a loop takes (EventLoop::handle_signals, which blocks them) stay blocked in it. Destroying the
+// object while the work runs does not wait for it: the thread ends on its own and drops its
+// result. Where no thread or eventfd can be had (the process at its limits), the work runs on the
+// loop instead, as a posted callback: slower for the buses, never lost.
+#pragma once
+
+#include <sys/eventfd.h>
+#include <unistd.h>
+
+#include <exception>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <system_error>
+#include <thread>
+#include <utility>
+
+#include "canopen/io/event_loop.hpp"
+
+namespace oegw::canopen::io {
+
+template <class Result>
+class BackgroundWork {
+ public:
+  using Work = std::function<Result()>;
+  // The result, or nullopt with what the work threw (its what(), or "unknown error").
+  using Done = std::function<void(std::optional<Result> result, const std::string& failure)>;
+
+  BackgroundWork() = default;
+  BackgroundWork(const BackgroundWork&) = delete;
+  BackgroundWork& operator=(const BackgroundWork&) = delete;
+  ~BackgroundWork() {
+    if (watch_ != 0) loop_->unwatch(watch_);
+    if (thread_.joinable()) thread_.detach();
+  }
+
+  [[nodiscard]] bool busy() const { return shared_ != nullptr; }
+
+  // Starts `work`; `done` runs on `loop` with its outcome (`done` may start the next work).
+  // False, and nothing started, while an earlier work has not been done.
+  bool start(EventLoop& loop, Work work, Done done) {
+    if (busy()) return false;
+    loop_ = &loop;
+    done_ = std::move(done);
+    shared_ = std::make_shared<Shared>();
+    shared_->work = std::move(work);
+    shared_->event_fd = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+    if (shared_->event_fd >= 0) {
+      try {
+        watch_ = loop.watch(shared_->event_fd, events::kReadable, [this](std::uint32_t) { take(); });
+        thread_ = std::thread([s = shared_] {
+          run(*s);
+          const std::uint64_t one = 1;
+          [[maybe_unused]] const auto n = ::write(s->event_fd, &one, sizeof one);
+        });
+        return true;
+      } catch (const std::system_error&) {  // no thread (or no watch): on the loop below
+        if (watch_ != 0) loop.unwatch(watch_);
+        watch_ = 0;
+      }
+    }
+    loop.post([this, w = std::weak_ptr<Shared>(shared_)] {
+      const auto s = w.lock();
+      if (!s) return;  // this object was destroyed meanwhile: nobody waits for the outcome
+      run(*s);
+      take();
+    });
+    return true;
+  }
+
+ private:
+  struct Shared {
+    Work work;
+    std::mutex m;
+    std::optional<Result> result;
+    std::string failure;
+    int event_fd = -1;
+    Shared() = default;
+    Shared(const Shared&) = delete;
+    Shared& operator=(const Shared&) = delete;
+    ~Shared() {
+      if (event_fd >= 0) ::close(event_fd);
+    }
+  };
+
+  static void run(Shared& s) {
+    std::optional<Result> r;
+    std::string failure;
+    try {
+      r.emplace(s.work());
+    } catch (const std::exception& e) {
+      failure = e.what();
+    } catch (...) {
+      failure = "unknown error";
+    }
+    const std::lock_guard lock(s.m);
+    s.result = std::move(r);
+    s.failure = std::move(failure);
+  }
+
+  // On the loop: the work is over (its thread has handed its outcome over and ends now).
+  void take() {
+    if (watch_ != 0) loop_->unwatch(watch_);
+    watch_ = 0;
+    if (thread_.joinable()) thread_.join();
+    std::optional<Result> r;
+    std::string failure;
+    {
+      const std::lock_guard lock(shared_->m);
+      r = std::move(shared_->result);
+      failure = std::move(shared_->failure);
+    }
+    shared_.reset();
+    Done done = std::move(done_);
+    done_ = nullptr;
+    done(std::move(r), failure);
+  }
+
+  EventLoop* loop_ = nullptr;
+  Done done_;
+  std::shared_ptr<Shared> shared_;
+  EventLoop::WatchId watch_ = 0;
+  std::thread thread_;
+};
+
+}  // namespace oegw::canopen::io
