@@ -225,10 +225,9 @@ void ControlServer::refuse(int fd, const Peer& p) {
   ::close(fd);
   ++refused_;
   const std::uint64_t n = ++refused_by_uid_[p.uid];
-  const auto& out = settings_.warn ? settings_.warn : settings_.log;
-  if (out && (n == 1 || n % 100 == 0))
-    out("control: refused " + who + ": " + p.why +
-        (n == 1 ? "" : " (" + std::to_string(n) + " refusals of this uid so far)"));
+  if (n == 1 || n % 100 == 0)
+    warn("control: refused " + who + ": " + p.why +
+         (n == 1 ? "" : " (" + std::to_string(n) + " refusals of this uid so far)"));
 }
 
 std::size_t ControlServer::buffered() const {
@@ -255,7 +254,11 @@ void ControlServer::on_listen() {
       if (!room) return listen_for_more(false);
     }
     const int fd = ::accept4(fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
-    if (fd < 0) return;  // EAGAIN: none waits; anything else: the next readable tries again
+    if (fd < 0) return accept_failed(errno);
+    if (accept_failing_) {
+      accept_failing_ = false;
+      warn("control: accepting connections again");
+    }
     if (const Peer p = check_peer(fd); !p.why.empty()) return refuse(fd, p);
     if (room) evict(*room);
     const Id id = next_id_++;
@@ -268,6 +271,26 @@ void ControlServer::on_listen() {
     if (!read_some(c)) close_client(id, false);
     else settle(id, c);
   }
+}
+
+// EAGAIN: none waits. Out of descriptors (EMFILE, ENFILE) or kernel memory: the connection stays
+// in the listen queue and the socket readable, so the loop would wake for it again at once, and
+// again, until a descriptor frees: it listens again after evict_after instead, the connection
+// waiting meanwhile. Anything else (the peer gone before its accept): the next readable tries again.
+void ControlServer::warn(const std::string& line) const {
+  const auto& out = settings_.warn ? settings_.warn : settings_.log;
+  if (out) out(line);
+}
+
+void ControlServer::accept_failed(int error) {
+  if (error != EMFILE && error != ENFILE && error != ENOBUFS && error != ENOMEM) return;
+  if (!accept_failing_)
+    warn("control: cannot accept a connection: " + std::string(std::strerror(error)) +
+         "; it waits in the listen queue, and the socket is listened to again every " +
+         std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(settings_.limits.evict_after).count()) +
+         " ms until one can be");
+  accept_failing_ = true;
+  listen_for_more(false);
 }
 
 void ControlServer::listen_for_more(bool on) {

@@ -158,6 +158,8 @@ class ControlServer {
   void on_answer(Id id, std::uint64_t slot, std::string line);
   void deliver(Client& c);  // the answers now due, in order, to `out`
   void listen_for_more(bool on);
+  void accept_failed(int error);  // accept4's errno
+  void warn(const std::string& line) const;
 
   canopen::io::EventLoop& loop_;
   ControlSocketSettings settings_;
@@ -169,6 +171,7 @@ class ControlServer {
   canopen::io::EventLoop::WatchId watch_ = 0;
   bool listening_ = true;                             // the listen socket is watched (off while every slot is busy)
   canopen::io::EventLoop::TimerId listen_again_ = 0;  // while off: when a client may have become idle
+  bool accept_failing_ = false;                       // out of descriptors at the last accept: logged once
   std::map<Id, Client> clients_;
   std::deque<Id> run_queue_;  // clients with a request to handle, in turn
   bool slice_deferred_ = false;

@@ -5,6 +5,7 @@
 
 #include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
@@ -217,6 +218,38 @@ TEST_F(ControlServerTest, OneClientMoreThanTheBoundWaitsInTheListenQueueUntilASl
   EXPECT_EQ(received(c), "answer to c\n") << "a's slot went to the waiting client";
   EXPECT_EQ(server->evicted(), 0u);
   for (const int fd : {b, c}) ::close(fd);
+}
+
+// Out of descriptors, accept4 fails (EMFILE) with the connection still queued and the socket still
+// readable: the listener pauses for evict_after instead of waking the loop again at once, and takes
+// the connection once it can.
+TEST_F(ControlServerTest, OutOfDescriptorsTheListenerPausesInsteadOfWakingTheLoopAgainAtOnce) {
+  auto server = serve();
+  const int a = connect_client();  // queued by the kernel
+  send_text(a, "a\n");
+  rlimit old{};
+  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &old), 0);
+  const int lowest_free = ::dup(0);
+  ASSERT_GE(lowest_free, 0);
+  ::close(lowest_free);
+  rlimit tight = old;
+  tight.rlim_cur = static_cast<rlim_t>(lowest_free);  // no new descriptor: the accept gets EMFILE
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &tight), 0);
+  const std::size_t first = loop_.run_once(0ms);
+  const std::size_t second = loop_.run_once(0ms);
+  const std::size_t third = loop_.run_once(0ms);
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &old), 0);
+  EXPECT_EQ(first, 1u) << "the accept that failed";
+  EXPECT_EQ(second + third, 0u) << "the loop woke again for a connection it cannot take";
+  EXPECT_EQ(server->clients(), 0u);
+  EXPECT_NE(log_.find("control: cannot accept a connection: Too many open files"), std::string::npos) << log_;
+  serve_io();
+  EXPECT_EQ(received(a), "") << "taken before the pause ended";
+  loop_.advance_by(ControlLimits{}.evict_after);
+  serve_io();
+  EXPECT_EQ(received(a), "answer to a\n");
+  EXPECT_NE(log_.find("control: accepting connections again"), std::string::npos) << log_;
+  ::close(a);
 }
 
 // Connections waiting at once are accepted in one wake-up while a slot is free, each with its
