@@ -58,10 +58,11 @@ Gateway::Gateway(const mapping::Config& config, canopen::FrameSink upstream, can
 
 Gateway::Gateway(const mapping::Config& config, HandedOver upstream, canopen::FrameSink downstream,
                  GatewayOptions options)
-    : Gateway(config, std::move(upstream.device), {}, std::move(downstream), options) {}
+    : Gateway(config, std::move(upstream.device), {}, std::move(downstream), options, std::move(upstream.drivers)) {}
 
 Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed_over, canopen::FrameSink upstream,
-                 canopen::FrameSink downstream, const GatewayOptions& options)
+                 canopen::FrameSink downstream, const GatewayOptions& options,
+                 std::vector<std::unique_ptr<sd::Driver>> drivers)
     : tap_(options.tap),
       downstream_out_(tapped(Bus::Down, std::move(downstream))),
       config_(config),
@@ -85,7 +86,7 @@ Gateway::Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed
   arbiter_ = std::make_unique<CommandArbiter>(config_, *oe_, model_);
   arbiter_->log = [this](const std::string& line) { log(line); };
   arbiter_->drive = [this](mapping::FeId fe, FieldRef ref, std::int64_t v) { on_output(fe, ref, v); };
-  add_subdevices();
+  add_subdevices(std::move(drivers));
   bind_functional_elements();
   hook_network();
   hook_master();
@@ -121,12 +122,23 @@ void Gateway::connect_upstream_device() {
   }
 }
 
-// A driver per sub-device of the mapping file, in the network manager, with its entry in subs_.
-void Gateway::add_subdevices() {
-  for (const auto& sc : config_.subdevices) {
-    std::string error;
-    auto driver = sd::make_driver(sc.driver, sc.node(), downstream_out_, sc.options, error);
-    if (!driver) throw std::runtime_error(sc.where.str() + ": " + error);  // load_config checked it
+// A driver per sub-device of the mapping file, in the network manager, with its entry in subs_:
+// those `built` beforehand (a reload's: HandedOver) bound to this gateway's downstream, else made.
+void Gateway::add_subdevices(std::vector<std::unique_ptr<sd::Driver>> built) {
+  if (!built.empty() && built.size() != config_.subdevices.size())
+    throw std::logic_error("Gateway: " + std::to_string(built.size()) + " drivers built for " +
+                           std::to_string(config_.subdevices.size()) + " sub-devices");
+  for (std::size_t k = 0; k < config_.subdevices.size(); ++k) {
+    const auto& sc = config_.subdevices[k];
+    std::unique_ptr<sd::Driver> driver;
+    if (built.empty()) {
+      std::string error;
+      driver = sd::make_driver(sc.driver, sc.node(), downstream_out_, sc.options, error);
+      if (!driver) throw std::runtime_error(sc.where.str() + ": " + error);  // load_config checked it
+    } else {
+      driver = std::move(built[k]);
+      driver->bind_sink(downstream_out_);
+    }
     sd::NodeSettings ns = sc.node_settings();
     sd::Driver* d = driver.get();
     network_.add(std::move(ns), std::move(driver));

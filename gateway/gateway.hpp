@@ -81,9 +81,13 @@ class Gateway {
           GatewayOptions options = {});
   // A reload (gateway/reload.hpp): a gateway for `config` around the upstream device another
   // gateway handed over (release_upstream()), with the same FE set; resume() starts it.
+  // `drivers`, when not empty, are its sub-devices' drivers, one per sub-device of `config` in
+  // its order, built beforehand (gateway/reload.hpp build_reload_drivers); else it builds them.
   struct HandedOver {
-    explicit HandedOver(std::unique_ptr<OeDevice> d) : device(std::move(d)) {}
+    explicit HandedOver(std::unique_ptr<OeDevice> d, std::vector<std::unique_ptr<subdevices::Driver>> built = {})
+        : device(std::move(d)), drivers(std::move(built)) {}
     std::unique_ptr<OeDevice> device;
+    std::vector<std::unique_ptr<subdevices::Driver>> drivers;
   };
   Gateway(const mapping::Config& config, HandedOver upstream, canopen::FrameSink downstream,
           GatewayOptions options = {});
@@ -297,10 +301,11 @@ class Gateway {
   };
 
   Gateway(const mapping::Config& config, std::unique_ptr<OeDevice> handed_over, canopen::FrameSink upstream,
-          canopen::FrameSink downstream, const GatewayOptions& options);
+          canopen::FrameSink downstream, const GatewayOptions& options,
+          std::vector<std::unique_ptr<subdevices::Driver>> drivers = {});
   // The constructor's steps, in this order.
   void connect_upstream_device();
-  void add_subdevices();
+  void add_subdevices(std::vector<std::unique_ptr<subdevices::Driver>> built);
   void bind_functional_elements();
   void hook_network();
   void hook_master();

@@ -231,16 +231,17 @@ void print_control(const mapping::ControlConfig& c) {
 }
 
 // What a SIGHUP reload reads and checks beside the buses (a thread of its own, BackgroundWork):
-// the file as `oegw run` takes it, and the drivers it names built once (reload_driver_refusals).
-// What it is checked against, the running file, is the loop's: compared there (reload()).
+// the file as `oegw run` takes it, and the drivers it names, built for the hand-over (reading
+// their EDS files: build_reload_drivers). What it is checked against, the running file, is the
+// loop's: compared there (apply_reload()).
 struct ReloadRead {
   mapping::LoadResult read;
-  std::vector<mapping::Diagnostic> driver_errors;
+  ReloadDrivers drivers;
 };
 
 ReloadRead read_for_reload(const std::string& file) {
   ReloadRead out{read_file(file, Use::Here).loaded, {}};
-  if (out.read.ok()) out.driver_errors = reload_driver_refusals(*out.read.config);
+  if (out.read.ok()) out.drivers = build_reload_drivers(*out.read.config);
   return out;
 }
 
@@ -273,6 +274,9 @@ ServiceState running_state(Gateway& gw, const GatewayPublishing& publishing) {
 
 bool apply_reload(Running& r, ReloadRead read, TimePoint now);
 
+// The reading's thread runs this much nicer than the loop (as the black box's writer): CAN first.
+constexpr int kReadingNiceAbove = 10;
+
 // SIGHUP: the file read and checked as at a start (`oegw check`'s errors, the cab settings
 // included) and against the running one (gateway/reload.hpp reload_refusals); every error
 // logged, nothing changed. Else the gateway replaced around the same upstream device
@@ -284,6 +288,7 @@ bool apply_reload(Running& r, ReloadRead read, TimePoint now);
 // and the hand-over run on the loop. A SIGHUP while the file is being read reads it once more
 // after that reload.
 void reload(Running& r) {
+  if (r.hooks.reload_signal) r.hooks.reload_signal(r.reading.busy());
   if (r.reading.busy()) {
     r.again = true;
     spdlog::info("{}: SIGHUP while the file is read for a reload: it is read again after that one", r.file);
@@ -298,23 +303,25 @@ void reload(Running& r) {
         return read_for_reload(file);
       },
       [&r](std::optional<ReloadRead> read, const std::string& failure) {
-        if (!read) {  // the reading itself failed (out of memory): as a file refused
+        if (r.loop.stop_requested()) return;  // SIGTERM in the same wake-up: the daemon stops
+        if (!read) {                          // the reading itself failed (out of memory): as a file refused
           read.emplace();
           read->read.errors.push_back({{r.file, 1, 1}, "cannot be read for the reload: " + failure});
         }
         const bool applied = apply_reload(r, std::move(*read), r.loop.now());
         if (r.hooks.reload_done) r.hooks.reload_done(applied);
-        if (!r.again || r.exit_status != 0) return;
+        if (!r.again || r.exit_status != 0 || r.loop.stop_requested()) return;
         r.again = false;
         reload(r);
-      });
+      },
+      {.nice_above = kReadingNiceAbove, .name = "oegw-reload"});
 }
 
 // False if the file was refused (or the daemon stops: the hand-over failed).
 bool apply_reload(Running& r, ReloadRead read, TimePoint now) {
   std::vector<mapping::Diagnostic> errors = std::move(read.read.errors);
   if (read.read.ok()) errors = reload_refusals(r.config, *read.read.config);
-  if (read.read.ok() && errors.empty()) errors = std::move(read.driver_errors);
+  if (read.read.ok() && errors.empty()) errors = std::move(read.drivers.refusals);
   if (!errors.empty()) {
     for (const auto& e : errors) spdlog::error("{}", e.str());
     const std::string note =
@@ -330,7 +337,8 @@ bool apply_reload(Running& r, ReloadRead read, TimePoint now) {
   try {
     GatewayOptions options;
     options.tap = r.recording.tap();
-    r.gw = reload_gateway(std::move(r.gw), *read.read.config, r.downstream, options, now);
+    r.gw =
+        reload_gateway(std::move(r.gw), *read.read.config, r.downstream, options, now, std::move(read.drivers.drivers));
   } catch (const std::exception& e) {
     // After the hand-over the old gateway is gone: a gateway that cannot be built now (checked
     // just before: only a file changing in between gets here) stops the daemon with a reason,
@@ -583,6 +591,13 @@ class Daemon {
         gw(logging_gateway(config, *up, *down, options)),
         driver(
             l, [this] { return gw->next_deadline(); }, [this](TimePoint now) { gw->advance(now); }) {}
+
+  Daemon(const Daemon&) = delete;
+  Daemon& operator=(const Daemon&) = delete;
+  // A reload still reading its file when the daemon stops is given 2 s to end: the process's
+  // static objects (the loggers, OpenSSL's for DDS Security's checks) must not go while it uses
+  // them. A reading that hangs longer (a hung file system) is left to the exit.
+  ~Daemon() { (void)reading.settle(std::chrono::seconds(2)); }
 
   int run() {
     take_frames();

@@ -59,11 +59,14 @@ void PublisherLink::attempt() {
     }
     return outcome(std::move(opened), failure);
   }
+  // Never on the loop (liblcm's self-test may take 10 s): without a thread the attempt fails and
+  // is retried as any other.
   attempt_.start(*loop_, factory_,
                  [this](std::optional<std::unique_ptr<Publisher>> opened, const std::string& failure) {
                    std::unique_ptr<Publisher> p = opened ? std::move(*opened) : nullptr;
                    outcome(std::move(p), failure.empty() && !p ? "no transport" : failure);
-                 });
+                 },
+                 {.name = "oegw-" + name_, .if_no_thread = decltype(attempt_)::IfNoThread::Fail});
 }
 
 void PublisherLink::outcome(std::unique_ptr<Publisher> opened, const std::string& failure) {

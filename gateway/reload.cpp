@@ -183,25 +183,28 @@ std::vector<mapping::Diagnostic> reload_refusals(const Config& running, const Co
   return r.take();
 }
 
-std::vector<mapping::Diagnostic> reload_driver_refusals(const Config& next) {
-  std::vector<mapping::Diagnostic> out;
+ReloadDrivers build_reload_drivers(const Config& next) {
+  ReloadDrivers out;
   for (const auto& sc : next.subdevices) {
     std::string error;
-    if (!subdevices::make_driver(
-            sc.driver, sc.node(), [](const canopen::CanFrame&) {}, sc.options, error))
-      out.push_back({sc.where, error + "; the file changed while it was read: nothing of it is applied"});
+    auto d = subdevices::make_driver(sc.driver, sc.node(), {}, sc.options, error);
+    if (!d)
+      out.refusals.push_back({sc.where, error + "; the file changed while it was read: nothing of it is applied"});
+    else out.drivers.push_back(std::move(d));
   }
+  if (!out.refusals.empty()) out.drivers.clear();
   return out;
 }
 
 std::unique_ptr<Gateway> reload_gateway(std::unique_ptr<Gateway> running, const Config& next,
-                                        canopen::FrameSink downstream, GatewayOptions options, canopen::TimePoint now) {
+                                        canopen::FrameSink downstream, GatewayOptions options, canopen::TimePoint now,
+                                        std::vector<std::unique_ptr<subdevices::Driver>> drivers) {
   running->hand_over(next, now);
   auto log = running->on_log;
   std::unique_ptr<OeDevice> device = running->release_upstream();
   running.reset();
-  auto gw = std::make_unique<Gateway>(next, Gateway::HandedOver(std::move(device)), std::move(downstream),
-                                      std::move(options));
+  auto gw = std::make_unique<Gateway>(next, Gateway::HandedOver(std::move(device), std::move(drivers)),
+                                      std::move(downstream), std::move(options));
   gw->on_log = std::move(log);
   gw->resume(now);
   return gw;

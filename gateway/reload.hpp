@@ -40,18 +40,25 @@ namespace oegw::gateway {
 [[nodiscard]] std::vector<mapping::Diagnostic> reload_refusals(const mapping::Config& running,
                                                                const mapping::Config& next);
 
-// The drivers of `next` built once, their frames going nowhere, before the hand-over: a file a
-// driver reads at its construction (a cia401 node's EDS) that vanished or changed since `next`
-// was loaded refuses the reload here (at the sub-device's place), while the running gateway is
-// still untouched. Empty when every driver builds.
-[[nodiscard]] std::vector<mapping::Diagnostic> reload_driver_refusals(const mapping::Config& next);
+// The drivers of `next`, one per sub-device in its order, built before the hand-over, their
+// frames going nowhere until the new gateway binds them (reload_gateway). A file a driver reads at
+// its construction (a cia401 node's EDS) is read here, so by the thread that reads a reload's file
+// beside the buses (gateway/programs.cpp), not in the event loop; one that vanished or changed
+// since `next` was loaded refuses the reload here (at the sub-device's place), while the running
+// gateway is still untouched.
+struct ReloadDrivers {
+  std::vector<std::unique_ptr<subdevices::Driver>> drivers;  // empty when any is refused
+  std::vector<mapping::Diagnostic> refusals;                 // empty when every driver builds
+};
+[[nodiscard]] ReloadDrivers build_reload_drivers(const mapping::Config& next);
 
 // The reload step, for a `next` reload_refusals() accepts: `running` hands over and is
 // destroyed; returned is the gateway of `next` around the same upstream device, resumed at `now`
 // (Gateway::resume). Its on_log is `running`'s. `downstream` is the sink its sub-devices' frames
-// go to (the same bus).
+// go to (the same bus). `drivers`: build_reload_drivers(next)'s, or none (then built here).
 [[nodiscard]] std::unique_ptr<Gateway> reload_gateway(std::unique_ptr<Gateway> running, const mapping::Config& next,
                                                       canopen::FrameSink downstream, GatewayOptions options,
-                                                      canopen::TimePoint now);
+                                                      canopen::TimePoint now,
+                                                      std::vector<std::unique_ptr<subdevices::Driver>> drivers = {});
 
 }  // namespace oegw::gateway

@@ -33,6 +33,8 @@ struct ServeHooks {
   std::function<void()> reload_reading;
   // Called on the loop once a reload's outcome is known: true if the file was applied.
   std::function<void(bool applied)> reload_done;
+  // Called on the loop at each SIGHUP: true if a reading is under way (this one waits for it).
+  std::function<void(bool while_reading)> reload_signal;
 };
 
 // The gateway of `config` (read from `file`, which names it in the log and which SIGHUP reloads)

@@ -1,6 +1,5 @@
 #include "mapping/deployment.hpp"
 
-#include <errno.h>
 #include <grp.h>
 #include <sys/stat.h>
 
@@ -11,6 +10,7 @@
 #include <vector>
 
 #include "canopen/io/interface_name.hpp"
+#include "canopen/io/user_db.hpp"
 #include "publish/lcm_url.hpp"
 
 namespace oegw::mapping {
@@ -97,25 +97,20 @@ void check_record(const RecordConfig& r, std::vector<Diagnostic>& out) {
   }
 }
 
+// Reentrant (canopen/io/user_db.hpp): this may run in a reload's thread beside the event loop.
+bool group_exists(const std::string& name) {
+  std::vector<char> buf;
+  return canopen::io::look_up<group>([&name](group* e, char* b, std::size_t n,
+                                             group** found) { return ::getgrnam_r(name.c_str(), e, b, n, found); },
+                                     buf)
+      .has_value();
+}
+
 // What `oegw run` refuses of the control socket on this machine (gateway/control/
 // control_server.cpp, which does the same at start): a group the machine lacks; a folder it
 // cannot make (it makes the last one only, mode 0755, as /run/oegw below /run); something at
 // the path that is no socket. A socket a running gateway serves is not refused here: `oegw
 // check` of the running daemon's own file must pass (run says it at start).
-// getgrnam_r, not getgrnam: a SIGHUP reload checks its file in a thread beside the event loop,
-// which looks groups up too (the control socket), and getgrnam's result lives in one buffer of the
-// process.
-bool group_exists(const std::string& name) {
-  std::vector<char> buf(1024);
-  for (;;) {
-    group g{};
-    group* found = nullptr;
-    const int e = ::getgrnam_r(name.c_str(), &g, buf.data(), buf.size(), &found);
-    if (e != ERANGE || buf.size() >= (std::size_t{1} << 20)) return e == 0 && found != nullptr;
-    buf.resize(buf.size() * 2);
-  }
-}
-
 void check_control(const ControlConfig& c, std::vector<Diagnostic>& out) {
   if (!c.enabled) return;
   if (!c.group.empty() && !group_exists(c.group))

@@ -114,10 +114,13 @@ void CabRig::connect_gateway() {
 std::vector<mapping::Diagnostic> CabRig::reload(const mapping::Config& next) {
   auto refused = gateway::reload_refusals(config_, next);
   if (!refused.empty()) return refused;
+  // As `oegw run` does: the drivers built beforehand (beside the buses there), then handed over.
+  gateway::ReloadDrivers drivers = gateway::build_reload_drivers(next);
+  if (!drivers.refusals.empty()) return drivers.refusals;
   config_ = next;
   gw_drv_.reset();  // it holds the old gateway
   gw_ = gateway::reload_gateway(std::move(gw_), config_, through(from_gateway_down, gw_down_->sink()),
-                                gateway_options(), loop_.now());
+                                gateway_options(), loop_.now(), std::move(drivers.drivers));
   if (on_gateway) on_gateway(*gw_);
   gw_drv_ = std::make_unique<canopen::io::ServiceDriver>(loop_, *gw_);
   return {};

@@ -238,6 +238,10 @@ class Driver {
 
   [[nodiscard]] const InputCounters& counters() const { return counters_; }
 
+  // Where its RPDOs go from now on: a driver built before its gateway (a reload's, in the thread
+  // that reads the file: gateway/reload.hpp build_reload_drivers) gets the gateway's sink here.
+  void bind_sink(FrameSink sink) { sink_ = std::move(sink); }
+
  protected:
   // Drivers are built by their factory with their node and the sink for RPDOs.
   void init(NodeId node, FrameSink sink, std::size_t signal_count);

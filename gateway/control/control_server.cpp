@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <vector>
 
+#include "canopen/io/user_db.hpp"
 #include "gateway/control/control_protocol.hpp"
 
 namespace oegw::gateway::control {
@@ -139,37 +140,19 @@ ControlServer::~ControlServer() {
 
 namespace {
 
-// The reentrant lookups (getpwuid_r, getgrgid_r): a SIGHUP reload checks its file in a thread
-// beside the loop, which looks groups up too, and getpwuid's and getgrgid's results live in
-// buffers of the process. `lookup(buf, size, found)` returns the call's error number.
-template <class Entry, class Lookup>
-std::optional<Entry> look_up(Lookup lookup, std::vector<char>& buf) {
-  buf.resize(1024);
-  for (;;) {
-    Entry e{};
-    Entry* found = nullptr;
-    const int error = lookup(&e, buf.data(), buf.size(), &found);
-    if (error == ERANGE && buf.size() < (std::size_t{1} << 20)) {
-      buf.resize(buf.size() * 2);
-      continue;
-    }
-    if (error != 0 || found == nullptr) return std::nullopt;
-    return e;
-  }
-}
-
+// Reentrant (canopen/io/user_db.hpp): a reload's thread may look groups up meanwhile.
 std::string user_name(uid_t uid) {
   std::vector<char> buf;
-  const auto p = look_up<passwd>([uid](passwd* e, char* b, std::size_t n,
-                                       passwd** found) { return ::getpwuid_r(uid, e, b, n, found); },
-                                 buf);
+  const auto p = canopen::io::look_up<passwd>([uid](passwd* e, char* b, std::size_t n,
+                                                    passwd** found) { return ::getpwuid_r(uid, e, b, n, found); },
+                                              buf);
   return p ? p->pw_name : "no user of that uid";
 }
 std::string group_name(gid_t gid) {
   std::vector<char> buf;
-  const auto g = look_up<group>([gid](group* e, char* b, std::size_t n,
-                                      group** found) { return ::getgrgid_r(gid, e, b, n, found); },
-                                buf);
+  const auto g = canopen::io::look_up<group>([gid](group* e, char* b, std::size_t n,
+                                                   group** found) { return ::getgrgid_r(gid, e, b, n, found); },
+                                             buf);
   return g ? g->gr_name : std::to_string(gid);
 }
 

@@ -18,6 +18,8 @@
 
 #include <fmt/format.h>
 
+#include "canopen/io/nice.hpp"
+
 namespace oegw::gateway::record {
 
 namespace fs = std::filesystem;
@@ -279,14 +281,10 @@ void Recorder::fail(const std::string& what, int err) {
 
 void Recorder::run_writer() {
   // CAN first: the writer's batches (text for 100 ms of frames, a write, an fdatasync) must not
-  // hold the event loop off the CPU when a bus frame wakes it, least of all on a one-core
-  // controller. A nice value kWriterNiceAbove the daemon's (per thread on Linux: setpriority
-  // with 0 names the calling thread) lets the loop preempt the writer sooner; the writer keeps
-  // a share of a busy CPU, and what it cannot write in time is dropped and counted, never waited
-  // for. Raising one's own nice needs no privilege.
-  errno = 0;
-  const int base = ::getpriority(PRIO_PROCESS, 0);
-  if (errno == 0) (void)::setpriority(PRIO_PROCESS, 0, std::min(base + kWriterNiceAbove, 19));
+  // hold the event loop off the CPU when a bus frame wakes it. A nice value kWriterNiceAbove the
+  // daemon's lets the loop preempt the writer sooner (canopen/io/background_work.hpp run_nicer);
+  // what it cannot write in time is dropped and counted, never waited for.
+  canopen::io::run_nicer(kWriterNiceAbove);
   last_sync_us_ = steady_us();
   for (;;) {
     std::unique_lock lk(m_);

@@ -196,22 +196,23 @@ const std::string& variant_yaml(int variant) {
 
 // A reload's reading beside the buses: the file parsed and checked as `oegw run` takes it (the
 // loader's and the cab settings' checks; from memory here, no disk) and the drivers it names built
-// once (reload_driver_refusals).
+// once (build_reload_drivers).
 void BM_ReloadRead(benchmark::State& state) {
   const int variant = static_cast<int>(state.range(0));
   for (auto _ : state) {
     auto r = mapping::load_config_text(variant_yaml(variant), variant_name(variant), gateway::driver_catalogue());
     if (!r.ok()) throw std::runtime_error(r.error_text());
     const auto errors = mapping::deployment_errors(*r.config);
-    const auto refused = gateway::reload_driver_refusals(*r.config);
-    benchmark::DoNotOptimize(errors.size() + refused.size());
+    const auto built = gateway::build_reload_drivers(*r.config);
+    benchmark::DoNotOptimize(errors.size() + built.drivers.size());
   }
 }
 BENCHMARK(BM_ReloadRead)->Arg(0)->Arg(1)->ArgName("full_set")->Unit(benchmark::kMillisecond);
 
 // A reload's part in the event loop: the new file compared with the running one (reload_refusals)
 // and the gateway handed over (reload_gateway: the old one's outputs at their error values, a new
-// one built around the same upstream device and resumed). Each iteration hands the last one over.
+// one built around the same upstream device with the drivers built beforehand, and resumed). Each
+// iteration hands the last one over.
 void BM_ReloadHandOver(benchmark::State& state) {
   const int variant = static_cast<int>(state.range(0));
   const std::filesystem::path store =
@@ -224,9 +225,12 @@ void BM_ReloadHandOver(benchmark::State& state) {
   canopen::TimePoint now{};
   (void)gw->start(now);
   for (auto _ : state) {
+    state.PauseTiming();  // the drivers are built beside the buses, with the file's reading
+    gateway::ReloadDrivers built = gateway::build_reload_drivers(next);
+    state.ResumeTiming();
     now += std::chrono::milliseconds(100);
     if (!gateway::reload_refusals(cfg, next).empty()) throw std::runtime_error("the same file refused");
-    gw = gateway::reload_gateway(std::move(gw), next, nowhere, {}, now);
+    gw = gateway::reload_gateway(std::move(gw), next, nowhere, {}, now, std::move(built.drivers));
   }
   gw.reset();
   std::filesystem::remove(store);

@@ -63,6 +63,13 @@ std::string mapping_text(const std::filesystem::path& dir) {
          "  enabled: false\n";
 }
 
+bool is_bootup(const can_frame& f) { return f.can_id == 0x700 + kNode && f.len == 1 && f.data[0] == 0x00; }
+bool is_sdo_answer_of_1000h(const can_frame& f) {
+  return f.can_id == 0x580 + kNode && f.data[0] == 0x43 && f.data[1] == 0x00 && f.data[2] == 0x10 && f.data[3] == 0x00;
+}
+// EMCY 6300h: the gateway holds it from a reload's hand-over until its sub-devices are back.
+bool is_reload_emcy(const can_frame& f) { return f.can_id == 0x80 + kNode && f.data[0] == 0x00 && f.data[1] == 0x63; }
+
 class ServeGatewayTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -77,9 +84,19 @@ class ServeGatewayTest : public ::testing::Test {
   }
 
   void TearDown() override {
+    try {
+      release_.set_value();               // a reading still held ends
+    } catch (const std::future_error&) {  // released by the test already
+    }
     if (thread_.joinable()) {
-      ::pthread_kill(thread_.native_handle(), SIGTERM);
-      thread_.join();
+      // SIGTERM only once the gateway takes it (its loop's signalfd, set up before its boot-up):
+      // before, it would end the whole test program.
+      if (started_) {
+        ::pthread_kill(thread_.native_handle(), SIGTERM);
+        thread_.join();
+      } else {
+        thread_.detach();
+      }
     }
     for (const int fd : {host_, sub_})
       if (fd >= 0) ::close(fd);
@@ -116,6 +133,12 @@ class ServeGatewayTest : public ::testing::Test {
     return wait_until(match, {});
   }
 
+  // Boot-up seen: the gateway's signals are its loop's from now on.
+  [[nodiscard]] bool wait_started() {
+    started_ = wait_upstream(is_bootup).has_value();
+    return started_;
+  }
+
   // Serves both peers until `done` holds (checked between frames and at least every 10 ms).
   bool wait_for(const std::function<bool()>& done) {
     return wait_until([](const can_frame&) { return false; }, done).has_value() || done();
@@ -127,6 +150,14 @@ class ServeGatewayTest : public ::testing::Test {
   std::string file_;
   mapping::Config config_;
   gateway::ServeHooks hooks_;
+  // What the hooks count (members: the gateway thread may call a hook until TearDown joins it).
+  std::atomic<int> reads_{0};
+  std::atomic<int> applied_{0};
+  std::atomic<int> refused_{0};
+  std::atomic<int> queued_{0};  // SIGHUPs that came while a reading was under way
+  std::promise<void> release_;
+  std::shared_future<void> released_ = release_.get_future().share();
+  std::atomic<bool> started_{false};
   std::thread thread_;
   int status_ = -1;
   int host_ = -1;
@@ -148,48 +179,39 @@ class ServeGatewayTest : public ::testing::Test {
   }
 };
 
-bool is_bootup(const can_frame& f) { return f.can_id == 0x700 + kNode && f.len == 1 && f.data[0] == 0x00; }
-bool is_sdo_answer_of_1000h(const can_frame& f) {
-  return f.can_id == 0x580 + kNode && f.data[0] == 0x43 && f.data[1] == 0x00 && f.data[2] == 0x10 && f.data[3] == 0x00;
-}
-// EMCY 6300h: the gateway holds it from a reload's hand-over until its sub-devices are back.
-bool is_reload_emcy(const can_frame& f) { return f.can_id == 0x80 + kNode && f.data[0] == 0x00 && f.data[1] == 0x63; }
-
 TEST_F(ServeGatewayTest, ASighupReadsTheFileBesideTheBusesAndAnotherOneReadsItAgainAfter) {
-  std::promise<void> release;
-  const std::shared_future<void> released = release.get_future().share();
-  std::atomic<int> reads{0};
-  std::atomic<int> applied{0};
-  hooks_.reload_reading = [&reads, released] {
-    ++reads;
-    released.wait();  // a file on a slow or hung file system
+  hooks_.reload_reading = [this] {
+    ++reads_;
+    released_.wait();  // a file on a slow or hung file system
   };
-  hooks_.reload_done = [&applied](bool ok) { applied += ok ? 1 : 100; };
+  hooks_.reload_done = [this](bool ok) { ++(ok ? applied_ : refused_); };
+  hooks_.reload_signal = [this](bool while_reading) { queued_ += while_reading ? 1 : 0; };
   start();
-  ASSERT_TRUE(wait_upstream(is_bootup)) << "the gateway did not start";
+  ASSERT_TRUE(wait_started()) << "the gateway did not start";
 
   signal_gateway(SIGHUP);
-  ASSERT_TRUE(wait_for([&reads] { return reads == 1; })) << "the reload did not start reading";
+  ASSERT_TRUE(wait_for([this] { return reads_ == 1; })) << "the reload did not start reading";
   // While the file is being read, the upstream device answers the host: the loop is not waiting.
   send_upstream(0x600 + kNode, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});  // SDO upload 1000h
   EXPECT_TRUE(wait_upstream(is_sdo_answer_of_1000h)) << "no SDO answer while the reload read its file";
   signal_gateway(SIGHUP);  // taken after the reload under way, not lost, not run beside it
+  ASSERT_TRUE(wait_for([this] { return queued_ == 1; })) << "the second SIGHUP was not taken while reading";
+  EXPECT_EQ(reads_, 1) << "a second reading beside the first";
 
-  release.set_value();
+  release_.set_value();
   EXPECT_TRUE(wait_upstream(is_reload_emcy)) << "the reload was not applied once its file was read";
-  EXPECT_TRUE(wait_for([&applied] { return applied == 2; })) << "the second SIGHUP did not reload the file again";
-  EXPECT_EQ(reads, 2);
+  EXPECT_TRUE(wait_for([this] { return applied_ == 2; })) << "the second SIGHUP did not reload the file again";
+  EXPECT_EQ(reads_, 2);
+  EXPECT_EQ(refused_, 0);
   signal_gateway(SIGTERM);
   thread_.join();
   EXPECT_EQ(status_, 0);
 }
 
 TEST_F(ServeGatewayTest, AFileRefusedAtAReloadChangesNothingAndTheGatewayRunsOn) {
-  std::atomic<int> refused{0};
-  std::atomic<int> applied{0};
-  hooks_.reload_done = [&](bool ok) { ++(ok ? applied : refused); };
+  hooks_.reload_done = [this](bool ok) { ++(ok ? applied_ : refused_); };
   start();
-  ASSERT_TRUE(wait_upstream(is_bootup));
+  ASSERT_TRUE(wait_started());
   std::ofstream(file_) << "upstream: [\n";  // broken YAML
   signal_gateway(SIGHUP);
   bool emcy = false;
@@ -197,13 +219,13 @@ TEST_F(ServeGatewayTest, AFileRefusedAtAReloadChangesNothingAndTheGatewayRunsOn)
     emcy = emcy || is_reload_emcy(f);
     return false;
   };
-  (void)wait_until(watch_emcy, [&refused] { return refused == 1; });
-  ASSERT_EQ(refused, 1) << "the broken file was not refused";
+  (void)wait_until(watch_emcy, [this] { return refused_ == 1; });
+  ASSERT_EQ(refused_, 1) << "the broken file was not refused";
   send_upstream(0x600 + kNode, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0});
   EXPECT_TRUE(wait_upstream([&](const can_frame& f) { return watch_emcy(f) || is_sdo_answer_of_1000h(f); }))
       << "the gateway no longer answers after a refused reload";
   EXPECT_FALSE(emcy) << "a refused file was handed over";
-  EXPECT_EQ(applied, 0);
+  EXPECT_EQ(applied_, 0);
   signal_gateway(SIGTERM);
   thread_.join();
   EXPECT_EQ(status_, 0);

@@ -98,10 +98,12 @@ TEST_F(ReloadRefusals, AnEdsGoneSinceTheFileWasReadRefusesBeforeTheHandOver) {
   std::filesystem::copy_file(std::string(OEGW_SOURCE_DIR) + "/subdevices/eds/generic_pedal.eds", eds);
   const mapping::Config next = load(
       fixtures::replace_all(base_, std::string(OEGW_SOURCE_DIR) + "/subdevices/eds/generic_pedal.eds", eds.string()));
-  EXPECT_THAT(reload_driver_refusals(next), IsEmpty());
+  EXPECT_THAT(build_reload_drivers(next).refusals, IsEmpty());
   std::filesystem::remove(eds);
   std::vector<std::string> r;
-  for (const auto& d : reload_driver_refusals(next)) r.push_back(d.str());
+  const ReloadDrivers built = build_reload_drivers(next);
+  EXPECT_THAT(built.drivers, IsEmpty()) << "no driver of a file refused";
+  for (const auto& d : built.refusals) r.push_back(d.str());
   std::filesystem::remove_all(templ);
   ASSERT_EQ(r.size(), 1u) << ::testing::PrintToString(r);
   EXPECT_THAT(r[0], StartsWith("next.yaml:"));

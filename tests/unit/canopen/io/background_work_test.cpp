@@ -2,6 +2,7 @@
 #include "canopen/io/background_work.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
 #include <atomic>
 #include <chrono>
@@ -9,6 +10,8 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+
+#include "tests/fixtures/thread_nice.hpp"
 
 namespace oegw::canopen::io {
 namespace {
@@ -53,11 +56,11 @@ TEST(BackgroundWork, TheLoopServesItsDescriptorsWhileTheWorkIsHeld) {
   EventLoop loop;
   BackgroundWork<int> work;
   std::promise<void> release;
-  auto released = release.get_future();
+  std::shared_future<void> released = release.get_future().share();
   bool done = false;
   work.start(
       loop,
-      [&released] {
+      [released] {
         released.wait();
         return 1;
       },
@@ -130,6 +133,76 @@ TEST(BackgroundWork, DestroyedWhileTheWorkRunsItNeitherWaitsNorCallsBack) {
   EXPECT_TRUE(*finished);
   loop.run_once(0ms);
   EXPECT_FALSE(called);
+}
+
+// CAN first: the work's thread may run nicer than the loop's and carries a name (top -H).
+TEST(BackgroundWork, TheThreadIsNamedAndNicerThanTheLoop) {
+  errno = 0;
+  const int loop_nice = ::getpriority(PRIO_PROCESS, 0);
+  ASSERT_EQ(errno, 0);
+  if (loop_nice >= kMaxNice) GTEST_SKIP() << "this test runs at nice 19: no nicer value to tell the work by";
+  EventLoop loop;
+  BackgroundWork<int> work;
+  std::promise<void> release;
+  std::promise<void> running;
+  std::shared_future<void> released = release.get_future().share();
+  bool done = false;
+  work.start(
+      loop,
+      [&running, released] {
+        running.set_value();
+        released.wait();
+        return 1;
+      },
+      [&done](std::optional<int>, const std::string&) { done = true; }, {.nice_above = 5, .name = "oegw-test-work"});
+  running.get_future().wait();
+  const std::optional<int> nice = fixtures::thread_nice("oegw-test-work");
+  release.set_value();
+  ASSERT_TRUE(nice) << "no thread named oegw-test-work";
+  EXPECT_EQ(*nice, std::min(loop_nice + 5, kMaxNice));
+  EXPECT_EQ(::getpriority(PRIO_PROCESS, 0), loop_nice) << "the loop's own thread unchanged";
+  EXPECT_TRUE(run_until(loop, [&done] { return done; }));
+}
+
+// Without a thread (Options::if_no_thread, here forced by no descriptor for the eventfd), the work
+// either runs on the loop or fails with the reason, never silently lost.
+TEST(BackgroundWork, WithoutAThreadTheWorkRunsOnTheLoopOrFailsWithTheReason) {
+  EventLoop loop;
+  rlimit old{};
+  ASSERT_EQ(::getrlimit(RLIMIT_NOFILE, &old), 0);
+  const int lowest_free = ::dup(0);
+  ASSERT_GE(lowest_free, 0);
+  ::close(lowest_free);
+  std::optional<int> on_loop;
+  std::string failure_on_loop = "?";
+  std::optional<std::string> failure;
+  std::thread::id ran_in;
+  BackgroundWork<int> a;
+  BackgroundWork<int> b;
+  rlimit tight = old;
+  tight.rlim_cur = static_cast<rlim_t>(lowest_free);
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &tight), 0);
+  a.start(
+      loop,
+      [&ran_in] {
+        ran_in = std::this_thread::get_id();
+        return 3;
+      },
+      [&](std::optional<int> r, const std::string& f) {
+        on_loop = r;
+        failure_on_loop = f;
+      });
+  b.start(
+      loop, [] { return 4; }, [&failure](std::optional<int>, const std::string& f) { failure = f; },
+      {.if_no_thread = BackgroundWork<int>::IfNoThread::Fail});
+  ASSERT_EQ(::setrlimit(RLIMIT_NOFILE, &old), 0);
+  loop.run_once(0ms);
+  ASSERT_TRUE(on_loop.has_value());
+  EXPECT_EQ(*on_loop, 3);
+  EXPECT_EQ(failure_on_loop, "");
+  EXPECT_EQ(ran_in, std::this_thread::get_id());
+  ASSERT_TRUE(failure.has_value());
+  EXPECT_NE(failure->find("cannot start a thread for it: eventfd"), std::string::npos) << *failure;
 }
 
 }  // namespace

@@ -18,8 +18,10 @@
 
 #include <gtest/gtest.h>
 
+#include "canopen/io/nice.hpp"
 #include "gateway/record/recording_reader.hpp"
 #include "tests/fixtures/temp_dir.hpp"
+#include "tests/fixtures/thread_nice.hpp"
 
 namespace oegw::gateway::record {
 namespace {
@@ -100,25 +102,6 @@ TEST(Recorder, FramesAndEventsReadBackInOneOrderWithTheLoopTimes) {
   EXPECT_EQ(first, "(1700000001.001000) can1 191#0102 R");
 }
 
-// The nice value of this process's thread named `name` (/proc/self/task/TID/stat, field 19),
-// or nullopt when no such thread is there.
-std::optional<int> thread_nice(const std::string& name) {
-  for (const auto& t : fs::directory_iterator("/proc/self/task")) {
-    std::ifstream comm(t.path() / "comm");
-    std::string c;
-    if (!std::getline(comm, c) || c != name) continue;
-    std::ifstream stat(t.path() / "stat");
-    std::string line;
-    if (!std::getline(stat, line) || line.rfind(')') == std::string::npos) return std::nullopt;
-    std::istringstream fields(line.substr(line.rfind(')') + 1));  // after "pid (comm)"
-    std::string f;
-    for (int i = 3; i <= 19 && fields >> f; ++i) {
-    }
-    return std::stoi(f);
-  }
-  return std::nullopt;
-}
-
 // CAN first: the writer thread is nicer than the thread that made it (the event loop), so a
 // bus frame that wakes the loop takes the CPU from a writer busy with its batch.
 TEST(Recorder, TheWriterRunsNicerThanTheLoop) {
@@ -126,12 +109,13 @@ TEST(Recorder, TheWriterRunsNicerThanTheLoop) {
   errno = 0;
   const int loop_nice = ::getpriority(PRIO_PROCESS, 0);
   ASSERT_EQ(errno, 0);
-  if (loop_nice >= 19) GTEST_SKIP() << "this test runs at nice 19: no nicer value to tell the writer by";
+  if (loop_nice >= canopen::io::kMaxNice)
+    GTEST_SKIP() << "this test runs at nice 19: no nicer value to tell the writer by";
   Recorder r(settings(tmp.path));
   r.flush();  // returns once the writer has written a batch: it runs, its nice set first
-  const std::optional<int> nice = thread_nice("oegw-record");
+  const std::optional<int> nice = fixtures::thread_nice("oegw-record");
   ASSERT_TRUE(nice) << "no thread named oegw-record";
-  EXPECT_EQ(*nice, std::min(loop_nice + Recorder::kWriterNiceAbove, 19));
+  EXPECT_EQ(*nice, std::min(loop_nice + Recorder::kWriterNiceAbove, canopen::io::kMaxNice));
   EXPECT_EQ(::getpriority(PRIO_PROCESS, 0), loop_nice) << "the loop's own thread unchanged";
 }
 
