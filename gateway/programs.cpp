@@ -274,9 +274,6 @@ ServiceState running_state(Gateway& gw, const GatewayPublishing& publishing) {
 
 bool apply_reload(Running& r, ReloadRead read, TimePoint now);
 
-// The reading's thread runs this much nicer than the loop (as the black box's writer): CAN first.
-constexpr int kReadingNiceAbove = 10;
-
 // SIGHUP: the file read and checked as at a start (`oegw check`'s errors, the cab settings
 // included) and against the running one (gateway/reload.hpp reload_refusals); every error
 // logged, nothing changed. Else the gateway replaced around the same upstream device
@@ -314,7 +311,7 @@ void reload(Running& r) {
         r.again = false;
         reload(r);
       },
-      {.nice_above = kReadingNiceAbove, .name = "oegw-reload"});
+      {.nice_above = kNiceBesideTheLoop, .name = "oegw-reload"});
 }
 
 // False if the file was refused (or the daemon stops: the hand-over failed).

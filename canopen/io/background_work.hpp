@@ -61,7 +61,7 @@ class BackgroundWork {
   BackgroundWork(const BackgroundWork&) = delete;
   BackgroundWork& operator=(const BackgroundWork&) = delete;
   ~BackgroundWork() {
-    if (watch_ != 0) loop_->unwatch(watch_);
+    unwatch();
     if (thread_.joinable()) thread_.detach();
   }
 
@@ -91,13 +91,11 @@ class BackgroundWork {
     } catch (const std::system_error& e) {  // no eventfd, no watch or no thread: below
       no_thread = e.what();
     } catch (...) {  // out of memory: nothing started
-      if (watch_ != 0) loop.unwatch(watch_);
-      watch_ = 0;
+      unwatch();
       forget();
       throw;
     }
-    if (watch_ != 0) loop.unwatch(watch_);
-    watch_ = 0;
+    unwatch();
     const bool on_loop = options.if_no_thread == IfNoThread::RunOnLoop;
     loop.post([this, w = std::weak_ptr<Shared>(shared_), on_loop, no_thread] {
       const auto s = w.lock();
@@ -121,8 +119,7 @@ class BackgroundWork {
     pollfd p{shared_->event_fd, POLLIN, 0};
     if (::poll(&p, 1, static_cast<int>(bound.count())) <= 0) return false;
     thread_.join();
-    if (watch_ != 0) loop_->unwatch(watch_);
-    watch_ = 0;
+    unwatch();
     forget();
     return true;
   }
@@ -159,8 +156,7 @@ class BackgroundWork {
 
   // On the loop: the work is over (its thread has handed its outcome over and ends now).
   void take() {
-    if (watch_ != 0) loop_->unwatch(watch_);
-    watch_ = 0;
+    unwatch();
     if (thread_.joinable()) thread_.join();
     std::optional<Result> r;
     std::string failure;
@@ -172,6 +168,11 @@ class BackgroundWork {
     Done done = std::move(done_);
     forget();
     done(std::move(r), failure);
+  }
+
+  void unwatch() {
+    if (watch_ != 0) loop_->unwatch(watch_);
+    watch_ = 0;
   }
 
   void forget() {

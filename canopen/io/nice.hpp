@@ -12,6 +12,10 @@ namespace oegw::canopen::io {
 // The largest nice value, the lowest priority a thread can take (setpriority(2)).
 inline constexpr int kMaxNice = 19;
 
+// How much nicer than the event loop the threads beside it run (run_nicer): the black box's
+// writer, a reload's reading.
+inline constexpr int kNiceBesideTheLoop = 10;
+
 // Makes the calling thread's nice value `above` the process's (at most kMaxNice). CAN first: a
 // thread beside the event loop (a writer, a reading) lets the loop preempt it sooner when a bus
 // frame wakes it, most of all on a one-core controller, and still gets its share of a busy CPU.

@@ -256,15 +256,16 @@ void ControlServer::on_listen() {
   }
 }
 
-// EAGAIN: none waits. Out of descriptors (EMFILE, ENFILE) or kernel memory: the connection stays
-// in the listen queue and the socket readable, so the loop would wake for it again at once, and
-// again, until a descriptor frees: it listens again after evict_after instead, the connection
-// waiting meanwhile. Anything else (the peer gone before its accept): the next readable tries again.
+// A client refused, accepting stopped or resumed: `warn`, else `log`.
 void ControlServer::warn(const std::string& line) const {
   const auto& out = settings_.warn ? settings_.warn : settings_.log;
   if (out) out(line);
 }
 
+// EAGAIN: none waits. Out of descriptors (EMFILE, ENFILE) or kernel memory: the connection stays
+// in the listen queue and the socket readable, so the loop would wake for it again at once, and
+// again, until a descriptor frees: it listens again after evict_after instead, the connection
+// waiting meanwhile. Anything else (the peer gone before its accept): the next readable tries again.
 void ControlServer::accept_failed(int error) {
   if (error != EMFILE && error != ENFILE && error != ENOBUFS && error != ENOMEM) return;
   if (!accept_failing_)

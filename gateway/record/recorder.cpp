@@ -282,7 +282,7 @@ void Recorder::fail(const std::string& what, int err) {
 void Recorder::run_writer() {
   // CAN first: the writer's batches (text for 100 ms of frames, a write, an fdatasync) must not
   // hold the event loop off the CPU when a bus frame wakes it. A nice value kWriterNiceAbove the
-  // daemon's lets the loop preempt the writer sooner (canopen/io/background_work.hpp run_nicer);
+  // daemon's lets the loop preempt the writer sooner (canopen/io/nice.hpp run_nicer);
   // what it cannot write in time is dropped and counted, never waited for.
   canopen::io::run_nicer(kWriterNiceAbove);
   last_sync_us_ = steady_us();

@@ -36,6 +36,7 @@
 #include <vector>
 
 #include "canopen/can_frame.hpp"
+#include "canopen/io/nice.hpp"
 #include "canopen/types.hpp"
 #include "gateway/record/record_format.hpp"
 
@@ -92,7 +93,7 @@ struct RecorderStatus {
 class Recorder final : public RecordSink {
  public:
   // How much nicer than the daemon the writer thread runs (run_writer()).
-  static constexpr int kWriterNiceAbove = 10;
+  static constexpr int kWriterNiceAbove = canopen::io::kNiceBesideTheLoop;
 
   // Makes the folder (and kept/) if missing, copies the run files, starts the writer thread.
   // Throws RecordError when the folder cannot be made or written.
