@@ -673,6 +673,13 @@ class Daemon {
     });
     watch_transport(loop, *up);
     watch_transport(loop, *down);
+    if (loop.uses_io_uring()) {
+      spdlog::info(
+          "event loop: io_uring (the buses' frames read and the answers sent in the wait: one system call per "
+          "wake-up)");
+    } else if (!loop.simulated()) {
+      spdlog::info("event loop: epoll (io_uring not used: {})", loop.why_not_io_uring());
+    }
     if (buses.watching) buses.watching();
   }
 

@@ -31,6 +31,9 @@ PACKAGES=(
   # recorded-session test; libglib2.0-dev because liblcm-dev's lcm.pc requires glib-2.0 and
   # gthread-2.0 .pc files that liblcm-dev does not pull in (pkg-config lcm fails without them)
   liblcm-dev liblcm-bin libglib2.0-dev
+  # liburing: the event loop waits and reads the buses' frames through io_uring, one system call
+  # per wake-up (canopen/io/uring_receiver.hpp; epoll where the kernel refuses io_uring)
+  liburing-dev
   # libsystemd: sd_notify / sd_watchdog_enabled for the unit's Type=notify and watchdog (oegw run
   # sends nothing without NOTIFY_SOCKET: systemd is not needed to run it)
   libsystemd-dev

@@ -8,11 +8,13 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string_view>
 
 #include "canopen/bus_event.hpp"
 #include "canopen/can_frame.hpp"
 #include "canopen/io/clock.hpp"
+#include "canopen/io/datagram.hpp"
 #include "canopen/types.hpp"
 
 namespace oegw::canopen::io {
@@ -68,6 +70,18 @@ class CanTransport {
   [[nodiscard]] virtual int fd() const { return -1; }
   // Reads everything available without blocking and hands it to the receiver/event handler.
   virtual void poll_readable() {}
+  // For an event loop that reads the descriptor's datagrams itself (io_uring,
+  // EventLoop::receive_datagrams): how large one is; nullopt if the transport reads for itself.
+  [[nodiscard]] virtual std::optional<DatagramSpec> datagram_spec() const { return std::nullopt; }
+  // One datagram such a loop read (or the error its receive ended with): handled as
+  // poll_readable() handles each it reads.
+  virtual void take_datagram(const ReceivedDatagram& /*datagram*/) {}
+  // Such a loop may also send what a wake-up's batch holds (end_batch), in the system call it
+  // makes anyway to wait (EventLoop::send_datagram); an empty sender: the transport sends itself.
+  void set_datagram_sender(DatagramSender sender) { datagram_sender_ = std::move(sender); }
+  // A datagram sent that way that the kernel refused (EAGAIN, ENOBUFS: a full queue; others):
+  // counted as send() counts its failures.
+  virtual void datagram_send_failed(int /*error*/) {}
 
   [[nodiscard]] const TransportCounters& counters() const { return counters_; }
 
@@ -95,6 +109,7 @@ class CanTransport {
   void deliver_event(BusEvent event);
   TransportCounters counters_;
   const Clock* clock_ = nullptr;
+  DatagramSender datagram_sender_;
 
  private:
   Receiver receiver_;

@@ -1,5 +1,7 @@
 #include "canopen/io/event_loop.hpp"
 
+#include "canopen/io/uring_receiver.hpp"
+
 #include <sys/epoll.h>
 #include <sys/signalfd.h>
 #include <sys/timerfd.h>
@@ -23,7 +25,14 @@ constexpr std::uint64_t kTimerFdWatch = 1;
 
 }  // namespace
 
-EventLoop::EventLoop() { init(); }
+EventLoop::EventLoop(Wait wait) {
+  init();
+  if (wait == Wait::Best) {
+    ring_ = UringReceiver::open(epoll_fd_, &why_not_io_uring_);
+  } else {
+    why_not_io_uring_ = "epoll chosen";
+  }
+}
 
 EventLoop::EventLoop(SimulatedClock& clock) : clock_(&clock), simulated_(&clock) { init(); }
 
@@ -51,6 +60,7 @@ void EventLoop::init() {
 }
 
 EventLoop::~EventLoop() {
+  ring_.reset();  // ends its requests before the descriptors they poll go
   if (signal_fd_ >= 0) {
     // Discard what is still pending, so that unblocking cannot kill the process.
     signalfd_siginfo info{};
@@ -153,11 +163,38 @@ EventLoop::WatchId EventLoop::watch(int fd, std::uint32_t events, FdCallback fn)
   return id;
 }
 
+EventLoop::WatchId EventLoop::receive_datagrams(int fd, DatagramSpec spec, DatagramCallback on_datagram,
+                                                FdCallback on_readable, std::function<void(int)> on_send_failed) {
+  if (!ring_) return watch(fd, events::kReadable, std::move(on_readable));
+  const WatchId id = next_watch_id_++;
+  try {
+    ring_->add(id, fd, spec, std::move(on_datagram), std::move(on_send_failed));
+  } catch (const std::system_error& e) {
+    if (e.code().value() == EEXIST) throw;
+    // The kernel refused the socket's buffers (memory): this socket is read the epoll way.
+    return watch(fd, events::kReadable, std::move(on_readable));
+  }
+  return id;
+}
+
+DatagramSend EventLoop::send_datagram(WatchId id, const void* data, std::size_t size) {
+  return ring_ ? ring_->send(id, data, size) : DatagramSend::NotQueued;
+}
+
 bool EventLoop::unwatch(WatchId id) {
+  if (ring_ && ring_->remove(id)) {
+    end_brackets_of(id);
+    return true;
+  }
   auto it = watchers_.find(id);
   if (it == watchers_.end()) return false;
   ::epoll_ctl(epoll_fd_, EPOLL_CTL_DEL, it->second.fd, nullptr);  // fails only if already closed
   watchers_.erase(it);
+  end_brackets_of(id);
+  return true;
+}
+
+void EventLoop::end_brackets_of(WatchId id) {
   // Unwatched during a wake-up: its end comes now (a transport's held frames go out), not never.
   for (std::size_t i = 0; i < brackets_.size();) {
     if (brackets_[i].id != id) {
@@ -168,7 +205,6 @@ bool EventLoop::unwatch(WatchId id) {
     brackets_.erase(brackets_.begin() + static_cast<std::ptrdiff_t>(i));
     if (wake_.held()) b.end();
   }
-  return true;
 }
 
 bool EventLoop::modify(WatchId id, std::uint32_t events) {
@@ -237,24 +273,43 @@ void EventLoop::on_signalfd() {
 
 // ---- running ------------------------------------------------------------------------------
 
-std::size_t EventLoop::run_once(std::optional<Duration> timeout) {
+// Waits for this wake-up's events: the epoll descriptors ready (into `events`, how many
+// returned), and through io_uring the datagrams received (taken by dispatch below).
+int EventLoop::wait_for_events(std::optional<Duration> timeout, epoll_event* events, int max) {
+  const bool busy = !posted_.empty() || !deferred_.empty();
+  if (ring_) {
+    // The timers are the ring's timeout request (no timerfd, no clock reading here).
+    ring_->set_timer(next_timer());
+    ring_->wait(busy || epoll_ready_ ? std::optional<Duration>(Duration::zero()) : timeout);
+    return 0;
+  }
   arm_timerfd();
   int timeout_ms = -1;
-  if (!posted_.empty() || !deferred_.empty()) {
+  if (busy) {
     timeout_ms = 0;
   } else if (timeout) {
     const auto ms = (*timeout + std::chrono::microseconds(999)) / std::chrono::milliseconds(1);  // round up
     timeout_ms = ms <= 0 ? 0 : static_cast<int>(std::min<long long>(ms, INT_MAX));
   }
   if (simulated() && !timers_.empty() && timers_.begin()->first.first <= now()) timeout_ms = 0;
-
-  constexpr int kMaxEvents = 32;
-  epoll_event events[kMaxEvents];
-  int n = ::epoll_wait(epoll_fd_, events, kMaxEvents, timeout_ms);
+  const int n = ::epoll_wait(epoll_fd_, events, max, timeout_ms);
   if (n < 0) {
     if (errno != EINTR) throw_errno("epoll_wait");
-    n = 0;
+    return 0;
   }
+  return n;
+}
+
+std::size_t EventLoop::run_once(std::optional<Duration> timeout) {
+  const std::size_t ran = iterate(timeout);
+  if (ring_) ring_->flush();
+  return ran;
+}
+
+std::size_t EventLoop::iterate(std::optional<Duration> timeout) {
+  constexpr int kMaxEvents = 32;
+  epoll_event events[kMaxEvents];
+  int n = wait_for_events(timeout, events, kMaxEvents);
   // One clock reading for everything this wake-up dispatches (WakeClock); released on the way out,
   // also when a callback throws.
   struct Hold {
@@ -272,6 +327,19 @@ std::size_t EventLoop::run_once(std::optional<Duration> timeout) {
     for (std::size_t i = 0; i < brackets_.size(); ++i) brackets_[i].begin();
   }
   std::size_t ran = 0;
+  if (ring_) {
+    ran += ring_->dispatch(epoll_ready_);
+    if (epoll_ready_) {
+      n = ::epoll_wait(epoll_fd_, events, kMaxEvents, 0);
+      if (n < 0) {
+        if (errno != EINTR) throw_errno("epoll_wait");
+        n = 0;
+      }
+      // A full batch may have left more: the next wake-up does not wait for them.
+      epoll_ready_ = n == kMaxEvents;
+      ring_->poll_again();
+    }
+  }
   for (int i = 0; i < n; ++i) {
     const std::uint64_t id = events[i].data.u64;
     if (id == kTimerFdWatch) {
@@ -299,7 +367,9 @@ std::size_t EventLoop::run_once(std::optional<Duration> timeout) {
 }
 
 void EventLoop::run() {
-  while (!stop_) run_once(std::nullopt);
+  // The ring's sends of one wake-up go with the next wait's system call.
+  while (!stop_) iterate(std::nullopt);
+  if (ring_) ring_->flush();
   stop_ = false;
 }
 
@@ -350,8 +420,20 @@ EventLoop::WatchId watch_transport(EventLoop& loop, CanTransport& transport) {
   const int fd = transport.fd();
   if (fd < 0) return 0;
   transport.set_clock(&loop.clock());
+  auto readable = [&transport](std::uint32_t) { transport.poll_readable(); };
+  const std::optional<DatagramSpec> spec = transport.datagram_spec();
   const EventLoop::WatchId id =
-      loop.watch(fd, events::kReadable, [&transport](std::uint32_t) { transport.poll_readable(); });
+      spec ? loop.receive_datagrams(
+                 fd, *spec, [&transport](const ReceivedDatagram& d) { transport.take_datagram(d); }, readable,
+                 [&transport](int error) { transport.datagram_send_failed(error); })
+           : loop.watch(fd, events::kReadable, readable);
+  // NotQueued once unwatched (or read the epoll way): the transport then sends itself. Without a
+  // ring none: a sender of another loop the transport was watched by before would outlive it.
+  transport.set_datagram_sender(spec && loop.uses_io_uring()
+                                    ? DatagramSender([&loop, id](const void* data, std::size_t size) {
+                                        return loop.send_datagram(id, data, size);
+                                      })
+                                    : DatagramSender());
   loop.bracket_wakeups(
       id, [&transport] { transport.begin_batch(); }, [&transport] { transport.end_batch(); });
   return id;

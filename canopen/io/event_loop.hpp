@@ -1,5 +1,8 @@
 // A single-threaded event loop: epoll for descriptors, a timerfd (CLOCK_MONOTONIC) for timers,
-// signalfd for signals, and a queue of posted callbacks.
+// signalfd for signals, and a queue of posted callbacks. In real time, where the kernel allows
+// it, the loop waits through io_uring instead (canopen/io/uring_receiver.hpp): the buses'
+// datagrams arrive already read (receive_datagrams), the epoll descriptor is polled through the
+// ring, and timers are the wait's timeout, so a frame costs one system call to wait for and read.
 //
 // Two modes:
 //  * real time, `EventLoop loop;` - time is CLOCK_MONOTONIC, run()/run_once() block in epoll_wait;
@@ -44,13 +47,17 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <string>
 #include <unordered_map>
 #include <utility>
 #include <vector>
 
 #include "canopen/io/can_transport.hpp"
 #include "canopen/io/clock.hpp"
+#include "canopen/io/datagram.hpp"
 #include "canopen/types.hpp"
+
+struct epoll_event;  // <sys/epoll.h>
 
 namespace oegw::canopen::io {
 
@@ -62,6 +69,8 @@ inline constexpr std::uint32_t kError = 0x008;
 inline constexpr std::uint32_t kHangup = 0x010;
 }  // namespace events
 
+class UringReceiver;
+
 class EventLoop {
  public:
   using Callback = std::function<void()>;
@@ -69,9 +78,17 @@ class EventLoop {
   using SignalCallback = std::function<void(int signo)>;
   using TimerId = std::uint64_t;  // never 0
   using WatchId = std::uint64_t;  // never 0
+  using DatagramCallback = std::function<void(const ReceivedDatagram& datagram)>;
+
+  // How a real-time loop waits.
+  enum class Wait : std::uint8_t {
+    Best,   // io_uring where the kernel and process allow it (uring_receiver.hpp), else epoll
+    Epoll,  // epoll_wait, the timerfd; each socket read by its owner
+  };
 
   // Real time (SteadyClock, timerfd). Throws std::system_error if epoll/timerfd fail.
-  EventLoop();
+  EventLoop() : EventLoop(Wait::Best) {}
+  explicit EventLoop(Wait wait);
   // Deterministic: time is `clock`, which must outlive the loop; use advance_to() to move it.
   explicit EventLoop(SimulatedClock& clock);
   EventLoop(const EventLoop&) = delete;
@@ -79,6 +96,10 @@ class EventLoop {
   ~EventLoop();
 
   [[nodiscard]] bool simulated() const { return simulated_ != nullptr; }
+  // True if the loop waits through io_uring; otherwise why not (empty for a simulated loop or
+  // Wait::Epoll).
+  [[nodiscard]] bool uses_io_uring() const { return ring_ != nullptr; }
+  [[nodiscard]] const std::string& why_not_io_uring() const { return why_not_io_uring_; }
   [[nodiscard]] TimePoint now() const { return clock_->now(); }
   [[nodiscard]] const Clock& clock() const { return *clock_; }
 
@@ -99,8 +120,23 @@ class EventLoop {
   WatchId watch(int fd, std::uint32_t events, FdCallback fn);
   bool unwatch(WatchId id);
   // Changes what watch `id` waits for (io_events bits; 0: only errors and hang-ups, which epoll
-  // always reports). One epoll_ctl(EPOLL_CTL_MOD); false if there is no such watch.
+  // always reports). One epoll_ctl(EPOLL_CTL_MOD); false if there is no such watch (or it is a
+  // receive_datagrams one taken by io_uring).
   bool modify(WatchId id, std::uint32_t events);
+
+  // A datagram socket the loop reads itself where it waits through io_uring: each datagram (or a
+  // failed receive) goes to `on_datagram`, in the order received, at most `spec` of it. Otherwise
+  // as watch(fd, kReadable, on_readable): the owner reads. Either way unwatch(id) ends it, before
+  // the socket is closed. Throws std::system_error.
+  // `on_send_failed` hears of each datagram send_datagram() queued that the kernel refused.
+  WatchId receive_datagrams(int fd, DatagramSpec spec, DatagramCallback on_datagram, FdCallback on_readable,
+                            std::function<void(int error)> on_send_failed = {});
+  // Where such a watch is read through io_uring, its owner may send through the ring too: the
+  // datagram is copied and sent (send(MSG_DONTWAIT), in the order queued) when the loop next
+  // enters the kernel — with its next wait in run(), at the end of run_once() — so a wake-up's
+  // answers cost no system call of their own. NotQueued where the loop does not (epoll, another
+  // watch): the owner sends itself.
+  DatagramSend send_datagram(WatchId id, const void* data, std::size_t size);
 
   // Brackets every real-time wake-up while watch `id` exists: `begin` after epoll_wait returns,
   // before any callback; `end` after the wake-up's dispatch, also when a callback throws.
@@ -125,14 +161,16 @@ class EventLoop {
   void handle_signals(std::initializer_list<int> signals, SignalCallback on_signal = {});
 
   // Runs until stop(). If stop() was called before run(), returns at once. Resets the stop flag
-  // on return, so run() can be called again.
+  // on return, so run() can be called again. What the last wake-up sent through the ring
+  // (send_datagram) is submitted before it returns.
   void run();
   void stop() { stop_ = true; }
   [[nodiscard]] bool stop_requested() const { return stop_; }
 
   // One iteration: waits up to `timeout` (nullopt = until something happens; 0 = poll) for
   // descriptors and, in real time, for the next timer; then dispatches ready descriptors, due
-  // timers, posted callbacks and one deferred slice. Returns the number of callbacks run.
+  // timers, posted callbacks and one deferred slice. Returns the number of callbacks run. What
+  // the wake-up sent through the ring (send_datagram) is submitted before it returns.
   std::size_t run_once(std::optional<Duration> timeout);
 
   // Deterministic mode only (throws std::logic_error in real time, or if `t` is in the past):
@@ -154,14 +192,21 @@ class EventLoop {
   };
 
   void init();
+  [[nodiscard]] int wait_for_events(std::optional<Duration> timeout, ::epoll_event* events, int max);
   void arm_timer(TimerId id, TimePoint at, Timer timer);
   bool fire_first_timer_due(TimePoint limit);  // fires at most one timer due at or before limit
   std::size_t run_due_timers();
   std::size_t run_posted();
   void arm_timerfd();
+  void end_brackets_of(WatchId id);
+  std::size_t iterate(std::optional<Duration> timeout);  // run_once() but the ring's sends left queued  // an unwatched
+                                                         // id's brackets go; its end runs if in a wake-up
   void on_signalfd();
 
-  WakeClock wake_;  // held from the wake-up to the end of its dispatch (run_once)
+  std::unique_ptr<UringReceiver> ring_;  // null: epoll_wait
+  std::string why_not_io_uring_;
+  bool epoll_ready_ = false;  // io_uring: the epoll descriptor is readable (or was left with more)
+  WakeClock wake_;            // held from the wake-up to the end of its dispatch (run_once)
   const Clock* clock_ = &wake_;
   SimulatedClock* simulated_ = nullptr;
   int epoll_fd_ = -1;
@@ -240,10 +285,11 @@ class ServiceDriver {
   std::optional<TimePoint> armed_at_;
 };
 
-// Watches transport.fd() (if >= 0) and calls transport.poll_readable() when it is readable;
-// the transport reads "now" from the loop's clock (one reading per wake-up) and batches what each
-// wake-up sends (CanTransport::begin_batch/end_batch). Returns the watch id, or 0 if the transport
-// has no descriptor. unwatch() the id before the transport goes.
+// Watches transport.fd() (if >= 0) and calls transport.poll_readable() when it is readable, or,
+// where the loop reads datagrams itself (io_uring) and the transport takes them
+// (CanTransport::datagram_spec), hands it each datagram (take_datagram); the transport reads "now" from the loop's
+// clock (one reading per wake-up) and batches what each wake-up sends (CanTransport::begin_batch/end_batch). Returns
+// the watch id, or 0 if the transport has no descriptor. unwatch() the id before the transport goes.
 EventLoop::WatchId watch_transport(EventLoop& loop, CanTransport& transport);
 
 }  // namespace oegw::canopen::io

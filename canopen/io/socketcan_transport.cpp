@@ -372,8 +372,9 @@ void CanFrameSocket::end_batch() {
 // The held frames in order, in one sendmmsg() (more only if the kernel takes part of them, or
 // after kMaxHeld). A full TX queue drops the rest, as send() would have dropped each.
 void CanFrameSocket::send_held() {
+  if (held_.empty()) return;
+  if (datagram_sender_ && queue_held_in_ring()) return;
   const std::size_t n = held_.size();
-  if (n == 0) return;
   held_iov_.resize(n);
   held_headers_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
@@ -403,6 +404,35 @@ void CanFrameSocket::send_held() {
   held_.clear();
 }
 
+// The held frames to the loop's ring, in order: true if it took them all (a frame it had no
+// room for is dropped as a full TX queue drops it). False, nothing taken, if it does not send for
+// this socket (unwatched): send_held() sends them itself.
+bool CanFrameSocket::queue_held_in_ring() {
+  for (std::size_t i = 0; i < held_.size(); ++i) {
+    switch (datagram_sender_(&held_[i], sizeof(::can_frame))) {
+      case DatagramSend::Queued: ++counters_.tx_frames; break;
+      case DatagramSend::Full: ++counters_.tx_dropped; break;
+      case DatagramSend::NotQueued:
+        if (i == 0) return false;
+        // Not seen: a sender stops taking only when its watch goes, never within a batch.
+        held_.erase(held_.begin(), held_.begin() + static_cast<std::ptrdiff_t>(i));
+        return false;
+    }
+  }
+  held_.clear();
+  return true;
+}
+
+void CanFrameSocket::datagram_send_failed(int error) {
+  // Counted as taken when queued: now it is not.
+  if (counters_.tx_frames > 0) --counters_.tx_frames;
+  if (error == ENOBUFS || error == EAGAIN) {
+    ++counters_.tx_dropped;
+  } else {
+    ++counters_.errors;
+  }
+}
+
 void CanFrameSocket::sample_clocks() {
   timespec real_now{};
   timespec mono_now{};
@@ -423,8 +453,7 @@ int CanFrameSocket::read_batch() {
     const int e = errno;
     if (e == EINTR) continue;
     if (e == EAGAIN || e == EWOULDBLOCK) return -1;
-    ++counters_.errors;
-    if (e == ENETDOWN) deliver_event(BusEvent::InterfaceDown);
+    receive_failed(e);
     return -1;
   }
 }
@@ -440,8 +469,7 @@ void CanFrameSocket::end_of_stream() {
 // reading per frame (the loop's wake-up time and StampMapper's sampled offset).
 void CanFrameSocket::poll_readable() {
   if (ended_) return;
-  const TimePoint now = clock_ != nullptr ? clock_->now() : SteadyClock().now();
-  if (stamps_.needs_sample(now)) sample_clocks();
+  const TimePoint now = wake_up_time();
   bool resampled = false;
   std::size_t total = 0;
   while (total < max_batch_) {
@@ -449,45 +477,78 @@ void CanFrameSocket::poll_readable() {
     if (n <= 0) return;
     total += static_cast<std::size_t>(n);
     for (int i = 0; i < n; ++i) {
-      const Slot& slot = slots_[static_cast<std::size_t>(i)];
-      msghdr& msg = headers_[static_cast<std::size_t>(i)].msg_hdr;
-      const unsigned len = headers_[static_cast<std::size_t>(i)].msg_len;
-      if (len == 0) {  // the end of the stream: nothing after it is a frame
-        end_of_stream();
-        return;
-      }
-      // CAN FD/XL are not enabled; a longer datagram arrives cut to a frame's size (MSG_TRUNC).
-      if (len != sizeof(::can_frame) || (msg.msg_flags & MSG_TRUNC) != 0) {
-        ++counters_.errors;
-        continue;
-      }
-      TimePoint stamp = now;
-      for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
-        if (c->cmsg_level != SOL_SOCKET) continue;
-        if (c->cmsg_type == SCM_TIMESTAMPNS) {
-          timespec ts;
-          std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
-          std::optional<TimePoint> t = stamps_.map(ts, now);
-          if (!t && !resampled) {  // the realtime clock was stepped: sample once more
-            sample_clocks();
-            resampled = true;
-            t = stamps_.map(ts, now);
-          }
-          stamp = t.value_or(now);
-        } else if (c->cmsg_type == SO_RXQ_OVFL) {
-          std::uint32_t dropped = 0;
-          std::memcpy(&dropped, CMSG_DATA(c), sizeof dropped);
-          counters_.rx_dropped = std::max<std::uint64_t>(counters_.rx_dropped, dropped);  // cumulative
-        }
-      }
-      if (socketcan::is_error_frame(slot.frame)) {
-        for (BusEvent e : socketcan::decode_error_frame(slot.frame)) deliver_event(e);
-      } else if (auto frame = socketcan::from_kernel(slot.frame)) {
-        deliver_frame(*frame, stamp);
-      }
+      const auto& h = headers_[static_cast<std::size_t>(i)];
+      if (!take(h.msg_hdr, h.msg_len, now, resampled)) return;
     }
     if (static_cast<std::size_t>(n) < headers_.size()) return;  // the queue is empty
   }
+}
+
+std::optional<DatagramSpec> CanFrameSocket::datagram_spec() const {
+  return DatagramSpec{.payload_bytes = sizeof(::can_frame), .control_bytes = sizeof(Slot::control)};
+}
+
+void CanFrameSocket::take_datagram(const ReceivedDatagram& datagram) {
+  if (ended_) return;
+  if (datagram.msg == nullptr) {
+    receive_failed(datagram.error);
+    return;
+  }
+  bool resampled = false;
+  (void)take(*datagram.msg, datagram.length, wake_up_time(), resampled);
+}
+
+TimePoint CanFrameSocket::wake_up_time() {
+  const TimePoint now = clock_ != nullptr ? clock_->now() : SteadyClock().now();
+  if (stamps_.needs_sample(now)) sample_clocks();
+  return now;
+}
+
+void CanFrameSocket::receive_failed(int error) {
+  ++counters_.errors;
+  if (error == ENETDOWN) deliver_event(BusEvent::InterfaceDown);
+}
+
+// One datagram read: a frame to deliver with its stamp, an error frame's events, or the end of
+// the stream (false: nothing after it is read).
+bool CanFrameSocket::take(const msghdr& msg, std::size_t len, TimePoint now, bool& resampled) {
+  if (len == 0) {  // the end of the stream: nothing after it is a frame
+    end_of_stream();
+    return false;
+  }
+  // CAN FD/XL are not enabled; a longer datagram arrives cut to a frame's size (MSG_TRUNC).
+  if (len != sizeof(::can_frame) || (msg.msg_flags & MSG_TRUNC) != 0) {
+    ++counters_.errors;
+    return true;
+  }
+  ::can_frame frame;
+  std::memcpy(&frame, msg.msg_iov[0].iov_base, sizeof frame);
+  TimePoint stamp = now;
+  msghdr m = msg;  // CMSG_NXTHDR takes it non-const
+  for (cmsghdr* c = CMSG_FIRSTHDR(&m); c != nullptr; c = CMSG_NXTHDR(&m, c)) {
+    if (c->cmsg_level != SOL_SOCKET) continue;
+    if (c->cmsg_type == SCM_TIMESTAMPNS) {
+      timespec ts;
+      std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
+      std::optional<TimePoint> t = stamps_.map(ts, now);
+      if (!t && !resampled) {  // the realtime clock was stepped: sample once more
+        sample_clocks();
+        resampled = true;
+        t = stamps_.map(ts, now);
+      }
+      stamp = t.value_or(now);
+    } else if (c->cmsg_type == SO_RXQ_OVFL) {
+      std::uint32_t dropped = 0;
+      std::memcpy(&dropped, CMSG_DATA(c), sizeof dropped);
+      counters_.rx_dropped = std::max<std::uint64_t>(counters_.rx_dropped, dropped);  // cumulative
+    }
+  }
+  if (socketcan::is_error_frame(frame)) {
+    for (BusEvent e : socketcan::decode_error_frame(frame)) deliver_event(e);
+  } else if (auto f = socketcan::from_kernel(frame)) {
+    deliver_frame(*f, stamp);
+  }
+  return true;
 }
 
 }  // namespace oegw::canopen::io

@@ -184,6 +184,11 @@ class CanFrameSocket : public CanTransport {
   void end_batch() override;
   [[nodiscard]] int fd() const override { return fd_; }
   void poll_readable() override;
+  // Where the loop reads (io_uring): one struct can_frame and its stamp and drop count, each
+  // handled as poll_readable() handles it.
+  [[nodiscard]] std::optional<DatagramSpec> datagram_spec() const override;
+  void take_datagram(const ReceivedDatagram& datagram) override;
+  void datagram_send_failed(int error) override;
 
  protected:
   // Takes ownership of `fd` (non-blocking; the subclass sets its options).
@@ -195,8 +200,12 @@ class CanFrameSocket : public CanTransport {
  private:
   // Reads up to the batch size in one recvmmsg(); returns how many it read, -1 to stop.
   int read_batch();
+  TimePoint wake_up_time();  // the loop's "now"; the stamps' offset sampled again when due
+  bool take(const msghdr& msg, std::size_t len, TimePoint now, bool& resampled);
+  void receive_failed(int error);
   void sample_clocks();
   void send_held();
+  bool queue_held_in_ring();
   void end_of_stream();
 
   // recvmmsg() buffers: one frame and its control data (timestamp, drop count) per slot.

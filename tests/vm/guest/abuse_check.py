@@ -21,10 +21,14 @@ import sys
 from hostlib import read_cobs
 
 def longest_gap(times, start, end):
-    """The longest gap between two of `times` that overlaps start..end, and where it began."""
+    """The longest gap between two of `times` that overlaps start..end, and where it began. A gap
+    still open when the log ends (no time after the window: the dump stopped first) counts up to
+    the window's end, as far as it is known: a short window at the end of a run may hold none of
+    a slow heartbeat and be followed by none in the log, and is then judged by how long it has
+    been since the last."""
     before = [t for t in times if t < start]
     after = [t for t in times if t > end]
-    seq = ([before[-1]] if before else []) + [t for t in times if start <= t <= end] + ([after[0]] if after else [])
+    seq = ([before[-1]] if before else []) + [t for t in times if start <= t <= end] + ([after[0]] if after else [end])
     gaps = [(b - a, a) for a, b in zip(seq, seq[1:]) if b > start and a < end]
     return max(gaps) if gaps else None
 

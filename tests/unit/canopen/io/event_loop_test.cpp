@@ -12,7 +12,9 @@
 #include <string>
 #include <vector>
 
+#include "canopen/io/seqpacket_transport.hpp"
 #include "canopen/io/virtual_bus.hpp"
+#include "tests/fixtures/kernel_frame.hpp"
 
 // Counts heap allocations (AWakeUpOfABusAllocatesNothing): the replaceable operator new
 // ([replacement.functions]) counts, then allocates as the library's own does. Not inlined, so
@@ -219,6 +221,28 @@ TEST(EventLoop, AWakeUpOfABusAllocatesNothing) {
     EXPECT_EQ(g_allocations - before, 0u) << "wake-up " << i;
   }
   EXPECT_EQ(woken, 3);
+}
+
+// The same through io_uring: a bus's frame read by the loop into its ring's buffer, handed to the
+// transport and the receiver, the ring's buffer given back: no allocation either.
+TEST(EventLoop, AWakeUpOfABusThroughIoUringAllocatesNothing) {
+  EventLoop loop;
+  int fds[2];
+  SeqpacketCanTransport::make_socketpair(fds);
+  auto transport = SeqpacketCanTransport::adopt(fds[0]);
+  int frames = 0;
+  transport->set_receiver([&](const CanFrame&, TimePoint) { ++frames; });
+  watch_transport(loop, *transport);
+  const ::can_frame k = oegw::fixtures::kernel_frame(0x181, {1, 2});
+  loop.run_once(0us);  // the ring's request submitted
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_EQ(::send(fds[1], &k, sizeof k, 0), static_cast<ssize_t>(sizeof k));
+    const std::size_t before = g_allocations;
+    EXPECT_EQ(loop.run_once(1s), 1u);
+    EXPECT_EQ(g_allocations - before, 0u) << "wake-up " << i << (loop.uses_io_uring() ? " (io_uring)" : " (epoll)");
+  }
+  EXPECT_EQ(frames, 3);
+  ::close(fds[1]);
 }
 
 TEST(EventLoop, WatchingTheSameFdTwiceThrows) {
