@@ -300,10 +300,29 @@ int EventLoop::wait_for_events(std::optional<Duration> timeout, epoll_event* eve
   return n;
 }
 
+namespace {
+
+// The ring's queued sends submitted on the way out, also when a callback throws (as the epoll
+// loop's sendmmsg at the wake-up's end sent them); a failure then is not the one to report.
+struct FlushOnExit {
+  explicit FlushOnExit(UringReceiver* r) : ring(r) {}
+  UringReceiver* ring;
+  FlushOnExit(const FlushOnExit&) = delete;
+  FlushOnExit& operator=(const FlushOnExit&) = delete;
+  ~FlushOnExit() {
+    if (ring == nullptr) return;
+    try {
+      ring->flush();
+    } catch (const std::system_error&) {
+    }
+  }
+};
+
+}  // namespace
+
 std::size_t EventLoop::run_once(std::optional<Duration> timeout) {
-  const std::size_t ran = iterate(timeout);
-  if (ring_) ring_->flush();
-  return ran;
+  const FlushOnExit flush{ring_.get()};
+  return iterate(timeout);
 }
 
 std::size_t EventLoop::iterate(std::optional<Duration> timeout) {
@@ -368,8 +387,8 @@ std::size_t EventLoop::iterate(std::optional<Duration> timeout) {
 
 void EventLoop::run() {
   // The ring's sends of one wake-up go with the next wait's system call.
+  const FlushOnExit flush{ring_.get()};
   while (!stop_) iterate(std::nullopt);
-  if (ring_) ring_->flush();
   stop_ = false;
 }
 

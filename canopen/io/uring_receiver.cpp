@@ -339,9 +339,16 @@ DatagramSend UringReceiver::send(std::uint64_t key, const void* data, std::size_
   if (it == sockets_.end() || size > sizeof(SendSlot::bytes)) return DatagramSend::NotQueued;
   if (send_slots_.empty()) send_slots_.resize(kSendSlots);
   if (sends_queued_ == send_slots_.size()) return DatagramSend::Full;
+  // Never throws: a wake-up's end (a destructor) sends through here. A full submission queue
+  // the kernel does not take from (memory) drops the frame as a full TX queue would.
+  io_uring_sqe* sqe = io_uring_get_sqe(&ring_->ring);
+  if (sqe == nullptr) {
+    (void)io_uring_submit(&ring_->ring);  // what is queued goes now (sent already, in order)
+    sqe = io_uring_get_sqe(&ring_->ring);
+    if (sqe == nullptr) return DatagramSend::Full;
+  }
   SendSlot& slot = send_slots_[sends_queued_];
   std::memcpy(slot.bytes, data, size);
-  io_uring_sqe* sqe = next_sqe(ring_->ring);  // may submit what is queued (then sent already)
   io_uring_prep_send(sqe, it->second->fd, slot.bytes, size, MSG_DONTWAIT | MSG_NOSIGNAL);
   io_uring_sqe_set_data64(sqe, kSendTag | key);
   sqe->flags |= IOSQE_CQE_SKIP_SUCCESS;
@@ -384,21 +391,36 @@ bool UringReceiver::remove(std::uint64_t key) {
   retired_.push_back(std::move(it->second));
   sockets_.erase(it);
   Socket& s = *retired_.back();
-  if (!s.armed) {
+  if (s.armed) {
+    io_uring_sqe* sqe = next_sqe(ring_->ring);
+    io_uring_prep_cancel64(sqe, key, 0);
+    io_uring_sqe_set_data64(sqe, kCancelKey);
+    sqe->flags |= IOSQE_CQE_SKIP_SUCCESS;
+  } else {
     release(s);
-    return true;
   }
-  io_uring_sqe* sqe = next_sqe(ring_->ring);
-  io_uring_prep_cancel64(sqe, key, 0);
-  io_uring_sqe_set_data64(sqe, kCancelKey);
-  sqe->flags |= IOSQE_CQE_SKIP_SUCCESS;
-  // Submitted now, not at the next wait: the owner closes the socket next, and its number may
-  // be reused before then — a request submitted later would read the new socket's datagrams.
-  if (const int r = io_uring_submit(&ring_->ring); r < 0) {
-    throw std::system_error(-r, std::generic_category(), "io_uring_enter (cancelling a socket's request)");
+  // Submitted now, not at the next wait: the owner closes the socket next, and its number may be
+  // reused before then — a request or a send submitted later would reach the new socket.
+  if (io_uring_sq_ready(&ring_->ring) > 0) {
+    (void)io_uring_submit(&ring_->ring);
+    submitted();
+    if (io_uring_sq_ready(&ring_->ring) > 0) forget_sends_of(key);
   }
-  submitted();
   return true;
+}
+
+// What the kernel did not take of the queue (memory) and is `key`'s sends: made no-operations,
+// which complete silently, so that nothing is sent on a descriptor about to be closed.
+void UringReceiver::forget_sends_of(std::uint64_t key) {
+  io_uring& ring = ring_->ring;
+  const unsigned mask = *ring.sq.kring_mask;
+  for (unsigned i = *ring.sq.khead; i != ring.sq.sqe_tail; ++i) {
+    io_uring_sqe* sqe = &ring.sq.sqes[i & mask];
+    if (sqe->opcode != IORING_OP_SEND || sqe->user_data != (kSendTag | key)) continue;
+    io_uring_prep_nop(sqe);
+    io_uring_sqe_set_data64(sqe, kCancelKey);
+    sqe->flags |= IOSQE_CQE_SKIP_SUCCESS;
+  }
 }
 
 void UringReceiver::release(Socket& s) {
@@ -424,6 +446,13 @@ void UringReceiver::wait(std::optional<Duration> timeout) {
   // -EBADR: completions were lost for want of memory (NODROP's last resort); what remains is
   // taken as it comes, and a request that lost its end is armed again by the next error or by
   // nothing: the sockets' own queues still hold their datagrams.
+  if (r == -EBADR) {
+    // Completions were lost: the timeout's and the poll's may be among them. Armed anew (a
+    // second poll or timeout at worst wakes the loop once more).
+    timer_.reset();
+    poll_armed_ = false;
+    poll_again();
+  }
   if (r >= 0 || r == -ETIME || r == -EINTR || r == -EAGAIN || r == -EBUSY || r == -EBADR) {
     submitted();
     return;

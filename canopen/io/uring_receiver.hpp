@@ -95,6 +95,7 @@ class UringReceiver {
   void arm_poll();
   void take(std::uint64_t key, int res, std::uint32_t flags, std::size_t& handed);
   void release(Socket& s);
+  void forget_sends_of(std::uint64_t key);
 
   std::unique_ptr<Ring> ring_;
   int epoll_fd_;

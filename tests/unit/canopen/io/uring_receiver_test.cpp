@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <utility>
@@ -373,6 +374,52 @@ TEST_P(LoopWait, AnswersTheQueueRefusesAreCountedAsDropped) {
   EXPECT_LT(on_the_wire, kAnswers) << "the peer's buffer should have filled";
   EXPECT_EQ(c.tx_frames, static_cast<std::uint64_t>(on_the_wire));
   EXPECT_EQ(c.tx_frames + c.tx_dropped + c.errors, static_cast<std::uint64_t>(kAnswers));
+}
+
+// A callback that throws after sending: what the wake-up sent is on the wire all the same (the
+// epoll loop's sendmmsg ran as the wake-up unwound; the ring's queue is submitted on the way out).
+TEST_P(LoopWait, AnswersOfAWakeUpWhoseCallbackThrowsAreSentAllTheSame) {
+  EventLoop loop(GetParam());
+  Bus bus(loop);
+  bus.transport->set_receiver([&](const CanFrame& f, TimePoint) {
+    (void)bus.transport->send(CanFrame{f.id + 1, {f.data[0]}});
+    throw std::runtime_error("a callback's bug");
+  });
+  bus.inject(kernel_frame(0x180, {4}));
+  EXPECT_THROW(loop.run_once(1s), std::runtime_error);
+  ::can_frame k{};
+  ASSERT_EQ(::recv(bus.peer, &k, sizeof k, MSG_DONTWAIT), static_cast<ssize_t>(sizeof k));
+  EXPECT_EQ(k.can_id, 0x181u);
+}
+
+// A transport whose peer closed, unwatched and closed inside the wake-up in which it answered a
+// frame, its descriptor's number taken by a new socket at once: the answer never reaches the new
+// socket (what the ring had queued for the old one went before the close).
+TEST_P(LoopWait, AnswersQueuedForAClosedSocketNeverReachTheSocketThatTakesItsNumber) {
+  EventLoop loop(GetParam());
+  auto old_bus = std::make_unique<Bus>(loop);
+  std::unique_ptr<Bus> new_bus;
+  int number = old_bus->transport->fd();
+  // 64 answers: a full batch, handed to the ring within the wake-up (not only at its end).
+  old_bus->transport->set_receiver([&](const CanFrame& f, TimePoint) {
+    for (int i = 0; i < 64; ++i) (void)old_bus->transport->send(CanFrame{f.id + 1, {f.data[0]}});
+  });
+  old_bus->transport->set_event_handler([&](BusEvent) {
+    loop.unwatch(old_bus->watch);
+    loop.post([&] {                // still in this wake-up, once the transport's own call returned
+      old_bus->transport.reset();  // closes the descriptor
+      new_bus = std::make_unique<Bus>(loop);
+    });
+  });
+  old_bus->inject(kernel_frame(0x180, {6}));
+  ::close(old_bus->peer);  // the frame, then the end of the stream: one wake-up
+  old_bus->peer = -1;
+  for (int i = 0; i < 20 && !new_bus; ++i) loop.run_once(1s);
+  ASSERT_TRUE(new_bus);
+  EXPECT_EQ(new_bus->transport->fd(), number);
+  loop.run_once(20ms);
+  ::can_frame k{};
+  EXPECT_EQ(::recv(new_bus->peer, &k, sizeof k, MSG_DONTWAIT), -1) << "a frame for the old socket reached the new one";
 }
 
 INSTANTIATE_TEST_SUITE_P(Both, LoopWait, ::testing::Values(EventLoop::Wait::Best, EventLoop::Wait::Epoll), wait_name);
