@@ -43,6 +43,8 @@ SdoClient& Master::sdo(NodeId server) {
     c.timeout = cfg_.sdo_timeout;
     slot = std::make_unique<SdoClient>([this](const CanFrame& f) { sink_(f); }, c);
     if (sdo_pacer_.paced()) slot->set_pacer(&sdo_pacer_);
+    clients_.clear();
+    for (const auto& [id, client] : sdo_) clients_.push_back(client.get());
   }
   return *slot;
 }
@@ -74,8 +76,8 @@ bool Master::on_frame(const CanFrame& frame, TimePoint now) {
   }
   if (hb_.on_frame(frame, now)) return true;
   if (emcy_.on_frame(frame, now)) return true;
-  for (auto& [id, client] : sdo_) {
-    if (client->on_frame(frame, now)) return true;
+  for (SdoClient* client : clients_) {
+    if (client->answers_on(frame)) return client->on_frame(frame, now);
   }
   if (on_other_frame) on_other_frame(frame, now);
   return false;
@@ -83,7 +85,9 @@ bool Master::on_frame(const CanFrame& frame, TimePoint now) {
 
 void Master::advance(TimePoint now) {
   hb_.advance(now);
-  for (auto& [id, client] : sdo_) client->advance(now);
+  // By index: a callback may add a client (sdo()), which rebuilds clients_; those after it
+  // shift right and are advanced twice at most (harmless at the same time), none is skipped.
+  for (std::size_t i = 0; i < clients_.size(); ++i) clients_[i]->advance(now);
   if (sync_) sync_->advance(now);
 }
 
@@ -91,7 +95,8 @@ std::optional<TimePoint> Master::next_deadline() const {
   std::optional<TimePoint> best = hb_.next_deadline();
   if (sync_)
     if (const auto t = sync_->next_deadline(); t && (!best || *t < *best)) best = t;
-  for (const auto& [id, client] : sdo_) {
+  for (const SdoClient* client : clients_) {
+    if (client->idle()) continue;
     const auto t = client->next_deadline();
     if (t && (!best || *t < *best)) best = t;
   }

@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <vector>
 
 #include "canopen/301/emcy.hpp"
 #include "canopen/301/heartbeat.hpp"
@@ -75,6 +76,9 @@ class Master {
   HeartbeatConsumer hb_;
   EmcyConsumer emcy_;
   std::map<std::uint8_t, std::unique_ptr<SdoClient>> sdo_;
+  // sdo_'s clients in its order (by node-ID), contiguous: on_frame() and next_deadline() walk
+  // them for every frame.
+  std::vector<SdoClient*> clients_;
   SdoPacer sdo_pacer_;
   std::unique_ptr<SyncService> sync_;  // only with a SYNC period
 };

@@ -87,6 +87,7 @@ void Driver::update(std::size_t index, std::int64_t value, SignalStatus status, 
     v.timestamp = now;
     return;
   }
+  if (v.status != status) next_due_known_ = false;  // watched(index) may have changed
   v = SignalValue{value, status, now};
   if (on_change) on_change(index, v);
 }
@@ -174,6 +175,7 @@ void Driver::set_alive_since(std::optional<TimePoint> since) {
 }
 
 void Driver::refresh_earliest_due() {
+  next_due_known_ = false;
   earliest_due_.reset();
   for (const Watch& w : watches_)
     if (w.due && (!earliest_due_ || *w.due < *earliest_due_)) earliest_due_ = w.due;
@@ -275,6 +277,7 @@ bool Driver::all_stale() const {
 }
 
 std::optional<TimePoint> Driver::next_deadline() const {
+  if (next_due_known_) return next_due_;
   std::optional<TimePoint> best;
   for (const Watch& w : watches_) {
     const auto& at = w.due;
@@ -282,7 +285,10 @@ std::optional<TimePoint> Driver::next_deadline() const {
     // Only while it still has a signal to mark: an overdue PDO whose signals are all stale
     // already is no reason to wake up.
     if (std::any_of(w.signals.begin(), w.signals.end(), [this](std::size_t i) { return watched(i); })) best = at;
+    if (best == earliest_due_) break;  // none is sooner
   }
+  next_due_ = best;
+  next_due_known_ = true;
   return best;
 }
 

@@ -322,8 +322,14 @@ class Driver {
   std::optional<TimePoint> alive_since_;
   std::vector<Duration> deadline_;  // by signal: the shortest of its PDOs'; 0 = none
   std::vector<Watch> watches_;
-  std::vector<std::uint32_t> watch_mask_;   // by signal: bit k = watches_[k] carries it
-  std::optional<TimePoint> earliest_due_;   // the soonest Watch::due: before it nothing is overdue
+  std::vector<std::uint32_t> watch_mask_;  // by signal: bit k = watches_[k] carries it
+  std::optional<TimePoint> earliest_due_;  // the soonest Watch::due: before it nothing is overdue
+  // next_deadline()'s answer, kept while nothing it depends on changed: the event loop asks for
+  // it after every frame, and the network manager asks every driver. It depends on the watches'
+  // dues (each change ends in refresh_earliest_due()) and on the signals' statuses (update()),
+  // the only two places that clear next_due_known_.
+  mutable std::optional<TimePoint> next_due_;
+  mutable bool next_due_known_ = false;
   std::vector<std::size_t> with_deadline_;  // the signals that have one
 };
 

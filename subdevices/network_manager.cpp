@@ -639,10 +639,19 @@ bool NetworkManager::booting_any() const {
 
 std::optional<TimePoint> NetworkManager::next_deadline() const {
   std::optional<TimePoint> best = master_.next_deadline();
-  if (std::any_of(nodes_.begin(), nodes_.end(), [](const auto& m) { return m->step_held; }))
+  // configuring_any(), booting_any() and whether a step is held, in one pass: this runs after
+  // every frame.
+  bool step_held = false;
+  bool configuring = false;  // probes wait (configuring_any())
+  bool probing = false;
+  for (const auto& m : nodes_) {
+    step_held = step_held || m->step_held;
+    configuring = configuring || (m->state == NodeState::Configuring && !m->held_since);
+    probing = probing || (m->state == NodeState::WaitingBootUp && m->probe_gap <= timing_.boot_probe_first);
+  }
+  const bool booting = configuring || (probing && probes_on());  // held starts wait (booting_any())
+  if (step_held)
     if (const auto until = late_heartbeat(); until && (!best || *until < *best)) best = until;
-  const bool configuring = configuring_any();  // probes wait (configuring_any())
-  const bool booting = booting_any();          // held starts wait (booting_any())
   if (const auto t = lss_.next_deadline(); t && (!best || *t < *best)) best = t;
   for (const auto& m : nodes_) {
     if (m->deadline && (!best || *m->deadline < *best)) best = m->deadline;

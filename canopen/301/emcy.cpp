@@ -149,6 +149,7 @@ bool EmcyProducer::clear(std::uint16_t code, TimePoint now, const EmcyManufactur
 }
 
 void EmcyProducer::advance(TimePoint now) {
+  if (queue_.empty()) return;  // the usual case: no dictionary read
   const Duration inh = inhibit();
   while (!queue_.empty() && (inh.count() == 0 || !last_sent_ || now >= *last_sent_ + inh)) {
     sink_(queue_.front().frame);

@@ -14,10 +14,6 @@ using sdo_block::kSegmentData;
 using sdo_block::round_up_segments;
 constexpr std::uint8_t kAbort = 0x80;
 
-bool matches(CobId cob, const CanFrame& f) {
-  return cob.valid() && f.id == cob.can_id() && f.extended == cob.extended();
-}
-
 }  // namespace
 
 SdoClientConfig SdoClientConfig::for_node(NodeId server) {
@@ -90,7 +86,7 @@ void SdoClient::advance(TimePoint now) {
 }
 
 bool SdoClient::on_frame(const CanFrame& frame, TimePoint now) {
-  if (!matches(cfg_.response_cob, frame)) return false;
+  if (!answers_on(frame)) return false;
   now_ = now;
   if (!frame.rtr && state_ != State::Idle) {
     if (stale(frame)) {

@@ -83,6 +83,12 @@ class SdoClient {
 
   // True if the frame is on the response COB-ID.
   bool on_frame(const CanFrame& frame, TimePoint now);
+  // Whether on_frame() takes `f` (the response COB-ID): inline, for a master that asks each of
+  // its clients for every frame it receives.
+  [[nodiscard]] bool answers_on(const CanFrame& f) const {
+    return cfg_.response_cob.valid() && f.id == cfg_.response_cob.can_id() &&
+           f.extended == cfg_.response_cob.extended();
+  }
   void advance(TimePoint now);
   [[nodiscard]] std::optional<TimePoint> next_deadline() const;
 
@@ -119,6 +125,8 @@ class SdoClient {
   void set_pacer(SdoPacer* pacer) { pacer_ = pacer; }
 
   [[nodiscard]] bool busy() const { return state_ != State::Idle; }
+  // Nothing in flight, nothing queued: next_deadline() is nullopt (inline, as answers_on()).
+  [[nodiscard]] bool idle() const { return state_ == State::Idle && queued() == 0; }
   [[nodiscard]] std::size_t queued() const { return queue_.size() - queue_head_; }
   [[nodiscard]] const SdoClientConfig& config() const { return cfg_; }
 

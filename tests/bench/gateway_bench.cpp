@@ -10,6 +10,8 @@
 //  * BM_Throughput/<variant>: on_downstream_frame() on a stream of changing frames; items/s =
 //    downstream frames translated per second, "tpdo/frame" must be 1.
 //  * Both report "allocs/frame": heap allocations per frame on the hot path.
+//  * BM_FrameAndDeadline/<variant>/cold:<0|1>: a frame and then next_deadline(), what `oegw run`
+//    does per frame; cold:1 with the caches evicted before each (the eviction not timed).
 // Variants: 0 = one grip feeding joystick.1; 1 = the full FE set (48 sub-devices, gateway_rss.cpp).
 //  * BM_ThroughputPublishing: variant 0 with GatewayPublishing on (DDS loopback, LCM ttl=0): every
 //    frame also builds the joystick sample from the FE model and publishes it on both transports;
@@ -142,6 +144,34 @@ void BM_Throughput(benchmark::State& state) {
       state.iterations() == 0 ? 0.0 : static_cast<double>(up.frames - up0) / static_cast<double>(state.iterations());
 }
 BENCHMARK(BM_Throughput)->Arg(0)->Arg(1)->ArgName("full_set");
+
+// What `oegw run` does per frame (gateway/programs.cpp Daemon::take_frames): the frame, then the
+// gateway's next deadline for the loop's timer. cold:1 evicts the caches between frames (a
+// 4 MiB buffer written over, not timed), as a gateway woken from its wait finds them after the
+// other threads and the kernel ran: the work's memory footprint, not only its instructions.
+void BM_FrameAndDeadline(benchmark::State& state) {
+  auto rig = make_rig(static_cast<int>(state.range(0)));
+  const bool cold = state.range(1) != 0;
+  auto& gw = rig->gw();
+  const auto now = rig->now();
+  const canopen::CanFrame frames[2] = {grip_frame(x_for(0)), grip_frame(x_for(1))};
+  std::vector<std::uint8_t> evict(cold ? 4u << 20 : 0u);
+  std::uint64_t i = 0;
+  std::uint8_t fill = 0;
+  for (auto _ : state) {
+    if (cold) {
+      state.PauseTiming();
+      std::fill(evict.begin(), evict.end(), ++fill);
+      benchmark::ClobberMemory();
+      state.ResumeTiming();
+    }
+    benchmark::DoNotOptimize(gw.on_downstream_frame(frames[i & 1u], now));
+    benchmark::DoNotOptimize(gw.next_deadline());
+    ++i;
+  }
+  state.SetItemsProcessed(static_cast<std::int64_t>(state.iterations()));
+}
+BENCHMARK(BM_FrameAndDeadline)->ArgsProduct({{0, 1}, {0, 1}})->ArgNames({"full_set", "cold"});
 
 void BM_ThroughputPublishing(benchmark::State& state) {
   const std::string yaml = bench::yaml_one_grip() +

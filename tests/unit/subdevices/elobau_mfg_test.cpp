@@ -366,6 +366,42 @@ TEST_F(ElobauDriverTest, EmcyParameterChecksum0002hFaultsEveryInputUntilTheReadB
   EXPECT_FALSE(drv->any_fault());
 }
 
+// Driver::next_deadline() (subdevices/driver.hpp) is kept between calls, for the event loop asks
+// after every frame: whatever changes its answer must change it — the proof of life, a PDO, and
+// a signal no longer watched (faulted, stale) with no watch changed.
+TEST_F(ElobauDriverTest, TheNextDeadlineFollowsThePdosAndTheStatusOfTheSignals) {
+  EXPECT_EQ(drv->next_deadline(), std::nullopt) << "not proven alive: nothing is due";
+  drv->set_alive_since(t);
+  const Duration d = drv->freshness(idx("x"));
+  ASSERT_GT(d.count(), 0);
+  EXPECT_EQ(drv->next_deadline(), t + d) << "TPDO #0 is due one deadline after the proof of life";
+  t += 10ms;
+  drv->pdo_received(0x191, t);
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  EXPECT_EQ(drv->next_deadline(), t + d);
+  // Every input faulted (§12.4, 4001h 0002h): none is left to mark stale, so no wake-up is due.
+  emcy(0x1000, {0x02, 0x00, 0xFF, 0xFF, 0xFF});
+  ASSERT_EQ(val("x").status, SignalStatus::Error);
+  EXPECT_EQ(drv->next_deadline(), std::nullopt);
+}
+
+TEST_F(ElobauDriverTest, AnOverdueSignalMarkedStaleIsNoLongerDueUntilItsNextPdo) {
+  drv->set_alive_since(t);
+  drv->pdo_received(0x191, t);
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  const Duration d = drv->freshness(idx("x"));
+  const auto due = drv->next_deadline();
+  ASSERT_EQ(due, t + d);
+  drv->advance(*due);
+  EXPECT_EQ(val("x").status, SignalStatus::Stale);
+  EXPECT_EQ(drv->next_deadline(), std::nullopt) << "every signal of the overdue PDO is stale already";
+  t = *due + 5ms;
+  drv->pdo_received(0x191, t);
+  tpdo0({0x0B, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(drv->next_deadline(), t + d);
+}
+
 // A never-saved grip (4001h = 0002h read back at boot): with 4001h holding one code and no 0000h
 // while an error lasts (§12.4), no other error could be seen to end. parameter_checksum: refuse
 // (the default) refuses the node, the reason saying how to commission it.

@@ -1,0 +1,98 @@
+// The CANopen manager's SDO side (canopen/master.hpp): which client takes an answer, what its
+// next deadline is, and a client added while the master advances its clients. CiA 301 §7.2.4
+// (SDO), §7.3.5 (the default COB-IDs 580h/600h + node-ID).
+#include "canopen/master.hpp"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <vector>
+
+namespace oegw::canopen {
+namespace {
+
+using namespace std::chrono_literals;
+
+const TimePoint t0{Duration{10'000'000}};
+
+struct Fixture {
+  ObjectDictionary od;
+  std::vector<CanFrame> sent;
+  std::vector<CanFrame> other;
+  Master master{od, [this](const CanFrame& f) { sent.push_back(f); }, MasterConfig{.sdo_timeout = 100ms}};
+  Fixture() {
+    master.on_other_frame = [this](const CanFrame& f, TimePoint) { other.push_back(f); };
+  }
+  // An expedited upload answer (CiA 301 §7.2.4.3.5) of 1000h:00 = 4 bytes.
+  static CanFrame answer(std::uint32_t cob) { return CanFrame(cob, {0x43, 0x00, 0x10, 0x00, 1, 2, 3, 4}); }
+};
+
+TEST(MasterSdo, AnAnswerGoesToTheClientOfItsCobIdAlsoAfterTheClientWasMoved) {
+  Fixture f;
+  std::vector<int> done;
+  for (const std::uint8_t node : {0x05, 0x20, 0x40})
+    f.master.sdo(NodeId{node}).upload(0x1000, 0, [&done, node](SdoAbortCode code, std::vector<std::uint8_t>) {
+      done.push_back(code == SdoAbortCode::None ? node : -node);
+    });
+  f.master.advance(t0);
+  ASSERT_EQ(f.sent.size(), 3u) << "each client's request on 600h + its node-ID";
+  EXPECT_TRUE(f.master.on_frame(Fixture::answer(0x5A0), t0));
+  EXPECT_EQ(done, std::vector<int>{0x20});
+  // Node 40h's client moved to 5F0h/670h: its request is aborted (no frame), the answer on
+  // its old COB-ID is nobody's, the one on its new COB-ID its own.
+  f.master.sdo(NodeId{0x40}).set_cob_ids(CobId{0x670}, CobId{0x5F0});
+  EXPECT_EQ(done.back(), -0x40);
+  f.master.sdo(NodeId{0x40}).upload(0x1000, 0, [&done](SdoAbortCode code, std::vector<std::uint8_t>) {
+    done.push_back(code == SdoAbortCode::None ? 0x41 : -0x41);
+  });
+  f.master.advance(t0 + 1ms);
+  EXPECT_EQ(f.sent.back().id, 0x670u);
+  EXPECT_FALSE(f.master.on_frame(Fixture::answer(0x5C0), t0 + 2ms));
+  ASSERT_EQ(f.other.size(), 1u) << "an answer on a COB-ID no client has is another frame";
+  EXPECT_EQ(f.other[0].id, 0x5C0u);
+  EXPECT_TRUE(f.master.on_frame(Fixture::answer(0x5F0), t0 + 2ms));
+  EXPECT_EQ(done.back(), 0x41);
+  EXPECT_TRUE(f.master.on_frame(Fixture::answer(0x585), t0 + 3ms));
+  EXPECT_EQ(done.back(), 0x05);
+  // An extended frame with the same 11 bits is not the client's.
+  CanFrame ext = Fixture::answer(0x585);
+  ext.extended = true;
+  EXPECT_FALSE(f.master.on_frame(ext, t0 + 4ms));
+}
+
+TEST(MasterSdo, TheNextDeadlineIsTheSoonestOfTheClientsWithWorkOnly) {
+  Fixture f;
+  for (const std::uint8_t node : {0x01, 0x02, 0x03}) (void)f.master.sdo(NodeId{node});
+  f.master.advance(t0);
+  EXPECT_EQ(f.master.next_deadline(), std::nullopt) << "idle clients: no deadline";
+  f.master.sdo(NodeId{0x02}).upload(0x1000, 0, [](SdoAbortCode, std::vector<std::uint8_t>) {});
+  EXPECT_EQ(f.master.next_deadline(), t0) << "a queued request is due now (its start)";
+  f.master.advance(t0 + 5ms);
+  EXPECT_EQ(f.master.next_deadline(), t0 + 5ms + 100ms) << "in flight: its time-out";
+  f.master.advance(t0 + 105ms);
+  EXPECT_EQ(f.master.next_deadline(), std::nullopt) << "timed out: idle again";
+}
+
+// A callback run from advance() (a time-out) may make a client for another node: every client
+// that was there is still advanced in that pass, none twice to its harm.
+TEST(MasterSdo, AClientMadeByACallbackDuringAdvanceSkipsNoOtherClient) {
+  Fixture f;
+  std::vector<std::uint8_t> timed_out;
+  for (const std::uint8_t node : {0x10, 0x20, 0x30, 0x40}) {
+    f.master.sdo(NodeId{node}).upload(0x1000, 0, [&f, &timed_out, node](SdoAbortCode code, std::vector<std::uint8_t>) {
+      if (code != SdoAbortCode::Timeout) return;
+      timed_out.push_back(node);
+      // Nodes 15h and 16h sort before those still to be advanced.
+      if (node == 0x10)
+        for (const std::uint8_t n : {0x15, 0x16}) (void)f.master.sdo(NodeId{n});
+    });
+  }
+  f.master.advance(t0);
+  ASSERT_EQ(f.sent.size(), 4u);
+  f.master.advance(t0 + 100ms);
+  EXPECT_EQ(timed_out, (std::vector<std::uint8_t>{0x10, 0x20, 0x30, 0x40}));
+  EXPECT_EQ(f.master.next_deadline(), std::nullopt);
+}
+
+}  // namespace
+}  // namespace oegw::canopen
