@@ -1,5 +1,7 @@
 #include "canopen/master.hpp"
 
+#include <algorithm>
+
 namespace oegw::canopen {
 
 namespace {
@@ -85,9 +87,15 @@ bool Master::on_frame(const CanFrame& frame, TimePoint now) {
 
 void Master::advance(TimePoint now) {
   hb_.advance(now);
-  // By index: a callback may add a client (sdo()), which rebuilds clients_; those after it
-  // shift right and are advanced twice at most (harmless at the same time), none is skipped.
-  for (std::size_t i = 0; i < clients_.size(); ++i) clients_[i]->advance(now);
+  // A callback may add a client (sdo()), which rebuilds clients_: the walk goes on after the
+  // client it advanced, wherever that now is, so that none is skipped or advanced twice (as a
+  // walk over the map: a client added after it is advanced in this pass, one before it not).
+  for (std::size_t i = 0; i < clients_.size(); ++i) {
+    SdoClient* const client = clients_[i];
+    client->advance(now);
+    if (clients_[i] != client)
+      i = static_cast<std::size_t>(std::find(clients_.begin(), clients_.end(), client) - clients_.begin());
+  }
   if (sync_) sync_->advance(now);
 }
 

@@ -74,7 +74,7 @@ TEST(MasterSdo, TheNextDeadlineIsTheSoonestOfTheClientsWithWorkOnly) {
 }
 
 // A callback run from advance() (a time-out) may make a client for another node: every client
-// that was there is still advanced in that pass, none twice to its harm.
+// that was there is still advanced in that pass, none twice.
 TEST(MasterSdo, AClientMadeByACallbackDuringAdvanceSkipsNoOtherClient) {
   Fixture f;
   std::vector<std::uint8_t> timed_out;
@@ -92,6 +92,26 @@ TEST(MasterSdo, AClientMadeByACallbackDuringAdvanceSkipsNoOtherClient) {
   f.master.advance(t0 + 100ms);
   EXPECT_EQ(timed_out, (std::vector<std::uint8_t>{0x10, 0x20, 0x30, 0x40}));
   EXPECT_EQ(f.master.next_deadline(), std::nullopt);
+}
+
+// ... and a client made before the one whose callback made it does not have that one advanced
+// again in the same pass: a request it queued then (a 0 ms time-out) starts in this pass and
+// times out in the next, not at once.
+TEST(MasterSdo, AClientMadeBeforeTheOneAdvancedDoesNotHaveItAdvancedTwice) {
+  Fixture f;
+  std::vector<SdoAbortCode> second;
+  SdoClient& c40 = f.master.sdo(NodeId{0x40});
+  c40.upload(0x1000, 0, [&](SdoAbortCode code, std::vector<std::uint8_t>) {
+    if (code != SdoAbortCode::Timeout) return;
+    (void)f.master.sdo(NodeId{0x15});  // sorts before 40h: clients_ is rebuilt, 40h moves
+    c40.upload_within(0x1000, 0, 0ms, [&](SdoAbortCode c2, std::vector<std::uint8_t>) { second.push_back(c2); });
+  });
+  f.master.advance(t0);
+  f.master.advance(t0 + 100ms);
+  EXPECT_TRUE(second.empty()) << "40h advanced once in this pass: its new request started, not timed out";
+  EXPECT_EQ(f.master.next_deadline(), t0 + 100ms);
+  f.master.advance(t0 + 100ms);
+  EXPECT_EQ(second, std::vector<SdoAbortCode>{SdoAbortCode::Timeout});
 }
 
 }  // namespace

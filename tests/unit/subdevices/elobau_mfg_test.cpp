@@ -385,6 +385,26 @@ TEST_F(ElobauDriverTest, TheNextDeadlineFollowsThePdosAndTheStatusOfTheSignals) 
   EXPECT_EQ(drv->next_deadline(), std::nullopt);
 }
 
+// The direction that matters for safety: a signal watched again through its status alone (a
+// fault cleared, the next PDO's value: no watch changed) makes its PDO's deadline due again.
+TEST_F(ElobauDriverTest, ASignalWatchedAgainAfterItsFaultMakesItsDeadlineDueAgain) {
+  drv->set_alive_since(t);
+  drv->pdo_received(0x191, t);
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  const auto due = drv->next_deadline();
+  ASSERT_TRUE(due);
+  emcy(0x1000, {0x02, 0x00, 0xFF, 0xFF, 0xFF});  // every input faulted: nothing due
+  ASSERT_EQ(drv->next_deadline(), std::nullopt);
+  std::string error;
+  drv->begin_boot();
+  ASSERT_TRUE(drv->on_boot_read(0x4001, 0, std::vector<std::uint8_t>{0x00, 0x00}, error)) << error;
+  ASSERT_FALSE(drv->any_fault());
+  t += 1ms;
+  tpdo0({0x0B, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});  // on_frame only: no pdo_received()
+  ASSERT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(drv->next_deadline(), due);
+}
+
 TEST_F(ElobauDriverTest, AnOverdueSignalMarkedStaleIsNoLongerDueUntilItsNextPdo) {
   drv->set_alive_since(t);
   drv->pdo_received(0x191, t);
