@@ -217,6 +217,7 @@ Object& ObjectDictionary::add_var(std::uint16_t index, std::string name, DataTyp
                                   std::vector<std::uint8_t> default_value, bool pdo_mappable) {
   auto [it, inserted] = objects_.insert_or_assign(index, Object(index, name, ObjectCode::Var));
   (void)inserted;
+  index_[index] = &it->second;
   SubObject s;
   s.sub_index = 0;
   s.name = std::move(name);
@@ -232,6 +233,7 @@ Object& ObjectDictionary::add_array(std::uint16_t index, std::string name, DataT
                                     std::uint8_t count, std::vector<std::uint8_t> default_value, bool pdo_mappable) {
   auto [it, inserted] = objects_.insert_or_assign(index, Object(index, name, ObjectCode::Array));
   (void)inserted;
+  index_[index] = &it->second;
   SubObject s0;
   s0.sub_index = 0;
   s0.name = "Highest sub-index supported";
@@ -256,6 +258,7 @@ Object& ObjectDictionary::add_array(std::uint16_t index, std::string name, DataT
 Object& ObjectDictionary::add_record(std::uint16_t index, std::string name) {
   auto [it, inserted] = objects_.insert_or_assign(index, Object(index, std::move(name), ObjectCode::Record));
   (void)inserted;
+  index_[index] = &it->second;
   SubObject s0;
   s0.sub_index = 0;
   s0.name = "Highest sub-index supported";
@@ -292,15 +295,18 @@ Subscription ObjectDictionary::add_observer(ChangeObserver obs) {
   return Subscription(observers_, id);
 }
 
-bool ObjectDictionary::remove(std::uint16_t index) { return objects_.erase(index) != 0; }
+bool ObjectDictionary::remove(std::uint16_t index) {
+  index_.erase(index);
+  return objects_.erase(index) != 0;
+}
 
 Object* ObjectDictionary::find(std::uint16_t index) {
-  auto it = objects_.find(index);
-  return it == objects_.end() ? nullptr : &it->second;
+  const auto it = index_.find(index);
+  return it == index_.end() ? nullptr : it->second;
 }
 const Object* ObjectDictionary::find(std::uint16_t index) const {
-  auto it = objects_.find(index);
-  return it == objects_.end() ? nullptr : &it->second;
+  const auto it = index_.find(index);
+  return it == index_.end() ? nullptr : it->second;
 }
 SubObject* ObjectDictionary::find(std::uint16_t index, std::uint8_t sub) {
   Object* o = find(index);

@@ -16,6 +16,7 @@
 #include <span>
 #include <string>
 #include <type_traits>
+#include <unordered_map>
 #include <variant>
 #include <vector>
 
@@ -231,6 +232,10 @@ class ObjectDictionary {
 
  private:
   std::map<std::uint16_t, Object> objects_;
+  // objects_ by index, for find(): one hashed look-up instead of a walk down the tree, which the
+  // translation of every frame makes several of (its nodes are map nodes: their addresses stay
+  // while the object does). Kept by the builders and remove() alone.
+  std::unordered_map<std::uint16_t, Object*> index_;
   std::shared_ptr<detail::CallbackList<ChangeObserver>> observers_;
 };
 

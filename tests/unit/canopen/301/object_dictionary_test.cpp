@@ -113,6 +113,31 @@ TEST(ObjectDictionary, SignedDecodeSignExtendsOddWidths) {
   EXPECT_EQ(decode_signed(u24), 0x7FFFFF);
 }
 
+// find() answers from an index beside the tree: an object replaced, removed or added again is
+// found as it is now, by every kind of builder.
+TEST(ObjectDictionary, FindFollowsObjectsReplacedRemovedAndAddedAgain) {
+  ObjectDictionary od;
+  od.add_var(0x2000, "A", DataType::Unsigned8, Access::ReadWrite, {1});
+  EXPECT_EQ(od.get<std::uint8_t>(0x2000, 0), 1);
+  od.add_var(0x2000, "B", DataType::Unsigned8, Access::ReadWrite, {2});  // replaces A
+  ASSERT_NE(od.find(0x2000), nullptr);
+  EXPECT_EQ(od.find(0x2000)->name(), "B");
+  EXPECT_EQ(od.get<std::uint8_t>(0x2000, 0), 2);
+  EXPECT_TRUE(od.remove(0x2000));
+  EXPECT_EQ(od.find(0x2000), nullptr);
+  EXPECT_EQ(od.find(0x2000, 0), nullptr);
+  EXPECT_FALSE(od.remove(0x2000));
+  std::vector<std::uint8_t> out;
+  EXPECT_EQ(od.read(0x2000, 0, out), SdoAbortCode::ObjectDoesNotExist);
+  od.add_record_member(0x2000, 2, "member", DataType::Unsigned16, Access::ReadWrite, {0x34, 0x12});
+  ASSERT_NE(od.find(0x2000, 2), nullptr);
+  EXPECT_EQ(od.get<std::uint16_t>(0x2000, 2), 0x1234);
+  od.add_array(0x2001, "C", DataType::Unsigned8, Access::ReadWrite, 3, {7});
+  EXPECT_EQ(od.get<std::uint8_t>(0x2001, 3), 7);
+  EXPECT_EQ(od.objects().size(), 2u);
+  for (const auto& [index, obj] : od.objects()) EXPECT_EQ(od.find(index), &obj) << index;
+}
+
 // Subscriptions (observer and hook lifetime): a callback is removed with its handle.
 TEST(ObjectDictionarySubscription, ObserverAndHookRemovedWhenHandleDies) {
   ObjectDictionary od;
