@@ -104,7 +104,6 @@ std::optional<TimePoint> Master::next_deadline() const {
   if (sync_)
     if (const auto t = sync_->next_deadline(); t && (!best || *t < *best)) best = t;
   for (const SdoClient* client : clients_) {
-    if (client->idle()) continue;
     const auto t = client->next_deadline();
     if (t && (!best || *t < *best)) best = t;
   }

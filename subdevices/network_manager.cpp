@@ -625,16 +625,14 @@ void NetworkManager::poll_faults(Managed& m, TimePoint now) {
 }
 
 bool NetworkManager::configuring_any() const {
-  return std::any_of(nodes_.begin(), nodes_.end(),
-                     [](const auto& m) { return m->state == NodeState::Configuring && !m->held_since; });
+  return std::any_of(nodes_.begin(), nodes_.end(), [](const auto& m) { return is_configuring(*m); });
 }
 
 bool NetworkManager::booting_any() const {
-  return configuring_any() || std::any_of(nodes_.begin(), nodes_.end(), [this](const auto& m) {
-           // A node whose probe went unanswered is likely absent: it holds no one; nor, with
-           // no probes (NetworkTiming), one that would be waited out for boot_wait.
-           return m->state == NodeState::WaitingBootUp && probes_on() && m->probe_gap <= timing_.boot_probe_first;
-         });
+  // A node whose probe went unanswered is likely absent: it holds no one; nor, with no probes
+  // (NetworkTiming), one that would be waited out for boot_wait.
+  return configuring_any() || (probes_on() && std::any_of(nodes_.begin(), nodes_.end(),
+                                                          [this](const auto& m) { return awaiting_boot_up(*m); }));
 }
 
 std::optional<TimePoint> NetworkManager::next_deadline() const {
@@ -646,8 +644,8 @@ std::optional<TimePoint> NetworkManager::next_deadline() const {
   bool probing = false;
   for (const auto& m : nodes_) {
     step_held = step_held || m->step_held;
-    configuring = configuring || (m->state == NodeState::Configuring && !m->held_since);
-    probing = probing || (m->state == NodeState::WaitingBootUp && m->probe_gap <= timing_.boot_probe_first);
+    configuring = configuring || is_configuring(*m);
+    probing = probing || awaiting_boot_up(*m);
   }
   const bool booting = configuring || (probing && probes_on());  // held starts wait (booting_any())
   if (step_held)

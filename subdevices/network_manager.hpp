@@ -239,6 +239,14 @@ class NetworkManager {
   // left no boot-up probe unanswered (else it is likely absent): a configured node's NMT start
   // is held meanwhile (header, step 7).
   [[nodiscard]] bool booting_any() const;
+  // The nodes the two count: configuring (not held), and waiting for a boot-up that may come
+  // (with probes_on()).
+  [[nodiscard]] static bool is_configuring(const Managed& m) {
+    return m.state == NodeState::Configuring && !m.held_since;
+  }
+  [[nodiscard]] bool awaiting_boot_up(const Managed& m) const {
+    return m.state == NodeState::WaitingBootUp && m.probe_gap <= timing_.boot_probe_first;
+  }
   [[nodiscard]] bool probes_on() const {
     return timing_.boot_probe_first.count() > 0 && timing_.boot_probe_first < timing_.boot_wait;
   }

@@ -72,13 +72,6 @@ bool SdoClient::cancel(Ticket ticket, SdoAbortCode code) {
   return true;
 }
 
-std::optional<TimePoint> SdoClient::next_deadline() const {
-  if (state_ != State::Idle) return deadline_;
-  // A queued request is waiting to start: due now, or when the pacer has a slot.
-  if (queued() != 0) return pacer_ != nullptr ? std::max(now_, pacer_->next_free()) : now_;
-  return std::nullopt;
-}
-
 void SdoClient::advance(TimePoint now) {
   now_ = now;
   if (state_ != State::Idle && now >= deadline_) abort(SdoAbortCode::Timeout);

@@ -20,6 +20,7 @@
 // is then called once with `code`.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstddef>
@@ -90,7 +91,13 @@ class SdoClient {
            f.extended == cfg_.response_cob.extended();
   }
   void advance(TimePoint now);
-  [[nodiscard]] std::optional<TimePoint> next_deadline() const;
+  // Inline: a master asks each of its clients after every frame, and most are idle.
+  [[nodiscard]] std::optional<TimePoint> next_deadline() const {
+    if (state_ != State::Idle) return deadline_;
+    // A queued request is waiting to start: due now, or when the pacer has a slot.
+    if (queued() != 0) return pacer_ != nullptr ? std::max(now_, pacer_->next_free()) : now_;
+    return std::nullopt;
+  }
 
   // Changes the COB-IDs; a transfer in progress is aborted (0x08000000 to its callback, no frame).
   void set_cob_ids(CobId request, CobId response);
@@ -125,8 +132,6 @@ class SdoClient {
   void set_pacer(SdoPacer* pacer) { pacer_ = pacer; }
 
   [[nodiscard]] bool busy() const { return state_ != State::Idle; }
-  // Nothing in flight, nothing queued: next_deadline() is nullopt (inline, as answers_on()).
-  [[nodiscard]] bool idle() const { return state_ == State::Idle && queued() == 0; }
   [[nodiscard]] std::size_t queued() const { return queue_.size() - queue_head_; }
   [[nodiscard]] const SdoClientConfig& config() const { return cfg_; }
 
