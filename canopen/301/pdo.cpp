@@ -475,10 +475,16 @@ void PdoService::rebuild_tables() {
   rx_by_id_.clear();
   rtr_by_id_.clear();
   watch_.clear();
-  for (auto& r : rpdos_)
-    if (r->cob_.valid() && !r->entries_.empty()) rx_by_id_[key(r->cob_)] = r.get();
+  timed_tpdos_.clear();
+  timed_rpdos_.clear();
+  for (auto& r : rpdos_) {
+    if (!r->cob_.valid() || r->entries_.empty()) continue;
+    rx_by_id_[key(r->cob_)] = r.get();
+    timed_rpdos_.push_back(r.get());
+  }
   for (auto& t : tpdos_) {
     if (!t->cob_.valid() || t->entries_.empty()) continue;
+    if (t->event_driven()) timed_tpdos_.push_back(t.get());
     if (!t->cob_.bit30()) rtr_by_id_[key(t->cob_)] = t.get();
     for (const auto& e : t->entries_) {
       auto& v = watch_[static_cast<std::uint32_t>(e.obj->index()) << 8 | e.sub->sub_index];
@@ -549,17 +555,20 @@ void PdoService::on_sync(std::uint8_t counter, TimePoint now) {
 
 void PdoService::advance(TimePoint now) {
   if (now > last_now_) last_now_ = now;
-  for (auto& t : tpdos_) t->service(now);
-  for (auto& r : rpdos_) r->service(now);
+  if (!operational_) return;  // no PDO is active()
+  // By index: a sent TPDO's callbacks may write a PDO parameter, which rebuilds the lists.
+  for (std::size_t i = 0; i < timed_tpdos_.size(); ++i) timed_tpdos_[i]->service(now);
+  for (std::size_t i = 0; i < timed_rpdos_.size(); ++i) timed_rpdos_[i]->service(now);
 }
 
 std::optional<TimePoint> PdoService::next_deadline() const {
+  if (!operational_) return std::nullopt;
   std::optional<TimePoint> best;
   auto consider = [&](std::optional<TimePoint> d) {
     if (d && (!best || *d < *best)) best = d;
   };
-  for (const auto& t : tpdos_) consider(t->next_deadline(last_now_));
-  for (const auto& r : rpdos_) consider(r->next_deadline());
+  for (const Tpdo* t : timed_tpdos_) consider(t->next_deadline(last_now_));
+  for (const Rpdo* r : timed_rpdos_) consider(r->next_deadline());
   return best;
 }
 

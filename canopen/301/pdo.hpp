@@ -229,6 +229,12 @@ class PdoService {
   std::unordered_map<std::uint32_t, Rpdo*> rx_by_id_;
   std::unordered_map<std::uint32_t, Tpdo*> rtr_by_id_;
   std::unordered_map<std::uint32_t, std::vector<Tpdo*>> watch_;  // index << 8 | sub -> TPDOs mapping it
+  // The PDOs advance() and next_deadline() can act on, in number order: those with a valid COB-ID
+  // and a mapping, TPDOs also event-driven (types FEh/FFh; CiA 301 §7.5.2.37: the others run on
+  // SYNC or RTR only). The device's dictionary holds up to 512 of each, most of them unused, and
+  // both walks run after every frame; rebuild_tables() keeps the lists with the parameters.
+  std::vector<Tpdo*> timed_tpdos_;
+  std::vector<Rpdo*> timed_rpdos_;
   Subscriptions subs_;  // declared last: unregisters the OD callbacks first on destruction
 };
 

@@ -454,6 +454,57 @@ TEST_F(PdoFixture, RpdoEventTimerIsDeadlineMonitoring) {
   EXPECT_FALSE(svc->rpdo(1)->timed_out());
 }
 
+// Only PDOs with a valid COB-ID and a mapping (TPDOs also event-driven) are walked after each
+// frame; a parameter written while Operational must move a PDO into that set or out of it.
+TEST_F(PdoFixture, ParametersWrittenWhileOperationalDecideWhichPdosRunOnTime) {
+  PdoParameters sync_driven = tpdo1(1);
+  sync_driven.event_timer = 100;
+  install_tpdo(od, 1, sync_driven);
+  install_tpdo(od, 2, {.cob_id = 0xC0000285, .transmission_type = 255, .mapping = {0x60000108}});
+  install_rpdo(od, 1, {.cob_id = 0x80000205, .event_timer = 50, .mapping = {0x62000108}});
+  auto svc = make();
+  svc->set_operational(true, t0);
+  svc->advance(t0);
+  EXPECT_TRUE(sent.empty()) << "TPDO 1 runs on SYNC, TPDO 2 and RPDO 1 are not valid";
+  EXPECT_FALSE(svc->next_deadline().has_value());
+
+  // TPDO 1 made event-driven: its event timer (100 ms) starts.
+  ASSERT_EQ(od.write(0x1800, 2, Bytes{0xFF}), SdoAbortCode::None);
+  EXPECT_EQ(svc->next_deadline(), t0);
+  svc->advance(t0 + 1ms);
+  EXPECT_EQ(svc->next_deadline(), t0 + 101ms);
+  svc->advance(t0 + 101ms);
+  ASSERT_EQ(sent.size(), 1u);
+  EXPECT_EQ(sent[0].id, 0x185u);
+
+  // TPDO 2 made valid while Operational: sent at once (CiA 852 §12.1).
+  ASSERT_EQ(od.write(0x1801, 1, Bytes{0x85, 0x02, 0x00, 0x40}), SdoAbortCode::None);
+  svc->advance(t0 + 102ms);
+  ASSERT_EQ(sent.size(), 2u);
+  EXPECT_EQ(sent[1].id, 0x285u);
+
+  // RPDO 1 made valid: its deadline monitoring runs from the first reception.
+  ASSERT_EQ(od.write(0x1400, 1, Bytes{0x05, 0x02, 0x00, 0x00}), SdoAbortCode::None);
+  EXPECT_TRUE(svc->on_frame(CanFrame(0x205, {7}), t0 + 110ms));
+  svc->advance(t0 + 160ms);
+  EXPECT_EQ(timeouts, (std::vector<std::uint16_t>{1}));
+
+  // TPDO 1 back on SYNC and TPDO 2 made invalid: neither is due any more.
+  ASSERT_EQ(od.write(0x1800, 2, Bytes{0x01}), SdoAbortCode::None);
+  ASSERT_EQ(od.write(0x1801, 1, Bytes{0x85, 0x02, 0x00, 0xC0}), SdoAbortCode::None);
+  set_input(1, 0x42);
+  svc->advance(t0 + 1s);
+  EXPECT_EQ(sent.size(), 2u);
+  EXPECT_FALSE(svc->next_deadline().has_value());
+
+  // Outside Operational nothing runs; entering it again sends every event-driven TPDO (none).
+  svc->set_operational(false, t0 + 2s);
+  EXPECT_FALSE(svc->next_deadline().has_value());
+  svc->set_operational(true, t0 + 3s);
+  svc->advance(t0 + 3s);
+  EXPECT_EQ(sent.size(), 2u);
+}
+
 TEST_F(PdoFixture, ManyPdosWithArbitraryCobIds) {
   // CiA 852 §12: up to 41 TPDOs and 34 RPDOs, COB-IDs beyond the pre-defined connection set.
   for (std::uint16_t n = 1; n <= 34; ++n) install_rpdo(od, n, {.cob_id = 0x300u + n, .mapping = {0x62000108}});
