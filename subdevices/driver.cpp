@@ -70,7 +70,7 @@ void Driver::clear_all_faults() {
 
 void Driver::on_application_reset(TimePoint /*now*/) { clear_all_faults(); }
 
-void Driver::update(std::size_t index, std::int64_t value, SignalStatus status, TimePoint now) {
+void Driver::update_checked(std::size_t index, std::int64_t value, SignalStatus status, TimePoint now) {
   // A value whose carrier PDO is overdue stays Stale, whatever frame republishes it; so does a
   // signal that loses its value (an error reset) while the node is alive and its PDO overdue.
   if ((status == SignalStatus::Valid || (status == SignalStatus::Offline && alive_since_)) && earliest_due_ &&

@@ -245,8 +245,20 @@ class Driver {
  protected:
   // Drivers are built by their factory with their node and the sink for RPDOs.
   void init(NodeId node, FrameSink sink, std::size_t signal_count);
-  // Updates a signal; calls on_change if value or status differ.
-  void update(std::size_t index, std::int64_t value, SignalStatus status, TimePoint now);
+  // Updates a signal; calls on_change if value or status differ. Inline, the common case of a
+  // PDO that repeats most of its values (a grip's TPDO carries every button with each axis
+  // change): with no signal faulted and no watch due yet nothing can override the status, so an
+  // equal value and status only move the signal's time; all else is update_checked().
+  void update(std::size_t index, std::int64_t value, SignalStatus status, TimePoint now) {
+    if (fault_count_ == 0 && (!earliest_due_ || now < *earliest_due_) && index < values_.size()) {
+      SignalValue& v = values_[index];
+      if (v.value == value && v.status == status) {
+        v.timestamp = now;
+        return;
+      }
+    }
+    update_checked(index, value, status, now);
+  }
   // Faults a signal (Error at once) / clears its fault. A cleared input keeps its neutral value
   // in Error until its next PDO brings a value (that frame is the evidence it is good again).
   void set_fault(std::size_t index, TimePoint now);
@@ -302,6 +314,7 @@ class Driver {
     std::optional<TimePoint> last;
     std::optional<TimePoint> due;  // compute_due(), kept current: nullopt while not watched
   };
+  void update_checked(std::size_t index, std::int64_t value, SignalStatus status, TimePoint now);
   void rebuild_deadlines();
   [[nodiscard]] std::optional<TimePoint> compute_due(const Watch& w) const;  // nullopt: not watched yet
   [[nodiscard]] bool overdue(std::size_t index, TimePoint now) const;

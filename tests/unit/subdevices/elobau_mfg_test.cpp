@@ -422,6 +422,26 @@ TEST_F(ElobauDriverTest, AnOverdueSignalMarkedStaleIsNoLongerDueUntilItsNextPdo)
   EXPECT_EQ(drv->next_deadline(), t + d);
 }
 
+// A frame that repeats a signal's value is evidence only for the PDO that carries it: channel 2
+// (TPDO #1) repeating X once TPDO #0 is overdue makes X Stale, although value and status are
+// those already shown (Driver::update's inline path must not keep them Valid).
+TEST_F(ElobauDriverTest, AnUnchangedValueRepeatedPastItsPdosDeadlineIsStale) {
+  drv->set_alive_since(t);
+  drv->pdo_received(0x191, t);
+  tpdo0({0x0A, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0xFF});
+  const Duration d = drv->freshness(idx("x"));
+  const auto before = changes.size();
+  t += d - 1ms;
+  tpdo1({0x0A, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});  // on_frame only: no pdo_received()
+  EXPECT_EQ(val("x").status, SignalStatus::Valid);
+  EXPECT_EQ(val("x").timestamp, t) << "a repeated value moves only its time";
+  EXPECT_EQ(changes.size(), before);
+  t += 1ms;  // TPDO #0's deadline
+  tpdo1({0x0A, 0x00, 0x00, 0x00, 0x00, 0xFF, 0xFF, 0xFF});
+  EXPECT_EQ(val("x").status, SignalStatus::Stale);
+  EXPECT_EQ(val("x").value, 10);
+}
+
 // A never-saved grip (4001h = 0002h read back at boot): with 4001h holding one code and no 0000h
 // while an error lasts (§12.4), no other error could be seen to end. parameter_checksum: refuse
 // (the default) refuses the node, the reason saying how to commission it.
