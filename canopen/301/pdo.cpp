@@ -8,6 +8,21 @@ namespace oegw::canopen {
 
 namespace {
 
+// Services each PDO of `pdos` (ascending by number) once. A PDO's callback may write PDO
+// parameters, which rebuilds the list under the walk; the walk then goes on after the PDO it
+// serviced, by number, as a walk over every PDO would (none skipped, none serviced twice).
+template <class Pdo, class Fn>
+void service_in_order(const std::vector<Pdo*>& pdos, Fn&& service) {
+  for (std::size_t i = 0; i < pdos.size(); ++i) {
+    Pdo* p = pdos[i];
+    service(*p);
+    if (i < pdos.size() && pdos[i] == p) continue;
+    const auto next = std::upper_bound(pdos.begin(), pdos.end(), p->number(),
+                                       [](std::uint16_t n, const Pdo* q) { return n < q->number(); });
+    i = static_cast<std::size_t>(next - pdos.begin()) - 1;  // ++i: the first after p
+  }
+}
+
 constexpr std::uint16_t kRpdoComm = 0x1400;
 constexpr std::uint16_t kRpdoMap = 0x1600;
 constexpr std::uint16_t kTpdoComm = 0x1800;
@@ -556,9 +571,8 @@ void PdoService::on_sync(std::uint8_t counter, TimePoint now) {
 void PdoService::advance(TimePoint now) {
   if (now > last_now_) last_now_ = now;
   if (!operational_) return;  // no PDO is active()
-  // By index: a sent TPDO's callbacks may write a PDO parameter, which rebuilds the lists.
-  for (std::size_t i = 0; i < timed_tpdos_.size(); ++i) timed_tpdos_[i]->service(now);
-  for (std::size_t i = 0; i < timed_rpdos_.size(); ++i) timed_rpdos_[i]->service(now);
+  service_in_order(timed_tpdos_, [now](Tpdo& t) { t.service(now); });
+  service_in_order(timed_rpdos_, [now](Rpdo& r) { r.service(now); });
 }
 
 std::optional<TimePoint> PdoService::next_deadline() const {

@@ -505,6 +505,27 @@ TEST_F(PdoFixture, ParametersWrittenWhileOperationalDecideWhichPdosRunOnTime) {
   EXPECT_EQ(sent.size(), 2u);
 }
 
+// A sent TPDO's callback that writes PDO parameters (here TPDO 1 disables itself) rebuilds the
+// walked lists mid-walk: every other due PDO is still serviced in the same advance(), once.
+TEST_F(PdoFixture, AParameterWrittenByASentTpdosCallbackSkipsNoOtherPdo) {
+  for (std::uint16_t n = 1; n <= 3; ++n)
+    install_tpdo(od, n, {.cob_id = 0x40000180u + n, .transmission_type = 255, .mapping = {0x60000108}});
+  PdoService svc(od, [this](const CanFrame& f) {
+    sent.push_back(f);
+    if (f.id == 0x181) {
+      EXPECT_EQ(od.write(0x1800, 1, Bytes{0x81, 0x01, 0x00, 0xC0}), SdoAbortCode::None);
+    }
+  });
+  svc.set_operational(true, t0);
+  svc.advance(t0);
+  ASSERT_EQ(sent.size(), 3u);
+  EXPECT_EQ(sent[0].id, 0x181u);
+  EXPECT_EQ(sent[1].id, 0x182u);
+  EXPECT_EQ(sent[2].id, 0x183u);
+  svc.advance(t0 + 1ms);
+  EXPECT_EQ(sent.size(), 3u);
+}
+
 TEST_F(PdoFixture, ManyPdosWithArbitraryCobIds) {
   // CiA 852 §12: up to 41 TPDOs and 34 RPDOs, COB-IDs beyond the pre-defined connection set.
   for (std::uint16_t n = 1; n <= 34; ++n) install_rpdo(od, n, {.cob_id = 0x300u + n, .mapping = {0x62000108}});
