@@ -108,6 +108,7 @@ void HeartbeatConsumer::load_entry(std::uint8_t sub) {
   Entry& e = entries_[sub - 1u];
   const Decoded d = decode_entry(od_.get<std::uint32_t>(kConsumerIndex, sub));
   e = Entry{};
+  forget_deadline();
   // A duplicate can only come from values set without hooks (a stored-parameter load): the
   // first entry for a node wins, so a node is never reported twice.
   for (const Entry& other : entries_)
@@ -122,6 +123,7 @@ void HeartbeatConsumer::load_entry(std::uint8_t sub) {
 void HeartbeatConsumer::reload() {
   for (Entry& e : entries_) e = Entry{};  // so that stale entries do not count as duplicates
   for (std::size_t i = 0; i < entries_.size(); ++i) load_entry(static_cast<std::uint8_t>(i + 1));
+  forget_deadline();
 }
 
 bool HeartbeatConsumer::on_frame(const CanFrame& frame, TimePoint now) {
@@ -140,6 +142,7 @@ bool HeartbeatConsumer::on_frame(const CanFrame& frame, TimePoint now) {
     // is reported, then the heartbeat resumes monitoring as any returning one does.
     if (e.status == Status::Active && now >= e.last + e.time) {
       e.status = Status::TimedOut;
+      forget_deadline();  // before each callback: one may ask next_deadline()
       if (on_timeout_) on_timeout_(e.node);
     }
     const auto state = static_cast<NmtState>(frame.data[0]);
@@ -147,11 +150,13 @@ bool HeartbeatConsumer::on_frame(const CanFrame& frame, TimePoint now) {
     e.state = state;
     if (state == NmtState::Initialisation) {
       e.status = Status::Waiting;
+      forget_deadline();
       if (on_boot_) on_boot_(node);
       continue;
     }
     e.status = Status::Active;
     e.last = now;
+    forget_deadline();
     if (changed && on_state_) on_state_(node, state);
     if (on_heartbeat_) on_heartbeat_(node, state);
   }
@@ -159,20 +164,25 @@ bool HeartbeatConsumer::on_frame(const CanFrame& frame, TimePoint now) {
 }
 
 void HeartbeatConsumer::advance(TimePoint now) {
+  if (deadline_known_ && (!deadline_ || now < *deadline_)) return;  // no entry is due
   for (Entry& e : entries_) {
     if (e.status != Status::Active || now < e.last + e.time) continue;
     e.status = Status::TimedOut;
+    forget_deadline();
     if (on_timeout_) on_timeout_(e.node);
   }
 }
 
 std::optional<TimePoint> HeartbeatConsumer::next_deadline() const {
+  if (deadline_known_) return deadline_;
   std::optional<TimePoint> next;
   for (const Entry& e : entries_) {
     if (e.status != Status::Active) continue;
     const TimePoint t = e.last + e.time;
     if (!next || t < *next) next = t;
   }
+  deadline_ = next;
+  deadline_known_ = true;
   return next;
 }
 

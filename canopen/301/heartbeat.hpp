@@ -114,9 +114,15 @@ class HeartbeatConsumer {
   };
   void load_entry(std::uint8_t sub);
   [[nodiscard]] const Entry* find(NodeId node) const;
+  void forget_deadline() { deadline_known_ = false; }
 
   ObjectDictionary& od_;
   std::vector<Entry> entries_;  // [sub - 1]
+  // next_deadline() is asked after every frame of the bus, the entries change with a heartbeat
+  // (one per node and period): it is kept until an entry changes. Every function that writes
+  // entries_ calls forget_deadline() after each write, before any callback (which may ask).
+  mutable std::optional<TimePoint> deadline_;
+  mutable bool deadline_known_ = false;
   std::uint64_t invalid_frames_ = 0;
   NodeCallback on_timeout_;
   NodeCallback on_boot_;

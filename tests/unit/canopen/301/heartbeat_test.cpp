@@ -198,6 +198,48 @@ TEST_F(ConsumerFixture, ReloadAfterResetToDefaults) {
   EXPECT_FALSE(hc->next_deadline());
 }
 
+// next_deadline() is kept between changes (it is asked after every frame of the bus): every
+// change of an entry must end it — a heartbeat, a time-out, a 1016h write, a reload — even one
+// made after a callback that asked for it with the entry half written.
+TEST_F(ConsumerFixture, DeadlineFollowsEveryChangeOfAnEntry) {
+  set_entry(1, 1, 100);
+  set_entry(2, 2, 300);
+  std::vector<std::optional<TimePoint>> asked;
+  hc->on_timeout([&](NodeId n) {
+    timeouts.push_back(n);
+    asked.push_back(hc->next_deadline());
+  });
+  hb(1, 0x05, 0);
+  EXPECT_EQ(hc->next_deadline(), at_ms(100));
+  hb(2, 0x05, 50);
+  EXPECT_EQ(hc->next_deadline(), at_ms(100));
+  hb(1, 0x05, 80);  // a heartbeat moves its node's deadline
+  EXPECT_EQ(hc->next_deadline(), at_ms(180));
+  hc->advance(at_ms(179));  // before the kept deadline: nothing due
+  EXPECT_TRUE(timeouts.empty());
+  // Node 1's heartbeat after its time: the time-out is reported first (and its callback asks
+  // while node 1 is timed out), then monitoring resumes from this heartbeat.
+  hb(1, 0x05, 200);
+  EXPECT_EQ(timeouts, (std::vector<NodeId>{NodeId{1}}));
+  ASSERT_EQ(asked.size(), 1u);
+  EXPECT_EQ(asked[0], at_ms(350));  // node 2 only, as it was when asked
+  EXPECT_EQ(hc->next_deadline(), at_ms(300));
+  hc->advance(at_ms(300));  // node 1 times out; the callback sees node 2 only
+  EXPECT_EQ(timeouts.size(), 2u);
+  EXPECT_EQ(asked.back(), at_ms(350));
+  EXPECT_EQ(hc->next_deadline(), at_ms(350));
+  set_entry(2, 2, 500);  // reconfigured: waits for its first heartbeat again
+  EXPECT_EQ(hc->status(NodeId{2}), HeartbeatConsumer::Status::Waiting);
+  EXPECT_FALSE(hc->next_deadline());
+  hc->advance(at_ms(10'000));
+  EXPECT_EQ(timeouts.size(), 2u);
+  hb(2, 0x05, 10'000);
+  EXPECT_EQ(hc->next_deadline(), at_ms(10'500));
+  od.reset_to_defaults(0x1000, 0x1FFF);  // without observers: only the reload tells
+  hc->reload();
+  EXPECT_FALSE(hc->next_deadline());
+}
+
 TEST_F(ConsumerFixture, DuplicateFromUncheckedLoadMonitoredOnce) {
   // Values put in place without hooks (as a stored-parameter load does).
   ASSERT_EQ(set_entry(2, 7, 30), SdoAbortCode::None);  // stale entry for node 7 before the load
