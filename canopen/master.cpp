@@ -45,6 +45,8 @@ SdoClient& Master::sdo(NodeId server) {
     c.timeout = cfg_.sdo_timeout;
     slot = std::make_unique<SdoClient>([this](const CanFrame& f) { sink_(f); }, c);
     if (sdo_pacer_.paced()) slot->set_pacer(&sdo_pacer_);
+    slot->set_cob_change_counter(&cob_changes_);
+    ++cob_changes_;
     clients_.clear();
     for (const auto& [id, client] : sdo_) clients_.push_back(client.get());
   }
@@ -78,11 +80,32 @@ bool Master::on_frame(const CanFrame& frame, TimePoint now) {
   }
   if (hb_.on_frame(frame, now)) return true;
   if (emcy_.on_frame(frame, now)) return true;
-  for (SdoClient* client : clients_) {
-    if (client->answers_on(frame)) return client->on_frame(frame, now);
+  if (some_client_answers_on(frame)) {
+    for (SdoClient* client : clients_) {
+      if (client->answers_on(frame)) return client->on_frame(frame, now);
+    }
   }
   if (on_other_frame) on_other_frame(frame, now);
   return false;
+}
+
+bool Master::some_client_answers_on(const CanFrame& frame) {
+  if (answer_ids_built_ != cob_changes_) {
+    answer_ids_.assign(kStandardIds, false);
+    answer_extended_ = false;
+    for (const SdoClient* client : clients_) {
+      const CobId cob = client->config().response_cob;
+      if (!cob.valid()) continue;
+      if (cob.extended() || cob.can_id() >= kStandardIds) {
+        answer_extended_ = true;
+      } else {
+        answer_ids_[cob.can_id()] = true;
+      }
+    }
+    answer_ids_built_ = cob_changes_;
+  }
+  if (frame.extended || frame.id >= kStandardIds) return answer_extended_;
+  return answer_ids_[frame.id];
 }
 
 void Master::advance(TimePoint now) {

@@ -79,6 +79,16 @@ class Master {
   // sdo_'s clients in its order (by node-ID), contiguous: on_frame() and next_deadline() walk
   // them for every frame.
   std::vector<SdoClient*> clients_;
+  // The standard COB-IDs a client answers on, so that a frame none answers on (a PDO, most of
+  // the bus) skips the walk over clients_. Rebuilt when a client was added or changed its
+  // COB-IDs since (SdoClient counts cob_changes_ up); an extended response COB-ID sends every
+  // extended frame through the walk.
+  [[nodiscard]] bool some_client_answers_on(const CanFrame& frame);
+  static constexpr std::uint32_t kStandardIds = 0x800;  // 11-bit identifiers
+  std::vector<bool> answer_ids_ = std::vector<bool>(kStandardIds);
+  bool answer_extended_ = false;
+  std::uint64_t cob_changes_ = 0;
+  std::uint64_t answer_ids_built_ = ~std::uint64_t{0};  // cob_changes_ when built
   SdoPacer sdo_pacer_;
   std::unique_ptr<SyncService> sync_;  // only with a SYNC period
 };

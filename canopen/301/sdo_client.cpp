@@ -96,6 +96,7 @@ bool SdoClient::on_frame(const CanFrame& frame, TimePoint now) {
 void SdoClient::set_cob_ids(CobId request, CobId response) {
   cfg_.request_cob = request;
   cfg_.response_cob = response;
+  if (cob_changes_ != nullptr) ++*cob_changes_;
   if (state_ != State::Idle) finish(SdoAbortCode::GeneralError);
   pump();
 }

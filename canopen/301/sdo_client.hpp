@@ -130,6 +130,9 @@ class SdoClient {
   // pacer has a slot free; next_deadline() reports that slot. Only a request's start is paced:
   // the segments of a transfer follow their answers.
   void set_pacer(SdoPacer* pacer) { pacer_ = pacer; }
+  // Counted up by set_cob_ids(): an owner that indexes its clients by COB-ID (Master) sees that
+  // its index is out of date.
+  void set_cob_change_counter(std::uint64_t* counter) { cob_changes_ = counter; }
 
   [[nodiscard]] bool busy() const { return state_ != State::Idle; }
   [[nodiscard]] std::size_t queued() const { return queue_.size() - queue_head_; }
@@ -218,6 +221,7 @@ class SdoClient {
   Ticket last_ticket_ = 0;
   std::uint64_t stale_answers_ = 0;
   SdoPacer* pacer_ = nullptr;
+  std::uint64_t* cob_changes_ = nullptr;
 };
 
 }  // namespace oegw::canopen

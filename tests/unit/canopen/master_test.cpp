@@ -60,6 +60,46 @@ TEST(MasterSdo, AnAnswerGoesToTheClientOfItsCobIdAlsoAfterTheClientWasMoved) {
   EXPECT_FALSE(f.master.on_frame(ext, t0 + 4ms));
 }
 
+// The master skips its clients for a frame on a COB-ID none of them answers on (a PDO); which
+// COB-IDs they answer on it learns again whenever a client is made or moved, also after frames
+// were already sorted — and an extended response COB-ID is heard too (CiA 301 §7.2.4.1: any
+// COB-ID the SDO parameters 1280h.. name, 29-bit included).
+TEST(MasterSdo, AClientMadeOrMovedAfterFramesWereSortedGetsItsAnswers) {
+  Fixture f;
+  std::vector<int> done;
+  const auto ask = [&](std::uint8_t node, int tag) {
+    f.master.sdo(NodeId{node}).upload(0x1000, 0, [&done, tag](SdoAbortCode code, std::vector<std::uint8_t>) {
+      done.push_back(code == SdoAbortCode::None ? tag : -tag);
+    });
+  };
+  ask(0x05, 5);
+  f.master.advance(t0);
+  EXPECT_FALSE(f.master.on_frame(CanFrame(0x185, {1, 2}), t0));  // a PDO: nobody's answer
+  EXPECT_TRUE(f.master.on_frame(Fixture::answer(0x585), t0));
+  EXPECT_EQ(done, std::vector<int>{5});
+  ask(0x06, 6);  // a client made after the first frames
+  f.master.advance(t0 + 1ms);
+  EXPECT_TRUE(f.master.on_frame(Fixture::answer(0x586), t0 + 1ms));
+  EXPECT_EQ(done.back(), 6);
+  // Node 7's client answers on an extended COB-ID, set after frames were sorted.
+  (void)f.master.sdo(NodeId{0x07});
+  EXPECT_FALSE(f.master.on_frame(CanFrame(0x186, {1}), t0 + 2ms));
+  f.master.sdo(NodeId{0x07}).set_cob_ids(CobId{0x607}, CobId{CobId::kExtendedBit | 0x1234567u});
+  ask(0x07, 7);
+  f.master.advance(t0 + 3ms);
+  CanFrame ext = Fixture::answer(0x1234567);
+  ext.extended = true;
+  CanFrame other_ext = Fixture::answer(0x1234568);
+  other_ext.extended = true;
+  EXPECT_FALSE(f.master.on_frame(other_ext, t0 + 3ms));
+  EXPECT_FALSE(f.master.on_frame(Fixture::answer(0x587), t0 + 3ms)) << "its old COB-ID is nobody's";
+  EXPECT_TRUE(f.master.on_frame(ext, t0 + 3ms));
+  EXPECT_EQ(done.back(), 7);
+  ASSERT_EQ(f.other.size(), 4u);  // 185h, 186h, the other extended frame, 587h
+  EXPECT_TRUE(f.other[2].extended);
+  EXPECT_EQ(f.other[2].id, 0x1234568u);
+}
+
 TEST(MasterSdo, TheNextDeadlineIsTheSoonestOfTheClientsWithWorkOnly) {
   Fixture f;
   for (const std::uint8_t node : {0x01, 0x02, 0x03}) (void)f.master.sdo(NodeId{node});
