@@ -276,8 +276,7 @@ bool Driver::all_stale() const {
                      [this](std::size_t i) { return values_[i].status == SignalStatus::Stale; });
 }
 
-std::optional<TimePoint> Driver::next_deadline() const {
-  if (next_due_known_) return next_due_;
+std::optional<TimePoint> Driver::find_next_deadline() const {
   std::optional<TimePoint> best;
   for (const Watch& w : watches_) {
     const auto& at = w.due;

@@ -202,7 +202,11 @@ class Driver {
   // True when the driver has freshness deadlines and every signal that has one is Stale: for a
   // node without heartbeat, the sign that it is gone (or stopped by someone else).
   [[nodiscard]] bool all_stale() const;
-  [[nodiscard]] std::optional<TimePoint> next_deadline() const;
+  // Inline: the network manager asks every operational driver after each frame; the answer is
+  // kept until a PDO, the proof of life or a signal's status changes it.
+  [[nodiscard]] std::optional<TimePoint> next_deadline() const {
+    return next_due_known_ ? next_due_ : find_next_deadline();
+  }
 
   // Faults (docs/design/device-documents.md#faults-what-sets-them-what-clears-them). The device's
   // own reports of an error (an EMCY, or its error state read back at boot) fault signals: a
@@ -337,10 +341,11 @@ class Driver {
   std::vector<Watch> watches_;
   std::vector<std::uint32_t> watch_mask_;  // by signal: bit k = watches_[k] carries it
   std::optional<TimePoint> earliest_due_;  // the soonest Watch::due: before it nothing is overdue
+  [[nodiscard]] std::optional<TimePoint> find_next_deadline() const;
   // next_deadline()'s answer, kept while nothing it depends on changed: the event loop asks for
   // it after every frame, and the network manager asks every driver. It depends on the watches'
   // dues (each change ends in refresh_earliest_due()) and on the signals' statuses (update()),
-  // the only two places that clear next_due_known_.
+  // the only two places that clear next_due_known_. find_next_deadline() computes it afresh.
   mutable std::optional<TimePoint> next_due_;
   mutable bool next_due_known_ = false;
   std::vector<std::size_t> with_deadline_;  // the signals that have one

@@ -637,31 +637,33 @@ bool NetworkManager::booting_any() const {
 
 std::optional<TimePoint> NetworkManager::next_deadline() const {
   std::optional<TimePoint> best = master_.next_deadline();
-  // configuring_any(), booting_any() and whether a step is held, in one pass: this runs after
-  // every frame.
+  const auto sooner = [&best](const std::optional<TimePoint>& t) {
+    if (t && (!best || *t < *best)) best = t;
+  };
+  // One pass over the nodes, as this runs after every frame. Two of its answers depend on the
+  // others: a probe waits while any node is configuring (configuring_any()), a held start while
+  // any node is booting (booting_any()), so they are gathered and decided after the pass.
   bool step_held = false;
-  bool configuring = false;  // probes wait (configuring_any())
+  bool configuring = false;
   bool probing = false;
+  bool start_held = false;  // a configured node held before its start
+  std::optional<TimePoint> probe;
   for (const auto& m : nodes_) {
     step_held = step_held || m->step_held;
     configuring = configuring || is_configuring(*m);
     probing = probing || awaiting_boot_up(*m);
-  }
-  const bool booting = configuring || (probing && probes_on());  // held starts wait (booting_any())
-  if (step_held)
-    if (const auto until = late_heartbeat(); until && (!best || *until < *best)) best = until;
-  if (const auto t = lss_.next_deadline(); t && (!best || *t < *best)) best = t;
-  for (const auto& m : nodes_) {
-    if (m->deadline && (!best || *m->deadline < *best)) best = m->deadline;
-    if (m->probe_at && (!best || *m->probe_at < *best) && !configuring) best = m->probe_at;
-    if (m->state == NodeState::Configuring && m->held_since && !booting) best = now_;  // its start is due
+    sooner(m->deadline);
+    if (m->probe_at && (!probe || *m->probe_at < *probe)) probe = m->probe_at;
+    if (m->state == NodeState::Configuring && m->held_since) start_held = true;
     if (m->state != NodeState::Operational) continue;
-    if (const auto t = m->driver->next_deadline(); t && (!best || *t < *best)) best = t;
-    if (m->driver->fault_poll() && !m->poll_pending) {
-      const TimePoint t = m->poll_at.value_or(now_);
-      if (!best || t < *best) best = t;
-    }
+    sooner(m->driver->next_deadline());
+    if (m->driver->fault_poll() && !m->poll_pending) sooner(m->poll_at.value_or(now_));
   }
+  if (!configuring) sooner(probe);
+  const bool booting = configuring || (probing && probes_on());
+  if (start_held && !booting) sooner(now_);  // its start is due
+  if (step_held) sooner(late_heartbeat());
+  sooner(lss_.next_deadline());
   return best;
 }
 

@@ -106,7 +106,7 @@ void install_tpdo(ObjectDictionary& od, std::uint16_t n, const PdoParameters& p)
 // ---------------------------------------------------------------------------------------------
 // Tpdo
 
-bool Tpdo::active() const { return svc_.operational_ && cob_.valid() && !entries_.empty(); }
+bool Tpdo::active() const { return svc_.operational_ && configured(); }
 
 void Tpdo::reload() {
   const std::uint16_t ci = comm_index(true, number_);
@@ -246,7 +246,7 @@ std::optional<TimePoint> Tpdo::next_deadline(TimePoint last_now) const {
 // ---------------------------------------------------------------------------------------------
 // Rpdo
 
-bool Rpdo::active() const { return svc_.operational_ && cob_.valid() && !entries_.empty(); }
+bool Rpdo::active() const { return svc_.operational_ && configured(); }
 
 void Rpdo::reload() {
   const std::uint16_t ci = comm_index(false, number_);
@@ -493,12 +493,12 @@ void PdoService::rebuild_tables() {
   timed_tpdos_.clear();
   timed_rpdos_.clear();
   for (auto& r : rpdos_) {
-    if (!r->cob_.valid() || r->entries_.empty()) continue;
+    if (!r->configured()) continue;
     rx_by_id_[key(r->cob_)] = r.get();
     timed_rpdos_.push_back(r.get());
   }
   for (auto& t : tpdos_) {
-    if (!t->cob_.valid() || t->entries_.empty()) continue;
+    if (!t->configured()) continue;
     if (t->event_driven()) timed_tpdos_.push_back(t.get());
     if (!t->cob_.bit30()) rtr_by_id_[key(t->cob_)] = t.get();
     for (const auto& e : t->entries_) {

@@ -89,7 +89,9 @@ class Tpdo {
   [[nodiscard]] std::uint16_t number() const { return number_; }
   [[nodiscard]] CobId cob_id() const { return cob_; }
   [[nodiscard]] std::uint8_t transmission_type() const { return type_; }
-  // Valid COB-ID, non-empty mapping and the service in NMT Operational.
+  // A valid COB-ID and a non-empty mapping: what it takes to run in NMT Operational.
+  [[nodiscard]] bool configured() const { return cob_.valid() && !entries_.empty(); }
+  // Configured and the service in NMT Operational.
   [[nodiscard]] bool active() const;
   // Application event: types 254/255 are sent at the next advance() (subject to the inhibit
   // time); type 0 at the next SYNC. Ignored for the other types.
@@ -139,6 +141,9 @@ class Rpdo {
   [[nodiscard]] std::uint16_t number() const { return number_; }
   [[nodiscard]] CobId cob_id() const { return cob_; }
   [[nodiscard]] std::uint8_t transmission_type() const { return type_; }
+  // A valid COB-ID and a non-empty mapping: what it takes to run in NMT Operational.
+  [[nodiscard]] bool configured() const { return cob_.valid() && !entries_.empty(); }
+  // Configured and the service in NMT Operational.
   [[nodiscard]] bool active() const;
   [[nodiscard]] std::uint8_t dlc() const { return dlc_; }
   // Deadline monitoring (event timer) has fired since the last reception.
