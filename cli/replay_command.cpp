@@ -67,6 +67,7 @@ int run_replay(const ReplayCommandOptions& o) {
   }
   gateway::record::ReplayOptions ro;
   ro.timeline = o.quiet ? nullptr : &std::cout;
+  ro.fresh = o.fresh;
   ro.frames = o.frames;
   ro.logs = o.logs;
   ro.fe = o.fe;
@@ -99,7 +100,16 @@ int run_replay(const ReplayCommandOptions& o) {
   bool diverged = false;
   for (const RunReport& r : reports) {
     for (const auto& n : r.notes) std::fprintf(stderr, "note: %s\n", n.c_str());
-    if (!r.exact) {
+    if (r.mode == ReplayMode::Recorded) {
+      std::fprintf(stderr,
+                   "run %s: shown as recorded: %llu inputs (%llu frames), %llu frames sent, %llu decisions; "
+                   "not re-run (its start has left the ring)\n",
+                   r.run.c_str(), static_cast<unsigned long long>(r.inputs),
+                   static_cast<unsigned long long>(r.frames_in), static_cast<unsigned long long>(r.frames_out),
+                   static_cast<unsigned long long>(r.decisions));
+      continue;
+    }
+    if (r.mode == ReplayMode::Fresh) {
       std::fprintf(stderr,
                    "run %s: replayed on a fresh gateway: %llu inputs (%llu frames), %llu frames sent, %llu decisions; "
                    "nothing compared\n",

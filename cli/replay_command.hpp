@@ -13,12 +13,13 @@ struct ReplayCommandOptions {
   std::string from, to;   // "12.5" (seconds from the recording's first line) or "14:03[:12[.5]]" (local time)
   std::string fe, subdevice;
   bool frames = false, logs = false, quiet = false;
-  std::string plot;  // FILE.html
+  bool fresh = false;  // re-run every recording on a fresh gateway, nothing compared
+  std::string plot;    // FILE.html
 };
 
-// The replay's exit codes: 0 the same frames and decisions (or a fresh replay printed), 1 a
-// divergence or a refused mapping file, 2 an unreadable recording or plot file, 64 usage
-// (--from/--to unreadable).
+// The replay's exit codes: 0 the same frames and decisions (or a window shown as recorded, or a
+// fresh replay printed), 1 a divergence or a refused mapping file, 2 an unreadable recording or
+// plot file, 64 usage (--from/--to unreadable).
 int run_replay(const ReplayCommandOptions& options);
 
 // Asks the running gateway to keep its recording's window; 0 with the folder printed, 1 when it

@@ -267,19 +267,28 @@ class RunReplay {
     if (!run_.segments.empty()) first.emplace(run_.segments.front());
     // The recorded gateway options (its `meta gateway` line) go first.
     if (const auto bus_share = recorded_bus_share(first)) opt.sdo_bus_share = *bus_share;
-    exact_ = !run_.plain() && first && starts_with_start(*first);
-    // A fresh gateway's own requests go nowhere, their answers come as the log has them: paced,
-    // a request would go out after the answer the log holds for it.
-    if (!exact_) opt.sdo_bus_share = 0;
-    rec_ = std::make_unique<GatewayRecorder>(capture_);
-    opt.tap = rec_.get();
-    gw_ = std::make_unique<Gateway>(
-        config_, [](const canopen::CanFrame&) {}, [](const canopen::CanFrame&) {}, opt);
-    report_.exact = exact_;
-    if (!exact_ && !run_.plain())
+    const bool has_start = !run_.plain() && first && starts_with_start(*first);
+    mode_ = o_.fresh || run_.plain() ? ReplayMode::Fresh : has_start ? ReplayMode::Exact : ReplayMode::Recorded;
+    report_.mode = mode_;
+    if (mode_ == ReplayMode::Recorded)
       report_.notes.push_back(
           "the recording does not reach back to the gateway's start (its first segments left the "
-          "ring): a fresh gateway replays its frames, nothing is compared");
+          "ring): shown as recorded, nothing re-run or compared. An exact replay needs the gateway's "
+          "state at the window's start, which only its whole history gives; --fresh re-runs the "
+          "recorded frames on a new gateway");
+    else if (mode_ == ReplayMode::Fresh && !run_.plain())
+      report_.notes.push_back(
+          fmt::format("--fresh: the recorded frames re-run on a new gateway, nothing compared{}",
+                      has_start ? "" : " (the recording does not reach back to the gateway's start)"));
+    if (mode_ != ReplayMode::Recorded) {
+      // A fresh gateway's own requests go nowhere, their answers come as the log has them:
+      // paced, a request would go out after the answer the log holds for it.
+      if (mode_ == ReplayMode::Fresh) opt.sdo_bus_share = 0;
+      rec_ = std::make_unique<GatewayRecorder>(capture_);
+      opt.tap = rec_.get();
+      gw_ = std::make_unique<Gateway>(
+          config_, [](const canopen::CanFrame&) {}, [](const canopen::CanFrame&) {}, opt);
+    }
     capture_.observe = [this](const Produced& p, canopen::TimePoint t) { produced(p, t); };
     for (const Segment& s : run_.segments) {
       std::optional<SegmentReader> next;
@@ -293,13 +302,16 @@ class RunReplay {
       const std::size_t told = problems.size();  // the events file's; the frames file's come with each()
       for (std::size_t i = 0; i < told; ++i) report_.notes.push_back(problems[i]);
       r.each([this](const Entry& e) {
-        if (exact_) exact(e);
-        else fresh(e);
+        switch (mode_) {
+          case ReplayMode::Exact: exact(e); break;
+          case ReplayMode::Recorded: recorded(e); break;
+          case ReplayMode::Fresh: fresh(e); break;
+        }
       });
       for (std::size_t i = told; i < problems.size(); ++i) report_.notes.push_back(problems[i]);
       first.reset();
     }
-    if (exact_ && comparing() && !capture_.q.empty())
+    if (mode_ == ReplayMode::Exact && comparing() && !capture_.q.empty())
       report_.notes.push_back(
           fmt::format("the recording ends inside the gateway's last call: {} output(s) of the replay "
                       "after its end not compared",
@@ -370,7 +382,7 @@ class RunReplay {
   void produced(const Produced& p, canopen::TimePoint t) {
     if (p.frame) ++report_.frames_out;
     else ++report_.decisions;
-    if (exact_) return;
+    if (mode_ == ReplayMode::Exact) return;
     const std::int64_t wall = t.time_since_epoch().count() + offset_;
     if (p.frame) show_frame(wall, p.side, Direction::Tx, p.f);
     else show(wall, p.text);
@@ -468,6 +480,28 @@ class RunReplay {
     if (!comparing()) capture_.q.clear();
   }
 
+  // The recording as it is: its frames (with their direction) and its events, counted.
+  void recorded(const Entry& e) {
+    if (e.kind == Entry::Kind::Frame) {
+      const auto side = side_of(e.iface);
+      if (!side) return;
+      const Direction d = e.direction.value_or(Direction::Rx);
+      show_frame(e.wall_us, *side, d, e.frame);
+      if (d == Direction::Rx) {
+        ++report_.inputs;
+        ++report_.frames_in;
+      } else {
+        ++report_.frames_out;
+      }
+      return;
+    }
+    const auto kind = first_word(e.text);
+    if (is_skipped(kind)) return;
+    show(e.wall_us, e.text);
+    if (is_input(kind)) ++report_.inputs;
+    else if (kind != "control" && kind != "reload" && kind != "gap") ++report_.decisions;
+  }
+
   // The event loop's way with the gateway's timers (canopen/io/event_loop.hpp ServiceDriver): a
   // deadline fires at its time, one already past at the loop's time now.
   void advance_to(canopen::TimePoint t) {
@@ -519,7 +553,8 @@ class RunReplay {
   Capture capture_;
   std::unique_ptr<Gateway> gw_;
   std::unique_ptr<GatewayRecorder> rec_;
-  bool exact_ = false, started_ = false;
+  ReplayMode mode_ = ReplayMode::Fresh;
+  bool started_ = false;
   std::string up_, down_, lone_iface_;
   std::optional<Entry> last_input_;  // for a divergence's "after the input …"
   std::set<std::string> unknown_ifaces_;

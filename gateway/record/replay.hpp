@@ -8,12 +8,16 @@
 //    sides are printed. A `gap` (records lost by the recorder), and a control-socket session
 //    that reached into the gateway (`oegw ctl` SDO, NMT and LSS, `oegw scan`: not replayed) end
 //    it too, with the reason; `oegw status` requests do not.
-//  * Fresh (a plain candump log — `oegw demo --frames`, `candump -l` of the downstream bus — or a
-//    recording whose start has left the ring): a new gateway is started at the first frame and
-//    given the frames the gateway did not send (the direction marks, or for a plain log the CiA
-//    301 predefined connection set: see classify()), its own timers run at its own deadlines;
-//    its decisions are printed, nothing is compared: "what would this mapping file have done
-//    with these frames?".
+//  * Recorded (a recording whose start has left the ring: a kept window of a gateway that ran
+//    longer than the ring holds): the timeline is the recording's own, the frames and the
+//    decisions the gateway made, as they were. Nothing is re-run: an exact replay needs the
+//    gateway's state at the window's start, which only its whole history gives.
+//  * Fresh (a plain candump log — `oegw demo --frames`, `candump -l` of the downstream bus — or
+//    any recording with `--fresh`): a new gateway is started at the first frame and given the
+//    frames the gateway did not send (the direction marks, or for a plain log the CiA 301
+//    predefined connection set: see own_frame()), its own timers run at its own deadlines; its
+//    decisions are printed, nothing is compared: "what would this mapping file have done with
+//    these frames?".
 #pragma once
 
 #include <cstdint>
@@ -32,7 +36,16 @@ namespace oegw::gateway::record {
 
 class PlotData;
 
+enum class ReplayMode : std::uint8_t {
+  Exact,     // re-run from the run's start and compared
+  Recorded,  // shown as recorded: the run's start has left the ring
+  Fresh,     // re-run on a fresh gateway, nothing compared
+};
+
 struct ReplayOptions {
+  // Re-run every run on a fresh gateway, also a recording that could be replayed exactly or
+  // shown as recorded: what this mapping file would have made of the recorded frames.
+  bool fresh = false;
   // The timeline printed (nullptr: none): the inputs that are no frames and every decision.
   std::ostream* timeline = nullptr;
   bool frames = false;  // the frames too
@@ -55,7 +68,7 @@ struct Divergence {
 
 struct RunReport {
   std::string run;
-  bool exact = false;  // compared (a recording with its start)
+  ReplayMode mode = ReplayMode::Fresh;
   std::uint64_t inputs = 0, frames_in = 0, frames_out = 0, decisions = 0, compared = 0;
   std::optional<Divergence> divergence;
   std::string stopped;             // why the comparison ended before the recording did (empty: it did not)

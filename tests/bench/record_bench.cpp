@@ -225,7 +225,8 @@ void BM_ReplayFullCab10Min(benchmark::State& state) {
     reports = gateway::record::replay(*runs, cfg, {});
     state.SetIterationTime(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   }
-  const bool exact = reports.size() == 1 && reports[0].exact && !reports[0].divergence && reports[0].stopped.empty();
+  const bool exact = reports.size() == 1 && reports[0].mode == gateway::record::ReplayMode::Exact &&
+                     !reports[0].divergence && reports[0].stopped.empty();
   if (!exact) state.SkipWithError("the replay was not exact");
   state.counters["recorded_frames"] = static_cast<double>(recorded);
   state.counters["compared"] = reports.empty() ? 0 : static_cast<double>(reports[0].compared);

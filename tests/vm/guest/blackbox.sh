@@ -128,6 +128,20 @@ if [[ -n $kept ]]; then
   ((rc == 0)) && grep -q 'exact replay, .* no divergence$' /tmp/kept.err && pass "the kept window replays exactly" ||
     fail "the kept window: exit $rc"
 fi
+# The ring without its first segment (the run's start gone, as after a long run): the timeline is
+# the recording's own (the grip moved after the keep), not a new gateway's (which would boot the
+# cab first: waiting-for-boot-up).
+mid=$(mktemp -d)
+cp "$rec"/*.log "$rec"/*.events "$mid"/
+rm -f "$mid"/*-000000.log "$mid"/*-000000.events
+replay_into "$mid" /tmp/mid.err >"$out/timeline-mid.txt"
+if ((rc == 0)) && grep -q 'shown as recorded: .* not re-run' /tmp/mid.err && grep -q ' fe joystick.1 ' "$out/timeline-mid.txt" &&
+  ! grep -q 'waiting-for-boot-up' "$out/timeline-mid.txt"; then
+  pass "a window without its start is shown as recorded ($(wc -l <"$out/timeline-mid.txt") lines)"
+else
+  fail "a window without its start: exit $rc: $(head -5 "$out/timeline-mid.txt")"
+fi
+rm -rf "$mid"
 # 2: the incident on the timeline.
 for want in "node right_grip missing" "fault right_grip raised" "fault right_grip cleared" "emcy left_grip 3120" \
   "emcy_sent 8130" "emcy_sent 7000" "fe joystick.1 offline" "node right_grip operational"; do
