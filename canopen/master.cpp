@@ -46,6 +46,7 @@ SdoClient& Master::sdo(NodeId server) {
     slot = std::make_unique<SdoClient>([this](const CanFrame& f) { sink_(f); }, c);
     if (sdo_pacer_.paced()) slot->set_pacer(&sdo_pacer_);
     slot->set_cob_change_counter(&cob_changes_);
+    slot->set_work_list(&working_);
     ++cob_changes_;
     clients_.clear();
     for (const auto& [id, client] : sdo_) clients_.push_back(client.get());
@@ -96,7 +97,7 @@ bool Master::some_client_answers_on(const CanFrame& frame) {
     for (const SdoClient* client : clients_) {
       const CobId cob = client->config().response_cob;
       if (!cob.valid()) continue;
-      if (cob.extended() || cob.can_id() >= kStandardIds) {
+      if (cob.extended()) {
         answer_extended_ = true;
       } else {
         answer_ids_[cob.can_id()] = true;
@@ -104,6 +105,8 @@ bool Master::some_client_answers_on(const CanFrame& frame) {
     }
     answer_ids_built_ = cob_changes_;
   }
+  // CanFrame's fields are public: a frame built field by field may carry an identifier past 7FFh
+  // without `extended`: no index into answer_ids_, it goes the way of an extended frame.
   if (frame.extended || frame.id >= kStandardIds) return answer_extended_;
   return answer_ids_[frame.id];
 }
@@ -119,6 +122,7 @@ void Master::advance(TimePoint now) {
     if (clients_[i] != client)
       i = static_cast<std::size_t>(std::find(clients_.begin(), clients_.end(), client) - clients_.begin());
   }
+  working_.prune();
   if (sync_) sync_->advance(now);
 }
 
@@ -126,7 +130,8 @@ std::optional<TimePoint> Master::next_deadline() const {
   std::optional<TimePoint> best = hb_.next_deadline();
   if (sync_)
     if (const auto t = sync_->next_deadline(); t && (!best || *t < *best)) best = t;
-  for (const SdoClient* client : clients_) {
+  // Only the clients that may have work: an idle one has no deadline (SdoWorkList).
+  for (const SdoClient* client : working_.clients()) {
     const auto t = client->next_deadline();
     if (t && (!best || *t < *best)) best = t;
   }

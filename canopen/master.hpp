@@ -76,9 +76,12 @@ class Master {
   HeartbeatConsumer hb_;
   EmcyConsumer emcy_;
   std::map<std::uint8_t, std::unique_ptr<SdoClient>> sdo_;
-  // sdo_'s clients in its order (by node-ID), contiguous: on_frame() and next_deadline() walk
-  // them for every frame.
+  // sdo_'s clients in its order (by node-ID), contiguous: on_frame() walks them for an SDO
+  // answer, advance() in this order (the order their queued requests start in).
   std::vector<SdoClient*> clients_;
+  // Those of them that may have work: next_deadline(), called after every frame, asks only
+  // these; advance() drops the idle ones.
+  SdoWorkList working_;
   // The standard COB-IDs a client answers on, so that a frame none answers on (a PDO, most of
   // the bus) skips the walk over clients_. Rebuilt when a client was added or changed its
   // COB-IDs since (SdoClient counts cob_changes_ up); an extended response COB-ID sends every

@@ -30,12 +30,14 @@ SdoClient::SdoClient(FrameSink sink, SdoClientConfig config) : sink_(std::move(s
 SdoClient::Ticket SdoClient::upload(std::uint16_t index, std::uint8_t sub, Callback callback, SdoTransfer mode) {
   const Ticket ticket = next_ticket();
   queue_.push_back(Request{true, index, sub, {}, std::move(callback), mode, ticket});
+  join_work_list();
   return ticket;
 }
 
 SdoClient::Ticket SdoClient::upload_within(std::uint16_t index, std::uint8_t sub, Duration timeout, Callback callback) {
   const Ticket ticket = next_ticket();
   queue_.push_back(Request{true, index, sub, {}, std::move(callback), SdoTransfer::Auto, ticket, timeout});
+  join_work_list();
   return ticket;
 }
 
@@ -43,12 +45,22 @@ SdoClient::Ticket SdoClient::download(std::uint16_t index, std::uint8_t sub, std
                                       Callback callback, SdoTransfer mode) {
   const Ticket ticket = next_ticket();
   queue_.push_back(Request{false, index, sub, std::move(data), std::move(callback), mode, ticket});
+  join_work_list();
   return ticket;
 }
 
 SdoClient::Ticket SdoClient::next_ticket() {
   if (++last_ticket_ == 0) ++last_ticket_;
   return last_ticket_;
+}
+
+void SdoClient::set_work_list(SdoWorkList* list) {
+  work_list_ = list;
+  if (!idle()) join_work_list();
+}
+
+void SdoClient::join_work_list() {
+  if (work_list_ != nullptr) work_list_->join(*this);
 }
 
 bool SdoClient::cancel(Ticket ticket, SdoAbortCode code) {

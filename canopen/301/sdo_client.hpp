@@ -63,6 +63,8 @@ enum class SdoTransfer : std::uint8_t {
   ExpeditedUnsized,
 };
 
+class SdoWorkList;
+
 class SdoClient {
  public:
   using Callback = std::function<void(SdoAbortCode code, std::vector<std::uint8_t> data)>;
@@ -71,6 +73,9 @@ class SdoClient {
 
   SdoClient(FrameSink sink, SdoClientConfig config);
   SdoClient(FrameSink sink, NodeId server) : SdoClient(std::move(sink), SdoClientConfig::for_node(server)) {}
+  // An owner's indexes (response COB-IDs, work list) point to its clients: none is copied.
+  SdoClient(const SdoClient&) = delete;
+  SdoClient& operator=(const SdoClient&) = delete;
 
   Ticket upload(std::uint16_t index, std::uint8_t sub, Callback callback, SdoTransfer mode = SdoTransfer::Auto);
   // As upload(), but this request's answer is awaited `timeout` (each step of it) instead of
@@ -133,6 +138,11 @@ class SdoClient {
   // Counted up by set_cob_ids(): an owner that indexes its clients by COB-ID (Master) sees that
   // its index is out of date.
   void set_cob_change_counter(std::uint64_t* counter) { cob_changes_ = counter; }
+  // The owner's list of clients that may have work (see SdoWorkList): this client joins it when
+  // a request is queued.
+  void set_work_list(SdoWorkList* list);
+  // No transfer in flight and none queued: next_deadline() is nullopt and advance() does nothing.
+  [[nodiscard]] bool idle() const { return state_ == State::Idle && queued() == 0; }
 
   [[nodiscard]] bool busy() const { return state_ != State::Idle; }
   [[nodiscard]] std::size_t queued() const { return queue_.size() - queue_head_; }
@@ -190,6 +200,7 @@ class SdoClient {
   void send(std::initializer_list<std::uint8_t> bytes);
   void pump();
   Ticket next_ticket();
+  void join_work_list();
   [[nodiscard]] Duration step_timeout() const { return current_.timeout.value_or(cfg_.timeout); }
 
   FrameSink sink_;
@@ -222,6 +233,34 @@ class SdoClient {
   std::uint64_t stale_answers_ = 0;
   SdoPacer* pacer_ = nullptr;
   std::uint64_t* cob_changes_ = nullptr;
+  SdoWorkList* work_list_ = nullptr;
+  bool listed_ = false;  // in work_list_
+  friend class SdoWorkList;
+};
+
+// The clients of one owner that may have work: a client joins when a request is queued to it
+// (the only way out of idle), the owner drops those it finds idle (prune()). A master asks its
+// clients for their next deadline after every frame; with one client per sub-device, nearly all
+// idle, asking only these saves a call per idle client and frame.
+class SdoWorkList {
+ public:
+  [[nodiscard]] const std::vector<SdoClient*>& clients() const { return clients_; }
+  void join(SdoClient& c) {
+    if (c.listed_) return;
+    c.listed_ = true;
+    clients_.push_back(&c);
+  }
+  // Drops the idle clients (each joins again with its next request).
+  void prune() {
+    std::erase_if(clients_, [](SdoClient* c) {
+      if (!c->idle()) return false;
+      c->listed_ = false;
+      return true;
+    });
+  }
+
+ private:
+  std::vector<SdoClient*> clients_;
 };
 
 }  // namespace oegw::canopen

@@ -100,6 +100,18 @@ TEST(MasterSdo, AClientMadeOrMovedAfterFramesWereSortedGetsItsAnswers) {
   EXPECT_EQ(f.other[2].id, 0x1234568u);
 }
 
+// CanFrame's fields are public: a frame built field by field with an identifier past 7FFh and
+// no `extended` flag is nobody's answer, and is not read as an index past the 11-bit table.
+TEST(MasterSdo, AStandardFrameWithAnIdentifierPast7FFhIsNobodysAnswer) {
+  Fixture f;
+  (void)f.master.sdo(NodeId{0x05});
+  CanFrame odd = Fixture::answer(0x585);
+  odd.id = 0x1585;
+  EXPECT_FALSE(f.master.on_frame(odd, t0));
+  ASSERT_EQ(f.other.size(), 1u);
+  EXPECT_EQ(f.other[0].id, 0x1585u);
+}
+
 TEST(MasterSdo, TheNextDeadlineIsTheSoonestOfTheClientsWithWorkOnly) {
   Fixture f;
   for (const std::uint8_t node : {0x01, 0x02, 0x03}) (void)f.master.sdo(NodeId{node});
@@ -111,6 +123,35 @@ TEST(MasterSdo, TheNextDeadlineIsTheSoonestOfTheClientsWithWorkOnly) {
   EXPECT_EQ(f.master.next_deadline(), t0 + 5ms + 100ms) << "in flight: its time-out";
   f.master.advance(t0 + 105ms);
   EXPECT_EQ(f.master.next_deadline(), std::nullopt) << "timed out: idle again";
+}
+
+// next_deadline() asks only the clients with work (SdoWorkList), which advance() prunes: a
+// client dropped as idle is asked again once another client's answer queues a request to it.
+TEST(MasterSdo, AClientDroppedAsIdleIsAskedAgainWithItsNextRequest) {
+  Fixture f;
+  SdoClient& a = f.master.sdo(NodeId{0x01});
+  SdoClient& b = f.master.sdo(NodeId{0x02});
+  int a_answers = 0;
+  const auto count_a = [&a_answers](SdoAbortCode code, std::vector<std::uint8_t>) {
+    if (code == SdoAbortCode::None) ++a_answers;
+  };
+  a.upload(0x1000, 0, count_a);
+  f.master.advance(t0);
+  EXPECT_EQ(f.master.next_deadline(), t0 + 100ms);
+  EXPECT_TRUE(f.master.on_frame(Fixture::answer(0x581), t0 + 1ms));
+  EXPECT_EQ(a_answers, 1);
+  f.master.advance(t0 + 2ms);  // a is idle: dropped from the clients asked
+  EXPECT_EQ(f.master.next_deadline(), std::nullopt);
+  b.upload(0x1000, 0, [&](SdoAbortCode, std::vector<std::uint8_t>) { a.upload(0x1000, 0, count_a); });
+  f.master.advance(t0 + 3ms);
+  EXPECT_EQ(f.master.next_deadline(), t0 + 103ms) << "b's request in flight";
+  EXPECT_TRUE(f.master.on_frame(Fixture::answer(0x582), t0 + 4ms));
+  const auto due = f.master.next_deadline();
+  ASSERT_TRUE(due) << "a's request, queued from b's callback, has a deadline";
+  EXPECT_LE(*due, t0 + 4ms) << "due now";
+  f.master.advance(t0 + 5ms);
+  EXPECT_EQ(f.sent.back().id, 0x601u);
+  EXPECT_EQ(f.master.next_deadline(), t0 + 105ms);
 }
 
 // A callback run from advance() (a time-out) may make a client for another node: every client

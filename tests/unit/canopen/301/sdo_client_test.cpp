@@ -77,6 +77,30 @@ TEST_F(SdoClientTest, RequestStartsOnAdvanceAndNextDeadlineSaysSo) {
   EXPECT_TRUE(client->busy());
 }
 
+// The owner's work list (SdoWorkList): a client is on it from its request until it is found
+// idle, once however many requests it has, and a client made busy before it was given the list
+// joins at once.
+TEST_F(SdoClientTest, AClientIsOnTheWorkListFromItsRequestUntilFoundIdle) {
+  SdoWorkList list;
+  client->upload(0x1000, 0, record());
+  client->set_work_list(&list);
+  EXPECT_EQ(list.clients(), std::vector<SdoClient*>{&*client}) << "queued before it had the list";
+  client->download(0x2000, 1, {1}, record());
+  list.prune();
+  EXPECT_EQ(list.clients().size(), 1u) << "two requests queued: listed once, kept";
+  EXPECT_EQ(go(), req({0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}));
+  EXPECT_EQ(srv({0x43, 0x00, 0x10, 0x00, 1, 2, 3, 4}), req({0x2F, 0x00, 0x20, 0x01, 1, 0, 0, 0}));
+  list.prune();
+  EXPECT_EQ(list.clients().size(), 1u) << "its second request in flight";
+  EXPECT_EQ(srv({0x60, 0x00, 0x20, 0x01, 0, 0, 0, 0}), none());
+  EXPECT_TRUE(client->idle());
+  list.prune();
+  EXPECT_TRUE(list.clients().empty()) << "idle: dropped";
+  client->upload(0x1000, 0, record());
+  EXPECT_EQ(list.clients(), std::vector<SdoClient*>{&*client}) << "its next request: on the list again";
+  EXPECT_EQ(results.size(), 2u);
+}
+
 // SDO pacing (canopen/301/sdo_pacer.hpp). The gap from the bit rate, worked out by hand: an
 // 8-byte standard data frame is 98 stuffable bits (SOF, 11-bit ID, RTR, IDE, r0, DLC 4, 64
 // data bits, CRC 15), at worst one stuff bit after every 4 of them but the first: 24; then CRC
