@@ -25,8 +25,8 @@ void register_replay(CLI::App& app) {
   cmd->add_flag("--frames", o->frames, "Print the frames in the timeline too");
   cmd->add_flag("--logs", o->logs, "Print the gateway's log lines in the timeline too");
   cmd->add_flag("--fresh", o->fresh,
-                "Re-run the recorded frames on a new gateway and print its decisions, nothing compared "
-                "(what this mapping file would have made of them)");
+                "Re-run the recorded inputs (frames, commands, bus events) on a new gateway and print its "
+                "decisions, nothing compared (what this mapping file would have made of them)");
   cmd->add_flag("-q,--quiet", o->quiet, "No timeline: the comparison's result only");
   cmd->add_option("--plot", o->plot,
                   "Draw the timeline: FILE.html (a self-contained page, Chart.js) or FILE.svg (a static picture)");

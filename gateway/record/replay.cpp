@@ -251,17 +251,6 @@ class RunReplay {
     std::error_code ec;
     if (!run_.store_copy.empty()) fs::copy_file(run_.store_copy, tmp_ / "upstream.store", ec);
     if (!run_.lss_copy.empty()) fs::copy_file(run_.lss_copy, tmp_ / "upstream.store.lss", ec);
-    if (!run_.mapping_copy.empty() && !config_.file.empty()) {
-      std::ifstream a(run_.mapping_copy), b(config_.file);
-      std::stringstream sa, sb;
-      sa << a.rdbuf();
-      sb << b.rdbuf();
-      if (sa.str() != sb.str())
-        report_.notes.push_back(
-            fmt::format("{}: the recording was made with another mapping file ({}): a divergence may "
-                        "come from the difference",
-                        config_.file, run_.mapping_copy.string()));
-    }
     // The first segment, read once: what it begins with decides how the run is replayed.
     std::optional<SegmentReader> first;
     if (!run_.segments.empty()) first.emplace(run_.segments.front());
@@ -275,11 +264,24 @@ class RunReplay {
           "the recording does not reach back to the gateway's start (its first segments left the "
           "ring): shown as recorded, nothing re-run or compared. An exact replay needs the gateway's "
           "state at the window's start, which only its whole history gives; --fresh re-runs the "
-          "recorded frames on a new gateway");
+          "recorded inputs on a new gateway");
     else if (mode_ == ReplayMode::Fresh && !run_.plain())
       report_.notes.push_back(
-          fmt::format("--fresh: the recorded frames re-run on a new gateway, nothing compared{}",
+          fmt::format("--fresh: the recorded inputs re-run on a new gateway, nothing compared{}",
                       has_start ? "" : " (the recording does not reach back to the gateway's start)"));
+    if (!run_.mapping_copy.empty() && !config_.file.empty()) {
+      std::ifstream a(run_.mapping_copy), b(config_.file);
+      std::stringstream sa, sb;
+      sa << a.rdbuf();
+      sb << b.rdbuf();
+      if (sa.str() != sb.str())
+        report_.notes.push_back(fmt::format("{}: the recording was made with another mapping file ({}){}", config_.file,
+                                            run_.mapping_copy.string(),
+                                            mode_ == ReplayMode::Exact ? ": a divergence may come from the difference"
+                                            : mode_ == ReplayMode::Recorded
+                                                ? ": the timeline shown is what that file made"
+                                                : ""));
+    }
     if (mode_ != ReplayMode::Recorded) {
       // A fresh gateway's own requests go nowhere, their answers come as the log has them:
       // paced, a request would go out after the answer the log holds for it.
