@@ -55,6 +55,7 @@ SdoClient::Ticket SdoClient::next_ticket() {
 }
 
 void SdoClient::set_work_list(SdoWorkList* list) {
+  if (work_list_ != nullptr && work_list_ != list) work_list_->leave(*this);
   work_list_ = list;
   if (!idle()) join_work_list();
 }

@@ -139,7 +139,7 @@ class SdoClient {
   // its index is out of date.
   void set_cob_change_counter(std::uint64_t* counter) { cob_changes_ = counter; }
   // The owner's list of clients that may have work (see SdoWorkList): this client joins it when
-  // a request is queued.
+  // a request is queued, at once if it has work already; it leaves a list it was on before.
   void set_work_list(SdoWorkList* list);
   // No transfer in flight and none queued: next_deadline() is nullopt and advance() does nothing.
   [[nodiscard]] bool idle() const { return state_ == State::Idle && queued() == 0; }
@@ -249,6 +249,11 @@ class SdoWorkList {
     if (c.listed_) return;
     c.listed_ = true;
     clients_.push_back(&c);
+  }
+  void leave(SdoClient& c) {
+    if (!c.listed_) return;
+    c.listed_ = false;
+    std::erase(clients_, &c);
   }
   // Drops the idle clients (each joins again with its next request).
   void prune() {

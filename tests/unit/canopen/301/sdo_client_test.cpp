@@ -99,6 +99,12 @@ TEST_F(SdoClientTest, AClientIsOnTheWorkListFromItsRequestUntilFoundIdle) {
   client->upload(0x1000, 0, record());
   EXPECT_EQ(list.clients(), std::vector<SdoClient*>{&*client}) << "its next request: on the list again";
   EXPECT_EQ(results.size(), 2u);
+  SdoWorkList other;
+  client->set_work_list(&other);
+  EXPECT_TRUE(list.clients().empty()) << "moved: it left the first list";
+  EXPECT_EQ(other.clients(), std::vector<SdoClient*>{&*client}) << "with its request queued";
+  client->set_work_list(nullptr);
+  EXPECT_TRUE(other.clients().empty());
 }
 
 // SDO pacing (canopen/301/sdo_pacer.hpp). The gap from the bit rate, worked out by hand: an
