@@ -158,27 +158,36 @@ bool OeDevice::set_input(FeId fe, const mapping::FeField& field, std::int64_t va
     const std::int64_t hi = is_unsigned ? (std::int64_t{1} << (8 * w)) - 1 : (std::int64_t{1} << (8 * w - 1)) - 1;
     if (value < lo || value > hi) return false;
   }
-  const bool ok = write_input_entry(InputEntry{f->index, f->sub, 0, false}, raw);
+  InputEntry once{{f->index, f->sub}};
+  const bool ok = write_input_entry(once, raw);
   if (batch_depth_ == 0) step_node(now);  // event-driven TPDOs go out now (see begin_batch)
   return ok;
 }
 
-bool OeDevice::write_input_entry(const InputEntry& e, std::int64_t raw) {
-  canopen::SubObject* s = od_.find(e.index, e.sub);
+bool OeDevice::write_input_entry(InputEntry& e, std::int64_t raw) {
+  canopen::SubObject* s = od_.resolve(e.slot);
   if (s == nullptr) return false;
   // CiA 401 6423h FALSE: analogue inputs raise no event; the value is stored without telling
   // the PDO service (see the header), so only TPDOs sent for another reason carry it.
-  if (e.index == cia401::kReadAnalogueInput16 && od_.find(cia401::kAnalogueInputGlobalInterruptEnable) != nullptr &&
-      !analog_interrupt_enabled()) {
-    // In place, little endian as encode_width() (no allocation: this runs for every axis change).
-    const auto u = static_cast<std::uint64_t>(raw);
-    for (std::size_t i = 0; i < s->value.size(); ++i) s->value[i] = static_cast<std::uint8_t>(i < 8 ? u >> (8 * i) : 0);
-    input_shadow_[std::uint32_t{e.index} << 8 | e.sub] = s->value;  // same size: no reallocation
-    return true;
+  if (e.slot.index == cia401::kReadAnalogueInput16) {
+    const canopen::SubObject* enable = od_.resolve(interrupt_enable_);
+    if (enable != nullptr && (enable->value.empty() || enable->value[0] == 0)) {
+      // In place, little endian as encode_width() (no allocation: this runs for every axis change).
+      const auto u = static_cast<std::uint64_t>(raw);
+      for (std::size_t i = 0; i < s->value.size(); ++i)
+        s->value[i] = static_cast<std::uint8_t>(i < 8 ? u >> (8 * i) : 0);
+      shadow_of(e) = s->value;  // same size: no reallocation
+      return true;
+    }
   }
-  const SdoAbortCode rc = od_.set<std::int64_t>(e.index, e.sub, raw, Origin::Local);
-  if (rc == SdoAbortCode::None) input_shadow_[std::uint32_t{e.index} << 8 | e.sub] = s->value;
+  const SdoAbortCode rc = od_.set_local(e.slot, raw);
+  if (rc == SdoAbortCode::None) shadow_of(e) = s->value;
   return rc == SdoAbortCode::None;
+}
+
+std::vector<std::uint8_t>& OeDevice::shadow_of(InputEntry& e) {
+  if (e.shadow == nullptr) e.shadow = &input_shadow_[std::uint32_t{e.slot.index} << 8 | e.slot.sub];
+  return *e.shadow;
 }
 
 void OeDevice::index_inputs() {
@@ -190,11 +199,11 @@ void OeDevice::index_inputs() {
       const auto ref = field_ref(fe, f.name);
       if (!ref) continue;
       const bool bits = ref->bit != 0xFF;
-      const InputEntry e{f.index, f.sub, static_cast<std::uint8_t>(bits ? (ref->bit / 8) * 8 : 0), bits};
+      const InputEntry e{{f.index, f.sub}, static_cast<std::uint8_t>(bits ? (ref->bit / 8) * 8 : 0), bits};
       Span& span = input_index_[static_cast<std::size_t>(fe.kind)][fe.instance][static_cast<std::size_t>(ref->slot)];
       const bool known =
           std::any_of(input_entries_.begin() + span.first, input_entries_.begin() + span.first + span.count,
-                      [&](const InputEntry& x) { return x.index == e.index && x.sub == e.sub; });
+                      [&](const InputEntry& x) { return x.slot.index == e.slot.index && x.slot.sub == e.slot.sub; });
       if (known) continue;
       if (span.count == 0) span.first = static_cast<std::uint16_t>(input_entries_.size());
       // fe_fields lists a slot's fields together, so its entries stay contiguous.
@@ -211,11 +220,11 @@ void OeDevice::mirror_input(FeId fe, FeSlot slot, std::int64_t value, TimePoint 
   const Span span = input_index_[k][fe.instance][static_cast<std::size_t>(slot)];
   bool wrote = false;
   for (std::uint16_t i = span.first; i < span.first + span.count; ++i) {
-    const InputEntry& e = input_entries_[i];
+    InputEntry& e = input_entries_[i];
     std::int64_t raw = value;
     if (e.bits) {
       raw = static_cast<std::int64_t>((static_cast<std::uint64_t>(value) >> e.shift) & 0xFFu);
-      const canopen::SubObject* s = od_.find(e.index, e.sub);
+      const canopen::SubObject* s = od_.resolve(e.slot);
       if (s == nullptr || (!s->value.empty() && s->value[0] == raw)) continue;
     }
     // Cannot fail: the entries were looked up from the same FE table at construction and the

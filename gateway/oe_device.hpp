@@ -180,14 +180,17 @@ class OeDevice {
   };
   // One dictionary entry an input slot occupies: the slot's value >> shift is the entry's value
   // (a bit field: one byte per entry; a whole value: shift 0).
+  // Its dictionary entry and its input_shadow_ entry are looked up at its first write, not at
+  // every one: an axis changes with nearly every frame.
   struct InputEntry {
-    std::uint16_t index = 0;
-    std::uint8_t sub = 0;
+    canopen::ObjectDictionary::Slot slot;
     std::uint8_t shift = 0;
     bool bits = false;
+    std::vector<std::uint8_t>* shadow = nullptr;  // in input_shadow_ (a map node: it stays)
   };
   void index_inputs();
-  bool write_input_entry(const InputEntry& e, std::int64_t raw);
+  bool write_input_entry(InputEntry& e, std::int64_t raw);
+  [[nodiscard]] std::vector<std::uint8_t>& shadow_of(InputEntry& e);
   // node_->advance() (the Node's heartbeat time-out applies the error values, whoever calls).
   void step_node(canopen::TimePoint now);
   void watch_host_commands();
@@ -223,6 +226,7 @@ class OeDevice {
   // Last bytes written by set_input per input entry (index << 8 | sub): an NMT reset node
   // restores the application objects to their defaults, but the inputs have not moved.
   std::map<std::uint32_t, std::vector<std::uint8_t>> input_shadow_;
+  canopen::ObjectDictionary::Slot interrupt_enable_{cia401::kAnalogueInputGlobalInterruptEnable, 0};  // 6423h
   canopen::NmtState last_state_ = canopen::NmtState::Initialisation;
   canopen::Subscriptions subs_;  // last: released before the OD/Node go
 };

@@ -215,6 +215,7 @@ SdoAbortCode check_limits(const SubObject& s, std::span<const std::uint8_t> byte
 
 Object& ObjectDictionary::add_var(std::uint16_t index, std::string name, DataType type, Access access,
                                   std::vector<std::uint8_t> default_value, bool pdo_mappable) {
+  ++layout_;
   auto [it, inserted] = objects_.insert_or_assign(index, Object(index, name, ObjectCode::Var));
   (void)inserted;
   index_[index] = &it->second;
@@ -231,6 +232,7 @@ Object& ObjectDictionary::add_var(std::uint16_t index, std::string name, DataTyp
 
 Object& ObjectDictionary::add_array(std::uint16_t index, std::string name, DataType type, Access access,
                                     std::uint8_t count, std::vector<std::uint8_t> default_value, bool pdo_mappable) {
+  ++layout_;
   auto [it, inserted] = objects_.insert_or_assign(index, Object(index, name, ObjectCode::Array));
   (void)inserted;
   index_[index] = &it->second;
@@ -256,6 +258,7 @@ Object& ObjectDictionary::add_array(std::uint16_t index, std::string name, DataT
 }
 
 Object& ObjectDictionary::add_record(std::uint16_t index, std::string name) {
+  ++layout_;
   auto [it, inserted] = objects_.insert_or_assign(index, Object(index, std::move(name), ObjectCode::Record));
   (void)inserted;
   index_[index] = &it->second;
@@ -296,6 +299,7 @@ Subscription ObjectDictionary::add_observer(ChangeObserver obs) {
 }
 
 bool ObjectDictionary::remove(std::uint16_t index) {
+  ++layout_;
   index_.erase(index);
   return objects_.erase(index) != 0;
 }
@@ -355,6 +359,25 @@ SdoAbortCode ObjectDictionary::write(std::uint16_t index, std::uint8_t sub, std:
   if (c != SdoAbortCode::None) return c;
   Object& obj = *find(index);
   return write_resolved(obj, *obj.find(sub), bytes, origin);
+}
+
+SubObject* ObjectDictionary::resolve(Slot& slot) {
+  if (slot.layout != layout_) {
+    slot.object = find(slot.index);
+    slot.entry = slot.object != nullptr ? slot.object->find(slot.sub) : nullptr;
+    slot.layout = layout_;
+  }
+  return slot.entry;
+}
+
+SdoAbortCode ObjectDictionary::set_local(Slot& slot, std::int64_t v) {
+  SubObject* s = resolve(slot);
+  const std::size_t width = s != nullptr ? s->value.size() : 0;
+  if (s == nullptr || width > 8) return set<std::int64_t>(slot.index, slot.sub, v, Origin::Local);
+  std::array<std::uint8_t, 8> buf{};
+  const auto u = static_cast<std::uint64_t>(v);
+  for (std::size_t i = 0; i < width; ++i) buf[i] = static_cast<std::uint8_t>(u >> (8 * i));
+  return write_resolved(*slot.object, *s, std::span<const std::uint8_t>(buf.data(), width), Origin::Local);
 }
 
 SdoAbortCode ObjectDictionary::write_resolved(Object& obj, SubObject& s, std::span<const std::uint8_t> bytes,

@@ -175,6 +175,26 @@ class ObjectDictionary {
   [[nodiscard]] const SubObject* find(std::uint16_t index, std::uint8_t sub) const;
   [[nodiscard]] const std::map<std::uint16_t, Object>& objects() const { return objects_; }
 
+  // Counted up whenever an object is added, replaced or removed (the builders, remove()): a
+  // SubObject's address holds while it is unchanged. Object::add_sub() keeps the addresses of
+  // the other sub-objects (map nodes); a sub-object erased through Object::subs() is not counted
+  // (done only while a dictionary is built, before anyone keeps an address).
+  [[nodiscard]] std::uint64_t layout() const { return layout_; }
+  // A sub-object looked up once for a writer that writes it with every frame (the gateway's
+  // inputs): resolve() gives its address without a look-up while layout() is unchanged since,
+  // and looks it up again when it has changed. nullptr: no such sub-object.
+  struct Slot {
+    std::uint16_t index = 0;
+    std::uint8_t sub = 0;
+    Object* object = nullptr;
+    SubObject* entry = nullptr;
+    std::uint64_t layout = ~std::uint64_t{0};
+  };
+  [[nodiscard]] SubObject* resolve(Slot& slot);
+  // set<std::int64_t>(slot.index, slot.sub, v, Origin::Local) through the slot: the same checks
+  // (length, limits, hooks), observers and result, without the three look-ups.
+  SdoAbortCode set_local(Slot& slot, std::int64_t v);
+
   // What an SDO upload/download, an RPDO or the application does. Checks existence, access for
   // the origin, length for fixed-size types, limits, then the object's hooks; commits only when
   // all accept, then notifies observers.
@@ -236,6 +256,7 @@ class ObjectDictionary {
   // translation of every frame makes several of (its nodes are map nodes: their addresses stay
   // while the object does). Kept by the builders and remove() alone.
   std::unordered_map<std::uint16_t, Object*> index_;
+  std::uint64_t layout_ = 0;
   std::shared_ptr<detail::CallbackList<ChangeObserver>> observers_;
 };
 

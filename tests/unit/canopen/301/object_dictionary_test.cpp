@@ -138,6 +138,44 @@ TEST(ObjectDictionary, FindFollowsObjectsReplacedRemovedAndAddedAgain) {
   for (const auto& [index, obj] : od.objects()) EXPECT_EQ(od.find(index), &obj) << index;
 }
 
+// A Slot (a sub-object resolved once): set_local() writes as set<>(…, Origin::Local) does —
+// width, limits, hooks, observers — and follows the object when it is replaced, removed and
+// added again (the layout counted), never writing into a freed one.
+TEST(ObjectDictionary, ASlotWritesAsSetDoesAndFollowsTheLayout) {
+  ObjectDictionary od;
+  od.add_var(0x6401, "Axis", DataType::Integer16, Access::ReadOnly, encode<std::int16_t>(0), true);
+  od.find(0x6401, 0)->high = std::int64_t{1000};
+  int notified = 0;
+  const Subscription obs = od.add_observer([&](std::uint16_t index, std::uint8_t sub, Origin origin) {
+    EXPECT_EQ(index, 0x6401);
+    EXPECT_EQ(sub, 0);
+    EXPECT_EQ(origin, Origin::Local);
+    ++notified;
+  });
+  ObjectDictionary::Slot slot{0x6401, 0};
+  ASSERT_EQ(od.resolve(slot), od.find(0x6401, 0));
+  EXPECT_EQ(od.set_local(slot, -300), SdoAbortCode::None);
+  EXPECT_EQ(od.get<std::int16_t>(0x6401, 0), -300) << "two bytes, little endian, read-only to the bus only";
+  EXPECT_EQ(notified, 1);
+  EXPECT_EQ(od.set_local(slot, 1001), SdoAbortCode::ValueTooHigh);
+  EXPECT_EQ(od.get<std::int16_t>(0x6401, 0), -300);
+  EXPECT_EQ(notified, 1);
+  const auto before = od.layout();
+  od.add_var(0x6401, "Axis again", DataType::Integer32, Access::ReadOnly, encode<std::int32_t>(0));  // replaced
+  EXPECT_NE(od.layout(), before);
+  EXPECT_EQ(od.set_local(slot, 70000), SdoAbortCode::None);
+  EXPECT_EQ(od.get<std::int32_t>(0x6401, 0), 70000) << "the new object's four bytes";
+  EXPECT_EQ(od.resolve(slot), od.find(0x6401, 0));
+  EXPECT_TRUE(od.remove(0x6401));
+  EXPECT_EQ(od.resolve(slot), nullptr);
+  EXPECT_EQ(od.set_local(slot, 1), SdoAbortCode::ObjectDoesNotExist);
+  od.add_record_member(0x6401, 1, "member", DataType::Unsigned8, Access::ReadWrite, {0});
+  EXPECT_EQ(od.set_local(slot, 1), SdoAbortCode::None) << "sub-index 0 of the record";
+  EXPECT_EQ(od.get<std::uint8_t>(0x6401, 0), 1);
+  ObjectDictionary::Slot absent{0x6401, 9};
+  EXPECT_EQ(od.set_local(absent, 1), SdoAbortCode::SubIndexDoesNotExist);
+}
+
 // Subscriptions (observer and hook lifetime): a callback is removed with its handle.
 TEST(ObjectDictionarySubscription, ObserverAndHookRemovedWhenHandleDies) {
   ObjectDictionary od;
