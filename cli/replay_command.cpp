@@ -100,22 +100,13 @@ int run_replay(const ReplayCommandOptions& o) {
   bool diverged = false;
   for (const RunReport& r : reports) {
     for (const auto& n : r.notes) std::fprintf(stderr, "note: %s\n", n.c_str());
-    if (r.mode == ReplayMode::Recorded) {
-      std::fprintf(stderr,
-                   "run %s: shown as recorded: %llu inputs (%llu frames), %llu frames sent, %llu decisions; "
-                   "not re-run (its start has left the ring)\n",
-                   r.run.c_str(), static_cast<unsigned long long>(r.inputs),
-                   static_cast<unsigned long long>(r.frames_in), static_cast<unsigned long long>(r.frames_out),
-                   static_cast<unsigned long long>(r.decisions));
-      continue;
-    }
-    if (r.mode == ReplayMode::Fresh) {
-      std::fprintf(stderr,
-                   "run %s: replayed on a fresh gateway: %llu inputs (%llu frames), %llu frames sent, %llu decisions; "
-                   "nothing compared\n",
-                   r.run.c_str(), static_cast<unsigned long long>(r.inputs),
-                   static_cast<unsigned long long>(r.frames_in), static_cast<unsigned long long>(r.frames_out),
-                   static_cast<unsigned long long>(r.decisions));
+    if (r.mode != ReplayMode::Exact) {
+      const bool shown = r.mode == ReplayMode::Recorded;
+      std::fprintf(stderr, "run %s: %s: %llu inputs (%llu frames), %llu frames sent, %llu decisions; %s\n",
+                   r.run.c_str(), shown ? "shown as recorded" : "replayed on a fresh gateway",
+                   static_cast<unsigned long long>(r.inputs), static_cast<unsigned long long>(r.frames_in),
+                   static_cast<unsigned long long>(r.frames_out), static_cast<unsigned long long>(r.decisions),
+                   shown ? "not re-run (its start has left the ring)" : "nothing compared");
       continue;
     }
     if (r.divergence) {

@@ -433,21 +433,30 @@ class RunReplay {
     ++report_.compared;
   }
 
+  // A frame line of a recording: shown, and its side and direction (nullopt: on neither of the
+  // mapping file's buses).
+  std::optional<std::pair<Side, Direction>> shown_frame(const Entry& e) {
+    const auto side = side_of(e.iface);
+    if (!side) return std::nullopt;
+    const Direction d = e.direction.value_or(Direction::Rx);
+    show_frame(e.wall_us, *side, d, e.frame);
+    return std::pair{*side, d};
+  }
+
   void exact(const Entry& e) {
     if (e.kind == Entry::Kind::Frame) {
-      const auto side = side_of(e.iface);
-      if (!side) return;
-      const Direction d = e.direction.value_or(Direction::Rx);
-      show_frame(e.wall_us, *side, d, e.frame);
-      if (d == Direction::Rx) {
+      const auto shown = shown_frame(e);
+      if (!shown) return;
+      const Side side = shown->first;
+      if (shown->second == Direction::Rx) {
         expect_nothing_pending(e);
         ++report_.inputs;
         ++report_.frames_in;
         last_input_ = e;
-        if (*side == Side::Up) gw_->on_upstream_frame(e.frame, e.t);
+        if (side == Side::Up) gw_->on_upstream_frame(e.frame, e.t);
         else gw_->on_downstream_frame(e.frame, e.t);
       } else {
-        compare(e, [&](const Produced& p) { return p.frame && p.side == *side && p.f == e.frame; });
+        compare(e, [&](const Produced& p) { return p.frame && p.side == side && p.f == e.frame; });
       }
       return;
     }
@@ -485,11 +494,9 @@ class RunReplay {
   // The recording as it is: its frames (with their direction) and its events, counted.
   void recorded(const Entry& e) {
     if (e.kind == Entry::Kind::Frame) {
-      const auto side = side_of(e.iface);
-      if (!side) return;
-      const Direction d = e.direction.value_or(Direction::Rx);
-      show_frame(e.wall_us, *side, d, e.frame);
-      if (d == Direction::Rx) {
+      const auto shown = shown_frame(e);
+      if (!shown) return;
+      if (shown->second == Direction::Rx) {
         ++report_.inputs;
         ++report_.frames_in;
       } else {
