@@ -188,6 +188,8 @@ class Gateway {
   [[nodiscard]] const FeModel& model() const { return model_; }
   [[nodiscard]] subdevices::NetworkManager& downstream() { return network_; }
   [[nodiscard]] const subdevices::NetworkManager& downstream() const { return network_; }
+  // The downstream master (its SDO pacing: status).
+  [[nodiscard]] const canopen::Master& master() const { return master_; }
   // Remote SDO: the host's transfers to sub-devices (gateway/remote_sdo.hpp).
   [[nodiscard]] const RemoteSdo& remote_sdo() const { return *remote_sdo_; }
   // An SDO server channel a network indication has redirected to a sub-device

@@ -14,7 +14,13 @@ cmake --build "$BUILD"
 # debootstrap root (label `deploy`, tests/deploy) through CTest. The VM tier's node-canopen host
 # comes from npm: CTest's vm_node_peer_install runs `npm ci` on tests/vm/node_peer's lockfile into
 # the build tree first (the registry only; nodejs, npm and libnode-dev from install-deps.sh).
-ctest --test-dir "$BUILD" --output-on-failure --timeout 900 -j2
+ctest --test-dir "$BUILD" --output-on-failure --timeout 900 -j2 || {
+  rc=$?
+  # A long run's log is read from its end: the failed tests' own failure lines once more there.
+  echo "== the failures again (from $BUILD/Testing/Temporary/LastTest.log)"
+  grep -E -A3 '^FAIL: |: Failure$|^\[  FAILED  \]' "$BUILD/Testing/Temporary/LastTest.log" | head -80 || true
+  exit "$rc"
+}
 
 # Fuzzing smoke runs: the SDO server under libFuzzer + ASan/UBSan (clang), a short bounded run.
 FUZZ_BUILD=${OEGW_FUZZ_BUILD_DIR:-build-fuzz}

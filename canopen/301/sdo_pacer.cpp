@@ -17,8 +17,13 @@ Duration SdoPacer::gap_for(std::uint32_t bit_rate, double share) {
 }
 
 bool SdoPacer::try_start(TimePoint now) {
-  if (now < next_free_) return false;
+  if (now < next_free_) {
+    refused_since_start_ = true;
+    return false;
+  }
   next_free_ = now + gap_;
+  if (refused_since_start_) ++delayed_starts_;
+  refused_since_start_ = false;
   return true;
 }
 

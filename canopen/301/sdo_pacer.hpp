@@ -35,10 +35,15 @@ class SdoPacer {
   bool try_start(TimePoint now);
   // The earliest time a request may start.
   [[nodiscard]] TimePoint next_free() const { return next_free_; }
+  // Starts that came after a refusal (a request waited for the gap): how often the pacing held
+  // the SDO traffic back. Several clients refused during one gap make one such start.
+  [[nodiscard]] std::uint64_t delayed_starts() const { return delayed_starts_; }
 
  private:
   Duration gap_;
   TimePoint next_free_{};
+  bool refused_since_start_ = false;
+  std::uint64_t delayed_starts_ = 0;
 };
 
 }  // namespace oegw::canopen

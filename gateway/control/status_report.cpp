@@ -167,15 +167,18 @@ json status_report(const Gateway& gw, const mapping::Config& config, const Statu
   json fes = json::array();
   for (const auto& fe : gw.fes()) fes.push_back(fe_json(gw, fe));
   const sd::NetworkCounters& n = gw.downstream().counters();
+  const canopen::SdoPacer& pacer = gw.master().sdo_pacer();
   json report{{"mapping_file", config.file},
               {"uptime_ms", ms_between(at.started, at.now)},
               {"upstream", upstream_json(gw, config, at.now)},
-              {"downstream", json{{"interface", config.downstream.interface},
-                                  {"network_id", config.downstream.network_id},
-                                  {"counters", json{{"unknown_pdo", n.unknown_pdo},
-                                                    {"unknown_emcy", n.unknown_emcy},
-                                                    {"reboots_seen", n.reboots_seen},
-                                                    {"gateway_resets", n.gateway_resets}}}}},
+              {"downstream",
+               json{{"interface", config.downstream.interface},
+                    {"network_id", config.downstream.network_id},
+                    {"counters", json{{"unknown_pdo", n.unknown_pdo},
+                                      {"unknown_emcy", n.unknown_emcy},
+                                      {"reboots_seen", n.reboots_seen},
+                                      {"gateway_resets", n.gateway_resets}}},
+                    {"sdo_pacing", json{{"gap_us", pacer.gap().count()}, {"delayed_starts", pacer.delayed_starts()}}}}},
               {"subdevices", subs},
               {"functional_elements", fes},
               {"commands",

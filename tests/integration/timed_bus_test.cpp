@@ -12,6 +12,7 @@
 #include "canopen/frame_bits.hpp"
 #include "canopen/io/event_loop.hpp"
 #include "canopen/io/virtual_bus.hpp"
+#include "gateway/control/status_report.hpp"
 #include "mapping/config.hpp"
 #include "rig/cab_rig.hpp"
 #include "subdevices/device_spec.hpp"
@@ -181,9 +182,15 @@ TEST(TimedCab, APowerOnBootUpCrossingTheResetDoesNotCostARefusal) {
 // gateway; consecutive ones are at least SdoPacer::gap_for(250 kbit/s, 0.85) = 1,271 us apart
 // (two 8-byte frames at their worst-case stuffing, 135 bits each, on 85 % of the bus), and the
 // pacing is what holds them: the shortest gap is that gap exactly. Without pacing
-// (sdo_bus_share 0) the same cab sends requests microseconds apart. (The VM tier checks only what
+// (sdo_bus_share 0) the same cab sends requests microseconds apart. `oegw status --json` shows the
+// gap and the requests that waited for it (downstream.sdo_pacing). (The VM tier checks only what
 // timing cannot break: tests/vm/guest/gateway.sh.)
-std::vector<TimePoint> sdo_request_starts(double sdo_bus_share) {
+struct PacedRun {
+  std::vector<TimePoint> starts;
+  nlohmann::json pacing;  // the status report's downstream.sdo_pacing
+};
+
+PacedRun sdo_request_starts(double sdo_bus_share) {
   SimulatedClock clock{kStart};
   EventLoop loop{clock};
   gateway::GatewayOptions gw;
@@ -193,7 +200,9 @@ std::vector<TimePoint> sdo_request_starts(double sdo_bus_share) {
                                                  .gateway = gw,
                                                  .timed_buses = true,
                                                  .device_sdo_latency = Duration{0}});
-  std::vector<TimePoint> starts;
+  PacedRun run;
+  auto& starts = run.starts;
+  const TimePoint began = loop.now();
   rig.from_gateway_down = [&](const CanFrame& f) {
     if (f.id < 0x600 || f.id > 0x67F || f.dlc < 1) return false;
     const std::uint8_t b = f.data[0], ccs = b >> 5;
@@ -210,13 +219,15 @@ std::vector<TimePoint> sdo_request_starts(double sdo_bus_share) {
   }
   for (const auto& n : rig.gw().downstream().names())
     EXPECT_EQ(rig.gw().downstream().state(n), subdevices::NodeState::Operational) << n;
-  return starts;
+  run.pacing = gateway::control::status_report(rig.gw(), rig.config(), {loop.now(), began})["downstream"]["sdo_pacing"];
+  return run;
 }
 
 TEST(TimedCab, TheGatewayStartsItsDownstreamSdoRequestsAtLeastThePacingGapApart) {
   const Duration gap = SdoPacer::gap_for(250'000, gateway::GatewayOptions::kDefaultSdoBusShare);
   ASSERT_EQ(gap, 1271us) << "270 bits / (250,000 bit/s x 0.85)";
-  const std::vector<TimePoint> paced = sdo_request_starts(gateway::GatewayOptions::kDefaultSdoBusShare);
+  const PacedRun paced_run = sdo_request_starts(gateway::GatewayOptions::kDefaultSdoBusShare);
+  const std::vector<TimePoint>& paced = paced_run.starts;
   ASSERT_GE(paced.size(), 50u) << "the boot and the two reboots configure five devices";
   Duration shortest = Duration::max();
   for (std::size_t i = 1; i < paced.size(); ++i) {
@@ -224,8 +235,18 @@ TEST(TimedCab, TheGatewayStartsItsDownstreamSdoRequestsAtLeastThePacingGapApart)
     shortest = std::min(shortest, paced[i] - paced[i - 1]);
   }
   EXPECT_EQ(shortest, gap) << "the pacing, not the devices, set the pace";
+  // The status report: the gap, and how many requests waited for it (the requests exactly one
+  // gap after their predecessor did, at the least; at most every request but the first).
+  std::size_t at_the_gap = 0;
+  for (std::size_t i = 1; i < paced.size(); ++i) at_the_gap += paced[i] - paced[i - 1] == gap ? 1 : 0;
+  EXPECT_EQ(paced_run.pacing["gap_us"], 1271);
+  EXPECT_GE(paced_run.pacing["delayed_starts"].get<std::size_t>(), at_the_gap);
+  EXPECT_LT(paced_run.pacing["delayed_starts"].get<std::size_t>(), paced.size());
 
-  const std::vector<TimePoint> unpaced = sdo_request_starts(0.0);
+  const PacedRun unpaced_run = sdo_request_starts(0.0);
+  const std::vector<TimePoint>& unpaced = unpaced_run.starts;
+  EXPECT_EQ(unpaced_run.pacing["gap_us"], 0);
+  EXPECT_EQ(unpaced_run.pacing["delayed_starts"], 0);
   ASSERT_GE(unpaced.size(), 50u);
   std::size_t close = 0;
   for (std::size_t i = 1; i < unpaced.size(); ++i) close += unpaced[i] - unpaced[i - 1] < gap ? 1 : 0;

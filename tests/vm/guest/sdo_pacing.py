@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """The SDO pacing as candump sees it in the guest (gateway.sh). Reads a candump -L file of the
-sub-devices' bus and prints "REQUESTS SHORT SPAN2_US SPAN10_US":
+sub-devices' bus and prints "REQUESTS SHORT SPAN2_US SPAN10_US MEDIAN_US":
   * REQUESTS: the SDO initiate requests on 600h..67Fh (ccs 1 download, 2 upload, 5/6 block with
     cs 0: a transfer's segments follow their answers and are not paced);
   * SHORT: how many times three consecutive requests lie within less than GAP_US; SPAN2_US: the
@@ -14,7 +14,8 @@ sub-devices' bus and prints "REQUESTS SHORT SPAN2_US SPAN10_US":
     leave in one wake-up. Rare when paced; without pacing the boot's parallel configurations
     send requests microseconds apart all the time;
   * SPAN10_US: the shortest span of 10 consecutive gaps, a figure only (a lagging write shortens
-    it by the lag: no bound on it holds in a TCG guest).
+    it by the lag: no bound on it holds in a TCG guest);
+  * MEDIAN_US: the median gap between consecutive requests.
     sdo_pacing.py DUMP [GAP_US]
 """
 import sys
@@ -39,7 +40,9 @@ def main():
 
     span2 = spans(2)
     short = sum(1 for s in span2 if s < gap_us)
-    print(len(t), short, round(min(span2, default=-1)), round(min(spans(10), default=-1)))
+    gaps = sorted(spans(1))
+    median = gaps[len(gaps) // 2] if gaps else -1
+    print(len(t), short, round(min(span2, default=-1)), round(min(spans(10), default=-1)), round(median))
 
 
 if __name__ == "__main__":

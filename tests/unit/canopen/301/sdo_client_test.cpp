@@ -121,6 +121,28 @@ TEST(SdoPacer, TheGapKeepsRequestAndAnswerWithinTheShare) {
   EXPECT_FALSE(SdoPacer{}.paced());
 }
 
+// delayed_starts counts the starts that followed a refusal: a request that found the slot free
+// is not counted, one that waited is counted once however often it was refused, and the refusals
+// of several requests within one gap make one delayed start each time the slot opens.
+TEST(SdoPacer, CountsTheStartsThatWaitedForTheGap) {
+  const TimePoint t0{std::chrono::seconds(7)};
+  SdoPacer pacer{2ms};
+  EXPECT_TRUE(pacer.try_start(t0));
+  EXPECT_EQ(pacer.delayed_starts(), 0u) << "the slot was free";
+  EXPECT_FALSE(pacer.try_start(t0 + 500us));
+  EXPECT_FALSE(pacer.try_start(t0 + 1ms));
+  EXPECT_FALSE(pacer.try_start(t0 + 1999us));
+  EXPECT_EQ(pacer.delayed_starts(), 0u) << "nothing started yet";
+  EXPECT_TRUE(pacer.try_start(t0 + 2ms));
+  EXPECT_EQ(pacer.delayed_starts(), 1u) << "one request waited, refused three times";
+  EXPECT_TRUE(pacer.try_start(t0 + 10ms));
+  EXPECT_EQ(pacer.delayed_starts(), 1u) << "the slot was free again";
+  SdoPacer none;
+  EXPECT_TRUE(none.try_start(t0));
+  EXPECT_TRUE(none.try_start(t0));
+  EXPECT_EQ(none.delayed_starts(), 0u) << "not paced: nothing waits";
+}
+
 // Two clients on one pacer (a master's clients toward two nodes), their servers answering at
 // once: the second request starts one gap after the first, not when the first is answered, and
 // next_deadline() names that time; a segment within a transfer is not held back.
