@@ -1,5 +1,6 @@
 #include "gateway/record/gateway_recorder.hpp"
 
+#include <charconv>
 #include <iterator>
 
 #include <fmt/format.h>
@@ -124,21 +125,24 @@ void GatewayRecorder::subdevice_emcy(const std::string& name, const canopen::Emc
 }
 
 void GatewayRecorder::fe_changed(const Gateway& gw, mapping::FeId fe) {
+  // Called for every changed FE value on the loop's thread: the line is built by appends and
+  // to_chars, the FE's name and field names kept from its first line.
   FeCache& c = fes_[fe];
   gw.field_samples(fe, samples_);
   if (!c.seen || c.names.size() != samples_.size()) {  // a reload may bind other fields
     c = FeCache{};
-    for (const auto& f : gw.fields(fe)) c.names.push_back(f.name);
+    c.prefix = "fe " + mapping::fe_name(fe) + " ";
+    for (const auto& f : gw.fields(fe)) c.names.push_back(" " + f.name + "=");
     c.last.assign(samples_.size(), Gateway::FieldSample{});
   }
-  line_ = "fe ";
-  line_ += mapping::fe_name(fe);
-  line_ += ' ';
+  line_ = c.prefix;
   append_word(line_, subdevices::to_string(static_cast<subdevices::SignalStatus>(gw.status(fe))));
   for (std::size_t k = 0; k < samples_.size() && k < c.names.size(); ++k) {
     const Gateway::FieldSample& s = samples_[k];
     if (c.seen && s == c.last[k]) continue;
-    fmt::format_to(std::back_inserter(line_), " {}={}", c.names[k], s.value);
+    line_ += c.names[k];
+    char digits[24];  // an int64_t: 19 digits and a sign
+    line_.append(digits, std::to_chars(digits, digits + sizeof digits, s.value).ptr);
     if (s.status != subdevices::SignalStatus::Valid) {
       line_ += '[';
       append_word(line_, subdevices::to_string(s.status));

@@ -58,7 +58,8 @@ class GatewayRecorder final : public GatewayTap {
 
  private:
   struct FeCache {
-    std::vector<std::string> names;
+    std::string prefix;              // "fe joystick.1 "
+    std::vector<std::string> names;  // " x=", one per field
     std::vector<Gateway::FieldSample> last;
     bool seen = false;
   };

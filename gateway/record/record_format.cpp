@@ -1,6 +1,8 @@
 #include "gateway/record/record_format.hpp"
 
+#include <array>
 #include <charconv>
+#include <cstring>
 #include <ctime>
 
 namespace oegw::gateway::record {
@@ -9,18 +11,62 @@ namespace {
 
 constexpr char kHex[] = "0123456789ABCDEF";
 
-void append_hex(std::string& out, std::uint32_t v, int digits) {
-  for (int i = digits - 1; i >= 0; --i) out.push_back(kHex[(v >> (4 * i)) & 0xF]);
+// The writer formats every record it writes: the helpers below fill a line on the stack and
+// append it to the buffer once (a push_back per character cost more than the digits).
+char* put_hex(char* p, std::uint32_t v, int digits) {
+  for (int i = digits - 1; i >= 0; --i) *p++ = kHex[(v >> (4 * i)) & 0xF];
+  return p;
 }
 
-void append_decimal(std::string& out, std::uint64_t v, int min_digits) {
-  char buf[24];
+char* put_decimal(char* p, std::uint64_t v, int min_digits) {
+  char buf[20];  // 2^64 has 20 digits
   int n = 0;
   do {
     buf[n++] = static_cast<char>('0' + v % 10);
     v /= 10;
   } while (v != 0 || n < min_digits);
-  while (n > 0) out.push_back(buf[--n]);
+  while (n > 0) *p++ = buf[--n];
+  return p;
+}
+
+// "(seconds.micros)": at most 1 + 20 + 1 + 6 + 1 characters.
+constexpr std::size_t kWallTimeMax = 29;
+
+// "00" .. "99": the microseconds two digits at a time.
+constexpr auto kDigitPairs = [] {
+  std::array<char, 200> t{};
+  for (int i = 0; i < 100; ++i) {
+    t[2 * i] = static_cast<char>('0' + i / 10);
+    t[2 * i + 1] = static_cast<char>('0' + i % 10);
+  }
+  return t;
+}();
+
+char* put_wall_time(char* p, std::int64_t wall_us) {
+  const std::uint64_t us = wall_us < 0 ? 0 : static_cast<std::uint64_t>(wall_us);
+  const std::uint64_t sec = us / 1000000;
+  auto frac = static_cast<std::uint32_t>(us % 1000000);
+  // The lines of one second share its digits: the writer formats them once a second.
+  thread_local std::uint64_t cached_sec = ~std::uint64_t{0};
+  thread_local char cached[20];
+  thread_local std::size_t cached_n = 0;
+  if (sec != cached_sec) {
+    cached_n = static_cast<std::size_t>(put_decimal(cached, sec, 10) - cached);  // candump pads to 10 digits
+    cached_sec = sec;
+  }
+  *p++ = '(';
+  std::memcpy(p, cached, cached_n);
+  p += cached_n;
+  *p++ = '.';
+  for (int i = 4; i >= 0; i -= 2) {
+    const std::uint32_t pair = frac % 100;
+    frac /= 100;
+    p[i] = kDigitPairs[2 * pair];
+    p[i + 1] = kDigitPairs[2 * pair + 1];
+  }
+  p += 6;
+  *p++ = ')';
+  return p;
 }
 
 int hex_value(char c) {
@@ -38,40 +84,42 @@ std::string_view trim_newline(std::string_view s) {
 }  // namespace
 
 void append_wall_time(std::string& out, std::int64_t wall_us) {
-  const std::uint64_t us = wall_us < 0 ? 0 : static_cast<std::uint64_t>(wall_us);
-  out.push_back('(');
-  append_decimal(out, us / 1000000, 10);  // candump pads the seconds to 10 digits
-  out.push_back('.');
-  append_decimal(out, us % 1000000, 6);
-  out.push_back(')');
+  char line[kWallTimeMax];
+  out.append(line, put_wall_time(line, wall_us));
 }
 
 void append_frame_line(std::string& out, std::int64_t wall_us, std::string_view iface, const canopen::CanFrame& f,
                        Direction d) {
-  append_wall_time(out, wall_us);
+  // The time, the frame ("1FFFFFFF#" and 16 digits at most) and the mark; the interface apart.
+  char head[kWallTimeMax + 1];
+  out.append(head, put_wall_time(head, wall_us));
   out.push_back(' ');
   out.append(iface);
-  out.push_back(' ');
-  if (f.extended) {
-    append_hex(out, f.id & 0x1FFFFFFF, 8);
-  } else {
-    append_hex(out, f.id & 0x7FF, 3);
-  }
-  out.push_back('#');
+  char tail[1 + 9 + 16 + 3];
+  char* p = tail;
+  *p++ = ' ';
+  p = f.extended ? put_hex(p, f.id & 0x1FFFFFFF, 8) : put_hex(p, f.id & 0x7FF, 3);
+  *p++ = '#';
   if (f.rtr) {
-    out.push_back('R');
-    if (f.dlc != 0) out.push_back(static_cast<char>('0' + f.dlc));
+    *p++ = 'R';
+    if (f.dlc != 0) *p++ = static_cast<char>('0' + (f.dlc & 0xF));
   } else {
-    for (std::uint8_t i = 0; i < f.dlc && i < 8; ++i) append_hex(out, f.data[i], 2);
+    for (std::uint8_t i = 0; i < f.dlc && i < 8; ++i) p = put_hex(p, f.data[i], 2);
   }
-  out.append(d == Direction::Rx ? " R\n" : " T\n");
+  *p++ = ' ';
+  *p++ = d == Direction::Rx ? 'R' : 'T';
+  *p++ = '\n';
+  out.append(tail, p);
 }
 
 void append_event_prefix(std::string& out, std::int64_t wall_us, std::uint64_t pos) {
-  append_wall_time(out, wall_us);
-  out.append(" @");
-  append_decimal(out, pos, 1);
-  out.push_back(' ');
+  char line[kWallTimeMax + 2 + 20 + 1];
+  char* p = put_wall_time(line, wall_us);
+  *p++ = ' ';
+  *p++ = '@';
+  p = put_decimal(p, pos, 1);
+  *p++ = ' ';
+  out.append(line, p);
 }
 
 std::string segment_name(std::string_view file_name) {

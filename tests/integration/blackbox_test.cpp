@@ -183,9 +183,9 @@ TEST_F(Blackbox, TheReplayOfAnIncidentMakesTheSameFramesAndDecisions) {
   const std::string t = timeline.str();
   for (const char* expected :
        {"fault right_grip raised", "fault right_grip cleared", "emcy left_grip 3120", "emcy_sent 8130",
-        "node right_grip missing", "fe joystick.1 offline", "indicators 2 0000000000000005 dds\n",
-        "indicators 2 000000000000000A lcm\n", "outcome refused", "subdevice_command seat_knob position_error_reset",
-        "nmt 30 80", "node pedal missing"})
+        "node right_grip missing", "fe joystick.1 offline", "fe joystick.1 offline buttons[1]=0[offline] buttons[2]=0",
+        "fe pedal.1 valid position=-", "indicators 2 0000000000000005 dds\n", "indicators 2 000000000000000A lcm\n",
+        "outcome refused", "subdevice_command seat_knob position_error_reset", "nmt 30 80", "node pedal missing"})
     EXPECT_NE(t.find(expected), std::string::npos) << expected << " not on the timeline";
 }
 
