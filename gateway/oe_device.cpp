@@ -125,8 +125,13 @@ void OeDevice::step_node(TimePoint now) {
 
 std::optional<TimePoint> OeDevice::next_deadline() const { return node_->next_deadline(); }
 
-bool OeDevice::analog_interrupt_enabled() const {
-  const canopen::SubObject* s = od_.find(cia401::kAnalogueInputGlobalInterruptEnable, 0);
+bool OeDevice::analog_interrupts_off() {
+  const canopen::SubObject* s = od_.resolve(interrupt_enable_);
+  return s != nullptr && (s->value.empty() || s->value[0] == 0);
+}
+
+bool OeDevice::analog_interrupts_on() {
+  const canopen::SubObject* s = od_.resolve(interrupt_enable_);
   return s != nullptr && !s->value.empty() && s->value[0] != 0;
 }
 
@@ -169,20 +174,16 @@ bool OeDevice::write_input_entry(InputEntry& e, std::int64_t raw) {
   if (s == nullptr) return false;
   // CiA 401 6423h FALSE: analogue inputs raise no event; the value is stored without telling
   // the PDO service (see the header), so only TPDOs sent for another reason carry it.
-  if (e.slot.index == cia401::kReadAnalogueInput16) {
-    const canopen::SubObject* enable = od_.resolve(interrupt_enable_);
-    if (enable != nullptr && (enable->value.empty() || enable->value[0] == 0)) {
-      // In place, little endian as encode_width() (no allocation: this runs for every axis change).
-      const auto u = static_cast<std::uint64_t>(raw);
-      for (std::size_t i = 0; i < s->value.size(); ++i)
-        s->value[i] = static_cast<std::uint8_t>(i < 8 ? u >> (8 * i) : 0);
-      shadow_of(e) = s->value;  // same size: no reallocation
-      return true;
-    }
+  if (e.slot.index == cia401::kReadAnalogueInput16 && analog_interrupts_off()) {
+    // In place (no allocation: this runs for every axis change).
+    canopen::put_little_endian(static_cast<std::uint64_t>(raw), s->value);
+    shadow_of(e) = s->value;  // same size: no reallocation
+    return true;
   }
-  const SdoAbortCode rc = od_.set_local(e.slot, raw);
-  if (rc == SdoAbortCode::None) shadow_of(e) = s->value;
-  return rc == SdoAbortCode::None;
+  if (od_.set_local(e.slot, raw) != SdoAbortCode::None) return false;
+  // Looked up again: an observer of the write may have replaced the object.
+  if (const canopen::SubObject* now = od_.resolve(e.slot); now != nullptr) shadow_of(e) = now->value;
+  return true;
 }
 
 std::vector<std::uint8_t>& OeDevice::shadow_of(InputEntry& e) {
@@ -296,8 +297,7 @@ void OeDevice::handle_state(NmtState s) {
   // CiA 852 §8.6: entering operational with 6423h FALSE sends EMCY 0080h; no state change.
   auto& emcy = node_->emcy();
   if (s == NmtState::Operational) {
-    if (od_.find(cia401::kAnalogueInputGlobalInterruptEnable) != nullptr && !analog_interrupt_enabled())
-      emcy.raise(kEmcyAnalogInputsDisabled, 0x00, now_);
+    if (analog_interrupts_off()) emcy.raise(kEmcyAnalogInputsDisabled, 0x00, now_);
   } else if (emcy.active(kEmcyAnalogInputsDisabled)) {
     emcy.clear(kEmcyAnalogInputsDisabled, now_);
   }
@@ -338,7 +338,7 @@ void OeDevice::after_reset() {
 }
 
 void OeDevice::handle_od_change(std::uint16_t index, std::uint8_t sub) {
-  if (index == cia401::kAnalogueInputGlobalInterruptEnable && analog_interrupt_enabled()) {
+  if (index == cia401::kAnalogueInputGlobalInterruptEnable && analog_interrupts_on()) {
     if (node_->emcy().active(kEmcyAnalogInputsDisabled)) node_->emcy().clear(kEmcyAnalogInputsDisabled, now_);
     return;
   }

@@ -199,7 +199,9 @@ class OeDevice {
   void resync_outputs();
   void after_reset();
   void report_outputs(std::uint16_t index, std::uint8_t sub, std::int64_t old_value);
-  [[nodiscard]] bool analog_interrupt_enabled() const;
+  // 6423h (CiA 401) present and FALSE / present and TRUE; absent is neither.
+  [[nodiscard]] bool analog_interrupts_off();
+  [[nodiscard]] bool analog_interrupts_on();
 
   OeDeviceConfig cfg_;
   std::function<void(const canopen::CanFrame&)> sent_;

@@ -116,7 +116,7 @@ bool writable(Access a) {
 
 std::vector<std::uint8_t> encode_width(std::uint64_t v, std::size_t width) {
   std::vector<std::uint8_t> out(width);
-  for (std::size_t i = 0; i < width && i < 8; ++i) out[i] = static_cast<std::uint8_t>(v >> (8 * i));
+  put_little_endian(v, out);
   return out;
 }
 
@@ -375,8 +375,7 @@ SdoAbortCode ObjectDictionary::set_local(Slot& slot, std::int64_t v) {
   const std::size_t width = s != nullptr ? s->value.size() : 0;
   if (s == nullptr || width > 8) return set<std::int64_t>(slot.index, slot.sub, v, Origin::Local);
   std::array<std::uint8_t, 8> buf{};
-  const auto u = static_cast<std::uint64_t>(v);
-  for (std::size_t i = 0; i < width; ++i) buf[i] = static_cast<std::uint8_t>(u >> (8 * i));
+  put_little_endian(static_cast<std::uint64_t>(v), std::span<std::uint8_t>(buf.data(), width));
   return write_resolved(*slot.object, *s, std::span<const std::uint8_t>(buf.data(), width), Origin::Local);
 }
 

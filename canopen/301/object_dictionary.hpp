@@ -145,6 +145,11 @@ std::vector<std::uint8_t> encode(T v) {
 }
 // Bytes of `width` (1..8) taken from a value, e.g. an INTEGER24 from an int32.
 std::vector<std::uint8_t> encode_width(std::uint64_t v, std::size_t width);
+// The same into `out` in place (no allocation): its bytes least significant first (CiA 301
+// §7.1.2, numbers are transferred little endian), those past the eighth 0.
+inline void put_little_endian(std::uint64_t v, std::span<std::uint8_t> out) {
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = static_cast<std::uint8_t>(i < 8 ? v >> (8 * i) : 0);
+}
 
 [[nodiscard]] std::uint64_t decode_unsigned(std::span<const std::uint8_t> bytes);
 [[nodiscard]] std::int64_t decode_signed(std::span<const std::uint8_t> bytes);  // sign-extends
@@ -234,8 +239,7 @@ class ObjectDictionary {
     } else {
       const std::size_t width = s->value.size();
       if (width > buf.size()) return write(index, sub, encode_width(static_cast<std::uint64_t>(v), width), origin);
-      const auto u = static_cast<std::uint64_t>(v);
-      for (std::size_t i = 0; i < width; ++i) buf[i] = static_cast<std::uint8_t>(u >> (8 * i));
+      put_little_endian(static_cast<std::uint64_t>(v), std::span<std::uint8_t>(buf.data(), width));
       return write(index, sub, std::span<const std::uint8_t>(buf.data(), width), origin);
     }
   }
