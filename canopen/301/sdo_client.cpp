@@ -426,13 +426,22 @@ void SdoClient::pump() {
         done_head_ = 0;
       }
       if (d.callback) d.callback(d.code, std::move(d.data));
-    } else if (state_ == State::Idle && queued() != 0 && (pacer_ == nullptr || pacer_->try_start(now_))) {
+    } else if (state_ == State::Idle && queued() != 0 && paced_start()) {
       start(now_);
     } else {
       break;
     }
   }
+  // Nothing left to start (every cancel pumps): a later request has not waited.
+  if (queued() == 0) waited_for_pacer_ = false;
   pumping_ = false;
+}
+
+bool SdoClient::paced_start() {
+  if (pacer_ == nullptr) return true;
+  const bool ok = pacer_->try_start(now_, waited_for_pacer_);
+  waited_for_pacer_ = !ok;
+  return ok;
 }
 
 }  // namespace oegw::canopen

@@ -199,6 +199,9 @@ class SdoClient {
   void send(const std::array<std::uint8_t, 8>& bytes);
   void send(std::initializer_list<std::uint8_t> bytes);
   void pump();
+  // The pacer's leave for the next request (always without a pacer); a refusal is remembered so
+  // that the request's start counts as delayed (SdoPacer::delayed_starts).
+  bool paced_start();
   Ticket next_ticket();
   void join_work_list();
   [[nodiscard]] Duration step_timeout() const { return current_.timeout.value_or(cfg_.timeout); }
@@ -232,6 +235,7 @@ class SdoClient {
   Ticket last_ticket_ = 0;
   std::uint64_t stale_answers_ = 0;
   SdoPacer* pacer_ = nullptr;
+  bool waited_for_pacer_ = false;  // the next request was refused by the pacer
   std::uint64_t* cob_changes_ = nullptr;
   SdoWorkList* work_list_ = nullptr;
   bool listed_ = false;  // in work_list_

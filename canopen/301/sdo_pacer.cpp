@@ -16,14 +16,10 @@ Duration SdoPacer::gap_for(std::uint32_t bit_rate, double share) {
   return Duration{static_cast<Duration::rep>(std::ceil(us))};
 }
 
-bool SdoPacer::try_start(TimePoint now) {
-  if (now < next_free_) {
-    refused_since_start_ = true;
-    return false;
-  }
+bool SdoPacer::try_start(TimePoint now, bool waited) {
+  if (now < next_free_) return false;
   next_free_ = now + gap_;
-  if (refused_since_start_) ++delayed_starts_;
-  refused_since_start_ = false;
+  if (waited) ++delayed_starts_;
   return true;
 }
 

@@ -31,18 +31,17 @@ class SdoPacer {
 
   [[nodiscard]] Duration gap() const { return gap_; }
   [[nodiscard]] bool paced() const { return gap_ > Duration{0}; }
-  // True if a request may start at `now`; then the next may start `gap` later.
-  bool try_start(TimePoint now);
+  // True if a request may start at `now`; then the next may start `gap` later. `waited`: this
+  // request was refused before (its start counts as delayed).
+  bool try_start(TimePoint now, bool waited = false);
   // The earliest time a request may start.
   [[nodiscard]] TimePoint next_free() const { return next_free_; }
-  // Starts that came after a refusal (a request waited for the gap): how often the pacing held
-  // the SDO traffic back. Several clients refused during one gap make one such start.
+  // Requests that started after waiting for the gap (try_start's `waited`), each counted once.
   [[nodiscard]] std::uint64_t delayed_starts() const { return delayed_starts_; }
 
  private:
   Duration gap_;
   TimePoint next_free_{};
-  bool refused_since_start_ = false;
   std::uint64_t delayed_starts_ = 0;
 };
 

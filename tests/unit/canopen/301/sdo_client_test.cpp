@@ -121,26 +121,51 @@ TEST(SdoPacer, TheGapKeepsRequestAndAnswerWithinTheShare) {
   EXPECT_FALSE(SdoPacer{}.paced());
 }
 
-// delayed_starts counts the starts that followed a refusal: a request that found the slot free
-// is not counted, one that waited is counted once however often it was refused, and the refusals
-// of several requests within one gap make one delayed start each time the slot opens.
-TEST(SdoPacer, CountsTheStartsThatWaitedForTheGap) {
+// delayed_starts counts the requests that waited for the gap, each once however often it was
+// refused: two clients refused during one gap are two; a request that found the slot free is
+// none, and so is one whose waiting predecessor was cancelled.
+TEST(SdoPacer, CountsEachRequestThatWaitedForTheGapOnce) {
   const TimePoint t0{std::chrono::seconds(7)};
   SdoPacer pacer{2ms};
-  EXPECT_TRUE(pacer.try_start(t0));
+  std::vector<CanFrame> out;
+  SdoClient a([&](const CanFrame& f) { out.push_back(f); }, NodeId{5});
+  SdoClient b([&](const CanFrame& f) { out.push_back(f); }, NodeId{6});
+  SdoClient c([&](const CanFrame& f) { out.push_back(f); }, NodeId{7});
+  for (SdoClient* x : {&a, &b, &c}) x->set_pacer(&pacer);
+  const auto ignore = [](SdoAbortCode, std::vector<std::uint8_t>) {};
+  a.upload(0x1000, 0, ignore);
+  a.advance(t0);
+  ASSERT_EQ(out.size(), 1u);
   EXPECT_EQ(pacer.delayed_starts(), 0u) << "the slot was free";
-  EXPECT_FALSE(pacer.try_start(t0 + 500us));
-  EXPECT_FALSE(pacer.try_start(t0 + 1ms));
-  EXPECT_FALSE(pacer.try_start(t0 + 1999us));
+  b.upload(0x1000, 0, ignore);
+  c.upload(0x1000, 0, ignore);
+  for (const auto t : {t0 + 500us, t0 + 1ms, t0 + 1999us}) {
+    b.advance(t);
+    c.advance(t);
+  }
+  EXPECT_EQ(out.size(), 1u);
   EXPECT_EQ(pacer.delayed_starts(), 0u) << "nothing started yet";
-  EXPECT_TRUE(pacer.try_start(t0 + 2ms));
-  EXPECT_EQ(pacer.delayed_starts(), 1u) << "one request waited, refused three times";
-  EXPECT_TRUE(pacer.try_start(t0 + 10ms));
-  EXPECT_EQ(pacer.delayed_starts(), 1u) << "the slot was free again";
+  b.advance(t0 + 2ms);
+  c.advance(t0 + 2ms);
+  ASSERT_EQ(out.size(), 2u);
+  EXPECT_EQ(pacer.delayed_starts(), 1u) << "b waited, refused four times: one";
+  c.advance(t0 + 4ms);
+  ASSERT_EQ(out.size(), 3u);
+  EXPECT_EQ(pacer.delayed_starts(), 2u) << "c waited too";
+  // a's next request is refused, then withdrawn; the one after it, an hour later, did not wait.
+  ASSERT_TRUE(a.on_frame(CanFrame(0x585, {0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}), t0 + 5ms));
+  const auto ticket = a.upload(0x1018, 1, ignore);
+  a.advance(t0 + 5ms);
+  EXPECT_EQ(out.size(), 3u) << "refused: c took the slot at 4 ms";
+  EXPECT_TRUE(a.cancel(ticket, SdoAbortCode::GeneralError));
+  a.upload(0x1018, 2, ignore);
+  a.advance(t0 + std::chrono::hours(1));
+  ASSERT_EQ(out.size(), 4u);
+  EXPECT_EQ(pacer.delayed_starts(), 2u) << "the withdrawn request's wait is not the new one's";
   SdoPacer none;
+  EXPECT_TRUE(none.try_start(t0, true));
   EXPECT_TRUE(none.try_start(t0));
-  EXPECT_TRUE(none.try_start(t0));
-  EXPECT_EQ(none.delayed_starts(), 0u) << "not paced: nothing waits";
+  EXPECT_EQ(none.delayed_starts(), 1u) << "counted as the caller says";
 }
 
 // Two clients on one pacer (a master's clients toward two nodes), their servers answering at
