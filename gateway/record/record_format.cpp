@@ -102,7 +102,7 @@ void append_frame_line(std::string& out, std::int64_t wall_us, std::string_view 
   *p++ = '#';
   if (f.rtr) {
     *p++ = 'R';
-    if (f.dlc != 0) *p++ = static_cast<char>('0' + (f.dlc & 0xF));
+    if (f.dlc != 0) *p++ = static_cast<char>('0' + f.dlc);
   } else {
     for (std::uint8_t i = 0; i < f.dlc && i < 8; ++i) p = put_hex(p, f.data[i], 2);
   }

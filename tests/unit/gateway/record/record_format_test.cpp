@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 namespace oegw::gateway::record {
 namespace {
 
@@ -21,6 +23,32 @@ TEST(RecordFormat, FrameLinesAreCandumpLogLinesWithTheirDirection) {
             "(0000000000.000005) can0 705#05 T\n"
             "(0000000001.000000) down 1ABCDEF0# T\n"
             "(0000000001.000000) up 181#R4 R\n");
+}
+
+// The time field at its edges: before the epoch (written as 0), past 10 digits of seconds (not
+// padded further, not cut), and the digits of one second kept by the writer reused only for that
+// second, also when time goes back.
+TEST(RecordFormat, TheTimeFieldAtItsEdges) {
+  std::string out;
+  append_wall_time(out, -1);
+  out += ' ';
+  append_wall_time(out, std::numeric_limits<std::int64_t>::max());
+  out += ' ';
+  append_wall_time(out, 1733407392999999);
+  out += ' ';
+  append_wall_time(out, 1733407392000001);
+  out += ' ';
+  append_wall_time(out, 1733407391500000);
+  out += ' ';
+  append_event_prefix(out, 1733407392000000, 0);
+  EXPECT_EQ(out,
+            "(0000000000.000000) (9223372036854.775807) (1733407392.999999) (1733407392.000001) "
+            "(1733407391.500000) (1733407392.000000) @0 ");
+  for (const std::int64_t t : {std::int64_t{0}, std::int64_t{59}, std::int64_t{1733407392000001}}) {
+    std::string line;
+    append_wall_time(line, t);
+    EXPECT_EQ(parse_wall_time(line), t) << line;
+  }
 }
 
 TEST(RecordFormat, EveryFrameReadsBackAsWritten) {
