@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <stdexcept>
 
 #include <fmt/format.h>
 #include <fmt/ranges.h>
@@ -170,6 +171,7 @@ void Gateway::bind_functional_elements() {
       output_groups_.push_back({fe.id, std::vector<std::vector<std::size_t>>(mapping::fe_fields(fe.id).size())});
       (void)model_.set_status(fe.id, FeStatus::Valid, {});  // commanded, not fed: always Valid
     }
+    const std::size_t first = bindings_.size();
     for (const auto& f : fe.fields) {
       Binding b{fe.id, &f, *field_ref(fe.id, f.field.name), std::nullopt, {}, 0, group, SignalStatus::Offline};
       Sub& s = subs_.at(f.subdevice);
@@ -188,7 +190,16 @@ void Gateway::bind_functional_elements() {
       s.by_signal.at(b.signal).push_back(bi);
       bindings_.push_back(std::move(b));
     }
+    // The mapping file names each FE once (mapping/sections: "appears twice" is refused).
+    if (!fe_bindings_.emplace(fe.id, std::pair{first, bindings_.size()}).second)
+      throw std::logic_error(mapping::fe_name(fe.id) + " is configured twice");
   }
+}
+
+std::span<const Gateway::Binding> Gateway::bindings_of(mapping::FeId fe) const {
+  const auto it = fe_bindings_.find(fe);
+  if (it == fe_bindings_.end()) return {};
+  return std::span<const Binding>(bindings_).subspan(it->second.first, it->second.second - it->second.first);
 }
 
 // The network manager's reports, to the named handlers below.
@@ -598,8 +609,7 @@ std::vector<Gateway::FieldState> Gateway::fields(mapping::FeId fe) const {
   field_samples(fe, samples);
   std::vector<FieldState> out;
   std::size_t k = 0;
-  for (const auto& b : bindings_) {
-    if (!(b.fe == fe)) continue;
+  for (const auto& b : bindings_of(fe)) {
     const FieldSample& f = samples[k++];
     out.push_back(FieldState{b.field->field.name, f.value, f.status, f.interlocked});
   }
@@ -608,8 +618,7 @@ std::vector<Gateway::FieldState> Gateway::fields(mapping::FeId fe) const {
 
 void Gateway::field_samples(mapping::FeId fe, std::vector<FieldSample>& out) const {
   out.clear();
-  for (const auto& b : bindings_) {
-    if (!(b.fe == fe)) continue;
+  for (const auto& b : bindings_of(fe)) {
     out.push_back(FieldSample{model_.read(fe, b.ref), b.translator ? b.status : SignalStatus::Valid,
                               b.translator && b.translator->interlocked() && b.status == SignalStatus::Valid});
   }

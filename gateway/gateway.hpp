@@ -39,6 +39,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -64,10 +65,10 @@ struct GatewayOptions {
   // Overrides downstream.sdo_timeout_ms (tests).
   std::optional<canopen::Duration> sdo_timeout;
   subdevices::NetworkTiming timing{};
-  // The share of the downstream bus the gateway's own SDO traffic (configuration, remote SDO,
-  // scans) may take, its requests paced accordingly at the mapping file's downstream.bitrate
-  // (canopen/301/sdo_pacer.hpp); 0: not paced (the instant virtual buses of tests, which have no
-  // time on the wire to share).
+  // The share of the downstream bus the gateway's own SDO traffic (configuration, remote SDO;
+  // a scan's probes are bounded by BusScanner's `parallel` instead) may take, its requests paced
+  // accordingly at the mapping file's downstream.bitrate (canopen/301/sdo_pacer.hpp); 0: not
+  // paced (the instant virtual buses of tests, which have no time on the wire to share).
   double sdo_bus_share = kDefaultSdoBusShare;
   static constexpr double kDefaultSdoBusShare = 0.85;
   // The black box (gateway/gateway_tap.hpp), told everything from the construction on; it must
@@ -369,6 +370,10 @@ class Gateway {
   unsigned output_depth_ = 0;
   std::vector<subdevices::Driver*> batched_;  // drivers in the current output batch
   std::vector<Binding> bindings_;
+  // FE -> its bindings, [first, end) in bindings_: bound one FE after the other, each FE's are
+  // contiguous (the black box reads them at every change of the FE).
+  std::map<mapping::FeId, std::pair<std::size_t, std::size_t>> fe_bindings_;
+  [[nodiscard]] std::span<const Binding> bindings_of(mapping::FeId fe) const;
   std::vector<FeGroup> groups_;
   std::vector<OutputGroup> output_groups_;
   std::map<std::string, std::string> faults_;            // sub-device -> reason
