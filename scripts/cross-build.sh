@@ -12,9 +12,11 @@
 #   3. the build (RelWithDebInfo, the test tiers, no benchmarks) with the toolchain file
 #      cmake/toolchains/<triplet>.cmake
 #   4. the unit and integration tests under qemu-user: ctest without the labels vm (a kernel with
-#      SocketCAN in a VM), deploy (the amd64 package in an amd64 root), bench, fuzz and
-#      no-qemu-user (what qemu-user cannot emulate: tests/CMakeLists.txt, OEGW_NO_QEMU_USER); one
-#      CTest test per test program there (OEGW_TESTS_PER_EXECUTABLE), all its cases in one process
+#      SocketCAN in a VM), deploy (the amd64 package in an amd64 root), bench, fuzz,
+#      no-qemu-user (what qemu-user cannot emulate: tests/CMakeLists.txt, OEGW_NO_QEMU_USER) and
+#      lint, layers, docs (checks of the sources and documents, run natively); one CTest test per
+#      test program there (OEGW_TESTS_PER_EXECUTABLE), all its cases in one process;
+#      safety_random_test with its first seed only (OEGW_SAFETY_SEED=1; natively every seed)
 #   5. the Debian package oegw_<version>_<arch>.deb from that tree (scripts/package.sh --from):
 #      its Architecture and its Depends (dpkg-shlibdeps against the sysroot) checked
 #
@@ -101,7 +103,12 @@ for arch in "${arches[@]}"; do
   # --- 4. the tests under qemu-user ------------------------------------------------------------------
   if [[ $tests -eq 1 ]]; then
     t=$SECONDS
-    ctest --test-dir "$build" -LE 'vm|deploy|bench|fuzz|no-qemu-user' --output-on-failure --timeout 900 -j "${OEGW_CROSS_JOBS:-2}"
+    # The checks of the sources and documents (lint, layers, docs) are the same on every
+    # architecture: they run natively only. The seeded random safety scenarios run their first
+    # seed here (each seed is minutes under emulation); natively they run every seed.
+    OEGW_SAFETY_SEED=${OEGW_SAFETY_SEED:-1} \
+      ctest --test-dir "$build" -LE 'vm|deploy|bench|fuzz|no-qemu-user|lint|layers|docs' --output-on-failure \
+      --timeout 900 -j "${OEGW_CROSS_JOBS:-2}"
     note "$arch: tests under qemu-user in $((SECONDS - t)) s"
   fi
 

@@ -5,7 +5,19 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# Each phase's start and the run's time so far, so that a slow phase shows in CI's log (CI
+# allows 90 minutes; the whole run is meant to stay under 50).
+phase() { echo "== phase: $* (at $((SECONDS / 60)) min $((SECONDS % 60)) s)"; }
+CLEANUP=()
+finish() {
+  local rc=$?
+  ((${#CLEANUP[@]} == 0)) || rm -rf "${CLEANUP[@]}"
+  phase "end, exit $rc"
+}
+trap finish EXIT
+phase "dependencies"
 ./scripts/install-deps.sh --tests
+phase "build"
 BUILD=${OEGW_BUILD_DIR:-build}
 cmake -S . -B "$BUILD" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DOEGW_BUILD_TESTS=ON >/dev/null
 cmake --build "$BUILD"
@@ -14,6 +26,7 @@ cmake --build "$BUILD"
 # debootstrap root (label `deploy`, tests/deploy) through CTest. The VM tier's node-canopen host
 # comes from npm: CTest's vm_node_peer_install runs `npm ci` on tests/vm/node_peer's lockfile into
 # the build tree first (the registry only; nodejs, npm and libnode-dev from install-deps.sh).
+phase "tiers 1-3 and deploy (ctest)"
 ctest --test-dir "$BUILD" --output-on-failure --timeout 900 -j2 || {
   rc=$?
   # A long run's log is read from its end: the failed tests' own failure lines once more there.
@@ -23,6 +36,7 @@ ctest --test-dir "$BUILD" --output-on-failure --timeout 900 -j2 || {
 }
 
 # Fuzzing smoke runs: the SDO server under libFuzzer + ASan/UBSan (clang), a short bounded run.
+phase "fuzzers"
 FUZZ_BUILD=${OEGW_FUZZ_BUILD_DIR:-build-fuzz}
 CXX=clang++ cmake -S . -B "$FUZZ_BUILD" -G Ninja -DOEGW_FUZZ=ON -DOEGW_VM_TESTS=OFF >/dev/null
 FUZZERS=(sdo_server_fuzz sdo_remote_fuzz mapping_fuzz eds_fuzz oe_device_fuzz network_manager_fuzz)
@@ -31,7 +45,7 @@ cmake --build "$FUZZ_BUILD" --target "${FUZZERS[@]}"
 # only read: SDO conversations of every transfer type run to their ends (make_seeds.py), the
 # shipped mapping files and EDS files. A crash or a broken invariant exits non-zero.
 CORPUS=$(mktemp -d)
-trap 'rm -rf "$CORPUS"' EXIT
+CLEANUP+=("$CORPUS")
 python3 tests/fuzz/make_seeds.py "$CORPUS/seeds"
 fuzz() {  # target seconds seed-dirs... [-- libFuzzer options]
   local t=$1 s=$2
@@ -57,6 +71,7 @@ fuzz oe_device_fuzz 20 "$CORPUS/oe_device_fuzz" "$CORPUS/seeds/oe_device_fuzz"
 # The downstream network manager booting one node of every driver family, SYNC running.
 fuzz network_manager_fuzz 20 "$CORPUS/network_manager_fuzz" "$CORPUS/seeds/network_manager_fuzz"
 
+phase "benchmarks"
 # Tier 4: benchmarks print their figures; a crash fails the run, a slow machine does not.
 for b in "$BUILD"/tests/bench/oegw_bench_*; do
   [ -x "$b" ] || continue
@@ -90,4 +105,5 @@ cat "$BUILD/tests/vm/vm_abuse.out/abuse.figures" 2>/dev/null || echo "(no figure
 # and run under qemu-user, and each architecture's Debian package with its Depends checked
 # (docs/guides/build-and-package.md#building-for-the-cab-controller; build-arm64, build-armhf, the
 # sysroots cached in /var/cache/oegw-cross).
+phase "cross builds (arm64, armhf)"
 ./scripts/cross-build.sh all
