@@ -196,6 +196,14 @@ class ObjectDictionary {
     std::uint64_t layout = ~std::uint64_t{0};
   };
   [[nodiscard]] SubObject* resolve(Slot& slot);
+  // get() through a slot: 0 for a missing entry, as get() by index.
+  template <class T>
+  [[nodiscard]] T get(Slot& slot) {
+    const SubObject* s = resolve(slot);
+    T v{};
+    if (s != nullptr) std::memcpy(&v, s->value.data(), std::min(sizeof(T), s->value.size()));
+    return v;
+  }
   // set<std::int64_t>(slot.index, slot.sub, v, Origin::Local) through the slot: the same checks
   // (length, limits, hooks), observers and result, without the three look-ups.
   SdoAbortCode set_local(Slot& slot, std::int64_t v);

@@ -45,7 +45,7 @@ void SyncService::reconfigure() {
 }
 
 bool SyncService::producer() const {
-  return CobId{od_.get<std::uint32_t>(0x1005, 0)}.bit30() && od_.get<std::uint32_t>(0x1006, 0) != 0;
+  return CobId{od_.get<std::uint32_t>(cob_slot_)}.bit30() && od_.get<std::uint32_t>(period_slot_) != 0;
 }
 
 bool SyncService::in_window(TimePoint now) const {
@@ -61,10 +61,10 @@ void SyncService::deliver(std::uint8_t counter, TimePoint now) {
 
 bool SyncService::on_frame(const CanFrame& frame, TimePoint now) {
   if (now > last_now_) last_now_ = now;
-  const CobId cob{od_.get<std::uint32_t>(0x1005, 0)};
+  const CobId cob{od_.get<std::uint32_t>(cob_slot_)};
   if (frame.rtr || frame.id != cob.can_id() || frame.extended != cob.extended()) return false;
   if (cob.bit30()) return false;  // we are the producer: a foreign SYNC on our ID is not ours to consume
-  const bool counter_expected = od_.get<std::uint8_t>(0x1019, 0) != 0;
+  const bool counter_expected = od_.get<std::uint8_t>(overflow_slot_) != 0;
   if (frame.dlc != (counter_expected ? 1 : 0)) {
     if (on_length_error) on_length_error(kEmcyUnexpectedSyncLength);
   } else if (on_length_ok) {
@@ -81,14 +81,14 @@ void SyncService::advance(TimePoint now) {
     next_sync_.reset();
     return;
   }
-  const Duration period{od_.get<std::uint32_t>(0x1006, 0)};
+  const Duration period{od_.get<std::uint32_t>(period_slot_)};
   if (restart_pending_) {
     restart_pending_ = false;
     counter_ = 0;
     next_sync_ = now + period;  // the first SYNC one period after production starts
   }
-  const CobId cob{od_.get<std::uint32_t>(0x1005, 0)};
-  const std::uint8_t overflow = od_.get<std::uint8_t>(0x1019, 0);
+  const CobId cob{od_.get<std::uint32_t>(cob_slot_)};
+  const std::uint8_t overflow = od_.get<std::uint8_t>(overflow_slot_);
   // One SYNC per call even if several periods were missed: a late loop does not burst.
   if (next_sync_ && now >= *next_sync_) {
     CanFrame f;

@@ -76,7 +76,12 @@ class SyncService {
   std::optional<TimePoint> last_sync_;
   TimePoint last_now_{};
   std::uint8_t counter_ = 0;  // last counter sent by the producer
-  Subscriptions subs_;        // declared last: unregisters the OD callbacks first on destruction
+  // 1005h, 1006h and 1019h, read by advance() and next_deadline() after every frame the node
+  // handles: through slots, without a look-up each time (their values are read live).
+  mutable ObjectDictionary::Slot cob_slot_{.index = 0x1005};
+  mutable ObjectDictionary::Slot period_slot_{.index = 0x1006};
+  mutable ObjectDictionary::Slot overflow_slot_{.index = 0x1019};
+  Subscriptions subs_;  // declared last: unregisters the OD callbacks first on destruction
 };
 
 }  // namespace oegw::canopen

@@ -139,8 +139,8 @@ TEST(ObjectDictionary, FindFollowsObjectsReplacedRemovedAndAddedAgain) {
 }
 
 // A Slot (a sub-object resolved once): set_local() writes as set<>(…, Origin::Local) does —
-// width, limits, hooks, observers — and follows the object when it is replaced, removed and
-// added again (the layout counted), never writing into a freed one.
+// width, limits, hooks, observers —, get() reads as get() by index does, and both follow the object when it is
+// replaced, removed and added again (the layout counted), never writing into a freed one.
 TEST(ObjectDictionary, ASlotWritesAsSetDoesAndFollowsTheLayout) {
   ObjectDictionary od;
   od.add_var(0x6401, "Axis", DataType::Integer16, Access::ReadOnly, encode<std::int16_t>(0), true);
@@ -156,6 +156,7 @@ TEST(ObjectDictionary, ASlotWritesAsSetDoesAndFollowsTheLayout) {
   ASSERT_EQ(od.resolve(slot), od.find(0x6401, 0));
   EXPECT_EQ(od.set_local(slot, -300), SdoAbortCode::None);
   EXPECT_EQ(od.get<std::int16_t>(0x6401, 0), -300) << "two bytes, little endian, read-only to the bus only";
+  EXPECT_EQ(od.get<std::int16_t>(slot), -300) << "get() through the slot reads the value live";
   EXPECT_EQ(notified, 1);
   EXPECT_EQ(od.set_local(slot, 1001), SdoAbortCode::ValueTooHigh);
   EXPECT_EQ(od.get<std::int16_t>(0x6401, 0), -300);
@@ -165,9 +166,11 @@ TEST(ObjectDictionary, ASlotWritesAsSetDoesAndFollowsTheLayout) {
   EXPECT_NE(od.layout(), before);
   EXPECT_EQ(od.set_local(slot, 70000), SdoAbortCode::None);
   EXPECT_EQ(od.get<std::int32_t>(0x6401, 0), 70000) << "the new object's four bytes";
+  EXPECT_EQ(od.get<std::int32_t>(slot), 70000) << "get() through the slot follows the replacement";
   EXPECT_EQ(od.resolve(slot), od.find(0x6401, 0));
   EXPECT_TRUE(od.remove(0x6401));
   EXPECT_EQ(od.resolve(slot), nullptr);
+  EXPECT_EQ(od.get<std::int32_t>(slot), 0) << "a removed entry reads 0, as get() by index";
   EXPECT_EQ(od.set_local(slot, 1), SdoAbortCode::ObjectDoesNotExist);
   od.add_record_member(0x6401, 1, "member", DataType::Unsigned8, Access::ReadWrite, {0});
   EXPECT_EQ(od.set_local(slot, 1), SdoAbortCode::None) << "sub-index 0 of the record";

@@ -126,6 +126,28 @@ TEST_F(SyncFixture, PeriodWrittenAtRuntimeStartsProduction) {
   EXPECT_FALSE(s.next_deadline().has_value());
 }
 
+// The service reads 1005h/1006h through slots: an object replaced after the service was built
+// (a dictionary rebuilt by a parameter load, reload() after it) is the one it reads, never the
+// freed one.
+TEST_F(SyncFixture, ReadsTheCommunicationObjectsAgainWhenTheyAreReplaced) {
+  SyncService s = make({.cob_id = 0x40000080, .period_us = 5000});
+  s.advance(t0);
+  s.advance(t0 + 5ms);
+  ASSERT_EQ(sent.size(), 1u);
+  EXPECT_EQ(sent.back().id, 0x80u);
+  od.add_var(0x1005, "COB-ID SYNC", DataType::Unsigned32, Access::ReadWrite, encode<std::uint32_t>(0x40000081));
+  od.add_var(0x1006, "Communication cycle period", DataType::Unsigned32, Access::ReadWrite,
+             encode<std::uint32_t>(2000));
+  s.reload();
+  s.advance(t0 + 6ms);
+  EXPECT_EQ(s.next_deadline(), t0 + 8ms) << "the new period";
+  s.advance(t0 + 8ms);
+  ASSERT_EQ(sent.size(), 2u);
+  EXPECT_EQ(sent.back().id, 0x81u) << "the new COB-ID";
+  od.add_var(0x1006, "Communication cycle period", DataType::Unsigned32, Access::ReadWrite, encode<std::uint32_t>(0));
+  EXPECT_FALSE(s.producer()) << "period 0: no longer the producer";
+}
+
 // CiA 301 §7.5.2.41: 1019h only 0 or 2..240, and only while 1006h is 0.
 TEST_F(SyncFixture, CounterOverflowWriteRules) {
   SyncService s = make({.cob_id = 0x40000080, .period_us = 1000});
