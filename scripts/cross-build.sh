@@ -39,7 +39,7 @@ while [[ $# -gt 0 ]]; do
     --bench) bench=1 ;;
     arm64|armhf) arches+=("$1") ;;
     all) arches+=(arm64 armhf) ;;
-    -h|--help) sed -n '2,27p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,/^[^#]/p' "$0" | sed '$d'; exit 0 ;;  # the header comment
     *) echo "cross-build: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
   shift

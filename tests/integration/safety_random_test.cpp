@@ -5,7 +5,8 @@
 // followed by 1..40 ms of simulated time. At the end every fault is removed and the device must
 // come back (valid, alive) within the gateway's longest back-off.
 //
-// CI runs kStepsCi steps per seed, kSeedsCi seeds per family. A failing run prints the family,
+// CI runs kStepsCi steps per seed, kSeedsCi seeds per family natively (the cross tier under
+// qemu-user the first seed only: scripts/cross-build.sh). A failing run prints the family,
 // seed and step; replay it with
 //   OEGW_SAFETY_SEED=<seed> [OEGW_SAFETY_FAMILY=<Elobau|Mcb402|Novotechnik406|Cia401Pedal|
 //   Cia401Cluster>] [OEGW_SAFETY_CORNER=<Doc|Opposite|...>] [OEGW_SAFETY_STEPS=<n>] [OEGW_SAFETY_TRACE=1]

@@ -126,9 +126,9 @@ TEST_F(SyncFixture, PeriodWrittenAtRuntimeStartsProduction) {
   EXPECT_FALSE(s.next_deadline().has_value());
 }
 
-// The service reads 1005h/1006h through slots: an object replaced after the service was built
-// (a dictionary rebuilt by a parameter load, reload() after it) is the one it reads, never the
-// freed one.
+// The service reads 1005h/1006h through slots: an object replaced in the dictionary after the
+// service was built (no path does it today; a future one must call reload(), and the service's
+// write hooks go with the old object) is the one it reads, never the freed one.
 TEST_F(SyncFixture, ReadsTheCommunicationObjectsAgainWhenTheyAreReplaced) {
   SyncService s = make({.cob_id = 0x40000080, .period_us = 5000});
   s.advance(t0);
