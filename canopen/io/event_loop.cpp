@@ -130,9 +130,20 @@ bool EventLoop::fire_first_timer_due(TimePoint limit) {
 
 std::size_t EventLoop::run_due_timers() {
   std::size_t n = 0;
-  // Bounded by the timers due now: a periodic timer is re-armed in the future, so this ends
-  // unless callbacks keep arming timers in the past.
-  while (fire_first_timer_due(now())) ++n;
+  // Work posted before a due timer runs before it, as in advance_to(). After a stall every
+  // overdue timer fires in one wake-up: a frame a timer sends on a virtual bus (delivered by
+  // post()) must reach its receiver before a later timer judges that receiver's deadline, or a
+  // sender and a receiver that were late together look like a lost sender. With no timer due,
+  // nothing runs here: iterate() runs one batch, so a flood of posts cannot starve the
+  // descriptors. Bounded by the timers due now: a periodic timer is re-armed in the future, so
+  // this ends unless callbacks keep arming timers in the past; each pass runs only what was
+  // posted before it.
+  for (;;) {
+    const std::optional<TimePoint> next = next_timer();
+    if (!next || *next > now()) break;
+    n += run_posted();
+    if (fire_first_timer_due(now())) ++n;
+  }
   return n;
 }
 

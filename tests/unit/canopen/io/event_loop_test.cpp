@@ -180,6 +180,26 @@ TEST(EventLoopSimulated, RunOnceFiresTimersDueNowButNeverMovesTheClock) {
   EXPECT_EQ(clock.now(), TimePoint{1s});
 }
 
+TEST(EventLoopSimulated, AfterAStallAFramePostedByAnOverdueTimerArrivesBeforeALaterDeadlineIsJudged) {
+  // A producer's heartbeat due at 100 ms and its consumer's deadline at 250 ms, both in one
+  // process (`oegw sim`, a virtual bus delivering by post()). The process stalls until 1 s: one
+  // wake-up finds both timers overdue. The heartbeat the producer sends must be delivered before
+  // the consumer judges, as advance_to() would have done.
+  SimulatedClock clock;
+  EventLoop loop(clock);
+  VirtualBus bus;
+  bus.run_on(loop);
+  auto producer = bus.attach("producer");
+  auto consumer = bus.attach("consumer");
+  std::vector<std::string> order;
+  consumer->set_receiver([&](const CanFrame& f, TimePoint) { order.push_back("heartbeat " + f.to_string()); });
+  loop.call_at(TimePoint{100ms}, [&] { producer->send(CanFrame{0x721, {0x05}}); });
+  loop.call_at(TimePoint{250ms}, [&] { order.push_back("deadline judged"); });
+  clock.set(TimePoint{1s});  // the stall
+  loop.run_once(0us);
+  EXPECT_THAT(order, ElementsAre("heartbeat 721#05", "deadline judged"));
+}
+
 TEST(EventLoop, FdWatcherRunsWhenAPipeBecomesReadable) {
   EventLoop loop;
   Pipe p;
