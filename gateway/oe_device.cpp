@@ -125,14 +125,10 @@ void OeDevice::step_node(TimePoint now) {
 
 std::optional<TimePoint> OeDevice::next_deadline() const { return node_->next_deadline(); }
 
-bool OeDevice::analog_interrupts_off() {
+std::optional<bool> OeDevice::analog_interrupts_enabled() {
   const canopen::SubObject* s = od_.resolve(interrupt_enable_);
-  return s != nullptr && (s->value.empty() || s->value[0] == 0);
-}
-
-bool OeDevice::analog_interrupts_on() {
-  const canopen::SubObject* s = od_.resolve(interrupt_enable_);
-  return s != nullptr && !s->value.empty() && s->value[0] != 0;
+  if (s == nullptr) return std::nullopt;
+  return !s->value.empty() && s->value[0] != 0;
 }
 
 bool OeDevice::set_input(FeId fe, std::string_view field, std::int64_t value, TimePoint now) {
@@ -174,7 +170,7 @@ bool OeDevice::write_input_entry(InputEntry& e, std::int64_t raw) {
   if (s == nullptr) return false;
   // CiA 401 6423h FALSE: analogue inputs raise no event; the value is stored without telling
   // the PDO service (see the header), so only TPDOs sent for another reason carry it.
-  if (e.slot.index == cia401::kReadAnalogueInput16 && analog_interrupts_off()) {
+  if (e.slot.index == cia401::kReadAnalogueInput16 && analog_interrupts_enabled() == false) {
     // In place (no allocation: this runs for every axis change).
     canopen::put_little_endian(static_cast<std::uint64_t>(raw), s->value);
     shadow_of(e) = s->value;  // same size: no reallocation
@@ -297,7 +293,7 @@ void OeDevice::handle_state(NmtState s) {
   // CiA 852 §8.6: entering operational with 6423h FALSE sends EMCY 0080h; no state change.
   auto& emcy = node_->emcy();
   if (s == NmtState::Operational) {
-    if (analog_interrupts_off()) emcy.raise(kEmcyAnalogInputsDisabled, 0x00, now_);
+    if (analog_interrupts_enabled() == false) emcy.raise(kEmcyAnalogInputsDisabled, 0x00, now_);
   } else if (emcy.active(kEmcyAnalogInputsDisabled)) {
     emcy.clear(kEmcyAnalogInputsDisabled, now_);
   }
@@ -338,7 +334,7 @@ void OeDevice::after_reset() {
 }
 
 void OeDevice::handle_od_change(std::uint16_t index, std::uint8_t sub) {
-  if (index == cia401::kAnalogueInputGlobalInterruptEnable && analog_interrupts_on()) {
+  if (index == cia401::kAnalogueInputGlobalInterruptEnable && analog_interrupts_enabled() == true) {
     if (node_->emcy().active(kEmcyAnalogInputsDisabled)) node_->emcy().clear(kEmcyAnalogInputsDisabled, now_);
     return;
   }

@@ -200,8 +200,8 @@ class OeDevice {
   void after_reset();
   void report_outputs(std::uint16_t index, std::uint8_t sub, std::int64_t old_value);
   // 6423h (CiA 401) present and FALSE / present and TRUE; absent is neither.
-  [[nodiscard]] bool analog_interrupts_off();
-  [[nodiscard]] bool analog_interrupts_on();
+  // 6423h (CiA 401 analogue input global interrupt enable): nullopt when the device has none.
+  [[nodiscard]] std::optional<bool> analog_interrupts_enabled();
 
   OeDeviceConfig cfg_;
   std::function<void(const canopen::CanFrame&)> sent_;

@@ -522,11 +522,9 @@ void NetworkManager::report_once(std::uint64_t& seen, std::uint64_t now_count, c
 
 void NetworkManager::report_bad_input(Managed& m) {
   const InputCounters& c = m.driver->counters();
-  // This runs for every PDO: the usual case, nothing counted since the last frame, in four
-  // comparisons.
-  if (c.wrong_length == m.reported.wrong_length && c.unknown_cob == m.reported.unknown_cob &&
-      c.unknown_emcy == m.reported.unknown_emcy && c.mismatches == m.reported.mismatches)
-    return;
+  // This runs for every PDO: the usual case, nothing counted since the last frame, in one
+  // comparison of the counters.
+  if (c == m.reported) return;
   const std::string& n = m.settings.name;
   report_once(m.reported.wrong_length, c.wrong_length, n, ": PDO of the wrong length ignored (counted from now on)");
   report_once(m.reported.unknown_cob, c.unknown_cob, n, ": frame on a COB-ID the driver does not use ignored");

@@ -62,6 +62,8 @@ struct InputCounters {
   std::uint64_t unknown_cob = 0;   // a frame from this node on a COB-ID the driver does not use
   std::uint64_t unknown_emcy = 0;  // an EMCY code the driver cannot decode
   std::uint64_t mismatches = 0;    // redundant channels disagreeing (elobau channel 1/2)
+
+  bool operator==(const InputCounters&) const = default;
 };
 
 }  // namespace oegw::subdevices

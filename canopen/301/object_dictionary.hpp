@@ -199,10 +199,7 @@ class ObjectDictionary {
   // get() through a slot: 0 for a missing entry, as get() by index.
   template <class T>
   [[nodiscard]] T get(Slot& slot) {
-    const SubObject* s = resolve(slot);
-    T v{};
-    if (s != nullptr) std::memcpy(&v, s->value.data(), std::min(sizeof(T), s->value.size()));
-    return v;
+    return value_as<T>(resolve(slot));
   }
   // set<std::int64_t>(slot.index, slot.sub, v, Origin::Local) through the slot: the same checks
   // (length, limits, hooks), observers and result, without the three look-ups.
@@ -228,10 +225,7 @@ class ObjectDictionary {
   // Typed convenience for fixed-size values. get() returns 0 for a missing entry.
   template <class T>
   [[nodiscard]] T get(std::uint16_t index, std::uint8_t sub) const {
-    const SubObject* s = find(index, sub);
-    T v{};
-    if (s != nullptr) std::memcpy(&v, s->value.data(), std::min(sizeof(T), s->value.size()));
-    return v;
+    return value_as<T>(find(index, sub));
   }
   // set() encodes into a stack buffer: an application updating its inputs (the TPDO path) does
   // not allocate.
@@ -263,6 +257,14 @@ class ObjectDictionary {
   void reset_to_defaults(std::uint16_t first, std::uint16_t last);
 
  private:
+  // A fixed-size value read from its little-endian bytes; 0 for a missing entry (nullptr).
+  template <class T>
+  [[nodiscard]] static T value_as(const SubObject* s) {
+    T v{};
+    if (s != nullptr) std::memcpy(&v, s->value.data(), std::min(sizeof(T), s->value.size()));
+    return v;
+  }
+
   std::map<std::uint16_t, Object> objects_;
   // objects_ by index, for find(): one hashed look-up instead of a walk down the tree, which the
   // translation of every frame makes several of (its nodes are map nodes: their addresses stay
