@@ -107,6 +107,16 @@ enum class NmtState : std::uint8_t {
 };
 
 [[nodiscard]] std::string_view to_string(NmtState state);
+// True for the four state bytes of Table 55 (a heartbeat's byte, a state read back).
+[[nodiscard]] constexpr bool is_nmt_state(std::uint8_t b) {
+  switch (static_cast<NmtState>(b)) {
+    case NmtState::Initialisation:
+    case NmtState::Stopped:
+    case NmtState::Operational:
+    case NmtState::PreOperational: return true;
+  }
+  return false;
+}
 
 // CiA 301 §7.2.8.3.1.1, Table 51: NMT command specifiers.
 enum class NmtCommand : std::uint8_t {

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <string>
 
+#include "canopen/state.hpp"
+
 namespace oegw::canopen {
 
 namespace {
@@ -216,6 +218,37 @@ bool EmcyConsumer::on_frame(const CanFrame& frame, TimePoint now) {
   std::copy_n(d.begin() + 3, 5, m.msef.begin());
   if (handler_) handler_(m, now);
   return true;
+}
+
+void EmcyProducer::export_state(StateWriter& w) const {
+  w.put_list("active", active_.size(), [&](std::size_t i) {
+    w.put("code", active_[i].code);
+    w.put("bits", active_[i].bits);
+  });
+  // Held back by the 1015h inhibit time (CiA 301 §7.2.7.3.3), in order.
+  w.put_list("queue", queue_.size(), [&](std::size_t i) {
+    w.put("frame", queue_[i].frame);
+    w.put("relayed", queue_[i].relayed);
+  });
+  w.put("last_sent", last_sent_);
+  w.put("dropped", dropped_);
+}
+
+void EmcyProducer::import_state(const StateReader& r) {
+  std::vector<ActiveError> active;
+  r.read_list("active", 0xFFFF, [&](const StateReader& item) {
+    active.push_back(ActiveError{item.get<std::uint16_t>("code"), item.get<std::uint8_t>("bits")});
+  });
+  std::deque<Queued> queue;
+  r.read_list("queue", queue_limit_, [&](const StateReader& item) {
+    queue.push_back(Queued{item.frame("frame"), item.get<bool>("relayed")});
+  });
+  const std::optional<TimePoint> last_sent = r.optional_time("last_sent");
+  const auto dropped = r.get<std::uint64_t>("dropped");
+  active_ = std::move(active);
+  queue_ = std::move(queue);
+  last_sent_ = last_sent;
+  dropped_ = static_cast<std::size_t>(dropped);
 }
 
 }  // namespace oegw::canopen

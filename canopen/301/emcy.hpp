@@ -42,6 +42,9 @@
 
 namespace oegw::canopen {
 
+class StateWriter;  // canopen/state.hpp
+class StateReader;
+
 using EmcyManufacturerField = std::array<std::uint8_t, 5>;
 
 struct EmcyConfig {
@@ -96,6 +99,11 @@ class EmcyProducer {
   [[nodiscard]] std::uint8_t error_register() const;
   // EMCYs dropped because the inhibit queue was full.
   [[nodiscard]] std::size_t dropped() const { return dropped_; }
+
+  // Run-time state (canopen/state.hpp), for an object of the same configuration whose
+  // dictionary values have been imported and reloaded first. Throws StateError.
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
 
   bool on_frame(const CanFrame&, TimePoint) { return false; }  // a producer consumes nothing
   void advance(TimePoint now);

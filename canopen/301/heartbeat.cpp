@@ -1,20 +1,12 @@
 #include "canopen/301/heartbeat.hpp"
 
+#include "canopen/state.hpp"
+
 namespace oegw::canopen {
 
 namespace {
 constexpr std::uint16_t kConsumerIndex = 0x1016;
 constexpr std::uint16_t kProducerIndex = 0x1017;
-
-bool valid_state_byte(std::uint8_t b) {
-  switch (static_cast<NmtState>(b)) {
-    case NmtState::Initialisation:
-    case NmtState::Stopped:
-    case NmtState::Operational:
-    case NmtState::PreOperational: return true;
-  }
-  return false;
-}
 
 struct Decoded {
   NodeId node;
@@ -133,7 +125,7 @@ bool HeartbeatConsumer::on_frame(const CanFrame& frame, TimePoint now) {
   for (Entry& e : entries_) {
     if (e.status == Status::Unused || e.node != node) continue;
     mine = true;
-    if (frame.dlc != 1 || !valid_state_byte(frame.data[0])) {
+    if (frame.dlc != 1 || !is_nmt_state(frame.data[0])) {
       ++invalid_frames_;
       continue;
     }
@@ -200,6 +192,62 @@ HeartbeatConsumer::Status HeartbeatConsumer::status(NodeId node) const {
 std::optional<NmtState> HeartbeatConsumer::last_state(NodeId node) const {
   const Entry* e = find(node);
   return e == nullptr ? std::nullopt : e->state;
+}
+
+void HeartbeatProducer::export_state(StateWriter& w) const {
+  w.put("node_id", node_id_.value());  // start()'s: LSS may have changed it (CiA 305)
+  w.put("state", state_);
+  w.put("running", running_);
+  w.put("reference", reference_);
+}
+
+void HeartbeatProducer::import_state(const StateReader& r) {
+  const NodeId node_id{r.get<std::uint8_t>("node_id")};
+  if (!node_id.valid() && !node_id.unconfigured()) r.fail("node_id", "is no node-ID");
+  const NmtState state = r.nmt_state("state");
+  const bool running = r.get<bool>("running");
+  reference_ = r.time("reference");
+  node_id_ = node_id;
+  state_ = state;
+  running_ = running;
+}
+
+void HeartbeatConsumer::export_state(StateWriter& w) const {
+  w.put("invalid_frames", invalid_frames_);
+  for (std::size_t i = 0; i < entries_.size(); ++i) {
+    const Entry& e = entries_[i];
+    if (e.status == Status::Unused) continue;
+    const StateWriter::Scope scope(w, std::to_string(i + 1));
+    w.put("node", e.node.value());
+    w.put("status", e.status);
+    w.put("last", e.last);
+    if (e.state) w.put("state", *e.state);
+  }
+}
+
+void HeartbeatConsumer::import_state(const StateReader& r) {
+  std::vector<Entry> entries = entries_;
+  for (std::size_t i = 0; i < entries.size(); ++i) {
+    Entry& e = entries[i];
+    const StateReader er = r.in(std::to_string(i + 1));
+    if (e.status == Status::Unused) {
+      if (er.has("node")) er.fail("node", "is set, and 1016h:" + std::to_string(i + 1) + " is not in use here");
+      continue;
+    }
+    if (er.get<std::uint8_t>("node") != e.node.value()) {
+      er.fail("node", "differs: 1016h:" + std::to_string(i + 1) + " watches node " + std::to_string(e.node.value()));
+    }
+    const auto status = er.get<std::uint8_t>("status");
+    if (status == static_cast<std::uint8_t>(Status::Unused) || status > static_cast<std::uint8_t>(Status::TimedOut)) {
+      er.fail("status", "= " + std::to_string(status) + " is no consumer status");
+    }
+    e.status = static_cast<Status>(status);
+    e.last = er.time("last");
+    e.state = er.has("state") ? std::optional<NmtState>(er.nmt_state("state")) : std::nullopt;
+  }
+  invalid_frames_ = r.get<std::uint64_t>("invalid_frames");
+  entries_ = std::move(entries);
+  forget_deadline();
 }
 
 }  // namespace oegw::canopen

@@ -29,6 +29,9 @@
 
 namespace oegw::canopen {
 
+class StateWriter;  // canopen/state.hpp
+class StateReader;
+
 // Adds 1017h "Producer heartbeat time" (UNSIGNED16 rw, ms) if absent.
 Object& install_heartbeat_producer_objects(ObjectDictionary& od, std::uint16_t default_ms = 0);
 // Adds 1016h "Consumer heartbeat time" (ARRAY of `entries` UNSIGNED32 rw, default 0) if absent.
@@ -59,6 +62,11 @@ class HeartbeatProducer {
 
   [[nodiscard]] Duration period() const { return period_; }
   [[nodiscard]] bool running() const { return running_; }
+
+  // Run-time state (canopen/state.hpp), for an object of the same configuration whose
+  // dictionary values have been imported and reloaded first. Throws StateError.
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
 
  private:
   void set_period_ms(std::uint16_t ms);
@@ -103,6 +111,11 @@ class HeartbeatConsumer {
   [[nodiscard]] Status status(NodeId node) const;
   [[nodiscard]] std::optional<NmtState> last_state(NodeId node) const;
   [[nodiscard]] std::uint64_t invalid_frames() const { return invalid_frames_; }
+
+  // Run-time state (canopen/state.hpp), for an object of the same configuration whose
+  // dictionary values have been imported and reloaded first (1016h read again). Throws StateError.
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
 
  private:
   struct Entry {

@@ -1,5 +1,7 @@
 #include "canopen/301/nmt_slave.hpp"
 
+#include "canopen/state.hpp"
+
 namespace oegw::canopen {
 
 NmtSlave::NmtSlave(NodeId node_id, FrameSink sink)
@@ -74,6 +76,36 @@ bool NmtSlave::on_frame(const CanFrame& frame, TimePoint now) {
     case NmtCommand::ResetCommunication: reset(true, now); break;
   }
   return true;
+}
+
+void NmtSlave::export_state(StateWriter& w) const {
+  w.put("node_id", node_id_.value());
+  w.put("pending_node_id", pending_node_id_.value());
+  w.put("state", state_);
+  w.put("last_transition", last_transition_);
+  w.put("stats.commands", stats_.commands);
+  w.put("stats.malformed", stats_.malformed);
+  w.put("stats.unknown_command", stats_.unknown_command);
+  w.put("stats.other_node", stats_.other_node);
+}
+
+void NmtSlave::import_state(const StateReader& r) {
+  const NodeId node_id{r.get<std::uint8_t>("node_id")};
+  const NodeId pending{r.get<std::uint8_t>("pending_node_id")};
+  for (const char* key : {"node_id", "pending_node_id"}) {
+    const NodeId id{r.get<std::uint8_t>(key)};
+    if (!id.valid() && !id.unconfigured()) r.fail(key, "is no node-ID");
+  }
+  const NmtState state = r.nmt_state("state");
+  const TimePoint last_transition = r.time("last_transition");
+  const StateReader sr = r.in("stats");
+  const Stats stats{sr.get<std::uint64_t>("commands"), sr.get<std::uint64_t>("malformed"),
+                    sr.get<std::uint64_t>("unknown_command"), sr.get<std::uint64_t>("other_node")};
+  node_id_ = node_id;
+  pending_node_id_ = pending;
+  state_ = state;
+  last_transition_ = last_transition;
+  stats_ = stats;
 }
 
 }  // namespace oegw::canopen

@@ -27,6 +27,9 @@
 
 namespace oegw::canopen {
 
+class StateWriter;  // canopen/state.hpp
+class StateReader;
+
 class NmtSlave {
  public:
   using StateCallback = std::function<void(NmtState)>;
@@ -66,6 +69,11 @@ class NmtSlave {
   [[nodiscard]] const Stats& stats() const { return stats_; }
   // The time of the last state change (so a callback can schedule e.g. the heartbeat).
   [[nodiscard]] TimePoint last_transition() const { return last_transition_; }
+
+  // Run-time state (canopen/state.hpp): the active and pending node-IDs, the state, its time and
+  // the counts. Throws StateError.
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
 
  private:
   void set_state(NmtState s, TimePoint now);

@@ -1,6 +1,9 @@
 #include "canopen/301/object_dictionary.hpp"
 
 #include <algorithm>
+#include <cstdio>
+
+#include "canopen/state.hpp"
 
 namespace oegw::canopen {
 
@@ -405,6 +408,78 @@ void ObjectDictionary::reset_to_defaults(std::uint16_t first, std::uint16_t last
   for (auto it = objects_.lower_bound(first); it != objects_.end() && it->first <= last; ++it) {
     for (auto& [si, s] : it->second.subs()) s.value = s.default_value;
   }
+}
+
+namespace {
+
+// "1017.00": the key of an entry's value.
+std::string value_key(std::uint16_t index, std::uint8_t sub) {
+  char key[8];
+  std::snprintf(key, sizeof key, "%04x.%02x", index, sub);
+  return key;
+}
+
+}  // namespace
+
+std::uint64_t ObjectDictionary::layout_fingerprint() const {
+  // FNV-1a over every entry's index, sub-index, type, default and size limit, in order: values
+  // equal to their default are not exported, so two dictionaries whose defaults differ (another
+  // node-ID: 1014h, the PDO COB-IDs) are other configurations.
+  std::uint64_t h = 0xcbf29ce484222325u;
+  const auto mix = [&h](std::uint64_t v, int bytes) {
+    for (int i = 0; i < bytes; ++i) {
+      h ^= (v >> (8 * i)) & 0xFF;
+      h *= 0x100000001b3u;
+    }
+  };
+  for (const auto& [index, obj] : objects_) {
+    for (const auto& [si, s] : obj.subs()) {
+      mix(index, 2);
+      mix(si, 1);
+      mix(static_cast<std::uint64_t>(s.type), 2);
+      mix(s.max_size, 4);
+      mix(s.default_value.size(), 2);
+      for (const std::uint8_t b : s.default_value) mix(b, 1);
+    }
+  }
+  return h;
+}
+
+void ObjectDictionary::export_values(StateWriter& w) const {
+  w.put("layout", layout_fingerprint());
+  for (const auto& [index, obj] : objects_) {
+    for (const auto& [si, s] : obj.subs()) {
+      if (s.value != s.default_value) w.put_bytes(value_key(index, si), s.value);
+    }
+  }
+}
+
+void ObjectDictionary::import_values(const StateReader& r) {
+  if (r.get<std::uint64_t>("layout") != layout_fingerprint()) {
+    r.fail("layout", "differs from this dictionary's (another configuration or version)");
+  }
+  // Every value checked before any is set: a refused state changes nothing.
+  std::vector<std::pair<SubObject*, std::vector<std::uint8_t>>> values;
+  for (auto& [index, obj] : objects_) {
+    for (auto& [si, s] : obj.subs()) {
+      const std::string key = value_key(index, si);
+      if (!r.has(key)) {
+        values.emplace_back(&s, s.default_value);
+        continue;
+      }
+      std::vector<std::uint8_t> v = r.bytes(key);
+      const std::size_t fixed = fixed_size(s.type);
+      if (fixed != 0 && v.size() != fixed) {
+        r.fail(key, "is " + std::to_string(v.size()) + " bytes, " + std::string(to_string(s.type)) + " takes " +
+                        std::to_string(fixed));
+      }
+      if (fixed == 0 && v.size() > s.max_size) {
+        r.fail(key, "is longer than its entry's " + std::to_string(s.max_size) + " bytes");
+      }
+      values.emplace_back(&s, std::move(v));
+    }
+  }
+  for (auto& [s, v] : values) s->value = std::move(v);
 }
 
 }  // namespace oegw::canopen

@@ -25,6 +25,9 @@
 
 namespace oegw::canopen {
 
+class StateWriter;  // canopen/state.hpp
+class StateReader;
+
 // CiA 301 §7.4.7.1, Table 44: static data types (the index of their DEFTYPE entry).
 enum class DataType : std::uint16_t {
   Boolean = 0x0001,
@@ -255,6 +258,14 @@ class ObjectDictionary {
   // Sets every sub-object whose index is in [first, last] back to its default (1011h restore,
   // NMT reset communication / reset application). Does not run hooks.
   void reset_to_defaults(std::uint16_t first, std::uint16_t last);
+
+  // The values that differ from their defaults, and a fingerprint of the layout (indices,
+  // sub-indices, types). import_values() refuses another layout or a value its entry cannot hold
+  // (StateError, nothing changed); otherwise every entry gets the state's value or its default.
+  // Like a stored-parameter load it runs no hooks and tells no observer: the services reload().
+  void export_values(StateWriter& w) const;
+  void import_values(const StateReader& r);
+  [[nodiscard]] std::uint64_t layout_fingerprint() const;
 
  private:
   // A fixed-size value read from its little-endian bytes; 0 for a missing entry (nullptr).

@@ -1,8 +1,11 @@
 #include "canopen/301/pdo.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cstring>
 #include <string>
+
+#include "canopen/state.hpp"
 
 namespace oegw::canopen {
 
@@ -584,6 +587,98 @@ std::optional<TimePoint> PdoService::next_deadline() const {
   for (const Tpdo* t : timed_tpdos_) consider(t->next_deadline(last_now_));
   for (const Rpdo* r : timed_rpdos_) consider(r->next_deadline());
   return best;
+}
+
+// ---- run-time state ----------------------------------------------------------------------
+// A PDO writes only what differs from a PDO just reload()ed; what it leaves out reads back as
+// that. The dictionary holds up to 512 of each, most of them never used.
+
+namespace {
+
+using Payload = std::array<std::uint8_t, 8>;
+
+Payload payload_of(const StateReader& r, std::string_view key) {
+  const std::vector<std::uint8_t> b = r.bytes(key);
+  if (b.size() != 8) r.fail(key, "is not 8 bytes");
+  Payload out{};
+  std::copy(b.begin(), b.end(), out.begin());
+  return out;
+}
+
+}  // namespace
+
+void Tpdo::export_state(StateWriter& w) const {
+  if (requested_) w.put("requested", true);
+  if (changed_) w.put("changed", true);
+  if (!restart_) w.put("restart", false);
+  // What the next payload is compared with (CiA 301 §7.5.2.37: types FEh/FFh send on a change).
+  if (have_sent_) w.put_bytes("last", last_);
+  w.put("inhibit_until", inhibit_until_);
+  w.put("event_deadline", event_deadline_);
+  if (sync_count_ != 0) w.put("sync_count", sync_count_);
+  if (waiting_start_ != (sync_start_ != 0)) w.put("waiting_start", waiting_start_);
+  if (have_buffer_) w.put_bytes("buffer", buffer_);  // type FCh: sampled at the last SYNC
+}
+
+void Tpdo::import_state(const StateReader& r) {
+  requested_ = r.get_or("requested", false);
+  changed_ = r.get_or("changed", false);
+  restart_ = r.get_or("restart", true);
+  have_sent_ = r.has("last");
+  last_ = have_sent_ ? payload_of(r, "last") : Payload{};
+  inhibit_until_ = r.optional_time("inhibit_until");
+  event_deadline_ = r.optional_time("event_deadline");
+  sync_count_ = r.get_or("sync_count", 0u);
+  waiting_start_ = r.get_or("waiting_start", sync_start_ != 0);
+  have_buffer_ = r.has("buffer");
+  buffer_ = have_buffer_ ? payload_of(r, "buffer") : Payload{};
+}
+
+void Rpdo::export_state(StateWriter& w) const {
+  if (pending_) w.put_bytes("pending", buffer_);  // synchronous: applied at the next SYNC
+  w.put("deadline", deadline_);
+  if (timed_out_) w.put("timed_out", true);
+}
+
+void Rpdo::import_state(const StateReader& r) {
+  pending_ = r.has("pending");
+  buffer_ = pending_ ? payload_of(r, "pending") : Payload{};
+  deadline_ = r.optional_time("deadline");
+  timed_out_ = r.get_or("timed_out", false);
+}
+
+void PdoService::export_state(StateWriter& w) const {
+  w.put("operational", operational_);
+  w.put("last_now", last_now_);
+  for (const auto& t : tpdos_) {
+    const StateWriter::Scope scope(w, "tpdo." + std::to_string(t->number()));
+    t->export_state(w);
+  }
+  for (const auto& rp : rpdos_) {
+    const StateWriter::Scope scope(w, "rpdo." + std::to_string(rp->number()));
+    rp->export_state(w);
+  }
+}
+
+void PdoService::import_state(const StateReader& r) {
+  // A PDO this dictionary does not have is another configuration.
+  for (const bool transmit : {true, false}) {
+    const StateReader pr = r.in(transmit ? "tpdo" : "rpdo");
+    for (const std::string& n : pr.children()) {
+      std::uint16_t number = 0;
+      const auto [end, ec] = std::from_chars(n.data(), n.data() + n.size(), number);
+      const auto numbered = [number](const auto& p) { return p->number() == number; };
+      const bool known = ec == std::errc{} && end == n.data() + n.size() &&
+                         (transmit ? std::ranges::any_of(tpdos_, numbered) : std::ranges::any_of(rpdos_, numbered));
+      if (!known) pr.fail(n, "is no PDO of this dictionary");
+    }
+  }
+  const bool operational = r.get<bool>("operational");
+  const TimePoint last_now = r.time("last_now");
+  for (auto& t : tpdos_) t->import_state(r.in("tpdo." + std::to_string(t->number())));
+  for (auto& rp : rpdos_) rp->import_state(r.in("rpdo." + std::to_string(rp->number())));
+  operational_ = operational;
+  last_now_ = last_now;
 }
 
 }  // namespace oegw::canopen

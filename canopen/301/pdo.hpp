@@ -52,6 +52,9 @@
 
 namespace oegw::canopen {
 
+class StateWriter;  // canopen/state.hpp
+class StateReader;
+
 // One mapping entry, CiA 301 §7.5.2.36: index << 16 | sub-index << 8 | length in bits.
 constexpr std::uint32_t pdo_map(std::uint16_t index, std::uint8_t sub, std::uint8_t bits) {
   return static_cast<std::uint32_t>(index) << 16 | static_cast<std::uint32_t>(sub) << 8 | bits;
@@ -105,6 +108,8 @@ class Tpdo {
   Tpdo(PdoService& svc, std::uint16_t number) : svc_(svc), number_(number) {}
   void reload();
   void reset_runtime();
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
   [[nodiscard]] std::array<std::uint8_t, 8> pack() const;
   void send(const std::array<std::uint8_t, 8>& payload, TimePoint now);
   void service(TimePoint now);  // event-driven types
@@ -154,6 +159,8 @@ class Rpdo {
   Rpdo(PdoService& svc, std::uint16_t number) : svc_(svc), number_(number) {}
   void reload();
   void reset_runtime();
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
   void receive(const CanFrame& frame, TimePoint now);
   void apply(const std::uint8_t* data);
   void on_sync();
@@ -202,6 +209,13 @@ class PdoService {
 
   [[nodiscard]] Tpdo* tpdo(std::uint16_t n);
   [[nodiscard]] Rpdo* rpdo(std::uint16_t n);
+
+  // Run-time state (canopen/state.hpp), for a service of the same configuration whose dictionary
+  // values have been imported and reload()ed first: NMT operational, and each PDO's timers,
+  // pending requests and data held (a PDO left as a reload makes it writes nothing). Throws
+  // StateError.
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
 
   // Application callbacks. on_length_error(rpdo number, EMCY code 8210h/8220h): hand it to the
   // EMCY producer. on_rpdo_timeout(n): the RPDO's event timer elapsed without a reception.

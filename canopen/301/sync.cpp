@@ -1,5 +1,7 @@
 #include "canopen/301/sync.hpp"
 
+#include "canopen/state.hpp"
+
 namespace oegw::canopen {
 
 SyncService::SyncService(ObjectDictionary& od, FrameSink sink, SyncConfig config) : od_(od), sink_(std::move(sink)) {
@@ -112,6 +114,27 @@ std::optional<TimePoint> SyncService::next_deadline() const {
   if (!producer()) return std::nullopt;
   if (restart_pending_) return last_now_;
   return next_sync_;
+}
+
+void SyncService::export_state(StateWriter& w) const {
+  w.put("restart_pending", restart_pending_);
+  w.put("next_sync", next_sync_);
+  w.put("last_sync", last_sync_);
+  w.put("last_now", last_now_);
+  w.put("counter", counter_);
+}
+
+void SyncService::import_state(const StateReader& r) {
+  const bool restart_pending = r.get<bool>("restart_pending");
+  const std::optional<TimePoint> next_sync = r.optional_time("next_sync");
+  const std::optional<TimePoint> last_sync = r.optional_time("last_sync");
+  const TimePoint last_now = r.time("last_now");
+  const auto counter = r.get<std::uint8_t>("counter");
+  restart_pending_ = restart_pending;
+  next_sync_ = next_sync;
+  last_sync_ = last_sync;
+  last_now_ = last_now;
+  counter_ = counter;
 }
 
 }  // namespace oegw::canopen

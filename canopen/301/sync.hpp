@@ -23,6 +23,9 @@
 
 namespace oegw::canopen {
 
+class StateWriter;  // canopen/state.hpp
+class StateReader;
+
 struct SyncConfig {
   std::uint32_t cob_id = cob::kSync;  // | CobId::kBit30 to make this node the SYNC producer
   std::uint32_t period_us = 0;
@@ -63,6 +66,11 @@ class SyncService {
   // True when synchronous PDOs may still be sent: no window configured, or `now` is within
   // 1007h µs of the last SYNC.
   [[nodiscard]] bool in_window(TimePoint now) const;
+
+  // Run-time state (canopen/state.hpp), for an object of the same configuration whose
+  // dictionary values have been imported and reloaded first. Throws StateError.
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
 
  private:
   void reconfigure();
