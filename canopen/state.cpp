@@ -200,6 +200,12 @@ NmtState StateReader::nmt_state(std::string_view key) const {
   return static_cast<NmtState>(b);
 }
 
+NodeId StateReader::node_id(std::string_view key) const {
+  const NodeId id{get<std::uint8_t>(key)};
+  if (!id.valid() && !id.unconfigured()) fail(key, "is no node-ID");
+  return id;
+}
+
 std::vector<std::string> StateReader::unread() const {
   std::vector<std::string> out;
   for (const Entry& e : text_->entries) {

@@ -139,6 +139,8 @@ class StateReader {
   }
   // One of the four states (is_nmt_state).
   [[nodiscard]] NmtState nmt_state(std::string_view key) const;
+  // A node-ID 1..127, or FFh unconfigured (CiA 305).
+  [[nodiscard]] NodeId node_id(std::string_view key) const;
 
   // Keys of the whole text never read through any reader made from it: a key the importer does
   // not know is a state of another version (tests require none).

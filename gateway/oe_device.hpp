@@ -199,7 +199,6 @@ class OeDevice {
   void resync_outputs();
   void after_reset();
   void report_outputs(std::uint16_t index, std::uint8_t sub, std::int64_t old_value);
-  // 6423h (CiA 401) present and FALSE / present and TRUE; absent is neither.
   // 6423h (CiA 401 analogue input global interrupt enable): nullopt when the device has none.
   [[nodiscard]] std::optional<bool> analog_interrupts_enabled();
 

@@ -202,8 +202,7 @@ void HeartbeatProducer::export_state(StateWriter& w) const {
 }
 
 void HeartbeatProducer::import_state(const StateReader& r) {
-  const NodeId node_id{r.get<std::uint8_t>("node_id")};
-  if (!node_id.valid() && !node_id.unconfigured()) r.fail("node_id", "is no node-ID");
+  const NodeId node_id = r.node_id("node_id");
   const NmtState state = r.nmt_state("state");
   const bool running = r.get<bool>("running");
   reference_ = r.time("reference");

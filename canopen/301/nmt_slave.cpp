@@ -90,12 +90,8 @@ void NmtSlave::export_state(StateWriter& w) const {
 }
 
 void NmtSlave::import_state(const StateReader& r) {
-  const NodeId node_id{r.get<std::uint8_t>("node_id")};
-  const NodeId pending{r.get<std::uint8_t>("pending_node_id")};
-  for (const char* key : {"node_id", "pending_node_id"}) {
-    const NodeId id{r.get<std::uint8_t>(key)};
-    if (!id.valid() && !id.unconfigured()) r.fail(key, "is no node-ID");
-  }
+  const NodeId node_id = r.node_id("node_id");
+  const NodeId pending = r.node_id("pending_node_id");
   const NmtState state = r.nmt_state("state");
   const TimePoint last_transition = r.time("last_transition");
   const StateReader sr = r.in("stats");

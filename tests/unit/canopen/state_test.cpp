@@ -88,6 +88,10 @@ TEST(State, BadTextAndBadValuesAreRefusedNamingTheLineOrKey) {
   EXPECT_EQ(error_of([&] { (void)r.get<bool>("neg"); }), "state: 'neg' = -1 is outside 0..1");
   EXPECT_EQ(error_of([&] { (void)r.in("hb").integer("last"); }), "state: 'hb.last' is missing");
   EXPECT_EQ(error_of([&] { (void)r.frame("f"); }), "state: 'f.id' is too large");
+  const StateReader ids = StateReader::parse("none 0\nbig 128\nunset 255\n");
+  EXPECT_EQ(error_of([&] { (void)ids.node_id("none"); }), "state: 'none' is no node-ID");
+  EXPECT_EQ(error_of([&] { (void)ids.node_id("big"); }), "state: 'big' is no node-ID");
+  EXPECT_TRUE(ids.node_id("unset").unconfigured()) << "CiA 305: FFh, not configured";
   const StateReader frames = StateReader::parse(
       "d.id 1\nd.rtr 0\nd.extended 0\nd.dlc 2\nd.data #01\n"
       "r.id 1\nr.rtr 1\nr.extended 0\nr.dlc 2\nr.data #0102\n");
