@@ -118,6 +118,11 @@ class StateReader {
       }
     }
   }
+  // get<T>(key), or nullopt when the key is absent (a std::optional written by put()).
+  template <class T>
+  [[nodiscard]] std::optional<T> optional(std::string_view key) const {
+    return has(key) ? std::optional<T>(get<T>(key)) : std::nullopt;
+  }
   // get<T>(key), or `fallback` when the key is absent.
   template <class T>
   [[nodiscard]] T get_or(std::string_view key, T fallback) const {

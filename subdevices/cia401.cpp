@@ -5,6 +5,7 @@
 #include <filesystem>
 
 #include "canopen/306/eds_check.hpp"
+#include "canopen/state.hpp"
 #include "profiles/cia401/objects.hpp"
 #include "subdevices/driver_options.hpp"
 #include "subdevices/families.hpp"
@@ -565,6 +566,72 @@ bool Cia401Driver::on_boot_read_abort(std::uint16_t index, std::uint8_t sub, can
   }
   apply_mapping_abort(index, sub, code);  // that PDO is simply not used
   return true;
+}
+
+// The PDOs as read back from the node at boot (its carriers follow from them), whether this boot
+// read 1001h, and the outputs as last commanded.
+void Cia401Driver::export_family_state(canopen::StateWriter& w) const {
+  w.put_list("pdos", pdos_.size(), [&](std::size_t k) {
+    const Pdo& p = pdos_[k];
+    w.put("transmit", p.transmit);
+    w.put("number", p.number);
+    w.put("cob_id", p.cob_id);
+    w.put("transmission_type", p.transmission_type);
+    w.put("event_timer", p.event_timer);
+    w.put("event_timer_done", p.event_timer_done);
+    w.put("count", p.count);
+    w.put_list("entries", p.entries.size(), [&](std::size_t e) { w.put("raw", p.entries[e]); });
+    w.put("failed", p.failed);
+  });
+  w.put("error_register_read", error_register_read_);
+  w.put_list("outputs", outputs_.size(), [&](std::size_t i) { w.put("value", outputs_[i]); });
+}
+
+void Cia401Driver::import_boot_learned(const canopen::StateReader& r) {
+  std::vector<Pdo> pdos = pdos_;
+  std::size_t k = 0;
+  r.read_list("pdos", pdos.size(), [&](const canopen::StateReader& item) {
+    Pdo& p = pdos[k++];
+    if (item.get<bool>("transmit") != p.transmit) item.fail("transmit", "differs: the state is of another EDS's PDOs");
+    if (item.get<std::uint16_t>("number") != p.number)
+      item.fail("number", "differs: the state is of another EDS's PDOs");
+    p.cob_id = item.optional<std::uint32_t>("cob_id");
+    // As apply_mapping_read: a boot never keeps a PDO on a restricted CAN-ID (CiA 301 §7.3.5).
+    if (const CobId c{p.cob_id.value_or(0)};
+        p.cob_id && c.valid() && !c.extended() && canopen::cob::restricted(c.can_id())) {
+      item.fail("cob_id", "is on a restricted CAN-ID (CiA 301 §7.3.5)");
+    }
+    p.transmission_type = item.optional<std::uint8_t>("transmission_type");
+    p.event_timer = item.optional<std::uint16_t>("event_timer");
+    p.event_timer_done = item.get<bool>("event_timer_done");
+    p.count = item.optional<std::uint8_t>("count");
+    // CiA 301 §7.5.2.36: at most 64 entries; the boot reads as many as the count says.
+    if (p.count && *p.count > 64) item.fail("count", "is above 64 mapping entries");
+    p.entries.clear();
+    item.read_list("entries", 64,
+                   [&](const canopen::StateReader& e) { p.entries.push_back(e.optional<std::uint32_t>("raw")); });
+    if (p.count && !p.failed && p.entries.size() != *p.count) item.fail("entries.count", "differs from the count");
+    p.failed = item.get<bool>("failed");
+    p.decoded.clear();
+    p.bits = 0;
+    if (p.complete() && !p.failed) build(p);
+  });
+  if (k != pdos.size()) r.fail("pdos.count", "differs: the state is of another EDS's PDOs");
+  pdos_ = std::move(pdos);
+}
+
+void Cia401Driver::import_family_state(const canopen::StateReader& r) {
+  error_register_read_ = r.get<bool>("error_register_read");
+  std::vector<std::int64_t> outputs;
+  r.read_list("outputs", outputs_.size(), [&](const canopen::StateReader& item) {
+    // set_output() keeps each within its signal's range; an RPDO would carry it as it is.
+    const SignalInfo& s = signals_[outputs.size()];
+    const std::int64_t v = item.integer("value");
+    if (v < s.min || v > s.max) item.fail("value", "is outside " + s.name + "'s range");
+    outputs.push_back(v);
+  });
+  if (outputs.size() != outputs_.size()) r.fail("outputs.count", "differs from this node's signals");
+  outputs_ = std::move(outputs);
 }
 
 }  // namespace oegw::subdevices

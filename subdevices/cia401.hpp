@@ -178,6 +178,9 @@ class Cia401Driver final : public Driver {
 
  private:
   void flush_outputs(TimePoint now) override;
+  void export_family_state(canopen::StateWriter& w) const override;
+  void import_boot_learned(const canopen::StateReader& r) override;
+  void import_family_state(const canopen::StateReader& r) override;
   void add_signals(std::uint16_t index, const char* prefix, SignalKind kind, std::int64_t min, std::int64_t max,
                    const char* unit);
   Pdo* find_pdo(std::uint16_t index);

@@ -1,6 +1,9 @@
 #include "subdevices/driver.hpp"
 
 #include <algorithm>
+#include <stdexcept>
+
+#include "canopen/state.hpp"
 
 namespace oegw::subdevices {
 
@@ -112,6 +115,7 @@ void Driver::set_carriers(std::vector<Carrier> carriers) {
 }
 
 void Driver::apply_boot_writes(const std::vector<SdoWrite>& writes) {
+  if (&writes != &boot_writes_) boot_writes_ = writes;
   refresh_carriers();
   boot_writes_made(writes);
   for (const SdoWrite& w : writes) {
@@ -295,6 +299,77 @@ std::optional<std::string> DriverOptions::get(std::string_view key) const {
   for (const auto& [k, v] : values)
     if (k == key) return v;
   return std::nullopt;
+}
+
+void Driver::export_state(canopen::StateWriter& w) const {
+  if (output_batch_ != 0) throw std::logic_error("Driver::export_state inside an output batch");
+  w.put_list("boot_writes", boot_writes_.size(), [&](std::size_t i) {
+    w.put("index", boot_writes_[i].index);
+    w.put("sub", boot_writes_[i].sub);
+    w.put_bytes("data", boot_writes_[i].data);
+  });
+  w.put_list("signals", values_.size(), [&](std::size_t i) {
+    w.put("value", values_[i].value);
+    w.put("status", values_[i].status);
+    w.put("at", values_[i].timestamp);
+    if (faults_[i]) w.put("fault", true);
+  });
+  // Each watch's due follows from its last PDO, the proof of life and its deadline (compute_due).
+  w.put_list("watches", watches_.size(), [&](std::size_t k) {
+    w.put("cob", watches_[k].cob);
+    w.put("last", watches_[k].last);
+  });
+  w.put("alive_since", alive_since_);
+  w.put("counters.wrong_length", counters_.wrong_length);
+  w.put("counters.unknown_cob", counters_.unknown_cob);
+  w.put("counters.unknown_emcy", counters_.unknown_emcy);
+  w.put("counters.mismatches", counters_.mismatches);
+  const canopen::StateWriter::Scope family(w, "family");
+  export_family_state(w);
+}
+
+void Driver::import_state(const canopen::StateReader& r) {
+  std::vector<SdoWrite> writes;
+  r.read_list("boot_writes", 4096, [&](const canopen::StateReader& item) {
+    writes.push_back(SdoWrite{item.get<std::uint16_t>("index"), item.get<std::uint8_t>("sub"), item.bytes("data"),
+                              "restored from a state"});
+  });
+  import_boot_learned(r.in("family"));
+  boot_writes_ = std::move(writes);
+  apply_boot_writes(boot_writes_);
+  std::vector<SignalValue> values;
+  std::vector<bool> faults;
+  r.read_list("signals", values_.size(), [&](const canopen::StateReader& s) {
+    const auto status = s.get<std::uint8_t>("status");
+    if (status > static_cast<std::uint8_t>(SignalStatus::Offline)) s.fail("status", "is no signal status");
+    values.push_back(SignalValue{s.integer("value"), static_cast<SignalStatus>(status), s.time("at")});
+    faults.push_back(s.get_or("fault", false));
+  });
+  if (values.size() != values_.size()) {
+    r.fail("signals.count", "differs from this driver's " + std::to_string(values_.size()) + " signals");
+  }
+  std::vector<std::optional<TimePoint>> last;
+  r.read_list("watches", watches_.size(), [&](const canopen::StateReader& item) {
+    if (item.get<std::uint32_t>("cob") != watches_[last.size()].cob) {
+      item.fail("cob", "differs: the state is of another boot's PDOs");
+    }
+    last.push_back(item.optional_time("last"));
+  });
+  if (last.size() != watches_.size()) r.fail("watches.count", "differs: the state is of another boot's PDOs");
+  const canopen::StateReader c = r.in("counters");
+  const InputCounters counters{c.get<std::uint64_t>("wrong_length"), c.get<std::uint64_t>("unknown_cob"),
+                               c.get<std::uint64_t>("unknown_emcy"), c.get<std::uint64_t>("mismatches")};
+  alive_since_ = r.optional_time("alive_since");
+  import_family_state(r.in("family"));
+  values_ = std::move(values);
+  faults_ = std::move(faults);
+  fault_count_ = static_cast<std::size_t>(std::count(faults_.begin(), faults_.end(), true));
+  for (std::size_t k = 0; k < watches_.size(); ++k) {
+    watches_[k].last = last[k];
+    watches_[k].due = compute_due(watches_[k]);
+  }
+  counters_ = counters;
+  refresh_earliest_due();
 }
 
 }  // namespace oegw::subdevices

@@ -20,6 +20,11 @@
 #include "canopen/types.hpp"
 #include "subdevices/signal.hpp"
 
+namespace oegw::canopen {
+class StateWriter;  // canopen/state.hpp
+class StateReader;
+}  // namespace oegw::canopen
+
 namespace oegw::subdevices {
 
 using canopen::CanFrame;
@@ -240,6 +245,17 @@ class Driver {
   // Called with a signal's index whenever its value or status changed.
   std::function<void(std::size_t index, const SignalValue& value)> on_change;
 
+  // Run-time state (canopen/state.hpp), for a fresh driver of the same family and options: what
+  // the last boot learned from the node and wrote to it (import applies them as
+  // apply_boot_writes does: they shape the watches), each signal's value, status, time and fault,
+  // when each watched PDO last came, the proof of life, the counters, then the family's own
+  // latches (export_family_state). Outside an output batch only. on_change is not called. Throws
+  // canopen::StateError; a driver whose import threw is thrown away. The owner imports after it
+  // has set the deadlines' options (set_pdo_timeout, set_sync_period: they clear the watches) and
+  // routes frames by consumed_cob_ids() afterwards (a CiA 401 node's come with its PDOs).
+  void export_state(canopen::StateWriter& w) const;
+  void import_state(const canopen::StateReader& r);
+
   [[nodiscard]] const InputCounters& counters() const { return counters_; }
 
   // Where its RPDOs go from now on: a driver built before its gateway (a reload's, in the thread
@@ -302,6 +318,12 @@ class Driver {
   // file's `sdo` list): a driver whose boot reads a write may override takes the written value
   // (the elobau's fitted buttons 2100h:01h/02h).
   virtual void boot_writes_made(const std::vector<SdoWrite>& /*writes*/) {}
+  // The family's run-time state, under "family." (export_state). What the family learned from the
+  // node at boot and its carriers depend on (a CiA 401 node's PDOs) is imported first, before the
+  // boot writes are applied again; the rest after.
+  virtual void export_family_state(canopen::StateWriter& /*w*/) const {}
+  virtual void import_boot_learned(const canopen::StateReader& /*family*/) {}
+  virtual void import_family_state(const canopen::StateReader& /*family*/) {}
 
   InputCounters counters_;
 
@@ -333,6 +355,7 @@ class Driver {
   std::size_t fault_count_ = 0;
   unsigned output_batch_ = 0;
   std::vector<Carrier> carriers_;
+  std::vector<SdoWrite> boot_writes_;  // the last apply_boot_writes(), for export_state
   Duration pdo_timeout_{0};
   Duration freshness_floor_{0};
   Duration sync_period_{0};

@@ -4,7 +4,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <memory>
+#include <stdexcept>
 
+#include "canopen/state.hpp"
 #include "subdevices/driver_options.hpp"
 #include "subdevices/families.hpp"
 
@@ -675,6 +677,72 @@ std::unique_ptr<Driver> make_elobau_mfg_driver(NodeId node, FrameSink sink, cons
   return with_error_text(error, [&](OptionRefusals& refusals) {
     return make_elobau_mfg_driver(node, std::move(sink), options, refusals);
   });
+}
+
+// The channels' last values and latches (an axis EMCY holds until a good pair or the error
+// reset), the buttons, the EMCY latches, what this boot read (4001h, 2100h), the save's progress
+// (§8, Table 6 0002h) and the LEDs as last commanded.
+void ElobauMfgDriver::export_family_state(canopen::StateWriter& w) const {
+  w.put("stats.out_of_range", stats_.out_of_range);
+  w.put("stats.channel2_missing", stats_.channel2_missing);
+  for (std::size_t a = 0; a < kAxes; ++a) {
+    const Axis& x = axes_[a];
+    const canopen::StateWriter::Scope axis(w, "axis." + std::to_string(a));
+    w.put("ch1", x.ch1);
+    w.put("ch2", x.ch2);
+    w.put("mismatch", x.mismatch);
+    w.put("suspect", x.suspect);
+    w.put("emcy", x.emcy);
+  }
+  w.put("buttons", buttons_);
+  std::uint32_t button_emcy = 0;
+  for (std::size_t b = 0; b < kButtons; ++b) button_emcy |= button_emcy_[b] ? 1u << b : 0u;
+  w.put("button_emcy", button_emcy);
+  w.put("global_emcy", global_emcy_);
+  w.put("led_emcy", led_emcy_);
+  w.put("online", online_);
+  w.put("error_code_read", error_code_read_);
+  w.put("fitted_read", fitted_read_);
+  w.put("fitted", fitted_);
+  w.put("saving", saving_);
+  w.put("unsaved_at_boot", unsaved_at_boot_);
+  w.put("save_tried", save_tried_);
+  w.put("channel2_late", channel2_late_);
+  w.put("ch2_reference", ch2_reference_);
+  for (std::size_t l = 0; l < kLeds; ++l) {
+    if (leds_[l]) w.put("led." + std::to_string(l), *leds_[l]);
+  }
+  w.put("leds_sent", leds_sent_);
+}
+
+void ElobauMfgDriver::import_family_state(const canopen::StateReader& r) {
+  stats_ = Stats{r.get<std::uint64_t>("stats.out_of_range"), r.get<std::uint64_t>("stats.channel2_missing")};
+  for (std::size_t a = 0; a < kAxes; ++a) {
+    const canopen::StateReader x = r.in("axis." + std::to_string(a));
+    axes_[a] = Axis{x.optional<std::int8_t>("ch1"), x.optional<std::int8_t>("ch2"), x.get<bool>("mismatch"),
+                    x.get<bool>("suspect"), x.get<bool>("emcy")};
+  }
+  buttons_ = r.optional<std::uint16_t>("buttons");
+  const auto button_emcy = r.get<std::uint16_t>("button_emcy");
+  for (std::size_t b = 0; b < kButtons; ++b) button_emcy_[b] = ((button_emcy >> b) & 1u) != 0;
+  global_emcy_ = r.get<bool>("global_emcy");
+  led_emcy_ = r.get<bool>("led_emcy");
+  online_ = r.get<bool>("online");
+  error_code_read_ = r.get<bool>("error_code_read");
+  fitted_read_ = r.get<std::uint8_t>("fitted_read");
+  fitted_ = r.get<std::uint16_t>("fitted");
+  saving_ = r.get<bool>("saving");
+  unsaved_at_boot_ = r.get<bool>("unsaved_at_boot");
+  save_tried_ = r.get<bool>("save_tried");
+  channel2_late_ = r.get<bool>("channel2_late");
+  ch2_reference_ = r.optional_time("ch2_reference");
+  for (std::size_t l = 0; l < kLeds; ++l) {
+    const std::string key = "led." + std::to_string(l);
+    leds_[l] = r.optional<std::uint8_t>(key);
+    // set_output() takes 0 off, 1 on, 2 blink (Table 13; 3 is "no change", never commanded).
+    if (leds_[l] && *leds_[l] > 2) r.fail(key, "is no LED code the gateway commands");
+  }
+  leds_sent_ = r.get<bool>("leds_sent");
 }
 
 }  // namespace oegw::subdevices

@@ -194,6 +194,8 @@ class ElobauMfgDriver final : public Driver {
  private:
   void flush_outputs(TimePoint now) override;
   void boot_writes_made(const std::vector<SdoWrite>& writes) override;
+  void export_family_state(canopen::StateWriter& w) const override;
+  void import_family_state(const canopen::StateReader& r) override;
   struct Axis {
     std::optional<std::int8_t> ch1;
     std::optional<std::int8_t> ch2;

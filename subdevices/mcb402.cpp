@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <string_view>
 
+#include "canopen/state.hpp"
 #include "subdevices/driver_options.hpp"
 #include "subdevices/families.hpp"
 
@@ -441,6 +442,30 @@ void Mcb402Driver::flush_outputs(TimePoint /*now*/) {
   if (!outputs_pending_) return;
   outputs_pending_ = false;
   send_outputs();
+}
+
+// The latches only the evidence clears (a 1001h read-back, the error reset), and the outputs as
+// last commanded (sent again when the board comes back: on_online).
+void Mcb402Driver::export_family_state(canopen::StateWriter& w) const {
+  w.put("broken", broken_);
+  w.put("unknown_fault", unknown_fault_);
+  w.put("latch_epoch", latch_epoch_);
+  w.put("poll_epoch_sent", poll_epoch_sent_);
+  w.put("error_register_read", error_register_read_);
+  w.put("outputs", outputs_);
+}
+
+void Mcb402Driver::import_family_state(const canopen::StateReader& r) {
+  const auto broken = r.get<std::uint8_t>("broken");
+  if ((broken & ~0x0Fu) != 0) r.fail("broken", "names an axis the board does not have");
+  broken_ = broken;
+  unknown_fault_ = r.get<bool>("unknown_fault");
+  latch_epoch_ = r.get<std::uint64_t>("latch_epoch");
+  poll_epoch_sent_ = r.get<std::uint64_t>("poll_epoch_sent");
+  error_register_read_ = r.get<bool>("error_register_read");
+  const auto outputs = r.get<std::uint8_t>("outputs");
+  if ((outputs & ~0x0Fu) != 0) r.fail("outputs", "sets a bit no LED of the board has");
+  outputs_ = outputs;
 }
 
 }  // namespace oegw::subdevices

@@ -179,6 +179,8 @@ class Mcb402Driver final : public Driver {
   void clear_faults();
   void send_outputs();
   void flush_outputs(TimePoint now) override;
+  void export_family_state(canopen::StateWriter& w) const override;
+  void import_family_state(const canopen::StateReader& r) override;
 
   Mcb402Options options_;
   std::vector<SignalInfo> signals_;

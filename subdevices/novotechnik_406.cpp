@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <limits>
 
+#include "canopen/state.hpp"
 #include "subdevices/driver_options.hpp"
 #include "subdevices/families.hpp"
 
@@ -392,6 +393,25 @@ std::unique_ptr<Driver> make_novotechnik_406_driver(NodeId node, FrameSink sink,
   return with_error_text(error, [&](OptionRefusals& refusals) {
     return make_novotechnik_406_driver(node, std::move(sink), options, refusals);
   });
+}
+
+// The last position marker (last_error_position()), this boot's reads of 6503h/6505h, the latches
+// only their evidence clears, and whether the sensor took 6020h into its TPDO (the next boot's
+// configuration()).
+void Novotechnik406Driver::export_family_state(canopen::StateWriter& w) const {
+  w.put("last_marker", last_marker_);
+  w.put("reads_done", reads_done_);
+  w.put("latches", latches_);
+  w.put("has_6020h", has_6020h_);
+}
+
+void Novotechnik406Driver::import_family_state(const canopen::StateReader& r) {
+  last_marker_ = r.optional<std::uint32_t>("last_marker");
+  has_6020h_ = r.get<bool>("has_6020h");
+  reads_done_ = r.get<std::uint8_t>("reads_done");
+  const auto latches = r.get<std::uint8_t>("latches");
+  if ((latches & ~(kLatchPosition | kLatchDevice | kLatchSupply)) != 0) r.fail("latches", "names no latch");
+  latches_ = latches;
 }
 
 }  // namespace oegw::subdevices

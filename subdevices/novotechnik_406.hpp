@@ -190,6 +190,9 @@ class Novotechnik406Driver final : public Driver {
   // latch is held (Error at once when `now` is given, also before the first TPDO1).
   void set_latches(std::uint8_t mask, std::uint8_t set, std::optional<TimePoint> now);
 
+  void export_family_state(canopen::StateWriter& w) const override;
+  void import_family_state(const canopen::StateReader& r) override;
+
   Novotechnik406Options options_;
   std::vector<SignalInfo> signals_;
   std::optional<std::uint32_t> last_marker_;

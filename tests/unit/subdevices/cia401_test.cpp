@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "canopen/301/pdo.hpp"
+#include "canopen/state.hpp"
 #include "subdevices/cia401.hpp"
 #include "subdevices/families.hpp"
 
@@ -315,6 +316,111 @@ TEST(Cia401, OutputsGoOutInTheReadBackRpdoRememberingTheOthers) {
   EXPECT_TRUE(pdo.on_frame(f.sent[1], t0));
   EXPECT_EQ(f.node_od->get<std::uint8_t>(0x6200, 2), 0x81);
   EXPECT_EQ(f.node_od->get<std::int16_t>(0x6411, 1), 500);
+}
+
+// Run-time state (Driver::export_state): the PDOs the boot read back travel with the state, so a
+// fresh driver given it decodes the node's frames as the original does, with no mapping read of
+// its own; without it, no frame is used (NoFrameIsUsedBeforeTheMappingIsRead).
+TEST(Cia401, AFreshDriverGivenTheStateDecodesWithThePdosTheBootReadBack) {
+  Fixture a(kPedal);
+  a.read_mapping();
+  a.drv->apply_boot_writes({});
+  a.drv->on_online(t0);
+  a.drv->set_alive_since(t0);
+  ASSERT_TRUE(a.drv->on_frame(CanFrame(0x1A1, {0xFE, 0xFF, 0xE8, 0x03, 0xA5}), t0));
+  Fixture b(kPedal);
+  Fixture fresh(kPedal);
+  canopen::StateWriter w;
+  a.drv->export_state(w);
+  const canopen::StateReader r = canopen::StateReader::parse(w.text());
+  b.drv->import_state(r);
+  EXPECT_TRUE(r.unread().empty());
+  EXPECT_EQ(b.drv->consumed_cob_ids(), a.drv->consumed_cob_ids());
+  EXPECT_EQ(b.drv->value(b.sig("analog[2]")), a.drv->value(a.sig("analog[2]")));
+  for (Fixture* f : {&a, &b, &fresh}) f->changes.clear();
+  const CanFrame next(0x1A1, {0x10, 0x00, 0xE8, 0x03, 0x5A});
+  EXPECT_TRUE(a.drv->on_frame(next, t0 + canopen::Duration{1000}));
+  EXPECT_TRUE(b.drv->on_frame(next, t0 + canopen::Duration{1000}));
+  EXPECT_FALSE(fresh.drv->on_frame(next, t0 + canopen::Duration{1000}));
+  EXPECT_EQ(b.changes, a.changes);
+  EXPECT_EQ(a.changes.size(), 2u) << "analog[1] and in[1] changed; analog[2] did not";
+  EXPECT_EQ(b.drv->next_deadline(), a.drv->next_deadline());
+}
+
+// The outputs as last commanded travel with the state: the RPDO that carries the next output
+// carries them too (CiA 301 §7.2.2: an RPDO sets every object it maps). Exported again, the
+// state is the same.
+TEST(Cia401, TheOutputsAsLastCommandedCarryOverAndTheStateRoundTrips) {
+  Fixture a(kCluster);
+  a.read_mapping();
+  a.drv->apply_boot_writes({});
+  a.drv->on_online(t0);
+  ASSERT_TRUE(a.drv->set_output(a.sig("out[2]"), 0x81, t0));
+  canopen::StateWriter w;
+  a.drv->export_state(w);
+  Fixture b(kCluster);
+  b.drv->import_state(canopen::StateReader::parse(w.text()));
+  canopen::StateWriter again;
+  b.drv->export_state(again);
+  EXPECT_EQ(again.text(), w.text());
+  Fixture fresh(kCluster);
+  fresh.read_mapping();
+  fresh.drv->apply_boot_writes({});
+  fresh.drv->on_online(t0);
+  for (Fixture* f : {&a, &b, &fresh}) {
+    f->sent.clear();
+    ASSERT_TRUE(f->drv->set_output(f->sig("aout[1]"), 500, t0));
+  }
+  ASSERT_EQ(a.sent.size(), 1u);
+  EXPECT_EQ(a.sent[0], CanFrame(0x221, {0x00, 0x81, 0xF4, 0x01}));
+  EXPECT_EQ(b.sent, a.sent);
+  EXPECT_EQ(fresh.sent[0], CanFrame(0x221, {0x00, 0x00, 0xF4, 0x01}));
+}
+
+// A state no boot of this node could have left is refused with the key that shows it, and the
+// node's RPDO is not sent from it.
+TEST(Cia401, AStateNoBootCouldLeaveIsRefused) {
+  Fixture a(kCluster);
+  a.read_mapping();
+  a.drv->apply_boot_writes({});
+  canopen::StateWriter w;
+  a.drv->export_state(w);
+  const std::string text = w.text();
+  const auto with = [&](const std::string& key, const std::string& value) {
+    std::string t = text;
+    const std::size_t line = t.find("\n" + key + " ");
+    EXPECT_NE(line, std::string::npos) << key << " in\n" << text;
+    if (line == std::string::npos) return t;
+    const std::size_t from = line + 1;
+    t.replace(from, t.find('\n', from) - from, key + " " + value);
+    return t;
+  };
+  const std::pair<std::string, std::string> bad[] = {
+      {with("family.pdos.0.cob_id", "0"), "state: 'family.pdos.0.cob_id' is on a restricted CAN-ID (CiA 301 §7.3.5)"},
+      {with("family.pdos.0.count", "65"), "state: 'family.pdos.0.count' is above 64 mapping entries"},
+      {with("family.pdos.0.transmit", "1"),  // RPDO1 comes first
+       "state: 'family.pdos.0.transmit' differs: the state is of another EDS's PDOs"},
+      {with("family.outputs.count", "3"), "state: 'family.outputs.count' differs from this node's signals"},
+  };
+  for (const auto& [t, message] : bad) {
+    Fixture b(kCluster);
+    try {
+      b.drv->import_state(canopen::StateReader::parse(t));
+      ADD_FAILURE() << "accepted: " << message;
+    } catch (const canopen::StateError& e) {
+      EXPECT_EQ(std::string(e.what()), message);
+    }
+  }
+  // An output outside its signal's range (out[2] is UNSIGNED8).
+  const std::size_t out2 = a.sig("out[2]");
+  Fixture c(kCluster);
+  try {
+    c.drv->import_state(canopen::StateReader::parse(with("family.outputs." + std::to_string(out2) + ".value", "256")));
+    ADD_FAILURE() << "accepted an output of 256";
+  } catch (const canopen::StateError& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "state: 'family.outputs." + std::to_string(out2) + ".value' is outside out[2]'s range");
+  }
 }
 
 TEST(Cia401, OutputNotMappedByAnyRpdoIsRefused) {
