@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "canopen/305/lss_store.hpp"
+#include "canopen/state.hpp"
 
 namespace oegw::canopen {
 
@@ -514,6 +515,88 @@ std::optional<TimePoint> Node::next_deadline() const {
   take(sync_.next_deadline());
   take(pdo_.next_deadline());
   return best;
+}
+
+void Node::export_state(StateWriter& w) const {
+  w.put("now", now_);
+  w.put("gate", gate_);
+  w.put("cob_base", cob_base_.value());
+  w.put("bit_timing", bit_timing_);
+  w.put("bt_switch_at", bt_switch_at_);
+  w.put("bt_resume_at", bt_resume_at_);
+  w.put("bt_next", bt_next_);
+  w.put("bus_off", bus_off_);
+  w.put("error_passive", error_passive_);
+  w.put("store_refused", store_refused_);
+  const auto part = [&](std::string_view key, const auto& service) {
+    const StateWriter::Scope scope(w, key);
+    service.export_state(w);
+  };
+  {
+    const StateWriter::Scope scope(w, "od");
+    od_.export_values(w);
+  }
+  part("nmt", nmt_);
+  part("heartbeat_producer", hb_producer_);
+  part("heartbeat_consumer", hb_consumer_);
+  part("emcy", emcy_);
+  part("sync", sync_);
+  part("pdo", pdo_);
+  part("lss", lss_);
+  w.put_list("sdo", sdo_server_count(), [&](std::size_t k) { sdo_server(k).export_state(w); });
+}
+
+void Node::import_state(const StateReader& r) {
+  // CiA 305 table 0 (lss::kAllStandardBitTimings): the index of a bit rate.
+  const auto bit_timing_index = [&](std::string_view key) {
+    const auto i = r.get<std::uint8_t>(key);
+    if (i >= 16 || ((lss::kAllStandardBitTimings >> i) & 1u) == 0) r.fail(key, "is no CiA 305 table-0 index");
+    return i;
+  };
+  const TimePoint now = r.time("now");
+  const NmtState gate = r.nmt_state("gate");
+  const NodeId cob_base = r.node_id("cob_base");
+  if (!cob_base.valid()) r.fail("cob_base", "is no node-ID (1..127): the COB-IDs follow a valid one");
+  const std::uint8_t bit_timing = bit_timing_index("bit_timing");
+  const std::uint8_t bt_next = bit_timing_index("bt_next");
+  const std::optional<TimePoint> bt_switch_at = r.optional_time("bt_switch_at");
+  const std::optional<TimePoint> bt_resume_at = r.optional_time("bt_resume_at");
+  if (bt_switch_at && !bt_resume_at) r.fail("bt_resume_at", "is missing: a switch under way ends silence later");
+  const bool bus_off = r.get<bool>("bus_off");
+  const bool error_passive = r.get<bool>("error_passive");
+  const std::optional<bool> store_refused = r.optional<bool>("store_refused");
+
+  // As handle_reset: the defaults of the form "function code + node-ID" first, so that the
+  // dictionary's layout (its defaults included) is the state's. The SDO servers' COB-IDs come
+  // with their own state.
+  if (cob_base != cob_base_) {
+    rebase_node_id(cob_base_, cob_base);
+    cob_base_ = cob_base;
+  }
+  od_.import_values(r.in("od"));
+  hb_producer_.reload();
+  hb_consumer_.reload();
+  sync_.reload();
+  pdo_.reload();
+  nmt_.import_state(r.in("nmt"));
+  hb_producer_.import_state(r.in("heartbeat_producer"));
+  hb_consumer_.import_state(r.in("heartbeat_consumer"));
+  emcy_.import_state(r.in("emcy"));
+  sync_.import_state(r.in("sync"));
+  pdo_.import_state(r.in("pdo"));
+  lss_.import_state(r.in("lss"));
+  std::size_t channels = 0;
+  r.read_list("sdo", sdo_server_count(), [&](const StateReader& item) { sdo_server(channels++).import_state(item); });
+  if (channels != sdo_server_count()) r.fail("sdo.count", "differs from this node's SDO server channels");
+  now_ = now;
+  gate_ = gate;
+  bit_timing_ = bit_timing;
+  bt_next_ = bt_next;
+  bt_switch_at_ = bt_switch_at;
+  bt_resume_at_ = bt_resume_at;
+  bus_off_ = bus_off;
+  error_passive_ = error_passive;
+  store_refused_ = store_refused;
 }
 
 }  // namespace oegw::canopen

@@ -152,6 +152,18 @@ class Node {
   // True from an LSS activate bit timing until twice its switch delay have passed.
   [[nodiscard]] bool bit_timing_silent() const { return bt_resume_at_.has_value(); }
 
+  // Run-time state (canopen/state.hpp): the dictionary's values, each service's state (the SDO
+  // servers' only when idle: a transfer under way throws std::logic_error), the node-ID the
+  // COB-ID defaults follow, the bit timing and a switch under way, the controller's last word
+  // and a store result not yet raised. import_state() is for a Node built on a fresh dictionary
+  // of the same application objects and configuration, in place of start(): nothing is sent,
+  // no callback is called, the parameter store is not read. It moves the COB-ID defaults to the
+  // state's node-ID (as an LSS-configured reset does) before the values, then reloads the
+  // services from the dictionary before their own state. Throws StateError; a Node whose import
+  // threw is thrown away.
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
+
  private:
   void install_communication_objects();
   void handle_reset(bool communication_only, TimePoint now);

@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <array>
+#include <stdexcept>
 
 #include "canopen/301/crc16.hpp"
 #include "canopen/301/sdo_block.hpp"
+#include "canopen/state.hpp"
 
 namespace oegw::canopen {
 
@@ -442,6 +444,27 @@ bool SdoClient::paced_start() {
   const bool ok = pacer_->try_start(now_, waited_for_pacer_);
   waited_for_pacer_ = !ok;
   return ok;
+}
+
+void SdoClient::export_state(StateWriter& w) const {
+  if (!idle() || outbox_head_ != outbox_.size() || done_head_ != done_.size()) {
+    throw std::logic_error("SdoClient::export_state while a transfer is under way");
+  }
+  w.put("now", now_);
+  w.put("last_ticket", last_ticket_);
+  w.put("stale_answers", stale_answers_);
+  w.put("waited_for_pacer", waited_for_pacer_);
+}
+
+void SdoClient::import_state(const StateReader& r) {
+  if (!idle()) throw std::logic_error("SdoClient::import_state while a transfer is under way");
+  const TimePoint now = r.time("now");
+  const auto last_ticket = r.get<Ticket>("last_ticket");
+  const auto stale_answers = r.get<std::uint64_t>("stale_answers");
+  waited_for_pacer_ = r.get<bool>("waited_for_pacer");
+  now_ = now;
+  last_ticket_ = last_ticket;
+  stale_answers_ = stale_answers;
 }
 
 }  // namespace oegw::canopen

@@ -64,6 +64,8 @@ enum class SdoTransfer : std::uint8_t {
 };
 
 class SdoWorkList;
+class StateWriter;  // canopen/state.hpp
+class StateReader;
 
 class SdoClient {
  public:
@@ -143,6 +145,13 @@ class SdoClient {
   void set_work_list(SdoWorkList* list);
   // No transfer in flight and none queued: next_deadline() is nullopt and advance() does nothing.
   [[nodiscard]] bool idle() const { return state_ == State::Idle && queued() == 0; }
+
+  // Run-time state (canopen/state.hpp) of an idle client: the last time given, the last ticket,
+  // the stale-answer count and a pacer refusal still to count. A transfer under way is not
+  // state: export and import throw std::logic_error unless idle(). The COB-IDs, time-out and
+  // pacer are configuration. import_state throws StateError.
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
 
   [[nodiscard]] bool busy() const { return state_ != State::Idle; }
   [[nodiscard]] std::size_t queued() const { return queue_.size() - queue_head_; }

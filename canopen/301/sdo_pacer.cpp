@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "canopen/frame_bits.hpp"
+#include "canopen/state.hpp"
 
 namespace oegw::canopen {
 
@@ -21,6 +22,17 @@ bool SdoPacer::try_start(TimePoint now, bool waited) {
   next_free_ = now + gap_;
   if (waited) ++delayed_starts_;
   return true;
+}
+
+void SdoPacer::export_state(StateWriter& w) const {
+  w.put("next_free", next_free_);
+  w.put("delayed_starts", delayed_starts_);
+}
+
+void SdoPacer::import_state(const StateReader& r) {
+  const TimePoint next_free = r.time("next_free");
+  delayed_starts_ = r.get<std::uint64_t>("delayed_starts");
+  next_free_ = next_free;
 }
 
 }  // namespace oegw::canopen

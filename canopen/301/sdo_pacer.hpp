@@ -19,6 +19,9 @@
 
 namespace oegw::canopen {
 
+class StateWriter;  // canopen/state.hpp
+class StateReader;
+
 class SdoPacer {
  public:
   // gap 0: no pacing (every request may start at once).
@@ -38,6 +41,11 @@ class SdoPacer {
   [[nodiscard]] TimePoint next_free() const { return next_free_; }
   // Requests that started after waiting for the gap (try_start's `waited`), each counted once.
   [[nodiscard]] std::uint64_t delayed_starts() const { return delayed_starts_; }
+
+  // Run-time state (canopen/state.hpp): when the next request may start, the count. The gap is
+  // configuration. Throws StateError.
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
 
  private:
   Duration gap_;

@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <array>
+#include <stdexcept>
 
 #include "canopen/301/crc16.hpp"
+#include "canopen/state.hpp"
 
 namespace oegw::canopen {
 
@@ -598,6 +600,48 @@ void SdoServer::flush() {
   }
   outbox_.clear();
   flushing_ = false;
+}
+
+void SdoServer::export_state(StateWriter& w) const {
+  if (busy() || arm_deadline_ || !outbox_.empty()) {
+    throw std::logic_error("SdoServer::export_state while a transfer is under way");
+  }
+  w.put("rx", rx_.raw());
+  w.put("tx", tx_.raw());
+  if (selected_) {
+    w.put("redirect.network", selected_->target.network);
+    w.put("redirect.node", selected_->target.node);
+    w.put("redirect.since", selected_->since);
+    w.put_bytes("redirect.request", selected_->request);
+  }
+  w.put("remote_generation", remote_generation_);
+}
+
+void SdoServer::import_state(const StateReader& r) {
+  if (busy()) throw std::logic_error("SdoServer::import_state while a transfer is under way");
+  const CobId rx{r.get<std::uint32_t>("rx")};
+  const CobId tx{r.get<std::uint32_t>("tx")};
+  std::optional<Redirect> selected;
+  if (r.has("redirect.node")) {
+    const StateReader s = r.in("redirect");
+    Redirect redirect;
+    // CiA 302-7: network 1..127 and node 1..127; a network indication naming the server itself
+    // ends a redirect rather than making one.
+    redirect.target.network = s.get<std::uint8_t>("network");
+    redirect.target.node = s.get<std::uint8_t>("node");
+    if (redirect.target.network < 1 || redirect.target.network > 127) s.fail("network", "is no network ID (1..127)");
+    if (redirect.target.node < 1 || redirect.target.node > 127) s.fail("node", "is no node-ID (1..127)");
+    redirect.since = s.time("since");
+    const std::vector<std::uint8_t> request = s.bytes("request");
+    if (request.size() != redirect.request.size()) s.fail("request", "is not the eight bytes of an SDO request");
+    std::copy(request.begin(), request.end(), redirect.request.begin());
+    selected = redirect;
+  }
+  const auto generation = r.get<std::uint32_t>("remote_generation");
+  rx_ = rx;
+  tx_ = tx;
+  selected_ = selected;
+  remote_generation_ = generation;
 }
 
 }  // namespace oegw::canopen

@@ -80,6 +80,9 @@
 
 namespace oegw::canopen {
 
+class StateWriter;  // canopen/state.hpp
+class StateReader;
+
 class SdoServer {
  public:
   static constexpr Duration kDefaultTimeout = std::chrono::seconds(1);
@@ -146,6 +149,14 @@ class SdoServer {
   void set_block_size(std::uint8_t blksize);
 
   [[nodiscard]] bool busy() const { return state_ != State::Idle; }
+
+  // Run-time state (canopen/state.hpp) of an idle server: its COB-IDs (they follow the node-ID
+  // and 1200h..127Fh), the redirect a network indication made, the remote generation. A
+  // transfer under way is not state: export and import throw std::logic_error while busy().
+  // The time-out, block size, bound target and remote are configuration. on_redirect is not
+  // called. import_state throws StateError.
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
   [[nodiscard]] CobId rx_cob_id() const { return rx_; }
   [[nodiscard]] CobId tx_cob_id() const { return tx_; }
 

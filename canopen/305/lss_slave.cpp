@@ -1,5 +1,7 @@
 #include "canopen/305/lss_slave.hpp"
 
+#include "canopen/state.hpp"
+
 namespace oegw::canopen {
 
 using namespace lss::cs;
@@ -198,6 +200,62 @@ void LssSlave::on_fastscan(const CanFrame& frame) {
   fastscan_pos_ = next;
   reply(kIdentifySlaveResponse);
   if (bit == 0 && next < sub) switch_mode(lss::Mode::Configuration);
+}
+
+void LssSlave::export_state(StateWriter& w) const {
+  w.put("active_node_id", active_node_id_.value());
+  w.put("pending_node_id", pending_node_id_.value());
+  w.put("pending_bit_timing", pending_bit_timing_);
+  w.put("mode", mode_);
+  w.put("selective_next", selective_next_);
+  w.put("identify_next", identify_next_);
+  w.put("identify.vendor", identify_.vendor);
+  w.put("identify.product", identify_.product);
+  w.put("identify.revision_low", identify_.revision_low);
+  w.put("identify.revision_high", identify_.revision_high);
+  w.put("identify.serial_low", identify_.serial_low);
+  w.put("identify.serial_high", identify_.serial_high);
+  w.put("fastscan_pos", fastscan_pos_);
+  w.put("stats.malformed", stats_.malformed);
+  w.put("stats.unknown", stats_.unknown);
+}
+
+void LssSlave::import_state(const StateReader& r) {
+  const NodeId active = r.node_id("active_node_id");
+  const NodeId pending = r.node_id("pending_node_id");
+  const auto bit_timing = r.get<std::uint8_t>("pending_bit_timing");
+  // Only a supported index is ever configured (on_configure_bit_timing) or stored.
+  if (bit_timing >= 16 || ((supported_bit_timings_ >> bit_timing) & 1u) == 0) {
+    r.fail("pending_bit_timing", "is no bit timing this node supports");
+  }
+  const auto mode = r.get<std::uint8_t>("mode");
+  if (mode > static_cast<std::uint8_t>(lss::Mode::Configuration)) r.fail("mode", "is no LSS mode");
+  // Each is 0 (none under way) or the command specifier the next step expects (CiA 305).
+  const auto selective_next = r.get<std::uint8_t>("selective_next");
+  if (selective_next != 0 && (selective_next <= kSwitchSelectiveVendor || selective_next > kSwitchSelectiveSerial)) {
+    r.fail("selective_next", "is no step of switch state selective");
+  }
+  const auto identify_next = r.get<std::uint8_t>("identify_next");
+  if (identify_next != 0 && (identify_next <= kIdentifyVendor || identify_next > kIdentifySerialHigh)) {
+    r.fail("identify_next", "is no step of identify remote slave");
+  }
+  const auto fastscan_pos = r.get<std::uint8_t>("fastscan_pos");
+  if (fastscan_pos > 3) r.fail("fastscan_pos", "is no part of the LSS address (0..3)");
+  const StateReader id = r.in("identify");
+  const lss::AddressRange identify{id.get<std::uint32_t>("vendor"),       id.get<std::uint32_t>("product"),
+                                   id.get<std::uint32_t>("revision_low"), id.get<std::uint32_t>("revision_high"),
+                                   id.get<std::uint32_t>("serial_low"),   id.get<std::uint32_t>("serial_high")};
+  const StateReader st = r.in("stats");
+  const Stats stats{st.get<std::uint64_t>("malformed"), st.get<std::uint64_t>("unknown")};
+  active_node_id_ = active;
+  pending_node_id_ = pending;
+  pending_bit_timing_ = bit_timing;
+  mode_ = static_cast<lss::Mode>(mode);
+  selective_next_ = selective_next;
+  identify_next_ = identify_next;
+  identify_ = identify;
+  fastscan_pos_ = fastscan_pos;
+  stats_ = stats;
 }
 
 }  // namespace oegw::canopen

@@ -32,6 +32,9 @@
 
 namespace oegw::canopen {
 
+class StateWriter;  // canopen/state.hpp
+class StateReader;
+
 class LssSlave {
  public:
   struct Callbacks {
@@ -69,6 +72,12 @@ class LssSlave {
   // pending one, which activate bit timing switches to.
   void set_bit_timing(std::uint8_t index) { pending_bit_timing_ = index; }
   [[nodiscard]] lss::BitTimings supported_bit_timings() const { return supported_bit_timings_; }
+
+  // Run-time state (canopen/state.hpp): the node-IDs and bit timing, the mode, how far a switch
+  // state selective, an identify or a fastscan has come, the counts. The address and the
+  // supported bit timings are configuration. Throws StateError.
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
 
  private:
   void reply(std::uint8_t cs, std::uint8_t b1 = 0, std::uint8_t b2 = 0);

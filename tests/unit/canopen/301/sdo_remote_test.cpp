@@ -4,7 +4,9 @@
 // server and back; `wire` records both directions.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -13,6 +15,7 @@
 #include "canopen/301/sdo_client.hpp"
 #include "canopen/301/sdo_remote.hpp"
 #include "canopen/301/sdo_server.hpp"
+#include "canopen/state.hpp"
 #include "sdo_test_support.hpp"
 
 using namespace oegw::canopen;
@@ -178,6 +181,39 @@ TEST_F(SdoRemoteTest, NetworkIndicationIsEchoedAndNamesTheTarget) {
   // Reserved bits in byte 0 are not checked; the answer is E0h.
   EXPECT_EQ(rx({0xE5, 0, 0, 0, 2, 0x21, 0, 0}), tx({0xE0, 0, 0, 0, 2, 0x21, 0, 0}));
   EXPECT_EQ(server.target(), (SdoTarget{2, 0x21}));
+}
+
+// Run-time state (SdoServer::export_state): the target a network indication named goes on for
+// the next transfers of a copy, with when and by which request it was named; a fresh server
+// reads its own dictionary.
+TEST_F(SdoRemoteTest, TheRedirectANetworkIndicationMadeCarriesOverInTheState) {
+  select_node20();
+  StateWriter w;
+  server.export_state(w);
+  std::vector<CanFrame> sent;
+  SdoServer copy{dict.od, [&](const CanFrame& f) { sent.push_back(f); }, NodeId{3}};
+  copy.set_remote(&remote);
+  std::vector<std::string> changes;
+  copy.on_redirect = [&](const auto&, const auto& after, SdoServer::RedirectChange) {
+    changes.push_back(after ? "to " + std::to_string(after->target.node) : "none");
+  };
+  copy.import_state(StateReader::parse(w.text()));
+  EXPECT_TRUE(changes.empty()) << "an import tells nobody";
+  EXPECT_EQ(copy.target(), kNode20);
+  ASSERT_TRUE(copy.redirect());
+  EXPECT_EQ(copy.redirect()->since, t);
+  EXPECT_EQ(copy.redirect()->request, (std::array<std::uint8_t, 8>{0xE0, 0, 0, 0, 2, 0x20, 0, 0}));
+  copy.on_frame(CanFrame(kRx, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}), t);
+  ASSERT_EQ(remote.calls.size(), 1u);
+  EXPECT_EQ(remote.calls[0].target, kNode20);
+  EXPECT_TRUE(sent.empty()) << "the remote's answer is awaited";
+  SdoServer fresh{dict.od, [&](const CanFrame& f) { sent.push_back(f); }, NodeId{3}};
+  fresh.set_remote(&remote);
+  fresh.on_frame(CanFrame(kRx, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}), t);
+  EXPECT_EQ(remote.calls.size(), 1u);
+  EXPECT_EQ(sent.size(), 1u) << "answered from its own dictionary";
+  // A transfer under way is not state.
+  EXPECT_THROW(copy.export_state(w), std::logic_error);
 }
 
 TEST_F(SdoRemoteTest, NetworkIndicationNamingTheServerItselfReturnsToTheOwnDictionary) {

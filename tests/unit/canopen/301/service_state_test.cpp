@@ -6,6 +6,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,8 @@
 #include "canopen/301/heartbeat.hpp"
 #include "canopen/301/nmt_slave.hpp"
 #include "canopen/301/pdo.hpp"
+#include "canopen/301/sdo_client.hpp"
+#include "canopen/301/sdo_pacer.hpp"
 #include "canopen/301/sync.hpp"
 #include "canopen/state.hpp"
 
@@ -386,6 +389,58 @@ TEST(NmtState, AStateOutsideTheStateMachineIsRefused) {
   } catch (const StateError& e) {
     EXPECT_STREQ(e.what(), "state: 'state' = 3 is no NMT state");
   }
+}
+
+// ---- SDO client and pacer ----------------------------------------------------------------
+
+// The pacer's next free slot (a master's clients share it) and its count carry over: a copy
+// refuses a request as early as the original would.
+TEST(SdoPacerState, TheNextFreeSlotCarriesOver) {
+  SdoPacer a(10ms);
+  SdoPacer b(10ms);
+  SdoPacer fresh(10ms);
+  ASSERT_TRUE(a.try_start(t0));
+  ASSERT_FALSE(a.try_start(t0 + 4ms));
+  ASSERT_TRUE(a.try_start(t0 + 10ms, true));  // waited: a delayed start
+  copy_state(a, b);
+  EXPECT_EQ(b.delayed_starts(), 1u);
+  EXPECT_FALSE(b.try_start(t0 + 15ms));
+  EXPECT_TRUE(fresh.try_start(t0 + 15ms));
+  EXPECT_EQ(b.next_free(), a.next_free());
+}
+
+// An idle client's last ticket (each request's name, unique per client), stale-answer count and
+// the time it was last given carry over: a copy names its next request as the original would,
+// and awaits its answer as long.
+TEST(SdoClientState, AnIdleClientsTicketsCountsAndTimeCarryOver) {
+  Log log_a;
+  Log log_b;
+  Log log_fresh;
+  SdoClient a(log_a.sink(), NodeId{5});
+  SdoClient b(log_b.sink(), NodeId{5});
+  SdoClient fresh(log_fresh.sink(), NodeId{5});
+  log_a.now = t0 + 1s;
+  a.advance(log_a.now);
+  a.upload(0x1000, 0, [](SdoAbortCode, std::vector<std::uint8_t>) {});
+  a.advance(log_a.now);                                                          // the request starts
+  a.on_frame(CanFrame{0x585, {0x43, 0x08, 0x10, 0x00, 0, 0, 0, 0}}, log_a.now);  // 1008h: stale
+  a.on_frame(CanFrame{0x585, {0x43, 0x00, 0x10, 0x00, 0x91, 0x01, 0x0F, 0x00}}, log_a.now + 2ms);
+  ASSERT_TRUE(a.idle());
+  log_a.lines.clear();
+  copy_state(a, b);
+  EXPECT_EQ(b.stale_answers(), 1u);
+  for (auto [c, log] : {std::pair{&a, &log_a}, std::pair{&b, &log_b}, std::pair{&fresh, &log_fresh}}) {
+    log->now = t0 + 1s + 2ms;
+    // Queued outside on_frame()/advance(): due at the time the client was last given.
+    log->add("ticket " + std::to_string(c->upload(0x1018, 1, [](SdoAbortCode, std::vector<std::uint8_t>) {})));
+    const std::optional<TimePoint> due = c->next_deadline();
+    log->add(due ? "answer due at " + std::to_string((*due - t0) / 1ms) + " ms" : "no deadline");
+  }
+  EXPECT_EQ(log_b.lines, log_a.lines);
+  EXPECT_NE(log_fresh.lines, log_a.lines);
+  // Busy: a transfer under way is not state.
+  StateWriter w;
+  EXPECT_THROW(a.export_state(w), std::logic_error);
 }
 
 }  // namespace
