@@ -1,6 +1,10 @@
 #include "canopen/master.hpp"
 
 #include <algorithm>
+#include <stdexcept>
+#include <string>
+
+#include "canopen/state.hpp"
 
 namespace oegw::canopen {
 
@@ -136,6 +140,51 @@ std::optional<TimePoint> Master::next_deadline() const {
     if (t && (!best || *t < *best)) best = t;
   }
   return best;
+}
+
+std::optional<NodeId> Master::busy_sdo_server() const {
+  for (const auto& [id, client] : sdo_)
+    if (!client->idle()) return NodeId{id};
+  return std::nullopt;
+}
+
+void Master::export_state(StateWriter& w) const {
+  if (const auto busy = busy_sdo_server()) {
+    throw std::logic_error("Master::export_state: the SDO client of node " + std::to_string(busy->value()) +
+                           " has a transfer under way");
+  }
+  {
+    const StateWriter::Scope scope(w, "od");
+    od_.export_values(w);
+  }
+  w.put_state("heartbeat", hb_);
+  w.put_state("pacer", sdo_pacer_);
+  w.put("produces_sync", sync_ != nullptr);
+  if (sync_) w.put_state("sync", *sync_);
+  std::vector<std::pair<std::uint8_t, const SdoClient*>> clients;
+  for (const auto& [id, client] : sdo_) clients.emplace_back(id, client.get());
+  w.put_list("sdo", clients.size(), [&](std::size_t i) {
+    w.put("server", clients[i].first);
+    clients[i].second->export_state(w);
+  });
+}
+
+void Master::import_state(const StateReader& r) {
+  if (r.get<bool>("produces_sync") != (sync_ != nullptr)) {
+    r.fail("produces_sync", sync_ ? "differs: this master produces SYNC" : "differs: this master produces no SYNC");
+  }
+  od_.import_values(r.in("od"));
+  hb_.reload();
+  emcy_.reload();
+  if (sync_) sync_->reload();
+  hb_.import_state(r.in("heartbeat"));
+  sdo_pacer_.import_state(r.in("pacer"));
+  if (sync_) sync_->import_state(r.in("sync"));
+  r.read_list("sdo", 127, [&](const StateReader& item) {
+    const NodeId server = item.node_id("server");
+    if (!server.valid()) item.fail("server", "is no node-ID (1..127)");
+    sdo(server).import_state(item);
+  });
 }
 
 }  // namespace oegw::canopen

@@ -54,6 +54,17 @@ class Master {
   // The SYNC period the master produces (MasterConfig::sync_period; 0: none).
   [[nodiscard]] Duration sync_period() const { return cfg_.sync_period; }
 
+  // The first server whose SDO client has a transfer under way or queued; nullopt when all idle.
+  [[nodiscard]] std::optional<NodeId> busy_sdo_server() const;
+  // Run-time state (canopen/state.hpp): the master's dictionary values (the 1016h entries it
+  // watches), the heartbeat consumer, the pacer, the SYNC producer and each SDO client (by its
+  // server's node-ID; the import creates them). Only with every client idle: a transfer under
+  // way throws std::logic_error (busy_sdo_server()). For a Master of the same configuration on
+  // a fresh dictionary; no callback is called. Throws StateError; a Master whose import threw
+  // is thrown away.
+  void export_state(StateWriter& w) const;
+  void import_state(const StateReader& r);
+
   std::function<void(NodeId)> on_heartbeat_timeout;
   // A boot-up message from any node (watched or not).
   std::function<void(NodeId)> on_boot;

@@ -528,21 +528,17 @@ void Node::export_state(StateWriter& w) const {
   w.put("bus_off", bus_off_);
   w.put("error_passive", error_passive_);
   w.put("store_refused", store_refused_);
-  const auto part = [&](std::string_view key, const auto& service) {
-    const StateWriter::Scope scope(w, key);
-    service.export_state(w);
-  };
   {
     const StateWriter::Scope scope(w, "od");
     od_.export_values(w);
   }
-  part("nmt", nmt_);
-  part("heartbeat_producer", hb_producer_);
-  part("heartbeat_consumer", hb_consumer_);
-  part("emcy", emcy_);
-  part("sync", sync_);
-  part("pdo", pdo_);
-  part("lss", lss_);
+  w.put_state("nmt", nmt_);
+  w.put_state("heartbeat_producer", hb_producer_);
+  w.put_state("heartbeat_consumer", hb_consumer_);
+  w.put_state("emcy", emcy_);
+  w.put_state("sync", sync_);
+  w.put_state("pdo", pdo_);
+  w.put_state("lss", lss_);
   w.put_list("sdo", sdo_server_count(), [&](std::size_t k) { sdo_server(k).export_state(w); });
 }
 

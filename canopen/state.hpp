@@ -66,6 +66,12 @@ class StateWriter {
   void put_bytes(std::string_view key, std::span<const std::uint8_t> bytes);
   // Under `key`: id, rtr, extended, dlc, data (empty for a remote frame).
   void put(std::string_view key, const CanFrame& frame);
+  // A part's own state under `key`: part.export_state(*this).
+  template <class Part>
+  void put_state(std::string_view key, const Part& part) {
+    const Scope scope(*this, key);
+    part.export_state(*this);
+  }
   // A list: `key.count`, then item i under `key.i`, written by item(i).
   template <class Fn>
   void put_list(std::string_view key, std::size_t count, Fn&& item) {

@@ -17,13 +17,9 @@
 
 #include "canopen/301/emcy.hpp"
 #include "canopen/can_frame.hpp"
+#include "canopen/state.hpp"
 #include "canopen/types.hpp"
 #include "subdevices/signal.hpp"
-
-namespace oegw::canopen {
-class StateWriter;  // canopen/state.hpp
-class StateReader;
-}  // namespace oegw::canopen
 
 namespace oegw::subdevices {
 

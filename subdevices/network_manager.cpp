@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cstdio>
 #include <memory>
+#include <stdexcept>
+
+#include "canopen/state.hpp"
 
 namespace oegw::subdevices {
 
@@ -668,6 +671,170 @@ std::optional<TimePoint> NetworkManager::next_deadline() const {
   if (step_held) sooner(late_heartbeat());
   sooner(lss_.next_deadline());
   return best;
+}
+
+std::string NetworkManager::busy() const {
+  if (own_lss_ != 0) return "commissioning a device by LSS";
+  if (client_scan_running()) return "an LSS scan runs";
+  if (!lss_.idle()) return "an LSS request is under way";
+  for (const auto& m : nodes_) {
+    if (is_configuring(*m)) return m->settings.name + ": configuring (an SDO request on the wire or held)";
+    if (m->poll_pending) return m->settings.name + ": its fault poll is on the wire";
+  }
+  // A boot-up probe, or a transfer a reboot overtook that still runs to its end on the wire.
+  if (const auto server = master_.busy_sdo_server()) {
+    const Managed* m = nullptr;
+    for (const auto& n : nodes_)
+      if (n->settings.node == *server) m = n.get();
+    return (m != nullptr ? m->settings.name : "node " + std::to_string(server->value())) +
+           ": an SDO request on the wire";
+  }
+  return {};
+}
+
+namespace {
+
+void put_text(canopen::StateWriter& w, std::string_view key, const std::optional<std::string>& text) {
+  if (text) w.put_bytes(key, std::span(reinterpret_cast<const std::uint8_t*>(text->data()), text->size()));
+}
+
+std::optional<std::string> text(const canopen::StateReader& r, std::string_view key) {
+  if (!r.has(key)) return std::nullopt;
+  const std::vector<std::uint8_t> b = r.bytes(key);
+  if (b.size() > NodeDiagnostics::kMaxText) r.fail(key, "is longer than a diagnostic text is kept");
+  return std::string(b.begin(), b.end());
+}
+
+}  // namespace
+
+void NetworkManager::export_state(canopen::StateWriter& w) const {
+  if (const std::string why = busy(); !why.empty()) throw std::logic_error("NetworkManager::export_state: " + why);
+  w.put("now", now_);
+  w.put("counters.unknown_pdo", counters_.unknown_pdo);
+  w.put("counters.unknown_emcy", counters_.unknown_emcy);
+  w.put("counters.reboots_seen", counters_.reboots_seen);
+  w.put("counters.gateway_resets", counters_.gateway_resets);
+  // The routes in force: the node that routed a COB-ID first keeps it (route()).
+  std::vector<std::pair<std::uint32_t, NodeId>> routes;
+  for (const auto& [cob, m] : by_cob_) routes.emplace_back(cob, m->settings.node);
+  w.put_list("routes", routes.size(), [&](std::size_t i) {
+    w.put("cob", routes[i].first);
+    w.put("node", routes[i].second.value());
+  });
+  w.put_list("nodes", nodes_.size(), [&](std::size_t i) {
+    const Managed& m = *nodes_[i];
+    w.put("node", m.settings.node.value());
+    w.put("state", m.state);
+    w.put("generation", m.generation);
+    w.put("deadline", m.deadline);
+    w.put("backoff", m.backoff);
+    w.put("started_once", m.started_once);
+    w.put("reset_node_next", m.reset_node_next);
+    w.put("reset_node_sent", m.reset_node_sent);
+    w.put("boot_up_owed", m.boot_up_owed);
+    w.put("probe_at", m.probe_at);
+    w.put("probe_gap", m.probe_gap);
+    w.put("held_since", m.held_since);
+    w.put_list("held", m.held.size(), [&](std::size_t k) {
+      w.put("frame", m.held[k].first);
+      w.put("at", m.held[k].second);
+    });
+    w.put("reported.wrong_length", m.reported.wrong_length);
+    w.put("reported.unknown_cob", m.reported.unknown_cob);
+    w.put("reported.unknown_emcy", m.reported.unknown_emcy);
+    w.put("reported.mismatches", m.reported.mismatches);
+    w.put("counted.frames", m.counted.frames);
+    w.put("counted.reboots_seen", m.counted.reboots_seen);
+    w.put("counted.gateway_resets", m.counted.gateway_resets);
+    w.put("poll_at", m.poll_at);
+    w.put("last_heartbeat", m.last_heartbeat);
+    const NodeDiagnostics& d = m.boot.diagnostics();
+    {
+      const canopen::StateWriter::Scope diag(w, "diagnostics");
+      w.put("device_type", d.device_type);
+      w.put("vendor_id", d.vendor_id);
+      w.put("product_code", d.product_code);
+      w.put("revision", d.revision);
+      w.put("serial", d.serial);
+      put_text(w, "device_name", d.device_name);
+      put_text(w, "hardware_version", d.hardware_version);
+      put_text(w, "software_version", d.software_version);
+      w.put("error_register", d.error_register);
+    }
+    w.put_state("driver", *m.driver);
+  });
+}
+
+void NetworkManager::import_state(const canopen::StateReader& r) {
+  if (own_lss_ != 0 || client_scan_running() || !lss_.idle()) {
+    throw std::logic_error("NetworkManager::import_state while LSS work is under way");
+  }
+  const canopen::StateReader c = r.in("counters");
+  const NetworkCounters counters{c.get<std::uint64_t>("unknown_pdo"), c.get<std::uint64_t>("unknown_emcy"),
+                                 c.get<std::uint64_t>("reboots_seen"), c.get<std::uint64_t>("gateway_resets")};
+  std::size_t k = 0;
+  r.read_list("nodes", nodes_.size(), [&](const canopen::StateReader& item) {
+    Managed& m = *nodes_[k++];
+    if (item.node_id("node") != m.settings.node) item.fail("node", "differs: the state is of another configuration");
+    const auto state = item.get<std::uint8_t>("state");
+    if (state > static_cast<std::uint8_t>(NodeState::Refused)) item.fail("state", "is no node state");
+    // A node under configuration has a request on the wire or held: busy(), never exported.
+    if (static_cast<NodeState>(state) == NodeState::Configuring && !item.has("held_since")) {
+      item.fail("state", "is configuring with no start held: a boot under way is no state");
+    }
+    m.driver->import_state(item.in("driver"));
+    m.state = static_cast<NodeState>(state);
+    m.generation = item.get<std::uint64_t>("generation");
+    m.deadline = item.optional_time("deadline");
+    m.backoff = item.duration("backoff");
+    m.started_once = item.get<bool>("started_once");
+    m.reset_node_next = item.get<bool>("reset_node_next");
+    m.reset_node_sent = item.get<bool>("reset_node_sent");
+    m.boot_up_owed = item.get<bool>("boot_up_owed");
+    m.probe_at = item.optional_time("probe_at");
+    m.probe_gap = item.duration("probe_gap");
+    m.held_since = item.optional_time("held_since");
+    m.held.clear();
+    // The last PDO per COB-ID the driver consumes (on_frame, Starting).
+    item.read_list("held", m.driver->consumed_cob_ids().size(),
+                   [&](const canopen::StateReader& h) { m.held.emplace_back(h.frame("frame"), h.time("at")); });
+    const canopen::StateReader rep = item.in("reported");
+    m.reported = InputCounters{rep.get<std::uint64_t>("wrong_length"), rep.get<std::uint64_t>("unknown_cob"),
+                               rep.get<std::uint64_t>("unknown_emcy"), rep.get<std::uint64_t>("mismatches")};
+    const canopen::StateReader cnt = item.in("counted");
+    m.counted = NodeCounters{cnt.get<std::uint64_t>("frames"), cnt.get<std::uint64_t>("reboots_seen"),
+                             cnt.get<std::uint64_t>("gateway_resets")};
+    m.poll_at = item.optional_time("poll_at");
+    m.poll_pending = false;
+    m.step_held = false;
+    m.last_heartbeat = item.optional_time("last_heartbeat");
+    const canopen::StateReader d = item.in("diagnostics");
+    m.boot.restore_diagnostics(NodeDiagnostics{
+        .device_type = d.optional<std::uint32_t>("device_type"),
+        .vendor_id = d.optional<std::uint32_t>("vendor_id"),
+        .product_code = d.optional<std::uint32_t>("product_code"),
+        .revision = d.optional<std::uint32_t>("revision"),
+        .serial = d.optional<std::uint32_t>("serial"),
+        .device_name = text(d, "device_name"),
+        .hardware_version = text(d, "hardware_version"),
+        .software_version = text(d, "software_version"),
+        .error_register = d.optional<std::uint8_t>("error_register"),
+    });
+  });
+  if (k != nodes_.size()) r.fail("nodes.count", "differs: the state is of another configuration");
+  by_cob_.clear();
+  r.read_list("routes", 4096, [&](const canopen::StateReader& item) {
+    const auto cob = item.get<std::uint32_t>("cob");
+    Managed* m = find(item.node_id("node"));
+    if (m == nullptr) item.fail("node", "is no node of this configuration");
+    const std::vector<std::uint32_t> consumed = m->driver->consumed_cob_ids();
+    if (std::find(consumed.begin(), consumed.end(), cob) == consumed.end()) {
+      item.fail("cob", "is no COB-ID that node's driver consumes");
+    }
+    if (!by_cob_.try_emplace(cob, m).second) item.fail("cob", "is routed twice");
+  });
+  counters_ = counters;
+  now_ = r.time("now");
 }
 
 }  // namespace oegw::subdevices

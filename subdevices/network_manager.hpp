@@ -154,6 +154,20 @@ class NetworkManager {
   // True while commission() runs.
   [[nodiscard]] bool own_lss_busy() const { return own_lss_ != 0; }
 
+  // Why no run-time state can be taken now, or "" when it can: the state holds no request on
+  // the wire (an SDO transfer's callback, an LSS exchange), so none may be under way: "grip:
+  // configuring (an SDO request on the wire)".
+  [[nodiscard]] std::string busy() const;
+  // Run-time state (canopen/state.hpp): each node's boot state and its timers, what its last
+  // boot read (diagnostics), the counters, the PDOs held for its proof of life, and its
+  // driver's state; which node each PDO COB-ID is routed to; the counters. The Master's state
+  // is its own (Master::export_state). Only when busy() is "" (else std::logic_error). The
+  // import is for a manager given the same nodes by add(), in the same order, before start():
+  // nothing is sent, no callback is called. Throws StateError; a manager whose import threw is
+  // thrown away.
+  void export_state(canopen::StateWriter& w) const;
+  void import_state(const canopen::StateReader& r);
+
   [[nodiscard]] NodeState state(std::string_view name) const;
   [[nodiscard]] Driver* driver(std::string_view name);
   [[nodiscard]] const Driver* driver(std::string_view name) const;

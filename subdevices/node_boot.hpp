@@ -12,6 +12,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "canopen/types.hpp"
@@ -105,6 +106,8 @@ class NodeBoot {
   [[nodiscard]] std::string check_error_register();
 
   [[nodiscard]] const NodeDiagnostics& diagnostics() const { return diag_; }
+  // What an earlier boot read, given back (a run-time state's import): no boot is under way.
+  void restore_diagnostics(NodeDiagnostics d) { diag_ = std::move(d); }
   // The writes of this boot (Driver::apply_boot_writes: the event timers actually written).
   [[nodiscard]] std::vector<SdoWrite> writes() const;
 

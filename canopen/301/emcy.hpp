@@ -153,6 +153,8 @@ class EmcyConsumer {
   bool on_frame(const CanFrame& frame, TimePoint now);
   void advance(TimePoint) {}
   [[nodiscard]] std::optional<TimePoint> next_deadline() const { return std::nullopt; }
+  // Reads 1028h again: after values were set without their hooks (a state's import).
+  void reload() { rebuild(); }
 
  private:
   void rebuild();

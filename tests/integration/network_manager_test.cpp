@@ -4,16 +4,22 @@
 // PDO routing and bad input.
 #include "subdevices/network_manager.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <unistd.h>
 #include <algorithm>
 
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "canopen/node.hpp"
+#include "canopen/state.hpp"
 #include "virtual_network.hpp"
 
 using namespace oegw::canopen;
@@ -707,6 +713,256 @@ TEST(DriverFreshness, TheDeadlineFollowsTheEventTimerWrittenAtBoot) {
   d.pdo_received(0x185, t0 + 400ms);  // a late PDO, then its value
   d.feed(0, 8, t0 + 400ms);
   EXPECT_EQ(d.value(0).status, SignalStatus::Valid);
+}
+
+// ---- run-time state (NetworkManager::export_state, Master::export_state) -------------------
+
+// A cab of one device and the gateway's downstream side, whose every act is logged with its
+// time: node states with their reasons, the input's changes, and the frames on the bus.
+struct Rig {
+  oegw::testing::VirtualNetwork net;
+  ObjectDictionary master_od;
+  Master master{master_od, net.sink("gateway"), MasterConfig{.heartbeat_entries = 8, .sdo_timeout = 100ms}};
+  NetworkManager manager{master};
+  ByteDriver* driver = nullptr;
+  std::unique_ptr<Device> dev;
+  bool dev_attached = true;  // a detached device runs no timers: its state stands still
+  std::vector<std::string> log;
+
+  // `event_timer_ms`: the TPDO's, written by the mapping file's `sdo` list (0: on change only).
+  explicit Rig(std::uint16_t event_timer_ms = 50) {
+    net.attach("gateway", manager);
+    auto drv = std::make_unique<ByteDriver>(kNode, net.sink("gateway"));
+    driver = drv.get();
+    driver->on_change = [this](std::size_t, const SignalValue& v) {
+      add("in " + std::to_string(v.value) + " " + std::string(to_string(v.status)));
+    };
+    manager.on_node_state = [this](const std::string& name, NodeState s, const std::string& why) {
+      add(name + " " + std::string(to_string(s)) + ": " + why);
+    };
+    manager.on_application_reset = [this](const std::string& name) { add(name + ": application reset"); };
+    NodeSettings settings{.name = "grip", .node = kNode, .heartbeat_ms = 100, .mandatory = true};
+    settings.sdo.push_back(SdoWrite{0x1800, 5, encode<std::uint16_t>(event_timer_ms), "TPDO1 event timer"});
+    EXPECT_TRUE(manager.add(settings, std::move(drv)));
+    dev = std::make_unique<Device>(net);
+    net.bus().set_logging(true);
+  }
+  void add(const std::string& what) {
+    log.push_back(std::to_string(net.now().time_since_epoch() / 1ms) + " ms: " + what);
+  }
+  // Until the manager holds no request on the wire (a snapshot's point, as the recorder waits).
+  void until_quiet() {
+    for (int i = 0; i < 1000 && !manager.busy().empty(); ++i) net.run_for(1ms);
+    ASSERT_EQ(manager.busy(), "");
+  }
+  void pull_cable() {
+    net.detach("device");
+    dev_attached = false;
+  }
+  void plug_in() {
+    net.attach("device", *dev->node);
+    dev_attached = true;
+  }
+  void clear() {
+    log.clear();
+    net.bus().clear_log();
+  }
+  [[nodiscard]] std::vector<std::string> frames() {
+    std::vector<std::string> out;
+    for (const auto& r : net.bus().log())
+      out.push_back(std::to_string(r.time.time_since_epoch() / 1ms) + " ms: " + r.to_string());
+    return out;
+  }
+};
+
+template <class T>
+std::string state_of(const T& part) {
+  StateWriter w;
+  part.export_state(w);
+  return w.text();
+}
+
+// Rig B takes over from rig A at A's time: device, master and manager each from A's state.
+void take_over(Rig& a, Rig& b) {
+  b.net.run_for(a.net.now() - b.net.now());
+  const std::string device = state_of(*a.dev->node);
+  const std::string master = state_of(a.master);
+  const std::string manager = state_of(a.manager);
+  const StateReader rd = StateReader::parse(device);
+  const StateReader rm = StateReader::parse(master);
+  const StateReader rn = StateReader::parse(manager);
+  if (!a.dev_attached) b.pull_cable();
+  b.dev->node->import_state(rd);
+  b.master.import_state(rm);
+  b.manager.import_state(rn);
+  EXPECT_THAT(rm.unread(), ::testing::IsEmpty()) << master;
+  EXPECT_THAT(rn.unread(), ::testing::IsEmpty()) << manager;
+  EXPECT_EQ(state_of(b.master), master) << "a round trip changes the state";
+  EXPECT_EQ(state_of(b.manager), manager) << "a round trip changes the state";
+  b.net.settle();
+  a.clear();
+  b.clear();
+}
+
+// Twin test of the downstream side: B, given A's state at a quiet moment, then living through the
+// same incident, does and reports exactly what A does, at the same times; the same cab started
+// afresh at that moment does not.
+void expect_twins(const std::function<void(Rig&)>& before, const std::function<void(Rig&)>& incident,
+                  std::uint16_t event_timer_ms = 50) {
+  Rig a(event_timer_ms);
+  before(a);
+  a.until_quiet();
+  Rig b(event_timer_ms);
+  take_over(a, b);
+  EXPECT_EQ(b.driver->value(0), a.driver->value(0)) << "the input as it stood";
+  Rig fresh(event_timer_ms);
+  fresh.net.run_for(a.net.now() - fresh.net.now());
+  (void)fresh.dev->node->start(fresh.net.now());
+  fresh.manager.start(fresh.net.now());
+  fresh.net.settle();
+  fresh.clear();
+  for (Rig* r : {&a, &b, &fresh}) incident(*r);
+  EXPECT_EQ(b.log, a.log);
+  EXPECT_EQ(b.frames(), a.frames());
+  EXPECT_NE(fresh.log, a.log);
+  EXPECT_EQ(b.manager.node_counters("grip").frames, a.manager.node_counters("grip").frames);
+  EXPECT_EQ(b.manager.counters().gateway_resets, a.manager.counters().gateway_resets);
+}
+
+// Booted up to the NMT start: the gateway waits for the proof of life.
+void start_until_started(Rig& r) {
+  (void)r.dev->node->start(r.net.now());
+  r.net.settle();
+  r.manager.start(r.net.now());
+  for (int i = 0; i < 100 && r.manager.state("grip") != NodeState::Starting; ++i) r.net.run_for(1ms);
+  ASSERT_EQ(r.manager.state("grip"), NodeState::Starting);
+}
+
+void boot(Rig& r) {
+  (void)r.dev->node->start(r.net.now());
+  r.net.settle();
+  r.manager.start(r.net.now());
+  r.net.run_for(300ms);
+  ASSERT_EQ(r.manager.state("grip"), NodeState::Operational);
+}
+
+// The device reboots on its own (a reboot seen: the gateway had started it), then its cable is
+// pulled and plugged back: the heartbeat is lost at the same time, the retries back off as the
+// original's, the node is found and booted again.
+void reboot_and_cable_pull(Rig& r) {
+  (void)r.dev->od.set<std::uint8_t>(0x6000, 1, 9);
+  r.net.run_for(30ms);
+  r.dev->node->nmt().reset(false, r.net.now());
+  r.net.run_for(500ms);
+  r.add("reboots seen " + std::to_string(r.manager.counters().reboots_seen));
+  r.pull_cable();
+  r.net.run_for(2500ms);
+  r.plug_in();
+  r.net.run_for(3s);
+}
+
+TEST(NetworkManagerState, AnOperationalNodeGoesOnAsTheOriginal) {
+  expect_twins(
+      [](Rig& r) {
+        boot(r);
+        (void)r.dev->od.set<std::uint8_t>(0x6000, 1, 7);
+        // The gateway holds an error the device reported: its next boot resets the application.
+        r.manager.reset_application_next("grip");
+        r.net.run_for(125ms);  // between two heartbeats and two event-timer PDOs
+      },
+      reboot_and_cable_pull);
+}
+
+// The cable pulled just before the state was taken: the heartbeat is lost at the time the
+// original's consumer (CiA 301 §7.2.8.3.2.2: the consumer time from the last heartbeat) says,
+// though no heartbeat reaches the copy to start its own.
+TEST(NetworkManagerState, AnOverdueHeartbeatIsLostAtTheOriginalsTime) {
+  expect_twins(
+      [](Rig& r) {
+        boot(r);
+        r.pull_cable();
+        r.net.run_for(60ms);
+        ASSERT_EQ(r.manager.state("grip"), NodeState::Operational);
+      },
+      [](Rig& r) {
+        r.net.run_for(2s);
+        r.plug_in();
+        r.net.run_for(3s);
+      });
+}
+
+TEST(NetworkManagerState, AMissingNodeIsRetriedAsTheOriginalWouldHave) {
+  expect_twins(
+      [](Rig& r) {
+        boot(r);
+        r.pull_cable();
+        r.net.run_for(1700ms);  // lost, then one retry's boot-up wait with its probes
+      },
+      [](Rig& r) {
+        r.net.run_for(4s);  // absent longer: the probes' gaps and the back-off double on
+        r.plug_in();
+        r.net.run_for(5s);
+      });
+}
+
+// Started, its PDO came before its first heartbeat in operational: held, and passed on with its
+// own time when the proof of life comes (a TPDO sent on change only: none follows it).
+TEST(NetworkManagerState, PdosHeldForTheProofOfLifeCarryOver) {
+  expect_twins(
+      [](Rig& r) {
+        start_until_started(r);
+        (void)r.dev->od.set<std::uint8_t>(0x6000, 1, 5);
+        r.net.run_for(1ms);
+        ASSERT_EQ(r.manager.state("grip"), NodeState::Starting);
+      },
+      [](Rig& r) { r.net.run_for(1s); }, 0);
+}
+
+TEST(NetworkManagerState, ANodeWaitingForItsProofOfLifeIsJudgedAsTheOriginal) {
+  expect_twins(
+      [](Rig& r) {
+        start_until_started(r);
+        r.pull_cable();  // its heartbeat in operational never comes
+      },
+      [](Rig& r) { r.net.run_for(3s); });
+}
+
+// A state is taken only when no request is on the wire: its callback is no state.
+TEST(NetworkManagerState, ABootUnderWayIsNoState) {
+  Rig a;
+  std::vector<std::string> seen;
+  a.manager.on_node_state = [&](const std::string&, NodeState s, const std::string&) {
+    if (s != NodeState::Configuring) return;
+    seen.push_back(a.manager.busy());
+    StateWriter w;
+    EXPECT_THROW(a.manager.export_state(w), std::logic_error);
+  };
+  boot(a);
+  ASSERT_FALSE(seen.empty());
+  EXPECT_EQ(seen.front(), "grip: configuring (an SDO request on the wire or held)");
+  EXPECT_EQ(a.manager.busy(), "");
+}
+
+TEST(NetworkManagerState, AStateOfAnotherConfigurationIsRefused) {
+  Rig a;
+  boot(a);
+  const std::string manager = state_of(a.manager);
+  oegw::testing::VirtualNetwork net;
+  ObjectDictionary od;
+  Master master{od, net.sink("gateway"), MasterConfig{.heartbeat_entries = 8}};
+  NetworkManager other{master};
+  ASSERT_TRUE(other.add(NodeSettings{.name = "grip", .node = NodeId{0x12}, .heartbeat_ms = 100},
+                        std::make_unique<ByteDriver>(NodeId{0x12}, net.sink("gateway"))));
+  try {
+    other.import_state(StateReader::parse(manager));
+    ADD_FAILURE() << "accepted";
+  } catch (const StateError& e) {
+    EXPECT_STREQ(e.what(), "state: 'nodes.0.node' differs: the state is of another configuration");
+  }
+  // A master producing SYNC cannot take the state of one that does not.
+  ObjectDictionary od2;
+  Master with_sync{od2, net.sink("gateway"), MasterConfig{.heartbeat_entries = 8, .sync_period = 10ms}};
+  EXPECT_THROW(with_sync.import_state(StateReader::parse(state_of(a.master))), StateError);
 }
 
 }  // namespace

@@ -15,31 +15,17 @@
 #include "canopen/305/lss_slave.hpp"
 #include "canopen/node.hpp"
 #include "canopen/state.hpp"
+#include "node_test_support.hpp"
+#include "state_twin.hpp"
 
 namespace oegw::canopen {
 namespace {
 
 using namespace std::chrono_literals;
-using ::testing::IsEmpty;
+using test_support::copy_state;
 
 constexpr NodeId kId{0x20};
 const TimePoint t0{std::chrono::seconds(100)};
-
-// The application's part of the dictionary: inputs, an output, a TPDO and an RPDO whose COB-ID
-// defaults follow the node-ID, and a setting.
-void build_od(ObjectDictionary& d) {
-  d.add_array(0x6000, "Read input 8-bit", DataType::Unsigned8, Access::ReadOnly, 2, {0}, true);
-  d.add_array(0x6200, "Write output 8-bit", DataType::Unsigned8, Access::ReadWrite, 1, {0}, true);
-  d.add_var(0x2000, "Setting", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(7));
-  install_tpdo(d, 1,
-               PdoParameters{.cob_id = cob::kTpdo1 + kId.value(),
-                             .transmission_type = 0xFF,
-                             .mapping = {pdo_map(0x6000, 1, 8), pdo_map(0x6000, 2, 8)}});
-  install_rpdo(d, 1,
-               PdoParameters{.cob_id = cob::kRpdo1 + kId.value(),
-                             .transmission_type = 0xFF,
-                             .mapping = {pdo_map(0x6200, 1, 8)}});
-}
 
 NodeConfig config() {
   NodeConfig c;
@@ -61,7 +47,7 @@ struct Side {
   std::vector<std::string> log;
 
   Side() {
-    build_od(od);
+    test_support::build_application_od(od, kId);
     node = std::make_unique<Node>(od, config(), [this](const CanFrame& f) { add("sent " + f.to_string()); });
     node->on_state_change = [this](NmtState s) { add("state " + std::to_string(static_cast<int>(s))); };
     node->on_heartbeat_timeout = [this](NodeId id) { add("heartbeat lost " + std::to_string(id.value())); };
@@ -83,18 +69,6 @@ struct Side {
     node->advance(now);
   }
 };
-
-template <class T>
-void copy_state(const T& from, T& to) {
-  StateWriter w;
-  from.export_state(w);
-  const StateReader r = StateReader::parse(w.text());
-  to.import_state(r);
-  EXPECT_THAT(r.unread(), IsEmpty()) << w.text();
-  StateWriter again;
-  to.export_state(again);
-  EXPECT_EQ(again.text(), w.text()) << "a round trip changes the state";
-}
 
 // A node that LSS gave node-ID 21h (its COB-IDs moved at the reset), operational, with a
 // setting written, a heartbeat consumer watching node 5, the controller error passive (8120h
@@ -224,7 +198,7 @@ TEST(NodeState, AStateOfAnotherConfigurationOrStateMachineIsRefused) {
   {
     // Three heartbeat consumers instead of two: another dictionary layout.
     ObjectDictionary od;
-    build_od(od);
+    test_support::build_application_od(od, kId);
     NodeConfig c = config();
     c.heartbeat_consumers = 3;
     Node other(od, c, [](const CanFrame&) {});
@@ -233,7 +207,7 @@ TEST(NodeState, AStateOfAnotherConfigurationOrStateMachineIsRefused) {
   {
     // No second SDO channel.
     ObjectDictionary od;
-    build_od(od);
+    test_support::build_application_od(od, kId);
     NodeConfig c = config();
     c.sdo_servers.clear();
     Node other(od, c, [](const CanFrame&) {});

@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "node_test_support.hpp"
+
 namespace oegw::canopen {
 namespace {
 
@@ -37,25 +39,7 @@ class NodeTest : public ::testing::Test {
   }
   ~NodeTest() override { std::filesystem::remove_all(dir_); }
 
-  // The application's part of the dictionary: inputs, an output, two TPDOs and an RPDO whose
-  // COB-ID defaults follow the node-ID.
-  static void build_od(ObjectDictionary& d) {
-    d.add_array(0x6000, "Read input 8-bit", DataType::Unsigned8, Access::ReadOnly, 2, {0}, true);
-    d.add_array(0x6200, "Write output 8-bit", DataType::Unsigned8, Access::ReadWrite, 1, {0}, true);
-    d.add_var(0x2000, "Setting", DataType::Unsigned16, Access::ReadWrite, encode<std::uint16_t>(7));
-    install_tpdo(d, 1,
-                 PdoParameters{.cob_id = cob::kTpdo1 + kId.value(),
-                               .transmission_type = 0xFF,
-                               .mapping = {pdo_map(0x6000, 1, 8), pdo_map(0x6000, 2, 8)}});
-    install_tpdo(d, 2,
-                 PdoParameters{.cob_id = cob::kTpdo2 + kId.value(),
-                               .transmission_type = 1,
-                               .mapping = {pdo_map(0x6000, 1, 8)}});
-    install_rpdo(d, 1,
-                 PdoParameters{.cob_id = cob::kRpdo1 + kId.value(),
-                               .transmission_type = 0xFF,
-                               .mapping = {pdo_map(0x6200, 1, 8)}});
-  }
+  static void build_od(ObjectDictionary& d) { test_support::build_application_od(d, kId); }
 
   NodeConfig config() const {
     NodeConfig c;

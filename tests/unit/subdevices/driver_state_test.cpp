@@ -16,6 +16,7 @@
 #include "subdevices/families.hpp"
 #include "subdevices/mcb402.hpp"
 #include "subdevices/novotechnik_406.hpp"
+#include "tests/unit/canopen/state_twin.hpp"
 
 using namespace oegw::subdevices;
 using oegw::canopen::CanFrame;
@@ -25,8 +26,8 @@ using oegw::canopen::StateReader;
 using oegw::canopen::StateWriter;
 using oegw::canopen::TimePoint;
 using namespace std::chrono_literals;
+using oegw::canopen::test_support::copy_state;
 using ::testing::Contains;
-using ::testing::IsEmpty;
 
 namespace {
 
@@ -71,17 +72,6 @@ std::unique_ptr<Driver> mcb402(bool booted = true) {
   EXPECT_NE(d, nullptr) << error;
   if (booted) d->apply_boot_writes(d->configuration());
   return d;
-}
-
-void copy_state(const Driver& from, Driver& to) {
-  StateWriter w;
-  from.export_state(w);
-  const StateReader r = StateReader::parse(w.text());
-  to.import_state(r);
-  EXPECT_THAT(r.unread(), IsEmpty()) << w.text();
-  StateWriter again;
-  to.export_state(again);
-  EXPECT_EQ(again.text(), w.text()) << "a round trip changes the state";
 }
 
 // [CO4013 "Emergency Messages"] cable break "20 31 81 00 8x": bit 0 X, bit 1 Y; the latch ends

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "../state_twin.hpp"
 #include "canopen/301/emcy.hpp"
 #include "canopen/301/heartbeat.hpp"
 #include "canopen/301/nmt_slave.hpp"
@@ -23,6 +24,7 @@ namespace oegw::canopen {
 namespace {
 
 using namespace std::chrono_literals;
+using test_support::copy_state;
 using ::testing::ElementsAre;
 using ::testing::IsEmpty;
 
@@ -38,19 +40,6 @@ struct Log {
     return [this](const CanFrame& f) { add("sent " + f.to_string()); };
   }
 };
-
-// A's state, read back: every key must be taken by B's import.
-template <class Svc>
-void copy_state(const Svc& from, Svc& to) {
-  StateWriter w;
-  from.export_state(w);
-  const StateReader r = StateReader::parse(w.text());
-  to.import_state(r);
-  EXPECT_THAT(r.unread(), IsEmpty()) << w.text();
-  StateWriter again;
-  to.export_state(again);
-  EXPECT_EQ(again.text(), w.text()) << "a round trip changes the state";
-}
 
 // Two dictionaries and logs for a service A and its copy B, and a third for a fresh one.
 struct Sides {
