@@ -546,7 +546,7 @@ void Node::import_state(const StateReader& r) {
   // CiA 305 table 0 (lss::kAllStandardBitTimings): the index of a bit rate.
   const auto bit_timing_index = [&](std::string_view key) {
     const auto i = r.get<std::uint8_t>(key);
-    if (i >= 16 || ((lss::kAllStandardBitTimings >> i) & 1u) == 0) r.fail(key, "is no CiA 305 table-0 index");
+    if (!lss::has_bit_timing(lss::kAllStandardBitTimings, i)) r.fail(key, "is no CiA 305 table-0 index");
     return i;
   };
   const TimePoint now = r.time("now");
@@ -584,6 +584,16 @@ void Node::import_state(const StateReader& r) {
   std::size_t channels = 0;
   r.read_list("sdo", sdo_server_count(), [&](const StateReader& item) { sdo_server(channels++).import_state(item); });
   if (channels != sdo_server_count()) r.fail("sdo.count", "differs from this node's SDO server channels");
+  // What a run keeps in step (handle_state, handle_reset, load_lss_file): a state where they
+  // differ is of no run, and would serve PDOs in a state the host stopped, or answer SDO on
+  // another node's COB-IDs.
+  if (gate != nmt_.state()) r.fail("gate", "differs from the NMT state");
+  if (lss_.active_node_id() != nmt_.node_id()) r.fail("lss.active_node_id", "differs from the NMT node-ID");
+  if (nmt_.node_id().valid() && nmt_.node_id() != cob_base) r.fail("cob_base", "differs from the NMT node-ID");
+  if (sdo_.rx_cob_id().raw() != cob::kSdoRx + cob_base.value() ||
+      sdo_.tx_cob_id().raw() != cob::kSdoTx + cob_base.value()) {
+    r.fail("sdo.0", "is not on 600h/580h + the node-ID (CiA 301 §7.3.5)");
+  }
   now_ = now;
   gate_ = gate;
   bit_timing_ = bit_timing;

@@ -58,6 +58,10 @@ void StateWriter::put_bytes(std::string_view key, std::span<const std::uint8_t> 
   text_.push_back('\n');
 }
 
+void StateWriter::put_text(std::string_view key, std::string_view text) {
+  put_bytes(key, std::span(reinterpret_cast<const std::uint8_t*>(text.data()), text.size()));
+}
+
 void StateWriter::put(std::string_view key, const CanFrame& frame) {
   const Scope s(*this, key);
   put("id", frame.id);
@@ -176,6 +180,12 @@ std::vector<std::uint8_t> StateReader::bytes(std::string_view key) const {
     out.push_back(static_cast<std::uint8_t>(hi << 4 | lo));
   }
   return out;
+}
+
+std::string StateReader::text(std::string_view key, std::size_t max) const {
+  const std::vector<std::uint8_t> b = bytes(key);
+  if (b.size() > max) fail(key, "is longer than " + std::to_string(max) + " bytes");
+  return std::string(b.begin(), b.end());
 }
 
 CanFrame StateReader::frame(std::string_view key) const {

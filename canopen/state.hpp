@@ -64,6 +64,8 @@ class StateWriter {
     if (value) put(key, *value);
   }
   void put_bytes(std::string_view key, std::span<const std::uint8_t> bytes);
+  // A text (a log line, a reason), as its bytes.
+  void put_text(std::string_view key, std::string_view text);
   // Under `key`: id, rtr, extended, dlc, data (empty for a remote frame).
   void put(std::string_view key, const CanFrame& frame);
   // A part's own state under `key`: part.export_state(*this).
@@ -138,6 +140,8 @@ class StateReader {
   [[nodiscard]] Duration duration(std::string_view key) const { return Duration{integer(key)}; }
   [[nodiscard]] std::optional<TimePoint> optional_time(std::string_view key) const;
   [[nodiscard]] std::vector<std::uint8_t> bytes(std::string_view key) const;
+  // A text written by put_text, of at most `max` bytes.
+  [[nodiscard]] std::string text(std::string_view key, std::size_t max) const;
   [[nodiscard]] CanFrame frame(std::string_view key) const;
   // A list written by put_list: item(reader of item i) for each, in order. A count above `max`
   // throws before any item is read.

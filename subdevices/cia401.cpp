@@ -607,11 +607,12 @@ void Cia401Driver::import_boot_learned(const canopen::StateReader& r) {
     p.count = item.optional<std::uint8_t>("count");
     // CiA 301 §7.5.2.36: at most 64 entries; the boot reads as many as the count says.
     if (p.count && *p.count > 64) item.fail("count", "is above 64 mapping entries");
+    p.failed = item.get<bool>("failed");
     p.entries.clear();
     item.read_list("entries", 64,
                    [&](const canopen::StateReader& e) { p.entries.push_back(e.optional<std::uint32_t>("raw")); });
-    if (p.count && !p.failed && p.entries.size() != *p.count) item.fail("entries.count", "differs from the count");
-    p.failed = item.get<bool>("failed");
+    // A read count makes room for as many entries (apply_mapping_read); none before it.
+    if (p.entries.size() != p.count.value_or(0)) item.fail("entries.count", "differs from the count");
     p.decoded.clear();
     p.bits = 0;
     if (p.complete() && !p.failed) build(p);
@@ -632,6 +633,16 @@ void Cia401Driver::import_family_state(const canopen::StateReader& r) {
   });
   if (outputs.size() != outputs_.size()) r.fail("outputs.count", "differs from this node's signals");
   outputs_ = std::move(outputs);
+  // The error register faults every input at once (on_boot_read, on_emcy), an output never.
+  std::optional<bool> inputs;
+  for (std::size_t i = 0; i < signals_.size(); ++i) {
+    const bool f = faulted(i);
+    if (signals_[i].output() ? f : inputs.value_or(f) != f) {
+      r.fail("error_register_read", "cannot explain signal " + std::to_string(i) + "'s fault: the error register " +
+                                        "faults every input or none, and no output");
+    }
+    if (!signals_[i].output()) inputs = f;
+  }
 }
 
 }  // namespace oegw::subdevices

@@ -360,10 +360,11 @@ void Driver::import_state(const canopen::StateReader& r) {
   const InputCounters counters{c.get<std::uint64_t>("wrong_length"), c.get<std::uint64_t>("unknown_cob"),
                                c.get<std::uint64_t>("unknown_emcy"), c.get<std::uint64_t>("mismatches")};
   alive_since_ = r.optional_time("alive_since");
-  import_family_state(r.in("family"));
   values_ = std::move(values);
   faults_ = std::move(faults);
   fault_count_ = static_cast<std::size_t>(std::count(faults_.begin(), faults_.end(), true));
+  // After the faults: the family checks them against the latches that set them.
+  import_family_state(r.in("family"));
   for (std::size_t k = 0; k < watches_.size(); ++k) {
     watches_[k].last = last[k];
     watches_[k].due = compute_due(watches_[k]);

@@ -247,8 +247,9 @@ class Driver {
   // when each watched PDO last came, the proof of life, the counters, then the family's own
   // latches (export_family_state). Outside an output batch only. on_change is not called. Throws
   // canopen::StateError; a driver whose import threw is thrown away. The owner imports after it
-  // has set the deadlines' options (set_pdo_timeout, set_sync_period: they clear the watches) and
-  // routes frames by consumed_cob_ids() afterwards (a CiA 401 node's come with its PDOs).
+  // has set the deadlines' options (set_pdo_timeout, set_sync_period, set_freshness_floor: they
+  // clear the watches) and routes frames by consumed_cob_ids() afterwards (a CiA 401 node's come
+  // with its PDOs).
   void export_state(canopen::StateWriter& w) const;
   void import_state(const canopen::StateReader& r);
 

@@ -743,6 +743,15 @@ void ElobauMfgDriver::import_family_state(const canopen::StateReader& r) {
     if (leds_[l] && *leds_[l] > 2) r.fail(key, "is no LED code the gateway commands");
   }
   leds_sent_ = r.get<bool>("leds_sent");
+  // The EMCY latches decide the faults (sync_faults).
+  std::vector<bool> latched(signals_.size(), false);
+  for (std::size_t a = 0; a < kAxes; ++a) latched[kX + a] = global_emcy_ || axes_[a].emcy;
+  for (std::size_t b = 0; b < kButtons; ++b) latched[kFirstButton + b] = global_emcy_ || button_emcy_[b];
+  latched[kPresence] = global_emcy_ || button_emcy_[11];
+  for (std::size_t l = 0; l < kLeds; ++l) latched[kFirstLed + l] = led_emcy_;
+  for (std::size_t i = 0; i < signals_.size(); ++i) {
+    if (faulted(i) != latched[i]) r.fail("global_emcy", "differs from signal " + std::to_string(i) + "'s fault");
+  }
 }
 
 }  // namespace oegw::subdevices

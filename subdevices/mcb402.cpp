@@ -466,6 +466,12 @@ void Mcb402Driver::import_family_state(const canopen::StateReader& r) {
   const auto outputs = r.get<std::uint8_t>("outputs");
   if ((outputs & ~0x0Fu) != 0) r.fail("outputs", "sets a bit no LED of the board has");
   outputs_ = outputs;
+  // The latches decide the faults (set_broken, on_emcy): an axis is faulted while broken, every
+  // input while an undocumented error lasts, an LED never.
+  for (std::size_t i = 0; i < signals_.size(); ++i) {
+    const bool latched = !signals_[i].output() && (unknown_fault_ || (i < kAxes && ((broken_ >> i) & 1u) != 0));
+    if (faulted(i) != latched) r.fail("broken", "differs from signal " + std::to_string(i) + "'s fault");
+  }
 }
 
 }  // namespace oegw::subdevices

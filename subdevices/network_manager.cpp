@@ -125,7 +125,11 @@ void NetworkManager::start(TimePoint now) {
 }
 
 NetworkManager::Managed* NetworkManager::find(NodeId node) {
-  for (auto& m : nodes_)
+  return const_cast<Managed*>(std::as_const(*this).find(node));
+}
+
+const NetworkManager::Managed* NetworkManager::find(NodeId node) const {
+  for (const auto& m : nodes_)
     if (m->settings.node == node) return m.get();
   return nullptr;
 }
@@ -683,9 +687,7 @@ std::string NetworkManager::busy() const {
   }
   // A boot-up probe, or a transfer a reboot overtook that still runs to its end on the wire.
   if (const auto server = master_.busy_sdo_server()) {
-    const Managed* m = nullptr;
-    for (const auto& n : nodes_)
-      if (n->settings.node == *server) m = n.get();
+    const Managed* m = find(*server);
     return (m != nullptr ? m->settings.name : "node " + std::to_string(server->value())) +
            ": an SDO request on the wire";
   }
@@ -695,14 +697,12 @@ std::string NetworkManager::busy() const {
 namespace {
 
 void put_text(canopen::StateWriter& w, std::string_view key, const std::optional<std::string>& text) {
-  if (text) w.put_bytes(key, std::span(reinterpret_cast<const std::uint8_t*>(text->data()), text->size()));
+  if (text) w.put_text(key, *text);
 }
 
 std::optional<std::string> text(const canopen::StateReader& r, std::string_view key) {
   if (!r.has(key)) return std::nullopt;
-  const std::vector<std::uint8_t> b = r.bytes(key);
-  if (b.size() > NodeDiagnostics::kMaxText) r.fail(key, "is longer than a diagnostic text is kept");
-  return std::string(b.begin(), b.end());
+  return r.text(key, NodeDiagnostics::kMaxText);
 }
 
 }  // namespace
@@ -804,6 +804,15 @@ void NetworkManager::import_state(const canopen::StateReader& r) {
     const canopen::StateReader cnt = item.in("counted");
     m.counted = NodeCounters{cnt.get<std::uint64_t>("frames"), cnt.get<std::uint64_t>("reboots_seen"),
                              cnt.get<std::uint64_t>("gateway_resets")};
+    // Each of these states is judged or retried at its deadline (advance()); PDOs are held only
+    // for a proof of life.
+    const bool judged = m.state == NodeState::WaitingBootUp || m.state == NodeState::Configuring ||
+                        m.state == NodeState::Starting || m.state == NodeState::Missing ||
+                        m.state == NodeState::Refused;
+    if (judged && !m.deadline)
+      item.fail("deadline", "is missing: a " + std::string(to_string(m.state)) + " node waits for it");
+    if (!m.held.empty() && m.state != NodeState::Starting)
+      item.fail("held.count", "is not 0: PDOs are held only while starting");
     m.poll_at = item.optional_time("poll_at");
     m.poll_pending = false;
     m.step_held = false;

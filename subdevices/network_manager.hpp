@@ -156,7 +156,7 @@ class NetworkManager {
 
   // Why no run-time state can be taken now, or "" when it can: the state holds no request on
   // the wire (an SDO transfer's callback, an LSS exchange), so none may be under way: "grip:
-  // configuring (an SDO request on the wire)".
+  // configuring (an SDO request on the wire or held)".
   [[nodiscard]] std::string busy() const;
   // Run-time state (canopen/state.hpp): each node's boot state and its timers, what its last
   // boot read (diagnostics), the counters, the PDOs held for its proof of life, and its
@@ -240,6 +240,7 @@ class NetworkManager {
   };
 
   Managed* find(NodeId node);
+  const Managed* find(NodeId node) const;
   const Managed* find(std::string_view name) const;
   void set_state(Managed& m, NodeState s, const std::string& why, TimePoint now);
   void begin_boot(Managed& m, TimePoint now);  // reset communication, wait for boot-up

@@ -412,6 +412,13 @@ void Novotechnik406Driver::import_family_state(const canopen::StateReader& r) {
   const auto latches = r.get<std::uint8_t>("latches");
   if ((latches & ~(kLatchPosition | kLatchDevice | kLatchSupply)) != 0) r.fail("latches", "names no latch");
   latches_ = latches;
+  // Any latch faults the position and what follows from it (set_latches), nothing else.
+  for (std::size_t i = 0; i < signals_.size(); ++i) {
+    const bool follows = i == kPosition || i == kSpeed || i == kCams || i == kWorkArea;
+    if (faulted(i) != (follows && latches_ != 0)) {
+      r.fail("latches", "differs from signal " + std::to_string(i) + "'s fault");
+    }
+  }
 }
 
 }  // namespace oegw::subdevices

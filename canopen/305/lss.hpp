@@ -91,5 +91,9 @@ struct AddressRange {
 // A set of table-0 indexes as LssSlave takes it: bit i set = index i supported.
 using BitTimings = std::uint16_t;
 inline constexpr BitTimings kAllStandardBitTimings = 0x01DF;  // 0..8 without the reserved 5
+// True when `index` (CiA 305 table 0) is one of `timings`.
+[[nodiscard]] constexpr bool has_bit_timing(BitTimings timings, unsigned index) {
+  return index < 16 && ((timings >> index) & 1u) != 0;
+}
 
 }  // namespace oegw::canopen::lss

@@ -131,8 +131,8 @@ void LssSlave::on_configure_node_id(std::uint8_t value) {
 }
 
 void LssSlave::on_configure_bit_timing(std::uint8_t table, std::uint8_t index) {
-  const bool ok = table == 0 && lss::standard_bit_rate_kbit(index).has_value() && index < 16 &&
-                  ((supported_bit_timings_ >> index) & 1u) != 0;
+  const bool ok = table == 0 && lss::standard_bit_rate_kbit(index).has_value() &&
+                  lss::has_bit_timing(supported_bit_timings_, index);
   if (!ok) {
     reply(kConfigureBitTiming, 1);
     return;
@@ -225,7 +225,7 @@ void LssSlave::import_state(const StateReader& r) {
   const NodeId pending = r.node_id("pending_node_id");
   const auto bit_timing = r.get<std::uint8_t>("pending_bit_timing");
   // Only a supported index is ever configured (on_configure_bit_timing) or stored.
-  if (bit_timing >= 16 || ((supported_bit_timings_ >> bit_timing) & 1u) == 0) {
+  if (!lss::has_bit_timing(supported_bit_timings_, bit_timing)) {
     r.fail("pending_bit_timing", "is no bit timing this node supports");
   }
   const auto mode = r.get<std::uint8_t>("mode");

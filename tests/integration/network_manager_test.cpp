@@ -20,6 +20,7 @@
 
 #include "canopen/node.hpp"
 #include "canopen/state.hpp"
+#include "tests/unit/canopen/state_twin.hpp"
 #include "virtual_network.hpp"
 
 using namespace oegw::canopen;
@@ -795,6 +796,8 @@ void take_over(Rig& a, Rig& b) {
   b.dev->node->import_state(rd);
   b.master.import_state(rm);
   b.manager.import_state(rn);
+  EXPECT_THAT(rd.unread(), ::testing::IsEmpty()) << device;
+  EXPECT_EQ(state_of(*b.dev->node), device) << "a round trip changes the state";
   EXPECT_THAT(rm.unread(), ::testing::IsEmpty()) << master;
   EXPECT_THAT(rn.unread(), ::testing::IsEmpty()) << manager;
   EXPECT_EQ(state_of(b.master), master) << "a round trip changes the state";
@@ -914,6 +917,7 @@ TEST(NetworkManagerState, PdosHeldForTheProofOfLifeCarryOver) {
         (void)r.dev->od.set<std::uint8_t>(0x6000, 1, 5);
         r.net.run_for(1ms);
         ASSERT_EQ(r.manager.state("grip"), NodeState::Starting);
+        EXPECT_NE(state_of(r.manager).find("nodes.0.held.count 1\n"), std::string::npos) << "its PDO is held";
       },
       [](Rig& r) { r.net.run_for(1s); }, 0);
 }
@@ -962,7 +966,15 @@ TEST(NetworkManagerState, AStateOfAnotherConfigurationIsRefused) {
   // A master producing SYNC cannot take the state of one that does not.
   ObjectDictionary od2;
   Master with_sync{od2, net.sink("gateway"), MasterConfig{.heartbeat_entries = 8, .sync_period = 10ms}};
-  EXPECT_THROW(with_sync.import_state(StateReader::parse(state_of(a.master))), StateError);
+  EXPECT_EQ(test_support::refusal(with_sync, state_of(a.master)),
+            "state: 'produces_sync' differs: this master produces SYNC");
+  // A missing node with no retry time would never be retried.
+  a.pull_cable();
+  a.net.run_for(300ms);
+  ASSERT_EQ(a.manager.state("grip"), NodeState::Missing);
+  Rig b;
+  EXPECT_EQ(test_support::refusal(b.manager, test_support::with_value(state_of(a.manager), "nodes.0.deadline", {})),
+            "state: 'nodes.0.deadline' is missing: a missing node waits for it");
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include "canopen/state.hpp"
 #include "subdevices/cia401.hpp"
 #include "subdevices/families.hpp"
+#include "tests/unit/canopen/state_twin.hpp"
 
 namespace oegw::subdevices {
 namespace {
@@ -387,13 +388,7 @@ TEST(Cia401, AStateNoBootCouldLeaveIsRefused) {
   a.drv->export_state(w);
   const std::string text = w.text();
   const auto with = [&](const std::string& key, const std::string& value) {
-    std::string t = text;
-    const std::size_t line = t.find("\n" + key + " ");
-    EXPECT_NE(line, std::string::npos) << key << " in\n" << text;
-    if (line == std::string::npos) return t;
-    const std::size_t from = line + 1;
-    t.replace(from, t.find('\n', from) - from, key + " " + value);
-    return t;
+    return canopen::test_support::with_value(text, key, value);
   };
   const std::pair<std::string, std::string> bad[] = {
       {with("family.pdos.0.cob_id", "0"), "state: 'family.pdos.0.cob_id' is on a restricted CAN-ID (CiA 301 §7.3.5)"},
@@ -404,23 +399,26 @@ TEST(Cia401, AStateNoBootCouldLeaveIsRefused) {
   };
   for (const auto& [t, message] : bad) {
     Fixture b(kCluster);
-    try {
-      b.drv->import_state(canopen::StateReader::parse(t));
-      ADD_FAILURE() << "accepted: " << message;
-    } catch (const canopen::StateError& e) {
-      EXPECT_EQ(std::string(e.what()), message);
-    }
+    EXPECT_EQ(canopen::test_support::refusal(*b.drv, t), message);
+    EXPECT_TRUE(b.sent.empty());
   }
   // An output outside its signal's range (out[2] is UNSIGNED8).
   const std::size_t out2 = a.sig("out[2]");
   Fixture c(kCluster);
-  try {
-    c.drv->import_state(canopen::StateReader::parse(with("family.outputs." + std::to_string(out2) + ".value", "256")));
-    ADD_FAILURE() << "accepted an output of 256";
-  } catch (const canopen::StateError& e) {
-    EXPECT_EQ(std::string(e.what()),
-              "state: 'family.outputs." + std::to_string(out2) + ".value' is outside out[2]'s range");
-  }
+  const std::string key = "family.outputs." + std::to_string(out2) + ".value";
+  EXPECT_EQ(canopen::test_support::refusal(*c.drv, with(key, "256")), "state: '" + key + "' is outside out[2]'s range");
+  // The error register faults every input or none (one faulted alone), and never an output.
+  const std::string alone = text + "signals." + std::to_string(a.sig("in[1]")) + ".fault 1\n";
+  Fixture d(kCluster);
+  EXPECT_EQ(canopen::test_support::refusal(*d.drv, alone)
+                .rfind("state: 'family.error_register_read' cannot explain", 0),
+            0u)
+      << canopen::test_support::refusal(*d.drv, alone);
+  const std::string output = text + "signals." + std::to_string(out2) + ".fault 1\n";
+  Fixture e(kCluster);
+  EXPECT_EQ(canopen::test_support::refusal(*e.drv, output),
+            "state: 'family.error_register_read' cannot explain signal " + std::to_string(out2) +
+                "'s fault: the error register faults every input or none, and no output");
 }
 
 TEST(Cia401, OutputNotMappedByAnyRpdoIsRefused) {
