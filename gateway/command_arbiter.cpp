@@ -2,6 +2,10 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <array>
+#include <stdexcept>
+
 namespace oegw::gateway {
 
 using canopen::TimePoint;
@@ -12,6 +16,9 @@ namespace {
 bool takes(mapping::CommandSources sources, CommandSource s) {
   return (sources & static_cast<mapping::CommandSources>(s)) != 0;
 }
+
+// The ways a refusal is logged once for (refuse()): host_write's and take()'s.
+constexpr std::array<std::string_view, 5> kWays{"SDO", "RPDO", "canopen", "dds", "lcm"};
 }  // namespace
 
 CommandArbiter::CommandArbiter(const mapping::Config& config, OeDevice& device, FeModel& model)
@@ -138,6 +145,66 @@ std::optional<TimePoint> CommandArbiter::next_deadline() const {
     if (!best || t < *best) best = t;
   }
   return best;
+}
+
+void CommandArbiter::export_state(canopen::StateWriter& w) const {
+  w.put("started", started_);
+  w.put("refused", refused_);
+  w.put_list("outputs", outputs_.size(), [&](std::size_t i) {
+    const Output& o = outputs_[i];
+    w.put("kind", o.id.kind);
+    w.put("instance", o.id.instance);
+    w.put("last", o.last);
+    w.put("expired", o.expired);
+    w.put("refused", o.refused);
+  });
+  std::vector<std::pair<FeId, std::size_t>> logged;
+  for (const auto& [fe, way] : refused_logged_) {
+    const auto it = std::find(kWays.begin(), kWays.end(), way);
+    if (it == kWays.end()) throw std::logic_error("CommandArbiter: a refusal logged for an unknown way: " + way);
+    logged.emplace_back(fe, static_cast<std::size_t>(it - kWays.begin()));
+  }
+  w.put_list("logged", logged.size(), [&](std::size_t i) {
+    w.put("kind", logged[i].first.kind);
+    w.put("instance", logged[i].first.instance);
+    w.put("way", logged[i].second);
+  });
+}
+
+void CommandArbiter::import_state(const canopen::StateReader& r) {
+  std::vector<Output> outputs = outputs_;
+  std::size_t i = 0;
+  r.read_list("outputs", outputs.size(), [&](const canopen::StateReader& item) {
+    Output& o = outputs[i++];
+    if (item.get<mapping::FeKind>("kind") != o.id.kind || item.get<std::uint8_t>("instance") != o.id.instance) {
+      item.fail("kind",
+                "differs: the state is of another mapping file's outputs (here " + mapping::fe_name(o.id) + ")");
+    }
+    o.last = item.time("last");
+    o.expired = item.get<bool>("expired");
+    o.refused = item.get<std::uint64_t>("refused");
+    // advance(): only a watchdog expires.
+    if (o.expired && o.timeout.count() == 0) item.fail("expired", "is set for an output without a watchdog");
+  });
+  if (i != outputs.size()) r.fail("outputs.count", "differs from the mapping file's output FEs");
+  const bool started = r.get<bool>("started");
+  if (!started && std::any_of(outputs.begin(), outputs.end(), [](const Output& o) { return o.expired; })) {
+    r.fail("started", "is not set, yet a watchdog expired");
+  }
+  std::set<std::pair<FeId, std::string>> logged;
+  r.read_list("logged", 2 * 256 * kWays.size(), [&](const canopen::StateReader& item) {
+    const FeId fe{item.get<mapping::FeKind>("kind"), item.get<std::uint8_t>("instance")};
+    if (fe.kind != mapping::FeKind::IndicatorCluster && fe.kind != mapping::FeKind::Display) {
+      item.fail("kind", "is no output FE");
+    }
+    const auto way = item.get<std::uint8_t>("way");
+    if (way >= kWays.size()) item.fail("way", "is no way a command comes");
+    logged.emplace(fe, std::string(kWays[way]));
+  });
+  outputs_ = std::move(outputs);
+  started_ = started;
+  refused_ = r.get<std::uint64_t>("refused");
+  refused_logged_ = std::move(logged);
 }
 
 }  // namespace oegw::gateway

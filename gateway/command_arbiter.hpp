@@ -64,6 +64,11 @@ class CommandArbiter {
   [[nodiscard]] std::uint64_t refused() const { return refused_; }
   [[nodiscard]] std::uint64_t refused(mapping::FeId fe) const;
 
+  // Run-time state (canopen/state.hpp): each output FE's last command time, its watchdog verdict
+  // and refusals, whether the watchdogs run, and which refusals were logged already.
+  void export_state(canopen::StateWriter& w) const;
+  void import_state(const canopen::StateReader& r);
+
   // Where accepted output values go (the gateway's output bindings).
   std::function<void(mapping::FeId, FieldRef, std::int64_t)> drive;
   std::function<void(const std::string&)> log;

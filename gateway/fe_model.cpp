@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <stdexcept>
 
 #include <fmt/format.h>
 
@@ -120,6 +121,54 @@ const FeHeader& header(const FeState& s) {
   return std::visit([](const auto& st) -> const FeHeader& { return st.h; }, s);
 }
 
+// Each kind's values under their slots' names, and back (a value outside its type refused).
+void put_values(canopen::StateWriter& w, const JoystickState& s) {
+  w.put("x", s.x);
+  w.put("y", s.y);
+  w.put("z", s.z);
+  w.put("buttons", s.buttons);
+  w.put("memory", s.memory);
+}
+void put_values(canopen::StateWriter& w, const PedalState& s) {
+  w.put("position", s.position);
+  w.put("memory", s.memory);
+}
+void put_values(canopen::StateWriter& w, const WheelState& s) { w.put("position", s.position); }
+void put_values(canopen::StateWriter& w, const EncoderState& s) { w.put("position", s.position); }
+void put_values(canopen::StateWriter& w, const ButtonClusterState& s) { w.put("switches", s.switches); }
+void put_values(canopen::StateWriter& w, const IndicatorState& s) { w.put("indicators", s.indicators); }
+void put_values(canopen::StateWriter& w, const DisplayState& s) {
+  w.put_list("parameters", s.parameters.size(), [&](std::size_t p) { w.put("value", s.parameters[p]); });
+}
+
+// A bit field's value with no bit above `bits` (memory_x/y/z, a pedal's memory_x).
+std::uint8_t bits(const canopen::StateReader& r, std::string_view key, unsigned count) {
+  const auto v = r.get<std::uint8_t>(key);
+  if ((v >> count) != 0) r.fail(key, "sets a bit the FE has no field for");
+  return v;
+}
+void get_values(const canopen::StateReader& r, JoystickState& s) {
+  s.x = r.get<std::int16_t>("x");
+  s.y = r.get<std::int16_t>("y");
+  s.z = r.get<std::int16_t>("z");
+  s.buttons = r.get<std::uint8_t>("buttons");
+  s.memory = bits(r, "memory", 3);
+}
+void get_values(const canopen::StateReader& r, PedalState& s) {
+  s.position = r.get<std::int16_t>("position");
+  s.memory = bits(r, "memory", 1);
+}
+void get_values(const canopen::StateReader& r, WheelState& s) { s.position = r.get<std::int16_t>("position"); }
+void get_values(const canopen::StateReader& r, EncoderState& s) { s.position = r.get<std::uint32_t>("position"); }
+void get_values(const canopen::StateReader& r, ButtonClusterState& s) { s.switches = r.get<std::uint64_t>("switches"); }
+void get_values(const canopen::StateReader& r, IndicatorState& s) { s.indicators = r.get<std::uint64_t>("indicators"); }
+void get_values(const canopen::StateReader& r, DisplayState& s) {
+  std::size_t p = 0;
+  r.read_list("parameters", s.parameters.size(),
+              [&](const canopen::StateReader& item) { s.parameters[p++] = item.get<std::int16_t>("value"); });
+  if (p != s.parameters.size()) r.fail("parameters.count", "is not 12 (CiA 852 §9.7)");
+}
+
 }  // namespace
 
 std::optional<FieldRef> field_ref(FeId fe, std::string_view name) {
@@ -183,6 +232,42 @@ void FeModel::stamp(FeId fe, canopen::TimePoint when) {
   if (i < 0) return;
   header(entries_[static_cast<std::size_t>(i)].state).source_time = when;
   mark(static_cast<std::size_t>(i));
+}
+
+void FeModel::export_state(canopen::StateWriter& w) const {
+  if (reporting_) throw std::logic_error("FeModel::export_state while the changes are reported");
+  w.put_list("fe", entries_.size(), [&](std::size_t i) {
+    const Entry& e = entries_[i];
+    w.put("kind", e.id.kind);
+    w.put("instance", e.id.instance);
+    w.put("status", header(e.state).status);
+    w.put("at", header(e.state).source_time);
+    if (e.published_mark) w.put("owed", true);
+    std::visit([&](const auto& s) { put_values(w, s); }, e.state);
+  });
+}
+
+void FeModel::import_state(const canopen::StateReader& r) {
+  if (reporting_) throw std::logic_error("FeModel::import_state while the changes are reported");
+  std::vector<Entry> entries = entries_;
+  std::size_t i = 0;
+  r.read_list("fe", entries.size(), [&](const canopen::StateReader& item) {
+    Entry& e = entries[i++];
+    if (item.get<FeKind>("kind") != e.id.kind || item.get<std::uint8_t>("instance") != e.id.instance) {
+      item.fail("kind", "differs: the state is of another mapping file's FEs (here " + mapping::fe_name(e.id) + ")");
+    }
+    const auto status = item.get<std::uint8_t>("status");
+    if (status > static_cast<std::uint8_t>(FeStatus::Offline)) item.fail("status", "is no FE status");
+    header(e.state) = FeHeader{static_cast<FeStatus>(status), item.time("at")};
+    e.published_mark = item.get_or("owed", false);
+    std::visit([&](auto& s) { get_values(item, s); }, e.state);
+  });
+  if (i != entries.size())
+    r.fail("fe.count", "differs from the mapping file's " + std::to_string(entries.size()) + " FEs");
+  entries_ = std::move(entries);
+  changed_.clear();
+  for (std::size_t k = 0; k < entries_.size(); ++k)
+    if (entries_[k].published_mark) changed_.push_back(static_cast<std::uint16_t>(k));
 }
 
 int FeModel::find(FeId fe) const {

@@ -24,6 +24,7 @@
 #include <variant>
 #include <vector>
 
+#include "canopen/state.hpp"
 #include "canopen/types.hpp"
 #include "gateway/fe_samples.hpp"
 #include "mapping/fe_names.hpp"
@@ -142,6 +143,12 @@ class FeModel {
   // Called by write() for every slot whose value changed: (FE, slot, slot_value()).
   using SlotObserver = std::function<void(mapping::FeId, FeSlot, std::int64_t)>;
   void on_slot_change(SlotObserver cb) { on_slot_ = std::move(cb); }
+
+  // Run-time state (canopen/state.hpp): each FE's values, status and source time, and whether
+  // the publishers are still owed it. Not while for_each_changed reports. The import calls no
+  // observer: the dictionary the slots mirror carries its own state.
+  void export_state(canopen::StateWriter& w) const;
+  void import_state(const canopen::StateReader& r);
 
  private:
   struct Entry {

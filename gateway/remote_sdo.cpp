@@ -1,6 +1,7 @@
 #include "gateway/remote_sdo.hpp"
 
 #include <algorithm>
+#include <stdexcept>
 
 #include <fmt/format.h>
 
@@ -195,6 +196,41 @@ void RemoteSdo::cancel(Ticket ticket, SdoAbortCode why) {
   const Pending p = std::move(*it);
   pending_.erase(it);  // before the client's callback: it must find nothing
   master_.sdo(canopen::NodeId{p.node}).cancel(p.client_ticket, why);
+}
+
+void RemoteSdo::export_state(canopen::StateWriter& w) const {
+  if (!pending_.empty()) throw std::logic_error("RemoteSdo::export_state while a transfer is in flight");
+  w.put("next", next_);
+  w.put("counters.transfers", counters_.transfers);
+  w.put("counters.refused", counters_.refused);
+  w.put("counters.remote_aborts", counters_.remote_aborts);
+  // By the sub-devices' order in the mapping file: their names are no state keys.
+  w.put_list("refused_by", config_.subdevices.size(),
+             [&](std::size_t i) { w.put("count", refused(config_.subdevices[i].name)); });
+}
+
+void RemoteSdo::import_state(const canopen::StateReader& r) {
+  if (!pending_.empty()) throw std::logic_error("RemoteSdo::import_state while a transfer is in flight");
+  const auto next = r.get<Ticket>("next");
+  if (next == 0) r.fail("next", "is 0: tickets start at 1");
+  const canopen::StateReader c = r.in("counters");
+  const RemoteSdoCounters counters{c.get<std::uint64_t>("transfers"), c.get<std::uint64_t>("refused"),
+                                   c.get<std::uint64_t>("remote_aborts")};
+  std::map<std::string, std::uint64_t> by;
+  std::size_t i = 0;
+  std::uint64_t sum = 0;
+  r.read_list("refused_by", config_.subdevices.size(), [&](const canopen::StateReader& item) {
+    const auto n = item.get<std::uint64_t>("count");
+    if (n != 0) by[config_.subdevices[i].name] = n;
+    sum += n;
+    ++i;
+  });
+  if (i != config_.subdevices.size()) r.fail("refused_by.count", "differs from the mapping file's sub-devices");
+  // Each is also in the total (refuse()).
+  if (sum > counters.refused) r.fail("counters.refused", "is below the sub-devices' refusals");
+  next_ = next;
+  counters_ = counters;
+  refused_by_subdevice_ = std::move(by);
 }
 
 }  // namespace oegw::gateway

@@ -87,6 +87,11 @@ class RemoteSdo final : public canopen::SdoRemote {
   [[nodiscard]] std::uint64_t refused(const std::string& subdevice) const;
   [[nodiscard]] std::size_t in_flight() const { return pending_.size(); }
 
+  // Run-time state (canopen/state.hpp): the next ticket and the counters. None is taken while
+  // a transfer is in flight (its answer's callback is no state): export throws std::logic_error.
+  void export_state(canopen::StateWriter& w) const;
+  void import_state(const canopen::StateReader& r);
+
   // A refused request or a remote abort, for the log ("remote SDO: right_grip 1800h:01 write
   // refused: 0800 0021h ...").
   std::function<void(const std::string&)> on_log;

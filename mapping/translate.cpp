@@ -130,6 +130,31 @@ std::int64_t FieldTranslator::update(const subdevices::SignalValue& v) {
   return value_;
 }
 
+void FieldTranslator::export_state(canopen::StateWriter& w) const {
+  w.put("value", value_);
+  w.put("locked", locked_);
+}
+
+void FieldTranslator::import_state(const canopen::StateReader& r) {
+  const std::int64_t value = r.integer("value");
+  const bool locked = r.get<bool>("locked");
+  // update(): only an interlocked field locks, and a locked one holds its fault value or neutral.
+  if (locked && !p_.interlock) r.fail("locked", "is set on a field without the neutral interlock");
+  bool possible = value == p_.fault || value == p_.neutral;
+  if (!possible && !locked) {
+    switch (p_.mode) {
+      case InputParams::Mode::Bit: possible = value == 0 || value == 1; break;
+      case InputParams::Mode::Wrap32: possible = value >= 0 && value <= 0xFFFFFFFF; break;
+      case InputParams::Mode::Value:
+        possible = value >= p_.clamp_min && value <= std::max(p_.clamp_min, p_.clamp_max);
+        break;
+    }
+  }
+  if (!possible) r.fail("value", "is no value this field's translation gives");
+  value_ = value;
+  locked_ = locked;
+}
+
 OutputParams resolve_output(const SignalInfo& signal, const FeField& field, const FieldOptions& o,
                             std::uint8_t signal_bit) {
   OutputParams p;

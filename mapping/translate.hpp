@@ -32,6 +32,7 @@
 #include <optional>
 #include <utility>
 
+#include "canopen/state.hpp"
 #include "mapping/fe_names.hpp"
 #include "subdevices/signal.hpp"
 
@@ -90,6 +91,10 @@ class FieldTranslator {
   // True while the interlock holds the field at neutral (or, not Valid, at its fault value).
   [[nodiscard]] bool interlocked() const { return locked_; }
   [[nodiscard]] const InputParams& params() const { return p_; }
+  // Run-time state (canopen/state.hpp): the value and the interlock. The import refuses a value
+  // update() could not have given these parameters.
+  void export_state(canopen::StateWriter& w) const;
+  void import_state(const canopen::StateReader& r);
 
  private:
   InputParams p_;

@@ -3,11 +3,13 @@
 // error values, as the outputs (drive) see them.
 #include <gtest/gtest.h>
 
+#include <string>
 #include <tuple>
 #include <vector>
 
 #include "gateway/command_arbiter.hpp"
 #include "gateway/runtime_config.hpp"
+#include "tests/unit/canopen/state_twin.hpp"
 
 namespace {
 
@@ -163,6 +165,62 @@ TEST(CommandArbiter, ASilentCommanderGivesTheErrorValuesUntilTheNextCommand) {
   EXPECT_EQ(r.leds(kLeds1), 0x01u);
   EXPECT_EQ(r.log.back(), "indicators.1: commands again");
   EXPECT_EQ(r.arbiter.next_deadline(), r.now + 100ms);
+}
+
+// Run-time state (canopen/state.hpp): a copy given the arbiter's state times its watchdogs from
+// the last command, counts on and logs no refusal twice; a fresh one does not. An expired
+// watchdog carries over: the next command is "commands again".
+TEST(CommandArbiter, ACopyGivenTheStateKeepsTheWatchdogsCountsAndLoggedRefusals) {
+  Rig a;
+  ASSERT_TRUE(a.arbiter.command_indicators(1, 0x01, CommandSource::Dds, a.now + 30ms));
+  EXPECT_FALSE(a.arbiter.command_indicators(1, 0x02, CommandSource::Lcm, a.now + 40ms));
+  EXPECT_FALSE(a.arbiter.command_display(1, {}, CommandSource::Dds, a.now + 45ms));
+  Rig b;
+  canopen::test_support::copy_state(a.arbiter, b.arbiter);
+  Rig fresh;
+  for (Rig* r : {&a, &b, &fresh}) {
+    r->log.clear();
+    EXPECT_FALSE(r->arbiter.command_indicators(1, 0x04, CommandSource::Lcm, r->now + 50ms));
+    r->arbiter.advance(r->now + 100ms);
+  }
+  EXPECT_EQ(b.log, a.log);
+  EXPECT_NE(fresh.log, a.log);
+  EXPECT_TRUE(a.log.empty()) << "logged once, and the watchdog runs from the command at 30 ms";
+  EXPECT_EQ(b.arbiter.next_deadline(), a.now + 130ms);
+  EXPECT_EQ(b.arbiter.refused(), 3u);
+  EXPECT_EQ(b.arbiter.refused(kLeds1), 2u);
+  EXPECT_EQ(b.arbiter.refused(kDisplay1), 1u);
+
+  a.arbiter.advance(a.now + 130ms);
+  ASSERT_FALSE(a.arbiter.next_deadline()) << "expired";
+  Rig c;
+  canopen::test_support::copy_state(a.arbiter, c.arbiter);
+  EXPECT_FALSE(c.arbiter.next_deadline());
+  Rig fresh2;
+  for (Rig* r : {&a, &c, &fresh2}) {
+    r->log.clear();
+    ASSERT_TRUE(r->arbiter.command_indicators(1, 0x08, CommandSource::Dds, r->now + 150ms));
+  }
+  EXPECT_EQ(c.log, std::vector<std::string>{"indicators.1: commands again"});
+  EXPECT_EQ(c.log, a.log);
+  EXPECT_TRUE(fresh2.log.empty());
+}
+
+TEST(CommandArbiter, AStateOfOtherOutputsOrNoRunIsRefused) {
+  Rig a;
+  canopen::StateWriter w;
+  a.arbiter.export_state(w);
+  using canopen::test_support::refusal;
+  using canopen::test_support::with_value;
+  Rig b;
+  EXPECT_EQ(refusal(b.arbiter, with_value(w.text(), "outputs.1.instance", "3")),
+            "state: 'outputs.1.kind' differs: the state is of another mapping file's outputs (here indicators.2)");
+  EXPECT_EQ(refusal(b.arbiter, with_value(w.text(), "outputs.1.expired", "1")),
+            "state: 'outputs.1.expired' is set for an output without a watchdog");
+  EXPECT_EQ(refusal(b.arbiter, with_value(with_value(w.text(), "outputs.0.expired", "1"), "started", "0")),
+            "state: 'started' is not set, yet a watchdog expired");
+  const std::string logged = w.text() + "logged.0.kind 0\nlogged.0.instance 1\nlogged.0.way 3\n";
+  EXPECT_EQ(refusal(b.arbiter, with_value(logged, "logged.count", "1")), "state: 'logged.0.kind' is no output FE");
 }
 
 }  // namespace

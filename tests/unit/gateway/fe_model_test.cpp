@@ -7,6 +7,7 @@
 
 #include "gateway/fe_model.hpp"
 #include "gateway/gateway.hpp"
+#include "tests/unit/canopen/state_twin.hpp"
 
 namespace {
 
@@ -59,6 +60,86 @@ TEST(FeModel, AWriteChangesTheTypedStateAndStampsTheSourceTime) {
   EXPECT_EQ(m.get<gateway::ButtonClusterState>(kCluster3)->switches, std::uint64_t{1} << 63);
   EXPECT_EQ(m.get<gateway::PedalState>(kJoy1), nullptr) << "wrong kind";
   EXPECT_FALSE(m.write(kJoy2, FieldRef{FeSlot::X}, 1, at(1))) << "not configured";
+}
+
+// Run-time state (canopen/state.hpp): a copy given the model's state holds every FE's values,
+// status and source time, and owes the publishers the same FEs; its slot observer is not called
+// (the dictionary it mirrors carries its own state).
+TEST(FeModel, ACopyGivenTheStateHoldsEveryFeAndOwesThePublishersTheSame) {
+  const std::vector<FeId> fes{kJoy1,
+                              {FeKind::FootPedal, 2},
+                              {FeKind::Encoder, 1},
+                              {FeKind::Wheel, 3},
+                              kCluster3,
+                              {FeKind::IndicatorCluster, 1},
+                              kDisplay1};
+  FeModel a(fes);
+  const auto write = [&](FeId fe, const char* field, std::int64_t v, int ms) {
+    ASSERT_TRUE(a.write(fe, *gateway::field_ref(fe, field), v, at(ms))) << mapping::fe_name(fe) << " " << field;
+  };
+  write(kJoy1, "x", -1200, 5);
+  write(kJoy1, "y", 7, 5);
+  write(kJoy1, "z", -32768, 5);
+  write(kJoy1, "buttons[8]", 1, 6);
+  write(kJoy1, "memory_y", 1, 6);
+  write(fes[1], "position", 300, 7);
+  write(fes[1], "memory_x", 1, 7);
+  write(fes[2], "position", 0xFFFFFFF0, 8);
+  write(fes[3], "position", -5, 9);
+  write(kCluster3, "switch[64]", 1, 10);
+  write(fes[5], "indicator[6]", 1, 11);
+  write(kDisplay1, "parameter[12]", -7, 12);
+  for (const FeId& fe : fes) a.set_status(fe, gateway::FeStatus::Valid, at(13));
+  a.set_status(kJoy1, gateway::FeStatus::Stale, at(14));
+  a.for_each_changed([](FeId) {});  // published
+  a.set_status(fes[1], gateway::FeStatus::Error, at(15));
+  write(kDisplay1, "parameter[1]", 9, 16);
+
+  FeModel b(fes);
+  int observed = 0;
+  b.on_slot_change([&](FeId, FeSlot, std::int64_t) { ++observed; });
+  canopen::test_support::copy_state(a, b);
+  EXPECT_EQ(observed, 0);
+  const FeModel fresh(fes);
+  for (const FeId& fe : fes) {
+    EXPECT_EQ(b.status(fe), a.status(fe)) << mapping::fe_name(fe);
+    EXPECT_EQ(b.source_time(fe), a.source_time(fe)) << mapping::fe_name(fe);
+    for (const auto& f : mapping::fe_fields(fe)) {
+      const FieldRef ref = *gateway::field_ref(fe, f.name);
+      EXPECT_EQ(b.read(fe, ref), a.read(fe, ref)) << mapping::fe_name(fe) << " " << f.name;
+    }
+  }
+  EXPECT_NE(fresh.status(kJoy1), a.status(kJoy1));
+  EXPECT_EQ(b.get<gateway::EncoderState>(fes[2])->position, 0xFFFFFFF0u);
+  EXPECT_EQ(b.get<gateway::ButtonClusterState>(kCluster3)->switches, std::uint64_t{1} << 63);
+  // Owed to the publishers: the pedal and the display, in FE order, and then nothing.
+  const auto owed = [](FeModel& m) {
+    std::vector<FeId> out;
+    m.for_each_changed([&](FeId fe) { out.push_back(fe); });
+    return out;
+  };
+  const std::vector<FeId> expected{fes[1], kDisplay1};
+  EXPECT_EQ(owed(a), expected);
+  EXPECT_EQ(owed(b), expected);
+  EXPECT_TRUE(owed(b).empty());
+}
+
+TEST(FeModel, AStateOfOtherFesOrValuesNoFieldHoldsIsRefused) {
+  FeModel a({kJoy1});
+  canopen::StateWriter w;
+  a.export_state(w);
+  using canopen::test_support::refusal;
+  using canopen::test_support::with_value;
+  FeModel other({kJoy2});
+  EXPECT_EQ(refusal(other, w.text()),
+            "state: 'fe.0.kind' differs: the state is of another mapping file's FEs (here joystick.2)");
+  FeModel fewer({});
+  EXPECT_EQ(refusal(fewer, w.text()), "state: 'fe.count' = 1 is above 0");
+  FeModel b({kJoy1});
+  EXPECT_EQ(refusal(b, with_value(w.text(), "fe.0.memory", "8")),
+            "state: 'fe.0.memory' sets a bit the FE has no field for");
+  EXPECT_EQ(refusal(b, with_value(w.text(), "fe.0.status", "5")), "state: 'fe.0.status' is no FE status");
+  EXPECT_EQ(refusal(b, with_value(w.text(), "fe.0.x", "32768")), "state: 'fe.0.x' = 32768 is outside -32768..32767");
 }
 
 TEST(FeModel, ChangedFesAreReportedOnceEachInFeOrder) {

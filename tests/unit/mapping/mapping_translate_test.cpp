@@ -10,6 +10,8 @@
 
 #include <vector>
 
+#include "tests/unit/canopen/state_twin.hpp"
+
 namespace oegw::mapping {
 namespace {
 
@@ -214,6 +216,51 @@ TEST(MappingTranslate, EveryNonValidStatusGivesTheFaultValueAndReArmsTheInterloc
     EXPECT_EQ(t.update(valid(1)), 0);         // seen at zero
     EXPECT_EQ(t.update(valid(-60)), -19660);  // -19660.2
   }
+}
+
+// Run-time state (canopen/state.hpp): a copy given the state follows where the original does
+// (released) and holds where it holds; a fresh translator is still locked.
+TEST(MappingTranslate, ACopyGivenTheStateKeepsTheValueAndTheInterlock) {
+  FieldOptions o;
+  o.deadband = 2;
+  const InputParams p = resolve_input(kPercent, joystick_x(), o);
+  FieldTranslator a(p);
+  a.update(valid(1));   // released
+  a.update(valid(50));  // follows
+  FieldTranslator b(p);
+  canopen::test_support::copy_state(a, b);
+  EXPECT_EQ(b.value(), 16384);
+  EXPECT_FALSE(b.interlocked());
+  FieldTranslator fresh(p);
+  EXPECT_EQ(b.update(valid(-50)), a.update(valid(-50)));
+  EXPECT_EQ(fresh.update(valid(-50)), 0);  // still locked
+  // Locked again by a fault, and deflected since: the copy holds neutral too.
+  a.update(with(SignalStatus::Stale));
+  a.update(valid(40));
+  FieldTranslator c(p);
+  canopen::test_support::copy_state(a, c);
+  EXPECT_TRUE(c.interlocked());
+  EXPECT_EQ(c.update(valid(30)), 0);
+}
+
+TEST(MappingTranslate, AStateTheTranslationCannotGiveIsRefused) {
+  FieldOptions o;
+  o.fault = -1000;
+  o.interlock = false;
+  FieldTranslator a(resolve_input(kPercent, joystick_x(), o));
+  canopen::StateWriter w;
+  a.export_state(w);
+  using canopen::test_support::refusal;
+  using canopen::test_support::with_value;
+  FieldTranslator b(a.params());
+  EXPECT_EQ(refusal(b, with_value(w.text(), "locked", "1")),
+            "state: 'locked' is set on a field without the neutral interlock");
+  EXPECT_EQ(refusal(b, with_value(w.text(), "value", "40000")),
+            "state: 'value' is no value this field's translation gives");
+  EXPECT_EQ(refusal(b, with_value(w.text(), "value", "-32767")), "accepted");  // the clamp's end
+  FieldTranslator button(resolve_input(kButton, joystick_button(), {}));
+  EXPECT_EQ(refusal(button, with_value(w.text(), "value", "2")),
+            "state: 'value' is no value this field's translation gives");
 }
 
 TEST(MappingTranslate, InterlockWithoutDeadbandNeedsExactNeutral) {
