@@ -873,4 +873,136 @@ void Gateway::settle_reload() {
   log(fmt::format("reload: every sub-device operational or reported faulty: EMCY {:04X}h cleared", kEmcyReload));
 }
 
+namespace {
+
+void put_emcy(canopen::StateWriter& w, const Gateway::EmcyRecord& e) {
+  w.put("node", e.last.node.value());
+  w.put("code", e.last.code);
+  w.put("register", e.last.error_register);
+  w.put_bytes("msef", e.last.msef);
+  w.put("time", e.time);
+  w.put("count", e.count);
+}
+
+Gateway::EmcyRecord get_emcy(const canopen::StateReader& r) {
+  Gateway::EmcyRecord e;
+  e.last.node = canopen::NodeId{r.get<std::uint8_t>("node")};
+  e.last.code = r.get<std::uint16_t>("code");
+  e.last.error_register = r.get<std::uint8_t>("register");
+  const std::vector<std::uint8_t> msef = r.bytes("msef");
+  if (msef.size() != e.last.msef.size()) r.fail("msef", "is not 5 bytes (CiA 301 §7.2.7.3.1)");
+  std::copy(msef.begin(), msef.end(), e.last.msef.begin());
+  e.time = r.time("time");
+  e.count = r.get<std::uint64_t>("count");
+  return e;
+}
+
+}  // namespace
+
+std::string Gateway::busy() const {
+  if (output_depth_ != 0 || decoding_emcy_) throw std::logic_error("Gateway::busy inside a call");
+  if (std::string why = network_.busy(); !why.empty()) return why;
+  if (remote_sdo_->in_flight() != 0) return "a remote SDO transfer is in flight";
+  return oe_->busy();
+}
+
+void Gateway::export_state(canopen::StateWriter& w) const {
+  if (const std::string why = busy(); !why.empty()) throw std::logic_error("Gateway::export_state: " + why);
+  w.put("now", now_);
+  w.put("downstream_down", downstream_down_);
+  w.put("reloading", reloading_);
+  w.put("commands_refused", subdevice_commands_refused_);
+  w.put_state("master", master_);
+  w.put_state("network", network_);
+  w.put_state("remote_sdo", *remote_sdo_);
+  w.put_state("device", *oe_);
+  w.put_state("model", model_);
+  w.put_state("arbiter", *arbiter_);
+  w.put_list("bindings", bindings_.size(), [&](std::size_t i) {
+    const Binding& b = bindings_[i];
+    w.put("status", b.status);
+    if (b.translator) w.put_state("translator", *b.translator);
+  });
+  // In the mapping file's order: names are no state keys.
+  w.put_list("subdevices", config_.subdevices.size(), [&](std::size_t i) {
+    const Sub& s = subs_.at(config_.subdevices[i].name);
+    w.put("operational", s.operational);
+    w.put("failed", s.failed);
+    w.put_text("why", s.why);
+    w.put_list("outputs", s.output_values.size(), [&](std::size_t k) { w.put("value", s.output_values[k]); });
+    w.put("forced", s.forced);
+    w.put("cause.kind", s.cause.kind);
+    w.put("cause.binding", s.cause.binding);
+    w.put("cause.status", s.cause.status);
+    if (const auto it = faults_.find(config_.subdevices[i].name); it != faults_.end()) w.put_text("fault", it->second);
+    w.put("refused_commands", s.refused_commands);
+    const canopen::StateWriter::Scope emcy(w, "emcy");
+    put_emcy(w, s.emcy);
+  });
+  w.put_list("upstream_emcys", upstream_emcys_.size(), [&, it = upstream_emcys_.begin()](std::size_t) mutable {
+    put_emcy(w, it->second);
+    ++it;
+  });
+}
+
+void Gateway::import_state(const canopen::StateReader& r) {
+  if (output_depth_ != 0 || decoding_emcy_) throw std::logic_error("Gateway::import_state inside a call");
+  // The parts in the order they depend on each other: the master's dictionary and clients
+  // before the network manager (which routes to them), the device before the model it mirrors.
+  master_.import_state(r.in("master"));
+  network_.import_state(r.in("network"));
+  remote_sdo_->import_state(r.in("remote_sdo"));
+  oe_->import_state(r.in("device"));
+  model_.import_state(r.in("model"));
+  arbiter_->import_state(r.in("arbiter"));
+  std::size_t n = 0;
+  r.read_list("bindings", bindings_.size(), [&](const canopen::StateReader& item) {
+    Binding& b = bindings_[n++];
+    const auto status = item.get<std::uint8_t>("status");
+    if (status > static_cast<std::uint8_t>(SignalStatus::Offline)) item.fail("status", "is no signal status");
+    b.status = static_cast<SignalStatus>(status);
+    if (b.translator) b.translator->import_state(item.in("translator"));
+  });
+  if (n != bindings_.size()) r.fail("bindings.count", "differs from the mapping file's fields");
+  std::map<std::string, std::string> faults;
+  n = 0;
+  r.read_list("subdevices", config_.subdevices.size(), [&](const canopen::StateReader& item) {
+    const std::string& name = config_.subdevices[n++].name;
+    Sub& s = subs_.at(name);
+    s.operational = item.get<bool>("operational");
+    s.failed = item.get<bool>("failed");
+    s.why = item.text("why", 512);
+    std::size_t k = 0;
+    item.read_list("outputs", s.output_values.size(),
+                   [&](const canopen::StateReader& o) { s.output_values[k++] = o.integer("value"); });
+    if (k != s.output_values.size()) item.fail("outputs.count", "differs from the driver's signals");
+    s.forced = item.get<bool>("forced");
+    const auto kind = item.get<std::uint8_t>("cause.kind");
+    if (kind > static_cast<std::uint8_t>(Cause::Kind::Input)) item.fail("cause.kind", "is no fault cause");
+    const auto binding = item.get<std::uint64_t>("cause.binding");
+    if (binding >= std::max<std::size_t>(bindings_.size(), 1)) item.fail("cause.binding", "is no field binding");
+    const auto status = item.get<std::uint8_t>("cause.status");
+    if (status > static_cast<std::uint8_t>(SignalStatus::Offline)) item.fail("cause.status", "is no signal status");
+    s.cause =
+        Cause{static_cast<Cause::Kind>(kind), static_cast<std::size_t>(binding), static_cast<SignalStatus>(status)};
+    // update_fault(): a sub-device has a fault reason exactly while it has a cause.
+    if (item.has("fault") != (s.cause.kind != Cause::Kind::None)) item.fail("fault", "differs from the fault's cause");
+    if (item.has("fault")) faults[name] = item.text("fault", 512);
+    s.emcy = get_emcy(item.in("emcy"));
+    s.refused_commands = item.get<std::uint64_t>("refused_commands");
+  });
+  if (n != config_.subdevices.size()) r.fail("subdevices.count", "differs from the mapping file's sub-devices");
+  std::map<std::uint8_t, EmcyRecord> upstream;
+  r.read_list("upstream_emcys", 127, [&](const canopen::StateReader& item) {
+    const EmcyRecord e = get_emcy(item);
+    upstream[e.last.node.value()] = e;
+  });
+  upstream_emcys_ = std::move(upstream);
+  faults_ = std::move(faults);
+  now_ = r.time("now");
+  downstream_down_ = r.get<bool>("downstream_down");
+  reloading_ = r.get<bool>("reloading");
+  subdevice_commands_refused_ = r.get<std::uint64_t>("commands_refused");
+}
+
 }  // namespace oegw::gateway

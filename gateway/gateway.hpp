@@ -120,6 +120,21 @@ class Gateway {
   static constexpr std::uint16_t kEmcyReload = 0x6300;
   [[nodiscard]] bool reloading() const { return reloading_; }
 
+  // Why no run-time state can be taken now, or "" when it can: the state holds no request on the
+  // wire, whose answer would call back into a gateway that is not there ("right_grip:
+  // configuring (an SDO request on the wire or held)", a remote SDO transfer, a host's SDO
+  // transfer). Not from inside a call of this gateway (std::logic_error).
+  [[nodiscard]] std::string busy() const;
+  // Run-time state (canopen/state.hpp) of everything the run decided: the downstream master and
+  // network manager with each driver, remote SDO, the upstream device, the FE model, the command
+  // arbiter, each field's translator and each sub-device's fault and outputs. Only when busy()
+  // is "" (else std::logic_error). import_state() is for a gateway built from the same mapping
+  // file and options and not started: it takes the place of start(), sends nothing and calls
+  // no callback nor the tap; it throws canopen::StateError on a state of another file or
+  // version, and the gateway must then be thrown away.
+  void export_state(canopen::StateWriter& w) const;
+  void import_state(const canopen::StateReader& r);
+
   bool on_upstream_frame(const canopen::CanFrame& frame, canopen::TimePoint now);
   bool on_downstream_frame(const canopen::CanFrame& frame, canopen::TimePoint now);
   void on_upstream_bus_event(canopen::BusEvent event, canopen::TimePoint now);

@@ -1,6 +1,9 @@
 #include "gateway/oe_device.hpp"
 
 #include <algorithm>
+#include <stdexcept>
+
+#include <fmt/format.h>
 
 #include "profiles/cia401/objects.hpp"
 
@@ -449,6 +452,80 @@ void OeDevice::begin_batch() { ++batch_depth_; }
 
 void OeDevice::end_batch(canopen::TimePoint now) {
   if (batch_depth_ > 0 && --batch_depth_ == 0) step_node(now);
+}
+
+std::string OeDevice::busy() const {
+  for (std::size_t k = 0; k < node_->sdo_server_count(); ++k) {
+    if (node_->sdo_server(k).busy()) return fmt::format("the host's SDO transfer on server {:04X}h", 0x1200 + k);
+  }
+  return {};
+}
+
+void OeDevice::export_state(canopen::StateWriter& w) const {
+  if (batch_depth_ != 0) throw std::logic_error("OeDevice::export_state inside an input batch");
+  w.put_state("node", *node_);
+  w.put("now", now_);
+  w.put("last_state", last_state_);
+  w.put_list("faults", faults_.size(), [&, it = faults_.begin()](std::size_t) mutable {
+    w.put("node", it->first);
+    w.put_text("name", it->second);
+    ++it;
+  });
+  w.put_list("outputs", output_shadow_.size(), [&, it = output_shadow_.begin()](std::size_t) mutable {
+    w.put("key", it->first);
+    w.put("value", it->second);
+    ++it;
+  });
+  w.put_list("inputs", input_shadow_.size(), [&, it = input_shadow_.begin()](std::size_t) mutable {
+    w.put("key", it->first);
+    w.put_bytes("bytes", it->second);
+    ++it;
+  });
+}
+
+void OeDevice::import_state(const canopen::StateReader& r) {
+  if (batch_depth_ != 0) throw std::logic_error("OeDevice::import_state inside an input batch");
+  // Read and checked first: the Node's import changes the dictionary.
+  std::map<std::uint8_t, std::string> faults;
+  r.read_list("faults", 127, [&](const canopen::StateReader& item) {
+    const canopen::NodeId node = item.node_id("node");
+    if (!node.valid()) item.fail("node", "is no sub-device's node-ID");
+    faults[node.value()] = item.text("name", 64);
+  });
+  std::map<std::uint32_t, std::int64_t> outputs = output_shadow_;
+  std::size_t n = 0;
+  r.read_list("outputs", outputs.size(), [&](const canopen::StateReader& item) {
+    const auto it = outputs.find(item.get<std::uint32_t>("key"));
+    if (it == outputs.end()) item.fail("key", "is no output entry of this device");
+    it->second = item.integer("value");
+    ++n;
+  });
+  if (n != outputs.size()) r.fail("outputs.count", "differs from this device's output entries");
+  std::map<std::uint32_t, std::vector<std::uint8_t>> inputs;
+  r.read_list("inputs", input_entries_.size(), [&](const canopen::StateReader& item) {
+    const auto key = item.get<std::uint32_t>("key");
+    const bool known = std::any_of(input_entries_.begin(), input_entries_.end(), [&](const InputEntry& e) {
+      return (std::uint32_t{e.slot.index} << 8 | e.slot.sub) == key;
+    });
+    if (!known) item.fail("key", "is no input entry of this device");
+    inputs[key] = item.bytes("bytes");
+  });
+  const canopen::NmtState last = r.nmt_state("last_state");
+  const TimePoint now = r.time("now");
+  node_->import_state(r.in("node"));
+  // handle_state() follows every NMT state change.
+  if (last != node_->nmt().state()) r.fail("last_state", "differs from the NMT state");
+  for (const auto& [key, bytes] : inputs) {
+    const canopen::SubObject* so = od_.find(static_cast<std::uint16_t>(key >> 8), static_cast<std::uint8_t>(key));
+    if (so == nullptr || so->value.size() != bytes.size()) r.fail("inputs", "holds an entry of another size");
+  }
+  if (emcy_consumer_) emcy_consumer_->reload();
+  for (InputEntry& e : input_entries_) e.shadow = nullptr;  // into input_shadow_, replaced
+  input_shadow_ = std::move(inputs);
+  output_shadow_ = std::move(outputs);
+  faults_ = std::move(faults);
+  last_state_ = last;
+  now_ = now;
 }
 
 }  // namespace oegw::gateway

@@ -169,6 +169,14 @@ class OeDevice {
 
   [[nodiscard]] canopen::Node& node() { return *node_; }
   [[nodiscard]] const canopen::Node& node() const { return *node_; }
+
+  // Why no run-time state can be taken now ("" when it can): a host's SDO transfer under way.
+  [[nodiscard]] std::string busy() const;
+  // Run-time state (canopen/state.hpp): the Node's (dictionary and services), the sub-devices
+  // reported faulty (7000h), the outputs and inputs as last written, the last NMT state. The
+  // import takes the place of start(): nothing is sent, no callback is called.
+  void export_state(canopen::StateWriter& w) const;
+  void import_state(const canopen::StateReader& r);
   [[nodiscard]] canopen::ObjectDictionary& od() { return od_; }
   [[nodiscard]] const OeDeviceConfig& config() const { return cfg_; }
 

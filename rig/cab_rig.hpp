@@ -115,10 +115,11 @@ class CabRig {
   [[nodiscard]] canopen::TimePoint now() const { return loop_.now(); }
   [[nodiscard]] const mapping::Config& config() const { return config_; }
   [[nodiscard]] canopen::io::ServiceDriver& gateway_driver() { return *gw_drv_; }
+  // The options the rig builds its gateway with: CabRigOptions::gateway with the rig's store and
+  // SDO pacing (a twin of the gateway is built with them).
+  [[nodiscard]] gateway::GatewayOptions gateway_options() const;
 
  private:
-  // options_.gateway with the rig's store and SDO pacing.
-  [[nodiscard]] gateway::GatewayOptions gateway_options() const;
   // `sink` behind the interceptor member `consumed` (read at each frame, so it may be set later).
   canopen::FrameSink through(const Interceptor& consumed, canopen::FrameSink sink);
 

@@ -23,6 +23,7 @@
 #include "gateway/record/replay.hpp"
 #include "rig/cab_rig.hpp"
 #include "tests/fixtures/fixtures.hpp"
+#include "tests/integration/cab_steps.hpp"
 
 namespace oegw::gateway::record {
 namespace {
@@ -38,10 +39,7 @@ class Blackbox : public ::testing::Test {
   void SetUp() override {
     char tmpl[] = "/tmp/oegw-blackbox-test-XXXXXX";
     dir_ = ::mkdtemp(tmpl);
-    auto loaded =
-        mapping::load_config_text(fixtures::mapping_file("demo_cab.yaml"), "demo_cab.yaml", driver_catalogue());
-    ASSERT_TRUE(loaded.ok()) << loaded.error_text();
-    config_ = std::move(*loaded.config);
+    config_ = oegw::testing::fixture_config("demo_cab.yaml");
     RecorderSettings s;
     s.dir = dir_ / "record";
     s.run = "20261205T140312Z";
@@ -72,27 +70,11 @@ class Blackbox : public ::testing::Test {
     fs::remove_all(dir_, ec);
   }
 
-  void cmd(const std::string& line) {
-    const std::string r = rig_->command(line);
-    ASSERT_EQ(r.rfind("ok", 0), 0u) << line << ": " << r;
-  }
+  void cmd(const std::string& line) { oegw::testing::cab_command(*rig_, line); }
   void sdo_write(std::uint16_t index, std::uint8_t sub, std::vector<std::uint8_t> data) {
-    bool done = false;
-    rig_->host().sdo(kGw).download(index, sub, std::move(data),
-                                   [&](canopen::SdoAbortCode c, std::vector<std::uint8_t>) {
-                                     EXPECT_EQ(c, canopen::SdoAbortCode::None);
-                                     done = true;
-                                   });
-    for (int i = 0; i < 100 && !done; ++i) rig_->run_for(10ms);
-    ASSERT_TRUE(done);
+    oegw::testing::host_sdo_write(*rig_, kGw, index, sub, std::move(data));
   }
-  // Moves the cab's inputs for `d`, in steps of 20 ms (SimBench::move: sine sweeps).
-  void sweep(canopen::Duration d) {
-    for (auto end = loop_.now() + d; loop_.now() < end;) {
-      rig_->devices().move(loop_.now());
-      rig_->run_for(20ms);
-    }
-  }
+  void sweep(canopen::Duration d) { oegw::testing::sweep(*rig_, d); }
 
   // The recorded incident; the recording is complete when it returns.
   void incident() {

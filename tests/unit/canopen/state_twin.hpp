@@ -12,6 +12,14 @@
 
 namespace oegw::canopen::test_support {
 
+// `part`'s state as text.
+template <class T>
+std::string state_text(const T& part) {
+  StateWriter w;
+  part.export_state(w);
+  return w.text();
+}
+
 // `from`'s state, given to `to`: every key must be taken by the import, and exported again the
 // state must be the same.
 template <class T>

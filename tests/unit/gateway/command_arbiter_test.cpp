@@ -207,19 +207,17 @@ TEST(CommandArbiter, ACopyGivenTheStateKeepsTheWatchdogsCountsAndLoggedRefusals)
 }
 
 TEST(CommandArbiter, AStateOfOtherOutputsOrNoRunIsRefused) {
-  Rig a;
-  canopen::StateWriter w;
-  a.arbiter.export_state(w);
   using canopen::test_support::refusal;
   using canopen::test_support::with_value;
+  const std::string text = canopen::test_support::state_text(Rig().arbiter);
   Rig b;
-  EXPECT_EQ(refusal(b.arbiter, with_value(w.text(), "outputs.1.instance", "3")),
+  EXPECT_EQ(refusal(b.arbiter, with_value(text, "outputs.1.instance", "3")),
             "state: 'outputs.1.kind' differs: the state is of another mapping file's outputs (here indicators.2)");
-  EXPECT_EQ(refusal(b.arbiter, with_value(w.text(), "outputs.1.expired", "1")),
+  EXPECT_EQ(refusal(b.arbiter, with_value(text, "outputs.1.expired", "1")),
             "state: 'outputs.1.expired' is set for an output without a watchdog");
-  EXPECT_EQ(refusal(b.arbiter, with_value(with_value(w.text(), "outputs.0.expired", "1"), "started", "0")),
+  EXPECT_EQ(refusal(b.arbiter, with_value(with_value(text, "outputs.0.expired", "1"), "started", "0")),
             "state: 'started' is not set, yet a watchdog expired");
-  const std::string logged = w.text() + "logged.0.kind 0\nlogged.0.instance 1\nlogged.0.way 3\n";
+  const std::string logged = text + "logged.0.kind 0\nlogged.0.instance 1\nlogged.0.way 3\n";
   EXPECT_EQ(refusal(b.arbiter, with_value(logged, "logged.count", "1")), "state: 'logged.0.kind' is no output FE");
 }
 

@@ -125,21 +125,19 @@ TEST(FeModel, ACopyGivenTheStateHoldsEveryFeAndOwesThePublishersTheSame) {
 }
 
 TEST(FeModel, AStateOfOtherFesOrValuesNoFieldHoldsIsRefused) {
-  FeModel a({kJoy1});
-  canopen::StateWriter w;
-  a.export_state(w);
+  const std::string text = canopen::test_support::state_text(FeModel({kJoy1}));
   using canopen::test_support::refusal;
   using canopen::test_support::with_value;
   FeModel other({kJoy2});
-  EXPECT_EQ(refusal(other, w.text()),
+  EXPECT_EQ(refusal(other, text),
             "state: 'fe.0.kind' differs: the state is of another mapping file's FEs (here joystick.2)");
   FeModel fewer({});
-  EXPECT_EQ(refusal(fewer, w.text()), "state: 'fe.count' = 1 is above 0");
+  EXPECT_EQ(refusal(fewer, text), "state: 'fe.count' = 1 is above 0");
   FeModel b({kJoy1});
-  EXPECT_EQ(refusal(b, with_value(w.text(), "fe.0.memory", "8")),
+  EXPECT_EQ(refusal(b, with_value(text, "fe.0.memory", "8")),
             "state: 'fe.0.memory' sets a bit the FE has no field for");
-  EXPECT_EQ(refusal(b, with_value(w.text(), "fe.0.status", "5")), "state: 'fe.0.status' is no FE status");
-  EXPECT_EQ(refusal(b, with_value(w.text(), "fe.0.x", "32768")), "state: 'fe.0.x' = 32768 is outside -32768..32767");
+  EXPECT_EQ(refusal(b, with_value(text, "fe.0.status", "5")), "state: 'fe.0.status' is no FE status");
+  EXPECT_EQ(refusal(b, with_value(text, "fe.0.x", "32768")), "state: 'fe.0.x' = 32768 is outside -32768..32767");
 }
 
 TEST(FeModel, ChangedFesAreReportedOnceEachInFeOrder) {

@@ -71,16 +71,14 @@ TEST(RemoteSdoState, ACopyGivenTheStateCountsOnAndTicketsFollow) {
 TEST(RemoteSdoState, AStateWithTooFewRefusalsOrOtherSubdevicesIsRefused) {
   Side a;
   a.upload(0x11);
-  canopen::StateWriter w;
-  a.remote.export_state(w);
+  const std::string text = canopen::test_support::state_text(a.remote);
   using canopen::test_support::refusal;
   using canopen::test_support::with_value;
   Side b;
-  EXPECT_EQ(refusal(b.remote, with_value(w.text(), "counters.refused", "0")),
+  EXPECT_EQ(refusal(b.remote, with_value(text, "counters.refused", "0")),
             "state: 'counters.refused' is below the sub-devices' refusals");
-  EXPECT_EQ(refusal(b.remote, with_value(w.text(), "next", "0")), "state: 'next' is 0: tickets start at 1");
-  EXPECT_EQ(refusal(b.remote, with_value(w.text(), "refused_by.count", "3")),
-            "state: 'refused_by.count' = 3 is above 2");
+  EXPECT_EQ(refusal(b.remote, with_value(text, "next", "0")), "state: 'next' is 0: tickets start at 1");
+  EXPECT_EQ(refusal(b.remote, with_value(text, "refused_by.count", "3")), "state: 'refused_by.count' = 3 is above 2");
 }
 
 }  // namespace

@@ -247,19 +247,18 @@ TEST(MappingTranslate, AStateTheTranslationCannotGiveIsRefused) {
   FieldOptions o;
   o.fault = -1000;
   o.interlock = false;
-  FieldTranslator a(resolve_input(kPercent, joystick_x(), o));
-  canopen::StateWriter w;
-  a.export_state(w);
+  const FieldTranslator a(resolve_input(kPercent, joystick_x(), o));
+  const std::string text = canopen::test_support::state_text(a);
   using canopen::test_support::refusal;
   using canopen::test_support::with_value;
   FieldTranslator b(a.params());
-  EXPECT_EQ(refusal(b, with_value(w.text(), "locked", "1")),
+  EXPECT_EQ(refusal(b, with_value(text, "locked", "1")),
             "state: 'locked' is set on a field without the neutral interlock");
-  EXPECT_EQ(refusal(b, with_value(w.text(), "value", "40000")),
+  EXPECT_EQ(refusal(b, with_value(text, "value", "40000")),
             "state: 'value' is no value this field's translation gives");
-  EXPECT_EQ(refusal(b, with_value(w.text(), "value", "-32767")), "accepted");  // the clamp's end
+  EXPECT_EQ(refusal(b, with_value(text, "value", "-32767")), "accepted");  // the clamp's end
   FieldTranslator button(resolve_input(kButton, joystick_button(), {}));
-  EXPECT_EQ(refusal(button, with_value(w.text(), "value", "2")),
+  EXPECT_EQ(refusal(button, with_value(text, "value", "2")),
             "state: 'value' is no value this field's translation gives");
 }
 
