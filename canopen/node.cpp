@@ -543,10 +543,13 @@ void Node::export_state(StateWriter& w) const {
 }
 
 void Node::import_state(const StateReader& r) {
-  // CiA 305 table 0 (lss::kAllStandardBitTimings): the index of a bit rate.
+  // CiA 305 table 0: a supported index (LSS configure bit timing) or any a store can give
+  // (load_lss_file takes it as stored).
   const auto bit_timing_index = [&](std::string_view key) {
     const auto i = r.get<std::uint8_t>(key);
-    if (!lss::has_bit_timing(lss::kAllStandardBitTimings, i)) r.fail(key, "is no CiA 305 table-0 index");
+    if (!lss::has_bit_timing(cfg_.supported_bit_timings | lss::kStorableBitTimings, i)) {
+      r.fail(key, "is no bit timing this node supports or a store gives");
+    }
     return i;
   };
   const TimePoint now = r.time("now");

@@ -152,8 +152,7 @@ void CommandArbiter::export_state(canopen::StateWriter& w) const {
   w.put("refused", refused_);
   w.put_list("outputs", outputs_.size(), [&](std::size_t i) {
     const Output& o = outputs_[i];
-    w.put("kind", o.id.kind);
-    w.put("instance", o.id.instance);
+    put_fe_id(w, o.id);
     w.put("last", o.last);
     w.put("expired", o.expired);
     w.put("refused", o.refused);
@@ -165,8 +164,7 @@ void CommandArbiter::export_state(canopen::StateWriter& w) const {
     logged.emplace_back(fe, static_cast<std::size_t>(it - kWays.begin()));
   }
   w.put_list("logged", logged.size(), [&](std::size_t i) {
-    w.put("kind", logged[i].first.kind);
-    w.put("instance", logged[i].first.instance);
+    put_fe_id(w, logged[i].first);
     w.put("way", logged[i].second);
   });
 }
@@ -176,10 +174,7 @@ void CommandArbiter::import_state(const canopen::StateReader& r) {
   std::size_t i = 0;
   r.read_list("outputs", outputs.size(), [&](const canopen::StateReader& item) {
     Output& o = outputs[i++];
-    if (item.get<mapping::FeKind>("kind") != o.id.kind || item.get<std::uint8_t>("instance") != o.id.instance) {
-      item.fail("kind",
-                "differs: the state is of another mapping file's outputs (here " + mapping::fe_name(o.id) + ")");
-    }
+    expect_fe_id(item, o.id, "outputs");
     o.last = item.time("last");
     o.expired = item.get<bool>("expired");
     o.refused = item.get<std::uint64_t>("refused");
@@ -193,7 +188,7 @@ void CommandArbiter::import_state(const canopen::StateReader& r) {
   }
   std::set<std::pair<FeId, std::string>> logged;
   r.read_list("logged", 2 * 256 * kWays.size(), [&](const canopen::StateReader& item) {
-    const FeId fe{item.get<mapping::FeKind>("kind"), item.get<std::uint8_t>("instance")};
+    const FeId fe = get_fe_id(item);
     if (fe.kind != mapping::FeKind::IndicatorCluster && fe.kind != mapping::FeKind::Display) {
       item.fail("kind", "is no output FE");
     }

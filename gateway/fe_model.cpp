@@ -166,7 +166,7 @@ void get_values(const canopen::StateReader& r, DisplayState& s) {
   std::size_t p = 0;
   r.read_list("parameters", s.parameters.size(),
               [&](const canopen::StateReader& item) { s.parameters[p++] = item.get<std::int16_t>("value"); });
-  if (p != s.parameters.size()) r.fail("parameters.count", "is not 12 (CiA 852 §9.7)");
+  if (p != s.parameters.size()) r.fail("parameters.count", "is not 12 (CiA 852 §9.8)");
 }
 
 }  // namespace
@@ -213,6 +213,20 @@ std::string field_name(FeId fe, FieldRef r) {
   return "?";
 }
 
+void put_fe_id(canopen::StateWriter& w, FeId fe) {
+  w.put("kind", fe.kind);
+  w.put("instance", fe.instance);
+}
+
+FeId get_fe_id(const canopen::StateReader& r) { return FeId{r.get<FeKind>("kind"), r.get<std::uint8_t>("instance")}; }
+
+void expect_fe_id(const canopen::StateReader& r, FeId here, std::string_view what) {
+  if (get_fe_id(r) != here) {
+    r.fail("kind",
+           fmt::format("differs: the state is of another mapping file's {} (here {})", what, mapping::fe_name(here)));
+  }
+}
+
 FeModel::FeModel(std::vector<FeId> fes) {
   for (auto& row : index_) row.fill(-1);
   std::erase_if(fes, [](const FeId& f) { return f.instance < 1 || f.instance > mapping::max_instances(f.kind); });
@@ -238,8 +252,7 @@ void FeModel::export_state(canopen::StateWriter& w) const {
   if (reporting_) throw std::logic_error("FeModel::export_state while the changes are reported");
   w.put_list("fe", entries_.size(), [&](std::size_t i) {
     const Entry& e = entries_[i];
-    w.put("kind", e.id.kind);
-    w.put("instance", e.id.instance);
+    put_fe_id(w, e.id);
     w.put("status", header(e.state).status);
     w.put("at", header(e.state).source_time);
     if (e.published_mark) w.put("owed", true);
@@ -253,9 +266,7 @@ void FeModel::import_state(const canopen::StateReader& r) {
   std::size_t i = 0;
   r.read_list("fe", entries.size(), [&](const canopen::StateReader& item) {
     Entry& e = entries[i++];
-    if (item.get<FeKind>("kind") != e.id.kind || item.get<std::uint8_t>("instance") != e.id.instance) {
-      item.fail("kind", "differs: the state is of another mapping file's FEs (here " + mapping::fe_name(e.id) + ")");
-    }
+    expect_fe_id(item, e.id, "FEs");
     const auto status = item.get<std::uint8_t>("status");
     if (status > static_cast<std::uint8_t>(FeStatus::Offline)) item.fail("status", "is no FE status");
     header(e.state) = FeHeader{static_cast<FeStatus>(status), item.time("at")};

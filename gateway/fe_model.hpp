@@ -53,6 +53,13 @@ struct FieldRef {
 // The mapping-file name of a field (diagnostics, logs, tests).
 [[nodiscard]] std::string field_name(mapping::FeId fe, FieldRef ref);
 
+// An FE's name in a run-time state (canopen/state.hpp): its kind and instance. A list of FEs
+// follows the mapping file's order, so the reader checks each against the FE at its place
+// (`what` names the list's FEs: "FEs", "outputs").
+void put_fe_id(canopen::StateWriter& w, mapping::FeId fe);
+[[nodiscard]] mapping::FeId get_fe_id(const canopen::StateReader& r);
+void expect_fe_id(const canopen::StateReader& r, mapping::FeId here, std::string_view what);
+
 struct FeHeader {
   FeStatus status = FeStatus::Offline;
   canopen::TimePoint source_time{};

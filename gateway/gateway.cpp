@@ -875,6 +875,10 @@ void Gateway::settle_reload() {
 
 namespace {
 
+// A sub-device's why and fault texts: the refusals a boot gives (every boot write named) run to
+// some hundred bytes; the limit only keeps a damaged state from taking the memory.
+constexpr std::size_t kMaxText = 64 * 1024;
+
 void put_emcy(canopen::StateWriter& w, const Gateway::EmcyRecord& e) {
   w.put("node", e.last.node.value());
   w.put("code", e.last.code);
@@ -958,9 +962,7 @@ void Gateway::import_state(const canopen::StateReader& r) {
   std::size_t n = 0;
   r.read_list("bindings", bindings_.size(), [&](const canopen::StateReader& item) {
     Binding& b = bindings_[n++];
-    const auto status = item.get<std::uint8_t>("status");
-    if (status > static_cast<std::uint8_t>(SignalStatus::Offline)) item.fail("status", "is no signal status");
-    b.status = static_cast<SignalStatus>(status);
+    b.status = subdevices::get_signal_status(item, "status");
     if (b.translator) b.translator->import_state(item.in("translator"));
   });
   if (n != bindings_.size()) r.fail("bindings.count", "differs from the mapping file's fields");
@@ -971,7 +973,7 @@ void Gateway::import_state(const canopen::StateReader& r) {
     Sub& s = subs_.at(name);
     s.operational = item.get<bool>("operational");
     s.failed = item.get<bool>("failed");
-    s.why = item.text("why", 512);
+    s.why = item.text("why", kMaxText);
     std::size_t k = 0;
     item.read_list("outputs", s.output_values.size(),
                    [&](const canopen::StateReader& o) { s.output_values[k++] = o.integer("value"); });
@@ -981,13 +983,11 @@ void Gateway::import_state(const canopen::StateReader& r) {
     if (kind > static_cast<std::uint8_t>(Cause::Kind::Input)) item.fail("cause.kind", "is no fault cause");
     const auto binding = item.get<std::uint64_t>("cause.binding");
     if (binding >= std::max<std::size_t>(bindings_.size(), 1)) item.fail("cause.binding", "is no field binding");
-    const auto status = item.get<std::uint8_t>("cause.status");
-    if (status > static_cast<std::uint8_t>(SignalStatus::Offline)) item.fail("cause.status", "is no signal status");
-    s.cause =
-        Cause{static_cast<Cause::Kind>(kind), static_cast<std::size_t>(binding), static_cast<SignalStatus>(status)};
+    s.cause = Cause{static_cast<Cause::Kind>(kind), static_cast<std::size_t>(binding),
+                    subdevices::get_signal_status(item, "cause.status")};
     // update_fault(): a sub-device has a fault reason exactly while it has a cause.
     if (item.has("fault") != (s.cause.kind != Cause::Kind::None)) item.fail("fault", "differs from the fault's cause");
-    if (item.has("fault")) faults[name] = item.text("fault", 512);
+    if (item.has("fault")) faults[name] = item.text("fault", kMaxText);
     s.emcy = get_emcy(item.in("emcy"));
     s.refused_commands = item.get<std::uint64_t>("refused_commands");
   });

@@ -18,6 +18,12 @@ std::string_view to_string(SignalStatus s) {
   return "unknown";
 }
 
+SignalStatus get_signal_status(const canopen::StateReader& r, std::string_view key) {
+  const auto status = r.get<std::uint8_t>(key);
+  if (status > static_cast<std::uint8_t>(SignalStatus::Offline)) r.fail(key, "is no signal status");
+  return static_cast<SignalStatus>(status);
+}
+
 std::string_view to_string(SignalKind k) {
   switch (k) {
     case SignalKind::Axis: return "axis";
@@ -340,9 +346,7 @@ void Driver::import_state(const canopen::StateReader& r) {
   std::vector<SignalValue> values;
   std::vector<bool> faults;
   r.read_list("signals", values_.size(), [&](const canopen::StateReader& s) {
-    const auto status = s.get<std::uint8_t>("status");
-    if (status > static_cast<std::uint8_t>(SignalStatus::Offline)) s.fail("status", "is no signal status");
-    values.push_back(SignalValue{s.integer("value"), static_cast<SignalStatus>(status), s.time("at")});
+    values.push_back(SignalValue{s.integer("value"), get_signal_status(s, "status"), s.time("at")});
     faults.push_back(s.get_or("fault", false));
   });
   if (values.size() != values_.size()) {

@@ -288,7 +288,7 @@ void ElobauMfgDriver::on_tpdo1(const CanFrame& frame, TimePoint now) {
 void ElobauMfgDriver::publish_axis(std::size_t a, TimePoint now) {
   const Axis& ax = axes_[a];
   const std::size_t index = kX + a;
-  if (global_emcy_ || ax.emcy) {  // an EMCY error shows at once, PDO or not
+  if (latched(index)) {  // an EMCY error shows at once, PDO or not
     update(index, signals_[index].neutral, SignalStatus::Error, now);
     return;
   }
@@ -316,8 +316,8 @@ void ElobauMfgDriver::publish_axis(std::size_t a, TimePoint now) {
 
 void ElobauMfgDriver::publish_buttons(TimePoint now) {
   // An EMCY error shows at once; otherwise a button stays Offline until TPDO #0 arrives.
-  auto one = [&](std::size_t index, std::size_t bit, bool err) {
-    if (err) {
+  auto one = [&](std::size_t index, std::size_t bit) {
+    if (latched(index)) {
       update(index, 0, SignalStatus::Error, now);
     } else if (buttons_ && ((fitted_ >> bit) & 1u) == 0) {
       update(index, 0, SignalStatus::NotAvailable, now);  // 2100h:01h/02h: the grip has no such button
@@ -327,8 +327,8 @@ void ElobauMfgDriver::publish_buttons(TimePoint now) {
       update(index, 0, SignalStatus::Offline, now);
     }
   };
-  for (std::size_t b = 0; b < kButtons; ++b) one(kFirstButton + b, b, global_emcy_ || button_emcy_[b]);
-  one(kPresence, 11, global_emcy_ || button_emcy_[11]);  // button 12 = presence sensor (§15.2.1)
+  for (std::size_t b = 0; b < kButtons; ++b) one(kFirstButton + b, b);
+  one(kPresence, 11);  // button 12 = presence sensor (§15.2.1)
 }
 
 void ElobauMfgDriver::publish_all(TimePoint now) {
@@ -442,10 +442,21 @@ void ElobauMfgDriver::sync_faults(std::optional<TimePoint> now) {
       set_fault(index);
     }
   };
-  for (std::size_t a = 0; a < kAxes; ++a) one(kX + a, global_emcy_ || axes_[a].emcy);
-  for (std::size_t b = 0; b < kButtons; ++b) one(kFirstButton + b, global_emcy_ || button_emcy_[b]);
-  one(kPresence, global_emcy_ || button_emcy_[11]);  // button 12 = presence sensor (§15.2.1)
-  for (std::size_t l = 0; l < kLeds; ++l) one(kFirstLed + l, led_emcy_);
+  for (std::size_t i = 0; i < signals_.size(); ++i) one(i, latched(i));
+}
+
+bool ElobauMfgDriver::latched(std::size_t i) const {
+  if (i >= kFirstLed) return led_emcy_;
+  if (i == kPresence) return global_emcy_ || button_emcy_[11];  // button 12 = presence sensor (§15.2.1)
+  if (i >= kFirstButton) return global_emcy_ || button_emcy_[i - kFirstButton];
+  return global_emcy_ || axes_[i - kX].emcy;
+}
+
+std::string ElobauMfgDriver::latch_key(std::size_t i) const {
+  if (i >= kFirstLed) return "led_emcy";
+  if (global_emcy_) return "global_emcy";
+  if (i >= kFirstButton) return "button_emcy";
+  return "axis." + std::to_string(i - kX) + ".emcy";
 }
 
 void ElobauMfgDriver::clear_faults() {
@@ -744,13 +755,8 @@ void ElobauMfgDriver::import_family_state(const canopen::StateReader& r) {
   }
   leds_sent_ = r.get<bool>("leds_sent");
   // The EMCY latches decide the faults (sync_faults).
-  std::vector<bool> latched(signals_.size(), false);
-  for (std::size_t a = 0; a < kAxes; ++a) latched[kX + a] = global_emcy_ || axes_[a].emcy;
-  for (std::size_t b = 0; b < kButtons; ++b) latched[kFirstButton + b] = global_emcy_ || button_emcy_[b];
-  latched[kPresence] = global_emcy_ || button_emcy_[11];
-  for (std::size_t l = 0; l < kLeds; ++l) latched[kFirstLed + l] = led_emcy_;
   for (std::size_t i = 0; i < signals_.size(); ++i) {
-    if (faulted(i) != latched[i]) r.fail("global_emcy", "differs from signal " + std::to_string(i) + "'s fault");
+    if (faulted(i) != latched(i)) r.fail(latch_key(i), "differs from signal " + std::to_string(i) + "'s fault");
   }
 }
 

@@ -215,6 +215,9 @@ class ElobauMfgDriver final : public Driver {
   std::vector<std::size_t> apply_manufacturer_code(std::uint16_t m, TimePoint now);
   // The latches below -> Driver faults (set_fault/clear_fault); without a time, no status change.
   void sync_faults(std::optional<TimePoint> now);
+  // Whether the latches fault signal `i`, and the latch's state key (sync_faults; the import).
+  [[nodiscard]] bool latched(std::size_t i) const;
+  [[nodiscard]] std::string latch_key(std::size_t i) const;
   void clear_faults();
   [[nodiscard]] bool valid_value(std::int8_t v) const;
   [[nodiscard]] static std::int8_t limit100(std::int8_t v);

@@ -287,16 +287,16 @@ void Mcb402Driver::on_tpdo2(const CanFrame& frame, TimePoint now) {
 void Mcb402Driver::set_broken(std::uint8_t axes, std::optional<TimePoint> now) {
   broken_ = static_cast<std::uint8_t>(axes & 0x0F);
   for (std::size_t a = 0; a < kAxes; ++a) {
-    if ((broken_ & (1u << a)) != 0) {
-      if (now) {
-        set_fault(a, *now);
-      } else {
-        set_fault(a);
-      }
-    } else if (!unknown_fault_) {
+    if (!latched(a)) {
       clear_fault(a);  // its next TPDO2 value is good
+    } else if ((broken_ & (1u << a)) != 0) {
+      now ? set_fault(a, *now) : set_fault(a);
     }
   }
+}
+
+bool Mcb402Driver::latched(std::size_t i) const {
+  return !signals_[i].output() && (unknown_fault_ || (i < kAxes && ((broken_ >> i) & 1u) != 0));
 }
 
 void Mcb402Driver::clear_faults() {
@@ -413,7 +413,7 @@ DecodedEmcy Mcb402Driver::on_emcy(const EmcyMessage& emcy, TimePoint now) {
   d.text = "MCB-402 " + hex4(emcy.code) + "h: undocumented EMCY code, every input faulted";
   unknown_fault_ = true;
   for (std::size_t i = 0; i < signals_.size(); ++i) {
-    if (signals_[i].output()) continue;
+    if (!latched(i)) continue;
     set_fault(i, now);
     d.affected.push_back(i);
   }
@@ -466,11 +466,11 @@ void Mcb402Driver::import_family_state(const canopen::StateReader& r) {
   const auto outputs = r.get<std::uint8_t>("outputs");
   if ((outputs & ~0x0Fu) != 0) r.fail("outputs", "sets a bit no LED of the board has");
   outputs_ = outputs;
-  // The latches decide the faults (set_broken, on_emcy): an axis is faulted while broken, every
-  // input while an undocumented error lasts, an LED never.
   for (std::size_t i = 0; i < signals_.size(); ++i) {
-    const bool latched = !signals_[i].output() && (unknown_fault_ || (i < kAxes && ((broken_ >> i) & 1u) != 0));
-    if (faulted(i) != latched) r.fail("broken", "differs from signal " + std::to_string(i) + "'s fault");
+    if (faulted(i) == latched(i)) continue;
+    // The latch that decides: an axis's cable break unless an undocumented error faults it too.
+    r.fail(i < kAxes && !unknown_fault_ ? "broken" : "unknown_fault",
+           "differs from signal " + std::to_string(i) + "'s fault");
   }
 }
 

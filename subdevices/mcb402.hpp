@@ -176,6 +176,9 @@ class Mcb402Driver final : public Driver {
   void on_tpdo1(const CanFrame& frame, TimePoint now);
   void on_tpdo2(const CanFrame& frame, TimePoint now);
   void set_broken(std::uint8_t axes, std::optional<TimePoint> now);
+  // Whether the latches fault signal `i`: an axis while broken, every input while an
+  // undocumented error lasts, an LED never (set_broken, on_emcy; the state import checks it).
+  [[nodiscard]] bool latched(std::size_t i) const;
   void clear_faults();
   void send_outputs();
   void flush_outputs(TimePoint now) override;

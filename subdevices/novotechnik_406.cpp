@@ -1,5 +1,6 @@
 #include "subdevices/novotechnik_406.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <limits>
 
@@ -266,14 +267,18 @@ std::uint8_t Novotechnik406Driver::latch_of(std::uint16_t code) {
 
 void Novotechnik406Driver::set_latches(std::uint8_t mask, std::uint8_t set, std::optional<TimePoint> now) {
   latches_ = static_cast<std::uint8_t>((latches_ & ~mask) | (set & mask));
-  for (const std::size_t i : {kPosition, kSpeed, kCams, kWorkArea}) {
-    if (latches_ != 0) {
+  for (const std::size_t i : kLatchFollowers) {
+    if (latched(i)) {
       set_fault(i);
     } else {
       clear_fault(i);
     }
   }
   if (latches_ != 0 && now) fault_position(*now);
+}
+
+bool Novotechnik406Driver::latched(std::size_t i) const {
+  return latches_ != 0 && std::find(kLatchFollowers.begin(), kLatchFollowers.end(), i) != kLatchFollowers.end();
 }
 
 std::vector<std::pair<std::uint16_t, std::uint8_t>> Novotechnik406Driver::boot_reads() const {
@@ -412,12 +417,8 @@ void Novotechnik406Driver::import_family_state(const canopen::StateReader& r) {
   const auto latches = r.get<std::uint8_t>("latches");
   if ((latches & ~(kLatchPosition | kLatchDevice | kLatchSupply)) != 0) r.fail("latches", "names no latch");
   latches_ = latches;
-  // Any latch faults the position and what follows from it (set_latches), nothing else.
   for (std::size_t i = 0; i < signals_.size(); ++i) {
-    const bool follows = i == kPosition || i == kSpeed || i == kCams || i == kWorkArea;
-    if (faulted(i) != (follows && latches_ != 0)) {
-      r.fail("latches", "differs from signal " + std::to_string(i) + "'s fault");
-    }
+    if (faulted(i) != latched(i)) r.fail("latches", "differs from signal " + std::to_string(i) + "'s fault");
   }
 }
 

@@ -79,6 +79,7 @@
 //                      lists several products and ExpectedIdentity holds one).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -130,6 +131,8 @@ class Novotechnik406Driver final : public Driver {
   static constexpr std::size_t kSpeed = 1;
   static constexpr std::size_t kCams = 2;
   static constexpr std::size_t kWorkArea = 3;
+  // Any latch faults the position and what follows from it, nothing else.
+  static constexpr std::array<std::size_t, 4> kLatchFollowers{kPosition, kSpeed, kCams, kWorkArea};
   static constexpr std::uint8_t kTpdo1Length = 8;
 
   Novotechnik406Driver(NodeId node, FrameSink sink, Novotechnik406Options options);
@@ -189,6 +192,8 @@ class Novotechnik406Driver final : public Driver {
   // Sets or ends the latches in `mask` to `set`, then faults position and speed while any
   // latch is held (Error at once when `now` is given, also before the first TPDO1).
   void set_latches(std::uint8_t mask, std::uint8_t set, std::optional<TimePoint> now);
+  // Whether the latches fault signal `i` (set_latches; the state import checks the same rule).
+  [[nodiscard]] bool latched(std::size_t i) const;
 
   void export_family_state(canopen::StateWriter& w) const override;
   void import_family_state(const canopen::StateReader& r) override;

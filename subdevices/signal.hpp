@@ -9,6 +9,7 @@
 #include <string_view>
 #include <vector>
 
+#include "canopen/state.hpp"
 #include "canopen/types.hpp"
 
 namespace oegw::subdevices {
@@ -25,6 +26,8 @@ enum class SignalStatus : std::uint8_t {
   Offline,       // the node is gone (heartbeat lost, not booted, not configured)
 };
 [[nodiscard]] std::string_view to_string(SignalStatus s);
+// A status read back from a run-time state (canopen/state.hpp); fails on a number no status has.
+[[nodiscard]] SignalStatus get_signal_status(const canopen::StateReader& r, std::string_view key);
 
 // What a signal is, so that the mapping layer can check that it fits the field it feeds.
 enum class SignalKind : std::uint8_t {

@@ -91,6 +91,9 @@ struct AddressRange {
 // A set of table-0 indexes as LssSlave takes it: bit i set = index i supported.
 using BitTimings = std::uint16_t;
 inline constexpr BitTimings kAllStandardBitTimings = 0x01DF;  // 0..8 without the reserved 5
+// What a stored configuration may carry (read_lss_store): any table-0 index 0..9, the reserved
+// 5 and the automatic 9 among them. A node takes it as stored, supported or not.
+inline constexpr BitTimings kStorableBitTimings = 0x03FF;
 // True when `index` (CiA 305 table 0) is one of `timings`.
 [[nodiscard]] constexpr bool has_bit_timing(BitTimings timings, unsigned index) {
   return index < 16 && ((timings >> index) & 1u) != 0;

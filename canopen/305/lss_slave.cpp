@@ -224,9 +224,10 @@ void LssSlave::import_state(const StateReader& r) {
   const NodeId active = r.node_id("active_node_id");
   const NodeId pending = r.node_id("pending_node_id");
   const auto bit_timing = r.get<std::uint8_t>("pending_bit_timing");
-  // Only a supported index is ever configured (on_configure_bit_timing) or stored.
-  if (!lss::has_bit_timing(supported_bit_timings_, bit_timing)) {
-    r.fail("pending_bit_timing", "is no bit timing this node supports");
+  // A supported index is configured (on_configure_bit_timing); the store may have given any
+  // it can carry (read_lss_store).
+  if (!lss::has_bit_timing(supported_bit_timings_ | lss::kStorableBitTimings, bit_timing)) {
+    r.fail("pending_bit_timing", "is no bit timing this node supports or a store gives");
   }
   const auto mode = r.get<std::uint8_t>("mode");
   if (mode > static_cast<std::uint8_t>(lss::Mode::Configuration)) r.fail("mode", "is no LSS mode");

@@ -3,6 +3,7 @@
 #include <sstream>
 
 #include "canopen/301/storage.hpp"
+#include "canopen/305/lss.hpp"
 
 namespace oegw::canopen {
 
@@ -29,7 +30,9 @@ std::optional<LssStored> read_lss_store(const std::filesystem::path& store) {
       if (key == "bit_timing") bt = value;
     }
   }
-  if (node < 1 || node > 127 || bt < 0 || bt > 9) return std::nullopt;
+  if (node < 1 || node > 127 || bt < 0 || !lss::has_bit_timing(lss::kStorableBitTimings, static_cast<unsigned>(bt))) {
+    return std::nullopt;
+  }
   return LssStored{NodeId{static_cast<std::uint8_t>(node)}, static_cast<std::uint8_t>(bt)};
 }
 

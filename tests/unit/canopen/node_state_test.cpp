@@ -7,12 +7,16 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
+#include <filesystem>
 #include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "canopen/305/lss_slave.hpp"
+#include "canopen/305/lss_store.hpp"
 #include "canopen/node.hpp"
 #include "canopen/state.hpp"
 #include "node_test_support.hpp"
@@ -222,8 +226,11 @@ TEST(NodeState, AStateOfAnotherConfigurationOrStateMachineIsRefused) {
   };
   const std::pair<std::string, std::string> bad[] = {
       {with("cob_base", "255"), "state: 'cob_base' is no node-ID (1..127): the COB-IDs follow a valid one"},
-      {with("bit_timing", "5"), "state: 'bit_timing' is no CiA 305 table-0 index"},
+      {with("bit_timing", "10"), "state: 'bit_timing' is no bit timing this node supports or a store gives"},
+      {with("lss.pending_bit_timing", "10"),
+       "state: 'lss.pending_bit_timing' is no bit timing this node supports or a store gives"},
       {with("gate", "4"), "state: 'gate' differs from the NMT state"},  // stopped, in pre-operational
+      {with("lss.active_node_id", "5"), "state: 'lss.active_node_id' differs from the NMT node-ID"},
       {with("lss.mode", "2"), "state: 'lss.mode' is no LSS mode"},
       {with("lss.selective_next", "64"), "state: 'lss.selective_next' is no step of switch state selective"},
       {with("lss.fastscan_pos", "4"), "state: 'lss.fastscan_pos' is no part of the LSS address (0..3)"},
@@ -232,6 +239,40 @@ TEST(NodeState, AStateOfAnotherConfigurationOrStateMachineIsRefused) {
     Side b;
     EXPECT_EQ(test_support::refusal(*b.node, text), message);
   }
+}
+
+// A store may give a bit timing the node does not support, or one table 0 reserves or leaves to
+// automatic detection (read_lss_store takes 0..9): the node runs on it as stored, so a state it
+// writes then is one a run leaves and is taken back.
+TEST(NodeState, AStoredBitTimingTheNodeDoesNotSupportIsTakenBack) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("oegw_node_state_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::filesystem::path store = dir / "store";
+  for (const std::uint8_t stored : {1, 5, 9}) {
+    SCOPED_TRACE(static_cast<int>(stored));
+    std::string error;
+    ASSERT_TRUE(write_lss_store(store, LssStored{kId, stored}, error)) << error;
+    const auto make = [&](ObjectDictionary& od) {
+      test_support::build_application_od(od, kId);
+      NodeConfig c = config();
+      c.store_path = store;
+      c.supported_bit_timings = 1u << 4;  // 125 kbit/s only
+      return std::make_unique<Node>(od, c, [](const CanFrame&) {});
+    };
+    ObjectDictionary od_a;
+    const auto a = make(od_a);
+    a->start(t0);
+    ASSERT_EQ(a->bit_timing_index(), stored);
+    StateWriter w;
+    a->export_state(w);
+    ObjectDictionary od_b;
+    const auto b = make(od_b);
+    EXPECT_NO_THROW(b->import_state(StateReader::parse(w.text())));
+    EXPECT_EQ(b->bit_timing_index(), stored);
+    EXPECT_EQ(b->lss().pending_bit_timing(), stored);
+  }
+  std::filesystem::remove_all(dir);
 }
 
 // A transfer under way is not state (it holds a client's half-sent data and callbacks): a

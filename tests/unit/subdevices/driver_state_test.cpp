@@ -324,12 +324,17 @@ TEST(DriverState, AStateNoRunCouldLeaveIsRefusedNamingTheKey) {
       {grip_with_led, "family.led.0", "3", "state: 'family.led.0' is no LED code the gateway commands"},
       {sensor, "family.latches", "8", "state: 'family.latches' names no latch"},
       // A latch without the faults it sets (or the reverse) is no run's: the faults decide
-      // what the inputs show.
+      // what the inputs show. The refusal names the latch that decides.
       {[] { return mcb402(); }, "family.broken", "1", "state: 'family.broken' differs from signal 0's fault"},
-      {[] { return mcb402(); }, "family.unknown_fault", "1", "state: 'family.broken' differs from signal 0's fault"},
+      {[] { return mcb402(); }, "family.broken", "4", "state: 'family.broken' differs from signal 2's fault"},
+      {[] { return mcb402(); }, "family.unknown_fault", "1",
+       "state: 'family.unknown_fault' differs from signal 0's fault"},
       {sensor, "family.latches", "1", "state: 'family.latches' differs from signal 0's fault"},
+      {sensor, "family.latches", "4", "state: 'family.latches' differs from signal 0's fault"},
       {[] { return elobau(); }, "family.global_emcy", "1", "state: 'family.global_emcy' differs from signal 0's fault"},
-      {[] { return elobau(); }, "family.led_emcy", "1", "state: 'family.global_emcy' differs from signal 22's fault"},
+      {[] { return elobau(); }, "family.axis.2.emcy", "1", "state: 'family.axis.2.emcy' differs from signal 2's fault"},
+      {[] { return elobau(); }, "family.button_emcy", "4", "state: 'family.button_emcy' differs from signal 7's fault"},
+      {[] { return elobau(); }, "family.led_emcy", "1", "state: 'family.led_emcy' differs from signal 22's fault"},
   };
   for (const Case& c : cases) {
     const std::unique_ptr<Driver> a = c.make();
