@@ -116,10 +116,12 @@ int run_replay(const ReplayCommandOptions& o) {
                    r.divergence->recorded.c_str(), r.divergence->replayed.c_str());
       continue;
     }
-    std::fprintf(stderr, "run %s: exact replay, %llu inputs (%llu frames), %llu outputs compared: no divergence%s%s\n",
+    std::fprintf(stderr,
+                 "run %s: exact replay, %llu inputs (%llu frames), %llu outputs and %llu segment states compared: no "
+                 "divergence%s%s\n",
                  r.run.c_str(), static_cast<unsigned long long>(r.inputs), static_cast<unsigned long long>(r.frames_in),
-                 static_cast<unsigned long long>(r.compared), r.stopped.empty() ? "" : "; compared up to ",
-                 r.stopped.c_str());
+                 static_cast<unsigned long long>(r.compared), static_cast<unsigned long long>(r.states),
+                 r.stopped.empty() ? "" : "; compared up to ", r.stopped.c_str());
   }
   if (!o.plot.empty()) {
     const std::string title = "oegw replay " + o.recording + " (" + o.config + ")";

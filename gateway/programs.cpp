@@ -607,6 +607,8 @@ class Daemon {
     notify.emplace(*systemd, systemd_watchdog_timeout());
     if (!open_control()) return exit_code::kCannotStart;
     handle_signals();
+    // Each black-box segment begins with the running gateway's state (the one a reload made too).
+    recording.give_states([this] { return static_cast<const Gateway*>(gw.get()); });
     start();
     loop.run();
     return exit_status;

@@ -36,7 +36,7 @@ root=$cache/sysroot-$arch
 PACKAGES=(
   libc6-dev libstdc++-12-dev
   libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libsocketcan-dev nlohmann-json3-dev
-  libsystemd-dev liburing-dev cyclonedds-dev liblcm-dev libglib2.0-dev libssl-dev
+  libsystemd-dev liburing-dev cyclonedds-dev liblcm-dev libglib2.0-dev libssl-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 )
 sources=("deb $mirror $suite main" "deb $mirror $suite-updates main"

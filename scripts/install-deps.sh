@@ -19,6 +19,8 @@ PACKAGES=(
   libcli11-dev libspdlog-dev libfmt-dev libyaml-cpp-dev libsocketcan-dev
   # the control socket's JSON (oegw status)
   nlohmann-json3-dev
+  # zlib: the CRC-32 that tells a black box's state line from a torn or damaged one
+  zlib1g-dev
   # Chart.js 3.9, inlined into the page `oegw replay --plot` writes (docs/guides/black-box.md)
   libjs-chart.js
   # publishing to the machine application: Cyclone DDS (C library + CMake package) and idlc,

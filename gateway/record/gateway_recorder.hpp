@@ -54,6 +54,12 @@ class GatewayRecorder final : public GatewayTap {
   // An input of the daemon around the gateway that the gateway's calls do not show: "reload
   // FILE" (the mapping file reloaded, SIGHUP).
   void note(canopen::TimePoint t, std::string_view text) { input(t, text); }
+  // A segment begins here (its `state` line): each FE's next line names every field again, so
+  // that a segment read without those before it shows whole FEs. The replay calls it where the
+  // recording has a `state` line, so that its lines are the recording's.
+  void segment_started() {
+    for (auto& [fe, c] : fes_) c.seen = false;
+  }
   void logged(const std::string& line) override;
 
  private:

@@ -2,8 +2,12 @@
 
 #include <array>
 #include <charconv>
+#include <cstdio>
 #include <cstring>
 #include <ctime>
+#include <stdexcept>
+
+#include <zlib.h>
 
 namespace oegw::gateway::record {
 
@@ -272,6 +276,61 @@ std::optional<EventLine> parse_event_line(std::string_view line, std::string& er
     error = "no text after @N";
     return std::nullopt;
   }
+  return out;
+}
+
+namespace {
+
+std::uint32_t crc32_of(std::string_view s) {
+  // zlib takes its length as uInt: a state is far below 4 GiB.
+  return static_cast<std::uint32_t>(::crc32(0L, reinterpret_cast<const Bytef*>(s.data()), static_cast<uInt>(s.size())));
+}
+
+}  // namespace
+
+std::string state_event(std::string_view state_text) {
+  std::string joined(state_text);
+  while (!joined.empty() && joined.back() == '\n') joined.pop_back();
+  for (char& c : joined) {
+    if (c == ';') throw std::logic_error("state_event: a state line holds ';'");
+    if (c == '\n') c = ';';
+  }
+  char head[48];
+  const int n = std::snprintf(head, sizeof head, "state crc32=%08X bytes=%zu ", crc32_of(joined), joined.size());
+  return std::string(head, static_cast<std::size_t>(n)) + joined;
+}
+
+std::string no_state_event(std::string_view why) { return "state none (" + std::string(why) + ")"; }
+
+std::optional<std::string> parse_state_event(std::string_view text, std::string& error) {
+  constexpr std::string_view kNone = "state none ";
+  if (text.substr(0, kNone.size()) == kNone) {
+    error = "none " + std::string(text.substr(kNone.size()));
+    return std::nullopt;
+  }
+  constexpr std::string_view kHead = "state crc32=";
+  unsigned crc = 0;
+  std::size_t bytes = 0;
+  int used = 0;
+  if (text.substr(0, kHead.size()) != kHead ||
+      std::sscanf(std::string(text.substr(0, 64)).c_str(), "state crc32=%8X bytes=%zu %n", &crc, &bytes, &used) != 2 ||
+      used == 0) {
+    error = "no state line: expected state crc32=XXXXXXXX bytes=N TEXT or state none (WHY)";
+    return std::nullopt;
+  }
+  const std::string_view joined = text.substr(static_cast<std::size_t>(used));
+  if (joined.size() != bytes) {
+    error = "the state holds " + std::to_string(joined.size()) + " bytes, its line says " + std::to_string(bytes);
+    return std::nullopt;
+  }
+  if (crc32_of(joined) != crc) {
+    error = "the state's CRC-32 differs from its line's: the line is damaged";
+    return std::nullopt;
+  }
+  std::string out(joined);
+  for (char& c : out)
+    if (c == ';') c = '\n';
+  out += '\n';
   return out;
 }
 

@@ -25,7 +25,8 @@
 
 namespace oegw::gateway::record {
 
-inline constexpr int kFormatVersion = 1;
+// 2: each segment's events begin with a `state` line (state_event()).
+inline constexpr int kFormatVersion = 2;
 
 // R: received by the gateway; T: sent by it.
 enum class Direction : std::uint8_t { Rx, Tx };
@@ -81,5 +82,17 @@ struct EventLine {
 
 // "(1733407392.123456)" -> microseconds; nullopt for anything else.
 [[nodiscard]] std::optional<std::int64_t> parse_wall_time(std::string_view text);
+
+// A segment's `state` event (format 2), after its header: the gateway's run-time state when the
+// segment began (canopen/state.hpp: Gateway::export_state), from which a replay can start there,
+// as one line: "state crc32=1A2B3C4D bytes=N KEY VALUE;KEY VALUE;…", the state's lines joined
+// by ';' (no state line holds one) and N and zlib's CRC-32 of that joined text, so that a line
+// torn or damaged on the disk is told from a state. Or, where the gateway had no quiet moment
+// to give one (a request on the wire), "state none (WHY)".
+[[nodiscard]] std::string state_event(std::string_view state_text);
+[[nodiscard]] std::string no_state_event(std::string_view why);
+// A `state` event's state text (its lines again), or nullopt with `error`: "none (WHY)", a
+// length or CRC that differs, no state event.
+[[nodiscard]] std::optional<std::string> parse_state_event(std::string_view text, std::string& error);
 
 }  // namespace oegw::gateway::record

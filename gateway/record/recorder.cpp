@@ -26,13 +26,14 @@ namespace fs = std::filesystem;
 
 namespace {
 
-enum class Kind : std::uint8_t { Frame = 1, Event = 2, Gap = 3 };
+// State: the body is the gateway's state text (side_dir 0) or why there is none (side_dir 1).
+enum class Kind : std::uint8_t { Frame = 1, Event = 2, Gap = 3, State = 4 };
 
 struct Head {
   Kind kind;
   std::uint8_t side_dir;  // bit 0: down, bit 1: sent
-  std::uint16_t len;      // body bytes
-  std::uint32_t pad;
+  std::uint16_t pad;
+  std::uint32_t len;  // body bytes
   std::int64_t t_us;
 };
 static_assert(sizeof(Head) == 16);
@@ -168,14 +169,16 @@ void Recorder::scan_existing() {
 
 // ---- The loop's side ----
 
-void Recorder::push(const void* head, std::size_t head_n, const void* body, std::size_t body_n, bool frame) {
+bool Recorder::push(const void* head, std::size_t head_n, const void* body, std::size_t body_n, bool frame,
+                    bool counted) {
   std::lock_guard lk(m_);
   const bool gap = pending_dropped_frames_ != 0 || pending_dropped_events_ != 0;
   const std::size_t need = head_n + body_n + (gap ? sizeof(Head) + sizeof(GapBody) : 0);
   if (front_.size() + need > settings_.queue_bytes) {
+    if (!counted) return false;
     ++(frame ? pending_dropped_frames_ : pending_dropped_events_);
     ++(frame ? status_.dropped_frames : status_.dropped_events);
-    return;
+    return false;
   }
   if (gap) {
     Head h{};
@@ -199,11 +202,12 @@ void Recorder::push(const void* head, std::size_t head_n, const void* body, std:
     wake_ = true;
     cv_.notify_one();
   }
+  return true;
 }
 
 void Recorder::frame(Side side, Direction d, const canopen::CanFrame& f, canopen::TimePoint t) {
-  Head h{Kind::Frame, static_cast<std::uint8_t>((side == Side::Down ? 1 : 0) | (d == Direction::Tx ? 2 : 0)),
-         sizeof(FrameBody), 0, t.time_since_epoch().count()};
+  Head h{Kind::Frame, static_cast<std::uint8_t>((side == Side::Down ? 1 : 0) | (d == Direction::Tx ? 2 : 0)), 0,
+         sizeof(FrameBody), t.time_since_epoch().count()};
   FrameBody b{};
   b.id = f.id;
   b.dlc = f.dlc;
@@ -212,13 +216,32 @@ void Recorder::frame(Side side, Direction d, const canopen::CanFrame& f, canopen
   char buf[sizeof h + sizeof b];
   std::memcpy(buf, &h, sizeof h);
   std::memcpy(buf + sizeof h, &b, sizeof b);
-  push(buf, sizeof buf, nullptr, 0, true);
+  (void)push(buf, sizeof buf, nullptr, 0, true);
 }
 
 void Recorder::event(canopen::TimePoint t, std::string_view text) {
   const std::size_t n = std::min<std::size_t>(text.size(), 0xFFFF);
-  const Head h{Kind::Event, 0, static_cast<std::uint16_t>(n), 0, t.time_since_epoch().count()};
-  push(&h, sizeof h, text.data(), n, false);
+  const Head h{Kind::Event, 0, 0, static_cast<std::uint32_t>(n), t.time_since_epoch().count()};
+  (void)push(&h, sizeof h, text.data(), n, false);
+}
+
+bool Recorder::state(canopen::TimePoint t, std::string_view text) {
+  const Head h{Kind::State, 0, 0, static_cast<std::uint32_t>(text.size()), t.time_since_epoch().count()};
+  if (!push(&h, sizeof h, text.data(), text.size(), false, false)) return false;
+  due_.store(false, std::memory_order_relaxed);
+  return true;
+}
+
+bool Recorder::no_state(canopen::TimePoint t, std::string_view why) {
+  const Head h{Kind::State, 1, 0, static_cast<std::uint32_t>(why.size()), t.time_since_epoch().count()};
+  if (!push(&h, sizeof h, why.data(), why.size(), false)) return false;
+  due_.store(false, std::memory_order_relaxed);
+  return true;
+}
+
+std::size_t Recorder::room() const {
+  std::lock_guard lk(m_);
+  return settings_.queue_bytes - std::min(settings_.queue_bytes, front_.size());
 }
 
 void Recorder::keep(KeepDone done) {
@@ -325,7 +348,7 @@ void Recorder::run_writer() {
   flushed_cv_.notify_all();
 }
 
-void Recorder::open_segment(std::int64_t t_us) {
+void Recorder::open_segment(std::int64_t t_us, std::string_view state_line) {
   Open o;
   o.offset_us = wall_offset();
   o.first_t = t_us;
@@ -360,6 +383,21 @@ void Recorder::open_segment(std::int64_t t_us) {
     events_buf_ += '\n';
     ++buf_events_;
   }
+  // Records lost before (a failed write) are told before the state: a replay stops there
+  // rather than hold the state against a gateway that missed them.
+  if (gap_frames_ != 0 || gap_events_ != 0) append_gap(wall);
+  append_event_prefix(events_buf_, wall, 0);
+  events_buf_ += state_line;
+  events_buf_ += '\n';
+  ++buf_events_;
+  none_why_ = "the segment before it ended without a state";
+}
+
+void Recorder::append_gap(std::int64_t wall) {
+  append_event_prefix(events_buf_, wall, open_->frames);
+  events_buf_ += fmt::format("gap frames={} events={} ({})\n", gap_frames_, gap_events_, gap_why_);
+  ++buf_events_;
+  gap_frames_ = gap_events_ = 0;
 }
 
 void Recorder::close_segment() {
@@ -433,13 +471,49 @@ void Recorder::write_batch(const std::vector<char>& batch) {
     std::memcpy(&h, batch.data() + at, sizeof h);
     const char* body = batch.data() + at + sizeof h;
     at += sizeof h + h.len;
-    if (open_ && (open_->log_size + open_->events_size + log_buf_.size() + events_buf_.size() >= segment_bytes_ ||
-                  h.t_us - open_->first_t >= segment_span_us_)) {
+    if (open_) {
+      const std::uint64_t bytes = open_->log_size + open_->events_size + log_buf_.size() + events_buf_.size();
+      const std::int64_t age = h.t_us - open_->first_t;
+      if (!settings_.states && (bytes >= segment_bytes_ || age >= segment_span_us_)) {
+        close_segment();
+      } else if (bytes >= segment_bytes_ || age >= segment_span_us_) {
+        // Due: the loop gives the gateway's state at its next quiet moment (state()), which
+        // opens the next segment; told once a segment, so that the records still on their
+        // way to it do not ask the loop again. One that does not come in time does not let
+        // it grow on.
+        if (!open_->due_told) due_.store(true, std::memory_order_relaxed);
+        open_->due_told = true;
+        if (bytes >= 4 * segment_bytes_ || age >= 2 * segment_span_us_ + kStateGraceUs) {
+          close_segment();
+          none_why_ = "no quiet moment of the gateway came in time";
+        }
+      }
+    }
+    if (h.kind == Kind::State) {
+      // A new segment begins with it: a replay can start there.
       close_segment();
+      if (open_failed) {  // lost as any record the folder refuses
+        ++gap_events_;
+        std::lock_guard lk(m_);
+        ++status_.lost_events;
+        continue;
+      }
+      const std::string_view text(body, h.len);
+      std::string line;
+      try {
+        line = h.side_dir == 0 ? state_event(text) : no_state_event(text);
+      } catch (const std::logic_error& e) {
+        line = no_state_event(e.what());
+      }
+      open_segment(h.t_us, line);
+      open_failed = !open_;
+      continue;
     }
     if (!open_ && !open_failed) {
-      open_segment(h.t_us);
+      open_segment(h.t_us, no_state_event(settings_.states ? none_why_ : "the recorder is given no states"));
       open_failed = !open_;
+      // Not the run's first: the loop gives a state soon, and the segment after it has it.
+      if (open_ && next_seq_ > 1 && settings_.states) due_.store(true, std::memory_order_relaxed);
     }
     if (!open_) {  // the folder refuses new files: counted as lost, told by the next gap line
       const bool is_frame = h.kind == Kind::Frame;
@@ -449,12 +523,7 @@ void Recorder::write_batch(const std::vector<char>& batch) {
       continue;
     }
     const std::int64_t wall = h.t_us + open_->offset_us;
-    if (gap_frames_ != 0 || gap_events_ != 0) {
-      append_event_prefix(events_buf_, wall, open_->frames);
-      events_buf_ += fmt::format("gap frames={} events={} ({})\n", gap_frames_, gap_events_, gap_why_);
-      ++buf_events_;
-      gap_frames_ = gap_events_ = 0;
-    }
+    if (gap_frames_ != 0 || gap_events_ != 0) append_gap(wall);
     switch (h.kind) {
       case Kind::Frame: {
         FrameBody b;
@@ -486,6 +555,7 @@ void Recorder::write_batch(const std::vector<char>& batch) {
         ++buf_events_;
         break;
       }
+      case Kind::State: break;  // opened its segment above
     }
     ring_.back().last_wall = wall;
     if (log_buf_.size() + events_buf_.size() >= kCommitBytes) (void)commit();
@@ -531,6 +601,7 @@ void Recorder::trim() {
 
 void Recorder::do_keep() {
   close_segment();  // the window ends now; the next record opens a new segment
+  none_why_ = "a window was kept: the segment before it closed there";
   std::string name = utc_stamp(wall_now_us());
   fs::path dir = settings_.dir / "kept" / name;
   for (int n = 2; fs::exists(dir); ++n) dir = settings_.dir / "kept" / (name + "-" + std::to_string(n));

@@ -13,7 +13,11 @@
 //    line may be torn (the reader reports it).
 //  * Segments close at max_bytes / segments bytes or span / segments of time; the oldest go once
 //    the ring holds more than max_bytes, or ends longer than `span` ago (the current one stays).
-//    Segments of earlier runs in the folder count too: a restart does not grow the ring.
+//    Segments of earlier runs in the folder count too: a restart does not grow the ring. Each
+//    segment's events begin with a `state` line (record_format.hpp): with settings.states, a
+//    segment that has reached its size or time is due, and the loop ends it with the gateway's
+//    state at its next quiet moment (state()), which begins the next; the writer only says
+//    `state none (WHY)` (the run's first segment, after a kept window, no quiet moment in time).
 //  * A write that fails (ENOSPC on a full disk, EIO) loses that batch — both files are cut back
 //    to the last whole batch, so every file still reads back — is counted and reported
 //    (status().last_error), and the next batch tries again: the buses never wait for it.
@@ -23,6 +27,7 @@
 
 #include <sys/types.h>
 
+#include <atomic>
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
@@ -59,6 +64,9 @@ struct RecorderSettings {
   std::string up_iface = "up", down_iface = "down";  // the interfaces' names in the .log files
   // Lines every segment's .events file starts with after its `segment` line ("version …").
   std::vector<std::string> header;
+  // The loop gives the gateway's state (state()) when segment_due(): each segment then begins
+  // with it. false: segments close on their own, each with `state none`.
+  bool states = false;
   // The files copied into the folder once, at the start of the run (the mapping file, the
   // upstream store): name in the folder (after "<run>.") -> source. A missing source is skipped.
   std::vector<std::pair<std::string, std::filesystem::path>> run_files;
@@ -105,6 +113,15 @@ class Recorder final : public RecordSink {
   // The loop's side: never blocks on the disk, never throws.
   void frame(Side side, Direction d, const canopen::CanFrame& f, canopen::TimePoint t) override;
   void event(canopen::TimePoint t, std::string_view text) override;
+  // With RecorderSettings::states: the current segment has reached its size or time, and the
+  // next waits for the gateway's state. state() ends the segment there and begins the next with
+  // `text` (Gateway::export_state), or no_state() with `state none (WHY)`; either ends the due.
+  // state() false: no room in the queue now, nothing dropped or counted, the segment stays due
+  // (room() says how much there is); no_state() false: dropped and counted as any record.
+  [[nodiscard]] bool segment_due() const { return due_.load(std::memory_order_relaxed); }
+  bool state(canopen::TimePoint t, std::string_view text);
+  bool no_state(canopen::TimePoint t, std::string_view why);
+  [[nodiscard]] std::size_t room() const;
 
   // Keeps the window now; `done` runs on the loop's thread in dispatch() once the links exist
   // (or with an error). Signalled through event_fd() (an eventfd: readable when a keep is done).
@@ -131,12 +148,16 @@ class Recorder final : public RecordSink {
     std::uint64_t frames = 0;                     // frame lines in it (the @N of the next event)
     std::int64_t offset_us = 0;                   // wall = loop time + offset
     std::int64_t first_t = 0;                     // loop time of its first record
+    bool due_told = false;                        // segment_due() raised for it
   };
 
-  void push(const void* head, std::size_t head_n, const void* body, std::size_t body_n, bool frame);
+  // counted false: a record that does not fit is not dropped (no gap): the caller tries again.
+  bool push(const void* head, std::size_t head_n, const void* body, std::size_t body_n, bool frame,
+            bool counted = true);
+  void append_gap(std::int64_t wall);
   void run_writer();
   void write_batch(const std::vector<char>& batch);
-  void open_segment(std::int64_t t_us);
+  void open_segment(std::int64_t t_us, std::string_view state_line);
   void close_segment();
   bool commit();  // the text buffers to the files; false (batch lost, files cut back) on an error
   void sync();
@@ -172,8 +193,13 @@ class Recorder final : public RecordSink {
   std::uint64_t buf_frames_ = 0, buf_events_ = 0;  // records in the text buffers
   std::uint64_t gap_frames_ = 0, gap_events_ = 0;  // lost by the writer, told by the next gap line
   std::string gap_why_;
+  std::string none_why_ = "the run starts here";  // the next segment's `state none` when no state opens it
   std::int64_t last_sync_us_ = 0;
   bool dirty_ = false;
+
+  // A due segment closes without a state at 4 x its size or 2 x its span + this.
+  static constexpr std::int64_t kStateGraceUs = 5'000'000;
+  std::atomic<bool> due_{false};
 
   int event_fd_ = -1;
   std::thread writer_;

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "canopen/305/lss_store.hpp"
+#include "canopen/state.hpp"
 
 namespace oegw::gateway::record {
 
@@ -19,6 +20,7 @@ RecorderSettings recorder_settings(const mapping::Config& c, const std::string& 
   s.queue_bytes = static_cast<std::size_t>(c.record.queue_kib) << 10;
   s.up_iface = c.upstream.interface;
   s.down_iface = c.downstream.interface;
+  s.states = true;  // give_states()
   // What the replay needs beside the lines: the options oegw run gives the gateway.
   s.header = {"meta mapping " + file,
               fmt::format("meta gateway sdo_bus_share={}", GatewayOptions::kDefaultSdoBusShare)};
@@ -47,9 +49,60 @@ RecordingService::RecordingService(canopen::io::EventLoop& loop, const mapping::
 }
 
 RecordingService::~RecordingService() {
+  if (state_timer_ != 0) loop_.cancel(state_timer_);
   if (watch_ != 0) loop_.unwatch(watch_);
   tap_.reset();
   recorder_.reset();  // writes what is queued and flushes
+}
+
+void StateGiver::offer(const Gateway* gw, canopen::TimePoint now) {
+  if (!recorder_.segment_due()) {
+    busy_since_.reset();
+    return;
+  }
+  if (gw == nullptr) return;
+  const auto wait = kWait / std::chrono::seconds(1);
+  const auto no_room = [&] {
+    return fmt::format("no room for {} s in the recorder's queue for the state's {} bytes (record.queue_kib)", wait,
+                       last_bytes_);
+  };
+  std::string why;
+  try {
+    if (const std::string busy = gw->busy(); !busy.empty()) {
+      why = fmt::format("the gateway was busy for {} s: {}", wait, busy);
+    } else if (recorder_.room() < last_bytes_) {
+      // A state the queue has no room for (the last one's size) is not taken: the export
+      // would cost the loop for nothing.
+      why = no_room();
+    } else {
+      // The export costs the loop once a segment (record.span_s / record.segments, 60 s by
+      // default): docs/reference/limits.md#can-first-what-the-event-loop-does-beside-the-buses.
+      canopen::StateWriter w;
+      gw->export_state(w);
+      last_bytes_ = w.text().size();
+      if (recorder_.state(now, w.text())) {
+        // The recorder's FE lines begin anew with the segment (the replay does so at a state).
+        tap_.segment_started();
+        busy_since_.reset();
+        return;
+      }
+      why = no_room();
+    }
+  } catch (const std::exception& e) {
+    why = std::string("the state could not be taken: ") + e.what();
+    busy_since_ = now - kWait;  // no use waiting
+  }
+  if (!busy_since_) busy_since_ = now;
+  if (now - *busy_since_ < kWait) return;
+  (void)recorder_.no_state(now, why);
+  busy_since_.reset();
+}
+
+void RecordingService::give_states(std::function<const Gateway*()> current) {
+  if (!recorder_ || !recorder_->settings().states || state_timer_ != 0) return;
+  states_.emplace(*recorder_, *tap_);
+  state_timer_ = loop_.call_every(loop_.now() + StateGiver::kPoll, StateGiver::kPoll,
+                                  [this, current = std::move(current)] { states_->offer(current(), loop_.now()); });
 }
 
 void RecordingService::reloading(canopen::TimePoint now, const std::string& file) {

@@ -5,7 +5,9 @@
 // runs without it and `oegw status` says why.
 #pragma once
 
+#include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -17,6 +19,26 @@
 #include "mapping/config.hpp"
 
 namespace oegw::gateway::record {
+
+// Gives the recorder the gateway's state when a segment is due (Recorder::segment_due): at the
+// gateway's first quiet moment (Gateway::busy() "") with room in the recorder's queue, taken
+// there, between two of its calls; after kWait without one, `state none (for 2 s: WHY)`. Looked
+// at on the loop every kPoll. Only a state begins the FE lines anew (GatewayRecorder), and
+// only a state's line makes the replay do so.
+class StateGiver {
+ public:
+  static constexpr canopen::Duration kPoll = std::chrono::milliseconds(100);
+  static constexpr canopen::Duration kWait = std::chrono::seconds(2);
+  StateGiver(Recorder& recorder, GatewayRecorder& tap) : recorder_(recorder), tap_(tap) {}
+  // `gw`: the gateway running now (nullptr: none).
+  void offer(const Gateway* gw, canopen::TimePoint now);
+
+ private:
+  Recorder& recorder_;
+  GatewayRecorder& tap_;
+  std::optional<canopen::TimePoint> busy_since_;  // a segment due, no state taken since
+  std::size_t last_bytes_ = 0;                    // the last state's size
+};
 
 // The Recorder's settings for a mapping file's `record` section (`file`: the mapping file, copied
 // into the recording with the upstream store).
@@ -34,6 +56,9 @@ class RecordingService {
   [[nodiscard]] bool recording() const { return recorder_ != nullptr; }
   // The gateways' tap; nullptr when not recording.
   [[nodiscard]] GatewayTap* tap() { return tap_.get(); }
+  // The gateway whose state begins each segment (`current`: the one running now, nullptr
+  // while there is none): StateGiver on a timer of the loop.
+  void give_states(std::function<const Gateway*()> current);
   // The mapping file reloaded (SIGHUP): noted in the recording, where a replay stops comparing.
   void reloading(canopen::TimePoint now, const std::string& file);
   // Why it does not record: "recording is off (record.enabled …)", or the folder's refusal.
@@ -54,6 +79,8 @@ class RecordingService {
   std::unique_ptr<Recorder> recorder_;
   std::unique_ptr<GatewayRecorder> tap_;
   canopen::io::EventLoop::WatchId watch_ = 0;
+  std::optional<StateGiver> states_;
+  canopen::io::EventLoop::TimerId state_timer_ = 0;
 };
 
 // `oegw status`'s line for the `record` object: "recording: on, /var/lib/oegw/record, 12 segments,

@@ -13,6 +13,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "canopen/state.hpp"
 #include "gateway/record/gateway_recorder.hpp"
 #include "gateway/record/plot.hpp"
 
@@ -28,7 +29,8 @@ bool is_input(std::string_view kind) {
   return kind == "start" || kind == "tick" || kind == "bus" || kind == "indicators" || kind == "display" ||
          kind == "subdevice_command" || kind == "nmt";
 }
-bool is_skipped(std::string_view kind) { return kind == "segment" || kind == "meta"; }
+// `state`: a segment's state (format 2), which the exact replay checks (check_state()).
+bool is_skipped(std::string_view kind) { return kind == "segment" || kind == "meta" || kind == "state"; }
 
 // A control request that changes nothing in the gateway (docs/guides/black-box.md).
 bool read_only_control(std::string_view text) {
@@ -161,7 +163,7 @@ struct Printer {
   }
   [[nodiscard]] bool wanted_text(std::string_view text) const {
     const auto kind = first_word(text);
-    if (kind == "tick" || kind == "segment" || kind == "meta") return false;
+    if (kind == "tick" || is_skipped(kind)) return false;
     if (kind == "log" && !o.logs) return false;
     const auto w = words(text);
     if (!o.fe.empty()) {
@@ -461,6 +463,7 @@ class RunReplay {
       return;
     }
     const auto kind = first_word(e.text);
+    if (kind == "state") return check_state(e);
     if (is_skipped(kind)) return;
     show(e.wall_us, e.text);
     if (kind == "gap") return stop(e, "the recording lost records here (" + e.text + "): compared up to it");
@@ -489,6 +492,47 @@ class RunReplay {
     }
     compare(e, [&](const Produced& p) { return !p.frame && p.text == e.text; });
     if (!comparing()) capture_.q.clear();
+  }
+
+  // A segment's `state` line: the recorded gateway's state there, taken between two of its
+  // calls. The replayed gateway, fed the same inputs, must be in it: the first key that differs
+  // is a divergence. Where a state was given (also one damaged since), the recorder's FE lines
+  // began anew, and so do the replay's; `state none` changed nothing.
+  void check_state(const Entry& e) {
+    std::string error;
+    const std::optional<std::string> recorded = parse_state_event(e.text, error);
+    if (!recorded) {
+      if (error.rfind("none ", 0) == 0) return;
+      rec_->segment_started();
+      report_.notes.push_back(e.where() + ": state not read: " + error);
+      return;
+    }
+    rec_->segment_started();
+    if (!comparing()) return;
+    if (!capture_.q.empty()) {
+      diverge(e, "(nothing more before the segment's state, " + e.where() + ")", describe(capture_.q.front()));
+      return;
+    }
+    if (const std::string why = gw_->busy(); !why.empty()) {
+      diverge(e, "the gateway's state (" + e.where() + ")", "a gateway not between calls: " + why);
+      return;
+    }
+    canopen::StateWriter w;
+    gw_->export_state(w);
+    if (w.text() == *recorded) {
+      ++report_.states;
+      return;
+    }
+    // The first line that differs.
+    std::size_t at = 0;
+    while (at < recorded->size() && at < w.text().size() && (*recorded)[at] == w.text()[at]) ++at;
+    const auto line_of = [&](const std::string& t) {
+      const std::size_t b = t.rfind('\n', at == 0 ? 0 : at - 1);
+      const std::size_t from = b == std::string::npos || at == 0 ? 0 : b + 1;
+      const std::size_t end = t.find('\n', from);
+      return t.substr(from, end == std::string::npos ? std::string::npos : end - from);
+    };
+    diverge(e, "state " + line_of(*recorded) + " (" + e.where() + ")", "state " + line_of(w.text()));
   }
 
   // The recording as it is: its frames (with their direction) and its events, counted.

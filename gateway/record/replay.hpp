@@ -70,6 +70,7 @@ struct RunReport {
   std::string run;
   ReplayMode mode = ReplayMode::Fresh;
   std::uint64_t inputs = 0, frames_in = 0, frames_out = 0, decisions = 0, compared = 0;
+  std::uint64_t states = 0;  // segments' states the replayed gateway was found in (exact)
   std::optional<Divergence> divergence;
   std::string stopped;             // why the comparison ended before the recording did (empty: it did not)
   std::vector<std::string> notes;  // torn lines, a different mapping file, the end mid-call…

@@ -26,6 +26,7 @@
 #include "tests/bench/bench_support.hpp"
 #include "tests/bench/gateway_rig.hpp"
 
+#include "canopen/state.hpp"
 #include "gateway/control/status_report.hpp"
 #include "gateway/publishing.hpp"
 #include "gateway/reload.hpp"
@@ -218,6 +219,23 @@ void BM_StatusReport(benchmark::State& state) {
   state.counters["bytes"] = static_cast<double>(bytes);
 }
 BENCHMARK(BM_StatusReport)->Arg(0)->Arg(1)->ArgName("full_set")->Unit(benchmark::kMicrosecond);
+
+// The gateway's run-time state as the black box takes it at the head of each segment
+// (record::StateGiver: Gateway::export_state on the loop, between two bus frames, once a segment)
+// and the text the recorder's writer then puts on one line. Variants as above.
+void BM_ExportState(benchmark::State& state) {
+  auto rig = make_rig(static_cast<int>(state.range(0)));
+  if (!rig->gw().busy().empty()) throw std::runtime_error("the bench's gateway is busy: " + rig->gw().busy());
+  std::size_t bytes = 0;
+  for (auto _ : state) {
+    canopen::StateWriter w;
+    rig->gw().export_state(w);
+    bytes = w.text().size();
+    benchmark::DoNotOptimize(w.text().data());
+  }
+  state.counters["bytes"] = static_cast<double>(bytes);
+}
+BENCHMARK(BM_ExportState)->Arg(0)->Arg(1)->ArgName("full_set")->Unit(benchmark::kMicrosecond);
 
 const char* variant_name(int variant) { return variant == 0 ? "one_grip.yaml" : "full_set.yaml"; }
 const std::string& variant_yaml(int variant) {

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -20,6 +21,7 @@
 #include "gateway/record/gateway_recorder.hpp"
 #include "gateway/record/plot.hpp"
 #include "gateway/record/recorder.hpp"
+#include "gateway/record/recording_service.hpp"
 #include "gateway/record/replay.hpp"
 #include "rig/cab_rig.hpp"
 #include "tests/fixtures/fixtures.hpp"
@@ -51,16 +53,25 @@ class Blackbox : public ::testing::Test {
     // The rig's instant buses: its gateway's SDO is not paced (CabRigOptions), and the replay
     // must know it; on the timed buses it is, as in oegw run.
     s.header = {timed_ ? "meta gateway sdo_bus_share=0.85" : "meta gateway sdo_bus_share=0"};
+    s.states = true;  // as oegw run's RecordingService: each segment begins with the gateway's state
     recorder_ = std::make_unique<Recorder>(s);
     rig_ = std::make_unique<rig::CabRig>(config_, loop_,
                                          rig::CabRigOptions{.store = dir_ / "upstream.store", .timed_buses = timed_});
     tap_ = std::make_unique<GatewayRecorder>(*recorder_);
+    states_ = std::make_unique<StateGiver>(*recorder_, *tap_);
     rig_->on_gateway = [this](Gateway& g) {
       gw_ = &g;
       g.set_tap(tap_.get());
     };
     rig_->from_devices = [this](const CanFrame& f) { return pulled_ && (f.id & 0x7F) == 0x11; };
     rig_->build();
+    loop_.call_every(loop_.now() + StateGiver::kPoll, StateGiver::kPoll, [this] {
+      if (!recording_) return;
+      // The writer runs on real time, the cab on the simulated clock: it is waited for, so that
+      // it has seen each segment's size when the loop looks.
+      recorder_->flush();
+      states_->offer(gw_, loop_.now());
+    });
   }
   void TearDown() override {
     rig_.reset();
@@ -101,6 +112,10 @@ class Blackbox : public ::testing::Test {
     sweep(1500ms);
     pulled_ = false;
     sweep(3s);
+    if (keep_midway_) {
+      recorder_->keep([](std::optional<KeptWindow>, std::string) {});
+      recorder_->flush();  // the writer closes the segment there: the next has `state none`
+    }
     cmd("left_grip cable_break 2 on");
     sweep(500ms);
     cmd("left_grip cable_break 2 off");
@@ -112,7 +127,18 @@ class Blackbox : public ::testing::Test {
     cmd("right_grip reboot");
     sweep(4s);
     gw_->set_tap(nullptr);
+    recording_ = false;
     recorder_->flush();
+  }
+
+  // One run, replayed exactly to its end: no divergence (else both sides shown), nothing stopped.
+  static void expect_exact(const std::vector<RunReport>& reports) {
+    ASSERT_EQ(reports.size(), 1u);
+    EXPECT_EQ(reports[0].mode, ReplayMode::Exact);
+    EXPECT_FALSE(reports[0].divergence) << reports[0].divergence->when << "\nafter " << reports[0].divergence->after
+                                        << "\nrecorded " << reports[0].divergence->recorded << "\nreplayed "
+                                        << reports[0].divergence->replayed;
+    EXPECT_EQ(reports[0].stopped, "");
   }
 
   std::vector<RunReport> replay_all(std::ostream* timeline = nullptr, PlotData* plot = nullptr,
@@ -135,6 +161,9 @@ class Blackbox : public ::testing::Test {
   std::unique_ptr<Recorder> recorder_;
   std::unique_ptr<rig::CabRig> rig_;
   std::unique_ptr<GatewayRecorder> tap_;
+  std::unique_ptr<StateGiver> states_;
+  bool recording_ = true;
+  bool keep_midway_ = false;  // a window kept in the middle of the incident
   Gateway* gw_ = nullptr;
   bool pulled_ = false, host_alive_ = true;
   bool timed_ = false;  // the timed virtual buses (frames take their time on the wire)
@@ -161,6 +190,9 @@ TEST_F(Blackbox, TheReplayOfAnIncidentMakesTheSameFramesAndDecisions) {
   EXPECT_GT(r.frames_in, 2000u);
   EXPECT_GT(r.compared, 2000u);
   EXPECT_GT(recorder_->status().segments, 2u) << "the incident spans several segments";
+  // Each segment after the first begins with the gateway's state, and the replayed gateway was in
+  // each (Gateway::export_state, compared key by key).
+  EXPECT_EQ(r.states, recorder_->status().segments - 1);
   // The incident is on the timeline: the cable pull, the EMCY, the host's heartbeat, the reboot.
   const std::string t = timeline.str();
   for (const char* expected :
@@ -190,6 +222,74 @@ TEST_F(Blackbox, AStatusRequestIsComparedPastAControlSessionEndsTheComparison) {
             std::string::npos)
       << reports[0].stopped;
   EXPECT_GT(reports[0].compared, 100u) << "compared up to the session, past the status request";
+}
+
+// A window kept in the middle (oegw record keep) closes the segment there; the next begins with
+// `state none` and the loop gives a state soon after. The whole recording still replays
+// exactly, every state checked, and so does the kept window on its own.
+TEST_F(Blackbox, AWindowKeptMidwayLeavesTheReplayExact) {
+  keep_midway_ = true;
+  incident();
+  const auto reports = replay_all();
+  expect_exact(reports);
+  EXPECT_GT(reports[0].states, 1u);
+  std::string all;
+  for (const auto& e : fs::directory_iterator(dir_ / "record")) {
+    if (e.path().extension() != ".events") continue;
+    std::ifstream in(e.path());
+    all += std::string(std::istreambuf_iterator<char>(in), {});
+  }
+  EXPECT_NE(all.find("state none (a window was kept: the segment before it closed there)"), std::string::npos);
+  const auto kept = fs::directory_iterator(dir_ / "record" / "kept")->path();
+  const auto window = replay_all(nullptr, nullptr, kept);
+  ASSERT_EQ(window.size(), 1u);
+  EXPECT_EQ(window[0].mode, ReplayMode::Exact);
+  EXPECT_FALSE(window[0].divergence);
+}
+
+// A segment's state the replayed gateway is not in is a divergence, named by its first key
+// that differs; a state line damaged on the disk is no state (noted, not compared).
+TEST_F(Blackbox, AStateTheReplayedGatewayIsNotInDivergesThere) {
+  incident();
+  const fs::path events = dir_ / "record" / "20261205T140312Z-000002.events";
+  std::ifstream in(events);
+  std::vector<std::string> lines;
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  in.close();
+  const auto line = std::find_if(lines.begin(), lines.end(),
+                                 [](const std::string& l) { return l.find(" state crc32=") != std::string::npos; });
+  ASSERT_NE(line, lines.end());
+  const auto text_at = line->find("state crc32=");
+  std::string error;
+  auto state = parse_state_event(line->substr(text_at), error);
+  ASSERT_TRUE(state) << error;
+  const auto key = state->find("\ncommands_refused ");
+  ASSERT_NE(key, std::string::npos);
+  const auto end = state->find('\n', key + 1);
+  const std::string was = state->substr(key + 1, end - key - 1);
+  state->replace(key + 1, end - key - 1, "commands_refused 77");
+  const std::string original = *line;
+  *line = line->substr(0, text_at) + state_event(*state);
+  const auto write = [&] {
+    std::ofstream out(events, std::ios::trunc);
+    for (const auto& l : lines) out << l << '\n';
+  };
+  write();
+  auto reports = replay_all();
+  ASSERT_EQ(reports.size(), 1u);
+  ASSERT_TRUE(reports[0].divergence);
+  EXPECT_EQ(reports[0].divergence->recorded, "state commands_refused 77 (" + events.string() + ":4)");
+  EXPECT_EQ(reports[0].divergence->replayed, "state " + was);
+  // The same line with a byte damaged: not a state, noted; the replay is exact.
+  *line = original;
+  (*line)[line->size() - 3] = (*line)[line->size() - 3] == '0' ? '1' : '0';
+  write();
+  reports = replay_all();
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_FALSE(reports[0].divergence);
+  ASSERT_EQ(reports[0].notes.size(), 1u);
+  EXPECT_EQ(reports[0].notes[0],
+            events.string() + ":4: state not read: the state's CRC-32 differs from its line's: the line is damaged");
 }
 
 TEST_F(Blackbox, AnEditedFrameDivergesAtThatFrame) {
@@ -254,11 +354,11 @@ TEST_F(Blackbox, ARecordingWithoutItsStartIsShownAsRecordedAndSaysSo) {
       }
       const std::string kind = e.text.substr(0, e.text.find(' '));
       // What the gateway did (its log lines too), not what it was given.
-      static const std::set<std::string> not_decided{"start",   "tick",    "bus",     "indicators",
-                                                     "display", "nmt",     "control", "reload",
-                                                     "gap",     "segment", "meta",    "subdevice_command"};
+      static const std::set<std::string>
+          not_decided{"start", "tick",    "bus",  "indicators", "display",          "nmt", "control", "reload",
+                      "gap",   "segment", "meta", "state",      "subdevice_command"};
       if (not_decided.count(kind) == 0) ++decisions;
-      if (kind == "tick" || kind == "segment" || kind == "meta" || kind == "log") return;
+      if (kind == "tick" || kind == "segment" || kind == "meta" || kind == "state" || kind == "log") return;
       expected.push_back(time_of_day(e.wall_us) + " " + e.text);
     });
   }
@@ -316,12 +416,8 @@ TEST_F(Blackbox, FreshReRunsTheRecordedFramesOnANewGateway) {
 TEST_F(BlackboxTimed, TheReplayOnTimedBusesIsExactToo) {
   incident();
   const auto reports = replay_all();
-  ASSERT_EQ(reports.size(), 1u);
-  EXPECT_EQ(reports[0].mode, ReplayMode::Exact);
-  EXPECT_FALSE(reports[0].divergence) << reports[0].divergence->when << "\nafter " << reports[0].divergence->after
-                                      << "\nrecorded " << reports[0].divergence->recorded << "\nreplayed "
-                                      << reports[0].divergence->replayed;
-  EXPECT_EQ(reports[0].stopped, "");
+  expect_exact(reports);
+  EXPECT_GT(reports[0].states, 0u);
 }
 
 TEST_F(BlackboxTimed, APlainCandumpLogOfTheDownstreamBusShowsWhatTheMappingFileMakesOfIt) {

@@ -118,7 +118,7 @@ echo "gateway killed (SIGKILL) after $(elapsed) s"
 ls -l "$rec" | sed 's/^/    /'
 replay_into "$rec" /tmp/replay.err --plot "$out/blackbox.html" >"$out/timeline.txt"
 if ((rc == 0)) && grep -q 'exact replay, .* no divergence$' /tmp/replay.err; then
-  pass "oegw replay: exact, no divergence ($(grep -o '[0-9]* outputs compared' /tmp/replay.err))"
+  pass "oegw replay: exact, no divergence ($(grep -o '[0-9]* outputs and [0-9]* segment states compared' /tmp/replay.err))"
 else
   fail "oegw replay: exit $rc"
 fi

@@ -112,5 +112,25 @@ TEST(RecordFormat, EventLinesCarryTheFramesBeforeThem) {
   EXPECT_FALSE(parse_event_line("(1733407392.123456) @3 ", error));
 }
 
+// A segment's state: its lines on one event line, with its length and CRC-32, so that a torn or
+// damaged line is told from a state (the CRC as python3's zlib.crc32 gives it for that text).
+TEST(RecordFormat, AStateLineReadsBackAndADamagedOneIsRefused) {
+  const std::string state = "now 1500000\nsubdevices.0.why #6f6b\n";
+  const std::string line = state_event(state);
+  EXPECT_EQ(line, "state crc32=032EC1BC bytes=34 now 1500000;subdevices.0.why #6f6b");
+  std::string error;
+  EXPECT_EQ(parse_state_event(line, error), state) << error;
+  std::string damaged = line;
+  damaged[damaged.size() - 2] = 'c';
+  EXPECT_FALSE(parse_state_event(damaged, error));
+  EXPECT_EQ(error, "the state's CRC-32 differs from its line's: the line is damaged");
+  EXPECT_FALSE(parse_state_event(line.substr(0, line.size() - 5), error));
+  EXPECT_EQ(error, "the state holds 29 bytes, its line says 34");
+  EXPECT_FALSE(parse_state_event(no_state_event("the run starts here"), error));
+  EXPECT_EQ(error, "none (the run starts here)");
+  EXPECT_FALSE(parse_state_event("state of mind", error));
+  EXPECT_THROW((void)state_event("a 1;2\n"), std::logic_error);
+}
+
 }  // namespace
 }  // namespace oegw::gateway::record

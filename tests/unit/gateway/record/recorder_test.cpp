@@ -92,14 +92,140 @@ TEST(Recorder, FramesAndEventsReadBackInOneOrderWithTheLoopTimes) {
     else if (x.text.rfind("segment", 0) != 0)
       seen.push_back(x.text + " @" + std::to_string(x.t.time_since_epoch().count()));
   }
-  EXPECT_EQ(seen,
-            (std::vector<std::string>{"start @1000000", "R can1 191#0102 @1001000", "fe joystick.1 valid x=3 @1001000",
-                                      "T can0 1A0#03 @1001000", "tick @1050000"}));
+  EXPECT_EQ(seen, (std::vector<std::string>{"state none (the recorder is given no states) @1000000", "start @1000000",
+                                            "R can1 191#0102 @1001000", "fe joystick.1 valid x=3 @1001000",
+                                            "T can0 1A0#03 @1001000", "tick @1050000"}));
   // The .log file is candump's log, wall time = loop time + the segment's offset.
   std::ifstream log(tmp.path / "R1-000000.log");
   std::string first;
   std::getline(log, first);
   EXPECT_EQ(first, "(1700000001.001000) can1 191#0102 R");
+}
+
+// The texts of a folder's segments' `state` lines, in order, each parsed back (or "none (WHY)").
+std::vector<std::string> segment_states(const fs::path& dir) {
+  std::vector<std::string> out;
+  std::string error;
+  const auto runs = find_runs(dir, error);
+  if (!runs) return out;
+  for (const auto& r : *runs)
+    for (const auto& s : r.segments) {
+      const auto read = read_segment(s);
+      const auto it = std::find_if(read.entries.begin(), read.entries.end(),
+                                   [](const Entry& e) { return e.text.rfind("state ", 0) == 0; });
+      if (it == read.entries.end()) {
+        out.push_back("(no state line)");
+        continue;
+      }
+      const auto text = parse_state_event(it->text, error);
+      out.push_back(text ? *text : error);
+    }
+  return out;
+}
+
+// As oegw run records: the loop gives states; a segment is due at max_bytes / segments.
+RecorderSettings with_states(const fs::path& dir, std::uint64_t max_bytes, unsigned segments) {
+  RecorderSettings s = settings(dir);
+  s.states = true;
+  s.max_bytes = max_bytes;
+  s.segments = segments;
+  return s;
+}
+
+// With states (oegw run): a segment that has reached its size is due and goes on until the loop
+// gives the gateway's state, which begins the next segment (a replay can start there); the
+// run's first begins with `state none`.
+TEST(Recorder, ASegmentDueWaitsForTheStateThatBeginsTheNext) {
+  TempDir tmp;
+  Recorder r(with_states(tmp.path, 64 * 1024, 4));  // due at 16 KiB
+  int t = 0;
+  const auto frames = [&](int n) {
+    for (int i = 0; i < n; ++i) r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1, 2, 3, 4}), at_ms(t++));
+    r.flush();
+  };
+  frames(100);
+  EXPECT_FALSE(r.segment_due());
+  frames(500);  // ~22 KiB: past its size, and not closed
+  EXPECT_TRUE(r.segment_due());
+  EXPECT_EQ(r.status().segments, 1u);
+  EXPECT_TRUE(r.state(at_ms(t), "a 1\nb #00ff\n"));
+  frames(10);
+  EXPECT_FALSE(r.segment_due());
+  EXPECT_EQ(r.status().segments, 2u);
+  frames(600);
+  ASSERT_TRUE(r.segment_due());
+  EXPECT_TRUE(r.no_state(at_ms(t), "the gateway was busy for 2 s: grip: booting"));
+  frames(10);
+  EXPECT_EQ(segment_states(tmp.path), (std::vector<std::string>{"none (the run starts here)", "a 1\nb #00ff\n",
+                                                                "none (the gateway was busy for 2 s: grip: booting)"}));
+  // The state line comes after the segment's header, before any frame of it.
+  const auto e = read_run(tmp.path);
+  const auto state =
+      std::find_if(e.begin(), e.end(), [](const Entry& x) { return x.text.rfind("state crc32=", 0) == 0; });
+  ASSERT_NE(state, e.end());
+  EXPECT_EQ(state->t, at_ms(600));
+  EXPECT_EQ(std::prev(state)->text.rfind("segment run=R1 seq=1 ", 0), 0u);
+}
+
+// A state that does not come does not let a due segment grow on: at 4 times its size it closes
+// with `state none`, and so does the one a kept window closed.
+TEST(Recorder, ADueSegmentThatGetsNoStateClosesAtFourTimesItsSize) {
+  TempDir tmp;
+  Recorder r(with_states(tmp.path, 1024 * 1024, 64));  // due at 16 KiB
+  for (int i = 0; i < 3000; ++i)                       // ~110 KiB
+    r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1, 2, 3, 4}), at_ms(i));
+  r.flush();
+  const auto states = segment_states(tmp.path);
+  ASSERT_EQ(states.size(), 2u);
+  EXPECT_EQ(states[1], "none (no quiet moment of the gateway came in time)");
+  const auto first = fs::file_size(tmp.path / "R1-000000.log") + fs::file_size(tmp.path / "R1-000000.events");
+  EXPECT_GE(first, 4u * 16 * 1024);
+  EXPECT_LT(first, 4u * 16 * 1024 + 64);
+  ASSERT_TRUE(r.state(at_ms(3000), "a 1\n"));  // the loop's state ends the due at once
+  EXPECT_FALSE(r.segment_due());
+  r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1}), at_ms(3001));
+  r.flush();
+  EXPECT_FALSE(r.segment_due());
+  r.keep([](std::optional<KeptWindow>, std::string) {});
+  r.flush();
+  r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1}), at_ms(5000));
+  r.flush();
+  EXPECT_EQ(segment_states(tmp.path),
+            (std::vector<std::string>{"none (the run starts here)",
+                                      "none (no quiet moment of the gateway came in time)", "a 1\n",
+                                      "none (a window was kept: the segment before it closed there)"}));
+  EXPECT_TRUE(r.segment_due()) << "after a kept window the loop is asked for a state at once";
+}
+
+// A state that does not fit the queue is not dropped (no gap: the loop tries again), and
+// records a failed write lost are told before the next segment's state, where a replay stops.
+TEST(Recorder, AStateWithoutRoomIsNotDroppedAndALossIsToldBeforeTheState) {
+  TempDir tmp;
+  RecorderSettings s = with_states(tmp.path, 64 * 1024, 4);
+  s.queue_bytes = 1024;
+  std::atomic<bool> full{false};
+  s.write_fn = [&](int fd, const void* p, std::size_t n) -> ssize_t {
+    if (!full) return ::write(fd, p, n);
+    errno = ENOSPC;
+    return -1;
+  };
+  Recorder r(s);
+  r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1}), at_ms(0));
+  r.flush();
+  EXPECT_FALSE(r.state(at_ms(1), std::string(2000, 'x')));
+  EXPECT_LT(r.room(), 2000u);
+  EXPECT_EQ(r.status().dropped_events, 0u);
+  full = true;
+  r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {2}), at_ms(2));
+  r.flush();
+  full = false;
+  ASSERT_TRUE(r.state(at_ms(3), "a 1\n"));
+  r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {3}), at_ms(4));
+  r.flush();
+  std::vector<std::string> lines;
+  for (const auto& x : read_run(tmp.path))
+    if (x.kind == Entry::Kind::Event && x.text.rfind("segment", 0) != 0) lines.push_back(x.text.substr(0, 20));
+  EXPECT_EQ(lines, (std::vector<std::string>{"state none (the run ", "gap frames=1 events=", "state crc32=720E5C9D"}));
 }
 
 // CAN first: the writer thread is nicer than the thread that made it (the event loop), so a
