@@ -16,7 +16,9 @@ constexpr std::uint16_t kSoftwareVersion = 0x100A;
 constexpr std::uint16_t kIdentity = 0x1018;
 constexpr std::uint16_t kSdoServer = 0x1200;
 constexpr std::size_t kMaxExtraSdoServers = 127;  // 1201h..127Fh
-constexpr std::uint16_t kEmcySoftware = 0x6000;   // CiA 301 / CiA 852 Table 37: generic software error
+// A state's store file (or the reason it was refused): a whole dictionary stored is tens of kB.
+constexpr std::size_t kMaxStoreText = std::size_t{4} << 20;
+constexpr std::uint16_t kEmcySoftware = 0x6000;  // CiA 301 / CiA 852 Table 37: generic software error
 
 std::vector<std::uint8_t> text(const std::string& s) { return {s.begin(), s.end()}; }
 
@@ -528,6 +530,14 @@ void Node::export_state(StateWriter& w) const {
   w.put("bus_off", bus_off_);
   w.put("error_passive", error_passive_);
   w.put("store_refused", store_refused_);
+  if (store_) {
+    // The store file as the node last read or wrote it: the next reset applies it.
+    const StateWriter::Scope scope(w, "store");
+    const PlainFile& seen = store_->seen();
+    w.put("file", seen.state);
+    if (seen.state == PlainFile::State::Read) w.put_text("text", seen.text);
+    if (seen.state == PlainFile::State::Refused) w.put_text("error", seen.error);
+  }
   {
     const StateWriter::Scope scope(w, "od");
     od_.export_values(w);
@@ -564,6 +574,14 @@ void Node::import_state(const StateReader& r) {
   const bool bus_off = r.get<bool>("bus_off");
   const bool error_passive = r.get<bool>("error_passive");
   const std::optional<bool> store_refused = r.optional<bool>("store_refused");
+  PlainFile store_seen;
+  if (store_) {
+    const StateReader st = r.in("store");
+    store_seen.state = st.get<PlainFile::State>("file");
+    if (store_seen.state > PlainFile::State::Refused) st.fail("file", "is none of 0 (absent), 1 (read), 2 (refused)");
+    if (store_seen.state == PlainFile::State::Read) store_seen.text = st.text("text", kMaxStoreText);
+    if (store_seen.state == PlainFile::State::Refused) store_seen.error = st.text("error", kMaxStoreText);
+  }
 
   // As handle_reset: the defaults of the form "function code + node-ID" first, so that the
   // dictionary's layout (its defaults included) is the state's. The SDO servers' COB-IDs come
@@ -606,6 +624,7 @@ void Node::import_state(const StateReader& r) {
   bus_off_ = bus_off;
   error_passive_ = error_passive;
   store_refused_ = store_refused;
+  if (store_) store_->set_seen(std::move(store_seen));
 }
 
 }  // namespace oegw::canopen

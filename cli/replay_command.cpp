@@ -106,20 +106,25 @@ int run_replay(const ReplayCommandOptions& o) {
                    r.run.c_str(), shown ? "shown as recorded" : "replayed on a fresh gateway",
                    static_cast<unsigned long long>(r.inputs), static_cast<unsigned long long>(r.frames_in),
                    static_cast<unsigned long long>(r.frames_out), static_cast<unsigned long long>(r.decisions),
-                   shown ? "not re-run (its start has left the ring)" : "nothing compared");
+                   shown ? "not re-run (its start has left the ring, no state to begin in)" : "nothing compared");
       continue;
     }
     if (r.divergence) {
       diverged = true;
-      std::fprintf(stderr, "run %s: DIVERGED at %s, after the input %s\n  recorded: %s\n  replayed: %s\n",
+      std::fprintf(stderr, "run %s: DIVERGED at %s, after the input %s%s\n  recorded: %s\n  replayed: %s\n",
                    r.run.c_str(), r.divergence->when.c_str(), r.divergence->after.c_str(),
+                   r.from_state.empty() ? "" : (" (replayed from the state at " + r.from_state + ")").c_str(),
                    r.divergence->recorded.c_str(), r.divergence->replayed.c_str());
       continue;
     }
     std::fprintf(stderr,
-                 "run %s: exact replay, %llu inputs (%llu frames), %llu outputs and %llu segment states compared: no "
-                 "divergence%s%s\n",
-                 r.run.c_str(), static_cast<unsigned long long>(r.inputs), static_cast<unsigned long long>(r.frames_in),
+                 "run %s: exact replay%s, %llu inputs (%llu frames), %llu outputs and %llu segment states compared: "
+                 "no divergence%s%s\n",
+                 r.run.c_str(),
+                 r.from_state.empty()
+                     ? ""
+                     : (" from the state at " + r.from_state + " (its start has left the ring)").c_str(),
+                 static_cast<unsigned long long>(r.inputs), static_cast<unsigned long long>(r.frames_in),
                  static_cast<unsigned long long>(r.compared), static_cast<unsigned long long>(r.states),
                  r.stopped.empty() ? "" : "; compared up to ", r.stopped.c_str());
   }

@@ -251,6 +251,7 @@ PlainFile read_plain_file(const std::filesystem::path& file) {
 ParameterStore::Stored ParameterStore::read_file() const {
   Stored out;
   PlainFile f = read_plain_file(file_);
+  seen_ = f;
   if (f.state == PlainFile::State::Absent) return out;
   out.present = true;
   if (f.state == PlainFile::State::Refused) {
@@ -379,7 +380,9 @@ bool write_file_atomically(const std::filesystem::path& file, const std::string&
 }
 
 bool ParameterStore::write_atomically(const std::string& text) {
-  return write_file_atomically(file_, text, last_error_);
+  if (!write_file_atomically(file_, text, last_error_)) return false;
+  seen_ = PlainFile{.state = PlainFile::State::Read, .text = text, .error = {}};
+  return true;
 }
 
 bool ParameterStore::remove_atomically() {
@@ -387,6 +390,7 @@ bool ParameterStore::remove_atomically() {
     last_error_ = errno_text("remove store file");
     return false;
   }
+  seen_ = PlainFile{};
   return fsync_dir(file_.parent_path(), last_error_);
 }
 

@@ -109,6 +109,12 @@ class ParameterStore {
   [[nodiscard]] const std::filesystem::path& path() const { return file_; }
   [[nodiscard]] std::filesystem::path temp_path() const;
   [[nodiscard]] const std::string& last_error() const { return last_error_; }
+  // The file as this store last read or wrote it (absent before its first read): what the next
+  // load() applies unless another program changes the file meanwhile. A run's state holds it
+  // (Node::export_state), so that a gateway put in that state elsewhere (a replay) can be given
+  // the store the run had; set_seen() only tells the store, the file is the caller's.
+  [[nodiscard]] const PlainFile& seen() const { return seen_; }
+  void set_seen(PlainFile seen) { seen_ = std::move(seen); }
 
   // The file format, exposed for tests and tools.
   [[nodiscard]] static std::string serialize(const Entries& entries);
@@ -134,7 +140,8 @@ class ParameterStore {
   ObjectDictionary& od_;
   std::filesystem::path file_;
   std::string last_error_;
-  Subscriptions subs_;  // declared last: unregisters the OD callbacks first on destruction
+  mutable PlainFile seen_;  // read_file() is const
+  Subscriptions subs_;      // declared last: unregisters the OD callbacks first on destruction
 };
 
 }  // namespace oegw::canopen

@@ -6,6 +6,7 @@
 #include <ctime>
 #include <deque>
 #include <fstream>
+#include <limits>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -13,6 +14,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "canopen/301/storage.hpp"
 #include "canopen/state.hpp"
 #include "gateway/record/gateway_recorder.hpp"
 #include "gateway/record/plot.hpp"
@@ -259,15 +261,14 @@ class RunReplay {
     // The recorded gateway options (its `meta gateway` line) go first.
     if (const auto bus_share = recorded_bus_share(first)) opt.sdo_bus_share = *bus_share;
     const bool has_start = !run_.plain() && first && starts_with_start(*first);
-    mode_ = o_.fresh || run_.plain() ? ReplayMode::Fresh : has_start ? ReplayMode::Exact : ReplayMode::Recorded;
-    report_.mode = mode_;
-    if (mode_ == ReplayMode::Recorded)
-      report_.notes.push_back(
-          "the recording does not reach back to the gateway's start (its first segments left the "
-          "ring): shown as recorded, nothing re-run or compared. An exact replay needs the gateway's "
-          "state at the window's start, which only its whole history gives; --fresh re-runs the "
-          "recorded inputs on a new gateway");
-    else if (mode_ == ReplayMode::Fresh && !run_.plain())
+    // Without the run's start (its first segments left the ring): the first segment's state,
+    // where the gateway was taken between two of its calls, is where an exact replay begins.
+    const std::optional<Entry> state_start =
+        !o_.fresh && !run_.plain() && first && !has_start ? first_state(*first) : std::nullopt;
+    mode_ = o_.fresh || run_.plain()   ? ReplayMode::Fresh
+            : has_start || state_start ? ReplayMode::Exact
+                                       : ReplayMode::Recorded;
+    if (mode_ == ReplayMode::Fresh && !run_.plain())
       report_.notes.push_back(
           fmt::format("--fresh: the recorded inputs re-run on a new gateway, nothing compared{}",
                       has_start ? "" : " (the recording does not reach back to the gateway's start)"));
@@ -292,7 +293,15 @@ class RunReplay {
       opt.tap = rec_.get();
       gw_ = std::make_unique<Gateway>(
           config_, [](const canopen::CanFrame&) {}, [](const canopen::CanFrame&) {}, opt);
+      if (state_start) begin_in(*state_start);
     }
+    if (mode_ == ReplayMode::Recorded && !run_.plain() && !has_start)
+      report_.notes.push_back(
+          fmt::format("the recording does not reach back to the gateway's start (its first segments left the "
+                      "ring) and {}: shown as recorded, nothing re-run or compared; --fresh re-runs the recorded "
+                      "inputs on a new gateway",
+                      no_state_why_.empty() ? "its first segment begins with no state" : no_state_why_));
+    report_.mode = mode_;
     capture_.observe = [this](const Produced& p, canopen::TimePoint t) { produced(p, t); };
     for (const Segment& s : run_.segments) {
       std::optional<SegmentReader> next;
@@ -339,6 +348,74 @@ class RunReplay {
       if (q != std::string::npos) return std::atof(e.text.c_str() + q + 14);
     }
     return std::nullopt;
+  }
+
+  // The first segment's `state` line, when it begins with one (before any frame or input).
+  static std::optional<Entry> first_state(const SegmentReader& first) {
+    for (const Entry& e : first.events()) {
+      if (e.frame.id != 0) return std::nullopt;
+      const auto k = first_word(e.text);
+      if (k == "state") return e;
+      if (!is_skipped(k)) return std::nullopt;
+    }
+    return std::nullopt;
+  }
+
+  // The replayed gateway put in the recorded state `e` in place of its start; when it cannot
+  // be (`state none`, a damaged line, a state of another mapping file or version), the run is
+  // shown as recorded and why is noted.
+  void begin_in(const Entry& e) {
+    std::string error;
+    const std::optional<std::string> text = parse_state_event(e.text, error);
+    if (!text && error.rfind("none ", 0) == 0) {  // "none (WHY)"
+      no_state_why_ = "its first segment begins with no state " + error.substr(5);
+      mode_ = ReplayMode::Recorded;
+      gw_.reset();
+      rec_.reset();
+      return;
+    }
+    try {
+      if (!text) throw canopen::StateError(error);
+      const canopen::StateReader r = canopen::StateReader::parse(*text);
+      give_store(r.in("device").in("node").in("store"));
+      gw_->import_state(r);
+      if (const auto left = r.unread(); !left.empty())
+        throw canopen::StateError(
+            fmt::format("{} key(s) this gateway does not take, the first '{}'", left.size(), left.front()));
+    } catch (const std::exception& x) {
+      no_state_why_ = fmt::format("its first segment's state ({}) cannot be taken: {}", e.where(), x.what());
+      mode_ = ReplayMode::Recorded;
+      gw_.reset();
+      rec_.reset();
+      return;
+    }
+    started_at_ = e.where();
+    report_.from_state = time_of_day(e.wall_us) + " (" + started_at_ + ")";
+  }
+
+  // The upstream store file as the recorded gateway last read or wrote it (its state's
+  // device.node.store), in place of the run's first copy: a reset inside the window applies
+  // what the store held then, also after a store command before the window. (The LSS store is
+  // read at power-on only.)
+  void give_store(const canopen::StateReader& s) {
+    if (!s.has("file")) return;  // a device without a store
+    const fs::path store = tmp_ / "upstream.store";
+    std::error_code ec;
+    fs::remove(store, ec);
+    const auto seen = s.get<canopen::PlainFile::State>("file");
+    if (seen == canopen::PlainFile::State::Read) {
+      std::ofstream out(store, std::ios::binary);
+      out << s.text("text", std::numeric_limits<std::size_t>::max());  // Node::import_state bounds it
+      if (!out.flush()) throw std::runtime_error("cannot write the replay's store " + store.string());
+    } else if (seen == canopen::PlainFile::State::Refused) {
+      // Refused as the run's was (a link is never followed), though for another reason: a line
+      // that names the reason may differ.
+      fs::create_symlink("refused", store, ec);
+      report_.notes.push_back(
+          fmt::format("the run's store was refused ({}): the replay's is a symbolic link, "
+                      "refused too",
+                      s.text("error", std::numeric_limits<std::size_t>::max())));
+    }
   }
 
   // Read from the events alone: one @N past 0 comes after a frame.
@@ -499,6 +576,7 @@ class RunReplay {
   // is a divergence. Where a state was given (also one damaged since), the recorder's FE lines
   // began anew, and so do the replay's; `state none` changed nothing.
   void check_state(const Entry& e) {
+    if (!started_at_.empty() && e.where() == started_at_) return;  // where the replay began
     std::string error;
     const std::optional<std::string> recorded = parse_state_event(e.text, error);
     if (!recorded) {
@@ -610,6 +688,8 @@ class RunReplay {
   bool started_ = false;
   std::string up_, down_, lone_iface_;
   std::optional<Entry> last_input_;  // for a divergence's "after the input …"
+  std::string started_at_;           // the state line the replay began in (none: the run's start)
+  std::string no_state_why_;         // why the first segment's state could not be taken
   std::set<std::string> unknown_ifaces_;
   std::int64_t offset_ = 0;
   canopen::TimePoint clock_{};  // fresh mode: the replay's loop time

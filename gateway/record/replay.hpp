@@ -8,10 +8,14 @@
 //    sides are printed. A `gap` (records lost by the recorder), and a control-socket session
 //    that reached into the gateway (`oegw ctl` SDO, NMT and LSS, `oegw scan`: not replayed) end
 //    it too, with the reason; `oegw status` requests do not.
-//  * Recorded (a recording whose start has left the ring: a kept window of a gateway that ran
-//    longer than the ring holds): the timeline is the recording's own, the frames and the
-//    decisions the gateway made, as they were. Nothing is re-run: an exact replay needs the
-//    gateway's state at the window's start, which only its whole history gives.
+//    A recording whose start has left the ring (a kept window of a gateway that ran longer than
+//    the ring holds) is replayed exactly from its first segment's state (the `state` line the
+//    recorder begins each segment with): the new Gateway is put in it (Gateway::import_state)
+//    in place of its start, with the parameter store the run began with.
+//  * Recorded (a recording whose start has left the ring and whose first segment begins with no
+//    state it can be put in: `state none`, a damaged line, another mapping file's): the
+//    timeline is the recording's own, the frames and the decisions the gateway made, as they
+//    were. Nothing is re-run.
 //  * Fresh (a plain candump log — `oegw demo --frames`, `candump -l` of the downstream bus — or
 //    any recording with `--fresh`): a new gateway is started at the first frame and given the
 //    frames the gateway did not send (the direction marks, or for a plain log the CiA 301
@@ -37,8 +41,8 @@ namespace oegw::gateway::record {
 class PlotData;
 
 enum class ReplayMode : std::uint8_t {
-  Exact,     // re-run from the run's start and compared
-  Recorded,  // shown as recorded: the run's start has left the ring
+  Exact,     // re-run from the run's start or a segment's state and compared
+  Recorded,  // shown as recorded: the run's start has left the ring, no state to begin in
   Fresh,     // re-run on a fresh gateway, nothing compared
 };
 
@@ -71,6 +75,9 @@ struct RunReport {
   ReplayMode mode = ReplayMode::Fresh;
   std::uint64_t inputs = 0, frames_in = 0, frames_out = 0, decisions = 0, compared = 0;
   std::uint64_t states = 0;  // segments' states the replayed gateway was found in (exact)
+  // Exact from a segment's state: its time and line ("14:03:12.123456 (…events:3)"); empty: from
+  // the run's start.
+  std::string from_state;
   std::optional<Divergence> divergence;
   std::string stopped;             // why the comparison ended before the recording did (empty: it did not)
   std::vector<std::string> notes;  // torn lines, a different mapping file, the end mid-call…

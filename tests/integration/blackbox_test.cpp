@@ -93,6 +93,7 @@ class Blackbox : public ::testing::Test {
     rig_->run_for(3s);
     sdo_write(0x1800, 1, {0xA0, 0x01, 0x00, 0x00});  // TPDO 1 on 1A0h
     sdo_write(0x6423, 0, {1});
+    if (store_then_reset_) sdo_write(0x1010, 1, {0x73, 0x61, 0x76, 0x65});  // "save": TPDO 1 on 1A0h, stored
     // The host's heartbeat (701h, 100 ms), consumed by the gateway (1016h:01, 250 ms).
     loop_.call_every(loop_.now(), 100ms, [this] {
       if (host_alive_) (void)rig_->host_port().send(CanFrame(0x701, {0x05}));
@@ -126,6 +127,12 @@ class Blackbox : public ::testing::Test {
     sweep(1s);
     cmd("right_grip reboot");
     sweep(4s);
+    if (store_then_reset_) {
+      rig_->host().nmt().reset_node(kGw);  // the stored TPDO 1 comes back...
+      sweep(1s);
+      rig_->host().nmt().start(kGw);  // ...and sends
+      sweep(1s);
+    }
     gw_->set_tap(nullptr);
     recording_ = false;
     recorder_->flush();
@@ -163,7 +170,8 @@ class Blackbox : public ::testing::Test {
   std::unique_ptr<GatewayRecorder> tap_;
   std::unique_ptr<StateGiver> states_;
   bool recording_ = true;
-  bool keep_midway_ = false;  // a window kept in the middle of the incident
+  bool keep_midway_ = false;       // a window kept in the middle of the incident
+  bool store_then_reset_ = false;  // the host stores the parameters early, resets the gateway late
   Gateway* gw_ = nullptr;
   bool pulled_ = false, host_alive_ = true;
   bool timed_ = false;  // the timed virtual buses (frames take their time on the wire)
@@ -325,20 +333,126 @@ TEST_F(Blackbox, AnEditedFrameDivergesAtThatFrame) {
 }
 
 // A window whose start has left the ring (a kept window of a gateway that ran longer than the
-// ring holds): the timeline is what the gateway decided then, line for line as recorded, not
-// what a new gateway would make of the window's frames (it would first boot the cab).
-TEST_F(Blackbox, ARecordingWithoutItsStartIsShownAsRecordedAndSaysSo) {
+// ring holds) is replayed from its first segment's state: the same frames and decisions, every
+// later state checked; an edited frame inside it still diverges there.
+TEST_F(Blackbox, AWindowWithoutItsStartReplaysExactlyFromItsFirstState) {
   incident();
   fs::remove(dir_ / "record" / "20261205T140312Z-000000.log");
   fs::remove(dir_ / "record" / "20261205T140312Z-000000.events");
+  auto reports = replay_all();
+  expect_exact(reports);
+  const fs::path second = dir_ / "record" / "20261205T140312Z-000001.events";
+  EXPECT_NE(reports[0].from_state.find("(" + second.string() + ":"), std::string::npos) << reports[0].from_state;
+  EXPECT_TRUE(reports[0].notes.empty()) << reports[0].notes.front();
+  EXPECT_GT(reports[0].compared, 1000u);
+  EXPECT_EQ(reports[0].states, recorder_->status().segments - 2) << "each state after the one it began in";
+  // The 100th TPDO of the right grip in the third segment, its x changed.
+  const fs::path log = dir_ / "record" / "20261205T140312Z-000002.log";
+  std::vector<std::string> lines;
+  {
+    std::ifstream in(log);
+    for (std::string l; std::getline(in, l);) lines.push_back(l);
+  }
+  int seen = 0;
+  std::string edited_where;
+  for (std::size_t i = 0; i < lines.size() && edited_where.empty(); ++i) {
+    if (lines[i].find(" can1 191#") == std::string::npos || ++seen < 100) continue;
+    const auto hash = lines[i].find('#');
+    lines[i][hash + 2] = lines[i][hash + 2] == '7' ? '1' : '7';
+    edited_where = fmt::format("{}:{}", log.string(), i + 1);
+  }
+  ASSERT_FALSE(edited_where.empty());
+  {
+    std::ofstream out(log, std::ios::trunc);
+    for (const auto& l : lines) out << l << '\n';
+  }
+  reports = replay_all();
+  ASSERT_EQ(reports.size(), 1u);
+  ASSERT_TRUE(reports[0].divergence) << "the edited frame went unnoticed";
+  EXPECT_NE(reports[0].divergence->after.find(edited_where), std::string::npos)
+      << "diverged after " << reports[0].divergence->after << ", edited " << edited_where;
+}
+
+// The segment of `run` whose frames hold `frame` ("can0 000#8120"); -1: none.
+int segment_with(const Run& run, const std::string& frame) {
+  for (std::size_t i = 0; i < run.segments.size(); ++i) {
+    std::ifstream in(run.segments[i].log);
+    const std::string all(std::istreambuf_iterator<char>(in), {});
+    if (all.find(frame) != std::string::npos) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+// The host stores the parameters before the window and resets the gateway inside it: the replay
+// begun in the window's first state is given the store the run had then, not the run's first
+// one (none here): the stored TPDO 1 comes back with the reset in both.
+TEST_F(Blackbox, AWindowReplayedFromItsStateHasTheStoreOfThatMoment) {
+  store_then_reset_ = true;
+  incident();
+  std::string error;
+  const auto runs = find_runs(dir_ / "record", error);
+  ASSERT_TRUE(runs) << error;
+  ASSERT_EQ(segment_with(runs->front(), "can0 620#2310100173617665"), 0) << "the save before the window";
+  const int reset = segment_with(runs->front(), "can0 000#8120");
+  ASSERT_GE(reset, 2) << "the reset inside the window, past its first state";
+  fs::remove(dir_ / "record" / "20261205T140312Z-000000.log");
+  fs::remove(dir_ / "record" / "20261205T140312Z-000000.events");
+  const auto reports = replay_all();
+  expect_exact(reports);
+  EXPECT_NE(reports[0].from_state, "");
+  EXPECT_GT(reports[0].states, 1u);
+}
+
+// The first state line of `events` replaced by `text` (the line's time and place kept).
+void replace_first_state(const fs::path& events, const std::string& text) {
+  std::vector<std::string> lines;
+  {
+    std::ifstream in(events);
+    for (std::string l; std::getline(in, l);) lines.push_back(l);
+  }
+  const auto line = std::find_if(lines.begin(), lines.end(),
+                                 [](const std::string& l) { return l.find(" state ") != std::string::npos; });
+  ASSERT_NE(line, lines.end()) << events;
+  *line = line->substr(0, line->find(" state ") + 1) + text;
+  std::ofstream out(events, std::ios::trunc);
+  for (const auto& l : lines) out << l << '\n';
+}
+
+// A state of another mapping file is not taken: shown as recorded, and why.
+TEST_F(Blackbox, AStateOfAnotherMappingFileIsNotBegunIn) {
+  incident();
+  fs::remove(dir_ / "record" / "20261205T140312Z-000000.log");
+  fs::remove(dir_ / "record" / "20261205T140312Z-000000.events");
+  ASSERT_GT(config_.functional_elements.size(), 1u);
+  config_.functional_elements.pop_back();
+  const auto reports = replay_all();
+  ASSERT_EQ(reports.size(), 1u);
+  EXPECT_EQ(reports[0].mode, ReplayMode::Recorded);
+  EXPECT_EQ(reports[0].from_state, "");
+  ASSERT_FALSE(reports[0].notes.empty());
+  EXPECT_NE(reports[0].notes.back().find("its first segment's state ("), std::string::npos) << reports[0].notes.back();
+  EXPECT_NE(reports[0].notes.back().find(") cannot be taken: "), std::string::npos) << reports[0].notes.back();
+}
+
+// A window whose start has left the ring and whose first segment begins with no state: the
+// timeline is what the gateway decided then, line for line as recorded, not what a new gateway
+// would make of the window's frames (it would first boot the cab).
+TEST_F(Blackbox, AWindowWithoutItsStartOrAStateIsShownAsRecordedAndSaysSo) {
+  incident();
+  fs::remove(dir_ / "record" / "20261205T140312Z-000000.log");
+  fs::remove(dir_ / "record" / "20261205T140312Z-000000.events");
+  replace_first_state(dir_ / "record" / "20261205T140312Z-000001.events",
+                      no_state_event("the recorder is given no states"));
   std::ostringstream timeline;
   const auto reports = replay_all(&timeline);
   ASSERT_EQ(reports.size(), 1u);
   EXPECT_EQ(reports[0].mode, ReplayMode::Recorded);
   EXPECT_FALSE(reports[0].divergence);
   ASSERT_FALSE(reports[0].notes.empty());
-  EXPECT_NE(reports[0].notes.front().find("does not reach back to the gateway's start"), std::string::npos)
-      << reports[0].notes.front();
+  EXPECT_EQ(reports[0].notes.front(),
+            "the recording does not reach back to the gateway's start (its first segments left the ring) and its "
+            "first segment begins with no state (the recorder is given no states): shown as recorded, nothing "
+            "re-run or compared; --fresh re-runs the recorded inputs on a new gateway");
   // The recording's own events, but ticks, segment heads and log lines (not on the timeline).
   std::string error;
   const auto runs = find_runs(dir_ / "record", error);

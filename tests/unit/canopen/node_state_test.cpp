@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -272,6 +273,57 @@ TEST(NodeState, AStoredBitTimingTheNodeDoesNotSupportIsTakenBack) {
     EXPECT_EQ(b->bit_timing_index(), stored);
     EXPECT_EQ(b->lss().pending_bit_timing(), stored);
   }
+  std::filesystem::remove_all(dir);
+}
+
+// The store file as the node last read or wrote it is in its state (its next reset applies
+// it): the text a save wrote, nothing after a restore of all groups, and the same again from a
+// node given the state. A state saying neither is refused.
+TEST(NodeState, TheStoreFileAsTheNodeLastSawItIsInTheState) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("oegw_node_store_state_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const auto make = [&](ObjectDictionary& od, const std::string& file) {
+    test_support::build_application_od(od, kId);
+    NodeConfig c = config();
+    c.store_path = dir / file;
+    return std::make_unique<Node>(od, c, [](const CanFrame&) {});
+  };
+  const auto seen = [](const Node& n) {
+    StateWriter w;
+    n.export_state(w);
+    const StateReader r = StateReader::parse(w.text()).in("store");
+    return std::pair{r.get<int>("file"), r.has("text") ? r.text("text", 1u << 20) : std::string("-")};
+  };
+  // An expedited download of `value` (UNSIGNED16: 2Bh, UNSIGNED32: 23h).
+  const auto sdo = [&](Node& n, std::uint16_t index, std::uint8_t sub, std::uint32_t value, std::uint8_t cs = 0x23) {
+    n.on_frame(CanFrame(0x620, {cs, static_cast<std::uint8_t>(index), static_cast<std::uint8_t>(index >> 8), sub,
+                                static_cast<std::uint8_t>(value), static_cast<std::uint8_t>(value >> 8),
+                                static_cast<std::uint8_t>(value >> 16), static_cast<std::uint8_t>(value >> 24)}),
+               t0);
+  };
+  ObjectDictionary od_a;
+  const auto a = make(od_a, "a.store");
+  a->start(t0);
+  EXPECT_EQ(seen(*a), (std::pair{0, std::string("-")})) << "no file yet";
+  sdo(*a, 0x1017, 0, 250, 0x2B);
+  sdo(*a, 0x1010, 1, ParameterStore::kSaveSignature);
+  std::ifstream in(dir / "a.store");
+  const std::string file((std::istreambuf_iterator<char>(in)), {});
+  ASSERT_NE(file.find("1017 00 FA00"), std::string::npos) << file;
+  EXPECT_EQ(seen(*a), (std::pair{1, file}));
+  StateWriter w;
+  a->export_state(w);
+  ObjectDictionary od_b;
+  const auto b = make(od_b, "b.store");
+  b->import_state(StateReader::parse(w.text()));
+  EXPECT_EQ(seen(*b), (std::pair{1, file})) << "taken from the state, not from its own (absent) file";
+  sdo(*a, 0x1011, 1, ParameterStore::kLoadSignature);
+  EXPECT_EQ(seen(*a), (std::pair{0, std::string("-")}));
+  ObjectDictionary od_d;
+  const auto d = make(od_d, "d.store");
+  EXPECT_EQ(test_support::refusal(*d, test_support::with_value(w.text(), "store.file", "3")),
+            "state: 'store.file' is none of 0 (absent), 1 (read), 2 (refused)");
   std::filesystem::remove_all(dir);
 }
 

@@ -4,7 +4,8 @@
 # incident on real SocketCAN — the grip's cable pulled (`right_grip silent on`), an MCB-402 cable
 # break (EMCY 3120h), the host's heartbeat lost (EMCY 8130h), the grip rebooted — and is killed
 # with SIGKILL. Then:
-#   1 `oegw replay` of the recording: exact, zero divergence;
+#   1 `oegw replay` of the recording: exact, zero divergence; also of the ring without its start,
+#     from its first segment's state;
 #   2 the timeline and the plot (OEGW_VM_OUT/blackbox.html; vm_blackbox_plot loads it in
 #     chromium on the host) show the incident;
 #   3 the recording with one edited frame diverges right after that frame;
@@ -128,9 +129,26 @@ if [[ -n $kept ]]; then
   ((rc == 0)) && grep -q 'exact replay, .* no divergence$' /tmp/kept.err && pass "the kept window replays exactly" ||
     fail "the kept window: exit $rc"
 fi
-# The ring without its first segment (the run's start gone, as after a long run): the timeline is
-# the recording's own (the grip moved after the keep), not a new gateway's (which would boot the
-# cab first: waiting-for-boot-up).
+# The ring from its first segment that begins with a state (the run's start and the segment the
+# keep opened gone, as after a long run): replayed exactly from that state.
+from=
+for f in "$rec"/*.events; do grep -q ' state crc32=' "$f" && { from=$f; break; }; done
+if [[ -n $from ]]; then
+  tail_dir=$(mktemp -d)
+  for f in "$rec"/*.events; do [[ $f < $from ]] || cp "$f" "${f%.events}.log" "$tail_dir"/; done
+  replay_into "$tail_dir" /tmp/tail.err -q >/dev/null
+  if ((rc == 0)) && grep -q 'exact replay from the state at .* no divergence$' /tmp/tail.err; then
+    pass "a window from $(basename "$from") replays exactly from its state ($(grep -o '[0-9]* outputs and [0-9]* segment states compared' /tmp/tail.err))"
+  else
+    fail "a window from the state of $(basename "$from"): exit $rc"
+  fi
+  rm -rf "$tail_dir"
+else
+  fail "no segment of $rec begins with a state"
+fi
+# The ring without its first segment only: the next begins with `state none` (the keep closed
+# the segment before it), so the timeline is the recording's own (the grip moved after the
+# keep), not a new gateway's (which would boot the cab first: waiting-for-boot-up).
 mid=$(mktemp -d)
 cp "$rec"/*.log "$rec"/*.events "$mid"/
 rm -f "$mid"/*-000000.log "$mid"/*-000000.events
