@@ -875,10 +875,6 @@ void Gateway::settle_reload() {
 
 namespace {
 
-// A sub-device's why and fault texts: the refusals a boot gives (every boot write named) run to
-// some hundred bytes; the limit only keeps a damaged state from taking the memory.
-constexpr std::size_t kMaxText = 64 * 1024;
-
 void put_emcy(canopen::StateWriter& w, const Gateway::EmcyRecord& e) {
   w.put("node", e.last.node.value());
   w.put("code", e.last.code);
@@ -973,7 +969,7 @@ void Gateway::import_state(const canopen::StateReader& r) {
     Sub& s = subs_.at(name);
     s.operational = item.get<bool>("operational");
     s.failed = item.get<bool>("failed");
-    s.why = item.text("why", kMaxText);
+    s.why = item.text("why", kMaxStateText);
     std::size_t k = 0;
     item.read_list("outputs", s.output_values.size(),
                    [&](const canopen::StateReader& o) { s.output_values[k++] = o.integer("value"); });
@@ -987,7 +983,7 @@ void Gateway::import_state(const canopen::StateReader& r) {
                     subdevices::get_signal_status(item, "cause.status")};
     // update_fault(): a sub-device has a fault reason exactly while it has a cause.
     if (item.has("fault") != (s.cause.kind != Cause::Kind::None)) item.fail("fault", "differs from the fault's cause");
-    if (item.has("fault")) faults[name] = item.text("fault", kMaxText);
+    if (item.has("fault")) faults[name] = item.text("fault", kMaxStateText);
     s.emcy = get_emcy(item.in("emcy"));
     s.refused_commands = item.get<std::uint64_t>("refused_commands");
   });

@@ -490,9 +490,7 @@ void OeDevice::import_state(const canopen::StateReader& r) {
   r.read_list("faults", 127, [&](const canopen::StateReader& item) {
     const canopen::NodeId node = item.node_id("node");
     if (!node.valid()) item.fail("node", "is no sub-device's node-ID");
-    // The mapping file's sub-device name, which the file does not limit: the bound only keeps a
-    // damaged state from taking the memory.
-    faults[node.value()] = item.text("name", 64 * 1024);
+    faults[node.value()] = item.text("name", kMaxStateText);
   });
   std::map<std::uint32_t, std::int64_t> outputs = output_shadow_;
   std::size_t n = 0;

@@ -64,6 +64,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -85,6 +86,12 @@ namespace oegw::gateway {
 // The device is configured as its dictionary is (profiles/cia852/dictionary.hpp).
 using OeIdentity = cia852::Identity;
 using OeDeviceConfig = cia852::DeviceConfig;
+
+// The longest text a run-time state of the gateway carries (a sub-device's why and fault, its
+// name): the refusals a boot gives (every boot write named) run to some hundred bytes and the
+// mapping file does not limit a name; the bound only keeps a damaged state from taking the
+// memory.
+inline constexpr std::size_t kMaxStateText = 64 * 1024;
 
 class OeDevice {
  public:

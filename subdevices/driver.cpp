@@ -53,17 +53,15 @@ void Driver::init(NodeId node, FrameSink sink, std::size_t signal_count) {
   rebuild_deadlines();
 }
 
-void Driver::set_fault(std::size_t index, TimePoint now) {
+void Driver::set_fault(std::size_t index, std::optional<TimePoint> now) {
   if (index >= faults_.size()) return;
-  set_fault(index);
+  if (!faults_[index]) {
+    faults_[index] = true;
+    ++fault_count_;
+  }
+  if (!now) return;
   const SignalValue& v = values_[index];
-  update(index, v.value, v.status == SignalStatus::Offline ? SignalStatus::Offline : SignalStatus::Error, now);
-}
-
-void Driver::set_fault(std::size_t index) {
-  if (index >= faults_.size() || faults_[index]) return;
-  faults_[index] = true;
-  ++fault_count_;
+  update(index, v.value, v.status == SignalStatus::Offline ? SignalStatus::Offline : SignalStatus::Error, *now);
 }
 
 void Driver::clear_fault(std::size_t index) {

@@ -276,11 +276,11 @@ class Driver {
     }
     update_checked(index, value, status, now);
   }
-  // Faults a signal (Error at once) / clears its fault. A cleared input keeps its neutral value
-  // in Error until its next PDO brings a value (that frame is the evidence it is good again).
-  void set_fault(std::size_t index, TimePoint now);
-  // The same without a status change (at boot, while the signals are Offline anyway).
-  void set_fault(std::size_t index);
+  // Faults a signal, Error at once when `now` is given; without it the status is left (at boot,
+  // while the signals are Offline anyway; a state import). A cleared input keeps its neutral
+  // value in Error until its next PDO brings a value (that frame is the evidence it is good
+  // again).
+  void set_fault(std::size_t index, std::optional<TimePoint> now = std::nullopt);
   void clear_fault(std::size_t index);
   void clear_all_faults();
   void send(const CanFrame& frame) {

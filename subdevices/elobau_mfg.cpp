@@ -433,16 +433,13 @@ std::vector<std::size_t> ElobauMfgDriver::apply_manufacturer_code(std::uint16_t 
 }
 
 void ElobauMfgDriver::sync_faults(std::optional<TimePoint> now) {
-  auto one = [&](std::size_t index, bool on) {
-    if (!on) {
-      clear_fault(index);
-    } else if (now) {
-      set_fault(index, *now);
+  for (std::size_t i = 0; i < signals_.size(); ++i) {
+    if (latched(i)) {
+      set_fault(i, now);
     } else {
-      set_fault(index);
+      clear_fault(i);
     }
-  };
-  for (std::size_t i = 0; i < signals_.size(); ++i) one(i, latched(i));
+  }
 }
 
 bool ElobauMfgDriver::latched(std::size_t i) const {

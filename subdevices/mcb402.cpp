@@ -290,7 +290,7 @@ void Mcb402Driver::set_broken(std::uint8_t axes, std::optional<TimePoint> now) {
     if (!latched(a)) {
       clear_fault(a);  // its next TPDO2 value is good
     } else if ((broken_ & (1u << a)) != 0) {
-      now ? set_fault(a, *now) : set_fault(a);
+      set_fault(a, now);
     }
   }
 }
