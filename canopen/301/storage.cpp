@@ -380,7 +380,10 @@ bool write_file_atomically(const std::filesystem::path& file, const std::string&
 }
 
 bool ParameterStore::write_atomically(const std::string& text) {
-  if (!write_file_atomically(file_, text, last_error_)) return false;
+  if (!write_file_atomically(file_, text, last_error_)) {
+    seen_ = read_plain_file(file_);  // the rename may have been done (the directory's fsync failed)
+    return false;
+  }
   seen_ = PlainFile{.state = PlainFile::State::Read, .text = text, .error = {}};
   return true;
 }

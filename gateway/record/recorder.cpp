@@ -174,8 +174,8 @@ bool Recorder::push(const void* head, std::size_t head_n, const void* body, std:
   std::lock_guard lk(m_);
   const bool gap = pending_dropped_frames_ != 0 || pending_dropped_events_ != 0;
   const std::size_t need = head_n + body_n + (gap ? sizeof(Head) + sizeof(GapBody) : 0);
+  if (!counted && need > state_room()) return false;
   if (front_.size() + need > settings_.queue_bytes) {
-    if (!counted) return false;
     ++(frame ? pending_dropped_frames_ : pending_dropped_events_);
     ++(frame ? status_.dropped_frames : status_.dropped_events);
     return false;
@@ -241,7 +241,13 @@ bool Recorder::no_state(canopen::TimePoint t, std::string_view why) {
 
 std::size_t Recorder::room() const {
   std::lock_guard lk(m_);
-  return settings_.queue_bytes - std::min(settings_.queue_bytes, front_.size());
+  return state_room();
+}
+
+std::size_t Recorder::state_room() const {
+  const std::size_t kept = settings_.queue_bytes / 4;  // for the records that follow the state
+  const std::size_t used = front_.size() + kept;
+  return settings_.queue_bytes - std::min(settings_.queue_bytes, used);
 }
 
 void Recorder::keep(KeepDone done) {
@@ -386,10 +392,12 @@ void Recorder::open_segment(std::int64_t t_us, std::string_view state_line) {
   // Records lost before (a failed write) are told before the state: a replay stops there
   // rather than hold the state against a gateway that missed them.
   if (gap_frames_ != 0 || gap_events_ != 0) append_gap(wall);
+  const std::size_t before = events_buf_.size();
   append_event_prefix(events_buf_, wall, 0);
   events_buf_ += state_line;
   events_buf_ += '\n';
   ++buf_events_;
+  open_->state_bytes = events_buf_.size() - before;
   none_why_ = "the segment before it ended without a state";
 }
 
@@ -472,7 +480,10 @@ void Recorder::write_batch(const std::vector<char>& batch) {
     const char* body = batch.data() + at + sizeof h;
     at += sizeof h + h.len;
     if (open_) {
-      const std::uint64_t bytes = open_->log_size + open_->events_size + log_buf_.size() + events_buf_.size();
+      // The state line it began with is not counted: a state larger than a segment would make
+      // every segment due at once.
+      const std::uint64_t bytes =
+          open_->log_size + open_->events_size + log_buf_.size() + events_buf_.size() - open_->state_bytes;
       const std::int64_t age = h.t_us - open_->first_t;
       if (!settings_.states && (bytes >= segment_bytes_ || age >= segment_span_us_)) {
         close_segment();
@@ -507,6 +518,13 @@ void Recorder::write_batch(const std::vector<char>& batch) {
       }
       open_segment(h.t_us, line);
       open_failed = !open_;
+      if (open_failed) {  // the state with it
+        ++gap_events_;
+        std::lock_guard lk(m_);
+        ++status_.lost_events;
+      }
+      // A due raised in this batch for a segment before it (a reopened one) is answered.
+      due_.store(false, std::memory_order_relaxed);
       continue;
     }
     if (!open_ && !open_failed) {

@@ -117,7 +117,8 @@ class Recorder final : public RecordSink {
   // next waits for the gateway's state. state() ends the segment there and begins the next with
   // `text` (Gateway::export_state), or no_state() with `state none (WHY)`; either ends the due.
   // state() false: no room in the queue now, nothing dropped or counted, the segment stays due
-  // (room() says how much there is); no_state() false: dropped and counted as any record.
+  // (room() says how much there is: the queue's free space less a quarter of the queue, kept
+  // for the records that follow the state); no_state() false: dropped and counted as any record.
   [[nodiscard]] bool segment_due() const { return due_.load(std::memory_order_relaxed); }
   bool state(canopen::TimePoint t, std::string_view text);
   bool no_state(canopen::TimePoint t, std::string_view why);
@@ -149,12 +150,14 @@ class Recorder final : public RecordSink {
     std::int64_t offset_us = 0;                   // wall = loop time + offset
     std::int64_t first_t = 0;                     // loop time of its first record
     bool due_told = false;                        // segment_due() raised for it
+    std::uint64_t state_bytes = 0;                // its state line: not counted towards its size
   };
 
   // counted false: a record that does not fit is not dropped (no gap): the caller tries again.
   bool push(const void* head, std::size_t head_n, const void* body, std::size_t body_n, bool frame,
             bool counted = true);
   void append_gap(std::int64_t wall);
+  [[nodiscard]] std::size_t state_room() const;  // room(), with m_ held
   void run_writer();
   void write_batch(const std::vector<char>& batch);
   void open_segment(std::int64_t t_us, std::string_view state_line);

@@ -272,19 +272,6 @@ class RunReplay {
       report_.notes.push_back(
           fmt::format("--fresh: the recorded inputs re-run on a new gateway, nothing compared{}",
                       has_start ? "" : " (the recording does not reach back to the gateway's start)"));
-    if (!run_.mapping_copy.empty() && !config_.file.empty()) {
-      std::ifstream a(run_.mapping_copy), b(config_.file);
-      std::stringstream sa, sb;
-      sa << a.rdbuf();
-      sb << b.rdbuf();
-      if (sa.str() != sb.str())
-        report_.notes.push_back(fmt::format("{}: the recording was made with another mapping file ({}){}", config_.file,
-                                            run_.mapping_copy.string(),
-                                            mode_ == ReplayMode::Exact ? ": a divergence may come from the difference"
-                                            : mode_ == ReplayMode::Recorded
-                                                ? ": the timeline shown is what that file made"
-                                                : ""));
-    }
     if (mode_ != ReplayMode::Recorded) {
       // A fresh gateway's own requests go nowhere, their answers come as the log has them:
       // paced, a request would go out after the answer the log holds for it.
@@ -302,6 +289,19 @@ class RunReplay {
                       "inputs on a new gateway",
                       no_state_why_.empty() ? "its first segment begins with no state" : no_state_why_));
     report_.mode = mode_;
+    if (!run_.mapping_copy.empty() && !config_.file.empty()) {
+      std::ifstream a(run_.mapping_copy), b(config_.file);
+      std::stringstream sa, sb;
+      sa << a.rdbuf();
+      sb << b.rdbuf();
+      if (sa.str() != sb.str())
+        report_.notes.push_back(fmt::format("{}: the recording was made with another mapping file ({}){}", config_.file,
+                                            run_.mapping_copy.string(),
+                                            mode_ == ReplayMode::Exact ? ": a divergence may come from the difference"
+                                            : mode_ == ReplayMode::Recorded
+                                                ? ": the timeline shown is what that file made"
+                                                : ""));
+    }
     capture_.observe = [this](const Produced& p, canopen::TimePoint t) { produced(p, t); };
     for (const Segment& s : run_.segments) {
       std::optional<SegmentReader> next;
@@ -350,13 +350,14 @@ class RunReplay {
     return std::nullopt;
   }
 
-  // The first segment's `state` line, when it begins with one (before any frame or input).
+  // The first segment's `state` line, when it begins with one (before any frame or input; a
+  // `gap` the writer tells before it lost records before the state).
   static std::optional<Entry> first_state(const SegmentReader& first) {
     for (const Entry& e : first.events()) {
       if (e.frame.id != 0) return std::nullopt;
       const auto k = first_word(e.text);
       if (k == "state") return e;
-      if (!is_skipped(k)) return std::nullopt;
+      if (!is_skipped(k) && k != "gap") return std::nullopt;
     }
     return std::nullopt;
   }
@@ -389,8 +390,8 @@ class RunReplay {
       rec_.reset();
       return;
     }
-    started_at_ = e.where();
-    report_.from_state = time_of_day(e.wall_us) + " (" + started_at_ + ")";
+    before_start_ = true;
+    report_.from_state = time_of_day(e.wall_us) + " (" + e.where() + ")";
   }
 
   // The upstream store file as the recorded gateway last read or wrote it (its state's
@@ -409,11 +410,12 @@ class RunReplay {
       if (!out.flush()) throw std::runtime_error("cannot write the replay's store " + store.string());
     } else if (seen == canopen::PlainFile::State::Refused) {
       // Refused as the run's was (a link is never followed), though for another reason: a line
-      // that names the reason may differ.
+      // that names the store's path or the reason differs, and a save of all groups, which the
+      // store takes over an unreadable file and refuses over a link, is answered otherwise.
       fs::create_symlink("refused", store, ec);
       report_.notes.push_back(
-          fmt::format("the run's store was refused ({}): the replay's is a symbolic link, "
-                      "refused too",
+          fmt::format("the run's store was refused ({}): the replay's is a symbolic link, refused too; a line "
+                      "naming the store's path or the reason, and a save of all groups, may diverge",
                       s.text("error", std::numeric_limits<std::size_t>::max())));
     }
   }
@@ -542,6 +544,7 @@ class RunReplay {
     const auto kind = first_word(e.text);
     if (kind == "state") return check_state(e);
     if (is_skipped(kind)) return;
+    if (before_start_) return;  // a gap before the state the replay begins in: records lost before it
     show(e.wall_us, e.text);
     if (kind == "gap") return stop(e, "the recording lost records here (" + e.text + "): compared up to it");
     if (kind == "reload")
@@ -576,7 +579,10 @@ class RunReplay {
   // is a divergence. Where a state was given (also one damaged since), the recorder's FE lines
   // began anew, and so do the replay's; `state none` changed nothing.
   void check_state(const Entry& e) {
-    if (!started_at_.empty() && e.where() == started_at_) return;  // where the replay began
+    if (before_start_) {  // where the replay began
+      before_start_ = false;
+      return;
+    }
     std::string error;
     const std::optional<std::string> recorded = parse_state_event(e.text, error);
     if (!recorded) {
@@ -688,7 +694,7 @@ class RunReplay {
   bool started_ = false;
   std::string up_, down_, lone_iface_;
   std::optional<Entry> last_input_;  // for a divergence's "after the input …"
-  std::string started_at_;           // the state line the replay began in (none: the run's start)
+  bool before_start_ = false;        // begun in a state whose line is still to come
   std::string no_state_why_;         // why the first segment's state could not be taken
   std::set<std::string> unknown_ifaces_;
   std::int64_t offset_ = 0;

@@ -332,6 +332,24 @@ TEST_F(Blackbox, AnEditedFrameDivergesAtThatFrame) {
   EXPECT_NE(reports[0].divergence->replayed, reports[0].divergence->recorded);
 }
 
+// The first state line of `events` replaced by `text` (the line's time and place kept), or with
+// `text` before it when `before`.
+void edit_first_state(const fs::path& events, const std::string& text, bool before = false) {
+  std::vector<std::string> lines;
+  {
+    std::ifstream in(events);
+    for (std::string l; std::getline(in, l);) lines.push_back(l);
+  }
+  const auto line = std::find_if(lines.begin(), lines.end(),
+                                 [](const std::string& l) { return l.find(" state ") != std::string::npos; });
+  ASSERT_NE(line, lines.end()) << events;
+  const std::string edited = line->substr(0, line->find(" state ") + 1) + text;
+  if (before) lines.insert(line, edited);
+  else *line = edited;
+  std::ofstream out(events, std::ios::trunc);
+  for (const auto& l : lines) out << l << '\n';
+}
+
 // A window whose start has left the ring (a kept window of a gateway that ran longer than the
 // ring holds) is replayed from its first segment's state: the same frames and decisions, every
 // later state checked; an edited frame inside it still diverges there.
@@ -346,6 +364,12 @@ TEST_F(Blackbox, AWindowWithoutItsStartReplaysExactlyFromItsFirstState) {
   EXPECT_TRUE(reports[0].notes.empty()) << reports[0].notes.front();
   EXPECT_GT(reports[0].compared, 1000u);
   EXPECT_EQ(reports[0].states, recorder_->status().segments - 2) << "each state after the one it began in";
+  // Records lost before the state (the writer tells them by a `gap` line before it) are none of
+  // the replay's: it begins in the state all the same.
+  edit_first_state(dir_ / "record" / "20261205T140312Z-000001.events", "gap frames=3 events=0 (a failed write)", true);
+  reports = replay_all();
+  expect_exact(reports);
+  EXPECT_NE(reports[0].from_state, "");
   // The 100th TPDO of the right grip in the third segment, its x changed.
   const fs::path log = dir_ / "record" / "20261205T140312Z-000002.log";
   std::vector<std::string> lines;
@@ -403,21 +427,6 @@ TEST_F(Blackbox, AWindowReplayedFromItsStateHasTheStoreOfThatMoment) {
   EXPECT_GT(reports[0].states, 1u);
 }
 
-// The first state line of `events` replaced by `text` (the line's time and place kept).
-void replace_first_state(const fs::path& events, const std::string& text) {
-  std::vector<std::string> lines;
-  {
-    std::ifstream in(events);
-    for (std::string l; std::getline(in, l);) lines.push_back(l);
-  }
-  const auto line = std::find_if(lines.begin(), lines.end(),
-                                 [](const std::string& l) { return l.find(" state ") != std::string::npos; });
-  ASSERT_NE(line, lines.end()) << events;
-  *line = line->substr(0, line->find(" state ") + 1) + text;
-  std::ofstream out(events, std::ios::trunc);
-  for (const auto& l : lines) out << l << '\n';
-}
-
 // A state of another mapping file is not taken: shown as recorded, and why.
 TEST_F(Blackbox, AStateOfAnotherMappingFileIsNotBegunIn) {
   incident();
@@ -441,8 +450,8 @@ TEST_F(Blackbox, AWindowWithoutItsStartOrAStateIsShownAsRecordedAndSaysSo) {
   incident();
   fs::remove(dir_ / "record" / "20261205T140312Z-000000.log");
   fs::remove(dir_ / "record" / "20261205T140312Z-000000.events");
-  replace_first_state(dir_ / "record" / "20261205T140312Z-000001.events",
-                      no_state_event("the recorder is given no states"));
+  edit_first_state(dir_ / "record" / "20261205T140312Z-000001.events",
+                   no_state_event("the recorder is given no states"));
   std::ostringstream timeline;
   const auto reports = replay_all(&timeline);
   ASSERT_EQ(reports.size(), 1u);

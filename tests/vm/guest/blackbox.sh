@@ -146,12 +146,14 @@ if [[ -n $from ]]; then
 else
   fail "no segment of $rec begins with a state"
 fi
-# The ring without its first segment only: the next begins with `state none` (the keep closed
-# the segment before it), so the timeline is the recording's own (the grip moved after the
-# keep), not a new gateway's (which would boot the cab first: waiting-for-boot-up).
+# The ring from the segment the keep opened, which begins with `state none` (the keep closed the
+# segment before it): the timeline is the recording's own (the grip moved after the keep), not
+# a new gateway's (which would boot the cab first: waiting-for-boot-up).
 mid=$(mktemp -d)
-cp "$rec"/*.log "$rec"/*.events "$mid"/
-rm -f "$mid"/*-000000.log "$mid"/*-000000.events
+after_keep=
+for f in "$rec"/*.events; do grep -q ' state none (a window was kept' "$f" && { after_keep=$f; break; }; done
+[[ -n $after_keep ]] || fail "no segment of $rec begins after the keep"
+for f in "$rec"/*.events; do [[ $f < $after_keep ]] || cp "$f" "${f%.events}.log" "$mid"/; done
 replay_into "$mid" /tmp/mid.err >"$out/timeline-mid.txt"
 if ((rc == 0)) && grep -q 'shown as recorded: .* not re-run' /tmp/mid.err && grep -q ' fe joystick.1 ' "$out/timeline-mid.txt" &&
   ! grep -q 'waiting-for-boot-up' "$out/timeline-mid.txt"; then
