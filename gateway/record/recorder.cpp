@@ -240,8 +240,11 @@ bool Recorder::no_state(canopen::TimePoint t, std::string_view why) {
 }
 
 std::size_t Recorder::room() const {
+  // The state's text: its record's head, and a gap record that may have to go first.
+  constexpr std::size_t kAround = sizeof(Head) + sizeof(Head) + sizeof(GapBody);
   std::lock_guard lk(m_);
-  return state_room();
+  const std::size_t r = state_room();
+  return r - std::min(r, kAround);
 }
 
 std::size_t Recorder::state_room() const {
@@ -454,6 +457,7 @@ bool Recorder::commit() {
     // Both files back to their last whole batch: every file reads back, the loss is one gap.
     (void)::ftruncate(open_->log_fd, static_cast<off_t>(open_->log_size));
     (void)::ftruncate(open_->events_fd, static_cast<off_t>(open_->events_size));
+    if (open_->events_size == 0) open_->state_bytes = 0;  // its first batch, the state line with it
     open_->frames -= buf_frames_;
     gap_frames_ += buf_frames_;
     gap_events_ += buf_events_;
@@ -482,8 +486,8 @@ void Recorder::write_batch(const std::vector<char>& batch) {
     if (open_) {
       // The state line it began with is not counted: a state larger than a segment would make
       // every segment due at once.
-      const std::uint64_t bytes =
-          open_->log_size + open_->events_size + log_buf_.size() + events_buf_.size() - open_->state_bytes;
+      const std::uint64_t all = open_->log_size + open_->events_size + log_buf_.size() + events_buf_.size();
+      const std::uint64_t bytes = all - std::min(all, open_->state_bytes);
       const std::int64_t age = h.t_us - open_->first_t;
       if (!settings_.states && (bytes >= segment_bytes_ || age >= segment_span_us_)) {
         close_segment();

@@ -117,8 +117,9 @@ class Recorder final : public RecordSink {
   // next waits for the gateway's state. state() ends the segment there and begins the next with
   // `text` (Gateway::export_state), or no_state() with `state none (WHY)`; either ends the due.
   // state() false: no room in the queue now, nothing dropped or counted, the segment stays due
-  // (room() says how much there is: the queue's free space less a quarter of the queue, kept
-  // for the records that follow the state); no_state() false: dropped and counted as any record.
+  // (room(): the longest text a state may have now, the queue's free space less a quarter of the
+  // queue kept for the records that follow it); no_state() false: dropped and counted as any
+  // record.
   [[nodiscard]] bool segment_due() const { return due_.load(std::memory_order_relaxed); }
   bool state(canopen::TimePoint t, std::string_view text);
   bool no_state(canopen::TimePoint t, std::string_view why);
