@@ -12,6 +12,7 @@
 #include <cerrno>
 #include <condition_variable>
 #include <fstream>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <sstream>
@@ -236,6 +237,15 @@ TEST(Recorder, AStateInTheBatchThatReopensASegmentEndsItsDue) {
   EXPECT_FALSE(r.segment_due());
 }
 
+// The writes of a disk that is full (ENOSPC, nothing written) while `full` is set.
+std::function<ssize_t(int, const void*, std::size_t)> full_while(const std::atomic<bool>& full) {
+  return [&full](int fd, const void* p, std::size_t n) -> ssize_t {
+    if (!full) return ::write(fd, p, n);
+    errno = ENOSPC;
+    return -1;
+  };
+}
+
 // A state that does not fit the queue is not dropped (no gap: the loop tries again), and
 // records a failed write lost are told before the next segment's state, where a replay stops.
 TEST(Recorder, AStateWithoutRoomIsNotDroppedAndALossIsToldBeforeTheState) {
@@ -243,11 +253,7 @@ TEST(Recorder, AStateWithoutRoomIsNotDroppedAndALossIsToldBeforeTheState) {
   RecorderSettings s = with_states(tmp.path, 64 * 1024, 4);
   s.queue_bytes = 1024;
   std::atomic<bool> full{false};
-  s.write_fn = [&](int fd, const void* p, std::size_t n) -> ssize_t {
-    if (!full) return ::write(fd, p, n);
-    errno = ENOSPC;
-    return -1;
-  };
+  s.write_fn = full_while(full);
   Recorder r(s);
   r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1}), at_ms(0));
   r.flush();
@@ -276,11 +282,7 @@ TEST(Recorder, ASegmentWhoseFirstWriteFailedGoesOn) {
   TempDir tmp;
   RecorderSettings s = with_states(tmp.path, 64 * 1024, 4);  // due at 16 KiB
   std::atomic<bool> full{true};
-  s.write_fn = [&](int fd, const void* p, std::size_t n) -> ssize_t {
-    if (!full) return ::write(fd, p, n);
-    errno = ENOSPC;
-    return -1;
-  };
+  s.write_fn = full_while(full);
   Recorder r(s);
   r.frame(Side::Down, Direction::Rx, canopen::CanFrame(0x191, {1}), at_ms(0));
   r.flush();
