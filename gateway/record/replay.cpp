@@ -260,11 +260,11 @@ class RunReplay {
     if (!run_.segments.empty()) first.emplace(run_.segments.front());
     // The recorded gateway options (its `meta gateway` line) go first.
     if (const auto bus_share = recorded_bus_share(first)) opt.sdo_bus_share = *bus_share;
-    const bool has_start = !run_.plain() && first && starts_with_start(*first);
+    const bool has_start = !run_.plain() && first && leading(*first, "start");
     // Without the run's start (its first segments left the ring): the first segment's state,
     // where the gateway was taken between two of its calls, is where an exact replay begins.
     const std::optional<Entry> state_start =
-        !o_.fresh && !run_.plain() && first && !has_start ? first_state(*first) : std::nullopt;
+        !o_.fresh && !run_.plain() && first && !has_start ? leading(*first, "state") : std::nullopt;
     mode_ = o_.fresh || run_.plain()   ? ReplayMode::Fresh
             : has_start || state_start ? ReplayMode::Exact
                                        : ReplayMode::Recorded;
@@ -350,14 +350,15 @@ class RunReplay {
     return std::nullopt;
   }
 
-  // The first segment's `state` line, when it begins with one (before any frame or input; a
-  // `gap` the writer tells before it lost records before the state).
-  static std::optional<Entry> first_state(const SegmentReader& first) {
+  // The first segment's leading `kind` line: before any frame, input or decision, past its head
+  // (`segment`, `meta`, `state` lines; for a `state`, a `gap` the writer tells before it: records
+  // lost before the state).
+  static std::optional<Entry> leading(const SegmentReader& first, std::string_view kind) {
     for (const Entry& e : first.events()) {
-      if (e.frame.id != 0) return std::nullopt;
+      if (e.frame.id != 0) return std::nullopt;  // one @N past 0 comes after a frame
       const auto k = first_word(e.text);
-      if (k == "state") return e;
-      if (!is_skipped(k) && k != "gap") return std::nullopt;
+      if (k == kind) return e;
+      if (!is_skipped(k) && !(kind == "state" && k == "gap")) return std::nullopt;
     }
     return std::nullopt;
   }
@@ -418,17 +419,6 @@ class RunReplay {
                       "naming the store's path or the reason, and a save of all groups, may diverge",
                       s.text("error", std::numeric_limits<std::size_t>::max())));
     }
-  }
-
-  // Read from the events alone: one @N past 0 comes after a frame.
-  static bool starts_with_start(const SegmentReader& first) {
-    for (const Entry& e : first.events()) {
-      if (e.frame.id != 0) return false;
-      const auto k = first_word(e.text);
-      if (k == "start") return true;
-      if (!is_skipped(k)) return false;
-    }
-    return false;
   }
 
   std::optional<Side> side_of(const std::string& iface) {
